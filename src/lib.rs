@@ -1,0 +1,39 @@
+//! # polycal
+//!
+//! Simultaneous calibration of an optical polygon and a rotary encoder from the readings
+//! of two (or more) autocollimators — the *two-autocollimator method* of Hsieh, Lin, Yeh
+//! and Watanabe, "Calibration of a Rotary Encoder and a Polygon Using a
+//! Two-Autocollimator Method", Appl. Sci. 2023, 13, 1865 (called "the paper" below).
+//!
+//! The model of one reading (the paper's equation (2), written for any design) is
+//!
+//! ```text
+//! reading = α[p mod N] + φ[face] + U[setup, ac] + (effects) + noise
+//! ```
+//!
+//! with the closure conditions Σα = 0 (eq. (3)) and Σβ = 0 (eq. (1)), where
+//! φ[f] = β[1] + … + β[f] is the face angle deviation and β the pitch deviation.
+//! All angles in this crate are in **arcseconds** unless a name says otherwise.
+//!
+//! Modules, by the concept a metrologist would name:
+//! - [`polygon`]: the polygon's pitch and face deviations, generic over a compile-time
+//!   or run-time number of faces;
+//! - [`measurement`]: readings and the measurement CSV file;
+//! - [`solve`]: the paper's closed form and the general least-squares closure solver;
+//! - [`simulate`]: simulated runs with a known truth;
+//! - [`report`]: the JSON, CSV and table outputs of `polycal solve`;
+//! - [`results`]: the result CSV file (one row per calibrated quantity);
+//! - [`uncertainty`]: GUM uncertainty budgets and Student's t;
+//! - [`compare`]: En numbers between two results.
+
+pub mod compare;
+pub mod measurement;
+pub mod polygon;
+pub mod report;
+pub mod results;
+pub mod simulate;
+pub mod solve;
+pub mod uncertainty;
+
+pub use measurement::{Direction, MeasurementSet, Reading};
+
