@@ -37,3 +37,4 @@ pub mod uncertainty;
 
 pub use measurement::{Direction, MeasurementSet, Reading};
 
+pub use polygon::Polygon;

@@ -1,1 +1,304 @@
-//! (to be written)
+//! The closure solvers: the paper's closed form and a general constrained least squares.
+//!
+//! Both estimate, from a [`MeasurementSet`], the pitch deviations β, the face
+//! deviations φ, the encoder errors α and the setup errors U of the model
+//! (FORMAT.md §1, the paper's eq. (2) written for any design)
+//!
+//! ```text
+//! reading = α[step mod N] + φ[face] + U[setup, ac] + (effects) + noise,   Σα = 0, Σβ = 0.
+//! ```
+//!
+//! - [`closed_form`] is the paper's eqs. (6)–(10) for two autocollimators on adjacent
+//!   faces, generic over nalgebra's dimension (no heap allocation for `Const<N>`);
+//! - [`least_squares`] handles any design a file describes (any number of
+//!   autocollimators at any faces, repeated cycles, closing readings, both directions,
+//!   several mountings) and returns the full covariance;
+//! - [`solve`] picks between them ([`Method::Auto`]) and is the entry point of
+//!   `polycal solve`.
+//!
+//! Before solving, the design is checked for observability ([`observability`]): a design
+//! that cannot determine every β and α is refused with the Fourier harmonics it loses.
+
+pub mod closed_form;
+pub mod least_squares;
+pub mod observability;
+
+pub use closed_form::{ClosedFormSolution, PaperDesign, closed_form};
+pub use least_squares::{least_squares, least_squares_with_regressors};
+pub use observability::{Unobservable, lost_harmonics};
+
+use crate::measurement::MeasurementSet;
+use nalgebra::{DMatrix, DVector, Dyn};
+
+/// Which solver to use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Method {
+    /// The closed form where it gives the least-squares answer (the paper's design with
+    /// the same number of readings at every step and no closing readings), else least
+    /// squares.
+    #[default]
+    Auto,
+    /// The paper's closed form, eqs. (6)–(10); refused for other designs.
+    ClosedForm,
+    /// General constrained least squares.
+    LeastSquares,
+}
+
+impl Method {
+    /// The name used on the command line and in reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Method::Auto => "auto",
+            Method::ClosedForm => "closed-form",
+            Method::LeastSquares => "lsq",
+        }
+    }
+}
+
+/// Options of [`solve`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SolveOptions {
+    /// Solver choice.
+    pub method: Method,
+    /// Standard deviation of one reading, arcsec, stated by the caller (`--sigma`).
+    /// Used for the uncertainties only when the fit has no residual degrees of freedom
+    /// (the bare two-autocollimator cycle is exactly determined); with dof > 0 the
+    /// residual standard deviation is used.
+    pub sigma_arcsec: Option<f64>,
+}
+
+/// Why a measurement set could not be solved.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SolveError {
+    /// The design does not determine every pitch deviation and encoder error.
+    #[error(transparent)]
+    Unobservable(#[from] Unobservable),
+    /// `--method closed-form` on a design it does not cover.
+    #[error("the closed form (paper eqs. (6)–(10)) does not apply: {0}; use --method lsq")]
+    ClosedFormNotApplicable(String),
+    /// An effect regressor has the wrong length or a non-finite value.
+    #[error("effect regressor {index}: {reason}")]
+    BadRegressor {
+        /// Index of the regressor.
+        index: usize,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A stated reading noise that is not a positive finite number.
+    #[error("the stated reading noise must be a positive finite number of arcseconds, got {0}")]
+    BadSigma(f64),
+}
+
+/// Where the standard deviation of one reading, σ, comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SigmaSource {
+    /// √(RSS/dof) of the fit.
+    Residual,
+    /// Stated by the caller (`--sigma`), used because dof = 0.
+    Stated,
+}
+
+/// The setup error of one autocollimator in one mounting, arcsec (generic gauge of
+/// FORMAT.md §1: for the paper's adjacent pair, paper U₁ = U₁ and paper U₂ = U₂ + β[1]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SetupError {
+    /// Polygon mounting.
+    pub setup: u32,
+    /// Autocollimator number.
+    pub ac: u32,
+    /// Estimate, arcsec.
+    pub value: f64,
+}
+
+/// Positions of the quantities in the parameter vector θ = [β (N), α (N), U (K),
+/// effects (E)] that indexes [`Solution::cofactor`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ParameterLayout {
+    /// N.
+    pub faces: usize,
+    /// K, the number of (setup, ac) streams.
+    pub setups: usize,
+    /// E, the number of effect terms.
+    pub effects: usize,
+}
+
+impl ParameterLayout {
+    /// Index of β[face] (face 1-based).
+    pub fn pitch(&self, face: usize) -> usize {
+        face - 1
+    }
+    /// Index of α[position] (position 0-based).
+    pub fn encoder(&self, position: usize) -> usize {
+        self.faces + position
+    }
+    /// Index of the k-th setup error (0-based, in [`Solution::setup_error`] order).
+    pub fn setup(&self, k: usize) -> usize {
+        2 * self.faces + k
+    }
+    /// Index of the e-th effect term (0-based).
+    pub fn effect(&self, e: usize) -> usize {
+        2 * self.faces + self.setups + e
+    }
+    /// Length of θ.
+    pub fn len(&self) -> usize {
+        2 * self.faces + self.setups + self.effects
+    }
+    /// Whether θ is empty (never, for a solved polygon).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// A solved calibration: estimates, residuals and covariance.
+///
+/// All values in arcseconds. Index 0 of `pitch_deviation`/`face_deviation` is face 1;
+/// index p of `encoder_error` is the position p·360°/N.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solution {
+    /// Number of faces N.
+    pub faces: usize,
+    /// The solver that produced it (never [`Method::Auto`]).
+    pub method: Method,
+    /// β[1..=N], Σβ = 0.
+    pub pitch_deviation: Vec<f64>,
+    /// φ[1..=N] (φ[N] = 0).
+    pub face_deviation: Vec<f64>,
+    /// α[0..N), Σα = 0.
+    pub encoder_error: Vec<f64>,
+    /// One per (setup, ac) stream, ascending.
+    pub setup_error: Vec<SetupError>,
+    /// Estimates of the effect terms (regressors), in the order given.
+    pub effect_values: Vec<f64>,
+    /// Reading minus model, in the order of the measurement set.
+    pub residuals: Vec<f64>,
+    /// Number of readings used.
+    pub readings: usize,
+    /// Residual degrees of freedom: readings − (2N − 2 + K + E).
+    pub dof: usize,
+    /// Residual sum of squares, arcsec².
+    pub rss: f64,
+    /// σ of one reading and where it comes from; `None` when dof = 0 and none was stated.
+    pub sigma: Option<(f64, SigmaSource)>,
+    /// Cofactor matrix Q of θ ([`ParameterLayout`]): Cov(θ) = σ²·Q.
+    pub cofactor: DMatrix<f64>,
+    /// Layout of θ.
+    pub layout: ParameterLayout,
+}
+
+impl Solution {
+    /// √(RSS/dof), or `None` when dof = 0 (FORMAT.md §5 `residual_rms`).
+    pub fn residual_rms(&self) -> Option<f64> {
+        (self.dof > 0).then(|| (self.rss / self.dof as f64).sqrt())
+    }
+
+    /// Covariance of θ, arcsec², when σ is known.
+    pub fn covariance(&self) -> Option<DMatrix<f64>> {
+        self.sigma.map(|(s, _)| &self.cofactor * (s * s))
+    }
+
+    fn diagonal_u(&self, start: usize, len: usize) -> Option<Vec<f64>> {
+        let (s, _) = self.sigma?;
+        Some(
+            (start..start + len)
+                .map(|i| s * self.cofactor[(i, i)].max(0.0).sqrt())
+                .collect(),
+        )
+    }
+
+    /// Standard uncertainties u(β) (k = 1), arcsec.
+    pub fn pitch_deviation_u(&self) -> Option<Vec<f64>> {
+        self.diagonal_u(self.layout.pitch(1), self.faces)
+    }
+
+    /// Standard uncertainties u(α) (k = 1), arcsec.
+    pub fn encoder_error_u(&self) -> Option<Vec<f64>> {
+        self.diagonal_u(self.layout.encoder(0), self.faces)
+    }
+
+    /// Standard uncertainties of the setup errors, arcsec.
+    pub fn setup_error_u(&self) -> Option<Vec<f64>> {
+        self.diagonal_u(self.layout.setup(0), self.layout.setups)
+    }
+
+    /// Standard uncertainties of the effect terms.
+    pub fn effect_u(&self) -> Option<Vec<f64>> {
+        self.diagonal_u(self.layout.effect(0), self.layout.effects)
+    }
+
+    /// Standard uncertainties u(φ) of the face deviations, arcsec (φ[N] = 0 exactly,
+    /// so its u is 0): var φ[f] = Σ_{i,j ≤ f} Cov(β_i, β_j).
+    pub fn face_deviation_u(&self) -> Option<Vec<f64>> {
+        let (s, _) = self.sigma?;
+        let n = self.faces;
+        // φ[f] = φ[f−1] + β[f]: var φ[f] = var φ[f−1] + 2 Σ_{j<f} Q[j, f] + Q[f, f]
+        let mut u = Vec::with_capacity(n);
+        let mut var = 0.0;
+        for f in 0..n {
+            let border: f64 = (0..f).map(|j| self.cofactor[(j, f)]).sum();
+            var += 2.0 * border + self.cofactor[(f, f)];
+            u.push(s * var.max(0.0).sqrt());
+        }
+        if let Some(last) = u.last_mut() {
+            *last = 0.0;
+        }
+        Some(u)
+    }
+
+    /// The polygon as a [`crate::polygon::DPolygon`].
+    pub fn polygon(&self) -> crate::polygon::DPolygon {
+        crate::polygon::Polygon::<Dyn>::from_pitch_deviation_closed(DVector::from_column_slice(
+            &self.pitch_deviation,
+        ))
+        .unwrap_or_else(|_| unreachable!("a solution has at least 3 faces and finite values"))
+    }
+}
+
+/// Solves a measurement set with the chosen method (the entry point of `polycal solve`).
+///
+/// ```
+/// use polycal::simulate::{simulate, SimulationConfig};
+/// use polycal::solve::{solve, SolveOptions};
+///
+/// let config = SimulationConfig { noise_arcsec: 0.0, ..SimulationConfig::default() };
+/// let (set, truth) = simulate(&config)?;
+/// let solution = solve(&set, &SolveOptions::default())?;
+/// for (estimate, true_value) in solution.pitch_deviation.iter().zip(&truth.pitch_deviation) {
+///     assert!((estimate - true_value).abs() < 1e-9);
+/// }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn solve(set: &MeasurementSet, options: &SolveOptions) -> Result<Solution, SolveError> {
+    if let Some(s) = options.sigma_arcsec
+        && !(s.is_finite() && s > 0.0)
+    {
+        return Err(SolveError::BadSigma(s));
+    }
+    match options.method {
+        Method::LeastSquares => least_squares(set, options.sigma_arcsec),
+        Method::ClosedForm => match PaperDesign::detect(set) {
+            Ok(design) => Ok(design.solve(set, options.sigma_arcsec)?),
+            Err(reason) => Err(SolveError::ClosedFormNotApplicable(reason)),
+        },
+        Method::Auto => match PaperDesign::detect(set) {
+            Ok(design) => Ok(design.solve(set, options.sigma_arcsec)?),
+            Err(_) => least_squares(set, options.sigma_arcsec),
+        },
+    }
+}
+
+/// σ from the residuals when dof > 0, else the stated σ.
+pub(crate) fn choose_sigma(rss: f64, dof: usize, stated: Option<f64>) -> Option<(f64, SigmaSource)> {
+    if dof > 0 {
+        Some(((rss / dof as f64).sqrt(), SigmaSource::Residual))
+    } else {
+        stated.map(|s| (s, SigmaSource::Stated))
+    }
+}
+
+/// The distinct (setup, ac) streams of a set, ascending.
+pub(crate) fn stream_list(set: &MeasurementSet) -> Vec<(u32, u32)> {
+    let mut streams: Vec<(u32, u32)> = set.readings.iter().map(|r| (r.setup, r.ac)).collect();
+    streams.sort_unstable();
+    streams.dedup();
+    streams
+}

@@ -1,0 +1,256 @@
+//! The paper's closed form, eqs. (6)–(10), for two autocollimators on adjacent faces.
+//!
+//! Autocollimator 1 reads face p+1 and autocollimator 2 face p+2 (wrapping) at step p.
+//! With the differences δ[p] = m₂[p] − m₁[p] of the (mean) readings:
+//!
+//! - eq. (7): β[k] − β[1] = δ[k−2] − δ[N−1] for k = 2 … N;
+//! - eq. (8) with Σβ = 0 (eq. (1)): β[1] = −(1/N) Σ_p (δ[p] − δ[N−1]);
+//! - eqs. (9), (10) with Σα = 0 (eq. (3)): U₁ = (Σm₁ − Σφ)/N, U₂ = (Σm₂ − Σφ)/N
+//!   (generic gauge of FORMAT.md §1: the paper's U₂ is this U₂ + β[1]);
+//! - eqs. (4), (5): α[p] = m₁[p] − φ[p+1] − U₁ = m₂[p] − φ[p+2] − U₂ (identical for exact
+//!   data; the mean of both is used).
+
+use super::least_squares::cumulative;
+use super::observability::stream_offsets;
+use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma, stream_list};
+use crate::measurement::MeasurementSet;
+use crate::polygon::{Polygon, PolygonError};
+use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, OVector, allocator::Allocator};
+
+/// The closed-form result: the polygon, the encoder errors α[0..N) and the setup errors
+/// [U₁, U₂] (generic gauge), all in arcsec.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClosedFormSolution<D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// Pitch and face deviations.
+    pub polygon: Polygon<D>,
+    /// α[p] at the nominal angle p·360°/N.
+    pub encoder_error: OVector<f64, D>,
+    /// Setup errors of autocollimators 1 and 2 (FORMAT.md §1 gauge).
+    pub setup_error: [f64; 2],
+}
+
+/// Solves the paper's design exactly from the per-step readings (or their means over
+/// repeated cycles) of autocollimator 1 (`ac1_reading_arcsec[p]`, face p+1) and
+/// autocollimator 2 (`ac2_reading_arcsec[p]`, face p+2). Generic over the dimension:
+/// for `Const<N>` nothing is allocated on the heap.
+///
+/// ```
+/// use nalgebra::SVector;
+/// use polycal::solve::closed_form;
+///
+/// // readings made from β = [0.5, -0.25, 0.25, -0.5], α = [0.1, -0.2, 0.3, -0.2], U = [1, 2]
+/// let beta = [0.5, -0.25, 0.25, -0.5];
+/// let phi = [0.5, 0.25, 0.5, 0.0];
+/// let alpha = [0.1, -0.2, 0.3, -0.2];
+/// let m1 = SVector::<f64, 4>::from_fn(|p, _| alpha[p] + phi[p] + 1.0);
+/// let m2 = SVector::<f64, 4>::from_fn(|p, _| alpha[p] + phi[(p + 1) % 4] + 2.0);
+/// let solution = closed_form(&m1, &m2)?;
+/// for (estimate, truth) in solution.polygon.pitch_deviation_arcsec().iter().zip(beta) {
+///     assert!((estimate - truth).abs() < 1e-12);
+/// }
+/// assert!((solution.setup_error[1] - 2.0).abs() < 1e-12);
+/// # Ok::<(), polycal::polygon::PolygonError>(())
+/// ```
+pub fn closed_form<D: Dim>(
+    ac1_reading_arcsec: &OVector<f64, D>,
+    ac2_reading_arcsec: &OVector<f64, D>,
+) -> Result<ClosedFormSolution<D>, PolygonError>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    let n = ac1_reading_arcsec.len();
+    if n < 3 || ac2_reading_arcsec.len() != n {
+        return Err(PolygonError::TooFewFaces(n.min(ac2_reading_arcsec.len())));
+    }
+    let m1 = ac1_reading_arcsec;
+    let m2 = ac2_reading_arcsec;
+    let dim = m1.shape_generic().0;
+    let last = m2[n - 1] - m1[n - 1];
+    // eq. (8): Σ_p (δ[p] − δ[N−1]) = −N β[1]
+    let mut sum = 0.0;
+    for p in 0..n {
+        sum += m2[p] - m1[p] - last;
+    }
+    let beta_1 = -sum / n as f64;
+    // eq. (7)
+    let mut beta = OVector::<f64, D>::zeros_generic(dim, Const::<1>);
+    beta[0] = beta_1;
+    for k in 1..n {
+        beta[k] = beta_1 + (m2[k - 1] - m1[k - 1]) - last;
+    }
+    let polygon = Polygon::from_closed_pitch(beta);
+    let phi = polygon.face_deviation_arcsec();
+    let sum_phi: f64 = phi.iter().sum();
+    // eqs. (9), (10) with Σα = 0
+    let u1 = (m1.iter().sum::<f64>() - sum_phi) / n as f64;
+    let u2 = (m2.iter().sum::<f64>() - sum_phi) / n as f64;
+    // eqs. (4), (5)
+    let mut alpha = OVector::<f64, D>::zeros_generic(dim, Const::<1>);
+    for p in 0..n {
+        alpha[p] = 0.5 * ((m1[p] - phi[p] - u1) + (m2[p] - phi[(p + 1) % n] - u2));
+    }
+    Ok(ClosedFormSolution {
+        polygon,
+        encoder_error: alpha,
+        setup_error: [u1, u2],
+    })
+}
+
+/// A measurement set recognised as the paper's design: one mounting, two
+/// autocollimators on adjacent faces, the same number of readings at every step and no
+/// closing readings — the designs on which the closed form is the least-squares answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PaperDesign {
+    /// The (setup, ac) stream that plays autocollimator 1 (reads face p + d + 1).
+    pub first: (u32, u32),
+    /// The stream that plays autocollimator 2 (reads the next face).
+    pub second: (u32, u32),
+    /// Face offset d of the first stream.
+    pub offset: usize,
+    /// Readings per (stream, step).
+    pub repeats: usize,
+}
+
+impl PaperDesign {
+    /// Recognises the design, or says why the closed form does not apply.
+    pub fn detect(set: &MeasurementSet) -> Result<Self, String> {
+        let n = set.faces;
+        let streams = stream_list(set);
+        if streams.len() != 2 || streams[0].0 != streams[1].0 {
+            return Err(format!(
+                "it needs exactly two autocollimators in one mounting, the file has {} (setup, ac) streams",
+                streams.len()
+            ));
+        }
+        let offsets = stream_offsets(set, &streams);
+        let (d_a, d_b) = (offsets[0].1, offsets[1].1);
+        let (first, second, offset) = if (d_b + n - d_a) % n == 1 {
+            (streams[0], streams[1], d_a)
+        } else if (d_a + n - d_b) % n == 1 {
+            (streams[1], streams[0], d_b)
+        } else {
+            return Err("the two autocollimators do not read adjacent faces".into());
+        };
+        if set.readings.iter().any(|r| r.step == n) {
+            return Err("closing readings (step N) make the steps unequally weighted".into());
+        }
+        let mut counts = vec![0usize; 2 * n];
+        for r in &set.readings {
+            let s = usize::from((r.setup, r.ac) == second);
+            counts[s * n + r.step] += 1;
+        }
+        let repeats = counts[0];
+        if repeats == 0 || counts.iter().any(|&c| c != repeats) {
+            return Err("the steps do not all have the same number of readings".into());
+        }
+        Ok(Self {
+            first,
+            second,
+            offset,
+            repeats,
+        })
+    }
+
+    /// θ = [β (N), α (N), U_first, U_second] from the rotated means (q = (p + d) mod N).
+    fn theta(&self, m1: &DVector<f64>, m2: &DVector<f64>) -> Result<Vec<f64>, PolygonError> {
+        let n = m1.len();
+        let solution = closed_form(m1, m2)?;
+        let mut theta = Vec::with_capacity(2 * n + 2);
+        theta.extend(solution.polygon.pitch_deviation_arcsec().iter());
+        theta.extend((0..n).map(|p| solution.encoder_error[(p + self.offset) % n]));
+        theta.extend(solution.setup_error);
+        Ok(theta)
+    }
+
+    /// Solves the set with the closed form: estimates from the per-step means, residuals
+    /// against them, and the covariance by propagating the means through the (linear)
+    /// closed form.
+    pub fn solve(&self, set: &MeasurementSet, stated_sigma: Option<f64>) -> Result<Solution, SolveError> {
+        let n = set.faces;
+        let mut m1 = DVector::<f64>::zeros(n);
+        let mut m2 = DVector::<f64>::zeros(n);
+        for r in &set.readings {
+            let q = (r.step + self.offset) % n;
+            if (r.setup, r.ac) == self.first {
+                m1[q] += r.reading_arcsec;
+            } else {
+                m2[q] += r.reading_arcsec;
+            }
+        }
+        let repeats = self.repeats as f64;
+        m1 /= repeats;
+        m2 /= repeats;
+        let theta = self.theta(&m1, &m2).map_err(|e| {
+            SolveError::ClosedFormNotApplicable(e.to_string())
+        })?;
+        // streams in ascending order for the report
+        let first_is_lower = self.first < self.second;
+        let (u_first, u_second) = (theta[2 * n], theta[2 * n + 1]);
+        let face_deviation = cumulative(&theta[..n]);
+        let residuals: Vec<f64> = set
+            .readings
+            .iter()
+            .map(|r| {
+                let u = if (r.setup, r.ac) == self.first { u_first } else { u_second };
+                r.reading_arcsec - (theta[n + r.step] + face_deviation[r.face - 1] + u)
+            })
+            .collect();
+        let rss: f64 = residuals.iter().map(|r| r * r).sum();
+        let dof = set.readings.len() - 2 * n;
+
+        // Cofactor: θ = L m with m = [m1; m2], Cov(m) = σ²/R I, so Q = L Lᵀ / R.
+        let mut l = DMatrix::<f64>::zeros(2 * n + 2, 2 * n);
+        let mut e1 = DVector::<f64>::zeros(n);
+        let mut e2 = DVector::<f64>::zeros(n);
+        for j in 0..2 * n {
+            e1.fill(0.0);
+            e2.fill(0.0);
+            if j < n {
+                e1[j] = 1.0;
+            } else {
+                e2[j - n] = 1.0;
+            }
+            let column = self
+                .theta(&e1, &e2)
+                .map_err(|e| SolveError::ClosedFormNotApplicable(e.to_string()))?;
+            l.column_mut(j).copy_from_slice(&column);
+        }
+        let mut cofactor = &l * l.transpose() / repeats;
+        if !first_is_lower {
+            // swap the two setup-error rows/columns into ascending stream order
+            cofactor.swap_rows(2 * n, 2 * n + 1);
+            cofactor.swap_columns(2 * n, 2 * n + 1);
+        }
+        let (low, high) = if first_is_lower {
+            ((self.first, u_first), (self.second, u_second))
+        } else {
+            ((self.second, u_second), (self.first, u_first))
+        };
+        Ok(Solution {
+            faces: n,
+            method: Method::ClosedForm,
+            pitch_deviation: theta[..n].to_vec(),
+            face_deviation,
+            encoder_error: theta[n..2 * n].to_vec(),
+            setup_error: [low, high]
+                .into_iter()
+                .map(|((setup, ac), value)| SetupError { setup, ac, value })
+                .collect(),
+            effect_values: Vec::new(),
+            residuals,
+            readings: set.readings.len(),
+            dof,
+            rss,
+            sigma: choose_sigma(rss, dof, stated_sigma),
+            cofactor,
+            layout: ParameterLayout {
+                faces: n,
+                setups: 2,
+                effects: 0,
+            },
+        })
+    }
+}
