@@ -38,3 +38,8 @@ pub mod uncertainty;
 pub use measurement::{Direction, MeasurementSet, Reading};
 
 pub use polygon::Polygon;
+
+/// The README's library example, compiled and run as a doctest so that it stays true.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

@@ -1,1 +1,305 @@
-fn main() {}
+//! `polycal`: the command line over the polycal library. It parses arguments, calls the
+//! library and prints; all logic lives in the library's modules.
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand, ValueEnum};
+use polycal::measurement::MeasurementSet;
+use polycal::report::{self, SolveReport};
+use polycal::simulate::{self, Harmonic, SimulationConfig};
+use polycal::solve::{self, Method, SolveOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Exit status: done, every check passed.
+const EXIT_OK: u8 = 0;
+/// Exit status: an error (usage, refused input, instrument or file failure).
+const EXIT_ERROR: u8 = 2;
+
+#[derive(Parser)]
+#[command(
+    name = "polycal",
+    version,
+    about = "Calibrate an optical polygon and a rotary encoder at once (two-autocollimator method)",
+    long_about = None
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum FormatArg {
+    Table,
+    Json,
+    Csv,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum MethodArg {
+    /// The closed form where it applies, else least squares.
+    Auto,
+    /// The paper's closed form, eqs. (6)-(10).
+    ClosedForm,
+    /// General constrained least squares.
+    Lsq,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Solve measurement files: pitch deviations, encoder errors, setup errors.
+    Solve {
+        /// Measurement CSV files (FORMAT.md §2); `-` reads standard input.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Number of polygon faces (default: the largest face in the file).
+        #[arg(long)]
+        faces: Option<usize>,
+        /// Solver.
+        #[arg(long, value_enum, default_value = "auto")]
+        method: MethodArg,
+        /// Standard deviation of one reading, arcsec, for the uncertainties of an
+        /// exactly determined fit (dof = 0).
+        #[arg(long)]
+        sigma: Option<f64>,
+        /// Output format.
+        #[arg(long, value_enum, default_value = "table")]
+        format: FormatArg,
+    },
+    /// Simulate a measurement run with a known truth.
+    Simulate(SimulateArgs),
+}
+
+#[derive(clap::Args)]
+struct SimulateArgs {
+    /// Number of polygon faces N.
+    #[arg(long, default_value_t = 24)]
+    faces: usize,
+    /// Face read at step 0 by each autocollimator (the paper: 1,2).
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    ac_faces: Vec<usize>,
+    /// Number of polygon mountings (shift-angle data).
+    #[arg(long, default_value_t = 1)]
+    setups: u32,
+    /// Whole faces the polygon is turned between mountings.
+    #[arg(long, default_value_t = 1)]
+    setup_shift: usize,
+    /// Number of cycles.
+    #[arg(long, default_value_t = 6)]
+    cycles: u32,
+    /// Add the closing reading (step N) to every cycle.
+    #[arg(long)]
+    closing: bool,
+    /// Run every second cycle counter-clockwise (implies --closing).
+    #[arg(long)]
+    bidirectional: bool,
+    /// Reading noise (standard deviation), arcsec.
+    #[arg(long, default_value_t = 0.05)]
+    noise: f64,
+    /// Spread (standard deviation) of the pitch deviations, arcsec.
+    #[arg(long, default_value_t = 0.5)]
+    pitch_spread: f64,
+    /// Encoder error harmonic ORDER:AMPLITUDE[:PHASE] (arcsec, radians); repeatable.
+    /// Default: 1:0.6:0.4 2:0.35:1.3 3:0.2:2.2 5:0.1:0.7.
+    #[arg(long = "harmonic")]
+    harmonics: Vec<String>,
+    /// Spread of the setup errors, arcsec.
+    #[arg(long, default_value_t = 0.5)]
+    setup_spread: f64,
+    /// Seconds per table stop.
+    #[arg(long, default_value_t = 20.0)]
+    step_seconds: f64,
+    /// Random seed (same seed, same bytes).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Zero drift AC:RATE (arcsec per hour); repeatable.
+    #[arg(long)]
+    drift: Vec<String>,
+    /// Zero jump AC:CYCLE:VALUE from that cycle on; repeatable.
+    #[arg(long)]
+    offset_step: Vec<String>,
+    /// Counter-clockwise offset [AC:]VALUE; repeatable.
+    #[arg(long)]
+    direction: Vec<String>,
+    /// One bad reading CYCLE:STEP:AC:VALUE; repeatable.
+    #[arg(long)]
+    outlier: Vec<String>,
+    /// Where to write the measurement CSV (default: standard output).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Where to write the truth JSON (FORMAT.md §4).
+    #[arg(long)]
+    truth_out: Option<PathBuf>,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let outcome = match cli.command {
+        Command::Solve {
+            files,
+            faces,
+            method,
+            sigma,
+            format,
+        } => run_solve(&files, faces, method, sigma, format),
+        Command::Simulate(args) => run_simulate(&args).map(|()| EXIT_OK),
+    };
+    match outcome {
+        Ok(code) => ExitCode::from(code),
+        Err(error) => {
+            eprintln!("error: {}", one_line(&error));
+            ExitCode::from(EXIT_ERROR)
+        }
+    }
+}
+
+/// The error and its causes on one line.
+fn one_line(error: &anyhow::Error) -> String {
+    error
+        .chain()
+        .map(|e| e.to_string())
+        .collect::<Vec<_>>()
+        .join(": ")
+}
+
+fn display_name(path: &Path) -> String {
+    path.display().to_string()
+}
+
+fn run_solve(
+    files: &[PathBuf],
+    faces: Option<usize>,
+    method: MethodArg,
+    sigma: Option<f64>,
+    format: FormatArg,
+) -> Result<u8> {
+    let options = SolveOptions {
+        method: match method {
+            MethodArg::Auto => Method::Auto,
+            MethodArg::ClosedForm => Method::ClosedForm,
+            MethodArg::Lsq => Method::LeastSquares,
+        },
+        sigma_arcsec: sigma,
+    };
+    let several = files.len() > 1;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    let mut failures = 0;
+    let mut csv_rows = Vec::new();
+    for path in files {
+        let name = display_name(path);
+        let solved = MeasurementSet::read_path(path, faces)
+            .map_err(anyhow::Error::from)
+            .and_then(|set| {
+                solve::solve(&set, &options)
+                    .with_context(|| format!("{name}: cannot solve"))
+                    .map(|solution| (set, solution))
+            });
+        let (_, solution) = match solved {
+            Ok(pair) => pair,
+            Err(error) => {
+                eprintln!("error: {}", one_line(&error));
+                failures += 1;
+                continue;
+            }
+        };
+        match format {
+            FormatArg::Json => {
+                let report = SolveReport::new(&solution, several.then(|| name.clone()));
+                writeln!(out, "{}", report.to_json())?;
+            }
+            FormatArg::Table => {
+                if several {
+                    writeln!(out)?;
+                }
+                write!(out, "{}", report::render_table(&solution, &name))?;
+            }
+            FormatArg::Csv => {
+                let rows = report::result_rows(&solution);
+                csv_rows.push((name, rows));
+            }
+        }
+    }
+    if matches!(format, FormatArg::Csv) && !csv_rows.is_empty() {
+        if several {
+            polycal::results::write_results_with_file(&mut out, &csv_rows)?;
+        } else {
+            polycal::results::write_results(&mut out, &csv_rows[0].1)?;
+        }
+    }
+    out.flush()?;
+    if failures > 0 {
+        if several {
+            bail!("{failures} of {} files could not be solved", files.len());
+        }
+        return Ok(EXIT_ERROR);
+    }
+    Ok(EXIT_OK)
+}
+
+fn run_simulate(args: &SimulateArgs) -> Result<()> {
+    let mut effects = Vec::new();
+    for (kind, specs) in [
+        ("drift", &args.drift),
+        ("offset-step", &args.offset_step),
+        ("direction", &args.direction),
+        ("outlier", &args.outlier),
+    ] {
+        for spec in specs {
+            effects.push(
+                polycal::effects::Effect::parse_spec(kind, spec)
+                    .map_err(|message| anyhow::anyhow!("--{kind} {spec}: {message}"))?,
+            );
+        }
+    }
+    let encoder_harmonics = if args.harmonics.is_empty() {
+        SimulationConfig::default().encoder_harmonics
+    } else {
+        args.harmonics
+            .iter()
+            .map(|spec| {
+                spec.parse::<Harmonic>()
+                    .map_err(|message| anyhow::anyhow!("--harmonic {spec}: {message}"))
+            })
+            .collect::<Result<Vec<_>>>()?
+    };
+    let config = SimulationConfig {
+        faces: args.faces,
+        ac_faces: args.ac_faces.clone(),
+        setups: args.setups,
+        setup_shift_faces: args.setup_shift,
+        cycles: args.cycles,
+        closing: args.closing || args.bidirectional,
+        bidirectional: args.bidirectional,
+        noise_arcsec: args.noise,
+        pitch_spread_arcsec: args.pitch_spread,
+        encoder_harmonics,
+        setup_error_spread_arcsec: args.setup_spread,
+        step_seconds: args.step_seconds,
+        effects,
+        seed: args.seed,
+    };
+    let (set, truth) = simulate::simulate(&config)?;
+    let comments = vec![format!(
+        "polycal {} simulate: {} faces, ac faces {:?}, {} cycles, noise {} arcsec, seed {}",
+        env!("CARGO_PKG_VERSION"),
+        config.faces,
+        config.ac_faces,
+        config.cycles,
+        config.noise_arcsec,
+        config.seed
+    )];
+    match &args.out {
+        Some(path) => set.write_path(path, &comments)?,
+        None => {
+            let stdout = std::io::stdout();
+            set.write_to(stdout.lock(), &comments)
+                .context("cannot write to standard output")?;
+        }
+    }
+    if let Some(path) = &args.truth_out {
+        std::fs::write(path, truth.to_json_pretty() + "\n")
+            .with_context(|| format!("{}: cannot write the truth", path.display()))?;
+    }
+    Ok(())
+}
