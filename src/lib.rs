@@ -27,6 +27,7 @@
 //! - [`compare`]: En numbers between two results.
 
 pub mod compare;
+pub mod effects;
 pub mod measurement;
 pub mod polygon;
 pub mod report;

@@ -1,0 +1,292 @@
+//! Effects: terms the base model lacks (FORMAT.md §6).
+//!
+//! Every effect is *linear in its value*: it adds `value * x(reading)` to a reading, where
+//! the regressor `x` ([`Effect::regressor`]) depends only on the reading's bookkeeping
+//! (autocollimator, cycle, step, direction, time), never on the true angles. The simulator
+//! uses this to put effects into simulated data, and a least-squares diagnosis can use the
+//! same regressor as an extra column of its design matrix.
+//!
+//! In JSON an effect is an object with a `kind` and a `value`, plus the fields its kind
+//! needs, exactly as in FORMAT.md §6:
+//!
+//! ```text
+//! {"kind": "drift", "ac": 1, "value": 0.3}
+//! {"kind": "offset-step", "ac": 2, "cycle": 4, "value": 0.5}
+//! {"kind": "direction", "value": 0.2}                (or with "ac")
+//! {"kind": "outlier", "cycle": 3, "step": 7, "ac": 1, "value": 2.0}   (optional "setup")
+//! ```
+//!
+//! Extra fields (such as a fit's `u`) are ignored when reading.
+
+use std::fmt;
+
+use serde::{Deserialize, Serialize};
+
+use crate::measurement::{Direction, Reading};
+
+/// One effect term, with its value in arcseconds (per hour for a drift).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum Effect {
+    /// Zero drift of autocollimator `ac`, `value` arcseconds per hour, linear in the
+    /// reading's `time` (zero at time 0).
+    Drift {
+        /// Autocollimator number (≥ 1).
+        ac: u32,
+        /// Drift rate, arcsec per hour.
+        value: f64,
+    },
+    /// A jump of autocollimator `ac`'s zero by `value` arcseconds, from cycle `cycle` on
+    /// (that cycle included). Cycle numbers restart in every setup, so with several setups
+    /// the jump applies from that cycle on in each of them.
+    OffsetStep {
+        /// Autocollimator number (≥ 1).
+        ac: u32,
+        /// First cycle with the new zero (≥ 1).
+        cycle: u32,
+        /// Size of the jump, arcsec.
+        value: f64,
+    },
+    /// Offset of counter-clockwise readings against clockwise ones (ccw minus cw), of one
+    /// autocollimator when `ac` is given, else of all.
+    Direction {
+        /// Autocollimator number, or `None` for every autocollimator.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        ac: Option<u32>,
+        /// ccw minus cw offset, arcsec.
+        value: f64,
+    },
+    /// One bad reading: reading minus model is `value` arcseconds. With `setup` `None` it
+    /// matches the reading of that cycle, step and autocollimator in any setup.
+    Outlier {
+        /// Cycle number (≥ 1).
+        cycle: u32,
+        /// Table stop 0 … N.
+        step: usize,
+        /// Autocollimator number (≥ 1).
+        ac: u32,
+        /// Setup number, or `None` for any setup.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        setup: Option<u32>,
+        /// Reading minus model, arcsec.
+        value: f64,
+    },
+}
+
+/// The effect kinds, as spelled in files and on the command line.
+pub const KINDS: [&str; 4] = ["drift", "offset-step", "direction", "outlier"];
+
+impl Effect {
+    /// The regressor x(reading): the effect adds `value * x` to that reading.
+    ///
+    /// - drift: the reading's time in hours for that autocollimator (0 when the reading
+    ///   has no time, and for other autocollimators);
+    /// - offset-step: 1 for that autocollimator from that cycle on, else 0;
+    /// - direction: 1 for `ccw` readings (of that autocollimator if given), else 0;
+    /// - outlier: 1 for that one reading, else 0.
+    pub fn regressor(&self, reading: &Reading) -> f64 {
+        let hit = |b: bool| if b { 1.0 } else { 0.0 };
+        match *self {
+            Effect::Drift { ac, .. } => {
+                if reading.ac == ac {
+                    reading.time_seconds.map_or(0.0, |t| t / 3600.0)
+                } else {
+                    0.0
+                }
+            }
+            Effect::OffsetStep { ac, cycle, .. } => hit(reading.ac == ac && reading.cycle >= cycle),
+            Effect::Direction { ac, .. } => {
+                hit(reading.direction == Direction::Ccw && ac.is_none_or(|ac| reading.ac == ac))
+            }
+            Effect::Outlier {
+                cycle,
+                step,
+                ac,
+                setup,
+                ..
+            } => hit(reading.cycle == cycle
+                && reading.step == step
+                && reading.ac == ac
+                && setup.is_none_or(|s| reading.setup == s)),
+        }
+    }
+
+    /// The effect's value: arcsec per hour for a drift, arcsec otherwise.
+    pub fn value(&self) -> f64 {
+        match *self {
+            Effect::Drift { value, .. }
+            | Effect::OffsetStep { value, .. }
+            | Effect::Direction { value, .. }
+            | Effect::Outlier { value, .. } => value,
+        }
+    }
+
+    /// The same effect with another value (e.g. a fitted one).
+    pub fn with_value(mut self, new_value: f64) -> Effect {
+        match &mut self {
+            Effect::Drift { value, .. }
+            | Effect::OffsetStep { value, .. }
+            | Effect::Direction { value, .. }
+            | Effect::Outlier { value, .. } => *value = new_value,
+        }
+        self
+    }
+
+    /// The kind as spelled in files: `drift`, `offset-step`, `direction` or `outlier`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Effect::Drift { .. } => KINDS[0],
+            Effect::OffsetStep { .. } => KINDS[1],
+            Effect::Direction { .. } => KINDS[2],
+            Effect::Outlier { .. } => KINDS[3],
+        }
+    }
+
+    /// Parses a command-line spec of an effect of kind `kind` (one of [`KINDS`]):
+    ///
+    /// | kind | spec | example |
+    /// |---|---|---|
+    /// | `drift` | `AC:RATE` (arcsec per hour) | `1:0.3` |
+    /// | `offset-step` | `AC:CYCLE:VALUE` | `2:4:0.5` |
+    /// | `direction` | `VALUE` or `AC:VALUE` | `0.2`, `1:0.2` |
+    /// | `outlier` | `CYCLE:STEP:AC:VALUE` or `SETUP:CYCLE:STEP:AC:VALUE` | `3:7:1:2.0` |
+    ///
+    /// Autocollimator, cycle and setup numbers start at 1; values must be finite numbers.
+    /// Bad input gives an error text naming the kind, the spec and the faulty part.
+    ///
+    /// ```
+    /// use polycal::effects::Effect;
+    /// let e = Effect::parse_spec("offset-step", "2:4:0.5").unwrap();
+    /// assert_eq!(e, Effect::OffsetStep { ac: 2, cycle: 4, value: 0.5 });
+    /// assert!(Effect::parse_spec("drift", "1").is_err());
+    /// ```
+    pub fn parse_spec(kind: &str, spec: &str) -> Result<Effect, String> {
+        let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
+        let n = parts.len();
+        let ctx = |msg: String, form: &str| -> String {
+            format!("{kind} effect \"{spec}\": {msg} (expected {form})")
+        };
+        match kind {
+            "drift" => {
+                let form = "AC:RATE, e.g. 1:0.3";
+                if n != 2 {
+                    return Err(ctx(count_msg(n, 2), form));
+                }
+                Ok(Effect::Drift {
+                    ac: number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?,
+                    value: finite("RATE", parts[1]).map_err(|m| ctx(m, form))?,
+                })
+            }
+            "offset-step" => {
+                let form = "AC:CYCLE:VALUE, e.g. 2:4:0.5";
+                if n != 3 {
+                    return Err(ctx(count_msg(n, 3), form));
+                }
+                Ok(Effect::OffsetStep {
+                    ac: number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?,
+                    cycle: number_from_1("CYCLE", parts[1]).map_err(|m| ctx(m, form))?,
+                    value: finite("VALUE", parts[2]).map_err(|m| ctx(m, form))?,
+                })
+            }
+            "direction" => {
+                let form = "VALUE or AC:VALUE, e.g. 0.2 or 1:0.2";
+                match n {
+                    1 => Ok(Effect::Direction {
+                        ac: None,
+                        value: finite("VALUE", parts[0]).map_err(|m| ctx(m, form))?,
+                    }),
+                    2 => Ok(Effect::Direction {
+                        ac: Some(number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?),
+                        value: finite("VALUE", parts[1]).map_err(|m| ctx(m, form))?,
+                    }),
+                    _ => Err(ctx(
+                        format!("{n} parts separated by ':', want 1 or 2"),
+                        form,
+                    )),
+                }
+            }
+            "outlier" => {
+                let form = "CYCLE:STEP:AC:VALUE or SETUP:CYCLE:STEP:AC:VALUE, e.g. 3:7:1:2.0";
+                let (setup, rest) = match n {
+                    4 => (None, &parts[..]),
+                    5 => (
+                        Some(number_from_1("SETUP", parts[0]).map_err(|m| ctx(m, form))?),
+                        &parts[1..],
+                    ),
+                    _ => {
+                        return Err(ctx(
+                            format!("{n} parts separated by ':', want 4 or 5"),
+                            form,
+                        ));
+                    }
+                };
+                Ok(Effect::Outlier {
+                    cycle: number_from_1("CYCLE", rest[0]).map_err(|m| ctx(m, form))?,
+                    step: rest[1].parse::<usize>().map_err(|_| {
+                        ctx(
+                            format!("STEP \"{}\" is not a whole number ≥ 0", rest[1]),
+                            form,
+                        )
+                    })?,
+                    ac: number_from_1("AC", rest[2]).map_err(|m| ctx(m, form))?,
+                    setup,
+                    value: finite("VALUE", rest[3]).map_err(|m| ctx(m, form))?,
+                })
+            }
+            _ => Err(format!(
+                "unknown effect kind \"{kind}\" (known kinds: {})",
+                KINDS.join(", ")
+            )),
+        }
+    }
+}
+
+impl fmt::Display for Effect {
+    /// A one-line description for people, e.g. `offset-step of ac 2 from cycle 4: 0.5"`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Effect::Drift { ac, value } => write!(f, "drift of ac {ac}: {value}\"/h"),
+            Effect::OffsetStep { ac, cycle, value } => {
+                write!(f, "offset-step of ac {ac} from cycle {cycle}: {value}\"")
+            }
+            Effect::Direction {
+                ac: Some(ac),
+                value,
+            } => {
+                write!(f, "direction (ccw − cw) of ac {ac}: {value}\"")
+            }
+            Effect::Direction { ac: None, value } => write!(f, "direction (ccw − cw): {value}\""),
+            Effect::Outlier {
+                cycle,
+                step,
+                ac,
+                setup,
+                value,
+            } => {
+                write!(f, "outlier at ")?;
+                if let Some(s) = setup {
+                    write!(f, "setup {s}, ")?;
+                }
+                write!(f, "cycle {cycle}, step {step}, ac {ac}: {value}\"")
+            }
+        }
+    }
+}
+
+fn count_msg(got: usize, want: usize) -> String {
+    format!("{got} part(s) separated by ':', want {want}")
+}
+
+fn number_from_1(name: &str, text: &str) -> Result<u32, String> {
+    match text.parse::<u32>() {
+        Ok(v) if v >= 1 => Ok(v),
+        _ => Err(format!("{name} \"{text}\" is not a whole number ≥ 1")),
+    }
+}
+
+fn finite(name: &str, text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("{name} \"{text}\" is not a finite number")),
+    }
+}

@@ -1,0 +1,366 @@
+//! The settings of a simulated run: design, true-value spreads, noise, effects and seed.
+
+use std::collections::HashSet;
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use super::SimulateError;
+use crate::effects::Effect;
+
+/// Largest number of readings a simulated run may have (a guard against absurd settings).
+pub const MAX_READINGS: usize = 50_000_000;
+
+/// One Fourier harmonic of the true encoder error:
+/// `amplitude_arcsec · cos(2π·order·p/N + phase_rad)` at position p.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Harmonic {
+    /// Harmonic order k (≥ 1): k undulations per turn.
+    pub order: usize,
+    /// Amplitude, arcsec.
+    pub amplitude_arcsec: f64,
+    /// Phase, radians.
+    pub phase_rad: f64,
+}
+
+impl Harmonic {
+    /// The harmonic's value at position `p` of `faces` positions.
+    pub fn value_at(&self, p: usize, faces: usize) -> f64 {
+        let x = std::f64::consts::TAU * (self.order as f64) * (p as f64) / (faces as f64);
+        self.amplitude_arcsec * (x + self.phase_rad).cos()
+    }
+}
+
+impl FromStr for Harmonic {
+    type Err = String;
+
+    /// Parses `ORDER:AMPLITUDE:PHASE` (order ≥ 1, amplitude in arcsec, phase in radians;
+    /// `:PHASE` may be left out for phase 0), e.g. `2:0.35:1.3` or `1:0.6`.
+    fn from_str(s: &str) -> Result<Harmonic, String> {
+        let form = "ORDER:AMPLITUDE[:PHASE], e.g. 2:0.35:1.3";
+        let parts: Vec<&str> = s.split(':').map(str::trim).collect();
+        if !(2..=3).contains(&parts.len()) {
+            return Err(format!(
+                "harmonic \"{s}\": {} part(s) separated by ':', want 2 or 3 (expected {form})",
+                parts.len()
+            ));
+        }
+        let order = match parts[0].parse::<usize>() {
+            Ok(k) if k >= 1 => k,
+            _ => {
+                return Err(format!(
+                    "harmonic \"{s}\": ORDER \"{}\" is not a whole number ≥ 1 (expected {form})",
+                    parts[0]
+                ));
+            }
+        };
+        let number = |name: &str, text: &str| match text.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            _ => Err(format!(
+                "harmonic \"{s}\": {name} \"{text}\" is not a finite number (expected {form})"
+            )),
+        };
+        let amplitude_arcsec = number("AMPLITUDE", parts[1])?;
+        let phase_rad = match parts.get(2) {
+            Some(text) => number("PHASE", text)?,
+            None => 0.0,
+        };
+        Ok(Harmonic {
+            order,
+            amplitude_arcsec,
+            phase_rad,
+        })
+    }
+}
+
+impl fmt::Display for Harmonic {
+    /// `ORDER:AMPLITUDE:PHASE`, readable back by [`Harmonic::from_str`].
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}:{}:{}",
+            self.order, self.amplitude_arcsec, self.phase_rad
+        )
+    }
+}
+
+/// Settings of a simulated run.
+///
+/// The design: `faces` N, the autocollimators (`ac_faces[j-1]` is the face autocollimator
+/// j reads at step 0 of setup 1), `setups` mountings of the polygon, each turned by
+/// `setup_shift_faces` faces against the previous one, `cycles` repeats per setup, with
+/// or without the `closing` reading at step N, and optionally `bidirectional`.
+///
+/// The truth: pitch deviations drawn with spread `pitch_spread_arcsec`, the encoder error
+/// made of `encoder_harmonics`, setup errors drawn with spread
+/// `setup_error_spread_arcsec`, and `effects`. The readings: noise of standard deviation
+/// `noise_arcsec`, one stop every `step_seconds`. Everything random comes from `seed`.
+///
+/// At step p of setup s, autocollimator j reads face
+/// `((ac_faces[j-1] − 1) + (s − 1)·setup_shift_faces + p) mod N + 1`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SimulationConfig {
+    /// Number of polygon faces N (= encoder positions), ≥ 3.
+    pub faces: usize,
+    /// Face read by each autocollimator at step 0 of setup 1 (1 … N, distinct); its
+    /// length is the number of autocollimators. The paper's design is `[1, 2]`.
+    pub ac_faces: Vec<usize>,
+    /// Number of mountings of the polygon, ≥ 1, measured one after the other.
+    pub setups: u32,
+    /// Whole-face shift of the polygon between consecutive setups, 0 … N−1.
+    pub setup_shift_faces: usize,
+    /// Number of cycles per setup, ≥ 1.
+    pub cycles: u32,
+    /// Whether clockwise cycles end with the closing reading at step N.
+    pub closing: bool,
+    /// Whether every second cycle (2, 4, …) runs counter-clockwise, steps N … 0 (the
+    /// closing reading is then taken in every cycle).
+    pub bidirectional: bool,
+    /// Standard deviation of the reading noise, arcsec, ≥ 0.
+    pub noise_arcsec: f64,
+    /// Standard deviation of the drawn pitch deviations, arcsec, ≥ 0.
+    pub pitch_spread_arcsec: f64,
+    /// Harmonics making up the true encoder error (its mean is removed).
+    pub encoder_harmonics: Vec<Harmonic>,
+    /// Standard deviation of the drawn setup errors, arcsec, ≥ 0.
+    pub setup_error_spread_arcsec: f64,
+    /// Time between consecutive stops, seconds, > 0.
+    pub step_seconds: f64,
+    /// Effects added to the readings (FORMAT.md §6).
+    pub effects: Vec<Effect>,
+    /// Seed of the random draws.
+    pub seed: u64,
+}
+
+impl Default for SimulationConfig {
+    /// The paper's design: 24 faces, autocollimators on faces 1 and 2, one setup, 6
+    /// clockwise cycles with closing reading, noise 0.05″, pitch spread 0.5″, an encoder
+    /// error of about ±1″ (harmonics 1:0.6:0.4, 2:0.35:1.3, 3:0.2:2.2, 5:0.1:0.7), setup
+    /// spread 0.5″, 20 s per stop, no effects, seed 1.
+    fn default() -> Self {
+        let h = |order, amplitude_arcsec, phase_rad| Harmonic {
+            order,
+            amplitude_arcsec,
+            phase_rad,
+        };
+        SimulationConfig {
+            faces: 24,
+            ac_faces: vec![1, 2],
+            setups: 1,
+            setup_shift_faces: 1,
+            cycles: 6,
+            closing: true,
+            bidirectional: false,
+            noise_arcsec: 0.05,
+            pitch_spread_arcsec: 0.5,
+            encoder_harmonics: vec![
+                h(1, 0.6, 0.4),
+                h(2, 0.35, 1.3),
+                h(3, 0.2, 2.2),
+                h(5, 0.1, 0.7),
+            ],
+            setup_error_spread_arcsec: 0.5,
+            step_seconds: 20.0,
+            effects: Vec::new(),
+            seed: 1,
+        }
+    }
+}
+
+impl SimulationConfig {
+    /// Number of autocollimators (`ac_faces.len()`).
+    pub fn ac_count(&self) -> usize {
+        self.ac_faces.len()
+    }
+
+    /// Whether the closing reading (step N) is taken in every cycle.
+    pub fn has_closing(&self) -> bool {
+        self.closing || self.bidirectional
+    }
+
+    /// Stops per cycle: N + 1 with the closing reading, else N.
+    pub fn stops_per_cycle(&self) -> usize {
+        if self.has_closing() {
+            self.faces + 1
+        } else {
+            self.faces
+        }
+    }
+
+    /// Number of readings of the run: setups · cycles · stops per cycle · autocollimators.
+    pub fn reading_count(&self) -> usize {
+        (self.setups as usize)
+            .saturating_mul(self.cycles as usize)
+            .saturating_mul(self.stops_per_cycle())
+            .saturating_mul(self.ac_count())
+    }
+
+    /// The face autocollimator `ac` (1-based) reads at `step` of `setup` (1-based):
+    /// `((ac_faces[ac-1] − 1) + (setup − 1)·setup_shift_faces + step) mod N + 1`.
+    /// Call on a valid configuration only ([`SimulationConfig::validate`]); returns 0 for an
+    /// autocollimator that does not exist.
+    pub fn face_at(&self, setup: u32, ac: u32, step: usize) -> usize {
+        let n = self.faces;
+        let Some(&f0) = (ac as usize)
+            .checked_sub(1)
+            .and_then(|j| self.ac_faces.get(j))
+        else {
+            return 0;
+        };
+        let shift = ((setup.saturating_sub(1) as usize) % n) * (self.setup_shift_faces % n) % n;
+        ((f0 + n - 1) % n + shift + step % n) % n + 1
+    }
+
+    /// Checks the settings; the error names the first problem found.
+    ///
+    /// Refused: faces < 3; no autocollimator, a face outside 1 … N or the same face twice
+    /// in `ac_faces`; setups or cycles 0; a shift ≥ N; a negative or non-finite spread or
+    /// noise; a step time that is not positive and finite; a harmonic of order 0 or with
+    /// a non-finite number; a run of more than [`MAX_READINGS`] readings; an effect that
+    /// is not finite or names an autocollimator, setup, cycle or step the run does not
+    /// have, a direction effect without `bidirectional`, and an outlier without a setup
+    /// when there are several setups.
+    pub fn validate(&self) -> Result<(), SimulateError> {
+        let bad = |m: String| Err(SimulateError::Config(m));
+        let n = self.faces;
+        if n < 3 {
+            return bad(format!("faces is {n}; a polygon needs at least 3 faces"));
+        }
+        if self.ac_faces.is_empty() {
+            return bad("no autocollimator (ac_faces is empty)".into());
+        }
+        let mut seen = HashSet::new();
+        for (j, &f) in self.ac_faces.iter().enumerate() {
+            if !(1..=n).contains(&f) {
+                return bad(format!(
+                    "autocollimator {} reads face {f} at step 0, outside 1 … {n}",
+                    j + 1
+                ));
+            }
+            if !seen.insert(f) {
+                return bad(format!(
+                    "autocollimator {} reads face {f} at step 0, like an earlier one",
+                    j + 1
+                ));
+            }
+        }
+        if self.setups == 0 {
+            return bad("setups is 0; need at least 1".into());
+        }
+        if self.setup_shift_faces >= n {
+            return bad(format!(
+                "setup shift of {} faces; must be 0 … {}",
+                self.setup_shift_faces,
+                n - 1
+            ));
+        }
+        if self.cycles == 0 {
+            return bad("cycles is 0; need at least 1".into());
+        }
+        for (name, v) in [
+            ("noise", self.noise_arcsec),
+            ("pitch spread", self.pitch_spread_arcsec),
+            ("setup error spread", self.setup_error_spread_arcsec),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} is {v}; must be a finite number ≥ 0"));
+            }
+        }
+        if !(self.step_seconds.is_finite() && self.step_seconds > 0.0) {
+            return bad(format!(
+                "step time is {} s; must be a finite number > 0",
+                self.step_seconds
+            ));
+        }
+        for h in &self.encoder_harmonics {
+            if h.order == 0 {
+                return bad(format!(
+                    "encoder harmonic {h} has order 0; orders start at 1"
+                ));
+            }
+            if !(h.amplitude_arcsec.is_finite() && h.phase_rad.is_finite()) {
+                return bad(format!("encoder harmonic {h} is not finite"));
+            }
+        }
+        let count = self.reading_count();
+        if count > MAX_READINGS {
+            return bad(format!(
+                "the run would have {count} readings, more than {MAX_READINGS}"
+            ));
+        }
+        for e in &self.effects {
+            self.check_effect(e)
+                .map_err(|m| SimulateError::Config(format!("effect {}: {m}", effect_json(e))))?;
+        }
+        Ok(())
+    }
+
+    /// Checks that an effect is finite and names only things this run has.
+    pub(super) fn check_effect(&self, e: &Effect) -> Result<(), String> {
+        if !e.value().is_finite() {
+            return Err("value is not finite".into());
+        }
+        let n_ac = self.ac_count();
+        let check_ac = |ac: u32| {
+            if ac == 0 || ac as usize > n_ac {
+                Err(format!("no autocollimator {ac}; the run has 1 … {n_ac}"))
+            } else {
+                Ok(())
+            }
+        };
+        let check_cycle = |c: u32| {
+            if c == 0 || c > self.cycles {
+                Err(format!("no cycle {c}; the run has 1 … {}", self.cycles))
+            } else {
+                Ok(())
+            }
+        };
+        match *e {
+            Effect::Drift { ac, .. } => check_ac(ac),
+            Effect::OffsetStep { ac, cycle, .. } => {
+                check_ac(ac)?;
+                check_cycle(cycle)
+            }
+            Effect::Direction { ac, .. } => {
+                if let Some(ac) = ac {
+                    check_ac(ac)?;
+                }
+                if !self.bidirectional || self.cycles < 2 {
+                    return Err("no counter-clockwise cycle in this run (needs bidirectional and at least 2 cycles)".into());
+                }
+                Ok(())
+            }
+            Effect::Outlier {
+                cycle,
+                step,
+                ac,
+                setup,
+                ..
+            } => {
+                check_ac(ac)?;
+                check_cycle(cycle)?;
+                let last = self.stops_per_cycle() - 1;
+                if step > last {
+                    return Err(format!("no step {step}; the run has 0 … {last}"));
+                }
+                match setup {
+                    Some(s) if s == 0 || s > self.setups => {
+                        Err(format!("no setup {s}; the run has 1 … {}", self.setups))
+                    }
+                    None if self.setups > 1 => Err(format!(
+                        "the run has {} setups; say which one the outlier is in",
+                        self.setups
+                    )),
+                    _ => Ok(()),
+                }
+            }
+        }
+    }
+}
+
+/// An effect as compact JSON, for messages.
+pub(super) fn effect_json(e: &Effect) -> String {
+    serde_json::to_string(e).unwrap_or_else(|_| format!("{e:?}"))
+}

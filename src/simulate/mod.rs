@@ -1,0 +1,197 @@
+//! Simulated measurement runs with a known truth.
+//!
+//! [`simulate`] draws the true values ([`Truth`]) for a [`SimulationConfig`] and the
+//! readings a run of that design would give, following the model of FORMAT.md §1:
+//!
+//! ```text
+//! reading = α[step mod N] + φ[face] + U[setup, ac] + Σ effect.value · effect.regressor + noise
+//! ```
+//!
+//! # The run
+//!
+//! Setups are measured one after the other (setup 1 first); each has cycles 1 … R in
+//! time order. A clockwise cycle visits steps 0, 1, …, N−1, then N when `closing`; with
+//! `bidirectional`, cycles 2, 4, … are counter-clockwise and visit steps N, N−1, …, 0
+//! (every cycle then has the closing reading). At every stop every autocollimator gives
+//! one reading: autocollimator j reads face
+//! `((ac_faces[j-1] − 1) + (setup − 1)·setup_shift_faces + step) mod N + 1`.
+//!
+//! Readings are ordered by time, then autocollimator. `time_seconds` is the number of
+//! stops before this one (over the whole run, across cycles and setups) times
+//! `step_seconds`, shared by the autocollimators of one stop, starting at 0.
+//! `encoder_degrees` is the commanded position step·360/N (360 at the closing step);
+//! `reading_y_arcsec` and `temperature_celsius` are `None`; `line` is 0.
+//!
+//! # Reproducibility
+//!
+//! Everything random comes from `ChaCha8Rng::seed_from_u64(config.seed)`: the truth from
+//! its stream 0 ([`Truth::draw`] documents the order), the noise from its stream 1, one
+//! standard normal per reading in row order, drawn even when the noise is 0. The same
+//! configuration therefore gives the same readings and truth bit for bit (with the same
+//! versions of `rand_chacha` and `rand_distr`), and `simulate(c)` equals
+//! `Truth::draw(c)` followed by `simulate_with_truth(c, &truth)`. Because the noise has
+//! its own stream, a different spread or harmonic changes the truth but not the noise.
+
+mod config;
+mod truth;
+
+use std::path::PathBuf;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+pub use config::{Harmonic, MAX_READINGS, SimulationConfig};
+pub use truth::{SetupErrorTruth, Truth, face_deviation_from_pitch};
+
+use crate::measurement::{Direction, MeasurementSet, Reading};
+
+/// ChaCha stream of the true values.
+const TRUTH_STREAM: u64 = 0;
+/// ChaCha stream of the reading noise.
+const NOISE_STREAM: u64 = 1;
+
+/// Why a simulation or a truth file was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum SimulateError {
+    /// The simulation settings are invalid (the text says which and why).
+    #[error("invalid simulation settings: {0}")]
+    Config(String),
+    /// A file could not be read.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A truth file is not valid JSON of the truth format (the text gives line and column).
+    #[error("{}: not a valid truth file: {source}", path.display())]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error, with line and column.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A truth is inconsistent, or does not fit the simulation settings.
+    #[error("{origin}: invalid truth: {message}")]
+    Truth {
+        /// Where the truth came from: a file name, or `truth` for one given in memory.
+        origin: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// Simulates a run: draws the truth for `config`, then the readings.
+///
+/// Equivalent to [`Truth::draw`] followed by [`simulate_with_truth`]; see the
+/// [module documentation](self) for the run's structure and the order of the random
+/// draws. The measurement set's `source` is `"simulated"`.
+///
+/// ```
+/// use polycal::simulate::{SimulationConfig, simulate};
+///
+/// // The paper's design on a 4-faced polygon, without noise.
+/// let config = SimulationConfig { faces: 4, noise_arcsec: 0.0, ..SimulationConfig::default() };
+/// let (set, truth) = simulate(&config)?;
+/// assert_eq!(set.readings.len(), 6 * 5 * 2); // cycles · (N + closing) · autocollimators
+/// let first = &set.readings[0]; // step 0, autocollimator 1, face 1
+/// assert_eq!((first.step, first.ac, first.face), (0, 1, 1));
+/// let u1 = truth.setup_error_of(1, 1).unwrap();
+/// let expected = truth.encoder_error[0] + truth.pitch_deviation[0] + u1;
+/// assert!((first.reading_arcsec - expected).abs() < 1e-12);
+/// # Ok::<(), polycal::simulate::SimulateError>(())
+/// ```
+pub fn simulate(config: &SimulationConfig) -> Result<(MeasurementSet, Truth), SimulateError> {
+    let truth = Truth::draw(config)?;
+    let set = simulate_with_truth(config, &truth)?;
+    Ok((set, truth))
+}
+
+/// Simulates the readings of a run of `config`'s design for the given `truth`.
+///
+/// The true values and the effects come from `truth` (each reading is
+/// [`Truth::model_reading`] plus noise); from `config` only the design (faces,
+/// autocollimators, setups, shift, cycles, closing, bidirectional), `step_seconds`,
+/// `noise_arcsec` and `seed` are used — its spreads, harmonics and effects are ignored.
+/// This lets a test redraw the noise over many seeds with one truth.
+///
+/// Refused when `config` is invalid, the truth is invalid ([`Truth::validate`]), the
+/// numbers of faces differ, or an effect of the truth names something the run does not
+/// have.
+pub fn simulate_with_truth(
+    config: &SimulationConfig,
+    truth: &Truth,
+) -> Result<MeasurementSet, SimulateError> {
+    config.validate()?;
+    let mismatch = |message: String| SimulateError::Truth {
+        origin: "truth".into(),
+        message,
+    };
+    truth.validate().map_err(mismatch)?;
+    if truth.faces != config.faces {
+        return Err(mismatch(format!(
+            "it has {} faces, the simulation settings {}",
+            truth.faces, config.faces
+        )));
+    }
+    for e in &truth.effects {
+        config
+            .check_effect(e)
+            .map_err(|m| mismatch(format!("effect {}: {m}", config::effect_json(e))))?;
+    }
+
+    let n = config.faces;
+    let n_ac = config.ac_count() as u32;
+    let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+    rng.set_stream(NOISE_STREAM);
+    let mut readings = Vec::with_capacity(config.reading_count());
+    let mut stop: u64 = 0;
+    for setup in 1..=config.setups {
+        for cycle in 1..=config.cycles {
+            let direction = if config.bidirectional && cycle % 2 == 0 {
+                Direction::Ccw
+            } else {
+                Direction::Cw
+            };
+            let last = config.stops_per_cycle() - 1;
+            for i in 0..=last {
+                let step = match direction {
+                    Direction::Cw => i,
+                    Direction::Ccw => last - i,
+                };
+                let time = stop as f64 * config.step_seconds;
+                let encoder = step as f64 * 360.0 / n as f64;
+                for ac in 1..=n_ac {
+                    let mut reading = Reading {
+                        setup,
+                        cycle,
+                        step,
+                        ac,
+                        face: config.face_at(setup, ac, step),
+                        reading_arcsec: 0.0,
+                        direction,
+                        time_seconds: Some(time),
+                        reading_y_arcsec: None,
+                        temperature_celsius: None,
+                        encoder_degrees: Some(encoder),
+                        line: 0,
+                    };
+                    let z: f64 = StandardNormal.sample(&mut rng);
+                    reading.reading_arcsec =
+                        truth.model_reading(&reading) + config.noise_arcsec * z;
+                    readings.push(reading);
+                }
+                stop += 1;
+            }
+        }
+    }
+    Ok(MeasurementSet {
+        faces: n,
+        readings,
+        source: "simulated".into(),
+    })
+}

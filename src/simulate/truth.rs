@@ -1,0 +1,291 @@
+//! The true values behind a simulated run, and the truth file (FORMAT.md §4).
+
+use std::collections::HashSet;
+use std::path::Path;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+use serde::{Deserialize, Serialize};
+
+use super::{SimulateError, SimulationConfig, TRUTH_STREAM};
+use crate::effects::Effect;
+use crate::measurement::Reading;
+
+/// The true setup error `U[setup, ac]` of one autocollimator in one mounting, in the
+/// generic gauge of FORMAT.md §1.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SetupErrorTruth {
+    /// Setup (mounting) number, ≥ 1.
+    pub setup: u32,
+    /// Autocollimator number, ≥ 1.
+    pub ac: u32,
+    /// Setup error, arcsec.
+    pub value: f64,
+}
+
+/// The true values of a simulated run: the truth file of FORMAT.md §4.
+///
+/// `pitch_deviation[k-1]` is β\[k\], `encoder_error[p]` is α\[p\] and `face_deviation[f-1]`
+/// is φ\[f\] = β\[1\] + … + β\[f\]. Only `faces`, `pitch_deviation` and `encoder_error` are
+/// required in a file; the rest default to empty (no setup errors, no effects).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Truth {
+    /// Number of faces N.
+    pub faces: usize,
+    /// Pitch deviations β\[1\] … β\[N\], arcsec.
+    pub pitch_deviation: Vec<f64>,
+    /// Encoder errors α\[0\] … α\[N−1\], arcsec.
+    pub encoder_error: Vec<f64>,
+    /// Face deviations φ\[1\] … φ\[N\], arcsec (cumulative sums of `pitch_deviation`); empty
+    /// means "compute from `pitch_deviation`".
+    #[serde(default)]
+    pub face_deviation: Vec<f64>,
+    /// Setup errors U\[setup, ac\]; one missing counts as 0.
+    #[serde(default)]
+    pub setup_error: Vec<SetupErrorTruth>,
+    /// Effects in the readings (FORMAT.md §6).
+    #[serde(default)]
+    pub effects: Vec<Effect>,
+    /// Standard deviation of the reading noise the run was made with, arcsec.
+    #[serde(default)]
+    pub noise_arcsec: Option<f64>,
+}
+
+/// The face deviations φ\[f\] = β\[1\] + … + β\[f\] for f = 1 … N (summed in that order).
+pub fn face_deviation_from_pitch(pitch_deviation: &[f64]) -> Vec<f64> {
+    pitch_deviation
+        .iter()
+        .scan(0.0, |sum, &b| {
+            *sum += b;
+            Some(*sum)
+        })
+        .collect()
+}
+
+/// Removes the mean, then sets the last element to minus the (left-to-right) sum of the
+/// others, so that the left-to-right sum is exactly 0.
+fn close(v: &mut [f64]) {
+    if v.is_empty() {
+        return;
+    }
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    v.iter_mut().for_each(|x| *x -= mean);
+    let last = v.len() - 1;
+    let rest: f64 = v[..last].iter().sum();
+    v[last] = -rest;
+}
+
+impl Truth {
+    /// Draws the true values for `config` (which is validated first).
+    ///
+    /// - β\[k\] = `pitch_spread_arcsec`·z − mean, z standard normal, so Σβ = 0;
+    /// - α\[p\] = Σ over harmonics of `a·cos(2π·k·p/N + phase)`, minus the mean, so Σα = 0;
+    /// - U\[setup, ac\] = `setup_error_spread_arcsec`·z for every setup and autocollimator;
+    /// - φ = cumulative sums of β; `effects` and `noise_arcsec` copied from `config`.
+    ///
+    /// After the mean is removed, the last β and the last α are set to minus the sum of
+    /// the others, so both closures hold exactly in floating point (and φ\[N\] = 0).
+    ///
+    /// The random draws come from stream 0 of `ChaCha8Rng::seed_from_u64(config.seed)`, in
+    /// this fixed order: N standard normals for β\[1\] … β\[N\], then one per (setup, ac),
+    /// setup 1's autocollimators 1, 2, … first. Draws are taken even when a spread is 0,
+    /// so changing a spread never changes the other values.
+    pub fn draw(config: &SimulationConfig) -> Result<Truth, SimulateError> {
+        config.validate()?;
+        let n = config.faces;
+        let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+        rng.set_stream(TRUTH_STREAM);
+        let mut normal = || -> f64 { StandardNormal.sample(&mut rng) };
+
+        let mut pitch_deviation: Vec<f64> = (0..n)
+            .map(|_| config.pitch_spread_arcsec * normal())
+            .collect();
+        close(&mut pitch_deviation);
+
+        let mut encoder_error: Vec<f64> = (0..n)
+            .map(|p| {
+                config
+                    .encoder_harmonics
+                    .iter()
+                    .map(|h| h.value_at(p, n))
+                    .sum()
+            })
+            .collect();
+        close(&mut encoder_error);
+
+        let mut setup_error = Vec::new();
+        for setup in 1..=config.setups {
+            for ac in 1..=config.ac_count() as u32 {
+                setup_error.push(SetupErrorTruth {
+                    setup,
+                    ac,
+                    value: config.setup_error_spread_arcsec * normal(),
+                });
+            }
+        }
+
+        Ok(Truth {
+            faces: n,
+            face_deviation: face_deviation_from_pitch(&pitch_deviation),
+            pitch_deviation,
+            encoder_error,
+            setup_error,
+            effects: config.effects.clone(),
+            noise_arcsec: Some(config.noise_arcsec),
+        })
+    }
+
+    /// Reads a truth file (JSON, FORMAT.md §4) and checks it ([`Truth::validate`]).
+    /// An empty or missing `face_deviation` is filled from `pitch_deviation`. Errors name
+    /// the file, and for bad JSON also the line and column.
+    pub fn read_path(path: &Path) -> Result<Truth, SimulateError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SimulateError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut truth: Truth =
+            serde_json::from_str(&text).map_err(|source| SimulateError::Json {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        truth.validate().map_err(|message| SimulateError::Truth {
+            origin: path.display().to_string(),
+            message,
+        })?;
+        if truth.face_deviation.is_empty() {
+            truth.face_deviation = face_deviation_from_pitch(&truth.pitch_deviation);
+        }
+        Ok(truth)
+    }
+
+    /// Checks the truth: faces ≥ 3; `pitch_deviation` and `encoder_error` (and
+    /// `face_deviation` unless empty) have `faces` elements; every number is finite; setup
+    /// errors name setups and autocollimators ≥ 1, each pair once; effects name cycles and
+    /// autocollimators ≥ 1; the noise is ≥ 0. The closures Σβ = 0 and Σα = 0 are not
+    /// enforced (a file written by hand may be rounded). The error text names the first
+    /// problem.
+    pub fn validate(&self) -> Result<(), String> {
+        let n = self.faces;
+        if n < 3 {
+            return Err(format!("faces is {n}; a polygon needs at least 3 faces"));
+        }
+        let lists = [
+            ("pitch_deviation", &self.pitch_deviation, false),
+            ("encoder_error", &self.encoder_error, false),
+            ("face_deviation", &self.face_deviation, true),
+        ];
+        for (name, list, may_be_empty) in lists {
+            if list.len() != n && !(may_be_empty && list.is_empty()) {
+                return Err(format!(
+                    "{name} has {} values, but faces is {n}",
+                    list.len()
+                ));
+            }
+            if let Some(i) = list.iter().position(|v| !v.is_finite()) {
+                return Err(format!("{name}[{i}] is not a finite number"));
+            }
+        }
+        let mut seen = HashSet::new();
+        for u in &self.setup_error {
+            if u.setup == 0 || u.ac == 0 {
+                return Err(format!(
+                    "setup_error for setup {} ac {}: numbers start at 1",
+                    u.setup, u.ac
+                ));
+            }
+            if !u.value.is_finite() {
+                return Err(format!(
+                    "setup_error for setup {} ac {} is not a finite number",
+                    u.setup, u.ac
+                ));
+            }
+            if !seen.insert((u.setup, u.ac)) {
+                return Err(format!(
+                    "setup_error for setup {} ac {} is given twice",
+                    u.setup, u.ac
+                ));
+            }
+        }
+        for e in &self.effects {
+            if !e.value().is_finite() {
+                return Err(format!("effect {e}: value is not finite"));
+            }
+            let zero = match *e {
+                Effect::Drift { ac, .. } => ac == 0,
+                Effect::OffsetStep { ac, cycle, .. } => ac == 0 || cycle == 0,
+                Effect::Direction { ac, .. } => ac == Some(0),
+                Effect::Outlier {
+                    cycle, ac, setup, ..
+                } => cycle == 0 || ac == 0 || setup == Some(0),
+            };
+            if zero {
+                return Err(format!(
+                    "effect {e}: autocollimator, setup and cycle numbers start at 1"
+                ));
+            }
+        }
+        if let Some(s) = self.noise_arcsec
+            && !(s.is_finite() && s >= 0.0)
+        {
+            return Err(format!("noise_arcsec is {s}; must be a finite number ≥ 0"));
+        }
+        Ok(())
+    }
+
+    /// The truth as pretty-printed JSON (numbers at full precision: they read back to the
+    /// same doubles).
+    pub fn to_json_pretty(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a Truth always serializes to JSON")
+    }
+
+    /// The true setup error U\[setup, ac\], if the truth has one.
+    pub fn setup_error_of(&self, setup: u32, ac: u32) -> Option<f64> {
+        self.setup_error
+            .iter()
+            .find(|u| u.setup == setup && u.ac == ac)
+            .map(|u| u.value)
+    }
+
+    /// The true face deviation φ\[face\] (1 … N): `face_deviation[face-1]`, or the sum
+    /// β\[1\] + … + β\[face\] when `face_deviation` is empty. NaN for a face outside 1 … N.
+    pub fn face_deviation_at(&self, face: usize) -> f64 {
+        if face == 0 || face > self.faces {
+            return f64::NAN;
+        }
+        match self.face_deviation.get(face - 1) {
+            Some(&phi) if self.face_deviation.len() == self.faces => phi,
+            _ => self
+                .pitch_deviation
+                .iter()
+                .take(face)
+                .fold(0.0, |s, &b| s + b),
+        }
+    }
+
+    /// The noise-free model value of a reading:
+    /// `α[step mod N] + φ[face] + U[setup, ac] + Σ effect.value · effect.regressor(reading)`,
+    /// added in that order. A missing setup error counts as 0. NaN when the reading's face
+    /// is outside 1 … N or the truth is incomplete.
+    pub fn model_reading(&self, reading: &Reading) -> f64 {
+        let n = self.faces;
+        if n == 0 {
+            return f64::NAN;
+        }
+        let alpha = self
+            .encoder_error
+            .get(reading.step % n)
+            .copied()
+            .unwrap_or(f64::NAN);
+        let phi = self.face_deviation_at(reading.face);
+        let u = self
+            .setup_error_of(reading.setup, reading.ac)
+            .unwrap_or(0.0);
+        let mut value = alpha + phi + u;
+        for e in &self.effects {
+            value += e.value() * e.regressor(reading);
+        }
+        value
+    }
+}
