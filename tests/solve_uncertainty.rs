@@ -50,6 +50,7 @@ fn normalised_rms(
 }
 
 fn assert_honest((beta, alpha): (f64, f64), what: &str) {
+    eprintln!("{what}: RMS of normalised errors β {beta:.4}, α {alpha:.4}");
     assert!((0.85..=1.15).contains(&beta), "{what}: RMS of (β − truth)/u(β) = {beta}");
     assert!((0.85..=1.15).contains(&alpha), "{what}: RMS of (α − truth)/u(α) = {alpha}");
 }
