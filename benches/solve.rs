@@ -3,8 +3,8 @@
 //!
 //! - `closed_form/24`: the paper's closed form for N = 24 on per-step means, with a
 //!   compile-time (`Const`) and a run-time (`Dyn`) dimension;
-//! - `lsq_covariance/24x6_closing`: least squares with full covariance, N = 24, 6 cycles
-//!   with closing readings (312 readings);
+//! - `lsq_covariance/24x6_closing_300`: least squares with full covariance, N = 24, 6 cycles
+//!   with closing readings (300 readings);
 //! - `lsq_growth/N`: least squares with covariance for N = 24, 72, 360, 1440 × 6 cycles,
 //!   to show how the cost grows with N.
 
@@ -43,12 +43,12 @@ fn bench_closed_form(c: &mut Criterion) {
 
 fn bench_lsq(c: &mut Criterion) {
     let (set, _) = simulate(&config(24, true)).expect("valid configuration");
-    assert_eq!(set.readings.len(), 312);
+    assert_eq!(set.readings.len(), 300);
     let options = SolveOptions {
         method: Method::LeastSquares,
         sigma_arcsec: None,
     };
-    c.bench_function("lsq_covariance/24x6_closing", |b| {
+    c.bench_function("lsq_covariance/24x6_closing_300", |b| {
         b.iter(|| solve(black_box(&set), &options))
     });
 }

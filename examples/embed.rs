@@ -33,7 +33,9 @@ fn main() -> ExitCode {
     let u = solution.pitch_deviation_u();
     println!("face  pitch deviation/arcsec  u/arcsec");
     for (k, beta) in solution.pitch_deviation.iter().enumerate() {
-        let u = u.as_ref().map_or("-".to_string(), |u| format!("{:.4}", u[k]));
+        let u = u
+            .as_ref()
+            .map_or("-".to_string(), |u| format!("{:.4}", u[k]));
         println!("{:>4}  {beta:>22.4}  {u:>8}", k + 1);
     }
     ExitCode::SUCCESS

@@ -12,7 +12,7 @@
 //! ```
 //!
 //! with the closure conditions Σα = 0 (eq. (3)) and Σβ = 0 (eq. (1)), where
-//! φ[f] = β[1] + … + β[f] is the face angle deviation and β the pitch deviation.
+//! φ\[f\] = β\[1\] + … + β\[f\] is the face angle deviation and β the pitch deviation.
 //! All angles in this crate are in **arcseconds** unless a name says otherwise.
 //!
 //! Modules, by the concept a metrologist would name:

@@ -46,6 +46,8 @@ enum MethodArg {
 }
 
 #[derive(Subcommand)]
+// Parsed once per process: the size of the simulate variant does not matter.
+#[allow(clippy::large_enum_variant)]
 enum Command {
     /// Solve measurement files: pitch deviations, encoder errors, setup errors.
     Solve {
@@ -222,7 +224,7 @@ fn run_solve(
     }
     if matches!(format, FormatArg::Csv) && !csv_rows.is_empty() {
         if several {
-            polycal::results::write_results_with_file(&mut out, &csv_rows)?;
+            report::write_results_with_file(&mut out, &csv_rows)?;
         } else {
             polycal::results::write_results(&mut out, &csv_rows[0].1)?;
         }

@@ -29,11 +29,11 @@ pub enum PolygonError {
     },
 }
 
-/// An N-faced polygon: pitch deviation β[k] and face deviation φ[k] of every face
+/// An N-faced polygon: pitch deviation β\[k\] and face deviation φ\[k\] of every face
 /// k = 1 … N, in arcseconds.
 ///
 /// Conventions (FORMAT.md §1): Σβ = 0 (the paper's closure, eq. (1)) and
-/// φ[f] = β[1] + … + β[f], so φ[N] = 0. Index 0 of the vectors is face 1.
+/// φ\[f\] = β\[1\] + … + β\[f\], so φ\[N\] = 0. Index 0 of the vectors is face 1.
 ///
 /// ```
 /// use nalgebra::{Const, SVector};
@@ -62,7 +62,7 @@ impl<D: Dim> Polygon<D>
 where
     DefaultAllocator: Allocator<D>,
 {
-    /// Builds a polygon from its pitch deviations β[1..=N] (arcsec), which must close
+    /// Builds a polygon from its pitch deviations β\[1..=N\] (arcsec), which must close
     /// (|Σβ| ≤ [`CLOSURE_TOLERANCE_ARCSEC`] × N).
     pub fn from_pitch_deviation(pitch_deviation: OVector<f64, D>) -> Result<Self, PolygonError> {
         let faces = pitch_deviation.len();
@@ -112,12 +112,12 @@ where
         self.pitch_deviation.len()
     }
 
-    /// Pitch deviations β[1..=N], arcsec (index 0 is face 1).
+    /// Pitch deviations β\[1..=N\], arcsec (index 0 is face 1).
     pub fn pitch_deviation_arcsec(&self) -> &OVector<f64, D> {
         &self.pitch_deviation
     }
 
-    /// Face deviations φ[1..=N] = cumulative sums of β, arcsec (φ[N] = 0).
+    /// Face deviations φ\[1..=N\] = cumulative sums of β, arcsec (φ\[N\] = 0).
     pub fn face_deviation_arcsec(&self) -> &OVector<f64, D> {
         &self.face_deviation
     }
@@ -128,8 +128,8 @@ where
     }
 }
 
-/// φ[f] = β[1] + … + β[f] (FORMAT.md §1), computed with compensated summation so that
-/// φ[N] is zero to rounding for a closed β.
+/// φ\[f\] = β\[1\] + … + β\[f\] (FORMAT.md §1), computed with compensated summation so that
+/// φ\[N\] is zero to rounding for a closed β.
 fn face_deviation_from_pitch<D: Dim>(pitch_deviation: &OVector<f64, D>) -> OVector<f64, D>
 where
     DefaultAllocator: Allocator<D>,
@@ -176,7 +176,12 @@ mod tests {
             Err(PolygonError::NotClosed { .. })
         ));
         let closed = DPolygon::from_pitch_deviation_closed(open).unwrap();
-        assert!(closed.pitch_deviation_arcsec().iter().all(|b| b.abs() < 1e-15));
+        assert!(
+            closed
+                .pitch_deviation_arcsec()
+                .iter()
+                .all(|b| b.abs() < 1e-15)
+        );
         assert_eq!(
             DPolygon::from_pitch_deviation(DVector::from_column_slice(&[0.0, 0.0])),
             Err(PolygonError::TooFewFaces(2))

@@ -48,11 +48,11 @@ pub struct SolveReport {
     pub dof: usize,
     /// √(RSS/dof); null when dof = 0.
     pub residual_rms: Option<f64>,
-    /// β[1..=N].
+    /// β\[1..=N\].
     pub pitch_deviation: Vec<f64>,
     /// u(β), k = 1; null when σ is unknown.
     pub pitch_deviation_u: Option<Vec<f64>>,
-    /// φ[1..=N].
+    /// φ\[1..=N\].
     pub face_deviation: Vec<f64>,
     /// u(φ), k = 1 (an addition to FORMAT.md §5).
     pub face_deviation_u: Option<Vec<f64>>,
@@ -156,6 +156,43 @@ pub fn result_rows(solution: &Solution) -> Vec<ResultRow> {
     rows
 }
 
+/// Writes the result rows of several files as one CSV with a leading `file` column (an
+/// addition to FORMAT.md §3 for batch runs).
+pub fn write_results_with_file<W: std::io::Write>(
+    writer: W,
+    files: &[(String, Vec<ResultRow>)],
+) -> std::io::Result<()> {
+    use std::io::Write as _;
+    let mut body = Vec::new();
+    let mut out = std::io::BufWriter::new(writer);
+    let mut header_written = false;
+    for (file, rows) in files {
+        body.clear();
+        crate::results::write_results(&mut body, rows)?;
+        let text = String::from_utf8_lossy(&body);
+        let mut lines = text.lines();
+        let header = lines.next().unwrap_or_default();
+        if !header_written {
+            writeln!(out, "file,{header}")?;
+            header_written = true;
+        }
+        let quoted = csv_field(file);
+        for line in lines {
+            writeln!(out, "{quoted},{line}")?;
+        }
+    }
+    out.flush()
+}
+
+/// A CSV field, quoted when it needs to be.
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}
+
 fn fixed(value: Option<f64>, decimals: usize) -> String {
     match value {
         Some(v) => format!("{v:.decimals$}"),
@@ -180,14 +217,19 @@ pub fn render_table(solution: &Solution, source: &str) -> String {
         solution.dof,
         solution
             .residual_rms()
-            .map_or("— (exactly determined)".to_string(), |r| format!("{r:.4}″"))
+            .map_or("— (exactly determined)".to_string(), |r| format!(
+                "{r:.4}″"
+            ))
     );
     match solution.sigma {
         Some((s, SigmaSource::Residual)) => {
             let _ = writeln!(out, "uncertainties (k = 1) from the residual σ = {s:.4}″");
         }
         Some((s, SigmaSource::Stated)) => {
-            let _ = writeln!(out, "uncertainties (k = 1) from the stated reading noise σ = {s:.4}″");
+            let _ = writeln!(
+                out,
+                "uncertainties (k = 1) from the stated reading noise σ = {s:.4}″"
+            );
         }
         None => {
             let _ = writeln!(
@@ -219,7 +261,11 @@ pub fn render_table(solution: &Solution, source: &str) -> String {
         );
     }
     let _ = writeln!(out, "\nEncoder (arcsec)");
-    let _ = writeln!(out, "{:>8} {:>11} {:>9} {:>8}", "position", "angle/°", "α", "u(α)");
+    let _ = writeln!(
+        out,
+        "{:>8} {:>11} {:>9} {:>8}",
+        "position", "angle/°", "α", "u(α)"
+    );
     for p in 0..n {
         let _ = writeln!(
             out,

@@ -23,10 +23,7 @@ fn design() -> impl Strategy<Value = (Truth, Vec<Stream>, u32, bool)> {
         (
             prop::collection::vec(-2.0..2.0f64, n),
             prop::collection::vec(-2.0..2.0f64, n),
-            prop::collection::vec(
-                (1u32..=3, 1u32..=3, 0..n, -5.0..5.0f64),
-                1..=6,
-            ),
+            prop::collection::vec((1u32..=3, 1u32..=3, 0..n, -5.0..5.0f64), 1..=6),
             1u32..=3,
             any::<bool>(),
         )
@@ -166,7 +163,11 @@ fn refusals_name_the_lost_harmonics() {
         (10, &[0, 5], &[2, 4, 6, 8]),
     ];
     for &(n, offsets, expected) in cases {
-        assert_eq!(lost_harmonics(n, offsets), expected, "rule for N={n} {offsets:?}");
+        assert_eq!(
+            lost_harmonics(n, offsets),
+            expected,
+            "rule for N={n} {offsets:?}"
+        );
         let truth = Truth::closed(&vec![0.0; n], &vec![0.0; n]);
         let streams: Vec<Stream> = offsets
             .iter()
@@ -187,10 +188,25 @@ fn refusals_name_the_lost_harmonics() {
         }
     }
     // Designs that do determine everything: coprime offsets, or a third autocollimator.
-    for (n, offsets) in [(24usize, vec![0usize, 1]), (24, vec![0, 5]), (24, vec![0, 3, 8]), (7, vec![0, 3])] {
+    for (n, offsets) in [
+        (24usize, vec![0usize, 1]),
+        (24, vec![0, 5]),
+        (24, vec![0, 3, 8]),
+        (7, vec![0, 3]),
+    ] {
         assert!(lost_harmonics(n, &offsets).is_empty());
         let truth = Truth::closed(&vec![0.1; n], &vec![0.0; n]);
-        let streams: Vec<Stream> = offsets.iter().enumerate().map(|(i, &d)| (1, i as u32 + 1, d, 0.0)).collect();
-        assert!(solve::solve(&readings(&truth, &streams, 1, false, || 0.0), &SolveOptions::default()).is_ok());
+        let streams: Vec<Stream> = offsets
+            .iter()
+            .enumerate()
+            .map(|(i, &d)| (1, i as u32 + 1, d, 0.0))
+            .collect();
+        assert!(
+            solve::solve(
+                &readings(&truth, &streams, 1, false, || 0.0),
+                &SolveOptions::default()
+            )
+            .is_ok()
+        );
     }
 }

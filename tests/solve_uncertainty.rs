@@ -51,14 +51,23 @@ fn normalised_rms(
 
 fn assert_honest((beta, alpha): (f64, f64), what: &str) {
     eprintln!("{what}: RMS of normalised errors β {beta:.4}, α {alpha:.4}");
-    assert!((0.85..=1.15).contains(&beta), "{what}: RMS of (β − truth)/u(β) = {beta}");
-    assert!((0.85..=1.15).contains(&alpha), "{what}: RMS of (α − truth)/u(α) = {alpha}");
+    assert!(
+        (0.85..=1.15).contains(&beta),
+        "{what}: RMS of (β − truth)/u(β) = {beta}"
+    );
+    assert!(
+        (0.85..=1.15).contains(&alpha),
+        "{what}: RMS of (α − truth)/u(α) = {alpha}"
+    );
 }
 
 #[test]
 fn residual_sigma_with_repeats_and_closing_readings() {
     let streams = [(1, 1, 0, 0.3), (1, 2, 1, -0.6)];
-    let options = SolveOptions { method: Method::LeastSquares, sigma_arcsec: None };
+    let options = SolveOptions {
+        method: Method::LeastSquares,
+        sigma_arcsec: None,
+    };
     let rms = normalised_rms(24, &streams, 6, true, 0.05, options, SigmaSource::Residual);
     assert_honest(rms, "24 faces, 6 cycles, closing");
 }
@@ -66,7 +75,10 @@ fn residual_sigma_with_repeats_and_closing_readings() {
 #[test]
 fn closed_form_with_repeats() {
     let streams = [(1, 1, 0, 0.3), (1, 2, 1, -0.6)];
-    let options = SolveOptions { method: Method::ClosedForm, sigma_arcsec: None };
+    let options = SolveOptions {
+        method: Method::ClosedForm,
+        sigma_arcsec: None,
+    };
     let rms = normalised_rms(24, &streams, 3, false, 0.05, options, SigmaSource::Residual);
     assert_honest(rms, "closed form, 3 cycles");
 }
@@ -74,15 +86,26 @@ fn closed_form_with_repeats() {
 #[test]
 fn stated_sigma_when_exactly_determined() {
     let streams = [(1, 1, 0, 0.3), (1, 2, 1, -0.6)];
-    let options = SolveOptions { method: Method::Auto, sigma_arcsec: Some(0.08) };
+    let options = SolveOptions {
+        method: Method::Auto,
+        sigma_arcsec: Some(0.08),
+    };
     let rms = normalised_rms(24, &streams, 1, false, 0.08, options, SigmaSource::Stated);
     assert_honest(rms, "bare cycle, stated σ");
 }
 
 #[test]
 fn three_autocollimators_and_two_mountings() {
-    let streams = [(1, 1, 0, 0.3), (1, 2, 5, -0.6), (2, 1, 2, 0.1), (2, 3, 9, 1.2)];
-    let options = SolveOptions { method: Method::LeastSquares, sigma_arcsec: None };
+    let streams = [
+        (1, 1, 0, 0.3),
+        (1, 2, 5, -0.6),
+        (2, 1, 2, 0.1),
+        (2, 3, 9, 1.2),
+    ];
+    let options = SolveOptions {
+        method: Method::LeastSquares,
+        sigma_arcsec: None,
+    };
     let rms = normalised_rms(12, &streams, 2, true, 0.1, options, SigmaSource::Residual);
     assert_honest(rms, "12 faces, 4 streams");
 }
@@ -91,7 +114,13 @@ fn three_autocollimators_and_two_mountings() {
 /// rather than invented ones.
 #[test]
 fn no_sigma_no_uncertainty() {
-    let set = readings(&truth(8), &[(1, 1, 0, 0.0), (1, 2, 1, 0.0)], 1, false, || 0.0);
+    let set = readings(
+        &truth(8),
+        &[(1, 1, 0, 0.0), (1, 2, 1, 0.0)],
+        1,
+        false,
+        || 0.0,
+    );
     let solution = solve::solve(&set, &SolveOptions::default()).unwrap();
     assert_eq!(solution.dof, 0);
     assert!(solution.residual_rms().is_none());
@@ -107,9 +136,18 @@ fn no_sigma_no_uncertainty() {
 fn bare_cycle_pitch_covariance_by_hand() {
     let sigma = 0.07;
     for n in [3usize, 7, 24, 60] {
-        let set = readings(&truth(n), &[(1, 1, 0, 0.0), (1, 2, 1, 0.0)], 1, false, || 0.0);
+        let set = readings(
+            &truth(n),
+            &[(1, 1, 0, 0.0), (1, 2, 1, 0.0)],
+            1,
+            false,
+            || 0.0,
+        );
         for method in [Method::ClosedForm, Method::LeastSquares] {
-            let options = SolveOptions { method, sigma_arcsec: Some(sigma) };
+            let options = SolveOptions {
+                method,
+                sigma_arcsec: Some(sigma),
+            };
             let solution = solve::solve(&set, &options).unwrap();
             let cov = solution.covariance().unwrap();
             for j in 0..n {
@@ -119,7 +157,10 @@ fn bare_cycle_pitch_covariance_by_hand() {
                     } else {
                         -2.0 * sigma * sigma / n as f64
                     };
-                    assert!((cov[(j, k)] - expected).abs() < 1e-14, "N={n} {method:?} ({j},{k})");
+                    assert!(
+                        (cov[(j, k)] - expected).abs() < 1e-14,
+                        "N={n} {method:?} ({j},{k})"
+                    );
                 }
             }
         }

@@ -1,13 +1,13 @@
 //! The paper's closed form, eqs. (6)–(10), for two autocollimators on adjacent faces.
 //!
 //! Autocollimator 1 reads face p+1 and autocollimator 2 face p+2 (wrapping) at step p.
-//! With the differences δ[p] = m₂[p] − m₁[p] of the (mean) readings:
+//! With the differences δ\[p\] = m₂\[p\] − m₁\[p\] of the (mean) readings:
 //!
-//! - eq. (7): β[k] − β[1] = δ[k−2] − δ[N−1] for k = 2 … N;
-//! - eq. (8) with Σβ = 0 (eq. (1)): β[1] = −(1/N) Σ_p (δ[p] − δ[N−1]);
+//! - eq. (7): β\[k\] − β\[1\] = δ\[k−2\] − δ\[N−1\] for k = 2 … N;
+//! - eq. (8) with Σβ = 0 (eq. (1)): β\[1\] = −(1/N) Σ_p (δ\[p\] − δ\[N−1\]);
 //! - eqs. (9), (10) with Σα = 0 (eq. (3)): U₁ = (Σm₁ − Σφ)/N, U₂ = (Σm₂ − Σφ)/N
-//!   (generic gauge of FORMAT.md §1: the paper's U₂ is this U₂ + β[1]);
-//! - eqs. (4), (5): α[p] = m₁[p] − φ[p+1] − U₁ = m₂[p] − φ[p+2] − U₂ (identical for exact
+//!   (generic gauge of FORMAT.md §1: the paper's U₂ is this U₂ + β\[1\]);
+//! - eqs. (4), (5): α\[p\] = m₁\[p\] − φ\[p+1\] − U₁ = m₂\[p\] − φ\[p+2\] − U₂ (identical for exact
 //!   data; the mean of both is used).
 
 use super::least_squares::cumulative;
@@ -26,15 +26,15 @@ where
 {
     /// Pitch and face deviations.
     pub polygon: Polygon<D>,
-    /// α[p] at the nominal angle p·360°/N.
+    /// α\[p\] at the nominal angle p·360°/N.
     pub encoder_error: OVector<f64, D>,
     /// Setup errors of autocollimators 1 and 2 (FORMAT.md §1 gauge).
     pub setup_error: [f64; 2],
 }
 
 /// Solves the paper's design exactly from the per-step readings (or their means over
-/// repeated cycles) of autocollimator 1 (`ac1_reading_arcsec[p]`, face p+1) and
-/// autocollimator 2 (`ac2_reading_arcsec[p]`, face p+2). Generic over the dimension:
+/// repeated cycles) of autocollimator 1 (`ac1_reading_arcsec\[p\]`, face p+1) and
+/// autocollimator 2 (`ac2_reading_arcsec\[p\]`, face p+2). Generic over the dimension:
 /// for `Const<N>` nothing is allocated on the heap.
 ///
 /// ```
@@ -168,7 +168,11 @@ impl PaperDesign {
     /// Solves the set with the closed form: estimates from the per-step means, residuals
     /// against them, and the covariance by propagating the means through the (linear)
     /// closed form.
-    pub fn solve(&self, set: &MeasurementSet, stated_sigma: Option<f64>) -> Result<Solution, SolveError> {
+    pub fn solve(
+        &self,
+        set: &MeasurementSet,
+        stated_sigma: Option<f64>,
+    ) -> Result<Solution, SolveError> {
         let n = set.faces;
         let mut m1 = DVector::<f64>::zeros(n);
         let mut m2 = DVector::<f64>::zeros(n);
@@ -183,9 +187,9 @@ impl PaperDesign {
         let repeats = self.repeats as f64;
         m1 /= repeats;
         m2 /= repeats;
-        let theta = self.theta(&m1, &m2).map_err(|e| {
-            SolveError::ClosedFormNotApplicable(e.to_string())
-        })?;
+        let theta = self
+            .theta(&m1, &m2)
+            .map_err(|e| SolveError::ClosedFormNotApplicable(e.to_string()))?;
         // streams in ascending order for the report
         let first_is_lower = self.first < self.second;
         let (u_first, u_second) = (theta[2 * n], theta[2 * n + 1]);
@@ -194,7 +198,11 @@ impl PaperDesign {
             .readings
             .iter()
             .map(|r| {
-                let u = if (r.setup, r.ac) == self.first { u_first } else { u_second };
+                let u = if (r.setup, r.ac) == self.first {
+                    u_first
+                } else {
+                    u_second
+                };
                 r.reading_arcsec - (theta[n + r.step] + face_deviation[r.face - 1] + u)
             })
             .collect();

@@ -1,18 +1,16 @@
 //! General constrained least squares for any measurement design.
 //!
-//! Unknowns: α[0..N) (Σα = 0), φ[1..N−1] (φ[N] = 0, so Σβ = 0), one setup error U per
+//! Unknowns: α\[0..N) (Σα = 0), φ[1..N−1\] (φ\[N\] = 0, so Σβ = 0), one setup error U per
 //! (setup, ac) stream, and optional effect terms (extra regressor columns). Each reading
 //! touches one α, one φ and one U, so the normal matrix has a diagonal α block. The
-//! solver fixes the gauge with U[first stream] = 0, eliminates the α block (a Schur
+//! solver fixes the gauge with U\[first stream\] = 0, eliminates the α block (a Schur
 //! complement of size N − 1 + K − 1 + E, built from sparse per-position rows), solves it
 //! by Cholesky, and maps the estimates and their covariance to the Σα = 0 gauge. The
 //! cost is dominated by one dense factorisation and inversion of about N × N, never
 //! the (2N + K)² system.
 
 use super::observability::{self, Unobservable};
-use super::{
-    Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma, stream_list,
-};
+use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma, stream_list};
 use crate::measurement::MeasurementSet;
 use nalgebra::{Cholesky, DMatrix, DVector};
 
@@ -44,7 +42,7 @@ pub(crate) struct Reduced {
 }
 
 impl Reduced {
-    /// Size of the rest vector r = [φ[1..N−1], U[2..K], effects].
+    /// Size of the rest vector r = [φ\[1..N−1\], U\[2..K\], effects].
     fn rest_len(&self) -> usize {
         self.faces - 1 + self.streams - 1 + self.effects
     }
@@ -85,7 +83,7 @@ impl Reduced {
     }
 }
 
-/// Fits the model with extra effect terms: reading += Σ_e value_e · regressors[e][i].
+/// Fits the model with extra effect terms: reading += Σ_e value_e · `regressors[e][i]`.
 ///
 /// Each regressor has one value per reading of `set`, in order. Returns the estimates,
 /// their cofactor matrix in the Σα = 0 gauge, residuals and degrees of freedom. A design
@@ -149,8 +147,7 @@ pub fn least_squares_with_regressors(
         .enumerate()
         .map(|(i, r)| {
             let s = stream_index(r.setup, r.ac);
-            let mut model =
-                theta[n + r.step % n] + face_deviation[r.face - 1] + theta[2 * n + s];
+            let mut model = theta[n + r.step % n] + face_deviation[r.face - 1] + theta[2 * n + s];
             for (j, regressor) in regressors.iter().enumerate() {
                 model += theta[2 * n + k + j] * regressor[i];
             }
@@ -191,7 +188,7 @@ pub fn least_squares_with_regressors(
     })
 }
 
-/// φ[f] = β[1] + … + β[f].
+/// φ\[f\] = β\[1\] + … + β\[f\].
 pub(crate) fn cumulative(pitch_deviation: &[f64]) -> Vec<f64> {
     let mut running = 0.0;
     let mut face_deviation: Vec<f64> = pitch_deviation

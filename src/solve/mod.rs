@@ -8,9 +8,9 @@
 //! reading = α[step mod N] + φ[face] + U[setup, ac] + (effects) + noise,   Σα = 0, Σβ = 0.
 //! ```
 //!
-//! - [`closed_form`] is the paper's eqs. (6)–(10) for two autocollimators on adjacent
+//! - [`closed_form()`] is the paper's eqs. (6)–(10) for two autocollimators on adjacent
 //!   faces, generic over nalgebra's dimension (no heap allocation for `Const<N>`);
-//! - [`least_squares`] handles any design a file describes (any number of
+//! - [`least_squares()`] handles any design a file describes (any number of
 //!   autocollimators at any faces, repeated cycles, closing readings, both directions,
 //!   several mountings) and returns the full covariance;
 //! - [`solve`] picks between them ([`Method::Auto`]) and is the entry point of
@@ -99,7 +99,7 @@ pub enum SigmaSource {
 }
 
 /// The setup error of one autocollimator in one mounting, arcsec (generic gauge of
-/// FORMAT.md §1: for the paper's adjacent pair, paper U₁ = U₁ and paper U₂ = U₂ + β[1]).
+/// FORMAT.md §1: for the paper's adjacent pair, paper U₁ = U₁ and paper U₂ = U₂ + β\[1\]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SetupError {
     /// Polygon mounting.
@@ -123,11 +123,11 @@ pub struct ParameterLayout {
 }
 
 impl ParameterLayout {
-    /// Index of β[face] (face 1-based).
+    /// Index of β\[face\] (face 1-based).
     pub fn pitch(&self, face: usize) -> usize {
         face - 1
     }
-    /// Index of α[position] (position 0-based).
+    /// Index of α\[position\] (position 0-based).
     pub fn encoder(&self, position: usize) -> usize {
         self.faces + position
     }
@@ -159,9 +159,9 @@ pub struct Solution {
     pub faces: usize,
     /// The solver that produced it (never [`Method::Auto`]).
     pub method: Method,
-    /// β[1..=N], Σβ = 0.
+    /// β\[1..=N\], Σβ = 0.
     pub pitch_deviation: Vec<f64>,
-    /// φ[1..=N] (φ[N] = 0).
+    /// φ\[1..=N\] (φ\[N\] = 0).
     pub face_deviation: Vec<f64>,
     /// α[0..N), Σα = 0.
     pub encoder_error: Vec<f64>,
@@ -225,8 +225,8 @@ impl Solution {
         self.diagonal_u(self.layout.effect(0), self.layout.effects)
     }
 
-    /// Standard uncertainties u(φ) of the face deviations, arcsec (φ[N] = 0 exactly,
-    /// so its u is 0): var φ[f] = Σ_{i,j ≤ f} Cov(β_i, β_j).
+    /// Standard uncertainties u(φ) of the face deviations, arcsec (φ\[N\] = 0 exactly,
+    /// so its u is 0): var φ\[f\] = Σ_{i,j ≤ f} Cov(β_i, β_j).
     pub fn face_deviation_u(&self) -> Option<Vec<f64>> {
         let (s, _) = self.sigma?;
         let n = self.faces;
@@ -287,7 +287,11 @@ pub fn solve(set: &MeasurementSet, options: &SolveOptions) -> Result<Solution, S
 }
 
 /// σ from the residuals when dof > 0, else the stated σ.
-pub(crate) fn choose_sigma(rss: f64, dof: usize, stated: Option<f64>) -> Option<(f64, SigmaSource)> {
+pub(crate) fn choose_sigma(
+    rss: f64,
+    dof: usize,
+    stated: Option<f64>,
+) -> Option<(f64, SigmaSource)> {
     if dof > 0 {
         Some(((rss / dof as f64).sqrt(), SigmaSource::Residual))
     } else {

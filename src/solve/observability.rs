@@ -77,7 +77,10 @@ pub(crate) fn explain_singular(
     let n = reduced.faces;
     let k = reduced.streams;
     let eigen = SymmetricEigen::new(reduced.schur.clone());
-    let largest = eigen.eigenvalues.iter().fold(0.0_f64, |a, &b| a.max(b.abs()));
+    let largest = eigen
+        .eigenvalues
+        .iter()
+        .fold(0.0_f64, |a, &b| a.max(b.abs()));
     let threshold = 1e-9 * largest.max(1.0);
     let mut energy = vec![0.0; n];
     let mut effect_energy = vec![0.0; reduced.effects];
@@ -111,11 +114,16 @@ pub(crate) fn explain_singular(
         .collect();
 
     let offsets = stream_offsets(set, streams);
-    let mut message = String::from("the design cannot determine every pitch deviation and encoder error: ");
+    let mut message =
+        String::from("the design cannot determine every pitch deviation and encoder error: ");
     if !harmonics.is_empty() {
         message.push_str(&format!(
             "{} {} of the pitch deviations and the encoder errors {} undetermined",
-            if harmonics.len() == 1 { "harmonic" } else { "harmonics" },
+            if harmonics.len() == 1 {
+                "harmonic"
+            } else {
+                "harmonics"
+            },
             join_and(&harmonics),
             if harmonics.len() == 1 { "is" } else { "are" },
         ));
@@ -177,7 +185,10 @@ fn join_and(values: &[usize]) -> String {
         [one] => one.to_string(),
         [init @ .., last] => format!(
             "{} and {last}",
-            init.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(", ")
+            init.iter()
+                .map(|v| v.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
         ),
     }
 }

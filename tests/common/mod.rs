@@ -19,13 +19,22 @@ impl Truth {
             let m = v.iter().sum::<f64>() / v.len() as f64;
             v.iter().map(|x| x - m).collect::<Vec<_>>()
         };
-        Self { beta: centre(beta), alpha: centre(alpha) }
+        Self {
+            beta: centre(beta),
+            alpha: centre(alpha),
+        }
     }
 
     /// φ[f] = β[1] + … + β[f].
     pub fn phi(&self) -> Vec<f64> {
         let mut acc = 0.0;
-        self.beta.iter().map(|b| { acc += b; acc }).collect()
+        self.beta
+            .iter()
+            .map(|b| {
+                acc += b;
+                acc
+            })
+            .collect()
     }
 }
 
@@ -65,11 +74,18 @@ pub fn readings(
             }
         }
     }
-    MeasurementSet { faces: n, readings: out, source: "test".into() }
+    MeasurementSet {
+        faces: n,
+        readings: out,
+        source: "test".into(),
+    }
 }
 
 /// Largest absolute difference.
 pub fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
 }
