@@ -24,9 +24,11 @@
 //! - [`report`]: the JSON, CSV and table outputs of `polycal solve`;
 //! - [`results`]: the result CSV file (one row per calibrated quantity);
 //! - [`uncertainty`]: GUM uncertainty budgets and Student's t;
-//! - [`compare`]: En numbers between two results.
+//! - [`compare`]: En numbers between two results;
+//! - [`diagnose`]: residual analysis that finds, adds and reports the effects a model lacks.
 
 pub mod compare;
+pub mod diagnose;
 pub mod effects;
 pub mod measurement;
 pub mod polygon;

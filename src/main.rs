@@ -3,9 +3,10 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
+use polycal::diagnose::{self, DiagnoseOptions, report::DiagnoseReport};
 use polycal::measurement::MeasurementSet;
 use polycal::report::{self, SolveReport};
-use polycal::simulate::{self, Harmonic, SimulationConfig};
+use polycal::simulate::{self, Harmonic, SimulationConfig, Truth};
 use polycal::solve::{self, Method, SolveOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -13,6 +14,8 @@ use std::process::ExitCode;
 
 /// Exit status: done, every check passed.
 const EXIT_OK: u8 = 0;
+/// Exit status: done, but a verdict is negative.
+const EXIT_VERDICT: u8 = 1;
 /// Exit status: an error (usage, refused input, instrument or file failure).
 const EXIT_ERROR: u8 = 2;
 
@@ -62,6 +65,25 @@ enum Command {
         method: MethodArg,
         /// Standard deviation of one reading, arcsec, for the uncertainties of an
         /// exactly determined fit (dof = 0).
+        #[arg(long)]
+        sigma: Option<f64>,
+        /// Output format.
+        #[arg(long, value_enum, default_value = "table")]
+        format: FormatArg,
+    },
+    /// Find the effects the base model lacks (drift, zero jumps, direction, outliers),
+    /// add them, and report the calibration before and after.
+    Diagnose {
+        /// Measurement CSV files (FORMAT.md §2); `-` reads standard input.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Truth JSON of simulated data (FORMAT.md §4): adds the errors before and after.
+        #[arg(long)]
+        truth: Option<PathBuf>,
+        /// Number of polygon faces (default: the largest face in the file).
+        #[arg(long)]
+        faces: Option<usize>,
+        /// Standard deviation of one reading, arcsec, if known: adds a χ² check.
         #[arg(long)]
         sigma: Option<f64>,
         /// Output format.
@@ -144,6 +166,13 @@ fn main() -> ExitCode {
             sigma,
             format,
         } => run_solve(&files, faces, method, sigma, format),
+        Command::Diagnose {
+            files,
+            truth,
+            faces,
+            sigma,
+            format,
+        } => run_diagnose(&files, truth.as_deref(), faces, sigma, format),
         Command::Simulate(args) => run_simulate(&args).map(|()| EXIT_OK),
     };
     match outcome {
@@ -237,6 +266,87 @@ fn run_solve(
         return Ok(EXIT_ERROR);
     }
     Ok(EXIT_OK)
+}
+
+fn run_diagnose(
+    files: &[PathBuf],
+    truth: Option<&Path>,
+    faces: Option<usize>,
+    sigma: Option<f64>,
+    format: FormatArg,
+) -> Result<u8> {
+    if matches!(format, FormatArg::Csv) {
+        bail!("diagnose reports as table or json, not csv");
+    }
+    if let Some(s) = sigma
+        && !(s.is_finite() && s > 0.0)
+    {
+        bail!("--sigma must be a positive number of arcseconds, got {s}");
+    }
+    let truth = truth.map(Truth::read_path).transpose()?;
+    let options = DiagnoseOptions {
+        sigma_arcsec: sigma,
+        ..DiagnoseOptions::default()
+    };
+    let several = files.len() > 1;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    let (mut failures, mut inadequate) = (0, 0);
+    for path in files {
+        let name = display_name(path);
+        let diagnosed = MeasurementSet::read_path(path, faces)
+            .map_err(anyhow::Error::from)
+            .and_then(|set| {
+                diagnose::diagnose(&set, &options).with_context(|| format!("{name}: cannot solve"))
+            });
+        let diagnosis = match diagnosed {
+            Ok(d) => d,
+            Err(error) => {
+                eprintln!("error: {}", one_line(&error));
+                failures += 1;
+                continue;
+            }
+        };
+        if let Some(t) = &truth
+            && t.faces != diagnosis.before.faces
+        {
+            eprintln!(
+                "error: {name}: the truth has {} faces, the measurement {}",
+                t.faces, diagnosis.before.faces
+            );
+            failures += 1;
+            continue;
+        }
+        if !diagnosis.adequacy.adequate {
+            inadequate += 1;
+        }
+        match format {
+            FormatArg::Json => {
+                let report =
+                    DiagnoseReport::new(&diagnosis, truth.as_ref(), several.then(|| name.clone()));
+                writeln!(out, "{}", report.to_json())?;
+            }
+            _ => {
+                if several {
+                    writeln!(out)?;
+                }
+                write!(
+                    out,
+                    "{}",
+                    diagnose::report::render_table(&diagnosis, truth.as_ref(), &name)
+                )?;
+            }
+        }
+    }
+    out.flush()?;
+    if failures > 0 {
+        return Ok(EXIT_ERROR);
+    }
+    Ok(if inadequate > 0 {
+        EXIT_VERDICT
+    } else {
+        EXIT_OK
+    })
 }
 
 fn run_simulate(args: &SimulateArgs) -> Result<()> {

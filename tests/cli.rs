@@ -314,3 +314,114 @@ fn usage_error() {
         "{stderr}"
     );
 }
+
+/// `diagnose --truth --format json`: the FORMAT.md §5 object with the drift found on
+/// the right autocollimator, the error falling, `adequate` true and status 0.
+#[test]
+fn diagnose_json_finds_a_drift() {
+    let dir = temp_dir("diagnose");
+    let data = dir.join("drift.csv");
+    let truth = dir.join("drift.truth.json");
+    let out = polycal(&[
+        "simulate",
+        "--faces",
+        "24",
+        "--cycles",
+        "6",
+        "--closing",
+        "--drift",
+        "2:2.0",
+        "--seed",
+        "3",
+        "--out",
+        data.to_str().unwrap(),
+        "--truth-out",
+        truth.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = polycal(&[
+        "diagnose",
+        data.to_str().unwrap(),
+        "--truth",
+        truth.to_str().unwrap(),
+        "--format",
+        "json",
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in ["before", "after", "effects", "error", "adequate"] {
+        assert!(json.get(key).is_some(), "missing {key}");
+    }
+    assert_eq!(json["adequate"], true);
+    assert_eq!(json["before"]["effects"], serde_json::json!([]));
+    let effect = &json["effects"][0];
+    assert_eq!(effect["kind"], "drift");
+    assert_eq!(effect["ac"], 2);
+    let (value, u) = (
+        effect["value"].as_f64().unwrap(),
+        effect["u"].as_f64().unwrap(),
+    );
+    assert!((value - 2.0).abs() < 3.0 * u, "{value} ± {u}");
+    assert_eq!(json["after"]["effects"], json["effects"]);
+    let before = json["error"]["before"]["encoder_rms"].as_f64().unwrap();
+    let after = json["error"]["after"]["encoder_rms"].as_f64().unwrap();
+    assert!(after < 0.5 * before, "{before} → {after}");
+    for key in ["pitch_rms", "pitch_max", "encoder_rms", "encoder_max"] {
+        assert!(
+            json["error"]["after"][key].is_number(),
+            "missing error.after.{key}"
+        );
+    }
+}
+
+/// Structure no effect explains: `adequate` false and status 1; the table says where.
+#[test]
+fn diagnose_inadequate_exits_1() {
+    use polycal::measurement::MeasurementSet;
+    let dir = temp_dir("inadequate");
+    let data = dir.join("clean.csv");
+    let out = polycal(&[
+        "simulate",
+        "--faces",
+        "24",
+        "--cycles",
+        "6",
+        "--closing",
+        "--seed",
+        "9",
+        "--out",
+        data.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let mut set = MeasurementSet::read_path(&data, None).unwrap();
+    for r in &mut set.readings {
+        if r.ac == 2 {
+            r.reading_arcsec +=
+                0.8 * (2.0 * std::f64::consts::PI * r.time_seconds.unwrap() / 1500.0).sin();
+        }
+    }
+    let wavy = dir.join("wavy.csv");
+    set.write_path(&wavy, &[]).unwrap();
+    let out = polycal(&["diagnose", wavy.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("NOT adequate"), "{text}");
+    assert!(
+        text.contains("structure left: setup 1 autocollimator 2"),
+        "{text}"
+    );
+    let json: Value = serde_json::from_slice(
+        &polycal(&["diagnose", wavy.to_str().unwrap(), "--format", "json"]).stdout,
+    )
+    .unwrap();
+    assert_eq!(json["adequate"], false);
+}

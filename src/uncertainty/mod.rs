@@ -1,1 +1,3 @@
-//! (to be written)
+//! GUM uncertainty (placeholder until the uncertainty branch lands).
+
+pub mod student;

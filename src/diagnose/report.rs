@@ -1,0 +1,380 @@
+//! Outputs of `polycal diagnose`: the JSON object of FORMAT.md §5 and a table that
+//! explains itself to a metrologist.
+
+use super::{Diagnosis, FoundEffect};
+use crate::effects::Effect;
+use crate::report::SolveReport;
+use crate::simulate::Truth;
+use crate::solve::Solution;
+use serde::Serialize;
+use serde_json::{Map, Value};
+use std::fmt::Write as _;
+
+/// RMS and largest absolute error of the pitch deviations and encoder errors against a
+/// truth, arcsec (FORMAT.md §5 `error`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ErrorSummary {
+    /// RMS of β − β_true.
+    pub pitch_rms: f64,
+    /// max |β − β_true|.
+    pub pitch_max: f64,
+    /// RMS of α − α_true.
+    pub encoder_rms: f64,
+    /// max |α − α_true|.
+    pub encoder_max: f64,
+}
+
+impl ErrorSummary {
+    /// Compares a solution with a truth of the same number of faces (`None` otherwise).
+    pub fn new(solution: &Solution, truth: &Truth) -> Option<Self> {
+        if truth.pitch_deviation.len() != solution.faces
+            || truth.encoder_error.len() != solution.faces
+        {
+            return None;
+        }
+        let stats = |a: &[f64], b: &[f64]| {
+            let n = a.len() as f64;
+            let rms = (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / n).sqrt();
+            let max = a
+                .iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max);
+            (rms, max)
+        };
+        let (pitch_rms, pitch_max) = stats(&solution.pitch_deviation, &truth.pitch_deviation);
+        let (encoder_rms, encoder_max) = stats(&solution.encoder_error, &truth.encoder_error);
+        Some(Self {
+            pitch_rms,
+            pitch_max,
+            encoder_rms,
+            encoder_max,
+        })
+    }
+}
+
+/// Errors before and after diagnosis.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ErrorReport {
+    /// Base model.
+    pub before: ErrorSummary,
+    /// Final model.
+    pub after: ErrorSummary,
+}
+
+/// One adequacy check in the JSON (an addition to FORMAT.md §5).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CheckReport {
+    /// What was checked.
+    pub name: String,
+    /// The statistic.
+    pub statistic: f64,
+    /// The limit it must not exceed.
+    pub limit: f64,
+    /// Whether it passed.
+    pub passed: bool,
+}
+
+/// The JSON object of `polycal diagnose` (FORMAT.md §5).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DiagnoseReport {
+    /// The input file, present when several files were diagnosed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
+    /// The base model's fit.
+    pub before: SolveReport,
+    /// The final model's fit, its `effects` filled.
+    pub after: SolveReport,
+    /// The effects added, in the order they were found: FORMAT.md §6 objects with `u`,
+    /// and the evidence `F`, `p`, `p_adjusted`, `residual_rms_before`,
+    /// `residual_rms_after`, `pitch_change_max`, `encoder_change_max`, `explanation`.
+    pub effects: Vec<Value>,
+    /// Errors against the truth (only with `--truth`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorReport>,
+    /// Whether the final residuals are consistent with noise.
+    pub adequate: bool,
+    /// Whether the data had the redundancy to test effects (an addition).
+    pub testable: bool,
+    /// The adequacy checks (an addition).
+    pub checks: Vec<CheckReport>,
+    /// Plain statements: what could not be tested and why (an addition).
+    pub notes: Vec<String>,
+}
+
+/// The effect's name without its value, e.g. `drift of autocollimator 2`.
+pub fn label(effect: &Effect) -> String {
+    match effect {
+        Effect::Drift { ac, .. } => format!("drift of autocollimator {ac}"),
+        Effect::OffsetStep { ac, cycle, .. } => {
+            format!("offset-step of autocollimator {ac} from cycle {cycle}")
+        }
+        Effect::Direction { ac: None, .. } => "direction (ccw − cw)".into(),
+        Effect::Direction { ac: Some(ac), .. } => {
+            format!("direction (ccw − cw) of autocollimator {ac}")
+        }
+        Effect::Outlier {
+            cycle,
+            step,
+            ac,
+            setup,
+            ..
+        } => format!(
+            "outlier at {}cycle {cycle}, step {step}, autocollimator {ac}",
+            setup.map_or(String::new(), |s| format!("setup {s}, "))
+        ),
+    }
+}
+
+/// One sentence on the pattern behind an effect.
+pub fn explanation(found: &FoundEffect) -> String {
+    match &found.effect {
+        Effect::Drift { ac, value } => format!(
+            "the residuals of autocollimator {ac} trend linearly with time: its zero drifts {value:+.4}″ per hour"
+        ),
+        Effect::OffsetStep { ac, cycle, value } => format!(
+            "the residuals of autocollimator {ac} jump from cycle {cycle} on: its zero moved by {value:+.4}″"
+        ),
+        Effect::Direction { ac, value } => format!(
+            "counter-clockwise cycles read {value:+.4}″ against clockwise ones{}",
+            ac.map_or(String::new(), |ac| format!(" on autocollimator {ac}"))
+        ),
+        Effect::Outlier {
+            cycle,
+            step,
+            ac,
+            value,
+            ..
+        } => format!(
+            "the reading of autocollimator {ac} at cycle {cycle}, step {step} stands {:.1} standard deviations from the model ({value:+.4}″); it is left out of the fit",
+            found.studentized_residual.unwrap_or(f64::NAN).abs()
+        ),
+    }
+}
+
+fn effect_json(found: &FoundEffect) -> Value {
+    let mut object = match serde_json::to_value(&found.effect) {
+        Ok(Value::Object(map)) => map,
+        _ => Map::new(),
+    };
+    let number = |v: f64| serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number);
+    object.insert("u".into(), found.u.map_or(Value::Null, number));
+    object.insert("F".into(), number(found.f_statistic));
+    object.insert("p".into(), number(found.p_value));
+    object.insert("p_adjusted".into(), number(found.p_adjusted));
+    object.insert(
+        "residual_rms_before".into(),
+        number(found.residual_rms_before),
+    );
+    object.insert(
+        "residual_rms_after".into(),
+        number(found.residual_rms_after),
+    );
+    object.insert("pitch_change_max".into(), number(found.pitch_change_max));
+    object.insert(
+        "encoder_change_max".into(),
+        number(found.encoder_change_max),
+    );
+    object.insert("explanation".into(), Value::String(explanation(found)));
+    Value::Object(object)
+}
+
+impl DiagnoseReport {
+    /// Builds the report; `truth` adds the `error` section.
+    pub fn new(diagnosis: &Diagnosis, truth: Option<&Truth>, file: Option<String>) -> Self {
+        let effects: Vec<Value> = diagnosis.effects.iter().map(effect_json).collect();
+        let mut after = SolveReport::new(&diagnosis.after, None);
+        after.effects = effects.clone();
+        let error = truth.and_then(|t| {
+            Some(ErrorReport {
+                before: ErrorSummary::new(&diagnosis.before, t)?,
+                after: ErrorSummary::new(&diagnosis.after, t)?,
+            })
+        });
+        Self {
+            file,
+            before: SolveReport::new(&diagnosis.before, None),
+            after,
+            effects,
+            error,
+            adequate: diagnosis.adequacy.adequate,
+            testable: diagnosis.testable,
+            checks: diagnosis
+                .adequacy
+                .checks
+                .iter()
+                .map(|c| CheckReport {
+                    name: c.name.clone(),
+                    statistic: c.statistic,
+                    limit: c.limit,
+                    passed: c.passed,
+                })
+                .collect(),
+            notes: diagnosis.notes.clone(),
+        }
+    }
+
+    /// One-line JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_else(|_| unreachable!("plain data serializes"))
+    }
+}
+
+fn rms_text(solution: &Solution) -> String {
+    solution
+        .residual_rms()
+        .map_or("— (no residual degrees of freedom)".into(), |r| {
+            format!("{r:.4}″")
+        })
+}
+
+fn p_text(p: f64) -> String {
+    if p < 1e-300 {
+        "< 1e-300".into()
+    } else {
+        format!("{p:.2e}")
+    }
+}
+
+/// The table for people: the base fit, each effect with the pattern that pointed to it,
+/// its size and evidence and what it changed, the final fit, the verdict and (with a
+/// truth) the errors before and after.
+pub fn render_table(diagnosis: &Diagnosis, truth: Option<&Truth>, source: &str) -> String {
+    let mut out = String::new();
+    let before = &diagnosis.before;
+    let _ = writeln!(out, "polycal diagnose: {source}");
+    let _ = writeln!(
+        out,
+        "Base model: {} faces, {} readings, dof {}, residual RMS {}",
+        before.faces,
+        before.readings,
+        before.dof,
+        rms_text(before)
+    );
+    for note in &diagnosis.notes {
+        let _ = writeln!(out, "  note: {note}");
+    }
+    if diagnosis.effects.is_empty() {
+        if diagnosis.testable {
+            let _ = writeln!(
+                out,
+                "\nNo effect is significant: the base model explains the readings."
+            );
+        }
+    } else {
+        let _ = writeln!(
+            out,
+            "\nEffects found, in the order added (each by an F test against the model before it):"
+        );
+        for (i, found) in diagnosis.effects.iter().enumerate() {
+            let value = found.effect.value();
+            let unit = if matches!(found.effect, Effect::Drift { .. }) {
+                "″/h"
+            } else {
+                "″"
+            };
+            let u = found
+                .u
+                .map_or(String::new(), |u| format!(" ± {u:.4}{unit} (k = 1)"));
+            let _ = writeln!(
+                out,
+                "{:>3}. {} = {value:+.4}{unit}{u}",
+                i + 1,
+                label(&found.effect)
+            );
+            let _ = writeln!(out, "     pattern: {}", explanation(found));
+            let _ = writeln!(
+                out,
+                "     evidence: F = {:.1}, p = {}, Bonferroni p = {}; residual RMS {:.4}″ → {:.4}″",
+                found.f_statistic,
+                p_text(found.p_value),
+                p_text(found.p_adjusted),
+                found.residual_rms_before,
+                found.residual_rms_after
+            );
+            let _ = writeln!(
+                out,
+                "     effect on the calibration: pitch deviations changed by up to {:.4}″, encoder errors by up to {:.4}″",
+                found.pitch_change_max, found.encoder_change_max
+            );
+        }
+        let after = &diagnosis.after;
+        let _ = writeln!(
+            out,
+            "\nFinal model: base + {} effect{}, dof {}, residual RMS {}",
+            diagnosis.effects.len(),
+            if diagnosis.effects.len() == 1 {
+                ""
+            } else {
+                "s"
+            },
+            after.dof,
+            rms_text(after)
+        );
+    }
+    if diagnosis.testable {
+        if diagnosis.adequacy.adequate {
+            let _ = writeln!(
+                out,
+                "\nAdequate: the final residuals are consistent with noise."
+            );
+        } else {
+            let _ = writeln!(
+                out,
+                "\nNOT adequate: structure is left that no known effect explains."
+            );
+            if !diagnosis.effects.is_empty() {
+                let _ = writeln!(
+                    out,
+                    "  Caution: the effects above are the closest terms the model has to a structure it cannot express, not a confirmed explanation; do not take the final model's result as corrected until the cause of the structure below is found."
+                );
+            }
+        }
+        for check in &diagnosis.adequacy.checks {
+            let _ = writeln!(
+                out,
+                "  {} {}: {:.2} (limit {:.2})",
+                if check.passed { "pass" } else { "FAIL" },
+                check.name,
+                check.statistic,
+                check.limit
+            );
+        }
+        for s in &diagnosis.adequacy.structure {
+            let time = |t: Option<f64>| t.map_or(String::new(), |t| format!(", t = {t:.0} s"));
+            let _ = writeln!(
+                out,
+                "  structure left: setup {} autocollimator {}, from cycle {} step {}{} to cycle {} step {}{}: mean residual {:+.4}″ over {} readings",
+                s.setup,
+                s.ac,
+                s.from.0,
+                s.from.1,
+                time(s.from.2),
+                s.to.0,
+                s.to.1,
+                time(s.to.2),
+                s.mean_residual_arcsec,
+                s.readings
+            );
+        }
+    }
+    if let Some(truth) = truth
+        && let (Some(b), Some(a)) = (
+            ErrorSummary::new(&diagnosis.before, truth),
+            ErrorSummary::new(&diagnosis.after, truth),
+        )
+    {
+        let _ = writeln!(
+            out,
+            "\nError against the truth (arcsec)   pitch RMS  pitch max  encoder RMS  encoder max"
+        );
+        for (label, e) in [("before", b), ("after", a)] {
+            let _ = writeln!(
+                out,
+                "  {label:<32} {:>9.4}  {:>9.4}  {:>11.4}  {:>11.4}",
+                e.pitch_rms, e.pitch_max, e.encoder_rms, e.encoder_max
+            );
+        }
+    }
+    out
+}

@@ -1,0 +1,244 @@
+//! Residual analysis: leverage and studentized residuals from the fit's covariance, and
+//! the adequacy checks of the final model (serial correlation of the time-ordered
+//! residuals per autocollimator, χ² against a stated reading noise), with the place
+//! where structure is left.
+
+use crate::measurement::MeasurementSet;
+use crate::solve::Solution;
+use crate::uncertainty::student::normal_quantile;
+
+/// Leverage h_ii of every reading: the variance of its fitted value in units of σ²,
+/// h_ii = c_iᵀ Q c_i, where c_i picks α\[p\], φ\[face\] (= β\[1\] + … + β\[face\]), U and
+/// the effect terms of that reading. `regressors` are those of the fit.
+pub fn leverage(solution: &Solution, set: &MeasurementSet, regressors: &[Vec<f64>]) -> Vec<f64> {
+    let n = solution.faces;
+    let layout = solution.layout;
+    let size = layout.len();
+    // Q in ψ = [φ (N), α, U, e]: replace the β rows and columns by their prefix sums.
+    let mut q = solution.cofactor.clone();
+    for c in 0..size {
+        let mut running = 0.0;
+        for f in 0..n {
+            running += q[(f, c)];
+            q[(f, c)] = running;
+        }
+    }
+    for r in 0..size {
+        let mut running = 0.0;
+        for f in 0..n {
+            running += q[(r, f)];
+            q[(r, f)] = running;
+        }
+    }
+    let stream_index = |setup: u32, ac: u32| {
+        solution
+            .setup_error
+            .iter()
+            .position(|s| (s.setup, s.ac) == (setup, ac))
+    };
+    let mut c: Vec<(usize, f64)> = Vec::with_capacity(3 + regressors.len());
+    set.readings
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            c.clear();
+            c.push((r.face - 1, 1.0));
+            c.push((layout.encoder(r.step % n), 1.0));
+            if let Some(s) = stream_index(r.setup, r.ac) {
+                c.push((layout.setup(s), 1.0));
+            }
+            for (j, x) in regressors.iter().enumerate() {
+                if x[i] != 0.0 {
+                    c.push((layout.effect(j), x[i]));
+                }
+            }
+            let mut h = 0.0;
+            for &(a, va) in &c {
+                for &(b, vb) in &c {
+                    h += va * vb * q[(a, b)];
+                }
+            }
+            h
+        })
+        .collect()
+}
+
+/// Internally studentized residuals r_i / (s √(1 − h_ii)); `None` where the reading
+/// determines its own fitted value (h_ii ≈ 1) or σ is unknown.
+pub fn studentized(solution: &Solution, leverage: &[f64]) -> Vec<Option<f64>> {
+    let sigma = solution.residual_rms();
+    solution
+        .residuals
+        .iter()
+        .zip(leverage)
+        .map(|(r, h)| {
+            let s = sigma?;
+            let room = 1.0 - h;
+            (room > 1e-9 && s > 0.0).then(|| r / (s * room.sqrt()))
+        })
+        .collect()
+}
+
+/// One adequacy check of the final model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Check {
+    /// What was checked, e.g. "serial correlation, setup 1 ac 2".
+    pub name: String,
+    /// The statistic (z for serial correlation, χ²/dof for the noise check).
+    pub statistic: f64,
+    /// The value beyond which the check fails.
+    pub limit: f64,
+    /// Whether the check passed.
+    pub passed: bool,
+}
+
+/// Where structure is left: a run of residuals of one stream whose sum stands out.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StructureLeft {
+    /// Polygon mounting.
+    pub setup: u32,
+    /// Autocollimator.
+    pub ac: u32,
+    /// First reading of the span: (cycle, step) and time in seconds if recorded.
+    pub from: (u32, usize, Option<f64>),
+    /// Last reading of the span.
+    pub to: (u32, usize, Option<f64>),
+    /// Mean residual over the span, arcsec.
+    pub mean_residual_arcsec: f64,
+    /// Number of readings in the span.
+    pub readings: usize,
+}
+
+/// The verdict on the final model's residuals.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Adequacy {
+    /// Whether every check passed.
+    pub adequate: bool,
+    /// The checks made.
+    pub checks: Vec<Check>,
+    /// Where structure is left, for the failed checks.
+    pub structure: Vec<StructureLeft>,
+}
+
+/// Readings of one stream in time order (by `time`, else by cycle and file order).
+fn stream_order(set: &MeasurementSet, setup: u32, ac: u32) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..set.readings.len())
+        .filter(|&i| (set.readings[i].setup, set.readings[i].ac) == (setup, ac))
+        .collect();
+    order.sort_by(|&a, &b| {
+        let (ra, rb) = (&set.readings[a], &set.readings[b]);
+        match (ra.time_seconds, rb.time_seconds) {
+            (Some(ta), Some(tb)) => ta.total_cmp(&tb).then(a.cmp(&b)),
+            _ => ra.cycle.cmp(&rb.cycle).then(a.cmp(&b)),
+        }
+    });
+    order
+}
+
+/// Checks the final model's residuals for structure the model lacks.
+///
+/// - For every (setup, ac) stream, the lag-1 autocorrelation ρ of its time-ordered
+///   studentized residuals: z = ρ√n is about standard normal for independent noise;
+///   slow structure (a drift the model does not carry) makes it large and positive. The
+///   limit is the one-sided normal quantile at `alpha` divided among the streams.
+/// - With a stated reading noise σ, χ² = RSS/σ² against χ²(dof) (Wilson–Hilferty
+///   approximation of its upper quantile at `alpha`).
+pub fn adequacy(
+    solution: &Solution,
+    set: &MeasurementSet,
+    studentized: &[Option<f64>],
+    stated_sigma: Option<f64>,
+    alpha: f64,
+) -> Adequacy {
+    let mut checks = Vec::new();
+    let mut structure = Vec::new();
+    let streams: Vec<(u32, u32)> = solution
+        .setup_error
+        .iter()
+        .map(|s| (s.setup, s.ac))
+        .collect();
+    let limit = normal_quantile(1.0 - alpha / streams.len().max(1) as f64);
+    for &(setup, ac) in &streams {
+        let order: Vec<usize> = stream_order(set, setup, ac)
+            .into_iter()
+            .filter(|&i| studentized[i].is_some())
+            .collect();
+        let e: Vec<f64> = order.iter().filter_map(|&i| studentized[i]).collect();
+        if e.len() < 8 {
+            continue;
+        }
+        let sum_squares: f64 = e.iter().map(|v| v * v).sum();
+        if sum_squares <= 0.0 {
+            continue;
+        }
+        let lag: f64 = e.windows(2).map(|w| w[0] * w[1]).sum();
+        let z = lag / sum_squares * (e.len() as f64).sqrt();
+        let passed = z <= limit;
+        checks.push(Check {
+            name: format!("serial correlation of residuals, setup {setup} ac {ac}"),
+            statistic: z,
+            limit,
+            passed,
+        });
+        if !passed && let Some(span) = largest_run(set, solution, &order) {
+            structure.push(span);
+        }
+    }
+    if let Some(sigma) = stated_sigma
+        && solution.dof > 0
+    {
+        let dof = solution.dof as f64;
+        let chi2 = solution.rss / (sigma * sigma);
+        // Wilson–Hilferty: (χ²/ν)^(1/3) ≈ N(1 − 2/(9ν), 2/(9ν))
+        let a = 2.0 / (9.0 * dof);
+        let z = normal_quantile(1.0 - alpha);
+        let upper = dof * (1.0 - a + z * a.sqrt()).powi(3);
+        checks.push(Check {
+            name: format!("χ² of residuals against the stated noise σ = {sigma}″"),
+            statistic: chi2 / dof,
+            limit: upper / dof,
+            passed: chi2 <= upper,
+        });
+    }
+    Adequacy {
+        adequate: checks.iter().all(|c| c.passed),
+        checks,
+        structure,
+    }
+}
+
+/// The contiguous run of a stream's residuals with the largest |sum| (Kadane on r and −r).
+fn largest_run(
+    set: &MeasurementSet,
+    solution: &Solution,
+    order: &[usize],
+) -> Option<StructureLeft> {
+    let residual = |k: usize| solution.residuals[order[k]];
+    let mut best: Option<(f64, usize, usize)> = None;
+    for sign in [1.0, -1.0] {
+        let (mut sum, mut start) = (0.0, 0);
+        for k in 0..order.len() {
+            if sum <= 0.0 {
+                sum = 0.0;
+                start = k;
+            }
+            sum += sign * residual(k);
+            if best.is_none_or(|(b, _, _)| sum > b) {
+                best = Some((sum, start, k));
+            }
+        }
+    }
+    let (_, start, end) = best?;
+    let first = &set.readings[order[start]];
+    let last = &set.readings[order[end]];
+    let count = end - start + 1;
+    let mean = (start..=end).map(residual).sum::<f64>() / count as f64;
+    Some(StructureLeft {
+        setup: first.setup,
+        ac: first.ac,
+        from: (first.cycle, first.step, first.time_seconds),
+        to: (last.cycle, last.step, last.time_seconds),
+        mean_residual_arcsec: mean,
+        readings: count,
+    })
+}
