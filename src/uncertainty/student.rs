@@ -25,6 +25,8 @@
 //!   `10⁻¹⁶`); the normal distribution function uses `erfc` from the regularized incomplete
 //!   gamma function `Q(1/2, x²)`.
 
+#![allow(clippy::excessive_precision)]
+
 use std::f64::consts::{FRAC_1_SQRT_2, PI};
 
 /// `ln √π`.
@@ -468,7 +470,7 @@ fn solve_two_sided_tail(alpha: f64, nu: f64) -> f64 {
         let g = tail.ln() - ln_alpha;
         let slope = -2.0 * t_density(t, nu) * t / tail;
         let mut next = t * (-g / slope).exp();
-        if !(next > lo && next < hi) || !next.is_finite() {
+        if !(next > lo && next < hi && next.is_finite()) {
             next = (lo * hi).sqrt();
             if !(next > lo && next < hi) {
                 next = 0.5 * (lo + hi);
@@ -518,6 +520,22 @@ fn two_sided_tail_asymptotic(t: f64, nu: f64) -> f64 {
         }
     }
     erfc(z.max(0.0) * FRAC_1_SQRT_2)
+}
+
+/// The two-sided tail probability P(|T| > t) of Student's t with ν degrees of freedom
+/// (`None`: normal), accurate also for tiny tails (p-values of significance tests).
+///
+/// ```
+/// use polycal::uncertainty::student::t_two_sided_tail;
+/// assert!((t_two_sided_tail(2.5706, Some(5.0)) - 0.05).abs() < 1e-5);
+/// assert!(t_two_sided_tail(40.0, Some(100.0)) < 1e-60);
+/// ```
+pub fn t_two_sided_tail(t: f64, dof: Option<f64>) -> f64 {
+    match dof {
+        None => 2.0 * (1.0 - normal_cdf(t.abs())).max(0.5 * erfc(t.abs() * FRAC_1_SQRT_2)),
+        Some(nu) if nu > 0.0 && !t.is_nan() => two_sided_tail(t.abs(), nu),
+        _ => f64::NAN,
+    }
 }
 
 #[cfg(test)]
@@ -582,21 +600,5 @@ mod tests {
         let tail = two_sided_tail(12.0, 1e12);
         let normal = erfc(12.0 * FRAC_1_SQRT_2) * (1.0 + (12f64.powi(4) + 144.0) / 4e12);
         assert!((tail / normal - 1.0).abs() < 1e-8, "{tail} vs {normal}");
-    }
-}
-
-/// The two-sided tail probability P(|T| > t) of Student's t with ν degrees of freedom
-/// (`None`: normal), accurate also for tiny tails (p-values of significance tests).
-///
-/// ```
-/// use polycal::uncertainty::student::t_two_sided_tail;
-/// assert!((t_two_sided_tail(2.5706, Some(5.0)) - 0.05).abs() < 1e-5);
-/// assert!(t_two_sided_tail(40.0, Some(100.0)) < 1e-60);
-/// ```
-pub fn t_two_sided_tail(t: f64, dof: Option<f64>) -> f64 {
-    match dof {
-        None => 2.0 * (1.0 - normal_cdf(t.abs())).max(0.5 * erfc(t.abs() * FRAC_1_SQRT_2)),
-        Some(nu) if nu > 0.0 && !t.is_nan() => two_sided_tail(t.abs(), nu),
-        _ => f64::NAN,
     }
 }
