@@ -3,11 +3,14 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
+use polycal::compare::{CompareOptions, compare_files};
 use polycal::diagnose::{self, DiagnoseOptions, report::DiagnoseReport};
 use polycal::measurement::MeasurementSet;
 use polycal::report::{self, SolveReport};
+use polycal::results::read_result_file;
 use polycal::simulate::{self, Harmonic, SimulationConfig, Truth};
 use polycal::solve::{self, Method, SolveOptions};
+use polycal::uncertainty::BudgetFile;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -86,6 +89,27 @@ enum Command {
         /// Standard deviation of one reading, arcsec, if known: adds a χ² check.
         #[arg(long)]
         sigma: Option<f64>,
+        /// Output format.
+        #[arg(long, value_enum, default_value = "table")]
+        format: FormatArg,
+    },
+    /// Evaluate a GUM uncertainty budget (TOML, FORMAT.md §5).
+    Budget {
+        /// Budget file; `-` reads standard input.
+        file: PathBuf,
+        /// Output format.
+        #[arg(long, value_enum, default_value = "table")]
+        format: FormatArg,
+    },
+    /// Compare two results quantity by quantity with En (ISO 13528); status 1 when some |En| > 1.
+    Compare {
+        /// First result file (FORMAT.md §3).
+        a: PathBuf,
+        /// Second result file.
+        b: PathBuf,
+        /// Correlation coefficient r between the two results (shared inputs), −1 … 1.
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        correlation: f64,
         /// Output format.
         #[arg(long, value_enum, default_value = "table")]
         format: FormatArg,
@@ -173,6 +197,13 @@ fn main() -> ExitCode {
             sigma,
             format,
         } => run_diagnose(&files, truth.as_deref(), faces, sigma, format),
+        Command::Budget { file, format } => run_budget(&file, format),
+        Command::Compare {
+            a,
+            b,
+            correlation,
+            format,
+        } => run_compare(&a, &b, correlation, format),
         Command::Simulate(args) => run_simulate(&args).map(|()| EXIT_OK),
     };
     match outcome {
@@ -346,6 +377,44 @@ fn run_diagnose(
         EXIT_VERDICT
     } else {
         EXIT_OK
+    })
+}
+
+fn run_budget(file: &Path, format: FormatArg) -> Result<u8> {
+    let budget = BudgetFile::read_path(file)?;
+    let result = budget.evaluate().with_context(|| display_name(file))?;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    match format {
+        FormatArg::Json => writeln!(out, "{}", serde_json::to_string(&result)?)?,
+        FormatArg::Table => write!(out, "{}", polycal::uncertainty::render_table(&result))?,
+        FormatArg::Csv => bail!("budget reports as table or json, not csv"),
+    }
+    out.flush()?;
+    Ok(EXIT_OK)
+}
+
+fn run_compare(a: &Path, b: &Path, correlation: f64, format: FormatArg) -> Result<u8> {
+    let file_a = read_result_file(a)?;
+    let file_b = read_result_file(b)?;
+    let options = CompareOptions {
+        correlation,
+        label_a: display_name(a),
+        label_b: display_name(b),
+    };
+    let comparison = compare_files(&file_a, &file_b, &options)?;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    match format {
+        FormatArg::Json => writeln!(out, "{}", serde_json::to_string(&comparison)?)?,
+        FormatArg::Table => write!(out, "{}", polycal::compare::render_table(&comparison))?,
+        FormatArg::Csv => bail!("compare reports as table or json, not csv"),
+    }
+    out.flush()?;
+    Ok(if comparison.verdict_ok() {
+        EXIT_OK
+    } else {
+        EXIT_VERDICT
     })
 }
 

@@ -1,40 +1,439 @@
-//! The result file (FORMAT.md §3). Placeholder until the uncertainty branch lands.
+//! The result file (FORMAT.md §3): one row per estimated quantity.
+//!
+//! ```text
+//! quantity,index,value,U,u,k
+//! pitch_deviation,1,0.52,0.46,0.2287,1.993
+//! encoder_error,0,-0.11,0.46,,
+//! ```
+//!
+//! Columns may come in any order; `quantity`, `index` and `value` are required; `U`
+//! (expanded uncertainty), `u` (standard uncertainty) and `k` (coverage factor) are
+//! optional, an empty field meaning "not given" (`compare` needs `U`). Column names are
+//! case-sensitive (`U` and `u` differ). Columns this version does not know are ignored
+//! (FORMAT.md allows adding columns). Lines starting with `#` before the header are
+//! comments.
+//!
+//! Reading is strict: an unknown quantity, an index out of range, a number that is not
+//! finite, a negative uncertainty, a duplicate `(quantity, index)` is refused with
+//! `file:line:column` and nothing is guessed.
 
-/// One row of the result file.
-#[derive(Debug, Clone, PartialEq)]
+use std::io::{Read, Write};
+use std::path::Path;
+
+use serde::Serialize;
+
+/// The quantities a result file may hold, as spelled in it.
+pub const QUANTITIES: [&str; 4] = [
+    "pitch_deviation",
+    "face_deviation",
+    "encoder_error",
+    "setup_error",
+];
+
+/// One row of a result file.
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ResultRow {
     /// `pitch_deviation`, `face_deviation`, `encoder_error` or `setup_error`.
     pub quantity: String,
-    /// Face, step or autocollimator.
+    /// Face 1 … N, step 0 … N−1, or autocollimator number.
     pub index: u32,
-    /// Estimate, arcsec.
+    /// Estimate, arcseconds.
     pub value: f64,
-    /// Standard uncertainty, arcsec.
+    /// Standard uncertainty, arcseconds (column `u`).
     pub u: Option<f64>,
-    /// Expanded uncertainty (column `U`), arcsec.
+    /// Expanded uncertainty, arcseconds (column `U`).
+    #[serde(rename = "U")]
     pub expanded_u: Option<f64>,
-    /// Coverage factor.
+    /// Coverage factor (column `k`).
     pub k: Option<f64>,
 }
 
-fn opt(v: Option<f64>) -> String {
-    v.map(|v| v.to_string()).unwrap_or_default()
+/// A result file as read: its rows and where each came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResultFile {
+    /// The path, or `<stdin>`.
+    pub source: String,
+    /// The rows, in file order.
+    pub rows: Vec<ResultRow>,
+    /// The 1-based line of each row.
+    pub lines: Vec<u64>,
 }
 
-/// Writes result rows as the result CSV.
-pub fn write_results<W: std::io::Write>(mut w: W, rows: &[ResultRow]) -> std::io::Result<()> {
-    writeln!(w, "quantity,index,value,U,u,k")?;
-    for r in rows {
-        writeln!(
-            w,
-            "{},{},{},{},{},{}",
-            r.quantity,
-            r.index,
-            r.value,
-            opt(r.expanded_u),
-            opt(r.u),
-            opt(r.k)
-        )?;
+/// Why a result file cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ResultsError {
+    /// A problem at a place in the file.
+    #[error("{file}:{line}:{column}: {message}")]
+    At {
+        /// The file name (`<stdin>` for standard input).
+        file: String,
+        /// 1-based line.
+        line: u64,
+        /// 1-based column (characters).
+        column: u64,
+        /// What is wrong.
+        message: String,
+    },
+    /// The file could not be read.
+    #[error("{file}: {source}")]
+    Io {
+        /// The file name.
+        file: String,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+}
+
+/// Reads a result file strictly; `-` reads standard input. See [`read_result_file`] for
+/// the rows' line numbers.
+///
+/// # Errors
+///
+/// [`ResultsError::At`] with file, line and column for anything invalid;
+/// [`ResultsError::Io`] if the file cannot be read.
+pub fn read_results_path(path: impl AsRef<Path>) -> Result<Vec<ResultRow>, ResultsError> {
+    read_result_file(path).map(|f| f.rows)
+}
+
+/// Reads a result file strictly, keeping each row's line number; `-` reads standard
+/// input.
+///
+/// # Errors
+///
+/// As [`read_results_path`].
+pub fn read_result_file(path: impl AsRef<Path>) -> Result<ResultFile, ResultsError> {
+    let path = path.as_ref();
+    if path == Path::new("-") {
+        read_results_from(std::io::stdin().lock(), "<stdin>")
+    } else {
+        let source = path.display().to_string();
+        let file = std::fs::File::open(path).map_err(|e| ResultsError::Io {
+            file: source.clone(),
+            source: e,
+        })?;
+        read_results_from(file, &source)
     }
-    Ok(())
+}
+
+/// Reads a result file from any reader; `source` names it in messages.
+///
+/// # Errors
+///
+/// As [`read_results_path`].
+pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultFile, ResultsError> {
+    let mut bytes = Vec::new();
+    reader
+        .read_to_end(&mut bytes)
+        .map_err(|e| ResultsError::Io {
+            file: source.to_string(),
+            source: e,
+        })?;
+    let err = |line: u64, column: u64, message: String| ResultsError::At {
+        file: source.to_string(),
+        line,
+        column,
+        message,
+    };
+    let text = match String::from_utf8(bytes) {
+        Ok(text) => text,
+        Err(e) => {
+            let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+            let text = String::from_utf8_lossy(valid);
+            let (line, column) = line_column(&text, text.len());
+            return Err(err(line, column, "the file is not valid UTF-8".to_string()));
+        }
+    };
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+
+    // Skip the comment (and blank) lines before the header.
+    let mut offset = 0;
+    for line in text.split_inclusive('\n') {
+        let trimmed = line.trim();
+        if trimmed.is_empty() || trimmed.starts_with('#') {
+            offset += line.len();
+        } else {
+            break;
+        }
+    }
+    let body = &text[offset..];
+    let line_offset = text[..offset].matches('\n').count() as u64;
+    if body.trim().is_empty() {
+        return Err(err(
+            line_offset + 1,
+            1,
+            "no header: expected a header line such as quantity,index,value,U,u,k".to_string(),
+        ));
+    }
+
+    // Position of field `i` of the record starting at byte `start` of `body`.
+    let field_position = |start: u64, i: usize| -> (u64, u64) {
+        let (line, column) = field_start(body, start as usize, i);
+        (line_offset + line, column)
+    };
+    let csv_error = |e: csv::Error| -> ResultsError {
+        let (line, column, message) = match e.kind() {
+            csv::ErrorKind::UnequalLengths {
+                pos,
+                expected_len,
+                len,
+            } => {
+                // Too many fields: point at the first extra one; too few: at the end.
+                let field = (*len).min(*expected_len) as usize;
+                let (line, column) = pos
+                    .as_ref()
+                    .map_or((line_offset + 1, 1), |p| field_position(p.byte(), field));
+                (
+                    line,
+                    column,
+                    format!("this row has {len} fields, the header {expected_len}"),
+                )
+            }
+            csv::ErrorKind::Utf8 { pos, .. } => {
+                let line = pos.as_ref().map_or(0, |p| p.line());
+                (line_offset + line, 1, "not valid UTF-8".to_string())
+            }
+            _ => (line_offset + 1, 1, e.to_string()),
+        };
+        err(line, column, message)
+    };
+
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(false)
+        .trim(csv::Trim::All)
+        .from_reader(body.as_bytes());
+    let mut records = reader.records();
+    let header = match records.next() {
+        None => {
+            return Err(err(
+                line_offset + 1,
+                1,
+                "no header: expected a header line such as quantity,index,value,U,u,k".to_string(),
+            ));
+        }
+        Some(record) => record.map_err(&csv_error)?,
+    };
+    let header_start = header.position().map_or(0, |p| p.byte());
+    let column_of = |name: &str| -> Result<Option<usize>, ResultsError> {
+        let mut found = None;
+        for (i, h) in header.iter().enumerate() {
+            if h == name {
+                if found.is_some() {
+                    let (line, column) = field_position(header_start, i);
+                    return Err(err(
+                        line,
+                        column,
+                        format!("the column {name:?} appears twice"),
+                    ));
+                }
+                found = Some(i);
+            }
+        }
+        Ok(found)
+    };
+    let required = |name: &str, found: Option<usize>| {
+        found.ok_or_else(|| {
+            let (line, _) = field_position(header_start, 0);
+            err(
+                line,
+                1,
+                format!(
+                    "the header has no {name:?} column (required: quantity, index, value; \
+                     optional: U, u, k; names are case-sensitive)"
+                ),
+            )
+        })
+    };
+    let c_quantity = required("quantity", column_of("quantity")?)?;
+    let c_index = required("index", column_of("index")?)?;
+    let c_value = required("value", column_of("value")?)?;
+    let c_expanded = column_of("U")?;
+    let c_u = column_of("u")?;
+    let c_k = column_of("k")?;
+
+    let mut rows: Vec<ResultRow> = Vec::new();
+    let mut lines: Vec<u64> = Vec::new();
+    for record in records {
+        let record = record.map_err(&csv_error)?;
+        let start = record.position().map_or(0, |p| p.byte());
+        let at = |i: usize, message: String| {
+            let (line, column) = field_position(start, i);
+            err(line, column, message)
+        };
+        let quantity = &record[c_quantity];
+        if !QUANTITIES.contains(&quantity) {
+            return Err(at(
+                c_quantity,
+                format!(
+                    "unknown quantity {quantity:?}: expected pitch_deviation, face_deviation, \
+                     encoder_error or setup_error"
+                ),
+            ));
+        }
+        let index_text = &record[c_index];
+        let index: u32 = index_text.parse().map_err(|_| {
+            at(
+                c_index,
+                format!("index must be a whole number ≥ 0, got {index_text:?}"),
+            )
+        })?;
+        if index == 0 && quantity != "encoder_error" {
+            let what = if quantity == "setup_error" {
+                "autocollimator numbers start at 1"
+            } else {
+                "faces are numbered 1 … N"
+            };
+            return Err(at(c_index, format!("index 0 for {quantity}: {what}")));
+        }
+        let number = |i: usize, name: &str| -> Result<f64, ResultsError> {
+            let text = &record[i];
+            match text.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                _ => Err(at(
+                    i,
+                    format!("{name} must be a finite number, got {text:?}"),
+                )),
+            }
+        };
+        let optional = |column: Option<usize>, name: &str, positive: bool| match column {
+            None => Ok(None),
+            Some(i) if record[i].is_empty() => Ok(None),
+            Some(i) => {
+                let v = number(i, name)?;
+                if positive && v <= 0.0 {
+                    Err(at(i, format!("{name} must be greater than 0, got {v}")))
+                } else if v < 0.0 {
+                    Err(at(i, format!("{name} must not be negative, got {v}")))
+                } else {
+                    Ok(Some(v))
+                }
+            }
+        };
+        let value = number(c_value, "value")?;
+        let expanded_u = optional(c_expanded, "U", false)?;
+        let u = optional(c_u, "u", false)?;
+        let k = optional(c_k, "k", true)?;
+        let line = field_position(start, 0).0;
+        if let Some(first) = rows
+            .iter()
+            .position(|r| r.quantity == quantity && r.index == index)
+        {
+            return Err(at(
+                c_quantity,
+                format!(
+                    "{quantity} {index} appears twice (first on line {})",
+                    lines[first]
+                ),
+            ));
+        }
+        rows.push(ResultRow {
+            quantity: quantity.to_string(),
+            index,
+            value,
+            u,
+            expanded_u,
+            k,
+        });
+        lines.push(line);
+    }
+    Ok(ResultFile {
+        source: source.to_string(),
+        rows,
+        lines,
+    })
+}
+
+/// Writes rows as a result file: header `quantity,index,value,U,u,k`, numbers in Rust's
+/// shortest round-trip representation (`{}`), `None` as an empty field.
+///
+/// # Errors
+///
+/// An I/O error, or [`std::io::ErrorKind::InvalidInput`] for a number that is not finite
+/// or a quantity that is not one of [`QUANTITIES`].
+pub fn write_results<W: Write>(w: W, rows: &[ResultRow]) -> std::io::Result<()> {
+    let invalid = |message: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, message);
+    let mut writer = csv::Writer::from_writer(w);
+    let to_io = |e: csv::Error| match e.into_kind() {
+        csv::ErrorKind::Io(e) => e,
+        other => std::io::Error::other(format!("{other:?}")),
+    };
+    writer
+        .write_record(["quantity", "index", "value", "U", "u", "k"])
+        .map_err(to_io)?;
+    for row in rows {
+        if !QUANTITIES.contains(&row.quantity.as_str()) {
+            return Err(invalid(format!("unknown quantity {:?}", row.quantity)));
+        }
+        let number = |x: f64| {
+            if x.is_finite() {
+                Ok(format!("{x}"))
+            } else {
+                Err(invalid(format!(
+                    "{} {}: {x} is not a finite number",
+                    row.quantity, row.index
+                )))
+            }
+        };
+        let optional = |x: Option<f64>| x.map_or(Ok(String::new()), number);
+        writer
+            .write_record([
+                row.quantity.clone(),
+                row.index.to_string(),
+                number(row.value)?,
+                optional(row.expanded_u)?,
+                optional(row.u)?,
+                optional(row.k)?,
+            ])
+            .map_err(to_io)?;
+    }
+    writer.flush()
+}
+
+/// 1-based line and column (characters) of the end of `text`.
+fn line_column(text: &str, offset: usize) -> (u64, u64) {
+    let before = &text[..offset];
+    let line = before.matches('\n').count() as u64 + 1;
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    (line, before[line_start..].chars().count() as u64 + 1)
+}
+
+/// Line (1-based, within `body`) and column (1-based, characters) where field `field` of
+/// the CSV record starting at byte `start` begins; the end of the record if it has fewer
+/// fields. Quoted fields (with commas, doubled quotes or newlines) are stepped over.
+fn field_start(body: &str, start: usize, field: usize) -> (u64, u64) {
+    let mut start = start.min(body.len());
+    // After a CR LF line end the reported record start may be the LF: step over it.
+    while matches!(body.as_bytes().get(start), Some(b'\r' | b'\n')) {
+        start += 1;
+    }
+    let (mut line, mut column) = line_column(body, start);
+    let mut current = 0;
+    let mut in_quotes = false;
+    let mut chars = body[start..].chars().peekable();
+    while current < field {
+        let Some(ch) = chars.next() else { break };
+        match ch {
+            '"' if in_quotes && chars.peek() == Some(&'"') => {
+                chars.next();
+                column += 1;
+            }
+            '"' => in_quotes = !in_quotes,
+            ',' if !in_quotes => current += 1,
+            '\n' if !in_quotes => break,
+            '\n' => {
+                line += 1;
+                column = 0;
+            }
+            _ => {}
+        }
+        column += 1;
+    }
+    // Step over the padding that Trim::All removed.
+    if current == field {
+        while let Some(' ' | '\t') = chars.peek() {
+            chars.next();
+            column += 1;
+        }
+    }
+    (line, column)
 }

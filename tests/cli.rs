@@ -425,3 +425,87 @@ fn diagnose_inadequate_exits_1() {
     .unwrap();
     assert_eq!(json["adequate"], false);
 }
+
+/// `budget` on the paper's Table 1 (FORMAT.md §5 JSON): u_c = 0.22867″ unrounded,
+/// ν_eff = 72.6 (the paper prints 74, which only its rounded 0.23″ gives), k = 1.993
+/// with fractional ν (the paper uses 2.00), U = 0.456″ (printed 0.46″).
+#[test]
+fn budget_reproduces_paper_table_1() {
+    let out = polycal(&[
+        "budget",
+        "examples/budgets/paper-table1.toml",
+        "--format",
+        "json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let get = |k: &str| json[k].as_f64().unwrap();
+    assert!((get("combined_u") - 0.2287).abs() < 5e-5);
+    assert!((get("dof_eff") - 72.6).abs() < 0.05);
+    assert!((get("k") - 1.993).abs() < 5e-4);
+    assert!((get("expanded_u") - 0.456).abs() < 5e-4);
+    assert_eq!(json["dof_policy"], "fractional");
+    assert_eq!(json["p"], 0.95);
+    let table =
+        String::from_utf8(polycal(&["budget", "examples/budgets/paper-table1.toml"]).stdout)
+            .unwrap();
+    assert!(table.contains("ν_eff = 72.6"), "{table}");
+}
+
+/// `compare` reproduces the paper's En numbers (0.58 and 0.59, status 0), says 1 when
+/// some |En| > 1, and refuses a result without U (status 2, file and line named).
+#[test]
+fn compare_en_and_status() {
+    let dir = temp_dir("compare");
+    let a = dir.join("a.csv");
+    let b = dir.join("b.csv");
+    std::fs::write(
+        &a,
+        "quantity,index,value,U\npitch_deviation,1,0.28,0.46\nencoder_error,0,0.27,0.46\n",
+    )
+    .unwrap();
+    std::fs::write(
+        &b,
+        "quantity,index,value,U\npitch_deviation,1,0,0.15\nencoder_error,0,0,0.02\n",
+    )
+    .unwrap();
+    let out = polycal(&[
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--format",
+        "json",
+    ]);
+    assert_eq!(out.status.code(), Some(0));
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let en: Vec<f64> = json["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["en"].as_f64().unwrap())
+        .collect();
+    assert_eq!(format!("{:.2} {:.2}", en[0], en[1]), "0.58 0.59");
+    assert_eq!(
+        format!("{:.2}", json["max_abs_en"].as_f64().unwrap()),
+        "0.59"
+    );
+
+    let far = dir.join("far.csv");
+    std::fs::write(&far, "quantity,index,value,U\npitch_deviation,1,0.9,0.1\n").unwrap();
+    let out = polycal(&["compare", far.to_str().unwrap(), b.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+
+    let no_u = dir.join("no-u.csv");
+    std::fs::write(&no_u, "quantity,index,value,u\npitch_deviation,1,0.9,0.1\n").unwrap();
+    let out = polycal(&["compare", no_u.to_str().unwrap(), b.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.starts_with("error: ") && stderr.contains(&format!("{}:2", no_u.display())),
+        "{stderr}"
+    );
+}

@@ -1,3 +1,24 @@
-//! GUM uncertainty (placeholder until the uncertainty branch lands).
+//! GUM uncertainty: Student's t, budgets, and Monte Carlo.
+//!
+//! - [`student`]: Student's t quantile and distribution function (coverage factors);
+//! - [`distribution`]: the distributions of input quantities (normal, rectangular,
+//!   triangular, arcsine, t);
+//! - [`budget`]: GUM budgets (law of propagation, Welch–Satterthwaite, coverage factor);
+//! - [`budget_file`]: the budget TOML file of FORMAT.md §5;
+//! - [`monte_carlo`]: propagation of distributions (GUM Supplement 1, JCGM 101:2008),
+//!   with the adaptive procedure and the validation of the GUM result.
 
+pub mod budget;
+pub mod budget_file;
+pub mod distribution;
+pub(crate) mod format;
+pub mod monte_carlo;
 pub mod student;
+
+pub use budget::{
+    Budget, BudgetError, BudgetResult, Component, ComponentResult, DofPolicy, EvaluationType,
+    render_table,
+};
+pub use budget_file::{BudgetFile, read_budget_path};
+pub use distribution::Distribution;
+pub use student::{normal_cdf, normal_quantile, t_cdf, t_coverage, t_quantile};
