@@ -1,0 +1,360 @@
+//! Readings and the measurement file (FORMAT.md §2).
+//!
+//! A [`MeasurementSet`] is a validated list of [`Reading`]s of one polygon with `faces`
+//! faces. It is read from the measurement CSV with [`MeasurementSet::read_path`] (or
+//! [`MeasurementSet::read_from`] for any reader, e.g. standard input) and written with
+//! [`MeasurementSet::write_to`]. Readings built in memory (by the simulator, say) are
+//! checked with the same rules by [`MeasurementSet::from_readings`].
+//!
+//! # The rules
+//!
+//! The file is UTF-8 (a leading byte-order mark is allowed), comma separated, with one
+//! header row and one reading per row; the columns may come in any order. Lines that
+//! start with `#` before the header are comments; blank lines are skipped. The columns
+//! `cycle`, `step`, `ac`, `face` and `reading` are required; `direction`, `time`,
+//! `setup`, `reading_y`, `temperature` and `encoder` are optional, and an empty field
+//! of an optional column means "not recorded" (or the default: `cw`, setup 1). Other
+//! columns are ignored, except one whose name differs from a known name only by case,
+//! spaces or `-` (such as `Face` or `reading y`): that is refused, so that no recorded
+//! value is silently dropped.
+//!
+//! Nothing is guessed. The first problem found is reported as one
+//! [`MeasurementError::Invalid`] naming the file, the 1-based line and the 1-based
+//! character column where the offending field starts, the column name and the offending
+//! text. Row-level problems are reported in file order, before the whole-file checks for
+//! faces and steps never read.
+//!
+//! N, the number of faces, is the largest `face` unless given (`--faces N`); it must be
+//! at least 3. Every face 1 … N must be read, every step 0 … N−1 present (step N is the
+//! optional closing reading). A (setup, cycle, step, ac) is read at most once, a
+//! (setup, cycle) has one direction, and for each (setup, ac) the offset
+//! (face − 1 − step) mod N is the same for every reading: each autocollimator looks at
+//! the polygon from one fixed place.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::io::{self, BufWriter, Read, Write};
+use std::path::Path;
+
+mod parse;
+mod validate;
+
+use parse::*;
+use validate::*;
+
+/// Rotation direction of a cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+pub enum Direction {
+    /// Clockwise (`cw`), the default.
+    #[default]
+    Cw,
+    /// Counter-clockwise (`ccw`).
+    Ccw,
+}
+
+impl Direction {
+    /// The file spelling, `cw` or `ccw`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Direction::Cw => "cw",
+            Direction::Ccw => "ccw",
+        }
+    }
+}
+
+impl fmt::Display for Direction {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// One autocollimator reading: one row of the measurement file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reading {
+    /// Polygon mounting on the table (shift-angle data), ≥ 1; default 1.
+    pub setup: u32,
+    /// Repeat number, ≥ 1.
+    pub cycle: u32,
+    /// Table stop 0 … N; N is the closing reading (table back at 360°).
+    pub step: usize,
+    /// Autocollimator number, ≥ 1.
+    pub ac: u32,
+    /// Polygon face read, 1 … N.
+    pub face: usize,
+    /// Autocollimator measuring-axis (X) value, arcseconds.
+    pub reading_arcsec: f64,
+    /// Rotation direction of the cycle.
+    pub direction: Direction,
+    /// Time since the run started, seconds, if recorded.
+    pub time_seconds: Option<f64>,
+    /// Second (elevation) axis, arcseconds, if recorded.
+    pub reading_y_arcsec: Option<f64>,
+    /// Air or instrument temperature, °C, if recorded.
+    pub temperature_celsius: Option<f64>,
+    /// Position the table reported at that stop, degrees, if recorded.
+    pub encoder_degrees: Option<f64>,
+    /// Line of the source file the reading came from (1-based); 0 when not from a file.
+    pub line: u64,
+}
+
+impl Reading {
+    /// The encoder position index `step mod N` (the closing step N is position 0).
+    pub fn position(&self, faces: usize) -> usize {
+        self.step % faces
+    }
+}
+
+/// A validated set of readings of an N-faced polygon.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeasurementSet {
+    /// Number of polygon faces N (= number of encoder positions).
+    pub faces: usize,
+    /// The readings, in file order.
+    pub readings: Vec<Reading>,
+    /// Where the readings came from (a path, `-` for standard input, or a label).
+    pub source: String,
+}
+
+/// Why a measurement file or a set of readings was refused, or could not be read or
+/// written.
+#[derive(Debug, thiserror::Error)]
+pub enum MeasurementError {
+    /// A file that breaks the rules: names the file, 1-based line and 1-based character column.
+    ///
+    /// Displayed as `file:line:column: message`, e.g.
+    /// `run.csv:7:9: column "face": "x" is not an integer`.
+    #[error("{file}:{line}:{column}: {message}")]
+    Invalid {
+        /// The file (the `source` name given; `-` for standard input).
+        file: String,
+        /// 1-based line of the offending field; for readings built in memory, the
+        /// reading's [`Reading::line`] (0 when not from a file).
+        line: u64,
+        /// 1-based character column where the offending field starts on that line; 0
+        /// for readings built in memory.
+        column: u64,
+        /// What is wrong, naming the column and quoting the offending text.
+        message: String,
+    },
+    /// The file could not be opened, read or written.
+    #[error("{file}: {source}")]
+    Io {
+        /// The file (the `source` name given; `-` for standard input).
+        file: String,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl MeasurementSet {
+    /// Reads a measurement CSV from a path; the path "-" reads standard input.
+    ///
+    /// `faces` is the `--faces N` option: N is the largest `face` in the file unless
+    /// given. The path as displayed (or `-`) names the file in messages. See
+    /// [`MeasurementSet::read_from`] for the rules.
+    ///
+    /// # Errors
+    ///
+    /// [`MeasurementError::Io`] if the file cannot be opened or read,
+    /// [`MeasurementError::Invalid`] if it breaks a rule of FORMAT.md §2.
+    pub fn read_path(path: &Path, faces: Option<usize>) -> Result<Self, MeasurementError> {
+        if path == Path::new("-") {
+            return Self::read_from(io::stdin().lock(), "-", faces);
+        }
+        let name = path.display().to_string();
+        let file = std::fs::File::open(path).map_err(|source| MeasurementError::Io {
+            file: name.clone(),
+            source,
+        })?;
+        Self::read_from(file, &name, faces)
+    }
+
+    /// Reads from any reader; `source` is the name used in messages.
+    ///
+    /// The whole input is read, then checked against FORMAT.md §2 (see the
+    /// [module documentation](self)); the first problem found is returned as one
+    /// [`MeasurementError::Invalid`]. `faces` is the `--faces N` option: N is the
+    /// largest `face` unless given. Each [`Reading::line`] is the line its row starts on.
+    ///
+    /// # Errors
+    ///
+    /// [`MeasurementError::Io`] if reading fails, [`MeasurementError::Invalid`] if the
+    /// input breaks a rule.
+    ///
+    /// # Example
+    ///
+    /// ```
+    /// use polycal::measurement::{MeasurementError, MeasurementSet};
+    ///
+    /// let csv = b"# a 3-faced polygon, one autocollimator\n\
+    ///             cycle,step,ac,face,reading\n\
+    ///             1,0,1,1,0.5\n\
+    ///             1,1,1,2,-0.25\n\
+    ///             1,2,1,3,0.125\n";
+    /// let set = MeasurementSet::read_from(&csv[..], "example.csv", None)?;
+    /// assert_eq!(set.faces, 3);
+    /// assert_eq!(set.readings.len(), 3);
+    /// assert_eq!(set.readings[1].reading_arcsec, -0.25);
+    /// assert_eq!(set.readings[1].line, 4);
+    ///
+    /// // A refused file names the file, line and column.
+    /// let bad = b"cycle,step,ac,face,reading\n1,0,1,one,0.5\n";
+    /// let err = MeasurementSet::read_from(&bad[..], "bad.csv", None).unwrap_err();
+    /// assert_eq!(err.to_string(), r#"bad.csv:2:7: column "face": "one" is not an integer"#);
+    /// # Ok::<(), MeasurementError>(())
+    /// ```
+    pub fn read_from<R: Read>(
+        mut reader: R,
+        source: &str,
+        faces: Option<usize>,
+    ) -> Result<Self, MeasurementError> {
+        let mut bytes = Vec::new();
+        reader
+            .read_to_end(&mut bytes)
+            .map_err(|e| MeasurementError::Io {
+                file: source.to_string(),
+                source: e,
+            })?;
+        parse_bytes(&bytes, source, faces)
+    }
+
+    /// Validates readings built in memory (e.g. by the simulator) with the same structural rules.
+    /// Errors use Reading::line (0 if not from a file) and column 0.
+    ///
+    /// The checks are those of [`MeasurementSet::read_from`] that apply to values:
+    /// cycle, ac, setup and face at least 1, finite floats, N at least 3, face and step
+    /// in range, every face and step present, no duplicate reading, one direction per
+    /// cycle and one face offset per (setup, ac). When a reading's `line` is 0 the
+    /// message starts with `reading K:` (1-based position in `readings`).
+    ///
+    /// # Errors
+    ///
+    /// [`MeasurementError::Invalid`] for the first rule broken.
+    pub fn from_readings(
+        readings: Vec<Reading>,
+        faces: Option<usize>,
+        source: &str,
+    ) -> Result<Self, MeasurementError> {
+        let n = validate(&readings, faces, &Locator::Memory, source)?;
+        Ok(MeasurementSet {
+            faces: n,
+            readings,
+            source: source.to_string(),
+        })
+    }
+
+    /// Writes the measurement CSV (FORMAT.md §2); `comments` become leading `# ` lines.
+    ///
+    /// The header is `cycle,step,ac,face,reading,direction,setup`, followed by `time`,
+    /// `reading_y`, `temperature` and `encoder`, each only if some reading has that
+    /// value (a reading without it gets an empty field). Floats are written with Rust's
+    /// `{}` formatting, the shortest text that reads back to the same `f64`, so reading
+    /// the output back gives an equal set (apart from [`Reading::line`] and `source`).
+    /// A comment holding line breaks becomes several comment lines. Rows keep the set's
+    /// order; lines end with `\n`. Non-finite values (possible only in a set not built by
+    /// this module) are written as Rust prints them and would be refused on reading.
+    ///
+    /// # Errors
+    ///
+    /// Any error of `writer`.
+    pub fn write_to<W: Write>(&self, writer: W, comments: &[String]) -> io::Result<()> {
+        let mut w = BufWriter::new(writer);
+        for comment in comments {
+            for line in split_lines(comment) {
+                if line.is_empty() {
+                    writeln!(w, "#")?;
+                } else {
+                    writeln!(w, "# {line}")?;
+                }
+            }
+        }
+        let has_time = self.readings.iter().any(|r| r.time_seconds.is_some());
+        let has_y = self.readings.iter().any(|r| r.reading_y_arcsec.is_some());
+        let has_temp = self
+            .readings
+            .iter()
+            .any(|r| r.temperature_celsius.is_some());
+        let has_encoder = self.readings.iter().any(|r| r.encoder_degrees.is_some());
+        write!(w, "cycle,step,ac,face,reading,direction,setup")?;
+        for (present, name) in [
+            (has_time, "time"),
+            (has_y, "reading_y"),
+            (has_temp, "temperature"),
+            (has_encoder, "encoder"),
+        ] {
+            if present {
+                write!(w, ",{name}")?;
+            }
+        }
+        writeln!(w)?;
+        for r in &self.readings {
+            write!(
+                w,
+                "{},{},{},{},{},{},{}",
+                r.cycle, r.step, r.ac, r.face, r.reading_arcsec, r.direction, r.setup
+            )?;
+            for (present, value) in [
+                (has_time, r.time_seconds),
+                (has_y, r.reading_y_arcsec),
+                (has_temp, r.temperature_celsius),
+                (has_encoder, r.encoder_degrees),
+            ] {
+                if present {
+                    match value {
+                        Some(x) => write!(w, ",{x}")?,
+                        None => write!(w, ",")?,
+                    }
+                }
+            }
+            writeln!(w)?;
+        }
+        w.flush()
+    }
+
+    /// Writes the measurement CSV to a file (created or truncated), as
+    /// [`MeasurementSet::write_to`] does.
+    ///
+    /// # Errors
+    ///
+    /// [`MeasurementError::Io`] naming the path if the file cannot be created or written.
+    pub fn write_path(&self, path: &Path, comments: &[String]) -> Result<(), MeasurementError> {
+        let io_error = |source| MeasurementError::Io {
+            file: path.display().to_string(),
+            source,
+        };
+        let file = std::fs::File::create(path).map_err(io_error)?;
+        self.write_to(file, comments).map_err(io_error)
+    }
+
+    /// Distinct (setup, ac) pairs in ascending order.
+    ///
+    /// Each pair is one *stream*: one autocollimator in one mounting of the polygon,
+    /// with its own setup error U\[setup, ac\].
+    pub fn streams(&self) -> Vec<(u32, u32)> {
+        let set: BTreeSet<(u32, u32)> = self.readings.iter().map(|r| (r.setup, r.ac)).collect();
+        set.into_iter().collect()
+    }
+
+    /// For each (setup, ac): the face offset d in 0..N such that face = (step + d) mod N + 1.
+    ///
+    /// Pairs are in ascending order, as [`MeasurementSet::streams`]. In a validated set
+    /// every reading of a pair has the same offset; otherwise the first reading's is
+    /// given. For the paper's design, autocollimator 1 has d = 0 and autocollimator 2
+    /// has d = 1. Empty if `faces` is 0 (a set not built by this module).
+    pub fn face_offsets(&self) -> Vec<((u32, u32), usize)> {
+        let mut offsets = BTreeMap::new();
+        if self.faces == 0 {
+            return Vec::new();
+        }
+        for r in &self.readings {
+            offsets
+                .entry((r.setup, r.ac))
+                .or_insert_with(|| face_offset(r.face, r.step, self.faces));
+        }
+        offsets.into_iter().collect()
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Columns

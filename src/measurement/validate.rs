@@ -1,0 +1,291 @@
+//! The structural rules of a measurement set (FORMAT.md §2): ranges, missing faces and
+//! steps, duplicates, face offsets per autocollimator, one direction per cycle.
+
+use super::parse::*;
+use super::*;
+use std::collections::hash_map::Entry;
+use std::collections::{BTreeSet, HashMap};
+
+/// (face − 1 − step) mod N, without overflow for any N ≥ 1.
+pub(super) fn face_offset(face: usize, step: usize, n: usize) -> usize {
+    let n128 = n as u128;
+    if n128 == 0 {
+        return 0;
+    }
+    let step = (step as u128) % n128;
+    // face ≥ 1 in a validated set; `face + N − 1 − step` cannot underflow as step < N.
+    let d = (face as u128 + n128 - 1 - step) % n128;
+    usize::try_from(d).unwrap_or(0)
+}
+
+/// The face that offset `d` puts in front of the autocollimator at `step`.
+pub(super) fn expected_face(step: usize, d: usize, n: usize) -> u128 {
+    let n128 = n as u128;
+    if n128 == 0 {
+        return 0;
+    }
+    ((step as u128) % n128 + d as u128) % n128 + 1
+}
+
+/// The values of `lo ..= hi` not in `present`, as ranges, and how many there are.
+pub(super) fn missing_ranges(
+    present: &BTreeSet<usize>,
+    lo: usize,
+    hi: usize,
+) -> (Vec<(usize, usize)>, u128) {
+    let mut ranges = Vec::new();
+    let mut next = Some(lo);
+    for &x in present.range(lo..=hi) {
+        let Some(cur) = next else { break };
+        if x > cur {
+            ranges.push((cur, x - 1));
+        }
+        next = x.checked_add(1);
+    }
+    if let Some(cur) = next
+        && cur <= hi
+    {
+        ranges.push((cur, hi));
+    }
+    let count = ranges.iter().map(|&(a, b)| (b - a) as u128 + 1).sum();
+    (ranges, count)
+}
+
+pub(super) fn format_ranges(ranges: &[(usize, usize)]) -> String {
+    const MAX: usize = 20;
+    let mut parts: Vec<String> = ranges
+        .iter()
+        .take(MAX)
+        .map(|&(a, b)| {
+            if a == b {
+                a.to_string()
+            } else {
+                format!("{a}-{b}")
+            }
+        })
+        .collect();
+    if ranges.len() > MAX {
+        parts.push("...".to_string());
+    }
+    parts.join(", ")
+}
+
+/// Checks readings against the structural rules; returns N.
+pub(super) fn validate(
+    readings: &[Reading],
+    faces: Option<usize>,
+    loc: &Locator<'_>,
+    source: &str,
+) -> Result<usize, MeasurementError> {
+    let err = |at: (u64, u64), message: String| invalid(source, at, message);
+    if readings.is_empty() {
+        return Err(err(loc.header(None), loc.no_rows().to_string()));
+    }
+
+    // Values (already checked, with their text, when read from a file).
+    for (i, r) in readings.iter().enumerate() {
+        let p = loc.prefix(i, readings);
+        for (col, zero) in [
+            (Col::Cycle, r.cycle == 0),
+            (Col::Ac, r.ac == 0),
+            (Col::Face, r.face == 0),
+            (Col::Setup, r.setup == 0),
+        ] {
+            if zero {
+                let name = col.name();
+                return Err(err(
+                    loc.row(i, readings, Some(col)),
+                    format!("{p}column {name:?}: 0 is not allowed; {name} must be at least 1"),
+                ));
+            }
+        }
+        for (col, x) in [
+            (Col::Reading, Some(r.reading_arcsec)),
+            (Col::Time, r.time_seconds),
+            (Col::ReadingY, r.reading_y_arcsec),
+            (Col::Temperature, r.temperature_celsius),
+            (Col::Encoder, r.encoder_degrees),
+        ] {
+            if let Some(x) = x
+                && !x.is_finite()
+            {
+                return Err(err(
+                    loc.row(i, readings, Some(col)),
+                    format!("{p}column {:?}: {x} is not a finite number", col.name()),
+                ));
+            }
+        }
+    }
+
+    // N.
+    let (n, n_from) = match faces {
+        Some(n) => {
+            if n < 3 {
+                return Err(err(
+                    loc.header(Some(Col::Face)),
+                    format!("--faces {n}: a polygon needs at least 3 faces"),
+                ));
+            }
+            (n, "given by --faces")
+        }
+        None => {
+            let mut largest = 0;
+            let mut at = 0;
+            for (i, r) in readings.iter().enumerate() {
+                if r.face > largest {
+                    largest = r.face;
+                    at = i;
+                }
+            }
+            if largest < 3 {
+                return Err(err(
+                    loc.row(at, readings, Some(Col::Face)),
+                    format!(
+                        "{}column \"face\": the largest face is {largest}, so N = {largest}; \
+                         a polygon needs at least 3 faces",
+                        loc.prefix(at, readings)
+                    ),
+                ));
+            }
+            (largest, "the largest face")
+        }
+    };
+
+    // Row by row, in order.
+    let mut first_read: HashMap<(u32, u32, usize, u32), usize> = HashMap::new();
+    let mut cycle_direction: HashMap<(u32, u32), usize> = HashMap::new();
+    let mut stream_offset: HashMap<(u32, u32), (usize, usize)> = HashMap::new();
+    for (i, r) in readings.iter().enumerate() {
+        let p = loc.prefix(i, readings);
+        let mut range = Vec::new();
+        if r.face > n {
+            range.push((
+                loc.row(i, readings, Some(Col::Face)),
+                format!(
+                    "{p}column \"face\": {} is outside 1 to {n} (N = {n}, {n_from})",
+                    r.face
+                ),
+            ));
+        }
+        if r.step > n {
+            range.push((
+                loc.row(i, readings, Some(Col::Step)),
+                format!(
+                    "{p}column \"step\": {} is outside 0 to {n} (N = {n}, {n_from})",
+                    r.step
+                ),
+            ));
+        }
+        if let Some((at, message)) = range.into_iter().min_by_key(|(at, _)| *at) {
+            return Err(err(at, message));
+        }
+
+        match first_read.entry((r.setup, r.cycle, r.step, r.ac)) {
+            Entry::Occupied(first) => {
+                return Err(err(
+                    loc.row(i, readings, None),
+                    format!(
+                        "{p}duplicate reading: setup {}, cycle {}, step {}, ac {} was already \
+                         read at {}",
+                        r.setup,
+                        r.cycle,
+                        r.step,
+                        r.ac,
+                        loc.name(*first.get(), readings)
+                    ),
+                ));
+            }
+            Entry::Vacant(slot) => {
+                slot.insert(i);
+            }
+        }
+
+        match cycle_direction.entry((r.setup, r.cycle)) {
+            Entry::Occupied(first) => {
+                let j = *first.get();
+                let direction = readings.get(j).map(|f| f.direction).unwrap_or_default();
+                if direction != r.direction {
+                    return Err(err(
+                        loc.row(i, readings, Some(Col::Direction)),
+                        format!(
+                            "{p}column \"direction\": {} disagrees with {} set for setup {}, \
+                             cycle {} at {}; a cycle has one direction",
+                            loc.direction_text(i, readings),
+                            loc.direction_text(j, readings),
+                            r.setup,
+                            r.cycle,
+                            loc.name(j, readings)
+                        ),
+                    ));
+                }
+            }
+            Entry::Vacant(slot) => {
+                slot.insert(i);
+            }
+        }
+
+        let d = face_offset(r.face, r.step, n);
+        match stream_offset.entry((r.setup, r.ac)) {
+            Entry::Occupied(first) => {
+                let (d0, j) = *first.get();
+                if d != d0 {
+                    return Err(err(
+                        loc.row(i, readings, Some(Col::Face)),
+                        format!(
+                            "{p}column \"face\": face {} at step {} does not fit setup {}, \
+                             ac {}: face {} was expected, as {} set the offset \
+                             (face - 1 - step) mod {n} = {d0} (N = {n}, {n_from})",
+                            r.face,
+                            r.step,
+                            r.setup,
+                            r.ac,
+                            expected_face(r.step, d0, n),
+                            loc.name(j, readings)
+                        ),
+                    ));
+                }
+            }
+            Entry::Vacant(slot) => {
+                slot.insert((d, i));
+            }
+        }
+    }
+
+    // Every face and every step.
+    let present: BTreeSet<usize> = readings.iter().map(|r| r.face).collect();
+    let (missing, count) = missing_ranges(&present, 1, n);
+    if count > 0 {
+        let (what, verb) = if count == 1 {
+            ("face", "is")
+        } else {
+            ("faces", "are")
+        };
+        return Err(err(
+            loc.header(Some(Col::Face)),
+            format!(
+                "column \"face\": {what} {} {verb} never read; every face 1 to {n} must be \
+                 read (N = {n}, {n_from})",
+                format_ranges(&missing)
+            ),
+        ));
+    }
+    let present: BTreeSet<usize> = readings.iter().map(|r| r.step).collect();
+    let (missing, count) = missing_ranges(&present, 0, n - 1);
+    if count > 0 {
+        let (what, verb) = if count == 1 {
+            ("step", "is")
+        } else {
+            ("steps", "are")
+        };
+        return Err(err(
+            loc.header(Some(Col::Step)),
+            format!(
+                "column \"step\": {what} {} {verb} never present; every step 0 to {} must be \
+                 present (N = {n}, {n_from})",
+                format_ranges(&missing),
+                n - 1
+            ),
+        ));
+    }
+    Ok(n)
+}
