@@ -27,6 +27,51 @@
 //! whose readings are not exactly the first ones of that order is refused, as is a
 //! manifest whose settings differ from the command, or instruments that identify
 //! differently from those the run started with.
+//!
+//! # Example: a whole run against simulated instruments, in memory
+//!
+//! ```
+//! use polycal::instrument::sim::{Devices, LabConfig, SimStream};
+//! use polycal::instrument::{
+//!     Elcomat3000, QueryOptions, Smc100, Smc100Options, StopFlag, StreamTransport,
+//! };
+//! use polycal::run::{self, Instruments, Outcome, Ports, RunDir, RunSettings};
+//! use polycal::simulate::SimulationConfig;
+//!
+//! let lab = LabConfig {
+//!     simulation: SimulationConfig { faces: 6, ..SimulationConfig::default() },
+//!     time_scale: 0.0, // instantaneous motion
+//!     ..LabConfig::default()
+//! };
+//! let Devices { ac1, ac2, table, .. } = Devices::new(lab)?;
+//! let q = QueryOptions::default();
+//! let mut ac1 = Elcomat3000::new(StreamTransport::new("sim:ac1", SimStream::new(ac1)), q);
+//! let mut ac2 = Elcomat3000::new(StreamTransport::new("sim:ac2", SimStream::new(ac2)), q);
+//! let mut table = Smc100::new(
+//!     StreamTransport::new("sim:table", SimStream::new(table)),
+//!     Smc100Options::default(),
+//! );
+//!
+//! let settings = RunSettings {
+//!     faces: 6,
+//!     cycles: 2,
+//!     closing: true,
+//!     bidirectional: false,
+//!     settle_seconds: 0.0,
+//! };
+//! let dir = std::env::temp_dir().join(format!("polycal-doc-run-{}", std::process::id()));
+//! # let _ = std::fs::remove_dir_all(&dir);
+//! let mut run = RunDir::open(&dir, &settings, &Ports::default(), false)?;
+//! let instruments = Instruments { ac1: &mut ac1, ac2: &mut ac2, table: &mut table };
+//! let outcome = run::measure(&mut run, instruments, &StopFlag::new(), None, &mut |_| {})?;
+//! run.finish(&outcome)?;
+//! assert_eq!(outcome, Outcome::Completed);
+//!
+//! let set = polycal::MeasurementSet::read_path(&dir.join(run::MEASUREMENTS), None)?;
+//! assert_eq!(set.readings.len(), 2 * 7 * 2); // cycles · stops · autocollimators
+//! # std::fs::remove_dir_all(&dir)?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 use std::collections::BTreeSet;
 use std::fmt;
@@ -447,8 +492,9 @@ impl RunDir {
     ///
     /// A new run refuses a directory that already holds a run (a manifest or a
     /// measurement file) and creates the directory, the manifest (outcome `running`) and
-    /// the measurement file's header. A resumed run refuses a directory without a
-    /// manifest, a manifest whose settings differ from `settings`, and a measurement
+    /// the measurement file's header. Either way the measurement file is locked for as
+    /// long as the `RunDir` lives: a directory another run is using is refused. A resumed
+    /// run refuses a directory without a manifest, a manifest whose settings differ from `settings`, and a measurement
     /// file that is not the first readings of the run in order; a last line cut short
     /// (no line feed) is removed, with a warning ([`RunDir::warnings`]).
     ///
@@ -504,6 +550,7 @@ impl RunDir {
             .append(true)
             .open(&path)
             .map_err(io_error(&path))?;
+        lock_exclusive(&file, &path)?;
         let comment = format!(
             "# {} run: {}; started {}\n{HEADER}\n",
             software(),
@@ -559,13 +606,14 @@ impl RunDir {
             });
         }
         let path = dir.join(MEASUREMENTS);
-        let mut warnings = Vec::new();
-        let done = read_existing(&path, settings, &mut warnings)?;
         let mut file = OpenOptions::new()
             .create(true)
             .append(true)
             .open(&path)
             .map_err(io_error(&path))?;
+        lock_exclusive(&file, &path)?;
+        let mut warnings = Vec::new();
+        let done = read_existing(&path, settings, &mut warnings)?;
         let len = file.metadata().map_err(io_error(&path))?.len();
         if len == 0 {
             let comment = format!(
@@ -754,6 +802,25 @@ impl RunDir {
         };
         write().map_err(io_error(&path))
     }
+}
+
+/// Takes an exclusive lock on the open measurement file, so that two runs never write
+/// one directory; the lock goes with the process, however it ends.
+fn lock_exclusive(file: &File, path: &Path) -> Result<(), RunError> {
+    use std::os::unix::io::AsRawFd;
+    // SAFETY: flock on a descriptor that `file` keeps open.
+    let rc = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+    if rc == 0 {
+        return Ok(());
+    }
+    let e = io::Error::last_os_error();
+    if e.kind() == io::ErrorKind::WouldBlock {
+        return Err(RunError::Refused {
+            path: path.to_path_buf(),
+            message: "another polycal run is using this directory".into(),
+        });
+    }
+    Err(io_error(path)(e))
 }
 
 /// Reads the readings already on disk; removes a cut-short last line.

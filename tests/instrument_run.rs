@@ -409,6 +409,8 @@ fn the_run_directory_refuses_what_would_lose_or_mix_data() {
     let s = settings(8, 2, false);
     assert!(refused(RunDir::open(&dir, &s, &ports(), true)).contains("no run to resume"));
     let first = RunDir::open(&dir, &s, &ports(), false).unwrap();
+    let m = refused(RunDir::open(&dir, &s, &ports(), true));
+    assert!(m.contains("another polycal run"), "{m}");
     drop(first);
     let m = refused(RunDir::open(&dir, &s, &ports(), false));
     assert!(m.contains("already holds a run"), "{m}");
