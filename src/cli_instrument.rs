@@ -8,7 +8,9 @@ use std::time::Duration;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::ValueEnum;
 use polycal::effects::Effect;
-use polycal::instrument::sim::{Devices, Fault, Lab, LabConfig};
+#[cfg(unix)]
+use polycal::instrument::sim::Lab;
+use polycal::instrument::sim::{Devices, Fault, LabConfig};
 use polycal::instrument::{
     Elcomat3000, LoggedTransport, QueryOptions, SerialSettings, SerialTransport, Smc100,
     Smc100Options, StopFlag, TrafficLog,
@@ -411,12 +413,25 @@ pub fn sim_lab(args: &SimLabArgs) -> Result<u8> {
         std::fs::write(path, devices.truth().to_json_pretty() + "\n")
             .with_context(|| format!("{}: cannot write the truth", path.display()))?;
     }
+    serve(devices, args.format)
+}
+
+/// Without pseudo-terminals there is no lab to serve.
+#[cfg(not(unix))]
+fn serve(_devices: Devices, _format: PathsFormat) -> Result<u8> {
+    bail!("sim-lab needs pseudo-terminals, which this system does not have")
+}
+
+/// Serves the devices on pseudo-terminals and prints their paths.
+#[cfg(unix)]
+fn serve(devices: Devices, format: PathsFormat) -> Result<u8> {
+    let faces = devices.truth().faces;
     let lab = Lab::start(devices)?;
     let paths = lab.paths().clone();
     {
         let stdout = std::io::stdout();
         let mut out = stdout.lock();
-        match args.format {
+        match format {
             PathsFormat::Table => {
                 writeln!(out, "ac1 {}", paths.ac1)?;
                 writeln!(out, "ac2 {}", paths.ac2)?;
@@ -431,7 +446,7 @@ pub fn sim_lab(args: &SimLabArgs) -> Result<u8> {
         paths.ac1,
         paths.ac2,
         paths.table,
-        args.faces,
+        faces,
         if stdin_is_null() {
             ""
         } else {
@@ -459,6 +474,7 @@ pub fn sim_lab(args: &SimLabArgs) -> Result<u8> {
 
 /// Whether standard input is /dev/null (a background job of a script): then the lab
 /// serves until killed, as it would never see input close otherwise.
+#[cfg(unix)]
 fn stdin_is_null() -> bool {
     use std::os::unix::fs::MetadataExt;
     match (

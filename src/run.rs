@@ -804,8 +804,15 @@ impl RunDir {
     }
 }
 
+/// Without flock, no lock (other systems).
+#[cfg(not(unix))]
+fn lock_exclusive(_file: &File, _path: &Path) -> Result<(), RunError> {
+    Ok(())
+}
+
 /// Takes an exclusive lock on the open measurement file, so that two runs never write
 /// one directory; the lock goes with the process, however it ends.
+#[cfg(unix)]
 fn lock_exclusive(file: &File, path: &Path) -> Result<(), RunError> {
     use std::os::unix::io::AsRawFd;
     // SAFETY: flock on a descriptor that `file` keeps open.

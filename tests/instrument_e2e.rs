@@ -2,6 +2,8 @@
 //! a short 8-face run whose file `polycal solve` turns back into the simulated truth,
 //! the bidirectional design, the run directory's files, and the refusals.
 
+#![cfg(unix)]
+
 mod instrument_support;
 
 use instrument_support::*;
@@ -230,4 +232,64 @@ fn sim_lab_prints_its_paths_as_json_too() {
         }
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
+}
+
+/// The library's pseudo-terminal lab and serial transport, in process: exact values with
+/// noise 0, and a port opened twice is refused.
+#[test]
+fn serial_transport_against_the_library_lab() {
+    use polycal::instrument::sim::{Devices, Lab, LabConfig};
+    use polycal::instrument::{
+        Autocollimator, Elcomat3000, QueryOptions, RotaryTable, SerialSettings, SerialTransport,
+        Smc100, Smc100Options,
+    };
+    use polycal::simulate::SimulationConfig;
+
+    let config = LabConfig {
+        simulation: SimulationConfig {
+            faces: 8,
+            noise_arcsec: 0.0,
+            ..SimulationConfig::default()
+        },
+        time_scale: 0.0,
+        ..LabConfig::default()
+    };
+    let lab = Lab::start(Devices::new(config).unwrap()).unwrap();
+    let truth = lab.truth();
+    let paths = lab.paths().clone();
+    let q = QueryOptions::default();
+    let open = |path: &str, s| SerialTransport::open(path, s).unwrap();
+    let mut ac1 = Elcomat3000::new(open(&paths.ac1, SerialSettings::ELCOMAT), q);
+    let mut ac2 = Elcomat3000::new(open(&paths.ac2, SerialSettings::ELCOMAT), q);
+    let mut table = Smc100::new(
+        open(&paths.table, SerialSettings::SMC100),
+        Smc100Options::default(),
+    );
+    assert!(matches!(
+        SerialTransport::open(&paths.ac1, SerialSettings::ELCOMAT),
+        Err(polycal::instrument::InstrumentError::Open { .. })
+    ));
+    ac1.start().unwrap();
+    ac2.start().unwrap();
+    table.start().unwrap();
+    for step in [0usize, 3, 8] {
+        assert_eq!(
+            table.move_to(step as f64 * 45.0).unwrap(),
+            step as f64 * 45.0
+        );
+        for (ac, device) in [(1u32, &mut ac1), (2, &mut ac2)] {
+            let x = device.measure().unwrap().x_arcsec;
+            let face = (step + ac as usize - 1) % 8 + 1;
+            let want = truth.encoder_error[step % 8]
+                + truth.face_deviation_at(face)
+                + truth.setup_error_of(1, ac).unwrap();
+            assert!(
+                (x - want).abs() < 1e-6,
+                "step {step} ac {ac}: {x} vs {want}"
+            );
+        }
+    }
+    assert_eq!(table.position().unwrap(), 360.0);
+    drop((ac1, ac2, table));
+    lab.shutdown();
 }

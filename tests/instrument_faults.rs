@@ -2,6 +2,8 @@
 //! (everything else); a motion is never re-sent (checked in the traffic log). Every test
 //! runs `polycal run` against its own `polycal sim-lab` over pseudo-terminals.
 
+#![cfg(unix)]
+
 mod instrument_support;
 
 use instrument_support::*;

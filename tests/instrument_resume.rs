@@ -3,6 +3,8 @@
 //! and records how the run ended. In both, the final file has every reading exactly
 //! once and still solves to the truth.
 
+#![cfg(unix)]
+
 mod instrument_support;
 
 use std::process::{Command, Stdio};

@@ -50,6 +50,7 @@
 //! | `close` | all | at the next command the device closes its port |
 
 mod elcomat;
+#[cfg(unix)]
 mod lab;
 mod smc100;
 
@@ -64,6 +65,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 pub use elcomat::ElcomatSim;
+#[cfg(unix)]
 pub use lab::{Lab, LabPaths};
 pub use smc100::Smc100Sim;
 
