@@ -1083,7 +1083,11 @@ fn measure_stops(
                 encoder_degrees: encoder,
             };
             if let Err(e) = run.append(&reading) {
-                return Outcome::FileError(e.to_string());
+                // The reading was taken: say it, so that it is not lost with the file.
+                return Outcome::FileError(format!(
+                    "{e} (the reading not written: {})",
+                    reading.to_row().trim_end()
+                ));
             }
             let done = run.readings_done();
             let this_session = done - before;
