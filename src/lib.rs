@@ -30,10 +30,12 @@
 pub mod compare;
 pub mod diagnose;
 pub mod effects;
+pub mod instrument;
 pub mod measurement;
 pub mod polygon;
 pub mod report;
 pub mod results;
+pub mod run;
 pub mod simulate;
 pub mod solve;
 pub mod uncertainty;

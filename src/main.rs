@@ -1,6 +1,8 @@
 //! `polycal`: the command line over the polycal library. It parses arguments, calls the
 //! library and prints; all logic lives in the library's modules.
 
+mod cli_instrument;
+
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use polycal::compare::{CompareOptions, compare_files};
@@ -116,6 +118,10 @@ enum Command {
     },
     /// Simulate a measurement run with a known truth.
     Simulate(SimulateArgs),
+    /// Drive the instruments through a calibration run (FORMAT.md §7).
+    Run(cli_instrument::RunArgs),
+    /// Serve simulated instruments on pseudo-terminals, to try `run` without hardware.
+    SimLab(cli_instrument::SimLabArgs),
 }
 
 #[derive(clap::Args)]
@@ -205,6 +211,8 @@ fn main() -> ExitCode {
             format,
         } => run_compare(&a, &b, correlation, format),
         Command::Simulate(args) => run_simulate(&args).map(|()| EXIT_OK),
+        Command::Run(args) => cli_instrument::run(&args),
+        Command::SimLab(args) => cli_instrument::sim_lab(&args),
     };
     match outcome {
         Ok(code) => ExitCode::from(code),

@@ -1,0 +1,487 @@
+//! The binary side of `polycal run` and `polycal sim-lab`: their arguments and handlers.
+//! All logic lives in the library (`polycal::run`, `polycal::instrument`).
+
+use std::io::{IsTerminal, Read, Write};
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, Result, anyhow, bail};
+use clap::ValueEnum;
+use polycal::effects::Effect;
+#[cfg(unix)]
+use polycal::instrument::sim::Lab;
+use polycal::instrument::sim::{Devices, Fault, LabConfig};
+use polycal::instrument::{
+    Elcomat3000, LoggedTransport, QueryOptions, SerialSettings, SerialTransport, Smc100,
+    Smc100Options, StopFlag, TrafficLog,
+};
+use polycal::run::{self, Instruments, Outcome, Ports, Progress, RunDir, RunSettings};
+use polycal::simulate::{Harmonic, SimulationConfig};
+
+/// Arguments of `polycal run`.
+#[derive(clap::Args)]
+pub struct RunArgs {
+    /// Port of autocollimator 1 (ELCOMAT 3000 protocol), e.g. /dev/ttyUSB0.
+    #[arg(long)]
+    ac1: String,
+    /// Port of autocollimator 2 (ELCOMAT 3000 protocol).
+    #[arg(long)]
+    ac2: String,
+    /// Port of the rotary table (SMC100 protocol, address 1).
+    #[arg(long)]
+    table: String,
+    /// Number of polygon faces N (= table stops per turn).
+    #[arg(long)]
+    faces: usize,
+    /// Number of cycles.
+    #[arg(long)]
+    cycles: u32,
+    /// Add the closing step N (table back at 360°) to every cycle.
+    #[arg(long)]
+    closing: bool,
+    /// Run every second cycle counter-clockwise, steps N … 0 (implies --closing).
+    #[arg(long)]
+    bidirectional: bool,
+    /// Wait after the table arrived before reading, seconds.
+    #[arg(long, default_value_t = 2.0)]
+    settle: f64,
+    /// Directory for measurements.csv, manifest.json and traffic.jsonl.
+    #[arg(long)]
+    out: PathBuf,
+    /// Continue an interrupted run in --out from its first missing reading.
+    #[arg(long)]
+    resume: bool,
+    /// No progress bar or summary on standard error.
+    #[arg(short, long)]
+    quiet: bool,
+    /// Deadline of one reply, seconds (a query is retried three times after it).
+    #[arg(long, default_value_t = 1.0)]
+    timeout: f64,
+    /// Longest a table move or home search may take, seconds.
+    #[arg(long, default_value_t = 120.0)]
+    motion_timeout: f64,
+}
+
+/// Arguments of `polycal sim-lab`.
+#[derive(clap::Args)]
+pub struct SimLabArgs {
+    /// Number of polygon faces N.
+    #[arg(long, default_value_t = 24)]
+    faces: usize,
+    /// Cycles of the run design the lab follows (for cycle-dependent effects).
+    #[arg(long, default_value_t = 6)]
+    cycles: u32,
+    /// The run design has the closing step (for cycle-dependent effects).
+    #[arg(long)]
+    closing: bool,
+    /// The run design is bidirectional (for cycle- and direction-dependent effects).
+    #[arg(long)]
+    bidirectional: bool,
+    /// Reading noise (standard deviation), arcsec.
+    #[arg(long, default_value_t = 0.05)]
+    noise: f64,
+    /// Spread (standard deviation) of the pitch deviations, arcsec.
+    #[arg(long, default_value_t = 0.5)]
+    pitch_spread: f64,
+    /// Encoder error harmonic ORDER:AMPLITUDE[:PHASE] (arcsec, radians); repeatable.
+    /// Default: 1:0.6:0.4 2:0.35:1.3 3:0.2:2.2 5:0.1:0.7.
+    #[arg(long = "harmonic")]
+    harmonics: Vec<String>,
+    /// Spread of the setup errors, arcsec.
+    #[arg(long, default_value_t = 0.5)]
+    setup_spread: f64,
+    /// Random seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Zero drift AC:RATE (arcsec per hour, real time); repeatable.
+    #[arg(long)]
+    drift: Vec<String>,
+    /// Zero jump AC:CYCLE:VALUE from that cycle on; repeatable.
+    #[arg(long)]
+    offset_step: Vec<String>,
+    /// Counter-clockwise offset [AC:]VALUE; repeatable.
+    #[arg(long)]
+    direction: Vec<String>,
+    /// One bad reading CYCLE:STEP:AC:VALUE; repeatable.
+    #[arg(long)]
+    outlier: Vec<String>,
+    /// Where to write the truth JSON (FORMAT.md §4).
+    #[arg(long)]
+    truth_out: Option<PathBuf>,
+    /// Table speed, degrees per second.
+    #[arg(long, default_value_t = 20.0)]
+    speed: f64,
+    /// Extra time of a home search, seconds.
+    #[arg(long, default_value_t = 2.0)]
+    home_seconds: f64,
+    /// Factor on every simulated duration (0: instantaneous motion).
+    #[arg(long, default_value_t = 1.0)]
+    time_scale: f64,
+    /// Inject a fault KIND:DEVICE[:after=K][:count=M]; KIND lost-reply, garbled,
+    /// x-invalid, disable or close; DEVICE ac1, ac2 or table; repeatable.
+    #[arg(long = "fault")]
+    faults: Vec<String>,
+    /// How to print the device paths.
+    #[arg(long, value_enum, default_value = "table")]
+    format: PathsFormat,
+}
+
+/// How `sim-lab` prints its device paths.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum PathsFormat {
+    /// One `NAME PATH` line per device.
+    Table,
+    /// One JSON object `{"ac1": …, "ac2": …, "table": …}`.
+    Json,
+}
+
+fn seconds(name: &str, value: f64) -> Result<Duration> {
+    if !(value.is_finite() && value > 0.0) {
+        bail!("--{name} {value}: must be a number of seconds > 0");
+    }
+    Duration::try_from_secs_f64(value).map_err(|e| anyhow!("--{name} {value}: {e}"))
+}
+
+/// Opens one instrument's port, logged as `device`; the error names the instrument.
+fn open_port(
+    path: &str,
+    device: &str,
+    role: &str,
+    settings: SerialSettings,
+    log: &TrafficLog,
+) -> Result<LoggedTransport<SerialTransport>, String> {
+    match SerialTransport::open(path, settings) {
+        Ok(transport) => Ok(LoggedTransport::new(transport, device, log.clone())),
+        Err(e) => {
+            log.record(device, path, "error", &e.to_string());
+            Err(format!("{role} at {e}"))
+        }
+    }
+}
+
+/// `polycal run`: returns the exit status, or an error for the `error:` line.
+pub fn run(args: &RunArgs) -> Result<u8> {
+    let settings = RunSettings {
+        faces: args.faces,
+        cycles: args.cycles,
+        closing: args.closing || args.bidirectional,
+        bidirectional: args.bidirectional,
+        settle_seconds: args.settle,
+    };
+    settings.validate().map_err(|m| anyhow!(m))?;
+    let query = QueryOptions {
+        reply_timeout: seconds("timeout", args.timeout)?,
+        retries: 3,
+    };
+    let motion_timeout = seconds("motion-timeout", args.motion_timeout)?;
+    let ports = Ports {
+        ac1: args.ac1.clone(),
+        ac2: args.ac2.clone(),
+        table: args.table.clone(),
+    };
+
+    let stop = StopFlag::new();
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        // A second Ctrl-C ends the process at once (status 130); the first asks the run
+        // to stop the table and finish its files.
+        signal_hook::flag::register_conditional_shutdown(signal, 130, stop.shared())
+            .context("cannot install the Ctrl-C handler")?;
+        signal_hook::flag::register(signal, stop.shared())
+            .context("cannot install the Ctrl-C handler")?;
+    }
+
+    let mut dir = RunDir::open(&args.out, &settings, &ports, args.resume)?;
+    for warning in dir.warnings() {
+        eprintln!("warning: {warning}");
+    }
+    let out = args.out.display().to_string();
+    if dir.remaining().is_empty() {
+        dir.finish(&Outcome::Completed)?;
+        if !args.quiet {
+            eprintln!(
+                "polycal run: {out}: the run is complete ({} readings); nothing to do",
+                dir.readings_done()
+            );
+        }
+        return Ok(0);
+    }
+
+    let log = dir.traffic_log()?;
+    log.record(
+        "",
+        "",
+        "session",
+        &format!(
+            "polycal {} run{} {}",
+            env!("CARGO_PKG_VERSION"),
+            if args.resume { " --resume" } else { "" },
+            settings.as_options()
+        ),
+    );
+    let opened = (|| {
+        let ac1 = open_port(
+            &args.ac1,
+            "ac1",
+            "autocollimator 1",
+            SerialSettings::ELCOMAT,
+            &log,
+        )?;
+        let ac2 = open_port(
+            &args.ac2,
+            "ac2",
+            "autocollimator 2",
+            SerialSettings::ELCOMAT,
+            &log,
+        )?;
+        let table = open_port(
+            &args.table,
+            "table",
+            "rotary table",
+            SerialSettings::SMC100,
+            &log,
+        )?;
+        Ok::<_, String>((ac1, ac2, table))
+    })();
+    let (ac1, ac2, table) = match opened {
+        Ok(ports) => ports,
+        Err(e) => {
+            let outcome = Outcome::InstrumentError(e.clone());
+            dir.finish(&outcome)?;
+            bail!("{e}; nothing was measured in this session ({out})");
+        }
+    };
+    let mut ac1 = Elcomat3000::new(ac1, query);
+    let mut ac2 = Elcomat3000::new(ac2, query);
+    let mut table = Smc100::new(
+        table,
+        Smc100Options {
+            query,
+            motion_timeout,
+            ..Smc100Options::default()
+        },
+    )
+    .with_stop_flag(stop.clone());
+
+    let show = !args.quiet && std::io::stderr().is_terminal();
+    let mut bar = ProgressBar::default();
+    let mut on_progress = |p: &Progress| {
+        if show {
+            bar.draw(p);
+        }
+    };
+    let before = dir.readings_done();
+    let outcome = run::measure(
+        &mut dir,
+        Instruments {
+            ac1: &mut ac1,
+            ac2: &mut ac2,
+            table: &mut table,
+        },
+        &stop,
+        Some(&log),
+        &mut on_progress,
+    );
+    if show {
+        bar.clear();
+    }
+    let outcome = outcome?;
+    dir.finish(&outcome)?;
+    let done = dir.readings_done();
+    let total = settings.reading_count();
+    let taken = done - before;
+    let kept = format!(
+        "{done} of {total} readings are in {}; continue with the same command and --resume",
+        args.out.join(run::MEASUREMENTS).display()
+    );
+    match outcome {
+        Outcome::Completed => {
+            if !args.quiet {
+                eprintln!(
+                    "polycal run: completed: {taken} readings taken, {done} in {}",
+                    args.out.join(run::MEASUREMENTS).display()
+                );
+            }
+            Ok(0)
+        }
+        Outcome::Interrupted => bail!("run interrupted (table stopped); {kept}"),
+        Outcome::InstrumentError(message) => bail!("{message}; the run stopped; {kept}"),
+        Outcome::FileError(message) => bail!("{message}; the run stopped; {kept}"),
+    }
+}
+
+/// A one-line progress bar on standard error.
+#[derive(Default)]
+struct ProgressBar {
+    drawn: bool,
+}
+
+impl ProgressBar {
+    fn draw(&mut self, p: &Progress) {
+        const WIDTH: usize = 30;
+        let filled = (p.done * WIDTH)
+            .checked_div(p.total)
+            .unwrap_or(0)
+            .min(WIDTH);
+        let left = match p.seconds_left {
+            Some(s) if s.is_finite() => {
+                let s = s.round() as u64;
+                format!("{}:{:02}:{:02} left", s / 3600, s / 60 % 60, s % 60)
+            }
+            _ => "estimating".into(),
+        };
+        let line = format!(
+            "\r[{}{}] cycle {}/{} step {}/{} · {}/{} readings · {left}\x1b[K",
+            "#".repeat(filled),
+            ".".repeat(WIDTH - filled),
+            p.cycle.0,
+            p.cycle.1,
+            p.stop.0,
+            p.stop.1,
+            p.done,
+            p.total
+        );
+        let mut err = std::io::stderr().lock();
+        let _ = err.write_all(line.as_bytes());
+        let _ = err.flush();
+        self.drawn = true;
+    }
+
+    fn clear(&mut self) {
+        if self.drawn {
+            eprint!("\r\x1b[K");
+        }
+    }
+}
+
+/// `polycal sim-lab`: serves until killed or standard input closes.
+pub fn sim_lab(args: &SimLabArgs) -> Result<u8> {
+    let mut effects = Vec::new();
+    for (kind, specs) in [
+        ("drift", &args.drift),
+        ("offset-step", &args.offset_step),
+        ("direction", &args.direction),
+        ("outlier", &args.outlier),
+    ] {
+        for spec in specs {
+            effects
+                .push(Effect::parse_spec(kind, spec).map_err(|m| anyhow!("--{kind} {spec}: {m}"))?);
+        }
+    }
+    let encoder_harmonics = if args.harmonics.is_empty() {
+        SimulationConfig::default().encoder_harmonics
+    } else {
+        args.harmonics
+            .iter()
+            .map(|spec| {
+                spec.parse::<Harmonic>()
+                    .map_err(|m| anyhow!("--harmonic {spec}: {m}"))
+            })
+            .collect::<Result<Vec<_>>>()?
+    };
+    let faults = args
+        .faults
+        .iter()
+        .map(|spec| {
+            spec.parse::<Fault>()
+                .map_err(|m| anyhow!("--fault {spec}: {m}"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let config = LabConfig {
+        simulation: SimulationConfig {
+            faces: args.faces,
+            ac_faces: vec![1, 2],
+            setups: 1,
+            setup_shift_faces: 1,
+            cycles: args.cycles,
+            closing: args.closing || args.bidirectional,
+            bidirectional: args.bidirectional,
+            noise_arcsec: args.noise,
+            pitch_spread_arcsec: args.pitch_spread,
+            encoder_harmonics,
+            setup_error_spread_arcsec: args.setup_spread,
+            step_seconds: 20.0,
+            effects,
+            seed: args.seed,
+        },
+        speed_deg_per_s: args.speed,
+        home_seconds: args.home_seconds,
+        time_scale: args.time_scale,
+        faults,
+    };
+    let devices = Devices::new(config)?;
+    if let Some(path) = &args.truth_out {
+        std::fs::write(path, devices.truth().to_json_pretty() + "\n")
+            .with_context(|| format!("{}: cannot write the truth", path.display()))?;
+    }
+    serve(devices, args.format)
+}
+
+/// Without pseudo-terminals there is no lab to serve.
+#[cfg(not(unix))]
+fn serve(_devices: Devices, _format: PathsFormat) -> Result<u8> {
+    bail!("sim-lab needs pseudo-terminals, which this system does not have")
+}
+
+/// Serves the devices on pseudo-terminals and prints their paths.
+#[cfg(unix)]
+fn serve(devices: Devices, format: PathsFormat) -> Result<u8> {
+    let faces = devices.truth().faces;
+    let lab = Lab::start(devices)?;
+    let paths = lab.paths().clone();
+    {
+        let stdout = std::io::stdout();
+        let mut out = stdout.lock();
+        match format {
+            PathsFormat::Table => {
+                writeln!(out, "ac1 {}", paths.ac1)?;
+                writeln!(out, "ac2 {}", paths.ac2)?;
+                writeln!(out, "table {}", paths.table)?;
+            }
+            PathsFormat::Json => writeln!(out, "{}", serde_json::to_string(&paths)?)?,
+        }
+        out.flush()?;
+    }
+    eprintln!(
+        "polycal sim-lab: serving; try\n  polycal run --ac1 {} --ac2 {} --table {} --faces {} --cycles 2 --closing --settle 0 --out RUN_DIR\nstop with Ctrl-C{}",
+        paths.ac1,
+        paths.ac2,
+        paths.table,
+        faces,
+        if stdin_is_null() {
+            ""
+        } else {
+            " or by closing standard input (Ctrl-D)"
+        }
+    );
+    if stdin_is_null() {
+        loop {
+            std::thread::park();
+        }
+    }
+    let mut sink = [0u8; 256];
+    let mut stdin = std::io::stdin().lock();
+    loop {
+        match stdin.read(&mut sink) {
+            Ok(0) => break,
+            Ok(_) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(_) => break,
+        }
+    }
+    lab.shutdown();
+    Ok(0)
+}
+
+/// Whether standard input is /dev/null (a background job of a script): then the lab
+/// serves until killed, as it would never see input close otherwise.
+#[cfg(unix)]
+fn stdin_is_null() -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (
+        std::fs::metadata("/dev/stdin"),
+        std::fs::metadata("/dev/null"),
+    ) {
+        (Ok(a), Ok(b)) => a.rdev() == b.rdev() && a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}

@@ -1,0 +1,161 @@
+//! The simulated lab on pseudo-terminals: what `polycal sim-lab` serves.
+
+use std::io::{Read, Write};
+use std::os::unix::io::AsRawFd;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use serialport::{SerialPort, TTYPort};
+
+use super::{Devices, Endpoint, World, lock};
+use crate::instrument::InstrumentError;
+use crate::simulate::Truth;
+
+/// The device paths a client opens, one per simulated instrument.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct LabPaths {
+    /// Autocollimator 1.
+    pub ac1: String,
+    /// Autocollimator 2.
+    pub ac2: String,
+    /// The rotary table.
+    pub table: String,
+}
+
+/// Three simulated instruments served on pseudo-terminals, each by its own thread.
+///
+/// The lab keeps both ends of every pseudo-terminal open, so that clients may come and
+/// go (a killed run, a resumed one) without the devices noticing. It lifts the
+/// terminal's exclusive mode (`TIOCNXCL`) every 100 ms, so that a client killed before
+/// it could lift it does not lock the next one out; two clients at once are still kept
+/// apart by the lock serialport takes on the port.
+pub struct Lab {
+    paths: LabPaths,
+    world: Arc<std::sync::Mutex<World>>,
+    stop: Arc<AtomicBool>,
+    threads: Vec<JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for Lab {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Lab")
+            .field("paths", &self.paths)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Lab {
+    /// Opens three pseudo-terminals and starts serving `devices` on them.
+    ///
+    /// # Errors
+    ///
+    /// [`InstrumentError::Open`] when a pseudo-terminal cannot be created.
+    pub fn start(devices: Devices) -> Result<Lab, InstrumentError> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let Devices {
+            world,
+            ac1,
+            ac2,
+            table,
+        } = devices;
+        let mut threads = Vec::new();
+        let mut names = Vec::new();
+        for (label, endpoint) in [("ac1", ac1), ("ac2", ac2), ("table", table)] {
+            let (master, slave) = TTYPort::pair().map_err(|e| InstrumentError::Open {
+                port: format!("pseudo-terminal for {label}"),
+                message: e.to_string(),
+            })?;
+            let name = slave.name().ok_or_else(|| InstrumentError::Open {
+                port: format!("pseudo-terminal for {label}"),
+                message: "it has no device path".into(),
+            })?;
+            names.push(name);
+            let stop = Arc::clone(&stop);
+            let handle = std::thread::Builder::new()
+                .name(format!("sim-{label}"))
+                .spawn(move || serve(master, slave, endpoint, &stop))
+                .map_err(|e| InstrumentError::Open {
+                    port: format!("pseudo-terminal for {label}"),
+                    message: format!("cannot start its thread: {e}"),
+                })?;
+            threads.push(handle);
+        }
+        let [ac1, ac2, table]: [String; 3] =
+            names.try_into().map_err(|_| InstrumentError::Open {
+                port: "pseudo-terminals".into(),
+                message: "not three device paths".into(),
+            })?;
+        Ok(Lab {
+            paths: LabPaths { ac1, ac2, table },
+            world,
+            stop,
+            threads,
+        })
+    }
+
+    /// The device paths.
+    pub fn paths(&self) -> &LabPaths {
+        &self.paths
+    }
+
+    /// A copy of the truth the readings are drawn from.
+    pub fn truth(&self) -> Truth {
+        lock(&self.world).truth().clone()
+    }
+
+    /// Stops serving and closes the pseudo-terminals.
+    pub fn shutdown(mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        for handle in self.threads.drain(..) {
+            let _ = handle.join();
+        }
+    }
+}
+
+impl Drop for Lab {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+    }
+}
+
+fn release_exclusive(slave: &TTYPort) {
+    #[cfg(target_os = "linux")]
+    // SAFETY: TIOCNXCL takes no argument and only clears a flag of the terminal; the
+    // descriptor is open for as long as `slave` lives.
+    unsafe {
+        libc::ioctl(slave.as_raw_fd(), libc::TIOCNXCL);
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = slave.as_raw_fd();
+}
+
+fn serve(mut master: TTYPort, slave: TTYPort, mut endpoint: Endpoint, stop: &AtomicBool) {
+    let _ = master.set_timeout(Duration::from_millis(10));
+    let mut buf = [0u8; 512];
+    let mut last_release = Instant::now();
+    while !stop.load(Ordering::SeqCst) {
+        let mut out = Vec::new();
+        match master.read(&mut buf) {
+            Ok(n) if n > 0 => out = endpoint.input(&buf[..n], Instant::now()),
+            Ok(_) => std::thread::sleep(Duration::from_millis(10)),
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+            Err(_) => std::thread::sleep(Duration::from_millis(10)),
+        }
+        if endpoint.is_closed() {
+            break; // drops both ends: the port disappears under the client
+        }
+        out.extend(endpoint.tick(Instant::now()));
+        if !out.is_empty() {
+            // A client that does not read must not stall the device: give up on a full buffer.
+            let _ = master.write_all(&out);
+        }
+        if last_release.elapsed() >= Duration::from_millis(100) {
+            release_exclusive(&slave);
+            last_release = Instant::now();
+        }
+    }
+    drop(slave);
+    drop(master);
+}

@@ -1,0 +1,196 @@
+//! Injected faults end in a correct retry (queries) or a clean stop with the data kept
+//! (everything else); a motion is never re-sent (checked in the traffic log). Every test
+//! runs `polycal run` against its own `polycal sim-lab` over pseudo-terminals.
+
+#![cfg(unix)]
+
+mod instrument_support;
+
+use instrument_support::*;
+use polycal::run::RunSettings;
+use serde_json::Value;
+
+const DESIGN: [&str; 9] = [
+    "--faces",
+    "8",
+    "--cycles",
+    "2",
+    "--closing",
+    "--settle",
+    "0",
+    "--timeout",
+    "0.3",
+];
+
+fn settings() -> RunSettings {
+    RunSettings {
+        faces: 8,
+        cycles: 2,
+        closing: true,
+        bidirectional: false,
+        settle_seconds: 0.0,
+    }
+}
+
+/// Runs against a lab with `fault`; returns the run directory, the lab and the output.
+fn run_with_fault(name: &str, fault: &str) -> (std::path::PathBuf, SimLab, std::process::Output) {
+    let dir = scratch(name);
+    let lab = SimLab::start(&dir, &["--fault", fault]);
+    let out = dir.join("run");
+    let mut args = lab.run_args(&out, &DESIGN);
+    args.push("-q".into());
+    let result = polycal(&args);
+    (out, lab, result)
+}
+
+/// The events of one device in a session.
+fn of<'a>(session: &'a [Value], device: &str) -> Vec<&'a Value> {
+    session.iter().filter(|r| r["device"] == device).collect()
+}
+
+/// Asserts that the first event of `device` matching `bad` is followed by clearing the
+/// input and sending the same query again.
+fn assert_retried(session: &[Value], device: &str, bad: impl Fn(&Value) -> bool) {
+    let events = of(session, device);
+    let i = events
+        .iter()
+        .position(|r| bad(r))
+        .unwrap_or_else(|| panic!("no faulty reply of {device} in the traffic log"));
+    let query = events[..i]
+        .iter()
+        .rev()
+        .find(|r| r["event"] == "sent")
+        .map(|r| r["text"].clone())
+        .unwrap();
+    assert_eq!(events[i + 1]["event"], "clear", "{:?}", events[i + 1]);
+    assert_eq!(events[i + 2]["event"], "sent");
+    assert_eq!(events[i + 2]["text"], query, "the same query again");
+    assert!(!query.as_str().unwrap().starts_with("1PA"), "never a move");
+}
+
+fn assert_completed_with_retry(
+    name: &str,
+    fault: &str,
+    device: &str,
+    bad: impl Fn(&Value) -> bool,
+) {
+    let (out, lab, result) = run_with_fault(name, fault);
+    assert!(result.status.success(), "{fault}: {}", stderr(&result));
+    assert_complete(&out, &settings());
+    assert_solves_to_truth(&out, &lab.truth);
+    let sessions = sessions(&out);
+    assert_moves_follow_plan(&sessions[0], &settings(), 0);
+    assert_eq!(moves(&sessions[0]).len(), 18, "{fault}: one move per stop");
+    assert_retried(&sessions[0], device, bad);
+    assert_eq!(manifest(&out)["outcome"], "completed");
+}
+
+#[test]
+fn a_lost_autocollimator_reply_is_asked_again() {
+    assert_completed_with_retry("lost-ac1", "lost-reply:ac1:after=5", "ac1", |r| {
+        r["event"] == "timeout"
+    });
+}
+
+#[test]
+fn a_lost_table_reply_is_asked_again_not_the_move() {
+    assert_completed_with_retry("lost-table", "lost-reply:table:after=4", "table", |r| {
+        r["event"] == "timeout"
+    });
+}
+
+#[test]
+fn a_garbled_autocollimator_reply_is_asked_again() {
+    assert_completed_with_retry("garbled-ac2", "garbled:ac2:after=3", "ac2", |r| {
+        r["event"] == "received" && r["text"].as_str().unwrap().contains('?')
+    });
+}
+
+#[test]
+fn a_garbled_table_reply_is_asked_again() {
+    assert_completed_with_retry("garbled-table", "garbled:table:after=2", "table", |r| {
+        r["event"] == "received" && r["text"].as_str().unwrap().contains('?')
+    });
+}
+
+#[test]
+fn an_x_invalid_reading_is_taken_again() {
+    assert_completed_with_retry("xinv-ac1", "x-invalid:ac1:after=7", "ac1", |r| {
+        r["event"] == "received" && r["text"].as_str().unwrap().starts_with("4 002 ")
+    });
+}
+
+/// The checks of a clean stop: status 2 and one `error:` line, the readings so far kept
+/// in order, the manifest saying why, the table sent a stop, no move sent twice.
+fn assert_clean_stop(
+    out: &std::path::Path,
+    result: &std::process::Output,
+    says: &str,
+    kept: usize,
+) {
+    let text = assert_error(result, says);
+    assert!(text.contains("--resume"), "{text}");
+    let rows = rows(out);
+    assert_eq!(rows.len(), kept, "{text}");
+    assert_eq!(rows, plan_readings(&settings())[..kept]);
+    let m = manifest(out);
+    let outcome = m["outcome"].as_str().unwrap();
+    assert!(outcome.starts_with("instrument-error: "), "{outcome}");
+    assert!(outcome.contains(says), "{outcome}");
+    assert_eq!(m["readings"], kept);
+    assert!(m["ended"].is_string());
+    let sessions = sessions(out);
+    assert_moves_follow_plan(&sessions[0], &settings(), 0);
+    let last_sent = sessions[0]
+        .iter()
+        .rev()
+        .find(|r| r["event"] == "sent" && r["device"] == "table")
+        .unwrap();
+    assert_eq!(last_sent["text"], "1ST\r\n", "the table is stopped");
+}
+
+#[test]
+fn a_table_stuck_in_disable_stops_the_run_cleanly() {
+    let (out, _lab, result) = run_with_fault("disable", "disable:table:after=5");
+    // Five stops measured; the sixth move stopped midway in DISABLE from MOVING.
+    assert_clean_stop(&out, &result, "3D", 10);
+    let m = moves(&sessions(&out)[0]);
+    assert_eq!(m.len(), 6, "the failed move was sent once: {m:?}");
+}
+
+#[test]
+fn a_port_closing_mid_run_stops_it_cleanly() {
+    let (out, _lab, result) = run_with_fault("close", "close:ac2:after=7");
+    assert_clean_stop(&out, &result, "closed", 15);
+}
+
+#[test]
+fn persistent_x_invalid_stops_the_run_cleanly() {
+    let (out, _lab, result) = run_with_fault("xinv-stop", "x-invalid:ac2:after=2:count=4");
+    assert_clean_stop(&out, &result, "X axis not valid", 5);
+}
+
+#[test]
+fn a_silent_autocollimator_stops_the_run_and_resume_completes_it() {
+    let (out, lab, result) = run_with_fault("silent", "lost-reply:ac1:after=3:count=4");
+    assert_clean_stop(&out, &result, "no reply to \"a\\n\"", 6);
+    // The fault is spent: resuming carries on from the first missing reading.
+    let mut args = lab.run_args(&out, &DESIGN);
+    args.extend(["--resume".to_string(), "-q".into()]);
+    let resumed = polycal(&args);
+    assert!(resumed.status.success(), "{}", stderr(&resumed));
+    assert_complete(&out, &settings());
+    assert_solves_to_truth(&out, &lab.truth);
+    let sessions = sessions(&out);
+    assert_eq!(sessions.len(), 2);
+    assert_moves_follow_plan(&sessions[1], &settings(), 3);
+    let m = manifest(&out);
+    assert_eq!(m["outcome"], "completed");
+    assert_eq!(m["sessions"][0]["readings_after"], 6);
+    assert!(
+        m["sessions"][0]["outcome"]
+            .as_str()
+            .unwrap()
+            .starts_with("instrument-error: ")
+    );
+}
