@@ -2095,6 +2095,33 @@ mod tests {
         }
     }
 
+    /// The bracketed run gives the mean, u and interval of a full sort of every trial.
+    #[test]
+    fn bracketed_run_is_the_full_sort() {
+        let s = set(9, 2, true, 5);
+        let solution = solve(&s, &SolveOptions::default()).unwrap();
+        let budget = InstrumentBudget::new(vec![ScopedComponent::type_b(
+            "r",
+            Distribution::Rectangular { half_width: 0.2 },
+            Scope::Result,
+        )]);
+        let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
+        let m = 34_500;
+        let summary = run(&model, Trials::Fixed(m), 0.95, 11).unwrap();
+        let (_, raw) = run_blocks(&model, 11, 0..m, None).unwrap();
+        let columns = sorted_columns(&raw, model.outputs());
+        let (r_low, r_high) = symmetric_interval_positions(m, 0.95);
+        for (j, column) in columns.iter().enumerate() {
+            assert_eq!(summary.low[j], column[r_low]);
+            assert_eq!(summary.high[j], column[r_high]);
+            let mean = column.iter().sum::<f64>() / m as f64;
+            let u =
+                (column.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (m - 1) as f64).sqrt();
+            assert!((summary.mean[j] - mean).abs() < 1e-12);
+            assert!((summary.u[j] - u).abs() < 1e-12 * u);
+        }
+    }
+
     /// The fast draws are the draws of `Sampler::sample`, value for value.
     #[test]
     fn draws_are_the_sampler_draws() {
