@@ -1898,9 +1898,10 @@ fn run(model: &McModel, trials: Trials, p: f64, seed: u64) -> Result<Summary, Ca
             let (r_low, r_high) = symmetric_interval_positions(j, p);
             // Per output, per sequence: mean, u, low, high.
             let mut estimates: Vec<Vec<[f64; 4]>> = vec![Vec::new(); outputs];
+            // All sequences so far, bracketed around the interval ends of the first.
             let mut first_raw = Vec::new();
-            let mut s1 = vec![0.0; outputs];
-            let mut s2 = vec![0.0; outputs];
+            let mut brackets = Vec::new();
+            let mut acc = Acc::new(outputs);
             let mut h = 0;
             loop {
                 if (h + 1) * j > max_trials.max(2 * j) {
@@ -1928,16 +1929,13 @@ fn run(model: &McModel, trials: Trials, p: f64, seed: u64) -> Result<Summary, Ca
                         [mean, u, low, high]
                     })
                     .collect();
-                for out in raw.chunks_exact(outputs) {
-                    for (o, &x) in out.iter().enumerate() {
-                        let d = x - centre[o];
-                        s1[o] += d;
-                        s2[o] += d * d;
-                    }
-                }
                 for (o, e) in per_sequence.into_iter().enumerate() {
                     estimates[o].push(e);
                 }
+                if h == 0 {
+                    brackets = brackets_from(&sorted_columns(&raw, outputs), j, p, 1.0);
+                }
+                feed(&mut acc, &raw, centre, &brackets);
                 if h == 0 {
                     first_raw = raw;
                 }
@@ -1947,7 +1945,8 @@ fn run(model: &McModel, trials: Trials, p: f64, seed: u64) -> Result<Summary, Ca
                 }
                 let m = (h * j) as f64;
                 let stable = (0..outputs).all(|o| {
-                    let u_all = ((s2[o] - s1[o] * s1[o] / m).max(0.0) / (m - 1.0)).sqrt();
+                    let (s1, s2) = (acc.s1[o], acc.s2[o]);
+                    let u_all = ((s2 - s1 * s1 / m).max(0.0) / (m - 1.0)).sqrt();
                     let delta = numerical_tolerance(u_all, digits);
                     (0..4).all(|q| {
                         let xs: Vec<f64> = estimates[o].iter().map(|e| e[q]).collect();
@@ -1956,7 +1955,11 @@ fn run(model: &McModel, trials: Trials, p: f64, seed: u64) -> Result<Summary, Ca
                 });
                 if stable {
                     let m = h * j;
-                    let (mean, u, low, high) = bracketed(m, &first_raw, j)?;
+                    // The brackets were set for j trials; if one missed for m, re-run.
+                    let (mean, u, low, high) = match finish(acc, m, p, centre) {
+                        Some(result) => result,
+                        None => bracketed(m, &first_raw, j)?,
+                    };
                     return Ok(Summary {
                         trials: m,
                         sequences: Some(h),
