@@ -2109,19 +2109,25 @@ mod tests {
             Scope::Result,
         )]);
         let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
-        let m = 34_500;
-        let summary = run(&model, Trials::Fixed(m), 0.95, 11).unwrap();
-        let (_, raw) = run_blocks(&model, 11, 0..m, None).unwrap();
-        let columns = sorted_columns(&raw, model.outputs());
-        let (r_low, r_high) = symmetric_interval_positions(m, 0.95);
-        for (j, column) in columns.iter().enumerate() {
-            assert_eq!(summary.low[j], column[r_low]);
-            assert_eq!(summary.high[j], column[r_high]);
-            let mean = column.iter().sum::<f64>() / m as f64;
-            let u =
-                (column.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (m - 1) as f64).sqrt();
-            assert!((summary.mean[j] - mean).abs() < 1e-12);
-            assert!((summary.u[j] - u).abs() < 1e-12 * u);
+        let adaptive = Trials::Adaptive {
+            significant_digits: 1,
+            max_trials: 500_000,
+        };
+        for trials in [Trials::Fixed(34_500), adaptive] {
+            let summary = run(&model, trials, 0.95, 11).unwrap();
+            let m = summary.trials;
+            let (_, raw) = run_blocks(&model, 11, 0..m, None).unwrap();
+            let columns = sorted_columns(&raw, model.outputs());
+            let (r_low, r_high) = symmetric_interval_positions(m, 0.95);
+            for (j, column) in columns.iter().enumerate() {
+                assert_eq!(summary.low[j], column[r_low]);
+                assert_eq!(summary.high[j], column[r_high]);
+                let mean = column.iter().sum::<f64>() / m as f64;
+                let ss = column.iter().map(|x| (x - mean).powi(2)).sum::<f64>();
+                let u = (ss / (m - 1) as f64).sqrt();
+                assert!((summary.mean[j] - mean).abs() < 1e-12);
+                assert!((summary.u[j] - u).abs() < 1e-12 * u);
+            }
         }
     }
 
