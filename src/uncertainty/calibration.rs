@@ -52,7 +52,7 @@
 //! interval, and the validation of the GUM interval (JCGM 101 §8).
 //!
 //! Trials come in blocks of [`BLOCK_SIZE`], block b drawing from ChaCha8 (`seed`, stream
-//! b), spread over rayon's threads and combined in block order: the same seed gives the
+//! b; ChaCha8 rather than the general engine's ChaCha12 for speed), spread over rayon's threads and combined in block order: the same seed gives the
 //! same numbers whatever the number of threads. The coverage interval is exact (the
 //! order statistics of all M trials, as a full sort would give) without storing every
 //! trial: the first 10⁴ trials bracket each interval end, later trials only count the
@@ -77,7 +77,7 @@ use super::budget_file::{BudgetFile, line_column};
 use super::distribution::{Distribution, Sampler};
 use super::monte_carlo::{
     BLOCK_SIZE, McError, OutputSummary, Trials, adaptive_sequence_length, minimum_trials,
-    numerical_tolerance, symmetric_interval_positions, validate_gum,
+    numerical_tolerance, standard_deviation_of_mean, symmetric_interval_positions, validate_gum,
 };
 use super::student::t_quantile;
 use crate::measurement::MeasurementSet;
@@ -1972,14 +1972,6 @@ fn run(model: &McModel, trials: Trials, p: f64, seed: u64) -> Result<Summary, Ca
             }
         }
     }
-}
-
-/// s(x̄) = √(Σ(x_r − x̄)²/(h(h − 1))) (JCGM 101 §7.9.4 f).
-fn standard_deviation_of_mean(xs: &[f64]) -> f64 {
-    let h = xs.len() as f64;
-    let mean = xs.iter().sum::<f64>() / h;
-    let ss: f64 = xs.iter().map(|x| (x - mean) * (x - mean)).sum();
-    (ss / (h * (h - 1.0))).sqrt()
 }
 
 #[cfg(test)]

@@ -525,7 +525,7 @@ fn standard_deviation(values: &[f64]) -> f64 {
 }
 
 /// `s(x̄) = √(Σ(x_r − x̄)²/(h(h − 1)))` (JCGM 101 §7.9.4 f).
-fn standard_deviation_of_mean(xs: &[f64]) -> f64 {
+pub(crate) fn standard_deviation_of_mean(xs: &[f64]) -> f64 {
     standard_deviation(xs) / (xs.len() as f64).sqrt()
 }
 
