@@ -13,6 +13,8 @@ use polycal::results::read_result_file;
 use polycal::simulate::{self, Harmonic, SimulationConfig, Truth};
 use polycal::solve::{self, Method, SolveOptions};
 use polycal::uncertainty::BudgetFile;
+use polycal::uncertainty::calibration::{self, InstrumentBudget, McOptions, McSolver};
+use polycal::uncertainty::monte_carlo::Trials;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -75,6 +77,25 @@ enum Command {
         /// Output format.
         #[arg(long, value_enum, default_value = "table")]
         format: FormatArg,
+        /// Instrument budget (TOML, FORMAT.md §5 with `acts_on` per component): adds the
+        /// expanded uncertainty U and k of every result, combining the fit's type A with
+        /// the budget through the design.
+        #[arg(long, value_name = "FILE.toml")]
+        budget: Option<PathBuf>,
+        /// Monte Carlo through the solver (JCGM 101): a number of trials (e.g. 1000000 or
+        /// 1e6) or `adaptive` (JCGM 101 §7.9). Needs --budget.
+        #[arg(long, value_name = "N|adaptive", value_parser = parse_trials)]
+        monte_carlo: Option<McTrials>,
+        /// Seed of the Monte Carlo (same seed, same numbers, whatever the threads).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Significant digits of u_c for the Monte Carlo validation of the GUM result and
+        /// for the adaptive procedure.
+        #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=6))]
+        mc_digits: u32,
+        /// Largest number of trials of the adaptive procedure.
+        #[arg(long, default_value_t = 10_000_000)]
+        mc_max_trials: usize,
     },
     /// Find the effects the base model lacks (drift, zero jumps, direction, outliers),
     /// add them, and report the calibration before and after.
@@ -186,6 +207,41 @@ struct SimulateArgs {
     truth_out: Option<PathBuf>,
 }
 
+/// `--monte-carlo`: a number of trials or the adaptive procedure.
+#[derive(Debug, Clone, Copy)]
+enum McTrials {
+    Fixed(usize),
+    Adaptive,
+}
+
+fn parse_trials(text: &str) -> Result<McTrials, String> {
+    if text == "adaptive" {
+        return Ok(McTrials::Adaptive);
+    }
+    let trials = text
+        .parse::<usize>()
+        .ok()
+        .or_else(|| {
+            text.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && *v >= 1.0 && v.fract() == 0.0 && *v <= 1e12)
+                .map(|v| v as usize)
+        })
+        .ok_or_else(|| {
+            format!("expected a number of trials (e.g. 1000000 or 1e6) or `adaptive`, got {text:?}")
+        })?;
+    Ok(McTrials::Fixed(trials))
+}
+
+/// The uncertainty options of `polycal solve`.
+struct UncertaintyArgs {
+    budget: Option<PathBuf>,
+    monte_carlo: Option<McTrials>,
+    seed: u64,
+    mc_digits: u32,
+    mc_max_trials: usize,
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let outcome = match cli.command {
@@ -195,7 +251,25 @@ fn main() -> ExitCode {
             method,
             sigma,
             format,
-        } => run_solve(&files, faces, method, sigma, format),
+            budget,
+            monte_carlo,
+            seed,
+            mc_digits,
+            mc_max_trials,
+        } => run_solve(
+            &files,
+            faces,
+            method,
+            sigma,
+            format,
+            &UncertaintyArgs {
+                budget,
+                monte_carlo,
+                seed,
+                mc_digits,
+                mc_max_trials,
+            },
+        ),
         Command::Diagnose {
             files,
             truth,
@@ -242,7 +316,36 @@ fn run_solve(
     method: MethodArg,
     sigma: Option<f64>,
     format: FormatArg,
+    uncertainty: &UncertaintyArgs,
 ) -> Result<u8> {
+    let budget = uncertainty
+        .budget
+        .as_deref()
+        .map(InstrumentBudget::read_path)
+        .transpose()?;
+    if uncertainty.monte_carlo.is_some() && budget.is_none() {
+        bail!(
+            "--monte-carlo needs --budget: the Monte Carlo propagates the instrument budget \
+             with the reading noise (see examples/budgets/instrument.toml)"
+        );
+    }
+    if let Some(budget) = &budget {
+        for note in budget.notes() {
+            eprintln!("warning: {note}");
+        }
+    }
+    let mc_options = uncertainty.monte_carlo.map(|trials| McOptions {
+        trials: match trials {
+            McTrials::Fixed(m) => Trials::Fixed(m),
+            McTrials::Adaptive => Trials::Adaptive {
+                significant_digits: uncertainty.mc_digits,
+                max_trials: uncertainty.mc_max_trials,
+            },
+        },
+        seed: uncertainty.seed,
+        significant_digits: uncertainty.mc_digits,
+        solver: McSolver::Auto,
+    });
     let options = SolveOptions {
         method: match method {
             MethodArg::Auto => Method::Auto,
@@ -255,6 +358,7 @@ fn run_solve(
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let mut failures = 0;
+    let mut not_validated = 0;
     let mut csv_rows = Vec::new();
     for path in files {
         let name = display_name(path);
@@ -265,27 +369,53 @@ fn run_solve(
                     .with_context(|| format!("{name}: cannot solve"))
                     .map(|solution| (set, solution))
             });
-        let (_, solution) = match solved {
-            Ok(pair) => pair,
+        let evaluated = solved.and_then(|(set, solution)| {
+            let Some(budget) = &budget else {
+                return Ok((solution, None, None));
+            };
+            let gum = calibration::evaluate(&set, &solution, budget)
+                .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
+            let mc = mc_options
+                .as_ref()
+                .map(|options| calibration::monte_carlo(&set, &solution, budget, &gum, options))
+                .transpose()
+                .with_context(|| format!("{name}: Monte Carlo failed"))?;
+            Ok((solution, Some(gum), mc))
+        });
+        let (solution, gum, mc) = match evaluated {
+            Ok(triple) => triple,
             Err(error) => {
                 eprintln!("error: {}", one_line(&error));
                 failures += 1;
                 continue;
             }
         };
+        if mc.as_ref().is_some_and(|mc| !mc.validated) {
+            not_validated += 1;
+        }
         match format {
             FormatArg::Json => {
-                let report = SolveReport::new(&solution, several.then(|| name.clone()));
+                let mut report = SolveReport::new(&solution, several.then(|| name.clone()));
+                if let Some(gum) = &gum {
+                    report = report.with_uncertainty(gum);
+                }
+                if let Some(mc) = mc {
+                    report = report.with_monte_carlo(mc);
+                }
                 writeln!(out, "{}", report.to_json())?;
             }
             FormatArg::Table => {
                 if several {
                     writeln!(out)?;
                 }
-                write!(out, "{}", report::render_table(&solution, &name))?;
+                write!(
+                    out,
+                    "{}",
+                    report::render_table_with(&solution, &name, gum.as_ref(), mc.as_ref())
+                )?;
             }
             FormatArg::Csv => {
-                let rows = report::result_rows(&solution);
+                let rows = report::result_rows_with(&solution, gum.as_ref());
                 csv_rows.push((name, rows));
             }
         }
@@ -303,6 +433,13 @@ fn run_solve(
             bail!("{failures} of {} files could not be solved", files.len());
         }
         return Ok(EXIT_ERROR);
+    }
+    if not_validated > 0 {
+        eprintln!(
+            "warning: Monte Carlo does not validate the GUM uncertainty of some quantities \
+             (JCGM 101 §8); see the monte_carlo results"
+        );
+        return Ok(EXIT_VERDICT);
     }
     Ok(EXIT_OK)
 }

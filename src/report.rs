@@ -6,6 +6,7 @@
 
 use crate::results::ResultRow;
 use crate::solve::{Method, SigmaSource, Solution};
+use crate::uncertainty::calibration::{CalibrationMonteCarlo, CalibrationUncertainty, McFamily};
 use serde::Serialize;
 use std::fmt::Write as _;
 
@@ -32,6 +33,12 @@ pub struct SetupErrorReport {
     pub value: f64,
     /// Standard uncertainty, arcsec (null when unknown).
     pub u: Option<f64>,
+    /// Expanded uncertainty with `--budget` (an addition), arcsec.
+    #[serde(rename = "U", skip_serializing_if = "Option::is_none")]
+    pub expanded_u: Option<f64>,
+    /// Coverage factor with `--budget` (an addition).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub k: Option<f64>,
 }
 
 /// The JSON object of `polycal solve` (FORMAT.md §5), arcsec throughout.
@@ -70,6 +77,36 @@ pub struct SolveReport {
     pub sigma: Option<f64>,
     /// `residual` or `stated` (an addition).
     pub sigma_source: Option<&'static str>,
+    /// Coverage probability of the expanded uncertainties (with `--budget`; an addition,
+    /// like every field below).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub p: Option<f64>,
+    /// U(β) = k·u_c(β): the fit's type A combined with the budget, per face.
+    #[serde(rename = "pitch_deviation_U", skip_serializing_if = "Option::is_none")]
+    pub pitch_deviation_expanded_u: Option<Vec<f64>>,
+    /// k of each U(β) (t at p for its own ν_eff).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pitch_deviation_k: Option<Vec<Option<f64>>>,
+    /// U(φ); 0 for the reference face φ\[N\].
+    #[serde(rename = "face_deviation_U", skip_serializing_if = "Option::is_none")]
+    pub face_deviation_expanded_u: Option<Vec<f64>>,
+    /// k of each U(φ); null for φ\[N\].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub face_deviation_k: Option<Vec<Option<f64>>>,
+    /// U(α).
+    #[serde(rename = "encoder_error_U", skip_serializing_if = "Option::is_none")]
+    pub encoder_error_expanded_u: Option<Vec<f64>>,
+    /// k of each U(α).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub encoder_error_k: Option<Vec<Option<f64>>>,
+    /// The whole evaluation: type A, combined u, ν_eff, k, U per quantity, and every
+    /// budget component's contribution to every quantity.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<CalibrationUncertainty>,
+    /// Monte Carlo (`--monte-carlo`): per quantity mean, u, coverage interval, and the
+    /// validation of the GUM result.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub monte_carlo: Option<CalibrationMonteCarlo>,
 }
 
 impl SolveReport {
@@ -97,6 +134,8 @@ impl SolveReport {
                     ac: s.ac,
                     value: s.value,
                     u: setup_u.as_ref().map(|u| u[k]),
+                    expanded_u: None,
+                    k: None,
                 })
                 .collect(),
             effects: Vec::new(),
@@ -106,7 +145,39 @@ impl SolveReport {
                 SigmaSource::Residual => "residual",
                 SigmaSource::Stated => "stated",
             }),
+            p: None,
+            pitch_deviation_expanded_u: None,
+            pitch_deviation_k: None,
+            face_deviation_expanded_u: None,
+            face_deviation_k: None,
+            encoder_error_expanded_u: None,
+            encoder_error_k: None,
+            uncertainty: None,
+            monte_carlo: None,
         }
+    }
+
+    /// Adds the expanded uncertainties of `--budget`.
+    pub fn with_uncertainty(mut self, uncertainty: &CalibrationUncertainty) -> Self {
+        self.p = Some(uncertainty.p);
+        self.pitch_deviation_expanded_u = Some(uncertainty.pitch_deviation.expanded_u.clone());
+        self.pitch_deviation_k = Some(uncertainty.pitch_deviation.k.clone());
+        self.face_deviation_expanded_u = Some(uncertainty.face_deviation.expanded_u.clone());
+        self.face_deviation_k = Some(uncertainty.face_deviation.k.clone());
+        self.encoder_error_expanded_u = Some(uncertainty.encoder_error.expanded_u.clone());
+        self.encoder_error_k = Some(uncertainty.encoder_error.k.clone());
+        for (i, s) in self.setup_error.iter_mut().enumerate() {
+            s.expanded_u = Some(uncertainty.setup_error.expanded_u[i]);
+            s.k = uncertainty.setup_error.k[i];
+        }
+        self.uncertainty = Some(uncertainty.clone());
+        self
+    }
+
+    /// Adds the Monte Carlo results of `--monte-carlo`.
+    pub fn with_monte_carlo(mut self, monte_carlo: CalibrationMonteCarlo) -> Self {
+        self.monte_carlo = Some(monte_carlo);
+        self
     }
 
     /// One-line JSON.
@@ -119,39 +190,85 @@ impl SolveReport {
 /// encoder errors and setup errors (index = autocollimator; with several mountings the
 /// index is `setup·1000 + ac`, an addition to the contract), with `u` where known.
 pub fn result_rows(solution: &Solution) -> Vec<ResultRow> {
+    result_rows_with(solution, None)
+}
+
+/// The result rows with the expanded uncertainties of `--budget` when given: then `u`
+/// is the combined standard uncertainty u_c, `U` = k·u_c and `k` fill every row, and
+/// the reference face φ\[N\] (0 by definition, U = 0, for which En is undefined) is left
+/// out, so that the file goes straight into `polycal compare`.
+pub fn result_rows_with(
+    solution: &Solution,
+    uncertainty: Option<&CalibrationUncertainty>,
+) -> Vec<ResultRow> {
     let mut rows = Vec::with_capacity(3 * solution.faces + solution.setup_error.len());
-    let mut push = |quantity: &str, index: u32, value: f64, u: Option<f64>| {
-        rows.push(ResultRow {
-            quantity: quantity.to_string(),
-            index,
-            value,
-            u,
-            expanded_u: None,
-            k: None,
-        });
-    };
     let at = |v: &Option<Vec<f64>>, i: usize| v.as_ref().map(|v| v[i]);
-    let pitch_u = solution.pitch_deviation_u();
-    let face_u = solution.face_deviation_u();
-    let encoder_u = solution.encoder_error_u();
-    let setup_u = solution.setup_error_u();
-    for (i, &value) in solution.pitch_deviation.iter().enumerate() {
-        push("pitch_deviation", (i + 1) as u32, value, at(&pitch_u, i));
-    }
-    for (i, &value) in solution.face_deviation.iter().enumerate() {
-        push("face_deviation", (i + 1) as u32, value, at(&face_u, i));
-    }
-    for (i, &value) in solution.encoder_error.iter().enumerate() {
-        push("encoder_error", i as u32, value, at(&encoder_u, i));
-    }
+    let fit_u = [
+        solution.pitch_deviation_u(),
+        solution.face_deviation_u(),
+        solution.encoder_error_u(),
+        solution.setup_error_u(),
+    ];
     let several_setups = solution.setup_error.iter().any(|s| s.setup != 1);
-    for (i, s) in solution.setup_error.iter().enumerate() {
-        let index = if several_setups {
-            s.setup * 1000 + s.ac
-        } else {
-            s.ac
-        };
-        push("setup_error", index, s.value, at(&setup_u, i));
+    let families: [(&str, Vec<(u32, f64)>); 4] = [
+        (
+            "pitch_deviation",
+            (1..)
+                .zip(solution.pitch_deviation.iter().copied())
+                .collect(),
+        ),
+        (
+            "face_deviation",
+            (1..).zip(solution.face_deviation.iter().copied()).collect(),
+        ),
+        (
+            "encoder_error",
+            (0..).zip(solution.encoder_error.iter().copied()).collect(),
+        ),
+        (
+            "setup_error",
+            solution
+                .setup_error
+                .iter()
+                .map(|s| {
+                    let index = if several_setups {
+                        s.setup * 1000 + s.ac
+                    } else {
+                        s.ac
+                    };
+                    (index, s.value)
+                })
+                .collect(),
+        ),
+    ];
+    for (f, (quantity, values)) in families.into_iter().enumerate() {
+        for (i, (index, value)) in values.into_iter().enumerate() {
+            let row = match uncertainty {
+                None => ResultRow {
+                    quantity: quantity.to_string(),
+                    index,
+                    value,
+                    u: at(&fit_u[f], i),
+                    expanded_u: None,
+                    k: None,
+                },
+                Some(unc) => {
+                    let family = unc.families()[f].1;
+                    let Some(k) = family.k[i] else {
+                        continue; // φ[N]: no uncertainty
+                    };
+                    ResultRow {
+                        quantity: quantity.to_string(),
+                        index,
+                        value,
+                        u: Some(family.u[i]),
+                        expanded_u: Some(family.expanded_u[i]),
+                        k: Some(k),
+                    }
+                }
+            };
+            rows.push(row);
+        }
     }
     rows
 }
@@ -203,6 +320,18 @@ fn fixed(value: Option<f64>, decimals: usize) -> String {
 /// The table for people: per face β, u(β), φ, u(φ); per position the angle, α, u(α);
 /// the setup errors; dof and residual RMS.
 pub fn render_table(solution: &Solution, source: &str) -> String {
+    render_table_with(solution, source, None, None)
+}
+
+/// The table for people, with the expanded uncertainties of `--budget` (type A u_A,
+/// combined u_c, k and U per quantity, and what each budget component contributes) and
+/// the Monte Carlo results of `--monte-carlo` when given.
+pub fn render_table_with(
+    solution: &Solution,
+    source: &str,
+    uncertainty: Option<&CalibrationUncertainty>,
+    monte_carlo: Option<&CalibrationMonteCarlo>,
+) -> String {
     let mut out = String::new();
     let n = solution.faces;
     let method = match solution.method {
@@ -238,56 +367,303 @@ pub fn render_table(solution: &Solution, source: &str) -> String {
             );
         }
     }
+    if let Some(unc) = uncertainty {
+        let _ = writeln!(
+            out,
+            "expanded uncertainties U = k·u_c at p = {} %: the fit's type A u_A combined with the budget {} \
+             (k = {})",
+            crate::uncertainty::format::percent(unc.p),
+            unc.budget,
+            match unc.dof_policy {
+                crate::uncertainty::DofPolicy::K2 => "2 by policy".to_string(),
+                policy => format!("t for each quantity's ν_eff, {policy}"),
+            }
+        );
+    }
     let pitch_u = solution.pitch_deviation_u();
     let face_u = solution.face_deviation_u();
     let encoder_u = solution.encoder_error_u();
     let at = |v: &Option<Vec<f64>>, i: usize| v.as_ref().map(|v| v[i]);
+    let opt = |v: Option<f64>, decimals: usize| fixed(v, decimals);
     let _ = writeln!(out, "\nPolygon (arcsec)");
-    let _ = writeln!(
-        out,
-        "{:>5} {:>11} {:>9} {:>8} {:>9} {:>8}",
-        "face", "nominal/°", "β", "u(β)", "φ", "u(φ)"
-    );
-    for f in 0..n {
-        let _ = writeln!(
-            out,
-            "{:>5} {:>11.4} {:>9.4} {:>8} {:>9.4} {:>8}",
-            f + 1,
-            f as f64 * 360.0 / n as f64,
-            solution.pitch_deviation[f],
-            fixed(at(&pitch_u, f), 4),
-            solution.face_deviation[f],
-            fixed(at(&face_u, f), 4),
-        );
+    match uncertainty {
+        None => {
+            let _ = writeln!(
+                out,
+                "{:>5} {:>11} {:>9} {:>8} {:>9} {:>8}",
+                "face", "nominal/°", "β", "u(β)", "φ", "u(φ)"
+            );
+            for f in 0..n {
+                let _ = writeln!(
+                    out,
+                    "{:>5} {:>11.4} {:>9.4} {:>8} {:>9.4} {:>8}",
+                    f + 1,
+                    f as f64 * 360.0 / n as f64,
+                    solution.pitch_deviation[f],
+                    fixed(at(&pitch_u, f), 4),
+                    solution.face_deviation[f],
+                    fixed(at(&face_u, f), 4),
+                );
+            }
+        }
+        Some(unc) => {
+            let (b, p) = (&unc.pitch_deviation, &unc.face_deviation);
+            let _ = writeln!(
+                out,
+                "{:>5} {:>11} {:>9} {:>8} {:>8} {:>6} {:>8} {:>9} {:>8} {:>6} {:>8}",
+                "face",
+                "nominal/°",
+                "β",
+                "u_A(β)",
+                "u_c(β)",
+                "k",
+                "U(β)",
+                "φ",
+                "u_c(φ)",
+                "k",
+                "U(φ)"
+            );
+            for f in 0..n {
+                let _ = writeln!(
+                    out,
+                    "{:>5} {:>11.4} {:>9.4} {:>8.4} {:>8.4} {:>6} {:>8.4} {:>9.4} {:>8.4} {:>6} {:>8.4}",
+                    f + 1,
+                    f as f64 * 360.0 / n as f64,
+                    solution.pitch_deviation[f],
+                    b.u_a[f],
+                    b.u[f],
+                    opt(b.k[f], 3),
+                    b.expanded_u[f],
+                    solution.face_deviation[f],
+                    p.u[f],
+                    opt(p.k[f], 3),
+                    p.expanded_u[f],
+                );
+            }
+        }
     }
     let _ = writeln!(out, "\nEncoder (arcsec)");
-    let _ = writeln!(
-        out,
-        "{:>8} {:>11} {:>9} {:>8}",
-        "position", "angle/°", "α", "u(α)"
-    );
-    for p in 0..n {
-        let _ = writeln!(
-            out,
-            "{:>8} {:>11.4} {:>9.4} {:>8}",
-            p,
-            p as f64 * 360.0 / n as f64,
-            solution.encoder_error[p],
-            fixed(at(&encoder_u, p), 4),
-        );
+    match uncertainty {
+        None => {
+            let _ = writeln!(
+                out,
+                "{:>8} {:>11} {:>9} {:>8}",
+                "position", "angle/°", "α", "u(α)"
+            );
+            for p in 0..n {
+                let _ = writeln!(
+                    out,
+                    "{:>8} {:>11.4} {:>9.4} {:>8}",
+                    p,
+                    p as f64 * 360.0 / n as f64,
+                    solution.encoder_error[p],
+                    fixed(at(&encoder_u, p), 4),
+                );
+            }
+        }
+        Some(unc) => {
+            let a = &unc.encoder_error;
+            let _ = writeln!(
+                out,
+                "{:>8} {:>11} {:>9} {:>8} {:>8} {:>6} {:>8}",
+                "position", "angle/°", "α", "u_A(α)", "u_c(α)", "k", "U(α)"
+            );
+            for p in 0..n {
+                let _ = writeln!(
+                    out,
+                    "{:>8} {:>11.4} {:>9.4} {:>8.4} {:>8.4} {:>6} {:>8.4}",
+                    p,
+                    p as f64 * 360.0 / n as f64,
+                    solution.encoder_error[p],
+                    a.u_a[p],
+                    a.u[p],
+                    opt(a.k[p], 3),
+                    a.expanded_u[p],
+                );
+            }
+        }
     }
     let setup_u = solution.setup_error_u();
     let _ = writeln!(out, "\nSetup errors (arcsec, gauge of FORMAT.md §1)");
-    let _ = writeln!(out, "{:>5} {:>4} {:>9} {:>8}", "setup", "ac", "U", "u(U)");
+    let _ = writeln!(
+        out,
+        "{:>5} {:>4} {:>9} {:>8}{}",
+        "setup",
+        "ac",
+        "U",
+        "u(U)",
+        if uncertainty.is_some() {
+            format!(" {:>8}", "U(U)")
+        } else {
+            String::new()
+        }
+    );
     for (i, s) in solution.setup_error.iter().enumerate() {
         let _ = writeln!(
             out,
-            "{:>5} {:>4} {:>9.4} {:>8}",
+            "{:>5} {:>4} {:>9.4} {:>8}{}",
             s.setup,
             s.ac,
             s.value,
-            fixed(at(&setup_u, i), 4)
+            fixed(at(&setup_u, i), 4),
+            uncertainty.map_or(String::new(), |unc| format!(
+                " {:>8.4}",
+                unc.setup_error.expanded_u[i]
+            ))
         );
     }
+    if let Some(unc) = uncertainty {
+        let largest = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+        let _ = writeln!(
+            out,
+            "\nBudget {}: contribution of each source (standard uncertainty, largest over the quantities)",
+            unc.budget
+        );
+        let _ = writeln!(
+            out,
+            "{:<44} {:<20} {:>8} {:>8} {:>8} {:>8}",
+            "source", "acts on", "u", "to β", "to φ", "to α"
+        );
+        let type_a = format!(
+            "Repeatability (fit, σ = {:.4}″, ν = {})",
+            unc.sigma,
+            unc.type_a_dof.map_or("∞".to_string(), |nu| format!("{nu}"))
+        );
+        let _ = writeln!(
+            out,
+            "{:<44} {:<20} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
+            type_a,
+            "each-reading",
+            unc.sigma,
+            largest(&unc.pitch_deviation.u_a),
+            largest(&unc.face_deviation.u_a),
+            largest(&unc.encoder_error.u_a),
+        );
+        for c in &unc.components {
+            let name: String = c.name.chars().take(44).collect();
+            let _ = writeln!(
+                out,
+                "{:<44} {:<20} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
+                name,
+                c.acts_on.as_str(),
+                c.u,
+                largest(&c.pitch_deviation),
+                largest(&c.face_deviation),
+                largest(&c.encoder_error),
+            );
+        }
+        let _ = writeln!(
+            out,
+            "{:<44} {:<20} {:>8} {:>8.4} {:>8.4} {:>8.4}",
+            "Combined u_c",
+            "",
+            "",
+            largest(&unc.pitch_deviation.u),
+            largest(&unc.face_deviation.u),
+            largest(&unc.encoder_error.u),
+        );
+    }
+    if let Some(mc) = monte_carlo {
+        render_monte_carlo(&mut out, solution, uncertainty, mc);
+    }
     out
+}
+
+fn render_monte_carlo(
+    out: &mut String,
+    solution: &Solution,
+    uncertainty: Option<&CalibrationUncertainty>,
+    mc: &CalibrationMonteCarlo,
+) {
+    let n = solution.faces;
+    let _ = writeln!(
+        out,
+        "\nMonte Carlo (JCGM 101): {} trials{}, seed {}, {} solver, reading noise {}",
+        mc.trials,
+        mc.sequences
+            .map_or(String::new(), |h| format!(" (adaptive, {h} sequences)")),
+        mc.seed,
+        mc.solver,
+        match mc.reading_noise_dof {
+            Some(nu) => format!("t (ν = {nu})"),
+            None => mc.reading_noise.to_string(),
+        }
+    );
+    let _ = writeln!(
+        out,
+        "{} % probabilistically symmetric intervals; GUM validated when |y ∓ U − end| ≤ δ ({} significant digits of u_c)",
+        crate::uncertainty::format::percent(mc.p),
+        mc.significant_digits
+    );
+    // (index name, symbol, Monte Carlo, estimates, GUM U)
+    type Row<'a> = (&'a str, &'a str, &'a McFamily, &'a [f64], Option<&'a [f64]>);
+    let families: [Row<'_>; 3] = [
+        (
+            "face",
+            "β",
+            &mc.pitch_deviation,
+            &solution.pitch_deviation,
+            uncertainty.map(|u| u.pitch_deviation.expanded_u.as_slice()),
+        ),
+        (
+            "face",
+            "φ",
+            &mc.face_deviation,
+            &solution.face_deviation,
+            uncertainty.map(|u| u.face_deviation.expanded_u.as_slice()),
+        ),
+        (
+            "position",
+            "α",
+            &mc.encoder_error,
+            &solution.encoder_error,
+            uncertainty.map(|u| u.encoder_error.expanded_u.as_slice()),
+        ),
+    ];
+    for (index_name, symbol, family, estimates, expanded) in families {
+        let _ = writeln!(
+            out,
+            "\n{:>8} {:>9} {:>9} {:>8} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8}  GUM",
+            index_name, symbol, "mean", "u", "low", "high", "U(GUM)", "d_low", "d_high", "δ"
+        );
+        for i in 0..n {
+            let index = if symbol == "α" { i } else { i + 1 };
+            let _ = writeln!(
+                out,
+                "{:>8} {:>9.4} {:>9.4} {:>8.4} {:>9.4} {:>9.4} {:>8} {:>8.5} {:>8.5} {:>8.5}  {}",
+                index,
+                estimates[i],
+                family.mean[i],
+                family.u[i],
+                family.low[i],
+                family.high[i],
+                fixed(expanded.map(|e| e[i]), 4),
+                family.d_low[i],
+                family.d_high[i],
+                family.delta[i],
+                if family.passed[i] {
+                    "validated"
+                } else {
+                    "NOT validated"
+                }
+            );
+        }
+    }
+    let failed: usize = [&mc.pitch_deviation, &mc.face_deviation, &mc.encoder_error]
+        .iter()
+        .map(|f| f.passed.iter().filter(|&&p| !p).count())
+        .sum();
+    let _ = writeln!(
+        out,
+        "\n{}",
+        if mc.validated {
+            "The GUM uncertainties are validated by Monte Carlo (JCGM 101 §8).".to_string()
+        } else {
+            format!(
+                "{failed} GUM intervals are NOT validated by Monte Carlo (JCGM 101 §8): use the \
+                 Monte Carlo intervals for those quantities, or more trials if δ is below the \
+                 Monte Carlo noise."
+            )
+        }
+    );
 }

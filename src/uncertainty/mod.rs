@@ -5,11 +5,14 @@
 //!   triangular, arcsine, t);
 //! - [`budget`]: GUM budgets (law of propagation, Welch–Satterthwaite, coverage factor);
 //! - [`budget_file`]: the budget TOML file of FORMAT.md §5;
+//! - [`calibration`]: the uncertainty of the calibration results, per quantity: the fit's
+//!   covariance with the instrument's budget (GUM), and Monte Carlo through the solver;
 //! - [`monte_carlo`]: propagation of distributions (GUM Supplement 1, JCGM 101:2008),
 //!   with the adaptive procedure and the validation of the GUM result.
 
 pub mod budget;
 pub mod budget_file;
+pub mod calibration;
 pub mod distribution;
 pub(crate) mod format;
 pub mod monte_carlo;

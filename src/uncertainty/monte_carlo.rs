@@ -233,8 +233,7 @@ impl MonteCarlo {
     /// The number of trials per sequence of the adaptive procedure:
     /// `max(10⁴, ⌈100/(1 − p)⌉)` (JCGM 101 §7.9.4 b), rounded up to whole blocks.
     pub fn sequence_length(&self) -> usize {
-        let j = (100.0 / (1.0 - self.p)).ceil().max(10_000.0) as usize;
-        j.div_ceil(BLOCK_SIZE) * BLOCK_SIZE
+        adaptive_sequence_length(self.p)
     }
 
     /// Runs the model.
@@ -356,8 +355,44 @@ impl MonteCarlo {
     }
 }
 
+/// The number of trials per sequence of the adaptive procedure at coverage probability
+/// `p`: `max(10⁴, ⌈100/(1 − p)⌉)` (JCGM 101 §7.9.4 b), rounded up to whole blocks of
+/// [`BLOCK_SIZE`].
+///
+/// ```
+/// use polycal::uncertainty::monte_carlo::adaptive_sequence_length;
+/// assert_eq!(adaptive_sequence_length(0.95), 10_000);
+/// assert_eq!(adaptive_sequence_length(0.999), 100_000);
+/// ```
+pub fn adaptive_sequence_length(p: f64) -> usize {
+    let j = (100.0 / (1.0 - p)).ceil().max(10_000.0) as usize;
+    j.div_ceil(BLOCK_SIZE) * BLOCK_SIZE
+}
+
+/// The 0-based positions, in the sorted values of `m` trials, of the ends of the
+/// probabilistically symmetric `p` coverage interval (JCGM 101 §7.7): with `q = pM` if
+/// an integer, else `⌊pM + 1/2⌋`, the interval is `[y_(r), y_(r+q)]` with `r = (M − q)/2`
+/// if an integer, else `⌊(M − q + 1)/2⌋` (1-based), clamped to the sample.
+///
+/// ```
+/// use polycal::uncertainty::monte_carlo::symmetric_interval_positions;
+/// // M = 10⁶, p = 0.95: q = 950 000, r = 25 000: y_(25 000) and y_(975 000).
+/// assert_eq!(symmetric_interval_positions(1_000_000, 0.95), (24_999, 974_999));
+/// ```
+pub fn symmetric_interval_positions(m: usize, p: f64) -> (usize, usize) {
+    let pm = p * m as f64;
+    let q = if (pm - pm.round()).abs() < 1e-9 * m as f64 {
+        pm.round() as usize
+    } else {
+        (pm + 0.5).floor() as usize
+    };
+    let q = q.min(m - 1);
+    let r = (m - q).div_ceil(2).max(1);
+    (r - 1, (r + q - 1).min(m - 1))
+}
+
 /// The fewest trials for which the coverage interval has both ends: `⌈1/(1 − p)⌉`.
-fn minimum_trials(p: f64) -> usize {
+pub(crate) fn minimum_trials(p: f64) -> usize {
     (1.0 / (1.0 - p)).ceil() as usize
 }
 
@@ -449,18 +484,11 @@ fn summarize(values: &[f64], p: f64) -> OutputSummary {
     let u = standard_deviation(values);
     let mut sorted = values.to_vec();
     sorted.sort_unstable_by(f64::total_cmp);
-    // JCGM 101 §7.7: q = pM if an integer, else ⌊pM + 1/2⌋; symmetric interval
-    // [y_(r), y_(r+q)] with r = (M − q)/2 if an integer, else ⌊(M − q + 1)/2⌋ (1-based).
-    let pm = p * m as f64;
-    let q = if (pm - pm.round()).abs() < 1e-9 * m as f64 {
-        pm.round() as usize
-    } else {
-        (pm + 0.5).floor() as usize
-    };
-    let q = q.min(m - 1);
-    let r = (m - q).div_ceil(2).max(1);
-    let low = sorted[r - 1];
-    let high = sorted[(r + q - 1).min(m - 1)];
+    // JCGM 101 §7.7, see `symmetric_interval_positions`.
+    let (r_low, r_high) = symmetric_interval_positions(m, p);
+    let q = r_high - r_low;
+    let low = sorted[r_low];
+    let high = sorted[r_high];
     // Shortest: the r* minimizing y_(r+q) − y_(r), r = 1 … M − q.
     let (best, _) = (0..m - q).fold((0, f64::INFINITY), |(best, width), i| {
         let w = sorted[i + q] - sorted[i];
@@ -497,7 +525,7 @@ fn standard_deviation(values: &[f64]) -> f64 {
 }
 
 /// `s(x̄) = √(Σ(x_r − x̄)²/(h(h − 1)))` (JCGM 101 §7.9.4 f).
-fn standard_deviation_of_mean(xs: &[f64]) -> f64 {
+pub(crate) fn standard_deviation_of_mean(xs: &[f64]) -> f64 {
     standard_deviation(xs) / (xs.len() as f64).sqrt()
 }
 
