@@ -7,7 +7,6 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::ValueEnum;
-use polycal::effects::Effect;
 #[cfg(unix)]
 use polycal::instrument::sim::Lab;
 use polycal::instrument::sim::{Devices, Fault, LabConfig};
@@ -16,7 +15,6 @@ use polycal::instrument::{
     Smc100Options, StopFlag, TrafficLog,
 };
 use polycal::run::{self, Instruments, Outcome, Ports, Progress, RunDir, RunSettings};
-use polycal::simulate::{Harmonic, SimulationConfig};
 
 /// Arguments of `polycal run`.
 #[derive(clap::Args)]
@@ -65,49 +63,11 @@ pub struct RunArgs {
 /// Arguments of `polycal sim-lab`.
 #[derive(clap::Args)]
 pub struct SimLabArgs {
-    /// Number of polygon faces N.
-    #[arg(long, default_value_t = 24)]
-    faces: usize,
-    /// Cycles of the run design the lab follows (for cycle-dependent effects).
-    #[arg(long, default_value_t = 6)]
-    cycles: u32,
-    /// The run design has the closing step (for cycle-dependent effects).
-    #[arg(long)]
-    closing: bool,
-    /// The run design is bidirectional (for cycle- and direction-dependent effects).
-    #[arg(long)]
-    bidirectional: bool,
-    /// Reading noise (standard deviation), arcsec.
-    #[arg(long, default_value_t = 0.05)]
-    noise: f64,
-    /// Spread (standard deviation) of the pitch deviations, arcsec.
-    #[arg(long, default_value_t = 0.5)]
-    pitch_spread: f64,
-    /// Encoder error harmonic ORDER:AMPLITUDE[:PHASE] (arcsec, radians); repeatable.
-    /// Default: 1:0.6:0.4 2:0.35:1.3 3:0.2:2.2 5:0.1:0.7.
-    #[arg(long = "harmonic")]
-    harmonics: Vec<String>,
-    /// Spread of the setup errors, arcsec.
-    #[arg(long, default_value_t = 0.5)]
-    setup_spread: f64,
-    /// Random seed.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Zero drift AC:RATE (arcsec per hour, real time); repeatable.
-    #[arg(long)]
-    drift: Vec<String>,
-    /// Zero jump AC:CYCLE:VALUE from that cycle on; repeatable.
-    #[arg(long)]
-    offset_step: Vec<String>,
-    /// Counter-clockwise offset [AC:]VALUE; repeatable.
-    #[arg(long)]
-    direction: Vec<String>,
-    /// One bad reading CYCLE:STEP:AC:VALUE; repeatable.
-    #[arg(long)]
-    outlier: Vec<String>,
-    /// Where to write the truth JSON (FORMAT.md §4).
-    #[arg(long)]
-    truth_out: Option<PathBuf>,
+    /// The truth the lab's instruments measure, its noise and effects (as `simulate`);
+    /// `--cycles`, `--closing` and `--bidirectional` describe the run the lab follows,
+    /// for cycle- and direction-dependent effects; drift follows real time.
+    #[command(flatten)]
+    truth: crate::cli_truth::TruthArgs,
     /// Table speed, degrees per second.
     #[arg(long, default_value_t = 20.0)]
     speed: f64,
@@ -355,29 +315,6 @@ impl ProgressBar {
 
 /// `polycal sim-lab`: serves until killed or standard input closes.
 pub fn sim_lab(args: &SimLabArgs) -> Result<u8> {
-    let mut effects = Vec::new();
-    for (kind, specs) in [
-        ("drift", &args.drift),
-        ("offset-step", &args.offset_step),
-        ("direction", &args.direction),
-        ("outlier", &args.outlier),
-    ] {
-        for spec in specs {
-            effects
-                .push(Effect::parse_spec(kind, spec).map_err(|m| anyhow!("--{kind} {spec}: {m}"))?);
-        }
-    }
-    let encoder_harmonics = if args.harmonics.is_empty() {
-        SimulationConfig::default().encoder_harmonics
-    } else {
-        args.harmonics
-            .iter()
-            .map(|spec| {
-                spec.parse::<Harmonic>()
-                    .map_err(|m| anyhow!("--harmonic {spec}: {m}"))
-            })
-            .collect::<Result<Vec<_>>>()?
-    };
     let faults = args
         .faults
         .iter()
@@ -387,32 +324,14 @@ pub fn sim_lab(args: &SimLabArgs) -> Result<u8> {
         })
         .collect::<Result<Vec<_>>>()?;
     let config = LabConfig {
-        simulation: SimulationConfig {
-            faces: args.faces,
-            ac_faces: vec![1, 2],
-            setups: 1,
-            setup_shift_faces: 1,
-            cycles: args.cycles,
-            closing: args.closing || args.bidirectional,
-            bidirectional: args.bidirectional,
-            noise_arcsec: args.noise,
-            pitch_spread_arcsec: args.pitch_spread,
-            encoder_harmonics,
-            setup_error_spread_arcsec: args.setup_spread,
-            step_seconds: 20.0,
-            effects,
-            seed: args.seed,
-        },
+        simulation: args.truth.config(vec![1, 2], 1, 1, 20.0)?,
         speed_deg_per_s: args.speed,
         home_seconds: args.home_seconds,
         time_scale: args.time_scale,
         faults,
     };
     let devices = Devices::new(config)?;
-    if let Some(path) = &args.truth_out {
-        std::fs::write(path, devices.truth().to_json_pretty() + "\n")
-            .with_context(|| format!("{}: cannot write the truth", path.display()))?;
-    }
+    args.truth.write_truth(&devices.truth())?;
     serve(devices, args.format)
 }
 

@@ -2,6 +2,7 @@
 //! library and prints; all logic lives in the library's modules.
 
 mod cli_instrument;
+mod cli_truth;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
@@ -10,7 +11,7 @@ use polycal::diagnose::{self, DiagnoseOptions, report::DiagnoseReport};
 use polycal::measurement::MeasurementSet;
 use polycal::report::{self, SolveReport};
 use polycal::results::read_result_file;
-use polycal::simulate::{self, Harmonic, SimulationConfig, Truth};
+use polycal::simulate::{self, Truth};
 use polycal::solve::{self, Method, SolveOptions};
 use polycal::uncertainty::BudgetFile;
 use polycal::uncertainty::calibration::{self, InstrumentBudget, McOptions, McSolver};
@@ -147,9 +148,8 @@ enum Command {
 
 #[derive(clap::Args)]
 struct SimulateArgs {
-    /// Number of polygon faces N.
-    #[arg(long, default_value_t = 24)]
-    faces: usize,
+    #[command(flatten)]
+    truth: cli_truth::TruthArgs,
     /// Face read at step 0 by each autocollimator (the paper: 1,2).
     #[arg(long, value_delimiter = ',', default_value = "1,2")]
     ac_faces: Vec<usize>,
@@ -159,52 +159,12 @@ struct SimulateArgs {
     /// Whole faces the polygon is turned between mountings.
     #[arg(long, default_value_t = 1)]
     setup_shift: usize,
-    /// Number of cycles.
-    #[arg(long, default_value_t = 6)]
-    cycles: u32,
-    /// Add the closing reading (step N) to every cycle.
-    #[arg(long)]
-    closing: bool,
-    /// Run every second cycle counter-clockwise (implies --closing).
-    #[arg(long)]
-    bidirectional: bool,
-    /// Reading noise (standard deviation), arcsec.
-    #[arg(long, default_value_t = 0.05)]
-    noise: f64,
-    /// Spread (standard deviation) of the pitch deviations, arcsec.
-    #[arg(long, default_value_t = 0.5)]
-    pitch_spread: f64,
-    /// Encoder error harmonic ORDER:AMPLITUDE[:PHASE] (arcsec, radians); repeatable.
-    /// Default: 1:0.6:0.4 2:0.35:1.3 3:0.2:2.2 5:0.1:0.7.
-    #[arg(long = "harmonic")]
-    harmonics: Vec<String>,
-    /// Spread of the setup errors, arcsec.
-    #[arg(long, default_value_t = 0.5)]
-    setup_spread: f64,
     /// Seconds per table stop.
     #[arg(long, default_value_t = 20.0)]
     step_seconds: f64,
-    /// Random seed (same seed, same bytes).
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Zero drift AC:RATE (arcsec per hour); repeatable.
-    #[arg(long)]
-    drift: Vec<String>,
-    /// Zero jump AC:CYCLE:VALUE from that cycle on; repeatable.
-    #[arg(long)]
-    offset_step: Vec<String>,
-    /// Counter-clockwise offset [AC:]VALUE; repeatable.
-    #[arg(long)]
-    direction: Vec<String>,
-    /// One bad reading CYCLE:STEP:AC:VALUE; repeatable.
-    #[arg(long)]
-    outlier: Vec<String>,
     /// Where to write the measurement CSV (default: standard output).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Where to write the truth JSON (FORMAT.md §4).
-    #[arg(long)]
-    truth_out: Option<PathBuf>,
 }
 
 /// `--monte-carlo`: a number of trials or the adaptive procedure.
@@ -564,47 +524,12 @@ fn run_compare(a: &Path, b: &Path, correlation: f64, format: FormatArg) -> Resul
 }
 
 fn run_simulate(args: &SimulateArgs) -> Result<()> {
-    let mut effects = Vec::new();
-    for (kind, specs) in [
-        ("drift", &args.drift),
-        ("offset-step", &args.offset_step),
-        ("direction", &args.direction),
-        ("outlier", &args.outlier),
-    ] {
-        for spec in specs {
-            effects.push(
-                polycal::effects::Effect::parse_spec(kind, spec)
-                    .map_err(|message| anyhow::anyhow!("--{kind} {spec}: {message}"))?,
-            );
-        }
-    }
-    let encoder_harmonics = if args.harmonics.is_empty() {
-        SimulationConfig::default().encoder_harmonics
-    } else {
-        args.harmonics
-            .iter()
-            .map(|spec| {
-                spec.parse::<Harmonic>()
-                    .map_err(|message| anyhow::anyhow!("--harmonic {spec}: {message}"))
-            })
-            .collect::<Result<Vec<_>>>()?
-    };
-    let config = SimulationConfig {
-        faces: args.faces,
-        ac_faces: args.ac_faces.clone(),
-        setups: args.setups,
-        setup_shift_faces: args.setup_shift,
-        cycles: args.cycles,
-        closing: args.closing || args.bidirectional,
-        bidirectional: args.bidirectional,
-        noise_arcsec: args.noise,
-        pitch_spread_arcsec: args.pitch_spread,
-        encoder_harmonics,
-        setup_error_spread_arcsec: args.setup_spread,
-        step_seconds: args.step_seconds,
-        effects,
-        seed: args.seed,
-    };
+    let config = args.truth.config(
+        args.ac_faces.clone(),
+        args.setups,
+        args.setup_shift,
+        args.step_seconds,
+    )?;
     let (set, truth) = simulate::simulate(&config)?;
     let comments = vec![format!(
         "polycal {} simulate: {} faces, ac faces {:?}, {} cycles, noise {} arcsec, seed {}",
@@ -623,9 +548,5 @@ fn run_simulate(args: &SimulateArgs) -> Result<()> {
                 .context("cannot write to standard output")?;
         }
     }
-    if let Some(path) = &args.truth_out {
-        std::fs::write(path, truth.to_json_pretty() + "\n")
-            .with_context(|| format!("{}: cannot write the truth", path.display()))?;
-    }
-    Ok(())
+    args.truth.write_truth(&truth)
 }

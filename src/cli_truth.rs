@@ -1,0 +1,118 @@
+//! The binary side of the options that describe a simulated truth and its effects,
+//! shared by `polycal simulate` and `polycal sim-lab` (flattened into both).
+
+use anyhow::{Context, Result, anyhow};
+use polycal::effects::Effect;
+use polycal::simulate::{Harmonic, SimulationConfig, Truth};
+use std::path::PathBuf;
+
+/// The truth (polygon, encoder, setup errors), the noise, the run design the effects
+/// refer to, and the effects.
+#[derive(clap::Args)]
+pub struct TruthArgs {
+    /// Number of polygon faces N.
+    #[arg(long, default_value_t = 24)]
+    pub faces: usize,
+    /// Number of cycles.
+    #[arg(long, default_value_t = 6)]
+    pub cycles: u32,
+    /// Add the closing reading (step N) to every cycle.
+    #[arg(long)]
+    pub closing: bool,
+    /// Run every second cycle counter-clockwise (implies --closing).
+    #[arg(long)]
+    pub bidirectional: bool,
+    /// Reading noise (standard deviation), arcsec.
+    #[arg(long, default_value_t = 0.05)]
+    pub noise: f64,
+    /// Spread (standard deviation) of the pitch deviations, arcsec.
+    #[arg(long, default_value_t = 0.5)]
+    pub pitch_spread: f64,
+    /// Encoder error harmonic ORDER:AMPLITUDE[:PHASE] (arcsec, radians); repeatable.
+    /// Default: 1:0.6:0.4 2:0.35:1.3 3:0.2:2.2 5:0.1:0.7.
+    #[arg(long = "harmonic")]
+    pub harmonics: Vec<String>,
+    /// Spread of the setup errors, arcsec.
+    #[arg(long, default_value_t = 0.5)]
+    pub setup_spread: f64,
+    /// Random seed (same seed, same truth and noise).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Zero drift AC:RATE (arcsec per hour); repeatable.
+    #[arg(long)]
+    pub drift: Vec<String>,
+    /// Zero jump AC:CYCLE:VALUE from that cycle on; repeatable.
+    #[arg(long)]
+    pub offset_step: Vec<String>,
+    /// Counter-clockwise offset [AC:]VALUE; repeatable.
+    #[arg(long)]
+    pub direction: Vec<String>,
+    /// One bad reading CYCLE:STEP:AC:VALUE; repeatable.
+    #[arg(long)]
+    pub outlier: Vec<String>,
+    /// Where to write the truth JSON (FORMAT.md §4).
+    #[arg(long)]
+    pub truth_out: Option<PathBuf>,
+}
+
+impl TruthArgs {
+    /// The simulation configuration for the given design details.
+    pub fn config(
+        &self,
+        ac_faces: Vec<usize>,
+        setups: u32,
+        setup_shift_faces: usize,
+        step_seconds: f64,
+    ) -> Result<SimulationConfig> {
+        let mut effects = Vec::new();
+        for (kind, specs) in [
+            ("drift", &self.drift),
+            ("offset-step", &self.offset_step),
+            ("direction", &self.direction),
+            ("outlier", &self.outlier),
+        ] {
+            for spec in specs {
+                effects.push(
+                    Effect::parse_spec(kind, spec)
+                        .map_err(|message| anyhow!("--{kind} {spec}: {message}"))?,
+                );
+            }
+        }
+        let encoder_harmonics = if self.harmonics.is_empty() {
+            SimulationConfig::default().encoder_harmonics
+        } else {
+            self.harmonics
+                .iter()
+                .map(|spec| {
+                    spec.parse::<Harmonic>()
+                        .map_err(|message| anyhow!("--harmonic {spec}: {message}"))
+                })
+                .collect::<Result<Vec<_>>>()?
+        };
+        Ok(SimulationConfig {
+            faces: self.faces,
+            ac_faces,
+            setups,
+            setup_shift_faces,
+            cycles: self.cycles,
+            closing: self.closing || self.bidirectional,
+            bidirectional: self.bidirectional,
+            noise_arcsec: self.noise,
+            pitch_spread_arcsec: self.pitch_spread,
+            encoder_harmonics,
+            setup_error_spread_arcsec: self.setup_spread,
+            step_seconds,
+            effects,
+            seed: self.seed,
+        })
+    }
+
+    /// Writes the truth to `--truth-out`, if given.
+    pub fn write_truth(&self, truth: &Truth) -> Result<()> {
+        if let Some(path) = &self.truth_out {
+            std::fs::write(path, truth.to_json_pretty() + "\n")
+                .with_context(|| format!("{}: cannot write the truth", path.display()))?;
+        }
+        Ok(())
+    }
+}
