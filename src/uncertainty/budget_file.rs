@@ -57,6 +57,28 @@ pub struct BudgetFile {
     pub budget: Budget,
 }
 
+/// The name and text of a budget file; the path `-` reads standard input (named
+/// `<stdin>` in messages).
+pub(crate) fn read_budget_text(path: &Path) -> Result<(String, String), BudgetError> {
+    if path == Path::new("-") {
+        let mut text = String::new();
+        std::io::stdin()
+            .read_to_string(&mut text)
+            .map_err(|e| BudgetError::Io {
+                file: "<stdin>".into(),
+                source: e,
+            })?;
+        Ok(("<stdin>".to_string(), text))
+    } else {
+        let source = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| BudgetError::Io {
+            file: source.clone(),
+            source: e,
+        })?;
+        Ok((source, text))
+    }
+}
+
 impl BudgetFile {
     /// Reads and checks a budget file; `-` reads standard input.
     ///
@@ -65,24 +87,7 @@ impl BudgetFile {
     /// [`BudgetError::Io`] if the file cannot be read, [`BudgetError::File`] (file, line,
     /// column, message) if it is not a valid budget.
     pub fn read_path(path: impl AsRef<Path>) -> Result<BudgetFile, BudgetError> {
-        let path = path.as_ref();
-        let (source, text) = if path == Path::new("-") {
-            let mut text = String::new();
-            std::io::stdin()
-                .read_to_string(&mut text)
-                .map_err(|e| BudgetError::Io {
-                    file: "<stdin>".into(),
-                    source: e,
-                })?;
-            ("<stdin>".to_string(), text)
-        } else {
-            let source = path.display().to_string();
-            let text = std::fs::read_to_string(path).map_err(|e| BudgetError::Io {
-                file: source.clone(),
-                source: e,
-            })?;
-            (source, text)
-        };
+        let (source, text) = read_budget_text(path.as_ref())?;
         BudgetFile::from_toml_str(&text, &source)
     }
 

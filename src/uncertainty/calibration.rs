@@ -59,7 +59,6 @@
 //! values below a bracket and keep the few inside it, and a bracket that missed is
 //! widened and the trials re-run.
 
-use std::io::Read;
 use std::ops::Range;
 use std::path::Path;
 use std::str::FromStr;
@@ -73,7 +72,7 @@ use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
 use super::budget::{Budget, BudgetError, DofPolicy, EvaluationType, Source};
-use super::budget_file::{BudgetFile, line_column};
+use super::budget_file::{BudgetFile, line_column, read_budget_text};
 use super::distribution::{Distribution, Sampler};
 use super::monte_carlo::{
     BLOCK_SIZE, McError, OutputSummary, Trials, adaptive_sequence_length, minimum_trials,
@@ -257,24 +256,7 @@ impl InstrumentBudget {
     /// [`BudgetError::Io`] if it cannot be read; otherwise as
     /// [`InstrumentBudget::from_toml_str`].
     pub fn read_path(path: impl AsRef<Path>) -> Result<Self, BudgetError> {
-        let path = path.as_ref();
-        let (source, text) = if path == Path::new("-") {
-            let mut text = String::new();
-            std::io::stdin()
-                .read_to_string(&mut text)
-                .map_err(|e| BudgetError::Io {
-                    file: "<stdin>".into(),
-                    source: e,
-                })?;
-            ("<stdin>".to_string(), text)
-        } else {
-            let source = path.display().to_string();
-            let text = std::fs::read_to_string(path).map_err(|e| BudgetError::Io {
-                file: source.clone(),
-                source: e,
-            })?;
-            (source, text)
-        };
+        let (source, text) = read_budget_text(path.as_ref())?;
         Self::from_toml_str(&text, &source)
     }
 
