@@ -113,16 +113,7 @@ pub struct RunSettings {
     pub settle_seconds: f64,
 }
 
-/// One stop of the run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Stop {
-    /// Cycle, from 1.
-    pub cycle: u32,
-    /// Step 0 … N.
-    pub step: usize,
-    /// Direction of the cycle.
-    pub direction: Direction,
-}
+pub use crate::measurement::{Stop, run_stops};
 
 impl Stop {
     /// The commanded table position, degrees: step·360/N (360 for the closing step).
@@ -170,33 +161,9 @@ impl RunSettings {
         self.closing || self.bidirectional
     }
 
-    /// The stops in order.
+    /// The stops in order ([`run_stops`]).
     pub fn plan(&self) -> Vec<Stop> {
-        let last = if self.has_closing() {
-            self.faces
-        } else {
-            self.faces - 1
-        };
-        let mut stops = Vec::new();
-        for cycle in 1..=self.cycles {
-            let direction = if self.bidirectional && cycle % 2 == 0 {
-                Direction::Ccw
-            } else {
-                Direction::Cw
-            };
-            for i in 0..=last {
-                let step = match direction {
-                    Direction::Cw => i,
-                    Direction::Ccw => last - i,
-                };
-                stops.push(Stop {
-                    cycle,
-                    step,
-                    direction,
-                });
-            }
-        }
-        stops
+        run_stops(self.faces, self.cycles, self.closing, self.bidirectional)
     }
 
     /// Number of readings of the whole run.

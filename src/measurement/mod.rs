@@ -104,6 +104,57 @@ impl Reading {
     }
 }
 
+/// One table stop of a run: which cycle, which step, which direction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Stop {
+    /// Cycle, from 1.
+    pub cycle: u32,
+    /// Step 0 … N (N is the closing reading).
+    pub step: usize,
+    /// Direction of the cycle.
+    pub direction: Direction,
+}
+
+/// The stops of a run in the order the table visits them (FORMAT.md §7): cycles 1 … R;
+/// a clockwise cycle visits steps 0, 1, …, N−1 (and the closing step N when
+/// `closing`); with `bidirectional` every second cycle is counter-clockwise and visits
+/// N, N−1, …, 0 (the closing step is then implied for every cycle).
+///
+/// ```
+/// use polycal::measurement::{Direction, run_stops};
+/// let stops = run_stops(3, 2, false, true);
+/// let steps: Vec<usize> = stops.iter().map(|s| s.step).collect();
+/// assert_eq!(steps, [0, 1, 2, 3, 3, 2, 1, 0]);
+/// assert_eq!(stops[4].direction, Direction::Ccw);
+/// ```
+pub fn run_stops(faces: usize, cycles: u32, closing: bool, bidirectional: bool) -> Vec<Stop> {
+    let last = if closing || bidirectional {
+        faces
+    } else {
+        faces.saturating_sub(1)
+    };
+    let mut stops = Vec::with_capacity(cycles as usize * (last + 1));
+    for cycle in 1..=cycles {
+        let direction = if bidirectional && cycle % 2 == 0 {
+            Direction::Ccw
+        } else {
+            Direction::Cw
+        };
+        for i in 0..=last {
+            let step = match direction {
+                Direction::Cw => i,
+                Direction::Ccw => last - i,
+            };
+            stops.push(Stop {
+                cycle,
+                step,
+                direction,
+            });
+        }
+    }
+    stops
+}
+
 /// A validated set of readings of an N-faced polygon.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeasurementSet {

@@ -44,7 +44,7 @@ use rand_distr::{Distribution, StandardNormal};
 pub use config::{Harmonic, MAX_READINGS, SimulationConfig};
 pub use truth::{SetupErrorTruth, Truth, face_deviation_from_pitch};
 
-use crate::measurement::{Direction, MeasurementSet, Reading};
+use crate::measurement::{MeasurementSet, Reading, Stop, run_stops};
 
 /// ChaCha stream of the true values.
 const TRUTH_STREAM: u64 = 0;
@@ -151,42 +151,34 @@ pub fn simulate_with_truth(
     let mut readings = Vec::with_capacity(config.reading_count());
     let mut stop: u64 = 0;
     for setup in 1..=config.setups {
-        for cycle in 1..=config.cycles {
-            let direction = if config.bidirectional && cycle % 2 == 0 {
-                Direction::Ccw
-            } else {
-                Direction::Cw
-            };
-            let last = config.stops_per_cycle() - 1;
-            for i in 0..=last {
-                let step = match direction {
-                    Direction::Cw => i,
-                    Direction::Ccw => last - i,
+        for Stop {
+            cycle,
+            step,
+            direction,
+        } in run_stops(n, config.cycles, config.closing, config.bidirectional)
+        {
+            let time = stop as f64 * config.step_seconds;
+            let encoder = step as f64 * 360.0 / n as f64;
+            for ac in 1..=n_ac {
+                let mut reading = Reading {
+                    setup,
+                    cycle,
+                    step,
+                    ac,
+                    face: config.face_at(setup, ac, step),
+                    reading_arcsec: 0.0,
+                    direction,
+                    time_seconds: Some(time),
+                    reading_y_arcsec: None,
+                    temperature_celsius: None,
+                    encoder_degrees: Some(encoder),
+                    line: 0,
                 };
-                let time = stop as f64 * config.step_seconds;
-                let encoder = step as f64 * 360.0 / n as f64;
-                for ac in 1..=n_ac {
-                    let mut reading = Reading {
-                        setup,
-                        cycle,
-                        step,
-                        ac,
-                        face: config.face_at(setup, ac, step),
-                        reading_arcsec: 0.0,
-                        direction,
-                        time_seconds: Some(time),
-                        reading_y_arcsec: None,
-                        temperature_celsius: None,
-                        encoder_degrees: Some(encoder),
-                        line: 0,
-                    };
-                    let z: f64 = StandardNormal.sample(&mut rng);
-                    reading.reading_arcsec =
-                        truth.model_reading(&reading) + config.noise_arcsec * z;
-                    readings.push(reading);
-                }
-                stop += 1;
+                let z: f64 = StandardNormal.sample(&mut rng);
+                reading.reading_arcsec = truth.model_reading(&reading) + config.noise_arcsec * z;
+                readings.push(reading);
             }
+            stop += 1;
         }
     }
     Ok(MeasurementSet {

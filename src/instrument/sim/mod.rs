@@ -69,7 +69,7 @@ pub use elcomat::ElcomatSim;
 pub use lab::{Lab, LabPaths};
 pub use smc100::Smc100Sim;
 
-use crate::measurement::{Direction, Reading};
+use crate::measurement::{Direction, Reading, run_stops};
 use crate::simulate::{SimulateError, SimulationConfig, Truth};
 
 /// Measuring range of the simulated autocollimators, arcsec (beyond it X is not valid).
@@ -321,27 +321,20 @@ struct Tracker {
 
 impl Tracker {
     fn new(config: &SimulationConfig) -> Tracker {
-        let mut plan = Vec::new();
-        let last = config.stops_per_cycle() - 1;
-        for cycle in 1..=config.cycles {
-            let direction = if config.bidirectional && cycle % 2 == 0 {
-                Direction::Ccw
-            } else {
-                Direction::Cw
-            };
-            for i in 0..=last {
-                let step = match direction {
-                    Direction::Cw => i,
-                    Direction::Ccw => last - i,
-                };
-                plan.push(PlannedStop {
-                    cycle,
-                    step,
-                    direction,
-                    read: [false; 2],
-                });
-            }
-        }
+        let plan = run_stops(
+            config.faces,
+            config.cycles,
+            config.closing,
+            config.bidirectional,
+        )
+        .into_iter()
+        .map(|stop| PlannedStop {
+            cycle: stop.cycle,
+            step: stop.step,
+            direction: stop.direction,
+            read: [false; 2],
+        })
+        .collect();
         Tracker {
             plan,
             current: None,
