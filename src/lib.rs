@@ -30,11 +30,13 @@
 pub mod compare;
 pub mod diagnose;
 pub mod effects;
+#[cfg(feature = "lab")]
 pub mod instrument;
 pub mod measurement;
 pub mod polygon;
 pub mod report;
 pub mod results;
+#[cfg(feature = "lab")]
 pub mod run;
 pub mod simulate;
 pub mod solve;
