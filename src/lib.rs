@@ -30,6 +30,7 @@
 pub mod compare;
 pub mod diagnose;
 pub mod effects;
+pub mod input;
 #[cfg(feature = "lab")]
 pub mod instrument;
 pub mod measurement;
