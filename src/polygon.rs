@@ -76,7 +76,7 @@ where
         if sum_arcsec.abs() > CLOSURE_TOLERANCE_ARCSEC * faces as f64 {
             return Err(PolygonError::NotClosed { sum_arcsec });
         }
-        let face_deviation = face_deviation_from_pitch(&pitch_deviation);
+        let face_deviation = face_deviation_of(&pitch_deviation);
         Ok(Self {
             pitch_deviation,
             face_deviation,
@@ -100,7 +100,7 @@ where
     /// A polygon from pitch deviations that close by construction (solver output):
     /// no checks, φ computed as the cumulative sum.
     pub(crate) fn from_closed_pitch(pitch_deviation: OVector<f64, D>) -> Self {
-        let face_deviation = face_deviation_from_pitch(&pitch_deviation);
+        let face_deviation = face_deviation_of(&pitch_deviation);
         Self {
             pitch_deviation,
             face_deviation,
@@ -128,22 +128,44 @@ where
     }
 }
 
-/// φ\[f\] = β\[1\] + … + β\[f\] (FORMAT.md §1), computed with compensated summation so that
-/// φ\[N\] is zero to rounding for a closed β.
-fn face_deviation_from_pitch<D: Dim>(pitch_deviation: &OVector<f64, D>) -> OVector<f64, D>
+/// Turns pitch deviations β\[1..=N\] into face deviations φ\[f\] = β\[1\] + … + β\[f\]
+/// in place (docs/FORMAT.md §1; the paper's eq. (1) gives Σβ = 0, so φ\[N\] = 0).
+///
+/// This is the crate's one definition of φ: summed left to right, with φ\[N\] set to
+/// exactly 0, which drops the rounding of a closed β (callers pass a closed β: a solver's
+/// output, a checked [`Polygon`] or a checked truth).
+///
+/// ```
+/// let mut values = [0.5, -0.25, -0.25];
+/// polycal::polygon::accumulate_face_deviation(&mut values);
+/// assert_eq!(values, [0.5, 0.25, 0.0]);
+/// ```
+pub fn accumulate_face_deviation(values: &mut [f64]) {
+    let mut running = 0.0;
+    for value in values.iter_mut() {
+        running += *value;
+        *value = running;
+    }
+    if let Some(last) = values.last_mut() {
+        *last = 0.0;
+    }
+}
+
+/// The face deviations φ of pitch deviations β, as a new vector
+/// ([`accumulate_face_deviation`]).
+pub fn face_deviation_from_pitch(pitch_deviation: &[f64]) -> Vec<f64> {
+    let mut face_deviation = pitch_deviation.to_vec();
+    accumulate_face_deviation(&mut face_deviation);
+    face_deviation
+}
+
+/// φ of a β held in an nalgebra vector, without a heap allocation for `Const<N>`.
+fn face_deviation_of<D: Dim>(pitch_deviation: &OVector<f64, D>) -> OVector<f64, D>
 where
     DefaultAllocator: Allocator<D>,
 {
     let mut face_deviation = pitch_deviation.clone();
-    let mut running = 0.0;
-    let mut compensation = 0.0;
-    for value in face_deviation.iter_mut() {
-        let y = *value - compensation;
-        let t = running + y;
-        compensation = (t - running) - y;
-        running = t;
-        *value = running;
-    }
+    accumulate_face_deviation(face_deviation.as_mut_slice());
     face_deviation
 }
 

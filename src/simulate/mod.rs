@@ -42,7 +42,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 pub use config::{Harmonic, MAX_READINGS, SimulationConfig};
-pub use truth::{SetupErrorTruth, Truth, face_deviation_from_pitch};
+pub use truth::{SetupErrorTruth, Truth};
 
 use crate::measurement::{MeasurementSet, Reading, Stop, run_stops};
 

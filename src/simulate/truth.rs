@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::{SimulateError, SimulationConfig, TRUTH_STREAM};
 use crate::effects::Effect;
 use crate::measurement::Reading;
+use crate::polygon::face_deviation_from_pitch;
 
 /// The true setup error `U[setup, ac]` of one autocollimator in one mounting, in the
 /// generic gauge of FORMAT.md §1.
@@ -53,16 +54,6 @@ pub struct Truth {
     pub noise_arcsec: Option<f64>,
 }
 
-/// The face deviations φ\[f\] = β\[1\] + … + β\[f\] for f = 1 … N (summed in that order).
-pub fn face_deviation_from_pitch(pitch_deviation: &[f64]) -> Vec<f64> {
-    pitch_deviation
-        .iter()
-        .scan(0.0, |sum, &b| {
-            *sum += b;
-            Some(*sum)
-        })
-        .collect()
-}
 
 /// Removes the mean, then sets the last element to minus the (left-to-right) sum of the
 /// others, so that the left-to-right sum is exactly 0.

@@ -10,7 +10,7 @@
 //! - eqs. (4), (5): α\[p\] = m₁\[p\] − φ\[p+1\] − U₁ = m₂\[p\] − φ\[p+2\] − U₂ (identical for exact
 //!   data; the mean of both is used).
 
-use super::least_squares::cumulative;
+use crate::polygon::face_deviation_from_pitch;
 use super::observability::stream_offsets;
 use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma, stream_list};
 use crate::measurement::MeasurementSet;
@@ -193,7 +193,7 @@ impl PaperDesign {
         // streams in ascending order for the report
         let first_is_lower = self.first < self.second;
         let (u_first, u_second) = (theta[2 * n], theta[2 * n + 1]);
-        let face_deviation = cumulative(&theta[..n]);
+        let face_deviation = face_deviation_from_pitch(&theta[..n]);
         let residuals: Vec<f64> = set
             .readings
             .iter()

@@ -12,6 +12,7 @@
 use super::observability::{self, Unobservable};
 use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma, stream_list};
 use crate::measurement::MeasurementSet;
+use crate::polygon::face_deviation_from_pitch;
 use nalgebra::{Cholesky, DMatrix, DVector};
 
 /// Fits the base model (no effect terms) by least squares.
@@ -161,7 +162,7 @@ pub fn least_squares_with_regressors(
     let cofactor = cofactor(&reduced, &cholesky, m);
 
     let pitch_deviation = theta[..n].to_vec();
-    let face_deviation = cumulative(&pitch_deviation);
+    let face_deviation = face_deviation_from_pitch(&pitch_deviation);
     Ok(Solution {
         faces: n,
         method: Method::LeastSquares,
@@ -188,21 +189,6 @@ pub fn least_squares_with_regressors(
     })
 }
 
-/// φ\[f\] = β\[1\] + … + β\[f\].
-pub(crate) fn cumulative(pitch_deviation: &[f64]) -> Vec<f64> {
-    let mut running = 0.0;
-    let mut face_deviation: Vec<f64> = pitch_deviation
-        .iter()
-        .map(|b| {
-            running += b;
-            running
-        })
-        .collect();
-    if let Some(last) = face_deviation.last_mut() {
-        *last = 0.0; // Σβ = 0 exactly by construction; drop the rounding
-    }
-    face_deviation
-}
 
 /// Builds the normal equations with the α block eliminated.
 pub(crate) fn reduce(
