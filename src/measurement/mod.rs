@@ -387,7 +387,8 @@ impl MeasurementSet {
         set.into_iter().collect()
     }
 
-    /// For each (setup, ac): the face offset d in 0..N such that face = (step + d) mod N + 1.
+    /// For each (setup, ac): the face offset d in 0..N such that face = (step + d) mod N + 1
+    /// ([`face_at`]).
     ///
     /// Pairs are in ascending order, as [`MeasurementSet::streams`]. In a validated set
     /// every reading of a pair has the same offset; otherwise the first reading's is
@@ -405,6 +406,25 @@ impl MeasurementSet {
         }
         offsets.into_iter().collect()
     }
+}
+
+/// The face an autocollimator reads at a step: (step + d) mod N + 1, for its face offset
+/// d (0 … N−1) and N faces. This is the crate's one statement of the design's geometry
+/// (docs/FORMAT.md §2): in the paper's design autocollimator 1 has d = 0 (face p + 1 at
+/// step p) and autocollimator 2 has d = 1 (face p + 2, wrapping); the closing step N reads
+/// the faces of step 0. [`MeasurementSet::face_offsets`] gives the inverse.
+///
+/// ```
+/// use polycal::measurement::face_at;
+/// assert_eq!(face_at(0, 1, 24), 2);
+/// assert_eq!(face_at(23, 1, 24), 1);
+/// assert_eq!(face_at(24, 0, 24), 1);
+/// ```
+pub fn face_at(step: usize, face_offset: usize, faces: usize) -> usize {
+    if faces == 0 {
+        return 0;
+    }
+    (step % faces + face_offset % faces) % faces + 1
 }
 
 // ---------------------------------------------------------------------------------------

@@ -210,7 +210,7 @@ impl SimulationConfig {
             return 0;
         };
         let shift = ((setup.saturating_sub(1) as usize) % n) * (self.setup_shift_faces % n) % n;
-        ((f0 + n - 1) % n + shift + step % n) % n + 1
+        crate::measurement::face_at(step, ((f0 + n - 1) % n + shift) % n, n)
     }
 
     /// Checks the settings; the error names the first problem found.

@@ -11,8 +11,7 @@
 //!   data; the mean of both is used).
 
 use crate::polygon::face_deviation_from_pitch;
-use super::observability::stream_offsets;
-use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma, stream_list};
+use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma};
 use crate::measurement::MeasurementSet;
 use crate::polygon::{Polygon, PolygonError};
 use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, OVector, allocator::Allocator};
@@ -118,14 +117,14 @@ impl PaperDesign {
     /// Recognises the design, or says why the closed form does not apply.
     pub fn detect(set: &MeasurementSet) -> Result<Self, String> {
         let n = set.faces;
-        let streams = stream_list(set);
+        let streams = set.streams();
         if streams.len() != 2 || streams[0].0 != streams[1].0 {
             return Err(format!(
                 "it needs exactly two autocollimators in one mounting, the file has {} (setup, ac) streams",
                 streams.len()
             ));
         }
-        let offsets = stream_offsets(set, &streams);
+        let offsets = set.face_offsets();
         let (d_a, d_b) = (offsets[0].1, offsets[1].1);
         let (first, second, offset) = if (d_b + n - d_a) % n == 1 {
             (streams[0], streams[1], d_a)

@@ -10,7 +10,7 @@
 //! the (2N + K)² system.
 
 use super::observability::{self, Unobservable};
-use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma, stream_list};
+use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma};
 use crate::measurement::MeasurementSet;
 use crate::polygon::face_deviation_from_pitch;
 use nalgebra::{Cholesky, DMatrix, DVector};
@@ -113,7 +113,7 @@ pub fn least_squares_with_regressors(
             });
         }
     }
-    let streams = stream_list(set);
+    let streams = set.streams();
     let reduced = reduce(set, &streams, regressors)?;
     let n = reduced.faces;
     let k = reduced.streams;
@@ -121,7 +121,7 @@ pub fn least_squares_with_regressors(
     let m = reduced.rest_len();
 
     let cholesky = factorise(&reduced.schur)
-        .ok_or_else(|| observability::explain_singular(&reduced, set, &streams))?;
+        .ok_or_else(|| observability::explain_singular(&reduced, set))?;
     let rest = cholesky.solve(&reduced.rhs);
     let alpha = reduced.alpha_from_rest(rest.as_slice(), true);
 

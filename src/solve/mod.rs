@@ -298,11 +298,3 @@ pub(crate) fn choose_sigma(
         stated.map(|s| (s, SigmaSource::Stated))
     }
 }
-
-/// The distinct (setup, ac) streams of a set, ascending.
-pub(crate) fn stream_list(set: &MeasurementSet) -> Vec<(u32, u32)> {
-    let mut streams: Vec<(u32, u32)> = set.readings.iter().map(|r| (r.setup, r.ac)).collect();
-    streams.sort_unstable();
-    streams.dedup();
-    streams
-}

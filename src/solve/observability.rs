@@ -72,7 +72,6 @@ pub fn lost_harmonics(faces: usize, offsets: &[usize]) -> Vec<usize> {
 pub(crate) fn explain_singular(
     reduced: &Reduced,
     set: &MeasurementSet,
-    streams: &[(u32, u32)],
 ) -> Unobservable {
     let n = reduced.faces;
     let k = reduced.streams;
@@ -113,7 +112,7 @@ pub(crate) fn explain_singular(
         .filter(|&j| effect_energy[j] > 1e-6 * total)
         .collect();
 
-    let offsets = stream_offsets(set, streams);
+    let offsets = set.face_offsets();
     let mut message =
         String::from("the design cannot determine every pitch deviation and encoder error: ");
     if !harmonics.is_empty() {
@@ -191,23 +190,6 @@ fn join_and(values: &[usize]) -> String {
                 .join(", ")
         ),
     }
-}
-
-/// Face offset d of each stream (face = (step + d) mod N + 1), from its first reading.
-pub(crate) fn stream_offsets(
-    set: &MeasurementSet,
-    streams: &[(u32, u32)],
-) -> Vec<((u32, u32), usize)> {
-    let n = set.faces;
-    streams
-        .iter()
-        .filter_map(|&stream| {
-            set.readings
-                .iter()
-                .find(|r| (r.setup, r.ac) == stream)
-                .map(|r| (stream, (r.face - 1 + n - r.step % n) % n))
-        })
-        .collect()
 }
 
 #[cfg(test)]
