@@ -14,6 +14,7 @@
 
 use std::collections::HashMap;
 
+use crate::results::Quantity;
 use serde::Serialize;
 
 use crate::results::{ResultFile, ResultRow};
@@ -43,7 +44,7 @@ impl Default for CompareOptions {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ComparisonRow {
     /// The quantity (`pitch_deviation`, …).
-    pub quantity: String,
+    pub quantity: Quantity,
     /// Its index.
     pub index: u32,
     /// Value in the first result.
@@ -66,7 +67,7 @@ pub struct ComparisonRow {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Unmatched {
     /// The quantity.
-    pub quantity: String,
+    pub quantity: Quantity,
     /// Its index.
     pub index: u32,
 }
@@ -115,7 +116,7 @@ pub enum CompareError {
         /// `file:line`, or the label and row number.
         location: String,
         /// The quantity.
-        quantity: String,
+        quantity: Quantity,
         /// Its index.
         index: u32,
     },
@@ -125,7 +126,7 @@ pub enum CompareError {
         /// `file:line`, or the label and row number.
         location: String,
         /// The quantity.
-        quantity: String,
+        quantity: Quantity,
         /// Its index.
         index: u32,
     },
@@ -136,7 +137,7 @@ pub enum CompareError {
     )]
     Undefined {
         /// The quantity.
-        quantity: String,
+        quantity: Quantity,
         /// Its index.
         index: u32,
         /// `U_a² + U_b² − 2·r·U_a·U_b`.
@@ -236,14 +237,14 @@ fn compare_located(
             if row.expanded_u.is_none() {
                 return Err(CompareError::MissingU {
                     location: location(i),
-                    quantity: row.quantity.clone(),
+                    quantity: row.quantity,
                     index: row.index,
                 });
             }
-            if seen.insert((row.quantity.as_str(), row.index), i).is_some() {
+            if seen.insert((row.quantity, row.index), i).is_some() {
                 return Err(CompareError::Duplicate {
                     location: location(i),
-                    quantity: row.quantity.clone(),
+                    quantity: row.quantity,
                     index: row.index,
                 });
             }
@@ -253,20 +254,20 @@ fn compare_located(
     check(a, &options.label_a, lines_a)?;
     check(b, &options.label_b, lines_b)?;
 
-    let in_b: HashMap<(&str, u32), &ResultRow> = b
+    let in_b: HashMap<(Quantity, u32), &ResultRow> = b
         .iter()
-        .map(|row| ((row.quantity.as_str(), row.index), row))
+        .map(|row| ((row.quantity, row.index), row))
         .collect();
-    let in_a: HashMap<(&str, u32), &ResultRow> = a
+    let in_a: HashMap<(Quantity, u32), &ResultRow> = a
         .iter()
-        .map(|row| ((row.quantity.as_str(), row.index), row))
+        .map(|row| ((row.quantity, row.index), row))
         .collect();
     let mut rows = Vec::new();
     let mut only_in_a = Vec::new();
     for ra in a {
-        let Some(rb) = in_b.get(&(ra.quantity.as_str(), ra.index)) else {
+        let Some(rb) = in_b.get(&(ra.quantity, ra.index)) else {
             only_in_a.push(Unmatched {
-                quantity: ra.quantity.clone(),
+                quantity: ra.quantity,
                 index: ra.index,
             });
             continue;
@@ -276,7 +277,7 @@ fn compare_located(
         let denominator = ua * ua + ub * ub - 2.0 * r * ua * ub;
         if denominator.is_nan() || denominator <= 0.0 {
             return Err(CompareError::Undefined {
-                quantity: ra.quantity.clone(),
+                quantity: ra.quantity,
                 index: ra.index,
                 denominator,
                 expanded_u_a: ua,
@@ -286,7 +287,7 @@ fn compare_located(
         }
         let difference = ra.value - rb.value;
         rows.push(ComparisonRow {
-            quantity: ra.quantity.clone(),
+            quantity: ra.quantity,
             index: ra.index,
             a: ra.value,
             b: rb.value,
@@ -298,9 +299,9 @@ fn compare_located(
     }
     let only_in_b = b
         .iter()
-        .filter(|rb| !in_a.contains_key(&(rb.quantity.as_str(), rb.index)))
+        .filter(|rb| !in_a.contains_key(&(rb.quantity, rb.index)))
         .map(|rb| Unmatched {
-            quantity: rb.quantity.clone(),
+            quantity: rb.quantity,
             index: rb.index,
         })
         .collect();
@@ -329,7 +330,7 @@ pub fn render_table(comparison: &Comparison) -> String {
         .iter()
         .map(|r| {
             [
-                r.quantity.clone(),
+                r.quantity.to_string(),
                 r.index.to_string(),
                 format!("{:.3}", r.a),
                 format!("{:.3}", r.b),

@@ -4,7 +4,7 @@
 //! JSON and CSV carry numbers at full precision (the shortest text that reads back to
 //! the same double); only the table rounds.
 
-use crate::results::ResultRow;
+use crate::results::{Quantity, ResultRow};
 use crate::solve::{Method, SigmaSource, Solution};
 use crate::uncertainty::calibration::{CalibrationMonteCarlo, CalibrationUncertainty, McFamily};
 use serde::Serialize;
@@ -210,23 +210,23 @@ pub fn result_rows_with(
         solution.setup_error_u(),
     ];
     let several_setups = solution.setup_error.iter().any(|s| s.setup != 1);
-    let families: [(&str, Vec<(u32, f64)>); 4] = [
+    let families: [(Quantity, Vec<(u32, f64)>); 4] = [
         (
-            "pitch_deviation",
+            Quantity::PitchDeviation,
             (1..)
                 .zip(solution.pitch_deviation.iter().copied())
                 .collect(),
         ),
         (
-            "face_deviation",
+            Quantity::FaceDeviation,
             (1..).zip(solution.face_deviation.iter().copied()).collect(),
         ),
         (
-            "encoder_error",
+            Quantity::EncoderError,
             (0..).zip(solution.encoder_error.iter().copied()).collect(),
         ),
         (
-            "setup_error",
+            Quantity::SetupError,
             solution
                 .setup_error
                 .iter()
@@ -245,7 +245,7 @@ pub fn result_rows_with(
         for (i, (index, value)) in values.into_iter().enumerate() {
             let row = match uncertainty {
                 None => ResultRow {
-                    quantity: quantity.to_string(),
+                    quantity,
                     index,
                     value,
                     u: at(&fit_u[f], i),
@@ -258,7 +258,7 @@ pub fn result_rows_with(
                         continue; // φ[N]: no uncertainty
                     };
                     ResultRow {
-                        quantity: quantity.to_string(),
+                        quantity,
                         index,
                         value,
                         u: Some(family.u[i]),

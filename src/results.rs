@@ -22,19 +22,71 @@ use std::path::Path;
 
 use serde::Serialize;
 
-/// The quantities a result file may hold, as spelled in it.
-pub const QUANTITIES: [&str; 4] = [
-    "pitch_deviation",
-    "face_deviation",
-    "encoder_error",
-    "setup_error",
-];
+/// The four families of calibrated quantities (docs/FORMAT.md §3), the crate's one list
+/// of them: result files, reports, uncertainties and truths name them through this type.
+///
+/// ```
+/// use polycal::results::Quantity;
+/// assert_eq!(Quantity::EncoderError.name(), "encoder_error");
+/// assert_eq!(Quantity::from_name("pitch_deviation"), Some(Quantity::PitchDeviation));
+/// assert_eq!(Quantity::ALL.len(), 4);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Quantity {
+    /// β\[k\], pitch deviation of face k = 1 … N.
+    PitchDeviation,
+    /// φ\[f\] = β\[1\] + … + β\[f\], face deviation of face f = 1 … N.
+    FaceDeviation,
+    /// α\[p\], encoder error at step p = 0 … N−1.
+    EncoderError,
+    /// U\[setup, ac\], setup error of an autocollimator (index: ac, or setup·1000 + ac
+    /// with several mountings).
+    SetupError,
+}
+
+impl Quantity {
+    /// The four families in the order results are written.
+    pub const ALL: [Quantity; 4] = [
+        Quantity::PitchDeviation,
+        Quantity::FaceDeviation,
+        Quantity::EncoderError,
+        Quantity::SetupError,
+    ];
+
+    /// The name as spelled in files and JSON, e.g. `pitch_deviation`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Quantity::PitchDeviation => "pitch_deviation",
+            Quantity::FaceDeviation => "face_deviation",
+            Quantity::EncoderError => "encoder_error",
+            Quantity::SetupError => "setup_error",
+        }
+    }
+
+    /// The family of a name as spelled in files, or `None`.
+    pub fn from_name(name: &str) -> Option<Quantity> {
+        Quantity::ALL.into_iter().find(|q| q.name() == name)
+    }
+}
+
+impl std::fmt::Display for Quantity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl PartialEq<&str> for Quantity {
+    fn eq(&self, other: &&str) -> bool {
+        self.name() == *other
+    }
+}
 
 /// One row of a result file.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ResultRow {
-    /// `pitch_deviation`, `face_deviation`, `encoder_error` or `setup_error`.
-    pub quantity: String,
+    /// The family: `pitch_deviation`, `face_deviation`, `encoder_error` or `setup_error`.
+    pub quantity: Quantity,
     /// Face 1 … N, step 0 … N−1, or autocollimator number.
     pub index: u32,
     /// Estimate, arcseconds.
@@ -260,8 +312,9 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
             let (line, column) = field_position(start, i);
             err(line, column, message)
         };
-        let quantity = &record[c_quantity];
-        if !QUANTITIES.contains(&quantity) {
+        let quantity_text = &record[c_quantity];
+        let Some(quantity) = Quantity::from_name(quantity_text) else {
+            let quantity = quantity_text;
             return Err(at(
                 c_quantity,
                 format!(
@@ -269,7 +322,7 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
                      encoder_error or setup_error"
                 ),
             ));
-        }
+        };
         let index_text = &record[c_index];
         let index: u32 = index_text.parse().map_err(|_| {
             at(
@@ -277,8 +330,8 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
                 format!("index must be a whole number ≥ 0, got {index_text:?}"),
             )
         })?;
-        if index == 0 && quantity != "encoder_error" {
-            let what = if quantity == "setup_error" {
+        if index == 0 && quantity != Quantity::EncoderError {
+            let what = if quantity == Quantity::SetupError {
                 "autocollimator numbers start at 1"
             } else {
                 "faces are numbered 1 … N"
@@ -327,7 +380,7 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
             ));
         }
         rows.push(ResultRow {
-            quantity: quantity.to_string(),
+            quantity,
             index,
             value,
             u,
@@ -349,7 +402,7 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
 /// # Errors
 ///
 /// An I/O error, or [`std::io::ErrorKind::InvalidInput`] for a number that is not finite
-/// or a quantity that is not one of [`QUANTITIES`].
+/// (the quantity is one of [`Quantity`] by its type).
 pub fn write_results<W: Write>(w: W, rows: &[ResultRow]) -> std::io::Result<()> {
     let invalid = |message: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, message);
     let mut writer = csv::Writer::from_writer(w);
@@ -361,9 +414,6 @@ pub fn write_results<W: Write>(w: W, rows: &[ResultRow]) -> std::io::Result<()> 
         .write_record(["quantity", "index", "value", "U", "u", "k"])
         .map_err(to_io)?;
     for row in rows {
-        if !QUANTITIES.contains(&row.quantity.as_str()) {
-            return Err(invalid(format!("unknown quantity {:?}", row.quantity)));
-        }
         let number = |x: f64| {
             if x.is_finite() {
                 Ok(format!("{x}"))
@@ -377,7 +427,7 @@ pub fn write_results<W: Write>(w: W, rows: &[ResultRow]) -> std::io::Result<()> 
         let optional = |x: Option<f64>| x.map_or(Ok(String::new()), number);
         writer
             .write_record([
-                row.quantity.clone(),
+                row.quantity.name().to_string(),
                 row.index.to_string(),
                 number(row.value)?,
                 optional(row.expanded_u)?,

@@ -13,6 +13,7 @@ use super::{SimulateError, SimulationConfig, TRUTH_STREAM};
 use crate::effects::Effect;
 use crate::measurement::Reading;
 use crate::polygon::face_deviation_from_pitch;
+use crate::results::Quantity;
 
 /// The true setup error `U[setup, ac]` of one autocollimator in one mounting, in the
 /// generic gauge of FORMAT.md §1.
@@ -163,9 +164,9 @@ impl Truth {
             return Err(format!("faces is {n}; a polygon needs at least 3 faces"));
         }
         let lists = [
-            ("pitch_deviation", &self.pitch_deviation, false),
-            ("encoder_error", &self.encoder_error, false),
-            ("face_deviation", &self.face_deviation, true),
+            (Quantity::PitchDeviation, &self.pitch_deviation, false),
+            (Quantity::EncoderError, &self.encoder_error, false),
+            (Quantity::FaceDeviation, &self.face_deviation, true),
         ];
         for (name, list, may_be_empty) in lists {
             if list.len() != n && !(may_be_empty && list.is_empty()) {
