@@ -5,12 +5,12 @@ use std::path::PathBuf;
 
 use polycal::compare::{CompareError, CompareOptions, compare, compare_files, render_table};
 use polycal::results::{
-    ResultRow, read_result_file, read_results_from, read_results_path, write_results,
+    Quantity, ResultRow, read_result_file, read_results_from, read_results_path, write_results,
 };
 
 fn row(quantity: &str, index: u32, value: f64, expanded_u: Option<f64>) -> ResultRow {
     ResultRow {
-        quantity: quantity.to_string(),
+        quantity: Quantity::from_name(quantity).expect("a quantity"),
         index,
         value,
         u: None,
@@ -187,7 +187,7 @@ fn compare_refuses_rows_without_expanded_uncertainty_naming_file_and_line() {
 fn results_round_trip_at_full_precision() {
     let rows = vec![
         ResultRow {
-            quantity: "pitch_deviation".into(),
+            quantity: Quantity::PitchDeviation,
             index: 1,
             value: 0.1 + 0.2,
             u: Some(0.228_673_894_443_594_07),
@@ -223,7 +223,7 @@ fn results_accept_any_column_order_comments_and_extra_columns() {
         f.rows,
         vec![
             ResultRow {
-                quantity: "pitch_deviation".into(),
+                quantity: Quantity::PitchDeviation,
                 index: 1,
                 value: 0.31,
                 u: None,
