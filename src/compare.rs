@@ -178,10 +178,10 @@ pub enum CompareError {
 ///
 /// ```
 /// use polycal::compare::{compare, CompareOptions};
-/// use polycal::results::ResultRow;
+/// use polycal::results::{Quantity, ResultRow};
 ///
 /// let row = |value, expanded_u| ResultRow {
-///     quantity: "pitch_deviation".into(), index: 7, value,
+///     quantity: Quantity::PitchDeviation, index: 7, value,
 ///     u: None, expanded_u: Some(expanded_u), k: None,
 /// };
 /// let c = compare(&[row(0.28, 0.46)], &[row(0.0, 0.15)], &CompareOptions::default())?;
