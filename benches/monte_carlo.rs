@@ -15,6 +15,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use polycal::measurement::MeasurementSet;
+use polycal::measurement::Sigma;
 use polycal::simulate::{SimulationConfig, simulate};
 use polycal::solve::{Solution, SolveOptions, solve};
 use polycal::uncertainty::calibration::{self, InstrumentBudget, McModel, McOptions, McSolver};
@@ -61,10 +62,7 @@ fn bare_cycle() -> (MeasurementSet, Solution) {
         ..SimulationConfig::default()
     };
     let (set, _) = simulate(&config).unwrap();
-    let options = SolveOptions {
-        sigma_arcsec: Some(0.05),
-        ..SolveOptions::default()
-    };
+    let options = SolveOptions::new().with_sigma(Sigma::new(0.05).unwrap());
     let solution = solve(&set, &options).unwrap();
     (set, solution)
 }

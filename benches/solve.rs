@@ -44,20 +44,14 @@ fn bench_closed_form(c: &mut Criterion) {
 fn bench_lsq(c: &mut Criterion) {
     let (set, _) = simulate(&config(24, true)).expect("valid configuration");
     assert_eq!(set.readings.len(), 300);
-    let options = SolveOptions {
-        method: Method::LeastSquares,
-        sigma_arcsec: None,
-    };
+    let options = SolveOptions::new().with_method(Method::LeastSquares);
     c.bench_function("lsq_covariance/24x6_closing_300", |b| {
         b.iter(|| solve(black_box(&set), &options))
     });
 }
 
 fn bench_growth(c: &mut Criterion) {
-    let options = SolveOptions {
-        method: Method::LeastSquares,
-        sigma_arcsec: None,
-    };
+    let options = SolveOptions::new().with_method(Method::LeastSquares);
     let mut group = c.benchmark_group("lsq_growth");
     group.sample_size(10);
     group.measurement_time(Duration::from_secs(8));

@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use polycal::compare::{CompareOptions, compare_files};
 use polycal::diagnose::{self, DiagnoseOptions, report::DiagnoseReport};
-use polycal::measurement::MeasurementSet;
+use polycal::measurement::{MeasurementSet, Sigma};
 use polycal::report::{self, SolveReport};
 use polycal::results::read_result_file;
 use polycal::simulate::{self, Truth};
@@ -74,7 +74,7 @@ enum Command {
         /// Standard deviation of one reading, arcsec, for the uncertainties of an
         /// exactly determined fit (dof = 0).
         #[arg(long)]
-        sigma: Option<f64>,
+        sigma: Option<Sigma>,
         /// Output format.
         #[arg(long, value_enum, default_value = "table")]
         format: FormatArg,
@@ -112,7 +112,7 @@ enum Command {
         faces: Option<usize>,
         /// Standard deviation of one reading, arcsec, if known: adds a χ² check.
         #[arg(long)]
-        sigma: Option<f64>,
+        sigma: Option<Sigma>,
         /// Output format.
         #[arg(long, value_enum, default_value = "table")]
         format: FormatArg,
@@ -274,7 +274,7 @@ fn run_solve(
     files: &[PathBuf],
     faces: Option<usize>,
     method: MethodArg,
-    sigma: Option<f64>,
+    sigma: Option<Sigma>,
     format: FormatArg,
     uncertainty: &UncertaintyArgs,
 ) -> Result<u8> {
@@ -306,14 +306,13 @@ fn run_solve(
         significant_digits: uncertainty.mc_digits,
         solver: McSolver::Auto,
     });
-    let options = SolveOptions {
-        method: match method {
+    let options = SolveOptions::new()
+        .with_method(match method {
             MethodArg::Auto => Method::Auto,
             MethodArg::ClosedForm => Method::ClosedForm,
             MethodArg::Lsq => Method::LeastSquares,
-        },
-        sigma_arcsec: sigma,
-    };
+        })
+        .with_sigma_opt(sigma);
     let several = files.len() > 1;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
@@ -408,22 +407,14 @@ fn run_diagnose(
     files: &[PathBuf],
     truth: Option<&Path>,
     faces: Option<usize>,
-    sigma: Option<f64>,
+    sigma: Option<Sigma>,
     format: FormatArg,
 ) -> Result<u8> {
     if matches!(format, FormatArg::Csv) {
         bail!("diagnose reports as table or json, not csv");
     }
-    if let Some(s) = sigma
-        && !(s.is_finite() && s > 0.0)
-    {
-        bail!("--sigma must be a positive number of arcseconds, got {s}");
-    }
     let truth = truth.map(Truth::read_path).transpose()?;
-    let options = DiagnoseOptions {
-        sigma_arcsec: sigma,
-        ..DiagnoseOptions::default()
-    };
+    let options = DiagnoseOptions::new().with_sigma_opt(sigma);
     let several = files.len() > 1;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();

@@ -20,6 +20,7 @@ use std::process::{Command, Output};
 
 use common::{Stream, Truth, readings};
 use polycal::measurement::MeasurementSet;
+use polycal::measurement::Sigma;
 use polycal::solve::{self, Method, Solution, SolveOptions};
 use polycal::uncertainty::DofPolicy;
 use polycal::uncertainty::calibration::{
@@ -54,10 +55,9 @@ fn design(n: usize, cycles: u32, closing: bool, seed: u64) -> MeasurementSet {
 fn solved(set: &MeasurementSet, method: Method, sigma: Option<f64>) -> Solution {
     solve::solve(
         set,
-        &SolveOptions {
-            method,
-            sigma_arcsec: sigma,
-        },
+        &SolveOptions::new()
+            .with_method(method)
+            .with_sigma_opt(sigma.map(|s| Sigma::new(s).unwrap())),
     )
     .unwrap()
 }

@@ -6,14 +6,12 @@ mod common;
 
 use common::{Stream, Truth, max_abs_diff, readings};
 use nalgebra::{DVector, SVector};
+use polycal::measurement::Sigma;
 use polycal::solve::{self, Method, SolveOptions, closed_form, lost_harmonics};
 use proptest::prelude::*;
 
 fn options(method: Method) -> SolveOptions {
-    SolveOptions {
-        method,
-        sigma_arcsec: None,
-    }
+    SolveOptions::new().with_method(method)
 }
 
 /// A random design: 1–3 mountings, 1–3 autocollimators per mounting at random face
@@ -96,8 +94,8 @@ proptest! {
         let (d1, d2) = if swap { ((d + 1) % n, d) } else { (d, (d + 1) % n) };
         let streams = [(1, 1, d1, 0.7), (1, 2, d2, -0.4)];
         let set = readings(&truth, &streams, repeats, false, || 0.3 * next());
-        let cf = solve::solve(&set, &SolveOptions { method: Method::ClosedForm, sigma_arcsec: Some(0.05) }).unwrap();
-        let ls = solve::solve(&set, &SolveOptions { method: Method::LeastSquares, sigma_arcsec: Some(0.05) }).unwrap();
+        let cf = solve::solve(&set, &SolveOptions::new().with_method(Method::ClosedForm).with_sigma(Sigma::new(0.05).unwrap())).unwrap();
+        let ls = solve::solve(&set, &SolveOptions::new().with_method(Method::LeastSquares).with_sigma(Sigma::new(0.05).unwrap())).unwrap();
         prop_assert_eq!(cf.method, Method::ClosedForm);
         prop_assert!(max_abs_diff(&cf.pitch_deviation, &ls.pitch_deviation) < 1e-9);
         prop_assert!(max_abs_diff(&cf.encoder_error, &ls.encoder_error) < 1e-9);

@@ -5,6 +5,7 @@
 mod common;
 
 use common::{Stream, Truth, readings};
+use polycal::measurement::Sigma;
 use polycal::solve::{self, Method, SigmaSource, SolveOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -64,10 +65,7 @@ fn assert_honest((beta, alpha): (f64, f64), what: &str) {
 #[test]
 fn residual_sigma_with_repeats_and_closing_readings() {
     let streams = [(1, 1, 0, 0.3), (1, 2, 1, -0.6)];
-    let options = SolveOptions {
-        method: Method::LeastSquares,
-        sigma_arcsec: None,
-    };
+    let options = SolveOptions::new().with_method(Method::LeastSquares);
     let rms = normalised_rms(24, &streams, 6, true, 0.05, options, SigmaSource::Residual);
     assert_honest(rms, "24 faces, 6 cycles, closing");
 }
@@ -75,10 +73,7 @@ fn residual_sigma_with_repeats_and_closing_readings() {
 #[test]
 fn closed_form_with_repeats() {
     let streams = [(1, 1, 0, 0.3), (1, 2, 1, -0.6)];
-    let options = SolveOptions {
-        method: Method::ClosedForm,
-        sigma_arcsec: None,
-    };
+    let options = SolveOptions::new().with_method(Method::ClosedForm);
     let rms = normalised_rms(24, &streams, 3, false, 0.05, options, SigmaSource::Residual);
     assert_honest(rms, "closed form, 3 cycles");
 }
@@ -86,10 +81,9 @@ fn closed_form_with_repeats() {
 #[test]
 fn stated_sigma_when_exactly_determined() {
     let streams = [(1, 1, 0, 0.3), (1, 2, 1, -0.6)];
-    let options = SolveOptions {
-        method: Method::Auto,
-        sigma_arcsec: Some(0.08),
-    };
+    let options = SolveOptions::new()
+        .with_method(Method::Auto)
+        .with_sigma(Sigma::new(0.08).unwrap());
     let rms = normalised_rms(24, &streams, 1, false, 0.08, options, SigmaSource::Stated);
     assert_honest(rms, "bare cycle, stated σ");
 }
@@ -102,10 +96,7 @@ fn three_autocollimators_and_two_mountings() {
         (2, 1, 2, 0.1),
         (2, 3, 9, 1.2),
     ];
-    let options = SolveOptions {
-        method: Method::LeastSquares,
-        sigma_arcsec: None,
-    };
+    let options = SolveOptions::new().with_method(Method::LeastSquares);
     let rms = normalised_rms(12, &streams, 2, true, 0.1, options, SigmaSource::Residual);
     assert_honest(rms, "12 faces, 4 streams");
 }
@@ -144,10 +135,9 @@ fn bare_cycle_pitch_covariance_by_hand() {
             || 0.0,
         );
         for method in [Method::ClosedForm, Method::LeastSquares] {
-            let options = SolveOptions {
-                method,
-                sigma_arcsec: Some(sigma),
-            };
+            let options = SolveOptions::new()
+                .with_method(method)
+                .with_sigma(Sigma::new(sigma).unwrap());
             let solution = solve::solve(&set, &options).unwrap();
             let cov = solution.covariance().unwrap();
             for j in 0..n {

@@ -17,13 +17,14 @@ pub mod report;
 pub mod residuals;
 
 use crate::effects::Effect;
-use crate::measurement::{Direction, MeasurementSet};
+use crate::measurement::{Direction, MeasurementSet, Sigma};
 use crate::solve::{Solution, SolveError, least_squares_with_regressors};
 use crate::uncertainty::student::t_two_sided_tail;
 use residuals::Adequacy;
 
 /// Options of [`diagnose`].
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct DiagnoseOptions {
     /// Family-wise false-alarm probability of each added effect (Bonferroni over the
     /// candidates of a family: systematic effects, and outliers over all readings).
@@ -34,9 +35,46 @@ pub struct DiagnoseOptions {
     pub adequacy_alpha: f64,
     /// Most effects to add.
     pub max_effects: usize,
-    /// Reading noise σ stated by the caller, arcsec (uncertainties for dof = 0 and a χ²
-    /// check of the final residuals).
-    pub sigma_arcsec: Option<f64>,
+    /// Reading noise σ stated by the caller (uncertainties for dof = 0 and a χ² check of
+    /// the final residuals).
+    pub sigma: Option<Sigma>,
+}
+
+impl DiagnoseOptions {
+    /// The defaults (see [`DiagnoseOptions::default`]).
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// With a stated σ of one reading (adds a χ² check).
+    pub fn with_sigma(mut self, sigma: Sigma) -> Self {
+        self.sigma = Some(sigma);
+        self
+    }
+
+    /// With a stated σ when given.
+    pub fn with_sigma_opt(mut self, sigma: Option<Sigma>) -> Self {
+        self.sigma = sigma;
+        self
+    }
+
+    /// With another family-wise false-alarm probability per family of effects.
+    pub fn with_family_alpha(mut self, family_alpha: f64) -> Self {
+        self.family_alpha = family_alpha;
+        self
+    }
+
+    /// With another false-alarm probability of the adequacy checks.
+    pub fn with_adequacy_alpha(mut self, adequacy_alpha: f64) -> Self {
+        self.adequacy_alpha = adequacy_alpha;
+        self
+    }
+
+    /// With another largest number of effects.
+    pub fn with_max_effects(mut self, max_effects: usize) -> Self {
+        self.max_effects = max_effects;
+        self
+    }
 }
 
 impl Default for DiagnoseOptions {
@@ -45,7 +83,7 @@ impl Default for DiagnoseOptions {
             family_alpha: 0.005,
             adequacy_alpha: 0.001,
             max_effects: 12,
-            sigma_arcsec: None,
+            sigma: None,
         }
     }
 }
@@ -122,7 +160,7 @@ fn regressor(effect: &Effect, set: &MeasurementSet) -> Vec<f64> {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagnosis, SolveError> {
-    let sigma = options.sigma_arcsec;
+    let sigma = options.sigma;
     let before = least_squares_with_regressors(set, &[], sigma)?;
     let mut notes = Vec::new();
     let testable = before.dof >= 2;

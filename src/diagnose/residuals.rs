@@ -3,7 +3,7 @@
 //! residuals per autocollimator, χ² against a stated reading noise), with the place
 //! where structure is left.
 
-use crate::measurement::MeasurementSet;
+use crate::measurement::{MeasurementSet, Sigma};
 use crate::solve::Solution;
 use crate::uncertainty::student::normal_quantile;
 
@@ -147,7 +147,7 @@ pub fn adequacy(
     solution: &Solution,
     set: &MeasurementSet,
     studentized: &[Option<f64>],
-    stated_sigma: Option<f64>,
+    stated_sigma: Option<Sigma>,
     alpha: f64,
 ) -> Adequacy {
     let mut checks = Vec::new();
@@ -188,6 +188,7 @@ pub fn adequacy(
         && solution.dof > 0
     {
         let dof = solution.dof as f64;
+        let sigma = sigma.arcsec();
         let chi2 = solution.rss / (sigma * sigma);
         // Wilson–Hilferty: (χ²/ν)^(1/3) ≈ N(1 − 2/(9ν), 2/(9ν))
         let a = 2.0 / (9.0 * dof);

@@ -37,7 +37,10 @@ use std::io::{self, BufWriter, Read, Write};
 use std::path::Path;
 
 mod parse;
+mod sigma;
 mod validate;
+
+pub use sigma::{Sigma, SigmaError};
 
 use parse::*;
 use validate::*;

@@ -55,7 +55,6 @@ pub struct Truth {
     pub noise_arcsec: Option<f64>,
 }
 
-
 /// Removes the mean, then sets the last element to minus the (left-to-right) sum of the
 /// others, so that the left-to-right sum is exactly 0.
 fn close(v: &mut [f64]) {

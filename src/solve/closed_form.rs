@@ -10,9 +10,9 @@
 //! - eqs. (4), (5): α\[p\] = m₁\[p\] − φ\[p+1\] − U₁ = m₂\[p\] − φ\[p+2\] − U₂ (identical for exact
 //!   data; the mean of both is used).
 
-use crate::polygon::face_deviation_from_pitch;
 use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma};
-use crate::measurement::MeasurementSet;
+use crate::measurement::{MeasurementSet, Sigma};
+use crate::polygon::face_deviation_from_pitch;
 use crate::polygon::{Polygon, PolygonError};
 use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, OVector, allocator::Allocator};
 
@@ -170,7 +170,7 @@ impl PaperDesign {
     pub fn solve(
         &self,
         set: &MeasurementSet,
-        stated_sigma: Option<f64>,
+        stated_sigma: Option<Sigma>,
     ) -> Result<Solution, SolveError> {
         let n = set.faces;
         let mut m1 = DVector::<f64>::zeros(n);

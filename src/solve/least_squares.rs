@@ -11,7 +11,7 @@
 
 use super::observability::{self, Unobservable};
 use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma};
-use crate::measurement::MeasurementSet;
+use crate::measurement::{MeasurementSet, Sigma};
 use crate::polygon::face_deviation_from_pitch;
 use nalgebra::{Cholesky, DMatrix, DVector};
 
@@ -20,7 +20,7 @@ use nalgebra::{Cholesky, DMatrix, DVector};
 /// `stated_sigma` is the σ of one reading used for the covariance when dof = 0.
 pub fn least_squares(
     set: &MeasurementSet,
-    stated_sigma: Option<f64>,
+    stated_sigma: Option<Sigma>,
 ) -> Result<Solution, SolveError> {
     least_squares_with_regressors(set, &[], stated_sigma)
 }
@@ -93,7 +93,7 @@ impl Reduced {
 pub fn least_squares_with_regressors(
     set: &MeasurementSet,
     regressors: &[Vec<f64>],
-    stated_sigma: Option<f64>,
+    stated_sigma: Option<Sigma>,
 ) -> Result<Solution, SolveError> {
     for (index, regressor) in regressors.iter().enumerate() {
         if regressor.len() != set.readings.len() {
@@ -120,8 +120,8 @@ pub fn least_squares_with_regressors(
     let e = reduced.effects;
     let m = reduced.rest_len();
 
-    let cholesky = factorise(&reduced.schur)
-        .ok_or_else(|| observability::explain_singular(&reduced, set))?;
+    let cholesky =
+        factorise(&reduced.schur).ok_or_else(|| observability::explain_singular(&reduced, set))?;
     let rest = cholesky.solve(&reduced.rhs);
     let alpha = reduced.alpha_from_rest(rest.as_slice(), true);
 
@@ -188,7 +188,6 @@ pub fn least_squares_with_regressors(
         layout,
     })
 }
-
 
 /// Builds the normal equations with the α block eliminated.
 pub(crate) fn reduce(

@@ -27,7 +27,7 @@ pub use closed_form::{ClosedFormSolution, PaperDesign, closed_form};
 pub use least_squares::{least_squares, least_squares_with_regressors};
 pub use observability::{Unobservable, lost_harmonics};
 
-use crate::measurement::MeasurementSet;
+use crate::measurement::{MeasurementSet, Sigma};
 use nalgebra::{DMatrix, DVector, Dyn};
 
 /// Which solver to use.
@@ -55,16 +55,51 @@ impl Method {
     }
 }
 
-/// Options of [`solve`].
+/// Options of [`solve`]: built with [`SolveOptions::new`] (or `default()`) and the
+/// `with_…` methods.
+///
+/// ```
+/// use polycal::measurement::Sigma;
+/// use polycal::solve::{Method, SolveOptions};
+///
+/// let options = SolveOptions::new().with_method(Method::LeastSquares).with_sigma(Sigma::new(0.05)?);
+/// assert_eq!(options.sigma.map(Sigma::arcsec), Some(0.05));
+/// # Ok::<(), polycal::measurement::SigmaError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[non_exhaustive]
 pub struct SolveOptions {
     /// Solver choice.
     pub method: Method,
-    /// Standard deviation of one reading, arcsec, stated by the caller (`--sigma`).
-    /// Used for the uncertainties only when the fit has no residual degrees of freedom
-    /// (the bare two-autocollimator cycle is exactly determined); with dof > 0 the
-    /// residual standard deviation is used.
-    pub sigma_arcsec: Option<f64>,
+    /// Standard deviation of one reading stated by the caller. Used for the uncertainties
+    /// only when the fit has no residual degrees of freedom (the bare two-autocollimator
+    /// cycle is exactly determined); with dof > 0 the residual standard deviation is used.
+    pub sigma: Option<Sigma>,
+}
+
+impl SolveOptions {
+    /// The defaults: [`Method::Auto`], no stated σ.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// With this solver.
+    pub fn with_method(mut self, method: Method) -> Self {
+        self.method = method;
+        self
+    }
+
+    /// With a stated σ of one reading.
+    pub fn with_sigma(mut self, sigma: Sigma) -> Self {
+        self.sigma = Some(sigma);
+        self
+    }
+
+    /// With a stated σ when given (`None`: none stated).
+    pub fn with_sigma_opt(mut self, sigma: Option<Sigma>) -> Self {
+        self.sigma = sigma;
+        self
+    }
 }
 
 /// Why a measurement set could not be solved.
@@ -84,9 +119,6 @@ pub enum SolveError {
         /// What is wrong.
         reason: String,
     },
-    /// A stated reading noise that is not a positive finite number.
-    #[error("the stated reading noise must be a positive finite number of arcseconds, got {0}")]
-    BadSigma(f64),
 }
 
 /// Where the standard deviation of one reading, σ, comes from.
@@ -268,20 +300,15 @@ impl Solution {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn solve(set: &MeasurementSet, options: &SolveOptions) -> Result<Solution, SolveError> {
-    if let Some(s) = options.sigma_arcsec
-        && !(s.is_finite() && s > 0.0)
-    {
-        return Err(SolveError::BadSigma(s));
-    }
     match options.method {
-        Method::LeastSquares => least_squares(set, options.sigma_arcsec),
+        Method::LeastSquares => least_squares(set, options.sigma),
         Method::ClosedForm => match PaperDesign::detect(set) {
-            Ok(design) => Ok(design.solve(set, options.sigma_arcsec)?),
+            Ok(design) => Ok(design.solve(set, options.sigma)?),
             Err(reason) => Err(SolveError::ClosedFormNotApplicable(reason)),
         },
         Method::Auto => match PaperDesign::detect(set) {
-            Ok(design) => Ok(design.solve(set, options.sigma_arcsec)?),
-            Err(_) => least_squares(set, options.sigma_arcsec),
+            Ok(design) => Ok(design.solve(set, options.sigma)?),
+            Err(_) => least_squares(set, options.sigma),
         },
     }
 }
@@ -290,11 +317,11 @@ pub fn solve(set: &MeasurementSet, options: &SolveOptions) -> Result<Solution, S
 pub(crate) fn choose_sigma(
     rss: f64,
     dof: usize,
-    stated: Option<f64>,
+    stated: Option<Sigma>,
 ) -> Option<(f64, SigmaSource)> {
     if dof > 0 {
         Some(((rss / dof as f64).sqrt(), SigmaSource::Residual))
     } else {
-        stated.map(|s| (s, SigmaSource::Stated))
+        stated.map(|s| (s.arcsec(), SigmaSource::Stated))
     }
 }

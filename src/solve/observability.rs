@@ -69,10 +69,7 @@ pub fn lost_harmonics(faces: usize, offsets: &[usize]) -> Vec<usize> {
 
 /// Explains a singular reduced normal matrix: finds its null space, maps it to β, α
 /// and the effect terms, and names the Fourier harmonics it contains.
-pub(crate) fn explain_singular(
-    reduced: &Reduced,
-    set: &MeasurementSet,
-) -> Unobservable {
+pub(crate) fn explain_singular(reduced: &Reduced, set: &MeasurementSet) -> Unobservable {
     let n = reduced.faces;
     let k = reduced.streams;
     let eigen = SymmetricEigen::new(reduced.schur.clone());

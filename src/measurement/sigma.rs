@@ -1,0 +1,78 @@
+//! σ: the standard deviation of one reading, the crate's one type for it.
+
+use std::fmt;
+
+/// The standard deviation σ of one autocollimator reading, arcseconds: a positive, finite
+/// number, checked once where it enters ([`Sigma::new`]) so that every entry point
+/// (`solve`, `diagnose`, the uncertainty layer) can rely on it.
+///
+/// A stated σ is used for the uncertainties of an exactly determined fit (dof = 0, such as
+/// the paper's bare cycle) and for `diagnose`'s χ² check; with residual degrees of freedom
+/// the fit's own residual standard deviation is used.
+///
+/// ```
+/// use polycal::measurement::{Sigma, SigmaError};
+///
+/// let sigma = Sigma::new(0.05)?;
+/// assert_eq!(sigma.arcsec(), 0.05);
+/// assert!(Sigma::new(-0.05).is_err());
+/// assert!(Sigma::new(f64::NAN).is_err());
+/// assert!(Sigma::new(0.0).is_err());
+/// # Ok::<(), SigmaError>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd)]
+pub struct Sigma(f64);
+
+/// Why a number is not a σ.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SigmaError {
+    /// Zero, negative, infinite or NaN.
+    #[error(
+        "the standard deviation of one reading must be a positive, finite number of \
+         arcseconds, got {0}"
+    )]
+    NotPositive(f64),
+    /// Text that is not a number.
+    #[error("the standard deviation of one reading must be a number of arcseconds, got {0:?}")]
+    NotANumber(String),
+}
+
+impl Sigma {
+    /// σ in arcseconds; refused unless positive and finite.
+    ///
+    /// # Errors
+    ///
+    /// [`SigmaError::NotPositive`] for zero, a negative number, infinity or NaN.
+    pub fn new(arcsec: f64) -> Result<Sigma, SigmaError> {
+        if arcsec.is_finite() && arcsec > 0.0 {
+            Ok(Sigma(arcsec))
+        } else {
+            Err(SigmaError::NotPositive(arcsec))
+        }
+    }
+
+    /// σ in arcseconds.
+    pub fn arcsec(self) -> f64 {
+        self.0
+    }
+}
+
+impl fmt::Display for Sigma {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Display::fmt(&self.0, f)
+    }
+}
+
+impl std::str::FromStr for Sigma {
+    type Err = SigmaError;
+
+    /// Parses arcseconds, e.g. `"0.05"`; refuses what [`Sigma::new`] refuses.
+    fn from_str(text: &str) -> Result<Sigma, SigmaError> {
+        let arcsec = text
+            .trim()
+            .parse::<f64>()
+            .map_err(|_| SigmaError::NotANumber(text.to_string()))?;
+        Sigma::new(arcsec)
+    }
+}
