@@ -7,8 +7,9 @@ mod cli_truth;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use polycal::compare::{CompareOptions, compare_files};
-use polycal::diagnose::{self, DiagnoseOptions, report::DiagnoseReport};
+use polycal::diagnose::{self, DiagnoseOptions};
 use polycal::measurement::{MeasurementSet, Sigma};
+use polycal::report::diagnose::DiagnoseReport;
 use polycal::report::{self, SolveReport};
 use polycal::results::read_result_file;
 use polycal::simulate::{self, Truth};
@@ -361,17 +362,15 @@ fn run_solve(
                 if let Some(mc) = mc {
                     report = report.with_monte_carlo(mc);
                 }
-                writeln!(out, "{}", report.to_json())?;
+                writeln!(out, "{}", report.to_json()?)?;
             }
             FormatArg::Table => {
                 if several {
                     writeln!(out)?;
                 }
-                write!(
-                    out,
-                    "{}",
-                    report::render_table_with(&solution, &name, gum.as_ref(), mc.as_ref())
-                )?;
+                let mut text = String::new();
+                report::write_table(&mut text, &solution, &name, gum.as_ref(), mc.as_ref())?;
+                write!(out, "{text}")?;
             }
             FormatArg::Csv => {
                 let rows = report::result_rows_with(&solution, gum.as_ref());
@@ -451,17 +450,20 @@ fn run_diagnose(
             FormatArg::Json => {
                 let report =
                     DiagnoseReport::new(&diagnosis, truth.as_ref(), several.then(|| name.clone()));
-                writeln!(out, "{}", report.to_json())?;
+                writeln!(out, "{}", report.to_json()?)?;
             }
             _ => {
                 if several {
                     writeln!(out)?;
                 }
-                write!(
-                    out,
-                    "{}",
-                    diagnose::report::render_table(&diagnosis, truth.as_ref(), &name)
+                let mut text = String::new();
+                polycal::report::diagnose::write_table(
+                    &mut text,
+                    &diagnosis,
+                    truth.as_ref(),
+                    &name,
                 )?;
+                write!(out, "{text}")?;
             }
         }
     }
@@ -482,7 +484,7 @@ fn run_budget(file: &Path, format: FormatArg) -> Result<u8> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     match format {
-        FormatArg::Json => writeln!(out, "{}", serde_json::to_string(&result)?)?,
+        FormatArg::Json => writeln!(out, "{}", report::to_json(&result)?)?,
         FormatArg::Table => write!(out, "{}", polycal::uncertainty::render_table(&result))?,
         FormatArg::Csv => bail!("budget reports as table or json, not csv"),
     }
@@ -502,8 +504,12 @@ fn run_compare(a: &Path, b: &Path, correlation: f64, format: FormatArg) -> Resul
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     match format {
-        FormatArg::Json => writeln!(out, "{}", serde_json::to_string(&comparison)?)?,
-        FormatArg::Table => write!(out, "{}", polycal::compare::render_table(&comparison))?,
+        FormatArg::Json => writeln!(out, "{}", report::to_json(&comparison)?)?,
+        FormatArg::Table => {
+            let mut text = String::new();
+            polycal::report::compare::write_table(&mut text, &comparison)?;
+            write!(out, "{text}")?;
+        }
         FormatArg::Csv => bail!("compare reports as table or json, not csv"),
     }
     out.flush()?;

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use polycal::compare::{CompareError, CompareOptions, compare, compare_files, render_table};
+use polycal::compare::{CompareError, CompareOptions, compare, compare_files};
 use polycal::results::{
     Quantity, ResultRow, read_result_file, read_results_from, read_results_path, write_results,
 };
@@ -121,7 +121,8 @@ fn comparison_json_and_verdict() {
     assert_eq!(json["only_in_a"][0]["quantity"], "encoder_error");
     assert_eq!(json["only_in_b"][0]["quantity"], "setup_error");
     assert!(json.get("correlation").is_none());
-    let table = render_table(&c);
+    let mut table = String::new();
+    polycal::report::compare::write_table(&mut table, &c).unwrap();
     assert!(table.contains("1 of 2 rows have |En| > 1"), "{table}");
     assert!(table.contains("-8.49 *"), "{table}");
     assert!(table.contains("Only in the first result (not compared): encoder_error 0"));

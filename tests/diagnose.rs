@@ -4,10 +4,10 @@
 //! data rarely get an effect; structure no effect explains is called inadequate; data
 //! without redundancy get a plain statement and no invented effect.
 
-use polycal::diagnose::report::ErrorSummary;
 use polycal::diagnose::{DiagnoseOptions, Diagnosis, diagnose};
 use polycal::effects::Effect;
 use polycal::measurement::MeasurementSet;
+use polycal::report::diagnose::ErrorSummary;
 use polycal::simulate::{SimulationConfig, Truth, simulate};
 
 fn config(effects: Vec<Effect>, seed: u64) -> SimulationConfig {

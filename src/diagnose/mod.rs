@@ -13,7 +13,6 @@
 //! when nothing significant remains and checks whether the final residuals are
 //! consistent with noise ([`residuals::adequacy`]).
 
-pub mod report;
 pub mod residuals;
 
 use crate::effects::Effect;

@@ -1,14 +1,13 @@
 //! Outputs of `polycal diagnose`: the JSON object of FORMAT.md §5 and a table that
 //! explains itself to a metrologist.
 
-use super::{Diagnosis, FoundEffect};
+use crate::diagnose::{Diagnosis, FoundEffect};
 use crate::effects::Effect;
 use crate::report::SolveReport;
 use crate::simulate::Truth;
 use crate::solve::Solution;
 use serde::Serialize;
 use serde_json::{Map, Value};
-use std::fmt::Write as _;
 
 /// RMS and largest absolute error of the pitch deviations and encoder errors against a
 /// truth, arcsec (FORMAT.md §5 `error`).
@@ -214,9 +213,13 @@ impl DiagnoseReport {
         }
     }
 
-    /// One-line JSON.
-    pub fn to_json(&self) -> String {
-        serde_json::to_string(self).unwrap_or_else(|_| unreachable!("plain data serializes"))
+    /// One line of JSON, with the software version ([`crate::report::to_json`]).
+    ///
+    /// # Errors
+    ///
+    /// serde_json's error (not expected for this plain data).
+    pub fn to_json(&self) -> Result<String, serde_json::Error> {
+        crate::report::to_json(self)
     }
 }
 
@@ -239,33 +242,41 @@ fn p_text(p: f64) -> String {
 /// The table for people: the base fit, each effect with the pattern that pointed to it,
 /// its size and evidence and what it changed, the final fit, the verdict and (with a
 /// truth) the errors before and after.
-pub fn render_table(diagnosis: &Diagnosis, truth: Option<&Truth>, source: &str) -> String {
-    let mut out = String::new();
+///
+/// # Errors
+///
+/// The writer's error.
+pub fn write_table<W: std::fmt::Write>(
+    out: &mut W,
+    diagnosis: &Diagnosis,
+    truth: Option<&Truth>,
+    source: &str,
+) -> std::fmt::Result {
     let before = &diagnosis.before;
-    let _ = writeln!(out, "polycal diagnose: {source}");
-    let _ = writeln!(
+    writeln!(out, "polycal diagnose: {source}")?;
+    writeln!(
         out,
         "Base model: {} faces, {} readings, dof {}, residual RMS {}",
         before.faces,
         before.readings,
         before.dof,
         rms_text(before)
-    );
+    )?;
     for note in &diagnosis.notes {
-        let _ = writeln!(out, "  note: {note}");
+        writeln!(out, "  note: {note}")?;
     }
     if diagnosis.effects.is_empty() {
         if diagnosis.testable {
-            let _ = writeln!(
+            writeln!(
                 out,
                 "\nNo effect is significant: the base model explains the readings."
-            );
+            )?;
         }
     } else {
-        let _ = writeln!(
+        writeln!(
             out,
             "\nEffects found, in the order added (each by an F test against the model before it):"
-        );
+        )?;
         for (i, found) in diagnosis.effects.iter().enumerate() {
             let value = found.effect.value();
             let unit = if matches!(found.effect, Effect::Drift { .. }) {
@@ -276,14 +287,14 @@ pub fn render_table(diagnosis: &Diagnosis, truth: Option<&Truth>, source: &str) 
             let u = found
                 .u
                 .map_or(String::new(), |u| format!(" ± {u:.4}{unit} (k = 1)"));
-            let _ = writeln!(
+            writeln!(
                 out,
                 "{:>3}. {} = {value:+.4}{unit}{u}",
                 i + 1,
                 label(&found.effect)
-            );
-            let _ = writeln!(out, "     pattern: {}", explanation(found));
-            let _ = writeln!(
+            )?;
+            writeln!(out, "     pattern: {}", explanation(found))?;
+            writeln!(
                 out,
                 "     evidence: F = {:.1}, p = {}, Bonferroni p = {}; residual RMS {:.4}″ → {:.4}″",
                 found.f_statistic,
@@ -291,15 +302,15 @@ pub fn render_table(diagnosis: &Diagnosis, truth: Option<&Truth>, source: &str) 
                 p_text(found.p_adjusted),
                 found.residual_rms_before,
                 found.residual_rms_after
-            );
-            let _ = writeln!(
+            )?;
+            writeln!(
                 out,
                 "     effect on the calibration: pitch deviations changed by up to {:.4}″, encoder errors by up to {:.4}″",
                 found.pitch_change_max, found.encoder_change_max
-            );
+            )?;
         }
         let after = &diagnosis.after;
-        let _ = writeln!(
+        writeln!(
             out,
             "\nFinal model: base + {} effect{}, dof {}, residual RMS {}",
             diagnosis.effects.len(),
@@ -310,39 +321,39 @@ pub fn render_table(diagnosis: &Diagnosis, truth: Option<&Truth>, source: &str) 
             },
             after.dof,
             rms_text(after)
-        );
+        )?;
     }
     if diagnosis.testable {
         if diagnosis.adequacy.adequate {
-            let _ = writeln!(
+            writeln!(
                 out,
                 "\nAdequate: the final residuals are consistent with noise."
-            );
+            )?;
         } else {
-            let _ = writeln!(
+            writeln!(
                 out,
                 "\nNOT adequate: structure is left that no known effect explains."
-            );
+            )?;
             if !diagnosis.effects.is_empty() {
-                let _ = writeln!(
+                writeln!(
                     out,
                     "  Caution: the effects above are the closest terms the model has to a structure it cannot express, not a confirmed explanation; do not take the final model's result as corrected until the cause of the structure below is found."
-                );
+                )?;
             }
         }
         for check in &diagnosis.adequacy.checks {
-            let _ = writeln!(
+            writeln!(
                 out,
                 "  {} {}: {:.2} (limit {:.2})",
                 if check.passed { "pass" } else { "FAIL" },
                 check.name,
                 check.statistic,
                 check.limit
-            );
+            )?;
         }
         for s in &diagnosis.adequacy.structure {
             let time = |t: Option<f64>| t.map_or(String::new(), |t| format!(", t = {t:.0} s"));
-            let _ = writeln!(
+            writeln!(
                 out,
                 "  structure left: setup {} autocollimator {}, from cycle {} step {}{} to cycle {} step {}{}: mean residual {:+.4}″ over {} readings",
                 s.setup,
@@ -355,7 +366,7 @@ pub fn render_table(diagnosis: &Diagnosis, truth: Option<&Truth>, source: &str) 
                 time(s.to.2),
                 s.mean_residual_arcsec,
                 s.readings
-            );
+            )?;
         }
     }
     if let Some(truth) = truth
@@ -364,17 +375,17 @@ pub fn render_table(diagnosis: &Diagnosis, truth: Option<&Truth>, source: &str) 
             ErrorSummary::new(&diagnosis.after, truth),
         )
     {
-        let _ = writeln!(
+        writeln!(
             out,
             "\nError against the truth (arcsec)   pitch RMS  pitch max  encoder RMS  encoder max"
-        );
+        )?;
         for (label, e) in [("before", b), ("after", a)] {
-            let _ = writeln!(
+            writeln!(
                 out,
                 "  {label:<32} {:>9.4}  {:>9.4}  {:>11.4}  {:>11.4}",
                 e.pitch_rms, e.pitch_max, e.encoder_rms, e.encoder_max
-            );
+            )?;
         }
     }
-    out
+    Ok(())
 }

@@ -1,0 +1,314 @@
+//! Outputs of `polycal solve` for programs: the JSON object of docs/FORMAT.md §5 and the
+//! result rows of its CSV (§3). The table for people is in [`super::solve_table`].
+//!
+//! JSON and CSV carry numbers at full precision (the shortest text that reads back to
+//! the same double); only the table rounds.
+
+use crate::results::{Quantity, ResultRow};
+use crate::solve::{SigmaSource, Solution};
+use crate::uncertainty::calibration::{CalibrationMonteCarlo, CalibrationUncertainty};
+use serde::Serialize;
+
+/// Output format of a reporting command (`--format`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Format {
+    /// A table for people (the default).
+    #[default]
+    Table,
+    /// JSON (one object per input file; JSON Lines for several).
+    Json,
+    /// CSV.
+    Csv,
+}
+
+/// A setup error in the JSON report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SetupErrorReport {
+    /// Polygon mounting.
+    pub setup: u32,
+    /// Autocollimator.
+    pub ac: u32,
+    /// Estimate, arcsec.
+    pub value: f64,
+    /// Standard uncertainty, arcsec (null when unknown).
+    pub u: Option<f64>,
+    /// Expanded uncertainty with `--budget` (an addition), arcsec.
+    #[serde(rename = "U", skip_serializing_if = "Option::is_none")]
+    pub expanded_u: Option<f64>,
+    /// Coverage factor with `--budget` (an addition).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub k: Option<f64>,
+}
+
+/// The JSON object of `polycal solve` (FORMAT.md §5), arcsec throughout.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SolveReport {
+    /// The input file, present when several files were solved.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
+    /// N.
+    pub faces: usize,
+    /// Number of readings.
+    pub readings: usize,
+    /// Residual degrees of freedom.
+    pub dof: usize,
+    /// √(RSS/dof); null when dof = 0.
+    pub residual_rms: Option<f64>,
+    /// β\[1..=N\].
+    pub pitch_deviation: Vec<f64>,
+    /// u(β), k = 1; null when σ is unknown.
+    pub pitch_deviation_u: Option<Vec<f64>>,
+    /// φ\[1..=N\].
+    pub face_deviation: Vec<f64>,
+    /// u(φ), k = 1 (an addition to FORMAT.md §5).
+    pub face_deviation_u: Option<Vec<f64>>,
+    /// α[0..N).
+    pub encoder_error: Vec<f64>,
+    /// u(α), k = 1.
+    pub encoder_error_u: Option<Vec<f64>>,
+    /// Setup errors per (setup, ac).
+    pub setup_error: Vec<SetupErrorReport>,
+    /// Effect terms in the fitted model (FORMAT.md §6); empty for the base model.
+    pub effects: Vec<serde_json::Value>,
+    /// `closed-form` or `lsq` (an addition).
+    pub method: &'static str,
+    /// σ of one reading used for the uncertainties, arcsec (an addition).
+    pub sigma: Option<f64>,
+    /// `residual` or `stated` (an addition).
+    pub sigma_source: Option<&'static str>,
+    /// Coverage probability of the expanded uncertainties (with `--budget`; an addition,
+    /// like every field below).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub p: Option<f64>,
+    /// U(β) = k·u_c(β): the fit's type A combined with the budget, per face.
+    #[serde(rename = "pitch_deviation_U", skip_serializing_if = "Option::is_none")]
+    pub pitch_deviation_expanded_u: Option<Vec<f64>>,
+    /// k of each U(β) (t at p for its own ν_eff).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pitch_deviation_k: Option<Vec<Option<f64>>>,
+    /// U(φ); 0 for the reference face φ\[N\].
+    #[serde(rename = "face_deviation_U", skip_serializing_if = "Option::is_none")]
+    pub face_deviation_expanded_u: Option<Vec<f64>>,
+    /// k of each U(φ); null for φ\[N\].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub face_deviation_k: Option<Vec<Option<f64>>>,
+    /// U(α).
+    #[serde(rename = "encoder_error_U", skip_serializing_if = "Option::is_none")]
+    pub encoder_error_expanded_u: Option<Vec<f64>>,
+    /// k of each U(α).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub encoder_error_k: Option<Vec<Option<f64>>>,
+    /// The whole evaluation: type A, combined u, ν_eff, k, U per quantity, and every
+    /// budget component's contribution to every quantity.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<CalibrationUncertainty>,
+    /// Monte Carlo (`--monte-carlo`): per quantity mean, u, coverage interval, and the
+    /// validation of the GUM result.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub monte_carlo: Option<CalibrationMonteCarlo>,
+}
+
+impl SolveReport {
+    /// Builds the report of a solution.
+    pub fn new(solution: &Solution, file: Option<String>) -> Self {
+        let setup_u = solution.setup_error_u();
+        Self {
+            file,
+            faces: solution.faces,
+            readings: solution.readings,
+            dof: solution.dof,
+            residual_rms: solution.residual_rms(),
+            pitch_deviation: solution.pitch_deviation.clone(),
+            pitch_deviation_u: solution.pitch_deviation_u(),
+            face_deviation: solution.face_deviation.clone(),
+            face_deviation_u: solution.face_deviation_u(),
+            encoder_error: solution.encoder_error.clone(),
+            encoder_error_u: solution.encoder_error_u(),
+            setup_error: solution
+                .setup_error
+                .iter()
+                .enumerate()
+                .map(|(k, s)| SetupErrorReport {
+                    setup: s.setup,
+                    ac: s.ac,
+                    value: s.value,
+                    u: setup_u.as_ref().map(|u| u[k]),
+                    expanded_u: None,
+                    k: None,
+                })
+                .collect(),
+            effects: Vec::new(),
+            method: solution.method.as_str(),
+            sigma: solution.sigma.map(|(s, _)| s),
+            sigma_source: solution.sigma.map(|(_, source)| match source {
+                SigmaSource::Residual => "residual",
+                SigmaSource::Stated => "stated",
+            }),
+            p: None,
+            pitch_deviation_expanded_u: None,
+            pitch_deviation_k: None,
+            face_deviation_expanded_u: None,
+            face_deviation_k: None,
+            encoder_error_expanded_u: None,
+            encoder_error_k: None,
+            uncertainty: None,
+            monte_carlo: None,
+        }
+    }
+
+    /// Adds the expanded uncertainties of `--budget`.
+    pub fn with_uncertainty(mut self, uncertainty: &CalibrationUncertainty) -> Self {
+        self.p = Some(uncertainty.p);
+        self.pitch_deviation_expanded_u = Some(uncertainty.pitch_deviation.expanded_u.clone());
+        self.pitch_deviation_k = Some(uncertainty.pitch_deviation.k.clone());
+        self.face_deviation_expanded_u = Some(uncertainty.face_deviation.expanded_u.clone());
+        self.face_deviation_k = Some(uncertainty.face_deviation.k.clone());
+        self.encoder_error_expanded_u = Some(uncertainty.encoder_error.expanded_u.clone());
+        self.encoder_error_k = Some(uncertainty.encoder_error.k.clone());
+        for (i, s) in self.setup_error.iter_mut().enumerate() {
+            s.expanded_u = Some(uncertainty.setup_error.expanded_u[i]);
+            s.k = uncertainty.setup_error.k[i];
+        }
+        self.uncertainty = Some(uncertainty.clone());
+        self
+    }
+
+    /// Adds the Monte Carlo results of `--monte-carlo`.
+    pub fn with_monte_carlo(mut self, monte_carlo: CalibrationMonteCarlo) -> Self {
+        self.monte_carlo = Some(monte_carlo);
+        self
+    }
+
+    /// One line of JSON, with the software version ([`crate::report::to_json`]).
+    ///
+    /// # Errors
+    ///
+    /// serde_json's error (not expected for this plain data).
+    pub fn to_json(&self) -> Result<String, serde_json::Error> {
+        crate::report::to_json(self)
+    }
+}
+
+/// The result rows (FORMAT.md §3) of a solution: pitch deviations, face deviations,
+/// encoder errors and setup errors (index = autocollimator; with several mountings the
+/// index is `setup·1000 + ac`, an addition to the contract), with `u` where known.
+pub fn result_rows(solution: &Solution) -> Vec<ResultRow> {
+    result_rows_with(solution, None)
+}
+
+/// The result rows with the expanded uncertainties of `--budget` when given: then `u`
+/// is the combined standard uncertainty u_c, `U` = k·u_c and `k` fill every row, and
+/// the reference face φ\[N\] (0 by definition, U = 0, for which En is undefined) is left
+/// out, so that the file goes straight into `polycal compare`.
+pub fn result_rows_with(
+    solution: &Solution,
+    uncertainty: Option<&CalibrationUncertainty>,
+) -> Vec<ResultRow> {
+    let mut rows = Vec::with_capacity(3 * solution.faces + solution.setup_error.len());
+    let at = |v: &Option<Vec<f64>>, i: usize| v.as_ref().map(|v| v[i]);
+    let fit_u = [
+        solution.pitch_deviation_u(),
+        solution.face_deviation_u(),
+        solution.encoder_error_u(),
+        solution.setup_error_u(),
+    ];
+    let several_setups = solution.setup_error.iter().any(|s| s.setup != 1);
+    let families: [(Quantity, Vec<(u32, f64)>); 4] = [
+        (
+            Quantity::PitchDeviation,
+            (1..)
+                .zip(solution.pitch_deviation.iter().copied())
+                .collect(),
+        ),
+        (
+            Quantity::FaceDeviation,
+            (1..).zip(solution.face_deviation.iter().copied()).collect(),
+        ),
+        (
+            Quantity::EncoderError,
+            (0..).zip(solution.encoder_error.iter().copied()).collect(),
+        ),
+        (
+            Quantity::SetupError,
+            solution
+                .setup_error
+                .iter()
+                .map(|s| {
+                    let index = if several_setups {
+                        s.setup * 1000 + s.ac
+                    } else {
+                        s.ac
+                    };
+                    (index, s.value)
+                })
+                .collect(),
+        ),
+    ];
+    for (f, (quantity, values)) in families.into_iter().enumerate() {
+        for (i, (index, value)) in values.into_iter().enumerate() {
+            let row = match uncertainty {
+                None => ResultRow {
+                    quantity,
+                    index,
+                    value,
+                    u: at(&fit_u[f], i),
+                    expanded_u: None,
+                    k: None,
+                },
+                Some(unc) => {
+                    let family = unc.families()[f].1;
+                    let Some(k) = family.k[i] else {
+                        continue; // φ[N]: no uncertainty
+                    };
+                    ResultRow {
+                        quantity,
+                        index,
+                        value,
+                        u: Some(family.u[i]),
+                        expanded_u: Some(family.expanded_u[i]),
+                        k: Some(k),
+                    }
+                }
+            };
+            rows.push(row);
+        }
+    }
+    rows
+}
+
+/// Writes the result rows of several files as one CSV with a leading `file` column (an
+/// addition to FORMAT.md §3 for batch runs).
+pub fn write_results_with_file<W: std::io::Write>(
+    writer: W,
+    files: &[(String, Vec<ResultRow>)],
+) -> std::io::Result<()> {
+    use std::io::Write as _;
+    let mut body = Vec::new();
+    let mut out = std::io::BufWriter::new(writer);
+    let mut header_written = false;
+    for (file, rows) in files {
+        body.clear();
+        crate::results::write_results(&mut body, rows)?;
+        let text = String::from_utf8_lossy(&body);
+        let mut lines = text.lines();
+        let header = lines.next().unwrap_or_default();
+        if !header_written {
+            writeln!(out, "file,{header}")?;
+            header_written = true;
+        }
+        let quoted = csv_field(file);
+        for line in lines {
+            writeln!(out, "{quoted},{line}")?;
+        }
+    }
+    out.flush()
+}
+
+/// A CSV field, quoted when it needs to be.
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}

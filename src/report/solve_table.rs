@@ -1,0 +1,359 @@
+//! The table of `polycal solve` for people: rounded, with units, the uncertainty budget
+//! and the Monte Carlo validation when they were evaluated.
+
+use super::fixed;
+use crate::solve::{Method, SigmaSource, Solution};
+use crate::uncertainty::calibration::{CalibrationMonteCarlo, CalibrationUncertainty, McFamily};
+use std::fmt::{self, Write};
+
+/// Writes the table for people: per face β, u(β), φ, u(φ); per position the angle, α,
+/// u(α); the setup errors; dof and residual RMS. With `uncertainty` (an instrument
+/// budget), the type A u_A, combined u_c, k and U per quantity and what each budget
+/// component contributes; with `monte_carlo`, the Monte Carlo results and the JCGM 101 §8
+/// validation.
+///
+/// # Errors
+///
+/// The writer's error.
+pub fn write_table<W: Write>(
+    out: &mut W,
+    solution: &Solution,
+    source: &str,
+    uncertainty: Option<&CalibrationUncertainty>,
+    monte_carlo: Option<&CalibrationMonteCarlo>,
+) -> fmt::Result {
+    let n = solution.faces;
+    let method = match solution.method {
+        Method::ClosedForm => "closed form (paper eqs. (6)-(10))",
+        _ => "least squares",
+    };
+    writeln!(out, "polycal solve: {source}")?;
+    writeln!(
+        out,
+        "{n} faces, {} readings, {method}, dof {}, residual RMS {}",
+        solution.readings,
+        solution.dof,
+        solution
+            .residual_rms()
+            .map_or("— (exactly determined)".to_string(), |r| format!(
+                "{r:.4}″"
+            ))
+    )?;
+    match solution.sigma {
+        Some((s, SigmaSource::Residual)) => {
+            writeln!(out, "uncertainties (k = 1) from the residual σ = {s:.4}″")?;
+        }
+        Some((s, SigmaSource::Stated)) => {
+            writeln!(
+                out,
+                "uncertainties (k = 1) from the stated reading noise σ = {s:.4}″"
+            )?;
+        }
+        None => {
+            writeln!(
+                out,
+                "no uncertainties: the fit has no residual degrees of freedom; state the reading noise with --sigma"
+            )?;
+        }
+    }
+    if let Some(unc) = uncertainty {
+        writeln!(
+            out,
+            "expanded uncertainties U = k·u_c at p = {} %: the fit's type A u_A combined with the budget {} \
+             (k = {})",
+            crate::uncertainty::format::percent(unc.p),
+            unc.budget,
+            match unc.dof_policy {
+                crate::uncertainty::DofPolicy::K2 => "2 by policy".to_string(),
+                policy => format!("t for each quantity's ν_eff, {policy}"),
+            }
+        )?;
+    }
+    let pitch_u = solution.pitch_deviation_u();
+    let face_u = solution.face_deviation_u();
+    let encoder_u = solution.encoder_error_u();
+    let at = |v: &Option<Vec<f64>>, i: usize| v.as_ref().map(|v| v[i]);
+    let opt = |v: Option<f64>, decimals: usize| fixed(v, decimals);
+    writeln!(out, "\nPolygon (arcsec)")?;
+    match uncertainty {
+        None => {
+            writeln!(
+                out,
+                "{:>5} {:>11} {:>9} {:>8} {:>9} {:>8}",
+                "face", "nominal/°", "β", "u(β)", "φ", "u(φ)"
+            )?;
+            for f in 0..n {
+                writeln!(
+                    out,
+                    "{:>5} {:>11.4} {:>9.4} {:>8} {:>9.4} {:>8}",
+                    f + 1,
+                    f as f64 * 360.0 / n as f64,
+                    solution.pitch_deviation[f],
+                    fixed(at(&pitch_u, f), 4),
+                    solution.face_deviation[f],
+                    fixed(at(&face_u, f), 4),
+                )?;
+            }
+        }
+        Some(unc) => {
+            let (b, p) = (&unc.pitch_deviation, &unc.face_deviation);
+            writeln!(
+                out,
+                "{:>5} {:>11} {:>9} {:>8} {:>8} {:>6} {:>8} {:>9} {:>8} {:>6} {:>8}",
+                "face",
+                "nominal/°",
+                "β",
+                "u_A(β)",
+                "u_c(β)",
+                "k",
+                "U(β)",
+                "φ",
+                "u_c(φ)",
+                "k",
+                "U(φ)"
+            )?;
+            for f in 0..n {
+                writeln!(
+                    out,
+                    "{:>5} {:>11.4} {:>9.4} {:>8.4} {:>8.4} {:>6} {:>8.4} {:>9.4} {:>8.4} {:>6} {:>8.4}",
+                    f + 1,
+                    f as f64 * 360.0 / n as f64,
+                    solution.pitch_deviation[f],
+                    b.u_a[f],
+                    b.u[f],
+                    opt(b.k[f], 3),
+                    b.expanded_u[f],
+                    solution.face_deviation[f],
+                    p.u[f],
+                    opt(p.k[f], 3),
+                    p.expanded_u[f],
+                )?;
+            }
+        }
+    }
+    writeln!(out, "\nEncoder (arcsec)")?;
+    match uncertainty {
+        None => {
+            writeln!(
+                out,
+                "{:>8} {:>11} {:>9} {:>8}",
+                "position", "angle/°", "α", "u(α)"
+            )?;
+            for p in 0..n {
+                writeln!(
+                    out,
+                    "{:>8} {:>11.4} {:>9.4} {:>8}",
+                    p,
+                    p as f64 * 360.0 / n as f64,
+                    solution.encoder_error[p],
+                    fixed(at(&encoder_u, p), 4),
+                )?;
+            }
+        }
+        Some(unc) => {
+            let a = &unc.encoder_error;
+            writeln!(
+                out,
+                "{:>8} {:>11} {:>9} {:>8} {:>8} {:>6} {:>8}",
+                "position", "angle/°", "α", "u_A(α)", "u_c(α)", "k", "U(α)"
+            )?;
+            for p in 0..n {
+                writeln!(
+                    out,
+                    "{:>8} {:>11.4} {:>9.4} {:>8.4} {:>8.4} {:>6} {:>8.4}",
+                    p,
+                    p as f64 * 360.0 / n as f64,
+                    solution.encoder_error[p],
+                    a.u_a[p],
+                    a.u[p],
+                    opt(a.k[p], 3),
+                    a.expanded_u[p],
+                )?;
+            }
+        }
+    }
+    let setup_u = solution.setup_error_u();
+    writeln!(out, "\nSetup errors (arcsec, gauge of FORMAT.md §1)")?;
+    writeln!(
+        out,
+        "{:>5} {:>4} {:>9} {:>8}{}",
+        "setup",
+        "ac",
+        "U",
+        "u(U)",
+        if uncertainty.is_some() {
+            format!(" {:>8}", "U(U)")
+        } else {
+            String::new()
+        }
+    )?;
+    for (i, s) in solution.setup_error.iter().enumerate() {
+        writeln!(
+            out,
+            "{:>5} {:>4} {:>9.4} {:>8}{}",
+            s.setup,
+            s.ac,
+            s.value,
+            fixed(at(&setup_u, i), 4),
+            uncertainty.map_or(String::new(), |unc| format!(
+                " {:>8.4}",
+                unc.setup_error.expanded_u[i]
+            ))
+        )?;
+    }
+    if let Some(unc) = uncertainty {
+        let largest = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+        writeln!(
+            out,
+            "\nBudget {}: contribution of each source (standard uncertainty, largest over the quantities)",
+            unc.budget
+        )?;
+        writeln!(
+            out,
+            "{:<44} {:<20} {:>8} {:>8} {:>8} {:>8}",
+            "source", "acts on", "u", "to β", "to φ", "to α"
+        )?;
+        let type_a = format!(
+            "Repeatability (fit, σ = {:.4}″, ν = {})",
+            unc.sigma,
+            unc.type_a_dof.map_or("∞".to_string(), |nu| format!("{nu}"))
+        );
+        writeln!(
+            out,
+            "{:<44} {:<20} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
+            type_a,
+            "each-reading",
+            unc.sigma,
+            largest(&unc.pitch_deviation.u_a),
+            largest(&unc.face_deviation.u_a),
+            largest(&unc.encoder_error.u_a),
+        )?;
+        for c in &unc.components {
+            let name: String = c.name.chars().take(44).collect();
+            writeln!(
+                out,
+                "{:<44} {:<20} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
+                name,
+                c.acts_on.as_str(),
+                c.u,
+                largest(&c.pitch_deviation),
+                largest(&c.face_deviation),
+                largest(&c.encoder_error),
+            )?;
+        }
+        writeln!(
+            out,
+            "{:<44} {:<20} {:>8} {:>8.4} {:>8.4} {:>8.4}",
+            "Combined u_c",
+            "",
+            "",
+            largest(&unc.pitch_deviation.u),
+            largest(&unc.face_deviation.u),
+            largest(&unc.encoder_error.u),
+        )?;
+    }
+    if let Some(mc) = monte_carlo {
+        write_monte_carlo(out, solution, uncertainty, mc)?;
+    }
+    Ok(())
+}
+
+fn write_monte_carlo<W: Write>(
+    out: &mut W,
+    solution: &Solution,
+    uncertainty: Option<&CalibrationUncertainty>,
+    mc: &CalibrationMonteCarlo,
+) -> fmt::Result {
+    let n = solution.faces;
+    writeln!(
+        out,
+        "\nMonte Carlo (JCGM 101): {} trials{}, seed {}, {} solver, reading noise {}",
+        mc.trials,
+        mc.sequences
+            .map_or(String::new(), |h| format!(" (adaptive, {h} sequences)")),
+        mc.seed,
+        mc.solver,
+        match mc.reading_noise_dof {
+            Some(nu) => format!("t (ν = {nu})"),
+            None => mc.reading_noise.to_string(),
+        }
+    )?;
+    writeln!(
+        out,
+        "{} % probabilistically symmetric intervals; GUM validated when |y ∓ U − end| ≤ δ ({} significant digits of u_c)",
+        crate::uncertainty::format::percent(mc.p),
+        mc.significant_digits
+    )?;
+    // (index name, symbol, Monte Carlo, estimates, GUM U)
+    type Row<'a> = (&'a str, &'a str, &'a McFamily, &'a [f64], Option<&'a [f64]>);
+    let families: [Row<'_>; 3] = [
+        (
+            "face",
+            "β",
+            &mc.pitch_deviation,
+            &solution.pitch_deviation,
+            uncertainty.map(|u| u.pitch_deviation.expanded_u.as_slice()),
+        ),
+        (
+            "face",
+            "φ",
+            &mc.face_deviation,
+            &solution.face_deviation,
+            uncertainty.map(|u| u.face_deviation.expanded_u.as_slice()),
+        ),
+        (
+            "position",
+            "α",
+            &mc.encoder_error,
+            &solution.encoder_error,
+            uncertainty.map(|u| u.encoder_error.expanded_u.as_slice()),
+        ),
+    ];
+    for (index_name, symbol, family, estimates, expanded) in families {
+        writeln!(
+            out,
+            "\n{:>8} {:>9} {:>9} {:>8} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8}  GUM",
+            index_name, symbol, "mean", "u", "low", "high", "U(GUM)", "d_low", "d_high", "δ"
+        )?;
+        for i in 0..n {
+            let index = if symbol == "α" { i } else { i + 1 };
+            writeln!(
+                out,
+                "{:>8} {:>9.4} {:>9.4} {:>8.4} {:>9.4} {:>9.4} {:>8} {:>8.5} {:>8.5} {:>8.5}  {}",
+                index,
+                estimates[i],
+                family.mean[i],
+                family.u[i],
+                family.low[i],
+                family.high[i],
+                fixed(expanded.map(|e| e[i]), 4),
+                family.d_low[i],
+                family.d_high[i],
+                family.delta[i],
+                if family.passed[i] {
+                    "validated"
+                } else {
+                    "NOT validated"
+                }
+            )?;
+        }
+    }
+    let failed: usize = [&mc.pitch_deviation, &mc.face_deviation, &mc.encoder_error]
+        .iter()
+        .map(|f| f.passed.iter().filter(|&&p| !p).count())
+        .sum();
+    writeln!(
+        out,
+        "\n{}",
+        if mc.validated {
+            "The GUM uncertainties are validated by Monte Carlo (JCGM 101 §8).".to_string()
+        } else {
+            format!(
+                "{failed} GUM intervals are NOT validated by Monte Carlo (JCGM 101 §8): use the \
+                 Monte Carlo intervals for those quantities, or more trials if δ is below the \
+                 Monte Carlo noise."
+            )
+        }
+    )?;
+    Ok(())
+}
