@@ -493,7 +493,7 @@ fn refuses_a_face_beyond_the_faces_given() {
         Some(4),
         6,
         7,
-        &["column \"face\": 5 is outside 1 to 4", "--faces"],
+        &["column \"face\": 5 is outside 1 to 4", "the number of faces stated"],
     );
 }
 
@@ -523,7 +523,7 @@ fn refuses_fewer_than_three_faces() {
         Some(2),
         4,
         14,
-        &["--faces 2", "at least 3 faces"],
+        &["2 were stated", "at least 3 faces"],
     );
 }
 
@@ -544,7 +544,7 @@ fn refuses_a_face_never_read() {
         15,
         &[
             "column \"face\": faces 6-7 are never read",
-            "given by --faces",
+            "N = 7, the number of faces stated",
         ],
     );
     // With a wrong --faces, ac 2 (which wraps from face 4 to face 1) no longer fits
@@ -756,7 +756,7 @@ fn from_readings_refuses_with_line_zero_and_the_reading_number() {
         &["reading 4: column \"face\": 4 is outside 1 to 3"],
     );
     assert_invalid(&sim(one_cycle(2), None), "sim", 0, 0, &["at least 3 faces"]);
-    assert_invalid(&sim(one_cycle(4), Some(1)), "sim", 0, 0, &["--faces 1"]);
+    assert_invalid(&sim(one_cycle(4), Some(1)), "sim", 0, 0, &["1 were stated"]);
 
     let mut r = one_cycle(4);
     r.push(reading(1, 1, 1, 2, 0.0));

@@ -123,10 +123,10 @@ pub(super) fn validate(
             if n < 3 {
                 return Err(err(
                     loc.header(Some(Col::Face)),
-                    format!("--faces {n}: a polygon needs at least 3 faces"),
+                    format!("a polygon needs at least 3 faces, {n} were stated"),
                 ));
             }
-            (n, "given by --faces")
+            (n, "the number of faces stated")
         }
         None => {
             let mut largest = 0;

@@ -52,7 +52,7 @@ pub fn write_table<W: Write>(
         None => {
             writeln!(
                 out,
-                "no uncertainties: the fit has no residual degrees of freedom; state the reading noise with --sigma"
+                "no uncertainties: the fit has no residual degrees of freedom; state the reading noise σ to get them"
             )?;
         }
     }

@@ -109,7 +109,7 @@ pub enum SolveError {
     #[error(transparent)]
     Unobservable(#[from] Unobservable),
     /// `--method closed-form` on a design it does not cover.
-    #[error("the closed form (paper eqs. (6)–(10)) does not apply: {0}; use --method lsq")]
+    #[error("the closed form (paper eqs. (6)–(10)) does not apply: {0}; the least-squares method does")]
     ClosedFormNotApplicable(String),
     /// An effect regressor has the wrong length or a non-finite value.
     #[error("effect regressor {index}: {reason}")]
