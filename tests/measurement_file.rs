@@ -35,22 +35,17 @@ fn refusal(name: &str, faces: Option<usize>) -> MeasurementError {
 /// Asserts that `err` is `Invalid` at `file:line:column` and its message holds `words`.
 fn assert_invalid(err: &MeasurementError, file: &str, line: u64, column: u64, words: &[&str]) {
     let text = err.to_string();
-    let MeasurementError::Invalid {
-        file: f,
-        line: l,
-        column: c,
-        message,
-    } = err
-    else {
+    let MeasurementError::Invalid { location, message } = err else {
         panic!("expected Invalid, got {text}");
     };
     assert_eq!(
-        (f.as_str(), *l, *c),
+        (location.file(), location.line(), location.column()),
         (file, line, column),
         "wrong location in: {text}"
     );
+    assert_eq!(err.location(), Some(location));
     assert!(
-        text.starts_with(&format!("{file}:{line}:{column}: ")),
+        text.starts_with(&format!("{location}: ")),
         "bad prefix: {text}"
     );
     assert!(!message.contains('\n'), "message is not one line: {text}");

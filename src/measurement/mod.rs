@@ -35,6 +35,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 use std::io::{self, BufWriter, Read, Write};
 use std::path::Path;
+use crate::input::Location;
 
 mod parse;
 mod sigma;
@@ -165,7 +166,7 @@ pub struct MeasurementSet {
     pub faces: usize,
     /// The readings, in file order.
     pub readings: Vec<Reading>,
-    /// Where the readings came from (a path, `-` for standard input, or a label).
+    /// Where the readings came from (a path, `<stdin>` for standard input, or a label).
     pub source: String,
 }
 
@@ -173,27 +174,25 @@ pub struct MeasurementSet {
 /// written.
 #[derive(Debug, thiserror::Error)]
 pub enum MeasurementError {
-    /// A file that breaks the rules: names the file, 1-based line and 1-based character column.
+    /// A file that breaks the rules: names the file, 1-based line and 1-based character
+    /// column.
     ///
     /// Displayed as `file:line:column: message`, e.g.
-    /// `run.csv:7:9: column "face": "x" is not an integer`.
-    #[error("{file}:{line}:{column}: {message}")]
+    /// `run.csv:7:9: column "face": "x" is not an integer`. For readings built in memory
+    /// the line is the reading's [`Reading::line`] (0 when not from a file) and the column
+    /// 0; a 0 is left out of the display.
+    #[error("{location}: {message}")]
     Invalid {
-        /// The file (the `source` name given; `-` for standard input).
-        file: String,
-        /// 1-based line of the offending field; for readings built in memory, the
-        /// reading's [`Reading::line`] (0 when not from a file).
-        line: u64,
-        /// 1-based character column where the offending field starts on that line; 0
-        /// for readings built in memory.
-        column: u64,
+        /// Where: the file (the `source` name given; `<stdin>` for standard input), line
+        /// and column.
+        location: Location,
         /// What is wrong, naming the column and quoting the offending text.
         message: String,
     },
     /// The file could not be opened, read or written.
     #[error("{file}: {source}")]
     Io {
-        /// The file (the `source` name given; `-` for standard input).
+        /// The file (the `source` name given; `<stdin>` for standard input).
         file: String,
         /// The underlying error.
         #[source]
@@ -201,11 +200,23 @@ pub enum MeasurementError {
     },
 }
 
+impl MeasurementError {
+    /// Where the problem is, for a refused file ([`MeasurementError::Invalid`]); `None`
+    /// for an I/O error.
+    pub fn location(&self) -> Option<&Location> {
+        match self {
+            MeasurementError::Invalid { location, .. } => Some(location),
+            MeasurementError::Io { .. } => None,
+        }
+    }
+}
+
 impl MeasurementSet {
-    /// Reads a measurement CSV from a path; the path "-" reads standard input.
+    /// Reads a measurement CSV from a path; the path `-` reads standard input (named
+    /// `<stdin>` in messages).
     ///
     /// `faces` is the `--faces N` option: N is the largest `face` in the file unless
-    /// given. The path as displayed (or `-`) names the file in messages. See
+    /// given. The path as displayed (or `<stdin>`) names the file in messages. See
     /// [`MeasurementSet::read_from`] for the rules.
     ///
     /// # Errors
@@ -213,15 +224,11 @@ impl MeasurementSet {
     /// [`MeasurementError::Io`] if the file cannot be opened or read,
     /// [`MeasurementError::Invalid`] if it breaks a rule of FORMAT.md §2.
     pub fn read_path(path: &Path, faces: Option<usize>) -> Result<Self, MeasurementError> {
-        if path == Path::new("-") {
-            return Self::read_from(io::stdin().lock(), "-", faces);
-        }
-        let name = path.display().to_string();
-        let file = std::fs::File::open(path).map_err(|source| MeasurementError::Io {
-            file: name.clone(),
+        let (reader, name) = crate::input::open(path).map_err(|source| MeasurementError::Io {
+            file: crate::input::display_name(path),
             source,
         })?;
-        Self::read_from(file, &name, faces)
+        Self::read_from(reader, &name, faces)
     }
 
     /// Reads from any reader; `source` is the name used in messages.

@@ -305,9 +305,7 @@ impl Locator<'_> {
 
 pub(super) fn invalid(file: &str, (line, column): (u64, u64), message: String) -> MeasurementError {
     MeasurementError::Invalid {
-        file: file.to_string(),
-        line,
-        column,
+        location: Location::new(file, line, column),
         message,
     }
 }
