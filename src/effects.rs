@@ -160,7 +160,15 @@ impl Effect {
     /// assert_eq!(e, Effect::OffsetStep { ac: 2, cycle: 4, value: 0.5 });
     /// assert!(Effect::parse_spec("drift", "1").is_err());
     /// ```
-    pub fn parse_spec(kind: &str, spec: &str) -> Result<Effect, String> {
+    ///
+    /// # Errors
+    ///
+    /// A [`SpecError`] naming the kind, the spec and the faulty part.
+    pub fn parse_spec(kind: &str, spec: &str) -> Result<Effect, SpecError> {
+        Self::parse_spec_text(kind, spec).map_err(SpecError)
+    }
+
+    fn parse_spec_text(kind: &str, spec: &str) -> Result<Effect, String> {
         let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
         let n = parts.len();
         let ctx = |msg: String, form: &str| -> String {
@@ -270,6 +278,19 @@ impl fmt::Display for Effect {
                 write!(f, "cycle {cycle}, step {step}, ac {ac}: {value}\"")
             }
         }
+    }
+}
+
+/// A command-line form of an effect or a harmonic (e.g. `AC:RATE`) that cannot be read;
+/// the text names the kind, the spec, the faulty part and the expected form.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct SpecError(pub(crate) String);
+
+impl SpecError {
+    /// What is wrong, as one line.
+    pub fn message(&self) -> &str {
+        &self.0
     }
 }
 

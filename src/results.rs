@@ -20,6 +20,7 @@
 use std::io::{Read, Write};
 use std::path::Path;
 
+use crate::input::Location;
 use serde::Serialize;
 
 /// The four families of calibrated quantities (docs/FORMAT.md §3), the crate's one list
@@ -70,6 +71,16 @@ impl Quantity {
     }
 }
 
+impl ResultsError {
+    /// Where the problem is ([`ResultsError::At`]); `None` for an I/O error.
+    pub fn location(&self) -> Option<&Location> {
+        match self {
+            ResultsError::At { location, .. } => Some(location),
+            ResultsError::Io { .. } => None,
+        }
+    }
+}
+
 impl std::fmt::Display for Quantity {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
@@ -115,14 +126,11 @@ pub struct ResultFile {
 #[derive(Debug, thiserror::Error)]
 pub enum ResultsError {
     /// A problem at a place in the file.
-    #[error("{file}:{line}:{column}: {message}")]
+    #[error("{location}: {message}")]
     At {
-        /// The file name (`<stdin>` for standard input).
-        file: String,
-        /// 1-based line.
-        line: u64,
-        /// 1-based column (characters).
-        column: u64,
+        /// Where: the file (`<stdin>` for standard input), 1-based line and 1-based
+        /// character column.
+        location: Location,
         /// What is wrong.
         message: String,
     },
@@ -155,16 +163,11 @@ pub fn read_results_path(path: impl AsRef<Path>) -> Result<Vec<ResultRow>, Resul
 /// As [`read_results_path`].
 pub fn read_result_file(path: impl AsRef<Path>) -> Result<ResultFile, ResultsError> {
     let path = path.as_ref();
-    if path == Path::new("-") {
-        read_results_from(std::io::stdin().lock(), "<stdin>")
-    } else {
-        let source = path.display().to_string();
-        let file = std::fs::File::open(path).map_err(|e| ResultsError::Io {
-            file: source.clone(),
-            source: e,
-        })?;
-        read_results_from(file, &source)
-    }
+    let (reader, name) = crate::input::open(path).map_err(|e| ResultsError::Io {
+        file: crate::input::display_name(path),
+        source: e,
+    })?;
+    read_results_from(reader, &name)
 }
 
 /// Reads a result file from any reader; `source` names it in messages.
@@ -181,9 +184,7 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
             source: e,
         })?;
     let err = |line: u64, column: u64, message: String| ResultsError::At {
-        file: source.to_string(),
-        line,
-        column,
+        location: Location::new(source, line, column),
         message,
     };
     let text = match String::from_utf8(bytes) {

@@ -488,7 +488,10 @@ fn refuses_a_face_beyond_the_faces_given() {
         Some(4),
         6,
         7,
-        &["column \"face\": 5 is outside 1 to 4", "the number of faces stated"],
+        &[
+            "column \"face\": 5 is outside 1 to 4",
+            "the number of faces stated",
+        ],
     );
 }
 

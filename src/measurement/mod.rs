@@ -31,11 +31,11 @@
 //! (face − 1 − step) mod N is the same for every reading: each autocollimator looks at
 //! the polygon from one fixed place.
 
+use crate::input::Location;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 use std::io::{self, BufWriter, Read, Write};
 use std::path::Path;
-use crate::input::Location;
 
 mod parse;
 mod sigma;

@@ -7,7 +7,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use super::SimulateError;
-use crate::effects::Effect;
+use crate::effects::{Effect, SpecError};
 
 /// Largest number of readings a simulated run may have (a guard against absurd settings).
 pub const MAX_READINGS: usize = 50_000_000;
@@ -33,11 +33,17 @@ impl Harmonic {
 }
 
 impl FromStr for Harmonic {
-    type Err = String;
+    type Err = SpecError;
 
     /// Parses `ORDER:AMPLITUDE:PHASE` (order ≥ 1, amplitude in arcsec, phase in radians;
     /// `:PHASE` may be left out for phase 0), e.g. `2:0.35:1.3` or `1:0.6`.
-    fn from_str(s: &str) -> Result<Harmonic, String> {
+    fn from_str(s: &str) -> Result<Harmonic, SpecError> {
+        Harmonic::parse_text(s).map_err(SpecError)
+    }
+}
+
+impl Harmonic {
+    fn parse_text(s: &str) -> Result<Harmonic, String> {
         let form = "ORDER:AMPLITUDE[:PHASE], e.g. 2:0.35:1.3";
         let parts: Vec<&str> = s.split(':').map(str::trim).collect();
         if !(2..=3).contains(&parts.len()) {

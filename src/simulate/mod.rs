@@ -131,7 +131,7 @@ pub fn simulate_with_truth(
         origin: "truth".into(),
         message,
     };
-    truth.validate().map_err(mismatch)?;
+    truth.validate()?;
     if truth.faces != config.faces {
         return Err(mismatch(format!(
             "it has {} faces, the simulation settings {}",

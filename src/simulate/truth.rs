@@ -141,7 +141,7 @@ impl Truth {
                 path: path.to_path_buf(),
                 source,
             })?;
-        truth.validate().map_err(|message| SimulateError::Truth {
+        truth.check().map_err(|message| SimulateError::Truth {
             origin: path.display().to_string(),
             message,
         })?;
@@ -157,7 +157,18 @@ impl Truth {
     /// autocollimators ≥ 1; the noise is ≥ 0. The closures Σβ = 0 and Σα = 0 are not
     /// enforced (a file written by hand may be rounded). The error text names the first
     /// problem.
-    pub fn validate(&self) -> Result<(), String> {
+    ///
+    /// # Errors
+    ///
+    /// [`SimulateError::Truth`] (origin `truth`) naming the first problem.
+    pub fn validate(&self) -> Result<(), SimulateError> {
+        self.check().map_err(|message| SimulateError::Truth {
+            origin: "truth".into(),
+            message,
+        })
+    }
+
+    fn check(&self) -> Result<(), String> {
         let n = self.faces;
         if n < 3 {
             return Err(format!("faces is {n}; a polygon needs at least 3 faces"));

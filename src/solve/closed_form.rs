@@ -113,9 +113,24 @@ pub struct PaperDesign {
     pub repeats: usize,
 }
 
+/// Why a measurement set is not the paper's design (two autocollimators on adjacent
+/// faces, one mounting, the same number of readings at every step, no closing readings),
+/// so that the closed form of eqs. (6)–(10) does not apply.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct NotPaperDesign(String);
+
 impl PaperDesign {
     /// Recognises the design, or says why the closed form does not apply.
-    pub fn detect(set: &MeasurementSet) -> Result<Self, String> {
+    ///
+    /// # Errors
+    ///
+    /// [`NotPaperDesign`] saying which condition of the paper's design the set breaks.
+    pub fn detect(set: &MeasurementSet) -> Result<Self, NotPaperDesign> {
+        Self::detect_text(set).map_err(NotPaperDesign)
+    }
+
+    fn detect_text(set: &MeasurementSet) -> Result<Self, String> {
         let n = set.faces;
         let streams = set.streams();
         if streams.len() != 2 || streams[0].0 != streams[1].0 {

@@ -23,7 +23,7 @@ pub mod closed_form;
 pub mod least_squares;
 pub mod observability;
 
-pub use closed_form::{ClosedFormSolution, PaperDesign, closed_form};
+pub use closed_form::{ClosedFormSolution, NotPaperDesign, PaperDesign, closed_form};
 pub use least_squares::{least_squares, least_squares_with_regressors};
 pub use observability::{Unobservable, lost_harmonics};
 
@@ -109,7 +109,9 @@ pub enum SolveError {
     #[error(transparent)]
     Unobservable(#[from] Unobservable),
     /// `--method closed-form` on a design it does not cover.
-    #[error("the closed form (paper eqs. (6)–(10)) does not apply: {0}; the least-squares method does")]
+    #[error(
+        "the closed form (paper eqs. (6)–(10)) does not apply: {0}; the least-squares method does"
+    )]
     ClosedFormNotApplicable(String),
     /// An effect regressor has the wrong length or a non-finite value.
     #[error("effect regressor {index}: {reason}")]
@@ -304,7 +306,7 @@ pub fn solve(set: &MeasurementSet, options: &SolveOptions) -> Result<Solution, S
         Method::LeastSquares => least_squares(set, options.sigma),
         Method::ClosedForm => match PaperDesign::detect(set) {
             Ok(design) => Ok(design.solve(set, options.sigma)?),
-            Err(reason) => Err(SolveError::ClosedFormNotApplicable(reason)),
+            Err(reason) => Err(SolveError::ClosedFormNotApplicable(reason.to_string())),
         },
         Method::Auto => match PaperDesign::detect(set) {
             Ok(design) => Ok(design.solve(set, options.sigma)?),

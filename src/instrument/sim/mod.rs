@@ -778,10 +778,7 @@ impl Devices {
     /// Invalid settings, or a truth whose number of faces differs from the settings'.
     pub fn with_truth(config: LabConfig, truth: Truth) -> Result<Devices, SimulateError> {
         config.validate()?;
-        truth.validate().map_err(|message| SimulateError::Truth {
-            origin: "truth".into(),
-            message,
-        })?;
+        truth.validate()?;
         if truth.faces != config.simulation.faces {
             return Err(SimulateError::Truth {
                 origin: "truth".into(),
