@@ -976,11 +976,12 @@ fn effect_specs() {
     ];
     for (kind, spec) in bad {
         let err = Effect::parse_spec(kind, spec).unwrap_err();
-        assert!(err.contains(kind) || kind.is_empty(), "{err}");
+        assert!(err.message().contains(kind) || kind.is_empty(), "{err}");
     }
     assert!(
         Effect::parse_spec("wobble", "1")
             .unwrap_err()
+            .message()
             .contains("offset-step")
     );
 }
@@ -1055,6 +1056,6 @@ fn harmonic_specs() {
         ":::",
     ] {
         let err = bad.parse::<Harmonic>().unwrap_err();
-        assert!(err.contains("harmonic"), "{err}");
+        assert!(err.message().contains("harmonic"), "{err}");
     }
 }
