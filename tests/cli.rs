@@ -858,9 +858,10 @@ fn completions_and_man_page() {
         let out = polycal(&["completions", shell]);
         assert!(out.status.success(), "{shell}");
         let script = String::from_utf8(out.stdout).unwrap();
-        for word in ["polycal", "solve", "monte-carlo", "sim-lab"] {
+        for word in ["polycal", "solve", "monte-carlo", "completions"] {
             assert!(script.contains(word), "{shell}: no {word}");
         }
+        assert_eq!(script.contains("sim-lab"), cfg!(feature = "lab"), "{shell}");
     }
     let out = polycal(&["completions", "tcsh"]);
     assert_eq!(out.status.code(), Some(2));

@@ -62,6 +62,7 @@ impl Output {
     }
 
     /// A line of information (a summary, a hint), unless `-q`.
+    #[cfg(feature = "lab")]
     pub fn info(&self, message: impl Display) {
         if !self.quiet {
             let _ = writeln!(std::io::stderr().lock(), "{message}");
@@ -89,6 +90,7 @@ impl Output {
 
     /// A progress bar on standard error, hidden unless [`Output::shows_progress`]; it is
     /// cleared when dropped or finished.
+    #[cfg(feature = "lab")]
     pub fn bar(&self) -> ProgressBar {
         let target = if self.shows_progress() {
             ProgressDrawTarget::stderr()
