@@ -486,20 +486,11 @@ mod write_csv_tests {
         assert_eq!(comparison.only_in_a.len(), 1);
         let mut out = Vec::new();
         write_csv(&mut out, &comparison).unwrap();
-        let mut reader = csv::Reader::from_reader(out.as_slice());
-        assert_eq!(
-            reader.headers().unwrap(),
-            vec![
-                "quantity",
-                "index",
-                "a",
-                "b",
-                "difference",
-                "U_a",
-                "U_b",
-                "en"
-            ]
+        assert!(
+            out.as_slice()
+                .starts_with(b"quantity,index,a,b,difference,U_a,U_b,en\n")
         );
+        let mut reader = csv::Reader::from_reader(out.as_slice());
         let records: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
         assert_eq!(records.len(), comparison.rows.len());
         for (record, row) in records.iter().zip(&comparison.rows) {

@@ -655,20 +655,12 @@ fn compare_csv() {
         serde_json::from_slice(&polycal(&["compare", a, b, "--format", "json"]).stdout).unwrap();
     let out = polycal(&["compare", a, b, "--format", "csv"]);
     assert_eq!(out.status.code(), Some(0));
-    let mut reader = csv::Reader::from_reader(out.stdout.as_slice());
-    assert_eq!(
-        reader.headers().unwrap(),
-        vec![
-            "quantity",
-            "index",
-            "a",
-            "b",
-            "difference",
-            "U_a",
-            "U_b",
-            "en"
-        ]
+    assert!(
+        out.stdout
+            .as_slice()
+            .starts_with(b"quantity,index,a,b,difference,U_a,U_b,en\n")
     );
+    let mut reader = csv::Reader::from_reader(out.stdout.as_slice());
     let records: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
     let rows = json["rows"].as_array().unwrap();
     assert_eq!(records.len(), 2, "encoder_error 1 is in one result only");
