@@ -509,3 +509,414 @@ fn compare_en_and_status() {
         "{stderr}"
     );
 }
+
+fn polycal_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_polycal"));
+    command
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env_remove("NO_COLOR")
+        .env_remove("CLICOLOR_FORCE");
+    for (key, value) in env {
+        command.env(key, value);
+    }
+    command.output().expect("the binary runs")
+}
+
+/// The truth JSON `simulate` writes with these extra arguments (8 faces, 2 cycles,
+/// bidirectional, so that every effect applies).
+fn simulated_truth(name: &str, extra: &[&str]) -> Value {
+    let dir = temp_dir(name);
+    let truth = dir.join("truth.json");
+    let mut args = vec![
+        "simulate",
+        "--faces",
+        "8",
+        "--cycles",
+        "2",
+        "--bidirectional",
+        "--truth-out",
+        truth.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let out = polycal(&args);
+    assert!(
+        out.status.success(),
+        "{extra:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap()
+}
+
+/// The one effect of a simulated truth.
+fn only_effect(truth: &Value) -> &Value {
+    let effects = truth["effects"].as_array().expect("effects");
+    assert_eq!(effects.len(), 1, "{effects:?}");
+    &effects[0]
+}
+
+/// Negative numbers are values, not options: `--direction -0.3` alone, and the negative
+/// value inside the other effect specifications, reach the truth the simulation writes.
+#[test]
+fn negative_effect_values_are_accepted() {
+    let effect = only_effect(&simulated_truth("neg-direction", &["--direction", "-0.3"])).clone();
+    assert_eq!(effect["kind"], "direction");
+    assert_eq!(effect["value"], -0.3);
+
+    let truth = simulated_truth("neg-offset", &["--offset-step", "1:2:-0.3"]);
+    let effect = only_effect(&truth);
+    assert_eq!(effect["kind"], "offset-step");
+    assert_eq!((&effect["ac"], &effect["cycle"]), (&1.into(), &2.into()));
+    assert_eq!(effect["value"], -0.3);
+
+    let truth = simulated_truth("neg-drift", &["--drift", "2:-1.5"]);
+    let effect = only_effect(&truth);
+    assert_eq!(
+        (&effect["kind"], &effect["ac"]),
+        (&"drift".into(), &2.into())
+    );
+    assert_eq!(effect["value"], -1.5);
+
+    let truth = simulated_truth("neg-outlier", &["--outlier", "1:3:1:-2"]);
+    let effect = only_effect(&truth);
+    assert_eq!(effect["kind"], "outlier");
+    assert_eq!(effect["value"], -2.0);
+}
+
+/// `--harmonic 1:-0.5` gives the encoder errors of `--harmonic 1:0.5` with the sign
+/// turned (same seed), so the negative amplitude reached the simulation.
+#[test]
+fn negative_harmonic_amplitude_is_accepted() {
+    let minus = simulated_truth("neg-harmonic", &["--harmonic", "1:-0.5"]);
+    let plus = simulated_truth("pos-harmonic", &["--harmonic", "1:0.5"]);
+    let (minus, plus) = (
+        numbers(&minus["encoder_error"]),
+        numbers(&plus["encoder_error"]),
+    );
+    assert_eq!(minus.len(), 8);
+    assert!(plus.iter().any(|e| e.abs() > 0.1), "{plus:?}");
+    for (m, p) in minus.iter().zip(&plus) {
+        assert!((m + p).abs() < 1e-12, "{m} vs {p}");
+    }
+}
+
+/// Two result files for `compare`: the paper's numbers (see `compare_en_and_status`).
+fn two_results(name: &str) -> (PathBuf, PathBuf) {
+    let dir = temp_dir(name);
+    let a = dir.join("a.csv");
+    let b = dir.join("b.csv");
+    std::fs::write(
+        &a,
+        "quantity,index,value,U\npitch_deviation,1,0.28,0.46\nencoder_error,0,0.27,0.46\nencoder_error,1,0.1,0.2\n",
+    )
+    .unwrap();
+    std::fs::write(
+        &b,
+        "quantity,index,value,U\npitch_deviation,1,0,0.15\nencoder_error,0,-0.1,0.02\n",
+    )
+    .unwrap();
+    (a, b)
+}
+
+/// `compare --correlation -0.5`: the negative coefficient is used (it is in the JSON,
+/// and En is the one of r = −0.5).
+#[test]
+fn negative_correlation_is_accepted() {
+    let (a, b) = two_results("neg-correlation");
+    let out = polycal(&[
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--correlation",
+        "-0.5",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["correlation"], -0.5);
+    let en = json["rows"][0]["en"].as_f64().unwrap();
+    let expected = 0.28 / (0.46f64.powi(2) + 0.15f64.powi(2) + 0.46 * 0.15).sqrt();
+    assert!((en - expected).abs() < 1e-12, "{en} vs {expected}");
+}
+
+/// `compare --format csv`: one row per compared quantity, the documented columns, the
+/// JSON's numbers bit for bit; the status is the verdict's, as for the other formats.
+#[test]
+fn compare_csv() {
+    let (a, b) = two_results("compare-csv");
+    let (a, b) = (a.to_str().unwrap(), b.to_str().unwrap());
+    let json: Value =
+        serde_json::from_slice(&polycal(&["compare", a, b, "--format", "json"]).stdout).unwrap();
+    let out = polycal(&["compare", a, b, "--format", "csv"]);
+    assert_eq!(out.status.code(), Some(0));
+    assert!(
+        out.stdout
+            .as_slice()
+            .starts_with(b"quantity,index,a,b,difference,U_a,U_b,en\n")
+    );
+    let mut reader = csv::Reader::from_reader(out.stdout.as_slice());
+    let records: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    let rows = json["rows"].as_array().unwrap();
+    assert_eq!(records.len(), 2, "encoder_error 1 is in one result only");
+    assert_eq!(records.len(), rows.len());
+    for (record, row) in records.iter().zip(rows) {
+        assert_eq!(&record[0], row["quantity"].as_str().unwrap());
+        assert_eq!(
+            record[1].parse::<u64>().unwrap(),
+            row["index"].as_u64().unwrap()
+        );
+        for (i, key) in ["a", "b", "difference", "U_a", "U_b", "en"]
+            .iter()
+            .enumerate()
+        {
+            assert_eq!(
+                record[i + 2].parse::<f64>().unwrap(),
+                row[key].as_f64().unwrap(),
+                "{key}"
+            );
+        }
+    }
+}
+
+/// diagnose and budget offer only the formats they have: `csv` is refused by the parser
+/// (status 2), which lists table and json.
+#[test]
+fn only_accepted_formats_are_offered() {
+    for args in [
+        &["diagnose", EXAMPLE, "--format", "csv"][..],
+        &[
+            "budget",
+            "examples/budgets/paper-table1.toml",
+            "--format",
+            "csv",
+        ],
+    ] {
+        let out = polycal(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert!(
+            stderr.contains("[possible values: table, json]"),
+            "{args:?}: {stderr}"
+        );
+        assert!(out.stdout.is_empty());
+    }
+}
+
+/// A file that cannot be opened: one `error:` line naming it, with the OS error once.
+#[test]
+fn os_error_is_printed_once() {
+    for args in [
+        &["solve", "no-such-file.csv"][..],
+        &["diagnose", "no-such-file.csv"],
+        &["budget", "no-such-file.toml"],
+        &["compare", "no-such-file.csv", "no-such-file.csv"],
+    ] {
+        let out = polycal(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(
+            stderr.starts_with(&format!("error: {}: ", args[1])),
+            "{stderr}"
+        );
+        assert_eq!(stderr.matches("os error").count(), 1, "{stderr}");
+    }
+}
+
+/// polycal's own messages name standard input `<stdin>`.
+#[test]
+fn stdin_is_named_in_messages() {
+    let unobservable = polycal(&[
+        "simulate",
+        "--faces",
+        "12",
+        "--cycles",
+        "2",
+        "--ac-faces",
+        "1,4",
+    ]);
+    assert!(unobservable.status.success());
+    let out = polycal_stdin(&["solve", "-"], &unobservable.stdout);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.starts_with("error: <stdin>: cannot solve: "),
+        "{stderr}"
+    );
+}
+
+/// Where a library error needs an option to be actionable, the message names it, once.
+#[test]
+fn closed_form_refusal_names_the_way_out() {
+    let out = polycal(&["solve", EXAMPLE, "--method", "closed-form"]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.matches("use --method lsq").count(), 1, "{stderr}");
+}
+
+const PAPER_BUDGET: &str = "examples/budgets/paper-table1.toml";
+
+/// `-q` (before or after the command) silences warnings, never results or errors.
+#[test]
+fn quiet_silences_warnings_only() {
+    let loud = polycal(&[
+        "solve",
+        EXAMPLE,
+        "--budget",
+        PAPER_BUDGET,
+        "--format",
+        "csv",
+    ]);
+    assert!(loud.status.success());
+    let stderr = String::from_utf8(loud.stderr).unwrap();
+    assert!(stderr.starts_with("warning: "), "{stderr}");
+    for args in [
+        &[
+            "-q",
+            "solve",
+            EXAMPLE,
+            "--budget",
+            PAPER_BUDGET,
+            "--format",
+            "csv",
+        ][..],
+        &[
+            "solve",
+            EXAMPLE,
+            "--budget",
+            PAPER_BUDGET,
+            "--format",
+            "csv",
+            "--quiet",
+        ],
+    ] {
+        let quiet = polycal(args);
+        assert!(quiet.status.success());
+        assert!(quiet.stderr.is_empty(), "{args:?}");
+        assert_eq!(quiet.stdout, loud.stdout, "{args:?}");
+    }
+    let out = polycal(&["solve", "-q", "no-such-file.csv"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8(out.stderr)
+            .unwrap()
+            .starts_with("error: ")
+    );
+}
+
+/// `--color`: polycal's own prefixes are coloured with `always` (bold yellow, bold red),
+/// plain with `never` and with `auto` when standard error is not a terminal; `NO_COLOR`
+/// does not override `always`. The rest of the line is never coloured.
+#[test]
+fn color_of_warning_and_error_prefixes() {
+    let warn = |color: &str, env: &[(&str, &str)]| {
+        let out = polycal_env(
+            &["solve", EXAMPLE, "--budget", PAPER_BUDGET, "--color", color],
+            env,
+        );
+        assert!(out.status.success());
+        String::from_utf8(out.stderr).unwrap()
+    };
+    let always = warn("always", &[]);
+    assert!(
+        always.starts_with("\x1b[1m\x1b[33mwarning:\x1b[0m examples/budgets/paper-table1.toml"),
+        "{always:?}"
+    );
+    assert_eq!(always, warn("always", &[("NO_COLOR", "1")]));
+    let plain = warn("never", &[]);
+    assert!(plain.starts_with("warning: examples/"), "{plain:?}");
+    assert!(!plain.contains('\x1b'));
+    assert_eq!(plain, warn("auto", &[]), "standard error is not a terminal");
+    assert_eq!(plain, warn("auto", &[("NO_COLOR", "1")]));
+
+    let out = polycal_env(&["--color=always", "solve", "no-such-file.csv"], &[]);
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.starts_with("\x1b[1m\x1b[31merror:\x1b[0m no-such-file.csv: "),
+        "{stderr:?}"
+    );
+}
+
+/// `completions SHELL` for every shell and `man` (polycal(1) and a command's page).
+#[test]
+fn completions_and_man_page() {
+    for shell in ["bash", "zsh", "fish", "powershell", "elvish"] {
+        let out = polycal(&["completions", shell]);
+        assert!(out.status.success(), "{shell}");
+        let script = String::from_utf8(out.stdout).unwrap();
+        for word in ["polycal", "solve", "monte-carlo", "completions"] {
+            assert!(script.contains(word), "{shell}: no {word}");
+        }
+        assert_eq!(script.contains("sim-lab"), cfg!(feature = "lab"), "{shell}");
+    }
+    let out = polycal(&["completions", "tcsh"]);
+    assert_eq!(out.status.code(), Some(2));
+
+    let out = polycal(&["man"]);
+    assert!(out.status.success());
+    let page = String::from_utf8(out.stdout).unwrap();
+    assert!(page.contains(".TH polycal 1"), "{page}");
+    for word in ["solve", "diagnose", "completions", "\\-\\-color"] {
+        assert!(page.contains(word), "no {word} in the man page");
+    }
+    let out = polycal(&["man", "solve"]);
+    assert!(out.status.success());
+    let page = String::from_utf8(out.stdout).unwrap();
+    assert!(page.contains(".TH polycal-solve 1"), "{page}");
+    assert!(page.contains("\\-\\-monte\\-carlo"), "{page}");
+    assert_eq!(polycal(&["man", "nothing"]).status.code(), Some(2));
+}
+
+/// The examples in every command's `--help` run as written (from a directory holding
+/// the bundled `examples/`), in order, so later ones can read what earlier ones wrote.
+#[cfg(unix)]
+#[test]
+fn help_examples_run() {
+    let dir = temp_dir("help-examples");
+    let link = dir.join("examples");
+    if !link.exists() {
+        std::os::unix::fs::symlink(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("examples"),
+            &link,
+        )
+        .unwrap();
+    }
+    let bin_dir = Path::new(env!("CARGO_BIN_EXE_polycal")).parent().unwrap();
+    let path = format!(
+        "{}:{}",
+        bin_dir.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    for command in ["solve", "diagnose", "budget", "compare", "simulate"] {
+        let help = String::from_utf8(polycal(&[command, "--help"]).stdout).unwrap();
+        let examples = help
+            .split("Examples:\n")
+            .nth(1)
+            .unwrap_or_else(|| panic!("{command} --help has no examples"));
+        let lines: Vec<&str> = examples
+            .lines()
+            .map(str::trim)
+            .filter(|l| l.starts_with("polycal "))
+            .collect();
+        assert!(lines.len() >= 2, "{command}: {lines:?}");
+        for line in lines {
+            let out = Command::new("sh")
+                .args(["-c", line])
+                .current_dir(&dir)
+                .env("PATH", &path)
+                .output()
+                .unwrap();
+            assert!(
+                matches!(out.status.code(), Some(0 | 1)),
+                "{line}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+    }
+}

@@ -1,7 +1,7 @@
-//! The binary side of `polycal run` and `polycal sim-lab`: their arguments and handlers.
+//! `polycal run` and `polycal sim-lab` (feature `lab`): their arguments and handlers.
 //! All logic lives in the library (`polycal::run`, `polycal::instrument`).
 
-use std::io::{IsTerminal, Read, Write};
+use std::io::{Read, Write};
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -14,7 +14,26 @@ use polycal::instrument::{
     Elcomat3000, LoggedTransport, QueryOptions, SerialSettings, SerialTransport, Smc100,
     Smc100Options, StopFlag, TrafficLog,
 };
-use polycal::run::{self, Instruments, Outcome, Ports, Progress, RunDir, RunSettings};
+use polycal::run::{self, Instruments, Outcome, Ports, Progress, RunDir, RunError, RunSettings};
+
+use super::output::{self, Output};
+use super::with_hint;
+
+/// After `polycal run --help`.
+pub const RUN_EXAMPLES: &str = "\
+Examples:
+  polycal run --ac1 /dev/ttyUSB0 --ac2 /dev/ttyUSB1 --table /dev/ttyUSB2 --faces 24 --cycles 6 --closing --out run1
+  polycal run --ac1 /dev/ttyUSB0 --ac2 /dev/ttyUSB1 --table /dev/ttyUSB2 --faces 24 --cycles 6 --closing --out run1 --resume
+  polycal solve run1/measurements.csv
+
+Without instruments, `polycal sim-lab` serves simulated ones and prints a `run` command for them.";
+
+/// After `polycal sim-lab --help`.
+pub const SIM_LAB_EXAMPLES: &str = "\
+Examples:
+  polycal sim-lab --faces 24 --time-scale 0 --truth-out lab.truth.json
+  polycal sim-lab --faces 8 --fault lost-reply:ac1:after=5 --format json
+  polycal sim-lab --direction -0.3 --drift 2:1.5 --bidirectional";
 
 /// Arguments of `polycal run`.
 #[derive(clap::Args)]
@@ -41,7 +60,7 @@ pub struct RunArgs {
     #[arg(long)]
     bidirectional: bool,
     /// Wait after the table arrived before reading, seconds.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     settle: f64,
     /// Directory for measurements.csv, manifest.json and traffic.jsonl.
     #[arg(long)]
@@ -49,14 +68,11 @@ pub struct RunArgs {
     /// Continue an interrupted run in --out from its first missing reading.
     #[arg(long)]
     resume: bool,
-    /// No progress bar or summary on standard error.
-    #[arg(short, long)]
-    quiet: bool,
     /// Deadline of one reply, seconds (a query is retried three times after it).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     timeout: f64,
     /// Longest a table move or home search may take, seconds.
-    #[arg(long, default_value_t = 120.0)]
+    #[arg(long, default_value_t = 120.0, allow_negative_numbers = true)]
     motion_timeout: f64,
 }
 
@@ -67,15 +83,15 @@ pub struct SimLabArgs {
     /// `--cycles`, `--closing` and `--bidirectional` describe the run the lab follows,
     /// for cycle- and direction-dependent effects; drift follows real time.
     #[command(flatten)]
-    truth: crate::cli_truth::TruthArgs,
+    truth: super::simulate::TruthArgs,
     /// Table speed, degrees per second.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     speed: f64,
     /// Extra time of a home search, seconds.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     home_seconds: f64,
     /// Factor on every simulated duration (0: instantaneous motion).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     time_scale: f64,
     /// Inject a fault KIND:DEVICE[:after=K][:count=M]; KIND lost-reply, garbled,
     /// x-invalid, disable or close; DEVICE ac1, ac2 or table; repeatable.
@@ -120,7 +136,7 @@ fn open_port(
 }
 
 /// `polycal run`: returns the exit status, or an error for the `error:` line.
-pub fn run(args: &RunArgs) -> Result<u8> {
+pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
     let settings = RunSettings {
         faces: args.faces,
         cycles: args.cycles,
@@ -150,19 +166,18 @@ pub fn run(args: &RunArgs) -> Result<u8> {
             .context("cannot install the Ctrl-C handler")?;
     }
 
-    let mut dir = RunDir::open(&args.out, &settings, &ports, args.resume)?;
+    let mut dir = RunDir::open(&args.out, &settings, &ports, args.resume)
+        .map_err(|error| open_hint(error, args))?;
     for warning in dir.warnings() {
-        eprintln!("warning: {warning}");
+        out.warning(warning);
     }
-    let out = args.out.display().to_string();
+    let out_dir = args.out.display().to_string();
     if dir.remaining().is_empty() {
         dir.finish(&Outcome::Completed)?;
-        if !args.quiet {
-            eprintln!(
-                "polycal run: {out}: the run is complete ({} readings); nothing to do",
-                dir.readings_done()
-            );
-        }
+        out.info(format_args!(
+            "polycal run: {out_dir}: the run is complete ({} readings); nothing to do",
+            dir.readings_done()
+        ));
         return Ok(0);
     }
 
@@ -207,7 +222,7 @@ pub fn run(args: &RunArgs) -> Result<u8> {
         Err(e) => {
             let outcome = Outcome::InstrumentError(e.clone());
             dir.finish(&outcome)?;
-            bail!("{e}; nothing was measured in this session ({out})");
+            bail!("{e}; nothing was measured in this session ({out_dir})");
         }
     };
     let mut ac1 = Elcomat3000::new(ac1, query);
@@ -222,13 +237,9 @@ pub fn run(args: &RunArgs) -> Result<u8> {
     )
     .with_stop_flag(stop.clone());
 
-    let show = !args.quiet && std::io::stderr().is_terminal();
-    let mut bar = ProgressBar::default();
-    let mut on_progress = |p: &Progress| {
-        if show {
-            bar.draw(p);
-        }
-    };
+    let bar = out.bar();
+    bar.set_style(output::style("[{bar:30}] {msg}"));
+    let mut on_progress = |p: &Progress| show_progress(&bar, p);
     let before = dir.readings_done();
     let outcome = run::measure(
         &mut dir,
@@ -241,9 +252,7 @@ pub fn run(args: &RunArgs) -> Result<u8> {
         Some(&log),
         &mut on_progress,
     );
-    if show {
-        bar.clear();
-    }
+    bar.finish_and_clear();
     let outcome = outcome?;
     dir.finish(&outcome)?;
     let done = dir.readings_done();
@@ -255,12 +264,10 @@ pub fn run(args: &RunArgs) -> Result<u8> {
     );
     match outcome {
         Outcome::Completed => {
-            if !args.quiet {
-                eprintln!(
-                    "polycal run: completed: {taken} readings taken, {done} in {}",
-                    args.out.join(run::MEASUREMENTS).display()
-                );
-            }
+            out.info(format_args!(
+                "polycal run: completed: {taken} readings taken, {done} in {}",
+                args.out.join(run::MEASUREMENTS).display()
+            ));
             Ok(0)
         }
         Outcome::Interrupted => bail!("run interrupted (table stopped); {kept}"),
@@ -269,52 +276,45 @@ pub fn run(args: &RunArgs) -> Result<u8> {
     }
 }
 
-/// A one-line progress bar on standard error.
-#[derive(Default)]
-struct ProgressBar {
-    drawn: bool,
+/// Why a run directory was refused, with the option that gets past it: `--resume` for a
+/// directory that holds a run, no `--resume` for one that holds none.
+fn open_hint(error: RunError, args: &RunArgs) -> anyhow::Error {
+    if !matches!(error, RunError::Refused { .. }) {
+        return error.into();
+    }
+    let holds_run = [run::MANIFEST, run::MEASUREMENTS]
+        .iter()
+        .any(|name| args.out.join(name).exists());
+    match (args.resume, holds_run) {
+        (false, true) => with_hint(
+            error,
+            "--resume",
+            "continue it with --resume, or choose another --out",
+        ),
+        (true, false) => with_hint(error, "--resume", "start one without --resume"),
+        _ => error.into(),
+    }
 }
 
-impl ProgressBar {
-    fn draw(&mut self, p: &Progress) {
-        const WIDTH: usize = 30;
-        let filled = (p.done * WIDTH)
-            .checked_div(p.total)
-            .unwrap_or(0)
-            .min(WIDTH);
-        let left = match p.seconds_left {
-            Some(s) if s.is_finite() => {
-                let s = s.round() as u64;
-                format!("{}:{:02}:{:02} left", s / 3600, s / 60 % 60, s % 60)
-            }
-            _ => "estimating".into(),
-        };
-        let line = format!(
-            "\r[{}{}] cycle {}/{} step {}/{} · {}/{} readings · {left}\x1b[K",
-            "#".repeat(filled),
-            ".".repeat(WIDTH - filled),
-            p.cycle.0,
-            p.cycle.1,
-            p.stop.0,
-            p.stop.1,
-            p.done,
-            p.total
-        );
-        let mut err = std::io::stderr().lock();
-        let _ = err.write_all(line.as_bytes());
-        let _ = err.flush();
-        self.drawn = true;
-    }
-
-    fn clear(&mut self) {
-        if self.drawn {
-            eprint!("\r\x1b[K");
+/// The run's progress line: the bar, cycle, step, readings and time left.
+fn show_progress(bar: &indicatif::ProgressBar, p: &Progress) {
+    let left = match p.seconds_left {
+        Some(s) if s.is_finite() => {
+            let s = s.round() as u64;
+            format!("{}:{:02}:{:02} left", s / 3600, s / 60 % 60, s % 60)
         }
-    }
+        _ => "estimating".into(),
+    };
+    bar.set_length(p.total as u64);
+    bar.set_position(p.done as u64);
+    bar.set_message(format!(
+        "cycle {}/{} step {}/{} · {}/{} readings · {left}",
+        p.cycle.0, p.cycle.1, p.stop.0, p.stop.1, p.done, p.total
+    ));
 }
 
 /// `polycal sim-lab`: serves until killed or standard input closes.
-pub fn sim_lab(args: &SimLabArgs) -> Result<u8> {
+pub fn sim_lab(args: &SimLabArgs, out: &Output) -> Result<u8> {
     let faults = args
         .faults
         .iter()
@@ -332,35 +332,35 @@ pub fn sim_lab(args: &SimLabArgs) -> Result<u8> {
     };
     let devices = Devices::new(config)?;
     args.truth.write_truth(&devices.truth())?;
-    serve(devices, args.format)
+    serve(devices, args.format, out)
 }
 
 /// Without pseudo-terminals there is no lab to serve.
 #[cfg(not(unix))]
-fn serve(_devices: Devices, _format: PathsFormat) -> Result<u8> {
+fn serve(_devices: Devices, _format: PathsFormat, _out: &Output) -> Result<u8> {
     bail!("sim-lab needs pseudo-terminals, which this system does not have")
 }
 
 /// Serves the devices on pseudo-terminals and prints their paths.
 #[cfg(unix)]
-fn serve(devices: Devices, format: PathsFormat) -> Result<u8> {
+fn serve(devices: Devices, format: PathsFormat, out: &Output) -> Result<u8> {
     let faces = devices.truth().faces;
     let lab = Lab::start(devices)?;
     let paths = lab.paths().clone();
     {
         let stdout = std::io::stdout();
-        let mut out = stdout.lock();
+        let mut stdout = stdout.lock();
         match format {
             PathsFormat::Table => {
-                writeln!(out, "ac1 {}", paths.ac1)?;
-                writeln!(out, "ac2 {}", paths.ac2)?;
-                writeln!(out, "table {}", paths.table)?;
+                writeln!(stdout, "ac1 {}", paths.ac1)?;
+                writeln!(stdout, "ac2 {}", paths.ac2)?;
+                writeln!(stdout, "table {}", paths.table)?;
             }
-            PathsFormat::Json => writeln!(out, "{}", serde_json::to_string(&paths)?)?,
+            PathsFormat::Json => writeln!(stdout, "{}", polycal::report::to_json(&paths)?)?,
         }
-        out.flush()?;
+        stdout.flush()?;
     }
-    eprintln!(
+    out.info(format_args!(
         "polycal sim-lab: serving; try\n  polycal run --ac1 {} --ac2 {} --table {} --faces {} --cycles 2 --closing --settle 0 --out RUN_DIR\nstop with Ctrl-C{}",
         paths.ac1,
         paths.ac2,
@@ -371,7 +371,7 @@ fn serve(devices: Devices, format: PathsFormat) -> Result<u8> {
         } else {
             " or by closing standard input (Ctrl-D)"
         }
-    );
+    ));
     if stdin_is_null() {
         loop {
             std::thread::park();

@@ -1,10 +1,72 @@
-//! The binary side of the options that describe a simulated truth and its effects,
-//! shared by `polycal simulate` and `polycal sim-lab` (flattened into both).
+//! `polycal simulate`, and the options that describe a simulated truth and its effects,
+//! shared by `simulate` and `sim-lab` (flattened into both).
+
+use std::path::PathBuf;
 
 use anyhow::{Context, Result, anyhow};
 use polycal::effects::Effect;
-use polycal::simulate::{Harmonic, SimulationConfig, Truth};
-use std::path::PathBuf;
+use polycal::simulate::{self, Harmonic, SimulationConfig, Truth};
+
+use super::EXIT_OK;
+
+/// After `polycal simulate --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  polycal simulate --faces 24 --cycles 6 --closing --out run.csv --truth-out run.truth.json
+  polycal simulate --bidirectional --direction -0.3 --drift 2:-1.5 | polycal diagnose -
+  polycal simulate --faces 12 --setups 2 --setup-shift 5 --ac-faces 1,2,5 --seed 9 --out setups.csv";
+
+/// Arguments of `polycal simulate`.
+#[derive(clap::Args)]
+pub struct SimulateArgs {
+    #[command(flatten)]
+    truth: TruthArgs,
+    /// Face read at step 0 by each autocollimator (the paper: 1,2).
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    ac_faces: Vec<usize>,
+    /// Number of polygon mountings (shift-angle data).
+    #[arg(long, default_value_t = 1)]
+    setups: u32,
+    /// Whole faces the polygon is turned between mountings.
+    #[arg(long, default_value_t = 1)]
+    setup_shift: usize,
+    /// Seconds per table stop.
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    step_seconds: f64,
+    /// Where to write the measurement CSV (default: standard output).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// `polycal simulate`: writes the measurement CSV and the truth.
+pub fn run(args: &SimulateArgs) -> Result<u8> {
+    let config = args.truth.config(
+        args.ac_faces.clone(),
+        args.setups,
+        args.setup_shift,
+        args.step_seconds,
+    )?;
+    let (set, truth) = simulate::simulate(&config)?;
+    let comments = vec![format!(
+        "polycal {} simulate: {} faces, ac faces {:?}, {} cycles, noise {} arcsec, seed {}",
+        env!("CARGO_PKG_VERSION"),
+        config.faces,
+        config.ac_faces,
+        config.cycles,
+        config.noise_arcsec,
+        config.seed
+    )];
+    match &args.out {
+        Some(path) => set.write_path(path, &comments)?,
+        None => {
+            let stdout = std::io::stdout();
+            set.write_to(stdout.lock(), &comments)
+                .context("cannot write to standard output")?;
+        }
+    }
+    args.truth.write_truth(&truth)?;
+    Ok(EXIT_OK)
+}
 
 /// The truth (polygon, encoder, setup errors), the noise, the run design the effects
 /// refer to, and the effects.
@@ -23,32 +85,40 @@ pub struct TruthArgs {
     #[arg(long)]
     pub bidirectional: bool,
     /// Reading noise (standard deviation), arcsec.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     pub noise: f64,
     /// Spread (standard deviation) of the pitch deviations, arcsec.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub pitch_spread: f64,
     /// Encoder error harmonic ORDER:AMPLITUDE[:PHASE] (arcsec, radians); repeatable.
     /// Default: 1:0.6:0.4 2:0.35:1.3 3:0.2:2.2 5:0.1:0.7.
-    #[arg(long = "harmonic")]
+    #[arg(
+        long = "harmonic",
+        value_name = "ORDER:AMPLITUDE[:PHASE]",
+        allow_negative_numbers = true
+    )]
     pub harmonics: Vec<String>,
     /// Spread of the setup errors, arcsec.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub setup_spread: f64,
     /// Random seed (same seed, same truth and noise).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Zero drift AC:RATE (arcsec per hour); repeatable.
-    #[arg(long)]
+    #[arg(long, value_name = "AC:RATE", allow_negative_numbers = true)]
     pub drift: Vec<String>,
     /// Zero jump AC:CYCLE:VALUE from that cycle on; repeatable.
-    #[arg(long)]
+    #[arg(long, value_name = "AC:CYCLE:VALUE", allow_negative_numbers = true)]
     pub offset_step: Vec<String>,
-    /// Counter-clockwise offset [AC:]VALUE; repeatable.
-    #[arg(long)]
+    /// Counter-clockwise offset [AC:]VALUE (`-0.3` or `2:-0.3`); repeatable.
+    #[arg(long, value_name = "[AC:]VALUE", allow_negative_numbers = true)]
     pub direction: Vec<String>,
     /// One bad reading CYCLE:STEP:AC:VALUE; repeatable.
-    #[arg(long)]
+    #[arg(
+        long,
+        value_name = "CYCLE:STEP:AC:VALUE",
+        allow_negative_numbers = true
+    )]
     pub outlier: Vec<String>,
     /// Where to write the truth JSON (FORMAT.md §4).
     #[arg(long)]

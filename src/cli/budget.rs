@@ -1,0 +1,46 @@
+//! `polycal budget`: a GUM uncertainty budget evaluated.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use polycal::input::display_name;
+use polycal::uncertainty::BudgetFile;
+
+use super::EXIT_OK;
+use super::diagnose::ReportFormat;
+
+/// After `polycal budget --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  polycal budget examples/budgets/paper-table1.toml
+  polycal budget examples/budgets/gum-h1-end-gauge.toml --format json
+  polycal budget - < examples/budgets/paper-table1.toml";
+
+/// Arguments of `polycal budget`.
+#[derive(clap::Args)]
+pub struct BudgetArgs {
+    /// Budget file; `-` reads standard input.
+    file: PathBuf,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "table")]
+    format: ReportFormat,
+}
+
+/// `polycal budget`: returns the exit status, or an error for the `error:` line.
+pub fn run(args: &BudgetArgs) -> Result<u8> {
+    let budget = BudgetFile::read_path(&args.file)?;
+    let result = budget
+        .evaluate()
+        .with_context(|| display_name(&args.file))?;
+    let stdout = std::io::stdout();
+    let mut stdout = stdout.lock();
+    match args.format {
+        ReportFormat::Json => writeln!(stdout, "{}", polycal::report::to_json(&result)?)?,
+        ReportFormat::Table => {
+            write!(stdout, "{}", polycal::uncertainty::render_table(&result))?;
+        }
+    }
+    stdout.flush()?;
+    Ok(EXIT_OK)
+}

@@ -1,0 +1,73 @@
+//! `polycal compare`: two results quantity by quantity with En.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::ValueEnum;
+use polycal::compare::{CompareOptions, compare_files};
+use polycal::input::display_name;
+use polycal::results::read_result_file;
+
+use super::{EXIT_OK, EXIT_VERDICT};
+
+/// After `polycal compare --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  polycal solve examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml --format csv > a.csv
+  polycal simulate --closing --seed 2 | polycal solve - --budget examples/budgets/instrument.toml --format csv > b.csv
+  polycal compare a.csv b.csv
+  polycal compare a.csv b.csv --correlation 0.3 --format csv";
+
+/// Arguments of `polycal compare`.
+#[derive(clap::Args)]
+pub struct CompareArgs {
+    /// First result file (FORMAT.md §3); `-` reads standard input.
+    a: PathBuf,
+    /// Second result file.
+    b: PathBuf,
+    /// Correlation coefficient r between the two results (shared inputs), −1 … 1.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    correlation: f64,
+    /// Output format (csv: one row per compared quantity, columns
+    /// quantity,index,a,b,difference,U_a,U_b,en).
+    #[arg(long, value_enum, default_value = "table")]
+    format: CompareFormat,
+}
+
+/// `compare --format`.
+#[derive(Clone, Copy, ValueEnum)]
+enum CompareFormat {
+    Table,
+    Json,
+    Csv,
+}
+
+/// `polycal compare`: returns the exit status, or an error for the `error:` line.
+pub fn run(args: &CompareArgs) -> Result<u8> {
+    let file_a = read_result_file(&args.a)?;
+    let file_b = read_result_file(&args.b)?;
+    let options = CompareOptions {
+        correlation: args.correlation,
+        label_a: display_name(&args.a),
+        label_b: display_name(&args.b),
+    };
+    let comparison = compare_files(&file_a, &file_b, &options)?;
+    let stdout = std::io::stdout();
+    let mut stdout = stdout.lock();
+    match args.format {
+        CompareFormat::Json => writeln!(stdout, "{}", polycal::report::to_json(&comparison)?)?,
+        CompareFormat::Table => {
+            let mut text = String::new();
+            polycal::report::compare::write_table(&mut text, &comparison)?;
+            write!(stdout, "{text}")?;
+        }
+        CompareFormat::Csv => polycal::report::compare::write_csv(&mut stdout, &comparison)?,
+    }
+    stdout.flush()?;
+    Ok(if comparison.verdict_ok() {
+        EXIT_OK
+    } else {
+        EXIT_VERDICT
+    })
+}

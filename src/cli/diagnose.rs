@@ -1,0 +1,119 @@
+//! `polycal diagnose`: the effects the base model lacks, found, added and reported.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::ValueEnum;
+use polycal::diagnose::{self, DiagnoseOptions};
+use polycal::input::display_name;
+use polycal::measurement::{MeasurementSet, Sigma};
+use polycal::report::diagnose::DiagnoseReport;
+use polycal::simulate::Truth;
+
+use super::output::Output;
+use super::{EXIT_ERROR, EXIT_OK, EXIT_VERDICT};
+
+/// After `polycal diagnose --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  polycal diagnose examples/data/polygon24-2ac-6cycles.csv
+  polycal diagnose examples/data/polygon24-2ac-6cycles.csv --truth examples/data/polygon24-2ac-6cycles.truth.json
+  polycal simulate --closing --drift 2:1.5 | polycal diagnose - --format json";
+
+/// Arguments of `polycal diagnose`.
+#[derive(clap::Args)]
+pub struct DiagnoseArgs {
+    /// Measurement CSV files (FORMAT.md §2); `-` reads standard input.
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+    /// Truth JSON of simulated data (FORMAT.md §4): adds the errors before and after.
+    #[arg(long)]
+    truth: Option<PathBuf>,
+    /// Number of polygon faces (default: the largest face in the file).
+    #[arg(long)]
+    faces: Option<usize>,
+    /// Standard deviation of one reading, arcsec, if known: adds a χ² check.
+    #[arg(long, allow_negative_numbers = true)]
+    sigma: Option<Sigma>,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "table")]
+    format: ReportFormat,
+}
+
+/// The formats of `diagnose` and `budget`.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ReportFormat {
+    Table,
+    Json,
+}
+
+/// `polycal diagnose`: returns the exit status, or an error for the `error:` line.
+pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
+    let truth = args.truth.as_deref().map(Truth::read_path).transpose()?;
+    let options = DiagnoseOptions::new().with_sigma_opt(args.sigma);
+    let several = args.files.len() > 1;
+    let stdout = std::io::stdout();
+    let mut stdout = stdout.lock();
+    let (mut failures, mut inadequate) = (0, 0);
+    for path in &args.files {
+        // The name in messages (`<stdin>` for `-`); reports keep the path as given.
+        let name = display_name(path);
+        let label = path.display().to_string();
+        let diagnosed = MeasurementSet::read_path(path, args.faces)
+            .map_err(anyhow::Error::from)
+            .and_then(|set| {
+                diagnose::diagnose(&set, &options).with_context(|| format!("{name}: cannot solve"))
+            });
+        let diagnosis = match diagnosed {
+            Ok(d) => d,
+            Err(error) => {
+                out.error(&error);
+                failures += 1;
+                continue;
+            }
+        };
+        if let Some(t) = &truth
+            && t.faces != diagnosis.before.faces
+        {
+            out.error_message(format_args!(
+                "{name}: the truth has {} faces, the measurement {}",
+                t.faces, diagnosis.before.faces
+            ));
+            failures += 1;
+            continue;
+        }
+        if !diagnosis.adequacy.adequate {
+            inadequate += 1;
+        }
+        match args.format {
+            ReportFormat::Json => {
+                let report =
+                    DiagnoseReport::new(&diagnosis, truth.as_ref(), several.then(|| label.clone()));
+                writeln!(stdout, "{}", report.to_json()?)?;
+            }
+            ReportFormat::Table => {
+                if several {
+                    writeln!(stdout)?;
+                }
+                let mut text = String::new();
+                polycal::report::diagnose::write_table(
+                    &mut text,
+                    &diagnosis,
+                    truth.as_ref(),
+                    &label,
+                )?;
+                write!(stdout, "{text}")?;
+            }
+        }
+    }
+    stdout.flush()?;
+    if failures > 0 {
+        return Ok(EXIT_ERROR);
+    }
+    Ok(if inadequate > 0 {
+        EXIT_VERDICT
+    } else {
+        EXIT_OK
+    })
+}

@@ -1,0 +1,228 @@
+//! The `polycal` command line: the [`Cli`] struct, the options every command has, the
+//! exit statuses, and the dispatch to one module per command group. All calibration
+//! logic lives in the library; these modules parse, call it and print.
+
+mod budget;
+mod compare;
+mod diagnose;
+mod docs;
+#[cfg(feature = "lab")]
+mod lab;
+pub mod output;
+mod simulate;
+mod solve;
+
+use anyhow::Result;
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
+use output::Output;
+
+/// Exit status: done, every check passed.
+pub const EXIT_OK: u8 = 0;
+/// Exit status: done, but a verdict is negative.
+pub const EXIT_VERDICT: u8 = 1;
+/// Exit status: an error (usage, refused input, instrument or file failure).
+pub const EXIT_ERROR: u8 = 2;
+
+/// After the list of commands in `polycal --help`.
+const EXIT_STATUS_HELP: &str = "\
+Exit status: 0 done and every check passed; 1 done, but a verdict is negative (compare:
+some |En| > 1; diagnose: a model not adequate; solve: Monte Carlo does not validate GUM);
+2 an error (usage, refused input, instrument or file failure).
+
+The data and command contract: docs/FORMAT.md. Completions: `polycal completions SHELL`;
+manual page: `polycal man`.";
+
+#[derive(Parser)]
+#[command(
+    name = "polycal",
+    version,
+    about = "Calibrate an optical polygon and a rotary encoder at once (two-autocollimator method)",
+    long_about = None,
+    after_help = EXIT_STATUS_HELP
+)]
+pub struct Cli {
+    #[command(flatten)]
+    pub global: GlobalArgs,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The options every command has.
+#[derive(clap::Args)]
+pub struct GlobalArgs {
+    /// No warnings, progress bars or summaries on standard error (errors and results
+    /// are always written).
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+    /// When to colour polycal's `warning:` and `error:` lines: `auto` when standard
+    /// error is a terminal and NO_COLOR is not set.
+    #[arg(
+        long,
+        global = true,
+        value_enum,
+        value_name = "WHEN",
+        default_value_t = ColorWhen::Auto
+    )]
+    pub color: ColorWhen,
+}
+
+/// `--color`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ColorWhen {
+    // No doc comments here: they would turn every command's `--help` into the long form.
+    Auto,
+    Always,
+    Never,
+}
+
+#[derive(Subcommand)]
+// Parsed once per process: the size of the simulate variant does not matter.
+#[allow(clippy::large_enum_variant)]
+pub enum Command {
+    /// Solve measurement files: pitch deviations, encoder errors, setup errors.
+    #[command(after_help = solve::EXAMPLES)]
+    Solve(solve::SolveArgs),
+    /// Find the effects the base model lacks (drift, zero jumps, direction, outliers),
+    /// add them, and report the calibration before and after.
+    #[command(after_help = diagnose::EXAMPLES)]
+    Diagnose(diagnose::DiagnoseArgs),
+    /// Evaluate a GUM uncertainty budget (TOML, FORMAT.md §5).
+    #[command(after_help = budget::EXAMPLES)]
+    Budget(budget::BudgetArgs),
+    /// Compare two results quantity by quantity with En (ISO 13528); status 1 when some |En| > 1.
+    #[command(after_help = compare::EXAMPLES)]
+    Compare(compare::CompareArgs),
+    /// Simulate a measurement run with a known truth.
+    #[command(after_help = simulate::EXAMPLES)]
+    Simulate(simulate::SimulateArgs),
+    /// Drive the instruments through a calibration run (FORMAT.md §7).
+    #[cfg(feature = "lab")]
+    #[command(after_help = lab::RUN_EXAMPLES)]
+    Run(lab::RunArgs),
+    /// Serve simulated instruments on pseudo-terminals, to try `run` without hardware.
+    #[cfg(feature = "lab")]
+    #[command(after_help = lab::SIM_LAB_EXAMPLES)]
+    SimLab(lab::SimLabArgs),
+    /// Print a shell completion script on standard output.
+    #[command(after_help = docs::COMPLETIONS_EXAMPLES)]
+    Completions(docs::CompletionsArgs),
+    /// Print the manual page (roff) on standard output.
+    #[command(after_help = docs::MAN_EXAMPLES)]
+    Man(docs::ManArgs),
+}
+
+impl Cli {
+    /// Parses the command line; on a usage error, `--help` or `--version` clap prints
+    /// and exits (status 2 for an error, 0 otherwise). clap's own messages follow
+    /// `--color` too.
+    pub fn parse_args() -> Cli {
+        let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+        let mut command = Cli::command();
+        if let Some(choice) = color_in_args(&args) {
+            command = command.color(match choice {
+                ColorWhen::Auto => clap::ColorChoice::Auto,
+                ColorWhen::Always => clap::ColorChoice::Always,
+                ColorWhen::Never => clap::ColorChoice::Never,
+            });
+        }
+        let matches = command.get_matches_from(args);
+        Cli::from_arg_matches(&matches).unwrap_or_else(|error| error.exit())
+    }
+}
+
+/// The last valid `--color WHEN` or `--color=WHEN` before `--`, read before clap parses,
+/// so that clap's own help and usage errors are coloured as asked.
+fn color_in_args(args: &[std::ffi::OsString]) -> Option<ColorWhen> {
+    let mut choice = None;
+    let mut args = args.iter().skip(1).map(|a| a.to_str());
+    while let Some(arg) = args.next() {
+        let value = match arg {
+            Some("--") => break,
+            Some("--color") => args.next().flatten(),
+            Some(arg) => arg.strip_prefix("--color="),
+            None => None,
+        };
+        if let Some(found) = value.and_then(|v| ColorWhen::from_str(v, false).ok()) {
+            choice = Some(found);
+        }
+    }
+    choice
+}
+
+/// Runs a parsed command: returns its exit status, or the error for the final `error:`
+/// line.
+pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
+    match command {
+        Command::Solve(args) => solve::run(&args, out),
+        Command::Diagnose(args) => diagnose::run(&args, out),
+        Command::Budget(args) => budget::run(&args),
+        Command::Compare(args) => compare::run(&args),
+        Command::Simulate(args) => simulate::run(&args),
+        #[cfg(feature = "lab")]
+        Command::Run(args) => lab::run(&args, out),
+        #[cfg(feature = "lab")]
+        Command::SimLab(args) => lab::sim_lab(&args, out),
+        Command::Completions(args) => docs::completions(&args),
+        Command::Man(args) => docs::man(&args),
+    }
+}
+
+/// A library error with the command-line way out added: `"{error}; {hint}"`, unless its
+/// message already names `flag` (the library's messages name no flags; older ones did).
+pub fn with_hint(error: impl std::fmt::Display, flag: &str, hint: &str) -> anyhow::Error {
+    let message = error.to_string();
+    if message.contains(flag) {
+        anyhow::Error::msg(message)
+    } else {
+        anyhow::anyhow!("{message}; {hint}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_command_line_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn color_is_read_before_parsing() {
+        let args = |list: &[&str]| list.iter().map(Into::into).collect::<Vec<_>>();
+        assert_eq!(color_in_args(&args(&["polycal", "solve", "x"])), None);
+        assert_eq!(
+            color_in_args(&args(&["polycal", "--color", "never", "solve"])),
+            Some(ColorWhen::Never)
+        );
+        assert_eq!(
+            color_in_args(&args(&["polycal", "solve", "--color=always"])),
+            Some(ColorWhen::Always)
+        );
+        assert_eq!(
+            color_in_args(&args(&["polycal", "--color=bad", "solve"])),
+            None
+        );
+        assert_eq!(
+            color_in_args(&args(&["polycal", "solve", "--", "--color=always"])),
+            None
+        );
+    }
+
+    #[test]
+    fn a_hint_is_added_once() {
+        assert_eq!(
+            with_hint("does not apply", "--method", "use --method lsq").to_string(),
+            "does not apply; use --method lsq"
+        );
+        assert_eq!(
+            with_hint(
+                "does not apply; use --method lsq",
+                "--method",
+                "use --method lsq"
+            )
+            .to_string(),
+            "does not apply; use --method lsq"
+        );
+    }
+}

@@ -1,0 +1,266 @@
+//! `polycal solve`: measurement files to pitch deviations, encoder errors and setup
+//! errors, with the uncertainty of a budget and a Monte Carlo through the solver.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::ValueEnum;
+use polycal::input::display_name;
+use polycal::measurement::{MeasurementSet, Sigma};
+use polycal::report::{self, SolveReport};
+use polycal::solve::{self, Method, SolveError, SolveOptions};
+use polycal::uncertainty::calibration::{self, InstrumentBudget, McOptions, McSolver};
+use polycal::uncertainty::monte_carlo::Trials;
+
+use super::output::Output;
+use super::{EXIT_ERROR, EXIT_OK, EXIT_VERDICT, with_hint};
+
+/// After `polycal solve --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  polycal solve examples/data/polygon24-2ac-6cycles.csv
+  polycal solve examples/data/polygon24-2ac-6cycles.csv --format csv > result.csv
+  polycal solve examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml
+  polycal solve examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml --monte-carlo 1e5 --format json";
+
+/// Arguments of `polycal solve`.
+#[derive(clap::Args)]
+pub struct SolveArgs {
+    /// Measurement CSV files (FORMAT.md §2); `-` reads standard input.
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+    /// Number of polygon faces (default: the largest face in the file).
+    #[arg(long)]
+    faces: Option<usize>,
+    /// Solver.
+    #[arg(long, value_enum, default_value = "auto")]
+    method: MethodArg,
+    /// Standard deviation of one reading, arcsec, for the uncertainties of an
+    /// exactly determined fit (dof = 0).
+    #[arg(long, allow_negative_numbers = true)]
+    sigma: Option<Sigma>,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "table")]
+    format: SolveFormat,
+    /// Instrument budget (TOML, FORMAT.md §5 with `acts_on` per component): adds the
+    /// expanded uncertainty U and k of every result, combining the fit's type A with
+    /// the budget through the design.
+    #[arg(long, value_name = "FILE.toml")]
+    budget: Option<PathBuf>,
+    /// Monte Carlo through the solver (JCGM 101): a number of trials (e.g. 1000000 or
+    /// 1e6) or `adaptive` (JCGM 101 §7.9). Needs --budget.
+    #[arg(long, value_name = "N|adaptive", value_parser = parse_trials)]
+    monte_carlo: Option<McTrials>,
+    /// Seed of the Monte Carlo (same seed, same numbers, whatever the threads).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Significant digits of u_c for the Monte Carlo validation of the GUM result and
+    /// for the adaptive procedure.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=6))]
+    mc_digits: u32,
+    /// Largest number of trials of the adaptive procedure.
+    #[arg(long, default_value_t = 10_000_000)]
+    mc_max_trials: usize,
+}
+
+/// `solve --format`.
+#[derive(Clone, Copy, ValueEnum)]
+enum SolveFormat {
+    Table,
+    Json,
+    Csv,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum MethodArg {
+    /// The closed form where it applies, else least squares.
+    Auto,
+    /// The paper's closed form, eqs. (6)-(10).
+    ClosedForm,
+    /// General constrained least squares.
+    Lsq,
+}
+
+/// `--monte-carlo`: a number of trials or the adaptive procedure.
+#[derive(Debug, Clone, Copy)]
+enum McTrials {
+    Fixed(usize),
+    Adaptive,
+}
+
+fn parse_trials(text: &str) -> Result<McTrials, String> {
+    if text == "adaptive" {
+        return Ok(McTrials::Adaptive);
+    }
+    let trials = text
+        .parse::<usize>()
+        .ok()
+        .or_else(|| {
+            text.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && *v >= 1.0 && v.fract() == 0.0 && *v <= 1e12)
+                .map(|v| v as usize)
+        })
+        .ok_or_else(|| {
+            format!("expected a number of trials (e.g. 1000000 or 1e6) or `adaptive`, got {text:?}")
+        })?;
+    Ok(McTrials::Fixed(trials))
+}
+
+/// `polycal solve`: returns the exit status, or an error for the `error:` line.
+pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
+    let budget = args
+        .budget
+        .as_deref()
+        .map(InstrumentBudget::read_path)
+        .transpose()?;
+    if args.monte_carlo.is_some() && budget.is_none() {
+        bail!(
+            "--monte-carlo needs --budget: the Monte Carlo propagates the instrument budget \
+             with the reading noise (see examples/budgets/instrument.toml)"
+        );
+    }
+    if let Some(budget) = &budget {
+        for note in budget.notes() {
+            out.warning(note);
+        }
+    }
+    let mc_options = args.monte_carlo.map(|trials| McOptions {
+        trials: match trials {
+            McTrials::Fixed(m) => Trials::Fixed(m),
+            McTrials::Adaptive => Trials::Adaptive {
+                significant_digits: args.mc_digits,
+                max_trials: args.mc_max_trials,
+            },
+        },
+        seed: args.seed,
+        significant_digits: args.mc_digits,
+        solver: McSolver::Auto,
+    });
+    let options = SolveOptions::new()
+        .with_method(match args.method {
+            MethodArg::Auto => Method::Auto,
+            MethodArg::ClosedForm => Method::ClosedForm,
+            MethodArg::Lsq => Method::LeastSquares,
+        })
+        .with_sigma_opt(args.sigma);
+    let files = &args.files;
+    let several = files.len() > 1;
+    let stdout = std::io::stdout();
+    let mut stdout = stdout.lock();
+    let mut failures = 0;
+    let mut not_validated = 0;
+    let mut csv_rows = Vec::new();
+    for path in files {
+        // The name in messages (`<stdin>` for `-`); results keep the path as given.
+        let name = display_name(path);
+        let label = path.display().to_string();
+        let solved = MeasurementSet::read_path(path, args.faces)
+            .map_err(anyhow::Error::from)
+            .and_then(|set| {
+                solve::solve(&set, &options)
+                    .map_err(actionable)
+                    .with_context(|| format!("{name}: cannot solve"))
+                    .map(|solution| (set, solution))
+            });
+        let evaluated = solved.and_then(|(set, solution)| {
+            let Some(budget) = &budget else {
+                return Ok((solution, None, None));
+            };
+            let gum = calibration::evaluate(&set, &solution, budget)
+                .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
+            let mc = mc_options
+                .as_ref()
+                .map(|options| calibration::monte_carlo(&set, &solution, budget, &gum, options))
+                .transpose()
+                .with_context(|| format!("{name}: Monte Carlo failed"))?;
+            Ok((solution, Some(gum), mc))
+        });
+        let (solution, gum, mc) = match evaluated {
+            Ok(triple) => triple,
+            Err(error) => {
+                out.error(&error);
+                failures += 1;
+                continue;
+            }
+        };
+        if mc.as_ref().is_some_and(|mc| !mc.validated) {
+            not_validated += 1;
+        }
+        match args.format {
+            SolveFormat::Json => {
+                let mut report = SolveReport::new(&solution, several.then(|| label.clone()));
+                if let Some(gum) = &gum {
+                    report = report.with_uncertainty(gum);
+                }
+                if let Some(mc) = mc {
+                    report = report.with_monte_carlo(mc);
+                }
+                writeln!(stdout, "{}", report.to_json()?)?;
+            }
+            SolveFormat::Table => {
+                if several {
+                    writeln!(stdout)?;
+                }
+                let mut text = String::new();
+                report::write_table(&mut text, &solution, &label, gum.as_ref(), mc.as_ref())?;
+                write!(stdout, "{text}")?;
+            }
+            SolveFormat::Csv => {
+                let rows = report::result_rows_with(&solution, gum.as_ref());
+                csv_rows.push((label, rows));
+            }
+        }
+    }
+    if matches!(args.format, SolveFormat::Csv) && !csv_rows.is_empty() {
+        if several {
+            report::write_results_with_file(&mut stdout, &csv_rows)?;
+        } else {
+            polycal::results::write_results(&mut stdout, &csv_rows[0].1)?;
+        }
+    }
+    stdout.flush()?;
+    if failures > 0 {
+        if several {
+            bail!("{failures} of {} files could not be solved", files.len());
+        }
+        return Ok(EXIT_ERROR);
+    }
+    if not_validated > 0 {
+        out.warning(
+            "Monte Carlo does not validate the GUM uncertainty of some quantities \
+             (JCGM 101 §8); see the monte_carlo results",
+        );
+        return Ok(EXIT_VERDICT);
+    }
+    Ok(EXIT_OK)
+}
+
+/// A solver error with the option that gets past it, where one does.
+fn actionable(error: SolveError) -> anyhow::Error {
+    match error {
+        SolveError::ClosedFormNotApplicable(_) => {
+            with_hint(error, "--method lsq", "use --method lsq")
+        }
+        other => other.into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trials_are_a_count_or_adaptive() {
+        assert!(matches!(
+            parse_trials("1e6"),
+            Ok(McTrials::Fixed(1_000_000))
+        ));
+        assert!(matches!(parse_trials("20000"), Ok(McTrials::Fixed(20_000))));
+        assert!(matches!(parse_trials("adaptive"), Ok(McTrials::Adaptive)));
+        for bad in ["1.5", "-3", "many", "1e13"] {
+            assert!(parse_trials(bad).is_err(), "{bad}");
+        }
+    }
+}
