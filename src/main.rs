@@ -295,17 +295,17 @@ fn run_solve(
             eprintln!("warning: {note}");
         }
     }
-    let mc_options = uncertainty.monte_carlo.map(|trials| McOptions {
-        trials: match trials {
+    let mc_options = uncertainty.monte_carlo.map(|trials| {
+        McOptions::new(match trials {
             McTrials::Fixed(m) => Trials::Fixed(m),
             McTrials::Adaptive => Trials::Adaptive {
                 significant_digits: uncertainty.mc_digits,
                 max_trials: uncertainty.mc_max_trials,
             },
-        },
-        seed: uncertainty.seed,
-        significant_digits: uncertainty.mc_digits,
-        solver: McSolver::Auto,
+        })
+        .with_seed(uncertainty.seed)
+        .with_significant_digits(uncertainty.mc_digits)
+        .with_solver(McSolver::Auto)
     });
     let options = SolveOptions::new()
         .with_method(match method {
@@ -334,6 +334,11 @@ fn run_solve(
                 return Ok((solution, None, None));
             };
             let gum = calibration::evaluate(&set, &solution, budget)
+                .map_err(|e| match e {
+                    // Library messages name no flags: the CLI adds the one that helps.
+                    calibration::CalibrationError::NoSigma => anyhow::anyhow!("{e} (--sigma)"),
+                    e => e.into(),
+                })
                 .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
             let mc = mc_options
                 .as_ref()
@@ -485,7 +490,7 @@ fn run_budget(file: &Path, format: FormatArg) -> Result<u8> {
     let mut out = stdout.lock();
     match format {
         FormatArg::Json => writeln!(out, "{}", report::to_json(&result)?)?,
-        FormatArg::Table => write!(out, "{}", polycal::uncertainty::render_table(&result))?,
+        FormatArg::Table => write!(out, "{}", polycal::uncertainty::budget_table(&result))?,
         FormatArg::Csv => bail!("budget reports as table or json, not csv"),
     }
     out.flush()?;
