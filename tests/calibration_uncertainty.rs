@@ -303,7 +303,11 @@ fn no_sigma_is_refused() {
         &one(Distribution::Normal { u: 0.1 }, Scope::Result),
     )
     .unwrap_err();
-    assert!(error.to_string().contains("--sigma"), "{error}");
+    assert!(
+        matches!(error, calibration::CalibrationError::NoSigma),
+        "{error}"
+    );
+    assert!(!error.to_string().contains("--"), "{error}");
 }
 
 /// The budget file: `acts_on` per component, inherited by nested components, default
@@ -408,12 +412,10 @@ fn mc(
     solver: McSolver,
 ) -> (CalibrationUncertainty, calibration::CalibrationMonteCarlo) {
     let unc = calibration::evaluate(set, solution, budget).unwrap();
-    let options = McOptions {
-        trials: Trials::Fixed(trials),
-        seed,
-        significant_digits: 2,
-        solver,
-    };
+    let options = McOptions::new(Trials::Fixed(trials))
+        .with_seed(seed)
+        .with_significant_digits(2)
+        .with_solver(solver);
     let result = calibration::monte_carlo(set, solution, budget, &unc, &options).unwrap();
     (unc, result)
 }
@@ -543,12 +545,10 @@ fn monte_carlo_validates_a_normal_calibration() {
     let solution = solved(&set, Method::Auto, Some(0.05));
     let budget = one(Distribution::Normal { u: 0.03 }, Scope::EachReading);
     let unc = calibration::evaluate(&set, &solution, &budget).unwrap();
-    let options = McOptions {
-        trials: Trials::Fixed(200_000),
-        seed: 3,
-        significant_digits: 1,
-        solver: McSolver::Auto,
-    };
+    let options = McOptions::new(Trials::Fixed(200_000))
+        .with_seed(3)
+        .with_significant_digits(1)
+        .with_solver(McSolver::Auto);
     let result = calibration::monte_carlo(&set, &solution, &budget, &unc, &options).unwrap();
     assert!(result.validated);
     assert_eq!(
@@ -573,12 +573,9 @@ fn monte_carlo_is_reproducible_whatever_the_threads() {
             .num_threads(threads)
             .build()
             .unwrap();
-        let options = McOptions {
-            trials,
-            seed,
-            significant_digits: 1,
-            solver: McSolver::Auto,
-        };
+        let options = McOptions::new(trials)
+            .with_seed(seed)
+            .with_significant_digits(1);
         pool.install(|| calibration::monte_carlo(&set, &solution, &budget, &unc, &options))
             .unwrap()
     };
@@ -597,6 +594,49 @@ fn monte_carlo_is_reproducible_whatever_the_threads() {
     assert_eq!(a, run(2, adaptive, 7));
     assert_eq!(a.trials % 10_000, 0);
     assert!(a.sequences.unwrap() >= 2);
+}
+
+/// The progress observer of the options sees every trial, block by block (the total of a
+/// fixed run known, none for the adaptive procedure), and changes no number.
+#[test]
+fn monte_carlo_reports_progress() {
+    let budget = one(
+        Distribution::Rectangular { half_width: 0.1 },
+        Scope::EachStop,
+    );
+    let set = design(12, 2, false, 14);
+    let solution = solved(&set, Method::Auto, None);
+    let unc = calibration::evaluate(&set, &solution, &budget).unwrap();
+    let seen = std::sync::Mutex::new(Vec::new());
+    let observer = |done: u64, total: Option<u64>| seen.lock().unwrap().push((done, total));
+    let adaptive = Trials::Adaptive {
+        significant_digits: 1,
+        max_trials: 1_000_000,
+    };
+    for trials in [Trials::Fixed(31_234), adaptive] {
+        let options = McOptions::new(trials).with_seed(2);
+        let quiet = calibration::monte_carlo(&set, &solution, &budget, &unc, &options).unwrap();
+        let observed = calibration::monte_carlo(
+            &set,
+            &solution,
+            &budget,
+            &unc,
+            &options.with_progress(&observer),
+        )
+        .unwrap();
+        assert_eq!(quiet, observed);
+        let calls = std::mem::take(&mut *seen.lock().unwrap());
+        assert!(calls.windows(2).all(|w| w[0].0 < w[1].0), "{calls:?}");
+        let (done, total) = *calls.last().unwrap();
+        assert_eq!(done, quiet.trials as u64);
+        match trials {
+            Trials::Fixed(m) => {
+                assert_eq!(total, Some(m as u64));
+                assert_eq!(calls.len(), m.div_ceil(1000));
+            }
+            Trials::Adaptive { .. } => assert!(calls.iter().all(|c| c.1.is_none())),
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------

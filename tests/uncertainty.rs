@@ -435,7 +435,9 @@ fn table_shows_gum_workbench_columns() {
     let r = paper_table1()
         .evaluate(0.95, DofPolicy::Fractional)
         .unwrap();
-    let table = render_table(&r);
+    let mut table = String::new();
+    render_table(&mut table, &r).unwrap();
+    assert_eq!(table, polycal::uncertainty::budget_table(&r).to_string());
     for needle in [
         "Quantity",
         "Type",
@@ -801,4 +803,70 @@ fn budget_file_io_errors_name_the_file() {
         .unwrap_err()
         .to_string();
     assert!(e.starts_with("no/such/budget.toml: "), "{e}");
+}
+
+/// Every refusal is a typed error: the place of a problem in a file is a
+/// `polycal::input::Location`, unknown keywords and bad distributions have their own
+/// variants, and no message names a command-line flag.
+#[test]
+fn refusals_are_typed() {
+    use polycal::uncertainty::DistributionError;
+    use polycal::uncertainty::calibration::Scope;
+
+    let e = "fractionnal".parse::<DofPolicy>().unwrap_err();
+    assert!(matches!(&e, BudgetError::UnknownDofPolicy(s) if s == "fractionnal"));
+    assert_eq!(
+        e.to_string(),
+        "unknown dof_policy \"fractionnal\": expected \"fractional\", \"floor\" or \"k2\""
+    );
+    assert_eq!("floor".parse::<DofPolicy>().unwrap(), DofPolicy::Floor);
+    let e = "everywhere".parse::<Scope>().unwrap_err();
+    assert!(matches!(&e, BudgetError::UnknownScope(s) if s == "everywhere"));
+    assert_eq!("each-stop".parse::<Scope>().unwrap(), Scope::EachStop);
+
+    assert_eq!(
+        Distribution::Rectangular { half_width: -0.1 }.check(),
+        Err(DistributionError::Negative {
+            what: "half width",
+            value: -0.1
+        })
+    );
+    assert!(matches!(
+        Distribution::StudentT {
+            scale: 1.0,
+            dof: f64::NAN
+        }
+        .check(),
+        Err(DistributionError::TDof(nu)) if nu.is_nan()
+    ));
+    assert_eq!(Distribution::Normal { u: 0.1 }.check(), Ok(()));
+
+    let text = "[[component]]\nname = \"x\"\ntype = \"B\"\ndistribution = \"normal\"\nu = -1\n";
+    match BudgetFile::from_toml_str(text, "b.toml").unwrap_err() {
+        BudgetError::File { location, message } => {
+            assert_eq!(
+                (location.file(), location.line(), location.column()),
+                ("b.toml", 5, 5)
+            );
+            assert_eq!(message, "u must not be negative, got -1");
+        }
+        other => panic!("{other:?}"),
+    }
+    match BudgetFile::read_path("no/such/budget.toml").unwrap_err() {
+        BudgetError::Io { location, .. } => {
+            assert_eq!(location.to_string(), "no/such/budget.toml");
+            assert_eq!(location.line(), 0);
+        }
+        other => panic!("{other:?}"),
+    }
+    let dir = std::env::temp_dir().join(format!("polycal-unc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let latin1 = dir.join("latin1.toml");
+    std::fs::write(&latin1, b"[[component]]\nname = \"\xe9\"\n").unwrap();
+    let e = BudgetFile::read_path(&latin1).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!("{}: stream did not contain valid UTF-8", latin1.display())
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

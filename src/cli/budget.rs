@@ -38,7 +38,7 @@ pub fn run(args: &BudgetArgs) -> Result<u8> {
     match args.format {
         ReportFormat::Json => writeln!(stdout, "{}", polycal::report::to_json(&result)?)?,
         ReportFormat::Table => {
-            write!(stdout, "{}", polycal::uncertainty::render_table(&result))?;
+            write!(stdout, "{}", polycal::uncertainty::budget_table(&result))?;
         }
     }
     stdout.flush()?;

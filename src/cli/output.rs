@@ -110,13 +110,6 @@ impl Output {
     /// Monte Carlo [##########....................] 352000/1000000 trials · 3s left
     /// Monte Carlo ⠙ 352000 trials · 4s
     /// ```
-    #[cfg_attr(
-        not(test),
-        expect(
-            dead_code,
-            reason = "wired at merge to the library's Monte Carlo progress hook"
-        )
-    )]
     pub fn progress_bar(&self, what: &str) -> impl Fn(u64, Option<u64>) + Sync + Send + use<> {
         let enabled = self.shows_progress();
         let bar = ProgressBar::hidden().with_prefix(what.to_string());

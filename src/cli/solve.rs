@@ -126,17 +126,19 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             out.warning(note);
         }
     }
-    let mc_options = args.monte_carlo.map(|trials| McOptions {
-        trials: match trials {
+    let progress = out.progress_bar("Monte Carlo");
+    let mc_options = args.monte_carlo.map(|trials| {
+        McOptions::new(match trials {
             McTrials::Fixed(m) => Trials::Fixed(m),
             McTrials::Adaptive => Trials::Adaptive {
                 significant_digits: args.mc_digits,
                 max_trials: args.mc_max_trials,
             },
-        },
-        seed: args.seed,
-        significant_digits: args.mc_digits,
-        solver: McSolver::Auto,
+        })
+        .with_seed(args.seed)
+        .with_significant_digits(args.mc_digits)
+        .with_solver(McSolver::Auto)
+        .with_progress(&progress)
     });
     let options = SolveOptions::new()
         .with_method(match args.method {
@@ -169,6 +171,11 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                 return Ok((solution, None, None));
             };
             let gum = calibration::evaluate(&set, &solution, budget)
+                .map_err(|e| match e {
+                    // Library messages name no flags: the CLI adds the one that helps.
+                    calibration::CalibrationError::NoSigma => anyhow::anyhow!("{e} (--sigma)"),
+                    e => e.into(),
+                })
                 .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
             let mc = mc_options
                 .as_ref()

@@ -29,6 +29,7 @@ use serde::Serialize;
 
 use super::distribution::Distribution;
 use super::student::t_quantile;
+use crate::input::Location;
 
 /// How a standard uncertainty was evaluated (GUM 4.2 and 4.3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -122,15 +123,19 @@ impl fmt::Display for DofPolicy {
 }
 
 impl FromStr for DofPolicy {
-    type Err = String;
-    fn from_str(s: &str) -> Result<DofPolicy, String> {
+    type Err = BudgetError;
+
+    /// Reads `fractional`, `floor` or `k2`.
+    ///
+    /// # Errors
+    ///
+    /// [`BudgetError::UnknownDofPolicy`] for any other text.
+    fn from_str(s: &str) -> Result<DofPolicy, BudgetError> {
         match s {
             "fractional" => Ok(DofPolicy::Fractional),
             "floor" => Ok(DofPolicy::Floor),
             "k2" => Ok(DofPolicy::K2),
-            other => Err(format!(
-                "unknown dof_policy {other:?}: expected \"fractional\", \"floor\" or \"k2\""
-            )),
+            other => Err(BudgetError::UnknownDofPolicy(other.to_string())),
         }
     }
 }
@@ -233,38 +238,45 @@ pub struct Budget {
     pub correlations: Vec<Correlation>,
 }
 
-/// Why a budget cannot be evaluated. Budgets read from a file are reported with the file,
-/// line and column where possible ([`BudgetError::File`]).
+/// Why a budget cannot be read or evaluated. Budgets read from a file are reported with
+/// the file, line and column where possible ([`BudgetError::File`]).
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum BudgetError {
     /// A problem at a place in a budget file.
-    #[error("{file}:{line}:{column}: {message}")]
+    #[error("{location}: {message}")]
     File {
-        /// The file name (`<stdin>` for standard input).
-        file: String,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column (characters).
-        column: usize,
+        /// File (named [`crate::input::STDIN_NAME`] for standard input), line and column.
+        location: Location,
         /// What is wrong.
         message: String,
     },
     /// A problem of a whole budget read from a file (no single place to point at).
-    #[error("{file}: {error}")]
+    #[error("{location}: {error}")]
     InFile {
-        /// The file name.
-        file: String,
+        /// The file.
+        location: Location,
         /// The problem.
         error: Box<BudgetError>,
     },
     /// The file could not be read.
-    #[error("{file}: {source}")]
+    #[error("{location}: {source}")]
     Io {
-        /// The file name.
-        file: String,
+        /// The file.
+        location: Location,
         /// The I/O error.
         source: std::io::Error,
     },
+    /// A `dof_policy` that is not `fractional`, `floor` or `k2`.
+    #[error("unknown dof_policy {0:?}: expected \"fractional\", \"floor\" or \"k2\"")]
+    UnknownDofPolicy(String),
+    /// An `acts_on` that is not one of the scopes of an instrument budget
+    /// ([`crate::uncertainty::calibration::Scope`]).
+    #[error(
+        "unknown acts_on {0:?}: expected \"each-reading\", \"each-autocollimator\", \
+         \"each-position\", \"each-stop\" or \"result\""
+    )]
+    UnknownScope(String),
     /// The coverage probability is not in (0, 1).
     #[error("coverage probability p must be between 0 and 1 (exclusive), got {0}")]
     Coverage(f64),
@@ -531,7 +543,7 @@ impl Budget {
                     distribution,
                     dof,
                 } => {
-                    distribution.check().map_err(bad)?;
+                    distribution.check().map_err(|e| bad(e.to_string()))?;
                     let dof = check_dof(*dof).map_err(bad)?;
                     if let (Some(own), Some(given)) = (distribution.own_dof(), dof)
                         && own != given
@@ -703,70 +715,4 @@ fn positive_semidefinite(m: &[f64], n: usize) -> bool {
         }
     }
     true
-}
-
-/// Renders an evaluated budget as a table in the style of GUM Workbench: quantity, type,
-/// distribution, `u(xᵢ)`, `cᵢ`, `uᵢ(y)`, `νᵢ`, index; then `u_c`, `ν_eff`, `k` and `U`.
-/// Numbers are rounded for reading (4 significant digits; `ν` to 0.1; `k` to 0.001);
-/// JSON carries them at full precision. Components of nested budgets are indented.
-pub fn render_table(result: &BudgetResult) -> String {
-    let mut rows: Vec<[String; 8]> = Vec::new();
-    fn walk(rows: &mut Vec<[String; 8]>, lines: &[ComponentResult], depth: usize) {
-        for l in lines {
-            rows.push([
-                format!("{}{}", "  ".repeat(depth), l.name),
-                l.evaluation.to_string(),
-                l.distribution.clone(),
-                super::format::sig(l.u, 4),
-                super::format::sig(l.sensitivity, 4),
-                super::format::sig(l.contribution, 4),
-                super::format::dof(l.dof),
-                format!("{:.1} %", l.index_percent),
-            ]);
-            walk(rows, &l.components, depth + 1);
-        }
-    }
-    walk(&mut rows, &result.components, 0);
-    let header = [
-        "Quantity".to_string(),
-        "Type".into(),
-        "Distribution".into(),
-        "u(x_i)".into(),
-        "c_i".into(),
-        "u_i(y)".into(),
-        "ν_i".into(),
-        "Index".into(),
-    ];
-    let mut out = super::format::table(
-        &header,
-        &rows,
-        &[false, false, false, true, true, true, true, true],
-    );
-    let k_note = match result.dof_policy {
-        DofPolicy::K2 => "k = 2 by policy".to_string(),
-        _ => format!(
-            "t at p = {} % for ν = {}",
-            super::format::percent(result.p),
-            super::format::dof(result.dof_for_k())
-        ),
-    };
-    out.push('\n');
-    out.push_str(&format!(
-        "Combined standard uncertainty   u_c   = {}\n",
-        super::format::sig(result.combined_u, 4)
-    ));
-    out.push_str(&format!(
-        "Effective degrees of freedom    ν_eff = {}\n",
-        super::format::dof(result.dof_eff)
-    ));
-    out.push_str(&format!(
-        "Coverage factor                 k     = {:.3} ({k_note})\n",
-        result.k
-    ));
-    out.push_str(&format!(
-        "Expanded uncertainty            U     = {} (p = {} %)\n",
-        super::format::sig(result.expanded_u, 3),
-        super::format::percent(result.p)
-    ));
-    out
 }

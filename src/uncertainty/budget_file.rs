@@ -32,7 +32,6 @@
 //! key or distribution, a negative width, `dof < 1`, `p` outside (0, 1), duplicate names,
 //! and so on. Nothing is guessed.
 
-use std::io::Read;
 use std::ops::Range;
 use std::path::Path;
 
@@ -43,6 +42,7 @@ use super::budget::{
     Budget, BudgetError, BudgetResult, Component, Correlation, DofPolicy, EvaluationType,
 };
 use super::distribution::Distribution;
+use crate::input::{self, Location};
 
 /// A budget read from a file, with its coverage probability and degrees-of-freedom policy.
 #[derive(Debug, Clone, PartialEq)]
@@ -58,25 +58,30 @@ pub struct BudgetFile {
 }
 
 /// The name and text of a budget file; the path `-` reads standard input (named
-/// `<stdin>` in messages).
+/// [`crate::input::STDIN_NAME`] in messages).
 pub(crate) fn read_budget_text(path: &Path) -> Result<(String, String), BudgetError> {
-    if path == Path::new("-") {
-        let mut text = String::new();
-        std::io::stdin()
-            .read_to_string(&mut text)
-            .map_err(|e| BudgetError::Io {
-                file: "<stdin>".into(),
-                source: e,
-            })?;
-        Ok(("<stdin>".to_string(), text))
-    } else {
-        let source = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| BudgetError::Io {
-            file: source.clone(),
-            source: e,
-        })?;
-        Ok((source, text))
+    let io = |name: String, source| BudgetError::Io {
+        location: Location::file_only(name),
+        source,
+    };
+    let (bytes, name) = input::read_bytes(path).map_err(|(name, e)| io(name, e))?;
+    match String::from_utf8(bytes) {
+        Ok(text) => Ok((name, text)),
+        // The message of `std::fs::read_to_string` for the same file.
+        Err(_) => Err(io(
+            name,
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                "stream did not contain valid UTF-8",
+            ),
+        )),
     }
+}
+
+/// A place in a budget file's text: its name, and the line and column of a byte offset.
+pub(crate) fn location(source: &str, text: &str, offset: usize) -> Location {
+    let (line, column) = line_column(text, offset);
+    Location::new(source, line as u64, column as u64)
 }
 
 impl BudgetFile {
@@ -97,14 +102,9 @@ impl BudgetFile {
     ///
     /// [`BudgetError::File`] naming `source`, the line and the column.
     pub fn from_toml_str(text: &str, source: &str) -> Result<BudgetFile, BudgetError> {
-        let at = |span: Range<usize>, message: String| {
-            let (line, column) = line_column(text, span.start);
-            BudgetError::File {
-                file: source.to_string(),
-                line,
-                column,
-                message,
-            }
+        let at = |span: Range<usize>, message: String| BudgetError::File {
+            location: location(source, text, span.start),
+            message,
         };
         let raw: RawFile = toml::from_str(text).map_err(|e| {
             let span = e.span().unwrap_or(0..0);
@@ -139,7 +139,10 @@ impl BudgetFile {
         };
         let dof_policy = match &raw.dof_policy {
             None => DofPolicy::Fractional,
-            Some(s) => s.get_ref().parse().map_err(|e: String| at(s.span(), e))?,
+            Some(s) => s
+                .get_ref()
+                .parse()
+                .map_err(|e: BudgetError| at(s.span(), e.to_string()))?,
         };
         if raw.component.is_empty() {
             return Err(at(
@@ -166,7 +169,7 @@ impl BudgetFile {
         self.budget
             .evaluate(self.p, self.dof_policy)
             .map_err(|e| BudgetError::InFile {
-                file: self.source.clone(),
+                location: Location::file_only(&self.source),
                 error: Box::new(e),
             })
     }
@@ -182,7 +185,7 @@ pub fn read_budget_path(path: impl AsRef<Path>) -> Result<BudgetFile, BudgetErro
 }
 
 /// 1-based line and column (in characters) of a byte offset.
-pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let mut offset = offset.min(text.len());
     while !text.is_char_boundary(offset) {
         offset -= 1;
@@ -232,6 +235,8 @@ struct RawCorrelation {
     between: Spanned<Vec<Spanned<String>>>,
     r: Spanned<f64>,
 }
+
+const EXPANDED_NEEDS_K: &str = "expanded needs its coverage factor k (e.g. k = 2)";
 
 type At<'a> = dyn Fn(Range<usize>, String) -> BudgetError + 'a;
 
@@ -468,10 +473,7 @@ fn build_component(raw: &Spanned<RawComponent>, at: &At<'_>) -> Result<Component
         ));
     }
     if let (Some(e), None) = (&c.expanded, &c.k) {
-        return Err(at(
-            e.span(),
-            "expanded needs its coverage factor k (e.g. k = 2)".to_string(),
-        ));
+        return Err(at(e.span(), EXPANDED_NEEDS_K.to_string()));
     }
     if let Some(k) = &c.k
         && *k.get_ref() <= 0.0
@@ -552,9 +554,10 @@ fn build_component(raw: &Spanned<RawComponent>, at: &At<'_>) -> Result<Component
     let x = *value.get_ref();
     let distribution = match (distribution_name, key) {
         ("normal", "u") => Distribution::Normal { u: x },
-        ("normal", "expanded") => {
-            Distribution::normal_expanded(x, *c.k.as_ref().expect("checked above").get_ref())
-        }
+        ("normal", "expanded") => match &c.k {
+            Some(k) => Distribution::normal_expanded(x, *k.get_ref()),
+            None => return Err(at(value.span(), EXPANDED_NEEDS_K.to_string())),
+        },
         ("t", _) => match dof {
             Some(nu) => Distribution::StudentT { scale: x, dof: nu },
             None => {

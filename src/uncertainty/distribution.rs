@@ -122,8 +122,11 @@ impl Distribution {
     }
 
     /// Checks the parameters: widths and uncertainties finite and not negative, `ν > 0`.
-    /// The message names the offending parameter.
-    pub fn check(&self) -> Result<(), String> {
+    ///
+    /// # Errors
+    ///
+    /// [`DistributionError`] naming the offending parameter.
+    pub fn check(&self) -> Result<(), DistributionError> {
         let (what, value) = match *self {
             Distribution::Normal { u } => ("standard uncertainty u", u),
             Distribution::Rectangular { half_width }
@@ -131,24 +134,22 @@ impl Distribution {
             | Distribution::Arcsine { half_width } => ("half width", half_width),
             Distribution::StudentT { scale, dof } => {
                 if !(dof.is_finite() && dof > 0.0) {
-                    return Err(format!(
-                        "degrees of freedom of the t distribution must be finite and > 0, got {dof}"
-                    ));
+                    return Err(DistributionError::TDof(dof));
                 }
                 ("scale", scale)
             }
         };
         if !value.is_finite() {
-            return Err(format!("{what} must be a finite number, got {value}"));
+            return Err(DistributionError::NotFinite { what, value });
         }
         if value < 0.0 {
-            return Err(format!("{what} must not be negative, got {value}"));
+            return Err(DistributionError::Negative { what, value });
         }
         Ok(())
     }
 
     /// A sampler ready to draw from the distribution (centred on zero).
-    pub(crate) fn sampler(&self) -> Result<Sampler, String> {
+    pub(crate) fn sampler(&self) -> Result<Sampler, DistributionError> {
         self.check()?;
         Ok(match *self {
             Distribution::Normal { u } => Sampler::Normal(u),
@@ -157,10 +158,35 @@ impl Distribution {
             Distribution::Arcsine { half_width } => Sampler::Arcsine(half_width),
             Distribution::StudentT { scale, dof } => Sampler::StudentT(
                 scale,
-                rand_distr::StudentT::new(dof).map_err(|e| e.to_string())?,
+                rand_distr::StudentT::new(dof).map_err(|_| DistributionError::TDof(dof))?,
             ),
         })
     }
+}
+
+/// Why a [`Distribution`]'s parameters are invalid ([`Distribution::check`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum DistributionError {
+    /// The degrees of freedom of a t distribution are not finite and positive.
+    #[error("degrees of freedom of the t distribution must be finite and > 0, got {0}")]
+    TDof(f64),
+    /// A width, uncertainty or scale is not finite.
+    #[error("{what} must be a finite number, got {value}")]
+    NotFinite {
+        /// The parameter (`standard uncertainty u`, `half width` or `scale`).
+        what: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A width, uncertainty or scale is negative.
+    #[error("{what} must not be negative, got {value}")]
+    Negative {
+        /// The parameter (`standard uncertainty u`, `half width` or `scale`).
+        what: &'static str,
+        /// Its value.
+        value: f64,
+    },
 }
 
 /// A prepared draw from a [`Distribution`] (JCGM 101 §6.4 and annex C).

@@ -7,8 +7,10 @@
 //! - [`budget_file`]: the budget TOML file of FORMAT.md §5;
 //! - [`calibration`]: the uncertainty of the calibration results, per quantity: the fit's
 //!   covariance with the instrument's budget (GUM), and Monte Carlo through the solver;
-//! - [`monte_carlo`]: propagation of distributions (GUM Supplement 1, JCGM 101:2008),
-//!   with the adaptive procedure and the validation of the GUM result.
+//! - [`monte_carlo`]: propagation of distributions (GUM Supplement 1, JCGM 101:2008): one
+//!   engine, generic over the trial, with the adaptive procedure, a progress hook and the
+//!   validation of the GUM result; the calibration's Monte Carlo runs on it;
+//! - `format` (private): number formatting and the budget table ([`render_table`]).
 
 pub mod budget;
 pub mod budget_file;
@@ -20,8 +22,8 @@ pub mod student;
 
 pub use budget::{
     Budget, BudgetError, BudgetResult, Component, ComponentResult, DofPolicy, EvaluationType,
-    render_table,
 };
 pub use budget_file::{BudgetFile, read_budget_path};
-pub use distribution::Distribution;
+pub use distribution::{Distribution, DistributionError};
+pub use format::{budget_table, render_table};
 pub use student::{normal_cdf, normal_quantile, t_cdf, t_coverage, t_quantile};

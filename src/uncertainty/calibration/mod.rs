@@ -1,0 +1,176 @@
+//! Uncertainty of the calibration results: the fit's covariance (type A) combined with
+//! the instrument's type-B budget, per quantity and from the actual design (GUM), and the
+//! same propagated by Monte Carlo through the solver (GUM Supplement 1, JCGM 101:2008).
+//!
+//! # The propagation (GUM)
+//!
+//! The solver is linear in the readings: θ̂ = L y with θ = [β (N), α (N), U (K)], and for
+//! independent readings of equal weight Cov(θ̂) = σ² Q with Q = L Lᵀ the fit's cofactor
+//! matrix ([`Solution::cofactor`](crate::solve::Solution::cofactor)); L = Q Xᵀ with X the design matrix of the model, so
+//! L is built from Q without solving again. A type-B component is an error of the
+//! readings; its *scope* says which readings share one draw of it. If the readings of
+//! group g share the error e_g (standard uncertainty u, independent between groups),
+//! quantity j moves by Σ_g e_g Σ_{i∈g} L_ji and receives
+//!
+//! ```text
+//! u_j² = u² · G_j,   G_j = Σ_g (Σ_{i∈g} L_ji)²
+//! ```
+//!
+//! | `acts_on` | one draw shared by | G_j |
+//! |---|---|---|
+//! | `each-reading` | one reading (resolution, an angle error varying from reading to reading) | Q_jj, the same pattern as the noise |
+//! | `each-autocollimator` | all readings of one autocollimator (a constant offset) | 0 for β, φ and α: the setup error absorbs it (computed, not assumed) |
+//! | `each-position` | all readings at one table position p = step mod N, in every cycle | (1 − 1/N) for α, 0 for β and φ |
+//! | `each-stop` | the readings of one stop of the table (setup, cycle, step) | (1 − 1/N)/R for α with R cycles of the paper's design |
+//! | `result` (default) | nothing: added directly to every quantity, as the paper's Table 1 does | 1 (0 for the reference face φ\[N\]) |
+//!
+//! u_c,j² = u_A,j² + Σ_B u_B² G_B,j with u_A,j = σ√Q_jj the fit's type A, and the
+//! effective degrees of freedom by Welch–Satterthwaite, ν_eff = u_c⁴ / (u_A⁴/ν_A + Σ
+//! u_B,j⁴/ν_B), with ν_A the fit's residual degrees of freedom (infinite for a stated σ);
+//! k = t_p(ν_eff) under the budget's `dof_policy`, U = k·u_c ([`evaluate`]).
+//!
+//! # The budget file
+//!
+//! The budget file of FORMAT.md §5 with one more key per component, `acts_on` (above;
+//! default `"result"`). On a nested component it is the default of its components.
+//! The fit supplies the type A uncertainty of the readings (repeatability) from its
+//! residuals: the budget lists the instrument's other sources. See
+//! `examples/budgets/instrument.toml` and [`InstrumentBudget`].
+//!
+//! # Monte Carlo
+//!
+//! [`monte_carlo`] draws, per trial, the readings as the fitted model plus noise plus the
+//! type-B errors (each drawn from its distribution with its scope), solves them, and adds
+//! the `result` components to the outputs. The noise is normal with the stated σ, or,
+//! when σ comes from the residuals with ν degrees of freedom, normal with a standard
+//! deviation drawn per trial as s·√(ν/χ²_ν) — the multivariate t of a regression
+//! (JCGM 101 §6.4.9 for the mean of repeated indications, generalised), which is what
+//! the GUM's t factor with ν_A = ν assumes. Each trial is solved with the paper's closed
+//! form (generic over `Const<N>` for the usual N, no heap) when the design is the
+//! paper's, and with the least-squares solution operator θ = Q Xᵀ y otherwise. Results
+//! per quantity: mean, standard uncertainty, the probabilistically symmetric coverage
+//! interval, and the validation of the GUM interval (JCGM 101 §8).
+//!
+//! The trials run on the crate's one Monte Carlo engine
+//! ([`crate::uncertainty::monte_carlo::run`], with [`McModel`] as its
+//! [`Trial`](crate::uncertainty::monte_carlo::Trial)): blocks of
+//! [`BLOCK_SIZE`](crate::uncertainty::monte_carlo::BLOCK_SIZE) trials, block b drawing
+//! from ChaCha8 (`seed`, stream b), spread over rayon's threads and combined in block
+//! order, so the same seed gives the same numbers whatever the number of threads. The
+//! coverage interval is exact (the order statistics of all M trials, as a full sort
+//! would give) without storing every trial. [`McOptions::with_progress`] reports the
+//! trials done after every block, for a progress bar.
+//!
+//! # Files
+//!
+//! - `budget.rs`: scopes ([`Scope`], `acts_on`) and the instrument budget file
+//!   ([`InstrumentBudget`]);
+//! - `operator.rs`: the solution operator L = Q Xᵀ and the gains G_j of a scope;
+//! - `gum.rs`: the GUM propagation ([`evaluate`], [`CalibrationUncertainty`]);
+//! - `trial.rs`: the Monte Carlo trial model ([`McModel`]);
+//! - `mc.rs`: the Monte Carlo run and its validation of the GUM result ([`monte_carlo`],
+//!   [`McOptions`], [`CalibrationMonteCarlo`]).
+
+mod budget;
+mod gum;
+mod mc;
+mod operator;
+mod trial;
+
+pub use budget::{InstrumentBudget, Scope, ScopedComponent};
+pub use gum::{CalibrationUncertainty, ComponentContribution, FamilyUncertainty, evaluate};
+pub use mc::{CalibrationMonteCarlo, McFamily, McOptions, monte_carlo};
+pub use trial::{McModel, McScratch, McSolver};
+
+use super::monte_carlo::McError;
+
+/// Why the uncertainty of a calibration cannot be evaluated.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CalibrationError {
+    /// No σ: the fit is exactly determined and none was stated.
+    #[error(
+        "the fit is exactly determined (dof = 0) and no reading noise was stated, so the type A \
+         uncertainty is unknown: state the standard deviation of one reading"
+    )]
+    NoSigma,
+    /// The solution has effect terms, which this propagation does not cover.
+    #[error(
+        "the fit has {0} effect terms: the propagation of the budget covers the base model only"
+    )]
+    Effects(usize),
+    /// The solution is not the solution of this measurement set.
+    #[error("the solution does not belong to the measurement set: {0}")]
+    Mismatch(String),
+    /// The coverage probability is not in (0, 1).
+    #[error("coverage probability p must be between 0 and 1 (exclusive), got {0}")]
+    Coverage(f64),
+    /// A component is invalid.
+    #[error("component {name:?}: {message}")]
+    Component {
+        /// Its name.
+        name: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// ⌊ν_eff⌋ < 1 under the floor policy.
+    #[error(
+        "{quantity} {index}: effective degrees of freedom {dof} round down to 0: no t factor; \
+         use dof_policy = \"fractional\""
+    )]
+    FloorBelowOne {
+        /// The quantity.
+        quantity: &'static str,
+        /// Its index (face, position or stream).
+        index: usize,
+        /// ν_eff.
+        dof: f64,
+    },
+    /// The Monte Carlo run failed.
+    #[error(transparent)]
+    MonteCarlo(#[from] McError),
+}
+
+#[cfg(test)]
+pub(crate) mod test_support {
+    //! Measurement sets for the unit tests of the calibration uncertainty.
+
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution as _, StandardNormal};
+
+    use crate::measurement::{Direction, MeasurementSet, Reading};
+
+    /// Two autocollimators one face apart, `cycles` cycles of `n` steps (one more with
+    /// `closing`), smooth readings with noise 0.1.
+    pub(crate) fn set(n: usize, cycles: u32, closing: bool, seed: u64) -> MeasurementSet {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut readings = Vec::new();
+        for cycle in 1..=cycles {
+            for step in 0..(if closing { n + 1 } else { n }) {
+                for (ac, d) in [(1u32, 0usize), (2, 1)] {
+                    let z: f64 = StandardNormal.sample(&mut rng);
+                    readings.push(Reading {
+                        setup: 1,
+                        cycle,
+                        step,
+                        ac,
+                        face: (step + d) % n + 1,
+                        reading_arcsec: (step as f64 * 0.7).sin() + 0.3 * d as f64 + 0.1 * z,
+                        direction: Direction::Cw,
+                        time_seconds: None,
+                        reading_y_arcsec: None,
+                        temperature_celsius: None,
+                        encoder_degrees: None,
+                        line: 0,
+                    });
+                }
+            }
+        }
+        MeasurementSet {
+            faces: n,
+            readings,
+            source: "test".into(),
+        }
+    }
+}

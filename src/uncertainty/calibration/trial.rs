@@ -1,0 +1,592 @@
+//! The Monte Carlo trial model of a calibration (JCGM 101 §7.2 through the solver): draw
+//! the readings as the fitted model plus the reading noise plus the scoped type-B errors,
+//! solve them, add the `result` components ([`McModel`], the engine's
+//! [`Trial`](crate::uncertainty::monte_carlo::Trial)).
+
+use nalgebra::{DVector, DefaultAllocator, Dim, SVector, allocator::Allocator};
+use rand::Rng;
+use rand_distr::{ChiSquared, Distribution as _, StandardNormal};
+
+use super::operator::{Operator, groups};
+use super::{CalibrationError, InstrumentBudget, Scope};
+use crate::measurement::MeasurementSet;
+use crate::solve::{ClosedFormSolution, PaperDesign, SigmaSource, Solution, closed_form};
+use crate::uncertainty::distribution::{Distribution, Sampler};
+use crate::uncertainty::monte_carlo::{Trial, TrialFailure};
+
+/// Which solver the Monte Carlo trials use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum McSolver {
+    /// The paper's closed form (eqs. (6)–(10)) when the design is the paper's, else
+    /// least squares.
+    #[default]
+    Auto,
+    /// The least-squares solution operator θ = Q Xᵀ y, whatever the design.
+    LeastSquares,
+}
+
+/// Solves one trial's targets into the outputs; false on failure.
+type ClosedFormFn = fn(&[f64], usize, &mut [f64]) -> bool;
+
+fn write_closed_form<D: Dim>(s: &ClosedFormSolution<D>, offset: usize, out: &mut [f64])
+where
+    DefaultAllocator: Allocator<D>,
+{
+    let n = s.encoder_error.len();
+    let beta = s.polygon.pitch_deviation_arcsec();
+    let phi = s.polygon.face_deviation_arcsec();
+    for f in 0..n {
+        out[f] = beta[f];
+    }
+    for f in 0..n - 1 {
+        out[n + f] = phi[f];
+    }
+    for p in 0..n {
+        out[2 * n - 1 + p] = s.encoder_error[(p + offset) % n];
+    }
+}
+
+fn closed_form_const<const N: usize>(t: &[f64], offset: usize, out: &mut [f64]) -> bool {
+    let m1 = SVector::<f64, N>::from_column_slice(&t[..N]);
+    let m2 = SVector::<f64, N>::from_column_slice(&t[N..2 * N]);
+    match closed_form(&m1, &m2) {
+        Ok(s) => {
+            write_closed_form(&s, offset, out);
+            true
+        }
+        Err(_) => false,
+    }
+}
+
+fn closed_form_dyn(t: &[f64], offset: usize, out: &mut [f64]) -> bool {
+    let n = t.len() / 2;
+    let m1 = DVector::from_column_slice(&t[..n]);
+    let m2 = DVector::from_column_slice(&t[n..]);
+    match closed_form(&m1, &m2) {
+        Ok(s) => {
+            write_closed_form(&s, offset, out);
+            true
+        }
+        Err(_) => false,
+    }
+}
+
+macro_rules! closed_form_for {
+    ($n:expr; $($c:literal),*) => {
+        match $n {
+            $($c => closed_form_const::<$c> as ClosedFormFn,)*
+            _ => closed_form_dyn as ClosedFormFn,
+        }
+    };
+}
+
+/// The closed form for N faces: `Const<N>` (stack only) for the usual N, else `Dyn`.
+fn closed_form_fn(n: usize) -> ClosedFormFn {
+    closed_form_for!(n; 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 14, 15, 16, 18, 20, 24, 30, 36, 40, 45, 48, 60, 72)
+}
+
+enum TrialSolver {
+    ClosedForm { offset: usize, solve: ClosedFormFn },
+    LeastSquares(Operator),
+}
+
+enum Noise {
+    /// Stated σ: normal, folded into `McModel::normal_sd`.
+    Normal,
+    ScaledT {
+        sigma: f64,
+        dof: f64,
+        chi: ChiSquared<f64>,
+    },
+}
+
+/// A component drawn once per group and added, weighted, to the group's targets.
+struct Plan {
+    sampler: Sampler,
+    scale: f64,
+    starts: Vec<usize>,
+    entries: Vec<(usize, f64)>,
+}
+
+/// Fills `buf` with draws of `sampler` — the formulas of `Sampler::sample` with the match
+/// outside the loop, which is what makes the trials fast (a unit test checks that the
+/// draws are the same).
+fn draw_into<R: Rng + ?Sized>(sampler: &Sampler, rng: &mut R, buf: &mut [f64]) {
+    match *sampler {
+        Sampler::Normal(u) => {
+            for x in buf {
+                let z: f64 = StandardNormal.sample(rng);
+                *x = u * z;
+            }
+        }
+        Sampler::Rectangular(a) => {
+            for x in buf {
+                *x = a * (2.0 * rng.random::<f64>() - 1.0);
+            }
+        }
+        Sampler::Triangular(a) => {
+            for x in buf {
+                *x = a * (rng.random::<f64>() - rng.random::<f64>());
+            }
+        }
+        Sampler::Arcsine(_) | Sampler::StudentT(..) => {
+            for x in buf {
+                *x = sampler.sample(rng);
+            }
+        }
+    }
+}
+
+/// One Monte Carlo trial of a calibration: draws the readings (as targets of the solver:
+/// per-step means for the closed form, the readings for least squares) and solves them.
+/// Built by [`McModel::new`]; [`super::monte_carlo`] runs it on the engine.
+pub struct McModel {
+    pub(super) faces: usize,
+    solver: TrialSolver,
+    base: Vec<f64>,
+    noise: Noise,
+    /// Per target: Σw² of the noise, the variance of the normal components whose draws
+    /// each land on one target (drawn together with the noise), and the total standard
+    /// deviation when the noise is normal.
+    noise_var: Vec<f64>,
+    fixed_var: Vec<f64>,
+    normal_sd: Vec<f64>,
+    plans: Vec<Plan>,
+    result_draws: Vec<(Sampler, f64)>,
+    centre: Vec<f64>,
+}
+
+impl McModel {
+    /// The trial model of a solved measurement set and a budget.
+    ///
+    /// # Errors
+    ///
+    /// As [`super::evaluate`].
+    pub fn new(
+        set: &MeasurementSet,
+        solution: &Solution,
+        budget: &InstrumentBudget,
+        solver: McSolver,
+    ) -> Result<Self, CalibrationError> {
+        budget.check()?;
+        let op = Operator::new(set, solution)?;
+        let (sigma, source) = solution.sigma.ok_or(CalibrationError::NoSigma)?;
+        let n = op.faces;
+        let design = match solver {
+            McSolver::Auto => PaperDesign::detect(set).ok(),
+            McSolver::LeastSquares => None,
+        };
+        // Where each reading lands: (target, weight).
+        let (targets, map): (usize, Vec<(usize, f64)>) = match &design {
+            Some(d) => (
+                2 * n,
+                set.readings
+                    .iter()
+                    .map(|r| {
+                        let slot = usize::from((r.setup, r.ac) == d.second);
+                        (slot * n + (r.step + d.offset) % n, 1.0 / d.repeats as f64)
+                    })
+                    .collect(),
+            ),
+            None => (
+                set.readings.len(),
+                (0..set.readings.len()).map(|i| (i, 1.0)).collect(),
+            ),
+        };
+        let mut base = vec![0.0; targets];
+        let mut noise_var = vec![0.0; targets];
+        for (i, r) in set.readings.iter().enumerate() {
+            let (t, w) = map[i];
+            base[t] += w * (r.reading_arcsec - solution.residuals[i]);
+            noise_var[t] += w * w;
+        }
+        let noise = match source {
+            SigmaSource::Stated => Noise::Normal,
+            SigmaSource::Residual => {
+                let dof = solution.dof as f64;
+                Noise::ScaledT {
+                    sigma,
+                    dof,
+                    chi: ChiSquared::new(dof).map_err(|e| {
+                        CalibrationError::Mismatch(format!("residual dof {dof}: {e}"))
+                    })?,
+                }
+            }
+        };
+        let mut plans = Vec::new();
+        let mut fixed_var = vec![0.0; targets];
+        let mut result_draws = Vec::new();
+        for c in &budget.components {
+            let distribution = c.mc_distribution();
+            let sampler = distribution
+                .sampler()
+                .map_err(|e| CalibrationError::Component {
+                    name: c.name.clone(),
+                    message: e.to_string(),
+                })?;
+            if c.scope == Scope::Result {
+                result_draws.push((sampler, c.sensitivity));
+                continue;
+            }
+            let mut starts = vec![0];
+            let mut entries: Vec<(usize, f64)> = Vec::new();
+            for members in groups(set, c.scope) {
+                let from = entries.len();
+                for i in members {
+                    let (t, w) = map[i];
+                    match entries[from..].iter_mut().find(|(target, _)| *target == t) {
+                        Some((_, weight)) => *weight += w,
+                        None => entries.push((t, w)),
+                    }
+                }
+                starts.push(entries.len());
+            }
+            let single = starts.windows(2).all(|w| w[1] - w[0] == 1);
+            if let (true, Distribution::Normal { u }) = (single, distribution) {
+                // Independent normals per target: one normal with the summed variance.
+                let scale = c.sensitivity * u;
+                for &(t, w) in &entries {
+                    fixed_var[t] += (scale * w).powi(2);
+                }
+            } else {
+                plans.push(Plan {
+                    sampler,
+                    scale: c.sensitivity,
+                    starts,
+                    entries,
+                });
+            }
+        }
+        let mut centre = Vec::with_capacity(3 * n - 1);
+        centre.extend_from_slice(&solution.pitch_deviation);
+        centre.extend_from_slice(&solution.face_deviation[..n - 1]);
+        centre.extend_from_slice(&solution.encoder_error);
+        let solver = match design {
+            Some(d) => TrialSolver::ClosedForm {
+                offset: d.offset,
+                solve: closed_form_fn(n),
+            },
+            None => TrialSolver::LeastSquares(op),
+        };
+        Ok(McModel {
+            faces: n,
+            solver,
+            base,
+            normal_sd: noise_var
+                .iter()
+                .zip(&fixed_var)
+                .map(|(v, f)| (sigma * sigma * v + f).sqrt())
+                .collect(),
+            noise,
+            noise_var,
+            fixed_var,
+            plans,
+            result_draws,
+            centre,
+        })
+    }
+
+    /// Number of targets a trial draws (2N per-step means for the closed form, else the
+    /// number of readings).
+    pub fn targets(&self) -> usize {
+        self.base.len()
+    }
+
+    /// Number of outputs: β (N), φ\[1..N−1\] (φ\[N\] = 0 is not drawn), α (N).
+    pub fn outputs(&self) -> usize {
+        3 * self.faces - 1
+    }
+
+    /// `closed-form` or `lsq`.
+    pub fn solver_name(&self) -> &'static str {
+        match self.solver {
+            TrialSolver::ClosedForm { .. } => "closed-form",
+            TrialSolver::LeastSquares(_) => "lsq",
+        }
+    }
+
+    /// `normal` (stated σ) or `t` (σ from the residuals), with the degrees of freedom.
+    pub fn reading_noise(&self) -> (&'static str, Option<f64>) {
+        match self.noise {
+            Noise::Normal => ("normal", None),
+            Noise::ScaledT { dof, .. } => ("t", Some(dof)),
+        }
+    }
+
+    /// A scratch buffer for [`McModel::trial`].
+    pub fn scratch(&self) -> McScratch {
+        let (faces_len, b_len) = match &self.solver {
+            TrialSolver::LeastSquares(op) => (op.faces, op.len()),
+            TrialSolver::ClosedForm { .. } => (0, 0),
+        };
+        McScratch {
+            targets: vec![0.0; self.targets()],
+            offsets: vec![0.0; self.outputs()],
+            draws: vec![
+                0.0;
+                self.plans
+                    .iter()
+                    .map(|p| p.starts.len() - 1)
+                    .chain([self.outputs()])
+                    .max()
+                    .unwrap_or(0)
+            ],
+            theta: vec![0.0; 2 * self.faces],
+            face_sums: vec![0.0; faces_len],
+            b: vec![0.0; b_len],
+        }
+    }
+
+    /// Draws one trial's targets and the per-output offsets of the `result` components
+    /// (into `scratch`), without solving.
+    pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R, scratch: &mut McScratch) {
+        let t = &mut scratch.targets;
+        t.copy_from_slice(&self.base);
+        match &self.noise {
+            Noise::Normal => {
+                for (x, sd) in t.iter_mut().zip(&self.normal_sd) {
+                    let z: f64 = StandardNormal.sample(rng);
+                    *x += sd * z;
+                }
+            }
+            Noise::ScaledT { sigma, dof, chi } => {
+                let s2 = sigma * sigma * dof / chi.sample(rng);
+                for ((x, v), f) in t.iter_mut().zip(&self.noise_var).zip(&self.fixed_var) {
+                    let z: f64 = StandardNormal.sample(rng);
+                    *x += (s2 * v + f).sqrt() * z;
+                }
+            }
+        }
+        for plan in &self.plans {
+            let draws = &mut scratch.draws[..plan.starts.len() - 1];
+            draw_into(&plan.sampler, rng, draws);
+            for (g, e) in plan.starts.windows(2).zip(draws.iter()) {
+                let e = plan.scale * e;
+                for &(target, w) in &plan.entries[g[0]..g[1]] {
+                    t[target] += w * e;
+                }
+            }
+        }
+        if !self.result_draws.is_empty() {
+            scratch.offsets.fill(0.0);
+            let draws = &mut scratch.draws[..scratch.offsets.len()];
+            for (sampler, c) in &self.result_draws {
+                draw_into(sampler, rng, draws);
+                for (o, d) in scratch.offsets.iter_mut().zip(draws.iter()) {
+                    *o += c * d;
+                }
+            }
+        }
+    }
+
+    /// Solves the targets drawn by [`McModel::sample`] into `out` ([`McModel::outputs`]
+    /// values: β, φ\[1..N−1\], α), without the `result` offsets. False if the solver
+    /// failed.
+    pub fn solve(&self, scratch: &mut McScratch, out: &mut [f64]) -> bool {
+        let n = self.faces;
+        match &self.solver {
+            TrialSolver::ClosedForm { offset, solve } => solve(&scratch.targets, *offset, out),
+            TrialSolver::LeastSquares(op) => {
+                op.solve(
+                    &scratch.targets,
+                    &mut scratch.face_sums,
+                    &mut scratch.b,
+                    0..2 * n,
+                    &mut scratch.theta,
+                );
+                let theta = &scratch.theta;
+                out[..n].copy_from_slice(&theta[..n]);
+                let mut running = 0.0;
+                for f in 0..n - 1 {
+                    running += theta[f];
+                    out[n + f] = running;
+                }
+                out[2 * n - 1..3 * n - 1].copy_from_slice(&theta[n..2 * n]);
+                true
+            }
+        }
+    }
+
+    /// One trial: draw, solve, add the `result` draws. False if the solver failed.
+    pub fn trial<R: Rng + ?Sized>(
+        &self,
+        rng: &mut R,
+        scratch: &mut McScratch,
+        out: &mut [f64],
+    ) -> bool {
+        self.sample(rng, scratch);
+        if !self.solve(scratch, out) {
+            return false;
+        }
+        if !self.result_draws.is_empty() {
+            for (o, d) in out.iter_mut().zip(&scratch.offsets) {
+                *o += d;
+            }
+        }
+        true
+    }
+
+    /// The outputs at the fitted values (no noise, no draws): the solution's estimates.
+    pub fn estimates(&self) -> &[f64] {
+        &self.centre
+    }
+}
+
+/// Scratch space of one thread for [`McModel`] trials.
+pub struct McScratch {
+    targets: Vec<f64>,
+    offsets: Vec<f64>,
+    draws: Vec<f64>,
+    theta: Vec<f64>,
+    face_sums: Vec<f64>,
+    b: Vec<f64>,
+}
+
+impl McScratch {
+    /// The targets of the last [`McModel::sample`].
+    pub fn targets(&self) -> &[f64] {
+        &self.targets
+    }
+}
+
+/// The engine's view of a trial: [`McModel::trial`], failing when the solver fails.
+impl Trial for McModel {
+    type Scratch = McScratch;
+
+    fn outputs(&self) -> usize {
+        McModel::outputs(self)
+    }
+
+    fn centre(&self) -> &[f64] {
+        &self.centre
+    }
+
+    fn scratch(&self) -> McScratch {
+        McModel::scratch(self)
+    }
+
+    fn draw<R: Rng + ?Sized>(
+        &self,
+        rng: &mut R,
+        scratch: &mut McScratch,
+        out: &mut [f64],
+    ) -> Result<(), TrialFailure> {
+        if self.trial(rng, scratch, out) {
+            Ok(())
+        } else {
+            Err(TrialFailure::Failed)
+        }
+    }
+
+    /// The targets of the trial (per-step means for the closed form, else the readings).
+    fn inputs(&self, scratch: &McScratch) -> Vec<f64> {
+        scratch.targets.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    use super::*;
+    use crate::solve::{SolveOptions, solve};
+    use crate::uncertainty::calibration::ScopedComponent;
+    use crate::uncertainty::calibration::test_support::set;
+    use crate::uncertainty::monte_carlo::{self, EngineOptions, Trials};
+
+    /// The closed-form trial and the least-squares trial solve the same targets alike.
+    #[test]
+    fn closed_form_and_least_squares_trials_agree() {
+        let s = set(24, 2, false, 9);
+        let solution = solve(&s, &SolveOptions::default()).unwrap();
+        let budget = InstrumentBudget::new(vec![
+            ScopedComponent::type_b(
+                "r",
+                Distribution::Rectangular { half_width: 0.1 },
+                Scope::EachStop,
+            ),
+            ScopedComponent::type_b("n", Distribution::Normal { u: 0.1 }, Scope::EachReading),
+        ]);
+        let cf = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
+        let ls = McModel::new(&s, &solution, &budget, McSolver::LeastSquares).unwrap();
+        assert_eq!((cf.solver_name(), ls.solver_name()), ("closed-form", "lsq"));
+        let mut scratch = cf.scratch();
+        let mut out = vec![0.0; cf.outputs()];
+        scratch.targets.copy_from_slice(&cf.base);
+        assert!(cf.solve(&mut scratch, &mut out));
+        for (a, b) in out.iter().zip(cf.estimates()) {
+            assert!((a - b).abs() < 1e-12, "{a} {b}");
+        }
+        let mut ls_scratch = ls.scratch();
+        let mut ls_out = vec![0.0; ls.outputs()];
+        ls_scratch.targets.copy_from_slice(&ls.base);
+        assert!(ls.solve(&mut ls_scratch, &mut ls_out));
+        for (a, b) in ls_out.iter().zip(ls.estimates()) {
+            assert!((a - b).abs() < 1e-12, "{a} {b}");
+        }
+    }
+
+    /// The fast draws are the draws of `Sampler::sample`, value for value.
+    #[test]
+    fn draws_are_the_sampler_draws() {
+        for d in [
+            Distribution::Normal { u: 0.3 },
+            Distribution::Rectangular { half_width: 0.2 },
+            Distribution::Triangular { half_width: 0.2 },
+            Distribution::Arcsine { half_width: 0.2 },
+            Distribution::StudentT {
+                scale: 0.1,
+                dof: 4.0,
+            },
+        ] {
+            let sampler = d.sampler().unwrap();
+            let mut a = ChaCha8Rng::seed_from_u64(3);
+            let mut b = ChaCha8Rng::seed_from_u64(3);
+            let mut buf = [0.0; 50];
+            draw_into(&sampler, &mut a, &mut buf);
+            for x in buf {
+                assert_eq!(x, sampler.sample(&mut b), "{d:?}");
+            }
+        }
+    }
+
+    /// The calibration trial on the engine: the summary of every trial without storing
+    /// them is the summary of the stored trials.
+    #[test]
+    fn the_engine_summarizes_every_trial() {
+        let s = set(9, 2, true, 5);
+        let solution = solve(&s, &SolveOptions::default()).unwrap();
+        let budget = InstrumentBudget::new(vec![ScopedComponent::type_b(
+            "r",
+            Distribution::Rectangular { half_width: 0.2 },
+            Scope::Result,
+        )]);
+        let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
+        let adaptive = Trials::Adaptive {
+            significant_digits: 1,
+            max_trials: 500_000,
+        };
+        for trials in [Trials::Fixed(34_500), adaptive] {
+            let options = EngineOptions::new(trials).with_seed(11);
+            let summary = monte_carlo::run(&model, &options).unwrap();
+            let kept = monte_carlo::run(&model, &options.with_samples(true)).unwrap();
+            let m = summary.trials;
+            let (r_low, r_high) = monte_carlo::symmetric_interval_positions(m, 0.95);
+            let samples = kept.samples.unwrap();
+            assert_eq!(samples.len(), model.outputs());
+            for (j, column) in samples.iter().enumerate() {
+                let mut column = column.clone();
+                column.sort_unstable_by(f64::total_cmp);
+                let y = summary.outputs[j];
+                assert_eq!(y.low, column[r_low]);
+                assert_eq!(y.high, column[r_high]);
+                let mean = column.iter().sum::<f64>() / m as f64;
+                let ss = column.iter().map(|x| (x - mean).powi(2)).sum::<f64>();
+                let u = (ss / (m - 1) as f64).sqrt();
+                assert!((y.mean - mean).abs() < 1e-12);
+                assert!((y.u - u).abs() < 1e-12 * u);
+            }
+        }
+    }
+}
