@@ -19,8 +19,10 @@ use serde::Serialize;
 
 use crate::results::{ResultFile, ResultRow};
 
-/// Options of a comparison.
+/// Options of a comparison: [`CompareOptions::new`] (or `default()`) and the `with_…`
+/// methods.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct CompareOptions {
     /// Correlation coefficient `r` between the two results (`−1 ≤ r ≤ 1`, default 0).
     pub correlation: f64,
@@ -37,6 +39,26 @@ impl Default for CompareOptions {
             label_a: "A".to_string(),
             label_b: "B".to_string(),
         }
+    }
+}
+
+impl CompareOptions {
+    /// No correlation, results named `A` and `B`.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// With a correlation coefficient r between the results (checked by [`compare`]).
+    pub fn with_correlation(mut self, correlation: f64) -> Self {
+        self.correlation = correlation;
+        self
+    }
+
+    /// With the names of the two results in messages (e.g. their paths).
+    pub fn with_labels(mut self, label_a: impl Into<String>, label_b: impl Into<String>) -> Self {
+        self.label_a = label_a.into();
+        self.label_b = label_b.into();
+        self
     }
 }
 
@@ -106,6 +128,7 @@ impl Comparison {
 
 /// Why two results cannot be compared.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum CompareError {
     /// A row has no expanded uncertainty.
     #[error(

@@ -11,6 +11,7 @@ pub const CLOSURE_TOLERANCE_ARCSEC: f64 = 1e-9;
 
 /// Why a polygon could not be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum PolygonError {
     /// Fewer than three faces.
     #[error("a polygon needs at least 3 faces, got {0}")]

@@ -124,6 +124,7 @@ pub struct ResultFile {
 
 /// Why a result file cannot be read.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum ResultsError {
     /// A problem at a place in the file.
     #[error("{location}: {message}")]

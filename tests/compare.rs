@@ -63,10 +63,7 @@ fn correlation_between_results_reduces_the_denominator() {
     // cov = r·U_a·U_b: En = d/√(U_a² + U_b² − 2 r U_a U_b).
     let a = [row("face_deviation", 2, 0.30, Some(0.4))];
     let b = [row("face_deviation", 2, 0.10, Some(0.3))];
-    let options = CompareOptions {
-        correlation: 0.5,
-        ..CompareOptions::default()
-    };
+    let options = CompareOptions::new().with_correlation(0.5);
     let c = compare(&a, &b, &options).unwrap();
     let want = (0.30f64 - 0.10) / (0.16f64 + 0.09 - 2.0 * 0.5 * 0.4 * 0.3).sqrt();
     assert!((c.rows[0].en - want).abs() < 1e-15);
@@ -74,18 +71,12 @@ fn correlation_between_results_reduces_the_denominator() {
     assert_eq!(json["correlation"], 0.5);
     // Identical uncertainties fully correlated: En undefined, refused.
     let same = [row("face_deviation", 2, 0.1, Some(0.3))];
-    let options = CompareOptions {
-        correlation: 1.0,
-        ..CompareOptions::default()
-    };
+    let options = CompareOptions::new().with_correlation(1.0);
     assert!(matches!(
         compare(&same, &b, &options),
         Err(CompareError::Undefined { .. })
     ));
-    let options = CompareOptions {
-        correlation: 1.5,
-        ..CompareOptions::default()
-    };
+    let options = CompareOptions::new().with_correlation(1.5);
     assert!(matches!(
         compare(&same, &b, &options),
         Err(CompareError::Correlation(_))

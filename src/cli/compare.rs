@@ -47,11 +47,9 @@ enum CompareFormat {
 pub fn run(args: &CompareArgs) -> Result<u8> {
     let file_a = read_result_file(&args.a)?;
     let file_b = read_result_file(&args.b)?;
-    let options = CompareOptions {
-        correlation: args.correlation,
-        label_a: display_name(&args.a),
-        label_b: display_name(&args.b),
-    };
+    let options = CompareOptions::new()
+        .with_correlation(args.correlation)
+        .with_labels(display_name(&args.a), display_name(&args.b));
     let comparison = compare_files(&file_a, &file_b, &options)?;
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();

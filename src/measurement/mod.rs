@@ -173,6 +173,7 @@ pub struct MeasurementSet {
 /// Why a measurement file or a set of readings was refused, or could not be read or
 /// written.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum MeasurementError {
     /// A file that breaks the rules: names the file, 1-based line and 1-based character
     /// column.

@@ -53,6 +53,7 @@ const NOISE_STREAM: u64 = 1;
 
 /// Why a simulation or a truth file was refused.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum SimulateError {
     /// The simulation settings are invalid (the text says which and why).
     #[error("invalid simulation settings: {0}")]

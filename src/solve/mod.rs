@@ -104,6 +104,7 @@ impl SolveOptions {
 
 /// Why a measurement set could not be solved.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum SolveError {
     /// The design does not determine every pitch deviation and encoder error.
     #[error(transparent)]
