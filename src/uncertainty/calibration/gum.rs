@@ -2,6 +2,7 @@
 //! budget component through its scope's gains, Welch–Satterthwaite, k and U per
 //! quantity ([`evaluate`]).
 
+use crate::results::Quantity;
 use serde::Serialize;
 
 use super::operator::{Operator, gains};
@@ -86,12 +87,12 @@ pub struct CalibrationUncertainty {
 
 impl CalibrationUncertainty {
     /// The families in report order, with their names.
-    pub fn families(&self) -> [(&'static str, &FamilyUncertainty); 4] {
+    pub fn families(&self) -> [(Quantity, &FamilyUncertainty); 4] {
         [
-            ("pitch_deviation", &self.pitch_deviation),
-            ("face_deviation", &self.face_deviation),
-            ("encoder_error", &self.encoder_error),
-            ("setup_error", &self.setup_error),
+            (Quantity::PitchDeviation, &self.pitch_deviation),
+            (Quantity::FaceDeviation, &self.face_deviation),
+            (Quantity::EncoderError, &self.encoder_error),
+            (Quantity::SetupError, &self.setup_error),
         ]
     }
 }
@@ -106,12 +107,12 @@ fn split<T: Clone>(v: &[T], n: usize) -> [Vec<T>; 4] {
     ]
 }
 
-fn family_name_and_index(j: usize, n: usize) -> (&'static str, usize) {
+fn family_name_and_index(j: usize, n: usize) -> (Quantity, usize) {
     match j / n {
-        0 => ("pitch_deviation", j + 1),
-        1 => ("face_deviation", j - n + 1),
-        2 => ("encoder_error", j - 2 * n),
-        _ => ("setup_error", j - 3 * n + 1),
+        0 => (Quantity::PitchDeviation, j + 1),
+        1 => (Quantity::FaceDeviation, j - n + 1),
+        2 => (Quantity::EncoderError, j - 2 * n),
+        _ => (Quantity::SetupError, j - 3 * n + 1),
     }
 }
 

@@ -120,7 +120,7 @@ pub enum CalibrationError {
     )]
     FloorBelowOne {
         /// The quantity.
-        quantity: &'static str,
+        quantity: crate::results::Quantity,
         /// Its index (face, position or stream).
         index: usize,
         /// ν_eff.
