@@ -1,4 +1,4 @@
-//! En numbers between two results (FORMAT.md §5, `polycal compare`).
+//! En numbers between two results (docs/FORMAT.md §5, `polycal compare`).
 //!
 //! For every `(quantity, index)` present in both results,
 //!
@@ -94,7 +94,7 @@ pub struct Unmatched {
     pub index: u32,
 }
 
-/// The comparison of two results. Serializes to the JSON of FORMAT.md §5
+/// The comparison of two results. Serializes to the JSON of docs/FORMAT.md §5
 /// (`rows`, `max_abs_en`), plus `U_a`, `U_b` in each row, and, when not empty or zero,
 /// `only_in_a`, `only_in_b` and `correlation`.
 #[derive(Debug, Clone, PartialEq, Serialize)]

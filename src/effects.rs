@@ -1,4 +1,4 @@
-//! Effects: terms the base model lacks (FORMAT.md §6).
+//! Effects: terms the base model lacks (docs/FORMAT.md §6).
 //!
 //! Every effect is *linear in its value*: it adds `value * x(reading)` to a reading, where
 //! the regressor `x` ([`Effect::regressor`]) depends only on the reading's bookkeeping
@@ -7,7 +7,7 @@
 //! same regressor as an extra column of its design matrix.
 //!
 //! In JSON an effect is an object with a `kind` and a `value`, plus the fields its kind
-//! needs, exactly as in FORMAT.md §6:
+//! needs, exactly as in docs/FORMAT.md §6:
 //!
 //! ```text
 //! {"kind": "drift", "ac": 1, "value": 0.3}

@@ -33,7 +33,7 @@ pub enum PolygonError {
 /// An N-faced polygon: pitch deviation β\[k\] and face deviation φ\[k\] of every face
 /// k = 1 … N, in arcseconds.
 ///
-/// Conventions (FORMAT.md §1): Σβ = 0 (the paper's closure, eq. (1)) and
+/// Conventions (docs/FORMAT.md §1): Σβ = 0 (the paper's closure, eq. (1)) and
 /// φ\[f\] = β\[1\] + … + β\[f\], so φ\[N\] = 0. Index 0 of the vectors is face 1.
 ///
 /// ```

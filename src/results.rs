@@ -1,4 +1,4 @@
-//! The result file (FORMAT.md §3): one row per estimated quantity.
+//! The result file (docs/FORMAT.md §3): one row per estimated quantity.
 //!
 //! ```text
 //! quantity,index,value,U,u,k
@@ -10,7 +10,7 @@
 //! (expanded uncertainty), `u` (standard uncertainty) and `k` (coverage factor) are
 //! optional, an empty field meaning "not given" (`compare` needs `U`). Column names are
 //! case-sensitive (`U` and `u` differ). Columns this version does not know are ignored
-//! (FORMAT.md allows adding columns). Lines starting with `#` before the header are
+//! (docs/FORMAT.md allows adding columns). Lines starting with `#` before the header are
 //! comments.
 //!
 //! Reading is strict: an unknown quantity, an index out of range, a number that is not

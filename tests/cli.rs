@@ -1,5 +1,5 @@
 //! The `polycal` binary end to end: `solve` on the bundled example data checked against
-//! its truth file, the output formats of FORMAT.md §3 and §5, several files, standard
+//! its truth file, the output formats of docs/FORMAT.md §3 and §5, several files, standard
 //! input, refusals with exit status 2, and `simulate` reproducibility.
 
 use serde_json::Value;
@@ -48,7 +48,7 @@ fn temp_dir(name: &str) -> PathBuf {
 
 /// The JSON of the example run agrees with the truth the data were simulated from,
 /// within the uncertainties the fit states (every β and α within 4.5 u, and RMS of the
-/// normalised errors plausible), and carries every field FORMAT.md §5 names.
+/// normalised errors plausible), and carries every field docs/FORMAT.md §5 names.
 #[test]
 fn solve_example_json_matches_truth() {
     let out = polycal(&["solve", EXAMPLE, "--format", "json"]);
@@ -119,7 +119,7 @@ fn solve_example_json_matches_truth() {
     assert!(setup[0]["u"].as_f64().unwrap() > 0.0);
 }
 
-/// The result CSV (FORMAT.md §3) carries the same numbers as the JSON, at full precision.
+/// The result CSV (docs/FORMAT.md §3) carries the same numbers as the JSON, at full precision.
 #[test]
 fn solve_csv_is_the_result_file() {
     let json: Value =
@@ -315,7 +315,7 @@ fn usage_error() {
     );
 }
 
-/// `diagnose --truth --format json`: the FORMAT.md §5 object with the drift found on
+/// `diagnose --truth --format json`: the docs/FORMAT.md §5 object with the drift found on
 /// the right autocollimator, the error falling, `adequate` true and status 0.
 #[test]
 fn diagnose_json_finds_a_drift() {
@@ -426,7 +426,7 @@ fn diagnose_inadequate_exits_1() {
     assert_eq!(json["adequate"], false);
 }
 
-/// `budget` on the paper's Table 1 (FORMAT.md §5 JSON): u_c = 0.22867″ unrounded,
+/// `budget` on the paper's Table 1 (docs/FORMAT.md §5 JSON): u_c = 0.22867″ unrounded,
 /// ν_eff = 72.6 (the paper prints 74, which only its rounded 0.23″ gives), k = 1.993
 /// with fractional ν (the paper uses 2.00), U = 0.456″ (printed 0.46″).
 #[test]

@@ -1,4 +1,4 @@
-//! The result CSV (FORMAT.md §3) and En comparisons (FORMAT.md §5), against the reference
+//! The result CSV (docs/FORMAT.md §3) and En comparisons (docs/FORMAT.md §5), against the reference
 //! paper's En values (Hsieh et al., Appl. Sci. 2023, 13, 1865, section 3.2).
 
 use std::path::PathBuf;

@@ -1,4 +1,4 @@
-//! The measurement file (FORMAT.md §2): reading, refusing, writing, round trips.
+//! The measurement file (docs/FORMAT.md §2): reading, refusing, writing, round trips.
 //!
 //! Every expected `file:line:column` below was counted by hand from the file text.
 

@@ -22,7 +22,7 @@ Examples:
 /// Arguments of `polycal compare`.
 #[derive(clap::Args)]
 pub struct CompareArgs {
-    /// First result file (FORMAT.md §3); `-` reads standard input.
+    /// First result file (docs/FORMAT.md §3); `-` reads standard input.
     a: PathBuf,
     /// Second result file.
     b: PathBuf,

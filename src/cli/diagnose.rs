@@ -24,10 +24,10 @@ Examples:
 /// Arguments of `polycal diagnose`.
 #[derive(clap::Args)]
 pub struct DiagnoseArgs {
-    /// Measurement CSV files (FORMAT.md §2); `-` reads standard input.
+    /// Measurement CSV files (docs/FORMAT.md §2); `-` reads standard input.
     #[arg(required = true)]
     files: Vec<PathBuf>,
-    /// Truth JSON of simulated data (FORMAT.md §4): adds the errors before and after.
+    /// Truth JSON of simulated data (docs/FORMAT.md §4): adds the errors before and after.
     #[arg(long)]
     truth: Option<PathBuf>,
     /// Number of polygon faces (default: the largest face in the file).

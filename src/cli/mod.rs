@@ -86,7 +86,7 @@ pub enum Command {
     /// add them, and report the calibration before and after.
     #[command(after_help = diagnose::EXAMPLES)]
     Diagnose(diagnose::DiagnoseArgs),
-    /// Evaluate a GUM uncertainty budget (TOML, FORMAT.md §5).
+    /// Evaluate a GUM uncertainty budget (TOML, docs/FORMAT.md §5).
     #[command(after_help = budget::EXAMPLES)]
     Budget(budget::BudgetArgs),
     /// Compare two results quantity by quantity with En (ISO 13528); status 1 when some |En| > 1.
@@ -95,7 +95,7 @@ pub enum Command {
     /// Simulate a measurement run with a known truth.
     #[command(after_help = simulate::EXAMPLES)]
     Simulate(simulate::SimulateArgs),
-    /// Drive the instruments through a calibration run (FORMAT.md §7).
+    /// Drive the instruments through a calibration run (docs/FORMAT.md §7).
     #[cfg(feature = "lab")]
     #[command(after_help = lab::RUN_EXAMPLES)]
     Run(lab::RunArgs),

@@ -120,7 +120,7 @@ pub struct TruthArgs {
         allow_negative_numbers = true
     )]
     pub outlier: Vec<String>,
-    /// Where to write the truth JSON (FORMAT.md §4).
+    /// Where to write the truth JSON (docs/FORMAT.md §4).
     #[arg(long)]
     pub truth_out: Option<PathBuf>,
 }

@@ -27,7 +27,7 @@ Examples:
 /// Arguments of `polycal solve`.
 #[derive(clap::Args)]
 pub struct SolveArgs {
-    /// Measurement CSV files (FORMAT.md §2); `-` reads standard input.
+    /// Measurement CSV files (docs/FORMAT.md §2); `-` reads standard input.
     #[arg(required = true)]
     files: Vec<PathBuf>,
     /// Number of polygon faces (default: the largest face in the file).
@@ -43,7 +43,7 @@ pub struct SolveArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "table")]
     format: SolveFormat,
-    /// Instrument budget (TOML, FORMAT.md §5 with `acts_on` per component): adds the
+    /// Instrument budget (TOML, docs/FORMAT.md §5 with `acts_on` per component): adds the
     /// expanded uncertainty U and k of every result, combining the fit's type A with
     /// the budget through the design.
     #[arg(long, value_name = "FILE.toml")]

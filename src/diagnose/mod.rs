@@ -5,7 +5,7 @@
 //! drifting autocollimator bias the result without leaving a residual. With redundancy
 //! (closing readings, repeated cycles, counter-clockwise cycles) they leave structure in
 //! the residuals. [`diagnose`] fits the base model, then repeatedly tries every candidate
-//! effect term of FORMAT.md §6 — `drift` and `offset-step` per autocollimator (and
+//! effect term of docs/FORMAT.md §6 — `drift` and `offset-step` per autocollimator (and
 //! cycle), `direction` (all autocollimators and each one), and `outlier` for the reading
 //! with the largest studentized residual — as an extra column of the least-squares model,
 //! and adds the most significant by an extra-sum-of-squares F test, with a Bonferroni
@@ -90,7 +90,7 @@ impl Default for DiagnoseOptions {
 /// An effect found in the data, with the evidence for it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FoundEffect {
-    /// The effect with its fitted value (FORMAT.md §6), in the final model.
+    /// The effect with its fitted value (docs/FORMAT.md §6), in the final model.
     pub effect: Effect,
     /// Standard uncertainty of the value in the final model.
     pub u: Option<f64>,

@@ -1,4 +1,4 @@
-//! Readings and the measurement file (FORMAT.md §2).
+//! Readings and the measurement file (docs/FORMAT.md §2).
 //!
 //! A [`MeasurementSet`] is a validated list of [`Reading`]s of one polygon with `faces`
 //! faces. It is read from the measurement CSV with [`MeasurementSet::read_path`] (or
@@ -119,7 +119,7 @@ pub struct Stop {
     pub direction: Direction,
 }
 
-/// The stops of a run in the order the table visits them (FORMAT.md §7): cycles 1 … R;
+/// The stops of a run in the order the table visits them (docs/FORMAT.md §7): cycles 1 … R;
 /// a clockwise cycle visits steps 0, 1, …, N−1 (and the closing step N when
 /// `closing`); with `bidirectional` every second cycle is counter-clockwise and visits
 /// N, N−1, …, 0 (the closing step is then implied for every cycle).
@@ -223,7 +223,7 @@ impl MeasurementSet {
     /// # Errors
     ///
     /// [`MeasurementError::Io`] if the file cannot be opened or read,
-    /// [`MeasurementError::Invalid`] if it breaks a rule of FORMAT.md §2.
+    /// [`MeasurementError::Invalid`] if it breaks a rule of docs/FORMAT.md §2.
     pub fn read_path(path: &Path, faces: Option<usize>) -> Result<Self, MeasurementError> {
         let (reader, name) = crate::input::open(path).map_err(|source| MeasurementError::Io {
             file: crate::input::display_name(path),
@@ -234,7 +234,7 @@ impl MeasurementSet {
 
     /// Reads from any reader; `source` is the name used in messages.
     ///
-    /// The whole input is read, then checked against FORMAT.md §2 (see the
+    /// The whole input is read, then checked against docs/FORMAT.md §2 (see the
     /// [module documentation](self)); the first problem found is returned as one
     /// [`MeasurementError::Invalid`]. `faces` is the `--faces N` option: N is the
     /// largest `face` unless given. Each [`Reading::line`] is the line its row starts on.
@@ -306,7 +306,7 @@ impl MeasurementSet {
         })
     }
 
-    /// Writes the measurement CSV (FORMAT.md §2); `comments` become leading `# ` lines.
+    /// Writes the measurement CSV (docs/FORMAT.md §2); `comments` become leading `# ` lines.
     ///
     /// The header is `cycle,step,ac,face,reading,direction,setup`, followed by `time`,
     /// `reading_y`, `temperature` and `encoder`, each only if some reading has that

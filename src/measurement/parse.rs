@@ -5,7 +5,7 @@ use super::*;
 use super::validate::*;
 use std::collections::HashMap;
 
-/// The columns this module knows, in the order of FORMAT.md §2.
+/// The columns this module knows, in the order of docs/FORMAT.md §2.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Col {
     Cycle,

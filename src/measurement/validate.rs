@@ -1,4 +1,4 @@
-//! The structural rules of a measurement set (FORMAT.md §2): ranges, missing faces and
+//! The structural rules of a measurement set (docs/FORMAT.md §2): ranges, missing faces and
 //! steps, duplicates, face offsets per autocollimator, one direction per cycle.
 
 use super::parse::*;

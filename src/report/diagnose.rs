@@ -1,4 +1,4 @@
-//! Outputs of `polycal diagnose`: the JSON object of FORMAT.md §5 and a table that
+//! Outputs of `polycal diagnose`: the JSON object of docs/FORMAT.md §5 and a table that
 //! explains itself to a metrologist.
 
 use crate::diagnose::{Diagnosis, FoundEffect};
@@ -10,7 +10,7 @@ use serde::Serialize;
 use serde_json::{Map, Value};
 
 /// RMS and largest absolute error of the pitch deviations and encoder errors against a
-/// truth, arcsec (FORMAT.md §5 `error`).
+/// truth, arcsec (docs/FORMAT.md §5 `error`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ErrorSummary {
     /// RMS of β − β_true.
@@ -61,7 +61,7 @@ pub struct ErrorReport {
     pub after: ErrorSummary,
 }
 
-/// One adequacy check in the JSON (an addition to FORMAT.md §5).
+/// One adequacy check in the JSON (an addition to docs/FORMAT.md §5).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CheckReport {
     /// What was checked.
@@ -74,7 +74,7 @@ pub struct CheckReport {
     pub passed: bool,
 }
 
-/// The JSON object of `polycal diagnose` (FORMAT.md §5).
+/// The JSON object of `polycal diagnose` (docs/FORMAT.md §5).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DiagnoseReport {
     /// The input file, present when several files were diagnosed.
@@ -84,7 +84,7 @@ pub struct DiagnoseReport {
     pub before: SolveReport,
     /// The final model's fit, its `effects` filled.
     pub after: SolveReport,
-    /// The effects added, in the order they were found: FORMAT.md §6 objects with `u`,
+    /// The effects added, in the order they were found: docs/FORMAT.md §6 objects with `u`,
     /// and the evidence `F`, `p`, `p_adjusted`, `residual_rms_before`,
     /// `residual_rms_after`, `pitch_change_max`, `encoder_change_max`, `explanation`.
     pub effects: Vec<Value>,

@@ -40,7 +40,7 @@ pub struct SetupErrorReport {
     pub k: Option<f64>,
 }
 
-/// The JSON object of `polycal solve` (FORMAT.md §5), arcsec throughout.
+/// The JSON object of `polycal solve` (docs/FORMAT.md §5), arcsec throughout.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SolveReport {
     /// The input file, present when several files were solved.
@@ -60,7 +60,7 @@ pub struct SolveReport {
     pub pitch_deviation_u: Option<Vec<f64>>,
     /// φ\[1..=N\].
     pub face_deviation: Vec<f64>,
-    /// u(φ), k = 1 (an addition to FORMAT.md §5).
+    /// u(φ), k = 1 (an addition to docs/FORMAT.md §5).
     pub face_deviation_u: Option<Vec<f64>>,
     /// α[0..N).
     pub encoder_error: Vec<f64>,
@@ -68,7 +68,7 @@ pub struct SolveReport {
     pub encoder_error_u: Option<Vec<f64>>,
     /// Setup errors per (setup, ac).
     pub setup_error: Vec<SetupErrorReport>,
-    /// Effect terms in the fitted model (FORMAT.md §6); empty for the base model.
+    /// Effect terms in the fitted model (docs/FORMAT.md §6); empty for the base model.
     pub effects: Vec<serde_json::Value>,
     /// `closed-form` or `lsq` (an addition).
     pub method: &'static str,
@@ -189,7 +189,7 @@ impl SolveReport {
     }
 }
 
-/// The result rows (FORMAT.md §3) of a solution: pitch deviations, face deviations,
+/// The result rows (docs/FORMAT.md §3) of a solution: pitch deviations, face deviations,
 /// encoder errors and setup errors (index = autocollimator; with several mountings the
 /// index is `setup·1000 + ac`, an addition to the contract), with `u` where known.
 pub fn result_rows(solution: &Solution) -> Vec<ResultRow> {
@@ -277,7 +277,7 @@ pub fn result_rows_with(
 }
 
 /// Writes the result rows of several files as one CSV with a leading `file` column (an
-/// addition to FORMAT.md §3 for batch runs).
+/// addition to docs/FORMAT.md §3 for batch runs).
 pub fn write_results_with_file<W: std::io::Write>(
     writer: W,
     files: &[(String, Vec<ResultRow>)],

@@ -173,7 +173,7 @@ pub fn write_table<W: Write>(
         }
     }
     let setup_u = solution.setup_error_u();
-    writeln!(out, "\nSetup errors (arcsec, gauge of FORMAT.md §1)")?;
+    writeln!(out, "\nSetup errors (arcsec, gauge of docs/FORMAT.md §1)")?;
     writeln!(
         out,
         "{:>5} {:>4} {:>9} {:>8}{}",

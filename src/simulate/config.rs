@@ -134,7 +134,7 @@ pub struct SimulationConfig {
     pub setup_error_spread_arcsec: f64,
     /// Time between consecutive stops, seconds, > 0.
     pub step_seconds: f64,
-    /// Effects added to the readings (FORMAT.md §6).
+    /// Effects added to the readings (docs/FORMAT.md §6).
     pub effects: Vec<Effect>,
     /// Seed of the random draws.
     pub seed: u64,

@@ -1,7 +1,7 @@
 //! Simulated measurement runs with a known truth.
 //!
 //! [`simulate`] draws the true values ([`Truth`]) for a [`SimulationConfig`] and the
-//! readings a run of that design would give, following the model of FORMAT.md §1:
+//! readings a run of that design would give, following the model of docs/FORMAT.md §1:
 //!
 //! ```text
 //! reading = α[step mod N] + φ[face] + U[setup, ac] + Σ effect.value · effect.regressor + noise

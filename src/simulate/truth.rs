@@ -1,4 +1,4 @@
-//! The true values behind a simulated run, and the truth file (FORMAT.md §4).
+//! The true values behind a simulated run, and the truth file (docs/FORMAT.md §4).
 
 use std::collections::HashSet;
 use std::path::Path;
@@ -16,7 +16,7 @@ use crate::polygon::face_deviation_from_pitch;
 use crate::results::Quantity;
 
 /// The true setup error `U[setup, ac]` of one autocollimator in one mounting, in the
-/// generic gauge of FORMAT.md §1.
+/// generic gauge of docs/FORMAT.md §1.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SetupErrorTruth {
     /// Setup (mounting) number, ≥ 1.
@@ -27,7 +27,7 @@ pub struct SetupErrorTruth {
     pub value: f64,
 }
 
-/// The true values of a simulated run: the truth file of FORMAT.md §4.
+/// The true values of a simulated run: the truth file of docs/FORMAT.md §4.
 ///
 /// `pitch_deviation[k-1]` is β\[k\], `encoder_error[p]` is α\[p\] and `face_deviation[f-1]`
 /// is φ\[f\] = β\[1\] + … + β\[f\]. Only `faces`, `pitch_deviation` and `encoder_error` are
@@ -47,7 +47,7 @@ pub struct Truth {
     /// Setup errors U\[setup, ac\]; one missing counts as 0.
     #[serde(default)]
     pub setup_error: Vec<SetupErrorTruth>,
-    /// Effects in the readings (FORMAT.md §6).
+    /// Effects in the readings (docs/FORMAT.md §6).
     #[serde(default)]
     pub effects: Vec<Effect>,
     /// Standard deviation of the reading noise the run was made with, arcsec.
@@ -128,7 +128,7 @@ impl Truth {
         })
     }
 
-    /// Reads a truth file (JSON, FORMAT.md §4) and checks it ([`Truth::validate`]).
+    /// Reads a truth file (JSON, docs/FORMAT.md §4) and checks it ([`Truth::validate`]).
     /// An empty or missing `face_deviation` is filled from `pitch_deviation`. Errors name
     /// the file, and for bad JSON also the line and column.
     pub fn read_path(path: &Path) -> Result<Truth, SimulateError> {

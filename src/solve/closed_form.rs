@@ -6,7 +6,7 @@
 //! - eq. (7): β\[k\] − β\[1\] = δ\[k−2\] − δ\[N−1\] for k = 2 … N;
 //! - eq. (8) with Σβ = 0 (eq. (1)): β\[1\] = −(1/N) Σ_p (δ\[p\] − δ\[N−1\]);
 //! - eqs. (9), (10) with Σα = 0 (eq. (3)): U₁ = (Σm₁ − Σφ)/N, U₂ = (Σm₂ − Σφ)/N
-//!   (generic gauge of FORMAT.md §1: the paper's U₂ is this U₂ + β\[1\]);
+//!   (generic gauge of docs/FORMAT.md §1: the paper's U₂ is this U₂ + β\[1\]);
 //! - eqs. (4), (5): α\[p\] = m₁\[p\] − φ\[p+1\] − U₁ = m₂\[p\] − φ\[p+2\] − U₂ (identical for exact
 //!   data; the mean of both is used).
 
@@ -27,7 +27,7 @@ where
     pub polygon: Polygon<D>,
     /// α\[p\] at the nominal angle p·360°/N.
     pub encoder_error: OVector<f64, D>,
-    /// Setup errors of autocollimators 1 and 2 (FORMAT.md §1 gauge).
+    /// Setup errors of autocollimators 1 and 2 (docs/FORMAT.md §1 gauge).
     pub setup_error: [f64; 2],
 }
 

@@ -2,7 +2,7 @@
 //!
 //! Both estimate, from a [`MeasurementSet`], the pitch deviations β, the face
 //! deviations φ, the encoder errors α and the setup errors U of the model
-//! (FORMAT.md §1, the paper's eq. (2) written for any design)
+//! (docs/FORMAT.md §1, the paper's eq. (2) written for any design)
 //!
 //! ```text
 //! reading = α[step mod N] + φ[face] + U[setup, ac] + (effects) + noise,   Σα = 0, Σβ = 0.
@@ -134,7 +134,7 @@ pub enum SigmaSource {
 }
 
 /// The setup error of one autocollimator in one mounting, arcsec (generic gauge of
-/// FORMAT.md §1: for the paper's adjacent pair, paper U₁ = U₁ and paper U₂ = U₂ + β\[1\]).
+/// docs/FORMAT.md §1: for the paper's adjacent pair, paper U₁ = U₁ and paper U₂ = U₂ + β\[1\]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SetupError {
     /// Polygon mounting.
@@ -221,7 +221,7 @@ pub struct Solution {
 }
 
 impl Solution {
-    /// √(RSS/dof), or `None` when dof = 0 (FORMAT.md §5 `residual_rms`).
+    /// √(RSS/dof), or `None` when dof = 0 (docs/FORMAT.md §5 `residual_rms`).
     pub fn residual_rms(&self) -> Option<f64> {
         (self.dof > 0).then(|| (self.rss / self.dof as f64).sqrt())
     }

@@ -19,7 +19,7 @@
 //! both unrounded. Because Welch–Satterthwaite composes exactly (`u_c(α)⁴/ν_eff(α) =
 //! Σ uᵢ⁴/νᵢ`), nesting gives the same `u_c` and `ν_eff` as listing the sources flat.
 //!
-//! The budget files of FORMAT.md §5 are read by [`crate::uncertainty::budget_file`].
+//! The budget files of docs/FORMAT.md §5 are read by [`crate::uncertainty::budget_file`].
 
 use std::collections::HashMap;
 use std::fmt;
@@ -363,7 +363,7 @@ pub struct ComponentResult {
     pub components: Vec<ComponentResult>,
 }
 
-/// The evaluated budget. Serializes to the JSON of FORMAT.md §5 (`polycal budget`), with
+/// The evaluated budget. Serializes to the JSON of docs/FORMAT.md §5 (`polycal budget`), with
 /// the extra fields `distribution`, `index_percent` (and `components` of nested budgets)
 /// in each component.
 #[derive(Debug, Clone, PartialEq, Serialize)]

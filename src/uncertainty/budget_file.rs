@@ -1,4 +1,4 @@
-//! The budget file of FORMAT.md §5 (TOML), read strictly.
+//! The budget file of docs/FORMAT.md §5 (TOML), read strictly.
 //!
 //! ```toml
 //! p = 0.95                       # coverage probability (default 0.95)
@@ -15,7 +15,7 @@
 //! dof = 50                       # omit for infinite (or write inf)
 //! ```
 //!
-//! Additions to FORMAT.md §5 (all optional):
+//! Additions to docs/FORMAT.md §5 (all optional):
 //!
 //! - `distribution = "t"` with `scale` (or `u`) and `dof`: a scaled Student's t
 //!   (JCGM 101 §6.4.9); the budget takes `u = scale` with `ν = dof`.

@@ -4,7 +4,7 @@
 //! - [`distribution`]: the distributions of input quantities (normal, rectangular,
 //!   triangular, arcsine, t);
 //! - [`budget`]: GUM budgets (law of propagation, Welch–Satterthwaite, coverage factor);
-//! - [`budget_file`]: the budget TOML file of FORMAT.md §5;
+//! - [`budget_file`]: the budget TOML file of docs/FORMAT.md §5;
 //! - [`calibration`]: the uncertainty of the calibration results, per quantity: the fit's
 //!   covariance with the instrument's budget (GUM), and Monte Carlo through the solver;
 //! - [`monte_carlo`]: propagation of distributions (GUM Supplement 1, JCGM 101:2008): one

@@ -1,4 +1,4 @@
-//! An independent, minimal generator of readings from the model of FORMAT.md §1:
+//! An independent, minimal generator of readings from the model of docs/FORMAT.md §1:
 //! reading = α[step mod N] + φ[face] + U[setup, ac] + noise, written out here without
 //! the library's simulator so that the solver is checked against separate code.
 #![allow(dead_code)]

@@ -1,5 +1,5 @@
 //! Scopes (`acts_on`: which readings share one draw of a type-B error) and the
-//! instrument budget file read by `polycal solve --budget`: the budget TOML of FORMAT.md
+//! instrument budget file read by `polycal solve --budget`: the budget TOML of docs/FORMAT.md
 //! §5 with `acts_on` per component.
 
 use std::ops::Range;
@@ -186,7 +186,7 @@ impl InstrumentBudget {
         Self::from_toml_str(&text, &source)
     }
 
-    /// Parses a budget file: the budget TOML of FORMAT.md §5 read as strictly as by
+    /// Parses a budget file: the budget TOML of docs/FORMAT.md §5 read as strictly as by
     /// `polycal budget`, plus `acts_on` on any component (default `"result"`; on a nested
     /// component, the default of its components).
     ///

@@ -31,7 +31,7 @@
 //!
 //! # The budget file
 //!
-//! The budget file of FORMAT.md §5 with one more key per component, `acts_on` (above;
+//! The budget file of docs/FORMAT.md §5 with one more key per component, `acts_on` (above;
 //! default `"result"`). On a nested component it is the default of its components.
 //! The fit supplies the type A uncertainty of the readings (repeatability) from its
 //! residuals: the budget lists the instrument's other sources. See
