@@ -112,22 +112,69 @@ pub enum Command {
 }
 
 impl Cli {
-    /// Parses the command line; on a usage error, `--help` or `--version` clap prints
-    /// and exits (status 2 for an error, 0 otherwise). clap's own messages follow
-    /// `--color` too.
+    /// Parses the command line. `--help` and `--version` are printed by clap (status 0),
+    /// in colour as `--color` says. A usage error is one `error:` line on standard error
+    /// (docs/FORMAT.md §8: clap's message, its tips joined on the line) and status 2.
     pub fn parse_args() -> Cli {
         let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+        let choice = color_in_args(&args);
         let mut command = Cli::command();
-        if let Some(choice) = color_in_args(&args) {
+        if let Some(choice) = choice {
             command = command.color(match choice {
                 ColorWhen::Auto => clap::ColorChoice::Auto,
                 ColorWhen::Always => clap::ColorChoice::Always,
                 ColorWhen::Never => clap::ColorChoice::Never,
             });
         }
-        let matches = command.get_matches_from(args);
-        Cli::from_arg_matches(&matches).unwrap_or_else(|error| error.exit())
+        let parsed = command
+            .try_get_matches_from(args)
+            .and_then(|matches| Cli::from_arg_matches(&matches));
+        match parsed {
+            Ok(cli) => cli,
+            Err(error) => {
+                use clap::error::ErrorKind;
+                if matches!(
+                    error.kind(),
+                    ErrorKind::DisplayHelp
+                        | ErrorKind::DisplayVersion
+                        | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+                ) {
+                    error.exit();
+                }
+                let out = output::Output::new(choice.unwrap_or(ColorWhen::Auto), false);
+                out.error_message(usage_error_line(&error.render().to_string()));
+                std::process::exit(i32::from(EXIT_ERROR));
+            }
+        }
     }
+}
+
+/// clap's usage error on one line: its message and tips, without the `error:` prefix,
+/// the usage synopsis and the pointer to `--help`.
+fn usage_error_line(rendered: &str) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    for line in rendered.lines() {
+        let line = line.trim();
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        if line.is_empty() {
+            continue;
+        }
+        parts.push(line.strip_prefix("error: ").unwrap_or(line).to_string());
+    }
+    let mut text = String::new();
+    for part in parts {
+        if !text.is_empty() {
+            text.push_str(if text.ends_with(':') { " " } else { "; " });
+        }
+        text.push_str(&part);
+    }
+    if text.is_empty() {
+        text = "invalid command line".to_string();
+    }
+    text.push_str(" (see --help)");
+    text
 }
 
 /// The last valid `--color WHEN` or `--color=WHEN` before `--`, read before clap parses,
@@ -175,6 +222,25 @@ pub fn with_hint(error: impl std::fmt::Display, flag: &str, hint: &str) -> anyho
         anyhow::Error::msg(message)
     } else {
         anyhow::anyhow!("{message}; {hint}")
+    }
+}
+
+#[cfg(test)]
+mod usage_tests {
+    use super::usage_error_line;
+
+    #[test]
+    fn a_usage_error_is_one_line_with_its_tips() {
+        let rendered = "error: unexpected argument '--fces' found\n\n  tip: a similar argument exists: '--faces'\n\nUsage: polycal solve <FILES>...\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            usage_error_line(rendered),
+            "unexpected argument '--fces' found; tip: a similar argument exists: '--faces' (see --help)"
+        );
+        let missing = "error: the following required arguments were not provided:\n  <FILES>...\n\nUsage: polycal solve <FILES>...\n";
+        assert_eq!(
+            usage_error_line(missing),
+            "the following required arguments were not provided: <FILES>... (see --help)"
+        );
     }
 }
 
