@@ -112,7 +112,9 @@ impl Output {
     /// ```
     pub fn progress_bar(&self, what: &str) -> impl Fn(u64, Option<u64>) + Sync + Send + use<> {
         let enabled = self.shows_progress();
-        let bar = ProgressBar::hidden().with_prefix(what.to_string());
+        let bar = ProgressBar::hidden()
+            .with_prefix(what.to_string())
+            .with_finish(indicatif::ProgressFinish::AndClear);
         let start = Instant::now();
         let shown = AtomicBool::new(false);
         // The length the bar has: `u64::MAX` before the first call, 0 for "unknown".

@@ -126,7 +126,6 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             out.warning(note);
         }
     }
-    let progress = out.progress_bar("Monte Carlo");
     let mc_options = args.monte_carlo.map(|trials| {
         McOptions::new(match trials {
             McTrials::Fixed(m) => Trials::Fixed(m),
@@ -138,7 +137,6 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         .with_seed(args.seed)
         .with_significant_digits(args.mc_digits)
         .with_solver(McSolver::Auto)
-        .with_progress(&progress)
     });
     let options = SolveOptions::new()
         .with_method(match args.method {
@@ -179,7 +177,12 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                 .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
             let mc = mc_options
                 .as_ref()
-                .map(|options| calibration::monte_carlo(&set, &solution, budget, &gum, options))
+                .map(|options| {
+                    // One bar per file, cleared when its Monte Carlo ends.
+                    let progress = out.progress_bar("Monte Carlo");
+                    let options = options.clone().with_progress(&progress);
+                    calibration::monte_carlo(&set, &solution, budget, &gum, &options)
+                })
                 .transpose()
                 .with_context(|| format!("{name}: Monte Carlo failed"))?;
             Ok((solution, Some(gum), mc))
