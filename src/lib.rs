@@ -25,20 +25,20 @@
 //! - [`results`]: the result CSV file (one row per calibrated quantity);
 //! - [`uncertainty`]: GUM uncertainty budgets and Student's t;
 //! - [`compare`]: En numbers between two results;
-//! - [`diagnose`]: residual analysis that finds, adds and reports the effects a model lacks.
+//! - [`diagnose`]: residual analysis that finds, adds and reports the effects a model lacks;
+//! - `lab` (cargo feature `lab`): the instruments on serial lines, simulated instruments,
+//!   and the run procedure that drives them through a calibration.
 
 pub mod compare;
 pub mod diagnose;
 pub mod effects;
 pub mod input;
 #[cfg(feature = "lab")]
-pub mod instrument;
+pub mod lab;
 pub mod measurement;
 pub mod polygon;
 pub mod report;
 pub mod results;
-#[cfg(feature = "lab")]
-pub mod run;
 pub mod simulate;
 pub mod solve;
 pub mod uncertainty;

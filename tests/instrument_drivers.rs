@@ -7,19 +7,18 @@ use std::io::{self, Read, Write};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use polycal::instrument::smc100::{self, ControllerState, parse_status};
-use polycal::instrument::{
-    Autocollimator, Elcomat3000, InstrumentError, LoggedTransport, QueryOptions, RotaryTable,
-    RunClock, ScriptedStream, Smc100, Smc100Options, StopFlag, StreamTransport, TrafficLog,
-    Transport,
+use polycal::lab::elcomat::Elcomat3000;
+use polycal::lab::scripted::ScriptedStream;
+use polycal::lab::smc100::{self, ControllerState, Smc100, Smc100Options, parse_status};
+use polycal::lab::traffic::{LoggedTransport, RunClock, TrafficLog};
+use polycal::lab::transport::{StreamTransport, Transport};
+use polycal::lab::{
+    Autocollimator, InstrumentError, QueryOptions, ReplyError, RotaryTable, StopFlag,
 };
 
 /// Fast queries for tests: a lost reply costs 30 ms.
 fn fast() -> QueryOptions {
-    QueryOptions {
-        reply_timeout: Duration::from_millis(30),
-        retries: 3,
-    }
+    QueryOptions::new(Duration::from_millis(30), 3)
 }
 
 fn elcomat(stream: ScriptedStream) -> Elcomat3000<StreamTransport<ScriptedStream>> {
@@ -29,12 +28,10 @@ fn elcomat(stream: ScriptedStream) -> Elcomat3000<StreamTransport<ScriptedStream
 fn smc(stream: ScriptedStream) -> Smc100<StreamTransport<ScriptedStream>> {
     Smc100::new(
         StreamTransport::new("mem:table", stream),
-        Smc100Options {
-            query: fast(),
-            poll_interval: Duration::from_millis(1),
-            motion_timeout: Duration::from_secs(2),
-            position_tolerance_deg: 0.001,
-        },
+        Smc100Options::new(fast())
+            .with_poll_interval(Duration::from_millis(1))
+            .with_motion_timeout(Duration::from_secs(2))
+            .with_position_tolerance_deg(0.001),
     )
 }
 
@@ -90,7 +87,7 @@ fn an_endless_line_is_cut_and_invalid_utf8_does_not_panic() {
     long.push('\r');
     let mut t = StreamTransport::new("mem", ScriptedStream::new().initially(&long));
     let first = t.read_line(Duration::from_millis(10)).unwrap().unwrap();
-    assert_eq!(first.len(), polycal::instrument::transport::MAX_LINE);
+    assert_eq!(first.len(), polycal::lab::transport::MAX_LINE_BYTES);
 
     struct Bad(bool);
     impl Read for Bad {
@@ -270,6 +267,96 @@ fn elcomat_refuses_wrong_reply_forms() {
             }
             other => panic!("{bad:?}: expected a bad reply, got {other:?}"),
         }
+    }
+}
+
+/// Each refused reply is a typed reason whose message says what is wrong, in the words
+/// the drivers have always used.
+#[test]
+fn refused_replies_are_typed_reasons_with_their_messages() {
+    use polycal::lab::elcomat::{parse_identification, parse_measurement};
+    let measurement = |line: &str| parse_measurement(line, '4').unwrap_err();
+    for (line, reason, text) in [
+        (
+            "2 003 1.0 2.0",
+            ReplyError::ReplyType {
+                found: "2".into(),
+                expected: '4',
+            },
+            r#"reply type "2", expected '4' (`4 <sss> <x> <y>`)"#,
+        ),
+        (
+            "4 003 1.0",
+            ReplyError::FieldCount {
+                count: 3,
+                expected: '4',
+            },
+            "3 field(s), a measurement reply is `4 <sss> <x> <y>`",
+        ),
+        (
+            "4 03 1.0 2.0",
+            ReplyError::Status {
+                status: "03".into(),
+            },
+            r#"status "03" is not three digits"#,
+        ),
+        (
+            "4 003 1.0 NaN",
+            ReplyError::NotFinite {
+                name: "Y",
+                text: "NaN".into(),
+            },
+            r#"Y "NaN" is not a finite number"#,
+        ),
+        (
+            "4 007 1.0 2.0",
+            ReplyError::AxisDigit {
+                status: "007".into(),
+                digit: 7,
+            },
+            "status 007: axis digit 7 is not 0 … 3",
+        ),
+        (
+            "4 002 1.0 2.0",
+            ReplyError::XNotValid {
+                status: "002".into(),
+            },
+            "X axis not valid (status 002: no reflected light, or out of range)",
+        ),
+    ] {
+        let e = measurement(line);
+        assert_eq!(e, reason, "{line}");
+        assert_eq!(e.to_string(), text, "{line}");
+    }
+    assert_eq!(
+        parse_identification("4 003 1.0 2.0")
+            .unwrap_err()
+            .to_string(),
+        "not a device-information reply (`8 <text>`)"
+    );
+    for (e, text) in [
+        (
+            parse_status("1TP000033").unwrap_err(),
+            "not a state reply (`1TS<eeee><ss>`)",
+        ),
+        (
+            parse_status("1TS00G033").unwrap_err(),
+            "a state reply is `1TS` and six hex digits (`<eeee><ss>`)",
+        ),
+        (
+            smc100::parse_position("1TPinf").unwrap_err(),
+            r#"position "inf" is not a finite number"#,
+        ),
+        (
+            smc100::parse_last_error("1TE").unwrap_err(),
+            "an error reply is `1TE` and one character",
+        ),
+        (
+            smc100::parse_version("1VE ").unwrap_err(),
+            "not a version reply (`1VE<text>`)",
+        ),
+    ] {
+        assert_eq!(e.to_string(), text);
     }
 }
 
@@ -567,12 +654,10 @@ fn smc100_a_move_that_never_ends_is_stopped() {
     let written = stream.written();
     let mut table = Smc100::new(
         StreamTransport::new("mem:table", stream),
-        Smc100Options {
-            query: fast(),
-            poll_interval: Duration::from_millis(1),
-            motion_timeout: Duration::from_millis(50),
-            position_tolerance_deg: 0.001,
-        },
+        Smc100Options::new(fast())
+            .with_poll_interval(Duration::from_millis(1))
+            .with_motion_timeout(Duration::from_millis(50))
+            .with_position_tolerance_deg(0.001),
     );
     // The script has no "1ST": the driver's stop attempt fails, the error stands.
     let e = table.move_to(45.0).unwrap_err().to_string();

@@ -7,16 +7,12 @@
 mod instrument_support;
 
 use instrument_support::*;
-use polycal::run::RunSettings;
+use polycal::lab::run::RunSettings;
 
 fn design(cycles: u32, bidirectional: bool) -> RunSettings {
-    RunSettings {
-        faces: 8,
-        cycles,
-        closing: true,
-        bidirectional,
-        settle_seconds: 0.0,
-    }
+    RunSettings::new(8, cycles)
+        .with_closing(true)
+        .with_bidirectional(bidirectional)
 }
 
 #[test]
@@ -238,22 +234,19 @@ fn sim_lab_prints_its_paths_as_json_too() {
 /// noise 0, and a port opened twice is refused.
 #[test]
 fn serial_transport_against_the_library_lab() {
-    use polycal::instrument::sim::{Devices, Lab, LabConfig};
-    use polycal::instrument::{
-        Autocollimator, Elcomat3000, QueryOptions, RotaryTable, SerialSettings, SerialTransport,
-        Smc100, Smc100Options,
-    };
+    use polycal::lab::elcomat::Elcomat3000;
+    use polycal::lab::serial::{SerialSettings, SerialTransport};
+    use polycal::lab::sim::{Devices, Lab, LabConfig};
+    use polycal::lab::smc100::{Smc100, Smc100Options};
+    use polycal::lab::{Autocollimator, QueryOptions, RotaryTable};
     use polycal::simulate::SimulationConfig;
 
-    let config = LabConfig {
-        simulation: SimulationConfig {
-            faces: 8,
-            noise_arcsec: 0.0,
-            ..SimulationConfig::default()
-        },
-        time_scale: 0.0,
-        ..LabConfig::default()
-    };
+    let config = LabConfig::new(SimulationConfig {
+        faces: 8,
+        noise_arcsec: 0.0,
+        ..SimulationConfig::default()
+    })
+    .with_time_scale(0.0);
     let lab = Lab::start(Devices::new(config).unwrap()).unwrap();
     let truth = lab.truth();
     let paths = lab.paths().clone();
@@ -267,7 +260,7 @@ fn serial_transport_against_the_library_lab() {
     );
     assert!(matches!(
         SerialTransport::open(&paths.ac1, SerialSettings::ELCOMAT),
-        Err(polycal::instrument::InstrumentError::Open { .. })
+        Err(polycal::lab::InstrumentError::Open { .. })
     ));
     ac1.start().unwrap();
     ac2.start().unwrap();

@@ -7,7 +7,7 @@
 mod instrument_support;
 
 use instrument_support::*;
-use polycal::run::RunSettings;
+use polycal::lab::run::RunSettings;
 use serde_json::Value;
 
 const DESIGN: [&str; 9] = [
@@ -23,13 +23,7 @@ const DESIGN: [&str; 9] = [
 ];
 
 fn settings() -> RunSettings {
-    RunSettings {
-        faces: 8,
-        cycles: 2,
-        closing: true,
-        bidirectional: false,
-        settle_seconds: 0.0,
-    }
+    RunSettings::new(8, 2).with_closing(true)
 }
 
 /// Runs against a lab with `fault`; returns the run directory, the lab and the output.

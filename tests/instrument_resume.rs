@@ -11,16 +11,12 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use instrument_support::*;
-use polycal::run::RunSettings;
+use polycal::lab::run::RunSettings;
 
 fn settings(cycles: u32, closing: bool, settle: f64) -> RunSettings {
-    RunSettings {
-        faces: 8,
-        cycles,
-        closing,
-        bidirectional: false,
-        settle_seconds: settle,
-    }
+    RunSettings::new(8, cycles)
+        .with_closing(closing)
+        .with_settle_seconds(settle)
 }
 
 /// The first stop of the plan with a missing reading, given the rows on disk (two

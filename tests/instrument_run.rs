@@ -6,15 +6,15 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use polycal::instrument::sim::{
-    DeviceId, Devices, Endpoint, Fault, FaultKind, LabConfig, SimStream,
+use polycal::lab::elcomat::Elcomat3000;
+use polycal::lab::run::{self, Instruments, Outcome, Ports, RunDir, RunError, RunSettings};
+use polycal::lab::sim::{
+    DeviceId, Devices, Endpoint, Fault, FaultKind, FaultProblem, LabConfig, SimStream,
 };
-use polycal::instrument::{
-    Autocollimator, Elcomat3000, InstrumentError, QueryOptions, RotaryTable, Smc100, Smc100Options,
-    StopFlag, StreamTransport,
-};
+use polycal::lab::smc100::{Smc100, Smc100Options};
+use polycal::lab::transport::StreamTransport;
+use polycal::lab::{Autocollimator, InstrumentError, QueryOptions, RotaryTable, StopFlag};
 use polycal::measurement::MeasurementSet;
-use polycal::run::{self, Instruments, Outcome, Ports, RunDir, RunError, RunSettings};
 use polycal::simulate::{SimulationConfig, Truth};
 use polycal::solve::{self, SolveOptions};
 
@@ -22,26 +22,20 @@ type Ac = Elcomat3000<StreamTransport<SimStream>>;
 type Table = Smc100<StreamTransport<SimStream>>;
 
 fn lab(faces: usize, noise: f64, faults: Vec<Fault>) -> LabConfig {
-    LabConfig {
-        simulation: SimulationConfig {
-            faces,
-            noise_arcsec: noise,
-            cycles: 2,
-            closing: true,
-            seed: 7,
-            ..SimulationConfig::default()
-        },
-        time_scale: 0.0,
-        faults,
-        ..LabConfig::default()
-    }
+    LabConfig::new(SimulationConfig {
+        faces,
+        noise_arcsec: noise,
+        cycles: 2,
+        closing: true,
+        seed: 7,
+        ..SimulationConfig::default()
+    })
+    .with_time_scale(0.0)
+    .with_faults(faults)
 }
 
 fn query() -> QueryOptions {
-    QueryOptions {
-        reply_timeout: Duration::from_millis(20),
-        retries: 3,
-    }
+    QueryOptions::new(Duration::from_millis(20), 3)
 }
 
 fn drivers(devices: Devices, stop: &StopFlag) -> (Ac, Ac, Table, Truth) {
@@ -55,11 +49,7 @@ fn drivers(devices: Devices, stop: &StopFlag) -> (Ac, Ac, Table, Truth) {
     };
     let table = Smc100::new(
         StreamTransport::new("mem:table", SimStream::new(table)),
-        Smc100Options {
-            query: query(),
-            poll_interval: Duration::from_millis(1),
-            ..Smc100Options::default()
-        },
+        Smc100Options::new(query()).with_poll_interval(Duration::from_millis(1)),
     )
     .with_stop_flag(stop.clone());
     (ac("mem:ac1", ac1), ac("mem:ac2", ac2), table, truth)
@@ -259,18 +249,42 @@ fn fault_specs() {
         (f.kind, f.device, f.after, f.count),
         (FaultKind::LostReply, DeviceId::Ac1, 10, 1)
     );
-    for bad in [
-        "lost-reply",
-        "melt:ac1",
-        "lost-reply:ac3",
-        "disable:ac1",
-        "x-invalid:table",
-        "close:table:after=x",
-        "garbled:ac2:count=0",
-        "garbled:ac2:when=3",
+    for (bad, problem) in [
+        ("lost-reply", FaultProblem::TooFewParts),
+        ("melt:ac1", FaultProblem::UnknownKind("melt".into())),
+        ("lost-reply:ac3", FaultProblem::UnknownDevice("ac3".into())),
+        ("disable:ac1", FaultProblem::WrongDevice(FaultKind::Disable)),
+        (
+            "x-invalid:table",
+            FaultProblem::WrongDevice(FaultKind::XInvalid),
+        ),
+        (
+            "close:table:after",
+            FaultProblem::NotAnOption("after".into()),
+        ),
+        (
+            "close:table:after=x",
+            FaultProblem::NotAWholeNumber("x".into()),
+        ),
+        ("garbled:ac2:count=0", FaultProblem::ZeroCount),
+        (
+            "garbled:ac2:when=3",
+            FaultProblem::UnknownOption("when".into()),
+        ),
     ] {
-        assert!(bad.parse::<Fault>().is_err(), "{bad}");
+        let e = bad.parse::<Fault>().unwrap_err();
+        assert_eq!((e.spec.as_str(), &e.problem), (bad, &problem));
     }
+    // The message, as `sim-lab --fault` has always printed it.
+    assert_eq!(
+        "x-invalid:table".parse::<Fault>().unwrap_err().to_string(),
+        "fault \"x-invalid:table\": x-invalid is a fault of an autocollimator \
+         (expected KIND:DEVICE[:after=K][:count=M], e.g. lost-reply:ac1:after=10)"
+    );
+    assert_eq!(
+        FaultProblem::WrongDevice(FaultKind::Disable).to_string(),
+        "disable is a fault of the table"
+    );
 }
 
 fn temp_dir(name: &str) -> PathBuf {
@@ -280,21 +294,13 @@ fn temp_dir(name: &str) -> PathBuf {
 }
 
 fn settings(faces: usize, cycles: u32, bidirectional: bool) -> RunSettings {
-    RunSettings {
-        faces,
-        cycles,
-        closing: true,
-        bidirectional,
-        settle_seconds: 0.0,
-    }
+    RunSettings::new(faces, cycles)
+        .with_closing(true)
+        .with_bidirectional(bidirectional)
 }
 
 fn ports() -> Ports {
-    Ports {
-        ac1: "mem:ac1".into(),
-        ac2: "mem:ac2".into(),
-        table: "mem:table".into(),
-    }
+    Ports::new("mem:ac1", "mem:ac2", "mem:table")
 }
 
 /// Runs (or resumes) in process; `stop_after` readings of this session ask for a stop.
@@ -361,7 +367,9 @@ fn a_run_in_process_is_a_calibration() {
         );
         assert_solves_to_truth(&dir.join(run::MEASUREMENTS), &d.3, 36);
         let text = std::fs::read_to_string(dir.join(run::MEASUREMENTS)).unwrap();
-        assert!(text.contains(&format!("\n{}\n", run::HEADER)));
+        assert!(
+            text.contains("\ncycle,step,ac,face,reading,direction,time,setup,reading_y,encoder\n")
+        );
         if bidirectional {
             assert!(text.contains(",ccw,"));
         }
@@ -398,7 +406,7 @@ fn an_interrupted_run_resumes_without_losing_or_repeating_a_reading() {
 
 fn refused(result: Result<RunDir, RunError>) -> String {
     match result {
-        Err(e @ RunError::Refused { .. }) => e.to_string(),
+        Err(e) if e.is_refusal() => e.to_string(),
         other => panic!("expected a refusal, got {other:?}"),
     }
 }
@@ -420,10 +428,8 @@ fn the_run_directory_refuses_what_would_lose_or_mix_data() {
         m.contains("cycles 2 vs 3") && m.contains("refusing to resume"),
         "{m}"
     );
-    let bad = RunSettings {
-        faces: 2,
-        ..s.clone()
-    };
+    let mut bad = s.clone();
+    bad.faces = 2;
     assert!(refused(RunDir::open(&dir, &bad, &ports(), true)).contains("at least 3"));
 
     // A reading out of order (a file changed by hand) is refused.
@@ -432,7 +438,12 @@ fn the_run_directory_refuses_what_would_lose_or_mix_data() {
     text.push_str("1,0,1,1,0.5,cw,0.1,1,,0\n1,1,1,2,0.5,cw,0.2,1,,45\n");
     std::fs::write(&path, &text).unwrap();
     let m = refused(RunDir::open(&dir, &s, &ports(), true));
-    assert!(m.contains("line") && m.contains("1,1,1,2"), "{m}");
+    assert!(
+        m.contains(
+            "measurements.csv:4: reading \"1,1,1,2\" (cw) is not the run's reading number 2"
+        ),
+        "{m}"
+    );
 
     // A last line cut short is removed, with a warning, and the run goes on from there.
     let mut text = std::fs::read_to_string(&path).unwrap();
@@ -446,5 +457,83 @@ fn the_run_directory_refuses_what_would_lose_or_mix_data() {
     assert_eq!(run.warnings().len(), 1, "{:?}", run.warnings());
     assert_eq!(run.remaining()[0].0.step, 1);
     assert!(std::fs::read_to_string(&path).unwrap().ends_with(",0\n"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Writes `rows` after the run's first comment and header, and tries to resume.
+fn resume_with(dir: &Path, rows: &str) -> Result<RunDir, RunError> {
+    let path = dir.join(run::MEASUREMENTS);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let head: String = text.lines().take(2).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&path, head + rows).unwrap();
+    RunDir::open(dir, &settings(8, 1, false), &ports(), true)
+}
+
+#[test]
+fn resume_reads_the_file_with_the_measurement_rules() {
+    let dir = temp_dir("resume-rules");
+    let s = settings(8, 1, false);
+    drop(RunDir::open(&dir, &s, &ports(), false).unwrap());
+    let ok = "1,0,1,1,0.5,cw,0.1,1,,0\n";
+
+    // A row the measurement file's rules refuse, named by line and column.
+    let m = refused(resume_with(&dir, &format!("{ok}1,0,2,x,0.5,cw,0.2,1,,0\n")));
+    assert!(
+        m.contains(
+            "measurements.csv:4:7: column \"face\": \"x\" is not an integer; refusing to resume"
+        ),
+        "{m}"
+    );
+    // A value the run always writes, missing.
+    let m = refused(resume_with(&dir, &format!("{ok}1,0,2,2,0.5,cw,,1,,0\n")));
+    assert!(m.contains(":4: column \"time\" is empty"), "{m}");
+    // More readings than the run has (18 for 8 faces, one cycle with closing).
+    let all: String = s
+        .plan()
+        .iter()
+        .flat_map(|stop| [(stop, 1u32), (stop, 2)])
+        .chain(std::iter::once((&s.plan()[0], 1)))
+        .map(|(stop, ac)| {
+            let face = (stop.step + ac as usize - 1) % 8 + 1;
+            format!("{},{},{ac},{face},0.5,cw,0.1,1,,0\n", stop.cycle, stop.step)
+        })
+        .collect();
+    let m = refused(resume_with(&dir, &all));
+    assert!(m.contains(":21: more readings than the run has"), "{m}");
+    // Without that last one the run is complete.
+    let complete: String = all.lines().take(18).map(|l| format!("{l}\n")).collect();
+    let run = resume_with(&dir, &complete).unwrap();
+    assert_eq!((run.readings_done(), run.remaining().len()), (18, 0));
+    drop(run);
+
+    // Another header (another column order) is refused: rows appended to it would mix.
+    let path = dir.join(run::MEASUREMENTS);
+    std::fs::write(
+        &path,
+        "# a run\ncycle,step,ac,face,reading,direction,setup,time,reading_y,encoder\n",
+    )
+    .unwrap();
+    let m = refused(RunDir::open(&dir, &s, &ports(), true));
+    assert!(m.contains("measurements.csv:2: header"), "{m}");
+
+    // The header itself cut short: the comment is kept, the header written again, and
+    // the first reading appended after it.
+    std::fs::write(&path, "# a run\ncycle,step,ac,fa").unwrap();
+    let stop = StopFlag::new();
+    let mut d = drivers(Devices::new(lab(8, 0.0, vec![])).unwrap(), &stop);
+    let run = RunDir::open(&dir, &s, &ports(), true).unwrap();
+    assert_eq!((run.warnings().len(), run.readings_done()), (1, 0));
+    drop(run);
+    let outcome = run_in_process(&dir, &s, true, &mut d, &stop, None);
+    assert_eq!(outcome, Outcome::Completed);
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        text.starts_with(
+            "# a run\ncycle,step,ac,face,reading,direction,time,setup,reading_y,encoder\n1,0,1,1,"
+        ),
+        "{text}"
+    );
+    let set = MeasurementSet::read_path(&path, None).unwrap();
+    assert_eq!(set.readings.len(), 18);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1,5 +1,5 @@
 //! `polycal run` and `polycal sim-lab` (feature `lab`): their arguments and handlers.
-//! All logic lives in the library (`polycal::run`, `polycal::instrument`).
+//! All logic lives in the library (`polycal::lab`).
 
 use std::io::{Read, Write};
 use std::path::PathBuf;
@@ -7,14 +7,17 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::ValueEnum;
-#[cfg(unix)]
-use polycal::instrument::sim::Lab;
-use polycal::instrument::sim::{Devices, Fault, LabConfig};
-use polycal::instrument::{
-    Elcomat3000, LoggedTransport, QueryOptions, SerialSettings, SerialTransport, Smc100,
-    Smc100Options, StopFlag, TrafficLog,
+use polycal::lab::elcomat::Elcomat3000;
+use polycal::lab::run::{
+    self, Instruments, Outcome, Ports, Progress, RunDir, RunError, RunSettings,
 };
-use polycal::run::{self, Instruments, Outcome, Ports, Progress, RunDir, RunError, RunSettings};
+use polycal::lab::serial::{SerialSettings, SerialTransport};
+#[cfg(unix)]
+use polycal::lab::sim::Lab;
+use polycal::lab::sim::{Devices, Fault, LabConfig};
+use polycal::lab::smc100::{Smc100, Smc100Options};
+use polycal::lab::traffic::{LoggedTransport, TrafficLog};
+use polycal::lab::{QueryOptions, StopFlag};
 
 use super::output::{self, Output};
 use super::with_hint;
@@ -137,24 +140,15 @@ fn open_port(
 
 /// `polycal run`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
-    let settings = RunSettings {
-        faces: args.faces,
-        cycles: args.cycles,
-        closing: args.closing || args.bidirectional,
-        bidirectional: args.bidirectional,
-        settle_seconds: args.settle,
-    };
-    settings.validate().map_err(|m| anyhow!(m))?;
-    let query = QueryOptions {
-        reply_timeout: seconds("timeout", args.timeout)?,
-        retries: 3,
-    };
+    let settings = RunSettings::new(args.faces, args.cycles)
+        .with_closing(args.closing || args.bidirectional)
+        .with_bidirectional(args.bidirectional)
+        .with_settle_seconds(args.settle);
+    // The library names the setting (`faces 2: …`); the option is `--faces`.
+    settings.validate().map_err(|e| anyhow!("--{e}"))?;
+    let query = QueryOptions::new(seconds("timeout", args.timeout)?, 3);
     let motion_timeout = seconds("motion-timeout", args.motion_timeout)?;
-    let ports = Ports {
-        ac1: args.ac1.clone(),
-        ac2: args.ac2.clone(),
-        table: args.table.clone(),
-    };
+    let ports = Ports::new(args.ac1.clone(), args.ac2.clone(), args.table.clone());
 
     let stop = StopFlag::new();
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
@@ -166,8 +160,7 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
             .context("cannot install the Ctrl-C handler")?;
     }
 
-    let mut dir = RunDir::open(&args.out, &settings, &ports, args.resume)
-        .map_err(|error| open_hint(error, args))?;
+    let mut dir = RunDir::open(&args.out, &settings, &ports, args.resume).map_err(open_hint)?;
     for warning in dir.warnings() {
         out.warning(warning);
     }
@@ -229,11 +222,7 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
     let mut ac2 = Elcomat3000::new(ac2, query);
     let mut table = Smc100::new(
         table,
-        Smc100Options {
-            query,
-            motion_timeout,
-            ..Smc100Options::default()
-        },
+        Smc100Options::new(query).with_motion_timeout(motion_timeout),
     )
     .with_stop_flag(stop.clone());
 
@@ -277,22 +266,31 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
 }
 
 /// Why a run directory was refused, with the option that gets past it: `--resume` for a
-/// directory that holds a run, no `--resume` for one that holds none.
-fn open_hint(error: RunError, args: &RunArgs) -> anyhow::Error {
-    if !matches!(error, RunError::Refused { .. }) {
-        return error.into();
-    }
-    let holds_run = [run::MANIFEST, run::MEASUREMENTS]
-        .iter()
-        .any(|name| args.out.join(name).exists());
-    match (args.resume, holds_run) {
-        (false, true) => with_hint(
+/// directory that holds a run, no `--resume` for one that holds none; the settings as
+/// this command's options (the library's messages name no option).
+fn open_hint(error: RunError) -> anyhow::Error {
+    match error {
+        RunError::AlreadyHoldsRun { .. } => with_hint(
             error,
             "--resume",
             "continue it with --resume, or choose another --out",
         ),
-        (true, false) => with_hint(error, "--resume", "start one without --resume"),
-        _ => error.into(),
+        RunError::NoRunToResume { .. } => {
+            with_hint(error, "--resume", "start one without --resume")
+        }
+        RunError::OtherSettings {
+            path,
+            started,
+            requested,
+        } => anyhow!(
+            "{}: the run was started with {}, this command says {} ({}); refusing to resume",
+            path.display(),
+            started.as_options(),
+            requested.as_options(),
+            started.differences(&requested).join(", ")
+        ),
+        RunError::Settings { path, error } => anyhow!("{}: --{error}", path.display()),
+        error => error.into(),
     }
 }
 
@@ -323,13 +321,11 @@ pub fn sim_lab(args: &SimLabArgs, out: &Output) -> Result<u8> {
                 .map_err(|m| anyhow!("--fault {spec}: {m}"))
         })
         .collect::<Result<Vec<_>>>()?;
-    let config = LabConfig {
-        simulation: args.truth.config(vec![1, 2], 1, 1, 20.0)?,
-        speed_deg_per_s: args.speed,
-        home_seconds: args.home_seconds,
-        time_scale: args.time_scale,
-        faults,
-    };
+    let config = LabConfig::new(args.truth.config(vec![1, 2], 1, 1, 20.0)?)
+        .with_speed_deg_per_s(args.speed)
+        .with_home_seconds(args.home_seconds)
+        .with_time_scale(args.time_scale)
+        .with_faults(faults);
     let devices = Devices::new(config)?;
     args.truth.write_truth(&devices.truth())?;
     serve(devices, args.format, out)

@@ -180,7 +180,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                 .map(|options| {
                     // One bar per file, cleared when its Monte Carlo ends.
                     let progress = out.progress_bar("Monte Carlo");
-                    let options = options.clone().with_progress(&progress);
+                    let options = (*options).with_progress(&progress);
                     calibration::monte_carlo(&set, &solution, budget, &gum, &options)
                 })
                 .transpose()

@@ -3,8 +3,10 @@
 //! A [`MeasurementSet`] is a validated list of [`Reading`]s of one polygon with `faces`
 //! faces. It is read from the measurement CSV with [`MeasurementSet::read_path`] (or
 //! [`MeasurementSet::read_from`] for any reader, e.g. standard input) and written with
-//! [`MeasurementSet::write_to`]. Readings built in memory (by the simulator, say) are
-//! checked with the same rules by [`MeasurementSet::from_readings`].
+//! [`MeasurementSet::write_to`], or one reading at a time with a [`ReadingWriter`].
+//! Readings built in memory (by the simulator, say) are checked with the same rules by
+//! [`MeasurementSet::from_readings`]; a file still being written is read, row by row,
+//! with [`read_rows`].
 //!
 //! # The rules
 //!
@@ -34,12 +36,15 @@
 use crate::input::Location;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
-use std::io::{self, BufWriter, Read, Write};
+use std::io::Read;
 use std::path::Path;
 
 mod parse;
 mod sigma;
 mod validate;
+mod write;
+
+pub use write::{Column, Columns, ReadingWriter};
 
 pub use sigma::{Sigma, SigmaError};
 
@@ -159,6 +164,44 @@ pub fn run_stops(faces: usize, cycles: u32, closing: bool, bidirectional: bool) 
     stops
 }
 
+/// Reads the readings of a measurement file that is still being written, such as an
+/// interrupted run's: the header and each row are checked as
+/// [`MeasurementSet::read_from`] checks them, the rules about the set as a whole (every
+/// face and step read, one offset per autocollimator, …) are not, and a file without a
+/// header or without rows yet gives no readings. Each [`Reading::line`] is the line its
+/// row starts on.
+///
+/// ```
+/// use polycal::measurement::read_rows;
+///
+/// let partial = b"# cut short\ncycle,step,ac,face,reading\n1,0,1,1,0.5\n";
+/// let readings = read_rows(&partial[..], "run.csv")?;
+/// assert_eq!((readings.len(), readings[0].line), (1, 3));
+/// assert!(read_rows(&b"# only a comment\n"[..], "run.csv")?.is_empty());
+/// assert!(read_rows(&b"cycle,step,ac,face,reading\n1,0,1,x,0.5\n"[..], "run.csv").is_err());
+/// # Ok::<(), polycal::measurement::MeasurementError>(())
+/// ```
+///
+/// # Errors
+///
+/// [`MeasurementError::Io`] if reading fails, [`MeasurementError::Invalid`] for the first
+/// header or row that breaks a rule.
+pub fn read_rows<R: Read>(reader: R, source: &str) -> Result<Vec<Reading>, MeasurementError> {
+    parse_bytes(&read_all(reader, source)?, source, Rules::Rows).map(|set| set.readings)
+}
+
+/// The whole input of `reader`; an error names `source`.
+fn read_all<R: Read>(mut reader: R, source: &str) -> Result<Vec<u8>, MeasurementError> {
+    let mut bytes = Vec::new();
+    reader
+        .read_to_end(&mut bytes)
+        .map_err(|e| MeasurementError::Io {
+            file: source.to_string(),
+            source: e,
+        })?;
+    Ok(bytes)
+}
+
 /// A validated set of readings of an N-faced polygon.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeasurementSet {
@@ -267,18 +310,11 @@ impl MeasurementSet {
     /// # Ok::<(), MeasurementError>(())
     /// ```
     pub fn read_from<R: Read>(
-        mut reader: R,
+        reader: R,
         source: &str,
         faces: Option<usize>,
     ) -> Result<Self, MeasurementError> {
-        let mut bytes = Vec::new();
-        reader
-            .read_to_end(&mut bytes)
-            .map_err(|e| MeasurementError::Io {
-                file: source.to_string(),
-                source: e,
-            })?;
-        parse_bytes(&bytes, source, faces)
+        parse_bytes(&read_all(reader, source)?, source, Rules::Set(faces))
     }
 
     /// Validates readings built in memory (e.g. by the simulator) with the same structural rules.
@@ -304,89 +340,6 @@ impl MeasurementSet {
             readings,
             source: source.to_string(),
         })
-    }
-
-    /// Writes the measurement CSV (docs/FORMAT.md §2); `comments` become leading `# ` lines.
-    ///
-    /// The header is `cycle,step,ac,face,reading,direction,setup`, followed by `time`,
-    /// `reading_y`, `temperature` and `encoder`, each only if some reading has that
-    /// value (a reading without it gets an empty field). Floats are written with Rust's
-    /// `{}` formatting, the shortest text that reads back to the same `f64`, so reading
-    /// the output back gives an equal set (apart from [`Reading::line`] and `source`).
-    /// A comment holding line breaks becomes several comment lines. Rows keep the set's
-    /// order; lines end with `\n`. Non-finite values (possible only in a set not built by
-    /// this module) are written as Rust prints them and would be refused on reading.
-    ///
-    /// # Errors
-    ///
-    /// Any error of `writer`.
-    pub fn write_to<W: Write>(&self, writer: W, comments: &[String]) -> io::Result<()> {
-        let mut w = BufWriter::new(writer);
-        for comment in comments {
-            for line in split_lines(comment) {
-                if line.is_empty() {
-                    writeln!(w, "#")?;
-                } else {
-                    writeln!(w, "# {line}")?;
-                }
-            }
-        }
-        let has_time = self.readings.iter().any(|r| r.time_seconds.is_some());
-        let has_y = self.readings.iter().any(|r| r.reading_y_arcsec.is_some());
-        let has_temp = self
-            .readings
-            .iter()
-            .any(|r| r.temperature_celsius.is_some());
-        let has_encoder = self.readings.iter().any(|r| r.encoder_degrees.is_some());
-        write!(w, "cycle,step,ac,face,reading,direction,setup")?;
-        for (present, name) in [
-            (has_time, "time"),
-            (has_y, "reading_y"),
-            (has_temp, "temperature"),
-            (has_encoder, "encoder"),
-        ] {
-            if present {
-                write!(w, ",{name}")?;
-            }
-        }
-        writeln!(w)?;
-        for r in &self.readings {
-            write!(
-                w,
-                "{},{},{},{},{},{},{}",
-                r.cycle, r.step, r.ac, r.face, r.reading_arcsec, r.direction, r.setup
-            )?;
-            for (present, value) in [
-                (has_time, r.time_seconds),
-                (has_y, r.reading_y_arcsec),
-                (has_temp, r.temperature_celsius),
-                (has_encoder, r.encoder_degrees),
-            ] {
-                if present {
-                    match value {
-                        Some(x) => write!(w, ",{x}")?,
-                        None => write!(w, ",")?,
-                    }
-                }
-            }
-            writeln!(w)?;
-        }
-        w.flush()
-    }
-
-    /// Writes the measurement CSV to a file (created or truncated), as
-    /// [`MeasurementSet::write_to`] does.
-    ///
-    /// # Errors
-    ///
-    /// [`MeasurementError::Io`] naming the path if the file cannot be created or written.
-    pub fn write_path(&self, path: &Path, comments: &[String]) -> Result<(), MeasurementError> {
-        let io_error = |source| MeasurementError::Io {
-            file: path.display().to_string(),
-            source,
-        };
-        let file = std::fs::File::create(path).map_err(io_error)?;
-        self.write_to(file, comments).map_err(io_error)
     }
 
     /// Distinct (setup, ac) pairs in ascending order.

@@ -324,10 +324,21 @@ pub(super) fn split_lines(text: &str) -> impl Iterator<Item = &str> {
         .flat_map(|line| line.strip_suffix('\r').unwrap_or(line).split('\r'))
 }
 
+/// Which rules a reading of the file applies.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Rules {
+    /// All of FORMAT.md §2, with N given (`faces`) or the largest face.
+    Set(Option<usize>),
+    /// Those of the header and of each row only, for a file still being written: a file
+    /// without a header or without rows gives no readings, and the rules about the whole
+    /// set are not checked (the `faces` of the result is 0).
+    Rows,
+}
+
 pub(super) fn parse_bytes(
     bytes: &[u8],
     source: &str,
-    faces: Option<usize>,
+    rules: Rules,
 ) -> Result<MeasurementSet, MeasurementError> {
     let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes);
     let text = match std::str::from_utf8(bytes) {
@@ -349,14 +360,19 @@ pub(super) fn parse_bytes(
             return Err(invalid(source, index.location(valid.len()), message));
         }
     };
-    parse_text(text, source, faces)
+    parse_text(text, source, rules)
 }
 
 pub(super) fn parse_text(
     text: &str,
     source: &str,
-    faces: Option<usize>,
+    rules: Rules,
 ) -> Result<MeasurementSet, MeasurementError> {
+    let no_readings = || MeasurementSet {
+        faces: 0,
+        readings: Vec::new(),
+        source: source.to_string(),
+    };
     let index = LineIndex::new(text);
     let bytes = text.as_bytes();
     let err = |offset: usize, message: String| invalid(source, index.location(offset), message);
@@ -374,6 +390,9 @@ pub(super) fn parse_text(
         }
     }
     let Some(header_line) = header_line else {
+        if let Rules::Rows = rules {
+            return Ok(no_readings());
+        }
         return Err(match last_comment {
             None => invalid(
                 source,
@@ -507,6 +526,9 @@ pub(super) fn parse_text(
         rows.push(row);
     }
     if readings.is_empty() {
+        if let Rules::Rows = rules {
+            return Ok(no_readings());
+        }
         return Err(err(
             header_start,
             "no data rows after the header".to_string(),
@@ -519,7 +541,10 @@ pub(super) fn parse_text(
         header_fields: &header_fields,
         rows: &rows,
     };
-    let n = validate(&readings, faces, &locator, source)?;
+    let n = match rules {
+        Rules::Set(faces) => validate(&readings, faces, &locator, source)?,
+        Rules::Rows => 0,
+    };
     Ok(MeasurementSet {
         faces: n,
         readings,

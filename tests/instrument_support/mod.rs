@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use polycal::lab::run::RunSettings;
 use polycal::measurement::MeasurementSet;
-use polycal::run::RunSettings;
 use serde_json::Value;
 
 pub const BIN: &str = env!("CARGO_BIN_EXE_polycal");
@@ -123,11 +123,14 @@ pub fn assert_error(out: &Output, says: &str) -> String {
     text
 }
 
+/// The header of a run's measurement file (FORMAT.md §7), as the run has always written it.
+pub const RUN_HEADER: &str = "cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder";
+
 /// The (cycle, step, ac) of every data row of a run's measurement file.
 pub fn rows(dir: &Path) -> Vec<(u32, usize, u32)> {
     let text = std::fs::read_to_string(dir.join("measurements.csv")).unwrap();
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
-    assert_eq!(lines.next(), Some(polycal::run::HEADER));
+    assert_eq!(lines.next(), Some(RUN_HEADER));
     lines
         .map(|l| {
             let f: Vec<&str> = l.split(',').collect();

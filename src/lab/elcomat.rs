@@ -15,8 +15,9 @@
 
 use std::time::Duration;
 
-use super::transport::query;
-use super::{AcReading, Autocollimator, InstrumentError, QueryOptions, Transport};
+use super::query::query;
+use super::transport::Transport;
+use super::{AcReading, Autocollimator, InstrumentError, QueryOptions, ReplyError};
 
 /// Identification command.
 pub const IDENTIFY: &str = "d\n";
@@ -28,14 +29,21 @@ pub const MEASURE: &str = "a\n";
 /// Parses a `d` reply, `8 <text>`, into the text.
 ///
 /// ```
-/// use polycal::instrument::elcomat::parse_identification;
+/// use polycal::lab::elcomat::parse_identification;
 /// assert_eq!(parse_identification("8 ELCOMAT 3000 S/N 12").unwrap(), "ELCOMAT 3000 S/N 12");
 /// assert!(parse_identification("4 003 1.0 2.0").is_err());
 /// ```
-pub fn parse_identification(line: &str) -> Result<String, String> {
+///
+/// # Errors
+///
+/// [`ReplyError::NotThisReply`] for anything but `8 ` and some text.
+pub fn parse_identification(line: &str) -> Result<String, ReplyError> {
     match line.strip_prefix("8 ") {
         Some(text) if !text.trim().is_empty() => Ok(text.trim().to_string()),
-        _ => Err("not a device-information reply (`8 <text>`)".into()),
+        _ => Err(ReplyError::NotThisReply {
+            what: "a device-information reply",
+            form: "8 <text>",
+        }),
     }
 }
 
@@ -44,56 +52,71 @@ pub fn parse_identification(line: &str) -> Result<String, String> {
 /// number that is not finite, anything extra, and a status whose X axis is not valid.
 ///
 /// ```
-/// use polycal::instrument::elcomat::parse_measurement;
+/// use polycal::lab::ReplyError;
+/// use polycal::lab::elcomat::parse_measurement;
 /// let r = parse_measurement("4 001 12.5 0.0", '4').unwrap();
 /// assert_eq!((r.status, r.x_arcsec, r.y_arcsec), (1, 12.5, None)); // Y not valid
-/// assert!(parse_measurement("4 002 12.5 0.0", '4').unwrap_err().contains("X axis not valid"));
+/// assert!(matches!(
+///     parse_measurement("4 002 12.5 0.0", '4'),
+///     Err(ReplyError::XNotValid { .. })
+/// ));
 /// ```
-pub fn parse_measurement(line: &str, expected_type: char) -> Result<AcReading, String> {
-    let form = format!("`{expected_type} <sss> <x> <y>`");
+///
+/// # Errors
+///
+/// The [`ReplyError`] saying what is wrong with the line.
+pub fn parse_measurement(line: &str, expected_type: char) -> Result<AcReading, ReplyError> {
     let parts: Vec<&str> = line.split_whitespace().collect();
-    if parts.len() != 4 {
-        return Err(format!(
-            "{} field(s), a measurement reply is {form}",
-            parts.len()
-        ));
-    }
-    if parts[0] != expected_type.to_string() {
-        return Err(format!(
-            "reply type {:?}, expected {expected_type:?} ({form})",
-            parts[0]
-        ));
-    }
-    let status_text = parts[1];
-    if status_text.len() != 3 || !status_text.bytes().all(|b| b.is_ascii_digit()) {
-        return Err(format!("status {status_text:?} is not three digits"));
-    }
-    let status: u16 = status_text
-        .parse()
-        .map_err(|_| format!("status {status_text:?} is not three digits"))?;
-    let number = |name: &str, text: &str| match text.parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(format!("{name} {text:?} is not a finite number")),
+    let &[kind, status_text, x_text, y_text] = parts.as_slice() else {
+        return Err(ReplyError::FieldCount {
+            count: parts.len(),
+            expected: expected_type,
+        });
     };
-    let x = number("X", parts[2])?;
-    let y = number("Y", parts[3])?;
+    if kind != expected_type.to_string() {
+        return Err(ReplyError::ReplyType {
+            found: kind.to_string(),
+            expected: expected_type,
+        });
+    }
+    let bad_status = || ReplyError::Status {
+        status: status_text.to_string(),
+    };
+    if status_text.len() != 3 || !status_text.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(bad_status());
+    }
+    let status: u16 = status_text.parse().map_err(|_| bad_status())?;
+    let x = finite("X", x_text)?;
+    let y = finite("Y", y_text)?;
     let (x_valid, y_valid) = match status % 10 {
         0 => (false, false),
         1 => (true, false),
         2 => (false, true),
         3 => (true, true),
-        d => return Err(format!("status {status_text}: axis digit {d} is not 0 … 3")),
+        digit => {
+            return Err(ReplyError::AxisDigit {
+                status: status_text.to_string(),
+                digit,
+            });
+        }
     };
     if !x_valid {
-        return Err(format!(
-            "X axis not valid (status {status_text}: no reflected light, or out of range)"
-        ));
+        return Err(ReplyError::XNotValid {
+            status: status_text.to_string(),
+        });
     }
-    Ok(AcReading {
-        status,
-        x_arcsec: x,
-        y_arcsec: y_valid.then_some(y),
-    })
+    Ok(AcReading::new(status, x, y_valid.then_some(y)))
+}
+
+/// A finite number, or [`ReplyError::NotFinite`] naming the value.
+fn finite(name: &'static str, text: &str) -> Result<f64, ReplyError> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(ReplyError::NotFinite {
+            name,
+            text: text.to_string(),
+        }),
+    }
 }
 
 /// The ELCOMAT 3000 driver over any [`Transport`].

@@ -24,7 +24,8 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use super::{InstrumentError, Transport};
+use super::InstrumentError;
+use super::transport::Transport;
 
 /// The run's clock: seconds since the run started, monotonic within one process.
 #[derive(Debug, Clone, Copy)]

@@ -3,8 +3,9 @@
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use super::{Fault, FaultKind, Motion, SimDevice, World, lock};
-use crate::instrument::smc100::format_position;
+use super::world::Motion;
+use super::{Fault, FaultKind, SimDevice, World, lock};
+use crate::lab::smc100::format_position;
 
 /// Travel limits of the simulated table, degrees.
 pub const TRAVEL_DEG: (f64, f64) = (-720.0, 720.0);
@@ -144,7 +145,7 @@ impl SimDevice for Smc100Sim {
                 let mut world = lock(&self.world);
                 world.touch(now);
                 if let Some(m) = world.table.motion.take() {
-                    world.table.position = world_position(&m, now);
+                    world.table.position = m.position_at(now);
                     if m.homing {
                         world.table.referenced = false;
                     } else {
@@ -181,14 +182,4 @@ impl SimDevice for Smc100Sim {
     fn events(&self) -> u64 {
         self.moves
     }
-}
-
-fn world_position(m: &Motion, now: Instant) -> f64 {
-    let total = m.duration.as_secs_f64();
-    let done = if total > 0.0 {
-        (now.saturating_duration_since(m.start).as_secs_f64() / total).min(1.0)
-    } else {
-        1.0
-    };
-    m.from + (m.to - m.from) * done
 }

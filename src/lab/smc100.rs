@@ -22,8 +22,9 @@
 
 use std::time::{Duration, Instant};
 
-use super::transport::query;
-use super::{InstrumentError, QueryOptions, RotaryTable, StopFlag, Transport};
+use super::query::query;
+use super::transport::Transport;
+use super::{InstrumentError, QueryOptions, ReplyError, RotaryTable, StopFlag};
 
 /// State query.
 pub const STATE: &str = "1TS\r\n";
@@ -117,6 +118,7 @@ impl ControllerState {
 
 /// A parsed `1TS` reply.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct TableStatus {
     /// The positioner error bits (0: none).
     pub error_bits: u16,
@@ -173,20 +175,34 @@ pub fn command_error_name(code: char) -> &'static str {
 /// Parses a `1TS<eeee><ss>` reply.
 ///
 /// ```
-/// use polycal::instrument::smc100::{parse_status, ControllerState};
+/// use polycal::lab::smc100::{parse_status, ControllerState};
 /// let s = parse_status("1TS000033").unwrap();
 /// assert_eq!((s.error_bits, s.state), (0, ControllerState::Ready(0x33)));
 /// assert!(parse_status("1TS00003").is_err());
 /// ```
-pub fn parse_status(line: &str) -> Result<TableStatus, String> {
-    let rest = line
-        .strip_prefix("1TS")
-        .ok_or("not a state reply (`1TS<eeee><ss>`)")?;
+///
+/// # Errors
+///
+/// [`ReplyError::NotThisReply`] without the `1TS` prefix, [`ReplyError::Form`] when six
+/// hex digits do not follow it.
+pub fn parse_status(line: &str) -> Result<TableStatus, ReplyError> {
+    let rest = line.strip_prefix("1TS").ok_or(ReplyError::NotThisReply {
+        what: "a state reply",
+        form: "1TS<eeee><ss>",
+    })?;
+    let form = ReplyError::Form {
+        what: "a state reply",
+        form: "`1TS` and six hex digits (`<eeee><ss>`)",
+    };
     if rest.len() != 6 || !rest.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err("a state reply is `1TS` and six hex digits (`<eeee><ss>`)".into());
+        return Err(form);
     }
-    let error_bits = u16::from_str_radix(&rest[..4], 16).map_err(|e| e.to_string())?;
-    let code = u8::from_str_radix(&rest[4..], 16).map_err(|e| e.to_string())?;
+    let (Ok(error_bits), Ok(code)) = (
+        u16::from_str_radix(&rest[..4], 16),
+        u8::from_str_radix(&rest[4..], 16),
+    ) else {
+        return Err(form);
+    };
     Ok(TableStatus {
         error_bits,
         state: ControllerState::from_code(code),
@@ -194,33 +210,58 @@ pub fn parse_status(line: &str) -> Result<TableStatus, String> {
 }
 
 /// Parses a `1TP<deg>` reply.
-pub fn parse_position(line: &str) -> Result<f64, String> {
-    let rest = line
-        .strip_prefix("1TP")
-        .ok_or("not a position reply (`1TP<deg>`)")?;
+///
+/// # Errors
+///
+/// [`ReplyError::NotThisReply`] without the `1TP` prefix, [`ReplyError::NotFinite`] when
+/// a finite number does not follow it.
+pub fn parse_position(line: &str) -> Result<f64, ReplyError> {
+    let rest = line.strip_prefix("1TP").ok_or(ReplyError::NotThisReply {
+        what: "a position reply",
+        form: "1TP<deg>",
+    })?;
     match rest.trim().parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(format!("position {rest:?} is not a finite number")),
+        _ => Err(ReplyError::NotFinite {
+            name: "position",
+            text: rest.to_string(),
+        }),
     }
 }
 
 /// Parses a `1TE<c>` reply into the code (`@`: no error).
-pub fn parse_last_error(line: &str) -> Result<char, String> {
-    let rest = line
-        .strip_prefix("1TE")
-        .ok_or("not an error reply (`1TE<c>`)")?;
+///
+/// # Errors
+///
+/// [`ReplyError::NotThisReply`] without the `1TE` prefix, [`ReplyError::Form`] when one
+/// character (`@` or an upper-case letter) does not follow it.
+pub fn parse_last_error(line: &str) -> Result<char, ReplyError> {
+    let rest = line.strip_prefix("1TE").ok_or(ReplyError::NotThisReply {
+        what: "an error reply",
+        form: "1TE<c>",
+    })?;
     let mut chars = rest.chars();
     match (chars.next(), chars.next()) {
         (Some(c), None) if c == '@' || c.is_ascii_uppercase() => Ok(c),
-        _ => Err("an error reply is `1TE` and one character".into()),
+        _ => Err(ReplyError::Form {
+            what: "an error reply",
+            form: "`1TE` and one character",
+        }),
     }
 }
 
 /// Parses a `1VE<text>` reply into the text.
-pub fn parse_version(line: &str) -> Result<String, String> {
+///
+/// # Errors
+///
+/// [`ReplyError::NotThisReply`] for anything but `1VE` and some text.
+pub fn parse_version(line: &str) -> Result<String, ReplyError> {
     match line.strip_prefix("1VE") {
         Some(text) if !text.trim().is_empty() => Ok(text.trim().to_string()),
-        _ => Err("not a version reply (`1VE<text>`)".into()),
+        _ => Err(ReplyError::NotThisReply {
+            what: "a version reply",
+            form: "1VE<text>",
+        }),
     }
 }
 
@@ -238,6 +279,7 @@ pub fn format_position(degrees: f64) -> String {
 
 /// How the SMC100 driver waits and checks.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct Smc100Options {
     /// Reply deadline and retries of queries.
     pub query: QueryOptions,
@@ -249,15 +291,48 @@ pub struct Smc100Options {
     pub position_tolerance_deg: f64,
 }
 
-impl Default for Smc100Options {
-    /// Default queries, 20 ms polling, 120 s per motion, 0.001° tolerance.
-    fn default() -> Self {
+impl Smc100Options {
+    /// Options with `query` for the queries, 20 ms polling, 120 s per motion and a
+    /// 0.001° tolerance.
+    pub fn new(query: QueryOptions) -> Smc100Options {
         Smc100Options {
-            query: QueryOptions::default(),
+            query,
             poll_interval: Duration::from_millis(20),
             motion_timeout: Duration::from_secs(120),
             position_tolerance_deg: 0.001,
         }
+    }
+
+    /// Sets the reply deadline and retries of queries.
+    pub fn with_query(mut self, query: QueryOptions) -> Smc100Options {
+        self.query = query;
+        self
+    }
+
+    /// Sets the time between two `1TS` while the table moves or homes.
+    pub fn with_poll_interval(mut self, poll_interval: Duration) -> Smc100Options {
+        self.poll_interval = poll_interval;
+        self
+    }
+
+    /// Sets the longest a move or a home search may take.
+    pub fn with_motion_timeout(mut self, motion_timeout: Duration) -> Smc100Options {
+        self.motion_timeout = motion_timeout;
+        self
+    }
+
+    /// Sets the largest accepted difference between the reported and the commanded
+    /// position, degrees.
+    pub fn with_position_tolerance_deg(mut self, position_tolerance_deg: f64) -> Smc100Options {
+        self.position_tolerance_deg = position_tolerance_deg;
+        self
+    }
+}
+
+impl Default for Smc100Options {
+    /// Default queries, 20 ms polling, 120 s per motion, 0.001° tolerance.
+    fn default() -> Self {
+        Smc100Options::new(QueryOptions::default())
     }
 }
 

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use serialport::{SerialPort, TTYPort};
 
 use super::{Devices, Endpoint, World, lock};
-use crate::instrument::InstrumentError;
+use crate::lab::InstrumentError;
 use crate::simulate::Truth;
 
 /// The device paths a client opens, one per simulated instrument.

@@ -1,0 +1,88 @@
+//! The lab: two ELCOMAT 3000 autocollimators and an SMC100 rotary table on serial lines,
+//! and the run procedure that drives them through a calibration and keeps every reading
+//! on disk (FORMAT.md §7). Built with the cargo feature `lab`.
+//!
+//! # What flows from the instruments to the run directory
+//!
+//! ```text
+//!  serial line / pseudo-terminal / in-memory stream      (serial, sim, scripted)
+//!        │ bytes
+//!  StreamTransport: one reply line per deadline           (transport)
+//!        │ lines                ──► traffic.jsonl: every line sent and received (traffic)
+//!  Elcomat3000, Smc100: commands, replies, retries       (elcomat, smc100, query)
+//!        │ AcReading, table position
+//!  run::measure: the stops of the plan, both autocollimators at each   (run)
+//!        │ Reading                   ──► manifest.json: settings, instruments, outcome
+//!  measurement::ReadingWriter ──► measurements.csv: one row per reading, synced before
+//!                                 the table moves again
+//! ```
+//!
+//! The modules, from the wire up:
+//!
+//! - [`transport`]: the [`Transport`](transport::Transport) trait, a line-oriented byte
+//!   channel whose `read_line` has one overall deadline per reply (not per `read()`), and
+//!   its one implementation [`StreamTransport`](transport::StreamTransport) over any byte
+//!   stream;
+//! - [`serial`]: the serial port as such a stream ([`serial::SerialTransport`]);
+//! - [`scripted`]: an in-memory device for tests, a script of exchanges;
+//! - [`traffic`]: [`LoggedTransport`](traffic::LoggedTransport), which records every line
+//!   sent and received, with time and port, as JSON Lines (`traffic.jsonl`);
+//! - [`elcomat`] and [`smc100`]: the drivers, behind the [`Autocollimator`] and
+//!   [`RotaryTable`] traits; their replies are read by the [`QueryOptions`] rules below;
+//! - [`sim`]: state machines speaking both protocols, fed by the simulator's truth model,
+//!   served on pseudo-terminals by `polycal sim-lab`;
+//! - [`run`]: the run procedure: its settings and plan, the run directory and its
+//!   manifest, resuming an interrupted run, and the measuring loop.
+//!
+//! # Retries and motion
+//!
+//! A *query* (a command whose reply only reports) is retried when its reply is lost,
+//! garbled or reports an invalid measurement: the input is cleared and the command sent
+//! again, at most [`QueryOptions::retries`] more times (three by default). A *motion*
+//! (`1PA`, `1OR`) is never sent twice: after a lost reply the driver asks the state
+//! (`1TS`) and the position (`1TP`) instead. A failing port, a device in a state that
+//! forbids going on (disable, error bits) and a query that still fails after its retries
+//! end in an [`InstrumentError`] naming the port, what was sent and what came back.
+//!
+//! # Example: the ELCOMAT driver over an in-memory transport
+//!
+//! ```
+//! use polycal::lab::elcomat::Elcomat3000;
+//! use polycal::lab::scripted::ScriptedStream;
+//! use polycal::lab::transport::StreamTransport;
+//! use polycal::lab::{Autocollimator, QueryOptions};
+//!
+//! // What the device answers to each command (the ELCOMAT ends replies with CR).
+//! let stream = ScriptedStream::new()
+//!     .expect("s\n", "") // stop streaming: no reply
+//!     .expect("d\n", "8 ELCOMAT 3000 S/N 4711\r")
+//!     .expect("a\n", "4 003 12.345000 -1.234000\r");
+//! let written = stream.written();
+//! let transport = StreamTransport::new("mem:ac1", stream);
+//! let mut ac = Elcomat3000::new(transport, QueryOptions::default());
+//! ac.start()?;
+//! assert_eq!(ac.identify()?, "ELCOMAT 3000 S/N 4711");
+//! let reading = ac.measure()?;
+//! assert_eq!(reading.x_arcsec, 12.345);
+//! assert_eq!(reading.y_arcsec, Some(-1.234));
+//! assert_eq!(written.bytes(), b"s\nd\na\n"); // the exact bytes sent
+//! # Ok::<(), polycal::lab::InstrumentError>(())
+//! ```
+
+pub mod elcomat;
+mod error;
+mod instruments;
+mod query;
+pub mod run;
+pub mod scripted;
+pub mod serial;
+pub mod sim;
+pub mod smc100;
+mod stop;
+pub mod traffic;
+pub mod transport;
+
+pub use error::{InstrumentError, ReplyError};
+pub use instruments::{AcReading, Autocollimator, RotaryTable};
+pub use query::QueryOptions;
+pub use stop::StopFlag;

@@ -1,0 +1,148 @@
+//! Why a run directory was refused or could not be used.
+
+use std::io;
+use std::path::PathBuf;
+
+use super::{MANIFEST, RunSettings, SettingsError};
+use crate::input::Location;
+use crate::measurement::{Direction, MeasurementError};
+
+/// Why a run directory was refused or could not be used. Every variant names the file or
+/// directory; those about a line of the measurement file give its [`Location`].
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RunError {
+    /// The settings are out of range.
+    #[error("{}: {error}", path.display())]
+    Settings {
+        /// The run directory.
+        path: PathBuf,
+        /// Which setting, and why.
+        error: SettingsError,
+    },
+    /// A new run in a directory that already holds one.
+    #[error("{}: this directory already holds a run", path.display())]
+    AlreadyHoldsRun {
+        /// Its manifest or measurement file.
+        path: PathBuf,
+    },
+    /// A run to resume in a directory without a manifest.
+    #[error("{}: no run to resume here (no {MANIFEST})", path.display())]
+    NoRunToResume {
+        /// The directory.
+        path: PathBuf,
+    },
+    /// A manifest that cannot be read as one.
+    #[error("{}: not a run manifest: {message}", path.display())]
+    NotAManifest {
+        /// The manifest.
+        path: PathBuf,
+        /// What the JSON reader said.
+        message: String,
+    },
+    /// A run to resume with other settings than it was started with.
+    #[error(
+        "{}: the run was started with {started}, these settings are {requested} ({}); refusing to resume",
+        path.display(),
+        started.differences(requested).join(", ")
+    )]
+    OtherSettings {
+        /// The manifest.
+        path: PathBuf,
+        /// The settings the run was started with.
+        started: Box<RunSettings>,
+        /// The settings given now.
+        requested: Box<RunSettings>,
+    },
+    /// A run to resume with other instruments than it was started with.
+    #[error(
+        "{}: other instruments than the run started with ({}); refusing to resume",
+        path.display(),
+        differences.join("; ")
+    )]
+    OtherInstruments {
+        /// The manifest.
+        path: PathBuf,
+        /// Each instrument that differs, e.g. `ac1 was "…", is now "…"`.
+        differences: Vec<String>,
+    },
+    /// Another run holds the directory's lock.
+    #[error("{}: another polycal run is using this directory", path.display())]
+    Locked {
+        /// The measurement file (its lock).
+        path: PathBuf,
+    },
+    /// A measurement file whose header is not the run's.
+    #[error("{at}: header {found:?} is not the run's header {expected:?}; refusing to resume")]
+    Header {
+        /// Where the header is.
+        at: Location,
+        /// The header found.
+        found: String,
+        /// The run's header.
+        expected: String,
+    },
+    /// A measurement file that cannot be read (a row that breaks FORMAT.md §2).
+    #[error("{error}; refusing to resume")]
+    Unreadable {
+        /// What is wrong, and where.
+        error: MeasurementError,
+    },
+    /// A reading that is not the run's next one in order.
+    #[error(
+        "{at}: reading {found:?} ({found_direction}) is not the run's reading number {number} ({expected:?}, {expected_direction}); refusing to resume"
+    )]
+    OutOfOrder {
+        /// Where the reading is.
+        at: Location,
+        /// Its `cycle,step,ac,face`.
+        found: String,
+        /// Its direction.
+        found_direction: Direction,
+        /// Its number in the run's order (1-based).
+        number: usize,
+        /// The `cycle,step,ac,face` of the run's reading of that number.
+        expected: String,
+        /// Its direction.
+        expected_direction: Direction,
+    },
+    /// A value the run always writes is missing.
+    #[error("{at}: column {column:?} is empty; the run writes a number there; refusing to resume")]
+    Missing {
+        /// Where the field is.
+        at: Location,
+        /// The column, `time` or `encoder`.
+        column: &'static str,
+    },
+    /// More readings than the run has.
+    #[error("{at}: more readings than the run has; refusing to resume")]
+    TooManyReadings {
+        /// Where the first reading too many is.
+        at: Location,
+    },
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: io::Error,
+    },
+}
+
+impl RunError {
+    /// Whether the directory or its files were refused (everything but an I/O failure):
+    /// nothing was changed that could lose data.
+    pub fn is_refusal(&self) -> bool {
+        !matches!(self, RunError::Io { .. })
+    }
+}
+
+/// The error of an I/O failure on `path`.
+pub(super) fn io_error(path: &std::path::Path) -> impl FnOnce(io::Error) -> RunError + '_ {
+    move |source| RunError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}

@@ -1,0 +1,86 @@
+//! The run procedure of `polycal run` (FORMAT.md §7): step the table through full
+//! cycles, read both autocollimators at every stop, and keep every reading on disk.
+//!
+//! One concept a file: the settings and the plan (`settings.rs`: [`RunSettings`]), the
+//! manifest (`manifest.rs`: [`Manifest`]), the run directory and its lock
+//! (`directory.rs`: [`RunDir`]), continuing an interrupted run (`resume.rs`), the
+//! measuring loop (`measure.rs`: [`measure`]) and the refusals (`error.rs`:
+//! [`RunError`]).
+//!
+//! # The run directory
+//!
+//! - `measurements.csv`: FORMAT.md §2, the columns [`COLUMNS`]
+//!   (`cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder`) after `#`
+//!   comment lines, written by the measurement module's
+//!   [`ReadingWriter`](crate::measurement::ReadingWriter); one row per reading, appended
+//!   and synced (`fsync` of its data) before the table moves again. `face` is p+1 for
+//!   autocollimator 1 and p+2 (wrapping) for autocollimator 2, `setup` 1, `time` seconds
+//!   since the run started, `reading_y` empty when the Y axis was not valid, `encoder`
+//!   the position the table reported (`1TP`), degrees.
+//! - `manifest.json` ([`Manifest`]): the settings, the instruments' identification
+//!   (ELCOMAT `d`, SMC100 `1VE`), the software version, start and end times, how the run
+//!   ended (`outcome`: `running`, `completed`, `interrupted`, `instrument-error: …`,
+//!   `file-error: …`) and one entry per session (the first run and each resumption).
+//!   It is replaced atomically (written beside, synced, renamed).
+//! - `traffic.jsonl`: every line sent and received ([`crate::lab::traffic`]).
+//!
+//! # The order of the readings
+//!
+//! Cycles 1 … R; a clockwise cycle visits steps 0 … N−1, then N with the closing step; a
+//! counter-clockwise one (cycles 2, 4, … with `bidirectional`, closing implied) visits
+//! N … 0. At each stop autocollimator 1 is read, then 2. A resumed run continues from
+//! the first reading (cycle, step, ac) of that order missing from `measurements.csv`:
+//! the table is sent to that stop again and only the missing readings are taken. A file
+//! whose readings are not exactly the first ones of that order is refused, as is a
+//! manifest whose settings differ from the ones given, or instruments that identify
+//! differently from those the run started with.
+//!
+//! # Example: a whole run against simulated instruments, in memory
+//!
+//! ```
+//! use polycal::lab::elcomat::Elcomat3000;
+//! use polycal::lab::run::{self, Instruments, Outcome, Ports, RunDir, RunSettings};
+//! use polycal::lab::sim::{Devices, LabConfig, SimStream};
+//! use polycal::lab::smc100::{Smc100, Smc100Options};
+//! use polycal::lab::transport::StreamTransport;
+//! use polycal::lab::{QueryOptions, StopFlag};
+//! use polycal::simulate::SimulationConfig;
+//!
+//! let simulation = SimulationConfig { faces: 6, ..SimulationConfig::default() };
+//! let lab = LabConfig::new(simulation).with_time_scale(0.0); // instantaneous motion
+//! let Devices { ac1, ac2, table, .. } = Devices::new(lab)?;
+//! let q = QueryOptions::default();
+//! let mut ac1 = Elcomat3000::new(StreamTransport::new("sim:ac1", SimStream::new(ac1)), q);
+//! let mut ac2 = Elcomat3000::new(StreamTransport::new("sim:ac2", SimStream::new(ac2)), q);
+//! let mut table = Smc100::new(
+//!     StreamTransport::new("sim:table", SimStream::new(table)),
+//!     Smc100Options::default(),
+//! );
+//!
+//! let settings = RunSettings::new(6, 2).with_closing(true);
+//! let dir = std::env::temp_dir().join(format!("polycal-doc-run-{}", std::process::id()));
+//! # let _ = std::fs::remove_dir_all(&dir);
+//! let mut run = RunDir::open(&dir, &settings, &Ports::default(), false)?;
+//! let instruments = Instruments { ac1: &mut ac1, ac2: &mut ac2, table: &mut table };
+//! let outcome = run::measure(&mut run, instruments, &StopFlag::new(), None, &mut |_| {})?;
+//! run.finish(&outcome)?;
+//! assert_eq!(outcome, Outcome::Completed);
+//!
+//! let set = polycal::MeasurementSet::read_path(&dir.join(run::MEASUREMENTS), None)?;
+//! assert_eq!(set.readings.len(), 2 * 7 * 2); // cycles · stops · autocollimators
+//! # std::fs::remove_dir_all(&dir)?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod directory;
+mod error;
+mod manifest;
+mod measure;
+mod resume;
+mod settings;
+
+pub use directory::{COLUMNS, MANIFEST, MEASUREMENTS, RunDir, TRAFFIC};
+pub use error::RunError;
+pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
+pub use measure::{Instruments, Outcome, Progress, measure};
+pub use settings::{RunSettings, SettingsError};

@@ -1,0 +1,108 @@
+//! The settings of a simulated lab.
+
+use super::{DeviceId, Fault};
+use crate::simulate::{SimulateError, SimulationConfig};
+
+/// Settings of a simulated lab.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct LabConfig {
+    /// The truth, noise, seed and run design (its `ac_faces` must have two entries).
+    pub simulation: SimulationConfig,
+    /// Table speed, degrees per second.
+    pub speed_deg_per_s: f64,
+    /// Extra time of a home search, seconds.
+    pub home_seconds: f64,
+    /// Factor on every simulated duration (0: instantaneous motion).
+    pub time_scale: f64,
+    /// Injected faults.
+    pub faults: Vec<Fault>,
+}
+
+impl Default for LabConfig {
+    /// The simulator's defaults, 20°/s, 2 s home search, real time, no faults.
+    fn default() -> Self {
+        LabConfig::new(SimulationConfig::default())
+    }
+}
+
+impl LabConfig {
+    /// A lab measuring `simulation`'s truth (its `ac_faces` must have two entries), with a
+    /// table of 20°/s, a 2 s home search, real time and no faults.
+    pub fn new(simulation: SimulationConfig) -> LabConfig {
+        LabConfig {
+            simulation,
+            speed_deg_per_s: 20.0,
+            home_seconds: 2.0,
+            time_scale: 1.0,
+            faults: Vec::new(),
+        }
+    }
+
+    /// Sets the table speed, degrees per second.
+    pub fn with_speed_deg_per_s(mut self, speed_deg_per_s: f64) -> LabConfig {
+        self.speed_deg_per_s = speed_deg_per_s;
+        self
+    }
+
+    /// Sets the extra time of a home search, seconds.
+    pub fn with_home_seconds(mut self, home_seconds: f64) -> LabConfig {
+        self.home_seconds = home_seconds;
+        self
+    }
+
+    /// Sets the factor on every simulated duration (0: instantaneous motion).
+    pub fn with_time_scale(mut self, time_scale: f64) -> LabConfig {
+        self.time_scale = time_scale;
+        self
+    }
+
+    /// Sets the injected faults.
+    pub fn with_faults(mut self, faults: Vec<Fault>) -> LabConfig {
+        self.faults = faults;
+        self
+    }
+
+    /// Checks the settings.
+    ///
+    /// # Errors
+    ///
+    /// [`SimulateError::Config`] naming the first bad setting.
+    pub fn validate(&self) -> Result<(), SimulateError> {
+        self.simulation.validate()?;
+        let bad = |m: String| Err(SimulateError::Config(m));
+        if self.simulation.ac_faces.len() != 2 {
+            return bad(format!(
+                "the lab has two autocollimators; ac faces {:?} name {}",
+                self.simulation.ac_faces,
+                self.simulation.ac_faces.len()
+            ));
+        }
+        if self.simulation.setups != 1 {
+            return bad("the lab simulates one polygon mounting (setup 1)".into());
+        }
+        if !(self.speed_deg_per_s.is_finite() && self.speed_deg_per_s > 0.0) {
+            return bad(format!(
+                "speed {} °/s must be a finite number > 0",
+                self.speed_deg_per_s
+            ));
+        }
+        for (name, v) in [
+            ("home time", self.home_seconds),
+            ("time scale", self.time_scale),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} {v} must be a finite number ≥ 0"));
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn faults_of(&self, device: DeviceId) -> Vec<Fault> {
+        self.faults
+            .iter()
+            .copied()
+            .filter(|f| f.device == device)
+            .collect()
+    }
+}

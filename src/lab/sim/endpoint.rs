@@ -1,0 +1,204 @@
+//! A simulated device behind its reply faults and input line buffer ([`Endpoint`]), and
+//! an in-memory stream to it ([`SimStream`]).
+
+use std::fmt;
+use std::io::{self, Read, Write};
+use std::time::Instant;
+
+use super::{Fault, FaultKind};
+
+/// A simulated device: answers command lines.
+pub trait SimDevice: Send {
+    /// The reply to one command line (terminator removed), terminator included; `None`
+    /// when the protocol gives none.
+    fn handle(&mut self, command: &str, now: Instant) -> Option<String>;
+    /// Output the device sends by itself (a continuous stream), if due.
+    fn tick(&mut self, now: Instant) -> Option<String>;
+    /// Events so far (measurements, or move commands), which arm faults.
+    fn events(&self) -> u64;
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Armed {
+    fault: Fault,
+    left: u64,
+}
+
+/// A device with its reply faults and its input line buffer: the part shared by the
+/// pseudo-terminal lab and the in-memory [`SimStream`].
+pub struct Endpoint {
+    device: Box<dyn SimDevice>,
+    faults: Vec<Armed>,
+    input: Vec<u8>,
+    closed: bool,
+}
+
+impl fmt::Debug for Endpoint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Endpoint")
+            .field("faults", &self.faults)
+            .field("closed", &self.closed)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Endpoint {
+    /// A device with the faults that act on its replies (`lost-reply`, `garbled`,
+    /// `close`); the others are the device's own.
+    pub fn new(device: Box<dyn SimDevice>, faults: &[Fault]) -> Endpoint {
+        Endpoint {
+            device,
+            faults: faults
+                .iter()
+                .filter(|f| {
+                    matches!(
+                        f.kind,
+                        FaultKind::LostReply | FaultKind::Garbled | FaultKind::Close
+                    )
+                })
+                .map(|&fault| Armed {
+                    fault,
+                    left: fault.count,
+                })
+                .collect(),
+            input: Vec::new(),
+            closed: false,
+        }
+    }
+
+    /// Whether a `close` fault closed the device.
+    pub fn is_closed(&self) -> bool {
+        self.closed
+    }
+
+    /// Feeds bytes from the host; returns the bytes to send back.
+    pub fn input(&mut self, bytes: &[u8], now: Instant) -> Vec<u8> {
+        let mut out = Vec::new();
+        if self.closed {
+            return out;
+        }
+        self.input.extend_from_slice(bytes);
+        while let Some(i) = self.input.iter().position(|&b| b == b'\r' || b == b'\n') {
+            let line: Vec<u8> = self.input.drain(..=i).collect();
+            let command = String::from_utf8_lossy(&line[..i]).trim().to_string();
+            if command.is_empty() {
+                continue;
+            }
+            let events = self.device.events();
+            if self
+                .faults
+                .iter()
+                .any(|a| a.fault.kind == FaultKind::Close && events >= a.fault.after)
+            {
+                self.closed = true;
+                return out;
+            }
+            let Some(reply) = self.device.handle(&command, now) else {
+                continue;
+            };
+            out.extend(self.apply_faults(reply, events).into_bytes());
+        }
+        if self.input.len() > 4096 {
+            self.input.clear();
+        }
+        out
+    }
+
+    fn apply_faults(&mut self, reply: String, events: u64) -> String {
+        for armed in &mut self.faults {
+            if armed.left == 0 || events < armed.fault.after {
+                continue;
+            }
+            match armed.fault.kind {
+                FaultKind::LostReply => {
+                    armed.left -= 1;
+                    return String::new();
+                }
+                FaultKind::Garbled => {
+                    armed.left -= 1;
+                    return garble(&reply);
+                }
+                _ => {}
+            }
+        }
+        reply
+    }
+
+    /// Output the device sends by itself, if due.
+    pub fn tick(&mut self, now: Instant) -> Vec<u8> {
+        if self.closed {
+            return Vec::new();
+        }
+        self.device
+            .tick(now)
+            .map(String::into_bytes)
+            .unwrap_or_default()
+    }
+}
+
+/// Every third character (from the first) replaced by `?`, terminators kept.
+fn garble(reply: &str) -> String {
+    let body = reply.trim_end_matches(['\r', '\n']);
+    let end = &reply[body.len()..];
+    let garbled: String = body
+        .chars()
+        .enumerate()
+        .map(|(i, c)| if i % 3 == 0 { '?' } else { c })
+        .collect();
+    garbled + end
+}
+
+/// An in-memory `Read + Write` connected to a simulated device, for driving the drivers
+/// (through a [`crate::lab::transport::StreamTransport`]) without pseudo-terminals.
+///
+/// Writing feeds the device; reading returns its replies, `WouldBlock` when there are
+/// none yet, and end of input once a `close` fault closed it.
+#[derive(Debug)]
+pub struct SimStream {
+    endpoint: Endpoint,
+    output: Vec<u8>,
+}
+
+impl SimStream {
+    /// A stream to `endpoint`.
+    pub fn new(endpoint: Endpoint) -> SimStream {
+        SimStream {
+            endpoint,
+            output: Vec::new(),
+        }
+    }
+}
+
+impl Read for SimStream {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        if self.output.is_empty() {
+            let tick = self.endpoint.tick(Instant::now());
+            self.output.extend(tick);
+        }
+        if self.output.is_empty() {
+            if self.endpoint.is_closed() {
+                return Ok(0);
+            }
+            return Err(io::Error::new(io::ErrorKind::WouldBlock, "no reply yet"));
+        }
+        let n = buf.len().min(self.output.len());
+        buf[..n].copy_from_slice(&self.output[..n]);
+        self.output.drain(..n);
+        Ok(n)
+    }
+}
+
+impl Write for SimStream {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        if self.endpoint.is_closed() {
+            return Err(io::Error::new(io::ErrorKind::BrokenPipe, "device closed"));
+        }
+        let reply = self.endpoint.input(buf, Instant::now());
+        self.output.extend(reply);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}

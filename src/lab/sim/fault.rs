@@ -1,0 +1,235 @@
+//! Injected faults: `KIND:DEVICE[:after=K][:count=M]` (see [`crate::lab::sim`], *Faults*).
+
+use std::fmt;
+use std::str::FromStr;
+
+/// Which simulated device.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DeviceId {
+    /// Autocollimator 1.
+    Ac1,
+    /// Autocollimator 2.
+    Ac2,
+    /// The rotary table.
+    Table,
+}
+
+impl DeviceId {
+    /// `ac1`, `ac2` or `table`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DeviceId::Ac1 => "ac1",
+            DeviceId::Ac2 => "ac2",
+            DeviceId::Table => "table",
+        }
+    }
+}
+
+impl fmt::Display for DeviceId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// What a fault does (see [`crate::lab::sim`], *Faults*).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum FaultKind {
+    /// Replies are not sent.
+    LostReply,
+    /// Replies are garbled.
+    Garbled,
+    /// Measurements report X not valid.
+    XInvalid,
+    /// The table stops midway and stays disabled.
+    Disable,
+    /// The device closes its port.
+    Close,
+}
+
+impl FaultKind {
+    /// The devices that can have this fault: `an autocollimator`, `the table` or `any
+    /// device`.
+    pub fn devices(self) -> &'static str {
+        match self {
+            FaultKind::XInvalid => "an autocollimator",
+            FaultKind::Disable => "the table",
+            FaultKind::LostReply | FaultKind::Garbled | FaultKind::Close => "any device",
+        }
+    }
+
+    /// Whether `device` can have this fault.
+    pub fn applies_to(self, device: DeviceId) -> bool {
+        match self {
+            FaultKind::XInvalid => device != DeviceId::Table,
+            FaultKind::Disable => device == DeviceId::Table,
+            FaultKind::LostReply | FaultKind::Garbled | FaultKind::Close => true,
+        }
+    }
+
+    /// The spelling in a fault specification, e.g. `lost-reply`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FaultKind::LostReply => "lost-reply",
+            FaultKind::Garbled => "garbled",
+            FaultKind::XInvalid => "x-invalid",
+            FaultKind::Disable => "disable",
+            FaultKind::Close => "close",
+        }
+    }
+}
+
+/// One injected fault: `KIND:DEVICE[:after=K][:count=M]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct Fault {
+    /// What happens.
+    pub kind: FaultKind,
+    /// To which device.
+    pub device: DeviceId,
+    /// Events (measurements or moves) before the fault is armed.
+    pub after: u64,
+    /// How many replies or measurements it hits (lost-reply, garbled, x-invalid).
+    pub count: u64,
+}
+
+/// The form of a fault, for messages.
+const FORM: &str = "KIND:DEVICE[:after=K][:count=M], e.g. lost-reply:ac1:after=10";
+
+/// A fault specification that could not be read: which one, and what is wrong with it.
+///
+/// Displayed as `fault "SPEC": PROBLEM (expected KIND:DEVICE[:after=K][:count=M], …)`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("fault \"{spec}\": {problem} (expected {FORM})")]
+#[non_exhaustive]
+pub struct FaultError {
+    /// The specification as given.
+    pub spec: String,
+    /// What is wrong with it.
+    pub problem: FaultProblem,
+}
+
+/// What is wrong with a fault specification.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FaultProblem {
+    /// Fewer than two `:`-separated parts.
+    #[error("too few parts")]
+    TooFewParts,
+    /// A kind that is not one of the five.
+    #[error("unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close)")]
+    UnknownKind(String),
+    /// A device that is not `ac1`, `ac2` or `table`.
+    #[error("unknown device \"{0}\" (ac1, ac2, table)")]
+    UnknownDevice(String),
+    /// A kind of fault the device cannot have (`x-invalid` of the table, `disable` of an
+    /// autocollimator).
+    #[error("{} is a fault of {}", .0.as_str(), .0.devices())]
+    WrongDevice(FaultKind),
+    /// An option that is not `NAME=VALUE`.
+    #[error("\"{0}\" is not after=K or count=M")]
+    NotAnOption(String),
+    /// An option value that is not a whole number.
+    #[error("\"{0}\" is not a whole number")]
+    NotAWholeNumber(String),
+    /// `count=0`.
+    #[error("count must be at least 1")]
+    ZeroCount,
+    /// An option other than `after` and `count`.
+    #[error("unknown option \"{0}\"")]
+    UnknownOption(String),
+}
+
+impl FromStr for Fault {
+    type Err = FaultError;
+
+    /// Parses `KIND:DEVICE[:after=K][:count=M]`, e.g. `lost-reply:ac1:after=10`.
+    ///
+    /// ```
+    /// use polycal::lab::sim::{DeviceId, Fault, FaultKind, FaultProblem};
+    /// let f: Fault = "garbled:table:after=3:count=2".parse().unwrap();
+    /// assert_eq!((f.kind, f.device, f.after, f.count), (FaultKind::Garbled, DeviceId::Table, 3, 2));
+    /// let e = "x-invalid:table".parse::<Fault>().unwrap_err();
+    /// assert_eq!(e.problem, FaultProblem::WrongDevice(FaultKind::XInvalid));
+    /// ```
+    fn from_str(spec: &str) -> Result<Fault, FaultError> {
+        let bad = |problem: FaultProblem| FaultError {
+            spec: spec.to_string(),
+            problem,
+        };
+        let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
+        let [kind, device, options @ ..] = parts.as_slice() else {
+            return Err(bad(FaultProblem::TooFewParts));
+        };
+        let kind = match *kind {
+            "lost-reply" => FaultKind::LostReply,
+            "garbled" => FaultKind::Garbled,
+            "x-invalid" => FaultKind::XInvalid,
+            "disable" => FaultKind::Disable,
+            "close" => FaultKind::Close,
+            other => return Err(bad(FaultProblem::UnknownKind(other.to_string()))),
+        };
+        let device = match *device {
+            "ac1" => DeviceId::Ac1,
+            "ac2" => DeviceId::Ac2,
+            "table" => DeviceId::Table,
+            other => return Err(bad(FaultProblem::UnknownDevice(other.to_string()))),
+        };
+        if !kind.applies_to(device) {
+            return Err(bad(FaultProblem::WrongDevice(kind)));
+        }
+        let mut fault = Fault::new(kind, device);
+        for option in options {
+            let (key, value) = option
+                .split_once('=')
+                .ok_or_else(|| bad(FaultProblem::NotAnOption(option.to_string())))?;
+            let n: u64 = value
+                .parse()
+                .map_err(|_| bad(FaultProblem::NotAWholeNumber(value.to_string())))?;
+            match key {
+                "after" => fault.after = n,
+                "count" if n >= 1 => fault.count = n,
+                "count" => return Err(bad(FaultProblem::ZeroCount)),
+                _ => return Err(bad(FaultProblem::UnknownOption(key.to_string()))),
+            }
+        }
+        Ok(fault)
+    }
+}
+
+impl Fault {
+    /// A fault armed from the start (`after` 0) that hits once (`count` 1).
+    pub fn new(kind: FaultKind, device: DeviceId) -> Fault {
+        Fault {
+            kind,
+            device,
+            after: 0,
+            count: 1,
+        }
+    }
+
+    /// Arms the fault after `after` events (measurements or moves).
+    pub fn with_after(mut self, after: u64) -> Fault {
+        self.after = after;
+        self
+    }
+
+    /// Makes the fault hit `count` replies or measurements.
+    pub fn with_count(mut self, count: u64) -> Fault {
+        self.count = count;
+        self
+    }
+}
+
+impl fmt::Display for Fault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}:{}:after={}:count={}",
+            self.kind.as_str(),
+            self.device,
+            self.after,
+            self.count
+        )
+    }
+}

@@ -1,0 +1,159 @@
+//! Simulated instruments: an ELCOMAT 3000 pair and an SMC100 rotary table sharing one
+//! simulated world, fed by the simulator's truth model.
+//!
+//! # The physical model
+//!
+//! The polygon sits on the table; the table's encoder reads θ (degrees, the position
+//! `1TP` reports), and its true angle is θ + α(θ)/3600, where α\[p\] is the truth's
+//! encoder error at the nominal stop p·360°/N nearest to θ. So α is *true minus
+//! indicated* angle, the sign that makes the autocollimator reading follow FORMAT.md §1:
+//! with the table at rest at θ and p the nearest stop (δ = θ − p·360/N, in arcsec),
+//! autocollimator j reads
+//!
+//! ```text
+//! x = Truth::model_reading(reading) + δ + noise     (= α[p mod N] + φ[face] + U[1, j] + effects + δ + noise)
+//! ```
+//!
+//! where `reading` has step p (N for 360°), face `((ac_faces[j-1] − 1) + p) mod N + 1`,
+//! setup 1, and the cycle and direction of the run's stop the table is at (see
+//! *Cycles* below); its `time` is the real time since the lab's first command. The
+//! noise is drawn from stream 1 of `ChaCha8Rng::seed_from_u64(seed)`, one standard
+//! normal for X and one for Y per measurement, in the order the measurements are asked.
+//! Y is the face's pyramidal error (spread 2″, stream 2) plus noise.
+//!
+//! While the table moves or homes, when it is disabled midway, or when |x| exceeds the
+//! measuring range (±1000″: the face is not in front of the autocollimator), the reply
+//! is `4 000 0.000000 0.000000`: no axis valid. Motion takes |Δθ|/speed seconds, a home
+//! search |θ|/speed + `home_seconds`, all multiplied by `time_scale` (0: instantaneous).
+//!
+//! # Cycles
+//!
+//! The protocols do not carry the cycle number, which effects such as `offset-step` and
+//! `outlier` need. The world follows the run design of its [`SimulationConfig`](crate::simulate::SimulationConfig)
+//! (cycles, closing, bidirectional): each arrival of the table at a stop advances to the
+//! next planned stop with that step, unless the current one has not been read by both
+//! autocollimators yet (a resumed run comes back to it). Give `sim-lab` the run's
+//! `--cycles`, `--closing` and `--bidirectional` when you simulate such effects.
+//!
+//! # Faults
+//!
+//! [`Fault`]s are injected per device: `KIND:DEVICE[:after=K][:count=M]`. The device
+//! counts *events*, measurements for an autocollimator and move commands (`1PA`) for
+//! the table; a fault is armed once K events happened, and then:
+//!
+//! | kind | devices | effect |
+//! |---|---|---|
+//! | `lost-reply` | all | the next M replies are not sent |
+//! | `garbled` | all | the next M replies are garbled (every third character `?`) |
+//! | `x-invalid` | ac1, ac2 | the next M measurements have status `002` (X not valid) |
+//! | `disable` | table | the next move stops midway in state `3D` (DISABLE from MOVING) and stays disabled |
+//! | `close` | all | at the next command the device closes its port |
+
+mod config;
+mod elcomat;
+mod endpoint;
+mod fault;
+#[cfg(unix)]
+mod lab;
+mod smc100;
+mod world;
+
+use std::fmt;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+pub use config::LabConfig;
+pub use elcomat::ElcomatSim;
+pub use endpoint::{Endpoint, SimDevice, SimStream};
+pub use fault::{DeviceId, Fault, FaultError, FaultKind, FaultProblem};
+#[cfg(unix)]
+pub use lab::{Lab, LabPaths};
+pub use smc100::Smc100Sim;
+pub use world::{TableView, World};
+
+use crate::simulate::{SimulateError, Truth};
+use world::lock;
+
+/// Measuring range of the simulated autocollimators, arcsec (beyond it X is not valid).
+pub const AC_RANGE_ARCSEC: f64 = 1000.0;
+/// Spread of the simulated pyramidal errors (the Y axis), arcsec.
+pub const PYRAMIDAL_SPREAD_ARCSEC: f64 = 2.0;
+/// Period of the simulated autocollimators' continuous streams.
+pub const STREAM_PERIOD: Duration = Duration::from_millis(50);
+
+/// The three simulated devices of one world, ready to serve.
+pub struct Devices {
+    /// The shared world.
+    pub world: Arc<Mutex<World>>,
+    /// Autocollimator 1.
+    pub ac1: Endpoint,
+    /// Autocollimator 2.
+    pub ac2: Endpoint,
+    /// The table.
+    pub table: Endpoint,
+}
+
+impl fmt::Debug for Devices {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Devices").finish_non_exhaustive()
+    }
+}
+
+impl Devices {
+    /// A world for `config` and its three devices, with their faults.
+    ///
+    /// # Errors
+    ///
+    /// Invalid settings ([`LabConfig::validate`]).
+    pub fn new(config: LabConfig) -> Result<Devices, SimulateError> {
+        let world = World::new(config)?;
+        Ok(Devices::from_world(world))
+    }
+
+    /// The devices of a world built with a given truth (e.g. one read from a file).
+    ///
+    /// # Errors
+    ///
+    /// Invalid settings, or a truth whose number of faces differs from the settings'.
+    pub fn with_truth(config: LabConfig, truth: Truth) -> Result<Devices, SimulateError> {
+        config.validate()?;
+        truth.validate()?;
+        if truth.faces != config.simulation.faces {
+            return Err(SimulateError::Truth {
+                origin: "truth".into(),
+                message: format!(
+                    "it has {} faces, the lab {}",
+                    truth.faces, config.simulation.faces
+                ),
+            });
+        }
+        Ok(Devices::from_world(World::with_truth(config, truth)))
+    }
+
+    fn from_world(world: World) -> Devices {
+        let config = world.config.clone();
+        let world = Arc::new(Mutex::new(world));
+        let ac = |id: DeviceId, number: u32| {
+            let faults = config.faults_of(id);
+            Endpoint::new(
+                Box::new(ElcomatSim::new(Arc::clone(&world), number, &faults)),
+                &faults,
+            )
+        };
+        let table_faults = config.faults_of(DeviceId::Table);
+        Devices {
+            ac1: ac(DeviceId::Ac1, 1),
+            ac2: ac(DeviceId::Ac2, 2),
+            table: Endpoint::new(
+                Box::new(Smc100Sim::new(Arc::clone(&world), &table_faults)),
+                &table_faults,
+            ),
+            world,
+        }
+    }
+
+    /// A copy of the truth.
+    pub fn truth(&self) -> Truth {
+        lock(&self.world).truth.clone()
+    }
+}

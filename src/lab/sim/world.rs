@@ -1,0 +1,317 @@
+//! The world the simulated devices share: the truth, the table's mechanics and state, the
+//! noise, and the stop of the run the table is at.
+
+use std::sync::{Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+use super::{AC_RANGE_ARCSEC, LabConfig, PYRAMIDAL_SPREAD_ARCSEC};
+use crate::measurement::{Direction, Reading, face_at, run_stops};
+use crate::simulate::{SimulateError, SimulationConfig, Truth};
+
+/// A planned stop of the run design the world follows.
+#[derive(Debug, Clone, Copy)]
+struct PlannedStop {
+    cycle: u32,
+    step: usize,
+    direction: Direction,
+    read: [bool; 2],
+}
+
+/// Which planned stop the table is at.
+#[derive(Debug)]
+struct Tracker {
+    plan: Vec<PlannedStop>,
+    current: Option<usize>,
+}
+
+impl Tracker {
+    fn new(config: &SimulationConfig) -> Tracker {
+        let plan = run_stops(
+            config.faces,
+            config.cycles,
+            config.closing,
+            config.bidirectional,
+        )
+        .into_iter()
+        .map(|stop| PlannedStop {
+            cycle: stop.cycle,
+            step: stop.step,
+            direction: stop.direction,
+            read: [false; 2],
+        })
+        .collect();
+        Tracker {
+            plan,
+            current: None,
+        }
+    }
+
+    fn arrive(&mut self, step: usize) {
+        if let Some(c) = self.current {
+            let stop = &self.plan[c];
+            if stop.step == step && !stop.read.iter().all(|&r| r) {
+                return;
+            }
+        }
+        let from = self.current.map_or(0, |c| c + 1);
+        self.current = (from..self.plan.len())
+            .find(|&i| self.plan[i].step == step)
+            .or(self.current.filter(|&c| self.plan[c].step == step));
+    }
+
+    /// (cycle, direction) of the current stop if it has `step`, else of cycle 1, cw.
+    fn context(&mut self, step: usize, ac: u32) -> (u32, Direction) {
+        match self.current {
+            Some(c) if self.plan[c].step == step => {
+                let stop = &mut self.plan[c];
+                if let Some(r) = stop.read.get_mut(ac as usize - 1) {
+                    *r = true;
+                }
+                (stop.cycle, stop.direction)
+            }
+            _ => (1, Direction::Cw),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Motion {
+    pub(super) from: f64,
+    pub(super) to: f64,
+    pub(super) start: Instant,
+    pub(super) duration: Duration,
+    pub(super) homing: bool,
+    /// Disable fault: the motion stops at its middle in state 3D.
+    pub(super) fails: bool,
+}
+
+impl Motion {
+    /// Where the motion is at `now`, degrees: linear from `from` to `to` over `duration`.
+    pub(super) fn position_at(&self, now: Instant) -> f64 {
+        let total = self.duration.as_secs_f64();
+        let done = if total > 0.0 {
+            (now.saturating_duration_since(self.start).as_secs_f64() / total).min(1.0)
+        } else {
+            1.0
+        };
+        self.from + (self.to - self.from) * done
+    }
+}
+
+/// The simulated rotary table's mechanics and controller state.
+#[derive(Debug)]
+pub(super) struct Table {
+    pub(super) position: f64,
+    pub(super) motion: Option<Motion>,
+    pub(super) referenced: bool,
+    pub(super) ready_code: u8,
+    pub(super) disabled: Option<u8>,
+    pub(super) stuck: bool,
+}
+
+/// The world the simulated devices share: the truth, the table and the noise.
+#[derive(Debug)]
+pub struct World {
+    pub(super) config: LabConfig,
+    pub(super) truth: Truth,
+    pyramidal: Vec<f64>,
+    noise: ChaCha8Rng,
+    pub(super) table: Table,
+    tracker: Tracker,
+    first_command: Option<Instant>,
+}
+
+/// What the table is doing, as the autocollimators see it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TableView {
+    /// Moving, homing, or disabled midway: no face in front of the autocollimators.
+    InMotion,
+    /// At rest at this encoder position, degrees.
+    AtRest(f64),
+}
+
+impl World {
+    /// A world for `config`, its truth drawn with [`Truth::draw`].
+    ///
+    /// # Errors
+    ///
+    /// Invalid settings ([`LabConfig::validate`]).
+    pub fn new(config: LabConfig) -> Result<World, SimulateError> {
+        config.validate()?;
+        let truth = Truth::draw(&config.simulation)?;
+        Ok(World::with_truth(config, truth))
+    }
+
+    pub(super) fn with_truth(config: LabConfig, truth: Truth) -> World {
+        let mut noise = ChaCha8Rng::seed_from_u64(config.simulation.seed);
+        noise.set_stream(1);
+        let mut shape = ChaCha8Rng::seed_from_u64(config.simulation.seed);
+        shape.set_stream(2);
+        let pyramidal = (0..truth.faces)
+            .map(|_| {
+                let z: f64 = StandardNormal.sample(&mut shape);
+                PYRAMIDAL_SPREAD_ARCSEC * z
+            })
+            .collect();
+        World {
+            tracker: Tracker::new(&config.simulation),
+            config,
+            truth,
+            pyramidal,
+            noise,
+            table: Table {
+                position: 0.0,
+                motion: None,
+                referenced: false,
+                ready_code: 0x32,
+                disabled: None,
+                stuck: false,
+            },
+            first_command: None,
+        }
+    }
+
+    /// The truth the readings are drawn from.
+    pub fn truth(&self) -> &Truth {
+        &self.truth
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &LabConfig {
+        &self.config
+    }
+
+    pub(super) fn touch(&mut self, now: Instant) {
+        if self.first_command.is_none() {
+            self.first_command = Some(now);
+        }
+        self.update(now);
+    }
+
+    /// Completes a motion whose time is over.
+    pub(super) fn update(&mut self, now: Instant) {
+        let Some(m) = self.table.motion else { return };
+        if m.fails {
+            if now >= m.start + m.duration / 2 {
+                self.table.position = (m.from + m.to) / 2.0;
+                self.table.motion = None;
+                self.table.disabled = Some(0x3D);
+                self.table.stuck = true;
+            }
+            return;
+        }
+        if now < m.start + m.duration {
+            return;
+        }
+        self.table.position = m.to;
+        self.table.motion = None;
+        if m.homing {
+            self.table.referenced = true;
+            self.table.ready_code = 0x32;
+        } else {
+            self.table.ready_code = 0x33;
+            if let Some(step) = self.nominal_step(m.to) {
+                self.tracker.arrive(step);
+            }
+        }
+    }
+
+    /// The stop index nearest to `degrees` (0 … N for 0° … 360°), if it is in that range.
+    fn nominal_step(&self, degrees: f64) -> Option<usize> {
+        let n = self.truth.faces as f64;
+        let p = (degrees * n / 360.0).round();
+        (p >= 0.0 && p <= n).then_some(p as usize)
+    }
+
+    /// The position the table's encoder reads, degrees (moving: where the motion is).
+    pub(super) fn encoder_position(&self, now: Instant) -> f64 {
+        match self.table.motion {
+            Some(m) => m.position_at(now),
+            None => self.table.position,
+        }
+    }
+
+    /// What the autocollimators see.
+    pub fn table_view(&mut self, now: Instant) -> TableView {
+        self.touch(now);
+        if self.table.motion.is_some() || self.table.stuck {
+            TableView::InMotion
+        } else {
+            TableView::AtRest(self.table.position)
+        }
+    }
+
+    /// One measurement of autocollimator `ac` (1 or 2): (status axis digit, x, y).
+    pub(super) fn measure(&mut self, ac: u32, now: Instant) -> (u16, f64, f64) {
+        let z_x: f64 = StandardNormal.sample(&mut self.noise);
+        let z_y: f64 = StandardNormal.sample(&mut self.noise);
+        let TableView::AtRest(theta) = self.table_view(now) else {
+            return (0, 0.0, 0.0);
+        };
+        let n = self.truth.faces;
+        let p = (theta * n as f64 / 360.0).round();
+        let delta_arcsec = (theta - p * 360.0 / n as f64) * 3600.0;
+        let p = p as i64;
+        let step = if (0..=n as i64).contains(&p) {
+            p as usize
+        } else {
+            p.rem_euclid(n as i64) as usize
+        };
+        let ac_face = self.config.simulation.ac_faces[ac as usize - 1];
+        let face = face_at(step, ac_face - 1, n);
+        let (cycle, direction) = self.tracker.context(step, ac);
+        let time = self
+            .first_command
+            .map_or(0.0, |t| now.saturating_duration_since(t).as_secs_f64());
+        let reading = Reading {
+            setup: 1,
+            cycle,
+            step,
+            ac,
+            face,
+            reading_arcsec: 0.0,
+            direction,
+            time_seconds: Some(time),
+            reading_y_arcsec: None,
+            temperature_celsius: None,
+            encoder_degrees: Some(theta),
+            line: 0,
+        };
+        let sigma = self.config.simulation.noise_arcsec;
+        let x = self.truth.model_reading(&reading) + delta_arcsec + sigma * z_x;
+        let y = self.pyramidal[face - 1] + sigma * z_y;
+        if !x.is_finite() || x.abs() > AC_RANGE_ARCSEC {
+            return (0, 0.0, 0.0);
+        }
+        (3, x, y)
+    }
+
+    pub(super) fn table_state(&mut self, now: Instant) -> u8 {
+        self.touch(now);
+        if let Some(code) = self.table.disabled {
+            return code;
+        }
+        match self.table.motion {
+            Some(m) if m.homing => 0x1E,
+            Some(_) => 0x28,
+            None if !self.table.referenced => 0x0A,
+            None => self.table.ready_code,
+        }
+    }
+
+    pub(super) fn duration(&self, distance_deg: f64, extra_s: f64) -> Duration {
+        let s =
+            (distance_deg.abs() / self.config.speed_deg_per_s + extra_s) * self.config.time_scale;
+        Duration::try_from_secs_f64(s).unwrap_or(Duration::ZERO)
+    }
+}
+
+/// Locks the world, recovering from a poisoned lock (a panicked device thread must not
+/// take the others down).
+pub(super) fn lock(world: &Mutex<World>) -> MutexGuard<'_, World> {
+    world.lock().unwrap_or_else(|p| p.into_inner())
+}
