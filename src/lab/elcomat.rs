@@ -1,4 +1,4 @@
-//! The Möller-Wedel ELCOMAT 3000 autocollimator protocol (FORMAT.md §7).
+//! The Möller-Wedel ELCOMAT 3000 autocollimator protocol (docs/FORMAT.md §7).
 //!
 //! The host sends one-character commands ending in LF; the device ends every reply with
 //! CR. The driver uses:

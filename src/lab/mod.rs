@@ -1,6 +1,6 @@
 //! The lab: two ELCOMAT 3000 autocollimators and an SMC100 rotary table on serial lines,
 //! and the run procedure that drives them through a calibration and keeps every reading
-//! on disk (FORMAT.md §7). Built with the cargo feature `lab`.
+//! on disk (docs/FORMAT.md §7). Built with the cargo feature `lab`.
 //!
 //! # What flows from the instruments to the run directory
 //!

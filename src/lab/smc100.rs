@@ -1,4 +1,4 @@
-//! The Newport SMC100 motion-controller protocol, controller address 1 (FORMAT.md §7).
+//! The Newport SMC100 motion-controller protocol, controller address 1 (docs/FORMAT.md §7).
 //!
 //! Commands `1<CMD><argument>` end with CR LF; replies `1<CMD><value>` end with CR LF.
 //! The driver uses:
@@ -11,7 +11,7 @@
 //! | `1TE` | `1TE<c>` | the last command's error (`@`: none), asked after every motion command |
 //! | `1TP` | `1TP<deg>` | position |
 //! | `1ST` | none | stop |
-//! | `1VE` | `1VE<text>` | identification (controller version; not in FORMAT.md, standard SMC100) |
+//! | `1VE` | `1VE<text>` | identification (controller version; not in docs/FORMAT.md, standard SMC100) |
 //!
 //! A move is: `1TS` (must be ready), `1PA<deg>` sent **once**, `1TE` (must be `@`), `1TS`
 //! every poll interval until ready, `1TP` (must be within tolerance of the target). A

@@ -327,7 +327,7 @@ pub(super) fn split_lines(text: &str) -> impl Iterator<Item = &str> {
 /// Which rules a reading of the file applies.
 #[derive(Debug, Clone, Copy)]
 pub(super) enum Rules {
-    /// All of FORMAT.md §2, with N given (`faces`) or the largest face.
+    /// All of docs/FORMAT.md §2, with N given (`faces`) or the largest face.
     Set(Option<usize>),
     /// Those of the header and of each row only, for a file still being written: a file
     /// without a header or without rows gives no readings, and the rules about the whole

@@ -1,4 +1,4 @@
-//! Writing the measurement CSV (FORMAT.md §2): a whole set at once
+//! Writing the measurement CSV (docs/FORMAT.md §2): a whole set at once
 //! ([`MeasurementSet::write_to`]), or one reading at a time as it is taken
 //! ([`ReadingWriter`]), each with the columns it chooses ([`Columns`]).
 //!
@@ -13,7 +13,7 @@ use std::path::Path;
 use super::parse::{Col, split_lines};
 use super::{MeasurementError, MeasurementSet, Reading};
 
-/// A column of the measurement file (FORMAT.md §2).
+/// A column of the measurement file (docs/FORMAT.md §2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Column(Col);
 
@@ -244,7 +244,7 @@ impl MeasurementSet {
         Columns::new(columns)
     }
 
-    /// Writes the measurement CSV (FORMAT.md §2); `comments` become leading `# ` lines.
+    /// Writes the measurement CSV (docs/FORMAT.md §2); `comments` become leading `# ` lines.
     ///
     /// The columns are [`MeasurementSet::columns`]; a reading without a value of an
     /// optional column gets an empty field. Floats are written with Rust's `{}`

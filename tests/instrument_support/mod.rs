@@ -123,7 +123,7 @@ pub fn assert_error(out: &Output, says: &str) -> String {
     text
 }
 
-/// The header of a run's measurement file (FORMAT.md §7), as the run has always written it.
+/// The header of a run's measurement file (docs/FORMAT.md §7), as the run has always written it.
 pub const RUN_HEADER: &str = "cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder";
 
 /// The (cycle, step, ac) of every data row of a run's measurement file.

@@ -82,7 +82,7 @@ pub enum RunError {
         /// The run's header.
         expected: String,
     },
-    /// A measurement file that cannot be read (a row that breaks FORMAT.md §2).
+    /// A measurement file that cannot be read (a row that breaks docs/FORMAT.md §2).
     #[error("{error}; refusing to resume")]
     Unreadable {
         /// What is wrong, and where.

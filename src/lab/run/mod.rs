@@ -1,4 +1,4 @@
-//! The run procedure of `polycal run` (FORMAT.md §7): step the table through full
+//! The run procedure of `polycal run` (docs/FORMAT.md §7): step the table through full
 //! cycles, read both autocollimators at every stop, and keep every reading on disk.
 //!
 //! One concept a file: the settings and the plan (`settings.rs`: [`RunSettings`]), the
@@ -9,7 +9,7 @@
 //!
 //! # The run directory
 //!
-//! - `measurements.csv`: FORMAT.md §2, the columns [`COLUMNS`]
+//! - `measurements.csv`: docs/FORMAT.md §2, the columns [`COLUMNS`]
 //!   (`cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder`) after `#`
 //!   comment lines, written by the measurement module's
 //!   [`ReadingWriter`](crate::measurement::ReadingWriter); one row per reading, appended

@@ -1,4 +1,4 @@
-//! A simulated ELCOMAT 3000 (FORMAT.md §7): `s`, `d`, `a`, `r`, `A`, `R`.
+//! A simulated ELCOMAT 3000 (docs/FORMAT.md §7): `s`, `d`, `a`, `r`, `A`, `R`.
 
 use std::sync::{Arc, Mutex};
 use std::time::Instant;

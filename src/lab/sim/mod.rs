@@ -6,7 +6,7 @@
 //! The polygon sits on the table; the table's encoder reads θ (degrees, the position
 //! `1TP` reports), and its true angle is θ + α(θ)/3600, where α\[p\] is the truth's
 //! encoder error at the nominal stop p·360°/N nearest to θ. So α is *true minus
-//! indicated* angle, the sign that makes the autocollimator reading follow FORMAT.md §1:
+//! indicated* angle, the sign that makes the autocollimator reading follow docs/FORMAT.md §1:
 //! with the table at rest at θ and p the nearest stop (δ = θ − p·360/N, in arcsec),
 //! autocollimator j reads
 //!
