@@ -1059,3 +1059,19 @@ fn harmonic_specs() {
         assert!(err.message().contains("harmonic"), "{err}");
     }
 }
+
+/// A truth file that is not JSON is refused with its file, line and column.
+#[test]
+fn a_bad_truth_file_is_refused_with_line_and_column() {
+    let path = std::env::temp_dir().join(format!("polycal-bad-truth-{}.json", std::process::id()));
+    std::fs::write(&path, "{\"faces\": 24,\n \"pitch_deviation\": [1,2,}").unwrap();
+    let err = polycal::simulate::Truth::read_path(&path).unwrap_err();
+    let _ = std::fs::remove_file(&path);
+    assert_eq!(
+        err.to_string(),
+        format!(
+            "{}:2:26: not a valid truth file: expected value",
+            path.display()
+        )
+    );
+}

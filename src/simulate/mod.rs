@@ -67,14 +67,13 @@ pub enum SimulateError {
         #[source]
         source: std::io::Error,
     },
-    /// A truth file is not valid JSON of the truth format (the text gives line and column).
-    #[error("{}: not a valid truth file: {source}", path.display())]
+    /// A truth file is not valid JSON of the truth format.
+    #[error("{location}: not a valid truth file: {message}")]
     Json {
-        /// The file.
-        path: PathBuf,
-        /// The underlying error, with line and column.
-        #[source]
-        source: serde_json::Error,
+        /// The file, and the line and column where the JSON went wrong.
+        location: crate::input::Location,
+        /// What is wrong (serde_json's message without its position).
+        message: String,
     },
     /// A truth is inconsistent, or does not fit the simulation settings.
     #[error("{origin}: invalid truth: {message}")]

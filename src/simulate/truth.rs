@@ -136,11 +136,18 @@ impl Truth {
             path: path.to_path_buf(),
             source,
         })?;
-        let mut truth: Truth =
-            serde_json::from_str(&text).map_err(|source| SimulateError::Json {
-                path: path.to_path_buf(),
-                source,
-            })?;
+        let mut truth: Truth = serde_json::from_str(&text).map_err(|e| {
+            let position = format!(" at line {} column {}", e.line(), e.column());
+            let text = e.to_string();
+            SimulateError::Json {
+                location: crate::input::Location::new(
+                    path.display().to_string(),
+                    e.line() as u64,
+                    e.column() as u64,
+                ),
+                message: text.strip_suffix(&position).unwrap_or(&text).to_string(),
+            }
+        })?;
         truth.check().map_err(|message| SimulateError::Truth {
             origin: path.display().to_string(),
             message,
