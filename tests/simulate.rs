@@ -824,7 +824,7 @@ fn bad_truth_files_are_refused_naming_the_file() {
         (
             "syntax.json",
             "{\"faces\": 3,\n \"pitch_deviation\": [1, 2,,]}",
-            "line 2",
+            "syntax.json:2:27:",
         ),
         (
             "missing.json",
@@ -834,7 +834,7 @@ fn bad_truth_files_are_refused_naming_the_file() {
         (
             "null.json",
             r#"{"faces": 3, "pitch_deviation": [0, null, 0], "encoder_error": [0, 0, 0]}"#,
-            "line 1",
+            "null.json:1:",
         ),
         (
             "length.json",
@@ -868,7 +868,7 @@ fn bad_truth_files_are_refused_naming_the_file() {
                 "effects": [{"kind": "wobble", "value": 1}]}"#,
             "wobble",
         ),
-        ("empty.json", "", "line 1"),
+        ("empty.json", "", "empty.json:1"),
     ];
     for (name, text, needle) in cases {
         let path = temp_file(name, text);
