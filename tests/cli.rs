@@ -31,6 +31,16 @@ fn polycal_stdin(args: &[&str], input: &[u8]) -> Output {
     child.wait_with_output().unwrap()
 }
 
+/// Asserts the exit status, showing standard error when it differs.
+fn assert_status(out: &Output, code: i32) {
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn numbers(value: &Value) -> Vec<f64> {
     value
         .as_array()
@@ -52,11 +62,7 @@ fn temp_dir(name: &str) -> PathBuf {
 #[test]
 fn solve_example_json_matches_truth() {
     let out = polycal(&["solve", EXAMPLE, "--format", "json"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_status(&out, 0);
     let text = String::from_utf8(out.stdout).unwrap();
     assert_eq!(text.lines().count(), 1, "one JSON object for one file");
     let json: Value = serde_json::from_str(&text).unwrap();
@@ -160,11 +166,7 @@ fn solve_csv_is_the_result_file() {
 fn several_files_and_stdin() {
     let data = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join(EXAMPLE)).unwrap();
     let out = polycal_stdin(&["solve", EXAMPLE, "-", "--format", "json"], &data);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_status(&out, 0);
     let text = String::from_utf8(out.stdout).unwrap();
     let lines: Vec<Value> = text
         .lines()
@@ -228,11 +230,7 @@ fn unobservable_design_is_refused() {
         "--out",
         path.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_status(&out, 0);
     let out = polycal(&["solve", path.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8(out.stderr).unwrap();
@@ -305,7 +303,19 @@ fn simulate_is_reproducible() {
 fn usage_error() {
     let out = polycal(&["solve", EXAMPLE, "--format", "yaml"]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("error:"));
+    // docs/FORMAT.md §8: one line, beginning `error:`, naming the value and the choices.
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with("error: invalid value 'yaml'"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("table, json, csv"), "{stderr}");
+    let missing = polycal(&["solve"]);
+    assert_eq!(missing.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&missing.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("<FILES>"), "{stderr}");
     let out = polycal(&["solve", "no-such-file.csv"]);
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8(out.stderr).unwrap();
@@ -338,11 +348,7 @@ fn diagnose_json_finds_a_drift() {
         "--truth-out",
         truth.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_status(&out, 0);
     let out = polycal(&[
         "diagnose",
         data.to_str().unwrap(),
@@ -351,12 +357,7 @@ fn diagnose_json_finds_a_drift() {
         "--format",
         "json",
     ]);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_status(&out, 0);
     let json: Value = serde_json::from_slice(&out.stdout).unwrap();
     for key in ["before", "after", "effects", "error", "adequate"] {
         assert!(json.get(key).is_some(), "missing {key}");
@@ -437,11 +438,7 @@ fn budget_reproduces_paper_table_1() {
         "--format",
         "json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_status(&out, 0);
     let json: Value = serde_json::from_slice(&out.stdout).unwrap();
     let get = |k: &str| json[k].as_f64().unwrap();
     assert!((get("combined_u") - 0.2287).abs() < 5e-5);
@@ -632,12 +629,7 @@ fn negative_correlation_is_accepted() {
         "--format",
         "json",
     ]);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_status(&out, 0);
     let json: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["correlation"], -0.5);
     let en = json["rows"][0]["en"].as_f64().unwrap();
