@@ -1046,3 +1046,23 @@ proptest! {
         let _ = read_bytes(text.as_bytes(), None);
     }
 }
+
+/// A `shift` column (docs/FORMAT.md §2, §9.1): a shift of 0 (or an empty field) is the
+/// ordinary mounting; any other shift is refused at its field, because this version
+/// would otherwise evaluate the mounting as unshifted without saying so.
+#[test]
+fn a_non_zero_shift_is_refused_not_ignored() {
+    let good =
+        b"cycle,step,ac,face,reading,shift\n1,0,1,1,0.5,0\n1,1,1,2,-0.25,\n1,2,1,3,0.125,0.0\n";
+    let set = read_bytes(good, None).unwrap();
+    assert_eq!(set.readings.len(), 3);
+    // "1,1,1,2,-0.25," is 14 characters: the shift of line 3 starts at column 15.
+    let bad =
+        b"cycle,step,ac,face,reading,shift\n1,0,1,1,0.5,0\n1,1,1,2,-0.25,7.5\n1,2,1,3,0.125,0\n";
+    let err = refused_bytes(bad, None);
+    assert_invalid(&err, "mem.csv", 3, 15, &["column \"shift\"", "7.5", "§9.1"]);
+    // A near miss of the name is refused like any other ("cycle,step,ac,face,reading," is
+    // 27 characters).
+    let near = b"cycle,step,ac,face,reading,Shift\n1,0,1,1,0.5,0\n";
+    assert_invalid(&refused_bytes(near, None), "mem.csv", 1, 28, &["\"shift\""]);
+}

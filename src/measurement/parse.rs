@@ -19,9 +19,12 @@ pub(super) enum Col {
     ReadingY,
     Temperature,
     Encoder,
+    /// The mounting's table angle at step 0 (docs/FORMAT.md §2, §9.1): read only to refuse
+    /// what this version cannot evaluate (a non-zero shift), never to guess.
+    Shift,
 }
 
-pub(super) const NCOLS: usize = 11;
+pub(super) const NCOLS: usize = 12;
 
 impl Col {
     const ALL: [Col; NCOLS] = [
@@ -36,6 +39,7 @@ impl Col {
         Col::ReadingY,
         Col::Temperature,
         Col::Encoder,
+        Col::Shift,
     ];
 
     pub(super) fn name(self) -> &'static str {
@@ -51,6 +55,7 @@ impl Col {
             Col::ReadingY => "reading_y",
             Col::Temperature => "temperature",
             Col::Encoder => "encoder",
+            Col::Shift => "shift",
         }
     }
 
@@ -615,6 +620,22 @@ pub(super) fn parse_row(
                     )));
                 }
             },
+            Col::Shift => {
+                let shift = if text.is_empty() {
+                    0.0
+                } else {
+                    parse_float(text, col).map_err(at)?
+                };
+                if shift != 0.0 {
+                    return Err(at(format!(
+                        "column \"shift\": {} degrees: shifted mountings (docs/FORMAT.md \
+                         §9.1) are not evaluated by this version, and reading the row as \
+                         unshifted would be wrong; give the mounting as `setup` with a \
+                         shift of 0",
+                        show(text)
+                    )));
+                }
+            }
             Col::Time | Col::ReadingY | Col::Temperature | Col::Encoder => {
                 let x = if text.is_empty() {
                     None

@@ -61,6 +61,8 @@ impl Column {
             Col::ReadingY => optional(reading.reading_y_arcsec),
             Col::Temperature => optional(reading.temperature_celsius),
             Col::Encoder => optional(reading.encoder_degrees),
+            // No `Column` names it: polycal writes every mounting unshifted.
+            Col::Shift => "0".to_string(),
         };
         out.push_str(&field);
     }
