@@ -24,26 +24,38 @@ use serde::{Deserialize, Serialize};
 
 use crate::measurement::{Direction, Reading};
 
-/// One effect term, with its value in arcseconds (per hour for a drift).
+/// One effect term, with its value in arcseconds (per hour for a drift, per °C for a
+/// temperature coefficient, dimensionless for cross-talk).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum Effect {
-    /// Zero drift of autocollimator `ac`, `value` arcseconds per hour, linear in the
-    /// reading's `time` (zero at time 0).
+    /// Zero drift of autocollimator `ac`: `value` arcseconds per hour, linear in the
+    /// reading's `time` (zero at time 0), plus `quadratic`·t² (arcsec/h²) when curved.
     Drift {
         /// Autocollimator number (≥ 1).
         ac: u32,
-        /// Drift rate, arcsec per hour.
+        /// Drift rate at time 0, arcsec per hour.
         value: f64,
+        /// Curvature of the drift, arcsec per hour², when the drift accelerates or settles.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        quadratic: Option<f64>,
     },
     /// A jump of autocollimator `ac`'s zero by `value` arcseconds, from cycle `cycle` on
-    /// (that cycle included). Cycle numbers restart in every setup, so with several setups
-    /// the jump applies from that cycle on in each of them.
+    /// (that cycle included) or, with `step`, from that stop of the cycle on in time order
+    /// (a clockwise cycle runs steps 0 … N, a counter-clockwise one N … 0). With `setup`
+    /// the jump acts in that mounting only; without it, cycle numbers restart in every
+    /// setup, so the jump applies from that cycle on in each of them.
     OffsetStep {
         /// Autocollimator number (≥ 1).
         ac: u32,
         /// First cycle with the new zero (≥ 1).
         cycle: u32,
+        /// First stop of `cycle` with the new zero, in time order; `None` for the whole cycle.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        step: Option<usize>,
+        /// The mounting the jump acts in; `None` for every mounting.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        setup: Option<u32>,
         /// Size of the jump, arcsec.
         value: f64,
     },
@@ -71,20 +83,91 @@ pub enum Effect {
         /// Reading minus model, arcsec.
         value: f64,
     },
+    /// Temperature coefficient of autocollimator `ac`: the reading changes by `value`
+    /// arcseconds per °C of the `temperature` column, measured from the column's mean over
+    /// the run ([`EffectContext`]).
+    Temperature {
+        /// Autocollimator number (≥ 1).
+        ac: u32,
+        /// Coefficient, arcsec per °C.
+        value: f64,
+    },
+    /// Cross-talk of the elevation axis into the measuring axis of autocollimator `ac`:
+    /// the reading changes by `value` times its `reading_y` (dimensionless).
+    CrossTalk {
+        /// Autocollimator number (≥ 1).
+        ac: u32,
+        /// Coefficient, arcsec of reading per arcsec of `reading_y`.
+        value: f64,
+    },
 }
 
 /// The effect kinds, as spelled in files and on the command line.
-pub const KINDS: [&str; 4] = ["drift", "offset-step", "direction", "outlier"];
+pub const KINDS: [&str; 6] = [
+    "drift",
+    "offset-step",
+    "direction",
+    "outlier",
+    "temperature",
+    "cross-talk",
+];
+
+/// What an effect's regressor needs to know about the whole run: the mean of the
+/// `temperature` column, against which a temperature coefficient acts.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[non_exhaustive]
+pub struct EffectContext {
+    /// Mean of the readings' `temperature` values, °C (0 when none has one).
+    pub mean_temperature_celsius: f64,
+}
+
+impl EffectContext {
+    /// The context of a run: the mean temperature over the readings that have one.
+    pub fn of(readings: &[Reading]) -> Self {
+        let (sum, count) = readings
+            .iter()
+            .filter_map(|r| r.temperature_celsius)
+            .fold((0.0, 0usize), |(s, c), t| (s + t, c + 1));
+        Self {
+            mean_temperature_celsius: if count > 0 { sum / count as f64 } else { 0.0 },
+        }
+    }
+
+    /// A context with a given mean temperature, °C.
+    pub fn with_mean_temperature(mean_temperature_celsius: f64) -> Self {
+        Self {
+            mean_temperature_celsius,
+        }
+    }
+}
+
+/// Whether `reading` is taken at or after stop `step` of cycle `cycle` in time order:
+/// a later cycle, or the same cycle at that stop or later in the cycle's direction
+/// (clockwise cycles run steps 0 … N, counter-clockwise ones N … 0).
+pub fn at_or_after(reading: &Reading, cycle: u32, step: Option<usize>) -> bool {
+    if reading.cycle != cycle {
+        return reading.cycle > cycle;
+    }
+    match (step, reading.direction) {
+        (None, _) => true,
+        (Some(s), Direction::Cw) => reading.step >= s,
+        (Some(s), Direction::Ccw) => reading.step <= s,
+    }
+}
 
 impl Effect {
-    /// The regressor x(reading): the effect adds `value * x` to that reading.
+    /// The regressor x(reading) of the effect's `value`: the effect adds `value * x` (plus,
+    /// for a curved drift, `quadratic * t²`, see [`Effect::contribution`]) to that reading.
     ///
     /// - drift: the reading's time in hours for that autocollimator (0 when the reading
     ///   has no time, and for other autocollimators);
-    /// - offset-step: 1 for that autocollimator from that cycle on, else 0;
+    /// - offset-step: 1 for that autocollimator (and setup, if given) at or after the
+    ///   step's cycle and stop in time order ([`at_or_after`]), else 0;
     /// - direction: 1 for `ccw` readings (of that autocollimator if given), else 0;
-    /// - outlier: 1 for that one reading, else 0.
-    pub fn regressor(&self, reading: &Reading) -> f64 {
+    /// - outlier: 1 for that one reading, else 0;
+    /// - temperature: the reading's temperature minus the run's mean (0 without one);
+    /// - cross-talk: the reading's `reading_y` (0 without one).
+    pub fn regressor(&self, reading: &Reading, context: &EffectContext) -> f64 {
         let hit = |b: bool| if b { 1.0 } else { 0.0 };
         match *self {
             Effect::Drift { ac, .. } => {
@@ -94,7 +177,15 @@ impl Effect {
                     0.0
                 }
             }
-            Effect::OffsetStep { ac, cycle, .. } => hit(reading.ac == ac && reading.cycle >= cycle),
+            Effect::OffsetStep {
+                ac,
+                cycle,
+                step,
+                setup,
+                ..
+            } => hit(reading.ac == ac
+                && setup.is_none_or(|s| reading.setup == s)
+                && at_or_after(reading, cycle, step)),
             Effect::Direction { ac, .. } => {
                 hit(reading.direction == Direction::Ccw && ac.is_none_or(|ac| reading.ac == ac))
             }
@@ -108,7 +199,46 @@ impl Effect {
                 && reading.step == step
                 && reading.ac == ac
                 && setup.is_none_or(|s| reading.setup == s)),
+            Effect::Temperature { ac, .. } => {
+                if reading.ac == ac {
+                    reading
+                        .temperature_celsius
+                        .map_or(0.0, |t| t - context.mean_temperature_celsius)
+                } else {
+                    0.0
+                }
+            }
+            Effect::CrossTalk { ac, .. } => {
+                if reading.ac == ac {
+                    reading.reading_y_arcsec.unwrap_or(0.0)
+                } else {
+                    0.0
+                }
+            }
         }
+    }
+
+    /// The regressor of a drift's `quadratic` term: the reading's time in hours, squared,
+    /// for that autocollimator; 0 for every other effect and reading.
+    pub fn quadratic_regressor(&self, reading: &Reading) -> f64 {
+        match *self {
+            Effect::Drift { ac, .. } if reading.ac == ac => {
+                reading.time_seconds.map_or(0.0, |t| (t / 3600.0).powi(2))
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// What the effect adds to `reading`, arcsec: `value · regressor`, plus
+    /// `quadratic · t²` for a curved drift.
+    pub fn contribution(&self, reading: &Reading, context: &EffectContext) -> f64 {
+        let quadratic = match *self {
+            Effect::Drift {
+                quadratic: Some(q), ..
+            } => q * self.quadratic_regressor(reading),
+            _ => 0.0,
+        };
+        self.value() * self.regressor(reading, context) + quadratic
     }
 
     /// The effect's value: arcsec per hour for a drift, arcsec otherwise.
@@ -117,7 +247,9 @@ impl Effect {
             Effect::Drift { value, .. }
             | Effect::OffsetStep { value, .. }
             | Effect::Direction { value, .. }
-            | Effect::Outlier { value, .. } => value,
+            | Effect::Outlier { value, .. }
+            | Effect::Temperature { value, .. }
+            | Effect::CrossTalk { value, .. } => value,
         }
     }
 
@@ -127,7 +259,9 @@ impl Effect {
             Effect::Drift { value, .. }
             | Effect::OffsetStep { value, .. }
             | Effect::Direction { value, .. }
-            | Effect::Outlier { value, .. } => *value = new_value,
+            | Effect::Outlier { value, .. }
+            | Effect::Temperature { value, .. }
+            | Effect::CrossTalk { value, .. } => *value = new_value,
         }
         self
     }
@@ -139,6 +273,8 @@ impl Effect {
             Effect::OffsetStep { .. } => KINDS[1],
             Effect::Direction { .. } => KINDS[2],
             Effect::Outlier { .. } => KINDS[3],
+            Effect::Temperature { .. } => KINDS[4],
+            Effect::CrossTalk { .. } => KINDS[5],
         }
     }
 
@@ -157,7 +293,7 @@ impl Effect {
     /// ```
     /// use polycal::effects::Effect;
     /// let e = Effect::parse_spec("offset-step", "2:4:0.5").unwrap();
-    /// assert_eq!(e, Effect::OffsetStep { ac: 2, cycle: 4, value: 0.5 });
+    /// assert_eq!(e, Effect::OffsetStep { ac: 2, cycle: 4, step: None, setup: None, value: 0.5 });
     /// assert!(Effect::parse_spec("drift", "1").is_err());
     /// ```
     ///
@@ -183,6 +319,7 @@ impl Effect {
                 Ok(Effect::Drift {
                     ac: number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?,
                     value: finite("RATE", parts[1]).map_err(|m| ctx(m, form))?,
+                    quadratic: None,
                 })
             }
             "offset-step" => {
@@ -193,6 +330,8 @@ impl Effect {
                 Ok(Effect::OffsetStep {
                     ac: number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?,
                     cycle: number_from_1("CYCLE", parts[1]).map_err(|m| ctx(m, form))?,
+                    step: None,
+                    setup: None,
                     value: finite("VALUE", parts[2]).map_err(|m| ctx(m, form))?,
                 })
             }
@@ -253,10 +392,38 @@ impl fmt::Display for Effect {
     /// A one-line description for people, e.g. `offset-step of ac 2 from cycle 4: 0.5"`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Effect::Drift { ac, value } => write!(f, "drift of ac {ac}: {value}\"/h"),
-            Effect::OffsetStep { ac, cycle, value } => {
-                write!(f, "offset-step of ac {ac} from cycle {cycle}: {value}\"")
+            Effect::Drift {
+                ac,
+                value,
+                quadratic,
+            } => {
+                write!(f, "drift of ac {ac}: {value}\"/h")?;
+                if let Some(q) = quadratic {
+                    write!(f, " + {q}\"/h² · t²")?;
+                }
+                Ok(())
             }
+            Effect::OffsetStep {
+                ac,
+                cycle,
+                step,
+                setup,
+                value,
+            } => {
+                write!(f, "offset-step of ac {ac} from ")?;
+                if let Some(s) = setup {
+                    write!(f, "setup {s}, ")?;
+                }
+                write!(f, "cycle {cycle}")?;
+                if let Some(s) = step {
+                    write!(f, ", step {s}")?;
+                }
+                write!(f, ": {value}\"")
+            }
+            Effect::Temperature { ac, value } => {
+                write!(f, "temperature coefficient of ac {ac}: {value}\"/°C")
+            }
+            Effect::CrossTalk { ac, value } => write!(f, "cross-talk of ac {ac}: {value}"),
             Effect::Direction {
                 ac: Some(ac),
                 value,

@@ -59,7 +59,14 @@ fn assert_value(d: &Diagnosis, index: usize, injected: f64) {
 /// error is back at the noise level.
 #[test]
 fn drift_is_found_and_removed() {
-    let (_, truth, d) = run(&config(vec![Effect::Drift { ac: 2, value: 2.0 }], 3));
+    let (_, truth, d) = run(&config(
+        vec![Effect::Drift {
+            ac: 2,
+            value: 2.0,
+            quadratic: None,
+        }],
+        3,
+    ));
     assert_eq!(d.effects.len(), 1, "{:?}", d.effects);
     assert!(matches!(d.effects[0].effect, Effect::Drift { ac: 2, .. }));
     assert_value(&d, 0, 2.0);
@@ -117,6 +124,8 @@ fn offset_step_is_found() {
     let effect = Effect::OffsetStep {
         ac: 1,
         cycle: 4,
+        step: None,
+        setup: None,
         value: 0.5,
     };
     let (_, truth, d) = run(&config(vec![effect.clone()], 5));
@@ -126,6 +135,8 @@ fn offset_step_is_found() {
         Effect::OffsetStep {
             ac: 1,
             cycle: 4,
+            step: None,
+            setup: None,
             ..
         }
     ));
@@ -142,6 +153,8 @@ fn offset_step_is_found() {
             Effect::OffsetStep {
                 ac: 1,
                 cycle: 4,
+                step: None,
+                setup: None,
                 ..
             }
         ),
@@ -189,7 +202,11 @@ fn direction_is_found() {
 fn drift_and_outlier_together() {
     let (_, truth, d) = run(&config(
         vec![
-            Effect::Drift { ac: 1, value: -1.5 },
+            Effect::Drift {
+                ac: 1,
+                value: -1.5,
+                quadratic: None,
+            },
             Effect::Outlier {
                 cycle: 5,
                 step: 20,
@@ -287,7 +304,14 @@ fn sinusoidal_drift_is_inadequate() {
 /// make effects visible, and no invented effect even when a drift is present.
 #[test]
 fn no_redundancy_no_invented_effects() {
-    let mut c = config(vec![Effect::Drift { ac: 2, value: 2.0 }], 10);
+    let mut c = config(
+        vec![Effect::Drift {
+            ac: 2,
+            value: 2.0,
+            quadratic: None,
+        }],
+        10,
+    );
     c.cycles = 1;
     c.closing = false;
     let (_, _, d) = run(&c);

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use polycal::effects::Effect;
+use polycal::effects::{Effect, EffectContext};
 use polycal::simulate::{
     Harmonic, SimulateError, SimulationConfig, Truth, simulate, simulate_with_truth,
 };
@@ -324,7 +324,7 @@ fn check_effect(base: &SimulationConfig, effect: Effect, expected: impl Fn(&Read
         );
         let want = expected(a);
         assert_eq!(
-            effect.regressor(a) * effect.value(),
+            effect.regressor(a, &EffectContext::default()) * effect.value(),
             want,
             "{effect:?} {a:?}"
         );
@@ -353,7 +353,11 @@ fn effect_base() -> SimulationConfig {
 
 #[test]
 fn drift_adds_rate_times_hours() {
-    let effect = Effect::Drift { ac: 2, value: 0.3 };
+    let effect = Effect::Drift {
+        ac: 2,
+        value: 0.3,
+        quadratic: None,
+    };
     check_effect(&effect_base(), effect, |r| {
         if r.ac == 2 {
             0.3 * (r.time_seconds.unwrap() / 3600.0)
@@ -368,6 +372,8 @@ fn offset_step_from_its_cycle_on() {
     let effect = Effect::OffsetStep {
         ac: 1,
         cycle: 3,
+        step: None,
+        setup: None,
         value: 0.5,
     };
     check_effect(&effect_base(), effect, |r| {
@@ -443,20 +449,33 @@ fn effects_naming_what_the_run_lacks_are_refused() {
         ..noise_free(6)
     };
     let bad = [
-        Effect::Drift { ac: 3, value: 0.1 },
-        Effect::Drift { ac: 0, value: 0.1 },
+        Effect::Drift {
+            ac: 3,
+            value: 0.1,
+            quadratic: None,
+        },
+        Effect::Drift {
+            ac: 0,
+            value: 0.1,
+            quadratic: None,
+        },
         Effect::Drift {
             ac: 1,
             value: f64::NAN,
+            quadratic: None,
         },
         Effect::OffsetStep {
             ac: 1,
             cycle: 4,
+            step: None,
+            setup: None,
             value: 0.1,
         },
         Effect::OffsetStep {
             ac: 1,
             cycle: 0,
+            step: None,
+            setup: None,
             value: 0.1,
         },
         Effect::Direction {
@@ -643,7 +662,11 @@ fn same_seed_same_output_different_seed_different_output() {
     let config = SimulationConfig {
         setups: 2,
         bidirectional: true,
-        effects: vec![Effect::Drift { ac: 1, value: 0.1 }],
+        effects: vec![Effect::Drift {
+            ac: 1,
+            value: 0.1,
+            quadratic: None,
+        }],
         ..SimulationConfig::default()
     };
     let (a, ta) = simulate(&config).unwrap();
@@ -722,7 +745,11 @@ fn truth_json_round_trip() {
         setups: 2,
         bidirectional: true,
         effects: vec![
-            Effect::Drift { ac: 1, value: 0.1 },
+            Effect::Drift {
+                ac: 1,
+                value: 0.1,
+                quadratic: None,
+            },
             Effect::Direction {
                 ac: None,
                 value: 0.2,
@@ -774,6 +801,8 @@ fn minimal_truth_file_and_effect_json() {
         vec![Effect::OffsetStep {
             ac: 2,
             cycle: 4,
+            step: None,
+            setup: None,
             value: 0.5
         }]
     );
@@ -885,13 +914,22 @@ fn bad_truth_files_are_refused_naming_the_file() {
 #[test]
 fn effect_specs() {
     let good = [
-        ("drift", "1:0.3", Effect::Drift { ac: 1, value: 0.3 }),
+        (
+            "drift",
+            "1:0.3",
+            Effect::Drift {
+                ac: 1,
+                value: 0.3,
+                quadratic: None,
+            },
+        ),
         (
             "drift",
             " 2 : -1e-2 ",
             Effect::Drift {
                 ac: 2,
                 value: -0.01,
+                quadratic: None,
             },
         ),
         (
@@ -900,6 +938,8 @@ fn effect_specs() {
             Effect::OffsetStep {
                 ac: 2,
                 cycle: 4,
+                step: None,
+                setup: None,
                 value: 0.5,
             },
         ),
@@ -1002,21 +1042,27 @@ fn effect_regressor_and_value() {
         encoder_degrees: None,
         line: 0,
     };
-    let drift = Effect::Drift { ac: 1, value: 0.4 };
-    assert_eq!(drift.regressor(&r), 1.5);
+    let drift = Effect::Drift {
+        ac: 1,
+        value: 0.4,
+        quadratic: None,
+    };
+    assert_eq!(drift.regressor(&r, &EffectContext::default()), 1.5);
     assert_eq!(drift.value(), 0.4);
     assert_eq!(drift.clone().with_value(0.7).value(), 0.7);
     let step = Effect::OffsetStep {
         ac: 1,
         cycle: 3,
+        step: None,
+        setup: None,
         value: 1.0,
     };
-    assert_eq!(step.regressor(&r), 1.0);
+    assert_eq!(step.regressor(&r, &EffectContext::default()), 1.0);
     let dir = Effect::Direction {
         ac: Some(2),
         value: 1.0,
     };
-    assert_eq!(dir.regressor(&r), 0.0);
+    assert_eq!(dir.regressor(&r, &EffectContext::default()), 0.0);
     let out = Effect::Outlier {
         cycle: 3,
         step: 5,
@@ -1024,15 +1070,15 @@ fn effect_regressor_and_value() {
         setup: Some(2),
         value: 1.0,
     };
-    assert_eq!(out.regressor(&r), 1.0);
+    assert_eq!(out.regressor(&r, &EffectContext::default()), 1.0);
     r.time_seconds = None;
-    assert_eq!(drift.regressor(&r), 0.0);
+    assert_eq!(drift.regressor(&r, &EffectContext::default()), 0.0);
     r.cycle = 2;
-    assert_eq!(step.regressor(&r), 0.0);
-    assert_eq!(out.regressor(&r), 0.0);
+    assert_eq!(step.regressor(&r, &EffectContext::default()), 0.0);
+    assert_eq!(out.regressor(&r, &EffectContext::default()), 0.0);
     r.direction = Direction::Cw;
     r.ac = 2;
-    assert_eq!(dir.regressor(&r), 0.0);
+    assert_eq!(dir.regressor(&r, &EffectContext::default()), 0.0);
 }
 
 #[test]

@@ -138,7 +138,11 @@ struct Candidate {
 }
 
 fn regressor(effect: &Effect, set: &MeasurementSet) -> Vec<f64> {
-    set.readings.iter().map(|r| effect.regressor(r)).collect()
+    let context = crate::effects::EffectContext::of(&set.readings);
+    set.readings
+        .iter()
+        .map(|r| effect.regressor(r, &context))
+        .collect()
 }
 
 /// Fits the base model, then adds the effects the data demand, one at a time.
@@ -150,7 +154,7 @@ fn regressor(effect: &Effect, set: &MeasurementSet) -> Vec<f64> {
 ///
 /// // autocollimator 2 drifts 2″ per hour; nobody tells diagnose
 /// let config = SimulationConfig {
-///     effects: vec![Effect::Drift { ac: 2, value: 2.0 }],
+///     effects: vec![Effect::Drift { ac: 2, value: 2.0, quadratic: None }],
 ///     ..SimulationConfig::default()
 /// };
 /// let (set, _truth) = simulate(&config)?;
@@ -296,13 +300,19 @@ fn candidates(
     cycles.dedup();
     let mut systematic = Vec::new();
     if set.readings.iter().all(|r| r.time_seconds.is_some()) {
-        systematic.extend(acs.iter().map(|&ac| Effect::Drift { ac, value: 0.0 }));
+        systematic.extend(acs.iter().map(|&ac| Effect::Drift {
+            ac,
+            value: 0.0,
+            quadratic: None,
+        }));
     }
     for &ac in &acs {
         for &cycle in cycles.iter().skip(1) {
             systematic.push(Effect::OffsetStep {
                 ac,
                 cycle,
+                step: None,
+                setup: None,
                 value: 0.0,
             });
         }

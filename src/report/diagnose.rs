@@ -105,9 +105,21 @@ pub struct DiagnoseReport {
 pub fn label(effect: &Effect) -> String {
     match effect {
         Effect::Drift { ac, .. } => format!("drift of autocollimator {ac}"),
-        Effect::OffsetStep { ac, cycle, .. } => {
-            format!("offset-step of autocollimator {ac} from cycle {cycle}")
+        Effect::OffsetStep {
+            ac,
+            cycle,
+            step,
+            setup,
+            ..
+        } => format!(
+            "offset-step of autocollimator {ac} from {}cycle {cycle}{}",
+            setup.map_or(String::new(), |s| format!("setup {s}, ")),
+            step.map_or(String::new(), |s| format!(", step {s}"))
+        ),
+        Effect::Temperature { ac, .. } => {
+            format!("temperature coefficient of autocollimator {ac}")
         }
+        Effect::CrossTalk { ac, .. } => format!("cross-talk of autocollimator {ac}"),
         Effect::Direction { ac: None, .. } => "direction (ccw − cw)".into(),
         Effect::Direction { ac: Some(ac), .. } => {
             format!("direction (ccw − cw) of autocollimator {ac}")
@@ -128,11 +140,36 @@ pub fn label(effect: &Effect) -> String {
 /// One sentence on the pattern behind an effect.
 pub fn explanation(found: &FoundEffect) -> String {
     match &found.effect {
-        Effect::Drift { ac, value } => format!(
+        Effect::Drift {
+            ac,
+            value,
+            quadratic: None,
+        } => format!(
             "the residuals of autocollimator {ac} trend linearly with time: its zero drifts {value:+.4}″ per hour"
         ),
-        Effect::OffsetStep { ac, cycle, value } => format!(
-            "the residuals of autocollimator {ac} jump from cycle {cycle} on: its zero moved by {value:+.4}″"
+        Effect::Drift {
+            ac,
+            value,
+            quadratic: Some(q),
+        } => format!(
+            "the residuals of autocollimator {ac} trend with time along a curve: its zero drifts {value:+.4}″ per hour at the start, changing by {q:+.4}″ per hour² (times t²)"
+        ),
+        Effect::OffsetStep {
+            ac,
+            cycle,
+            step,
+            setup,
+            value,
+        } => format!(
+            "the residuals of autocollimator {ac} jump from {}cycle {cycle}{} on: its zero moved by {value:+.4}″",
+            setup.map_or(String::new(), |s| format!("setup {s}, ")),
+            step.map_or(String::new(), |s| format!(", step {s}"))
+        ),
+        Effect::Temperature { ac, value } => format!(
+            "the residuals of autocollimator {ac} follow the temperature: {value:+.4}″ per °C"
+        ),
+        Effect::CrossTalk { ac, value } => format!(
+            "the residuals of autocollimator {ac} follow its elevation reading: {value:+.5}″ per arcsecond of reading_y"
         ),
         Effect::Direction { ac, value } => format!(
             "counter-clockwise cycles read {value:+.4}″ against clockwise ones{}",

@@ -324,7 +324,9 @@ impl SimulationConfig {
             }
         };
         match *e {
-            Effect::Drift { ac, .. } => check_ac(ac),
+            Effect::Drift { ac, .. }
+            | Effect::Temperature { ac, .. }
+            | Effect::CrossTalk { ac, .. } => check_ac(ac),
             Effect::OffsetStep { ac, cycle, .. } => {
                 check_ac(ac)?;
                 check_cycle(cycle)

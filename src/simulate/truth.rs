@@ -10,7 +10,7 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
 use super::{SimulateError, SimulationConfig, TRUTH_STREAM};
-use crate::effects::Effect;
+use crate::effects::{Effect, EffectContext};
 use crate::measurement::Reading;
 use crate::polygon::face_deviation_from_pitch;
 use crate::results::Quantity;
@@ -53,6 +53,10 @@ pub struct Truth {
     /// Standard deviation of the reading noise the run was made with, arcsec.
     #[serde(default)]
     pub noise_arcsec: Option<f64>,
+    /// The temperature a `temperature` effect acts against (the mean of the run's
+    /// `temperature` column), °C; needed only when there is such an effect.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_temperature_celsius: Option<f64>,
 }
 
 /// Removes the mean, then sets the last element to minus the (left-to-right) sum of the
@@ -125,6 +129,7 @@ impl Truth {
             setup_error,
             effects: config.effects.clone(),
             noise_arcsec: Some(config.noise_arcsec),
+            reference_temperature_celsius: None,
         })
     }
 
@@ -222,8 +227,12 @@ impl Truth {
                 return Err(format!("effect {e}: value is not finite"));
             }
             let zero = match *e {
-                Effect::Drift { ac, .. } => ac == 0,
-                Effect::OffsetStep { ac, cycle, .. } => ac == 0 || cycle == 0,
+                Effect::Drift { ac, .. }
+                | Effect::Temperature { ac, .. }
+                | Effect::CrossTalk { ac, .. } => ac == 0,
+                Effect::OffsetStep {
+                    ac, cycle, setup, ..
+                } => ac == 0 || cycle == 0 || setup == Some(0),
                 Effect::Direction { ac, .. } => ac == Some(0),
                 Effect::Outlier {
                     cycle, ac, setup, ..
@@ -292,8 +301,10 @@ impl Truth {
             .setup_error_of(reading.setup, reading.ac)
             .unwrap_or(0.0);
         let mut value = alpha + phi + u;
+        let context =
+            EffectContext::with_mean_temperature(self.reference_temperature_celsius.unwrap_or(0.0));
         for e in &self.effects {
-            value += e.value() * e.regressor(reading);
+            value += e.contribution(reading, &context);
         }
         value
     }
