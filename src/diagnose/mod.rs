@@ -3,35 +3,48 @@
 //!
 //! The bare two-autocollimator cycle is exactly determined, so effects such as a
 //! drifting autocollimator bias the result without leaving a residual. With redundancy
-//! (closing readings, repeated cycles, counter-clockwise cycles) they leave structure in
-//! the residuals. [`diagnose`] fits the base model, then repeatedly tries every candidate
-//! effect term of docs/FORMAT.md §6 — `drift` and `offset-step` per autocollimator (and
-//! cycle), `direction` (all autocollimators and each one), and `outlier` for the reading
-//! with the largest studentized residual — as an extra column of the least-squares model,
-//! and adds the most significant by an extra-sum-of-squares F test, with a Bonferroni
-//! threshold over the candidates of its family so that false alarms stay rare. It stops
-//! when nothing significant remains and checks whether the final residuals are
-//! consistent with noise ([`residuals::adequacy`]).
+//! (closing readings, repeated cycles, counter-clockwise cycles, several mountings) they
+//! leave structure in the residuals. [`diagnose`] fits the base model, then, round by
+//! round, scores every candidate effect term of docs/FORMAT.md §6 against the current fit
+//! ([`candidates`]: drift and its curvature, temperature, cross-talk, direction, a jump of
+//! a zero at any stop of the run, one bad reading) by the reduction of the residual sum of
+//! squares it would bring ([`geometry`], no refit), and adds the most significant by an
+//! extra-sum-of-squares F test with a Bonferroni threshold within its family. The chosen
+//! term is refitted and kept only if it does not leave the lack of fit against pure error
+//! ([`lack_of_fit`]) failing and no better than before. The search stops when nothing
+//! significant remains; the final residuals are then checked for structure the model
+//! still lacks ([`residuals::adequacy`]).
 
+pub mod candidates;
+pub mod geometry;
+pub mod lack_of_fit;
 pub mod residuals;
 
-use crate::effects::Effect;
+use std::collections::HashSet;
+
+use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, MeasurementSet, Sigma};
 use crate::solve::{Solution, SolveError, least_squares_with_regressors};
 use crate::uncertainty::student::t_two_sided_tail;
-use residuals::Adequacy;
+use candidates::{Candidate, Family, Term};
+use geometry::FitGeometry;
+use lack_of_fit::LackOfFit;
+use residuals::{Adequacy, AdequacyInputs};
 
 /// Options of [`diagnose`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub struct DiagnoseOptions {
-    /// Family-wise false-alarm probability of each added effect (Bonferroni over the
-    /// candidates of a family: systematic effects, and outliers over all readings).
-    /// The default 0.005 per family keeps a false effect on clean data to about 1 % of
+    /// False-alarm probability of each family of effects per round (Bonferroni over the
+    /// candidates of the family: systematic effects; jumps at every stop; outliers over
+    /// all readings). The default 0.005 keeps a false effect on clean data to about 1 % of
     /// runs.
     pub family_alpha: f64,
-    /// Probability of a false "inadequate" verdict on clean data.
+    /// False-alarm probability of the serial-correlation checks (divided among the
+    /// streams) and of the χ² check.
     pub adequacy_alpha: f64,
+    /// False-alarm probability of the lack-of-fit test against pure error.
+    pub lack_of_fit_alpha: f64,
     /// Most effects to add.
     pub max_effects: usize,
     /// Reading noise σ stated by the caller (uncertainties for dof = 0 and a χ² check of
@@ -57,15 +70,21 @@ impl DiagnoseOptions {
         self
     }
 
-    /// With another family-wise false-alarm probability per family of effects.
+    /// With another false-alarm probability per family of effects.
     pub fn with_family_alpha(mut self, family_alpha: f64) -> Self {
         self.family_alpha = family_alpha;
         self
     }
 
-    /// With another false-alarm probability of the adequacy checks.
+    /// With another false-alarm probability of the serial-correlation and χ² checks.
     pub fn with_adequacy_alpha(mut self, adequacy_alpha: f64) -> Self {
         self.adequacy_alpha = adequacy_alpha;
+        self
+    }
+
+    /// With another false-alarm probability of the lack-of-fit test.
+    pub fn with_lack_of_fit_alpha(mut self, lack_of_fit_alpha: f64) -> Self {
+        self.lack_of_fit_alpha = lack_of_fit_alpha;
         self
     }
 
@@ -77,14 +96,29 @@ impl DiagnoseOptions {
 }
 
 impl Default for DiagnoseOptions {
+    /// Families at 0.005, serial correlation and χ² at 0.001, lack of fit at 0.01 (so that
+    /// clean data are called inadequate in about 1 % of runs, well inside 5 %), at most 12
+    /// effects, no stated σ.
     fn default() -> Self {
         Self {
             family_alpha: 0.005,
             adequacy_alpha: 0.001,
+            lack_of_fit_alpha: 0.01,
             max_effects: 12,
             sigma: None,
         }
     }
+}
+
+/// The statistics of one F test of a term against the model before it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Evidence {
+    /// Extra-sum-of-squares F statistic (1 numerator degree of freedom).
+    pub f_statistic: f64,
+    /// p-value of that F test.
+    pub p_value: f64,
+    /// p-value times the number of candidates of its family (Bonferroni), at most 1.
+    pub p_adjusted: f64,
 }
 
 /// An effect found in the data, with the evidence for it.
@@ -94,13 +128,17 @@ pub struct FoundEffect {
     pub effect: Effect,
     /// Standard uncertainty of the value in the final model.
     pub u: Option<f64>,
+    /// For a curved drift: standard uncertainty of its `quadratic`.
+    pub quadratic_u: Option<f64>,
+    /// For a curved drift: the F test of the curvature against the linear drift.
+    pub quadratic_evidence: Option<Evidence>,
     /// Extra-sum-of-squares F statistic (1 numerator degree of freedom) when added.
     pub f_statistic: f64,
     /// p-value of that F test.
     pub p_value: f64,
     /// p-value times the number of candidates of its family (Bonferroni), at most 1.
     pub p_adjusted: f64,
-    /// Residual RMS before and after adding it, arcsec.
+    /// Residual RMS before adding it, arcsec.
     pub residual_rms_before: f64,
     /// Residual RMS after adding it, arcsec.
     pub residual_rms_after: f64,
@@ -108,8 +146,79 @@ pub struct FoundEffect {
     pub pitch_change_max: f64,
     /// Largest change it made to an encoder error, arcsec.
     pub encoder_change_max: f64,
+    /// Whether it changed some β or α by more than that quantity's standard uncertainty
+    /// in the final model ("found, but it does not change β or α" when false).
+    pub changes_calibration: bool,
     /// For an outlier: its studentized residual in the model before it was added.
     pub studentized_residual: Option<f64>,
+}
+
+/// Why a tried term was not added.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Rejection {
+    /// Its Bonferroni-adjusted p-value is not below the family's false-alarm probability.
+    NotSignificant,
+    /// Significant, but with it the lack of fit against pure error still fails and is
+    /// no smaller: it mops up residual without explaining the structure.
+    DoesNotReduceLackOfFit,
+    /// An outlier the data cannot attribute to one reading (see [`Diagnosis::unattributed`]).
+    Unattributable,
+    /// The refit with it failed (the term cannot be told apart from the model).
+    NotDetermined,
+    /// A further jump of a zero that already jumped [`MAX_JUMPS_PER_STREAM`] times: a
+    /// string of jumps is a slow variation no term expresses, not a series of events.
+    TooManyJumps,
+}
+
+/// The most jumps (`offset-step`) of one autocollimator's zero in one mounting that a
+/// diagnosis accepts as events; a further significant jump ends the search with the
+/// verdict "not adequate".
+pub const MAX_JUMPS_PER_STREAM: usize = 2;
+
+impl Rejection {
+    /// The reason as spelled in the JSON: `not significant`, `does not reduce the lack of
+    /// fit`, `cannot be attributed`, `not determined`, `one jump too many: …`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Rejection::NotSignificant => "not significant",
+            Rejection::DoesNotReduceLackOfFit => "does not reduce the lack of fit",
+            Rejection::Unattributable => "cannot be attributed",
+            Rejection::NotDetermined => "not determined",
+            Rejection::TooManyJumps => "one jump too many: a slow variation no term expresses",
+        }
+    }
+}
+
+/// A term that was tried and not added, with its statistics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TriedEffect {
+    /// The effect with the value it would have had (for a curved drift's curvature: the
+    /// drift with that `quadratic`).
+    pub effect: Effect,
+    /// Whether the term is the curvature of a drift.
+    pub quadratic: bool,
+    /// Its F test against the model of that round.
+    pub evidence: Evidence,
+    /// Why it was not added.
+    pub rejection: Rejection,
+}
+
+/// One reading of an outlier the data cannot attribute.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SuspectReading {
+    /// Mounting.
+    pub setup: u32,
+    /// Cycle.
+    pub cycle: u32,
+    /// Table stop.
+    pub step: usize,
+    /// Autocollimator.
+    pub ac: u32,
+    /// Its residual in the final model, arcsec.
+    pub residual_arcsec: f64,
+    /// Its studentized residual when the outlier was found.
+    pub studentized_residual: f64,
 }
 
 /// The result of [`diagnose`].
@@ -121,6 +230,13 @@ pub struct Diagnosis {
     pub after: Solution,
     /// The effects added, in the order they were found.
     pub effects: Vec<FoundEffect>,
+    /// The terms tried and not added, with the reason (the last verdict on each).
+    pub tried: Vec<TriedEffect>,
+    /// Outliers the data cannot attribute to one reading: each entry names the readings
+    /// of which one is bad (kept in the fit; the verdict is then not adequate).
+    pub unattributed: Vec<Vec<SuspectReading>>,
+    /// The lack-of-fit test of the final model, when the design has replicated cells.
+    pub lack_of_fit: Option<LackOfFit>,
     /// The verdict on the final residuals.
     pub adequacy: Adequacy,
     /// Whether the data had redundancy enough to test any effect.
@@ -130,19 +246,52 @@ pub struct Diagnosis {
     pub notes: Vec<String>,
 }
 
-/// The candidates of one round, each with the size of its Bonferroni family.
-struct Candidate {
-    effect: Effect,
-    family_size: usize,
-    studentized: Option<f64>,
+/// The readings' rounding level: residual sums of squares below it are zero.
+fn rounding_rss(set: &MeasurementSet) -> f64 {
+    let scale = set
+        .readings
+        .iter()
+        .map(|r| r.reading_arcsec.abs())
+        .fold(1.0, f64::max);
+    set.readings.len() as f64 * (64.0 * f64::EPSILON * scale).powi(2)
 }
 
-fn regressor(effect: &Effect, set: &MeasurementSet) -> Vec<f64> {
-    let context = crate::effects::EffectContext::of(&set.readings);
-    set.readings
-        .iter()
-        .map(|r| effect.regressor(r, &context))
-        .collect()
+/// The F test of a scored candidate against the current fit.
+fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny: f64) -> Evidence {
+    let reduction = candidate.score.reduction();
+    let dof = current.dof.saturating_sub(1);
+    let rest = (current.rss - reduction).max(0.0);
+    let f_statistic = if dof == 0 {
+        0.0
+    } else if rest > tiny {
+        reduction / (rest / dof as f64)
+    } else if reduction > tiny {
+        f64::INFINITY
+    } else {
+        0.0
+    };
+    let p_value = if dof == 0 || f_statistic <= 0.0 {
+        1.0
+    } else {
+        t_two_sided_tail(f_statistic.sqrt(), Some(dof as f64))
+    };
+    Evidence {
+        f_statistic,
+        p_value,
+        p_adjusted: (p_value * family_size.max(1) as f64).min(1.0),
+    }
+}
+
+/// The effect a term stands for, with a value (a curvature is reported on its drift).
+fn term_effect(term: &Term, value: f64) -> Effect {
+    match term {
+        Term::Effect(e) => e.clone().with_value(value),
+        Term::Quadratic { ac } => Effect::Drift {
+            ac: *ac,
+            value: 0.0,
+            quadratic: Some(value),
+        },
+    }
 }
 
 /// Fits the base model, then adds the effects the data demand, one at a time.
@@ -160,10 +309,16 @@ fn regressor(effect: &Effect, set: &MeasurementSet) -> Vec<f64> {
 /// let (set, _truth) = simulate(&config)?;
 /// let diagnosis = diagnose(&set, &DiagnoseOptions::default())?;
 /// assert!(matches!(diagnosis.effects[0].effect, Effect::Drift { ac: 2, .. }));
+/// assert!(diagnosis.adequacy.adequate);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
+///
+/// # Errors
+///
+/// The base model's [`SolveError`] when the design cannot be solved.
 pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagnosis, SolveError> {
     let sigma = options.sigma;
+    let context = EffectContext::of(&set.readings);
     let before = least_squares_with_regressors(set, &[], sigma)?;
     let mut notes = Vec::new();
     let testable = before.dof >= 2;
@@ -175,75 +330,249 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         ));
     }
     notes.extend(untestable_kinds(set));
+    let tiny = rounding_rss(set);
+    let exact = testable && before.rss <= tiny;
+    if exact {
+        notes.push("The residuals are at the rounding level of the readings (noise-free data): the base model explains them exactly, and no effect is tested.".into());
+    }
 
-    let mut regressors: Vec<Vec<f64>> = Vec::new();
-    let mut effects: Vec<Effect> = Vec::new();
-    let mut found: Vec<FoundEffect> = Vec::new();
+    let mut terms: Vec<Term> = Vec::new();
+    let mut columns: Vec<Vec<f64>> = Vec::new();
+    let mut found: Vec<(usize, FoundEffect, Vec<f64>, Vec<f64>)> = Vec::new();
+    let mut tried: Vec<TriedEffect> = Vec::new();
+    let mut suspects: HashSet<usize> = HashSet::new();
+    let mut unattributed_sets: Vec<Vec<(usize, f64)>> = Vec::new();
+    let mut cross_talk_noted = false;
+    let mut jumps_exceeded: Vec<(u32, Option<u32>)> = Vec::new();
     let mut current = before.clone();
-    while testable && found.len() < options.max_effects && current.dof >= 2 {
-        let candidates = candidates(set, &effects, &current, &regressors);
-        let mut best: Option<(FoundEffect, Solution, Vec<f64>)> = None;
-        for candidate in candidates {
-            let x = regressor(&candidate.effect, set);
-            if x.iter().all(|v| *v == 0.0) {
+    let mut lof_current =
+        lack_of_fit::lack_of_fit(set, &current, &columns, options.lack_of_fit_alpha);
+    while testable && !exact && found.len() < options.max_effects && current.dof >= 2 {
+        let geometry = FitGeometry::new(&current, set, &columns);
+        let leverage = geometry.leverage();
+        let studentized = residuals::studentized(&current, &leverage);
+        let mut candidates: Vec<Candidate> = Vec::new();
+        for term in candidates::systematic_terms(set, &terms) {
+            let column = term.column(set, &context);
+            let score = geometry.score(&column, &current.residuals);
+            if let Term::Effect(Effect::CrossTalk { ac, .. }) = term
+                && score.new_fraction() < 0.1
+            {
+                if !cross_talk_noted && let Some(note) = cross_talk_note(set, ac) {
+                    notes.push(note);
+                    cross_talk_noted = true;
+                }
                 continue;
             }
-            regressors.push(x);
-            let fit = least_squares_with_regressors(set, &regressors, sigma);
-            let x = regressors.pop().unwrap_or_default();
-            let Ok(fit) = fit else { continue };
-            if fit.dof == 0 {
-                continue;
-            }
-            let reduction = (current.rss - fit.rss).max(0.0);
-            let f_statistic = if fit.rss > 0.0 {
-                reduction / (fit.rss / fit.dof as f64)
-            } else {
-                f64::INFINITY
-            };
-            let p_value = t_two_sided_tail(f_statistic.sqrt(), Some(fit.dof as f64));
-            let p_adjusted = (p_value * candidate.family_size as f64).min(1.0);
-            if p_adjusted >= options.family_alpha {
-                continue;
-            }
-            let better = best.as_ref().is_none_or(|(b, _, _)| {
-                p_adjusted < b.p_adjusted
-                    || (p_adjusted == b.p_adjusted && f_statistic > b.f_statistic)
-            });
-            if better {
-                let value = fit.effect_values.last().copied().unwrap_or(0.0);
-                let entry = FoundEffect {
-                    effect: candidate.effect.clone().with_value(value),
-                    u: None,
-                    f_statistic,
-                    p_value,
-                    p_adjusted,
-                    residual_rms_before: current.residual_rms().unwrap_or(0.0),
-                    residual_rms_after: fit.residual_rms().unwrap_or(0.0),
-                    pitch_change_max: max_change(&fit.pitch_deviation, &current.pitch_deviation),
-                    encoder_change_max: max_change(&fit.encoder_error, &current.encoder_error),
-                    studentized_residual: candidate.studentized,
-                };
-                best = Some((entry, fit, x));
+            if score.is_new() {
+                candidates.push(Candidate {
+                    term,
+                    family: Family::Systematic,
+                    score,
+                    outlier: None,
+                });
             }
         }
-        let Some((entry, fit, x)) = best else { break };
-        effects.push(entry.effect.clone());
-        regressors.push(x);
-        found.push(entry);
-        current = fit;
+        candidates.extend(candidates::offset_step_candidates(
+            set,
+            &geometry,
+            &current.residuals,
+            &terms,
+        ));
+        let eligible = studentized.iter().filter(|t| t.is_some()).count();
+        if let Some((i, t)) = studentized
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !suspects.contains(i))
+            .filter_map(|(i, t)| t.map(|t| (i, t)))
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        {
+            let r = &set.readings[i];
+            let several_setups = set.readings.iter().any(|q| q.setup != r.setup);
+            let mut column = vec![0.0; set.readings.len()];
+            column[i] = 1.0;
+            let score = geometry.score(&column, &current.residuals);
+            candidates.push(Candidate {
+                term: Term::Effect(Effect::Outlier {
+                    cycle: r.cycle,
+                    step: r.step,
+                    ac: r.ac,
+                    setup: several_setups.then_some(r.setup),
+                    value: 0.0,
+                }),
+                family: Family::Outlier,
+                score,
+                outlier: Some((i, t)),
+            });
+        }
+        let family_size = |family: Family| match family {
+            Family::Outlier => eligible,
+            f => candidates.iter().filter(|c| c.family == f).count(),
+        };
+        let mut scored: Vec<(Candidate, Evidence)> = candidates
+            .iter()
+            .map(|c| {
+                let e = evidence(c, &current, family_size(c.family), tiny);
+                (c.clone(), e)
+            })
+            .collect();
+        scored.sort_by(|a, b| {
+            a.1.p_adjusted
+                .total_cmp(&b.1.p_adjusted)
+                .then(b.1.f_statistic.total_cmp(&a.1.f_statistic))
+        });
+        let mut accepted = false;
+        let mut attempts = 0;
+        for (candidate, ev) in &scored {
+            if ev.p_adjusted >= options.family_alpha || attempts >= 4 {
+                break;
+            }
+            attempts += 1;
+            let rejected = |rejection| TriedEffect {
+                effect: term_effect(&candidate.term, candidate.value()),
+                quadratic: matches!(candidate.term, Term::Quadratic { .. }),
+                evidence: *ev,
+                rejection,
+            };
+            if let Some((i, t)) = candidate.outlier {
+                let twins = twins(&geometry, &studentized, i, t);
+                if !twins.is_empty() {
+                    let mut group = vec![(i, t)];
+                    group.extend(twins);
+                    for &(j, _) in &group {
+                        suspects.insert(j);
+                    }
+                    unattributed_sets.push(group);
+                    tried.push(rejected(Rejection::Unattributable));
+                    continue;
+                }
+            }
+            if let Term::Effect(Effect::OffsetStep { ac, setup, .. }) = candidate.term {
+                let jumps = terms
+                    .iter()
+                    .filter(|t| {
+                        matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
+                    })
+                    .count();
+                if jumps >= MAX_JUMPS_PER_STREAM {
+                    tried.push(rejected(Rejection::TooManyJumps));
+                    jumps_exceeded.push((ac, setup));
+                    break;
+                }
+            }
+            let column = candidate.term.column(set, &context);
+            columns.push(column);
+            let fit = least_squares_with_regressors(set, &columns, sigma);
+            let Ok(fit) = fit else {
+                columns.pop();
+                tried.push(rejected(Rejection::NotDetermined));
+                continue;
+            };
+            let lof_new = lack_of_fit::lack_of_fit(set, &fit, &columns, options.lack_of_fit_alpha);
+            if let Some(new) = &lof_new
+                && !new.passed()
+                && lof_current
+                    .as_ref()
+                    .is_none_or(|old| new.f_statistic >= old.f_statistic)
+            {
+                columns.pop();
+                tried.push(rejected(Rejection::DoesNotReduceLackOfFit));
+                continue;
+            }
+            let pitch_change = difference(&fit.pitch_deviation, &current.pitch_deviation);
+            let encoder_change = difference(&fit.encoder_error, &current.encoder_error);
+            let entry = FoundEffect {
+                effect: term_effect(&candidate.term, 0.0),
+                u: None,
+                quadratic_u: None,
+                quadratic_evidence: None,
+                f_statistic: ev.f_statistic,
+                p_value: ev.p_value,
+                p_adjusted: ev.p_adjusted,
+                residual_rms_before: current.residual_rms().unwrap_or(0.0),
+                residual_rms_after: fit.residual_rms().unwrap_or(0.0),
+                pitch_change_max: max_abs(&pitch_change),
+                encoder_change_max: max_abs(&encoder_change),
+                changes_calibration: true,
+                studentized_residual: candidate.outlier.map(|(_, t)| t),
+            };
+            found.push((terms.len(), entry, pitch_change, encoder_change));
+            terms.push(candidate.term.clone());
+            current = fit;
+            lof_current = lof_new;
+            accepted = true;
+            break;
+        }
+        if !jumps_exceeded.is_empty() {
+            break;
+        }
+        if !accepted {
+            // The last round's verdict on every kind of term not in the model.
+            record_not_significant(&mut tried, &scored, options.family_alpha);
+            break;
+        }
+    }
+    if exact || !testable {
+        lof_current = None;
     }
 
-    // Final values and uncertainties of every effect come from the final model.
-    let u = current.effect_u();
-    for (j, entry) in found.iter_mut().enumerate() {
-        entry.effect = entry.effect.clone().with_value(current.effect_values[j]);
-        entry.u = u.as_ref().map(|u| u[j]);
+    let effects = final_effects(&current, &terms, found);
+    tried.retain(|t| {
+        !effects
+            .iter()
+            .any(|f| same_effect(&f.effect, &t.effect) && !t.quadratic)
+    });
+    let unattributed: Vec<Vec<SuspectReading>> = unattributed_sets
+        .iter()
+        .map(|group| {
+            group
+                .iter()
+                .map(|&(i, t)| {
+                    let r = &set.readings[i];
+                    SuspectReading {
+                        setup: r.setup,
+                        cycle: r.cycle,
+                        step: r.step,
+                        ac: r.ac,
+                        residual_arcsec: current.residuals[i],
+                        studentized_residual: t,
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    for group in &unattributed {
+        let names: Vec<String> = group
+            .iter()
+            .map(|s| {
+                format!(
+                    "setup {} cycle {} step {} autocollimator {} (residual {:+.4}″)",
+                    s.setup, s.cycle, s.step, s.ac, s.residual_arcsec
+                )
+            })
+            .collect();
+        notes.push(format!(
+            "One of these readings is bad, but the data cannot tell which: {}. Their residuals are equally large because the design determines their cell only by these readings. Both are kept in the fit, so the result carries about half of the bad reading's error there; repeat that stop (a third reading tells which one is bad).",
+            names.join(" and ")
+        ));
     }
-    let lev = residuals::leverage(&current, set, &regressors);
-    let studentized = residuals::studentized(&current, &lev);
+
+    let geometry = FitGeometry::new(&current, set, &columns);
+    let studentized = residuals::studentized(&current, &geometry.leverage());
     let adequacy = if testable {
-        residuals::adequacy(&current, set, &studentized, sigma, options.adequacy_alpha)
+        residuals::adequacy(
+            &current,
+            set,
+            &studentized,
+            sigma,
+            options.adequacy_alpha,
+            AdequacyInputs {
+                lack_of_fit: lof_current.as_ref(),
+                unattributed_outliers: unattributed.len(),
+                jumps_exceeded: &jumps_exceeded,
+                exact,
+            },
+        )
     } else {
         Adequacy {
             adequate: true,
@@ -251,21 +580,168 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             structure: Vec::new(),
         }
     };
+    for (ac, setup) in &jumps_exceeded {
+        notes.push(format!(
+            "The zero of autocollimator {ac}{} seems to jump again and again: after {MAX_JUMPS_PER_STREAM} jumps a further one is significant. That is a slow variation (a periodic or irregular drift) that no term of the model expresses, not a series of events; the jumps found are its closest approximation, not an explanation.",
+            setup.map_or(String::new(), |s| format!(" in setup {s}"))
+        ));
+    }
+    if let Some(lof) = &lof_current
+        && !lof.passed()
+    {
+        notes.extend(lof.carriers.iter().cloned());
+    }
     Ok(Diagnosis {
         before,
         after: current,
-        effects: found,
+        effects,
+        tried,
+        unattributed,
+        lack_of_fit: lof_current,
         adequacy,
         testable,
         notes,
     })
 }
 
-fn max_change(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f64::max)
+/// Readings whose outlier column is nearly the same as reading `i`'s (|correlation of
+/// their residual directions| ≥ 0.9) and that explain nearly as much (t² within 4 of
+/// reading i's): the data cannot say which of them is bad.
+fn twins(
+    geometry: &FitGeometry,
+    studentized: &[Option<f64>],
+    i: usize,
+    t_i: f64,
+) -> Vec<(usize, f64)> {
+    let h_ii = geometry.hat(i, i);
+    (0..studentized.len())
+        .filter(|&j| j != i)
+        .filter_map(|j| {
+            let t_j = studentized[j]?;
+            if t_j * t_j < t_i * t_i - 4.0 {
+                return None;
+            }
+            let h_jj = geometry.hat(j, j);
+            let room = (1.0 - h_ii) * (1.0 - h_jj);
+            if room <= 0.0 {
+                return None;
+            }
+            let correlation = -geometry.hat(i, j) / room.sqrt();
+            (correlation.abs() >= 0.9).then_some((j, t_j))
+        })
+        .collect()
+}
+
+fn same_effect(a: &Effect, b: &Effect) -> bool {
+    a.clone().with_value(0.0) == b.clone().with_value(0.0)
+}
+
+/// Adds, for every kind of term (and autocollimator, mounting) of the last round, its best
+/// candidate as "not significant".
+fn record_not_significant(
+    tried: &mut Vec<TriedEffect>,
+    scored: &[(Candidate, Evidence)],
+    family_alpha: f64,
+) {
+    let mut seen: Vec<String> = Vec::new();
+    for (candidate, ev) in scored {
+        if ev.p_adjusted < family_alpha {
+            continue;
+        }
+        let group = match &candidate.term {
+            Term::Effect(Effect::OffsetStep { ac, setup, .. }) => {
+                format!("offset-step {ac} {setup:?}")
+            }
+            Term::Effect(Effect::Outlier { .. }) => "outlier".into(),
+            other => format!("{other:?}"),
+        };
+        if seen.contains(&group) {
+            continue;
+        }
+        seen.push(group);
+        tried.push(TriedEffect {
+            effect: term_effect(&candidate.term, candidate.value()),
+            quadratic: matches!(candidate.term, Term::Quadratic { .. }),
+            evidence: *ev,
+            rejection: Rejection::NotSignificant,
+        });
+    }
+}
+
+/// The found effects with their values and uncertainties in the final model, a drift's
+/// curvature merged into its drift, and whether each changes the calibration by more than
+/// its uncertainty.
+fn final_effects(
+    current: &Solution,
+    terms: &[Term],
+    found: Vec<(usize, FoundEffect, Vec<f64>, Vec<f64>)>,
+) -> Vec<FoundEffect> {
+    let u = current.effect_u();
+    let u_pitch = current.pitch_deviation_u();
+    let u_encoder = current.encoder_error_u();
+    let exceeds = |change: &[f64], u: &Option<Vec<f64>>| match u {
+        Some(u) => change.iter().zip(u).any(|(c, u)| c.abs() > *u),
+        None => change.iter().any(|c| *c != 0.0),
+    };
+    let mut effects: Vec<FoundEffect> = Vec::new();
+    for (j, mut entry, pitch_change, encoder_change) in found {
+        let value = current.effect_values[j];
+        let u_j = u.as_ref().map(|u| u[j]);
+        let changes = exceeds(&pitch_change, &u_pitch) || exceeds(&encoder_change, &u_encoder);
+        match &terms[j] {
+            Term::Quadratic { ac } => {
+                if let Some(drift) = effects
+                    .iter_mut()
+                    .find(|f| matches!(f.effect, Effect::Drift { ac: a, .. } if a == *ac))
+                {
+                    if let Effect::Drift { quadratic, .. } = &mut drift.effect {
+                        *quadratic = Some(value);
+                    }
+                    drift.quadratic_u = u_j;
+                    drift.quadratic_evidence = Some(Evidence {
+                        f_statistic: entry.f_statistic,
+                        p_value: entry.p_value,
+                        p_adjusted: entry.p_adjusted,
+                    });
+                    drift.changes_calibration |= changes;
+                    drift.pitch_change_max = drift.pitch_change_max.max(entry.pitch_change_max);
+                    drift.encoder_change_max =
+                        drift.encoder_change_max.max(entry.encoder_change_max);
+                }
+            }
+            Term::Effect(_) => {
+                entry.effect = entry.effect.with_value(value);
+                entry.u = u_j;
+                entry.changes_calibration = changes;
+                effects.push(entry);
+            }
+        }
+    }
+    effects
+}
+
+fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
+    a.iter().zip(b).map(|(x, y)| x - y).collect()
+}
+
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().map(|x| x.abs()).fold(0.0, f64::max)
+}
+
+/// The note when `reading_y` spans more than a few arcseconds but cross-talk cannot be
+/// told apart from the polygon and the encoder.
+fn cross_talk_note(set: &MeasurementSet, ac: u32) -> Option<String> {
+    let ys: Vec<f64> = set
+        .readings
+        .iter()
+        .filter(|r| r.ac == ac)
+        .filter_map(|r| r.reading_y_arcsec)
+        .collect();
+    let span = ys.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+        - ys.iter().copied().fold(f64::INFINITY, f64::min);
+    (span > 3.0).then(|| format!(
+        "Cross-talk of reading_y into the reading cannot be tested: reading_y spans {span:.1}″, but in this design it follows the faces and positions so closely that a cross-talk term cannot be told apart from the pitch deviations and encoder errors (it would bias them unseen). Measure in several mountings (shift the polygon on the table) so that each face is read at different elevations."
+    ))
 }
 
 /// Effect kinds the data cannot show at all, and what would make them visible.
@@ -283,88 +759,4 @@ fn untestable_kinds(set: &MeasurementSet) -> Vec<String> {
         notes.push("A direction offset cannot be tested: the run has no cycle in the other direction (add a counter-clockwise cycle).".into());
     }
     notes
-}
-
-/// The candidate effects not yet in the model, with their Bonferroni family sizes.
-fn candidates(
-    set: &MeasurementSet,
-    present: &[Effect],
-    current: &Solution,
-    regressors: &[Vec<f64>],
-) -> Vec<Candidate> {
-    let mut acs: Vec<u32> = set.readings.iter().map(|r| r.ac).collect();
-    acs.sort_unstable();
-    acs.dedup();
-    let mut cycles: Vec<u32> = set.readings.iter().map(|r| r.cycle).collect();
-    cycles.sort_unstable();
-    cycles.dedup();
-    let mut systematic = Vec::new();
-    if set.readings.iter().all(|r| r.time_seconds.is_some()) {
-        systematic.extend(acs.iter().map(|&ac| Effect::Drift {
-            ac,
-            value: 0.0,
-            quadratic: None,
-        }));
-    }
-    for &ac in &acs {
-        for &cycle in cycles.iter().skip(1) {
-            systematic.push(Effect::OffsetStep {
-                ac,
-                cycle,
-                step: None,
-                setup: None,
-                value: 0.0,
-            });
-        }
-    }
-    let has = |d: Direction| set.readings.iter().any(|r| r.direction == d);
-    if has(Direction::Cw) && has(Direction::Ccw) {
-        systematic.push(Effect::Direction {
-            ac: None,
-            value: 0.0,
-        });
-        if acs.len() > 1 {
-            systematic.extend(acs.iter().map(|&ac| Effect::Direction {
-                ac: Some(ac),
-                value: 0.0,
-            }));
-        }
-    }
-    let same_term = |a: &Effect, b: &Effect| a.clone().with_value(0.0) == b.clone().with_value(0.0);
-    systematic.retain(|c| !present.iter().any(|p| same_term(p, c)));
-    let family = systematic.len();
-    let mut out: Vec<Candidate> = systematic
-        .into_iter()
-        .map(|effect| Candidate {
-            effect,
-            family_size: family,
-            studentized: None,
-        })
-        .collect();
-
-    // The outlier candidate: the reading with the largest |studentized residual|.
-    let lev = residuals::leverage(current, set, regressors);
-    let studentized = residuals::studentized(current, &lev);
-    let several_setups = set.readings.iter().any(|r| r.setup != 1);
-    let eligible = studentized.iter().filter(|t| t.is_some()).count();
-    if let Some((i, t)) = studentized
-        .iter()
-        .enumerate()
-        .filter_map(|(i, t)| t.map(|t| (i, t)))
-        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-    {
-        let r = &set.readings[i];
-        out.push(Candidate {
-            effect: Effect::Outlier {
-                cycle: r.cycle,
-                step: r.step,
-                ac: r.ac,
-                setup: several_setups.then_some(r.setup),
-                value: 0.0,
-            },
-            family_size: eligible,
-            studentized: Some(t),
-        });
-    }
-    out
 }

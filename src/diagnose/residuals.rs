@@ -1,67 +1,12 @@
-//! Residual analysis: leverage and studentized residuals from the fit's covariance, and
-//! the adequacy checks of the final model (serial correlation of the time-ordered
-//! residuals per autocollimator, χ² against a stated reading noise), with the place
-//! where structure is left.
+//! Residual analysis: studentized residuals from the fit's leverages, and the adequacy
+//! checks of the final model (serial correlation of the time-ordered residuals per
+//! autocollimator, the lack-of-fit test against pure error, χ² against a stated reading
+//! noise, outliers the data cannot attribute), with the place where structure is left.
 
+use super::lack_of_fit::LackOfFit;
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::solve::Solution;
 use crate::uncertainty::student::normal_quantile;
-
-/// Leverage h_ii of every reading: the variance of its fitted value in units of σ²,
-/// h_ii = c_iᵀ Q c_i, where c_i picks α\[p\], φ\[face\] (= β\[1\] + … + β\[face\]), U and
-/// the effect terms of that reading. `regressors` are those of the fit.
-pub fn leverage(solution: &Solution, set: &MeasurementSet, regressors: &[Vec<f64>]) -> Vec<f64> {
-    let n = solution.faces;
-    let layout = solution.layout;
-    let size = layout.len();
-    // Q in ψ = [φ (N), α, U, e]: replace the β rows and columns by their prefix sums.
-    let mut q = solution.cofactor.clone();
-    for c in 0..size {
-        let mut running = 0.0;
-        for f in 0..n {
-            running += q[(f, c)];
-            q[(f, c)] = running;
-        }
-    }
-    for r in 0..size {
-        let mut running = 0.0;
-        for f in 0..n {
-            running += q[(r, f)];
-            q[(r, f)] = running;
-        }
-    }
-    let stream_index = |setup: u32, ac: u32| {
-        solution
-            .setup_error
-            .iter()
-            .position(|s| (s.setup, s.ac) == (setup, ac))
-    };
-    let mut c: Vec<(usize, f64)> = Vec::with_capacity(3 + regressors.len());
-    set.readings
-        .iter()
-        .enumerate()
-        .map(|(i, r)| {
-            c.clear();
-            c.push((r.face - 1, 1.0));
-            c.push((layout.encoder(r.step % n), 1.0));
-            if let Some(s) = stream_index(r.setup, r.ac) {
-                c.push((layout.setup(s), 1.0));
-            }
-            for (j, x) in regressors.iter().enumerate() {
-                if x[i] != 0.0 {
-                    c.push((layout.effect(j), x[i]));
-                }
-            }
-            let mut h = 0.0;
-            for &(a, va) in &c {
-                for &(b, vb) in &c {
-                    h += va * vb * q[(a, b)];
-                }
-            }
-            h
-        })
-        .collect()
-}
 
 /// Internally studentized residuals r_i / (s √(1 − h_ii)); `None` where the reading
 /// determines its own fitted value (h_ii ≈ 1) or σ is unknown.
@@ -135,8 +80,27 @@ fn stream_order(set: &MeasurementSet, setup: u32, ac: u32) -> Vec<usize> {
     order
 }
 
+/// What the adequacy checks are given besides the residuals.
+#[derive(Debug, Clone, Copy)]
+pub struct AdequacyInputs<'a> {
+    /// The lack-of-fit test of the final model, when the design has replicated cells.
+    pub lack_of_fit: Option<&'a LackOfFit>,
+    /// Outliers the data could not attribute to one reading (each a pair or more).
+    pub unattributed_outliers: usize,
+    /// Streams (autocollimator, setup) whose zero jumped more often than a diagnosis
+    /// accepts as events.
+    pub jumps_exceeded: &'a [(u32, Option<u32>)],
+    /// Whether the residuals are at rounding level (noise-free data): the serial
+    /// correlation of rounding errors means nothing.
+    pub exact: bool,
+}
+
 /// Checks the final model's residuals for structure the model lacks.
 ///
+/// - The lack-of-fit F test against pure error ([`super::lack_of_fit`]), when cells are
+///   replicated: independent of time order and of any stated σ.
+/// - An outlier that the data cannot attribute to one reading fails the verdict: one of
+///   the named readings is bad, and the result carries part of its error.
 /// - For every (setup, ac) stream, the lag-1 autocorrelation ρ of its time-ordered
 ///   studentized residuals: z = ρ√n is about standard normal for independent noise;
 ///   slow structure (a drift the model does not carry) makes it large and positive. The
@@ -149,9 +113,47 @@ pub fn adequacy(
     studentized: &[Option<f64>],
     stated_sigma: Option<Sigma>,
     alpha: f64,
+    inputs: AdequacyInputs<'_>,
 ) -> Adequacy {
     let mut checks = Vec::new();
     let mut structure = Vec::new();
+    if let Some(lof) = inputs.lack_of_fit {
+        checks.push(Check {
+            name: format!(
+                "lack of fit against pure error (F with {} and {} degrees of freedom, {} of {} cells read more than once)",
+                lof.dof_lack, lof.dof_pure, lof.replicated_cells, lof.cells
+            ),
+            statistic: lof.f_statistic,
+            limit: lof.limit,
+            passed: lof.passed(),
+        });
+    }
+    if inputs.unattributed_outliers > 0 {
+        checks.push(Check {
+            name: "every outlier attributed to one reading (count of outliers that are not)".into(),
+            statistic: inputs.unattributed_outliers as f64,
+            limit: 0.0,
+            passed: false,
+        });
+    }
+    for (ac, setup) in inputs.jumps_exceeded {
+        checks.push(Check {
+            name: format!(
+                "jumps of the zero of ac {ac}{} (significant jumps; the limit is the most a run explains as events)",
+                setup.map_or(String::new(), |s| format!(" in setup {s}"))
+            ),
+            statistic: (super::MAX_JUMPS_PER_STREAM + 1) as f64,
+            limit: super::MAX_JUMPS_PER_STREAM as f64,
+            passed: false,
+        });
+    }
+    if inputs.exact {
+        return Adequacy {
+            adequate: checks.iter().all(|c| c.passed),
+            checks,
+            structure,
+        };
+    }
     let streams: Vec<(u32, u32)> = solution
         .setup_error
         .iter()

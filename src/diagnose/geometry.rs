@@ -1,0 +1,205 @@
+//! The geometry of a fit: the hat matrix H = X Q Xᵀ of a least-squares solution, used to
+//! score a candidate column without refitting.
+//!
+//! Adding a column x to a model with residuals e reduces the residual sum of squares by
+//!
+//! ```text
+//! Δ = (xᵀe)² / (xᵀx − xᵀHx)
+//! ```
+//!
+//! (the squared projection of the residuals on the part of x the model does not already
+//! span). With the cofactor matrix Q of the fit, xᵀHx = gᵀQg where g = Σᵢ xᵢ cᵢ sums the
+//! design rows cᵢ of the readings x touches. Each design row is sparse (one α, one φ, one
+//! setup error, the effect columns), so a column is scored in O(n + P²) and every suffix
+//! of a time-ordered stream — the columns of a change-point search — in O(P) per reading
+//! ([`FitGeometry::suffix_scores`]).
+
+use nalgebra::DMatrix;
+
+use crate::measurement::MeasurementSet;
+use crate::solve::Solution;
+
+/// The hat-matrix geometry of one fit: its cofactor matrix with the pitch deviations
+/// replaced by the face deviations φ, and the sparse design row of every reading.
+#[derive(Debug, Clone)]
+pub struct FitGeometry {
+    /// Q in ψ = [φ (N), α (N), U (K), effects (E)].
+    q: DMatrix<f64>,
+    /// The design row of every reading: (index in ψ, coefficient).
+    rows: Vec<Vec<(usize, f64)>>,
+}
+
+/// What adding one column to the model would do.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ColumnScore {
+    /// xᵀe: the column against the current residuals.
+    pub projection: f64,
+    /// xᵀx − xᵀHx: the column's squared length outside the model's span.
+    pub new_length_squared: f64,
+    /// xᵀx.
+    pub length_squared: f64,
+}
+
+impl ColumnScore {
+    /// Whether the column adds a direction to the model (its part outside the span is at
+    /// least `1e-9` of its length).
+    pub fn is_new(&self) -> bool {
+        self.length_squared > 0.0 && self.new_length_squared > 1e-9 * self.length_squared
+    }
+
+    /// The reduction of the residual sum of squares, Δ = (xᵀe)² / (xᵀx − xᵀHx); 0 when the
+    /// column adds no direction.
+    pub fn reduction(&self) -> f64 {
+        if self.is_new() {
+            self.projection * self.projection / self.new_length_squared
+        } else {
+            0.0
+        }
+    }
+
+    /// The fraction of the column that lies outside the model's span, √((xᵀx − xᵀHx)/xᵀx).
+    pub fn new_fraction(&self) -> f64 {
+        if self.length_squared > 0.0 {
+            (self.new_length_squared.max(0.0) / self.length_squared).sqrt()
+        } else {
+            0.0
+        }
+    }
+}
+
+impl FitGeometry {
+    /// The geometry of `solution`, a fit of `set` with the effect `columns` (one value per
+    /// reading each, in the order of the solution's effect terms).
+    pub fn new(solution: &Solution, set: &MeasurementSet, columns: &[Vec<f64>]) -> Self {
+        let n = solution.faces;
+        let layout = solution.layout;
+        let size = layout.len();
+        // Q in ψ: replace the β rows and columns by their prefix sums (φ = Σβ).
+        let mut q = solution.cofactor.clone();
+        for c in 0..size {
+            let mut running = 0.0;
+            for f in 0..n {
+                running += q[(f, c)];
+                q[(f, c)] = running;
+            }
+        }
+        for r in 0..size {
+            let mut running = 0.0;
+            for f in 0..n {
+                running += q[(r, f)];
+                q[(r, f)] = running;
+            }
+        }
+        let streams: Vec<(u32, u32)> = solution
+            .setup_error
+            .iter()
+            .map(|s| (s.setup, s.ac))
+            .collect();
+        let rows = set
+            .readings
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let mut row = Vec::with_capacity(3 + columns.len());
+                row.push((r.face - 1, 1.0));
+                row.push((layout.encoder(r.step % n), 1.0));
+                if let Some(s) = streams.iter().position(|&k| k == (r.setup, r.ac)) {
+                    row.push((layout.setup(s), 1.0));
+                }
+                for (j, x) in columns.iter().enumerate() {
+                    if x[i] != 0.0 {
+                        row.push((layout.effect(j), x[i]));
+                    }
+                }
+                row
+            })
+            .collect();
+        Self { q, rows }
+    }
+
+    /// H_ij = cᵢᵀ Q cⱼ: the covariance of the fitted values of readings i and j in units
+    /// of σ² (the leverage when i = j).
+    pub fn hat(&self, i: usize, j: usize) -> f64 {
+        let mut h = 0.0;
+        for &(a, va) in &self.rows[i] {
+            for &(b, vb) in &self.rows[j] {
+                h += va * vb * self.q[(a, b)];
+            }
+        }
+        h
+    }
+
+    /// The leverage h_ii of every reading.
+    pub fn leverage(&self) -> Vec<f64> {
+        (0..self.rows.len()).map(|i| self.hat(i, i)).collect()
+    }
+
+    /// Scores a column x (one value per reading) against the residuals of the fit.
+    pub fn score(&self, x: &[f64], residuals: &[f64]) -> ColumnScore {
+        let size = self.q.nrows();
+        let mut g = vec![0.0; size];
+        let (mut projection, mut length_squared) = (0.0, 0.0);
+        for (i, &xi) in x.iter().enumerate() {
+            if xi == 0.0 {
+                continue;
+            }
+            projection += xi * residuals[i];
+            length_squared += xi * xi;
+            for &(a, v) in &self.rows[i] {
+                g[a] += xi * v;
+            }
+        }
+        let touched: Vec<usize> = (0..size).filter(|&a| g[a] != 0.0).collect();
+        let mut quad = 0.0;
+        for &a in &touched {
+            let mut row = 0.0;
+            for &b in &touched {
+                row += self.q[(a, b)] * g[b];
+            }
+            quad += g[a] * row;
+        }
+        ColumnScore {
+            projection,
+            new_length_squared: length_squared - quad,
+            length_squared,
+        }
+    }
+
+    /// The scores of the step columns of a time-ordered stream: for every k, the column
+    /// that is 1 on the readings `order[k..]` and 0 elsewhere (a jump of the stream's zero
+    /// from its k-th reading on). Element k of the result belongs to that column.
+    pub fn suffix_scores(&self, order: &[usize], residuals: &[f64]) -> Vec<ColumnScore> {
+        let size = self.q.nrows();
+        // w = Q g for the running suffix sum g of the design rows; quad = gᵀ Q g.
+        let mut w = vec![0.0; size];
+        let (mut quad, mut projection) = (0.0, 0.0);
+        let mut scores = vec![
+            ColumnScore {
+                projection: 0.0,
+                new_length_squared: 0.0,
+                length_squared: 0.0,
+            };
+            order.len()
+        ];
+        for (k, &i) in order.iter().enumerate().rev() {
+            let row = &self.rows[i];
+            // quad += 2 cᵀ w + cᵀ Q c, then w += Q c
+            let c_w: f64 = row.iter().map(|&(a, v)| v * w[a]).sum();
+            let c_q_c = self.hat(i, i);
+            quad += 2.0 * c_w + c_q_c;
+            for &(a, v) in row {
+                for (t, q) in w.iter_mut().zip(self.q.column(a).iter()) {
+                    *t += v * q;
+                }
+            }
+            projection += residuals[i];
+            let length_squared = (order.len() - k) as f64;
+            scores[k] = ColumnScore {
+                projection,
+                new_length_squared: length_squared - quad,
+                length_squared,
+            };
+        }
+        scores
+    }
+}

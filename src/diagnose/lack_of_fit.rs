@@ -1,0 +1,263 @@
+//! The lack-of-fit test against pure error: a check of a fitted model that needs neither a
+//! stated σ nor the time order of the readings.
+//!
+//! A *cell* is one (setup, step, autocollimator, direction): the readings of a cell have
+//! the same α, φ and setup error, so whatever the base model is, it predicts them alike.
+//! When cells are read more than once, the scatter within cells estimates σ whatever the
+//! model lacks ("pure error"). The *full* model is the fitted model plus one free mean per
+//! cell; the fitted model is nested in it (its α, φ, U and direction columns are constant
+//! within cells, its other effect columns are kept in the full model). Then
+//!
+//! ```text
+//! F = [(RSS_model − RSS_full) / ν_lack] / [RSS_full / ν_pure]
+//! ```
+//!
+//! with ν_pure = n − cells − rank(effect columns within cells) and ν_lack = dof_model −
+//! ν_pure follows F(ν_lack, ν_pure) for Gaussian noise when the model is right, and grows
+//! with any structure the model misses between cells, whatever its shape (face to face,
+//! position to position, mounting to mounting, one direction against the other).
+
+use std::collections::BTreeMap;
+
+use nalgebra::{DMatrix, DVector};
+use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+
+use crate::measurement::{Direction, MeasurementSet};
+use crate::solve::Solution;
+
+/// One cell of repeated readings: (setup, step, autocollimator, direction).
+pub type CellKey = (u32, usize, u32, Direction);
+
+/// The readings of every cell, by cell.
+pub fn cells(set: &MeasurementSet) -> BTreeMap<CellKey, Vec<usize>> {
+    let mut cells: BTreeMap<CellKey, Vec<usize>> = BTreeMap::new();
+    for (i, r) in set.readings.iter().enumerate() {
+        cells
+            .entry((r.setup, r.step, r.ac, r.direction))
+            .or_default()
+            .push(i);
+    }
+    cells
+}
+
+/// The result of the lack-of-fit test.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LackOfFit {
+    /// F = (lack-of-fit mean square) / (pure-error mean square).
+    pub f_statistic: f64,
+    /// Degrees of freedom of the lack of fit, ν_lack.
+    pub dof_lack: usize,
+    /// Degrees of freedom of the pure error, ν_pure.
+    pub dof_pure: usize,
+    /// The upper `alpha` quantile of F(ν_lack, ν_pure).
+    pub limit: f64,
+    /// P(F(ν_lack, ν_pure) > f_statistic).
+    pub p_value: f64,
+    /// σ from the scatter within cells, √(RSS_full / ν_pure), arcsec.
+    pub pure_error_sigma: f64,
+    /// Number of cells and of cells read more than once.
+    pub cells: usize,
+    /// Cells read more than once.
+    pub replicated_cells: usize,
+    /// Cells whose mean residual stands out most, largest |z| first (at most 8).
+    pub worst_cells: Vec<CellResidual>,
+    /// Factor levels that carry most of the lack of fit, e.g. "autocollimator 2 carries
+    /// 91 % of it over 50 % of the cells".
+    pub carriers: Vec<String>,
+}
+
+/// The mean residual of one cell, in units of its standard error under the pure error.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellResidual {
+    /// Mounting.
+    pub setup: u32,
+    /// Table stop.
+    pub step: usize,
+    /// Autocollimator.
+    pub ac: u32,
+    /// Direction of the cycles.
+    pub direction: Direction,
+    /// Face read.
+    pub face: usize,
+    /// Readings in the cell.
+    pub readings: usize,
+    /// Mean residual of the cell in the fitted model, arcsec.
+    pub mean_residual_arcsec: f64,
+    /// mean·√readings / pure-error σ.
+    pub z: f64,
+}
+
+impl LackOfFit {
+    /// Whether the model passes (F within its limit).
+    pub fn passed(&self) -> bool {
+        self.f_statistic <= self.limit
+    }
+}
+
+/// The lack-of-fit test of `solution` (a fit of `set` with the effect `columns`) at
+/// false-alarm probability `alpha`; `None` when no cell is repeated or the design leaves
+/// no degree of freedom to the lack of fit.
+pub fn lack_of_fit(
+    set: &MeasurementSet,
+    solution: &Solution,
+    columns: &[Vec<f64>],
+    alpha: f64,
+) -> Option<LackOfFit> {
+    let cells = cells(set);
+    let n = set.readings.len();
+    let replicated_cells = cells.values().filter(|c| c.len() > 1).count();
+    if replicated_cells == 0 {
+        return None;
+    }
+    // Centre y and every effect column within its cell.
+    let centre = |values: &dyn Fn(usize) -> f64| {
+        let mut out = vec![0.0; n];
+        for members in cells.values() {
+            let mean = members.iter().map(|&i| values(i)).sum::<f64>() / members.len() as f64;
+            for &i in members {
+                out[i] = values(i) - mean;
+            }
+        }
+        out
+    };
+    let wy = centre(&|i| set.readings[i].reading_arcsec);
+    let wx: Vec<Vec<f64>> = columns
+        .iter()
+        .map(|x| centre(&|i| x[i]))
+        .filter(|w| w.iter().any(|v| v.abs() > 1e-12))
+        .collect();
+    let (rss_full, rank) = project_out(&wy, &wx);
+    let dof_pure = n.checked_sub(cells.len() + rank)?;
+    let dof_lack = solution.dof.checked_sub(dof_pure)?;
+    if dof_pure == 0 || dof_lack == 0 {
+        return None;
+    }
+    let rss_lack = (solution.rss - rss_full).max(0.0);
+    let pure_ms = rss_full / dof_pure as f64;
+    let lack_ms = rss_lack / dof_lack as f64;
+    let scale = set
+        .readings
+        .iter()
+        .map(|r| r.reading_arcsec.abs())
+        .fold(1.0, f64::max);
+    let rounding = (64.0 * f64::EPSILON * scale).powi(2);
+    let f_statistic = if pure_ms > rounding {
+        lack_ms / pure_ms
+    } else if lack_ms > rounding {
+        f64::INFINITY
+    } else {
+        // Noise-free data: nothing between cells, nothing within.
+        0.0
+    };
+    let distribution = FisherSnedecor::new(dof_lack as f64, dof_pure as f64).ok()?;
+    let limit = distribution.inverse_cdf(1.0 - alpha);
+    let p_value = if f_statistic.is_finite() {
+        distribution.sf(f_statistic)
+    } else {
+        0.0
+    };
+    let pure_error_sigma = pure_ms.sqrt();
+    let mut all_cells: Vec<CellResidual> = cells
+        .iter()
+        .map(|(&(setup, step, ac, direction), members)| {
+            let mean =
+                members.iter().map(|&i| solution.residuals[i]).sum::<f64>() / members.len() as f64;
+            let z = if pure_error_sigma > 0.0 {
+                mean * (members.len() as f64).sqrt() / pure_error_sigma
+            } else {
+                0.0
+            };
+            CellResidual {
+                setup,
+                step,
+                ac,
+                direction,
+                face: set.readings[members[0]].face,
+                readings: members.len(),
+                mean_residual_arcsec: mean,
+                z,
+            }
+        })
+        .collect();
+    let carriers = carriers(&all_cells);
+    all_cells.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
+    all_cells.truncate(8);
+    let worst_cells = all_cells;
+    Some(LackOfFit {
+        f_statistic,
+        dof_lack,
+        dof_pure,
+        limit,
+        p_value,
+        pure_error_sigma,
+        cells: cells.len(),
+        replicated_cells,
+        worst_cells,
+        carriers,
+    })
+}
+
+/// The levels of autocollimator, mounting and direction that carry at least 60 % of the
+/// cells' Σz² while holding at most 2/3 of that share of the cells.
+fn carriers(cells: &[CellResidual]) -> Vec<String> {
+    let total: f64 = cells.iter().map(|c| c.z * c.z).sum();
+    if total <= 0.0 || cells.is_empty() {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    let mut factor = |name: &dyn Fn(&CellResidual) -> String| {
+        let mut levels: BTreeMap<String, (f64, usize)> = BTreeMap::new();
+        for c in cells {
+            let entry = levels.entry(name(c)).or_default();
+            entry.0 += c.z * c.z;
+            entry.1 += 1;
+        }
+        if levels.len() < 2 {
+            return;
+        }
+        for (level, (sum, count)) in levels {
+            let share = sum / total;
+            let fraction = count as f64 / cells.len() as f64;
+            if share >= 0.6 && share >= 1.5 * fraction {
+                out.push(format!(
+                    "{level} carries {:.0} % of the lack of fit over {:.0} % of the cells",
+                    100.0 * share,
+                    100.0 * fraction
+                ));
+            }
+        }
+    };
+    factor(&|c| format!("autocollimator {}", c.ac));
+    factor(&|c| format!("mounting (setup) {}", c.setup));
+    factor(&|c| match c.direction {
+        Direction::Cw => "the clockwise cycles".to_string(),
+        Direction::Ccw => "the counter-clockwise cycles".to_string(),
+    });
+    out
+}
+
+/// ‖y − X b‖² minimised over b, and the rank of X (columns `x`), by a thin SVD of X.
+fn project_out(y: &[f64], x: &[Vec<f64>]) -> (f64, usize) {
+    let rss_y: f64 = y.iter().map(|v| v * v).sum();
+    if x.is_empty() {
+        return (rss_y, 0);
+    }
+    let n = y.len();
+    let m = DMatrix::from_fn(n, x.len(), |i, j| x[j][i]);
+    let svd = m.svd(true, false);
+    let Some(u) = svd.u else {
+        return (rss_y, 0);
+    };
+    let largest = svd.singular_values.iter().copied().fold(0.0, f64::max);
+    let yv = DVector::from_column_slice(y);
+    let mut explained = 0.0;
+    let mut rank = 0;
+    for (j, &s) in svd.singular_values.iter().enumerate() {
+        if s > 1e-9 * largest {
+            rank += 1;
+            let c = u.column(j).dot(&yv);
+            explained += c * c;
+        }
+    }
+    ((rss_y - explained).max(0.0), rank)
+}
