@@ -1,7 +1,9 @@
 //! Outputs of `polycal diagnose`: the JSON object of docs/FORMAT.md §5 and a table that
 //! explains itself to a metrologist.
 
-use crate::diagnose::{Diagnosis, FoundEffect};
+use crate::diagnose::lack_of_fit::LackOfFit;
+use crate::diagnose::{Diagnosis, FoundEffect, TriedEffect};
+use crate::measurement::Direction;
 use crate::effects::Effect;
 use crate::report::SolveReport;
 use crate::simulate::Truth;
@@ -99,6 +101,16 @@ pub struct DiagnoseReport {
     pub checks: Vec<CheckReport>,
     /// Plain statements: what could not be tested and why (an addition).
     pub notes: Vec<String>,
+    /// The lack-of-fit test of the final model against pure error, `null` when no cell is
+    /// read more than once (an addition).
+    pub lack_of_fit: Option<Value>,
+    /// Where structure is left when a check fails (an addition).
+    pub structure: Vec<Value>,
+    /// Terms tried and not added, with F, p and the reason (an addition).
+    pub tried: Vec<Value>,
+    /// Outliers the data cannot attribute to one reading: each a list of the readings of
+    /// which one is bad (an addition).
+    pub unattributed: Vec<Vec<Value>>,
 }
 
 /// The effect's name without its value, e.g. `drift of autocollimator 2`.
@@ -137,8 +149,20 @@ pub fn label(effect: &Effect) -> String {
     }
 }
 
-/// One sentence on the pattern behind an effect.
+/// One sentence on the pattern behind an effect (and, when it changes no β or α by more
+/// than its uncertainty, a second saying so).
 pub fn explanation(found: &FoundEffect) -> String {
+    let pattern = pattern(found);
+    if found.changes_calibration {
+        pattern
+    } else {
+        format!(
+            "{pattern}. Found, but it does not change β or α: no pitch deviation or encoder error moved by more than its standard uncertainty"
+        )
+    }
+}
+
+fn pattern(found: &FoundEffect) -> String {
     match &found.effect {
         Effect::Drift {
             ac,
@@ -188,13 +212,80 @@ pub fn explanation(found: &FoundEffect) -> String {
     }
 }
 
-fn effect_json(found: &FoundEffect) -> Value {
-    let mut object = match serde_json::to_value(&found.effect) {
+fn number(v: f64) -> Value {
+    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
+}
+
+fn effect_object(effect: &Effect) -> Map<String, Value> {
+    match serde_json::to_value(effect) {
         Ok(Value::Object(map)) => map,
         _ => Map::new(),
-    };
-    let number = |v: f64| serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number);
+    }
+}
+
+fn direction_text(direction: Direction) -> &'static str {
+    match direction {
+        Direction::Cw => "cw",
+        Direction::Ccw => "ccw",
+    }
+}
+
+fn lack_of_fit_json(lof: &LackOfFit) -> Value {
+    let cells: Vec<Value> = lof
+        .worst_cells
+        .iter()
+        .map(|c| {
+            serde_json::json!({
+                "setup": c.setup, "step": c.step, "ac": c.ac,
+                "direction": direction_text(c.direction), "face": c.face,
+                "readings": c.readings, "mean_residual": number(c.mean_residual_arcsec),
+                "z": number(c.z),
+            })
+        })
+        .collect();
+    serde_json::json!({
+        "F": number(lof.f_statistic),
+        "dof_lack": lof.dof_lack,
+        "dof_pure": lof.dof_pure,
+        "limit": number(lof.limit),
+        "p": number(lof.p_value),
+        "passed": lof.passed(),
+        "pure_error_sigma": number(lof.pure_error_sigma),
+        "cells": lof.cells,
+        "replicated_cells": lof.replicated_cells,
+        "worst_cells": cells,
+        "carriers": lof.carriers,
+    })
+}
+
+fn tried_json(tried: &TriedEffect) -> Value {
+    let mut object = effect_object(&tried.effect);
+    if tried.quadratic {
+        object.insert("term".into(), Value::String("quadratic".into()));
+    }
+    object.insert("F".into(), number(tried.evidence.f_statistic));
+    object.insert("p".into(), number(tried.evidence.p_value));
+    object.insert("p_adjusted".into(), number(tried.evidence.p_adjusted));
+    object.insert(
+        "reason".into(),
+        Value::String(tried.rejection.as_str().into()),
+    );
+    Value::Object(object)
+}
+
+fn effect_json(found: &FoundEffect) -> Value {
+    let mut object = effect_object(&found.effect);
     object.insert("u".into(), found.u.map_or(Value::Null, number));
+    if matches!(found.effect, Effect::Drift { quadratic: Some(_), .. }) {
+        object.insert(
+            "quadratic_u".into(),
+            found.quadratic_u.map_or(Value::Null, number),
+        );
+        if let Some(e) = found.quadratic_evidence {
+            object.insert("quadratic_F".into(), number(e.f_statistic));
+            object.insert("quadratic_p".into(), number(e.p_value));
+        }
+    }
     object.insert("F".into(), number(found.f_statistic));
     object.insert("p".into(), number(found.p_value));
     object.insert("p_adjusted".into(), number(found.p_adjusted));
@@ -210,6 +301,10 @@ fn effect_json(found: &FoundEffect) -> Value {
     object.insert(
         "encoder_change_max".into(),
         number(found.encoder_change_max),
+    );
+    object.insert(
+        "changes_calibration".into(),
+        Value::Bool(found.changes_calibration),
     );
     object.insert("explanation".into(), Value::String(explanation(found)));
     Value::Object(object)
@@ -247,6 +342,38 @@ impl DiagnoseReport {
                 })
                 .collect(),
             notes: diagnosis.notes.clone(),
+            lack_of_fit: diagnosis.lack_of_fit.as_ref().map(lack_of_fit_json),
+            structure: diagnosis
+                .adequacy
+                .structure
+                .iter()
+                .map(|s| {
+                    serde_json::json!({
+                        "setup": s.setup, "ac": s.ac,
+                        "from": {"cycle": s.from.0, "step": s.from.1, "time": s.from.2.map(number)},
+                        "to": {"cycle": s.to.0, "step": s.to.1, "time": s.to.2.map(number)},
+                        "mean_residual": number(s.mean_residual_arcsec),
+                        "readings": s.readings,
+                    })
+                })
+                .collect(),
+            tried: diagnosis.tried.iter().map(tried_json).collect(),
+            unattributed: diagnosis
+                .unattributed
+                .iter()
+                .map(|group| {
+                    group
+                        .iter()
+                        .map(|r| {
+                            serde_json::json!({
+                                "setup": r.setup, "cycle": r.cycle, "step": r.step, "ac": r.ac,
+                                "residual": number(r.residual_arcsec),
+                                "studentized_residual": number(r.studentized_residual),
+                            })
+                        })
+                        .collect()
+                })
+                .collect(),
         }
     }
 
@@ -330,6 +457,22 @@ pub fn write_table<W: std::fmt::Write>(
                 i + 1,
                 label(&found.effect)
             )?;
+            if let Effect::Drift {
+                quadratic: Some(q), ..
+            } = found.effect
+            {
+                let u = found
+                    .quadratic_u
+                    .map_or(String::new(), |u| format!(" ± {u:.4}″/h² (k = 1)"));
+                let evidence = found.quadratic_evidence.map_or(String::new(), |e| {
+                    format!(
+                        "; curvature added by F = {:.1}, Bonferroni p = {}",
+                        e.f_statistic,
+                        p_text(e.p_adjusted)
+                    )
+                });
+                writeln!(out, "     curvature (quadratic) = {q:+.4}″/h²{u}{evidence}")?;
+            }
             writeln!(out, "     pattern: {}", explanation(found))?;
             writeln!(
                 out,
@@ -403,6 +546,46 @@ pub fn write_table<W: std::fmt::Write>(
                 time(s.to.2),
                 s.mean_residual_arcsec,
                 s.readings
+            )?;
+        }
+    }
+    if let Some(lof) = &diagnosis.lack_of_fit
+        && !lof.passed()
+    {
+        writeln!(
+            out,
+            "  cells whose mean residual stands out most (pure-error σ {:.4}″):",
+            lof.pure_error_sigma
+        )?;
+        for c in lof.worst_cells.iter().take(5) {
+            writeln!(
+                out,
+                "    setup {} step {} autocollimator {} {} (face {}): mean residual {:+.4}″ over {} readings, z = {:+.1}",
+                c.setup,
+                c.step,
+                c.ac,
+                direction_text(c.direction),
+                c.face,
+                c.mean_residual_arcsec,
+                c.readings,
+                c.z
+            )?;
+        }
+    }
+    if !diagnosis.tried.is_empty() {
+        writeln!(out, "\nTried and not added:")?;
+        for t in &diagnosis.tried {
+            let name = if t.quadratic {
+                format!("curvature of the {}", label(&t.effect))
+            } else {
+                label(&t.effect)
+            };
+            writeln!(
+                out,
+                "  {name}: F = {:.1}, Bonferroni p = {} — {}",
+                t.evidence.f_statistic,
+                p_text(t.evidence.p_adjusted),
+                t.rejection.as_str()
             )?;
         }
     }
