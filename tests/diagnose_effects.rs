@@ -121,7 +121,10 @@ fn a_jump_in_the_middle_of_a_cycle_is_found_at_its_step() {
                     )
                 })
                 .unwrap_or_else(|| {
-                    panic!("size {size} bidirectional {bidirectional}: {:#?}", d.effects)
+                    panic!(
+                        "size {size} bidirectional {bidirectional}: {:#?}",
+                        d.effects
+                    )
                 });
             value_within_3u(&d, index, size);
             assert!(
@@ -286,8 +289,7 @@ fn clean_runs_rarely_get_a_systematic_effect() {
     for seed in 0..100 {
         let (set, _) = simulate(&config(Vec::new(), 5000 + seed, seed % 2 == 0)).unwrap();
         let d = diagnose(&set, &DiagnoseOptions::default()).unwrap();
-        if d
-            .effects
+        if d.effects
             .iter()
             .any(|f| !matches!(f.effect, Effect::Outlier { .. }))
         {

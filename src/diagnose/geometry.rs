@@ -187,8 +187,10 @@ impl FitGeometry {
             let c_w: f64 = row.iter().map(|&(a, v)| v * w[a]).sum();
             let c_q_c = self.hat(i, i);
             quad += 2.0 * c_w + c_q_c;
+            let q = self.q.as_slice();
             for &(a, v) in row {
-                for (t, q) in w.iter_mut().zip(self.q.column(a).iter()) {
+                // Q is symmetric and stored by columns: column a is contiguous.
+                for (t, q) in w.iter_mut().zip(&q[a * size..(a + 1) * size]) {
                     *t += v * q;
                 }
             }

@@ -405,9 +405,18 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
                 outlier: Some((i, t)),
             });
         }
+        let systematic_count = candidates
+            .iter()
+            .filter(|c| c.family == Family::Systematic)
+            .count();
+        let step_count = candidates
+            .iter()
+            .filter(|c| c.family == Family::OffsetStep)
+            .count();
         let family_size = |family: Family| match family {
             Family::Outlier => eligible,
-            f => candidates.iter().filter(|c| c.family == f).count(),
+            Family::Systematic => systematic_count,
+            Family::OffsetStep => step_count,
         };
         let mut scored: Vec<(Candidate, Evidence)> = candidates
             .iter()

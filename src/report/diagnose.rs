@@ -3,8 +3,8 @@
 
 use crate::diagnose::lack_of_fit::LackOfFit;
 use crate::diagnose::{Diagnosis, FoundEffect, TriedEffect};
-use crate::measurement::Direction;
 use crate::effects::Effect;
+use crate::measurement::Direction;
 use crate::report::SolveReport;
 use crate::simulate::Truth;
 use crate::solve::Solution;
@@ -276,7 +276,13 @@ fn tried_json(tried: &TriedEffect) -> Value {
 fn effect_json(found: &FoundEffect) -> Value {
     let mut object = effect_object(&found.effect);
     object.insert("u".into(), found.u.map_or(Value::Null, number));
-    if matches!(found.effect, Effect::Drift { quadratic: Some(_), .. }) {
+    if matches!(
+        found.effect,
+        Effect::Drift {
+            quadratic: Some(_),
+            ..
+        }
+    ) {
         object.insert(
             "quadratic_u".into(),
             found.quadratic_u.map_or(Value::Null, number),

@@ -1,0 +1,74 @@
+//! Speed of `diagnose` (criterion). Nothing here is asserted; the figures go in the
+//! closing notes and the README.
+//!
+//! - `diagnose/24x6_drift`: the paper's design (24 faces, 6 cycles with closing readings)
+//!   with a drift: one effect found, 300 readings;
+//! - `diagnose/360x6_drift_step_3_outliers`: 360 positions × 6 cycles with closing readings
+//!   (4 332 readings), a drift, a jump in the middle of a cycle and three outliers, none
+//!   declared: the speed target (under 0.3 s on 2 cores).
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use polycal::diagnose::{DiagnoseOptions, diagnose};
+use polycal::effects::Effect;
+use polycal::simulate::{SimulationConfig, simulate};
+use std::hint::black_box;
+use std::time::Duration;
+
+fn outlier(cycle: u32, step: usize, ac: u32, value: f64) -> Effect {
+    Effect::Outlier {
+        cycle,
+        step,
+        ac,
+        setup: None,
+        value,
+    }
+}
+
+fn bench_diagnose(c: &mut Criterion) {
+    let small = SimulationConfig {
+        effects: vec![Effect::Drift {
+            ac: 2,
+            value: 2.0,
+            quadratic: None,
+        }],
+        ..SimulationConfig::default()
+    };
+    let large = SimulationConfig {
+        faces: 360,
+        step_seconds: 5.0,
+        effects: vec![
+            Effect::Drift {
+                ac: 1,
+                value: 0.8,
+                quadratic: None,
+            },
+            Effect::OffsetStep {
+                ac: 2,
+                cycle: 4,
+                step: Some(150),
+                setup: None,
+                value: 0.3,
+            },
+            outlier(2, 100, 1, 1.0),
+            outlier(3, 200, 2, -1.2),
+            outlier(5, 17, 1, 0.9),
+        ],
+        ..SimulationConfig::default()
+    };
+    let options = DiagnoseOptions::default();
+    let mut group = c.benchmark_group("diagnose");
+    let (set, _) = simulate(&small).expect("a valid simulation");
+    group.bench_function("24x6_drift", |b| {
+        b.iter(|| diagnose(black_box(&set), &options))
+    });
+    let (set, _) = simulate(&large).expect("a valid simulation");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(8));
+    group.bench_function("360x6_drift_step_3_outliers", |b| {
+        b.iter(|| diagnose(black_box(&set), &options))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_diagnose);
+criterion_main!(benches);
