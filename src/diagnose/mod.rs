@@ -431,12 +431,11 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
                 .then(b.1.f_statistic.total_cmp(&a.1.f_statistic))
         });
         let mut accepted = false;
-        let mut attempts = 0;
-        for (candidate, ev) in &scored {
-            if ev.p_adjusted >= options.family_alpha || attempts >= 4 {
+        // At most four attempts per round: the best significant candidates in turn.
+        for (candidate, ev) in scored.iter().take(4) {
+            if ev.p_adjusted >= options.family_alpha {
                 break;
             }
-            attempts += 1;
             let rejected = |rejection| TriedEffect {
                 effect: term_effect(&candidate.term, candidate.value()),
                 quadratic: matches!(candidate.term, Term::Quadratic { .. }),
