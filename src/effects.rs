@@ -11,9 +11,13 @@
 //!
 //! ```text
 //! {"kind": "drift", "ac": 1, "value": 0.3}
+//! {"kind": "drift", "ac": 1, "value": 0.3, "quadratic": -0.05}
 //! {"kind": "offset-step", "ac": 2, "cycle": 4, "value": 0.5}
+//! {"kind": "offset-step", "ac": 2, "cycle": 4, "step": 7, "setup": 1, "value": 0.5}
 //! {"kind": "direction", "value": 0.2}                (or with "ac")
 //! {"kind": "outlier", "cycle": 3, "step": 7, "ac": 1, "value": 2.0}   (optional "setup")
+//! {"kind": "temperature", "ac": 1, "value": 0.2}
+//! {"kind": "cross-talk", "ac": 1, "value": 0.01}
 //! ```
 //!
 //! Extra fields (such as a fit's `u`) are ignored when reading.
@@ -266,7 +270,8 @@ impl Effect {
         self
     }
 
-    /// The kind as spelled in files: `drift`, `offset-step`, `direction` or `outlier`.
+    /// The kind as spelled in files: one of [`KINDS`] (`drift`, `offset-step`,
+    /// `direction`, `outlier`, `temperature`, `cross-talk`).
     pub fn kind(&self) -> &'static str {
         match self {
             Effect::Drift { .. } => KINDS[0],
@@ -282,12 +287,16 @@ impl Effect {
     ///
     /// | kind | spec | example |
     /// |---|---|---|
-    /// | `drift` | `AC:RATE` (arcsec per hour) | `1:0.3` |
-    /// | `offset-step` | `AC:CYCLE:VALUE` | `2:4:0.5` |
+    /// | `drift` | `AC:RATE` or `AC:RATE:QUADRATIC` (arcsec per hour, per hour²) | `1:0.3`, `1:0.3:-0.05` |
+    /// | `offset-step` | `AC:CYCLE:VALUE`, `AC:CYCLE:STEP:VALUE` or `SETUP:AC:CYCLE:STEP:VALUE` | `2:4:0.5`, `2:4:7:0.5`, `1:2:4:7:0.5` |
     /// | `direction` | `VALUE` or `AC:VALUE` | `0.2`, `1:0.2` |
     /// | `outlier` | `CYCLE:STEP:AC:VALUE` or `SETUP:CYCLE:STEP:AC:VALUE` | `3:7:1:2.0` |
+    /// | `temperature` | `AC:COEFF` (arcsec per °C) | `1:0.2` |
+    /// | `cross-talk` | `AC:COEFF` (dimensionless) | `1:0.01` |
     ///
-    /// Autocollimator, cycle and setup numbers start at 1; values must be finite numbers.
+    /// Autocollimator, cycle and setup numbers start at 1, steps at 0 (a step is a stop of
+    /// the cycle, counted as in the `step` column); values must be finite numbers. Whether
+    /// a step, setup or cycle exists in a run is checked by the run, not here.
     /// Bad input gives an error text naming the kind, the spec and the faulty part.
     ///
     /// ```
@@ -312,27 +321,66 @@ impl Effect {
         };
         match kind {
             "drift" => {
-                let form = "AC:RATE, e.g. 1:0.3";
-                if n != 2 {
-                    return Err(ctx(count_msg(n, 2), form));
+                let form = "AC:RATE or AC:RATE:QUADRATIC, e.g. 1:0.3 or 1:0.3:-0.05";
+                if !(2..=3).contains(&n) {
+                    return Err(ctx(
+                        format!("{n} part(s) separated by ':', want 2 or 3"),
+                        form,
+                    ));
                 }
                 Ok(Effect::Drift {
                     ac: number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?,
                     value: finite("RATE", parts[1]).map_err(|m| ctx(m, form))?,
-                    quadratic: None,
+                    quadratic: match parts.get(2) {
+                        Some(text) => Some(finite("QUADRATIC", text).map_err(|m| ctx(m, form))?),
+                        None => None,
+                    },
                 })
             }
             "offset-step" => {
-                let form = "AC:CYCLE:VALUE, e.g. 2:4:0.5";
-                if n != 3 {
-                    return Err(ctx(count_msg(n, 3), form));
-                }
+                let form = "AC:CYCLE:VALUE, AC:CYCLE:STEP:VALUE or SETUP:AC:CYCLE:STEP:VALUE, \
+                            e.g. 2:4:0.5, 2:4:7:0.5 or 1:2:4:7:0.5";
+                let (setup, rest) = match n {
+                    3 | 4 => (None, &parts[..]),
+                    5 => (
+                        Some(number_from_1("SETUP", parts[0]).map_err(|m| ctx(m, form))?),
+                        &parts[1..],
+                    ),
+                    _ => {
+                        return Err(ctx(
+                            format!("{n} part(s) separated by ':', want 3, 4 or 5"),
+                            form,
+                        ));
+                    }
+                };
+                let step = if rest.len() == 4 {
+                    Some(whole("STEP", rest[2]).map_err(|m| ctx(m, form))?)
+                } else {
+                    None
+                };
                 Ok(Effect::OffsetStep {
-                    ac: number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?,
-                    cycle: number_from_1("CYCLE", parts[1]).map_err(|m| ctx(m, form))?,
-                    step: None,
-                    setup: None,
-                    value: finite("VALUE", parts[2]).map_err(|m| ctx(m, form))?,
+                    ac: number_from_1("AC", rest[0]).map_err(|m| ctx(m, form))?,
+                    cycle: number_from_1("CYCLE", rest[1]).map_err(|m| ctx(m, form))?,
+                    step,
+                    setup,
+                    value: finite("VALUE", rest[rest.len() - 1]).map_err(|m| ctx(m, form))?,
+                })
+            }
+            "temperature" | "cross-talk" => {
+                let form = if kind == "temperature" {
+                    "AC:COEFF (arcsec per °C), e.g. 1:0.2"
+                } else {
+                    "AC:COEFF (arcsec of reading per arcsec of reading_y), e.g. 1:0.01"
+                };
+                if n != 2 {
+                    return Err(ctx(count_msg(n, 2), form));
+                }
+                let ac = number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?;
+                let value = finite("COEFF", parts[1]).map_err(|m| ctx(m, form))?;
+                Ok(if kind == "temperature" {
+                    Effect::Temperature { ac, value }
+                } else {
+                    Effect::CrossTalk { ac, value }
                 })
             }
             "direction" => {
@@ -369,12 +417,7 @@ impl Effect {
                 };
                 Ok(Effect::Outlier {
                     cycle: number_from_1("CYCLE", rest[0]).map_err(|m| ctx(m, form))?,
-                    step: rest[1].parse::<usize>().map_err(|_| {
-                        ctx(
-                            format!("STEP \"{}\" is not a whole number ≥ 0", rest[1]),
-                            form,
-                        )
-                    })?,
+                    step: whole("STEP", rest[1]).map_err(|m| ctx(m, form))?,
                     ac: number_from_1("AC", rest[2]).map_err(|m| ctx(m, form))?,
                     setup,
                     value: finite("VALUE", rest[3]).map_err(|m| ctx(m, form))?,
@@ -470,6 +513,11 @@ fn number_from_1(name: &str, text: &str) -> Result<u32, String> {
         Ok(v) if v >= 1 => Ok(v),
         _ => Err(format!("{name} \"{text}\" is not a whole number ≥ 1")),
     }
+}
+
+fn whole(name: &str, text: &str) -> Result<usize, String> {
+    text.parse::<usize>()
+        .map_err(|_| format!("{name} \"{text}\" is not a whole number ≥ 0"))
 }
 
 fn finite(name: &str, text: &str) -> Result<f64, String> {

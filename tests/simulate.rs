@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use polycal::effects::{Effect, EffectContext};
 use polycal::simulate::{
-    Harmonic, SimulateError, SimulationConfig, Truth, simulate, simulate_with_truth,
+    ElevationModel, Harmonic, SimulateError, SimulationConfig, TemperatureModel, Truth, simulate,
+    simulate_with_truth,
 };
 use polycal::{Direction, MeasurementSet, Reading};
 
@@ -323,11 +324,17 @@ fn check_effect(base: &SimulationConfig, effect: Effect, expected: impl Fn(&Read
             (b.setup, b.cycle, b.step, b.ac)
         );
         let want = expected(a);
-        assert_eq!(
-            effect.regressor(a, &EffectContext::default()) * effect.value(),
-            want,
-            "{effect:?} {a:?}"
+        let context = EffectContext::with_mean_temperature(
+            truth1.reference_temperature_celsius.unwrap_or(0.0),
         );
+        let code = effect.contribution(a, &context);
+        assert!(
+            (code - want).abs() < 1e-12,
+            "{effect:?} {a:?}: {code} vs {want}"
+        );
+        // The columns an effect acts through are the same with and without it.
+        assert_eq!(a.temperature_celsius, b.temperature_celsius);
+        assert_eq!(a.reading_y_arcsec, b.reading_y_arcsec);
         if want == 0.0 {
             assert_eq!(a.reading_arcsec.to_bits(), b.reading_arcsec.to_bits());
         } else {
@@ -944,6 +951,52 @@ fn effect_specs() {
             },
         ),
         (
+            "drift",
+            "1:0.3:-0.05",
+            Effect::Drift {
+                ac: 1,
+                value: 0.3,
+                quadratic: Some(-0.05),
+            },
+        ),
+        (
+            "offset-step",
+            "2:4:7:-0.5",
+            Effect::OffsetStep {
+                ac: 2,
+                cycle: 4,
+                step: Some(7),
+                setup: None,
+                value: -0.5,
+            },
+        ),
+        (
+            "offset-step",
+            "3:2:4:0:0.5",
+            Effect::OffsetStep {
+                ac: 2,
+                cycle: 4,
+                step: Some(0),
+                setup: Some(3),
+                value: 0.5,
+            },
+        ),
+        (
+            "temperature",
+            "1:0.2",
+            Effect::Temperature { ac: 1, value: 0.2 },
+        ),
+        (
+            "temperature",
+            "2:-1e-1",
+            Effect::Temperature { ac: 2, value: -0.1 },
+        ),
+        (
+            "cross-talk",
+            "2:0.01",
+            Effect::CrossTalk { ac: 2, value: 0.01 },
+        ),
+        (
             "direction",
             "0.2",
             Effect::Direction {
@@ -991,7 +1044,8 @@ fn effect_specs() {
     let bad = [
         ("drift", ""),
         ("drift", "1"),
-        ("drift", "1:2:3"),
+        ("drift", "1:2:3:4"),
+        ("drift", "1:2:nan"),
         ("drift", "0:0.3"),
         ("drift", "-1:0.3"),
         ("drift", "x:0.3"),
@@ -1001,6 +1055,19 @@ fn effect_specs() {
         ("offset-step", "1:0.5"),
         ("offset-step", "1:0:0.5"),
         ("offset-step", "1:1.5:0.5"),
+        ("offset-step", "1:2:-1:0.5"),
+        ("offset-step", "1:2:x:0.5"),
+        ("offset-step", "0:1:2:3:0.5"),
+        ("offset-step", "1:0:2:3:0.5"),
+        ("offset-step", "1:2:3:4:5:6"),
+        ("offset-step", "1:2:3:inf"),
+        ("temperature", "1"),
+        ("temperature", "0:0.2"),
+        ("temperature", "1:0.2:3"),
+        ("temperature", "1:nan"),
+        ("cross-talk", ""),
+        ("cross-talk", "1:x"),
+        ("cross-talk", "1:2:3"),
         ("direction", ""),
         ("direction", "1:2:3"),
         ("direction", "0:0.2"),
@@ -1120,4 +1187,1002 @@ fn a_bad_truth_file_is_refused_with_line_and_column() {
             path.display()
         )
     );
+}
+
+// ---------------------------------------------------------------- curved drift, steps at a stop
+
+#[test]
+fn curved_drift_adds_rate_times_hours_plus_quadratic_times_hours_squared() {
+    let base = SimulationConfig {
+        step_seconds: 60.0,
+        ..effect_base()
+    };
+    let effect = Effect::Drift {
+        ac: 2,
+        value: 0.3,
+        quadratic: Some(-0.1),
+    };
+    check_effect(&base, effect.clone(), |r| {
+        if r.ac == 2 {
+            let h = r.time_seconds.unwrap() / 3600.0;
+            0.3 * h - 0.1 * h * h
+        } else {
+            0.0
+        }
+    });
+    // At t = 1800 s (stop 30 at 60 s a stop): 0.3 · 0.5 + (−0.1) · 0.25 = 0.125.
+    let (plain, _) = simulate(&base).unwrap();
+    let (drifting, _) = simulate(&SimulationConfig {
+        effects: vec![effect],
+        ..base.clone()
+    })
+    .unwrap();
+    let row = 30 * 2 + 1; // stop 30, autocollimator 2
+    assert_eq!(plain.readings[row].time_seconds, Some(1800.0));
+    assert_eq!(plain.readings[row].ac, 2);
+    let diff = drifting.readings[row].reading_arcsec - plain.readings[row].reading_arcsec;
+    assert!((diff - 0.125).abs() < 1e-12, "{diff}");
+}
+
+/// The time of the reading of (setup, cycle, step, ac) in a run.
+fn time_of(set: &MeasurementSet, setup: u32, cycle: u32, step: usize, ac: u32) -> f64 {
+    set.readings
+        .iter()
+        .find(|r| (r.setup, r.cycle, r.step, r.ac) == (setup, cycle, step, ac))
+        .and_then(|r| r.time_seconds)
+        .expect("the reading exists")
+}
+
+#[test]
+fn offset_step_at_a_stop_follows_time_order_in_both_directions() {
+    let base = effect_base(); // 2 setups, 4 cycles, even cycles counter-clockwise
+    let (plain, _) = simulate(&base).unwrap();
+    // Cycle 2 runs steps 6, 5, 4, …, 0: from step 4 on in time order are steps 4 … 0.
+    let ccw = Effect::OffsetStep {
+        ac: 1,
+        cycle: 2,
+        step: Some(4),
+        setup: None,
+        value: 0.5,
+    };
+    let t0 = |setup| time_of(&plain, setup, 2, 4, 1);
+    check_effect(&base, ccw, |r| {
+        if r.ac == 1 && r.time_seconds.unwrap() >= t0(r.setup) {
+            0.5
+        } else {
+            0.0
+        }
+    });
+    // The same by hand from the direction: cycle 2 steps 0 … 4, cycles 3 and 4.
+    for r in &plain.readings {
+        let by_hand = r.ac == 1 && (r.cycle > 2 || (r.cycle == 2 && r.step <= 4));
+        assert_eq!(r.ac == 1 && r.time_seconds.unwrap() >= t0(r.setup), by_hand);
+    }
+    // A clockwise cycle (3): steps 2 … 6 of cycle 3, and cycle 4.
+    let cw = Effect::OffsetStep {
+        ac: 2,
+        cycle: 3,
+        step: Some(2),
+        setup: None,
+        value: -0.7,
+    };
+    check_effect(&base, cw, |r| {
+        if r.ac == 2 && (r.cycle == 4 || (r.cycle == 3 && r.step >= 2)) {
+            -0.7
+        } else {
+            0.0
+        }
+    });
+}
+
+#[test]
+fn a_setup_limited_offset_step_leaves_other_setups_alone() {
+    let base = effect_base();
+    let (plain, _) = simulate(&base).unwrap();
+    let t0 = time_of(&plain, 2, 3, 1, 2);
+    let effect = Effect::OffsetStep {
+        ac: 2,
+        cycle: 3,
+        step: Some(1),
+        setup: Some(2),
+        value: -0.4,
+    };
+    check_effect(&base, effect, |r| {
+        if r.setup == 2 && r.ac == 2 && r.time_seconds.unwrap() >= t0 {
+            -0.4
+        } else {
+            0.0
+        }
+    });
+    // Without a step: the whole of cycles 3 and 4 of setup 1 only.
+    let whole = Effect::OffsetStep {
+        ac: 1,
+        cycle: 3,
+        step: None,
+        setup: Some(1),
+        value: 0.9,
+    };
+    check_effect(&base, whole, |r| {
+        if r.setup == 1 && r.ac == 1 && r.cycle >= 3 {
+            0.9
+        } else {
+            0.0
+        }
+    });
+}
+
+// ---------------------------------------------------------------- temperature
+
+fn air_conditioned_lab() -> TemperatureModel {
+    TemperatureModel {
+        start_celsius: 20.0,
+        warmup_celsius: 0.5,
+        warmup_seconds: 3600.0,
+        cycle_amplitude_celsius: 0.1,
+        cycle_period_seconds: 1200.0,
+        cycle_phase_rad: 0.0,
+        noise_celsius: 0.0,
+    }
+}
+
+#[test]
+fn the_temperature_column_follows_the_model() {
+    let config = SimulationConfig {
+        faces: 6,
+        cycles: 30, // 30 · 7 stops of 60 s: 3.5 hours
+        step_seconds: 60.0,
+        temperature: Some(air_conditioned_lab()),
+        ..noise_free(6)
+    };
+    let (set, truth) = simulate(&config).unwrap();
+    // Both autocollimators of a stop share the stop's temperature; stop k is at 60 k s.
+    for (k, pair) in set.readings.chunks(2).enumerate() {
+        let t = 60.0 * k as f64;
+        let by_hand = 20.0
+            + 0.5 * (1.0 - (-t / 3600.0).exp())
+            + 0.1 * (2.0 * std::f64::consts::PI * t / 1200.0).sin();
+        for r in pair {
+            assert_eq!(r.time_seconds, Some(t));
+            let temperature = r.temperature_celsius.expect("a temperature");
+            assert!(
+                (temperature - by_hand).abs() < 1e-12,
+                "{t} s: {temperature}"
+            );
+        }
+    }
+    // Hand-computed values: 20 °C at 0 s; at 300 s the cycle's crest, 20 + 0.5·(1 − e^(−1/12))
+    // + 0.1; at 900 s its trough; at 3600 s (three whole periods) 20 + 0.5·(1 − 1/e).
+    let at = |t: f64| {
+        set.readings[(t / 60.0) as usize * 2]
+            .temperature_celsius
+            .unwrap()
+    };
+    assert_eq!(at(0.0), 20.0);
+    assert!((at(300.0) - 20.139_977_792_685_34).abs() < 1e-12);
+    assert!((at(900.0) - 20.010_599_608_464_297).abs() < 1e-12);
+    assert!((at(3600.0) - 20.316_060_279_414_28).abs() < 1e-12);
+    // The truth's reference temperature is the mean of the column over every reading.
+    let column: Vec<f64> = set
+        .readings
+        .iter()
+        .map(|r| r.temperature_celsius.unwrap())
+        .collect();
+    let mean = column.iter().sum::<f64>() / column.len() as f64;
+    let reference = truth.reference_temperature_celsius.expect("a reference");
+    assert!((reference - mean).abs() < 1e-12, "{reference} vs {mean}");
+    assert!(reference > 20.1 && reference < 20.5, "{reference}");
+
+    // Switching the model on changes neither the truth's other values nor the readings.
+    let (without, truth0) = simulate(&SimulationConfig {
+        temperature: None,
+        ..config.clone()
+    })
+    .unwrap();
+    assert_eq!(bits(&without), bits(&set));
+    assert_eq!(truth0.reference_temperature_celsius, None);
+    assert_eq!(truth0.pitch_deviation, truth.pitch_deviation);
+    assert_eq!(truth0.setup_error, truth.setup_error);
+}
+
+#[test]
+fn temperature_noise_is_white_and_shared_by_a_stop() {
+    let model = TemperatureModel {
+        noise_celsius: 0.01,
+        ..air_conditioned_lab()
+    };
+    let config = SimulationConfig {
+        cycles: 200,
+        temperature: Some(model.clone()),
+        ..SimulationConfig::default()
+    };
+    let (set, truth) = simulate(&config).unwrap();
+    let residuals: Vec<f64> = set
+        .readings
+        .chunks(2)
+        .map(|pair| {
+            assert_eq!(pair[0].temperature_celsius, pair[1].temperature_celsius);
+            let t = pair[0].time_seconds.unwrap();
+            pair[0].temperature_celsius.unwrap() - model.celsius_at(t)
+        })
+        .collect();
+    let n = residuals.len() as f64;
+    assert_eq!(residuals.len(), 200 * 25);
+    let mean = residuals.iter().sum::<f64>() / n;
+    let sd = (residuals.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    assert!((sd / 0.01 - 1.0).abs() < 0.05, "sd {sd}");
+    assert!(mean.abs() < 4.0 * 0.01 / n.sqrt(), "mean {mean}");
+    // The reference is still the column mean, noise included.
+    let column_mean = set
+        .readings
+        .iter()
+        .map(|r| r.temperature_celsius.unwrap())
+        .sum::<f64>()
+        / set.readings.len() as f64;
+    assert!((truth.reference_temperature_celsius.unwrap() - column_mean).abs() < 1e-12);
+    // The X readings are those of the run without a temperature model.
+    let (plain, _) = simulate(&SimulationConfig {
+        temperature: None,
+        ..config
+    })
+    .unwrap();
+    assert_eq!(bits(&plain), bits(&set));
+}
+
+#[test]
+fn a_temperature_effect_acts_against_the_mean_temperature() {
+    let base = SimulationConfig {
+        step_seconds: 120.0,
+        temperature: Some(air_conditioned_lab()),
+        ..effect_base()
+    };
+    let (plain, _) = simulate(&base).unwrap();
+    let temperatures: Vec<f64> = plain
+        .readings
+        .iter()
+        .map(|r| r.temperature_celsius.unwrap())
+        .collect();
+    let mean = temperatures.iter().sum::<f64>() / temperatures.len() as f64;
+    let effect = Effect::Temperature { ac: 1, value: 0.3 };
+    check_effect(&base, effect, |r| {
+        if r.ac == 1 {
+            0.3 * (r.temperature_celsius.unwrap() - mean)
+        } else {
+            0.0
+        }
+    });
+    // At time 0 (20 °C) the effect is 0.3 · (20 − mean).
+    let (warm, _) = simulate(&SimulationConfig {
+        effects: vec![Effect::Temperature { ac: 1, value: 0.3 }],
+        ..base
+    })
+    .unwrap();
+    let diff = warm.readings[0].reading_arcsec - plain.readings[0].reading_arcsec;
+    assert!((diff - 0.3 * (20.0 - mean)).abs() < 1e-12);
+    assert!(diff < 0.0, "the lab warms, so the start is below the mean");
+}
+
+// ---------------------------------------------------------------- elevation
+
+/// reading_y by hand from the truth's drawn geometry: the pyramidal error of the face,
+/// the mounting's tilt, the table's wobble at the step and the (setup, ac) offset.
+fn reading_y_by_hand(truth: &Truth, r: &Reading) -> f64 {
+    let e = truth.elevation.as_ref().expect("an elevation truth");
+    let n = truth.faces as f64;
+    let tau = std::f64::consts::TAU;
+    let tilt = e
+        .mounting_tilt
+        .iter()
+        .find(|t| t.setup == r.setup)
+        .expect("a tilt per mounting");
+    let offset = e
+        .offset
+        .iter()
+        .find(|o| o.setup == r.setup && o.ac == r.ac)
+        .expect("an offset per (setup, ac)")
+        .value;
+    e.pyramidal_error_arcsec[r.face - 1]
+        + tilt.tilt_arcsec * (tau * (r.face as f64 - 1.0) / n - tilt.azimuth_rad).cos()
+        + e.wobble_arcsec * (tau * r.step as f64 / n + e.wobble_phase_rad).cos()
+        + offset
+}
+
+#[test]
+fn reading_y_follows_the_elevation_model() {
+    let model = ElevationModel {
+        pyramidal_spread_arcsec: 10.0,
+        mounting_tilt_arcsec: 30.0,
+        wobble_arcsec: 2.0,
+        wobble_phase_rad: 0.4,
+        offset_spread_arcsec: 5.0,
+        noise_arcsec: 0.0,
+    };
+    let config = SimulationConfig {
+        faces: 12,
+        setups: 3,
+        setup_shift_faces: 5,
+        ac_faces: vec![1, 2, 7],
+        cycles: 2,
+        elevation: Some(model.clone()),
+        ..noise_free(12)
+    };
+    let (set, truth) = simulate(&config).unwrap();
+    let e = truth.elevation.as_ref().unwrap();
+    assert_eq!(e.pyramidal_error_arcsec.len(), 12);
+    assert_eq!(e.mounting_tilt.len(), 3);
+    assert_eq!(e.offset.len(), 3 * 3);
+    assert_eq!((e.wobble_arcsec, e.wobble_phase_rad), (2.0, 0.4));
+    for t in &e.mounting_tilt {
+        assert!((0.0..std::f64::consts::TAU).contains(&t.azimuth_rad));
+    }
+    let mut largest: f64 = 0.0;
+    for r in &set.readings {
+        let y = r.reading_y_arcsec.expect("a reading_y");
+        assert!((y - reading_y_by_hand(&truth, r)).abs() < 1e-12, "{r:?}");
+        largest = largest.max(y.abs());
+    }
+    assert!(largest > 10.0, "tens of arcseconds: {largest}");
+    // The X readings are those of the run without an elevation model.
+    let (plain, truth0) = simulate(&SimulationConfig {
+        elevation: None,
+        ..config.clone()
+    })
+    .unwrap();
+    assert_eq!(bits(&plain), bits(&set));
+    assert_eq!(truth0.elevation, None);
+    assert_eq!(truth0.pitch_deviation, truth.pitch_deviation);
+
+    // Noise: reading_y minus the geometry has the configured spread.
+    let noisy = SimulationConfig {
+        cycles: 100,
+        elevation: Some(ElevationModel {
+            noise_arcsec: 0.2,
+            ..model
+        }),
+        ..config
+    };
+    let (set, truth) = simulate(&noisy).unwrap();
+    let res: Vec<f64> = set
+        .readings
+        .iter()
+        .map(|r| r.reading_y_arcsec.unwrap() - reading_y_by_hand(&truth, r))
+        .collect();
+    let n = res.len() as f64;
+    let sd = (res.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+    assert!((sd / 0.2 - 1.0).abs() < 0.03, "sd {sd}");
+}
+
+#[test]
+fn the_same_face_differs_between_mountings_by_the_tilt() {
+    let n = 24;
+    let model = ElevationModel {
+        pyramidal_spread_arcsec: 10.0,
+        mounting_tilt_arcsec: 30.0,
+        wobble_arcsec: 0.0,
+        wobble_phase_rad: 0.0,
+        offset_spread_arcsec: 0.0,
+        noise_arcsec: 0.0,
+    };
+    let config = SimulationConfig {
+        faces: n,
+        setups: 2,
+        setup_shift_faces: 7,
+        cycles: 1,
+        elevation: Some(model.clone()),
+        ..noise_free(n)
+    };
+    let (set, truth) = simulate(&config).unwrap();
+    let y = |setup: u32, face: usize| {
+        set.readings
+            .iter()
+            .find(|r| r.setup == setup && r.ac == 1 && r.face == face)
+            .and_then(|r| r.reading_y_arcsec)
+            .unwrap()
+    };
+    let tilts = &truth.elevation.as_ref().unwrap().mounting_tilt;
+    let (t1, t2) = (&tilts[0], &tilts[1]);
+    let theta = |f: usize| std::f64::consts::TAU * (f - 1) as f64 / n as f64;
+    let d: Vec<f64> = (1..=n).map(|f| y(2, f) - y(1, f)).collect();
+    for f in 1..=n {
+        let tilt_term = t2.tilt_arcsec * (theta(f) - t2.azimuth_rad).cos()
+            - t1.tilt_arcsec * (theta(f) - t1.azimuth_rad).cos();
+        assert!((d[f - 1] - tilt_term).abs() < 1e-12, "face {f}");
+    }
+    // Independently of the drawn parameters: the difference is one first harmonic over
+    // the faces (the pyramidal errors cancel), a·cos θ + b·sin θ.
+    let a = 2.0 / n as f64 * (1..=n).map(|f| d[f - 1] * theta(f).cos()).sum::<f64>();
+    let b = 2.0 / n as f64 * (1..=n).map(|f| d[f - 1] * theta(f).sin()).sum::<f64>();
+    for f in 1..=n {
+        let fit = a * theta(f).cos() + b * theta(f).sin();
+        assert!((d[f - 1] - fit).abs() < 1e-9, "face {f}");
+    }
+    assert!(a.hypot(b) > 1.0, "the mountings tilt differently");
+
+    // Without tilt the same face reads the same Y in every mounting.
+    let flat = SimulationConfig {
+        elevation: Some(ElevationModel {
+            mounting_tilt_arcsec: 0.0,
+            ..model
+        }),
+        ..config
+    };
+    let (set, _) = simulate(&flat).unwrap();
+    for r in set.readings.iter().filter(|r| r.setup == 2) {
+        let first = set
+            .readings
+            .iter()
+            .find(|q| q.setup == 1 && q.ac == r.ac && q.face == r.face)
+            .unwrap();
+        assert_eq!(r.reading_y_arcsec, first.reading_y_arcsec);
+    }
+}
+
+#[test]
+fn cross_talk_adds_its_coefficient_times_reading_y() {
+    let base = SimulationConfig {
+        elevation: Some(ElevationModel::default()),
+        ..effect_base()
+    };
+    check_effect(&base, Effect::CrossTalk { ac: 2, value: 0.02 }, |r| {
+        if r.ac == 2 {
+            0.02 * r.reading_y_arcsec.unwrap()
+        } else {
+            0.0
+        }
+    });
+}
+
+// ---------------------------------------------------------------- Student-t noise
+
+/// Mean, standard deviation and kurtosis (m4 / m2², 3 for the normal) of `x`.
+fn moments(x: &[f64]) -> (f64, f64, f64) {
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let m2 = x.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n;
+    let m4 = x.iter().map(|e| (e - mean).powi(4)).sum::<f64>() / n;
+    (mean, m2.sqrt(), m4 / (m2 * m2))
+}
+
+#[test]
+fn student_noise_has_the_stated_spread_and_heavier_tails() {
+    let normal = SimulationConfig {
+        cycles: 3000,
+        noise_arcsec: 0.05,
+        ..SimulationConfig::default()
+    };
+    let student = SimulationConfig {
+        noise_student_dof: Some(10.0),
+        ..normal.clone()
+    };
+    let residuals = |config: &SimulationConfig| {
+        let (set, truth) = simulate(config).unwrap();
+        set.readings
+            .iter()
+            .map(|r| r.reading_arcsec - truth.model_reading(r))
+            .collect::<Vec<f64>>()
+    };
+    let (z, t) = (residuals(&normal), residuals(&student));
+    assert_eq!(t.len(), 3000 * 25 * 2);
+    let n = t.len() as f64;
+    // t with 10 dof: variance 10/8 before scaling, kurtosis 3 + 6/(10 − 4) = 4. The
+    // sample kurtosis has a standard error of about 0.1 here, the sd one of 0.6 %.
+    let (mean, sd, kurtosis) = moments(&t);
+    assert!((sd / 0.05 - 1.0).abs() < 0.02, "sd {sd}");
+    assert!(mean.abs() < 4.0 * 0.05 / n.sqrt(), "mean {mean}");
+    assert!(kurtosis > 3.5 && kurtosis < 4.6, "kurtosis {kurtosis}");
+    let (_, sd_normal, kurtosis_normal) = moments(&z);
+    assert!((sd_normal / 0.05 - 1.0).abs() < 0.02, "sd {sd_normal}");
+    assert!(
+        (kurtosis_normal - 3.0).abs() < 0.1,
+        "kurtosis {kurtosis_normal}"
+    );
+    // The truth records the noise it was made with.
+    assert_eq!(Truth::draw(&student).unwrap().noise_student_dof, Some(10.0));
+    // Heavier tails: more residuals beyond 4 standard deviations (normal: 6.3e-5).
+    let beyond = |x: &[f64]| x.iter().filter(|e| e.abs() > 4.0 * 0.05).count();
+    assert!(
+        beyond(&t) > 3 * beyond(&z).max(1),
+        "{} vs {}",
+        beyond(&t),
+        beyond(&z)
+    );
+}
+
+// ---------------------------------------------------------------- validation of the additions
+
+#[test]
+fn additions_that_do_not_fit_the_run_are_refused() {
+    let base = SimulationConfig {
+        faces: 6,
+        cycles: 3,
+        closing: false,
+        setups: 2,
+        ..noise_free(6)
+    };
+    let with = |effect: Effect| SimulationConfig {
+        effects: vec![effect],
+        ..base.clone()
+    };
+    let cases: Vec<(SimulationConfig, &str)> = vec![
+        (
+            with(Effect::Temperature { ac: 1, value: 0.1 }),
+            "temperature model",
+        ),
+        (
+            with(Effect::CrossTalk { ac: 1, value: 0.1 }),
+            "elevation model",
+        ),
+        (
+            SimulationConfig {
+                temperature: Some(TemperatureModel::default()),
+                ..with(Effect::Temperature { ac: 3, value: 0.1 })
+            },
+            "autocollimator 3",
+        ),
+        (
+            with(Effect::Drift {
+                ac: 1,
+                value: 0.1,
+                quadratic: Some(f64::INFINITY),
+            }),
+            "quadratic",
+        ),
+        (
+            with(Effect::OffsetStep {
+                ac: 1,
+                cycle: 2,
+                step: Some(6), // no closing reading: steps 0 … 5
+                setup: None,
+                value: 0.1,
+            }),
+            "no step 6",
+        ),
+        (
+            with(Effect::OffsetStep {
+                ac: 1,
+                cycle: 2,
+                step: Some(1),
+                setup: Some(3),
+                value: 0.1,
+            }),
+            "no setup 3",
+        ),
+        (
+            with(Effect::OffsetStep {
+                ac: 1,
+                cycle: 2,
+                step: None,
+                setup: Some(0),
+                value: 0.1,
+            }),
+            "no setup 0",
+        ),
+        (
+            SimulationConfig {
+                noise_student_dof: Some(2.0),
+                ..base.clone()
+            },
+            "Student",
+        ),
+        (
+            SimulationConfig {
+                noise_student_dof: Some(f64::NAN),
+                ..base.clone()
+            },
+            "Student",
+        ),
+        (
+            SimulationConfig {
+                temperature: Some(TemperatureModel {
+                    warmup_seconds: 0.0,
+                    ..TemperatureModel::default()
+                }),
+                ..base.clone()
+            },
+            "warm-up time",
+        ),
+        (
+            SimulationConfig {
+                temperature: Some(TemperatureModel {
+                    cycle_period_seconds: -60.0,
+                    ..TemperatureModel::default()
+                }),
+                ..base.clone()
+            },
+            "cycle period",
+        ),
+        (
+            SimulationConfig {
+                temperature: Some(TemperatureModel {
+                    cycle_amplitude_celsius: -0.1,
+                    ..TemperatureModel::default()
+                }),
+                ..base.clone()
+            },
+            "cycle amplitude",
+        ),
+        (
+            SimulationConfig {
+                temperature: Some(TemperatureModel {
+                    start_celsius: f64::NAN,
+                    ..TemperatureModel::default()
+                }),
+                ..base.clone()
+            },
+            "start",
+        ),
+        (
+            SimulationConfig {
+                temperature: Some(TemperatureModel {
+                    noise_celsius: -0.01,
+                    ..TemperatureModel::default()
+                }),
+                ..base.clone()
+            },
+            "noise",
+        ),
+        (
+            SimulationConfig {
+                elevation: Some(ElevationModel {
+                    mounting_tilt_arcsec: -1.0,
+                    ..ElevationModel::default()
+                }),
+                ..base.clone()
+            },
+            "mounting tilt",
+        ),
+        (
+            SimulationConfig {
+                elevation: Some(ElevationModel {
+                    wobble_phase_rad: f64::INFINITY,
+                    ..ElevationModel::default()
+                }),
+                ..base.clone()
+            },
+            "wobble phase",
+        ),
+        (
+            SimulationConfig {
+                elevation: Some(ElevationModel {
+                    pyramidal_spread_arcsec: f64::NAN,
+                    ..ElevationModel::default()
+                }),
+                ..base.clone()
+            },
+            "pyramidal",
+        ),
+    ];
+    for (config, needle) in cases {
+        let err = simulate(&config).unwrap_err();
+        let text = err.to_string();
+        assert!(matches!(err, SimulateError::Config(_)), "{text}");
+        assert!(text.contains(needle), "{text:?} lacks {needle:?}");
+    }
+    // The step N exists with the closing reading, and a step in setup 2 is fine.
+    let ok = SimulationConfig {
+        closing: true,
+        ..with(Effect::OffsetStep {
+            ac: 2,
+            cycle: 3,
+            step: Some(6),
+            setup: Some(2),
+            value: 0.1,
+        })
+    };
+    assert!(simulate(&ok).is_ok());
+}
+
+#[test]
+fn simulate_with_truth_needs_what_its_effects_act_through() {
+    let config = SimulationConfig {
+        temperature: Some(air_conditioned_lab()),
+        elevation: Some(ElevationModel::default()),
+        effects: vec![
+            Effect::Temperature { ac: 1, value: 0.2 },
+            Effect::CrossTalk { ac: 2, value: 0.01 },
+        ],
+        ..noise_free(6)
+    };
+    let truth = Truth::draw(&config).unwrap();
+    assert!(simulate_with_truth(&config, &truth).is_ok());
+    // A temperature effect without the reference it acts against.
+    let mut no_reference = truth.clone();
+    no_reference.reference_temperature_celsius = None;
+    let err = simulate_with_truth(&config, &no_reference).unwrap_err();
+    assert!(
+        err.to_string().contains("reference_temperature_celsius"),
+        "{err}"
+    );
+    // An elevation model, but a truth without the geometry.
+    let mut flat = truth.clone();
+    flat.elevation = None;
+    let err = simulate_with_truth(&config, &flat).unwrap_err();
+    assert!(err.to_string().contains("elevation"), "{err}");
+    // Settings without the models refuse the truth's effects.
+    let bare = SimulationConfig {
+        temperature: None,
+        elevation: None,
+        effects: Vec::new(),
+        ..config.clone()
+    };
+    assert!(simulate_with_truth(&bare, &truth).is_err());
+    // A broken geometry is refused by the truth's own check.
+    let mut short = truth.clone();
+    short
+        .elevation
+        .as_mut()
+        .unwrap()
+        .pyramidal_error_arcsec
+        .pop();
+    assert!(short.validate().is_err());
+    let mut dof = truth;
+    dof.noise_student_dof = Some(1.0);
+    assert!(dof.validate().is_err());
+}
+
+// ---------------------------------------------------------------- the truth file and the specs
+
+#[test]
+fn truth_with_the_additions_round_trips_and_is_documented() {
+    let config = SimulationConfig {
+        setups: 2,
+        bidirectional: true,
+        temperature: Some(air_conditioned_lab()),
+        elevation: Some(ElevationModel::default()),
+        noise_student_dof: Some(6.0),
+        effects: vec![
+            Effect::Drift {
+                ac: 1,
+                value: 0.1,
+                quadratic: Some(0.02),
+            },
+            Effect::OffsetStep {
+                ac: 2,
+                cycle: 2,
+                step: Some(3),
+                setup: Some(1),
+                value: 0.4,
+            },
+            Effect::Temperature { ac: 1, value: 0.2 },
+            Effect::CrossTalk { ac: 2, value: 0.01 },
+        ],
+        ..SimulationConfig::default()
+    };
+    let truth = Truth::draw(&config).unwrap();
+    let json = truth.to_json_pretty();
+    let path = temp_file("additions.json", &json);
+    let read = Truth::read_path(&path).unwrap();
+    std::fs::remove_file(&path).ok();
+    assert_eq!(read, truth);
+    let value: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(
+        value["effects"][1],
+        serde_json::json!({"kind": "offset-step", "ac": 2, "cycle": 2, "step": 3, "setup": 1, "value": 0.4})
+    );
+    assert_eq!(
+        value["effects"][3],
+        serde_json::json!({"kind": "cross-talk", "ac": 2, "value": 0.01})
+    );
+    // Every key of the truth file is a code span in docs/FORMAT.md.
+    let doc =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/FORMAT.md")).unwrap();
+    fn keys(v: &serde_json::Value, out: &mut Vec<String>) {
+        match v {
+            serde_json::Value::Object(map) => {
+                for (k, v) in map {
+                    out.push(k.clone());
+                    keys(v, out);
+                }
+            }
+            serde_json::Value::Array(list) => list.iter().for_each(|v| keys(v, out)),
+            _ => {}
+        }
+    }
+    let mut all = Vec::new();
+    keys(&value, &mut all);
+    let missing: Vec<&String> = all
+        .iter()
+        .filter(|k| !doc.contains(&format!("`{k}`")))
+        .collect();
+    assert!(missing.is_empty(), "not in docs/FORMAT.md: {missing:?}");
+}
+
+#[test]
+fn model_specs() {
+    let t: TemperatureModel = "20:0.5:3600:0.1:1200".parse().unwrap();
+    assert_eq!(t, air_conditioned_lab());
+    assert_eq!(t, TemperatureModel::default());
+    assert_eq!(t.to_string().parse::<TemperatureModel>().unwrap(), t);
+    let t: TemperatureModel = " 18 : -0.2 : 600 : 0.05 : 900 : 1.5 : 0.01 "
+        .parse()
+        .unwrap();
+    assert_eq!(
+        t,
+        TemperatureModel {
+            start_celsius: 18.0,
+            warmup_celsius: -0.2,
+            warmup_seconds: 600.0,
+            cycle_amplitude_celsius: 0.05,
+            cycle_period_seconds: 900.0,
+            cycle_phase_rad: 1.5,
+            noise_celsius: 0.01,
+        }
+    );
+    for bad in [
+        "",
+        "20",
+        "20:0.5:3600:0.1",
+        "20:0.5:3600:0.1:1200:0:0:0",
+        "20:0.5:0:0.1:1200",
+        "20:0.5:3600:0.1:-1",
+        "20:0.5:3600:-0.1:1200",
+        "20:0.5:3600:0.1:1200:0:-1",
+        "x:0.5:3600:0.1:1200",
+        "20:nan:3600:0.1:1200",
+    ] {
+        let err = bad.parse::<TemperatureModel>().unwrap_err();
+        assert!(err.message().contains("temperature model"), "{err}");
+    }
+    let e: ElevationModel = "10:20:1:5:0.05".parse().unwrap();
+    assert_eq!(e, ElevationModel::default());
+    assert_eq!(e.to_string().parse::<ElevationModel>().unwrap(), e);
+    let e: ElevationModel = "30:40:2:10:0.1:0.7".parse().unwrap();
+    assert_eq!(
+        e,
+        ElevationModel {
+            pyramidal_spread_arcsec: 30.0,
+            mounting_tilt_arcsec: 40.0,
+            wobble_arcsec: 2.0,
+            wobble_phase_rad: 0.7,
+            offset_spread_arcsec: 10.0,
+            noise_arcsec: 0.1,
+        }
+    );
+    for bad in [
+        "",
+        "10:20:1:5",
+        "10:20:1:5:0.05:0:0",
+        "-10:20:1:5:0.05",
+        "10:20:1:5:inf",
+    ] {
+        let err = bad.parse::<ElevationModel>().unwrap_err();
+        assert!(err.message().contains("elevation model"), "{err}");
+    }
+}
+
+#[test]
+fn temperature_at_hand_computed_times() {
+    let m = air_conditioned_lab();
+    assert_eq!(m.celsius_at(0.0), 20.0);
+    assert!((m.celsius_at(300.0) - 20.139_977_792_685_34).abs() < 1e-12);
+    assert!((m.celsius_at(3600.0) - 20.316_060_279_414_28).abs() < 1e-12);
+}
+
+// ---------------------------------------------------------------- the command line
+
+#[cfg(feature = "cli")]
+mod command_line {
+    use std::process::{Command, Output};
+
+    fn polycal(args: &[&str]) -> Output {
+        Command::new(env!("CARGO_BIN_EXE_polycal"))
+            .args(args)
+            .stdin(std::process::Stdio::null())
+            .output()
+            .expect("the binary runs")
+    }
+
+    fn header(out: &Output) -> String {
+        let text = String::from_utf8_lossy(&out.stdout).to_string();
+        text.lines()
+            .find(|l| !l.starts_with('#'))
+            .unwrap_or_default()
+            .to_string()
+    }
+
+    #[test]
+    fn the_models_add_their_columns_only_when_on() {
+        let plain = polycal(&["simulate", "--faces", "6", "--cycles", "1"]);
+        assert_eq!(plain.status.code(), Some(0));
+        assert_eq!(
+            header(&plain),
+            "cycle,step,ac,face,reading,direction,setup,time,encoder"
+        );
+        let both = polycal(&[
+            "simulate",
+            "--faces",
+            "6",
+            "--cycles",
+            "1",
+            "--temperature",
+            "--elevation",
+            "--noise-dof",
+            "5",
+        ]);
+        assert_eq!(
+            both.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&both.stderr)
+        );
+        assert_eq!(
+            header(&both),
+            "cycle,step,ac,face,reading,direction,setup,time,reading_y,temperature,encoder"
+        );
+        let warm = polycal(&[
+            "simulate",
+            "--faces",
+            "6",
+            "--cycles",
+            "1",
+            "--temperature",
+            "18:1:600:0.2:300",
+            "--temperature-effect",
+            "1:0.3",
+            "--drift",
+            "2:0.1:-0.02",
+            "--offset-step",
+            "1:1:3:0.5",
+        ]);
+        assert_eq!(
+            warm.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&warm.stderr)
+        );
+        assert_eq!(
+            header(&warm),
+            "cycle,step,ac,face,reading,direction,setup,time,temperature,encoder"
+        );
+        // The first data row is at 0 s: 18 °C.
+        let text = String::from_utf8_lossy(&warm.stdout).to_string();
+        let row = text.lines().filter(|l| !l.starts_with('#')).nth(1).unwrap();
+        assert_eq!(row.split(',').nth(8), Some("18"));
+    }
+
+    #[test]
+    fn bad_values_of_the_new_options_are_one_error_line_and_status_2() {
+        for args in [
+            &["--noise-dof", "2"][..],
+            &["--noise-dof", "abc"],
+            &["--temperature", "20:1"],
+            &["--temperature", "20:0.5:0:0.1:1200"],
+            &["--elevation", "1:2:3"],
+            &["--elevation=-1:0:0:0:0"],
+            &["--temperature-effect", "1:0.3"],
+            &["--cross-talk", "1:0.1"],
+            &["--temperature", "--temperature-effect", "3:0.3"],
+            &["--elevation", "--cross-talk", "1:x"],
+            &["--drift", "1:0.1:nan"],
+            &["--offset-step", "1:1:9:0.5"],
+            &["--offset-step", "2:1:1:3:0.5"],
+        ] {
+            let mut all = vec!["simulate", "--faces", "6", "--cycles", "2"];
+            all.extend_from_slice(args);
+            let out = polycal(&all);
+            assert_eq!(out.status.code(), Some(2), "{args:?}");
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+            assert!(stderr.starts_with("error: "), "{args:?}: {stderr}");
+        }
+    }
+
+    #[cfg(feature = "lab")]
+    #[test]
+    fn sim_lab_refuses_the_models_it_does_not_simulate() {
+        let help = polycal(&["sim-lab", "--help"]);
+        assert_eq!(help.status.code(), Some(0));
+        for args in [
+            &["--temperature"][..],
+            &["--elevation"],
+            &["--noise-dof", "5"],
+        ] {
+            let mut all = vec!["sim-lab", "--time-scale", "0"];
+            all.extend_from_slice(args);
+            let out = polycal(&all);
+            assert_eq!(out.status.code(), Some(2), "{args:?}");
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+            assert!(stderr.contains("simulated lab"), "{args:?}: {stderr}");
+        }
+    }
 }

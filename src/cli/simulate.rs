@@ -3,9 +3,11 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Context, Result, anyhow, bail};
 use polycal::effects::Effect;
-use polycal::simulate::{self, Harmonic, SimulationConfig, Truth};
+use polycal::simulate::{
+    self, ElevationModel, Harmonic, SimulationConfig, TemperatureModel, Truth,
+};
 
 use super::EXIT_OK;
 
@@ -14,7 +16,9 @@ pub const EXAMPLES: &str = "\
 Examples:
   polycal simulate --faces 24 --cycles 6 --closing --out run.csv --truth-out run.truth.json
   polycal simulate --bidirectional --direction -0.3 --drift 2:-1.5 | polycal diagnose -
-  polycal simulate --faces 12 --setups 2 --setup-shift 5 --ac-faces 1,2,5 --seed 9 --out setups.csv";
+  polycal simulate --faces 12 --setups 2 --setup-shift 5 --ac-faces 1,2,5 --seed 9 --out setups.csv
+  polycal simulate --temperature 20:0.5:3600:0.1:1200 --temperature-effect 1:0.3 --out warm.csv
+  polycal simulate --setups 2 --elevation 10:30:1:5:0.05 --cross-talk 2:0.02 --noise-dof 5";
 
 /// Arguments of `polycal simulate`.
 #[derive(clap::Args)]
@@ -47,7 +51,7 @@ pub fn run(args: &SimulateArgs) -> Result<u8> {
         args.step_seconds,
     )?;
     let (set, truth) = simulate::simulate(&config)?;
-    let comments = vec![format!(
+    let mut comment = format!(
         "polycal {} simulate: {} faces, ac faces {:?}, {} cycles, noise {} arcsec, seed {}",
         env!("CARGO_PKG_VERSION"),
         config.faces,
@@ -55,7 +59,17 @@ pub fn run(args: &SimulateArgs) -> Result<u8> {
         config.cycles,
         config.noise_arcsec,
         config.seed
-    )];
+    );
+    if let Some(nu) = config.noise_student_dof {
+        comment += &format!(", Student-t noise with {nu} dof");
+    }
+    if let Some(model) = &config.temperature {
+        comment += &format!(", temperature {model}");
+    }
+    if let Some(model) = &config.elevation {
+        comment += &format!(", elevation {model}");
+    }
+    let comments = vec![comment];
     match &args.out {
         Some(path) => set.write_path(path, &comments)?,
         None => {
@@ -104,19 +118,61 @@ pub struct TruthArgs {
     /// Random seed (same seed, same truth and noise).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Zero drift AC:RATE (arcsec per hour); repeatable.
-    #[arg(long, value_name = "AC:RATE", allow_negative_numbers = true)]
+    /// Reading noise from Student's t with NU (> 2) degrees of freedom instead of the
+    /// normal, with the same standard deviation --noise (heavy tails).
+    #[arg(long, value_name = "NU", allow_negative_numbers = true)]
+    pub noise_dof: Option<f64>,
+    /// Write the lab's air temperature (the `temperature` column), °C at t seconds:
+    /// START + WARMUP·(1 − exp(−t/WARMUP_SECONDS)) + AMPLITUDE·sin(2π·t/PERIOD_SECONDS +
+    /// PHASE) + NOISE·z. Without a value: 20:0.5:3600:0.1:1200 (an air-conditioned lab).
+    #[arg(
+        long,
+        value_name = "START:WARMUP:WARMUP_SECONDS:AMPLITUDE:PERIOD_SECONDS[:PHASE[:NOISE]]",
+        allow_negative_numbers = true
+    )]
+    pub temperature: Option<Option<String>>,
+    /// Write the elevation axis (the `reading_y` column), arcsec: drawn pyramidal errors
+    /// (spread PYRAMIDAL), a drawn tilt of each mounting (spread TILT), the table's
+    /// wobble (amplitude WOBBLE), drawn zeros per mounting and autocollimator (spread
+    /// OFFSET) and NOISE. Without a value: 10:20:1:5:0.05.
+    #[arg(
+        long,
+        value_name = "PYRAMIDAL:TILT:WOBBLE:OFFSET:NOISE[:WOBBLE_PHASE]",
+        allow_negative_numbers = true
+    )]
+    pub elevation: Option<Option<String>>,
+    /// Zero drift AC:RATE[:QUADRATIC] (arcsec per hour, and per hour² for a curved
+    /// drift); repeatable.
+    #[arg(
+        long,
+        value_name = "AC:RATE[:QUADRATIC]",
+        allow_negative_numbers = true
+    )]
     pub drift: Vec<String>,
-    /// Zero jump AC:CYCLE:VALUE from that cycle on; repeatable.
-    #[arg(long, value_name = "AC:CYCLE:VALUE", allow_negative_numbers = true)]
+    /// Zero jump AC:CYCLE:VALUE from that cycle on, AC:CYCLE:STEP:VALUE from that stop of
+    /// the cycle on (in time order), or SETUP:AC:CYCLE:STEP:VALUE in that mounting only;
+    /// repeatable.
+    #[arg(
+        long,
+        value_name = "[SETUP:AC:CYCLE:STEP|AC:CYCLE[:STEP]]:VALUE",
+        allow_negative_numbers = true
+    )]
     pub offset_step: Vec<String>,
+    /// Temperature coefficient AC:COEFF of an autocollimator, arcsec per °C against the
+    /// run's mean temperature (needs --temperature); repeatable.
+    #[arg(long, value_name = "AC:COEFF", allow_negative_numbers = true)]
+    pub temperature_effect: Vec<String>,
+    /// Cross-talk AC:COEFF: the reading changes by COEFF times its reading_y (needs
+    /// --elevation); repeatable.
+    #[arg(long, value_name = "AC:COEFF", allow_negative_numbers = true)]
+    pub cross_talk: Vec<String>,
     /// Counter-clockwise offset [AC:]VALUE (`-0.3` or `2:-0.3`); repeatable.
     #[arg(long, value_name = "[AC:]VALUE", allow_negative_numbers = true)]
     pub direction: Vec<String>,
-    /// One bad reading CYCLE:STEP:AC:VALUE; repeatable.
+    /// One bad reading CYCLE:STEP:AC:VALUE, or SETUP:CYCLE:STEP:AC:VALUE; repeatable.
     #[arg(
         long,
-        value_name = "CYCLE:STEP:AC:VALUE",
+        value_name = "[SETUP:]CYCLE:STEP:AC:VALUE",
         allow_negative_numbers = true
     )]
     pub outlier: Vec<String>,
@@ -135,19 +191,50 @@ impl TruthArgs {
         step_seconds: f64,
     ) -> Result<SimulationConfig> {
         let mut effects = Vec::new();
-        for (kind, specs) in [
-            ("drift", &self.drift),
-            ("offset-step", &self.offset_step),
-            ("direction", &self.direction),
-            ("outlier", &self.outlier),
+        for (kind, flag, specs) in [
+            ("drift", "drift", &self.drift),
+            ("offset-step", "offset-step", &self.offset_step),
+            ("direction", "direction", &self.direction),
+            ("outlier", "outlier", &self.outlier),
+            (
+                "temperature",
+                "temperature-effect",
+                &self.temperature_effect,
+            ),
+            ("cross-talk", "cross-talk", &self.cross_talk),
         ] {
             for spec in specs {
                 effects.push(
                     Effect::parse_spec(kind, spec)
-                        .map_err(|message| anyhow!("--{kind} {spec}: {message}"))?,
+                        .map_err(|message| anyhow!("--{flag} {spec}: {message}"))?,
                 );
             }
         }
+        if let (Some(spec), None) = (self.temperature_effect.first(), &self.temperature) {
+            bail!(
+                "--temperature-effect {spec}: a temperature effect needs the lab's temperature; \
+                 add --temperature"
+            );
+        }
+        if let (Some(spec), None) = (self.cross_talk.first(), &self.elevation) {
+            bail!("--cross-talk {spec}: cross-talk needs the elevation axis; add --elevation");
+        }
+        let temperature = match &self.temperature {
+            None => None,
+            Some(None) => Some(TemperatureModel::default()),
+            Some(Some(spec)) => Some(
+                spec.parse::<TemperatureModel>()
+                    .map_err(|message| anyhow!("--temperature {spec}: {message}"))?,
+            ),
+        };
+        let elevation = match &self.elevation {
+            None => None,
+            Some(None) => Some(ElevationModel::default()),
+            Some(Some(spec)) => Some(
+                spec.parse::<ElevationModel>()
+                    .map_err(|message| anyhow!("--elevation {spec}: {message}"))?,
+            ),
+        };
         let encoder_harmonics = if self.harmonics.is_empty() {
             SimulationConfig::default().encoder_harmonics
         } else {
@@ -174,6 +261,9 @@ impl TruthArgs {
             step_seconds,
             effects,
             seed: self.seed,
+            temperature,
+            elevation,
+            noise_student_dof: self.noise_dof,
         })
     }
 

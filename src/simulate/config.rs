@@ -7,6 +7,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use super::SimulateError;
+use super::models::{ElevationModel, TemperatureModel};
 use crate::effects::{Effect, SpecError};
 
 /// Largest number of readings a simulated run may have (a guard against absurd settings).
@@ -101,7 +102,10 @@ impl fmt::Display for Harmonic {
 /// The truth: pitch deviations drawn with spread `pitch_spread_arcsec`, the encoder error
 /// made of `encoder_harmonics`, setup errors drawn with spread
 /// `setup_error_spread_arcsec`, and `effects`. The readings: noise of standard deviation
-/// `noise_arcsec`, one stop every `step_seconds`. Everything random comes from `seed`.
+/// `noise_arcsec` (normal, or Student's t with `noise_student_dof` degrees of freedom),
+/// one stop every `step_seconds`, with the lab's air temperature when there is a
+/// `temperature` model and the elevation axis when there is an `elevation` model.
+/// Everything random comes from `seed`.
 ///
 /// At step p of setup s, autocollimator j reads face
 /// `((ac_faces[j-1] − 1) + (s − 1)·setup_shift_faces + p) mod N + 1`.
@@ -138,13 +142,24 @@ pub struct SimulationConfig {
     pub effects: Vec<Effect>,
     /// Seed of the random draws.
     pub seed: u64,
+    /// The lab's air temperature, written to the `temperature` column of every reading;
+    /// `None`: no temperature column. A `temperature` effect needs it.
+    pub temperature: Option<TemperatureModel>,
+    /// The elevation axis, written to the `reading_y` column of every reading; `None`: no
+    /// `reading_y` column. A `cross-talk` effect needs it.
+    pub elevation: Option<ElevationModel>,
+    /// Degrees of freedom ν (> 2) of Student-t reading noise; `None`: normal noise. The
+    /// noise keeps the standard deviation `noise_arcsec`: a t variate scaled by
+    /// `noise_arcsec`·√((ν − 2)/ν).
+    pub noise_student_dof: Option<f64>,
 }
 
 impl Default for SimulationConfig {
     /// The paper's design: 24 faces, autocollimators on faces 1 and 2, one setup, 6
     /// clockwise cycles with closing reading, noise 0.05″, pitch spread 0.5″, an encoder
     /// error of about ±1″ (harmonics 1:0.6:0.4, 2:0.35:1.3, 3:0.2:2.2, 5:0.1:0.7), setup
-    /// spread 0.5″, 20 s per stop, no effects, seed 1.
+    /// spread 0.5″, 20 s per stop, no effects, seed 1; normal noise, no temperature and no
+    /// elevation model.
     fn default() -> Self {
         let h = |order, amplitude_arcsec, phase_rad| Harmonic {
             order,
@@ -171,6 +186,9 @@ impl Default for SimulationConfig {
             step_seconds: 20.0,
             effects: Vec::new(),
             seed: 1,
+            temperature: None,
+            elevation: None,
+            noise_student_dof: None,
         }
     }
 }
@@ -224,10 +242,14 @@ impl SimulationConfig {
     /// Refused: faces < 3; no autocollimator, a face outside 1 … N or the same face twice
     /// in `ac_faces`; setups or cycles 0; a shift ≥ N; a negative or non-finite spread or
     /// noise; a step time that is not positive and finite; a harmonic of order 0 or with
-    /// a non-finite number; a run of more than [`MAX_READINGS`] readings; an effect that
-    /// is not finite or names an autocollimator, setup, cycle or step the run does not
-    /// have, a direction effect without `bidirectional`, and an outlier without a setup
-    /// when there are several setups.
+    /// a non-finite number; a run of more than [`MAX_READINGS`] readings; Student-t
+    /// degrees of freedom that are not a finite number > 2; a temperature or elevation
+    /// model with a non-finite number, a negative amplitude, spread or noise, or a time
+    /// constant or period that is not > 0; an effect that is not finite (value, or a
+    /// drift's `quadratic`) or names an autocollimator, setup, cycle or step the run does
+    /// not have, a direction effect without `bidirectional`, an outlier without a setup
+    /// when there are several setups, a temperature effect without a temperature model
+    /// and a cross-talk effect without an elevation model.
     pub fn validate(&self) -> Result<(), SimulateError> {
         let bad = |m: String| Err(SimulateError::Config(m));
         let n = self.faces;
@@ -290,6 +312,24 @@ impl SimulationConfig {
                 return bad(format!("encoder harmonic {h} is not finite"));
             }
         }
+        if let Some(nu) = self.noise_student_dof
+            && !(nu.is_finite() && nu > 2.0)
+        {
+            return bad(format!(
+                "Student-t noise with {nu} degrees of freedom; must be a finite number > 2 \
+                 (the variance is infinite below)"
+            ));
+        }
+        if let Some(model) = &self.temperature {
+            model
+                .check()
+                .map_err(|m| SimulateError::Config(format!("temperature model: {m}")))?;
+        }
+        if let Some(model) = &self.elevation {
+            model
+                .check()
+                .map_err(|m| SimulateError::Config(format!("elevation model: {m}")))?;
+        }
         let count = self.reading_count();
         if count > MAX_READINGS {
             return bad(format!(
@@ -303,7 +343,8 @@ impl SimulationConfig {
         Ok(())
     }
 
-    /// Checks that an effect is finite and names only things this run has.
+    /// Checks that an effect is finite, names only things this run has, and has the model
+    /// it acts through (temperature, elevation).
     pub(super) fn check_effect(&self, e: &Effect) -> Result<(), String> {
         if !e.value().is_finite() {
             return Err("value is not finite".into());
@@ -323,13 +364,63 @@ impl SimulationConfig {
                 Ok(())
             }
         };
+        let check_step = |step: usize| {
+            let last = self.stops_per_cycle() - 1;
+            if step > last {
+                Err(format!("no step {step}; the run has 0 … {last}"))
+            } else {
+                Ok(())
+            }
+        };
+        let check_setup = |s: u32| {
+            if s == 0 || s > self.setups {
+                Err(format!("no setup {s}; the run has 1 … {}", self.setups))
+            } else {
+                Ok(())
+            }
+        };
         match *e {
-            Effect::Drift { ac, .. }
-            | Effect::Temperature { ac, .. }
-            | Effect::CrossTalk { ac, .. } => check_ac(ac),
-            Effect::OffsetStep { ac, cycle, .. } => {
+            Effect::Drift { ac, quadratic, .. } => {
                 check_ac(ac)?;
-                check_cycle(cycle)
+                match quadratic {
+                    Some(q) if !q.is_finite() => Err("quadratic is not finite".into()),
+                    _ => Ok(()),
+                }
+            }
+            Effect::Temperature { ac, .. } => {
+                check_ac(ac)?;
+                if self.temperature.is_none() {
+                    return Err("a temperature effect needs a temperature model (the run \
+                                has no temperature column)"
+                        .into());
+                }
+                Ok(())
+            }
+            Effect::CrossTalk { ac, .. } => {
+                check_ac(ac)?;
+                if self.elevation.is_none() {
+                    return Err("a cross-talk effect needs an elevation model (the run \
+                                has no reading_y column)"
+                        .into());
+                }
+                Ok(())
+            }
+            Effect::OffsetStep {
+                ac,
+                cycle,
+                step,
+                setup,
+                ..
+            } => {
+                check_ac(ac)?;
+                check_cycle(cycle)?;
+                if let Some(step) = step {
+                    check_step(step)?;
+                }
+                if let Some(s) = setup {
+                    check_setup(s)?;
+                }
+                Ok(())
             }
             Effect::Direction { ac, .. } => {
                 if let Some(ac) = ac {
@@ -349,14 +440,9 @@ impl SimulationConfig {
             } => {
                 check_ac(ac)?;
                 check_cycle(cycle)?;
-                let last = self.stops_per_cycle() - 1;
-                if step > last {
-                    return Err(format!("no step {step}; the run has 0 … {last}"));
-                }
+                check_step(step)?;
                 match setup {
-                    Some(s) if s == 0 || s > self.setups => {
-                        Err(format!("no setup {s}; the run has 1 … {}", self.setups))
-                    }
+                    Some(s) => check_setup(s),
                     None if self.setups > 1 => Err(format!(
                         "the run has {} setups; say which one the outlier is in",
                         self.setups

@@ -20,7 +20,23 @@
 //! stops before this one (over the whole run, across cycles and setups) times
 //! `step_seconds`, shared by the autocollimators of one stop, starting at 0.
 //! `encoder_degrees` is the commanded position step·360/N (360 at the closing step);
-//! `reading_y_arcsec` and `temperature_celsius` are `None`; `line` is 0.
+//! `line` is 0.
+//!
+//! `temperature_celsius` is `None` unless the configuration has a [`TemperatureModel`];
+//! then every reading of a stop has the model's temperature at the stop's time, and the
+//! truth's `reference_temperature_celsius` is the mean of that column over all readings
+//! (the reference a `temperature` effect acts against). `reading_y_arcsec` is `None`
+//! unless the configuration has an [`ElevationModel`]; then it is the truth's
+//! [`ElevationTruth`] value of that reading plus noise, and a `cross-talk` effect acts
+//! on that written value.
+//!
+//! # Noise
+//!
+//! The reading noise has standard deviation `noise_arcsec`: `noise_arcsec`·z with z
+//! standard normal, or, with `noise_student_dof` = ν, `noise_arcsec`·z·√((ν − 2)/w) with
+//! w chi-squared with ν degrees of freedom: a Student-t variate (z/√(w/ν)) scaled to unit
+//! variance, with the same z as the normal noise and heavier tails (kurtosis
+//! 3 + 6/(ν − 4) for ν > 4).
 //!
 //! # Reproducibility
 //!
@@ -31,25 +47,44 @@
 //! versions of `rand_chacha` and `rand_distr`), and `simulate(c)` equals
 //! `Truth::draw(c)` followed by `simulate_with_truth(c, &truth)`. Because the noise has
 //! its own stream, a different spread or harmonic changes the truth but not the noise.
+//!
+//! The additions have streams of their own, so that a run without them is the same bit
+//! for bit as before they existed, and switching one on changes nothing else: stream 2
+//! the temperature noise (one standard normal per stop, in time order), stream 3 the
+//! elevation geometry ([`ElevationTruth`] documents the order), stream 4 the `reading_y`
+//! noise (one standard normal per reading, row order), stream 5 the chi-squared variates
+//! of Student-t noise (one per reading, row order). Each is drawn only when its model is
+//! on, and then even when its spread or noise is 0.
 
 mod config;
+mod models;
 mod truth;
 
 use std::path::PathBuf;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
+use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
 pub use config::{Harmonic, MAX_READINGS, SimulationConfig};
+pub use models::{ElevationModel, ElevationTruth, MountingTilt, TemperatureModel};
 pub use truth::{SetupErrorTruth, Truth};
 
+use crate::effects::Effect;
 use crate::measurement::{MeasurementSet, Reading, Stop, run_stops};
 
 /// ChaCha stream of the true values.
 const TRUTH_STREAM: u64 = 0;
 /// ChaCha stream of the reading noise.
 const NOISE_STREAM: u64 = 1;
+/// ChaCha stream of the temperature noise (one standard normal per stop).
+const TEMPERATURE_STREAM: u64 = 2;
+/// ChaCha stream of the true elevation geometry ([`ElevationTruth`]).
+const ELEVATION_TRUTH_STREAM: u64 = 3;
+/// ChaCha stream of the `reading_y` noise (one standard normal per reading).
+const ELEVATION_NOISE_STREAM: u64 = 4;
+/// ChaCha stream of the chi-squared variates of Student-t noise (one per reading).
+const STUDENT_STREAM: u64 = 5;
 
 /// Why a simulation or a truth file was refused.
 #[derive(Debug, thiserror::Error)]
@@ -116,12 +151,19 @@ pub fn simulate(config: &SimulationConfig) -> Result<(MeasurementSet, Truth), Si
 /// The true values and the effects come from `truth` (each reading is
 /// [`Truth::model_reading`] plus noise); from `config` only the design (faces,
 /// autocollimators, setups, shift, cycles, closing, bidirectional), `step_seconds`,
-/// `noise_arcsec` and `seed` are used — its spreads, harmonics and effects are ignored.
-/// This lets a test redraw the noise over many seeds with one truth.
+/// `noise_arcsec`, `noise_student_dof`, the temperature model, the elevation model's
+/// noise and `seed` are used — its spreads, harmonics and effects are ignored. This lets
+/// a test redraw the noise over many seeds with one truth. The `reading_y` column is
+/// written when `config` has an elevation model, from the truth's `elevation`; the
+/// temperature column when it has a temperature model (its noise follows `seed`, so with
+/// another seed than the truth was drawn with, the column's mean differs slightly from
+/// the truth's `reference_temperature_celsius`, which a temperature effect keeps using).
 ///
 /// Refused when `config` is invalid, the truth is invalid ([`Truth::validate`]), the
-/// numbers of faces differ, or an effect of the truth names something the run does not
-/// have.
+/// numbers of faces differ, an effect of the truth names something the run does not
+/// have (or needs a model `config` lacks), `config` has an elevation model and the truth
+/// no `elevation`, or the truth has a temperature effect and no
+/// `reference_temperature_celsius`.
 pub fn simulate_with_truth(
     config: &SimulationConfig,
     truth: &Truth,
@@ -144,12 +186,49 @@ pub fn simulate_with_truth(
             .map_err(|m| mismatch(format!("effect {}: {m}", config::effect_json(e))))?;
     }
 
+    if truth.reference_temperature_celsius.is_none()
+        && truth
+            .effects
+            .iter()
+            .any(|e| matches!(e, Effect::Temperature { .. }))
+    {
+        return Err(mismatch(
+            "it has a temperature effect but no reference_temperature_celsius".into(),
+        ));
+    }
+    let elevation = match (&config.elevation, &truth.elevation) {
+        (Some(model), Some(geometry)) => Some((model, geometry)),
+        (Some(_), None) => {
+            return Err(mismatch(
+                "the simulation settings have an elevation model, the truth no elevation".into(),
+            ));
+        }
+        (None, _) => None,
+    };
+    let temperatures = config
+        .temperature
+        .as_ref()
+        .map(|model| model.stop_temperatures(config));
+    let mut student = match config.noise_student_dof {
+        Some(nu) => {
+            let chi_squared = ChiSquared::new(nu).map_err(|e| {
+                SimulateError::Config(format!("Student-t noise with {nu} degrees of freedom: {e}"))
+            })?;
+            let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+            rng.set_stream(STUDENT_STREAM);
+            Some((nu, chi_squared, rng))
+        }
+        None => None,
+    };
+    let mut y_rng = ChaCha8Rng::seed_from_u64(config.seed);
+    y_rng.set_stream(ELEVATION_NOISE_STREAM);
+
     let n = config.faces;
     let n_ac = config.ac_count() as u32;
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
     rng.set_stream(NOISE_STREAM);
     let mut readings = Vec::with_capacity(config.reading_count());
-    let mut stop: u64 = 0;
+    let mut stop: usize = 0;
     for setup in 1..=config.setups {
         for Stop {
             cycle,
@@ -159,23 +238,36 @@ pub fn simulate_with_truth(
         {
             let time = stop as f64 * config.step_seconds;
             let encoder = step as f64 * 360.0 / n as f64;
+            let temperature = temperatures.as_ref().and_then(|t| t.get(stop).copied());
             for ac in 1..=n_ac {
+                let face = config.face_at(setup, ac, step);
+                let reading_y = elevation.map(|(model, geometry)| {
+                    let z: f64 = StandardNormal.sample(&mut y_rng);
+                    geometry.reading_y_at(setup, ac, step, face) + model.noise_arcsec * z
+                });
                 let mut reading = Reading {
                     setup,
                     cycle,
                     step,
                     ac,
-                    face: config.face_at(setup, ac, step),
+                    face,
                     reading_arcsec: 0.0,
                     direction,
                     time_seconds: Some(time),
-                    reading_y_arcsec: None,
-                    temperature_celsius: None,
+                    reading_y_arcsec: reading_y,
+                    temperature_celsius: temperature,
                     encoder_degrees: Some(encoder),
                     line: 0,
                 };
                 let z: f64 = StandardNormal.sample(&mut rng);
-                reading.reading_arcsec = truth.model_reading(&reading) + config.noise_arcsec * z;
+                reading.reading_arcsec = match &mut student {
+                    None => truth.model_reading(&reading) + config.noise_arcsec * z,
+                    Some((nu, chi_squared, chi_rng)) => {
+                        let w: f64 = chi_squared.sample(chi_rng);
+                        truth.model_reading(&reading)
+                            + config.noise_arcsec * z * ((*nu - 2.0) / w).sqrt()
+                    }
+                };
                 readings.push(reading);
             }
             stop += 1;

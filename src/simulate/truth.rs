@@ -9,7 +9,8 @@ use rand_distr::{Distribution, StandardNormal};
 
 use serde::{Deserialize, Serialize};
 
-use super::{SimulateError, SimulationConfig, TRUTH_STREAM};
+use super::models::ElevationTruth;
+use super::{ELEVATION_TRUTH_STREAM, SimulateError, SimulationConfig, TRUTH_STREAM};
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::Reading;
 use crate::polygon::face_deviation_from_pitch;
@@ -57,6 +58,13 @@ pub struct Truth {
     /// `temperature` column), °C; needed only when there is such an effect.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference_temperature_celsius: Option<f64>,
+    /// Degrees of freedom of the Student-t reading noise the run was made with; `None`
+    /// for normal noise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_student_dof: Option<f64>,
+    /// The true geometry of the elevation axis (`reading_y`), when the run has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elevation: Option<ElevationTruth>,
 }
 
 /// Removes the mean, then sets the last element to minus the (left-to-right) sum of the
@@ -78,7 +86,12 @@ impl Truth {
     /// - β\[k\] = `pitch_spread_arcsec`·z − mean, z standard normal, so Σβ = 0;
     /// - α\[p\] = Σ over harmonics of `a·cos(2π·k·p/N + phase)`, minus the mean, so Σα = 0;
     /// - U\[setup, ac\] = `setup_error_spread_arcsec`·z for every setup and autocollimator;
-    /// - φ = cumulative sums of β; `effects` and `noise_arcsec` copied from `config`.
+    /// - φ = cumulative sums of β; `effects`, `noise_arcsec` and `noise_student_dof`
+    ///   copied from `config`;
+    /// - with a temperature model, `reference_temperature_celsius` = the mean of the
+    ///   `temperature` column [`simulate`](super::simulate) writes with this `config`
+    ///   (over all readings, in row order);
+    /// - with an elevation model, `elevation` drawn as [`ElevationTruth`] says.
     ///
     /// After the mean is removed, the last β and the last α are set to minus the sum of
     /// the others, so both closures hold exactly in floating point (and φ\[N\] = 0).
@@ -86,7 +99,8 @@ impl Truth {
     /// The random draws come from stream 0 of `ChaCha8Rng::seed_from_u64(config.seed)`, in
     /// this fixed order: N standard normals for β\[1\] … β\[N\], then one per (setup, ac),
     /// setup 1's autocollimators 1, 2, … first. Draws are taken even when a spread is 0,
-    /// so changing a spread never changes the other values.
+    /// so changing a spread never changes the other values. The elevation geometry comes
+    /// from stream 3, the temperature noise from stream 2, so neither changes the rest.
     pub fn draw(config: &SimulationConfig) -> Result<Truth, SimulateError> {
         config.validate()?;
         let n = config.faces;
@@ -121,6 +135,21 @@ impl Truth {
             }
         }
 
+        let reference_temperature_celsius = config.temperature.as_ref().map(|model| {
+            let n_ac = config.ac_count();
+            let (sum, count) = model
+                .stop_temperatures(config)
+                .iter()
+                .flat_map(|&t| std::iter::repeat_n(t, n_ac))
+                .fold((0.0, 0usize), |(s, c), t| (s + t, c + 1));
+            sum / count as f64
+        });
+        let elevation = config.elevation.as_ref().map(|model| {
+            let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+            rng.set_stream(ELEVATION_TRUTH_STREAM);
+            ElevationTruth::draw(config, model, &mut rng)
+        });
+
         Ok(Truth {
             faces: n,
             face_deviation: face_deviation_from_pitch(&pitch_deviation),
@@ -129,7 +158,9 @@ impl Truth {
             setup_error,
             effects: config.effects.clone(),
             noise_arcsec: Some(config.noise_arcsec),
-            reference_temperature_celsius: None,
+            reference_temperature_celsius,
+            noise_student_dof: config.noise_student_dof,
+            elevation,
         })
     }
 
@@ -165,8 +196,11 @@ impl Truth {
 
     /// Checks the truth: faces ≥ 3; `pitch_deviation` and `encoder_error` (and
     /// `face_deviation` unless empty) have `faces` elements; every number is finite; setup
-    /// errors name setups and autocollimators ≥ 1, each pair once; effects name cycles and
-    /// autocollimators ≥ 1; the noise is ≥ 0. The closures Σβ = 0 and Σα = 0 are not
+    /// errors name setups and autocollimators ≥ 1, each pair once; effects name cycles,
+    /// setups and autocollimators ≥ 1 and a drift's `quadratic` is finite; the noise is
+    /// ≥ 0, Student-t degrees of freedom > 2, the reference temperature finite; the
+    /// `elevation` geometry has `faces` pyramidal errors, finite numbers, setups and
+    /// autocollimators ≥ 1, each once, and a noise ≥ 0. The closures Σβ = 0 and Σα = 0 are not
     /// enforced (a file written by hand may be rounded). The error text names the first
     /// problem.
     ///
@@ -226,6 +260,13 @@ impl Truth {
             if !e.value().is_finite() {
                 return Err(format!("effect {e}: value is not finite"));
             }
+            if let Effect::Drift {
+                quadratic: Some(q), ..
+            } = *e
+                && !q.is_finite()
+            {
+                return Err(format!("effect {e}: quadratic is not finite"));
+            }
             let zero = match *e {
                 Effect::Drift { ac, .. }
                 | Effect::Temperature { ac, .. }
@@ -248,6 +289,23 @@ impl Truth {
             && !(s.is_finite() && s >= 0.0)
         {
             return Err(format!("noise_arcsec is {s}; must be a finite number ≥ 0"));
+        }
+        if let Some(nu) = self.noise_student_dof
+            && !(nu.is_finite() && nu > 2.0)
+        {
+            return Err(format!(
+                "noise_student_dof is {nu}; must be a finite number > 2"
+            ));
+        }
+        if let Some(t) = self.reference_temperature_celsius
+            && !t.is_finite()
+        {
+            return Err(format!(
+                "reference_temperature_celsius is {t}; must be a finite number"
+            ));
+        }
+        if let Some(elevation) = &self.elevation {
+            elevation.check(n)?;
         }
         Ok(())
     }

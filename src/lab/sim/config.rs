@@ -63,7 +63,10 @@ impl LabConfig {
         self
     }
 
-    /// Checks the settings.
+    /// Checks the settings: the simulation's ([`SimulationConfig::validate`]), two
+    /// autocollimators, one mounting, a speed > 0, home time and time scale ≥ 0, and none
+    /// of the run simulator's temperature model, elevation model or Student-t noise, which
+    /// the lab does not simulate.
     ///
     /// # Errors
     ///
@@ -80,6 +83,24 @@ impl LabConfig {
         }
         if self.simulation.setups != 1 {
             return bad("the lab simulates one polygon mounting (setup 1)".into());
+        }
+        // The lab's instruments have no thermometer, their Y axis has its own model, and
+        // their noise is normal: refuse what the run simulator has beyond that rather
+        // than ignore it.
+        if self.simulation.temperature.is_some() {
+            return bad(
+                "the simulated lab has no temperature model (its instruments report no temperature)"
+                    .into(),
+            );
+        }
+        if self.simulation.elevation.is_some() {
+            return bad(format!(
+                "the simulated lab has no elevation model (its Y axis is a pyramidal error of spread {}″ plus noise)",
+                super::PYRAMIDAL_SPREAD_ARCSEC
+            ));
+        }
+        if self.simulation.noise_student_dof.is_some() {
+            return bad("the simulated lab's noise is normal (no Student-t noise)".into());
         }
         if !(self.speed_deg_per_s.is_finite() && self.speed_deg_per_s > 0.0) {
             return bad(format!(
