@@ -10,8 +10,9 @@
 //!   were measured);
 //! - *offset-step*: a jump of one autocollimator's zero (in one mounting when the file has
 //!   several) at every stop of the run in time order — a change-point search; the jump
-//!   must leave at least [`MIN_STEP_READINGS`] readings after it, since a jump over fewer
-//!   is an outlier;
+//!   must leave at least [`MIN_STEP_READINGS`] readings of the stream before it and after
+//!   it, since a jump over fewer is an outlier (a jump after the first reading is the
+//!   first reading off, as the setup error absorbs the rest);
 //! - *outlier*: the reading with the largest studentized residual, among all readings.
 
 use crate::effects::{Effect, EffectContext};
@@ -19,7 +20,7 @@ use crate::measurement::{Direction, MeasurementSet, Reading};
 
 use super::geometry::{ColumnScore, FitGeometry};
 
-/// The fewest readings of a stream a jump may affect (fewer are outliers).
+/// The fewest readings of a stream on either side of a jump (fewer are outliers).
 pub const MIN_STEP_READINGS: usize = 3;
 
 /// One column of the model: an effect's value, or the quadratic part of a drift.
@@ -238,7 +239,7 @@ pub fn offset_step_candidates(
             continue;
         }
         let scores = geometry.suffix_scores(&order, residuals);
-        for k in 1..=order.len() - MIN_STEP_READINGS {
+        for k in MIN_STEP_READINGS..=order.len() - MIN_STEP_READINGS {
             let r = &set.readings[order[k]];
             let previous = &set.readings[order[k - 1]];
             // A jump at a cycle's first reading is a jump "from that cycle on".
