@@ -440,7 +440,7 @@ fn cross_talk_is_found_in_two_mountings_and_named_untestable_in_one() {
             .position(|f| matches!(f.effect, Effect::CrossTalk { ac: 2, .. }))
             .unwrap_or_else(|| panic!("{:#?}", d.effects));
         value_within_3u(&d, index, 0.01);
-        assert_near_oracle(&d, &set, &truth, &[effect.clone()]);
+        assert_near_oracle(&d, &set, &truth, std::slice::from_ref(&effect));
         assert!(d.adequacy.adequate, "{:?}", d.adequacy.checks);
 
         let mut one = config(vec![effect.clone()], 92, bidirectional);
