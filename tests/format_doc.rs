@@ -1,12 +1,12 @@
 //! Every JSON field name polycal prints or writes is documented in `docs/FORMAT.md`.
 //!
 //! The test runs the binary on the commands whose JSON the contract describes — `solve`
-//! (plain, with `--budget`, with `--monte-carlo`, several files), `diagnose` with a truth,
-//! `budget`, `compare`, the truth file of `simulate`, and on Unix a whole `run` against
-//! `sim-lab` (its device paths, `manifest.json` and every line of `traffic.jsonl`) —
-//! collects every object key, at any depth, and checks that each appears in the document
-//! as a code span (`` `name` ``). A field added to an output without a word in the
-//! contract fails here, with every missing name listed at once.
+//! (plain, with `--budget`, with `--monte-carlo`, several files), `diagnose` with a truth
+//! and with `--budget`, `budget`, `compare`, the truth file of `simulate`, and on Unix a
+//! whole `run` against `sim-lab` (its device paths, `manifest.json` and every line of
+//! `traffic.jsonl`) — collects every object key, at any depth, and checks that each
+//! appears in the document as a code span (`` `name` ``). A field added to an output
+//! without a word in the contract fails here, with every missing name listed at once.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -151,6 +151,9 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
     fields.add("truth file of simulate", &read_json(Path::new(&truth)));
     for v in json_lines(&["diagnose", &drift, "--truth", &truth, "--format", "json"]) {
         fields.add("diagnose --truth --format json", &v);
+    }
+    for v in json_lines(&["diagnose", &drift, "--budget", BUDGET, "--format", "json"]) {
+        fields.add("diagnose --budget --format json", &v);
     }
 
     // Several files: JSON Lines with "file".

@@ -4,11 +4,11 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
+use clap::ValueEnum;
 use polycal::input::display_name;
 use polycal::uncertainty::BudgetFile;
 
 use super::EXIT_OK;
-use super::diagnose::ReportFormat;
 
 /// After `polycal budget --help`.
 pub const EXAMPLES: &str = "\
@@ -25,6 +25,13 @@ pub struct BudgetArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "table")]
     format: ReportFormat,
+}
+
+/// `budget --format`.
+#[derive(Clone, Copy, ValueEnum)]
+enum ReportFormat {
+    Table,
+    Json,
 }
 
 /// `polycal budget`: returns the exit status, or an error for the `error:` line.

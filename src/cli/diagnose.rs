@@ -1,4 +1,5 @@
-//! `polycal diagnose`: the effects the base model lacks, found, added and reported.
+//! `polycal diagnose`: the effects the base model lacks, found, added and reported, and
+//! the final model's calibration with the uncertainty of an instrument budget.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -8,10 +9,11 @@ use clap::ValueEnum;
 use polycal::diagnose::{self, DiagnoseOptions};
 use polycal::input::display_name;
 use polycal::measurement::{MeasurementSet, Sigma};
-use polycal::report::diagnose::DiagnoseReport;
+use polycal::report::{self, diagnose::DiagnoseReport};
 use polycal::simulate::Truth;
 
 use super::output::Output;
+use super::solve::{evaluate_budget, read_budget, write_result_csv};
 use super::{EXIT_ERROR, EXIT_OK, EXIT_VERDICT};
 
 /// After `polycal diagnose --help`.
@@ -19,6 +21,8 @@ pub const EXAMPLES: &str = "\
 Examples:
   polycal diagnose examples/data/polygon24-2ac-6cycles.csv
   polycal diagnose examples/data/polygon24-2ac-6cycles.csv --truth examples/data/polygon24-2ac-6cycles.truth.json
+  polycal diagnose examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml
+  polycal diagnose examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml --format csv > result.csv
   polycal simulate --closing --drift 2:1.5 | polycal diagnose - --format json";
 
 /// Arguments of `polycal diagnose`.
@@ -36,26 +40,34 @@ pub struct DiagnoseArgs {
     /// Standard deviation of one reading, arcsec, if known: adds a χ² check.
     #[arg(long, allow_negative_numbers = true)]
     sigma: Option<Sigma>,
-    /// Output format.
+    /// Instrument budget (TOML, as for `solve --budget`): adds the expanded uncertainty U
+    /// and k of every result of the final model (base model + the effects found).
+    #[arg(long, value_name = "FILE.toml")]
+    budget: Option<PathBuf>,
+    /// Output format: `csv` writes the final model's result file (docs/FORMAT.md §3),
+    /// as `solve --format csv` does.
     #[arg(long, value_enum, default_value = "table")]
-    format: ReportFormat,
+    format: DiagnoseFormat,
 }
 
-/// The formats of `diagnose` and `budget`.
+/// `diagnose --format`.
 #[derive(Clone, Copy, ValueEnum)]
-pub enum ReportFormat {
+enum DiagnoseFormat {
     Table,
     Json,
+    Csv,
 }
 
 /// `polycal diagnose`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
     let truth = args.truth.as_deref().map(Truth::read_path).transpose()?;
+    let budget = read_budget(args.budget.as_deref(), out)?;
     let options = DiagnoseOptions::new().with_sigma_opt(args.sigma);
     let several = args.files.len() > 1;
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
     let (mut failures, mut inadequate) = (0, 0);
+    let mut csv_rows = Vec::new();
     for path in &args.files {
         // The name in messages (`<stdin>` for `-`); reports keep the path as given.
         let name = display_name(path);
@@ -63,9 +75,11 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         let diagnosed = MeasurementSet::read_path(path, args.faces)
             .map_err(anyhow::Error::from)
             .and_then(|set| {
-                diagnose::diagnose(&set, &options).with_context(|| format!("{name}: cannot solve"))
+                diagnose::diagnose(&set, &options)
+                    .with_context(|| format!("{name}: cannot solve"))
+                    .map(|diagnosis| (set, diagnosis))
             });
-        let diagnosis = match diagnosed {
+        let (set, diagnosis) = match diagnosed {
             Ok(d) => d,
             Err(error) => {
                 out.error(&error);
@@ -83,29 +97,48 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             failures += 1;
             continue;
         }
+        // The budget acts on the final model: its results are the ones reported.
+        let gum = match budget
+            .as_ref()
+            .map(|budget| evaluate_budget(&set, &diagnosis.after, budget, &name))
+            .transpose()
+        {
+            Ok(gum) => gum,
+            Err(error) => {
+                out.error(&error);
+                failures += 1;
+                continue;
+            }
+        };
         if !diagnosis.adequacy.adequate {
             inadequate += 1;
         }
         match args.format {
-            ReportFormat::Json => {
-                let report =
+            DiagnoseFormat::Json => {
+                let mut report =
                     DiagnoseReport::new(&diagnosis, truth.as_ref(), several.then(|| label.clone()));
+                if let Some(gum) = &gum {
+                    report.after = report.after.with_uncertainty(gum);
+                }
                 writeln!(stdout, "{}", report.to_json()?)?;
             }
-            ReportFormat::Table => {
+            DiagnoseFormat::Table => {
                 if several {
                     writeln!(stdout)?;
                 }
                 let mut text = String::new();
-                polycal::report::diagnose::write_table(
-                    &mut text,
-                    &diagnosis,
-                    truth.as_ref(),
-                    &label,
-                )?;
+                report::diagnose::write_table(&mut text, &diagnosis, truth.as_ref(), &label)?;
+                report::write_final_model_results(&mut text, &diagnosis.after, gum.as_ref())?;
                 write!(stdout, "{text}")?;
             }
+            DiagnoseFormat::Csv => {
+                let rows = report::result_rows_with(&diagnosis.after, gum.as_ref());
+                csv_rows.push((label, rows));
+            }
         }
+    }
+    if matches!(args.format, DiagnoseFormat::Csv) {
+        write_result_csv(&mut stdout, several, &csv_rows)?;
     }
     stdout.flush()?;
     if failures > 0 {

@@ -2,15 +2,18 @@
 //! errors, with the uncertainty of a budget and a Monte Carlo through the solver.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::ValueEnum;
 use polycal::input::display_name;
 use polycal::measurement::{MeasurementSet, Sigma};
 use polycal::report::{self, SolveReport};
-use polycal::solve::{self, Method, SolveError, SolveOptions};
-use polycal::uncertainty::calibration::{self, InstrumentBudget, McOptions, McSolver};
+use polycal::results::ResultRow;
+use polycal::solve::{self, Method, Solution, SolveError, SolveOptions};
+use polycal::uncertainty::calibration::{
+    self, CalibrationUncertainty, InstrumentBudget, McOptions, McSolver,
+};
 use polycal::uncertainty::monte_carlo::Trials;
 
 use super::output::Output;
@@ -110,22 +113,13 @@ fn parse_trials(text: &str) -> Result<McTrials, String> {
 
 /// `polycal solve`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
-    let budget = args
-        .budget
-        .as_deref()
-        .map(InstrumentBudget::read_path)
-        .transpose()?;
-    if args.monte_carlo.is_some() && budget.is_none() {
+    if args.monte_carlo.is_some() && args.budget.is_none() {
         bail!(
             "--monte-carlo needs --budget: the Monte Carlo propagates the instrument budget \
              with the reading noise (see examples/budgets/instrument.toml)"
         );
     }
-    if let Some(budget) = &budget {
-        for note in budget.notes() {
-            out.warning(note);
-        }
-    }
+    let budget = read_budget(args.budget.as_deref(), out)?;
     let mc_options = args.monte_carlo.map(|trials| {
         McOptions::new(match trials {
             McTrials::Fixed(m) => Trials::Fixed(m),
@@ -168,13 +162,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             let Some(budget) = &budget else {
                 return Ok((solution, None, None));
             };
-            let gum = calibration::evaluate(&set, &solution, budget)
-                .map_err(|e| match e {
-                    // Library messages name no flags: the CLI adds the one that helps.
-                    calibration::CalibrationError::NoSigma => anyhow::anyhow!("{e} (--sigma)"),
-                    e => e.into(),
-                })
-                .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
+            let gum = evaluate_budget(&set, &solution, budget, &name)?;
             let mc = mc_options
                 .as_ref()
                 .map(|options| {
@@ -223,12 +211,8 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             }
         }
     }
-    if matches!(args.format, SolveFormat::Csv) && !csv_rows.is_empty() {
-        if several {
-            report::write_results_with_file(&mut stdout, &csv_rows)?;
-        } else {
-            polycal::results::write_results(&mut stdout, &csv_rows[0].1)?;
-        }
+    if matches!(args.format, SolveFormat::Csv) {
+        write_result_csv(&mut stdout, several, &csv_rows)?;
     }
     stdout.flush()?;
     if failures > 0 {
@@ -245,6 +229,49 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         return Ok(EXIT_VERDICT);
     }
     Ok(EXIT_OK)
+}
+
+/// The instrument budget of `--budget` (`solve` and `diagnose`), read once, with a
+/// `warning:` for each of its notes (a type-A component counts twice).
+pub(super) fn read_budget(path: Option<&Path>, out: &Output) -> Result<Option<InstrumentBudget>> {
+    let budget = path.map(InstrumentBudget::read_path).transpose()?;
+    if let Some(budget) = &budget {
+        for note in budget.notes() {
+            out.warning(note);
+        }
+    }
+    Ok(budget)
+}
+
+/// The GUM uncertainty of a solved file under the budget (`solve` and `diagnose`), its
+/// error naming the file and the option that helps.
+pub(super) fn evaluate_budget(
+    set: &MeasurementSet,
+    solution: &Solution,
+    budget: &InstrumentBudget,
+    name: &str,
+) -> Result<CalibrationUncertainty> {
+    calibration::evaluate(set, solution, budget)
+        .map_err(|e| match e {
+            // Library messages name no flags: the CLI adds the one that helps.
+            calibration::CalibrationError::NoSigma => anyhow::anyhow!("{e} (--sigma)"),
+            e => e.into(),
+        })
+        .with_context(|| format!("{name}: cannot evaluate the uncertainty"))
+}
+
+/// The result file (docs/FORMAT.md §3) of the files solved (`solve` and `diagnose`): with
+/// several input files, one CSV with a leading `file` column; nothing when none was solved.
+pub(super) fn write_result_csv(
+    stdout: &mut impl Write,
+    several: bool,
+    files: &[(String, Vec<ResultRow>)],
+) -> std::io::Result<()> {
+    match files {
+        [] => Ok(()),
+        [(_, rows)] if !several => polycal::results::write_results(stdout, rows),
+        _ => report::write_results_with_file(stdout, files),
+    }
 }
 
 /// A solver error with the option that gets past it, where one does.

@@ -1,7 +1,8 @@
 //! How results are written for people and for programs: one file per command.
 //!
 //! - [`solve`]: the JSON object of `polycal solve` (docs/FORMAT.md §5) and the result rows
-//!   of its CSV (§3); [`solve_table`]: its table for people;
+//!   of its CSV (§3); [`solve_table`]: its table for people, whose results section
+//!   (β, φ, α with their uncertainties) `diagnose` also prints for its final model;
 //! - [`diagnose`]: the JSON object and the table of `polycal diagnose`;
 //! - [`compare`]: the table of `polycal compare` (its JSON is [`crate::compare::Comparison`]).
 //!
@@ -18,7 +19,7 @@ pub mod solve_table;
 pub use solve::{
     Format, SetupErrorReport, SolveReport, result_rows, result_rows_with, write_results_with_file,
 };
-pub use solve_table::write_table;
+pub use solve_table::{write_final_model_results, write_results, write_table};
 
 use serde::Serialize;
 

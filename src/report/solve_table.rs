@@ -1,5 +1,7 @@
 //! The table of `polycal solve` for people: rounded, with units, the uncertainty budget
-//! and the Monte Carlo validation when they were evaluated.
+//! and the Monte Carlo validation when they were evaluated. Its results section
+//! ([`write_results`]) is also what `polycal diagnose` prints for its final model
+//! ([`write_final_model_results`]).
 
 use super::fixed;
 use crate::solve::{Method, SigmaSource, Solution};
@@ -33,12 +35,30 @@ pub fn write_table<W: Write>(
         "{n} faces, {} readings, {method}, dof {}, residual RMS {}",
         solution.readings,
         solution.dof,
-        solution
-            .residual_rms()
-            .map_or("— (exactly determined)".to_string(), |r| format!(
-                "{r:.4}″"
-            ))
+        rms_text(solution)
     )?;
+    write_results(out, solution, uncertainty)?;
+    if let Some(mc) = monte_carlo {
+        write_monte_carlo(out, solution, uncertainty, mc)?;
+    }
+    Ok(())
+}
+
+/// Writes the results section of the table, what [`write_table`] prints after its two
+/// summary lines: where the standard uncertainties come from; per face β, u(β), φ, u(φ);
+/// per position the angle, α, u(α); the setup errors. With `uncertainty` (an instrument
+/// budget), the type A u_A, combined u_c, k and U per quantity and what each budget
+/// component contributes.
+///
+/// # Errors
+///
+/// The writer's error.
+pub fn write_results<W: Write>(
+    out: &mut W,
+    solution: &Solution,
+    uncertainty: Option<&CalibrationUncertainty>,
+) -> fmt::Result {
+    let n = solution.faces;
     match solution.sigma {
         Some((s, SigmaSource::Residual)) => {
             writeln!(out, "uncertainties (k = 1) from the residual σ = {s:.4}″")?;
@@ -252,10 +272,47 @@ pub fn write_table<W: Write>(
             largest(&unc.encoder_error.u),
         )?;
     }
-    if let Some(mc) = monte_carlo {
-        write_monte_carlo(out, solution, uncertainty, mc)?;
-    }
     Ok(())
+}
+
+/// Writes the results section ([`write_results`]) of the final model of
+/// `polycal diagnose` under a heading that says so: the calibration corrected for the
+/// effect terms of `solution` (base model + effects), with its dof and residual RMS.
+///
+/// # Errors
+///
+/// The writer's error.
+pub fn write_final_model_results<W: Write>(
+    out: &mut W,
+    solution: &Solution,
+    uncertainty: Option<&CalibrationUncertainty>,
+) -> fmt::Result {
+    let model = match solution.layout.effects {
+        0 => "the base model, no effect added".to_string(),
+        1 => "base model + the effect term above".to_string(),
+        e => format!("base model + the {e} effect terms above"),
+    };
+    writeln!(
+        out,
+        "\nCalibration of the final model ({model}){}: dof {}, residual RMS {}",
+        if solution.layout.effects > 0 {
+            ", corrected for the effects"
+        } else {
+            ""
+        },
+        solution.dof,
+        rms_text(solution)
+    )?;
+    write_results(out, solution, uncertainty)
+}
+
+/// The residual RMS for the table, or why there is none.
+fn rms_text(solution: &Solution) -> String {
+    solution
+        .residual_rms()
+        .map_or("— (exactly determined)".to_string(), |r| {
+            format!("{r:.4}″")
+        })
 }
 
 fn write_monte_carlo<W: Write>(

@@ -262,6 +262,7 @@ impl PaperDesign {
                 .map(|((setup, ac), value)| SetupError { setup, ac, value })
                 .collect(),
             effect_values: Vec::new(),
+            effect_regressors: Vec::new(),
             residuals,
             readings: set.readings.len(),
             dof,

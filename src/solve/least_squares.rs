@@ -179,6 +179,7 @@ pub fn least_squares_with_regressors(
             })
             .collect(),
         effect_values: theta[2 * n + k..].to_vec(),
+        effect_regressors: regressors.to_vec(),
         residuals,
         readings: set.readings.len(),
         dof,

@@ -204,6 +204,11 @@ pub struct Solution {
     pub setup_error: Vec<SetupError>,
     /// Estimates of the effect terms (regressors), in the order given.
     pub effect_values: Vec<f64>,
+    /// The effect columns of the design matrix, in the order of `effect_values`: one
+    /// regressor per effect term, one value per reading of the measurement set (empty for
+    /// the base model). The uncertainty propagation through the design
+    /// ([`crate::uncertainty::calibration`]) needs them.
+    pub effect_regressors: Vec<Vec<f64>>,
     /// Reading minus model, in the order of the measurement set.
     pub residuals: Vec<f64>,
     /// Number of readings used.

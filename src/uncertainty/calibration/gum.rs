@@ -126,8 +126,8 @@ fn family_name_and_index(j: usize, n: usize) -> (Quantity, usize) {
 ///
 /// # Errors
 ///
-/// [`CalibrationError`]: no σ (an exactly determined fit without a stated σ), effect terms,
-/// a solution of another set, an invalid budget, or ⌊ν_eff⌋ < 1 under the floor policy.
+/// [`CalibrationError`]: no σ (an exactly determined fit without a stated σ), a solution
+/// of another set, an invalid budget, or ⌊ν_eff⌋ < 1 under the floor policy.
 pub fn evaluate(
     set: &MeasurementSet,
     solution: &Solution,

@@ -4,10 +4,14 @@
 //!
 //! # The propagation (GUM)
 //!
-//! The solver is linear in the readings: θ̂ = L y with θ = [β (N), α (N), U (K)], and for
-//! independent readings of equal weight Cov(θ̂) = σ² Q with Q = L Lᵀ the fit's cofactor
-//! matrix ([`Solution::cofactor`](crate::solve::Solution::cofactor)); L = Q Xᵀ with X the design matrix of the model, so
-//! L is built from Q without solving again. A type-B component is an error of the
+//! The solver is linear in the readings: θ̂ = L y with θ = [β (N), α (N), U (K),
+//! effects (E)], and for independent readings of equal weight Cov(θ̂) = σ² Q with
+//! Q = L Lᵀ the fit's cofactor matrix
+//! ([`Solution::cofactor`](crate::solve::Solution::cofactor)); L = Q Xᵀ with X the design
+//! matrix of the model, so L is built from Q without solving again. The effect terms of
+//! a model with effects (the final model of [`crate::diagnose`]) are columns of X like
+//! the others ([`Solution::effect_regressors`](crate::solve::Solution::effect_regressors)):
+//! the results are those of that model, and so are their uncertainties. A type-B component is an error of the
 //! readings; its *scope* says which readings share one draw of it. If the readings of
 //! group g share the error e_g (standard uncertainty u, independent between groups),
 //! quantity j moves by Σ_g e_g Σ_{i∈g} L_ji and receives
@@ -94,11 +98,6 @@ pub enum CalibrationError {
          uncertainty is unknown: state the standard deviation of one reading"
     )]
     NoSigma,
-    /// The solution has effect terms, which this propagation does not cover.
-    #[error(
-        "the fit has {0} effect terms: the propagation of the budget covers the base model only"
-    )]
-    Effects(usize),
     /// The solution is not the solution of this measurement set.
     #[error("the solution does not belong to the measurement set: {0}")]
     Mismatch(String),

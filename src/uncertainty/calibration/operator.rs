@@ -1,6 +1,7 @@
 //! The fit as a linear map of the readings: the solution operator L = Q Xᵀ (θ̂ = L y,
-//! with Q the fit's cofactor matrix and X the design matrix), and the gains
-//! G_j = Σ_g (Σ_{i∈g} L_ji)² of a scope through which a type-B error reaches quantity j.
+//! with Q the fit's cofactor matrix and X the design matrix, effect columns included),
+//! and the gains G_j = Σ_g (Σ_{i∈g} L_ji)² of a scope through which a type-B error
+//! reaches quantity j.
 
 use std::ops::Range;
 
@@ -8,14 +9,16 @@ use super::{CalibrationError, Scope};
 use crate::measurement::MeasurementSet;
 use crate::solve::Solution;
 
-/// The fit as a linear map of the readings: θ̂ = Q Xᵀ y, θ = [β (N), α (N), U (K)] in
-/// the model of one reading (the paper's eq. (2)) under the closure conditions Σβ = 0
-/// and Σα = 0 (eqs. (1) and (3)).
+/// The fit as a linear map of the readings: θ̂ = Q Xᵀ y, θ = [β (N), α (N), U (K),
+/// effects (E)] in the model of one reading (the paper's eq. (2), plus the effect terms
+/// of the solution's [`Solution::effect_regressors`]) under the closure conditions
+/// Σβ = 0 and Σα = 0 (eqs. (1) and (3)).
 #[derive(Debug, Clone)]
 pub(super) struct Operator {
     pub(super) faces: usize,
     pub(super) streams: usize,
-    /// Q, row-major, (2N + K)².
+    pub(super) effects: usize,
+    /// Q, row-major, (2N + K + E)².
     q: Vec<f64>,
     /// Q with its β columns summed cumulatively: qc\[j·N + f\] = Σ_{k ≤ f} Q\[j, k\].
     qc: Vec<f64>,
@@ -23,15 +26,14 @@ pub(super) struct Operator {
     position: Vec<usize>,
     face: Vec<usize>,
     stream: Vec<usize>,
+    /// Per reading, its E effect regressors: x\[i·E + e\].
+    x: Vec<f64>,
 }
 
 impl Operator {
     pub(super) fn new(set: &MeasurementSet, solution: &Solution) -> Result<Self, CalibrationError> {
         let n = solution.faces;
         let layout = solution.layout;
-        if layout.effects > 0 {
-            return Err(CalibrationError::Effects(layout.effects));
-        }
         if set.faces != n
             || set.readings.len() != solution.readings
             || solution.residuals.len() != set.readings.len()
@@ -44,7 +46,35 @@ impl Operator {
                 solution.readings
             )));
         }
+        let e = layout.effects;
+        if solution.effect_regressors.len() != e
+            || solution.effect_values.len() != e
+            || solution
+                .effect_regressors
+                .iter()
+                .any(|x| x.len() != set.readings.len())
+        {
+            return Err(CalibrationError::Mismatch(format!(
+                "{} effect terms, {} effect values and {} regressors of lengths {:?} for {} readings",
+                e,
+                solution.effect_values.len(),
+                solution.effect_regressors.len(),
+                solution
+                    .effect_regressors
+                    .iter()
+                    .map(Vec::len)
+                    .collect::<Vec<_>>(),
+                set.readings.len()
+            )));
+        }
         let len = layout.len();
+        if solution.cofactor.nrows() != len || solution.cofactor.ncols() != len {
+            return Err(CalibrationError::Mismatch(format!(
+                "a cofactor matrix of {}×{} for {len} parameters",
+                solution.cofactor.nrows(),
+                solution.cofactor.ncols()
+            )));
+        }
         let q: Vec<f64> = (0..len * len)
             .map(|i| solution.cofactor[(i / len, i % len)])
             .collect();
@@ -70,33 +100,46 @@ impl Operator {
                 })?;
             stream.push(s);
         }
+        let x = (0..set.readings.len())
+            .flat_map(|i| solution.effect_regressors.iter().map(move |x| x[i]))
+            .collect();
         Ok(Operator {
             faces: n,
             streams: layout.setups,
+            effects: e,
             q,
             qc,
             position: set.readings.iter().map(|r| r.position(n)).collect(),
             face: set.readings.iter().map(|r| r.face - 1).collect(),
             stream,
+            x,
         })
     }
 
     pub(super) fn len(&self) -> usize {
-        2 * self.faces + self.streams
+        2 * self.faces + self.streams + self.effects
+    }
+
+    /// The effect regressors of reading i.
+    fn regressors(&self, i: usize) -> &[f64] {
+        &self.x[i * self.effects..(i + 1) * self.effects]
     }
 
     /// Adds w·L\[:, i\] (the response of θ̂ to reading i) to `theta`.
     pub(super) fn add_column(&self, i: usize, w: f64, theta: &mut [f64]) {
         let (n, len) = (self.faces, self.len());
         let (a, f, s) = (n + self.position[i], self.face[i], 2 * n + self.stream[i]);
+        let first_effect = 2 * n + self.streams;
+        let x = self.regressors(i);
         for (j, t) in theta.iter_mut().enumerate() {
             let row = &self.q[j * len..(j + 1) * len];
-            *t += w * (row[a] + self.qc[j * n + f] + row[s]);
+            let effects: f64 = row[first_effect..].iter().zip(x).map(|(q, x)| q * x).sum();
+            *t += w * (row[a] + self.qc[j * n + f] + row[s] + effects);
         }
     }
 
     /// θ̂ rows `rows` for the readings `y`: b = Xᵀy, then θ = Q b. `face_sums` (N) and
-    /// `b` (2N + K) are scratch.
+    /// `b` (2N + K + E) are scratch.
     pub(super) fn solve(
         &self,
         y: &[f64],
@@ -108,10 +151,14 @@ impl Operator {
         let n = self.faces;
         face_sums.fill(0.0);
         b.fill(0.0);
+        let first_effect = 2 * n + self.streams;
         for (i, &v) in y.iter().enumerate() {
             face_sums[self.face[i]] += v;
             b[n + self.position[i]] += v;
             b[2 * n + self.stream[i]] += v;
+            for (b, x) in b[first_effect..].iter_mut().zip(self.regressors(i)) {
+                *b += x * v;
+            }
         }
         // X has a 1 in β_k for every face ≥ k (φ_f = β_1 + … + β_f).
         let mut suffix = 0.0;
@@ -127,10 +174,10 @@ impl Operator {
     }
 }
 
-/// The quantities reported, from θ = [β, α, U]: [β (N), φ (N), α (N), U (K)], with
-/// φ\[N\] = 0 exactly.
+/// The quantities reported, from θ = [β, α, U, effects]: [β (N), φ (N), α (N), U (K)]
+/// (`out` holds 3N + K values), with φ\[N\] = 0 exactly.
 pub(super) fn quantities(theta: &[f64], n: usize, out: &mut [f64]) {
-    let k = theta.len() - 2 * n;
+    let k = out.len() - 3 * n;
     out[..n].copy_from_slice(&theta[..n]);
     let mut running = 0.0;
     for f in 0..n {
@@ -139,7 +186,7 @@ pub(super) fn quantities(theta: &[f64], n: usize, out: &mut [f64]) {
     }
     out[2 * n - 1] = 0.0;
     out[2 * n..3 * n].copy_from_slice(&theta[n..2 * n]);
-    out[3 * n..3 * n + k].copy_from_slice(&theta[2 * n..]);
+    out[3 * n..3 * n + k].copy_from_slice(&theta[2 * n..2 * n + k]);
 }
 
 /// Dense group number of every reading for a scope (not for [`Scope::Result`]).
@@ -245,5 +292,85 @@ mod tests {
                 assert!((sigma * g[14 + k].sqrt() - ua[k]).abs() < 1e-12);
             }
         }
+    }
+
+    /// With effect columns (a drift-like ramp on autocollimator 2 and one reading left
+    /// out as an outlier), L = Q Xᵀ still reproduces the solver, effect values included,
+    /// and σ²·Σ_i L_ji² is the fit's own variance; the outlier's reading moves nothing
+    /// but its own effect term.
+    #[test]
+    fn operator_is_the_solver_with_effects() {
+        use crate::solve::least_squares_with_regressors;
+        let s = set(7, 3, true, 5);
+        let ramp: Vec<f64> = s
+            .readings
+            .iter()
+            .enumerate()
+            .map(|(i, r)| if r.ac == 2 { i as f64 / 10.0 } else { 0.0 })
+            .collect();
+        let mut outlier = vec![0.0; s.readings.len()];
+        outlier[17] = 1.0;
+        let solution = least_squares_with_regressors(&s, &[ramp, outlier], None).unwrap();
+        assert_eq!(solution.layout.effects, 2);
+        let op = Operator::new(&s, &solution).unwrap();
+        let y: Vec<f64> = s.readings.iter().map(|r| r.reading_arcsec).collect();
+        let mut theta = vec![0.0; op.len()];
+        for (i, &v) in y.iter().enumerate() {
+            op.add_column(i, v, &mut theta);
+        }
+        let mut theta2 = vec![0.0; op.len()];
+        op.solve(
+            &y,
+            &mut [0.0; 7],
+            &mut vec![0.0; op.len()],
+            0..op.len(),
+            &mut theta2,
+        );
+        let expected: Vec<f64> = solution
+            .pitch_deviation
+            .iter()
+            .chain(&solution.encoder_error)
+            .chain(solution.setup_error.iter().map(|s| &s.value))
+            .chain(&solution.effect_values)
+            .copied()
+            .collect();
+        assert_eq!(expected.len(), op.len());
+        for (j, e) in expected.iter().enumerate() {
+            assert!((theta[j] - e).abs() < 1e-10, "{j}: {} vs {e}", theta[j]);
+            assert!((theta2[j] - e).abs() < 1e-10, "{j}: {} vs {e}", theta2[j]);
+        }
+        let mut column = vec![0.0; op.len()];
+        op.add_column(17, 1.0, &mut column);
+        for (j, c) in column.iter().enumerate() {
+            let own = if j == op.len() - 1 { 1.0 } else { 0.0 };
+            assert!((c - own).abs() < 1e-10, "{j}: {c}");
+        }
+        let g = gains(&op, &s, Scope::EachReading);
+        let sigma = solution.sigma.unwrap().0;
+        let u = solution.pitch_deviation_u().unwrap();
+        let ua = solution.encoder_error_u().unwrap();
+        let us = solution.setup_error_u().unwrap();
+        for k in 0..7 {
+            assert!((sigma * g[k].sqrt() - u[k]).abs() < 1e-12);
+            assert!((sigma * g[14 + k].sqrt() - ua[k]).abs() < 1e-12);
+        }
+        for (k, us) in us.iter().enumerate() {
+            assert!((sigma * g[21 + k].sqrt() - us).abs() < 1e-12);
+        }
+    }
+
+    /// A solution whose effect columns are missing is refused, not propagated as if it
+    /// had none.
+    #[test]
+    fn missing_effect_columns_are_refused() {
+        use crate::solve::least_squares_with_regressors;
+        let s = set(7, 3, true, 6);
+        let ramp: Vec<f64> = (0..s.readings.len()).map(|i| i as f64).collect();
+        let mut solution = least_squares_with_regressors(&s, &[ramp], None).unwrap();
+        solution.effect_regressors.clear();
+        assert!(matches!(
+            Operator::new(&s, &solution),
+            Err(CalibrationError::Mismatch(_))
+        ));
     }
 }

@@ -17,8 +17,8 @@ use crate::uncertainty::monte_carlo::{Trial, TrialFailure};
 /// Which solver the Monte Carlo trials use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum McSolver {
-    /// The paper's closed form (eqs. (6)–(10)) when the design is the paper's, else
-    /// least squares.
+    /// The paper's closed form (eqs. (6)–(10)) when the design is the paper's and the
+    /// model has no effect terms, else least squares.
     #[default]
     Auto,
     /// The least-squares solution operator θ = Q Xᵀ y, whatever the design.
@@ -172,9 +172,11 @@ impl McModel {
         let op = Operator::new(set, solution)?;
         let (sigma, source) = solution.sigma.ok_or(CalibrationError::NoSigma)?;
         let n = op.faces;
+        // The closed form has no effect terms: a model with effects is solved by its
+        // operator, effect columns included.
         let design = match solver {
-            McSolver::Auto => PaperDesign::detect(set).ok(),
-            McSolver::LeastSquares => None,
+            McSolver::Auto if solution.layout.effects == 0 => PaperDesign::detect(set).ok(),
+            McSolver::Auto | McSolver::LeastSquares => None,
         };
         // Where each reading lands: (target, weight).
         let (targets, map): (usize, Vec<(usize, f64)>) = match &design {
