@@ -289,8 +289,8 @@ pub fn write_final_model_results<W: Write>(
 ) -> fmt::Result {
     let model = match solution.layout.effects {
         0 => "the base model, no effect added".to_string(),
-        1 => "base model + the effect term above".to_string(),
-        e => format!("base model + the {e} effect terms above"),
+        1 => "base model + the effect above, 1 fitted term".to_string(),
+        e => format!("base model + the effects above, {e} fitted terms"),
     };
     writeln!(
         out,
