@@ -486,3 +486,29 @@ fn heavy_tailed_noise_rarely_gets_a_systematic_effect() {
     eprintln!("heavy tails: {systematic} of 50 got a systematic effect");
     assert!(systematic * 20 <= 50, "{systematic} of 50");
 }
+
+/// A `temperature` column with gaps: no temperature term is tried (nothing is guessed for
+/// the missing values), and the notes say how many readings have one.
+#[test]
+fn a_temperature_column_with_gaps_is_named_not_guessed() {
+    use polycal::simulate::TemperatureModel;
+    let mut c = config(vec![Effect::Temperature { ac: 1, value: 1.5 }], 82, false);
+    c.temperature = Some(TemperatureModel::default());
+    let (mut set, _) = simulate(&c).unwrap();
+    set.readings[10].temperature_celsius = None;
+    let d = diagnose(&set, &DiagnoseOptions::default()).unwrap();
+    assert!(
+        !d.effects
+            .iter()
+            .any(|f| matches!(f.effect, Effect::Temperature { .. })),
+        "{:#?}",
+        d.effects
+    );
+    let total = set.readings.len();
+    let expected = format!("only {} of {total} readings", total - 1);
+    assert!(
+        d.notes.iter().any(|n| n.contains(&expected)),
+        "{:?}",
+        d.notes
+    );
+}

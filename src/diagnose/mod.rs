@@ -758,6 +758,17 @@ fn untestable_kinds(set: &MeasurementSet) -> Vec<String> {
     if set.readings.iter().any(|r| r.time_seconds.is_none()) {
         notes.push("Drift cannot be tested: the file has no `time` for every reading.".into());
     }
+    let with_temperature = set
+        .readings
+        .iter()
+        .filter(|r| r.temperature_celsius.is_some())
+        .count();
+    if with_temperature > 0 && with_temperature < set.readings.len() {
+        notes.push(format!(
+            "A temperature coefficient cannot be tested: only {with_temperature} of {} readings have a `temperature`.",
+            set.readings.len()
+        ));
+    }
     let first_cycle = set.readings.first().map(|r| r.cycle);
     if set.readings.iter().all(|r| Some(r.cycle) == first_cycle) {
         notes.push("A zero jump between cycles (offset-step) cannot be tested with one cycle: repeat the cycle.".into());
