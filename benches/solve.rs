@@ -3,15 +3,19 @@
 //!
 //! - `closed_form/24`: the paper's closed form for N = 24 on per-step means, with a
 //!   compile-time (`Const`) and a run-time (`Dyn`) dimension;
-//! - `lsq_covariance/24x6_closing_300`: least squares with full covariance, N = 24, 6 cycles
-//!   with closing readings (300 readings);
-//! - `lsq_growth/N`: least squares with covariance for N = 24, 72, 360, 1440 × 6 cycles,
-//!   to show how the cost grows with N.
+//! - `lsq_all_u/24x6_closing_300`: least squares with every standard uncertainty, N = 24,
+//!   6 cycles with closing readings (300 readings), on the circulant engine and on the
+//!   dense reference;
+//! - `lsq_growth/{circulant,dense}/N`: the same for N = 24 … 5760 × 6 cycles (dense up to
+//!   1440), to show how the cost grows with N;
+//! - `bare_cycle/65536`: the bare two-autocollimator cycle at 65 536 positions, σ stated,
+//!   every u (the closed form and its covariance in closed form).
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use nalgebra::{DVector, SVector};
+use polycal::measurement::Sigma;
 use polycal::simulate::{SimulationConfig, simulate};
-use polycal::solve::{Method, SolveOptions, closed_form, solve};
+use polycal::solve::{Method, Solution, SolveOptions, closed_form, dense_least_squares, solve};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -41,28 +45,80 @@ fn bench_closed_form(c: &mut Criterion) {
     group.finish();
 }
 
+/// Every standard uncertainty a report prints: β, φ, α, U and the effect terms.
+fn all_u(solution: &Solution) -> f64 {
+    [
+        solution.pitch_deviation_u(),
+        solution.face_deviation_u(),
+        solution.encoder_error_u(),
+        solution.setup_error_u(),
+        solution.effect_u(),
+    ]
+    .into_iter()
+    .flatten()
+    .flatten()
+    .sum()
+}
+
 fn bench_lsq(c: &mut Criterion) {
     let (set, _) = simulate(&config(24, true)).expect("valid configuration");
     assert_eq!(set.readings.len(), 300);
     let options = SolveOptions::new().with_method(Method::LeastSquares);
-    c.bench_function("lsq_covariance/24x6_closing_300", |b| {
-        b.iter(|| solve(black_box(&set), &options))
+    let mut group = c.benchmark_group("lsq_all_u/24x6_closing_300");
+    group.bench_function("circulant", |b| {
+        b.iter(|| all_u(&solve(black_box(&set), &options).expect("solvable")))
     });
+    group.bench_function("dense", |b| {
+        b.iter(|| all_u(&dense_least_squares(black_box(&set), &[], None).expect("solvable")))
+    });
+    group.finish();
 }
 
+/// Growth with N: least squares with every u, N × 6 cycles with closing readings (the
+/// circulant engine), and the dense reference up to 1440.
 fn bench_growth(c: &mut Criterion) {
     let options = SolveOptions::new().with_method(Method::LeastSquares);
     let mut group = c.benchmark_group("lsq_growth");
     group.sample_size(10);
-    group.measurement_time(Duration::from_secs(8));
-    for faces in [24usize, 72, 360, 1440] {
+    group.measurement_time(Duration::from_secs(5));
+    for faces in [24usize, 90, 360, 1440, 5760] {
         let (set, _) = simulate(&config(faces, true)).expect("valid configuration");
-        group.bench_with_input(BenchmarkId::from_parameter(faces), &set, |b, set| {
-            b.iter(|| solve(black_box(set), &options))
+        group.bench_with_input(BenchmarkId::new("circulant", faces), &set, |b, set| {
+            b.iter(|| all_u(&solve(black_box(set), &options).expect("solvable")))
         });
+        if faces <= 1440 {
+            group.bench_with_input(BenchmarkId::new("dense", faces), &set, |b, set| {
+                b.iter(|| all_u(&dense_least_squares(black_box(set), &[], None).expect("solvable")))
+            });
+        }
     }
     group.finish();
 }
 
-criterion_group!(benches, bench_closed_form, bench_lsq, bench_growth);
+/// The bare two-autocollimator cycle at 65 536 positions (one cycle, σ stated): the closed
+/// form with its covariance in closed form, every u.
+fn bench_bare_cycle(c: &mut Criterion) {
+    let config = SimulationConfig {
+        faces: 65_536,
+        cycles: 1,
+        closing: false,
+        ..SimulationConfig::default()
+    };
+    let (set, _) = simulate(&config).expect("valid configuration");
+    let options = SolveOptions::new().with_sigma(Sigma::new(0.05).expect("positive"));
+    let mut group = c.benchmark_group("bare_cycle");
+    group.sample_size(10);
+    group.bench_function("65536", |b| {
+        b.iter(|| all_u(&solve(black_box(&set), &options).expect("solvable")))
+    });
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    bench_closed_form,
+    bench_lsq,
+    bench_growth,
+    bench_bare_cycle
+);
 criterion_main!(benches);

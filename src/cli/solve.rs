@@ -81,8 +81,11 @@ enum MethodArg {
     Auto,
     /// The paper's closed form, eqs. (6)-(10).
     ClosedForm,
-    /// General constrained least squares.
+    /// General constrained least squares (the circulant engine where the design is
+    /// regular enough, else the dense factorisation).
     Lsq,
+    /// Least squares by the dense reference factorisation (a cross-check; O(N³)).
+    Dense,
 }
 
 /// `--monte-carlo`: a number of trials or the adaptive procedure.
@@ -137,6 +140,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             MethodArg::Auto => Method::Auto,
             MethodArg::ClosedForm => Method::ClosedForm,
             MethodArg::Lsq => Method::LeastSquares,
+            MethodArg::Dense => Method::Dense,
         })
         .with_sigma_opt(args.sigma);
     let files = &args.files;

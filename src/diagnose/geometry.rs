@@ -75,7 +75,7 @@ impl FitGeometry {
         let layout = solution.layout;
         let size = layout.len();
         // Q in ψ: replace the β rows and columns by their prefix sums (φ = Σβ).
-        let mut q = solution.cofactor.clone();
+        let mut q = solution.cofactor.to_dense();
         for c in 0..size {
             let mut running = 0.0;
             for f in 0..n {

@@ -34,7 +34,7 @@
 //! the polygon from one fixed place.
 
 use crate::input::Location;
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use std::fmt;
 use std::io::Read;
 use std::path::Path;
@@ -347,8 +347,40 @@ impl MeasurementSet {
     /// Each pair is one *stream*: one autocollimator in one mounting of the polygon,
     /// with its own setup error U\[setup, ac\].
     pub fn streams(&self) -> Vec<(u32, u32)> {
-        let set: BTreeSet<(u32, u32)> = self.readings.iter().map(|r| (r.setup, r.ac)).collect();
-        set.into_iter().collect()
+        self.distinct_streams()
+            .into_iter()
+            .map(|(k, _)| k)
+            .collect()
+    }
+
+    /// Every (setup, ac) pair with its first reading's face offset, ascending: a scan
+    /// against the few pairs found so far, a map once there are many.
+    fn distinct_streams(&self) -> Vec<((u32, u32), usize)> {
+        const SCAN_UP_TO: usize = 64;
+        let offset = |r: &Reading| {
+            if self.faces == 0 {
+                0
+            } else {
+                face_offset(r.face, r.step, self.faces)
+            }
+        };
+        let mut found: Vec<((u32, u32), usize)> = Vec::new();
+        for (i, r) in self.readings.iter().enumerate() {
+            let key = (r.setup, r.ac);
+            if found.iter().any(|(k, _)| *k == key) {
+                continue;
+            }
+            if found.len() == SCAN_UP_TO {
+                let mut map: BTreeMap<(u32, u32), usize> = found.drain(..).collect();
+                for r in &self.readings[i..] {
+                    map.entry((r.setup, r.ac)).or_insert_with(|| offset(r));
+                }
+                return map.into_iter().collect();
+            }
+            found.push((key, offset(r)));
+        }
+        found.sort_unstable_by_key(|(k, _)| *k);
+        found
     }
 
     /// For each (setup, ac): the face offset d in 0..N such that face = (step + d) mod N + 1
@@ -359,16 +391,10 @@ impl MeasurementSet {
     /// given. For the paper's design, autocollimator 1 has d = 0 and autocollimator 2
     /// has d = 1. Empty if `faces` is 0 (a set not built by this module).
     pub fn face_offsets(&self) -> Vec<((u32, u32), usize)> {
-        let mut offsets = BTreeMap::new();
         if self.faces == 0 {
             return Vec::new();
         }
-        for r in &self.readings {
-            offsets
-                .entry((r.setup, r.ac))
-                .or_insert_with(|| face_offset(r.face, r.step, self.faces));
-        }
-        offsets.into_iter().collect()
+        self.distinct_streams()
     }
 }
 

@@ -72,6 +72,8 @@ pub struct SolveReport {
     pub effects: Vec<serde_json::Value>,
     /// `closed-form` or `lsq` (an addition).
     pub method: &'static str,
+    /// `closed-form`, `circulant` or `dense`: the engine that computed it (an addition).
+    pub engine: &'static str,
     /// σ of one reading used for the uncertainties, arcsec (an addition).
     pub sigma: Option<f64>,
     /// `residual` or `stated` (an addition).
@@ -139,6 +141,7 @@ impl SolveReport {
                 .collect(),
             effects: Vec::new(),
             method: solution.method.as_str(),
+            engine: solution.engine.as_str(),
             sigma: solution.sigma.map(|(s, _)| s),
             sigma_source: solution.sigma.map(|(_, source)| match source {
                 SigmaSource::Residual => "residual",

@@ -4,7 +4,7 @@
 //! ([`write_final_model_results`]).
 
 use super::fixed;
-use crate::solve::{Method, SigmaSource, Solution};
+use crate::solve::{Engine, SigmaSource, Solution};
 use crate::uncertainty::calibration::{CalibrationMonteCarlo, CalibrationUncertainty, McFamily};
 use std::fmt::{self, Write};
 
@@ -25,9 +25,12 @@ pub fn write_table<W: Write>(
     monte_carlo: Option<&CalibrationMonteCarlo>,
 ) -> fmt::Result {
     let n = solution.faces;
-    let method = match solution.method {
-        Method::ClosedForm => "closed form (paper eqs. (6)-(10))",
-        _ => "least squares",
+    let method = match solution.engine {
+        Engine::ClosedForm => "closed form (paper eqs. (6)-(10))".to_string(),
+        Engine::Circulant { low_rank } => {
+            format!("least squares (circulant engine, low rank {low_rank})")
+        }
+        _ => "least squares (dense)".to_string(),
     };
     writeln!(out, "polycal solve: {source}")?;
     writeln!(

@@ -10,7 +10,10 @@
 //! - eqs. (4), (5): α\[p\] = m₁\[p\] − φ\[p+1\] − U₁ = m₂\[p\] − φ\[p+2\] − U₂ (identical for exact
 //!   data; the mean of both is used).
 
-use super::{Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma};
+use super::cofactor::{Base, Structured};
+use super::{
+    Cofactor, Engine, Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma,
+};
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::polygon::face_deviation_from_pitch;
 use crate::polygon::{Polygon, PolygonError};
@@ -223,29 +226,21 @@ impl PaperDesign {
         let rss: f64 = residuals.iter().map(|r| r * r).sum();
         let dof = set.readings.len() - 2 * n;
 
-        // Cofactor: θ = L m with m = [m1; m2], Cov(m) = σ²/R I, so Q = L Lᵀ / R.
-        let mut l = DMatrix::<f64>::zeros(2 * n + 2, 2 * n);
-        let mut e1 = DVector::<f64>::zeros(n);
-        let mut e2 = DVector::<f64>::zeros(n);
-        for j in 0..2 * n {
-            e1.fill(0.0);
-            e2.fill(0.0);
-            if j < n {
-                e1[j] = 1.0;
-            } else {
-                e2[j - n] = 1.0;
-            }
-            let column = self
-                .theta(&e1, &e2)
-                .map_err(|e| SolveError::ClosedFormNotApplicable(e.to_string()))?;
-            l.column_mut(j).copy_from_slice(&column);
-        }
-        let mut cofactor = &l * l.transpose() / repeats;
-        if !first_is_lower {
-            // swap the two setup-error rows/columns into ascending stream order
-            cofactor.swap_rows(2 * n, 2 * n + 1);
-            cofactor.swap_columns(2 * n, 2 * n + 1);
-        }
+        // Cofactor in closed form (module documentation of `cofactor`): the regular
+        // design of two streams on adjacent faces, R readings per step.
+        let layout = ParameterLayout {
+            faces: n,
+            setups: 2,
+            effects: 0,
+        };
+        let cofactor = Cofactor::structured(
+            layout,
+            Structured::new(
+                Base::paper(n, self.offset, repeats),
+                Vec::new(),
+                &DMatrix::zeros(0, 0),
+            ),
+        );
         let (low, high) = if first_is_lower {
             ((self.first, u_first), (self.second, u_second))
         } else {
@@ -254,6 +249,7 @@ impl PaperDesign {
         Ok(Solution {
             faces: n,
             method: Method::ClosedForm,
+            engine: Engine::ClosedForm,
             pitch_deviation: theta[..n].to_vec(),
             face_deviation,
             encoder_error: theta[n..2 * n].to_vec(),
@@ -269,11 +265,7 @@ impl PaperDesign {
             rss,
             sigma: choose_sigma(rss, dof, stated_sigma),
             cofactor,
-            layout: ParameterLayout {
-                faces: n,
-                setups: 2,
-                effects: 0,
-            },
+            layout,
         })
     }
 }

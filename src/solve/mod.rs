@@ -19,12 +19,20 @@
 //! Before solving, the design is checked for observability ([`observability`]): a design
 //! that cannot determine every β and α is refused with the Fourier harmonics it loses.
 
+pub mod circulant;
 pub mod closed_form;
+pub mod cofactor;
+pub mod dense;
 pub mod least_squares;
+pub mod memory;
 pub mod observability;
 
 pub use closed_form::{ClosedFormSolution, NotPaperDesign, PaperDesign, closed_form};
-pub use least_squares::{least_squares, least_squares_with_regressors};
+pub use cofactor::Cofactor;
+pub use dense::dense_least_squares;
+pub use least_squares::{
+    dense_with_options, least_squares, least_squares_with_options, least_squares_with_regressors,
+};
 pub use observability::{Unobservable, lost_harmonics};
 
 use crate::measurement::{MeasurementSet, Sigma};
@@ -40,8 +48,12 @@ pub enum Method {
     Auto,
     /// The paper's closed form, eqs. (6)–(10); refused for other designs.
     ClosedForm,
-    /// General constrained least squares.
+    /// General constrained least squares: the circulant engine where it serves the
+    /// design, else the dense factorisation ([`least_squares_with_options`] decides).
     LeastSquares,
+    /// Least squares by the dense reference factorisation only (a cross-check of the
+    /// circulant engine; O(N³) work and O(N²) memory, refused when it does not fit).
+    Dense,
 }
 
 impl Method {
@@ -51,6 +63,35 @@ impl Method {
             Method::Auto => "auto",
             Method::ClosedForm => "closed-form",
             Method::LeastSquares => "lsq",
+            Method::Dense => "dense",
+        }
+    }
+}
+
+/// The engine that computed a [`Solution`]: which structure of the design it used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Engine {
+    /// The paper's closed form, eqs. (6)–(10), with its covariance in closed form.
+    ClosedForm,
+    /// The circulant engine: the regular part of the design solved harmonic by harmonic
+    /// (FFT), what breaks the symmetry (closing, missing or extra readings, effect
+    /// columns) as a low-rank correction of rank `low_rank`.
+    Circulant {
+        /// Rank of the correction: irregular (stream, position) cells plus effect terms.
+        low_rank: usize,
+    },
+    /// The dense reference: the reduced normal matrix factorised by Cholesky.
+    Dense,
+}
+
+impl Engine {
+    /// The name used in reports: `closed-form`, `circulant` or `dense`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Engine::ClosedForm => "closed-form",
+            Engine::Circulant { .. } => "circulant",
+            Engine::Dense => "dense",
         }
     }
 }
@@ -75,6 +116,10 @@ pub struct SolveOptions {
     /// only when the fit has no residual degrees of freedom (the bare two-autocollimator
     /// cycle is exactly determined); with dof > 0 the residual standard deviation is used.
     pub sigma: Option<Sigma>,
+    /// The most memory, in bytes, the solver may plan to use; `None`: the memory the
+    /// machine has available ([`memory::available_bytes`]). A design whose engine would
+    /// need more is refused with [`SolveError::TooLarge`] before anything is allocated.
+    pub memory_limit_bytes: Option<u64>,
 }
 
 impl SolveOptions {
@@ -92,6 +137,12 @@ impl SolveOptions {
     /// With a stated σ of one reading.
     pub fn with_sigma(mut self, sigma: Sigma) -> Self {
         self.sigma = Some(sigma);
+        self
+    }
+
+    /// With a memory limit in bytes (instead of the machine's available memory).
+    pub fn with_memory_limit(mut self, bytes: u64) -> Self {
+        self.memory_limit_bytes = Some(bytes);
         self
     }
 
@@ -114,6 +165,30 @@ pub enum SolveError {
         "the closed form (paper eqs. (6)–(10)) does not apply: {0}; the least-squares method does"
     )]
     ClosedFormNotApplicable(String),
+    /// The design is too large for the memory the solver may use.
+    #[error(
+        "the design ({faces} positions, {streams} autocollimator streams, {effects} effect terms, {readings} readings) needs about {} of memory for the {engine} solver; {} {limit_source}",
+        memory::human_bytes(*needed_bytes),
+        memory::human_bytes(u128::from(*limit_bytes))
+    )]
+    TooLarge {
+        /// N.
+        faces: usize,
+        /// K.
+        streams: usize,
+        /// E.
+        effects: usize,
+        /// Readings.
+        readings: usize,
+        /// The engine the design needs (`dense` or `circulant`).
+        engine: &'static str,
+        /// Bytes it would need.
+        needed_bytes: u128,
+        /// Bytes it may use.
+        limit_bytes: u64,
+        /// Where the limit comes from (`are available on this machine`, `is the limit set`).
+        limit_source: &'static str,
+    },
     /// An effect regressor has the wrong length or a non-finite value.
     #[error("effect regressor {index}: {reason}")]
     BadRegressor {
@@ -194,6 +269,8 @@ pub struct Solution {
     pub faces: usize,
     /// The solver that produced it (never [`Method::Auto`]).
     pub method: Method,
+    /// The engine that computed it.
+    pub engine: Engine,
     /// β\[1..=N\], Σβ = 0.
     pub pitch_deviation: Vec<f64>,
     /// φ\[1..=N\] (φ\[N\] = 0).
@@ -219,8 +296,9 @@ pub struct Solution {
     pub rss: f64,
     /// σ of one reading and where it comes from; `None` when dof = 0 and none was stated.
     pub sigma: Option<(f64, SigmaSource)>,
-    /// Cofactor matrix Q of θ ([`ParameterLayout`]): Cov(θ) = σ²·Q.
-    pub cofactor: DMatrix<f64>,
+    /// Cofactor matrix Q of θ ([`ParameterLayout`]): Cov(θ) = σ²·Q, as an operator
+    /// (entries, diagonal, products; the dense matrix only on request).
+    pub cofactor: Cofactor,
     /// Layout of θ.
     pub layout: ParameterLayout,
 }
@@ -231,16 +309,18 @@ impl Solution {
         (self.dof > 0).then(|| (self.rss / self.dof as f64).sqrt())
     }
 
-    /// Covariance of θ, arcsec², when σ is known.
+    /// Covariance of θ, arcsec², when σ is known: the whole (2N + K + E)² matrix
+    /// ([`Cofactor::to_dense`]); u of single quantities come from the `…_u` methods
+    /// without it.
     pub fn covariance(&self) -> Option<DMatrix<f64>> {
-        self.sigma.map(|(s, _)| &self.cofactor * (s * s))
+        self.sigma.map(|(s, _)| self.cofactor.to_dense() * (s * s))
     }
 
     fn diagonal_u(&self, start: usize, len: usize) -> Option<Vec<f64>> {
         let (s, _) = self.sigma?;
         Some(
             (start..start + len)
-                .map(|i| s * self.cofactor[(i, i)].max(0.0).sqrt())
+                .map(|i| s * self.cofactor.entry(i, i).max(0.0).sqrt())
                 .collect(),
         )
     }
@@ -269,19 +349,13 @@ impl Solution {
     /// so its u is 0): var φ\[f\] = Σ_{i,j ≤ f} Cov(β_i, β_j).
     pub fn face_deviation_u(&self) -> Option<Vec<f64>> {
         let (s, _) = self.sigma?;
-        let n = self.faces;
-        // φ[f] = φ[f−1] + β[f]: var φ[f] = var φ[f−1] + 2 Σ_{j<f} Q[j, f] + Q[f, f]
-        let mut u = Vec::with_capacity(n);
-        let mut var = 0.0;
-        for f in 0..n {
-            let border: f64 = (0..f).map(|j| self.cofactor[(j, f)]).sum();
-            var += 2.0 * border + self.cofactor[(f, f)];
-            u.push(s * var.max(0.0).sqrt());
-        }
-        if let Some(last) = u.last_mut() {
-            *last = 0.0;
-        }
-        Some(u)
+        Some(
+            self.cofactor
+                .face_deviation_diagonal()
+                .into_iter()
+                .map(|q| s * q.max(0.0).sqrt())
+                .collect(),
+        )
     }
 
     /// The polygon as a [`crate::polygon::DPolygon`].
@@ -309,14 +383,15 @@ impl Solution {
 /// ```
 pub fn solve(set: &MeasurementSet, options: &SolveOptions) -> Result<Solution, SolveError> {
     match options.method {
-        Method::LeastSquares => least_squares(set, options.sigma),
+        Method::LeastSquares => least_squares_with_options(set, &[], options),
+        Method::Dense => least_squares::dense_with_options(set, &[], options),
         Method::ClosedForm => match PaperDesign::detect(set) {
             Ok(design) => Ok(design.solve(set, options.sigma)?),
             Err(reason) => Err(SolveError::ClosedFormNotApplicable(reason.to_string())),
         },
         Method::Auto => match PaperDesign::detect(set) {
             Ok(design) => Ok(design.solve(set, options.sigma)?),
-            Err(_) => least_squares(set, options.sigma),
+            Err(_) => least_squares_with_options(set, &[], options),
         },
     }
 }

@@ -8,11 +8,13 @@
 //! different phase factors, i.e. when k·(d_a − d_b) ≢ 0 (mod N) for some pair. With
 //! g = gcd(N, all offset differences), harmonic k is lost exactly when N/g divides k:
 //! a second autocollimator 3 faces away on a 24-faced polygon loses harmonics 8 and 16.
-//! [`lost_harmonics`] is this rule; the solver does not rely on it but finds the null
-//! space of its normal matrix numerically and names the harmonics it contains, so that
-//! designs with missing readings are judged as exactly.
+//! [`lost_harmonics`] is this rule. The circulant engine applies it directly (its regular
+//! part is singular exactly at those harmonics, no eigen-decomposition needed); for
+//! irregular designs (missing readings, effect terms that cannot be separated) the dense
+//! path finds the null space of its normal matrix numerically and names the harmonics
+//! it contains, so that those designs are judged as exactly.
 
-use super::least_squares::Reduced;
+use super::dense::Reduced;
 use crate::measurement::MeasurementSet;
 use nalgebra::SymmetricEigen;
 
@@ -108,7 +110,17 @@ pub(crate) fn explain_singular(reduced: &Reduced, set: &MeasurementSet) -> Unobs
     let effects: Vec<usize> = (0..reduced.effects)
         .filter(|&j| effect_energy[j] > 1e-6 * total)
         .collect();
+    describe(harmonics, effects, set)
+}
 
+/// The refusal of a design that loses `harmonics` (and cannot separate the effect terms
+/// `effects`), explained from its face offsets.
+pub(crate) fn describe(
+    harmonics: Vec<usize>,
+    effects: Vec<usize>,
+    set: &MeasurementSet,
+) -> Unobservable {
+    let n = set.faces;
     let offsets = set.face_offsets();
     let mut message =
         String::from("the design cannot determine every pitch deviation and encoder error: ");

@@ -7,7 +7,8 @@ use std::ops::Range;
 
 use super::{CalibrationError, Scope};
 use crate::measurement::MeasurementSet;
-use crate::solve::Solution;
+use crate::solve::cofactor::theta_from_g;
+use crate::solve::{Cofactor, ParameterLayout, Solution};
 
 /// The fit as a linear map of the readings: θ̂ = Q Xᵀ y, θ = [β (N), α (N), U (K),
 /// effects (E)] in the model of one reading (the paper's eq. (2), plus the effect terms
@@ -18,10 +19,7 @@ pub(super) struct Operator {
     pub(super) faces: usize,
     pub(super) streams: usize,
     pub(super) effects: usize,
-    /// Q, row-major, (2N + K + E)².
-    q: Vec<f64>,
-    /// Q with its β columns summed cumulatively: qc\[j·N + f\] = Σ_{k ≤ f} Q\[j, k\].
-    qc: Vec<f64>,
+    map: Map,
     /// Per reading: position, face − 1, stream.
     position: Vec<usize>,
     face: Vec<usize>,
@@ -29,6 +27,22 @@ pub(super) struct Operator {
     /// Per reading, its E effect regressors: x\[i·E + e\].
     x: Vec<f64>,
 }
+
+/// Q held densely (small designs, or a dense solution), or the solution's structured
+/// cofactor, applied in its own gauge g = [α, φ′, U′, effects] without forming Q.
+#[derive(Debug, Clone)]
+enum Map {
+    Dense {
+        /// Q, row-major, (2N + K + E)².
+        q: Vec<f64>,
+        /// Q with its β columns summed cumulatively: qc\[j·N + f\] = Σ_{k ≤ f} Q\[j, k\].
+        qc: Vec<f64>,
+    },
+    Structured(Cofactor),
+}
+
+/// Up to this length of θ, Q is copied densely: a row product is then cheaper than an FFT.
+const DENSE_UP_TO: usize = 256;
 
 impl Operator {
     pub(super) fn new(set: &MeasurementSet, solution: &Solution) -> Result<Self, CalibrationError> {
@@ -68,24 +82,27 @@ impl Operator {
             )));
         }
         let len = layout.len();
-        if solution.cofactor.nrows() != len || solution.cofactor.ncols() != len {
+        if solution.cofactor.len() != len {
             return Err(CalibrationError::Mismatch(format!(
-                "a cofactor matrix of {}×{} for {len} parameters",
-                solution.cofactor.nrows(),
-                solution.cofactor.ncols()
+                "a cofactor matrix of {0}×{0} for {len} parameters",
+                solution.cofactor.len(),
             )));
         }
-        let q: Vec<f64> = (0..len * len)
-            .map(|i| solution.cofactor[(i / len, i % len)])
-            .collect();
-        let mut qc = vec![0.0; len * n];
-        for j in 0..len {
-            let mut running = 0.0;
-            for f in 0..n {
-                running += q[j * len + f];
-                qc[j * n + f] = running;
+        let map = if solution.cofactor.is_dense() || len <= DENSE_UP_TO {
+            let dense = solution.cofactor.to_dense();
+            let q: Vec<f64> = (0..len * len).map(|i| dense[(i / len, i % len)]).collect();
+            let mut qc = vec![0.0; len * n];
+            for j in 0..len {
+                let mut running = 0.0;
+                for f in 0..n {
+                    running += q[j * len + f];
+                    qc[j * n + f] = running;
+                }
             }
-        }
+            Map::Dense { q, qc }
+        } else {
+            Map::Structured(solution.cofactor.clone())
+        };
         let mut stream = Vec::with_capacity(set.readings.len());
         for r in &set.readings {
             let s = solution
@@ -107,8 +124,7 @@ impl Operator {
             faces: n,
             streams: layout.setups,
             effects: e,
-            q,
-            qc,
+            map,
             position: set.readings.iter().map(|r| r.position(n)).collect(),
             face: set.readings.iter().map(|r| r.face - 1).collect(),
             stream,
@@ -120,21 +136,63 @@ impl Operator {
         2 * self.faces + self.streams + self.effects
     }
 
+    fn layout(&self) -> ParameterLayout {
+        ParameterLayout {
+            faces: self.faces,
+            setups: self.streams,
+            effects: self.effects,
+        }
+    }
+
     /// The effect regressors of reading i.
     fn regressors(&self, i: usize) -> &[f64] {
         &self.x[i * self.effects..(i + 1) * self.effects]
     }
 
+    /// Adds w·x_i, the design row of reading i in the structured gauge g, to `g`.
+    fn add_row_g(&self, i: usize, w: f64, g: &mut [f64]) {
+        let n = self.faces;
+        g[self.position[i]] += w;
+        g[n + self.face[i]] += w;
+        g[2 * n + self.stream[i]] += w;
+        let first_effect = 2 * n + self.streams;
+        for (g, x) in g[first_effect..].iter_mut().zip(self.regressors(i)) {
+            *g += w * x;
+        }
+    }
+
     /// Adds w·L\[:, i\] (the response of θ̂ to reading i) to `theta`.
     pub(super) fn add_column(&self, i: usize, w: f64, theta: &mut [f64]) {
         let (n, len) = (self.faces, self.len());
-        let (a, f, s) = (n + self.position[i], self.face[i], 2 * n + self.stream[i]);
-        let first_effect = 2 * n + self.streams;
-        let x = self.regressors(i);
-        for (j, t) in theta.iter_mut().enumerate() {
-            let row = &self.q[j * len..(j + 1) * len];
-            let effects: f64 = row[first_effect..].iter().zip(x).map(|(q, x)| q * x).sum();
-            *t += w * (row[a] + self.qc[j * n + f] + row[s] + effects);
+        match &self.map {
+            Map::Dense { q, qc } => {
+                let (a, f, s) = (n + self.position[i], self.face[i], 2 * n + self.stream[i]);
+                let first_effect = 2 * n + self.streams;
+                let x = self.regressors(i);
+                for (j, t) in theta.iter_mut().enumerate() {
+                    let row = &q[j * len..(j + 1) * len];
+                    let effects: f64 = row[first_effect..].iter().zip(x).map(|(q, x)| q * x).sum();
+                    *t += w * (row[a] + qc[j * n + f] + row[s] + effects);
+                }
+            }
+            Map::Structured(cofactor) => {
+                let mut g = vec![0.0; len];
+                self.add_row_g(i, w, &mut g);
+                self.add_structured(cofactor, &g, theta);
+            }
+        }
+    }
+
+    /// theta += T Q_g v for a vector v in g.
+    fn add_structured(&self, cofactor: &Cofactor, v: &[f64], theta: &mut [f64]) {
+        let Some(structured) = cofactor.as_structured() else {
+            unreachable!("a structured map holds a structured cofactor")
+        };
+        let qg = structured.apply(v);
+        let mut t = vec![0.0; theta.len()];
+        theta_from_g(&self.layout(), &qg, &mut t);
+        for (theta, t) in theta.iter_mut().zip(&t) {
+            *theta += t;
         }
     }
 
@@ -149,28 +207,59 @@ impl Operator {
         theta: &mut [f64],
     ) {
         let n = self.faces;
-        face_sums.fill(0.0);
-        b.fill(0.0);
-        let first_effect = 2 * n + self.streams;
-        for (i, &v) in y.iter().enumerate() {
-            face_sums[self.face[i]] += v;
-            b[n + self.position[i]] += v;
-            b[2 * n + self.stream[i]] += v;
-            for (b, x) in b[first_effect..].iter_mut().zip(self.regressors(i)) {
-                *b += x * v;
+        match &self.map {
+            Map::Dense { q, .. } => {
+                face_sums.fill(0.0);
+                b.fill(0.0);
+                let first_effect = 2 * n + self.streams;
+                for (i, &v) in y.iter().enumerate() {
+                    face_sums[self.face[i]] += v;
+                    b[n + self.position[i]] += v;
+                    b[2 * n + self.stream[i]] += v;
+                    for (b, x) in b[first_effect..].iter_mut().zip(self.regressors(i)) {
+                        *b += x * v;
+                    }
+                }
+                // X has a 1 in β_k for every face ≥ k (φ_f = β_1 + … + β_f).
+                let mut suffix = 0.0;
+                for k in (0..n).rev() {
+                    suffix += face_sums[k];
+                    b[k] = suffix;
+                }
+                let len = self.len();
+                for (t, j) in theta.iter_mut().zip(rows) {
+                    let row = &q[j * len..(j + 1) * len];
+                    *t = row.iter().zip(b.iter()).map(|(q, b)| q * b).sum();
+                }
+            }
+            Map::Structured(cofactor) => {
+                b.fill(0.0);
+                for (i, &v) in y.iter().enumerate() {
+                    self.add_row_g(i, v, b);
+                }
+                let mut all = vec![0.0; self.len()];
+                self.add_structured(cofactor, b, &mut all);
+                for (t, j) in theta.iter_mut().zip(rows) {
+                    *t = all[j];
+                }
             }
         }
-        // X has a 1 in β_k for every face ≥ k (φ_f = β_1 + … + β_f).
-        let mut suffix = 0.0;
-        for k in (0..n).rev() {
-            suffix += face_sums[k];
-            b[k] = suffix;
-        }
-        let len = self.len();
-        for (t, j) in theta.iter_mut().zip(rows) {
-            let row = &self.q[j * len..(j + 1) * len];
-            *t = row.iter().zip(b.iter()).map(|(q, b)| q * b).sum();
-        }
+    }
+
+    /// The gains of independent errors on every reading, Σ_i L_ji² = Q_jj (L Lᵀ = Q for
+    /// a least-squares fit), in [`quantities`] order, from the structured cofactor
+    /// without a pass over the readings; `None` for a dense map.
+    fn each_reading_gains(&self) -> Option<Vec<f64>> {
+        let Map::Structured(cofactor) = &self.map else {
+            return None;
+        };
+        let n = self.faces;
+        let diagonal = cofactor.diagonal();
+        let mut g = Vec::with_capacity(3 * n + self.streams);
+        g.extend_from_slice(&diagonal[..n]);
+        g.extend(cofactor.face_deviation_diagonal());
+        g.extend_from_slice(&diagonal[n..2 * n + self.streams]);
+        Some(g)
     }
 }
 
@@ -225,13 +314,30 @@ pub(super) fn gains(op: &Operator, set: &MeasurementSet, scope: Scope) -> Vec<f6
         g[2 * n - 1] = 0.0;
         return g;
     }
+    if scope == Scope::EachReading
+        && let Some(g) = op.each_reading_gains()
+    {
+        return g;
+    }
     let mut g = vec![0.0; total];
     let mut theta = vec![0.0; op.len()];
     let mut q = vec![0.0; total];
+    let mut row = vec![0.0; op.len()];
     for members in groups(set, scope) {
         theta.fill(0.0);
-        for i in members {
-            op.add_column(i, 1.0, &mut theta);
+        match &op.map {
+            Map::Dense { .. } => {
+                for i in members {
+                    op.add_column(i, 1.0, &mut theta);
+                }
+            }
+            Map::Structured(cofactor) => {
+                row.fill(0.0);
+                for i in members {
+                    op.add_row_g(i, 1.0, &mut row);
+                }
+                op.add_structured(cofactor, &row, &mut theta);
+            }
         }
         quantities(&theta, n, &mut q);
         for (g, v) in g.iter_mut().zip(&q) {
@@ -372,5 +478,72 @@ mod tests {
             Operator::new(&s, &solution),
             Err(CalibrationError::Mismatch(_))
         ));
+    }
+
+    /// Above 256 parameters the operator applies the structured cofactor in its own
+    /// gauge instead of copying Q: for every scope its gains, its solve and its columns
+    /// equal those of the dense map built from the dense reference fit of the same data,
+    /// effect columns included.
+    #[test]
+    fn structured_map_equals_the_dense_map() {
+        use crate::solve::{dense_least_squares, least_squares_with_regressors};
+        let s = set(150, 3, true, 9);
+        let ramp: Vec<f64> = s
+            .readings
+            .iter()
+            .enumerate()
+            .map(|(i, r)| if r.ac == 2 { i as f64 / 100.0 } else { 0.0 })
+            .collect();
+        let columns = [ramp];
+        let fast = least_squares_with_regressors(&s, &columns, None).unwrap();
+        let dense = dense_least_squares(&s, &columns, None).unwrap();
+        assert!(!fast.cofactor.is_dense());
+        let (op_fast, op_dense) = (
+            Operator::new(&s, &fast).unwrap(),
+            Operator::new(&s, &dense).unwrap(),
+        );
+        assert!(matches!(op_fast.map, Map::Structured(_)));
+        assert!(matches!(op_dense.map, Map::Dense { .. }));
+        for scope in [
+            Scope::EachReading,
+            Scope::EachAutocollimator,
+            Scope::EachPosition,
+            Scope::EachStop,
+        ] {
+            let (a, b) = (gains(&op_fast, &s, scope), gains(&op_dense, &s, scope));
+            for (j, (a, b)) in a.iter().zip(&b).enumerate() {
+                assert!(
+                    (a - b).abs() < 1e-9 * b.abs().max(1.0),
+                    "{scope:?} {j}: {a} vs {b}"
+                );
+            }
+        }
+        let y: Vec<f64> = s.readings.iter().map(|r| r.reading_arcsec).collect();
+        let len = op_fast.len();
+        let (mut t1, mut t2) = (vec![0.0; len], vec![0.0; len]);
+        op_fast.solve(
+            &y,
+            &mut vec![0.0; 150],
+            &mut vec![0.0; len],
+            0..len,
+            &mut t1,
+        );
+        op_dense.solve(
+            &y,
+            &mut vec![0.0; 150],
+            &mut vec![0.0; len],
+            0..len,
+            &mut t2,
+        );
+        for j in 0..len {
+            assert!((t1[j] - t2[j]).abs() < 1e-9, "{j}");
+        }
+        assert!((t1[150] - fast.encoder_error[0]).abs() < 1e-10);
+        let (mut c1, mut c2) = (vec![0.0; len], vec![0.0; len]);
+        op_fast.add_column(77, 2.0, &mut c1);
+        op_dense.add_column(77, 2.0, &mut c2);
+        for j in 0..len {
+            assert!((c1[j] - c2[j]).abs() < 1e-10, "{j}");
+        }
     }
 }

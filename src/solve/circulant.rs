@@ -1,0 +1,448 @@
+//! The circulant engine: least squares for closure designs in near-linear time.
+//!
+//! In a design where every stream (autocollimator × mounting) reads every encoder
+//! position equally often — w_s readings per position for stream s — the normal
+//! equations of the model (docs/FORMAT.md §1, the paper's eq. (2)) decouple by Fourier
+//! harmonic: after the setup errors are eliminated, harmonic k ≠ 0 of (α, φ) solves a
+//! 2 × 2 system ([`super::cofactor`]). That is the design's *regular part*, with cofactor B
+//! in the gauge Σα = 0, Σφ′ = 0.
+//!
+//! What breaks the symmetry is a low-rank correction:
+//!
+//! - a (stream, position) cell read n_sp ≠ w_s times (closing readings, missing or
+//!   repeated readings) adds (n_sp − w_s)·x xᵀ to the normal matrix, x the cell's design
+//!   row: Woodbury, with the capacitance D⁻¹ + VᵀBV of one row and column per cell;
+//! - the effect columns border the system: their Schur complement ZᵀZ − Fᵀ Q_A F.
+//!
+//! The cofactor is then Q_g = B + W M Wᵀ with W = [B V, Q_A F] and
+//! M = diag(−(D⁻¹ + VᵀBV)⁻¹, S_e⁻¹), the estimates g = Q_g Xᵀy, and the penalty that fixes
+//! the gauge cancels exactly (the design rows are orthogonal to the gauge directions).
+//! The work is O(N log N) for the regular part plus O((2N + K)·r + r³) for r corrections
+//! and effect terms, against O(N³) for the dense reference ([`super::dense`]), which the
+//! tests hold this engine to.
+
+use nalgebra::DMatrix;
+
+use super::cofactor::{Base, RegularStream, Structured};
+use super::observability::{describe, lost_harmonics};
+use super::{Cofactor, Engine, Method, ParameterLayout, SetupError, Solution, SolveError};
+use crate::measurement::{MeasurementSet, Sigma};
+use crate::polygon::face_deviation_from_pitch;
+
+/// A design the circulant engine serves: its regular part and the cells that differ.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct CirculantPlan {
+    /// Readings per position of each stream in the regular part (≥ 1).
+    weights: Vec<f64>,
+    /// Face offset of each stream.
+    offsets: Vec<usize>,
+    /// (stream, position, n_sp − w_s) for every cell read a different number of times.
+    corrections: Vec<(usize, usize, f64)>,
+    effects: usize,
+}
+
+impl CirculantPlan {
+    /// The rank r of the low-rank part: corrections plus effect terms.
+    pub(crate) fn rank(&self) -> usize {
+        self.corrections.len() + self.effects
+    }
+
+    /// Bytes the engine needs: W and W·M ((2N + K + E)·r each), F, B·F and Q_A·F
+    /// ((2N + K)·E each), the capacitance and its inverse (r² each) and the regular part
+    /// (a few N).
+    pub(crate) fn bytes_needed(&self, faces: usize) -> u128 {
+        let streams = self.weights.len() as u128;
+        let e = self.effects as u128;
+        let len = 2 * faces as u128 + streams + e;
+        let r = self.rank() as u128;
+        8 * (2 * len * r + 3 * len * e + 3 * r * r + 12 * faces as u128 + 4 * len)
+    }
+
+    /// Work of the engine relative to the dense path, for the choice between them.
+    pub(crate) fn is_cheaper_than_dense(&self, faces: usize) -> bool {
+        let len = 2 * faces + self.weights.len() + self.effects;
+        self.rank() <= (len / 4).max(16)
+    }
+}
+
+/// How the circulant engine sees a design: its plan, or why it does not serve it.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Plan {
+    /// The engine serves it.
+    Circulant(CirculantPlan),
+    /// A stream reads most positions zero times: no regular part.
+    NoRegularPart,
+    /// The face offsets lose these harmonics; with effect terms the dense path says
+    /// which effect terms are lost with them.
+    Lost(Vec<usize>),
+}
+
+/// Counts of every (stream, position) cell; plans the engine, or refuses a design that
+/// leaves a position unread or loses harmonics (by the rule of the face offsets).
+pub(crate) fn plan(
+    set: &MeasurementSet,
+    streams: &[(u32, u32)],
+    effects: usize,
+) -> Result<Plan, SolveError> {
+    let n = set.faces;
+    let k = streams.len();
+    let mut count = vec![0u32; k * n];
+    for r in &set.readings {
+        let s = stream_index(streams, r.setup, r.ac);
+        count[s * n + r.position(n)] += 1;
+    }
+    if let Some(p) = (0..n).find(|&p| (0..k).all(|s| count[s * n + p] == 0)) {
+        return Err(super::Unobservable::position_unread(p, n).into());
+    }
+    let offsets: Vec<usize> = set.face_offsets().into_iter().map(|(_, d)| d).collect();
+    let mut weights = Vec::with_capacity(k);
+    let mut corrections = Vec::new();
+    let mut sorted = Vec::with_capacity(n);
+    for s in 0..k {
+        let cells = &count[s * n..(s + 1) * n];
+        sorted.clear();
+        sorted.extend_from_slice(cells);
+        sorted.sort_unstable();
+        // the most frequent count (ties: the larger)
+        let (mut mode, mut best, mut run) = (sorted[0], 0usize, 0usize);
+        for (i, &c) in sorted.iter().enumerate() {
+            run = if i > 0 && sorted[i - 1] == c {
+                run + 1
+            } else {
+                1
+            };
+            if run >= best {
+                best = run;
+                mode = c;
+            }
+        }
+        if mode == 0 {
+            return Ok(Plan::NoRegularPart);
+        }
+        weights.push(f64::from(mode));
+        for (p, &c) in cells.iter().enumerate() {
+            if c != mode {
+                corrections.push((s, p, f64::from(c) - f64::from(mode)));
+            }
+        }
+    }
+    let lost = lost_harmonics(n, &offsets);
+    if !lost.is_empty() {
+        // the rule names everything lost when nothing is missing and no effect term can
+        // add to it; otherwise the dense path's null space does
+        if effects == 0 && corrections.iter().all(|&(_, _, delta)| delta > 0.0) {
+            return Err(describe(lost, Vec::new(), set).into());
+        }
+        return Ok(Plan::Lost(lost));
+    }
+    Ok(Plan::Circulant(CirculantPlan {
+        weights,
+        offsets,
+        corrections,
+        effects,
+    }))
+}
+
+fn stream_index(streams: &[(u32, u32)], setup: u32, ac: u32) -> usize {
+    streams
+        .binary_search(&(setup, ac))
+        .unwrap_or_else(|_| unreachable!("every stream was listed"))
+}
+
+/// Solves the planned design. `Ok(None)` when the corrections or the effect terms make
+/// the system singular (missing readings, an effect the data cannot separate): the
+/// caller then asks the dense path, which names what is lost.
+pub(crate) fn solve(
+    set: &MeasurementSet,
+    streams: &[(u32, u32)],
+    plan: &CirculantPlan,
+    regressors: &[Vec<f64>],
+    stated_sigma: Option<Sigma>,
+) -> Result<Option<Solution>, SolveError> {
+    let n = set.faces;
+    let k = streams.len();
+    let e = regressors.len();
+    let base_len = 2 * n + k;
+    let len = base_len + e;
+    let base = Base::new(
+        n,
+        &plan
+            .offsets
+            .iter()
+            .zip(&plan.weights)
+            .map(|(&offset, &weight)| RegularStream { offset, weight })
+            .collect::<Vec<_>>(),
+        e,
+    );
+
+    // Each stream's mean is taken out of its readings first (the U′ column absorbs it
+    // exactly), so that the sums the FFT sees carry the variations, not the zeros.
+    let mut stream_sum = vec![0.0; k];
+    let mut stream_count = vec![0usize; k];
+    let reading_stream: Vec<usize> = set
+        .readings
+        .iter()
+        .map(|r| {
+            let s = stream_index(streams, r.setup, r.ac);
+            stream_sum[s] += r.reading_arcsec;
+            stream_count[s] += 1;
+            s
+        })
+        .collect();
+    let stream_mean: Vec<f64> = stream_sum
+        .iter()
+        .zip(&stream_count)
+        .map(|(sum, &count)| sum / count.max(1) as f64)
+        .collect();
+
+    // Xᵀy, F = XᵀZ and ZᵀZ in g = [α, φ′, U′, effects]
+    let mut b = vec![0.0; len];
+    let mut f = vec![0.0; base_len * e];
+    let mut ztz = DMatrix::<f64>::zeros(e, e);
+    let mut rows = Vec::with_capacity(set.readings.len());
+    for (i, r) in set.readings.iter().enumerate() {
+        let s = reading_stream[i];
+        let row = [r.position(n), n + r.face - 1, 2 * n + s];
+        rows.push(row);
+        let y = r.reading_arcsec - stream_mean[s];
+        for &a in &row {
+            b[a] += y;
+        }
+        for (j, z) in regressors.iter().enumerate() {
+            let zij = z[i];
+            if zij == 0.0 {
+                continue;
+            }
+            b[base_len + j] += zij * y;
+            for &a in &row {
+                f[j * base_len + a] += zij;
+            }
+            for (l, zl) in regressors.iter().enumerate().take(j + 1) {
+                let v = zij * zl[i];
+                ztz[(j, l)] += v;
+                if l != j {
+                    ztz[(l, j)] += v;
+                }
+            }
+        }
+    }
+
+    // Woodbury: W1 = B V, C1 = D⁻¹ + Vᵀ B V
+    let m = plan.corrections.len();
+    let cell_row = |&(s, p, _): &(usize, usize, f64)| [p, n + (p + plan.offsets[s]) % n, 2 * n + s];
+    let mut w1 = vec![0.0; base_len * m];
+    for (c, cell) in plan.corrections.iter().enumerate() {
+        let x = cell_row(cell);
+        let column = &mut w1[c * base_len..(c + 1) * base_len];
+        for (a, v) in column.iter_mut().enumerate() {
+            *v = x.iter().map(|&j| base.entry(a, j)).sum();
+        }
+    }
+    let mut capacitance = DMatrix::<f64>::zeros(m, m);
+    for (c, cell) in plan.corrections.iter().enumerate() {
+        let x = cell_row(cell);
+        for d in 0..m {
+            capacitance[(c, d)] = x.iter().map(|&a| w1[d * base_len + a]).sum();
+        }
+        capacitance[(c, c)] += 1.0 / cell.2;
+    }
+    // the scale of the two parts: a capacitance that cancels to rounding level against
+    // them is singular (in a design of one reading per cell every reading has leverage 1,
+    // and D⁻¹ + VᵀBV of missing readings is then 0)
+    let scale = plan
+        .corrections
+        .iter()
+        .enumerate()
+        .map(|(c, cell)| (1.0 / cell.2).abs() + (capacitance[(c, c)] - 1.0 / cell.2).abs())
+        .fold(0.0_f64, f64::max);
+    let capacitance_inverse = match invert_checked(&capacitance, scale) {
+        Some(inverse) => inverse,
+        None => return Ok(None),
+    };
+    // Q_A v = B v − W1 C1⁻¹ W1ᵀ v for v in the base coordinates
+    let q_a = |v: &[f64]| -> Vec<f64> {
+        let mut out = vec![0.0; len];
+        let mut padded = v.to_vec();
+        padded.resize(len, 0.0);
+        base.apply_add(&padded, &mut out);
+        out.truncate(base_len);
+        if m > 0 {
+            let proj: Vec<f64> = (0..m)
+                .map(|c| {
+                    w1[c * base_len..(c + 1) * base_len]
+                        .iter()
+                        .zip(v)
+                        .map(|(a, b)| a * b)
+                        .sum()
+                })
+                .collect();
+            for c in 0..m {
+                let coefficient: f64 = (0..m).map(|d| capacitance_inverse[(c, d)] * proj[d]).sum();
+                for (o, w) in out.iter_mut().zip(&w1[c * base_len..(c + 1) * base_len]) {
+                    *o -= coefficient * w;
+                }
+            }
+        }
+        out
+    };
+
+    // effects: Y = Q_A F, S_e = ZᵀZ − Fᵀ Y
+    let mut y_cols = vec![0.0; base_len * e];
+    for j in 0..e {
+        let column = q_a(&f[j * base_len..(j + 1) * base_len]);
+        y_cols[j * base_len..(j + 1) * base_len].copy_from_slice(&column);
+    }
+    let mut schur = ztz.clone();
+    for j in 0..e {
+        for l in 0..e {
+            let dot: f64 = f[j * base_len..(j + 1) * base_len]
+                .iter()
+                .zip(&y_cols[l * base_len..(l + 1) * base_len])
+                .map(|(a, b)| a * b)
+                .sum();
+            schur[(j, l)] -= dot;
+        }
+    }
+    let schur_inverse = if e > 0 {
+        let scale = (0..e).map(|j| ztz[(j, j)]).fold(0.0_f64, f64::max);
+        match schur.clone().cholesky() {
+            Some(cholesky) => {
+                let l = cholesky.l_dirty();
+                let smallest = (0..e)
+                    .map(|j| l[(j, j)].powi(2))
+                    .fold(f64::INFINITY, f64::min);
+                if scale <= 0.0 || smallest <= 1e-10 * scale {
+                    return Ok(None);
+                }
+                cholesky.inverse()
+            }
+            None => return Ok(None),
+        }
+    } else {
+        DMatrix::zeros(0, 0)
+    };
+
+    // W = [[B V, Y], [0, −I]], M = diag(−C1⁻¹, S_e⁻¹)
+    let r = m + e;
+    let mut w = vec![0.0; len * r];
+    for c in 0..m {
+        w[c * len..c * len + base_len].copy_from_slice(&w1[c * base_len..(c + 1) * base_len]);
+    }
+    for j in 0..e {
+        let column = &mut w[(m + j) * len..(m + j + 1) * len];
+        column[..base_len].copy_from_slice(&y_cols[j * base_len..(j + 1) * base_len]);
+        column[base_len + j] = -1.0;
+    }
+    let mut middle = DMatrix::<f64>::zeros(r, r);
+    middle
+        .view_mut((0, 0), (m, m))
+        .copy_from(&(-&capacitance_inverse));
+    middle.view_mut((m, m), (e, e)).copy_from(&schur_inverse);
+    let structured = Structured::new(base, w, &middle);
+    let mut g = structured.apply(&b);
+    // One step of iterative refinement: the gradient Xᵀe of the residuals e, formed from
+    // the readings without cancellation, mapped through Q_g again. At large N the
+    // harmonics near a zero of the design's transfer function are amplified (by N²/2π²
+    // at N = 65 536: 10⁸), and with them the rounding of the first product; the step
+    // takes that back to the level of the closed form.
+    let model_residual = |g: &[f64], out: &mut Vec<f64>| {
+        out.clear();
+        out.extend(
+            set.readings
+                .iter()
+                .zip(&rows)
+                .enumerate()
+                .map(|(i, (reading, row))| {
+                    let mut model: f64 = row.iter().map(|&a| g[a]).sum();
+                    for (j, z) in regressors.iter().enumerate() {
+                        model += g[base_len + j] * z[i];
+                    }
+                    (reading.reading_arcsec - stream_mean[reading_stream[i]]) - model
+                }),
+        );
+    };
+    let mut residuals = Vec::with_capacity(set.readings.len());
+    model_residual(&g, &mut residuals);
+    let mut gradient = vec![0.0; len];
+    for (i, (e, row)) in residuals.iter().zip(&rows).enumerate() {
+        for &a in row {
+            gradient[a] += e;
+        }
+        for (j, z) in regressors.iter().enumerate() {
+            gradient[base_len + j] += z[i] * e;
+        }
+    }
+    for (g, d) in g.iter_mut().zip(structured.apply(&gradient)) {
+        *g += d;
+    }
+    model_residual(&g, &mut residuals);
+
+    // θ in the reported gauge (docs/FORMAT.md §1): φ = φ′ − φ′_N, U = U′ + φ′_N
+    let phi_last = g[2 * n - 1];
+    let pitch_deviation: Vec<f64> = (0..n).map(|i| g[n + i] - g[n + (i + n - 1) % n]).collect();
+    let face_deviation = face_deviation_from_pitch(&pitch_deviation);
+    let encoder_error = g[..n].to_vec();
+    let effect_values = g[base_len..].to_vec();
+    for (u, mean) in g[2 * n..base_len].iter_mut().zip(&stream_mean) {
+        *u += mean;
+    }
+    let setup_values: Vec<f64> = (0..k).map(|s| g[2 * n + s] + phi_last).collect();
+    let rss: f64 = residuals.iter().map(|v| v * v).sum();
+    let dof = set.readings.len().saturating_sub(2 * n - 2 + k + e);
+    let layout = ParameterLayout {
+        faces: n,
+        setups: k,
+        effects: e,
+    };
+    Ok(Some(Solution {
+        faces: n,
+        method: Method::LeastSquares,
+        engine: Engine::Circulant { low_rank: r },
+        pitch_deviation,
+        face_deviation,
+        encoder_error,
+        setup_error: streams
+            .iter()
+            .zip(setup_values)
+            .map(|(&(setup, ac), value)| SetupError { setup, ac, value })
+            .collect(),
+        effect_values,
+        effect_regressors: regressors.to_vec(),
+        residuals,
+        readings: set.readings.len(),
+        dof,
+        rss,
+        sigma: super::choose_sigma(rss, dof, stated_sigma),
+        cofactor: Cofactor::structured(layout, structured),
+        layout,
+    }))
+}
+
+/// The inverse of a small matrix by LU, or `None` when it is singular to working
+/// precision: a pivot below 1e-10 of `scale` (the size of the terms it was formed from;
+/// the dense path's test of its Cholesky factor is the same ratio), or a product with
+/// the inverse that is not the identity to 1e-8.
+fn invert_checked(matrix: &DMatrix<f64>, scale: f64) -> Option<DMatrix<f64>> {
+    let size = matrix.nrows();
+    if size == 0 {
+        return Some(DMatrix::zeros(0, 0));
+    }
+    let lu = matrix.clone().lu();
+    let u = lu.u();
+    let pivots: Vec<f64> = (0..size).map(|i| u[(i, i)].abs()).collect();
+    let largest = pivots.iter().fold(scale, |a, &b| a.max(b));
+    let smallest = pivots.iter().fold(f64::INFINITY, |a, &b| a.min(b));
+    if smallest.is_nan() || smallest <= 1e-10 * largest {
+        return None;
+    }
+    let inverse = lu.try_inverse()?;
+    if inverse.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let product = matrix * &inverse;
+    let worst = (0..size)
+        .flat_map(|i| (0..size).map(move |j| (i, j)))
+        .map(|(i, j)| (product[(i, j)] - if i == j { 1.0 } else { 0.0 }).abs())
+        .fold(0.0_f64, f64::max);
+    (worst < 1e-8).then_some(inverse)
+}
