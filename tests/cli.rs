@@ -1250,3 +1250,38 @@ fn help_examples_run() {
         }
     }
 }
+
+/// A design too large for the dense reference (50 000 positions: about 522 GiB) is
+/// refused up front with status 2 and one `error:` line naming the file, the size and
+/// the memory; `--method lsq` solves the same file on the circulant engine, and `auto`
+/// by the closed form.
+#[test]
+fn designs_too_large_for_the_machine_are_refused_up_front() {
+    let dir = temp_dir("too-large");
+    let file = dir.join("big.csv");
+    let file_text = file.to_str().unwrap();
+    let out = polycal(&[
+        "simulate", "--faces", "50000", "--cycles", "1", "--out", file_text, "-q",
+    ]);
+    assert_status(&out, 0);
+    let out = polycal(&["solve", file_text, "--method", "dense", "--format", "json"]);
+    assert_status(&out, 2);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.starts_with("error: "), "{stderr}");
+    assert!(stderr.contains("big.csv"), "{stderr}");
+    assert!(stderr.contains("50000 positions"), "{stderr}");
+    assert!(stderr.contains("521.6 GiB"), "{stderr}");
+    assert!(stderr.contains("available on this machine"), "{stderr}");
+    assert!(out.stdout.is_empty());
+    for (method, engine) in [("lsq", "circulant"), ("auto", "closed-form")] {
+        let out = polycal(&[
+            "solve", file_text, "--method", method, "--sigma", "0.05", "--format", "json",
+        ]);
+        assert_status(&out, 0);
+        let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(json["engine"], engine);
+        assert_eq!(numbers(&json["encoder_error_u"]).len(), 50_000);
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

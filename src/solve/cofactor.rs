@@ -589,9 +589,34 @@ impl Cofactor {
     pub fn to_dense(&self) -> DMatrix<f64> {
         match &self.repr {
             Repr::Dense(m) => m.clone(),
-            Repr::Structured(_) => {
+            Repr::Structured(s) => {
                 let len = self.len();
-                DMatrix::from_fn(len, len, |i, j| self.entry(i, j))
+                // Q_g = B + W (W M)ᵀ, then Q = T Q_g Tᵀ by rows and by columns
+                let mut qg = DMatrix::from_fn(len, len, |a, b| s.base.entry(a, b));
+                if s.rank > 0 {
+                    let w = DMatrix::from_column_slice(len, s.rank, &s.w);
+                    let wm = DMatrix::from_column_slice(len, s.rank, &s.wm);
+                    qg.gemm(1.0, &wm, &w.transpose(), 1.0);
+                }
+                let map: Vec<[(usize, f64); 2]> =
+                    (0..len).map(|i| theta_row(&self.layout, i)).collect();
+                let mut rows = DMatrix::<f64>::zeros(len, len);
+                for j in 0..len {
+                    let source = qg.column(j);
+                    for (target, terms) in rows.column_mut(j).iter_mut().zip(&map) {
+                        *target = terms.iter().map(|&(a, c)| c * source[a]).sum();
+                    }
+                }
+                let mut q = DMatrix::<f64>::zeros(len, len);
+                for j in 0..len {
+                    for (b, c) in theta_row(&self.layout, j) {
+                        if c != 0.0 {
+                            let source = rows.column(b).clone_owned();
+                            q.column_mut(j).axpy(c, &source, 1.0);
+                        }
+                    }
+                }
+                q
             }
         }
     }
