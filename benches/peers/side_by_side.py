@@ -4,7 +4,7 @@
     cargo build --release
     python3 -m pip install --user -r benches/peers/requirements.txt
     python3 benches/peers/side_by_side.py [--polycal target/release/polycal] [--runs 5]
-                                          [--faces 24,360,1440] [--keep DIR]
+                                          [--faces 24,360,1440] [--peer-threads T] [--keep DIR]
 
 For every design (N faces × 6 cycles with closing readings, two adjacent
 autocollimators) it simulates the file with
@@ -57,11 +57,11 @@ def peer_bytes(faces, cycles=6, autocollimators=2):
     return 8 * (readings * params + 2 * params * params + 2 * full * full)
 
 
-def timed(cmd, runs):
+def timed(cmd, runs, env=None):
     times, out = [], None
     for _ in range(runs):
         start = time.perf_counter()
-        done = subprocess.run(cmd, capture_output=True, text=True)
+        done = subprocess.run(cmd, capture_output=True, text=True, env=env)
         times.append(time.perf_counter() - start)
         if done.returncode != 0:
             sys.exit(f"{' '.join(cmd)} failed ({done.returncode}): {done.stderr.strip()}")
@@ -125,6 +125,11 @@ def main():
     parser.add_argument("--runs", type=int, default=5, help="runs per program (median)")
     parser.add_argument("--tol", type=float, default=1e-6, help="absolute tolerance, arcsec")
     parser.add_argument("--mem-fraction", type=float, default=0.6)
+    parser.add_argument(
+        "--peer-threads",
+        type=int,
+        help="OPENBLAS_NUM_THREADS/OMP_NUM_THREADS for the peer (default: numpy's own)",
+    )
     parser.add_argument("--keep", help="directory for the simulated files (default: temporary)")
     args = parser.parse_args()
     if not os.path.exists(args.polycal):
@@ -133,11 +138,20 @@ def main():
     workdir = args.keep or tempfile.mkdtemp(prefix="polycal-peer-")
     os.makedirs(workdir, exist_ok=True)
     avail = available_bytes()
+    peer_env = None
+    if args.peer_threads:
+        peer_env = dict(os.environ)
+        for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            peer_env[name] = str(args.peer_threads)
     header = (
         f"{'design':<26} {'readings':>8} {'polycal s':>10} {'peer s':>9} {'peer/polycal':>12}"
         f" {'max|Δ| est':>10} {'max|Δ| u':>9} {'max rel':>8}  agree"
     )
-    print(f"median of {args.runs} whole-process runs each; agreement: absolute {args.tol:g}″")
+    threads = args.peer_threads or "numpy's default"
+    print(
+        f"median of {args.runs} whole-process runs each; peer BLAS threads: {threads}; "
+        f"agreement: absolute {args.tol:g}″"
+    )
     print(header)
     print("-" * len(header))
     failed = False
@@ -157,7 +171,7 @@ def main():
             check=True,
         )
         t_polycal, a = timed([args.polycal, "solve", path, "--format", "json"], args.runs)
-        t_peer, b = timed([args.python, PEER, path], args.runs)
+        t_peer, b = timed([args.python, PEER, path], args.runs, peer_env)
         worst, failures = compare(a, b, args.tol)
         ok = not failures
         failed |= not ok
