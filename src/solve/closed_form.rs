@@ -67,38 +67,65 @@ where
     if n < 3 || ac2_reading_arcsec.len() != n {
         return Err(PolygonError::TooFewFaces(n.min(ac2_reading_arcsec.len())));
     }
-    let m1 = ac1_reading_arcsec;
-    let m2 = ac2_reading_arcsec;
-    let dim = m1.shape_generic().0;
+    let dim = ac1_reading_arcsec.shape_generic().0;
+    let nf = n as f64;
+    // slices of one length: the loops below need no bounds checks and no `% n`
+    let m1 = ac1_reading_arcsec.as_slice();
+    let m2 = &ac2_reading_arcsec.as_slice()[..n];
+    // δ[p] = m₂[p] − m₁[p]; eqs. (7), (8) with Σβ = 0 are β[1] = δ[N−1] − mean(δ) and
+    // β[k] = δ[k−2] − mean(δ). Everything else waits for mean(δ) and then for the
+    // cumulative sum φ, so the work is arranged to keep that path short:
+    // - one pass over the readings for Σδ (in two partial sums: half the chain of
+    //   dependent additions), Σm₁, Σm₂ and Σφ;
+    // - Σ_f φ[f] = Σ_p ((N−3)/2 − p) δ[p] + N δ[N−1] (0-based p, from φ = cumulative β),
+    //   so that U₁ and U₂ (eqs. (9), (10) with Σα = 0) do not wait for φ;
+    // - the result is built once and filled in place.
     let last = m2[n - 1] - m1[n - 1];
-    // eq. (8): Σ_p (δ[p] − δ[N−1]) = −N β[1]
-    let mut sum = 0.0;
-    for p in 0..n {
-        sum += m2[p] - m1[p] - last;
+    let (mut even, mut odd) = (0.0, 0.0);
+    let (mut sum1, mut sum2, mut sum_phi) = (0.0, 0.0, nf * last);
+    let weight_0 = 0.5 * (nf - 3.0);
+    let (pairs1, rest1) = m1.as_chunks::<2>();
+    let (pairs2, rest2) = m2.as_chunks::<2>();
+    for (i, (a, b)) in pairs1.iter().zip(pairs2).enumerate() {
+        let (delta_0, delta_1) = (b[0] - a[0], b[1] - a[1]);
+        even += delta_0;
+        odd += delta_1;
+        sum1 += a[0] + a[1];
+        sum2 += b[0] + b[1];
+        let weight = weight_0 - (2 * i) as f64;
+        sum_phi += weight * delta_0 + (weight - 1.0) * delta_1;
     }
-    let beta_1 = -sum / n as f64;
-    // eq. (7)
+    for (&a, &b) in rest1.iter().zip(rest2) {
+        // odd N: p = N − 1
+        even += b - a;
+        sum1 += a;
+        sum2 += b;
+        sum_phi += (weight_0 - (n - 1) as f64) * (b - a);
+    }
+    let mean_delta = (even + odd) / nf;
+    let u1 = (sum1 - sum_phi) / nf;
+    let u2 = (sum2 - sum_phi) / nf;
     let mut beta = OVector::<f64, D>::zeros_generic(dim, Const::<1>);
-    beta[0] = beta_1;
-    for k in 1..n {
-        beta[k] = beta_1 + (m2[k - 1] - m1[k - 1]) - last;
+    let (beta_1, beta_rest) = beta.as_mut_slice().split_at_mut(1);
+    beta_1[0] = last - mean_delta;
+    for ((beta_k, &a), &b) in beta_rest.iter_mut().zip(m1).zip(m2) {
+        *beta_k = (b - a) - mean_delta;
     }
-    let polygon = Polygon::from_closed_pitch(beta);
-    let phi = polygon.face_deviation_arcsec();
-    let sum_phi: f64 = phi.iter().sum();
-    // eqs. (9), (10) with Σα = 0
-    let u1 = (m1.iter().sum::<f64>() - sum_phi) / n as f64;
-    let u2 = (m2.iter().sum::<f64>() - sum_phi) / n as f64;
-    // eqs. (4), (5)
-    let mut alpha = OVector::<f64, D>::zeros_generic(dim, Const::<1>);
-    for p in 0..n {
-        alpha[p] = 0.5 * ((m1[p] - phi[p] - u1) + (m2[p] - phi[(p + 1) % n] - u2));
-    }
-    Ok(ClosedFormSolution {
-        polygon,
-        encoder_error: alpha,
+    let mut solution = ClosedFormSolution {
+        polygon: Polygon::from_closed_pitch(beta),
+        encoder_error: OVector::<f64, D>::zeros_generic(dim, Const::<1>),
         setup_error: [u1, u2],
-    })
+    };
+    // eqs. (4), (5), the mean of both: α[p] = (m₁[p] + m₂[p] − φ[p+1] − φ[p+2] − U₁ − U₂)/2
+    // (faces 1-based, wrapping: φ[N+1] = φ[1])
+    let phi = &solution.polygon.face_deviation_arcsec().as_slice()[..n];
+    let u_mean = 0.5 * (u1 + u2);
+    let alpha = &mut solution.encoder_error.as_mut_slice()[..n];
+    for p in 0..n - 1 {
+        alpha[p] = 0.5 * ((m1[p] + m2[p]) - (phi[p] + phi[p + 1])) - u_mean;
+    }
+    alpha[n - 1] = 0.5 * ((m1[n - 1] + m2[n - 1]) - (phi[n - 1] + phi[0])) - u_mean;
+    Ok(solution)
 }
 
 /// A measurement set recognised as the paper's design: one mounting, two
