@@ -1274,6 +1274,12 @@ fn designs_too_large_for_the_machine_are_refused_up_front() {
     assert!(stderr.contains("521.6 GiB"), "{stderr}");
     assert!(stderr.contains("available on this machine"), "{stderr}");
     assert!(out.stdout.is_empty());
+    // diagnose's hat matrix would be dense too: refused the same way, before the search
+    let out = polycal(&["diagnose", file_text, "--sigma", "0.05"]);
+    assert_status(&out, 2);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("diagnose hat-matrix"), "{stderr}");
     for (method, engine) in [("lsq", "circulant"), ("auto", "closed-form")] {
         let out = polycal(&[
             "solve", file_text, "--method", method, "--sigma", "0.05", "--format", "json",

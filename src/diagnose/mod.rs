@@ -320,6 +320,25 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
     let sigma = options.sigma;
     let context = EffectContext::of(&set.readings);
     let before = least_squares_with_regressors(set, &[], sigma)?;
+    // the hat-matrix geometry holds the cofactor densely (three matrices of the
+    // parameters with every effect term the search may add): refused up front when it
+    // cannot fit, before the search allocates it
+    let parameters = (before.layout.len() + options.max_effects) as u128;
+    let needed_bytes = 3 * parameters * parameters * 8;
+    if let Some((limit_bytes, limit_source)) = crate::solve::memory::limit_for(needed_bytes, None)
+        && needed_bytes > u128::from(limit_bytes)
+    {
+        return Err(SolveError::TooLarge {
+            faces: set.faces,
+            streams: before.layout.setups,
+            effects: options.max_effects,
+            readings: set.readings.len(),
+            engine: "diagnose hat-matrix",
+            needed_bytes,
+            limit_bytes,
+            limit_source,
+        });
+    }
     let mut notes = Vec::new();
     let testable = before.dof >= 2;
     if !testable {
