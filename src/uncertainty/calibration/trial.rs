@@ -33,17 +33,16 @@ where
     DefaultAllocator: Allocator<D>,
 {
     let n = s.encoder_error.len();
-    let beta = s.polygon.pitch_deviation_arcsec();
-    let phi = s.polygon.face_deviation_arcsec();
-    for f in 0..n {
-        out[f] = beta[f];
-    }
-    for f in 0..n - 1 {
-        out[n + f] = phi[f];
-    }
-    for p in 0..n {
-        out[2 * n - 1 + p] = s.encoder_error[(p + offset) % n];
-    }
+    let (beta, rest) = out.split_at_mut(n);
+    let (phi, alpha) = rest.split_at_mut(n - 1);
+    beta.copy_from_slice(s.polygon.pitch_deviation_arcsec().as_slice());
+    phi.copy_from_slice(&s.polygon.face_deviation_arcsec().as_slice()[..n - 1]);
+    // α of position p is the solution's α[(p + offset) mod N]: a rotation, without a
+    // division per position.
+    let offset = offset % n;
+    let encoder = s.encoder_error.as_slice();
+    alpha[..n - offset].copy_from_slice(&encoder[offset..]);
+    alpha[n - offset..n].copy_from_slice(&encoder[..offset]);
 }
 
 fn closed_form_const<const N: usize>(t: &[f64], offset: usize, out: &mut [f64]) -> bool {

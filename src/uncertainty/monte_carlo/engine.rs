@@ -34,8 +34,8 @@ use rand::Rng;
 use rayon::prelude::*;
 
 use super::statistics::{
-    Acc, Brackets, Moments, brackets_from, columns, finish, order_statistic, shortest_interval,
-    standard_deviation_of_mean, symmetric_interval_positions,
+    Acc, Brackets, Moments, ROWS, brackets_from, columns, finish, order_statistic,
+    shortest_interval, standard_deviation_of_mean, symmetric_interval_positions,
 };
 use super::stream::block_rng;
 use super::{McError, McResult, OutputSummary, Trials, numerical_tolerance};
@@ -369,16 +369,20 @@ impl<T: Trial> Engine<'_, T> {
                 let to = ((b + 1) * BLOCK_SIZE).min(range.end);
                 let mut rng = block_rng(self.seed, b as u64);
                 let mut scratch = trial.scratch();
-                let mut out = vec![0.0; outputs];
-                // Room for about 1/`room` of the trials inside each bracket.
-                let mut acc =
-                    brackets.map(|(_, room)| Acc::with_capacity(outputs, (to - from) / room + 16));
+                // The outputs of the last few trials, trial-major, recorded together.
+                let mut rows = vec![0.0; ROWS * outputs];
+                let mut filled = 0;
+                // Room for about 1/`room` of the values inside a bracket.
+                let mut acc = brackets.map(|(_, room)| {
+                    Acc::with_capacity(outputs, 2 * outputs * (to - from) / room + 64)
+                });
                 let mut raw = Vec::new();
                 if keep {
                     raw.reserve((to - from) * outputs);
                 }
                 for t in from..to {
-                    let solved = match trial.draw(&mut rng, &mut scratch, &mut out) {
+                    let out = &mut rows[filled * outputs..(filled + 1) * outputs];
+                    let solved = match trial.draw(&mut rng, &mut scratch, out) {
                         Ok(()) => true,
                         Err(TrialFailure::Failed) => false,
                         Err(TrialFailure::OutputCount(got)) => {
@@ -389,12 +393,8 @@ impl<T: Trial> Engine<'_, T> {
                             });
                         }
                     };
-                    // One pass without a branch per output (the accumulator's, if any);
-                    // the culprit only on failure, and then the accumulator is dropped.
-                    let finite = match (&mut acc, brackets) {
-                        (Some(acc), Some((b, _))) => acc.record(&out, centre, b),
-                        _ => out.iter().fold(true, |all, v| all & v.is_finite()),
-                    };
+                    // One pass without a branch per output; the culprit only on failure.
+                    let finite = out.iter().fold(true, |all, v| all & v.is_finite());
                     if let Some((output, &value)) = (!solved || !finite)
                         .then(|| {
                             out.iter()
@@ -411,7 +411,14 @@ impl<T: Trial> Engine<'_, T> {
                         });
                     }
                     if keep {
-                        raw.extend_from_slice(&out);
+                        raw.extend_from_slice(out);
+                    }
+                    filled += 1;
+                    if filled == ROWS || t + 1 == to {
+                        if let (Some(acc), Some((b, _))) = (&mut acc, brackets) {
+                            acc.record_rows(&rows[..filled * outputs], centre, b);
+                        }
+                        filled = 0;
                     }
                 }
                 self.counter.add_done(to - from);

@@ -125,6 +125,70 @@ impl Brackets {
     }
 }
 
+/// Trials recorded together by [`Acc::record_rows`].
+pub(crate) const ROWS: usize = 8;
+
+/// Some trials' outputs against the running sums and counts of every output.
+struct Columns<'a> {
+    /// Trials, trial-major: output j of row r at `r·n + j`.
+    rows: &'a [f64],
+    centre: &'a [f64],
+    /// Low bracket from, to; high bracket from, to.
+    brackets: [&'a [f64]; 4],
+    s1: &'a mut [f64],
+    s2: &'a mut [f64],
+    below: &'a mut [u64],
+    above: &'a mut [u64],
+    /// Per row and output: 1 if inside the low bracket, 2 the high, 3 both.
+    hits: &'a mut [u64],
+}
+
+impl Columns<'_> {
+    /// Adds the rows, one after the other, to the sums and counts and marks the values
+    /// inside a bracket: no branch, in the vector units (across the outputs), the same
+    /// arithmetic value by value whatever the vector width.
+    #[inline(always)]
+    fn add(&mut self) {
+        let n = self.centre.len();
+        let [low_from, low_to, high_from, high_to] = self.brackets;
+        let (centre, low_from, low_to) = (&self.centre[..n], &low_from[..n], &low_to[..n]);
+        let (high_from, high_to) = (&high_from[..n], &high_to[..n]);
+        let (s1, s2) = (&mut self.s1[..n], &mut self.s2[..n]);
+        let (below, above) = (&mut self.below[..n], &mut self.above[..n]);
+        for (out, hits) in self.rows.chunks_exact(n).zip(self.hits.chunks_exact_mut(n)) {
+            for j in 0..n {
+                let x = out[j];
+                let d = x - centre[j];
+                s1[j] += d;
+                s2[j] += d * d;
+                below[j] += u64::from(x < low_from[j]);
+                above[j] += u64::from(x > high_to[j]);
+                let low = (x >= low_from[j]) & (x <= low_to[j]);
+                let high = (x >= high_from[j]) & (x <= high_to[j]);
+                hits[j] = u64::from(low) | (u64::from(high) << 1);
+            }
+        }
+    }
+
+    /// [`Columns::add`] with the AVX2 vector units (four outputs at a time).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn add_avx2(&mut self) {
+        self.add()
+    }
+
+    /// [`Columns::add`], with the vector units the processor has.
+    fn add_fastest(&mut self) {
+        #[cfg(target_arch = "x86_64")]
+        if super::stream::has_avx2() {
+            // SAFETY: the processor has AVX2 (just checked).
+            unsafe { self.add_avx2() };
+            return;
+        }
+        self.add()
+    }
+}
+
 /// Running sums and bracket contents of some trials.
 pub(crate) struct Acc {
     /// Σ (x − c) and Σ (x − c)², c the centre.
@@ -133,12 +197,15 @@ pub(crate) struct Acc {
     /// Values below the low bracket, and above the high bracket.
     below: Vec<u64>,
     above: Vec<u64>,
-    /// Values inside the low (index 2j) and the high (2j + 1) bracket of output j.
-    inside: Vec<Vec<f64>>,
+    /// Values inside a bracket, in no order: (2j for the low bracket of output j,
+    /// 2j + 1 for the high one; the value). One store per block of trials.
+    inside: Vec<(u32, f64)>,
     /// The bracket contents of the accumulators merged into this one.
-    merged: Vec<Vec<Vec<f64>>>,
-    /// Per output of the last trial: 1 if inside the low bracket, 2 the high, 3 both.
+    merged: Vec<Vec<(u32, f64)>>,
+    /// Per row and output of the last trials recorded: 1 if inside the low bracket, 2
+    /// the high, 3 both; and the indices of those inside one.
     hits: Vec<u64>,
+    found: Vec<u32>,
 }
 
 impl Acc {
@@ -146,64 +213,69 @@ impl Acc {
         Acc::with_capacity(outputs, 0)
     }
 
-    /// An accumulator with room for `values` bracket contents per bracket.
+    /// An accumulator with room for `values` bracket contents.
     pub(crate) fn with_capacity(outputs: usize, values: usize) -> Self {
         Acc {
             s1: vec![0.0; outputs],
             s2: vec![0.0; outputs],
             below: vec![0; outputs],
             above: vec![0; outputs],
-            inside: (0..2 * outputs)
-                .map(|_| Vec::with_capacity(values))
-                .collect(),
+            inside: Vec::with_capacity(values),
             merged: Vec::new(),
-            hits: vec![0; outputs],
+            hits: vec![0; ROWS * outputs],
+            found: vec![0; ROWS * outputs],
         }
     }
 
-    /// Adds the outputs of one trial; returns whether they are all finite.
+    /// Adds the outputs of some trials, trial-major (`rows` of [`ROWS`] or fewer trials),
+    /// as one trial after the other.
     #[inline]
-    pub(crate) fn record(&mut self, out: &[f64], centre: &[f64], brackets: &Brackets) -> bool {
-        let n = out.len();
-        let (s1, s2) = (&mut self.s1[..n], &mut self.s2[..n]);
-        let (below, above) = (&mut self.below[..n], &mut self.above[..n]);
-        let hits = &mut self.hits[..n];
-        let centre = &centre[..n];
-        let (low_from, low_to) = (&brackets.low_from[..n], &brackets.low_to[..n]);
-        let (high_from, high_to) = (&brackets.high_from[..n], &brackets.high_to[..n]);
-        // Sums, counts and whether the value is inside a bracket: no branch, in the
-        // vector units.
-        let mut finite = true;
-        for j in 0..n {
-            let x = out[j];
-            finite &= x.is_finite();
-            let d = x - centre[j];
-            s1[j] += d;
-            s2[j] += d * d;
-            below[j] += u64::from(x < low_from[j]);
-            above[j] += u64::from(x > high_to[j]);
-            let low = (x >= low_from[j]) & (x <= low_to[j]);
-            let high = (x >= high_from[j]) & (x <= high_to[j]);
-            hits[j] = u64::from(low) | (u64::from(high) << 1);
+    pub(crate) fn record_rows(&mut self, rows: &[f64], centre: &[f64], brackets: &Brackets) {
+        let n = centre.len();
+        let count = rows.len() / n;
+        debug_assert!(count <= ROWS && rows.len() == count * n);
+        Columns {
+            rows,
+            centre,
+            brackets: [
+                &brackets.low_from,
+                &brackets.low_to,
+                &brackets.high_from,
+                &brackets.high_to,
+            ],
+            s1: &mut self.s1,
+            s2: &mut self.s2,
+            below: &mut self.below,
+            above: &mut self.above,
+            hits: &mut self.hits[..count * n],
         }
-        // The few values inside a bracket (about 2 % of the trials at each end).
-        for (j, &hit) in hits.iter().enumerate() {
-            if hit != 0 {
-                if hit & 1 != 0 {
-                    self.inside[2 * j].push(out[j]);
-                }
-                if hit & 2 != 0 {
-                    self.inside[2 * j + 1].push(out[j]);
-                }
+        .add_fastest();
+        // The few values inside a bracket (about 2 % of the trials at each end, fewer
+        // after a refinement).
+        // First where they are, without a branch per value, then those few.
+        let hits = &self.hits[..count * n];
+        let found = &mut self.found[..count * n];
+        let mut k = 0;
+        for (i, &hit) in hits.iter().enumerate() {
+            found[k] = i as u32;
+            k += usize::from(hit != 0);
+        }
+        for &i in &found[..k] {
+            let (i, hit) = (i as usize, hits[i as usize]);
+            let j = (i % n) as u32;
+            if hit & 1 != 0 {
+                self.inside.push((2 * j, rows[i]));
+            }
+            if hit & 2 != 0 {
+                self.inside.push((2 * j + 1, rows[i]));
             }
         }
-        finite
     }
 
     /// Adds trial-major outputs in trial order.
     pub(crate) fn feed(&mut self, raw: &[f64], centre: &[f64], brackets: &Brackets) {
-        for out in raw.chunks_exact(centre.len()) {
-            self.record(out, centre, brackets);
+        for rows in raw.chunks(ROWS * centre.len()) {
+            self.record_rows(rows, centre, brackets);
         }
     }
 
@@ -217,6 +289,32 @@ impl Acc {
         }
         self.merged.push(other.inside);
         self.merged.extend(other.merged);
+    }
+
+    /// The values inside every bracket so far, per bracket (2j low, 2j + 1 high); the
+    /// accumulator keeps none.
+    fn take_inside(&mut self) -> Vec<Vec<f64>> {
+        let mut chunks = std::mem::take(&mut self.merged);
+        chunks.push(std::mem::take(&mut self.inside));
+        let brackets = 2 * self.s1.len();
+        let bucket = |chunks: &[Vec<(u32, f64)>]| {
+            let mut counts = vec![0; brackets];
+            for &(i, _) in chunks.iter().flatten() {
+                counts[i as usize] += 1;
+            }
+            let mut buckets: Vec<Vec<f64>> = counts.into_iter().map(Vec::with_capacity).collect();
+            for &(i, x) in chunks.iter().flatten() {
+                buckets[i as usize].push(x);
+            }
+            buckets
+        };
+        // Two halves side by side, then joined: the order of the values does not matter.
+        let (first, second) = chunks.split_at(chunks.len() / 2);
+        let (mut a, b) = rayon::join(|| bucket(first), || bucket(second));
+        for (a, b) in a.iter_mut().zip(b) {
+            a.extend(b);
+        }
+        a
     }
 }
 
@@ -236,16 +334,12 @@ impl Acc {
         brackets: &Brackets,
     ) -> Brackets {
         let (r_low, r_high) = symmetric_interval_positions(m, p);
-        let merged = std::mem::take(&mut self.merged);
-        let inside = std::mem::take(&mut self.inside);
-        let refined: Vec<(Vec<f64>, u64, f64, f64)> = (0..inside.len())
+        let inside = self.take_inside();
+        let refined: Vec<(Vec<f64>, u64, f64, f64)> = inside
             .into_par_iter()
-            .map(|i| {
+            .enumerate()
+            .map(|(i, mut kept)| {
                 let (j, side) = (i / 2, i % 2);
-                let mut kept = inside[i].clone();
-                for group in &merged {
-                    kept.extend_from_slice(&group[i]);
-                }
                 let (old_from, old_to) = if side == 0 {
                     (brackets.low_from[j], brackets.low_to[j])
                 } else {
@@ -284,9 +378,7 @@ impl Acc {
                 (kept, outside as u64, from, to)
             })
             .collect();
-        let n = self.s1.len();
         let mut refined_brackets = brackets.clone();
-        self.inside = Vec::with_capacity(2 * n);
         for (i, (kept, outside, from, to)) in refined.into_iter().enumerate() {
             let j = i / 2;
             if i % 2 == 0 {
@@ -298,7 +390,7 @@ impl Acc {
                 refined_brackets.high_from[j] = from;
                 refined_brackets.high_to[j] = to;
             }
-            self.inside.push(kept);
+            self.inside.extend(kept.into_iter().map(|x| (i as u32, x)));
         }
         refined_brackets
     }
@@ -380,12 +472,14 @@ pub(crate) fn columns(raw: &[f64], outputs: usize) -> Vec<Vec<f64>> {
 
 /// Mean, u and the exact interval of `m` accumulated trials; `None` if a bracket missed
 /// its order statistic.
-pub(crate) fn finish(acc: Acc, m: usize, p: f64, centre: &[f64]) -> Option<Moments> {
+pub(crate) fn finish(mut acc: Acc, m: usize, p: f64, centre: &[f64]) -> Option<Moments> {
     let (r_low, r_high) = symmetric_interval_positions(m, p);
     let mf = m as f64;
-    let per_output: Vec<Option<[f64; 4]>> = (0..centre.len())
-        .into_par_iter()
-        .map(|j| {
+    let mut inside = acc.take_inside();
+    let per_output: Vec<Option<[f64; 4]>> = inside
+        .par_chunks_mut(2)
+        .enumerate()
+        .map(|(j, values)| {
             let mean = centre[j] + acc.s1[j] / mf;
             let ss = acc.s2[j] - acc.s1[j] * acc.s1[j] / mf;
             let u = if m > 1 {
@@ -395,14 +489,7 @@ pub(crate) fn finish(acc: Acc, m: usize, p: f64, centre: &[f64]) -> Option<Momen
             };
             let mut ends = [0.0; 2];
             for (side, r) in [(0, r_low), (1, r_high)] {
-                let i = 2 * j + side;
-                let mut values = Vec::with_capacity(
-                    acc.inside[i].len() + acc.merged.iter().map(|g| g[i].len()).sum::<usize>(),
-                );
-                values.extend_from_slice(&acc.inside[i]);
-                for group in &acc.merged {
-                    values.extend_from_slice(&group[i]);
-                }
+                let values = &mut values[side];
                 // values below the bracket: counted below the low one; all but those in
                 // and above the high one
                 let below = if side == 0 {
@@ -413,7 +500,7 @@ pub(crate) fn finish(acc: Acc, m: usize, p: f64, centre: &[f64]) -> Option<Momen
                 if r < below || r >= below + values.len() {
                     return None;
                 }
-                ends[side] = order_statistic(&mut values, r - below);
+                ends[side] = order_statistic(values, r - below);
             }
             Some([mean, u, ends[0], ends[1]])
         })

@@ -143,10 +143,17 @@ mod avx2 {
     }
 }
 
+/// Whether the processor has the AVX2 vector instructions.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(crate) fn has_avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+}
+
 /// Fills `out` (a multiple of 8 long) with whole steps of every lane, in lane order.
 fn steps(s: &mut [[u64; LANES]; 4], out: &mut [u64]) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if has_avx2() {
         // SAFETY: the processor has AVX2 (just checked).
         unsafe { avx2::steps(s, out) };
         return;
