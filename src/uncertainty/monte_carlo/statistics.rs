@@ -203,9 +203,8 @@ pub(crate) struct Acc {
     /// The bracket contents of the accumulators merged into this one.
     merged: Vec<Vec<(u32, f64)>>,
     /// Per row and output of the last trials recorded: 1 if inside the low bracket, 2
-    /// the high, 3 both; and the indices of those inside one.
+    /// the high, 3 both.
     hits: Vec<u64>,
-    found: Vec<u32>,
 }
 
 impl Acc {
@@ -223,7 +222,6 @@ impl Acc {
             inside: Vec::with_capacity(values),
             merged: Vec::new(),
             hits: vec![0; ROWS * outputs],
-            found: vec![0; ROWS * outputs],
         }
     }
 
@@ -252,22 +250,17 @@ impl Acc {
         .add_fastest();
         // The few values inside a bracket (about 2 % of the trials at each end, fewer
         // after a refinement).
-        // First where they are, without a branch per value, then those few.
-        let hits = &self.hits[..count * n];
-        let found = &mut self.found[..count * n];
-        let mut k = 0;
-        for (i, &hit) in hits.iter().enumerate() {
-            found[k] = i as u32;
-            k += usize::from(hit != 0);
-        }
-        for &i in &found[..k] {
-            let (i, hit) = (i as usize, hits[i as usize]);
-            let j = (i % n) as u32;
-            if hit & 1 != 0 {
-                self.inside.push((2 * j, rows[i]));
-            }
-            if hit & 2 != 0 {
-                self.inside.push((2 * j + 1, rows[i]));
+        let hits = self.hits[..count * n].chunks_exact(n);
+        for (hits, out) in hits.zip(rows.chunks_exact(n)) {
+            for (j, (&hit, &x)) in hits.iter().zip(out).enumerate() {
+                if hit != 0 {
+                    if hit & 1 != 0 {
+                        self.inside.push((2 * j as u32, x));
+                    }
+                    if hit & 2 != 0 {
+                        self.inside.push((2 * j as u32 + 1, x));
+                    }
+                }
             }
         }
     }
