@@ -20,10 +20,8 @@ use polycal::simulate::{SimulationConfig, simulate};
 use polycal::solve::{Solution, SolveOptions, solve};
 use polycal::uncertainty::calibration::{self, InstrumentBudget, McModel, McOptions, McSolver};
 use polycal::uncertainty::distribution::Distribution;
-use polycal::uncertainty::monte_carlo::{BLOCK_SIZE, McInput, MonteCarlo, Trials};
+use polycal::uncertainty::monte_carlo::{BLOCK_SIZE, McInput, MonteCarlo, Trials, block_rng};
 use polycal::uncertainty::student::t_quantile;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 fn monte_carlo(c: &mut Criterion) {
@@ -68,14 +66,13 @@ fn bare_cycle() -> (MeasurementSet, Solution) {
 }
 
 /// Runs `trials` trials of `model` in blocks over all threads, each block on its own
-/// ChaCha8 stream as the engine draws them: with `solve`, whole trials; without, the
-/// draws only.
+/// stream as the engine draws them (`block_rng`): with `solve`, whole trials; without,
+/// the draws only.
 fn blocks(model: &McModel, trials: usize, solve: bool) -> f64 {
     (0..trials.div_ceil(BLOCK_SIZE))
         .into_par_iter()
         .map(|b| {
-            let mut rng = ChaCha8Rng::seed_from_u64(1);
-            rng.set_stream(b as u64);
+            let mut rng = block_rng(1, b as u64);
             let mut scratch = model.scratch();
             let mut out = vec![0.0; model.outputs()];
             let mut sum = 0.0;

@@ -55,15 +55,23 @@
 //! per quantity: mean, standard uncertainty, the probabilistically symmetric coverage
 //! interval, and the validation of the GUM interval (JCGM 101 §8).
 //!
+//! The draws follow the model's structure, which is linear: a normal error of each
+//! reading is folded into the noise (one normal draw per target), two rectangular errors
+//! of each reading are drawn as their sum, a trapezoid, from one uniform number, an error
+//! shared by a group of readings is drawn once per group, and an error that reaches no
+//! result (an offset the setup errors absorb) is not drawn at all.
+//!
 //! The trials run on the crate's one Monte Carlo engine
 //! ([`crate::uncertainty::monte_carlo::run`], with [`McModel`] as its
 //! [`Trial`](crate::uncertainty::monte_carlo::Trial)): blocks of
 //! [`BLOCK_SIZE`](crate::uncertainty::monte_carlo::BLOCK_SIZE) trials, block b drawing
-//! from ChaCha8 (`seed`, stream b), spread over rayon's threads and combined in block
-//! order, so the same seed gives the same numbers whatever the number of threads. The
-//! coverage interval is exact (the order statistics of all M trials, as a full sort
-//! would give) without storing every trial. [`McOptions::with_progress`] reports the
-//! trials done after every block, for a progress bar.
+//! from its own stream ([`block_rng`](crate::uncertainty::monte_carlo::block_rng):
+//! xoshiro256++ lanes seeded from ChaCha8 stream b of `seed`), spread over rayon's
+//! threads and combined in block order, so the same seed gives the same numbers whatever
+//! the number of threads. The coverage interval is exact (the order statistics of all M
+//! trials, as a full sort would give) without storing every trial.
+//! [`McOptions::with_progress`] reports the trials done after every block, for a
+//! progress bar.
 //!
 //! # Files
 //!

@@ -5,13 +5,13 @@
 
 use nalgebra::{DVector, DefaultAllocator, Dim, SVector, allocator::Allocator};
 use rand::Rng;
-use rand_distr::{ChiSquared, Distribution as _, StandardNormal};
+use rand_distr::{ChiSquared, Distribution as _};
 
 use super::operator::{Operator, groups};
 use super::{CalibrationError, InstrumentBudget, Scope};
 use crate::measurement::MeasurementSet;
 use crate::solve::{ClosedFormSolution, PaperDesign, SigmaSource, Solution, closed_form};
-use crate::uncertainty::distribution::{Distribution, Sampler};
+use crate::uncertainty::distribution::{Distribution, Sampler, standard_normals, uniforms};
 use crate::uncertainty::monte_carlo::{Trial, TrialFailure};
 
 /// Which solver the Monte Carlo trials use.
@@ -33,25 +33,25 @@ where
     DefaultAllocator: Allocator<D>,
 {
     let n = s.encoder_error.len();
-    let beta = s.polygon.pitch_deviation_arcsec();
-    let phi = s.polygon.face_deviation_arcsec();
-    for f in 0..n {
-        out[f] = beta[f];
-    }
-    for f in 0..n - 1 {
-        out[n + f] = phi[f];
-    }
-    for p in 0..n {
-        out[2 * n - 1 + p] = s.encoder_error[(p + offset) % n];
-    }
+    let (beta, rest) = out.split_at_mut(n);
+    let (phi, alpha) = rest.split_at_mut(n - 1);
+    beta.copy_from_slice(s.polygon.pitch_deviation_arcsec().as_slice());
+    phi.copy_from_slice(&s.polygon.face_deviation_arcsec().as_slice()[..n - 1]);
+    // α of position p is the solution's α[(p + offset) mod N]: a rotation, without a
+    // division per position.
+    let offset = offset % n;
+    let encoder = s.encoder_error.as_slice();
+    alpha[..n - offset].copy_from_slice(&encoder[offset..]);
+    alpha[n - offset..n].copy_from_slice(&encoder[..offset]);
 }
 
 fn closed_form_const<const N: usize>(t: &[f64], offset: usize, out: &mut [f64]) -> bool {
     let m1 = SVector::<f64, N>::from_column_slice(&t[..N]);
     let m2 = SVector::<f64, N>::from_column_slice(&t[N..2 * N]);
-    match closed_form(&m1, &m2) {
+    // By reference: the solution is not moved out of the result (a copy of 3N values).
+    match &closed_form(&m1, &m2) {
         Ok(s) => {
-            write_closed_form(&s, offset, out);
+            write_closed_form(s, offset, out);
             true
         }
         Err(_) => false,
@@ -103,25 +103,168 @@ enum Noise {
 /// A component drawn once per group and added, weighted, to the group's targets.
 struct Plan {
     sampler: Sampler,
-    scale: f64,
-    starts: Vec<usize>,
-    entries: Vec<(usize, f64)>,
+    spread: Spread,
+}
+
+/// Where the draws of a [`Plan`] land: per group the targets and their weights
+/// (sensitivity included).
+enum Spread {
+    /// Every group lands on one target (an error of each reading): (target, weight).
+    Single(Vec<(usize, f64)>),
+    /// Groups of several targets: `groups` draws, each entry (target, weight, group).
+    Groups {
+        groups: usize,
+        entries: Vec<(usize, f64, usize)>,
+    },
+    /// Groups of several targets, every target in one group at most: per target its
+    /// weight (0 if in none) and group.
+    Dense {
+        groups: usize,
+        weights: Vec<f64>,
+        group_of: Vec<usize>,
+    },
+}
+
+impl Spread {
+    fn groups(&self) -> usize {
+        match self {
+            Spread::Single(targets) => targets.len(),
+            Spread::Groups { groups, .. } | Spread::Dense { groups, .. } => *groups,
+        }
+    }
+
+    /// The targets and weights of group `g`.
+    fn group(&self, g: usize) -> Vec<(usize, f64)> {
+        match self {
+            Spread::Single(targets) => vec![targets[g]],
+            Spread::Groups { entries, .. } => entries
+                .iter()
+                .filter(|e| e.2 == g)
+                .map(|&(t, w, _)| (t, w))
+                .collect(),
+            Spread::Dense {
+                weights, group_of, ..
+            } => (0..weights.len())
+                .filter(|&t| group_of[t] == g && weights[t] != 0.0)
+                .map(|t| (t, weights[t]))
+                .collect(),
+        }
+    }
+
+    /// The same spread, per target when every target is in one group at most.
+    fn densified(self, targets: usize) -> Spread {
+        let Spread::Groups { groups, entries } = self else {
+            return self;
+        };
+        let mut seen = vec![false; targets];
+        if entries
+            .iter()
+            .any(|&(t, _, _)| std::mem::replace(&mut seen[t], true))
+        {
+            return Spread::Groups { groups, entries };
+        }
+        let mut weights = vec![0.0; targets];
+        let mut group_of = vec![0; targets];
+        for (t, w, g) in entries {
+            weights[t] = w;
+            group_of[t] = g;
+        }
+        Spread::Dense {
+            groups,
+            weights,
+            group_of,
+        }
+    }
+}
+
+/// Sums of two independent rectangular errors, `U(−c₁, c₁) + U(−c₂, c₂)` each: symmetric
+/// trapezoids, drawn from one uniform number each by the inverse distribution function.
+/// With `a = max(c₁, c₂)`, `b = min(c₁, c₂)`: `F(x) = (x + a + b)²/(8ab)` up to
+/// `x = −(a − b)`, where `F = b/(2a)`, then `F(x) = (x + a)/(2a)` on the flat top, and
+/// symmetric above. Two rectangular errors of every reading (resolution, angle error)
+/// thus cost one draw instead of two, and the draws have the same distribution.
+#[derive(Debug, Clone, Default, PartialEq)]
+struct Trapezoids {
+    /// Per trapezoid: the half width `a` of the wider rectangle, `b/(2a)` (the
+    /// probability of each sloped side, 0 for `a = 0`), `√(8ab)` and `a + b`.
+    a: Vec<f64>,
+    side: Vec<f64>,
+    root: Vec<f64>,
+    reach: Vec<f64>,
+}
+
+impl Trapezoids {
+    fn push(&mut self, c1: f64, c2: f64) {
+        let (a, b) = (c1.abs().max(c2.abs()), c1.abs().min(c2.abs()));
+        self.a.push(a);
+        self.side.push(if a > 0.0 { b / (2.0 * a) } else { 0.0 });
+        self.root.push((8.0 * a * b).sqrt());
+        self.reach.push(a + b);
+    }
+
+    fn len(&self) -> usize {
+        self.a.len()
+    }
+
+    /// The trapezoids in the order `order` (indices into these).
+    fn permuted(&self, order: &[usize]) -> Trapezoids {
+        let pick = |v: &[f64]| order.iter().map(|&k| v[k]).collect();
+        Trapezoids {
+            a: pick(&self.a),
+            side: pick(&self.side),
+            root: pick(&self.root),
+            reach: pick(&self.reach),
+        }
+    }
+
+    /// `q[k] = F⁻¹(u[k])` for `u[k]` ∈ [0, 1): the flat tops in one pass (in the vector
+    /// units), then the few values on a sloped side.
+    fn quantiles(&self, u: &[f64], q: &mut [f64]) {
+        let n = self.len();
+        let (u, q) = (&u[..n], &mut q[..n]);
+        // Whether any value is on a sloped side (for the instrument budget's resolution
+        // and angle error, 0.4 % of the values): then, and only then, a second pass.
+        let mut sloped = false;
+        for (((q, u), a), side) in q.iter_mut().zip(u).zip(&self.a).zip(&self.side) {
+            *q = a * (2.0 * u - 1.0);
+            sloped |= (*u < *side) | (*u >= 1.0 - side);
+        }
+        if sloped {
+            for (k, (&u, &side)) in u.iter().zip(&self.side).enumerate() {
+                if (u < side) | (u >= 1.0 - side) {
+                    q[k] = self.slope(k, u);
+                }
+            }
+        }
+    }
+
+    /// `F⁻¹(u)` of trapezoid `k` on its sloped sides.
+    #[cold]
+    fn slope(&self, k: usize, u: f64) -> f64 {
+        if u < self.side[k] {
+            self.root[k] * u.sqrt() - self.reach[k]
+        } else {
+            self.reach[k] - self.root[k] * (1.0 - u).sqrt()
+        }
+    }
 }
 
 /// Fills `buf` with draws of `sampler` — the formulas of `Sampler::sample` with the match
-/// outside the loop, which is what makes the trials fast (a unit test checks that the
-/// draws are the same).
-fn draw_into<R: Rng + ?Sized>(sampler: &Sampler, rng: &mut R, buf: &mut [f64]) {
+/// outside the loop and the 64-bit draws of the normal and the rectangular distributions
+/// fetched in bulk into `bits` (at least as long as `buf`), which is what makes the
+/// trials fast (a unit test checks that the draws have the sampler's distribution).
+fn draw_into<R: Rng + ?Sized>(sampler: &Sampler, rng: &mut R, bits: &mut [u64], buf: &mut [f64]) {
     match *sampler {
         Sampler::Normal(u) => {
+            standard_normals(rng, bits, buf);
             for x in buf {
-                let z: f64 = StandardNormal.sample(rng);
-                *x = u * z;
+                *x *= u;
             }
         }
         Sampler::Rectangular(a) => {
+            uniforms(rng, bits, buf);
             for x in buf {
-                *x = a * (2.0 * rng.random::<f64>() - 1.0);
+                *x = a * (2.0 * *x - 1.0);
             }
         }
         Sampler::Triangular(a) => {
@@ -135,6 +278,51 @@ fn draw_into<R: Rng + ?Sized>(sampler: &Sampler, rng: &mut R, buf: &mut [f64]) {
             }
         }
     }
+}
+
+/// Pairs the rectangular plans whose groups are single targets, the same targets in the
+/// same order (two errors of each reading), into one trapezoid per group; returns the
+/// trapezoids, their targets and the other plans, in order.
+fn pair_rectangles(plans: Vec<Plan>) -> (Trapezoids, Vec<usize>, Vec<Plan>) {
+    let mut trapezoids = Trapezoids::default();
+    let mut targets_of = Vec::new();
+    let mut rest = Vec::new();
+    let mut waiting: Option<(Vec<(usize, f64)>, f64)> = None;
+    for plan in plans {
+        match (plan.sampler, &plan.spread) {
+            (Sampler::Rectangular(half_width), Spread::Single(targets)) => match waiting.take() {
+                Some((first, first_width))
+                    if first.len() == targets.len()
+                        && first.iter().zip(targets).all(|(x, y)| x.0 == y.0) =>
+                {
+                    for (x, y) in first.iter().zip(targets) {
+                        trapezoids.push(x.1 * first_width, y.1 * half_width);
+                        targets_of.push(x.0);
+                    }
+                }
+                other => {
+                    if let Some((targets, half_width)) = other {
+                        rest.push(Plan {
+                            sampler: Sampler::Rectangular(half_width),
+                            spread: Spread::Single(targets),
+                        });
+                    }
+                    let Spread::Single(targets) = plan.spread else {
+                        unreachable!("matched above")
+                    };
+                    waiting = Some((targets, half_width));
+                }
+            },
+            _ => rest.push(plan),
+        }
+    }
+    if let Some((targets, half_width)) = waiting {
+        rest.push(Plan {
+            sampler: Sampler::Rectangular(half_width),
+            spread: Spread::Single(targets),
+        });
+    }
+    (trapezoids, targets_of, rest)
 }
 
 /// One Monte Carlo trial of a calibration: draws the readings (as targets of the solver:
@@ -151,6 +339,10 @@ pub struct McModel {
     noise_var: Vec<f64>,
     fixed_var: Vec<f64>,
     normal_sd: Vec<f64>,
+    /// Pairs of rectangular errors of each reading, drawn as one trapezoid each, and
+    /// the targets they land on (`None`: trapezoid k on target k, every target once).
+    trapezoids: Trapezoids,
+    trapezoid_targets: Option<Vec<usize>>,
     plans: Vec<Plan>,
     result_draws: Vec<(Sampler, f64)>,
     centre: Vec<f64>,
@@ -244,19 +436,28 @@ impl McModel {
                 starts.push(entries.len());
             }
             let single = starts.windows(2).all(|w| w[1] - w[0] == 1);
+            for entry in &mut entries {
+                entry.1 *= c.sensitivity;
+            }
             if let (true, Distribution::Normal { u }) = (single, distribution) {
                 // Independent normals per target: one normal with the summed variance.
-                let scale = c.sensitivity * u;
                 for &(t, w) in &entries {
-                    fixed_var[t] += (scale * w).powi(2);
+                    fixed_var[t] += (u * w).powi(2);
                 }
             } else {
-                plans.push(Plan {
-                    sampler,
-                    scale: c.sensitivity,
-                    starts,
-                    entries,
-                });
+                let spread = if single {
+                    Spread::Single(entries)
+                } else {
+                    let group_of = |i: usize| starts.partition_point(|&s| s <= i) - 1;
+                    Spread::Groups {
+                        groups: starts.len() - 1,
+                        entries: (entries.iter().enumerate())
+                            .map(|(i, &(t, w))| (t, w, group_of(i)))
+                            .collect(),
+                    }
+                    .densified(targets)
+                };
+                plans.push(Plan { sampler, spread });
             }
         }
         let mut centre = Vec::with_capacity(3 * n - 1);
@@ -270,7 +471,7 @@ impl McModel {
             },
             None => TrialSolver::LeastSquares(op),
         };
-        Ok(McModel {
+        let mut model = McModel {
             faces: n,
             solver,
             base,
@@ -282,9 +483,48 @@ impl McModel {
             noise,
             noise_var,
             fixed_var,
-            plans,
+            trapezoids: Trapezoids::default(),
+            trapezoid_targets: None,
+            plans: Vec::new(),
             result_draws,
             centre,
+        };
+        // The model is linear: an error that reaches no output (one absorbed by the setup
+        // errors, say) is not drawn at all.
+        plans.retain(|plan| model.reaches_outputs(plan));
+        let (trapezoids, trapezoid_targets, plans) = pair_rectangles(plans);
+        // One trapezoid on every target (each reading's own errors): put them in target
+        // order, to be added with the noise.
+        let mut order: Vec<usize> = (0..trapezoid_targets.len()).collect();
+        order.sort_by_key(|&k| trapezoid_targets[k]);
+        let every_target = trapezoid_targets.len() == targets
+            && order
+                .iter()
+                .enumerate()
+                .all(|(t, &k)| trapezoid_targets[k] == t);
+        if every_target {
+            model.trapezoids = trapezoids.permuted(&order);
+        } else {
+            model.trapezoids = trapezoids;
+            model.trapezoid_targets = Some(trapezoid_targets);
+        }
+        model.plans = plans;
+        Ok(model)
+    }
+
+    /// Whether some group of `plan` moves some output: the solution of the group's
+    /// weights alone (the solvers are linear) is above rounding.
+    fn reaches_outputs(&self, plan: &Plan) -> bool {
+        let mut scratch = self.scratch();
+        let mut out = vec![0.0; self.outputs()];
+        (0..plan.spread.groups()).any(|g| {
+            let entries = plan.spread.group(g);
+            let size: f64 = entries.iter().map(|(_, w)| w.abs()).sum();
+            scratch.targets.fill(0.0);
+            for (t, w) in entries {
+                scratch.targets[t] += w;
+            }
+            !self.solve(&mut scratch, &mut out) || out.iter().any(|o| o.abs() > 1e-10 * size)
         })
     }
 
@@ -321,18 +561,21 @@ impl McModel {
             TrialSolver::LeastSquares(op) => (op.faces, op.len()),
             TrialSolver::ClosedForm { .. } => (0, 0),
         };
+        let draws = self
+            .plans
+            .iter()
+            .map(|p| p.spread.groups())
+            .chain([self.outputs(), self.targets(), self.trapezoids.len()])
+            .max()
+            .unwrap_or(0);
         McScratch {
             targets: vec![0.0; self.targets()],
             offsets: vec![0.0; self.outputs()],
-            draws: vec![
-                0.0;
-                self.plans
-                    .iter()
-                    .map(|p| p.starts.len() - 1)
-                    .chain([self.outputs()])
-                    .max()
-                    .unwrap_or(0)
-            ],
+            draws: vec![0.0; draws],
+            bits: vec![0; draws],
+            sd: vec![0.0; self.targets()],
+            uniforms: vec![0.0; self.trapezoids.len()],
+            quantiles: vec![0.0; self.trapezoids.len()],
             theta: vec![0.0; 2 * self.faces],
             face_sums: vec![0.0; faces_len],
             b: vec![0.0; b_len],
@@ -343,29 +586,74 @@ impl McModel {
     /// (into `scratch`), without solving.
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R, scratch: &mut McScratch) {
         let t = &mut scratch.targets;
-        t.copy_from_slice(&self.base);
-        match &self.noise {
-            Noise::Normal => {
-                for (x, sd) in t.iter_mut().zip(&self.normal_sd) {
-                    let z: f64 = StandardNormal.sample(rng);
-                    *x += sd * z;
-                }
-            }
+        let n = t.len();
+        let bits = &mut scratch.bits;
+        let sd = match &self.noise {
+            Noise::Normal => &self.normal_sd,
             Noise::ScaledT { sigma, dof, chi } => {
                 let s2 = sigma * sigma * dof / chi.sample(rng);
-                for ((x, v), f) in t.iter_mut().zip(&self.noise_var).zip(&self.fixed_var) {
-                    let z: f64 = StandardNormal.sample(rng);
-                    *x += (s2 * v + f).sqrt() * z;
+                for ((sd, v), f) in scratch
+                    .sd
+                    .iter_mut()
+                    .zip(&self.noise_var)
+                    .zip(&self.fixed_var)
+                {
+                    *sd = (s2 * v + f).sqrt();
+                }
+                &scratch.sd
+            }
+        };
+        let z = &mut scratch.draws[..n];
+        standard_normals(rng, bits, z);
+        // The trapezoids: added with the noise when there is one on every target in
+        // order (each reading's errors of the paper's design), else after it.
+        let q = &mut scratch.quantiles[..self.trapezoids.len()];
+        if !q.is_empty() {
+            let u = &mut scratch.uniforms[..q.len()];
+            uniforms(rng, bits, u);
+            self.trapezoids.quantiles(u, q);
+        }
+        match (&self.trapezoid_targets, q.len() == n) {
+            (None, true) => {
+                for ((((x, b), sd), z), q) in t
+                    .iter_mut()
+                    .zip(&self.base)
+                    .zip(sd)
+                    .zip(z.iter())
+                    .zip(q.iter())
+                {
+                    *x = b + sd * z + q;
+                }
+            }
+            (targets, _) => {
+                for (((x, b), sd), z) in t.iter_mut().zip(&self.base).zip(sd).zip(z.iter()) {
+                    *x = b + sd * z;
+                }
+                for (&target, q) in targets.iter().flatten().zip(q.iter()) {
+                    t[target] += q;
                 }
             }
         }
         for plan in &self.plans {
-            let draws = &mut scratch.draws[..plan.starts.len() - 1];
-            draw_into(&plan.sampler, rng, draws);
-            for (g, e) in plan.starts.windows(2).zip(draws.iter()) {
-                let e = plan.scale * e;
-                for &(target, w) in &plan.entries[g[0]..g[1]] {
-                    t[target] += w * e;
+            let draws = &mut scratch.draws[..plan.spread.groups()];
+            draw_into(&plan.sampler, rng, bits, draws);
+            match &plan.spread {
+                Spread::Single(targets) => {
+                    for (&(target, w), e) in targets.iter().zip(draws.iter()) {
+                        t[target] += w * e;
+                    }
+                }
+                Spread::Groups { entries, .. } => {
+                    for &(target, w, group) in entries {
+                        t[target] += w * draws[group];
+                    }
+                }
+                Spread::Dense {
+                    weights, group_of, ..
+                } => {
+                    for ((x, w), &g) in t.iter_mut().zip(weights).zip(group_of) {
+                        *x += w * draws[g];
+                    }
                 }
             }
         }
@@ -373,7 +661,7 @@ impl McModel {
             scratch.offsets.fill(0.0);
             let draws = &mut scratch.draws[..scratch.offsets.len()];
             for (sampler, c) in &self.result_draws {
-                draw_into(sampler, rng, draws);
+                draw_into(sampler, rng, &mut scratch.bits, draws);
                 for (o, d) in scratch.offsets.iter_mut().zip(draws.iter()) {
                     *o += c * d;
                 }
@@ -439,6 +727,10 @@ pub struct McScratch {
     targets: Vec<f64>,
     offsets: Vec<f64>,
     draws: Vec<f64>,
+    bits: Vec<u64>,
+    sd: Vec<f64>,
+    uniforms: Vec<f64>,
+    quantiles: Vec<f64>,
     theta: Vec<f64>,
     face_sums: Vec<f64>,
     b: Vec<f64>,
@@ -529,9 +821,12 @@ mod tests {
         }
     }
 
-    /// The fast draws are the draws of `Sampler::sample`, value for value.
+    /// The fast draws (in bulk) have the distribution of `Sampler::sample`: the
+    /// two-sample Kolmogorov–Smirnov distance is within its 0.1 % critical value, and the
+    /// standard deviation is the distribution's.
     #[test]
-    fn draws_are_the_sampler_draws() {
+    fn draws_have_the_sampler_distribution() {
+        let n = 100_000;
         for d in [
             Distribution::Normal { u: 0.3 },
             Distribution::Rectangular { half_width: 0.2 },
@@ -539,18 +834,100 @@ mod tests {
             Distribution::Arcsine { half_width: 0.2 },
             Distribution::StudentT {
                 scale: 0.1,
-                dof: 4.0,
+                dof: 5.0,
             },
         ] {
             let sampler = d.sampler().unwrap();
-            let mut a = ChaCha8Rng::seed_from_u64(3);
-            let mut b = ChaCha8Rng::seed_from_u64(3);
-            let mut buf = [0.0; 50];
-            draw_into(&sampler, &mut a, &mut buf);
-            for x in buf {
-                assert_eq!(x, sampler.sample(&mut b), "{d:?}");
+            let mut rng = ChaCha8Rng::seed_from_u64(3);
+            let mut fast = vec![0.0; n];
+            let mut bits = [0; 50];
+            for chunk in fast.chunks_mut(50) {
+                draw_into(&sampler, &mut rng, &mut bits, chunk);
+            }
+            let mut slow: Vec<f64> = (0..n).map(|_| sampler.sample(&mut rng)).collect();
+            let sd = (fast.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
+            let expected = d.standard_deviation().unwrap();
+            assert!(
+                (sd / expected - 1.0).abs() < 0.02,
+                "{d:?}: {sd} vs {expected}"
+            );
+            fast.sort_unstable_by(f64::total_cmp);
+            slow.sort_unstable_by(f64::total_cmp);
+            let (mut i, mut j, mut distance) = (0, 0, 0.0f64);
+            while i < n && j < n {
+                if fast[i] <= slow[j] {
+                    i += 1;
+                } else {
+                    j += 1;
+                }
+                distance = distance.max((i as f64 - j as f64).abs() / n as f64);
+            }
+            assert!(
+                distance < 1.95 * (2.0 / n as f64).sqrt(),
+                "{d:?}: {distance}"
+            );
+        }
+    }
+
+    /// The trapezoid's inverse is the inverse of the convolution of the two rectangles:
+    /// `F(x) = [H(x + c₁ + c₂) − H(x + c₁ − c₂)]/(4c₁c₂)` with `H` the antiderivative of
+    /// `clamp(s, 0, 2c₁)`, written independently of `Trapezoids`.
+    #[test]
+    fn trapezoids_invert_the_convolution_of_two_rectangles() {
+        for (c1, c2) in [(0.135, 0.0005), (0.0005, -0.135), (0.3, 0.2), (0.1, 0.1)] {
+            let (a1, a2) = (f64::abs(c1), f64::abs(c2));
+            let h = |s: f64| {
+                if s < 0.0 {
+                    0.0
+                } else if s <= 2.0 * a1 {
+                    0.5 * s * s
+                } else {
+                    2.0 * a1 * a1 + 2.0 * a1 * (s - 2.0 * a1)
+                }
+            };
+            let cdf = |x: f64| (h(x + a1 + a2) - h(x + a1 - a2)) / (4.0 * a1 * a2);
+            let mut trapezoids = Trapezoids::default();
+            trapezoids.push(c1, c2);
+            for i in 0..=10_000 {
+                let u = (i as f64 / 10_000.0).min(1.0 - f64::EPSILON);
+                let mut q = [0.0];
+                trapezoids.quantiles(&[u], &mut q);
+                assert!((cdf(q[0]) - u).abs() < 1e-12, "{c1} {c2} u {u}: {}", q[0]);
             }
         }
+        // One rectangle of zero width: the other rectangle; both zero: 0.
+        let mut trapezoids = Trapezoids::default();
+        trapezoids.push(0.2, 0.0);
+        trapezoids.push(0.0, 0.0);
+        let mut q = [0.0; 2];
+        trapezoids.quantiles(&[0.75, 0.75], &mut q);
+        assert_eq!(q, [0.1, 0.0]);
+    }
+
+    /// The instrument budget on the paper's bare cycle: the two rectangular errors of
+    /// each reading become one trapezoid per target, in order; the zero offset of each
+    /// autocollimator, which reaches no result, is not drawn; the encoder's error of each
+    /// position remains.
+    #[test]
+    fn instrument_budget_draws() {
+        let s = set(24, 1, false, 4);
+        let solution = solve(
+            &s,
+            &SolveOptions::new().with_sigma(crate::measurement::Sigma::new(0.05).unwrap()),
+        )
+        .unwrap();
+        let budget = InstrumentBudget::read_path("examples/budgets/instrument.toml").unwrap();
+        let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
+        assert_eq!(model.solver_name(), "closed-form");
+        assert_eq!(model.trapezoids.len(), 48);
+        assert_eq!(model.trapezoid_targets, None);
+        assert_eq!(model.plans.len(), 1);
+        assert!(matches!(model.plans[0].sampler, Sampler::Rectangular(a) if a == 0.02));
+        assert_eq!(model.plans[0].spread.groups(), 24);
+        // With least squares the same: the offset is absorbed by the setup errors there
+        // too.
+        let lsq = McModel::new(&s, &solution, &budget, McSolver::LeastSquares).unwrap();
+        assert_eq!((lsq.trapezoids.len(), lsq.plans.len()), (48, 1));
     }
 
     /// The calibration trial on the engine: the summary of every trial without storing

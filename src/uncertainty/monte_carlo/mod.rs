@@ -4,7 +4,8 @@
 //! - The engine ([`run`], [`Trial`], [`EngineOptions`]) runs any [`Trial`] — one draw of
 //!   the inputs and the model's outputs — in seeded blocks over rayon's threads: a fixed
 //!   number of trials (JCGM 101 §7.2) or the adaptive procedure of §7.9, with the same
-//!   numbers for the same seed whatever the number of threads, and an optional
+//!   numbers for the same seed whatever the number of threads (one random stream per
+//!   block, [`block_rng`]), and an optional
 //!   [`Progress`] observer told after every block.
 //! - Its statistics, per output ([`OutputSummary`]): the mean, the standard uncertainty,
 //!   the probabilistically symmetric coverage interval from the exact order statistics
@@ -19,6 +20,7 @@
 mod engine;
 mod model;
 mod statistics;
+mod stream;
 mod validation;
 
 use serde::Serialize;
@@ -29,6 +31,7 @@ pub use engine::{
 pub(crate) use model::monte_carlo_distribution;
 pub use model::{McInput, MonteCarlo, linear_budget_inputs};
 pub use statistics::{numerical_tolerance, symmetric_interval_positions};
+pub use stream::{BlockRng, block_rng};
 pub use validation::{GumValidation, validate_gum};
 
 use super::distribution::DistributionError;

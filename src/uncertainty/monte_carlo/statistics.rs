@@ -4,20 +4,19 @@
 //! tolerance of the adaptive procedure.
 //!
 //! The interval ends are order statistics of all `M` values. Rather than storing and
-//! sorting them, a pilot of the first trials brackets each end: the sorted pilot gives,
-//! for the wanted rank, a range of values that holds it with a margin of six binomial
-//! standard deviations (plus ten). The trials are then counted below the low bracket and
-//! above the high one, and the few inside a bracket are kept; the order statistic is
-//! selected among those. A bracket that did not hold its rank is reported by [`finish`],
-//! and the engine widens it and runs the trials again.
+//! sorting them, a pilot of the first trials brackets each end: the pilot's order
+//! statistics (found by selection, not a sort) give, for the wanted rank, a range of
+//! values that holds it with a margin of six binomial standard deviations (plus ten).
+//! The trials are then counted below the low bracket and above the high one, and the few
+//! inside a bracket are kept; the order statistic is selected among those. After more
+//! trials the brackets can be refined the same way from the values kept so far
+//! ([`Acc::refine`]), narrower and inside the old ones. A bracket that did not hold its
+//! rank is reported by [`finish`], and the engine widens it and runs the trials again.
 
 use rayon::prelude::*;
 
 /// Per output: mean, u, low and high end of the interval.
 pub(crate) type Moments = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
-
-/// Per output: [low bracket start, low bracket end, high bracket start, high bracket end].
-pub(crate) type Brackets = Vec<[f64; 4]>;
 
 /// The 0-based positions, in the sorted values of `m` trials, of the ends of the
 /// probabilistically symmetric `p` coverage interval (JCGM 101 §7.7.1): with `q = pM` if
@@ -103,61 +102,173 @@ pub(crate) fn order_statistic(values: &mut [f64], i: usize) -> f64 {
     *values.select_nth_unstable_by(i, f64::total_cmp).1
 }
 
+/// Per output, the two brackets around the interval ends: values in
+/// `[low_from, low_to]` and in `[high_from, high_to]` are kept, values below `low_from`
+/// and above `high_to` only counted (one vector per bound, for the vector units).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Brackets {
+    low_from: Vec<f64>,
+    low_to: Vec<f64>,
+    high_from: Vec<f64>,
+    high_to: Vec<f64>,
+}
+
+impl Brackets {
+    /// Brackets that keep every value (both reach from −∞ to +∞).
+    pub(crate) fn everything(outputs: usize) -> Self {
+        Brackets {
+            low_from: vec![f64::NEG_INFINITY; outputs],
+            low_to: vec![f64::INFINITY; outputs],
+            high_from: vec![f64::NEG_INFINITY; outputs],
+            high_to: vec![f64::INFINITY; outputs],
+        }
+    }
+}
+
+/// Trials recorded together by [`Acc::record_rows`].
+pub(crate) const ROWS: usize = 8;
+
+/// Some trials' outputs against the running sums and counts of every output.
+struct Columns<'a> {
+    /// Trials, trial-major: output j of row r at `r·n + j`.
+    rows: &'a [f64],
+    centre: &'a [f64],
+    /// Low bracket from, to; high bracket from, to.
+    brackets: [&'a [f64]; 4],
+    s1: &'a mut [f64],
+    s2: &'a mut [f64],
+    below: &'a mut [u64],
+    above: &'a mut [u64],
+    /// Per row and output: 1 if inside the low bracket, 2 the high, 3 both.
+    hits: &'a mut [u64],
+}
+
+impl Columns<'_> {
+    /// Adds the rows, one after the other, to the sums and counts and marks the values
+    /// inside a bracket: no branch, in the vector units (across the outputs), the same
+    /// arithmetic value by value whatever the vector width.
+    #[inline(always)]
+    fn add(&mut self) {
+        let n = self.centre.len();
+        let [low_from, low_to, high_from, high_to] = self.brackets;
+        let (centre, low_from, low_to) = (&self.centre[..n], &low_from[..n], &low_to[..n]);
+        let (high_from, high_to) = (&high_from[..n], &high_to[..n]);
+        let (s1, s2) = (&mut self.s1[..n], &mut self.s2[..n]);
+        let (below, above) = (&mut self.below[..n], &mut self.above[..n]);
+        for (out, hits) in self.rows.chunks_exact(n).zip(self.hits.chunks_exact_mut(n)) {
+            for j in 0..n {
+                let x = out[j];
+                let d = x - centre[j];
+                s1[j] += d;
+                s2[j] += d * d;
+                below[j] += u64::from(x < low_from[j]);
+                above[j] += u64::from(x > high_to[j]);
+                let low = (x >= low_from[j]) & (x <= low_to[j]);
+                let high = (x >= high_from[j]) & (x <= high_to[j]);
+                hits[j] = u64::from(low) | (u64::from(high) << 1);
+            }
+        }
+    }
+
+    /// [`Columns::add`] with the AVX2 vector units (four outputs at a time).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn add_avx2(&mut self) {
+        self.add()
+    }
+
+    /// [`Columns::add`], with the vector units the processor has.
+    fn add_fastest(&mut self) {
+        #[cfg(target_arch = "x86_64")]
+        if super::stream::has_avx2() {
+            // SAFETY: the processor has AVX2 (just checked).
+            unsafe { self.add_avx2() };
+            return;
+        }
+        self.add()
+    }
+}
+
 /// Running sums and bracket contents of some trials.
 pub(crate) struct Acc {
     /// Σ (x − c) and Σ (x − c)², c the centre.
     pub(crate) s1: Vec<f64>,
     pub(crate) s2: Vec<f64>,
     /// Values below the low bracket, and above the high bracket.
-    outside: Vec<[u64; 2]>,
-    /// Values inside the low and the high bracket.
-    inside: Vec<[Vec<f64>; 2]>,
+    below: Vec<u64>,
+    above: Vec<u64>,
+    /// Values inside a bracket, in no order: (2j for the low bracket of output j,
+    /// 2j + 1 for the high one; the value). One store per block of trials.
+    inside: Vec<(u32, f64)>,
+    /// The bracket contents of the accumulators merged into this one.
+    merged: Vec<Vec<(u32, f64)>>,
+    /// Per row and output of the last trials recorded: 1 if inside the low bracket, 2
+    /// the high, 3 both.
+    hits: Vec<u64>,
 }
 
 impl Acc {
     pub(crate) fn new(outputs: usize) -> Self {
+        Acc::with_capacity(outputs, 0)
+    }
+
+    /// An accumulator with room for `values` bracket contents.
+    pub(crate) fn with_capacity(outputs: usize, values: usize) -> Self {
         Acc {
             s1: vec![0.0; outputs],
             s2: vec![0.0; outputs],
-            outside: vec![[0; 2]; outputs],
-            inside: (0..outputs).map(|_| [Vec::new(), Vec::new()]).collect(),
+            below: vec![0; outputs],
+            above: vec![0; outputs],
+            inside: Vec::with_capacity(values),
+            merged: Vec::new(),
+            hits: vec![0; ROWS * outputs],
         }
     }
 
-    /// Adds the outputs of one trial.
+    /// Adds the outputs of some trials, trial-major (`rows` of [`ROWS`] or fewer trials),
+    /// as one trial after the other.
     #[inline]
-    pub(crate) fn record(&mut self, out: &[f64], centre: &[f64], brackets: &[[f64; 4]]) {
-        for ((s1, s2), (&x, &c)) in self
-            .s1
-            .iter_mut()
-            .zip(self.s2.iter_mut())
-            .zip(out.iter().zip(centre))
-        {
-            let d = x - c;
-            *s1 += d;
-            *s2 += d * d;
+    pub(crate) fn record_rows(&mut self, rows: &[f64], centre: &[f64], brackets: &Brackets) {
+        let n = centre.len();
+        let count = rows.len() / n;
+        debug_assert!(count <= ROWS && rows.len() == count * n);
+        Columns {
+            rows,
+            centre,
+            brackets: [
+                &brackets.low_from,
+                &brackets.low_to,
+                &brackets.high_from,
+                &brackets.high_to,
+            ],
+            s1: &mut self.s1,
+            s2: &mut self.s2,
+            below: &mut self.below,
+            above: &mut self.above,
+            hits: &mut self.hits[..count * n],
         }
-        for (j, (&x, b)) in out.iter().zip(brackets).enumerate() {
-            if x > b[1] && x < b[2] {
-                continue; // between the brackets, the common case: nothing to count
-            }
-            if x < b[0] {
-                self.outside[j][0] += 1;
-            } else if x <= b[1] {
-                self.inside[j][0].push(x);
-            }
-            if x > b[3] {
-                self.outside[j][1] += 1;
-            } else if x >= b[2] {
-                self.inside[j][1].push(x);
+        .add_fastest();
+        // The few values inside a bracket (about 2 % of the trials at each end, fewer
+        // after a refinement).
+        let hits = self.hits[..count * n].chunks_exact(n);
+        for (hits, out) in hits.zip(rows.chunks_exact(n)) {
+            for (j, (&hit, &x)) in hits.iter().zip(out).enumerate() {
+                if hit != 0 {
+                    if hit & 1 != 0 {
+                        self.inside.push((2 * j as u32, x));
+                    }
+                    if hit & 2 != 0 {
+                        self.inside.push((2 * j as u32 + 1, x));
+                    }
+                }
             }
         }
     }
 
     /// Adds trial-major outputs in trial order.
-    pub(crate) fn feed(&mut self, raw: &[f64], centre: &[f64], brackets: &[[f64; 4]]) {
-        for out in raw.chunks_exact(centre.len()) {
-            self.record(out, centre, brackets);
+    pub(crate) fn feed(&mut self, raw: &[f64], centre: &[f64], brackets: &Brackets) {
+        for rows in raw.chunks(ROWS * centre.len()) {
+            self.record_rows(rows, centre, brackets);
         }
     }
 
@@ -166,46 +277,182 @@ impl Acc {
         for j in 0..self.s1.len() {
             self.s1[j] += other.s1[j];
             self.s2[j] += other.s2[j];
-            for side in 0..2 {
-                self.outside[j][side] += other.outside[j][side];
+            self.below[j] += other.below[j];
+            self.above[j] += other.above[j];
+        }
+        self.merged.push(other.inside);
+        self.merged.extend(other.merged);
+    }
+
+    /// The values inside every bracket so far, per bracket (2j low, 2j + 1 high); the
+    /// accumulator keeps none.
+    fn take_inside(&mut self) -> Vec<Vec<f64>> {
+        let mut chunks = std::mem::take(&mut self.merged);
+        chunks.push(std::mem::take(&mut self.inside));
+        let brackets = 2 * self.s1.len();
+        let bucket = |chunks: &[Vec<(u32, f64)>]| {
+            let mut counts = vec![0; brackets];
+            for &(i, _) in chunks.iter().flatten() {
+                counts[i as usize] += 1;
             }
+            let mut buckets: Vec<Vec<f64>> = counts.into_iter().map(Vec::with_capacity).collect();
+            for &(i, x) in chunks.iter().flatten() {
+                buckets[i as usize].push(x);
+            }
+            buckets
+        };
+        // Two halves side by side, then joined: the order of the values does not matter.
+        let (first, second) = chunks.split_at(chunks.len() / 2);
+        let (mut a, b) = rayon::join(|| bucket(first), || bucket(second));
+        for (a, b) in a.iter_mut().zip(b) {
+            a.extend(b);
         }
-        for (mine, [low, high]) in self.inside.iter_mut().zip(other.inside) {
-            mine[0].extend(low);
-            mine[1].extend(high);
-        }
+        a
     }
 }
 
-/// Brackets around the interval ends of `m` trials from the sorted pilot columns,
-/// `factor` times wider than a 6-σ binomial margin; ±∞ beyond the pilot.
-pub(crate) fn brackets_from(pilot: &[Vec<f64>], m: usize, p: f64, factor: f64) -> Brackets {
-    let (r_low, r_high) = symmetric_interval_positions(m, p);
-    pilot
+impl Acc {
+    /// Narrower brackets for the interval ends of `m` trials from the `s` trials
+    /// accumulated so far with `brackets`: each bound is the order statistic of the `s`
+    /// trials at a 6-σ binomial margin (times `factor`) around the rank the end will have,
+    /// found among the values kept, or the old bound where the margin reaches beyond
+    /// them. The kept values and the counts are re-classified against the new brackets,
+    /// which lie inside the old ones, so that later trials can be accumulated with them.
+    pub(crate) fn refine(
+        &mut self,
+        s: usize,
+        m: usize,
+        p: f64,
+        factor: f64,
+        brackets: &Brackets,
+    ) -> Brackets {
+        let (r_low, r_high) = symmetric_interval_positions(m, p);
+        let inside = self.take_inside();
+        let refined: Vec<(Vec<f64>, u64, f64, f64)> = inside
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, mut kept)| {
+                let (j, side) = (i / 2, i % 2);
+                let (old_from, old_to) = if side == 0 {
+                    (brackets.low_from[j], brackets.low_to[j])
+                } else {
+                    (brackets.high_from[j], brackets.high_to[j])
+                };
+                // The rank (among the s trials) of the smallest kept value.
+                let first = if side == 0 {
+                    self.below[j] as usize
+                } else {
+                    s - self.above[j] as usize - kept.len()
+                };
+                let r = if side == 0 { r_low } else { r_high };
+                let pi = (r as f64 + 0.5) / m as f64;
+                let centre = pi * s as f64;
+                let margin = factor * (6.0 * (s as f64 * pi * (1.0 - pi)).sqrt() + 10.0);
+                let index = |rank: f64| {
+                    let k = rank - first as f64;
+                    (k >= 0.0 && k < kept.len() as f64).then_some(k as usize)
+                };
+                let lo = index((centre - margin).floor());
+                let hi = index((centre + margin).ceil());
+                let mut wanted: Vec<usize> = [lo, hi].into_iter().flatten().collect();
+                wanted.dedup();
+                let values = select_ranks(&mut kept, &wanted);
+                let value = |k: Option<usize>, old: f64| match k {
+                    Some(k) => values[wanted.partition_point(|&w| w < k)],
+                    None => old,
+                };
+                let (from, to) = (value(lo, old_from), value(hi, old_to));
+                let outside = if side == 0 {
+                    kept.iter().filter(|&&x| x < from).count()
+                } else {
+                    kept.iter().filter(|&&x| x > to).count()
+                };
+                kept.retain(|&x| x >= from && x <= to);
+                (kept, outside as u64, from, to)
+            })
+            .collect();
+        let mut refined_brackets = brackets.clone();
+        for (i, (kept, outside, from, to)) in refined.into_iter().enumerate() {
+            let j = i / 2;
+            if i % 2 == 0 {
+                self.below[j] += outside;
+                refined_brackets.low_from[j] = from;
+                refined_brackets.low_to[j] = to;
+            } else {
+                self.above[j] += outside;
+                refined_brackets.high_from[j] = from;
+                refined_brackets.high_to[j] = to;
+            }
+            self.inside.extend(kept.into_iter().map(|x| (i as u32, x)));
+        }
+        refined_brackets
+    }
+}
+
+/// The values at the ascending 0-based `ranks` of `values` (as a full sort would place
+/// them), by successive selection; reorders `values`.
+fn select_ranks(values: &mut [f64], ranks: &[usize]) -> Vec<f64> {
+    let mut start = 0;
+    let mut last: Option<(usize, f64)> = None;
+    ranks
         .iter()
-        .map(|sorted| {
-            let len = sorted.len();
-            let mut b = [0.0; 4];
+        .map(|&r| {
+            if let Some((at, v)) = last
+                && at == r
+            {
+                return v;
+            }
+            let v = *values[start..]
+                .select_nth_unstable_by(r - start, f64::total_cmp)
+                .1;
+            start = r + 1;
+            last = Some((r, v));
+            v
+        })
+        .collect()
+}
+
+/// Brackets around the interval ends of `m` trials from the pilot columns (one per
+/// output, reordered), `factor` times wider than a 6-σ binomial margin; ±∞ beyond the
+/// pilot. Each bound is an order statistic of the pilot, found by selection.
+pub(crate) fn brackets_from(pilot: &mut [Vec<f64>], m: usize, p: f64, factor: f64) -> Brackets {
+    let (r_low, r_high) = symmetric_interval_positions(m, p);
+    let bounds: Vec<[f64; 4]> = pilot
+        .par_iter_mut()
+        .map(|column| {
+            let len = column.len();
+            // Per bound: the rank in the pilot, or None for ±∞.
+            let mut ranks = [None; 4];
             for (side, r) in [r_low, r_high].into_iter().enumerate() {
                 let pi = (r as f64 + 0.5) / m as f64;
                 let centre = pi * len as f64;
                 let margin = factor * (6.0 * (len as f64 * pi * (1.0 - pi)).sqrt() + 10.0);
                 let lo = centre - margin;
                 let hi = centre + margin;
-                b[2 * side] = if lo < 0.0 {
-                    f64::NEG_INFINITY
-                } else {
-                    sorted[lo as usize]
-                };
-                b[2 * side + 1] = if hi >= (len - 1) as f64 {
-                    f64::INFINITY
-                } else {
-                    sorted[hi.ceil() as usize]
-                };
+                ranks[2 * side] = (lo >= 0.0).then_some(lo as usize);
+                ranks[2 * side + 1] = (hi < (len - 1) as f64).then(|| hi.ceil() as usize);
             }
-            b
+            let mut wanted: Vec<usize> = ranks.iter().flatten().copied().collect();
+            wanted.sort_unstable();
+            let values = select_ranks(column, &wanted);
+            let value = |rank: Option<usize>, infinite: f64| match rank {
+                Some(r) => values[wanted.partition_point(|&w| w < r)],
+                None => infinite,
+            };
+            [
+                value(ranks[0], f64::NEG_INFINITY),
+                value(ranks[1], f64::INFINITY),
+                value(ranks[2], f64::NEG_INFINITY),
+                value(ranks[3], f64::INFINITY),
+            ]
         })
-        .collect()
+        .collect();
+    Brackets {
+        low_from: bounds.iter().map(|b| b[0]).collect(),
+        low_to: bounds.iter().map(|b| b[1]).collect(),
+        high_from: bounds.iter().map(|b| b[2]).collect(),
+        high_to: bounds.iter().map(|b| b[3]).collect(),
+    }
 }
 
 /// The columns (one per output) of trial-major outputs.
@@ -216,50 +463,54 @@ pub(crate) fn columns(raw: &[f64], outputs: usize) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Sorted columns of trial-major outputs.
-pub(crate) fn sorted_columns(raw: &[f64], outputs: usize) -> Vec<Vec<f64>> {
-    let mut columns = columns(raw, outputs);
-    columns
-        .par_iter_mut()
-        .for_each(|column| column.sort_unstable_by(f64::total_cmp));
-    columns
-}
-
 /// Mean, u and the exact interval of `m` accumulated trials; `None` if a bracket missed
 /// its order statistic.
-pub(crate) fn finish(acc: Acc, m: usize, p: f64, centre: &[f64]) -> Option<Moments> {
+pub(crate) fn finish(mut acc: Acc, m: usize, p: f64, centre: &[f64]) -> Option<Moments> {
     let (r_low, r_high) = symmetric_interval_positions(m, p);
     let mf = m as f64;
-    let mut mean = Vec::with_capacity(centre.len());
-    let mut u = Vec::with_capacity(centre.len());
-    let mut low = Vec::with_capacity(centre.len());
-    let mut high = Vec::with_capacity(centre.len());
-    for (j, [mut in_low, mut in_high]) in acc.inside.into_iter().enumerate() {
-        mean.push(centre[j] + acc.s1[j] / mf);
-        let ss = acc.s2[j] - acc.s1[j] * acc.s1[j] / mf;
-        u.push(if m > 1 {
-            (ss.max(0.0) / (mf - 1.0)).sqrt()
-        } else {
-            0.0
-        });
-        for (side, r, values, target) in [
-            (0, r_low, &mut in_low, &mut low),
-            (1, r_high, &mut in_high, &mut high),
-        ] {
-            // values below the bracket: counted below the low one; all but those in
-            // and above the high one
-            let below = if side == 0 {
-                acc.outside[j][0] as usize
+    let mut inside = acc.take_inside();
+    let per_output: Vec<Option<[f64; 4]>> = inside
+        .par_chunks_mut(2)
+        .enumerate()
+        .map(|(j, values)| {
+            let mean = centre[j] + acc.s1[j] / mf;
+            let ss = acc.s2[j] - acc.s1[j] * acc.s1[j] / mf;
+            let u = if m > 1 {
+                (ss.max(0.0) / (mf - 1.0)).sqrt()
             } else {
-                m - acc.outside[j][1] as usize - values.len()
+                0.0
             };
-            if r < below || r >= below + values.len() {
-                return None;
+            let mut ends = [0.0; 2];
+            for (side, r) in [(0, r_low), (1, r_high)] {
+                let values = &mut values[side];
+                // values below the bracket: counted below the low one; all but those in
+                // and above the high one
+                let below = if side == 0 {
+                    acc.below[j] as usize
+                } else {
+                    m - acc.above[j] as usize - values.len()
+                };
+                if r < below || r >= below + values.len() {
+                    return None;
+                }
+                ends[side] = order_statistic(values, r - below);
             }
-            target.push(order_statistic(values, r - below));
-        }
+            Some([mean, u, ends[0], ends[1]])
+        })
+        .collect();
+    let mut moments: Moments = (
+        Vec::with_capacity(centre.len()),
+        Vec::with_capacity(centre.len()),
+        Vec::with_capacity(centre.len()),
+        Vec::with_capacity(centre.len()),
+    );
+    for [mean, u, low, high] in per_output.into_iter().collect::<Option<Vec<_>>>()? {
+        moments.0.push(mean);
+        moments.1.push(u);
+        moments.2.push(low);
+        moments.3.push(high);
     }
-    Some((mean, u, low, high))
+    Some(moments)
 }
 
 #[cfg(test)]
@@ -272,17 +523,60 @@ mod tests {
     fn missed_brackets_are_reported() {
         let raw: Vec<f64> = (0..2000).map(|i| ((i * 7919) % 2000) as f64).collect();
         let centre = [0.0];
-        let brackets = vec![[10.0, 11.0, 1900.0, 1901.0]];
+        let brackets = Brackets {
+            low_from: vec![10.0],
+            low_to: vec![11.0],
+            high_from: vec![1900.0],
+            high_to: vec![1901.0],
+        };
         let mut acc = Acc::new(1);
         acc.feed(&raw, &centre, &brackets);
         assert!(finish(acc, 2000, 0.95, &centre).is_none());
-        let pilot = sorted_columns(&raw, 1);
-        let brackets = brackets_from(&pilot, 2000, 0.95, 1.0);
+        let mut pilot = columns(&raw, 1);
+        let brackets = brackets_from(&mut pilot, 2000, 0.95, 1.0);
+        let mut sorted = raw.clone();
+        sorted.sort_unstable_by(f64::total_cmp);
+        // The bounds are the pilot's order statistics at the 6-σ margins (the values are
+        // 0 … 1999, so value = rank), ±∞ beyond the pilot.
+        let margin = |pi: f64| 6.0 * (2000.0 * pi * (1.0 - pi)).sqrt() + 10.0;
+        let (low, high) = (49.5 / 2000.0, 1949.5 / 2000.0);
+        assert_eq!(brackets.low_from[0], f64::NEG_INFINITY);
+        assert_eq!(brackets.low_to[0], (49.5 + margin(low)).ceil());
+        assert_eq!(brackets.high_from[0], (1949.5 - margin(high)).floor());
+        assert_eq!(brackets.high_to[0], f64::INFINITY);
+        // Fed in two halves, merged: the same interval as a full sort.
         let mut acc = Acc::new(1);
-        acc.feed(&raw, &centre, &brackets);
+        acc.feed(&raw[..700], &centre, &brackets);
+        let mut rest = Acc::new(1);
+        rest.feed(&raw[700..], &centre, &brackets);
+        acc.merge(rest);
         let (_, _, low, high) = finish(acc, 2000, 0.95, &centre).unwrap();
         let (r_low, r_high) = symmetric_interval_positions(2000, 0.95);
-        assert_eq!((low[0], high[0]), (pilot[0][r_low], pilot[0][r_high]));
+        assert_eq!((low[0], high[0]), (sorted[r_low], sorted[r_high]));
+    }
+
+    /// Brackets refined after part of the trials lie inside the old ones, are narrower,
+    /// and give the interval a full sort gives.
+    #[test]
+    fn refined_brackets_hold_the_order_statistics() {
+        // 0 … 99 999 in a scrambled order (7919 and 10⁵ are coprime).
+        let m = 100_000;
+        let raw: Vec<f64> = (0..m).map(|i| ((i * 7919) % m) as f64).collect();
+        let centre = [0.0];
+        let mut pilot = columns(&raw[..2_000], 1);
+        let old = brackets_from(&mut pilot, m, 0.95, 1.0);
+        let mut acc = Acc::new(1);
+        acc.feed(&raw[..20_000], &centre, &old);
+        let new = acc.refine(20_000, m, 0.95, 1.0, &old);
+        assert!(old.low_from[0] <= new.low_from[0] && new.low_to[0] <= old.low_to[0]);
+        assert!(old.high_from[0] <= new.high_from[0] && new.high_to[0] <= old.high_to[0]);
+        assert!(new.low_to[0] - new.low_from[0] < 0.6 * (old.low_to[0] - old.low_from[0]));
+        let mut rest = Acc::new(1);
+        rest.feed(&raw[20_000..], &centre, &new);
+        acc.merge(rest);
+        let (_, _, low, high) = finish(acc, m, 0.95, &centre).unwrap();
+        let (r_low, r_high) = symmetric_interval_positions(m, 0.95);
+        assert_eq!((low[0], high[0]), (r_low as f64, r_high as f64));
     }
 
     /// The shortest interval of a skewed sample lies towards its mode.
