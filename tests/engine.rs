@@ -365,7 +365,7 @@ fn designs_too_large_are_refused_up_front() {
         }
         other => panic!("{:?}", other.map(|s| s.engine)),
     }
-    let roomy = limited.with_memory_limit(1 << 20);
+    let roomy = limited.with_memory_limit(4 << 20);
     assert_eq!(
         solve::solve(&set, &roomy).unwrap().engine,
         Engine::Circulant { low_rank: 2 }

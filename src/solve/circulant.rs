@@ -48,14 +48,21 @@ impl CirculantPlan {
     }
 
     /// Bytes the engine needs: W and W·M ((2N + K + E)·r each), F, B·F and Q_A·F
-    /// ((2N + K)·E each), the capacitance and its inverse (r² each) and the regular part
-    /// (a few N).
-    pub(crate) fn bytes_needed(&self, faces: usize) -> u128 {
+    /// ((2N + K)·E each), the capacitance and its inverse (r² each), the regular part
+    /// (a few N) and, per reading, its design row, stream and residual (the copy of the
+    /// effect columns the solution keeps: E per reading).
+    pub(crate) fn bytes_needed(&self, faces: usize, readings: usize) -> u128 {
         let streams = self.weights.len() as u128;
         let e = self.effects as u128;
         let len = 2 * faces as u128 + streams + e;
         let r = self.rank() as u128;
-        8 * (2 * len * r + 3 * len * e + 3 * r * r + 12 * faces as u128 + 4 * len)
+        let per_reading = 5 + e;
+        8 * (2 * len * r
+            + 3 * len * e
+            + 3 * r * r
+            + 12 * faces as u128
+            + 4 * len
+            + per_reading * readings as u128)
     }
 
     /// Work of the engine relative to the dense path, for the choice between them.

@@ -79,7 +79,7 @@ pub fn least_squares_with_options(
     let refuse = |engine, needed_bytes| fits(set, k, e, engine, needed_bytes, options);
     match circulant::plan(set, &streams, e)? {
         Plan::Circulant(plan) if plan.is_cheaper_than_dense(n) => {
-            refuse("circulant", plan.bytes_needed(n))?;
+            refuse("circulant", plan.bytes_needed(n, set.readings.len()))?;
             if let Some(solution) =
                 circulant::solve(set, &streams, &plan, regressors, options.sigma)?
             {
