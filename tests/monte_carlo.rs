@@ -368,8 +368,8 @@ impl Trial for Toy {
 }
 
 /// Mean, u and the interval are those of a full sort of every trial, fixed (within the
-/// pilot's brackets, and beyond ten pilots, where the brackets are refined) and
-/// adaptive; keeping the samples changes no number.
+/// pilot's brackets, and beyond ten and fifty pilots, where the brackets are refined)
+/// and adaptive; keeping the samples changes no number.
 #[test]
 fn statistics_are_those_of_every_trial() {
     let adaptive = Trials::Adaptive {
@@ -380,6 +380,7 @@ fn statistics_are_those_of_every_trial() {
         Trials::Fixed(34_500),
         Trials::Fixed(7_000),
         Trials::Fixed(234_567),
+        Trials::Fixed(543_210),
         adaptive,
     ] {
         let options = EngineOptions::new(trials).with_seed(11);

@@ -79,11 +79,13 @@
 //!   ([`InstrumentBudget`]);
 //! - `operator.rs`: the solution operator L = Q Xᵀ and the gains G_j of a scope;
 //! - `gum.rs`: the GUM propagation ([`evaluate`], [`CalibrationUncertainty`]);
-//! - `trial.rs`: the Monte Carlo trial model ([`McModel`]);
+//! - `trial.rs`: the Monte Carlo trial model ([`McModel`]), and `draws.rs`: how it
+//!   draws the budget's errors (per group, two rectangles as one trapezoid, in bulk);
 //! - `mc.rs`: the Monte Carlo run and its validation of the GUM result ([`monte_carlo`],
 //!   [`McOptions`], [`CalibrationMonteCarlo`]).
 
 mod budget;
+mod draws;
 mod gum;
 mod mc;
 mod operator;

@@ -19,8 +19,8 @@
 //! first `min(M, J)` trials (`J` the sequence length of the adaptive procedure) bracket
 //! each interval end, later trials only count the values below a bracket and keep the few
 //! inside it, and a bracket that missed is widened and the later trials re-run (module
-//! `statistics`). Beyond `10 J` trials the brackets are refined once from the trials run
-//! so far (about a third as wide), which keeps fewer values. The per-output work is
+//! `statistics`). After `10 J` and again after `50 J` trials the brackets are refined
+//! from the trials run so far (a third, then a sixth as wide), which keeps fewer values. The per-output work is
 //! branch-free but for the values inside a bracket. The mean and the standard deviation come from sums of the deviations
 //! from [`Trial::centre`]. With [`EngineOptions::keep_samples`] every trial's outputs are
 //! kept as well, which adds the shortest coverage interval (JCGM 101 §7.7.2) and the
@@ -466,17 +466,27 @@ impl<T: Trial> Engine<'_, T> {
             if m > pilot_len && rerun {
                 self.counter.add_total(m - pilot_len);
             }
-            // Two stages after the pilot: up to ten pilots' worth of trials with the
-            // pilot's brackets, the rest with brackets refined from those trials, about
-            // a third as wide (fewer values to keep, fewer branches mispredicted).
-            let stage = if wide { m } else { m.min(10 * pilot_len) };
+            // Stages after the pilot: up to ten pilots' worth of trials with the pilot's
+            // brackets, then up to fifty with brackets refined from those trials (about a
+            // third as wide), the rest with brackets refined again (half as wide again):
+            // fewer values to keep, fewer branches mispredicted.
+            let (second, third) = if wide {
+                (m, m)
+            } else {
+                (m.min(10 * pilot_len), m.min(50 * pilot_len))
+            };
             let mut brackets = brackets;
-            for (range, room) in [(pilot_len..stage, 32), (stage..m, 128)] {
+            let stages = [
+                (pilot_len..second, 32),
+                (second..third, 128),
+                (third..m, 256),
+            ];
+            for (range, room) in stages {
                 if range.is_empty() {
                     continue;
                 }
-                if range.start == stage && stage > pilot_len {
-                    brackets = acc.refine(stage, m, self.p, factor, &brackets);
+                if range.start > pilot_len {
+                    brackets = acc.refine(range.start, m, self.p, factor, &brackets);
                 }
                 let (rest, raw) = self.blocks(range, Some((&brackets, room)))?;
                 acc.merge(rest.unwrap_or_else(|| unreachable!("brackets were given")));

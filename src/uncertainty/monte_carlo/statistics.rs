@@ -455,12 +455,23 @@ pub(crate) fn brackets_from(pilot: &mut [Vec<f64>], m: usize, p: f64, factor: f6
     }
 }
 
-/// The columns (one per output) of trial-major outputs.
+/// The columns (one per output) of trial-major outputs: the trials read in order, in
+/// two halves of the outputs side by side.
 pub(crate) fn columns(raw: &[f64], outputs: usize) -> Vec<Vec<f64>> {
-    (0..outputs)
-        .into_par_iter()
-        .map(|j| raw.iter().skip(j).step_by(outputs).copied().collect())
-        .collect()
+    let trials = raw.len() / outputs;
+    let some = |from: usize, to: usize| {
+        let mut columns: Vec<Vec<f64>> = (from..to).map(|_| Vec::with_capacity(trials)).collect();
+        for row in raw.chunks_exact(outputs) {
+            for (column, &x) in columns.iter_mut().zip(&row[from..to]) {
+                column.push(x);
+            }
+        }
+        columns
+    };
+    let half = outputs / 2;
+    let (mut first, second) = rayon::join(|| some(0, half), || some(half, outputs));
+    first.extend(second);
+    first
 }
 
 /// Mean, u and the exact interval of `m` accumulated trials; `None` if a bracket missed
