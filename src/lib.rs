@@ -39,6 +39,7 @@ pub mod measurement;
 pub mod polygon;
 pub mod report;
 pub mod results;
+pub mod selfcal;
 pub mod simulate;
 pub mod solve;
 pub mod uncertainty;
