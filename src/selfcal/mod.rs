@@ -15,13 +15,21 @@
 //! (docs/FORMAT.md §1) with the disc in the polygon's place and the heads in the
 //! autocollimators' place, and it is solved by the same engine ([`crate::solve`]).
 //!
-//! Files: `file.rs` reads and writes the self-calibration CSV.
+//! Files: `file.rs` reads and writes the self-calibration CSV; `solve.rs` maps the
+//! readings onto the closure model and back ([`solve()`]); `fourier.rs` solves heads
+//! that sit between the positions.
 
 use crate::measurement::Direction;
 
 mod file;
+mod fourier;
+mod solve;
 
 pub use file::SelfcalError;
+pub use solve::{
+    HeadError, HeadGrid, ON_GRID_TOLERANCE_POSITIONS, SelfcalOptions, SelfcalSolution,
+    SelfcalSolveError, solve,
+};
 
 /// One reading of one read head: one row of the self-calibration file.
 #[derive(Debug, Clone, PartialEq)]

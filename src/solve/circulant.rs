@@ -39,6 +39,9 @@ pub(crate) struct CirculantPlan {
     /// (stream, position, n_sp − w_s) for every cell read a different number of times.
     corrections: Vec<(usize, usize, f64)>,
     effects: usize,
+    /// Harmonics the offsets lose, set to zero in φ′ (self-calibration only; empty
+    /// otherwise).
+    pub(crate) lost: Vec<usize>,
 }
 
 impl CirculantPlan {
@@ -85,11 +88,14 @@ pub(crate) enum Plan {
 }
 
 /// Counts of every (stream, position) cell; plans the engine, or refuses a design that
-/// leaves a position unread or loses harmonics (by the rule of the face offsets).
+/// leaves a position unread or loses harmonics (by the rule of the face offsets). With
+/// `zero_lost`, harmonics lost by that rule are planned to be set to zero instead
+/// (self-calibration: a head layout always loses some).
 pub(crate) fn plan(
     set: &MeasurementSet,
     streams: &[(u32, u32)],
     effects: usize,
+    zero_lost: bool,
 ) -> Result<Plan, SolveError> {
     let n = set.faces;
     let k = streams.len();
@@ -137,7 +143,17 @@ pub(crate) fn plan(
     if !lost.is_empty() {
         // the rule names everything lost when nothing is missing and no effect term can
         // add to it; otherwise the dense path's null space does
-        if effects == 0 && corrections.iter().all(|&(_, _, delta)| delta > 0.0) {
+        let by_rule = effects == 0 && corrections.iter().all(|&(_, _, delta)| delta > 0.0);
+        if by_rule && zero_lost {
+            return Ok(Plan::Circulant(CirculantPlan {
+                weights,
+                offsets,
+                corrections,
+                effects,
+                lost,
+            }));
+        }
+        if by_rule {
             return Err(describe(lost, Vec::new(), set).into());
         }
         return Ok(Plan::Lost(lost));
@@ -147,6 +163,7 @@ pub(crate) fn plan(
         offsets,
         corrections,
         effects,
+        lost: Vec::new(),
     }))
 }
 
@@ -180,6 +197,7 @@ pub(crate) fn solve(
             .map(|(&offset, &weight)| RegularStream { offset, weight })
             .collect::<Vec<_>>(),
         e,
+        &plan.lost,
     );
 
     // Each stream's mean is taken out of its readings first (the U′ column absorbs it
@@ -395,7 +413,8 @@ pub(crate) fn solve(
     }
     let setup_values: Vec<f64> = (0..k).map(|s| g[2 * n + s] + phi_last).collect();
     let rss: f64 = residuals.iter().map(|v| v * v).sum();
-    let dof = set.readings.len().saturating_sub(2 * n - 2 + k + e);
+    // each harmonic set to zero is one real dimension fewer of φ′
+    let dof = (set.readings.len() + plan.lost.len()).saturating_sub(2 * n - 2 + k + e);
     let layout = ParameterLayout {
         faces: n,
         setups: k,

@@ -75,12 +75,20 @@ pub(crate) struct Structured {
 
 /// The cofactor B of a regular closure design in g = [α, φ′, U′, effects] (effects: 0).
 ///
-/// `aa[j]` = B[α_p, α_{p+j}] = B[φ′_p, φ′_{p+j}] (both blocks are the same circulant),
-/// `ap[j]` = B[α_p, φ′_f] with j = (p − f) mod N, `setup[s]` = B[U′_s, U′_s] = 1/(N·w_s).
+/// `aa[j]` = B[α_p, α_{p+j}], `pp[j]` = B[φ′_p, φ′_{p+j}] (the same circulant as `aa`
+/// unless harmonics are lost and set to zero), `ap[j]` = B[α_p, φ′_f] with
+/// j = (p − f) mod N, `setup[s]` = B[U′_s, U′_s] = 1/(N·w_s).
+///
+/// A design that loses harmonics (every stream sees them in the same phase) has no
+/// inverse there. When the caller asks for them to be set to zero (self-calibration,
+/// [`crate::selfcal`]), harmonic k of φ′ is fixed at 0 and that of α estimated alone:
+/// B's spectrum at k is (1/W, 0, 0) for (αα, αφ′, φ′φ′), W = Σ w_s — the cofactor of
+/// the fit constrained to the harmonics the design sees.
 #[derive(Clone)]
 pub(crate) struct Base {
     faces: usize,
     aa: Vec<f64>,
+    pp: Vec<f64>,
     ap: Vec<f64>,
     setup: Vec<f64>,
     effects: usize,
@@ -92,11 +100,12 @@ pub(crate) struct Base {
 /// and the lags direct sums: cheaper than planning FFTs.
 const DIRECT_BELOW: usize = 64;
 
-/// Per harmonic k: B's (α, α) = (φ′, φ′) eigenvalue `raa` and its (α, φ′) entry `rap`
-/// (the DFTs of the lags), and the FFT plans.
+/// Per harmonic k: B's (α, α) and (φ′, φ′) eigenvalues `raa`, `rpp` and its (α, φ′)
+/// entry `rap` (the DFTs of the lags), and the FFT plans.
 #[derive(Clone)]
 struct Spectrum {
     raa: Vec<f64>,
+    rpp: Vec<f64>,
     rap: Vec<Complex<f64>>,
     forward: Arc<dyn Fft<f64>>,
     inverse: Arc<dyn Fft<f64>>,
@@ -116,6 +125,7 @@ impl PartialEq for Base {
     fn eq(&self, other: &Self) -> bool {
         self.faces == other.faces
             && self.aa == other.aa
+            && self.pp == other.pp
             && self.ap == other.ap
             && self.setup == other.setup
             && self.effects == other.effects
@@ -135,8 +145,14 @@ impl Base {
     /// equations in (α̂(k), φ̂′(k)) are [[W, t_k], [t̄_k, W]] with W = Σ w_s and
     /// t_k = Σ_s w_s e^{2πi k d_s / N}; their determinant W² − |t_k|² =
     /// Σ_{s,s′} 2 w_s w_s′ sin²(πk(d_s − d_s′)/N) is formed without cancellation. The
-    /// caller has checked that no harmonic is lost (the determinant is positive).
-    pub(crate) fn new(faces: usize, streams: &[RegularStream], effects: usize) -> Self {
+    /// caller has checked that no harmonic is lost (the determinant is positive), or
+    /// lists in `lost` the harmonics to set to zero (their determinant is 0).
+    pub(crate) fn new(
+        faces: usize,
+        streams: &[RegularStream],
+        effects: usize,
+        lost: &[usize],
+    ) -> Self {
         let n = faces;
         // distinct offsets with their summed weights
         let mut by_offset: Vec<(usize, f64)> = Vec::new();
@@ -149,8 +165,13 @@ impl Base {
         let total: f64 = by_offset.iter().map(|(_, w)| w).sum();
         let (cos, sin) = trig_table(n);
         let mut raa = vec![0.0; n];
+        let mut rpp = vec![0.0; n];
         let mut rap = vec![Complex::new(0.0, 0.0); n];
         for k in 1..n {
+            if lost.contains(&k) {
+                raa[k] = 1.0 / total;
+                continue;
+            }
             let mut t = Complex::new(0.0, 0.0);
             let mut det = 0.0;
             for (a, &(da, wa)) in by_offset.iter().enumerate() {
@@ -164,13 +185,14 @@ impl Base {
                 }
             }
             raa[k] = total / det;
+            rpp[k] = total / det;
             rap[k] = -t / det;
         }
         let setup = streams
             .iter()
             .map(|s| 1.0 / (n as f64 * s.weight))
             .collect();
-        let (aa, ap, spectrum) = if n < DIRECT_BELOW {
+        let (aa, pp, ap, spectrum) = if n < DIRECT_BELOW {
             let lag = |j: usize, value: &dyn Fn(usize) -> Complex<f64>| -> f64 {
                 (1..n)
                     .map(|k| {
@@ -183,32 +205,86 @@ impl Base {
             let aa = (0..n)
                 .map(|j| lag(j, &|k| Complex::new(raa[k], 0.0)))
                 .collect();
+            let pp = (0..n)
+                .map(|j| lag(j, &|k| Complex::new(rpp[k], 0.0)))
+                .collect();
             let ap = (0..n).map(|j| lag(j, &|k| rap[k])).collect();
-            (aa, ap, OnceLock::new())
+            (aa, pp, ap, OnceLock::new())
         } else {
             let mut planner = FftPlanner::new();
             let spectrum = Spectrum {
                 forward: planner.plan_fft_forward(n),
                 inverse: planner.plan_fft_inverse(n),
                 raa,
+                rpp,
                 rap,
             };
-            let mut buffer: Vec<Complex<f64>> =
-                spectrum.raa.iter().map(|&v| Complex::new(v, 0.0)).collect();
-            inverse_dft(&spectrum, &mut buffer);
-            let aa = buffer.iter().map(|c| c.re).collect();
+            let real_lags = |values: &[f64]| -> Vec<f64> {
+                let mut buffer: Vec<Complex<f64>> =
+                    values.iter().map(|&v| Complex::new(v, 0.0)).collect();
+                inverse_dft(&spectrum, &mut buffer);
+                buffer.iter().map(|c| c.re).collect()
+            };
+            let aa = real_lags(&spectrum.raa);
+            let pp = real_lags(&spectrum.rpp);
             let mut buffer = spectrum.rap.clone();
             inverse_dft(&spectrum, &mut buffer);
             let ap = buffer.iter().map(|c| c.re).collect();
-            (aa, ap, OnceLock::from(spectrum))
+            (aa, pp, ap, OnceLock::from(spectrum))
         };
         Self {
             faces: n,
             aa,
+            pp,
             ap,
             setup,
             effects,
             spectrum,
+        }
+    }
+
+    /// A regular design's cofactor from its spectrum, per harmonic k = 0 … N−1: the
+    /// (α, α), (φ′, φ′) and (α, φ′) entries of the inverse of that harmonic's normal
+    /// equations (k = 0 ignored: the gauge), and the setup diagonal. Self-calibration with
+    /// heads off the position grid ([`crate::selfcal`]) forms its spectrum from fractional
+    /// phases; [`Base::new`] from the face offsets.
+    pub(crate) fn from_spectrum(
+        raa: Vec<f64>,
+        rpp: Vec<f64>,
+        rap: Vec<Complex<f64>>,
+        setup: Vec<f64>,
+    ) -> Self {
+        let n = raa.len();
+        let mut planner = FftPlanner::new();
+        let mut spectrum = Spectrum {
+            forward: planner.plan_fft_forward(n),
+            inverse: planner.plan_fft_inverse(n),
+            raa,
+            rpp,
+            rap,
+        };
+        spectrum.raa[0] = 0.0;
+        spectrum.rpp[0] = 0.0;
+        spectrum.rap[0] = Complex::new(0.0, 0.0);
+        let real_lags = |values: &[f64]| -> Vec<f64> {
+            let mut buffer: Vec<Complex<f64>> =
+                values.iter().map(|&v| Complex::new(v, 0.0)).collect();
+            inverse_dft(&spectrum, &mut buffer);
+            buffer.iter().map(|c| c.re).collect()
+        };
+        let aa = real_lags(&spectrum.raa);
+        let pp = real_lags(&spectrum.rpp);
+        let mut buffer = spectrum.rap.clone();
+        inverse_dft(&spectrum, &mut buffer);
+        let ap = buffer.iter().map(|c| c.re).collect();
+        Self {
+            faces: n,
+            aa,
+            pp,
+            ap,
+            setup,
+            effects: 0,
+            spectrum: OnceLock::from(spectrum),
         }
     }
 
@@ -224,9 +300,11 @@ impl Base {
             let j = (j % n) as f64;
             ((nf * nf - 1.0) / 6.0 - j * (nf - j)) / (nf * repeats)
         };
+        let aa: Vec<f64> = (0..n).map(c).collect();
         Self {
             faces: n,
-            aa: (0..n).map(c).collect(),
+            pp: aa.clone(),
+            aa,
             ap: (0..n)
                 .map(|j| -0.5 * (c(j + offset) + c(j + offset + 1)))
                 .collect(),
@@ -248,8 +326,11 @@ impl Base {
             forward.process(&mut aa);
             let mut ap: Vec<Complex<f64>> = self.ap.iter().map(|&v| Complex::new(v, 0.0)).collect();
             forward.process(&mut ap);
+            let mut pp: Vec<Complex<f64>> = self.pp.iter().map(|&v| Complex::new(v, 0.0)).collect();
+            forward.process(&mut pp);
             Spectrum {
                 raa: aa.iter().map(|c| c.re).collect(),
+                rpp: pp.iter().map(|c| c.re).collect(),
                 rap: ap,
                 forward,
                 inverse,
@@ -274,7 +355,7 @@ impl Base {
         } else if a < n && b < 2 * n {
             self.ap[(a + n - (b - n)) % n]
         } else if b < 2 * n {
-            self.aa[(b - a) % n]
+            self.pp[(b - a) % n]
         } else if a == b && a < 2 * n + self.streams() {
             self.setup[a - 2 * n]
         } else {
@@ -291,17 +372,22 @@ impl Base {
             // and ap[(p − q) mod N] = reversed[(q − p) mod N]
             let twice = |f: &dyn Fn(usize) -> f64| (0..2 * n).map(|j| f(j % n)).collect::<Vec<_>>();
             let aa = twice(&|j| self.aa[j]);
+            let pp = twice(&|j| self.pp[j]);
             let ap = twice(&|j| self.ap[j]);
             let reversed = twice(&|j| self.ap[(n - j) % n]);
             for p in 0..n {
                 let window = n - p..2 * n - p;
-                let (aa, ap, reversed) =
-                    (&aa[window.clone()], &ap[window.clone()], &reversed[window]);
+                let (aa, pp, ap, reversed) = (
+                    &aa[window.clone()],
+                    &pp[window.clone()],
+                    &ap[window.clone()],
+                    &reversed[window],
+                );
                 let mut alpha = 0.0;
                 let mut phi = 0.0;
                 for q in 0..n {
                     alpha += aa[q] * xa[q] + reversed[q] * xp[q];
-                    phi += ap[q] * xa[q] + aa[q] * xp[q];
+                    phi += ap[q] * xa[q] + pp[q] * xp[q];
                 }
                 out[p] += alpha;
                 out[n + p] += phi;
@@ -315,7 +401,7 @@ impl Base {
             for k in 0..n {
                 let (a, p) = (fa[k], fp[k]);
                 fa[k] = a * spectrum.raa[k] + p * spectrum.rap[k];
-                fp[k] = a * spectrum.rap[k].conj() + p * spectrum.raa[k];
+                fp[k] = a * spectrum.rap[k].conj() + p * spectrum.rpp[k];
             }
             inverse_dft(spectrum, &mut fa);
             inverse_dft(spectrum, &mut fp);
@@ -546,6 +632,35 @@ impl Cofactor {
         }
     }
 
+    /// Variances (in units of σ²) of the face deviations in the gauge Σφ = 0, φ_f − φ̄: the
+    /// disc's graduation error of a self-calibration ([`crate::selfcal`]). Structured,
+    /// that is the φ′ block's diagonal; dense, var φ_f − 2 cov(φ_f, φ̄) + var φ̄ with one
+    /// product Q·x.
+    pub fn centered_face_deviation_diagonal(&self) -> Vec<f64> {
+        let n = self.layout.faces;
+        if let Repr::Structured(s) = &self.repr {
+            return (0..n).map(|f| s.entry(n + f, n + f)).collect();
+        }
+        // φ = T β (T the cumulative sum): cov(φ, φ̄) = T Q_ββ Tᵀ 1/N, with (Tᵀ 1)_i = N − i
+        let mut x = vec![0.0; self.len()];
+        for (i, v) in x[..n].iter_mut().enumerate() {
+            *v = (n - i) as f64 / n as f64;
+        }
+        let y = self.apply(&x);
+        let mut cov = Vec::with_capacity(n);
+        let mut running = 0.0;
+        for v in &y[..n] {
+            running += v;
+            cov.push(running);
+        }
+        let var_mean = cov.iter().sum::<f64>() / n as f64;
+        self.face_deviation_diagonal()
+            .into_iter()
+            .zip(&cov)
+            .map(|(var, c)| var - 2.0 * c + var_mean)
+            .collect()
+    }
+
     /// Q·x for a vector x in θ (O(N log N + (2N + K)·r) when structured, O((2N + K)²)
     /// when dense).
     ///
@@ -659,6 +774,7 @@ mod tests {
                     },
                 ],
                 0,
+                &[],
             );
             let paper = Base::paper(n, d, r);
             for j in 0..n {

@@ -77,7 +77,7 @@ pub fn least_squares_with_options(
     let n = set.faces;
     let (k, e) = (streams.len(), regressors.len());
     let refuse = |engine, needed_bytes| fits(set, k, e, engine, needed_bytes, options);
-    match circulant::plan(set, &streams, e)? {
+    match circulant::plan(set, &streams, e, false)? {
         Plan::Circulant(plan) if plan.is_cheaper_than_dense(n) => {
             refuse("circulant", plan.bytes_needed(n, set.readings.len()))?;
             if let Some(solution) =
@@ -167,4 +167,33 @@ pub(crate) fn check_regressors(
         }
     }
     Ok(())
+}
+
+/// Least squares of a design whose face offsets lose harmonics, with those harmonics of φ
+/// set to zero instead of refused, on the circulant engine (self-calibration,
+/// [`crate::selfcal`]: a head layout always loses some). Returns the solution and the
+/// harmonics k in 1 … N−1 set to zero. A design the rule of the offsets does not cover
+/// (no regular part, missing readings) is solved, or refused, as
+/// [`least_squares_with_options`] does.
+pub(crate) fn least_squares_zeroing_lost(
+    set: &MeasurementSet,
+    options: &SolveOptions,
+) -> Result<(Solution, Vec<usize>), SolveError> {
+    let streams = set.streams();
+    let n = set.faces;
+    let k = streams.len();
+    if let Plan::Circulant(plan) = circulant::plan(set, &streams, 0, true)? {
+        fits(
+            set,
+            k,
+            0,
+            "circulant",
+            plan.bytes_needed(n, set.readings.len()),
+            options,
+        )?;
+        if let Some(solution) = circulant::solve(set, &streams, &plan, &[], options.sigma)? {
+            return Ok((solution, plan.lost));
+        }
+    }
+    least_squares_with_options(set, &[], options).map(|solution| (solution, Vec::new()))
 }
