@@ -444,3 +444,110 @@ fn one_cycle_of_two_heads_with_a_stated_sigma() {
     let u = stated.encoder_error_u.unwrap();
     assert!(u.iter().all(|v| v.is_finite() && *v > 0.0));
 }
+
+/// The scopes' gains are structural: an error shared by a head's readings moves only the
+/// head errors, one shared by a stop or a position only the table. Solved here, not
+/// assumed: readings that are 1 on the group and 0 elsewhere.
+#[test]
+fn errors_shared_by_a_head_a_stop_or_a_position_are_absorbed() {
+    let angles = selfa_angles();
+    let (p, cycles) = (168usize, 2u32);
+    let template = |value: &dyn Fn(u32, usize, u32) -> f64| {
+        let mut readings = Vec::new();
+        for cycle in 1..=cycles {
+            for step in 0..p {
+                for (j, &psi) in angles.iter().enumerate() {
+                    let head = j as u32 + 1;
+                    readings.push(HeadReading {
+                        cycle,
+                        step,
+                        head,
+                        head_angle_deg: psi,
+                        reading_arcsec: value(cycle, step, head),
+                        direction: Direction::Cw,
+                        time_seconds: None,
+                        line: 0,
+                    });
+                }
+            }
+        }
+        let set = SelfcalSet::from_readings(readings, Some(p)).unwrap();
+        selfcal::solve(&set, &SelfcalOptions::new()).unwrap()
+    };
+    let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    // head 5's offset: e untouched, c[5] − c[1] = 1
+    let head = template(&|_, _, head| if head == 5 { 1.0 } else { 0.0 });
+    assert!(largest(&head.encoder_error) < 1e-12);
+    for h in &head.head_error {
+        let expected = if h.head == 5 { 1.0 } else { 0.0 };
+        assert!((h.value - expected).abs() < 1e-12);
+    }
+    // head 1's offset moves every c[j] − c[1] by −1: with head j's own, gain 2
+    let first = template(&|_, _, head| if head == 1 { 1.0 } else { 0.0 });
+    assert!(first.head_error.iter().all(|h| (h.value + 1.0).abs() < 1e-12));
+    // a stop, and a position in every cycle: nothing reaches e or c
+    for solution in [
+        template(&|cycle, step, _| if (cycle, step) == (2, 17) { 1.0 } else { 0.0 }),
+        template(&|_, step, _| if step == 17 { 1.0 } else { 0.0 }),
+    ] {
+        assert!(largest(&solution.encoder_error) < 1e-12);
+        assert!(solution.head_error.iter().all(|h| h.value.abs() < 1e-12));
+    }
+}
+
+/// A budget's combination by hand (JCGM 100 eq. (10), G.2b, t at 95 %): a rectangular
+/// error of each reading, an offset of each head, a normal term on the result with 10
+/// dof, and an error shared by each stop.
+#[test]
+fn a_budget_combines_as_derived_by_hand() {
+    use polycal::uncertainty::calibration::{InstrumentBudget, Scope, ScopedComponent};
+    use polycal::uncertainty::distribution::Distribution;
+    use polycal::uncertainty::student::t_quantile;
+
+    let mut rng = ChaCha8Rng::seed_from_u64(77);
+    let angles = selfa_angles();
+    let disc = Disc::random(&mut rng, 1..84);
+    let run = Run {
+        positions: 168,
+        cycles: 2,
+        head_errors: head_errors(&mut rng, angles.len()),
+        angles,
+        table_sigma: 1.0,
+        noise: 0.03,
+    };
+    let set = measure(&run, &disc, &mut rng);
+    let solution = selfcal::solve(&set, &SelfcalOptions::new()).unwrap();
+    let (a, u_head, u_result, u_stop) = (0.02, 0.2, 0.1, 0.5);
+    let budget = InstrumentBudget::new(vec![
+        ScopedComponent::type_b(
+            "resolution",
+            Distribution::Rectangular { half_width: a },
+            Scope::EachReading,
+        ),
+        ScopedComponent::type_b("head offset", Distribution::Normal { u: u_head }, Scope::EachAutocollimator),
+        ScopedComponent::type_b("reference", Distribution::Normal { u: u_result }, Scope::Result)
+            .with_dof(Some(10.0)),
+        ScopedComponent::type_b("table", Distribution::Normal { u: u_stop }, Scope::EachStop),
+    ]);
+    let result = selfcal::evaluate_budget(&solution, &budget).unwrap();
+    let (sigma, _) = solution.sigma.unwrap();
+    let nu_a = solution.dof as f64;
+    let u_r = a / 3f64.sqrt();
+    for (x, u_a) in solution.encoder_error_u_type_a.as_ref().unwrap().iter().enumerate() {
+        let q = (u_a / sigma).powi(2);
+        let variance = u_a * u_a + u_r * u_r * q + u_result * u_result;
+        let nu = variance.powi(2) / (u_a.powi(4) / nu_a + u_result.powi(4) / 10.0);
+        let k = t_quantile(0.95, Some(nu));
+        assert!((result.encoder_error.u[x] - variance.sqrt()).abs() < 1e-12);
+        assert!((result.encoder_error.k[x].unwrap() - k).abs() < 1e-9);
+        assert!((result.encoder_error.expanded_u[x] - k * variance.sqrt()).abs() < 1e-9);
+    }
+    for (j, h) in solution.head_error.iter().enumerate() {
+        let u_a = h.u.unwrap();
+        let q = (u_a / sigma).powi(2);
+        let variance = u_a * u_a + u_r * u_r * q + 2.0 * u_head * u_head + u_result * u_result;
+        assert!((result.head_error.u[j] - variance.sqrt()).abs() < 1e-12);
+    }
+    // the stop's error reaches nothing
+    assert!(result.components[3].encoder_error.iter().all(|v| *v == 0.0));
+}

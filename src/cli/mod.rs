@@ -9,6 +9,7 @@ mod docs;
 #[cfg(feature = "lab")]
 mod lab;
 pub mod output;
+mod selfcal;
 mod simulate;
 mod solve;
 
@@ -92,6 +93,10 @@ pub enum Command {
     /// Compare two results quantity by quantity with En (ISO 13528); status 1 when some |En| > 1.
     #[command(after_help = compare::EXAMPLES)]
     Compare(compare::CompareArgs),
+    /// Self-calibrate a rotary encoder with several read heads (SelfA): the disc's
+    /// graduation error and the heads' errors (docs/FORMAT.md §9).
+    #[command(after_help = selfcal::EXAMPLES)]
+    Selfcal(selfcal::SelfcalArgs),
     /// Simulate a measurement run with a known truth.
     #[command(after_help = simulate::EXAMPLES)]
     Simulate(simulate::SimulateArgs),
@@ -204,6 +209,7 @@ pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
         Command::Diagnose(args) => diagnose::run(&args, out),
         Command::Budget(args) => budget::run(&args),
         Command::Compare(args) => compare::run(&args),
+        Command::Selfcal(args) => selfcal::run(&args, out),
         Command::Simulate(args) => simulate::run(&args),
         #[cfg(feature = "lab")]
         Command::Run(args) => lab::run(&args, out),

@@ -4,7 +4,8 @@
 //!   of its CSV (§3); [`solve_table`]: its table for people, whose results section
 //!   (β, φ, α with their uncertainties) `diagnose` also prints for its final model;
 //! - [`diagnose`]: the JSON object and the table of `polycal diagnose`;
-//! - [`compare`]: the table of `polycal compare` (its JSON is [`crate::compare::Comparison`]).
+//! - [`compare`]: the table of `polycal compare` (its JSON is [`crate::compare::Comparison`]);
+//! - [`selfcal`]: the JSON object, the table and the result rows of `polycal selfcal`.
 //!
 //! Every JSON object a command prints carries the software version ([`to_json`] adds it as
 //! the first member, `"version"`). JSON and CSV carry numbers at full precision (the
@@ -13,6 +14,7 @@
 
 pub mod compare;
 pub mod diagnose;
+pub mod selfcal;
 pub mod solve;
 pub mod solve_table;
 

@@ -17,17 +17,22 @@
 //!
 //! Files: `file.rs` reads and writes the self-calibration CSV; `solve.rs` maps the
 //! readings onto the closure model and back ([`solve()`]); `fourier.rs` solves heads
-//! that sit between the positions.
+//! that sit between the positions; `budget.rs` combines an instrument budget with the
+//! fit ([`evaluate_budget`]).
 
 use crate::measurement::Direction;
 
+mod budget;
 mod file;
 mod fourier;
 mod solve;
 
+pub use budget::{
+    SelfcalContribution, SelfcalFamilyUncertainty, SelfcalUncertainty, evaluate_budget,
+};
 pub use file::SelfcalError;
 pub use solve::{
-    HeadError, HeadGrid, ON_GRID_TOLERANCE_POSITIONS, SelfcalOptions, SelfcalSolution,
+    COVERAGE_PROBABILITY, HeadError, HeadGrid, ON_GRID_TOLERANCE_POSITIONS, SelfcalOptions, SelfcalSolution,
     SelfcalSolveError, solve,
 };
 

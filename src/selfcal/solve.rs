@@ -24,6 +24,7 @@ use nalgebra::DMatrix;
 
 use super::{Head, SelfcalSet, fourier};
 use crate::measurement::{MeasurementError, MeasurementSet, Reading, Sigma};
+use crate::uncertainty::student::t_quantile;
 use crate::solve::cofactor::Cofactor;
 use crate::solve::least_squares::least_squares_zeroing_lost;
 use crate::solve::{Engine, ParameterLayout, SigmaSource, Solution, SolveError, SolveOptions};
@@ -192,10 +193,46 @@ pub struct SelfcalSolution {
     pub notes: Vec<String>,
 }
 
+/// The coverage probability of the expanded uncertainties U = k·u of a self-calibration.
+pub const COVERAGE_PROBABILITY: f64 = 0.95;
+
 impl SelfcalSolution {
     /// √(RSS/dof), or `None` when dof = 0.
     pub fn residual_rms(&self) -> Option<f64> {
         (self.dof > 0).then(|| (self.rss / self.dof as f64).sqrt())
+    }
+
+    /// Degrees of freedom of the type A part: the residual dof for σ from the residuals,
+    /// infinite (`None`) for a stated σ.
+    fn type_a_dof(&self) -> Option<f64> {
+        match self.sigma {
+            Some((_, SigmaSource::Residual)) => Some(self.dof as f64),
+            _ => None,
+        }
+    }
+
+    /// The coverage factor k of each u(e) at [`COVERAGE_PROBABILITY`]: Student's t for
+    /// the Welch–Satterthwaite ν_eff = u⁴/(u_A⁴/ν_A) (the lost harmonics' bound has
+    /// infinite degrees of freedom); `None` when σ is unknown.
+    pub fn encoder_error_k(&self) -> Option<Vec<f64>> {
+        let (u, u_a) = (self.encoder_error_u.as_ref()?, self.encoder_error_u_type_a.as_ref()?);
+        let nu_a = self.type_a_dof();
+        Some(
+            u.iter()
+                .zip(u_a)
+                .map(|(&u, &ua)| {
+                    let nu = nu_a.map(|nu| if ua > 0.0 { nu * (u / ua).powi(4) } else { f64::INFINITY });
+                    t_quantile(COVERAGE_PROBABILITY, nu.filter(|v| v.is_finite()))
+                })
+                .collect(),
+        )
+    }
+
+    /// The coverage factor k of the head errors at [`COVERAGE_PROBABILITY`] (type A
+    /// only); `None` when σ is unknown.
+    pub fn head_error_k(&self) -> Option<f64> {
+        self.sigma?;
+        Some(t_quantile(COVERAGE_PROBABILITY, self.type_a_dof()))
     }
 }
 

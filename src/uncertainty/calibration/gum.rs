@@ -158,46 +158,20 @@ pub fn evaluate(
         let u = c.standard_uncertainty();
         contributions.push(g.iter().map(|g| u * g.max(0.0).sqrt()).collect());
     }
-    let mut u = vec![0.0; total];
-    let mut dof_eff = vec![None; total];
-    let mut k = vec![None; total];
-    let mut expanded = vec![0.0; total];
-    for j in 0..total {
-        let mut variance = u_a[j] * u_a[j];
-        let mut denominator = type_a_dof.map_or(0.0, |nu| u_a[j].powi(4) / nu);
-        for (c, contribution) in budget.components.iter().zip(&contributions) {
-            let x = contribution[j];
-            variance += x * x;
-            if let Some(nu) = c.dof {
-                denominator += x.powi(4) / nu;
-            }
-        }
-        u[j] = variance.sqrt();
-        if variance <= 0.0 {
-            continue; // φ[N]: no uncertainty, no k
-        }
-        let nu = (denominator > 0.0)
-            .then(|| variance * variance / denominator)
-            .filter(|nu| nu.is_finite());
-        dof_eff[j] = nu;
-        let factor = match budget.dof_policy {
-            DofPolicy::K2 => 2.0,
-            DofPolicy::Fractional => t_quantile(budget.p, nu),
-            DofPolicy::Floor => match nu {
-                Some(nu) if nu.floor() < 1.0 => {
-                    let (quantity, index) = family_name_and_index(j, n);
-                    return Err(CalibrationError::FloorBelowOne {
-                        quantity,
-                        index,
-                        dof: nu,
-                    });
-                }
-                other => t_quantile(budget.p, other.map(f64::floor)),
-            },
-        };
-        k[j] = Some(factor);
-        expanded[j] = factor * u[j];
-    }
+    let component_dof: Vec<Option<f64>> = budget.components.iter().map(|c| c.dof).collect();
+    let Combined {
+        u,
+        dof_eff,
+        k,
+        expanded,
+    } = combine(
+        budget,
+        &u_a,
+        type_a_dof,
+        &component_dof,
+        &contributions,
+        |j| family_name_and_index(j, n),
+    )?;
     let [a0, a1, a2, a3] = split(&u_a, n);
     let [u0, u1, u2, u3] = split(&u, n);
     let [d0, d1, d2, d3] = split(&dof_eff, n);
@@ -246,5 +220,75 @@ pub fn evaluate(
         encoder_error: family(a2, u2, d2, k2, e2),
         setup_error: family(a3, u3, d3, k3, e3),
         components,
+    })
+}
+
+/// Per quantity: u_c, ν_eff, k and U = k·u_c.
+pub(crate) struct Combined {
+    pub(crate) u: Vec<f64>,
+    pub(crate) dof_eff: Vec<Option<f64>>,
+    pub(crate) k: Vec<Option<f64>>,
+    pub(crate) expanded: Vec<f64>,
+}
+
+/// The GUM combination of one set of quantities: u_c² = u_A² + Σ contribution², ν_eff
+/// by Welch–Satterthwaite (type A with `type_a_dof`, each component with its own), k
+/// under the budget's p and degrees-of-freedom policy, U = k·u_c; no k where u_c = 0.
+/// `contributions[c][j]` is component c's standard uncertainty in quantity j; `name`
+/// names quantity j for the floor policy's refusal.
+pub(crate) fn combine(
+    budget: &InstrumentBudget,
+    u_a: &[f64],
+    type_a_dof: Option<f64>,
+    component_dof: &[Option<f64>],
+    contributions: &[Vec<f64>],
+    name: impl Fn(usize) -> (Quantity, usize),
+) -> Result<Combined, CalibrationError> {
+    let total = u_a.len();
+    let mut u = vec![0.0; total];
+    let mut dof_eff = vec![None; total];
+    let mut k = vec![None; total];
+    let mut expanded = vec![0.0; total];
+    for j in 0..total {
+        let mut variance = u_a[j] * u_a[j];
+        let mut denominator = type_a_dof.map_or(0.0, |nu| u_a[j].powi(4) / nu);
+        for (dof, contribution) in component_dof.iter().zip(contributions) {
+            let x = contribution[j];
+            variance += x * x;
+            if let Some(nu) = dof {
+                denominator += x.powi(4) / nu;
+            }
+        }
+        u[j] = variance.sqrt();
+        if variance <= 0.0 {
+            continue; // φ[N]: no uncertainty, no k
+        }
+        let nu = (denominator > 0.0)
+            .then(|| variance * variance / denominator)
+            .filter(|nu| nu.is_finite());
+        dof_eff[j] = nu;
+        let factor = match budget.dof_policy {
+            DofPolicy::K2 => 2.0,
+            DofPolicy::Fractional => t_quantile(budget.p, nu),
+            DofPolicy::Floor => match nu {
+                Some(nu) if nu.floor() < 1.0 => {
+                    let (quantity, index) = name(j);
+                    return Err(CalibrationError::FloorBelowOne {
+                        quantity,
+                        index,
+                        dof: nu,
+                    });
+                }
+                other => t_quantile(budget.p, other.map(f64::floor)),
+            },
+        };
+        k[j] = Some(factor);
+        expanded[j] = factor * u[j];
+    }
+    Ok(Combined {
+        u,
+        dof_eff,
+        k,
+        expanded,
     })
 }

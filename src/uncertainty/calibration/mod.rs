@@ -93,6 +93,7 @@ mod trial;
 
 pub use budget::{InstrumentBudget, Scope, ScopedComponent};
 pub use gum::{CalibrationUncertainty, ComponentContribution, FamilyUncertainty, evaluate};
+pub(crate) use gum::{Combined, combine};
 pub use mc::{CalibrationMonteCarlo, McFamily, McOptions, monte_carlo};
 pub use trial::{McModel, McScratch, McSolver};
 

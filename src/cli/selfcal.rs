@@ -1,0 +1,119 @@
+//! `polycal selfcal`: a multi-head self-calibration of a rotary encoder (docs/FORMAT.md §9).
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::ValueEnum;
+use polycal::input::display_name;
+use polycal::measurement::Sigma;
+use polycal::report::selfcal::{SelfcalReport, result_rows, write_table};
+use polycal::selfcal::{self, SelfcalOptions, SelfcalSet};
+use polycal::uncertainty::calibration::CalibrationError;
+
+use super::EXIT_OK;
+use super::output::Output;
+
+/// After `polycal selfcal --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  polycal selfcal examples/data/selfa-168.csv
+  polycal selfcal examples/data/selfa-168.csv --format csv > selfcal.csv
+  polycal selfcal examples/data/selfa-168.csv --lost-harmonic-bound 0.01 --format json
+  polycal selfcal examples/data/selfa-168.csv --budget examples/budgets/selfcal.toml
+  polycal simulate --selfcal --positions 168 | polycal selfcal -";
+
+/// Arguments of `polycal selfcal`.
+#[derive(clap::Args)]
+pub struct SelfcalArgs {
+    /// Self-calibration CSV (docs/FORMAT.md §9: cycle, step, head, head_angle, reading);
+    /// `-` reads standard input.
+    file: PathBuf,
+    /// Number of table positions P (default: the largest step + 1).
+    #[arg(long)]
+    positions: Option<usize>,
+    /// Standard deviation of one reading, arcsec, for the uncertainties of a fit without
+    /// residual degrees of freedom.
+    #[arg(long, allow_negative_numbers = true)]
+    sigma: Option<Sigma>,
+    /// A bound on the amplitude of every harmonic the head layout cannot see, arcsec:
+    /// each is taken as a sinusoid of that amplitude with unknown phase (u = A/√2) and
+    /// added to u(e).
+    #[arg(long, value_name = "ARCSEC", allow_negative_numbers = true)]
+    lost_harmonic_bound: Option<f64>,
+    /// Instrument budget (TOML, docs/FORMAT.md §5 with `acts_on` per component; in a
+    /// self-calibration `each-autocollimator` means each read head): adds u_c, k and U
+    /// of every result, combining the fit's type A with the budget through the design.
+    #[arg(long, value_name = "FILE.toml")]
+    budget: Option<PathBuf>,
+    /// Output format (csv: the result file of docs/FORMAT.md §3 with angle_deg).
+    #[arg(long, value_enum, default_value = "table")]
+    format: SelfcalFormat,
+}
+
+/// `selfcal --format`.
+#[derive(Clone, Copy, ValueEnum)]
+enum SelfcalFormat {
+    Table,
+    Json,
+    Csv,
+}
+
+/// `polycal selfcal`: returns the exit status, or an error for the `error:` line.
+pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
+    let name = display_name(&args.file);
+    let set = SelfcalSet::read_path(&args.file, args.positions)?;
+    let mut options = SelfcalOptions::new().with_sigma_opt(args.sigma);
+    if let Some(bound) = args.lost_harmonic_bound {
+        options = options
+            .with_lost_harmonic_bound(bound)
+            .context("--lost-harmonic-bound")?;
+    }
+    let budget = super::solve::read_budget(args.budget.as_deref(), out)?;
+    let solution =
+        selfcal::solve(&set, &options).with_context(|| format!("{name}: cannot solve"))?;
+    if solution.sigma.is_none() {
+        out.warning(&format!(
+            "{name}: no residual degrees of freedom: uncertainties need --sigma"
+        ));
+    }
+    let uncertainty = budget
+        .as_ref()
+        .map(|budget| {
+            selfcal::evaluate_budget(&solution, budget).map_err(|e| match e {
+                CalibrationError::NoSigma => anyhow::anyhow!("{e} (--sigma)"),
+                e => e.into(),
+            })
+        })
+        .transpose()
+        .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
+    let stdout = std::io::stdout();
+    let mut stdout = stdout.lock();
+    match args.format {
+        SelfcalFormat::Json => {
+            let mut report = SelfcalReport::new(&solution, &name);
+            if let Some(uncertainty) = &uncertainty {
+                report = report.with_uncertainty(uncertainty);
+            }
+            writeln!(stdout, "{}", report.to_json()?)?;
+        }
+        SelfcalFormat::Table => {
+            let mut text = String::new();
+            write_table(
+                &mut text,
+                &solution,
+                &args.file.display().to_string(),
+                uncertainty.as_ref(),
+            )?;
+            write!(stdout, "{text}")?;
+        }
+        SelfcalFormat::Csv => {
+            polycal::results::write_results(
+                &mut stdout,
+                &result_rows(&solution, uncertainty.as_ref()),
+            )?;
+        }
+    }
+    stdout.flush()?;
+    Ok(EXIT_OK)
+}
