@@ -38,8 +38,8 @@ impl SelfcalSet {
         readings: Vec<HeadReading>,
         positions: Option<usize>,
     ) -> Result<Self, SelfcalError> {
-        let positions = positions
-            .unwrap_or_else(|| readings.iter().map(|r| r.step + 1).max().unwrap_or(0));
+        let positions =
+            positions.unwrap_or_else(|| readings.iter().map(|r| r.step + 1).max().unwrap_or(0));
         Ok(Self {
             positions,
             readings,
