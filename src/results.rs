@@ -1,22 +1,26 @@
 //! The result file (docs/FORMAT.md §3): one row per estimated quantity.
 //!
 //! ```text
-//! quantity,index,value,U,u,k
-//! pitch_deviation,1,0.52,0.46,0.2287,1.993
-//! encoder_error,0,-0.11,0.46,,
+//! quantity,index,value,U,u,k,angle_deg
+//! pitch_deviation,1,0.52,0.46,0.2287,1.993,
+//! encoder_error,1,-0.11,0.46,,,15
 //! ```
 //!
 //! Columns may come in any order; `quantity`, `index` and `value` are required; `U`
-//! (expanded uncertainty), `u` (standard uncertainty) and `k` (coverage factor) are
-//! optional, an empty field meaning "not given" (`compare` needs `U`). Column names are
-//! case-sensitive (`U` and `u` differ). Columns this version does not know are ignored
-//! (docs/FORMAT.md allows adding columns). Lines starting with `#` before the header are
-//! comments.
+//! (expanded uncertainty), `u` (standard uncertainty), `k` (coverage factor) and
+//! `angle_deg` (the table angle of an encoder error, degrees) are optional, an empty field
+//! meaning "not given" (`compare` needs `U`). Column names are case-sensitive (`U` and `u`
+//! differ). Columns this version does not know are ignored (docs/FORMAT.md allows adding
+//! columns). Lines starting with `#` before the header are comments.
 //!
 //! Reading is strict: an unknown quantity, an index out of range, a number that is not
 //! finite, a negative uncertainty, a duplicate `(quantity, index)` is refused with
-//! `file:line:column` and nothing is guessed.
+//! `file:line:column` and nothing is guessed. So is an `angle_deg` outside 0 ≤ angle < 360,
+//! one on a row that is not an encoder error, two encoder errors at the same angle (within
+//! [`ANGLE_TOLERANCE_DEG`], around the circle), and a file where some encoder errors carry
+//! an angle and others do not.
 
+use std::collections::BTreeMap;
 use std::io::{Read, Write};
 use std::path::Path;
 
@@ -109,6 +113,225 @@ pub struct ResultRow {
     pub expanded_u: Option<f64>,
     /// Coverage factor (column `k`).
     pub k: Option<f64>,
+    /// For `encoder_error` rows: the table angle of that position, degrees, 0 ≤ angle < 360
+    /// (column `angle_deg`); `None` on every other row.
+    pub angle_deg: Option<f64>,
+}
+
+impl ResultRow {
+    /// A row with its estimate only: no `U`, `u`, `k` or angle (add them with the
+    /// `with_…` methods).
+    ///
+    /// ```
+    /// use polycal::results::{Quantity, ResultRow};
+    /// let row = ResultRow::new(Quantity::EncoderError, 1, -0.11)
+    ///     .with_expanded_u(0.46)
+    ///     .with_angle_deg(15.0);
+    /// assert_eq!((row.expanded_u, row.u, row.angle_deg), (Some(0.46), None, Some(15.0)));
+    /// ```
+    pub fn new(quantity: Quantity, index: u32, value: f64) -> ResultRow {
+        ResultRow {
+            quantity,
+            index,
+            value,
+            u: None,
+            expanded_u: None,
+            k: None,
+            angle_deg: None,
+        }
+    }
+
+    /// With an expanded uncertainty `U`, arcseconds.
+    pub fn with_expanded_u(mut self, expanded_u: f64) -> ResultRow {
+        self.expanded_u = Some(expanded_u);
+        self
+    }
+
+    /// With a standard uncertainty `u`, arcseconds.
+    pub fn with_u(mut self, u: f64) -> ResultRow {
+        self.u = Some(u);
+        self
+    }
+
+    /// With a coverage factor `k`.
+    pub fn with_k(mut self, k: f64) -> ResultRow {
+        self.k = Some(k);
+        self
+    }
+
+    /// With the table angle of an encoder error, degrees (checked when the row is
+    /// written, read or compared: 0 ≤ angle < 360, `encoder_error` rows only).
+    pub fn with_angle_deg(mut self, angle_deg: f64) -> ResultRow {
+        self.angle_deg = Some(angle_deg);
+        self
+    }
+}
+
+/// Two table angles of encoder errors closer than this around the circle (degrees) are
+/// the same position: within a result file they are refused as a duplicate, and
+/// `compare` matches encoder errors of two results by angle within it (docs/FORMAT.md §3,
+/// §5.4).
+pub const ANGLE_TOLERANCE_DEG: f64 = 1e-6;
+
+/// The distance between two table angles around the circle, degrees, 0 … 180 (so that
+/// 359.9999999° and 0° are 1e-7° apart).
+///
+/// ```
+/// use polycal::results::angle_distance_deg;
+/// assert!(angle_distance_deg(359.9999999, 0.0) < 1e-6);
+/// assert_eq!(angle_distance_deg(10.0, 350.0), 20.0);
+/// ```
+pub fn angle_distance_deg(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(360.0);
+    d.min(360.0 - d)
+}
+
+/// Whether `angle_deg` is a table angle a result file may carry: finite, 0 ≤ angle < 360.
+pub(crate) fn angle_in_range(angle_deg: f64) -> bool {
+    angle_deg.is_finite() && (0.0..360.0).contains(&angle_deg)
+}
+
+/// What breaks the angle rules of a result file (docs/FORMAT.md §3.2) across its rows;
+/// rows are named by their position in the file (0-based), the caller names them by line
+/// or by row number.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum AngleProblem {
+    /// The angle is not finite or not in 0 ≤ angle < 360.
+    OutOfRange,
+    /// An angle on a row that is not an encoder error.
+    NotEncoder,
+    /// Encoder row `without` has no angle while encoder row `with` has one; the problem is
+    /// reported at `without` (the first row without an angle).
+    Missing {
+        /// The first encoder row without an angle.
+        without: usize,
+        /// An encoder row with one.
+        with: usize,
+    },
+    /// The angle is (within [`ANGLE_TOLERANCE_DEG`]) that of the earlier encoder row
+    /// `first`.
+    Duplicate {
+        /// The earlier row.
+        first: usize,
+    },
+}
+
+impl AngleProblem {
+    /// The message for the problem found on admitting `row`, `rows` being the rows admitted
+    /// before it (so `row`'s position is `rows.len()`) and `place` naming a row by its
+    /// position ("line 7", "row 3").
+    pub(crate) fn message(
+        &self,
+        row: &ResultRow,
+        rows: &[ResultRow],
+        place: impl Fn(usize) -> String,
+    ) -> String {
+        let describe = |i: usize| match rows.get(i) {
+            Some(r) => format!("{} {}", r.quantity, r.index),
+            None => format!("{} {}", row.quantity, row.index),
+        };
+        match self {
+            AngleProblem::OutOfRange => format!(
+                "angle_deg must be a finite number of degrees, 0 ≤ angle_deg < 360, got {}",
+                row.angle_deg
+                    .map_or("nothing".to_string(), |a| a.to_string())
+            ),
+            AngleProblem::NotEncoder => format!(
+                "angle_deg is given for {} {}: only encoder_error rows carry a table angle \
+                 (leave the field empty)",
+                row.quantity, row.index
+            ),
+            AngleProblem::Missing { without, with } => format!(
+                "{} has no angle_deg, but {} on {} has one: either every encoder_error row \
+                 carries its table angle or none does",
+                describe(*without),
+                describe(*with),
+                place(*with)
+            ),
+            AngleProblem::Duplicate { first } => format!(
+                "{} {} at angle_deg {} is the position of {} on {} (angles within {:e}° \
+                 around the circle are one position)",
+                row.quantity,
+                row.index,
+                row.angle_deg.unwrap_or(f64::NAN),
+                describe(*first),
+                place(*first),
+                ANGLE_TOLERANCE_DEG
+            ),
+        }
+    }
+}
+
+/// The angle rules of a result file, checked row by row in file order: angles only on
+/// encoder errors, 0 ≤ angle < 360, every encoder error with an angle or none, no two at
+/// one position.
+#[derive(Debug, Default)]
+pub(crate) struct AngleCheck {
+    /// The angles seen (non-negative, so their bits sort as the numbers) and their rows.
+    seen: BTreeMap<u64, usize>,
+    first_with: Option<usize>,
+    first_without: Option<usize>,
+}
+
+impl AngleCheck {
+    /// Admits row `position` (the rows before it admitted already).
+    pub(crate) fn admit(&mut self, position: usize, row: &ResultRow) -> Result<(), AngleProblem> {
+        if row.quantity != Quantity::EncoderError {
+            return match row.angle_deg {
+                Some(_) => Err(AngleProblem::NotEncoder),
+                None => Ok(()),
+            };
+        }
+        let Some(angle) = row.angle_deg else {
+            if let Some(with) = self.first_with {
+                return Err(AngleProblem::Missing {
+                    without: position,
+                    with,
+                });
+            }
+            self.first_without.get_or_insert(position);
+            return Ok(());
+        };
+        if !angle_in_range(angle) {
+            return Err(AngleProblem::OutOfRange);
+        }
+        if let Some(without) = self.first_without {
+            return Err(AngleProblem::Missing {
+                without,
+                with: position,
+            });
+        }
+        self.first_with.get_or_insert(position);
+        let angle = angle + 0.0; // −0 is 0
+        if let Some(first) = self.near(angle) {
+            return Err(AngleProblem::Duplicate { first });
+        }
+        self.seen.insert(angle.to_bits(), position);
+        Ok(())
+    }
+
+    /// The earliest row seen whose angle is within the tolerance of `angle`.
+    fn near(&self, angle: f64) -> Option<usize> {
+        let tolerance = ANGLE_TOLERANCE_DEG;
+        let mut windows = vec![(angle - tolerance, angle + tolerance)];
+        if angle - tolerance < 0.0 {
+            windows.push((angle - tolerance + 360.0, 360.0));
+        }
+        if angle + tolerance >= 360.0 {
+            windows.push((0.0, angle + tolerance - 360.0));
+        }
+        windows
+            .into_iter()
+            .flat_map(|(low, high)| {
+                // Widened by a hair, then judged by the distance itself.
+                let low = (low - tolerance).max(0.0);
+                let high = high + tolerance;
+                self.seen.range(low.to_bits()..=high.to_bits())
+            })
+            .filter(|(bits, _)| angle_distance_deg(f64::from_bits(**bits), angle) <= tolerance)
+            .map(|(_, &position)| position)
+            .min()
+    }
 }
 
 /// A result file as read: its rows and where each came from.
@@ -215,7 +438,8 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
         return Err(err(
             line_offset + 1,
             1,
-            "no header: expected a header line such as quantity,index,value,U,u,k".to_string(),
+            "no header: expected a header line such as quantity,index,value,U,u,k,angle_deg"
+                .to_string(),
         ));
     }
 
@@ -262,7 +486,8 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
             return Err(err(
                 line_offset + 1,
                 1,
-                "no header: expected a header line such as quantity,index,value,U,u,k".to_string(),
+                "no header: expected a header line such as quantity,index,value,U,u,k,angle_deg"
+                    .to_string(),
             ));
         }
         Some(record) => record.map_err(&csv_error)?,
@@ -293,7 +518,7 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
                 1,
                 format!(
                     "the header has no {name:?} column (required: quantity, index, value; \
-                     optional: U, u, k; names are case-sensitive)"
+                     optional: U, u, k, angle_deg; names are case-sensitive)"
                 ),
             )
         })
@@ -304,9 +529,13 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
     let c_expanded = column_of("U")?;
     let c_u = column_of("u")?;
     let c_k = column_of("k")?;
+    let c_angle = column_of("angle_deg")?;
 
     let mut rows: Vec<ResultRow> = Vec::new();
     let mut lines: Vec<u64> = Vec::new();
+    // Where each row's record starts in `body` (for the column of an earlier row's field).
+    let mut starts: Vec<u64> = Vec::new();
+    let mut angles = AngleCheck::default();
     for record in records {
         let record = record.map_err(&csv_error)?;
         let start = record.position().map_or(0, |p| p.byte());
@@ -368,6 +597,24 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
         let expanded_u = optional(c_expanded, "U", false)?;
         let u = optional(c_u, "u", false)?;
         let k = optional(c_k, "k", true)?;
+        let angle_deg = match c_angle {
+            Some(i) if !record[i].is_empty() => {
+                let text = &record[i];
+                match text.parse::<f64>() {
+                    Ok(v) if angle_in_range(v) => Some(v + 0.0), // −0 is 0
+                    _ => {
+                        return Err(at(
+                            i,
+                            format!(
+                                "angle_deg must be a finite number of degrees, \
+                                 0 ≤ angle_deg < 360, got {text:?}"
+                            ),
+                        ));
+                    }
+                }
+            }
+            _ => None,
+        };
         let line = field_position(start, 0).0;
         if let Some(first) = rows
             .iter()
@@ -381,15 +628,33 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
                 ),
             ));
         }
-        rows.push(ResultRow {
+        let row = ResultRow {
             quantity,
             index,
             value,
             u,
             expanded_u,
             k,
-        });
+            angle_deg,
+        };
+        if let Err(problem) = angles.admit(rows.len(), &row) {
+            let current = rows.len();
+            let place = |i: usize| format!("line {}", lines.get(i).copied().unwrap_or(line));
+            let message = problem.message(&row, &rows, place);
+            // At the angle_deg field of the row the problem is reported at (the first row
+            // without an angle for a missing one); the column exists whenever an angle does.
+            let (reported, column) = match problem {
+                AngleProblem::Missing { without, .. } => (without, c_angle),
+                _ => (current, c_angle),
+            };
+            let column = column.unwrap_or(c_quantity);
+            let record_start = starts.get(reported).copied().unwrap_or(start);
+            let (line, column) = field_position(record_start, column);
+            return Err(err(line, column, message));
+        }
+        rows.push(row);
         lines.push(line);
+        starts.push(start);
     }
     Ok(ResultFile {
         source: source.to_string(),
@@ -398,22 +663,37 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
     })
 }
 
-/// Writes rows as a result file: header `quantity,index,value,U,u,k`, numbers in Rust's
-/// shortest round-trip representation (`{}`), `None` as an empty field.
+/// Writes rows as a result file: header `quantity,index,value,U,u,k,angle_deg`, numbers in
+/// Rust's shortest round-trip representation (`{}`), `None` as an empty field (so
+/// `angle_deg` is empty on every row but the encoder errors that carry their angle).
 ///
 /// # Errors
 ///
-/// An I/O error, or [`std::io::ErrorKind::InvalidInput`] for a number that is not finite
-/// (the quantity is one of [`Quantity`] by its type).
+/// An I/O error, or [`std::io::ErrorKind::InvalidInput`] for what could not be read back:
+/// a number that is not finite, or rows that break the angle rules of
+/// [`read_results_from`] (an angle outside 0 ≤ angle < 360 or on a row that is not an
+/// encoder error, some encoder errors with an angle and some without, two at one
+/// position). The quantity is one of [`Quantity`] by its type.
 pub fn write_results<W: Write>(w: W, rows: &[ResultRow]) -> std::io::Result<()> {
     let invalid = |message: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, message);
+    let mut angles = AngleCheck::default();
+    for (i, row) in rows.iter().enumerate() {
+        if let Err(problem) = angles.admit(i, row) {
+            let place = |i: usize| format!("row {}", i + 1);
+            return Err(invalid(format!(
+                "row {}: {}",
+                i + 1,
+                problem.message(row, &rows[..i], place)
+            )));
+        }
+    }
     let mut writer = csv::Writer::from_writer(w);
     let to_io = |e: csv::Error| match e.into_kind() {
         csv::ErrorKind::Io(e) => e,
         other => std::io::Error::other(format!("{other:?}")),
     };
     writer
-        .write_record(["quantity", "index", "value", "U", "u", "k"])
+        .write_record(["quantity", "index", "value", "U", "u", "k", "angle_deg"])
         .map_err(to_io)?;
     for row in rows {
         let number = |x: f64| {
@@ -435,6 +715,7 @@ pub fn write_results<W: Write>(w: W, rows: &[ResultRow]) -> std::io::Result<()> 
                 optional(row.expanded_u)?,
                 optional(row.u)?,
                 optional(row.k)?,
+                optional(row.angle_deg)?,
             ])
             .map_err(to_io)?;
     }

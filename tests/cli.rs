@@ -147,6 +147,14 @@ fn solve_csv_is_the_result_file() {
     for record in reader.records() {
         let record = record.unwrap();
         count += 1;
+        // angle_deg: 15·p on encoder error p of 24 (docs/FORMAT.md §3.1), empty elsewhere
+        let angle = &record[col("angle_deg")];
+        if &record[col("quantity")] == "encoder_error" {
+            let p: f64 = record[col("index")].parse().unwrap();
+            assert_eq!(angle.parse::<f64>().unwrap(), 15.0 * p);
+        } else {
+            assert_eq!(angle, "");
+        }
         if &record[col("quantity")] == "pitch_deviation" {
             pitch.push((
                 record[col("index")].parse::<usize>().unwrap(),
@@ -455,7 +463,7 @@ fn result_rows(text: &str) -> Rows {
     let mut reader = csv::Reader::from_reader(text.as_bytes());
     assert_eq!(
         reader.headers().unwrap(),
-        vec!["quantity", "index", "value", "U", "u", "k"]
+        vec!["quantity", "index", "value", "U", "u", "k", "angle_deg"]
     );
     let field = |v: &str| (!v.is_empty()).then(|| v.parse::<f64>().unwrap());
     let mut rows = Rows::new();
@@ -494,6 +502,7 @@ fn compare_checked(a: &Path, b: &Path, a_rows: &Rows, b_rows: &Rows) -> (Vec<f64
     let rows = json["rows"].as_array().unwrap();
     assert_eq!(rows.len(), common);
     let mut en = Vec::new();
+    let mut max = 0.0f64;
     for row in rows {
         let key = (
             row["quantity"].as_str().unwrap().to_string(),
@@ -507,9 +516,15 @@ fn compare_checked(a: &Path, b: &Path, a_rows: &Rows, b_rows: &Rows) -> (Vec<f64
             (got - expected).abs() <= 1e-12 * expected.abs().max(1.0),
             "{key:?}"
         );
+        // Setup errors are listed, but out of the verdict (no --include-setup).
+        let in_verdict = row["in_verdict"].as_bool().unwrap();
+        assert_eq!(in_verdict, key.0 != "setup_error", "{key:?}");
+        if in_verdict {
+            max = max.max(got.abs());
+        }
         en.push(got);
     }
-    let max = en.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+    assert_eq!(json["max_abs_en"].as_f64().unwrap(), max);
     assert_eq!(status, if max > 1.0 { 1 } else { 0 });
     (en, status)
 }
@@ -711,7 +726,7 @@ fn diagnose_budget_table_and_refusals() {
     );
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(
-        text.starts_with("file,quantity,index,value,U,u,k\n"),
+        text.starts_with("file,quantity,index,value,U,u,k,angle_deg\n"),
         "{text}"
     );
     assert!(
@@ -932,6 +947,91 @@ fn negative_harmonic_amplitude_is_accepted() {
     }
 }
 
+/// `compare --include-setup` through the binary: on results where only a setup error has
+/// |En| > 1 (tests/data/results/setup-a.csv and setup-b.csv, En = 1.1), the status is 0
+/// without it (the setup error listed, in parentheses, out of the verdict) and 1 with it.
+/// A 24-position result against a 168-position one is matched by angle, and the table
+/// says so.
+#[test]
+fn compare_include_setup_and_angles_through_the_binary() {
+    let (a, b) = (
+        "tests/data/results/setup-a.csv",
+        "tests/data/results/setup-b.csv",
+    );
+    let out = polycal(&["compare", a, b]);
+    assert_status(&out, 0);
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(table.contains("(1.10)"), "{table}");
+    assert!(table.contains("Largest |En| = 0.40"), "{table}");
+    assert!(table.contains("left out of the verdict"), "{table}");
+    let out = polycal(&["compare", a, b, "--include-setup"]);
+    assert_status(&out, 1);
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(table.contains("1.10 *"), "{table}");
+    assert!(
+        table.contains("Largest |En| = 1.10: 1 of 6 rows"),
+        "{table}"
+    );
+
+    let json = |extra: &[&str]| -> (Value, i32) {
+        let mut args = vec!["compare", a, b, "--format", "json"];
+        args.extend_from_slice(extra);
+        let out = polycal(&args);
+        (
+            serde_json::from_slice(&out.stdout).unwrap(),
+            out.status.code().unwrap(),
+        )
+    };
+    let (without, status) = json(&[]);
+    assert_eq!(status, 0);
+    assert_eq!(without["rows"][5]["quantity"], "setup_error");
+    assert_eq!(without["rows"][5]["in_verdict"], false);
+    assert!((without["max_abs_en"].as_f64().unwrap() - 0.4).abs() < 1e-12);
+    let (with, status) = json(&["--include-setup"]);
+    assert_eq!(status, 1);
+    assert_eq!(with["rows"][5]["in_verdict"], true);
+    assert!((with["max_abs_en"].as_f64().unwrap() - 1.1).abs() < 1e-12);
+    let out = polycal(&["compare", a, b, "--include-setup", "--format", "csv"]);
+    assert_status(&out, 1);
+    assert!(
+        String::from_utf8(out.stdout)
+            .unwrap()
+            .ends_with(",,,true\n")
+    );
+
+    // Only setup errors in common: nothing to judge without --include-setup (named).
+    let dir = temp_dir("only-setup");
+    let (sa, sb) = (dir.join("a.csv"), dir.join("b.csv"));
+    std::fs::write(&sa, "quantity,index,value,U\nsetup_error,1,1.3,0.6\n").unwrap();
+    std::fs::write(&sb, "quantity,index,value,U\nsetup_error,1,0.2,0.8\n").unwrap();
+    let (sa, sb) = (sa.to_str().unwrap(), sb.to_str().unwrap());
+    let out = polycal(&["compare", sa, sb]);
+    assert_status(&out, 2);
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with("error: ") && stderr.contains("--include-setup"),
+        "{stderr}"
+    );
+    assert_status(&polycal(&["compare", sa, sb, "--include-setup"]), 1);
+
+    // By angle: 24 positions against 168.
+    let out = polycal(&[
+        "compare",
+        "tests/data/results/two-ac-24.csv",
+        "tests/data/results/selfcal-168.csv",
+    ]);
+    assert_status(&out, 1);
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        table.contains(
+            "Encoder errors matched by angle (angle_deg within 1e-6°): 24 shared angles of 24 and 168"
+        ),
+        "{table}"
+    );
+    assert!(table.contains("1 of 24 rows have |En| > 1"), "{table}");
+}
+
 /// Two result files for `compare`: the paper's numbers (see `compare_en_and_status`).
 fn two_results(name: &str) -> (PathBuf, PathBuf) {
     let dir = temp_dir(name);
@@ -983,14 +1083,18 @@ fn compare_csv() {
     let out = polycal(&["compare", a, b, "--format", "csv"]);
     assert_eq!(out.status.code(), Some(0));
     assert!(
-        out.stdout
-            .as_slice()
-            .starts_with(b"quantity,index,a,b,difference,U_a,U_b,en\n")
+        out.stdout.as_slice().starts_with(
+            b"quantity,index,a,b,difference,U_a,U_b,en,index_b,angle_deg,in_verdict\n"
+        )
     );
     let mut reader = csv::Reader::from_reader(out.stdout.as_slice());
     let records: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
     let rows = json["rows"].as_array().unwrap();
     assert_eq!(records.len(), 2, "encoder_error 1 is in one result only");
+    for record in &records {
+        // matched by index (no angle_deg in these files), every row in the verdict
+        assert_eq!((&record[8], &record[9], &record[10]), ("", "", "true"));
+    }
     assert_eq!(records.len(), rows.len());
     for (record, row) in records.iter().zip(rows) {
         assert_eq!(&record[0], row["quantity"].as_str().unwrap());

@@ -171,7 +171,8 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
     }
 
     // Two results whose rows differ (two mountings against one), compared with a
-    // correlation: every optional field of the comparison is present.
+    // correlation: every optional field of the comparison is present (the encoder errors
+    // matched by angle, so with `index_b` and `angle_deg`).
     let mut results = Vec::new();
     for (name, design) in [
         ("a", &["--setups", "2", "--cycles", "2", "--seed", "11"][..]),
@@ -333,6 +334,10 @@ fn every_json_field_name_is_documented() {
         "only_in_a",
         "only_in_b",
         "correlation",
+        "in_verdict",
+        "encoder_matched_by",
+        "index_b",
+        "angle_deg",
         "noise_arcsec",
         "file",
     ];

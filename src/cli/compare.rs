@@ -1,11 +1,11 @@
-//! `polycal compare`: two results quantity by quantity with En.
+//! `polycal compare`: two results quantity by quantity with En (docs/FORMAT.md §5.4).
 
 use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::ValueEnum;
-use polycal::compare::{CompareOptions, compare_files};
+use polycal::compare::{CompareError, CompareOptions, compare_files};
 use polycal::input::display_name;
 use polycal::results::read_result_file;
 
@@ -17,6 +17,7 @@ Examples:
   polycal solve examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml --format csv > a.csv
   polycal simulate --closing --seed 2 | polycal solve - --budget examples/budgets/instrument.toml --format csv > b.csv
   polycal compare a.csv b.csv
+  polycal compare a.csv b.csv --include-setup --format json
   polycal compare a.csv b.csv --correlation 0.3 --format csv";
 
 /// Arguments of `polycal compare`.
@@ -29,8 +30,14 @@ pub struct CompareArgs {
     /// Correlation coefficient r between the two results (shared inputs), −1 … 1.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     correlation: f64,
+    /// Count the setup errors in the verdict and in the largest |En|; without it they are
+    /// listed but left out, since they depend on the mounting (docs/FORMAT.md §5.4).
+    /// Encoder errors are matched by angle_deg when both files carry it, by index otherwise.
+    #[arg(long)]
+    include_setup: bool,
     /// Output format (csv: one row per compared quantity, columns
-    /// quantity,index,a,b,difference,U_a,U_b,en).
+    /// quantity,index,a,b,difference,U_a,U_b,en,index_b,angle_deg,in_verdict;
+    /// docs/FORMAT.md §5.4).
     #[arg(long, value_enum, default_value = "table")]
     format: CompareFormat,
 }
@@ -49,8 +56,17 @@ pub fn run(args: &CompareArgs) -> Result<u8> {
     let file_b = read_result_file(&args.b)?;
     let options = CompareOptions::new()
         .with_correlation(args.correlation)
+        .with_include_setup(args.include_setup)
         .with_labels(display_name(&args.a), display_name(&args.b));
-    let comparison = compare_files(&file_a, &file_b, &options)?;
+    let comparison = compare_files(&file_a, &file_b, &options).map_err(|e| match e {
+        // Library messages name no flags: the CLI adds the one that helps.
+        CompareError::OnlySetupInCommon { .. } => super::with_hint(
+            e,
+            "--include-setup",
+            "--include-setup counts them in the verdict",
+        ),
+        e => e.into(),
+    })?;
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
     match args.format {

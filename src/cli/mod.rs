@@ -90,7 +90,8 @@ pub enum Command {
     /// Evaluate a GUM uncertainty budget (TOML, docs/FORMAT.md §5).
     #[command(after_help = budget::EXAMPLES)]
     Budget(budget::BudgetArgs),
-    /// Compare two results quantity by quantity with En (ISO 13528); status 1 when some |En| > 1.
+    /// Compare two results quantity by quantity with En (ISO 13528, docs/FORMAT.md §5.4);
+    /// status 1 when some |En| > 1 (setup errors only with --include-setup).
     #[command(after_help = compare::EXAMPLES)]
     Compare(compare::CompareArgs),
     /// Self-calibrate a rotary encoder with several read heads (SelfA): the disc's

@@ -417,5 +417,21 @@ pub fn face_at(step: usize, face_offset: usize, faces: usize) -> usize {
     (step % faces + face_offset % faces) % faces + 1
 }
 
+/// The nominal table angle of table stop `step` of `steps` equally spaced stops,
+/// step·360/steps degrees (docs/FORMAT.md §1: step p of an N-faced polygon at p·360°/N;
+/// the `angle_deg` of encoder error p in a result file, §3). The product is exact and the
+/// division rounded once, so equal angles of different spacings agree to the bit (step 1
+/// of 24 and step 7 of 168 are both 15°); 0 ≤ angle < 360 for `step < steps`.
+///
+/// ```
+/// use polycal::measurement::step_angle_deg;
+/// assert_eq!(step_angle_deg(1, 24), 15.0);
+/// assert_eq!(step_angle_deg(7, 168), 15.0);
+/// assert_eq!(step_angle_deg(23, 24), 345.0);
+/// ```
+pub fn step_angle_deg(step: u32, steps: usize) -> f64 {
+    f64::from(step) * 360.0 / steps as f64
+}
+
 // ---------------------------------------------------------------------------------------
 // Columns

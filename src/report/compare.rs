@@ -1,47 +1,65 @@
-//! The table of `polycal compare` for people.
+//! The table of `polycal compare` for people, and its CSV.
 
-use crate::compare::Comparison;
+use crate::compare::{Comparison, EncoderMatching};
+use crate::results::{ANGLE_TOLERANCE_DEG, Quantity};
 use std::fmt::{self, Write};
 
-/// Writes a comparison as a table: quantity, index, a, b, a − b, U_a, U_b, En, and the
-/// verdict. Numbers are rounded for reading (0.001″, En to 0.01); JSON and CSV carry them
-/// at full precision.
+/// Writes a comparison as a table: quantity, index (with encoder errors matched by angle,
+/// also the second result's index and the angle), a, b, a − b, U_a, U_b, En, then how the
+/// encoder errors were matched, which rows are left out of the verdict and the verdict.
+/// Numbers are rounded for reading (0.001″, En to 0.01, angles to 0.0001°); JSON and CSV
+/// carry them at full precision. An En marked `*` fails (|En| > 1); an En in parentheses
+/// is a setup error's, left out of the verdict.
 ///
 /// # Errors
 ///
 /// The writer's error.
 pub fn write_table<W: Write>(out: &mut W, comparison: &Comparison) -> fmt::Result {
-    let rows: Vec<[String; 8]> = comparison
+    let by_angle = comparison.encoder_matched_by == EncoderMatching::Angle;
+    let rows: Vec<Vec<String>> = comparison
         .rows
         .iter()
         .map(|r| {
-            [
-                r.quantity.to_string(),
-                r.index.to_string(),
+            let en = if !r.in_verdict {
+                format!("({:.2})", r.en)
+            } else if r.en.abs() > 1.0 {
+                format!("{:.2} *", r.en)
+            } else {
+                format!("{:.2}", r.en)
+            };
+            let mut row = vec![r.quantity.to_string(), r.index.to_string()];
+            if by_angle {
+                row.push(r.index_b.unwrap_or(r.index).to_string());
+                row.push(r.angle_deg.map_or(String::new(), |a| format!("{a:.4}")));
+            }
+            row.extend([
                 format!("{:.3}", r.a),
                 format!("{:.3}", r.b),
                 format!("{:.3}", r.difference),
                 format!("{:.3}", r.expanded_u_a),
                 format!("{:.3}", r.expanded_u_b),
-                format!("{:.2}{}", r.en, if r.en.abs() > 1.0 { " *" } else { "" }),
-            ]
+                en,
+            ]);
+            row
         })
         .collect();
-    let header = [
-        "Quantity".to_string(),
-        "Index".into(),
+    let mut header = vec!["Quantity".to_string(), "Index".into()];
+    if by_angle {
+        header.extend(["Index b".into(), "Angle °".into()]);
+    }
+    header.extend([
         "a".into(),
         "b".into(),
         "a − b".into(),
         "U_a".into(),
         "U_b".into(),
         "En".into(),
-    ];
-    let table = crate::uncertainty::format::table(
-        &header,
-        &rows,
-        &[false, true, true, true, true, true, true, true],
-    );
+    ]);
+    let table = if by_angle {
+        columns::<10>(header, rows)
+    } else {
+        columns::<8>(header, rows)
+    };
     writeln!(out, "{table}")?;
     if comparison.correlation != 0.0 {
         writeln!(
@@ -50,7 +68,50 @@ pub fn write_table<W: Write>(out: &mut W, comparison: &Comparison) -> fmt::Resul
             comparison.correlation
         )?;
     }
-    let failing = comparison.rows.iter().filter(|r| r.en.abs() > 1.0).count();
+
+    // How the encoder errors were matched, when there are any.
+    let encoder = |list: &[crate::compare::Unmatched]| {
+        list.iter()
+            .filter(|u| u.quantity == Quantity::EncoderError)
+            .count()
+    };
+    let shared = comparison
+        .rows
+        .iter()
+        .filter(|r| r.quantity == Quantity::EncoderError)
+        .count();
+    let (in_a, in_b) = (
+        shared + encoder(&comparison.only_in_a),
+        shared + encoder(&comparison.only_in_b),
+    );
+    if in_a + in_b > 0 {
+        match comparison.encoder_matched_by {
+            EncoderMatching::Angle => writeln!(
+                out,
+                "Encoder errors matched by angle (angle_deg within {ANGLE_TOLERANCE_DEG:e}°): \
+                 {shared} shared angles of {in_a} and {in_b}"
+            )?,
+            EncoderMatching::Index => writeln!(
+                out,
+                "Encoder errors matched by index (angle_deg is not in both results): \
+                 {shared} shared indices of {in_a} and {in_b}"
+            )?,
+        }
+    }
+    if comparison.rows.iter().any(|r| !r.in_verdict) {
+        writeln!(
+            out,
+            "Setup errors depend on the mounting: their En (in parentheses) is left out of the \
+             verdict and of the largest |En|"
+        )?;
+    }
+
+    let counted = comparison.rows.iter().filter(|r| r.in_verdict).count();
+    let failing = comparison
+        .rows
+        .iter()
+        .filter(|r| r.in_verdict && r.en.abs() > 1.0)
+        .count();
     writeln!(
         out,
         "Largest |En| = {:.2}: {}",
@@ -58,10 +119,7 @@ pub fn write_table<W: Write>(out: &mut W, comparison: &Comparison) -> fmt::Resul
         if failing == 0 {
             "every |En| ≤ 1, the results agree within their uncertainties".to_string()
         } else {
-            format!(
-                "{failing} of {} rows have |En| > 1 (marked *)",
-                comparison.rows.len()
-            )
+            format!("{failing} of {counted} rows have |En| > 1 (marked *)")
         }
     )?;
     for (label, list) in [
@@ -82,13 +140,30 @@ pub fn write_table<W: Write>(out: &mut W, comparison: &Comparison) -> fmt::Resul
     Ok(())
 }
 
-/// Writes a comparison as CSV, one row per compared `(quantity, index)` in the order of
-/// [`Comparison::rows`], under the header `quantity,index,a,b,difference,U_a,U_b,en`.
-/// Numbers are written at full precision in Rust's shortest round-trip representation
-/// (`{}`), so that reading them back gives the same `f64`; an `en` that is not a finite
-/// number is written as an empty field. The quantities in one result only
-/// ([`Comparison::only_in_a`], [`Comparison::only_in_b`]) are not compared and not
-/// written.
+/// The table of N columns, the first left-aligned.
+fn columns<const N: usize>(header: Vec<String>, rows: Vec<Vec<String>>) -> String {
+    fn fixed<const N: usize>(cells: Vec<String>) -> [String; N] {
+        let mut out: [String; N] = std::array::from_fn(|_| String::new());
+        for (slot, cell) in out.iter_mut().zip(cells) {
+            *slot = cell;
+        }
+        out
+    }
+    let rows: Vec<[String; N]> = rows.into_iter().map(fixed).collect();
+    let mut right = [true; N];
+    right[0] = false;
+    crate::uncertainty::format::table(&fixed(header), &rows, &right)
+}
+
+/// Writes a comparison as CSV, one row per compared quantity in the order of
+/// [`Comparison::rows`], under the header
+/// `quantity,index,a,b,difference,U_a,U_b,en,index_b,angle_deg,in_verdict`. Numbers are
+/// written at full precision in Rust's shortest round-trip representation (`{}`), so that
+/// reading them back gives the same `f64`; an `en` that is not a finite number is written
+/// as an empty field, and so are `index_b` and `angle_deg` but for encoder errors matched
+/// by angle. `in_verdict` is `true` or `false` (setup errors left out of the verdict).
+/// The quantities in one result only ([`Comparison::only_in_a`],
+/// [`Comparison::only_in_b`]) are not compared and not written.
 ///
 /// # Errors
 ///
@@ -101,15 +176,18 @@ pub fn write_table<W: Write>(out: &mut W, comparison: &Comparison) -> fmt::Resul
 /// use polycal::report::compare::write_csv;
 /// use polycal::results::{Quantity, ResultRow};
 ///
-/// let row = |value, expanded_u| ResultRow {
-///     quantity: Quantity::PitchDeviation, index: 7, value,
-///     u: None, expanded_u: Some(expanded_u), k: None,
+/// let row = |value, expanded_u| {
+///     ResultRow::new(Quantity::PitchDeviation, 7, value).with_expanded_u(expanded_u)
 /// };
 /// let c = compare(&[row(0.28, 0.46)], &[row(0.0, 0.15)], &CompareOptions::default())?;
 /// let mut csv = Vec::new();
 /// write_csv(&mut csv, &c)?;
 /// let text = String::from_utf8(csv)?;
-/// assert!(text.starts_with("quantity,index,a,b,difference,U_a,U_b,en\npitch_deviation,7,0.28,0,0.28,0.46,0.15,0.5"));
+/// assert!(text.starts_with(
+///     "quantity,index,a,b,difference,U_a,U_b,en,index_b,angle_deg,in_verdict\n\
+///      pitch_deviation,7,0.28,0,0.28,0.46,0.15,0.5"
+/// ));
+/// assert!(text.ends_with(",,,true\n"));
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn write_csv<W: std::io::Write>(writer: W, comparison: &Comparison) -> Result<(), csv::Error> {
@@ -123,6 +201,9 @@ pub fn write_csv<W: std::io::Write>(writer: W, comparison: &Comparison) -> Resul
         "U_a",
         "U_b",
         "en",
+        "index_b",
+        "angle_deg",
+        "in_verdict",
     ])?;
     for row in &comparison.rows {
         let en = if row.en.is_finite() {
@@ -139,6 +220,9 @@ pub fn write_csv<W: std::io::Write>(writer: W, comparison: &Comparison) -> Resul
             row.expanded_u_a.to_string(),
             row.expanded_u_b.to_string(),
             en,
+            row.index_b.map_or(String::new(), |i| i.to_string()),
+            row.angle_deg.map_or(String::new(), |a| a.to_string()),
+            row.in_verdict.to_string(),
         ])?;
     }
     csv.flush()?;
@@ -152,14 +236,12 @@ mod write_csv_tests {
     use crate::results::{Quantity, ResultRow};
 
     fn row(quantity: &str, index: u32, value: f64, expanded_u: f64) -> ResultRow {
-        ResultRow {
-            quantity: Quantity::from_name(quantity).expect("a quantity"),
+        ResultRow::new(
+            Quantity::from_name(quantity).expect("a quantity"),
             index,
             value,
-            u: None,
-            expanded_u: Some(expanded_u),
-            k: None,
-        }
+        )
+        .with_expanded_u(expanded_u)
     }
 
     /// Every number reads back bit for bit; the header is the documented one; a
@@ -179,10 +261,9 @@ mod write_csv_tests {
         assert_eq!(comparison.only_in_a.len(), 1);
         let mut out = Vec::new();
         write_csv(&mut out, &comparison).unwrap();
-        assert!(
-            out.as_slice()
-                .starts_with(b"quantity,index,a,b,difference,U_a,U_b,en\n")
-        );
+        assert!(out.as_slice().starts_with(
+            b"quantity,index,a,b,difference,U_a,U_b,en,index_b,angle_deg,in_verdict\n"
+        ));
         let mut reader = csv::Reader::from_reader(out.as_slice());
         let records: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
         assert_eq!(records.len(), comparison.rows.len());
@@ -202,6 +283,9 @@ mod write_csv_tests {
         let mut out = Vec::new();
         write_csv(&mut out, &comparison).unwrap();
         let text = String::from_utf8(out).unwrap();
-        assert!(text.lines().nth(1).unwrap().ends_with(",0.15,"), "{text}");
+        assert!(
+            text.lines().nth(1).unwrap().ends_with(",0.15,,,,true"),
+            "{text}"
+        );
     }
 }

@@ -194,7 +194,8 @@ impl SolveReport {
 
 /// The result rows (docs/FORMAT.md §3) of a solution: pitch deviations, face deviations,
 /// encoder errors and setup errors (index = autocollimator; with several mountings the
-/// index is `setup·1000 + ac`, an addition to the contract), with `u` where known.
+/// index is `setup·1000 + ac`, an addition to the contract), with `u` where known. Every
+/// encoder error carries its table angle: step p of N at p·360°/N ([`crate::measurement::step_angle_deg`]).
 pub fn result_rows(solution: &Solution) -> Vec<ResultRow> {
     result_rows_with(solution, None)
 }
@@ -247,8 +248,11 @@ pub fn result_rows_with(
                 .collect(),
         ),
     ];
+    let positions = solution.encoder_error.len();
     for (f, (quantity, values)) in families.into_iter().enumerate() {
         for (i, (index, value)) in values.into_iter().enumerate() {
+            let angle_deg = (quantity == Quantity::EncoderError)
+                .then(|| crate::measurement::step_angle_deg(index, positions));
             let row = match uncertainty {
                 None => ResultRow {
                     quantity,
@@ -257,6 +261,7 @@ pub fn result_rows_with(
                     u: at(&fit_u[f], i),
                     expanded_u: None,
                     k: None,
+                    angle_deg,
                 },
                 Some(unc) => {
                     let family = unc.families()[f].1;
@@ -270,6 +275,7 @@ pub fn result_rows_with(
                         u: Some(family.u[i]),
                         expanded_u: Some(family.expanded_u[i]),
                         k: Some(k),
+                        angle_deg,
                     }
                 }
             };
