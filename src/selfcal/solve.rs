@@ -23,7 +23,7 @@
 use nalgebra::DMatrix;
 
 use super::{Head, SelfcalSet, fourier};
-use crate::measurement::{MeasurementError, MeasurementSet, Reading, Sigma};
+use crate::measurement::{MeasurementError, MeasurementSet, Reading, Sigma, step_angle_deg};
 use crate::uncertainty::student::t_quantile;
 use crate::solve::cofactor::Cofactor;
 use crate::solve::least_squares::least_squares_zeroing_lost;
@@ -488,7 +488,7 @@ fn assemble(
         encoder_error_u,
         encoder_error_u_type_a,
         lost_harmonic_u,
-        encoder_angle_deg: (0..p).map(|k| k as f64 * 360.0 / p as f64).collect(),
+        encoder_angle_deg: (0..p as u32).map(|k| step_angle_deg(k, p)).collect(),
         head_error,
         lost_harmonics,
         dof,

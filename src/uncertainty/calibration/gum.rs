@@ -137,7 +137,6 @@ pub fn evaluate(
     let op = Operator::new(set, solution)?;
     let (sigma, source) = solution.sigma.ok_or(CalibrationError::NoSigma)?;
     let n = op.faces;
-    let total = 3 * n + op.streams;
     let type_a_dof = match source {
         SigmaSource::Residual => Some(solution.dof as f64),
         SigmaSource::Stated => None,
