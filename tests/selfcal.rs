@@ -484,7 +484,12 @@ fn errors_shared_by_a_head_a_stop_or_a_position_are_absorbed() {
     }
     // head 1's offset moves every c[j] − c[1] by −1: with head j's own, gain 2
     let first = template(&|_, _, head| if head == 1 { 1.0 } else { 0.0 });
-    assert!(first.head_error.iter().all(|h| (h.value + 1.0).abs() < 1e-12));
+    assert!(
+        first
+            .head_error
+            .iter()
+            .all(|h| (h.value + 1.0).abs() < 1e-12)
+    );
     // a stop, and a position in every cycle: nothing reaches e or c
     for solution in [
         template(&|cycle, step, _| if (cycle, step) == (2, 17) { 1.0 } else { 0.0 }),
@@ -524,16 +529,30 @@ fn a_budget_combines_as_derived_by_hand() {
             Distribution::Rectangular { half_width: a },
             Scope::EachReading,
         ),
-        ScopedComponent::type_b("head offset", Distribution::Normal { u: u_head }, Scope::EachAutocollimator),
-        ScopedComponent::type_b("reference", Distribution::Normal { u: u_result }, Scope::Result)
-            .with_dof(Some(10.0)),
+        ScopedComponent::type_b(
+            "head offset",
+            Distribution::Normal { u: u_head },
+            Scope::EachAutocollimator,
+        ),
+        ScopedComponent::type_b(
+            "reference",
+            Distribution::Normal { u: u_result },
+            Scope::Result,
+        )
+        .with_dof(Some(10.0)),
         ScopedComponent::type_b("table", Distribution::Normal { u: u_stop }, Scope::EachStop),
     ]);
     let result = selfcal::evaluate_budget(&solution, &budget).unwrap();
     let (sigma, _) = solution.sigma.unwrap();
     let nu_a = solution.dof as f64;
     let u_r = a / 3f64.sqrt();
-    for (x, u_a) in solution.encoder_error_u_type_a.as_ref().unwrap().iter().enumerate() {
+    for (x, u_a) in solution
+        .encoder_error_u_type_a
+        .as_ref()
+        .unwrap()
+        .iter()
+        .enumerate()
+    {
         let q = (u_a / sigma).powi(2);
         let variance = u_a * u_a + u_r * u_r * q + u_result * u_result;
         let nu = variance.powi(2) / (u_a.powi(4) / nu_a + u_result.powi(4) / 10.0);

@@ -131,7 +131,14 @@ impl SelfcalReport {
     /// budget's.
     pub fn with_uncertainty(mut self, uncertainty: &SelfcalUncertainty) -> Self {
         self.encoder_error_expanded_u = Some(uncertainty.encoder_error.expanded_u.clone());
-        self.encoder_error_k = Some(uncertainty.encoder_error.k.iter().map(|k| k.unwrap_or(0.0)).collect());
+        self.encoder_error_k = Some(
+            uncertainty
+                .encoder_error
+                .k
+                .iter()
+                .map(|k| k.unwrap_or(0.0))
+                .collect(),
+        );
         self.p = uncertainty.p;
         for (h, j) in self.head_error.iter_mut().zip(0..) {
             h.expanded_u = Some(uncertainty.head_error.expanded_u[j]);
@@ -168,7 +175,14 @@ pub fn result_rows(
     let (u, k) = match uncertainty {
         Some(budget) => (
             Some(budget.encoder_error.u.clone()),
-            Some(budget.encoder_error.k.iter().map(|k| k.unwrap_or(0.0)).collect()),
+            Some(
+                budget
+                    .encoder_error
+                    .k
+                    .iter()
+                    .map(|k| k.unwrap_or(0.0))
+                    .collect(),
+            ),
         ),
         None => (solution.encoder_error_u.clone(), solution.encoder_error_k()),
     };
@@ -250,7 +264,10 @@ pub fn write_table<W: Write>(
         )?,
         None => {
             if let Some(u) = solution.lost_harmonic_u {
-                writeln!(out, "   including {u:.4} arcsec for the lost harmonics' bound")?;
+                writeln!(
+                    out,
+                    "   including {u:.4} arcsec for the lost harmonics' bound"
+                )?;
             }
             writeln!(
                 out,
@@ -301,7 +318,14 @@ pub fn write_table<W: Write>(
     let (u_all, k_all) = match uncertainty {
         Some(budget) => (
             Some(budget.encoder_error.u.clone()),
-            Some(budget.encoder_error.k.iter().map(|k| k.unwrap_or(0.0)).collect::<Vec<f64>>()),
+            Some(
+                budget
+                    .encoder_error
+                    .k
+                    .iter()
+                    .map(|k| k.unwrap_or(0.0))
+                    .collect::<Vec<f64>>(),
+            ),
         ),
         None => (solution.encoder_error_u.clone(), solution.encoder_error_k()),
     };
@@ -327,13 +351,17 @@ pub fn write_table<W: Write>(
             )?;
         }
     } else {
-        let (worst, max_abs) = solution
-            .encoder_error
-            .iter()
-            .enumerate()
-            .fold((0, 0.0f64), |(i, m), (x, v)| {
-                if v.abs() > m { (x, v.abs()) } else { (i, m) }
-            });
+        let (worst, max_abs) =
+            solution
+                .encoder_error
+                .iter()
+                .enumerate()
+                .fold(
+                    (0, 0.0f64),
+                    |(i, m), (x, v)| {
+                        if v.abs() > m { (x, v.abs()) } else { (i, m) }
+                    },
+                );
         let rms = (solution.encoder_error.iter().map(|v| v * v).sum::<f64>() / p as f64).sqrt();
         writeln!(
             out,
@@ -349,7 +377,10 @@ pub fn write_table<W: Write>(
     }
     if let Some(budget) = uncertainty {
         writeln!(out)?;
-        writeln!(out, "budget contributions (largest over the positions), arcsec")?;
+        writeln!(
+            out,
+            "budget contributions (largest over the positions), arcsec"
+        )?;
         for c in &budget.components {
             let largest = |v: &[f64]| v.iter().copied().fold(0.0f64, f64::max);
             writeln!(

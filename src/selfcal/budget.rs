@@ -170,7 +170,11 @@ pub fn evaluate_budget(
             expanded_u: expanded,
         })
     };
-    let heads: Vec<usize> = solution.head_error.iter().map(|h| h.head as usize).collect();
+    let heads: Vec<usize> = solution
+        .head_error
+        .iter()
+        .map(|h| h.head as usize)
+        .collect();
     let encoder_error = family(
         u_a_e,
         components.iter().map(|c| c.encoder_error.clone()).collect(),

@@ -1,17 +1,47 @@
-//! The self-calibration CSV (docs/FORMAT.md §9): reading, validation, writing.
-//! (Placeholder: the reader and the rules are being written.)
+//! The self-calibration CSV (docs/FORMAT.md §9.2): reading, validation, writing.
+//!
+//! A [`SelfcalSet`] is read with [`SelfcalSet::read_path`] (the path `-` is standard
+//! input) or [`SelfcalSet::read_from`] for any reader, built from readings in memory (by
+//! the simulator, say) with [`SelfcalSet::from_readings`], and written with
+//! [`SelfcalSet::write_to`] (or [`SelfcalSet::write_with_comments`],
+//! [`SelfcalSet::write_path`]).
+//!
+//! The rules are stated in the [`selfcal` module's documentation](crate::selfcal); this
+//! module holds the error type and the public functions, `parse` the reader, `validate`
+//! the rules beyond one field and `write` the writer.
+
+use std::io::Read;
+use std::path::Path;
 
 use super::{HeadReading, SelfcalSet};
 use crate::input::Location;
 
-/// A self-calibration file that cannot be read, or breaks a rule.
+mod parse;
+mod validate;
+mod write;
+
+/// The name readings checked by [`SelfcalSet::from_readings`] have in messages.
+const MEMORY_NAME: &str = "<readings>";
+
+/// The name [`SelfcalSet::write_to`] gives its writer in an I/O error.
+const OUTPUT_NAME: &str = "<output>";
+
+/// Why a self-calibration file or a set of head readings was refused, or could not be
+/// read or written.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SelfcalError {
-    /// A file that breaks the rules: names the file, 1-based line and 1-based column.
+    /// A file that breaks the rules: names the file, 1-based line and 1-based character
+    /// column.
+    ///
+    /// Displayed as `file:line:column: message`, e.g.
+    /// `run.csv:4:5: column "head": "0" is not allowed; head must be at least 1`. For
+    /// readings built in memory the line is the reading's [`HeadReading::line`] (0 when
+    /// not from a file) and the column 0; a 0 is left out of the display.
     #[error("{location}: {message}")]
     Invalid {
-        /// Where: the file, line and column.
+        /// Where: the file (the `source` name given; `<stdin>` for standard input), line
+        /// and column.
         location: Location,
         /// What is wrong, naming the column and quoting the offending text.
         message: String,
@@ -19,7 +49,7 @@ pub enum SelfcalError {
     /// The file could not be opened, read or written.
     #[error("{file}: {source}")]
     Io {
-        /// The file.
+        /// The file (the `source` name given; `<stdin>` for standard input).
         file: String,
         /// The underlying error.
         #[source]
@@ -27,22 +57,179 @@ pub enum SelfcalError {
     },
 }
 
+impl SelfcalError {
+    /// Where the problem is, for a refused file ([`SelfcalError::Invalid`]); `None` for
+    /// an I/O error.
+    pub fn location(&self) -> Option<&Location> {
+        match self {
+            SelfcalError::Invalid { location, .. } => Some(location),
+            SelfcalError::Io { .. } => None,
+        }
+    }
+}
+
 impl SelfcalSet {
-    /// Checks readings built in memory by the rules of the file; P is the largest step
-    /// + 1 unless given.
+    /// Reads a self-calibration CSV from a path; the path `-` reads standard input (named
+    /// `<stdin>` in messages).
+    ///
+    /// `positions` is the `--positions P` option: P is the largest `step` + 1 unless
+    /// given. The path as displayed (or `<stdin>`) names the file in messages. See
+    /// [`SelfcalSet::read_from`] and the [module documentation](crate::selfcal) for the rules.
     ///
     /// # Errors
     ///
-    /// [`SelfcalError::Invalid`] for the first reading that breaks a rule.
+    /// [`SelfcalError::Io`] if the file cannot be opened or read,
+    /// [`SelfcalError::Invalid`] if it breaks a rule of docs/FORMAT.md §9.2.
+    pub fn read_path(
+        path: impl AsRef<Path>,
+        positions: Option<usize>,
+    ) -> Result<Self, SelfcalError> {
+        let path = path.as_ref();
+        let (reader, name) = crate::input::open(path).map_err(|source| SelfcalError::Io {
+            file: crate::input::display_name(path),
+            source,
+        })?;
+        Self::read_from(reader, &name, positions)
+    }
+
+    /// Reads a self-calibration CSV from any reader; `source` names it in messages.
+    ///
+    /// The whole input is read, then checked against docs/FORMAT.md §9.2 (see the
+    /// [module documentation](crate::selfcal)); the first problem found is returned as one
+    /// [`SelfcalError::Invalid`]. `positions` is the `--positions P` option: P is the
+    /// largest `step` + 1 unless given. Each [`HeadReading::line`] is the line its row
+    /// starts on.
+    ///
+    /// # Errors
+    ///
+    /// [`SelfcalError::Io`] if reading fails, [`SelfcalError::Invalid`] if the input
+    /// breaks a rule.
+    ///
+    /// # Example
+    ///
+    /// ```
+    /// use polycal::selfcal::{SelfcalError, SelfcalSet};
+    ///
+    /// let csv = b"# two heads half a turn apart, three positions\n\
+    ///             cycle,step,head,head_angle,reading\n\
+    ///             1,0,1,0,0.5\n\
+    ///             1,0,2,180,-0.25\n\
+    ///             1,1,1,0,0.125\n\
+    ///             1,1,2,180,0\n\
+    ///             1,2,1,0,-0.5\n\
+    ///             1,2,2,180,0.75\n";
+    /// let set = SelfcalSet::read_from(&csv[..], "example.csv", None)?;
+    /// assert_eq!(set.positions, 3);
+    /// assert_eq!(set.readings.len(), 6);
+    /// assert_eq!(set.readings[1].head_angle_deg, 180.0);
+    /// assert_eq!(set.readings[1].reading_arcsec, -0.25);
+    /// assert_eq!(set.readings[1].line, 4);
+    /// assert_eq!(set.heads().len(), 2);
+    ///
+    /// // A refused file names the file, line and column.
+    /// let bad = b"cycle,step,head,head_angle,reading\n1,0,1,0,0.5\n1,0,2,x,0.5\n";
+    /// let err = SelfcalSet::read_from(&bad[..], "bad.csv", None).unwrap_err();
+    /// assert_eq!(err.to_string(), r#"bad.csv:3:7: column "head_angle": "x" is not a number"#);
+    /// # Ok::<(), SelfcalError>(())
+    /// ```
+    pub fn read_from<R: Read>(
+        mut reader: R,
+        source: &str,
+        positions: Option<usize>,
+    ) -> Result<Self, SelfcalError> {
+        let mut bytes = Vec::new();
+        reader
+            .read_to_end(&mut bytes)
+            .map_err(|e| SelfcalError::Io {
+                file: source.to_string(),
+                source: e,
+            })?;
+        parse::parse_bytes(&bytes, source, positions)
+    }
+
+    /// Checks readings built in memory (e.g. by the simulator) by the rules of the file;
+    /// P is the largest step + 1 unless given.
+    ///
+    /// The checks are those of [`SelfcalSet::read_from`] that apply to values: cycle and
+    /// head at least 1, finite numbers, a head angle in [0, 360), P at least 3, steps
+    /// below P, no duplicate reading, one direction per cycle, head 1 at angle 0, one
+    /// angle per head, distinct angles of different heads, at least 2 heads, head 1
+    /// present and every step read by every head in every cycle. An error names the file
+    /// `<readings>`, the reading's [`HeadReading::line`] (0 when not from a file) and
+    /// column 0; when the line is 0 the message starts with `reading K:` (1-based position
+    /// in `readings`).
+    ///
+    /// # Errors
+    ///
+    /// [`SelfcalError::Invalid`] for the first rule broken.
     pub fn from_readings(
         readings: Vec<HeadReading>,
         positions: Option<usize>,
     ) -> Result<Self, SelfcalError> {
-        let positions =
-            positions.unwrap_or_else(|| readings.iter().map(|r| r.step + 1).max().unwrap_or(0));
+        let positions = validate::validate(
+            &readings,
+            positions,
+            &validate::Locator::Memory,
+            MEMORY_NAME,
+        )?;
         Ok(Self {
             positions,
             readings,
         })
+    }
+
+    /// Writes the self-calibration CSV (docs/FORMAT.md §9.2), without comments.
+    ///
+    /// The header is `cycle,step,head,head_angle,reading`, followed by `direction` if some
+    /// reading is counter-clockwise and `time` if some reading has a time (a reading
+    /// without one gets an empty field). Numbers are written with Rust's `{}` formatting,
+    /// the shortest text that reads back to the same `f64`, so reading the output back
+    /// gives an equal set (apart from [`HeadReading::line`]). Rows keep the set's order;
+    /// lines end with `\n`. Values that break the rules (possible only in a set not built
+    /// by this module) are written as they are and would be refused on reading.
+    ///
+    /// # Errors
+    ///
+    /// [`SelfcalError::Io`] (naming the file `<output>`) for any error of `w`.
+    pub fn write_to<W: std::io::Write>(&self, w: W) -> Result<(), SelfcalError> {
+        self.write_with_comments(w, &[])
+    }
+
+    /// Writes the self-calibration CSV as [`SelfcalSet::write_to`] does, with `comments`
+    /// as leading `# ` lines before the header (a comment holding line breaks becomes
+    /// several lines, an empty comment a lone `#`).
+    ///
+    /// # Errors
+    ///
+    /// [`SelfcalError::Io`] (naming the file `<output>`) for any error of `w`.
+    pub fn write_with_comments<W: std::io::Write>(
+        &self,
+        w: W,
+        comments: &[String],
+    ) -> Result<(), SelfcalError> {
+        write::write(self, w, comments).map_err(|source| SelfcalError::Io {
+            file: OUTPUT_NAME.to_string(),
+            source,
+        })
+    }
+
+    /// Writes the self-calibration CSV to a file (created or truncated), as
+    /// [`SelfcalSet::write_with_comments`] does.
+    ///
+    /// # Errors
+    ///
+    /// [`SelfcalError::Io`] naming the path if the file cannot be created or written.
+    pub fn write_path(
+        &self,
+        path: impl AsRef<Path>,
+        comments: &[String],
+    ) -> Result<(), SelfcalError> {
+        let path = path.as_ref();
+        let io_error = |source| SelfcalError::Io {
+            file: path.display().to_string(),
+            source,
+        };
+        let file = std::fs::File::create(path).map_err(io_error)?;
+        write::write(self, file, comments).map_err(io_error)
     }
 }

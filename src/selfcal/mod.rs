@@ -15,10 +15,57 @@
 //! (docs/FORMAT.md §1) with the disc in the polygon's place and the heads in the
 //! autocollimators' place, and it is solved by the same engine ([`crate::solve`]).
 //!
-//! Files: `file.rs` reads and writes the self-calibration CSV; `solve.rs` maps the
-//! readings onto the closure model and back ([`solve()`]); `fourier.rs` solves heads
-//! that sit between the positions; `budget.rs` combines an instrument budget with the
-//! fit ([`evaluate_budget`]).
+//! The self-calibration file (docs/FORMAT.md §9.2) is read with [`SelfcalSet::read_path`]
+//! or [`SelfcalSet::read_from`] and written with [`SelfcalSet::write_to`]; readings built
+//! in memory are checked by the same rules with [`SelfcalSet::from_readings`]. A refused
+//! file gives one [`SelfcalError::Invalid`] naming the file, line and column (the reader,
+//! its validation and its writer live in `file.rs`, `file/parse.rs`, `file/validate.rs`
+//! and `file/write.rs`).
+//!
+//! # The rules
+//!
+//! The file follows the measurement file's reading rules (docs/FORMAT.md §2.1): UTF-8 (a
+//! leading byte-order mark is allowed), comma separated with the usual CSV quoting, one
+//! header row and one reading per row, the columns in any order. Lines that start with
+//! `#` before the header are comments; blank lines are skipped anywhere. Fields are not
+//! trimmed.
+//!
+//! - Required columns: `cycle` (integer ≥ 1), `step` (integer 0 … P−1), `head`
+//!   (integer ≥ 1), `head_angle` (degrees, a finite number with 0 ≤ angle < 360) and
+//!   `reading` (arcseconds, a finite number). A required field may not be empty.
+//! - Optional columns: `direction` (`cw` or `ccw`; empty means `cw`) and `time`
+//!   (seconds, a finite number; empty means not recorded).
+//! - Other columns are ignored, except a near miss of a known name (one that becomes
+//!   the known name once surrounding spaces are trimmed, letters lower-cased and `-` or
+//!   a space read as `_`, such as `Head_Angle` or `head-angle`): that is refused, so that
+//!   no recorded value is silently dropped. A column name may appear only once.
+//! - Every row has as many fields as the header.
+//! - Row by row, in file order: `step` below P; a (cycle, step, head) is read at most
+//!   once; a cycle has one direction; head 1, the reference, has angle 0; a head has the
+//!   same `head_angle` on every row; two different heads are not at the same angle
+//!   (equal modulo 360 within 1e-9 degrees).
+//! - Then the set as a whole: at least 2 heads; head 1 among them; every step 0 … P−1
+//!   read by every head in every cycle (the first missing (cycle, step, head) is named).
+//!
+//! P, the number of positions, is the largest `step` + 1 unless given (`--positions P`);
+//! it must be at least 3.
+//!
+//! Nothing is guessed. The first problem found is reported as one
+//! [`SelfcalError::Invalid`] naming the file, the 1-based line and the 1-based character
+//! column where the offending field starts, the column name and the offending text (cut
+//! after 40 characters), e.g.
+//! `run.csv:4:5: column "head": "0" is not allowed; head must be at least 1`. A rule
+//! about the file or the set as a whole points at the header: a missing column at the
+//! header's start; a stated P below 3, and a step never read, at the header's `step`;
+//! too few heads, or no head 1, at the header's `head`. A P below 3 found from the
+//! largest step points at that step's field, a duplicate reading at the start of its row.
+//! An empty file, one of comments only and a header without data rows are refused too.
+//! Standard input (the path `-`) is named `<stdin>`; readings checked by
+//! [`SelfcalSet::from_readings`] are named `<readings>`, with their line and column 0.
+//!
+//! The solving: `solve.rs` maps the readings onto the closure model and back
+//! ([`solve()`]); `fourier.rs` solves heads that sit between the positions; `budget.rs`
+//! combines an instrument budget with the fit ([`evaluate_budget`]).
 
 use crate::measurement::Direction;
 
@@ -32,8 +79,8 @@ pub use budget::{
 };
 pub use file::SelfcalError;
 pub use solve::{
-    COVERAGE_PROBABILITY, HeadError, HeadGrid, ON_GRID_TOLERANCE_POSITIONS, SelfcalOptions, SelfcalSolution,
-    SelfcalSolveError, solve,
+    COVERAGE_PROBABILITY, HeadError, HeadGrid, ON_GRID_TOLERANCE_POSITIONS, SelfcalOptions,
+    SelfcalSolution, SelfcalSolveError, solve,
 };
 
 /// One reading of one read head: one row of the self-calibration file.

@@ -24,10 +24,10 @@ use nalgebra::DMatrix;
 
 use super::{Head, SelfcalSet, fourier};
 use crate::measurement::{MeasurementError, MeasurementSet, Reading, Sigma, step_angle_deg};
-use crate::uncertainty::student::t_quantile;
 use crate::solve::cofactor::Cofactor;
 use crate::solve::least_squares::least_squares_zeroing_lost;
 use crate::solve::{Engine, ParameterLayout, SigmaSource, Solution, SolveError, SolveOptions};
+use crate::uncertainty::student::t_quantile;
 
 /// A head is on the position grid when ψ·P/360° is within this many positions of a
 /// whole number.
@@ -215,13 +215,22 @@ impl SelfcalSolution {
     /// the Welch–Satterthwaite ν_eff = u⁴/(u_A⁴/ν_A) (the lost harmonics' bound has
     /// infinite degrees of freedom); `None` when σ is unknown.
     pub fn encoder_error_k(&self) -> Option<Vec<f64>> {
-        let (u, u_a) = (self.encoder_error_u.as_ref()?, self.encoder_error_u_type_a.as_ref()?);
+        let (u, u_a) = (
+            self.encoder_error_u.as_ref()?,
+            self.encoder_error_u_type_a.as_ref()?,
+        );
         let nu_a = self.type_a_dof();
         Some(
             u.iter()
                 .zip(u_a)
                 .map(|(&u, &ua)| {
-                    let nu = nu_a.map(|nu| if ua > 0.0 { nu * (u / ua).powi(4) } else { f64::INFINITY });
+                    let nu = nu_a.map(|nu| {
+                        if ua > 0.0 {
+                            nu * (u / ua).powi(4)
+                        } else {
+                            f64::INFINITY
+                        }
+                    });
                     t_quantile(COVERAGE_PROBABILITY, nu.filter(|v| v.is_finite()))
                 })
                 .collect(),

@@ -1,0 +1,419 @@
+//! The rules of a self-calibration set (docs/FORMAT.md §9.2) that go beyond one field:
+//! P, steps in range, duplicates, one direction per cycle, one angle per head, head 1 at
+//! 0, distinct head angles, and every step read by every head in every cycle.
+
+use std::collections::hash_map::Entry;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+
+use super::SelfcalError;
+use super::parse::{Col, LineIndex, NCOLS, angle_outside, invalid, show};
+use crate::selfcal::HeadReading;
+
+/// Two head angles closer than this (degrees, modulo 360) are the same place.
+pub(super) const SAME_ANGLE_DEG: f64 = 1e-9;
+
+/// Where the fields of one parsed row are, for messages.
+pub(super) struct RowLoc {
+    /// Byte offset where the row starts.
+    pub(super) start: usize,
+    /// Byte offset of each column's field.
+    pub(super) fields: [Option<usize>; NCOLS],
+    /// Whether `direction` was empty (meaning `cw`).
+    pub(super) direction_empty: bool,
+    /// The `head_angle` field as written.
+    pub(super) head_angle_text: String,
+}
+
+/// Finds where a reading or a header column is, for messages.
+pub(super) enum Locator<'a> {
+    /// Readings of a file: positions in its text.
+    File {
+        index: &'a LineIndex<'a>,
+        header_start: usize,
+        header_fields: &'a [Option<usize>; NCOLS],
+        rows: &'a [RowLoc],
+    },
+    /// Readings built in memory: the reading's line, column 0.
+    Memory,
+}
+
+impl Locator<'_> {
+    fn row(&self, i: usize, readings: &[HeadReading], col: Option<Col>) -> (u64, u64) {
+        match self {
+            Locator::File { index, rows, .. } => match rows.get(i) {
+                Some(r) => {
+                    let offset = col
+                        .and_then(|c| r.fields.get(c as usize).copied().flatten())
+                        .unwrap_or(r.start);
+                    index.location(offset)
+                }
+                None => (readings.get(i).map_or(1, |r| r.line.max(1)), 1),
+            },
+            Locator::Memory => (readings.get(i).map_or(0, |r| r.line), 0),
+        }
+    }
+
+    fn header(&self, col: Option<Col>) -> (u64, u64) {
+        match self {
+            Locator::File {
+                index,
+                header_start,
+                header_fields,
+                ..
+            } => {
+                let offset = col
+                    .and_then(|c| header_fields.get(c as usize).copied().flatten())
+                    .unwrap_or(*header_start);
+                index.location(offset)
+            }
+            Locator::Memory => (0, 0),
+        }
+    }
+
+    /// `reading K: ` for an in-memory reading without a line, else nothing.
+    fn prefix(&self, i: usize, readings: &[HeadReading]) -> String {
+        match self {
+            Locator::Memory if readings.get(i).is_none_or(|r| r.line == 0) => {
+                format!("reading {}: ", i + 1)
+            }
+            _ => String::new(),
+        }
+    }
+
+    /// How to name another reading in a message: `line L` or `reading K`.
+    fn name(&self, i: usize, readings: &[HeadReading]) -> String {
+        match readings.get(i) {
+            Some(r) if r.line > 0 => format!("line {}", r.line),
+            _ => format!("reading {}", i + 1),
+        }
+    }
+
+    /// The direction of a reading as it was written.
+    fn direction_text(&self, i: usize, readings: &[HeadReading]) -> String {
+        let direction = readings.get(i).map(|r| r.direction).unwrap_or_default();
+        match self {
+            Locator::File { rows, .. } if rows.get(i).is_some_and(|r| r.direction_empty) => {
+                format!("\"\" (empty, meaning {direction})")
+            }
+            _ => format!("{:?}", direction.as_str()),
+        }
+    }
+
+    /// The head angle of a reading as it was written (quoted), or its value.
+    fn angle_text(&self, i: usize, readings: &[HeadReading]) -> String {
+        let row = match self {
+            Locator::File { rows, .. } => rows.get(i),
+            Locator::Memory => None,
+        };
+        match row {
+            Some(r) => show(&r.head_angle_text),
+            None => readings
+                .get(i)
+                .map_or_else(String::new, |r| r.head_angle_deg.to_string()),
+        }
+    }
+
+    fn no_rows(&self) -> &'static str {
+        match self {
+            Locator::File { .. } => "no data rows after the header",
+            Locator::Memory => "no readings",
+        }
+    }
+}
+
+/// A list of numbers for a message, cut after 20.
+fn list<T: ToString>(items: impl IntoIterator<Item = T>) -> String {
+    const MAX: usize = 20;
+    let mut parts: Vec<String> = items
+        .into_iter()
+        .take(MAX + 1)
+        .map(|x| x.to_string())
+        .collect();
+    if parts.len() > MAX {
+        parts.truncate(MAX);
+        parts.push("...".to_string());
+    }
+    parts.join(", ")
+}
+
+/// Distance of two angles in [0, 360) degrees, modulo 360.
+fn angle_distance(a: f64, b: f64) -> f64 {
+    let d = (a - b).abs();
+    d.min(360.0 - d)
+}
+
+/// Checks readings against the rules; returns P.
+pub(super) fn validate(
+    readings: &[HeadReading],
+    positions: Option<usize>,
+    loc: &Locator<'_>,
+    source: &str,
+) -> Result<usize, SelfcalError> {
+    let err = |at: (u64, u64), message: String| invalid(source, at, message);
+    if readings.is_empty() {
+        return Err(err(loc.header(None), loc.no_rows().to_string()));
+    }
+
+    // Values (already checked, with their text, when read from a file).
+    for (i, r) in readings.iter().enumerate() {
+        let p = loc.prefix(i, readings);
+        for (col, zero) in [(Col::Cycle, r.cycle == 0), (Col::Head, r.head == 0)] {
+            if zero {
+                let name = col.name();
+                return Err(err(
+                    loc.row(i, readings, Some(col)),
+                    format!("{p}column {name:?}: 0 is not allowed; {name} must be at least 1"),
+                ));
+            }
+        }
+        for (col, x) in [
+            (Col::HeadAngle, Some(r.head_angle_deg)),
+            (Col::Reading, Some(r.reading_arcsec)),
+            (Col::Time, r.time_seconds),
+        ] {
+            if let Some(x) = x
+                && !x.is_finite()
+            {
+                return Err(err(
+                    loc.row(i, readings, Some(col)),
+                    format!("{p}column {:?}: {x} is not a finite number", col.name()),
+                ));
+            }
+        }
+        if !(0.0..360.0).contains(&r.head_angle_deg) {
+            return Err(err(
+                loc.row(i, readings, Some(Col::HeadAngle)),
+                format!("{p}{}", angle_outside(&r.head_angle_deg.to_string())),
+            ));
+        }
+    }
+
+    // P.
+    let (n, n_from) = match positions {
+        Some(n) => {
+            if n < 3 {
+                return Err(err(
+                    loc.header(Some(Col::Step)),
+                    format!(
+                        "column \"step\": {n} positions were stated; self-calibration needs \
+                         at least 3 positions"
+                    ),
+                ));
+            }
+            (n, "the number of positions stated")
+        }
+        None => {
+            let mut largest = 0;
+            let mut at = 0;
+            for (i, r) in readings.iter().enumerate() {
+                if r.step > largest {
+                    largest = r.step;
+                    at = i;
+                }
+            }
+            let p = loc.prefix(at, readings);
+            let at = loc.row(at, readings, Some(Col::Step));
+            let Some(n) = largest.checked_add(1) else {
+                return Err(err(
+                    at,
+                    format!("{p}column \"step\": {largest} is too large; P would not fit"),
+                ));
+            };
+            if n < 3 {
+                return Err(err(
+                    at,
+                    format!(
+                        "{p}column \"step\": the largest step is {largest}, so P = {n}; \
+                         self-calibration needs at least 3 positions (steps 0 to 2)"
+                    ),
+                ));
+            }
+            (n, "the largest step + 1")
+        }
+    };
+
+    // Row by row, in order.
+    let mut first_read: HashMap<(u32, usize, u32), usize> = HashMap::new();
+    let mut cycle_direction: HashMap<u32, usize> = HashMap::new();
+    let mut head_first: HashMap<u32, usize> = HashMap::new();
+    // The heads by angle: key the angle's bits (angles in [0, 360), so the order of the
+    // bits is the order of the angles), value the reading that set the head.
+    let mut by_angle: BTreeMap<u64, usize> = BTreeMap::new();
+    for (i, r) in readings.iter().enumerate() {
+        let p = loc.prefix(i, readings);
+        if r.step >= n {
+            return Err(err(
+                loc.row(i, readings, Some(Col::Step)),
+                format!(
+                    "{p}column \"step\": {} is outside 0 to {} (P = {n}, {n_from})",
+                    r.step,
+                    n - 1
+                ),
+            ));
+        }
+
+        match first_read.entry((r.cycle, r.step, r.head)) {
+            Entry::Occupied(first) => {
+                return Err(err(
+                    loc.row(i, readings, None),
+                    format!(
+                        "{p}duplicate reading: cycle {}, step {}, head {} was already read at {}",
+                        r.cycle,
+                        r.step,
+                        r.head,
+                        loc.name(*first.get(), readings)
+                    ),
+                ));
+            }
+            Entry::Vacant(slot) => {
+                slot.insert(i);
+            }
+        }
+
+        match cycle_direction.entry(r.cycle) {
+            Entry::Occupied(first) => {
+                let j = *first.get();
+                let direction = readings.get(j).map(|f| f.direction).unwrap_or_default();
+                if direction != r.direction {
+                    return Err(err(
+                        loc.row(i, readings, Some(Col::Direction)),
+                        format!(
+                            "{p}column \"direction\": {} disagrees with {} set for cycle {} at \
+                             {}; a cycle has one direction",
+                            loc.direction_text(i, readings),
+                            loc.direction_text(j, readings),
+                            r.cycle,
+                            loc.name(j, readings)
+                        ),
+                    ));
+                }
+            }
+            Entry::Vacant(slot) => {
+                slot.insert(i);
+            }
+        }
+
+        let angle_at = loc.row(i, readings, Some(Col::HeadAngle));
+        let angle = r.head_angle_deg;
+        if r.head == 1 && angle != 0.0 {
+            return Err(err(
+                angle_at,
+                format!(
+                    "{p}column \"head_angle\": {} for head 1; head 1 is the reference and its \
+                     angle must be 0",
+                    loc.angle_text(i, readings)
+                ),
+            ));
+        }
+        match head_first.entry(r.head) {
+            Entry::Occupied(first) => {
+                let j = *first.get();
+                if readings.get(j).is_some_and(|f| f.head_angle_deg != angle) {
+                    return Err(err(
+                        angle_at,
+                        format!(
+                            "{p}column \"head_angle\": {} disagrees with {} set for head {} at \
+                             {}; a head has one angle",
+                            loc.angle_text(i, readings),
+                            loc.angle_text(j, readings),
+                            r.head,
+                            loc.name(j, readings)
+                        ),
+                    ));
+                }
+            }
+            Entry::Vacant(slot) => {
+                slot.insert(i);
+                // -0 and 0 are the same angle: adding 0 turns -0 into 0.
+                let key = (angle + 0.0).to_bits();
+                let neighbours = [
+                    by_angle.range(..=key).next_back(),
+                    by_angle.range(key..).next(),
+                    by_angle.first_key_value(),
+                    by_angle.last_key_value(),
+                ];
+                let same = neighbours.into_iter().flatten().find(|&(&other, _)| {
+                    angle_distance(angle, f64::from_bits(other)) <= SAME_ANGLE_DEG
+                });
+                if let Some((_, &j)) = same {
+                    let other = readings.get(j).map_or(0, |f| f.head);
+                    return Err(err(
+                        angle_at,
+                        format!(
+                            "{p}column \"head_angle\": head {} at {} is at the angle of head \
+                             {other} ({} at {}); two heads cannot be at the same angle (equal \
+                             modulo 360 within {SAME_ANGLE_DEG:e} degrees)",
+                            r.head,
+                            loc.angle_text(i, readings),
+                            loc.angle_text(j, readings),
+                            loc.name(j, readings)
+                        ),
+                    ));
+                }
+                by_angle.insert(key, i);
+            }
+        }
+    }
+
+    // The heads.
+    let heads: BTreeSet<u32> = head_first.keys().copied().collect();
+    if heads.len() < 2 {
+        return Err(err(
+            loc.header(Some(Col::Head)),
+            format!(
+                "column \"head\": only head {} is read; self-calibration needs at least 2 heads",
+                list(&heads)
+            ),
+        ));
+    }
+    if !heads.contains(&1) {
+        return Err(err(
+            loc.header(Some(Col::Head)),
+            format!(
+                "column \"head\": head 1, the reference, is never read (the heads read are {})",
+                list(&heads)
+            ),
+        ));
+    }
+
+    // Every step 0 … P−1 read by every head in every cycle: for each (cycle, head) the
+    // steps read, sorted; the first missing one is the first gap.
+    let mut steps: BTreeMap<u32, BTreeMap<u32, Vec<usize>>> = BTreeMap::new();
+    for r in readings {
+        steps
+            .entry(r.cycle)
+            .or_default()
+            .entry(r.head)
+            .or_default()
+            .push(r.step);
+    }
+    for (cycle, read) in &mut steps {
+        let mut first_missing: Option<(usize, u32)> = None;
+        for &head in &heads {
+            let missing = match read.get_mut(&head) {
+                None => 0,
+                Some(s) => {
+                    s.sort_unstable();
+                    s.iter()
+                        .enumerate()
+                        .find(|&(k, &step)| k != step)
+                        .map_or(s.len(), |(k, _)| k)
+                }
+            };
+            if missing < n && first_missing.is_none_or(|m| (missing, head) < m) {
+                first_missing = Some((missing, head));
+            }
+        }
+        if let Some((step, head)) = first_missing {
+            return Err(err(
+                loc.header(Some(Col::Step)),
+                format!(
+                    "column \"step\": cycle {cycle}, step {step} is never read by head {head}; \
+                     every head must read every step 0 to {} in every cycle (P = {n}, {n_from})",
+                    n - 1
+                ),
+            ));
+        }
+    }
+    Ok(n)
+}
