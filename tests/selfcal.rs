@@ -570,3 +570,66 @@ fn a_budget_combines_as_derived_by_hand() {
     // the stop's error reaches nothing
     assert!(result.components[3].encoder_error.iter().all(|v| *v == 0.0));
 }
+
+/// e in the gauge of a 24-faced polygon's encoder errors (Σ = 0 over the angles k·15°):
+/// the values moved by their mean over those angles, and u checked against the whole
+/// covariance matrix of the closure model formed densely (vᵀ Q v by brute force).
+#[test]
+fn the_gauge_of_24_angles_references_e_to_a_polygons_positions() {
+    let mut rng = ChaCha8Rng::seed_from_u64(24);
+    let angles = selfa_angles();
+    let disc = Disc::random(&mut rng, (1..84).chain([96, 120]));
+    let run = Run {
+        positions: 168,
+        cycles: 2,
+        head_errors: head_errors(&mut rng, angles.len()),
+        angles,
+        table_sigma: 1.0,
+        noise: 0.03,
+    };
+    let set = measure(&run, &disc, &mut rng);
+    let plain = selfcal::solve(&set, &SelfcalOptions::new()).unwrap();
+    let gauged = selfcal::solve(&set, &SelfcalOptions::new().with_gauge_positions(24)).unwrap();
+    let shared: Vec<usize> = (0..168).step_by(7).collect();
+    let mean = shared.iter().map(|&x| plain.encoder_error[x]).sum::<f64>() / 24.0;
+    for (a, b) in plain.encoder_error.iter().zip(&gauged.encoder_error) {
+        assert!((a - mean - b).abs() < 1e-12);
+    }
+    assert!(
+        shared
+            .iter()
+            .map(|&x| gauged.encoder_error[x])
+            .sum::<f64>()
+            .abs()
+            < 1e-10
+    );
+    // brute force: e_x − ē_S = φ_{x+1} − mean_S φ_{s+1}, φ_f = Σ_{i ≤ f} β_i
+    let q = gauged.cofactor.to_dense();
+    let (sigma, _) = gauged.sigma.unwrap();
+    let u = gauged.encoder_error_u_type_a.as_ref().unwrap();
+    for x in [0usize, 3, 7, 100, 167] {
+        let mut v = vec![0.0; q.nrows()];
+        for (i, vi) in v.iter_mut().enumerate().take(168) {
+            // β_{i+1} enters φ_{x+1} when i ≤ x, and m_S by the share of S with s ≥ i
+            let share = shared.iter().filter(|&&s| s >= i).count() as f64 / 24.0;
+            *vi = if i <= x { 1.0 } else { 0.0 } - share;
+        }
+        let mut variance = 0.0;
+        for a in 0..v.len() {
+            for b in 0..v.len() {
+                variance += v[a] * q[(a, b)] * v[b];
+            }
+        }
+        let expected = sigma * variance.sqrt();
+        assert!(
+            (u[x] / expected - 1.0).abs() < 1e-9,
+            "{x}: {} {expected}",
+            u[x]
+        );
+    }
+    assert!(gauged.notes.iter().any(|n| n.contains("24 angles")));
+    assert!(matches!(
+        selfcal::solve(&set, &SelfcalOptions::new().with_gauge_positions(25)),
+        Err(selfcal::SelfcalSolveError::InvalidGauge { .. })
+    ));
+}

@@ -8,7 +8,7 @@ use clap::ValueEnum;
 use polycal::input::display_name;
 use polycal::measurement::Sigma;
 use polycal::report::selfcal::{SelfcalReport, result_rows, write_table};
-use polycal::selfcal::{self, SelfcalOptions, SelfcalSet};
+use polycal::selfcal::{self, SelfcalOptions, SelfcalSet, SelfcalSolveError};
 use polycal::uncertainty::calibration::CalibrationError;
 
 use super::EXIT_OK;
@@ -19,6 +19,7 @@ pub const EXAMPLES: &str = "\
 Examples:
   polycal selfcal examples/data/selfa-168.csv
   polycal selfcal examples/data/selfa-168.csv --format csv > selfcal.csv
+  polycal selfcal examples/data/selfa-168.csv --gauge-positions 24 --format csv > selfcal-24.csv
   polycal selfcal examples/data/selfa-168.csv --lost-harmonic-bound 0.01 --format json
   polycal selfcal examples/data/selfa-168.csv --budget examples/budgets/selfcal.toml
   polycal simulate --selfcal --positions 168 | polycal selfcal -";
@@ -41,6 +42,11 @@ pub struct SelfcalArgs {
     /// added to u(e).
     #[arg(long, value_name = "ARCSEC", allow_negative_numbers = true)]
     lost_harmonic_bound: Option<f64>,
+    /// The gauge of e: Σe = 0 over the N angles k·360°/N (N divides P) instead of over
+    /// all P positions — that of an N-faced polygon's encoder errors, to compare with
+    /// them by angle (docs/FORMAT.md §9.3).
+    #[arg(long, value_name = "N")]
+    gauge_positions: Option<usize>,
     /// Instrument budget (TOML, docs/FORMAT.md §5 with `acts_on` per component; in a
     /// self-calibration `each-autocollimator` means each read head): adds u_c, k and U
     /// of every result, combining the fit's type A with the budget through the design.
@@ -64,14 +70,21 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
     let name = display_name(&args.file);
     let set = SelfcalSet::read_path(&args.file, args.positions)?;
     let mut options = SelfcalOptions::new().with_sigma_opt(args.sigma);
+    if let Some(n) = args.gauge_positions {
+        options = options.with_gauge_positions(n);
+    }
     if let Some(bound) = args.lost_harmonic_bound {
         options = options
             .with_lost_harmonic_bound(bound)
             .context("--lost-harmonic-bound")?;
     }
     let budget = super::solve::read_budget(args.budget.as_deref(), out)?;
-    let solution =
-        selfcal::solve(&set, &options).with_context(|| format!("{name}: cannot solve"))?;
+    let solution = selfcal::solve(&set, &options)
+        .map_err(|e| match e {
+            SelfcalSolveError::InvalidGauge { .. } => anyhow::anyhow!("--gauge-positions: {e}"),
+            e => e.into(),
+        })
+        .with_context(|| format!("{name}: cannot solve"))?;
     if solution.sigma.is_none() {
         out.warning(&format!(
             "{name}: no residual degrees of freedom: uncertainties need --sigma"

@@ -69,6 +69,9 @@ pub struct SelfcalReport {
     pub encoder_error_k: Option<Vec<f64>>,
     /// The angle of each position, degrees.
     pub encoder_angle_deg: Vec<f64>,
+    /// n when e is in the gauge Σe = 0 over the n angles k·360°/n; `null`: over all
+    /// positions.
+    pub gauge_positions: Option<usize>,
     /// Heads 2 … M.
     pub head_error: Vec<HeadErrorReport>,
     /// Harmonic orders 1 … P/2 the layout cannot determine (set to 0).
@@ -108,6 +111,7 @@ impl SelfcalReport {
             encoder_error_expanded_u: expanded(solution.encoder_error_u.as_ref(), k.as_ref()),
             encoder_error_k: k,
             encoder_angle_deg: solution.encoder_angle_deg.clone(),
+            gauge_positions: solution.gauge_positions,
             head_error: solution
                 .head_error
                 .iter()

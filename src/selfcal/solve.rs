@@ -55,6 +55,10 @@ pub struct SelfcalOptions {
     /// The most memory, in bytes, the solver may plan to use (as
     /// [`SolveOptions::memory_limit_bytes`]).
     pub memory_limit_bytes: Option<u64>,
+    /// The gauge of e: `None` for Σe = 0 over all P positions; `Some(n)` for Σe = 0 over
+    /// the n angles k·360°/n (n divides P) — the gauge of an n-faced polygon's encoder
+    /// errors, for comparing with them angle by angle.
+    pub gauge_positions: Option<usize>,
 }
 
 impl SelfcalOptions {
@@ -82,6 +86,13 @@ impl SelfcalOptions {
         Ok(self)
     }
 
+    /// With the gauge Σe = 0 over the n angles k·360°/n instead of over all positions
+    /// (checked against P by [`solve`]).
+    pub fn with_gauge_positions(mut self, n: usize) -> Self {
+        self.gauge_positions = Some(n);
+        self
+    }
+
     /// With a memory limit, bytes.
     pub fn with_memory_limit(mut self, bytes: u64) -> Self {
         self.memory_limit_bytes = Some(bytes);
@@ -105,6 +116,16 @@ pub enum SelfcalSolveError {
     InvalidBound {
         /// The value given.
         arcsec: f64,
+    },
+    /// The gauge's positions do not divide P.
+    #[error(
+        "the gauge over {gauge} angles needs {gauge} to divide the {positions} positions (and be at least 1)"
+    )]
+    InvalidGauge {
+        /// P.
+        positions: usize,
+        /// The n asked for.
+        gauge: usize,
     },
     /// The design is too large to solve here.
     #[error(
@@ -157,8 +178,11 @@ pub struct SelfcalSolution {
     pub cycles: usize,
     /// Number of readings.
     pub readings: usize,
-    /// e at the positions k·360°/P, arcsec (Σe = 0).
+    /// e at the positions k·360°/P, arcsec (Σe = 0 over all positions, or over the
+    /// gauge's: [`SelfcalOptions::gauge_positions`]).
     pub encoder_error: Vec<f64>,
+    /// The gauge's n, when e is referenced to n angles.
+    pub gauge_positions: Option<usize>,
     /// Standard uncertainty of each e, arcsec: type A, plus the bound on the lost
     /// harmonics when one was given; `None` when σ is unknown.
     pub encoder_error_u: Option<Vec<f64>>,
@@ -302,6 +326,14 @@ pub fn solve(
     options: &SelfcalOptions,
 ) -> Result<SelfcalSolution, SelfcalSolveError> {
     let p = set.positions;
+    if let Some(gauge) = options.gauge_positions
+        && (gauge == 0 || p % gauge != 0)
+    {
+        return Err(SelfcalSolveError::InvalidGauge {
+            positions: p,
+            gauge,
+        });
+    }
     let heads = set.heads();
     let cycles = set.cycles().len();
     let offsets: Vec<f64> = heads
@@ -412,7 +444,14 @@ fn assemble(
     let dof = set.readings.len().saturating_sub(parameters);
     let sigma = crate::solve::choose_sigma(rss, dof, options.sigma);
 
-    let mean_phi = closure.face_deviation.iter().sum::<f64>() / p as f64;
+    // the gauge: Σe = 0 over the gauge's positions (all P, or every (P/n)-th)
+    let stride = options.gauge_positions.map_or(1, |n| p / n);
+    let gauge: Vec<usize> = (0..p).step_by(stride).collect();
+    let mean_phi = gauge
+        .iter()
+        .map(|&x| closure.face_deviation[x])
+        .sum::<f64>()
+        / gauge.len() as f64;
     let encoder_error: Vec<f64> = closure
         .face_deviation
         .iter()
@@ -425,9 +464,12 @@ fn assemble(
         .filter(|&k| 2 * k <= p)
         .collect();
     let encoder_error_u_type_a = sigma.map(|(s, _)| {
-        closure
-            .cofactor
-            .centered_face_deviation_diagonal()
+        let variances = if stride == 1 {
+            closure.cofactor.centered_face_deviation_diagonal()
+        } else {
+            referenced_variances(&closure.cofactor, &gauge)
+        };
+        variances
             .into_iter()
             .map(|q| s * q.max(0.0).sqrt())
             .collect::<Vec<f64>>()
@@ -472,6 +514,11 @@ fn assemble(
             }
         ));
     }
+    if let Some(n) = options.gauge_positions {
+        notes.push(format!(
+            "encoder_error in the gauge Σe = 0 over the {n} angles k·360°/{n} (that of an {n}-faced polygon's encoder errors), not over all {p} positions"
+        ));
+    }
     if grid == HeadGrid::OffGrid {
         notes.push(format!(
             "some heads sit between the {p} positions: the encoder error is taken as band-limited (harmonics below {}, the harmonic {} as a cosine on the grid)",
@@ -494,6 +541,7 @@ fn assemble(
         cycles,
         readings: set.readings.len(),
         encoder_error,
+        gauge_positions: options.gauge_positions,
         encoder_error_u,
         encoder_error_u_type_a,
         lost_harmonic_u,
@@ -510,6 +558,36 @@ fn assemble(
         notes,
         heads,
     }
+}
+
+/// Var(e_x − ē_S)/σ² for every position x, e in the gauge Σ_{s∈S} e_s = 0: with
+/// e_x − ē_S = φ_{x+1} − m_S, m_S the mean of φ over S (φ = Tβ the face deviations of the
+/// closure model), var φ − 2 cov(φ, m_S) + var m_S, from one product Q·w (w: m_S's
+/// coefficients on β).
+fn referenced_variances(cofactor: &Cofactor, subset: &[usize]) -> Vec<f64> {
+    let p = cofactor.layout().faces;
+    // w_i = #{s ∈ S : s + 1 ≥ i}/|S| for β_i (i = 1 … P)
+    let mut w = vec![0.0; cofactor.len()];
+    for &s in subset {
+        for v in &mut w[..=s] {
+            *v += 1.0;
+        }
+    }
+    for v in &mut w[..p] {
+        *v /= subset.len() as f64;
+    }
+    let y = cofactor.apply(&w);
+    let var_mean: f64 = w[..p].iter().zip(&y[..p]).map(|(a, b)| a * b).sum();
+    let mut cov = 0.0;
+    cofactor
+        .face_deviation_diagonal()
+        .into_iter()
+        .zip(&y[..p])
+        .map(|(var, yi)| {
+            cov += yi;
+            var - 2.0 * cov + var_mean
+        })
+        .collect()
 }
 
 fn join(values: &[usize]) -> String {
