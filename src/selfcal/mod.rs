@@ -11,7 +11,7 @@
 //!
 //! with t the table's position error at that stop (a nuisance), e the disc's graduation
 //! error — the encoder error being calibrated, Σe = 0 over the P positions — and c the
-//! head's placement error (c[1] = 0). This is the closure model of the polygon
+//! head's placement error (c\[1\] = 0). This is the closure model of the polygon
 //! (docs/FORMAT.md §1) with the disc in the polygon's place and the heads in the
 //! autocollimators' place, and it is solved by the same engine ([`crate::solve`]).
 //!
