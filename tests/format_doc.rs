@@ -1,10 +1,10 @@
 //! Every JSON field name polycal prints or writes is documented in `docs/FORMAT.md`.
 //!
 //! The test runs the binary on the commands whose JSON the contract describes — `solve`
-//! (plain, with `--budget`, with `--monte-carlo`, several files), `diagnose` with a truth
-//! and with `--budget`, `budget`, `compare`, the truth file of `simulate`, and on Unix a
-//! whole `run` against `sim-lab` (its device paths, `manifest.json` and every line of
-//! `traffic.jsonl`) — collects every object key, at any depth, and checks that each
+//! (plain, with `--budget`, with `--monte-carlo`, several files, sub-pitch mountings),
+//! `diagnose` with a truth and with `--budget`, `budget`, `compare`, the truth files of
+//! `simulate` (plain and sub-pitch), and on Unix a whole `run` against `sim-lab` (its
+//! device paths, `manifest.json` and every line of `traffic.jsonl`) — collects every object key, at any depth, and checks that each
 //! appears in the document as a code span (`` `name` ``). A field added to an output
 //! without a word in the contract fails here, with every missing name listed at once.
 
@@ -154,6 +154,29 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
     }
     for v in json_lines(&["diagnose", &drift, "--budget", BUDGET, "--format", "json"]) {
         fields.add("diagnose --budget --format json", &v);
+    }
+
+    // Sub-pitch mountings: the truth's and solve's angles, and solve's notes.
+    let (sub_pitch, sub_truth) = (scratch.path("subpitch.csv"), scratch.path("subpitch.json"));
+    polycal(&[
+        "simulate",
+        "--faces",
+        "12",
+        "--setups",
+        "2",
+        "--shift-deg",
+        "0,10",
+        "--out",
+        &sub_pitch,
+        "--truth-out",
+        &sub_truth,
+    ]);
+    fields.add(
+        "truth file of simulate --shift-deg",
+        &read_json(Path::new(&sub_truth)),
+    );
+    for v in json_lines(&["solve", &sub_pitch, "--format", "json"]) {
+        fields.add("solve (sub-pitch) --format json", &v);
     }
 
     // Several files: JSON Lines with "file".

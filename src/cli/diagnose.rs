@@ -13,7 +13,7 @@ use polycal::report::{self, diagnose::DiagnoseReport};
 use polycal::simulate::Truth;
 
 use super::output::Output;
-use super::solve::{evaluate_budget, read_budget, write_result_csv};
+use super::solve::{evaluate_budget, read_budget, shift_refusal, write_result_csv};
 use super::{EXIT_ERROR, EXIT_OK, EXIT_VERDICT};
 
 /// After `polycal diagnose --help`.
@@ -75,6 +75,11 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         let diagnosed = MeasurementSet::read_path(path, args.faces)
             .map_err(anyhow::Error::from)
             .and_then(|set| {
+                if let Some(refusal) =
+                    shift_refusal(&set, &name, "diagnose", "polycal solve evaluates them")
+                {
+                    return Err(refusal);
+                }
                 diagnose::diagnose(&set, &options)
                     .with_context(|| format!("{name}: cannot solve"))
                     .map(|diagnosis| (set, diagnosis))

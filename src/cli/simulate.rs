@@ -17,6 +17,7 @@ Examples:
   polycal simulate --faces 24 --cycles 6 --closing --out run.csv --truth-out run.truth.json
   polycal simulate --bidirectional --direction -0.3 --drift 2:-1.5 | polycal diagnose -
   polycal simulate --faces 12 --setups 2 --setup-shift 5 --ac-faces 1,2,5 --seed 9 --out setups.csv
+  polycal simulate --faces 12 --setups 3 --shift-deg 0,10,20 --out subpitch.csv --truth-out subpitch.json
   polycal simulate --temperature 20:0.5:3600:0.1:1200 --temperature-effect 1:0.3 --out warm.csv
   polycal simulate --setups 2 --elevation 10:30:1:5:0.05 --cross-talk 2:0.02 --noise-dof 5";
 
@@ -34,6 +35,17 @@ pub struct SimulateArgs {
     /// Whole faces the polygon is turned between mountings.
     #[arg(long, default_value_t = 1)]
     setup_shift: usize,
+    /// The table's angle at step 0 of each mounting, degrees (the `shift` column), one per
+    /// setup (e.g. 0,10,20 with --setups 3); default: every mounting at 0. A shift that is
+    /// not a whole multiple of 360/N puts the mounting's stops between the encoder
+    /// positions (sub-pitch).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "DEG,...",
+        allow_negative_numbers = true
+    )]
+    shift_deg: Vec<f64>,
     /// Seconds per table stop.
     #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     step_seconds: f64,
@@ -44,12 +56,13 @@ pub struct SimulateArgs {
 
 /// `polycal simulate`: writes the measurement CSV and the truth.
 pub fn run(args: &SimulateArgs) -> Result<u8> {
-    let config = args.truth.config(
+    let mut config = args.truth.config(
         args.ac_faces.clone(),
         args.setups,
         args.setup_shift,
         args.step_seconds,
     )?;
+    config.table_shift_deg = args.shift_deg.clone();
     let (set, truth) = simulate::simulate(&config)?;
     let mut comment = format!(
         "polycal {} simulate: {} faces, ac faces {:?}, {} cycles, noise {} arcsec, seed {}",
@@ -60,6 +73,9 @@ pub fn run(args: &SimulateArgs) -> Result<u8> {
         config.noise_arcsec,
         config.seed
     );
+    if !config.table_shift_deg.is_empty() {
+        comment += &format!(", table shifts {:?} degrees", config.table_shift_deg);
+    }
     if let Some(nu) = config.noise_student_dof {
         comment += &format!(", Student-t noise with {nu} dof");
     }
@@ -251,6 +267,7 @@ impl TruthArgs {
             ac_faces,
             setups,
             setup_shift_faces,
+            table_shift_deg: Vec::new(),
             cycles: self.cycles,
             closing: self.closing || self.bidirectional,
             bidirectional: self.bidirectional,

@@ -10,6 +10,7 @@ use polycal::input::display_name;
 use polycal::measurement::{MeasurementSet, Sigma};
 use polycal::report::{self, SolveReport};
 use polycal::results::ResultRow;
+use polycal::solve::sub_pitch::{ShiftGeometry, SubPitchSolution, solve_shifted};
 use polycal::solve::{self, Method, Solution, SolveError, SolveOptions};
 use polycal::uncertainty::calibration::{
     self, CalibrationUncertainty, InstrumentBudget, McOptions, McSolver,
@@ -157,14 +158,35 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         let solved = MeasurementSet::read_path(path, args.faces)
             .map_err(anyhow::Error::from)
             .and_then(|set| {
+                if budget.is_some()
+                    && let Some(refusal) = shift_refusal(
+                        &set,
+                        &name,
+                        "--budget",
+                        "polycal solve without it evaluates them",
+                    )
+                {
+                    return Err(refusal);
+                }
+                if set.has_shifts() && ShiftGeometry::of(&set).is_sub_pitch() {
+                    // docs/FORMAT.md §9.1: encoder errors at every angle of every coset
+                    return solve_shifted(&set, &options)
+                        .map_err(actionable)
+                        .with_context(|| format!("{name}: cannot solve"))
+                        .map(|solved| (set, Solved::SubPitch(solved)));
+                }
                 solve::solve(&set, &options)
                     .map_err(actionable)
                     .with_context(|| format!("{name}: cannot solve"))
-                    .map(|solution| (set, solution))
+                    .map(|solution| (set, Solved::Positions(solution)))
             });
-        let evaluated = solved.and_then(|(set, solution)| {
+        let evaluated = solved.and_then(|(set, solved)| {
+            let solution = match solved {
+                Solved::SubPitch(solved) => return Ok((Solved::SubPitch(solved), None, None)),
+                Solved::Positions(solution) => solution,
+            };
             let Some(budget) = &budget else {
-                return Ok((solution, None, None));
+                return Ok((Solved::Positions(solution), None, None));
             };
             let gum = evaluate_budget(&set, &solution, budget, &name)?;
             let mc = mc_options
@@ -177,9 +199,9 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                 })
                 .transpose()
                 .with_context(|| format!("{name}: Monte Carlo failed"))?;
-            Ok((solution, Some(gum), mc))
+            Ok((Solved::Positions(solution), Some(gum), mc))
         });
-        let (solution, gum, mc) = match evaluated {
+        let (solved, gum, mc) = match evaluated {
             Ok(triple) => triple,
             Err(error) => {
                 out.error(&error);
@@ -190,6 +212,30 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         if mc.as_ref().is_some_and(|mc| !mc.validated) {
             not_validated += 1;
         }
+        let solution = match solved {
+            Solved::Positions(solution) => solution,
+            Solved::SubPitch(solved) => {
+                match args.format {
+                    SolveFormat::Json => {
+                        let report =
+                            SolveReport::sub_pitch(&solved, several.then(|| label.clone()));
+                        writeln!(stdout, "{}", report.to_json()?)?;
+                    }
+                    SolveFormat::Table => {
+                        if several {
+                            writeln!(stdout)?;
+                        }
+                        let mut text = String::new();
+                        report::write_sub_pitch_table(&mut text, &solved, &label)?;
+                        write!(stdout, "{text}")?;
+                    }
+                    SolveFormat::Csv => {
+                        csv_rows.push((label, report::sub_pitch_result_rows(&solved)));
+                    }
+                }
+                continue;
+            }
+        };
         match args.format {
             SolveFormat::Json => {
                 let mut report = SolveReport::new(&solution, several.then(|| label.clone()));
@@ -276,6 +322,38 @@ pub(super) fn write_result_csv(
         [(_, rows)] if !several => polycal::results::write_results(stdout, rows),
         _ => report::write_results_with_file(stdout, files),
     }
+}
+
+/// What `solve` solved: a set in encoder positions (no shift, or whole-face shifts), or
+/// one with sub-pitch mountings.
+enum Solved {
+    Positions(Solution),
+    SubPitch(SubPitchSolution),
+}
+
+/// The refusal of `what` (an option, or a command) for a set with shifted mountings,
+/// which it does not handle yet, with the `instead` that does; `None` when every shift
+/// is 0.
+pub(super) fn shift_refusal(
+    set: &MeasurementSet,
+    name: &str,
+    what: &str,
+    instead: &str,
+) -> Option<anyhow::Error> {
+    if !set.has_shifts() {
+        return None;
+    }
+    Some(if ShiftGeometry::of(set).is_sub_pitch() {
+        anyhow::anyhow!(
+            "{name}: {what} is not supported for sub-pitch mountings (a `shift` that is not a \
+             whole multiple of 360°/N) yet; {instead}"
+        )
+    } else {
+        anyhow::anyhow!(
+            "{name}: {what} is not supported for shifted mountings (a `shift` other than 0) \
+             yet; {instead}"
+        )
+    })
 }
 
 /// A solver error with the option that gets past it, where one does.

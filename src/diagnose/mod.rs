@@ -315,8 +315,15 @@ fn term_effect(term: &Term, value: f64) -> Effect {
 ///
 /// # Errors
 ///
-/// The base model's [`SolveError`] when the design cannot be solved.
+/// The base model's [`SolveError`] when the design cannot be solved;
+/// [`SolveError::ShiftedMountings`] for a set with shifted mountings (not handled yet).
 pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagnosis, SolveError> {
+    if set.has_shifts() {
+        // its candidates and reports are in steps and time order, not encoder positions
+        return Err(SolveError::ShiftedMountings {
+            evaluation: "the diagnosis",
+        });
+    }
     let sigma = options.sigma;
     let context = EffectContext::of(&set.readings);
     let before = least_squares_with_regressors(set, &[], sigma)?;

@@ -14,8 +14,9 @@
 //! header row and one reading per row; the columns may come in any order. Lines that
 //! start with `#` before the header are comments; blank lines are skipped. The columns
 //! `cycle`, `step`, `ac`, `face` and `reading` are required; `direction`, `time`,
-//! `setup`, `reading_y`, `temperature` and `encoder` are optional, and an empty field
-//! of an optional column means "not recorded" (or the default: `cw`, setup 1). Other
+//! `setup`, `reading_y`, `temperature`, `encoder` and `shift` are optional, and an empty
+//! field of an optional column means "not recorded" (or the default: `cw`, setup 1,
+//! shift 0). Other
 //! columns are ignored, except one whose name differs from a known name only by case,
 //! spaces or `-` (such as `Face` or `reading y`): that is refused, so that no recorded
 //! value is silently dropped.
@@ -32,6 +33,16 @@
 //! (setup, cycle) has one direction, and for each (setup, ac) the offset
 //! (face − 1 − step) mod N is the same for every reading: each autocollimator looks at
 //! the polygon from one fixed place.
+//!
+//! # Shifted mountings
+//!
+//! The `shift` column is the table's angle at step 0 of a mounting (`setup`), in degrees,
+//! 0 ≤ shift < 360 (docs/FORMAT.md §2, §9.1): the same value on every row of one setup,
+//! an empty field meaning 0. A [`Reading`] does not carry it: the set keeps one shift per
+//! mounting in [`MeasurementSet::setup_shift_deg`] (the mountings whose shift is not 0;
+//! [`MeasurementSet::shift_deg`] answers for any setup). Where a shift puts the encoder —
+//! whole positions, or table angles between them — is [`crate::solve::sub_pitch`]'s
+//! concern.
 
 use crate::input::Location;
 use std::collections::BTreeMap;
@@ -211,6 +222,11 @@ pub struct MeasurementSet {
     pub readings: Vec<Reading>,
     /// Where the readings came from (a path, `<stdin>` for standard input, or a label).
     pub source: String,
+    /// The table's angle at step 0 of each mounting whose `shift` is not 0, degrees
+    /// (0 < shift < 360), by setup (docs/FORMAT.md §2): a setup not in the map has shift
+    /// 0. The reader and [`MeasurementSet::with_setup_shifts`] store no 0; a set built in
+    /// memory with [`MeasurementSet::from_readings`] starts with none.
+    pub setup_shift_deg: BTreeMap<u32, f64>,
 }
 
 /// Why a measurement file or a set of readings was refused, or could not be read or
@@ -339,7 +355,70 @@ impl MeasurementSet {
             faces: n,
             readings,
             source: source.to_string(),
+            setup_shift_deg: BTreeMap::new(),
         })
+    }
+
+    /// The set with these mountings shifted: `(setup, shift)` pairs, the table's angle at
+    /// step 0 of that setup in degrees (the `shift` column, docs/FORMAT.md §2). Each shift
+    /// must be finite with 0 ≤ shift < 360 and name a setup the set reads; a shift of 0
+    /// is not stored, and a setup given again replaces its shift. Setups not given keep
+    /// theirs.
+    ///
+    /// ```
+    /// use polycal::simulate::{simulate, SimulationConfig};
+    ///
+    /// let (set, _) = simulate(&SimulationConfig { setups: 2, ..SimulationConfig::default() })?;
+    /// let set = set.with_setup_shifts([(1, 0.0), (2, 7.5)])?;
+    /// assert_eq!((set.shift_deg(1), set.shift_deg(2)), (0.0, 7.5));
+    /// assert_eq!(set.setup_shift_deg.len(), 1);
+    /// assert!(set.clone().with_setup_shifts([(3, 1.0)]).is_err()); // no setup 3
+    /// assert!(set.with_setup_shifts([(2, 360.0)]).is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    ///
+    /// [`MeasurementError::Invalid`] (line and column 0) naming the setup and the shift.
+    pub fn with_setup_shifts(
+        mut self,
+        shifts: impl IntoIterator<Item = (u32, f64)>,
+    ) -> Result<Self, MeasurementError> {
+        for (setup, shift) in shifts {
+            let refuse = |message: String| {
+                Err(invalid(
+                    &self.source,
+                    (0, 0),
+                    format!("column \"shift\": setup {setup}: {message}"),
+                ))
+            };
+            if !shift.is_finite() {
+                return refuse(format!("{shift} is not a finite number"));
+            }
+            if !valid_shift(shift) {
+                return refuse(format!("{shift} {}", SHIFT_RANGE));
+            }
+            if !self.readings.iter().any(|r| r.setup == setup) {
+                return refuse("the set has no reading of this setup".to_string());
+            }
+            if shift == 0.0 {
+                self.setup_shift_deg.remove(&setup);
+            } else {
+                self.setup_shift_deg.insert(setup, shift);
+            }
+        }
+        Ok(self)
+    }
+
+    /// The table's angle at step 0 of `setup`, degrees: its `shift`, 0 unless stored in
+    /// [`MeasurementSet::setup_shift_deg`].
+    pub fn shift_deg(&self, setup: u32) -> f64 {
+        self.setup_shift_deg.get(&setup).copied().unwrap_or(0.0)
+    }
+
+    /// Whether some mounting has a shift other than 0 (whole faces or not).
+    pub fn has_shifts(&self) -> bool {
+        self.setup_shift_deg.values().any(|&s| s != 0.0)
     }
 
     /// Distinct (setup, ac) pairs in ascending order.

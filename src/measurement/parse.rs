@@ -4,6 +4,7 @@ use super::*;
 
 use super::validate::*;
 use std::collections::HashMap;
+use std::collections::btree_map::Entry;
 
 /// The columns this module knows, in the order of docs/FORMAT.md §2.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -19,8 +20,8 @@ pub(super) enum Col {
     ReadingY,
     Temperature,
     Encoder,
-    /// The mounting's table angle at step 0 (docs/FORMAT.md §2, §9.1): read only to refuse
-    /// what this version cannot evaluate (a non-zero shift), never to guess.
+    /// The mounting's table angle at step 0, degrees (docs/FORMAT.md §2, §9.1): one per
+    /// setup, kept by the set ([`MeasurementSet::setup_shift_deg`]), not by the reading.
     Shift,
 }
 
@@ -377,6 +378,7 @@ pub(super) fn parse_text(
         faces: 0,
         readings: Vec::new(),
         source: source.to_string(),
+        setup_shift_deg: BTreeMap::new(),
     };
     let index = LineIndex::new(text);
     let bytes = text.as_bytes();
@@ -494,9 +496,10 @@ pub(super) fn parse_text(
     }
     let header_fields = columns.map(|j| j.map(|j| span.field(j)));
 
-    // The rows.
+    // The rows, and the shift of each setup: (shift, line and text of its first row).
     let mut readings = Vec::new();
     let mut rows = Vec::new();
+    let mut shifts: BTreeMap<u32, (f64, u64, String)> = BTreeMap::new();
     while reader.read_record(&mut record).map_err(csv_error)? {
         let span = Span::scan(bytes, record_start(&record), record.len());
         if record.len() <= 1 && index.line_text(index.line_of(span.start)).trim().is_empty() {
@@ -525,8 +528,39 @@ pub(super) fn parse_text(
                 )
             });
         }
-        let (reading, row) = parse_row(&record, &columns, &span, index.location(span.start).0)
-            .map_err(|(offset, message)| err(offset, message))?;
+        let (reading, row, shift) =
+            parse_row(&record, &columns, &span, index.location(span.start).0)
+                .map_err(|(offset, message)| err(offset, message))?;
+        if let Some(j) = columns[Col::Shift as usize] {
+            let text = || record.get(j).unwrap_or("").to_string();
+            match shifts.entry(reading.setup) {
+                Entry::Vacant(slot) => {
+                    slot.insert((shift, reading.line, text()));
+                }
+                Entry::Occupied(first) => {
+                    let (first_shift, first_line, first_text) = first.get();
+                    if shift != *first_shift {
+                        let written = |text: String| {
+                            if text.is_empty() {
+                                "\"\" (empty, meaning 0)".to_string()
+                            } else {
+                                show(&text)
+                            }
+                        };
+                        return Err(err(
+                            span.field(j),
+                            format!(
+                                "column \"shift\": {} disagrees with {} set for setup {} at \
+                                 line {first_line}; a mounting has one shift",
+                                written(text()),
+                                written(first_text.clone()),
+                                reading.setup
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
         readings.push(reading);
         rows.push(row);
     }
@@ -554,17 +588,23 @@ pub(super) fn parse_text(
         faces: n,
         readings,
         source: source.to_string(),
+        setup_shift_deg: shifts
+            .into_iter()
+            .filter(|(_, (shift, _, _))| *shift != 0.0)
+            .map(|(setup, (shift, _, _))| (setup, shift))
+            .collect(),
     })
 }
 
-/// Parses one data row (with the right number of fields); an error is (byte offset,
+/// Parses one data row (with the right number of fields), with its mounting's shift in
+/// degrees (0 when the column is absent or the field empty); an error is (byte offset,
 /// message).
 pub(super) fn parse_row(
     record: &csv::StringRecord,
     columns: &[Option<usize>; NCOLS],
     span: &Span,
     line: u64,
-) -> Result<(Reading, RowLoc), (usize, String)> {
+) -> Result<(Reading, RowLoc, f64), (usize, String)> {
     let mut row = RowLoc {
         start: span.start,
         fields: [None; NCOLS],
@@ -576,6 +616,7 @@ pub(super) fn parse_row(
         .collect();
     order.sort_unstable_by_key(|&(j, _)| j);
     let (mut cycle, mut step, mut ac, mut face, mut value) = (None, None, None, None, None);
+    let mut shift = 0.0;
     let mut reading = Reading {
         setup: 1,
         cycle: 0,
@@ -621,19 +662,14 @@ pub(super) fn parse_row(
                 }
             },
             Col::Shift => {
-                let shift = if text.is_empty() {
-                    0.0
-                } else {
-                    parse_float(text, col).map_err(at)?
-                };
-                if shift != 0.0 {
-                    return Err(at(format!(
-                        "column \"shift\": {} degrees: shifted mountings (docs/FORMAT.md \
-                         §9.1) are not evaluated by this version, and reading the row as \
-                         unshifted would be wrong; give the mounting as `setup` with a \
-                         shift of 0",
-                        show(text)
-                    )));
+                if !text.is_empty() {
+                    shift = parse_float(text, col).map_err(at)?;
+                    if !valid_shift(shift) {
+                        return Err(at(format!(
+                            "column \"shift\": {} {SHIFT_RANGE}",
+                            show(text)
+                        )));
+                    }
                 }
             }
             Col::Time | Col::ReadingY | Col::Temperature | Col::Encoder => {
@@ -670,7 +706,7 @@ pub(super) fn parse_row(
     reading.ac = u32::try_from(ac).map_err(|_| internal(Col::Ac))?;
     reading.face = usize::try_from(face).map_err(|_| internal(Col::Face))?;
     reading.reading_arcsec = value;
-    Ok((reading, row))
+    Ok((reading, row, shift))
 }
 
 /// `1 field`, `2 fields`.

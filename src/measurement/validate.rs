@@ -6,6 +6,15 @@ use super::*;
 use std::collections::hash_map::Entry;
 use std::collections::{BTreeSet, HashMap};
 
+/// What a shift out of range breaks, after the value in a message.
+pub(super) const SHIFT_RANGE: &str = "is outside 0 to 360 degrees; a shift is the table's angle at step 0 of its mounting, \
+     0 <= shift < 360";
+
+/// Whether a (finite) shift is in range, 0 ≤ shift < 360 degrees (-0 counts as 0).
+pub(super) fn valid_shift(shift: f64) -> bool {
+    (0.0..360.0).contains(&shift)
+}
+
 /// (face − 1 − step) mod N, without overflow for any N ≥ 1.
 pub(super) fn face_offset(face: usize, step: usize, n: usize) -> usize {
     let n128 = n as u128;

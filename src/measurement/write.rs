@@ -40,14 +40,19 @@ impl Column {
     pub const TEMPERATURE: Column = Column(Col::Temperature);
     /// `encoder`: the position the table reported, degrees.
     pub const ENCODER: Column = Column(Col::Encoder);
+    /// `shift`: the table's angle at step 0 of the mounting, degrees. A [`Reading`] does
+    /// not carry it (the set does, per setup): [`Columns::row`] writes 0,
+    /// [`Columns::row_with_shift`] the shift given.
+    pub const SHIFT: Column = Column(Col::Shift);
 
     /// The column's name in the header, e.g. `reading_y`.
     pub fn name(self) -> &'static str {
         self.0.name()
     }
 
-    /// Appends the field of `reading` in this column (empty for a value not recorded).
-    fn write_field(self, reading: &Reading, out: &mut String) {
+    /// Appends the field of `reading` in this column (empty for a value not recorded), with
+    /// `shift_deg` the shift of its mounting.
+    fn write_field(self, reading: &Reading, shift_deg: f64, out: &mut String) {
         let optional = |value: Option<f64>| value.map(|x| x.to_string()).unwrap_or_default();
         let field = match self.0 {
             Col::Cycle => reading.cycle.to_string(),
@@ -61,8 +66,7 @@ impl Column {
             Col::ReadingY => optional(reading.reading_y_arcsec),
             Col::Temperature => optional(reading.temperature_celsius),
             Col::Encoder => optional(reading.encoder_degrees),
-            // No `Column` names it: polycal writes every mounting unshifted.
-            Col::Shift => "0".to_string(),
+            Col::Shift => shift_deg.to_string(),
         };
         out.push_str(&field);
     }
@@ -104,14 +108,20 @@ impl Columns {
         names.join(",")
     }
 
-    /// The row of `reading`, without its line feed.
+    /// The row of `reading`, without its line feed (a `shift` column gets 0).
     pub fn row(&self, reading: &Reading) -> String {
+        self.row_with_shift(reading, 0.0)
+    }
+
+    /// The row of `reading` of a mounting shifted by `shift_deg` degrees (the `shift`
+    /// column), without its line feed.
+    pub fn row_with_shift(&self, reading: &Reading, shift_deg: f64) -> String {
         let mut out = String::new();
         for (i, column) in self.0.iter().enumerate() {
             if i > 0 {
                 out.push(',');
             }
-            column.write_field(reading, &mut out);
+            column.write_field(reading, shift_deg, &mut out);
         }
         out
     }
@@ -185,13 +195,24 @@ impl<W: Write> ReadingWriter<W> {
         ReadingWriter { writer, columns }
     }
 
-    /// Writes the row of `reading`, line feed included, with one `write_all`.
+    /// Writes the row of `reading`, line feed included, with one `write_all` (a `shift`
+    /// column gets 0).
     ///
     /// # Errors
     ///
     /// Any error of `writer`.
     pub fn write(&mut self, reading: &Reading) -> io::Result<()> {
-        let mut row = self.columns.row(reading);
+        self.write_with_shift(reading, 0.0)
+    }
+
+    /// Writes the row of `reading` of a mounting shifted by `shift_deg` degrees (the
+    /// `shift` column), line feed included, with one `write_all`.
+    ///
+    /// # Errors
+    ///
+    /// Any error of `writer`.
+    pub fn write_with_shift(&mut self, reading: &Reading, shift_deg: f64) -> io::Result<()> {
+        let mut row = self.columns.row_with_shift(reading, shift_deg);
         row.push('\n');
         self.writer.write_all(row.as_bytes())
     }
@@ -220,7 +241,8 @@ impl<W: Write> ReadingWriter<W> {
 impl MeasurementSet {
     /// The columns [`MeasurementSet::write_to`] writes: `cycle,step,ac,face,reading,
     /// direction,setup`, followed by `time`, `reading_y`, `temperature` and `encoder`,
-    /// each only if some reading has that value.
+    /// each only if some reading has that value, and `shift` when some mounting's shift
+    /// is not 0.
     pub fn columns(&self) -> Columns {
         let mut columns = vec![
             Column::CYCLE,
@@ -243,6 +265,9 @@ impl MeasurementSet {
                 columns.push(column);
             }
         }
+        if self.has_shifts() {
+            columns.push(Column::SHIFT);
+        }
         Columns::new(columns)
     }
 
@@ -251,7 +276,8 @@ impl MeasurementSet {
     /// The columns are [`MeasurementSet::columns`]; a reading without a value of an
     /// optional column gets an empty field. Floats are written with Rust's `{}`
     /// formatting, the shortest text that reads back to the same `f64`, so reading the
-    /// output back gives an equal set (apart from [`Reading::line`] and `source`). A
+    /// output back gives an equal set (apart from [`Reading::line`] and `source`; the
+    /// shifts of the mountings included). A
     /// comment holding line breaks becomes several comment lines. Rows keep the set's
     /// order; lines end with `\n`. Non-finite values (possible only in a set not built by
     /// this module) are written as Rust prints them and would be refused on reading.
@@ -262,7 +288,7 @@ impl MeasurementSet {
     pub fn write_to<W: Write>(&self, writer: W, comments: &[String]) -> io::Result<()> {
         let mut w = ReadingWriter::start(BufWriter::new(writer), self.columns(), comments)?;
         for reading in &self.readings {
-            w.write(reading)?;
+            w.write_with_shift(reading, self.shift_deg(reading.setup))?;
         }
         w.into_inner().flush()
     }

@@ -19,9 +19,12 @@ pub mod solve;
 pub mod solve_table;
 
 pub use solve::{
-    Format, SetupErrorReport, SolveReport, result_rows, result_rows_with, write_results_with_file,
+    Format, SetupErrorReport, SolveReport, result_rows, result_rows_with, sub_pitch_result_rows,
+    write_results_with_file,
 };
-pub use solve_table::{write_final_model_results, write_results, write_table};
+pub use solve_table::{
+    write_final_model_results, write_results, write_sub_pitch_table, write_table,
+};
 
 use serde::Serialize;
 

@@ -5,6 +5,7 @@
 //! the same double); only the table rounds.
 
 use crate::results::{Quantity, ResultRow};
+use crate::solve::sub_pitch::SubPitchSolution;
 use crate::solve::{SigmaSource, Solution};
 use crate::uncertainty::calibration::{CalibrationMonteCarlo, CalibrationUncertainty};
 use serde::Serialize;
@@ -66,6 +67,10 @@ pub struct SolveReport {
     pub encoder_error: Vec<f64>,
     /// u(α), k = 1.
     pub encoder_error_u: Option<Vec<f64>>,
+    /// Sub-pitch mountings only (docs/FORMAT.md §9.1): the table angle of each
+    /// `encoder_error`, degrees, ascending.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub encoder_angle_deg: Option<Vec<f64>>,
     /// Setup errors per (setup, ac).
     pub setup_error: Vec<SetupErrorReport>,
     /// Effect terms in the fitted model (docs/FORMAT.md §6); empty for the base model.
@@ -78,6 +83,10 @@ pub struct SolveReport {
     pub sigma: Option<f64>,
     /// `residual` or `stated` (an addition).
     pub sigma_source: Option<&'static str>,
+    /// Sub-pitch mountings only: what a reader must know about the result (each coset's
+    /// encoder errors are determined up to a constant, docs/FORMAT.md §9.1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub notes: Option<Vec<String>>,
     /// Coverage probability of the expanded uncertainties (with `--budget`; an addition,
     /// like every field below).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -126,6 +135,7 @@ impl SolveReport {
             face_deviation_u: solution.face_deviation_u(),
             encoder_error: solution.encoder_error.clone(),
             encoder_error_u: solution.encoder_error_u(),
+            encoder_angle_deg: None,
             setup_error: solution
                 .setup_error
                 .iter()
@@ -147,6 +157,7 @@ impl SolveReport {
                 SigmaSource::Residual => "residual",
                 SigmaSource::Stated => "stated",
             }),
+            notes: None,
             p: None,
             pitch_deviation_expanded_u: None,
             pitch_deviation_k: None,
@@ -157,6 +168,22 @@ impl SolveReport {
             uncertainty: None,
             monte_carlo: None,
         }
+    }
+
+    /// The report of a set with shifted mountings
+    /// ([`solve_shifted`](crate::solve::sub_pitch::solve_shifted)): for sub-pitch mountings
+    /// `encoder_error` and `encoder_error_u` cover every table angle of every coset, in
+    /// the order of `encoder_angle_deg`, and `notes` says what fixes each coset's
+    /// constant; for whole-face shifts the report of the solution, as [`SolveReport::new`].
+    pub fn sub_pitch(solved: &SubPitchSolution, file: Option<String>) -> Self {
+        let mut report = Self::new(&solved.solution, file);
+        if solved.is_sub_pitch() {
+            report.encoder_error = solved.encoder_error.clone();
+            report.encoder_error_u = solved.encoder_error_u.clone();
+            report.encoder_angle_deg = Some(solved.encoder_angle_deg.clone());
+            report.notes = Some(solved.notes.clone());
+        }
+        report
     }
 
     /// Adds the expanded uncertainties of `--budget`.
@@ -283,6 +310,41 @@ pub fn result_rows_with(
         }
     }
     rows
+}
+
+/// The result rows (docs/FORMAT.md §3) of a set with shifted mountings
+/// ([`solve_shifted`](crate::solve::sub_pitch::solve_shifted)): as [`result_rows`],
+/// except that for sub-pitch mountings the `encoder_error` rows cover every table angle
+/// of every coset, index 0 … C·N − 1 in the order of
+/// [`SubPitchSolution::encoder_angle_deg`].
+pub fn sub_pitch_result_rows(solved: &SubPitchSolution) -> Vec<ResultRow> {
+    let rows = result_rows(&solved.solution);
+    if !solved.is_sub_pitch() {
+        return rows;
+    }
+    let encoder: Vec<ResultRow> = (0..)
+        .zip(&solved.encoder_error)
+        .enumerate()
+        .map(|(i, (index, &value))| {
+            let row = ResultRow::new(Quantity::EncoderError, index, value)
+                .with_angle_deg(solved.encoder_angle_deg[i]);
+            match &solved.encoder_error_u {
+                Some(u) => row.with_u(u[i]),
+                None => row,
+            }
+        })
+        .collect();
+    let first = rows
+        .iter()
+        .position(|r| r.quantity == Quantity::EncoderError)
+        .unwrap_or(rows.len());
+    let mut out: Vec<ResultRow> = rows.iter().take(first).cloned().chain(encoder).collect();
+    out.extend(
+        rows.into_iter()
+            .skip(first)
+            .filter(|r| r.quantity != Quantity::EncoderError),
+    );
+    out
 }
 
 /// Writes the result rows of several files as one CSV with a leading `file` column (an

@@ -4,6 +4,7 @@
 //! ([`write_final_model_results`]).
 
 use super::fixed;
+use crate::solve::sub_pitch::SubPitchSolution;
 use crate::solve::{Engine, SigmaSource, Solution};
 use crate::uncertainty::calibration::{CalibrationMonteCarlo, CalibrationUncertainty, McFamily};
 use std::fmt::{self, Write};
@@ -24,6 +25,17 @@ pub fn write_table<W: Write>(
     uncertainty: Option<&CalibrationUncertainty>,
     monte_carlo: Option<&CalibrationMonteCarlo>,
 ) -> fmt::Result {
+    write_summary(out, solution, source)?;
+    write_results(out, solution, uncertainty)?;
+    if let Some(mc) = monte_carlo {
+        write_monte_carlo(out, solution, uncertainty, mc)?;
+    }
+    Ok(())
+}
+
+/// The two summary lines of the table: the file, then N, readings, method, dof and
+/// residual RMS.
+fn write_summary<W: Write>(out: &mut W, solution: &Solution, source: &str) -> fmt::Result {
     let n = solution.faces;
     let method = match solution.engine {
         Engine::ClosedForm => "closed form (paper eqs. (6)-(10))".to_string(),
@@ -39,12 +51,7 @@ pub fn write_table<W: Write>(
         solution.readings,
         solution.dof,
         rms_text(solution)
-    )?;
-    write_results(out, solution, uncertainty)?;
-    if let Some(mc) = monte_carlo {
-        write_monte_carlo(out, solution, uncertainty, mc)?;
-    }
-    Ok(())
+    )
 }
 
 /// Writes the results section of the table, what [`write_table`] prints after its two
@@ -60,6 +67,43 @@ pub fn write_results<W: Write>(
     out: &mut W,
     solution: &Solution,
     uncertainty: Option<&CalibrationUncertainty>,
+) -> fmt::Result {
+    write_results_with(out, solution, uncertainty, None)
+}
+
+/// Writes the table of a set with shifted mountings
+/// ([`solve_shifted`](crate::solve::sub_pitch::solve_shifted)): as [`write_table`]
+/// without a budget, except that for sub-pitch mountings the encoder section lists every
+/// table angle of every coset, sorted by angle (index, angle, α, u(α)), and the notes
+/// follow the table.
+///
+/// # Errors
+///
+/// The writer's error.
+pub fn write_sub_pitch_table<W: Write>(
+    out: &mut W,
+    solved: &SubPitchSolution,
+    source: &str,
+) -> fmt::Result {
+    let solution = &solved.solution;
+    write_summary(out, solution, source)?;
+    write_results_with(out, solution, None, Some(solved))?;
+    if !solved.notes.is_empty() {
+        writeln!(out)?;
+        for note in &solved.notes {
+            writeln!(out, "note: {note}")?;
+        }
+    }
+    Ok(())
+}
+
+/// The results section, with the encoder errors of every coset when `sub_pitch` has
+/// sub-pitch mountings.
+fn write_results_with<W: Write>(
+    out: &mut W,
+    solution: &Solution,
+    uncertainty: Option<&CalibrationUncertainty>,
+    sub_pitch: Option<&SubPitchSolution>,
 ) -> fmt::Result {
     let n = solution.faces;
     match solution.sigma {
@@ -156,6 +200,28 @@ pub fn write_results<W: Write>(
     }
     writeln!(out, "\nEncoder (arcsec)")?;
     match uncertainty {
+        None if let Some(solved) = sub_pitch.filter(|s| s.is_sub_pitch()) => {
+            writeln!(
+                out,
+                "{:>8} {:>11} {:>9} {:>8}",
+                "index", "angle/°", "α", "u(α)"
+            )?;
+            for (i, (angle, alpha)) in solved
+                .encoder_angle_deg
+                .iter()
+                .zip(&solved.encoder_error)
+                .enumerate()
+            {
+                writeln!(
+                    out,
+                    "{:>8} {:>11.4} {:>9.4} {:>8}",
+                    i,
+                    angle,
+                    alpha,
+                    fixed(at(&solved.encoder_error_u, i), 4),
+                )?;
+            }
+        }
         None => {
             writeln!(
                 out,

@@ -31,6 +31,14 @@ impl Harmonic {
         let x = std::f64::consts::TAU * (self.order as f64) * (p as f64) / (faces as f64);
         self.amplitude_arcsec * (x + self.phase_rad).cos()
     }
+
+    /// The harmonic's value at the table angle `angle_deg` (degrees): the same continuous
+    /// function of the angle as [`Harmonic::value_at`], `amplitude·cos(2π·order·angle/360 +
+    /// phase)`, anywhere between the positions.
+    pub fn value_at_deg(&self, angle_deg: f64) -> f64 {
+        let x = std::f64::consts::TAU * (self.order as f64) * angle_deg / 360.0;
+        self.amplitude_arcsec * (x + self.phase_rad).cos()
+    }
 }
 
 impl FromStr for Harmonic {
@@ -108,7 +116,9 @@ impl fmt::Display for Harmonic {
 /// Everything random comes from `seed`.
 ///
 /// At step p of setup s, autocollimator j reads face
-/// `((ac_faces[j-1] − 1) + (s − 1)·setup_shift_faces + p) mod N + 1`.
+/// `((ac_faces[j-1] − 1) + (s − 1)·setup_shift_faces + p) mod N + 1`, and the table
+/// stands at `table_shift_deg[s-1]` + p·360°/N (at p·360°/N when `table_shift_deg` is
+/// empty).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct SimulationConfig {
@@ -121,6 +131,11 @@ pub struct SimulationConfig {
     pub setups: u32,
     /// Whole-face shift of the polygon between consecutive setups, 0 … N−1.
     pub setup_shift_faces: usize,
+    /// The table's angle at step 0 of each setup, degrees, 0 ≤ shift < 360 (the `shift`
+    /// column, docs/FORMAT.md §2, §9.1): empty, every setup at 0; else one per setup,
+    /// setup 1 first. A shift that is not a whole multiple of 360°/N puts the mounting's
+    /// stops, and the encoder errors it reads, between the N positions.
+    pub table_shift_deg: Vec<f64>,
     /// Number of cycles per setup, ≥ 1.
     pub cycles: u32,
     /// Whether clockwise cycles end with the closing reading at step N.
@@ -171,6 +186,7 @@ impl Default for SimulationConfig {
             ac_faces: vec![1, 2],
             setups: 1,
             setup_shift_faces: 1,
+            table_shift_deg: Vec::new(),
             cycles: 6,
             closing: true,
             bidirectional: false,
@@ -237,10 +253,21 @@ impl SimulationConfig {
         crate::measurement::face_at(step, ((f0 + n - 1) % n + shift) % n, n)
     }
 
+    /// The table's angle at step 0 of `setup` (1-based), degrees: `table_shift_deg[setup-1]`,
+    /// 0 when the list is empty (or does not reach that setup).
+    pub fn table_shift_of(&self, setup: u32) -> f64 {
+        (setup as usize)
+            .checked_sub(1)
+            .and_then(|i| self.table_shift_deg.get(i))
+            .copied()
+            .unwrap_or(0.0)
+    }
+
     /// Checks the settings; the error names the first problem found.
     ///
     /// Refused: faces < 3; no autocollimator, a face outside 1 … N or the same face twice
-    /// in `ac_faces`; setups or cycles 0; a shift ≥ N; a negative or non-finite spread or
+    /// in `ac_faces`; setups or cycles 0; a shift ≥ N; table shifts that are not one per
+    /// setup or not finite in 0 ≤ shift < 360; a negative or non-finite spread or
     /// noise; a step time that is not positive and finite; a harmonic of order 0 or with
     /// a non-finite number; a run of more than [`MAX_READINGS`] readings; Student-t
     /// degrees of freedom that are not a finite number > 2; a temperature or elevation
@@ -283,6 +310,23 @@ impl SimulationConfig {
                 self.setup_shift_faces,
                 n - 1
             ));
+        }
+        if !self.table_shift_deg.is_empty() {
+            if self.table_shift_deg.len() != self.setups as usize {
+                return bad(format!(
+                    "{} table shift(s) for {} setup(s); give one per setup",
+                    self.table_shift_deg.len(),
+                    self.setups
+                ));
+            }
+            for (i, &shift) in self.table_shift_deg.iter().enumerate() {
+                if !(shift.is_finite() && (0.0..360.0).contains(&shift)) {
+                    return bad(format!(
+                        "table shift {shift}° of setup {}; must be a finite angle, 0 ≤ shift < 360",
+                        i + 1
+                    ));
+                }
+            }
         }
         if self.cycles == 0 {
             return bad("cycles is 0; need at least 1".into());

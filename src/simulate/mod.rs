@@ -19,8 +19,17 @@
 //! Readings are ordered by time, then autocollimator. `time_seconds` is the number of
 //! stops before this one (over the whole run, across cycles and setups) times
 //! `step_seconds`, shared by the autocollimators of one stop, starting at 0.
-//! `encoder_degrees` is the commanded position step·360/N (360 at the closing step);
-//! `line` is 0.
+//! `encoder_degrees` is the commanded position step·360/N (360 at the closing step)
+//! plus the setup's table shift; `line` is 0.
+//!
+//! # Shifted mountings
+//!
+//! With `table_shift_deg`, setup s stops at `table_shift_deg[s-1]` + step·360°/N; the set
+//! keeps the shifts ([`MeasurementSet::setup_shift_deg`], written as the `shift` column)
+//! and each reading's α is the truth's encoder error at its table angle
+//! ([`Truth::model_reading_shifted`]). Shifts that are not whole multiples of 360°/N give
+//! the truth an encoder error at every table angle of every coset (`encoder_angle_deg`,
+//! [`Truth::draw`]); whole-face shifts keep the N positions.
 //!
 //! `temperature_celsius` is `None` unless the configuration has a [`TemperatureModel`];
 //! then every reading of a stop has the model's temperature at the stop's time, and the
@@ -196,6 +205,17 @@ pub fn simulate_with_truth(
             "it has a temperature effect but no reference_temperature_celsius".into(),
         ));
     }
+    for setup in 1..=config.setups {
+        let shift = config.table_shift_of(setup);
+        for p in 0..config.faces {
+            let angle = shift + p as f64 * 360.0 / config.faces as f64;
+            if truth.encoder_error_at_deg(angle).is_none() {
+                return Err(mismatch(format!(
+                    "it has no encoder error at the table angle {angle}° (setup {setup}, step {p})"
+                )));
+            }
+        }
+    }
     let elevation = match (&config.elevation, &truth.elevation) {
         (Some(model), Some(geometry)) => Some((model, geometry)),
         (Some(_), None) => {
@@ -230,6 +250,7 @@ pub fn simulate_with_truth(
     let mut readings = Vec::with_capacity(config.reading_count());
     let mut stop: usize = 0;
     for setup in 1..=config.setups {
+        let shift = config.table_shift_of(setup);
         for Stop {
             cycle,
             step,
@@ -237,7 +258,7 @@ pub fn simulate_with_truth(
         } in run_stops(n, config.cycles, config.closing, config.bidirectional)
         {
             let time = stop as f64 * config.step_seconds;
-            let encoder = step as f64 * 360.0 / n as f64;
+            let encoder = step as f64 * 360.0 / n as f64 + shift;
             let temperature = temperatures.as_ref().and_then(|t| t.get(stop).copied());
             for ac in 1..=n_ac {
                 let face = config.face_at(setup, ac, step);
@@ -261,10 +282,10 @@ pub fn simulate_with_truth(
                 };
                 let z: f64 = StandardNormal.sample(&mut rng);
                 reading.reading_arcsec = match &mut student {
-                    None => truth.model_reading(&reading) + config.noise_arcsec * z,
+                    None => truth.model_reading_shifted(&reading, shift) + config.noise_arcsec * z,
                     Some((nu, chi_squared, chi_rng)) => {
                         let w: f64 = chi_squared.sample(chi_rng);
-                        truth.model_reading(&reading)
+                        truth.model_reading_shifted(&reading, shift)
                             + config.noise_arcsec * z * ((*nu - 2.0) / w).sqrt()
                     }
                 };
@@ -277,5 +298,9 @@ pub fn simulate_with_truth(
         faces: n,
         readings,
         source: "simulated".into(),
+        setup_shift_deg: (1..=config.setups)
+            .map(|s| (s, config.table_shift_of(s)))
+            .filter(|&(_, shift)| shift != 0.0)
+            .collect(),
     })
 }

@@ -15,6 +15,7 @@ use crate::effects::{Effect, EffectContext};
 use crate::measurement::Reading;
 use crate::polygon::face_deviation_from_pitch;
 use crate::results::Quantity;
+use crate::solve::sub_pitch::{POSITION_TOLERANCE, ShiftGeometry};
 
 /// The true setup error `U[setup, ac]` of one autocollimator in one mounting, in the
 /// generic gauge of docs/FORMAT.md §1.
@@ -39,8 +40,13 @@ pub struct Truth {
     pub faces: usize,
     /// Pitch deviations β\[1\] … β\[N\], arcsec.
     pub pitch_deviation: Vec<f64>,
-    /// Encoder errors α\[0\] … α\[N−1\], arcsec.
+    /// Encoder errors α\[0\] … α\[N−1\], arcsec; with `encoder_angle_deg`, one per angle.
     pub encoder_error: Vec<f64>,
+    /// Only for a run with sub-pitch mountings (docs/FORMAT.md §9.1): the table angle of
+    /// each `encoder_error`, degrees, ascending: every table angle of every coset the
+    /// mountings stop at. `None`: `encoder_error[p]` is at p·360°/N.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub encoder_angle_deg: Option<Vec<f64>>,
     /// Face deviations φ\[1\] … φ\[N\], arcsec (cumulative sums of `pitch_deviation`); empty
     /// means "compute from `pitch_deviation`".
     #[serde(default)]
@@ -85,6 +91,12 @@ impl Truth {
     ///
     /// - β\[k\] = `pitch_spread_arcsec`·z − mean, z standard normal, so Σβ = 0;
     /// - α\[p\] = Σ over harmonics of `a·cos(2π·k·p/N + phase)`, minus the mean, so Σα = 0;
+    ///   with sub-pitch mountings (`table_shift_deg` not all whole multiples of 360°/N),
+    ///   the same continuous function at every table angle the run stops at (every angle
+    ///   of every coset, ascending, in `encoder_angle_deg`), minus its mean over those
+    ///   angles: the encoder error is harmonics only, so that it has a value at any angle
+    ///   (a harmonic whose order is a multiple of N is a different constant in each
+    ///   coset, which the polygon cannot see);
     /// - U\[setup, ac\] = `setup_error_spread_arcsec`·z for every setup and autocollimator;
     /// - φ = cumulative sums of β; `effects`, `noise_arcsec` and `noise_student_dof`
     ///   copied from `config`;
@@ -113,15 +125,35 @@ impl Truth {
             .collect();
         close(&mut pitch_deviation);
 
-        let mut encoder_error: Vec<f64> = (0..n)
-            .map(|p| {
-                config
-                    .encoder_harmonics
-                    .iter()
-                    .map(|h| h.value_at(p, n))
-                    .sum()
-            })
-            .collect();
+        let geometry = ShiftGeometry::new(
+            n,
+            (1..=config.setups).map(|s| (s, config.table_shift_of(s))),
+        );
+        let (mut encoder_error, encoder_angle_deg): (Vec<f64>, _) = if geometry.is_sub_pitch() {
+            let angles = geometry.angles_deg();
+            let values = angles
+                .iter()
+                .map(|&a| {
+                    config
+                        .encoder_harmonics
+                        .iter()
+                        .map(|h| h.value_at_deg(a))
+                        .sum()
+                })
+                .collect();
+            (values, Some(angles))
+        } else {
+            let values = (0..n)
+                .map(|p| {
+                    config
+                        .encoder_harmonics
+                        .iter()
+                        .map(|h| h.value_at(p, n))
+                        .sum()
+                })
+                .collect();
+            (values, None)
+        };
         close(&mut encoder_error);
 
         let mut setup_error = Vec::new();
@@ -155,6 +187,7 @@ impl Truth {
             face_deviation: face_deviation_from_pitch(&pitch_deviation),
             pitch_deviation,
             encoder_error,
+            encoder_angle_deg,
             setup_error,
             effects: config.effects.clone(),
             noise_arcsec: Some(config.noise_arcsec),
@@ -219,17 +252,50 @@ impl Truth {
         if n < 3 {
             return Err(format!("faces is {n}; a polygon needs at least 3 faces"));
         }
-        let lists = [
-            (Quantity::PitchDeviation, &self.pitch_deviation, false),
-            (Quantity::EncoderError, &self.encoder_error, false),
-            (Quantity::FaceDeviation, &self.face_deviation, true),
-        ];
-        for (name, list, may_be_empty) in lists {
-            if list.len() != n && !(may_be_empty && list.is_empty()) {
+        let angles = self.encoder_angle_deg.as_deref();
+        if let Some(angles) = angles {
+            if angles.len() < n {
                 return Err(format!(
-                    "{name} has {} values, but faces is {n}",
-                    list.len()
+                    "encoder_angle_deg has {} angles, fewer than faces ({n})",
+                    angles.len()
                 ));
+            }
+            if let Some(i) = angles
+                .iter()
+                .position(|a| !(a.is_finite() && (0.0..360.0).contains(a)))
+            {
+                return Err(format!(
+                    "encoder_angle_deg[{i}] is not a finite angle, 0 <= angle < 360"
+                ));
+            }
+            if let Some(i) = angles.windows(2).position(|w| w[1] <= w[0]) {
+                return Err(format!(
+                    "encoder_angle_deg[{}] is not above the angle before it; the angles \
+                     ascend",
+                    i + 1
+                ));
+            }
+        }
+        let lists = [
+            (Quantity::PitchDeviation, &self.pitch_deviation, n, false),
+            (
+                Quantity::EncoderError,
+                &self.encoder_error,
+                angles.map_or(n, <[f64]>::len),
+                false,
+            ),
+            (Quantity::FaceDeviation, &self.face_deviation, n, true),
+        ];
+        for (name, list, len, may_be_empty) in lists {
+            if list.len() != len && !(may_be_empty && list.is_empty()) {
+                return Err(if len == n {
+                    format!("{name} has {} values, but faces is {n}", list.len())
+                } else {
+                    format!(
+                        "{name} has {} values, but encoder_angle_deg {len} angles",
+                        list.len()
+                    )
+                });
             }
             if let Some(i) = list.iter().position(|v| !v.is_finite()) {
                 return Err(format!("{name}[{i}] is not a finite number"));
@@ -340,20 +406,69 @@ impl Truth {
         }
     }
 
+    /// The true encoder error at the table angle `angle_deg` (degrees, taken modulo 360):
+    /// the `encoder_error` whose angle is within 10⁻⁶ positions of it (`encoder_angle_deg`,
+    /// or p·360°/N without it); `None` when the truth has no value there.
+    ///
+    /// ```
+    /// use polycal::simulate::{SimulationConfig, Truth};
+    ///
+    /// let truth = Truth::draw(&SimulationConfig { faces: 8, ..SimulationConfig::default() })?;
+    /// assert_eq!(truth.encoder_error_at_deg(90.0), Some(truth.encoder_error[2]));
+    /// assert_eq!(truth.encoder_error_at_deg(-45.0), Some(truth.encoder_error[7]));
+    /// assert_eq!(truth.encoder_error_at_deg(10.0), None);
+    /// # Ok::<(), polycal::simulate::SimulateError>(())
+    /// ```
+    pub fn encoder_error_at_deg(&self, angle_deg: f64) -> Option<f64> {
+        let n = self.faces;
+        if n == 0 || !angle_deg.is_finite() {
+            return None;
+        }
+        let pitch = 360.0 / n as f64;
+        let a = angle_deg.rem_euclid(360.0);
+        let Some(angles) = &self.encoder_angle_deg else {
+            let x = a / pitch;
+            let q = x.round();
+            return ((x - q).abs() <= POSITION_TOLERANCE)
+                .then(|| self.encoder_error.get(q as usize % n).copied())
+                .flatten();
+        };
+        let last = angles.len().checked_sub(1)?;
+        let i = angles.partition_point(|&b| b < a);
+        [i.checked_sub(1), Some(i.min(last)), Some(0), Some(last)]
+            .into_iter()
+            .flatten()
+            .find(|&j| {
+                let d = (angles[j] - a).abs();
+                d.min(360.0 - d) <= POSITION_TOLERANCE * pitch
+            })
+            .and_then(|j| self.encoder_error.get(j).copied())
+    }
+
     /// The noise-free model value of a reading:
     /// `α[step mod N] + φ[face] + U[setup, ac] + Σ effect.value · effect.regressor(reading)`,
     /// added in that order. A missing setup error counts as 0. NaN when the reading's face
-    /// is outside 1 … N or the truth is incomplete.
+    /// is outside 1 … N or the truth is incomplete. The reading's mounting is taken as
+    /// unshifted ([`Truth::model_reading_shifted`] with 0).
     pub fn model_reading(&self, reading: &Reading) -> f64 {
+        self.model_reading_shifted(reading, 0.0)
+    }
+
+    /// [`Truth::model_reading`] of a reading of a mounting whose table stands at
+    /// `shift_deg` degrees at step 0: α is the encoder error at the table angle
+    /// `shift_deg` + (step mod N)·360°/N ([`Truth::encoder_error_at_deg`]; NaN when the
+    /// truth has none there). With a shift of 0 and no `encoder_angle_deg`, α\[step mod N\].
+    pub fn model_reading_shifted(&self, reading: &Reading, shift_deg: f64) -> f64 {
         let n = self.faces;
         if n == 0 {
             return f64::NAN;
         }
-        let alpha = self
-            .encoder_error
-            .get(reading.step % n)
-            .copied()
-            .unwrap_or(f64::NAN);
+        let alpha = if shift_deg == 0.0 && self.encoder_angle_deg.is_none() {
+            self.encoder_error.get(reading.step % n).copied()
+        } else {
+            self.encoder_error_at_deg(shift_deg + (reading.step % n) as f64 * 360.0 / n as f64)
+        }
+        .unwrap_or(f64::NAN);
         let phi = self.face_deviation_at(reading.face);
         let u = self
             .setup_error_of(reading.setup, reading.ac)

@@ -14,7 +14,14 @@
 //!   autocollimators at any faces, repeated cycles, closing readings, both directions,
 //!   several mountings) and returns the full covariance;
 //! - [`solve`] picks between them ([`Method::Auto`]) and is the entry point of
-//!   `polycal solve`.
+//!   `polycal solve`;
+//! - [`sub_pitch`] knows where shifted mountings (the `shift` column) put the encoder:
+//!   [`solve`] maps whole-face shifts to encoder positions itself, and
+//!   [`sub_pitch::solve_shifted`] solves mountings at any angle, with encoder errors at
+//!   every table angle of every coset.
+//!
+//! The lower-level solvers ([`least_squares()`], [`closed_form()`], …) do not consult the
+//! set's shifts: each reading's encoder position is its step mod N.
 //!
 //! Before solving, the design is checked for observability ([`observability`]): a design
 //! that cannot determine every β and α is refused with the Fourier harmonics it loses.
@@ -26,6 +33,7 @@ pub mod dense;
 pub mod least_squares;
 pub mod memory;
 pub mod observability;
+pub mod sub_pitch;
 
 pub use closed_form::{ClosedFormSolution, NotPaperDesign, PaperDesign, closed_form};
 pub use cofactor::Cofactor;
@@ -196,6 +204,26 @@ pub enum SolveError {
         index: usize,
         /// What is wrong.
         reason: String,
+    },
+    /// [`solve`] of a set with sub-pitch mountings (a shift that is not a whole multiple
+    /// of 360°/N): its encoder errors lie at other angles than the N positions, which a
+    /// [`Solution`] cannot hold; [`sub_pitch::solve_shifted`] solves it.
+    #[error(
+        "the mountings' shifts are not all whole multiples of 360°/{faces}: their encoder \
+         errors lie at {cosets} coset(s) of {faces} table angles, which sub_pitch::solve_shifted \
+         evaluates"
+    )]
+    SubPitch {
+        /// N.
+        faces: usize,
+        /// The number of cosets of table angles.
+        cosets: usize,
+    },
+    /// An evaluation that does not handle shifted mountings (a `shift` other than 0) yet.
+    #[error("{evaluation} does not handle shifted mountings (a mounting whose shift is not 0) yet")]
+    ShiftedMountings {
+        /// What was asked, e.g. `the diagnosis`.
+        evaluation: &'static str,
     },
 }
 
@@ -381,7 +409,36 @@ impl Solution {
 /// }
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
+///
+/// Mountings shifted by whole faces (docs/FORMAT.md §2 `shift`) are solved in encoder
+/// positions ([`sub_pitch::ShiftGeometry::encoder_set`]); a set without shifts is solved
+/// as it stands.
+///
+/// # Errors
+///
+/// [`SolveError::SubPitch`] for a set with sub-pitch mountings (use
+/// [`sub_pitch::solve_shifted`]); a design that cannot be determined
+/// ([`SolveError::Unobservable`]), is too large ([`SolveError::TooLarge`]) or, for
+/// [`Method::ClosedForm`], is not the paper's ([`SolveError::ClosedFormNotApplicable`]).
 pub fn solve(set: &MeasurementSet, options: &SolveOptions) -> Result<Solution, SolveError> {
+    if !set.has_shifts() {
+        return solve_positions(set, options);
+    }
+    let geometry = sub_pitch::ShiftGeometry::of(set);
+    if geometry.is_sub_pitch() {
+        return Err(SolveError::SubPitch {
+            faces: set.faces,
+            cosets: geometry.cosets(),
+        });
+    }
+    solve_positions(&geometry.encoder_set(set), options)
+}
+
+/// [`solve`] of a set whose steps are its encoder positions (shifts not consulted).
+pub(crate) fn solve_positions(
+    set: &MeasurementSet,
+    options: &SolveOptions,
+) -> Result<Solution, SolveError> {
     match options.method {
         Method::LeastSquares => least_squares_with_options(set, &[], options),
         Method::Dense => least_squares::dense_with_options(set, &[], options),

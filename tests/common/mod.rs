@@ -78,6 +78,7 @@ pub fn readings(
         faces: n,
         readings: out,
         source: "test".into(),
+        setup_shift_deg: Default::default(),
     }
 }
 

@@ -139,6 +139,13 @@ pub enum CalibrationError {
     /// The Monte Carlo run failed.
     #[error(transparent)]
     MonteCarlo(#[from] McError),
+    /// The set has shifted mountings (a `shift` other than 0), which the propagation
+    /// through the design does not handle yet.
+    #[error(
+        "the uncertainty budget does not handle shifted mountings (a mounting whose shift is \
+         not 0) yet"
+    )]
+    ShiftedMountings,
 }
 
 #[cfg(test)]
@@ -181,6 +188,7 @@ pub(crate) mod test_support {
             faces: n,
             readings,
             source: "test".into(),
+            setup_shift_deg: Default::default(),
         }
     }
 }

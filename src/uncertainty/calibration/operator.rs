@@ -46,6 +46,10 @@ const DENSE_UP_TO: usize = 256;
 
 impl Operator {
     pub(super) fn new(set: &MeasurementSet, solution: &Solution) -> Result<Self, CalibrationError> {
+        if set.has_shifts() {
+            // the design below reads the encoder at step mod N, and the stops by step
+            return Err(CalibrationError::ShiftedMountings);
+        }
         let n = solution.faces;
         let layout = solution.layout;
         if set.faces != n

@@ -1,0 +1,590 @@
+//! Shifted mountings (docs/FORMAT.md §2 `shift`, §9.1): the one place that knows where a
+//! mounting's shift puts the encoder.
+//!
+//! A mounting (`setup`) whose table stands at angle σ at step 0 stops at σ + p·360°/N.
+//! In positions (units of 360°/N) that is x + p with x = σ·N/360; write
+//! x = m + f with m = ⌊x + 10⁻⁶⌋ whole positions and f the fraction (0 when x is within
+//! 10⁻⁶ of a whole number). Step p of the mounting is then at position (p + m) mod N of
+//! the **coset** f: the N table angles (q + f)·360°/N, q = 0 … N−1. Mountings whose
+//! fractions agree to 10⁻⁶ positions share a coset; the cosets are numbered by their
+//! fraction, smallest first (coset 0 is the whole positions when some mounting is there).
+//! [`ShiftGeometry`] is this bookkeeping.
+//!
+//! # Whole-face shifts
+//!
+//! When every fraction is 0 there is one coset, the N positions of the unshifted table:
+//! the reading model is today's with each reading's encoder position (step + m) mod N.
+//! [`ShiftGeometry::encoder_set`] renumbers the steps so (the closing step N of a mounting
+//! with m ≠ 0 becomes step m, the position it stands at), and [`super::solve`] solves that
+//! set: a set without shifts is solved exactly as before.
+//!
+//! # Sub-pitch cosets
+//!
+//! Each coset c has encoder errors α_c of its own; the polygon (β, φ) and the setup
+//! errors are shared. An N-faced polygon sees the encoder only through its N faces, so it
+//! cannot see encoder harmonics whose order is a multiple of N: on the N angles of one
+//! coset such a harmonic is a constant, a different constant in each coset. Each coset's
+//! errors are therefore determined only up to a constant, fixed by Σα_c = 0 within the
+//! coset (the notes of [`SubPitchSolution`] say so).
+//!
+//! The fit reparametrises α_c = α_0 + δ_c for c = 1 … C−1, with α_0 the engine's encoder
+//! errors (the readings' positions from [`ShiftGeometry::encoder_set`]) and δ_c (Σδ_c = 0)
+//! as effect columns of the least-squares engine, in contrast coding: for q = 0 … N−2 a
+//! column that is +1 on the readings of coset c at position q and −1 on those at position
+//! N−1, so that δ_c\[N−1\] = −Σ_{q<N−1} δ_c\[q\]. The engine (circulant or dense, as
+//! [`super::least_squares_with_options`] decides) returns α_0, δ and their cofactor, from
+//! which α_c\[q\] = α_0\[q\] + δ_c\[q\] and u²(α_c\[q\]) = σ²·wᵀQw for the w that forms it.
+
+use std::collections::BTreeMap;
+
+use super::{
+    Method, Solution, SolveError, SolveOptions, Unobservable, dense_with_options,
+    least_squares_with_options, solve_positions,
+};
+use crate::measurement::MeasurementSet;
+
+/// Tolerance, in positions (units of 360°/N): a shift within it of a whole number of
+/// positions is a whole-face shift, and two fractions within it are one coset.
+pub const POSITION_TOLERANCE: f64 = 1e-6;
+
+/// Where one mounting puts the encoder: its whole positions m and its coset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Mounting {
+    /// m, 0 … N−1: step p of the mounting is at position (p + m) mod N of its coset.
+    pub whole_positions: usize,
+    /// Its coset: an index into [`ShiftGeometry::coset_shift_deg`].
+    pub coset: usize,
+}
+
+/// The cosets of table angles the mountings' shifts make (module documentation).
+///
+/// ```
+/// use polycal::solve::sub_pitch::ShiftGeometry;
+///
+/// // 24 faces (15° apart): mountings at 0°, 5°, 20° (= 15° + 5°) and 30° (2 faces)
+/// let g = ShiftGeometry::new(24, [(1, 0.0), (2, 5.0), (3, 20.0), (4, 30.0)]);
+/// assert_eq!(g.coset_shift_deg(), &[0.0, 5.0]);
+/// assert!(g.is_sub_pitch());
+/// let m = g.mounting(3).unwrap();
+/// assert_eq!((m.whole_positions, m.coset), (1, 1));
+/// assert_eq!(g.mounting(4).unwrap().whole_positions, 2);
+/// assert_eq!(g.angle_deg(1, 2), 35.0);
+/// assert_eq!(&g.angles_deg()[..4], &[0.0, 5.0, 15.0, 20.0]);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShiftGeometry {
+    faces: usize,
+    mountings: BTreeMap<u32, Mounting>,
+    coset_shift_deg: Vec<f64>,
+}
+
+impl ShiftGeometry {
+    /// The geometry of `faces` positions and the mountings `(setup, shift)`, each shift the
+    /// table's angle at step 0 in degrees (any finite angle: taken modulo 360°; a
+    /// non-finite one, which no valid set or simulation has, counts as 0). A setup given
+    /// twice keeps its last shift. With no mounting at all the geometry has the one coset
+    /// of the whole positions.
+    pub fn new(faces: usize, shifts: impl IntoIterator<Item = (u32, f64)>) -> Self {
+        let n = faces.max(1);
+        let pitch = 360.0 / n as f64;
+        // per setup: (whole positions, fraction in positions, fraction in degrees)
+        let mut split: BTreeMap<u32, (usize, f64, f64)> = BTreeMap::new();
+        for (setup, shift) in shifts {
+            let shift = if shift.is_finite() { shift } else { 0.0 };
+            let x = shift * n as f64 / 360.0;
+            let whole = (x + POSITION_TOLERANCE).floor();
+            let fraction = x - whole;
+            let (fraction, degrees) = if fraction < POSITION_TOLERANCE {
+                (0.0, 0.0)
+            } else {
+                (fraction, (shift - whole * pitch).max(0.0))
+            };
+            let m = (whole.rem_euclid(n as f64) as usize) % n;
+            split.insert(setup, (m, fraction, degrees));
+        }
+        let mut fractions: Vec<(f64, f64)> = split.values().map(|&(_, f, d)| (f, d)).collect();
+        fractions.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // cosets: fractions within the tolerance of the first of their run
+        let mut cosets: Vec<(f64, f64)> = Vec::new();
+        for (f, d) in fractions {
+            if cosets
+                .last()
+                .is_none_or(|&(first, _)| f - first > POSITION_TOLERANCE)
+            {
+                cosets.push((f, d));
+            }
+        }
+        if cosets.is_empty() {
+            cosets.push((0.0, 0.0));
+        }
+        let coset_of = |f: f64| {
+            cosets
+                .iter()
+                .rposition(|&(first, _)| f >= first)
+                .unwrap_or(0)
+        };
+        let mountings = split
+            .into_iter()
+            .map(|(setup, (m, f, _))| {
+                (
+                    setup,
+                    Mounting {
+                        whole_positions: m,
+                        coset: coset_of(f),
+                    },
+                )
+            })
+            .collect();
+        ShiftGeometry {
+            faces,
+            mountings,
+            coset_shift_deg: cosets.into_iter().map(|(_, d)| d).collect(),
+        }
+    }
+
+    /// The geometry of a measurement set: every setup it reads, with its shift
+    /// ([`MeasurementSet::shift_deg`]).
+    pub fn of(set: &MeasurementSet) -> Self {
+        let mut setups: Vec<u32> = set.readings.iter().map(|r| r.setup).collect();
+        setups.sort_unstable();
+        setups.dedup();
+        Self::new(set.faces, setups.into_iter().map(|s| (s, set.shift_deg(s))))
+    }
+
+    /// N.
+    pub fn faces(&self) -> usize {
+        self.faces
+    }
+
+    /// The number of cosets C (at least 1).
+    pub fn cosets(&self) -> usize {
+        self.coset_shift_deg.len()
+    }
+
+    /// Each coset's shift modulo 360°/N, degrees, ascending: coset c holds the table
+    /// angles `coset_shift_deg[c]` + q·360°/N. 0 for the whole positions.
+    pub fn coset_shift_deg(&self) -> &[f64] {
+        &self.coset_shift_deg
+    }
+
+    /// Whether some mounting stands between the whole positions (some coset's shift is
+    /// not 0): its encoder errors are at other angles than p·360°/N.
+    pub fn is_sub_pitch(&self) -> bool {
+        self.coset_shift_deg.iter().any(|&d| d != 0.0)
+    }
+
+    /// Where mounting `setup` puts the encoder; `None` for a setup the geometry was not
+    /// given.
+    pub fn mounting(&self, setup: u32) -> Option<Mounting> {
+        self.mountings.get(&setup).copied()
+    }
+
+    /// The table angle of position q of coset c, degrees: q·360°/N + the coset's shift.
+    ///
+    /// # Panics
+    ///
+    /// When `coset` is not below [`ShiftGeometry::cosets`].
+    pub fn angle_deg(&self, coset: usize, position: usize) -> f64 {
+        position as f64 * 360.0 / self.faces as f64 + self.coset_shift_deg[coset]
+    }
+
+    /// Every table angle of every coset, ascending, degrees: position q of coset c is
+    /// entry q·C + c (each coset's shift is below 360°/N).
+    pub fn angles_deg(&self) -> Vec<f64> {
+        (0..self.faces)
+            .flat_map(|q| (0..self.cosets()).map(move |c| (c, q)))
+            .map(|(c, q)| self.angle_deg(c, q))
+            .collect()
+    }
+
+    /// The set with each reading's step replaced by its encoder position in its coset,
+    /// (step + m) mod N, and no shifts: the set the engine fits. The closing step N stays
+    /// N for a mounting with m = 0 (position 0) and becomes m otherwise (the position it
+    /// stands at); a setup the geometry was not given keeps its steps. Not revalidated: a
+    /// (setup, cycle, position, ac) may be read twice (step 0 and the closing step).
+    pub fn encoder_set(&self, set: &MeasurementSet) -> MeasurementSet {
+        let n = set.faces;
+        let readings = set
+            .readings
+            .iter()
+            .map(|r| {
+                let m = self.mounting(r.setup).map_or(0, |m| m.whole_positions);
+                let mut r = r.clone();
+                if m != 0 && n > 0 {
+                    r.step = (r.step % n + m) % n;
+                }
+                r
+            })
+            .collect();
+        MeasurementSet {
+            faces: n,
+            readings,
+            source: set.source.clone(),
+            setup_shift_deg: BTreeMap::new(),
+        }
+    }
+
+    /// The coset of each reading of `set` (0 for a setup the geometry was not given).
+    fn reading_cosets(&self, set: &MeasurementSet) -> Vec<usize> {
+        set.readings
+            .iter()
+            .map(|r| self.mounting(r.setup).map_or(0, |m| m.coset))
+            .collect()
+    }
+}
+
+/// A solved set with shifted mountings: the engine's solution and the encoder errors at
+/// every table angle of every coset ([`solve_shifted`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SubPitchSolution {
+    /// The engine's solution of the set in encoder positions
+    /// ([`ShiftGeometry::encoder_set`]): β, φ, the setup errors, σ, the residuals and the
+    /// cofactor; its `encoder_error` is coset 0's, and its effect terms are the
+    /// differences δ_c\[q\], q = 0 … N−2, of cosets c = 1 … C−1 (module documentation).
+    pub solution: Solution,
+    /// α at every table angle of every coset, in the order of `encoder_angle_deg`,
+    /// arcsec; Σα = 0 within each coset.
+    pub encoder_error: Vec<f64>,
+    /// u(α), k = 1, in the same order; `None` when σ is unknown.
+    pub encoder_error_u: Option<Vec<f64>>,
+    /// The table angle of each entry, degrees, ascending: position q of coset c is
+    /// entry q·C + c.
+    pub encoder_angle_deg: Vec<f64>,
+    /// Each coset's shift modulo 360°/N, degrees, ascending (0 for the whole positions).
+    pub cosets: Vec<f64>,
+    /// What a reader must know about the result: for sub-pitch mountings, that each
+    /// coset's encoder errors are determined up to a constant, fixed by Σα = 0 within the
+    /// coset. Empty for whole-face shifts.
+    pub notes: Vec<String>,
+}
+
+impl SubPitchSolution {
+    /// N.
+    pub fn faces(&self) -> usize {
+        self.solution.faces
+    }
+
+    /// Whether there are encoder errors between the whole positions (a coset whose shift
+    /// is not 0); `false` for whole-face shifts, whose result is an ordinary [`Solution`].
+    pub fn is_sub_pitch(&self) -> bool {
+        self.cosets.iter().any(|&d| d != 0.0)
+    }
+}
+
+/// Solves a measurement set whose mountings may be shifted by any angle (docs/FORMAT.md
+/// §9.1): the polygon, the setup errors, and the encoder errors at every table angle of
+/// every coset (module documentation), sorted by angle.
+///
+/// With whole-face shifts only (or none) this is [`super::solve`] of the set in encoder
+/// positions, its α at the N angles p·360°/N and no notes. With sub-pitch cosets the
+/// method decides the engine as for [`super::solve`], except that the closed form does
+/// not apply to several cosets (their differences are effect columns).
+///
+/// ```
+/// use polycal::simulate::{simulate, SimulationConfig};
+/// use polycal::solve::SolveOptions;
+/// use polycal::solve::sub_pitch::solve_shifted;
+///
+/// // 12 faces (30° apart), three mountings: the table at 0°, 10° and 20° at step 0
+/// let config = SimulationConfig {
+///     faces: 12,
+///     setups: 3,
+///     table_shift_deg: vec![0.0, 10.0, 20.0],
+///     noise_arcsec: 0.0,
+///     ..SimulationConfig::default()
+/// };
+/// let (set, truth) = simulate(&config)?;
+/// let solved = solve_shifted(&set, &SolveOptions::default())?;
+/// assert_eq!(solved.cosets, [0.0, 10.0, 20.0]);
+/// assert_eq!(solved.encoder_angle_deg[..4], [0.0, 10.0, 20.0, 30.0]);
+/// assert_eq!(solved.encoder_error.len(), 36);
+/// // each coset up to its constant: compare differences within a coset
+/// let truth_alpha = truth.encoder_error;
+/// let (a, t) = (&solved.encoder_error, &truth_alpha);
+/// assert!(((a[4] - a[1]) - (t[4] - t[1])).abs() < 1e-9);
+/// for (estimate, true_value) in solved.solution.pitch_deviation.iter().zip(&truth.pitch_deviation) {
+///     assert!((estimate - true_value).abs() < 1e-9);
+/// }
+/// assert_eq!(solved.notes.len(), 1);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+///
+/// As [`super::solve`]: a design that cannot determine the polygon and every coset's
+/// encoder errors ([`SolveError::Unobservable`], naming the cosets that cannot be
+/// separated), [`SolveError::TooLarge`], and [`SolveError::ClosedFormNotApplicable`] for
+/// [`Method::ClosedForm`] with several cosets.
+pub fn solve_shifted(
+    set: &MeasurementSet,
+    options: &SolveOptions,
+) -> Result<SubPitchSolution, SolveError> {
+    let geometry = ShiftGeometry::of(set);
+    let positions = geometry.encoder_set(set);
+    let n = set.faces;
+    let c_count = geometry.cosets();
+    let columns = contrast_columns(&geometry, set);
+    let solution = if columns.is_empty() {
+        solve_positions(&positions, options)?
+    } else {
+        match options.method {
+            Method::Auto | Method::LeastSquares => {
+                least_squares_with_options(&positions, &columns, options)
+            }
+            Method::Dense => dense_with_options(&positions, &columns, options),
+            Method::ClosedForm => Err(SolveError::ClosedFormNotApplicable(format!(
+                "the mountings' shifts put the encoder errors at {c_count} cosets of table \
+                 angles, whose differences the paper's design does not have"
+            ))),
+        }
+        .map_err(|e| name_cosets(e, &geometry, n))?
+    };
+
+    let cosets = geometry.coset_shift_deg().to_vec();
+    let layout = solution.layout;
+    let delta = |c: usize, q: usize| layout.effect((c - 1) * (n - 1) + q);
+    let mut encoder_error = Vec::with_capacity(n * c_count);
+    for q in 0..n {
+        for c in 0..c_count {
+            let alpha0 = solution.encoder_error[q];
+            let value = if c == 0 {
+                alpha0
+            } else if q + 1 < n {
+                alpha0 + solution.effect_values[delta(c, q) - layout.effect(0)]
+            } else {
+                let first = delta(c, 0) - layout.effect(0);
+                alpha0
+                    - solution.effect_values[first..first + n - 1]
+                        .iter()
+                        .sum::<f64>()
+            };
+            encoder_error.push(value);
+        }
+    }
+    let encoder_error_u = solution.sigma.map(|(s, _)| {
+        let q_matrix = &solution.cofactor;
+        // the variance of α_c[N−1] needs Σ_q δ_c[q]: one product per coset
+        let last: Vec<f64> = (1..c_count)
+            .map(|c| {
+                let mut w = vec![0.0; layout.len()];
+                w[layout.encoder(n - 1)] = 1.0;
+                for q in 0..n - 1 {
+                    w[delta(c, q)] = -1.0;
+                }
+                let qw = q_matrix.apply(&w);
+                w.iter().zip(&qw).map(|(a, b)| a * b).sum::<f64>()
+            })
+            .collect();
+        let mut u = Vec::with_capacity(n * c_count);
+        for q in 0..n {
+            let a = layout.encoder(q);
+            for c in 0..c_count {
+                let variance = if c == 0 {
+                    q_matrix.entry(a, a)
+                } else if q + 1 < n {
+                    let d = delta(c, q);
+                    q_matrix.entry(a, a) + q_matrix.entry(d, d) + 2.0 * q_matrix.entry(a, d)
+                } else {
+                    last[c - 1]
+                };
+                u.push(s * variance.max(0.0).sqrt());
+            }
+        }
+        u
+    });
+    let notes = if geometry.is_sub_pitch() {
+        vec![constant_note(&geometry)]
+    } else {
+        Vec::new()
+    };
+    Ok(SubPitchSolution {
+        encoder_angle_deg: geometry.angles_deg(),
+        solution,
+        encoder_error,
+        encoder_error_u,
+        cosets,
+        notes,
+    })
+}
+
+/// The contrast columns of cosets 1 … C−1 (module documentation), (C − 1)·(N − 1) of
+/// them, coset by coset.
+fn contrast_columns(geometry: &ShiftGeometry, set: &MeasurementSet) -> Vec<Vec<f64>> {
+    let n = set.faces;
+    let c_count = geometry.cosets();
+    if c_count < 2 || n < 2 {
+        return Vec::new();
+    }
+    let cosets = geometry.reading_cosets(set);
+    let mut columns = vec![vec![0.0; set.readings.len()]; (c_count - 1) * (n - 1)];
+    for (i, r) in set.readings.iter().enumerate() {
+        let c = cosets[i];
+        if c == 0 {
+            continue;
+        }
+        let m = geometry.mounting(r.setup).map_or(0, |m| m.whole_positions);
+        let q = (r.step % n + m) % n;
+        let base = (c - 1) * (n - 1);
+        if q + 1 < n {
+            columns[base + q][i] = 1.0;
+        } else {
+            for column in &mut columns[base..base + n - 1] {
+                column[i] = -1.0;
+            }
+        }
+    }
+    columns
+}
+
+/// The note of a sub-pitch result (docs/FORMAT.md §9.1).
+fn constant_note(geometry: &ShiftGeometry) -> String {
+    let n = geometry.faces();
+    let shifts: Vec<String> = geometry
+        .coset_shift_deg()
+        .iter()
+        .map(|d| format!("{d}°"))
+        .collect();
+    format!(
+        "The mountings' shifts put the encoder errors at {} coset{} of {n} table angles \
+         (shifts {} modulo {}°). A polygon with {n} faces cannot see encoder harmonics whose \
+         order is a multiple of {n}, so each coset's encoder errors are determined only up \
+         to a constant, fixed by Σα = 0 within the coset.",
+        geometry.cosets(),
+        if geometry.cosets() == 1 { "" } else { "s" },
+        shifts.join(", "),
+        360.0 / n as f64
+    )
+}
+
+/// An unobservable design's message with the effect columns named as the cosets they are.
+fn name_cosets(error: SolveError, geometry: &ShiftGeometry, n: usize) -> SolveError {
+    let SolveError::Unobservable(u) = error else {
+        return error;
+    };
+    if u.effects.is_empty() || n < 2 {
+        return SolveError::Unobservable(u);
+    }
+    let mut cosets: Vec<usize> = u.effects.iter().map(|e| e / (n - 1) + 1).collect();
+    cosets.dedup();
+    let named: Vec<String> = cosets
+        .iter()
+        .filter_map(|&c| geometry.coset_shift_deg().get(c))
+        .map(|d| format!("{d}° + p·{}°", 360.0 / n as f64))
+        .collect();
+    let head = match u.message.find("effect term") {
+        Some(at) => u.message[..at].to_string(),
+        None => "the design cannot determine every pitch deviation and encoder error: ".to_string(),
+    };
+    SolveError::Unobservable(Unobservable {
+        message: format!(
+            "{head}the encoder errors at the table angles {} cannot be separated from the \
+             other unknowns (their mountings need more autocollimators, or the other \
+             mountings must determine the polygon)",
+            named.join(" and ")
+        ),
+        ..u
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measurement::{Direction, Reading};
+
+    #[test]
+    fn whole_positions_within_the_tolerance() {
+        let pitch = 360.0 / 24.0;
+        // a hair below and above a whole face is that face; 10⁻⁵ positions is not
+        let g = ShiftGeometry::new(
+            24,
+            [
+                (1, 3.0 * pitch - 1e-9),
+                (2, 3.0 * pitch + 1e-9),
+                (3, 359.999_999_99),
+                (4, 1e-5 * pitch),
+            ],
+        );
+        assert_eq!(
+            g.mounting(1).unwrap(),
+            Mounting {
+                whole_positions: 3,
+                coset: 0
+            }
+        );
+        assert_eq!(
+            g.mounting(2).unwrap(),
+            Mounting {
+                whole_positions: 3,
+                coset: 0
+            }
+        );
+        assert_eq!(
+            g.mounting(3).unwrap(),
+            Mounting {
+                whole_positions: 0,
+                coset: 0
+            }
+        );
+        assert_eq!(g.mounting(4).unwrap().coset, 1);
+        assert_eq!(g.cosets(), 2);
+        // fractions within 10⁻⁶ positions of each other are one coset
+        let g = ShiftGeometry::new(24, [(1, 5.0), (2, 5.0 + 1e-7 * pitch), (3, 20.0)]);
+        assert_eq!(g.coset_shift_deg(), &[5.0]);
+        assert!(g.is_sub_pitch());
+        assert_eq!(
+            g.mounting(3).unwrap(),
+            Mounting {
+                whole_positions: 1,
+                coset: 0
+            }
+        );
+        // no mounting: the whole positions
+        let g = ShiftGeometry::new(5, []);
+        assert_eq!((g.cosets(), g.is_sub_pitch()), (1, false));
+        assert_eq!(g.angles_deg(), [0.0, 72.0, 144.0, 216.0, 288.0]);
+    }
+
+    fn reading(setup: u32, step: usize, face: usize) -> Reading {
+        Reading {
+            setup,
+            cycle: 1,
+            step,
+            ac: 1,
+            face,
+            reading_arcsec: 0.0,
+            direction: Direction::Cw,
+            time_seconds: None,
+            reading_y_arcsec: None,
+            temperature_celsius: None,
+            encoder_degrees: None,
+            line: 0,
+        }
+    }
+
+    #[test]
+    fn encoder_positions_and_contrast_columns() {
+        // 3 faces (120°): setup 1 at 0°, setup 2 at 250° (2 faces + 10°), closing steps
+        let mut readings = Vec::new();
+        for setup in [1, 2] {
+            for step in 0..=3 {
+                readings.push(reading(setup, step, step % 3 + 1));
+            }
+        }
+        let set = MeasurementSet::from_readings(readings, None, "test")
+            .unwrap()
+            .with_setup_shifts([(2, 250.0)])
+            .unwrap();
+        let g = ShiftGeometry::of(&set);
+        assert_eq!(g.coset_shift_deg(), &[0.0, 10.0]);
+        let positions = g.encoder_set(&set);
+        let steps: Vec<usize> = positions.readings.iter().map(|r| r.step).collect();
+        assert_eq!(steps, [0, 1, 2, 3, 2, 0, 1, 2]);
+        assert!(positions.setup_shift_deg.is_empty());
+        // coset 1 at positions 2, 0, 1, 2: +1 at q = 0, 1, −1 on both at q = N − 1 = 2
+        let columns = contrast_columns(&g, &set);
+        assert_eq!(columns.len(), 2);
+        assert_eq!(columns[0], [0.0, 0.0, 0.0, 0.0, -1.0, 1.0, 0.0, -1.0]);
+        assert_eq!(columns[1], [0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, -1.0]);
+        assert_eq!(g.angles_deg(), [0.0, 10.0, 120.0, 130.0, 240.0, 250.0]);
+    }
+}
