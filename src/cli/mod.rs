@@ -92,7 +92,8 @@ pub enum Command {
     /// Compare two results quantity by quantity with En (ISO 13528); status 1 when some |En| > 1.
     #[command(after_help = compare::EXAMPLES)]
     Compare(compare::CompareArgs),
-    /// Simulate a measurement run with a known truth.
+    /// Simulate a measurement run (or with --selfcal a self-calibration run) with a known
+    /// truth.
     #[command(after_help = simulate::EXAMPLES)]
     Simulate(simulate::SimulateArgs),
     /// Drive the instruments through a calibration run (docs/FORMAT.md §7).
@@ -204,7 +205,7 @@ pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
         Command::Diagnose(args) => diagnose::run(&args, out),
         Command::Budget(args) => budget::run(&args),
         Command::Compare(args) => compare::run(&args),
-        Command::Simulate(args) => simulate::run(&args),
+        Command::Simulate(args) => simulate::run(&args, out),
         #[cfg(feature = "lab")]
         Command::Run(args) => lab::run(&args, out),
         #[cfg(feature = "lab")]
