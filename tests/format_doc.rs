@@ -3,8 +3,9 @@
 //! The test runs the binary on the commands whose JSON the contract describes — `solve`
 //! (plain, with `--budget`, with `--monte-carlo`, several files, sub-pitch mountings),
 //! `diagnose` with a truth and with `--budget`, `budget`, `compare`, the truth files of
-//! `simulate` (plain and sub-pitch), and on Unix a whole `run` against `sim-lab` (its
-//! device paths, `manifest.json` and every line of `traffic.jsonl`) — collects every object key, at any depth, and checks that each
+//! `simulate` (plain and sub-pitch) and `simulate --selfcal`, and on Unix a whole `run`
+//! against `sim-lab` (its device paths, `manifest.json` and every line of
+//! `traffic.jsonl`) — collects every object key, at any depth, and checks that each
 //! appears in the document as a code span (`` `name` ``). A field added to an output
 //! without a word in the contract fails here, with every missing name listed at once.
 
@@ -149,6 +150,25 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
         &truth,
     ]);
     fields.add("truth file of simulate", &read_json(Path::new(&truth)));
+
+    // The self-calibration truth of `simulate --selfcal`.
+    let (selfcal, selfcal_truth) = (scratch.path("selfcal.csv"), scratch.path("selfcal.json"));
+    polycal(&[
+        "simulate",
+        "--selfcal",
+        "--positions",
+        "12",
+        "--heads",
+        "0,90,180,270",
+        "--out",
+        &selfcal,
+        "--truth-out",
+        &selfcal_truth,
+    ]);
+    fields.add(
+        "truth file of simulate --selfcal",
+        &read_json(Path::new(&selfcal_truth)),
+    );
     for v in json_lines(&["diagnose", &drift, "--truth", &truth, "--format", "json"]) {
         fields.add("diagnose --truth --format json", &v);
     }

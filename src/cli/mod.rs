@@ -98,7 +98,8 @@ pub enum Command {
     /// graduation error and the heads' errors (docs/FORMAT.md §9).
     #[command(after_help = selfcal::EXAMPLES)]
     Selfcal(selfcal::SelfcalArgs),
-    /// Simulate a measurement run with a known truth.
+    /// Simulate a measurement run (or with --selfcal a self-calibration run) with a known
+    /// truth.
     #[command(after_help = simulate::EXAMPLES)]
     Simulate(simulate::SimulateArgs),
     /// Drive the instruments through a calibration run (docs/FORMAT.md §7).
@@ -211,7 +212,7 @@ pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
         Command::Budget(args) => budget::run(&args),
         Command::Compare(args) => compare::run(&args),
         Command::Selfcal(args) => selfcal::run(&args, out),
-        Command::Simulate(args) => simulate::run(&args),
+        Command::Simulate(args) => simulate::run(&args, out),
         #[cfg(feature = "lab")]
         Command::Run(args) => lab::run(&args, out),
         #[cfg(feature = "lab")]

@@ -4,12 +4,15 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, anyhow, bail};
+use clap::builder::ArgPredicate;
 use polycal::effects::Effect;
 use polycal::simulate::{
-    self, ElevationModel, Harmonic, SimulationConfig, TemperatureModel, Truth,
+    self, ElevationModel, Harmonic, SelfcalConfigError, SelfcalSimConfig, SimulateError,
+    SimulationConfig, TemperatureModel, Truth,
 };
 
-use super::EXIT_OK;
+use super::output::Output;
+use super::{EXIT_OK, with_hint};
 
 /// After `polycal simulate --help`.
 pub const EXAMPLES: &str = "\
@@ -19,7 +22,30 @@ Examples:
   polycal simulate --faces 12 --setups 2 --setup-shift 5 --ac-faces 1,2,5 --seed 9 --out setups.csv
   polycal simulate --faces 12 --setups 3 --shift-deg 0,10,20 --out subpitch.csv --truth-out subpitch.json
   polycal simulate --temperature 20:0.5:3600:0.1:1200 --temperature-effect 1:0.3 --out warm.csv
-  polycal simulate --setups 2 --elevation 10:30:1:5:0.05 --cross-talk 2:0.02 --noise-dof 5";
+  polycal simulate --setups 2 --elevation 10:30:1:5:0.05 --cross-talk 2:0.02 --noise-dof 5
+  polycal simulate --selfcal --out selfa.csv --truth-out selfa.truth.json
+  polycal simulate --selfcal --positions 12 --heads 0,90,180,270 --cycles 3 --bidirectional
+  polycal simulate --selfcal --positions 84 --harmonic 1:0.8:0.3 --harmonic 7:0.2 --table-error 0 --noise 0";
+
+/// The options of the polygon run, refused with `--selfcal` (clap's ids).
+const POLYGON_ONLY: [&str; 16] = [
+    "faces",
+    "closing",
+    "pitch_spread",
+    "setup_spread",
+    "noise_dof",
+    "temperature",
+    "elevation",
+    "drift",
+    "offset_step",
+    "temperature_effect",
+    "cross_talk",
+    "direction",
+    "outlier",
+    "ac_faces",
+    "setups",
+    "setup_shift",
+];
 
 /// Arguments of `polycal simulate`.
 #[derive(clap::Args)]
@@ -52,10 +78,74 @@ pub struct SimulateArgs {
     /// Where to write the measurement CSV (default: standard output).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Simulate a self-calibration run instead: read heads on one graduated disc
+    /// (docs/FORMAT.md §9), written as the self-calibration CSV.
+    ///
+    /// Reading = t[cycle, step] + e(step·360°/P + head angle) + c[head] + noise, with the
+    /// table error t (--table-error), the disc's graduation error e (--harmonic, or drawn
+    /// up to --max-order), the head errors c (--head-error, c[1] = 0) and --noise. Shared
+    /// with the polygon run: --cycles (default 2 here), --bidirectional (cycles 2, 4, …
+    /// visit steps P−1 … 0), --noise (default 0.02 here), --harmonic (ORDER:AMPLITUDE[:PHASE]
+    /// is A·cos(ORDER·θ + PHASE) at the disc angle θ, in radians), --step-seconds, --seed, --out,
+    /// --truth-out. The polygon's options (--faces, --ac-faces, --closing, the spreads,
+    /// the models and the effects) are refused.
+    #[arg(long, conflicts_with_all = POLYGON_ONLY)]
+    selfcal: bool,
+    #[command(flatten)]
+    selfcal_args: SelfcalArgs,
 }
 
-/// `polycal simulate`: writes the measurement CSV and the truth.
-pub fn run(args: &SimulateArgs) -> Result<u8> {
+/// The options of `simulate --selfcal` only (each needs `--selfcal`).
+#[derive(clap::Args)]
+struct SelfcalArgs {
+    /// With --selfcal: number of table positions P per turn (step p at p·360°/P).
+    #[arg(long, default_value_t = 168, requires = "selfcal")]
+    positions: usize,
+    /// With --selfcal: the read heads, `selfa` (12 heads: 0, 120, 240, 90, 180, 270 and
+    /// k·360/7 for k = 1 … 6) or their angles from head 1 in degrees, head 1 first at 0
+    /// (e.g. 0,90,180,270).
+    #[arg(
+        long,
+        value_name = "selfa|A1,A2,...",
+        default_value = "selfa",
+        requires = "selfcal"
+    )]
+    heads: String,
+    /// With --selfcal: standard deviation of the table's position error at every stop,
+    /// arcsec (the table does not return to the same angle).
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        allow_negative_numbers = true,
+        requires = "selfcal"
+    )]
+    table_error: f64,
+    /// With --selfcal: the head errors c are drawn uniformly in ±this, arcsec (c[1] = 0).
+    #[arg(
+        long,
+        default_value_t = 2.0,
+        allow_negative_numbers = true,
+        requires = "selfcal"
+    )]
+    head_error: f64,
+    /// With --selfcal and no --harmonic: the drawn graduation error has the orders
+    /// 1 … K, amplitudes 0.3″/√order and random phases.
+    #[arg(
+        long,
+        value_name = "K",
+        default_value_t = 60,
+        requires = "selfcal",
+        conflicts_with = "harmonics"
+    )]
+    max_order: usize,
+}
+
+/// `polycal simulate`: writes the measurement CSV (or with `--selfcal` the
+/// self-calibration CSV) and the truth.
+pub fn run(args: &SimulateArgs, out: &Output) -> Result<u8> {
+    if args.selfcal {
+        return run_selfcal(args, out);
+    }
     let mut config = args.truth.config(
         args.ac_faces.clone(),
         args.setups,
@@ -98,6 +188,130 @@ pub fn run(args: &SimulateArgs) -> Result<u8> {
     Ok(EXIT_OK)
 }
 
+/// `polycal simulate --selfcal`: writes the self-calibration CSV and its truth.
+fn run_selfcal(args: &SimulateArgs, out: &Output) -> Result<u8> {
+    let options = &args.selfcal_args;
+    let mut config = SelfcalSimConfig::default();
+    config.positions = options.positions;
+    config.cycles = args.truth.cycles;
+    config.head_angles_deg = parse_heads(&options.heads)?;
+    config.encoder_harmonics = args.truth.parsed_harmonics()?;
+    config.max_order = options.max_order;
+    config.head_error_arcsec = options.head_error;
+    config.table_error_arcsec = options.table_error;
+    config.noise_arcsec = args.truth.noise;
+    config.bidirectional = args.truth.bidirectional;
+    config.step_seconds = Some(args.step_seconds);
+    config.seed = args.truth.seed;
+    let (set, truth) = simulate::simulate_selfcal(&config).map_err(selfcal_hint)?;
+
+    let off_grid = config.heads_off_grid();
+    if !off_grid.is_empty() {
+        let heads: Vec<String> = off_grid.iter().map(u32::to_string).collect();
+        let which = match heads.as_slice() {
+            [one] => format!("head {one} is"),
+            many => format!("heads {} are", many.join(", ")),
+        };
+        let p = config.positions;
+        out.warning(format!(
+            "{which} not at a multiple of 360°/{p} = {}°: they read the disc between the {p} \
+             positions, where the truth's encoder_error has no value",
+            360.0 / p as f64
+        ));
+    }
+
+    let angles: Vec<String> = config.head_angles_deg.iter().map(f64::to_string).collect();
+    let encoder = if args.truth.harmonics.is_empty() {
+        format!("encoder error drawn to order {}", config.max_order)
+    } else {
+        format!("encoder harmonics {}", args.truth.harmonics.join(" "))
+    };
+    let comment = format!(
+        "polycal {} simulate --selfcal: {} positions, {} heads at {} degrees, {} cycles{}, \
+         {encoder}, table error {} arcsec, head error ±{} arcsec, noise {} arcsec, seed {}",
+        env!("CARGO_PKG_VERSION"),
+        config.positions,
+        config.head_count(),
+        angles.join(","),
+        config.cycles,
+        if config.bidirectional {
+            " (bidirectional)"
+        } else {
+            ""
+        },
+        config.table_error_arcsec,
+        config.head_error_arcsec,
+        config.noise_arcsec,
+        config.seed
+    );
+    let comments = [comment];
+    match &args.out {
+        Some(path) => {
+            set.write_path(path, &comments)?;
+        }
+        None => {
+            let stdout = std::io::stdout();
+            set.write_with_comments(stdout.lock(), &comments)
+                .context("cannot write to standard output")?;
+        }
+    }
+    args.truth.write_json(&truth.to_json_pretty())?;
+    Ok(EXIT_OK)
+}
+
+/// `--heads`: `selfa`, or the head angles in degrees separated by commas.
+fn parse_heads(spec: &str) -> Result<Vec<f64>> {
+    if spec.trim().eq_ignore_ascii_case("selfa") {
+        return Ok(simulate::selfa_head_angles_deg());
+    }
+    spec.split(',')
+        .map(str::trim)
+        .map(|text| match text.parse::<f64>() {
+            Ok(angle) if angle.is_finite() => Ok(angle),
+            _ => Err(anyhow!(
+                "--heads {spec}: \"{text}\" is not a number of degrees (expected selfa, or the \
+                 head angles from head 1 in degrees, head 1 first at 0, e.g. 0,90,180,270)"
+            )),
+        })
+        .collect()
+}
+
+/// A refused self-calibration simulation, with the option that helps.
+fn selfcal_hint(error: SimulateError) -> anyhow::Error {
+    use SelfcalConfigError as E;
+    let SimulateError::SelfcalConfig(reason) = &error else {
+        return error.into();
+    };
+    let (flag, hint) = match reason {
+        E::TooFewPositions { .. } => ("--positions", "give --positions 3 or more"),
+        E::NoCycles => ("--cycles", "give --cycles 1 or more"),
+        E::TooFewHeads { .. }
+        | E::FirstHeadNotAtZero { .. }
+        | E::HeadAngleOutOfRange { .. }
+        | E::SameHeadAngle { .. } => (
+            "--heads",
+            "--heads lists distinct angles in [0, 360) degrees, head 1 first at 0",
+        ),
+        E::NotNonNegative { what, .. } => match *what {
+            "noise" => ("--noise", "give --noise 0 or more"),
+            "table error" => ("--table-error", "give --table-error 0 or more"),
+            "head error range" => ("--head-error", "give --head-error 0 or more"),
+            _ => return error.into(),
+        },
+        E::StepSeconds { .. } => ("--step-seconds", "give --step-seconds above 0"),
+        E::HarmonicOrderZero { .. } | E::HarmonicNotFinite { .. } => {
+            ("--harmonic", "see --harmonic")
+        }
+        E::MaxOrder { .. } => ("--max-order", "give --max-order 1 or more"),
+        E::TooManyReadings { .. } | E::TooManyHarmonicTerms { .. } => (
+            "--positions",
+            "give fewer --positions, heads, --cycles or harmonics",
+        ),
+        _ => return error.into(),
+    };
+    with_hint(&error, flag, hint)
+}
+
 /// The truth (polygon, encoder, setup errors), the noise, the run design the effects
 /// refer to, and the effects.
 #[derive(clap::Args)]
@@ -106,7 +320,11 @@ pub struct TruthArgs {
     #[arg(long, default_value_t = 24)]
     pub faces: usize,
     /// Number of cycles.
-    #[arg(long, default_value_t = 6)]
+    #[arg(
+        long,
+        default_value_t = 6,
+        default_value_if("selfcal", ArgPredicate::IsPresent, "2")
+    )]
     pub cycles: u32,
     /// Add the closing reading (step N) to every cycle.
     #[arg(long)]
@@ -115,7 +333,12 @@ pub struct TruthArgs {
     #[arg(long)]
     pub bidirectional: bool,
     /// Reading noise (standard deviation), arcsec.
-    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        default_value_t = 0.05,
+        default_value_if("selfcal", ArgPredicate::IsPresent, "0.02"),
+        allow_negative_numbers = true
+    )]
     pub noise: f64,
     /// Spread (standard deviation) of the pitch deviations, arcsec.
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
@@ -254,13 +477,7 @@ impl TruthArgs {
         let encoder_harmonics = if self.harmonics.is_empty() {
             SimulationConfig::default().encoder_harmonics
         } else {
-            self.harmonics
-                .iter()
-                .map(|spec| {
-                    spec.parse::<Harmonic>()
-                        .map_err(|message| anyhow!("--harmonic {spec}: {message}"))
-                })
-                .collect::<Result<Vec<_>>>()?
+            self.parsed_harmonics()?
         };
         Ok(SimulationConfig {
             faces: self.faces,
@@ -284,10 +501,26 @@ impl TruthArgs {
         })
     }
 
+    /// The `--harmonic` options, parsed (empty when none is given).
+    pub fn parsed_harmonics(&self) -> Result<Vec<Harmonic>> {
+        self.harmonics
+            .iter()
+            .map(|spec| {
+                spec.parse::<Harmonic>()
+                    .map_err(|message| anyhow!("--harmonic {spec}: {message}"))
+            })
+            .collect()
+    }
+
     /// Writes the truth to `--truth-out`, if given.
     pub fn write_truth(&self, truth: &Truth) -> Result<()> {
+        self.write_json(&truth.to_json_pretty())
+    }
+
+    /// Writes a truth's JSON text (and a line feed) to `--truth-out`, if given.
+    fn write_json(&self, json: &str) -> Result<()> {
         if let Some(path) = &self.truth_out {
-            std::fs::write(path, truth.to_json_pretty() + "\n")
+            std::fs::write(path, format!("{json}\n"))
                 .with_context(|| format!("{}: cannot write the truth", path.display()))?;
         }
         Ok(())

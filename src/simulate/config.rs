@@ -32,11 +32,21 @@ impl Harmonic {
         self.amplitude_arcsec * (x + self.phase_rad).cos()
     }
 
-    /// The harmonic's value at the table angle `angle_deg` (degrees): the same continuous
-    /// function of the angle as [`Harmonic::value_at`], `amplitude·cos(2π·order·angle/360 +
-    /// phase)`, anywhere between the positions.
+    /// The harmonic's value at the angle `angle_deg` (degrees) of a full turn:
+    /// `amplitude_arcsec · cos(2π·order·angle_deg/360 + phase_rad)`, the continuous function
+    /// whose samples at the angles p·360/N are [`Harmonic::value_at`]`(p, N)` (equal up to
+    /// rounding). The angle is taken modulo 360° first (exactly), so any angle may be given.
+    ///
+    /// ```
+    /// use polycal::simulate::Harmonic;
+    ///
+    /// let h = Harmonic { order: 2, amplitude_arcsec: 0.5, phase_rad: 0.3 };
+    /// assert!((h.value_at_deg(45.0) - h.value_at(1, 8)).abs() < 1e-15);
+    /// assert!((h.value_at_deg(405.0) - h.value_at_deg(45.0)).abs() < 1e-15);
+    /// ```
     pub fn value_at_deg(&self, angle_deg: f64) -> f64 {
-        let x = std::f64::consts::TAU * (self.order as f64) * angle_deg / 360.0;
+        let turn = angle_deg.rem_euclid(360.0) / 360.0;
+        let x = std::f64::consts::TAU * (self.order as f64) * turn;
         self.amplitude_arcsec * (x + self.phase_rad).cos()
     }
 }

@@ -1,5 +1,13 @@
 //! Simulated measurement runs with a known truth.
 //!
+//! Two kinds of run: the polygon calibration ([`simulate`], below), and the
+//! self-calibration of an encoder with several read heads ([`simulate_selfcal`], with its
+//! own settings [`SelfcalSimConfig`] and truth [`SelfcalTruth`]; its documentation gives
+//! the model, the run and the random draws). The same encoder can be put into both: the
+//! self-calibration truth's `encoder_harmonics` are a continuous function of the angle, and
+//! as a polygon run's [`SimulationConfig::encoder_harmonics`] they give that encoder's
+//! errors at the polygon's N positions.
+//!
 //! [`simulate`] draws the true values ([`Truth`]) for a [`SimulationConfig`] and the
 //! readings a run of that design would give, following the model of docs/FORMAT.md §1:
 //!
@@ -67,6 +75,7 @@
 
 mod config;
 mod models;
+mod selfcal;
 mod truth;
 
 use std::path::PathBuf;
@@ -77,6 +86,11 @@ use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
 pub use config::{Harmonic, MAX_READINGS, SimulationConfig};
 pub use models::{ElevationModel, ElevationTruth, MountingTilt, TemperatureModel};
+pub use selfcal::{
+    HeadErrorTruth, MAX_DRAWN_ORDER, MAX_HARMONIC_TERMS, MIN_POSITIONS, SelfcalConfigError,
+    SelfcalSimConfig, SelfcalTruth, equally_spaced_head_angles_deg, selfa_head_angles_deg,
+    simulate_selfcal,
+};
 pub use truth::{SetupErrorTruth, Truth};
 
 use crate::effects::Effect;
@@ -127,6 +141,14 @@ pub enum SimulateError {
         /// What is wrong.
         message: String,
     },
+    /// The settings of a simulated self-calibration are invalid
+    /// ([`SelfcalSimConfig::validate`]).
+    #[error("invalid self-calibration simulation settings: {0}")]
+    SelfcalConfig(#[from] SelfcalConfigError),
+    /// The simulated self-calibration readings break a rule of the self-calibration file
+    /// (docs/FORMAT.md §9); not expected of a valid configuration.
+    #[error("the simulated self-calibration readings: {0}")]
+    Selfcal(#[from] crate::selfcal::SelfcalError),
 }
 
 /// Simulates a run: draws the truth for `config`, then the readings.

@@ -73,9 +73,30 @@ pub struct Truth {
     pub elevation: Option<ElevationTruth>,
 }
 
+/// Reads a JSON file into `T`: [`SimulateError::Io`] when it cannot be read,
+/// [`SimulateError::Json`] (file, line, column) when it is not valid JSON of `T`.
+pub(super) fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SimulateError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SimulateError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    serde_json::from_str(&text).map_err(|e| {
+        let position = format!(" at line {} column {}", e.line(), e.column());
+        let text = e.to_string();
+        SimulateError::Json {
+            location: crate::input::Location::new(
+                path.display().to_string(),
+                e.line() as u64,
+                e.column() as u64,
+            ),
+            message: text.strip_suffix(&position).unwrap_or(&text).to_string(),
+        }
+    })
+}
+
 /// Removes the mean, then sets the last element to minus the (left-to-right) sum of the
 /// others, so that the left-to-right sum is exactly 0.
-fn close(v: &mut [f64]) {
+pub(super) fn close(v: &mut [f64]) {
     if v.is_empty() {
         return;
     }
@@ -201,22 +222,7 @@ impl Truth {
     /// An empty or missing `face_deviation` is filled from `pitch_deviation`. Errors name
     /// the file, and for bad JSON also the line and column.
     pub fn read_path(path: &Path) -> Result<Truth, SimulateError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SimulateError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        let mut truth: Truth = serde_json::from_str(&text).map_err(|e| {
-            let position = format!(" at line {} column {}", e.line(), e.column());
-            let text = e.to_string();
-            SimulateError::Json {
-                location: crate::input::Location::new(
-                    path.display().to_string(),
-                    e.line() as u64,
-                    e.column() as u64,
-                ),
-                message: text.strip_suffix(&position).unwrap_or(&text).to_string(),
-            }
-        })?;
+        let mut truth: Truth = read_json(path)?;
         truth.check().map_err(|message| SimulateError::Truth {
             origin: path.display().to_string(),
             message,
