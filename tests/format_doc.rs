@@ -3,7 +3,8 @@
 //! The test runs the binary on the commands whose JSON the contract describes — `solve`
 //! (plain, with `--budget`, with `--monte-carlo`, several files, sub-pitch mountings),
 //! `diagnose` with a truth and with `--budget`, `budget`, `compare`, the truth files of
-//! `simulate` (plain and sub-pitch) and `simulate --selfcal`, and on Unix a whole `run`
+//! `simulate` (plain and sub-pitch) and `simulate --selfcal`, `selfcal` (plain and with
+//! `--budget`), and on Unix a whole `run`
 //! against `sim-lab` (its device paths, `manifest.json` and every line of
 //! `traffic.jsonl`) — collects every object key, at any depth, and checks that each
 //! appears in the document as a code span (`` `name` ``). A field added to an output
@@ -169,6 +170,24 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
         "truth file of simulate --selfcal",
         &read_json(Path::new(&selfcal_truth)),
     );
+    // The self-calibration itself: plain, with a bound and a gauge, and with a budget.
+    for v in json_lines(&["selfcal", "examples/data/selfa-168.csv", "--format", "json"]) {
+        fields.add("selfcal --format json", &v);
+    }
+    for v in json_lines(&[
+        "selfcal",
+        "examples/data/selfa-168.csv",
+        "--lost-harmonic-bound",
+        "0.01",
+        "--gauge-positions",
+        "24",
+        "--budget",
+        "examples/budgets/selfcal.toml",
+        "--format",
+        "json",
+    ]) {
+        fields.add("selfcal --budget --format json", &v);
+    }
     for v in json_lines(&["diagnose", &drift, "--truth", &truth, "--format", "json"]) {
         fields.add("diagnose --truth --format json", &v);
     }

@@ -239,9 +239,10 @@ pub fn write_table<W: Write>(
     writeln!(out, "polycal selfcal: {source}")?;
     writeln!(
         out,
-        "{p} positions, {} heads, {} cycles, {} readings, {engine}, dof {}, residual RMS {}",
+        "{p} positions, {} heads, {} cycle{}, {} readings, {engine}, dof {}, residual RMS {}",
         solution.heads.len(),
         solution.cycles,
+        if solution.cycles == 1 { "" } else { "s" },
         solution.readings,
         solution.dof,
         super::fixed(solution.residual_rms(), 4)

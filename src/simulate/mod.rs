@@ -6,7 +6,9 @@
 //! the model, the run and the random draws). The same encoder can be put into both: the
 //! self-calibration truth's `encoder_harmonics` are a continuous function of the angle, and
 //! as a polygon run's [`SimulationConfig::encoder_harmonics`] they give that encoder's
-//! errors at the polygon's N positions.
+//! errors at the polygon's N positions. [`verification`] puts one truth into three runs
+//! (two autocollimators, the shift-angle method, self-calibration) and compares their
+//! results as the paper's section 3.1 does.
 //!
 //! [`simulate`] draws the true values ([`Truth`]) for a [`SimulationConfig`] and the
 //! readings a run of that design would give, following the model of docs/FORMAT.md §1:
@@ -77,6 +79,7 @@ mod config;
 mod models;
 mod selfcal;
 mod truth;
+pub mod verification;
 
 use std::path::PathBuf;
 

@@ -17,14 +17,13 @@
 //! head layout loses (SelfA: multiples of 84); a bound on them
 //! ([`VerificationConfig::lost_harmonic_bound_arcsec`]) puts that in its uncertainty.
 
-use crate::compare::{Comparison, CompareError, CompareOptions, compare};
+use crate::compare::{CompareError, CompareOptions, Comparison, compare};
 use crate::report::result_rows_with;
 use crate::report::selfcal::result_rows as selfcal_rows;
 use crate::results::{Quantity, ResultRow};
 use crate::selfcal::{self, SelfcalOptions, SelfcalSolveError};
 use crate::simulate::{
-    SelfcalSimConfig, SimulateError, SimulationConfig, Truth, simulate_selfcal,
-    simulate_with_truth,
+    SelfcalSimConfig, SimulateError, SimulationConfig, Truth, simulate_selfcal, simulate_with_truth,
 };
 use crate::solve::{SigmaSource, Solution, SolveError, SolveOptions, solve};
 use crate::uncertainty::calibration::{CalibrationError, InstrumentBudget, evaluate};
@@ -92,6 +91,9 @@ pub struct AgainstTruth {
     pub max_abs_error_arcsec: f64,
     /// Largest |estimate − truth|/U.
     pub max_abs_en: f64,
+    /// How many values have |estimate − truth|/U > 1 (at 95 % coverage, about one in
+    /// twenty by chance).
+    pub beyond_one: usize,
     /// (estimate − truth)/u of every value.
     pub normalised_errors: Vec<f64>,
 }
@@ -237,7 +239,10 @@ pub fn verify(config: &VerificationConfig) -> Result<Verification, VerificationE
     let selfcal_result = selfcal_rows(&selfcal_solution, None);
 
     let family = |rows: &[ResultRow], quantity| -> Vec<ResultRow> {
-        rows.iter().filter(|r| r.quantity == quantity).cloned().collect()
+        rows.iter()
+            .filter(|r| r.quantity == quantity)
+            .cloned()
+            .collect()
     };
     let pitch_deviation = agreement(
         "β: two autocollimators vs shift-angle method",
@@ -279,6 +284,11 @@ pub fn verify(config: &VerificationConfig) -> Result<Verification, VerificationE
                 .zip(&errors)
                 .map(|(r, e)| (e / r.expanded_u.unwrap_or(f64::NAN)).abs())
                 .fold(0.0, f64::max),
+            beyond_one: rows
+                .iter()
+                .zip(&errors)
+                .filter(|(r, e)| (*e / r.expanded_u.unwrap_or(f64::NAN)).abs() > 1.0)
+                .count(),
             normalised_errors: rows
                 .iter()
                 .zip(&errors)
