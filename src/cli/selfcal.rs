@@ -86,7 +86,7 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
         })
         .with_context(|| format!("{name}: cannot solve"))?;
     if solution.sigma.is_none() {
-        out.warning(&format!(
+        out.warning(format!(
             "{name}: no residual degrees of freedom: uncertainties need --sigma"
         ));
     }

@@ -20,7 +20,7 @@ pub struct HeadErrorReport {
     pub head: u32,
     /// Nominal angle from head 1, degrees.
     pub angle_deg: f64,
-    /// c[head] − c[1], arcsec.
+    /// c\[head\] − c\[1\], arcsec.
     pub value: f64,
     /// Standard uncertainty, arcsec (`null` when σ is unknown).
     pub u: Option<f64>,

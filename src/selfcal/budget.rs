@@ -3,9 +3,9 @@
 //! per encoder error and per head error (GUM, as [`crate::uncertainty::calibration`]).
 //!
 //! A component's scope (`acts_on`) says which readings share one draw of it; what the
-//! draw does to a result follows from the model, reading = t[cycle, step] + e + c[head]:
+//! draw does to a result follows from the model, reading = t\[cycle, step\] + e + c\[head\]:
 //!
-//! | `acts_on` | in a self-calibration | gain on e | gain on c[j] − c[1] |
+//! | `acts_on` | in a self-calibration | gain on e | gain on c\[j\] − c\[1\] |
 //! |---|---|---|---|
 //! | `each-reading` | one reading of one head | Q_ee (the type A pattern) | Q_cc |
 //! | `each-autocollimator` | every reading of one read head (an offset) | 0: c absorbs it | 2 (head j's draw and head 1's) |

@@ -327,7 +327,7 @@ pub fn solve(
 ) -> Result<SelfcalSolution, SelfcalSolveError> {
     let p = set.positions;
     if let Some(gauge) = options.gauge_positions
-        && (gauge == 0 || p % gauge != 0)
+        && (gauge == 0 || !p.is_multiple_of(gauge))
     {
         return Err(SelfcalSolveError::InvalidGauge {
             positions: p,

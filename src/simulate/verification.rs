@@ -61,10 +61,12 @@ pub struct VerificationConfig {
 
 impl Default for VerificationConfig {
     fn default() -> Self {
-        let mut selfcal = SelfcalSimConfig::default();
-        selfcal.positions = 168;
-        selfcal.cycles = 2;
-        selfcal.max_order = 150;
+        let selfcal = SelfcalSimConfig {
+            positions: 168,
+            cycles: 2,
+            max_order: 150,
+            ..SelfcalSimConfig::default()
+        };
         let envelope_84 = selfcal.drawn_amplitude_arcsec / 84f64.sqrt();
         VerificationConfig {
             faces: 24,
@@ -185,7 +187,7 @@ pub fn verify(config: &VerificationConfig) -> Result<Verification, VerificationE
     let n = config.faces;
     let mut selfcal_config = config.selfcal.clone();
     selfcal_config.seed = config.seed;
-    if selfcal_config.positions % n != 0 {
+    if !selfcal_config.positions.is_multiple_of(n) {
         return Err(VerificationError::Positions {
             positions: selfcal_config.positions,
             faces: n,
