@@ -181,6 +181,8 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
         "0.01",
         "--gauge-positions",
         "24",
+        "--head-angle-u",
+        "0.5",
         "--budget",
         "examples/budgets/selfcal.toml",
         "--format",

@@ -633,3 +633,82 @@ fn the_gauge_of_24_angles_references_e_to_a_polygons_positions() {
         Err(selfcal::SelfcalSolveError::InvalidGauge { .. })
     ));
 }
+
+/// The heads' angle uncertainty, checked by brute force: heads actually placed δ away from
+/// their nominal angles move e by what the propagation says, to first order (each head
+/// in turn, its reading built from the true disc at the displaced angle).
+#[test]
+fn the_head_angle_uncertainty_is_the_response_to_displaced_heads() {
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let angles = selfa_angles();
+    let disc = Disc::random(&mut rng, 1..40);
+    let base = Run {
+        positions: 168,
+        cycles: 1,
+        head_errors: vec![0.0; angles.len()],
+        angles: angles.clone(),
+        table_sigma: 0.0,
+        noise: 0.0,
+    };
+    let nominal = measure(&base, &disc, &mut rng);
+    let u_angle = 2.0; // arcsec
+    let solved = selfcal::solve(
+        &nominal,
+        &SelfcalOptions::new()
+            .with_sigma_opt(Some(Sigma::new(0.01).unwrap()))
+            .with_head_angle_u(u_angle)
+            .unwrap(),
+    )
+    .unwrap();
+    let added = solved.head_angle_u.clone().unwrap();
+    let plain = selfcal::solve(
+        &nominal,
+        &SelfcalOptions::new().with_sigma_opt(Some(Sigma::new(0.01).unwrap())),
+    )
+    .unwrap();
+    // brute force: displace head j by u_angle, solve with the nominal angles, Σ_j Δe²
+    let mut var = vec![0.0; 168];
+    for j in 1..angles.len() {
+        let readings = nominal
+            .readings
+            .iter()
+            .map(|r| {
+                let mut r = r.clone();
+                if r.head as usize == j + 1 {
+                    let angle = r.step as f64 * 360.0 / 168.0 + r.head_angle_deg + u_angle / 3600.0;
+                    r.reading_arcsec = disc.at_deg(angle);
+                }
+                r
+            })
+            .collect();
+        let displaced = SelfcalSet::from_readings(readings, Some(168)).unwrap();
+        let moved = selfcal::solve(&displaced, &SelfcalOptions::new()).unwrap();
+        for (v, (a, b)) in var
+            .iter_mut()
+            .zip(moved.encoder_error.iter().zip(&plain.encoder_error))
+        {
+            *v += (a - b).powi(2);
+        }
+    }
+    for (x, (a, v)) in added.iter().zip(&var).enumerate() {
+        assert!(
+            (a - v.sqrt()).abs() < 1e-3 * v.sqrt().max(1e-6),
+            "{x}: {a} {}",
+            v.sqrt()
+        );
+    }
+    for ((u, u0), b) in solved
+        .encoder_error_u
+        .unwrap()
+        .iter()
+        .zip(plain.encoder_error_u.unwrap())
+        .zip(&added)
+    {
+        assert!((u - u0.hypot(*b)).abs() < 1e-15);
+    }
+    assert!(
+        selfcal::SelfcalOptions::new()
+            .with_head_angle_u(-1.0)
+            .is_err()
+    );
+}

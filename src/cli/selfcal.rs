@@ -42,6 +42,10 @@ pub struct SelfcalArgs {
     /// added to u(e).
     #[arg(long, value_name = "ARCSEC", allow_negative_numbers = true)]
     lost_harmonic_bound: Option<f64>,
+    /// Standard uncertainty of every head's nominal angle (heads 2 … M, relative to head
+    /// 1), arcsec: propagated through the slope of the disc's error into u(e) and u(c).
+    #[arg(long, value_name = "ARCSEC", allow_negative_numbers = true)]
+    head_angle_u: Option<f64>,
     /// The gauge of e: Σe = 0 over the N angles k·360°/N (N divides P) instead of over
     /// all P positions — that of an N-faced polygon's encoder errors, to compare with
     /// them by angle (docs/FORMAT.md §9.3).
@@ -70,6 +74,9 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
     let name = display_name(&args.file);
     let set = SelfcalSet::read_path(&args.file, args.positions)?;
     let mut options = SelfcalOptions::new().with_sigma_opt(args.sigma);
+    if let Some(u) = args.head_angle_u {
+        options = options.with_head_angle_u(u).context("--head-angle-u")?;
+    }
     if let Some(n) = args.gauge_positions {
         options = options.with_gauge_positions(n);
     }

@@ -69,6 +69,8 @@ pub struct SelfcalReport {
     pub encoder_error_k: Option<Vec<f64>>,
     /// The angle of each position, degrees.
     pub encoder_angle_deg: Vec<f64>,
+    /// What the heads' angle uncertainty adds to each u(e), arcsec (`null` without it).
+    pub head_angle_u: Option<Vec<f64>>,
     /// n when e is in the gauge Σe = 0 over the n angles k·360°/n; `null`: over all
     /// positions.
     pub gauge_positions: Option<usize>,
@@ -112,16 +114,21 @@ impl SelfcalReport {
             encoder_error_k: k,
             encoder_angle_deg: solution.encoder_angle_deg.clone(),
             gauge_positions: solution.gauge_positions,
+            head_angle_u: solution.head_angle_u.clone(),
             head_error: solution
                 .head_error
                 .iter()
-                .map(|h| HeadErrorReport {
-                    head: h.head,
-                    angle_deg: h.angle_deg,
-                    value: h.value,
-                    u: h.u,
-                    expanded_u: h.u.zip(head_k).map(|(u, k)| k * u),
-                    k: head_k,
+                .enumerate()
+                .map(|(j, h)| {
+                    let k = head_k.as_ref().map(|k| k[j]);
+                    HeadErrorReport {
+                        head: h.head,
+                        angle_deg: h.angle_deg,
+                        value: h.value,
+                        u: h.u,
+                        expanded_u: h.u.zip(k).map(|(u, k)| k * u),
+                        k,
+                    }
                 })
                 .collect(),
             lost_harmonics: solution.lost_harmonics.clone(),
@@ -305,7 +312,7 @@ pub fn write_table<W: Write>(
     for (j, h) in solution.head_error.iter().enumerate() {
         let (u, k) = match uncertainty {
             Some(budget) => (Some(budget.head_error.u[j]), budget.head_error.k[j]),
-            None => (h.u, head_k),
+            None => (h.u, head_k.as_ref().map(|k| k[j])),
         };
         writeln!(
             out,

@@ -15,8 +15,9 @@
 //!
 //! The zeros are exact: t is free at every stop and c for every head, so an error shared
 //! by a stop or a head moves only them (the tests solve such errors to check it). The
-//! bound on the lost harmonics, when given, is one more type-B component of infinite
-//! degrees of freedom acting on e.
+//! bound on the lost harmonics and the heads' angle uncertainty, when given, are more
+//! type-B components of infinite degrees of freedom (the heads' angles on e and on the
+//! head errors).
 
 use serde::Serialize;
 
@@ -119,7 +120,7 @@ pub fn evaluate_budget(
     let u_a_c: Vec<f64> = solution
         .head_error
         .iter()
-        .map(|h| h.u.unwrap_or(0.0))
+        .map(|h| h.u_type_a.unwrap_or(0.0))
         .collect();
     let q_ee: Vec<f64> = u_a_e.iter().map(|u| (u / sigma).powi(2)).collect();
     let q_cc: Vec<f64> = u_a_c.iter().map(|u| (u / sigma).powi(2)).collect();
@@ -146,6 +147,20 @@ pub fn evaluate_budget(
             dof: None,
             encoder_error: vec![u; p],
             head_error: vec![0.0; u_a_c.len()],
+        });
+    }
+    if let Some(on_e) = &solution.head_angle_u {
+        components.push(SelfcalContribution {
+            name: "Nominal angles of the read heads".into(),
+            acts_on: Scope::Result,
+            u: on_e.iter().copied().fold(0.0, f64::max),
+            dof: None,
+            encoder_error: on_e.clone(),
+            head_error: solution
+                .head_error
+                .iter()
+                .map(|h| h.head_angle_u.unwrap_or(0.0))
+                .collect(),
         });
     }
     let family = |u_a: Vec<f64>,

@@ -64,14 +64,16 @@
 //! [`SelfcalSet::from_readings`] are named `<readings>`, with their line and column 0.
 //!
 //! The solving: `solve.rs` maps the readings onto the closure model and back
-//! ([`solve()`]); `fourier.rs` solves heads that sit between the positions; `budget.rs`
-//! combines an instrument budget with the fit ([`evaluate_budget`]).
+//! ([`solve()`]); `fourier.rs` solves heads that sit between the positions;
+//! `head_angle.rs` propagates the uncertainty of the heads' angles; `budget.rs` combines
+//! an instrument budget with the fit ([`evaluate_budget`]).
 
 use crate::measurement::Direction;
 
 mod budget;
 mod file;
 mod fourier;
+mod head_angle;
 mod solve;
 
 pub use budget::{

@@ -22,6 +22,7 @@
 
 use nalgebra::DMatrix;
 
+use super::head_angle::head_angle_u;
 use super::{Head, SelfcalSet, fourier};
 use crate::measurement::{MeasurementError, MeasurementSet, Reading, Sigma, step_angle_deg};
 use crate::solve::cofactor::Cofactor;
@@ -55,6 +56,10 @@ pub struct SelfcalOptions {
     /// The most memory, in bytes, the solver may plan to use (as
     /// [`SolveOptions::memory_limit_bytes`]).
     pub memory_limit_bytes: Option<u64>,
+    /// The standard uncertainty of every head's nominal angle (heads 2 … M, relative to
+    /// head 1), arcsec: through the slope of the disc's error it adds to u(e) and u(c)
+    /// (type B; `head_angle.rs`).
+    pub head_angle_u_arcsec: Option<f64>,
     /// The gauge of e: `None` for Σe = 0 over all P positions; `Some(n)` for Σe = 0 over
     /// the n angles k·360°/n (n divides P) — the gauge of an n-faced polygon's encoder
     /// errors, for comparing with them angle by angle.
@@ -86,6 +91,19 @@ impl SelfcalOptions {
         Ok(self)
     }
 
+    /// With a standard uncertainty of the heads' nominal angles, arcsec (finite, ≥ 0).
+    ///
+    /// # Errors
+    ///
+    /// [`SelfcalSolveError::InvalidHeadAngleU`] for a negative or non-finite value.
+    pub fn with_head_angle_u(mut self, arcsec: f64) -> Result<Self, SelfcalSolveError> {
+        if !(arcsec.is_finite() && arcsec >= 0.0) {
+            return Err(SelfcalSolveError::InvalidHeadAngleU { arcsec });
+        }
+        self.head_angle_u_arcsec = Some(arcsec);
+        Ok(self)
+    }
+
     /// With the gauge Σe = 0 over the n angles k·360°/n instead of over all positions
     /// (checked against P by [`solve`]).
     pub fn with_gauge_positions(mut self, n: usize) -> Self {
@@ -114,6 +132,12 @@ pub enum SelfcalSolveError {
     /// The bound on the lost harmonics is negative or not finite.
     #[error("the bound on the lost harmonics must be a finite number ≥ 0 arcsec, not {arcsec}")]
     InvalidBound {
+        /// The value given.
+        arcsec: f64,
+    },
+    /// The uncertainty of the head angles is negative or not finite.
+    #[error("the uncertainty of the head angles must be a finite number ≥ 0 arcsec, not {arcsec}")]
+    InvalidHeadAngleU {
         /// The value given.
         arcsec: f64,
     },
@@ -152,8 +176,13 @@ pub struct HeadError {
     pub angle_deg: f64,
     /// c\[head\] − c\[1\], arcsec.
     pub value: f64,
-    /// Standard uncertainty, arcsec; `None` when σ is unknown.
+    /// Standard uncertainty, arcsec (type A, with the heads' angle uncertainty when
+    /// given); `None` when σ is unknown.
     pub u: Option<f64>,
+    /// The type A part of `u`.
+    pub u_type_a: Option<f64>,
+    /// What the heads' angle uncertainty adds to `u`, arcsec, when given.
+    pub head_angle_u: Option<f64>,
 }
 
 /// How the heads sit on the position grid, and so which solver ran.
@@ -191,6 +220,9 @@ pub struct SelfcalSolution {
     /// The lost harmonics' part of `encoder_error_u` (one number for every position),
     /// when a bound was given.
     pub lost_harmonic_u: Option<f64>,
+    /// What the uncertainty of the heads' angles adds to each u(e) (type B), arcsec, when
+    /// one was given.
+    pub head_angle_u: Option<Vec<f64>>,
     /// The angle of each position, degrees (k·360/P).
     pub encoder_angle_deg: Vec<f64>,
     /// Heads 2 … M relative to head 1.
@@ -261,11 +293,28 @@ impl SelfcalSolution {
         )
     }
 
-    /// The coverage factor k of the head errors at [`COVERAGE_PROBABILITY`] (type A
-    /// only); `None` when σ is unknown.
-    pub fn head_error_k(&self) -> Option<f64> {
+    /// The coverage factor k of each head error at [`COVERAGE_PROBABILITY`] (as
+    /// [`SelfcalSolution::encoder_error_k`]: Welch–Satterthwaite with the heads' angle
+    /// term of infinite degrees of freedom); `None` when σ is unknown.
+    pub fn head_error_k(&self) -> Option<Vec<f64>> {
         self.sigma?;
-        Some(t_quantile(COVERAGE_PROBABILITY, self.type_a_dof()))
+        let nu_a = self.type_a_dof();
+        Some(
+            self.head_error
+                .iter()
+                .map(|h| {
+                    let (u, ua) = (h.u.unwrap_or(0.0), h.u_type_a.unwrap_or(0.0));
+                    let nu = nu_a.map(|nu| {
+                        if ua > 0.0 {
+                            nu * (u / ua).powi(4)
+                        } else {
+                            f64::INFINITY
+                        }
+                    });
+                    t_quantile(COVERAGE_PROBABILITY, nu.filter(|v| v.is_finite()))
+                })
+                .collect(),
+        )
     }
 }
 
@@ -322,6 +371,33 @@ pub(super) struct Closure {
 /// [`SelfcalSolveError::Solve`] when the engine refuses the design (memory),
 /// [`SelfcalSolveError::Design`] for readings that are not a balanced self-calibration.
 pub fn solve(
+    set: &SelfcalSet,
+    options: &SelfcalOptions,
+) -> Result<SelfcalSolution, SelfcalSolveError> {
+    let mut solution = solve_closure(set, options)?;
+    if let Some(u_angle) = options.head_angle_u_arcsec {
+        let (on_e, on_c) = head_angle_u(set, &solution, u_angle, options)?;
+        if let Some(u) = &mut solution.encoder_error_u {
+            for (u, b) in u.iter_mut().zip(&on_e) {
+                *u = u.hypot(*b);
+            }
+        }
+        for (h, b) in solution.head_error.iter_mut().zip(&on_c) {
+            h.u = h.u.map(|u| u.hypot(*b));
+            h.head_angle_u = Some(*b);
+        }
+        solution.notes.push(format!(
+            "the heads' angles, each with u = {u_angle} arcsec, add up to {:.2e} arcsec to u(e) through the slope of the disc's error",
+            on_e.iter().copied().fold(0.0, f64::max)
+        ));
+        solution.head_angle_u = Some(on_e);
+    }
+    Ok(solution)
+}
+
+/// [`solve`] without the heads' angle uncertainty (which is computed by solving the
+/// patterns it puts into the readings).
+pub(super) fn solve_closure(
     set: &SelfcalSet,
     options: &SelfcalOptions,
 ) -> Result<SelfcalSolution, SelfcalSolveError> {
@@ -497,6 +573,8 @@ fn assemble(
                 angle_deg: h.angle_deg,
                 value: closure.setup[j] - closure.setup[0],
                 u: sigma.map(|(s, _)| s * var.max(0.0).sqrt()),
+                u_type_a: sigma.map(|(s, _)| s * var.max(0.0).sqrt()),
+                head_angle_u: None,
             }
         })
         .collect();
@@ -516,7 +594,7 @@ fn assemble(
     }
     if let Some(n) = options.gauge_positions {
         notes.push(format!(
-            "encoder_error in the gauge Σe = 0 over the {n} angles k·360°/{n} (that of an {n}-faced polygon's encoder errors), not over all {p} positions"
+            "encoder_error in the gauge Σe = 0 over the {n} angles k·360°/{n} (the gauge of the encoder errors of a polygon with {n} faces), not over all {p} positions"
         ));
     }
     if grid == HeadGrid::OffGrid {
@@ -545,6 +623,7 @@ fn assemble(
         encoder_error_u,
         encoder_error_u_type_a,
         lost_harmonic_u,
+        head_angle_u: None,
         encoder_angle_deg: (0..p as u32).map(|k| step_angle_deg(k, p)).collect(),
         head_error,
         lost_harmonics,
