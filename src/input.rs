@@ -6,6 +6,7 @@
 //! input [`STDIN_NAME`]. The path `-` means standard input wherever a path is read
 //! (docs/FORMAT.md §8).
 
+pub(crate) mod text;
 use std::fmt;
 use std::io::{self, Read};
 use std::path::Path;
