@@ -441,8 +441,39 @@ fn one_cycle_of_two_heads_with_a_stated_sigma() {
         &SelfcalOptions::new().with_sigma_opt(Some(Sigma::new(0.05).unwrap())),
     )
     .unwrap();
-    let u = stated.encoder_error_u.unwrap();
-    assert!(u.iter().all(|v| v.is_finite() && *v > 0.0));
+    // heads 30° apart on 12 positions are the paper's design (offsets 0 and 1, one
+    // reading per step): e is φ′ of the closure model, whose cofactor is the Green's
+    // function of the cycle's second difference, Cφ(0) = (N² − 1)/(6·N·r)
+    let expected = 0.05 * ((144.0f64 - 1.0) / (6.0 * 12.0)).sqrt();
+    for u in stated.encoder_error_u.unwrap() {
+        assert!((u - expected).abs() < 1e-12, "{u} {expected}");
+    }
+}
+
+/// A set built field by field (its fields are public) is checked by the file's rules
+/// before it is solved: a step beyond P is refused, not an index out of range (heads off
+/// the grid, so the band-limited solver would have run).
+#[test]
+fn a_set_built_by_hand_is_checked_before_it_is_solved() {
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let disc = Disc::random(&mut rng, 1..6);
+    let run = Run {
+        positions: 12,
+        cycles: 1,
+        head_errors: vec![0.0, 0.1, 0.2],
+        angles: vec![0.0, 100.0, 250.0],
+        table_sigma: 0.0,
+        noise: 0.0,
+    };
+    let mut set = measure(&run, &disc, &mut rng);
+    set.readings[5].step = 40;
+    let refused = selfcal::solve(&set, &SelfcalOptions::new()).unwrap_err();
+    assert!(
+        matches!(refused, selfcal::SelfcalSolveError::Invalid(_)),
+        "{refused}"
+    );
+    set.positions = 2;
+    assert!(selfcal::solve(&set, &SelfcalOptions::new()).is_err());
 }
 
 /// The scopes' gains are structural: an error shared by a head's readings moves only the

@@ -26,24 +26,8 @@ use crate::results::Quantity;
 use crate::solve::SigmaSource;
 use crate::uncertainty::budget::DofPolicy;
 use crate::uncertainty::calibration::{
-    CalibrationError, Combined, InstrumentBudget, Scope, combine,
+    CalibrationError, Combined, FamilyUncertainty, InstrumentBudget, Scope, combine,
 };
-
-/// The uncertainties of one family (all e, or all head errors).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct SelfcalFamilyUncertainty {
-    /// Type A standard uncertainty from the fit.
-    pub u_a: Vec<f64>,
-    /// Combined standard uncertainty u_c.
-    pub u: Vec<f64>,
-    /// Effective degrees of freedom (Welch–Satterthwaite), `null` when infinite.
-    pub dof_eff: Vec<Option<f64>>,
-    /// Coverage factor.
-    pub k: Vec<Option<f64>>,
-    /// Expanded uncertainty U = k·u_c.
-    #[serde(rename = "U")]
-    pub expanded_u: Vec<f64>,
-}
 
 /// What one component contributes (standard uncertainties, arcsec).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -75,9 +59,9 @@ pub struct SelfcalUncertainty {
     /// Degrees of freedom of the type A part (`null`: infinite, a stated σ).
     pub type_a_dof: Option<f64>,
     /// The encoder errors e.
-    pub encoder_error: SelfcalFamilyUncertainty,
+    pub encoder_error: FamilyUncertainty,
     /// The head errors, heads 2 … M.
-    pub head_error: SelfcalFamilyUncertainty,
+    pub head_error: FamilyUncertainty,
     /// Every component's contributions (the lost harmonics' bound last, when given).
     pub components: Vec<SelfcalContribution>,
 }
@@ -167,7 +151,7 @@ pub fn evaluate_budget(
                   contributions: Vec<Vec<f64>>,
                   quantity: Quantity,
                   index: &dyn Fn(usize) -> usize|
-     -> Result<SelfcalFamilyUncertainty, CalibrationError> {
+     -> Result<FamilyUncertainty, CalibrationError> {
         let dof: Vec<Option<f64>> = components.iter().map(|c| c.dof).collect();
         let Combined {
             u,
@@ -177,7 +161,7 @@ pub fn evaluate_budget(
         } = combine(budget, &u_a, type_a_dof, &dof, &contributions, |j| {
             (quantity, index(j))
         })?;
-        Ok(SelfcalFamilyUncertainty {
+        Ok(FamilyUncertainty {
             u_a,
             u,
             dof_eff,

@@ -178,6 +178,23 @@ impl SelfcalSet {
         })
     }
 
+    /// Checks a set built field by field (its fields are public) by the file's rules,
+    /// with its own P: what [`SelfcalSet::from_readings`] checks. [`crate::selfcal::solve`]
+    /// calls it first, so that no set reaches the solver unchecked.
+    ///
+    /// # Errors
+    ///
+    /// [`SelfcalError::Invalid`] for the first rule broken.
+    pub fn check(&self) -> Result<(), SelfcalError> {
+        validate::validate(
+            &self.readings,
+            Some(self.positions),
+            &validate::Locator::Memory,
+            MEMORY_NAME,
+        )
+        .map(|_| ())
+    }
+
     /// Writes the self-calibration CSV (docs/FORMAT.md §9.2), without comments.
     ///
     /// The header is `cycle,step,head,head_angle,reading`, followed by `direction` if some

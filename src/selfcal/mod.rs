@@ -76,9 +76,7 @@ mod fourier;
 mod head_angle;
 mod solve;
 
-pub use budget::{
-    SelfcalContribution, SelfcalFamilyUncertainty, SelfcalUncertainty, evaluate_budget,
-};
+pub use budget::{SelfcalContribution, SelfcalUncertainty, evaluate_budget};
 pub use file::SelfcalError;
 pub use solve::{
     COVERAGE_PROBABILITY, HeadError, HeadGrid, ON_GRID_TOLERANCE_POSITIONS, SelfcalOptions,

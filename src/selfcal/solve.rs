@@ -23,7 +23,7 @@
 use nalgebra::DMatrix;
 
 use super::head_angle::head_angle_u;
-use super::{Head, SelfcalSet, fourier};
+use super::{Head, SelfcalError, SelfcalSet, fourier};
 use crate::measurement::{MeasurementError, MeasurementSet, Reading, Sigma, step_angle_deg};
 use crate::solve::cofactor::Cofactor;
 use crate::solve::least_squares::least_squares_zeroing_lost;
@@ -129,6 +129,9 @@ pub enum SelfcalSolveError {
     /// rules).
     #[error("the self-calibration readings do not form a closure design: {0}")]
     Design(#[from] MeasurementError),
+    /// A set that breaks the self-calibration file's rules (built field by field).
+    #[error("the self-calibration set is not valid: {0}")]
+    Invalid(#[from] SelfcalError),
     /// The bound on the lost harmonics is negative or not finite.
     #[error("the bound on the lost harmonics must be a finite number ≥ 0 arcsec, not {arcsec}")]
     InvalidBound {
@@ -368,12 +371,14 @@ pub(super) struct Closure {
 ///
 /// # Errors
 ///
-/// [`SelfcalSolveError::Solve`] when the engine refuses the design (memory),
-/// [`SelfcalSolveError::Design`] for readings that are not a balanced self-calibration.
+/// [`SelfcalSolveError::Invalid`] for a set that breaks the file's rules (a set built
+/// field by field), [`SelfcalSolveError::Solve`] when the engine refuses the design
+/// (memory).
 pub fn solve(
     set: &SelfcalSet,
     options: &SelfcalOptions,
 ) -> Result<SelfcalSolution, SelfcalSolveError> {
+    set.check()?;
     let mut solution = solve_closure(set, options)?;
     if let Some(u_angle) = options.head_angle_u_arcsec {
         let (on_e, on_c) = head_angle_u(set, &solution, u_angle, options)?;

@@ -13,7 +13,7 @@ use crate::uncertainty::budget::{DofPolicy, EvaluationType};
 use crate::uncertainty::student::t_quantile;
 
 /// The uncertainties of one family of quantities (all β, all φ, all α, or all setup
-/// errors), index as in the solution.
+/// errors; in a self-calibration all e or all head errors), index as in the solution.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FamilyUncertainty {
     /// Type A standard uncertainty from the fit, σ·√Q_jj (the report's `*_u`).
