@@ -32,6 +32,7 @@
 pub mod compare;
 pub mod diagnose;
 pub mod effects;
+pub mod figure;
 pub mod input;
 #[cfg(feature = "lab")]
 pub mod lab;
