@@ -341,7 +341,7 @@ fn compare_band_is_the_en_denominator_and_every_en_over_one_is_marked() {
     let b = dir.join("b.csv");
     let out = polycal(&["solve", DATA, "--budget", BUDGET, "--format", "csv"]);
     std::fs::write(&a, &out.stdout).unwrap();
-    let sim = polycal(&["simulate", "--closing", "--seed", "2", "--output", dir.join("sim.csv").to_str().unwrap()]);
+    let sim = polycal(&["simulate", "--closing", "--seed", "2", "--out", dir.join("sim.csv").to_str().unwrap()]);
     assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
     let out = polycal(&["solve", dir.join("sim.csv").to_str().unwrap(), "--budget", BUDGET, "--format", "csv"]);
     std::fs::write(&b, &out.stdout).unwrap();
@@ -362,7 +362,11 @@ fn compare_band_is_the_en_denominator_and_every_en_over_one_is_marked() {
         let rows: Vec<&Value> = rows.iter().filter(|r| r["quantity"] == family).collect();
         assert!(!rows.is_empty());
         let get = |k: &str| rows.iter().map(|r| r[k].as_f64().unwrap()).collect::<Vec<f64>>();
-        let xs = get("index");
+        // Encoder errors matched by angle are drawn against it.
+        let xs: Vec<f64> = rows
+            .iter()
+            .map(|r| r.get("angle_deg").unwrap_or(&r["index"]).as_f64().unwrap())
+            .collect();
         let slug = family.replace('_', "-");
         let text = svg_text(&plot.join(format!("compare-{slug}.svg")));
         check_series(&text, "main", "a", &xs, &get("a"), Some(&get("U_a")), 3.0 + HALF_PX);
@@ -421,7 +425,7 @@ fn diagnose_residuals_and_the_effects_where_they_act() {
     let sim = dir.join("sim.csv");
     let out = polycal(&[
         "simulate", "--closing", "--drift", "2:1.5", "--offset-step", "1:4:0.8", "--outlier",
-        "3:7:1:3.0", "--seed", "5", "--output", sim.to_str().unwrap(),
+        "3:7:1:3.0", "--seed", "5", "--out", sim.to_str().unwrap(),
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let plot = dir.join("plot");
