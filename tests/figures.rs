@@ -50,7 +50,11 @@ fn floats(v: &Value) -> Vec<f64> {
 fn svg_text(path: &Path) -> String {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     roxmltree::Document::parse(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    assert!(!text.contains("NaN") && !text.contains("inf\""), "{}", path.display());
+    assert!(
+        !text.contains("NaN") && !text.contains("inf\""),
+        "{}",
+        path.display()
+    );
     text
 }
 
@@ -94,13 +98,7 @@ fn axis_map(doc: &roxmltree::Document, panel: &str, axis: &str) -> Map {
     let values: Vec<f64> = doc
         .descendants()
         .filter(|n| in_panel(n, &format!("tick-label-{axis}")))
-        .map(|n| {
-            n.text()
-                .unwrap()
-                .replace('−', "-")
-                .parse::<f64>()
-                .unwrap()
-        })
+        .map(|n| n.text().unwrap().replace('−', "-").parse::<f64>().unwrap())
         .collect();
     assert_eq!(positions.len(), values.len(), "{panel} {axis}");
     assert!(positions.len() >= 2, "{panel} {axis}: ticks");
@@ -108,12 +106,21 @@ fn axis_map(doc: &roxmltree::Document, panel: &str, axis: &str) -> Map {
     let step = values[1] - values[0];
     let mantissa = step / 10f64.powf(step.log10().floor());
     assert!(
-        [1.0, 2.0, 5.0, 10.0].iter().any(|m| (mantissa - m).abs() < 1e-6),
+        [1.0, 2.0, 5.0, 10.0]
+            .iter()
+            .any(|m| (mantissa - m).abs() < 1e-6),
         "{panel} {axis}: step {step}"
     );
     let n = positions.len() as f64;
-    let (mv, mp) = (values.iter().sum::<f64>() / n, positions.iter().sum::<f64>() / n);
-    let sxy: f64 = values.iter().zip(&positions).map(|(v, p)| (v - mv) * (p - mp)).sum();
+    let (mv, mp) = (
+        values.iter().sum::<f64>() / n,
+        positions.iter().sum::<f64>() / n,
+    );
+    let sxy: f64 = values
+        .iter()
+        .zip(&positions)
+        .map(|(v, p)| (v - mv) * (p - mp))
+        .sum();
     let sxx: f64 = values.iter().map(|v| (v - mv).powi(2)).sum();
     let slope = sxy / sxx;
     let map = Map {
@@ -121,7 +128,10 @@ fn axis_map(doc: &roxmltree::Document, panel: &str, axis: &str) -> Map {
         slope,
     };
     for (v, p) in values.iter().zip(&positions) {
-        assert!((map.px(*v) - p).abs() < 0.02, "{panel} {axis}: ticks not linear");
+        assert!(
+            (map.px(*v) - p).abs() < 0.02,
+            "{panel} {axis}: ticks not linear"
+        );
     }
     map
 }
@@ -235,7 +245,10 @@ fn solve_without_budget_bars_are_students_t_times_u() {
     // Independent of the project's Student t: statrs.
     let k = StudentsT::new(0.0, 1.0, dof).unwrap().inverse_cdf(0.975);
     let beta = floats(&json["pitch_deviation"]);
-    let u_beta: Vec<f64> = floats(&json["pitch_deviation_u"]).iter().map(|u| k * u).collect();
+    let u_beta: Vec<f64> = floats(&json["pitch_deviation_u"])
+        .iter()
+        .map(|u| k * u)
+        .collect();
     let faces: Vec<f64> = (1..=n).map(|f| f as f64).collect();
     let text = svg_text(&dir.join("pitch-deviation.svg"));
     assert!(text.contains(&format!("k = {k:.2}")), "the figure states k");
@@ -243,14 +256,28 @@ fn solve_without_budget_bars_are_students_t_times_u() {
     check_series(&text, "main", "beta", &faces, &beta, Some(&u_beta), HALF_PX);
 
     let alpha = floats(&json["encoder_error"]);
-    let u_alpha: Vec<f64> = floats(&json["encoder_error_u"]).iter().map(|u| k * u).collect();
+    let u_alpha: Vec<f64> = floats(&json["encoder_error_u"])
+        .iter()
+        .map(|u| k * u)
+        .collect();
     let angles: Vec<f64> = (0..n).map(|p| 360.0 * p as f64 / n as f64).collect();
     let text = svg_text(&dir.join("encoder-error.svg"));
     assert!(text.contains("table angle / °"));
-    check_series(&text, "main", "alpha", &angles, &alpha, Some(&u_alpha), HALF_PX);
+    check_series(
+        &text,
+        "main",
+        "alpha",
+        &angles,
+        &alpha,
+        Some(&u_alpha),
+        HALF_PX,
+    );
 
     let phi = floats(&json["face_deviation"]);
-    let u_phi: Vec<f64> = floats(&json["face_deviation_u"]).iter().map(|u| k * u).collect();
+    let u_phi: Vec<f64> = floats(&json["face_deviation_u"])
+        .iter()
+        .map(|u| k * u)
+        .collect();
     let text = svg_text(&dir.join("face-deviation.svg"));
     check_series(&text, "main", "phi", &faces, &phi, Some(&u_phi), HALF_PX);
     assert!(!dir.join("budget-pitch-deviation.svg").exists());
@@ -297,12 +324,22 @@ fn solve_with_budget_bars_are_the_budgets_u_and_budget_bars_its_indices() {
         )];
         for c in unc["components"].as_array().unwrap() {
             let u = floats(&c[family])[j];
-            expected.push((c["name"].as_str().unwrap().into(), 100.0 * (u / u_c).powi(2)));
+            expected.push((
+                c["name"].as_str().unwrap().into(),
+                100.0 * (u / u_c).powi(2),
+            ));
         }
         let path = dir.join(format!("budget-{}.svg", family.replace('_', "-")));
         let text = svg_text(&path);
-        let symbol = if family == "pitch_deviation" { "β" } else { "α" };
-        assert!(text.contains(&format!("{symbol}[{}]", j + index_base)), "the title names the quantity");
+        let symbol = if family == "pitch_deviation" {
+            "β"
+        } else {
+            "α"
+        };
+        assert!(
+            text.contains(&format!("{symbol}[{}]", j + index_base)),
+            "the title names the quantity"
+        );
         let doc = roxmltree::Document::parse(&text).unwrap();
         let mx = axis_map(&doc, "main", "x");
         let drawn: Vec<(String, f64)> = doc
@@ -341,9 +378,27 @@ fn compare_band_is_the_en_denominator_and_every_en_over_one_is_marked() {
     let b = dir.join("b.csv");
     let out = polycal(&["solve", DATA, "--budget", BUDGET, "--format", "csv"]);
     std::fs::write(&a, &out.stdout).unwrap();
-    let sim = polycal(&["simulate", "--closing", "--seed", "2", "--out", dir.join("sim.csv").to_str().unwrap()]);
-    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
-    let out = polycal(&["solve", dir.join("sim.csv").to_str().unwrap(), "--budget", BUDGET, "--format", "csv"]);
+    let sim = polycal(&[
+        "simulate",
+        "--closing",
+        "--seed",
+        "2",
+        "--out",
+        dir.join("sim.csv").to_str().unwrap(),
+    ]);
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
+    let out = polycal(&[
+        "solve",
+        dir.join("sim.csv").to_str().unwrap(),
+        "--budget",
+        BUDGET,
+        "--format",
+        "csv",
+    ]);
     std::fs::write(&b, &out.stdout).unwrap();
     let plot = dir.join("plot");
     let json = json_of(&polycal(&[
@@ -361,7 +416,11 @@ fn compare_band_is_the_en_denominator_and_every_en_over_one_is_marked() {
     for family in ["pitch_deviation", "encoder_error"] {
         let rows: Vec<&Value> = rows.iter().filter(|r| r["quantity"] == family).collect();
         assert!(!rows.is_empty());
-        let get = |k: &str| rows.iter().map(|r| r[k].as_f64().unwrap()).collect::<Vec<f64>>();
+        let get = |k: &str| {
+            rows.iter()
+                .map(|r| r[k].as_f64().unwrap())
+                .collect::<Vec<f64>>()
+        };
         // Encoder errors matched by angle are drawn against it.
         let xs: Vec<f64> = rows
             .iter()
@@ -369,11 +428,35 @@ fn compare_band_is_the_en_denominator_and_every_en_over_one_is_marked() {
             .collect();
         let slug = family.replace('_', "-");
         let text = svg_text(&plot.join(format!("compare-{slug}.svg")));
-        check_series(&text, "main", "a", &xs, &get("a"), Some(&get("U_a")), 3.0 + HALF_PX);
-        check_series(&text, "main", "b", &xs, &get("b"), Some(&get("U_b")), 3.0 + HALF_PX);
+        check_series(
+            &text,
+            "main",
+            "a",
+            &xs,
+            &get("a"),
+            Some(&get("U_a")),
+            3.0 + HALF_PX,
+        );
+        check_series(
+            &text,
+            "main",
+            "b",
+            &xs,
+            &get("b"),
+            Some(&get("U_b")),
+            3.0 + HALF_PX,
+        );
 
         let text = svg_text(&plot.join(format!("compare-{slug}-difference.svg")));
-        check_series(&text, "difference", "difference", &xs, &get("difference"), None, HALF_PX);
+        check_series(
+            &text,
+            "difference",
+            "difference",
+            &xs,
+            &get("difference"),
+            None,
+            HALF_PX,
+        );
         let doc = roxmltree::Document::parse(&text).unwrap();
         let my = axis_map(&doc, "difference", "y");
         let (ua, ub) = (get("U_a"), get("U_b"));
@@ -383,8 +466,14 @@ fn compare_band_is_the_en_denominator_and_every_en_over_one_is_marked() {
             let i: usize = band.attribute("data-index").unwrap().parse().unwrap();
             let half = (ua[i].powi(2) + ub[i].powi(2)).sqrt();
             let (y, h) = (attr(band, "y"), attr(band, "height"));
-            assert!((my.value(y) - half).abs() * my.slope.abs() <= HALF_PX, "band top {i}");
-            assert!((my.value(y + h) + half).abs() * my.slope.abs() <= HALF_PX, "band bottom {i}");
+            assert!(
+                (my.value(y) - half).abs() * my.slope.abs() <= HALF_PX,
+                "band top {i}"
+            );
+            assert!(
+                (my.value(y + h) + half).abs() * my.slope.abs() <= HALF_PX,
+                "band bottom {i}"
+            );
         }
         let en = get("en");
         let over: BTreeSet<usize> = (0..en.len()).filter(|&i| en[i].abs() > 1.0).collect();
@@ -396,7 +485,10 @@ fn compare_band_is_the_en_denominator_and_every_en_over_one_is_marked() {
             .map(|n| n.attribute("data-index").unwrap().parse().unwrap())
             .collect();
         assert_eq!(ringed, over, "{family}: ringed = |En| > 1");
-        let filled: BTreeSet<usize> = points(&doc, "en", "en-exceeds").iter().map(|p| p.0).collect();
+        let filled: BTreeSet<usize> = points(&doc, "en", "en-exceeds")
+            .iter()
+            .map(|p| p.0)
+            .collect();
         assert_eq!(filled, over, "{family}: filled En markers = |En| > 1");
         let en_over: Vec<f64> = en.clone();
         let mut all: Vec<(usize, f64, f64)> = points(&doc, "en", "en");
@@ -413,8 +505,16 @@ fn compare_band_is_the_en_denominator_and_every_en_over_one_is_marked() {
             .map(|n| my.value(attr(n, "y1")))
             .collect();
         assert_eq!(limits.len(), 2);
-        assert!(limits.iter().any(|v| (v - 1.0).abs() * my.slope.abs() <= HALF_PX));
-        assert!(limits.iter().any(|v| (v + 1.0).abs() * my.slope.abs() <= HALF_PX));
+        assert!(
+            limits
+                .iter()
+                .any(|v| (v - 1.0).abs() * my.slope.abs() <= HALF_PX)
+        );
+        assert!(
+            limits
+                .iter()
+                .any(|v| (v + 1.0).abs() * my.slope.abs() <= HALF_PX)
+        );
     }
     assert!(some_over && some_under, "the data exercise both cases");
 }
@@ -424,10 +524,24 @@ fn diagnose_residuals_and_the_effects_where_they_act() {
     let dir = temp_dir("diagnose");
     let sim = dir.join("sim.csv");
     let out = polycal(&[
-        "simulate", "--closing", "--drift", "2:1.5", "--offset-step", "1:4:0.8", "--outlier",
-        "3:7:1:3.0", "--seed", "5", "--out", sim.to_str().unwrap(),
+        "simulate",
+        "--closing",
+        "--drift",
+        "2:1.5",
+        "--offset-step",
+        "1:4:0.8",
+        "--outlier",
+        "3:7:1:3.0",
+        "--seed",
+        "5",
+        "--out",
+        sim.to_str().unwrap(),
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let plot = dir.join("plot");
     let json = json_of(&polycal(&[
         "diagnose",
@@ -438,15 +552,26 @@ fn diagnose_residuals_and_the_effects_where_they_act() {
         plot.to_str().unwrap(),
     ]));
     let res = &json["residuals"];
-    let acs: Vec<u64> = res["ac"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect();
+    let acs: Vec<u64> = res["ac"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
     let time: Vec<f64> = floats(&res["time"]);
     let (before, after) = (floats(&res["before"]), floats(&res["after"]));
     let hours = time.iter().copied().fold(0.0, f64::max) > 7200.0;
     let scale = if hours { 1.0 / 3600.0 } else { 1.0 };
     let xs: Vec<f64> = time.iter().map(|t| t * scale).collect();
     let effects = json["effects"].as_array().unwrap();
-    let kinds: Vec<&str> = effects.iter().map(|e| e["kind"].as_str().unwrap()).collect();
-    assert!(kinds.contains(&"drift") && kinds.contains(&"offset-step") && kinds.contains(&"outlier"), "{kinds:?}");
+    let kinds: Vec<&str> = effects
+        .iter()
+        .map(|e| e["kind"].as_str().unwrap())
+        .collect();
+    assert!(
+        kinds.contains(&"drift") && kinds.contains(&"offset-step") && kinds.contains(&"outlier"),
+        "{kinds:?}"
+    );
     for ac in [1u64, 2] {
         let text = svg_text(&plot.join(format!("diagnose-residuals-ac{ac}.svg")));
         let doc = roxmltree::Document::parse(&text).unwrap();
@@ -470,7 +595,10 @@ fn diagnose_residuals_and_the_effects_where_they_act() {
             match effect["kind"].as_str().unwrap() {
                 "drift" => {
                     // The line's slope is the drift rate, arcsec per hour.
-                    let line = doc.descendants().find(|n| class_is(n, "effect-drift")).expect("drift line");
+                    let line = doc
+                        .descendants()
+                        .find(|n| class_is(n, "effect-drift"))
+                        .expect("drift line");
                     let pts: Vec<(f64, f64)> = line
                         .attribute("points")
                         .unwrap()
@@ -484,7 +612,10 @@ fn diagnose_residuals_and_the_effects_where_they_act() {
                     let per_hour = (last.1 - first.1) / ((last.0 - first.0) / scale / 3600.0);
                     let value = effect["value"].as_f64().unwrap();
                     assert!(effect.get("quadratic").is_none());
-                    assert!((per_hour - value).abs() < 0.01 * value.abs(), "drift slope {per_hour} for {value}");
+                    assert!(
+                        (per_hour - value).abs() < 0.01 * value.abs(),
+                        "drift slope {per_hour} for {value}"
+                    );
                 }
                 "offset-step" => {
                     // At the first reading of this ac in the jump's cycle.
@@ -493,15 +624,26 @@ fn diagnose_residuals_and_the_effects_where_they_act() {
                         .filter(|&i| acs[i] == ac && res["cycle"][i].as_u64() == Some(cycle))
                         .map(|i| xs[i])
                         .fold(f64::INFINITY, f64::min);
-                    let lines: Vec<_> = doc.descendants().filter(|n| class_is(n, "effect-step")).collect();
+                    let lines: Vec<_> = doc
+                        .descendants()
+                        .filter(|n| class_is(n, "effect-step"))
+                        .collect();
                     assert_eq!(lines.len(), 2, "one line per panel");
                     for l in lines {
-                        assert!((mx.px(first) - attr(l, "x1")).abs() <= HALF_PX, "step at the jump");
+                        assert!(
+                            (mx.px(first) - attr(l, "x1")).abs() <= HALF_PX,
+                            "step at the jump"
+                        );
                     }
                     assert!(doc.descendants().any(|n| class_is(&n, "effect-step-level")));
                 }
                 "outlier" => {
-                    let left: Vec<usize> = res["left_out"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as usize).collect();
+                    let left: Vec<usize> = res["left_out"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|v| v.as_u64().unwrap() as usize)
+                        .collect();
                     assert_eq!(left.len(), 1);
                     let i = left[0];
                     assert_eq!(res["cycle"][i].as_u64(), effect["cycle"].as_u64());
@@ -519,7 +661,10 @@ fn diagnose_residuals_and_the_effects_where_they_act() {
             }
         }
         if ac == 2 {
-            assert!(!doc.descendants().any(|n| class_is(&n, "effect-outlier")), "the outlier is ac 1's");
+            assert!(
+                !doc.descendants().any(|n| class_is(&n, "effect-outlier")),
+                "the outlier is ac 1's"
+            );
         }
     }
 }
@@ -549,8 +694,21 @@ fn selfcal_168_positions_with_u_bars() {
     );
     let heads = json["head_error"].as_array().unwrap();
     let text = svg_text(&dir.join("selfcal-head-error.svg"));
-    let get = |k: &str| heads.iter().map(|h| h[k].as_f64().unwrap()).collect::<Vec<f64>>();
-    check_series(&text, "main", "c", &get("angle_deg"), &get("value"), Some(&get("U")), HALF_PX);
+    let get = |k: &str| {
+        heads
+            .iter()
+            .map(|h| h[k].as_f64().unwrap())
+            .collect::<Vec<f64>>()
+    };
+    check_series(
+        &text,
+        "main",
+        "c",
+        &get("angle_deg"),
+        &get("value"),
+        Some(&get("U")),
+        HALF_PX,
+    );
 }
 
 #[test]
@@ -558,7 +716,11 @@ fn plot_refuses_several_files_and_reports_an_unwritable_directory() {
     let out = polycal(&["solve", DATA, DATA, "--plot", "/tmp/x"]);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(err.lines().filter(|l| l.starts_with("error:")).count(), 1, "{err}");
+    assert_eq!(
+        err.lines().filter(|l| l.starts_with("error:")).count(),
+        1,
+        "{err}"
+    );
     assert!(err.contains("--plot"));
     let dir = temp_dir("unwritable");
     let file = dir.join("a-file");

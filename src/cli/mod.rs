@@ -303,7 +303,10 @@ mod tests {
 
 /// Writes the figures of `--plot DIR` (docs/FORMAT.md §10); a write failure is an error
 /// naming the path.
-pub fn write_plot(dir: &std::path::Path, figures: &[polycal::figure::Figure]) -> anyhow::Result<()> {
+pub fn write_plot(
+    dir: &std::path::Path,
+    figures: &[polycal::figure::Figure],
+) -> anyhow::Result<()> {
     polycal::figure::write_figures(dir, figures)
         .map(|_| ())
         .map_err(|e| anyhow::anyhow!("--plot: cannot write the figures: {e}"))

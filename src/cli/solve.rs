@@ -246,8 +246,8 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                 continue;
             }
         };
-        let json_report = (matches!(args.format, SolveFormat::Json) || args.plot.is_some())
-            .then(|| {
+        let json_report =
+            (matches!(args.format, SolveFormat::Json) || args.plot.is_some()).then(|| {
                 let mut report = SolveReport::new(&solution, several.then(|| label.clone()));
                 if let Some(gum) = &gum {
                     report = report.with_uncertainty(gum);

@@ -90,7 +90,11 @@ pub(crate) fn family_figure(
             px(y + 2.0),
             px((x1 - x0).max(0.0)),
             px(row_px - 4.0),
-            if name == TYPE_A_NAME { "#fff" } else { "#9a9a9a" }
+            if name == TYPE_A_NAME {
+                "#fff"
+            } else {
+                "#9a9a9a"
+            }
         );
         let _ = writeln!(
             body,
@@ -134,9 +138,23 @@ fn largest_u(family: &FamilyUncertainty) -> Option<usize> {
 pub(crate) fn figures(uncertainty: &CalibrationUncertainty) -> Vec<Figure> {
     type Pick = fn(&ComponentContribution) -> &Vec<f64>;
     let families: [(&str, &str, usize, &FamilyUncertainty, Pick); 3] = [
-        ("pitch deviation", "β", 1, &uncertainty.pitch_deviation, |c| &c.pitch_deviation),
-        ("face deviation", "φ", 1, &uncertainty.face_deviation, |c| &c.face_deviation),
-        ("encoder error", "α", 0, &uncertainty.encoder_error, |c| &c.encoder_error),
+        (
+            "pitch deviation",
+            "β",
+            1,
+            &uncertainty.pitch_deviation,
+            |c| &c.pitch_deviation,
+        ),
+        (
+            "face deviation",
+            "φ",
+            1,
+            &uncertainty.face_deviation,
+            |c| &c.face_deviation,
+        ),
+        ("encoder error", "α", 0, &uncertainty.encoder_error, |c| {
+            &c.encoder_error
+        }),
     ];
     families
         .into_iter()

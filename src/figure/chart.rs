@@ -70,9 +70,7 @@ fn non_finite(series: &[Series]) -> usize {
     series
         .iter()
         .flat_map(|s| &s.points)
-        .filter(|p| {
-            !(p.x.is_finite() && p.y.is_finite() && p.half.is_none_or(|h| h.is_finite()))
-        })
+        .filter(|p| !(p.x.is_finite() && p.y.is_finite() && p.half.is_none_or(|h| h.is_finite())))
         .count()
 }
 
@@ -148,7 +146,15 @@ pub(crate) fn draw_series(out: &mut String, panel: &Panel, series: &[Series]) {
                 continue;
             }
             let x = panel.x_px(p.x) + s.dx_px;
-            point(out, panel, &s.id, p.index, (x, panel.y_px(p.y)), s.marker, r);
+            point(
+                out,
+                panel,
+                &s.id,
+                p.index,
+                (x, panel.y_px(p.y)),
+                s.marker,
+                r,
+            );
         }
     }
     let _ = writeln!(out, "</g>");

@@ -66,7 +66,13 @@ pub(crate) fn figures(comparison: &Comparison, label_a: &str, label_b: &str) -> 
             continue;
         }
         out.push(both(quantity, &rows, label_a, label_b));
-        out.push(difference(quantity, &rows, comparison.correlation, label_a, label_b));
+        out.push(difference(
+            quantity,
+            &rows,
+            comparison.correlation,
+            label_a,
+            label_b,
+        ));
     }
     out
 }
@@ -75,8 +81,8 @@ fn both(quantity: Quantity, rows: &[&ComparisonRow], label_a: &str, label_b: &st
     let by_angle = rows.iter().all(|r| r.angle_deg.is_some());
     let (words, symbol) = family_words(quantity);
     let title = format!("{words}: both results with U");
-    let series = |id: &str, label: &str, marker, dx_px, pick: fn(&ComparisonRow) -> (f64, f64)| {
-        Series {
+    let series =
+        |id: &str, label: &str, marker, dx_px, pick: fn(&ComparisonRow) -> (f64, f64)| Series {
             id: id.into(),
             label: format!("{label} (U bars)"),
             marker,
@@ -94,8 +100,7 @@ fn both(quantity: Quantity, rows: &[&ComparisonRow], label_a: &str, label_b: &st
                     }
                 })
                 .collect(),
-        }
-    };
+        };
     let dx = if rows.len() > 200 { 0.0 } else { 3.0 };
     let chart = Chart {
         title: title.clone(),
@@ -106,14 +111,22 @@ fn both(quantity: Quantity, rows: &[&ComparisonRow], label_a: &str, label_b: &st
         x_label: x_label(quantity, by_angle),
         y_label: format!("{symbol} / ″"),
         series: vec![
-            series("a", &format!("a: {label_a}"), Marker::FilledCircle, -dx, |r| {
-                (r.a, r.expanded_u_a)
-            }),
+            series(
+                "a",
+                &format!("a: {label_a}"),
+                Marker::FilledCircle,
+                -dx,
+                |r| (r.a, r.expanded_u_a),
+            ),
             series("b", &format!("b: {label_b}"), Marker::OpenSquare, dx, |r| {
                 (r.b, r.expanded_u_b)
             }),
         ],
-        x_include: if by_angle { vec![0.0, 360.0] } else { Vec::new() },
+        x_include: if by_angle {
+            vec![0.0, 360.0]
+        } else {
+            Vec::new()
+        },
     };
     Figure::new(
         format!("compare-{}", family_slug(quantity)),
@@ -150,21 +163,35 @@ fn difference(
         .filter(|r| !(x_of(r).is_finite() && r.difference.is_finite() && r.en.is_finite()))
         .count();
     if skipped > 0 {
-        subtitles.push(format!("{skipped} row(s) with a non-finite value are not drawn"));
+        subtitles.push(format!(
+            "{skipped} row(s) with a non-finite value are not drawn"
+        ));
     }
     let mut body = String::new();
     let entries = vec![
-        (LegendKey::Marker(Marker::FilledCircle, false), "a − b".to_string()),
+        (
+            LegendKey::Marker(Marker::FilledCircle, false),
+            "a − b".to_string(),
+        ),
         (LegendKey::Band, "±√(U_a² + U_b²)".to_string()),
         (LegendKey::Ring, "|En| > 1".to_string()),
-        (LegendKey::Marker(Marker::OpenSquare, false), "En, |En| ≤ 1".to_string()),
-        (LegendKey::Marker(Marker::FilledCircle, false), "En, |En| > 1".to_string()),
+        (
+            LegendKey::Marker(Marker::OpenSquare, false),
+            "En, |En| ≤ 1".to_string(),
+        ),
+        (
+            LegendKey::Marker(Marker::FilledCircle, false),
+            "En, |En| > 1".to_string(),
+        ),
         (LegendKey::Line(Some("5,3")), "En = ±1".to_string()),
     ];
     let top = header_px(subtitles.len());
     let legend_px = legend(&mut body, &entries, top);
     let finite = |r: &&&ComparisonRow| x_of(r).is_finite() && r.difference.is_finite();
-    let halves: Vec<f64> = rows.iter().map(|r| band_half_width(r, correlation)).collect();
+    let halves: Vec<f64> = rows
+        .iter()
+        .map(|r| band_half_width(r, correlation))
+        .collect();
     let x_axis = |label: String| {
         Axis::covering(
             rows.iter().filter(finite).map(|r| x_of(r)),

@@ -17,12 +17,15 @@ use serde_json::Value;
 use super::Figure;
 use super::chart::{Point, Series, draw_series, marker_px};
 use super::svg::{
-    Axis, LEFT_PX, LegendKey, Marker, Panel, RIGHT_PX, WIDTH_PX, document, header_px,
-    legend, number_text, px,
+    Axis, LEFT_PX, LegendKey, Marker, Panel, RIGHT_PX, WIDTH_PX, document, header_px, legend,
+    number_text, px,
 };
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, Reading};
 use crate::report::diagnose::{DiagnoseReport, ResidualsReport, label};
+
+/// An effect's line: its class, its value, its (x, contribution) points.
+type EffectLine = (&'static str, f64, Vec<(f64, f64)>);
 
 /// Times beyond this are drawn in hours, s.
 const HOURS_FROM_S: f64 = 2.0 * 3600.0;
@@ -104,7 +107,10 @@ fn one_ac(
         None => (
             indices.iter().map(|&i| (i + 1) as f64).collect(),
             "reading number in file order".into(),
-            Some("the file has no time for every reading: residuals against reading order".to_string()),
+            Some(
+                "the file has no time for every reading: residuals against reading order"
+                    .to_string(),
+            ),
         ),
     };
     let title = format!("Residuals of autocollimator {ac}, before and after the effects");
@@ -121,14 +127,20 @@ fn one_ac(
         .filter(|e| effect_ac(e).is_none_or(|a| a == ac))
         .collect();
     let mut entries = vec![
-        (LegendKey::Marker(Marker::FilledCircle, false), "before (base model)".to_string()),
-        (LegendKey::Marker(Marker::OpenSquare, false), "after (final model)".to_string()),
+        (
+            LegendKey::Marker(Marker::FilledCircle, false),
+            "before (base model)".to_string(),
+        ),
+        (
+            LegendKey::Marker(Marker::OpenSquare, false),
+            "after (final model)".to_string(),
+        ),
     ];
     let context = EffectContext::default();
     let readings: Vec<Option<Reading>> =
         indices.iter().map(|&i| reading_at(residuals, i)).collect();
     // The effects' marks, drawn after the panels.
-    let mut lines: Vec<(&'static str, f64, Vec<(f64, f64)>)> = Vec::new();
+    let mut lines: Vec<EffectLine> = Vec::new();
     let mut step_x: Vec<f64> = Vec::new();
     let mut rings: Vec<usize> = Vec::new();
     for effect in &mine {
@@ -156,7 +168,8 @@ fn one_ac(
                         .iter()
                         .zip(&readings)
                         .filter(|(_, r)| {
-                            r.as_ref().is_some_and(|r| effect.regressor(r, &context) != 0.0)
+                            r.as_ref()
+                                .is_some_and(|r| effect.regressor(r, &context) != 0.0)
                         })
                         .map(|(x, _)| *x)
                         .filter(|x| x.is_finite())
@@ -164,16 +177,26 @@ fn one_ac(
                 {
                     step_x.push(first);
                 }
-                let unit = if class == "effect-drift" { "″/h" } else { "″" };
+                let unit = if class == "effect-drift" {
+                    "″/h"
+                } else {
+                    "″"
+                };
                 entries.push((
-                    LegendKey::Line(Some(if class == "effect-drift" { "6,3" } else { "2,2" })),
+                    LegendKey::Line(Some(if class == "effect-drift" {
+                        "6,3"
+                    } else {
+                        "2,2"
+                    })),
                     format!("{name}: {}{unit} (centred)", number_text(*value, 4)),
                 ));
                 lines.push((class, *value, line));
             }
             Effect::Outlier { value, .. } => {
                 for (k, r) in readings.iter().enumerate() {
-                    if r.as_ref().is_some_and(|r| effect.regressor(r, &context) != 0.0) {
+                    if r.as_ref()
+                        .is_some_and(|r| effect.regressor(r, &context) != 0.0)
+                    {
                         rings.push(k);
                     }
                 }
@@ -242,8 +265,16 @@ fn one_ac(
             })
             .collect(),
     };
-    draw_series(&mut body, &upper, &[series("before", Marker::FilledCircle, &before)]);
-    draw_series(&mut body, &lower, &[series("after", Marker::OpenSquare, &after)]);
+    draw_series(
+        &mut body,
+        &upper,
+        &[series("before", Marker::FilledCircle, &before)],
+    );
+    draw_series(
+        &mut body,
+        &lower,
+        &[series("after", Marker::OpenSquare, &after)],
+    );
     for (class, value, line) in &lines {
         let points: Vec<String> = line
             .iter()
@@ -253,7 +284,11 @@ fn one_ac(
             body,
             r##"<polyline class="{class}" data-ac="{ac}" data-value="{value}" points="{}" fill="none" stroke="#000" stroke-width="1.5" stroke-dasharray="{}"/>"##,
             points.join(" "),
-            if *class == "effect-drift" { "6,3" } else { "2,2" }
+            if *class == "effect-drift" {
+                "6,3"
+            } else {
+                "2,2"
+            }
         );
     }
     for x in &step_x {

@@ -68,7 +68,11 @@ pub(crate) fn figures(report: &SelfcalReport) -> Vec<Figure> {
         let with_big = report.head_error.iter().all(|h| h.expanded_u.is_some());
         let text = if with_big {
             let ks: Vec<f64> = report.head_error.iter().filter_map(|h| h.k).collect();
-            format!("error bars: U (p = {} %), {}", p_text(report.p), k_text(&ks))
+            format!(
+                "error bars: U (p = {} %), {}",
+                p_text(report.p),
+                k_text(&ks)
+            )
         } else if report.head_error.iter().all(|h| h.u.is_some()) {
             "error bars: u (k = 1)".into()
         } else {

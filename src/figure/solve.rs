@@ -119,11 +119,7 @@ pub(crate) fn figures(report: &SolveReport) -> Vec<Figure> {
     let title = format!("Pitch deviations β with U{source}");
     let chart = Chart {
         title: title.clone(),
-        subtitles: vec![format!(
-            "{} faces; {}",
-            report.faces,
-            beta.text
-        )],
+        subtitles: vec![format!("{} faces; {}", report.faces, beta.text)],
         x_label: "face k".into(),
         y_label: "pitch deviation β / ″".into(),
         series: one_series(

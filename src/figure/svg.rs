@@ -50,7 +50,11 @@ pub(crate) fn px(value: f64) -> String {
 pub(crate) fn number_text(value: f64, decimals: usize) -> String {
     let text = format!("{value:.decimals$}");
     // "-0.00" is zero.
-    let text = if text.trim_start_matches('-').chars().all(|c| c == '0' || c == '.') {
+    let text = if text
+        .trim_start_matches('-')
+        .chars()
+        .all(|c| c == '0' || c == '.')
+    {
         text.trim_start_matches('-').to_string()
     } else {
         text
@@ -504,7 +508,12 @@ mod tests {
 
     #[test]
     fn degenerate_ranges_give_sane_axes() {
-        for values in [vec![], vec![0.0, 0.0], vec![5.0], vec![f64::NAN, f64::INFINITY]] {
+        for values in [
+            vec![],
+            vec![0.0, 0.0],
+            vec![5.0],
+            vec![f64::NAN, f64::INFINITY],
+        ] {
             let axis = Axis::covering(values.clone(), &[], 5, "v");
             assert!(axis.hi > axis.lo, "{values:?}");
             assert!(axis.ticks.len() >= 2, "{values:?}");

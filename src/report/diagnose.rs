@@ -178,7 +178,10 @@ impl ResidualsReport {
             cycle: readings.iter().map(|r| r.cycle).collect(),
             step: readings.iter().map(|r| r.step).collect(),
             ac: readings.iter().map(|r| r.ac).collect(),
-            direction: readings.iter().map(|r| direction_text(r.direction)).collect(),
+            direction: readings
+                .iter()
+                .map(|r| direction_text(r.direction))
+                .collect(),
             time: any_time.then(|| readings.iter().map(|r| r.time_seconds).collect()),
             before: diagnosis.before.residuals.clone(),
             after,
