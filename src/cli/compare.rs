@@ -40,6 +40,10 @@ pub struct CompareArgs {
     /// docs/FORMAT.md §5.4).
     #[arg(long, value_enum, default_value = "table")]
     format: CompareFormat,
+    /// Write the figures as SVG files into DIR (created if missing), one file per figure
+    /// with a stable name (docs/FORMAT.md §10), whatever --format is.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
 }
 
 /// `compare --format`.
@@ -67,6 +71,14 @@ pub fn run(args: &CompareArgs) -> Result<u8> {
         ),
         e => e.into(),
     })?;
+    if let Some(dir) = &args.plot {
+        let figures = polycal::figure::compare_figures_labelled(
+            &comparison,
+            &display_name(&args.a),
+            &display_name(&args.b),
+        );
+        super::write_plot(dir, &figures)?;
+    }
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
     match args.format {

@@ -48,6 +48,11 @@ pub struct DiagnoseArgs {
     /// as `solve --format csv` does.
     #[arg(long, value_enum, default_value = "table")]
     format: DiagnoseFormat,
+    /// Write the figures as SVG files into DIR (created if missing), one file per figure
+    /// with a stable name (docs/FORMAT.md §10), whatever --format is. Takes one input file:
+    /// with several, run once per file.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
 }
 
 /// `diagnose --format`.
@@ -61,6 +66,7 @@ enum DiagnoseFormat {
 /// `polycal diagnose`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
     let truth = args.truth.as_deref().map(Truth::read_path).transpose()?;
+    super::plot_one_file(args.plot.as_deref(), args.files.len())?;
     let budget = read_budget(args.budget.as_deref(), out)?;
     let options = DiagnoseOptions::new().with_sigma_opt(args.sigma);
     let several = args.files.len() > 1;
@@ -118,14 +124,28 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         if !diagnosis.adequacy.adequate {
             inadequate += 1;
         }
-        match args.format {
-            DiagnoseFormat::Json => {
+        let json_report = (matches!(args.format, DiagnoseFormat::Json) || args.plot.is_some())
+            .then(|| {
                 let mut report =
-                    DiagnoseReport::new(&diagnosis, truth.as_ref(), several.then(|| label.clone()));
+                    DiagnoseReport::new(&diagnosis, truth.as_ref(), several.then(|| label.clone()))
+                        .with_residuals(&diagnosis, &set);
                 if let Some(gum) = &gum {
                     report.after = report.after.with_uncertainty(gum);
                 }
-                writeln!(stdout, "{}", report.to_json()?)?;
+                report
+            });
+        if let (Some(dir), Some(report)) = (&args.plot, &json_report) {
+            let mut figures = polycal::figure::diagnose_figures(report);
+            if let Some(gum) = &gum {
+                figures.extend(polycal::figure::budget_figures(gum));
+            }
+            super::write_plot(dir, &figures)?;
+        }
+        match args.format {
+            DiagnoseFormat::Json => {
+                if let Some(report) = &json_report {
+                    writeln!(stdout, "{}", report.to_json()?)?;
+                }
             }
             DiagnoseFormat::Table => {
                 if several {

@@ -300,3 +300,24 @@ mod tests {
         );
     }
 }
+
+/// Writes the figures of `--plot DIR` (docs/FORMAT.md §10); a write failure is an error
+/// naming the path.
+pub fn write_plot(
+    dir: &std::path::Path,
+    figures: &[polycal::figure::Figure],
+) -> anyhow::Result<()> {
+    polycal::figure::write_figures(dir, figures)
+        .map(|_| ())
+        .map_err(|e| anyhow::anyhow!("--plot: cannot write the figures: {e}"))
+}
+
+/// The refusal of `--plot` with several input files (their figures would share names).
+pub fn plot_one_file(plot: Option<&std::path::Path>, files: usize) -> anyhow::Result<()> {
+    if plot.is_some() && files > 1 {
+        anyhow::bail!(
+            "--plot takes one input file ({files} given): the figures of several files would share names; run once per file"
+        );
+    }
+    Ok(())
+}

@@ -59,6 +59,10 @@ pub struct SelfcalArgs {
     /// Output format (csv: the result file of docs/FORMAT.md §3 with angle_deg).
     #[arg(long, value_enum, default_value = "table")]
     format: SelfcalFormat,
+    /// Write the figures as SVG files into DIR (created if missing), one file per figure
+    /// with a stable name (docs/FORMAT.md §10), whatever --format is.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
 }
 
 /// `selfcal --format`.
@@ -107,6 +111,13 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
         })
         .transpose()
         .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
+    if let Some(dir) = &args.plot {
+        let mut report = SelfcalReport::new(&solution, &name);
+        if let Some(uncertainty) = &uncertainty {
+            report = report.with_uncertainty(uncertainty);
+        }
+        super::write_plot(dir, &polycal::figure::selfcal_figures(&report))?;
+    }
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
     match args.format {

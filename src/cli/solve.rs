@@ -66,6 +66,11 @@ pub struct SolveArgs {
     /// Largest number of trials of the adaptive procedure.
     #[arg(long, default_value_t = 10_000_000)]
     mc_max_trials: usize,
+    /// Write the figures as SVG files into DIR (created if missing), one file per figure
+    /// with a stable name (docs/FORMAT.md §10), whatever --format is. Takes one input file:
+    /// with several, run once per file.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
 }
 
 /// `solve --format`.
@@ -123,6 +128,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
              with the reading noise (see examples/budgets/instrument.toml)"
         );
     }
+    super::plot_one_file(args.plot.as_deref(), args.files.len())?;
     let budget = read_budget(args.budget.as_deref(), out)?;
     let mc_options = args.monte_carlo.map(|trials| {
         McOptions::new(match trials {
@@ -215,6 +221,10 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         let solution = match solved {
             Solved::Positions(solution) => solution,
             Solved::SubPitch(solved) => {
+                if let Some(dir) = &args.plot {
+                    let report = SolveReport::sub_pitch(&solved, None);
+                    super::write_plot(dir, &polycal::figure::solve_figures(&report))?;
+                }
                 match args.format {
                     SolveFormat::Json => {
                         let report =
@@ -236,16 +246,25 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                 continue;
             }
         };
-        match args.format {
-            SolveFormat::Json => {
+        let json_report =
+            (matches!(args.format, SolveFormat::Json) || args.plot.is_some()).then(|| {
                 let mut report = SolveReport::new(&solution, several.then(|| label.clone()));
                 if let Some(gum) = &gum {
                     report = report.with_uncertainty(gum);
                 }
-                if let Some(mc) = mc {
+                if let Some(mc) = mc.clone() {
                     report = report.with_monte_carlo(mc);
                 }
-                writeln!(stdout, "{}", report.to_json()?)?;
+                report
+            });
+        if let (Some(dir), Some(report)) = (&args.plot, &json_report) {
+            super::write_plot(dir, &polycal::figure::solve_figures(report))?;
+        }
+        match args.format {
+            SolveFormat::Json => {
+                if let Some(report) = &json_report {
+                    writeln!(stdout, "{}", report.to_json()?)?;
+                }
             }
             SolveFormat::Table => {
                 if several {

@@ -8,6 +8,14 @@
 
 use std::path::{Path, PathBuf};
 
+mod budget;
+mod chart;
+mod compare;
+mod diagnose;
+mod selfcal;
+mod solve;
+mod svg;
+
 use crate::compare::Comparison;
 use crate::report::SolveReport;
 use crate::report::diagnose::DiagnoseReport;
@@ -31,6 +39,15 @@ impl Figure {
     pub fn file_name(&self) -> String {
         format!("{}.svg", self.name)
     }
+
+    /// A figure of a name, a title and an SVG document.
+    pub fn new(name: impl Into<String>, title: impl Into<String>, svg: String) -> Self {
+        Self {
+            name: name.into(),
+            title: title.into(),
+            svg,
+        }
+    }
 }
 
 /// A figure that could not be written.
@@ -49,37 +66,54 @@ pub enum FigureError {
 
 /// The figures of `polycal solve`: pitch deviations β with U bars, face deviations φ,
 /// encoder errors α against angle with U bars, and with a budget its contributions.
+///
+/// U is the report's own (`pitch_deviation_U`, … with `k` per point) when it carries a
+/// budget; otherwise k·u with k Student's t at p = 95 % for the fit's degrees of freedom
+/// (1.96 for a stated σ). Each figure says which. Without σ the points have no bars.
 pub fn solve_figures(report: &SolveReport) -> Vec<Figure> {
-    let _ = report;
-    Vec::new()
+    solve::figures(report)
 }
 
 /// The figures of `polycal selfcal`: the graduation error e against angle with U bars,
 /// the heads' errors.
 pub fn selfcal_figures(report: &SelfcalReport) -> Vec<Figure> {
-    let _ = report;
-    Vec::new()
+    selfcal::figures(report)
 }
 
 /// The figures of `polycal compare` (the paper's Figs. 4–7): both results with their U
 /// bars, and the difference with the ±√(U_a² + U_b²) band and En of every point.
+///
+/// The results are named `a` and `b` ([`compare_figures_labelled`] names them).
 pub fn compare_figures(comparison: &Comparison) -> Vec<Figure> {
-    let _ = comparison;
-    Vec::new()
+    compare::figures(comparison, "a", "b")
+}
+
+/// [`compare_figures`] with the two results named (e.g. by their files) in the legends.
+pub fn compare_figures_labelled(
+    comparison: &Comparison,
+    label_a: &str,
+    label_b: &str,
+) -> Vec<Figure> {
+    compare::figures(comparison, label_a, label_b)
 }
 
 /// The figures of `polycal diagnose`: residuals against time per autocollimator, before
 /// and after, with each effect found drawn where it acts.
+///
+/// They are drawn from the report's `residuals` ([`DiagnoseReport::with_residuals`]):
+/// none without them.
 pub fn diagnose_figures(report: &DiagnoseReport) -> Vec<Figure> {
-    let _ = report;
-    Vec::new()
+    diagnose::figures(report)
 }
 
 /// The figures of an instrument budget: each component's share of the variance (its
 /// index, per cent), largest first.
+///
+/// For each of the pitch deviations, face deviations and encoder errors, the quantity
+/// with the largest U, its components' indices 100·u_i²/u_c² with the fit's type A as
+/// one of them.
 pub fn budget_figures(uncertainty: &CalibrationUncertainty) -> Vec<Figure> {
-    let _ = uncertainty;
-    Vec::new()
+    budget::figures(uncertainty)
 }
 
 /// Writes every figure into `dir` (created if missing) as `{name}.svg`; returns the paths

@@ -3,8 +3,8 @@
 
 use crate::diagnose::lack_of_fit::LackOfFit;
 use crate::diagnose::{Diagnosis, FoundEffect, TriedEffect};
-use crate::effects::Effect;
-use crate::measurement::Direction;
+use crate::effects::{Effect, EffectContext};
+use crate::measurement::{Direction, MeasurementSet};
 use crate::report::SolveReport;
 use crate::simulate::Truth;
 use crate::solve::Solution;
@@ -111,6 +111,83 @@ pub struct DiagnoseReport {
     /// Outliers the data cannot attribute to one reading: each a list of the readings of
     /// which one is bad (an addition).
     pub unattributed: Vec<Vec<Value>>,
+    /// Every reading's residual before and after, in file order (an addition; present
+    /// when built with [`DiagnoseReport::with_residuals`], as `polycal diagnose` does).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub residuals: Option<ResidualsReport>,
+}
+
+/// The residual (reading − model, arcsec) of every reading under the base and the final
+/// model, in the order of the measurement file, with the bookkeeping that places it
+/// (docs/FORMAT.md §5, `residuals`; the source of `diagnose --plot`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
+pub struct ResidualsReport {
+    /// Setup of each reading.
+    pub setup: Vec<u32>,
+    /// Cycle of each reading.
+    pub cycle: Vec<u32>,
+    /// Step of each reading.
+    pub step: Vec<usize>,
+    /// Autocollimator of each reading.
+    pub ac: Vec<u32>,
+    /// `cw` or `ccw`.
+    pub direction: Vec<&'static str>,
+    /// Time of each reading, seconds; `null` when no reading has one (then a reading
+    /// without one is `null`).
+    pub time: Option<Vec<Option<f64>>>,
+    /// Residual under the base model.
+    pub before: Vec<f64>,
+    /// Residual under the final model. A reading the final model leaves out (an outlier
+    /// term) has the residual its own term absorbs: reading − (final model without that
+    /// term), so it shows how far it stands, not 0.
+    pub after: Vec<f64>,
+    /// Indices (0-based, file order) of the readings the final model leaves out.
+    pub left_out: Vec<usize>,
+}
+
+impl ResidualsReport {
+    /// The residuals of `diagnosis` over the readings of `set` (the set it was made
+    /// from); `None` when their numbers do not match.
+    pub fn new(diagnosis: &Diagnosis, set: &MeasurementSet) -> Option<Self> {
+        let readings = &set.readings;
+        if diagnosis.before.residuals.len() != readings.len()
+            || diagnosis.after.residuals.len() != readings.len()
+        {
+            return None;
+        }
+        let context = EffectContext::of(readings);
+        let mut after = diagnosis.after.residuals.clone();
+        let mut left_out = Vec::new();
+        for found in &diagnosis.effects {
+            if let Effect::Outlier { .. } = found.effect {
+                for (i, reading) in readings.iter().enumerate() {
+                    let x = found.effect.regressor(reading, &context);
+                    if x != 0.0 {
+                        after[i] += found.effect.value() * x;
+                        left_out.push(i);
+                    }
+                }
+            }
+        }
+        left_out.sort_unstable();
+        left_out.dedup();
+        let any_time = readings.iter().any(|r| r.time_seconds.is_some());
+        Some(Self {
+            setup: readings.iter().map(|r| r.setup).collect(),
+            cycle: readings.iter().map(|r| r.cycle).collect(),
+            step: readings.iter().map(|r| r.step).collect(),
+            ac: readings.iter().map(|r| r.ac).collect(),
+            direction: readings
+                .iter()
+                .map(|r| direction_text(r.direction))
+                .collect(),
+            time: any_time.then(|| readings.iter().map(|r| r.time_seconds).collect()),
+            before: diagnosis.before.residuals.clone(),
+            after,
+            left_out,
+        })
+    }
 }
 
 /// The effect's name without its value, e.g. `drift of autocollimator 2`.
@@ -380,7 +457,15 @@ impl DiagnoseReport {
                         .collect()
                 })
                 .collect(),
+            residuals: None,
         }
+    }
+
+    /// With every reading's residuals before and after (`set`: the measurement set the
+    /// diagnosis was made from).
+    pub fn with_residuals(mut self, diagnosis: &Diagnosis, set: &MeasurementSet) -> Self {
+        self.residuals = ResidualsReport::new(diagnosis, set);
+        self
     }
 
     /// One line of JSON, with the software version ([`crate::report::to_json`]).

@@ -1,0 +1,325 @@
+//! The figures of `polycal diagnose`: per autocollimator, its readings' residuals against
+//! time (or against their order in the file when it has no time), under the base model
+//! (upper panel `before`) and the final model (lower panel `after`), with each effect
+//! found drawn where it acts.
+//!
+//! Classes (docs/FORMAT.md §10): `point` with `data-series` `before`/`after` and
+//! `data-index` the reading's index in the file; `effect-drift` and `effect-step-level`
+//! (a `<polyline>` of the effect's contribution to this autocollimator's readings, centred
+//! on its mean over them, since the base model's setup error absorbs a constant), with
+//! `data-value` the effect's value; `effect-step` (a dashed vertical `<line>` at the
+//! first reading with the new zero); `effect-outlier` (a ring, `data-index`, in both panels).
+
+use std::fmt::Write;
+
+use serde_json::Value;
+
+use super::Figure;
+use super::chart::{Point, Series, draw_series, marker_px};
+use super::svg::{
+    Axis, LEFT_PX, LegendKey, Marker, Panel, RIGHT_PX, WIDTH_PX, document, header_px, legend,
+    number_text, px,
+};
+use crate::effects::{Effect, EffectContext};
+use crate::measurement::{Direction, Reading};
+use crate::report::diagnose::{DiagnoseReport, ResidualsReport, label};
+
+/// An effect's line: its class, its value, its (x, contribution) points.
+type EffectLine = (&'static str, f64, Vec<(f64, f64)>);
+
+/// Times beyond this are drawn in hours, s.
+const HOURS_FROM_S: f64 = 2.0 * 3600.0;
+
+/// The reading (bookkeeping only) at index `i` of the residuals, for an effect's regressor.
+fn reading_at(r: &ResidualsReport, i: usize) -> Option<Reading> {
+    Some(Reading {
+        setup: *r.setup.get(i)?,
+        cycle: *r.cycle.get(i)?,
+        step: *r.step.get(i)?,
+        ac: *r.ac.get(i)?,
+        face: 0,
+        reading_arcsec: 0.0,
+        direction: if r.direction.get(i)? == &"ccw" {
+            Direction::Ccw
+        } else {
+            Direction::Cw
+        },
+        time_seconds: r.time.as_ref().and_then(|t| t.get(i).copied().flatten()),
+        reading_y_arcsec: None,
+        temperature_celsius: None,
+        encoder_degrees: None,
+        line: 0,
+    })
+}
+
+fn effect_of(value: &Value) -> Option<Effect> {
+    serde_json::from_value(value.clone()).ok()
+}
+
+fn effect_ac(effect: &Effect) -> Option<u32> {
+    match *effect {
+        Effect::Drift { ac, .. }
+        | Effect::OffsetStep { ac, .. }
+        | Effect::Outlier { ac, .. }
+        | Effect::Temperature { ac, .. }
+        | Effect::CrossTalk { ac, .. } => Some(ac),
+        Effect::Direction { ac, .. } => ac,
+    }
+}
+
+/// `diagnose-residuals-ac<j>` for every autocollimator; none without residuals.
+pub(crate) fn figures(report: &DiagnoseReport) -> Vec<Figure> {
+    let Some(residuals) = &report.residuals else {
+        return Vec::new();
+    };
+    let mut acs: Vec<u32> = residuals.ac.clone();
+    acs.sort_unstable();
+    acs.dedup();
+    let effects: Vec<Effect> = report.effects.iter().filter_map(effect_of).collect();
+    acs.into_iter()
+        .map(|ac| one_ac(report, residuals, &effects, ac))
+        .collect()
+}
+
+#[allow(clippy::too_many_lines)]
+fn one_ac(
+    report: &DiagnoseReport,
+    residuals: &ResidualsReport,
+    effects: &[Effect],
+    ac: u32,
+) -> Figure {
+    let indices: Vec<usize> = (0..residuals.ac.len())
+        .filter(|&i| residuals.ac[i] == ac)
+        .collect();
+    let times: Option<Vec<f64>> = residuals.time.as_ref().and_then(|t| {
+        indices
+            .iter()
+            .map(|&i| t.get(i).copied().flatten())
+            .collect()
+    });
+    let (xs, x_label, x_note): (Vec<f64>, String, Option<String>) = match times {
+        Some(t) if t.iter().copied().fold(0.0, f64::max) > HOURS_FROM_S => (
+            t.iter().map(|t| t / 3600.0).collect(),
+            "time / h".into(),
+            None,
+        ),
+        Some(t) => (t, "time / s".into(), None),
+        None => (
+            indices.iter().map(|&i| (i + 1) as f64).collect(),
+            "reading number in file order".into(),
+            Some(
+                "the file has no time for every reading: residuals against reading order"
+                    .to_string(),
+            ),
+        ),
+    };
+    let title = format!("Residuals of autocollimator {ac}, before and after the effects");
+    let rms = |r: Option<f64>| r.map_or("—".to_string(), |r| format!("{r:.4}″"));
+    let mut subtitles = vec![format!(
+        "upper: base model (residual RMS {}); lower: final model (RMS {}); {} readings",
+        rms(report.before.residual_rms),
+        rms(report.after.residual_rms),
+        indices.len()
+    )];
+    subtitles.extend(x_note);
+    let mine: Vec<&Effect> = effects
+        .iter()
+        .filter(|e| effect_ac(e).is_none_or(|a| a == ac))
+        .collect();
+    let mut entries = vec![
+        (
+            LegendKey::Marker(Marker::FilledCircle, false),
+            "before (base model)".to_string(),
+        ),
+        (
+            LegendKey::Marker(Marker::OpenSquare, false),
+            "after (final model)".to_string(),
+        ),
+    ];
+    let context = EffectContext::default();
+    let readings: Vec<Option<Reading>> =
+        indices.iter().map(|&i| reading_at(residuals, i)).collect();
+    // The effects' marks, drawn after the panels.
+    let mut lines: Vec<EffectLine> = Vec::new();
+    let mut step_x: Vec<f64> = Vec::new();
+    let mut rings: Vec<usize> = Vec::new();
+    for effect in &mine {
+        let name = label(effect);
+        match effect {
+            Effect::Drift { value, .. } | Effect::OffsetStep { value, .. } => {
+                let class = if matches!(effect, Effect::Drift { .. }) {
+                    "effect-drift"
+                } else {
+                    "effect-step-level"
+                };
+                let contribution: Vec<(f64, f64)> = xs
+                    .iter()
+                    .zip(&readings)
+                    .filter_map(|(x, r)| Some((*x, effect.contribution(r.as_ref()?, &context))))
+                    .filter(|(x, c)| x.is_finite() && c.is_finite())
+                    .collect();
+                let mean = contribution.iter().map(|(_, c)| c).sum::<f64>()
+                    / contribution.len().max(1) as f64;
+                let mut line: Vec<(f64, f64)> =
+                    contribution.iter().map(|(x, c)| (*x, c - mean)).collect();
+                line.sort_by(|a, b| a.0.total_cmp(&b.0));
+                if let Effect::OffsetStep { .. } = effect
+                    && let Some(first) = xs
+                        .iter()
+                        .zip(&readings)
+                        .filter(|(_, r)| {
+                            r.as_ref()
+                                .is_some_and(|r| effect.regressor(r, &context) != 0.0)
+                        })
+                        .map(|(x, _)| *x)
+                        .filter(|x| x.is_finite())
+                        .reduce(f64::min)
+                {
+                    step_x.push(first);
+                }
+                let unit = if class == "effect-drift" {
+                    "″/h"
+                } else {
+                    "″"
+                };
+                entries.push((
+                    LegendKey::Line(Some(if class == "effect-drift" {
+                        "6,3"
+                    } else {
+                        "2,2"
+                    })),
+                    format!("{name}: {}{unit} (centred)", number_text(*value, 4)),
+                ));
+                lines.push((class, *value, line));
+            }
+            Effect::Outlier { value, .. } => {
+                for (k, r) in readings.iter().enumerate() {
+                    if r.as_ref()
+                        .is_some_and(|r| effect.regressor(r, &context) != 0.0)
+                    {
+                        rings.push(k);
+                    }
+                }
+                entries.push((
+                    LegendKey::Ring,
+                    format!("{name}: {}″, left out", number_text(*value, 3)),
+                ));
+            }
+            _ => entries.push((
+                LegendKey::Text,
+                format!("{name}: {} (not drawn)", number_text(effect.value(), 4)),
+            )),
+        }
+    }
+    if step_x.is_empty() && mine.iter().any(|e| matches!(e, Effect::OffsetStep { .. })) {
+        subtitles.push("the offset step acts on none of these readings".into());
+    }
+    let mut body = String::new();
+    let top = header_px(subtitles.len());
+    let legend_px = legend(&mut body, &entries, top);
+    let before: Vec<f64> = indices.iter().map(|&i| residuals.before[i]).collect();
+    let after: Vec<f64> = indices.iter().map(|&i| residuals.after[i]).collect();
+    let y_values = before
+        .iter()
+        .chain(&after)
+        .copied()
+        .chain(lines.iter().flat_map(|l| l.2.iter().map(|p| p.1)));
+    let y = Axis::covering(y_values, &[0.0], 5, "residual / ″");
+    let upper = Panel {
+        id: "before",
+        left_px: LEFT_PX,
+        top_px: top + legend_px + 8.0,
+        width_px: WIDTH_PX - LEFT_PX - RIGHT_PX,
+        height_px: 150.0,
+        x: Axis::covering(xs.iter().copied(), &[], 8, x_label),
+        y: Axis {
+            label: "before: residual / ″".into(),
+            ..y.clone()
+        },
+    };
+    let lower = Panel {
+        id: "after",
+        top_px: upper.bottom_px() + 26.0,
+        y: Axis {
+            label: "after: residual / ″".into(),
+            ..y
+        },
+        ..upper.clone()
+    };
+    upper.draw_axes(&mut body, false);
+    lower.draw_axes(&mut body, true);
+    let series = |id: &str, marker, values: &[f64]| Series {
+        id: id.into(),
+        label: id.into(),
+        marker,
+        dx_px: 0.0,
+        points: indices
+            .iter()
+            .zip(&xs)
+            .zip(values)
+            .map(|((&i, &x), &y)| Point {
+                index: i,
+                x,
+                y,
+                half: None,
+            })
+            .collect(),
+    };
+    draw_series(
+        &mut body,
+        &upper,
+        &[series("before", Marker::FilledCircle, &before)],
+    );
+    draw_series(
+        &mut body,
+        &lower,
+        &[series("after", Marker::OpenSquare, &after)],
+    );
+    for (class, value, line) in &lines {
+        let points: Vec<String> = line
+            .iter()
+            .map(|(x, c)| format!("{},{}", px(upper.x_px(*x)), px(upper.y_px(*c))))
+            .collect();
+        let _ = writeln!(
+            body,
+            r##"<polyline class="{class}" data-ac="{ac}" data-value="{value}" points="{}" fill="none" stroke="#000" stroke-width="1.5" stroke-dasharray="{}"/>"##,
+            points.join(" "),
+            if *class == "effect-drift" {
+                "6,3"
+            } else {
+                "2,2"
+            }
+        );
+    }
+    for x in &step_x {
+        for panel in [&upper, &lower] {
+            let xp = px(panel.x_px(*x));
+            let _ = writeln!(
+                body,
+                r##"<line class="effect-step" data-panel="{}" data-x="{x}" x1="{xp}" y1="{}" x2="{xp}" y2="{}" stroke="#000" stroke-width="1" stroke-dasharray="5,3"/>"##,
+                panel.id,
+                px(panel.top_px),
+                px(panel.bottom_px())
+            );
+        }
+    }
+    let (r_px, _) = marker_px(indices.len());
+    for &k in &rings {
+        for (panel, values) in [(&upper, &before), (&lower, &after)] {
+            let (x, y) = (xs[k], values[k]);
+            if x.is_finite() && y.is_finite() {
+                let _ = writeln!(
+                    body,
+                    r##"<circle class="effect-outlier" data-panel="{}" data-index="{}" cx="{}" cy="{}" r="{}" fill="none" stroke="#000" stroke-width="1.2"/>"##,
+                    panel.id,
+                    indices[k],
+                    px(panel.x_px(x)),
+                    px(panel.y_px(y)),
+                    px(r_px + 4.0)
+                );
+            }
+        }
+    }
+    let svg = document(lower.bottom_px() + 42.0, &title, &subtitles, &body);
+    Figure::new(format!("diagnose-residuals-ac{ac}"), title, svg)
+}
