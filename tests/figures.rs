@@ -102,13 +102,15 @@ fn axis_map(doc: &roxmltree::Document, panel: &str, axis: &str) -> Map {
         .collect();
     assert_eq!(positions.len(), values.len(), "{panel} {axis}");
     assert!(positions.len() >= 2, "{panel} {axis}: ticks");
-    // Ticks are "nice": consecutive differences of 1, 2 or 5 × 10^k.
+    // Ticks are "nice": consecutive differences of 1, 2 or 5 × 10^k, or 45° on a full
+    // turn's axis.
     let step = values[1] - values[0];
     let mantissa = step / 10f64.powf(step.log10().floor());
     assert!(
-        [1.0, 2.0, 5.0, 10.0]
-            .iter()
-            .any(|m| (mantissa - m).abs() < 1e-6),
+        step == 45.0
+            || [1.0, 2.0, 5.0, 10.0]
+                .iter()
+                .any(|m| (mantissa - m).abs() < 1e-6),
         "{panel} {axis}: step {step}"
     );
     let n = positions.len() as f64;

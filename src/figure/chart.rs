@@ -117,7 +117,11 @@ impl Chart {
             top_px: panel_top,
             width_px: WIDTH_PX - LEFT_PX - RIGHT_PX,
             height_px,
-            x: Axis::covering(xs, &self.x_include, 8, self.x_label.clone()),
+            x: if self.x_include == [0.0, 360.0] {
+                Axis::full_turn_deg(xs, self.x_label.clone())
+            } else {
+                Axis::covering(xs, &self.x_include, 8, self.x_label.clone())
+            },
             y: Axis::covering(ys, &[0.0], 6, self.y_label.clone()),
         };
         panel.draw_axes(&mut body, true);

@@ -193,12 +193,12 @@ fn difference(
         .map(|r| band_half_width(r, correlation))
         .collect();
     let x_axis = |label: String| {
-        Axis::covering(
-            rows.iter().filter(finite).map(|r| x_of(r)),
-            if by_angle { &[0.0, 360.0] } else { &[] },
-            8,
-            label,
-        )
+        let xs = rows.iter().filter(finite).map(|r| x_of(r));
+        if by_angle {
+            Axis::full_turn_deg(xs, label)
+        } else {
+            Axis::covering(xs, &[], 8, label)
+        }
     };
     let upper = Panel {
         id: "difference",

@@ -100,8 +100,17 @@ impl Axis {
             let pad = if lo == 0.0 { 1.0 } else { 0.1 * lo.abs() };
             (lo, hi) = (lo - pad, hi + pad);
         } else {
+            // a margin, but never across zero: times, angles, faces and shares that start
+            // at 0 keep their axis at 0
             let pad = 0.04 * (hi - lo);
+            let (raw_lo, raw_hi) = (lo, hi);
             (lo, hi) = (lo - pad, hi + pad);
+            if raw_lo >= 0.0 && lo < 0.0 {
+                lo = 0.0;
+            }
+            if raw_hi <= 0.0 && hi > 0.0 {
+                hi = 0.0;
+            }
         }
         let step = nice_step((hi - lo) / target.max(2) as f64);
         let first = (lo / step).floor();
@@ -114,6 +123,29 @@ impl Axis {
             hi: last * step,
             ticks,
             decimals,
+            label: label.into(),
+        }
+    }
+
+    /// The axis of a full turn, 0° … 360° with a tick every 45°, when every finite value
+    /// of `values` lies in it; else [`Axis::covering`] them and the turn.
+    pub(crate) fn full_turn_deg(
+        values: impl IntoIterator<Item = f64> + Clone,
+        label: impl Into<String>,
+    ) -> Self {
+        let within = values
+            .clone()
+            .into_iter()
+            .filter(|v| v.is_finite())
+            .all(|v| (0.0..=360.0).contains(&v));
+        if !within {
+            return Axis::covering(values, &[0.0, 360.0], 8, label);
+        }
+        Axis {
+            lo: 0.0,
+            hi: 360.0,
+            ticks: (0..=8).map(|i| f64::from(i) * 45.0).collect(),
+            decimals: 0,
             label: label.into(),
         }
     }
