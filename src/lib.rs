@@ -29,6 +29,7 @@
 //! - `lab` (cargo feature `lab`): the instruments on serial lines, simulated instruments,
 //!   and the run procedure that drives them through a calibration.
 
+pub mod clock;
 pub mod compare;
 pub mod diagnose;
 pub mod effects;

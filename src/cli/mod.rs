@@ -9,6 +9,7 @@ mod docs;
 #[cfg(feature = "lab")]
 mod lab;
 pub mod output;
+mod report;
 mod selfcal;
 mod simulate;
 mod solve;
@@ -98,6 +99,11 @@ pub enum Command {
     /// graduation error and the heads' errors (docs/FORMAT.md §9).
     #[command(after_help = selfcal::EXAMPLES)]
     Selfcal(selfcal::SelfcalArgs),
+    /// Write a self-contained HTML calibration report (inline figures, A4 print): details,
+    /// method, results with u, U and k, budget, diagnosis, comparison, provenance
+    /// (docs/FORMAT.md §10).
+    #[command(after_help = report::EXAMPLES)]
+    Report(report::ReportArgs),
     /// Simulate a measurement run (or with --selfcal a self-calibration run) with a known
     /// truth.
     #[command(after_help = simulate::EXAMPLES)]
@@ -212,6 +218,7 @@ pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
         Command::Budget(args) => budget::run(&args),
         Command::Compare(args) => compare::run(&args),
         Command::Selfcal(args) => selfcal::run(&args, out),
+        Command::Report(args) => report::run(&args, out),
         Command::Simulate(args) => simulate::run(&args, out),
         #[cfg(feature = "lab")]
         Command::Run(args) => lab::run(&args, out),

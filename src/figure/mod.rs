@@ -14,7 +14,7 @@ mod compare;
 mod diagnose;
 mod selfcal;
 mod solve;
-mod svg;
+pub(crate) mod svg;
 
 use crate::compare::Comparison;
 use crate::report::SolveReport;

@@ -14,6 +14,7 @@
 
 pub mod compare;
 pub mod diagnose;
+pub mod html;
 pub mod selfcal;
 pub mod solve;
 pub mod solve_table;

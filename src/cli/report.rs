@@ -1,0 +1,150 @@
+//! `polycal report`: one self-contained HTML calibration report (docs/FORMAT.md §10).
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use polycal::report::html::{CalibrationReport, ReportError, ReportInputs};
+
+use super::output::Output;
+use super::{EXIT_OK, EXIT_VERDICT};
+
+/// After `polycal report --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  polycal report examples/data/polygon24-2ac-6cycles.csv --out report.html
+  polycal report examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml \\
+      --diagnose --reference examples/data/polygon24-shift-angle.result.csv \\
+      --meta examples/report/meta.toml --out report.html
+  polycal report examples/data/selfa-168.csv --budget examples/budgets/selfcal.toml --out selfcal.html";
+
+/// Arguments of `polycal report`.
+#[derive(clap::Args)]
+pub struct ReportArgs {
+    /// Measurement CSV (docs/FORMAT.md §2) or self-calibration CSV (§9.2); `-` reads
+    /// standard input.
+    file: PathBuf,
+    /// Number of polygon faces (self-calibration: positions), when not the file's largest.
+    #[arg(long)]
+    faces: Option<usize>,
+    /// Instrument budget (TOML, docs/FORMAT.md §5.1): U and k of every result, and the
+    /// budget section. Needed for --reference with a polygon file.
+    #[arg(long, value_name = "B.toml")]
+    budget: Option<PathBuf>,
+    /// Diagnose the measurement (as `polycal diagnose`) and add the diagnosis section;
+    /// status 1 when the final model is not adequate.
+    #[arg(long)]
+    diagnose: bool,
+    /// Truth file of simulated data: the diagnosis's error before and after.
+    #[arg(long, value_name = "TRUTH.json", requires = "diagnose")]
+    truth: Option<PathBuf>,
+    /// Reference result (docs/FORMAT.md §3) to compare with by En; status 1 when some
+    /// |En| > 1.
+    #[arg(long, value_name = "REF.csv")]
+    reference: Option<PathBuf>,
+    /// Metadata (TOML, docs/FORMAT.md §10): customer, artefact, operator, instruments,
+    /// environment.
+    #[arg(long, value_name = "META.toml")]
+    meta: Option<PathBuf>,
+    /// Run directory of `polycal run` (its manifest.json: instruments, run times).
+    #[arg(long, value_name = "DIR")]
+    run_dir: Option<PathBuf>,
+    /// The HTML file to write (replaced atomically).
+    #[arg(long, value_name = "REPORT.html")]
+    out: PathBuf,
+}
+
+/// `polycal report`: returns the exit status, or an error for the `error:` line.
+pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
+    if args.out.is_dir() {
+        bail!(
+            "--out {}: is a directory; name the HTML file to write",
+            args.out.display()
+        );
+    }
+    let command_line = std::env::args()
+        .skip(1)
+        .map(|a| {
+            if a.is_empty() || a.contains(|c: char| c.is_whitespace() || "'\"$\\".contains(c)) {
+                format!("'{}'", a.replace('\'', "'\\''"))
+            } else {
+                a
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ");
+    let mut inputs = ReportInputs::new(&args.file)
+        .with_faces(args.faces)
+        .with_diagnose(args.diagnose)
+        .with_command_line(format!("polycal {command_line}"));
+    if let Some(p) = &args.budget {
+        inputs = inputs.with_budget(p);
+    }
+    if let Some(p) = &args.truth {
+        inputs = inputs.with_truth(p);
+    }
+    if let Some(p) = &args.reference {
+        inputs = inputs.with_reference(p);
+    }
+    if let Some(p) = &args.meta {
+        inputs = inputs.with_meta(p);
+    }
+    if let Some(p) = &args.run_dir {
+        inputs = inputs.with_run_dir(p);
+    }
+    let report = CalibrationReport::build(&inputs).map_err(|e| match e {
+        // Library messages name no flags: the CLI adds the one that helps.
+        ReportError::NoExpandedUncertainty { .. } => {
+            super::with_hint(e, "--budget", "give the instrument budget with --budget")
+        }
+        e => e.into(),
+    })?;
+    let html = report.to_html();
+    write_atomically(&args.out, html.as_bytes())
+        .with_context(|| format!("--out {}: cannot write the report", args.out.display()))?;
+    let verdict = report.verdict();
+    out.info(format!(
+        "wrote {} ({} figures){}{}",
+        args.out.display(),
+        report.figures.len(),
+        if verdict.comparison_failed {
+            "; the comparison fails: some |En| > 1"
+        } else {
+            ""
+        },
+        if verdict.not_adequate {
+            "; the diagnosis: the final model is not adequate"
+        } else {
+            ""
+        }
+    ));
+    Ok(if verdict.passed() {
+        EXIT_OK
+    } else {
+        EXIT_VERDICT
+    })
+}
+
+/// Writes `bytes` beside `path`, syncs, and renames it over `path`: a reader never sees
+/// half a report.
+fn write_atomically(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "report.html".into());
+    let temporary = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let result = (|| {
+        let mut file = std::fs::File::create(&temporary)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        std::fs::rename(&temporary, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&temporary);
+    }
+    result
+}

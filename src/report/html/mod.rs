@@ -1,0 +1,599 @@
+//! The calibration report: one self-contained HTML file (inline SVG and CSS, nothing
+//! fetched, no script) that prints on A4 — the document a lab hands to its customer
+//! (docs/FORMAT.md §10).
+//!
+//! [`CalibrationReport::build`] reads the input files, evaluates them exactly as the
+//! commands do (`solve` with `--budget`, `diagnose`, `compare`, `selfcal`), and keeps the
+//! same report objects their JSON prints, so that every number in the HTML is the
+//! JSON's; [`CalibrationReport::to_html`] writes the document ([`render`]); [`meta`]
+//! gathers what the report says about the calibration besides the numbers.
+//!
+//! ```
+//! use polycal::report::html::{CalibrationReport, ReportInputs};
+//!
+//! let inputs = ReportInputs::new("examples/data/polygon24-2ac-6cycles.csv")
+//!     .with_budget("examples/budgets/instrument.toml")
+//!     .with_generated_utc("2026-11-23T12:00:00.000Z");
+//! let report = CalibrationReport::build(&inputs)?;
+//! let html = report.to_html();
+//! assert!(html.starts_with("<!DOCTYPE html>"));
+//! assert!(report.verdict().passed());
+//! # Ok::<(), polycal::report::html::ReportError>(())
+//! ```
+
+pub mod meta;
+pub mod render;
+
+use std::path::{Path, PathBuf};
+
+use sha2::{Digest, Sha256};
+
+use crate::compare::{CompareError, CompareOptions, Comparison, compare};
+use crate::diagnose::{DiagnoseOptions, diagnose};
+use crate::figure::{self, Figure};
+use crate::input::Location;
+use crate::measurement::{MeasurementError, MeasurementSet};
+use crate::report::diagnose::DiagnoseReport;
+use crate::report::selfcal::SelfcalReport;
+use crate::report::{SolveReport, result_rows_with};
+use crate::results::{ResultsError, read_result_file};
+use crate::selfcal::{SelfcalError, SelfcalOptions, SelfcalSet, SelfcalSolveError};
+use crate::simulate::{SimulateError, Truth};
+use crate::solve::{SolveError, SolveOptions};
+use crate::uncertainty::BudgetError;
+use crate::uncertainty::calibration::{
+    CalibrationError, CalibrationUncertainty, InstrumentBudget, evaluate,
+};
+
+pub use meta::Metadata;
+
+/// The largest input file a report reads, bytes (a measurement of 8400 positions by
+/// 12 heads is about 5 MB).
+pub const MAX_INPUT_BYTES: u64 = 256 * 1024 * 1024;
+
+/// What a report is made of: the measurement (or self-calibration) file and the optional
+/// budget, diagnosis, truth, reference result, metadata file and run directory.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct ReportInputs {
+    /// The measurement file (docs/FORMAT.md §2) or self-calibration file (§9.2).
+    pub measurement: PathBuf,
+    /// The number of faces (positions of a self-calibration), when not the file's largest.
+    pub faces: Option<usize>,
+    /// An instrument budget (docs/FORMAT.md §5.1, `acts_on` per component).
+    pub budget: Option<PathBuf>,
+    /// Whether to diagnose the measurement (polygon files).
+    pub diagnose: bool,
+    /// A truth file, for the diagnosis's error before and after (simulated data).
+    pub truth: Option<PathBuf>,
+    /// A reference result (docs/FORMAT.md §3) to compare with.
+    pub reference: Option<PathBuf>,
+    /// A metadata file (TOML, docs/FORMAT.md §10).
+    pub meta: Option<PathBuf>,
+    /// A run directory (`polycal run`'s, with `manifest.json`).
+    pub run_dir: Option<PathBuf>,
+    /// The report's date and time, RFC 3339 UTC; `None`: now.
+    pub generated_utc: Option<String>,
+    /// The command line that made the report, shown in its provenance.
+    pub command_line: Option<String>,
+}
+
+impl ReportInputs {
+    /// A report of one measurement file, nothing else.
+    pub fn new(measurement: impl Into<PathBuf>) -> Self {
+        Self {
+            measurement: measurement.into(),
+            faces: None,
+            budget: None,
+            diagnose: false,
+            truth: None,
+            reference: None,
+            meta: None,
+            run_dir: None,
+            generated_utc: None,
+            command_line: None,
+        }
+    }
+    /// With the number of faces (or positions).
+    pub fn with_faces(mut self, faces: Option<usize>) -> Self {
+        self.faces = faces;
+        self
+    }
+    /// With an instrument budget.
+    pub fn with_budget(mut self, budget: impl Into<PathBuf>) -> Self {
+        self.budget = Some(budget.into());
+        self
+    }
+    /// With a diagnosis (or without).
+    pub fn with_diagnose(mut self, diagnose: bool) -> Self {
+        self.diagnose = diagnose;
+        self
+    }
+    /// With a truth file for the diagnosis.
+    pub fn with_truth(mut self, truth: impl Into<PathBuf>) -> Self {
+        self.truth = Some(truth.into());
+        self
+    }
+    /// With a reference result to compare with.
+    pub fn with_reference(mut self, reference: impl Into<PathBuf>) -> Self {
+        self.reference = Some(reference.into());
+        self
+    }
+    /// With a metadata file.
+    pub fn with_meta(mut self, meta: impl Into<PathBuf>) -> Self {
+        self.meta = Some(meta.into());
+        self
+    }
+    /// With a run directory.
+    pub fn with_run_dir(mut self, run_dir: impl Into<PathBuf>) -> Self {
+        self.run_dir = Some(run_dir.into());
+        self
+    }
+    /// With the report's date and time (RFC 3339 UTC), instead of now.
+    pub fn with_generated_utc(mut self, generated_utc: impl Into<String>) -> Self {
+        self.generated_utc = Some(generated_utc.into());
+        self
+    }
+    /// With the command line shown in the provenance.
+    pub fn with_command_line(mut self, command_line: impl Into<String>) -> Self {
+        self.command_line = Some(command_line.into());
+        self
+    }
+}
+
+/// Why a report cannot be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReportError {
+    /// A file could not be read.
+    #[error("{file}: {source}")]
+    Io {
+        /// The file.
+        file: String,
+        /// The operating system's error.
+        source: std::io::Error,
+    },
+    /// A file is larger than [`MAX_INPUT_BYTES`].
+    #[error("{file}: {bytes} bytes is more than a report reads ({MAX_INPUT_BYTES} bytes)")]
+    TooLarge {
+        /// The file.
+        file: String,
+        /// Its size.
+        bytes: u64,
+    },
+    /// A metadata file or run manifest that is not valid.
+    #[error("{location}: {message}")]
+    Meta {
+        /// Where.
+        location: Location,
+        /// What is wrong.
+        message: String,
+    },
+    /// The measurement file.
+    #[error(transparent)]
+    Measurement(#[from] MeasurementError),
+    /// The self-calibration file.
+    #[error(transparent)]
+    Selfcal(#[from] SelfcalError),
+    /// The budget file.
+    #[error(transparent)]
+    Budget(#[from] BudgetError),
+    /// The reference result file.
+    #[error(transparent)]
+    Reference(#[from] ResultsError),
+    /// The truth file.
+    #[error(transparent)]
+    Truth(#[from] SimulateError),
+    /// The measurement cannot be solved.
+    #[error("{file}: cannot solve: {source}")]
+    Solve {
+        /// The measurement file.
+        file: String,
+        /// Why.
+        source: SolveError,
+    },
+    /// The self-calibration cannot be solved.
+    #[error("{file}: cannot solve: {source}")]
+    SelfcalSolve {
+        /// The self-calibration file.
+        file: String,
+        /// Why.
+        source: SelfcalSolveError,
+    },
+    /// The budget cannot be evaluated for this measurement.
+    #[error("{file}: cannot evaluate the uncertainty: {source}")]
+    Uncertainty {
+        /// The measurement file.
+        file: String,
+        /// Why.
+        source: CalibrationError,
+    },
+    /// The comparison cannot be made.
+    #[error("cannot compare with {reference}: {source}")]
+    Compare {
+        /// The reference file.
+        reference: String,
+        /// Why.
+        source: CompareError,
+    },
+    /// A comparison needs the expanded uncertainty U of this result, which only an
+    /// instrument budget gives a polygon calibration.
+    #[error(
+        "cannot compare with {reference}: En needs the expanded uncertainty U of every result, and a polygon calibration has U only with an instrument budget"
+    )]
+    NoExpandedUncertainty {
+        /// The reference file.
+        reference: String,
+    },
+    /// An evaluation the report does not make for this kind of file.
+    #[error("{file}: {what} is not supported for {kind}")]
+    NotSupported {
+        /// The measurement file.
+        file: String,
+        /// What was asked.
+        what: &'static str,
+        /// What the file is.
+        kind: &'static str,
+    },
+}
+
+/// One input file of a report, with its fingerprint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputFile {
+    /// What it is (`measurement`, `budget`, `reference`, …).
+    pub role: &'static str,
+    /// Its path as given.
+    pub path: String,
+    /// Its size, bytes.
+    pub bytes: u64,
+    /// SHA-256 of its bytes, lower-case hex.
+    pub sha256: String,
+}
+
+/// The design of a polygon measurement, as the method section states it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DesignSummary {
+    /// N.
+    pub faces: usize,
+    /// Each (setup, autocollimator) and the face it reads at step 0, minus 1.
+    pub face_offsets: Vec<((u32, u32), usize)>,
+    /// Number of cycles.
+    pub cycles: usize,
+    /// Whether closing readings (step N) were taken.
+    pub closing: bool,
+    /// Whether some cycles ran counter-clockwise.
+    pub bidirectional: bool,
+    /// Number of polygon mountings.
+    pub setups: usize,
+    /// Number of readings.
+    pub readings: usize,
+}
+
+/// What was evaluated: a polygon calibration or a self-calibration.
+#[derive(Debug, Clone)]
+#[non_exhaustive]
+pub enum Evaluation {
+    /// Polygon and encoder by the closure method.
+    Polygon {
+        /// The `solve` JSON object (with the budget's U and k when given).
+        solve: SolveReport,
+        /// The design.
+        design: DesignSummary,
+        /// The budget evaluation.
+        uncertainty: Option<CalibrationUncertainty>,
+    },
+    /// Encoder by multi-head self-calibration.
+    Selfcal {
+        /// The `selfcal` JSON object.
+        report: SelfcalReport,
+    },
+}
+
+/// The verdicts a report carries (docs/FORMAT.md §8: status 1 when one is negative).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct Verdict {
+    /// Some |En| > 1 in the comparison.
+    pub comparison_failed: bool,
+    /// The diagnosis found the final model not adequate.
+    pub not_adequate: bool,
+}
+
+impl Verdict {
+    /// Whether every check passed.
+    pub fn passed(&self) -> bool {
+        !self.comparison_failed && !self.not_adequate
+    }
+}
+
+/// A calibration report, evaluated and ready to write.
+#[derive(Debug, Clone)]
+#[non_exhaustive]
+pub struct CalibrationReport {
+    /// Every input file, measurement first.
+    pub inputs: Vec<InputFile>,
+    /// The metadata.
+    pub metadata: Metadata,
+    /// The evaluation.
+    pub evaluation: Evaluation,
+    /// The diagnosis (polygon files, when asked).
+    pub diagnosis: Option<DiagnoseReport>,
+    /// The comparison with the reference, and the reference's name.
+    pub comparison: Option<(Comparison, String)>,
+    /// The figures, in the report's order.
+    pub figures: Vec<Figure>,
+    /// The report's date and time, RFC 3339 UTC.
+    pub generated_utc: String,
+    /// The command line that made it, when known.
+    pub command_line: Option<String>,
+}
+
+/// Reads a whole input file (at most [`MAX_INPUT_BYTES`]) and fingerprints it.
+fn read_input(path: &Path, role: &'static str) -> Result<(Vec<u8>, InputFile), ReportError> {
+    let name = crate::input::display_name(path);
+    if let Ok(meta) = std::fs::metadata(path)
+        && meta.is_file()
+        && meta.len() > MAX_INPUT_BYTES
+    {
+        return Err(ReportError::TooLarge {
+            file: name,
+            bytes: meta.len(),
+        });
+    }
+    let (bytes, name) = crate::input::read_bytes(path)
+        .map_err(|(file, source)| ReportError::Io { file, source })?;
+    let input = InputFile {
+        role,
+        path: name,
+        bytes: bytes.len() as u64,
+        sha256: sha256_hex(&bytes),
+    };
+    Ok((bytes, input))
+}
+
+/// SHA-256 of bytes, lower-case hex (FIPS 180-4).
+///
+/// ```
+/// assert_eq!(
+///     polycal::report::html::sha256_hex(b"abc"),
+///     "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+/// );
+/// ```
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// Whether a file's header (its first line that is not a `#` comment) is that of a
+/// self-calibration file: it has the `head` and `head_angle` columns.
+fn is_selfcal(text: &str) -> bool {
+    text.lines()
+        .map(|l| l.trim_start_matches('\u{feff}'))
+        .find(|l| !l.starts_with('#'))
+        .is_some_and(|header| {
+            let columns: Vec<&str> = header.split(',').map(str::trim).collect();
+            columns.contains(&"head") && columns.contains(&"head_angle")
+        })
+}
+
+impl CalibrationReport {
+    /// Reads the inputs and evaluates them as `solve`, `diagnose`, `compare` and
+    /// `selfcal` do.
+    ///
+    /// # Errors
+    ///
+    /// [`ReportError`]: a file that cannot be read or is invalid (with file, line and
+    /// column), a design that cannot be solved, a budget that does not apply, a
+    /// comparison that cannot be made.
+    pub fn build(inputs: &ReportInputs) -> Result<Self, ReportError> {
+        let (bytes, measurement_file) = read_input(&inputs.measurement, "measurement")?;
+        let name = measurement_file.path.clone();
+        let text = String::from_utf8_lossy(&bytes).into_owned();
+        let mut files = vec![measurement_file];
+        let budget = match &inputs.budget {
+            Some(path) => {
+                let (_, file) = read_input(path, "instrument budget")?;
+                files.push(file);
+                Some(InstrumentBudget::read_path(path)?)
+            }
+            None => None,
+        };
+        let truth = match &inputs.truth {
+            Some(path) => {
+                let (_, file) = read_input(path, "truth")?;
+                files.push(file);
+                Some(Truth::read_path(path)?)
+            }
+            None => None,
+        };
+        let meta_text = match &inputs.meta {
+            Some(path) => {
+                let (meta_bytes, file) = read_input(path, "metadata")?;
+                let text = String::from_utf8(meta_bytes).map_err(|_| ReportError::Meta {
+                    location: Location::file_only(file.path.clone()),
+                    message: "not UTF-8 text".into(),
+                })?;
+                let source = file.path.clone();
+                files.push(file);
+                Some((text, source))
+            }
+            None => None,
+        };
+        if let Some(dir) = &inputs.run_dir {
+            let (_, file) = read_input(&dir.join("manifest.json"), "run manifest")?;
+            files.push(file);
+        }
+        let metadata = meta::gather(
+            meta_text.as_ref().map(|(t, s)| (t.as_str(), s.as_str())),
+            (&text, &name),
+            inputs.run_dir.as_deref(),
+        )?;
+        let (evaluation, diagnosis, rows) = if is_selfcal(&text) {
+            if inputs.diagnose {
+                return Err(ReportError::NotSupported {
+                    file: name,
+                    what: "the diagnosis",
+                    kind: "a self-calibration file",
+                });
+            }
+            let set = SelfcalSet::read_from(bytes.as_slice(), &name, inputs.faces)?;
+            let solution =
+                crate::selfcal::solve(&set, &SelfcalOptions::new()).map_err(|source| {
+                    ReportError::SelfcalSolve {
+                        file: name.clone(),
+                        source,
+                    }
+                })?;
+            let uncertainty = budget
+                .as_ref()
+                .map(|b| crate::selfcal::evaluate_budget(&solution, b))
+                .transpose()
+                .map_err(|source| ReportError::Uncertainty {
+                    file: name.clone(),
+                    source,
+                })?;
+            let mut report = SelfcalReport::new(&solution, &name);
+            if let Some(u) = &uncertainty {
+                report = report.with_uncertainty(u);
+            }
+            let rows = crate::report::selfcal::result_rows(&solution, uncertainty.as_ref());
+            (Evaluation::Selfcal { report }, None, Some(rows))
+        } else {
+            let set = MeasurementSet::read_from(bytes.as_slice(), &name, inputs.faces)?;
+            let solve_error = |source| ReportError::Solve {
+                file: name.clone(),
+                source,
+            };
+            if set.has_shifts() && (budget.is_some() || inputs.diagnose) {
+                return Err(ReportError::NotSupported {
+                    file: name,
+                    what: "an instrument budget or a diagnosis",
+                    kind: "shifted mountings",
+                });
+            }
+            let solution = crate::solve::solve(&set, &SolveOptions::new()).map_err(solve_error)?;
+            let uncertainty = budget
+                .as_ref()
+                .map(|b| evaluate(&set, &solution, b))
+                .transpose()
+                .map_err(|source| ReportError::Uncertainty {
+                    file: name.clone(),
+                    source,
+                })?;
+            let mut solve = SolveReport::new(&solution, None);
+            if let Some(u) = &uncertainty {
+                solve = solve.with_uncertainty(u);
+            }
+            let diagnosis = if inputs.diagnose {
+                let found = diagnose(&set, &DiagnoseOptions::new()).map_err(solve_error)?;
+                Some(DiagnoseReport::new(&found, truth.as_ref(), None).with_residuals(&found, &set))
+            } else {
+                None
+            };
+            let rows = uncertainty
+                .as_ref()
+                .map(|u| result_rows_with(&solution, Some(u)));
+            let design = design_summary(&set);
+            (
+                Evaluation::Polygon {
+                    solve,
+                    design,
+                    uncertainty,
+                },
+                diagnosis,
+                rows,
+            )
+        };
+        let comparison = match &inputs.reference {
+            Some(path) => {
+                let (_, file) = read_input(path, "reference result")?;
+                let reference_name = file.path.clone();
+                files.push(file);
+                let reference = read_result_file(path)?;
+                let Some(rows) = rows else {
+                    return Err(ReportError::NoExpandedUncertainty {
+                        reference: reference_name,
+                    });
+                };
+                let options =
+                    CompareOptions::new().with_labels(name.clone(), reference_name.clone());
+                let comparison = compare(&rows, &reference.rows, &options).map_err(|source| {
+                    ReportError::Compare {
+                        reference: reference_name.clone(),
+                        source,
+                    }
+                })?;
+                Some((comparison, reference_name))
+            }
+            None => None,
+        };
+        let mut figures = match &evaluation {
+            Evaluation::Polygon {
+                solve, uncertainty, ..
+            } => {
+                let mut figures = figure::solve_figures(solve);
+                if let Some(u) = uncertainty {
+                    figures.extend(figure::budget_figures(u));
+                }
+                figures
+            }
+            Evaluation::Selfcal { report } => figure::selfcal_figures(report),
+        };
+        if let Some(d) = &diagnosis {
+            figures.extend(figure::diagnose_figures(d));
+        }
+        if let Some((c, reference)) = &comparison {
+            figures.extend(figure::compare_figures_labelled(c, &name, reference));
+        }
+        Ok(Self {
+            inputs: files,
+            metadata,
+            evaluation,
+            diagnosis,
+            comparison,
+            figures,
+            generated_utc: inputs
+                .generated_utc
+                .clone()
+                .unwrap_or_else(|| crate::clock::rfc3339(crate::clock::unix_now())),
+            command_line: inputs.command_line.clone(),
+        })
+    }
+
+    /// The verdicts: a failed comparison, a model not adequate.
+    pub fn verdict(&self) -> Verdict {
+        Verdict {
+            comparison_failed: self
+                .comparison
+                .as_ref()
+                .is_some_and(|(c, _)| !c.verdict_ok()),
+            not_adequate: self.diagnosis.as_ref().is_some_and(|d| !d.adequate),
+        }
+    }
+
+    /// The HTML document ([`render::document`]).
+    pub fn to_html(&self) -> String {
+        render::document(self)
+    }
+}
+
+/// The design of a measurement set.
+fn design_summary(set: &MeasurementSet) -> DesignSummary {
+    use std::collections::BTreeSet;
+    let cycles: BTreeSet<(u32, u32)> = set.readings.iter().map(|r| (r.setup, r.cycle)).collect();
+    let setups: BTreeSet<u32> = set.readings.iter().map(|r| r.setup).collect();
+    DesignSummary {
+        faces: set.faces,
+        face_offsets: set.face_offsets(),
+        cycles: cycles.len(),
+        closing: set.readings.iter().any(|r| r.step == set.faces),
+        bidirectional: set
+            .readings
+            .iter()
+            .any(|r| r.direction == crate::measurement::Direction::Ccw),
+        setups: setups.len(),
+        readings: set.readings.len(),
+    }
+}
