@@ -488,7 +488,19 @@ impl CalibrationReport {
             }
             let diagnosis = if inputs.diagnose {
                 let found = diagnose(&set, &DiagnoseOptions::new()).map_err(solve_error)?;
-                Some(DiagnoseReport::new(&found, truth.as_ref(), None).with_residuals(&found, &set))
+                let mut report =
+                    DiagnoseReport::new(&found, truth.as_ref(), None).with_residuals(&found, &set);
+                // the budget acts on the final model, as in `polycal diagnose --budget`
+                if let Some(b) = &budget {
+                    let after = evaluate(&set, &found.after, b).map_err(|source| {
+                        ReportError::Uncertainty {
+                            file: name.clone(),
+                            source,
+                        }
+                    })?;
+                    report.after = report.after.with_uncertainty(&after);
+                }
+                Some(report)
             } else {
                 None
             };
@@ -530,15 +542,8 @@ impl CalibrationReport {
             None => None,
         };
         let mut figures = match &evaluation {
-            Evaluation::Polygon {
-                solve, uncertainty, ..
-            } => {
-                let mut figures = figure::solve_figures(solve);
-                if let Some(u) = uncertainty {
-                    figures.extend(figure::budget_figures(u));
-                }
-                figures
-            }
+            // with a budget, the solve figures include the budget's
+            Evaluation::Polygon { solve, .. } => figure::solve_figures(solve),
             Evaluation::Selfcal { report } => figure::selfcal_figures(report),
         };
         if let Some(d) = &diagnosis {

@@ -1,0 +1,532 @@
+//! `polycal report` (docs/FORMAT.md §10): the HTML parses without a single HTML5 parse
+//! error; every number it shows is the number the JSON commands print (`solve`,
+//! `diagnose`, `compare`, `selfcal`), shown rounded; each section is there exactly when
+//! asked for; missing metadata is shown as missing; the SHA-256 of every input equals
+//! an independent computation (coreutils' `sha256sum`); the status follows the verdicts.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use scraper::{ElementRef, Html, Selector};
+use serde_json::Value;
+
+const DATA: &str = "examples/data/polygon24-2ac-6cycles.csv";
+const TRUTH: &str = "examples/data/polygon24-2ac-6cycles.truth.json";
+const BUDGET: &str = "examples/budgets/instrument.toml";
+const REFERENCE: &str = "examples/data/polygon24-shift-angle.result.csv";
+const META: &str = "examples/report/meta.toml";
+
+fn polycal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_polycal"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("the binary runs")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("polycal-report-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn json(args: &[&str]) -> Value {
+    let out = polycal(args);
+    assert!(
+        out.status.code().is_some_and(|c| c <= 1),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON")
+}
+
+/// Runs `polycal report … --out DIR/report.html`; returns the status and the parsed
+/// document, after asserting it has no HTML5 parse error.
+fn report(dir: &Path, args: &[&str]) -> (Option<i32>, Html, String) {
+    let out_path = dir.join("report.html");
+    let mut all: Vec<&str> = vec!["report"];
+    all.extend_from_slice(args);
+    let out_text = out_path.to_str().unwrap().to_string();
+    all.extend_from_slice(&["--out", &out_text]);
+    let out = polycal(&all);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.code().is_some_and(|c| c <= 1),
+        "{args:?}: {stderr}"
+    );
+    let text = std::fs::read_to_string(&out_path).unwrap();
+    let html = Html::parse_document(&text);
+    assert!(
+        html.errors.is_empty(),
+        "HTML parse errors: {:?}",
+        html.errors
+    );
+    (out.status.code(), html, text)
+}
+
+fn select<'a>(html: &'a Html, css: &str) -> Vec<ElementRef<'a>> {
+    let selector = Selector::parse(css).unwrap();
+    html.select(&selector).collect()
+}
+
+/// The numeric cells of column `column` (0-based, among all cells) of table `id`'s body.
+fn column(html: &Html, id: &str, column: usize) -> Vec<(Option<f64>, String)> {
+    select(html, &format!("table#{id} > tbody > tr"))
+        .into_iter()
+        .map(|row| {
+            let cell = row
+                .select(&Selector::parse("td").unwrap())
+                .nth(column)
+                .unwrap_or_else(|| panic!("{id}: no column {column}"));
+            let value = cell.value().attr("data-value").map(|v| v.parse().unwrap());
+            (value, cell.text().collect::<String>())
+        })
+        .collect()
+}
+
+/// The text a report shows for `value` at `decimals`: rounded, with a true minus sign.
+fn shown(value: f64, decimals: usize) -> String {
+    let text = format!("{value:.decimals$}");
+    if text
+        .trim_start_matches('-')
+        .chars()
+        .all(|c| c == '0' || c == '.')
+    {
+        return text.trim_start_matches('-').to_string();
+    }
+    text.replace('-', "−")
+}
+
+/// Every cell of the column equals the JSON array exactly, and shows it rounded.
+fn assert_column(html: &Html, id: &str, col: usize, expected: &Value, decimals: usize) {
+    let cells = column(html, id, col);
+    let expected = expected
+        .as_array()
+        .unwrap_or_else(|| panic!("{id}: {expected}"));
+    assert_eq!(cells.len(), expected.len(), "{id} column {col}");
+    for (i, ((value, text), want)) in cells.iter().zip(expected).enumerate() {
+        match want.as_f64() {
+            Some(want) => {
+                assert_eq!(*value, Some(want), "{id}[{i}] column {col}");
+                assert_eq!(text, &shown(want, decimals), "{id}[{i}] column {col}");
+            }
+            None => assert_eq!(text, "—", "{id}[{i}] column {col}: null"),
+        }
+    }
+}
+
+#[test]
+fn every_number_is_the_jsons_and_every_section_is_there() {
+    let dir = temp_dir("full");
+    let (status, html, _) = report(
+        &dir,
+        &[
+            DATA,
+            "--budget",
+            BUDGET,
+            "--diagnose",
+            "--truth",
+            TRUTH,
+            "--reference",
+            REFERENCE,
+            "--meta",
+            META,
+        ],
+    );
+    assert_eq!(status, Some(0));
+    for id in [
+        "details",
+        "method",
+        "results",
+        "budget",
+        "figures",
+        "diagnosis",
+        "comparison",
+        "provenance",
+        "signatures",
+    ] {
+        assert_eq!(select(&html, &format!("section#{id}")).len(), 1, "{id}");
+    }
+    // results: solve --budget's JSON
+    let solve = json(&["solve", DATA, "--budget", BUDGET, "--format", "json"]);
+    for (id, key) in [
+        ("pitch-deviation", "pitch_deviation"),
+        ("face-deviation", "face_deviation"),
+    ] {
+        assert_column(&html, id, 1, &solve[key], 4);
+        assert_column(&html, id, 2, &solve[format!("{key}_u")], 4);
+        assert_column(&html, id, 3, &solve[format!("{key}_U")], 4);
+        assert_column(&html, id, 4, &solve[format!("{key}_k")], 2);
+    }
+    // α has its angle in the second column
+    let angles: Vec<Value> = (0..24).map(|p| Value::from(f64::from(p) * 15.0)).collect();
+    assert_column(&html, "encoder-error", 1, &Value::Array(angles), 3);
+    assert_column(&html, "encoder-error", 2, &solve["encoder_error"], 4);
+    assert_column(&html, "encoder-error", 3, &solve["encoder_error_u"], 4);
+    assert_column(&html, "encoder-error", 4, &solve["encoder_error_U"], 4);
+    assert_column(&html, "encoder-error", 5, &solve["encoder_error_k"], 2);
+    let setup_values: Vec<Value> = solve["setup_error"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["value"].clone())
+        .collect();
+    assert_column(&html, "setup-error", 1, &Value::Array(setup_values), 4);
+    let fit = column(&html, "fit", 1);
+    assert_eq!(fit[1].0, solve["residual_rms"].as_f64());
+    // the diagnosis: diagnose --budget --truth's JSON
+    let diagnose = json(&[
+        "diagnose", DATA, "--budget", BUDGET, "--truth", TRUTH, "--format", "json",
+    ]);
+    assert_column(
+        &html,
+        "final-pitch-deviation",
+        3,
+        &diagnose["after"]["pitch_deviation_U"],
+        4,
+    );
+    assert_column(
+        &html,
+        "final-encoder-error",
+        2,
+        &diagnose["after"]["encoder_error"],
+        4,
+    );
+    let adequacy = select(&html, "#adequacy")[0].text().collect::<String>();
+    assert_eq!(
+        diagnose["adequate"].as_bool().unwrap(),
+        !adequacy.contains("NOT"),
+        "{adequacy}"
+    );
+    let fit = column(&html, "diagnosis-fit", 0);
+    assert_eq!(fit[0].0, diagnose["before"]["residual_rms"].as_f64());
+    let after_rms = column(&html, "diagnosis-fit", 1);
+    assert_eq!(after_rms[0].0, diagnose["after"]["residual_rms"].as_f64());
+    // error against the truth, before and after
+    assert_eq!(
+        column(&html, "diagnosis-fit", 0)[2].0,
+        diagnose["error"]["before"]["pitch_rms"].as_f64()
+    );
+    // the comparison: compare's JSON on solve's result file against the reference
+    let result = dir.join("result.csv");
+    let out = polycal(&["solve", DATA, "--budget", BUDGET, "--format", "csv"]);
+    std::fs::write(&result, &out.stdout).unwrap();
+    let compare = json(&[
+        "compare",
+        result.to_str().unwrap(),
+        REFERENCE,
+        "--format",
+        "json",
+    ]);
+    let rows = compare["rows"].as_array().unwrap();
+    let pick = |key: &str| Value::Array(rows.iter().map(|r| r[key].clone()).collect());
+    assert_column(&html, "comparison-rows", 3, &pick("a"), 4);
+    assert_column(&html, "comparison-rows", 4, &pick("b"), 4);
+    assert_column(&html, "comparison-rows", 5, &pick("difference"), 4);
+    assert_column(&html, "comparison-rows", 8, &pick("en"), 2);
+    let max = compare["max_abs_en"].as_f64().unwrap();
+    let verdict = select(&html, "#comparison-verdict")[0]
+        .text()
+        .collect::<String>();
+    assert!(verdict.contains(&shown(max, 2)), "{verdict}");
+    // the budget: its U is the largest U of the family
+    let largest = solve["encoder_error_U"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .fold(0.0, f64::max);
+    let foot = select(&html, "table#budget-encoder-error tfoot td[data-value]");
+    let shown_u: f64 = foot
+        .last()
+        .unwrap()
+        .value()
+        .attr("data-value")
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert_eq!(shown_u, largest);
+    // the figures are the ones --plot writes, inlined
+    let plots = dir.join("plots");
+    let _ = polycal(&[
+        "solve",
+        DATA,
+        "--budget",
+        BUDGET,
+        "--plot",
+        plots.to_str().unwrap(),
+    ]);
+    for entry in std::fs::read_dir(&plots).unwrap() {
+        let name = entry.unwrap().file_name();
+        let stem = name.to_str().unwrap().trim_end_matches(".svg");
+        assert_eq!(
+            select(&html, &format!("figure#figure-{stem} svg")).len(),
+            1,
+            "{stem}"
+        );
+    }
+    // metadata from the meta file, with its source
+    let customer = select(&html, "tr[data-key=customer] td");
+    assert_eq!(
+        customer[0].text().collect::<String>(),
+        "Example Precision Ltd."
+    );
+    assert_eq!(customer[1].text().collect::<String>(), META);
+}
+
+#[test]
+fn without_options_the_optional_sections_are_absent_and_metadata_is_missing() {
+    let dir = temp_dir("bare");
+    let (status, html, text) = report(&dir, &[DATA]);
+    assert_eq!(status, Some(0));
+    for id in ["budget", "diagnosis", "comparison"] {
+        assert!(select(&html, &format!("section#{id}")).is_empty(), "{id}");
+    }
+    for id in ["details", "method", "results", "figures", "provenance"] {
+        assert_eq!(select(&html, &format!("section#{id}")).len(), 1, "{id}");
+    }
+    // nothing invented: every field but the ones the file's comments give is missing
+    for key in [
+        "customer",
+        "operator",
+        "certificate",
+        "artefact",
+        "approved_by",
+    ] {
+        let cells = select(&html, &format!("tr[data-key={key}] td"));
+        assert_eq!(cells[0].text().collect::<String>(), "not given", "{key}");
+        assert_eq!(cells[1].text().collect::<String>(), "", "{key}");
+    }
+    assert_eq!(
+        select(&html, "#certificate")[0].text().collect::<String>(),
+        "not given"
+    );
+    assert_eq!(
+        select(&html, "#instruments")[0].text().collect::<String>(),
+        "not given"
+    );
+    // without a budget: u from the fit, no U, no k
+    let solve = json(&["solve", DATA, "--format", "json"]);
+    assert_column(&html, "pitch-deviation", 2, &solve["pitch_deviation_u"], 4);
+    assert!(
+        column(&html, "pitch-deviation", 3)
+            .iter()
+            .all(|(v, t)| v.is_none() && t == "—")
+    );
+    // self-contained: nothing fetched, no script
+    for needle in ["<script", "<link", "@import", " src=", "href=", "url("] {
+        assert!(!text.contains(needle), "{needle}");
+    }
+}
+
+#[test]
+fn comments_of_the_file_are_metadata_and_a_conflict_is_said() {
+    let dir = temp_dir("comments");
+    let data = dir.join("run.csv");
+    let body = std::fs::read_to_string(DATA).unwrap();
+    std::fs::write(
+        &data,
+        format!("# Customer: Other Customer <b>&co</b>\n# Operator: C. Comment\n{body}"),
+    )
+    .unwrap();
+    let (_, html, _) = report(&dir, &[data.to_str().unwrap()]);
+    let customer = select(&html, "tr[data-key=customer] td");
+    assert_eq!(
+        customer[0].text().collect::<String>(),
+        "Other Customer <b>&co</b>",
+        "escaped, shown as text"
+    );
+    assert_eq!(
+        customer[1].text().collect::<String>(),
+        format!("{}:1", data.display())
+    );
+    let (_, html, _) = report(&dir, &[data.to_str().unwrap(), "--meta", META]);
+    let customer = select(&html, "tr[data-key=customer] td");
+    assert_eq!(
+        customer[0].text().collect::<String>(),
+        "Example Precision Ltd."
+    );
+    let notes: String = select(&html, "#details p.note")
+        .iter()
+        .map(|n| n.text().collect::<String>())
+        .collect();
+    assert!(notes.contains("Other Customer"), "{notes}");
+    // the operator the meta file also gives: the meta file's, the conflict said
+    assert!(notes.contains("C. Comment"), "{notes}");
+}
+
+#[test]
+fn the_sha256_of_every_input_is_its_own() {
+    let dir = temp_dir("sha");
+    let (_, html, _) = report(&dir, &[DATA, "--budget", BUDGET, "--meta", META]);
+    let rows = select(&html, "table#inputs > tbody > tr");
+    assert_eq!(rows.len(), 3);
+    for row in rows {
+        let cells: Vec<String> = row
+            .select(&Selector::parse("td").unwrap())
+            .map(|c| c.text().collect())
+            .collect();
+        let out = Command::new("sha256sum")
+            .arg(&cells[1])
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .expect("coreutils sha256sum");
+        let independent = String::from_utf8(out.stdout).unwrap();
+        assert_eq!(cells[3], independent.split_whitespace().next().unwrap());
+        let bytes = std::fs::metadata(Path::new(env!("CARGO_MANIFEST_DIR")).join(&cells[1]))
+            .unwrap()
+            .len();
+        assert_eq!(cells[2], bytes.to_string());
+    }
+}
+
+#[test]
+fn a_failing_comparison_and_an_inadequate_model_give_status_1() {
+    let dir = temp_dir("verdicts");
+    // the reference with every value 5″ off
+    let text = std::fs::read_to_string(REFERENCE).unwrap();
+    let mut shifted = String::new();
+    let mut value_column = None;
+    for line in text.lines() {
+        if line.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').collect();
+        match value_column {
+            None => {
+                value_column = fields.iter().position(|f| *f == "value");
+                shifted.push_str(line);
+            }
+            Some(c) => {
+                let mut fields: Vec<String> = fields.iter().map(|f| f.to_string()).collect();
+                let v: f64 = fields[c].parse().unwrap();
+                fields[c] = (v + 5.0).to_string();
+                shifted.push_str(&fields.join(","));
+            }
+        }
+        shifted.push('\n');
+    }
+    let off = dir.join("off.csv");
+    std::fs::write(&off, shifted).unwrap();
+    let (status, html, _) = report(
+        &dir,
+        &[
+            DATA,
+            "--budget",
+            BUDGET,
+            "--reference",
+            off.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(status, Some(1));
+    assert!(!select(&html, "table#comparison-rows tr.fail").is_empty());
+    assert!(
+        select(&html, "#verdict")[0]
+            .value()
+            .classes()
+            .any(|c| c == "fail")
+    );
+
+    // structure no effect explains (as tests/cli.rs: a slow wave on autocollimator 2)
+    let clean = dir.join("clean.csv");
+    let out = polycal(&[
+        "simulate",
+        "--faces",
+        "24",
+        "--cycles",
+        "6",
+        "--closing",
+        "--seed",
+        "9",
+        "--out",
+        clean.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let mut set = polycal::measurement::MeasurementSet::read_path(&clean, None).unwrap();
+    for r in &mut set.readings {
+        if r.ac == 2 {
+            r.reading_arcsec +=
+                0.8 * (2.0 * std::f64::consts::PI * r.time_seconds.unwrap() / 1500.0).sin();
+        }
+    }
+    let wavy = dir.join("wavy.csv");
+    set.write_path(&wavy, &[]).unwrap();
+    let (status, html, _) = report(&dir, &[wavy.to_str().unwrap(), "--diagnose"]);
+    assert_eq!(status, Some(1));
+    let adequacy = select(&html, "#adequacy")[0].text().collect::<String>();
+    assert!(adequacy.contains("NOT adequate"), "{adequacy}");
+    // and the clean run is adequate: status 0
+    let (status, _, _) = report(&dir, &[clean.to_str().unwrap(), "--diagnose"]);
+    assert_eq!(status, Some(0));
+}
+
+#[test]
+fn a_self_calibration_report_shows_the_selfcal_numbers() {
+    let dir = temp_dir("selfcal");
+    let file = "examples/data/selfa-168.csv";
+    let (status, html, _) = report(&dir, &[file, "--budget", "examples/budgets/selfcal.toml"]);
+    assert_eq!(status, Some(0));
+    let selfcal = json(&[
+        "selfcal",
+        file,
+        "--budget",
+        "examples/budgets/selfcal.toml",
+        "--format",
+        "json",
+    ]);
+    assert_column(&html, "encoder-error", 1, &selfcal["encoder_angle_deg"], 3);
+    assert_column(&html, "encoder-error", 2, &selfcal["encoder_error"], 4);
+    assert_column(&html, "encoder-error", 4, &selfcal["encoder_error_U"], 4);
+    let lost = select(&html, "#lost-harmonics")[0]
+        .text()
+        .collect::<String>();
+    let want: Vec<String> = selfcal["lost_harmonics"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|h| h.to_string())
+        .collect();
+    assert_eq!(lost, want.join(", "));
+}
+
+#[test]
+fn bad_input_is_one_error_line_with_status_2() {
+    let dir = temp_dir("bad");
+    let meta = dir.join("meta.toml");
+    std::fs::write(&meta, "customer = \"A\"\ncolour = \"red\"\n").unwrap();
+    let out_path = dir.join("r.html");
+    let out = polycal(&[
+        "report",
+        DATA,
+        "--meta",
+        meta.to_str().unwrap(),
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with(&format!("error: {}:2:1: ", meta.display())),
+        "{stderr}"
+    );
+    assert!(!out_path.exists(), "no report is written");
+    // a comparison without U
+    let out = polycal(&[
+        "report",
+        DATA,
+        "--reference",
+        REFERENCE,
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("--budget"), "{stderr}");
+    // --out a directory
+    let out = polycal(&["report", DATA, "--out", dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(String::from_utf8(out.stderr).unwrap().lines().count(), 1);
+}
