@@ -21,11 +21,14 @@
 //! - [`measurement`]: readings and the measurement CSV file;
 //! - [`solve`]: the paper's closed form and the general least-squares closure solver;
 //! - [`simulate`]: simulated runs with a known truth;
-//! - [`report`]: the JSON, CSV and table outputs of `polycal solve`;
+//! - [`report`]: the JSON, CSV and table outputs of the commands, and the HTML report;
 //! - [`results`]: the result CSV file (one row per calibrated quantity);
 //! - [`uncertainty`]: GUM uncertainty budgets and Student's t;
 //! - [`compare`]: En numbers between two results;
 //! - [`diagnose`]: residual analysis that finds, adds and reports the effects a model lacks;
+//! - [`figure`]: the figures (SVG) of every command, drawn from its report object;
+//! - [`report::html`]: the self-contained HTML calibration report;
+//! - [`clock`]: RFC 3339 time stamps;
 //! - `lab` (cargo feature `lab`): the instruments on serial lines, simulated instruments,
 //!   and the run procedure that drives them through a calibration.
 

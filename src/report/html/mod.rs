@@ -23,6 +23,7 @@
 
 pub mod meta;
 pub mod render;
+mod tables;
 
 use std::path::{Path, PathBuf};
 

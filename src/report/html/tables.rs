@@ -1,0 +1,368 @@
+//! The tables of a calibration report: every number through one cell ([`num`]) that
+//! shows it rounded and keeps the JSON's full-precision value in `data-value`; the result
+//! tables of a family (value, u, U, k), the fit, the budget of the quantity with the
+//! largest U, and the diagnosis.
+
+use std::fmt::Write;
+
+use serde_json::Value;
+
+use crate::figure::svg::esc;
+use crate::report::SolveReport;
+use crate::report::diagnose::DiagnoseReport;
+use crate::uncertainty::calibration::{CalibrationUncertainty, FamilyUncertainty};
+
+/// Decimals of values and uncertainties in arcseconds.
+pub(super) const ARCSEC_DECIMALS: usize = 4;
+
+/// A number rounded to `decimals`, with a true minus sign.
+pub fn rounded(value: f64, decimals: usize) -> String {
+    let text = format!("{value:.decimals$}");
+    // "-0.0000" is zero
+    if text
+        .trim_start_matches('-')
+        .chars()
+        .all(|c| c == '0' || c == '.')
+    {
+        return text.trim_start_matches('-').to_string();
+    }
+    text.replace('-', "−")
+}
+
+/// A table cell of a number: rounded text, full precision in `data-value`; `—` for none.
+pub(super) fn num(value: Option<f64>, decimals: usize) -> String {
+    match value.filter(|v| v.is_finite()) {
+        Some(v) => format!(
+            "<td class=\"num\" data-value=\"{v}\">{}</td>",
+            rounded(v, decimals)
+        ),
+        None => "<td class=\"num none\">—</td>".to_string(),
+    }
+}
+
+/// One family's table: index (and angle) columns, value, u, U, k.
+pub(super) struct FamilyTable<'a> {
+    pub(super) id: &'a str,
+    pub(super) caption: &'a str,
+    pub(super) index_header: &'a str,
+    pub(super) indices: Vec<String>,
+    pub(super) angles_deg: Option<&'a [f64]>,
+    pub(super) values: &'a [f64],
+    pub(super) u: Option<&'a [f64]>,
+    pub(super) expanded_u: Option<&'a [f64]>,
+    pub(super) k: Option<Vec<Option<f64>>>,
+}
+
+pub(super) fn family_table(out: &mut String, t: &FamilyTable) {
+    let _ = write!(
+        out,
+        "<table class=\"results\" id=\"{}\"><caption>{}</caption><thead><tr><th>{}</th>{}\
+         <th>value / ″</th><th>u / ″</th><th>U / ″</th><th>k</th></tr></thead><tbody>\n",
+        t.id,
+        esc(t.caption),
+        esc(t.index_header),
+        if t.angles_deg.is_some() {
+            "<th>angle / °</th>"
+        } else {
+            ""
+        }
+    );
+    for (i, value) in t.values.iter().enumerate() {
+        let _ = write!(
+            out,
+            "<tr><td>{}</td>{}{}{}{}{}</tr>\n",
+            t.indices.get(i).map_or("", String::as_str),
+            t.angles_deg
+                .map_or(String::new(), |a| num(a.get(i).copied(), 3)),
+            num(Some(*value), ARCSEC_DECIMALS),
+            num(t.u.and_then(|u| u.get(i).copied()), ARCSEC_DECIMALS),
+            num(
+                t.expanded_u.and_then(|u| u.get(i).copied()),
+                ARCSEC_DECIMALS
+            ),
+            num(t.k.as_ref().and_then(|k| k.get(i).copied().flatten()), 2),
+        );
+    }
+    out.push_str("</tbody></table>\n");
+}
+
+/// The result tables of a `solve` object (the report's results, and the diagnosis's final
+/// model); `prefix` makes the ids unique.
+pub(super) fn solve_tables(out: &mut String, r: &SolveReport, prefix: &str) {
+    let n = r.faces;
+    let faces: Vec<String> = (1..=n).map(|k| k.to_string()).collect();
+    let id = |name: &str| format!("{prefix}{name}");
+    let angles: Vec<f64> = match &r.encoder_angle_deg {
+        Some(a) => a.clone(),
+        None => (0..r.encoder_error.len())
+            .map(|p| crate::measurement::step_angle_deg(p as u32, r.encoder_error.len()))
+            .collect(),
+    };
+    family_table(
+        out,
+        &FamilyTable {
+            id: &id("pitch-deviation"),
+            caption: "Pitch deviations β",
+            index_header: "face k",
+            indices: faces.clone(),
+            angles_deg: None,
+            values: &r.pitch_deviation,
+            u: r.pitch_deviation_u.as_deref(),
+            expanded_u: r.pitch_deviation_expanded_u.as_deref(),
+            k: r.pitch_deviation_k.clone(),
+        },
+    );
+    family_table(
+        out,
+        &FamilyTable {
+            id: &id("face-deviation"),
+            caption: "Face deviations φ (φ[N] = 0 by definition)",
+            index_header: "face k",
+            indices: faces,
+            angles_deg: None,
+            values: &r.face_deviation,
+            u: r.face_deviation_u.as_deref(),
+            expanded_u: r.face_deviation_expanded_u.as_deref(),
+            k: r.face_deviation_k.clone(),
+        },
+    );
+    family_table(
+        out,
+        &FamilyTable {
+            id: &id("encoder-error"),
+            caption: "Encoder errors α",
+            index_header: "position p",
+            indices: (0..r.encoder_error.len()).map(|p| p.to_string()).collect(),
+            angles_deg: Some(&angles),
+            values: &r.encoder_error,
+            u: r.encoder_error_u.as_deref(),
+            expanded_u: r.encoder_error_expanded_u.as_deref(),
+            k: r.encoder_error_k.clone(),
+        },
+    );
+    let setup_values: Vec<f64> = r.setup_error.iter().map(|s| s.value).collect();
+    let setup_u: Option<Vec<f64>> = r.setup_error.iter().map(|s| s.u).collect();
+    let setup_expanded: Option<Vec<f64>> = r.setup_error.iter().map(|s| s.expanded_u).collect();
+    family_table(
+        out,
+        &FamilyTable {
+            id: &id("setup-error"),
+            caption: "Setup errors U (they depend on the mounting)",
+            index_header: "mounting / autocollimator",
+            indices: r
+                .setup_error
+                .iter()
+                .map(|s| format!("{} / {}", s.setup, s.ac))
+                .collect(),
+            angles_deg: None,
+            values: &setup_values,
+            u: setup_u.as_deref(),
+            expanded_u: setup_expanded.as_deref(),
+            k: Some(r.setup_error.iter().map(|s| s.k).collect()),
+        },
+    );
+}
+
+pub(super) fn fit_summary(
+    out: &mut String,
+    readings: usize,
+    dof: usize,
+    rms: Option<f64>,
+    sigma: Option<f64>,
+    source: Option<&str>,
+    p: Option<f64>,
+) {
+    let _ = write!(
+        out,
+        "<table class=\"summary\" id=\"fit\"><tbody>\n<tr><th>Readings</th><td>{readings}</td>\
+         <th>Residual degrees of freedom</th><td>{dof}</td></tr>\n\
+         <tr><th>Residual RMS / ″</th>{}<th>σ of one reading / ″</th>{}</tr>\n\
+         <tr><th>σ from</th><td>{}</td><th>Coverage probability p</th>{}</tr>\n</tbody></table>\n",
+        num(rms, ARCSEC_DECIMALS),
+        num(sigma, ARCSEC_DECIMALS),
+        source.unwrap_or("—"),
+        num(p, 2),
+    );
+}
+
+/// The index of the largest U of a family (its first, when none is larger).
+pub(super) fn largest(family: &FamilyUncertainty) -> Option<usize> {
+    (0..family.expanded_u.len())
+        .filter(|&i| family.expanded_u[i].is_finite())
+        .max_by(|&a, &b| family.expanded_u[a].total_cmp(&family.expanded_u[b]))
+}
+
+pub(super) fn budget_table(
+    out: &mut String,
+    u: &CalibrationUncertainty,
+    name: &str,
+    id: &str,
+    family: &FamilyUncertainty,
+    contribution: impl Fn(&crate::uncertainty::calibration::ComponentContribution) -> f64,
+    symbol: &str,
+    first_index: usize,
+) {
+    let Some(j) = largest(family) else { return };
+    let uc = family.u[j];
+    let share = |c: f64| {
+        if uc > 0.0 {
+            Some(100.0 * c * c / (uc * uc))
+        } else {
+            None
+        }
+    };
+    let _ = write!(
+        out,
+        "<table class=\"budget\" id=\"{id}\"><caption>{} — the quantity with the largest U: {}</caption>\
+         <thead><tr><th>Component</th><th>Type</th><th>Distribution</th><th>Acts on</th>\
+         <th>u / ″</th><th>Sensitivity</th><th>ν</th><th>Contribution / ″</th><th>Index / %</th></tr></thead><tbody>\n",
+        esc(name),
+        esc(&format!("{symbol}[{}]", j + first_index)),
+    );
+    let _ = write!(
+        out,
+        "<tr><td>type A of the fit (σ·√Q)</td><td>A</td><td>normal</td><td>—</td>{}<td class=\"num\">1</td>{}{}{}</tr>\n",
+        num(Some(family.u_a[j]), ARCSEC_DECIMALS),
+        num(u.type_a_dof, 0),
+        num(Some(family.u_a[j]), ARCSEC_DECIMALS),
+        num(share(family.u_a[j]), 1),
+    );
+    for c in &u.components {
+        let value = contribution(c);
+        let _ = write!(
+            out,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td>{}{}{}{}{}</tr>\n",
+            esc(&c.name),
+            c.evaluation,
+            esc(c.distribution),
+            esc(c.acts_on.as_str()),
+            num(Some(c.u), ARCSEC_DECIMALS),
+            num(Some(c.sensitivity), 3),
+            num(c.dof, 0),
+            num(Some(value), ARCSEC_DECIMALS),
+            num(share(value), 1),
+        );
+    }
+    let _ = write!(
+        out,
+        "</tbody><tfoot><tr><th colspan=\"4\">Combined standard uncertainty u<sub>c</sub>; ν<sub>eff</sub>; k; U</th>\
+         {}<td></td>{}<td class=\"num\">k = {}</td><td class=\"num\" data-value=\"{}\">U = {}</td></tr></tfoot></table>\n",
+        num(Some(uc), ARCSEC_DECIMALS),
+        num(family.dof_eff[j], 1),
+        family.k[j].map_or("—".to_string(), |k| rounded(k, 2)),
+        family.expanded_u[j],
+        rounded(family.expanded_u[j], ARCSEC_DECIMALS),
+    );
+}
+
+/// An effect of the diagnosis JSON as text: its kind and fields.
+fn effect_text(effect: &Value) -> (String, String, Option<f64>, Option<f64>) {
+    let kind = effect
+        .get("kind")
+        .and_then(Value::as_str)
+        .unwrap_or("effect")
+        .to_string();
+    let fields: Vec<String> = effect
+        .as_object()
+        .map(|o| {
+            o.iter()
+                .filter(|(k, _)| !matches!(k.as_str(), "kind" | "value" | "u"))
+                .map(|(k, v)| format!("{k} {v}"))
+                .collect()
+        })
+        .unwrap_or_default();
+    (
+        kind,
+        fields.join(", "),
+        effect.get("value").and_then(Value::as_f64),
+        effect.get("u").and_then(Value::as_f64),
+    )
+}
+
+pub(super) fn diagnosis_body(out: &mut String, d: &DiagnoseReport) {
+    let _ = write!(
+        out,
+        "<p class=\"verdict {}\" id=\"adequacy\">The final model is {}adequate: {}.</p>\n",
+        if d.adequate { "pass" } else { "fail" },
+        if d.adequate { "" } else { "NOT " },
+        if d.adequate {
+            "its residuals are consistent with noise"
+        } else {
+            "structure is left that no known effect explains"
+        },
+    );
+    out.push_str("<table id=\"checks\"><caption>Checks of the final model</caption><thead><tr><th>Check</th><th>Statistic</th><th>Limit</th><th>Passed</th></tr></thead><tbody>\n");
+    for c in &d.checks {
+        let _ = write!(
+            out,
+            "<tr><td>{}</td>{}{}<td>{}</td></tr>\n",
+            esc(&c.name),
+            num(Some(c.statistic), 3),
+            num(Some(c.limit), 3),
+            if c.passed { "yes" } else { "no" }
+        );
+    }
+    out.push_str("</tbody></table>\n");
+    out.push_str("<table id=\"effects\"><caption>Effects found and added to the model</caption><thead><tr><th>Effect</th><th>Where</th><th>Value</th><th>u</th></tr></thead><tbody>\n");
+    if d.effects.is_empty() {
+        out.push_str("<tr><td colspan=\"4\">none</td></tr>\n");
+    }
+    for e in &d.effects {
+        let (kind, fields, value, u) = effect_text(e);
+        let _ = write!(
+            out,
+            "<tr><td>{}</td><td>{}</td>{}{}</tr>\n",
+            esc(&kind),
+            esc(&fields),
+            num(value, ARCSEC_DECIMALS),
+            num(u, ARCSEC_DECIMALS)
+        );
+    }
+    out.push_str("</tbody></table>\n");
+    let _ = write!(
+        out,
+        "<table id=\"diagnosis-fit\"><thead><tr><th></th><th>Before (base model)</th><th>After (final model)</th></tr></thead><tbody>\n\
+         <tr><th>Residual RMS / ″</th>{}{}</tr>\n<tr><th>Residual degrees of freedom</th><td>{}</td><td>{}</td></tr>\n",
+        num(d.before.residual_rms, ARCSEC_DECIMALS),
+        num(d.after.residual_rms, ARCSEC_DECIMALS),
+        d.before.dof,
+        d.after.dof
+    );
+    if let Some(e) = &d.error {
+        for (label, before, after) in [
+            (
+                "Pitch deviation error, RMS / ″",
+                e.before.pitch_rms,
+                e.after.pitch_rms,
+            ),
+            (
+                "Pitch deviation error, largest / ″",
+                e.before.pitch_max,
+                e.after.pitch_max,
+            ),
+            (
+                "Encoder error error, RMS / ″",
+                e.before.encoder_rms,
+                e.after.encoder_rms,
+            ),
+            (
+                "Encoder error error, largest / ″",
+                e.before.encoder_max,
+                e.after.encoder_max,
+            ),
+        ] {
+            let _ = write!(
+                out,
+                "<tr class=\"truth\"><th>{label} (against the truth)</th>{}{}</tr>\n",
+                num(Some(before), ARCSEC_DECIMALS),
+                num(Some(after), ARCSEC_DECIMALS)
+            );
+        }
+    }
+    out.push_str("</tbody></table>\n");
+    for note in &d.notes {
+        let _ = write!(out, "<p class=\"note\">{}</p>\n", esc(note));
+    }
+    out.push_str("<h3>Results of the final model</h3>\n");
+    solve_tables(out, &d.after, "final-");
+}
