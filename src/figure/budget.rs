@@ -53,7 +53,7 @@ pub(crate) fn family_figure(
             .map_or("—".into(), |k| format!("{k:.2}"))
     )];
     let mut body = String::new();
-    let top = header_px(subtitles.len()) + 10.0;
+    let top = header_px(&subtitles) + 10.0;
     let label_px = 210.0;
     let row_px = 18.0;
     let panel = Panel {

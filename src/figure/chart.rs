@@ -96,7 +96,7 @@ impl Chart {
         } else {
             Vec::new()
         };
-        let top = header_px(subtitles.len());
+        let top = header_px(&subtitles);
         let legend_px = legend(&mut body, &entries, top);
         let drawn = |p: &&Point| p.x.is_finite() && p.y.is_finite();
         let xs = self

@@ -185,7 +185,7 @@ fn difference(
         ),
         (LegendKey::Line(Some("5,3")), "En = ±1".to_string()),
     ];
-    let top = header_px(subtitles.len());
+    let top = header_px(&subtitles);
     let legend_px = legend(&mut body, &entries, top);
     let finite = |r: &&&ComparisonRow| x_of(r).is_finite() && r.difference.is_finite();
     let halves: Vec<f64> = rows

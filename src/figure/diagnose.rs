@@ -215,7 +215,7 @@ fn one_ac(
         subtitles.push("the offset step acts on none of these readings".into());
     }
     let mut body = String::new();
-    let top = header_px(subtitles.len());
+    let top = header_px(&subtitles);
     let legend_px = legend(&mut body, &entries, top);
     let before: Vec<f64> = indices.iter().map(|&i| residuals.before[i]).collect();
     let after: Vec<f64> = indices.iter().map(|&i| residuals.after[i]).collect();

@@ -505,7 +505,7 @@ pub(crate) fn document(height_px: f64, title: &str, subtitles: &[String], body: 
         px(LEFT_PX),
         esc(title)
     );
-    for (i, line) in subtitles.iter().enumerate() {
+    for (i, line) in subtitle_lines(subtitles).iter().enumerate() {
         let _ = writeln!(
             out,
             r##"<text class="subtitle" x="{}" y="{}" font-size="10.5" fill="#333">{}</text>"##,
@@ -519,9 +519,33 @@ pub(crate) fn document(height_px: f64, title: &str, subtitles: &[String], body: 
     out
 }
 
-/// Where the legend begins below `subtitles` lines, px.
-pub(crate) fn header_px(subtitles: usize) -> f64 {
-    30.0 + 13.0 * subtitles as f64
+/// Where the legend begins below the `subtitles` (as [`document`] wraps them), px.
+pub(crate) fn header_px(subtitles: &[String]) -> f64 {
+    30.0 + 13.0 * subtitle_lines(subtitles).len() as f64
+}
+
+/// The most characters of a subtitle line: what 10.5 px sans-serif fits in the width.
+const SUBTITLE_CHARS: usize = 100;
+
+/// The subtitles wrapped at spaces into lines of at most [`SUBTITLE_CHARS`] characters (a
+/// longer word stands alone on its line).
+fn subtitle_lines(subtitles: &[String]) -> Vec<String> {
+    let mut lines = Vec::new();
+    for subtitle in subtitles {
+        let mut line = String::new();
+        for word in subtitle.split(' ') {
+            if !line.is_empty() && line.chars().count() + 1 + word.chars().count() > SUBTITLE_CHARS
+            {
+                lines.push(std::mem::take(&mut line));
+            }
+            if !line.is_empty() {
+                line.push(' ');
+            }
+            line.push_str(word);
+        }
+        lines.push(line);
+    }
+    lines
 }
 
 #[cfg(test)]
@@ -560,5 +584,15 @@ mod tests {
     #[test]
     fn text_is_escaped() {
         assert_eq!(esc(r#"a<b>&"c'"#), "a&lt;b&gt;&amp;&quot;c&apos;");
+    }
+
+    #[test]
+    fn long_subtitles_wrap_at_spaces_and_lose_nothing() {
+        let long = "word ".repeat(50).trim_end().to_string(); // 249 characters
+        let lines = subtitle_lines(&[long.clone(), "short".into()]);
+        assert_eq!(lines.len(), 4);
+        assert!(lines.iter().all(|l| l.chars().count() <= SUBTITLE_CHARS));
+        assert_eq!(lines[..3].join(" "), long);
+        assert_eq!(header_px(&[long, "short".into()]), 30.0 + 13.0 * 4.0);
     }
 }
