@@ -136,11 +136,14 @@ struct InstrumentToml {
     calibration: Option<String>,
 }
 
+/// Values by key.
+type MetaValues = Vec<(&'static str, String)>;
+
 /// The values of a metadata TOML file (docs/FORMAT.md §10) by key, and its instruments.
 fn read_meta_file(
     text: &str,
     source: &str,
-) -> Result<(Vec<(&'static str, String)>, Vec<InstrumentEntry>), ReportError> {
+) -> Result<(MetaValues, Vec<InstrumentEntry>), ReportError> {
     let at = |offset: usize, message: String| ReportError::Meta {
         location: location(source, text, offset),
         message,

@@ -273,6 +273,8 @@ pub struct DesignSummary {
 /// What was evaluated: a polygon calibration or a self-calibration.
 #[derive(Debug, Clone)]
 #[non_exhaustive]
+// One per report: the size of the polygon variant does not matter.
+#[allow(clippy::large_enum_variant)]
 pub enum Evaluation {
     /// Polygon and encoder by the closure method.
     Polygon {

@@ -6,8 +6,8 @@
 use std::fmt::Write;
 
 use super::tables::{
-    ARCSEC_DECIMALS, FamilyTable, budget_table, diagnosis_body, family_table, fit_summary, largest,
-    num, rounded, solve_tables,
+    ARCSEC_DECIMALS, BudgetFamily, FamilyTable, budget_table, diagnosis_body, family_table,
+    fit_summary, num, rounded, solve_tables,
 };
 use super::{CalibrationReport, DesignSummary, Evaluation};
 use crate::figure::svg::esc;
@@ -30,9 +30,9 @@ struct Sections {
 impl Sections {
     fn open(&mut self, id: &str, title: &str) {
         self.count += 1;
-        let _ = write!(
+        let _ = writeln!(
             self.html,
-            "<section id=\"{id}\"><h2><span class=\"secno\">{}</span> {}</h2>\n",
+            "<section id=\"{id}\"><h2><span class=\"secno\">{}</span> {}</h2>",
             self.count,
             esc(title)
         );
@@ -113,9 +113,9 @@ fn title_block(out: &mut String, report: &CalibrationReport, title: &str) {
         ));
     }
     if !checks.is_empty() {
-        let _ = write!(
+        let _ = writeln!(
             out,
-            "<p class=\"verdict {}\" id=\"verdict\">{}</p>\n",
+            "<p class=\"verdict {}\" id=\"verdict\">{}</p>",
             if verdict.passed() { "pass" } else { "fail" },
             esc(&checks.join("; "))
         );
@@ -130,9 +130,9 @@ fn details(s: &mut Sections, report: &CalibrationReport) {
         "<table class=\"meta\"><thead><tr><th>Item</th><th>Value</th><th>Source</th></tr></thead><tbody>\n",
     );
     for f in m.fields.iter().filter(|f| f.key != "title") {
-        let _ = write!(
+        let _ = writeln!(
             s.html,
-            "<tr data-key=\"{}\"><th>{}</th><td>{}</td><td class=\"source\">{}</td></tr>\n",
+            "<tr data-key=\"{}\"><th>{}</th><td>{}</td><td class=\"source\">{}</td></tr>",
             f.key,
             esc(f.label),
             f.value.as_deref().map_or_else(|| MISSING.to_string(), esc),
@@ -141,15 +141,15 @@ fn details(s: &mut Sections, report: &CalibrationReport) {
     }
     s.html.push_str("</tbody></table>\n");
     for conflict in &m.conflicts {
-        let _ = write!(
+        let _ = writeln!(
             s.html,
-            "<p class=\"note\">Two sources differ: {}</p>\n",
+            "<p class=\"note\">Two sources differ: {}</p>",
             esc(conflict)
         );
     }
     s.html.push_str("<h3>Instruments</h3>\n");
     if m.instruments.is_empty() {
-        let _ = write!(s.html, "<p id=\"instruments\">{MISSING}</p>\n");
+        let _ = writeln!(s.html, "<p id=\"instruments\">{MISSING}</p>");
     } else {
         s.html.push_str(
             "<table id=\"instruments\"><thead><tr><th>Role</th><th>Name / identification</th><th>Model</th>\
@@ -157,9 +157,9 @@ fn details(s: &mut Sections, report: &CalibrationReport) {
         );
         for i in &m.instruments {
             let cell = |v: &Option<String>| v.as_deref().map_or_else(|| MISSING.to_string(), esc);
-            let _ = write!(
+            let _ = writeln!(
                 s.html,
-                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"source\">{}</td></tr>\n",
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"source\">{}</td></tr>",
                 cell(&i.role),
                 cell(&i.name),
                 cell(&i.model),
@@ -173,9 +173,9 @@ fn details(s: &mut Sections, report: &CalibrationReport) {
     if let Some(run) = &m.run {
         let _ = write!(s.html, "<h3>The run</h3>\n<table id=\"run\"><tbody>\n");
         for (label, value) in &run.facts {
-            let _ = write!(
+            let _ = writeln!(
                 s.html,
-                "<tr><th>{}</th><td>{}</td></tr>\n",
+                "<tr><th>{}</th><td>{}</td></tr>",
                 esc(label),
                 esc(value)
             );
@@ -190,7 +190,7 @@ fn details(s: &mut Sections, report: &CalibrationReport) {
         s.html
             .push_str("<h3>Comments in the measurement file</h3>\n<ul class=\"notes\">\n");
         for note in &m.file_notes {
-            let _ = write!(s.html, "<li>{}</li>\n", esc(note));
+            let _ = writeln!(s.html, "<li>{}</li>", esc(note));
         }
         s.html.push_str("</ul>\n");
     }
@@ -293,7 +293,7 @@ fn selfcal_method(out: &mut String, r: &SelfcalReport) {
         }
     );
     for note in &r.notes {
-        let _ = write!(out, "<p class=\"note\">{}</p>\n", esc(note));
+        let _ = writeln!(out, "<p class=\"note\">{}</p>", esc(note));
     }
 }
 
@@ -374,11 +374,11 @@ fn budget(s: &mut Sections, report: &CalibrationReport) {
             ..
         } => {
             s.open("budget", "Uncertainty budget");
-            let _ = write!(
+            let _ = writeln!(
                 s.html,
                 "<p>Budget {} (p = {}, degrees-of-freedom policy {}). Each component's \
                  contribution is |c|·u propagated through the design to the quantity; its index \
-                 is its share of u<sub>c</sub>².</p>\n",
+                 is its share of u<sub>c</sub>².</p>",
                 esc(&u.budget),
                 u.p,
                 esc(u.dof_policy.as_str())
@@ -386,31 +386,35 @@ fn budget(s: &mut Sections, report: &CalibrationReport) {
             budget_table(
                 &mut s.html,
                 u,
-                "Pitch deviations β",
-                "budget-pitch-deviation",
-                &u.pitch_deviation,
-                |c| c.pitch_deviation[largest(&u.pitch_deviation).unwrap_or(0)],
-                "β",
-                1,
+                &BudgetFamily {
+                    name: "Pitch deviations β",
+                    id: "budget-pitch-deviation",
+                    symbol: "β",
+                    first_index: 1,
+                    family: &u.pitch_deviation,
+                    contribution: |c, j| c.pitch_deviation[j],
+                },
             );
             budget_table(
                 &mut s.html,
                 u,
-                "Encoder errors α",
-                "budget-encoder-error",
-                &u.encoder_error,
-                |c| c.encoder_error[largest(&u.encoder_error).unwrap_or(0)],
-                "α",
-                0,
+                &BudgetFamily {
+                    name: "Encoder errors α",
+                    id: "budget-encoder-error",
+                    symbol: "α",
+                    first_index: 0,
+                    family: &u.encoder_error,
+                    contribution: |c, j| c.encoder_error[j],
+                },
             );
             s.close();
         }
         Evaluation::Selfcal { report: r } if r.encoder_error_expanded_u.is_some() => {
             s.open("budget", "Uncertainty");
-            let _ = write!(
+            let _ = writeln!(
                 s.html,
                 "<p>U = k·u of every graduation error is given in the results (p = {}); k is \
-                 Student's t for the Welch–Satterthwaite degrees of freedom of each value.</p>\n",
+                 Student's t for the Welch–Satterthwaite degrees of freedom of each value.</p>",
                 r.p
             );
             s.close();
@@ -451,14 +455,13 @@ fn comparison(s: &mut Sections, report: &CalibrationReport) {
     s.open("comparison", "Comparison with a reference");
     let _ = write!(
         s.html,
-        "<p>a: this calibration; b: {}. Encoder errors matched by {}. Setup errors are {}.</p>\n\
+        "<p>a: this calibration; b: {}. Encoder errors matched by {}. Setup errors are listed but left out of the verdict.</p>\n\
          <p class=\"verdict {}\" id=\"comparison-verdict\">{} — largest |En| = {}.</p>\n",
         esc(reference),
         match c.encoder_matched_by {
             crate::compare::EncoderMatching::Angle => "angle",
             _ => "index",
         },
-        "listed but left out of the verdict",
         if c.verdict_ok() { "pass" } else { "fail" },
         if c.verdict_ok() {
             "The results agree: every |En| ≤ 1"
@@ -480,9 +483,9 @@ fn comparison(s: &mut Sections, report: &CalibrationReport) {
         } else {
             ""
         };
-        let _ = write!(
+        let _ = writeln!(
             s.html,
-            "<tr{class}><td>{}</td><td>{}</td>{}{}{}{}{}{}{}</tr>\n",
+            "<tr{class}><td>{}</td><td>{}</td>{}{}{}{}{}{}{}</tr>",
             r.quantity.name(),
             r.index,
             num(r.angle_deg, 3),
@@ -508,9 +511,9 @@ fn provenance(s: &mut Sections, report: &CalibrationReport) {
         esc(&report.generated_utc)
     );
     for f in &report.inputs {
-        let _ = write!(
+        let _ = writeln!(
             s.html,
-            "<tr><td>{}</td><td>{}</td><td class=\"num\">{}</td><td class=\"hash\">{}</td></tr>\n",
+            "<tr><td>{}</td><td>{}</td><td class=\"num\">{}</td><td class=\"hash\">{}</td></tr>",
             f.role,
             esc(&f.path),
             f.bytes,
@@ -519,9 +522,9 @@ fn provenance(s: &mut Sections, report: &CalibrationReport) {
     }
     s.html.push_str("</tbody></table>\n");
     if let Some(command) = &report.command_line {
-        let _ = write!(
+        let _ = writeln!(
             s.html,
-            "<p>Command: <code id=\"command\">{}</code></p>\n",
+            "<p>Command: <code id=\"command\">{}</code></p>",
             esc(command)
         );
     }
@@ -530,10 +533,10 @@ fn provenance(s: &mut Sections, report: &CalibrationReport) {
 
 fn signatures(s: &mut Sections, report: &CalibrationReport) {
     let m = &report.metadata;
-    let _ = write!(
+    let _ = writeln!(
         s.html,
         "<section id=\"signatures\" class=\"signatures\"><div><p class=\"sigline\"></p><p>Prepared by: {}</p></div>\
-         <div><p class=\"sigline\"></p><p>Approved by: {}</p></div></section>\n",
+         <div><p class=\"sigline\"></p><p>Approved by: {}</p></div></section>",
         m.value("operator").map_or_else(|| MISSING.to_string(), esc),
         m.value("approved_by")
             .map_or_else(|| MISSING.to_string(), esc),

@@ -10,7 +10,9 @@ use serde_json::Value;
 use crate::figure::svg::esc;
 use crate::report::SolveReport;
 use crate::report::diagnose::DiagnoseReport;
-use crate::uncertainty::calibration::{CalibrationUncertainty, FamilyUncertainty};
+use crate::uncertainty::calibration::{
+    CalibrationUncertainty, ComponentContribution, FamilyUncertainty,
+};
 
 /// Decimals of values and uncertainties in arcseconds.
 pub(super) const ARCSEC_DECIMALS: usize = 4;
@@ -54,10 +56,10 @@ pub(super) struct FamilyTable<'a> {
 }
 
 pub(super) fn family_table(out: &mut String, t: &FamilyTable) {
-    let _ = write!(
+    let _ = writeln!(
         out,
         "<table class=\"results\" id=\"{}\"><caption>{}</caption><thead><tr><th>{}</th>{}\
-         <th>value / ″</th><th>u / ″</th><th>U / ″</th><th>k</th></tr></thead><tbody>\n",
+         <th>value / ″</th><th>u / ″</th><th>U / ″</th><th>k</th></tr></thead><tbody>",
         t.id,
         esc(t.caption),
         esc(t.index_header),
@@ -68,9 +70,9 @@ pub(super) fn family_table(out: &mut String, t: &FamilyTable) {
         }
     );
     for (i, value) in t.values.iter().enumerate() {
-        let _ = write!(
+        let _ = writeln!(
             out,
-            "<tr><td>{}</td>{}{}{}{}{}</tr>\n",
+            "<tr><td>{}</td>{}{}{}{}{}</tr>",
             t.indices.get(i).map_or("", String::as_str),
             t.angles_deg
                 .map_or(String::new(), |a| num(a.get(i).copied(), 3)),
@@ -186,22 +188,32 @@ pub(super) fn fit_summary(
 }
 
 /// The index of the largest U of a family (its first, when none is larger).
-pub(super) fn largest(family: &FamilyUncertainty) -> Option<usize> {
+fn largest(family: &FamilyUncertainty) -> Option<usize> {
     (0..family.expanded_u.len())
         .filter(|&i| family.expanded_u[i].is_finite())
         .max_by(|&a, &b| family.expanded_u[a].total_cmp(&family.expanded_u[b]))
 }
 
-pub(super) fn budget_table(
-    out: &mut String,
-    u: &CalibrationUncertainty,
-    name: &str,
-    id: &str,
-    family: &FamilyUncertainty,
-    contribution: impl Fn(&crate::uncertainty::calibration::ComponentContribution) -> f64,
-    symbol: &str,
-    first_index: usize,
-) {
+/// One family's budget table: which family, how it is named.
+pub(super) struct BudgetFamily<'a> {
+    /// The caption's name of the family, e.g. "Pitch deviations β".
+    pub(super) name: &'a str,
+    /// The table's `id`.
+    pub(super) id: &'a str,
+    /// The quantity's symbol, e.g. `β`.
+    pub(super) symbol: &'a str,
+    /// The index of the family's first quantity (β\[1\], α\[0\]).
+    pub(super) first_index: usize,
+    /// Its uncertainties.
+    pub(super) family: &'a FamilyUncertainty,
+    /// A component's contribution to the family's quantity `j`.
+    pub(super) contribution: fn(&ComponentContribution, usize) -> f64,
+}
+
+/// The budget of the family's quantity with the largest U: the fit's type A and every
+/// component, their contributions and indices, then u_c, ν_eff, k and U.
+pub(super) fn budget_table(out: &mut String, u: &CalibrationUncertainty, f: &BudgetFamily) {
+    let (name, id, symbol, first_index, family) = (f.name, f.id, f.symbol, f.first_index, f.family);
     let Some(j) = largest(family) else { return };
     let uc = family.u[j];
     let share = |c: f64| {
@@ -211,27 +223,27 @@ pub(super) fn budget_table(
             None
         }
     };
-    let _ = write!(
+    let _ = writeln!(
         out,
         "<table class=\"budget\" id=\"{id}\"><caption>{} — the quantity with the largest U: {}</caption>\
          <thead><tr><th>Component</th><th>Type</th><th>Distribution</th><th>Acts on</th>\
-         <th>u / ″</th><th>Sensitivity</th><th>ν</th><th>Contribution / ″</th><th>Index / %</th></tr></thead><tbody>\n",
+         <th>u / ″</th><th>Sensitivity</th><th>ν</th><th>Contribution / ″</th><th>Index / %</th></tr></thead><tbody>",
         esc(name),
         esc(&format!("{symbol}[{}]", j + first_index)),
     );
-    let _ = write!(
+    let _ = writeln!(
         out,
-        "<tr><td>type A of the fit (σ·√Q)</td><td>A</td><td>normal</td><td>—</td>{}<td class=\"num\">1</td>{}{}{}</tr>\n",
+        "<tr><td>type A of the fit (σ·√Q)</td><td>A</td><td>normal</td><td>—</td>{}<td class=\"num\">1</td>{}{}{}</tr>",
         num(Some(family.u_a[j]), ARCSEC_DECIMALS),
         num(u.type_a_dof, 0),
         num(Some(family.u_a[j]), ARCSEC_DECIMALS),
         num(share(family.u_a[j]), 1),
     );
     for c in &u.components {
-        let value = contribution(c);
-        let _ = write!(
+        let value = (f.contribution)(c, j);
+        let _ = writeln!(
             out,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td>{}{}{}{}{}</tr>\n",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td>{}{}{}{}{}</tr>",
             esc(&c.name),
             c.evaluation,
             esc(c.distribution),
@@ -243,10 +255,10 @@ pub(super) fn budget_table(
             num(share(value), 1),
         );
     }
-    let _ = write!(
+    let _ = writeln!(
         out,
         "</tbody><tfoot><tr><th colspan=\"4\">Combined standard uncertainty u<sub>c</sub>; ν<sub>eff</sub>; k; U</th>\
-         {}<td></td>{}<td class=\"num\">k = {}</td><td class=\"num\" data-value=\"{}\">U = {}</td></tr></tfoot></table>\n",
+         {}<td></td>{}<td class=\"num\">k = {}</td><td class=\"num\" data-value=\"{}\">U = {}</td></tr></tfoot></table>",
         num(Some(uc), ARCSEC_DECIMALS),
         num(family.dof_eff[j], 1),
         family.k[j].map_or("—".to_string(), |k| rounded(k, 2)),
@@ -280,9 +292,9 @@ fn effect_text(effect: &Value) -> (String, String, Option<f64>, Option<f64>) {
 }
 
 pub(super) fn diagnosis_body(out: &mut String, d: &DiagnoseReport) {
-    let _ = write!(
+    let _ = writeln!(
         out,
-        "<p class=\"verdict {}\" id=\"adequacy\">The final model is {}adequate: {}.</p>\n",
+        "<p class=\"verdict {}\" id=\"adequacy\">The final model is {}adequate: {}.</p>",
         if d.adequate { "pass" } else { "fail" },
         if d.adequate { "" } else { "NOT " },
         if d.adequate {
@@ -293,9 +305,9 @@ pub(super) fn diagnosis_body(out: &mut String, d: &DiagnoseReport) {
     );
     out.push_str("<table id=\"checks\"><caption>Checks of the final model</caption><thead><tr><th>Check</th><th>Statistic</th><th>Limit</th><th>Passed</th></tr></thead><tbody>\n");
     for c in &d.checks {
-        let _ = write!(
+        let _ = writeln!(
             out,
-            "<tr><td>{}</td>{}{}<td>{}</td></tr>\n",
+            "<tr><td>{}</td>{}{}<td>{}</td></tr>",
             esc(&c.name),
             num(Some(c.statistic), 3),
             num(Some(c.limit), 3),
@@ -309,9 +321,9 @@ pub(super) fn diagnosis_body(out: &mut String, d: &DiagnoseReport) {
     }
     for e in &d.effects {
         let (kind, fields, value, u) = effect_text(e);
-        let _ = write!(
+        let _ = writeln!(
             out,
-            "<tr><td>{}</td><td>{}</td>{}{}</tr>\n",
+            "<tr><td>{}</td><td>{}</td>{}{}</tr>",
             esc(&kind),
             esc(&fields),
             num(value, ARCSEC_DECIMALS),
@@ -351,9 +363,9 @@ pub(super) fn diagnosis_body(out: &mut String, d: &DiagnoseReport) {
                 e.after.encoder_max,
             ),
         ] {
-            let _ = write!(
+            let _ = writeln!(
                 out,
-                "<tr class=\"truth\"><th>{label} (against the truth)</th>{}{}</tr>\n",
+                "<tr class=\"truth\"><th>{label} (against the truth)</th>{}{}</tr>",
                 num(Some(before), ARCSEC_DECIMALS),
                 num(Some(after), ARCSEC_DECIMALS)
             );
@@ -361,7 +373,7 @@ pub(super) fn diagnosis_body(out: &mut String, d: &DiagnoseReport) {
     }
     out.push_str("</tbody></table>\n");
     for note in &d.notes {
-        let _ = write!(out, "<p class=\"note\">{}</p>\n", esc(note));
+        let _ = writeln!(out, "<p class=\"note\">{}</p>", esc(note));
     }
     out.push_str("<h3>Results of the final model</h3>\n");
     solve_tables(out, &d.after, "final-");
