@@ -530,3 +530,106 @@ fn bad_input_is_one_error_line_with_status_2() {
     assert_eq!(out.status.code(), Some(2));
     assert_eq!(String::from_utf8(out.stderr).unwrap().lines().count(), 1);
 }
+
+#[test]
+fn source_date_epoch_makes_the_report_reproducible() {
+    let dir = temp_dir("epoch");
+    let mut texts = Vec::new();
+    // twice to the same file (the command line, shown in the report, names it)
+    for _ in 0..2 {
+        let path = dir.join("a.html");
+        let out = Command::new(env!("CARGO_BIN_EXE_polycal"))
+            .args(["report", DATA, "--budget", BUDGET, "--out"])
+            .arg(&path)
+            .env("SOURCE_DATE_EPOCH", "1700000000")
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(0));
+        texts.push(std::fs::read(&path).unwrap());
+    }
+    assert!(texts[0] == texts[1], "the same inputs, the same bytes");
+    let html = Html::parse_document(std::str::from_utf8(&texts[0]).unwrap());
+    // 1 700 000 000 s after 1970-01-01T00:00:00Z (by hand: 19 675 days and 80 000 s)
+    assert_eq!(
+        select(&html, "#generated")[0].text().collect::<String>(),
+        "2023-11-14T22:13:20.000Z"
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_polycal"))
+        .args(["report", DATA, "--out"])
+        .arg(dir.join("c.html"))
+        .env("SOURCE_DATE_EPOCH", "yesterday")
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1);
+    assert!(stderr.starts_with("error: SOURCE_DATE_EPOCH"), "{stderr}");
+}
+
+/// A run directory's manifest as docs/FORMAT.md §7.3 describes it, written here by hand.
+#[test]
+fn a_run_directory_gives_the_instruments_and_the_run() {
+    let dir = temp_dir("run");
+    let run = dir.join("run1");
+    std::fs::create_dir_all(&run).unwrap();
+    std::fs::write(
+        run.join("manifest.json"),
+        r#"{
+  "format": "polycal-run/1",
+  "software": "polycal 0.1.0",
+  "settings": {"faces": 24, "cycles": 6, "closing": true, "bidirectional": false, "settle_seconds": 2.0},
+  "instruments": {"ac1": "ELCOMAT 3000 S/N 4711", "ac2": "ELCOMAT 3000 S/N 4712", "table": "SMC100CC 2.0.0"},
+  "ports": {"ac1": "/dev/ttyUSB0", "ac2": "/dev/ttyUSB1", "table": "/dev/ttyUSB2"},
+  "started": "2026-11-03T14:05:09.123Z",
+  "started_unix": 1793714709.123,
+  "ended": "2026-11-03T15:01:00.000Z",
+  "outcome": "completed",
+  "readings": 300,
+  "expected_readings": 300,
+  "sessions": []
+}"#,
+    )
+    .unwrap();
+    let (_, html, _) = report(&dir, &[DATA, "--run-dir", run.to_str().unwrap()]);
+    let instruments: Vec<String> = select(&html, "table#instruments > tbody > tr")
+        .iter()
+        .map(|r| r.text().collect::<String>())
+        .collect();
+    assert_eq!(instruments.len(), 3);
+    assert!(instruments[0].starts_with("autocollimator 1ELCOMAT 3000 S/N 4711"));
+    assert!(instruments[2].contains("SMC100CC 2.0.0"));
+    let facts: String = select(&html, "table#run")[0].text().collect();
+    for fact in [
+        "2026-11-03T14:05:09.123Z",
+        "2026-11-03T15:01:00.000Z",
+        "completed",
+        "cycles = 6",
+    ] {
+        assert!(facts.contains(fact), "{fact}: {facts}");
+    }
+    // the manifest is an input: its SHA-256 is listed
+    let inputs: String = select(&html, "table#inputs")[0].text().collect();
+    assert!(inputs.contains("run manifest"), "{inputs}");
+    // a broken manifest: one error line with its position
+    std::fs::write(run.join("manifest.json"), "{\n  \"format\": \n").unwrap();
+    let out = polycal(&[
+        "report",
+        DATA,
+        "--run-dir",
+        run.to_str().unwrap(),
+        "--out",
+        dir.join("r.html").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with(&format!(
+            "error: {}:3:",
+            run.join("manifest.json").display()
+        )),
+        "{stderr}"
+    );
+}

@@ -16,7 +16,10 @@ Examples:
   polycal report examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml \\
       --diagnose --reference examples/data/polygon24-shift-angle.result.csv \\
       --meta examples/report/meta.toml --out report.html
-  polycal report examples/data/selfa-168.csv --budget examples/budgets/selfcal.toml --out selfcal.html";
+  polycal report examples/data/selfa-168.csv --budget examples/budgets/selfcal.toml --out selfcal.html
+
+The report's date is now (UTC), or SOURCE_DATE_EPOCH (seconds since 1970) when it is set:
+the same inputs then give the same bytes.";
 
 /// Arguments of `polycal report`.
 #[derive(clap::Args)]
@@ -73,7 +76,11 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         })
         .collect::<Vec<_>>()
         .join(" ");
-    let mut inputs = ReportInputs::new(&args.file)
+    let mut inputs = ReportInputs::new(&args.file);
+    if let Some(stamp) = source_date()? {
+        inputs = inputs.with_generated_utc(stamp);
+    }
+    inputs = inputs
         .with_faces(args.faces)
         .with_diagnose(args.diagnose)
         .with_command_line(format!("polycal {command_line}"));
@@ -123,6 +130,26 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
     } else {
         EXIT_VERDICT
     })
+}
+
+/// The report's date from `SOURCE_DATE_EPOCH` (seconds since the epoch, the
+/// reproducible-builds convention), so that the same inputs give the same bytes; `None`
+/// when it is not set.
+fn source_date() -> Result<Option<String>> {
+    match std::env::var("SOURCE_DATE_EPOCH") {
+        Err(std::env::VarError::NotPresent) => Ok(None),
+        Ok(text) => match text.trim().parse::<u64>() {
+            Ok(seconds) if seconds < 253_402_300_800 => {
+                Ok(Some(polycal::clock::rfc3339(seconds as f64)))
+            }
+            _ => bail!(
+                "SOURCE_DATE_EPOCH: expected whole seconds since 1970 before the year 10000, got {text:?}"
+            ),
+        },
+        Err(std::env::VarError::NotUnicode(_)) => {
+            bail!("SOURCE_DATE_EPOCH: not a number of seconds")
+        }
+    }
 }
 
 /// Writes `bytes` beside `path`, syncs, and renames it over `path`: a reader never sees
