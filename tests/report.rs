@@ -633,3 +633,31 @@ fn a_run_directory_gives_the_instruments_and_the_run() {
         "{stderr}"
     );
 }
+
+/// Sub-pitch mountings (docs/FORMAT.md §9.1): α at every table angle of both cosets, as
+/// `solve` reports them, and the note on each coset's constant.
+#[test]
+fn sub_pitch_mountings_give_every_table_angle() {
+    let dir = temp_dir("subpitch");
+    let data = dir.join("sub.csv");
+    let out = polycal(&[
+        "simulate",
+        "--setups",
+        "2",
+        "--shift-deg",
+        "0,10",
+        "--out",
+        data.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let (status, html, _) = report(&dir, &[data.to_str().unwrap()]);
+    assert_eq!(status, Some(0));
+    let solve = json(&["solve", data.to_str().unwrap(), "--format", "json"]);
+    assert_eq!(solve["encoder_error"].as_array().unwrap().len(), 48);
+    assert_column(&html, "encoder-error", 1, &solve["encoder_angle_deg"], 3);
+    assert_column(&html, "encoder-error", 2, &solve["encoder_error"], 4);
+    assert_column(&html, "encoder-error", 3, &solve["encoder_error_u"], 4);
+    let design: String = select(&html, "#design")[0].text().collect();
+    let note = solve["notes"][0].as_str().unwrap();
+    assert!(design.contains(note), "{design}");
+}

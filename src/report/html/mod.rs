@@ -40,6 +40,7 @@ use crate::report::{SolveReport, result_rows_with};
 use crate::results::{ResultsError, read_result_file};
 use crate::selfcal::{SelfcalError, SelfcalOptions, SelfcalSet, SelfcalSolveError};
 use crate::simulate::{SimulateError, Truth};
+use crate::solve::sub_pitch::{ShiftGeometry, solve_shifted};
 use crate::solve::{SolveError, SolveOptions};
 use crate::uncertainty::BudgetError;
 use crate::uncertainty::calibration::{
@@ -476,7 +477,17 @@ impl CalibrationReport {
                     kind: "shifted mountings",
                 });
             }
-            let solution = crate::solve::solve(&set, &SolveOptions::new()).map_err(solve_error)?;
+            // sub-pitch mountings: α at every table angle of every coset, as `solve` reports
+            // them (docs/FORMAT.md §9.1); budget and diagnosis were refused above
+            let sub_pitch = set.has_shifts() && ShiftGeometry::of(&set).is_sub_pitch();
+            let (solution, shifted) = if sub_pitch {
+                let solved = solve_shifted(&set, &SolveOptions::new()).map_err(solve_error)?;
+                (solved.solution.clone(), Some(solved))
+            } else {
+                let solution =
+                    crate::solve::solve(&set, &SolveOptions::new()).map_err(solve_error)?;
+                (solution, None)
+            };
             let uncertainty = budget
                 .as_ref()
                 .map(|b| evaluate(&set, &solution, b))
@@ -485,7 +496,10 @@ impl CalibrationReport {
                     file: name.clone(),
                     source,
                 })?;
-            let mut solve = SolveReport::new(&solution, None);
+            let mut solve = match &shifted {
+                Some(solved) => SolveReport::sub_pitch(solved, None),
+                None => SolveReport::new(&solution, None),
+            };
             if let Some(u) = &uncertainty {
                 solve = solve.with_uncertainty(u);
             }

@@ -250,8 +250,7 @@ fn polygon_method(out: &mut String, solve: &SolveReport, d: &DesignSummary) {
          <tr><th>Cycles</th><td>{}</td></tr>\n<tr><th>Closing reading (step N)</th><td>{}</td></tr>\n\
          <tr><th>Directions</th><td>{}</td></tr>\n<tr><th>Mountings</th><td>{}</td></tr>\n\
          <tr><th>Readings</th><td>{}</td></tr>\n<tr><th>Solver</th><td>{}</td></tr>\n\
-         <tr><th>Harmonics the design cannot see</th><td>none: the design determines every β and α \
-         (a design that loses a Fourier harmonic is refused)</td></tr>\n</tbody></table>\n",
+         <tr><th>Harmonics the design cannot see</th><td>{}</td></tr>\n</tbody></table>\n",
         d.faces,
         esc(&offsets.join("; ")),
         d.cycles,
@@ -263,7 +262,14 @@ fn polygon_method(out: &mut String, solve: &SolveReport, d: &DesignSummary) {
         },
         d.setups,
         d.readings,
-        esc(&solver)
+        esc(&solver),
+        match &solve.notes {
+            // sub-pitch mountings: each coset's constant (docs/FORMAT.md §9.1)
+            Some(notes) if !notes.is_empty() => esc(&notes.join(" ")),
+            _ => "none: the design determines every β and α (a design that loses a Fourier \
+                  harmonic is refused)"
+                .to_string(),
+        }
     );
 }
 
