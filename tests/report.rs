@@ -609,6 +609,13 @@ fn a_run_directory_gives_the_instruments_and_the_run() {
     ] {
         assert!(facts.contains(fact), "{fact}: {facts}");
     }
+    // the run's start date is the date of measurement, its source named
+    let date = select(&html, "tr[data-key=date_of_measurement] td");
+    assert_eq!(date[0].text().collect::<String>(), "2026-11-03");
+    assert_eq!(
+        date[1].text().collect::<String>(),
+        format!("{} (run started)", run.join("manifest.json").display())
+    );
     // the manifest is an input: its SHA-256 is listed
     let inputs: String = select(&html, "table#inputs")[0].text().collect();
     assert!(inputs.contains("run manifest"), "{inputs}");

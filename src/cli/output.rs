@@ -62,7 +62,6 @@ impl Output {
     }
 
     /// A line of information (a summary, a hint), unless `-q`.
-    #[cfg(feature = "lab")]
     pub fn info(&self, message: impl Display) {
         if !self.quiet {
             let _ = writeln!(std::io::stderr().lock(), "{message}");

@@ -74,6 +74,9 @@ pub struct RunRecord {
     pub source: String,
     /// Label and value pairs: software, start, end, outcome, readings, settings.
     pub facts: Vec<(String, String)>,
+    /// The date the run started (UTC, `YYYY-MM-DD`): the date of measurement when no other
+    /// source gives one.
+    pub started_date: Option<String>,
 }
 
 /// The metadata of a report.
@@ -262,6 +265,11 @@ fn read_manifest(dir: &Path) -> Result<(RunRecord, Vec<InstrumentEntry>), Report
         serde_json::Value::String(s) => s.clone(),
         other => other.to_string(),
     };
+    let started = object
+        .get("started")
+        .and_then(serde_json::Value::as_str)
+        .and_then(|t| t.get(..10))
+        .map(str::to_string);
     let mut facts = Vec::new();
     for (key, label) in [
         ("software", "Software of the run"),
@@ -300,7 +308,14 @@ fn read_manifest(dir: &Path) -> Result<(RunRecord, Vec<InstrumentEntry>), Report
             }
         }
     }
-    Ok((RunRecord { source, facts }, instruments))
+    Ok((
+        RunRecord {
+            source,
+            facts,
+            started_date: started,
+        },
+        instruments,
+    ))
 }
 
 /// Gathers the metadata of a report from its sources: the metadata file's text (with its
@@ -344,7 +359,15 @@ pub fn gather(
                 .filter(|(k, _, _)| *k == key)
                 .map(|(_, v, line)| (v.clone(), format!("{measurement_source}:{line}")))
                 .next();
-            let chosen = match (from_meta, from_comment) {
+            let from_manifest = (key == "date_of_measurement")
+                .then(|| run.as_ref())
+                .flatten()
+                .and_then(|r| {
+                    r.started_date
+                        .clone()
+                        .map(|d| (d, format!("{} (run started)", r.source)))
+                });
+            let chosen = match (from_meta, from_comment.or(from_manifest)) {
                 (Some(m), Some(c)) => {
                     if m.0 != c.0 {
                         conflicts.push(format!(

@@ -37,7 +37,7 @@ use crate::measurement::{MeasurementError, MeasurementSet};
 use crate::report::diagnose::DiagnoseReport;
 use crate::report::selfcal::SelfcalReport;
 use crate::report::{SolveReport, result_rows_with};
-use crate::results::{ResultsError, read_result_file};
+use crate::results::{ResultsError, read_results_from};
 use crate::selfcal::{SelfcalError, SelfcalOptions, SelfcalSet, SelfcalSolveError};
 use crate::simulate::{SimulateError, Truth};
 use crate::solve::sub_pitch::{ShiftGeometry, solve_shifted};
@@ -398,9 +398,14 @@ impl CalibrationReport {
         let mut files = vec![measurement_file];
         let budget = match &inputs.budget {
             Some(path) => {
-                let (_, file) = read_input(path, "instrument budget")?;
+                let (bytes, file) = read_input(path, "instrument budget")?;
+                // parsed from the bytes fingerprinted; not UTF-8: the reader's located error
+                let budget = match std::str::from_utf8(&bytes) {
+                    Ok(text) => InstrumentBudget::from_toml_str(text, &file.path)?,
+                    Err(_) => InstrumentBudget::read_path(path)?,
+                };
                 files.push(file);
-                Some(InstrumentBudget::read_path(path)?)
+                Some(budget)
             }
             None => None,
         };
@@ -537,10 +542,10 @@ impl CalibrationReport {
         };
         let comparison = match &inputs.reference {
             Some(path) => {
-                let (_, file) = read_input(path, "reference result")?;
+                let (bytes, file) = read_input(path, "reference result")?;
                 let reference_name = file.path.clone();
                 files.push(file);
-                let reference = read_result_file(path)?;
+                let reference = read_results_from(bytes.as_slice(), &reference_name)?;
                 let Some(rows) = rows else {
                     return Err(ReportError::NoExpandedUncertainty {
                         reference: reference_name,
