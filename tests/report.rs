@@ -668,3 +668,50 @@ fn sub_pitch_mountings_give_every_table_angle() {
     let note = solve["notes"][0].as_str().unwrap();
     assert!(design.contains(note), "{design}");
 }
+
+/// The paper's bare design (one cycle, no closing reading) is exactly determined: u and U
+/// need a stated σ, as for `solve --sigma`.
+#[test]
+fn an_exactly_determined_run_takes_a_stated_sigma() {
+    let dir = temp_dir("sigma");
+    let data = dir.join("bare.csv");
+    let out = polycal(&["simulate", "--cycles", "1", "--out", data.to_str().unwrap()]);
+    assert!(out.status.success());
+    let out_path = dir.join("r.html");
+    let out = polycal(&[
+        "report",
+        data.to_str().unwrap(),
+        "--budget",
+        BUDGET,
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("--sigma"), "{stderr}");
+    let (status, html, _) = report(
+        &dir,
+        &[
+            data.to_str().unwrap(),
+            "--budget",
+            BUDGET,
+            "--sigma",
+            "0.05",
+        ],
+    );
+    assert_eq!(status, Some(0));
+    let solve = json(&[
+        "solve",
+        data.to_str().unwrap(),
+        "--budget",
+        BUDGET,
+        "--sigma",
+        "0.05",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(solve["dof"], 0);
+    assert_column(&html, "pitch-deviation", 2, &solve["pitch_deviation_u"], 4);
+    assert_column(&html, "encoder-error", 4, &solve["encoder_error_U"], 4);
+}

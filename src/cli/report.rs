@@ -4,6 +4,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
+use polycal::measurement::Sigma;
 use polycal::report::html::{CalibrationReport, ReportError, ReportInputs};
 
 use super::output::Output;
@@ -30,6 +31,10 @@ pub struct ReportArgs {
     /// Number of polygon faces (self-calibration: positions), when not the file's largest.
     #[arg(long)]
     faces: Option<usize>,
+    /// Standard deviation of one reading, arcsec, for the uncertainties of an exactly
+    /// determined fit (dof = 0, e.g. the paper's bare two-autocollimator cycle).
+    #[arg(long, allow_negative_numbers = true)]
+    sigma: Option<Sigma>,
     /// Instrument budget (TOML, docs/FORMAT.md §5.1): U and k of every result, and the
     /// budget section. Needed for --reference with a polygon file.
     #[arg(long, value_name = "B.toml")]
@@ -82,6 +87,7 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
     }
     inputs = inputs
         .with_faces(args.faces)
+        .with_sigma(args.sigma)
         .with_diagnose(args.diagnose)
         .with_command_line(format!("polycal {command_line}"));
     if let Some(p) = &args.budget {
@@ -104,6 +110,10 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         ReportError::NoExpandedUncertainty { .. } => {
             super::with_hint(e, "--budget", "give the instrument budget with --budget")
         }
+        ReportError::Uncertainty {
+            source: polycal::uncertainty::calibration::CalibrationError::NoSigma,
+            ..
+        } => anyhow::anyhow!("{e} (--sigma)"),
         e => e.into(),
     })?;
     let html = report.to_html();

@@ -33,7 +33,7 @@ use crate::compare::{CompareError, CompareOptions, Comparison, compare};
 use crate::diagnose::{DiagnoseOptions, diagnose};
 use crate::figure::{self, Figure};
 use crate::input::Location;
-use crate::measurement::{MeasurementError, MeasurementSet};
+use crate::measurement::{MeasurementError, MeasurementSet, Sigma};
 use crate::report::diagnose::DiagnoseReport;
 use crate::report::selfcal::SelfcalReport;
 use crate::report::{SolveReport, result_rows_with};
@@ -62,6 +62,9 @@ pub struct ReportInputs {
     pub measurement: PathBuf,
     /// The number of faces (positions of a self-calibration), when not the file's largest.
     pub faces: Option<usize>,
+    /// σ of one reading, arcsec, for the uncertainties of an exactly determined fit
+    /// (dof = 0, the paper's bare design); with dof > 0 the residuals' σ is used.
+    pub sigma: Option<Sigma>,
     /// An instrument budget (docs/FORMAT.md §5.1, `acts_on` per component).
     pub budget: Option<PathBuf>,
     /// Whether to diagnose the measurement (polygon files).
@@ -86,6 +89,7 @@ impl ReportInputs {
         Self {
             measurement: measurement.into(),
             faces: None,
+            sigma: None,
             budget: None,
             diagnose: false,
             truth: None,
@@ -99,6 +103,11 @@ impl ReportInputs {
     /// With the number of faces (or positions).
     pub fn with_faces(mut self, faces: Option<usize>) -> Self {
         self.faces = faces;
+        self
+    }
+    /// With σ of one reading (for an exactly determined fit).
+    pub fn with_sigma(mut self, sigma: Option<Sigma>) -> Self {
+        self.sigma = sigma;
         self
     }
     /// With an instrument budget.
@@ -449,12 +458,11 @@ impl CalibrationReport {
             }
             let set = SelfcalSet::read_from(bytes.as_slice(), &name, inputs.faces)?;
             let solution =
-                crate::selfcal::solve(&set, &SelfcalOptions::new()).map_err(|source| {
-                    ReportError::SelfcalSolve {
+                crate::selfcal::solve(&set, &SelfcalOptions::new().with_sigma_opt(inputs.sigma))
+                    .map_err(|source| ReportError::SelfcalSolve {
                         file: name.clone(),
                         source,
-                    }
-                })?;
+                    })?;
             let uncertainty = budget
                 .as_ref()
                 .map(|b| crate::selfcal::evaluate_budget(&solution, b))
@@ -486,11 +494,13 @@ impl CalibrationReport {
             // them (docs/FORMAT.md §9.1); budget and diagnosis were refused above
             let sub_pitch = set.has_shifts() && ShiftGeometry::of(&set).is_sub_pitch();
             let (solution, shifted) = if sub_pitch {
-                let solved = solve_shifted(&set, &SolveOptions::new()).map_err(solve_error)?;
+                let solved = solve_shifted(&set, &SolveOptions::new().with_sigma_opt(inputs.sigma))
+                    .map_err(solve_error)?;
                 (solved.solution.clone(), Some(solved))
             } else {
                 let solution =
-                    crate::solve::solve(&set, &SolveOptions::new()).map_err(solve_error)?;
+                    crate::solve::solve(&set, &SolveOptions::new().with_sigma_opt(inputs.sigma))
+                        .map_err(solve_error)?;
                 (solution, None)
             };
             let uncertainty = budget
@@ -509,7 +519,8 @@ impl CalibrationReport {
                 solve = solve.with_uncertainty(u);
             }
             let diagnosis = if inputs.diagnose {
-                let found = diagnose(&set, &DiagnoseOptions::new()).map_err(solve_error)?;
+                let found = diagnose(&set, &DiagnoseOptions::new().with_sigma_opt(inputs.sigma))
+                    .map_err(solve_error)?;
                 let mut report =
                     DiagnoseReport::new(&found, truth.as_ref(), None).with_residuals(&found, &set);
                 // the budget acts on the final model, as in `polycal diagnose --budget`
