@@ -360,7 +360,7 @@ pub fn gather(
                 .map(|(_, v, line)| (v.clone(), format!("{measurement_source}:{line}")))
                 .next();
             let from_manifest = (key == "date_of_measurement")
-                .then(|| run.as_ref())
+                .then_some(run.as_ref())
                 .flatten()
                 .and_then(|r| {
                     r.started_date
