@@ -478,6 +478,38 @@ fn a_self_calibration_report_shows_the_selfcal_numbers() {
     assert_column(&html, "encoder-error", 1, &selfcal["encoder_angle_deg"], 3);
     assert_column(&html, "encoder-error", 2, &selfcal["encoder_error"], 4);
     assert_column(&html, "encoder-error", 4, &selfcal["encoder_error_U"], 4);
+    // the budget: the largest U(e), its components and the fit's type A
+    let largest = selfcal["encoder_error_U"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .fold(0.0, f64::max);
+    let foot = select(&html, "table#budget-encoder-error tfoot td[data-value]");
+    let shown_u: f64 = foot
+        .last()
+        .unwrap()
+        .value()
+        .attr("data-value")
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert_eq!(shown_u, largest);
+    let components = selfcal["uncertainty"]["components"].as_array().unwrap();
+    let rows = select(&html, "table#budget-encoder-error > tbody > tr");
+    assert_eq!(rows.len(), components.len() + 1);
+    let j = selfcal["encoder_error_U"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|v| v.as_f64() == Some(largest))
+        .unwrap();
+    for (row, c) in rows[1..].iter().zip(components) {
+        let cell = row.select(&Selector::parse("td").unwrap()).nth(7).unwrap();
+        let value: f64 = cell.value().attr("data-value").unwrap().parse().unwrap();
+        assert_eq!(value, c["encoder_error"][j].as_f64().unwrap());
+    }
+    assert_eq!(select(&html, "table#budget-head-error").len(), 1);
     let lost = select(&html, "#lost-harmonics")[0]
         .text()
         .collect::<String>();

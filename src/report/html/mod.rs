@@ -38,7 +38,9 @@ use crate::report::diagnose::DiagnoseReport;
 use crate::report::selfcal::SelfcalReport;
 use crate::report::{SolveReport, result_rows_with};
 use crate::results::{ResultsError, read_results_from};
-use crate::selfcal::{SelfcalError, SelfcalOptions, SelfcalSet, SelfcalSolveError};
+use crate::selfcal::{
+    SelfcalError, SelfcalOptions, SelfcalSet, SelfcalSolveError, SelfcalUncertainty,
+};
 use crate::simulate::{SimulateError, Truth};
 use crate::solve::sub_pitch::{ShiftGeometry, solve_shifted};
 use crate::solve::{SolveError, SolveOptions};
@@ -299,6 +301,8 @@ pub enum Evaluation {
     Selfcal {
         /// The `selfcal` JSON object.
         report: SelfcalReport,
+        /// The budget evaluation.
+        uncertainty: Option<SelfcalUncertainty>,
     },
 }
 
@@ -476,7 +480,14 @@ impl CalibrationReport {
                 report = report.with_uncertainty(u);
             }
             let rows = crate::report::selfcal::result_rows(&solution, uncertainty.as_ref());
-            (Evaluation::Selfcal { report }, None, Some(rows))
+            (
+                Evaluation::Selfcal {
+                    report,
+                    uncertainty,
+                },
+                None,
+                Some(rows),
+            )
         } else {
             let set = MeasurementSet::read_from(bytes.as_slice(), &name, inputs.faces)?;
             let solve_error = |source| ReportError::Solve {
@@ -577,7 +588,7 @@ impl CalibrationReport {
         let mut figures = match &evaluation {
             // with a budget, the solve figures include the budget's
             Evaluation::Polygon { solve, .. } => figure::solve_figures(solve),
-            Evaluation::Selfcal { report } => figure::selfcal_figures(report),
+            Evaluation::Selfcal { report, .. } => figure::selfcal_figures(report),
         };
         if let Some(d) = &diagnosis {
             figures.extend(figure::diagnose_figures(d));

@@ -6,8 +6,8 @@
 use std::fmt::Write;
 
 use super::tables::{
-    ARCSEC_DECIMALS, BudgetFamily, FamilyTable, budget_table, diagnosis_body, family_table,
-    fit_summary, num, rounded, solve_tables,
+    ARCSEC_DECIMALS, FamilyTable, diagnosis_body, family_table, fit_summary, num, polygon_budget,
+    rounded, selfcal_budget, solve_tables,
 };
 use super::{CalibrationReport, DesignSummary, Evaluation};
 use crate::figure::svg::esc;
@@ -201,7 +201,7 @@ fn method(s: &mut Sections, report: &CalibrationReport) {
     s.open("method", "Method");
     match &report.evaluation {
         Evaluation::Polygon { solve, design, .. } => polygon_method(&mut s.html, solve, design),
-        Evaluation::Selfcal { report } => selfcal_method(&mut s.html, report),
+        Evaluation::Selfcal { report, .. } => selfcal_method(&mut s.html, report),
     }
     s.html.push_str(
         "<p>Standard uncertainties u (k = 1) of the fit are σ·√Q<sub>jj</sub>, with σ from the \
@@ -324,7 +324,7 @@ fn results(s: &mut Sections, report: &CalibrationReport) {
             }
             solve_tables(&mut s.html, solve, "");
         }
-        Evaluation::Selfcal { report: r } => {
+        Evaluation::Selfcal { report: r, .. } => {
             fit_summary(
                 &mut s.html,
                 r.readings,
@@ -389,39 +389,59 @@ fn budget(s: &mut Sections, report: &CalibrationReport) {
                 u.p,
                 esc(u.dof_policy.as_str())
             );
-            budget_table(
+            polygon_budget(
                 &mut s.html,
                 u,
-                &BudgetFamily {
-                    name: "Pitch deviations β",
-                    id: "budget-pitch-deviation",
-                    symbol: "β",
-                    first_index: 1,
-                    family: &u.pitch_deviation,
-                    contribution: |c, j| c.pitch_deviation[j],
-                },
+                ("Pitch deviations β", "budget-pitch-deviation", "β", 1),
+                &u.pitch_deviation,
+                |c, j| c.pitch_deviation[j],
             );
-            budget_table(
+            polygon_budget(
                 &mut s.html,
                 u,
-                &BudgetFamily {
-                    name: "Encoder errors α",
-                    id: "budget-encoder-error",
-                    symbol: "α",
-                    first_index: 0,
-                    family: &u.encoder_error,
-                    contribution: |c, j| c.encoder_error[j],
-                },
+                ("Encoder errors α", "budget-encoder-error", "α", 0),
+                &u.encoder_error,
+                |c, j| c.encoder_error[j],
             );
             s.close();
         }
-        Evaluation::Selfcal { report: r } if r.encoder_error_expanded_u.is_some() => {
-            s.open("budget", "Uncertainty");
+        Evaluation::Selfcal {
+            report: r,
+            uncertainty: Some(u),
+        } => {
+            s.open("budget", "Uncertainty budget");
             let _ = writeln!(
                 s.html,
-                "<p>U = k·u of every graduation error is given in the results (p = {}); k is \
-                 Student's t for the Welch–Satterthwaite degrees of freedom of each value.</p>",
-                r.p
+                "<p>Budget {} (p = {}, degrees-of-freedom policy {}). Each component's \
+                 contribution is propagated through the head layout to the quantity; its index \
+                 is its share of u<sub>c</sub>².</p>",
+                esc(&u.budget),
+                u.p,
+                esc(u.dof_policy.as_str())
+            );
+            selfcal_budget(
+                &mut s.html,
+                u,
+                ("Graduation errors e", "budget-encoder-error"),
+                &u.encoder_error,
+                |c, j| c.encoder_error[j],
+                |j| {
+                    r.encoder_angle_deg
+                        .get(j)
+                        .map_or_else(String::new, |a| format!("e at {a}°"))
+                },
+            );
+            selfcal_budget(
+                &mut s.html,
+                u,
+                ("Head errors c", "budget-head-error"),
+                &u.head_error,
+                |c, j| c.head_error[j],
+                |j| {
+                    r.head_error
+                        .get(j)
+                        .map_or_else(String::new, |h| format!("c[{}]", h.head))
+                },
             );
             s.close();
         }

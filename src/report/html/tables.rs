@@ -10,6 +10,7 @@ use serde_json::Value;
 use crate::figure::svg::esc;
 use crate::report::SolveReport;
 use crate::report::diagnose::DiagnoseReport;
+use crate::selfcal::{SelfcalContribution, SelfcalUncertainty};
 use crate::uncertainty::calibration::{
     CalibrationUncertainty, ComponentContribution, FamilyUncertainty,
 };
@@ -194,27 +195,48 @@ fn largest(family: &FamilyUncertainty) -> Option<usize> {
         .max_by(|&a, &b| family.expanded_u[a].total_cmp(&family.expanded_u[b]))
 }
 
-/// One family's budget table: which family, how it is named.
-pub(super) struct BudgetFamily<'a> {
+/// One component's line of a budget table, at the quantity the table is about.
+pub(super) struct BudgetRow {
+    /// Its name.
+    pub(super) name: String,
+    /// `A` or `B` (`—` when not known).
+    pub(super) evaluation: String,
+    /// Its distribution (`—` when not known).
+    pub(super) distribution: String,
+    /// Its scope.
+    pub(super) acts_on: String,
+    /// |c|·u(x) of one draw as it enters a reading, arcsec.
+    pub(super) u: f64,
+    /// Its sensitivity coefficient, when known.
+    pub(super) sensitivity: Option<f64>,
+    /// Its degrees of freedom (`None`: infinite).
+    pub(super) dof: Option<f64>,
+    /// Its contribution to the quantity, arcsec.
+    pub(super) contribution: f64,
+}
+
+/// One family's budget table at its quantity with the largest U.
+pub(super) struct BudgetTable<'a> {
     /// The caption's name of the family, e.g. "Pitch deviations β".
     pub(super) name: &'a str,
     /// The table's `id`.
     pub(super) id: &'a str,
-    /// The quantity's symbol, e.g. `β`.
-    pub(super) symbol: &'a str,
-    /// The index of the family's first quantity (β\[1\], α\[0\]).
-    pub(super) first_index: usize,
-    /// Its uncertainties.
+    /// The quantity, e.g. `β[21]`.
+    pub(super) quantity: String,
+    /// The family's uncertainties.
     pub(super) family: &'a FamilyUncertainty,
-    /// A component's contribution to the family's quantity `j`.
-    pub(super) contribution: fn(&ComponentContribution, usize) -> f64,
+    /// The quantity's index in the family.
+    pub(super) j: usize,
+    /// Degrees of freedom of the fit's type A (`None`: infinite).
+    pub(super) type_a_dof: Option<f64>,
+    /// The components.
+    pub(super) rows: Vec<BudgetRow>,
 }
 
-/// The budget of the family's quantity with the largest U: the fit's type A and every
-/// component, their contributions and indices, then u_c, ν_eff, k and U.
-pub(super) fn budget_table(out: &mut String, u: &CalibrationUncertainty, f: &BudgetFamily) {
-    let (name, id, symbol, first_index, family) = (f.name, f.id, f.symbol, f.first_index, f.family);
-    let Some(j) = largest(family) else { return };
+/// The budget of one quantity: the fit's type A and every component, their
+/// contributions and indices (share of u_c², per cent), then u_c, ν_eff, k and U.
+pub(super) fn budget_table(out: &mut String, t: &BudgetTable) {
+    let (family, j) = (t.family, t.j);
     let uc = family.u[j];
     let share = |c: f64| {
         if uc > 0.0 {
@@ -225,34 +247,34 @@ pub(super) fn budget_table(out: &mut String, u: &CalibrationUncertainty, f: &Bud
     };
     let _ = writeln!(
         out,
-        "<table class=\"budget\" id=\"{id}\"><caption>{} — the quantity with the largest U: {}</caption>\
+        "<table class=\"budget\" id=\"{}\"><caption>{} — the quantity with the largest U: {}</caption>\
          <thead><tr><th>Component</th><th>Type</th><th>Distribution</th><th>Acts on</th>\
          <th>u / ″</th><th>Sensitivity</th><th>ν</th><th>Contribution / ″</th><th>Index / %</th></tr></thead><tbody>",
-        esc(name),
-        esc(&format!("{symbol}[{}]", j + first_index)),
+        t.id,
+        esc(t.name),
+        esc(&t.quantity),
     );
     let _ = writeln!(
         out,
         "<tr><td>type A of the fit (σ·√Q)</td><td>A</td><td>normal</td><td>—</td>{}<td class=\"num\">1</td>{}{}{}</tr>",
         num(Some(family.u_a[j]), ARCSEC_DECIMALS),
-        num(u.type_a_dof, 0),
+        num(t.type_a_dof, 0),
         num(Some(family.u_a[j]), ARCSEC_DECIMALS),
         num(share(family.u_a[j]), 1),
     );
-    for c in &u.components {
-        let value = (f.contribution)(c, j);
+    for r in &t.rows {
         let _ = writeln!(
             out,
             "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td>{}{}{}{}{}</tr>",
-            esc(&c.name),
-            c.evaluation,
-            esc(c.distribution),
-            esc(c.acts_on.as_str()),
-            num(Some(c.u), ARCSEC_DECIMALS),
-            num(Some(c.sensitivity), 3),
-            num(c.dof, 0),
-            num(Some(value), ARCSEC_DECIMALS),
-            num(share(value), 1),
+            esc(&r.name),
+            esc(&r.evaluation),
+            esc(&r.distribution),
+            esc(&r.acts_on),
+            num(Some(r.u), ARCSEC_DECIMALS),
+            num(r.sensitivity, 3),
+            num(r.dof, 0),
+            num(Some(r.contribution), ARCSEC_DECIMALS),
+            num(share(r.contribution), 1),
         );
     }
     let _ = writeln!(
@@ -264,6 +286,82 @@ pub(super) fn budget_table(out: &mut String, u: &CalibrationUncertainty, f: &Bud
         family.k[j].map_or("—".to_string(), |k| rounded(k, 2)),
         family.expanded_u[j],
         rounded(family.expanded_u[j], ARCSEC_DECIMALS),
+    );
+}
+
+/// The budget table of a polygon family at its largest U (nothing for an empty family).
+pub(super) fn polygon_budget(
+    out: &mut String,
+    u: &CalibrationUncertainty,
+    (name, id, symbol, first_index): (&str, &str, &str, usize),
+    family: &FamilyUncertainty,
+    contribution: fn(&ComponentContribution, usize) -> f64,
+) {
+    let Some(j) = largest(family) else { return };
+    let rows = u
+        .components
+        .iter()
+        .map(|c| BudgetRow {
+            name: c.name.clone(),
+            evaluation: c.evaluation.to_string(),
+            distribution: c.distribution.to_string(),
+            acts_on: c.acts_on.as_str().to_string(),
+            u: c.u,
+            sensitivity: Some(c.sensitivity),
+            dof: c.dof,
+            contribution: contribution(c, j),
+        })
+        .collect();
+    budget_table(
+        out,
+        &BudgetTable {
+            name,
+            id,
+            quantity: format!("{symbol}[{}]", j + first_index),
+            family,
+            j,
+            type_a_dof: u.type_a_dof,
+            rows,
+        },
+    );
+}
+
+/// The budget table of a self-calibration family at its largest U; `label` names quantity
+/// `j`.
+pub(super) fn selfcal_budget(
+    out: &mut String,
+    u: &SelfcalUncertainty,
+    (name, id): (&str, &str),
+    family: &FamilyUncertainty,
+    contribution: fn(&SelfcalContribution, usize) -> f64,
+    label: impl Fn(usize) -> String,
+) {
+    let Some(j) = largest(family) else { return };
+    let rows = u
+        .components
+        .iter()
+        .map(|c| BudgetRow {
+            name: c.name.clone(),
+            evaluation: "—".into(),
+            distribution: "—".into(),
+            acts_on: c.acts_on.as_str().to_string(),
+            u: c.u,
+            sensitivity: None,
+            dof: c.dof,
+            contribution: contribution(c, j),
+        })
+        .collect();
+    budget_table(
+        out,
+        &BudgetTable {
+            name,
+            id,
+            quantity: label(j),
+            family,
+            j,
+            type_a_dof: u.type_a_dof,
+            rows,
+        },
     );
 }
 
