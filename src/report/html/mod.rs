@@ -21,234 +21,36 @@
 //! # Ok::<(), polycal::report::html::ReportError>(())
 //! ```
 
+mod inputs;
 pub mod meta;
 pub mod render;
 mod tables;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
-use crate::compare::{CompareError, CompareOptions, Comparison, compare};
+use crate::compare::{CompareOptions, Comparison, compare};
 use crate::diagnose::{DiagnoseOptions, diagnose};
 use crate::figure::{self, Figure};
 use crate::input::Location;
-use crate::measurement::{MeasurementError, MeasurementSet, Sigma};
+use crate::measurement::MeasurementSet;
 use crate::report::diagnose::DiagnoseReport;
 use crate::report::selfcal::SelfcalReport;
 use crate::report::{SolveReport, result_rows_with};
-use crate::results::{ResultsError, read_results_from};
-use crate::selfcal::{
-    SelfcalError, SelfcalOptions, SelfcalSet, SelfcalSolveError, SelfcalUncertainty,
-};
-use crate::simulate::{SimulateError, Truth};
+use crate::results::read_results_from;
+use crate::selfcal::{SelfcalOptions, SelfcalSet, SelfcalUncertainty};
+use crate::simulate::Truth;
+use crate::solve::SolveOptions;
 use crate::solve::sub_pitch::{ShiftGeometry, solve_shifted};
-use crate::solve::{SolveError, SolveOptions};
-use crate::uncertainty::BudgetError;
-use crate::uncertainty::calibration::{
-    CalibrationError, CalibrationUncertainty, InstrumentBudget, evaluate,
-};
+use crate::uncertainty::calibration::{CalibrationUncertainty, InstrumentBudget, evaluate};
 
+pub use inputs::{ReportError, ReportInputs};
 pub use meta::Metadata;
 
 /// The largest input file a report reads, bytes (a measurement of 8400 positions by
 /// 12 heads is about 5 MB).
 pub const MAX_INPUT_BYTES: u64 = 256 * 1024 * 1024;
-
-/// What a report is made of: the measurement (or self-calibration) file and the optional
-/// budget, diagnosis, truth, reference result, metadata file and run directory.
-#[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
-pub struct ReportInputs {
-    /// The measurement file (docs/FORMAT.md §2) or self-calibration file (§9.2).
-    pub measurement: PathBuf,
-    /// The number of faces (positions of a self-calibration), when not the file's largest.
-    pub faces: Option<usize>,
-    /// σ of one reading, arcsec, for the uncertainties of an exactly determined fit
-    /// (dof = 0, the paper's bare design); with dof > 0 the residuals' σ is used.
-    pub sigma: Option<Sigma>,
-    /// An instrument budget (docs/FORMAT.md §5.1, `acts_on` per component).
-    pub budget: Option<PathBuf>,
-    /// Whether to diagnose the measurement (polygon files).
-    pub diagnose: bool,
-    /// A truth file, for the diagnosis's error before and after (simulated data).
-    pub truth: Option<PathBuf>,
-    /// A reference result (docs/FORMAT.md §3) to compare with.
-    pub reference: Option<PathBuf>,
-    /// A metadata file (TOML, docs/FORMAT.md §10).
-    pub meta: Option<PathBuf>,
-    /// A run directory (`polycal run`'s, with `manifest.json`).
-    pub run_dir: Option<PathBuf>,
-    /// The report's date and time, RFC 3339 UTC; `None`: now.
-    pub generated_utc: Option<String>,
-    /// The command line that made the report, shown in its provenance.
-    pub command_line: Option<String>,
-}
-
-impl ReportInputs {
-    /// A report of one measurement file, nothing else.
-    pub fn new(measurement: impl Into<PathBuf>) -> Self {
-        Self {
-            measurement: measurement.into(),
-            faces: None,
-            sigma: None,
-            budget: None,
-            diagnose: false,
-            truth: None,
-            reference: None,
-            meta: None,
-            run_dir: None,
-            generated_utc: None,
-            command_line: None,
-        }
-    }
-    /// With the number of faces (or positions).
-    pub fn with_faces(mut self, faces: Option<usize>) -> Self {
-        self.faces = faces;
-        self
-    }
-    /// With σ of one reading (for an exactly determined fit).
-    pub fn with_sigma(mut self, sigma: Option<Sigma>) -> Self {
-        self.sigma = sigma;
-        self
-    }
-    /// With an instrument budget.
-    pub fn with_budget(mut self, budget: impl Into<PathBuf>) -> Self {
-        self.budget = Some(budget.into());
-        self
-    }
-    /// With a diagnosis (or without).
-    pub fn with_diagnose(mut self, diagnose: bool) -> Self {
-        self.diagnose = diagnose;
-        self
-    }
-    /// With a truth file for the diagnosis.
-    pub fn with_truth(mut self, truth: impl Into<PathBuf>) -> Self {
-        self.truth = Some(truth.into());
-        self
-    }
-    /// With a reference result to compare with.
-    pub fn with_reference(mut self, reference: impl Into<PathBuf>) -> Self {
-        self.reference = Some(reference.into());
-        self
-    }
-    /// With a metadata file.
-    pub fn with_meta(mut self, meta: impl Into<PathBuf>) -> Self {
-        self.meta = Some(meta.into());
-        self
-    }
-    /// With a run directory.
-    pub fn with_run_dir(mut self, run_dir: impl Into<PathBuf>) -> Self {
-        self.run_dir = Some(run_dir.into());
-        self
-    }
-    /// With the report's date and time (RFC 3339 UTC), instead of now.
-    pub fn with_generated_utc(mut self, generated_utc: impl Into<String>) -> Self {
-        self.generated_utc = Some(generated_utc.into());
-        self
-    }
-    /// With the command line shown in the provenance.
-    pub fn with_command_line(mut self, command_line: impl Into<String>) -> Self {
-        self.command_line = Some(command_line.into());
-        self
-    }
-}
-
-/// Why a report cannot be made.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum ReportError {
-    /// A file could not be read.
-    #[error("{file}: {source}")]
-    Io {
-        /// The file.
-        file: String,
-        /// The operating system's error.
-        source: std::io::Error,
-    },
-    /// A file is larger than [`MAX_INPUT_BYTES`].
-    #[error("{file}: {bytes} bytes is more than a report reads ({MAX_INPUT_BYTES} bytes)")]
-    TooLarge {
-        /// The file.
-        file: String,
-        /// Its size.
-        bytes: u64,
-    },
-    /// A metadata file or run manifest that is not valid.
-    #[error("{location}: {message}")]
-    Meta {
-        /// Where.
-        location: Location,
-        /// What is wrong.
-        message: String,
-    },
-    /// The measurement file.
-    #[error(transparent)]
-    Measurement(#[from] MeasurementError),
-    /// The self-calibration file.
-    #[error(transparent)]
-    Selfcal(#[from] SelfcalError),
-    /// The budget file.
-    #[error(transparent)]
-    Budget(#[from] BudgetError),
-    /// The reference result file.
-    #[error(transparent)]
-    Reference(#[from] ResultsError),
-    /// The truth file.
-    #[error(transparent)]
-    Truth(#[from] SimulateError),
-    /// The measurement cannot be solved.
-    #[error("{file}: cannot solve: {source}")]
-    Solve {
-        /// The measurement file.
-        file: String,
-        /// Why.
-        source: SolveError,
-    },
-    /// The self-calibration cannot be solved.
-    #[error("{file}: cannot solve: {source}")]
-    SelfcalSolve {
-        /// The self-calibration file.
-        file: String,
-        /// Why.
-        source: SelfcalSolveError,
-    },
-    /// The budget cannot be evaluated for this measurement.
-    #[error("{file}: cannot evaluate the uncertainty: {source}")]
-    Uncertainty {
-        /// The measurement file.
-        file: String,
-        /// Why.
-        source: CalibrationError,
-    },
-    /// The comparison cannot be made.
-    #[error("cannot compare with {reference}: {source}")]
-    Compare {
-        /// The reference file.
-        reference: String,
-        /// Why.
-        source: CompareError,
-    },
-    /// A comparison needs the expanded uncertainty U of this result, which only an
-    /// instrument budget gives a polygon calibration.
-    #[error(
-        "cannot compare with {reference}: En needs the expanded uncertainty U of every result, and a polygon calibration has U only with an instrument budget"
-    )]
-    NoExpandedUncertainty {
-        /// The reference file.
-        reference: String,
-    },
-    /// An evaluation the report does not make for this kind of file.
-    #[error("{file}: {what} is not supported for {kind}")]
-    NotSupported {
-        /// The measurement file.
-        file: String,
-        /// What was asked.
-        what: &'static str,
-        /// What the file is.
-        kind: &'static str,
-    },
-}
 
 /// One input file of a report, with its fingerprint.
 #[derive(Debug, Clone, PartialEq)]
