@@ -116,6 +116,28 @@ fn assert_column(html: &Html, id: &str, col: usize, expected: &Value, decimals: 
     }
 }
 
+/// The largest number of a JSON array.
+fn largest(values: &Value) -> f64 {
+    values
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .fold(0.0, f64::max)
+}
+
+/// The U a budget table ends with (its footer's last number).
+fn budget_u(html: &Html, id: &str) -> f64 {
+    select(html, &format!("table#{id} tfoot td[data-value]"))
+        .last()
+        .unwrap()
+        .value()
+        .attr("data-value")
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
 #[test]
 fn every_number_is_the_jsons_and_every_section_is_there() {
     let dir = temp_dir("full");
@@ -231,22 +253,10 @@ fn every_number_is_the_jsons_and_every_section_is_there() {
         .collect::<String>();
     assert!(verdict.contains(&shown(max, 2)), "{verdict}");
     // the budget: its U is the largest U of the family
-    let largest = solve["encoder_error_U"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .fold(0.0, f64::max);
-    let foot = select(&html, "table#budget-encoder-error tfoot td[data-value]");
-    let shown_u: f64 = foot
-        .last()
-        .unwrap()
-        .value()
-        .attr("data-value")
-        .unwrap()
-        .parse()
-        .unwrap();
-    assert_eq!(shown_u, largest);
+    assert_eq!(
+        budget_u(&html, "budget-encoder-error"),
+        largest(&solve["encoder_error_U"])
+    );
     // the figures are the ones --plot writes, inlined
     let plots = dir.join("plots");
     let _ = polycal(&[
@@ -479,22 +489,8 @@ fn a_self_calibration_report_shows_the_selfcal_numbers() {
     assert_column(&html, "encoder-error", 2, &selfcal["encoder_error"], 4);
     assert_column(&html, "encoder-error", 4, &selfcal["encoder_error_U"], 4);
     // the budget: the largest U(e), its components and the fit's type A
-    let largest = selfcal["encoder_error_U"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .fold(0.0, f64::max);
-    let foot = select(&html, "table#budget-encoder-error tfoot td[data-value]");
-    let shown_u: f64 = foot
-        .last()
-        .unwrap()
-        .value()
-        .attr("data-value")
-        .unwrap()
-        .parse()
-        .unwrap();
-    assert_eq!(shown_u, largest);
+    let largest = largest(&selfcal["encoder_error_U"]);
+    assert_eq!(budget_u(&html, "budget-encoder-error"), largest);
     let components = selfcal["uncertainty"]["components"].as_array().unwrap();
     let rows = select(&html, "table#budget-encoder-error > tbody > tr");
     assert_eq!(rows.len(), components.len() + 1);
