@@ -553,6 +553,15 @@ fn bad_input_is_one_error_line_with_status_2() {
     let stderr = String::from_utf8(out.stderr).unwrap();
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.contains("--budget"), "{stderr}");
+    // an endless stream is read to the limit (256 MiB) and refused, never to the end
+    let out = polycal(&["report", "/dev/zero", "--out", out_path.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with("error: /dev/zero: at least 268435457 bytes"),
+        "{stderr}"
+    );
     // --out a directory
     let out = polycal(&["report", DATA, "--out", dir.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));

@@ -127,11 +127,13 @@ pub enum ReportError {
         source: std::io::Error,
     },
     /// A file is larger than [`MAX_INPUT_BYTES`].
-    #[error("{file}: {bytes} bytes is more than a report reads ({MAX_INPUT_BYTES} bytes)")]
+    #[error(
+        "{file}: at least {bytes} bytes, more than a report reads ({MAX_INPUT_BYTES} bytes at most)"
+    )]
     TooLarge {
         /// The file.
         file: String,
-        /// Its size.
+        /// Its size, or for a stream the bytes read before it was refused.
         bytes: u64,
     },
     /// A metadata file or run manifest that is not valid.

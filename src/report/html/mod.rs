@@ -26,6 +26,7 @@ pub mod meta;
 pub mod render;
 mod tables;
 
+use std::io::Read;
 use std::path::Path;
 
 use sha2::{Digest, Sha256};
@@ -159,8 +160,22 @@ fn read_input(path: &Path, role: &'static str) -> Result<(Vec<u8>, InputFile), R
             bytes: meta.len(),
         });
     }
-    let (bytes, name) = crate::input::read_bytes(path)
-        .map_err(|(file, source)| ReportError::Io { file, source })?;
+    // a stream (standard input, a device, a pipe) is read to the limit and no further
+    let (reader, name) =
+        crate::input::open(path).map_err(|source| ReportError::Io { file: name, source })?;
+    let mut bytes = Vec::new();
+    Read::read_to_end(&mut Read::take(reader, MAX_INPUT_BYTES + 1), &mut bytes).map_err(
+        |source| ReportError::Io {
+            file: name.clone(),
+            source,
+        },
+    )?;
+    if bytes.len() as u64 > MAX_INPUT_BYTES {
+        return Err(ReportError::TooLarge {
+            file: name,
+            bytes: bytes.len() as u64,
+        });
+    }
     let input = InputFile {
         role,
         path: name,
