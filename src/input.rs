@@ -6,6 +6,7 @@
 //! input [`STDIN_NAME`]. The path `-` means standard input wherever a path is read
 //! (docs/FORMAT.md §8).
 
+pub mod limits;
 pub(crate) mod text;
 use std::fmt;
 use std::io::{self, Read};
@@ -111,17 +112,56 @@ pub fn open(path: &Path) -> io::Result<(Box<dyn Read>, String)> {
     Ok((Box::new(file), name))
 }
 
-/// Reads a whole path (or standard input for `-`) as bytes; returns them with the name
-/// to use in messages.
+/// The most bytes polycal reads from one input file or stream: 256 MiB. A measurement
+/// file of a million readings takes about 50 MiB; an input beyond the limit is refused
+/// (a regular file before it is read, a stream once the limit is passed), never read
+/// until memory runs out.
+pub const MAX_INPUT_BYTES: u64 = 256 << 20;
+
+/// The error of an input larger than [`MAX_INPUT_BYTES`] (kind `FileTooLarge`).
+fn too_large(bytes: u64, at_least: bool) -> io::Error {
+    let size = if at_least {
+        format!("at least {bytes} bytes")
+    } else {
+        format!("{bytes} bytes")
+    };
+    io::Error::new(
+        io::ErrorKind::FileTooLarge,
+        format!("{size}, more than polycal reads from one input ({MAX_INPUT_BYTES} bytes at most)"),
+    )
+}
+
+/// Reads a reader to its end, refusing it once it passes [`MAX_INPUT_BYTES`].
 ///
 /// # Errors
 ///
-/// The I/O error of opening or reading, with the name.
-pub fn read_bytes(path: &Path) -> Result<(Vec<u8>, String), (String, io::Error)> {
-    let (mut reader, name) = open(path).map_err(|e| (display_name(path), e))?;
+/// The reader's I/O error, or one of kind `FileTooLarge` naming the size and the limit.
+pub fn read_limited(reader: impl Read) -> io::Result<Vec<u8>> {
     let mut bytes = Vec::new();
-    reader
-        .read_to_end(&mut bytes)
-        .map_err(|e| (name.clone(), e))?;
+    reader.take(MAX_INPUT_BYTES + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > MAX_INPUT_BYTES {
+        return Err(too_large(bytes.len() as u64, true));
+    }
+    Ok(bytes)
+}
+
+/// Reads a whole path (or standard input for `-`) as bytes; returns them with the name
+/// to use in messages. A regular file larger than [`MAX_INPUT_BYTES`] is refused before
+/// it is read; a stream (standard input, a pipe, a device) is read to the limit and no
+/// further.
+///
+/// # Errors
+///
+/// The I/O error of opening or reading, or one of kind `FileTooLarge`, with the name.
+pub fn read_bytes(path: &Path) -> Result<(Vec<u8>, String), (String, io::Error)> {
+    let (reader, name) = open(path).map_err(|e| (display_name(path), e))?;
+    if !is_stdin(path)
+        && let Ok(meta) = std::fs::metadata(path)
+        && meta.is_file()
+        && meta.len() > MAX_INPUT_BYTES
+    {
+        return Err((name, too_large(meta.len(), false)));
+    }
+    let bytes = read_limited(reader).map_err(|e| (name.clone(), e))?;
     Ok((bytes, name))
 }

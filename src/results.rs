@@ -25,6 +25,7 @@ use std::io::{Read, Write};
 use std::path::Path;
 
 use crate::input::Location;
+use crate::input::limits::{self, Limit};
 use serde::Serialize;
 
 /// The four families of calibrated quantities (docs/FORMAT.md §3), the crate's one list
@@ -387,11 +388,9 @@ pub fn read_results_path(path: impl AsRef<Path>) -> Result<Vec<ResultRow>, Resul
 /// As [`read_results_path`].
 pub fn read_result_file(path: impl AsRef<Path>) -> Result<ResultFile, ResultsError> {
     let path = path.as_ref();
-    let (reader, name) = crate::input::open(path).map_err(|e| ResultsError::Io {
-        file: crate::input::display_name(path),
-        source: e,
-    })?;
-    read_results_from(reader, &name)
+    let (bytes, name) = crate::input::read_bytes(path)
+        .map_err(|(file, source)| ResultsError::Io { file, source })?;
+    read_results_from(&bytes[..], &name)
 }
 
 /// Reads a result file from any reader; `source` names it in messages.
@@ -399,28 +398,20 @@ pub fn read_result_file(path: impl AsRef<Path>) -> Result<ResultFile, ResultsErr
 /// # Errors
 ///
 /// As [`read_results_path`].
-pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultFile, ResultsError> {
-    let mut bytes = Vec::new();
-    reader
-        .read_to_end(&mut bytes)
-        .map_err(|e| ResultsError::Io {
-            file: source.to_string(),
-            source: e,
-        })?;
+pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile, ResultsError> {
+    let bytes = crate::input::read_limited(reader).map_err(|e| ResultsError::Io {
+        file: source.to_string(),
+        source: e,
+    })?;
     let err = |line: u64, column: u64, message: String| ResultsError::At {
         location: Location::new(source, line, column),
         message,
     };
-    let text = match String::from_utf8(bytes) {
+    let text = match crate::input::text::utf8(&bytes) {
         Ok(text) => text,
-        Err(e) => {
-            let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
-            let text = String::from_utf8_lossy(valid);
-            let (line, column) = line_column(&text, text.len());
-            return Err(err(line, column, "the file is not valid UTF-8".to_string()));
-        }
+        Err(((line, column), message)) => return Err(err(line, column, message)),
     };
-    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
 
     // Skip the comment (and blank) lines before the header.
     let mut offset = 0;
@@ -569,34 +560,34 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
             };
             return Err(at(c_index, format!("index 0 for {quantity}: {what}")));
         }
-        let number = |i: usize, name: &str| -> Result<f64, ResultsError> {
+        let number = |i: usize, name: &str, limit: Limit| -> Result<f64, ResultsError> {
             let text = &record[i];
             match text.parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(v),
+                Ok(v) if v.is_finite() => limit
+                    .check(v, &format!("a result's {name}"))
+                    .map_err(|rule| at(i, format!("{name}: {rule}"))),
                 _ => Err(at(
                     i,
                     format!("{name} must be a finite number, got {text:?}"),
                 )),
             }
         };
-        let optional = |column: Option<usize>, name: &str, positive: bool| match column {
+        let optional = |column: Option<usize>, name: &str, limit: Limit| match column {
             None => Ok(None),
             Some(i) if record[i].is_empty() => Ok(None),
             Some(i) => {
-                let v = number(i, name)?;
-                if positive && v <= 0.0 {
-                    Err(at(i, format!("{name} must be greater than 0, got {v}")))
-                } else if v < 0.0 {
+                let v = number(i, name, limit)?;
+                if v < 0.0 {
                     Err(at(i, format!("{name} must not be negative, got {v}")))
                 } else {
                     Ok(Some(v))
                 }
             }
         };
-        let value = number(c_value, "value")?;
-        let expanded_u = optional(c_expanded, "U", false)?;
-        let u = optional(c_u, "u", false)?;
-        let k = optional(c_k, "k", true)?;
+        let value = number(c_value, "value", limits::RESULT_ARCSEC)?;
+        let expanded_u = optional(c_expanded, "U", limits::RESULT_ARCSEC)?;
+        let u = optional(c_u, "u", limits::RESULT_ARCSEC)?;
+        let k = optional(c_k, "k", limits::COVERAGE_FACTOR)?;
         let angle_deg = match c_angle {
             Some(i) if !record[i].is_empty() => {
                 let text = &record[i];
@@ -670,7 +661,8 @@ pub fn read_results_from<R: Read>(mut reader: R, source: &str) -> Result<ResultF
 /// # Errors
 ///
 /// An I/O error, or [`std::io::ErrorKind::InvalidInput`] for what could not be read back:
-/// a number that is not finite, or rows that break the angle rules of
+/// a number that is not finite or beyond its limits (docs/FORMAT.md §2.2), or rows that
+/// break the angle rules of
 /// [`read_results_from`] (an angle outside 0 ≤ angle < 360 or on a row that is not an
 /// encoder error, some encoder errors with an angle and some without, two at one
 /// position). The quantity is one of [`Quantity`] by its type.
@@ -678,6 +670,22 @@ pub fn write_results<W: Write>(w: W, rows: &[ResultRow]) -> std::io::Result<()> 
     let invalid = |message: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, message);
     let mut angles = AngleCheck::default();
     for (i, row) in rows.iter().enumerate() {
+        let numbers = [
+            ("value", Some(row.value), limits::RESULT_ARCSEC),
+            ("U", row.expanded_u, limits::RESULT_ARCSEC),
+            ("u", row.u, limits::RESULT_ARCSEC),
+            ("k", row.k, limits::COVERAGE_FACTOR),
+        ];
+        for (name, x, limit) in numbers {
+            if let Some(x) = x
+                && let Err(rule) = limit.check(x, &format!("a result's {name}"))
+            {
+                return Err(invalid(format!(
+                    "{} {}: {name}: {rule}",
+                    row.quantity, row.index
+                )));
+            }
+        }
         if let Err(problem) = angles.admit(i, row) {
             let place = |i: usize| format!("row {}", i + 1);
             return Err(invalid(format!(
@@ -695,27 +703,17 @@ pub fn write_results<W: Write>(w: W, rows: &[ResultRow]) -> std::io::Result<()> 
     writer
         .write_record(["quantity", "index", "value", "U", "u", "k", "angle_deg"])
         .map_err(to_io)?;
+    let text = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x}"));
     for row in rows {
-        let number = |x: f64| {
-            if x.is_finite() {
-                Ok(format!("{x}"))
-            } else {
-                Err(invalid(format!(
-                    "{} {}: {x} is not a finite number",
-                    row.quantity, row.index
-                )))
-            }
-        };
-        let optional = |x: Option<f64>| x.map_or(Ok(String::new()), number);
         writer
             .write_record([
                 row.quantity.name().to_string(),
                 row.index.to_string(),
-                number(row.value)?,
-                optional(row.expanded_u)?,
-                optional(row.u)?,
-                optional(row.k)?,
-                optional(row.angle_deg)?,
+                text(Some(row.value)),
+                text(row.expanded_u),
+                text(row.u),
+                text(row.k),
+                text(row.angle_deg),
             ])
             .map_err(to_io)?;
     }

@@ -559,7 +559,9 @@ fn bad_input_is_one_error_line_with_status_2() {
     let stderr = String::from_utf8(out.stderr).unwrap();
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(
-        stderr.starts_with("error: /dev/zero: at least 268435457 bytes"),
+        stderr.starts_with(
+            "error: /dev/zero: at least 268435457 bytes, more than polycal reads from one input"
+        ),
         "{stderr}"
     );
     // --out a directory

@@ -128,3 +128,27 @@ impl Span {
         self.fields.get(i).copied().unwrap_or(self.start)
     }
 }
+
+/// The bytes of a text file as `str`, or where and why they are not UTF-8: the 1-based
+/// (line, character column) of the first invalid byte and the message every reader of the
+/// crate gives for it.
+pub(crate) fn utf8(bytes: &[u8]) -> Result<&str, ((u64, u64), String)> {
+    match std::str::from_utf8(bytes) {
+        Ok(text) => Ok(text),
+        Err(e) => {
+            let valid = bytes
+                .get(..e.valid_up_to())
+                .and_then(|b| std::str::from_utf8(b).ok())
+                .unwrap_or("");
+            let message = match (e.error_len(), bytes.get(e.valid_up_to())) {
+                (Some(_), Some(b)) => {
+                    format!("not valid UTF-8 (byte 0x{b:02x}); the file must be UTF-8 text")
+                }
+                _ => "not valid UTF-8 (a character is cut off at the end of the file); \
+                      the file must be UTF-8 text"
+                    .to_string(),
+            };
+            Err((LineIndex::new(valid).location(valid.len()), message))
+        }
+    }
+}

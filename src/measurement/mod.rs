@@ -202,15 +202,11 @@ pub fn read_rows<R: Read>(reader: R, source: &str) -> Result<Vec<Reading>, Measu
 }
 
 /// The whole input of `reader`; an error names `source`.
-fn read_all<R: Read>(mut reader: R, source: &str) -> Result<Vec<u8>, MeasurementError> {
-    let mut bytes = Vec::new();
-    reader
-        .read_to_end(&mut bytes)
-        .map_err(|e| MeasurementError::Io {
-            file: source.to_string(),
-            source: e,
-        })?;
-    Ok(bytes)
+fn read_all<R: Read>(reader: R, source: &str) -> Result<Vec<u8>, MeasurementError> {
+    crate::input::read_limited(reader).map_err(|e| MeasurementError::Io {
+        file: source.to_string(),
+        source: e,
+    })
 }
 
 /// A validated set of readings of an N-faced polygon.
@@ -284,11 +280,9 @@ impl MeasurementSet {
     /// [`MeasurementError::Io`] if the file cannot be opened or read,
     /// [`MeasurementError::Invalid`] if it breaks a rule of docs/FORMAT.md §2.
     pub fn read_path(path: &Path, faces: Option<usize>) -> Result<Self, MeasurementError> {
-        let (reader, name) = crate::input::open(path).map_err(|source| MeasurementError::Io {
-            file: crate::input::display_name(path),
-            source,
-        })?;
-        Self::read_from(reader, &name, faces)
+        let (bytes, name) = crate::input::read_bytes(path)
+            .map_err(|(file, source)| MeasurementError::Io { file, source })?;
+        parse_bytes(&bytes, &name, Rules::Set(faces))
     }
 
     /// Reads from any reader; `source` is the name used in messages.

@@ -3,6 +3,7 @@
 use super::*;
 
 use super::validate::*;
+use crate::input::limits::{self, Limit};
 use std::collections::HashMap;
 use std::collections::btree_map::Entry;
 
@@ -42,6 +43,19 @@ impl Col {
         Col::Encoder,
         Col::Shift,
     ];
+
+    /// The range of a numeric column and what its values are (docs/FORMAT.md §2.2);
+    /// `None` for the integer columns, `direction`, and `shift` (which has its own rule).
+    pub(super) fn limit(self) -> Option<(Limit, &'static str)> {
+        match self {
+            Col::Reading => Some((limits::READING_ARCSEC, "a reading")),
+            Col::ReadingY => Some((limits::READING_ARCSEC, "a reading")),
+            Col::Time => Some((limits::TIME_SECONDS, "a time")),
+            Col::Temperature => Some((limits::TEMPERATURE_CELSIUS, "a temperature")),
+            Col::Encoder => Some((limits::ENCODER_DEGREES, "an encoder position")),
+            _ => None,
+        }
+    }
 
     pub(super) fn name(self) -> &'static str {
         match self {
@@ -223,24 +237,9 @@ pub(super) fn parse_bytes(
     rules: Rules,
 ) -> Result<MeasurementSet, MeasurementError> {
     let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes);
-    let text = match std::str::from_utf8(bytes) {
+    let text = match crate::input::text::utf8(bytes) {
         Ok(text) => text,
-        Err(e) => {
-            let valid = bytes
-                .get(..e.valid_up_to())
-                .and_then(|b| std::str::from_utf8(b).ok())
-                .unwrap_or("");
-            let index = LineIndex::new(valid);
-            let message = match (e.error_len(), bytes.get(e.valid_up_to())) {
-                (Some(_), Some(b)) => {
-                    format!("not valid UTF-8 (byte 0x{b:02x}); the file must be UTF-8 text")
-                }
-                _ => "not valid UTF-8 (a character is cut off at the end of the file); \
-                      the file must be UTF-8 text"
-                    .to_string(),
-            };
-            return Err(invalid(source, index.location(valid.len()), message));
-        }
+        Err((location, message)) => return Err(invalid(source, location, message)),
     };
     parse_text(text, source, rules)
 }
@@ -638,14 +637,19 @@ pub(super) fn parse_int(text: &str, col: Col, min: u128, max: u128) -> Result<u1
     }
 }
 
-/// Parses a finite float field.
+/// Parses a finite float field within the column's limits ([`Col::limit`]).
 pub(super) fn parse_float(text: &str, col: Col) -> Result<f64, String> {
     let name = col.name();
     if text.is_empty() {
         return Err(format!("column {name:?}: empty; a number is required"));
     }
     match text.parse::<f64>() {
-        Ok(x) if x.is_finite() => Ok(x),
+        Ok(x) if x.is_finite() => match col.limit() {
+            Some((limit, what)) => limit
+                .check(x, what)
+                .map_err(|rule| format!("column {name:?}: {rule}")),
+            None => Ok(x),
+        },
         Ok(_) => Err(format!(
             "column {name:?}: {} is not a finite number",
             show(text)

@@ -115,12 +115,12 @@ pub(super) fn validate(
             (Col::Temperature, r.temperature_celsius),
             (Col::Encoder, r.encoder_degrees),
         ] {
-            if let Some(x) = x
-                && !x.is_finite()
+            if let (Some(x), Some((limit, what))) = (x, col.limit())
+                && let Err(rule) = limit.check(x, what)
             {
                 return Err(err(
                     loc.row(i, readings, Some(col)),
-                    format!("{p}column {:?}: {x} is not a finite number", col.name()),
+                    format!("{p}column {:?}: {rule}", col.name()),
                 ));
             }
         }

@@ -85,11 +85,9 @@ impl SelfcalSet {
         positions: Option<usize>,
     ) -> Result<Self, SelfcalError> {
         let path = path.as_ref();
-        let (reader, name) = crate::input::open(path).map_err(|source| SelfcalError::Io {
-            file: crate::input::display_name(path),
-            source,
-        })?;
-        Self::read_from(reader, &name, positions)
+        let (bytes, name) = crate::input::read_bytes(path)
+            .map_err(|(file, source)| SelfcalError::Io { file, source })?;
+        parse::parse_bytes(&bytes, &name, positions)
     }
 
     /// Reads a self-calibration CSV from any reader; `source` names it in messages.
@@ -133,17 +131,14 @@ impl SelfcalSet {
     /// # Ok::<(), SelfcalError>(())
     /// ```
     pub fn read_from<R: Read>(
-        mut reader: R,
+        reader: R,
         source: &str,
         positions: Option<usize>,
     ) -> Result<Self, SelfcalError> {
-        let mut bytes = Vec::new();
-        reader
-            .read_to_end(&mut bytes)
-            .map_err(|e| SelfcalError::Io {
-                file: source.to_string(),
-                source: e,
-            })?;
+        let bytes = crate::input::read_limited(reader).map_err(|e| SelfcalError::Io {
+            file: source.to_string(),
+            source: e,
+        })?;
         parse::parse_bytes(&bytes, source, positions)
     }
 

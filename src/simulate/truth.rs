@@ -73,22 +73,20 @@ pub struct Truth {
     pub elevation: Option<ElevationTruth>,
 }
 
-/// Reads a JSON file into `T`: [`SimulateError::Io`] when it cannot be read,
-/// [`SimulateError::Json`] (file, line, column) when it is not valid JSON of `T`.
+/// Reads a JSON file into `T` (`-` reads standard input, named `<stdin>`):
+/// [`SimulateError::Io`] when it cannot be read, [`SimulateError::Json`] (file, line,
+/// column) when it is not valid JSON of `T`.
 pub(super) fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SimulateError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SimulateError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    serde_json::from_str(&text).map_err(|e| {
+    let (bytes, name) =
+        crate::input::read_bytes(path).map_err(|(name, source)| SimulateError::Io {
+            path: name.into(),
+            source,
+        })?;
+    serde_json::from_slice(&bytes).map_err(|e| {
         let position = format!(" at line {} column {}", e.line(), e.column());
         let text = e.to_string();
         SimulateError::Json {
-            location: crate::input::Location::new(
-                path.display().to_string(),
-                e.line() as u64,
-                e.column() as u64,
-            ),
+            location: crate::input::Location::new(name, e.line() as u64, e.column() as u64),
             message: text.strip_suffix(&position).unwrap_or(&text).to_string(),
         }
     })
@@ -224,7 +222,7 @@ impl Truth {
     pub fn read_path(path: &Path) -> Result<Truth, SimulateError> {
         let mut truth: Truth = read_json(path)?;
         truth.check().map_err(|message| SimulateError::Truth {
-            origin: path.display().to_string(),
+            origin: crate::input::display_name(path),
             message,
         })?;
         if truth.face_deviation.is_empty() {

@@ -30,6 +30,12 @@ use serde::Serialize;
 use super::distribution::Distribution;
 use super::student::t_quantile;
 use crate::input::Location;
+use crate::input::limits::BUDGET_VALUE;
+
+/// The most correlation coefficients a budget may give (docs/FORMAT.md §5.3): their
+/// consistency is checked on the matrix of the components they name (at most twice as
+/// many), whose Cholesky factorization takes a time growing with the cube of their number.
+pub const MAX_CORRELATIONS: usize = 1000;
 
 /// How a standard uncertainty was evaluated (GUM 4.2 and 4.3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -324,6 +330,26 @@ pub enum BudgetError {
         /// Second name.
         b: String,
     },
+    /// More correlation coefficients than a budget may give ([`MAX_CORRELATIONS`]): their
+    /// consistency check needs a matrix of the correlated components, and its time grows
+    /// with the cube of their number.
+    #[error(
+        "the budget gives {given} correlation coefficients; at most {max} are evaluated \
+         (their consistency is checked on a matrix of the correlated components)"
+    )]
+    TooManyCorrelations {
+        /// The number of coefficients given.
+        given: usize,
+        /// The most allowed.
+        max: usize,
+    },
+    /// The sum of the squared contributions overflows (not reached by components within
+    /// their limits, docs/FORMAT.md §2.2).
+    #[error(
+        "the combined standard uncertainty overflows: the contributions are too large to \
+         square and add (docs/FORMAT.md §2.2)"
+    )]
+    Overflow,
     /// The combined standard uncertainty is zero (or the correlations make it negative).
     #[error(
         "the combined standard uncertainty is {0}: every contribution is zero (or negative \
@@ -537,6 +563,9 @@ impl Budget {
                     c.sensitivity
                 )));
             }
+            BUDGET_VALUE
+                .check(c.sensitivity, "a sensitivity")
+                .map_err(|rule| bad(format!("sensitivity: {rule}")))?;
             let line = match &c.source {
                 Source::Input {
                     evaluation,
@@ -553,6 +582,9 @@ impl Budget {
                         )));
                     }
                     let u = distribution.standard_uncertainty();
+                    BUDGET_VALUE
+                        .check(u, "a standard uncertainty")
+                        .map_err(|rule| bad(format!("the standard uncertainty: {rule}")))?;
                     ComponentResult {
                         name: c.name.clone(),
                         evaluation: (*evaluation).into(),
@@ -580,6 +612,9 @@ impl Budget {
                     }
                 }
             };
+            BUDGET_VALUE
+                .check(line.contribution, "a contribution |cᵢ|·uᵢ")
+                .map_err(|rule| bad(format!("the contribution |cᵢ|·uᵢ: {rule}")))?;
             evaluation = Some(match evaluation {
                 None => line.evaluation,
                 Some(e) => e.join(line.evaluation),
@@ -587,14 +622,18 @@ impl Budget {
             lines.push(line);
         }
 
-        // Correlations: r matrix, consistency, and the covariance terms.
-        let n = lines.len();
-        let mut r = vec![0.0; n * n];
-        for i in 0..n {
-            r[i * n + i] = 1.0;
-        }
+        // Correlations: the covariance terms, and the consistency of the coefficients,
+        // checked on the matrix of the correlated components alone (the others are
+        // independent of everything), so that a budget without correlations combines
+        // in O(n).
         let mut covariance_sum = 0.0;
         let mut correlated_pairs = Vec::new();
+        if self.correlations.len() > MAX_CORRELATIONS {
+            return Err(BudgetError::TooManyCorrelations {
+                given: self.correlations.len(),
+                max: MAX_CORRELATIONS,
+            });
+        }
         for corr in &self.correlations {
             let bad = |message: String| BudgetError::Correlation {
                 a: format!("{prefix}{}", corr.a),
@@ -616,8 +655,6 @@ impl Budget {
             if correlated_pairs.contains(&(i.min(j), i.max(j))) {
                 return Err(bad("this pair is given twice".into()));
             }
-            r[i * n + j] = corr.r;
-            r[j * n + i] = corr.r;
             correlated_pairs.push((i.min(j), i.max(j)));
             if corr.r != 0.0 {
                 if lines[i].dof.is_some() || lines[j].dof.is_some() {
@@ -631,7 +668,7 @@ impl Budget {
                 covariance_sum += 2.0 * corr.r * si * sj;
             }
         }
-        if !correlated_pairs.is_empty() && !positive_semidefinite(&r, n) {
+        if !correlated_pairs.is_empty() && !consistent(&self.correlations, &correlated_pairs) {
             return Err(BudgetError::NotPositiveSemidefinite);
         }
 
@@ -640,17 +677,24 @@ impl Budget {
             .map(|l| l.contribution * l.contribution)
             .sum::<f64>()
             + covariance_sum;
-        if !(variance > 0.0 && variance.is_finite()) {
+        if !variance.is_finite() {
+            // Not reached with contributions within their limits (their squares sum to
+            // at most n·1e200); said plainly rather than as a zero uncertainty.
+            return Err(BudgetError::Overflow);
+        }
+        if variance <= 0.0 {
             return Err(BudgetError::NoUncertainty(variance.max(0.0).sqrt()));
         }
         let combined_u = variance.sqrt();
-        // Welch–Satterthwaite, GUM (G.2b), with the unrounded contributions.
+        // Welch–Satterthwaite, GUM (G.2b), with the unrounded contributions, each taken
+        // as its share of u_c: ν_eff = 1 / Σ (cᵢuᵢ/u_c)⁴/νᵢ, so that no fourth power of a
+        // large contribution overflows.
         let denominator: f64 = lines
             .iter()
-            .filter_map(|l| l.dof.map(|nu| l.contribution.powi(4) / nu))
+            .filter_map(|l| l.dof.map(|nu| (l.contribution / combined_u).powi(4) / nu))
             .sum();
         let dof_eff = (denominator > 0.0)
-            .then(|| variance * variance / denominator)
+            .then(|| 1.0 / denominator)
             .filter(|nu| nu.is_finite());
         for l in &mut lines {
             l.index_percent = 100.0 * l.contribution * l.contribution / variance;
@@ -684,6 +728,28 @@ fn scale_nested_indices(lines: &mut [ComponentResult], factor: f64) {
         let inner = l.index_percent / 100.0;
         scale_nested_indices(&mut l.components, inner);
     }
+}
+
+/// Whether the correlation coefficients of `pairs` (component indices, smaller first;
+/// `correlations` in the same order) form a positive semi-definite matrix over the
+/// components they name. At most [`MAX_CORRELATIONS`] pairs, so at most twice as many
+/// components: the matrix is built over those alone.
+fn consistent(correlations: &[Correlation], pairs: &[(usize, usize)]) -> bool {
+    let mut members: Vec<usize> = pairs.iter().flat_map(|&(i, j)| [i, j]).collect();
+    members.sort_unstable();
+    members.dedup();
+    let n = members.len();
+    let at = |i: usize| members.binary_search(&i).unwrap_or(0);
+    let mut m = vec![0.0; n * n];
+    for i in 0..n {
+        m[i * n + i] = 1.0;
+    }
+    for (corr, &(i, j)) in correlations.iter().zip(pairs) {
+        let (a, b) = (at(i), at(j));
+        m[a * n + b] = corr.r;
+        m[b * n + a] = corr.r;
+    }
+    positive_semidefinite(&m, n)
 }
 
 /// Whether the symmetric `n × n` matrix is positive semi-definite (Cholesky with a small

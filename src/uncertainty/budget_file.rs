@@ -42,6 +42,7 @@ use super::budget::{
     Budget, BudgetError, BudgetResult, Component, Correlation, DofPolicy, EvaluationType,
 };
 use super::distribution::Distribution;
+use crate::input::limits;
 use crate::input::{self, Location};
 
 /// A budget read from a file, with its coverage probability and degrees-of-freedom policy.
@@ -65,16 +66,12 @@ pub(crate) fn read_budget_text(path: &Path) -> Result<(String, String), BudgetEr
         source,
     };
     let (bytes, name) = input::read_bytes(path).map_err(|(name, e)| io(name, e))?;
-    match String::from_utf8(bytes) {
-        Ok(text) => Ok((name, text)),
-        // The message of `std::fs::read_to_string` for the same file.
-        Err(_) => Err(io(
-            name,
-            std::io::Error::new(
-                std::io::ErrorKind::InvalidData,
-                "stream did not contain valid UTF-8",
-            ),
-        )),
+    match input::text::utf8(&bytes) {
+        Ok(text) => Ok((name, text.to_string())),
+        Err(((line, column), message)) => Err(BudgetError::File {
+            location: Location::new(name, line, column),
+            message,
+        }),
     }
 }
 
@@ -366,7 +363,9 @@ fn build_component(raw: &Spanned<RawComponent>, at: &At<'_>) -> Result<Component
                     format!("sensitivity must be a finite number, got {v}"),
                 ));
             }
-            v
+            limits::BUDGET_VALUE
+                .check(v, "a sensitivity")
+                .map_err(|rule| at(s.span(), format!("sensitivity: {rule}")))?
         }
     };
     let numbers: [(&str, &Option<Spanned<f64>>); 7] = [
@@ -462,6 +461,17 @@ fn build_component(raw: &Spanned<RawComponent>, at: &At<'_>) -> Result<Component
             }
             if x < 0.0 && *key != "dof" && *key != "k" {
                 return Err(at(v.span(), format!("{key} must not be negative, got {x}")));
+            }
+            let limit = match *key {
+                "dof" => None,
+                "k" => Some(limits::COVERAGE_FACTOR),
+                _ => Some(limits::BUDGET_VALUE),
+            };
+            if let Some(limit) = limit
+                && x > 0.0
+                && let Err(rule) = limit.check(x, &format!("a budget's {key}"))
+            {
+                return Err(at(v.span(), format!("{key}: {rule}")));
             }
         }
     }

@@ -13,7 +13,6 @@ use crate::solve::SolveError;
 use crate::uncertainty::BudgetError;
 use crate::uncertainty::calibration::CalibrationError;
 
-use super::MAX_INPUT_BYTES;
 
 /// What a report is made of: the measurement (or self-calibration) file and the optional
 /// budget, diagnosis, truth, reference result, metadata file and run directory.
@@ -125,16 +124,6 @@ pub enum ReportError {
         file: String,
         /// The operating system's error.
         source: std::io::Error,
-    },
-    /// A file is larger than [`MAX_INPUT_BYTES`].
-    #[error(
-        "{file}: at least {bytes} bytes, more than a report reads ({MAX_INPUT_BYTES} bytes at most)"
-    )]
-    TooLarge {
-        /// The file.
-        file: String,
-        /// Its size, or for a stream the bytes read before it was refused.
-        bytes: u64,
     },
     /// A metadata file or run manifest that is not valid.
     #[error("{location}: {message}")]

@@ -246,12 +246,10 @@ pub fn comment_metadata(text: &str) -> (Vec<(&'static str, String, u64)>, Vec<St
 fn read_manifest(dir: &Path) -> Result<(RunRecord, Vec<InstrumentEntry>), ReportError> {
     let path = dir.join("manifest.json");
     let source = path.display().to_string();
-    let text = std::fs::read_to_string(&path).map_err(|e| ReportError::Io {
-        file: source.clone(),
-        source: e,
-    })?;
+    let (bytes, _) = crate::input::read_bytes(&path)
+        .map_err(|(file, source)| ReportError::Io { file, source })?;
     let manifest: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| ReportError::Meta {
+        serde_json::from_slice(&bytes).map_err(|e| ReportError::Meta {
             location: Location::new(&source, e.line() as u64, e.column() as u64),
             message: format!("not a run manifest: {e}"),
         })?;

@@ -26,7 +26,6 @@ pub mod meta;
 pub mod render;
 mod tables;
 
-use std::io::Read;
 use std::path::Path;
 
 use sha2::{Digest, Sha256};
@@ -48,10 +47,6 @@ use crate::uncertainty::calibration::{CalibrationUncertainty, InstrumentBudget, 
 
 pub use inputs::{ReportError, ReportInputs};
 pub use meta::Metadata;
-
-/// The largest input file a report reads, bytes (a measurement of 8400 positions by
-/// 12 heads is about 5 MB).
-pub const MAX_INPUT_BYTES: u64 = 256 * 1024 * 1024;
 
 /// One input file of a report, with its fingerprint.
 #[derive(Debug, Clone, PartialEq)]
@@ -148,34 +143,10 @@ pub struct CalibrationReport {
     pub command_line: Option<String>,
 }
 
-/// Reads a whole input file (at most [`MAX_INPUT_BYTES`]) and fingerprints it.
+/// Reads a whole input file (at most [`crate::input::MAX_INPUT_BYTES`]) and fingerprints it.
 fn read_input(path: &Path, role: &'static str) -> Result<(Vec<u8>, InputFile), ReportError> {
-    let name = crate::input::display_name(path);
-    if let Ok(meta) = std::fs::metadata(path)
-        && meta.is_file()
-        && meta.len() > MAX_INPUT_BYTES
-    {
-        return Err(ReportError::TooLarge {
-            file: name,
-            bytes: meta.len(),
-        });
-    }
-    // a stream (standard input, a device, a pipe) is read to the limit and no further
-    let (reader, name) =
-        crate::input::open(path).map_err(|source| ReportError::Io { file: name, source })?;
-    let mut bytes = Vec::new();
-    Read::read_to_end(&mut Read::take(reader, MAX_INPUT_BYTES + 1), &mut bytes).map_err(
-        |source| ReportError::Io {
-            file: name.clone(),
-            source,
-        },
-    )?;
-    if bytes.len() as u64 > MAX_INPUT_BYTES {
-        return Err(ReportError::TooLarge {
-            file: name,
-            bytes: bytes.len() as u64,
-        });
-    }
+    let (bytes, name) =
+        crate::input::read_bytes(path).map_err(|(file, source)| ReportError::Io { file, source })?;
     let input = InputFile {
         role,
         path: name,
@@ -250,10 +221,12 @@ impl CalibrationReport {
         let meta_text = match &inputs.meta {
             Some(path) => {
                 let (meta_bytes, file) = read_input(path, "metadata")?;
-                let text = String::from_utf8(meta_bytes).map_err(|_| ReportError::Meta {
-                    location: Location::file_only(file.path.clone()),
-                    message: "not UTF-8 text".into(),
-                })?;
+                let text = crate::input::text::utf8(&meta_bytes)
+                    .map_err(|((line, column), message)| ReportError::Meta {
+                        location: Location::new(file.path.clone(), line, column),
+                        message,
+                    })?
+                    .to_string();
                 let source = file.path.clone();
                 files.push(file);
                 Some((text, source))

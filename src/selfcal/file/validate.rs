@@ -171,12 +171,15 @@ pub(super) fn validate(
             (Col::Reading, Some(r.reading_arcsec)),
             (Col::Time, r.time_seconds),
         ] {
-            if let Some(x) = x
-                && !x.is_finite()
-            {
+            let rule = match (x, col.limit()) {
+                (Some(x), Some((limit, what))) => limit.check(x, what).err(),
+                (Some(x), None) if !x.is_finite() => Some(format!("{x} is not a finite number")),
+                _ => None,
+            };
+            if let Some(rule) = rule {
                 return Err(err(
                     loc.row(i, readings, Some(col)),
-                    format!("{p}column {:?}: {x} is not a finite number", col.name()),
+                    format!("{p}column {:?}: {rule}", col.name()),
                 ));
             }
         }

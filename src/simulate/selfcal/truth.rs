@@ -190,7 +190,7 @@ impl SelfcalTruth {
     pub fn read_path(path: &Path) -> Result<SelfcalTruth, SimulateError> {
         let mut truth: SelfcalTruth = read_json(path)?;
         truth.check().map_err(|message| SimulateError::Truth {
-            origin: path.display().to_string(),
+            origin: crate::input::display_name(path),
             message,
         })?;
         if truth.encoder_angle_deg.is_empty() {
