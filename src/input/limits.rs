@@ -48,12 +48,12 @@ impl Limit {
     }
 
     /// The smallest value allowed.
-    pub fn min(&self) -> f64 {
+    pub const fn min(&self) -> f64 {
         self.min
     }
 
     /// The largest value allowed.
-    pub fn max(&self) -> f64 {
+    pub const fn max(&self) -> f64 {
         self.max
     }
 

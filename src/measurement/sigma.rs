@@ -2,6 +2,12 @@
 
 use std::fmt;
 
+use crate::input::limits::{Limit, READING_ARCSEC};
+
+/// The range of σ: positive, at most a reading's largest magnitude, and not so small that
+/// σ² vanishes.
+const SIGMA_ARCSEC: Limit = Limit::new(0.0, READING_ARCSEC.max(), "″").with_smallest_nonzero(1e-100);
+
 /// The standard deviation σ of one autocollimator reading, arcseconds: a positive, finite
 /// number, checked once where it enters ([`Sigma::new`]) so that every entry point
 /// (`solve`, `diagnose`, the uncertainty layer) can rely on it.
@@ -18,6 +24,7 @@ use std::fmt;
 /// assert!(Sigma::new(-0.05).is_err());
 /// assert!(Sigma::new(f64::NAN).is_err());
 /// assert!(Sigma::new(0.0).is_err());
+/// assert!(Sigma::new(1e300).is_err()); // beyond the limit of a reading, 1e6″
 /// # Ok::<(), SigmaError>(())
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, PartialOrd)]
@@ -33,23 +40,31 @@ pub enum SigmaError {
          arcseconds, got {0}"
     )]
     NotPositive(f64),
+    /// Beyond the limits of a reading (docs/FORMAT.md §2.2): a σ larger than any reading
+    /// may be, or so small that its square vanishes.
+    #[error("the standard deviation of one reading: {0}")]
+    OutOfLimits(String),
     /// Text that is not a number.
     #[error("the standard deviation of one reading must be a number of arcseconds, got {0:?}")]
     NotANumber(String),
 }
 
 impl Sigma {
-    /// σ in arcseconds; refused unless positive and finite.
+    /// σ in arcseconds; refused unless positive, finite and within 1e-100 … 1e6″ (the
+    /// limit of a reading, docs/FORMAT.md §2.2).
     ///
     /// # Errors
     ///
-    /// [`SigmaError::NotPositive`] for zero, a negative number, infinity or NaN.
+    /// [`SigmaError::NotPositive`] for zero, a negative number, infinity or NaN;
+    /// [`SigmaError::OutOfLimits`] beyond the limits.
     pub fn new(arcsec: f64) -> Result<Sigma, SigmaError> {
-        if arcsec.is_finite() && arcsec > 0.0 {
-            Ok(Sigma(arcsec))
-        } else {
-            Err(SigmaError::NotPositive(arcsec))
+        if !(arcsec.is_finite() && arcsec > 0.0) {
+            return Err(SigmaError::NotPositive(arcsec));
         }
+        SIGMA_ARCSEC
+            .check(arcsec, "a standard deviation of one reading")
+            .map(Sigma)
+            .map_err(SigmaError::OutOfLimits)
     }
 
     /// σ in arcseconds.

@@ -148,6 +148,10 @@ pub enum SimulateError {
     /// ([`SelfcalSimConfig::validate`]).
     #[error("invalid self-calibration simulation settings: {0}")]
     SelfcalConfig(#[from] SelfcalConfigError),
+    /// The simulated readings break a rule of the measurement file (docs/FORMAT.md §2),
+    /// such as a reading beyond its limits for a noise or a truth that large.
+    #[error("the simulated readings: {0}")]
+    Readings(#[from] crate::measurement::MeasurementError),
     /// The simulated self-calibration readings break a rule of the self-calibration file
     /// (docs/FORMAT.md §9); not expected of a valid configuration.
     #[error("the simulated self-calibration readings: {0}")]
@@ -319,13 +323,12 @@ pub fn simulate_with_truth(
             stop += 1;
         }
     }
-    Ok(MeasurementSet {
-        faces: n,
-        readings,
-        source: "simulated".into(),
-        setup_shift_deg: (1..=config.setups)
-            .map(|s| (s, config.table_shift_of(s)))
-            .filter(|&(_, shift)| shift != 0.0)
-            .collect(),
-    })
+    // Every simulated reading obeys the rules of the file it will be written to (its
+    // limits above all: a noise of 1e300″ is a valid setting with no valid reading).
+    let mut set = MeasurementSet::from_readings(readings, Some(n), "simulated")?;
+    set.setup_shift_deg = (1..=config.setups)
+        .map(|s| (s, config.table_shift_of(s)))
+        .filter(|&(_, shift)| shift != 0.0)
+        .collect();
+    Ok(set)
 }

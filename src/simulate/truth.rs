@@ -3,6 +3,8 @@
 use std::collections::HashSet;
 use std::path::Path;
 
+use crate::input::limits::READING_ARCSEC;
+
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -301,8 +303,14 @@ impl Truth {
                     )
                 });
             }
-            if let Some(i) = list.iter().position(|v| !v.is_finite()) {
-                return Err(format!("{name}[{i}] is not a finite number"));
+            if let Some(i) = list.iter().position(|v| !READING_ARCSEC.contains(*v)) {
+                return Err(format!(
+                    "{name}[{i}]: {}",
+                    READING_ARCSEC
+                        .check(list[i], "a truth value")
+                        .err()
+                        .unwrap_or_default()
+                ));
             }
         }
         let mut seen = HashSet::new();
@@ -313,9 +321,9 @@ impl Truth {
                     u.setup, u.ac
                 ));
             }
-            if !u.value.is_finite() {
+            if let Err(rule) = READING_ARCSEC.check(u.value, "a truth value") {
                 return Err(format!(
-                    "setup_error for setup {} ac {} is not a finite number",
+                    "setup_error for setup {} ac {}: {rule}",
                     u.setup, u.ac
                 ));
             }

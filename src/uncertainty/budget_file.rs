@@ -32,6 +32,7 @@
 //! key or distribution, a negative width, `dof < 1`, `p` outside (0, 1), duplicate names,
 //! and so on. Nothing is guessed.
 
+use std::collections::{HashMap, HashSet};
 use std::ops::Range;
 use std::path::Path;
 
@@ -243,9 +244,10 @@ fn build_budget(
     at: &At<'_>,
 ) -> Result<Budget, BudgetError> {
     let mut built: Vec<Component> = Vec::with_capacity(components.len());
+    let mut by_name: HashMap<String, usize> = HashMap::with_capacity(components.len());
     for raw in components {
         let c = build_component(raw, at)?;
-        if built.iter().any(|other| other.name == c.name) {
+        if by_name.insert(c.name.clone(), built.len()).is_some() {
             let span = raw
                 .get_ref()
                 .name
@@ -261,7 +263,7 @@ fn build_budget(
         }
         built.push(c);
     }
-    let mut pairs: Vec<(usize, usize)> = Vec::new();
+    let mut pairs: HashSet<(usize, usize)> = HashSet::new();
     let mut built_correlations = Vec::with_capacity(correlations.len());
     for corr in correlations {
         let raw = corr.get_ref();
@@ -277,9 +279,9 @@ fn build_budget(
         }
         let mut index = [0usize; 2];
         for (slot, name) in index.iter_mut().zip(names) {
-            *slot = built
-                .iter()
-                .position(|c| c.name == *name.get_ref())
+            *slot = by_name
+                .get(name.get_ref().as_str())
+                .copied()
                 .ok_or_else(|| {
                     at(
                         name.span(),
@@ -294,13 +296,12 @@ fn build_budget(
             ));
         }
         let pair = (index[0].min(index[1]), index[0].max(index[1]));
-        if pairs.contains(&pair) {
+        if !pairs.insert(pair) {
             return Err(at(
                 raw.between.span(),
                 "this pair of components is already correlated above".to_string(),
             ));
         }
-        pairs.push(pair);
         let r = *raw.r.get_ref();
         if !(r.is_finite() && (-1.0..=1.0).contains(&r)) {
             return Err(at(

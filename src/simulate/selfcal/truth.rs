@@ -2,6 +2,8 @@
 
 use std::path::Path;
 
+use crate::input::limits::READING_ARCSEC;
+
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -234,8 +236,14 @@ impl SelfcalTruth {
                     list.len()
                 ));
             }
-            if let Some(i) = list.iter().position(|v| !v.is_finite()) {
-                return Err(format!("{name}[{i}] is not a finite number"));
+            if let Some(i) = list.iter().position(|v| !READING_ARCSEC.contains(*v)) {
+                return Err(format!(
+                    "{name}[{i}]: {}",
+                    READING_ARCSEC
+                        .check(list[i], "a truth value")
+                        .err()
+                        .unwrap_or_default()
+                ));
             }
         }
         for (c, row) in self.table_error.iter().enumerate() {

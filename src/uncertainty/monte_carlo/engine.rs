@@ -40,6 +40,16 @@ use super::statistics::{
 use super::stream::block_rng;
 use super::{McError, McResult, OutputSummary, Trials, numerical_tolerance};
 
+/// An upper bound of the memory a run of `trials` trials of `outputs` outputs keeps,
+/// bytes: the values inside the coverage interval's brackets (at most about 2 % of the
+/// trials at each end, 16 bytes each, module `statistics`), and with `keep_samples` every
+/// output of every trial (8 bytes each).
+pub(crate) fn memory_needed(trials: usize, outputs: usize, keep_samples: bool) -> u128 {
+    let values = trials as u128 * outputs as u128;
+    let brackets = values * 16 / 20; // 2 ends × 2.5 % × 16 bytes
+    brackets + if keep_samples { values * 8 } else { 0 }
+}
+
 /// Number of trials drawn from one random stream: the unit of parallel work and of
 /// progress reports.
 pub const BLOCK_SIZE: usize = 1000;
@@ -239,6 +249,22 @@ pub fn run<T: Trial>(trial: &T, options: &EngineOptions<'_>) -> Result<McResult,
         outputs,
         "Trial::centre must give one value per output"
     );
+    let planned = match options.trials {
+        Trials::Fixed(m) => m,
+        Trials::Adaptive { max_trials, .. } => max_trials,
+    };
+    let needed_bytes = memory_needed(planned, outputs, options.keep_samples);
+    if let Some((limit_bytes, limit_source)) = crate::solve::memory::limit_for(needed_bytes, None)
+        && needed_bytes > u128::from(limit_bytes)
+    {
+        return Err(McError::TooLarge {
+            trials: planned,
+            outputs,
+            needed_bytes,
+            limit_bytes,
+            limit_source,
+        });
+    }
     let engine = Engine {
         trial,
         seed: options.seed,

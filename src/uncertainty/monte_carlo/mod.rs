@@ -133,6 +133,26 @@ pub enum McError {
         /// Minimum.
         needed: usize,
     },
+    /// The run would need more memory than it may use (the values inside the coverage
+    /// interval's brackets grow with the trials, and kept samples with trials × outputs).
+    #[error(
+        "{trials} trials of {outputs} outputs need about {} of memory; {} {limit_source}: \
+         ask for fewer trials",
+        crate::solve::memory::human_bytes(*needed_bytes),
+        crate::solve::memory::human_bytes(u128::from(*limit_bytes))
+    )]
+    TooLarge {
+        /// Trials asked for (the most an adaptive run may take).
+        trials: usize,
+        /// Outputs per trial.
+        outputs: usize,
+        /// Bytes the run would need.
+        needed_bytes: u128,
+        /// Bytes it may use.
+        limit_bytes: u64,
+        /// Where the limit comes from (`are available on this machine`).
+        limit_source: &'static str,
+    },
     /// The model gave no outputs.
     #[error("the model produced no outputs")]
     NoOutputs,
