@@ -323,6 +323,25 @@ pub fn solve_shifted(
     let positions = geometry.encoder_set(set);
     let n = set.faces;
     let c_count = geometry.cosets();
+    // The contrast columns are dense (one value per reading each): check that they fit
+    // before building them; the engine checks what it needs beyond them.
+    let column_count = c_count.saturating_sub(1) * n.saturating_sub(1);
+    let needed_bytes = 8 * column_count as u128 * set.readings.len() as u128;
+    if let Some((limit_bytes, limit_source)) =
+        super::memory::limit_for(needed_bytes, options.memory_limit_bytes)
+        && needed_bytes > u128::from(limit_bytes)
+    {
+        return Err(SolveError::TooLarge {
+            faces: n,
+            streams: positions.streams().len(),
+            effects: column_count,
+            readings: set.readings.len(),
+            engine: "sub-pitch",
+            needed_bytes,
+            limit_bytes,
+            limit_source,
+        });
+    }
     let columns = contrast_columns(&geometry, set);
     let solution = if columns.is_empty() {
         solve_positions(&positions, options)?
