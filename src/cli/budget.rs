@@ -3,9 +3,8 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::ValueEnum;
-use polycal::input::display_name;
 use polycal::uncertainty::BudgetFile;
 
 use super::EXIT_OK;
@@ -37,9 +36,8 @@ enum ReportFormat {
 /// `polycal budget`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &BudgetArgs) -> Result<u8> {
     let budget = BudgetFile::read_path(&args.file)?;
-    let result = budget
-        .evaluate()
-        .with_context(|| display_name(&args.file))?;
+    // the evaluation's errors name the file already
+    let result = budget.evaluate()?;
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
     match args.format {

@@ -65,6 +65,15 @@ enum DiagnoseFormat {
 
 /// `polycal diagnose`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
+    super::stdin_once(
+        args.files
+            .iter()
+            .map(|f| ("a measurement file", Some(f.as_path())))
+            .chain([
+                ("--truth", args.truth.as_deref()),
+                ("--budget", args.budget.as_deref()),
+            ]),
+    )?;
     let truth = args.truth.as_deref().map(Truth::read_path).transpose()?;
     super::plot_one_file(args.plot.as_deref(), args.files.len())?;
     let budget = read_budget(args.budget.as_deref(), out)?;

@@ -56,12 +56,10 @@ pub fn man(args: &ManArgs) -> Result<u8> {
         None => command,
         Some(name) => {
             let Some(sub) = command.find_subcommand(name) else {
-                let names: Vec<&str> = command
-                    .get_subcommands()
-                    .map(|c| c.get_name())
-                    .filter(|n| *n != "help")
-                    .collect();
-                bail!("no command {name:?}; the commands are {}", names.join(", "));
+                bail!(
+                    "no command {name:?}; the commands are {}",
+                    super::command_names().join(", ")
+                );
             };
             // Built, a command's display name is `polycal-solve` (the page's title) and
             // its binary name `polycal solve` (its usage).

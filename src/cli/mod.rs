@@ -146,20 +146,32 @@ impl Cli {
             Ok(cli) => cli,
             Err(error) => {
                 use clap::error::ErrorKind;
-                if matches!(
-                    error.kind(),
-                    ErrorKind::DisplayHelp
-                        | ErrorKind::DisplayVersion
-                        | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
-                ) {
+                if matches!(error.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
                     error.exit();
                 }
                 let out = output::Output::new(choice.unwrap_or(ColorWhen::Auto), false);
-                out.error_message(usage_error_line(&error.render().to_string()));
+                if error.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                    // `polycal` alone: a usage error, one line like every other
+                    out.error_message(format!(
+                        "no command given; the commands are {} (see --help)",
+                        command_names().join(", ")
+                    ));
+                } else {
+                    out.error_message(usage_error_line(&error.render().to_string()));
+                }
                 std::process::exit(i32::from(EXIT_ERROR));
             }
         }
     }
+}
+
+/// The names of polycal's commands, in the order of `--help` (without `help`).
+pub fn command_names() -> Vec<String> {
+    Cli::command()
+        .get_subcommands()
+        .map(|c| c.get_name().to_string())
+        .filter(|n| n != "help")
+        .collect()
 }
 
 /// clap's usage error on one line: its message and tips, without the `error:` prefix,
@@ -324,6 +336,26 @@ pub fn plot_one_file(plot: Option<&std::path::Path>, files: usize) -> anyhow::Re
     if plot.is_some() && files > 1 {
         anyhow::bail!(
             "--plot takes one input file ({files} given): the figures of several files would share names; run once per file"
+        );
+    }
+    Ok(())
+}
+
+/// The refusal of standard input given twice (`-` for two inputs): it can be read once,
+/// and the second reader would see it empty. `inputs` are each input's role (`the
+/// measurement file`, `--truth`) and path.
+pub fn stdin_once<'a>(
+    inputs: impl IntoIterator<Item = (&'a str, Option<&'a std::path::Path>)>,
+) -> anyhow::Result<()> {
+    let roles: Vec<&str> = inputs
+        .into_iter()
+        .filter(|(_, path)| path.is_some_and(polycal::input::is_stdin))
+        .map(|(role, _)| role)
+        .collect();
+    if roles.len() > 1 {
+        anyhow::bail!(
+            "standard input (`-`) is given for {}: it can be read only once; give the others as files",
+            roles.join(" and ")
         );
     }
     Ok(())

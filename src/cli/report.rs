@@ -64,6 +64,13 @@ pub struct ReportArgs {
 
 /// `polycal report`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
+    super::stdin_once([
+        ("the measurement file", Some(args.file.as_path())),
+        ("--budget", args.budget.as_deref()),
+        ("--truth", args.truth.as_deref()),
+        ("--reference", args.reference.as_deref()),
+        ("--meta", args.meta.as_deref()),
+    ])?;
     if args.out.is_dir() {
         bail!(
             "--out {}: is a directory; name the HTML file to write",

@@ -75,6 +75,10 @@ enum SelfcalFormat {
 
 /// `polycal selfcal`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
+    super::stdin_once([
+        ("the self-calibration file", Some(args.file.as_path())),
+        ("--budget", args.budget.as_deref()),
+    ])?;
     let name = display_name(&args.file);
     let set = SelfcalSet::read_path(&args.file, args.positions)?;
     let mut options = SelfcalOptions::new().with_sigma_opt(args.sigma);

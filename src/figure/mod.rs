@@ -62,6 +62,12 @@ pub enum FigureError {
         /// The operating system's error.
         source: std::io::Error,
     },
+    /// The path given for the figures' directory is a file (or another non-directory).
+    #[error("{path}: is a file, not a directory; the figures need a directory")]
+    NotADirectory {
+        /// The path.
+        path: PathBuf,
+    },
 }
 
 /// The figures of `polycal solve`: pitch deviations β with U bars, face deviations φ,
@@ -121,8 +127,14 @@ pub fn budget_figures(uncertainty: &CalibrationUncertainty) -> Vec<Figure> {
 ///
 /// # Errors
 ///
-/// [`FigureError::Write`] naming the directory or file that could not be written.
+/// [`FigureError::NotADirectory`] when `dir` is an existing file; [`FigureError::Write`]
+/// naming the directory or file that could not be written.
 pub fn write_figures(dir: &Path, figures: &[Figure]) -> Result<Vec<PathBuf>, FigureError> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(FigureError::NotADirectory {
+            path: dir.to_path_buf(),
+        });
+    }
     std::fs::create_dir_all(dir).map_err(|source| FigureError::Write {
         path: dir.to_path_buf(),
         source,

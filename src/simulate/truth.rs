@@ -84,7 +84,15 @@ pub(super) fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T
             path: name.into(),
             source,
         })?;
-    serde_json::from_slice(&bytes).map_err(|e| {
+    parse_json(&bytes, &name)
+}
+
+/// Parses JSON bytes into `T`; `name` names them in [`SimulateError::Json`].
+pub(super) fn parse_json<T: serde::de::DeserializeOwned>(
+    bytes: &[u8],
+    name: &str,
+) -> Result<T, SimulateError> {
+    serde_json::from_slice(bytes).map_err(|e| {
         let position = format!(" at line {} column {}", e.line(), e.column());
         let text = e.to_string();
         SimulateError::Json {
@@ -222,9 +230,25 @@ impl Truth {
     /// An empty or missing `face_deviation` is filled from `pitch_deviation`. Errors name
     /// the file, and for bad JSON also the line and column.
     pub fn read_path(path: &Path) -> Result<Truth, SimulateError> {
-        let mut truth: Truth = read_json(path)?;
+        let (bytes, name) =
+            crate::input::read_bytes(path).map_err(|(name, source)| SimulateError::Io {
+                path: name.into(),
+                source,
+            })?;
+        Truth::from_json_bytes(&bytes, &name)
+    }
+
+    /// A truth file's bytes (JSON, docs/FORMAT.md §4), checked as [`Truth::read_path`]
+    /// checks a file; `source` names them in messages.
+    ///
+    /// # Errors
+    ///
+    /// [`SimulateError::Json`] (source, line, column) for bad JSON,
+    /// [`SimulateError::Truth`] for a truth that breaks a rule.
+    pub fn from_json_bytes(bytes: &[u8], source: &str) -> Result<Truth, SimulateError> {
+        let mut truth: Truth = parse_json(bytes, source)?;
         truth.check().map_err(|message| SimulateError::Truth {
-            origin: crate::input::display_name(path),
+            origin: source.to_string(),
             message,
         })?;
         if truth.face_deviation.is_empty() {

@@ -212,9 +212,10 @@ impl CalibrationReport {
         };
         let truth = match &inputs.truth {
             Some(path) => {
-                let (_, file) = read_input(path, "truth")?;
+                let (bytes, file) = read_input(path, "truth")?;
+                let truth = Truth::from_json_bytes(&bytes, &file.path)?;
                 files.push(file);
-                Some(Truth::read_path(path)?)
+                Some(truth)
             }
             None => None,
         };
