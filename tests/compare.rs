@@ -274,7 +274,7 @@ fn results_are_refused_with_file_line_and_column() {
         ),
         (
             "encoder_error,0,0.1,0.46,0.23,0\n",
-            "r.csv:3:31: k must be greater than 0, got 0",
+            "r.csv:3:31: k: 0 is beyond the limits of a result's k, 0.1 … 1e6 (docs/FORMAT.md §2.2)",
         ),
         (
             "encoder_error,0,0.1,0.46\n",
@@ -299,6 +299,15 @@ fn results_are_refused_with_file_line_and_column() {
         (
             "pitch_deviation,  1,  zz,,,\n",
             "r.csv:3:23: value must be a finite number, got \"zz\"",
+        ),
+        // finite but absurd: beyond the documented limits (docs/FORMAT.md §2.2)
+        (
+            "pitch_deviation,1,-1e308,0.1,,\n",
+            "r.csv:3:19: value: −1e308 is beyond the limits of a result's value, −1e12 … 1e12″",
+        ),
+        (
+            "face_deviation,2,0.5,1e13,,\n",
+            "r.csv:3:22: U: 1e13 is beyond the limits of a result's U, −1e12 … 1e12″",
         ),
     ] {
         let text = format!("{header}{body}");

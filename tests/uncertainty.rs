@@ -866,7 +866,11 @@ fn refusals_are_typed() {
     let e = BudgetFile::read_path(&latin1).unwrap_err().to_string();
     assert_eq!(
         e,
-        format!("{}: stream did not contain valid UTF-8", latin1.display())
+        // the invalid byte's own line and column: `name = "` is 8 characters
+        format!(
+            "{}:2:9: not valid UTF-8 (byte 0xe9); the file must be UTF-8 text",
+            latin1.display()
+        )
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
