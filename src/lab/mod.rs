@@ -69,6 +69,7 @@
 //! # Ok::<(), polycal::lab::InstrumentError>(())
 //! ```
 
+mod disk;
 pub mod elcomat;
 mod error;
 mod instruments;
@@ -82,6 +83,7 @@ mod stop;
 pub mod traffic;
 pub mod transport;
 
+pub use disk::WriteBudget;
 pub use error::{InstrumentError, ReplyError};
 pub use instruments::{AcReading, Autocollimator, RotaryTable};
 pub use query::QueryOptions;

@@ -72,6 +72,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod abort;
 mod directory;
 mod error;
 mod manifest;
@@ -79,6 +80,7 @@ mod measure;
 mod resume;
 mod settings;
 
+pub use abort::AbortHandle;
 pub use directory::{COLUMNS, MANIFEST, MEASUREMENTS, RunDir, TRAFFIC};
 pub use error::RunError;
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
