@@ -274,7 +274,7 @@ impl Drop for Tmpfs {
 #[test]
 fn a_real_full_disk_stops_the_run_and_resume_completes_with_space() {
     let dir = scratch("tmpfs");
-    let Some(disk) = Tmpfs::mount(&dir.join("disk"), "32k") else {
+    let Some(disk) = Tmpfs::mount(&dir.join("disk"), "4k") else {
         eprintln!("skipped: cannot mount a tmpfs here (needs root on Linux)");
         return;
     };
@@ -291,6 +291,17 @@ fn a_real_full_disk_stops_the_run_and_resume_completes_with_space() {
         "0",
         "-q",
     ];
+    // One page: the measurement file's header fits, the manifest does not. The run
+    // does not start and removes what it created; the same command starts it later.
+    let no_start = polycal(&lab.run_args(&out, &design));
+    let text = assert_error(&no_start, "No space left on device");
+    assert!(
+        text.contains("manifest.json") && text.ends_with("its files were removed\n"),
+        "{text}"
+    );
+    assert!(!out.exists(), "nothing left: {text}");
+
+    disk.resize("32k");
     let full = polycal(&lab.run_args(&out, &design));
     let text = assert_error(&full, "No space left on device");
     assert!(
@@ -315,15 +326,26 @@ fn a_real_full_disk_stops_the_run_and_resume_completes_with_space() {
         assert!(outcome.starts_with("file-error: ") && outcome.contains("No space left on device"));
     }
 
-    disk.resize("1m");
+    // Resumed while the disk is still full: it stops again, consistently.
     let mut args = lab.run_args(&out, &design);
     args.push("--resume".into());
+    let again = polycal(&args);
+    assert_error(&again, "No space left on device");
+    let kept = rows(&out);
+    assert_eq!(kept, plan_readings(&s)[..kept.len()]);
+    assert!(
+        std::fs::read_to_string(out.join("traffic.jsonl"))
+            .unwrap()
+            .ends_with('\n')
+    );
+    sessions(&out);
+
+    disk.resize("1m");
     let resumed = polycal(&args);
     assert!(resumed.status.success(), "{}", stderr(&resumed));
     assert_complete(&out, &s);
     assert_solves_to_truth(&out, &lab.truth);
     assert_eq!(manifest(&out)["outcome"], "completed");
     let traffic = sessions(&out);
-    assert_eq!(traffic.len(), 2);
-    assert_moves_follow_plan(&traffic[1], &s, kept.len() / 2);
+    assert_moves_follow_plan(traffic.last().unwrap(), &s, kept.len() / 2);
 }
