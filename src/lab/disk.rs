@@ -6,18 +6,6 @@
 //! a line at the end of the file. A [`LineFile`] truncates the file back to its last
 //! whole line when a write fails, so that the measurement file and the traffic log end on
 //! whole lines whatever happens to the disk (docs/FORMAT.md §7.3).
-//!
-//! # Example: a full disk, simulated
-//!
-//! ```
-//! use polycal::lab::WriteBudget;
-//!
-//! // 100 bytes more for the traffic log; the other files are not limited.
-//! let budget = WriteBudget::for_file("traffic.jsonl", 100);
-//! assert_eq!(budget.left_bytes("traffic.jsonl"), Some(100));
-//! assert_eq!(budget.left_bytes("manifest.json"), None);
-//! assert_eq!(WriteBudget::unlimited().left_bytes("traffic.jsonl"), None);
-//! ```
 
 use std::fs::{File, OpenOptions};
 use std::io::{self, Write};
@@ -32,6 +20,16 @@ use std::sync::{Arc, Mutex, PoisonError};
 /// and the traffic log ([`crate::lab::traffic::TrafficLog::append_to_with_budget`]) write
 /// through one. Cloning shares the budget. [`WriteBudget::unlimited`] (the default) is the
 /// disk as it is.
+///
+/// ```
+/// use polycal::lab::WriteBudget;
+///
+/// // 100 bytes more for the traffic log; the other files are not limited.
+/// let budget = WriteBudget::for_file("traffic.jsonl", 100);
+/// assert_eq!(budget.left_bytes("traffic.jsonl"), Some(100));
+/// assert_eq!(budget.left_bytes("manifest.json"), None);
+/// assert_eq!(WriteBudget::unlimited().left_bytes("traffic.jsonl"), None);
+/// ```
 #[derive(Debug, Clone, Default)]
 pub struct WriteBudget {
     limit: Option<Arc<Mutex<Limit>>>,
