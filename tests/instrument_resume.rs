@@ -186,7 +186,18 @@ fn a_second_ctrl_c_ends_at_once_records_interrupted_and_resume_completes() {
         .spawn()
         .unwrap();
     wait_for_rows(&out, 4, Duration::from_secs(20));
-    std::thread::sleep(Duration::from_millis(100)); // waiting for the lost reply
+    // The fifth `a` (autocollimator 1 at stop 2) is sent: its driver waits for the reply.
+    let start = std::time::Instant::now();
+    while std::fs::read_to_string(out.join("traffic.jsonl"))
+        .unwrap()
+        .matches(r#""event":"sent","text":"a\n""#)
+        .count()
+        < 5
+    {
+        assert!(start.elapsed() < Duration::from_secs(20));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(Duration::from_millis(50));
     let interrupt = || {
         // SAFETY: sending a signal to our own child process.
         let sent = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
