@@ -190,6 +190,25 @@ fn refusals_are_one_error_line_and_status_2() {
     );
     assert!(!bad.exists(), "nothing created for refused settings");
 
+    // --out naming a regular file: refused, the file left as it was.
+    let file = dir.join("results.csv");
+    std::fs::write(&file, "kept\n").unwrap();
+    for resume in [false, true] {
+        let mut args = lab.run_args(&file, &short);
+        if resume {
+            args.push("--resume".into());
+        }
+        let text = assert_error(&polycal(&args), "is a file, not a directory");
+        assert_eq!(
+            text.trim_end(),
+            format!(
+                "error: {}: is a file, not a directory; choose another --out",
+                file.display()
+            )
+        );
+    }
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "kept\n");
+
     // A bad fault spec for the lab.
     let lab_bad = polycal(&["sim-lab", "--fault", "melt:ac1"]);
     assert_error(&lab_bad, "melt");

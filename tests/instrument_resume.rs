@@ -157,3 +157,206 @@ fn ctrl_c_stops_the_table_keeps_the_data_and_resume_completes() {
     assert_eq!(manifest(&out)["outcome"], "completed");
     assert_moves_follow_plan(&sessions(&out)[1], &s, first);
 }
+
+#[test]
+fn a_second_ctrl_c_ends_at_once_records_interrupted_and_resume_completes() {
+    let dir = scratch("ctrl-c-twice");
+    // Autocollimator 1's third reply is lost four times: with --timeout 2 its driver
+    // waits 8 s without looking at the stop flag, so the first Ctrl-C cannot end the run
+    // quickly.
+    let lab = SimLab::start(&dir, &["--fault", "lost-reply:ac1:after=2:count=4"]);
+    let out = dir.join("run");
+    let s = settings(1, true, 0.0);
+    let design = [
+        "--faces",
+        "8",
+        "--cycles",
+        "1",
+        "--closing",
+        "--settle",
+        "0",
+        "--timeout",
+        "2",
+    ];
+    let child = Command::new(BIN)
+        .args(lab.run_args(&out, &design))
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for_rows(&out, 4, Duration::from_secs(20));
+    // The fifth `a` (autocollimator 1 at stop 2) is sent: its driver waits for the reply.
+    let start = std::time::Instant::now();
+    while std::fs::read_to_string(out.join("traffic.jsonl"))
+        .unwrap()
+        .matches(r#""event":"sent","text":"a\n""#)
+        .count()
+        < 5
+    {
+        assert!(start.elapsed() < Duration::from_secs(20));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(Duration::from_millis(50));
+    let interrupt = || {
+        // SAFETY: sending a signal to our own child process.
+        let sent = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
+        assert_eq!(sent, 0);
+    };
+    interrupt();
+    std::thread::sleep(Duration::from_millis(200));
+    let second = std::time::Instant::now();
+    interrupt();
+    let output = child.wait_with_output().unwrap();
+    assert!(second.elapsed() < Duration::from_millis(1500), "at once");
+    let text = stderr(&output);
+    assert_eq!(output.status.code(), Some(130), "{text}");
+    assert_eq!(
+        text,
+        format!(
+            "error: run stopped at once by a second interrupt (the table may not have stopped); \
+             4 of 18 readings are in {}; continue with the same command and --resume\n",
+            out.join("measurements.csv").display()
+        )
+    );
+
+    let m = manifest(&out);
+    assert_eq!(m["outcome"], "interrupted");
+    assert!(m["ended"].is_string());
+    assert_eq!(m["readings"], 4);
+    assert_eq!(m["sessions"][0]["outcome"], "interrupted");
+    assert_eq!(m["sessions"][0]["readings_after"], 4);
+    assert!(!out.join("manifest.json.tmp").exists());
+    let text = std::fs::read_to_string(out.join("measurements.csv")).unwrap();
+    assert!(text.ends_with('\n'));
+    assert_eq!(rows(&out), plan_readings(&s)[..4]);
+    sessions(&out); // every record is JSON
+
+    let mut args = lab.run_args(&out, &design);
+    args.truncate(args.len() - 2);
+    args.extend(["--timeout", "0.3", "--resume", "-q"].map(String::from));
+    let resumed = polycal(&args);
+    assert!(resumed.status.success(), "{}", stderr(&resumed));
+    assert_complete(&out, &s);
+    assert_solves_to_truth(&out, &lab.truth);
+    let m = manifest(&out);
+    assert_eq!(m["outcome"], "completed");
+    assert_eq!(m["sessions"][1]["readings_before"], 4);
+}
+
+/// A tmpfs of a given size mounted on a directory, unmounted when dropped.
+struct Tmpfs(std::path::PathBuf);
+
+impl Tmpfs {
+    /// Mounts `size` (e.g. `32k`) on `dir`, or `None` when that is not possible here
+    /// (not root, no tmpfs).
+    fn mount(dir: &std::path::Path, size: &str) -> Option<Tmpfs> {
+        // SAFETY: geteuid has no preconditions.
+        if unsafe { libc::geteuid() } != 0 {
+            return None;
+        }
+        std::fs::create_dir_all(dir).ok()?;
+        let mounted = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"])
+            .arg(dir)
+            .stderr(Stdio::null())
+            .status()
+            .ok()?
+            .success();
+        mounted.then(|| Tmpfs(dir.to_path_buf()))
+    }
+
+    fn resize(&self, size: &str) {
+        let status = Command::new("mount")
+            .args(["-o", &format!("remount,size={size}")])
+            .arg(&self.0)
+            .status()
+            .unwrap();
+        assert!(status.success());
+    }
+}
+
+impl Drop for Tmpfs {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(&self.0).status();
+    }
+}
+
+#[test]
+fn a_real_full_disk_stops_the_run_and_resume_completes_with_space() {
+    let dir = scratch("tmpfs");
+    let Some(disk) = Tmpfs::mount(&dir.join("disk"), "4k") else {
+        eprintln!("skipped: cannot mount a tmpfs here (needs root on Linux)");
+        return;
+    };
+    let lab = SimLab::start(&dir, &["--cycles", "3", "--closing"]);
+    let out = disk.0.join("run");
+    let s = settings(3, true, 0.0);
+    let design = [
+        "--faces",
+        "8",
+        "--cycles",
+        "3",
+        "--closing",
+        "--settle",
+        "0",
+        "-q",
+    ];
+    // One page: the measurement file's header fits, the manifest does not. The run
+    // does not start and removes what it created; the same command starts it later.
+    let no_start = polycal(&lab.run_args(&out, &design));
+    let text = assert_error(&no_start, "No space left on device");
+    assert!(
+        text.contains("manifest.json") && text.ends_with("its files were removed\n"),
+        "{text}"
+    );
+    assert!(!out.exists(), "nothing left: {text}");
+
+    disk.resize("32k");
+    let full = polycal(&lab.run_args(&out, &design));
+    let text = assert_error(&full, "No space left on device");
+    assert!(
+        text.contains("continue with the same command and --resume"),
+        "{text}"
+    );
+
+    // Whole lines, the run's first readings in order, every record JSON.
+    let bytes = std::fs::read(out.join("measurements.csv")).unwrap();
+    assert_eq!(bytes.last(), Some(&b'\n'));
+    let kept = rows(&out);
+    assert!(kept.len() < 54, "the disk filled up: {text}");
+    assert_eq!(kept, plan_readings(&s)[..kept.len()]);
+    let log = std::fs::read_to_string(out.join("traffic.jsonl")).unwrap();
+    assert!(log.ends_with('\n'));
+    sessions(&out);
+    assert!(!out.join("manifest.json.tmp").exists());
+    let outcome = manifest(&out)["outcome"].as_str().unwrap().to_string();
+    if text.contains("the manifest could not record it") {
+        assert_eq!(outcome, "running", "{text}");
+    } else {
+        assert!(outcome.starts_with("file-error: ") && outcome.contains("No space left on device"));
+    }
+
+    // Resumed while the disk is still full: it stops again, consistently.
+    let mut args = lab.run_args(&out, &design);
+    args.push("--resume".into());
+    let again = polycal(&args);
+    assert_error(&again, "No space left on device");
+    let kept = rows(&out);
+    assert_eq!(kept, plan_readings(&s)[..kept.len()]);
+    assert!(
+        std::fs::read_to_string(out.join("traffic.jsonl"))
+            .unwrap()
+            .ends_with('\n')
+    );
+    sessions(&out);
+
+    disk.resize("1m");
+    let resumed = polycal(&args);
+    assert!(resumed.status.success(), "{}", stderr(&resumed));
+    assert_complete(&out, &s);
+    assert_solves_to_truth(&out, &lab.truth);
+    assert_eq!(manifest(&out)["outcome"], "completed");
+    let traffic = sessions(&out);
+    assert_moves_follow_plan(traffic.last().unwrap(), &s, kept.len() / 2);
+}

@@ -3,68 +3,21 @@
 //! while moving, the controller's states, the faults through the drivers, a whole run
 //! that solves to the truth, interruption and resume, and the run directory's refusals.
 
-use std::path::{Path, PathBuf};
+mod lab_support;
+
+use std::path::Path;
 use std::time::{Duration, Instant};
 
-use polycal::lab::elcomat::Elcomat3000;
-use polycal::lab::run::{self, Instruments, Outcome, Ports, RunDir, RunError, RunSettings};
-use polycal::lab::sim::{
-    DeviceId, Devices, Endpoint, Fault, FaultKind, FaultProblem, LabConfig, SimStream,
-};
-use polycal::lab::smc100::{Smc100, Smc100Options};
-use polycal::lab::transport::StreamTransport;
-use polycal::lab::{Autocollimator, InstrumentError, QueryOptions, RotaryTable, StopFlag};
+use lab_support::*;
+use polycal::lab::run::{self, Instruments, Outcome, RunDir, RunError, RunSettings};
+use polycal::lab::sim::{DeviceId, Devices, Endpoint, Fault, FaultKind, FaultProblem};
+use polycal::lab::{Autocollimator, InstrumentError, RotaryTable, StopFlag};
 use polycal::measurement::MeasurementSet;
-use polycal::simulate::{SimulationConfig, Truth};
+use polycal::simulate::Truth;
 use polycal::solve::{self, SolveOptions};
-
-type Ac = Elcomat3000<StreamTransport<SimStream>>;
-type Table = Smc100<StreamTransport<SimStream>>;
-
-fn lab(faces: usize, noise: f64, faults: Vec<Fault>) -> LabConfig {
-    LabConfig::new(SimulationConfig {
-        faces,
-        noise_arcsec: noise,
-        cycles: 2,
-        closing: true,
-        seed: 7,
-        ..SimulationConfig::default()
-    })
-    .with_time_scale(0.0)
-    .with_faults(faults)
-}
-
-fn query() -> QueryOptions {
-    QueryOptions::new(Duration::from_millis(20), 3)
-}
-
-fn drivers(devices: Devices, stop: &StopFlag) -> (Ac, Ac, Table, Truth) {
-    let truth = devices.truth();
-    let Devices {
-        ac1, ac2, table, ..
-    } = devices;
-    let ac = |name: &str, e: Endpoint| {
-        Elcomat3000::new(StreamTransport::new(name, SimStream::new(e)), query())
-            .with_drain(Duration::ZERO)
-    };
-    let table = Smc100::new(
-        StreamTransport::new("mem:table", SimStream::new(table)),
-        Smc100Options::new(query()).with_poll_interval(Duration::from_millis(1)),
-    )
-    .with_stop_flag(stop.clone());
-    (ac("mem:ac1", ac1), ac("mem:ac2", ac2), table, truth)
-}
 
 fn reply(endpoint: &mut Endpoint, command: &str) -> String {
     String::from_utf8(endpoint.input(command.as_bytes(), Instant::now())).unwrap()
-}
-
-fn expected(truth: &Truth, step: usize, ac: u32) -> f64 {
-    let n = truth.faces;
-    let face = (step + ac as usize - 1) % n + 1;
-    truth.encoder_error[step % n]
-        + truth.face_deviation_at(face)
-        + truth.setup_error_of(1, ac).unwrap_or(0.0)
 }
 
 #[test]
@@ -287,20 +240,10 @@ fn fault_specs() {
     );
 }
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("polycal-inst-run-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
-
 fn settings(faces: usize, cycles: u32, bidirectional: bool) -> RunSettings {
     RunSettings::new(faces, cycles)
         .with_closing(true)
         .with_bidirectional(bidirectional)
-}
-
-fn ports() -> Ports {
-    Ports::new("mem:ac1", "mem:ac2", "mem:table")
 }
 
 /// Runs (or resumes) in process; `stop_after` readings of this session ask for a stop.

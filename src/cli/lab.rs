@@ -5,8 +5,9 @@ use std::io::{Read, Write};
 use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Result, anyhow, bail};
 use clap::ValueEnum;
+use polycal::lab::QueryOptions;
 use polycal::lab::elcomat::Elcomat3000;
 use polycal::lab::run::{
     self, Instruments, Outcome, Ports, Progress, RunDir, RunError, RunSettings,
@@ -17,8 +18,8 @@ use polycal::lab::sim::Lab;
 use polycal::lab::sim::{Devices, Fault, LabConfig};
 use polycal::lab::smc100::{Smc100, Smc100Options};
 use polycal::lab::traffic::{LoggedTransport, TrafficLog};
-use polycal::lab::{QueryOptions, StopFlag};
 
+use super::interrupt::Interrupts;
 use super::output::{self, Output};
 use super::with_hint;
 
@@ -148,33 +149,59 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
     settings.validate().map_err(|e| anyhow!("--{e}"))?;
     let query = QueryOptions::new(seconds("timeout", args.timeout)?, 3);
     let motion_timeout = seconds("motion-timeout", args.motion_timeout)?;
+    let interrupts = Interrupts::install(
+        out,
+        args.out.join(run::MEASUREMENTS),
+        settings.reading_count(),
+    )?;
+    let result = run_session(args, out, &settings, query, motion_timeout, &interrupts);
+    // From here on a second Ctrl-C leaves the last line to this run.
+    interrupts.ending();
+    result
+}
+
+/// The session of `polycal run` after its arguments were checked.
+fn run_session(
+    args: &RunArgs,
+    out: &Output,
+    settings: &RunSettings,
+    query: QueryOptions,
+    motion_timeout: Duration,
+    interrupts: &Interrupts,
+) -> Result<u8> {
     let ports = Ports::new(args.ac1.clone(), args.ac2.clone(), args.table.clone());
-
-    let stop = StopFlag::new();
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        // A second Ctrl-C ends the process at once (status 130); the first asks the run
-        // to stop the table and finish its files.
-        signal_hook::flag::register_conditional_shutdown(signal, 130, stop.shared())
-            .context("cannot install the Ctrl-C handler")?;
-        signal_hook::flag::register(signal, stop.shared())
-            .context("cannot install the Ctrl-C handler")?;
-    }
-
-    let mut dir = RunDir::open(&args.out, &settings, &ports, args.resume).map_err(open_hint)?;
+    let stop = interrupts.stop_flag();
+    let mut dir = RunDir::open(&args.out, settings, &ports, args.resume).map_err(open_hint)?;
+    interrupts.run_dir_opened(dir.abort_handle());
     for warning in dir.warnings() {
         out.warning(warning);
     }
-    let out_dir = args.out.display().to_string();
+    let file = args.out.join(run::MEASUREMENTS);
     if dir.remaining().is_empty() {
-        dir.finish(&Outcome::Completed)?;
+        dir.finish(&Outcome::Completed).map_err(|e| {
+            anyhow!(
+                "{e}; the run is complete ({} readings in {}), but the manifest could not record it; \
+                 run the same command again once it can be written",
+                dir.readings_done(),
+                file.display()
+            )
+        })?;
         out.info(format_args!(
-            "polycal run: {out_dir}: the run is complete ({} readings); nothing to do",
+            "polycal run: {}: the run is complete ({} readings); nothing to do",
+            args.out.display(),
             dir.readings_done()
         ));
         return Ok(0);
     }
 
-    let log = dir.traffic_log()?;
+    let log = match dir.traffic_log() {
+        Ok(log) => log,
+        Err(e) => {
+            let outcome = Outcome::FileError(e.to_string());
+            let recorded = dir.finish(&outcome);
+            return ended(args, out, &dir, &outcome, recorded, 0);
+        }
+    };
     log.record(
         "",
         "",
@@ -214,8 +241,14 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
         Ok(ports) => ports,
         Err(e) => {
             let outcome = Outcome::InstrumentError(e.clone());
-            dir.finish(&outcome)?;
-            bail!("{e}; nothing was measured in this session ({out_dir})");
+            let note = match dir.finish(&outcome) {
+                Ok(()) => String::new(),
+                Err(e) => format!("; the manifest could not record it ({e})"),
+            };
+            bail!(
+                "{e}; nothing was measured in this session ({}){note}",
+                args.out.display()
+            );
         }
     };
     let mut ac1 = Elcomat3000::new(ac1, query);
@@ -228,6 +261,7 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
 
     let bar = out.bar();
     bar.set_style(output::style("[{bar:30}] {msg}"));
+    interrupts.show_progress(&bar);
     let mut on_progress = |p: &Progress| show_progress(&bar, p);
     let before = dir.readings_done();
     let outcome = run::measure(
@@ -237,32 +271,65 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
             ac2: &mut ac2,
             table: &mut table,
         },
-        &stop,
+        stop,
         Some(&log),
         &mut on_progress,
     );
     bar.finish_and_clear();
     let outcome = outcome?;
-    dir.finish(&outcome)?;
+    let recorded = dir.finish(&outcome);
+    ended(args, out, &dir, &outcome, recorded, before)
+}
+
+/// The end of a session: its summary (status 0) or its `error:` line, which says when
+/// the manifest could not record the outcome (`recorded`); `before`: readings on disk
+/// when the session started.
+fn ended(
+    args: &RunArgs,
+    out: &Output,
+    dir: &RunDir,
+    outcome: &Outcome,
+    recorded: Result<(), RunError>,
+    before: usize,
+) -> Result<u8> {
     let done = dir.readings_done();
-    let total = settings.reading_count();
-    let taken = done - before;
+    let total = dir.manifest().expected_readings;
+    let file = args.out.join(run::MEASUREMENTS);
     let kept = format!(
         "{done} of {total} readings are in {}; continue with the same command and --resume",
-        args.out.join(run::MEASUREMENTS).display()
+        file.display()
     );
-    match outcome {
+    let what = match outcome {
         Outcome::Completed => {
+            if let Err(e) = recorded {
+                bail!(
+                    "{e}; all {done} readings are in {}, but the manifest could not record that \
+                     the run is complete; run the same command with --resume once it can be written",
+                    file.display()
+                );
+            }
             out.info(format_args!(
-                "polycal run: completed: {taken} readings taken, {done} in {}",
-                args.out.join(run::MEASUREMENTS).display()
+                "polycal run: completed: {} readings taken, {done} in {}",
+                done - before,
+                file.display()
             ));
-            Ok(0)
+            return Ok(0);
         }
-        Outcome::Interrupted => bail!("run interrupted (table stopped); {kept}"),
-        Outcome::InstrumentError(message) => bail!("{message}; the run stopped; {kept}"),
-        Outcome::FileError(message) => bail!("{message}; the run stopped; {kept}"),
-    }
+        Outcome::Interrupted => "run interrupted (table stopped)".to_string(),
+        Outcome::InstrumentError(message) | Outcome::FileError(message) => {
+            format!("{message}; the run stopped")
+        }
+    };
+    let note = match recorded {
+        Ok(()) => String::new(),
+        // The same error as the one that stopped the run is not told twice.
+        Err(RunError::Io { path, source }) if what.contains(&source.to_string()) => format!(
+            "; the manifest could not record it either ({})",
+            path.display()
+        ),
+        Err(e) => format!("; the manifest could not record it ({e})"),
+    };
+    bail!("{what}{note}; {kept}")
 }
 
 /// Why a run directory was refused, with the option that gets past it: `--resume` for a
@@ -290,6 +357,7 @@ fn open_hint(error: RunError) -> anyhow::Error {
             started.differences(&requested).join(", ")
         ),
         RunError::Settings { path, error } => anyhow!("{}: --{error}", path.display()),
+        RunError::NotADirectory { .. } => anyhow!("{error}; choose another --out"),
         error => error.into(),
     }
 }

@@ -7,6 +7,8 @@ mod compare;
 mod diagnose;
 mod docs;
 #[cfg(feature = "lab")]
+mod interrupt;
+#[cfg(feature = "lab")]
 mod lab;
 pub mod output;
 mod report;

@@ -32,7 +32,10 @@
 //! - [`sim`]: state machines speaking both protocols, fed by the simulator's truth model,
 //!   served on pseudo-terminals by `polycal sim-lab`;
 //! - [`run`]: the run procedure: its settings and plan, the run directory and its
-//!   manifest, resuming an interrupted run, and the measuring loop.
+//!   manifest, resuming an interrupted run, and the measuring loop;
+//! - `disk`: the run directory's files on a disk that can fill up: lines appended whole
+//!   or cut back to the last whole line, and [`WriteBudget`], a byte budget that fails
+//!   as a full disk does (for tests).
 //!
 //! # Retries and motion
 //!
@@ -69,6 +72,7 @@
 //! # Ok::<(), polycal::lab::InstrumentError>(())
 //! ```
 
+mod disk;
 pub mod elcomat;
 mod error;
 mod instruments;
@@ -82,6 +86,7 @@ mod stop;
 pub mod traffic;
 pub mod transport;
 
+pub use disk::WriteBudget;
 pub use error::{InstrumentError, ReplyError};
 pub use instruments::{AcReading, Autocollimator, RotaryTable};
 pub use query::QueryOptions;

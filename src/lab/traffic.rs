@@ -16,15 +16,18 @@
 //!   says which).
 //!
 //! Each record is written with one `write` call straight to the file, so that a killed
-//! process leaves every record it made; [`TrafficLog::sync`] puts them on disk.
+//! process leaves every record it made; [`TrafficLog::sync`] puts them on disk. A record
+//! that cannot be written (a full disk) is cut back out of the file, so that the log ends
+//! on a whole line, and nothing more is recorded: [`TrafficLog::check`] and
+//! [`TrafficLog::sync`] give the error, and the run stops (docs/FORMAT.md §7.3).
 
-use std::fs::{File, OpenOptions};
 use std::io::{self, Write};
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use super::InstrumentError;
+use super::disk::{LineFile, WriteBudget};
 use super::transport::Transport;
 
 /// The run's clock: seconds since the run started, monotonic within one process.
@@ -50,16 +53,24 @@ impl RunClock {
     }
 }
 
+/// Where the records go.
+enum Sink {
+    /// Any writer (e.g. memory).
+    Writer(Box<dyn Write + Send>),
+    /// A file, line by line.
+    File(LineFile),
+}
+
 struct LogInner {
-    writer: Box<dyn Write + Send>,
-    file: Option<File>,
+    sink: Sink,
     error: Option<io::Error>,
 }
 
 /// A shared, cloneable traffic log (JSON Lines, see the [module documentation](self)).
 ///
-/// Write errors do not disturb the instruments: the first one is kept and returned by
-/// [`TrafficLog::sync`], which the run calls before every move.
+/// Write errors do not disturb the instruments: the first one is kept (and nothing more
+/// is written) and returned by [`TrafficLog::check`] and [`TrafficLog::sync`], which the
+/// run calls after every exchange and before every move.
 #[derive(Clone)]
 pub struct TrafficLog {
     inner: Arc<Mutex<LogInner>>,
@@ -79,27 +90,41 @@ impl TrafficLog {
     pub fn new(writer: impl Write + Send + 'static, clock: RunClock) -> TrafficLog {
         TrafficLog {
             inner: Arc::new(Mutex::new(LogInner {
-                writer: Box::new(writer),
-                file: None,
+                sink: Sink::Writer(Box::new(writer)),
                 error: None,
             })),
             clock,
         }
     }
 
-    /// A log appending to the file at `path` (created if missing).
+    /// A log appending to the file at `path` (created if missing), which must end on a
+    /// whole line.
     ///
     /// # Errors
     ///
     /// Any error creating or opening the file.
     pub fn append_to(path: &Path, clock: RunClock) -> io::Result<TrafficLog> {
-        let file = OpenOptions::new().create(true).append(true).open(path)?;
-        let sync_handle = file.try_clone()?;
-        let log = TrafficLog::new(file, clock);
-        if let Ok(mut inner) = log.inner.lock() {
-            inner.file = Some(sync_handle);
-        }
-        Ok(log)
+        TrafficLog::append_to_with_budget(path, clock, &WriteBudget::unlimited())
+    }
+
+    /// As [`TrafficLog::append_to`], writing through `budget` (a full disk, simulated).
+    ///
+    /// # Errors
+    ///
+    /// Any error creating or opening the file.
+    pub fn append_to_with_budget(
+        path: &Path,
+        clock: RunClock,
+        budget: &WriteBudget,
+    ) -> io::Result<TrafficLog> {
+        let file = LineFile::open(path, false, budget)?;
+        Ok(TrafficLog {
+            inner: Arc::new(Mutex::new(LogInner {
+                sink: Sink::File(file),
+                error: None,
+            })),
+            clock,
+        })
     }
 
     /// The log's clock.
@@ -122,13 +147,33 @@ impl TrafficLog {
             if inner.error.is_some() {
                 return;
             }
-            if let Err(e) = inner
-                .writer
-                .write_all(line.as_bytes())
-                .and_then(|()| inner.writer.flush())
-            {
+            let written = match &mut inner.sink {
+                Sink::Writer(w) => w.write_all(line.as_bytes()).and_then(|()| w.flush()),
+                Sink::File(file) => file.append_line(line.as_bytes()),
+            };
+            if let Err(e) = written {
                 inner.error = Some(e);
             }
+        }
+    }
+
+    /// The first write error, if any (without putting anything on disk).
+    ///
+    /// # Errors
+    ///
+    /// The first write error.
+    pub fn check(&self) -> io::Result<()> {
+        let inner = self
+            .inner
+            .lock()
+            .map_err(|_| io::Error::other("the traffic log's lock is poisoned"))?;
+        match &inner.error {
+            // An `io::Error` cannot be cloned: the same kind and text.
+            Some(e) => Err(match e.raw_os_error() {
+                Some(code) => io::Error::from_raw_os_error(code),
+                None => io::Error::new(e.kind(), e.to_string()),
+            }),
+            None => Ok(()),
         }
     }
 
@@ -139,18 +184,14 @@ impl TrafficLog {
     ///
     /// The first write error, or the error of the sync.
     pub fn sync(&self) -> io::Result<()> {
-        let mut inner = self
+        self.check()?;
+        let inner = self
             .inner
             .lock()
             .map_err(|_| io::Error::other("the traffic log's lock is poisoned"))?;
-        if let Some(e) = inner.error.take() {
-            let copy = io::Error::new(e.kind(), e.to_string());
-            inner.error = Some(e);
-            return Err(copy);
-        }
-        match &inner.file {
-            Some(file) => file.sync_data(),
-            None => Ok(()),
+        match &inner.sink {
+            Sink::File(file) => file.sync_data(),
+            Sink::Writer(_) => Ok(()),
         }
     }
 }

@@ -2,16 +2,20 @@
 //! session, and the measurement file each reading is appended and synced to.
 
 use std::collections::BTreeSet;
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, Write};
+use std::fs::{self, File};
+use std::io;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
+use super::abort::{self, AbortHandle, OnDisk, Shared};
 use super::error::io_error;
 use super::manifest::software;
 use super::{
-    Identification, MANIFEST_FORMAT, Manifest, Outcome, Ports, RunError, RunSettings, Session,
-    rfc3339, unix_now,
+    Identification, MANIFEST_FORMAT, Manifest, Outcome, Ports, RunError, RunSettings, rfc3339,
+    unix_now,
 };
+use crate::lab::WriteBudget;
+use crate::lab::disk::LineFile;
 use crate::lab::traffic::{RunClock, TrafficLog};
 use crate::measurement::{Column, Columns, Reading, ReadingWriter, Stop};
 
@@ -43,53 +47,120 @@ pub const COLUMNS: [Column; 10] = [
 pub struct RunDir {
     pub(super) dir: PathBuf,
     pub(super) manifest: Manifest,
-    pub(super) measurements: ReadingWriter<File>,
+    pub(super) measurements: ReadingWriter<LineFile>,
     pub(super) done: BTreeSet<(u32, usize, u32)>,
     pub(super) clock: RunClock,
     pub(super) session_open: bool,
     pub(super) session_readings_before: usize,
     pub(super) warnings: Vec<String>,
+    pub(super) budget: WriteBudget,
+    /// What is on disk, shared with the [`AbortHandle`]s.
+    pub(super) shared: Shared,
 }
 
 impl RunDir {
     /// Opens `dir` for a new run (`resume` false) or to continue one (`resume` true).
     ///
-    /// A new run refuses a directory that already holds a run (a manifest or a
-    /// measurement file) and creates the directory, the manifest (outcome `running`) and
-    /// the measurement file's header. Either way the measurement file is locked for as
-    /// long as the `RunDir` lives: a directory another run is using is refused. A resumed
-    /// run refuses a directory without a manifest, a manifest whose settings differ from
-    /// `settings`, and a measurement file that is not the first readings of the run in
-    /// order; a last line cut short (no line feed) is removed, with a warning
-    /// ([`RunDir::warnings`]).
+    /// A path that is a file, not a directory, is refused. A new run refuses a directory
+    /// that already holds a run (a manifest or a measurement file) and creates the
+    /// directory, the measurement file's header and the manifest (outcome `running`); if
+    /// that fails (a full disk), the files it created are removed again
+    /// ([`RunError::NotStarted`]), so that the same run can start once the cause is gone.
+    /// Either way the measurement file is locked for as long as the `RunDir` lives: a
+    /// directory another run is using is refused. A resumed run refuses a directory
+    /// without a manifest, a manifest whose settings differ from `settings`, and a
+    /// measurement file that is not the first readings of the run in order; a last line
+    /// cut short (no line feed) in the measurement file or the traffic log is removed,
+    /// with a warning ([`RunDir::warnings`]).
     ///
     /// # Errors
     ///
-    /// A refusal ([`RunError::is_refusal`]) or [`RunError::Io`], naming the file.
+    /// A refusal ([`RunError::is_refusal`]), [`RunError::NotStarted`] or
+    /// [`RunError::Io`], naming the file.
     pub fn open(
         dir: &Path,
         settings: &RunSettings,
         ports: &Ports,
         resume: bool,
     ) -> Result<RunDir, RunError> {
+        RunDir::open_with_budget(dir, settings, ports, resume, &WriteBudget::unlimited())
+    }
+
+    /// As [`RunDir::open`], with every file of the run directory (the measurement file,
+    /// the manifest and the traffic log of [`RunDir::traffic_log`]) written through
+    /// `budget`: a full disk, simulated.
+    ///
+    /// # Errors
+    ///
+    /// As [`RunDir::open`].
+    pub fn open_with_budget(
+        dir: &Path,
+        settings: &RunSettings,
+        ports: &Ports,
+        resume: bool,
+        budget: &WriteBudget,
+    ) -> Result<RunDir, RunError> {
         settings.validate().map_err(|error| RunError::Settings {
             path: dir.to_path_buf(),
             error,
         })?;
+        if fs::metadata(dir).is_ok_and(|m| !m.is_dir()) {
+            return Err(RunError::NotADirectory {
+                path: dir.to_path_buf(),
+            });
+        }
         if resume {
-            RunDir::resume(dir, settings, ports)
+            RunDir::resume(dir, settings, ports, budget)
         } else {
-            RunDir::create(dir, settings, ports)
+            RunDir::create(dir, settings, ports, budget)
         }
     }
 
-    fn create(dir: &Path, settings: &RunSettings, ports: &Ports) -> Result<RunDir, RunError> {
+    /// A run directory of `manifest`, with the measurement file open after its header.
+    pub(super) fn assemble(
+        dir: &Path,
+        manifest: Manifest,
+        measurements: ReadingWriter<LineFile>,
+        done: BTreeSet<(u32, usize, u32)>,
+        clock: RunClock,
+        warnings: Vec<String>,
+        budget: &WriteBudget,
+    ) -> RunDir {
+        let shared = Arc::new(Mutex::new(OnDisk {
+            manifest: manifest.clone(),
+            session_in_manifest: false,
+            readings_before: done.len(),
+            readings: done.len(),
+            ended: false,
+            closed: false,
+        }));
+        RunDir {
+            dir: dir.to_path_buf(),
+            manifest,
+            measurements,
+            session_readings_before: done.len(),
+            done,
+            clock,
+            session_open: false,
+            warnings,
+            budget: budget.clone(),
+            shared,
+        }
+    }
+
+    fn create(
+        dir: &Path,
+        settings: &RunSettings,
+        ports: &Ports,
+        budget: &WriteBudget,
+    ) -> Result<RunDir, RunError> {
         for name in [MANIFEST, MEASUREMENTS] {
             let path = dir.join(name);
             if path.exists() {
                 return Err(RunError::AlreadyHoldsRun { path });
             }
         }
+        let made_dir = !dir.exists();
         fs::create_dir_all(dir).map_err(io_error(dir))?;
         let now = unix_now();
         let manifest = Manifest {
@@ -107,25 +178,24 @@ impl RunDir {
             sessions: Vec::new(),
         };
         let path = dir.join(MEASUREMENTS);
-        let file = OpenOptions::new()
-            .create_new(true)
-            .append(true)
-            .open(&path)
-            .map_err(io_error(&path))?;
-        lock_exclusive(&file, &path)?;
-        let measurements = start_file(file, &path, &[first_comment(&manifest)])?;
-        let mut run = RunDir {
-            dir: dir.to_path_buf(),
-            manifest,
-            measurements,
-            done: BTreeSet::new(),
-            clock: RunClock::new(0.0),
-            session_open: false,
-            session_readings_before: 0,
-            warnings: Vec::new(),
-        };
-        run.write_manifest()?;
-        Ok(run)
+        let file = LineFile::open(&path, true, budget)
+            .map_err(|e| not_started(dir, made_dir, None, io_error(&path)(e)))?;
+        let started = (|| {
+            lock_exclusive(file.file(), &path)?;
+            let measurements = start_file(file, &[first_comment(&manifest)])?;
+            let mut run = RunDir::assemble(
+                dir,
+                manifest,
+                measurements,
+                BTreeSet::new(),
+                RunClock::new(0.0),
+                Vec::new(),
+                budget,
+            );
+            run.write_manifest(false)?;
+            Ok(run)
+        })();
+        started.map_err(|e| not_started(dir, made_dir, Some(&path), e))
     }
 
     /// Warnings found while opening (a cut-short last line removed).
@@ -169,14 +239,26 @@ impl RunDir {
             .collect()
     }
 
-    /// Opens the traffic log (appending) on the run's clock.
+    /// Opens the traffic log (appending) on the run's clock, written through the run
+    /// directory's budget.
     ///
     /// # Errors
     ///
     /// [`RunError::Io`] naming the file.
     pub fn traffic_log(&self) -> Result<TrafficLog, RunError> {
         let path = self.dir.join(TRAFFIC);
-        TrafficLog::append_to(&path, self.clock).map_err(io_error(&path))
+        TrafficLog::append_to_with_budget(&path, self.clock, &self.budget).map_err(io_error(&path))
+    }
+
+    /// A handle that ends this run directory's writing from another thread, recording
+    /// `interrupted` in the manifest: for a process that must end at once (a second
+    /// Ctrl-C).
+    pub fn abort_handle(&self) -> AbortHandle {
+        AbortHandle {
+            dir: self.dir.clone(),
+            budget: self.budget.clone(),
+            shared: Arc::clone(&self.shared),
+        }
     }
 
     /// Records the instruments and starts this session in the manifest. On a resumed
@@ -208,40 +290,42 @@ impl RunDir {
         }
         self.manifest.instruments = Some(identification);
         self.open_session();
-        self.write_manifest()
+        self.write_manifest(false)
     }
 
     fn open_session(&mut self) {
-        if self.session_open {
-            return;
+        if !self.session_open {
+            self.session_open = true;
+            self.manifest.open_session(self.session_readings_before);
         }
-        self.session_open = true;
-        self.manifest.software = software();
-        self.manifest.outcome = "running".into();
-        self.manifest.ended = None;
-        self.manifest.sessions.push(Session {
-            software: software(),
-            started: rfc3339(unix_now()),
-            ended: None,
-            outcome: "running".into(),
-            ports: self.manifest.ports.clone(),
-            readings_before: self.session_readings_before,
-            readings_after: self.session_readings_before,
-        });
     }
 
-    /// Appends one reading to the measurement file and syncs it to disk.
+    /// Appends one reading to the measurement file and syncs it to disk. When that
+    /// fails, the file is cut back to its last whole line: the reading is not on disk.
     ///
     /// # Errors
     ///
-    /// [`RunError::Io`] naming the file.
+    /// [`RunError::Io`] naming the file; [`RunError::Closed`] after an
+    /// [`AbortHandle::abort`].
     pub fn append(&mut self, reading: &Reading) -> Result<(), RunError> {
         let path = self.dir.join(MEASUREMENTS);
-        self.measurements
+        let mut on_disk = abort::lock(&self.shared);
+        if on_disk.closed {
+            return Err(RunError::Closed { path });
+        }
+        let written = self
+            .measurements
             .write(reading)
-            .and_then(|()| self.measurements.get_ref().sync_data())
-            .map_err(io_error(&path))?;
+            .and_then(|()| self.measurements.get_ref().sync_data());
+        if let Err(e) = written {
+            // The write's error is the one to tell; a cut line left behind (the file
+            // could not be cut back) is removed by a resumed run.
+            let _ = self.measurements.get_mut().rollback();
+            return Err(io_error(&path)(e));
+        }
+        self.measurements.get_mut().commit();
         self.done.insert((reading.cycle, reading.step, reading.ac));
+        on_disk.readings = self.done.len();
         Ok(())
     }
 
@@ -255,42 +339,52 @@ impl RunDir {
     ///
     /// # Errors
     ///
-    /// [`RunError::Io`] when the manifest cannot be written.
+    /// [`RunError::Io`] when the manifest cannot be written (the manifest on disk is
+    /// the one before); [`RunError::Closed`] after an [`AbortHandle::abort`].
     pub fn finish(&mut self, outcome: &Outcome) -> Result<(), RunError> {
         self.open_session();
-        let now = rfc3339(unix_now());
-        let text = outcome.to_string();
-        self.manifest.outcome = text.clone();
-        self.manifest.ended = Some(now.clone());
-        self.manifest.readings = self.done.len();
-        if let Some(session) = self.manifest.sessions.last_mut() {
-            session.ended = Some(now);
-            session.outcome = text;
-            session.readings_after = self.done.len();
-        }
-        self.write_manifest()
+        self.manifest
+            .end_session(&outcome.to_string(), self.done.len());
+        self.write_manifest(true)
     }
 
-    /// Replaces the manifest atomically: written beside, synced, renamed.
-    pub(super) fn write_manifest(&mut self) -> Result<(), RunError> {
+    /// Replaces the manifest atomically (written beside, synced, renamed); `ends`: it
+    /// records the end of this session.
+    pub(super) fn write_manifest(&mut self, ends: bool) -> Result<(), RunError> {
         self.manifest.readings = self.done.len();
-        let path = self.dir.join(MANIFEST);
-        let tmp = self.dir.join(format!("{MANIFEST}.tmp"));
-        let text = serde_json::to_string_pretty(&self.manifest).map_err(|e| RunError::Io {
-            path: path.clone(),
-            source: io::Error::other(e),
-        })? + "\n";
-        let write = || -> io::Result<()> {
-            let mut file = File::create(&tmp)?;
-            file.write_all(text.as_bytes())?;
-            file.sync_all()?;
-            fs::rename(&tmp, &path)?;
-            if let Ok(d) = File::open(&self.dir) {
-                let _ = d.sync_all();
-            }
-            Ok(())
-        };
-        write().map_err(io_error(&path))
+        let mut on_disk = abort::lock(&self.shared);
+        if on_disk.closed {
+            return Err(RunError::Closed {
+                path: self.dir.join(MANIFEST),
+            });
+        }
+        self.manifest.write_to(&self.dir, &self.budget)?;
+        on_disk.manifest = self.manifest.clone();
+        on_disk.session_in_manifest = self.session_open;
+        on_disk.ended = ends;
+        Ok(())
+    }
+}
+
+/// A new run in `dir` that could not start (`error`): removes the measurement file it
+/// created (`created`) and the directory if it made it (`made_dir`) and nothing else is
+/// in it. An I/O failure becomes [`RunError::NotStarted`], naming what could not be
+/// removed.
+fn not_started(dir: &Path, made_dir: bool, created: Option<&Path>, error: RunError) -> RunError {
+    let mut left = Vec::new();
+    if let Some(path) = created
+        && let Err(e) = fs::remove_file(path)
+        && e.kind() != io::ErrorKind::NotFound
+    {
+        left.push(path.to_path_buf());
+    }
+    if made_dir && left.is_empty() {
+        // Only an empty directory is removed: anything else in it is not this run's.
+        let _ = fs::remove_dir(dir);
+    }
+    match error {
+        RunError::Io { path, source } => RunError::NotStarted { path, source, left },
+        other => other,
     }
 }
 
@@ -305,16 +399,23 @@ pub(super) fn first_comment(manifest: &Manifest) -> String {
     )
 }
 
-/// Writes `comments` and the header to the measurement file `file` (at `path`), which
-/// holds no header yet, syncs them, and returns the writer for the readings.
+/// Writes `comments` and the header to the measurement file `file`, which holds no
+/// header yet, syncs them, and returns the writer for the readings. When that fails, the
+/// file is cut back to what it held.
 pub(super) fn start_file(
-    file: File,
-    path: &Path,
+    mut file: LineFile,
     comments: &[String],
-) -> Result<ReadingWriter<File>, RunError> {
-    ReadingWriter::start(file, Columns::new(COLUMNS), comments)
-        .and_then(|w| w.get_ref().sync_data().map(|()| w))
-        .map_err(io_error(path))
+) -> Result<ReadingWriter<LineFile>, RunError> {
+    let columns = Columns::new(COLUMNS);
+    let started = ReadingWriter::start(&mut file, columns.clone(), comments)
+        .map(drop)
+        .and_then(|()| file.sync_data());
+    if let Err(e) = started {
+        let _ = file.rollback();
+        return Err(io_error(file.path())(e));
+    }
+    file.commit();
+    Ok(ReadingWriter::resume(file, columns))
 }
 
 /// Without flock, no lock (other systems).

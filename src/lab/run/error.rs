@@ -20,6 +20,12 @@ pub enum RunError {
         /// Which setting, and why.
         error: SettingsError,
     },
+    /// A run directory that is a file.
+    #[error("{}: is a file, not a directory", path.display())]
+    NotADirectory {
+        /// The path.
+        path: PathBuf,
+    },
     /// A new run in a directory that already holds one.
     #[error("{}: this directory already holds a run", path.display())]
     AlreadyHoldsRun {
@@ -129,13 +135,54 @@ pub enum RunError {
         #[source]
         source: io::Error,
     },
+    /// A new run could not create or write its files (e.g. a full disk): nothing was
+    /// measured, and the files it had created were removed again, so that the same run
+    /// can start once the cause is gone.
+    #[error("{}: {source}; the run could not start (nothing was measured){}", path.display(), left_behind(left))]
+    NotStarted {
+        /// The file that could not be created or written.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: io::Error,
+        /// Files it created that could not be removed (empty when all were).
+        left: Vec<PathBuf>,
+    },
+    /// A write of the run directory still under way when it was to be aborted.
+    #[error("{}: a write was still under way", path.display())]
+    Busy {
+        /// The manifest.
+        path: PathBuf,
+    },
+    /// A write after the run directory was closed by an abort.
+    #[error("{}: not written: the run was stopped at once", path.display())]
+    Closed {
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+/// How [`RunError::NotStarted`] ends: what it left behind, if anything.
+fn left_behind(left: &[PathBuf]) -> String {
+    if left.is_empty() {
+        "; its files were removed".into()
+    } else {
+        let names: Vec<String> = left.iter().map(|p| p.display().to_string()).collect();
+        format!("; remove {} before starting it again", names.join(", "))
+    }
 }
 
 impl RunError {
-    /// Whether the directory or its files were refused (everything but an I/O failure):
-    /// nothing was changed that could lose data.
+    /// Whether the directory or its files were refused (everything but a failure to
+    /// read or write): nothing was changed that could lose data.
     pub fn is_refusal(&self) -> bool {
-        !matches!(self, RunError::Io { .. })
+        !matches!(
+            self,
+            RunError::Io { .. }
+                | RunError::NotStarted { .. }
+                | RunError::Busy { .. }
+                | RunError::Closed { .. }
+        )
     }
 }
 

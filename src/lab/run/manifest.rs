@@ -1,11 +1,17 @@
 //! The run's manifest (`manifest.json`): its settings, the instruments, the ports, how
-//! each session ended; and the time stamps it is written with.
+//! each session ended; the time stamps it is written with, and how it is replaced.
 
 pub use crate::clock::{rfc3339, unix_now};
 
+use std::fs::{self, File};
+use std::io::{self, Write};
+use std::path::Path;
+
 use serde::{Deserialize, Serialize};
 
-use super::RunSettings;
+use super::error::io_error;
+use super::{MANIFEST, RunError, RunSettings};
+use crate::lab::WriteBudget;
 
 /// The manifest format tag.
 pub const MANIFEST_FORMAT: &str = "polycal-run/1";
@@ -114,4 +120,64 @@ pub struct Manifest {
 /// The software of this build, e.g. `polycal 0.1.0`.
 pub(super) fn software() -> String {
     format!("polycal {}", env!("CARGO_PKG_VERSION"))
+}
+
+impl Manifest {
+    /// Starts a session of this software on the manifest's ports, with `readings_before`
+    /// readings on disk: the outcome is `running` again.
+    pub(super) fn open_session(&mut self, readings_before: usize) {
+        self.software = software();
+        self.outcome = "running".into();
+        self.ended = None;
+        self.sessions.push(Session {
+            software: software(),
+            started: rfc3339(unix_now()),
+            ended: None,
+            outcome: "running".into(),
+            ports: self.ports.clone(),
+            readings_before,
+            readings_after: readings_before,
+        });
+    }
+
+    /// Records that the latest session ended now with `outcome`, `readings` on disk.
+    pub(super) fn end_session(&mut self, outcome: &str, readings: usize) {
+        let now = rfc3339(unix_now());
+        self.outcome = outcome.to_string();
+        self.ended = Some(now.clone());
+        self.readings = readings;
+        if let Some(session) = self.sessions.last_mut() {
+            session.ended = Some(now);
+            session.outcome = outcome.to_string();
+            session.readings_after = readings;
+        }
+    }
+
+    /// Replaces `dir`'s manifest with this one atomically: written beside (through
+    /// `budget`), synced, renamed. A failed write leaves the manifest that was there and
+    /// removes what it wrote beside.
+    pub(super) fn write_to(&self, dir: &Path, budget: &WriteBudget) -> Result<(), RunError> {
+        let path = dir.join(MANIFEST);
+        let tmp = dir.join(format!("{MANIFEST}.tmp"));
+        let text = serde_json::to_string_pretty(self).map_err(|e| RunError::Io {
+            path: path.clone(),
+            source: io::Error::other(e),
+        })? + "\n";
+        let write = || -> io::Result<()> {
+            let file = File::create(&tmp)?;
+            let mut out = budget.writer(MANIFEST, &file);
+            out.write_all(text.as_bytes())?;
+            file.sync_all()?;
+            fs::rename(&tmp, &path)?;
+            if let Ok(d) = File::open(dir) {
+                let _ = d.sync_all();
+            }
+            Ok(())
+        };
+        write().map_err(|e| {
+            // Whatever was written beside goes, so that the space it took is free again.
+            let _ = fs::remove_file(&tmp);
+            io_error(&path)(e)
+        })
+    }
 }

@@ -93,11 +93,17 @@ pub struct Progress {
 /// again. Returns how the session ended; on anything but completion the table is sent a
 /// stop. The manifest is not finished here: call [`RunDir::finish`].
 ///
+/// The first write that fails ends the session with [`Outcome::FileError`]: a reading
+/// that cannot be appended (the measurement file is cut back to its last whole line, and
+/// the message gives the reading), the traffic log (checked after every exchange with an
+/// instrument, so that every reading on disk has its traffic logged; a reading taken
+/// after the log failed is not appended, and the message gives it) or the manifest when
+/// the session starts.
+///
 /// # Errors
 ///
 /// [`RunError::OtherInstruments`] when a resumed run meets other instruments than it
-/// started with (nothing was measured then), [`RunError::Io`] when the manifest cannot
-/// be written at the start.
+/// started with (nothing was measured then).
 pub fn measure(
     run: &mut RunDir,
     instruments: Instruments<'_>,
@@ -113,8 +119,17 @@ pub fn measure(
             return Ok(Outcome::from_instrument(role, e));
         }
     };
-    run.begin_session(identification)?;
-    let outcome = measure_stops(run, ac1, ac2, table, stop_flag, traffic, progress);
+    let outcome = match run.begin_session(identification) {
+        Ok(()) => match log_failure(run, traffic) {
+            Some(failed) => failed,
+            None => measure_stops(run, ac1, ac2, table, stop_flag, traffic, progress),
+        },
+        Err(e @ RunError::OtherInstruments { .. }) => {
+            let _ = table.stop();
+            return Err(e);
+        }
+        Err(e) => Outcome::FileError(e.to_string()),
+    };
     if outcome != Outcome::Completed {
         let _ = table.stop();
     }
@@ -128,6 +143,15 @@ pub fn measure(
         )));
     }
     Ok(outcome)
+}
+
+/// The outcome of a traffic log that failed to write, if it did.
+fn log_failure(run: &RunDir, traffic: Option<&TrafficLog>) -> Option<Outcome> {
+    let e = traffic?.check().err()?;
+    Some(Outcome::FileError(format!(
+        "{}: {e}",
+        run.dir.join(TRAFFIC).display()
+    )))
 }
 
 fn identify(
@@ -178,6 +202,9 @@ fn measure_stops(
             Ok(p) => p,
             Err(e) => return Outcome::from_instrument(ROLES[2], e),
         };
+        if let Some(failed) = log_failure(run, traffic) {
+            return failed;
+        }
         if stop_flag.sleep(settle) {
             return Outcome::Interrupted;
         }
@@ -206,12 +233,17 @@ fn measure_stops(
                 encoder_degrees: Some(encoder),
                 line: 0,
             };
+            // The reading was taken: when it cannot go on disk, say it, so that it is
+            // not lost with the file. Every reading on disk has its traffic logged.
+            let row = run.row(&reading);
+            let not_written = |e: &dyn fmt::Display| {
+                Outcome::FileError(format!("{e} (the reading not written: {row})"))
+            };
+            if let Some(Outcome::FileError(e)) = log_failure(run, traffic) {
+                return not_written(&e);
+            }
             if let Err(e) = run.append(&reading) {
-                // The reading was taken: say it, so that it is not lost with the file.
-                return Outcome::FileError(format!(
-                    "{e} (the reading not written: {})",
-                    run.row(&reading)
-                ));
+                return not_written(&e);
             }
             let done = run.readings_done();
             let this_session = done - before;

@@ -4,8 +4,18 @@
 //! One concept a file: the settings and the plan (`settings.rs`: [`RunSettings`]), the
 //! manifest (`manifest.rs`: [`Manifest`]), the run directory and its lock
 //! (`directory.rs`: [`RunDir`]), continuing an interrupted run (`resume.rs`), the
-//! measuring loop (`measure.rs`: [`measure`]) and the refusals (`error.rs`:
-//! [`RunError`]).
+//! measuring loop (`measure.rs`: [`measure`]), ending a run at once from another thread
+//! (`abort.rs`: [`AbortHandle`]) and the refusals (`error.rs`: [`RunError`]).
+//!
+//! # A full disk
+//!
+//! Every file of the run directory is written so that a failed write leaves it
+//! consistent: a reading or a traffic record that does not fit is cut back off its file
+//! (both end on whole lines), the manifest is replaced whole or not at all, and the first
+//! failed write ends the session with [`Outcome::FileError`]. A new run that cannot
+//! write its files removes what it created ([`RunError::NotStarted`]). Tests fill the
+//! disk through a [`WriteBudget`](crate::lab::WriteBudget)
+//! ([`RunDir::open_with_budget`]).
 //!
 //! # The run directory
 //!
@@ -22,7 +32,8 @@
 //!   ended (`outcome`: `running`, `completed`, `interrupted`, `instrument-error: …`,
 //!   `file-error: …`) and one entry per session (the first run and each resumption).
 //!   It is replaced atomically (written beside, synced, renamed).
-//! - `traffic.jsonl`: every line sent and received ([`crate::lab::traffic`]).
+//! - `traffic.jsonl`: every line sent and received ([`crate::lab::traffic`]), appended
+//!   whole or not at all.
 //!
 //! # The order of the readings
 //!
@@ -72,6 +83,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod abort;
 mod directory;
 mod error;
 mod manifest;
@@ -79,6 +91,7 @@ mod measure;
 mod resume;
 mod settings;
 
+pub use abort::AbortHandle;
 pub use directory::{COLUMNS, MANIFEST, MEASUREMENTS, RunDir, TRAFFIC};
 pub use error::RunError;
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};

@@ -1,6 +1,7 @@
 //! Continuing an interrupted run: the manifest must be the run's and its settings the
-//! same, a last line cut short when the run stopped is removed, and the measurement file
-//! must hold exactly the first readings of the run in order.
+//! same, a last line cut short when the run stopped (in the measurement file or the
+//! traffic log) is removed, and the measurement file must hold exactly the first
+//! readings of the run in order.
 
 use std::collections::BTreeSet;
 use std::fs::{self, OpenOptions};
@@ -9,8 +10,10 @@ use std::path::Path;
 
 use super::directory::{COLUMNS, first_comment, lock_exclusive, start_file};
 use super::error::io_error;
-use super::{MANIFEST, MEASUREMENTS, Manifest, Ports, RunDir, RunError, RunSettings};
+use super::{MANIFEST, MEASUREMENTS, Manifest, Ports, RunDir, RunError, RunSettings, TRAFFIC};
 use crate::input::Location;
+use crate::lab::WriteBudget;
+use crate::lab::disk::LineFile;
 use crate::lab::traffic::RunClock;
 use crate::measurement::{Columns, ReadingWriter, read_rows};
 
@@ -22,6 +25,7 @@ impl RunDir {
         dir: &Path,
         settings: &RunSettings,
         ports: &Ports,
+        budget: &WriteBudget,
     ) -> Result<RunDir, RunError> {
         let manifest_path = dir.join(MANIFEST);
         let text = match fs::read_to_string(&manifest_path) {
@@ -46,35 +50,33 @@ impl RunDir {
             });
         }
         let path = dir.join(MEASUREMENTS);
-        let file = OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(&path)
-            .map_err(io_error(&path))?;
-        lock_exclusive(&file, &path)?;
+        let mut file = LineFile::open(&path, false, budget).map_err(io_error(&path))?;
+        lock_exclusive(file.file(), &path)?;
         let mut warnings = Vec::new();
         let existing = read_existing(&path, settings, &mut warnings)?;
+        // The line removed (if any) is no longer in the file.
+        file.reload_len().map_err(io_error(&path))?;
+        repair_cut_line(&dir.join(TRAFFIC), &mut warnings)?;
         let measurements = if existing.header {
             ReadingWriter::resume(file, Columns::new(COLUMNS))
         } else if existing.empty {
-            start_file(file, &path, &[first_comment(&manifest)])?
+            start_file(file, &[first_comment(&manifest)])?
         } else {
             // Comment lines only (the header was cut short): the header, then the rows.
-            start_file(file, &path, &[])?
+            start_file(file, &[])?
         };
         manifest.ports = ports.clone();
         manifest.readings = existing.done.len();
         let offset = (unix_now() - manifest.started_unix).max(0.0);
-        Ok(RunDir {
-            dir: dir.to_path_buf(),
-            session_readings_before: existing.done.len(),
+        Ok(RunDir::assemble(
+            dir,
             manifest,
             measurements,
-            done: existing.done,
-            clock: RunClock::new(offset),
-            session_open: false,
+            existing.done,
+            RunClock::new(offset),
             warnings,
-        })
+            budget,
+        ))
     }
 }
 

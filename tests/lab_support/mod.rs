@@ -1,0 +1,79 @@
+//! Helpers of the in-process instrument tests: the simulated lab over in-memory streams
+//! (no pseudo-terminals), its drivers, and scratch run directories.
+
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use polycal::lab::elcomat::Elcomat3000;
+use polycal::lab::run::Ports;
+use polycal::lab::sim::{Devices, Endpoint, Fault, LabConfig, SimStream};
+use polycal::lab::smc100::{Smc100, Smc100Options};
+use polycal::lab::transport::StreamTransport;
+use polycal::lab::{QueryOptions, StopFlag};
+use polycal::simulate::{SimulationConfig, Truth};
+
+/// A simulated autocollimator's driver.
+pub type Ac = Elcomat3000<StreamTransport<SimStream>>;
+/// The simulated table's driver.
+pub type Table = Smc100<StreamTransport<SimStream>>;
+
+/// A lab of `faces` faces (two cycles with the closing step, seed 7), instantaneous.
+pub fn lab(faces: usize, noise: f64, faults: Vec<Fault>) -> LabConfig {
+    LabConfig::new(SimulationConfig {
+        faces,
+        noise_arcsec: noise,
+        cycles: 2,
+        closing: true,
+        seed: 7,
+        ..SimulationConfig::default()
+    })
+    .with_time_scale(0.0)
+    .with_faults(faults)
+}
+
+/// Short deadlines: the lab answers at once.
+pub fn query() -> QueryOptions {
+    QueryOptions::new(Duration::from_millis(20), 3)
+}
+
+/// The three drivers over the lab's devices, and its truth.
+pub fn drivers(devices: Devices, stop: &StopFlag) -> (Ac, Ac, Table, Truth) {
+    let truth = devices.truth();
+    let Devices {
+        ac1, ac2, table, ..
+    } = devices;
+    let ac = |name: &str, e: Endpoint| {
+        Elcomat3000::new(StreamTransport::new(name, SimStream::new(e)), query())
+            .with_drain(Duration::ZERO)
+    };
+    let table = Smc100::new(
+        StreamTransport::new("mem:table", SimStream::new(table)),
+        Smc100Options::new(query()).with_poll_interval(Duration::from_millis(1)),
+    )
+    .with_stop_flag(stop.clone());
+    (ac("mem:ac1", ac1), ac("mem:ac2", ac2), table, truth)
+}
+
+/// What autocollimator `ac` reads at `step` without noise: α + φ of its face + its
+/// setup error (docs/FORMAT.md §1).
+pub fn expected(truth: &Truth, step: usize, ac: u32) -> f64 {
+    let n = truth.faces;
+    let face = (step + ac as usize - 1) % n + 1;
+    truth.encoder_error[step % n]
+        + truth.face_deviation_at(face)
+        + truth.setup_error_of(1, ac).unwrap_or(0.0)
+}
+
+/// A path for a run directory of this test (removed if it exists).
+pub fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("polycal-inst-run-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// The in-memory ports.
+pub fn ports() -> Ports {
+    Ports::new("mem:ac1", "mem:ac2", "mem:table")
+}
