@@ -148,7 +148,10 @@ impl Cli {
             Ok(cli) => cli,
             Err(error) => {
                 use clap::error::ErrorKind;
-                if matches!(error.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+                if matches!(
+                    error.kind(),
+                    ErrorKind::DisplayHelp | ErrorKind::DisplayVersion
+                ) {
                     error.exit();
                 }
                 let out = output::Output::new(choice.unwrap_or(ColorWhen::Auto), false);

@@ -72,22 +72,31 @@ impl Limit {
     ///
     /// The message naming `what` (e.g. "a reading"), the value and the range.
     pub fn check(&self, x: f64, what: &str) -> Result<f64, String> {
+        self.check_shown(x, &show(x), what)
+    }
+
+    /// As [`Limit::check`], with the value shown as `shown` (a reader shows the text as
+    /// the file has it, e.g. `"-1000000.5"`).
+    ///
+    /// # Errors
+    ///
+    /// The message naming `shown`, `what` and the range.
+    pub fn check_shown(&self, x: f64, shown: &str, what: &str) -> Result<f64, String> {
         if self.contains(x) {
             return Ok(x);
         }
         if !x.is_finite() {
-            return Err(format!("{x} is not a finite number"));
+            return Err(format!("{shown} is not a finite number"));
         }
         if x != 0.0 && x.abs() < self.smallest_nonzero {
             return Err(format!(
-                "{x:e} is too small for {what}: a magnitude other than 0 must be at least \
+                "{shown} is too small for {what}: a magnitude other than 0 must be at least \
                  {:e}{} (docs/FORMAT.md §2.2)",
                 self.smallest_nonzero, self.unit
             ));
         }
         Err(format!(
-            "{} is beyond the limits of {what}, {self} (docs/FORMAT.md §2.2)",
-            show(x)
+            "{shown} is beyond the limits of {what}, {self} (docs/FORMAT.md §2.2)"
         ))
     }
 }
@@ -105,7 +114,10 @@ fn show(x: f64) -> String {
     } else {
         format!("{x}")
     };
-    text.replacen('-', "−", 1)
+    match text.strip_prefix('-') {
+        Some(magnitude) => format!("−{magnitude}"),
+        None => text,
+    }
 }
 
 /// An autocollimator reading (`reading`, `reading_y`), arcseconds: |x| ≤ 10⁶″ (about
@@ -159,7 +171,9 @@ mod tests {
             "1e300 is beyond the limits of a reading, −1e6 … 1e6″ (docs/FORMAT.md §2.2)"
         );
         assert_eq!(
-            TEMPERATURE_CELSIUS.check(-300.0, "a temperature").unwrap_err(),
+            TEMPERATURE_CELSIUS
+                .check(-300.0, "a temperature")
+                .unwrap_err(),
             "−300 is beyond the limits of a temperature, −273.15 … 1000 °C (docs/FORMAT.md §2.2)"
         );
         assert_eq!(

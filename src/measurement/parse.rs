@@ -646,7 +646,7 @@ pub(super) fn parse_float(text: &str, col: Col) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(x) if x.is_finite() => match col.limit() {
             Some((limit, what)) => limit
-                .check(x, what)
+                .check_shown(x, &show(text), what)
                 .map_err(|rule| format!("column {name:?}: {rule}")),
             None => Ok(x),
         },

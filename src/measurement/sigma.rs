@@ -6,7 +6,8 @@ use crate::input::limits::{Limit, READING_ARCSEC};
 
 /// The range of σ: positive, at most a reading's largest magnitude, and not so small that
 /// σ² vanishes.
-const SIGMA_ARCSEC: Limit = Limit::new(0.0, READING_ARCSEC.max(), "″").with_smallest_nonzero(1e-100);
+const SIGMA_ARCSEC: Limit =
+    Limit::new(0.0, READING_ARCSEC.max(), "″").with_smallest_nonzero(1e-100);
 
 /// The standard deviation σ of one autocollimator reading, arcseconds: a positive, finite
 /// number, checked once where it enters ([`Sigma::new`]) so that every entry point

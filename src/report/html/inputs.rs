@@ -13,7 +13,6 @@ use crate::solve::SolveError;
 use crate::uncertainty::BudgetError;
 use crate::uncertainty::calibration::CalibrationError;
 
-
 /// What a report is made of: the measurement (or self-calibration) file and the optional
 /// budget, diagnosis, truth, reference result, metadata file and run directory.
 #[derive(Debug, Clone, PartialEq)]

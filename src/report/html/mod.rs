@@ -145,8 +145,8 @@ pub struct CalibrationReport {
 
 /// Reads a whole input file (at most [`crate::input::MAX_INPUT_BYTES`]) and fingerprints it.
 fn read_input(path: &Path, role: &'static str) -> Result<(Vec<u8>, InputFile), ReportError> {
-    let (bytes, name) =
-        crate::input::read_bytes(path).map_err(|(file, source)| ReportError::Io { file, source })?;
+    let (bytes, name) = crate::input::read_bytes(path)
+        .map_err(|(file, source)| ReportError::Io { file, source })?;
     let input = InputFile {
         role,
         path: name,

@@ -1,0 +1,598 @@
+//! Hardening (issue 13): numbers that are finite but absurd are refused at their file,
+//! line and column; inputs too big for the machine are refused up front with the size and
+//! the limit; every usage and OS error is one `error:` line; standard input is read where
+//! `-` is given, and once. Each class is tried with its own bad input, through the binary
+//! as a user meets it. The limits are docs/FORMAT.md §2.2; the positions and the
+//! arithmetic below are derived by hand from the texts written here.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+const EXAMPLE: &str = "examples/data/polygon24-2ac-6cycles.csv";
+const EXAMPLE_TRUTH: &str = "examples/data/polygon24-2ac-6cycles.truth.json";
+const SELFCAL: &str = "examples/data/selfa-168.csv";
+const BUDGET: &str = "examples/budgets/instrument.toml";
+
+fn polycal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_polycal"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("the binary runs")
+}
+
+fn polycal_stdin(args: &[&str], input: &[u8]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_polycal"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the binary runs");
+    let mut stdin = child.stdin.take().expect("a pipe");
+    // the process may refuse before reading all of it
+    let _ = stdin.write_all(input);
+    drop(stdin);
+    child.wait_with_output().expect("the binary ends")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("polycal-hard-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path.display().to_string()
+}
+
+/// Status 2 and exactly one line on standard error, which begins `error:`; returns it
+/// without the prefix.
+fn one_error_line(out: &Output) -> String {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "status; stderr:\n{stderr}");
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert_eq!(lines.len(), 1, "one line on standard error, got:\n{stderr}");
+    lines[0]
+        .strip_prefix("error: ")
+        .unwrap_or_else(|| panic!("an error: line, got {:?}", lines[0]))
+        .to_string()
+}
+
+/// A valid measurement file of the paper's design with N = 3 and every optional numeric
+/// column: autocollimator 1 reads face p+1, 2 reads face p+2 at step p.
+const SMALL_HEADER: &str = "cycle,step,ac,face,reading,time,reading_y,temperature,encoder";
+const SMALL_ROWS: [&str; 6] = [
+    "1,0,1,1,0.5,0,1.5,20.1,0",
+    "1,0,2,2,-0.25,0,1.25,20.1,0",
+    "1,1,1,2,0.75,20,1.5,20.2,120",
+    "1,1,2,3,0.5,20,1.75,20.2,120",
+    "1,2,1,3,-1,40,1,20.3,240",
+    "1,2,2,1,0.25,40,1.5,20.3,240",
+];
+
+/// The small file with the field `column` (0-based) of data row `row` (0-based) replaced;
+/// returns the text and the 1-based line and character column of that field.
+fn small_file_with(row: usize, column: usize, value: &str) -> (String, usize, usize) {
+    let mut text = format!("{SMALL_HEADER}\n");
+    let mut at = (0, 0);
+    for (i, line) in SMALL_ROWS.iter().enumerate() {
+        if i == row {
+            let mut fields: Vec<&str> = line.split(',').collect();
+            let before: usize = fields[..column].iter().map(|f| f.chars().count() + 1).sum();
+            fields[column] = value;
+            at = (i + 2, before + 1);
+            text.push_str(&fields.join(","));
+        } else {
+            text.push_str(line);
+        }
+        text.push('\n');
+    }
+    (text, at.0, at.1)
+}
+
+#[test]
+fn absurd_numbers_in_a_measurement_file_are_refused_at_their_field() {
+    let dir = temp_dir("measurement");
+    // the file as written solves
+    let (valid, _, _) = small_file_with(0, 4, "0.5");
+    let path = write(&dir, "valid.csv", &valid);
+    let out = polycal(&["solve", &path, "--sigma", "0.1"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    for (row, column, value, rule) in [
+        (
+            0,
+            4,
+            "1e300",
+            "column \"reading\": \"1e300\" is beyond the limits of a reading, −1e6 … 1e6″",
+        ),
+        (
+            3,
+            4,
+            "-1000000.5",
+            "column \"reading\": \"-1000000.5\" is beyond the limits of a reading, −1e6 … 1e6″",
+        ),
+        (
+            2,
+            6,
+            "-1e300",
+            "column \"reading_y\": \"-1e300\" is beyond the limits of a reading, −1e6 … 1e6″",
+        ),
+        (
+            5,
+            5,
+            "1e10",
+            "column \"time\": \"1e10\" is beyond the limits of a time, −1e9 … 1e9 s",
+        ),
+        (
+            1,
+            7,
+            "-300",
+            "column \"temperature\": \"-300\" is beyond the limits of a temperature, −273.15 … 1000 °C",
+        ),
+        (
+            4,
+            8,
+            "1.5e7",
+            "column \"encoder\": \"1.5e7\" is beyond the limits of an encoder position, −1e6 … 1e6°",
+        ),
+    ] {
+        let (text, line, col) = small_file_with(row, column, value);
+        let path = write(&dir, "absurd.csv", &text);
+        for command in ["solve", "diagnose"] {
+            let message = one_error_line(&polycal(&[command, &path, "--sigma", "0.1"]));
+            assert_eq!(
+                message,
+                format!("{path}:{line}:{col}: {rule} (docs/FORMAT.md §2.2)"),
+                "{command} with {value}"
+            );
+        }
+    }
+
+    // the limits themselves are readings
+    for value in ["1e6", "-1e6"] {
+        let (text, _, _) = small_file_with(2, 4, value);
+        let path = write(&dir, "edge.csv", &text);
+        let out = polycal(&["solve", &path, "--sigma", "0.1", "--format", "json"]);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{value}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert!(
+            json["pitch_deviation_u"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .all(|u| u.as_f64().is_some()),
+            "{json}"
+        );
+    }
+    // σ too is held to the limit of a reading
+    let message = one_error_line(&polycal(&["solve", &path, "--sigma", "1e300"]));
+    assert!(message.contains("1e300 is beyond the limits"), "{message}");
+}
+
+#[test]
+fn absurd_numbers_in_other_files_are_refused_at_their_place() {
+    let dir = temp_dir("other-files");
+    // a self-calibration reading: line 3 of the bundled file, field 5
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(SELFCAL)).unwrap();
+    let text = text.replacen("1,0,1,0,0.01322522954256664,0", "1,0,1,0,1e300,0", 1);
+    let path = write(&dir, "selfcal.csv", &text);
+    assert_eq!(
+        one_error_line(&polycal(&["selfcal", &path])),
+        format!(
+            "{path}:3:9: column \"reading\": \"1e300\" is beyond the limits of a reading, −1e6 … 1e6″ \
+             (docs/FORMAT.md §2.2)"
+        )
+    );
+
+    // a result file: compare's En with −1e308 was `null`
+    let reference = write(
+        &dir,
+        "a.csv",
+        "quantity,index,value,U\npitch_deviation,1,0.5,0.1\n",
+    );
+    let absurd = write(
+        &dir,
+        "b.csv",
+        "quantity,index,value,U\npitch_deviation,1,-1e308,0.1\n",
+    );
+    assert_eq!(
+        one_error_line(&polycal(&[
+            "compare", &reference, &absurd, "--format", "json"
+        ])),
+        format!(
+            "{absurd}:2:19: value: −1e308 is beyond the limits of a result's value, −1e12 … 1e12″ \
+             (docs/FORMAT.md §2.2)"
+        )
+    );
+
+    // a truth file
+    let truth = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(EXAMPLE_TRUTH))
+        .unwrap()
+        .replacen("-0.2040012791581015", "1e300", 1);
+    let truth = write(&dir, "truth.json", &truth);
+    let message = one_error_line(&polycal(&["diagnose", EXAMPLE, "--truth", &truth]));
+    assert_eq!(
+        message,
+        format!(
+            "{truth}: invalid truth: pitch_deviation[3]: 1e300 is beyond the limits of a truth \
+             value, −1e6 … 1e6″ (docs/FORMAT.md §2.2)"
+        )
+    );
+}
+
+#[test]
+fn budget_values_are_refused_for_what_they_are_and_large_ones_combine() {
+    let dir = temp_dir("budget");
+    // u = 1e200 was refused as "every contribution is zero", with the file named twice
+    let path = write(
+        &dir,
+        "u.toml",
+        "p = 0.95\n[[component]]\nname = \"a\"\ntype = \"B\"\nu = 1e200\n",
+    );
+    assert_eq!(
+        one_error_line(&polycal(&["budget", &path])),
+        format!(
+            "{path}:5:5: u: 1e200 is beyond the limits of a budget's u, −1e100 … 1e100 (docs/FORMAT.md §2.2)"
+        )
+    );
+    let path = write(
+        &dir,
+        "w.toml",
+        "[[component]]\nname = \"a\"\ntype = \"B\"\ndistribution = \"rectangular\"\nfull_width = 1e-200\n",
+    );
+    assert_eq!(
+        one_error_line(&polycal(&["budget", &path])),
+        format!(
+            "{path}:5:14: full_width: 1e-200 is too small for a budget's full_width: a magnitude \
+             other than 0 must be at least 1e-100 (docs/FORMAT.md §2.2)"
+        )
+    );
+    // a whole-budget error names the file once
+    let path = write(
+        &dir,
+        "zero.toml",
+        "[[component]]\nname = \"a\"\ntype = \"B\"\nu = 0\n",
+    );
+    let message = one_error_line(&polycal(&["budget", &path]));
+    assert!(
+        message.starts_with(&format!("{path}: the combined standard uncertainty is 0")),
+        "{message}"
+    );
+    assert_eq!(message.matches(&path).count(), 1, "{message}");
+    // invalid UTF-8 at its line and column
+    let latin1 = dir.join("latin1.toml");
+    std::fs::write(&latin1, b"[[component]]\nname = \"caf\xe9\"\n").unwrap();
+    assert_eq!(
+        one_error_line(&polycal(&["budget", &latin1.display().to_string()])),
+        format!(
+            "{}:2:12: not valid UTF-8 (byte 0xe9); the file must be UTF-8 text",
+            latin1.display()
+        )
+    );
+
+    // Two components of u = 1e90 with 10 degrees of freedom each: their fourth powers
+    // (1e360) overflow, yet u_c = √2·1e90 and ν_eff = (2u²)² / (2u⁴/10) = 20 (GUM G.2b).
+    let path = write(
+        &dir,
+        "large.toml",
+        "[[component]]\nname = \"a\"\ntype = \"B\"\nu = 1e90\ndof = 10\n\
+         [[component]]\nname = \"b\"\ntype = \"B\"\nu = 1e90\ndof = 10\n",
+    );
+    let out = polycal(&["budget", &path, "--format", "json"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let u_c = json["combined_u"].as_f64().unwrap();
+    assert!((u_c / (2f64.sqrt() * 1e90) - 1.0).abs() < 1e-14, "{u_c}");
+    let nu = json["dof_eff"].as_f64().unwrap();
+    assert!((nu - 20.0).abs() < 1e-12, "{nu}");
+}
+
+#[test]
+fn a_budget_of_sixty_thousand_components_combines_and_too_many_correlations_are_refused() {
+    let dir = temp_dir("big-budget");
+    let n = 60_000;
+    let mut text = String::from("p = 0.95\n");
+    for i in 0..n {
+        text.push_str(&format!(
+            "[[component]]\nname = \"c{i}\"\ntype = \"B\"\nu = 0.01\n"
+        ));
+    }
+    let path = write(&dir, "sixty.toml", &text);
+    let out = polycal(&["budget", &path, "--format", "json"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // u_c = 0.01·√60000, k = 1.96 (ν infinite)
+    let u_c = json["combined_u"].as_f64().unwrap();
+    assert!((u_c - 0.01 * (n as f64).sqrt()).abs() < 1e-12, "{u_c}");
+    assert_eq!(json["components"].as_array().unwrap().len(), n);
+
+    // correlations need a matrix of the correlated components: more than 1000 refused
+    let mut text = String::new();
+    for i in 0..2004 {
+        text.push_str(&format!(
+            "[[component]]\nname = \"c{i}\"\ntype = \"B\"\nu = 0.01\n"
+        ));
+    }
+    for i in 0..1001 {
+        text.push_str(&format!(
+            "[[correlation]]\nbetween = [\"c{}\", \"c{}\"]\nr = 0.1\n",
+            2 * i,
+            2 * i + 1
+        ));
+    }
+    let path = write(&dir, "correlated.toml", &text);
+    assert_eq!(
+        one_error_line(&polycal(&["budget", &path])),
+        format!(
+            "{path}: the budget gives 1001 correlation coefficients; at most 1000 are evaluated \
+             (their consistency is checked on a matrix of the correlated components)"
+        )
+    );
+}
+
+#[test]
+fn a_monte_carlo_too_big_for_the_machine_is_refused_up_front() {
+    let message = one_error_line(&polycal(&[
+        "solve",
+        EXAMPLE,
+        "--budget",
+        BUDGET,
+        "--monte-carlo",
+        "1e12",
+    ]));
+    // 10¹² trials × 71 outputs × 0.8 bytes (the brackets' values) ≈ 51.7 TiB
+    assert!(
+        message.starts_with(&format!(
+            "{EXAMPLE}: Monte Carlo failed: 1000000000000 trials of 71 outputs need about 51.7 TiB of memory; "
+        )),
+        "{message}"
+    );
+    assert!(
+        message.ends_with("are available on this machine: ask for fewer trials"),
+        "{message}"
+    );
+}
+
+#[test]
+fn a_design_too_big_for_the_machine_is_refused_up_front() {
+    let dir = temp_dir("design");
+    let path = dir.join("sub-pitch.csv").display().to_string();
+    // 40 000 faces in two mountings 0.01° apart: 39 999 contrast columns of 320 000
+    // readings, 8 bytes each, about 95.4 GiB before the engine allocates anything.
+    let out = polycal(&[
+        "simulate",
+        "--faces",
+        "40000",
+        "--cycles",
+        "2",
+        "--setups",
+        "2",
+        "--shift-deg",
+        "0,0.01",
+        "--out",
+        &path,
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let message = one_error_line(&polycal(&["solve", &path]));
+    assert!(
+        message.starts_with(&format!(
+            "{path}: cannot solve: the design (40000 positions, 4 autocollimator streams, 39999 \
+             effect terms, 320000 readings) needs about 95.4 GiB of memory for the sub-pitch solver; "
+        )),
+        "{message}"
+    );
+    assert!(
+        message.ends_with("are available on this machine"),
+        "{message}"
+    );
+}
+
+#[test]
+fn inputs_beyond_the_read_limit_are_refused_not_read_to_the_end() {
+    let limit = 256u64 << 20;
+    // a stream is read to the limit and no further
+    for args in [
+        vec!["solve", "/dev/zero"],
+        vec!["selfcal", "/dev/zero"],
+        vec!["budget", "/dev/zero"],
+        vec!["compare", "/dev/zero", EXAMPLE],
+        vec!["diagnose", EXAMPLE, "--truth", "/dev/zero"],
+    ] {
+        assert_eq!(
+            one_error_line(&polycal(&args)),
+            format!(
+                "/dev/zero: at least {} bytes, more than polycal reads from one input ({limit} bytes at most)",
+                limit + 1
+            ),
+            "{args:?}"
+        );
+    }
+    // a regular file is refused by its size, before it is read (a sparse file)
+    let dir = temp_dir("large-file");
+    let path = dir.join("large.csv");
+    std::fs::File::create(&path)
+        .unwrap()
+        .set_len(300 << 20)
+        .unwrap();
+    let name = path.display().to_string();
+    assert_eq!(
+        one_error_line(&polycal(&["solve", &name])),
+        format!(
+            "{name}: 314572800 bytes, more than polycal reads from one input ({limit} bytes at most)"
+        )
+    );
+    std::fs::remove_file(&path).unwrap();
+}
+
+#[test]
+fn usage_errors_are_one_line() {
+    for args in [
+        vec![],
+        vec!["solve"],
+        vec!["solve", "--bogus", EXAMPLE],
+        vec!["frobnicate"],
+        vec!["solve", EXAMPLE, "--format", "yaml"],
+        vec!["budget", BUDGET, "--format", "csv"],
+        vec!["compare", EXAMPLE],
+        vec!["run"],
+        vec!["simulate", "--faces", "x", "--cycles", "1"],
+    ] {
+        let message = one_error_line(&polycal(&args));
+        assert!(message.ends_with("(see --help)"), "{args:?}: {message}");
+    }
+    assert_eq!(
+        one_error_line(&polycal(&[])),
+        "no command given; the commands are solve, diagnose, budget, compare, selfcal, report, \
+         simulate, run, sim-lab, completions, man (see --help)"
+    );
+}
+
+#[test]
+fn os_errors_are_named_once() {
+    let missing = "no/such/file.csv";
+    for args in [
+        vec!["solve", missing],
+        vec!["diagnose", missing],
+        vec!["selfcal", missing],
+        vec!["budget", missing],
+        vec!["compare", missing, EXAMPLE],
+        vec!["solve", EXAMPLE, "--budget", missing],
+        vec!["diagnose", EXAMPLE, "--truth", missing],
+        vec![
+            "report",
+            EXAMPLE,
+            "--meta",
+            missing,
+            "--out",
+            "/tmp/polycal-never.html",
+        ],
+    ] {
+        let message = one_error_line(&polycal(&args));
+        assert_eq!(
+            message,
+            format!("{missing}: No such file or directory (os error 2)"),
+            "{args:?}"
+        );
+    }
+    // a directory where a file is read
+    assert_eq!(
+        one_error_line(&polycal(&["solve", "examples"])),
+        "examples: Is a directory (os error 21)"
+    );
+    // --plot on a file
+    let dir = temp_dir("plot-file");
+    let file = write(&dir, "not-a-dir", "");
+    assert_eq!(
+        one_error_line(&polycal(&["solve", EXAMPLE, "--plot", &file])),
+        format!(
+            "--plot: cannot write the figures: {file}: is a file, not a directory; the figures need a directory"
+        )
+    );
+}
+
+#[test]
+fn several_bad_files_give_one_error_line_each() {
+    let out = polycal(&[
+        "solve",
+        "a/missing.csv",
+        EXAMPLE,
+        "b/missing.csv",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(
+        errors,
+        [
+            "error: a/missing.csv: No such file or directory (os error 2)",
+            "error: b/missing.csv: No such file or directory (os error 2)",
+        ],
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("\n2 of 3 files could not be solved\n"),
+        "{stderr}"
+    );
+    // the good file is still solved, one JSON line
+    assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 1);
+    // with -q the summary goes, the errors stay
+    let out = polycal(&["-q", "solve", "a/missing.csv", "b/missing.csv"]);
+    assert_eq!(String::from_utf8_lossy(&out.stderr).lines().count(), 2);
+}
+
+#[test]
+fn truth_from_standard_input_and_standard_input_only_once() {
+    let from_file = polycal(&[
+        "diagnose",
+        EXAMPLE,
+        "--truth",
+        EXAMPLE_TRUTH,
+        "--format",
+        "json",
+    ]);
+    assert_eq!(from_file.status.code(), Some(0));
+    let truth = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join(EXAMPLE_TRUTH)).unwrap();
+    let from_stdin = polycal_stdin(
+        &["diagnose", EXAMPLE, "--truth", "-", "--format", "json"],
+        &truth,
+    );
+    assert_eq!(
+        from_stdin.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&from_stdin.stderr)
+    );
+    let a: serde_json::Value = serde_json::from_slice(&from_file.stdout).unwrap();
+    let b: serde_json::Value = serde_json::from_slice(&from_stdin.stdout).unwrap();
+    assert!(a["error"].is_object());
+    assert_eq!(a["error"], b["error"]);
+    // bad JSON on standard input is named <stdin> with its line and column
+    assert_eq!(
+        one_error_line(&polycal_stdin(
+            &["diagnose", EXAMPLE, "--truth", "-"],
+            b"{\n  \"faces\": x"
+        )),
+        "<stdin>:2:12: not a valid truth file: expected value"
+    );
+    // two inputs cannot both be standard input
+    let csv = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join(EXAMPLE)).unwrap();
+    assert_eq!(
+        one_error_line(&polycal_stdin(&["diagnose", "-", "--truth", "-"], &csv)),
+        "standard input (`-`) is given for a measurement file and --truth: it can be read only \
+         once; give the others as files"
+    );
+}
