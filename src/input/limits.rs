@@ -72,7 +72,11 @@ impl Limit {
     ///
     /// The message naming `what` (e.g. "a reading"), the value and the range.
     pub fn check(&self, x: f64, what: &str) -> Result<f64, String> {
-        self.check_shown(x, &show(x), what)
+        if x.is_finite() {
+            self.check_shown(x, &show(x), what)
+        } else {
+            self.check_shown(x, &x.to_string(), what)
+        }
     }
 
     /// As [`Limit::check`], with the value shown as `shown` (a reader shows the text as
