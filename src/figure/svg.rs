@@ -77,6 +77,9 @@ pub(crate) struct Axis {
     pub label: String,
 }
 
+/// The largest magnitude a figure plots; larger values are left out like non-finite ones.
+pub(crate) const PLOTTABLE_MAGNITUDE: f64 = 1e300;
+
 impl Axis {
     /// An axis covering every finite value of `values` (and `include`, e.g. 0), with about
     /// `target` ticks at 1, 2, 5 × 10^k; a sane axis for no value, one value or equal values.
@@ -88,7 +91,10 @@ impl Axis {
     ) -> Self {
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for v in values.into_iter().chain(include.iter().copied()) {
-            if v.is_finite() {
+            // a value near ±f64::MAX (possible only from the library's API, not from a
+            // file within its limits) would overflow the margin and the steps: left out
+            // as a non-finite value is
+            if v.is_finite() && v.abs() <= PLOTTABLE_MAGNITUDE {
                 lo = lo.min(v);
                 hi = hi.max(v);
             }
@@ -115,7 +121,7 @@ impl Axis {
         let step = nice_step((hi - lo) / target.max(2) as f64);
         let first = (lo / step).floor();
         let last = (hi / step).ceil();
-        let count = (last - first).max(1.0) as usize;
+        let count = (last - first).clamp(1.0, 1000.0) as usize;
         let ticks: Vec<f64> = (0..=count).map(|i| (first + i as f64) * step).collect();
         let decimals = (-(step.log10() + 1e-9).floor()).max(0.0) as usize;
         Axis {

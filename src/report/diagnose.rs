@@ -486,6 +486,16 @@ fn rms_text(solution: &Solution) -> String {
         })
 }
 
+/// An F statistic for people: one decimal, or `∞ (no residual left)` for the infinite F
+/// of a term that explains the rest exactly (`null` in the JSON, docs/FORMAT.md §5.2).
+fn f_text(f: f64) -> String {
+    if f.is_finite() {
+        format!("{f:.1}")
+    } else {
+        "∞ (no residual left)".into()
+    }
+}
+
 fn p_text(p: f64) -> String {
     if p < 1e-300 {
         "< 1e-300".into()
@@ -557,8 +567,8 @@ pub fn write_table<W: std::fmt::Write>(
                     .map_or(String::new(), |u| format!(" ± {u:.4}″/h² (k = 1)"));
                 let evidence = found.quadratic_evidence.map_or(String::new(), |e| {
                     format!(
-                        "; curvature added by F = {:.1}, Bonferroni p = {}",
-                        e.f_statistic,
+                        "; curvature added by F = {}, Bonferroni p = {}",
+                        f_text(e.f_statistic),
                         p_text(e.p_adjusted)
                     )
                 });
@@ -567,8 +577,8 @@ pub fn write_table<W: std::fmt::Write>(
             writeln!(out, "     pattern: {}", explanation(found))?;
             writeln!(
                 out,
-                "     evidence: F = {:.1}, p = {}, Bonferroni p = {}; residual RMS {:.4}″ → {:.4}″",
-                found.f_statistic,
+                "     evidence: F = {}, p = {}, Bonferroni p = {}; residual RMS {:.4}″ → {:.4}″",
+                f_text(found.f_statistic),
                 p_text(found.p_value),
                 p_text(found.p_adjusted),
                 found.residual_rms_before,
@@ -615,10 +625,14 @@ pub fn write_table<W: std::fmt::Write>(
         for check in &diagnosis.adequacy.checks {
             writeln!(
                 out,
-                "  {} {}: {:.2} (limit {:.2})",
+                "  {} {}: {} (limit {:.2})",
                 if check.passed { "pass" } else { "FAIL" },
                 check.name,
-                check.statistic,
+                if check.statistic.is_finite() {
+                    format!("{:.2}", check.statistic)
+                } else {
+                    "∞".to_string()
+                },
                 check.limit
             )?;
         }
@@ -673,8 +687,8 @@ pub fn write_table<W: std::fmt::Write>(
             };
             writeln!(
                 out,
-                "  {name}: F = {:.1}, Bonferroni p = {} — {}",
-                t.evidence.f_statistic,
+                "  {name}: F = {}, Bonferroni p = {} — {}",
+                f_text(t.evidence.f_statistic),
                 p_text(t.evidence.p_adjusted),
                 t.rejection.as_str()
             )?;

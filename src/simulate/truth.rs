@@ -92,7 +92,13 @@ pub(super) fn parse_json<T: serde::de::DeserializeOwned>(
     bytes: &[u8],
     name: &str,
 ) -> Result<T, SimulateError> {
-    serde_json::from_slice(bytes).map_err(|e| {
+    let text = crate::input::text::utf8(bytes).map_err(|((line, column), message)| {
+        SimulateError::Json {
+            location: crate::input::Location::new(name, line, column),
+            message,
+        }
+    })?;
+    serde_json::from_str(text).map_err(|e| {
         let position = format!(" at line {} column {}", e.line(), e.column());
         let text = e.to_string();
         SimulateError::Json {
