@@ -1,0 +1,234 @@
+//! Mutation fuzzing of the `polycal` binary (issue 13, "Hardening"): each command run on
+//! mutated copies of the bundled example and test files, judged by docs/FORMAT.md §8
+//! (`fuzz/cli.rs` lists the assertions). The library level is `tests/fuzz.rs`.
+//!
+//! Spawning the binary is slow, so each target runs `POLYCAL_FUZZ_CASES / 8` cases
+//! (`fuzz/harness.rs`). A failure prints the command, its output and the mutated input,
+//! saved under `target/tmp/fuzz-failures/`.
+
+#[path = "fuzz/cli.rs"]
+mod cli;
+#[path = "fuzz/harness.rs"]
+mod harness;
+#[path = "fuzz/mutate.rs"]
+mod mutate;
+
+use cli::{Format, Run, repo};
+use harness::{binary_cases, run};
+use mutate::{Case, case, seed, seeds};
+use proptest::prelude::*;
+
+/// Proptest's shrinking steps at most, per failure (each one runs the binary).
+const SHRINK: u32 = 96;
+
+/// The 24-faced example measurement.
+const EXAMPLE: &str = "examples/data/polygon24-2ac-6cycles.csv";
+/// A small self-calibration (12 positions, 4 heads).
+const SELFCAL: &str = "tests/fixtures/expected/sim-selfcal.file.selfcal.csv";
+
+/// Cases of `seeds` with a format from `formats`.
+fn with_format(
+    seeds: &[&'static str],
+    formats: &'static [Format],
+) -> impl Strategy<Value = (Case, Format)> {
+    (case(mutate::seeds(seeds)), prop::sample::select(formats))
+}
+
+/// Runs a target: `args` builds the command line (`{}` is the mutated file).
+fn fuzz_command(
+    target: &str,
+    seeds: &[&'static str],
+    ext: &'static str,
+    formats: &'static [Format],
+    args: impl Fn(&Case) -> Vec<String>,
+) {
+    run(
+        target,
+        binary_cases(),
+        SHRINK,
+        with_format(seeds, formats),
+        |(case, format)| {
+            Run {
+                target,
+                case,
+                ext,
+                args: args(case),
+                format: *format,
+            }
+            .check()
+        },
+    );
+}
+
+fn words(text: &str) -> Vec<String> {
+    text.split_whitespace().map(str::to_string).collect()
+}
+
+fn path(p: &str) -> String {
+    repo(p).display().to_string()
+}
+
+const ALL: &[Format] = &[Format::Table, Format::Json, Format::Csv];
+const TABLE_JSON: &[Format] = &[Format::Table, Format::Json];
+
+#[test]
+fn cli_solve() {
+    fuzz_command("cli-solve", seed::MEASUREMENT, "csv", ALL, |_| {
+        words("solve {}")
+    });
+}
+
+#[test]
+fn cli_solve_budget() {
+    fuzz_command("cli-solve-budget", seed::BUDGET, "toml", ALL, |_| {
+        vec![
+            "solve".into(),
+            path(EXAMPLE),
+            "--budget".into(),
+            "{}".into(),
+        ]
+    });
+}
+
+#[test]
+fn cli_diagnose() {
+    fuzz_command("cli-diagnose", seed::MEASUREMENT, "csv", ALL, |_| {
+        words("diagnose {}")
+    });
+}
+
+/// The measurement file each truth seed belongs to.
+fn measurement_of_truth(truth: &str) -> &'static str {
+    match truth {
+        "tests/fixtures/expected/sim-bare.file.bare.json" => {
+            "tests/fixtures/expected/sim-bare.file.bare.csv"
+        }
+        "tests/fixtures/expected/sim-drift.file.drift.json" => {
+            "tests/fixtures/expected/sim-drift.file.drift.csv"
+        }
+        _ => EXAMPLE,
+    }
+}
+
+/// The truths of sets `diagnose` takes (not the sub-pitch one: `diagnose` refuses its
+/// measurement, whatever the truth).
+const DIAGNOSE_TRUTH: &[&str] = &[
+    "examples/data/polygon24-2ac-6cycles.truth.json",
+    "tests/fixtures/expected/sim-bare.file.bare.json",
+    "tests/fixtures/expected/sim-drift.file.drift.json",
+];
+
+#[test]
+fn cli_diagnose_truth() {
+    fuzz_command("cli-diagnose-truth", DIAGNOSE_TRUTH, "json", ALL, |case| {
+        vec![
+            "diagnose".into(),
+            path(measurement_of_truth(case.seed.path)),
+            "--truth".into(),
+            "{}".into(),
+        ]
+    });
+}
+
+#[test]
+fn cli_selfcal() {
+    fuzz_command("cli-selfcal", seed::SELFCAL, "csv", ALL, |_| {
+        words("selfcal {}")
+    });
+}
+
+#[test]
+fn cli_selfcal_budget() {
+    fuzz_command("cli-selfcal-budget", seed::BUDGET, "toml", ALL, |_| {
+        vec![
+            "selfcal".into(),
+            path(SELFCAL),
+            "--budget".into(),
+            "{}".into(),
+        ]
+    });
+}
+
+#[test]
+fn cli_compare() {
+    // The mutated file against its own seed, as A or as B (by the first mutation's
+    // kind of index, to spread both over the cases).
+    fuzz_command("cli-compare", seed::RESULTS, "csv", ALL, |case| {
+        let seed = path(case.seed.path);
+        if case.mutations.len() % 2 == 1 {
+            vec!["compare".into(), "{}".into(), seed]
+        } else {
+            vec!["compare".into(), seed, "{}".into()]
+        }
+    });
+}
+
+#[test]
+fn cli_budget() {
+    fuzz_command("cli-budget", seed::BUDGET, "toml", TABLE_JSON, |_| {
+        words("budget {}")
+    });
+}
+
+/// Which input of `report` is mutated.
+#[derive(Clone, Copy, Debug)]
+enum Role {
+    Measurement,
+    Selfcal,
+    Meta,
+    Budget,
+    Reference,
+    Truth,
+}
+
+#[test]
+fn cli_report() {
+    let role = |role: Role, list: &[&'static str]| case(seeds(list)).prop_map(move |c| (c, role));
+    let strategy = prop_oneof![
+        2 => role(Role::Measurement, seed::MEASUREMENT),
+        1 => role(Role::Selfcal, seed::SELFCAL),
+        2 => role(Role::Meta, seed::META),
+        1 => role(Role::Budget, &["examples/budgets/instrument.toml"]),
+        1 => role(Role::Reference, seed::RESULTS),
+        1 => role(Role::Truth, DIAGNOSE_TRUTH),
+    ];
+    let target = "cli-report";
+    run(target, binary_cases(), SHRINK, strategy, |(case, role)| {
+        let (example, budget) = (path(EXAMPLE), path("examples/budgets/instrument.toml"));
+        let mut args: Vec<String> = vec!["report".into()];
+        let ext = match role {
+            Role::Measurement | Role::Selfcal => {
+                args.push("{}".into());
+                "csv"
+            }
+            Role::Meta => {
+                args.extend([example, "--meta".into(), "{}".into()]);
+                "toml"
+            }
+            Role::Budget => {
+                args.extend([example, "--budget".into(), "{}".into()]);
+                "toml"
+            }
+            Role::Reference => {
+                args.extend([example, "--budget".into(), budget]);
+                args.extend(["--reference".into(), "{}".into()]);
+                "csv"
+            }
+            Role::Truth => {
+                let measurement = path(measurement_of_truth(case.seed.path));
+                args.extend([measurement, "--diagnose".into(), "--truth".into()]);
+                args.push("{}".into());
+                "json"
+            }
+        };
+        args.extend(["--out".into(), "{dir}/report.html".into()]);
+        Run {
+            target,
+            case,
+            ext,
+            args,
+            format: Format::None,
+        }
+        .check()
+    });
+}
