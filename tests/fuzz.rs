@@ -34,19 +34,37 @@ const SHRINK: u32 = 512;
 #[test]
 fn measurement_file() {
     let strategy = case(seeds(seed::MEASUREMENT));
-    run("measurement", library_cases(), SHRINK, strategy, library::measurement);
+    run(
+        "measurement",
+        library_cases(),
+        SHRINK,
+        strategy,
+        library::measurement,
+    );
 }
 
 #[test]
 fn selfcal_file() {
     let strategy = case(seeds(seed::SELFCAL));
-    run("selfcal", library_cases(), SHRINK, strategy, library::selfcal);
+    run(
+        "selfcal",
+        library_cases(),
+        SHRINK,
+        strategy,
+        library::selfcal,
+    );
 }
 
 #[test]
 fn result_file() {
     let strategy = case(seeds(seed::RESULTS));
-    run("results", library_cases(), SHRINK, strategy, library::results);
+    run(
+        "results",
+        library_cases(),
+        SHRINK,
+        strategy,
+        library::results,
+    );
 }
 
 #[test]

@@ -26,33 +26,41 @@ const EXAMPLE: &str = "examples/data/polygon24-2ac-6cycles.csv";
 /// A small self-calibration (12 positions, 4 heads).
 const SELFCAL: &str = "tests/fixtures/expected/sim-selfcal.file.selfcal.csv";
 
-/// Cases of `seeds` with a format from `formats`.
+/// Cases of `seeds` with a format from `formats` and a variant below `variants` (which
+/// options the command is given; shrinking keeps it).
 fn with_format(
     seeds: &[&'static str],
     formats: &'static [Format],
-) -> impl Strategy<Value = (Case, Format)> {
-    (case(mutate::seeds(seeds)), prop::sample::select(formats))
+    variants: u8,
+) -> impl Strategy<Value = (Case, Format, u8)> {
+    (
+        case(mutate::seeds(seeds)),
+        prop::sample::select(formats),
+        0..variants,
+    )
 }
 
-/// Runs a target: `args` builds the command line (`{}` is the mutated file).
+/// Runs a target: `args` builds the command line (`{}` is the mutated file) of a case
+/// and its variant.
 fn fuzz_command(
     target: &str,
     seeds: &[&'static str],
     ext: &'static str,
     formats: &'static [Format],
-    args: impl Fn(&Case) -> Vec<String>,
+    variants: u8,
+    args: impl Fn(&Case, u8) -> Vec<String>,
 ) {
     run(
         target,
         binary_cases(),
         SHRINK,
-        with_format(seeds, formats),
-        |(case, format)| {
+        with_format(seeds, formats, variants),
+        |(case, format, variant)| {
             Run {
                 target,
                 case,
                 ext,
-                args: args(case),
+                args: args(case, *variant),
                 format: *format,
             }
             .check()
@@ -71,31 +79,73 @@ fn path(p: &str) -> String {
 const ALL: &[Format] = &[Format::Table, Format::Json, Format::Csv];
 const TABLE_JSON: &[Format] = &[Format::Table, Format::Json];
 
+/// Options given with a mutated measurement file, by variant: none, a budget, a stated
+/// σ, the dense solver (`solve` only).
+fn measurement_options(variant: u8) -> Vec<String> {
+    match variant {
+        0 => vec![],
+        1 => vec!["--budget".into(), path("examples/budgets/instrument.toml")],
+        2 => words("--sigma 0.05"),
+        _ => words("--method dense"),
+    }
+}
+
 #[test]
 fn cli_solve() {
-    fuzz_command("cli-solve", seed::MEASUREMENT, "csv", ALL, |_| {
-        words("solve {}")
-    });
+    fuzz_command(
+        "cli-solve",
+        seed::MEASUREMENT,
+        "csv",
+        ALL,
+        4,
+        |_, variant| [words("solve {}"), measurement_options(variant)].concat(),
+    );
 }
 
 #[test]
 fn cli_solve_budget() {
-    fuzz_command("cli-solve-budget", seed::BUDGET, "toml", ALL, |_| {
-        vec![
-            "solve".into(),
-            path(EXAMPLE),
-            "--budget".into(),
-            "{}".into(),
-        ]
-    });
+    fuzz_command(
+        "cli-solve-budget",
+        seed::BUDGET,
+        "toml",
+        ALL,
+        4,
+        |_, variant| {
+            let mut args = vec![
+                "solve".into(),
+                path(EXAMPLE),
+                "--budget".into(),
+                "{}".into(),
+            ];
+            if variant == 3 {
+                // A short Monte Carlo too.
+                args.extend(words("--monte-carlo 2000 --seed 1"));
+            }
+            args
+        },
+    );
 }
 
 #[test]
 fn cli_diagnose() {
-    fuzz_command("cli-diagnose", seed::MEASUREMENT, "csv", ALL, |_| {
-        words("diagnose {}")
-    });
+    // diagnose has no --method: variants 0 to 2 only.
+    fuzz_command(
+        "cli-diagnose",
+        seed::MEASUREMENT,
+        "csv",
+        ALL,
+        3,
+        |_, variant| [words("diagnose {}"), measurement_options(variant)].concat(),
+    );
 }
+
+/// The truths of sets `diagnose` takes (not the sub-pitch one: `diagnose` refuses its
+/// measurement, whatever the truth).
+const DIAGNOSE_TRUTH: &[&str] = &[
+    "examples/data/polygon24-2ac-6cycles.truth.json",
+    "tests/fixtures/expected/sim-bare.file.bare.json",
+    "tests/fixtures/expected/sim-drift.file.drift.json",
+];
 
 /// The measurement file each truth seed belongs to.
 fn measurement_of_truth(truth: &str) -> &'static str {
@@ -110,62 +160,81 @@ fn measurement_of_truth(truth: &str) -> &'static str {
     }
 }
 
-/// The truths of sets `diagnose` takes (not the sub-pitch one: `diagnose` refuses its
-/// measurement, whatever the truth).
-const DIAGNOSE_TRUTH: &[&str] = &[
-    "examples/data/polygon24-2ac-6cycles.truth.json",
-    "tests/fixtures/expected/sim-bare.file.bare.json",
-    "tests/fixtures/expected/sim-drift.file.drift.json",
-];
-
 #[test]
 fn cli_diagnose_truth() {
-    fuzz_command("cli-diagnose-truth", DIAGNOSE_TRUTH, "json", ALL, |case| {
-        vec![
-            "diagnose".into(),
-            path(measurement_of_truth(case.seed.path)),
-            "--truth".into(),
-            "{}".into(),
-        ]
-    });
+    fuzz_command(
+        "cli-diagnose-truth",
+        DIAGNOSE_TRUTH,
+        "json",
+        ALL,
+        1,
+        |case, _| {
+            let measurement = path(measurement_of_truth(case.seed.path));
+            vec![
+                "diagnose".into(),
+                measurement,
+                "--truth".into(),
+                "{}".into(),
+            ]
+        },
+    );
 }
 
 #[test]
 fn cli_selfcal() {
-    fuzz_command("cli-selfcal", seed::SELFCAL, "csv", ALL, |_| {
-        words("selfcal {}")
+    fuzz_command("cli-selfcal", seed::SELFCAL, "csv", ALL, 4, |_, variant| {
+        let options = match variant {
+            0 => vec![],
+            1 => vec!["--budget".into(), path("examples/budgets/selfcal.toml")],
+            2 => words("--sigma 0.05"),
+            _ => words("--lost-harmonic-bound 0.01 --gauge-positions 24 --head-angle-u 0.5"),
+        };
+        [words("selfcal {}"), options].concat()
     });
 }
 
 #[test]
 fn cli_selfcal_budget() {
-    fuzz_command("cli-selfcal-budget", seed::BUDGET, "toml", ALL, |_| {
-        vec![
-            "selfcal".into(),
-            path(SELFCAL),
-            "--budget".into(),
-            "{}".into(),
-        ]
-    });
+    fuzz_command(
+        "cli-selfcal-budget",
+        seed::BUDGET,
+        "toml",
+        ALL,
+        1,
+        |_, _| {
+            vec![
+                "selfcal".into(),
+                path(SELFCAL),
+                "--budget".into(),
+                "{}".into(),
+            ]
+        },
+    );
 }
 
 #[test]
 fn cli_compare() {
-    // The mutated file against its own seed, as A or as B (by the first mutation's
-    // kind of index, to spread both over the cases).
-    fuzz_command("cli-compare", seed::RESULTS, "csv", ALL, |case| {
-        let seed = path(case.seed.path);
-        if case.mutations.len() % 2 == 1 {
-            vec!["compare".into(), "{}".into(), seed]
-        } else {
-            vec!["compare".into(), seed, "{}".into()]
-        }
-    });
+    // The mutated file against its own seed, as A or as B.
+    fuzz_command(
+        "cli-compare",
+        seed::RESULTS,
+        "csv",
+        ALL,
+        2,
+        |case, variant| {
+            let seed = path(case.seed.path);
+            if variant == 0 {
+                vec!["compare".into(), "{}".into(), seed]
+            } else {
+                vec!["compare".into(), seed, "{}".into()]
+            }
+        },
+    );
 }
 
 #[test]
 fn cli_budget() {
-    fuzz_command("cli-budget", seed::BUDGET, "toml", TABLE_JSON, |_| {
+    fuzz_command("cli-budget", seed::BUDGET, "toml", TABLE_JSON, 1, |_, _| {
         words("budget {}")
     });
 }

@@ -118,8 +118,8 @@ impl Run<'_> {
             std::thread::sleep(Duration::from_millis(2));
         };
         let stdout = std::fs::read(&stdout_path).unwrap_or_default();
-        let stderr = String::from_utf8_lossy(&std::fs::read(&stderr_path).unwrap_or_default())
-            .into_owned();
+        let stderr =
+            String::from_utf8_lossy(&std::fs::read(&stderr_path).unwrap_or_default()).into_owned();
         let finding = |kind: String, what: &str| {
             let detail = format!(
                 "command: {shown}\n(the mutated file is {input_text})\n{what}\nstderr: {}\nstdout: {}",

@@ -83,7 +83,12 @@ pub struct Finding {
 
 impl Finding {
     /// A finding of `case` (its mutated bytes are the input).
-    pub fn of(case: &Case, ext: &'static str, kind: impl Into<String>, detail: impl Into<String>) -> Finding {
+    pub fn of(
+        case: &Case,
+        ext: &'static str,
+        kind: impl Into<String>,
+        detail: impl Into<String>,
+    ) -> Finding {
         let input = case.bytes();
         let origin = format!("{case:?}\n{}", diff(&case.seed.bytes, &input));
         Finding {
@@ -178,9 +183,19 @@ pub fn catch<T>(f: impl FnOnce() -> T) -> Result<T, (String, String)> {
 }
 
 /// Runs `what` on a case, a panic being a finding `panic in WHAT at PLACE`.
-pub fn no_panic<T>(case: &Case, ext: &'static str, what: &str, f: impl FnOnce() -> T) -> Result<T, Finding> {
+pub fn no_panic<T>(
+    case: &Case,
+    ext: &'static str,
+    what: &str,
+    f: impl FnOnce() -> T,
+) -> Result<T, Finding> {
     catch(f).map_err(|(place, message)| {
-        Finding::of(case, ext, format!("panic in {what} at {place}"), format!("panic message: {message}"))
+        Finding::of(
+            case,
+            ext,
+            format!("panic in {what} at {place}"),
+            format!("panic message: {message}"),
+        )
     })
 }
 
@@ -198,7 +213,12 @@ pub fn read<T, E: Display>(
         Ok(value) => Ok(Some(value)),
         Err(e) => {
             let message = catch(|| e.to_string()).map_err(|(place, m)| {
-                Finding::of(case, ext, format!("panic in {what}'s error message at {place}"), m)
+                Finding::of(
+                    case,
+                    ext,
+                    format!("panic in {what}'s error message at {place}"),
+                    m,
+                )
             })?;
             if message.contains(source) {
                 Ok(None)
@@ -234,11 +254,9 @@ fn config(target: &str, cases: u32, shrink_iters: u32) -> Config {
     config.max_shrink_time = 60_000;
     config.rng_seed = match base_seed() {
         // The target's name spreads the targets over different streams.
-        Some(seed) => RngSeed::Fixed(
-            target
-                .bytes()
-                .fold(seed, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)),
-        ),
+        Some(seed) => RngSeed::Fixed(target.bytes().fold(seed, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        })),
         None => RngSeed::Random,
     };
     config
@@ -268,7 +286,9 @@ pub fn run<S>(
         };
         if survey {
             let mut found = found.borrow_mut();
-            let entry = found.entry(finding.kind.clone()).or_insert((0, finding.clone()));
+            let entry = found
+                .entry(finding.kind.clone())
+                .or_insert((0, finding.clone()));
             entry.0 += 1;
             if finding.input.len() < entry.1.input.len() {
                 entry.1 = finding;
@@ -295,10 +315,16 @@ pub fn run<S>(
     }
     let found = found.into_inner();
     if !found.is_empty() {
-        let mut text = format!("fuzz target `{target}`: {} kinds of failure\n\n", found.len());
+        let mut text = format!(
+            "fuzz target `{target}`: {} kinds of failure\n\n",
+            found.len()
+        );
         for (n, (_, (count, finding))) in found.iter().enumerate() {
             let path = finding.save(target, n + 1);
-            text.push_str(&format!("({count} cases) {}\n", finding.message(target, &path)));
+            text.push_str(&format!(
+                "({count} cases) {}\n",
+                finding.message(target, &path)
+            ));
         }
         panic!("{text}");
     }

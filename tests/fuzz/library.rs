@@ -158,14 +158,19 @@ pub fn selfcal(case: &Case) -> Result<(), Finding> {
             evaluate_budget(&solution, selfcal_budget()).is_ok()
         })?;
     }
-    no_panic(case, "csv", "selfcal::solve (bound, gauge, head-angle u)", || {
-        let options = SelfcalOptions::new()
-            .with_lost_harmonic_bound(0.01)
-            .and_then(|o| o.with_head_angle_u(0.5))
-            .map(|o| o.with_gauge_positions(24))
-            .expect("valid options");
-        polycal::selfcal::solve(&set, &options).is_ok()
-    })?;
+    no_panic(
+        case,
+        "csv",
+        "selfcal::solve (bound, gauge, head-angle u)",
+        || {
+            let options = SelfcalOptions::new()
+                .with_lost_harmonic_bound(0.01)
+                .and_then(|o| o.with_head_angle_u(0.5))
+                .map(|o| o.with_gauge_positions(24))
+                .expect("valid options");
+            polycal::selfcal::solve(&set, &options).is_ok()
+        },
+    )?;
     Ok(())
 }
 
@@ -234,9 +239,13 @@ pub fn budget(case: &Case) -> Result<(), Finding> {
 pub fn instrument_budget(case: &Case) -> Result<(), Finding> {
     let bytes = case.bytes();
     let budget = match utf8(&bytes) {
-        Some(text) => read(case, "toml", "InstrumentBudget::from_toml_str", TOML, || {
-            InstrumentBudget::from_toml_str(text, TOML)
-        })?,
+        Some(text) => read(
+            case,
+            "toml",
+            "InstrumentBudget::from_toml_str",
+            TOML,
+            || InstrumentBudget::from_toml_str(text, TOML),
+        )?,
         None => {
             let (path, shown) = to_file("instrument-budget", TOML, &bytes);
             read(case, "toml", "InstrumentBudget::read_path", &shown, || {

@@ -203,22 +203,63 @@ impl LineEnd {
 /// One mutation of a file's bytes.
 #[derive(Clone)]
 pub enum Mutation {
-    FlipBit { at: Index, bit: u8 },
-    SetByte { at: Index, byte: u8 },
-    Insert { at: Index, bytes: Vec<u8> },
-    Delete { at: Index, len: usize },
-    Truncate { at: Index },
-    DuplicateLine { line: Index },
-    DeleteLine { line: Index },
-    SwapLines { a: Index, b: Index },
-    DuplicateField { line: Index, field: Index },
-    SwapFields { line: Index, a: Index, b: Index },
-    ReplaceField { line: Index, field: Index, value: Vec<u8> },
+    FlipBit {
+        at: Index,
+        bit: u8,
+    },
+    SetByte {
+        at: Index,
+        byte: u8,
+    },
+    Insert {
+        at: Index,
+        bytes: Vec<u8>,
+    },
+    Delete {
+        at: Index,
+        len: usize,
+    },
+    Truncate {
+        at: Index,
+    },
+    DuplicateLine {
+        line: Index,
+    },
+    DeleteLine {
+        line: Index,
+    },
+    SwapLines {
+        a: Index,
+        b: Index,
+    },
+    DuplicateField {
+        line: Index,
+        field: Index,
+    },
+    SwapFields {
+        line: Index,
+        a: Index,
+        b: Index,
+    },
+    ReplaceField {
+        line: Index,
+        field: Index,
+        value: Vec<u8>,
+    },
     /// The `nth` number of the file (among those with a decimal point when `decimal`
     /// and there are some) replaced by `value`.
-    ReplaceNumber { nth: Index, decimal: bool, value: Vec<u8> },
-    LineEnd { line: Index, end: LineEnd },
-    AllLineEnds { end: LineEnd },
+    ReplaceNumber {
+        nth: Index,
+        decimal: bool,
+        value: Vec<u8>,
+    },
+    LineEnd {
+        line: Index,
+        end: LineEnd,
+    },
+    AllLineEnds {
+        end: LineEnd,
+    },
     Bom,
 }
 
@@ -249,7 +290,11 @@ impl fmt::Debug for Mutation {
                 i(field),
                 show(value, 60)
             ),
-            Mutation::ReplaceNumber { nth, decimal, value } => write!(
+            Mutation::ReplaceNumber {
+                nth,
+                decimal,
+                value,
+            } => write!(
                 f,
                 "ReplaceNumber(#{}{}, {})",
                 i(nth),
@@ -328,7 +373,8 @@ impl Case {
 /// four mutations.
 pub fn case(seeds: Vec<Seed>) -> impl Strategy<Value = Case> {
     assert!(!seeds.is_empty());
-    (prop::sample::select(seeds), mutations()).prop_map(|(seed, mutations)| Case { seed, mutations })
+    (prop::sample::select(seeds), mutations())
+        .prop_map(|(seed, mutations)| Case { seed, mutations })
 }
 
 /// One to four mutations, one most often (a single change is more often accepted, and
@@ -467,7 +513,11 @@ pub fn apply(bytes: &mut Vec<u8>, m: &Mutation) {
                 bytes.splice(s..e, value.iter().copied());
             }
         }
-        Mutation::ReplaceNumber { nth, decimal, value } => {
+        Mutation::ReplaceNumber {
+            nth,
+            decimal,
+            value,
+        } => {
             let all: Vec<(usize, usize)> = lines(bytes)
                 .into_iter()
                 .flat_map(|l| fields(bytes, l))
@@ -557,11 +607,7 @@ pub fn show(bytes: &[u8], max: usize) -> String {
 /// Where a mutated file differs from its seed: the changed lines of both, by line
 /// number, cut to a readable length.
 pub fn diff(seed: &[u8], mutated: &[u8]) -> String {
-    let prefix = seed
-        .iter()
-        .zip(mutated)
-        .take_while(|(a, b)| a == b)
-        .count();
+    let prefix = seed.iter().zip(mutated).take_while(|(a, b)| a == b).count();
     let suffix = seed[prefix..]
         .iter()
         .rev()

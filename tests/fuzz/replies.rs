@@ -40,7 +40,8 @@ pub fn case() -> impl Strategy<Value = Case> {
             bytes: r.as_bytes().to_vec(),
         })
         .collect();
-    (prop::sample::select(seeds), mutations()).prop_map(|(seed, mutations)| Case { seed, mutations })
+    (prop::sample::select(seeds), mutations())
+        .prop_map(|(seed, mutations)| Case { seed, mutations })
 }
 
 /// Every parser on the mutated line (read as the transport reads it: invalid UTF-8
@@ -86,7 +87,10 @@ pub fn check(case: &Case) -> Result<(), Finding> {
         parse_last_error(&line).map_err(|e| e.to_string())
     })? && !(code == '@' || code.is_ascii_uppercase())
     {
-        return Err(bad("parse_last_error accepted an unknown code", format!("{code:?}")));
+        return Err(bad(
+            "parse_last_error accepted an unknown code",
+            format!("{code:?}"),
+        ));
     }
     no_panic(case, "txt", "parse_version", || {
         parse_version(&line).map(|_| ()).map_err(|e| e.to_string())
