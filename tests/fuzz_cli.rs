@@ -26,27 +26,28 @@ const EXAMPLE: &str = "examples/data/polygon24-2ac-6cycles.csv";
 /// A small self-calibration (12 positions, 4 heads).
 const SELFCAL: &str = "tests/fixtures/expected/sim-selfcal.file.selfcal.csv";
 
-/// Cases of `seeds` with a format from `formats` and a variant below `variants` (which
-/// options the command is given; shrinking keeps it).
+/// Cases of `seeds` with a format from `formats`, a variant below `variants` (which
+/// options the command is given; shrinking keeps it) and whether to add `--plot DIR`.
 fn with_format(
     seeds: &[&'static str],
     formats: &'static [Format],
     variants: u8,
-) -> impl Strategy<Value = (Case, Format, u8)> {
+) -> impl Strategy<Value = (Case, Format, u8, bool)> {
     (
         case(mutate::seeds(seeds)),
         prop::sample::select(formats),
         0..variants,
+        prop::bool::weighted(0.25),
     )
 }
 
 /// Runs a target: `args` builds the command line (`{}` is the mutated file) of a case
-/// and its variant.
+/// and its variant; `--plot DIR` is added to a quarter of the cases when `plot`.
 fn fuzz_command(
     target: &str,
     seeds: &[&'static str],
     ext: &'static str,
-    formats: &'static [Format],
+    (formats, plot): (&'static [Format], bool),
     variants: u8,
     args: impl Fn(&Case, u8) -> Vec<String>,
 ) {
@@ -55,12 +56,16 @@ fn fuzz_command(
         binary_cases(),
         SHRINK,
         with_format(seeds, formats, variants),
-        |(case, format, variant)| {
+        |(case, format, variant, with_plot)| {
+            let mut args = args(case, *variant);
+            if plot && *with_plot {
+                args.extend(["--plot".into(), "{dir}/plot".into()]);
+            }
             Run {
                 target,
                 case,
                 ext,
-                args: args(case, *variant),
+                args,
                 format: *format,
             }
             .check()
@@ -77,7 +82,10 @@ fn path(p: &str) -> String {
 }
 
 const ALL: &[Format] = &[Format::Table, Format::Json, Format::Csv];
-const TABLE_JSON: &[Format] = &[Format::Table, Format::Json];
+/// Every format, and `--plot` in a quarter of the cases.
+const PLOT: (&[Format], bool) = (ALL, true);
+/// Every format.
+const NO_PLOT: (&[Format], bool) = (ALL, false);
 
 /// Options given with a mutated measurement file, by variant: none, a budget, a stated
 /// σ, the dense solver (`solve` only).
@@ -96,7 +104,7 @@ fn cli_solve() {
         "cli-solve",
         seed::MEASUREMENT,
         "csv",
-        ALL,
+        PLOT,
         4,
         |_, variant| [words("solve {}"), measurement_options(variant)].concat(),
     );
@@ -108,7 +116,7 @@ fn cli_solve_budget() {
         "cli-solve-budget",
         seed::BUDGET,
         "toml",
-        ALL,
+        PLOT,
         4,
         |_, variant| {
             let mut args = vec![
@@ -133,7 +141,7 @@ fn cli_diagnose() {
         "cli-diagnose",
         seed::MEASUREMENT,
         "csv",
-        ALL,
+        PLOT,
         3,
         |_, variant| [words("diagnose {}"), measurement_options(variant)].concat(),
     );
@@ -166,7 +174,7 @@ fn cli_diagnose_truth() {
         "cli-diagnose-truth",
         DIAGNOSE_TRUTH,
         "json",
-        ALL,
+        NO_PLOT,
         1,
         |case, _| {
             let measurement = path(measurement_of_truth(case.seed.path));
@@ -182,15 +190,22 @@ fn cli_diagnose_truth() {
 
 #[test]
 fn cli_selfcal() {
-    fuzz_command("cli-selfcal", seed::SELFCAL, "csv", ALL, 4, |_, variant| {
-        let options = match variant {
-            0 => vec![],
-            1 => vec!["--budget".into(), path("examples/budgets/selfcal.toml")],
-            2 => words("--sigma 0.05"),
-            _ => words("--lost-harmonic-bound 0.01 --gauge-positions 24 --head-angle-u 0.5"),
-        };
-        [words("selfcal {}"), options].concat()
-    });
+    fuzz_command(
+        "cli-selfcal",
+        seed::SELFCAL,
+        "csv",
+        PLOT,
+        4,
+        |_, variant| {
+            let options = match variant {
+                0 => vec![],
+                1 => vec!["--budget".into(), path("examples/budgets/selfcal.toml")],
+                2 => words("--sigma 0.05"),
+                _ => words("--lost-harmonic-bound 0.01 --gauge-positions 24 --head-angle-u 0.5"),
+            };
+            [words("selfcal {}"), options].concat()
+        },
+    );
 }
 
 #[test]
@@ -199,7 +214,7 @@ fn cli_selfcal_budget() {
         "cli-selfcal-budget",
         seed::BUDGET,
         "toml",
-        ALL,
+        PLOT,
         1,
         |_, _| {
             vec![
@@ -219,7 +234,7 @@ fn cli_compare() {
         "cli-compare",
         seed::RESULTS,
         "csv",
-        ALL,
+        PLOT,
         2,
         |case, variant| {
             let seed = path(case.seed.path);
@@ -234,9 +249,14 @@ fn cli_compare() {
 
 #[test]
 fn cli_budget() {
-    fuzz_command("cli-budget", seed::BUDGET, "toml", TABLE_JSON, 1, |_, _| {
-        words("budget {}")
-    });
+    fuzz_command(
+        "cli-budget",
+        seed::BUDGET,
+        "toml",
+        (&[Format::Table, Format::Json], false),
+        1,
+        |_, _| words("budget {}"),
+    );
 }
 
 /// Which input of `report` is mutated.

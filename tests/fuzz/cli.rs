@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::harness::{Finding, scratch};
+use super::harness::{Finding, crate_frame, scratch};
 use super::mutate::{Case, show};
 
 /// A command that runs longer than this is killed and reported.
@@ -99,6 +99,7 @@ impl Run<'_> {
             .args(&args)
             .current_dir(root())
             .env("SOURCE_DATE_EPOCH", "0")
+            .env("RUST_BACKTRACE", "1")
             .env_remove("NO_COLOR")
             .stdin(Stdio::null())
             .stdout(std::fs::File::create(&stdout_path).expect("stdout file"))
@@ -139,6 +140,11 @@ impl Run<'_> {
             let place = line
                 .split_once(" at ")
                 .map_or(line, |(_, place)| place.trim_end_matches(':'));
+            // A panic in the standard library is placed by the crate's frame.
+            let place = match crate_frame(&stderr) {
+                Some(frame) if !place.starts_with("src/") => format!("{frame} (in {place})"),
+                _ => place.to_string(),
+            };
             return finding(
                 format!("{command}: stderr says panicked at {place}"),
                 "a panic",

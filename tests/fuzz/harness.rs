@@ -152,6 +152,17 @@ fn install_hook() {
                     .location()
                     .map(|l| format!("{}:{}:{}", l.file(), l.line(), l.column()))
                     .unwrap_or_else(|| "an unknown place".to_string());
+                // A panic in the standard library (an overflow, an index) is placed by
+                // the crate's frame that called it.
+                let place = if place.starts_with("src/") {
+                    place
+                } else {
+                    let trace = std::backtrace::Backtrace::force_capture().to_string();
+                    match crate_frame(&trace) {
+                        Some(frame) => format!("{frame} (in {place})"),
+                        None => place,
+                    }
+                };
                 let message = info
                     .payload()
                     .downcast_ref::<&str>()
@@ -164,6 +175,18 @@ fn install_hook() {
             }
         }));
     });
+}
+
+/// The first frame of a backtrace in the crate's `src/` (`src/file.rs:line:column`).
+pub fn crate_frame(trace: &str) -> Option<String> {
+    trace.lines().find_map(|line| {
+        let at = line.trim().strip_prefix("at ")?;
+        let at = at.strip_prefix("./").unwrap_or(at);
+        let at = at
+            .strip_prefix(concat!(env!("CARGO_MANIFEST_DIR"), "/"))
+            .unwrap_or(at);
+        at.starts_with("src/").then(|| at.to_string())
+    })
 }
 
 /// Runs `f`, catching a panic: `Err((place, message))`.

@@ -6,9 +6,12 @@ use std::sync::OnceLock;
 
 use polycal::compare::{CompareOptions, compare_files};
 use polycal::diagnose::{DiagnoseOptions, Diagnosis, diagnose};
+use polycal::figure;
 use polycal::measurement::{MeasurementSet, read_rows};
 use polycal::report::diagnose::{DiagnoseReport, write_table};
 use polycal::report::html::meta;
+use polycal::report::selfcal::SelfcalReport;
+use polycal::report::{self, SolveReport};
 use polycal::results::read_results_from;
 use polycal::selfcal::{SelfcalOptions, SelfcalSet, SelfcalSolution, evaluate_budget};
 use polycal::simulate::{SelfcalTruth, Truth};
@@ -120,21 +123,63 @@ pub fn measurement(case: &Case) -> Result<(), Finding> {
     let options = SolveOptions::default();
     match no_panic(case, "csv", "solve", || solve(&set, &options))? {
         Ok(solution) => {
-            no_panic(case, "csv", "calibration::evaluate", || {
-                evaluate(&set, &solution, example_budget()).is_ok()
+            let gum = no_panic(case, "csv", "calibration::evaluate", || {
+                evaluate(&set, &solution, example_budget()).ok()
             })?;
+            no_panic(
+                case,
+                "csv",
+                "the solve report (table, JSON, CSV, figures)",
+                || {
+                    let mut table = String::new();
+                    let _ = report::write_table(&mut table, &solution, CSV, gum.as_ref(), None);
+                    let mut report = SolveReport::new(&solution, None);
+                    if let Some(gum) = &gum {
+                        report = report.with_uncertainty(gum);
+                        let _ = figure::budget_figures(gum);
+                    }
+                    let _ = report.to_json();
+                    let _ = figure::solve_figures(&report);
+                    let rows = report::result_rows_with(&solution, gum.as_ref());
+                    let _ = report::write_results_with_file(std::io::sink(), &[(CSV.into(), rows)]);
+                },
+            )?;
         }
         Err(SolveError::SubPitch { .. }) => {
-            no_panic(case, "csv", "solve_shifted", || {
-                solve_shifted(&set, &options).is_ok()
-            })?;
+            if let Ok(solved) = no_panic(case, "csv", "solve_shifted", || {
+                solve_shifted(&set, &options)
+            })? {
+                no_panic(case, "csv", "the sub-pitch solve report", || {
+                    let mut table = String::new();
+                    let _ = report::write_sub_pitch_table(&mut table, &solved, CSV);
+                    let report = SolveReport::sub_pitch(&solved, None);
+                    let _ = report.to_json();
+                    let _ = figure::solve_figures(&report);
+                })?;
+            }
         }
         Err(_) => {}
     }
     if set.readings.len() <= DIAGNOSE_MAX_READINGS && !set.has_shifts() {
-        no_panic(case, "csv", "diagnose", || {
-            diagnose(&set, &DiagnoseOptions::new()).is_ok()
+        let diagnosis = no_panic(case, "csv", "diagnose", || {
+            diagnose(&set, &DiagnoseOptions::new())
         })?;
+        if let Ok(diagnosis) = diagnosis {
+            no_panic(
+                case,
+                "csv",
+                "the diagnose report (table, JSON, figures)",
+                || {
+                    let mut table = String::new();
+                    let _ = write_table(&mut table, &diagnosis, None, CSV);
+                    let _ = report::write_final_model_results(&mut table, &diagnosis.after, None);
+                    let report = DiagnoseReport::new(&diagnosis, None, None)
+                        .with_residuals(&diagnosis, &set);
+                    let _ = report.to_json();
+                    let _ = figure::diagnose_figures(&report);
+                },
+            )?;
+        }
     }
     Ok(())
 }
@@ -154,9 +199,25 @@ pub fn selfcal(case: &Case) -> Result<(), Finding> {
     if let Ok(solution) = no_panic(case, "csv", "selfcal::solve", || {
         polycal::selfcal::solve(&set, &plain)
     })? {
-        no_panic(case, "csv", "selfcal::evaluate_budget", || {
-            evaluate_budget(&solution, selfcal_budget()).is_ok()
+        let uncertainty = no_panic(case, "csv", "selfcal::evaluate_budget", || {
+            evaluate_budget(&solution, selfcal_budget()).ok()
         })?;
+        no_panic(
+            case,
+            "csv",
+            "the selfcal report (table, JSON, figures)",
+            || {
+                let mut table = String::new();
+                let _ =
+                    report::selfcal::write_table(&mut table, &solution, CSV, uncertainty.as_ref());
+                let mut report = SelfcalReport::new(&solution, CSV);
+                if let Some(uncertainty) = &uncertainty {
+                    report = report.with_uncertainty(uncertainty);
+                }
+                let _ = report.to_json();
+                let _ = figure::selfcal_figures(&report);
+            },
+        )?;
     }
     no_panic(
         case,
@@ -187,14 +248,16 @@ pub fn results(case: &Case) -> Result<(), Finding> {
     let seed = read_results_from(&case.seed.bytes[..], case.seed.path).expect("a valid seed");
     let options = CompareOptions::new().with_include_setup(true);
     for (a, b, what) in [
-        (&file, &seed, "compare_files(mutated, seed)"),
-        (&seed, &file, "compare_files(seed, mutated)"),
-        (&file, &file, "compare_files(mutated, mutated)"),
+        (&file, &seed, "compare_files(mutated, seed) and its report"),
+        (&seed, &file, "compare_files(seed, mutated) and its report"),
+        (&file, &file, "compare_files(mutated, mutated) and its report"),
     ] {
         no_panic(case, "csv", what, || {
             if let Ok(comparison) = compare_files(a, b, &options) {
                 let mut table = String::new();
-                let _ = polycal::report::compare::write_table(&mut table, &comparison);
+                let _ = report::compare::write_table(&mut table, &comparison);
+                let _ = report::to_json(&comparison);
+                let _ = figure::compare_figures(&comparison);
             }
         })?;
     }
@@ -257,8 +320,14 @@ pub fn instrument_budget(case: &Case) -> Result<(), Finding> {
         return Ok(());
     };
     let example = example24();
-    no_panic(case, "toml", "calibration::evaluate", || {
-        evaluate(&example.set, &example.solution, &budget).is_ok()
+    no_panic(case, "toml", "calibration::evaluate and its report", || {
+        if let Ok(gum) = evaluate(&example.set, &example.solution, &budget) {
+            let mut table = String::new();
+            let _ = report::write_results(&mut table, &example.solution, Some(&gum));
+            let report = SolveReport::new(&example.solution, None).with_uncertainty(&gum);
+            let _ = report.to_json();
+            let _ = figure::budget_figures(&gum);
+        }
     })?;
     no_panic(case, "toml", "selfcal::evaluate_budget", || {
         evaluate_budget(selfcal_solution(), &budget).is_ok()
