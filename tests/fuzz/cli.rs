@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::harness::{Finding, crate_frame, scratch};
+use super::harness::{Finding, crate_frame, scratch, short};
 use super::mutate::{Case, show};
 
 /// A command that runs longer than this is killed and reported.
@@ -127,7 +127,9 @@ impl Run<'_> {
                 show(stderr.as_bytes(), 1500),
                 show(&stdout, 600)
             );
-            Err(Finding::of(self.case, self.ext, kind, detail))
+            let mut finding = Finding::of(self.case, self.ext, kind, detail);
+            finding.command = Some((shown.clone(), input_text.clone()));
+            Err(finding)
         };
         let command = self.args.first().map_or("", String::as_str);
         let Some(status) = status else {
@@ -142,7 +144,9 @@ impl Run<'_> {
                 .map_or(line, |(_, place)| place.trim_end_matches(':'));
             // A panic in the standard library is placed by the crate's frame.
             let place = match crate_frame(&stderr) {
-                Some(frame) if !place.starts_with("src/") => format!("{frame} (in {place})"),
+                Some(frame) if !place.starts_with("src/") => {
+                    format!("{frame} (in {})", short(&place))
+                }
                 _ => place.to_string(),
             };
             return finding(

@@ -28,7 +28,7 @@ use proptest::test_runner::{Config, RngSeed, TestCaseError, TestError, TestRunne
 use super::mutate::{Case, diff, show};
 
 /// Cases per library-level target unless `POLYCAL_FUZZ_CASES` says otherwise.
-pub const DEFAULT_CASES: u32 = 2048;
+pub const DEFAULT_CASES: u32 = 4096;
 
 /// The default random stream: fixed, so that CI repeats its cases.
 const DEFAULT_SEED: u64 = 0x706f_6c79_6361_6c00;
@@ -79,6 +79,9 @@ pub struct Finding {
     pub ext: &'static str,
     /// Where the input came from: the seed and its mutations, and the changed lines.
     pub origin: String,
+    /// The command that failed and the path of the mutated file in it (binary level):
+    /// the message shows it with the saved reproducer instead.
+    pub command: Option<(String, String)>,
 }
 
 impl Finding {
@@ -97,6 +100,7 @@ impl Finding {
             input,
             ext,
             origin,
+            command: None,
         }
     }
 
@@ -121,8 +125,15 @@ impl Finding {
     }
 
     fn message(&self, target: &str, saved: &std::path::Path) -> String {
+        let reproduce = match &self.command {
+            Some((command, input)) => format!(
+                "to reproduce: {}\n",
+                command.replace(input.as_str(), &saved.display().to_string())
+            ),
+            None => String::new(),
+        };
         format!(
-            "fuzz target `{target}`: {}\n{}\ninput ({} bytes, saved as {}): {}\norigin: {}\n",
+            "fuzz target `{target}`: {}\n{}\ninput ({} bytes, saved as {}): {}\n{reproduce}origin: {}\n",
             self.kind,
             self.detail.trim_end(),
             self.input.len(),
@@ -159,7 +170,7 @@ fn install_hook() {
                 } else {
                     let trace = std::backtrace::Backtrace::force_capture().to_string();
                     match crate_frame(&trace) {
-                        Some(frame) => format!("{frame} (in {place})"),
+                        Some(frame) => format!("{frame} (in {})", short(&place)),
                         None => place,
                     }
                 };
@@ -187,6 +198,13 @@ pub fn crate_frame(trace: &str) -> Option<String> {
             .unwrap_or(at);
         at.starts_with("src/").then(|| at.to_string())
     })
+}
+
+/// A place in the standard library without the toolchain's path (`alloc/src/…`).
+pub fn short(place: &str) -> &str {
+    place
+        .split_once("/library/")
+        .map_or(place, |(_, rest)| rest)
 }
 
 /// Runs `f`, catching a panic: `Err((place, message))`.
@@ -257,13 +275,19 @@ pub fn read<T, E: Display>(
     }
 }
 
-/// A scratch directory of this process, thread and `name`, under `target/tmp/`.
-pub fn scratch(name: &str) -> PathBuf {
+/// The scratch directory of this process, thread and `name`, under `target/tmp/`.
+fn scratch_path(name: &str) -> PathBuf {
     let thread = format!("{:?}", std::thread::current().id());
     let thread: String = thread.chars().filter(char::is_ascii_digit).collect();
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+    PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
         .join("fuzz-work")
-        .join(format!("{name}-{}-{thread}", std::process::id()));
+        .join(format!("{name}-{}-{thread}", std::process::id()))
+}
+
+/// A scratch directory of this process, thread and `name`, under `target/tmp/` (created;
+/// [`run`] removes that of its target at the end).
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = scratch_path(name);
     std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
     dir
 }
@@ -327,28 +351,35 @@ pub fn run<S>(
             Ok(())
         }
     });
-    match result {
-        Ok(()) => {}
+    let failure = match result {
+        Ok(()) => None,
         Err(TestError::Fail(_, value)) => {
             let finding = check(&value).expect_err("the shrunk case fails again");
             let path = finding.save(target, 0);
-            panic!("{}", finding.message(target, &path));
+            Some(finding.message(target, &path))
         }
-        Err(e) => panic!("fuzz target `{target}`: {e}"),
-    }
+        Err(e) => Some(format!("fuzz target `{target}`: {e}")),
+    };
     let found = found.into_inner();
-    if !found.is_empty() {
-        let mut text = format!(
-            "fuzz target `{target}`: {} kinds of failure\n\n",
-            found.len()
-        );
-        for (n, (_, (count, finding))) in found.iter().enumerate() {
-            let path = finding.save(target, n + 1);
-            text.push_str(&format!(
-                "({count} cases) {}\n",
-                finding.message(target, &path)
-            ));
-        }
-        panic!("{text}");
+    let failure = failure.or_else(|| {
+        (!found.is_empty()).then(|| {
+            let mut text = format!(
+                "fuzz target `{target}`: {} kinds of failure\n\n",
+                found.len()
+            );
+            for (n, (_, (count, finding))) in found.iter().enumerate() {
+                let path = finding.save(target, n + 1);
+                text.push_str(&format!(
+                    "({count} cases) {}\n",
+                    finding.message(target, &path)
+                ));
+            }
+            text
+        })
+    });
+    // The cases ran on this thread: their scratch files are done with.
+    let _ = std::fs::remove_dir_all(scratch_path(target));
+    if let Some(failure) = failure {
+        panic!("{failure}");
     }
 }

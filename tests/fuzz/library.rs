@@ -250,7 +250,11 @@ pub fn results(case: &Case) -> Result<(), Finding> {
     for (a, b, what) in [
         (&file, &seed, "compare_files(mutated, seed) and its report"),
         (&seed, &file, "compare_files(seed, mutated) and its report"),
-        (&file, &file, "compare_files(mutated, mutated) and its report"),
+        (
+            &file,
+            &file,
+            "compare_files(mutated, mutated) and its report",
+        ),
     ] {
         no_panic(case, "csv", what, || {
             if let Ok(comparison) = compare_files(a, b, &options) {
