@@ -67,7 +67,7 @@ pub struct Run<'a> {
 
 impl Run<'_> {
     /// Writes the mutated file, runs the command and checks it.
-    pub fn check(&self) -> Result<(), Finding> {
+    pub fn check(&self) -> Result<(), Box<Finding>> {
         let dir = scratch(self.target);
         let _ = std::fs::remove_dir_all(dir.join("out"));
         std::fs::create_dir_all(dir.join("out")).expect("scratch directory");
@@ -145,7 +145,7 @@ impl Run<'_> {
             // A panic in the standard library is placed by the crate's frame.
             let place = match crate_frame(&stderr) {
                 Some(frame) if !place.starts_with("src/") => {
-                    format!("{frame} (in {})", short(&place))
+                    format!("{frame} (in {})", short(place))
                 }
                 _ => place.to_string(),
             };

@@ -91,17 +91,17 @@ impl Finding {
         ext: &'static str,
         kind: impl Into<String>,
         detail: impl Into<String>,
-    ) -> Finding {
+    ) -> Box<Finding> {
         let input = case.bytes();
         let origin = format!("{case:?}\n{}", diff(&case.seed.bytes, &input));
-        Finding {
+        Box::new(Finding {
             kind: kind.into(),
             detail: detail.into(),
             input,
             ext,
             origin,
             command: None,
-        }
+        })
     }
 
     /// Saves the input (and a `.txt` with the message) under `target/tmp/fuzz-failures/
@@ -229,7 +229,7 @@ pub fn no_panic<T>(
     ext: &'static str,
     what: &str,
     f: impl FnOnce() -> T,
-) -> Result<T, Finding> {
+) -> Result<T, Box<Finding>> {
     catch(f).map_err(|(place, message)| {
         Finding::of(
             case,
@@ -249,7 +249,7 @@ pub fn read<T, E: Display>(
     what: &str,
     source: &str,
     read: impl FnOnce() -> Result<T, E>,
-) -> Result<Option<T>, Finding> {
+) -> Result<Option<T>, Box<Finding>> {
     match no_panic(case, ext, what, read)? {
         Ok(value) => Ok(Some(value)),
         Err(e) => {
@@ -317,7 +317,7 @@ pub fn run<S>(
     cases: u32,
     shrink_iters: u32,
     strategy: S,
-    check: impl Fn(&S::Value) -> Result<(), Finding>,
+    check: impl Fn(&S::Value) -> Result<(), Box<Finding>>,
 ) where
     S: Strategy,
     S::Value: Debug,
@@ -335,10 +335,10 @@ pub fn run<S>(
             let mut found = found.borrow_mut();
             let entry = found
                 .entry(finding.kind.clone())
-                .or_insert((0, finding.clone()));
+                .or_insert((0, (*finding).clone()));
             entry.0 += 1;
             if finding.input.len() < entry.1.input.len() {
-                entry.1 = finding;
+                entry.1 = *finding;
             }
             return Ok(());
         }

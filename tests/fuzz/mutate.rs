@@ -414,8 +414,8 @@ fn is_separator(b: u8) -> bool {
 fn fields(bytes: &[u8], (start, end): (usize, usize)) -> Vec<(usize, usize)> {
     let mut out = Vec::new();
     let mut field = None;
-    for i in start..end {
-        match (is_separator(bytes[i]), field) {
+    for (i, &b) in bytes.iter().enumerate().take(end).skip(start) {
+        match (is_separator(b), field) {
             (false, None) => field = Some(i),
             (true, Some(s)) => {
                 out.push((s, i));

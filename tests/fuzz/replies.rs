@@ -46,7 +46,7 @@ pub fn case() -> impl Strategy<Value = Case> {
 
 /// Every parser on the mutated line (read as the transport reads it: invalid UTF-8
 /// replaced).
-pub fn check(case: &Case) -> Result<(), Finding> {
+pub fn check(case: &Case) -> Result<(), Box<Finding>> {
     let bytes = case.bytes();
     let line = String::from_utf8_lossy(&bytes).into_owned();
     let bad = |what: &str, detail: String| Finding::of(case, "txt", what.to_string(), detail);
