@@ -5,7 +5,9 @@
 //! them (`fuzz/mutate.rs`) and reads the result inside `catch_unwind`:
 //!
 //! - the reader must not panic;
-//! - when it refuses the input, its message must name the file (the name it was given);
+//! - when it refuses the input, its message must name the file (the name it was given),
+//!   and for bytes that are not UTF-8 the line and column (docs/FORMAT.md §2.1, §3.2,
+//!   §4, §5.3, §9.2.1);
 //! - when it accepts the input, the value goes through the computation it feeds (solve a
 //!   measurement set and evaluate an instrument budget on it, solve a self-calibration,
 //!   compare two results, evaluate a budget, compare a diagnosis with a truth), which

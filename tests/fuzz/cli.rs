@@ -4,7 +4,8 @@
 //! - the status is 0, 1 or 2 (no signal, no abort, no panic's 101);
 //! - standard error never says `panicked`;
 //! - status 2: exactly one line of standard error starts with `error:`, and it names the
-//!   mutated file's path;
+//!   mutated file's path (for bytes that are not UTF-8, with a line and column:
+//!   docs/FORMAT.md §2.1, §3.2, §4, §5.3 and §9.2.1 promise them);
 //! - status 0 or 1 with `--format json`: standard output is JSON;
 //! - `--format table` or `csv`: standard output never has `inf` or `NaN` as a number.
 
@@ -13,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::harness::{Finding, crate_frame, scratch, short};
+use super::harness::{Finding, crate_frame, first_invalid_utf8_line, has_position, scratch, short};
 use super::mutate::{Case, show};
 
 /// A command that runs longer than this is killed and reported.
@@ -178,6 +179,19 @@ impl Run<'_> {
                 return finding(
                     format!("{command}: the error line does not name the mutated file"),
                     &format!("the error line: {}", errors[0]),
+                );
+            }
+            if let Some(line) = first_invalid_utf8_line(&bytes)
+                && !has_position(errors[0], &input_text, line)
+            {
+                return finding(
+                    format!(
+                        "{command}: a refusal of bytes that are not UTF-8 has no line and column"
+                    ),
+                    &format!(
+                        "the first invalid byte is on line {line}; the error line: {}",
+                        errors[0]
+                    ),
                 );
             }
         }

@@ -261,18 +261,59 @@ pub fn read<T, E: Display>(
                     m,
                 )
             })?;
-            if message.contains(source) {
-                Ok(None)
-            } else {
-                Err(Finding::of(
+            if !message.contains(source) {
+                return Err(Finding::of(
                     case,
                     ext,
                     format!("{what}: the error does not name the file"),
                     format!("the file was given as {source:?}; the error says: {message}"),
-                ))
+                ));
             }
+            if let Some(line) = first_invalid_utf8_line(&case.bytes())
+                && !has_position(&message, source, line)
+            {
+                return Err(Finding::of(
+                    case,
+                    ext,
+                    format!("{what}: a refusal of bytes that are not UTF-8 has no line and column"),
+                    format!("the first invalid byte is on line {line}; the error says: {message}"),
+                ));
+            }
+            Ok(None)
         }
     }
+}
+
+/// The line of the first byte that is not UTF-8 (lines ending in LF, CR LF or a lone
+/// CR, the most any reader counts), or `None` for UTF-8 text.
+pub fn first_invalid_utf8_line(bytes: &[u8]) -> Option<u64> {
+    let valid = std::str::from_utf8(bytes).err()?.valid_up_to();
+    let before = &bytes[..valid];
+    let lone_cr = before
+        .windows(2)
+        .filter(|w| w[0] == b'\r' && w[1] != b'\n')
+        .count()
+        + usize::from(before.last() == Some(&b'\r'));
+    let lf = before.iter().filter(|&&b| b == b'\n').count();
+    Some((lf + lone_cr + 1) as u64)
+}
+
+/// Whether `message` places the problem in `source`, as `SOURCE:LINE:COLUMN` with a LINE
+/// from 1 to `max_line` (docs/FORMAT.md §2.1, §3.2, §4, §5.3, §9.2.1: a file that is not
+/// UTF-8 is refused with the line and column of the invalid byte; a reader that stops
+/// earlier at another problem names that one's place).
+pub fn has_position(message: &str, source: &str, max_line: u64) -> bool {
+    message.match_indices(source).any(|(i, _)| {
+        let rest = &message[i + source.len()..];
+        let mut parts = rest.splitn(4, ':');
+        let (Some(""), Some(line), Some(column)) = (parts.next(), parts.next(), parts.next())
+        else {
+            return false;
+        };
+        let line: Option<u64> = line.parse().ok();
+        let column_ok = !column.is_empty() && column.bytes().all(|b| b.is_ascii_digit());
+        column_ok && line.is_some_and(|l| (1..=max_line).contains(&l))
+    })
 }
 
 /// The scratch directory of this process, thread and `name`, under `target/tmp/`.
