@@ -8,10 +8,14 @@ use polycal_fuzz::{SOURCE, accepted, scratch_file};
 
 fuzz_target!(|data: &[u8]| {
     let budget = match std::str::from_utf8(data) {
-        Ok(text) => accepted(BudgetFile::from_toml_str(text, SOURCE), SOURCE),
+        Ok(text) => accepted(BudgetFile::from_toml_str(text, SOURCE), SOURCE, data),
         Err(_) => {
             let path = scratch_file("budget.toml", data);
-            accepted(BudgetFile::read_path(&path), &path.display().to_string())
+            accepted(
+                BudgetFile::read_path(&path),
+                &path.display().to_string(),
+                data,
+            )
         }
     };
     if let Some(result) = budget.and_then(|b| b.evaluate().ok()) {

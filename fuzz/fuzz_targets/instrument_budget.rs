@@ -29,7 +29,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    let Some(budget) = accepted(InstrumentBudget::from_toml_str(text, SOURCE), SOURCE) else {
+    let Some(budget) = accepted(InstrumentBudget::from_toml_str(text, SOURCE), SOURCE, data) else {
         return;
     };
     let (set, solution) = design();

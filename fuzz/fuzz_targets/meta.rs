@@ -10,5 +10,9 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    let _ = accepted(gather(Some((text, SOURCE)), (text, "measurement.csv"), None), SOURCE);
+    let _ = accepted(
+        gather(Some((text, SOURCE)), (text, "measurement.csv"), None),
+        SOURCE,
+        data,
+    );
 });

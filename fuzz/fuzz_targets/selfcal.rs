@@ -6,7 +6,7 @@ use polycal::selfcal::{SelfcalOptions, SelfcalSet, solve};
 use polycal_fuzz::{SOURCE, accepted};
 
 fuzz_target!(|data: &[u8]| {
-    let Some(set) = accepted(SelfcalSet::read_from(data, SOURCE, None), SOURCE) else {
+    let Some(set) = accepted(SelfcalSet::read_from(data, SOURCE, None), SOURCE, data) else {
         return;
     };
     if set.readings.len() <= 2000 {

@@ -8,8 +8,11 @@ use polycal_fuzz::{accepted, scratch_file};
 
 fuzz_target!(|data: &[u8]| {
     let path = scratch_file("selfcal-truth.json", data);
-    let Some(truth) = accepted(SelfcalTruth::read_path(&path), &path.display().to_string())
-    else {
+    let Some(truth) = accepted(
+        SelfcalTruth::read_path(&path),
+        &path.display().to_string(),
+        data,
+    ) else {
         return;
     };
     for angle in [0.0, 2.5, 90.0, 359.999_999_9, 360.0, -1.0] {

@@ -8,7 +8,7 @@ use polycal_fuzz::{accepted, scratch_file};
 
 fuzz_target!(|data: &[u8]| {
     let path = scratch_file("truth.json", data);
-    let Some(truth) = accepted(Truth::read_path(&path), &path.display().to_string()) else {
+    let Some(truth) = accepted(Truth::read_path(&path), &path.display().to_string(), data) else {
         return;
     };
     for face in 0..=truth.faces.saturating_add(1).min(1000) {
