@@ -28,7 +28,7 @@ use proptest::test_runner::{Config, RngSeed, TestCaseError, TestError, TestRunne
 use super::mutate::{Case, diff, show};
 
 /// Cases per library-level target unless `POLYCAL_FUZZ_CASES` says otherwise.
-pub const DEFAULT_CASES: u32 = 4096;
+pub const DEFAULT_CASES: u32 = 16384;
 
 /// The default random stream: fixed, so that CI repeats its cases.
 const DEFAULT_SEED: u64 = 0x706f_6c79_6361_6c00;
