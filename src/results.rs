@@ -654,6 +654,43 @@ pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile,
     })
 }
 
+/// Whether rows can be written as a result file and read back ([`write_results`]'s
+/// checks, without writing): every number finite and within its limits
+/// (docs/FORMAT.md §2.2), the angle rules of [`read_results_from`]. A command checks the
+/// rows of a file before it writes any, so that a refusal names that file and no output
+/// is cut short.
+///
+/// # Errors
+///
+/// The first problem, naming the quantity and index or the row.
+pub fn check_rows(rows: &[ResultRow]) -> Result<(), String> {
+    let mut angles = AngleCheck::default();
+    for (i, row) in rows.iter().enumerate() {
+        let numbers = [
+            ("value", Some(row.value), limits::RESULT_ARCSEC),
+            ("U", row.expanded_u, limits::RESULT_ARCSEC),
+            ("u", row.u, limits::RESULT_ARCSEC),
+            ("k", row.k, limits::COVERAGE_FACTOR),
+        ];
+        for (name, x, limit) in numbers {
+            if let Some(x) = x
+                && let Err(rule) = limit.check(x, &format!("a result's {name}"))
+            {
+                return Err(format!("{} {}: {name}: {rule}", row.quantity, row.index));
+            }
+        }
+        if let Err(problem) = angles.admit(i, row) {
+            let place = |i: usize| format!("row {}", i + 1);
+            return Err(format!(
+                "row {}: {}",
+                i + 1,
+                problem.message(row, &rows[..i], place)
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Writes rows as a result file: header `quantity,index,value,U,u,k,angle_deg`, numbers in
 /// Rust's shortest round-trip representation (`{}`), `None` as an empty field (so
 /// `angle_deg` is empty on every row but the encoder errors that carry their angle).
@@ -667,34 +704,8 @@ pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile,
 /// encoder error, some encoder errors with an angle and some without, two at one
 /// position). The quantity is one of [`Quantity`] by its type.
 pub fn write_results<W: Write>(w: W, rows: &[ResultRow]) -> std::io::Result<()> {
-    let invalid = |message: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, message);
-    let mut angles = AngleCheck::default();
-    for (i, row) in rows.iter().enumerate() {
-        let numbers = [
-            ("value", Some(row.value), limits::RESULT_ARCSEC),
-            ("U", row.expanded_u, limits::RESULT_ARCSEC),
-            ("u", row.u, limits::RESULT_ARCSEC),
-            ("k", row.k, limits::COVERAGE_FACTOR),
-        ];
-        for (name, x, limit) in numbers {
-            if let Some(x) = x
-                && let Err(rule) = limit.check(x, &format!("a result's {name}"))
-            {
-                return Err(invalid(format!(
-                    "{} {}: {name}: {rule}",
-                    row.quantity, row.index
-                )));
-            }
-        }
-        if let Err(problem) = angles.admit(i, row) {
-            let place = |i: usize| format!("row {}", i + 1);
-            return Err(invalid(format!(
-                "row {}: {}",
-                i + 1,
-                problem.message(row, &rows[..i], place)
-            )));
-        }
-    }
+    check_rows(rows)
+        .map_err(|message| std::io::Error::new(std::io::ErrorKind::InvalidInput, message))?;
     let mut writer = csv::Writer::from_writer(w);
     let to_io = |e: csv::Error| match e.into_kind() {
         csv::ErrorKind::Io(e) => e,

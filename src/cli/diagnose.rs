@@ -167,6 +167,12 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             }
             DiagnoseFormat::Csv => {
                 let rows = report::result_rows_with(&diagnosis.after, gum.as_ref());
+                // checked before any row is written: a refusal names this file
+                if let Err(problem) = polycal::results::check_rows(&rows) {
+                    out.error_message(format!("{name}: cannot write its results: {problem}"));
+                    failures += 1;
+                    continue;
+                }
                 csv_rows.push((label, rows));
             }
         }

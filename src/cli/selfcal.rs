@@ -143,10 +143,11 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
             write!(stdout, "{text}")?;
         }
         SelfcalFormat::Csv => {
-            polycal::results::write_results(
-                &mut stdout,
-                &result_rows(&solution, uncertainty.as_ref()),
-            )?;
+            let rows = result_rows(&solution, uncertainty.as_ref());
+            polycal::results::check_rows(&rows).map_err(|problem| {
+                anyhow::anyhow!("{name}: cannot write its results: {problem}")
+            })?;
+            polycal::results::write_results(&mut stdout, &rows)?;
         }
     }
     stdout.flush()?;

@@ -252,6 +252,14 @@ impl InstrumentBudget {
         file.budget.combine().map_err(in_file)?;
         let mut components = Vec::new();
         flatten(&file.budget, &tree, Scope::Result, 1.0, "", &mut components).map_err(in_file)?;
+        for c in &components {
+            if let Err(message) = contribution_within_limits(c) {
+                return Err(in_file(BudgetError::Component {
+                    component: c.name.clone(),
+                    message,
+                }));
+            }
+        }
         Ok(InstrumentBudget {
             source: source.to_string(),
             p: file.p,
@@ -288,6 +296,7 @@ impl InstrumentBudget {
                     "degrees of freedom must be at least 1 (None for infinitely many), got {nu}"
                 )));
             }
+            contribution_within_limits(c).map_err(bad)?;
         }
         Ok(())
     }
@@ -425,4 +434,18 @@ fn flatten(
         }
     }
     Ok(())
+}
+
+/// An instrument's error reaches the readings in arcseconds: its contribution |c|·u may
+/// be at most the largest reading (docs/FORMAT.md §2.2), so that every result it adds to
+/// stays within the limits of a result file.
+fn contribution_within_limits(c: &ScopedComponent) -> Result<(), String> {
+    let contribution = c.sensitivity.abs() * c.distribution.standard_uncertainty();
+    crate::input::limits::READING_ARCSEC
+        .check(
+            contribution,
+            "an instrument's contribution |c|·u (arcseconds)",
+        )
+        .map(|_| ())
+        .map_err(|rule| format!("its contribution |c|·u: {rule}"))
 }
