@@ -596,3 +596,35 @@ fn truth_from_standard_input_and_standard_input_only_once() {
          once; give the others as files"
     );
 }
+
+/// A term that explains the rest exactly has an infinite F: `null` in the JSON (as
+/// docs/FORMAT.md §5.2 says), `∞` for people, never `inf`. Three faces, two cycles, every
+/// reading 0 but one of 0.5″: an outlier column leaves no residual.
+#[test]
+fn an_infinite_f_is_written_for_people_and_null_in_json() {
+    let mut text = String::from("cycle,step,ac,face,reading\n");
+    for cycle in 1..=2 {
+        for step in 0..3 {
+            for ac in 1..=2 {
+                let face = (step + ac - 1) % 3 + 1;
+                let value = if (cycle, step, ac) == (1, 0, 1) { "0.5" } else { "0" };
+                text.push_str(&format!("{cycle},{step},{ac},{face},{value}\n"));
+            }
+        }
+    }
+    let dir = temp_dir("exact-fit");
+    let path = write(&dir, "outlier.csv", &text);
+    let table = polycal(&["diagnose", &path]);
+    let stdout = String::from_utf8_lossy(&table.stdout);
+    assert!(stdout.contains("F = ∞ (no residual left)"), "{stdout}");
+    assert!(!stdout.contains("inf"), "{stdout}");
+    let json = polycal(&["diagnose", &path, "--format", "json"]);
+    let json: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
+    let infinite: Vec<&serde_json::Value> = json["tried"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|t| t["kind"] == "outlier")
+        .collect();
+    assert!(!infinite.is_empty() && infinite.iter().all(|t| t["F"].is_null()), "{json}");
+}

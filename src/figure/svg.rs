@@ -569,6 +569,16 @@ mod tests {
     }
 
     #[test]
+    fn values_near_the_largest_float_are_left_out_not_overflowed() {
+        // the margin of ±f64::MAX overflowed, and the tick count became usize::MAX
+        let axis = Axis::covering([0.0, f64::MAX, 2.0, -f64::MAX], &[], 5, "β");
+        assert_eq!((axis.lo, axis.hi), (0.0, 2.5));
+        assert!(axis.ticks.len() <= 10, "{:?}", axis.ticks);
+        let axis = Axis::covering([1e300, -1e300], &[0.0], 5, "β");
+        assert!(axis.lo.is_finite() && axis.hi.is_finite() && axis.ticks.len() < 20);
+    }
+
+    #[test]
     fn degenerate_ranges_give_sane_axes() {
         for values in [
             vec![],
