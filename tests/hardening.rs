@@ -607,7 +607,11 @@ fn an_infinite_f_is_written_for_people_and_null_in_json() {
         for step in 0..3 {
             for ac in 1..=2 {
                 let face = (step + ac - 1) % 3 + 1;
-                let value = if (cycle, step, ac) == (1, 0, 1) { "0.5" } else { "0" };
+                let value = if (cycle, step, ac) == (1, 0, 1) {
+                    "0.5"
+                } else {
+                    "0"
+                };
                 text.push_str(&format!("{cycle},{step},{ac},{face},{value}\n"));
             }
         }
@@ -626,5 +630,8 @@ fn an_infinite_f_is_written_for_people_and_null_in_json() {
         .iter()
         .filter(|t| t["kind"] == "outlier")
         .collect();
-    assert!(!infinite.is_empty() && infinite.iter().all(|t| t["F"].is_null()), "{json}");
+    assert!(
+        !infinite.is_empty() && infinite.iter().all(|t| t["F"].is_null()),
+        "{json}"
+    );
 }

@@ -681,7 +681,7 @@ fn budget_files_are_refused_with_file_line_and_column() {
         ),
         (
             "p = 95\n[[component]]\nname = \"x\"\ntype = \"A\"\nu = 1\n",
-            "bad.toml:1:5: p must be between 0 and 1 (exclusive), got 95 (a probability: write 0.95 for 95 %)",
+            "bad.toml:1:5: p must be within 0.5 … 0.9999 (docs/FORMAT.md §2.2), got 95 (a probability: write 0.95 for 95 %)",
         ),
         (
             "dof_policy = \"round\"\n[[component]]\nname = \"x\"\ntype = \"A\"\nu = 1\n",

@@ -138,6 +138,11 @@ pub const RESULT_ARCSEC: Limit = Limit::new(-1e12, 1e12, "″");
 /// freedom at p = 0.9999 is 3183).
 pub const COVERAGE_FACTOR: Limit = Limit::new(0.1, 1e6, "");
 
+/// A coverage probability `p` (a budget's, a Monte Carlo's): 0.5 … 0.9999. Beyond it
+/// the coverage factor is meaningless (p → 0) or unbounded (p → 1: Student's t for one
+/// degree of freedom at 0.9999 is 6366).
+pub const COVERAGE_PROBABILITY: Limit = Limit::new(0.5, 0.9999, "");
+
 /// A `time` column, seconds since the run started: |t| ≤ 10⁹ s (about 32 years).
 pub const TIME_SECONDS: Limit = Limit::new(-1e9, 1e9, " s");
 

@@ -283,8 +283,8 @@ pub enum BudgetError {
          \"each-position\", \"each-stop\" or \"result\""
     )]
     UnknownScope(String),
-    /// The coverage probability is not in (0, 1).
-    #[error("coverage probability p must be between 0 and 1 (exclusive), got {0}")]
+    /// The coverage probability is not within 0.5 … 0.9999 (docs/FORMAT.md §2.2).
+    #[error("coverage probability p must be within 0.5 … 0.9999 (docs/FORMAT.md §2.2), got {0}")]
     Coverage(f64),
     /// A budget without components.
     #[error("budget {0}has no components")]
@@ -494,7 +494,7 @@ impl Budget {
     /// # Ok::<(), polycal::uncertainty::budget::BudgetError>(())
     /// ```
     pub fn evaluate(&self, p: f64, policy: DofPolicy) -> Result<BudgetResult, BudgetError> {
-        if !(p > 0.0 && p < 1.0) {
+        if !crate::input::limits::COVERAGE_PROBABILITY.contains(p) {
             return Err(BudgetError::Coverage(p));
         }
         let combined = self.combine()?;

@@ -121,7 +121,7 @@ impl BudgetFile {
             None => 0.95,
             Some(p) => {
                 let value = *p.get_ref();
-                if !(value > 0.0 && value < 1.0) {
+                if !limits::COVERAGE_PROBABILITY.contains(value) {
                     let hint = if value > 1.0 && value < 100.0 {
                         format!(" (a probability: write {} for {value} %)", value / 100.0)
                     } else {
@@ -129,7 +129,9 @@ impl BudgetFile {
                     };
                     return Err(at(
                         p.span(),
-                        format!("p must be between 0 and 1 (exclusive), got {value}{hint}"),
+                        format!(
+                            "p must be within 0.5 … 0.9999 (docs/FORMAT.md §2.2), got {value}{hint}"
+                        ),
                     ));
                 }
                 value

@@ -274,7 +274,7 @@ impl InstrumentBudget {
     ///
     /// [`CalibrationError::Coverage`] or [`CalibrationError::Component`].
     pub fn check(&self) -> Result<(), CalibrationError> {
-        if !(self.p > 0.0 && self.p < 1.0) {
+        if !crate::input::limits::COVERAGE_PROBABILITY.contains(self.p) {
             return Err(CalibrationError::Coverage(self.p));
         }
         for c in &self.components {

@@ -112,8 +112,8 @@ pub enum CalibrationError {
     /// The solution is not the solution of this measurement set.
     #[error("the solution does not belong to the measurement set: {0}")]
     Mismatch(String),
-    /// The coverage probability is not in (0, 1).
-    #[error("coverage probability p must be between 0 and 1 (exclusive), got {0}")]
+    /// The coverage probability is not within 0.5 … 0.9999 (docs/FORMAT.md §2.2).
+    #[error("coverage probability p must be within 0.5 … 0.9999 (docs/FORMAT.md §2.2), got {0}")]
     Coverage(f64),
     /// A component is invalid.
     #[error("component {name:?}: {message}")]
