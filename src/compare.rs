@@ -239,7 +239,10 @@ pub enum CompareError {
         b: String,
     },
     /// The correlation coefficient is not in [−1, 1].
-    #[error("the correlation coefficient must be between -1 and 1, got {0}")]
+    #[error(
+        "the correlation coefficient must be between -1 and 1, got {}",
+        crate::input::limits::show(*.0)
+    )]
     Correlation(f64),
     /// The rows in common are setup errors only, and they are left out of the verdict:
     /// there is nothing to judge.

@@ -112,7 +112,7 @@ impl fmt::Display for Limit {
 }
 
 /// A number as people write it: plain up to a million, `1e6` beyond, `−` for minus.
-fn show(x: f64) -> String {
+pub(crate) fn show(x: f64) -> String {
     let text = if x != 0.0 && (x.abs() >= 1e6 || x.abs() < 1e-4) {
         format!("{x:e}")
     } else {

@@ -130,7 +130,8 @@ impl BudgetFile {
                     return Err(at(
                         p.span(),
                         format!(
-                            "p must be within 0.5 … 0.9999 (docs/FORMAT.md §2.2), got {value}{hint}"
+                            "p must be within 0.5 … 0.9999 (docs/FORMAT.md §2.2), got {}{hint}",
+                            limits::show(value)
                         ),
                     ));
                 }
@@ -308,7 +309,7 @@ fn build_budget(
         if !(r.is_finite() && (-1.0..=1.0).contains(&r)) {
             return Err(at(
                 raw.r.span(),
-                format!("r must be between -1 and 1, got {r}"),
+                format!("r must be between -1 and 1, got {}", limits::show(r)),
             ));
         }
         if r != 0.0 {
