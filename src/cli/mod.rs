@@ -31,7 +31,8 @@ pub const EXIT_ERROR: u8 = 2;
 const EXIT_STATUS_HELP: &str = "\
 Exit status: 0 done and every check passed; 1 done, but a verdict is negative (compare:
 some |En| > 1; diagnose: a model not adequate; solve: Monte Carlo does not validate GUM);
-2 an error (usage, refused input, instrument or file failure).
+2 an error (usage, refused input, instrument or file failure); 130 `run` stopped at once by
+a second Ctrl-C (docs/FORMAT.md §8).
 
 The data and command contract: docs/FORMAT.md. Completions: `polycal completions SHELL`;
 manual page: `polycal man`.";
