@@ -309,16 +309,18 @@ fn budget_values_are_refused_for_what_they_are_and_large_ones_combine() {
     assert!((nu - 20.0).abs() < 1e-12, "{nu}");
 }
 
+/// `n` type-B components `c0` … of u = 0.01 each, as budget TOML.
+fn components(n: usize) -> String {
+    (0..n)
+        .map(|i| format!("[[component]]\nname = \"c{i}\"\ntype = \"B\"\nu = 0.01\n"))
+        .collect()
+}
+
 #[test]
 fn a_budget_of_sixty_thousand_components_combines_and_too_many_correlations_are_refused() {
     let dir = temp_dir("big-budget");
     let n = 60_000;
-    let mut text = String::from("p = 0.95\n");
-    for i in 0..n {
-        text.push_str(&format!(
-            "[[component]]\nname = \"c{i}\"\ntype = \"B\"\nu = 0.01\n"
-        ));
-    }
+    let text = format!("p = 0.95\n{}", components(n));
     let path = write(&dir, "sixty.toml", &text);
     let out = polycal(&["budget", &path, "--format", "json"]);
     assert_eq!(
@@ -334,12 +336,7 @@ fn a_budget_of_sixty_thousand_components_combines_and_too_many_correlations_are_
     assert_eq!(json["components"].as_array().unwrap().len(), n);
 
     // correlations need a matrix of the correlated components: more than 1000 refused
-    let mut text = String::new();
-    for i in 0..2004 {
-        text.push_str(&format!(
-            "[[component]]\nname = \"c{i}\"\ntype = \"B\"\nu = 0.01\n"
-        ));
-    }
+    let mut text = components(2004);
     for i in 0..1001 {
         text.push_str(&format!(
             "[[correlation]]\nbetween = [\"c{}\", \"c{}\"]\nr = 0.1\n",

@@ -41,13 +41,7 @@ fn killed_in_mid_cycle_then_resumed_loses_and_repeats_nothing() {
         "0.04",
         "-q",
     ];
-    let mut child = Command::new(BIN)
-        .args(lab.run_args(&out, &design))
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_run(&lab.run_args(&out, &design));
     // Cycle 1 has 18 readings: wait until cycle 2 is under way.
     wait_for_rows(&out, 23, Duration::from_secs(20));
     child.kill().unwrap(); // SIGKILL: no chance to tidy up
@@ -116,18 +110,10 @@ fn ctrl_c_stops_the_table_keeps_the_data_and_resume_completes() {
         "--settle",
         "0",
     ];
-    let child = Command::new(BIN)
-        .args(lab.run_args(&out, &design))
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_run(&lab.run_args(&out, &design));
     wait_for_rows(&out, 2, Duration::from_secs(20));
     std::thread::sleep(Duration::from_millis(60)); // on the way to 45°
-    // SAFETY: sending a signal to our own child process.
-    let sent = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
-    assert_eq!(sent, 0);
+    interrupt(&child);
     let output = child.wait_with_output().unwrap();
     let text = assert_error(&output, "interrupted");
     assert!(text.contains("--resume"), "{text}");
@@ -178,13 +164,7 @@ fn a_second_ctrl_c_ends_at_once_records_interrupted_and_resume_completes() {
         "--timeout",
         "2",
     ];
-    let child = Command::new(BIN)
-        .args(lab.run_args(&out, &design))
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_run(&lab.run_args(&out, &design));
     wait_for_rows(&out, 4, Duration::from_secs(20));
     // The fifth `a` (autocollimator 1 at stop 2) is sent: its driver waits for the reply.
     let start = std::time::Instant::now();
@@ -198,17 +178,14 @@ fn a_second_ctrl_c_ends_at_once_records_interrupted_and_resume_completes() {
         std::thread::sleep(Duration::from_millis(5));
     }
     std::thread::sleep(Duration::from_millis(50));
-    let interrupt = || {
-        // SAFETY: sending a signal to our own child process.
-        let sent = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
-        assert_eq!(sent, 0);
-    };
-    interrupt();
+    interrupt(&child);
     std::thread::sleep(Duration::from_millis(200));
     let second = std::time::Instant::now();
-    interrupt();
+    interrupt(&child);
     let output = child.wait_with_output().unwrap();
-    assert!(second.elapsed() < Duration::from_millis(1500), "at once");
+    // "at once": well before the 8 s the driver would still wait for the lost replies
+    // (the bound is loose, so that a loaded machine does not fail it)
+    assert!(second.elapsed() < Duration::from_secs(5), "at once");
     let text = stderr(&output);
     assert_eq!(output.status.code(), Some(130), "{text}");
     assert_eq!(
@@ -359,4 +336,23 @@ fn a_real_full_disk_stops_the_run_and_resume_completes_with_space() {
     assert_eq!(manifest(&out)["outcome"], "completed");
     let traffic = sessions(&out);
     assert_moves_follow_plan(traffic.last().unwrap(), &s, kept.len() / 2);
+}
+
+/// `polycal run` with `args` as a child process: standard output and error piped, no
+/// standard input.
+fn spawn_run(args: &[String]) -> std::process::Child {
+    Command::new(BIN)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("polycal runs")
+}
+
+/// Ctrl-C to a child process.
+fn interrupt(child: &std::process::Child) {
+    // SAFETY: sending a signal to our own child process.
+    let sent = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
+    assert_eq!(sent, 0);
 }
