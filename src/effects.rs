@@ -18,6 +18,7 @@
 //! {"kind": "outlier", "cycle": 3, "step": 7, "ac": 1, "value": 2.0}   (optional "setup")
 //! {"kind": "temperature", "ac": 1, "value": 0.2}
 //! {"kind": "cross-talk", "ac": 1, "value": 0.01}
+//! {"kind": "rezero", "ac": 1, "offsets": [0.0, 0.12, -0.3], "value": 0.3}   (optional "setup", "offsets_u")
 //! ```
 //!
 //! Extra fields (such as a fit's `u`) are ignored when reading.
@@ -104,16 +105,37 @@ pub enum Effect {
         /// Coefficient, arcsec of reading per arcsec of `reading_y`.
         value: f64,
     },
+    /// The zero of autocollimator `ac` set anew at the start of every cycle: in cycle c
+    /// its readings are offset by `offsets[c − 1]` arcseconds (in mounting `setup` only,
+    /// when given; without it in every mounting, cycle numbers restarting in each). A
+    /// fit reports the offsets against the first cycle (`offsets[0]` = 0: a constant
+    /// offset is the setup error's); `value` is the largest |offset|.
+    Rezero {
+        /// Autocollimator number (≥ 1).
+        ac: u32,
+        /// The mounting the offsets act in; `None` for every mounting.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        setup: Option<u32>,
+        /// Offset of the zero in each cycle, arcsec, cycle 1 first (a cycle beyond the
+        /// list has none).
+        offsets: Vec<f64>,
+        /// Standard uncertainty of each offset, when a fit gives one.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        offsets_u: Option<Vec<f64>>,
+        /// The largest |offset|, arcsec.
+        value: f64,
+    },
 }
 
 /// The effect kinds, as spelled in files and on the command line.
-pub const KINDS: [&str; 6] = [
+pub const KINDS: [&str; 7] = [
     "drift",
     "offset-step",
     "direction",
     "outlier",
     "temperature",
     "cross-talk",
+    "rezero",
 ];
 
 /// What an effect's regressor needs to know about the whole run: the mean of the
@@ -219,6 +241,42 @@ impl Effect {
                     0.0
                 }
             }
+            Effect::Rezero { value, .. } => {
+                if value == 0.0 {
+                    0.0
+                } else {
+                    self.rezero_offset(reading) / value
+                }
+            }
+        }
+    }
+
+    /// For a `rezero`: the offset of `reading`'s cycle when the reading is of that
+    /// autocollimator (and mounting, if given), else 0; 0 for every other effect.
+    pub fn rezero_offset(&self, reading: &Reading) -> f64 {
+        match self {
+            Effect::Rezero {
+                ac, setup, offsets, ..
+            } if reading.ac == *ac && setup.is_none_or(|s| reading.setup == s) => (reading.cycle
+                as usize)
+                .checked_sub(1)
+                .and_then(|c| offsets.get(c))
+                .copied()
+                .unwrap_or(0.0),
+            _ => 0.0,
+        }
+    }
+
+    /// A `rezero` of autocollimator `ac` (in `setup`, if given) with these offsets, one
+    /// per cycle; its `value` is the largest |offset|.
+    pub fn rezero(ac: u32, setup: Option<u32>, offsets: Vec<f64>) -> Effect {
+        let value = offsets.iter().fold(0.0_f64, |m, o| m.max(o.abs()));
+        Effect::Rezero {
+            ac,
+            setup,
+            offsets,
+            offsets_u: None,
+            value,
         }
     }
 
@@ -240,6 +298,7 @@ impl Effect {
             Effect::Drift {
                 quadratic: Some(q), ..
             } => q * self.quadratic_regressor(reading),
+            Effect::Rezero { .. } => return self.rezero_offset(reading),
             _ => 0.0,
         };
         self.value() * self.regressor(reading, context) + quadratic
@@ -253,19 +312,30 @@ impl Effect {
             | Effect::Direction { value, .. }
             | Effect::Outlier { value, .. }
             | Effect::Temperature { value, .. }
-            | Effect::CrossTalk { value, .. } => value,
+            | Effect::CrossTalk { value, .. }
+            | Effect::Rezero { value, .. } => value,
         }
     }
 
-    /// The same effect with another value (e.g. a fitted one).
+    /// The same effect with another value (e.g. a fitted one). A `rezero`'s offsets are
+    /// scaled with it (they are zero when its value was).
     pub fn with_value(mut self, new_value: f64) -> Effect {
+        if let Effect::Rezero { offsets, value, .. } = &mut self {
+            let scale = if *value == 0.0 {
+                0.0
+            } else {
+                new_value / *value
+            };
+            offsets.iter_mut().for_each(|o| *o *= scale);
+        }
         match &mut self {
             Effect::Drift { value, .. }
             | Effect::OffsetStep { value, .. }
             | Effect::Direction { value, .. }
             | Effect::Outlier { value, .. }
             | Effect::Temperature { value, .. }
-            | Effect::CrossTalk { value, .. } => *value = new_value,
+            | Effect::CrossTalk { value, .. }
+            | Effect::Rezero { value, .. } => *value = new_value,
         }
         self
     }
@@ -280,6 +350,7 @@ impl Effect {
             Effect::Outlier { .. } => KINDS[3],
             Effect::Temperature { .. } => KINDS[4],
             Effect::CrossTalk { .. } => KINDS[5],
+            Effect::Rezero { .. } => KINDS[6],
         }
     }
 
@@ -423,6 +494,10 @@ impl Effect {
                     value: finite("VALUE", rest[3]).map_err(|m| ctx(m, form))?,
                 })
             }
+            "rezero" => Err(format!(
+                "rezero effect \"{spec}\": the offsets of a zero set anew every cycle are drawn by \
+                 the simulation (simulate --rezero AC:SIGMA), not given one by one"
+            )),
             _ => Err(format!(
                 "unknown effect kind \"{kind}\" (known kinds: {})",
                 KINDS.join(", ")
@@ -467,6 +542,16 @@ impl fmt::Display for Effect {
                 write!(f, "temperature coefficient of ac {ac}: {value}\"/°C")
             }
             Effect::CrossTalk { ac, value } => write!(f, "cross-talk of ac {ac}: {value}"),
+            Effect::Rezero {
+                ac, setup, offsets, ..
+            } => {
+                write!(f, "rezero of ac {ac}")?;
+                if let Some(s) = setup {
+                    write!(f, " in setup {s}")?;
+                }
+                let list: Vec<String> = offsets.iter().map(|o| format!("{o}")).collect();
+                write!(f, ": offsets [{}]\"", list.join(", "))
+            }
             Effect::Direction {
                 ac: Some(ac),
                 value,

@@ -32,7 +32,7 @@ use lack_of_fit::LackOfFit;
 use residuals::{Adequacy, AdequacyInputs};
 
 /// Options of [`diagnose`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub struct DiagnoseOptions {
     /// False-alarm probability of each family of effects per round (Bonferroni over the
@@ -50,6 +50,10 @@ pub struct DiagnoseOptions {
     /// Reading noise σ stated by the caller (uncertainties for dof = 0 and a χ² check of
     /// the final residuals).
     pub sigma: Option<Sigma>,
+    /// Autocollimators whose cross-talk the caller stated from their calibration and
+    /// corrected the readings for (docs/FORMAT.md §6, `--cross-talk AC:C[:U]`): no
+    /// cross-talk term is tried for them, and they resolve the ambiguity of the others'.
+    pub stated_cross_talk: Vec<u32>,
 }
 
 impl DiagnoseOptions {
@@ -88,6 +92,12 @@ impl DiagnoseOptions {
         self
     }
 
+    /// With the autocollimators whose cross-talk is stated (and corrected for).
+    pub fn with_stated_cross_talk(mut self, acs: Vec<u32>) -> Self {
+        self.stated_cross_talk = acs;
+        self
+    }
+
     /// With another largest number of effects.
     pub fn with_max_effects(mut self, max_effects: usize) -> Self {
         self.max_effects = max_effects;
@@ -106,6 +116,7 @@ impl Default for DiagnoseOptions {
             lack_of_fit_alpha: 0.01,
             max_effects: 12,
             sigma: None,
+            stated_cross_talk: Vec::new(),
         }
     }
 }

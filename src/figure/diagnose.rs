@@ -62,7 +62,8 @@ fn effect_ac(effect: &Effect) -> Option<u32> {
         | Effect::OffsetStep { ac, .. }
         | Effect::Outlier { ac, .. }
         | Effect::Temperature { ac, .. }
-        | Effect::CrossTalk { ac, .. } => Some(ac),
+        | Effect::CrossTalk { ac, .. }
+        | Effect::Rezero { ac, .. } => Some(ac),
         Effect::Direction { ac, .. } => ac,
     }
 }

@@ -209,6 +209,10 @@ pub fn label(effect: &Effect) -> String {
             format!("temperature coefficient of autocollimator {ac}")
         }
         Effect::CrossTalk { ac, .. } => format!("cross-talk of autocollimator {ac}"),
+        Effect::Rezero { ac, setup, .. } => format!(
+            "zero of autocollimator {ac}{} set anew every cycle",
+            setup.map_or(String::new(), |s| format!(" in setup {s}"))
+        ),
         Effect::Direction { ac: None, .. } => "direction (ccw − cw)".into(),
         Effect::Direction { ac: Some(ac), .. } => {
             format!("direction (ccw − cw) of autocollimator {ac}")
@@ -271,6 +275,12 @@ fn pattern(found: &FoundEffect) -> String {
         ),
         Effect::CrossTalk { ac, value } => format!(
             "the residuals of autocollimator {ac} follow its elevation reading: {value:+.5}″ per arcsecond of reading_y"
+        ),
+        Effect::Rezero {
+            ac, offsets, value, ..
+        } => format!(
+            "the residuals of autocollimator {ac} shift from cycle to cycle: its zero was set anew at the start of each of {} cycles, by up to {value:.4}″ against the first",
+            offsets.len()
         ),
         Effect::Direction { ac, value } => format!(
             "counter-clockwise cycles read {value:+.4}″ against clockwise ones{}",

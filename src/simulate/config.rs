@@ -434,6 +434,21 @@ impl SimulationConfig {
             }
         };
         match *e {
+            Effect::Rezero {
+                ac,
+                setup,
+                ref offsets,
+                ..
+            } => {
+                check_ac(ac)?;
+                if let Some(s) = setup {
+                    check_setup(s)?;
+                }
+                if offsets.iter().any(|o| !o.is_finite()) {
+                    return Err("an offset is not finite".into());
+                }
+                Ok(())
+            }
             Effect::Drift { ac, quadratic, .. } => {
                 check_ac(ac)?;
                 match quadratic {

@@ -379,6 +379,7 @@ impl Truth {
                 Effect::Drift { ac, .. }
                 | Effect::Temperature { ac, .. }
                 | Effect::CrossTalk { ac, .. } => ac == 0,
+                Effect::Rezero { ac, setup, .. } => ac == 0 || setup == Some(0),
                 Effect::OffsetStep {
                     ac, cycle, setup, ..
                 } => ac == 0 || cycle == 0 || setup == Some(0),
