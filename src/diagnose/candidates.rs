@@ -18,21 +18,72 @@
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, MeasurementSet, Reading};
 
-use super::geometry::{ColumnScore, FitGeometry};
+use super::geometry::{BlockScore, ColumnScore, FitGeometry};
 
 /// The fewest readings of a stream on either side of a jump (fewer are outliers).
 pub const MIN_STEP_READINGS: usize = 3;
 
-/// One column of the model: an effect's value, or the quadratic part of a drift.
+/// The highest order of a smooth drift: linear, quadratic, then Legendre shapes of orders
+/// 3 … `MAX_DRIFT_ORDER` over the run's time span, the order picked by F tests.
+pub const MAX_DRIFT_ORDER: usize = 6;
+
+/// The fewest cycles of a stream for which a zero set anew every cycle (`rezero`) is
+/// tried.
+pub const MIN_REZERO_CYCLES: u32 = 3;
+
+/// One column of the model: an effect's value, or a part of a multi-column effect.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Term {
     /// The `value` of an effect (docs/FORMAT.md §6).
     Effect(Effect),
-    /// The `quadratic` of the drift of autocollimator `ac`, arcsec/h².
+    /// The `quadratic` of the drift of autocollimator `ac`, arcsec/h² (per stop² on the
+    /// stop clock).
     Quadratic {
         /// Autocollimator number.
         ac: u32,
     },
+    /// The shape of order `order` (≥ 3) of the drift of autocollimator `ac`: the Legendre
+    /// polynomial P_order(τ), τ the reading's time mapped onto −1 … 1 over the run's
+    /// span; its value is in arcsec.
+    DriftShape {
+        /// Autocollimator number.
+        ac: u32,
+        /// Polynomial order, 3 … [`MAX_DRIFT_ORDER`].
+        order: usize,
+    },
+    /// The offset of autocollimator `ac`'s zero in cycle `cycle` (of mounting `setup`,
+    /// when given) against its first cycle: one column of a `rezero`.
+    RezeroCycle {
+        /// Autocollimator number.
+        ac: u32,
+        /// Mounting, or `None` for every mounting.
+        setup: Option<u32>,
+        /// Cycle (≥ 2).
+        cycle: u32,
+    },
+}
+
+/// The Legendre polynomial P_k(τ).
+fn legendre(k: usize, tau: f64) -> f64 {
+    let (mut previous, mut current) = (1.0, tau);
+    if k == 0 {
+        return 1.0;
+    }
+    for n in 1..k {
+        let next = ((2 * n + 1) as f64 * tau * current - n as f64 * previous) / (n + 1) as f64;
+        previous = current;
+        current = next;
+    }
+    current
+}
+
+/// The span of the readings' times, seconds (first, last); (0, 0) without times.
+pub fn time_span(set: &MeasurementSet) -> (f64, f64) {
+    let times = set.readings.iter().filter_map(|r| r.time_seconds);
+    let (lo, hi) = times.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| {
+        (lo.min(t), hi.max(t))
+    });
+    if lo.is_finite() { (lo, hi) } else { (0.0, 0.0) }
 }
 
 impl Term {
@@ -55,6 +106,28 @@ impl Term {
                     .map(|r| drift.quadratic_regressor(r))
                     .collect()
             }
+            Term::DriftShape { ac, order } => {
+                let (lo, hi) = time_span(set);
+                let half = 0.5 * (hi - lo);
+                set.readings
+                    .iter()
+                    .map(|r| match r.time_seconds {
+                        Some(t) if r.ac == *ac && half > 0.0 => {
+                            legendre(*order, (t - lo) / half - 1.0)
+                        }
+                        _ => 0.0,
+                    })
+                    .collect()
+            }
+            Term::RezeroCycle { ac, setup, cycle } => set
+                .readings
+                .iter()
+                .map(|r| {
+                    let hit =
+                        r.ac == *ac && setup.is_none_or(|s| r.setup == s) && r.cycle == *cycle;
+                    if hit { 1.0 } else { 0.0 }
+                })
+                .collect(),
         }
     }
 
@@ -64,16 +137,41 @@ impl Term {
             (Term::Effect(a), Term::Effect(b)) => {
                 a.clone().with_value(0.0) == b.clone().with_value(0.0)
             }
-            (Term::Quadratic { ac: a }, Term::Quadratic { ac: b }) => a == b,
-            _ => false,
+            (a, b) => a == b,
         }
     }
 
-    /// The kind of the term as in docs/FORMAT.md §6 (`drift` for a quadratic).
+    /// The kind of the term as in docs/FORMAT.md §6 (`drift` for a drift's curvature and
+    /// shape, `rezero` for a cycle's offset).
     pub fn kind(&self) -> &'static str {
         match self {
             Term::Effect(e) => e.kind(),
-            Term::Quadratic { .. } => "drift",
+            Term::Quadratic { .. } | Term::DriftShape { .. } => "drift",
+            Term::RezeroCycle { .. } => "rezero",
+        }
+    }
+
+    /// The drift order this term is of autocollimator `ac`'s drift (1 the linear drift,
+    /// 2 its curvature, 3… its shapes); `None` for other terms.
+    pub fn drift_order(&self, of_ac: u32) -> Option<usize> {
+        match *self {
+            Term::Effect(Effect::Drift { ac, .. }) if ac == of_ac => Some(1),
+            Term::Quadratic { ac } if ac == of_ac => Some(2),
+            Term::DriftShape { ac, order } if ac == of_ac => Some(order),
+            _ => None,
+        }
+    }
+
+    /// The drift term of order `order` of autocollimator `ac`.
+    pub fn drift_of_order(ac: u32, order: usize) -> Term {
+        match order {
+            1 => Term::Effect(Effect::Drift {
+                ac,
+                value: 0.0,
+                quadratic: None,
+            }),
+            2 => Term::Quadratic { ac },
+            _ => Term::DriftShape { ac, order },
         }
     }
 }
@@ -81,7 +179,8 @@ impl Term {
 /// The family a candidate is corrected within.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Family {
-    /// Drift, its curvature, temperature, cross-talk, direction.
+    /// Drift of any order, temperature, cross-talk, direction, a zero set anew every
+    /// cycle.
     Systematic,
     /// A jump of a zero at any stop.
     OffsetStep,
@@ -89,27 +188,77 @@ pub enum Family {
     Outlier,
 }
 
-/// A candidate term with its score against the current fit.
+/// A candidate with its score against the current fit: one term, or a block of terms
+/// added together (a drift's further orders, a zero per cycle) and tested by one F test
+/// with as many numerator degrees of freedom as directions it adds.
 #[derive(Debug, Clone)]
 pub struct Candidate {
-    /// The term.
+    /// The term that names the candidate (the first of its block).
     pub term: Term,
+    /// The other terms of its block (empty for a single column).
+    pub block: Vec<Term>,
     /// Its family.
     pub family: Family,
-    /// Its score.
-    pub score: ColumnScore,
+    /// The reduction of the residual sum of squares it would bring.
+    pub reduction: f64,
+    /// The number of directions it adds (numerator degrees of freedom of its F test).
+    pub rank: usize,
+    /// The value of its first term if it were added.
+    pub value: f64,
     /// For an outlier: the reading and its studentized residual.
     pub outlier: Option<(usize, f64)>,
 }
 
 impl Candidate {
-    /// The term's value if it were added: xᵀe / (xᵀx − xᵀHx).
-    pub fn value(&self) -> f64 {
-        if self.score.is_new() {
-            self.score.projection / self.score.new_length_squared
-        } else {
-            0.0
+    /// A single-column candidate from its column score.
+    pub fn single(term: Term, family: Family, score: &ColumnScore) -> Self {
+        Candidate {
+            term,
+            block: Vec::new(),
+            family,
+            reduction: score.reduction(),
+            rank: usize::from(score.is_new()),
+            value: if score.is_new() {
+                score.projection / score.new_length_squared
+            } else {
+                0.0
+            },
+            outlier: None,
         }
+    }
+
+    /// A block candidate from its block score.
+    pub fn block(mut terms: Vec<Term>, family: Family, score: &BlockScore) -> Option<Self> {
+        if terms.is_empty() {
+            return None;
+        }
+        let term = terms.remove(0);
+        Some(Candidate {
+            term,
+            block: terms,
+            family,
+            reduction: score.reduction,
+            rank: score.rank,
+            value: score.values.first().copied().unwrap_or(0.0),
+            outlier: None,
+        })
+    }
+
+    /// Every term of the candidate, the naming one first.
+    pub fn terms(&self) -> Vec<Term> {
+        let mut all = vec![self.term.clone()];
+        all.extend(self.block.iter().cloned());
+        all
+    }
+
+    /// The term's value if it were added (for a block: its first term's).
+    pub fn value(&self) -> f64 {
+        self.value
+    }
+
+    /// Whether the candidate adds a direction to the model.
+    pub fn is_new(&self) -> bool {
+        self.rank > 0
     }
 }
 
@@ -127,56 +276,92 @@ pub fn both_directions(set: &MeasurementSet) -> bool {
     has(Direction::Cw) && has(Direction::Ccw)
 }
 
-/// The systematic candidates not yet in the model (`present`).
-pub fn systematic_terms(set: &MeasurementSet, present: &[Term]) -> Vec<Term> {
+/// The systematic candidates not yet in the model (`present`), each a block of terms
+/// added together: for every autocollimator its drift's next orders (when every reading
+/// has a clock: `time`, or the stop order), temperature, cross-talk (unless `stated`),
+/// direction, and a zero set anew every cycle (per stream of [`step_streams`], with at
+/// least [`MIN_REZERO_CYCLES`] cycles).
+pub fn systematic_blocks(set: &MeasurementSet, present: &[Term], stated: &[u32]) -> Vec<Vec<Term>> {
     let acs = autocollimators(set);
-    let mut terms = Vec::new();
+    let mut blocks: Vec<Vec<Term>> = Vec::new();
     if set.readings.iter().all(|r| r.time_seconds.is_some()) {
         for &ac in &acs {
-            let drift = Term::Effect(Effect::Drift {
-                ac,
-                value: 0.0,
-                quadratic: None,
-            });
-            if present.iter().any(|p| p.same(&drift)) {
-                terms.push(Term::Quadratic { ac });
-            } else {
-                terms.push(drift);
+            let have = present
+                .iter()
+                .filter_map(|t| t.drift_order(ac))
+                .max()
+                .unwrap_or(0);
+            let readings = set.readings.iter().filter(|r| r.ac == ac).count();
+            for order in have + 1..=MAX_DRIFT_ORDER {
+                if readings < 4 * order {
+                    break;
+                }
+                blocks.push(
+                    (have + 1..=order)
+                        .map(|k| Term::drift_of_order(ac, k))
+                        .collect(),
+                );
             }
         }
     }
+    let single = |t: Term| vec![t];
     if set.readings.iter().all(|r| r.temperature_celsius.is_some()) {
-        terms.extend(
+        blocks.extend(
             acs.iter()
-                .map(|&ac| Term::Effect(Effect::Temperature { ac, value: 0.0 })),
+                .map(|&ac| single(Term::Effect(Effect::Temperature { ac, value: 0.0 }))),
         );
     }
     for &ac in &acs {
-        if set
-            .readings
-            .iter()
-            .filter(|r| r.ac == ac)
-            .all(|r| r.reading_y_arcsec.is_some())
+        if !stated.contains(&ac)
+            && set
+                .readings
+                .iter()
+                .filter(|r| r.ac == ac)
+                .all(|r| r.reading_y_arcsec.is_some())
         {
-            terms.push(Term::Effect(Effect::CrossTalk { ac, value: 0.0 }));
+            blocks.push(single(Term::Effect(Effect::CrossTalk { ac, value: 0.0 })));
         }
     }
     if both_directions(set) {
-        terms.push(Term::Effect(Effect::Direction {
+        blocks.push(single(Term::Effect(Effect::Direction {
             ac: None,
             value: 0.0,
-        }));
+        })));
         if acs.len() > 1 {
-            terms.extend(acs.iter().map(|&ac| {
-                Term::Effect(Effect::Direction {
+            blocks.extend(acs.iter().map(|&ac| {
+                single(Term::Effect(Effect::Direction {
                     ac: Some(ac),
                     value: 0.0,
-                })
+                }))
             }));
         }
     }
-    terms.retain(|t| !present.iter().any(|p| p.same(t)));
-    terms
+    for (ac, setup) in step_streams(set) {
+        let block = rezero_block(set, ac, setup);
+        if block.len() + 1 >= MIN_REZERO_CYCLES as usize {
+            blocks.push(block);
+        }
+    }
+    blocks.retain(|b| !b.iter().any(|t| present.iter().any(|p| p.same(t))));
+    blocks
+}
+
+/// The columns of a zero set anew every cycle in stream (`ac`, `setup`): one offset per
+/// cycle after the stream's first (the first is the setup error's).
+pub fn rezero_block(set: &MeasurementSet, ac: u32, setup: Option<u32>) -> Vec<Term> {
+    let mut cycles: Vec<u32> = set
+        .readings
+        .iter()
+        .filter(|r| r.ac == ac && setup.is_none_or(|s| r.setup == s))
+        .map(|r| r.cycle)
+        .collect();
+    cycles.sort_unstable();
+    cycles.dedup();
+    cycles
+        .into_iter()
+        .skip(1)
+        .map(|cycle| Term::RezeroCycle { ac, setup, cycle })
+        .collect()
 }
 
 /// Position of a reading within its cycle in time order: clockwise cycles run steps
@@ -258,12 +443,7 @@ pub fn offset_step_candidates(
             if present.iter().any(|p| p.same(&term)) || !scores[k].is_new() {
                 continue;
             }
-            out.push(Candidate {
-                term,
-                family: Family::OffsetStep,
-                score: scores[k],
-                outlier: None,
-            });
+            out.push(Candidate::single(term, Family::OffsetStep, &scores[k]));
         }
     }
     out

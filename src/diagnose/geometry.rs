@@ -205,3 +205,86 @@ impl FitGeometry {
         scores
     }
 }
+
+/// What adding a block of columns to the model together would do.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockScore {
+    /// The reduction of the residual sum of squares, eᵀX̃(X̃ᵀX̃)⁺X̃ᵀe with X̃ the block's
+    /// part outside the model's span (X̃ᵀe = Xᵀe, since e is orthogonal to that span).
+    pub reduction: f64,
+    /// The number of directions the block adds (its rank outside the span).
+    pub rank: usize,
+    /// The values the block's columns would have if added: (X̃ᵀX̃)⁺Xᵀe.
+    pub values: Vec<f64>,
+}
+
+impl FitGeometry {
+    /// Scores a block of columns (one value per reading each) against the residuals of
+    /// the fit: the reduction of the residual sum of squares if they were added together,
+    /// and how many directions they add. A direction whose squared length outside the
+    /// span is below `1e-9` of the block's largest squared length adds nothing.
+    pub fn score_block(&self, columns: &[Vec<f64>], residuals: &[f64]) -> BlockScore {
+        let m = columns.len();
+        let size = self.q.nrows();
+        let g: Vec<Vec<f64>> = columns
+            .iter()
+            .map(|x| {
+                let mut g = vec![0.0; size];
+                for (i, &xi) in x.iter().enumerate() {
+                    if xi != 0.0 {
+                        for &(a, v) in &self.rows[i] {
+                            g[a] += xi * v;
+                        }
+                    }
+                }
+                g
+            })
+            .collect();
+        let qg: Vec<Vec<f64>> = g
+            .iter()
+            .map(|g| {
+                let touched: Vec<usize> = (0..size).filter(|&a| g[a] != 0.0).collect();
+                let mut out = vec![0.0; size];
+                for &b in &touched {
+                    let column = &self.q.as_slice()[b * size..(b + 1) * size];
+                    for (o, q) in out.iter_mut().zip(column) {
+                        *o += q * g[b];
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut gram = nalgebra::DMatrix::<f64>::zeros(m, m);
+        let mut projection = nalgebra::DVector::<f64>::zeros(m);
+        for a in 0..m {
+            projection[a] = columns[a].iter().zip(residuals).map(|(x, e)| x * e).sum();
+            for b in a..m {
+                let xx: f64 = columns[a].iter().zip(&columns[b]).map(|(x, y)| x * y).sum();
+                let xhx: f64 = g[a].iter().zip(&qg[b]).map(|(x, y)| x * y).sum();
+                gram[(a, b)] = xx - xhx;
+                gram[(b, a)] = xx - xhx;
+            }
+        }
+        let scale = (0..m)
+            .map(|a| columns[a].iter().map(|x| x * x).sum::<f64>())
+            .fold(0.0, f64::max);
+        let eigen = nalgebra::SymmetricEigen::new(gram);
+        let mut values = nalgebra::DVector::<f64>::zeros(m);
+        let (mut reduction, mut rank) = (0.0, 0);
+        for k in 0..m {
+            let lambda = eigen.eigenvalues[k];
+            if scale > 0.0 && lambda > 1e-9 * scale {
+                let v = eigen.eigenvectors.column(k).into_owned();
+                let c = v.dot(&projection);
+                reduction += c * c / lambda;
+                values += v * (c / lambda);
+                rank += 1;
+            }
+        }
+        BlockScore {
+            reduction,
+            rank,
+            values: values.iter().copied().collect(),
+        }
+    }
+}

@@ -16,20 +16,30 @@
 //! still lacks ([`residuals::adequacy`]).
 
 pub mod candidates;
+pub mod clock;
+pub mod findings;
 pub mod geometry;
+pub mod identify;
 pub mod lack_of_fit;
 pub mod residuals;
 
 use std::collections::HashSet;
+
+use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, MeasurementSet, Sigma};
 use crate::solve::{Solution, SolveError, least_squares_with_regressors};
 use crate::uncertainty::student::t_two_sided_tail;
 use candidates::{Candidate, Family, Term};
+pub use clock::Clock;
+use findings::{
+    Finding, candidate_effect, difference, final_effects, max_abs, record_not_significant,
+};
 use geometry::FitGeometry;
+pub use identify::Alternative;
 use lack_of_fit::LackOfFit;
-use residuals::{Adequacy, AdequacyInputs};
+use residuals::{Adequacy, AdequacyInputs, Check};
 
 /// Options of [`diagnose`].
 #[derive(Debug, Clone, PartialEq)]
@@ -124,7 +134,7 @@ impl Default for DiagnoseOptions {
 /// The statistics of one F test of a term against the model before it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Evidence {
-    /// Extra-sum-of-squares F statistic (1 numerator degree of freedom).
+    /// Extra-sum-of-squares F statistic (per numerator degree of freedom).
     pub f_statistic: f64,
     /// p-value of that F test.
     pub p_value: f64,
@@ -162,6 +172,28 @@ pub struct FoundEffect {
     pub changes_calibration: bool,
     /// For an outlier: its studentized residual in the model before it was added.
     pub studentized_residual: Option<f64>,
+    /// Numerator degrees of freedom of its F test: 1 for one column, more for a block
+    /// (a drift's orders, a zero per cycle) tested together.
+    pub dof_numerator: usize,
+    /// For a drift: its polynomial order (1 linear, 2 curved, 3 … with Legendre shapes).
+    pub drift_order: Option<usize>,
+    /// For a drift of order 3 or more: the coefficients of its Legendre shapes P₃ … over
+    /// the run's clock span mapped onto −1 … 1, arcsec.
+    pub shape: Vec<f64>,
+    /// Their standard uncertainties, when the fit gives them.
+    pub shape_u: Option<Vec<f64>>,
+    /// Other explanations that fit the data as well ([`identify`]), best first.
+    pub alternatives: Vec<Alternative>,
+}
+
+impl FoundEffect {
+    /// Whether an alternative that fits as well moves some β or α by more than its
+    /// expanded uncertainty: the data cannot tell which calibration is right.
+    pub fn ambiguous(&self) -> bool {
+        self.alternatives
+            .iter()
+            .any(Alternative::changes_calibration)
+    }
 }
 
 /// Why a tried term was not added.
@@ -180,6 +212,13 @@ pub enum Rejection {
     /// A further jump of a zero that already jumped [`MAX_JUMPS_PER_STREAM`] times: a
     /// string of jumps is a slow variation no term expresses, not a series of events.
     TooManyJumps,
+    /// A jump found earlier that a term found later contains (a zero set anew every
+    /// cycle holds every jump at a cycle's start).
+    Absorbed,
+    /// A jump found earlier of a zero that then jumped once too often: a string of jumps
+    /// approximates a slow variation and can make β and α worse than the base model, so
+    /// the final model leaves it out.
+    LeftOutOfString,
 }
 
 /// The most jumps (`offset-step`) of one autocollimator's zero in one mounting that a
@@ -197,6 +236,10 @@ impl Rejection {
             Rejection::Unattributable => "cannot be attributed",
             Rejection::NotDetermined => "not determined",
             Rejection::TooManyJumps => "one jump too many: a slow variation no term expresses",
+            Rejection::Absorbed => "absorbed by a term found later",
+            Rejection::LeftOutOfString => {
+                "left out: one of a string of jumps, a slow variation no term expresses"
+            }
         }
     }
 }
@@ -255,6 +298,8 @@ pub struct Diagnosis {
     /// Plain statements for people: what could not be tested and which added readings
     /// would make it visible.
     pub notes: Vec<String>,
+    /// The clock drift terms ran on: `time`, or the stop order in a file without it.
+    pub clock: Clock,
 }
 
 /// The readings' rounding level: residual sums of squares below it are zero.
@@ -267,15 +312,17 @@ fn rounding_rss(set: &MeasurementSet) -> f64 {
     set.readings.len() as f64 * (64.0 * f64::EPSILON * scale).powi(2)
 }
 
-/// The F test of a scored candidate against the current fit.
+/// The F test of a scored candidate against the current fit: F = (Δ/r)/(rest/(dof − r))
+/// with r the directions it adds (for r = 1 through Student's t, as before blocks).
 fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny: f64) -> Evidence {
-    let reduction = candidate.score.reduction();
-    let dof = current.dof.saturating_sub(1);
+    let reduction = candidate.reduction;
+    let r = candidate.rank.max(1);
+    let dof = current.dof.saturating_sub(r);
     let rest = (current.rss - reduction).max(0.0);
     let f_statistic = if dof == 0 {
         0.0
     } else if rest > tiny {
-        reduction / (rest / dof as f64)
+        (reduction / r as f64) / (rest / dof as f64)
     } else if reduction > tiny {
         f64::INFINITY
     } else {
@@ -283,25 +330,17 @@ fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny:
     };
     let p_value = if dof == 0 || f_statistic <= 0.0 {
         1.0
-    } else {
+    } else if r == 1 {
         t_two_sided_tail(f_statistic.sqrt(), Some(dof as f64))
+    } else if f_statistic.is_infinite() {
+        0.0
+    } else {
+        FisherSnedecor::new(r as f64, dof as f64).map_or(1.0, |d| d.sf(f_statistic))
     };
     Evidence {
         f_statistic,
         p_value,
         p_adjusted: (p_value * family_size.max(1) as f64).min(1.0),
-    }
-}
-
-/// The effect a term stands for, with a value (a curvature is reported on its drift).
-fn term_effect(term: &Term, value: f64) -> Effect {
-    match term {
-        Term::Effect(e) => e.clone().with_value(value),
-        Term::Quadratic { ac } => Effect::Drift {
-            ac: *ac,
-            value: 0.0,
-            quadratic: Some(value),
-        },
     }
 }
 
@@ -335,13 +374,16 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             evaluation: "the diagnosis",
         });
     }
+    let (work, clock) = clock::clocked(set);
+    let set: &MeasurementSet = &work;
     let sigma = options.sigma;
     let context = EffectContext::of(&set.readings);
     let before = least_squares_with_regressors(set, &[], sigma)?;
     // the hat-matrix geometry holds the cofactor densely (three matrices of the
     // parameters with every effect term the search may add): refused up front when it
     // cannot fit, before the search allocates it
-    let parameters = (before.layout.len() + options.max_effects) as u128;
+    let parameters =
+        (before.layout.len() + options.max_effects * candidates::MAX_DRIFT_ORDER) as u128;
     let needed_bytes = 3 * parameters * parameters * 8;
     if let Some((limit_bytes, limit_source)) = crate::solve::memory::limit_for(needed_bytes, None)
         && needed_bytes > u128::from(limit_bytes)
@@ -366,48 +408,57 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             if before.dof == 1 { "" } else { "s" }
         ));
     }
-    notes.extend(untestable_kinds(set));
+    notes.extend(untestable_kinds(set, clock));
+    if let Some(note) = common_cross_talk_note(set, &options.stated_cross_talk) {
+        notes.push(note);
+    }
     let tiny = rounding_rss(set);
     let exact = testable && before.rss <= tiny;
     if exact {
         notes.push("The residuals are at the rounding level of the readings (noise-free data): the base model explains them exactly, and no effect is tested.".into());
     }
 
+    let columns_of = |terms: &[Term]| -> Vec<Vec<f64>> {
+        terms.iter().map(|t| t.column(set, &context)).collect()
+    };
     let mut terms: Vec<Term> = Vec::new();
-    let mut columns: Vec<Vec<f64>> = Vec::new();
-    let mut found: Vec<(usize, FoundEffect, Vec<f64>, Vec<f64>)> = Vec::new();
+    let mut findings: Vec<Finding> = Vec::new();
     let mut tried: Vec<TriedEffect> = Vec::new();
     let mut suspects: HashSet<usize> = HashSet::new();
     let mut unattributed_sets: Vec<Vec<(usize, f64)>> = Vec::new();
     let mut cross_talk_noted = false;
     let mut jumps_exceeded: Vec<(u32, Option<u32>)> = Vec::new();
     let mut current = before.clone();
-    let mut lof_current =
-        lack_of_fit::lack_of_fit(set, &current, &columns, options.lack_of_fit_alpha);
-    while testable && !exact && found.len() < options.max_effects && current.dof >= 2 {
+    let mut lof_current = lack_of_fit::lack_of_fit(set, &current, &[], options.lack_of_fit_alpha);
+    while testable && !exact && findings.len() < options.max_effects && current.dof >= 2 {
+        let columns = columns_of(&terms);
         let geometry = FitGeometry::new(&current, set, &columns);
         let leverage = geometry.leverage();
         let studentized = residuals::studentized(&current, &leverage);
         let mut candidates: Vec<Candidate> = Vec::new();
-        for term in candidates::systematic_terms(set, &terms) {
-            let column = term.column(set, &context);
-            let score = geometry.score(&column, &current.residuals);
-            if let Term::Effect(Effect::CrossTalk { ac, .. }) = term
-                && score.new_fraction() < 0.1
-            {
-                if !cross_talk_noted && let Some(note) = cross_talk_note(set, ac) {
-                    notes.push(note);
-                    cross_talk_noted = true;
+        for block in candidates::systematic_blocks(set, &terms, &options.stated_cross_talk) {
+            if let [term] = block.as_slice() {
+                let column = term.column(set, &context);
+                let score = geometry.score(&column, &current.residuals);
+                if let Term::Effect(Effect::CrossTalk { ac, .. }) = term
+                    && score.new_fraction() < 0.1
+                {
+                    if !cross_talk_noted && let Some(note) = cross_talk_note(set, *ac) {
+                        notes.push(note);
+                        cross_talk_noted = true;
+                    }
+                    continue;
                 }
-                continue;
-            }
-            if score.is_new() {
-                candidates.push(Candidate {
-                    term,
-                    family: Family::Systematic,
-                    score,
-                    outlier: None,
-                });
+                if score.is_new() {
+                    candidates.push(Candidate::single(term.clone(), Family::Systematic, &score));
+                }
+            } else {
+                let score = geometry.score_block(&columns_of(&block), &current.residuals);
+                if score.rank > 0
+                    && let Some(c) = Candidate::block(block, Family::Systematic, &score)
+                {
+                    candidates.push(c);
+                }
             }
         }
         candidates.extend(candidates::offset_step_candidates(
@@ -429,27 +480,22 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             let mut column = vec![0.0; set.readings.len()];
             column[i] = 1.0;
             let score = geometry.score(&column, &current.residuals);
-            candidates.push(Candidate {
-                term: Term::Effect(Effect::Outlier {
+            let mut candidate = Candidate::single(
+                Term::Effect(Effect::Outlier {
                     cycle: r.cycle,
                     step: r.step,
                     ac: r.ac,
                     setup: several_setups.then_some(r.setup),
                     value: 0.0,
                 }),
-                family: Family::Outlier,
-                score,
-                outlier: Some((i, t)),
-            });
+                Family::Outlier,
+                &score,
+            );
+            candidate.outlier = Some((i, t));
+            candidates.push(candidate);
         }
-        let systematic_count = candidates
-            .iter()
-            .filter(|c| c.family == Family::Systematic)
-            .count();
-        let step_count = candidates
-            .iter()
-            .filter(|c| c.family == Family::OffsetStep)
-            .count();
+        let count = |family: Family| candidates.iter().filter(|c| c.family == family).count();
+        let (systematic_count, step_count) = (count(Family::Systematic), count(Family::OffsetStep));
         let family_size = |family: Family| match family {
             Family::Outlier => eligible,
             Family::Systematic => systematic_count,
@@ -467,18 +513,40 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
                 .total_cmp(&b.1.p_adjusted)
                 .then(b.1.f_statistic.total_cmp(&a.1.f_statistic))
         });
+        // A further jump of a zero that already jumped as often as a diagnosis accepts is
+        // not tried: the stream is marked, and a smooth drift or a zero per cycle of it
+        // may still take the structure.
+        jumps_exceeded.clear();
+        let jumps_of = |ac: u32, setup: Option<u32>, terms: &[Term]| {
+            terms
+                .iter()
+                .filter(|t| {
+                    matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
+                })
+                .count()
+        };
+        let mut attempts = 0;
         let mut accepted = false;
-        // At most four attempts per round: the best significant candidates in turn.
-        for (candidate, ev) in scored.iter().take(4) {
-            if ev.p_adjusted >= options.family_alpha {
+        for (candidate, ev) in &scored {
+            if attempts >= 4 || ev.p_adjusted >= options.family_alpha {
                 break;
             }
             let rejected = |rejection| TriedEffect {
-                effect: term_effect(&candidate.term, candidate.value()),
+                effect: candidate_effect(candidate),
                 quadratic: matches!(candidate.term, Term::Quadratic { .. }),
                 evidence: *ev,
                 rejection,
             };
+            if let Term::Effect(Effect::OffsetStep { ac, setup, .. }) = candidate.term
+                && jumps_of(ac, setup, &terms) >= MAX_JUMPS_PER_STREAM
+            {
+                if !jumps_exceeded.contains(&(ac, setup)) {
+                    jumps_exceeded.push((ac, setup));
+                    tried.push(rejected(Rejection::TooManyJumps));
+                }
+                continue;
+            }
+            attempts += 1;
             if let Some((i, t)) = candidate.outlier {
                 let twins = twins(&geometry, &studentized, i, t);
                 if !twins.is_empty() {
@@ -492,42 +560,59 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
                     continue;
                 }
             }
-            if let Term::Effect(Effect::OffsetStep { ac, setup, .. }) = candidate.term {
-                let jumps = terms
+            let added = candidate.terms();
+            // a zero per cycle holds every jump of its stream at a cycle's start
+            let absorbed: Vec<Term> = match candidate.term {
+                Term::RezeroCycle { ac, setup, .. } => terms
                     .iter()
                     .filter(|t| {
-                        matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
+                        matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, step: None, .. }) if *a == ac && *s == setup)
                     })
-                    .count();
-                if jumps >= MAX_JUMPS_PER_STREAM {
-                    tried.push(rejected(Rejection::TooManyJumps));
-                    jumps_exceeded.push((ac, setup));
-                    break;
-                }
-            }
-            let column = candidate.term.column(set, &context);
-            columns.push(column);
-            let fit = least_squares_with_regressors(set, &columns, sigma);
-            let Ok(fit) = fit else {
-                columns.pop();
+                    .cloned()
+                    .collect(),
+                _ => Vec::new(),
+            };
+            let mut new_terms: Vec<Term> = terms
+                .iter()
+                .filter(|t| !absorbed.contains(t))
+                .cloned()
+                .collect();
+            new_terms.extend(added.iter().cloned());
+            let new_columns = columns_of(&new_terms);
+            let Ok(fit) = least_squares_with_regressors(set, &new_columns, sigma) else {
                 tried.push(rejected(Rejection::NotDetermined));
                 continue;
             };
-            let lof_new = lack_of_fit::lack_of_fit(set, &fit, &columns, options.lack_of_fit_alpha);
+            let lof_new =
+                lack_of_fit::lack_of_fit(set, &fit, &new_columns, options.lack_of_fit_alpha);
             if let Some(new) = &lof_new
                 && !new.passed()
                 && lof_current
                     .as_ref()
                     .is_none_or(|old| new.f_statistic >= old.f_statistic)
             {
-                columns.pop();
                 tried.push(rejected(Rejection::DoesNotReduceLackOfFit));
                 continue;
+            }
+            for gone in &absorbed {
+                if let Some(k) = findings.iter().position(|f| f.terms.contains(gone)) {
+                    let f = findings.remove(k);
+                    tried.push(TriedEffect {
+                        effect: f.entry.effect.clone(),
+                        quadratic: false,
+                        evidence: Evidence {
+                            f_statistic: f.entry.f_statistic,
+                            p_value: f.entry.p_value,
+                            p_adjusted: f.entry.p_adjusted,
+                        },
+                        rejection: Rejection::Absorbed,
+                    });
+                }
             }
             let pitch_change = difference(&fit.pitch_deviation, &current.pitch_deviation);
             let encoder_change = difference(&fit.encoder_error, &current.encoder_error);
             let entry = FoundEffect {
-                effect: term_effect(&candidate.term, 0.0),
+                effect: candidate_effect(candidate),
                 u: None,
                 quadratic_u: None,
                 quadratic_evidence: None,
@@ -540,15 +625,22 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
                 encoder_change_max: max_abs(&encoder_change),
                 changes_calibration: true,
                 studentized_residual: candidate.outlier.map(|(_, t)| t),
+                dof_numerator: candidate.rank.max(1),
+                drift_order: None,
+                shape: Vec::new(),
+                shape_u: None,
+                alternatives: Vec::new(),
             };
-            found.push((terms.len(), entry, pitch_change, encoder_change));
-            terms.push(candidate.term.clone());
+            findings.push(Finding {
+                terms: added,
+                entry,
+                pitch_change,
+                encoder_change,
+            });
+            terms = new_terms;
             current = fit;
             lof_current = lof_new;
             accepted = true;
-            break;
-        }
-        if !jumps_exceeded.is_empty() {
             break;
         }
         if !accepted {
@@ -560,8 +652,96 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
     if exact || !testable {
         lof_current = None;
     }
+    // When in doubt, do not add: the jumps of a zero that jumped once too often are a
+    // string approximating a slow variation, and can leave β and α worse than the base
+    // model; the final model leaves them out and says so.
+    if !jumps_exceeded.is_empty() {
+        let dropped: Vec<Term> = terms
+            .iter()
+            .filter(|t| {
+                matches!(t, Term::Effect(Effect::OffsetStep { ac, setup, .. }) if jumps_exceeded.contains(&(*ac, *setup)))
+            })
+            .cloned()
+            .collect();
+        let kept: Vec<Term> = terms
+            .iter()
+            .filter(|t| !dropped.contains(t))
+            .cloned()
+            .collect();
+        if let Ok(fit) = least_squares_with_regressors(set, &columns_of(&kept), sigma) {
+            findings.retain(|f| {
+                let gone = f.terms.iter().any(|t| dropped.contains(t));
+                if gone {
+                    tried.push(TriedEffect {
+                        effect: f.entry.effect.clone(),
+                        quadratic: false,
+                        evidence: Evidence {
+                            f_statistic: f.entry.f_statistic,
+                            p_value: f.entry.p_value,
+                            p_adjusted: f.entry.p_adjusted,
+                        },
+                        rejection: Rejection::LeftOutOfString,
+                    });
+                }
+                !gone
+            });
+            lof_current = lof_current.and(lack_of_fit::lack_of_fit(
+                set,
+                &fit,
+                &columns_of(&kept),
+                options.lack_of_fit_alpha,
+            ));
+            terms = kept;
+            current = fit;
+        }
+    }
+    let columns = columns_of(&terms);
 
-    let effects = final_effects(&current, &terms, found);
+    let blocks: Vec<Vec<Term>> = findings.iter().map(|f| f.terms.clone()).collect();
+    let mut effects = final_effects(&current, &terms, findings);
+    // identifiability: the alternatives of every finding, against the final model
+    let model = identify::FinalModel {
+        set,
+        context: &context,
+        terms: &terms,
+        fit: &current,
+        sigma,
+        stated_cross_talk: &options.stated_cross_talk,
+        tiny,
+    };
+    for found in effects.iter_mut() {
+        let block: Vec<Term> = blocks
+            .iter()
+            .find(|b| {
+                b.iter().any(|t| match t {
+                    Term::Effect(e) => same_effect(e, &found.effect),
+                    other => findings::block_effect(std::slice::from_ref(other), &[0.0])
+                        .is_some_and(|e| {
+                            e.kind() == found.effect.kind()
+                                && effect_ac(&e) == effect_ac(&found.effect)
+                        }),
+                })
+            })
+            .map(|b| {
+                // a drift's block is all of its orders in the final model
+                match b.first() {
+                    Some(
+                        Term::Effect(Effect::Drift { ac, .. })
+                        | Term::Quadratic { ac }
+                        | Term::DriftShape { ac, .. },
+                    ) => terms
+                        .iter()
+                        .filter(|t| t.drift_order(*ac).is_some())
+                        .cloned()
+                        .collect(),
+                    _ => b.clone(),
+                }
+            })
+            .unwrap_or_default();
+        if !block.is_empty() {
+            found.alternatives = identify::alternatives(model, &block);
+        }
+    }
     tried.retain(|t| {
         !effects
             .iter()
@@ -604,7 +784,7 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
 
     let geometry = FitGeometry::new(&current, set, &columns);
     let studentized = residuals::studentized(&current, &geometry.leverage());
-    let adequacy = if testable {
+    let mut adequacy = if testable {
         residuals::adequacy(
             &current,
             set,
@@ -625,9 +805,31 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             structure: Vec::new(),
         }
     };
+    for found in &effects {
+        if found.alternatives.is_empty() {
+            continue;
+        }
+        let worst = found
+            .alternatives
+            .iter()
+            .map(|a| a.change_over_expanded_u)
+            .fold(0.0, f64::max);
+        let passed = worst <= 1.0;
+        adequacy.checks.push(Check {
+            name: format!(
+                "identifiability of the {} (largest change of β or α by an explanation that fits as well, in expanded uncertainties)",
+                crate::report::diagnose::label(&found.effect)
+            ),
+            statistic: worst,
+            limit: 1.0,
+            passed,
+        });
+        adequacy.adequate &= passed;
+        notes.push(ambiguity_note(found, clock));
+    }
     for (ac, setup) in &jumps_exceeded {
         notes.push(format!(
-            "The zero of autocollimator {ac}{} seems to jump again and again: after {MAX_JUMPS_PER_STREAM} jumps a further one is significant. That is a slow variation (a periodic or irregular drift) that no term of the model expresses, not a series of events; the jumps found are its closest approximation, not an explanation.",
+            "The zero of autocollimator {ac}{} seems to jump again and again: after {MAX_JUMPS_PER_STREAM} jumps a further one is significant. That is a slow variation that neither a smooth drift nor a zero per cycle expresses, not a series of events. The final model leaves its jumps out (a string of jumps can leave β and α worse than the base model); what remains is listed below.",
             setup.map_or(String::new(), |s| format!(" in setup {s}"))
         ));
     }
@@ -646,7 +848,93 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         adequacy,
         testable,
         notes,
+        clock,
     })
+}
+
+/// The autocollimator an effect names, if one.
+fn effect_ac(effect: &Effect) -> Option<u32> {
+    match *effect {
+        Effect::Drift { ac, .. }
+        | Effect::OffsetStep { ac, .. }
+        | Effect::Outlier { ac, .. }
+        | Effect::Temperature { ac, .. }
+        | Effect::CrossTalk { ac, .. }
+        | Effect::Rezero { ac, .. } => Some(ac),
+        Effect::Direction { ac, .. } => ac,
+    }
+}
+
+/// The plain words on a finding with alternatives: what cannot be told apart, how far
+/// the calibration moves, and what would decide it.
+fn ambiguity_note(found: &FoundEffect, clock: Clock) -> String {
+    use crate::report::diagnose::label;
+    let value = |e: &Effect| match e {
+        Effect::Drift { .. } => format!("{:+.4}{}", e.value(), clock.drift_unit_text()),
+        Effect::CrossTalk { value, .. } => format!("{value:+.5}″/″"),
+        other => format!("{:+.4}″", other.value()),
+    };
+    let alternatives: Vec<String> = found
+        .alternatives
+        .iter()
+        .map(|a| {
+            let names: Vec<String> = a
+                .effects
+                .iter()
+                .map(|e| format!("the {} ({})", label(e), value(e)))
+                .collect();
+            format!(
+                "{} (F = {:.2}, p = {:.2}; β would change by up to {:.4}″, α by up to {:.4}″)",
+                names.join(" together with "),
+                a.f_statistic,
+                a.p_value,
+                a.pitch_change_max,
+                a.encoder_change_max
+            )
+        })
+        .collect();
+    let decide = match found.effect {
+        Effect::CrossTalk { .. } => {
+            "Closure data determine only the differences of the autocollimators' cross-talk coefficients. State the cross-talk of one autocollimator from its calibration (docs/FORMAT.md §6): the others' then follow from the data."
+        }
+        _ => {
+            "A design whose readings separate them would decide it: another mounting of the polygon, a counter-clockwise cycle, or an instrument whose behaviour is known from its calibration."
+        }
+    };
+    if found.ambiguous() {
+        format!(
+            "The data cannot tell the {} ({}) from {}: they fit equally well, but give calibrations that differ by more than the expanded uncertainty. This is not a finding, and the result is not certified. {decide}",
+            label(&found.effect),
+            value(&found.effect),
+            alternatives.join("; or ")
+        )
+    } else {
+        format!(
+            "The data cannot tell the {} ({}) from {}; they fit equally well, and the calibrations they give agree within the expanded uncertainty.",
+            label(&found.effect),
+            value(&found.effect),
+            alternatives.join("; or ")
+        )
+    }
+}
+
+/// The note on a cross-talk common to every autocollimator, which closure cannot see,
+/// when `reading_y` spans more than a few arcseconds.
+fn common_cross_talk_note(set: &MeasurementSet, stated: &[u32]) -> Option<String> {
+    let (span, pitch, encoder) = identify::common_cross_talk_reach(set, 3.0)?;
+    let every_stated = candidates::autocollimators(set)
+        .iter()
+        .all(|ac| stated.contains(ac));
+    let stated_text = if every_stated {
+        "Every autocollimator's cross-talk is stated from its calibration, so this is corrected for.".to_string()
+    } else {
+        "Only an autocollimator's calibration of its cross-talk can remove it: state it for each autocollimator (docs/FORMAT.md §6).".to_string()
+    };
+    Some(format!(
+        "A cross-talk common to all autocollimators cannot be seen by closure: reading_y spans {span:.1}″, and a common cross-talk of 0.01″/″ would move β by up to {:.4}″ and α by up to {:.4}″ without leaving a residual. {stated_text}",
+        0.01 * pitch,
+        0.01 * encoder
+    ))
 }
 
 /// Readings whose outlier column is nearly the same as reading `i`'s (|correlation of
@@ -681,98 +969,6 @@ fn same_effect(a: &Effect, b: &Effect) -> bool {
     a.clone().with_value(0.0) == b.clone().with_value(0.0)
 }
 
-/// Adds, for every kind of term (and autocollimator, mounting) of the last round, its best
-/// candidate as "not significant".
-fn record_not_significant(
-    tried: &mut Vec<TriedEffect>,
-    scored: &[(Candidate, Evidence)],
-    family_alpha: f64,
-) {
-    let mut seen: Vec<String> = Vec::new();
-    for (candidate, ev) in scored {
-        if ev.p_adjusted < family_alpha {
-            continue;
-        }
-        let group = match &candidate.term {
-            Term::Effect(Effect::OffsetStep { ac, setup, .. }) => {
-                format!("offset-step {ac} {setup:?}")
-            }
-            Term::Effect(Effect::Outlier { .. }) => "outlier".into(),
-            other => format!("{other:?}"),
-        };
-        if seen.contains(&group) {
-            continue;
-        }
-        seen.push(group);
-        tried.push(TriedEffect {
-            effect: term_effect(&candidate.term, candidate.value()),
-            quadratic: matches!(candidate.term, Term::Quadratic { .. }),
-            evidence: *ev,
-            rejection: Rejection::NotSignificant,
-        });
-    }
-}
-
-/// The found effects with their values and uncertainties in the final model, a drift's
-/// curvature merged into its drift, and whether each changes the calibration by more than
-/// its uncertainty.
-fn final_effects(
-    current: &Solution,
-    terms: &[Term],
-    found: Vec<(usize, FoundEffect, Vec<f64>, Vec<f64>)>,
-) -> Vec<FoundEffect> {
-    let u = current.effect_u();
-    let u_pitch = current.pitch_deviation_u();
-    let u_encoder = current.encoder_error_u();
-    let exceeds = |change: &[f64], u: &Option<Vec<f64>>| match u {
-        Some(u) => change.iter().zip(u).any(|(c, u)| c.abs() > *u),
-        None => change.iter().any(|c| *c != 0.0),
-    };
-    let mut effects: Vec<FoundEffect> = Vec::new();
-    for (j, mut entry, pitch_change, encoder_change) in found {
-        let value = current.effect_values[j];
-        let u_j = u.as_ref().map(|u| u[j]);
-        let changes = exceeds(&pitch_change, &u_pitch) || exceeds(&encoder_change, &u_encoder);
-        match &terms[j] {
-            Term::Quadratic { ac } => {
-                if let Some(drift) = effects
-                    .iter_mut()
-                    .find(|f| matches!(f.effect, Effect::Drift { ac: a, .. } if a == *ac))
-                {
-                    if let Effect::Drift { quadratic, .. } = &mut drift.effect {
-                        *quadratic = Some(value);
-                    }
-                    drift.quadratic_u = u_j;
-                    drift.quadratic_evidence = Some(Evidence {
-                        f_statistic: entry.f_statistic,
-                        p_value: entry.p_value,
-                        p_adjusted: entry.p_adjusted,
-                    });
-                    drift.changes_calibration |= changes;
-                    drift.pitch_change_max = drift.pitch_change_max.max(entry.pitch_change_max);
-                    drift.encoder_change_max =
-                        drift.encoder_change_max.max(entry.encoder_change_max);
-                }
-            }
-            Term::Effect(_) => {
-                entry.effect = entry.effect.with_value(value);
-                entry.u = u_j;
-                entry.changes_calibration = changes;
-                effects.push(entry);
-            }
-        }
-    }
-    effects
-}
-
-fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
-    a.iter().zip(b).map(|(x, y)| x - y).collect()
-}
-
-fn max_abs(v: &[f64]) -> f64 {
-    v.iter().map(|x| x.abs()).fold(0.0, f64::max)
-}
-
 /// The note when `reading_y` spans more than a few arcseconds but cross-talk cannot be
 /// told apart from the polygon and the encoder.
 fn cross_talk_note(set: &MeasurementSet, ac: u32) -> Option<String> {
@@ -790,10 +986,10 @@ fn cross_talk_note(set: &MeasurementSet, ac: u32) -> Option<String> {
 }
 
 /// Effect kinds the data cannot show at all, and what would make them visible.
-fn untestable_kinds(set: &MeasurementSet) -> Vec<String> {
+fn untestable_kinds(set: &MeasurementSet, clock: Clock) -> Vec<String> {
     let mut notes = Vec::new();
-    if set.readings.iter().any(|r| r.time_seconds.is_none()) {
-        notes.push("Drift cannot be tested: the file has no `time` for every reading.".into());
+    if clock == Clock::StopOrder {
+        notes.push("The file has no `time` for every reading: drift is modelled in the run's stop order, one unit per stop of the table (its value in ″/stop), which assumes the stops took equal times.".into());
     }
     let with_temperature = set
         .readings
