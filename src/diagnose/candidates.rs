@@ -25,7 +25,7 @@ pub const MIN_STEP_READINGS: usize = 3;
 
 /// The highest order of a smooth drift: linear, quadratic, then Legendre shapes of orders
 /// 3 … `MAX_DRIFT_ORDER` over the run's time span, the order picked by F tests.
-pub const MAX_DRIFT_ORDER: usize = 6;
+pub const MAX_DRIFT_ORDER: usize = 4;
 
 /// The fewest cycles of a stream for which a zero set anew every cycle (`rezero`) is
 /// tried.

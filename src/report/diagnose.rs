@@ -2,7 +2,7 @@
 //! explains itself to a metrologist.
 
 use crate::diagnose::lack_of_fit::LackOfFit;
-use crate::diagnose::{Diagnosis, FoundEffect, TriedEffect};
+use crate::diagnose::{Alternative, Clock, Diagnosis, FoundEffect, TriedEffect};
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, MeasurementSet};
 use crate::report::SolveReport;
@@ -230,6 +230,24 @@ pub fn label(effect: &Effect) -> String {
     }
 }
 
+/// [`explanation`] with a drift's unit of time on the diagnosis's clock (per stop in a
+/// file without `time`), and a drift's order when it has a shape beyond its curvature.
+pub fn explanation_on(found: &FoundEffect, clock: Clock) -> String {
+    let mut text = explanation(found);
+    if clock == Clock::StopOrder {
+        text = text
+            .replace("per hour²", "per stop²")
+            .replace("per hour", "per stop")
+            .replace("with time", "with the stop order");
+    }
+    if let Some(order) = found.drift_order.filter(|&k| k >= 3) {
+        text.push_str(&format!(
+            "; its shape over the run is a polynomial of order {order}, picked by F tests"
+        ));
+    }
+    text
+}
+
 /// One sentence on the pattern behind an effect (and, when it changes no β or α by more
 /// than its uncertainty, a second saying so).
 pub fn explanation(found: &FoundEffect) -> String {
@@ -360,9 +378,77 @@ fn tried_json(tried: &TriedEffect) -> Value {
     Value::Object(object)
 }
 
-fn effect_json(found: &FoundEffect) -> Value {
-    let mut object = effect_object(&found.effect);
+fn alternative_json(alternative: &Alternative, clock: Clock) -> Value {
+    let mut effects = alternative.effects.iter();
+    let mut object = effects
+        .next()
+        .map_or_else(Map::new, |e| effect_with_unit(e, clock));
+    let together: Vec<Value> = effects
+        .map(|e| Value::Object(effect_with_unit(e, clock)))
+        .collect();
+    if !together.is_empty() {
+        object.insert("together_with".into(), Value::Array(together));
+    }
+    object.insert("F".into(), number(alternative.f_statistic));
+    object.insert("p".into(), number(alternative.p_value));
+    object.insert(
+        "pitch_change_max".into(),
+        number(alternative.pitch_change_max),
+    );
+    object.insert(
+        "encoder_change_max".into(),
+        number(alternative.encoder_change_max),
+    );
+    object.insert(
+        "change_over_expanded_u".into(),
+        number(alternative.change_over_expanded_u),
+    );
+    Value::Object(object)
+}
+
+/// An effect's object with the `unit` of a drift's value on the diagnosis's clock.
+fn effect_with_unit(effect: &Effect, clock: Clock) -> Map<String, Value> {
+    let mut object = effect_object(effect);
+    if matches!(effect, Effect::Drift { .. }) {
+        object.insert("unit".into(), Value::String(clock.drift_unit().into()));
+    }
+    object
+}
+
+fn effect_json(found: &FoundEffect, clock: Clock) -> Value {
+    let mut object = effect_with_unit(&found.effect, clock);
     object.insert("u".into(), found.u.map_or(Value::Null, number));
+    if let Some(order) = found.drift_order {
+        object.insert("order".into(), Value::from(order));
+        if order >= 3 {
+            object.insert(
+                "shape".into(),
+                Value::Array(found.shape.iter().map(|&v| number(v)).collect()),
+            );
+            object.insert(
+                "shape_u".into(),
+                found.shape_u.as_ref().map_or(Value::Null, |u| {
+                    Value::Array(u.iter().map(|&v| number(v)).collect())
+                }),
+            );
+        }
+    }
+    if found.dof_numerator > 1 {
+        object.insert("df".into(), Value::from(found.dof_numerator));
+    }
+    if !found.alternatives.is_empty() {
+        object.insert(
+            "alternatives".into(),
+            Value::Array(
+                found
+                    .alternatives
+                    .iter()
+                    .map(|a| alternative_json(a, clock))
+                    .collect(),
+            ),
+        );
+        object.insert("ambiguous".into(), Value::Bool(found.ambiguous()));
+    }
     if matches!(
         found.effect,
         Effect::Drift {
@@ -399,14 +485,21 @@ fn effect_json(found: &FoundEffect) -> Value {
         "changes_calibration".into(),
         Value::Bool(found.changes_calibration),
     );
-    object.insert("explanation".into(), Value::String(explanation(found)));
+    object.insert(
+        "explanation".into(),
+        Value::String(explanation_on(found, clock)),
+    );
     Value::Object(object)
 }
 
 impl DiagnoseReport {
     /// Builds the report; `truth` adds the `error` section.
     pub fn new(diagnosis: &Diagnosis, truth: Option<&Truth>, file: Option<String>) -> Self {
-        let effects: Vec<Value> = diagnosis.effects.iter().map(effect_json).collect();
+        let effects: Vec<Value> = diagnosis
+            .effects
+            .iter()
+            .map(|f| effect_json(f, diagnosis.clock))
+            .collect();
         let mut after = SolveReport::new(&diagnosis.after, None);
         after.effects = effects.clone();
         let error = truth.and_then(|t| {
@@ -554,10 +647,10 @@ pub fn write_table<W: std::fmt::Write>(
         )?;
         for (i, found) in diagnosis.effects.iter().enumerate() {
             let value = found.effect.value();
-            let unit = if matches!(found.effect, Effect::Drift { .. }) {
-                "″/h"
-            } else {
-                "″"
+            let unit = match found.effect {
+                Effect::Drift { .. } => diagnosis.clock.drift_unit_text(),
+                Effect::CrossTalk { .. } => "″/″",
+                _ => "″",
             };
             let u = found
                 .u
@@ -574,7 +667,7 @@ pub fn write_table<W: std::fmt::Write>(
             {
                 let u = found
                     .quadratic_u
-                    .map_or(String::new(), |u| format!(" ± {u:.4}″/h² (k = 1)"));
+                    .map_or(String::new(), |u| format!(" ± {u:.4}{unit}² (k = 1)"));
                 let evidence = found.quadratic_evidence.map_or(String::new(), |e| {
                     format!(
                         "; curvature added by F = {}, Bonferroni p = {}",
@@ -582,9 +675,16 @@ pub fn write_table<W: std::fmt::Write>(
                         p_text(e.p_adjusted)
                     )
                 });
-                writeln!(out, "     curvature (quadratic) = {q:+.4}″/h²{u}{evidence}")?;
+                writeln!(
+                    out,
+                    "     curvature (quadratic) = {q:+.4}{unit}²{u}{evidence}"
+                )?;
             }
-            writeln!(out, "     pattern: {}", explanation(found))?;
+            writeln!(
+                out,
+                "     pattern: {}",
+                explanation_on(found, diagnosis.clock)
+            )?;
             writeln!(
                 out,
                 "     evidence: F = {}, p = {}, Bonferroni p = {}; residual RMS {:.4}″ → {:.4}″",
