@@ -308,7 +308,8 @@ fn a_wandering_zero_does_no_harm() {
 /// effect other than an outlier, or an ambiguous finding.
 #[test]
 fn clean_runs_of_four_designs_rarely_get_a_false_effect() {
-    let designs: [(&str, fn(u64) -> SimulationConfig, bool); 4] = [
+    type Design = (&'static str, fn(u64) -> SimulationConfig, bool);
+    let designs: [Design; 4] = [
         ("with time", base, false),
         ("without time", base, true),
         (
