@@ -283,9 +283,8 @@ fn add_random_walk(set: &mut MeasurementSet, rate: f64, seed: u64) {
 }
 
 /// A wandering zero (0.25″/√h on both autocollimators) over 40 seeds: the final
-/// encoder error is not worse than the base model's by more than 10 % + 3 mas. The
-/// issue asks for 90 % of seeds; this version reaches about 85 % (measured), and the
-/// test holds it to at least 80 % so that it cannot slide back.
+/// encoder error is not worse than the base model's by more than 10 % + 3 mas in at least
+/// 90 % of them.
 #[test]
 fn a_wandering_zero_does_no_harm() {
     let mut not_worse = 0;
@@ -300,12 +299,13 @@ fn a_wandering_zero_does_no_harm() {
         }
     }
     eprintln!("random walk: {not_worse} of 40 not worse than the base model");
-    assert!(not_worse >= 32, "{not_worse} of 40");
+    assert!(not_worse >= 36, "{not_worse} of 40");
 }
 
 /// False alarms over 100 clean seeds of each design: with and without `time`, with
 /// `reading_y` in two mountings, and three autocollimators. A false alarm is any
-/// effect other than an outlier, or an ambiguous finding.
+/// effect other than an outlier, or an ambiguous finding; a verdict "not adequate" is
+/// counted apart, also at most 5 %.
 #[test]
 fn clean_runs_of_four_designs_rarely_get_a_false_effect() {
     type Design = (&'static str, fn(u64) -> SimulationConfig, bool);
@@ -327,7 +327,7 @@ fn clean_runs_of_four_designs_rarely_get_a_false_effect() {
         ),
     ];
     for (name, config, strip_time) in designs {
-        let mut alarms = 0;
+        let (mut alarms, mut inadequate) = (0, 0);
         for seed in 0..100 {
             let (mut set, _) = simulate(&config(2000 + seed)).unwrap();
             if strip_time {
@@ -340,8 +340,12 @@ fn clean_runs_of_four_designs_rarely_get_a_false_effect() {
             {
                 alarms += 1;
             }
+            inadequate += usize::from(!d.adequacy.adequate);
         }
-        eprintln!("clean, {name}: {alarms} of 100 with a false effect");
+        eprintln!(
+            "clean, {name}: {alarms} of 100 with a false effect, {inadequate} called inadequate"
+        );
         assert!(alarms <= 5, "{name}: {alarms} of 100");
+        assert!(inadequate <= 5, "{name}: {inadequate} of 100 inadequate");
     }
 }

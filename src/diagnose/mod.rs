@@ -55,6 +55,9 @@ pub struct DiagnoseOptions {
     pub adequacy_alpha: f64,
     /// False-alarm probability of the lack-of-fit test against pure error.
     pub lack_of_fit_alpha: f64,
+    /// False-alarm probability of the check that a drift found has the same shape in both
+    /// halves of the run (a wandering zero fails it).
+    pub stability_alpha: f64,
     /// Most effects to add.
     pub max_effects: usize,
     /// Reading noise σ stated by the caller (uncertainties for dof = 0 and a χ² check of
@@ -108,6 +111,12 @@ impl DiagnoseOptions {
         self
     }
 
+    /// With another false-alarm probability of the drift's stability check.
+    pub fn with_stability_alpha(mut self, stability_alpha: f64) -> Self {
+        self.stability_alpha = stability_alpha;
+        self
+    }
+
     /// With another largest number of effects.
     pub fn with_max_effects(mut self, max_effects: usize) -> Self {
         self.max_effects = max_effects;
@@ -116,7 +125,8 @@ impl DiagnoseOptions {
 }
 
 impl Default for DiagnoseOptions {
-    /// Families at 0.005, serial correlation and χ² at 0.001, lack of fit at 0.01 (so that
+    /// Families at 0.005, serial correlation and χ² at 0.001, lack of fit and a drift's
+    /// stability at 0.01 (so that
     /// clean data are called inadequate in about 1 % of runs, well inside 5 %), at most 12
     /// effects, no stated σ.
     fn default() -> Self {
@@ -124,6 +134,7 @@ impl Default for DiagnoseOptions {
             family_alpha: 0.005,
             adequacy_alpha: 0.001,
             lack_of_fit_alpha: 0.01,
+            stability_alpha: 0.01,
             max_effects: 12,
             sigma: None,
             stated_cross_talk: Vec::new(),
@@ -215,6 +226,10 @@ pub enum Rejection {
     /// A jump found earlier that a term found later contains (a zero set anew every
     /// cycle holds every jump at a cycle's start).
     Absorbed,
+    /// A drift or jump of an autocollimator whose residuals still vary slowly in time
+    /// with it in the model: a wandering zero no term expresses; the final model leaves it
+    /// out rather than chase the wander.
+    LeftOutWandering,
     /// A jump found earlier of a zero that then jumped once too often: a string of jumps
     /// approximates a slow variation and can make β and α worse than the base model, so
     /// the final model leaves it out.
@@ -237,6 +252,7 @@ impl Rejection {
             Rejection::NotDetermined => "not determined",
             Rejection::TooManyJumps => "one jump too many: a slow variation no term expresses",
             Rejection::Absorbed => "absorbed by a term found later",
+            Rejection::LeftOutWandering => "left out: the zero wanders in a way no term expresses",
             Rejection::LeftOutOfString => {
                 "left out: one of a string of jumps, a slow variation no term expresses"
             }
@@ -695,6 +711,127 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             current = fit;
         }
     }
+    // When in doubt, do not add: a zero whose residuals still vary slowly in time after
+    // its drift or jumps were fitted wanders in a way no term expresses (a random walk);
+    // a polynomial or a string of jumps fitted to it can leave β and α worse than the
+    // base model, so the final model leaves that autocollimator's drift and jumps out.
+    let mut wandering: Vec<u32> = Vec::new();
+    let mut stability: Vec<Check> = Vec::new();
+    if testable && !exact {
+        let columns = columns_of(&terms);
+        let geometry = FitGeometry::new(&current, set, &columns);
+        let studentized = residuals::studentized(&current, &geometry.leverage());
+        let check = residuals::adequacy(
+            &current,
+            set,
+            &studentized,
+            sigma,
+            options.adequacy_alpha,
+            AdequacyInputs {
+                lack_of_fit: None,
+                unattributed_outliers: 0,
+                jumps_exceeded: &[],
+                exact,
+            },
+        );
+        let mut any_time_structure = check.checks.iter().any(|c| !c.passed && c.stream.is_some());
+        // a drift whose shape differs between the run's two halves is a wander, not a
+        // drift: the drift's columns restricted to the second half, tested together
+        let (lo, hi) = candidates::time_span(set);
+        let middle = 0.5 * (lo + hi);
+        for ac in candidates::autocollimators(set) {
+            let drift: Vec<Term> = terms
+                .iter()
+                .filter(|t| t.drift_order(ac).is_some())
+                .cloned()
+                .collect();
+            if drift.is_empty() {
+                continue;
+            }
+            let mut columns = columns_of(&terms);
+            for t in &drift {
+                let mut x = t.column(set, &context);
+                for (v, r) in x.iter_mut().zip(&set.readings) {
+                    if r.time_seconds.is_none_or(|t| t <= middle) {
+                        *v = 0.0;
+                    }
+                }
+                columns.push(x);
+            }
+            if let Ok(fit) = least_squares_with_regressors(set, &columns, sigma) {
+                let r = drift.len() as f64;
+                let (dof, reduction) = (fit.dof as f64, current.rss - fit.rss);
+                if dof > 0.0
+                    && fit.rss > tiny
+                    && let Ok(distribution) = FisherSnedecor::new(r, dof)
+                {
+                    let f = (reduction.max(0.0) / r) / (fit.rss / dof);
+                    let limit = distribution.inverse_cdf(1.0 - options.stability_alpha);
+                    let passed = f <= limit;
+                    any_time_structure |= !passed;
+                    stability.push(Check {
+                        name: format!(
+                            "drift of ac {ac} the same in both halves of the run (F of its {} column{} restricted to the second half)",
+                            drift.len(),
+                            if drift.len() == 1 { "" } else { "s" }
+                        ),
+                        statistic: f,
+                        limit,
+                        passed,
+                        stream: None,
+                    });
+                }
+            }
+        }
+        if any_time_structure {
+            for ac in candidates::autocollimators(set) {
+                if terms.iter().any(|t| wanders_with(t, ac)) {
+                    wandering.push(ac);
+                }
+            }
+        }
+    }
+    if !wandering.is_empty() {
+        let kept: Vec<Term> = terms
+            .iter()
+            .filter(|t| !wandering.iter().any(|&ac| wanders_with(t, ac)))
+            .cloned()
+            .collect();
+        if let Ok(fit) = least_squares_with_regressors(set, &columns_of(&kept), sigma) {
+            findings.retain(|f| {
+                let gone = f
+                    .terms
+                    .iter()
+                    .any(|t| wandering.iter().any(|&ac| wanders_with(t, ac)));
+                if gone {
+                    tried.push(TriedEffect {
+                        effect: f.entry.effect.clone(),
+                        quadratic: false,
+                        evidence: Evidence {
+                            f_statistic: f.entry.f_statistic,
+                            p_value: f.entry.p_value,
+                            p_adjusted: f.entry.p_adjusted,
+                        },
+                        rejection: Rejection::LeftOutWandering,
+                    });
+                }
+                !gone
+            });
+            lof_current = lof_current.and(lack_of_fit::lack_of_fit(
+                set,
+                &fit,
+                &columns_of(&kept),
+                options.lack_of_fit_alpha,
+            ));
+            terms = kept;
+            current = fit;
+            for ac in &wandering {
+                notes.push(format!(
+                    "The zero of autocollimator {ac} seems to wander: with the drift and jumps found, residuals still vary slowly in time or a drift differs between the run's two halves (a random walk, or a drift no smooth term expresses). A polynomial or a string of jumps fitted to such a wander can leave β and α worse than the base model, so the final model leaves this autocollimator's drift and jumps out; β and α carry the wander's effect, and the result is not certified. Shorter runs, more frequent closing readings or a more stable instrument would decide it."
+                ));
+            }
+        }
+    }
     let columns = columns_of(&terms);
 
     let blocks: Vec<Vec<Term>> = findings.iter().map(|f| f.terms.clone()).collect();
@@ -805,6 +942,12 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             structure: Vec::new(),
         }
     };
+    if testable && !exact {
+        for check in stability {
+            adequacy.adequate &= check.passed;
+            adequacy.checks.push(check);
+        }
+    }
     for found in &effects {
         if found.alternatives.is_empty() {
             continue;
@@ -823,6 +966,7 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             statistic: worst,
             limit: 1.0,
             passed,
+            stream: None,
         });
         adequacy.adequate &= passed;
         notes.push(ambiguity_note(found, clock));
@@ -850,6 +994,13 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         notes,
         clock,
     })
+}
+
+/// Whether a term follows autocollimator `ac`'s zero in time (a drift of any order, a
+/// jump): what a wandering zero makes untrustworthy.
+fn wanders_with(term: &Term, ac: u32) -> bool {
+    term.drift_order(ac).is_some()
+        || matches!(term, Term::Effect(Effect::OffsetStep { ac: a, .. }) if *a == ac)
 }
 
 /// The autocollimator an effect names, if one.

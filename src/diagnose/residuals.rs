@@ -35,6 +35,9 @@ pub struct Check {
     pub limit: f64,
     /// Whether the check passed.
     pub passed: bool,
+    /// The stream (setup, ac) a check of time order is about (serial correlation, slow
+    /// variation); `None` for the others.
+    pub stream: Option<(u32, u32)>,
 }
 
 /// Where structure is left: a run of residuals of one stream whose sum stands out.
@@ -126,6 +129,7 @@ pub fn adequacy(
             statistic: lof.f_statistic,
             limit: lof.limit,
             passed: lof.passed(),
+            stream: None,
         });
     }
     if inputs.unattributed_outliers > 0 {
@@ -134,6 +138,7 @@ pub fn adequacy(
             statistic: inputs.unattributed_outliers as f64,
             limit: 0.0,
             passed: false,
+            stream: None,
         });
     }
     for (ac, setup) in inputs.jumps_exceeded {
@@ -145,6 +150,7 @@ pub fn adequacy(
             statistic: (super::MAX_JUMPS_PER_STREAM + 1) as f64,
             limit: super::MAX_JUMPS_PER_STREAM as f64,
             passed: false,
+            stream: None,
         });
     }
     if inputs.exact {
@@ -181,8 +187,24 @@ pub fn adequacy(
             statistic: z,
             limit,
             passed,
+            stream: Some((setup, ac)),
         });
-        if !passed && let Some(span) = largest_run(set, solution, &order) {
+        let slow = slow_variation(&e, alpha / streams.len().max(1) as f64);
+        if let Some((f, limit_f, block)) = slow {
+            checks.push(Check {
+                name: format!(
+                    "slow variation of residuals in time, setup {setup} ac {ac} (F of the means of {block} consecutive readings)"
+                ),
+                statistic: f,
+                limit: limit_f,
+                passed: f <= limit_f,
+                stream: Some((setup, ac)),
+            });
+        }
+        let slow_failed = slow.is_some_and(|(f, limit_f, _)| f > limit_f);
+        if (!passed || slow_failed)
+            && let Some(span) = largest_run(set, solution, &order)
+        {
             structure.push(span);
         }
     }
@@ -201,6 +223,7 @@ pub fn adequacy(
             statistic: chi2 / dof,
             limit: upper / dof,
             passed: chi2 <= upper,
+            stream: None,
         });
     }
     Adequacy {
@@ -208,6 +231,46 @@ pub fn adequacy(
         checks,
         structure,
     }
+}
+
+/// The length of the blocks of consecutive readings whose means the slow-variation check
+/// compares: ⌊√n/2⌋, at least 4.
+pub fn slow_variation_block(n: usize) -> usize {
+    (((n as f64).sqrt() / 2.0).floor() as usize).max(4)
+}
+
+/// The slow-variation check of one stream's time-ordered studentized residuals `e`: a
+/// one-way analysis of variance of blocks of [`slow_variation_block`] consecutive
+/// readings (the last block takes the remainder), F = [between-block mean square] /
+/// [within-block mean square] against the upper `alpha` quantile of F(B − 1, n − B).
+/// A zero that wanders (a random walk, a drift no polynomial expresses) makes
+/// neighbouring residuals alike over many lags, which the lag-1 correlation sees only
+/// weakly. Returns (F, limit, block length); `None` with fewer than 3 blocks or fewer than
+/// 5 degrees of freedom within them.
+pub fn slow_variation(e: &[f64], alpha: f64) -> Option<(f64, f64, usize)> {
+    use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+    let n = e.len();
+    let k = slow_variation_block(n);
+    let blocks = n / k;
+    if blocks < 3 || n < blocks + 5 {
+        return None;
+    }
+    let mean = e.iter().sum::<f64>() / n as f64;
+    let (mut between, mut within) = (0.0, 0.0);
+    for b in 0..blocks {
+        let end = if b + 1 == blocks { n } else { (b + 1) * k };
+        let block = &e[b * k..end];
+        let m = block.iter().sum::<f64>() / block.len() as f64;
+        between += block.len() as f64 * (m - mean).powi(2);
+        within += block.iter().map(|v| (v - m).powi(2)).sum::<f64>();
+    }
+    let (df1, df2) = ((blocks - 1) as f64, (n - blocks) as f64);
+    if within <= 0.0 {
+        return None;
+    }
+    let f = (between / df1) / (within / df2);
+    let limit = FisherSnedecor::new(df1, df2).ok()?.inverse_cdf(1.0 - alpha);
+    Some((f, limit, k))
 }
 
 /// The contiguous run of a stream's residuals with the largest |sum| (Kadane on r and −r).
