@@ -136,6 +136,11 @@ fn stated_cross_talk_decides_it() {
                 .effects
                 .iter()
                 .any(|f| matches!(f.effect, Effect::CrossTalk { ac: 1, .. }));
+            assert!(
+                !found || d.notes.iter().any(|n| n.contains("follows from the data")),
+                "{:?}",
+                d.notes
+            );
             if found
                 && d.adequacy.adequate
                 && within(&errors(&d, &truth), &clean_twin(&config), 2.0)

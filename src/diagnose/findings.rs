@@ -93,12 +93,13 @@ fn drift_of(terms: &[Term]) -> Option<(u32, usize)> {
 
 /// The found effects with their values and uncertainties in the final model (`current`,
 /// a fit with `terms`): a drift's later orders merged into its drift, and whether each
-/// changes the calibration by more than its uncertainty.
+/// changes the calibration by more than its uncertainty; each with the terms of the
+/// final model it stands for (a drift: all of its orders).
 pub fn final_effects(
     current: &Solution,
     terms: &[Term],
     findings: Vec<Finding>,
-) -> Vec<FoundEffect> {
+) -> Vec<(FoundEffect, Vec<Term>)> {
     let u = current.effect_u();
     let u_pitch = current.pitch_deviation_u();
     let u_encoder = current.encoder_error_u();
@@ -109,7 +110,7 @@ pub fn final_effects(
     let index = |t: &Term| terms.iter().position(|p| p == t);
     let value_of = |t: &Term| index(t).map_or(0.0, |j| current.effect_values[j]);
     let u_of = |t: &Term| index(t).and_then(|j| u.as_ref().map(|u| u[j]));
-    let mut effects: Vec<FoundEffect> = Vec::new();
+    let mut effects: Vec<(FoundEffect, Vec<Term>)> = Vec::new();
     for finding in findings {
         let Finding {
             terms: block,
@@ -153,9 +154,9 @@ pub fn final_effects(
                 }
                 _ => None,
             };
-            if let Some(drift) = effects
+            if let Some((drift, _)) = effects
                 .iter_mut()
-                .find(|f| matches!(f.effect, Effect::Drift { ac: a, .. } if a == ac))
+                .find(|(f, _)| matches!(f.effect, Effect::Drift { ac: a, .. } if a == ac))
             {
                 drift.changes_calibration |= changes;
                 drift.pitch_change_max = drift.pitch_change_max.max(entry.pitch_change_max);
@@ -176,7 +177,7 @@ pub fn final_effects(
             entry.shape = shape;
             entry.shape_u = shape_u;
             entry.changes_calibration = changes;
-            effects.push(entry);
+            effects.push((entry, all));
             continue;
         }
         let values: Vec<f64> = block.iter().map(value_of).collect();
@@ -201,7 +202,7 @@ pub fn final_effects(
         }
         entry.effect = effect;
         entry.changes_calibration = changes;
-        effects.push(entry);
+        effects.push((entry, block));
     }
     effects
 }

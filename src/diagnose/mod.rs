@@ -17,10 +17,12 @@
 
 pub mod candidates;
 pub mod clock;
+mod doubt;
 pub mod findings;
 pub mod geometry;
 pub mod identify;
 pub mod lack_of_fit;
+mod notes;
 pub mod residuals;
 
 use std::collections::HashSet;
@@ -28,7 +30,7 @@ use std::collections::HashSet;
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 use crate::effects::{Effect, EffectContext};
-use crate::measurement::{Direction, MeasurementSet, Sigma};
+use crate::measurement::{MeasurementSet, Sigma};
 use crate::solve::{Solution, SolveError, least_squares_with_regressors};
 use crate::uncertainty::student::t_two_sided_tail;
 use candidates::{Candidate, Family, Term};
@@ -424,8 +426,8 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             if before.dof == 1 { "" } else { "s" }
         ));
     }
-    notes.extend(untestable_kinds(set, clock));
-    if let Some(note) = common_cross_talk_note(set, &options.stated_cross_talk) {
+    notes.extend(notes::untestable_kinds(set, clock));
+    if let Some(note) = notes::common_cross_talk(set, &options.stated_cross_talk) {
         notes.push(note);
     }
     let tiny = rounding_rss(set);
@@ -459,7 +461,8 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
                 if let Term::Effect(Effect::CrossTalk { ac, .. }) = term
                     && score.new_fraction() < 0.1
                 {
-                    if !cross_talk_noted && let Some(note) = cross_talk_note(set, *ac) {
+                    if !cross_talk_noted && let Some(note) = notes::cross_talk_untestable(set, *ac)
+                    {
                         notes.push(note);
                         cross_talk_noted = true;
                     }
@@ -668,174 +671,49 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
     if exact || !testable {
         lof_current = None;
     }
-    // When in doubt, do not add: the jumps of a zero that jumped once too often are a
-    // string approximating a slow variation, and can leave β and α worse than the base
-    // model; the final model leaves them out and says so.
+    // When in doubt, do not add (docs/FORMAT.md §5.2): a string of jumps, and the
+    // drifts and jumps of a wandering zero, are left out of the final model.
+    let mut model = doubt::Model {
+        set,
+        context: &context,
+        sigma,
+        lack_of_fit_alpha: options.lack_of_fit_alpha,
+        terms,
+        fit: current,
+        findings,
+        lack_of_fit: lof_current,
+    };
     if !jumps_exceeded.is_empty() {
-        let dropped: Vec<Term> = terms
-            .iter()
-            .filter(|t| {
-                matches!(t, Term::Effect(Effect::OffsetStep { ac, setup, .. }) if jumps_exceeded.contains(&(*ac, *setup)))
-            })
-            .cloned()
-            .collect();
-        let kept: Vec<Term> = terms
-            .iter()
-            .filter(|t| !dropped.contains(t))
-            .cloned()
-            .collect();
-        if let Ok(fit) = least_squares_with_regressors(set, &columns_of(&kept), sigma) {
-            findings.retain(|f| {
-                let gone = f.terms.iter().any(|t| dropped.contains(t));
-                if gone {
-                    tried.push(TriedEffect {
-                        effect: f.entry.effect.clone(),
-                        quadratic: false,
-                        evidence: Evidence {
-                            f_statistic: f.entry.f_statistic,
-                            p_value: f.entry.p_value,
-                            p_adjusted: f.entry.p_adjusted,
-                        },
-                        rejection: Rejection::LeftOutOfString,
-                    });
-                }
-                !gone
-            });
-            lof_current = lof_current.and(lack_of_fit::lack_of_fit(
-                set,
-                &fit,
-                &columns_of(&kept),
-                options.lack_of_fit_alpha,
-            ));
-            terms = kept;
-            current = fit;
-        }
-    }
-    // When in doubt, do not add: a zero whose residuals still vary slowly in time after
-    // its drift or jumps were fitted wanders in a way no term expresses (a random walk);
-    // a polynomial or a string of jumps fitted to it can leave β and α worse than the
-    // base model, so the final model leaves that autocollimator's drift and jumps out.
-    let mut wandering: Vec<u32> = Vec::new();
-    let mut stability: Vec<Check> = Vec::new();
-    if testable && !exact {
-        let columns = columns_of(&terms);
-        let geometry = FitGeometry::new(&current, set, &columns);
-        let studentized = residuals::studentized(&current, &geometry.leverage());
-        let check = residuals::adequacy(
-            &current,
-            set,
-            &studentized,
-            sigma,
-            options.adequacy_alpha,
-            AdequacyInputs {
-                lack_of_fit: None,
-                unattributed_outliers: 0,
-                jumps_exceeded: &[],
-                exact,
-            },
+        model.leave_out(
+            |t| matches!(t, Term::Effect(Effect::OffsetStep { ac, setup, .. }) if jumps_exceeded.contains(&(*ac, *setup))),
+            Rejection::LeftOutOfString,
+            &mut tried,
         );
-        let mut any_time_structure = check.checks.iter().any(|c| !c.passed && c.stream.is_some());
-        // a drift whose shape differs between the run's two halves is a wander, not a
-        // drift: the drift's columns restricted to the second half, tested together
-        let (lo, hi) = candidates::time_span(set);
-        let middle = 0.5 * (lo + hi);
-        for ac in candidates::autocollimators(set) {
-            let drift: Vec<Term> = terms
-                .iter()
-                .filter(|t| t.drift_order(ac).is_some())
-                .cloned()
-                .collect();
-            if drift.is_empty() {
-                continue;
-            }
-            let mut columns = columns_of(&terms);
-            for t in &drift {
-                let mut x = t.column(set, &context);
-                for (v, r) in x.iter_mut().zip(&set.readings) {
-                    if r.time_seconds.is_none_or(|t| t <= middle) {
-                        *v = 0.0;
-                    }
-                }
-                columns.push(x);
-            }
-            if let Ok(fit) = least_squares_with_regressors(set, &columns, sigma) {
-                let r = drift.len() as f64;
-                let (dof, reduction) = (fit.dof as f64, current.rss - fit.rss);
-                if dof > 0.0
-                    && fit.rss > tiny
-                    && let Ok(distribution) = FisherSnedecor::new(r, dof)
-                {
-                    let f = (reduction.max(0.0) / r) / (fit.rss / dof);
-                    let limit = distribution.inverse_cdf(1.0 - options.stability_alpha);
-                    let passed = f <= limit;
-                    any_time_structure |= !passed;
-                    stability.push(Check {
-                        name: format!(
-                            "drift of ac {ac} the same in both halves of the run (F of its {} column{} restricted to the second half)",
-                            drift.len(),
-                            if drift.len() == 1 { "" } else { "s" }
-                        ),
-                        statistic: f,
-                        limit,
-                        passed,
-                        stream: None,
-                    });
-                }
-            }
-        }
-        if any_time_structure {
-            for ac in candidates::autocollimators(set) {
-                if terms.iter().any(|t| wanders_with(t, ac)) {
-                    wandering.push(ac);
-                }
-            }
-        }
     }
-    if !wandering.is_empty() {
-        let kept: Vec<Term> = terms
-            .iter()
-            .filter(|t| !wandering.iter().any(|&ac| wanders_with(t, ac)))
-            .cloned()
-            .collect();
-        if let Ok(fit) = least_squares_with_regressors(set, &columns_of(&kept), sigma) {
-            findings.retain(|f| {
-                let gone = f
-                    .terms
-                    .iter()
-                    .any(|t| wandering.iter().any(|&ac| wanders_with(t, ac)));
-                if gone {
-                    tried.push(TriedEffect {
-                        effect: f.entry.effect.clone(),
-                        quadratic: false,
-                        evidence: Evidence {
-                            f_statistic: f.entry.f_statistic,
-                            p_value: f.entry.p_value,
-                            p_adjusted: f.entry.p_adjusted,
-                        },
-                        rejection: Rejection::LeftOutWandering,
-                    });
-                }
-                !gone
-            });
-            lof_current = lof_current.and(lack_of_fit::lack_of_fit(
-                set,
-                &fit,
-                &columns_of(&kept),
-                options.lack_of_fit_alpha,
-            ));
-            terms = kept;
-            current = fit;
-            for ac in &wandering {
-                notes.push(format!(
-                    "The zero of autocollimator {ac} seems to wander: with the drift and jumps found, residuals still vary slowly in time or a drift differs between the run's two halves (a random walk, or a drift no smooth term expresses). A polynomial or a string of jumps fitted to such a wander can leave β and α worse than the base model, so the final model leaves this autocollimator's drift and jumps out; β and α carry the wander's effect, and the result is not certified. Shorter runs, more frequent closing readings or a more stable instrument would decide it."
-                ));
-            }
-        }
+    let (wandering, stability) = if testable && !exact {
+        model.wandering(options, tiny)
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    if !wandering.is_empty()
+        && model.leave_out(
+            |t| wandering.iter().any(|&ac| doubt::wanders_with(t, ac)),
+            Rejection::LeftOutWandering,
+            &mut tried,
+        )
+    {
+        notes.extend(wandering.iter().map(|&ac| notes::wandering(ac)));
     }
+    let doubt::Model {
+        terms,
+        fit: current,
+        findings,
+        lack_of_fit: lof_current,
+        ..
+    } = model;
     let columns = columns_of(&terms);
 
-    let blocks: Vec<Vec<Term>> = findings.iter().map(|f| f.terms.clone()).collect();
-    let mut effects = final_effects(&current, &terms, findings);
+    let with_blocks = final_effects(&current, &terms, findings);
     // identifiability: the alternatives of every finding, against the final model
     let model = identify::FinalModel {
         set,
@@ -846,39 +724,13 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         stated_cross_talk: &options.stated_cross_talk,
         tiny,
     };
-    for found in effects.iter_mut() {
-        let block: Vec<Term> = blocks
-            .iter()
-            .find(|b| {
-                b.iter().any(|t| match t {
-                    Term::Effect(e) => same_effect(e, &found.effect),
-                    other => findings::block_effect(std::slice::from_ref(other), &[0.0])
-                        .is_some_and(|e| {
-                            e.kind() == found.effect.kind()
-                                && effect_ac(&e) == effect_ac(&found.effect)
-                        }),
-                })
-            })
-            .map(|b| {
-                // a drift's block is all of its orders in the final model
-                match b.first() {
-                    Some(
-                        Term::Effect(Effect::Drift { ac, .. })
-                        | Term::Quadratic { ac }
-                        | Term::DriftShape { ac, .. },
-                    ) => terms
-                        .iter()
-                        .filter(|t| t.drift_order(*ac).is_some())
-                        .cloned()
-                        .collect(),
-                    _ => b.clone(),
-                }
-            })
-            .unwrap_or_default();
-        if !block.is_empty() {
+    let effects: Vec<FoundEffect> = with_blocks
+        .into_iter()
+        .map(|(mut found, block)| {
             found.alternatives = identify::alternatives(model, &block);
-        }
-    }
+            found
+        })
+        .collect();
     tried.retain(|t| {
         !effects
             .iter()
@@ -969,13 +821,39 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             stream: None,
         });
         adequacy.adequate &= passed;
-        notes.push(ambiguity_note(found, clock));
+        notes.push(notes::ambiguity(found, clock));
     }
-    for (ac, setup) in &jumps_exceeded {
+    if !options.stated_cross_talk.is_empty() {
+        let stated: Vec<String> = options
+            .stated_cross_talk
+            .iter()
+            .map(u32::to_string)
+            .collect();
+        let found: Vec<String> = effects
+            .iter()
+            .filter_map(|f| match f.effect {
+                Effect::CrossTalk { ac, value } if !f.ambiguous() => {
+                    Some(format!("autocollimator {ac}'s ({value:+.5}″/″)"))
+                }
+                _ => None,
+            })
+            .collect();
         notes.push(format!(
-            "The zero of autocollimator {ac}{} seems to jump again and again: after {MAX_JUMPS_PER_STREAM} jumps a further one is significant. That is a slow variation that neither a smooth drift nor a zero per cycle expresses, not a series of events. The final model leaves its jumps out (a string of jumps can leave β and α worse than the base model); what remains is listed below.",
-            setup.map_or(String::new(), |s| format!(" in setup {s}"))
+            "The cross-talk of autocollimator{} {} is stated from its calibration and corrected for{}",
+            if stated.len() == 1 { "" } else { "s" },
+            stated.join(", "),
+            if found.is_empty() {
+                ": no further cross-talk is significant.".to_string()
+            } else {
+                format!(
+                    "; against it, {} follows from the data, and the ambiguity of a cross-talk the closure cannot place is resolved.",
+                    found.join(" and ")
+                )
+            }
         ));
+    }
+    for &(ac, setup) in &jumps_exceeded {
+        notes.push(notes::string_of_jumps(ac, setup));
     }
     if let Some(lof) = &lof_current
         && !lof.passed()
@@ -994,98 +872,6 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         notes,
         clock,
     })
-}
-
-/// Whether a term follows autocollimator `ac`'s zero in time (a drift of any order, a
-/// jump): what a wandering zero makes untrustworthy.
-fn wanders_with(term: &Term, ac: u32) -> bool {
-    term.drift_order(ac).is_some()
-        || matches!(term, Term::Effect(Effect::OffsetStep { ac: a, .. }) if *a == ac)
-}
-
-/// The autocollimator an effect names, if one.
-fn effect_ac(effect: &Effect) -> Option<u32> {
-    match *effect {
-        Effect::Drift { ac, .. }
-        | Effect::OffsetStep { ac, .. }
-        | Effect::Outlier { ac, .. }
-        | Effect::Temperature { ac, .. }
-        | Effect::CrossTalk { ac, .. }
-        | Effect::Rezero { ac, .. } => Some(ac),
-        Effect::Direction { ac, .. } => ac,
-    }
-}
-
-/// The plain words on a finding with alternatives: what cannot be told apart, how far
-/// the calibration moves, and what would decide it.
-fn ambiguity_note(found: &FoundEffect, clock: Clock) -> String {
-    use crate::report::diagnose::label;
-    let value = |e: &Effect| match e {
-        Effect::Drift { .. } => format!("{:+.4}{}", e.value(), clock.drift_unit_text()),
-        Effect::CrossTalk { value, .. } => format!("{value:+.5}″/″"),
-        other => format!("{:+.4}″", other.value()),
-    };
-    let alternatives: Vec<String> = found
-        .alternatives
-        .iter()
-        .map(|a| {
-            let names: Vec<String> = a
-                .effects
-                .iter()
-                .map(|e| format!("the {} ({})", label(e), value(e)))
-                .collect();
-            format!(
-                "{} (F = {:.2}, p = {:.2}; β would change by up to {:.4}″, α by up to {:.4}″)",
-                names.join(" together with "),
-                a.f_statistic,
-                a.p_value,
-                a.pitch_change_max,
-                a.encoder_change_max
-            )
-        })
-        .collect();
-    let decide = match found.effect {
-        Effect::CrossTalk { .. } => {
-            "Closure data determine only the differences of the autocollimators' cross-talk coefficients. State the cross-talk of one autocollimator from its calibration (docs/FORMAT.md §6): the others' then follow from the data."
-        }
-        _ => {
-            "A design whose readings separate them would decide it: another mounting of the polygon, a counter-clockwise cycle, or an instrument whose behaviour is known from its calibration."
-        }
-    };
-    if found.ambiguous() {
-        format!(
-            "The data cannot tell the {} ({}) from {}: they fit equally well, but give calibrations that differ by more than the expanded uncertainty. This is not a finding, and the result is not certified. {decide}",
-            label(&found.effect),
-            value(&found.effect),
-            alternatives.join("; or ")
-        )
-    } else {
-        format!(
-            "The data cannot tell the {} ({}) from {}; they fit equally well, and the calibrations they give agree within the expanded uncertainty.",
-            label(&found.effect),
-            value(&found.effect),
-            alternatives.join("; or ")
-        )
-    }
-}
-
-/// The note on a cross-talk common to every autocollimator, which closure cannot see,
-/// when `reading_y` spans more than a few arcseconds.
-fn common_cross_talk_note(set: &MeasurementSet, stated: &[u32]) -> Option<String> {
-    let (span, pitch, encoder) = identify::common_cross_talk_reach(set, 3.0)?;
-    let every_stated = candidates::autocollimators(set)
-        .iter()
-        .all(|ac| stated.contains(ac));
-    let stated_text = if every_stated {
-        "Every autocollimator's cross-talk is stated from its calibration, so this is corrected for.".to_string()
-    } else {
-        "Only an autocollimator's calibration of its cross-talk can remove it: state it for each autocollimator (docs/FORMAT.md §6).".to_string()
-    };
-    Some(format!(
-        "A cross-talk common to all autocollimators cannot be seen by closure: reading_y spans {span:.1}″, and a common cross-talk of 0.01″/″ would move β by up to {:.4}″ and α by up to {:.4}″ without leaving a residual. {stated_text}",
-        0.01 * pitch,
-        0.01 * encoder
-    ))
 }
 
 /// Readings whose outlier column is nearly the same as reading `i`'s (|correlation of
@@ -1118,48 +904,4 @@ fn twins(
 
 fn same_effect(a: &Effect, b: &Effect) -> bool {
     a.clone().with_value(0.0) == b.clone().with_value(0.0)
-}
-
-/// The note when `reading_y` spans more than a few arcseconds but cross-talk cannot be
-/// told apart from the polygon and the encoder.
-fn cross_talk_note(set: &MeasurementSet, ac: u32) -> Option<String> {
-    let ys: Vec<f64> = set
-        .readings
-        .iter()
-        .filter(|r| r.ac == ac)
-        .filter_map(|r| r.reading_y_arcsec)
-        .collect();
-    let span = ys.iter().copied().fold(f64::NEG_INFINITY, f64::max)
-        - ys.iter().copied().fold(f64::INFINITY, f64::min);
-    (span > 3.0).then(|| format!(
-        "Cross-talk of reading_y into the reading cannot be tested: reading_y spans {span:.1}″, but in this design it follows the faces and positions so closely that a cross-talk term cannot be told apart from the pitch deviations and encoder errors (it would bias them unseen). Measure in several mountings (shift the polygon on the table) so that each face is read at different elevations."
-    ))
-}
-
-/// Effect kinds the data cannot show at all, and what would make them visible.
-fn untestable_kinds(set: &MeasurementSet, clock: Clock) -> Vec<String> {
-    let mut notes = Vec::new();
-    if clock == Clock::StopOrder {
-        notes.push("The file has no `time` for every reading: drift is modelled in the run's stop order, one unit per stop of the table (its value in ″/stop), which assumes the stops took equal times.".into());
-    }
-    let with_temperature = set
-        .readings
-        .iter()
-        .filter(|r| r.temperature_celsius.is_some())
-        .count();
-    if with_temperature > 0 && with_temperature < set.readings.len() {
-        notes.push(format!(
-            "A temperature coefficient cannot be tested: only {with_temperature} of {} readings have a `temperature`.",
-            set.readings.len()
-        ));
-    }
-    let first_cycle = set.readings.first().map(|r| r.cycle);
-    if set.readings.iter().all(|r| Some(r.cycle) == first_cycle) {
-        notes.push("A zero jump between cycles (offset-step) cannot be tested with one cycle: repeat the cycle.".into());
-    }
-    let has = |d: Direction| set.readings.iter().any(|r| r.direction == d);
-    if !(has(Direction::Cw) && has(Direction::Ccw)) {
-        notes.push("A direction offset cannot be tested: the run has no cycle in the other direction (add a counter-clockwise cycle).".into());
-    }
-    notes
 }

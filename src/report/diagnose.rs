@@ -699,6 +699,28 @@ pub fn write_table<W: std::fmt::Write>(
                 "     effect on the calibration: pitch deviations changed by up to {:.4}″, encoder errors by up to {:.4}″",
                 found.pitch_change_max, found.encoder_change_max
             )?;
+            for alternative in &found.alternatives {
+                let names: Vec<String> = alternative
+                    .effects
+                    .iter()
+                    .map(|e| format!("{} = {:+.5}", label(e), e.value()))
+                    .collect();
+                writeln!(
+                    out,
+                    "     {}: {} fits as well (F = {}, p = {:.2}) and changes pitch deviations by up to {:.4}″, encoder errors by up to {:.4}″ ({:.1} expanded uncertainties)",
+                    if alternative.changes_calibration() {
+                        "CANNOT TELL"
+                    } else {
+                        "alternative"
+                    },
+                    names.join(" with "),
+                    f_text(alternative.f_statistic),
+                    alternative.p_value,
+                    alternative.pitch_change_max,
+                    alternative.encoder_change_max,
+                    alternative.change_over_expanded_u
+                )?;
+            }
         }
         let after = &diagnosis.after;
         writeln!(

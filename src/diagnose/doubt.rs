@@ -1,0 +1,177 @@
+//! When in doubt, do not add: terms that approximate a structure no term expresses — a
+//! string of jumps of one zero, the drifts and jumps of a zero that wanders — are left
+//! out of the final model, since a fitted wander can leave β and α worse than the base
+//! model. The verdict is then "not adequate" and the notes say what remains.
+
+use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+
+use super::candidates::{self, Term};
+use super::findings::Finding;
+use super::geometry::FitGeometry;
+use super::lack_of_fit::{self, LackOfFit};
+use super::residuals::{self, AdequacyInputs, Check};
+use super::{DiagnoseOptions, Evidence, Rejection, TriedEffect};
+use crate::effects::{Effect, EffectContext};
+use crate::measurement::{MeasurementSet, Sigma};
+use crate::solve::{Solution, least_squares_with_regressors};
+
+/// Whether a term follows autocollimator `ac`'s zero in time (a drift of any order, a
+/// jump): what a wandering zero makes untrustworthy.
+pub(super) fn wanders_with(term: &Term, ac: u32) -> bool {
+    term.drift_order(ac).is_some()
+        || matches!(term, Term::Effect(Effect::OffsetStep { ac: a, .. }) if *a == ac)
+}
+
+/// The model at the end of the search: its terms, fit, findings and lack of fit.
+pub(super) struct Model<'a> {
+    /// The set fitted.
+    pub set: &'a MeasurementSet,
+    /// The effects' context.
+    pub context: &'a EffectContext,
+    /// The stated σ.
+    pub sigma: Option<Sigma>,
+    /// The lack-of-fit test's false-alarm probability.
+    pub lack_of_fit_alpha: f64,
+    /// The terms.
+    pub terms: Vec<Term>,
+    /// The fit with them.
+    pub fit: Solution,
+    /// The findings behind them.
+    pub findings: Vec<Finding>,
+    /// The lack-of-fit test of the fit.
+    pub lack_of_fit: Option<LackOfFit>,
+}
+
+impl Model<'_> {
+    fn columns(&self, terms: &[Term]) -> Vec<Vec<f64>> {
+        terms
+            .iter()
+            .map(|t| t.column(self.set, self.context))
+            .collect()
+    }
+
+    /// Leaves the terms `drop` picks out of the model and refits; their findings go to
+    /// `tried` with `rejection`. Whether anything was left out.
+    pub fn leave_out(
+        &mut self,
+        drop: impl Fn(&Term) -> bool,
+        rejection: Rejection,
+        tried: &mut Vec<TriedEffect>,
+    ) -> bool {
+        let kept: Vec<Term> = self.terms.iter().filter(|t| !drop(t)).cloned().collect();
+        if kept.len() == self.terms.len() {
+            return false;
+        }
+        let columns = self.columns(&kept);
+        let Ok(fit) = least_squares_with_regressors(self.set, &columns, self.sigma) else {
+            return false;
+        };
+        self.findings.retain(|f| {
+            let gone = f.terms.iter().any(&drop);
+            if gone {
+                tried.push(TriedEffect {
+                    effect: f.entry.effect.clone(),
+                    quadratic: false,
+                    evidence: Evidence {
+                        f_statistic: f.entry.f_statistic,
+                        p_value: f.entry.p_value,
+                        p_adjusted: f.entry.p_adjusted,
+                    },
+                    rejection,
+                });
+            }
+            !gone
+        });
+        self.lack_of_fit = self.lack_of_fit.take().and(lack_of_fit::lack_of_fit(
+            self.set,
+            &fit,
+            &columns,
+            self.lack_of_fit_alpha,
+        ));
+        self.terms = kept;
+        self.fit = fit;
+        true
+    }
+
+    /// The autocollimators whose drifts and jumps a wandering zero makes untrustworthy
+    /// (every one with such terms, when any stream's residuals fail a check of time order
+    /// or a drift fails its stability check), and the stability checks of every drift: the
+    /// drift's columns restricted to the second half of the run, tested together.
+    pub fn wandering(&self, options: &DiagnoseOptions, tiny: f64) -> (Vec<u32>, Vec<Check>) {
+        let (set, terms, current) = (self.set, &self.terms, &self.fit);
+        let columns = self.columns(terms);
+        let geometry = FitGeometry::new(current, set, &columns);
+        let studentized = residuals::studentized(current, &geometry.leverage());
+        let check = residuals::adequacy(
+            current,
+            set,
+            &studentized,
+            self.sigma,
+            options.adequacy_alpha,
+            AdequacyInputs {
+                lack_of_fit: None,
+                unattributed_outliers: 0,
+                jumps_exceeded: &[],
+                exact: false,
+            },
+        );
+        let mut any_time_structure = check.checks.iter().any(|c| !c.passed && c.stream.is_some());
+        let mut stability: Vec<Check> = Vec::new();
+        let (lo, hi) = candidates::time_span(set);
+        let middle = 0.5 * (lo + hi);
+        for ac in candidates::autocollimators(set) {
+            let drift: Vec<Term> = terms
+                .iter()
+                .filter(|t| t.drift_order(ac).is_some())
+                .cloned()
+                .collect();
+            if drift.is_empty() {
+                continue;
+            }
+            let mut columns = columns.clone();
+            for t in &drift {
+                let mut x = t.column(set, self.context);
+                for (v, r) in x.iter_mut().zip(&set.readings) {
+                    if r.time_seconds.is_none_or(|t| t <= middle) {
+                        *v = 0.0;
+                    }
+                }
+                columns.push(x);
+            }
+            let Ok(fit) = least_squares_with_regressors(set, &columns, self.sigma) else {
+                continue;
+            };
+            let r = drift.len() as f64;
+            let dof = fit.dof as f64;
+            if dof > 0.0
+                && fit.rss > tiny
+                && let Ok(distribution) = FisherSnedecor::new(r, dof)
+            {
+                let f = ((current.rss - fit.rss).max(0.0) / r) / (fit.rss / dof);
+                let limit = distribution.inverse_cdf(1.0 - options.stability_alpha);
+                let passed = f <= limit;
+                any_time_structure |= !passed;
+                stability.push(Check {
+                    name: format!(
+                        "drift of ac {ac} the same in both halves of the run (F of its {} column{} restricted to the second half)",
+                        drift.len(),
+                        if drift.len() == 1 { "" } else { "s" }
+                    ),
+                    statistic: f,
+                    limit,
+                    passed,
+                    stream: None,
+                });
+            }
+        }
+        let wandering = if any_time_structure {
+            candidates::autocollimators(set)
+                .into_iter()
+                .filter(|&ac| terms.iter().any(|t| wanders_with(t, ac)))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        (wandering, stability)
+    }
+}
