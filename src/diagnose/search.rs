@@ -1,0 +1,369 @@
+//! The forward selection of a diagnosis: round by round, every candidate term is scored
+//! against the current fit without refitting, the most significant (by its family's
+//! Bonferroni-adjusted F test) is refitted and kept unless the lack of fit then fails and
+//! is no smaller; outliers with an indistinguishable twin are named, not dropped; a jump
+//! beyond [`MAX_JUMPS_PER_STREAM`] of one zero is not added.
+
+use std::collections::HashSet;
+
+use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+
+use super::candidates::{self, Candidate, Family, Term};
+use super::findings::{Finding, candidate_effect, difference, max_abs, record_not_significant};
+use super::geometry::FitGeometry;
+use super::lack_of_fit::{self, LackOfFit};
+use super::{
+    DiagnoseOptions, Evidence, FoundEffect, MAX_JUMPS_PER_STREAM, Rejection, TriedEffect, notes,
+    residuals,
+};
+use crate::effects::{Effect, EffectContext};
+use crate::measurement::MeasurementSet;
+use crate::solve::{Solution, least_squares_with_regressors};
+use crate::uncertainty::student::t_two_sided_tail;
+
+/// What the search ends with.
+pub(super) struct Outcome {
+    /// The terms of the model.
+    pub terms: Vec<Term>,
+    /// The findings behind them.
+    pub findings: Vec<Finding>,
+    /// The terms tried and not added.
+    pub tried: Vec<TriedEffect>,
+    /// Outliers with their indistinguishable twins: (reading, studentized residual).
+    pub unattributed_sets: Vec<Vec<(usize, f64)>>,
+    /// Streams whose zero would need one jump too many in the last round.
+    pub jumps_exceeded: Vec<(u32, Option<u32>)>,
+    /// The fit of the model.
+    pub fit: Solution,
+    /// Its lack-of-fit test.
+    pub lack_of_fit: Option<LackOfFit>,
+}
+
+impl Outcome {
+    /// The base model, searched no further (no redundancy, or noise-free data).
+    pub fn base(before: &Solution) -> Self {
+        Outcome {
+            terms: Vec::new(),
+            findings: Vec::new(),
+            tried: Vec::new(),
+            unattributed_sets: Vec::new(),
+            jumps_exceeded: Vec::new(),
+            fit: before.clone(),
+            lack_of_fit: None,
+        }
+    }
+}
+
+/// The F test of a scored candidate against the current fit: F = (Δ/r)/(rest/(dof − r))
+/// with r the directions it adds (for r = 1 through Student's t, as before blocks).
+fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny: f64) -> Evidence {
+    let reduction = candidate.reduction;
+    let r = candidate.rank.max(1);
+    let dof = current.dof.saturating_sub(r);
+    let rest = (current.rss - reduction).max(0.0);
+    let f_statistic = if dof == 0 {
+        0.0
+    } else if rest > tiny {
+        (reduction / r as f64) / (rest / dof as f64)
+    } else if reduction > tiny {
+        f64::INFINITY
+    } else {
+        0.0
+    };
+    let p_value = if dof == 0 || f_statistic <= 0.0 {
+        1.0
+    } else if r == 1 {
+        t_two_sided_tail(f_statistic.sqrt(), Some(dof as f64))
+    } else if f_statistic.is_infinite() {
+        0.0
+    } else {
+        FisherSnedecor::new(r as f64, dof as f64).map_or(1.0, |d| d.sf(f_statistic))
+    };
+    Evidence {
+        f_statistic,
+        p_value,
+        p_adjusted: (p_value * family_size.max(1) as f64).min(1.0),
+    }
+}
+
+/// Runs the forward selection from the base model `before`; notes for people go to
+/// `notes`.
+pub(super) fn run(
+    set: &MeasurementSet,
+    context: &EffectContext,
+    options: &DiagnoseOptions,
+    before: &Solution,
+    tiny: f64,
+    notes: &mut Vec<String>,
+) -> Outcome {
+    let sigma = options.sigma;
+    let columns_of = |terms: &[Term]| -> Vec<Vec<f64>> {
+        terms.iter().map(|t| t.column(set, context)).collect()
+    };
+    let mut terms: Vec<Term> = Vec::new();
+    let mut findings: Vec<Finding> = Vec::new();
+    let mut tried: Vec<TriedEffect> = Vec::new();
+    let mut suspects: HashSet<usize> = HashSet::new();
+    let mut unattributed_sets: Vec<Vec<(usize, f64)>> = Vec::new();
+    let mut cross_talk_noted = false;
+    let mut jumps_exceeded: Vec<(u32, Option<u32>)> = Vec::new();
+    let mut current = before.clone();
+    let mut lof_current = lack_of_fit::lack_of_fit(set, &current, &[], options.lack_of_fit_alpha);
+    while findings.len() < options.max_effects && current.dof >= 2 {
+        let columns = columns_of(&terms);
+        let geometry = FitGeometry::new(&current, set, &columns);
+        let leverage = geometry.leverage();
+        let studentized = residuals::studentized(&current, &leverage);
+        let mut candidates: Vec<Candidate> = Vec::new();
+        for block in candidates::systematic_blocks(set, &terms, &options.stated_cross_talk) {
+            if let [term] = block.as_slice() {
+                let column = term.column(set, context);
+                let score = geometry.score(&column, &current.residuals);
+                if let Term::Effect(Effect::CrossTalk { ac, .. }) = term
+                    && score.new_fraction() < 0.1
+                {
+                    if !cross_talk_noted && let Some(note) = notes::cross_talk_untestable(set, *ac)
+                    {
+                        notes.push(note);
+                        cross_talk_noted = true;
+                    }
+                    continue;
+                }
+                if score.is_new() {
+                    candidates.push(Candidate::single(term.clone(), Family::Systematic, &score));
+                }
+            } else {
+                let score = geometry.score_block(&columns_of(&block), &current.residuals);
+                if score.rank > 0
+                    && let Some(c) = Candidate::block(block, Family::Systematic, &score)
+                {
+                    candidates.push(c);
+                }
+            }
+        }
+        candidates.extend(candidates::offset_step_candidates(
+            set,
+            &geometry,
+            &current.residuals,
+            &terms,
+        ));
+        let eligible = studentized.iter().filter(|t| t.is_some()).count();
+        if let Some((i, t)) = studentized
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !suspects.contains(i))
+            .filter_map(|(i, t)| t.map(|t| (i, t)))
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        {
+            let r = &set.readings[i];
+            let several_setups = set.readings.iter().any(|q| q.setup != r.setup);
+            let mut column = vec![0.0; set.readings.len()];
+            column[i] = 1.0;
+            let score = geometry.score(&column, &current.residuals);
+            let mut candidate = Candidate::single(
+                Term::Effect(Effect::Outlier {
+                    cycle: r.cycle,
+                    step: r.step,
+                    ac: r.ac,
+                    setup: several_setups.then_some(r.setup),
+                    value: 0.0,
+                }),
+                Family::Outlier,
+                &score,
+            );
+            candidate.outlier = Some((i, t));
+            candidates.push(candidate);
+        }
+        let count = |family: Family| candidates.iter().filter(|c| c.family == family).count();
+        let (systematic_count, step_count) = (count(Family::Systematic), count(Family::OffsetStep));
+        let family_size = |family: Family| match family {
+            Family::Outlier => eligible,
+            Family::Systematic => systematic_count,
+            Family::OffsetStep => step_count,
+        };
+        let mut scored: Vec<(Candidate, Evidence)> = candidates
+            .iter()
+            .map(|c| {
+                let e = evidence(c, &current, family_size(c.family), tiny);
+                (c.clone(), e)
+            })
+            .collect();
+        scored.sort_by(|a, b| {
+            a.1.p_adjusted
+                .total_cmp(&b.1.p_adjusted)
+                .then(b.1.f_statistic.total_cmp(&a.1.f_statistic))
+        });
+        // A further jump of a zero that already jumped as often as a diagnosis accepts is
+        // not tried: the stream is marked, and a smooth drift or a zero per cycle of it
+        // may still take the structure.
+        jumps_exceeded.clear();
+        let jumps_of = |ac: u32, setup: Option<u32>, terms: &[Term]| {
+            terms
+                .iter()
+                .filter(|t| {
+                    matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
+                })
+                .count()
+        };
+        let mut attempts = 0;
+        let mut accepted = false;
+        for (candidate, ev) in &scored {
+            if attempts >= 4 || ev.p_adjusted >= options.family_alpha {
+                break;
+            }
+            let rejected = |rejection| TriedEffect {
+                effect: candidate_effect(candidate),
+                quadratic: matches!(candidate.term, Term::Quadratic { .. }),
+                evidence: *ev,
+                rejection,
+            };
+            if let Term::Effect(Effect::OffsetStep { ac, setup, .. }) = candidate.term
+                && jumps_of(ac, setup, &terms) >= MAX_JUMPS_PER_STREAM
+            {
+                if !jumps_exceeded.contains(&(ac, setup)) {
+                    jumps_exceeded.push((ac, setup));
+                    tried.push(rejected(Rejection::TooManyJumps));
+                }
+                continue;
+            }
+            attempts += 1;
+            if let Some((i, t)) = candidate.outlier {
+                let twins = twins(&geometry, &studentized, i, t);
+                if !twins.is_empty() {
+                    let mut group = vec![(i, t)];
+                    group.extend(twins);
+                    for &(j, _) in &group {
+                        suspects.insert(j);
+                    }
+                    unattributed_sets.push(group);
+                    tried.push(rejected(Rejection::Unattributable));
+                    continue;
+                }
+            }
+            let added = candidate.terms();
+            // a zero per cycle holds every jump of its stream at a cycle's start
+            let absorbed: Vec<Term> = match candidate.term {
+                Term::RezeroCycle { ac, setup, .. } => terms
+                    .iter()
+                    .filter(|t| {
+                        matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, step: None, .. }) if *a == ac && *s == setup)
+                    })
+                    .cloned()
+                    .collect(),
+                _ => Vec::new(),
+            };
+            let mut new_terms: Vec<Term> = terms
+                .iter()
+                .filter(|t| !absorbed.contains(t))
+                .cloned()
+                .collect();
+            new_terms.extend(added.iter().cloned());
+            let new_columns = columns_of(&new_terms);
+            let Ok(fit) = least_squares_with_regressors(set, &new_columns, sigma) else {
+                tried.push(rejected(Rejection::NotDetermined));
+                continue;
+            };
+            let lof_new =
+                lack_of_fit::lack_of_fit(set, &fit, &new_columns, options.lack_of_fit_alpha);
+            if let Some(new) = &lof_new
+                && !new.passed()
+                && lof_current
+                    .as_ref()
+                    .is_none_or(|old| new.f_statistic >= old.f_statistic)
+            {
+                tried.push(rejected(Rejection::DoesNotReduceLackOfFit));
+                continue;
+            }
+            for gone in &absorbed {
+                if let Some(k) = findings.iter().position(|f| f.terms.contains(gone)) {
+                    let f = findings.remove(k);
+                    tried.push(TriedEffect {
+                        effect: f.entry.effect.clone(),
+                        quadratic: false,
+                        evidence: Evidence {
+                            f_statistic: f.entry.f_statistic,
+                            p_value: f.entry.p_value,
+                            p_adjusted: f.entry.p_adjusted,
+                        },
+                        rejection: Rejection::Absorbed,
+                    });
+                }
+            }
+            let pitch_change = difference(&fit.pitch_deviation, &current.pitch_deviation);
+            let encoder_change = difference(&fit.encoder_error, &current.encoder_error);
+            let entry = FoundEffect {
+                effect: candidate_effect(candidate),
+                u: None,
+                quadratic_u: None,
+                quadratic_evidence: None,
+                f_statistic: ev.f_statistic,
+                p_value: ev.p_value,
+                p_adjusted: ev.p_adjusted,
+                residual_rms_before: current.residual_rms().unwrap_or(0.0),
+                residual_rms_after: fit.residual_rms().unwrap_or(0.0),
+                pitch_change_max: max_abs(&pitch_change),
+                encoder_change_max: max_abs(&encoder_change),
+                changes_calibration: true,
+                studentized_residual: candidate.outlier.map(|(_, t)| t),
+                dof_numerator: candidate.rank.max(1),
+                drift_order: None,
+                shape: Vec::new(),
+                shape_u: None,
+                alternatives: Vec::new(),
+            };
+            findings.push(Finding {
+                terms: added,
+                entry,
+                pitch_change,
+                encoder_change,
+            });
+            terms = new_terms;
+            current = fit;
+            lof_current = lof_new;
+            accepted = true;
+            break;
+        }
+        if !accepted {
+            // The last round's verdict on every kind of term not in the model.
+            record_not_significant(&mut tried, &scored, options.family_alpha);
+            break;
+        }
+    }
+    Outcome {
+        terms,
+        findings,
+        tried,
+        unattributed_sets,
+        jumps_exceeded,
+        fit: current,
+        lack_of_fit: lof_current,
+    }
+}
+
+/// Readings whose outlier column is nearly the same as reading `i`'s (|correlation of
+/// their residual directions| ≥ 0.9) and that explain nearly as much (t² within 4 of
+/// reading i's): the data cannot say which of them is bad.
+fn twins(
+    geometry: &FitGeometry,
+    studentized: &[Option<f64>],
+    i: usize,
+    t_i: f64,
+) -> Vec<(usize, f64)> {
+    let h_ii = geometry.hat(i, i);
+    (0..studentized.len())
+        .filter(|&j| j != i)
+        .filter_map(|j| {
+            let t_j = studentized[j]?;
+            if t_j * t_j < t_i * t_i - 4.0 {
+                return None;
+            }
+            let h_jj = geometry.hat(j, j);
+            let room = (1.0 - h_ii) * (1.0 - h_jj);
+            if room <= 0.0 {
+                return None;
+            }
+            let correlation = -geometry.hat(i, j) / room.sqrt();
+            (correlation.abs() >= 0.9).then_some((j, t_j))
+        })
+        .collect()
+}
