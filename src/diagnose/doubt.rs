@@ -10,7 +10,7 @@ use super::findings::Finding;
 use super::geometry::FitGeometry;
 use super::lack_of_fit::{self, LackOfFit};
 use super::residuals::{self, AdequacyInputs, Check};
-use super::{DiagnoseOptions, Evidence, Rejection, TriedEffect};
+use super::{DiagnoseOptions, Rejection, TriedEffect};
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::solve::{Solution, least_squares_with_regressors};
@@ -69,16 +69,7 @@ impl Model<'_> {
         self.findings.retain(|f| {
             let gone = f.terms.iter().any(&drop);
             if gone {
-                tried.push(TriedEffect {
-                    effect: f.entry.effect.clone(),
-                    quadratic: false,
-                    evidence: Evidence {
-                        f_statistic: f.entry.f_statistic,
-                        p_value: f.entry.p_value,
-                        p_adjusted: f.entry.p_adjusted,
-                    },
-                    rejection,
-                });
+                tried.push(f.withdrawn(rejection));
             }
             !gone
         });

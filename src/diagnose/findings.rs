@@ -74,6 +74,23 @@ pub struct Finding {
     pub encoder_change: Vec<f64>,
 }
 
+impl Finding {
+    /// The finding as a term tried and not kept, for `rejection`, with the evidence it
+    /// had when it was added.
+    pub fn withdrawn(&self, rejection: Rejection) -> TriedEffect {
+        TriedEffect {
+            effect: self.entry.effect.clone(),
+            quadratic: false,
+            evidence: Evidence {
+                f_statistic: self.entry.f_statistic,
+                p_value: self.entry.p_value,
+                p_adjusted: self.entry.p_adjusted,
+            },
+            rejection,
+        }
+    }
+}
+
 /// The drift order of a term block of one autocollimator (its highest), if a drift.
 fn drift_of(terms: &[Term]) -> Option<(u32, usize)> {
     terms.iter().find_map(|t| match *t {

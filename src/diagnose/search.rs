@@ -122,7 +122,14 @@ pub(super) fn run(
                 if let Term::Effect(Effect::CrossTalk { ac, .. }) = term
                     && score.new_fraction() < 0.1
                 {
-                    if !cross_talk_noted && let Some(note) = notes::cross_talk_untestable(set, *ac)
+                    // untestable against the base model; against another
+                    // autocollimator's cross-talk it is that term's alternative instead
+                    let other_in_model = terms
+                        .iter()
+                        .any(|t| matches!(t, Term::Effect(Effect::CrossTalk { .. })));
+                    if !cross_talk_noted
+                        && !other_in_model
+                        && let Some(note) = notes::cross_talk_untestable(set, *ac)
                     {
                         notes.push(note);
                         cross_talk_noted = true;
@@ -276,17 +283,7 @@ pub(super) fn run(
             }
             for gone in &absorbed {
                 if let Some(k) = findings.iter().position(|f| f.terms.contains(gone)) {
-                    let f = findings.remove(k);
-                    tried.push(TriedEffect {
-                        effect: f.entry.effect.clone(),
-                        quadratic: false,
-                        evidence: Evidence {
-                            f_statistic: f.entry.f_statistic,
-                            p_value: f.entry.p_value,
-                            p_adjusted: f.entry.p_adjusted,
-                        },
-                        rejection: Rejection::Absorbed,
-                    });
+                    tried.push(findings.remove(k).withdrawn(Rejection::Absorbed));
                 }
             }
             let pitch_change = difference(&fit.pitch_deviation, &current.pitch_deviation);

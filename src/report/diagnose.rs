@@ -743,11 +743,29 @@ pub fn write_table<W: std::fmt::Write>(
                 "\nAdequate: the final residuals are consistent with noise."
             )?;
         } else {
-            writeln!(
-                out,
-                "\nNOT adequate: structure is left that no known effect explains."
-            )?;
-            if !diagnosis.effects.is_empty() {
+            let failed: Vec<&str> = diagnosis
+                .adequacy
+                .checks
+                .iter()
+                .filter(|c| !c.passed)
+                .map(|c| c.name.as_str())
+                .collect();
+            let ambiguous_only = !failed.is_empty()
+                && failed
+                    .iter()
+                    .all(|name| name.starts_with("identifiability"));
+            if ambiguous_only {
+                writeln!(
+                    out,
+                    "\nNOT adequate: an effect found cannot be told apart from another explanation that gives a different calibration (see the notes); the result is not certified."
+                )?;
+            } else {
+                writeln!(
+                    out,
+                    "\nNOT adequate: structure is left that no known effect explains."
+                )?;
+            }
+            if !diagnosis.effects.is_empty() && !ambiguous_only {
                 writeln!(
                     out,
                     "  Caution: the effects above are the closest terms the model has to a structure it cannot express, not a confirmed explanation; do not take the final model's result as corrected until the cause of the structure below is found."
