@@ -3,7 +3,7 @@
 //! a mounting tilt), whose finding the data cannot place; the same run with a tilt that
 //! lets the data decide; and a run without a `time` column.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn polycal(args: &[&str]) -> Output {
@@ -19,7 +19,7 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
-fn simulate(dir: &PathBuf, extra: &[&str]) -> String {
+fn simulate(dir: &Path, extra: &[&str]) -> String {
     let out = dir.join("run.csv");
     let out_text = out.to_str().unwrap().to_string();
     let mut args = vec![
