@@ -76,7 +76,14 @@ pub(crate) fn figures(report: &DiagnoseReport) -> Vec<Figure> {
     let mut acs: Vec<u32> = residuals.ac.clone();
     acs.sort_unstable();
     acs.dedup();
-    let effects: Vec<Effect> = report.effects.iter().filter_map(effect_of).collect();
+    // a drift on the stop clock (a file without `time`, docs/FORMAT.md §6) cannot be
+    // drawn against time: the figure leaves it out (the table and the JSON carry it)
+    let effects: Vec<Effect> = report
+        .effects
+        .iter()
+        .filter(|v| v.get("unit").and_then(Value::as_str) != Some("arcsec/stop"))
+        .filter_map(effect_of)
+        .collect();
     acs.into_iter()
         .map(|ac| one_ac(report, residuals, &effects, ac))
         .collect()
