@@ -18,10 +18,10 @@ use polycal::diagnose::{Clock, DiagnoseOptions, Diagnosis, diagnose};
 use polycal::effects::Effect;
 use polycal::measurement::MeasurementSet;
 use polycal::report::diagnose::ErrorSummary;
-use polycal::simulate::{ElevationModel, SimulationConfig, Truth, simulate};
+use polycal::simulate::{
+    ElevationModel, RandomWalkSpec, RezeroSpec, SimulationConfig, Truth, simulate,
+};
 use polycal::solve::least_squares_with_regressors;
-use rand::{Rng, SeedableRng};
-use rand_distr::StandardNormal;
 
 fn base(seed: u64) -> SimulationConfig {
     SimulationConfig {
@@ -155,22 +155,25 @@ fn stated_cross_talk_decides_it() {
     }
 }
 
-/// Autocollimator 1 re-zeroed at the start of every cycle (offsets drawn with σ 0.3″):
-/// found as one `rezero` term, adequate, errors within 1.3× the clean twin's, in at least
-/// 95 % of 20 seeds.
+/// Autocollimator 1 re-zeroed at the start of every cycle (`simulate --rezero 1:0.3`):
+/// found as one `rezero` term whose offsets against the first cycle are each within 4 u
+/// of the drawn ones, adequate, errors within 1.3× the clean twin's, in at least 95 % of
+/// 20 seeds.
 #[test]
 fn a_zero_set_anew_every_cycle_is_one_term() {
     let mut good = 0;
     for seed in 0..20 {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let offsets: Vec<f64> = (0..6)
-            .map(|_| 0.3 * rng.sample::<f64, _>(StandardNormal))
-            .collect();
         let config = SimulationConfig {
-            effects: vec![Effect::rezero(1, None, offsets.clone())],
+            rezero: vec![RezeroSpec {
+                ac: 1,
+                sigma_arcsec: 0.3,
+            }],
             ..base(400 + seed)
         };
         let (set, truth) = simulate(&config).unwrap();
+        let Some(Effect::Rezero { offsets, .. }) = truth.effects.first() else {
+            panic!("the truth carries the drawn offsets: {:?}", truth.effects);
+        };
         let d = diagnose(&set, &DiagnoseOptions::default()).unwrap();
         let Some(found) = d
             .effects
@@ -179,7 +182,6 @@ fn a_zero_set_anew_every_cycle_is_one_term() {
         else {
             continue;
         };
-        // the offsets against the first cycle, each within 4 u of the truth
         if let Effect::Rezero {
             offsets: fitted,
             offsets_u: Some(u),
@@ -197,21 +199,16 @@ fn a_zero_set_anew_every_cycle_is_one_term() {
                 );
             }
         }
-        if d.adequacy.adequate && within(&errors(&d, &truth), &clean_twin(&config), 1.3) {
+        let clean = SimulationConfig {
+            rezero: Vec::new(),
+            ..config.clone()
+        };
+        if d.adequacy.adequate && within(&errors(&d, &truth), &clean_twin(&clean), 1.3) {
             good += 1;
         }
     }
     eprintln!("rezero: {good} of 20 found, adequate and near the clean twin");
     assert!(good >= 19, "{good} of 20");
-}
-
-/// The set without its `time` column (the reference paper's data have none).
-fn without_time(set: &MeasurementSet) -> MeasurementSet {
-    let mut copy = set.clone();
-    for r in &mut copy.readings {
-        r.time_seconds = None;
-    }
-    copy
 }
 
 /// A 2″/h drift of autocollimator 2 in a file without `time`: found on the stop clock
@@ -231,6 +228,12 @@ fn a_drift_without_a_clock_runs_on_the_stop_order() {
             ..base(500 + seed)
         };
         let (timed, truth) = simulate(&config).unwrap();
+        let (set, _) = simulate(&SimulationConfig {
+            no_time: true,
+            ..config.clone()
+        })
+        .unwrap();
+        assert!(set.readings.iter().all(|r| r.time_seconds.is_none()));
         let column: Vec<f64> = timed
             .readings
             .iter()
@@ -247,7 +250,6 @@ fn a_drift_without_a_clock_runs_on_the_stop_order() {
             &truth,
         )
         .unwrap();
-        let set = without_time(&timed);
         let d = diagnose(&set, &DiagnoseOptions::default()).unwrap();
         assert_eq!(d.clock, Clock::StopOrder);
         let Some(found) = d
@@ -272,21 +274,6 @@ fn a_drift_without_a_clock_runs_on_the_stop_order() {
     assert!(good >= 19, "{good} of 20");
 }
 
-/// Adds to every reading of autocollimators 1 and 2 an independent random walk of
-/// `rate` ″/√h (the zero wandering between stops).
-fn add_random_walk(set: &mut MeasurementSet, rate: f64, seed: u64) {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    for ac in [1u32, 2] {
-        let (mut walk, mut last) = (0.0, 0.0);
-        for r in set.readings.iter_mut().filter(|r| r.ac == ac) {
-            let t = r.time_seconds.unwrap();
-            walk += rate * ((t - last) / 3600.0).sqrt() * rng.sample::<f64, _>(StandardNormal);
-            last = t;
-            r.reading_arcsec += walk;
-        }
-    }
-}
-
 /// A wandering zero (0.25″/√h on both autocollimators) over 40 seeds: the final
 /// encoder error is not worse than the base model's by more than 10 % + 3 mas in at least
 /// 90 % of them.
@@ -294,8 +281,15 @@ fn add_random_walk(set: &mut MeasurementSet, rate: f64, seed: u64) {
 fn a_wandering_zero_does_no_harm() {
     let mut not_worse = 0;
     for seed in 0..40 {
-        let (mut set, truth) = simulate(&base(100 + seed)).unwrap();
-        add_random_walk(&mut set, 0.25, seed);
+        let walk = |ac| RandomWalkSpec {
+            ac,
+            rate_arcsec_per_sqrt_h: 0.25,
+        };
+        let config = SimulationConfig {
+            random_walk: vec![walk(1), walk(2)],
+            ..base(100 + seed)
+        };
+        let (set, truth) = simulate(&config).unwrap();
         let d = diagnose(&set, &DiagnoseOptions::default()).unwrap();
         let before = ErrorSummary::new(&d.before, &truth).unwrap();
         let after = errors(&d, &truth);
@@ -334,10 +328,11 @@ fn clean_runs_of_four_designs_rarely_get_a_false_effect() {
     for (name, config, strip_time) in designs {
         let (mut alarms, mut inadequate) = (0, 0);
         for seed in 0..100 {
-            let (mut set, _) = simulate(&config(2000 + seed)).unwrap();
-            if strip_time {
-                set = without_time(&set);
-            }
+            let c = SimulationConfig {
+                no_time: strip_time,
+                ..config(2000 + seed)
+            };
+            let (set, _) = simulate(&c).unwrap();
             let d = diagnose(&set, &DiagnoseOptions::default()).unwrap();
             if d.effects
                 .iter()

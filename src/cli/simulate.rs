@@ -7,8 +7,8 @@ use anyhow::{Context, Result, anyhow, bail};
 use clap::builder::ArgPredicate;
 use polycal::effects::Effect;
 use polycal::simulate::{
-    self, ElevationModel, Harmonic, SelfcalConfigError, SelfcalSimConfig, SimulateError,
-    SimulationConfig, TemperatureModel, Truth,
+    self, ElevationModel, Harmonic, RandomWalkSpec, RezeroSpec, SelfcalConfigError,
+    SelfcalSimConfig, SimulateError, SimulationConfig, TemperatureModel, Truth,
 };
 
 use super::output::Output;
@@ -28,7 +28,7 @@ Examples:
   polycal simulate --selfcal --positions 84 --harmonic 1:0.8:0.3 --harmonic 7:0.2 --table-error 0 --noise 0";
 
 /// The options of the polygon run, refused with `--selfcal` (clap's ids).
-const POLYGON_ONLY: [&str; 16] = [
+const POLYGON_ONLY: [&str; 19] = [
     "faces",
     "closing",
     "pitch_spread",
@@ -45,6 +45,9 @@ const POLYGON_ONLY: [&str; 16] = [
     "ac_faces",
     "setups",
     "setup_shift",
+    "rezero",
+    "random_walk",
+    "no_time",
 ];
 
 /// Arguments of `polycal simulate`.
@@ -415,6 +418,19 @@ pub struct TruthArgs {
         allow_negative_numbers = true
     )]
     pub outlier: Vec<String>,
+    /// An autocollimator zeroed anew at the start of every cycle AC:SIGMA: each cycle's
+    /// zero offset drawn normal with standard deviation SIGMA arcsec (into the truth as a
+    /// `rezero` effect); repeatable.
+    #[arg(long, value_name = "AC:SIGMA", allow_negative_numbers = true)]
+    pub rezero: Vec<String>,
+    /// A wandering zero AC:RATE: a random walk of RATE arcsec per √hour between stops,
+    /// continuing over the whole run (into the truth's `random_walk`); repeatable.
+    #[arg(long, value_name = "AC:RATE_PER_SQRT_H", allow_negative_numbers = true)]
+    pub random_walk: Vec<String>,
+    /// Write no `time` column (as the reference paper's data); drift and random walks
+    /// still act on the true time.
+    #[arg(long)]
+    pub no_time: bool,
     /// Where to write the truth JSON (docs/FORMAT.md §4).
     #[arg(long)]
     pub truth_out: Option<PathBuf>,
@@ -498,6 +514,23 @@ impl TruthArgs {
             temperature,
             elevation,
             noise_student_dof: self.noise_dof,
+            rezero: self
+                .rezero
+                .iter()
+                .map(|spec| {
+                    spec.parse::<RezeroSpec>()
+                        .map_err(|message| anyhow!("--rezero {spec}: {message}"))
+                })
+                .collect::<Result<_>>()?,
+            random_walk: self
+                .random_walk
+                .iter()
+                .map(|spec| {
+                    spec.parse::<RandomWalkSpec>()
+                        .map_err(|message| anyhow!("--random-walk {spec}: {message}"))
+                })
+                .collect::<Result<_>>()?,
+            no_time: self.no_time,
         })
     }
 

@@ -85,9 +85,11 @@ impl Model<'_> {
     }
 
     /// The autocollimators whose drifts and jumps a wandering zero makes untrustworthy
-    /// (every one with such terms, when any stream's residuals fail a check of time order
-    /// or a drift fails its stability check), and the stability checks of every drift: the
-    /// drift's columns restricted to the second half of the run, tested together.
+    /// (every one with such terms, when any stream's residuals fail a check of time order,
+    /// a drift fails its stability check, or one zero needs several kinds of terms to
+    /// follow it — a drift and jumps, a drift and a zero per cycle, jumps and a zero per
+    /// cycle), and the stability checks of every drift: the drift's columns restricted to
+    /// the second half of the run, tested together.
     pub fn wandering(&self, options: &DiagnoseOptions, tiny: f64) -> (Vec<u32>, Vec<Check>) {
         let (set, terms, current) = (self.set, &self.terms, &self.fit);
         let columns = self.columns(terms);
@@ -153,6 +155,20 @@ impl Model<'_> {
                     passed,
                     stream: None,
                 });
+            }
+        }
+        // a zero that needs several kinds of terms to follow it in time (a drift and
+        // jumps, a drift and a zero per cycle, jumps and a zero per cycle) wanders
+        for ac in candidates::autocollimators(set) {
+            let drift = terms.iter().any(|t| t.drift_order(ac).is_some());
+            let jumps = terms
+                .iter()
+                .any(|t| matches!(t, Term::Effect(Effect::OffsetStep { ac: a, .. }) if *a == ac));
+            let rezero = terms
+                .iter()
+                .any(|t| matches!(t, Term::RezeroCycle { ac: a, .. } if *a == ac));
+            if usize::from(drift) + usize::from(jumps) + usize::from(rezero) >= 2 {
+                any_time_structure = true;
             }
         }
         let wandering = if any_time_structure {

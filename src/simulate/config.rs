@@ -177,6 +177,15 @@ pub struct SimulationConfig {
     /// noise keeps the standard deviation `noise_arcsec`: a t variate scaled by
     /// `noise_arcsec`·√((ν − 2)/ν).
     pub noise_student_dof: Option<f64>,
+    /// Autocollimators zeroed anew at the start of every cycle (`simulate --rezero`): the
+    /// offsets are drawn into the truth's effects as `rezero` effects.
+    pub rezero: Vec<super::RezeroSpec>,
+    /// Autocollimator zeros that wander (`simulate --random-walk`): the walks are drawn
+    /// into the truth's `random_walk`.
+    pub random_walk: Vec<super::RandomWalkSpec>,
+    /// Whether the written readings leave out `time` (`simulate --no-time`; effects
+    /// still act on the true time).
+    pub no_time: bool,
 }
 
 impl Default for SimulationConfig {
@@ -215,6 +224,9 @@ impl Default for SimulationConfig {
             temperature: None,
             elevation: None,
             noise_student_dof: None,
+            rezero: Vec::new(),
+            random_walk: Vec::new(),
+            no_time: false,
         }
     }
 }
@@ -384,6 +396,7 @@ impl SimulationConfig {
                 .check()
                 .map_err(|m| SimulateError::Config(format!("elevation model: {m}")))?;
         }
+        super::habits::check(self).map_err(SimulateError::Config)?;
         let count = self.reading_count();
         if count > MAX_READINGS {
             return bad(format!(

@@ -76,6 +76,7 @@
 //! on, and then even when its spread or noise is 0.
 
 mod config;
+mod habits;
 mod models;
 mod selfcal;
 mod truth;
@@ -88,6 +89,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
 pub use config::{Harmonic, MAX_READINGS, SimulationConfig};
+pub use habits::{RandomWalkSpec, RandomWalkTruth, RezeroSpec};
 pub use models::{ElevationModel, ElevationTruth, MountingTilt, TemperatureModel};
 pub use selfcal::{
     HeadErrorTruth, MAX_DRAWN_ORDER, MAX_HARMONIC_TERMS, MIN_POSITIONS, SelfcalConfigError,
@@ -277,6 +279,22 @@ pub fn simulate_with_truth(
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
     rng.set_stream(NOISE_STREAM);
     let mut readings = Vec::with_capacity(config.reading_count());
+    let stops_total = config.reading_count() / config.ac_count().max(1);
+    for walk in &truth.random_walk {
+        if walk.values_arcsec.len() != stops_total {
+            return Err(mismatch(format!(
+                "its random walk of autocollimator {} has {} values, the run {stops_total} stops",
+                walk.ac,
+                walk.values_arcsec.len()
+            )));
+        }
+        if walk.ac == 0 || walk.ac > n_ac {
+            return Err(mismatch(format!(
+                "its random walk names autocollimator {}; the run has 1 … {n_ac}",
+                walk.ac
+            )));
+        }
+    }
     let mut stop: usize = 0;
     for setup in 1..=config.setups {
         let shift = config.table_shift_of(setup);
@@ -318,6 +336,11 @@ pub fn simulate_with_truth(
                             + config.noise_arcsec * z * ((*nu - 2.0) / w).sqrt()
                     }
                 };
+                reading.reading_arcsec += truth.random_walk_at(ac, stop);
+                if config.no_time {
+                    // the effects acted on the true time; the file has none
+                    reading.time_seconds = None;
+                }
                 readings.push(reading);
             }
             stop += 1;

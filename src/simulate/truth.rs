@@ -73,6 +73,10 @@ pub struct Truth {
     /// The true geometry of the elevation axis (`reading_y`), when the run has one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub elevation: Option<ElevationTruth>,
+    /// The random walks of autocollimator zeros (`simulate --random-walk`): each one's
+    /// value at every stop of the run, in the run's order; empty without.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub random_walk: Vec<super::RandomWalkTruth>,
 }
 
 /// Reads a JSON file into `T` (`-` reads standard input, named `<stdin>`):
@@ -224,12 +228,32 @@ impl Truth {
             encoder_error,
             encoder_angle_deg,
             setup_error,
-            effects: config.effects.clone(),
+            effects: config
+                .effects
+                .iter()
+                .cloned()
+                .chain(super::habits::draw_rezero(config))
+                .collect(),
             noise_arcsec: Some(config.noise_arcsec),
             reference_temperature_celsius,
             noise_student_dof: config.noise_student_dof,
             elevation,
+            random_walk: super::habits::draw_random_walks(
+                config,
+                config.reading_count() / config.ac_count().max(1),
+            ),
         })
+    }
+
+    /// The value of autocollimator `ac`'s random walk at stop `stop` of the run (the
+    /// run's order, setup 1's stops first), arcsec; 0 without a walk of that
+    /// autocollimator.
+    pub fn random_walk_at(&self, ac: u32, stop: usize) -> f64 {
+        self.random_walk
+            .iter()
+            .filter(|w| w.ac == ac)
+            .filter_map(|w| w.values_arcsec.get(stop))
+            .sum()
     }
 
     /// Reads a truth file (JSON, docs/FORMAT.md §4) and checks it ([`Truth::validate`]).
@@ -412,6 +436,19 @@ impl Truth {
             return Err(format!(
                 "reference_temperature_celsius is {t}; must be a finite number"
             ));
+        }
+        for walk in &self.random_walk {
+            if walk.ac == 0 {
+                return Err("random_walk: autocollimator numbers start at 1".into());
+            }
+            if !walk.rate_arcsec_per_sqrt_h.is_finite()
+                || walk.values_arcsec.iter().any(|v| !v.is_finite())
+            {
+                return Err(format!(
+                    "random_walk of autocollimator {}: a number is not finite",
+                    walk.ac
+                ));
+            }
         }
         if let Some(elevation) = &self.elevation {
             elevation.check(n)?;

@@ -102,6 +102,17 @@ impl LabConfig {
         if self.simulation.noise_student_dof.is_some() {
             return bad("the simulated lab's noise is normal (no Student-t noise)".into());
         }
+        if !self.simulation.rezero.is_empty() || !self.simulation.random_walk.is_empty() {
+            return bad(
+                "the simulated lab's zeros neither re-zero every cycle nor wander (simulate a run with them instead)"
+                    .into(),
+            );
+        }
+        if self.simulation.no_time {
+            return bad(
+                "a run in the simulated lab always records the time of every reading".into(),
+            );
+        }
         if !(self.speed_deg_per_s.is_finite() && self.speed_deg_per_s > 0.0) {
             return bad(format!(
                 "speed {} °/s must be a finite number > 0",
