@@ -16,7 +16,6 @@
 
 use polycal::diagnose::{Clock, DiagnoseOptions, Diagnosis, diagnose};
 use polycal::effects::Effect;
-use polycal::measurement::MeasurementSet;
 use polycal::report::diagnose::ErrorSummary;
 use polycal::simulate::{
     ElevationModel, RandomWalkSpec, RezeroSpec, SimulationConfig, Truth, simulate,
