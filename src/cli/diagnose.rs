@@ -8,12 +8,16 @@ use anyhow::{Context, Result};
 use clap::ValueEnum;
 use polycal::diagnose::{self, DiagnoseOptions};
 use polycal::input::display_name;
+use polycal::measurement::cross_talk::StatedCrossTalk;
 use polycal::measurement::{MeasurementSet, Sigma};
 use polycal::report::{self, diagnose::DiagnoseReport};
 use polycal::simulate::Truth;
 
 use super::output::Output;
-use super::solve::{evaluate_budget, read_budget, shift_refusal, write_result_csv};
+use super::solve::{
+    check_stated_cross_talk, corrected, evaluate_budget, read_budget, shift_refusal,
+    write_result_csv,
+};
 use super::{EXIT_ERROR, EXIT_OK, EXIT_VERDICT};
 
 /// After `polycal diagnose --help`.
@@ -40,6 +44,16 @@ pub struct DiagnoseArgs {
     /// Standard deviation of one reading, arcsec, if known: adds a χ² check.
     #[arg(long, allow_negative_numbers = true)]
     sigma: Option<Sigma>,
+    /// Cross-talk of an autocollimator stated from its calibration, AC:C or AC:C:U, as for
+    /// `solve`: its readings are corrected by C·reading_y, no cross-talk term is tried for
+    /// it, and the others' cross-talk follows from the data (docs/FORMAT.md §6);
+    /// repeatable.
+    #[arg(
+        long = "cross-talk",
+        value_name = "AC:C[:U]",
+        allow_negative_numbers = true
+    )]
+    cross_talk: Vec<StatedCrossTalk>,
     /// Instrument budget (TOML, as for `solve --budget`): adds the expanded uncertainty U
     /// and k of every result of the final model (base model + the effects found).
     #[arg(long, value_name = "FILE.toml")]
@@ -77,7 +91,10 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
     let truth = args.truth.as_deref().map(Truth::read_path).transpose()?;
     super::plot_one_file(args.plot.as_deref(), args.files.len())?;
     let budget = read_budget(args.budget.as_deref(), out)?;
-    let options = DiagnoseOptions::new().with_sigma_opt(args.sigma);
+    check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
+    let options = DiagnoseOptions::new()
+        .with_sigma_opt(args.sigma)
+        .with_stated_cross_talk(args.cross_talk.iter().map(|s| s.ac).collect());
     let several = args.files.len() > 1;
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
@@ -89,6 +106,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         let label = path.display().to_string();
         let diagnosed = MeasurementSet::read_path(path, args.faces)
             .map_err(anyhow::Error::from)
+            .and_then(|set| corrected(set, &args.cross_talk))
             .and_then(|set| {
                 if let Some(refusal) =
                     shift_refusal(&set, &name, "diagnose", "polycal solve evaluates them")
@@ -120,7 +138,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         // The budget acts on the final model: its results are the ones reported.
         let gum = match budget
             .as_ref()
-            .map(|budget| evaluate_budget(&set, &diagnosis.after, budget, &name))
+            .map(|budget| evaluate_budget(&set, &diagnosis.after, budget, &args.cross_talk, &name))
             .transpose()
         {
             Ok(gum) => gum,

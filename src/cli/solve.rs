@@ -7,13 +7,14 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::ValueEnum;
 use polycal::input::display_name;
+use polycal::measurement::cross_talk::{StatedCrossTalk, correct_cross_talk};
 use polycal::measurement::{MeasurementSet, Sigma};
 use polycal::report::{self, SolveReport};
 use polycal::results::ResultRow;
 use polycal::solve::sub_pitch::{ShiftGeometry, SubPitchSolution, solve_shifted};
 use polycal::solve::{self, Method, Solution, SolveError, SolveOptions};
 use polycal::uncertainty::calibration::{
-    self, CalibrationUncertainty, InstrumentBudget, McOptions, McSolver,
+    self, CalibrationUncertainty, InstrumentBudget, KnownCorrection, McOptions, McSolver,
 };
 use polycal::uncertainty::monte_carlo::Trials;
 
@@ -44,6 +45,16 @@ pub struct SolveArgs {
     /// exactly determined fit (dof = 0).
     #[arg(long, allow_negative_numbers = true)]
     sigma: Option<Sigma>,
+    /// Cross-talk of an autocollimator stated from its calibration, AC:C or AC:C:U (C in
+    /// arcsec of reading per arcsec of reading_y, U its standard uncertainty): its
+    /// readings are corrected by C·reading_y, and U enters --budget (docs/FORMAT.md §6);
+    /// repeatable.
+    #[arg(
+        long = "cross-talk",
+        value_name = "AC:C[:U]",
+        allow_negative_numbers = true
+    )]
+    cross_talk: Vec<StatedCrossTalk>,
     /// Output format.
     #[arg(long, value_enum, default_value = "table")]
     format: SolveFormat,
@@ -128,6 +139,13 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             .map(|f| ("a measurement file", Some(f.as_path())))
             .chain([("--budget", args.budget.as_deref())]),
     )?;
+    check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
+    if args.monte_carlo.is_some() && args.cross_talk.iter().any(|c| c.u.is_some()) {
+        bail!(
+            "--monte-carlo with a --cross-talk U is not available in this version: the \
+             Monte Carlo does not draw stated corrections; leave out U or --monte-carlo"
+        );
+    }
     if args.monte_carlo.is_some() && args.budget.is_none() {
         bail!(
             "--monte-carlo needs --budget: the Monte Carlo propagates the instrument budget \
@@ -169,6 +187,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         let label = path.display().to_string();
         let solved = MeasurementSet::read_path(path, args.faces)
             .map_err(anyhow::Error::from)
+            .and_then(|set| corrected(set, &args.cross_talk))
             .and_then(|set| {
                 if budget.is_some()
                     && let Some(refusal) = shift_refusal(
@@ -200,7 +219,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             let Some(budget) = &budget else {
                 return Ok((Solved::Positions(solution), None, None));
             };
-            let gum = evaluate_budget(&set, &solution, budget, &name)?;
+            let gum = evaluate_budget(&set, &solution, budget, &args.cross_talk, &name)?;
             let mc = mc_options
                 .as_ref()
                 .map(|options| {
@@ -335,15 +354,60 @@ pub(super) fn evaluate_budget(
     set: &MeasurementSet,
     solution: &Solution,
     budget: &InstrumentBudget,
+    stated: &[StatedCrossTalk],
     name: &str,
 ) -> Result<CalibrationUncertainty> {
-    calibration::evaluate(set, solution, budget)
+    let corrections: Vec<KnownCorrection> = stated
+        .iter()
+        .filter_map(|s| {
+            s.u.map(|u| {
+                KnownCorrection::new(
+                    format!("cross-talk of autocollimator {} (stated)", s.ac),
+                    u,
+                    s.column(set),
+                )
+            })
+        })
+        .collect();
+    calibration::evaluate_with_corrections(set, solution, budget, &corrections)
         .map_err(|e| match e {
             // Library messages name no flags: the CLI adds the one that helps.
             calibration::CalibrationError::NoSigma => anyhow::anyhow!("{e} (--sigma)"),
             e => e.into(),
         })
         .with_context(|| format!("{name}: cannot evaluate the uncertainty"))
+}
+
+/// The set with every stated cross-talk corrected for (`--cross-talk`, `solve` and
+/// `diagnose`).
+pub(super) fn corrected(set: MeasurementSet, stated: &[StatedCrossTalk]) -> Result<MeasurementSet> {
+    if stated.is_empty() {
+        return Ok(set);
+    }
+    correct_cross_talk(&set, stated).map_err(|e| anyhow::anyhow!("{e} (--cross-talk)"))
+}
+
+/// Refuses an autocollimator stated twice; warns that a stated U is used only with a
+/// budget (`solve` and `diagnose`).
+pub(super) fn check_stated_cross_talk(
+    stated: &[StatedCrossTalk],
+    with_budget: bool,
+    out: &Output,
+) -> Result<()> {
+    for (k, s) in stated.iter().enumerate() {
+        if stated[..k].iter().any(|t| t.ac == s.ac) {
+            bail!(
+                "--cross-talk: the cross-talk of autocollimator {} is stated twice",
+                s.ac
+            );
+        }
+    }
+    if !with_budget && stated.iter().any(|s| s.u.is_some()) {
+        out.warning(format_args!(
+            "--cross-talk: the stated U enters the uncertainty only with --budget (the fit's type A does not see it)"
+        ));
+    }
+    Ok(())
 }
 
 /// The result file (docs/FORMAT.md §3) of the files solved (`solve` and `diagnose`): with

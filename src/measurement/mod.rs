@@ -50,6 +50,7 @@ use std::fmt;
 use std::io::Read;
 use std::path::Path;
 
+pub mod cross_talk;
 mod parse;
 mod sigma;
 mod validate;

@@ -133,7 +133,62 @@ pub fn evaluate(
     solution: &Solution,
     budget: &InstrumentBudget,
 ) -> Result<CalibrationUncertainty, CalibrationError> {
+    evaluate_with_corrections(set, solution, budget, &[])
+}
+
+/// A known correction applied to the readings, whose standard uncertainty enters the
+/// budget: an error e of it moves reading i by e·`column[i]` (one draw shared by every
+/// reading it touches), so quantity j moves by e·Σᵢ L_ji·column\[i\] and receives
+/// u·|Σᵢ L_ji·column\[i\]|. A stated cross-talk coefficient C of autocollimator A with
+/// standard uncertainty u is one: its column is `reading_y` on A's readings.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct KnownCorrection {
+    /// The name it has among the components.
+    pub name: String,
+    /// Its standard uncertainty, in the unit of the correction's coefficient.
+    pub u: f64,
+    /// How far an error of one unit moves each reading, arcsec, in the set's order.
+    pub column: Vec<f64>,
+}
+
+impl KnownCorrection {
+    /// A correction named `name` with standard uncertainty `u` and its column.
+    pub fn new(name: impl Into<String>, u: f64, column: Vec<f64>) -> Self {
+        Self {
+            name: name.into(),
+            u,
+            column,
+        }
+    }
+}
+
+/// [`evaluate`] with the uncertainties of known corrections applied to the readings
+/// ([`KnownCorrection`]), each a component of type B with infinite degrees of freedom,
+/// listed after the budget's own as acting on each autocollimator.
+///
+/// # Errors
+///
+/// As [`evaluate`]; a correction whose column does not have one value per reading, or
+/// whose u is not a finite number ≥ 0, is refused as an invalid component.
+pub fn evaluate_with_corrections(
+    set: &MeasurementSet,
+    solution: &Solution,
+    budget: &InstrumentBudget,
+    corrections: &[KnownCorrection],
+) -> Result<CalibrationUncertainty, CalibrationError> {
     budget.check()?;
+    for c in corrections {
+        if c.column.len() != set.readings.len() || !(c.u.is_finite() && c.u >= 0.0) {
+            return Err(CalibrationError::Component {
+                name: c.name.clone(),
+                message: format!(
+                    "needs one value per reading ({}) and a finite u ≥ 0",
+                    set.readings.len()
+                ),
+            });
+        }
+    }
     let op = Operator::new(set, solution)?;
     let (sigma, source) = solution.sigma.ok_or(CalibrationError::NoSigma)?;
     let n = op.faces;
@@ -157,7 +212,16 @@ pub fn evaluate(
         let u = c.standard_uncertainty();
         contributions.push(g.iter().map(|g| u * g.max(0.0).sqrt()).collect());
     }
-    let component_dof: Vec<Option<f64>> = budget.components.iter().map(|c| c.dof).collect();
+    for c in corrections {
+        let s = super::operator::sensitivities(&op, &c.column);
+        contributions.push(s.iter().map(|s| c.u * s.abs()).collect());
+    }
+    let component_dof: Vec<Option<f64>> = budget
+        .components
+        .iter()
+        .map(|c| c.dof)
+        .chain(corrections.iter().map(|_| None))
+        .collect();
     let Combined {
         u,
         dof_eff,
@@ -183,6 +247,26 @@ pub fn evaluate(
         k,
         expanded_u,
     };
+    let correction_rows: Vec<ComponentContribution> = corrections
+        .iter()
+        .zip(&contributions[budget.components.len()..])
+        .map(|(c, contribution)| {
+            let [pitch, face, encoder, setup] = split(contribution, n);
+            ComponentContribution {
+                name: c.name.clone(),
+                evaluation: EvaluationType::B,
+                distribution: "normal",
+                acts_on: Scope::EachAutocollimator,
+                u: c.u,
+                sensitivity: 1.0,
+                dof: None,
+                pitch_deviation: pitch,
+                face_deviation: face,
+                encoder_error: encoder,
+                setup_error: setup,
+            }
+        })
+        .collect();
     let components = budget
         .components
         .iter()
@@ -203,6 +287,7 @@ pub fn evaluate(
                 setup_error: setup,
             }
         })
+        .chain(correction_rows)
         .collect();
     Ok(CalibrationUncertainty {
         budget: budget.source.clone(),

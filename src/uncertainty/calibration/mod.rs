@@ -92,7 +92,10 @@ mod operator;
 mod trial;
 
 pub use budget::{InstrumentBudget, Scope, ScopedComponent};
-pub use gum::{CalibrationUncertainty, ComponentContribution, FamilyUncertainty, evaluate};
+pub use gum::{
+    CalibrationUncertainty, ComponentContribution, FamilyUncertainty, KnownCorrection, evaluate,
+    evaluate_with_corrections,
+};
 pub(crate) use gum::{Combined, combine};
 pub use mc::{CalibrationMonteCarlo, McFamily, McOptions, monte_carlo};
 pub use trial::{McModel, McScratch, McSolver};

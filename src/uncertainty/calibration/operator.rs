@@ -351,6 +351,34 @@ pub(super) fn gains(op: &Operator, set: &MeasurementSet, scope: Scope) -> Vec<f6
     g
 }
 
+/// s = L·w for a weighted sum of the readings: the change of every reported quantity
+/// ([`quantities`] order) per unit of an error that moves reading i by wᵢ.
+pub(super) fn sensitivities(op: &Operator, weights: &[f64]) -> Vec<f64> {
+    let n = op.faces;
+    let mut theta = vec![0.0; op.len()];
+    match &op.map {
+        Map::Dense { .. } => {
+            for (i, &w) in weights.iter().enumerate() {
+                if w != 0.0 {
+                    op.add_column(i, w, &mut theta);
+                }
+            }
+        }
+        Map::Structured(cofactor) => {
+            let mut row = vec![0.0; op.len()];
+            for (i, &w) in weights.iter().enumerate() {
+                if w != 0.0 {
+                    op.add_row_g(i, w, &mut row);
+                }
+            }
+            op.add_structured(cofactor, &row, &mut theta);
+        }
+    }
+    let mut q = vec![0.0; 3 * n + op.streams];
+    quantities(&theta, n, &mut q);
+    q
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
