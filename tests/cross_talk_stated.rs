@@ -112,9 +112,10 @@ fn polycal(args: &[&str]) -> Output {
         .expect("the polycal binary runs")
 }
 
-/// On a run whose cross-talk the closure cannot place, `diagnose --cross-talk 2:0`
-/// decides it (status 0, the note says so); a bad spec is one `error:` line, status 2;
-/// `solve --budget` lists the stated U as a component.
+/// On a run whose cross-talk the closure cannot place, `diagnose --cross-talk 2:0` and
+/// `report --diagnose --cross-talk 2:0` decide it (status 0, the note says so); a bad
+/// spec is one `error:` line, status 2; `solve --budget` lists the stated U as a
+/// component.
 #[test]
 fn the_command_line_states_it() {
     let dir = std::env::temp_dir().join(format!("polycal-xtalk-{}", std::process::id()));
@@ -182,6 +183,15 @@ fn the_command_line_states_it() {
         names.contains(&"cross-talk of autocollimator 1 (stated)"),
         "{names:?}"
     );
+    // the report states it as diagnose does
+    let html = dir.join("report.html");
+    let html = html.to_str().unwrap();
+    let o = polycal(&["report", file, "--diagnose", "--out", html]);
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = polycal(&["report", file, "--diagnose", "--cross-talk", "2:0", "--out", html]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(html).unwrap();
+    assert!(text.contains("follows from the data"));
     for bad in ["1:x", "9:0.1"] {
         let o = polycal(&["solve", file, "--cross-talk", bad]);
         assert_eq!(o.status.code(), Some(2));

@@ -39,6 +39,14 @@ pub struct ReportArgs {
     /// budget section. Needed for --reference with a polygon file.
     #[arg(long, value_name = "B.toml")]
     budget: Option<PathBuf>,
+    /// Cross-talk of an autocollimator stated from its calibration, AC:C or AC:C:U, as for
+    /// `solve` and `diagnose` (docs/FORMAT.md §6); repeatable.
+    #[arg(
+        long = "cross-talk",
+        value_name = "AC:C[:U]",
+        allow_negative_numbers = true
+    )]
+    cross_talk: Vec<polycal::measurement::cross_talk::StatedCrossTalk>,
     /// Diagnose the measurement (as `polycal diagnose`) and add the diagnosis section;
     /// status 1 when the final model is not adequate.
     #[arg(long)]
@@ -71,6 +79,7 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         ("--reference", args.reference.as_deref()),
         ("--meta", args.meta.as_deref()),
     ])?;
+    super::solve::check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
     if args.out.is_dir() {
         bail!(
             "--out {}: is a directory; name the HTML file to write",
@@ -96,6 +105,7 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         .with_faces(args.faces)
         .with_sigma(args.sigma)
         .with_diagnose(args.diagnose)
+        .with_stated_cross_talk(args.cross_talk.clone())
         .with_command_line(format!("polycal {command_line}"));
     if let Some(p) = &args.budget {
         inputs = inputs.with_budget(p);

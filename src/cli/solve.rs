@@ -357,18 +357,7 @@ pub(super) fn evaluate_budget(
     stated: &[StatedCrossTalk],
     name: &str,
 ) -> Result<CalibrationUncertainty> {
-    let corrections: Vec<KnownCorrection> = stated
-        .iter()
-        .filter_map(|s| {
-            s.u.map(|u| {
-                KnownCorrection::new(
-                    format!("cross-talk of autocollimator {} (stated)", s.ac),
-                    u,
-                    s.column(set),
-                )
-            })
-        })
-        .collect();
+    let corrections = KnownCorrection::of_stated_cross_talk(set, stated);
     calibration::evaluate_with_corrections(set, solution, budget, &corrections)
         .map_err(|e| match e {
             // Library messages name no flags: the CLI adds the one that helps.

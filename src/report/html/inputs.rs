@@ -41,6 +41,10 @@ pub struct ReportInputs {
     pub generated_utc: Option<String>,
     /// The command line that made the report, shown in its provenance.
     pub command_line: Option<String>,
+    /// Cross-talk stated from the autocollimators' calibrations (docs/FORMAT.md §6): the
+    /// readings are corrected for it, its U enters the budget, and the diagnosis tries no
+    /// cross-talk term for those autocollimators.
+    pub stated_cross_talk: Vec<crate::measurement::cross_talk::StatedCrossTalk>,
 }
 
 impl ReportInputs {
@@ -58,6 +62,7 @@ impl ReportInputs {
             run_dir: None,
             generated_utc: None,
             command_line: None,
+            stated_cross_talk: Vec::new(),
         }
     }
     /// With the number of faces (or positions).
@@ -73,6 +78,14 @@ impl ReportInputs {
     /// With an instrument budget.
     pub fn with_budget(mut self, budget: impl Into<PathBuf>) -> Self {
         self.budget = Some(budget.into());
+        self
+    }
+    /// With cross-talk stated from the autocollimators' calibrations.
+    pub fn with_stated_cross_talk(
+        mut self,
+        stated: Vec<crate::measurement::cross_talk::StatedCrossTalk>,
+    ) -> Self {
+        self.stated_cross_talk = stated;
         self
     }
     /// With a diagnosis (or without).
@@ -135,6 +148,9 @@ pub enum ReportError {
     /// The measurement file.
     #[error(transparent)]
     Measurement(#[from] MeasurementError),
+    /// A stated cross-talk cannot be corrected for.
+    #[error(transparent)]
+    CrossTalk(#[from] crate::measurement::cross_talk::CrossTalkError),
     /// The self-calibration file.
     #[error(transparent)]
     Selfcal(#[from] SelfcalError),

@@ -43,7 +43,9 @@ use crate::selfcal::{SelfcalOptions, SelfcalSet, SelfcalUncertainty};
 use crate::simulate::Truth;
 use crate::solve::SolveOptions;
 use crate::solve::sub_pitch::{ShiftGeometry, solve_shifted};
-use crate::uncertainty::calibration::{CalibrationUncertainty, InstrumentBudget, evaluate};
+use crate::uncertainty::calibration::{
+    CalibrationUncertainty, InstrumentBudget, KnownCorrection, evaluate_with_corrections,
+};
 
 pub use inputs::{ReportError, ReportInputs};
 pub use meta::Metadata;
@@ -251,6 +253,13 @@ impl CalibrationReport {
                     kind: "a self-calibration file",
                 });
             }
+            if !inputs.stated_cross_talk.is_empty() {
+                return Err(ReportError::NotSupported {
+                    file: name,
+                    what: "a stated cross-talk",
+                    kind: "a self-calibration file",
+                });
+            }
             let set = SelfcalSet::read_from(bytes.as_slice(), &name, inputs.faces)?;
             let solution =
                 crate::selfcal::solve(&set, &SelfcalOptions::new().with_sigma_opt(inputs.sigma))
@@ -281,6 +290,16 @@ impl CalibrationReport {
             )
         } else {
             let set = MeasurementSet::read_from(bytes.as_slice(), &name, inputs.faces)?;
+            let stated = &inputs.stated_cross_talk;
+            let set = if stated.is_empty() {
+                set
+            } else {
+                crate::measurement::cross_talk::correct_cross_talk(&set, stated)?
+            };
+            let corrections = KnownCorrection::of_stated_cross_talk(&set, stated);
+            let evaluate = |set: &MeasurementSet, solution: &crate::solve::Solution, b| {
+                evaluate_with_corrections(set, solution, b, &corrections)
+            };
             let solve_error = |source| ReportError::Solve {
                 file: name.clone(),
                 source,
@@ -321,8 +340,10 @@ impl CalibrationReport {
                 solve = solve.with_uncertainty(u);
             }
             let diagnosis = if inputs.diagnose {
-                let found = diagnose(&set, &DiagnoseOptions::new().with_sigma_opt(inputs.sigma))
-                    .map_err(solve_error)?;
+                let options = DiagnoseOptions::new()
+                    .with_sigma_opt(inputs.sigma)
+                    .with_stated_cross_talk(stated.iter().map(|s| s.ac).collect());
+                let found = diagnose(&set, &options).map_err(solve_error)?;
                 let mut report =
                     DiagnoseReport::new(&found, truth.as_ref(), None).with_residuals(&found, &set);
                 // the budget acts on the final model, as in `polycal diagnose --budget`

@@ -161,6 +161,27 @@ impl KnownCorrection {
             column,
         }
     }
+
+    /// The corrections of the stated cross-talks that carry a U, on `set`: each named
+    /// `cross-talk of autocollimator AC (stated)`, its column `reading_y` on AC's
+    /// readings (docs/FORMAT.md §6).
+    pub fn of_stated_cross_talk(
+        set: &MeasurementSet,
+        stated: &[crate::measurement::cross_talk::StatedCrossTalk],
+    ) -> Vec<KnownCorrection> {
+        stated
+            .iter()
+            .filter_map(|s| {
+                s.u.map(|u| {
+                    KnownCorrection::new(
+                        format!("cross-talk of autocollimator {} (stated)", s.ac),
+                        u,
+                        s.column(set),
+                    )
+                })
+            })
+            .collect()
+    }
 }
 
 /// [`evaluate`] with the uncertainties of known corrections applied to the readings
