@@ -187,9 +187,27 @@ fn the_command_line_states_it() {
     let html = dir.join("report.html");
     let html = html.to_str().unwrap();
     let o = polycal(&["report", file, "--diagnose", "--out", html]);
-    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = polycal(&["report", file, "--diagnose", "--cross-talk", "2:0", "--out", html]);
-    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let o = polycal(&[
+        "report",
+        file,
+        "--diagnose",
+        "--cross-talk",
+        "2:0",
+        "--out",
+        html,
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let text = std::fs::read_to_string(html).unwrap();
     assert!(text.contains("follows from the data"));
     for bad in ["1:x", "9:0.1"] {
