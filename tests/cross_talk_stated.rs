@@ -1,31 +1,21 @@
 //! Cross-talk stated from an autocollimator's calibration (`--cross-talk AC:C[:U]`,
-//! docs/FORMAT.md §6): the correction is exact, its U enters the budget as the
-//! propagation through the design says (checked by finite differences of the solver),
-//! and it decides a cross-talk the closure alone cannot place.
-
-use std::process::{Command, Output};
+//! docs/FORMAT.md §6): the correction is exact, and its U enters the budget as the
+//! propagation through the design says (checked by finite differences of the solver).
+//! That it decides a cross-talk the closure alone cannot place is tested on the command
+//! line in `diagnose_cli_identify.rs`.
 
 use polycal::effects::Effect;
 use polycal::measurement::cross_talk::{StatedCrossTalk, correct_cross_talk};
-use polycal::simulate::{ElevationModel, SimulationConfig, simulate};
+use polycal::simulate::{SimulationConfig, simulate};
 use polycal::solve::{SolveOptions, solve};
 use polycal::uncertainty::calibration::{
     InstrumentBudget, KnownCorrection, evaluate, evaluate_with_corrections,
 };
 
+mod undeclared;
+
 fn config(effects: Vec<Effect>) -> SimulationConfig {
-    SimulationConfig {
-        setups: 2,
-        setup_shift_faces: 5,
-        cycles: 4,
-        elevation: Some(ElevationModel {
-            mounting_tilt_arcsec: 0.0,
-            ..ElevationModel::default()
-        }),
-        effects,
-        seed: 11,
-        ..SimulationConfig::default()
-    }
+    undeclared::two_mountings_with_y(11, effects)
 }
 
 /// Corrected with the true coefficient, the readings are the clean twin's (the simulator
@@ -103,121 +93,4 @@ fn stated_cross_talk_is_read_and_checked() {
         .unwrap_err()
         .to_string();
     assert!(message.contains("no reading_y"), "{message}");
-}
-
-fn polycal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polycal"))
-        .args(args)
-        .output()
-        .expect("the polycal binary runs")
-}
-
-/// On a run whose cross-talk the closure cannot place, `diagnose --cross-talk 2:0` and
-/// `report --diagnose --cross-talk 2:0` decide it (status 0, the note says so); a bad
-/// spec is one `error:` line, status 2; `solve --budget` lists the stated U as a
-/// component.
-#[test]
-fn the_command_line_states_it() {
-    let dir = std::env::temp_dir().join(format!("polycal-xtalk-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("run.csv");
-    let file = file.to_str().unwrap();
-    let o = polycal(&[
-        "simulate",
-        "--faces",
-        "24",
-        "--cycles",
-        "4",
-        "--closing",
-        "--setups",
-        "2",
-        "--setup-shift",
-        "5",
-        "--elevation",
-        "10:0:1:5:0.05",
-        "--cross-talk",
-        "1:0.01",
-        "--seed",
-        "3",
-        "--out",
-        file,
-    ]);
-    assert!(o.status.success());
-    assert_eq!(polycal(&["diagnose", file]).status.code(), Some(1));
-    let o = polycal(&["diagnose", file, "--cross-talk", "2:0", "--format", "json"]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stdout)
-    );
-    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert!(
-        json["notes"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .any(|n| n.as_str().unwrap().contains("follows from the data")),
-        "{}",
-        json["notes"]
-    );
-    let o = polycal(&[
-        "solve",
-        file,
-        "--cross-talk",
-        "1:0.01:0.001",
-        "--budget",
-        "examples/budgets/instrument.toml",
-        "--format",
-        "json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    let names: Vec<&str> = json["uncertainty"]["components"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c["name"].as_str().unwrap())
-        .collect();
-    assert!(
-        names.contains(&"cross-talk of autocollimator 1 (stated)"),
-        "{names:?}"
-    );
-    // the report states it as diagnose does
-    let html = dir.join("report.html");
-    let html = html.to_str().unwrap();
-    let o = polycal(&["report", file, "--diagnose", "--out", html]);
-    assert_eq!(
-        o.status.code(),
-        Some(1),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let o = polycal(&[
-        "report",
-        file,
-        "--diagnose",
-        "--cross-talk",
-        "2:0",
-        "--out",
-        html,
-    ]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let text = std::fs::read_to_string(html).unwrap();
-    assert!(text.contains("follows from the data"));
-    for bad in ["1:x", "9:0.1"] {
-        let o = polycal(&["solve", file, "--cross-talk", bad]);
-        assert_eq!(o.status.code(), Some(2));
-        let stderr = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(
-            stderr.lines().filter(|l| l.starts_with("error:")).count(),
-            1,
-            "{stderr}"
-        );
-    }
 }

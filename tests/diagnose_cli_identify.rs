@@ -1,7 +1,8 @@
 //! `polycal diagnose` as a user runs it on the situations of issue 21: a run simulated
 //! with cross-talk on both autocollimators in two mountings (the elevation axis without
 //! a mounting tilt), whose finding the data cannot place; the same run with a tilt that
-//! lets the data decide; and a run without a `time` column.
+//! lets the data decide; the same ambiguous run decided by a stated cross-talk
+//! (`--cross-talk AC:C[:U]` on `diagnose`, `report` and `solve --budget`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -130,4 +131,95 @@ fn cross_talk_the_design_can_place_is_certified() {
         .expect("a cross-talk is found");
     assert_eq!(cross_talk["ac"], 1);
     assert!(cross_talk.get("alternatives").is_none(), "{cross_talk}");
+}
+
+/// On a run whose cross-talk the closure cannot place, `diagnose --cross-talk 2:0` and
+/// `report --diagnose --cross-talk 2:0` decide it (status 0, the note says so); a bad
+/// spec is one `error:` line, status 2; `solve --budget` lists the stated U as a
+/// component.
+#[test]
+fn the_command_line_states_it() {
+    let dir = scratch("stated");
+    let file = simulate(
+        &dir,
+        &["--elevation", "10:0:1:5:0.05", "--cross-talk", "1:0.01"],
+    );
+    let file = file.as_str();
+    assert_eq!(polycal(&["diagnose", file]).status.code(), Some(1));
+    let o = polycal(&["diagnose", file, "--cross-talk", "2:0", "--format", "json"]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(
+        json["notes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n.as_str().unwrap().contains("follows from the data")),
+        "{}",
+        json["notes"]
+    );
+    let o = polycal(&[
+        "solve",
+        file,
+        "--cross-talk",
+        "1:0.01:0.001",
+        "--budget",
+        "examples/budgets/instrument.toml",
+        "--format",
+        "json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let names: Vec<&str> = json["uncertainty"]["components"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    assert!(
+        names.contains(&"cross-talk of autocollimator 1 (stated)"),
+        "{names:?}"
+    );
+    // the report states it as diagnose does
+    let html = dir.join("report.html");
+    let html = html.to_str().unwrap();
+    let o = polycal(&["report", file, "--diagnose", "--out", html]);
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let o = polycal(&[
+        "report",
+        file,
+        "--diagnose",
+        "--cross-talk",
+        "2:0",
+        "--out",
+        html,
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let text = std::fs::read_to_string(html).unwrap();
+    assert!(text.contains("follows from the data"));
+    for bad in ["1:x", "9:0.1"] {
+        let o = polycal(&["solve", file, "--cross-talk", bad]);
+        assert_eq!(o.status.code(), Some(2));
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(
+            stderr.lines().filter(|l| l.starts_with("error:")).count(),
+            1,
+            "{stderr}"
+        );
+    }
 }

@@ -17,9 +17,7 @@
 use polycal::diagnose::{Clock, DiagnoseOptions, Diagnosis, diagnose};
 use polycal::effects::Effect;
 use polycal::report::diagnose::ErrorSummary;
-use polycal::simulate::{
-    ElevationModel, RandomWalkSpec, RezeroSpec, SimulationConfig, Truth, simulate,
-};
+use polycal::simulate::{RandomWalkSpec, RezeroSpec, SimulationConfig, Truth, simulate};
 use polycal::solve::least_squares_with_regressors;
 
 fn base(seed: u64) -> SimulationConfig {
@@ -29,20 +27,8 @@ fn base(seed: u64) -> SimulationConfig {
     }
 }
 
-/// Two mountings (shifted by 5 faces), 4 cycles each, an elevation axis without tilt.
-fn two_mountings_with_y(seed: u64, effects: Vec<Effect>) -> SimulationConfig {
-    SimulationConfig {
-        setups: 2,
-        setup_shift_faces: 5,
-        cycles: 4,
-        elevation: Some(ElevationModel {
-            mounting_tilt_arcsec: 0.0,
-            ..ElevationModel::default()
-        }),
-        effects,
-        ..base(seed)
-    }
-}
+mod undeclared;
+use undeclared::two_mountings_with_y;
 
 fn errors(d: &Diagnosis, truth: &Truth) -> ErrorSummary {
     ErrorSummary::new(&d.after, truth).unwrap()

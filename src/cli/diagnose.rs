@@ -45,9 +45,9 @@ pub struct DiagnoseArgs {
     #[arg(long, allow_negative_numbers = true)]
     sigma: Option<Sigma>,
     /// Cross-talk of an autocollimator stated from its calibration, AC:C or AC:C:U, as for
-    /// `solve`: its readings are corrected by C·reading_y, no cross-talk term is tried for
-    /// it, and the others' cross-talk follows from the data (docs/FORMAT.md §6);
-    /// repeatable.
+    /// `solve`: its readings are corrected to reading − C·reading_y, U enters --budget, no
+    /// cross-talk term is tried for it, the others' cross-talk follows from the data, and
+    /// the JSON ends with `stated_cross_talk` (docs/FORMAT.md §6); repeatable.
     #[arg(
         long = "cross-talk",
         value_name = "AC:C[:U]",
@@ -171,7 +171,8 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         match args.format {
             DiagnoseFormat::Json => {
                 if let Some(report) = &json_report {
-                    writeln!(stdout, "{}", report.to_json()?)?;
+                    let json = report::to_json_with_stated_cross_talk(report, &args.cross_talk)?;
+                    writeln!(stdout, "{json}")?;
                 }
             }
             DiagnoseFormat::Table => {
@@ -181,6 +182,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                 let mut text = String::new();
                 report::diagnose::write_table(&mut text, &diagnosis, truth.as_ref(), &label)?;
                 report::write_final_model_results(&mut text, &diagnosis.after, gum.as_ref())?;
+                report::write_stated_cross_talk(&mut text, &args.cross_talk)?;
                 write!(stdout, "{text}")?;
             }
             DiagnoseFormat::Csv => {

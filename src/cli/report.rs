@@ -40,7 +40,8 @@ pub struct ReportArgs {
     #[arg(long, value_name = "B.toml")]
     budget: Option<PathBuf>,
     /// Cross-talk of an autocollimator stated from its calibration, AC:C or AC:C:U, as for
-    /// `solve` and `diagnose` (docs/FORMAT.md §6); repeatable.
+    /// `solve` and `diagnose`: the readings corrected, U in the budget, the stated values
+    /// in the method section (docs/FORMAT.md §6, §10.2); polygon files only; repeatable.
     #[arg(
         long = "cross-talk",
         value_name = "AC:C[:U]",

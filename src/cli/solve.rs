@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::ValueEnum;
 use polycal::input::display_name;
-use polycal::measurement::cross_talk::{StatedCrossTalk, correct_cross_talk};
+use polycal::measurement::cross_talk::{StatedCrossTalk, check_distinct, correct_cross_talk};
 use polycal::measurement::{MeasurementSet, Sigma};
 use polycal::report::{self, SolveReport};
 use polycal::results::ResultRow;
@@ -46,9 +46,11 @@ pub struct SolveArgs {
     #[arg(long, allow_negative_numbers = true)]
     sigma: Option<Sigma>,
     /// Cross-talk of an autocollimator stated from its calibration, AC:C or AC:C:U (C in
-    /// arcsec of reading per arcsec of reading_y, U its standard uncertainty): its
-    /// readings are corrected by C·reading_y, and U enters --budget (docs/FORMAT.md §6);
-    /// repeatable.
+    /// arcsec of reading per arcsec of reading_y, |C| ≤ 1; U its standard uncertainty,
+    /// 0 … 1): its readings are corrected to reading − C·reading_y, U enters --budget and
+    /// --monte-carlo (without --budget it is not used: a warning says so), and the JSON
+    /// ends with `stated_cross_talk` (docs/FORMAT.md §6); repeatable, one per
+    /// autocollimator.
     #[arg(
         long = "cross-talk",
         value_name = "AC:C[:U]",
@@ -140,12 +142,6 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             .chain([("--budget", args.budget.as_deref())]),
     )?;
     check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
-    if args.monte_carlo.is_some() && args.cross_talk.iter().any(|c| c.u.is_some()) {
-        bail!(
-            "--monte-carlo with a --cross-talk U is not available in this version: the \
-             Monte Carlo does not draw stated corrections; leave out U or --monte-carlo"
-        );
-    }
     if args.monte_carlo.is_some() && args.budget.is_none() {
         bail!(
             "--monte-carlo needs --budget: the Monte Carlo propagates the instrument budget \
@@ -226,7 +222,15 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                     // One bar per file, cleared when its Monte Carlo ends.
                     let progress = out.progress_bar("Monte Carlo");
                     let options = (*options).with_progress(&progress);
-                    calibration::monte_carlo(&set, &solution, budget, &gum, &options)
+                    let corrections = KnownCorrection::of_stated_cross_talk(&set, &args.cross_talk);
+                    calibration::monte_carlo_with_corrections(
+                        &set,
+                        &solution,
+                        budget,
+                        &corrections,
+                        &gum,
+                        &options,
+                    )
                 })
                 .transpose()
                 .with_context(|| format!("{name}: Monte Carlo failed"))?;
@@ -254,7 +258,9 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                     SolveFormat::Json => {
                         let report =
                             SolveReport::sub_pitch(&solved, several.then(|| label.clone()));
-                        writeln!(stdout, "{}", report.to_json()?)?;
+                        let json =
+                            report::to_json_with_stated_cross_talk(&report, &args.cross_talk)?;
+                        writeln!(stdout, "{json}")?;
                     }
                     SolveFormat::Table => {
                         if several {
@@ -262,6 +268,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                         }
                         let mut text = String::new();
                         report::write_sub_pitch_table(&mut text, &solved, &label)?;
+                        report::write_stated_cross_talk(&mut text, &args.cross_talk)?;
                         write!(stdout, "{text}")?;
                     }
                     SolveFormat::Csv => {
@@ -288,7 +295,8 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         match args.format {
             SolveFormat::Json => {
                 if let Some(report) = &json_report {
-                    writeln!(stdout, "{}", report.to_json()?)?;
+                    let json = report::to_json_with_stated_cross_talk(report, &args.cross_talk)?;
+                    writeln!(stdout, "{json}")?;
                 }
             }
             SolveFormat::Table => {
@@ -297,6 +305,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                 }
                 let mut text = String::new();
                 report::write_table(&mut text, &solution, &label, gum.as_ref(), mc.as_ref())?;
+                report::write_stated_cross_talk(&mut text, &args.cross_talk)?;
                 write!(stdout, "{text}")?;
             }
             SolveFormat::Csv => {
@@ -368,7 +377,7 @@ pub(super) fn evaluate_budget(
 }
 
 /// The set with every stated cross-talk corrected for (`--cross-talk`, `solve` and
-/// `diagnose`).
+/// `diagnose`); the error names the option.
 pub(super) fn corrected(set: MeasurementSet, stated: &[StatedCrossTalk]) -> Result<MeasurementSet> {
     if stated.is_empty() {
         return Ok(set);
@@ -377,20 +386,13 @@ pub(super) fn corrected(set: MeasurementSet, stated: &[StatedCrossTalk]) -> Resu
 }
 
 /// Refuses an autocollimator stated twice; warns that a stated U is used only with a
-/// budget (`solve` and `diagnose`).
+/// budget (`solve`, `diagnose` and `report`).
 pub(super) fn check_stated_cross_talk(
     stated: &[StatedCrossTalk],
     with_budget: bool,
     out: &Output,
 ) -> Result<()> {
-    for (k, s) in stated.iter().enumerate() {
-        if stated[..k].iter().any(|t| t.ac == s.ac) {
-            bail!(
-                "--cross-talk: the cross-talk of autocollimator {} is stated twice",
-                s.ac
-            );
-        }
-    }
+    check_distinct(stated).map_err(|e| anyhow::anyhow!("--cross-talk: {e}"))?;
     if !with_budget && stated.iter().any(|s| s.u.is_some()) {
         out.warning(format_args!(
             "--cross-talk: the stated U enters the uncertainty only with --budget (the fit's type A does not see it)"

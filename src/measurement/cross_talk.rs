@@ -7,23 +7,34 @@
 //! Closure data determine only the differences of the autocollimators' cross-talk
 //! coefficients; stating one autocollimator's lets the data give the others'.
 
+use std::fmt;
 use std::str::FromStr;
 
-use super::{MeasurementSet, Reading};
+use serde::Serialize;
 
-/// The largest |C| accepted: a cross-talk of one arcsecond per arcsecond is already far
-/// beyond any autocollimator.
+use super::{MeasurementSet, Reading};
+use crate::input::Location;
+use crate::input::limits::READING_ARCSEC;
+
+/// The largest |C| and the largest U accepted (dimensionless): a cross-talk of one
+/// arcsecond per arcsecond is already far beyond any autocollimator. No `Limit` of
+/// [`crate::input::limits`] fits a dimensionless coefficient, so this is its range.
 pub const MAX_COEFFICIENT: f64 = 1.0;
 
 /// One autocollimator's cross-talk coefficient, stated from its calibration.
-#[derive(Debug, Clone, Copy, PartialEq)]
+///
+/// Its JSON form (the `stated_cross_talk` entries of docs/FORMAT.md §5.1, §5.2) is
+/// `{"ac": 1, "coefficient": 0.01, "u": 0.001}`, `u` `null` when not stated; its text
+/// form ([`fmt::Display`], [`FromStr`]) is `AC:C` or `AC:C:U`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[non_exhaustive]
 pub struct StatedCrossTalk {
     /// Autocollimator number (≥ 1).
     pub ac: u32,
-    /// C: arcsec of reading per arcsec of `reading_y`.
+    /// C: arcsec of reading per arcsec of `reading_y` (dimensionless), |C| ≤
+    /// [`MAX_COEFFICIENT`].
     pub coefficient: f64,
-    /// Standard uncertainty of C, when stated.
+    /// Standard uncertainty of C (dimensionless, 0 … [`MAX_COEFFICIENT`]), when stated.
     pub u: Option<f64>,
 }
 
@@ -54,6 +65,19 @@ pub enum CrossTalkError {
         source_name: String,
         /// The autocollimator.
         ac: u32,
+    },
+    /// A corrected reading beyond the limits of a reading (docs/FORMAT.md §2.2).
+    #[error(
+        "{location}: the reading of autocollimator {ac} corrected for its stated cross-talk: {message}"
+    )]
+    CorrectedReading {
+        /// The set's source and the reading's line (0, left out, for a reading built in
+        /// memory).
+        location: Location,
+        /// The autocollimator.
+        ac: u32,
+        /// The rule it breaks, naming the value and the limits.
+        message: String,
     },
     /// Readings of that autocollimator without `reading_y`: the correction cannot be made.
     #[error(
@@ -89,12 +113,9 @@ impl StatedCrossTalk {
     ///
     /// [`CrossTalkError::Spec`] naming what is out of range.
     pub fn new(ac: u32, coefficient: f64, u: Option<f64>) -> Result<Self, CrossTalkError> {
-        let spec = format!(
-            "{ac}:{coefficient}{}",
-            u.map_or(String::new(), |u| format!(":{u}"))
-        );
+        let stated = Self { ac, coefficient, u };
         let bad = |message: String| CrossTalkError::Spec {
-            spec: spec.clone(),
+            spec: stated.to_string(),
             message,
         };
         if ac == 0 {
@@ -112,7 +133,17 @@ impl StatedCrossTalk {
                 "U must be a finite number within 0 … {MAX_COEFFICIENT}"
             )));
         }
-        Ok(Self { ac, coefficient, u })
+        Ok(stated)
+    }
+
+    /// In words, for tables and the report: `autocollimator 1: C = 0.01, u(C) = 0.001`
+    /// (without `u(C)` when not stated), the numbers as given.
+    pub fn describe(&self) -> String {
+        let mut text = format!("autocollimator {}: C = {}", self.ac, self.coefficient);
+        if let Some(u) = self.u {
+            text.push_str(&format!(", u(C) = {u}"));
+        }
+        text
     }
 
     /// The column of a [`KnownCorrection`](crate::uncertainty::calibration::KnownCorrection)
@@ -130,6 +161,17 @@ impl StatedCrossTalk {
                 }
             })
             .collect()
+    }
+}
+
+impl fmt::Display for StatedCrossTalk {
+    /// `AC:C` or `AC:C:U`, the numbers in the shortest form that reads back the same.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}", self.ac, self.coefficient)?;
+        match self.u {
+            Some(u) => write!(f, ":{u}"),
+            None => Ok(()),
+        }
     }
 }
 
@@ -167,8 +209,25 @@ impl FromStr for StatedCrossTalk {
     }
 }
 
+/// Refuses an autocollimator stated twice: each has one coefficient.
+///
+/// # Errors
+///
+/// [`CrossTalkError::Twice`] naming the first autocollimator stated again.
+pub fn check_distinct(stated: &[StatedCrossTalk]) -> Result<(), CrossTalkError> {
+    match stated
+        .iter()
+        .enumerate()
+        .find(|(k, s)| stated[..*k].iter().any(|t| t.ac == s.ac))
+    {
+        Some((_, s)) => Err(CrossTalkError::Twice { ac: s.ac }),
+        None => Ok(()),
+    }
+}
+
 /// The set with every stated cross-talk corrected for: each reading of autocollimator A
-/// becomes reading − C_A·`reading_y`.
+/// becomes reading − C_A·`reading_y`; the readings of other autocollimators are kept as
+/// they are.
 ///
 /// ```
 /// use polycal::measurement::cross_talk::{StatedCrossTalk, correct_cross_talk};
@@ -185,16 +244,15 @@ impl FromStr for StatedCrossTalk {
 ///
 /// # Errors
 ///
-/// [`CrossTalkError`]: an autocollimator stated twice or not in the set, or readings of
-/// it without `reading_y`.
+/// [`CrossTalkError`]: an autocollimator stated twice or not in the set, readings of it
+/// without `reading_y` (how many, and the first one's cycle and step), or a corrected
+/// reading beyond the limits of a reading (docs/FORMAT.md §2.2).
 pub fn correct_cross_talk(
     set: &MeasurementSet,
     stated: &[StatedCrossTalk],
 ) -> Result<MeasurementSet, CrossTalkError> {
-    for (k, s) in stated.iter().enumerate() {
-        if stated[..k].iter().any(|t| t.ac == s.ac) {
-            return Err(CrossTalkError::Twice { ac: s.ac });
-        }
+    check_distinct(stated)?;
+    for s in stated {
         if !set.readings.iter().any(|r| r.ac == s.ac) {
             return Err(CrossTalkError::NoSuchAutocollimator {
                 source_name: set.source.clone(),
@@ -221,7 +279,14 @@ pub fn correct_cross_talk(
         if let Some(s) = stated.iter().find(|s| s.ac == r.ac)
             && let Some(y) = r.reading_y_arcsec
         {
-            r.reading_arcsec -= s.coefficient * y;
+            let value = r.reading_arcsec - s.coefficient * y;
+            r.reading_arcsec = READING_ARCSEC
+                .check(value, "a reading")
+                .map_err(|message| CrossTalkError::CorrectedReading {
+                    location: Location::new(set.source.clone(), r.line, 0),
+                    ac: r.ac,
+                    message,
+                })?;
         }
     }
     Ok(corrected)

@@ -29,6 +29,8 @@ pub use solve_table::{
 
 use serde::Serialize;
 
+use crate::measurement::cross_talk::StatedCrossTalk;
+
 /// The software version every JSON output carries (`"version"`), e.g. `0.1.0`.
 pub const SOFTWARE_VERSION: &str = env!("CARGO_PKG_VERSION");
 
@@ -59,6 +61,71 @@ pub fn to_json<T: Serialize>(object: &T) -> Result<String, serde_json::Error> {
         version: SOFTWARE_VERSION,
         object,
     })
+}
+
+/// A command's object with the cross-talk stated from the autocollimators' calibrations,
+/// as its last member.
+#[derive(Serialize)]
+struct Stating<'a, T: Serialize> {
+    #[serde(flatten)]
+    object: &'a T,
+    stated_cross_talk: &'a [StatedCrossTalk],
+}
+
+/// [`to_json`] of a command's object that evaluated readings corrected for a stated
+/// cross-talk (docs/FORMAT.md §6): the object gains the member `stated_cross_talk`, one
+/// `{"ac", "coefficient", "u"}` object per autocollimator as stated. With none stated the
+/// line is exactly [`to_json`]'s.
+///
+/// ```
+/// use polycal::measurement::cross_talk::StatedCrossTalk;
+///
+/// #[derive(serde::Serialize)]
+/// struct Out { faces: usize }
+/// let stated = [StatedCrossTalk::new(1, 0.01, Some(0.001))?];
+/// let line = polycal::report::to_json_with_stated_cross_talk(&Out { faces: 24 }, &stated)?;
+/// assert!(line.ends_with(r#""faces":24,"stated_cross_talk":[{"ac":1,"coefficient":0.01,"u":0.001}]}"#));
+/// let plain = polycal::report::to_json_with_stated_cross_talk(&Out { faces: 24 }, &[])?;
+/// assert_eq!(plain, polycal::report::to_json(&Out { faces: 24 })?);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+///
+/// As [`to_json`].
+pub fn to_json_with_stated_cross_talk<T: Serialize>(
+    object: &T,
+    stated: &[StatedCrossTalk],
+) -> Result<String, serde_json::Error> {
+    if stated.is_empty() {
+        return to_json(object);
+    }
+    to_json(&Stating {
+        object,
+        stated_cross_talk: stated,
+    })
+}
+
+/// The line a table ends with when the readings were corrected for a stated cross-talk
+/// (docs/FORMAT.md §6), nothing when none is stated:
+/// `stated cross-talk, readings corrected by C·reading_y: autocollimator 1: C = 0.01, u(C) = 0.001`.
+///
+/// # Errors
+///
+/// The writer's error.
+pub fn write_stated_cross_talk(
+    out: &mut impl std::fmt::Write,
+    stated: &[StatedCrossTalk],
+) -> std::fmt::Result {
+    if stated.is_empty() {
+        return Ok(());
+    }
+    let each: Vec<String> = stated.iter().map(StatedCrossTalk::describe).collect();
+    writeln!(
+        out,
+        "\nstated cross-talk, readings corrected by C·reading_y: {}",
+        each.join("; ")
+    )
 }
 
 /// A number with `decimals` decimals, or `—` when unknown.

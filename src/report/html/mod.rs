@@ -143,6 +143,9 @@ pub struct CalibrationReport {
     pub generated_utc: String,
     /// The command line that made it, when known.
     pub command_line: Option<String>,
+    /// Cross-talk stated from the autocollimators' calibrations, the readings corrected
+    /// for it (docs/FORMAT.md §6); shown in the method section.
+    pub stated_cross_talk: Vec<crate::measurement::cross_talk::StatedCrossTalk>,
 }
 
 /// Reads a whole input file (at most [`crate::input::MAX_INPUT_BYTES`]) and fingerprints it.
@@ -420,6 +423,7 @@ impl CalibrationReport {
                 .clone()
                 .unwrap_or_else(|| crate::clock::rfc3339(crate::clock::unix_now())),
             command_line: inputs.command_line.clone(),
+            stated_cross_talk: inputs.stated_cross_talk.clone(),
         })
     }
 

@@ -11,6 +11,7 @@ use super::tables::{
 };
 use super::{CalibrationReport, DesignSummary, Evaluation};
 use crate::figure::svg::esc;
+use crate::measurement::cross_talk::StatedCrossTalk;
 use crate::report::SOFTWARE_VERSION;
 use crate::report::SolveReport;
 use crate::report::selfcal::SelfcalReport;
@@ -200,7 +201,10 @@ fn details(s: &mut Sections, report: &CalibrationReport) {
 fn method(s: &mut Sections, report: &CalibrationReport) {
     s.open("method", "Method");
     match &report.evaluation {
-        Evaluation::Polygon { solve, design, .. } => polygon_method(&mut s.html, solve, design),
+        Evaluation::Polygon { solve, design, .. } => {
+            polygon_method(&mut s.html, solve, design);
+            stated_cross_talk(&mut s.html, &report.stated_cross_talk);
+        }
         Evaluation::Selfcal { report, .. } => selfcal_method(&mut s.html, report),
     }
     s.html.push_str(
@@ -270,6 +274,22 @@ fn polygon_method(out: &mut String, solve: &SolveReport, d: &DesignSummary) {
                   harmonic is refused)"
                 .to_string(),
         }
+    );
+}
+
+/// The cross-talk stated from the autocollimators' calibrations (docs/FORMAT.md §6), one
+/// paragraph; nothing when none is stated.
+fn stated_cross_talk(out: &mut String, stated: &[StatedCrossTalk]) {
+    if stated.is_empty() {
+        return;
+    }
+    let each: Vec<String> = stated.iter().map(StatedCrossTalk::describe).collect();
+    let _ = writeln!(
+        out,
+        "<p id=\"stated-cross-talk\">Cross-talk stated from the autocollimators' calibrations \
+         (C: arcsec of reading per arcsec of reading_y); their readings are corrected to reading − \
+         C·reading_y before the fit, and a stated u(C) enters the budget: {}.</p>",
+        esc(&each.join("; "))
     );
 }
 

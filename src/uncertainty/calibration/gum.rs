@@ -162,6 +162,23 @@ impl KnownCorrection {
         }
     }
 
+    /// Refuses a correction whose column does not have one finite value per reading
+    /// (`readings`), or whose u is not a finite number ≥ 0.
+    pub(super) fn check(&self, readings: usize) -> Result<(), CalibrationError> {
+        if self.column.len() != readings
+            || !self.column.iter().all(|x| x.is_finite())
+            || !(self.u.is_finite() && self.u >= 0.0)
+        {
+            return Err(CalibrationError::Component {
+                name: self.name.clone(),
+                message: format!(
+                    "needs one finite value per reading ({readings}) and a finite u ≥ 0"
+                ),
+            });
+        }
+        Ok(())
+    }
+
     /// The corrections of the stated cross-talks that carry a U, on `set`: each named
     /// `cross-talk of autocollimator AC (stated)`, its column `reading_y` on AC's
     /// readings (docs/FORMAT.md §6).
@@ -200,15 +217,7 @@ pub fn evaluate_with_corrections(
 ) -> Result<CalibrationUncertainty, CalibrationError> {
     budget.check()?;
     for c in corrections {
-        if c.column.len() != set.readings.len() || !(c.u.is_finite() && c.u >= 0.0) {
-            return Err(CalibrationError::Component {
-                name: c.name.clone(),
-                message: format!(
-                    "needs one value per reading ({}) and a finite u ≥ 0",
-                    set.readings.len()
-                ),
-            });
-        }
+        c.check(set.readings.len())?;
     }
     let op = Operator::new(set, solution)?;
     let (sigma, source) = solution.sigma.ok_or(CalibrationError::NoSigma)?;

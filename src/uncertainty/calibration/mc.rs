@@ -6,7 +6,7 @@ use std::fmt;
 
 use serde::Serialize;
 
-use super::gum::{CalibrationUncertainty, FamilyUncertainty};
+use super::gum::{CalibrationUncertainty, FamilyUncertainty, KnownCorrection};
 use super::trial::{McModel, McSolver};
 use super::{CalibrationError, InstrumentBudget};
 use crate::measurement::MeasurementSet;
@@ -170,7 +170,26 @@ pub fn monte_carlo(
     gum: &CalibrationUncertainty,
     options: &McOptions<'_>,
 ) -> Result<CalibrationMonteCarlo, CalibrationError> {
-    let model = McModel::new(set, solution, budget, options.solver)?;
+    monte_carlo_with_corrections(set, solution, budget, &[], gum, options)
+}
+
+/// [`monte_carlo()`] with the uncertainties of known corrections applied to the readings
+/// ([`KnownCorrection`]): every trial draws each correction's error once, normal with its
+/// u, shared by the readings its column touches; `gum` is then the result of
+/// [`super::evaluate_with_corrections`] with the same corrections.
+///
+/// # Errors
+///
+/// As [`monte_carlo()`] and [`super::evaluate_with_corrections`].
+pub fn monte_carlo_with_corrections(
+    set: &MeasurementSet,
+    solution: &Solution,
+    budget: &InstrumentBudget,
+    corrections: &[KnownCorrection],
+    gum: &CalibrationUncertainty,
+    options: &McOptions<'_>,
+) -> Result<CalibrationMonteCarlo, CalibrationError> {
+    let model = McModel::with_corrections(set, solution, budget, corrections, options.solver)?;
     let mut engine = EngineOptions::new(options.trials)
         .with_coverage(budget.p)
         .with_seed(options.seed);

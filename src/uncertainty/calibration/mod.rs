@@ -33,6 +33,16 @@
 //! u_B,j⁴/ν_B), with ν_A the fit's residual degrees of freedom (infinite for a stated σ);
 //! k = t_p(ν_eff) under the budget's `dof_policy`, U = k·u_c ([`evaluate`]).
 //!
+//! # Known corrections
+//!
+//! A correction applied to the readings with a coefficient known to a standard
+//! uncertainty u ([`KnownCorrection`]; a cross-talk coefficient C stated from an
+//! autocollimator's calibration is one, its readings corrected by C·`reading_y`) is one
+//! more type-B component: the error e of the coefficient moves reading i by e·wᵢ, w the
+//! correction's column, one draw shared by every reading, so quantity j receives
+//! u·|Σᵢ L_ji wᵢ| with infinite degrees of freedom ([`evaluate_with_corrections`]); the
+//! Monte Carlo draws e once per trial, normal ([`monte_carlo_with_corrections`]).
+//!
 //! # The budget file
 //!
 //! The budget file of docs/FORMAT.md §5 with one more key per component, `acts_on` (above;
@@ -97,7 +107,9 @@ pub use gum::{
     evaluate_with_corrections,
 };
 pub(crate) use gum::{Combined, combine};
-pub use mc::{CalibrationMonteCarlo, McFamily, McOptions, monte_carlo};
+pub use mc::{
+    CalibrationMonteCarlo, McFamily, McOptions, monte_carlo, monte_carlo_with_corrections,
+};
 pub use trial::{McModel, McScratch, McSolver};
 
 use super::monte_carlo::McError;

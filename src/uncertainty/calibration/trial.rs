@@ -9,7 +9,7 @@ use rand_distr::{ChiSquared, Distribution as _};
 
 use super::draws::{Plan, Spread, Trapezoids, draw_into, pair_rectangles};
 use super::operator::{Operator, groups};
-use super::{CalibrationError, InstrumentBudget, Scope};
+use super::{CalibrationError, InstrumentBudget, KnownCorrection, Scope};
 use crate::measurement::MeasurementSet;
 use crate::solve::{ClosedFormSolution, PaperDesign, SigmaSource, Solution, closed_form};
 use crate::uncertainty::distribution::{Distribution, Sampler, standard_normals, uniforms};
@@ -136,7 +136,27 @@ impl McModel {
         budget: &InstrumentBudget,
         solver: McSolver,
     ) -> Result<Self, CalibrationError> {
+        Self::with_corrections(set, solution, budget, &[], solver)
+    }
+
+    /// The trial model with the uncertainties of known corrections applied to the
+    /// readings: each trial draws the error e of every [`KnownCorrection`] once, normal
+    /// with its u, and moves reading i by e·`column[i]`.
+    ///
+    /// # Errors
+    ///
+    /// As [`super::evaluate_with_corrections`].
+    pub fn with_corrections(
+        set: &MeasurementSet,
+        solution: &Solution,
+        budget: &InstrumentBudget,
+        corrections: &[KnownCorrection],
+        solver: McSolver,
+    ) -> Result<Self, CalibrationError> {
         budget.check()?;
+        for c in corrections {
+            c.check(set.readings.len())?;
+        }
         let op = Operator::new(set, solution)?;
         let (sigma, source) = solution.sigma.ok_or(CalibrationError::NoSigma)?;
         let n = op.faces;
@@ -235,6 +255,27 @@ impl McModel {
                 };
                 plans.push(Plan { sampler, spread });
             }
+        }
+        // A known correction: one draw shared by every reading its column touches.
+        for c in corrections.iter().filter(|c| c.u > 0.0) {
+            let mut weights = vec![0.0; targets];
+            for (i, &x) in c.column.iter().enumerate() {
+                let (t, w) = map[i];
+                weights[t] += w * x;
+            }
+            let entries = (weights.iter().enumerate())
+                .filter(|(_, w)| **w != 0.0)
+                .map(|(t, &w)| (t, w, 0))
+                .collect();
+            plans.push(Plan {
+                sampler: Distribution::Normal { u: c.u }.sampler().map_err(|e| {
+                    CalibrationError::Component {
+                        name: c.name.clone(),
+                        message: e.to_string(),
+                    }
+                })?,
+                spread: Spread::Groups { groups: 1, entries }.densified(targets),
+            });
         }
         let mut centre = Vec::with_capacity(3 * n - 1);
         centre.extend_from_slice(&solution.pitch_deviation);
