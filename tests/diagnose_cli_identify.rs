@@ -14,6 +14,18 @@ fn polycal(args: &[&str]) -> Output {
         .expect("the polycal binary runs")
 }
 
+/// `polycal diagnose FILE --format json`, its status checked.
+fn diagnose_json(file: &str, status: i32) -> serde_json::Value {
+    let o = polycal(&["diagnose", file, "--format", "json"]);
+    assert_eq!(
+        o.status.code(),
+        Some(status),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("polycal-identify-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -62,14 +74,7 @@ fn cross_talk_the_closure_cannot_place_gives_status_1_with_alternatives() {
             "2:-0.006",
         ],
     );
-    let o = polycal(&["diagnose", &file, "--format", "json"]);
-    assert_eq!(
-        o.status.code(),
-        Some(1),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let json = diagnose_json(&file, 1);
     assert_eq!(json["adequate"], false);
     let effects = json["effects"].as_array().unwrap();
     let cross_talk = effects
@@ -115,14 +120,7 @@ fn cross_talk_the_closure_cannot_place_gives_status_1_with_alternatives() {
 fn cross_talk_the_design_can_place_is_certified() {
     let dir = scratch("decided");
     let file = simulate(&dir, &["--elevation", "--cross-talk", "1:0.01"]);
-    let o = polycal(&["diagnose", &file, "--format", "json"]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stdout)
-    );
-    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let json = diagnose_json(&file, 0);
     let cross_talk = json["effects"]
         .as_array()
         .unwrap()
