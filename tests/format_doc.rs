@@ -1,8 +1,9 @@
 //! Every JSON field name polycal prints or writes is documented in `docs/FORMAT.md`.
 //!
 //! The test runs the binary on the commands whose JSON the contract describes — `solve`
-//! (plain, with `--budget`, with `--monte-carlo`, several files, sub-pitch mountings),
-//! `diagnose` with a truth and with `--budget`, `budget`, `compare`, the truth files of
+//! (plain, with `--budget`, with `--monte-carlo`, several files, sub-pitch mountings, a
+//! stated cross-talk), `diagnose` with a truth, with `--budget` and with a stated
+//! cross-talk, `budget`, `compare`, the truth files of
 //! `simulate` (plain and sub-pitch) and `simulate --selfcal`, `selfcal` (plain and with
 //! `--budget`), and on Unix a whole `run`
 //! against `sim-lab` (its device paths, `manifest.json` and every line of
@@ -220,6 +221,49 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
         fields.add("solve (sub-pitch) --format json", &v);
     }
 
+    // Cross-talk stated from a calibration: `stated_cross_talk`, and its budget component.
+    let xtalk = scratch.path("xtalk.csv");
+    polycal(&[
+        "simulate",
+        "--faces",
+        "12",
+        "--cycles",
+        "3",
+        "--closing",
+        "--elevation",
+        "10:0:1:5:0.05",
+        "--cross-talk",
+        "1:0.01",
+        "--out",
+        &xtalk,
+    ]);
+    for v in json_lines(&[
+        "solve",
+        &xtalk,
+        "--cross-talk",
+        "1:0.01:0.001",
+        "--budget",
+        BUDGET,
+        "--monte-carlo",
+        "2000",
+        "--format",
+        "json",
+    ]) {
+        fields.add("solve --cross-talk --budget --monte-carlo", &v);
+    }
+    for v in json_lines(&[
+        "diagnose",
+        &xtalk,
+        "--cross-talk",
+        "1:0.01:0.001",
+        "--budget",
+        BUDGET,
+        "--format",
+        "json",
+    ]) {
+        fields.add("diagnose --cross-talk --budget", &v);
+    }
+
     // Several files: JSON Lines with "file".
     for v in json_lines(&["solve", EXAMPLE, &drift, "--format", "json"]) {
         fields.add("solve FILE FILE --format json", &v);
@@ -404,6 +448,8 @@ fn every_json_field_name_is_documented() {
         "angle_deg",
         "noise_arcsec",
         "file",
+        "stated_cross_talk",
+        "coefficient",
     ];
     if cfg!(unix) {
         expected.extend(["sessions", "readings_before", "started_unix", "event"]);
