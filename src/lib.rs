@@ -41,6 +41,7 @@ pub mod input;
 #[cfg(feature = "lab")]
 pub mod lab;
 pub mod measurement;
+pub mod plan;
 pub mod polygon;
 pub mod report;
 pub mod results;

@@ -3,7 +3,8 @@
 //! The test runs the binary on the commands whose JSON the contract describes — `solve`
 //! (plain, with `--budget`, with `--monte-carlo`, several files, sub-pitch mountings, a
 //! stated cross-talk), `diagnose` with a truth, with `--budget` and with a stated
-//! cross-talk, `budget`, `compare`, the truth files of
+//! cross-talk, `plan` (designs with a budget and a target, a lost harmonic, a file's design),
+//! `budget`, `compare`, the truth files of
 //! `simulate` (plain and sub-pitch) and `simulate --selfcal`, `selfcal` (plain and with
 //! `--budget`), and on Unix a whole `run`
 //! against `sim-lab` (its device paths, `manifest.json` and every line of
@@ -190,6 +191,28 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
         "json",
     ]) {
         fields.add("selfcal --budget --format json", &v);
+    }
+    // `plan`: a design with a budget and a target, one that loses harmonics, a file's
+    for v in json_lines(&[
+        "plan",
+        "--sigma",
+        "0.05",
+        "--closing",
+        "--budget",
+        BUDGET,
+        "--target-u",
+        "0.03",
+        "--design",
+        "name=A",
+        "--design",
+        "name=lost;ac-faces=1,4",
+        "--format",
+        "json",
+    ]) {
+        fields.add("plan --format json", &v);
+    }
+    for v in json_lines(&["plan", EXAMPLE, "--sigma", "0.05", "--format", "json"]) {
+        fields.add("plan FILE --format json", &v);
     }
     for v in json_lines(&["diagnose", &drift, "--truth", &truth, "--format", "json"]) {
         fields.add("diagnose --truth --format json", &v);

@@ -11,6 +11,7 @@ mod interrupt;
 #[cfg(feature = "lab")]
 mod lab;
 pub mod output;
+mod plan;
 mod report;
 mod selfcal;
 mod simulate;
@@ -102,6 +103,11 @@ pub enum Command {
     /// graduation error and the heads' errors (docs/FORMAT.md §9).
     #[command(after_help = selfcal::EXAMPLES)]
     Selfcal(selfcal::SelfcalArgs),
+    /// Plan a design before measuring: predicted u (and U with a budget) of every β, φ,
+    /// α, the lost harmonics, the smallest drift and jump a diagnosis finds, designs
+    /// side by side (docs/FORMAT.md §5.6).
+    #[command(after_help = plan::EXAMPLES)]
+    Plan(plan::PlanArgs),
     /// Write a self-contained HTML calibration report (inline figures, A4 print): details,
     /// method, results with u, U and k, budget, diagnosis, comparison, provenance
     /// (docs/FORMAT.md §10).
@@ -236,6 +242,7 @@ pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
         Command::Budget(args) => budget::run(&args),
         Command::Compare(args) => compare::run(&args),
         Command::Selfcal(args) => selfcal::run(&args, out),
+        Command::Plan(args) => plan::run(&args, out),
         Command::Report(args) => report::run(&args, out),
         Command::Simulate(args) => simulate::run(&args, out),
         #[cfg(feature = "lab")]

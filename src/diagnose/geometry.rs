@@ -225,6 +225,42 @@ impl FitGeometry {
     /// span is below `1e-9` of the block's largest squared length adds nothing.
     pub fn score_block(&self, columns: &[Vec<f64>], residuals: &[f64]) -> BlockScore {
         let m = columns.len();
+        let gram = self.projected_gram(columns);
+        let mut projection = nalgebra::DVector::<f64>::zeros(m);
+        for a in 0..m {
+            projection[a] = columns[a].iter().zip(residuals).map(|(x, e)| x * e).sum();
+        }
+        let scale = (0..m)
+            .map(|a| columns[a].iter().map(|x| x * x).sum::<f64>())
+            .fold(0.0, f64::max);
+        let eigen = nalgebra::SymmetricEigen::new(gram);
+        let mut values = nalgebra::DVector::<f64>::zeros(m);
+        let (mut reduction, mut rank) = (0.0, 0);
+        for k in 0..m {
+            let lambda = eigen.eigenvalues[k];
+            if scale > 0.0 && lambda > 1e-9 * scale {
+                let v = eigen.eigenvectors.column(k).into_owned();
+                let c = v.dot(&projection);
+                reduction += c * c / lambda;
+                values += v * (c / lambda);
+                rank += 1;
+            }
+        }
+        BlockScore {
+            reduction,
+            rank,
+            values: values.iter().copied().collect(),
+        }
+    }
+}
+
+impl FitGeometry {
+    /// The Gram matrix X̃ᵀX̃ = XᵀX − XᵀHX of a block of columns (one value per reading
+    /// each) projected off the model's span: what the block adds to the model, whatever
+    /// the readings (a design's power to see the block, and how far two columns can be
+    /// told apart, follow from it alone).
+    pub fn projected_gram(&self, columns: &[Vec<f64>]) -> nalgebra::DMatrix<f64> {
+        let m = columns.len();
         let size = self.q.nrows();
         let g: Vec<Vec<f64>> = columns
             .iter()
@@ -255,9 +291,7 @@ impl FitGeometry {
             })
             .collect();
         let mut gram = nalgebra::DMatrix::<f64>::zeros(m, m);
-        let mut projection = nalgebra::DVector::<f64>::zeros(m);
         for a in 0..m {
-            projection[a] = columns[a].iter().zip(residuals).map(|(x, e)| x * e).sum();
             for b in a..m {
                 let xx: f64 = columns[a].iter().zip(&columns[b]).map(|(x, y)| x * y).sum();
                 let xhx: f64 = g[a].iter().zip(&qg[b]).map(|(x, y)| x * y).sum();
@@ -265,26 +299,6 @@ impl FitGeometry {
                 gram[(b, a)] = xx - xhx;
             }
         }
-        let scale = (0..m)
-            .map(|a| columns[a].iter().map(|x| x * x).sum::<f64>())
-            .fold(0.0, f64::max);
-        let eigen = nalgebra::SymmetricEigen::new(gram);
-        let mut values = nalgebra::DVector::<f64>::zeros(m);
-        let (mut reduction, mut rank) = (0.0, 0);
-        for k in 0..m {
-            let lambda = eigen.eigenvalues[k];
-            if scale > 0.0 && lambda > 1e-9 * scale {
-                let v = eigen.eigenvectors.column(k).into_owned();
-                let c = v.dot(&projection);
-                reduction += c * c / lambda;
-                values += v * (c / lambda);
-                rank += 1;
-            }
-        }
-        BlockScore {
-            reduction,
-            rank,
-            values: values.iter().copied().collect(),
-        }
+        gram
     }
 }

@@ -12,6 +12,7 @@ mod budget;
 mod chart;
 mod compare;
 mod diagnose;
+mod plan;
 mod selfcal;
 mod solve;
 pub(crate) mod svg;
@@ -19,6 +20,7 @@ pub(crate) mod svg;
 use crate::compare::Comparison;
 use crate::report::SolveReport;
 use crate::report::diagnose::DiagnoseReport;
+use crate::report::plan::PlanReport;
 use crate::report::selfcal::SelfcalReport;
 use crate::uncertainty::calibration::CalibrationUncertainty;
 
@@ -120,6 +122,13 @@ pub fn diagnose_figures(report: &DiagnoseReport) -> Vec<Figure> {
 /// one of them.
 pub fn budget_figures(uncertainty: &CalibrationUncertainty) -> Vec<Figure> {
     budget::figures(uncertainty)
+}
+
+/// The figures of `polycal plan`: the predicted u(α) against the table angle and u(β)
+/// against the face's angle, one series per design (designs that cannot calibrate are
+/// left out, and the figure says how many).
+pub fn plan_figures(reports: &[PlanReport]) -> Vec<Figure> {
+    plan::figures(reports)
 }
 
 /// Writes every figure into `dir` (created if missing) as `{name}.svg`; returns the paths

@@ -5,7 +5,9 @@
 //!   (β, φ, α with their uncertainties) `diagnose` also prints for its final model;
 //! - [`diagnose`]: the JSON object and the table of `polycal diagnose`;
 //! - [`compare`]: the table of `polycal compare` (its JSON is [`crate::compare::Comparison`]);
-//! - [`selfcal`]: the JSON object, the table and the result rows of `polycal selfcal`.
+//! - [`selfcal`]: the JSON object, the table and the result rows of `polycal selfcal`;
+//! - [`plan`]: the JSON object of one design of `polycal plan`, its table, and the table
+//!   comparing designs.
 //!
 //! Every JSON object a command prints carries the software version ([`to_json`] adds it as
 //! the first member, `"version"`). JSON and CSV carry numbers at full precision (the
@@ -15,6 +17,7 @@
 pub mod compare;
 pub mod diagnose;
 pub mod html;
+pub mod plan;
 pub mod selfcal;
 pub mod solve;
 pub mod solve_table;

@@ -269,6 +269,19 @@ impl SubPitchSolution {
     pub fn is_sub_pitch(&self) -> bool {
         self.cosets.iter().any(|&d| d != 0.0)
     }
+
+    /// The same solution with the uncertainties of σ = `sigma_arcsec` (k = 1) instead of
+    /// the fit's: `encoder_error_u` anew from the cofactor, and the solution's σ stated.
+    /// What a design gives before any reading is taken (`plan`).
+    pub fn with_sigma(mut self, sigma_arcsec: f64) -> Self {
+        self.solution.sigma = Some((sigma_arcsec, super::SigmaSource::Stated));
+        self.encoder_error_u = Some(coset_encoder_error_u(
+            &self.solution,
+            self.cosets.len(),
+            sigma_arcsec,
+        ));
+        self
+    }
 }
 
 /// Solves a measurement set whose mountings may be shifted by any angle (docs/FORMAT.md
@@ -380,37 +393,9 @@ pub fn solve_shifted(
             encoder_error.push(value);
         }
     }
-    let encoder_error_u = solution.sigma.map(|(s, _)| {
-        let q_matrix = &solution.cofactor;
-        // the variance of α_c[N−1] needs Σ_q δ_c[q]: one product per coset
-        let last: Vec<f64> = (1..c_count)
-            .map(|c| {
-                let mut w = vec![0.0; layout.len()];
-                w[layout.encoder(n - 1)] = 1.0;
-                for q in 0..n - 1 {
-                    w[delta(c, q)] = -1.0;
-                }
-                let qw = q_matrix.apply(&w);
-                w.iter().zip(&qw).map(|(a, b)| a * b).sum::<f64>()
-            })
-            .collect();
-        let mut u = Vec::with_capacity(n * c_count);
-        for q in 0..n {
-            let a = layout.encoder(q);
-            for c in 0..c_count {
-                let variance = if c == 0 {
-                    q_matrix.entry(a, a)
-                } else if q + 1 < n {
-                    let d = delta(c, q);
-                    q_matrix.entry(a, a) + q_matrix.entry(d, d) + 2.0 * q_matrix.entry(a, d)
-                } else {
-                    last[c - 1]
-                };
-                u.push(s * variance.max(0.0).sqrt());
-            }
-        }
-        u
-    });
+    let encoder_error_u = solution
+        .sigma
+        .map(|(s, _)| coset_encoder_error_u(&solution, c_count, s));
     let notes = if geometry.is_sub_pitch() {
         vec![constant_note(&geometry)]
     } else {
@@ -424,6 +409,44 @@ pub fn solve_shifted(
         cosets,
         notes,
     })
+}
+
+/// u(α) at every table angle of every coset (the order of `encoder_angle_deg`) for σ = `s`,
+/// from the engine's cofactor: u²(α_c[q]) = s²·wᵀQw for the w that forms α_c[q] from α_0
+/// and the differences δ_c.
+fn coset_encoder_error_u(solution: &Solution, c_count: usize, s: f64) -> Vec<f64> {
+    let n = solution.faces;
+    let layout = solution.layout;
+    let delta = |c: usize, q: usize| layout.effect((c - 1) * (n - 1) + q);
+    let q_matrix = &solution.cofactor;
+    // the variance of α_c[N−1] needs Σ_q δ_c[q]: one product per coset
+    let last: Vec<f64> = (1..c_count)
+        .map(|c| {
+            let mut w = vec![0.0; layout.len()];
+            w[layout.encoder(n - 1)] = 1.0;
+            for q in 0..n - 1 {
+                w[delta(c, q)] = -1.0;
+            }
+            let qw = q_matrix.apply(&w);
+            w.iter().zip(&qw).map(|(a, b)| a * b).sum::<f64>()
+        })
+        .collect();
+    let mut u = Vec::with_capacity(n * c_count);
+    for q in 0..n {
+        let a = layout.encoder(q);
+        for c in 0..c_count {
+            let variance = if c == 0 {
+                q_matrix.entry(a, a)
+            } else if q + 1 < n {
+                let d = delta(c, q);
+                q_matrix.entry(a, a) + q_matrix.entry(d, d) + 2.0 * q_matrix.entry(a, d)
+            } else {
+                last[c - 1]
+            };
+            u.push(s * variance.max(0.0).sqrt());
+        }
+    }
+    u
 }
 
 /// The contrast columns of cosets 1 … C−1 (module documentation), (C − 1)·(N − 1) of

@@ -1,0 +1,239 @@
+//! `polycal plan`: what a design gives before it is measured (docs/FORMAT.md §5.6).
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::ValueEnum;
+use polycal::input::display_name;
+use polycal::measurement::{MeasurementSet, Sigma};
+use polycal::plan::{self, Design, PlanOptions};
+use polycal::report::plan::{PlanReport, write_comparison_table, write_plan_table};
+
+use super::output::Output;
+use super::solve::read_budget;
+use super::{EXIT_OK, EXIT_VERDICT};
+
+/// After `polycal plan --help`.
+pub const EXAMPLES: &str = "\
+Examples:
+  polycal plan --sigma 0.05 --closing
+  polycal plan --sigma 0.05 --closing --budget examples/budgets/instrument.toml --format json
+  polycal plan --sigma 0.05 --closing --design 'name=A' --design 'name=B;ac-faces=1,2,5;cycles=3' --target-u 0.02
+  polycal plan --sigma 0.05 --designs examples/designs.toml --plot plan-figures
+  polycal plan examples/data/polygon24-2ac-6cycles.csv --sigma 0.05";
+
+/// The design options (`simulate`'s), refused with a measurement file.
+const DESIGN_OPTIONS: [&str; 9] = [
+    "faces",
+    "ac_faces",
+    "cycles",
+    "closing",
+    "bidirectional",
+    "setups",
+    "setup_shift",
+    "shift_deg",
+    "step_seconds",
+];
+
+/// Arguments of `polycal plan`.
+#[derive(clap::Args)]
+pub struct PlanArgs {
+    /// A measurement CSV whose design is planned (its readings are not used); `-` reads
+    /// standard input. Without it, the design of the options below.
+    #[arg(conflicts_with_all = DESIGN_OPTIONS)]
+    file: Option<PathBuf>,
+    /// Standard deviation of one reading, arcsec.
+    #[arg(long, required = true, allow_negative_numbers = true)]
+    sigma: Sigma,
+    /// Number of polygon faces N.
+    #[arg(long, default_value_t = 24)]
+    faces: usize,
+    /// Face read at step 0 by each autocollimator (the paper: 1,2).
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    ac_faces: Vec<usize>,
+    /// Cycles per mounting.
+    #[arg(long, default_value_t = 6)]
+    cycles: u32,
+    /// Add the closing reading (step N) to every cycle.
+    #[arg(long)]
+    closing: bool,
+    /// Run every second cycle counter-clockwise (implies --closing).
+    #[arg(long)]
+    bidirectional: bool,
+    /// Number of polygon mountings.
+    #[arg(long, default_value_t = 1)]
+    setups: u32,
+    /// Whole faces the polygon is turned between mountings.
+    #[arg(long, default_value_t = 1)]
+    setup_shift: usize,
+    /// The table's angle at step 0 of each mounting, degrees, one per setup.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "DEG,...",
+        allow_negative_numbers = true
+    )]
+    shift_deg: Vec<f64>,
+    /// Seconds per table stop.
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    step_seconds: f64,
+    /// A design to plan, as changes to the design of the options: KEY=VALUE pairs joined
+    /// by `;` (keys name, faces, ac-faces, cycles, closing, bidirectional, setups,
+    /// setup-shift, shift-deg, step-seconds; docs/FORMAT.md §5.6); repeatable, the
+    /// designs compared side by side.
+    #[arg(long, value_name = "SPEC", conflicts_with = "file")]
+    design: Vec<String>,
+    /// A TOML file of designs (`[[design]]` tables with the keys of --design), each a
+    /// change to the design of the options; added after the --design ones.
+    #[arg(long, value_name = "FILE.toml", conflicts_with = "file")]
+    designs: Option<PathBuf>,
+    /// Instrument budget (TOML, docs/FORMAT.md §5): U and k of every quantity, as `solve
+    /// --budget` would give for a run of the design.
+    #[arg(long, value_name = "FILE.toml")]
+    budget: Option<PathBuf>,
+    /// Find the fewest cycles whose largest u(α) is at most this, arcsec (each design).
+    #[arg(long, value_name = "ARCSEC", allow_negative_numbers = true)]
+    target_u: Option<f64>,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "table")]
+    format: PlanFormat,
+    /// Write the figures (u along the circle for each design) as SVG files into DIR.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
+}
+
+/// `plan --format`.
+#[derive(Clone, Copy, ValueEnum)]
+enum PlanFormat {
+    Table,
+    Json,
+}
+
+impl PlanArgs {
+    /// The design of the options.
+    fn base_design(&self) -> Result<Design> {
+        let mut spec = format!(
+            "faces={};cycles={};closing={};bidirectional={};setups={};setup-shift={};step-seconds={}",
+            self.faces,
+            self.cycles,
+            self.closing,
+            self.bidirectional,
+            self.setups,
+            self.setup_shift,
+            self.step_seconds
+        );
+        let list = |v: &[String]| v.join(",");
+        spec.push_str(&format!(
+            ";ac-faces={}",
+            list(&self.ac_faces.iter().map(usize::to_string).collect::<Vec<_>>())
+        ));
+        let mut design = Design::default().with_spec(&spec)?;
+        design.table_shift_deg = self.shift_deg.clone();
+        Ok(design)
+    }
+}
+
+/// `polycal plan`: returns the exit status, or an error for the `error:` line.
+pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
+    super::stdin_once(
+        [
+            ("the measurement file", args.file.as_deref()),
+            ("--designs", args.designs.as_deref()),
+            ("--budget", args.budget.as_deref()),
+        ]
+        .into_iter(),
+    )?;
+    let budget = read_budget(args.budget.as_deref(), out)?;
+    let options = PlanOptions::new(args.sigma)
+        .with_budget(budget)
+        .with_target_encoder_u(args.target_u)
+        .map_err(|e| anyhow::anyhow!("--target-u: {e}"))?;
+    let mut reports = Vec::new();
+    if let Some(path) = &args.file {
+        let name = display_name(path);
+        if args.target_u.is_some() {
+            anyhow::bail!(
+                "--target-u needs a design given by options, not a measurement file: the \
+                 cycles of a file's design are its own"
+            );
+        }
+        let set = MeasurementSet::read_path(path, None)?;
+        let planned = plan::plan_set(&set, &options)
+            .map_err(actionable)
+            .with_context(|| format!("{name}: cannot plan its design"))?;
+        let mut planned = planned;
+        planned.name = path.display().to_string();
+        reports.push(PlanReport::new(
+            &planned,
+            None,
+            Some(path.display().to_string()),
+        ));
+    } else {
+        let base = args.base_design()?;
+        let mut designs = Vec::new();
+        for spec in &args.design {
+            designs.push(base.with_spec(spec).map_err(|e| anyhow::anyhow!("--design: {e}"))?);
+        }
+        if let Some(path) = &args.designs {
+            designs.extend(Design::read_designs_file(path, &base)?);
+        }
+        if designs.is_empty() {
+            designs.push(base);
+        }
+        let several = designs.len() > 1;
+        for (i, mut design) in designs.into_iter().enumerate() {
+            if several && design.name.is_none() {
+                design.name = Some(format!("design {}", i + 1));
+            }
+            let planned = plan::plan(&design, &options)
+                .map_err(actionable)
+                .with_context(|| format!("design {}", design.label()))?;
+            reports.push(PlanReport::new(&planned, Some(&design), None));
+        }
+    }
+    if let Some(dir) = &args.plot {
+        super::write_plot(dir, &polycal::figure::plan_figures(&reports))?;
+    }
+    let stdout = std::io::stdout();
+    let mut stdout = stdout.lock();
+    match args.format {
+        PlanFormat::Json => {
+            for r in &reports {
+                writeln!(stdout, "{}", r.to_json()?)?;
+            }
+        }
+        PlanFormat::Table => {
+            let mut text = String::new();
+            if reports.len() > 1 {
+                write_comparison_table(&mut text, &reports)?;
+            } else if let Some(r) = reports.first() {
+                write_plan_table(&mut text, r)?;
+            }
+            write!(stdout, "{text}")?;
+        }
+    }
+    stdout.flush()?;
+    let cannot = reports
+        .iter()
+        .filter(|r| r.worst.is_none() || r.target.as_ref().is_some_and(|t| t.cycles.is_none()))
+        .count();
+    if cannot > 0 {
+        out.warning(format_args!(
+            "{cannot} of {} design(s) cannot calibrate or do not reach the target u(α)",
+            reports.len()
+        ));
+        return Ok(EXIT_VERDICT);
+    }
+    Ok(EXIT_OK)
+}
+
+/// A planning error with the option that gets past it, where one does.
+fn actionable(error: plan::PlanError) -> anyhow::Error {
+    match error {
+        plan::PlanError::Budget(polycal::uncertainty::calibration::CalibrationError::NoSigma) => {
+            anyhow::anyhow!("{error} (--sigma)")
+        }
+        other => other.into(),
+    }
+}

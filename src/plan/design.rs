@@ -1,0 +1,382 @@
+//! A design without readings: what a metrologist decides before the polygon is on the
+//! table, and its written form (docs/FORMAT.md §5.6).
+
+use std::str::FromStr;
+
+use serde::Deserialize;
+
+use crate::measurement::MeasurementSet;
+use crate::simulate::{SimulationConfig, simulate};
+
+use super::PlanError;
+
+/// A measuring design: the polygon, the autocollimators, the cycles, the closing
+/// reading, the direction, the mountings and the time per stop. Its readings are not
+/// needed to predict what it gives: the cofactor of a design does not depend on them.
+///
+/// ```
+/// use polycal::plan::Design;
+///
+/// let paper = Design::default();
+/// assert_eq!((paper.faces, paper.cycles, paper.ac_faces.as_slice()), (24, 6, &[1, 2][..]));
+/// // the written form overrides a base design key by key
+/// let d = paper.with_spec("name=three;ac-faces=1,2,5;cycles=3;bidirectional")?;
+/// assert_eq!(d.name.as_deref(), Some("three"));
+/// assert_eq!((d.ac_faces.len(), d.cycles, d.bidirectional), (3, 3, true));
+/// assert_eq!(d.reading_count(), 3 * 25 * 3);
+/// # Ok::<(), polycal::plan::PlanError>(())
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct Design {
+    /// A name for tables and JSON (`design 1`, … when none is given).
+    pub name: Option<String>,
+    /// Faces of the polygon N (= encoder positions), ≥ 3.
+    pub faces: usize,
+    /// The face each autocollimator reads at step 0 of mounting 1.
+    pub ac_faces: Vec<usize>,
+    /// Cycles per mounting, ≥ 1.
+    pub cycles: u32,
+    /// Whether clockwise cycles end with the closing reading at step N.
+    pub closing: bool,
+    /// Whether every second cycle runs counter-clockwise (with the closing reading).
+    pub bidirectional: bool,
+    /// Mountings of the polygon, ≥ 1.
+    pub setups: u32,
+    /// Whole faces the polygon is turned between mountings.
+    pub setup_shift_faces: usize,
+    /// The table's angle at step 0 of each mounting, degrees (empty: all at 0).
+    pub table_shift_deg: Vec<f64>,
+    /// Seconds per table stop, > 0.
+    pub step_seconds: f64,
+}
+
+impl Default for Design {
+    /// The paper's design: 24 faces, autocollimators on faces 1 and 2, 6 clockwise cycles
+    /// with the closing reading, one mounting, 20 s per stop.
+    fn default() -> Self {
+        Design::from_config(&SimulationConfig::default())
+    }
+}
+
+/// The keys of a design's written form, as they appear in a spec and a designs file.
+pub const DESIGN_KEYS: [&str; 10] = [
+    "name",
+    "faces",
+    "ac-faces",
+    "cycles",
+    "closing",
+    "bidirectional",
+    "setups",
+    "setup-shift",
+    "shift-deg",
+    "step-seconds",
+];
+
+impl Design {
+    /// The design part of simulation settings (faces, autocollimators, cycles, closing,
+    /// direction, mountings, time per stop).
+    pub fn from_config(config: &SimulationConfig) -> Self {
+        Design {
+            name: None,
+            faces: config.faces,
+            ac_faces: config.ac_faces.clone(),
+            cycles: config.cycles,
+            closing: config.closing,
+            bidirectional: config.bidirectional,
+            setups: config.setups,
+            setup_shift_faces: config.setup_shift_faces,
+            table_shift_deg: config.table_shift_deg.clone(),
+            step_seconds: config.step_seconds,
+        }
+    }
+
+    /// Simulation settings of this design without truth, noise or effects: every reading
+    /// of the run is 0.
+    pub fn simulation_config(&self) -> SimulationConfig {
+        SimulationConfig {
+            faces: self.faces,
+            ac_faces: self.ac_faces.clone(),
+            cycles: self.cycles,
+            closing: self.closing,
+            bidirectional: self.bidirectional,
+            setups: self.setups,
+            setup_shift_faces: self.setup_shift_faces,
+            table_shift_deg: self.table_shift_deg.clone(),
+            step_seconds: self.step_seconds,
+            noise_arcsec: 0.0,
+            pitch_spread_arcsec: 0.0,
+            encoder_harmonics: Vec::new(),
+            setup_error_spread_arcsec: 0.0,
+            ..SimulationConfig::default()
+        }
+    }
+
+    /// The number of readings a run of this design takes.
+    pub fn reading_count(&self) -> usize {
+        self.simulation_config().reading_count()
+    }
+
+    /// The design with the same settings and another number of cycles.
+    pub fn with_cycles(&self, cycles: u32) -> Self {
+        Design {
+            cycles,
+            ..self.clone()
+        }
+    }
+
+    /// Checks the design (the rules of `simulate`'s settings).
+    ///
+    /// # Errors
+    ///
+    /// [`PlanError::Design`] naming the first problem.
+    pub fn validate(&self) -> Result<(), PlanError> {
+        self.simulation_config()
+            .validate()
+            .map_err(|e| PlanError::Design(format!("{}: {e}", self.label())))
+    }
+
+    /// The design's readings, all 0, with their times (a run's readings do not change
+    /// what the design gives). Refused up front when the readings alone would not fit in
+    /// the memory available.
+    ///
+    /// # Errors
+    ///
+    /// [`PlanError::Design`] for an invalid design; [`PlanError::TooLarge`] for one whose
+    /// readings would not fit.
+    pub fn measurement_set(&self) -> Result<MeasurementSet, PlanError> {
+        self.measurement_set_within(None)
+    }
+
+    /// [`Design::measurement_set`] held to a memory limit (bytes) instead of the
+    /// machine's available memory.
+    ///
+    /// # Errors
+    ///
+    /// As [`Design::measurement_set`].
+    pub fn measurement_set_within(
+        &self,
+        memory_limit_bytes: Option<u64>,
+    ) -> Result<MeasurementSet, PlanError> {
+        self.validate()?;
+        super::check_memory(
+            self.reading_count() as u128 * super::BYTES_PER_READING,
+            "the readings of the design",
+            memory_limit_bytes,
+        )?;
+        let (mut set, _) = simulate(&self.simulation_config())
+            .map_err(|e| PlanError::Design(format!("{}: {e}", self.label())))?;
+        set.source = format!("design {}", self.label());
+        Ok(set)
+    }
+
+    /// The name, or a description of the design when it has none.
+    pub fn label(&self) -> String {
+        self.name.clone().unwrap_or_else(|| {
+            format!(
+                "{} faces, autocollimators at {}, {} cycle{}{}{}{}",
+                self.faces,
+                self.ac_faces
+                    .iter()
+                    .map(usize::to_string)
+                    .collect::<Vec<_>>()
+                    .join(","),
+                self.cycles,
+                if self.cycles == 1 { "" } else { "s" },
+                if self.closing || self.bidirectional {
+                    ", closing"
+                } else {
+                    ""
+                },
+                if self.bidirectional {
+                    ", bidirectional"
+                } else {
+                    ""
+                },
+                if self.setups > 1 {
+                    format!(", {} mountings", self.setups)
+                } else {
+                    String::new()
+                }
+            )
+        })
+    }
+
+    /// This design with the keys of `spec` changed: `KEY=VALUE` pairs separated by `;`
+    /// (keys [`DESIGN_KEYS`]; `closing` and `bidirectional` alone mean `=true`; lists are
+    /// separated by `,`), e.g. `name=B;cycles=4;ac-faces=1,2,5;bidirectional`.
+    ///
+    /// # Errors
+    ///
+    /// [`PlanError::Spec`] naming the key and what is wrong with it.
+    pub fn with_spec(&self, spec: &str) -> Result<Design, PlanError> {
+        let mut design = self.clone();
+        for part in spec.split(';').map(str::trim).filter(|p| !p.is_empty()) {
+            let (key, value) = match part.split_once('=') {
+                Some((k, v)) => (k.trim(), Some(v.trim())),
+                None => (part, None),
+            };
+            design.set(key, value, spec)?;
+        }
+        Ok(design)
+    }
+
+    fn set<'a>(&mut self, key: &str, value: Option<&'a str>, spec: &str) -> Result<(), PlanError> {
+        let bad = |what: String| PlanError::Spec {
+            spec: spec.to_string(),
+            message: what,
+        };
+        let need = |v: Option<&'a str>| v.ok_or_else(|| bad(format!("`{key}` needs a value")));
+        fn number<T: FromStr>(key: &str, text: &str) -> Result<T, String> {
+            text.parse::<T>()
+                .map_err(|_| format!("`{key}={text}`: not a valid number"))
+        }
+        let flag = |v: Option<&str>| match v {
+            None | Some("true") | Some("yes") => Ok(true),
+            Some("false") | Some("no") => Ok(false),
+            Some(other) => Err(bad(format!("`{key}={other}`: want true or false"))),
+        };
+        match key.replace('_', "-").as_str() {
+            "name" => self.name = Some(need(value)?.to_string()),
+            "faces" => self.faces = number(key, need(value)?).map_err(bad)?,
+            "cycles" => self.cycles = number(key, need(value)?).map_err(bad)?,
+            "setups" => self.setups = number(key, need(value)?).map_err(bad)?,
+            "setup-shift" => self.setup_shift_faces = number(key, need(value)?).map_err(bad)?,
+            "step-seconds" => {
+                let v: f64 = number(key, need(value)?).map_err(bad)?;
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(bad(format!("`{key}`: {v} is not a time > 0")));
+                }
+                self.step_seconds = v;
+            }
+            "closing" => self.closing = flag(value)?,
+            "bidirectional" => self.bidirectional = flag(value)?,
+            "ac-faces" => {
+                self.ac_faces = need(value)?
+                    .split(',')
+                    .map(|t| number(key, t.trim()))
+                    .collect::<Result<_, _>>()
+                    .map_err(bad)?
+            }
+            "shift-deg" => {
+                self.table_shift_deg = need(value)?
+                    .split(',')
+                    .map(|t| number::<f64>(key, t.trim()))
+                    .collect::<Result<_, _>>()
+                    .map_err(bad)?
+            }
+            other => {
+                return Err(bad(format!(
+                    "unknown key `{other}` (keys: {})",
+                    DESIGN_KEYS.join(", ")
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads a designs file (`-`: standard input) and its designs ([`Design::parse_designs_file`]).
+    ///
+    /// # Errors
+    ///
+    /// [`PlanError::Io`] naming the file; [`PlanError::File`] with the line and column of
+    /// bytes that are not UTF-8, a TOML error or a bad key.
+    pub fn read_designs_file(path: &std::path::Path, base: &Design) -> Result<Vec<Design>, PlanError> {
+        let (bytes, name) = crate::input::read_bytes(path)
+            .map_err(|(file, source)| PlanError::Io { file, source })?;
+        let text = crate::input::text::utf8(&bytes).map_err(|((line, column), message)| {
+            PlanError::File {
+                location: crate::input::Location::new(name.clone(), line, column),
+                message,
+            }
+        })?;
+        Design::parse_designs_file(text, &name, base)
+    }
+
+    /// The designs of a designs file (TOML, docs/FORMAT.md §5.6): `[[design]]` tables
+    /// with the keys of [`DESIGN_KEYS`] (`ac-faces` and `shift-deg` as arrays), each
+    /// changing `base`.
+    ///
+    /// # Errors
+    ///
+    /// [`PlanError::File`] with the file, line and column of a TOML error or a bad key.
+    pub fn parse_designs_file(text: &str, source: &str, base: &Design) -> Result<Vec<Design>, PlanError> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct File {
+            design: Vec<toml::Table>,
+        }
+        let located = |span: Option<std::ops::Range<usize>>, message: String| {
+            let location = match span {
+                Some(span) => crate::uncertainty::budget_file::location(source, text, span.start),
+                None => crate::input::Location::file_only(source),
+            };
+            PlanError::File { location, message }
+        };
+        let file: File =
+            toml::from_str(text).map_err(|e| located(e.span(), e.message().to_string()))?;
+        let mut designs = Vec::with_capacity(file.design.len());
+        for (index, table) in file.design.iter().enumerate() {
+            let mut design = base.clone();
+            for (key, value) in table {
+                let text_value = match value {
+                    toml::Value::String(s) => s.clone(),
+                    toml::Value::Integer(i) => i.to_string(),
+                    toml::Value::Float(f) => f.to_string(),
+                    toml::Value::Boolean(b) => b.to_string(),
+                    toml::Value::Array(items) => items
+                        .iter()
+                        .map(|v| match v {
+                            toml::Value::String(s) => s.clone(),
+                            other => other.to_string(),
+                        })
+                        .collect::<Vec<_>>()
+                        .join(","),
+                    other => other.to_string(),
+                };
+                design
+                    .set(key, Some(&text_value), &format!("[[design]] {}", index + 1))
+                    .map_err(|e| {
+                        located(
+                            key_span(text, index, key),
+                            match e {
+                                PlanError::Spec { message, .. } => {
+                                    format!("design {}: {message}", index + 1)
+                                }
+                                other => other.to_string(),
+                            },
+                        )
+                    })?;
+            }
+            designs.push(design);
+        }
+        if designs.is_empty() {
+            return Err(located(None, "no [[design]] table".into()));
+        }
+        Ok(designs)
+    }
+}
+
+/// The byte range of `key` in the `index`-th `[[design]]` table of `text`, for the error's
+/// line and column (the first occurrence after that table's header).
+fn key_span(text: &str, index: usize, key: &str) -> Option<std::ops::Range<usize>> {
+    let mut headers = text.match_indices("[[design]]").map(|(i, _)| i);
+    let start = headers.nth(index)?;
+    let rest = &text[start..];
+    let at = rest
+        .lines()
+        .scan(0usize, |offset, line| {
+            let here = *offset;
+            *offset += line.len() + 1;
+            Some((here, line))
+        })
+        .find(|(_, line)| {
+            let t = line.trim_start();
+            t.starts_with(key)
+                && t[key.len()..]
+                    .trim_start()
+                    .starts_with('=')
+        })
+        .map(|(offset, line)| offset + (line.len() - line.trim_start().len()))?;
+    Some(start + at..start + at + key.len())
+}

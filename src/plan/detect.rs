@@ -1,0 +1,609 @@
+//! What a diagnosis of a run of a design can see, before it is measured.
+//!
+//! `diagnose` scores each candidate term by the part of its column the model does not
+//! span ([`crate::diagnose::geometry`]) and adds it when its F test passes its family's
+//! Bonferroni threshold. Both depend on the design alone: the projected column x̃ (its
+//! squared length ‖x̃‖² = xᵀx − xᵀHx) and the number of candidates m of its family in the
+//! first round. An effect of size δ gives the F test the noncentrality λ = δ²‖x̃‖²/σ²,
+//! so the smallest size found with probability 90 % is δ₉₀ = σ·√(λ₉₀/‖x̃‖²), λ₉₀ from
+//! [`super::power::noncentrality_for_power`] at level α/m with 1 and dof − 1 degrees of
+//! freedom. For a block of r columns whose values are independent draws of standard
+//! deviation s (a zero set anew every cycle), the mean noncentrality is
+//! s²·tr(X̃ᵀX̃)/σ², and δ₉₀ is that s.
+//!
+//! Two explanations a and b cannot be told apart when, with a at its 90 % size, b fits
+//! the data about as well: the F test of a against b has the noncentrality
+//! λ₉₀·(1 − ρ²), ρ the correlation of their projected columns, and it stays below the
+//! 5 % critical value of χ²₁ (the ambiguity test of `diagnose`).
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::power::critical_f;
+use super::selection::Round;
+use super::{DETECTION_POWER, PlanError};
+use crate::diagnose::DiagnoseOptions;
+use crate::diagnose::candidates::{
+    self, Family, MIN_STEP_READINGS, Term, step_streams, stream_in_time_order, systematic_blocks,
+};
+use crate::diagnose::geometry::FitGeometry;
+use crate::effects::{Effect, EffectContext};
+use crate::measurement::MeasurementSet;
+use crate::solve::{Solution, least_squares_with_regressors};
+
+/// The false-alarm probability of the ambiguity test (as `diagnose`'s).
+const AMBIGUITY_ALPHA: f64 = 0.05;
+
+/// A cross-talk term whose column lies within 10 % of the model's span is not tried by
+/// `diagnose` (as there).
+const CROSS_TALK_MIN_NEW_FRACTION: f64 = 0.1;
+
+/// What a design lets a diagnosis see of one effect term.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Detectable {
+    /// The kind (docs/FORMAT.md §6): `drift`, `drift-curvature`, `offset-step`, `rezero`,
+    /// `direction`, `cross-talk`, `temperature`.
+    pub kind: &'static str,
+    /// The autocollimator (`null` for a direction offset of all).
+    pub ac: Option<u32>,
+    /// The mounting, for a stream's terms when the design has several.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub setup: Option<u32>,
+    /// Whether the design can tell the term from the base model at all.
+    pub identifiable: bool,
+    /// The size found with 90 % probability, in [`Detectable::unit`]; `null` when not
+    /// identifiable.
+    pub size: Option<f64>,
+    /// The unit of `size`, as `simulate` takes the effect: `arcsec/h` (a drift),
+    /// `arcsec/h^2` (its curvature), `arcsec` (a jump, a direction offset, the standard
+    /// deviation of a zero set anew every cycle), `arcsec/arcsec` (cross-talk),
+    /// `arcsec/degC` (temperature).
+    pub unit: &'static str,
+    /// Numerator degrees of freedom of its F test.
+    pub df: usize,
+    /// The candidates of its family in the first round (the Bonferroni divisor).
+    pub family_size: usize,
+    /// The fraction of its column outside the base model's span, √(‖x̃‖²/‖x‖²).
+    pub new_fraction: f64,
+    /// A jump: the cycle of the stop where it is seen best (the `size`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cycle: Option<u32>,
+    /// A jump: the step of that stop (absent for a jump at a cycle's first reading,
+    /// "from that cycle on").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub step: Option<usize>,
+    /// A jump: the median of the 90 % sizes over every stop it may happen at.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub median_size: Option<f64>,
+}
+
+/// One explanation of a pair the design cannot tell apart.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Explanation {
+    /// Its kind.
+    pub kind: &'static str,
+    /// Its autocollimator (`null`: all).
+    pub ac: Option<u32>,
+    /// Its mounting, where it applies.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub setup: Option<u32>,
+}
+
+/// Two explanations the data of a run of the design cannot tell apart.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Ambiguity {
+    /// The first.
+    pub first: Explanation,
+    /// The second.
+    pub second: Explanation,
+    /// The correlation of their columns projected off the model's span.
+    pub correlation: f64,
+}
+
+/// A term the plan looks at, with how it is named.
+struct Looked {
+    kind: &'static str,
+    ac: Option<u32>,
+    setup: Option<u32>,
+    unit: &'static str,
+}
+
+fn looked(term: &Term) -> Option<Looked> {
+    let (kind, ac, setup, unit) = match term {
+        Term::Effect(Effect::Drift { ac, .. }) => ("drift", Some(*ac), None, "arcsec/h"),
+        Term::Effect(Effect::Direction { ac, .. }) => ("direction", *ac, None, "arcsec"),
+        Term::Effect(Effect::CrossTalk { ac, .. }) => {
+            ("cross-talk", Some(*ac), None, "arcsec/arcsec")
+        }
+        Term::Effect(Effect::Temperature { ac, .. }) => {
+            ("temperature", Some(*ac), None, "arcsec/degC")
+        }
+        Term::Quadratic { ac } => ("drift-curvature", Some(*ac), None, "arcsec/h^2"),
+        Term::RezeroCycle { ac, setup, .. } => ("rezero", Some(*ac), *setup, "arcsec"),
+        _ => return None,
+    };
+    Some(Looked {
+        kind,
+        ac,
+        setup,
+        unit,
+    })
+}
+
+/// Bytes of the diagnosis geometry of `solution` with `extra` effect columns.
+fn geometry_bytes(solution: &Solution, extra: usize) -> u128 {
+    let p = (solution.layout.len() + extra) as u128;
+    3 * p * p * 8
+}
+
+/// The most jump columns of one stream a round offers (a sample of its stops, evenly
+/// spread; neighbouring stops' columns are nearly the same).
+const JUMP_COLUMNS_PER_STREAM: usize = 60;
+
+/// The stops of one stream whose jump size is computed (evenly spread, and the best).
+const JUMP_STOPS_SIZED: usize = 9;
+
+/// What a systematic block names, for grouping: the drift of an autocollimator (any
+/// order), else the block's first term.
+fn group_key(block: &[Term]) -> String {
+    match block.first() {
+        Some(Term::Effect(Effect::Drift { ac, .. })) => format!("drift {ac}"),
+        Some(Term::Quadratic { ac }) | Some(Term::DriftShape { ac, .. }) => {
+            format!("drift-curvature {ac}")
+        }
+        Some(Term::RezeroCycle { ac, setup, .. }) => format!("rezero {ac} {setup:?}"),
+        Some(Term::Effect(e)) => format!("{:?}", e.clone().with_value(0.0)),
+        None => String::new(),
+    }
+}
+
+/// The systematic blocks of a round, tested as `diagnose` tests them: (block, its
+/// columns, whether it is a candidate).
+fn systematic(
+    set: &MeasurementSet,
+    context: &EffectContext,
+    geometry: &FitGeometry,
+    present: &[Term],
+    options: &DiagnoseOptions,
+) -> Vec<(Vec<Term>, Vec<Vec<f64>>, bool, f64)> {
+    let zero = vec![0.0; set.readings.len()];
+    systematic_blocks(set, present, &options.stated_cross_talk)
+        .into_iter()
+        .map(|block| {
+            let columns: Vec<Vec<f64>> = block.iter().map(|t| t.column(set, context)).collect();
+            let (testable, fraction) = if let [term] = block.as_slice() {
+                let score = geometry.score(&columns[0], &zero);
+                let is_cross_talk = matches!(term, Term::Effect(Effect::CrossTalk { .. }));
+                (
+                    score.is_new()
+                        && !(is_cross_talk
+                            && score.new_fraction() < CROSS_TALK_MIN_NEW_FRACTION),
+                    score.new_fraction(),
+                )
+            } else {
+                let gram = geometry.projected_gram(&columns);
+                let total: f64 = columns.iter().flatten().map(|x| x * x).sum();
+                let rank = geometry.score_block(&columns, &zero).rank;
+                (
+                    rank > 0,
+                    if total > 0.0 {
+                        (gram.trace().max(0.0) / total).sqrt()
+                    } else {
+                        0.0
+                    },
+                )
+            };
+            (block, columns, testable, fraction)
+        })
+        .collect()
+}
+
+/// One stream's jump columns: every stop a jump may start at (as `diagnose` scans).
+struct Stream {
+    ac: u32,
+    setup: Option<u32>,
+    order: Vec<usize>,
+    /// (k in `order`, new fraction) of the stops whose column adds a direction.
+    stops: Vec<(usize, f64)>,
+}
+
+impl Stream {
+    fn column(&self, k: usize, readings: usize) -> Vec<f64> {
+        let mut column = vec![0.0; readings];
+        for &i in &self.order[k..] {
+            column[i] = 1.0;
+        }
+        column
+    }
+}
+
+/// Evenly spread picks of at most `most` of `items`.
+fn spread<T: Copy>(items: &[T], most: usize) -> Vec<T> {
+    if items.len() <= most {
+        return items.to_vec();
+    }
+    (0..most)
+        .map(|j| items[(j * (items.len() - 1)) / (most - 1).max(1)])
+        .collect()
+}
+
+/// What a diagnosis of a run of `set`'s design can see: one [`Detectable`] per effect
+/// term (module documentation), and the pairs it cannot tell apart. `solution` is the
+/// base fit of the set.
+///
+/// # Errors
+///
+/// [`PlanError::TooLarge`] when the geometry would not fit in memory.
+pub fn detectable(
+    set: &MeasurementSet,
+    solution: &Solution,
+    sigma: f64,
+    options: &DiagnoseOptions,
+    memory_limit_bytes: Option<u64>,
+) -> Result<(Vec<Detectable>, Vec<Ambiguity>), PlanError> {
+    super::check_memory(
+        geometry_bytes(solution, 1),
+        "the geometry of a diagnosis of the design",
+        memory_limit_bytes,
+    )?;
+    let context = EffectContext::of(&set.readings);
+    let geometry = FitGeometry::new(solution, set, &[]);
+    let zero = vec![0.0; set.readings.len()];
+    let n = set.readings.len();
+    let dof = solution.dof;
+    let alpha = options.family_alpha;
+
+    // the streams a jump can belong to, and every stop it may start at
+    let mut streams = Vec::new();
+    for (ac, setup) in step_streams(set) {
+        let order = stream_in_time_order(set, ac, setup);
+        if order.len() < 2 * MIN_STEP_READINGS {
+            continue;
+        }
+        let scores = geometry.suffix_scores(&order, &zero);
+        let stops = (MIN_STEP_READINGS..=order.len() - MIN_STEP_READINGS)
+            .filter(|&k| scores[k].is_new())
+            .map(|k| (k, scores[k].new_fraction()))
+            .collect();
+        streams.push(Stream {
+            ac,
+            setup,
+            order,
+            stops,
+        });
+    }
+    let jump_family: usize = streams.iter().map(|s| s.stops.len()).sum();
+
+    // round 1: the systematic blocks and a sample of every stream's jumps
+    let blocks = systematic(set, &context, &geometry, &[], options);
+    let systematic_family = blocks.iter().filter(|b| b.2).count();
+    let mut groups: Vec<String> = Vec::new();
+    let mut group_of = |key: String| match groups.iter().position(|g| *g == key) {
+        Some(g) => g,
+        None => {
+            groups.push(key);
+            groups.len() - 1
+        }
+    };
+    let mut offered: Vec<(Family, usize, Vec<Vec<f64>>)> = Vec::new();
+    // (index into offered, block) of the systematic candidates
+    let mut systematic_index = Vec::new();
+    for (block, columns, testable, _) in &blocks {
+        if *testable {
+            systematic_index.push(offered.len());
+            offered.push((Family::Systematic, group_of(group_key(block)), columns.clone()));
+        } else {
+            systematic_index.push(usize::MAX);
+        }
+    }
+    // the stops sized per stream, and the offered index of each
+    let mut sized: Vec<Vec<(usize, usize)>> = Vec::new();
+    for stream in &streams {
+        let group = group_of(format!("jump {} {:?}", stream.ac, stream.setup));
+        let ks: Vec<usize> = stream.stops.iter().map(|s| s.0).collect();
+        let mut picks = spread(&ks, JUMP_COLUMNS_PER_STREAM);
+        let chosen = spread(&ks, JUMP_STOPS_SIZED);
+        for k in &chosen {
+            if !picks.contains(k) {
+                picks.push(*k);
+            }
+        }
+        let mut here = Vec::new();
+        for k in picks {
+            if chosen.contains(&k) {
+                here.push((k, offered.len()));
+            }
+            offered.push((Family::OffsetStep, group, vec![stream.column(k, n)]));
+        }
+        sized.push(here);
+    }
+    let round = Round::new(
+        &geometry,
+        dof,
+        offered,
+        [systematic_family, jump_family, n],
+    );
+    let column_start = |index: usize| -> (usize, usize) {
+        let o = &round.offered()[index];
+        (o.start(), o.len())
+    };
+
+    // the sizes, term by term in parallel (each a bisection over the same draws)
+    let systematic_sizes: Vec<Option<f64>> = blocks
+        .par_iter()
+        .zip(&systematic_index)
+        .map(|((block, _, testable, _), &index)| {
+            let l = block.first().and_then(looked)?;
+            if !*testable || (l.kind == "drift" && block.len() > 1) {
+                return None;
+            }
+            round
+                .size_for(
+                    column_start(index),
+                    l.kind == "rezero",
+                    round.offered()[index].group,
+                    alpha,
+                    DETECTION_POWER,
+                )
+                .map(|s| s * sigma)
+        })
+        .collect();
+    let jump_sizes: Vec<Vec<(usize, f64)>> = sized
+        .par_iter()
+        .map(|here| {
+            here.par_iter()
+                .filter_map(|&(k, index)| {
+                    round
+                        .size_for(
+                            column_start(index),
+                            false,
+                            round.offered()[index].group,
+                            alpha,
+                            DETECTION_POWER,
+                        )
+                        .map(|s| (k, s * sigma))
+                })
+                .collect()
+        })
+        .collect();
+
+    let mut out = Vec::new();
+    let mut columns_of_out: Vec<Vec<f64>> = Vec::new();
+    for (((block, columns, testable, fraction), &index), size) in
+        blocks.iter().zip(&systematic_index).zip(systematic_sizes)
+    {
+        // one entry per effect: a drift by its linear term, a zero per cycle by its block
+        let Some(l) = block.first().and_then(looked) else {
+            continue;
+        };
+        if l.kind == "drift" && block.len() > 1 {
+            continue;
+        }
+        out.push(Detectable {
+            kind: l.kind,
+            ac: l.ac,
+            setup: l.setup,
+            identifiable: *testable,
+            size,
+            unit: l.unit,
+            df: if *testable {
+                round.offered()[index].rank()
+            } else {
+                columns.len()
+            },
+            family_size: systematic_family,
+            new_fraction: *fraction,
+            cycle: None,
+            step: None,
+            median_size: None,
+        });
+        columns_of_out.push(if block.len() == 1 {
+            columns[0].clone()
+        } else {
+            Vec::new()
+        });
+    }
+
+    // a jump: sized at spread stops of each stream, the best reported
+    let mut jumps: Vec<(Detectable, Vec<f64>)> = Vec::new();
+    for (stream, mut sizes) in streams.iter().zip(jump_sizes) {
+        sizes.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let best = sizes.first().copied();
+        let median = (!sizes.is_empty()).then(|| {
+            let m = sizes.len();
+            if m % 2 == 1 {
+                sizes[m / 2].1
+            } else {
+                0.5 * (sizes[m / 2 - 1].1 + sizes[m / 2].1)
+            }
+        });
+        let (cycle, step, column, fraction) = match best {
+            Some((k, _)) => {
+                let r = &set.readings[stream.order[k]];
+                let previous = &set.readings[stream.order[k - 1]];
+                let from_cycle_start = previous.cycle != r.cycle || previous.setup != r.setup;
+                let fraction = stream
+                    .stops
+                    .iter()
+                    .find(|s| s.0 == k)
+                    .map_or(0.0, |s| s.1);
+                (
+                    Some(r.cycle),
+                    if from_cycle_start { None } else { Some(r.step) },
+                    stream.column(k, n),
+                    fraction,
+                )
+            }
+            None => (None, None, Vec::new(), 0.0),
+        };
+        jumps.push((
+            Detectable {
+                kind: "offset-step",
+                ac: Some(stream.ac),
+                setup: stream.setup,
+                identifiable: !stream.stops.is_empty(),
+                size: best.map(|b| b.1),
+                unit: "arcsec",
+                df: 1,
+                family_size: jump_family,
+                new_fraction: fraction,
+                cycle,
+                step,
+                median_size: median,
+            },
+            column,
+        ));
+    }
+
+    // round 2 of a drift: its curvature, once the linear drift is in the model
+    for ac in candidates::autocollimators(set) {
+        let drift = Term::drift_of_order(ac, 1);
+        if !blocks
+            .iter()
+            .any(|b| b.2 && b.0.len() == 1 && b.0[0].same(&drift))
+        {
+            continue;
+        }
+        let column = drift.column(set, &context);
+        let Ok(with_drift) =
+            least_squares_with_regressors(set, std::slice::from_ref(&column), None)
+        else {
+            continue;
+        };
+        let g = FitGeometry::new(&with_drift, set, std::slice::from_ref(&column));
+        let present = [drift];
+        let blocks2 = systematic(set, &context, &g, &present, options);
+        let family2 = blocks2.iter().filter(|b| b.2).count();
+        let mut offered2 = Vec::new();
+        let mut target = None;
+        let mut fraction = 0.0;
+        let mut groups2: Vec<String> = Vec::new();
+        for (block, columns, testable, f) in &blocks2 {
+            let key = group_key(block);
+            let group = match groups2.iter().position(|g| *g == key) {
+                Some(g) => g,
+                None => {
+                    groups2.push(key);
+                    groups2.len() - 1
+                }
+            };
+            if matches!(block.as_slice(), [Term::Quadratic { ac: a }] if *a == ac) {
+                fraction = *f;
+                if *testable {
+                    target = Some(offered2.len());
+                }
+            }
+            if *testable {
+                offered2.push((Family::Systematic, group, columns.clone()));
+            }
+        }
+        for stream in &streams {
+            let group = groups2.len() + 1;
+            let ks: Vec<usize> = stream.stops.iter().map(|s| s.0).collect();
+            for k in spread(&ks, JUMP_COLUMNS_PER_STREAM) {
+                offered2.push((Family::OffsetStep, group, vec![stream.column(k, n)]));
+            }
+        }
+        let round2 = Round::new(&g, with_drift.dof, offered2, [family2, jump_family, n]);
+        let size = target.and_then(|index| {
+            let o = &round2.offered()[index];
+            round2
+                .size_for((o.start(), o.len()), false, o.group, alpha, DETECTION_POWER)
+                .map(|s| s * sigma)
+        });
+        out.push(Detectable {
+            kind: "drift-curvature",
+            ac: Some(ac),
+            setup: None,
+            identifiable: target.is_some(),
+            size,
+            unit: "arcsec/h^2",
+            df: 1,
+            family_size: family2,
+            new_fraction: fraction,
+            cycle: None,
+            step: None,
+            median_size: None,
+        });
+        columns_of_out.push(Vec::new());
+    }
+
+    // pairs of the same kind the design cannot tell apart
+    let chi_critical = critical_f(AMBIGUITY_ALPHA, 1, f64::INFINITY);
+    let mut ambiguous = Vec::new();
+    let mut consider = |a: (&Detectable, &[f64]), b: (&Detectable, &[f64])| {
+        let (Some(size_a), Some(size_b)) = (a.0.size, b.0.size) else {
+            return;
+        };
+        if a.1.is_empty() || b.1.is_empty() {
+            return;
+        }
+        let gram = geometry.projected_gram(&[a.1.to_vec(), b.1.to_vec()]);
+        let (aa, bb, ab) = (gram[(0, 0)], gram[(1, 1)], gram[(0, 1)]);
+        if aa <= 0.0 || bb <= 0.0 {
+            return;
+        }
+        let rho = ab / (aa * bb).sqrt();
+        let rho2 = (rho * rho).min(1.0);
+        // at its 90 % size, each leaves the other a noncentrality λ(1 − ρ²)
+        let lambda_a = (size_a / sigma).powi(2) * aa;
+        let lambda_b = (size_b / sigma).powi(2) * bb;
+        if lambda_a.max(lambda_b) * (1.0 - rho2) < chi_critical {
+            let name = |d: &Detectable| Explanation {
+                kind: d.kind,
+                ac: d.ac,
+                setup: d.setup,
+            };
+            ambiguous.push(Ambiguity {
+                first: name(a.0),
+                second: name(b.0),
+                correlation: rho,
+            });
+        }
+    };
+    for i in 0..out.len() {
+        for j in i + 1..out.len() {
+            if out[i].kind == out[j].kind {
+                consider(
+                    (&out[i], &columns_of_out[i]),
+                    (&out[j], &columns_of_out[j]),
+                );
+            }
+        }
+    }
+    // a jump against the same stop's jump of another stream
+    for (i, a) in jumps.iter().enumerate() {
+        for b in &jumps[i + 1..] {
+            if let Some(other) = same_stop_column(set, b.0.ac, b.0.setup, a.0.cycle, a.0.step) {
+                consider((&a.0, &a.1), (&b.0, &other));
+            }
+        }
+    }
+    out.extend(jumps.into_iter().map(|(d, _)| d));
+    Ok((out, ambiguous))
+}
+
+/// The jump column of stream (`ac`, `setup`) at the stop (`cycle`, `step`) in time order.
+fn same_stop_column(
+    set: &MeasurementSet,
+    ac: Option<u32>,
+    setup: Option<u32>,
+    cycle: Option<u32>,
+    step: Option<usize>,
+) -> Option<Vec<f64>> {
+    let (ac, cycle) = (ac?, cycle?);
+    let effect = Effect::OffsetStep {
+        ac,
+        cycle,
+        step,
+        setup,
+        value: 0.0,
+    };
+    let context = EffectContext::of(&set.readings);
+    let column: Vec<f64> = set
+        .readings
+        .iter()
+        .map(|r| effect.regressor(r, &context))
+        .collect();
+    column.iter().any(|&x| x != 0.0).then_some(column)
+}
