@@ -24,7 +24,7 @@ Examples:
   polycal plan examples/data/polygon24-2ac-6cycles.csv --sigma 0.05";
 
 /// The design options (`simulate`'s), refused with a measurement file.
-const DESIGN_OPTIONS: [&str; 9] = [
+const DESIGN_OPTIONS: [&str; 10] = [
     "faces",
     "ac_faces",
     "cycles",
@@ -34,6 +34,7 @@ const DESIGN_OPTIONS: [&str; 9] = [
     "setup_shift",
     "shift_deg",
     "step_seconds",
+    "temperature",
 ];
 
 /// Arguments of `polycal plan`.
@@ -78,6 +79,15 @@ pub struct PlanArgs {
     /// Seconds per table stop.
     #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     step_seconds: f64,
+    /// The lab's temperature profile recorded with the readings (`simulate`'s
+    /// --temperature; without a value 20:0.5:3600:0.1:1200): the autocollimators'
+    /// temperature coefficients become detectable.
+    #[arg(
+        long,
+        value_name = "START:WARMUP:WARMUP_SECONDS:AMPLITUDE:PERIOD_SECONDS[:PHASE[:NOISE]]",
+        allow_negative_numbers = true
+    )]
+    temperature: Option<Option<String>>,
     /// A design to plan, as changes to the design of the options: KEY=VALUE pairs joined
     /// by `;` (keys name, faces, ac-faces, cycles, closing, bidirectional, setups,
     /// setup-shift, shift-deg, step-seconds; docs/FORMAT.md §5.6); repeatable, the
@@ -128,7 +138,14 @@ impl PlanArgs {
             ";ac-faces={}",
             list(&self.ac_faces.iter().map(usize::to_string).collect::<Vec<_>>())
         ));
-        let mut design = Design::default().with_spec(&spec)?;
+        match &self.temperature {
+            None => spec.push_str(";temperature=none"),
+            Some(None) => spec.push_str(";temperature"),
+            Some(Some(profile)) => spec.push_str(&format!(";temperature={profile}")),
+        }
+        let mut design = Design::default()
+            .with_spec(&spec)
+            .map_err(|e| anyhow::anyhow!("{e}").context("the design of the options"))?;
         design.table_shift_deg = self.shift_deg.clone();
         Ok(design)
     }

@@ -6,7 +6,7 @@ use std::str::FromStr;
 use serde::Deserialize;
 
 use crate::measurement::MeasurementSet;
-use crate::simulate::{SimulationConfig, simulate};
+use crate::simulate::{SimulationConfig, TemperatureModel, simulate};
 
 use super::PlanError;
 
@@ -49,6 +49,9 @@ pub struct Design {
     pub table_shift_deg: Vec<f64>,
     /// Seconds per table stop, > 0.
     pub step_seconds: f64,
+    /// The lab's temperature profile, when the run records it (the `temperature` column):
+    /// a diagnosis can then test the autocollimators' temperature coefficients.
+    pub temperature: Option<TemperatureModel>,
 }
 
 impl Default for Design {
@@ -60,7 +63,7 @@ impl Default for Design {
 }
 
 /// The keys of a design's written form, as they appear in a spec and a designs file.
-pub const DESIGN_KEYS: [&str; 10] = [
+pub const DESIGN_KEYS: [&str; 11] = [
     "name",
     "faces",
     "ac-faces",
@@ -71,6 +74,7 @@ pub const DESIGN_KEYS: [&str; 10] = [
     "setup-shift",
     "shift-deg",
     "step-seconds",
+    "temperature",
 ];
 
 impl Design {
@@ -88,6 +92,7 @@ impl Design {
             setup_shift_faces: config.setup_shift_faces,
             table_shift_deg: config.table_shift_deg.clone(),
             step_seconds: config.step_seconds,
+            temperature: config.temperature.clone(),
         }
     }
 
@@ -108,6 +113,7 @@ impl Design {
             pitch_spread_arcsec: 0.0,
             encoder_harmonics: Vec::new(),
             setup_error_spread_arcsec: 0.0,
+            temperature: self.temperature.clone(),
             ..SimulationConfig::default()
         }
     }
@@ -204,7 +210,10 @@ impl Design {
 
     /// This design with the keys of `spec` changed: `KEY=VALUE` pairs separated by `;`
     /// (keys [`DESIGN_KEYS`]; `closing` and `bidirectional` alone mean `=true`; lists are
-    /// separated by `,`), e.g. `name=B;cycles=4;ac-faces=1,2,5;bidirectional`.
+    /// separated by `,`; `temperature` takes `simulate`'s profile
+    /// `START:WARMUP:WARMUP_SECONDS:AMPLITUDE:PERIOD_SECONDS[:PHASE[:NOISE]]`, alone its
+    /// default, `none` for no temperature column), e.g.
+    /// `name=B;cycles=4;ac-faces=1,2,5;bidirectional`.
     ///
     /// # Errors
     ///
@@ -248,6 +257,16 @@ impl Design {
                     return Err(bad(format!("`{key}`: {v} is not a time > 0")));
                 }
                 self.step_seconds = v;
+            }
+            "temperature" => {
+                self.temperature = match value {
+                    None | Some("default") => Some(TemperatureModel::default()),
+                    Some("none") => None,
+                    Some(text) => Some(
+                        text.parse::<TemperatureModel>()
+                            .map_err(|e| bad(format!("`{key}={text}`: {e}")))?,
+                    ),
+                }
             }
             "closing" => self.closing = flag(value)?,
             "bidirectional" => self.bidirectional = flag(value)?,

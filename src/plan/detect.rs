@@ -1,20 +1,20 @@
 //! What a diagnosis of a run of a design can see, before it is measured.
 //!
 //! `diagnose` scores each candidate term by the part of its column the model does not
-//! span ([`crate::diagnose::geometry`]) and adds it when its F test passes its family's
-//! Bonferroni threshold. Both depend on the design alone: the projected column x̃ (its
-//! squared length ‖x̃‖² = xᵀx − xᵀHx) and the number of candidates m of its family in the
-//! first round. An effect of size δ gives the F test the noncentrality λ = δ²‖x̃‖²/σ²,
-//! so the smallest size found with probability 90 % is δ₉₀ = σ·√(λ₉₀/‖x̃‖²), λ₉₀ from
-//! [`super::power::noncentrality_for_power`] at level α/m with 1 and dof − 1 degrees of
-//! freedom. For a block of r columns whose values are independent draws of standard
-//! deviation s (a zero set anew every cycle), the mean noncentrality is
-//! s²·tr(X̃ᵀX̃)/σ², and δ₉₀ is that s.
+//! span ([`crate::diagnose::geometry`]) and adds the candidate with the smallest
+//! Bonferroni-adjusted p-value of its round when that p is below its family's false-alarm
+//! probability. Both depend on the design alone. For each effect term this module gives:
 //!
-//! Two explanations a and b cannot be told apart when, with a at its 90 % size, b fits
-//! the data about as well: the F test of a against b has the noncentrality
-//! λ₉₀·(1 − ρ²), ρ the correlation of their projected columns, and it stays below the
-//! 5 % critical value of χ²₁ (the ambiguity test of `diagnose`).
+//! - whether the design can tell it from the base model at all (`identifiable`: its
+//!   column adds a direction, as `diagnose` decides it);
+//! - the smallest size found in 90 % of runs, from [`super::selection`]'s emulation of
+//!   the round in which `diagnose` offers it (the first; a drift's curvature in the
+//!   second, with the linear drift in the model): a jump is sized at up to
+//!   [`JUMP_STOPS_SIZED`] spread stops of its stream and reported at the best;
+//! - the pairs of the same kind the design cannot tell apart: with a at its 90 % size,
+//!   b leaves the F test of a against b the noncentrality λ·(1 − ρ²), ρ the correlation
+//!   of their projected columns, below the 5 % critical value of χ²₁ (the level of
+//!   `diagnose`'s identifiability check).
 
 use rayon::prelude::*;
 use serde::Serialize;

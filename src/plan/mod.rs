@@ -378,11 +378,13 @@ pub fn plan_set(set: &MeasurementSet, options: &PlanOptions) -> Result<Plan, Pla
         Err(PlanError::Solve(SolveError::Unobservable(lost))) => {
             planned.lost_harmonics = lost.harmonics.clone();
             planned.unobservable = Some(lost.message.clone());
-            planned.notes.push(format!(
-                "The design cannot calibrate: {}. Add an autocollimator whose face offset \
-                 differs from the others' by a number coprime to N, or another mounting.",
-                lost.message
-            ));
+            let mut note: Vec<char> = lost.message.chars().collect();
+            if let Some(first) = note.first_mut() {
+                *first = first.to_ascii_uppercase();
+            }
+            planned
+                .notes
+                .push(format!("{}.", note.into_iter().collect::<String>()));
             return Ok(planned);
         }
         Err(e) => return Err(e),

@@ -1,5 +1,5 @@
-//! The power of a diagnosis's F test: how large an effect must be for the test to find
-//! it with a given probability.
+//! The power of a diagnosis's F test: the noncentral F law of its statistic when an
+//! effect is in the data, and its critical values.
 //!
 //! `diagnose` adds a term of r columns when its extra-sum-of-squares statistic
 //! F = (Δ/r)/(RSS′/ν), ν the residual degrees of freedom with the term, exceeds the
@@ -31,7 +31,6 @@ pub fn noncentral_f_sf(f: f64, r: usize, nu: f64, lambda: f64) -> f64 {
     let mut log_weight = -half;
     let upper = (half + 12.0 * half.sqrt() + 40.0).ceil() as usize;
     let mut cdf = 0.0;
-    let mut total = 0.0;
     for j in 0..=upper {
         if j > 0 {
             log_weight += half.ln() - (j as f64).ln();
@@ -45,13 +44,11 @@ pub fn noncentral_f_sf(f: f64, r: usize, nu: f64, lambda: f64) -> f64 {
             beta_reg(a, 0.5 * nu, r * f / (r * f + nu))
         };
         cdf += weight * term;
-        total += weight;
         if half == 0.0 {
             break;
         }
     }
     // the weights sum to 1 up to the tail left out (below 1e-15 past `upper`)
-    let _ = total;
     (1.0 - cdf).clamp(0.0, 1.0)
 }
 
@@ -76,37 +73,6 @@ pub fn critical_f(alpha: f64, r: usize, nu: f64) -> f64 {
         }
     }
     0.5 * (lo + hi)
-}
-
-/// The noncentrality λ at which the F test of `r` numerator and `nu` denominator degrees
-/// of freedom at level `alpha` rejects with probability `power`: bisection on λ, to a
-/// relative 1e-10. `None` when ν is 0 (no test).
-pub fn noncentrality_for_power(alpha: f64, power: f64, r: usize, nu: f64) -> Option<f64> {
-    if !(nu > 0.0) || !(0.0 < alpha && alpha < 1.0) || !(0.0 < power && power < 1.0) {
-        return None;
-    }
-    let f = critical_f(alpha, r, nu);
-    let reach = |lambda: f64| noncentral_f_sf(f, r, nu, lambda);
-    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
-    while reach(hi) < power {
-        lo = hi;
-        hi *= 2.0;
-        if hi > 1e12 {
-            return None;
-        }
-    }
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if reach(mid) < power {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-        if hi - lo <= 1e-10 * hi {
-            break;
-        }
-    }
-    Some(0.5 * (lo + hi))
 }
 
 #[cfg(test)]
@@ -135,9 +101,12 @@ mod tests {
                 assert!((got - truth).abs() < 1e-12, "μ {mu} c {c}: {got} vs {truth}");
             }
         }
-        // 90 % power at α = 0.05: μ = 1.959964 + 1.281552 (the far tail is 1e-9)
-        let lambda = noncentrality_for_power(0.05, 0.9, 1, f64::INFINITY).unwrap();
-        assert!((lambda.sqrt() - (1.959_963_985 + 1.281_551_566)).abs() < 1e-6);
+        // the two-sided 5 % critical value of the normal test: z = 1.959964
+        let c = critical_f(0.05, 1, f64::INFINITY);
+        assert!((c.sqrt() - 1.959_963_985).abs() < 1e-8);
+        // 90 % power at α = 0.05 for μ = 1.959964 + 1.281552 (the far tail is 1e-9)
+        let mu: f64 = 1.959_963_985 + 1.281_551_566;
+        assert!((noncentral_f_sf(c, 1, f64::INFINITY, mu * mu) - 0.9).abs() < 1e-8);
     }
 
     #[test]

@@ -34,6 +34,10 @@ pub struct DesignReport {
     pub shift_deg: Vec<f64>,
     /// Seconds per stop.
     pub step_seconds: f64,
+    /// The temperature profile recorded, as `simulate --temperature` takes it (absent
+    /// without one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<String>,
 }
 
 impl DesignReport {
@@ -49,6 +53,7 @@ impl DesignReport {
             setup_shift: design.setup_shift_faces,
             shift_deg: design.table_shift_deg.clone(),
             step_seconds: design.step_seconds,
+            temperature: design.temperature.as_ref().map(|t| t.to_string()),
         }
     }
 }
@@ -264,7 +269,11 @@ pub fn write_plan_table<W: Write>(out: &mut W, report: &PlanReport) -> fmt::Resu
         report.readings,
         hours(report.duration_seconds),
         report.sigma,
-        report.dof
+        if report.worst.is_some() {
+            report.dof.to_string()
+        } else {
+            "—".into()
+        }
     )?;
     if !report.lost_harmonics.is_empty() {
         let list: Vec<String> = report.lost_harmonics.iter().map(usize::to_string).collect();
