@@ -136,7 +136,13 @@ impl PlanArgs {
         let list = |v: &[String]| v.join(",");
         spec.push_str(&format!(
             ";ac-faces={}",
-            list(&self.ac_faces.iter().map(usize::to_string).collect::<Vec<_>>())
+            list(
+                &self
+                    .ac_faces
+                    .iter()
+                    .map(usize::to_string)
+                    .collect::<Vec<_>>()
+            )
         ));
         match &self.temperature {
             None => spec.push_str(";temperature=none"),
@@ -153,14 +159,11 @@ impl PlanArgs {
 
 /// `polycal plan`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
-    super::stdin_once(
-        [
-            ("the measurement file", args.file.as_deref()),
-            ("--designs", args.designs.as_deref()),
-            ("--budget", args.budget.as_deref()),
-        ]
-        .into_iter(),
-    )?;
+    super::stdin_once([
+        ("the measurement file", args.file.as_deref()),
+        ("--designs", args.designs.as_deref()),
+        ("--budget", args.budget.as_deref()),
+    ])?;
     let budget = read_budget(args.budget.as_deref(), out)?;
     let options = PlanOptions::new(args.sigma)
         .with_budget(budget)
@@ -190,7 +193,10 @@ pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
         let base = args.base_design()?;
         let mut designs = Vec::new();
         for spec in &args.design {
-            designs.push(base.with_spec(spec).map_err(|e| anyhow::anyhow!("--design: {e}"))?);
+            designs.push(
+                base.with_spec(spec)
+                    .map_err(|e| anyhow::anyhow!("--design: {e}"))?,
+            );
         }
         if let Some(path) = &args.designs {
             designs.extend(Design::read_designs_file(path, &base)?);

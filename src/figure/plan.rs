@@ -6,6 +6,9 @@
 use super::Figure;
 use super::chart::{Chart, Point, Series};
 use super::svg::Marker;
+
+/// The x values and u values of one design's series.
+type Values<'a> = &'a dyn Fn(&PlanReport) -> (Vec<f64>, Vec<f64>);
 use crate::report::plan::PlanReport;
 
 const MARKERS: [Marker; 3] = [Marker::FilledCircle, Marker::OpenSquare, Marker::Triangle];
@@ -31,7 +34,7 @@ pub(crate) fn figures(reports: &[PlanReport]) -> Vec<Figure> {
         ));
     }
     let count = planned.len();
-    let series = |values: &dyn Fn(&PlanReport) -> (Vec<f64>, Vec<f64>)| -> Vec<Series> {
+    let series = |values: Values| -> Vec<Series> {
         planned
             .iter()
             .map(|&(index, r)| {

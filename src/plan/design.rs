@@ -300,7 +300,10 @@ impl Design {
     ///
     /// [`PlanError::Io`] naming the file; [`PlanError::File`] with the line and column of
     /// bytes that are not UTF-8, a TOML error or a bad key.
-    pub fn read_designs_file(path: &std::path::Path, base: &Design) -> Result<Vec<Design>, PlanError> {
+    pub fn read_designs_file(
+        path: &std::path::Path,
+        base: &Design,
+    ) -> Result<Vec<Design>, PlanError> {
         let (bytes, name) = crate::input::read_bytes(path)
             .map_err(|(file, source)| PlanError::Io { file, source })?;
         let text = crate::input::text::utf8(&bytes).map_err(|((line, column), message)| {
@@ -319,7 +322,11 @@ impl Design {
     /// # Errors
     ///
     /// [`PlanError::File`] with the file, line and column of a TOML error or a bad key.
-    pub fn parse_designs_file(text: &str, source: &str, base: &Design) -> Result<Vec<Design>, PlanError> {
+    pub fn parse_designs_file(
+        text: &str,
+        source: &str,
+        base: &Design,
+    ) -> Result<Vec<Design>, PlanError> {
         #[derive(Deserialize)]
         #[serde(deny_unknown_fields)]
         struct File {
@@ -391,10 +398,7 @@ fn key_span(text: &str, index: usize, key: &str) -> Option<std::ops::Range<usize
         })
         .find(|(_, line)| {
             let t = line.trim_start();
-            t.starts_with(key)
-                && t[key.len()..]
-                    .trim_start()
-                    .starts_with('=')
+            t.starts_with(key) && t[key.len()..].trim_start().starts_with('=')
         })
         .map(|(offset, line)| offset + (line.len() - line.trim_start().len()))?;
     Some(start + at..start + at + key.len())

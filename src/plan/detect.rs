@@ -138,10 +138,10 @@ fn geometry_bytes(solution: &Solution, extra: usize) -> u128 {
 
 /// The most jump columns of one stream a round offers (a sample of its stops, evenly
 /// spread; neighbouring stops' columns are nearly the same).
-const JUMP_COLUMNS_PER_STREAM: usize = 60;
+pub const JUMP_COLUMNS_PER_STREAM: usize = 60;
 
 /// The stops of one stream whose jump size is computed (evenly spread, and the best).
-const JUMP_STOPS_SIZED: usize = 9;
+pub const JUMP_STOPS_SIZED: usize = 9;
 
 /// What a systematic block names, for grouping: the drift of an autocollimator (any
 /// order), else the block's first term.
@@ -157,6 +157,10 @@ fn group_key(block: &[Term]) -> String {
     }
 }
 
+/// A systematic block of a round: its terms, its columns, whether it is a candidate, and
+/// the fraction of its columns off the model's span.
+type TestedBlock = (Vec<Term>, Vec<Vec<f64>>, bool, f64);
+
 /// The systematic blocks of a round, tested as `diagnose` tests them: (block, its
 /// columns, whether it is a candidate).
 fn systematic(
@@ -165,7 +169,7 @@ fn systematic(
     geometry: &FitGeometry,
     present: &[Term],
     options: &DiagnoseOptions,
-) -> Vec<(Vec<Term>, Vec<Vec<f64>>, bool, f64)> {
+) -> Vec<TestedBlock> {
     let zero = vec![0.0; set.readings.len()];
     systematic_blocks(set, present, &options.stated_cross_talk)
         .into_iter()
@@ -176,8 +180,7 @@ fn systematic(
                 let is_cross_talk = matches!(term, Term::Effect(Effect::CrossTalk { .. }));
                 (
                     score.is_new()
-                        && !(is_cross_talk
-                            && score.new_fraction() < CROSS_TALK_MIN_NEW_FRACTION),
+                        && !(is_cross_talk && score.new_fraction() < CROSS_TALK_MIN_NEW_FRACTION),
                     score.new_fraction(),
                 )
             } else {
@@ -291,7 +294,11 @@ pub fn detectable(
     for (block, columns, testable, _) in &blocks {
         if *testable {
             systematic_index.push(offered.len());
-            offered.push((Family::Systematic, group_of(group_key(block)), columns.clone()));
+            offered.push((
+                Family::Systematic,
+                group_of(group_key(block)),
+                columns.clone(),
+            ));
         } else {
             systematic_index.push(usize::MAX);
         }
@@ -317,12 +324,7 @@ pub fn detectable(
         }
         sized.push(here);
     }
-    let round = Round::new(
-        &geometry,
-        dof,
-        offered,
-        [systematic_family, jump_family, n],
-    );
+    let round = Round::new(&geometry, dof, offered, [systematic_family, jump_family, n]);
     let column_start = |index: usize| -> (usize, usize) {
         let o = &round.offered()[index];
         (o.start(), o.len())
@@ -422,11 +424,7 @@ pub fn detectable(
                 let r = &set.readings[stream.order[k]];
                 let previous = &set.readings[stream.order[k - 1]];
                 let from_cycle_start = previous.cycle != r.cycle || previous.setup != r.setup;
-                let fraction = stream
-                    .stops
-                    .iter()
-                    .find(|s| s.0 == k)
-                    .map_or(0.0, |s| s.1);
+                let fraction = stream.stops.iter().find(|s| s.0 == k).map_or(0.0, |s| s.1);
                 (
                     Some(r.cycle),
                     if from_cycle_start { None } else { Some(r.step) },
@@ -564,10 +562,7 @@ pub fn detectable(
     for i in 0..out.len() {
         for j in i + 1..out.len() {
             if out[i].kind == out[j].kind {
-                consider(
-                    (&out[i], &columns_of_out[i]),
-                    (&out[j], &columns_of_out[j]),
-                );
+                consider((&out[i], &columns_of_out[i]), (&out[j], &columns_of_out[j]));
             }
         }
     }

@@ -246,9 +246,13 @@ impl Prediction {
 
     /// The largest U(α) with a budget.
     pub fn worst_encoder_error_expanded_u(&self) -> Option<f64> {
-        self.uncertainty
-            .as_ref()
-            .map(|u| u.encoder_error.expanded_u.iter().copied().fold(0.0, f64::max))
+        self.uncertainty.as_ref().map(|u| {
+            u.encoder_error
+                .expanded_u
+                .iter()
+                .copied()
+                .fold(0.0, f64::max)
+        })
     }
 
     /// The largest U(β) with a budget.

@@ -166,14 +166,20 @@ impl Round {
         }
         let mut rng = ChaCha8Rng::seed_from_u64(SEED);
         let outside_dof = dof.saturating_sub(rank);
-        let chi = (outside_dof > 0).then(|| ChiSquared::new(outside_dof as f64).ok()).flatten();
+        let chi = (outside_dof > 0)
+            .then(|| ChiSquared::new(outside_dof as f64).ok())
+            .flatten();
         let mut noise = Vec::with_capacity(TRIALS);
         let mut noise_in_span = Vec::with_capacity(TRIALS);
         let mut outside = Vec::with_capacity(TRIALS);
         for _ in 0..TRIALS {
             let z = DVector::from_fn(c, |k, _| {
                 let draw: f64 = rng.sample(StandardNormal);
-                if eigen.eigenvalues[k] > tolerance { draw } else { 0.0 }
+                if eigen.eigenvalues[k] > tolerance {
+                    draw
+                } else {
+                    0.0
+                }
             });
             noise_in_span.push(z.norm_squared());
             noise.push(&factor * z);
@@ -323,7 +329,7 @@ impl Round {
     ) -> Option<f64> {
         let (t0, tlen) = target;
         let trace: f64 = (0..tlen).map(|j| self.gram[(t0 + j, t0 + j)]).sum();
-        if !(trace > RANK_TOLERANCE * self.scale) {
+        if trace.is_nan() || trace <= RANK_TOLERANCE * self.scale {
             return None;
         }
         let found = |size: f64| self.found_fraction(target, size, random, group, alpha);

@@ -103,8 +103,8 @@ pub struct PlanReport {
     pub duration_seconds: Option<f64>,
     /// σ of one reading, arcsec.
     pub sigma: f64,
-    /// Residual degrees of freedom.
-    pub dof: usize,
+    /// Residual degrees of freedom of a run; `null` when the design cannot calibrate.
+    pub dof: Option<usize>,
     /// Harmonics the design loses (empty when none).
     pub lost_harmonics: Vec<usize>,
     /// Why the design cannot determine everything, when it cannot.
@@ -169,7 +169,7 @@ impl PlanReport {
             readings: plan.readings,
             duration_seconds: plan.duration_seconds,
             sigma: plan.sigma,
-            dof: plan.dof,
+            dof: plan.prediction.as_ref().map(|_| plan.dof),
             lost_harmonics: plan.lost_harmonics.clone(),
             unobservable: plan.unobservable.clone(),
             pitch_deviation_u: None,
@@ -269,11 +269,7 @@ pub fn write_plan_table<W: Write>(out: &mut W, report: &PlanReport) -> fmt::Resu
         report.readings,
         hours(report.duration_seconds),
         report.sigma,
-        if report.worst.is_some() {
-            report.dof.to_string()
-        } else {
-            "—".into()
-        }
+        report.dof.map_or("—".into(), |d| d.to_string())
     )?;
     if !report.lost_harmonics.is_empty() {
         let list: Vec<String> = report.lost_harmonics.iter().map(usize::to_string).collect();
@@ -372,8 +368,8 @@ pub fn write_plan_table<W: Write>(out: &mut W, report: &PlanReport) -> fmt::Resu
         )?;
         writeln!(
             out,
-            "{:<16} {:>3} {:>5} {:>12} {:<14} {:>4} {}",
-            "effect", "ac", "setup", "size", "unit", "df", "where"
+            "{:<16} {:>3} {:>5} {:>12} {:<14} {:>4} where",
+            "effect", "ac", "setup", "size", "unit", "df"
         )?;
         for d in &report.detectable {
             write_detectable(out, d)?;
@@ -383,8 +379,8 @@ pub fn write_plan_table<W: Write>(out: &mut W, report: &PlanReport) -> fmt::Resu
         writeln!(
             out,
             "CANNOT TELL {} from {} (correlation {:.3} of their columns off the model)",
-            explanation(&a.first.kind, a.first.ac, a.first.setup),
-            explanation(&a.second.kind, a.second.ac, a.second.setup),
+            explanation(a.first.kind, a.first.ac, a.first.setup),
+            explanation(a.second.kind, a.second.ac, a.second.setup),
             a.correlation
         )?;
     }
