@@ -75,6 +75,39 @@ pub fn critical_f(alpha: f64, r: usize, nu: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
+/// The noncentrality λ at which the F test of `r` numerator and `nu` denominator degrees
+/// of freedom at level `alpha` rejects with probability `power` (the test alone, with no
+/// other candidate competing): bisection on λ, to a relative 1e-10. `None` when ν is not
+/// positive or the levels are not probabilities.
+pub fn noncentrality_for_power(alpha: f64, power: f64, r: usize, nu: f64) -> Option<f64> {
+    let probability = |p: f64| p > 0.0 && p < 1.0;
+    if nu.is_nan() || nu <= 0.0 || !probability(alpha) || !probability(power) {
+        return None;
+    }
+    let f = critical_f(alpha, r, nu);
+    let reach = |lambda: f64| noncentral_f_sf(f, r, nu, lambda);
+    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+    while reach(hi) < power {
+        lo = hi;
+        hi *= 2.0;
+        if hi > 1e12 {
+            return None;
+        }
+    }
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if reach(mid) < power {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo <= 1e-10 * hi {
+            break;
+        }
+    }
+    Some(0.5 * (lo + hi))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -110,6 +143,8 @@ mod tests {
         // 90 % power at α = 0.05 for μ = 1.959964 + 1.281552 (the far tail is 1e-9)
         let mu: f64 = 1.959_963_985 + 1.281_551_566;
         assert!((noncentral_f_sf(c, 1, f64::INFINITY, mu * mu) - 0.9).abs() < 1e-8);
+        let lambda = noncentrality_for_power(0.05, 0.9, 1, f64::INFINITY).unwrap();
+        assert!((lambda.sqrt() - mu).abs() < 1e-6);
     }
 
     #[test]

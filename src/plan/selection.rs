@@ -23,6 +23,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
+use super::power::noncentrality_for_power;
 use crate::diagnose::candidates::Family;
 use crate::diagnose::geometry::FitGeometry;
 use crate::uncertainty::student::t_two_sided_tail;
@@ -88,6 +89,11 @@ pub struct Round {
     outside: Vec<f64>,
     /// The largest column's squared length, for the rank tolerance.
     scale: f64,
+    /// The false-alarm probability of every family.
+    alpha: f64,
+    /// The F a candidate of (family, numerator degrees of freedom) must exceed to pass
+    /// its family's Bonferroni threshold: below it, its adjusted p is at least α.
+    critical: Vec<((usize, usize), f64)>,
 }
 
 fn family_index(f: Family) -> usize {
@@ -117,14 +123,15 @@ fn pinv(block: DMatrix<f64>, tolerance: f64) -> (DMatrix<f64>, usize) {
 
 impl Round {
     /// The round of the fit whose `geometry` is given, with `dof` residual degrees of
-    /// freedom, the candidates `blocks` (each: family, group, columns), and the true
-    /// number of candidates of each family (Bonferroni divisors; the jump columns offered
-    /// may be a sample of the stops).
+    /// freedom, the candidates `blocks` (each: family, group, columns), the true number of
+    /// candidates of each family (Bonferroni divisors; the jump columns offered may be a
+    /// sample of the stops), and the false-alarm probability `alpha` of every family.
     pub fn new(
         geometry: &FitGeometry,
         dof: usize,
         blocks: Vec<(Family, usize, Vec<Vec<f64>>)>,
         family_size: [usize; 3],
+        alpha: f64,
     ) -> Round {
         let mut columns: Vec<Vec<f64>> = Vec::new();
         let mut offered = Vec::new();
@@ -185,6 +192,18 @@ impl Round {
             noise.push(&factor * z);
             outside.push(chi.as_ref().map_or(0.0, |d| d.sample(&mut rng)));
         }
+        let mut critical: Vec<((usize, usize), f64)> = Vec::new();
+        for key in offered
+            .iter()
+            .filter(|o| o.rank > 0)
+            .map(|o| (family_index(o.family), if o.len == 1 { 1 } else { o.rank }))
+        {
+            if critical.iter().all(|(k, _)| *k != key) && dof > key.1 {
+                let m = family_size[key.0].max(1) as f64;
+                let f = super::power::critical_f(alpha / m, key.1, (dof - key.1) as f64);
+                critical.push((key, f));
+            }
+        }
         Round {
             gram,
             offered,
@@ -194,6 +213,8 @@ impl Round {
             noise_in_span,
             outside,
             scale,
+            alpha,
+            critical,
         }
     }
 
@@ -202,18 +223,28 @@ impl Round {
         &self.offered
     }
 
+    /// The correlation of two one-column candidates' columns off the model's span
+    /// (`None` when either adds nothing).
+    pub fn correlation(&self, a: usize, b: usize) -> Option<f64> {
+        let (a, b) = (&self.offered[a], &self.offered[b]);
+        if a.len != 1 || b.len != 1 || a.rank == 0 || b.rank == 0 {
+            return None;
+        }
+        let (aa, bb) = (self.gram[(a.start, a.start)], self.gram[(b.start, b.start)]);
+        Some(self.gram[(a.start, b.start)] / (aa * bb).sqrt())
+    }
+
     /// The fraction of trials in which an effect is found: the effect adds `signal`
     /// (the columns `target` of the round's matrix with these coefficients, in units of
     /// σ) to the readings, and it is found when the winner of the round belongs to
-    /// `group` and passes `alpha`. With `random`, the coefficients are multiplied by a
+    /// `groups` and passes `alpha`. With `random`, the coefficients are multiplied by a
     /// standard normal draw per column and trial (offsets drawn anew every cycle).
     fn found_fraction(
         &self,
         target: (usize, usize),
         size: f64,
         random: bool,
-        group: usize,
-        alpha: f64,
+        groups: &[usize],
     ) -> f64 {
         let (t0, tlen) = target;
         let c = self.gram.nrows();
@@ -248,8 +279,8 @@ impl Round {
                 + size * size * quad
                 + self.outside[trial];
             if let Some((g, p_adjusted)) = self.winner(&scores, rss)
-                && g == group
-                && p_adjusted < alpha
+                && groups.contains(&g)
+                && p_adjusted < self.alpha
             {
                 found += 1;
             }
@@ -257,7 +288,9 @@ impl Round {
         found as f64 / TRIALS as f64
     }
 
-    /// The group and adjusted p-value of the round's winner for scores `s` and `rss`.
+    /// The group and adjusted p-value of the round's winner for scores `s` and `rss`,
+    /// among the candidates that pass their family's threshold (`None`: none passes, and
+    /// nothing is found).
     fn winner(&self, s: &DVector<f64>, rss: f64) -> Option<(usize, f64)> {
         // singles of one family share ν: the largest reduction has the smallest p
         let mut best_single: [Option<(f64, usize)>; 3] = [None, None, None];
@@ -273,6 +306,16 @@ impl Round {
             } else {
                 f64::INFINITY
             };
+            // below its family's threshold a candidate cannot be found (p·m ≥ α): only
+            // the candidates that pass compete for the round
+            let threshold = self
+                .critical
+                .iter()
+                .find(|(k, _)| *k == (family_index(family), r))
+                .map_or(f64::INFINITY, |(_, f)| *f);
+            if f <= threshold {
+                return;
+            }
             let p = if f <= 0.0 {
                 1.0
             } else if r == 1 {
@@ -317,31 +360,59 @@ impl Round {
     }
 
     /// The smallest size (in the unit of the target's columns, relative to σ = 1) at
-    /// which an effect on `target` is found in `power` of the trials; `None` when even
-    /// 10⁴ times the first guess is not enough (another explanation always wins).
+    /// which an effect on `target` is found — a candidate of one of `groups` wins — in
+    /// `power` of the trials; `None` when even 10⁴ times the first guess is not enough
+    /// (another explanation always wins).
     pub fn size_for(
         &self,
         target: (usize, usize),
         random: bool,
-        group: usize,
-        alpha: f64,
+        groups: &[usize],
         power: f64,
     ) -> Option<f64> {
+        let alpha = self.alpha;
         let (t0, tlen) = target;
         let trace: f64 = (0..tlen).map(|j| self.gram[(t0 + j, t0 + j)]).sum();
         if trace.is_nan() || trace <= RANK_TOLERANCE * self.scale {
             return None;
         }
-        let found = |size: f64| self.found_fraction(target, size, random, group, alpha);
-        let mut hi = 1.0 / trace.sqrt();
-        let mut lo = 0.0;
-        let mut steps = 0;
-        while found(hi) < power {
-            lo = hi;
-            hi *= 2.0;
-            steps += 1;
-            if steps > 14 {
-                return None;
+        let found = |size: f64| self.found_fraction(target, size, random, groups);
+        // start from the size its own F test finds in `power` of the runs: competing
+        // candidates only lower the chance, so the answer is rarely below it
+        let rank = tlen.min(self.dof.saturating_sub(1)).max(1);
+        let family = self
+            .offered
+            .iter()
+            .find(|o| o.start == t0)
+            .map_or(Family::Systematic, |o| o.family);
+        let m = self.family_size[family_index(family)].max(1) as f64;
+        let alone =
+            noncentrality_for_power(alpha / m, power, rank, self.dof.saturating_sub(rank) as f64)
+                .map_or(1.0 / trace.sqrt(), |lambda| (lambda / trace).sqrt());
+        let (mut lo, mut hi);
+        if found(alone) < power {
+            lo = alone;
+            hi = alone * 1.25;
+            let mut steps = 0;
+            while found(hi) < power {
+                lo = hi;
+                hi *= 2.0;
+                steps += 1;
+                if steps > 14 {
+                    return None;
+                }
+            }
+        } else {
+            hi = alone;
+            lo = alone * 0.8;
+            let mut steps = 0;
+            while found(lo) >= power {
+                hi = lo;
+                lo *= 0.5;
+                steps += 1;
+                if steps > 30 {
+                    return Some(hi);
+                }
             }
         }
         for _ in 0..40 {
