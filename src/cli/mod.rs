@@ -31,7 +31,8 @@ pub const EXIT_ERROR: u8 = 2;
 /// After the list of commands in `polycal --help`.
 const EXIT_STATUS_HELP: &str = "\
 Exit status: 0 done and every check passed; 1 done, but a verdict is negative (compare:
-some |En| > 1; diagnose: a model not adequate; solve: Monte Carlo does not validate GUM);
+some |En| > 1; diagnose: a model not adequate; solve: Monte Carlo does not validate GUM;
+plan: a design cannot calibrate or misses --target-u);
 2 an error (usage, refused input, instrument or file failure); 130 `run` stopped at once by
 a second Ctrl-C (docs/FORMAT.md §8).
 
