@@ -108,8 +108,13 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             .map_err(anyhow::Error::from)
             .and_then(|set| corrected(set, &args.cross_talk))
             .and_then(|set| {
-                if let Some(refusal) =
-                    shift_refusal(&set, &name, "diagnose", "polycal solve evaluates them")
+                if args.budget.is_some()
+                    && let Some(refusal) = shift_refusal(
+                        &set,
+                        &name,
+                        "--budget",
+                        "polycal diagnose without it evaluates them",
+                    )
                 {
                     return Err(refusal);
                 }
@@ -181,12 +186,20 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                 }
                 let mut text = String::new();
                 report::diagnose::write_table(&mut text, &diagnosis, truth.as_ref(), &label)?;
-                report::write_final_model_results(&mut text, &diagnosis.after, gum.as_ref())?;
+                report::write_final_model_results(
+                    &mut text,
+                    &diagnosis.after,
+                    gum.as_ref(),
+                    diagnosis.after_sub_pitch.as_ref(),
+                )?;
                 report::write_stated_cross_talk(&mut text, &args.cross_talk)?;
                 write!(stdout, "{text}")?;
             }
             DiagnoseFormat::Csv => {
-                let rows = report::result_rows_with(&diagnosis.after, gum.as_ref());
+                let rows = match &diagnosis.after_sub_pitch {
+                    Some(solved) => report::sub_pitch_result_rows(solved),
+                    None => report::result_rows_with(&diagnosis.after, gum.as_ref()),
+                };
                 // checked before any row is written: a refusal names this file
                 if let Err(problem) = polycal::results::check_rows(&rows) {
                     out.error_message(format!("{name}: cannot write its results: {problem}"));

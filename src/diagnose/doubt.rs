@@ -5,15 +5,15 @@
 
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
+use super::base::Base;
 use super::candidates::{self, Term};
 use super::findings::Finding;
-use super::geometry::FitGeometry;
 use super::lack_of_fit::{self, LackOfFit};
 use super::residuals::{self, AdequacyInputs, Check};
 use super::{DiagnoseOptions, Rejection, TriedEffect};
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{MeasurementSet, Sigma};
-use crate::solve::{Solution, least_squares_with_regressors};
+use crate::solve::Solution;
 
 /// Whether a term follows autocollimator `ac`'s zero in time (a drift of any order, a
 /// jump): what a wandering zero makes untrustworthy.
@@ -24,8 +24,10 @@ pub(super) fn wanders_with(term: &Term, ac: u32) -> bool {
 
 /// The model at the end of the search: its terms, fit, findings and lack of fit.
 pub(super) struct Model<'a> {
-    /// The set fitted.
+    /// The readings, as the file has them.
     pub set: &'a MeasurementSet,
+    /// The base model they are fitted with.
+    pub base: &'a Base<'a>,
     /// The effects' context.
     pub context: &'a EffectContext,
     /// The stated σ.
@@ -63,7 +65,7 @@ impl Model<'_> {
             return false;
         }
         let columns = self.columns(&kept);
-        let Ok(fit) = least_squares_with_regressors(self.set, &columns, self.sigma) else {
+        let Ok(fit) = self.base.fit(&columns, self.sigma) else {
             return false;
         };
         self.findings.retain(|f| {
@@ -76,7 +78,7 @@ impl Model<'_> {
         self.lack_of_fit = self.lack_of_fit.take().and(lack_of_fit::lack_of_fit(
             self.set,
             &fit,
-            &columns,
+            &self.base.with(&columns),
             self.lack_of_fit_alpha,
         ));
         self.terms = kept;
@@ -93,7 +95,7 @@ impl Model<'_> {
     pub fn wandering(&self, options: &DiagnoseOptions, tiny: f64) -> (Vec<u32>, Vec<Check>) {
         let (set, terms, current) = (self.set, &self.terms, &self.fit);
         let columns = self.columns(terms);
-        let geometry = FitGeometry::new(current, set, &columns);
+        let geometry = self.base.geometry(current, &columns);
         let studentized = residuals::studentized(current, &geometry.leverage());
         let check = residuals::adequacy(
             current,
@@ -131,7 +133,7 @@ impl Model<'_> {
                 }
                 columns.push(x);
             }
-            let Ok(fit) = least_squares_with_regressors(set, &columns, self.sigma) else {
+            let Ok(fit) = self.base.fit(&columns, self.sigma) else {
                 continue;
             };
             let r = drift.len() as f64;

@@ -109,15 +109,18 @@ fn drift_of(terms: &[Term]) -> Option<(u32, usize)> {
 }
 
 /// The found effects with their values and uncertainties in the final model (`current`,
-/// a fit with `terms`): a drift's later orders merged into its drift, and whether each
+/// a fit with `offset` base columns followed by `terms`): a drift's later orders merged into its drift, and whether each
 /// changes the calibration by more than its uncertainty; each with the terms of the
 /// final model it stands for (a drift: all of its orders).
 pub fn final_effects(
     current: &Solution,
+    offset: usize,
     terms: &[Term],
     findings: Vec<Finding>,
 ) -> Vec<(FoundEffect, Vec<Term>)> {
-    let u = current.effect_u();
+    let u = current
+        .effect_u()
+        .map(|u| u.get(offset..).unwrap_or(&[]).to_vec());
     let u_pitch = current.pitch_deviation_u();
     let u_encoder = current.encoder_error_u();
     let exceeds = |change: &[f64], u: &Option<Vec<f64>>| match u {
@@ -125,7 +128,7 @@ pub fn final_effects(
         None => change.iter().any(|c| *c != 0.0),
     };
     let index = |t: &Term| terms.iter().position(|p| p == t);
-    let value_of = |t: &Term| index(t).map_or(0.0, |j| current.effect_values[j]);
+    let value_of = |t: &Term| index(t).map_or(0.0, |j| current.effect_values[offset + j]);
     let u_of = |t: &Term| index(t).and_then(|j| u.as_ref().map(|u| u[j]));
     let mut effects: Vec<(FoundEffect, Vec<Term>)> = Vec::new();
     for finding in findings {

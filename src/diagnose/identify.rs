@@ -19,11 +19,12 @@
 
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
+use super::base::Base;
 use super::candidates::{Term, autocollimators, rezero_block, step_streams};
 use super::findings::{block_effect, difference, max_abs};
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{MeasurementSet, Sigma};
-use crate::solve::{Solution, least_squares_with_regressors};
+use crate::solve::Solution;
 
 /// The significance below which an alternative is told apart from a finding: an
 /// alternative whose increase of the residual sum of squares has p above it explains the
@@ -140,8 +141,10 @@ fn siblings(set: &MeasurementSet, block: &[Term], stated: &[u32]) -> Vec<Vec<Ter
 /// What [`alternatives`] needs of the final model.
 #[derive(Debug, Clone, Copy)]
 pub struct FinalModel<'a> {
-    /// The set the model was fitted to.
+    /// The readings, as the file has them.
     pub set: &'a MeasurementSet,
+    /// The base model they are fitted with.
+    pub base: &'a Base<'a>,
     /// The effects' context.
     pub context: &'a EffectContext,
     /// Its terms.
@@ -161,6 +164,7 @@ pub struct FinalModel<'a> {
 pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
     let FinalModel {
         set,
+        base,
         context,
         terms,
         fit,
@@ -200,7 +204,7 @@ pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
     for alternative in sets {
         let mut columns = rest_columns.clone();
         columns.extend(columns_of(&alternative));
-        let Ok(other) = least_squares_with_regressors(set, &columns, sigma) else {
+        let Ok(other) = base.fit(&columns, sigma) else {
             continue;
         };
         let increase = other.rss - fit.rss;
@@ -237,7 +241,7 @@ pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
         };
         let change_over_expanded_u =
             ratio(&pitch_change, &u_pitch).max(ratio(&encoder_change, &u_encoder));
-        let values = &other.effect_values[rest.len()..];
+        let values = base.term_values(&other).get(rest.len()..).unwrap_or(&[]);
         let mut effects = Vec::new();
         let mut start = 0;
         for sibling in split_siblings(&alternative) {
@@ -289,6 +293,7 @@ fn split_siblings(terms: &[Term]) -> Vec<Vec<Term>> {
 /// `reading_y`, or `reading_y` spans at most `min_span_arcsec`.
 pub fn common_cross_talk_reach(
     set: &MeasurementSet,
+    base: &Base<'_>,
     min_span_arcsec: f64,
 ) -> Option<(f64, f64, f64)> {
     let ys: Vec<f64> = set
@@ -301,11 +306,7 @@ pub fn common_cross_talk_reach(
     if span.is_nan() || span <= min_span_arcsec {
         return None;
     }
-    let mut as_readings = set.clone();
-    for (r, y) in as_readings.readings.iter_mut().zip(&ys) {
-        r.reading_arcsec = *y;
-    }
-    let fit = least_squares_with_regressors(&as_readings, &[], None).ok()?;
+    let fit = base.fit_values(&ys).ok()?;
     Some((
         span,
         max_abs(&fit.pitch_deviation),

@@ -15,6 +15,7 @@
 //! significant remains; the final residuals are then checked for structure the model
 //! still lacks ([`residuals::adequacy`]).
 
+pub mod base;
 pub mod candidates;
 pub mod clock;
 mod doubt;
@@ -28,11 +29,12 @@ mod search;
 
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{MeasurementSet, Sigma};
-use crate::solve::{Solution, SolveError, least_squares_with_regressors};
+use crate::solve::sub_pitch::SubPitchSolution;
+use crate::solve::{Solution, SolveError};
+use base::Base;
 use candidates::Term;
 pub use clock::Clock;
 use findings::final_effects;
-use geometry::FitGeometry;
 pub use identify::Alternative;
 use lack_of_fit::LackOfFit;
 use residuals::{Adequacy, AdequacyInputs, Check};
@@ -312,6 +314,11 @@ pub struct Diagnosis {
     pub notes: Vec<String>,
     /// The clock drift terms ran on: `time`, or the stop order in a file without it.
     pub clock: Clock,
+    /// For sub-pitch mountings: the base model with the encoder errors at every table
+    /// angle of every coset (as `solve` reports them; `before` holds coset 0's).
+    pub before_sub_pitch: Option<SubPitchSolution>,
+    /// For sub-pitch mountings: the final model likewise.
+    pub after_sub_pitch: Option<SubPitchSolution>,
 }
 
 /// The readings' rounding level: residual sums of squares below it are zero.
@@ -346,19 +353,14 @@ fn rounding_rss(set: &MeasurementSet) -> f64 {
 /// # Errors
 ///
 /// The base model's [`SolveError`] when the design cannot be solved;
-/// [`SolveError::ShiftedMountings`] for a set with shifted mountings (not handled yet).
+/// Shifted mountings (a `shift` column) are fitted in encoder positions ([`base`]).
 pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagnosis, SolveError> {
-    if set.has_shifts() {
-        // its candidates and reports are in steps and time order, not encoder positions
-        return Err(SolveError::ShiftedMountings {
-            evaluation: "the diagnosis",
-        });
-    }
     let (work, clock) = clock::clocked(set);
     let set: &MeasurementSet = &work;
+    let base = Base::of(set);
     let sigma = options.sigma;
     let context = EffectContext::of(&set.readings);
-    let before = least_squares_with_regressors(set, &[], sigma)?;
+    let before = base.fit(&[], sigma)?;
     // the hat-matrix geometry holds the cofactor densely (three matrices of the
     // parameters with every effect term the search may add): refused up front when it
     // cannot fit, before the search allocates it
@@ -389,7 +391,7 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         ));
     }
     notes.extend(notes::untestable_kinds(set, clock));
-    if let Some(note) = notes::common_cross_talk(set, &options.stated_cross_talk) {
+    if let Some(note) = notes::common_cross_talk(set, &base, &options.stated_cross_talk) {
         notes.push(note);
     }
     let tiny = rounding_rss(set);
@@ -407,7 +409,7 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         fit: current,
         lack_of_fit: mut lof_current,
     } = if testable && !exact {
-        search::run(set, &context, options, &before, tiny, &mut notes)
+        search::run(set, &base, &context, options, &before, tiny, &mut notes)
     } else {
         search::Outcome::base(&before)
     };
@@ -421,6 +423,7 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
     // drifts and jumps of a wandering zero, are left out of the final model.
     let mut model = doubt::Model {
         set,
+        base: &base,
         context: &context,
         sigma,
         lack_of_fit_alpha: options.lack_of_fit_alpha,
@@ -459,10 +462,11 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
     } = model;
     let columns = columns_of(&terms);
 
-    let with_blocks = final_effects(&current, &terms, findings);
+    let with_blocks = final_effects(&current, base.offset(), &terms, findings);
     // identifiability: the alternatives of every finding, against the final model
     let model = identify::FinalModel {
         set,
+        base: &base,
         context: &context,
         terms: &terms,
         fit: &current,
@@ -517,7 +521,7 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         ));
     }
 
-    let geometry = FitGeometry::new(&current, set, &columns);
+    let geometry = base.geometry(&current, &columns);
     let studentized = residuals::studentized(&current, &geometry.leverage());
     let mut adequacy = if testable {
         residuals::adequacy(
@@ -606,7 +610,11 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
     {
         notes.extend(lof.carriers.iter().cloned());
     }
+    let before_sub_pitch = base.sub_pitch_solution(&before);
+    let after_sub_pitch = base.sub_pitch_solution(&current);
     Ok(Diagnosis {
+        before_sub_pitch,
+        after_sub_pitch,
         before,
         after: current,
         effects,

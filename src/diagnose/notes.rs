@@ -62,8 +62,12 @@ pub(super) fn ambiguity(found: &FoundEffect, clock: Clock) -> String {
 
 /// The note on a cross-talk common to every autocollimator, which closure cannot see,
 /// when `reading_y` spans more than a few arcseconds.
-pub(super) fn common_cross_talk(set: &MeasurementSet, stated: &[u32]) -> Option<String> {
-    let (span, pitch, encoder) = identify::common_cross_talk_reach(set, 3.0)?;
+pub(super) fn common_cross_talk(
+    set: &MeasurementSet,
+    base: &super::base::Base<'_>,
+    stated: &[u32],
+) -> Option<String> {
+    let (span, pitch, encoder) = identify::common_cross_talk_reach(set, base, 3.0)?;
     let every_stated = autocollimators(set).iter().all(|ac| stated.contains(ac));
     let stated_text = if every_stated {
         "Every autocollimator's cross-talk is stated from its calibration, so this is corrected for.".to_string()

@@ -8,6 +8,7 @@ use std::collections::HashSet;
 
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
+use super::base::Base;
 use super::candidates::{self, Candidate, Family, Term};
 use super::findings::{Finding, candidate_effect, difference, max_abs, record_not_significant};
 use super::geometry::FitGeometry;
@@ -18,7 +19,7 @@ use super::{
 };
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::MeasurementSet;
-use crate::solve::{Solution, least_squares_with_regressors};
+use crate::solve::Solution;
 use crate::uncertainty::student::t_two_sided_tail;
 
 /// What the search ends with.
@@ -90,6 +91,7 @@ fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny:
 /// `notes`.
 pub(super) fn run(
     set: &MeasurementSet,
+    base: &Base<'_>,
     context: &EffectContext,
     options: &DiagnoseOptions,
     before: &Solution,
@@ -108,10 +110,11 @@ pub(super) fn run(
     let mut cross_talk_noted = false;
     let mut jumps_exceeded: Vec<(u32, Option<u32>)> = Vec::new();
     let mut current = before.clone();
-    let mut lof_current = lack_of_fit::lack_of_fit(set, &current, &[], options.lack_of_fit_alpha);
+    let mut lof_current =
+        lack_of_fit::lack_of_fit(set, &current, &base.with(&[]), options.lack_of_fit_alpha);
     while findings.len() < options.max_effects && current.dof >= 2 {
         let columns = columns_of(&terms);
-        let geometry = FitGeometry::new(&current, set, &columns);
+        let geometry = base.geometry(&current, &columns);
         let leverage = geometry.leverage();
         let studentized = residuals::studentized(&current, &leverage);
         let mut candidates: Vec<Candidate> = Vec::new();
@@ -266,12 +269,16 @@ pub(super) fn run(
                 .collect();
             new_terms.extend(added.iter().cloned());
             let new_columns = columns_of(&new_terms);
-            let Ok(fit) = least_squares_with_regressors(set, &new_columns, sigma) else {
+            let Ok(fit) = base.fit(&new_columns, sigma) else {
                 tried.push(rejected(Rejection::NotDetermined));
                 continue;
             };
-            let lof_new =
-                lack_of_fit::lack_of_fit(set, &fit, &new_columns, options.lack_of_fit_alpha);
+            let lof_new = lack_of_fit::lack_of_fit(
+                set,
+                &fit,
+                &base.with(&new_columns),
+                options.lack_of_fit_alpha,
+            );
             if let Some(new) = &lof_new
                 && !new.passed()
                 && lof_current

@@ -23,13 +23,14 @@ use super::power::{critical_f, noncentrality_for_power};
 use super::selection::Round;
 use super::{DETECTION_POWER, PlanError};
 use crate::diagnose::DiagnoseOptions;
+use crate::diagnose::base::Base;
 use crate::diagnose::candidates::{
     self, Family, MIN_STEP_READINGS, Term, step_streams, stream_in_time_order, systematic_blocks,
 };
 use crate::diagnose::geometry::FitGeometry;
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::MeasurementSet;
-use crate::solve::{Solution, least_squares_with_regressors};
+use crate::solve::Solution;
 
 /// The false-alarm probability of the ambiguity test (as `diagnose`'s).
 const AMBIGUITY_ALPHA: f64 = 0.05;
@@ -250,7 +251,10 @@ pub fn detectable(
         memory_limit_bytes,
     )?;
     let context = EffectContext::of(&set.readings);
-    let geometry = FitGeometry::new(solution, set, &[]);
+    // the fit `diagnose` starts from: in encoder positions, with the sub-pitch cosets'
+    // differences in the model (the same cofactor as `solution`'s)
+    let base = Base::of(set);
+    let geometry = base.geometry(solution, &[]);
     let zero = vec![0.0; set.readings.len()];
     let n = set.readings.len();
     let dof = solution.dof;
@@ -511,12 +515,10 @@ pub fn detectable(
             continue;
         }
         let column = drift.column(set, &context);
-        let Ok(with_drift) =
-            least_squares_with_regressors(set, std::slice::from_ref(&column), None)
-        else {
+        let Ok(with_drift) = base.fit(std::slice::from_ref(&column), None) else {
             continue;
         };
-        let g = FitGeometry::new(&with_drift, set, std::slice::from_ref(&column));
+        let g = base.geometry(&with_drift, std::slice::from_ref(&column));
         let present = [drift];
         let blocks2 = systematic(set, &context, &g, &present, options);
         let family2 = blocks2.iter().filter(|b| b.2).count();

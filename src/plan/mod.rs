@@ -394,13 +394,7 @@ pub fn plan_set(set: &MeasurementSet, options: &PlanOptions) -> Result<Plan, Pla
         Err(e) => return Err(e),
     };
     planned.dof = predicted.solution.dof;
-    if set.has_shifts() {
-        planned.notes.push(
-            "What a diagnosis can see is not predicted for shifted mountings: `diagnose` does \
-             not evaluate them yet."
-                .into(),
-        );
-    } else if predicted.solution.dof < 2 {
+    if predicted.solution.dof < 2 {
         planned.notes.push(format!(
             "The design has {} residual degree{} of freedom: no effect can be detected. Add \
              closing readings, cycles or a counter-clockwise cycle.",

@@ -8,6 +8,7 @@ use crate::measurement::{Direction, MeasurementSet};
 use crate::report::SolveReport;
 use crate::simulate::Truth;
 use crate::solve::Solution;
+use crate::solve::sub_pitch::SubPitchSolution;
 use serde::Serialize;
 use serde_json::{Map, Value};
 
@@ -51,6 +52,62 @@ impl ErrorSummary {
             encoder_rms,
             encoder_max,
         })
+    }
+}
+
+impl ErrorSummary {
+    /// Compares a solution of sub-pitch mountings with a truth: β as [`ErrorSummary::new`],
+    /// α at every table angle of every coset against the truth's encoder error at that
+    /// angle, each coset's differences taken after removing their mean (a coset's
+    /// encoder errors are determined up to a constant, docs/FORMAT.md §9.1). `None` when
+    /// the faces differ or the truth has no encoder error at some angle.
+    pub fn sub_pitch(solved: &SubPitchSolution, truth: &Truth) -> Option<Self> {
+        let beta = &solved.solution.pitch_deviation;
+        if truth.pitch_deviation.len() != beta.len() {
+            return None;
+        }
+        let n = beta.len().max(1) as f64;
+        let pitch_rms = (beta
+            .iter()
+            .zip(&truth.pitch_deviation)
+            .map(|(x, y)| (x - y).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        let pitch_max = beta
+            .iter()
+            .zip(&truth.pitch_deviation)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        let mut summary = ErrorSummary {
+            pitch_rms,
+            pitch_max,
+            encoder_rms: 0.0,
+            encoder_max: 0.0,
+        };
+        let cosets = solved.cosets.len().max(1);
+        let mut differences = vec![Vec::new(); cosets];
+        for (j, (alpha, angle)) in solved
+            .encoder_error
+            .iter()
+            .zip(&solved.encoder_angle_deg)
+            .enumerate()
+        {
+            differences[j % cosets].push(alpha - truth.encoder_error_at_deg(*angle)?);
+        }
+        let (mut sum_squares, mut count, mut max) = (0.0, 0usize, 0.0_f64);
+        for d in &differences {
+            let mean = d.iter().sum::<f64>() / d.len().max(1) as f64;
+            for x in d {
+                let e = x - mean;
+                sum_squares += e * e;
+                max = max.max(e.abs());
+                count += 1;
+            }
+        }
+        summary.encoder_rms = (sum_squares / count.max(1) as f64).sqrt();
+        summary.encoder_max = max;
+        Some(summary)
     }
 }
 
@@ -500,17 +557,29 @@ impl DiagnoseReport {
             .iter()
             .map(|f| effect_json(f, diagnosis.clock))
             .collect();
-        let mut after = SolveReport::new(&diagnosis.after, None);
+        let report_of = |solution: &Solution, shifted: Option<&SubPitchSolution>| match shifted {
+            Some(solved) => SolveReport::sub_pitch(solved, None),
+            None => SolveReport::new(solution, None),
+        };
+        let mut after = report_of(&diagnosis.after, diagnosis.after_sub_pitch.as_ref());
         after.effects = effects.clone();
         let error = truth.and_then(|t| {
-            Some(ErrorReport {
-                before: ErrorSummary::new(&diagnosis.before, t)?,
-                after: ErrorSummary::new(&diagnosis.after, t)?,
-            })
+            Some(
+                match (&diagnosis.before_sub_pitch, &diagnosis.after_sub_pitch) {
+                    (Some(before), Some(after)) => ErrorReport {
+                        before: ErrorSummary::sub_pitch(before, t)?,
+                        after: ErrorSummary::sub_pitch(after, t)?,
+                    },
+                    _ => ErrorReport {
+                        before: ErrorSummary::new(&diagnosis.before, t)?,
+                        after: ErrorSummary::new(&diagnosis.after, t)?,
+                    },
+                },
+            )
         });
         Self {
             file,
-            before: SolveReport::new(&diagnosis.before, None),
+            before: report_of(&diagnosis.before, diagnosis.before_sub_pitch.as_ref()),
             after,
             effects,
             error,

@@ -355,8 +355,14 @@ pub fn write_final_model_results<W: Write>(
     out: &mut W,
     solution: &Solution,
     uncertainty: Option<&CalibrationUncertainty>,
+    sub_pitch: Option<&SubPitchSolution>,
 ) -> fmt::Result {
-    let model = match solution.layout.effects {
+    // the cosets' differences of sub-pitch mountings are part of the base model
+    let base_terms = sub_pitch.map_or(0, |s| {
+        s.cosets.len().saturating_sub(1) * solution.faces.saturating_sub(1)
+    });
+    let terms = solution.layout.effects.saturating_sub(base_terms);
+    let model = match terms {
         0 => "the base model, no effect added".to_string(),
         1 => "base model + the effect above, 1 fitted term".to_string(),
         e => format!("base model + the effects above, {e} fitted terms"),
@@ -364,7 +370,7 @@ pub fn write_final_model_results<W: Write>(
     writeln!(
         out,
         "\nCalibration of the final model ({model}){}: dof {}, residual RMS {}",
-        if solution.layout.effects > 0 {
+        if terms > 0 {
             ", corrected for the effects"
         } else {
             ""
@@ -372,7 +378,13 @@ pub fn write_final_model_results<W: Write>(
         solution.dof,
         rms_text(solution)
     )?;
-    write_results(out, solution, uncertainty)
+    write_results_with(out, solution, uncertainty, sub_pitch)?;
+    if let Some(solved) = sub_pitch {
+        for note in &solved.notes {
+            writeln!(out, "note: {note}")?;
+        }
+    }
+    Ok(())
 }
 
 /// The residual RMS for the table, or why there is none.

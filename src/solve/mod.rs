@@ -219,12 +219,6 @@ pub enum SolveError {
         /// The number of cosets of table angles.
         cosets: usize,
     },
-    /// An evaluation that does not handle shifted mountings (a `shift` other than 0) yet.
-    #[error("{evaluation} does not handle shifted mountings (a mounting whose shift is not 0) yet")]
-    ShiftedMountings {
-        /// What was asked, e.g. `the diagnosis`.
-        evaluation: &'static str,
-    },
 }
 
 /// Where the standard deviation of one reading, σ, comes from.

@@ -355,7 +355,7 @@ pub fn solve_shifted(
             limit_source,
         });
     }
-    let columns = contrast_columns(&geometry, set);
+    let columns = coset_columns(&geometry, set);
     let solution = if columns.is_empty() {
         solve_positions(&positions, options)?
     } else {
@@ -372,6 +372,16 @@ pub fn solve_shifted(
         .map_err(|e| name_cosets(e, &geometry, n))?
     };
 
+    Ok(from_engine_solution(solution, &geometry))
+}
+
+/// The encoder errors at every table angle of every coset from an engine's `solution` of
+/// the set in encoder positions whose first (C − 1)·(N − 1) effect terms are the cosets'
+/// differences ([`coset_columns`], in that order; further effect terms may follow, as in
+/// a diagnosis), with u(α) from its cofactor and σ.
+pub fn from_engine_solution(solution: Solution, geometry: &ShiftGeometry) -> SubPitchSolution {
+    let n = solution.faces;
+    let c_count = geometry.cosets();
     let cosets = geometry.coset_shift_deg().to_vec();
     let layout = solution.layout;
     let delta = |c: usize, q: usize| layout.effect((c - 1) * (n - 1) + q);
@@ -397,18 +407,18 @@ pub fn solve_shifted(
         .sigma
         .map(|(s, _)| coset_encoder_error_u(&solution, c_count, s));
     let notes = if geometry.is_sub_pitch() {
-        vec![constant_note(&geometry)]
+        vec![constant_note(geometry)]
     } else {
         Vec::new()
     };
-    Ok(SubPitchSolution {
+    SubPitchSolution {
         encoder_angle_deg: geometry.angles_deg(),
         solution,
         encoder_error,
         encoder_error_u,
         cosets,
         notes,
-    })
+    }
 }
 
 /// u(α) at every table angle of every coset (the order of `encoder_angle_deg`) for σ = `s`,
@@ -450,8 +460,10 @@ fn coset_encoder_error_u(solution: &Solution, c_count: usize, s: f64) -> Vec<f64
 }
 
 /// The contrast columns of cosets 1 … C−1 (module documentation), (C − 1)·(N − 1) of
-/// them, coset by coset.
-fn contrast_columns(geometry: &ShiftGeometry, set: &MeasurementSet) -> Vec<Vec<f64>> {
+/// them, coset by coset, one value per reading of `set` (as the file has it); none for
+/// whole-face shifts. Fitted with the set in encoder positions, they give the cosets'
+/// differences δ_c.
+pub fn coset_columns(geometry: &ShiftGeometry, set: &MeasurementSet) -> Vec<Vec<f64>> {
     let n = set.faces;
     let c_count = geometry.cosets();
     if c_count < 2 || n < 2 {
@@ -623,7 +635,7 @@ mod tests {
         assert_eq!(steps, [0, 1, 2, 3, 2, 0, 1, 2]);
         assert!(positions.setup_shift_deg.is_empty());
         // coset 1 at positions 2, 0, 1, 2: +1 at q = 0, 1, −1 on both at q = N − 1 = 2
-        let columns = contrast_columns(&g, &set);
+        let columns = coset_columns(&g, &set);
         assert_eq!(columns.len(), 2);
         assert_eq!(columns[0], [0.0, 0.0, 0.0, 0.0, -1.0, 1.0, 0.0, -1.0]);
         assert_eq!(columns[1], [0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, -1.0]);

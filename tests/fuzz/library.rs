@@ -172,7 +172,12 @@ pub fn measurement(case: &Case) -> Result<(), Box<Finding>> {
                 || {
                     let mut table = String::new();
                     let _ = write_table(&mut table, &diagnosis, None, CSV);
-                    let _ = report::write_final_model_results(&mut table, &diagnosis.after, None);
+                    let _ = report::write_final_model_results(
+                        &mut table,
+                        &diagnosis.after,
+                        None,
+                        diagnosis.after_sub_pitch.as_ref(),
+                    );
                     let report = DiagnoseReport::new(&diagnosis, None, None)
                         .with_residuals(&diagnosis, &set);
                     let _ = report.to_json();

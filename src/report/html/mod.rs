@@ -307,15 +307,15 @@ impl CalibrationReport {
                 file: name.clone(),
                 source,
             };
-            if set.has_shifts() && (budget.is_some() || inputs.diagnose) {
+            if set.has_shifts() && budget.is_some() {
                 return Err(ReportError::NotSupported {
                     file: name,
-                    what: "an instrument budget or a diagnosis",
+                    what: "an instrument budget",
                     kind: "shifted mountings",
                 });
             }
             // sub-pitch mountings: α at every table angle of every coset, as `solve` reports
-            // them (docs/FORMAT.md §9.1); budget and diagnosis were refused above
+            // them (docs/FORMAT.md §9.1); a budget was refused above
             let sub_pitch = set.has_shifts() && ShiftGeometry::of(&set).is_sub_pitch();
             let (solution, shifted) = if sub_pitch {
                 let solved = solve_shifted(&set, &SolveOptions::new().with_sigma_opt(inputs.sigma))
