@@ -471,7 +471,7 @@ fn usage_errors_are_one_line() {
     }
     assert_eq!(
         one_error_line(&polycal(&[])),
-        "no command given; the commands are solve, diagnose, budget, compare, selfcal, report, \
+        "no command given; the commands are solve, diagnose, budget, compare, selfcal, plan, report, \
          simulate, run, sim-lab, completions, man (see --help)"
     );
 }

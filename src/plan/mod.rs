@@ -21,7 +21,9 @@
 //! use polycal::plan::{Design, PlanOptions, plan};
 //!
 //! let sigma = Sigma::new(0.05)?;
-//! let planned = plan(&Design::default(), &PlanOptions::new(sigma))?;
+//! // the paper's design: two adjacent autocollimators, 6 cycles without closing readings
+//! let paper = Design::default().with_spec("closing=false")?;
+//! let planned = plan(&paper, &PlanOptions::new(sigma).with_detect(false))?;
 //! let u_alpha = planned.prediction.as_ref().unwrap().encoder_error_u.clone();
 //! // the paper's design: u(α) = σ·√((N² − 1)/(6·N·R)), N = 24, R = 6 cycles
 //! let by_hand = 0.05 * ((24.0f64 * 24.0 - 1.0) / (6.0 * 24.0 * 6.0)).sqrt();
