@@ -211,7 +211,7 @@ pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
             }
             let planned = plan::plan(&design, &options)
                 .map_err(actionable)
-                .with_context(|| format!("design {}", design.label()))?;
+                .with_context(|| format!("design \"{}\"", design.label()))?;
             reports.push(PlanReport::new(&planned, Some(&design), None));
         }
     }
@@ -257,6 +257,9 @@ fn actionable(error: plan::PlanError) -> anyhow::Error {
         plan::PlanError::Budget(polycal::uncertainty::calibration::CalibrationError::NoSigma) => {
             anyhow::anyhow!("{error} (--sigma)")
         }
+        plan::PlanError::Budget(
+            polycal::uncertainty::calibration::CalibrationError::ShiftedMountings,
+        ) => anyhow::anyhow!("{error}; plan without --budget evaluates them"),
         other => other.into(),
     }
 }

@@ -137,9 +137,7 @@ impl Design {
     ///
     /// [`PlanError::Design`] naming the first problem.
     pub fn validate(&self) -> Result<(), PlanError> {
-        self.simulation_config()
-            .validate()
-            .map_err(|e| PlanError::Design(format!("{}: {e}", self.label())))
+        self.simulation_config().validate().map_err(design_error)
     }
 
     /// The design's readings, all 0, with their times (a run's readings do not change
@@ -170,8 +168,7 @@ impl Design {
             "the readings of the design",
             memory_limit_bytes,
         )?;
-        let (mut set, _) = simulate(&self.simulation_config())
-            .map_err(|e| PlanError::Design(format!("{}: {e}", self.label())))?;
+        let (mut set, _) = simulate(&self.simulation_config()).map_err(design_error)?;
         set.source = format!("design {}", self.label());
         Ok(set)
     }
@@ -381,6 +378,14 @@ impl Design {
         }
         Ok(designs)
     }
+}
+
+/// A design the simulation settings refuse: their reason, without their prefix.
+fn design_error(e: crate::simulate::SimulateError) -> PlanError {
+    PlanError::Design(match e {
+        crate::simulate::SimulateError::Config(reason) => reason,
+        other => other.to_string(),
+    })
 }
 
 /// The byte range of `key` in the `index`-th `[[design]]` table of `text`, for the error's

@@ -64,7 +64,7 @@ pub const MAX_TARGET_CYCLES: u32 = 1000;
 #[non_exhaustive]
 pub enum PlanError {
     /// The design breaks a rule (faces, autocollimators, cycles, shifts…).
-    #[error("invalid design {0}")]
+    #[error("invalid design: {0}")]
     Design(String),
     /// A design's written form is not valid.
     #[error("design \"{spec}\": {message}")]
