@@ -5,7 +5,11 @@
 //!   with a drift: one effect found, 300 readings;
 //! - `diagnose/360x6_drift_step_3_outliers`: 360 positions × 6 cycles with closing readings
 //!   (4 332 readings), a drift, a jump in the middle of a cycle and three outliers, none
-//!   declared: the speed target (under 0.3 s on 2 cores).
+//!   declared: the speed target (under 0.3 s on 2 cores);
+//! - `diagnose/24x4_subpitch_drift_step_outlier`: two mountings at 0° and 7.5° (sub-pitch,
+//!   two cosets of 24 angles), 4 cycles with closing readings (400 readings), a drift, a
+//!   jump inside mounting 2 and an outlier: the base model carries the cosets' 23
+//!   differences as columns.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use polycal::diagnose::{DiagnoseOptions, diagnose};
@@ -59,6 +63,38 @@ fn bench_diagnose(c: &mut Criterion) {
     let mut group = c.benchmark_group("diagnose");
     let (set, _) = simulate(&small).expect("a valid simulation");
     group.bench_function("24x6_drift", |b| {
+        b.iter(|| diagnose(black_box(&set), &options))
+    });
+    let shifted = SimulationConfig {
+        setups: 2,
+        setup_shift_faces: 5,
+        table_shift_deg: vec![0.0, 7.5],
+        cycles: 4,
+        effects: vec![
+            Effect::Drift {
+                ac: 1,
+                value: 0.5,
+                quadratic: None,
+            },
+            Effect::OffsetStep {
+                ac: 2,
+                cycle: 2,
+                step: Some(9),
+                setup: Some(2),
+                value: 0.4,
+            },
+            Effect::Outlier {
+                cycle: 3,
+                step: 5,
+                ac: 1,
+                setup: Some(1),
+                value: 1.0,
+            },
+        ],
+        ..SimulationConfig::default()
+    };
+    let (set, _) = simulate(&shifted).expect("a valid simulation");
+    group.bench_function("24x4_subpitch_drift_step_outlier", |b| {
         b.iter(|| diagnose(black_box(&set), &options))
     });
     let (set, _) = simulate(&large).expect("a valid simulation");
