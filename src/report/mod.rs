@@ -3,7 +3,7 @@
 //! - [`solve`]: the JSON object of `polycal solve` (docs/FORMAT.md §5) and the result rows
 //!   of its CSV (§3); [`solve_table`]: its table for people, whose results section
 //!   (β, φ, α with their uncertainties) `diagnose` also prints for its final model;
-//! - [`diagnose`]: the JSON object and the table of `polycal diagnose`;
+//! - [`diagnose`]: the JSON object of `polycal diagnose`; [`diagnose_table`]: its table;
 //! - [`compare`]: the table of `polycal compare` (its JSON is [`crate::compare::Comparison`]);
 //! - [`selfcal`]: the JSON object, the table and the result rows of `polycal selfcal`;
 //! - [`plan`]: the JSON object of one design of `polycal plan`, its table, and the table
@@ -16,6 +16,7 @@
 
 pub mod compare;
 pub mod diagnose;
+pub mod diagnose_table;
 pub mod html;
 pub mod plan;
 pub mod selfcal;

@@ -1,0 +1,293 @@
+//! The table of `polycal diagnose` for people: the base fit, each effect with the pattern
+//! that pointed to it, its size, evidence and what it changed, the verdict with its
+//! checks, what was tried and not added, and (with a truth) the errors before and after.
+
+use super::diagnose::{ErrorSummary, direction_text, explanation_on, label};
+use crate::diagnose::Diagnosis;
+use crate::effects::Effect;
+use crate::simulate::Truth;
+use crate::solve::Solution;
+
+fn rms_text(solution: &Solution) -> String {
+    solution
+        .residual_rms()
+        .map_or("— (no residual degrees of freedom)".into(), |r| {
+            format!("{r:.4}″")
+        })
+}
+
+/// An F statistic for people: one decimal, or `∞ (no residual left)` for the infinite F
+/// of a term that explains the rest exactly (`null` in the JSON, docs/FORMAT.md §5.2).
+fn f_text(f: f64) -> String {
+    if f.is_finite() {
+        format!("{f:.1}")
+    } else {
+        "∞ (no residual left)".into()
+    }
+}
+
+fn p_text(p: f64) -> String {
+    if p < 1e-300 {
+        "< 1e-300".into()
+    } else {
+        format!("{p:.2e}")
+    }
+}
+
+/// The table for people: the base fit, each effect with the pattern that pointed to it,
+/// its size and evidence and what it changed, the final fit, the verdict and (with a
+/// truth) the errors before and after.
+///
+/// # Errors
+///
+/// The writer's error.
+pub fn write_table<W: std::fmt::Write>(
+    out: &mut W,
+    diagnosis: &Diagnosis,
+    truth: Option<&Truth>,
+    source: &str,
+) -> std::fmt::Result {
+    let before = &diagnosis.before;
+    writeln!(out, "polycal diagnose: {source}")?;
+    writeln!(
+        out,
+        "Base model: {} faces, {} readings, dof {}, residual RMS {}",
+        before.faces,
+        before.readings,
+        before.dof,
+        rms_text(before)
+    )?;
+    for note in &diagnosis.notes {
+        writeln!(out, "  note: {note}")?;
+    }
+    if diagnosis.effects.is_empty() {
+        if diagnosis.testable {
+            writeln!(
+                out,
+                "\nNo effect is significant: the base model explains the readings."
+            )?;
+        }
+    } else {
+        writeln!(
+            out,
+            "\nEffects found, in the order added (each by an F test against the model before it):"
+        )?;
+        for (i, found) in diagnosis.effects.iter().enumerate() {
+            let value = found.effect.value();
+            let unit = match found.effect {
+                Effect::Drift { .. } => diagnosis.clock.drift_unit_text(),
+                Effect::CrossTalk { .. } => "″/″",
+                _ => "″",
+            };
+            let u = found
+                .u
+                .map_or(String::new(), |u| format!(" ± {u:.4}{unit} (k = 1)"));
+            writeln!(
+                out,
+                "{:>3}. {} = {value:+.4}{unit}{u}",
+                i + 1,
+                label(&found.effect)
+            )?;
+            if let Effect::Drift {
+                quadratic: Some(q), ..
+            } = found.effect
+            {
+                let u = found
+                    .quadratic_u
+                    .map_or(String::new(), |u| format!(" ± {u:.4}{unit}² (k = 1)"));
+                let evidence = found.quadratic_evidence.map_or(String::new(), |e| {
+                    format!(
+                        "; curvature added by F = {}, Bonferroni p = {}",
+                        f_text(e.f_statistic),
+                        p_text(e.p_adjusted)
+                    )
+                });
+                writeln!(
+                    out,
+                    "     curvature (quadratic) = {q:+.4}{unit}²{u}{evidence}"
+                )?;
+            }
+            writeln!(
+                out,
+                "     pattern: {}",
+                explanation_on(found, diagnosis.clock)
+            )?;
+            writeln!(
+                out,
+                "     evidence: F = {}, p = {}, Bonferroni p = {}; residual RMS {:.4}″ → {:.4}″",
+                f_text(found.f_statistic),
+                p_text(found.p_value),
+                p_text(found.p_adjusted),
+                found.residual_rms_before,
+                found.residual_rms_after
+            )?;
+            writeln!(
+                out,
+                "     effect on the calibration: pitch deviations changed by up to {:.4}″, encoder errors by up to {:.4}″",
+                found.pitch_change_max, found.encoder_change_max
+            )?;
+            for alternative in &found.alternatives {
+                let names: Vec<String> = alternative
+                    .effects
+                    .iter()
+                    .map(|e| format!("{} = {:+.5}", label(e), e.value()))
+                    .collect();
+                writeln!(
+                    out,
+                    "     {}: {} fits as well (F = {}, p = {:.2}) and changes pitch deviations by up to {:.4}″, encoder errors by up to {:.4}″ ({:.1} expanded uncertainties)",
+                    if alternative.changes_calibration() {
+                        "CANNOT TELL"
+                    } else {
+                        "alternative"
+                    },
+                    names.join(" with "),
+                    f_text(alternative.f_statistic),
+                    alternative.p_value,
+                    alternative.pitch_change_max,
+                    alternative.encoder_change_max,
+                    alternative.change_over_expanded_u
+                )?;
+            }
+        }
+        let after = &diagnosis.after;
+        writeln!(
+            out,
+            "\nFinal model: base + {} effect{}, dof {}, residual RMS {}",
+            diagnosis.effects.len(),
+            if diagnosis.effects.len() == 1 {
+                ""
+            } else {
+                "s"
+            },
+            after.dof,
+            rms_text(after)
+        )?;
+    }
+    if diagnosis.testable {
+        if diagnosis.adequacy.adequate {
+            writeln!(
+                out,
+                "\nAdequate: the final residuals are consistent with noise."
+            )?;
+        } else {
+            let failed: Vec<&str> = diagnosis
+                .adequacy
+                .checks
+                .iter()
+                .filter(|c| !c.passed)
+                .map(|c| c.name.as_str())
+                .collect();
+            let ambiguous_only = !failed.is_empty()
+                && failed
+                    .iter()
+                    .all(|name| name.starts_with("identifiability"));
+            if ambiguous_only {
+                writeln!(
+                    out,
+                    "\nNOT adequate: an effect found cannot be told apart from another explanation that gives a different calibration (see the notes); the result is not certified."
+                )?;
+            } else {
+                writeln!(
+                    out,
+                    "\nNOT adequate: structure is left that no known effect explains."
+                )?;
+            }
+            if !diagnosis.effects.is_empty() && !ambiguous_only {
+                writeln!(
+                    out,
+                    "  Caution: the effects above are the closest terms the model has to a structure it cannot express, not a confirmed explanation; do not take the final model's result as corrected until the cause of the structure below is found."
+                )?;
+            }
+        }
+        for check in &diagnosis.adequacy.checks {
+            writeln!(
+                out,
+                "  {} {}: {} (limit {:.2})",
+                if check.passed { "pass" } else { "FAIL" },
+                check.name,
+                if check.statistic.is_finite() {
+                    format!("{:.2}", check.statistic)
+                } else {
+                    "∞".to_string()
+                },
+                check.limit
+            )?;
+        }
+        for s in &diagnosis.adequacy.structure {
+            let time = |t: Option<f64>| t.map_or(String::new(), |t| format!(", t = {t:.0} s"));
+            writeln!(
+                out,
+                "  structure left: setup {} autocollimator {}, from cycle {} step {}{} to cycle {} step {}{}: mean residual {:+.4}″ over {} readings",
+                s.setup,
+                s.ac,
+                s.from.0,
+                s.from.1,
+                time(s.from.2),
+                s.to.0,
+                s.to.1,
+                time(s.to.2),
+                s.mean_residual_arcsec,
+                s.readings
+            )?;
+        }
+    }
+    if let Some(lof) = &diagnosis.lack_of_fit
+        && !lof.passed()
+    {
+        writeln!(
+            out,
+            "  cells whose mean residual stands out most (pure-error σ {:.4}″):",
+            lof.pure_error_sigma
+        )?;
+        for c in lof.worst_cells.iter().take(5) {
+            writeln!(
+                out,
+                "    setup {} step {} autocollimator {} {} (face {}): mean residual {:+.4}″ over {} readings, z = {:+.1}",
+                c.setup,
+                c.step,
+                c.ac,
+                direction_text(c.direction),
+                c.face,
+                c.mean_residual_arcsec,
+                c.readings,
+                c.z
+            )?;
+        }
+    }
+    if !diagnosis.tried.is_empty() {
+        writeln!(out, "\nTried and not added:")?;
+        for t in &diagnosis.tried {
+            let name = if t.quadratic {
+                format!("curvature of the {}", label(&t.effect))
+            } else {
+                label(&t.effect)
+            };
+            writeln!(
+                out,
+                "  {name}: F = {}, Bonferroni p = {} — {}",
+                f_text(t.evidence.f_statistic),
+                p_text(t.evidence.p_adjusted),
+                t.rejection.as_str()
+            )?;
+        }
+    }
+    if let Some(truth) = truth
+        && let (Some(b), Some(a)) = (
+            ErrorSummary::new(&diagnosis.before, truth),
+            ErrorSummary::new(&diagnosis.after, truth),
+        )
+    {
+        writeln!(
+            out,
+            "\nError against the truth (arcsec)   pitch RMS  pitch max  encoder RMS  encoder max"
+        )?;
+        for (label, e) in [("before", b), ("after", a)] {
+            writeln!(
+                out,
+                "  {label:<32} {:>9.4}  {:>9.4}  {:>11.4}  {:>11.4}",
+                e.pitch_rms, e.pitch_max, e.encoder_rms, e.encoder_max
+            )?;
+        }
+    }
+    Ok(())
+}
