@@ -512,3 +512,53 @@ fn every_other_kind_at_its_predicted_size_is_found_by_diagnose() {
         }
     }
 }
+
+#[test]
+fn a_file_without_time_is_planned_on_the_stop_clock_as_diagnose_runs_it() {
+    // without `time`, diagnose runs drifts on the stop order (one stop = one unit): the
+    // plan gives the drift per stop, and a zero per cycle keeps its 5 degrees of freedom
+    // whatever the scale of the drift's columns
+    let config = |seed: u64, drift: f64| SimulationConfig {
+        no_time: true,
+        // one stop an hour: a drift in ″/h is then one in ″/stop
+        step_seconds: 3600.0,
+        effects: if drift > 0.0 {
+            vec![Effect::Drift {
+                ac: 2,
+                value: drift,
+                quadratic: None,
+            }]
+        } else {
+            Vec::new()
+        },
+        noise_arcsec: 0.05,
+        seed,
+        ..SimulationConfig::default()
+    };
+    let (design, _) = simulate(&config(1, 0.0)).unwrap();
+    let p = plan_set(&design, &PlanOptions::new(Sigma::new(0.05).unwrap())).unwrap();
+    let drift = p
+        .detectable
+        .iter()
+        .find(|d| d.kind == "drift" && d.ac == Some(2))
+        .unwrap();
+    assert_eq!(drift.unit, "arcsec/stop");
+    assert!(p.duration_seconds.is_none());
+    for d in p.detectable.iter().filter(|d| d.kind == "rezero") {
+        assert_eq!(d.df, 5, "{d:?}");
+    }
+    let size = drift.size.unwrap();
+    let found = (1..=100u64)
+        .filter(|&seed| {
+            let (set, _) = simulate(&config(seed, size)).unwrap();
+            let d = diagnose(&set, &DiagnoseOptions::default()).unwrap();
+            d.effects
+                .iter()
+                .any(|f| matches!(f.effect, Effect::Drift { ac: 2, .. }))
+        })
+        .count();
+    assert!(
+        (78..=98).contains(&found),
+        "a drift of {size}″/stop found in {found} of 100"
+    );
+}

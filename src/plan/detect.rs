@@ -250,6 +250,9 @@ pub fn detectable(
         "the geometry of a diagnosis of the design",
         memory_limit_bytes,
     )?;
+    // the clock drift terms run on, as `diagnose` has it: `time`, or the stop order
+    let (clocked, clock) = crate::diagnose::clock::clocked(set);
+    let set: &MeasurementSet = &clocked;
     let context = EffectContext::of(&set.readings);
     // the fit `diagnose` starts from: in encoder positions, with the sub-pitch cosets'
     // differences in the model (the same cofactor as `solution`'s)
@@ -614,6 +617,15 @@ pub fn detectable(
         }
     }
     out.extend(jumps.into_iter().map(|(d, _)| d));
+    if clock == crate::diagnose::Clock::StopOrder {
+        for d in &mut out {
+            d.unit = match d.unit {
+                "arcsec/h" => "arcsec/stop",
+                "arcsec/h^2" => "arcsec/stop^2",
+                other => other,
+            };
+        }
+    }
     Ok((out, ambiguous))
 }
 

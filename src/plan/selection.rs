@@ -87,8 +87,10 @@ pub struct Round {
     noise_in_span: Vec<f64>,
     /// χ² of the residual directions no candidate spans, per trial (unit σ).
     outside: Vec<f64>,
-    /// The largest column's squared length, for the rank tolerance.
-    scale: f64,
+    /// The length ‖x‖ of every column: the round works with the columns scaled to unit
+    /// length (F tests do not depend on a column's scale, and the rank tolerance is then
+    /// the same for a drift in hours and one on the stop clock).
+    norms: Vec<f64>,
     /// The false-alarm probability of every family.
     alpha: f64,
     /// The F a candidate of (family, numerator degrees of freedom) must exceed to pass
@@ -146,12 +148,17 @@ impl Round {
             });
             columns.extend(block);
         }
-        let gram = geometry.projected_gram(&columns);
-        let scale = columns
+        let norms: Vec<f64> = columns
             .iter()
-            .map(|x| x.iter().map(|v| v * v).sum::<f64>())
-            .fold(0.0, f64::max);
-        let tolerance = RANK_TOLERANCE * scale;
+            .map(|x| x.iter().map(|v| v * v).sum::<f64>().sqrt())
+            .collect();
+        for (x, norm) in columns.iter_mut().zip(&norms) {
+            if *norm > 0.0 {
+                x.iter_mut().for_each(|v| *v /= norm);
+            }
+        }
+        let gram = geometry.projected_gram(&columns);
+        let tolerance = RANK_TOLERANCE;
         for o in &mut offered {
             let block = gram.view((o.start, o.start), (o.len, o.len)).into_owned();
             let (p, r) = pinv(block, tolerance);
@@ -212,7 +219,7 @@ impl Round {
             noise,
             noise_in_span,
             outside,
-            scale,
+            norms,
             alpha,
             critical,
         }
@@ -253,13 +260,16 @@ impl Round {
         let mut scores = DVector::<f64>::zeros(c);
         for trial in 0..TRIALS {
             // s = noise + G[:, target]·w·size; sᵀG⁺s = ‖z‖² + 2 size wᵀ noise_t + size² wᵀG_tt w
+            // the coefficients on the unit-length columns: the effect's on its own columns
+            // times their lengths
             let w: Vec<f64> = (0..tlen)
-                .map(|_| {
-                    if random {
+                .map(|j| {
+                    let draw = if random {
                         rng.sample::<f64, _>(StandardNormal)
                     } else {
                         1.0
-                    }
+                    };
+                    draw * self.norms[t0 + j]
                 })
                 .collect();
             scores.copy_from(&self.noise[trial]);
@@ -372,8 +382,12 @@ impl Round {
     ) -> Option<f64> {
         let alpha = self.alpha;
         let (t0, tlen) = target;
-        let trace: f64 = (0..tlen).map(|j| self.gram[(t0 + j, t0 + j)]).sum();
-        if trace.is_nan() || trace <= RANK_TOLERANCE * self.scale {
+        // the target's projected squared length, in its own columns' units
+        let trace: f64 = (0..tlen)
+            .map(|j| self.gram[(t0 + j, t0 + j)] * self.norms[t0 + j].powi(2))
+            .sum();
+        let length: f64 = (0..tlen).map(|j| self.norms[t0 + j].powi(2)).sum();
+        if trace.is_nan() || trace <= RANK_TOLERANCE * length {
             return None;
         }
         let found = |size: f64| self.found_fraction(target, size, random, groups);

@@ -251,7 +251,14 @@ impl PlanReport {
 }
 
 fn num(value: Option<f64>, digits: usize) -> String {
-    value.map_or("—".into(), |v| format!("{v:.digits$}"))
+    value.map_or("—".into(), |v| {
+        if v != 0.0 && v.abs() < 0.5 * 10f64.powi(-(digits as i32)) {
+            // a size too small for the fixed digits (a drift per stop, say)
+            format!("{v:.2e}")
+        } else {
+            format!("{v:.digits$}")
+        }
+    })
 }
 
 fn hours(seconds: Option<f64>) -> String {
