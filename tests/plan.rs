@@ -305,7 +305,7 @@ fn detection_at_the_predicted_size(spec: &str) {
     let drift = p
         .detectable
         .iter()
-        .find(|d| d.kind == "drift" && d.ac == Some(2))
+        .find(|d| d.kind == "drift" && d.order == Some(1) && d.ac == Some(2))
         .unwrap();
     let jump = p
         .detectable
@@ -427,9 +427,14 @@ fn every_other_kind_at_its_predicted_size_is_found_by_diagnose() {
         .unwrap();
     let p = plan(&design, &PlanOptions::new(Sigma::new(0.05).unwrap())).unwrap();
     let size = |kind: &str, ac: Option<u32>| {
+        let (kind, order) = match kind {
+            "drift-curvature" => ("drift", Some(2)),
+            "drift" => ("drift", Some(1)),
+            other => (other, None),
+        };
         p.detectable
             .iter()
-            .find(|d| d.kind == kind && d.ac == ac)
+            .find(|d| d.kind == kind && d.ac == ac && d.order == order)
             .and_then(|d| d.size)
             .unwrap_or_else(|| panic!("{kind} {ac:?}: {:?}", p.detectable))
     };
@@ -540,7 +545,7 @@ fn a_file_without_time_is_planned_on_the_stop_clock_as_diagnose_runs_it() {
     let drift = p
         .detectable
         .iter()
-        .find(|d| d.kind == "drift" && d.ac == Some(2))
+        .find(|d| d.kind == "drift" && d.order == Some(1) && d.ac == Some(2))
         .unwrap();
     assert_eq!(drift.unit, "arcsec/stop");
     assert!(p.duration_seconds.is_none());

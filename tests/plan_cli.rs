@@ -652,9 +652,20 @@ fn detectable_lists_the_effects_a_diagnosis_can_see() {
     for ac in [1, 2] {
         let drifts: Vec<&Value> = detectable
             .iter()
-            .filter(|d| d["kind"] == "drift" && d["ac"] == ac)
+            .filter(|d| d["kind"] == "drift" && d["ac"] == ac && d["order"] == 1)
             .collect();
         assert_eq!(drifts.len(), 1, "one drift of autocollimator {ac}");
+        // and its curvature, the drift of order 2, in arcsec/h²
+        let curvature: Vec<&Value> = detectable
+            .iter()
+            .filter(|d| d["kind"] == "drift" && d["ac"] == ac && d["order"] == 2)
+            .collect();
+        assert_eq!(
+            curvature.len(),
+            1,
+            "one drift curvature of autocollimator {ac}"
+        );
+        assert_eq!(curvature[0]["unit"], "arcsec/h^2");
         let drift = drifts[0];
         assert_eq!(drift["identifiable"], true, "{drift}");
         assert_eq!(drift["unit"], "arcsec/h", "{drift}");
@@ -672,8 +683,8 @@ fn detectable_lists_the_effects_a_diagnosis_can_see() {
     }
     assert_eq!(
         detectable.iter().filter(|d| d["kind"] == "drift").count(),
-        2,
-        "no drift of another autocollimator"
+        4,
+        "no drift of another autocollimator: a drift and its curvature for each of two"
     );
 
     let json = json_one(

@@ -42,7 +42,7 @@ const CROSS_TALK_MIN_NEW_FRACTION: f64 = 0.1;
 /// What a design lets a diagnosis see of one effect term.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Detectable {
-    /// The kind (docs/FORMAT.md §6): `drift`, `drift-curvature`, `offset-step`, `rezero`,
+    /// The kind (docs/FORMAT.md §6): `drift` (of order 1, or its curvature: `order` 2), `offset-step`, `rezero`,
     /// `direction`, `cross-talk`, `temperature`.
     pub kind: &'static str,
     /// The autocollimator (`null` for a direction offset of all).
@@ -50,6 +50,10 @@ pub struct Detectable {
     /// The mounting, for a stream's terms when the design has several.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub setup: Option<u32>,
+    /// For a drift: 1 for the linear drift, 2 for its curvature (`quadratic`), as
+    /// `diagnose` reports a drift's `order`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub order: Option<usize>,
     /// Whether the design can tell the term from the base model at all.
     pub identifiable: bool,
     /// The size found with 90 % probability, in [`Detectable::unit`]; `null` when not
@@ -119,7 +123,7 @@ fn looked(term: &Term) -> Option<Looked> {
         Term::Effect(Effect::Temperature { ac, .. }) => {
             ("temperature", Some(*ac), None, "arcsec/degC")
         }
-        Term::Quadratic { ac } => ("drift-curvature", Some(*ac), None, "arcsec/h^2"),
+        Term::Quadratic { ac } => ("drift", Some(*ac), None, "arcsec/h^2"),
         Term::RezeroCycle { ac, setup, .. } => ("rezero", Some(*ac), *setup, "arcsec"),
         _ => return None,
     };
@@ -445,6 +449,7 @@ pub fn detectable(
             kind: l.kind,
             ac: l.ac,
             setup: l.setup,
+            order: (l.kind == "drift").then_some(1),
             identifiable: *testable,
             size,
             unit: l.unit,
@@ -494,6 +499,7 @@ pub fn detectable(
                 kind: "offset-step",
                 ac: Some(stream.ac),
                 setup: stream.setup,
+                order: None,
                 identifiable: !stream.stops.is_empty(),
                 size: best.map(|b| b.1),
                 unit: "arcsec",
@@ -569,9 +575,10 @@ pub fn detectable(
                 .map(|s| s * sigma)
         });
         out.push(Detectable {
-            kind: "drift-curvature",
+            kind: "drift",
             ac: Some(ac),
             setup: None,
+            order: Some(2),
             identifiable: target.is_some(),
             size,
             unit: "arcsec/h^2",

@@ -240,11 +240,11 @@ impl PlanReport {
         crate::report::to_json(self)
     }
 
-    /// The 90 % size of the first entry of `kind` (the smallest over its terms).
+    /// The smallest 90 % size over the terms of `kind` (a drift: of order 1).
     fn smallest(&self, kind: &str) -> Option<f64> {
         self.detectable
             .iter()
-            .filter(|d| d.kind == kind)
+            .filter(|d| d.kind == kind && d.order.is_none_or(|o| o == 1))
             .filter_map(|d| d.size)
             .reduce(f64::min)
     }
@@ -440,7 +440,11 @@ fn write_detectable<W: Write>(out: &mut W, d: &Detectable) -> fmt::Result {
     writeln!(
         out,
         "{:<16} {:>3} {:>5} {:>12} {:<14} {:>4} {}",
-        d.kind,
+        if d.order == Some(2) {
+            "drift curvature"
+        } else {
+            d.kind
+        },
         d.ac.map_or("all".into(), |a| a.to_string()),
         d.setup.map_or("".into(), |s| s.to_string()),
         if d.identifiable {
