@@ -88,6 +88,18 @@ fn instrument_budget_file() {
 }
 
 #[test]
+fn designs_file() {
+    let strategy = case(seeds(seed::DESIGNS));
+    run(
+        "designs",
+        library_cases(),
+        SHRINK,
+        strategy,
+        library::designs,
+    );
+}
+
+#[test]
 fn truth_file() {
     let strategy = case(seeds(seed::TRUTH));
     run("truth", library_cases(), SHRINK, strategy, library::truth);

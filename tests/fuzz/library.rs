@@ -305,6 +305,44 @@ pub fn budget(case: &Case) -> Result<(), Box<Finding>> {
     Ok(())
 }
 
+/// The designs TOML of `plan --designs`: `Design::parse_designs_file` (or
+/// `read_designs_file` for bytes that are not UTF-8); every accepted design of at most
+/// [`DIAGNOSE_MAX_READINGS`] readings is planned (its uncertainties; what a diagnosis
+/// can see takes half a second a design, and `tests/plan.rs` runs it).
+pub fn designs(case: &Case) -> Result<(), Box<Finding>> {
+    use polycal::measurement::Sigma;
+    use polycal::plan::{Design, PlanOptions, plan};
+    let bytes = case.bytes();
+    let base = Design::default();
+    let designs = match utf8(&bytes) {
+        Some(text) => read(case, "toml", "Design::parse_designs_file", TOML, || {
+            Design::parse_designs_file(text, TOML, &base)
+        })?,
+        None => {
+            let (path, shown) = to_file("designs", TOML, &bytes);
+            read(case, "toml", "Design::read_designs_file", &shown, || {
+                Design::read_designs_file(&path, &base)
+            })?
+        }
+    };
+    let Some(designs) = designs else {
+        return Ok(());
+    };
+    let sigma = Sigma::new(0.05).expect("a valid σ");
+    for design in &designs {
+        if design.reading_count() > DIAGNOSE_MAX_READINGS {
+            continue;
+        }
+        let options = PlanOptions::new(sigma)
+            .with_detect(false)
+            .with_memory_limit(1 << 30);
+        no_panic(case, "toml", "plan::plan", || {
+            let _ = plan(design, &options);
+        })?;
+    }
+    Ok(())
+}
+
 /// The instrument budget of `solve --budget` and `selfcal --budget`:
 /// `InstrumentBudget::from_toml_str` (or `read_path`); an accepted budget is evaluated
 /// through the 24-faced example's design and through a self-calibration's.

@@ -78,6 +78,8 @@ pub mod seed {
         "tests/fixtures/expected/sim-selfcal.file.selfcal.json",
         "examples/data/selfa-168.truth.json",
     ];
+    /// The designs TOML of `plan --designs` (§5.6).
+    pub const DESIGNS: &[&str] = &["examples/designs.toml"];
     /// The report's metadata TOML (§10.2).
     pub const META: &[&str] = &["examples/report/meta.toml"];
 }
