@@ -10,10 +10,16 @@
 //!   two cosets of 24 angles), 4 cycles with closing readings (400 readings), a drift, a
 //!   jump inside mounting 2 and an outlier: the base model carries the cosets' 23
 //!   differences as columns.
+//! - `diagnose/selfa168x3_drift_step_outlier`: a SelfA self-calibration (12 heads, 168
+//!   positions, 3 cycles, 6 048 readings) with a head's drift, another head's jump and an
+//!   outlier: the closure model with the table's error at every stop taken out.
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use polycal::diagnose::selfcal::diagnose_selfcal;
 use polycal::diagnose::{DiagnoseOptions, diagnose};
 use polycal::effects::Effect;
+use polycal::selfcal::SelfcalOptions;
+use polycal::simulate::{SelfcalSimConfig, simulate_selfcal};
 use polycal::simulate::{SimulationConfig, simulate};
 use std::hint::black_box;
 use std::time::Duration;
@@ -102,6 +108,23 @@ fn bench_diagnose(c: &mut Criterion) {
     group.measurement_time(Duration::from_secs(8));
     group.bench_function("360x6_drift_step_3_outliers", |b| {
         b.iter(|| diagnose(black_box(&set), &options))
+    });
+    let mut selfa = SelfcalSimConfig::default();
+    selfa.cycles = 3;
+    selfa.step_seconds = Some(20.0);
+    let (mut set, _) = simulate_selfcal(&selfa).expect("a valid simulation");
+    for r in &mut set.readings {
+        let hours = r.time_seconds.unwrap_or(0.0) / 3600.0;
+        match r.head {
+            5 => r.reading_arcsec += 0.2 * hours,
+            9 if (r.cycle, r.step) >= (2, 80) => r.reading_arcsec += 0.15,
+            3 if (r.cycle, r.step) == (3, 7) => r.reading_arcsec += 0.3,
+            _ => {}
+        }
+    }
+    let selfcal_options = SelfcalOptions::new();
+    group.bench_function("selfa168x3_drift_step_outlier", |b| {
+        b.iter(|| diagnose_selfcal(black_box(&set), &options, &selfcal_options))
     });
     group.finish();
 }

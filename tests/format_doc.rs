@@ -6,7 +6,7 @@
 //! cross-talk, `plan` (designs with a budget and a target, a lost harmonic, a file's design),
 //! `budget`, `compare`, the truth files of
 //! `simulate` (plain and sub-pitch) and `simulate --selfcal`, `selfcal` (plain and with
-//! `--budget`), and on Unix a whole `run`
+//! `--budget`), `diagnose` of a self-calibration (an outlier, a truth, a budget), and on Unix a whole `run`
 //! against `sim-lab` (its device paths, `manifest.json` and every line of
 //! `traffic.jsonl`) — collects every object key, at any depth, and checks that each
 //! appears in the document as a code span (`` `name` ``). A field added to an output
@@ -172,6 +172,40 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
         "truth file of simulate --selfcal",
         &read_json(Path::new(&selfcal_truth)),
     );
+    // Its diagnosis, with one bad reading (an effect with every field), a truth and a
+    // budget.
+    let text = std::fs::read_to_string(&selfcal).expect("the self-calibration file");
+    let bad: Vec<String> = text
+        .lines()
+        .map(|line| {
+            let f: Vec<&str> = line.split(',').collect();
+            match f.as_slice() {
+                ["2", "5", "3", angle, reading, rest @ ..] => {
+                    let reading: f64 = reading.parse().expect("a reading");
+                    let mut row = vec!["2".to_string(), "5".into(), "3".into(), angle.to_string()];
+                    row.push((reading + 1.0).to_string());
+                    row.extend(rest.iter().map(|s| s.to_string()));
+                    row.join(",")
+                }
+                _ => line.to_string(),
+            }
+        })
+        .collect();
+    let selfcal_bad = scratch.path("selfcal-bad.csv");
+    std::fs::write(&selfcal_bad, bad.join("\n") + "\n").expect("written");
+    for v in json_lines(&[
+        "diagnose",
+        &selfcal_bad,
+        "--truth",
+        &selfcal_truth,
+        "--budget",
+        "examples/budgets/selfcal.toml",
+        "--format",
+        "json",
+    ]) {
+        assert!(v["effects"][0]["kind"] == "outlier", "{v}");
+        fields.add("diagnose SELFCAL --truth --budget --format json", &v);
+    }
     // The self-calibration itself: plain, with a bound and a gauge, and with a budget.
     for v in json_lines(&["selfcal", "examples/data/selfa-168.csv", "--format", "json"]) {
         fields.add("selfcal --format json", &v);

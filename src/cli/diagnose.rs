@@ -9,9 +9,14 @@ use clap::ValueEnum;
 use polycal::diagnose::{self, DiagnoseOptions};
 use polycal::input::display_name;
 use polycal::measurement::cross_talk::StatedCrossTalk;
-use polycal::measurement::{MeasurementSet, Sigma};
+use polycal::measurement::{MeasurementError, MeasurementSet, Sigma};
+use polycal::report::diagnose_selfcal::{self, SelfcalDiagnoseReport};
 use polycal::report::{self, diagnose::DiagnoseReport};
-use polycal::simulate::Truth;
+use polycal::results::ResultRow;
+use polycal::selfcal::{SelfcalOptions, SelfcalSet};
+use polycal::simulate::{SelfcalTruth, SimulateError, Truth};
+use polycal::uncertainty::calibration::CalibrationError;
+use polycal::uncertainty::calibration::InstrumentBudget;
 
 use super::output::Output;
 use super::solve::{
@@ -27,18 +32,23 @@ Examples:
   polycal diagnose examples/data/polygon24-2ac-6cycles.csv --truth examples/data/polygon24-2ac-6cycles.truth.json
   polycal diagnose examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml
   polycal diagnose examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml --format csv > result.csv
-  polycal simulate --closing --drift 2:1.5 | polycal diagnose - --format json";
+  polycal simulate --closing --drift 2:1.5 | polycal diagnose - --format json
+  polycal diagnose examples/data/selfa-168.csv";
 
 /// Arguments of `polycal diagnose`.
 #[derive(clap::Args)]
 pub struct DiagnoseArgs {
-    /// Measurement CSV files (docs/FORMAT.md §2); `-` reads standard input.
+    /// Measurement CSV files (docs/FORMAT.md §2) or self-calibration files (§9.2, told by
+    /// their `head` and `head_angle` columns; diagnosed as docs/FORMAT.md §5.2 says);
+    /// `-` reads standard input.
     #[arg(required = true)]
     files: Vec<PathBuf>,
-    /// Truth JSON of simulated data (docs/FORMAT.md §4): adds the errors before and after.
+    /// Truth JSON of simulated data (docs/FORMAT.md §4, or the self-calibration truth of
+    /// `simulate --selfcal --truth-out`): adds the errors before and after.
     #[arg(long)]
     truth: Option<PathBuf>,
-    /// Number of polygon faces (default: the largest face in the file).
+    /// Number of polygon faces (default: the largest face in the file); for a
+    /// self-calibration file, the number of positions P (default: the largest step + 1).
     #[arg(long)]
     faces: Option<usize>,
     /// Standard deviation of one reading, arcsec, if known: adds a χ² check.
@@ -88,7 +98,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                 ("--budget", args.budget.as_deref()),
             ]),
     )?;
-    let truth = args.truth.as_deref().map(Truth::read_path).transpose()?;
+    let truth = args.truth.as_deref().map(read_truth).transpose()?;
     super::plot_one_file(args.plot.as_deref(), args.files.len())?;
     let budget = read_budget(args.budget.as_deref(), out)?;
     check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
@@ -104,7 +114,48 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         // The name in messages (`<stdin>` for `-`); reports keep the path as given.
         let name = display_name(path);
         let label = path.display().to_string();
-        let diagnosed = MeasurementSet::read_path(path, args.faces)
+        let bytes = match polycal::input::read_bytes(path) {
+            Ok((bytes, _)) => bytes,
+            Err((file, source)) => {
+                out.error(&anyhow::Error::from(MeasurementError::Io { file, source }));
+                failures += 1;
+                continue;
+            }
+        };
+        if SelfcalSet::is_selfcal_file(&bytes) {
+            let file = SelfcalFile {
+                bytes: &bytes,
+                name: &name,
+                label: &label,
+            };
+            match selfcal_file(args, file, truth.as_ref(), budget.as_ref(), several) {
+                Ok(done) => {
+                    inadequate += usize::from(!done.adequate);
+                    match (args.format, done.output) {
+                        (DiagnoseFormat::Csv, Printed::Rows(rows)) => csv_rows.push((label, rows)),
+                        (_, Printed::Text(text)) => write!(stdout, "{text}")?,
+                        _ => {}
+                    }
+                }
+                Err(error) => {
+                    out.error(&error);
+                    failures += 1;
+                }
+            }
+            continue;
+        }
+        let polygon_truth = match &truth {
+            Some(AnyTruth::Selfcal(_)) => {
+                out.error_message(format_args!(
+                    "{name}: the truth is a self-calibration's (positions and heads), the file a measurement file"
+                ));
+                failures += 1;
+                continue;
+            }
+            Some(AnyTruth::Polygon(t)) => Some(t),
+            None => None,
+        };
+        let diagnosed = MeasurementSet::read_from(bytes.as_slice(), &name, args.faces)
             .map_err(anyhow::Error::from)
             .and_then(|set| corrected(set, &args.cross_talk))
             .and_then(|set| {
@@ -130,7 +181,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                 continue;
             }
         };
-        if let Some(t) = &truth
+        if let Some(t) = polygon_truth
             && t.faces != diagnosis.before.faces
         {
             out.error_message(format_args!(
@@ -159,7 +210,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         let json_report = (matches!(args.format, DiagnoseFormat::Json) || args.plot.is_some())
             .then(|| {
                 let mut report =
-                    DiagnoseReport::new(&diagnosis, truth.as_ref(), several.then(|| label.clone()))
+                    DiagnoseReport::new(&diagnosis, polygon_truth, several.then(|| label.clone()))
                         .with_residuals(&diagnosis, &set);
                 if let Some(gum) = &gum {
                     report.after = report.after.with_uncertainty(gum);
@@ -185,7 +236,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                     writeln!(stdout)?;
                 }
                 let mut text = String::new();
-                report::diagnose::write_table(&mut text, &diagnosis, truth.as_ref(), &label)?;
+                report::diagnose::write_table(&mut text, &diagnosis, polygon_truth, &label)?;
                 report::write_final_model_results(
                     &mut text,
                     &diagnosis.after,
@@ -221,5 +272,129 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         EXIT_VERDICT
     } else {
         EXIT_OK
+    })
+}
+
+/// The truth of `--truth`: a polygon run's (docs/FORMAT.md §4) or a self-calibration's
+/// (it has `positions` and no `faces`).
+enum AnyTruth {
+    Polygon(Truth),
+    Selfcal(SelfcalTruth),
+}
+
+fn read_truth(path: &std::path::Path) -> Result<AnyTruth, SimulateError> {
+    let (bytes, name) =
+        polycal::input::read_bytes(path).map_err(|(name, source)| SimulateError::Io {
+            path: name.into(),
+            source,
+        })?;
+    let selfcal = serde_json::from_slice::<serde_json::Value>(&bytes)
+        .is_ok_and(|v| v.get("positions").is_some() && v.get("faces").is_none());
+    if selfcal {
+        SelfcalTruth::from_json_bytes(&bytes, &name).map(AnyTruth::Selfcal)
+    } else {
+        Truth::from_json_bytes(&bytes, &name).map(AnyTruth::Polygon)
+    }
+}
+
+/// A self-calibration file read.
+#[derive(Clone, Copy)]
+struct SelfcalFile<'a> {
+    bytes: &'a [u8],
+    /// The name in messages.
+    name: &'a str,
+    /// The path as given, in reports.
+    label: &'a str,
+}
+
+/// What a self-calibration file's diagnosis prints: text (table, JSON) or result rows.
+enum Printed {
+    Text(String),
+    Rows(Vec<ResultRow>),
+}
+
+/// A self-calibration file diagnosed.
+struct SelfcalDone {
+    adequate: bool,
+    output: Printed,
+}
+
+/// `polycal diagnose` of a self-calibration file (docs/FORMAT.md §5.2).
+fn selfcal_file(
+    args: &DiagnoseArgs,
+    file: SelfcalFile<'_>,
+    truth: Option<&AnyTruth>,
+    budget: Option<&InstrumentBudget>,
+    several: bool,
+) -> Result<SelfcalDone> {
+    let SelfcalFile { bytes, name, label } = file;
+    if !args.cross_talk.is_empty() {
+        anyhow::bail!(
+            "{name}: a self-calibration file has no reading_y: --cross-talk does not apply to it"
+        );
+    }
+    let set = SelfcalSet::read_from(bytes, name, args.faces)?;
+    let truth = match truth {
+        Some(AnyTruth::Polygon(_)) => anyhow::bail!(
+            "{name}: the truth is a polygon run's (faces), the file a self-calibration file"
+        ),
+        Some(AnyTruth::Selfcal(t)) if t.positions != set.positions => anyhow::bail!(
+            "{name}: the truth has {} positions, the self-calibration file {}",
+            t.positions,
+            set.positions
+        ),
+        Some(AnyTruth::Selfcal(t)) => Some(t),
+        None => None,
+    };
+    let options = DiagnoseOptions::new().with_sigma_opt(args.sigma);
+    let selfcal_options = SelfcalOptions::new().with_sigma_opt(args.sigma);
+    let diagnosis = polycal::diagnose::selfcal::diagnose_selfcal(&set, &options, &selfcal_options)
+        .with_context(|| format!("{name}: cannot solve"))?;
+    let uncertainty = budget
+        .map(|budget| {
+            polycal::selfcal::evaluate_budget(&diagnosis.after, budget).map_err(|e| match e {
+                CalibrationError::NoSigma => anyhow::anyhow!("{e} (--sigma)"),
+                e => e.into(),
+            })
+        })
+        .transpose()
+        .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
+    let report = || {
+        let report = SelfcalDiagnoseReport::new(&diagnosis, truth, label);
+        match &uncertainty {
+            Some(u) => report.with_uncertainty(u),
+            None => report,
+        }
+    };
+    if let Some(dir) = &args.plot {
+        super::write_plot(dir, &polycal::figure::selfcal_figures(&report().after))?;
+    }
+    let output = match args.format {
+        DiagnoseFormat::Json => Printed::Text(format!("{}\n", report().to_json()?)),
+        DiagnoseFormat::Table => {
+            let mut text = String::new();
+            if several {
+                text.push('\n');
+            }
+            diagnose_selfcal::write_table(
+                &mut text,
+                &diagnosis,
+                truth,
+                label,
+                uncertainty.as_ref(),
+            )?;
+            Printed::Text(text)
+        }
+        DiagnoseFormat::Csv => {
+            let rows = report::selfcal::result_rows(&diagnosis.after, uncertainty.as_ref());
+            polycal::results::check_rows(&rows).map_err(|problem| {
+                anyhow::anyhow!("{name}: cannot write its results: {problem}")
+            })?;
+            Printed::Rows(rows)
+        }
+    };
+    Ok(SelfcalDone {
+        adequate: diagnosis.diagnosis.adequacy.adequate,
+        output,
     })
 }

@@ -9,13 +9,26 @@
 //! them (its steps, in time order), so that every effect found names the stop the file
 //! names; only the fits and the hat-matrix geometry see the encoder positions. A term j
 //! of the diagnosis is then effect column `offset() + j` of every fit.
+//!
+//! A self-calibration ([`Base::self_calibration`]) is diagnosed on its closure model
+//! (the disc as the polygon, the heads as the autocollimators: `selfcal`'s
+//! `closure_set`). Its table error is a nuisance at every stop of every cycle: the
+//! closure model holds one per step, and the rest is taken out exactly by fitting the
+//! readings and the terms minus their stop's mean ([`StopNuisance`]).
+//! The harmonics the head layout cannot see are set to zero, as `selfcal::solve` does,
+//! and a term is judged by what a self-calibration certifies: the disc's encoder error
+//! e = φ − φ̄ and the heads' errors c_j − c_1 ([`Base::calibrated`]), not the table's
+//! nuisance.
 
 use std::borrow::Cow;
 
 use super::geometry::FitGeometry;
+use super::lack_of_fit::{self, LackOfFit};
+use super::nuisance::StopNuisance;
 use crate::measurement::{MeasurementSet, Sigma};
+use crate::solve::least_squares::least_squares_zeroing_lost_with;
 use crate::solve::sub_pitch::{self, ShiftGeometry, SubPitchSolution};
-use crate::solve::{Solution, SolveError, least_squares_with_regressors};
+use crate::solve::{Solution, SolveError, SolveOptions, least_squares_with_regressors};
 
 /// The base model of a diagnosis (module documentation).
 #[derive(Debug, Clone)]
@@ -26,6 +39,9 @@ pub struct Base<'a> {
     columns: Vec<Vec<f64>>,
     /// Where the mountings put the encoder, with shifted mountings.
     shifts: Option<ShiftGeometry>,
+    /// A self-calibration's table error at every stop, taken out of the readings and the
+    /// terms (the lost harmonics set to zero, e and the heads' errors certified).
+    nuisance: Option<StopNuisance>,
 }
 
 impl<'a> Base<'a> {
@@ -36,6 +52,7 @@ impl<'a> Base<'a> {
                 positions: Cow::Borrowed(set),
                 columns: Vec::new(),
                 shifts: None,
+                nuisance: None,
             };
         }
         let geometry = ShiftGeometry::of(set);
@@ -44,7 +61,72 @@ impl<'a> Base<'a> {
             positions: Cow::Owned(geometry.encoder_set(set)),
             columns,
             shifts: Some(geometry),
+            nuisance: None,
         }
+    }
+
+    /// The base model of a self-calibration's closure set (module documentation): the
+    /// table's error at every stop taken out exactly ([`StopNuisance`]): the readings and
+    /// every term's column are fitted minus their stop's mean.
+    pub fn self_calibration(closure: &'a MeasurementSet) -> Base<'a> {
+        let nuisance = StopNuisance::of(closure);
+        let values: Vec<f64> = closure.readings.iter().map(|r| r.reading_arcsec).collect();
+        let mut projected = closure.clone();
+        for (r, v) in projected.readings.iter_mut().zip(nuisance.project(&values)) {
+            r.reading_arcsec = v;
+        }
+        Base {
+            positions: Cow::Owned(projected),
+            columns: Vec::new(),
+            shifts: None,
+            nuisance: Some(nuisance),
+        }
+    }
+
+    /// Whether this is a self-calibration's closure model.
+    pub fn is_self_calibration(&self) -> bool {
+        self.nuisance.is_some()
+    }
+
+    /// The two families a term is judged by (docs/FORMAT.md §5.2 `changes_calibration`):
+    /// β and α of a polygon run; for a self-calibration, the disc's encoder error
+    /// e = φ − φ̄ and the heads' errors c_j − c_1 (j = 2 … M).
+    pub fn calibrated(&self, fit: &Solution) -> [Vec<f64>; 2] {
+        if !self.is_self_calibration() {
+            return [fit.pitch_deviation.clone(), fit.encoder_error.clone()];
+        }
+        let mean = fit.face_deviation.iter().sum::<f64>() / fit.face_deviation.len() as f64;
+        let e = fit.face_deviation.iter().map(|phi| phi - mean).collect();
+        let heads = match fit.setup_error.split_first() {
+            Some((first, rest)) => rest.iter().map(|s| s.value - first.value).collect(),
+            None => Vec::new(),
+        };
+        [e, heads]
+    }
+
+    /// The standard uncertainties of [`Base::calibrated`], when σ is known.
+    pub fn calibrated_u(&self, fit: &Solution) -> [Option<Vec<f64>>; 2] {
+        if !self.is_self_calibration() {
+            return [fit.pitch_deviation_u(), fit.encoder_error_u()];
+        }
+        let Some((sigma, _)) = fit.sigma else {
+            return [None, None];
+        };
+        let q = &fit.cofactor;
+        let e = q
+            .centered_face_deviation_diagonal()
+            .into_iter()
+            .map(|v| sigma * v.max(0.0).sqrt())
+            .collect();
+        let first = fit.layout.setup(0);
+        let heads = (1..fit.layout.setups)
+            .map(|j| {
+                let a = fit.layout.setup(j);
+                let var = q.entry(a, a) + q.entry(first, first) - 2.0 * q.entry(a, first);
+                sigma * var.max(0.0).sqrt()
+            })
+            .collect();
+        [Some(e), Some(heads)]
     }
 
     /// The readings in encoder positions.
@@ -69,8 +151,12 @@ impl<'a> Base<'a> {
             .is_some_and(ShiftGeometry::is_sub_pitch)
     }
 
-    /// The base columns followed by `terms` (the columns of the diagnosis's terms).
+    /// The columns a fit holds: the base columns followed by `terms` (the columns of the
+    /// diagnosis's terms; for a self-calibration, each minus its stop's mean).
     pub fn with(&self, terms: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        if let Some(n) = &self.nuisance {
+            return terms.iter().map(|x| n.project(x)).collect();
+        }
         if self.columns.is_empty() {
             return terms.to_vec();
         }
@@ -79,17 +165,41 @@ impl<'a> Base<'a> {
         all
     }
 
+    /// A fit of the positions' readings with the columns `all` (of [`Base::with`]); for a
+    /// self-calibration the lost harmonics set to zero and the stop nuisance's degrees of
+    /// freedom taken off.
+    fn fit_columns(&self, all: &[Vec<f64>], sigma: Option<Sigma>) -> Result<Solution, SolveError> {
+        let Some(n) = &self.nuisance else {
+            return least_squares_with_regressors(&self.positions, all, sigma);
+        };
+        let options = SolveOptions::new().with_sigma_opt(sigma);
+        let (mut fit, _) = least_squares_zeroing_lost_with(&self.positions, all, &options)?;
+        fit.dof = fit.dof.saturating_sub(n.parameters());
+        fit.sigma = crate::solve::choose_sigma(fit.rss, fit.dof, sigma);
+        Ok(fit)
+    }
+
+    /// The lack-of-fit test of `fit`, a fit of the base model with the columns `terms`,
+    /// at false-alarm probability `alpha` ([`lack_of_fit::lack_of_fit`]; for a
+    /// self-calibration the pure error is the scatter within cells beyond the table's
+    /// error at every stop).
+    pub fn lack_of_fit(
+        &self,
+        set: &MeasurementSet,
+        fit: &Solution,
+        terms: &[Vec<f64>],
+        alpha: f64,
+    ) -> Option<LackOfFit> {
+        lack_of_fit::lack_of_fit_with(set, fit, &self.with(terms), alpha, self.nuisance.as_ref())
+    }
+
     /// The fit of the base model with the columns `terms`.
     ///
     /// # Errors
     ///
     /// The solver's, as [`least_squares_with_regressors`].
     pub fn fit(&self, terms: &[Vec<f64>], sigma: Option<Sigma>) -> Result<Solution, SolveError> {
-        if self.columns.is_empty() {
-            least_squares_with_regressors(&self.positions, terms, sigma)
-        } else {
-            least_squares_with_regressors(&self.positions, &self.with(terms), sigma)
-        }
+        self.fit_columns(&self.with(terms), sigma)
     }
 
     /// The fit of the base model to `values` in place of the readings (one per reading).
@@ -98,16 +208,27 @@ impl<'a> Base<'a> {
     ///
     /// The solver's.
     pub fn fit_values(&self, values: &[f64]) -> Result<Solution, SolveError> {
+        let values = match &self.nuisance {
+            Some(n) => n.project(values),
+            None => values.to_vec(),
+        };
         let mut as_readings = self.positions.clone().into_owned();
         for (r, v) in as_readings.readings.iter_mut().zip(values) {
-            r.reading_arcsec = *v;
+            r.reading_arcsec = v;
         }
-        least_squares_with_regressors(&as_readings, &self.columns, None)
+        let base = Base {
+            positions: Cow::Owned(as_readings),
+            columns: self.columns.clone(),
+            shifts: None,
+            nuisance: self.nuisance.clone(),
+        };
+        base.fit_columns(&self.columns, None)
     }
 
     /// The hat-matrix geometry of `fit`, a fit with the columns `terms`.
     pub fn geometry(&self, fit: &Solution, terms: &[Vec<f64>]) -> FitGeometry {
         FitGeometry::new(fit, &self.positions, &self.with(terms))
+            .with_nuisance(self.nuisance.clone())
     }
 
     /// The values of the diagnosis's terms in `fit`.

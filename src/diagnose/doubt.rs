@@ -8,12 +8,13 @@ use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 use super::base::Base;
 use super::candidates::{self, Term};
 use super::findings::Finding;
-use super::lack_of_fit::{self, LackOfFit};
+use super::lack_of_fit::LackOfFit;
 use super::residuals::{self, AdequacyInputs, Check};
 use super::{DiagnoseOptions, Rejection, TriedEffect};
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::solve::Solution;
+use crate::uncertainty::student::t_two_sided_tail;
 
 /// Whether a term follows autocollimator `ac`'s zero in time (a drift of any order, a
 /// jump): what a wandering zero makes untrustworthy.
@@ -75,15 +76,69 @@ impl Model<'_> {
             }
             !gone
         });
-        self.lack_of_fit = self.lack_of_fit.take().and(lack_of_fit::lack_of_fit(
+        self.lack_of_fit = self.lack_of_fit.take().and(self.base.lack_of_fit(
             self.set,
             &fit,
-            &self.base.with(&columns),
+            &columns,
             self.lack_of_fit_alpha,
         ));
         self.terms = kept;
         self.fit = fit;
         true
+    }
+
+    /// Drops a drift's highest order while it is not significant in the final model
+    /// (two-sided t test of its value against its u, at `alpha`): a drift picked before a
+    /// jump of the same zero may have taken higher orders to mimic the jump, which the
+    /// jump then explains. Returns whether anything was dropped.
+    pub fn prune_drift_orders(&mut self, alpha: f64) -> bool {
+        let mut pruned = false;
+        loop {
+            let (Some(u), values) = (
+                self.base.term_u(&self.fit),
+                self.base.term_values(&self.fit),
+            ) else {
+                return pruned;
+            };
+            let dof = Some(self.fit.dof as f64);
+            let weakest = candidates::autocollimators(self.set)
+                .into_iter()
+                .filter_map(|ac| {
+                    let (j, order) = self
+                        .terms
+                        .iter()
+                        .enumerate()
+                        .filter_map(|(j, t)| t.drift_order(ac).map(|o| (j, o)))
+                        .max_by_key(|&(_, o)| o)?;
+                    if order < 2 || u[j] <= 0.0 {
+                        return None;
+                    }
+                    let p = t_two_sided_tail((values[j] / u[j]).abs(), dof);
+                    (p > alpha).then_some((j, p))
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1));
+            let Some((j, _)) = weakest else {
+                return pruned;
+            };
+            let gone = self.terms[j].clone();
+            let kept: Vec<Term> = self.terms.iter().filter(|t| **t != gone).cloned().collect();
+            let columns = self.columns(&kept);
+            let Ok(fit) = self.base.fit(&columns, self.sigma) else {
+                return pruned;
+            };
+            for finding in &mut self.findings {
+                finding.terms.retain(|t| *t != gone);
+            }
+            self.lack_of_fit = self.lack_of_fit.take().and(self.base.lack_of_fit(
+                self.set,
+                &fit,
+                &columns,
+                self.lack_of_fit_alpha,
+            ));
+            self.terms = kept;
+            self.fit = fit;
+            pruned = true;
+        }
     }
 
     /// The autocollimators whose drifts and jumps a wandering zero makes untrustworthy

@@ -3,6 +3,7 @@
 //! with its value and uncertainty, a drift's later orders merge into it, and terms tried
 //! and not added are recorded with their reason.
 
+use super::base::Base;
 use super::candidates::{Candidate, Term};
 use super::{Evidence, FoundEffect, Rejection, TriedEffect};
 use crate::effects::Effect;
@@ -109,20 +110,18 @@ fn drift_of(terms: &[Term]) -> Option<(u32, usize)> {
 }
 
 /// The found effects with their values and uncertainties in the final model (`current`,
-/// a fit with `offset` base columns followed by `terms`): a drift's later orders merged into its drift, and whether each
+/// a fit of `base` with `terms`): a drift's later orders merged into its drift, and whether each
 /// changes the calibration by more than its uncertainty; each with the terms of the
 /// final model it stands for (a drift: all of its orders).
 pub fn final_effects(
     current: &Solution,
-    offset: usize,
+    base: &Base<'_>,
     terms: &[Term],
     findings: Vec<Finding>,
 ) -> Vec<(FoundEffect, Vec<Term>)> {
-    let u = current
-        .effect_u()
-        .map(|u| u.get(offset..).unwrap_or(&[]).to_vec());
-    let u_pitch = current.pitch_deviation_u();
-    let u_encoder = current.encoder_error_u();
+    let offset = base.offset();
+    let u = base.term_u(current);
+    let [u_pitch, u_encoder] = base.calibrated_u(current);
     let exceeds = |change: &[f64], u: &Option<Vec<f64>>| match u {
         Some(u) => change.iter().zip(u).any(|(c, u)| c.abs() > *u),
         None => change.iter().any(|c| *c != 0.0),

@@ -16,6 +16,7 @@
 
 use nalgebra::DMatrix;
 
+use super::nuisance::StopNuisance;
 use crate::measurement::MeasurementSet;
 use crate::solve::Solution;
 
@@ -27,6 +28,9 @@ pub struct FitGeometry {
     q: DMatrix<f64>,
     /// The design row of every reading: (index in ψ, coefficient).
     rows: Vec<Vec<(usize, f64)>>,
+    /// A self-calibration's table error at every stop, taken out of the fit
+    /// ([`StopNuisance`]): its P_D is added to the hat matrix.
+    nuisance: Option<StopNuisance>,
 }
 
 /// What adding one column to the model would do.
@@ -114,12 +118,22 @@ impl FitGeometry {
                 row
             })
             .collect();
-        Self { q, rows }
+        Self {
+            q,
+            rows,
+            nuisance: None,
+        }
     }
 
-    /// H_ij = cᵢᵀ Q cⱼ: the covariance of the fitted values of readings i and j in units
-    /// of σ² (the leverage when i = j).
-    pub fn hat(&self, i: usize, j: usize) -> f64 {
+    /// The geometry of a fit of M·y with the stop nuisance `nuisance` taken out: the hat
+    /// matrix of the full model is the fit's plus P_D.
+    pub fn with_nuisance(mut self, nuisance: Option<StopNuisance>) -> Self {
+        self.nuisance = nuisance;
+        self
+    }
+
+    /// cᵢᵀ Q cⱼ: the fit's part of the hat matrix, without a stop nuisance's P_D.
+    fn engine_hat(&self, i: usize, j: usize) -> f64 {
         let mut h = 0.0;
         for &(a, va) in &self.rows[i] {
             for &(b, vb) in &self.rows[j] {
@@ -127,6 +141,12 @@ impl FitGeometry {
             }
         }
         h
+    }
+
+    /// H_ij = cᵢᵀ Q cⱼ (plus P_D\[i, j\] with a stop nuisance): the covariance of the
+    /// fitted values of readings i and j in units of σ² (the leverage when i = j).
+    pub fn hat(&self, i: usize, j: usize) -> f64 {
+        self.engine_hat(i, j) + self.nuisance.as_ref().map_or(0.0, |n| n.hat(i, j))
     }
 
     /// The leverage h_ii of every reading.
@@ -158,6 +178,9 @@ impl FitGeometry {
             }
             quad += g[a] * row;
         }
+        if let Some(n) = &self.nuisance {
+            quad += n.quadratic(x, x);
+        }
         ColumnScore {
             projection,
             new_length_squared: length_squared - quad,
@@ -181,11 +204,18 @@ impl FitGeometry {
             };
             order.len()
         ];
+        // with a stop nuisance, quad holds the engine's part and the suffix's P_D part
+        // is kept apart
+        let mut nuisance = self.nuisance.as_ref().map(StopNuisance::suffix);
+        let mut nuisance_quad = 0.0;
         for (k, &i) in order.iter().enumerate().rev() {
             let row = &self.rows[i];
             // quad += 2 cᵀ w + cᵀ Q c, then w += Q c
             let c_w: f64 = row.iter().map(|&(a, v)| v * w[a]).sum();
-            let c_q_c = self.hat(i, i);
+            let c_q_c = self.engine_hat(i, i);
+            if let Some(n) = &mut nuisance {
+                nuisance_quad = n.add(i);
+            }
             quad += 2.0 * c_w + c_q_c;
             let q = self.q.as_slice();
             for &(a, v) in row {
@@ -198,7 +228,7 @@ impl FitGeometry {
             let length_squared = (order.len() - k) as f64;
             scores[k] = ColumnScore {
                 projection,
-                new_length_squared: length_squared - quad,
+                new_length_squared: length_squared - quad - nuisance_quad,
                 length_squared,
             };
         }
@@ -294,7 +324,10 @@ impl FitGeometry {
         for a in 0..m {
             for b in a..m {
                 let xx: f64 = columns[a].iter().zip(&columns[b]).map(|(x, y)| x * y).sum();
-                let xhx: f64 = g[a].iter().zip(&qg[b]).map(|(x, y)| x * y).sum();
+                let mut xhx: f64 = g[a].iter().zip(&qg[b]).map(|(x, y)| x * y).sum();
+                if let Some(n) = &self.nuisance {
+                    xhx += n.quadratic(&columns[a], &columns[b]);
+                }
                 gram[(a, b)] = xx - xhx;
                 gram[(b, a)] = xx - xhx;
             }

@@ -61,8 +61,15 @@ impl Alternative {
 }
 
 /// The siblings of a finding's block: the same kind on another autocollimator, stream or
-/// mounting, each a block of terms; none for an outlier (its twins are found apart).
-fn siblings(set: &MeasurementSet, block: &[Term], stated: &[u32]) -> Vec<Vec<Term>> {
+/// mounting, each a block of terms. An outlier's twins are found apart in a polygon run;
+/// in a self-calibration (`same_stop`) its siblings are the other heads' readings at the
+/// same stop (which the table's error there may make equivalent).
+fn siblings(
+    set: &MeasurementSet,
+    block: &[Term],
+    stated: &[u32],
+    same_stop: bool,
+) -> Vec<Vec<Term>> {
     let Some(first) = block.first() else {
         return Vec::new();
     };
@@ -134,6 +141,26 @@ fn siblings(set: &MeasurementSet, block: &[Term], stated: &[u32]) -> Vec<Vec<Ter
             .map(|(a, s)| rezero_block(set, a, s))
             .filter(|b| !b.is_empty())
             .collect(),
+        Term::Effect(Effect::Outlier {
+            cycle,
+            step,
+            ac,
+            setup,
+            ..
+        }) if same_stop => set
+            .readings
+            .iter()
+            .filter(|r| r.cycle == *cycle && r.step == *step && r.ac != *ac)
+            .map(|r| {
+                vec![Term::Effect(Effect::Outlier {
+                    cycle: *cycle,
+                    step: *step,
+                    ac: r.ac,
+                    setup: *setup,
+                    value: 0.0,
+                })]
+            })
+            .collect(),
         Term::Effect(Effect::Outlier { .. } | Effect::Rezero { .. }) => Vec::new(),
     }
 }
@@ -177,20 +204,23 @@ pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
         .filter(|t| !block.contains(t))
         .cloned()
         .collect();
-    let candidates: Vec<Vec<Term>> = siblings(set, block, stated_cross_talk)
-        .into_iter()
-        .filter(|s| !s.iter().any(|t| rest.contains(t)))
-        .collect();
+    let candidates: Vec<Vec<Term>> =
+        siblings(set, block, stated_cross_talk, base.is_self_calibration())
+            .into_iter()
+            .filter(|s| !s.iter().any(|t| rest.contains(t)))
+            .collect();
     let mut sets: Vec<Vec<Term>> = candidates.clone();
-    for i in 0..candidates.len() {
+    // one bad reading is one reading: its alternatives are single readings
+    let single = matches!(block.first(), Some(Term::Effect(Effect::Outlier { .. })));
+    for i in 0..candidates.len() * usize::from(!single) {
         for j in i + 1..candidates.len() {
             let mut pair = candidates[i].clone();
             pair.extend(candidates[j].iter().cloned());
             sets.push(pair);
         }
     }
-    let u_pitch = fit.pitch_deviation_u();
-    let u_encoder = fit.encoder_error_u();
+    let [u_pitch, u_encoder] = base.calibrated_u(fit);
+    let [fit_pitch, fit_encoder] = base.calibrated(fit);
     let columns_of =
         |ts: &[Term]| -> Vec<Vec<f64>> { ts.iter().map(|t| t.column(set, context)).collect() };
     let rest_columns = columns_of(&rest);
@@ -220,8 +250,9 @@ pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
         if p_value <= AMBIGUITY_ALPHA {
             continue;
         }
-        let pitch_change = difference(&other.pitch_deviation, &fit.pitch_deviation);
-        let encoder_change = difference(&other.encoder_error, &fit.encoder_error);
+        let [other_pitch, other_encoder] = base.calibrated(&other);
+        let pitch_change = difference(&other_pitch, &fit_pitch);
+        let encoder_change = difference(&other_encoder, &fit_encoder);
         let ratio = |change: &[f64], u: &Option<Vec<f64>>| match u {
             Some(u) => change
                 .iter()

@@ -22,6 +22,7 @@ use std::collections::BTreeMap;
 use nalgebra::{DMatrix, DVector};
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
+use super::nuisance::StopNuisance;
 use crate::measurement::{Direction, MeasurementSet};
 use crate::solve::Solution;
 
@@ -103,6 +104,22 @@ pub fn lack_of_fit(
     columns: &[Vec<f64>],
     alpha: f64,
 ) -> Option<LackOfFit> {
+    lack_of_fit_with(set, solution, columns, alpha, None)
+}
+
+/// [`lack_of_fit`] of a self-calibration's fit with the table's error at every stop taken
+/// out ([`StopNuisance`]): the full model is then one mean per cell plus one table error
+/// per stop, so the pure error is the scatter within cells beyond the stops' — in a
+/// complete layout of cycles × heads at every (step, direction), the interaction of the
+/// two-way table: y and every effect column centred within cells, then within stops, and
+/// ν_pure = n − cells − (stops − (step, direction) groups) − rank.
+pub fn lack_of_fit_with(
+    set: &MeasurementSet,
+    solution: &Solution,
+    columns: &[Vec<f64>],
+    alpha: f64,
+    nuisance: Option<&StopNuisance>,
+) -> Option<LackOfFit> {
     let cells = cells(set);
     let n = set.readings.len();
     let replicated_cells = cells.values().filter(|c| c.len() > 1).count();
@@ -120,14 +137,32 @@ pub fn lack_of_fit(
         }
         out
     };
-    let wy = centre(&|i| set.readings[i].reading_arcsec);
+    let mut wy = centre(&|i| set.readings[i].reading_arcsec);
+    let mut stop_parameters = 0;
+    if let Some(nuisance) = nuisance {
+        nuisance.center_within_stops(&mut wy);
+        let mut groups: Vec<(usize, Direction)> =
+            set.readings.iter().map(|r| (r.step, r.direction)).collect();
+        groups.sort_unstable_by_key(|&(step, d)| (step, d == Direction::Ccw));
+        groups.dedup();
+        let mut stops: Vec<(u32, usize)> = set.readings.iter().map(|r| (r.cycle, r.step)).collect();
+        stops.sort_unstable();
+        stops.dedup();
+        stop_parameters = stops.len().checked_sub(groups.len())?;
+    }
     let wx: Vec<Vec<f64>> = columns
         .iter()
-        .map(|x| centre(&|i| x[i]))
+        .map(|x| {
+            let mut w = centre(&|i| x[i]);
+            if let Some(nuisance) = nuisance {
+                nuisance.center_within_stops(&mut w);
+            }
+            w
+        })
         .filter(|w| w.iter().any(|v| v.abs() > 1e-12))
         .collect();
     let (rss_full, rank) = project_out(&wy, &wx);
-    let dof_pure = n.checked_sub(cells.len() + rank)?;
+    let dof_pure = n.checked_sub(cells.len() + stop_parameters + rank)?;
     let dof_lack = solution.dof.checked_sub(dof_pure)?;
     if dof_pure == 0 || dof_lack == 0 {
         return None;

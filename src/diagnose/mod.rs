@@ -24,8 +24,10 @@ pub mod geometry;
 pub mod identify;
 pub mod lack_of_fit;
 mod notes;
+pub mod nuisance;
 pub mod residuals;
 mod search;
+pub mod selfcal;
 
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{MeasurementSet, Sigma};
@@ -357,7 +359,17 @@ fn rounding_rss(set: &MeasurementSet) -> f64 {
 pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagnosis, SolveError> {
     let (work, clock) = clock::clocked(set);
     let set: &MeasurementSet = &work;
-    let base = Base::of(set);
+    diagnose_base(set, &Base::of(set), clock, options)
+}
+
+/// [`diagnose`] of `set` (on `clock`) with the base model `base` (of `set`, or of a
+/// self-calibration's closure set: `selfcal`).
+pub(crate) fn diagnose_base(
+    set: &MeasurementSet,
+    base: &Base<'_>,
+    clock: Clock,
+    options: &DiagnoseOptions,
+) -> Result<Diagnosis, SolveError> {
     let sigma = options.sigma;
     let context = EffectContext::of(&set.readings);
     let before = base.fit(&[], sigma)?;
@@ -391,7 +403,7 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         ));
     }
     notes.extend(notes::untestable_kinds(set, clock));
-    if let Some(note) = notes::common_cross_talk(set, &base, &options.stated_cross_talk) {
+    if let Some(note) = notes::common_cross_talk(set, base, &options.stated_cross_talk) {
         notes.push(note);
     }
     let tiny = rounding_rss(set);
@@ -409,7 +421,7 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         fit: current,
         lack_of_fit: mut lof_current,
     } = if testable && !exact {
-        search::run(set, &base, &context, options, &before, tiny, &mut notes)
+        search::run(set, base, &context, options, &before, tiny, &mut notes)
     } else {
         search::Outcome::base(&before)
     };
@@ -423,7 +435,7 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
     // drifts and jumps of a wandering zero, are left out of the final model.
     let mut model = doubt::Model {
         set,
-        base: &base,
+        base,
         context: &context,
         sigma,
         lack_of_fit_alpha: options.lack_of_fit_alpha,
@@ -432,6 +444,9 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
         findings,
         lack_of_fit: lof_current,
     };
+    if testable && !exact {
+        model.prune_drift_orders(options.family_alpha);
+    }
     if !jumps_exceeded.is_empty() {
         model.leave_out(
             |t| matches!(t, Term::Effect(Effect::OffsetStep { ac, setup, .. }) if jumps_exceeded.contains(&(*ac, *setup))),
@@ -444,13 +459,13 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
     } else {
         (Vec::new(), Vec::new())
     };
-    if !wandering.is_empty()
+    let left_out_wandering = !wandering.is_empty()
         && model.leave_out(
             |t| wandering.iter().any(|&ac| doubt::wanders_with(t, ac)),
             Rejection::LeftOutWandering,
             &mut tried,
-        )
-    {
+        );
+    if left_out_wandering {
         notes.extend(wandering.iter().map(|&ac| notes::wandering(ac)));
     }
     let doubt::Model {
@@ -462,11 +477,11 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
     } = model;
     let columns = columns_of(&terms);
 
-    let with_blocks = final_effects(&current, base.offset(), &terms, findings);
+    let with_blocks = final_effects(&current, base, &terms, findings);
     // identifiability: the alternatives of every finding, against the final model
     let model = identify::FinalModel {
         set,
-        base: &base,
+        base,
         context: &context,
         terms: &terms,
         fit: &current,
@@ -549,6 +564,22 @@ pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagn
             adequacy.adequate &= check.passed;
             adequacy.checks.push(check);
         }
+    }
+    // a zero whose drifts and jumps were left out as a wander is not certified, whether
+    // or not the residuals without them still show it
+    if left_out_wandering {
+        for &ac in &wandering {
+            adequacy.checks.push(Check {
+                name: format!(
+                    "zero of ac {ac} followed by the terms found (not a wander they only approximate: its drift and jumps are left out)"
+                ),
+                statistic: 1.0,
+                limit: 0.0,
+                passed: false,
+                stream: None,
+            });
+        }
+        adequacy.adequate = false;
     }
     for found in &effects {
         if found.alternatives.is_empty() {

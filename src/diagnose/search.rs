@@ -12,7 +12,7 @@ use super::base::Base;
 use super::candidates::{self, Candidate, Family, Term};
 use super::findings::{Finding, candidate_effect, difference, max_abs, record_not_significant};
 use super::geometry::FitGeometry;
-use super::lack_of_fit::{self, LackOfFit};
+use super::lack_of_fit::LackOfFit;
 use super::{
     DiagnoseOptions, Evidence, FoundEffect, MAX_JUMPS_PER_STREAM, Rejection, TriedEffect, notes,
     residuals,
@@ -110,8 +110,7 @@ pub(super) fn run(
     let mut cross_talk_noted = false;
     let mut jumps_exceeded: Vec<(u32, Option<u32>)> = Vec::new();
     let mut current = before.clone();
-    let mut lof_current =
-        lack_of_fit::lack_of_fit(set, &current, &base.with(&[]), options.lack_of_fit_alpha);
+    let mut lof_current = base.lack_of_fit(set, &current, &[], options.lack_of_fit_alpha);
     while findings.len() < options.max_effects && current.dof >= 2 {
         let columns = columns_of(&terms);
         let geometry = base.geometry(&current, &columns);
@@ -239,7 +238,7 @@ pub(super) fn run(
             attempts += 1;
             if let Some((i, t)) = candidate.outlier {
                 let twins = twins(&geometry, &studentized, i, t);
-                if !twins.is_empty() {
+                if !twins.is_empty() && !exchangeable(base, &columns, i, &twins, sigma) {
                     let mut group = vec![(i, t)];
                     group.extend(twins);
                     for &(j, _) in &group {
@@ -273,12 +272,7 @@ pub(super) fn run(
                 tried.push(rejected(Rejection::NotDetermined));
                 continue;
             };
-            let lof_new = lack_of_fit::lack_of_fit(
-                set,
-                &fit,
-                &base.with(&new_columns),
-                options.lack_of_fit_alpha,
-            );
+            let lof_new = base.lack_of_fit(set, &fit, &new_columns, options.lack_of_fit_alpha);
             if let Some(new) = &lof_new
                 && !new.passed()
                 && lof_current
@@ -293,8 +287,10 @@ pub(super) fn run(
                     tried.push(findings.remove(k).withdrawn(Rejection::Absorbed));
                 }
             }
-            let pitch_change = difference(&fit.pitch_deviation, &current.pitch_deviation);
-            let encoder_change = difference(&fit.encoder_error, &current.encoder_error);
+            let ([pitch_new, encoder_new], [pitch_old, encoder_old]) =
+                (base.calibrated(&fit), base.calibrated(&current));
+            let pitch_change = difference(&pitch_new, &pitch_old);
+            let encoder_change = difference(&encoder_new, &encoder_old);
             let entry = FoundEffect {
                 effect: candidate_effect(candidate),
                 u: None,
@@ -347,6 +343,39 @@ pub(super) fn run(
 /// Readings whose outlier column is nearly the same as reading `i`'s (|correlation of
 /// their residual directions| ≥ 0.9) and that explain nearly as much (t² within 4 of
 /// reading i's): the data cannot say which of them is bad.
+/// Whether leaving out reading `i` or any of its `twins` instead gives the same
+/// calibration ([`Base::calibrated`], to 1e-9 of its size): in a self-calibration with two
+/// heads, the two readings of a stop differ only by the table's error there, so the bad
+/// one cannot be named but the calibration does not depend on which it is.
+fn exchangeable(
+    base: &Base<'_>,
+    columns: &[Vec<f64>],
+    i: usize,
+    twins: &[(usize, f64)],
+    sigma: Option<crate::measurement::Sigma>,
+) -> bool {
+    let n = base.positions().readings.len();
+    let calibration = |reading: usize| {
+        let mut all = columns.to_vec();
+        let mut column = vec![0.0; n];
+        column[reading] = 1.0;
+        all.push(column);
+        base.fit(&all, sigma).ok().map(|fit| base.calibrated(&fit))
+    };
+    let Some([a0, a1]) = calibration(i) else {
+        return false;
+    };
+    let scale = a0.iter().chain(&a1).fold(1.0_f64, |m, v| m.max(v.abs()));
+    twins.iter().all(|&(j, _)| {
+        calibration(j).is_some_and(|[b0, b1]| {
+            a0.iter()
+                .chain(&a1)
+                .zip(b0.iter().chain(&b1))
+                .all(|(x, y)| (x - y).abs() <= 1e-9 * scale)
+        })
+    })
+}
+
 fn twins(
     geometry: &FitGeometry,
     studentized: &[Option<f64>],

@@ -16,6 +16,7 @@
 
 pub mod compare;
 pub mod diagnose;
+pub mod diagnose_selfcal;
 pub mod diagnose_table;
 pub mod html;
 pub mod plan;

@@ -69,6 +69,26 @@ impl SelfcalError {
 }
 
 impl SelfcalSet {
+    /// Whether a file's text is that of a self-calibration file: its header (its first
+    /// line that is not a `#` comment) has the `head` and `head_angle` columns
+    /// (docs/FORMAT.md §9.2). How `report` and `diagnose` tell it from a measurement file.
+    ///
+    /// ```
+    /// use polycal::selfcal::SelfcalSet;
+    /// assert!(SelfcalSet::is_selfcal_file(b"# SelfA\ncycle,step,head,head_angle,reading\n"));
+    /// assert!(!SelfcalSet::is_selfcal_file(b"cycle,step,ac,face,reading\n"));
+    /// ```
+    pub fn is_selfcal_file(bytes: &[u8]) -> bool {
+        let text = String::from_utf8_lossy(bytes);
+        text.lines()
+            .map(|l| l.trim_start_matches('\u{feff}'))
+            .find(|l| !l.starts_with('#'))
+            .is_some_and(|header| {
+                let columns: Vec<&str> = header.split(',').map(str::trim).collect();
+                columns.contains(&"head") && columns.contains(&"head_angle")
+            })
+    }
+
     /// Reads a self-calibration CSV from a path; the path `-` reads standard input (named
     /// `<stdin>` in messages).
     ///

@@ -194,5 +194,6 @@ pub(super) fn closure_off_grid(
         cofactor,
         lost,
         engine: Engine::Circulant { low_rank: 0 },
+        extra_parameters: 0,
     })
 }

@@ -82,6 +82,7 @@ pub use solve::{
     COVERAGE_PROBABILITY, HeadError, HeadGrid, ON_GRID_TOLERANCE_POSITIONS, SelfcalOptions,
     SelfcalSolution, SelfcalSolveError, solve,
 };
+pub(crate) use solve::{add_head_angle_u, closure_set, from_closure_fit, grid_offsets};
 
 /// One reading of one read head: one row of the self-calibration file.
 #[derive(Debug, Clone, PartialEq)]

@@ -154,6 +154,20 @@ pub enum SelfcalSolveError {
         /// The n asked for.
         gauge: usize,
     },
+    /// A diagnosis of a self-calibration whose heads sit between the positions (the
+    /// diagnosis fits the closure model, which needs every head on the position grid).
+    #[error(
+        "head{} {} sit{} between the {positions} positions: the diagnosis needs every head on the position grid (head angles multiples of 360°/{positions})",
+        if heads.len() == 1 { "" } else { "s" },
+        heads.iter().map(u32::to_string).collect::<Vec<_>>().join(", "),
+        if heads.len() == 1 { "s" } else { "" }
+    )]
+    HeadsOffGrid {
+        /// The heads between positions.
+        heads: Vec<u32>,
+        /// P.
+        positions: usize,
+    },
     /// The design is too large to solve here.
     #[error(
         "{positions} positions × {heads} heads: the band-limited solver needs {needed_bytes} bytes, more than the {limit_bytes} bytes allowed"
@@ -334,6 +348,8 @@ pub(super) struct Closure {
     /// Lost harmonics k in 1 … P−1.
     pub(super) lost: Vec<usize>,
     pub(super) engine: Engine,
+    /// Columns fitted beyond the closure model and the table's nuisance (0 for a solve).
+    pub(super) extra_parameters: usize,
 }
 
 /// Solves a self-calibration: e at every position with Σe = 0, every head's c relative
@@ -379,7 +395,17 @@ pub fn solve(
     options: &SelfcalOptions,
 ) -> Result<SelfcalSolution, SelfcalSolveError> {
     set.check()?;
-    let mut solution = solve_closure(set, options)?;
+    let solution = solve_closure(set, options)?;
+    add_head_angle_u(set, solution, options)
+}
+
+/// `solution` with what the uncertainty of the heads' angles adds to u(e) and u(c), when
+/// the options state one (`head_angle.rs`), and a note saying how much.
+pub(crate) fn add_head_angle_u(
+    set: &SelfcalSet,
+    mut solution: SelfcalSolution,
+    options: &SelfcalOptions,
+) -> Result<SelfcalSolution, SelfcalSolveError> {
     if let Some(u_angle) = options.head_angle_u_arcsec {
         let (on_e, on_c) = head_angle_u(set, &solution, u_angle, options)?;
         if let Some(u) = &mut solution.encoder_error_u {
@@ -417,24 +443,21 @@ pub(super) fn solve_closure(
     }
     let heads = set.heads();
     let cycles = set.cycles().len();
-    let offsets: Vec<f64> = heads
-        .iter()
-        .map(|h| h.angle_deg * p as f64 / 360.0)
-        .collect();
-    let on_grid = offsets
-        .iter()
-        .all(|d| (d - d.round()).abs() <= ON_GRID_TOLERANCE_POSITIONS);
-    let (closure, grid) = if on_grid {
-        let whole: Vec<usize> = offsets.iter().map(|d| (d.round() as usize) % p).collect();
-        (
+    let (closure, grid) = match grid_offsets(set, &heads) {
+        Some(whole) => (
             closure_on_grid(set, &heads, &whole, options)?,
             HeadGrid::OnGrid,
-        )
-    } else {
-        (
-            fourier::closure_off_grid(set, &heads, &offsets, options)?,
-            HeadGrid::OffGrid,
-        )
+        ),
+        None => {
+            let offsets: Vec<f64> = heads
+                .iter()
+                .map(|h| h.angle_deg * p as f64 / 360.0)
+                .collect();
+            (
+                fourier::closure_off_grid(set, &heads, &offsets, options)?,
+                HeadGrid::OffGrid,
+            )
+        }
     };
     Ok(assemble(set, heads, cycles, closure, grid, options))
 }
@@ -447,6 +470,38 @@ fn closure_on_grid(
     offsets: &[usize],
     options: &SelfcalOptions,
 ) -> Result<Closure, SelfcalSolveError> {
+    let closure_set = closure_set(set, heads, offsets)?;
+    let mut solve_options = SolveOptions::new().with_sigma_opt(options.sigma);
+    if let Some(bytes) = options.memory_limit_bytes {
+        solve_options = solve_options.with_memory_limit(bytes);
+    }
+    let (solution, lost): (Solution, Vec<usize>) =
+        least_squares_zeroing_lost(&closure_set, &solve_options)?;
+    Ok(Closure::of_fit(solution, lost, 0))
+}
+
+/// The whole position offset of every head (in `heads`' order) when every head sits on
+/// the position grid; `None` when some head sits between positions.
+pub(crate) fn grid_offsets(set: &SelfcalSet, heads: &[Head]) -> Option<Vec<usize>> {
+    let p = set.positions;
+    let offsets: Vec<f64> = heads
+        .iter()
+        .map(|h| h.angle_deg * p as f64 / 360.0)
+        .collect();
+    offsets
+        .iter()
+        .all(|d| (d - d.round()).abs() <= ON_GRID_TOLERANCE_POSITIONS)
+        .then(|| offsets.iter().map(|d| (d.round() as usize) % p).collect())
+}
+
+/// The readings of heads on the grid as a closure design: the disc's positions as the
+/// faces, the heads as the autocollimators (head j reads face (step + d_j) mod P + 1), one
+/// mounting; cycle, step, direction, time and line as the file has them.
+pub(crate) fn closure_set(
+    set: &SelfcalSet,
+    heads: &[Head],
+    offsets: &[usize],
+) -> Result<MeasurementSet, MeasurementError> {
     let p = set.positions;
     let offset_of = |head: u32| {
         heads
@@ -472,21 +527,41 @@ fn closure_on_grid(
             line: r.line,
         })
         .collect();
-    let closure_set = MeasurementSet::from_readings(readings, Some(p), "self-calibration")?;
-    let mut solve_options = SolveOptions::new().with_sigma_opt(options.sigma);
-    if let Some(bytes) = options.memory_limit_bytes {
-        solve_options = solve_options.with_memory_limit(bytes);
+    MeasurementSet::from_readings(readings, Some(p), "self-calibration")
+}
+
+impl Closure {
+    /// The closure model's solution from a fit of [`closure_set`] with `extra_parameters`
+    /// columns beyond the closure model and the table's per-stop nuisance (a diagnosis's
+    /// effect terms), whose residuals are then those of the full model.
+    pub(super) fn of_fit(solution: Solution, lost: Vec<usize>, extra_parameters: usize) -> Self {
+        Closure {
+            face_deviation: solution.face_deviation,
+            setup: solution.setup_error.iter().map(|s| s.value).collect(),
+            residuals: solution.residuals,
+            cofactor: solution.cofactor,
+            lost,
+            engine: solution.engine,
+            extra_parameters,
+        }
     }
-    let (solution, lost): (Solution, Vec<usize>) =
-        least_squares_zeroing_lost(&closure_set, &solve_options)?;
-    Ok(Closure {
-        face_deviation: solution.face_deviation,
-        setup: solution.setup_error.iter().map(|s| s.value).collect(),
-        residuals: solution.residuals,
-        cofactor: solution.cofactor,
-        lost,
-        engine: solution.engine,
-    })
+}
+
+/// The self-calibration's results from a fit of [`closure_set`] that holds the table's
+/// per-stop nuisance and `extra_parameters` further columns (a diagnosis's effect terms;
+/// docs/FORMAT.md §9.2): e, c, their uncertainties and the degrees of freedom as
+/// [`solve`] reports them, without the heads' angle uncertainty.
+pub(crate) fn from_closure_fit(
+    set: &SelfcalSet,
+    fit: Solution,
+    lost: Vec<usize>,
+    extra_parameters: usize,
+    options: &SelfcalOptions,
+) -> SelfcalSolution {
+    let heads = set.heads();
+    let cycles = set.cycles().len();
+    let closure = Closure::of_fit(fit, lost, extra_parameters);
+    assemble(set, heads, cycles, closure, HeadGrid::OnGrid, options)
 }
 
 /// The self-calibration's results from the closure model's.
@@ -521,7 +596,10 @@ fn assemble(
         })
         .collect();
     let rss: f64 = residuals.iter().map(|v| v * v).sum();
-    let parameters = cycles * p + (p - 1).saturating_sub(closure.lost.len()) + (m - 1);
+    let parameters = cycles * p
+        + (p - 1).saturating_sub(closure.lost.len())
+        + (m - 1)
+        + closure.extra_parameters;
     let dof = set.readings.len().saturating_sub(parameters);
     let sigma = crate::solve::choose_sigma(rss, dof, options.sigma);
 

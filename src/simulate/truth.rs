@@ -79,18 +79,6 @@ pub struct Truth {
     pub random_walk: Vec<super::RandomWalkTruth>,
 }
 
-/// Reads a JSON file into `T` (`-` reads standard input, named `<stdin>`):
-/// [`SimulateError::Io`] when it cannot be read, [`SimulateError::Json`] (file, line,
-/// column) when it is not valid JSON of `T`.
-pub(super) fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SimulateError> {
-    let (bytes, name) =
-        crate::input::read_bytes(path).map_err(|(name, source)| SimulateError::Io {
-            path: name.into(),
-            source,
-        })?;
-    parse_json(&bytes, &name)
-}
-
 /// Parses JSON bytes into `T`; `name` names them in [`SimulateError::Json`].
 pub(super) fn parse_json<T: serde::de::DeserializeOwned>(
     bytes: &[u8],

@@ -142,9 +142,12 @@ pub(crate) fn plan(
     let lost = lost_harmonics(n, &offsets);
     if !lost.is_empty() {
         // the rule names everything lost when nothing is missing and no effect term can
-        // add to it; otherwise the dense path's null space does
-        let by_rule = effects == 0 && corrections.iter().all(|&(_, _, delta)| delta > 0.0);
-        if by_rule && zero_lost {
+        // add to it; otherwise the dense path's null space does. Set to zero, the rule's
+        // harmonics stay lost whatever effect terms are added (a term the data cannot
+        // separate makes the solve singular, and the dense path names it).
+        let complete = corrections.iter().all(|&(_, _, delta)| delta > 0.0);
+        let by_rule = effects == 0 && complete;
+        if complete && zero_lost {
             return Ok(Plan::Circulant(CirculantPlan {
                 weights,
                 offsets,

@@ -179,21 +179,32 @@ pub(crate) fn least_squares_zeroing_lost(
     set: &MeasurementSet,
     options: &SolveOptions,
 ) -> Result<(Solution, Vec<usize>), SolveError> {
+    least_squares_zeroing_lost_with(set, &[], options)
+}
+
+/// [`least_squares_zeroing_lost`] with effect terms (as [`least_squares_with_options`]):
+/// the diagnosis of a self-calibration fits its effect columns this way.
+pub(crate) fn least_squares_zeroing_lost_with(
+    set: &MeasurementSet,
+    regressors: &[Vec<f64>],
+    options: &SolveOptions,
+) -> Result<(Solution, Vec<usize>), SolveError> {
+    check_regressors(set, regressors)?;
     let streams = set.streams();
     let n = set.faces;
-    let k = streams.len();
-    if let Plan::Circulant(plan) = circulant::plan(set, &streams, 0, true)? {
+    let (k, e) = (streams.len(), regressors.len());
+    if let Plan::Circulant(plan) = circulant::plan(set, &streams, e, true)? {
         fits(
             set,
             k,
-            0,
+            e,
             "circulant",
             plan.bytes_needed(n, set.readings.len()),
             options,
         )?;
-        if let Some(solution) = circulant::solve(set, &streams, &plan, &[], options.sigma)? {
+        if let Some(solution) = circulant::solve(set, &streams, &plan, regressors, options.sigma)? {
             return Ok((solution, plan.lost));
         }
     }
-    least_squares_with_options(set, &[], options).map(|solution| (solution, Vec::new()))
+    least_squares_with_options(set, regressors, options).map(|solution| (solution, Vec::new()))
 }

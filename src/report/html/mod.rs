@@ -31,16 +31,18 @@ use std::path::Path;
 use sha2::{Digest, Sha256};
 
 use crate::compare::{CompareOptions, Comparison, compare};
+use crate::diagnose::selfcal::diagnose_selfcal;
 use crate::diagnose::{DiagnoseOptions, diagnose};
 use crate::figure::{self, Figure};
 use crate::input::Location;
 use crate::measurement::MeasurementSet;
 use crate::report::diagnose::DiagnoseReport;
+use crate::report::diagnose_selfcal::SelfcalDiagnoseReport;
 use crate::report::selfcal::SelfcalReport;
 use crate::report::{SolveReport, result_rows_with};
 use crate::results::read_results_from;
 use crate::selfcal::{SelfcalOptions, SelfcalSet, SelfcalUncertainty};
-use crate::simulate::Truth;
+use crate::simulate::{SelfcalTruth, Truth};
 use crate::solve::SolveOptions;
 use crate::solve::sub_pitch::{ShiftGeometry, solve_shifted};
 use crate::uncertainty::calibration::{
@@ -106,6 +108,26 @@ pub enum Evaluation {
     },
 }
 
+/// The diagnosis a report shows: the JSON object `polycal diagnose` prints for the file.
+#[derive(Debug, Clone)]
+#[non_exhaustive]
+pub enum DiagnosisReport {
+    /// Of a measurement file.
+    Polygon(Box<DiagnoseReport>),
+    /// Of a self-calibration file.
+    Selfcal(Box<SelfcalDiagnoseReport>),
+}
+
+impl DiagnosisReport {
+    /// Whether the final model is adequate.
+    pub fn adequate(&self) -> bool {
+        match self {
+            DiagnosisReport::Polygon(d) => d.adequate,
+            DiagnosisReport::Selfcal(d) => d.adequate,
+        }
+    }
+}
+
 /// The verdicts a report carries (docs/FORMAT.md §8: status 1 when one is negative).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
@@ -133,8 +155,8 @@ pub struct CalibrationReport {
     pub metadata: Metadata,
     /// The evaluation.
     pub evaluation: Evaluation,
-    /// The diagnosis (polygon files, when asked).
-    pub diagnosis: Option<DiagnoseReport>,
+    /// The diagnosis, when asked.
+    pub diagnosis: Option<DiagnosisReport>,
     /// The comparison with the reference, and the reference's name.
     pub comparison: Option<(Comparison, String)>,
     /// The figures, in the report's order.
@@ -176,18 +198,6 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
         .collect()
 }
 
-/// Whether a file's header (its first line that is not a `#` comment) is that of a
-/// self-calibration file: it has the `head` and `head_angle` columns.
-fn is_selfcal(text: &str) -> bool {
-    text.lines()
-        .map(|l| l.trim_start_matches('\u{feff}'))
-        .find(|l| !l.starts_with('#'))
-        .is_some_and(|header| {
-            let columns: Vec<&str> = header.split(',').map(str::trim).collect();
-            columns.contains(&"head") && columns.contains(&"head_angle")
-        })
-}
-
 impl CalibrationReport {
     /// Reads the inputs and evaluates them as `solve`, `diagnose`, `compare` and
     /// `selfcal` do.
@@ -215,12 +225,14 @@ impl CalibrationReport {
             }
             None => None,
         };
-        let truth = match &inputs.truth {
+        // the truth of a polygon run (docs/FORMAT.md §4) or of a self-calibration, read by
+        // the kind of the measurement file
+        let truth_bytes = match &inputs.truth {
             Some(path) => {
                 let (bytes, file) = read_input(path, "truth")?;
-                let truth = Truth::from_json_bytes(&bytes, &file.path)?;
+                let source = file.path.clone();
                 files.push(file);
-                Some(truth)
+                Some((bytes, source))
             }
             None => None,
         };
@@ -248,14 +260,7 @@ impl CalibrationReport {
             (&text, &name),
             inputs.run_dir.as_deref(),
         )?;
-        let (evaluation, diagnosis, rows) = if is_selfcal(&text) {
-            if inputs.diagnose {
-                return Err(ReportError::NotSupported {
-                    file: name,
-                    what: "the diagnosis",
-                    kind: "a self-calibration file",
-                });
-            }
+        let (evaluation, diagnosis, rows) = if SelfcalSet::is_selfcal_file(&bytes) {
             if !inputs.stated_cross_talk.is_empty() {
                 return Err(ReportError::NotSupported {
                     file: name,
@@ -283,15 +288,49 @@ impl CalibrationReport {
                 report = report.with_uncertainty(u);
             }
             let rows = crate::report::selfcal::result_rows(&solution, uncertainty.as_ref());
+            let diagnosis = if inputs.diagnose {
+                let selfcal_truth = truth_bytes
+                    .as_ref()
+                    .map(|(bytes, source)| SelfcalTruth::from_json_bytes(bytes, source))
+                    .transpose()?;
+                let found = diagnose_selfcal(
+                    &set,
+                    &DiagnoseOptions::new().with_sigma_opt(inputs.sigma),
+                    &SelfcalOptions::new().with_sigma_opt(inputs.sigma),
+                )
+                .map_err(|source| ReportError::SelfcalSolve {
+                    file: name.clone(),
+                    source,
+                })?;
+                let mut d = SelfcalDiagnoseReport::new(&found, selfcal_truth.as_ref(), &name);
+                // the budget acts on the final model, as in `polycal diagnose --budget`
+                if let Some(b) = &budget {
+                    let after =
+                        crate::selfcal::evaluate_budget(&found.after, b).map_err(|source| {
+                            ReportError::Uncertainty {
+                                file: name.clone(),
+                                source,
+                            }
+                        })?;
+                    d = d.with_uncertainty(&after);
+                }
+                Some(DiagnosisReport::Selfcal(Box::new(d)))
+            } else {
+                None
+            };
             (
                 Evaluation::Selfcal {
                     report,
                     uncertainty,
                 },
-                None,
+                diagnosis,
                 Some(rows),
             )
         } else {
+            let truth = truth_bytes
+                .as_ref()
+                .map(|(bytes, source)| Truth::from_json_bytes(bytes, source))
+                .transpose()?;
             let set = MeasurementSet::read_from(bytes.as_slice(), &name, inputs.faces)?;
             let stated = &inputs.stated_cross_talk;
             let set = if stated.is_empty() {
@@ -359,7 +398,7 @@ impl CalibrationReport {
                     })?;
                     report.after = report.after.with_uncertainty(&after);
                 }
-                Some(report)
+                Some(DiagnosisReport::Polygon(Box::new(report)))
             } else {
                 None
             };
@@ -405,7 +444,7 @@ impl CalibrationReport {
             Evaluation::Polygon { solve, .. } => figure::solve_figures(solve),
             Evaluation::Selfcal { report, .. } => figure::selfcal_figures(report),
         };
-        if let Some(d) = &diagnosis {
+        if let Some(DiagnosisReport::Polygon(d)) = &diagnosis {
             figures.extend(figure::diagnose_figures(d));
         }
         if let Some((c, reference)) = &comparison {
@@ -434,7 +473,7 @@ impl CalibrationReport {
                 .comparison
                 .as_ref()
                 .is_some_and(|(c, _)| !c.verdict_ok()),
-            not_adequate: self.diagnosis.as_ref().is_some_and(|d| !d.adequate),
+            not_adequate: self.diagnosis.as_ref().is_some_and(|d| !d.adequate()),
         }
     }
 

@@ -6,8 +6,8 @@
 use std::fmt::Write;
 
 use super::tables::{
-    ARCSEC_DECIMALS, FamilyTable, diagnosis_body, family_table, fit_summary, num, polygon_budget,
-    rounded, selfcal_budget, solve_tables,
+    ARCSEC_DECIMALS, diagnosis_body, fit_summary, num, polygon_budget, rounded, selfcal_budget,
+    selfcal_tables, solve_tables,
 };
 use super::{CalibrationReport, DesignSummary, Evaluation};
 use crate::figure::svg::esc;
@@ -96,7 +96,7 @@ fn title_block(out: &mut String, report: &CalibrationReport, title: &str) {
     let verdict = report.verdict();
     let mut checks = Vec::new();
     if let Some(d) = &report.diagnosis {
-        checks.push(if d.adequate {
+        checks.push(if d.adequate() {
             "diagnosis: the final model is adequate".to_string()
         } else {
             "diagnosis: the final model is NOT adequate".to_string()
@@ -354,40 +354,7 @@ fn results(s: &mut Sections, report: &CalibrationReport) {
                 r.sigma_source,
                 Some(r.p),
             );
-            family_table(
-                &mut s.html,
-                &FamilyTable {
-                    id: "encoder-error",
-                    caption: "Graduation errors e of the disc",
-                    index_header: "position",
-                    indices: (0..r.encoder_error.len()).map(|p| p.to_string()).collect(),
-                    angles_deg: Some(&r.encoder_angle_deg),
-                    values: &r.encoder_error,
-                    u: r.encoder_error_u.as_deref(),
-                    expanded_u: r.encoder_error_expanded_u.as_deref(),
-                    k: r.encoder_error_k
-                        .as_ref()
-                        .map(|k| k.iter().map(|v| Some(*v)).collect()),
-                },
-            );
-            let values: Vec<f64> = r.head_error.iter().map(|h| h.value).collect();
-            let angles: Vec<f64> = r.head_error.iter().map(|h| h.angle_deg).collect();
-            let u: Option<Vec<f64>> = r.head_error.iter().map(|h| h.u).collect();
-            let expanded: Option<Vec<f64>> = r.head_error.iter().map(|h| h.expanded_u).collect();
-            family_table(
-                &mut s.html,
-                &FamilyTable {
-                    id: "head-error",
-                    caption: "Head placement errors c (head 1 is the reference)",
-                    index_header: "head",
-                    indices: r.head_error.iter().map(|h| h.head.to_string()).collect(),
-                    angles_deg: Some(&angles),
-                    values: &values,
-                    u: u.as_deref(),
-                    expanded_u: expanded.as_deref(),
-                    k: Some(r.head_error.iter().map(|h| h.k).collect()),
-                },
-            );
+            selfcal_tables(&mut s.html, r, "");
         }
     }
     s.close();

@@ -7,9 +7,10 @@ use std::fmt::Write;
 
 use serde_json::Value;
 
+use super::DiagnosisReport;
 use crate::figure::svg::esc;
 use crate::report::SolveReport;
-use crate::report::diagnose::DiagnoseReport;
+use crate::report::selfcal::SelfcalReport;
 use crate::selfcal::{SelfcalContribution, SelfcalUncertainty};
 use crate::uncertainty::calibration::{
     CalibrationUncertainty, ComponentContribution, FamilyUncertainty,
@@ -389,20 +390,133 @@ fn effect_text(effect: &Value) -> (String, String, Option<f64>, Option<f64>) {
     )
 }
 
-pub(super) fn diagnosis_body(out: &mut String, d: &DiagnoseReport) {
+/// The result tables of a `selfcal` object: e at every position and the heads' errors
+/// (the report's results, and a self-calibration diagnosis's final model with
+/// `id_prefix`).
+pub(super) fn selfcal_tables(out: &mut String, r: &SelfcalReport, id_prefix: &str) {
+    let (encoder_id, head_id) = (
+        format!("{id_prefix}encoder-error"),
+        format!("{id_prefix}head-error"),
+    );
+    family_table(
+        out,
+        &FamilyTable {
+            id: &encoder_id,
+            caption: "Graduation errors e of the disc",
+            index_header: "position",
+            indices: (0..r.encoder_error.len()).map(|p| p.to_string()).collect(),
+            angles_deg: Some(&r.encoder_angle_deg),
+            values: &r.encoder_error,
+            u: r.encoder_error_u.as_deref(),
+            expanded_u: r.encoder_error_expanded_u.as_deref(),
+            k: r.encoder_error_k
+                .as_ref()
+                .map(|k| k.iter().map(|v| Some(*v)).collect()),
+        },
+    );
+    let values: Vec<f64> = r.head_error.iter().map(|h| h.value).collect();
+    let angles: Vec<f64> = r.head_error.iter().map(|h| h.angle_deg).collect();
+    let u: Option<Vec<f64>> = r.head_error.iter().map(|h| h.u).collect();
+    let expanded: Option<Vec<f64>> = r.head_error.iter().map(|h| h.expanded_u).collect();
+    family_table(
+        out,
+        &FamilyTable {
+            id: &head_id,
+            caption: "Head placement errors c (head 1 is the reference)",
+            index_header: "head",
+            indices: r.head_error.iter().map(|h| h.head.to_string()).collect(),
+            angles_deg: Some(&angles),
+            values: &values,
+            u: u.as_deref(),
+            expanded_u: expanded.as_deref(),
+            k: Some(r.head_error.iter().map(|h| h.k).collect()),
+        },
+    );
+}
+
+pub(super) fn diagnosis_body(out: &mut String, report: &DiagnosisReport) {
+    let (adequate, checks, effects, notes) = match report {
+        DiagnosisReport::Polygon(d) => (d.adequate, &d.checks, &d.effects, &d.notes),
+        DiagnosisReport::Selfcal(d) => (d.adequate, &d.checks, &d.effects, &d.notes),
+    };
+    let (rms_before, rms_after, dof_before, dof_after) = match report {
+        DiagnosisReport::Polygon(d) => (
+            d.before.residual_rms,
+            d.after.residual_rms,
+            d.before.dof,
+            d.after.dof,
+        ),
+        DiagnosisReport::Selfcal(d) => (
+            d.before.residual_rms,
+            d.after.residual_rms,
+            d.before.dof,
+            d.after.dof,
+        ),
+    };
+    // against a truth: (label, before, after)
+    let errors: Vec<(&str, f64, f64)> = match report {
+        DiagnosisReport::Polygon(d) => d.error.as_ref().map_or_else(Vec::new, |e| {
+            vec![
+                (
+                    "Pitch deviation error, RMS / ″",
+                    e.before.pitch_rms,
+                    e.after.pitch_rms,
+                ),
+                (
+                    "Pitch deviation error, largest / ″",
+                    e.before.pitch_max,
+                    e.after.pitch_max,
+                ),
+                (
+                    "Encoder error error, RMS / ″",
+                    e.before.encoder_rms,
+                    e.after.encoder_rms,
+                ),
+                (
+                    "Encoder error error, largest / ″",
+                    e.before.encoder_max,
+                    e.after.encoder_max,
+                ),
+            ]
+        }),
+        DiagnosisReport::Selfcal(d) => d.error.as_ref().map_or_else(Vec::new, |e| {
+            vec![
+                (
+                    "Graduation error e error, RMS / ″",
+                    e.before.encoder_rms,
+                    e.after.encoder_rms,
+                ),
+                (
+                    "Graduation error e error, largest / ″",
+                    e.before.encoder_max,
+                    e.after.encoder_max,
+                ),
+                (
+                    "Head error error, RMS / ″",
+                    e.before.head_rms,
+                    e.after.head_rms,
+                ),
+                (
+                    "Head error error, largest / ″",
+                    e.before.head_max,
+                    e.after.head_max,
+                ),
+            ]
+        }),
+    };
     let _ = writeln!(
         out,
         "<p class=\"verdict {}\" id=\"adequacy\">The final model is {}adequate: {}.</p>",
-        if d.adequate { "pass" } else { "fail" },
-        if d.adequate { "" } else { "NOT " },
-        if d.adequate {
+        if adequate { "pass" } else { "fail" },
+        if adequate { "" } else { "NOT " },
+        if adequate {
             "its residuals are consistent with noise"
         } else {
             "structure is left that no known effect explains"
         },
     );
     out.push_str("<table id=\"checks\"><caption>Checks of the final model</caption><thead><tr><th>Check</th><th>Statistic</th><th>Limit</th><th>Passed</th></tr></thead><tbody>\n");
-    for c in &d.checks {
+    for c in checks {
         let _ = writeln!(
             out,
             "<tr><td>{}</td>{}{}<td>{}</td></tr>",
@@ -414,10 +528,10 @@ pub(super) fn diagnosis_body(out: &mut String, d: &DiagnoseReport) {
     }
     out.push_str("</tbody></table>\n");
     out.push_str("<table id=\"effects\"><caption>Effects found and added to the model</caption><thead><tr><th>Effect</th><th>Where</th><th>Value</th><th>u</th></tr></thead><tbody>\n");
-    if d.effects.is_empty() {
+    if effects.is_empty() {
         out.push_str("<tr><td colspan=\"4\">none</td></tr>\n");
     }
-    for e in &d.effects {
+    for e in effects {
         let (kind, fields, value, u) = effect_text(e);
         let _ = writeln!(
             out,
@@ -433,46 +547,26 @@ pub(super) fn diagnosis_body(out: &mut String, d: &DiagnoseReport) {
         out,
         "<table id=\"diagnosis-fit\"><thead><tr><th></th><th>Before (base model)</th><th>After (final model)</th></tr></thead><tbody>\n\
          <tr><th>Residual RMS / ″</th>{}{}</tr>\n<tr><th>Residual degrees of freedom</th><td>{}</td><td>{}</td></tr>\n",
-        num(d.before.residual_rms, ARCSEC_DECIMALS),
-        num(d.after.residual_rms, ARCSEC_DECIMALS),
-        d.before.dof,
-        d.after.dof
+        num(rms_before, ARCSEC_DECIMALS),
+        num(rms_after, ARCSEC_DECIMALS),
+        dof_before,
+        dof_after
     );
-    if let Some(e) = &d.error {
-        for (label, before, after) in [
-            (
-                "Pitch deviation error, RMS / ″",
-                e.before.pitch_rms,
-                e.after.pitch_rms,
-            ),
-            (
-                "Pitch deviation error, largest / ″",
-                e.before.pitch_max,
-                e.after.pitch_max,
-            ),
-            (
-                "Encoder error error, RMS / ″",
-                e.before.encoder_rms,
-                e.after.encoder_rms,
-            ),
-            (
-                "Encoder error error, largest / ″",
-                e.before.encoder_max,
-                e.after.encoder_max,
-            ),
-        ] {
-            let _ = writeln!(
-                out,
-                "<tr class=\"truth\"><th>{label} (against the truth)</th>{}{}</tr>",
-                num(Some(before), ARCSEC_DECIMALS),
-                num(Some(after), ARCSEC_DECIMALS)
-            );
-        }
+    for (label, before, after) in errors {
+        let _ = writeln!(
+            out,
+            "<tr class=\"truth\"><th>{label} (against the truth)</th>{}{}</tr>",
+            num(Some(before), ARCSEC_DECIMALS),
+            num(Some(after), ARCSEC_DECIMALS)
+        );
     }
     out.push_str("</tbody></table>\n");
-    for note in &d.notes {
+    for note in notes {
         let _ = writeln!(out, "<p class=\"note\">{}</p>", esc(note));
     }
     out.push_str("<h3>Results of the final model</h3>\n");
-    solve_tables(out, &d.after, "final-");
+    match report {
+        DiagnosisReport::Polygon(d) => solve_tables(out, &d.after, "final-"),
+        DiagnosisReport::Selfcal(d) => selfcal_tables(out, &d.after, "final-"),
+    }
 }

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::super::SimulateError;
 use super::super::config::Harmonic;
-use super::super::truth::{close, read_json};
+use super::super::truth::{close, parse_json};
 use super::config::{MIN_POSITIONS, SelfcalSimConfig};
 use super::{ENCODER_STREAM, HEAD_STREAM, TABLE_STREAM, harmonics_at_deg, position_deg};
 
@@ -190,9 +190,24 @@ impl SelfcalTruth {
     ///
     /// [`SimulateError::Io`], [`SimulateError::Json`] or [`SimulateError::Truth`].
     pub fn read_path(path: &Path) -> Result<SelfcalTruth, SimulateError> {
-        let mut truth: SelfcalTruth = read_json(path)?;
+        let (bytes, name) =
+            crate::input::read_bytes(path).map_err(|(name, source)| SimulateError::Io {
+                path: name.into(),
+                source,
+            })?;
+        SelfcalTruth::from_json_bytes(&bytes, &name)
+    }
+
+    /// [`SelfcalTruth::read_path`] of bytes already read; `source` names them in
+    /// messages.
+    ///
+    /// # Errors
+    ///
+    /// [`SimulateError::Json`] or [`SimulateError::Truth`].
+    pub fn from_json_bytes(bytes: &[u8], source: &str) -> Result<SelfcalTruth, SimulateError> {
+        let mut truth: SelfcalTruth = parse_json(bytes, source)?;
         truth.check().map_err(|message| SimulateError::Truth {
-            origin: crate::input::display_name(path),
+            origin: source.to_string(),
             message,
         })?;
         if truth.encoder_angle_deg.is_empty() {

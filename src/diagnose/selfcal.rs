@@ -1,0 +1,136 @@
+//! The diagnosis of a self-calibration run (docs/FORMAT.md §5.2, §9.2).
+//!
+//! The heads stand in the autocollimators' place and the disc in the polygon's: the
+//! readings are `selfcal`'s closure set, fitted with the table's error at every stop of
+//! every cycle as a nuisance ([`Base::self_calibration`]), and the same forward selection
+//! and adequacy checks as a polygon run's find what the model lacks: a drift of a head's
+//! zero, a jump of a head's zero at any stop, an outlier, a direction offset of
+//! bidirectional runs, and the lack of fit against pure error (each (step, head) is read
+//! once per cycle, so with two cycles or more every cell is replicated; the pure error is
+//! the scatter within cells beyond the table's nuisance). The base model's fit and the
+//! final model's are given as self-calibrations ([`SelfcalSolution`], the encoder error e
+//! and the heads' errors), exactly as [`crate::selfcal::solve`] reports them.
+//!
+//! What the closure model cannot place: a change common to every head at a stop is the
+//! table's, so a drift or jump of all heads together is invisible, and with two heads a
+//! head's drift is the other's with the opposite sign (the finding names one and its
+//! alternative the other; both give the same e and head errors).
+
+use super::base::Base;
+use super::{DiagnoseOptions, Diagnosis, clock, diagnose_base};
+use crate::selfcal::{
+    SelfcalOptions, SelfcalSet, SelfcalSolution, SelfcalSolveError, add_head_angle_u, closure_set,
+    from_closure_fit, grid_offsets,
+};
+use crate::solve::SolveOptions;
+use crate::solve::least_squares::least_squares_zeroing_lost;
+
+/// The diagnosis of a self-calibration: the diagnosis of its closure model (effects on
+/// the heads: an effect's `ac` is the head), and the self-calibration before and after.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct SelfcalDiagnosis {
+    /// The diagnosis of the closure model (its `before` and `after` are the closure
+    /// model's fits; the effects name heads in the autocollimators' field).
+    pub diagnosis: Diagnosis,
+    /// The base model: what [`crate::selfcal::solve`] gives.
+    pub before: SelfcalSolution,
+    /// The final model: e and the heads' errors with the effects found in the model.
+    pub after: SelfcalSolution,
+}
+
+/// Diagnoses a self-calibration: the base fit, the effects the data demand, the final fit.
+///
+/// ```
+/// use polycal::diagnose::{DiagnoseOptions, selfcal::diagnose_selfcal};
+/// use polycal::effects::Effect;
+/// use polycal::selfcal::SelfcalOptions;
+/// use polycal::simulate::{SelfcalSimConfig, equally_spaced_head_angles_deg, simulate_selfcal};
+///
+/// // four heads, 24 positions, 3 cycles; head 3's zero jumps by 0.5″ at cycle 2, step 10
+/// let mut config = SelfcalSimConfig::default();
+/// config.positions = 24;
+/// config.cycles = 3;
+/// config.head_angles_deg = equally_spaced_head_angles_deg(4);
+/// config.noise_arcsec = 0.02;
+/// let (mut set, _truth) = simulate_selfcal(&config)?;
+/// for r in &mut set.readings {
+///     if r.head == 3 && (r.cycle, r.step) >= (2, 10) {
+///         r.reading_arcsec += 0.5;
+///     }
+/// }
+/// let found = diagnose_selfcal(&set, &DiagnoseOptions::default(), &SelfcalOptions::new())?;
+/// assert!(matches!(
+///     found.diagnosis.effects[0].effect,
+///     Effect::OffsetStep { ac: 3, cycle: 2, step: Some(10), .. }
+/// ));
+/// assert!(found.diagnosis.adequacy.adequate);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+///
+/// [`SelfcalSolveError::Invalid`] for a set that breaks the file's rules,
+/// [`SelfcalSolveError::HeadsOffGrid`] when some head sits between the positions,
+/// [`SelfcalSolveError::InvalidGauge`] for a gauge that does not divide P,
+/// [`SelfcalSolveError::Solve`] when the engine refuses the design (memory).
+pub fn diagnose_selfcal(
+    set: &SelfcalSet,
+    options: &DiagnoseOptions,
+    selfcal_options: &SelfcalOptions,
+) -> Result<SelfcalDiagnosis, SelfcalSolveError> {
+    set.check()?;
+    let p = set.positions;
+    if let Some(gauge) = selfcal_options.gauge_positions
+        && (gauge == 0 || !p.is_multiple_of(gauge))
+    {
+        return Err(SelfcalSolveError::InvalidGauge {
+            positions: p,
+            gauge,
+        });
+    }
+    let heads = set.heads();
+    let Some(offsets) = grid_offsets(set, &heads) else {
+        let off: Vec<u32> = heads
+            .iter()
+            .filter(|h| {
+                let d = h.angle_deg * p as f64 / 360.0;
+                (d - d.round()).abs() > crate::selfcal::ON_GRID_TOLERANCE_POSITIONS
+            })
+            .map(|h| h.head)
+            .collect();
+        return Err(SelfcalSolveError::HeadsOffGrid {
+            heads: off,
+            positions: p,
+        });
+    };
+    let closure = closure_set(set, &heads, &offsets)?;
+    let (lost, clocked, clock) = {
+        let mut solve_options = SolveOptions::new().with_sigma_opt(selfcal_options.sigma);
+        if let Some(bytes) = selfcal_options.memory_limit_bytes {
+            solve_options = solve_options.with_memory_limit(bytes);
+        }
+        let (_, lost) = least_squares_zeroing_lost(&closure, &solve_options)?;
+        let (clocked, clock) = clock::clocked(&closure);
+        (lost, clocked.into_owned(), clock)
+    };
+    let base = Base::self_calibration(&clocked);
+    let options = options
+        .clone()
+        .with_sigma_opt(options.sigma.or(selfcal_options.sigma));
+    let diagnosis = diagnose_base(&clocked, &base, clock, &options)?;
+    let terms = diagnosis.after.effect_values.len() - base.offset();
+    let before = from_closure_fit(
+        set,
+        diagnosis.before.clone(),
+        lost.clone(),
+        0,
+        selfcal_options,
+    );
+    let after = from_closure_fit(set, diagnosis.after.clone(), lost, terms, selfcal_options);
+    Ok(SelfcalDiagnosis {
+        before: add_head_angle_u(set, before, selfcal_options)?,
+        after: add_head_angle_u(set, after, selfcal_options)?,
+        diagnosis,
+    })
+}
