@@ -10,6 +10,10 @@
 //!   two cosets of 24 angles), 4 cycles with closing readings (400 readings), a drift, a
 //!   jump inside mounting 2 and an outlier: the base model carries the cosets' 23
 //!   differences as columns.
+//! - `diagnose/{360,1440,5760}x6_drift_step`: 360, 1 440 and 5 760 positions × 6 cycles
+//!   with closing readings (4 332, 17 292 and 69 132 readings), a drift and a jump: the
+//!   structured geometry (issue 22's targets: 0.1 s at 1 440, 1 s at 5 760, growth at
+//!   most N^1.3);
 //! - `diagnose/selfa168x3_drift_step_outlier`: a SelfA self-calibration (12 heads, 168
 //!   positions, 3 cycles, 6 048 readings) with a head's drift, another head's jump and an
 //!   outlier: the closure model with the table's error at every stop taken out.
@@ -109,6 +113,32 @@ fn bench_diagnose(c: &mut Criterion) {
     group.bench_function("360x6_drift_step_3_outliers", |b| {
         b.iter(|| diagnose(black_box(&set), &options))
     });
+    for faces in [360, 1440, 5760] {
+        let config = SimulationConfig {
+            faces,
+            closing: true,
+            step_seconds: 2.0,
+            effects: vec![
+                Effect::Drift {
+                    ac: 1,
+                    value: 0.8,
+                    quadratic: None,
+                },
+                Effect::OffsetStep {
+                    ac: 2,
+                    cycle: 4,
+                    step: Some(faces / 3),
+                    setup: None,
+                    value: 0.3,
+                },
+            ],
+            ..SimulationConfig::default()
+        };
+        let (set, _) = simulate(&config).expect("a valid simulation");
+        group.bench_function(format!("{faces}x6_drift_step"), |b| {
+            b.iter(|| diagnose(black_box(&set), &options))
+        });
+    }
     let mut selfa = SelfcalSimConfig::default();
     selfa.cycles = 3;
     selfa.step_seconds = Some(20.0);

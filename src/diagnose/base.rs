@@ -42,6 +42,8 @@ pub struct Base<'a> {
     /// A self-calibration's table error at every stop, taken out of the readings and the
     /// terms (the lost harmonics set to zero, e and the heads' errors certified).
     nuisance: Option<StopNuisance>,
+    /// Whether the geometry is the dense reference's whatever the fit's cofactor.
+    dense_geometry: bool,
 }
 
 impl<'a> Base<'a> {
@@ -53,6 +55,7 @@ impl<'a> Base<'a> {
                 columns: Vec::new(),
                 shifts: None,
                 nuisance: None,
+                dense_geometry: false,
             };
         }
         let geometry = ShiftGeometry::of(set);
@@ -62,6 +65,7 @@ impl<'a> Base<'a> {
             columns,
             shifts: Some(geometry),
             nuisance: None,
+            dense_geometry: false,
         }
     }
 
@@ -80,7 +84,15 @@ impl<'a> Base<'a> {
             columns: Vec::new(),
             shifts: None,
             nuisance: Some(nuisance),
+            dense_geometry: false,
         }
+    }
+
+    /// This base model with the dense geometry ([`FitGeometry::dense`]) whatever the
+    /// fits' cofactors: the reference the structured geometry is tested against.
+    pub fn with_dense_geometry(mut self, dense: bool) -> Self {
+        self.dense_geometry = dense;
+        self
     }
 
     /// Whether this is a self-calibration's closure model.
@@ -221,6 +233,7 @@ impl<'a> Base<'a> {
             columns: self.columns.clone(),
             shifts: None,
             nuisance: self.nuisance.clone(),
+            dense_geometry: self.dense_geometry,
         };
         base.fit_columns(&self.columns, None)
     }

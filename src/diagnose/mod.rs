@@ -67,6 +67,10 @@ pub struct DiagnoseOptions {
     /// corrected the readings for (docs/FORMAT.md §6, `--cross-talk AC:C[:U]`): no
     /// cross-talk term is tried for them, and they resolve the ambiguity of the others'.
     pub stated_cross_talk: Vec<u32>,
+    /// Score candidates with the dense geometry ([`geometry::FitGeometry::dense`])
+    /// whatever the fits' cofactors: the reference the structured geometry is tested
+    /// against (memory O((2N + K + E)²)).
+    pub dense_geometry: bool,
 }
 
 impl DiagnoseOptions {
@@ -117,6 +121,12 @@ impl DiagnoseOptions {
         self
     }
 
+    /// With the dense reference geometry (or not).
+    pub fn with_dense_geometry(mut self, dense: bool) -> Self {
+        self.dense_geometry = dense;
+        self
+    }
+
     /// With another largest number of effects.
     pub fn with_max_effects(mut self, max_effects: usize) -> Self {
         self.max_effects = max_effects;
@@ -138,6 +148,7 @@ impl Default for DiagnoseOptions {
             max_effects: 12,
             sigma: None,
             stated_cross_talk: Vec::new(),
+            dense_geometry: false,
         }
     }
 }
@@ -359,7 +370,8 @@ fn rounding_rss(set: &MeasurementSet) -> f64 {
 pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagnosis, SolveError> {
     let (work, clock) = clock::clocked(set);
     let set: &MeasurementSet = &work;
-    diagnose_base(set, &Base::of(set), clock, options)
+    let base = Base::of(set).with_dense_geometry(options.dense_geometry);
+    diagnose_base(set, &base, clock, options)
 }
 
 /// [`diagnose`] of `set` (on `clock`) with the base model `base` (of `set`, or of a
@@ -373,13 +385,16 @@ pub(crate) fn diagnose_base(
     let sigma = options.sigma;
     let context = EffectContext::of(&set.readings);
     let before = base.fit(&[], sigma)?;
-    // the hat-matrix geometry holds the cofactor densely (three matrices of the
-    // parameters with every effect term the search may add): refused up front when it
-    // cannot fit, before the search allocates it
+    // the dense hat-matrix geometry (the dense reference solver's fits) holds the
+    // cofactor densely (three matrices of the parameters with every effect term the
+    // search may add): refused up front when it cannot fit, before the search allocates
+    // it; the structured geometry needs O(n + N·r)
     let parameters =
         (before.layout.len() + options.max_effects * candidates::MAX_DRIFT_ORDER) as u128;
     let needed_bytes = 3 * parameters * parameters * 8;
-    if let Some((limit_bytes, limit_source)) = crate::solve::memory::limit_for(needed_bytes, None)
+    if (before.cofactor.is_dense() || options.dense_geometry)
+        && let Some((limit_bytes, limit_source)) =
+            crate::solve::memory::limit_for(needed_bytes, None)
         && needed_bytes > u128::from(limit_bytes)
     {
         return Err(SolveError::TooLarge {

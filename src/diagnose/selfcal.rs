@@ -114,7 +114,7 @@ pub fn diagnose_selfcal(
         let (clocked, clock) = clock::clocked(&closure);
         (lost, clocked.into_owned(), clock)
     };
-    let base = Base::self_calibration(&clocked);
+    let base = Base::self_calibration(&clocked).with_dense_geometry(options.dense_geometry);
     let options = options
         .clone()
         .with_sigma_opt(options.sigma.or(selfcal_options.sigma));

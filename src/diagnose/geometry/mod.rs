@@ -10,27 +10,48 @@
 //! (the squared projection of the residuals on the part of x the model does not already
 //! span). With the cofactor matrix Q of the fit, xᵀHx = gᵀQg where g = Σᵢ xᵢ cᵢ sums the
 //! design rows cᵢ of the readings x touches. Each design row is sparse (one α, one φ, one
-//! setup error, the effect columns), so a column is scored in O(n + P²) and every suffix
-//! of a time-ordered stream — the columns of a change-point search — in O(P) per reading
-//! ([`FitGeometry::suffix_scores`]).
+//! setup error, the effect columns).
+//!
+//! Two forms, one answer:
+//!
+//! - **structured** (whenever the fit's cofactor is, [`crate::solve::cofactor`]): Q in the
+//!   engine's gauge g as B + W M Wᵀ, never formed; an entry of H costs O(r), a column's
+//!   score one product Q·g (O(N log N)), and every suffix of a time-ordered stream — the
+//!   columns of a change-point search — comes from the stream's circulant kernel by
+//!   blocked FFT convolution plus the low-rank part in O(r) per reading
+//!   (`structured.rs`). Memory O(n + N·r).
+//! - **dense** (the dense reference solver's fits, and [`FitGeometry::dense`] for tests):
+//!   Q formed in ψ, a column scored in O(n + P²), every suffix in O(P) per reading.
+
+mod structured;
 
 use nalgebra::DMatrix;
 
 use super::nuisance::StopNuisance;
 use crate::measurement::MeasurementSet;
 use crate::solve::Solution;
+use structured::StructuredGeometry;
 
-/// The hat-matrix geometry of one fit: its cofactor matrix with the pitch deviations
-/// replaced by the face deviations φ, and the sparse design row of every reading.
+/// The hat-matrix geometry of one fit: its cofactor (dense in ψ, or structured in g) and
+/// the sparse design row of every reading.
 #[derive(Debug, Clone)]
 pub struct FitGeometry {
-    /// Q in ψ = [φ (N), α (N), U (K), effects (E)].
-    q: DMatrix<f64>,
-    /// The design row of every reading: (index in ψ, coefficient).
+    /// The cofactor.
+    form: Form,
+    /// The design row of every reading: (index in ψ or g, coefficient).
     rows: Vec<Vec<(usize, f64)>>,
     /// A self-calibration's table error at every stop, taken out of the fit
     /// ([`StopNuisance`]): its P_D is added to the hat matrix.
     nuisance: Option<StopNuisance>,
+}
+
+/// The cofactor a geometry holds.
+#[derive(Debug, Clone)]
+enum Form {
+    /// Q in ψ = [φ (N), α (N), U (K), effects (E)].
+    Dense(DMatrix<f64>),
+    /// Q_g = B + W M Wᵀ in g = [α (N), φ′ (N), U′ (K), effects (E)].
+    Structured(Box<StructuredGeometry>),
 }
 
 /// What adding one column to the model would do.
@@ -73,8 +94,25 @@ impl ColumnScore {
 
 impl FitGeometry {
     /// The geometry of `solution`, a fit of `set` with the effect `columns` (one value per
-    /// reading each, in the order of the solution's effect terms).
+    /// reading each, in the order of the solution's effect terms): structured when the
+    /// fit's cofactor is, dense otherwise.
     pub fn new(solution: &Solution, set: &MeasurementSet, columns: &[Vec<f64>]) -> Self {
+        match solution.cofactor.as_structured() {
+            Some(q) => {
+                let (geometry, rows) = StructuredGeometry::new(solution, set, columns, q);
+                Self {
+                    form: Form::Structured(Box::new(geometry)),
+                    rows,
+                    nuisance: None,
+                }
+            }
+            None => Self::dense(solution, set, columns),
+        }
+    }
+
+    /// The dense geometry of `solution` whatever its cofactor (the reference the
+    /// structured form is tested against; O((2N + K + E)²) memory).
+    pub fn dense(solution: &Solution, set: &MeasurementSet, columns: &[Vec<f64>]) -> Self {
         let n = solution.faces;
         let layout = solution.layout;
         let size = layout.len();
@@ -119,10 +157,15 @@ impl FitGeometry {
             })
             .collect();
         Self {
-            q,
+            form: Form::Dense(q),
             rows,
             nuisance: None,
         }
+    }
+
+    /// Whether the geometry is the structured form.
+    pub fn is_structured(&self) -> bool {
+        matches!(self.form, Form::Structured(_))
     }
 
     /// The geometry of a fit of M·y with the stop nuisance `nuisance` taken out: the hat
@@ -134,13 +177,82 @@ impl FitGeometry {
 
     /// cᵢᵀ Q cⱼ: the fit's part of the hat matrix, without a stop nuisance's P_D.
     fn engine_hat(&self, i: usize, j: usize) -> f64 {
-        let mut h = 0.0;
-        for &(a, va) in &self.rows[i] {
-            for &(b, vb) in &self.rows[j] {
-                h += va * vb * self.q[(a, b)];
+        match &self.form {
+            Form::Dense(q) => {
+                let mut h = 0.0;
+                for &(a, va) in &self.rows[i] {
+                    for &(b, vb) in &self.rows[j] {
+                        h += va * vb * q[(a, b)];
+                    }
+                }
+                h
+            }
+            Form::Structured(s) => s.hat(&self.rows[i], &self.rows[j]),
+        }
+    }
+
+    /// The length of the cofactor's vectors (ψ or g).
+    fn size(&self) -> usize {
+        match &self.form {
+            Form::Dense(q) => q.nrows(),
+            Form::Structured(s) => s.size(),
+        }
+    }
+
+    /// gᵀ Q g for a vector g in ψ or g.
+    fn quadratic(&self, g: &[f64]) -> f64 {
+        match &self.form {
+            Form::Dense(q) => {
+                let size = q.nrows();
+                let touched: Vec<usize> = (0..size).filter(|&a| g[a] != 0.0).collect();
+                let mut quad = 0.0;
+                for &a in &touched {
+                    let mut row = 0.0;
+                    for &b in &touched {
+                        row += q[(a, b)] * g[b];
+                    }
+                    quad += g[a] * row;
+                }
+                quad
+            }
+            Form::Structured(s) => {
+                let qg = s.apply(g);
+                g.iter().zip(&qg).map(|(a, b)| a * b).sum()
             }
         }
-        h
+    }
+
+    /// Q g for a vector g in ψ or g.
+    fn product(&self, g: &[f64]) -> Vec<f64> {
+        match &self.form {
+            Form::Dense(q) => {
+                let size = q.nrows();
+                let mut out = vec![0.0; size];
+                for (b, &gb) in g.iter().enumerate() {
+                    if gb != 0.0 {
+                        let column = &q.as_slice()[b * size..(b + 1) * size];
+                        for (o, q) in out.iter_mut().zip(column) {
+                            *o += q * gb;
+                        }
+                    }
+                }
+                out
+            }
+            Form::Structured(s) => s.apply(g),
+        }
+    }
+
+    /// g = Σᵢ xᵢ cᵢ, the design rows summed with the column's values.
+    fn summed_rows(&self, x: &[f64]) -> Vec<f64> {
+        let mut g = vec![0.0; self.size()];
+        for (i, &xi) in x.iter().enumerate() {
+            if xi != 0.0 {
+                for &(a, v) in &self.rows[i] {
+                    g[a] += xi * v;
+                }
+            }
+        }
+        g
     }
 
     /// H_ij = cᵢᵀ Q cⱼ (plus P_D\[i, j\] with a stop nuisance): the covariance of the
@@ -156,28 +268,14 @@ impl FitGeometry {
 
     /// Scores a column x (one value per reading) against the residuals of the fit.
     pub fn score(&self, x: &[f64], residuals: &[f64]) -> ColumnScore {
-        let size = self.q.nrows();
-        let mut g = vec![0.0; size];
         let (mut projection, mut length_squared) = (0.0, 0.0);
         for (i, &xi) in x.iter().enumerate() {
-            if xi == 0.0 {
-                continue;
-            }
-            projection += xi * residuals[i];
-            length_squared += xi * xi;
-            for &(a, v) in &self.rows[i] {
-                g[a] += xi * v;
+            if xi != 0.0 {
+                projection += xi * residuals[i];
+                length_squared += xi * xi;
             }
         }
-        let touched: Vec<usize> = (0..size).filter(|&a| g[a] != 0.0).collect();
-        let mut quad = 0.0;
-        for &a in &touched {
-            let mut row = 0.0;
-            for &b in &touched {
-                row += self.q[(a, b)] * g[b];
-            }
-            quad += g[a] * row;
-        }
+        let mut quad = self.quadratic(&self.summed_rows(x));
         if let Some(n) = &self.nuisance {
             quad += n.quadratic(x, x);
         }
@@ -192,10 +290,12 @@ impl FitGeometry {
     /// that is 1 on the readings `order[k..]` and 0 elsewhere (a jump of the stream's zero
     /// from its k-th reading on). Element k of the result belongs to that column.
     pub fn suffix_scores(&self, order: &[usize], residuals: &[f64]) -> Vec<ColumnScore> {
-        let size = self.q.nrows();
-        // w = Q g for the running suffix sum g of the design rows; quad = gᵀ Q g.
-        let mut w = vec![0.0; size];
-        let (mut quad, mut projection) = (0.0, 0.0);
+        // the engine's gᵀ Q g of every suffix, then the stop nuisance's part
+        let quads = match &self.form {
+            Form::Dense(q) => dense_suffix_quads(q, &self.rows, order),
+            Form::Structured(s) => s.suffix_quads(&self.rows, order),
+        };
+        let mut nuisance = self.nuisance.as_ref().map(StopNuisance::suffix);
         let mut scores = vec![
             ColumnScore {
                 projection: 0.0,
@@ -204,36 +304,49 @@ impl FitGeometry {
             };
             order.len()
         ];
-        // with a stop nuisance, quad holds the engine's part and the suffix's P_D part
-        // is kept apart
-        let mut nuisance = self.nuisance.as_ref().map(StopNuisance::suffix);
-        let mut nuisance_quad = 0.0;
+        let mut projection = 0.0;
         for (k, &i) in order.iter().enumerate().rev() {
-            let row = &self.rows[i];
-            // quad += 2 cᵀ w + cᵀ Q c, then w += Q c
-            let c_w: f64 = row.iter().map(|&(a, v)| v * w[a]).sum();
-            let c_q_c = self.engine_hat(i, i);
-            if let Some(n) = &mut nuisance {
-                nuisance_quad = n.add(i);
-            }
-            quad += 2.0 * c_w + c_q_c;
-            let q = self.q.as_slice();
-            for &(a, v) in row {
-                // Q is symmetric and stored by columns: column a is contiguous.
-                for (t, q) in w.iter_mut().zip(&q[a * size..(a + 1) * size]) {
-                    *t += v * q;
-                }
-            }
+            let nuisance_quad = nuisance.as_mut().map_or(0.0, |n| n.add(i));
             projection += residuals[i];
             let length_squared = (order.len() - k) as f64;
             scores[k] = ColumnScore {
                 projection,
-                new_length_squared: length_squared - quad - nuisance_quad,
+                new_length_squared: length_squared - quads[k] - nuisance_quad,
                 length_squared,
             };
         }
         scores
     }
+}
+
+/// The dense form's gᵀ Q g of every suffix `order[k..]` (element k): w = Q g kept for the
+/// running suffix sum g of the design rows, O(P) per reading.
+fn dense_suffix_quads(q: &DMatrix<f64>, rows: &[Vec<(usize, f64)>], order: &[usize]) -> Vec<f64> {
+    let size = q.nrows();
+    let mut w = vec![0.0; size];
+    let mut quad = 0.0;
+    let mut quads = vec![0.0; order.len()];
+    for (k, &i) in order.iter().enumerate().rev() {
+        let row = &rows[i];
+        // quad += 2 cᵀ w + cᵀ Q c, then w += Q c
+        let c_w: f64 = row.iter().map(|&(a, v)| v * w[a]).sum();
+        let mut c_q_c = 0.0;
+        for &(a, va) in row {
+            for &(b, vb) in row {
+                c_q_c += va * vb * q[(a, b)];
+            }
+        }
+        quad += 2.0 * c_w + c_q_c;
+        let q = q.as_slice();
+        for &(a, v) in row {
+            // Q is symmetric and stored by columns: column a is contiguous.
+            for (t, q) in w.iter_mut().zip(&q[a * size..(a + 1) * size]) {
+                *t += v * q;
+            }
+        }
+        quads[k] = quad;
+    }
+    quads
 }
 
 /// What adding a block of columns to the model together would do.
@@ -291,35 +404,8 @@ impl FitGeometry {
     /// told apart, follow from it alone).
     pub fn projected_gram(&self, columns: &[Vec<f64>]) -> nalgebra::DMatrix<f64> {
         let m = columns.len();
-        let size = self.q.nrows();
-        let g: Vec<Vec<f64>> = columns
-            .iter()
-            .map(|x| {
-                let mut g = vec![0.0; size];
-                for (i, &xi) in x.iter().enumerate() {
-                    if xi != 0.0 {
-                        for &(a, v) in &self.rows[i] {
-                            g[a] += xi * v;
-                        }
-                    }
-                }
-                g
-            })
-            .collect();
-        let qg: Vec<Vec<f64>> = g
-            .iter()
-            .map(|g| {
-                let touched: Vec<usize> = (0..size).filter(|&a| g[a] != 0.0).collect();
-                let mut out = vec![0.0; size];
-                for &b in &touched {
-                    let column = &self.q.as_slice()[b * size..(b + 1) * size];
-                    for (o, q) in out.iter_mut().zip(column) {
-                        *o += q * g[b];
-                    }
-                }
-                out
-            })
-            .collect();
+        let g: Vec<Vec<f64>> = columns.iter().map(|x| self.summed_rows(x)).collect();
+        let qg: Vec<Vec<f64>> = g.iter().map(|g| self.product(g)).collect();
         let mut gram = nalgebra::DMatrix::<f64>::zeros(m, m);
         for a in 0..m {
             for b in a..m {
