@@ -662,8 +662,8 @@ pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile,
 ///
 /// # Errors
 ///
-/// The first problem, naming the quantity and index or the row.
-pub fn check_rows(rows: &[ResultRow]) -> Result<(), String> {
+/// [`RowsError`]: the first problem, at the quantity and index or the row.
+pub fn check_rows(rows: &[ResultRow]) -> Result<(), RowsError> {
     let mut angles = AngleCheck::default();
     for (i, row) in rows.iter().enumerate() {
         let numbers = [
@@ -676,19 +676,62 @@ pub fn check_rows(rows: &[ResultRow]) -> Result<(), String> {
             if let Some(x) = x
                 && let Err(rule) = limit.check(x, &format!("a result's {name}"))
             {
-                return Err(format!("{} {}: {name}: {rule}", row.quantity, row.index));
+                return Err(RowsError::Number {
+                    quantity: row.quantity,
+                    index: row.index,
+                    column: name,
+                    rule,
+                });
             }
         }
         if let Err(problem) = angles.admit(i, row) {
             let place = |i: usize| format!("row {}", i + 1);
-            return Err(format!(
-                "row {}: {}",
-                i + 1,
-                problem.message(row, &rows[..i], place)
-            ));
+            return Err(RowsError::Angle {
+                row: i + 1,
+                message: problem.message(row, &rows[..i], place),
+            });
         }
     }
     Ok(())
+}
+
+/// Why rows cannot be written as a result file ([`check_rows`]), at the quantity and
+/// index, or the row, where the problem is.
+///
+/// ```
+/// use polycal::results::{check_rows, Quantity, ResultRow, RowsError};
+///
+/// let row = ResultRow {
+///     quantity: Quantity::PitchDeviation, index: 3, value: 1e300,
+///     u: None, expanded_u: None, k: None, angle_deg: None,
+/// };
+/// let refused = check_rows(&[row]).unwrap_err();
+/// assert!(matches!(refused, RowsError::Number { index: 3, column: "value", .. }));
+/// assert!(refused.to_string().starts_with("pitch_deviation 3: value: 1e300 is beyond"));
+/// ```
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum RowsError {
+    /// A number beyond the limits of its kind (docs/FORMAT.md §2.2).
+    #[error("{quantity} {index}: {column}: {rule}")]
+    Number {
+        /// The quantity of the row.
+        quantity: Quantity,
+        /// Its index.
+        index: u32,
+        /// The column: `value`, `U`, `u` or `k`.
+        column: &'static str,
+        /// The rule the number breaks.
+        rule: limits::LimitError,
+    },
+    /// A row that breaks the rules of `angle_deg` (those of [`read_results_from`]).
+    #[error("row {row}: {message}")]
+    Angle {
+        /// The row, 1-based.
+        row: usize,
+        /// What is wrong, naming the rows involved.
+        message: String,
+    },
 }
 
 /// Writes rows as a result file: header `quantity,index,value,U,u,k,angle_deg`, numbers in

@@ -70,8 +70,9 @@ impl Limit {
     ///
     /// # Errors
     ///
-    /// The message naming `what` (e.g. "a reading"), the value and the range.
-    pub fn check(&self, x: f64, what: &str) -> Result<f64, String> {
+    /// [`LimitError`] naming `what` (e.g. "a reading"), the value and the range; the
+    /// caller adds where the number stands (a reader: file, line and column).
+    pub fn check(&self, x: f64, what: &str) -> Result<f64, LimitError> {
         if x.is_finite() {
             self.check_shown(x, &show(x), what)
         } else {
@@ -84,25 +85,79 @@ impl Limit {
     ///
     /// # Errors
     ///
-    /// The message naming `shown`, `what` and the range.
-    pub fn check_shown(&self, x: f64, shown: &str, what: &str) -> Result<f64, String> {
+    /// [`LimitError`] naming `shown`, `what` and the range.
+    pub fn check_shown(&self, x: f64, shown: &str, what: &str) -> Result<f64, LimitError> {
         if self.contains(x) {
             return Ok(x);
         }
         if !x.is_finite() {
-            return Err(format!("{shown} is not a finite number"));
+            return Err(LimitError::NotFinite {
+                shown: shown.to_string(),
+            });
         }
         if x != 0.0 && x.abs() < self.smallest_nonzero {
-            return Err(format!(
-                "{shown} is too small for {what}: a magnitude other than 0 must be at least \
-                 {:e}{} (docs/FORMAT.md §2.2)",
-                self.smallest_nonzero, self.unit
-            ));
+            return Err(LimitError::TooSmall {
+                shown: shown.to_string(),
+                what: what.to_string(),
+                smallest: self.smallest_nonzero,
+                unit: self.unit,
+            });
         }
-        Err(format!(
-            "{shown} is beyond the limits of {what}, {self} (docs/FORMAT.md §2.2)"
-        ))
+        Err(LimitError::Beyond {
+            shown: shown.to_string(),
+            what: what.to_string(),
+            limit: *self,
+        })
     }
+}
+
+/// Why a number was refused by its [`Limit`] (docs/FORMAT.md §2.2). Displayed as the rule
+/// it breaks; the caller puts it where the number stands (a reader's file, line and
+/// column, or a result's quantity and index).
+///
+/// ```
+/// use polycal::input::limits::{LimitError, READING_ARCSEC};
+///
+/// let refused = READING_ARCSEC.check(1e300, "a reading").unwrap_err();
+/// assert!(matches!(refused, LimitError::Beyond { .. }));
+/// assert_eq!(
+///     refused.to_string(),
+///     "1e300 is beyond the limits of a reading, −1e6 … 1e6″ (docs/FORMAT.md §2.2)"
+/// );
+/// ```
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum LimitError {
+    /// Not a finite number (NaN or ±∞).
+    #[error("{shown} is not a finite number")]
+    NotFinite {
+        /// The value as shown (a reader: its text as the file has it).
+        shown: String,
+    },
+    /// A magnitude other than 0 below the smallest the kind allows.
+    #[error(
+        "{shown} is too small for {what}: a magnitude other than 0 must be at least {smallest:e}{unit} (docs/FORMAT.md §2.2)"
+    )]
+    TooSmall {
+        /// The value as shown.
+        shown: String,
+        /// What the number is, e.g. "a reading".
+        what: String,
+        /// The smallest magnitude allowed.
+        smallest: f64,
+        /// Its unit.
+        unit: &'static str,
+    },
+    /// Outside the range of its kind.
+    #[error("{shown} is beyond the limits of {what}, {limit} (docs/FORMAT.md §2.2)")]
+    Beyond {
+        /// The value as shown.
+        shown: String,
+        /// What the number is, e.g. "a reading".
+        what: String,
+        /// The range it breaks.
+        limit: Limit,
+    },
 }
 
 impl fmt::Display for Limit {
@@ -176,22 +231,29 @@ mod tests {
     #[test]
     fn the_message_names_the_value_the_kind_and_the_range() {
         assert_eq!(
-            READING_ARCSEC.check(1e300, "a reading").unwrap_err(),
+            READING_ARCSEC
+                .check(1e300, "a reading")
+                .unwrap_err()
+                .to_string(),
             "1e300 is beyond the limits of a reading, −1e6 … 1e6″ (docs/FORMAT.md §2.2)"
         );
         assert_eq!(
             TEMPERATURE_CELSIUS
                 .check(-300.0, "a temperature")
-                .unwrap_err(),
+                .unwrap_err()
+                .to_string(),
             "−300 is beyond the limits of a temperature, −273.15 … 1000 °C (docs/FORMAT.md §2.2)"
         );
         assert_eq!(
-            BUDGET_VALUE.check(1e-200, "u").unwrap_err(),
+            BUDGET_VALUE.check(1e-200, "u").unwrap_err().to_string(),
             "1e-200 is too small for u: a magnitude other than 0 must be at least 1e-100 \
              (docs/FORMAT.md §2.2)"
         );
         assert_eq!(
-            READING_ARCSEC.check(f64::NAN, "a reading").unwrap_err(),
+            READING_ARCSEC
+                .check(f64::NAN, "a reading")
+                .unwrap_err()
+                .to_string(),
             "NaN is not a finite number"
         );
         assert_eq!(READING_ARCSEC.check(-12.5, "a reading"), Ok(-12.5));

@@ -285,7 +285,7 @@ pub fn correct_cross_talk(
                 .map_err(|message| CrossTalkError::CorrectedReading {
                     location: Location::new(set.source.clone(), r.line, 0),
                     ac: r.ac,
-                    message,
+                    message: message.to_string(),
                 })?;
         }
     }

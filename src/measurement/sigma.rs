@@ -44,7 +44,7 @@ pub enum SigmaError {
     /// Beyond the limits of a reading (docs/FORMAT.md §2.2): a σ larger than any reading
     /// may be, or so small that its square vanishes.
     #[error("the standard deviation of one reading: {0}")]
-    OutOfLimits(String),
+    OutOfLimits(crate::input::limits::LimitError),
     /// Text that is not a number.
     #[error("the standard deviation of one reading must be a number of arcseconds, got {0:?}")]
     NotANumber(String),

@@ -351,6 +351,7 @@ impl Truth {
                     READING_ARCSEC
                         .check(list[i], "a truth value")
                         .err()
+                        .map(|e| e.to_string())
                         .unwrap_or_default()
                 ));
             }

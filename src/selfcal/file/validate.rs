@@ -172,7 +172,7 @@ pub(super) fn validate(
             (Col::Time, r.time_seconds),
         ] {
             let rule = match (x, col.limit()) {
-                (Some(x), Some((limit, what))) => limit.check(x, what).err(),
+                (Some(x), Some((limit, what))) => limit.check(x, what).err().map(|e| e.to_string()),
                 (Some(x), None) if !x.is_finite() => Some(format!("{x} is not a finite number")),
                 _ => None,
             };

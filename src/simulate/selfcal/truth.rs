@@ -257,6 +257,7 @@ impl SelfcalTruth {
                     READING_ARCSEC
                         .check(list[i], "a truth value")
                         .err()
+                        .map(|e| e.to_string())
                         .unwrap_or_default()
                 ));
             }
