@@ -65,8 +65,7 @@ impl Model<'_> {
         if kept.len() == self.terms.len() {
             return false;
         }
-        let columns = self.columns(&kept);
-        let Ok(fit) = self.base.fit(&columns, self.sigma) else {
+        let Some((fit, lack_of_fit)) = self.refitted(&kept) else {
             return false;
         };
         self.findings.retain(|f| {
@@ -76,15 +75,20 @@ impl Model<'_> {
             }
             !gone
         });
-        self.lack_of_fit = self.lack_of_fit.take().and(self.base.lack_of_fit(
-            self.set,
-            &fit,
-            &columns,
-            self.lack_of_fit_alpha,
-        ));
-        self.terms = kept;
-        self.fit = fit;
+        (self.terms, self.fit, self.lack_of_fit) = (kept, fit, lack_of_fit);
         true
+    }
+
+    /// The fit with the terms `kept` and its lack-of-fit test (when the model had one);
+    /// `None` when the refit fails.
+    fn refitted(&self, kept: &[Term]) -> Option<(Solution, Option<LackOfFit>)> {
+        let columns = self.columns(kept);
+        let fit = self.base.fit(&columns, self.sigma).ok()?;
+        let lack_of_fit = self.lack_of_fit.as_ref().and_then(|_| {
+            self.base
+                .lack_of_fit(self.set, &fit, &columns, self.lack_of_fit_alpha)
+        });
+        Some((fit, lack_of_fit))
     }
 
     /// Drops a drift's highest order while it is not significant in the final model
@@ -122,21 +126,13 @@ impl Model<'_> {
             };
             let gone = self.terms[j].clone();
             let kept: Vec<Term> = self.terms.iter().filter(|t| **t != gone).cloned().collect();
-            let columns = self.columns(&kept);
-            let Ok(fit) = self.base.fit(&columns, self.sigma) else {
+            let Some((fit, lack_of_fit)) = self.refitted(&kept) else {
                 return pruned;
             };
             for finding in &mut self.findings {
                 finding.terms.retain(|t| *t != gone);
             }
-            self.lack_of_fit = self.lack_of_fit.take().and(self.base.lack_of_fit(
-                self.set,
-                &fit,
-                &columns,
-                self.lack_of_fit_alpha,
-            ));
-            self.terms = kept;
-            self.fit = fit;
+            (self.terms, self.fit, self.lack_of_fit) = (kept, fit, lack_of_fit);
             pruned = true;
         }
     }
