@@ -21,17 +21,21 @@
 //! - [`measurement`]: readings and the measurement CSV file;
 //! - [`solve`]: the paper's closed form and the general least-squares closure solver;
 //! - [`simulate`]: simulated runs with a known truth;
-//! - [`report`]: the JSON, CSV and table outputs of the commands, and the HTML report;
+//! - [`output`]: the JSON, CSV and table outputs every command prints;
 //! - [`results`]: the result CSV file (one row per calibrated quantity);
 //! - [`uncertainty`]: GUM uncertainty budgets and Student's t;
 //! - [`compare`]: En numbers between two results;
 //! - [`diagnose`]: residual analysis that finds, adds and reports the effects a model lacks;
 //! - [`figure`]: the figures (SVG) of every command, drawn from its report object;
-//! - [`report::html`]: the self-contained HTML calibration report;
+//! - [`certificate`]: the documents a lab hands over, both built from one evaluated
+//!   [`certificate::CalibrationReport`]: the HTML calibration report
+//!   ([`certificate::html`]) and the Digital Calibration Certificate
+//!   ([`certificate::dcc`]);
 //! - [`clock`]: RFC 3339 time stamps;
 //! - `lab` (cargo feature `lab`): the instruments on serial lines, simulated instruments,
 //!   and the run procedure that drives them through a calibration.
 
+pub mod certificate;
 pub mod clock;
 pub mod compare;
 pub mod diagnose;
@@ -41,9 +45,9 @@ pub mod input;
 #[cfg(feature = "lab")]
 pub mod lab;
 pub mod measurement;
+pub mod output;
 pub mod plan;
 pub mod polygon;
-pub mod report;
 pub mod results;
 pub mod selfcal;
 pub mod simulate;

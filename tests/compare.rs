@@ -113,7 +113,7 @@ fn comparison_json_and_verdict() {
     assert_eq!(json["only_in_b"][0]["quantity"], "setup_error");
     assert!(json.get("correlation").is_none());
     let mut table = String::new();
-    polycal::report::compare::write_table(&mut table, &c).unwrap();
+    polycal::output::compare::write_table(&mut table, &c).unwrap();
     assert!(table.contains("1 of 2 rows have |En| > 1"), "{table}");
     assert!(table.contains("-8.49 *"), "{table}");
     assert!(table.contains("Only in the first result (not compared): encoder_error 0"));
@@ -474,7 +474,7 @@ fn encoder_errors_are_matched_by_angle_24_against_168() {
 
     // The table says how the matching was done.
     let mut table = String::new();
-    polycal::report::compare::write_table(&mut table, &c).unwrap();
+    polycal::output::compare::write_table(&mut table, &c).unwrap();
     assert!(
         table.contains(
             "Encoder errors matched by angle (angle_deg within 1e-6°): 24 shared angles of 24 and 168"
@@ -537,7 +537,7 @@ fn a_file_without_angles_is_matched_by_index() {
     // position 0 is 0 against −0.1, as by angle
     assert!((c.rows[0].en - 0.2).abs() < 1e-12);
     let mut table = String::new();
-    polycal::report::compare::write_table(&mut table, &c).unwrap();
+    polycal::output::compare::write_table(&mut table, &c).unwrap();
     assert!(
         table.contains(
             "Encoder errors matched by index (angle_deg is not in both results): 24 shared indices of 24 and 168"
@@ -579,7 +579,7 @@ fn setup_errors_are_left_out_of_the_verdict_unless_included() {
     assert_eq!(json["rows"][4]["in_verdict"], false);
     assert_eq!(json["rows"][0]["in_verdict"], true);
     let mut table = String::new();
-    polycal::report::compare::write_table(&mut table, &c).unwrap();
+    polycal::output::compare::write_table(&mut table, &c).unwrap();
     assert!(table.contains("(1.10)"), "{table}");
     assert!(!table.contains("1.10 *"), "{table}");
     assert!(table.contains("left out of the verdict"), "{table}");
@@ -594,7 +594,7 @@ fn setup_errors_are_left_out_of_the_verdict_unless_included() {
     assert!((c.max_abs_en - 1.1).abs() < 1e-12);
     assert!(!c.verdict_ok());
     let mut table = String::new();
-    polycal::report::compare::write_table(&mut table, &c).unwrap();
+    polycal::output::compare::write_table(&mut table, &c).unwrap();
     assert!(table.contains("1.10 *"), "{table}");
     assert!(table.contains("1 of 6 rows have |En| > 1"), "{table}");
     assert!(!table.contains("left out of the verdict"), "{table}");

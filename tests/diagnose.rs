@@ -7,7 +7,7 @@
 use polycal::diagnose::{DiagnoseOptions, Diagnosis, diagnose};
 use polycal::effects::Effect;
 use polycal::measurement::MeasurementSet;
-use polycal::report::diagnose::ErrorSummary;
+use polycal::output::diagnose::ErrorSummary;
 use polycal::simulate::{SimulationConfig, Truth, simulate};
 
 fn config(effects: Vec<Effect>, seed: u64) -> SimulationConfig {

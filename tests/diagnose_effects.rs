@@ -11,7 +11,7 @@
 use polycal::diagnose::{DiagnoseOptions, Diagnosis, diagnose};
 use polycal::effects::{Effect, EffectContext};
 use polycal::measurement::{Direction, MeasurementSet};
-use polycal::report::diagnose::ErrorSummary;
+use polycal::output::diagnose::ErrorSummary;
 use polycal::simulate::{SimulationConfig, Truth, simulate};
 use polycal::solve::least_squares_with_regressors;
 

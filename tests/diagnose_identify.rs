@@ -16,7 +16,7 @@
 
 use polycal::diagnose::{Clock, DiagnoseOptions, Diagnosis, diagnose};
 use polycal::effects::Effect;
-use polycal::report::diagnose::ErrorSummary;
+use polycal::output::diagnose::ErrorSummary;
 use polycal::simulate::{RandomWalkSpec, RezeroSpec, SimulationConfig, Truth, simulate};
 use polycal::solve::least_squares_with_regressors;
 

@@ -401,7 +401,7 @@ fn sub_pitch_reports() {
     let (set, _) = simulate(&three_cosets(0.05, 1)).unwrap();
     let solved: SubPitchSolution = solve_shifted(&set, &SolveOptions::default()).unwrap();
     let json: serde_json::Value = serde_json::from_str(
-        &polycal::report::SolveReport::sub_pitch(&solved, None)
+        &polycal::output::SolveReport::sub_pitch(&solved, None)
             .to_json()
             .unwrap(),
     )
@@ -418,7 +418,7 @@ fn sub_pitch_reports() {
     assert_eq!(json["pitch_deviation"].as_array().unwrap().len(), 24);
     assert_eq!(json["effects"].as_array().unwrap().len(), 0);
 
-    let rows = polycal::report::sub_pitch_result_rows(&solved);
+    let rows = polycal::output::sub_pitch_result_rows(&solved);
     let encoder: Vec<_> = rows
         .iter()
         .filter(|r| r.quantity == polycal::results::Quantity::EncoderError)
@@ -433,7 +433,7 @@ fn sub_pitch_reports() {
     assert_eq!(encoder[5].value, solved.encoder_error[5]);
     assert_eq!(rows.len(), 24 + 24 + 72 + 10);
     let mut table = String::new();
-    polycal::report::write_sub_pitch_table(&mut table, &solved, "run.csv").unwrap();
+    polycal::output::write_sub_pitch_table(&mut table, &solved, "run.csv").unwrap();
     assert!(table.contains("   index     angle/°"));
     assert!(table.contains("\nnote: "));
 }

@@ -6,8 +6,8 @@ use libfuzzer_sys::fuzz_target;
 use polycal::diagnose::{DiagnoseOptions, diagnose};
 use polycal::figure::{diagnose_figures, solve_figures};
 use polycal::measurement::{MeasurementSet, read_rows};
-use polycal::report::SolveReport;
-use polycal::report::diagnose::DiagnoseReport;
+use polycal::output::SolveReport;
+use polycal::output::diagnose::DiagnoseReport;
 use polycal::solve::sub_pitch::solve_shifted;
 use polycal::solve::{SolveError, SolveOptions, solve};
 use polycal_fuzz::{SOURCE, accepted};
@@ -21,7 +21,7 @@ fuzz_target!(|data: &[u8]| {
     match solve(&set, &options) {
         Ok(solution) => {
             let mut table = String::new();
-            let _ = polycal::report::write_table(&mut table, &solution, SOURCE, None, None);
+            let _ = polycal::output::write_table(&mut table, &solution, SOURCE, None, None);
             let report = SolveReport::new(&solution, None);
             let _ = report.to_json();
             let _ = solve_figures(&report);

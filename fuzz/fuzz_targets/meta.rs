@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use polycal::report::html::meta::gather;
+use polycal::certificate::meta::gather;
 use polycal_fuzz::{SOURCE, accepted};
 
 fuzz_target!(|data: &[u8]| {

@@ -14,8 +14,8 @@ fuzz_target!(|data: &[u8]| {
     let options = CompareOptions::new().with_include_setup(true);
     if let Ok(comparison) = compare_files(&file, &file, &options) {
         let mut table = String::new();
-        let _ = polycal::report::compare::write_table(&mut table, &comparison);
-        let _ = polycal::report::to_json(&comparison);
+        let _ = polycal::output::compare::write_table(&mut table, &comparison);
+        let _ = polycal::output::to_json(&comparison);
         let _ = polycal::figure::compare_figures(&comparison);
     }
 });

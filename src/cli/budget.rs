@@ -41,7 +41,7 @@ pub fn run(args: &BudgetArgs) -> Result<u8> {
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
     match args.format {
-        ReportFormat::Json => writeln!(stdout, "{}", polycal::report::to_json(&result)?)?,
+        ReportFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&result)?)?,
         ReportFormat::Table => {
             write!(stdout, "{}", polycal::uncertainty::budget_table(&result))?;
         }

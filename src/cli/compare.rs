@@ -83,13 +83,13 @@ pub fn run(args: &CompareArgs) -> Result<u8> {
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
     match args.format {
-        CompareFormat::Json => writeln!(stdout, "{}", polycal::report::to_json(&comparison)?)?,
+        CompareFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&comparison)?)?,
         CompareFormat::Table => {
             let mut text = String::new();
-            polycal::report::compare::write_table(&mut text, &comparison)?;
+            polycal::output::compare::write_table(&mut text, &comparison)?;
             write!(stdout, "{text}")?;
         }
-        CompareFormat::Csv => polycal::report::compare::write_csv(&mut stdout, &comparison)?,
+        CompareFormat::Csv => polycal::output::compare::write_csv(&mut stdout, &comparison)?,
     }
     stdout.flush()?;
     Ok(if comparison.verdict_ok() {

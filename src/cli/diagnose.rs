@@ -10,8 +10,8 @@ use polycal::diagnose::{self, DiagnoseOptions};
 use polycal::input::display_name;
 use polycal::measurement::cross_talk::StatedCrossTalk;
 use polycal::measurement::{MeasurementError, MeasurementSet, Sigma};
-use polycal::report::diagnose_selfcal::{self, SelfcalDiagnoseReport};
-use polycal::report::{self, diagnose::DiagnoseReport};
+use polycal::output::diagnose_selfcal::{self, SelfcalDiagnoseReport};
+use polycal::output::{self, diagnose::DiagnoseReport};
 use polycal::results::ResultRow;
 use polycal::selfcal::{SelfcalOptions, SelfcalSet};
 use polycal::simulate::{SelfcalTruth, SimulateError, Truth};
@@ -227,7 +227,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         match args.format {
             DiagnoseFormat::Json => {
                 if let Some(report) = &json_report {
-                    let json = report::to_json_with_stated_cross_talk(report, &args.cross_talk)?;
+                    let json = output::to_json_with_stated_cross_talk(report, &args.cross_talk)?;
                     writeln!(stdout, "{json}")?;
                 }
             }
@@ -236,20 +236,20 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                     writeln!(stdout)?;
                 }
                 let mut text = String::new();
-                report::diagnose::write_table(&mut text, &diagnosis, polygon_truth, &label)?;
-                report::write_final_model_results(
+                output::diagnose::write_table(&mut text, &diagnosis, polygon_truth, &label)?;
+                output::write_final_model_results(
                     &mut text,
                     &diagnosis.after,
                     gum.as_ref(),
                     diagnosis.after_sub_pitch.as_ref(),
                 )?;
-                report::write_stated_cross_talk(&mut text, &args.cross_talk)?;
+                output::write_stated_cross_talk(&mut text, &args.cross_talk)?;
                 write!(stdout, "{text}")?;
             }
             DiagnoseFormat::Csv => {
                 let rows = match &diagnosis.after_sub_pitch {
-                    Some(solved) => report::sub_pitch_result_rows(solved),
-                    None => report::result_rows_with(&diagnosis.after, gum.as_ref()),
+                    Some(solved) => output::sub_pitch_result_rows(solved),
+                    None => output::result_rows_with(&diagnosis.after, gum.as_ref()),
                 };
                 // checked before any row is written: a refusal names this file
                 if let Err(problem) = polycal::results::check_rows(&rows) {
@@ -386,7 +386,7 @@ fn selfcal_file(
             Printed::Text(text)
         }
         DiagnoseFormat::Csv => {
-            let rows = report::selfcal::result_rows(&diagnosis.after, uncertainty.as_ref());
+            let rows = output::selfcal::result_rows(&diagnosis.after, uncertainty.as_ref());
             polycal::results::check_rows(&rows).map_err(|problem| {
                 anyhow::anyhow!("{name}: cannot write its results: {problem}")
             })?;

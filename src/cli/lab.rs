@@ -420,7 +420,7 @@ fn serve(devices: Devices, format: PathsFormat, out: &Output) -> Result<u8> {
                 writeln!(stdout, "ac2 {}", paths.ac2)?;
                 writeln!(stdout, "table {}", paths.table)?;
             }
-            PathsFormat::Json => writeln!(stdout, "{}", polycal::report::to_json(&paths)?)?,
+            PathsFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&paths)?)?,
         }
         stdout.flush()?;
     }

@@ -7,8 +7,8 @@ use anyhow::{Context, Result};
 use clap::ValueEnum;
 use polycal::input::display_name;
 use polycal::measurement::{MeasurementSet, Sigma};
+use polycal::output::plan::{PlanReport, write_comparison_table, write_plan_table};
 use polycal::plan::{self, Design, PlanOptions};
-use polycal::report::plan::{PlanReport, write_comparison_table, write_plan_table};
 
 use super::output::Output;
 use super::solve::read_budget;

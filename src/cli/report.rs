@@ -4,8 +4,8 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
+use polycal::certificate::{CalibrationReport, ReportError, ReportInputs};
 use polycal::measurement::Sigma;
-use polycal::report::html::{CalibrationReport, ReportError, ReportInputs};
 
 use super::output::Output;
 use super::{EXIT_OK, EXIT_VERDICT};

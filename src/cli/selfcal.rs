@@ -7,7 +7,7 @@ use anyhow::{Context, Result};
 use clap::ValueEnum;
 use polycal::input::display_name;
 use polycal::measurement::Sigma;
-use polycal::report::selfcal::{SelfcalReport, result_rows, write_table};
+use polycal::output::selfcal::{SelfcalReport, result_rows, write_table};
 use polycal::selfcal::{self, SelfcalOptions, SelfcalSet, SelfcalSolveError};
 use polycal::uncertainty::calibration::CalibrationError;
 

@@ -9,7 +9,7 @@ use clap::ValueEnum;
 use polycal::input::display_name;
 use polycal::measurement::cross_talk::{StatedCrossTalk, check_distinct, correct_cross_talk};
 use polycal::measurement::{MeasurementSet, Sigma};
-use polycal::report::{self, SolveReport};
+use polycal::output::{self, SolveReport};
 use polycal::results::ResultRow;
 use polycal::solve::sub_pitch::{ShiftGeometry, SubPitchSolution, solve_shifted};
 use polycal::solve::{self, Method, Solution, SolveError, SolveOptions};
@@ -259,7 +259,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                         let report =
                             SolveReport::sub_pitch(&solved, several.then(|| label.clone()));
                         let json =
-                            report::to_json_with_stated_cross_talk(&report, &args.cross_talk)?;
+                            output::to_json_with_stated_cross_talk(&report, &args.cross_talk)?;
                         writeln!(stdout, "{json}")?;
                     }
                     SolveFormat::Table => {
@@ -267,12 +267,12 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                             writeln!(stdout)?;
                         }
                         let mut text = String::new();
-                        report::write_sub_pitch_table(&mut text, &solved, &label)?;
-                        report::write_stated_cross_talk(&mut text, &args.cross_talk)?;
+                        output::write_sub_pitch_table(&mut text, &solved, &label)?;
+                        output::write_stated_cross_talk(&mut text, &args.cross_talk)?;
                         write!(stdout, "{text}")?;
                     }
                     SolveFormat::Csv => {
-                        csv_rows.push((label, report::sub_pitch_result_rows(&solved)));
+                        csv_rows.push((label, output::sub_pitch_result_rows(&solved)));
                     }
                 }
                 continue;
@@ -295,7 +295,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         match args.format {
             SolveFormat::Json => {
                 if let Some(report) = &json_report {
-                    let json = report::to_json_with_stated_cross_talk(report, &args.cross_talk)?;
+                    let json = output::to_json_with_stated_cross_talk(report, &args.cross_talk)?;
                     writeln!(stdout, "{json}")?;
                 }
             }
@@ -304,12 +304,12 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                     writeln!(stdout)?;
                 }
                 let mut text = String::new();
-                report::write_table(&mut text, &solution, &label, gum.as_ref(), mc.as_ref())?;
-                report::write_stated_cross_talk(&mut text, &args.cross_talk)?;
+                output::write_table(&mut text, &solution, &label, gum.as_ref(), mc.as_ref())?;
+                output::write_stated_cross_talk(&mut text, &args.cross_talk)?;
                 write!(stdout, "{text}")?;
             }
             SolveFormat::Csv => {
-                let rows = report::result_rows_with(&solution, gum.as_ref());
+                let rows = output::result_rows_with(&solution, gum.as_ref());
                 // checked before any row is written: a refusal names this file
                 if let Err(problem) = polycal::results::check_rows(&rows) {
                     out.error_message(format!("{name}: cannot write its results: {problem}"));
@@ -411,7 +411,7 @@ pub(super) fn write_result_csv(
     match files {
         [] => Ok(()),
         [(_, rows)] if !several => polycal::results::write_results(stdout, rows),
-        _ => report::write_results_with_file(stdout, files),
+        _ => output::write_results_with_file(stdout, files),
     }
 }
 

@@ -10,7 +10,7 @@ use crate::measurement::{Direction, MeasurementSet};
 /// The plain words on a finding with alternatives: what cannot be told apart, how far
 /// the calibration moves, and what would decide it.
 pub(super) fn ambiguity(found: &FoundEffect, clock: Clock) -> String {
-    use crate::report::diagnose::label;
+    use crate::output::diagnose::label;
     let value = |e: &Effect| match e {
         Effect::Drift { .. } => format!("{:+.4}{}", e.value(), clock.drift_unit_text()),
         Effect::CrossTalk { value, .. } => format!("{value:+.5}″/″"),

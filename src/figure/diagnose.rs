@@ -22,7 +22,7 @@ use super::svg::{
 };
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, Reading};
-use crate::report::diagnose::{DiagnoseReport, ResidualsReport, label};
+use crate::output::diagnose::{DiagnoseReport, ResidualsReport, label};
 
 /// An effect's line: its class, its value, its (x, contribution) points.
 type EffectLine = (&'static str, f64, Vec<(f64, f64)>);

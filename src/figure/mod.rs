@@ -18,10 +18,10 @@ mod solve;
 pub(crate) mod svg;
 
 use crate::compare::Comparison;
-use crate::report::SolveReport;
-use crate::report::diagnose::DiagnoseReport;
-use crate::report::plan::PlanReport;
-use crate::report::selfcal::SelfcalReport;
+use crate::output::SolveReport;
+use crate::output::diagnose::DiagnoseReport;
+use crate::output::plan::PlanReport;
+use crate::output::selfcal::SelfcalReport;
 use crate::uncertainty::calibration::CalibrationUncertainty;
 
 /// One figure: a stable name and an SVG document.

@@ -9,7 +9,7 @@ use super::svg::Marker;
 
 /// The x values and u values of one design's series.
 type Values<'a> = &'a dyn Fn(&PlanReport) -> (Vec<f64>, Vec<f64>);
-use crate::report::plan::PlanReport;
+use crate::output::plan::PlanReport;
 
 const MARKERS: [Marker; 3] = [Marker::FilledCircle, Marker::OpenSquare, Marker::Triangle];
 

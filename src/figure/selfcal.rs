@@ -4,7 +4,7 @@
 use super::Figure;
 use super::chart::{Chart, Point, Series, k_text};
 use super::svg::Marker;
-use crate::report::selfcal::SelfcalReport;
+use crate::output::selfcal::SelfcalReport;
 
 fn p_text(p: f64) -> String {
     let text = format!("{:.2}", 100.0 * p);

@@ -8,7 +8,7 @@
 use super::Figure;
 use super::chart::{Chart, Point, Series, k_text};
 use super::svg::Marker;
-use crate::report::SolveReport;
+use crate::output::SolveReport;
 use crate::uncertainty::student::t_quantile;
 
 /// Coverage probability of U when the report has no budget.

@@ -18,8 +18,8 @@
 //! ([`VerificationConfig::lost_harmonic_bound_arcsec`]) puts that in its uncertainty.
 
 use crate::compare::{CompareError, CompareOptions, Comparison, compare};
-use crate::report::result_rows_with;
-use crate::report::selfcal::result_rows as selfcal_rows;
+use crate::output::result_rows_with;
+use crate::output::selfcal::result_rows as selfcal_rows;
 use crate::results::{Quantity, ResultRow};
 use crate::selfcal::{self, SelfcalOptions, SelfcalSolveError};
 use crate::simulate::{

@@ -4,14 +4,14 @@
 use std::path::Path;
 use std::sync::OnceLock;
 
+use polycal::certificate::meta;
 use polycal::compare::{CompareOptions, compare_files};
 use polycal::diagnose::{DiagnoseOptions, Diagnosis, diagnose};
 use polycal::figure;
 use polycal::measurement::{MeasurementSet, read_rows};
-use polycal::report::diagnose::{DiagnoseReport, write_table};
-use polycal::report::html::meta;
-use polycal::report::selfcal::SelfcalReport;
-use polycal::report::{self, SolveReport};
+use polycal::output::diagnose::{DiagnoseReport, write_table};
+use polycal::output::selfcal::SelfcalReport;
+use polycal::output::{self, SolveReport};
 use polycal::results::read_results_from;
 use polycal::selfcal::{SelfcalOptions, SelfcalSet, SelfcalSolution, evaluate_budget};
 use polycal::simulate::{SelfcalTruth, Truth};
@@ -132,7 +132,7 @@ pub fn measurement(case: &Case) -> Result<(), Box<Finding>> {
                 "the solve report (table, JSON, CSV, figures)",
                 || {
                     let mut table = String::new();
-                    let _ = report::write_table(&mut table, &solution, CSV, gum.as_ref(), None);
+                    let _ = output::write_table(&mut table, &solution, CSV, gum.as_ref(), None);
                     let mut report = SolveReport::new(&solution, None);
                     if let Some(gum) = &gum {
                         report = report.with_uncertainty(gum);
@@ -140,8 +140,8 @@ pub fn measurement(case: &Case) -> Result<(), Box<Finding>> {
                     }
                     let _ = report.to_json();
                     let _ = figure::solve_figures(&report);
-                    let rows = report::result_rows_with(&solution, gum.as_ref());
-                    let _ = report::write_results_with_file(std::io::sink(), &[(CSV.into(), rows)]);
+                    let rows = output::result_rows_with(&solution, gum.as_ref());
+                    let _ = output::write_results_with_file(std::io::sink(), &[(CSV.into(), rows)]);
                 },
             )?;
         }
@@ -151,7 +151,7 @@ pub fn measurement(case: &Case) -> Result<(), Box<Finding>> {
             })? {
                 no_panic(case, "csv", "the sub-pitch solve report", || {
                     let mut table = String::new();
-                    let _ = report::write_sub_pitch_table(&mut table, &solved, CSV);
+                    let _ = output::write_sub_pitch_table(&mut table, &solved, CSV);
                     let report = SolveReport::sub_pitch(&solved, None);
                     let _ = report.to_json();
                     let _ = figure::solve_figures(&report);
@@ -172,7 +172,7 @@ pub fn measurement(case: &Case) -> Result<(), Box<Finding>> {
                 || {
                     let mut table = String::new();
                     let _ = write_table(&mut table, &diagnosis, None, CSV);
-                    let _ = report::write_final_model_results(
+                    let _ = output::write_final_model_results(
                         &mut table,
                         &diagnosis.after,
                         None,
@@ -214,7 +214,7 @@ pub fn selfcal(case: &Case) -> Result<(), Box<Finding>> {
             || {
                 let mut table = String::new();
                 let _ =
-                    report::selfcal::write_table(&mut table, &solution, CSV, uncertainty.as_ref());
+                    output::selfcal::write_table(&mut table, &solution, CSV, uncertainty.as_ref());
                 let mut report = SelfcalReport::new(&solution, CSV);
                 if let Some(uncertainty) = &uncertainty {
                     report = report.with_uncertainty(uncertainty);
@@ -264,8 +264,8 @@ pub fn results(case: &Case) -> Result<(), Box<Finding>> {
         no_panic(case, "csv", what, || {
             if let Ok(comparison) = compare_files(a, b, &options) {
                 let mut table = String::new();
-                let _ = report::compare::write_table(&mut table, &comparison);
-                let _ = report::to_json(&comparison);
+                let _ = output::compare::write_table(&mut table, &comparison);
+                let _ = output::to_json(&comparison);
                 let _ = figure::compare_figures(&comparison);
             }
         })?;
@@ -370,7 +370,7 @@ pub fn instrument_budget(case: &Case) -> Result<(), Box<Finding>> {
     no_panic(case, "toml", "calibration::evaluate and its report", || {
         if let Ok(gum) = evaluate(&example.set, &example.solution, &budget) {
             let mut table = String::new();
-            let _ = report::write_results(&mut table, &example.solution, Some(&gum));
+            let _ = output::write_results(&mut table, &example.solution, Some(&gum));
             let report = SolveReport::new(&example.solution, None).with_uncertainty(&gum);
             let _ = report.to_json();
             let _ = figure::budget_figures(&gum);

@@ -1,4 +1,5 @@
-//! How results are written for people and for programs: one file per command.
+//! The views every command prints, for people and for programs: one file per command
+//! (the documents a lab hands over, built from these, are [`crate::certificate`]).
 //!
 //! - [`solve`]: the JSON object of `polycal solve` (docs/FORMAT.md §5) and the result rows
 //!   of its CSV (§3); [`solve_table`]: its table for people, whose results section
@@ -18,7 +19,6 @@ pub mod compare;
 pub mod diagnose;
 pub mod diagnose_selfcal;
 pub mod diagnose_table;
-pub mod html;
 pub mod plan;
 pub mod selfcal;
 pub mod solve;
@@ -53,8 +53,8 @@ struct Versioned<'a, T: Serialize> {
 /// ```
 /// #[derive(serde::Serialize)]
 /// struct Out { faces: usize }
-/// let line = polycal::report::to_json(&Out { faces: 24 })?;
-/// assert_eq!(line, format!(r#"{{"version":"{}","faces":24}}"#, polycal::report::SOFTWARE_VERSION));
+/// let line = polycal::output::to_json(&Out { faces: 24 })?;
+/// assert_eq!(line, format!(r#"{{"version":"{}","faces":24}}"#, polycal::output::SOFTWARE_VERSION));
 /// # Ok::<(), serde_json::Error>(())
 /// ```
 ///
@@ -88,10 +88,10 @@ struct Stating<'a, T: Serialize> {
 /// #[derive(serde::Serialize)]
 /// struct Out { faces: usize }
 /// let stated = [StatedCrossTalk::new(1, 0.01, Some(0.001))?];
-/// let line = polycal::report::to_json_with_stated_cross_talk(&Out { faces: 24 }, &stated)?;
+/// let line = polycal::output::to_json_with_stated_cross_talk(&Out { faces: 24 }, &stated)?;
 /// assert!(line.ends_with(r#""faces":24,"stated_cross_talk":[{"ac":1,"coefficient":0.01,"u":0.001}]}"#));
-/// let plain = polycal::report::to_json_with_stated_cross_talk(&Out { faces: 24 }, &[])?;
-/// assert_eq!(plain, polycal::report::to_json(&Out { faces: 24 })?);
+/// let plain = polycal::output::to_json_with_stated_cross_talk(&Out { faces: 24 }, &[])?;
+/// assert_eq!(plain, polycal::output::to_json(&Out { faces: 24 })?);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 ///

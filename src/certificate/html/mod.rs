@@ -5,16 +5,18 @@
 
 use std::fmt::Write;
 
-use super::tables::{
-    ARCSEC_DECIMALS, diagnosis_body, fit_summary, num, polygon_budget, rounded, selfcal_budget,
-    selfcal_tables, solve_tables,
-};
+mod tables;
+
 use super::{CalibrationReport, DesignSummary, Evaluation};
 use crate::figure::svg::esc;
 use crate::measurement::cross_talk::StatedCrossTalk;
-use crate::report::SOFTWARE_VERSION;
-use crate::report::SolveReport;
-use crate::report::selfcal::SelfcalReport;
+use crate::output::SOFTWARE_VERSION;
+use crate::output::SolveReport;
+use crate::output::selfcal::SelfcalReport;
+use tables::{
+    ARCSEC_DECIMALS, diagnosis_body, fit_summary, num, polygon_budget, rounded, selfcal_budget,
+    selfcal_tables, solve_tables,
+};
 
 /// The style sheet: print on A4, repeated table headers, no figure split over two pages.
 const STYLE: &str = include_str!("style.css");

@@ -1,15 +1,19 @@
-//! The calibration report: one self-contained HTML file (inline SVG and CSS, nothing
-//! fetched, no script) that prints on A4 — the document a lab hands to its customer
-//! (docs/FORMAT.md §10).
+//! The documents a lab hands over, both built from one evaluated [`CalibrationReport`]
+//! so that they can never disagree (docs/FORMAT.md §10):
+//!
+//! - [`html`]: the calibration report for people, one self-contained HTML file (inline
+//!   SVG and CSS, nothing fetched, no script) that prints on A4;
+//! - [`dcc`]: the Digital Calibration Certificate for programs, XML valid against the
+//!   DCC 3.1.2 schema with its results in the D-SI 2.1.0 format (docs/FORMAT.md §10.4).
 //!
 //! [`CalibrationReport::build`] reads the input files, evaluates them exactly as the
 //! commands do (`solve` with `--budget`, `diagnose`, `compare`, `selfcal`), and keeps the
-//! same report objects their JSON prints, so that every number in the HTML is the
-//! JSON's; [`CalibrationReport::to_html`] writes the document ([`render`]); [`meta`]
-//! gathers what the report says about the calibration besides the numbers.
+//! same report objects their JSON prints, so that every number in either document is the
+//! JSON's; [`CalibrationReport::to_html`] and [`CalibrationReport::to_dcc`] write them;
+//! [`meta`] gathers what they say about the calibration besides the numbers.
 //!
 //! ```
-//! use polycal::report::html::{CalibrationReport, ReportInputs};
+//! use polycal::certificate::{CalibrationReport, ReportInputs};
 //!
 //! let inputs = ReportInputs::new("examples/data/polygon24-2ac-6cycles.csv")
 //!     .with_budget("examples/budgets/instrument.toml")
@@ -18,13 +22,12 @@
 //! let html = report.to_html();
 //! assert!(html.starts_with("<!DOCTYPE html>"));
 //! assert!(report.verdict().passed());
-//! # Ok::<(), polycal::report::html::ReportError>(())
+//! # Ok::<(), polycal::certificate::ReportError>(())
 //! ```
 
+pub mod html;
 mod inputs;
 pub mod meta;
-pub mod render;
-mod tables;
 
 use std::path::Path;
 
@@ -36,10 +39,10 @@ use crate::diagnose::{DiagnoseOptions, diagnose};
 use crate::figure::{self, Figure};
 use crate::input::Location;
 use crate::measurement::MeasurementSet;
-use crate::report::diagnose::DiagnoseReport;
-use crate::report::diagnose_selfcal::SelfcalDiagnoseReport;
-use crate::report::selfcal::SelfcalReport;
-use crate::report::{SolveReport, result_rows_with};
+use crate::output::diagnose::DiagnoseReport;
+use crate::output::diagnose_selfcal::SelfcalDiagnoseReport;
+use crate::output::selfcal::SelfcalReport;
+use crate::output::{SolveReport, result_rows_with};
 use crate::results::read_results_from;
 use crate::selfcal::{SelfcalOptions, SelfcalSet, SelfcalUncertainty};
 use crate::simulate::{SelfcalTruth, Truth};
@@ -187,7 +190,7 @@ fn read_input(path: &Path, role: &'static str) -> Result<(Vec<u8>, InputFile), R
 ///
 /// ```
 /// assert_eq!(
-///     polycal::report::html::sha256_hex(b"abc"),
+///     polycal::certificate::sha256_hex(b"abc"),
 ///     "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
 /// );
 /// ```
@@ -287,7 +290,7 @@ impl CalibrationReport {
             if let Some(u) = &uncertainty {
                 report = report.with_uncertainty(u);
             }
-            let rows = crate::report::selfcal::result_rows(&solution, uncertainty.as_ref());
+            let rows = crate::output::selfcal::result_rows(&solution, uncertainty.as_ref());
             let diagnosis = if inputs.diagnose {
                 let selfcal_truth = truth_bytes
                     .as_ref()
@@ -477,9 +480,9 @@ impl CalibrationReport {
         }
     }
 
-    /// The HTML document ([`render::document`]).
+    /// The HTML document ([`html::document`]).
     pub fn to_html(&self) -> String {
-        render::document(self)
+        html::document(self)
     }
 }
 

@@ -209,13 +209,13 @@ impl SolveReport {
         self
     }
 
-    /// One line of JSON, with the software version ([`crate::report::to_json`]).
+    /// One line of JSON, with the software version ([`crate::output::to_json`]).
     ///
     /// # Errors
     ///
     /// serde_json's error (not expected for this plain data).
     pub fn to_json(&self) -> Result<String, serde_json::Error> {
-        crate::report::to_json(self)
+        crate::output::to_json(self)
     }
 }
 

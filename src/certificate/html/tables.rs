@@ -7,10 +7,10 @@ use std::fmt::Write;
 
 use serde_json::Value;
 
-use super::DiagnosisReport;
+use crate::certificate::DiagnosisReport;
 use crate::figure::svg::esc;
-use crate::report::SolveReport;
-use crate::report::selfcal::SelfcalReport;
+use crate::output::SolveReport;
+use crate::output::selfcal::SelfcalReport;
 use crate::selfcal::{SelfcalContribution, SelfcalUncertainty};
 use crate::uncertainty::calibration::{
     CalibrationUncertainty, ComponentContribution, FamilyUncertainty,

@@ -173,7 +173,7 @@ fn columns<const N: usize>(header: Vec<String>, rows: Vec<Vec<String>>) -> Strin
 ///
 /// ```
 /// use polycal::compare::{compare, CompareOptions};
-/// use polycal::report::compare::write_csv;
+/// use polycal::output::compare::write_csv;
 /// use polycal::results::{Quantity, ResultRow};
 ///
 /// let row = |value, expanded_u| {

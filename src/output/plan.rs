@@ -231,13 +231,13 @@ impl PlanReport {
         report
     }
 
-    /// One line of JSON, with the software version ([`crate::report::to_json`]).
+    /// One line of JSON, with the software version ([`crate::output::to_json`]).
     ///
     /// # Errors
     ///
     /// serde_json's error (not expected for this plain data).
     pub fn to_json(&self) -> Result<String, serde_json::Error> {
-        crate::report::to_json(self)
+        crate::output::to_json(self)
     }
 
     /// The smallest 90 % size over the terms of `kind` (a drift: of order 1).

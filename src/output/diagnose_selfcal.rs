@@ -48,7 +48,7 @@ const HEAD_WORDS: &[(&str, &str)] = &[
 /// by are e and the heads' errors.
 ///
 /// ```
-/// use polycal::report::diagnose_selfcal::in_head_words;
+/// use polycal::output::diagnose_selfcal::in_head_words;
 /// assert_eq!(
 ///     in_head_words("serial correlation of residuals, setup 1 ac 5"),
 ///     "serial correlation of residuals, head 5"

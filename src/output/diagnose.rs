@@ -6,7 +6,7 @@ use crate::diagnose::lack_of_fit::LackOfFit;
 use crate::diagnose::{Alternative, Clock, Diagnosis, FoundEffect, TriedEffect};
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, MeasurementSet};
-use crate::report::SolveReport;
+use crate::output::SolveReport;
 use crate::simulate::Truth;
 use crate::solve::Solution;
 
@@ -643,12 +643,12 @@ impl DiagnoseReport {
         self
     }
 
-    /// One line of JSON, with the software version ([`crate::report::to_json`]).
+    /// One line of JSON, with the software version ([`crate::output::to_json`]).
     ///
     /// # Errors
     ///
     /// serde_json's error (not expected for this plain data).
     pub fn to_json(&self) -> Result<String, serde_json::Error> {
-        crate::report::to_json(self)
+        crate::output::to_json(self)
     }
 }
