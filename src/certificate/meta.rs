@@ -16,17 +16,24 @@ use crate::uncertainty::budget_file::location;
 use super::ReportError;
 
 /// The metadata keys, in the order a report shows them, with their labels.
-pub const KEYS: [(&str, &str); 18] = [
+pub const KEYS: [(&str, &str); 25] = [
     ("title", "Title"),
     ("certificate", "Certificate number"),
     ("customer", "Customer"),
     ("customer_address", "Customer address"),
+    ("customer_email", "Customer e-mail"),
     ("artefact", "Artefact (polygon)"),
+    ("artefact_manufacturer", "Artefact manufacturer"),
     ("artefact_serial", "Artefact serial number"),
     ("encoder", "Rotary table / encoder"),
+    ("encoder_manufacturer", "Encoder manufacturer"),
     ("encoder_serial", "Encoder serial number"),
     ("laboratory", "Laboratory"),
+    ("laboratory_address", "Laboratory address"),
+    ("laboratory_email", "Laboratory e-mail"),
+    ("country", "Country of the laboratory (ISO 3166-1)"),
     ("location", "Place of calibration"),
+    ("performance_location", "Calibrated at"),
     ("date_of_measurement", "Date of measurement"),
     ("operator", "Operator"),
     ("approved_by", "Approved by"),
@@ -36,6 +43,41 @@ pub const KEYS: [(&str, &str); 18] = [
     ("environment", "Environment"),
     ("notes", "Notes"),
 ];
+
+/// The places a calibration is performed at, as the DCC names them
+/// (`performanceLocation`; docs/FORMAT.md §10): the metadata key `performance_location`
+/// takes one of these.
+pub const PERFORMANCE_LOCATIONS: [&str; 5] = [
+    "laboratory",
+    "customer",
+    "laboratoryBranch",
+    "customerBranch",
+    "other",
+];
+
+/// Whether `code` is an ISO 3166-1 alpha-2 country code in form: two capital letters
+/// (the DCC's `countryCodeISO3166_1`).
+pub fn is_country_code(code: &str) -> bool {
+    code.len() == 2 && code.bytes().all(|b| b.is_ascii_uppercase())
+}
+
+/// The first character of `text` that XML 1.0 cannot carry and HTML calls a parse error
+/// (a control character other than tab, line feed and carriage return), with its byte
+/// offset.
+pub fn control_character(text: &str) -> Option<(usize, char)> {
+    text.char_indices().find(|&(_, c)| {
+        (c.is_control() && !matches!(c, '\t' | '\n' | '\r'))
+            || matches!(c, '\u{fffe}' | '\u{ffff}')
+    })
+}
+
+/// Why a text with the control character `c` is refused.
+fn refused_character(c: char) -> String {
+    format!(
+        "a control character (U+{:04X}) cannot be written in a report or certificate",
+        c as u32
+    )
+}
 
 /// One metadata field: its value and where it came from, or missing.
 #[derive(Debug, Clone, PartialEq)]
@@ -77,6 +119,8 @@ pub struct RunRecord {
     /// The date the run started (UTC, `YYYY-MM-DD`): the date of measurement when no other
     /// source gives one.
     pub started_date: Option<String>,
+    /// The date the run ended (UTC, `YYYY-MM-DD`), when the manifest records an end.
+    pub ended_date: Option<String>,
 }
 
 /// The metadata of a report.
@@ -107,24 +151,31 @@ impl Metadata {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MetaFile {
-    title: Option<String>,
-    certificate: Option<String>,
-    customer: Option<String>,
-    customer_address: Option<String>,
-    artefact: Option<String>,
-    artefact_serial: Option<String>,
-    encoder: Option<String>,
-    encoder_serial: Option<String>,
-    laboratory: Option<String>,
-    location: Option<String>,
-    date_of_measurement: Option<String>,
-    operator: Option<String>,
-    approved_by: Option<String>,
+    title: Option<Spanned<String>>,
+    certificate: Option<Spanned<String>>,
+    customer: Option<Spanned<String>>,
+    customer_address: Option<Spanned<String>>,
+    customer_email: Option<Spanned<String>>,
+    artefact: Option<Spanned<String>>,
+    artefact_manufacturer: Option<Spanned<String>>,
+    artefact_serial: Option<Spanned<String>>,
+    encoder: Option<Spanned<String>>,
+    encoder_manufacturer: Option<Spanned<String>>,
+    encoder_serial: Option<Spanned<String>>,
+    laboratory: Option<Spanned<String>>,
+    laboratory_address: Option<Spanned<String>>,
+    laboratory_email: Option<Spanned<String>>,
+    country: Option<Spanned<String>>,
+    location: Option<Spanned<String>>,
+    performance_location: Option<Spanned<String>>,
+    date_of_measurement: Option<Spanned<String>>,
+    operator: Option<Spanned<String>>,
+    approved_by: Option<Spanned<String>>,
     temperature_c: Option<Spanned<f64>>,
     humidity_percent: Option<Spanned<f64>>,
     pressure_hpa: Option<Spanned<f64>>,
-    environment: Option<String>,
-    notes: Option<String>,
+    environment: Option<Spanned<String>>,
+    notes: Option<Spanned<String>>,
     #[serde(default)]
     instrument: Vec<InstrumentToml>,
 }
@@ -132,11 +183,11 @@ struct MetaFile {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct InstrumentToml {
-    role: Option<String>,
-    name: Option<String>,
-    model: Option<String>,
-    serial: Option<String>,
-    calibration: Option<String>,
+    role: Option<Spanned<String>>,
+    name: Option<Spanned<String>>,
+    model: Option<Spanned<String>>,
+    serial: Option<Spanned<String>>,
+    calibration: Option<Spanned<String>>,
 }
 
 /// Values by key.
@@ -173,38 +224,85 @@ fn read_meta_file(
     let temperature = number(file.temperature_c, -50.0, 100.0)?;
     let humidity = number(file.humidity_percent, 0.0, 100.0)?;
     let pressure = number(file.pressure_hpa, 500.0, 1200.0)?;
-    let values: [(&'static str, Option<String>); 18] = [
-        ("title", file.title),
-        ("certificate", file.certificate),
-        ("customer", file.customer),
-        ("customer_address", file.customer_address),
-        ("artefact", file.artefact),
-        ("artefact_serial", file.artefact_serial),
-        ("encoder", file.encoder),
-        ("encoder_serial", file.encoder_serial),
-        ("laboratory", file.laboratory),
-        ("location", file.location),
-        ("date_of_measurement", file.date_of_measurement),
-        ("operator", file.operator),
-        ("approved_by", file.approved_by),
+    // text as the documents will carry it: no control characters (XML 1.0 and HTML have
+    // none), a country code and a place of calibration of the DCC's forms
+    let text = |value: Option<Spanned<String>>| {
+        value
+            .map(|v| {
+                let (span, v) = (v.span(), v.into_inner());
+                match control_character(&v) {
+                    Some((_, c)) => Err(at(
+                        span.start,
+                        refused_character(c),
+                    )),
+                    None => Ok((span, v)),
+                }
+            })
+            .transpose()
+    };
+    let plain = |value: Option<Spanned<String>>| text(value).map(|v| v.map(|(_, v)| v));
+    let country = match text(file.country)? {
+        Some((span, v)) if !is_country_code(&v) => {
+            return Err(at(
+                span.start,
+                format!("country “{v}” is not an ISO 3166-1 alpha-2 code (two capital letters, e.g. DE)"),
+            ));
+        }
+        other => other.map(|(_, v)| v),
+    };
+    let performance_location = match text(file.performance_location)? {
+        Some((span, v)) if !PERFORMANCE_LOCATIONS.contains(&v.as_str()) => {
+            return Err(at(
+                span.start,
+                format!(
+                    "performance_location “{v}” is not one of {}",
+                    PERFORMANCE_LOCATIONS.join(", ")
+                ),
+            ));
+        }
+        other => other.map(|(_, v)| v),
+    };
+    let values: [(&'static str, Option<String>); 25] = [
+        ("title", plain(file.title)?),
+        ("certificate", plain(file.certificate)?),
+        ("customer", plain(file.customer)?),
+        ("customer_address", plain(file.customer_address)?),
+        ("customer_email", plain(file.customer_email)?),
+        ("artefact", plain(file.artefact)?),
+        ("artefact_manufacturer", plain(file.artefact_manufacturer)?),
+        ("artefact_serial", plain(file.artefact_serial)?),
+        ("encoder", plain(file.encoder)?),
+        ("encoder_manufacturer", plain(file.encoder_manufacturer)?),
+        ("encoder_serial", plain(file.encoder_serial)?),
+        ("laboratory", plain(file.laboratory)?),
+        ("laboratory_address", plain(file.laboratory_address)?),
+        ("laboratory_email", plain(file.laboratory_email)?),
+        ("country", country),
+        ("location", plain(file.location)?),
+        ("performance_location", performance_location),
+        ("date_of_measurement", plain(file.date_of_measurement)?),
+        ("operator", plain(file.operator)?),
+        ("approved_by", plain(file.approved_by)?),
         ("temperature_c", temperature),
         ("humidity_percent", humidity),
         ("pressure_hpa", pressure),
-        ("environment", file.environment),
-        ("notes", file.notes),
+        ("environment", plain(file.environment)?),
+        ("notes", plain(file.notes)?),
     ];
     let instruments = file
         .instrument
         .into_iter()
-        .map(|i| InstrumentEntry {
-            role: i.role,
-            name: i.name,
-            model: i.model,
-            serial: i.serial,
-            calibration: i.calibration,
-            source: source.to_string(),
+        .map(|i| {
+            Ok(InstrumentEntry {
+                role: plain(i.role)?,
+                name: plain(i.name)?,
+                model: plain(i.model)?,
+                serial: plain(i.serial)?,
+                calibration: plain(i.calibration)?,
+                source: source.to_string(),
+            })
         })
-        .collect();
+        .collect::<Result<Vec<_>, ReportError>>()?;
     Ok((
         values
             .into_iter()
@@ -263,11 +361,14 @@ fn read_manifest(dir: &Path) -> Result<(RunRecord, Vec<InstrumentEntry>), Report
         serde_json::Value::String(s) => s.clone(),
         other => other.to_string(),
     };
-    let started = object
-        .get("started")
-        .and_then(serde_json::Value::as_str)
-        .and_then(|t| t.get(..10))
-        .map(str::to_string);
+    let date_of = |key: &str| {
+        object
+            .get(key)
+            .and_then(serde_json::Value::as_str)
+            .and_then(|t| t.get(..10))
+            .map(str::to_string)
+    };
+    let (started, ended) = (date_of("started"), date_of("ended"));
     let mut facts = Vec::new();
     for (key, label) in [
         ("software", "Software of the run"),
@@ -306,11 +407,31 @@ fn read_manifest(dir: &Path) -> Result<(RunRecord, Vec<InstrumentEntry>), Report
             }
         }
     }
+    let shown = facts
+        .iter()
+        .map(|(_, v)| v.as_str())
+        .chain(instruments.iter().filter_map(|i| i.name.as_deref()));
+    for value in shown {
+        if let Some((_, c)) = control_character(value) {
+            // where the manifest writes it: raw (not JSON) or as an escape
+            let text = String::from_utf8_lossy(&bytes);
+            let escape = format!("\\u{:04x}", c as u32);
+            let offset = text
+                .find(&escape)
+                .or_else(|| text.find(&escape.to_uppercase().replace("\\U", "\\u")))
+                .unwrap_or(0);
+            return Err(ReportError::Meta {
+                location: location(&source, &text, offset),
+                message: refused_character(c),
+            });
+        }
+    }
     Ok((
         RunRecord {
             source,
             facts,
             started_date: started,
+            ended_date: ended,
         },
         instruments,
     ))
@@ -335,6 +456,19 @@ pub fn gather(
         None => (Vec::new(), Vec::new()),
     };
     let (measurement_text, measurement_source) = measurement;
+    // the comment lines are shown (as values or notes): no control characters in them
+    for (number, line) in (1u64..).zip(measurement_text.lines()) {
+        if !line.trim_start_matches('\u{feff}').starts_with('#') {
+            break;
+        }
+        if let Some((offset, c)) = control_character(line) {
+            let column = line[..offset].chars().count() as u64 + 1;
+            return Err(ReportError::Meta {
+                location: Location::new(measurement_source, number, column),
+                message: refused_character(c),
+            });
+        }
+    }
     let (comment_values, file_notes) = comment_metadata(measurement_text);
     let run = match run_dir {
         Some(dir) => {

@@ -25,6 +25,7 @@
 //! # Ok::<(), polycal::certificate::ReportError>(())
 //! ```
 
+pub mod dcc;
 pub mod html;
 mod inputs;
 pub mod meta;
@@ -39,7 +40,7 @@ use crate::diagnose::{DiagnoseOptions, diagnose};
 use crate::figure::{self, Figure};
 use crate::input::Location;
 use crate::measurement::MeasurementSet;
-use crate::output::diagnose::DiagnoseReport;
+use crate::output::diagnose::{CheckReport, DiagnoseReport};
 use crate::output::diagnose_selfcal::SelfcalDiagnoseReport;
 use crate::output::selfcal::SelfcalReport;
 use crate::output::{SolveReport, result_rows_with};
@@ -124,11 +125,45 @@ pub enum DiagnosisReport {
 impl DiagnosisReport {
     /// Whether the final model is adequate.
     pub fn adequate(&self) -> bool {
+        self.parts().0
+    }
+
+    /// What both documents show of any diagnosis: whether the final model is adequate,
+    /// its checks, the effects added (docs/FORMAT.md §6 objects) and the notes.
+    pub fn parts(&self) -> (bool, &[CheckReport], &[serde_json::Value], &[String]) {
         match self {
-            DiagnosisReport::Polygon(d) => d.adequate,
-            DiagnosisReport::Selfcal(d) => d.adequate,
+            DiagnosisReport::Polygon(d) => (d.adequate, &d.checks, &d.effects, &d.notes),
+            DiagnosisReport::Selfcal(d) => (d.adequate, &d.checks, &d.effects, &d.notes),
         }
     }
+}
+
+/// An effect of the diagnosis JSON in words: its kind, its other fields as `key value`
+/// pairs, its value and u (arcsec, or the effect's unit).
+pub(crate) fn effect_text(
+    effect: &serde_json::Value,
+) -> (String, String, Option<f64>, Option<f64>) {
+    use serde_json::Value;
+    let kind = effect
+        .get("kind")
+        .and_then(Value::as_str)
+        .unwrap_or("effect")
+        .to_string();
+    let fields: Vec<String> = effect
+        .as_object()
+        .map(|o| {
+            o.iter()
+                .filter(|(k, _)| !matches!(k.as_str(), "kind" | "value" | "u"))
+                .map(|(k, v)| format!("{k} {v}"))
+                .collect()
+        })
+        .unwrap_or_default();
+    (
+        kind,
+        fields.join(", "),
+        effect.get("value").and_then(Value::as_f64),
+        effect.get("u").and_then(Value::as_f64),
+    )
 }
 
 /// The verdicts a report carries (docs/FORMAT.md §8: status 1 when one is negative).
@@ -478,6 +513,15 @@ impl CalibrationReport {
                 .is_some_and(|(c, _)| !c.verdict_ok()),
             not_adequate: self.diagnosis.as_ref().is_some_and(|d| !d.adequate()),
         }
+    }
+
+    /// The Digital Calibration Certificate, DCC 3.1.2 XML ([`dcc::document`]).
+    ///
+    /// # Errors
+    ///
+    /// [`dcc::DccError`]: what the schema requires and no source gives, named.
+    pub fn to_dcc(&self) -> Result<String, dcc::DccError> {
+        dcc::document(self)
     }
 
     /// The HTML document ([`html::document`]).

@@ -1,9 +1,11 @@
-//! `polycal report`: one self-contained HTML calibration report (docs/FORMAT.md §10).
+//! `polycal report`: the documents of a calibration (docs/FORMAT.md §10): the
+//! self-contained HTML report and the Digital Calibration Certificate (§10.4).
 
 use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
+use polycal::certificate::dcc::{self, DccError};
 use polycal::certificate::{CalibrationReport, ReportError, ReportInputs};
 use polycal::measurement::Sigma;
 
@@ -18,6 +20,8 @@ Examples:
       --diagnose --reference examples/data/polygon24-shift-angle.result.csv \\
       --meta examples/report/meta.toml --out report.html
   polycal report examples/data/selfa-168.csv --budget examples/budgets/selfcal.toml --out selfcal.html
+  polycal report examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml \\
+      --meta examples/report/meta.toml --out report.html --dcc certificate.xml
 
 The report's date is now (UTC), or SOURCE_DATE_EPOCH (seconds since 1970) when it is set:
 the same inputs then give the same bytes.";
@@ -67,8 +71,14 @@ pub struct ReportArgs {
     #[arg(long, value_name = "DIR")]
     run_dir: Option<PathBuf>,
     /// The HTML file to write (replaced atomically).
-    #[arg(long, value_name = "REPORT.html")]
-    out: PathBuf,
+    #[arg(long, value_name = "REPORT.html", required_unless_present = "dcc")]
+    out: Option<PathBuf>,
+    /// The Digital Calibration Certificate to write: XML valid against DCC 3.1.2 with
+    /// D-SI 2.1.0 results, the same numbers as the HTML (docs/FORMAT.md §10.4). Needs
+    /// --budget for a polygon file and the metadata the schema requires (--meta);
+    /// nothing is written when one is missing.
+    #[arg(long, value_name = "CERTIFICATE.xml")]
+    dcc: Option<PathBuf>,
 }
 
 /// `polycal report`: returns the exit status, or an error for the `error:` line.
@@ -81,11 +91,16 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         ("--meta", args.meta.as_deref()),
     ])?;
     super::solve::check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
-    if args.out.is_dir() {
-        bail!(
-            "--out {}: is a directory; name the HTML file to write",
-            args.out.display()
-        );
+    for (flag, path, what) in [
+        ("--out", &args.out, "HTML file"),
+        ("--dcc", &args.dcc, "XML file"),
+    ] {
+        if let Some(path) = path.as_ref().filter(|p| p.is_dir()) {
+            bail!(
+                "{flag} {}: is a directory; name the {what} to write",
+                path.display()
+            );
+        }
     }
     let command_line = std::env::args()
         .skip(1)
@@ -134,14 +149,39 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         } => anyhow::anyhow!("{e} (--sigma)"),
         e => e.into(),
     })?;
-    let html = report.to_html();
-    write_atomically(&args.out, html.as_bytes())
-        .with_context(|| format!("--out {}: cannot write the report", args.out.display()))?;
+    // both documents made before either is written: a refusal writes nothing
+    let dcc = match &args.dcc {
+        Some(path) => Some((
+            path,
+            report.to_dcc().map_err(|e| match e {
+                DccError::NoExpandedUncertainty { .. } => {
+                    super::with_hint(e, "--budget", "give the instrument budget with --budget")
+                }
+                DccError::MissingMetadata { .. } => anyhow::anyhow!("{e} (--meta)"),
+                e => e.into(),
+            })?,
+        )),
+        None => None,
+    };
+    let mut written = Vec::new();
+    if let Some(path) = &args.out {
+        write_atomically(path, report.to_html().as_bytes())
+            .with_context(|| format!("--out {}: cannot write the report", path.display()))?;
+        written.push(format!(
+            "{} ({} figures)",
+            path.display(),
+            report.figures.len()
+        ));
+    }
+    if let Some((path, xml)) = dcc {
+        write_atomically(path, xml.as_bytes())
+            .with_context(|| format!("--dcc {}: cannot write the DCC", path.display()))?;
+        written.push(format!("{} (DCC {})", path.display(), dcc::SCHEMA_VERSION));
+    }
     let verdict = report.verdict();
     out.info(format!(
-        "wrote {} ({} figures){}{}",
-        args.out.display(),
-        report.figures.len(),
+        "wrote {}{}{}",
+        written.join(" and "),
         if verdict.comparison_failed {
             "; the comparison fails: some |En| > 1"
         } else {

@@ -5,7 +5,6 @@
 
 use std::fmt::Write;
 
-use serde_json::Value;
 
 use crate::certificate::DiagnosisReport;
 use crate::figure::svg::esc;
@@ -366,30 +365,6 @@ pub(super) fn selfcal_budget(
     );
 }
 
-/// An effect of the diagnosis JSON as text: its kind and fields.
-fn effect_text(effect: &Value) -> (String, String, Option<f64>, Option<f64>) {
-    let kind = effect
-        .get("kind")
-        .and_then(Value::as_str)
-        .unwrap_or("effect")
-        .to_string();
-    let fields: Vec<String> = effect
-        .as_object()
-        .map(|o| {
-            o.iter()
-                .filter(|(k, _)| !matches!(k.as_str(), "kind" | "value" | "u"))
-                .map(|(k, v)| format!("{k} {v}"))
-                .collect()
-        })
-        .unwrap_or_default();
-    (
-        kind,
-        fields.join(", "),
-        effect.get("value").and_then(Value::as_f64),
-        effect.get("u").and_then(Value::as_f64),
-    )
-}
-
 /// The result tables of a `selfcal` object: e at every position and the heads' errors
 /// (the report's results, and a self-calibration diagnosis's final model with
 /// `id_prefix`).
@@ -435,10 +410,7 @@ pub(super) fn selfcal_tables(out: &mut String, r: &SelfcalReport, id_prefix: &st
 }
 
 pub(super) fn diagnosis_body(out: &mut String, report: &DiagnosisReport) {
-    let (adequate, checks, effects, notes) = match report {
-        DiagnosisReport::Polygon(d) => (d.adequate, &d.checks, &d.effects, &d.notes),
-        DiagnosisReport::Selfcal(d) => (d.adequate, &d.checks, &d.effects, &d.notes),
-    };
+    let (adequate, checks, effects, notes) = report.parts();
     let (rms_before, rms_after, dof_before, dof_after) = match report {
         DiagnosisReport::Polygon(d) => (
             d.before.residual_rms,
@@ -532,7 +504,7 @@ pub(super) fn diagnosis_body(out: &mut String, report: &DiagnosisReport) {
         out.push_str("<tr><td colspan=\"4\">none</td></tr>\n");
     }
     for e in effects {
-        let (kind, fields, value, u) = effect_text(e);
+        let (kind, fields, value, u) = crate::certificate::effect_text(e);
         let _ = writeln!(
             out,
             "<tr><td>{}</td><td>{}</td>{}{}</tr>",

@@ -1,0 +1,496 @@
+//! The Digital Calibration Certificate of a [`CalibrationReport`]: XML valid against the
+//! DCC 3.1.2 schema (PTB and the DCC community; `docs/schema/dcc.xsd`) with its results
+//! in the D-SI 2.1.0 format (`docs/schema/SI_Format.xsd`), for the customer's software to
+//! read the calibration values and their uncertainties without retyping
+//! (docs/FORMAT.md §10.4).
+//!
+//! It is written from the same evaluated report as the HTML document, so the two carry
+//! the same numbers: β, φ and α (eqs. (6)–(10) or the least-squares closure) with their
+//! expanded uncertainties U, coverage factors k and coverage probability, at full
+//! precision (the shortest text that reads back to the JSON's double). What the schema
+//! requires and no source gives is refused, never invented: [`DccError`] names the
+//! missing metadata key; a DCC is written whole or not at all.
+//!
+//! ```
+//! use polycal::certificate::{CalibrationReport, ReportInputs};
+//!
+//! let inputs = ReportInputs::new("examples/data/polygon24-2ac-6cycles.csv")
+//!     .with_budget("examples/budgets/instrument.toml")
+//!     .with_meta("examples/report/meta.toml")
+//!     .with_generated_utc("2026-11-23T12:00:00.000Z");
+//! let report = CalibrationReport::build(&inputs)?;
+//! let xml = report.to_dcc()?;
+//! assert!(xml.contains(r#"schemaVersion="3.1.2""#));
+//! assert!(xml.contains("<si:unitXMLList>\\arcsecond</si:unitXMLList>"));
+//!
+//! // without the metadata the schema requires, no DCC
+//! let bare = CalibrationReport::build(
+//!     &ReportInputs::new("examples/data/polygon24-2ac-6cycles.csv")
+//!         .with_budget("examples/budgets/instrument.toml"),
+//! )?;
+//! assert!(bare.to_dcc().unwrap_err().to_string().contains("`certificate`"));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod results;
+pub mod xml;
+
+use super::meta::{InstrumentEntry, Metadata};
+use super::{CalibrationReport, Evaluation};
+use crate::output::SOFTWARE_VERSION;
+use xml::Xml;
+
+/// The DCC schema version written (`schemaVersion`).
+pub const SCHEMA_VERSION: &str = "3.1.2";
+
+/// The reference of the method, as the DCC's `usedMethod` cites it.
+pub const METHOD_REFERENCE: &str = "Hsieh, Lin, Yeh and Watanabe, Calibration of a Rotary Encoder and a Polygon Using a Two-Autocollimator Method, Appl. Sci. 2023, 13, 1865";
+
+/// Why a DCC cannot be written.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum DccError {
+    /// The schema requires what no metadata source gives.
+    #[error(
+        "cannot write the DCC: it needs `{key}` ({label}; the DCC's {element}), which no metadata source gives: add it to the metadata file or as a `# {key}: …` comment of the measurement file (docs/FORMAT.md §10)"
+    )]
+    MissingMetadata {
+        /// The metadata key.
+        key: &'static str,
+        /// Its label.
+        label: &'static str,
+        /// The DCC element it fills.
+        element: &'static str,
+    },
+    /// A date that is not `YYYY-MM-DD`.
+    #[error(
+        "{origin}: cannot write the DCC: {key} “{value}” is not a date YYYY-MM-DD, which the DCC's {element} must be"
+    )]
+    NotADate {
+        /// Where the value came from (file, or file:line).
+        origin: String,
+        /// The metadata key.
+        key: &'static str,
+        /// The value.
+        value: String,
+        /// The DCC element.
+        element: &'static str,
+    },
+    /// A result without an expanded uncertainty.
+    #[error(
+        "cannot write the DCC: it states every result with its expanded uncertainty U, and {what} has none: evaluate with an instrument budget (docs/FORMAT.md §5.1)"
+    )]
+    NoExpandedUncertainty {
+        /// Which results.
+        what: &'static str,
+    },
+    /// A number D-SI cannot write (infinite or NaN).
+    #[error("cannot write the DCC: {what} is not a finite number")]
+    NotFinite {
+        /// Which number.
+        what: String,
+    },
+    /// A negative uncertainty.
+    #[error("cannot write the DCC: {what} is negative")]
+    Negative {
+        /// Which number.
+        what: String,
+    },
+    /// A coverage factor D-SI cannot write (below 1, or beyond its decimal form).
+    #[error("cannot write the DCC: the coverage factor {k} of {what} is not one D-SI can state (at least 1, decimal)")]
+    CoverageFactor {
+        /// Which result.
+        what: String,
+        /// The factor.
+        k: f64,
+    },
+    /// A coverage probability outside (0, 1].
+    #[error("cannot write the DCC: the coverage probability {p} is not in (0, 1]")]
+    CoverageProbability {
+        /// The probability.
+        p: f64,
+    },
+    /// A character XML 1.0 cannot carry.
+    #[error(
+        "cannot write the DCC: a control character (U+{code:04X}) cannot be written in {element}"
+    )]
+    Character {
+        /// The element.
+        element: &'static str,
+        /// The character's code point.
+        code: u32,
+    },
+}
+
+/// The metadata the DCC cannot do without, by key, with the element each fills.
+fn required<'a>(
+    meta: &'a Metadata,
+    key: &'static str,
+    element: &'static str,
+) -> Result<&'a str, DccError> {
+    meta.value(key).ok_or(DccError::MissingMetadata {
+        key,
+        label: label_of(key),
+        element,
+    })
+}
+
+/// The label of a metadata key.
+fn label_of(key: &str) -> &'static str {
+    super::meta::KEYS
+        .iter()
+        .find(|(k, _)| *k == key)
+        .map_or("", |(_, label)| label)
+}
+
+/// Whether `text` is an `xs:date` without a time zone: `YYYY-MM-DD` of a real day.
+pub fn is_date(text: &str) -> bool {
+    let b = text.as_bytes();
+    if b.len() != 10 || b[4] != b'-' || b[7] != b'-' {
+        return false;
+    }
+    let digits = |r: std::ops::Range<usize>| -> Option<u32> {
+        text.get(r.clone())
+            .filter(|s| s.bytes().all(|c| c.is_ascii_digit()))
+            .and_then(|s| s.parse().ok())
+    };
+    let (Some(year), Some(month), Some(day)) = (digits(0..4), digits(5..7), digits(8..10)) else {
+        return false;
+    };
+    let leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
+    let days = match month {
+        1 | 3 | 5 | 7 | 8 | 10 | 12 => 31,
+        4 | 6 | 9 | 11 => 30,
+        2 if leap => 29,
+        2 => 28,
+        _ => return false,
+    };
+    year > 0 && (1..=days).contains(&day)
+}
+
+/// The performance dates: the date of measurement, and the run's end date when the date
+/// is the run's start.
+fn performance_dates(meta: &Metadata) -> Result<(String, String), DccError> {
+    let begin = required(meta, "date_of_measurement", "beginPerformanceDate")?;
+    if !is_date(begin) {
+        let origin = meta
+            .fields
+            .iter()
+            .find(|f| f.key == "date_of_measurement")
+            .and_then(|f| f.source.clone())
+            .unwrap_or_default();
+        return Err(DccError::NotADate {
+            origin,
+            key: "date_of_measurement",
+            value: begin.to_string(),
+            element: "beginPerformanceDate",
+        });
+    }
+    let end = meta
+        .run
+        .as_ref()
+        .filter(|r| r.started_date.as_deref() == Some(begin))
+        .and_then(|r| r.ended_date.as_deref())
+        .filter(|end| is_date(end) && *end >= begin)
+        .unwrap_or(begin);
+    Ok((begin.to_string(), end.to_string()))
+}
+
+/// The DCC of a report (docs/FORMAT.md §10.4).
+///
+/// # Errors
+///
+/// [`DccError`]: metadata the schema requires and no source gives, a date not
+/// `YYYY-MM-DD`, results without expanded uncertainties, a number D-SI cannot write.
+pub fn document(report: &CalibrationReport) -> Result<String, DccError> {
+    let mut x = Xml::new();
+    x.open(
+        "dcc:digitalCalibrationCertificate",
+        &[
+            ("xmlns:dcc", xml::DCC_NAMESPACE),
+            ("xmlns:si", xml::SI_NAMESPACE),
+            ("schemaVersion", SCHEMA_VERSION),
+        ],
+    );
+    administrative_data(&mut x, report)?;
+    results::measurement_results(&mut x, report)?;
+    Ok(x.finish())
+}
+
+/// The software: polycal and its version.
+fn software(x: &mut Xml, wrapper: &'static str) -> Result<(), DccError> {
+    x.open(wrapper, &[]);
+    x.open("dcc:software", &[]);
+    x.content("dcc:name", "polycal")?;
+    x.text("dcc:release", &[], SOFTWARE_VERSION)?;
+    x.text("dcc:type", &[], "application")?;
+    x.content(
+        "dcc:description",
+        "Simultaneous calibration of an optical polygon and a rotary encoder by the two-autocollimator method, with uncertainty, diagnosis and self-calibration; wrote this certificate.",
+    )?;
+    x.close();
+    x.close();
+    Ok(())
+}
+
+/// `administrativeData`: software, core data, items, laboratory, responsible persons,
+/// customer, statements.
+fn administrative_data(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
+    let meta = &report.metadata;
+    // every required value first: a refusal names the first key missing, in the order
+    // the metadata file lists them
+    let certificate = required(meta, "certificate", "uniqueIdentifier")?;
+    let customer = required(meta, "customer", "customer name")?;
+    let customer_address = required(meta, "customer_address", "customer location")?;
+    let customer_email = required(meta, "customer_email", "customer eMail")?;
+    let laboratory = required(meta, "laboratory", "calibrationLaboratory name")?;
+    let laboratory_address =
+        required(meta, "laboratory_address", "calibrationLaboratory location")?;
+    let laboratory_email = required(meta, "laboratory_email", "calibrationLaboratory eMail")?;
+    let country = required(meta, "country", "countryCodeISO3166_1")?;
+    let performance_location = required(meta, "performance_location", "performanceLocation")?;
+    let (begin, end) = performance_dates(meta)?;
+    let persons: Vec<(&str, &str, bool)> = [
+        ("approved_by", "Approved by", true),
+        ("operator", "Operator", false),
+    ]
+    .into_iter()
+    .filter_map(|(key, role, main)| meta.value(key).map(|name| (name, role, main)))
+    .collect();
+    if persons.is_empty() {
+        return Err(DccError::MissingMetadata {
+            key: "approved_by",
+            label: label_of("approved_by"),
+            element: "respPerson (approved_by or operator)",
+        });
+    }
+    let polygon = matches!(report.evaluation, Evaluation::Polygon { .. });
+    let encoder_manufacturer = required(meta, "encoder_manufacturer", "item manufacturer")?;
+    let encoder_serial = required(meta, "encoder_serial", "item identification")?;
+    let artefact = if polygon {
+        Some((
+            required(meta, "artefact_manufacturer", "item manufacturer")?,
+            required(meta, "artefact_serial", "item identification")?,
+        ))
+    } else {
+        None
+    };
+
+    x.open("dcc:administrativeData", &[]);
+    software(x, "dcc:dccSoftware")?;
+    x.open("dcc:coreData", &[]);
+    x.text("dcc:countryCodeISO3166_1", &[], country)?;
+    x.text("dcc:usedLangCodeISO639_1", &[], "en")?;
+    x.text("dcc:mandatoryLangCodeISO639_1", &[], "en")?;
+    x.text("dcc:uniqueIdentifier", &[], certificate)?;
+    x.text("dcc:beginPerformanceDate", &[], &begin)?;
+    x.text("dcc:endPerformanceDate", &[], &end)?;
+    x.text("dcc:performanceLocation", &[], performance_location)?;
+    x.close();
+
+    x.open("dcc:items", &[]);
+    if let (Evaluation::Polygon { solve, .. }, Some((manufacturer, serial))) =
+        (&report.evaluation, artefact)
+    {
+        let name = meta
+            .value("artefact")
+            .map_or_else(|| format!("Optical polygon, {} faces", solve.faces), str::to_string);
+        item(
+            x,
+            "polygon",
+            &name,
+            &format!(
+                "Optical polygon of {} faces: its pitch deviations β and face deviations φ are calibrated.",
+                solve.faces
+            ),
+            manufacturer,
+            serial,
+        )?;
+    }
+    let encoder = meta.value("encoder").unwrap_or("Rotary table with encoder");
+    item(
+        x,
+        "encoder",
+        encoder,
+        "Rotary table with angle encoder: its encoder errors α are calibrated.",
+        encoder_manufacturer,
+        encoder_serial,
+    )?;
+    x.close();
+
+    x.open("dcc:calibrationLaboratory", &[]);
+    contact(x, laboratory, laboratory_email, laboratory_address, Some(country))?;
+    x.close();
+
+    x.open("dcc:respPersons", &[]);
+    for (name, role, main) in persons {
+        x.open("dcc:respPerson", &[]);
+        x.open("dcc:person", &[]);
+        x.content("dcc:name", name)?;
+        x.close();
+        x.text("dcc:role", &[], role)?;
+        if main {
+            x.text("dcc:mainSigner", &[], "true")?;
+        }
+        x.close();
+    }
+    x.close();
+
+    x.open("dcc:customer", &[]);
+    x.content("dcc:name", customer)?;
+    x.text("dcc:eMail", &[], customer_email)?;
+    x.open("dcc:location", &[]);
+    x.content("dcc:further", customer_address)?;
+    x.close();
+    x.close();
+
+    statements(x, report)?;
+    x.close();
+    Ok(())
+}
+
+/// One `item` with its manufacturer and serial number.
+fn item(
+    x: &mut Xml,
+    id: &str,
+    name: &str,
+    description: &str,
+    manufacturer: &str,
+    serial: &str,
+) -> Result<(), DccError> {
+    x.open("dcc:item", &[("id", id)]);
+    x.content("dcc:name", name)?;
+    x.content("dcc:description", description)?;
+    x.open("dcc:manufacturer", &[]);
+    x.content("dcc:name", manufacturer)?;
+    x.close();
+    x.open("dcc:identifications", &[]);
+    identification(x, "manufacturer", serial, "Serial number")?;
+    x.close();
+    x.close();
+    Ok(())
+}
+
+/// One `identification`.
+fn identification(x: &mut Xml, issuer: &str, value: &str, name: &str) -> Result<(), DccError> {
+    x.open("dcc:identification", &[]);
+    x.text("dcc:issuer", &[], issuer)?;
+    x.text("dcc:value", &[], value)?;
+    x.content("dcc:name", name)?;
+    x.close();
+    Ok(())
+}
+
+/// A `contact`: name, e-mail, and the address as one text (and the country).
+fn contact(
+    x: &mut Xml,
+    name: &str,
+    email: &str,
+    address: &str,
+    country: Option<&str>,
+) -> Result<(), DccError> {
+    x.open("dcc:contact", &[]);
+    x.content("dcc:name", name)?;
+    x.text("dcc:eMail", &[], email)?;
+    x.open("dcc:location", &[]);
+    if let Some(country) = country {
+        x.text("dcc:countryCode", &[], country)?;
+    }
+    x.content("dcc:further", address)?;
+    x.close();
+    x.close();
+    Ok(())
+}
+
+/// `statements`: the uncertainty statement, the place, the notes, what a reader must know.
+fn statements(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
+    let meta = &report.metadata;
+    let mut said: Vec<(&str, String)> = vec![(
+        "polycal_uncertaintyStatement",
+        results::uncertainty_statement(report),
+    )];
+    if let Some(place) = meta.value("location") {
+        said.push(("polycal_placeOfCalibration", format!("Place of calibration: {place}")));
+    }
+    if let Some(title) = meta.value("title") {
+        said.push(("polycal_title", title.to_string()));
+    }
+    if let Some(notes) = meta.value("notes") {
+        said.push(("polycal_notes", notes.to_string()));
+    }
+    for conflict in &meta.conflicts {
+        said.push((
+            "polycal_metadataConflict",
+            format!("Metadata sources disagree: {conflict}"),
+        ));
+    }
+    if let Some(d) = &report.diagnosis {
+        said.push((
+            "polycal_diagnosisVerdict",
+            if d.adequate() {
+                "The diagnosis of the measurement found the final model adequate: its residuals are consistent with noise.".to_string()
+            } else {
+                "The diagnosis of the measurement found the final model NOT adequate: structure is left in the residuals that no known effect explains.".to_string()
+            },
+        ));
+    }
+    x.open("dcc:statements", &[]);
+    for (kind, text) in said {
+        x.open("dcc:statement", &[("refType", kind)]);
+        x.content("dcc:declaration", &text)?;
+        x.close();
+    }
+    x.close();
+    Ok(())
+}
+
+/// One `measuringEquipment` of the metadata's instruments.
+fn equipment(x: &mut Xml, entry: &InstrumentEntry, index: usize) -> Result<(), DccError> {
+    x.open(
+        "dcc:measuringEquipment",
+        &[("id", &format!("instrument{}", index + 1))],
+    );
+    let name = entry
+        .name
+        .as_deref()
+        .or(entry.role.as_deref())
+        .unwrap_or("instrument");
+    x.content("dcc:name", name)?;
+    let mut description: Vec<String> = Vec::new();
+    if let Some(role) = &entry.role {
+        description.push(format!("Role: {role}"));
+    }
+    if let Some(calibration) = &entry.calibration {
+        description.push(format!("Calibration: {calibration}"));
+    }
+    description.push(format!("Source: {}", entry.source));
+    x.content("dcc:description", &description.join(". "))?;
+    if let Some(model) = &entry.model {
+        x.text("dcc:model", &[], model)?;
+    }
+    if let Some(serial) = &entry.serial {
+        x.open("dcc:identifications", &[]);
+        identification(x, "manufacturer", serial, "Serial number")?;
+        x.close();
+    }
+    x.close();
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dates_are_real_days() {
+        assert!(is_date("2026-11-03"));
+        assert!(is_date("2024-02-29"));
+        assert!(!is_date("2026-02-29"));
+        assert!(!is_date("1900-02-29"));
+        assert!(is_date("2000-02-29"));
+        assert!(!is_date("2026-13-01"));
+        assert!(!is_date("2026-1-03"));
+        assert!(!is_date("3 Nov 2026"));
+        assert!(!is_date("2026-11-03T10:00"));
+    }
+}

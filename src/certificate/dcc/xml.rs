@@ -1,0 +1,223 @@
+//! The XML a DCC is written in: elements indented two spaces, text and attributes
+//! escaped, and numbers in the lexical forms D-SI 2.1.0 accepts (docs/FORMAT.md §10.4).
+
+use std::fmt::Write;
+
+use super::DccError;
+
+/// The DCC's namespace.
+pub const DCC_NAMESPACE: &str = "https://ptb.de/dcc";
+/// The D-SI namespace.
+pub const SI_NAMESPACE: &str = "https://ptb.de/si";
+
+/// Text escaped for XML element content and attribute values (`&`, `<`, `>`, `"`, `'`).
+/// Control characters never reach here: the metadata refuses them where it is read
+/// ([`crate::certificate::meta::control_character`]); the writer checks again
+/// ([`Xml::text`]).
+pub fn escape(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&apos;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// An XML document being written: open elements are closed in order.
+pub struct Xml {
+    out: String,
+    open: Vec<&'static str>,
+}
+
+impl Xml {
+    /// A document with its declaration.
+    pub fn new() -> Self {
+        Self {
+            out: String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"),
+            open: Vec::new(),
+        }
+    }
+
+    fn indent(&mut self) {
+        for _ in 0..self.open.len() {
+            self.out.push_str("  ");
+        }
+    }
+
+    fn start_tag(&mut self, name: &str, attributes: &[(&str, &str)]) {
+        self.indent();
+        self.out.push('<');
+        self.out.push_str(name);
+        for (key, value) in attributes {
+            // attribute names are the writer's own; values escaped
+            let _ = write!(self.out, " {key}=\"{}\"", escape(value));
+        }
+        self.out.push('>');
+    }
+
+    /// Opens `name` with its attributes; [`Xml::close`] ends it.
+    pub fn open(&mut self, name: &'static str, attributes: &[(&str, &str)]) {
+        self.start_tag(name, attributes);
+        self.out.push('\n');
+        self.open.push(name);
+    }
+
+    /// Closes the element opened last.
+    pub fn close(&mut self) {
+        if let Some(name) = self.open.pop() {
+            self.indent();
+            let _ = writeln!(self.out, "</{name}>");
+        }
+    }
+
+    /// `<name attributes>text</name>` with `text` escaped.
+    ///
+    /// # Errors
+    ///
+    /// [`DccError::Character`] for a character XML 1.0 cannot carry.
+    pub fn text(
+        &mut self,
+        name: &'static str,
+        attributes: &[(&str, &str)],
+        text: &str,
+    ) -> Result<(), DccError> {
+        if let Some((_, c)) = crate::certificate::meta::control_character(text) {
+            return Err(DccError::Character {
+                element: name,
+                code: c as u32,
+            });
+        }
+        self.start_tag(name, attributes);
+        self.out.push_str(&escape(text));
+        let _ = writeln!(self.out, "</{name}>");
+        Ok(())
+    }
+
+    /// `<name><dcc:content lang="en">text</dcc:content></name>`: the DCC's text type.
+    ///
+    /// # Errors
+    ///
+    /// As [`Xml::text`].
+    pub fn content(&mut self, name: &'static str, text: &str) -> Result<(), DccError> {
+        self.open(name, &[]);
+        self.text("dcc:content", &[("lang", "en")], text)?;
+        self.close();
+        Ok(())
+    }
+
+    /// The document.
+    pub fn finish(mut self) -> String {
+        while !self.open.is_empty() {
+            self.close();
+        }
+        self.out
+    }
+}
+
+/// A value as D-SI writes a real (`si:value`): the shortest text that reads back to the
+/// same double (so a DCC carries the JSON's numbers exactly), `-0` as `0`.
+///
+/// # Errors
+///
+/// [`DccError::NotFinite`] for an infinite or NaN value, which D-SI cannot write.
+pub fn real(value: f64, what: &str) -> Result<String, DccError> {
+    if !value.is_finite() {
+        return Err(DccError::NotFinite {
+            what: what.to_string(),
+        });
+    }
+    // `{:?}` is Rust's shortest round-trip form: `0.1`, `-2.5`, `1e-7`, `1e16`; all match
+    // D-SI's decimal pattern
+    Ok(if value == 0.0 {
+        "0.0".to_string()
+    } else {
+        format!("{value:?}")
+    })
+}
+
+/// An uncertainty as D-SI writes it (`si:uncertainty`, no sign).
+///
+/// # Errors
+///
+/// [`DccError::NotFinite`] for an infinite or NaN value; [`DccError::Negative`] for a
+/// negative one.
+pub fn uncertainty(value: f64, what: &str) -> Result<String, DccError> {
+    if value < 0.0 {
+        return Err(DccError::Negative {
+            what: what.to_string(),
+        });
+    }
+    real(value.abs(), what)
+}
+
+/// A coverage factor as D-SI writes it (`si:coverageFactor`: at least 1, decimal digits
+/// without an exponent).
+///
+/// # Errors
+///
+/// [`DccError::CoverageFactor`] for a factor below 1, not finite, or too large for the form.
+pub fn coverage_factor(k: f64, what: &str) -> Result<String, DccError> {
+    let text = format!("{k:?}");
+    if !(1.0..1e15).contains(&k) || text.contains('e') {
+        return Err(DccError::CoverageFactor {
+            what: what.to_string(),
+            k,
+        });
+    }
+    Ok(text)
+}
+
+/// A coverage probability as D-SI writes it (`si:coverageProbability`: 0 … 1, no
+/// exponent).
+///
+/// # Errors
+///
+/// [`DccError::CoverageProbability`] outside (0, 1] or not writable without an exponent.
+pub fn coverage_probability(p: f64) -> Result<String, DccError> {
+    let text = format!("{p:?}");
+    if !(p > 0.0 && p <= 1.0) || text.contains('e') {
+        return Err(DccError::CoverageProbability { p });
+    }
+    Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn specials_are_escaped_and_control_characters_refused() {
+        assert_eq!(
+            escape(r#"a<b & "c" 'd'>"#),
+            "a&lt;b &amp; &quot;c&quot; &apos;d&apos;&gt;"
+        );
+        let mut xml = Xml::new();
+        assert!(xml.text("dcc:value", &[], "bell \u{7}").is_err());
+        xml.text("dcc:value", &[("refType", "a&b")], "β < 1″")
+            .unwrap();
+        assert!(
+            xml.finish()
+                .ends_with("<dcc:value refType=\"a&amp;b\">β &lt; 1″</dcc:value>\n")
+        );
+    }
+
+    #[test]
+    fn numbers_take_the_d_si_forms() {
+        assert_eq!(real(-0.0, "x").unwrap(), "0.0");
+        assert_eq!(real(1e-7, "x").unwrap(), "1e-7");
+        assert_eq!(real(0.1 + 0.2, "x").unwrap(), "0.30000000000000004");
+        assert!(real(f64::NAN, "x").is_err());
+        assert!(real(f64::INFINITY, "x").is_err());
+        assert!(uncertainty(-1.0, "x").is_err());
+        assert_eq!(coverage_factor(2.0, "x").unwrap(), "2.0");
+        assert!(coverage_factor(0.5, "x").is_err());
+        assert_eq!(coverage_probability(0.95).unwrap(), "0.95");
+        assert!(coverage_probability(1.5).is_err());
+    }
+}
