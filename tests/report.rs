@@ -5,7 +5,7 @@
 //! an independent computation (coreutils' `sha256sum`); the status follows the verdicts.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use scraper::{ElementRef, Html, Selector};
 use serde_json::Value;
@@ -16,29 +16,12 @@ const BUDGET: &str = "examples/budgets/instrument.toml";
 const REFERENCE: &str = "examples/data/polygon24-shift-angle.result.csv";
 const META: &str = "examples/report/meta.toml";
 
-fn polycal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polycal"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the binary runs")
-}
+mod document_support;
+
+use document_support::{json, polycal};
 
 fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("polycal-report-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn json(args: &[&str]) -> Value {
-    let out = polycal(args);
-    assert!(
-        out.status.code().is_some_and(|c| c <= 1),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("JSON")
+    document_support::temp_dir("report", name)
 }
 
 /// Runs `polycal report … --out DIR/report.html`; returns the status and the parsed

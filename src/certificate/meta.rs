@@ -66,8 +66,7 @@ pub fn is_country_code(code: &str) -> bool {
 /// offset.
 pub fn control_character(text: &str) -> Option<(usize, char)> {
     text.char_indices().find(|&(_, c)| {
-        (c.is_control() && !matches!(c, '\t' | '\n' | '\r'))
-            || matches!(c, '\u{fffe}' | '\u{ffff}')
+        (c.is_control() && !matches!(c, '\t' | '\n' | '\r')) || matches!(c, '\u{fffe}' | '\u{ffff}')
     })
 }
 
@@ -231,10 +230,7 @@ fn read_meta_file(
             .map(|v| {
                 let (span, v) = (v.span(), v.into_inner());
                 match control_character(&v) {
-                    Some((_, c)) => Err(at(
-                        span.start,
-                        refused_character(c),
-                    )),
+                    Some((_, c)) => Err(at(span.start, refused_character(c))),
                     None => Ok((span, v)),
                 }
             })
@@ -245,7 +241,9 @@ fn read_meta_file(
         Some((span, v)) if !is_country_code(&v) => {
             return Err(at(
                 span.start,
-                format!("country “{v}” is not an ISO 3166-1 alpha-2 code (two capital letters, e.g. DE)"),
+                format!(
+                    "country “{v}” is not an ISO 3166-1 alpha-2 code (two capital letters, e.g. DE)"
+                ),
             ));
         }
         other => other.map(|(_, v)| v),

@@ -4,7 +4,7 @@
 //! - [`html`]: the calibration report for people, one self-contained HTML file (inline
 //!   SVG and CSS, nothing fetched, no script) that prints on A4;
 //! - [`dcc`]: the Digital Calibration Certificate for programs, XML valid against the
-//!   DCC 3.1.2 schema with its results in the D-SI 2.1.0 format (docs/FORMAT.md §10.4).
+//!   DCC 3.1.2 schema with its results in the D-SI 2.1.0 format (docs/FORMAT.md §10.3).
 //!
 //! [`CalibrationReport::build`] reads the input files, evaluates them exactly as the
 //! commands do (`solve` with `--budget`, `diagnose`, `compare`, `selfcal`), and keeps the

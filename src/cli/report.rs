@@ -1,5 +1,5 @@
 //! `polycal report`: the documents of a calibration (docs/FORMAT.md §10): the
-//! self-contained HTML report and the Digital Calibration Certificate (§10.4).
+//! self-contained HTML report and the Digital Calibration Certificate (§10.3).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -74,7 +74,7 @@ pub struct ReportArgs {
     #[arg(long, value_name = "REPORT.html", required_unless_present = "dcc")]
     out: Option<PathBuf>,
     /// The Digital Calibration Certificate to write: XML valid against DCC 3.1.2 with
-    /// D-SI 2.1.0 results, the same numbers as the HTML (docs/FORMAT.md §10.4). Needs
+    /// D-SI 2.1.0 results, the same numbers as the HTML (docs/FORMAT.md §10.3). Needs
     /// --budget for a polygon file and the metadata the schema requires (--meta);
     /// nothing is written when one is missing.
     #[arg(long, value_name = "CERTIFICATE.xml")]

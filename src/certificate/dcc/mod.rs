@@ -2,7 +2,7 @@
 //! DCC 3.1.2 schema (PTB and the DCC community; `docs/schema/dcc.xsd`) with its results
 //! in the D-SI 2.1.0 format (`docs/schema/SI_Format.xsd`), for the customer's software to
 //! read the calibration values and their uncertainties without retyping
-//! (docs/FORMAT.md §10.4).
+//! (docs/FORMAT.md §10.3).
 //!
 //! It is written from the same evaluated report as the HTML document, so the two carry
 //! the same numbers: β, φ and α (eqs. (6)–(10) or the least-squares closure) with their
@@ -33,7 +33,7 @@
 //! ```
 
 mod results;
-pub mod xml;
+mod xml;
 
 use super::meta::{InstrumentEntry, Metadata};
 use super::{CalibrationReport, Evaluation};
@@ -97,7 +97,9 @@ pub enum DccError {
         what: String,
     },
     /// A coverage factor D-SI cannot write (below 1, or beyond its decimal form).
-    #[error("cannot write the DCC: the coverage factor {k} of {what} is not one D-SI can state (at least 1, decimal)")]
+    #[error(
+        "cannot write the DCC: the coverage factor {k} of {what} is not one D-SI can state (at least 1, decimal)"
+    )]
     CoverageFactor {
         /// Which result.
         what: String,
@@ -196,7 +198,7 @@ fn performance_dates(meta: &Metadata) -> Result<(String, String), DccError> {
     Ok((begin.to_string(), end.to_string()))
 }
 
-/// The DCC of a report (docs/FORMAT.md §10.4).
+/// The DCC of a report (docs/FORMAT.md §10.3).
 ///
 /// # Errors
 ///
@@ -292,9 +294,10 @@ fn administrative_data(x: &mut Xml, report: &CalibrationReport) -> Result<(), Dc
     if let (Evaluation::Polygon { solve, .. }, Some((manufacturer, serial))) =
         (&report.evaluation, artefact)
     {
-        let name = meta
-            .value("artefact")
-            .map_or_else(|| format!("Optical polygon, {} faces", solve.faces), str::to_string);
+        let name = meta.value("artefact").map_or_else(
+            || format!("Optical polygon, {} faces", solve.faces),
+            str::to_string,
+        );
         item(
             x,
             "polygon",
@@ -319,7 +322,13 @@ fn administrative_data(x: &mut Xml, report: &CalibrationReport) -> Result<(), Dc
     x.close();
 
     x.open("dcc:calibrationLaboratory", &[]);
-    contact(x, laboratory, laboratory_email, laboratory_address, Some(country))?;
+    contact(
+        x,
+        laboratory,
+        laboratory_email,
+        laboratory_address,
+        Some(country),
+    )?;
     x.close();
 
     x.open("dcc:respPersons", &[]);
@@ -410,7 +419,10 @@ fn statements(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
         results::uncertainty_statement(report),
     )];
     if let Some(place) = meta.value("location") {
-        said.push(("polycal_placeOfCalibration", format!("Place of calibration: {place}")));
+        said.push((
+            "polycal_placeOfCalibration",
+            format!("Place of calibration: {place}"),
+        ));
     }
     if let Some(title) = meta.value("title") {
         said.push(("polycal_title", title.to_string()));

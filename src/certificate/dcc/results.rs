@@ -167,7 +167,11 @@ fn design_words(d: &DesignSummary) -> String {
         d.faces,
         faces.join(", "),
         d.cycles,
-        if d.closing { ", with closing readings" } else { "" },
+        if d.closing {
+            ", with closing readings"
+        } else {
+            ""
+        },
         if d.bidirectional {
             ", both directions"
         } else {
@@ -209,10 +213,7 @@ pub(super) fn measurement_results(x: &mut Xml, report: &CalibrationReport) -> Re
         },
     )?;
     x.open("dcc:usedMethods", &[]);
-    x.open(
-        "dcc:usedMethod",
-        &[("refType", "polycal_closureMethod")],
-    );
+    x.open("dcc:usedMethod", &[("refType", "polycal_closureMethod")]);
     match &report.evaluation {
         Evaluation::Polygon { design, solve, .. } => {
             x.content(
@@ -249,7 +250,10 @@ pub(super) fn measurement_results(x: &mut Xml, report: &CalibrationReport) -> Re
         "dcc:usedMethod",
         &[("refType", "basic_uncertaintyEvaluation")],
     );
-    x.content("dcc:name", "Evaluation of the uncertainty according to the GUM")?;
+    x.content(
+        "dcc:name",
+        "Evaluation of the uncertainty according to the GUM",
+    )?;
     x.content("dcc:description", &uncertainty_statement(report))?;
     x.text("dcc:norm", &[], "JCGM 100:2008")?;
     x.close();
@@ -320,14 +324,24 @@ fn influence_conditions(x: &mut Xml, report: &CalibrationReport) -> Result<(), D
         }
     };
     for (key, refs, name, unit) in [
-        ("temperature_c", "basic_temperature", "Air temperature", "\\degreecelsius"),
+        (
+            "temperature_c",
+            "basic_temperature",
+            "Air temperature",
+            "\\degreecelsius",
+        ),
         (
             "humidity_percent",
             "basic_humidityRelative",
             "Relative humidity",
             "\\percent",
         ),
-        ("pressure_hpa", "basic_pressure", "Air pressure", "\\hecto\\pascal"),
+        (
+            "pressure_hpa",
+            "basic_pressure",
+            "Air pressure",
+            "\\hecto\\pascal",
+        ),
     ] {
         let Some(value) = meta.value(key).and_then(|v| v.parse::<f64>().ok()) else {
             continue;
@@ -347,7 +361,11 @@ fn influence_conditions(x: &mut Xml, report: &CalibrationReport) -> Result<(), D
     }
     let mut texts: Vec<(&str, &str, String)> = Vec::new();
     if let Some(environment) = meta.value("environment") {
-        texts.push(("polycal_environment", "Environment", environment.to_string()));
+        texts.push((
+            "polycal_environment",
+            "Environment",
+            environment.to_string(),
+        ));
     }
     if !report.stated_cross_talk.is_empty() {
         let each: Vec<String> = report
@@ -430,7 +448,15 @@ fn polygon_results(x: &mut Xml, solve: &SolveReport) -> Result<(), DccError> {
     let missing = DccError::NoExpandedUncertainty {
         what: "the polygon calibration",
     };
-    let (Some(p), Some(beta_u), Some(beta_k), Some(phi_u), Some(phi_k), Some(alpha_u), Some(alpha_k)) = (
+    let (
+        Some(p),
+        Some(beta_u),
+        Some(beta_k),
+        Some(phi_u),
+        Some(phi_k),
+        Some(alpha_u),
+        Some(alpha_k),
+    ) = (
         solve.p,
         &solve.pitch_deviation_expanded_u,
         &solve.pitch_deviation_k,
@@ -438,7 +464,8 @@ fn polygon_results(x: &mut Xml, solve: &SolveReport) -> Result<(), DccError> {
         &solve.face_deviation_k,
         &solve.encoder_error_expanded_u,
         &solve.encoder_error_k,
-    ) else {
+    )
+    else {
         return Err(missing);
     };
     let n = solve.faces;
@@ -500,8 +527,9 @@ fn polygon_results(x: &mut Xml, solve: &SolveReport) -> Result<(), DccError> {
         ],
     )?;
     let angles = solve.encoder_angle_deg.clone().unwrap_or_else(|| {
-        (0..solve.encoder_error.len())
-            .map(|step| step as f64 * 360.0 / n as f64)
+        let positions = solve.encoder_error.len();
+        (0..positions)
+            .map(|step| crate::measurement::step_angle_deg(step as u32, positions))
             .collect()
     });
     list_result(
@@ -535,7 +563,13 @@ fn polygon_results(x: &mut Xml, solve: &SolveReport) -> Result<(), DccError> {
 /// The residual RMS and the degrees of freedom of the fit.
 fn fit(x: &mut Xml, residual_rms: Option<f64>, dof: usize) -> Result<(), DccError> {
     if let Some(rms) = residual_rms {
-        real_result(x, "polycal_residualRms", "Residual RMS of the fit", rms, "\\arcsecond")?;
+        real_result(
+            x,
+            "polycal_residualRms",
+            "Residual RMS of the fit",
+            rms,
+            "\\arcsecond",
+        )?;
     }
     real_result(
         x,
@@ -553,7 +587,8 @@ fn selfcal_results(x: &mut Xml, r: &SelfcalReport) -> Result<(), DccError> {
             what: "the self-calibration (σ of the readings unknown)",
         });
     };
-    let mut description = "e[p] is the encoder error at position p, arcseconds, with Σe = 0.".to_string();
+    let mut description =
+        "e[p] is the encoder error at position p, arcseconds, with Σe = 0.".to_string();
     for note in &r.notes {
         description.push(' ');
         description.push_str(note);
@@ -612,7 +647,12 @@ fn selfcal_results(x: &mut Xml, r: &SelfcalReport) -> Result<(), DccError> {
                     refs: "basic_measurementError polycal_headError",
                     name: "Head error",
                     unit: "\\arcsecond",
-                    labels: Some(r.head_error.iter().map(|h| format!("head{}", h.head)).collect()),
+                    labels: Some(
+                        r.head_error
+                            .iter()
+                            .map(|h| format!("head{}", h.head))
+                            .collect(),
+                    ),
                     values: r.head_error.iter().map(|h| h.value).collect(),
                     expanded: Some((
                         expanded.iter().map(|e| e.0).collect(),

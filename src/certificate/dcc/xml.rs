@@ -1,5 +1,5 @@
 //! The XML a DCC is written in: elements indented two spaces, text and attributes
-//! escaped, and numbers in the lexical forms D-SI 2.1.0 accepts (docs/FORMAT.md §10.4).
+//! escaped, and numbers in the lexical forms D-SI 2.1.0 accepts (docs/FORMAT.md §10.3).
 
 use std::fmt::Write;
 

@@ -5,7 +5,6 @@
 
 use std::fmt::Write;
 
-
 use crate::certificate::DiagnosisReport;
 use crate::figure::svg::esc;
 use crate::output::SolveReport;

@@ -1,0 +1,670 @@
+//! `polycal report --dcc` (docs/FORMAT.md §10.3): every DCC the tests write validates
+//! against the vendored DCC 3.1.2 and D-SI 2.1.0 schemas (`docs/schema/`, xmllint, offline
+//! through the catalog), and the validator is shown to reject a broken document; read
+//! back with an XML parser, every β, φ, α, U and k is the `solve --format json` number
+//! exactly, a self-calibration's e and head errors are `selfcal`'s, the En are
+//! `compare`'s, and the HTML report of the same inputs carries the same numbers; missing
+//! metadata is refused naming the key, with nothing written; XML specials survive the
+//! round trip and control characters are refused where they are read.
+//!
+//! The schema validation needs `xmllint` (Debian: libxml2-utils). `.ci/run` installs it
+//! and sets `POLYCAL_REQUIRE_XMLLINT=1`, which turns its absence into a failure; without
+//! that variable a machine without xmllint skips only the validation, saying so.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use roxmltree::{Document, Node};
+use scraper::{Html, Selector};
+use serde_json::Value;
+
+const DATA: &str = "examples/data/polygon24-2ac-6cycles.csv";
+const BUDGET: &str = "examples/budgets/instrument.toml";
+const REFERENCE: &str = "examples/data/polygon24-shift-angle.result.csv";
+const META: &str = "examples/report/meta.toml";
+const SELFCAL: &str = "examples/data/selfa-168.csv";
+const SELFCAL_BUDGET: &str = "examples/budgets/selfcal.toml";
+const DCC: &str = "https://ptb.de/dcc";
+const SI: &str = "https://ptb.de/si";
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+mod document_support;
+
+use document_support::{json, polycal};
+
+fn temp_dir(name: &str) -> PathBuf {
+    document_support::temp_dir("dcc", name)
+}
+
+/// xmllint's verdict on `file` against the vendored schema: `Some(true)` valid,
+/// `Some(false)` invalid (with its messages), `None` when xmllint is not installed and
+/// not required.
+fn schema_valid(file: &Path) -> Option<(bool, String)> {
+    let schema = root().join("docs/schema");
+    let run = Command::new("xmllint")
+        .env("XML_CATALOG_FILES", schema.join("catalog.xml"))
+        .args(["--nonet", "--noout", "--schema"])
+        .arg(schema.join("dcc.xsd"))
+        .arg(file)
+        .output();
+    match run {
+        Ok(out) => {
+            let messages = String::from_utf8_lossy(&out.stderr).into_owned();
+            // 5: the schema did not compile (the import not resolved offline): a failure
+            // of the test set-up, never a pass
+            assert_ne!(
+                out.status.code(),
+                Some(5),
+                "the schema does not compile: {messages}"
+            );
+            Some((out.status.success(), messages))
+        }
+        Err(e) => {
+            assert!(
+                std::env::var_os("POLYCAL_REQUIRE_XMLLINT").is_none(),
+                "POLYCAL_REQUIRE_XMLLINT is set and xmllint cannot run: {e}"
+            );
+            eprintln!(
+                "xmllint not found: schema validation of {} skipped",
+                file.display()
+            );
+            None
+        }
+    }
+}
+
+/// Asserts that `file` validates (when a validator is there).
+fn assert_valid(file: &Path) {
+    if let Some((valid, messages)) = schema_valid(file) {
+        assert!(valid, "{} does not validate:\n{messages}", file.display());
+    }
+}
+
+/// Runs `polycal report ARGS --dcc DIR/NAME`; returns the status and the document text
+/// after asserting that it validates.
+fn dcc(dir: &Path, name: &str, args: &[&str]) -> (Option<i32>, String) {
+    let path = dir.join(name);
+    let path_text = path.to_str().unwrap().to_string();
+    let mut all = vec!["report"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["--dcc", &path_text]);
+    let out = polycal(&all);
+    assert!(
+        out.status.code().is_some_and(|c| c <= 1),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_valid(&path);
+    (out.status.code(), std::fs::read_to_string(&path).unwrap())
+}
+
+fn dcc_element<'a>(node: Node<'a, 'a>, name: &str) -> Option<Node<'a, 'a>> {
+    node.children()
+        .find(|c| c.tag_name().name() == name && c.tag_name().namespace() == Some(DCC))
+}
+
+/// The text of an element's `dcc:name/dcc:content`.
+fn name_of(node: Node) -> String {
+    dcc_element(node, "name")
+        .and_then(|n| dcc_element(n, "content"))
+        .and_then(|c| c.text())
+        .unwrap_or_default()
+        .to_string()
+}
+
+/// The D-SI list of the quantity named `quantity` in the result (or influence condition)
+/// with refType containing `result_ref`: its values, and its U, k and p when given.
+struct SiList {
+    values: Vec<f64>,
+    expanded_u: Vec<f64>,
+    k: Vec<f64>,
+    p: Vec<f64>,
+    unit: String,
+}
+
+fn si_list(doc: &Document, result_ref: &str, quantity: &str) -> SiList {
+    let result = doc
+        .descendants()
+        .find(|n| {
+            matches!(n.tag_name().name(), "result" | "influenceCondition")
+                && n.attribute("refType")
+                    .is_some_and(|r| r.split(' ').any(|t| t == result_ref))
+        })
+        .unwrap_or_else(|| panic!("no result {result_ref}"));
+    let q = result
+        .descendants()
+        .find(|n| n.tag_name().name() == "quantity" && name_of(*n) == quantity)
+        .unwrap_or_else(|| panic!("{result_ref}: no quantity {quantity}"));
+    let list = |name: &str| -> Vec<f64> {
+        q.descendants()
+            .find(|n| n.tag_name().name() == name && n.tag_name().namespace() == Some(SI))
+            .and_then(|n| n.text())
+            .map(|t| {
+                t.split_whitespace()
+                    .map(|v| v.parse().unwrap_or_else(|_| panic!("{name}: {v}")))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let unit = q
+        .descendants()
+        .find(|n| n.tag_name().name() == "unitXMLList")
+        .and_then(|n| n.text())
+        .unwrap_or_default()
+        .to_string();
+    SiList {
+        values: list("valueXMLList"),
+        expanded_u: list("uncertaintyXMLList"),
+        k: list("coverageFactorXMLList"),
+        p: list("coverageProbabilityXMLList"),
+        unit,
+    }
+}
+
+/// The numbers of a JSON array (nulls refused).
+fn numbers(value: &Value) -> Vec<f64> {
+    value
+        .as_array()
+        .unwrap_or_else(|| panic!("not an array: {value}"))
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect()
+}
+
+fn text_of<'a>(doc: &'a Document, element: &str) -> Vec<&'a str> {
+    doc.descendants()
+        .filter(|n| n.tag_name().name() == element && n.tag_name().namespace() == Some(DCC))
+        .filter_map(|n| n.text())
+        .collect()
+}
+
+#[test]
+fn the_validator_rejects_a_broken_certificate() {
+    let dir = temp_dir("broken");
+    let (_, text) = dcc(&dir, "c.xml", &[DATA, "--budget", BUDGET, "--meta", META]);
+    // the same document without its required end date, and with a β that is not a number
+    for (what, broken) in [
+        (
+            "no endPerformanceDate",
+            text.replace(
+                &text[text.find("<dcc:endPerformanceDate>").unwrap()
+                    ..text.find("</dcc:endPerformanceDate>").unwrap() + 25],
+                "",
+            ),
+        ),
+        (
+            "a value NaN",
+            text.replacen("<si:valueXMLList>1.0 ", "<si:valueXMLList>NaN ", 1),
+        ),
+        (
+            "a negative uncertainty",
+            text.replacen("<si:uncertaintyXMLList>", "<si:uncertaintyXMLList>-", 1),
+        ),
+    ] {
+        assert_ne!(broken, text, "{what}: nothing changed");
+        let path = dir.join("broken.xml");
+        std::fs::write(&path, broken).unwrap();
+        if let Some((valid, _)) = schema_valid(&path) {
+            assert!(!valid, "{what}: a broken DCC validates");
+        }
+    }
+}
+
+/// The bundled example with budget, diagnosis, reference and metadata: a valid DCC whose
+/// every number is solve's, compare's and the HTML report's.
+#[test]
+fn the_full_example_validates_and_carries_the_json_numbers() {
+    let dir = temp_dir("full");
+    let html_path = dir.join("r.html");
+    let (status, text) = dcc(
+        &dir,
+        "c.xml",
+        &[
+            DATA,
+            "--budget",
+            BUDGET,
+            "--diagnose",
+            "--reference",
+            REFERENCE,
+            "--meta",
+            META,
+            "--out",
+            html_path.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(status, Some(0));
+    let doc = Document::parse(&text).unwrap();
+    let top = doc.root_element();
+    assert_eq!(top.tag_name().name(), "digitalCalibrationCertificate");
+    assert_eq!(top.attribute("schemaVersion"), Some("3.1.2"));
+    let solve = json(&["solve", DATA, "--budget", BUDGET, "--format", "json"]);
+    let n = 24;
+    // β: every value, U and k the JSON's to the last bit; p for each
+    let beta = si_list(&doc, "polycal_pitchDeviations", "Pitch deviation β");
+    assert_eq!(beta.unit, "\\arcsecond");
+    assert_eq!(beta.values, numbers(&solve["pitch_deviation"]));
+    assert_eq!(beta.expanded_u, numbers(&solve["pitch_deviation_U"]));
+    assert_eq!(beta.k, numbers(&solve["pitch_deviation_k"]));
+    assert_eq!(beta.p, vec![0.95; n]);
+    let faces = si_list(&doc, "polycal_pitchDeviations", "Face");
+    assert_eq!(faces.values, (1..=n).map(|f| f as f64).collect::<Vec<_>>());
+    // φ[1..N−1] (φ[N] = 0 by definition, not listed)
+    let phi = si_list(&doc, "polycal_faceDeviations", "Face deviation φ");
+    assert_eq!(phi.values, numbers(&solve["face_deviation"])[..n - 1]);
+    assert_eq!(phi.expanded_u, numbers(&solve["face_deviation_U"])[..n - 1]);
+    let phi_k: Vec<f64> = solve["face_deviation_k"].as_array().unwrap()[..n - 1]
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(phi.k, phi_k);
+    // α with its table angles in degrees
+    let alpha = si_list(&doc, "polycal_encoderErrors", "Encoder error α");
+    assert_eq!(alpha.values, numbers(&solve["encoder_error"]));
+    assert_eq!(alpha.expanded_u, numbers(&solve["encoder_error_U"]));
+    assert_eq!(alpha.k, numbers(&solve["encoder_error_k"]));
+    let angles = si_list(&doc, "polycal_encoderErrors", "Table angle");
+    assert_eq!(angles.unit, "\\degree");
+    assert_eq!(
+        angles.values,
+        (0..n).map(|p| p as f64 * 15.0).collect::<Vec<_>>()
+    );
+    // the setup errors, an influence condition
+    let setup = si_list(&doc, "polycal_setupErrors", "Setup error U");
+    let setup_json = solve["setup_error"].as_array().unwrap();
+    assert_eq!(
+        setup.values,
+        setup_json
+            .iter()
+            .map(|s| s["value"].as_f64().unwrap())
+            .collect::<Vec<_>>()
+    );
+    assert_eq!(
+        setup.expanded_u,
+        setup_json
+            .iter()
+            .map(|s| s["U"].as_f64().unwrap())
+            .collect::<Vec<_>>()
+    );
+    // the fit
+    let rms = doc
+        .descendants()
+        .find(|n| n.attribute("refType") == Some("polycal_residualRms"))
+        .and_then(|r| r.descendants().find(|n| n.tag_name().name() == "value"))
+        .and_then(|v| v.text())
+        .unwrap();
+    assert_eq!(
+        rms.parse::<f64>().unwrap(),
+        solve["residual_rms"].as_f64().unwrap()
+    );
+    // the comparison: compare's En, row by row
+    let ours = dir.join("ours.csv");
+    let rows = polycal(&["solve", DATA, "--budget", BUDGET, "--format", "csv"]);
+    std::fs::write(&ours, &rows.stdout).unwrap();
+    let compared = json(&[
+        "compare",
+        ours.to_str().unwrap(),
+        REFERENCE,
+        "--format",
+        "json",
+    ]);
+    let en = si_list(&doc, "polycal_comparison", "En");
+    assert_eq!(
+        en.values,
+        compared["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["en"].as_f64().unwrap())
+            .collect::<Vec<_>>()
+    );
+    // the diagnosis's verdict is diagnose's
+    let diagnosed = json(&["diagnose", DATA, "--format", "json"]);
+    let verdict = doc
+        .descendants()
+        .find(|n| n.attribute("refType") == Some("polycal_adequacy"))
+        .map(|q| {
+            q.descendants()
+                .rfind(|n| n.tag_name().name() == "content")
+                .and_then(|c| c.text())
+                .unwrap()
+                .to_string()
+        })
+        .unwrap();
+    let adequate = diagnosed["adequate"].as_bool().unwrap();
+    assert_eq!(verdict, if adequate { "adequate" } else { "not adequate" });
+    // the administrative data from the metadata
+    assert_eq!(text_of(&doc, "uniqueIdentifier"), ["EXAMPLE-2026-117"]);
+    assert_eq!(text_of(&doc, "countryCodeISO3166_1"), ["DE"]);
+    assert_eq!(text_of(&doc, "beginPerformanceDate"), ["2026-11-03"]);
+    assert_eq!(text_of(&doc, "endPerformanceDate"), ["2026-11-03"]);
+    assert_eq!(text_of(&doc, "performanceLocation"), ["laboratory"]);
+    assert_eq!(text_of(&doc, "release"), [env!("CARGO_PKG_VERSION"); 2]);
+    let serials: Vec<&str> = text_of(&doc, "value");
+    for serial in ["P-24/7", "RT-300-0042", "EXAMPLE-AC1", "EXAMPLE-AC2"] {
+        assert!(serials.contains(&serial), "{serial}: {serials:?}");
+    }
+    // the SHA-256 of every input, as sha256sum computes it
+    for file in [DATA, BUDGET, REFERENCE, META] {
+        let sum = Command::new("sha256sum")
+            .arg(file)
+            .current_dir(root())
+            .output()
+            .unwrap();
+        let hex = String::from_utf8(sum.stdout).unwrap()[..64].to_string();
+        assert!(
+            text.contains(&format!("{file} (")) && text.contains(&hex),
+            "{file}: {hex}"
+        );
+    }
+    // the HTML report of the same run shows the same numbers (its data-value)
+    let html = Html::parse_document(&std::fs::read_to_string(&html_path).unwrap());
+    let cells = |id: &str, column: usize| -> Vec<f64> {
+        html.select(&Selector::parse(&format!("table#{id} > tbody > tr")).unwrap())
+            .map(|row| {
+                row.select(&Selector::parse("td").unwrap())
+                    .nth(column)
+                    .and_then(|c| c.value().attr("data-value"))
+                    .map_or(f64::NAN, |v| v.parse().unwrap())
+            })
+            .collect()
+    };
+    assert_eq!(cells("pitch-deviation", 1), beta.values);
+    assert_eq!(cells("pitch-deviation", 3), beta.expanded_u);
+    assert_eq!(cells("pitch-deviation", 4), beta.k);
+    assert_eq!(cells("encoder-error", 1), angles.values);
+    assert_eq!(cells("encoder-error", 2), alpha.values);
+    assert_eq!(cells("encoder-error", 4), alpha.expanded_u);
+    assert_eq!(cells("encoder-error", 5), alpha.k);
+    assert_eq!(cells("face-deviation", 1)[..n - 1], phi.values);
+}
+
+/// A self-calibration with its budget and diagnosis: a valid DCC with selfcal's e and
+/// head errors; no polygon item.
+#[test]
+fn a_self_calibration_gives_a_valid_dcc_with_selfcals_numbers() {
+    let dir = temp_dir("selfcal");
+    let meta = dir.join("meta.toml");
+    std::fs::write(
+        &meta,
+        "certificate = \"S-1\"\ncustomer = \"C\"\ncustomer_address = \"A\"\ncustomer_email = \"c@example.org\"\n\
+         encoder_manufacturer = \"M\"\nencoder_serial = \"E-1\"\nlaboratory = \"L\"\nlaboratory_address = \"LA\"\n\
+         laboratory_email = \"l@example.org\"\ncountry = \"GB\"\nperformance_location = \"customer\"\n\
+         date_of_measurement = \"2024-02-29\"\napproved_by = \"B. Approver\"\n",
+    )
+    .unwrap();
+    let (_, text) = dcc(
+        &dir,
+        "s.xml",
+        &[
+            SELFCAL,
+            "--budget",
+            SELFCAL_BUDGET,
+            "--diagnose",
+            "--meta",
+            meta.to_str().unwrap(),
+        ],
+    );
+    let doc = Document::parse(&text).unwrap();
+    let selfcal = json(&[
+        "selfcal",
+        SELFCAL,
+        "--budget",
+        SELFCAL_BUDGET,
+        "--format",
+        "json",
+    ]);
+    let e = si_list(&doc, "polycal_encoderErrors", "Encoder error e");
+    assert_eq!(e.values, numbers(&selfcal["encoder_error"]));
+    assert_eq!(e.expanded_u, numbers(&selfcal["encoder_error_U"]));
+    assert_eq!(e.k, numbers(&selfcal["encoder_error_k"]));
+    let angles = si_list(&doc, "polycal_encoderErrors", "Table angle");
+    assert_eq!(angles.values, numbers(&selfcal["encoder_angle_deg"]));
+    let heads = si_list(&doc, "polycal_headErrors", "Head error");
+    let head_json = selfcal["head_error"].as_array().unwrap();
+    assert_eq!(
+        heads.values,
+        head_json
+            .iter()
+            .map(|h| h["value"].as_f64().unwrap())
+            .collect::<Vec<_>>()
+    );
+    assert_eq!(
+        heads.expanded_u,
+        head_json
+            .iter()
+            .map(|h| h["U"].as_f64().unwrap())
+            .collect::<Vec<_>>()
+    );
+    assert!(!text.contains("id=\"polygon\""));
+    assert!(!text.contains("polycal_pitchDeviations"));
+    assert_eq!(text_of(&doc, "performanceLocation"), ["customer"]);
+}
+
+/// A run directory: the dates of the run (start and end), the instruments' replies.
+#[test]
+fn a_run_directory_gives_the_performance_dates() {
+    let dir = temp_dir("run");
+    let run = dir.join("run1");
+    std::fs::create_dir_all(&run).unwrap();
+    std::fs::write(
+        run.join("manifest.json"),
+        r#"{"format": "polycal-run/1", "software": "polycal 0.1.0",
+  "settings": {"faces": 24, "cycles": 6, "closing": true},
+  "instruments": {"ac1": "ELCOMAT 3000 S/N 4711", "ac2": "ELCOMAT 3000 S/N 4712", "table": "SMC100CC 2.0.0"},
+  "started": "2026-11-03T23:05:09.123Z", "ended": "2026-11-04T01:01:00.000Z",
+  "outcome": "completed", "readings": 300, "expected_readings": 300, "sessions": []}"#,
+    )
+    .unwrap();
+    // the metadata without its date: the run gives it
+    let meta_text = std::fs::read_to_string(root().join(META))
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with("date_of_measurement"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let meta = dir.join("meta.toml");
+    std::fs::write(&meta, meta_text).unwrap();
+    let (_, text) = dcc(
+        &dir,
+        "c.xml",
+        &[
+            DATA,
+            "--budget",
+            BUDGET,
+            "--meta",
+            meta.to_str().unwrap(),
+            "--run-dir",
+            run.to_str().unwrap(),
+        ],
+    );
+    let doc = Document::parse(&text).unwrap();
+    assert_eq!(text_of(&doc, "beginPerformanceDate"), ["2026-11-03"]);
+    assert_eq!(text_of(&doc, "endPerformanceDate"), ["2026-11-04"]);
+    let equipment: Vec<String> = doc
+        .descendants()
+        .filter(|n| n.tag_name().name() == "measuringEquipment")
+        .map(name_of)
+        .collect();
+    assert!(
+        equipment.contains(&"ELCOMAT 3000 S/N 4711".to_string())
+            && equipment.contains(&"SMC100CC 2.0.0".to_string()),
+        "{equipment:?}"
+    );
+    assert!(text.contains("run manifest"));
+}
+
+/// The metadata text with the line of `key` replaced (`None`: removed).
+fn with_line(full: &str, key: &str, replacement: Option<&str>) -> String {
+    let text: String = full
+        .lines()
+        .filter_map(|l| {
+            if l.starts_with(&format!("{key} =")) {
+                replacement
+            } else {
+                Some(l)
+            }
+        })
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert_ne!(text, full, "{key} is in the example");
+    text
+}
+
+/// `polycal report DATA ARGS --dcc DIR/refused.xml --out DIR/refused.html` is refused:
+/// status 2, one `error:` line (returned), and neither document written.
+fn refused(dir: &Path, data: &str, args: &[&str]) -> String {
+    let path = dir.join("refused.xml");
+    let html = dir.join("refused.html");
+    let (path_text, html_text) = (path.to_str().unwrap(), html.to_str().unwrap());
+    let mut all = vec!["report", data];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["--dcc", path_text, "--out", html_text]);
+    let out = polycal(&all);
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+    assert!(stderr.starts_with("error: "), "{stderr}");
+    assert!(
+        !path.exists() && !html.exists(),
+        "{args:?}: a file was written"
+    );
+    stderr
+}
+
+/// Every key the schema needs, left out in turn: one `error:` line naming it, status 2,
+/// no file; and a polygon run without a budget (no U) likewise.
+#[test]
+fn missing_metadata_is_refused_by_name_and_nothing_is_written() {
+    let dir = temp_dir("missing");
+    let full = std::fs::read_to_string(root().join(META)).unwrap();
+    let meta = dir.join("meta.toml");
+    let meta_text = meta.to_str().unwrap();
+    for key in [
+        "certificate",
+        "customer",
+        "customer_address",
+        "customer_email",
+        "laboratory",
+        "laboratory_address",
+        "laboratory_email",
+        "country",
+        "performance_location",
+        "date_of_measurement",
+        "artefact_manufacturer",
+        "artefact_serial",
+        "encoder_manufacturer",
+        "encoder_serial",
+    ] {
+        std::fs::write(&meta, with_line(&full, key, None)).unwrap();
+        let stderr = refused(&dir, DATA, &["--budget", BUDGET, "--meta", meta_text]);
+        assert!(
+            stderr.starts_with("error: cannot write the DCC: it needs `")
+                && stderr.contains(&format!("`{key}`")),
+            "{key}: {stderr}"
+        );
+    }
+    // no responsible person
+    let text = with_line(&with_line(&full, "operator", None), "approved_by", None);
+    std::fs::write(&meta, text).unwrap();
+    let stderr = refused(&dir, DATA, &["--budget", BUDGET, "--meta", meta_text]);
+    assert!(stderr.contains("`approved_by`"), "{stderr}");
+    // a date the schema cannot take, named with its source
+    let text = with_line(
+        &full,
+        "date_of_measurement",
+        Some("date_of_measurement = \"3 Nov 2026\""),
+    );
+    std::fs::write(&meta, text).unwrap();
+    let stderr = refused(&dir, DATA, &["--budget", BUDGET, "--meta", meta_text]);
+    assert!(
+        stderr.starts_with(&format!("error: {meta_text}: cannot write the DCC: date_of_measurement “3 Nov 2026” is not a date YYYY-MM-DD")),
+        "{stderr}"
+    );
+    // a polygon run without a budget has no U: refused, the flag named
+    let stderr = refused(&dir, DATA, &["--meta", META]);
+    assert!(
+        stderr.contains("expanded uncertainty") && stderr.contains("--budget"),
+        "{stderr}"
+    );
+    // the metadata's own checks: a country code and a place of the DCC's forms
+    for (line, expected) in [
+        ("country = \"Germany\"", "ISO 3166-1"),
+        ("performance_location = \"lab\"", "laboratory, customer"),
+    ] {
+        let key = line.split(' ').next().unwrap();
+        let text = with_line(&full, key, Some(line));
+        std::fs::write(&meta, &text).unwrap();
+        let row = text.lines().position(|l| l == line).unwrap() + 1;
+        let column = line.find('"').unwrap() + 1;
+        let stderr = refused(&dir, DATA, &["--budget", BUDGET, "--meta", meta_text]);
+        assert!(
+            stderr.starts_with(&format!("error: {meta_text}:{row}:{column}: "))
+                && stderr.contains(expected),
+            "{line}: {stderr}"
+        );
+    }
+}
+
+/// XML specials in every text come back as written; control characters are refused
+/// where they are read, with their position; nothing is written.
+#[test]
+fn xml_specials_survive_and_control_characters_are_refused() {
+    let dir = temp_dir("specials");
+    let full = std::fs::read_to_string(root().join(META)).unwrap();
+    let tricky = "Smith & Sons <Optics> \"Ltd\" 'GmbH' ]]> &amp; <!-- -- --> \u{feff}≤ ″ \u{202e}";
+    let toml_value = tricky.replace('\\', "\\\\").replace('"', "\\\"");
+    let customer_line = format!("customer = \"{toml_value}\"");
+    let notes_line = format!("notes = \"{toml_value}\"");
+    let text = with_line(
+        &with_line(&full, "customer", Some(&customer_line)),
+        "notes",
+        Some(&notes_line),
+    );
+    let meta = dir.join("meta.toml");
+    let meta_text = meta.to_str().unwrap();
+    std::fs::write(&meta, &text).unwrap();
+    let (_, xml) = dcc(
+        &dir,
+        "c.xml",
+        &[DATA, "--budget", BUDGET, "--meta", meta_text],
+    );
+    let doc = Document::parse(&xml).unwrap();
+    let customer = doc
+        .descendants()
+        .find(|n| n.tag_name().name() == "customer")
+        .map(name_of)
+        .unwrap();
+    assert_eq!(customer, tricky);
+    assert!(
+        doc.descendants()
+            .filter(|n| n.tag_name().name() == "content")
+            .any(|n| n.text() == Some(tricky)),
+        "the notes"
+    );
+    // a control character: refused at the metadata file's value
+    let bad = with_line(&full, "customer", Some("customer = \"Acme\\u0001 Ltd\""));
+    std::fs::write(&meta, &bad).unwrap();
+    let row = bad
+        .lines()
+        .position(|l| l.starts_with("customer ="))
+        .unwrap()
+        + 1;
+    let stderr = refused(&dir, DATA, &["--budget", BUDGET, "--meta", meta_text]);
+    assert!(
+        stderr.starts_with(&format!("error: {meta_text}:{row}:12: ")) && stderr.contains("U+0001"),
+        "{stderr}"
+    );
+    // in a comment line of the measurement file: refused at its line and column
+    let data = dir.join("data.csv");
+    let original = std::fs::read_to_string(root().join(DATA)).unwrap();
+    std::fs::write(&data, format!("# customer: Acme\u{1b}[31m\n{original}")).unwrap();
+    let data_text = data.to_str().unwrap();
+    let stderr = refused(&dir, data_text, &["--budget", BUDGET]);
+    assert!(
+        stderr.starts_with(&format!("error: {data_text}:1:17: ")) && stderr.contains("U+001B"),
+        "{stderr}"
+    );
+}
