@@ -207,6 +207,35 @@ mod tests {
         );
     }
 
+    proptest::proptest! {
+        /// Any text without a control character reads back from the document as written
+        /// (an independent parser: roxmltree); with one, the writer refuses it.
+        #[test]
+        fn any_text_reads_back_or_is_refused(text in "\\PC*|.*[\u{0}-\u{1f}\u{7f}-\u{9f}].*") {
+            let mut xml = Xml::new();
+            xml.open("dcc:root", &[("xmlns:dcc", DCC_NAMESPACE)]);
+            let written = xml.text("dcc:content", &[("refType", &text)], &text);
+            let refused = crate::certificate::meta::control_character(&text).is_some();
+            proptest::prop_assert_eq!(written.is_err(), refused);
+            if !refused {
+                let document = xml.finish();
+                let parsed = roxmltree::Document::parse(&document).map_err(|e| {
+                    proptest::test_runner::TestCaseError::fail(format!("{e}: {document}"))
+                })?;
+                let content = parsed
+                    .descendants()
+                    .find(|n| n.tag_name().name() == "content")
+                    .ok_or_else(|| proptest::test_runner::TestCaseError::fail("no content"))?;
+                // XML normalises line ends (CR LF and CR become LF) in text and attributes'
+                // whitespace to spaces: compare after the same normalisation
+                let normalised = text.replace("\r\n", "\n").replace('\r', "\n");
+                proptest::prop_assert_eq!(content.text().unwrap_or(""), normalised.as_str());
+                let attribute = normalised.replace(['\n', '\t'], " ");
+                proptest::prop_assert_eq!(content.attribute("refType"), Some(attribute.as_str()));
+            }
+        }
+    }
+
     #[test]
     fn numbers_take_the_d_si_forms() {
         assert_eq!(real(-0.0, "x").unwrap(), "0.0");
