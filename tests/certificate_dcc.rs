@@ -668,3 +668,55 @@ fn xml_specials_survive_and_control_characters_are_refused() {
         "{stderr}"
     );
 }
+
+/// A run with a drift: the diagnosis adds it, and the DCC carries the final model's β, α,
+/// U and k (`polycal_finalModel…`) as `diagnose --budget` prints them, beside the
+/// evaluation's, which stay `solve`'s.
+#[test]
+fn a_diagnosis_that_adds_effects_gives_the_final_models_results() {
+    let dir = temp_dir("final");
+    let data = dir.join("drift.csv");
+    let out = polycal(&[
+        "simulate",
+        "--drift",
+        "2:2.0",
+        "--seed",
+        "7",
+        "--out",
+        data.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0));
+    let data_text = data.to_str().unwrap();
+    let (_, text) = dcc(
+        &dir,
+        "c.xml",
+        &[data_text, "--budget", BUDGET, "--diagnose", "--meta", META],
+    );
+    let doc = Document::parse(&text).unwrap();
+    let diagnosed = json(&[
+        "diagnose", data_text, "--budget", BUDGET, "--format", "json",
+    ]);
+    assert!(
+        !diagnosed["effects"].as_array().unwrap().is_empty(),
+        "the drift is found"
+    );
+    let after = &diagnosed["after"];
+    let beta = si_list(
+        &doc,
+        "polycal_finalModelPitchDeviations",
+        "Pitch deviation β",
+    );
+    assert_eq!(beta.values, numbers(&after["pitch_deviation"]));
+    assert_eq!(beta.expanded_u, numbers(&after["pitch_deviation_U"]));
+    assert_eq!(beta.k, numbers(&after["pitch_deviation_k"]));
+    let alpha = si_list(&doc, "polycal_finalModelEncoderErrors", "Encoder error α");
+    assert_eq!(alpha.values, numbers(&after["encoder_error"]));
+    assert_eq!(alpha.expanded_u, numbers(&after["encoder_error_U"]));
+    // the evaluation's results stay solve's (without the drift)
+    let solve = json(&["solve", data_text, "--budget", BUDGET, "--format", "json"]);
+    let evaluated = si_list(&doc, "polycal_pitchDeviations", "Pitch deviation β");
+    assert_eq!(evaluated.values, numbers(&solve["pitch_deviation"]));
+    assert_ne!(evaluated.values, beta.values);
+    // the effect is named in the diagnosis
+    assert!(text.contains("Effect found: drift"), "the drift in words");
+}

@@ -3,124 +3,12 @@
 //! D-SI lists with U, k and p per value, the fit, the diagnosis, the comparison — and the
 //! SHA-256 of every input.
 
-use super::xml::{self, Xml};
+use super::calibrated::{Column, Stage, polygon_results, real_quantity, selfcal_results};
+use super::xml::Xml;
 use super::{DccError, METHOD_REFERENCE, equipment, software};
-use crate::certificate::{CalibrationReport, DesignSummary, Evaluation, effect_text};
-use crate::output::SolveReport;
-use crate::output::selfcal::SelfcalReport;
-
-/// A D-SI list of values with one unit, and per value its U, k and p when given.
-struct Column<'a> {
-    refs: &'a str,
-    name: &'a str,
-    unit: &'a str,
-    labels: Option<Vec<String>>,
-    values: Vec<f64>,
-    /// (U, k) per value, and p.
-    expanded: Option<(Vec<f64>, Vec<f64>, f64)>,
-}
-
-impl Column<'_> {
-    fn write(&self, x: &mut Xml) -> Result<(), DccError> {
-        x.open("dcc:quantity", &[("refType", self.refs)]);
-        x.content("dcc:name", self.name)?;
-        x.open("si:realListXMLList", &[]);
-        if let Some(labels) = &self.labels {
-            x.text("si:labelXMLList", &[], &labels.join(" "))?;
-        }
-        let what = |i: usize| format!("{} {}", self.name, i + 1);
-        let values = self
-            .values
-            .iter()
-            .enumerate()
-            .map(|(i, &v)| xml::real(v, &what(i)))
-            .collect::<Result<Vec<_>, _>>()?;
-        x.text("si:valueXMLList", &[], &values.join(" "))?;
-        x.text("si:unitXMLList", &[], self.unit)?;
-        if let Some((expanded_u, k, p)) = &self.expanded {
-            let expanded_u = expanded_u
-                .iter()
-                .enumerate()
-                .map(|(i, &u)| xml::uncertainty(u, &format!("U of {}", what(i))))
-                .collect::<Result<Vec<_>, _>>()?;
-            let k = k
-                .iter()
-                .enumerate()
-                .map(|(i, &k)| xml::coverage_factor(k, &what(i)))
-                .collect::<Result<Vec<_>, _>>()?;
-            let p = vec![xml::coverage_probability(*p)?; k.len()];
-            x.open("si:expandedUncXMLList", &[]);
-            x.text("si:uncertaintyXMLList", &[], &expanded_u.join(" "))?;
-            x.text("si:coverageFactorXMLList", &[], &k.join(" "))?;
-            x.text("si:coverageProbabilityXMLList", &[], &p.join(" "))?;
-            x.close();
-        }
-        x.close();
-        x.close();
-        Ok(())
-    }
-}
-
-/// One `result` of a list of columns.
-fn list_result(
-    x: &mut Xml,
-    refs: &str,
-    item: Option<&str>,
-    name: &str,
-    description: &str,
-    columns: &[Column],
-) -> Result<(), DccError> {
-    let mut attributes = vec![("refType", refs)];
-    if let Some(item) = item {
-        attributes.push(("refId", item));
-    }
-    x.open("dcc:result", &attributes);
-    x.content("dcc:name", name)?;
-    x.content("dcc:description", description)?;
-    x.open("dcc:data", &[]);
-    x.open("dcc:list", &[]);
-    for column in columns {
-        column.write(x)?;
-    }
-    x.close();
-    x.close();
-    x.close();
-    Ok(())
-}
-
-/// One `result` of a single value.
-fn real_result(
-    x: &mut Xml,
-    refs: &str,
-    name: &str,
-    value: f64,
-    unit: &str,
-) -> Result<(), DccError> {
-    x.open("dcc:result", &[("refType", refs)]);
-    x.content("dcc:name", name)?;
-    x.open("dcc:data", &[]);
-    x.open("dcc:quantity", &[]);
-    x.open("si:real", &[]);
-    x.text("si:value", &[], &xml::real(value, name)?)?;
-    x.text("si:unit", &[], unit)?;
-    x.close();
-    x.close();
-    x.close();
-    x.close();
-    Ok(())
-}
-
-/// Index labels `prefix1 prefix2 …` from the numbers given.
-fn labels(prefix: &str, numbers: impl Iterator<Item = usize>) -> Vec<String> {
-    numbers.map(|n| format!("{prefix}{n}")).collect()
-}
-
-/// The k of each value, refused when one is missing.
-fn every_k(k: &[Option<f64>], what: &'static str) -> Result<Vec<f64>, DccError> {
-    k.iter()
-        .map(|k| k.ok_or(DccError::NoExpandedUncertainty { what }))
-        .collect()
-}
+use crate::certificate::{
+    CalibrationReport, DesignSummary, DiagnosisReport, Evaluation, effect_text,
+};
 
 /// The uncertainty statement: GUM, p, how k is found, the budget.
 pub(super) fn uncertainty_statement(report: &CalibrationReport) -> String {
@@ -269,10 +157,11 @@ pub(super) fn measurement_results(x: &mut Xml, report: &CalibrationReport) -> Re
     influence_conditions(x, report)?;
     x.open("dcc:results", &[]);
     match &report.evaluation {
-        Evaluation::Polygon { solve, .. } => polygon_results(x, solve)?,
-        Evaluation::Selfcal { report: r, .. } => selfcal_results(x, r)?,
+        Evaluation::Polygon { solve, .. } => polygon_results(x, solve, Stage::Evaluation)?,
+        Evaluation::Selfcal { report: r, .. } => selfcal_results(x, r, Stage::Evaluation)?,
     }
     diagnosis(x, report)?;
+    final_model(x, report)?;
     comparison(x, report)?;
     x.close();
     x.open("dcc:measurementMetaData", &[]);
@@ -350,12 +239,7 @@ fn influence_conditions(x: &mut Xml, report: &CalibrationReport) -> Result<(), D
         x.open("dcc:influenceCondition", &[("refType", refs)]);
         x.content("dcc:name", name)?;
         x.open("dcc:data", &[]);
-        x.open("dcc:quantity", &[]);
-        x.open("si:real", &[]);
-        x.text("si:value", &[], &xml::real(value, name)?)?;
-        x.text("si:unit", &[], unit)?;
-        x.close();
-        x.close();
+        real_quantity(x, value, unit, name)?;
         x.close();
         x.close();
     }
@@ -443,229 +327,6 @@ fn influence_conditions(x: &mut Xml, report: &CalibrationReport) -> Result<(), D
     Ok(())
 }
 
-/// β, φ and α with U, k, p, and the fit.
-fn polygon_results(x: &mut Xml, solve: &SolveReport) -> Result<(), DccError> {
-    let missing = DccError::NoExpandedUncertainty {
-        what: "the polygon calibration",
-    };
-    let (
-        Some(p),
-        Some(beta_u),
-        Some(beta_k),
-        Some(phi_u),
-        Some(phi_k),
-        Some(alpha_u),
-        Some(alpha_k),
-    ) = (
-        solve.p,
-        &solve.pitch_deviation_expanded_u,
-        &solve.pitch_deviation_k,
-        &solve.face_deviation_expanded_u,
-        &solve.face_deviation_k,
-        &solve.encoder_error_expanded_u,
-        &solve.encoder_error_k,
-    )
-    else {
-        return Err(missing);
-    };
-    let n = solve.faces;
-    let face_numbers = || (1..=n).map(|f| f as f64).collect::<Vec<_>>();
-    list_result(
-        x,
-        "polycal_pitchDeviations",
-        Some("polygon"),
-        "Pitch deviations β of the polygon",
-        "β[k] is the deviation of the angle between faces k−1 and k (face 0 is face N) from 360°/N, arcseconds; Σβ = 0 (the reference's eq. (1)). One value per face, with its expanded uncertainty U, coverage factor k and coverage probability.",
-        &[
-            Column {
-                refs: "polycal_faceNumber",
-                name: "Face",
-                unit: "\\one",
-                labels: None,
-                values: face_numbers(),
-                expanded: None,
-            },
-            Column {
-                refs: "basic_measurementError polycal_pitchDeviation",
-                name: "Pitch deviation β",
-                unit: "\\arcsecond",
-                labels: Some(labels("beta", 1..=n)),
-                values: solve.pitch_deviation.clone(),
-                expanded: Some((beta_u.clone(), every_k(beta_k, "a pitch deviation")?, p)),
-            },
-        ],
-    )?;
-    // φ[N] = 0 by definition (the reference face): no uncertainty, not listed
-    let m = n.saturating_sub(1);
-    list_result(
-        x,
-        "polycal_faceDeviations",
-        Some("polygon"),
-        "Face deviations φ of the polygon",
-        "φ[f] = β[1] + … + β[f] is the deviation of face f's angle from f·360°/N, arcseconds, with face N the reference (φ[N] = 0 by definition, not listed).",
-        &[
-            Column {
-                refs: "polycal_faceNumber",
-                name: "Face",
-                unit: "\\one",
-                labels: None,
-                values: face_numbers()[..m].to_vec(),
-                expanded: None,
-            },
-            Column {
-                refs: "basic_measurementError polycal_faceDeviation",
-                name: "Face deviation φ",
-                unit: "\\arcsecond",
-                labels: Some(labels("phi", 1..=m)),
-                values: solve.face_deviation[..m].to_vec(),
-                expanded: Some((
-                    phi_u[..m].to_vec(),
-                    every_k(&phi_k[..m], "a face deviation")?,
-                    p,
-                )),
-            },
-        ],
-    )?;
-    let angles = solve.encoder_angle_deg.clone().unwrap_or_else(|| {
-        let positions = solve.encoder_error.len();
-        (0..positions)
-            .map(|step| crate::measurement::step_angle_deg(step as u32, positions))
-            .collect()
-    });
-    list_result(
-        x,
-        "polycal_encoderErrors",
-        Some("encoder"),
-        "Encoder errors α of the rotary table",
-        "α[p] is the error of the encoder at step p, the table at p·360°/N, arcseconds; Σα = 0 (the reference's eq. (3)).",
-        &[
-            Column {
-                refs: "basic_nominalValue polycal_tableAngle",
-                name: "Table angle",
-                unit: "\\degree",
-                labels: None,
-                values: angles,
-                expanded: None,
-            },
-            Column {
-                refs: "basic_measurementError polycal_encoderError",
-                name: "Encoder error α",
-                unit: "\\arcsecond",
-                labels: Some(labels("alpha", 0..solve.encoder_error.len())),
-                values: solve.encoder_error.clone(),
-                expanded: Some((alpha_u.clone(), every_k(alpha_k, "an encoder error")?, p)),
-            },
-        ],
-    )?;
-    fit(x, solve.residual_rms, solve.dof)
-}
-
-/// The residual RMS and the degrees of freedom of the fit.
-fn fit(x: &mut Xml, residual_rms: Option<f64>, dof: usize) -> Result<(), DccError> {
-    if let Some(rms) = residual_rms {
-        real_result(
-            x,
-            "polycal_residualRms",
-            "Residual RMS of the fit",
-            rms,
-            "\\arcsecond",
-        )?;
-    }
-    real_result(
-        x,
-        "polycal_residualDof",
-        "Residual degrees of freedom of the fit",
-        dof as f64,
-        "\\one",
-    )
-}
-
-/// A self-calibration's e and head errors with U, k, p, and the fit.
-fn selfcal_results(x: &mut Xml, r: &SelfcalReport) -> Result<(), DccError> {
-    let (Some(expanded_u), Some(k)) = (&r.encoder_error_expanded_u, &r.encoder_error_k) else {
-        return Err(DccError::NoExpandedUncertainty {
-            what: "the self-calibration (σ of the readings unknown)",
-        });
-    };
-    let mut description =
-        "e[p] is the encoder error at position p, arcseconds, with Σe = 0.".to_string();
-    for note in &r.notes {
-        description.push(' ');
-        description.push_str(note);
-        description.push('.');
-    }
-    list_result(
-        x,
-        "polycal_encoderErrors",
-        Some("encoder"),
-        "Encoder errors e of the rotary table",
-        &description,
-        &[
-            Column {
-                refs: "basic_nominalValue polycal_tableAngle",
-                name: "Table angle",
-                unit: "\\degree",
-                labels: None,
-                values: r.encoder_angle_deg.clone(),
-                expanded: None,
-            },
-            Column {
-                refs: "basic_measurementError polycal_encoderError",
-                name: "Encoder error e",
-                unit: "\\arcsecond",
-                labels: Some(labels("e", 0..r.encoder_error.len())),
-                values: r.encoder_error.clone(),
-                expanded: Some((expanded_u.clone(), k.clone(), r.p)),
-            },
-        ],
-    )?;
-    if !r.head_error.is_empty() {
-        let expanded = r
-            .head_error
-            .iter()
-            .map(|h| h.expanded_u.zip(h.k))
-            .collect::<Option<Vec<_>>>()
-            .ok_or(DccError::NoExpandedUncertainty {
-                what: "a head error",
-            })?;
-        list_result(
-            x,
-            "polycal_headErrors",
-            Some("encoder"),
-            "Errors of the reading heads",
-            "c[j] − c[1]: the error of head j's angle relative to head 1, arcseconds, at the head's nominal angle.",
-            &[
-                Column {
-                    refs: "basic_nominalValue polycal_headAngle",
-                    name: "Head angle",
-                    unit: "\\degree",
-                    labels: None,
-                    values: r.head_error.iter().map(|h| h.angle_deg).collect(),
-                    expanded: None,
-                },
-                Column {
-                    refs: "basic_measurementError polycal_headError",
-                    name: "Head error",
-                    unit: "\\arcsecond",
-                    labels: Some(
-                        r.head_error
-                            .iter()
-                            .map(|h| format!("head{}", h.head))
-                            .collect(),
-                    ),
-                    values: r.head_error.iter().map(|h| h.value).collect(),
-                    expanded: Some((
-                        expanded.iter().map(|e| e.0).collect(),
-                        expanded.iter().map(|e| e.1).collect(),
-                        r.p,
-                    )),
-                },
-            ],
-        )?;
-    }
-    fit(x, r.residual_rms, r.dof)
-}
-
 /// The diagnosis: the verdict, the checks and the effects found, in words.
 fn diagnosis(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     let Some(d) = &report.diagnosis else {
@@ -676,7 +337,7 @@ fn diagnosis(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     x.content("dcc:name", "Diagnosis of the measurement model")?;
     x.content(
         "dcc:description",
-        "The residuals of the fit examined for effects the model lacks (drifts, jumps of an autocollimator's zero, outliers, direction offsets, cross-talk, temperature); the effects found are added to the model and the final model checked. The results above are those of the evaluation without the effects.",
+        "The residuals of the fit examined for effects the model lacks (drifts, jumps of an autocollimator's zero, outliers, direction offsets, cross-talk, temperature); the effects found are added to the model and the final model checked. The results above are those of the evaluation without the effects; when effects were found, the final model's results follow (refType polycal_finalModel…).",
     )?;
     x.open("dcc:data", &[]);
     x.open("dcc:quantity", &[("refType", "polycal_adequacy")]);
@@ -715,6 +376,20 @@ fn diagnosis(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     x.close();
     x.close();
     Ok(())
+}
+
+/// The diagnosis's final model, when it added effects: its results as the evaluation's,
+/// under the `polycal_finalModel…` refTypes.
+fn final_model(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
+    match &report.diagnosis {
+        Some(DiagnosisReport::Polygon(d)) if !d.effects.is_empty() => {
+            polygon_results(x, &d.after, Stage::FinalModel)
+        }
+        Some(DiagnosisReport::Selfcal(d)) if !d.effects.is_empty() => {
+            selfcal_results(x, &d.after, Stage::FinalModel)
+        }
+        _ => Ok(()),
+    }
 }
 
 /// The comparison with the reference: En of every row and the verdict.

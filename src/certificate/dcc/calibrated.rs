@@ -1,0 +1,400 @@
+//! The calibrated quantities of a DCC as D-SI lists — β, φ, α, or a self-calibration's e
+//! and head errors, each value with its U, k and p — and the fit, for the evaluation and
+//! for the diagnosis's final model.
+
+use super::DccError;
+use super::xml::{self, Xml};
+use crate::output::SolveReport;
+use crate::output::selfcal::SelfcalReport;
+
+/// Whose results: the evaluation's (the HTML report's results section) or the
+/// diagnosis's final model (its section's final tables).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Stage {
+    /// The evaluation without the diagnosis's effects.
+    Evaluation,
+    /// The diagnosis's final model, its effects included.
+    FinalModel,
+}
+
+impl Stage {
+    /// The result's `refType`: `polycal_pitchDeviations`, or
+    /// `polycal_finalModelPitchDeviations` for the final model.
+    pub(super) fn ref_type(self, base: &str) -> String {
+        match self {
+            Stage::Evaluation => format!("polycal_{base}"),
+            Stage::FinalModel => {
+                let mut chars = base.chars();
+                let first = chars.next().map(|c| c.to_ascii_uppercase());
+                format!(
+                    "polycal_finalModel{}{}",
+                    first.map(String::from).unwrap_or_default(),
+                    chars.as_str()
+                )
+            }
+        }
+    }
+
+    /// The result's name, `Final model: …` for the final model.
+    pub(super) fn name(self, base: &str) -> String {
+        match self {
+            Stage::Evaluation => base.to_string(),
+            Stage::FinalModel => format!("Final model of the diagnosis: {base}"),
+        }
+    }
+}
+
+/// A D-SI list of values with one unit, and per value its U, k and p when given.
+pub(super) struct Column<'a> {
+    pub(super) refs: &'a str,
+    pub(super) name: &'a str,
+    pub(super) unit: &'a str,
+    pub(super) labels: Option<Vec<String>>,
+    pub(super) values: Vec<f64>,
+    /// (U, k) per value, and p.
+    pub(super) expanded: Option<(Vec<f64>, Vec<f64>, f64)>,
+}
+
+impl Column<'_> {
+    pub(super) fn write(&self, x: &mut Xml) -> Result<(), DccError> {
+        x.open("dcc:quantity", &[("refType", self.refs)]);
+        x.content("dcc:name", self.name)?;
+        x.open("si:realListXMLList", &[]);
+        if let Some(labels) = &self.labels {
+            x.text("si:labelXMLList", &[], &labels.join(" "))?;
+        }
+        let what = |i: usize| format!("{} {}", self.name, i + 1);
+        let values = self
+            .values
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| xml::real(v, &what(i)))
+            .collect::<Result<Vec<_>, _>>()?;
+        x.text("si:valueXMLList", &[], &values.join(" "))?;
+        x.text("si:unitXMLList", &[], self.unit)?;
+        if let Some((expanded_u, k, p)) = &self.expanded {
+            let expanded_u = expanded_u
+                .iter()
+                .enumerate()
+                .map(|(i, &u)| xml::uncertainty(u, &format!("U of {}", what(i))))
+                .collect::<Result<Vec<_>, _>>()?;
+            let k = k
+                .iter()
+                .enumerate()
+                .map(|(i, &k)| xml::coverage_factor(k, &what(i)))
+                .collect::<Result<Vec<_>, _>>()?;
+            let p = vec![xml::coverage_probability(*p)?; k.len()];
+            x.open("si:expandedUncXMLList", &[]);
+            x.text("si:uncertaintyXMLList", &[], &expanded_u.join(" "))?;
+            x.text("si:coverageFactorXMLList", &[], &k.join(" "))?;
+            x.text("si:coverageProbabilityXMLList", &[], &p.join(" "))?;
+            x.close();
+        }
+        x.close();
+        x.close();
+        Ok(())
+    }
+}
+
+/// One `result` of a list of columns.
+fn list_result(
+    x: &mut Xml,
+    refs: &str,
+    item: Option<&str>,
+    name: &str,
+    description: &str,
+    columns: &[Column],
+) -> Result<(), DccError> {
+    let mut attributes = vec![("refType", refs)];
+    if let Some(item) = item {
+        attributes.push(("refId", item));
+    }
+    x.open("dcc:result", &attributes);
+    x.content("dcc:name", name)?;
+    x.content("dcc:description", description)?;
+    x.open("dcc:data", &[]);
+    x.open("dcc:list", &[]);
+    for column in columns {
+        column.write(x)?;
+    }
+    x.close();
+    x.close();
+    x.close();
+    Ok(())
+}
+
+/// One `result` of a single value.
+fn real_result(
+    x: &mut Xml,
+    refs: &str,
+    name: &str,
+    value: f64,
+    unit: &str,
+) -> Result<(), DccError> {
+    x.open("dcc:result", &[("refType", refs)]);
+    x.content("dcc:name", name)?;
+    x.open("dcc:data", &[]);
+    real_quantity(x, value, unit, name)?;
+    x.close();
+    x.close();
+    Ok(())
+}
+
+/// `<dcc:quantity><si:real>` of one value and its unit (`what` names it in a refusal).
+pub(super) fn real_quantity(
+    x: &mut Xml,
+    value: f64,
+    unit: &str,
+    what: &str,
+) -> Result<(), DccError> {
+    x.open("dcc:quantity", &[]);
+    x.open("si:real", &[]);
+    x.text("si:value", &[], &xml::real(value, what)?)?;
+    x.text("si:unit", &[], unit)?;
+    x.close();
+    x.close();
+    Ok(())
+}
+
+/// Index labels `prefix1 prefix2 …` from the numbers given.
+fn labels(prefix: &str, numbers: impl Iterator<Item = usize>) -> Vec<String> {
+    numbers.map(|n| format!("{prefix}{n}")).collect()
+}
+
+/// The k of each value, refused when one is missing.
+fn every_k(k: &[Option<f64>], what: &'static str) -> Result<Vec<f64>, DccError> {
+    k.iter()
+        .map(|k| k.ok_or(DccError::NoExpandedUncertainty { what }))
+        .collect()
+}
+
+/// β, φ and α with U, k, p, and the fit.
+pub(super) fn polygon_results(
+    x: &mut Xml,
+    solve: &SolveReport,
+    stage: Stage,
+) -> Result<(), DccError> {
+    let missing = DccError::NoExpandedUncertainty {
+        what: "the polygon calibration",
+    };
+    let (
+        Some(p),
+        Some(beta_u),
+        Some(beta_k),
+        Some(phi_u),
+        Some(phi_k),
+        Some(alpha_u),
+        Some(alpha_k),
+    ) = (
+        solve.p,
+        &solve.pitch_deviation_expanded_u,
+        &solve.pitch_deviation_k,
+        &solve.face_deviation_expanded_u,
+        &solve.face_deviation_k,
+        &solve.encoder_error_expanded_u,
+        &solve.encoder_error_k,
+    )
+    else {
+        return Err(missing);
+    };
+    let n = solve.faces;
+    let face_numbers = || (1..=n).map(|f| f as f64).collect::<Vec<_>>();
+    list_result(
+        x,
+        &stage.ref_type("pitchDeviations"),
+        Some("polygon"),
+        &stage.name("Pitch deviations β of the polygon"),
+        "β[k] is the deviation of the angle between faces k−1 and k (face 0 is face N) from 360°/N, arcseconds; Σβ = 0 (the reference's eq. (1)). One value per face, with its expanded uncertainty U, coverage factor k and coverage probability.",
+        &[
+            Column {
+                refs: "polycal_faceNumber",
+                name: "Face",
+                unit: "\\one",
+                labels: None,
+                values: face_numbers(),
+                expanded: None,
+            },
+            Column {
+                refs: "basic_measurementError polycal_pitchDeviation",
+                name: "Pitch deviation β",
+                unit: "\\arcsecond",
+                labels: Some(labels("beta", 1..=n)),
+                values: solve.pitch_deviation.clone(),
+                expanded: Some((beta_u.clone(), every_k(beta_k, "a pitch deviation")?, p)),
+            },
+        ],
+    )?;
+    // φ[N] = 0 by definition (the reference face): no uncertainty, not listed
+    let m = n.saturating_sub(1);
+    list_result(
+        x,
+        &stage.ref_type("faceDeviations"),
+        Some("polygon"),
+        &stage.name("Face deviations φ of the polygon"),
+        "φ[f] = β[1] + … + β[f] is the deviation of face f's angle from f·360°/N, arcseconds, with face N the reference (φ[N] = 0 by definition, not listed).",
+        &[
+            Column {
+                refs: "polycal_faceNumber",
+                name: "Face",
+                unit: "\\one",
+                labels: None,
+                values: face_numbers()[..m].to_vec(),
+                expanded: None,
+            },
+            Column {
+                refs: "basic_measurementError polycal_faceDeviation",
+                name: "Face deviation φ",
+                unit: "\\arcsecond",
+                labels: Some(labels("phi", 1..=m)),
+                values: solve.face_deviation[..m].to_vec(),
+                expanded: Some((
+                    phi_u[..m].to_vec(),
+                    every_k(&phi_k[..m], "a face deviation")?,
+                    p,
+                )),
+            },
+        ],
+    )?;
+    let angles = solve.encoder_angle_deg.clone().unwrap_or_else(|| {
+        let positions = solve.encoder_error.len();
+        (0..positions)
+            .map(|step| crate::measurement::step_angle_deg(step as u32, positions))
+            .collect()
+    });
+    list_result(
+        x,
+        &stage.ref_type("encoderErrors"),
+        Some("encoder"),
+        &stage.name("Encoder errors α of the rotary table"),
+        "α[p] is the error of the encoder at step p, the table at p·360°/N, arcseconds; Σα = 0 (the reference's eq. (3)).",
+        &[
+            Column {
+                refs: "basic_nominalValue polycal_tableAngle",
+                name: "Table angle",
+                unit: "\\degree",
+                labels: None,
+                values: angles,
+                expanded: None,
+            },
+            Column {
+                refs: "basic_measurementError polycal_encoderError",
+                name: "Encoder error α",
+                unit: "\\arcsecond",
+                labels: Some(labels("alpha", 0..solve.encoder_error.len())),
+                values: solve.encoder_error.clone(),
+                expanded: Some((alpha_u.clone(), every_k(alpha_k, "an encoder error")?, p)),
+            },
+        ],
+    )?;
+    fit(x, solve.residual_rms, solve.dof, stage)
+}
+
+/// The residual RMS and the degrees of freedom of the fit.
+fn fit(x: &mut Xml, residual_rms: Option<f64>, dof: usize, stage: Stage) -> Result<(), DccError> {
+    if let Some(rms) = residual_rms {
+        real_result(
+            x,
+            &stage.ref_type("residualRms"),
+            &stage.name("Residual RMS of the fit"),
+            rms,
+            "\\arcsecond",
+        )?;
+    }
+    real_result(
+        x,
+        &stage.ref_type("residualDof"),
+        &stage.name("Residual degrees of freedom of the fit"),
+        dof as f64,
+        "\\one",
+    )
+}
+
+/// A self-calibration's e and head errors with U, k, p, and the fit.
+pub(super) fn selfcal_results(
+    x: &mut Xml,
+    r: &SelfcalReport,
+    stage: Stage,
+) -> Result<(), DccError> {
+    let (Some(expanded_u), Some(k)) = (&r.encoder_error_expanded_u, &r.encoder_error_k) else {
+        return Err(DccError::NoExpandedUncertainty {
+            what: "the self-calibration (σ of the readings unknown)",
+        });
+    };
+    let mut description =
+        "e[p] is the encoder error at position p, arcseconds, with Σe = 0.".to_string();
+    for note in &r.notes {
+        description.push(' ');
+        description.push_str(note);
+        description.push('.');
+    }
+    list_result(
+        x,
+        &stage.ref_type("encoderErrors"),
+        Some("encoder"),
+        &stage.name("Encoder errors e of the rotary table"),
+        &description,
+        &[
+            Column {
+                refs: "basic_nominalValue polycal_tableAngle",
+                name: "Table angle",
+                unit: "\\degree",
+                labels: None,
+                values: r.encoder_angle_deg.clone(),
+                expanded: None,
+            },
+            Column {
+                refs: "basic_measurementError polycal_encoderError",
+                name: "Encoder error e",
+                unit: "\\arcsecond",
+                labels: Some(labels("e", 0..r.encoder_error.len())),
+                values: r.encoder_error.clone(),
+                expanded: Some((expanded_u.clone(), k.clone(), r.p)),
+            },
+        ],
+    )?;
+    if !r.head_error.is_empty() {
+        let expanded = r
+            .head_error
+            .iter()
+            .map(|h| h.expanded_u.zip(h.k))
+            .collect::<Option<Vec<_>>>()
+            .ok_or(DccError::NoExpandedUncertainty {
+                what: "a head error",
+            })?;
+        list_result(
+            x,
+            &stage.ref_type("headErrors"),
+            Some("encoder"),
+            &stage.name("Errors of the reading heads"),
+            "c[j] − c[1]: the error of head j's angle relative to head 1, arcseconds, at the head's nominal angle.",
+            &[
+                Column {
+                    refs: "basic_nominalValue polycal_headAngle",
+                    name: "Head angle",
+                    unit: "\\degree",
+                    labels: None,
+                    values: r.head_error.iter().map(|h| h.angle_deg).collect(),
+                    expanded: None,
+                },
+                Column {
+                    refs: "basic_measurementError polycal_headError",
+                    name: "Head error",
+                    unit: "\\arcsecond",
+                    labels: Some(
+                        r.head_error
+                            .iter()
+                            .map(|h| format!("head{}", h.head))
+                            .collect(),
+                    ),
+                    values: r.head_error.iter().map(|h| h.value).collect(),
+                    expanded: Some((
+                        expanded.iter().map(|e| e.0).collect(),
+                        expanded.iter().map(|e| e.1).collect(),
+                        r.p,
+                    )),
+                },
+            ],
+        )?;
+    }
+    fit(x, r.residual_rms, r.dof, stage)
+}
