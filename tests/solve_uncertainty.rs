@@ -156,3 +156,70 @@ fn bare_cycle_pitch_covariance_by_hand() {
         }
     }
 }
+
+/// `Solution::family_covariance`: each family's block of σ²Q, its diagonal the family's
+/// u², symmetric; φ's block the double prefix sum of β's (checked here by summing the
+/// whole covariance matrix directly), on a design with closing readings and two setups.
+#[test]
+fn family_covariances_are_blocks_of_the_whole_covariance() {
+    use polycal::results::Quantity;
+    use polycal::simulate::{SimulationConfig, simulate};
+    use polycal::solve::{SolveOptions, solve};
+    let (set, _) = simulate(&SimulationConfig {
+        faces: 9,
+        setups: 2,
+        setup_shift_faces: 2,
+        cycles: 3,
+        ..SimulationConfig::default()
+    })
+    .unwrap();
+    let solution = solve(&set, &SolveOptions::default()).unwrap();
+    let whole = solution.covariance().unwrap();
+    let layout = solution.layout;
+    let n = solution.faces;
+    for (family, u) in [
+        (
+            Quantity::PitchDeviation,
+            solution.pitch_deviation_u().unwrap(),
+        ),
+        (
+            Quantity::FaceDeviation,
+            solution.face_deviation_u().unwrap(),
+        ),
+        (Quantity::EncoderError, solution.encoder_error_u().unwrap()),
+        (Quantity::SetupError, solution.setup_error_u().unwrap()),
+    ] {
+        let (m, cov) = solution.family_covariance(family).unwrap();
+        assert_eq!(m, u.len(), "{family:?}");
+        for i in 0..m {
+            assert!(
+                (cov[i * m + i].max(0.0).sqrt() - u[i]).abs() < 1e-12,
+                "{family:?} {i}"
+            );
+            for j in 0..m {
+                assert!((cov[i * m + j] - cov[j * m + i]).abs() < 1e-12);
+                // against the whole matrix
+                let expected = match family {
+                    Quantity::PitchDeviation => whole[(layout.pitch(i + 1), layout.pitch(j + 1))],
+                    Quantity::EncoderError => whole[(layout.encoder(i), layout.encoder(j))],
+                    Quantity::SetupError => whole[(layout.setup(i), layout.setup(j))],
+                    _ => (0..=i)
+                        .flat_map(|a| (0..=j).map(move |b| (a, b)))
+                        .map(|(a, b)| whole[(layout.pitch(a + 1), layout.pitch(b + 1))])
+                        .sum(),
+                };
+                assert!(
+                    (cov[i * m + j] - expected).abs() < 1e-12,
+                    "{family:?} {i} {j}"
+                );
+            }
+        }
+    }
+    assert_eq!(
+        solution
+            .family_covariance(Quantity::PitchDeviation)
+            .unwrap()
+            .0,
+        n
+    );
+}

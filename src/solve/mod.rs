@@ -380,6 +380,83 @@ impl Solution {
         )
     }
 
+    /// The fit's covariance of one family of results, σ²·Q restricted to it (arcsec²),
+    /// row-major `n × n` with `n` its length: β and φ over faces 1 … N, α over positions
+    /// 0 … N−1, the setup errors in [`Solution::setup_error`] order. φ\[f\] = β\[1\] + … +
+    /// β\[f\], so Cov(φ_f, φ_g) = Σ_{i ≤ f, j ≤ g} Cov(β_i, β_j), with φ\[N\]'s row and
+    /// column exactly 0 (φ\[N\] = 0 by definition). Only this family's block
+    /// is formed (O(n²) entries of the cofactor operator), never the whole matrix. `None`
+    /// when σ is unknown (dof = 0 and none stated). Its diagonal is the square of the
+    /// family's `…_u`.
+    ///
+    /// ```
+    /// use polycal::results::Quantity;
+    /// use polycal::simulate::{simulate, SimulationConfig};
+    /// use polycal::solve::{solve, SolveOptions};
+    ///
+    /// let (set, _) = simulate(&SimulationConfig::default())?;
+    /// let solution = solve(&set, &SolveOptions::default())?;
+    /// let (n, cov) = solution.family_covariance(Quantity::EncoderError).unwrap();
+    /// let u = solution.encoder_error_u().unwrap();
+    /// assert_eq!(n, u.len());
+    /// for p in 0..n {
+    ///     assert!((cov[p * n + p] - u[p] * u[p]).abs() < 1e-12);
+    /// }
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn family_covariance(&self, family: crate::results::Quantity) -> Option<(usize, Vec<f64>)> {
+        use crate::results::Quantity;
+        let (s, _) = self.sigma?;
+        let variance = s * s;
+        let block = |indices: &[usize]| -> Vec<f64> {
+            let mut out = Vec::with_capacity(indices.len() * indices.len());
+            for &i in indices {
+                for &j in indices {
+                    out.push(variance * self.cofactor.entry(i, j));
+                }
+            }
+            out
+        };
+        let layout = &self.layout;
+        let n = self.faces;
+        Some(match family {
+            Quantity::PitchDeviation => {
+                let indices: Vec<usize> = (1..=n).map(|f| layout.pitch(f)).collect();
+                (n, block(&indices))
+            }
+            Quantity::EncoderError => {
+                let indices: Vec<usize> = (0..n).map(|p| layout.encoder(p)).collect();
+                (n, block(&indices))
+            }
+            Quantity::SetupError => {
+                let indices: Vec<usize> = (0..layout.setups).map(|k| layout.setup(k)).collect();
+                (layout.setups, block(&indices))
+            }
+            Quantity::FaceDeviation => {
+                let indices: Vec<usize> = (1..=n).map(|f| layout.pitch(f)).collect();
+                // running sums along each row, then down each column:
+                // out[f][g] = Σ_{i ≤ f, j ≤ g} Cov(β_i, β_j)
+                let mut out = block(&indices);
+                for f in 0..n {
+                    for g in 1..n {
+                        out[f * n + g] += out[f * n + g - 1];
+                    }
+                }
+                for f in 1..n {
+                    for g in 0..n {
+                        out[f * n + g] += out[(f - 1) * n + g];
+                    }
+                }
+                // φ[N] = Σβ = 0 by definition: exactly, not to rounding
+                for k in 0..n {
+                    out[(n - 1) * n + k] = 0.0;
+                    out[k * n + n - 1] = 0.0;
+                }
+                (n, out)
+            }
+        })
+    }
+
     /// The polygon as a [`crate::polygon::DPolygon`].
     pub fn polygon(&self) -> crate::polygon::DPolygon {
         crate::polygon::Polygon::<Dyn>::from_pitch_deviation_closed(DVector::from_column_slice(

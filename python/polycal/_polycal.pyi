@@ -1,0 +1,115 @@
+"""Type stubs of the native module (python/src/lib.rs); the package's public API is
+polycal/__init__.py, typed inline."""
+
+from typing import Dict, List, Optional, Sequence, Tuple, Union
+
+class PolycalError(Exception): ...
+
+class InputError(PolycalError):
+    path: str
+    line: int
+    column: int
+
+class DesignError(PolycalError):
+    lost_harmonics: List[int]
+
+class MeasurementSet:
+    @property
+    def faces(self) -> int: ...
+    @property
+    def source(self) -> str: ...
+    def __len__(self) -> int: ...
+    def columns(self) -> Dict[str, list]: ...
+
+class SelfcalSet:
+    def __len__(self) -> int: ...
+
+class Budget: ...
+
+class ResultRows:
+    @property
+    def label(self) -> str: ...
+    def __len__(self) -> int: ...
+
+class SolveResult:
+    def json(self) -> str: ...
+    def rows(self) -> ResultRows: ...
+    def covariance(self, family: str) -> Optional[Tuple[int, List[float]]]: ...
+
+def version() -> str: ...
+def read_measurements(
+    path: Optional[str] = None,
+    text: Optional[str] = None,
+    name: str = "<text>",
+    faces: Optional[int] = None,
+) -> MeasurementSet: ...
+def measurement_set_from_columns(
+    cycle: Sequence[int],
+    step: Sequence[int],
+    ac: Sequence[int],
+    face: Sequence[int],
+    reading: Sequence[float],
+    direction: Optional[Sequence[str]] = None,
+    time: Optional[Sequence[Optional[float]]] = None,
+    setup: Optional[Sequence[int]] = None,
+    shift: Optional[Sequence[float]] = None,
+    temperature: Optional[Sequence[Optional[float]]] = None,
+    reading_y: Optional[Sequence[Optional[float]]] = None,
+    faces: Optional[int] = None,
+    name: str = "<arrays>",
+) -> MeasurementSet: ...
+def read_budget(
+    path: Optional[str] = None, text: Optional[str] = None, name: str = "<budget>"
+) -> Budget: ...
+def read_results(path: str) -> ResultRows: ...
+def solve(
+    ms: MeasurementSet,
+    method: str = "auto",
+    sigma: Optional[float] = None,
+    budget: Optional[Budget] = None,
+    monte_carlo: Union[None, int, str] = None,
+    seed: int = 1,
+) -> SolveResult: ...
+def compare_rows(
+    a: ResultRows, b: ResultRows, correlation: float = 0.0, include_setup: bool = False
+) -> str: ...
+def simulate(
+    faces: int = 24,
+    ac_faces: Sequence[int] = ...,
+    cycles: int = 6,
+    closing: bool = True,
+    bidirectional: bool = False,
+    noise: float = 0.05,
+    pitch_spread: Optional[float] = None,
+    setup_spread: Optional[float] = None,
+    step_seconds: Optional[float] = None,
+    setups: int = 1,
+    setup_shift_faces: Optional[int] = None,
+    seed: int = 1,
+) -> Tuple[MeasurementSet, str]: ...
+def diagnose(
+    ms: MeasurementSet,
+    truth: Optional[str] = None,
+    sigma: Optional[float] = None,
+    budget: Optional[Budget] = None,
+) -> str: ...
+def read_selfcal(
+    path: Optional[str] = None,
+    text: Optional[str] = None,
+    name: str = "<text>",
+    positions: Optional[int] = None,
+) -> SelfcalSet: ...
+def selfcal_set_from_columns(
+    cycle: Sequence[int],
+    step: Sequence[int],
+    head: Sequence[int],
+    head_angle: Sequence[float],
+    reading: Sequence[float],
+    direction: Optional[Sequence[str]] = None,
+    time: Optional[Sequence[Optional[float]]] = None,
+    positions: Optional[int] = None,
+    name: str = "<arrays>",
+) -> SelfcalSet: ...
+def selfcal(
+    set: SelfcalSet, sigma: Optional[float] = None, budget: Optional[Budget] = None
+) -> str: ...
