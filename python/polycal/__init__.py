@@ -379,10 +379,50 @@ class SolveResult(Result):
         super().__init__(inner.json())
         self._inner = inner
 
+    def _setup(self, key: str) -> _np.ndarray:
+        return _np.asarray(
+            [_np.nan if s.get(key) is None else s[key] for s in self._dict["setup_error"]],
+            dtype=_np.float64,
+        )
+
     @property
     def setup_error_value(self) -> _np.ndarray:
-        """The setup errors' values, in the JSON's order."""
-        return _np.asarray([s["value"] for s in self._dict["setup_error"]], dtype=_np.float64)
+        """The setup errors U[setup, ac] (the JSON's ``setup_error[].value``), in its order;
+        ``setup_error_setup`` and ``setup_error_ac`` say whose."""
+        return self._setup("value")
+
+    @property
+    def setup_error_setup(self) -> _np.ndarray:
+        """The mounting of each setup error."""
+        return _np.asarray([s["setup"] for s in self._dict["setup_error"]], dtype=_np.int64)
+
+    @property
+    def setup_error_ac(self) -> _np.ndarray:
+        """The autocollimator of each setup error."""
+        return _np.asarray([s["ac"] for s in self._dict["setup_error"]], dtype=_np.int64)
+
+    @property
+    def setup_error_u(self) -> _np.ndarray:
+        """u of each setup error (NaN when σ is unknown)."""
+        return self._setup("u")
+
+    @property
+    def setup_error_U(self) -> _np.ndarray:
+        """U of each setup error (with a budget; NaN without)."""
+        return self._setup("U")
+
+    @property
+    def setup_error_k(self) -> _np.ndarray:
+        """k of each setup error (with a budget; NaN without)."""
+        return self._setup("k")
+
+    @property
+    def angle_deg(self) -> _np.ndarray:
+        """The table angle of every encoder error, degrees: ``encoder_angle_deg`` where the
+        JSON has it (sub-pitch mountings), else p·360°/N as the library states it."""
+        if "encoder_angle_deg" in self._dict:
+            return self["encoder_angle_deg"]
+        return _np.asarray(self._inner.encoder_angle_deg(), dtype=_np.float64)
 
     def covariance(self, family: str) -> Optional[_np.ndarray]:
         """The fit's covariance σ²Q of one family (``pitch_deviation``,

@@ -401,6 +401,14 @@ impl PySolveResult {
         }
     }
 
+    /// The table angle of every encoder position, degrees (`step_angle_deg`).
+    fn encoder_angle_deg(&self) -> Vec<f64> {
+        let positions = self.solution.encoder_error.len();
+        (0..positions)
+            .map(|p| polycal::measurement::step_angle_deg(p as u32, positions))
+            .collect()
+    }
+
     /// The fit's covariance of a family (σ²Q, arcsec²): its size n and the n × n values,
     /// row-major; `None` when σ is unknown.
     fn covariance(&self, py: Python<'_>, family: &str) -> PyResult<Option<(usize, Vec<f64>)>> {

@@ -56,10 +56,18 @@ def test_solve_is_the_clis_json_to_the_byte():
     parsed = json.loads(expected)
     assert list(with_budget.keys()) == list(parsed.keys())
     for family in ("pitch_deviation", "face_deviation", "encoder_error"):
-        for suffix in ("", "_u", "_U"):
+        for suffix in ("", "_u", "_U", "_k"):
             array = with_budget[family + suffix]
             assert isinstance(array, np.ndarray) and array.dtype == np.float64
-            assert array.tolist() == parsed[family + suffix]  # bit for bit
+            expected_values = [np.nan if v is None else v for v in parsed[family + suffix]]
+            np.testing.assert_array_equal(array, expected_values)  # bit for bit, NaN for null
+    for key in ("value", "u", "U", "k"):
+        array = getattr(with_budget, "setup_error_" + key)
+        assert array.dtype == np.float64
+        assert array.tolist() == [s[key] for s in parsed["setup_error"]]
+    assert with_budget.setup_error_ac.tolist() == [s["ac"] for s in parsed["setup_error"]]
+    assert with_budget.angle_deg.tolist() == [15.0 * p for p in range(24)]
+    assert isinstance(with_budget.residual_rms, float) and isinstance(with_budget.dof, int)
 
 
 def test_monte_carlo_is_the_clis_for_the_same_seed():
