@@ -1,0 +1,349 @@
+//! The evaluations, each as its command makes it and returning its JSON object: solve
+//! (with the budget and Monte Carlo), compare, simulate, diagnose, selfcal.
+
+use polycal::compare::{CompareOptions, Comparison, compare};
+use polycal::diagnose::{DiagnoseOptions, diagnose as diagnose_set};
+use polycal::input::Location;
+use polycal::output::SolveReport;
+use polycal::output::diagnose::DiagnoseReport;
+use polycal::output::selfcal::SelfcalReport;
+use polycal::results::{Quantity, ResultRow};
+use polycal::selfcal::SelfcalOptions;
+use polycal::simulate::{SimulationConfig, Truth};
+use polycal::solve::sub_pitch::{ShiftGeometry, solve_shifted};
+use polycal::solve::{Method, Solution, SolveError, SolveOptions};
+use polycal::uncertainty::calibration::{McOptions, McSolver, evaluate};
+use polycal::uncertainty::monte_carlo::Trials;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+use crate::sets::{PyBudget, PyMeasurementSet, PySelfcalSet};
+use crate::{PolycalError, input_error, refusal, results_error, solve_error, to_json};
+
+/// The rows of a result (docs/FORMAT.md §3): a solve's, or a result file's.
+#[pyclass(name = "ResultRows", module = "polycal._polycal", frozen)]
+pub(crate) struct PyRows {
+    pub(crate) rows: Vec<ResultRow>,
+    pub(crate) label: String,
+}
+
+#[pymethods]
+impl PyRows {
+    fn __len__(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// The label the comparison shows.
+    #[getter]
+    fn label(&self) -> String {
+        self.label.clone()
+    }
+}
+
+/// Reads a result file (docs/FORMAT.md §3).
+#[pyfunction]
+pub(crate) fn read_results(py: Python<'_>, path: &str) -> PyResult<PyRows> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| input_error(py, format!("{path}: {e}"), Some(&Location::file_only(path))))?;
+    let file = polycal::results::read_results_from(bytes.as_slice(), path)
+        .map_err(|e| results_error(py, e))?;
+    Ok(PyRows {
+        rows: file.rows,
+        label: path.to_string(),
+    })
+}
+
+/// A solved measurement: the JSON object of `polycal solve --format json`, the solution
+/// (for covariances) and the result rows (for comparisons).
+#[pyclass(name = "SolveResult", module = "polycal._polycal", frozen)]
+pub(crate) struct PySolveResult {
+    pub(crate) json: String,
+    pub(crate) solution: Solution,
+    pub(crate) rows: Vec<ResultRow>,
+    pub(crate) label: String,
+}
+
+#[pymethods]
+impl PySolveResult {
+    /// The JSON object `polycal solve --format json` prints.
+    fn json(&self) -> String {
+        self.json.clone()
+    }
+
+    /// The result rows (`--format csv`), for `compare`.
+    fn rows(&self) -> PyRows {
+        PyRows {
+            rows: self.rows.clone(),
+            label: self.label.clone(),
+        }
+    }
+
+    /// The table angle of every encoder position, degrees (`step_angle_deg`).
+    fn encoder_angle_deg(&self) -> Vec<f64> {
+        let positions = self.solution.encoder_error.len();
+        (0..positions)
+            .map(|p| polycal::measurement::step_angle_deg(p as u32, positions))
+            .collect()
+    }
+
+    /// The fit's covariance of a family (σ²Q, arcsec²): its size n and the n × n values,
+    /// row-major; `None` when σ is unknown.
+    fn covariance(&self, py: Python<'_>, family: &str) -> PyResult<Option<(usize, Vec<f64>)>> {
+        let family = match family {
+            "pitch_deviation" => Quantity::PitchDeviation,
+            "face_deviation" => Quantity::FaceDeviation,
+            "encoder_error" => Quantity::EncoderError,
+            "setup_error" => Quantity::SetupError,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "family {other:?}: expected pitch_deviation, face_deviation, encoder_error or setup_error"
+                )));
+            }
+        };
+        Ok(py.detach(|| self.solution.family_covariance(family)))
+    }
+}
+
+/// Why an evaluation without the GIL failed: the solver's refusal (a `DesignError` or a
+/// `PolycalError`) or another's message.
+pub(crate) enum Failure {
+    Solve(Box<SolveError>),
+    Other(String),
+}
+
+/// The Monte Carlo option: a number of trials or `"adaptive"`.
+pub(crate) fn trials(monte_carlo: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Trials>> {
+    let Some(value) = monte_carlo else {
+        return Ok(None);
+    };
+    if let Ok(text) = value.extract::<String>() {
+        return match text.as_str() {
+            "adaptive" => Ok(Some(Trials::Adaptive {
+                significant_digits: 2,
+                max_trials: 10_000_000,
+            })),
+            other => Err(PyValueError::new_err(format!(
+                "monte_carlo: expected a number of trials or \"adaptive\", got {other:?}"
+            ))),
+        };
+    }
+    let count: usize = value.extract().map_err(|_| {
+        PyValueError::new_err("monte_carlo: expected a number of trials or \"adaptive\"")
+    })?;
+    Ok(Some(Trials::Fixed(count)))
+}
+
+/// Solves a measurement set as `polycal solve` does: the closed form or least squares,
+/// the budget's U and k, and Monte Carlo when asked. The GIL is released meanwhile.
+#[pyfunction]
+#[pyo3(signature = (ms, method="auto", sigma=None, budget=None, monte_carlo=None, seed=1))]
+pub(crate) fn solve(
+    py: Python<'_>,
+    ms: &PyMeasurementSet,
+    method: &str,
+    sigma: Option<f64>,
+    budget: Option<&PyBudget>,
+    monte_carlo: Option<&Bound<'_, PyAny>>,
+    seed: u64,
+) -> PyResult<PySolveResult> {
+    let method = match method {
+        "auto" => Method::Auto,
+        "closed-form" => Method::ClosedForm,
+        "lsq" => Method::LeastSquares,
+        "dense" => Method::Dense,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "method {other:?}: expected auto, closed-form, lsq or dense"
+            )));
+        }
+    };
+    let options = SolveOptions::new()
+        .with_method(method)
+        .with_sigma_opt(crate::sigma(sigma)?);
+    let trials = trials(monte_carlo)?;
+    if trials.is_some() && budget.is_none() {
+        return Err(PyValueError::new_err(
+            "monte_carlo needs a budget: the Monte Carlo propagates the instrument budget with the reading noise",
+        ));
+    }
+    let set = &ms.inner;
+    let budget = budget.map(|b| &b.inner);
+    let done = py.detach(|| {
+        if set.has_shifts() && budget.is_some() {
+            return Err(Failure::Other(format!(
+                "{}: an instrument budget is not supported for shifted mountings",
+                set.source
+            )));
+        }
+        let (solution, report) = if set.has_shifts() && ShiftGeometry::of(set).is_sub_pitch() {
+            match solve_shifted(set, &options) {
+                Ok(solved) => {
+                    let report = SolveReport::sub_pitch(&solved, None);
+                    (solved.solution.clone(), report)
+                }
+                Err(e) => return Err(Failure::Solve(Box::new(e))),
+            }
+        } else {
+            match polycal::solve::solve(set, &options) {
+                Ok(solution) => {
+                    let report = SolveReport::new(&solution, None);
+                    (solution, report)
+                }
+                Err(e) => return Err(Failure::Solve(Box::new(e))),
+            }
+        };
+        let gum = match budget.map(|b| evaluate(set, &solution, b)).transpose() {
+            Ok(gum) => gum,
+            Err(e) => return Err(Failure::Other(e.to_string())),
+        };
+        let mut report = report;
+        if let Some(gum) = &gum {
+            report = report.with_uncertainty(gum);
+        }
+        if let (Some(trials), Some(budget), Some(gum)) = (trials, budget, &gum) {
+            let options = McOptions::new(trials)
+                .with_seed(seed)
+                .with_significant_digits(2)
+                .with_solver(McSolver::Auto);
+            match polycal::uncertainty::calibration::monte_carlo(
+                set, &solution, budget, gum, &options,
+            ) {
+                Ok(mc) => report = report.with_monte_carlo(mc),
+                Err(e) => return Err(Failure::Other(e.to_string())),
+            }
+        }
+        let json = polycal::output::to_json(&report).map_err(|e| Failure::Other(e.to_string()))?;
+        let rows = polycal::output::result_rows_with(&solution, gum.as_ref());
+        Ok((solution, rows, json))
+    });
+    match done {
+        Ok((solution, rows, json)) => Ok(PySolveResult {
+            json,
+            solution,
+            rows,
+            label: set.source.clone(),
+        }),
+        Err(Failure::Solve(e)) => Err(solve_error(py, *e)),
+        Err(Failure::Other(message)) => Err(PolycalError::new_err(message)),
+    }
+}
+
+/// Compares two results by En as `polycal compare` does; returns its JSON object.
+#[pyfunction]
+#[pyo3(signature = (a, b, correlation=0.0, include_setup=false))]
+pub(crate) fn compare_rows(
+    py: Python<'_>,
+    a: &PyRows,
+    b: &PyRows,
+    correlation: f64,
+    include_setup: bool,
+) -> PyResult<String> {
+    let options = CompareOptions::new()
+        .with_correlation(correlation)
+        .with_include_setup(include_setup)
+        .with_labels(a.label.clone(), b.label.clone());
+    let comparison: Comparison = py
+        .detach(|| compare(&a.rows, &b.rows, &options))
+        .map_err(refusal)?;
+    to_json(&comparison)
+}
+
+/// Simulates a run with a known truth (`polycal simulate`): the set and the truth's JSON.
+#[pyfunction]
+#[pyo3(signature = (faces=24, ac_faces=vec![1, 2], cycles=6, closing=true, bidirectional=false, noise=0.05, pitch_spread=None, setup_spread=None, step_seconds=None, setups=1, setup_shift_faces=None, seed=1))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn simulate(
+    py: Python<'_>,
+    faces: usize,
+    ac_faces: Vec<usize>,
+    cycles: u32,
+    closing: bool,
+    bidirectional: bool,
+    noise: f64,
+    pitch_spread: Option<f64>,
+    setup_spread: Option<f64>,
+    step_seconds: Option<f64>,
+    setups: u32,
+    setup_shift_faces: Option<usize>,
+    seed: u64,
+) -> PyResult<(PyMeasurementSet, String)> {
+    let defaults = SimulationConfig::default();
+    let config = SimulationConfig {
+        faces,
+        ac_faces,
+        cycles,
+        closing,
+        bidirectional,
+        noise_arcsec: noise,
+        pitch_spread_arcsec: pitch_spread.unwrap_or(defaults.pitch_spread_arcsec),
+        setup_error_spread_arcsec: setup_spread.unwrap_or(defaults.setup_error_spread_arcsec),
+        step_seconds: step_seconds.unwrap_or(defaults.step_seconds),
+        setups,
+        setup_shift_faces: setup_shift_faces.unwrap_or(defaults.setup_shift_faces),
+        seed,
+        ..defaults
+    };
+    let (set, truth) = py
+        .detach(|| polycal::simulate::simulate(&config))
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let truth = serde_json::to_string(&truth).map_err(refusal)?;
+    Ok((PyMeasurementSet { inner: set }, truth))
+}
+
+/// Diagnoses a measurement set as `polycal diagnose` does; returns its JSON object (the
+/// budget acts on the final model).
+#[pyfunction]
+#[pyo3(signature = (ms, truth=None, sigma=None, budget=None))]
+pub(crate) fn diagnose(
+    py: Python<'_>,
+    ms: &PyMeasurementSet,
+    truth: Option<&str>,
+    sigma: Option<f64>,
+    budget: Option<&PyBudget>,
+) -> PyResult<String> {
+    let truth = truth
+        .map(|t| Truth::from_json_bytes(t.as_bytes(), "<truth>"))
+        .transpose()
+        .map_err(|e| PyValueError::new_err(format!("truth: {e}")))?;
+    let options = DiagnoseOptions::new().with_sigma_opt(crate::sigma(sigma)?);
+    let set = &ms.inner;
+    let budget = budget.map(|b| &b.inner);
+    let done = py.detach(|| {
+        let found = diagnose_set(set, &options).map_err(|e| Failure::Solve(Box::new(e)))?;
+        let mut report =
+            DiagnoseReport::new(&found, truth.as_ref(), None).with_residuals(&found, set);
+        if let Some(b) = budget {
+            let gum = evaluate(set, &found.after, b).map_err(|e| Failure::Other(e.to_string()))?;
+            report.after = report.after.with_uncertainty(&gum);
+        }
+        polycal::output::to_json(&report).map_err(|e| Failure::Other(e.to_string()))
+    });
+    done.map_err(|failure| match failure {
+        Failure::Solve(e) => solve_error(py, *e),
+        Failure::Other(message) => PolycalError::new_err(message),
+    })
+}
+
+/// Self-calibrates the encoder as `polycal selfcal` does; returns its JSON object.
+#[pyfunction]
+#[pyo3(signature = (set, sigma=None, budget=None))]
+pub(crate) fn selfcal(
+    py: Python<'_>,
+    set: &PySelfcalSet,
+    sigma: Option<f64>,
+    budget: Option<&PyBudget>,
+) -> PyResult<String> {
+    let options = SelfcalOptions::new().with_sigma_opt(crate::sigma(sigma)?);
+    let budget = budget.map(|b| &b.inner);
+    let name = set.name.clone();
+    py.detach(|| {
+        let solution = polycal::selfcal::solve(&set.inner, &options).map_err(|e| e.to_string())?;
+        let mut report = SelfcalReport::new(&solution, &name);
+        if let Some(b) = budget {
+            let u = polycal::selfcal::evaluate_budget(&solution, b).map_err(|e| e.to_string())?;
+            report = report.with_uncertainty(&u);
+        }
+        report.to_json().map_err(|e| e.to_string())
+    })
+    .map_err(PolycalError::new_err)
+}
