@@ -10,24 +10,11 @@ pub const DCC_NAMESPACE: &str = "https://ptb.de/dcc";
 /// The D-SI namespace.
 pub const SI_NAMESPACE: &str = "https://ptb.de/si";
 
-/// Text escaped for XML element content and attribute values (`&`, `<`, `>`, `"`, `'`).
-/// Control characters never reach here: the metadata refuses them where it is read
-/// ([`crate::certificate::meta::control_character`]); the writer checks again
-/// ([`Xml::text`]).
-pub fn escape(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for c in text.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            c => out.push(c),
-        }
-    }
-    out
-}
+// Text escaped for XML element content and attribute values (`&`, `<`, `>`, `"`, `'`):
+// the figures' escaping, one for every XML polycal writes. Control characters never reach
+// it here: the metadata refuses them where it is read (`meta::control_character`) and
+// `Xml::text` checks again.
+use crate::figure::svg::esc as escape;
 
 /// An XML document being written: open elements are closed in order.
 pub struct Xml {
