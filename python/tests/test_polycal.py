@@ -87,10 +87,19 @@ def test_diagnose_selfcal_and_compare_are_the_clis():
     assert polycal.diagnose(ms, budget=budget).to_json() == cli(
         "diagnose", DATA, "--budget", BUDGET, "--format", "json"
     )
+    truth_path = ROOT / "examples/data/polygon24-2ac-6cycles.truth.json"
+    truth = json.loads(truth_path.read_text())
+    assert polycal.diagnose(ms, truth=truth).to_json() == cli(
+        "diagnose", DATA, "--truth", truth_path, "--format", "json"
+    )
     s = polycal.read_selfcal(str(SELFCAL))
     assert polycal.selfcal(s, budget=polycal.budget(SELFCAL_BUDGET)).to_json() == cli(
         "selfcal", SELFCAL, "--budget", SELFCAL_BUDGET, "--format", "json"
     )
+    assert polycal.selfcal(s).to_json() == cli("selfcal", SELFCAL, "--format", "json")
+    budget_text = BUDGET.read_text()
+    from_text = polycal.solve(ms, budget=polycal.budget(budget_text))
+    assert from_text.pitch_deviation_U.tolist() == polycal.solve(ms, budget=budget).pitch_deviation_U.tolist()
     # compare: this run (with its budget) against the shift-angle reference
     ours = ROOT / "target" / "python-test-ours.csv"
     ours.parent.mkdir(exist_ok=True)
@@ -373,6 +382,9 @@ def test_shifted_mountings_and_self_calibration_sets_from_arrays():
         columns[key] = columns[key].astype(np.uint16)
     s = polycal.SelfcalSet.from_arrays(**columns)
     ours = polycal.selfcal(s).to_dict()
+    pd = pytest.importorskip("pandas")
+    from_frame = polycal.selfcal(polycal.SelfcalSet.from_dataframe(pd.DataFrame(columns)))
+    assert from_frame.to_dict()["encoder_error"] == ours["encoder_error"]
     theirs = json.loads(cli("selfcal", SELFCAL, "--format", "json"))
     assert ours["encoder_error"] == theirs["encoder_error"]
     assert ours["head_error"] == theirs["head_error"]
