@@ -577,10 +577,33 @@ fn missing_metadata_is_refused_by_name_and_nothing_is_written() {
         "date_of_measurement",
         Some("date_of_measurement = \"3 Nov 2026\""),
     );
+    let row = text
+        .lines()
+        .position(|l| l.starts_with("date_of_measurement"))
+        .unwrap()
+        + 1;
     std::fs::write(&meta, text).unwrap();
     let stderr = refused(&dir, DATA, &["--budget", BUDGET, "--meta", meta_text]);
     assert!(
-        stderr.starts_with(&format!("error: {meta_text}: cannot write the DCC: date_of_measurement “3 Nov 2026” is not a date YYYY-MM-DD")),
+        stderr.starts_with(&format!("error: {meta_text}:{row}:23: cannot write the DCC: date_of_measurement “3 Nov 2026” is not a date YYYY-MM-DD")),
+        "{stderr}"
+    );
+    // from a comment line of the measurement file: its line and the value's column
+    let data = dir.join("dated.csv");
+    let original = std::fs::read_to_string(root().join(DATA)).unwrap();
+    std::fs::write(
+        &data,
+        format!("# Date of measurement: 3.11.2026\n{original}"),
+    )
+    .unwrap();
+    let without_date = with_line(&full, "date_of_measurement", None);
+    std::fs::write(&meta, without_date).unwrap();
+    let data_text = data.to_str().unwrap();
+    let stderr = refused(&dir, data_text, &["--budget", BUDGET, "--meta", meta_text]);
+    assert!(
+        stderr.starts_with(&format!(
+            "error: {data_text}:1:24: cannot write the DCC: date_of_measurement “3.11.2026”"
+        )),
         "{stderr}"
     );
     // a polygon run without a budget has no U: refused, the flag named

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json as _json
 import os as _os
+import warnings as _warnings
 from typing import Any, Dict, Optional, Sequence, Union
 
 import numpy as _np
@@ -251,10 +252,24 @@ class Budget:
 
 def budget(source: Union[PathOrText, Dict[str, Any]]) -> Budget:
     """An instrument budget from a TOML file, its text, or a dict with the file's keys
-    (e.g. ``{"p": 0.95, "component": [{...}, ...]}``)."""
+    (e.g. ``{"p": 0.95, "component": [{...}, ...]}``). The cautions ``polycal`` prints when
+    it reads a budget (a type A component that the fit already counts) are issued as
+    ``UserWarning``. A dict that is not a valid budget raises ``ValueError`` quoting the
+    entry at fault."""
     if isinstance(source, dict):
-        return Budget(_polycal.read_budget(text=_toml(source), name="<dict>"))
-    return Budget(_polycal.read_budget(**_path_or_text(source)))
+        text = _toml(source)
+        try:
+            inner = _polycal.read_budget(text=text, name="<dict>")
+        except _polycal.InputError as error:
+            lines = text.splitlines()
+            at = lines[error.line - 1] if 0 < error.line <= len(lines) else ""
+            message = str(error).split(": ", 1)[-1]
+            raise ValueError(f"budget: {message} (at `{at}`)") from error
+    else:
+        inner = _polycal.read_budget(**_path_or_text(source))
+    for note in inner.notes():
+        _warnings.warn(note, UserWarning, stacklevel=2)
+    return Budget(inner)
 
 
 def _toml_value(value: Any) -> str:

@@ -24,7 +24,8 @@ class MeasurementSet:
 class SelfcalSet:
     def __len__(self) -> int: ...
 
-class Budget: ...
+class Budget:
+    def notes(self) -> List[str]: ...
 
 class ResultRows:
     @property

@@ -211,6 +211,15 @@ pub(crate) struct PyBudget {
     pub(crate) inner: InstrumentBudget,
 }
 
+#[pymethods]
+impl PyBudget {
+    /// The cautions `polycal` prints as warnings when it reads the budget (a type A
+    /// component counted twice).
+    fn notes(&self) -> Vec<String> {
+        self.inner.notes()
+    }
+}
+
 /// Reads an instrument budget: a TOML file (`path`) or TOML text (`text`, named `name`).
 #[pyfunction]
 #[pyo3(signature = (path=None, text=None, name="<budget>"))]

@@ -388,3 +388,14 @@ def test_shifted_mountings_and_self_calibration_sets_from_arrays():
     theirs = json.loads(cli("selfcal", SELFCAL, "--format", "json"))
     assert ours["encoder_error"] == theirs["encoder_error"]
     assert ours["head_error"] == theirs["head_error"]
+
+
+def test_a_budget_warns_as_the_cli_does_and_a_bad_dict_names_its_entry():
+    component = {
+        "name": "Repeatability", "type": "A", "distribution": "normal", "u": 0.05,
+        "acts_on": "each-reading",
+    }
+    with pytest.warns(UserWarning, match="Repeatability.*type A"):
+        polycal.budget({"p": 0.95, "component": [component]})
+    with pytest.raises(ValueError, match=r"budget: .* \(at `p = 2.0`\)"):
+        polycal.budget({"p": 2.0, "component": [component]})

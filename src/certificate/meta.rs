@@ -89,6 +89,9 @@ pub struct MetaField {
     pub value: Option<String>,
     /// Where the value came from (a file name and line, or the manifest).
     pub source: Option<String>,
+    /// Where the value stands: file, line and column of the metadata file's value or of
+    /// the comment's; the manifest's file alone. For refusals of its form (the DCC's date).
+    pub location: Option<Location>,
 }
 
 /// One instrument used in the calibration.
@@ -190,7 +193,7 @@ struct InstrumentToml {
 }
 
 /// Values by key.
-type MetaValues = Vec<(&'static str, String)>;
+type MetaValues = Vec<(&'static str, String, Location)>;
 
 /// The values of a metadata TOML file (docs/FORMAT.md §10) by key, and its instruments.
 fn read_meta_file(
@@ -210,7 +213,7 @@ fn read_meta_file(
             .map(|v| {
                 let (span, v) = (v.span(), *v.get_ref());
                 if v.is_finite() && (low..=high).contains(&v) {
-                    Ok(format!("{v}"))
+                    Ok((format!("{v}"), span.start))
                 } else {
                     Err(at(
                         span.start,
@@ -225,7 +228,7 @@ fn read_meta_file(
     let pressure = number(file.pressure_hpa, 500.0, 1200.0)?;
     // text as the documents will carry it: no control characters (XML 1.0 and HTML have
     // none), a country code and a place of calibration of the DCC's forms
-    let text = |value: Option<Spanned<String>>| {
+    let checked = |value: Option<Spanned<String>>| {
         value
             .map(|v| {
                 let (span, v) = (v.span(), v.into_inner());
@@ -236,8 +239,10 @@ fn read_meta_file(
             })
             .transpose()
     };
-    let plain = |value: Option<Spanned<String>>| text(value).map(|v| v.map(|(_, v)| v));
-    let country = match text(file.country)? {
+    let plain = |value: Option<Spanned<String>>| checked(value).map(|v| v.map(|(_, v)| v));
+    let placed =
+        |value: Option<Spanned<String>>| checked(value).map(|v| v.map(|(span, v)| (v, span.start)));
+    let country = match checked(file.country)? {
         Some((span, v)) if !is_country_code(&v) => {
             return Err(at(
                 span.start,
@@ -246,9 +251,9 @@ fn read_meta_file(
                 ),
             ));
         }
-        other => other.map(|(_, v)| v),
+        other => other.map(|(span, v)| (v, span.start)),
     };
-    let performance_location = match text(file.performance_location)? {
+    let performance_location = match checked(file.performance_location)? {
         Some((span, v)) if !PERFORMANCE_LOCATIONS.contains(&v.as_str()) => {
             return Err(at(
                 span.start,
@@ -258,34 +263,34 @@ fn read_meta_file(
                 ),
             ));
         }
-        other => other.map(|(_, v)| v),
+        other => other.map(|(span, v)| (v, span.start)),
     };
-    let values: [(&'static str, Option<String>); 25] = [
-        ("title", plain(file.title)?),
-        ("certificate", plain(file.certificate)?),
-        ("customer", plain(file.customer)?),
-        ("customer_address", plain(file.customer_address)?),
-        ("customer_email", plain(file.customer_email)?),
-        ("artefact", plain(file.artefact)?),
-        ("artefact_manufacturer", plain(file.artefact_manufacturer)?),
-        ("artefact_serial", plain(file.artefact_serial)?),
-        ("encoder", plain(file.encoder)?),
-        ("encoder_manufacturer", plain(file.encoder_manufacturer)?),
-        ("encoder_serial", plain(file.encoder_serial)?),
-        ("laboratory", plain(file.laboratory)?),
-        ("laboratory_address", plain(file.laboratory_address)?),
-        ("laboratory_email", plain(file.laboratory_email)?),
+    let values: [(&'static str, Option<(String, usize)>); 25] = [
+        ("title", placed(file.title)?),
+        ("certificate", placed(file.certificate)?),
+        ("customer", placed(file.customer)?),
+        ("customer_address", placed(file.customer_address)?),
+        ("customer_email", placed(file.customer_email)?),
+        ("artefact", placed(file.artefact)?),
+        ("artefact_manufacturer", placed(file.artefact_manufacturer)?),
+        ("artefact_serial", placed(file.artefact_serial)?),
+        ("encoder", placed(file.encoder)?),
+        ("encoder_manufacturer", placed(file.encoder_manufacturer)?),
+        ("encoder_serial", placed(file.encoder_serial)?),
+        ("laboratory", placed(file.laboratory)?),
+        ("laboratory_address", placed(file.laboratory_address)?),
+        ("laboratory_email", placed(file.laboratory_email)?),
         ("country", country),
-        ("location", plain(file.location)?),
+        ("location", placed(file.location)?),
         ("performance_location", performance_location),
-        ("date_of_measurement", plain(file.date_of_measurement)?),
-        ("operator", plain(file.operator)?),
-        ("approved_by", plain(file.approved_by)?),
+        ("date_of_measurement", placed(file.date_of_measurement)?),
+        ("operator", placed(file.operator)?),
+        ("approved_by", placed(file.approved_by)?),
         ("temperature_c", temperature),
         ("humidity_percent", humidity),
         ("pressure_hpa", pressure),
-        ("environment", plain(file.environment)?),
-        ("notes", plain(file.notes)?),
+        ("environment", placed(file.environment)?),
+        ("notes", placed(file.notes)?),
     ];
     let instruments = file
         .instrument
@@ -304,7 +309,10 @@ fn read_meta_file(
     Ok((
         values
             .into_iter()
-            .filter_map(|(k, v)| v.filter(|v| !v.trim().is_empty()).map(|v| (k, v)))
+            .filter_map(|(k, v)| {
+                v.filter(|(v, _)| !v.trim().is_empty())
+                    .map(|(v, offset)| (k, v, location(source, text, offset)))
+            })
             .collect(),
         instruments,
     ))
@@ -482,20 +490,42 @@ pub fn gather(
         .map(|&(key, label)| {
             let from_meta = meta_values
                 .iter()
-                .find(|(k, _)| *k == key)
-                .map(|(_, v)| (v.clone(), meta.map(|m| m.1).unwrap_or_default().to_string()));
+                .find(|(k, _, _)| *k == key)
+                .map(|(_, v, at)| {
+                    (
+                        v.clone(),
+                        meta.map(|m| m.1).unwrap_or_default().to_string(),
+                        at.clone(),
+                    )
+                });
             let from_comment = comment_values
                 .iter()
                 .filter(|(k, _, _)| *k == key)
-                .map(|(_, v, line)| (v.clone(), format!("{measurement_source}:{line}")))
+                .map(|(_, v, line)| {
+                    // the value's column in its comment line
+                    let column = measurement_text
+                        .lines()
+                        .nth(*line as usize - 1)
+                        .and_then(|l| l.rfind(v.as_str()).map(|i| l[..i].chars().count()))
+                        .map_or(1, |c| c as u64 + 1);
+                    (
+                        v.clone(),
+                        format!("{measurement_source}:{line}"),
+                        Location::new(measurement_source, *line, column),
+                    )
+                })
                 .next();
             let from_manifest = (key == "date_of_measurement")
                 .then_some(run.as_ref())
                 .flatten()
                 .and_then(|r| {
-                    r.started_date
-                        .clone()
-                        .map(|d| (d, format!("{} (run started)", r.source)))
+                    r.started_date.clone().map(|d| {
+                        (
+                            d,
+                            format!("{} (run started)", r.source),
+                            Location::file_only(&r.source),
+                        )
+                    })
                 });
             let chosen = match (from_meta, from_comment.or(from_manifest)) {
                 (Some(m), Some(c)) => {
@@ -513,7 +543,8 @@ pub fn gather(
                 key,
                 label,
                 value: chosen.as_ref().map(|c| c.0.clone()),
-                source: chosen.map(|c| c.1),
+                source: chosen.as_ref().map(|c| c.1.clone()),
+                location: chosen.map(|c| c.2),
             }
         })
         .collect();

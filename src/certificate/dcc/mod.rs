@@ -38,6 +38,7 @@ mod xml;
 
 use super::meta::{InstrumentEntry, Metadata};
 use super::{CalibrationReport, Evaluation};
+use crate::input::Location;
 use crate::output::SOFTWARE_VERSION;
 use xml::Xml;
 
@@ -65,11 +66,11 @@ pub enum DccError {
     },
     /// A date that is not `YYYY-MM-DD`.
     #[error(
-        "{origin}: cannot write the DCC: {key} “{value}” is not a date YYYY-MM-DD, which the DCC's {element} must be"
+        "{location}: cannot write the DCC: {key} “{value}” is not a date YYYY-MM-DD, which the DCC's {element} must be"
     )]
     NotADate {
-        /// Where the value came from (file, or file:line).
-        origin: String,
+        /// Where the value stands: file, line and column (the manifest's file alone).
+        location: Location,
         /// The metadata key.
         key: &'static str,
         /// The value.
@@ -176,14 +177,14 @@ pub fn is_date(text: &str) -> bool {
 fn performance_dates(meta: &Metadata) -> Result<(String, String), DccError> {
     let begin = required(meta, "date_of_measurement", "beginPerformanceDate")?;
     if !is_date(begin) {
-        let origin = meta
+        let location = meta
             .fields
             .iter()
             .find(|f| f.key == "date_of_measurement")
-            .and_then(|f| f.source.clone())
-            .unwrap_or_default();
+            .and_then(|f| f.location.clone())
+            .unwrap_or_else(|| Location::file_only("metadata"));
         return Err(DccError::NotADate {
-            origin,
+            location,
             key: "date_of_measurement",
             value: begin.to_string(),
             element: "beginPerformanceDate",
