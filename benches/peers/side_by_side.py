@@ -1,27 +1,32 @@
 #!/usr/bin/env python3
-"""polycal against its dense least-squares peer, side by side (speed and agreement).
+"""polycal against its two least-squares peers, side by side (speed and agreement).
 
     cargo build --release
     python3 -m pip install --user -r benches/peers/requirements.txt
     python3 benches/peers/side_by_side.py [--polycal target/release/polycal] [--runs 5]
-                                          [--faces 24,360,1440] [--peer-threads T] [--keep DIR]
+                                          [--faces 360,1440,5760] [--dense-max-faces N]
+                                          [--slow S] [--peer-threads T] [--keep DIR]
 
 For every design (N faces × 6 cycles with closing readings, two adjacent
 autocollimators) it simulates the file with
 
     polycal simulate --faces N --cycles 6 --closing --seed 1 --out FILE -q
 
-then runs `polycal solve FILE --format json` and `python3 dense_lsq.py FILE` as whole
-processes, --runs times each (median wall time; parsing, start-up and JSON output
-included), checks that both give the same estimates and standard uncertainties
-(pitch_deviation, face_deviation, encoder_error, setup errors and their u, dof,
-residual_rms) to an ABSOLUTE tolerance of --tol arcsec (default 1e-6″; the largest
-relative difference is printed too), and prints a table: design, readings, polycal s,
-peer s, ratio peer/polycal, and the largest differences.
+then runs `polycal solve FILE --format json` and both peers, `python3 dense_lsq.py FILE`
+(dense numpy) and `python3 sparse_lsq.py FILE` (scipy.sparse), as whole processes, --runs
+times each (median wall time; parsing, start-up and JSON output included; a program whose
+first run takes longer than --slow seconds is run only once). It checks that each peer
+gives polycal's estimates and standard uncertainties (pitch_deviation, face_deviation,
+encoder_error, setup errors and their u, dof, residual_rms) to an ABSOLUTE tolerance of
+--tol arcsec (default 1e-6″; the largest relative difference is printed too), and prints
+a table: design, readings, polycal s, then one line per peer: its s, runs, the ratio
+peer/polycal and the largest differences.
 
-A design whose dense peer would need more than --mem-fraction of the available memory
-(MemAvailable of /proc/meminfo; the peer holds the readings × (2N − 2 + K) design
-matrix and a few (2N + K)² matrices) is skipped and says so. Standard library only.
+The dense peer is skipped, with the reason on its line, for a design with more than
+--dense-max-faces faces (default: no limit; it is O(N³) work) or one that would need
+more than --mem-fraction of the available memory (MemAvailable of /proc/meminfo; it
+holds the readings × (2N − 2 + K) design matrix and a few (2N + K)² matrices: ~11 GiB at
+N = 5760). The sparse peer needs O(N) memory and always runs. Standard library only.
 """
 
 import argparse
@@ -34,7 +39,8 @@ import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-PEER = os.path.join(HERE, "dense_lsq.py")
+PEERS = (("dense", os.path.join(HERE, "dense_lsq.py")),
+         ("sparse", os.path.join(HERE, "sparse_lsq.py")))
 VECTORS = ("pitch_deviation", "face_deviation", "encoder_error")
 
 
@@ -57,7 +63,9 @@ def peer_bytes(faces, cycles=6, autocollimators=2):
     return 8 * (readings * params + 2 * params * params + 2 * full * full)
 
 
-def timed(cmd, runs, env=None):
+def timed(cmd, runs, slow=None, env=None):
+    """Median wall time of `runs` runs (one only when the first takes longer than `slow`
+    seconds), the number of runs made and the JSON of the last."""
     times, out = [], None
     for _ in range(runs):
         start = time.perf_counter()
@@ -66,7 +74,9 @@ def timed(cmd, runs, env=None):
         if done.returncode != 0:
             sys.exit(f"{' '.join(cmd)} failed ({done.returncode}): {done.stderr.strip()}")
         out = done.stdout
-    return statistics.median(times), json.loads(out)
+        if slow is not None and times[0] > slow:
+            break
+    return statistics.median(times), len(times), json.loads(out)
 
 
 def pairs(a, b):
@@ -116,19 +126,48 @@ def compare(a, b, tol):
     return worst, failures
 
 
+def dense_skip_reason(faces, cycles, args, avail):
+    """Why the dense peer does not run on this design, or None."""
+    if args.dense_max_faces is not None and faces > args.dense_max_faces:
+        return f"skipped: more than --dense-max-faces {args.dense_max_faces} faces"
+    need = peer_bytes(faces, cycles)
+    if avail is not None and need > args.mem_fraction * avail:
+        return (
+            f"skipped: needs ~{need / 2**30:.1f} GiB, more than {args.mem_fraction:g} of the "
+            f"{avail / 2**30:.1f} GiB available"
+        )
+    return None
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--polycal", default="target/release/polycal")
-    parser.add_argument("--python", default=sys.executable, help="interpreter for the peer")
-    parser.add_argument("--faces", default="24,360,1440", help="comma-separated N")
+    parser.add_argument("--python", default=sys.executable, help="interpreter for the peers")
+    parser.add_argument("--faces", default="360,1440,5760", help="comma-separated N")
     parser.add_argument("--cycles", type=int, default=6)
     parser.add_argument("--runs", type=int, default=5, help="runs per program (median)")
+    parser.add_argument(
+        "--slow",
+        type=float,
+        default=60.0,
+        help="a program whose first run takes longer than this (s) is run once (default 60)",
+    )
     parser.add_argument("--tol", type=float, default=1e-6, help="absolute tolerance, arcsec")
-    parser.add_argument("--mem-fraction", type=float, default=0.6)
+    parser.add_argument(
+        "--mem-fraction",
+        type=float,
+        default=0.6,
+        help="skip the dense peer where it needs more than this fraction of MemAvailable",
+    )
+    parser.add_argument(
+        "--dense-max-faces",
+        type=int,
+        help="skip the dense peer above this many faces (default: no limit)",
+    )
     parser.add_argument(
         "--peer-threads",
         type=int,
-        help="OPENBLAS_NUM_THREADS/OMP_NUM_THREADS for the peer (default: numpy's own)",
+        help="OPENBLAS_NUM_THREADS/OMP_NUM_THREADS for the peers (default: numpy's own)",
     )
     parser.add_argument("--keep", help="directory for the simulated files (default: temporary)")
     args = parser.parse_args()
@@ -144,45 +183,50 @@ def main():
         for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
             peer_env[name] = str(args.peer_threads)
     header = (
-        f"{'design':<26} {'readings':>8} {'polycal s':>10} {'peer s':>9} {'peer/polycal':>12}"
-        f" {'max|Δ| est':>10} {'max|Δ| u':>9} {'max rel':>8}  agree"
+        f"{'design':<24} {'readings':>8} {'polycal s':>9}  {'peer':<6} {'peer s':>8} {'runs':>4}"
+        f" {'peer/polycal':>12} {'max|Δ| est':>10} {'max|Δ| u':>9} {'max rel':>8}  agree"
     )
     threads = args.peer_threads or "numpy's default"
+    limit = args.dense_max_faces if args.dense_max_faces is not None else "none"
     print(
-        f"median of {args.runs} whole-process runs each; peer BLAS threads: {threads}; "
-        f"agreement: absolute {args.tol:g}″"
+        f"median of {args.runs} whole-process runs each (1 when the first takes > {args.slow:g} s);"
+        f" peer BLAS threads: {threads}; agreement: absolute {args.tol:g}″;"
+        f" dense peer: --dense-max-faces {limit}, --mem-fraction {args.mem_fraction:g}"
     )
     print(header)
     print("-" * len(header))
     failed = False
     for faces in (int(x) for x in args.faces.split(",")):
         design = f"{faces} faces x {args.cycles} closing"
-        need = peer_bytes(faces, args.cycles)
-        if avail is not None and need > args.mem_fraction * avail:
-            print(
-                f"{design:<26} skipped: the dense peer needs ~{need / 2**30:.1f} GiB, "
-                f"{avail / 2**30:.1f} GiB available"
-            )
-            continue
         path = os.path.join(workdir, f"n{faces}.csv")
         subprocess.run(
             [args.polycal, "simulate", "--faces", str(faces), "--cycles", str(args.cycles),
              "--closing", "--seed", "1", "--out", path, "-q"],
             check=True,
         )
-        t_polycal, a = timed([args.polycal, "solve", path, "--format", "json"], args.runs)
-        t_peer, b = timed([args.python, PEER, path], args.runs, peer_env)
-        worst, failures = compare(a, b, args.tol)
-        ok = not failures
-        failed |= not ok
-        print(
-            f"{design:<26} {a['readings']:>8} {t_polycal:>10.4f} {t_peer:>9.3f}"
-            f" {t_peer / t_polycal:>12.1f} {worst['estimate']:>10.2e} {worst['u']:>9.2e}"
-            f" {worst['relative']:>8.1e}  {'yes' if ok else 'NO'}",
-            flush=True,
+        t_polycal, _, a = timed(
+            [args.polycal, "solve", path, "--format", "json"], args.runs, args.slow
         )
-        for line in failures[:10]:
-            print(f"    {line}")
+        lead = f"{design:<24} {a['readings']:>8} {t_polycal:>9.4f}"
+        for name, script in PEERS:
+            skip = dense_skip_reason(faces, args.cycles, args, avail) if name == "dense" else None
+            if skip:
+                print(f"{lead}  {name:<6} {skip}", flush=True)
+                lead = " " * len(lead)
+                continue
+            t_peer, n_peer, b = timed([args.python, script, path], args.runs, args.slow, peer_env)
+            worst, failures = compare(a, b, args.tol)
+            ok = not failures
+            failed |= not ok
+            print(
+                f"{lead}  {name:<6} {t_peer:>8.3f} {n_peer:>4} {t_peer / t_polycal:>12.1f}"
+                f" {worst['estimate']:>10.2e} {worst['u']:>9.2e} {worst['relative']:>8.1e}"
+                f"  {'yes' if ok else 'NO'}",
+                flush=True,
+            )
+            lead = " " * len(lead)
+            for line in failures[:10]:
+                print(f"    {name}: {line}")
     if not args.keep:
         for name in os.listdir(workdir):
             os.remove(os.path.join(workdir, name))
