@@ -25,7 +25,7 @@ peer/polycal and the largest differences.
 The dense peer is skipped, with the reason on its line, for a design with more than
 --dense-max-faces faces (default: no limit; it is O(N³) work) or one that would need
 more than --mem-fraction of the available memory (MemAvailable of /proc/meminfo; it
-holds the readings × (2N − 2 + K) design matrix and a few (2N + K)² matrices: ~11 GiB at
+holds the readings × (2N − 2 + K) design matrix and a few (2N + K)² matrices: ~10 GiB at
 N = 5760). The sparse peer needs O(N) memory and always runs. Standard library only.
 """
 
