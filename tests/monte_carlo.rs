@@ -408,8 +408,95 @@ fn statistics_are_those_of_every_trial() {
     }
 }
 
-/// The observer sees every trial once, in increasing counts, with the total of a
-/// fixed run and none for the adaptive procedure.
+/// Many outputs: normal and uniform draws with drifting centres (3 000 outputs, so that
+/// the engine brackets the interval ends from a pilot shorter than `J`).
+struct Many {
+    centre: Vec<f64>,
+}
+
+impl Many {
+    fn new(outputs: usize) -> Self {
+        Many {
+            centre: (0..outputs).map(|j| j as f64 / outputs as f64).collect(),
+        }
+    }
+}
+
+impl Trial for Many {
+    type Scratch = ();
+    fn outputs(&self) -> usize {
+        self.centre.len()
+    }
+    fn centre(&self) -> &[f64] {
+        &self.centre
+    }
+    fn scratch(&self) {}
+    fn draw<R: Rng + ?Sized>(
+        &self,
+        rng: &mut R,
+        _: &mut (),
+        out: &mut [f64],
+    ) -> Result<(), TrialFailure> {
+        for (j, (o, c)) in out.iter_mut().zip(&self.centre).enumerate() {
+            let x: f64 = if j % 2 == 0 {
+                StandardNormal.sample(rng)
+            } else {
+                rng.random::<f64>() - 0.5
+            };
+            *o = c + x;
+        }
+        Ok(())
+    }
+    fn inputs(&self, _: &()) -> Vec<f64> {
+        Vec::new()
+    }
+}
+
+/// With many outputs the pilot is shorter than `J` (its length depends on the number of
+/// threads, and so do the stages of the refinements): the numbers are still those of a
+/// full sort of every trial, and the same to the last bit with one thread or four.
+#[test]
+fn many_outputs_in_bounded_memory_are_exact_and_thread_independent() {
+    let many = Many::new(3_000);
+    let options = EngineOptions::new(Trials::Fixed(16_500)).with_seed(3);
+    let in_pool = |threads: usize, options: EngineOptions<'_>| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| monte_carlo::run(&many, &options).unwrap())
+    };
+    let one = in_pool(1, options);
+    let four = in_pool(4, options);
+    assert_eq!(one, four);
+    let kept = in_pool(2, options.with_samples(true));
+    let samples = kept.samples.as_ref().unwrap();
+    let m = kept.trials;
+    let (r_low, r_high) = monte_carlo::symmetric_interval_positions(m, 0.95);
+    for (j, column) in samples.iter().enumerate() {
+        let a = one.outputs[j];
+        let mut sorted = column.clone();
+        sorted.sort_unstable_by(f64::total_cmp);
+        assert_eq!(
+            (a.low, a.high),
+            (sorted[r_low], sorted[r_high]),
+            "output {j}"
+        );
+        let mean = column.iter().sum::<f64>() / m as f64;
+        let ss = column.iter().map(|x| (x - mean).powi(2)).sum::<f64>();
+        assert!((a.mean - mean).abs() < 1e-12);
+        assert!((a.u - (ss / (m - 1) as f64).sqrt()).abs() < 1e-12);
+        // The sums are added in the same order with or without the samples.
+        assert_eq!(
+            (a.mean, a.u),
+            (kept.outputs[j].mean, kept.outputs[j].u),
+            "output {j}"
+        );
+    }
+}
+
+/// The observer sees every trial run, in increasing counts, with the total of a fixed
+/// run and none for the adaptive procedure (which runs its trials twice).
 #[test]
 fn progress_is_reported_per_block() {
     let calls = std::sync::Mutex::new(Vec::new());
@@ -429,7 +516,9 @@ fn progress_is_reported_per_block() {
     let r = monte_carlo::run(&Toy, &EngineOptions::new(adaptive).with_progress(&observe)).unwrap();
     let seen = std::mem::take(&mut *calls.lock().unwrap());
     assert!(seen.iter().all(|c| c.1.is_none()));
-    assert_eq!(seen.last().map(|c| c.0), Some(r.trials as u64));
+    assert!(seen.windows(2).all(|w| w[0].0 < w[1].0));
+    // The sequences, then all their trials again for the exact intervals.
+    assert_eq!(seen.last().map(|c| c.0), Some(2 * r.trials as u64));
 }
 
 /// A trial whose input is one uniform draw; it fails (or gives two outputs) for inputs

@@ -216,12 +216,18 @@ impl Operator {
                 face_sums.fill(0.0);
                 b.fill(0.0);
                 let first_effect = 2 * n + self.streams;
-                for (i, &v) in y.iter().enumerate() {
-                    face_sums[self.face[i]] += v;
-                    b[n + self.position[i]] += v;
-                    b[2 * n + self.stream[i]] += v;
-                    for (b, x) in b[first_effect..].iter_mut().zip(self.regressors(i)) {
-                        *b += x * v;
+                let (alpha, setup) = b[n..first_effect].split_at_mut(n);
+                let cells = self.position.iter().zip(&self.face).zip(&self.stream);
+                for (((&a, &f), &s), &v) in cells.zip(y) {
+                    face_sums[f] += v;
+                    alpha[a] += v;
+                    setup[s] += v;
+                }
+                if self.effects > 0 {
+                    for (i, &v) in y.iter().enumerate() {
+                        for (b, x) in b[first_effect..].iter_mut().zip(self.regressors(i)) {
+                            *b += x * v;
+                        }
                     }
                 }
                 // X has a 1 in β_k for every face ≥ k (φ_f = β_1 + … + β_f).
@@ -232,14 +238,25 @@ impl Operator {
                 }
                 let len = self.len();
                 for (t, j) in theta.iter_mut().zip(rows) {
-                    let row = &q[j * len..(j + 1) * len];
-                    *t = row.iter().zip(b.iter()).map(|(q, b)| q * b).sum();
+                    *t = dot(&q[j * len..(j + 1) * len], b);
                 }
             }
             Map::Structured(cofactor) => {
                 b.fill(0.0);
-                for (i, &v) in y.iter().enumerate() {
-                    self.add_row_g(i, v, b);
+                if self.effects == 0 {
+                    // Xᵀy without effect columns: three sums per reading.
+                    let (alpha, rest) = b.split_at_mut(n);
+                    let (phi, setup) = rest.split_at_mut(n);
+                    let cells = self.position.iter().zip(&self.face).zip(&self.stream);
+                    for (((&a, &f), &s), &v) in cells.zip(y) {
+                        alpha[a] += v;
+                        phi[f] += v;
+                        setup[s] += v;
+                    }
+                } else {
+                    for (i, &v) in y.iter().enumerate() {
+                        self.add_row_g(i, v, b);
+                    }
                 }
                 let mut all = vec![0.0; self.len()];
                 self.add_structured(cofactor, b, &mut all);
@@ -265,6 +282,25 @@ impl Operator {
         g.extend_from_slice(&diagonal[n..2 * n + self.streams]);
         Some(g)
     }
+}
+
+/// Σ aᵢbᵢ in four interleaved partial sums (the vector units can add them side by side;
+/// a single running sum waits for every addition), always in this order.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut partial = [0.0; 4];
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = a4
+        .remainder()
+        .iter()
+        .zip(b4.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in a4.zip(b4) {
+        for k in 0..4 {
+            partial[k] += x[k] * y[k];
+        }
+    }
+    (partial[0] + partial[1]) + (partial[2] + partial[3]) + tail
 }
 
 /// The quantities reported, from θ = [β, α, U, effects]: [β (N), φ (N), α (N), U (K)]

@@ -662,22 +662,41 @@ mod tests {
     }
 
     /// The calibration trial on the engine: the summary of every trial without storing
-    /// them is the summary of the stored trials.
+    /// them is the summary of the stored trials, for 9 positions (fixed and adaptive)
+    /// and for 1440 positions (4319 outputs: a pilot shorter than `J`, brackets refined
+    /// at every doubling of the trials).
     #[test]
     fn the_engine_summarizes_every_trial() {
-        let s = set(9, 2, true, 5);
-        let solution = solve(&s, &SolveOptions::default()).unwrap();
-        let budget = InstrumentBudget::new(vec![ScopedComponent::type_b(
-            "r",
-            Distribution::Rectangular { half_width: 0.2 },
-            Scope::Result,
-        )]);
-        let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
         let adaptive = Trials::Adaptive {
             significant_digits: 1,
             max_trials: 500_000,
         };
-        for trials in [Trials::Fixed(34_500), adaptive] {
+        for (faces, trials) in [
+            (9, Trials::Fixed(34_500)),
+            (9, adaptive),
+            (1440, Trials::Fixed(9_000)),
+        ] {
+            the_engine_summarizes(faces, trials);
+        }
+    }
+
+    fn the_engine_summarizes(faces: usize, trials: Trials) {
+        let s = set(faces, 2, true, 5);
+        let solution = solve(&s, &SolveOptions::default()).unwrap();
+        let budget = InstrumentBudget::new(vec![
+            ScopedComponent::type_b(
+                "r",
+                Distribution::Rectangular { half_width: 0.2 },
+                Scope::Result,
+            ),
+            ScopedComponent::type_b(
+                "each stop",
+                Distribution::Rectangular { half_width: 0.05 },
+                Scope::EachStop,
+            ),
+        ]);
+        let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
+        {
             let options = EngineOptions::new(trials).with_seed(11);
             let summary = monte_carlo::run(&model, &options).unwrap();
             let kept = monte_carlo::run(&model, &options.with_samples(true)).unwrap();

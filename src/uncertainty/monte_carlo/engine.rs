@@ -12,42 +12,101 @@
 //! order. Trial `t` therefore gets the same draws whatever `M` and however many threads
 //! run, and the same seed gives the same numbers to the last bit.
 //!
-//! # Exact intervals without storing every trial
+//! # Exact intervals in bounded memory
 //!
 //! The probabilistically symmetric coverage interval (JCGM 101 §7.7) is the pair of order
-//! statistics a full sort of all `M` values would give, but the trials are not stored: the
-//! first `min(M, J)` trials (`J` the sequence length of the adaptive procedure) bracket
-//! each interval end, later trials only count the values below a bracket and keep the few
-//! inside it, and a bracket that missed is widened and the later trials re-run (module
-//! `statistics`). After `10 J` and again after `50 J` trials the brackets are refined
-//! from the trials run so far (a third, then a sixth as wide), which keeps fewer values. The per-output work is
-//! branch-free but for the values inside a bracket. The mean and the standard deviation come from sums of the deviations
-//! from [`Trial::centre`]. With [`EngineOptions::keep_samples`] every trial's outputs are
-//! kept as well, which adds the shortest coverage interval (JCGM 101 §7.7.2) and the
-//! samples to the result without changing any other number.
+//! statistics a full sort of all `M` values would give, but the trials are not stored: a
+//! pilot of the first trials ([`pilot_len`]: `min(M, J)`, `J` the sequence length of the
+//! adaptive procedure, fewer when `J` trials of every output would take more than 64 MiB,
+//! but at least one block per thread) brackets each interval end; later trials only count
+//! the values below a bracket and keep the few inside it, and a bracket that missed is
+//! widened and the later trials re-run (module `statistics`). At every doubling of the
+//! trials run the brackets are refined from the values kept (a bracket then holds about
+//! `2·(6√(sπ(1−π)) + 10)/s` of the `s` trials, π the end's probability), so that the
+//! values kept grow like √M per output, not like M: 10⁵ trials of 4 319 outputs keep
+//! about 1.8 % of their values. [`memory_needed`] bounds what a run holds, and a run that
+//! would not fit is refused before it starts ([`McError::TooLarge`]). The per-output work
+//! is branch-free but for the values inside a bracket. The mean and the standard
+//! deviation come from sums of the deviations from [`Trial::centre`], added block by
+//! block in block order whatever the stages and the threads. With
+//! [`EngineOptions::keep_samples`] every trial's outputs are kept as well, which adds the
+//! shortest coverage interval (JCGM 101 §7.7.2) and the samples to the result without
+//! changing any other number.
+//!
+//! The adaptive procedure (JCGM 101 §7.9) summarizes each sequence of `J` trials the same
+//! way, and once its results are stable runs the `h·J` trials again (the same draws) for
+//! the exact order statistics of all of them.
 
 use std::fmt;
 use std::ops::Range;
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rand::Rng;
 use rayon::prelude::*;
 
 use super::statistics::{
-    Acc, Brackets, Moments, ROWS, brackets_from, columns, finish, order_statistic,
-    shortest_interval, standard_deviation_of_mean, symmetric_interval_positions,
+    Acc, Brackets, Moments, ROWS, brackets_from_raw, columns, finish, rank_margin,
+    shortest_interval, standard_deviation_of_mean,
 };
 use super::stream::block_rng;
 use super::{McError, McResult, OutputSummary, Trials, numerical_tolerance};
 
-/// An upper bound of the memory a run of `trials` trials of `outputs` outputs keeps,
-/// bytes: the values inside the coverage interval's brackets (at most about 2 % of the
-/// trials at each end, 16 bytes each, module `statistics`), and with `keep_samples` every
-/// output of every trial (8 bytes each).
-pub(crate) fn memory_needed(trials: usize, outputs: usize, keep_samples: bool) -> u128 {
+/// Bytes of trial outputs the pilot may hold: a run of many outputs brackets its interval
+/// ends from fewer trials (at least one block), with wider brackets that later
+/// refinements narrow.
+const PILOT_BYTES: usize = 64 << 20;
+
+/// The pilot of a run of `m` trials of `outputs` outputs at coverage probability `p`:
+/// `min(m, J)` trials (`J` the adaptive sequence length), fewer when `J` trials'
+/// outputs would take more than [`PILOT_BYTES`], but whole blocks and at least one per
+/// thread.
+pub(crate) fn pilot_len(m: usize, outputs: usize, p: f64) -> usize {
+    let fit = (PILOT_BYTES / (8 * outputs.max(1))) / BLOCK_SIZE * BLOCK_SIZE;
+    // One block per thread at least, so that no thread waits for the pilot; the
+    // results do not depend on the pilot's length, only the memory and the time do.
+    let threads = rayon::current_num_threads().max(1) * BLOCK_SIZE;
+    m.min(adaptive_sequence_length(p).min(fit.max(threads)))
+}
+
+/// The trial counts at which the brackets are refined in a run of `m` trials with a
+/// pilot of `pilot` trials: the pilot doubled, again and again, below `m`. After the
+/// refinement at `s` trials a bracket holds about `2·rank_margin(s)/s` of the trials.
+fn refinements(pilot: usize, m: usize) -> Vec<usize> {
+    let mut at = Vec::new();
+    let mut s = pilot.max(1) * 2;
+    while s < m {
+        at.push(s);
+        s *= 2;
+    }
+    at
+}
+
+/// An upper bound of the memory a run of `trials` trials of `outputs` outputs at coverage
+/// probability `p` needs, bytes: the pilot's outputs (8 bytes each) and the columns
+/// bracketed at a time, and twice (while they are sorted into buckets) the values inside
+/// the coverage interval's brackets (16 bytes each: after the last refinement at `s`
+/// trials, each of the two brackets of an output spans about `2·rank_margin(s) + 1` of
+/// `s` ranks; counted with half as much again for the scatter of the values and the
+/// stores' slack); with `keep_samples` every output of every trial as well (8 bytes
+/// each).
+pub(crate) fn memory_needed(trials: usize, outputs: usize, keep_samples: bool, p: f64) -> u128 {
+    let pilot = pilot_len(trials, outputs, p);
+    let pilot_bytes = 8 * pilot as u128 * outputs as u128;
+    let last = refinements(pilot, trials)
+        .last()
+        .copied()
+        .unwrap_or(pilot)
+        .max(1);
+    let pi = (1.0 - p.clamp(0.0, 1.0)) / 2.0;
+    let per_bracket = ((2.0 * rank_margin(last, pi, 1.0) + 1.0) / last as f64).min(1.0);
+    let kept = 1.5 * 2.0 * per_bracket * trials as f64 * outputs as f64;
+    let bracket_bytes = 2 * 16 * kept.ceil() as u128;
     let values = trials as u128 * outputs as u128;
-    let brackets = values * 16 / 20; // 2 ends × 2.5 % × 16 bytes
-    brackets + if keep_samples { values * 8 } else { 0 }
+    pilot_bytes
+        + super::statistics::COLUMN_BYTES as u128
+        + bracket_bytes
+        + if keep_samples { values * 8 } else { 0 }
 }
 
 /// Number of trials drawn from one random stream: the unit of parallel work and of
@@ -253,7 +312,7 @@ pub fn run<T: Trial>(trial: &T, options: &EngineOptions<'_>) -> Result<McResult,
         Trials::Fixed(m) => m,
         Trials::Adaptive { max_trials, .. } => max_trials,
     };
-    let needed_bytes = memory_needed(planned, outputs, options.keep_samples);
+    let needed_bytes = memory_needed(planned, outputs, options.keep_samples, p);
     if let Some((limit_bytes, limit_source)) = crate::solve::memory::limit_for(needed_bytes, None)
         && needed_bytes > u128::from(limit_bytes)
     {
@@ -271,6 +330,7 @@ pub fn run<T: Trial>(trial: &T, options: &EngineOptions<'_>) -> Result<McResult,
         p,
         keep: options.keep_samples,
         counter: Counter::new(options.progress),
+        peak_kept: AtomicUsize::new(0),
     };
     let (trials, sequences, moments, raw) = match options.trials {
         Trials::Fixed(m) => {
@@ -366,6 +426,8 @@ struct Engine<'a, T> {
     /// Whether to keep every trial's outputs.
     keep: bool,
     counter: Counter<'a>,
+    /// The most values kept inside brackets at once (what the memory estimate bounds).
+    peak_kept: AtomicUsize,
 }
 
 /// The outputs of some trials, trial-major (`outputs` values per trial).
@@ -373,19 +435,24 @@ type Raw = Vec<f64>;
 
 impl<T: Trial> Engine<'_, T> {
     /// Runs trials `range` (its start a multiple of [`BLOCK_SIZE`]) in parallel blocks.
-    /// With `brackets` (and the fraction 1/room of the trials expected inside each),
-    /// returns the accumulated sums and bracket contents; every trial's outputs
-    /// (trial-major) without, or when all are kept.
+    /// With `brackets`, merges each block's sums and bracket contents into `into`, block
+    /// by block in block order (so that the sums are added in the same order however
+    /// the trials are split into stages, and whatever the number of threads); returns
+    /// every trial's outputs (trial-major) without brackets, or when all are kept.
     fn blocks(
         &self,
         range: Range<usize>,
-        brackets: Option<(&Brackets, usize)>,
-    ) -> Result<(Option<Acc>, Raw), McError> {
+        brackets: Option<(&Brackets, &mut Acc)>,
+    ) -> Result<Raw, McError> {
         debug_assert_eq!(range.start % BLOCK_SIZE, 0);
         let trial = self.trial;
         let outputs = trial.outputs();
         let centre = trial.centre();
         let keep = self.keep || brackets.is_none();
+        let (brackets, into) = match brackets {
+            Some((b, into)) => (Some(b), Some(into)),
+            None => (None, None),
+        };
         let first = range.start / BLOCK_SIZE;
         let last = range.end.div_ceil(BLOCK_SIZE);
         let blocks: Vec<(Option<Acc>, Raw)> = (first..last)
@@ -398,10 +465,10 @@ impl<T: Trial> Engine<'_, T> {
                 // The outputs of the last few trials, trial-major, recorded together.
                 let mut rows = vec![0.0; ROWS * outputs];
                 let mut filled = 0;
-                // Room for about 1/`room` of the values inside a bracket.
-                let mut acc = brackets.map(|(_, room)| {
-                    Acc::with_capacity(outputs, 2 * outputs * (to - from) / room + 64)
-                });
+                // Room for about 1/32 of the values inside a bracket: more is made as
+                // needed, and what is left over given back at the end of the block.
+                let mut acc =
+                    brackets.map(|_| Acc::with_capacity(outputs, outputs * (to - from) / 16 + 64));
                 let mut raw = Vec::new();
                 if keep {
                     raw.reserve((to - from) * outputs);
@@ -441,11 +508,14 @@ impl<T: Trial> Engine<'_, T> {
                     }
                     filled += 1;
                     if filled == ROWS || t + 1 == to {
-                        if let (Some(acc), Some((b, _))) = (&mut acc, brackets) {
+                        if let (Some(acc), Some(b)) = (&mut acc, brackets) {
                             acc.record_rows(&rows[..filled * outputs], centre, b);
                         }
                         filled = 0;
                     }
+                }
+                if let Some(acc) = &mut acc {
+                    acc.shrink();
                 }
                 self.counter.add_done(to - from);
                 Ok((acc, raw))
@@ -453,90 +523,99 @@ impl<T: Trial> Engine<'_, T> {
             .collect::<Vec<Result<_, McError>>>()
             .into_iter()
             .collect::<Result<_, McError>>()?;
-        let mut total = brackets.map(|_| Acc::new(outputs));
         let mut raw = Vec::new();
+        let mut into = into;
         for (acc, values) in blocks {
-            if let (Some(total), Some(acc)) = (&mut total, acc) {
+            if let (Some(total), Some(acc)) = (&mut into, acc) {
                 total.merge(acc);
             }
             raw.extend(values);
         }
-        Ok((total, raw))
+        Ok(raw)
     }
 
-    /// The exact summary of trials `0..m` from the pilot (trials `0..pilot_len`, already
-    /// run) and brackets around the interval ends, re-running the trials after the pilot
-    /// with wider brackets if one missed. Returns the outputs of the trials after the
-    /// pilot when all are kept.
-    fn bracketed(
-        &self,
-        m: usize,
-        pilot_raw: &[f64],
-        pilot_len: usize,
-    ) -> Result<(Moments, Raw), McError> {
+    /// Merges the pilot's outputs (trial-major, from trial 0 of a block) into `acc`
+    /// block by block, as [`Engine::blocks`] merges the trials it runs.
+    fn feed_pilot(&self, pilot_raw: &[f64], brackets: &Brackets, acc: &mut Acc) {
         let outputs = self.trial.outputs();
         let centre = self.trial.centre();
-        let mut pilot = columns(pilot_raw, outputs);
+        for block in pilot_raw.chunks(BLOCK_SIZE * outputs) {
+            let mut one = Acc::new(outputs);
+            one.feed(block, centre, brackets);
+            acc.merge(one);
+        }
+    }
+
+    /// The exact summary (mean, u, the ends of the probabilistically symmetric interval)
+    /// of the trials `range` (its start a multiple of [`BLOCK_SIZE`]) in bounded memory:
+    /// its first trials ([`pilot_len`] of them) are the pilot, whose order statistics
+    /// bracket each interval end; the rest are counted against the brackets, refined at
+    /// every doubling of the trials run ([`refinements`]); a bracket that missed is
+    /// widened and the trials after the pilot run again. Returns also the sums Σ(x − c)
+    /// and Σ(x − c)² of the range, and its outputs, trial-major, when all are kept.
+    fn exact(&self, range: Range<usize>) -> Result<(Moments, [Vec<f64>; 2], Raw), McError> {
+        let outputs = self.trial.outputs();
+        let centre = self.trial.centre();
+        let m = range.len();
+        let pilot_len = pilot_len(m, outputs, self.p);
+        let pilot_end = range.start + pilot_len;
+        let pilot_raw = self.blocks(range.start..pilot_end, None)?;
         let mut factor = 1.0;
         let mut rerun = false;
         loop {
             let wide = factor > 1000.0;
-            let brackets = if wide {
+            let mut brackets = if wide {
                 Brackets::everything(outputs)
             } else {
-                brackets_from(&mut pilot, m, self.p, factor)
+                brackets_from_raw(&pilot_raw, outputs, m, self.p, factor)
             };
             let mut acc = Acc::new(outputs);
-            acc.feed(pilot_raw, centre, &brackets);
-            let mut rest_raw = Vec::new();
+            self.feed_pilot(&pilot_raw, &brackets, &mut acc);
+            let mut raw = if self.keep {
+                pilot_raw.clone()
+            } else {
+                Vec::new()
+            };
             if m > pilot_len && rerun {
                 self.counter.add_total(m - pilot_len);
             }
-            // Stages after the pilot: up to ten pilots' worth of trials with the pilot's
-            // brackets, then up to fifty with brackets refined from those trials (about a
-            // third as wide), the rest with brackets refined again (half as wide again):
-            // fewer values to keep, fewer branches mispredicted.
-            let (second, third) = if wide {
-                (m, m)
-            } else {
-                (m.min(10 * pilot_len), m.min(50 * pilot_len))
-            };
-            let mut brackets = brackets;
-            let stages = [
-                (pilot_len..second, 32),
-                (second..third, 128),
-                (third..m, 256),
-            ];
-            for (range, room) in stages {
-                if range.is_empty() {
+            // Stages: from the pilot to twice as many trials, to four times as many, …
+            // each with brackets refined from every trial before it.
+            let mut starts = vec![pilot_len];
+            if !wide {
+                starts.extend(refinements(pilot_len, m));
+            }
+            for (k, &from) in starts.iter().enumerate() {
+                let to = starts.get(k + 1).copied().unwrap_or(m);
+                if from >= to {
                     continue;
                 }
-                if range.start > pilot_len {
-                    brackets = acc.refine(range.start, m, self.p, factor, &brackets);
+                if k > 0 {
+                    brackets = acc.refine(from, m, self.p, factor, &brackets);
                 }
-                let (rest, raw) = self.blocks(range, Some((&brackets, room)))?;
-                acc.merge(rest.unwrap_or_else(|| unreachable!("brackets were given")));
-                rest_raw.extend(raw);
+                let stage = range.start + from..range.start + to;
+                let values = self.blocks(stage, Some((&brackets, &mut acc)))?;
+                self.note_kept(acc.kept());
+                raw.extend(values);
             }
+            let sums = [acc.s1.clone(), acc.s2.clone()];
             if let Some(result) = finish(acc, m, self.p, centre) {
-                return Ok((result, rest_raw));
+                return Ok((result, sums, raw));
             }
             factor *= 16.0;
             rerun = true;
         }
     }
 
-    /// `m` trials: the first `min(m, J)` as the pilot, the rest bracketed.
+    /// Records the number of values kept inside brackets, for [`Engine::peak_kept`].
+    fn note_kept(&self, kept: usize) {
+        self.peak_kept.fetch_max(kept, Ordering::Relaxed);
+    }
+
+    /// `m` trials, summarized exactly ([`Engine::exact`]).
     fn fixed(&self, m: usize) -> Result<(Moments, Option<Raw>), McError> {
-        let pilot_len = m.min(adaptive_sequence_length(self.p));
-        let (_, pilot_raw) = self.blocks(0..pilot_len, None)?;
-        let (moments, rest_raw) = self.bracketed(m, &pilot_raw, pilot_len)?;
-        let raw = self.keep.then(|| {
-            let mut raw = pilot_raw;
-            raw.extend(rest_raw);
-            raw
-        });
-        Ok((moments, raw))
+        let (moments, _, raw) = self.exact(0..m)?;
+        Ok((moments, self.keep.then_some(raw)))
     }
 
     /// The adaptive procedure of JCGM 101 §7.9: sequences of `J` trials (§7.9.4 b) until
@@ -544,23 +623,25 @@ impl<T: Trial> Engine<'_, T> {
     /// uncertainty and both interval ends of every output is within the numerical
     /// tolerance `δ` of the standard uncertainty (§7.9.4 f–i). Returns the number of
     /// sequences.
+    ///
+    /// Each sequence is summarized exactly and in bounded memory ([`Engine::exact`]);
+    /// once the results are stable, the `h·J` trials are summarized together (§7.9.4 j)
+    /// by running them again: the same draws (each block's random stream depends only on
+    /// the seed and its index), so the interval ends are the order statistics of all
+    /// `h·J` values, without keeping them.
     fn adaptive(
         &self,
         digits: u32,
         max_trials: usize,
     ) -> Result<(usize, Moments, Option<Raw>), McError> {
         let outputs = self.trial.outputs();
-        let centre = self.trial.centre();
-        let p = self.p;
-        let j = adaptive_sequence_length(p);
-        let (r_low, r_high) = symmetric_interval_positions(j, p);
+        let j = adaptive_sequence_length(self.p);
         // Per output, per sequence: mean, u, low, high.
         let mut estimates: Vec<Vec<[f64; 4]>> = vec![Vec::new(); outputs];
-        // All sequences so far, bracketed around the interval ends of the first.
-        let mut first_raw = Vec::new();
+        // Σ(x − c) and Σ(x − c)² of all sequences so far.
+        let mut s1 = vec![0.0; outputs];
+        let mut s2 = vec![0.0; outputs];
         let mut kept = Vec::new();
-        let mut brackets = Brackets::everything(outputs);
-        let mut acc = Acc::new(outputs);
         let mut h = 0;
         loop {
             if (h + 1) * j > max_trials.max(2 * j) {
@@ -569,45 +650,20 @@ impl<T: Trial> Engine<'_, T> {
                     digits,
                 });
             }
-            let (_, raw) = self.blocks(h * j..(h + 1) * j, None)?;
-            let per_sequence: Vec<[f64; 4]> = (0..outputs)
-                .into_par_iter()
-                .map(|o| {
-                    let mut column: Vec<f64> =
-                        raw.iter().skip(o).step_by(outputs).copied().collect();
-                    let jf = column.len() as f64;
-                    let (a, b) = column.iter().fold((0.0, 0.0), |(a, b), &x| {
-                        let d = x - centre[o];
-                        (a + d, b + d * d)
-                    });
-                    let mean = centre[o] + a / jf;
-                    let u = ((b - a * a / jf).max(0.0) / (jf - 1.0)).sqrt();
-                    let low = order_statistic(&mut column, r_low);
-                    let high = order_statistic(&mut column, r_high);
-                    [mean, u, low, high]
-                })
-                .collect();
-            for (o, e) in per_sequence.into_iter().enumerate() {
-                estimates[o].push(e);
+            let ((mean, u, low, high), [a, b], raw) = self.exact(h * j..(h + 1) * j)?;
+            for o in 0..outputs {
+                estimates[o].push([mean[o], u[o], low[o], high[o]]);
+                s1[o] += a[o];
+                s2[o] += b[o];
             }
-            if h == 0 {
-                brackets = brackets_from(&mut columns(&raw, outputs), j, p, 1.0);
-            }
-            acc.feed(&raw, centre, &brackets);
-            if self.keep {
-                kept.extend_from_slice(&raw);
-            }
-            if h == 0 {
-                first_raw = raw;
-            }
+            kept.extend(raw);
             h += 1;
             if h < 2 {
                 continue;
             }
             let m = (h * j) as f64;
             let stable = (0..outputs).all(|o| {
-                let (s1, s2) = (acc.s1[o], acc.s2[o]);
-                let u_all = ((s2 - s1 * s1 / m).max(0.0) / (m - 1.0)).sqrt();
+                let u_all = ((s2[o] - s1[o] * s1[o] / m).max(0.0) / (m - 1.0)).sqrt();
                 let delta = numerical_tolerance(u_all, digits);
                 (0..4).all(|q| {
                     let xs: Vec<f64> = estimates[o].iter().map(|e| e[q]).collect();
@@ -615,13 +671,97 @@ impl<T: Trial> Engine<'_, T> {
                 })
             });
             if stable {
-                let m = h * j;
-                // The brackets were set for J trials; if one missed for m, re-run.
-                let moments = match finish(acc, m, p, centre) {
-                    Some(result) => result,
-                    None => self.bracketed(m, &first_raw, j)?.0,
+                // The second pass keeps nothing it need not: the samples, if asked
+                // for, were kept sequence by sequence.
+                let all = Engine {
+                    keep: false,
+                    ..self.share()
                 };
+                let (moments, _, _) = all.exact(0..h * j)?;
+                self.note_kept(all.peak_kept.load(Ordering::Relaxed));
                 return Ok((h, moments, self.keep.then_some(kept)));
+            }
+        }
+    }
+
+    /// An engine of the same trial, seed, coverage and progress observer.
+    fn share(&self) -> Engine<'_, T> {
+        Engine {
+            trial: self.trial,
+            seed: self.seed,
+            p: self.p,
+            keep: self.keep,
+            counter: Counter {
+                progress: self.counter.progress,
+                state: Mutex::new(*self.counter.state.lock().unwrap_or_else(|e| e.into_inner())),
+            },
+            peak_kept: AtomicUsize::new(0),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand_distr::{Distribution as _, StandardNormal};
+
+    /// `outputs` independent normal outputs around 0.
+    struct Normals(Vec<f64>);
+
+    impl Trial for Normals {
+        type Scratch = ();
+        fn outputs(&self) -> usize {
+            self.0.len()
+        }
+        fn centre(&self) -> &[f64] {
+            &self.0
+        }
+        fn scratch(&self) {}
+        fn draw<R: Rng + ?Sized>(
+            &self,
+            rng: &mut R,
+            _: &mut (),
+            out: &mut [f64],
+        ) -> Result<(), TrialFailure> {
+            for o in out.iter_mut() {
+                *o = StandardNormal.sample(rng);
+            }
+            Ok(())
+        }
+        fn inputs(&self, _: &()) -> Vec<f64> {
+            Vec::new()
+        }
+    }
+
+    /// The values kept inside the brackets never exceed what [`memory_needed`] counts for
+    /// them, and the estimate grows with the trials far slower than trials × outputs.
+    #[test]
+    fn the_memory_estimate_bounds_the_values_kept() {
+        for (outputs, m) in [(2_000, 60_000), (40, 250_000), (3, 7_000)] {
+            let trial = Normals(vec![0.0; outputs]);
+            let engine = Engine {
+                trial: &trial,
+                seed: 9,
+                p: 0.95,
+                keep: false,
+                counter: Counter::new(None),
+                peak_kept: AtomicUsize::new(0),
+            };
+            engine.fixed(m).unwrap();
+            let kept_bytes = 16 * engine.peak_kept.load(Ordering::Relaxed) as u128;
+            let pilot = pilot_len(m, outputs, 0.95);
+            let estimate = memory_needed(m, outputs, false, 0.95);
+            let bracket_bytes = estimate
+                - 8 * pilot as u128 * outputs as u128
+                - super::super::statistics::COLUMN_BYTES as u128;
+            // the estimate counts the values twice (while they are bucketed)
+            assert!(
+                2 * kept_bytes <= bracket_bytes,
+                "{outputs} outputs, {m} trials: kept {kept_bytes} B, estimated {bracket_bytes} B"
+            );
+            if outputs == 2_000 {
+                // a quarter of every value's 8 bytes, pilot included
+                assert!(estimate < (8 * m * outputs / 4) as u128, "{estimate}");
             }
         }
     }

@@ -284,26 +284,41 @@ impl Acc {
         self.merged.extend(other.merged);
     }
 
+    /// The number of values kept inside the brackets (what the accumulator's memory grows
+    /// with: 16 bytes each).
+    pub(crate) fn kept(&self) -> usize {
+        self.inside.len() + self.merged.iter().map(Vec::len).sum::<usize>()
+    }
+
+    /// Gives back the room reserved beyond the values kept (a block's store is reserved
+    /// for the widest brackets).
+    pub(crate) fn shrink(&mut self) {
+        self.inside.shrink_to_fit();
+    }
+
     /// The values inside every bracket so far, per bracket (2j low, 2j + 1 high); the
-    /// accumulator keeps none.
+    /// accumulator keeps none. Each store is freed as soon as its values are bucketed, so
+    /// that the values are held about once, not twice.
     fn take_inside(&mut self) -> Vec<Vec<f64>> {
         let mut chunks = std::mem::take(&mut self.merged);
         chunks.push(std::mem::take(&mut self.inside));
         let brackets = 2 * self.s1.len();
-        let bucket = |chunks: &[Vec<(u32, f64)>]| {
+        let bucket = |chunks: Vec<Vec<(u32, f64)>>| {
             let mut counts = vec![0; brackets];
             for &(i, _) in chunks.iter().flatten() {
                 counts[i as usize] += 1;
             }
             let mut buckets: Vec<Vec<f64>> = counts.into_iter().map(Vec::with_capacity).collect();
-            for &(i, x) in chunks.iter().flatten() {
-                buckets[i as usize].push(x);
+            for chunk in chunks {
+                for (i, x) in chunk {
+                    buckets[i as usize].push(x);
+                }
             }
             buckets
         };
         // Two halves side by side, then joined: the order of the values does not matter.
-        let (first, second) = chunks.split_at(chunks.len() / 2);
-        let (mut a, b) = rayon::join(|| bucket(first), || bucket(second));
+        let second = chunks.split_off(chunks.len() / 2);
+        let (mut a, b) = rayon::join(|| bucket(chunks), || bucket(second));
         for (a, b) in a.iter_mut().zip(b) {
             a.extend(b);
         }
@@ -347,7 +362,7 @@ impl Acc {
                 let r = if side == 0 { r_low } else { r_high };
                 let pi = (r as f64 + 0.5) / m as f64;
                 let centre = pi * s as f64;
-                let margin = factor * (6.0 * (s as f64 * pi * (1.0 - pi)).sqrt() + 10.0);
+                let margin = rank_margin(s, pi, factor);
                 let index = |rank: f64| {
                     let k = rank - first as f64;
                     (k >= 0.0 && k < kept.len() as f64).then_some(k as usize)
@@ -389,6 +404,12 @@ impl Acc {
     }
 }
 
+/// The half-width, in ranks among `s` trials, of a bracket around the order statistic
+/// at fraction `pi`: six binomial standard deviations plus ten, times `factor`.
+pub(crate) fn rank_margin(s: usize, pi: f64, factor: f64) -> f64 {
+    factor * (6.0 * (s as f64 * pi * (1.0 - pi)).sqrt() + 10.0)
+}
+
 /// The values at the ascending 0-based `ranks` of `values` (as a full sort would place
 /// them), by successive selection; reorders `values`.
 fn select_ranks(values: &mut [f64], ranks: &[usize]) -> Vec<f64> {
@@ -426,7 +447,7 @@ pub(crate) fn brackets_from(pilot: &mut [Vec<f64>], m: usize, p: f64, factor: f6
             for (side, r) in [r_low, r_high].into_iter().enumerate() {
                 let pi = (r as f64 + 0.5) / m as f64;
                 let centre = pi * len as f64;
-                let margin = factor * (6.0 * (len as f64 * pi * (1.0 - pi)).sqrt() + 10.0);
+                let margin = rank_margin(len, pi, factor);
                 let lo = centre - margin;
                 let hi = centre + margin;
                 ranks[2 * side] = (lo >= 0.0).then_some(lo as usize);
@@ -455,9 +476,48 @@ pub(crate) fn brackets_from(pilot: &mut [Vec<f64>], m: usize, p: f64, factor: f6
     }
 }
 
+/// Bytes of columns [`brackets_from_raw`] forms at a time.
+pub(crate) const COLUMN_BYTES: usize = 16 << 20;
+
+/// [`brackets_from`] of trial-major outputs (`outputs` values per trial), without
+/// holding a second copy of them: the columns are formed and bracketed a few outputs at
+/// a time (at most [`COLUMN_BYTES`] of them).
+pub(crate) fn brackets_from_raw(
+    raw: &[f64],
+    outputs: usize,
+    m: usize,
+    p: f64,
+    factor: f64,
+) -> Brackets {
+    let trials = (raw.len() / outputs).max(1);
+    let chunk = (COLUMN_BYTES / (8 * trials)).max(2);
+    let mut all = Brackets {
+        low_from: Vec::with_capacity(outputs),
+        low_to: Vec::with_capacity(outputs),
+        high_from: Vec::with_capacity(outputs),
+        high_to: Vec::with_capacity(outputs),
+    };
+    let mut from = 0;
+    while from < outputs {
+        let to = (from + chunk).min(outputs);
+        let b = brackets_from(&mut columns_of(raw, outputs, from..to), m, p, factor);
+        all.low_from.extend(b.low_from);
+        all.low_to.extend(b.low_to);
+        all.high_from.extend(b.high_from);
+        all.high_to.extend(b.high_to);
+        from = to;
+    }
+    all
+}
+
 /// The columns (one per output) of trial-major outputs: the trials read in order, in
 /// two halves of the outputs side by side.
 pub(crate) fn columns(raw: &[f64], outputs: usize) -> Vec<Vec<f64>> {
+    columns_of(raw, outputs, 0..outputs)
+}
+
+/// The columns of outputs `range` of trial-major outputs (`outputs` values per trial).
+fn columns_of(raw: &[f64], outputs: usize, range: std::ops::Range<usize>) -> Vec<Vec<f64>> {
     let trials = raw.len() / outputs;
     let some = |from: usize, to: usize| {
         let mut columns: Vec<Vec<f64>> = (from..to).map(|_| Vec::with_capacity(trials)).collect();
@@ -468,8 +528,8 @@ pub(crate) fn columns(raw: &[f64], outputs: usize) -> Vec<Vec<f64>> {
         }
         columns
     };
-    let half = outputs / 2;
-    let (mut first, second) = rayon::join(|| some(0, half), || some(half, outputs));
+    let half = range.start + range.len() / 2;
+    let (mut first, second) = rayon::join(|| some(range.start, half), || some(half, range.end));
     first.extend(second);
     first
 }
