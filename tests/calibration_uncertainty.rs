@@ -1164,3 +1164,104 @@ fn cli_monte_carlo_and_refusals() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `diagnose --budget --monte-carlo` adds the final model's monte_carlo object (its JSON
+/// `after`, and a table section after the final model's results) with the effect columns
+/// in the trials: its u follows the final model's GUM u_c, not the base model's; status 1
+/// when an effect makes the model inadequate or the GUM is not validated, 0 otherwise; it
+/// needs --budget, and a self-calibration file's diagnosis refuses it (status 2).
+#[test]
+fn cli_diagnose_monte_carlo_on_the_final_model() {
+    let dir = temp_dir("diagnose-mc");
+    let data = dir.join("drift.csv");
+    let out = polycal(&[
+        "simulate",
+        "--faces",
+        "24",
+        "--cycles",
+        "3",
+        "--closing",
+        "--drift",
+        "2:3",
+        "--offset-step",
+        "1:2:10:0.6",
+        "--seed",
+        "3",
+        "--out",
+        data.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let d = data.to_str().unwrap();
+    let out = polycal(&[
+        "diagnose",
+        d,
+        "--budget",
+        INSTRUMENT,
+        "--monte-carlo",
+        "2e4",
+        "--mc-digits",
+        "1",
+        "--seed",
+        "7",
+        "--format",
+        "json",
+    ]);
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(json["effects"].as_array().unwrap().len() >= 2, "{json}");
+    let after = &json["after"];
+    let mc = &after["monte_carlo"];
+    assert_eq!(mc["trials"], 20_000);
+    assert_eq!(mc["seed"], 7);
+    assert_eq!(mc["solver"], "lsq");
+    for family in ["pitch_deviation", "face_deviation", "encoder_error"] {
+        let u_mc = mc[family]["u"].as_array().unwrap();
+        let u_gum = after["uncertainty"][family]["u"].as_array().unwrap();
+        assert_eq!(u_mc.len(), 24);
+        for (a, b) in u_mc.iter().zip(u_gum) {
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            // the t-scaled noise (JCGM 101 §6.4.9) makes the Monte Carlo u slightly larger
+            if b > 0.0 {
+                assert!(close(a, b, 0.05), "{family}: {a} vs {b}");
+            }
+        }
+    }
+    let verdict = !json["adequate"].as_bool().unwrap() || !mc["validated"].as_bool().unwrap();
+    assert_eq!(out.status.code(), Some(if verdict { 1 } else { 0 }));
+    assert!(json["before"].get("monte_carlo").is_none());
+
+    let table = polycal(&[
+        "diagnose",
+        d,
+        "--budget",
+        INSTRUMENT,
+        "--monte-carlo",
+        "20000",
+    ]);
+    let text = String::from_utf8(table.stdout).unwrap();
+    let final_model = text.find("Calibration of the final model").unwrap();
+    let monte_carlo = text.find("Monte Carlo (JCGM 101): 20000 trials").unwrap();
+    assert!(final_model < monte_carlo, "{text}");
+
+    let refused = |args: &[&str], wanted: &str| {
+        let out = polycal(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert!(
+            stderr.starts_with("error: ") && stderr.contains(wanted),
+            "{stderr:?} lacks {wanted:?}"
+        );
+    };
+    refused(&["diagnose", d, "--monte-carlo", "1e4"], "--budget");
+    refused(
+        &[
+            "diagnose",
+            "examples/data/selfa-168.csv",
+            "--budget",
+            INSTRUMENT,
+            "--monte-carlo",
+            "1e4",
+        ],
+        "selfa-168.csv: --monte-carlo is not available for a self-calibration",
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -88,10 +88,15 @@ def diagnose(
     truth: Optional[Union[Dict[str, Any], str]] = None,
     sigma: Optional[float] = None,
     budget: Optional[Budget] = None,
+    monte_carlo: Union[None, int, str] = None,
+    seed: int = 1,
 ) -> Result:
     """Diagnoses the set as ``polycal diagnose`` does: finds the effects the model lacks,
     adds them, and says whether the final model is adequate; with a truth (a dict or JSON
-    text, as :func:`simulate` returns) the error before and after."""
+    text, as :func:`simulate` returns) the error before and after. With a budget, U and k
+    of the final model's results, and with ``monte_carlo`` (a number of trials or
+    ``"adaptive"``) its JCGM 101 evaluation, effect columns included (``after``'s
+    ``monte_carlo``)."""
     if isinstance(truth, dict):
         truth = _json.dumps(truth)
     return Result(
@@ -100,6 +105,8 @@ def diagnose(
             truth=truth,
             sigma=_sigma(sigma),
             budget=None if budget is None else budget._inner,
+            monte_carlo=monte_carlo,
+            seed=seed,
         )
     )
 

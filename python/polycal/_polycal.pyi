@@ -94,6 +94,8 @@ def diagnose(
     truth: Optional[str] = None,
     sigma: Optional[float] = None,
     budget: Optional[Budget] = None,
+    monte_carlo: Union[None, int, str] = None,
+    seed: int = 1,
 ) -> str: ...
 def read_selfcal(
     path: Optional[str] = None,

@@ -291,21 +291,30 @@ pub(crate) fn simulate(
 }
 
 /// Diagnoses a measurement set as `polycal diagnose` does; returns its JSON object (the
-/// budget acts on the final model).
+/// budget, and the Monte Carlo when asked, act on the final model).
 #[pyfunction]
-#[pyo3(signature = (ms, truth=None, sigma=None, budget=None))]
+#[pyo3(signature = (ms, truth=None, sigma=None, budget=None, monte_carlo=None, seed=1))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
     py: Python<'_>,
     ms: &PyMeasurementSet,
     truth: Option<&str>,
     sigma: Option<f64>,
     budget: Option<&PyBudget>,
+    monte_carlo: Option<&Bound<'_, PyAny>>,
+    seed: u64,
 ) -> PyResult<String> {
     let truth = truth
         .map(|t| Truth::from_json_bytes(t.as_bytes(), "<truth>"))
         .transpose()
         .map_err(|e| PyValueError::new_err(format!("truth: {e}")))?;
     let options = DiagnoseOptions::new().with_sigma_opt(crate::sigma(sigma)?);
+    let trials = trials(monte_carlo)?;
+    if trials.is_some() && budget.is_none() {
+        return Err(PyValueError::new_err(
+            "monte_carlo needs a budget: the Monte Carlo propagates the instrument budget with the reading noise",
+        ));
+    }
     let set = &ms.inner;
     let budget = budget.map(|b| &b.inner);
     let done = py.detach(|| {
@@ -315,6 +324,21 @@ pub(crate) fn diagnose(
         if let Some(b) = budget {
             let gum = evaluate(set, &found.after, b).map_err(|e| Failure::Other(e.to_string()))?;
             report.after = report.after.with_uncertainty(&gum);
+            if let Some(trials) = trials {
+                let options = McOptions::new(trials)
+                    .with_seed(seed)
+                    .with_significant_digits(2)
+                    .with_solver(McSolver::Auto);
+                let mc = polycal::uncertainty::calibration::monte_carlo(
+                    set,
+                    &found.after,
+                    b,
+                    &gum,
+                    &options,
+                )
+                .map_err(|e| Failure::Other(e.to_string()))?;
+                report.after = report.after.with_monte_carlo(mc);
+            }
         }
         polycal::output::to_json(&report).map_err(|e| Failure::Other(e.to_string()))
     });

@@ -80,6 +80,19 @@ def test_monte_carlo_is_the_clis_for_the_same_seed():
     assert result.to_json() == expected
 
 
+def test_diagnose_monte_carlo_is_the_clis_for_the_same_seed():
+    ms = polycal.read_measurements(DATA)
+    result = polycal.diagnose(ms, budget=polycal.budget(BUDGET), monte_carlo=3000, seed=4)
+    expected = cli(
+        "diagnose", DATA, "--budget", BUDGET, "--monte-carlo", "3000", "--seed", "4",
+        "--format", "json",
+    )
+    assert result.to_json() == expected
+    assert json.loads(expected)["after"]["monte_carlo"]["trials"] == 3000
+    with pytest.raises(ValueError, match="needs a budget"):
+        polycal.diagnose(ms, monte_carlo=3000)
+
+
 def test_diagnose_selfcal_and_compare_are_the_clis():
     ms = polycal.read_measurements(DATA)
     assert polycal.diagnose(ms).to_json() == cli("diagnose", DATA, "--format", "json")

@@ -15,9 +15,11 @@ use polycal::output::{self, diagnose::DiagnoseReport};
 use polycal::results::ResultRow;
 use polycal::selfcal::{SelfcalOptions, SelfcalSet};
 use polycal::simulate::{SelfcalTruth, SimulateError, Truth};
-use polycal::uncertainty::calibration::CalibrationError;
-use polycal::uncertainty::calibration::InstrumentBudget;
+use polycal::uncertainty::calibration::{
+    self, CalibrationError, InstrumentBudget, KnownCorrection,
+};
 
+use super::monte_carlo::McArgs;
 use super::output::Output;
 use super::solve::{
     check_stated_cross_talk, corrected, evaluate_budget, read_budget, shift_refusal,
@@ -68,6 +70,8 @@ pub struct DiagnoseArgs {
     /// and k of every result of the final model (base model + the effects found).
     #[arg(long, value_name = "FILE.toml")]
     budget: Option<PathBuf>,
+    #[command(flatten)]
+    monte_carlo: McArgs,
     /// Output format: `csv` writes the final model's result file (docs/FORMAT.md §3),
     /// as `solve --format csv` does.
     #[arg(long, value_enum, default_value = "table")]
@@ -100,6 +104,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
     )?;
     let truth = args.truth.as_deref().map(read_truth).transpose()?;
     super::plot_one_file(args.plot.as_deref(), args.files.len())?;
+    let mc_options = args.monte_carlo.options(args.budget.is_some())?;
     let budget = read_budget(args.budget.as_deref(), out)?;
     check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
     let options = DiagnoseOptions::new()
@@ -108,7 +113,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
     let several = args.files.len() > 1;
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
-    let (mut failures, mut inadequate) = (0, 0);
+    let (mut failures, mut inadequate, mut not_validated) = (0, 0, 0);
     let mut csv_rows = Vec::new();
     for path in &args.files {
         // The name in messages (`<stdin>` for `-`); reports keep the path as given.
@@ -123,6 +128,14 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             }
         };
         if SelfcalSet::is_selfcal_file(&bytes) {
+            if mc_options.is_some() {
+                out.error_message(format_args!(
+                    "{name}: --monte-carlo is not available for a self-calibration's diagnosis \
+                     yet: its GUM budget (--budget) is (docs/FORMAT.md §9)"
+                ));
+                failures += 1;
+                continue;
+            }
             let file = SelfcalFile {
                 bytes: &bytes,
                 name: &name,
@@ -204,6 +217,35 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                 continue;
             }
         };
+        // The Monte Carlo of the final model, effect columns included, as `solve`'s.
+        let mc = match (&budget, &gum, &mc_options) {
+            (Some(budget), Some(gum), Some(options)) => {
+                let progress = out.progress_bar("Monte Carlo");
+                let options = (*options).with_progress(&progress);
+                let corrections = KnownCorrection::of_stated_cross_talk(&set, &args.cross_talk);
+                match calibration::monte_carlo_with_corrections(
+                    &set,
+                    &diagnosis.after,
+                    budget,
+                    &corrections,
+                    gum,
+                    &options,
+                )
+                .with_context(|| format!("{name}: Monte Carlo failed"))
+                {
+                    Ok(mc) => Some(mc),
+                    Err(error) => {
+                        out.error(&error);
+                        failures += 1;
+                        continue;
+                    }
+                }
+            }
+            _ => None,
+        };
+        if mc.as_ref().is_some_and(|mc| !mc.validated) {
+            not_validated += 1;
+        }
         if !diagnosis.adequacy.adequate {
             inadequate += 1;
         }
@@ -214,6 +256,9 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                         .with_residuals(&diagnosis, &set);
                 if let Some(gum) = &gum {
                     report.after = report.after.with_uncertainty(gum);
+                }
+                if let Some(mc) = mc.clone() {
+                    report.after = report.after.with_monte_carlo(mc);
                 }
                 report
             });
@@ -242,6 +287,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                     &diagnosis.after,
                     gum.as_ref(),
                     diagnosis.after_sub_pitch.as_ref(),
+                    mc.as_ref(),
                 )?;
                 output::write_stated_cross_talk(&mut text, &args.cross_talk)?;
                 write!(stdout, "{text}")?;
@@ -268,7 +314,13 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
     if failures > 0 {
         return Ok(EXIT_ERROR);
     }
-    Ok(if inadequate > 0 {
+    if not_validated > 0 {
+        out.warning(
+            "Monte Carlo does not validate the GUM uncertainty of some quantities of the \
+             final model (JCGM 101 §8); see the monte_carlo results",
+        );
+    }
+    Ok(if inadequate > 0 || not_validated > 0 {
         EXIT_VERDICT
     } else {
         EXIT_OK

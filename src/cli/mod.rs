@@ -10,6 +10,7 @@ mod docs;
 mod interrupt;
 #[cfg(feature = "lab")]
 mod lab;
+mod monte_carlo;
 pub mod output;
 mod plan;
 mod report;

@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::ValueEnum;
 use polycal::input::display_name;
 use polycal::measurement::cross_talk::{StatedCrossTalk, check_distinct, correct_cross_talk};
@@ -14,10 +14,10 @@ use polycal::results::ResultRow;
 use polycal::solve::sub_pitch::{ShiftGeometry, SubPitchSolution, solve_shifted};
 use polycal::solve::{self, Method, Solution, SolveError, SolveOptions};
 use polycal::uncertainty::calibration::{
-    self, CalibrationUncertainty, InstrumentBudget, KnownCorrection, McOptions, McSolver,
+    self, CalibrationUncertainty, InstrumentBudget, KnownCorrection,
 };
-use polycal::uncertainty::monte_carlo::Trials;
 
+use super::monte_carlo::McArgs;
 use super::output::Output;
 use super::{EXIT_ERROR, EXIT_OK, EXIT_VERDICT, with_hint};
 
@@ -65,20 +65,8 @@ pub struct SolveArgs {
     /// the budget through the design.
     #[arg(long, value_name = "FILE.toml")]
     budget: Option<PathBuf>,
-    /// Monte Carlo through the solver (JCGM 101): a number of trials (e.g. 1000000 or
-    /// 1e6) or `adaptive` (JCGM 101 §7.9). Needs --budget.
-    #[arg(long, value_name = "N|adaptive", value_parser = parse_trials)]
-    monte_carlo: Option<McTrials>,
-    /// Seed of the Monte Carlo (same seed, same numbers, whatever the threads).
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Significant digits of u_c for the Monte Carlo validation of the GUM result and
-    /// for the adaptive procedure.
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=6))]
-    mc_digits: u32,
-    /// Largest number of trials of the adaptive procedure.
-    #[arg(long, default_value_t = 10_000_000)]
-    mc_max_trials: usize,
+    #[command(flatten)]
+    monte_carlo: McArgs,
     /// Write the figures as SVG files into DIR (created if missing), one file per figure
     /// with a stable name (docs/FORMAT.md §10), whatever --format is. Takes one input file:
     /// with several, run once per file.
@@ -107,32 +95,6 @@ enum MethodArg {
     Dense,
 }
 
-/// `--monte-carlo`: a number of trials or the adaptive procedure.
-#[derive(Debug, Clone, Copy)]
-enum McTrials {
-    Fixed(usize),
-    Adaptive,
-}
-
-fn parse_trials(text: &str) -> Result<McTrials, String> {
-    if text == "adaptive" {
-        return Ok(McTrials::Adaptive);
-    }
-    let trials = text
-        .parse::<usize>()
-        .ok()
-        .or_else(|| {
-            text.parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite() && *v >= 1.0 && v.fract() == 0.0 && *v <= 1e12)
-                .map(|v| v as usize)
-        })
-        .ok_or_else(|| {
-            format!("expected a number of trials (e.g. 1000000 or 1e6) or `adaptive`, got {text:?}")
-        })?;
-    Ok(McTrials::Fixed(trials))
-}
-
 /// `polycal solve`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
     super::stdin_once(
@@ -142,26 +104,9 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             .chain([("--budget", args.budget.as_deref())]),
     )?;
     check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
-    if args.monte_carlo.is_some() && args.budget.is_none() {
-        bail!(
-            "--monte-carlo needs --budget: the Monte Carlo propagates the instrument budget \
-             with the reading noise (see examples/budgets/instrument.toml)"
-        );
-    }
+    let mc_options = args.monte_carlo.options(args.budget.is_some())?;
     super::plot_one_file(args.plot.as_deref(), args.files.len())?;
     let budget = read_budget(args.budget.as_deref(), out)?;
-    let mc_options = args.monte_carlo.map(|trials| {
-        McOptions::new(match trials {
-            McTrials::Fixed(m) => Trials::Fixed(m),
-            McTrials::Adaptive => Trials::Adaptive {
-                significant_digits: args.mc_digits,
-                max_trials: args.mc_max_trials,
-            },
-        })
-        .with_seed(args.seed)
-        .with_significant_digits(args.mc_digits)
-        .with_solver(McSolver::Auto)
-    });
     let options = SolveOptions::new()
         .with_method(match args.method {
             MethodArg::Auto => Method::Auto,
@@ -454,23 +399,5 @@ fn actionable(error: SolveError) -> anyhow::Error {
             with_hint(error, "--method lsq", "use --method lsq")
         }
         other => other.into(),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn trials_are_a_count_or_adaptive() {
-        assert!(matches!(
-            parse_trials("1e6"),
-            Ok(McTrials::Fixed(1_000_000))
-        ));
-        assert!(matches!(parse_trials("20000"), Ok(McTrials::Fixed(20_000))));
-        assert!(matches!(parse_trials("adaptive"), Ok(McTrials::Adaptive)));
-        for bad in ["1.5", "-3", "many", "1e13"] {
-            assert!(parse_trials(bad).is_err(), "{bad}");
-        }
     }
 }

@@ -346,7 +346,9 @@ fn write_results_with<W: Write>(
 
 /// Writes the results section ([`write_results`]) of the final model of
 /// `polycal diagnose` under a heading that says so: the calibration corrected for the
-/// effect terms of `solution` (base model + effects), with its dof and residual RMS.
+/// effect terms of `solution` (base model + effects), with its dof and residual RMS;
+/// with `monte_carlo`, its Monte Carlo and the JCGM 101 §8 validation, as `solve`'s
+/// table has them.
 ///
 /// # Errors
 ///
@@ -356,6 +358,7 @@ pub fn write_final_model_results<W: Write>(
     solution: &Solution,
     uncertainty: Option<&CalibrationUncertainty>,
     sub_pitch: Option<&SubPitchSolution>,
+    monte_carlo: Option<&CalibrationMonteCarlo>,
 ) -> fmt::Result {
     // the cosets' differences of sub-pitch mountings are part of the base model
     let base_terms = sub_pitch.map_or(0, |s| {
@@ -383,6 +386,9 @@ pub fn write_final_model_results<W: Write>(
         for note in &solved.notes {
             writeln!(out, "note: {note}")?;
         }
+    }
+    if let Some(mc) = monte_carlo {
+        write_monte_carlo(out, solution, uncertainty, mc)?;
     }
     Ok(())
 }

@@ -177,6 +177,7 @@ pub fn measurement(case: &Case) -> Result<(), Box<Finding>> {
                         &diagnosis.after,
                         None,
                         diagnosis.after_sub_pitch.as_ref(),
+                        None,
                     );
                     let report = DiagnoseReport::new(&diagnosis, None, None)
                         .with_residuals(&diagnosis, &set);

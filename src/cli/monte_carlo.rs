@@ -1,0 +1,99 @@
+//! The Monte Carlo options every evaluation with a budget takes (`solve`, `diagnose`,
+//! `selfcal`): `--monte-carlo N|adaptive`, `--seed`, `--mc-digits`, `--mc-max-trials`
+//! (docs/FORMAT.md §5.1, §5.2, §9).
+
+use anyhow::{Result, bail};
+use clap::Args;
+use polycal::uncertainty::calibration::{McOptions, McSolver};
+use polycal::uncertainty::monte_carlo::Trials;
+
+/// The Monte Carlo arguments, flattened into each command that takes `--budget`.
+#[derive(Args, Debug, Clone)]
+pub struct McArgs {
+    /// Monte Carlo through the solver (JCGM 101): a number of trials (e.g. 1000000 or
+    /// 1e6) or `adaptive` (JCGM 101 §7.9). Needs --budget.
+    #[arg(long, value_name = "N|adaptive", value_parser = parse_trials)]
+    monte_carlo: Option<McTrials>,
+    /// Seed of the Monte Carlo (same seed, same numbers, whatever the threads).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Significant digits of u_c for the Monte Carlo validation of the GUM result and
+    /// for the adaptive procedure.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=6))]
+    mc_digits: u32,
+    /// Largest number of trials of the adaptive procedure.
+    #[arg(long, default_value_t = 10_000_000)]
+    mc_max_trials: usize,
+}
+
+/// `--monte-carlo`: a number of trials or the adaptive procedure.
+#[derive(Debug, Clone, Copy)]
+enum McTrials {
+    Fixed(usize),
+    Adaptive,
+}
+
+fn parse_trials(text: &str) -> Result<McTrials, String> {
+    if text == "adaptive" {
+        return Ok(McTrials::Adaptive);
+    }
+    let trials = text
+        .parse::<usize>()
+        .ok()
+        .or_else(|| {
+            text.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && *v >= 1.0 && v.fract() == 0.0 && *v <= 1e12)
+                .map(|v| v as usize)
+        })
+        .ok_or_else(|| {
+            format!("expected a number of trials (e.g. 1000000 or 1e6) or `adaptive`, got {text:?}")
+        })?;
+    Ok(McTrials::Fixed(trials))
+}
+
+impl McArgs {
+    /// The library's options, or `None` without `--monte-carlo`; refused without a
+    /// budget, which is what the Monte Carlo propagates.
+    pub fn options(&self, has_budget: bool) -> Result<Option<McOptions<'static>>> {
+        let Some(trials) = self.monte_carlo else {
+            return Ok(None);
+        };
+        if !has_budget {
+            bail!(
+                "--monte-carlo needs --budget: the Monte Carlo propagates the instrument \
+                 budget with the reading noise (see examples/budgets/instrument.toml)"
+            );
+        }
+        Ok(Some(
+            McOptions::new(match trials {
+                McTrials::Fixed(m) => Trials::Fixed(m),
+                McTrials::Adaptive => Trials::Adaptive {
+                    significant_digits: self.mc_digits,
+                    max_trials: self.mc_max_trials,
+                },
+            })
+            .with_seed(self.seed)
+            .with_significant_digits(self.mc_digits)
+            .with_solver(McSolver::Auto),
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trials_are_a_count_or_adaptive() {
+        assert!(matches!(
+            parse_trials("1e6"),
+            Ok(McTrials::Fixed(1_000_000))
+        ));
+        assert!(matches!(parse_trials("20000"), Ok(McTrials::Fixed(20_000))));
+        assert!(matches!(parse_trials("adaptive"), Ok(McTrials::Adaptive)));
+        for bad in ["1.5", "-3", "many", "1e13"] {
+            assert!(parse_trials(bad).is_err(), "{bad}");
+        }
+    }
+}

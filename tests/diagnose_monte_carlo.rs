@@ -1,0 +1,149 @@
+//! Monte Carlo of a diagnosis's final model (docs/FORMAT.md §5.2, `diagnose --budget
+//! --monte-carlo`): the trials are solved with the effect columns the diagnosis added, and
+//! for a linear model with normal inputs they agree with the GUM, whose k is then exactly
+//! the normal one.
+
+use polycal::diagnose::{DiagnoseOptions, diagnose};
+use polycal::effects::Effect;
+use polycal::simulate::{SimulationConfig, simulate};
+use polycal::solve::{SigmaSource, Solution};
+use polycal::uncertainty::calibration::{self, InstrumentBudget, McOptions};
+use polycal::uncertainty::monte_carlo::Trials;
+
+/// Normal components of infinite degrees of freedom on every scope the design has.
+const NORMAL_BUDGET: &str = r#"
+p = 0.95
+dof_policy = "fractional"
+
+[[component]]
+name = "Angle error (normal)"
+type = "B"
+distribution = "normal"
+u = 0.03
+acts_on = "each-reading"
+
+[[component]]
+name = "Table position (normal)"
+type = "B"
+distribution = "normal"
+u = 0.02
+acts_on = "each-stop"
+
+[[component]]
+name = "Result offset (normal)"
+type = "B"
+distribution = "normal"
+u = 0.01
+acts_on = "result"
+"#;
+
+/// The fit's σ stated (normal noise, infinite degrees of freedom), as a lab states the
+/// repeatability of its autocollimators: every input of the model is then normal.
+fn stated(solution: &Solution, sigma: f64) -> Solution {
+    let mut solution = solution.clone();
+    solution.sigma = Some((sigma, SigmaSource::Stated));
+    solution
+}
+
+/// A drift and a zero jump found by the diagnosis change the design through which every
+/// error propagates; the Monte Carlo of the final model draws the readings and solves
+/// them with the effects' columns. With normal inputs its u is the GUM's u_c within the Monte Carlo
+/// noise (√(1/2M) relative), its interval ends the GUM's y ± 1.96·u_c within their noise,
+/// and JCGM 101 §8 validates the GUM at one significant digit; the base model's GUM
+/// differs from the final model's by more than three times the tolerance on u, so a Monte
+/// Carlo that left the effect columns out would fail.
+#[test]
+fn final_model_monte_carlo_agrees_with_the_gum_for_normal_inputs() {
+    let (set, _) = simulate(&SimulationConfig {
+        faces: 24,
+        cycles: 3,
+        closing: true,
+        noise_arcsec: 0.05,
+        effects: vec![
+            Effect::Drift {
+                ac: 2,
+                value: 3.0,
+                quadratic: None,
+            },
+            Effect::OffsetStep {
+                ac: 1,
+                cycle: 2,
+                step: Some(10),
+                setup: None,
+                value: 0.6,
+            },
+        ],
+        seed: 3,
+        ..SimulationConfig::default()
+    })
+    .unwrap();
+    let d = diagnose(&set, &DiagnoseOptions::default()).unwrap();
+    assert_eq!(d.effects.len(), 2, "{:?}", d.effects);
+    assert!(d.after.layout.effects >= 1);
+    let budget = InstrumentBudget::from_toml_str(NORMAL_BUDGET, "normal.toml").unwrap();
+    let after = stated(&d.after, 0.05);
+    let before = stated(&d.before, 0.05);
+    let gum = calibration::evaluate(&set, &after, &budget).unwrap();
+    let gum_before = calibration::evaluate(&set, &before, &budget).unwrap();
+    let m = 200_000;
+    let options = McOptions::new(Trials::Fixed(m))
+        .with_seed(5)
+        .with_significant_digits(1);
+    let mc = calibration::monte_carlo(&set, &after, &budget, &gum, &options).unwrap();
+    assert_eq!(mc.trials, m);
+    assert!(mc.validated, "JCGM 101 §8 at one digit");
+    let relative_u_noise = (1.0 / (2.0 * m as f64)).sqrt();
+    // sd of an order statistic at 2.5 %: √(p(1 − p)/M)/f(1.96), f the normal density
+    let end_noise = (0.025 * 0.975 / m as f64).sqrt() / 0.058_445;
+    let mut largest_change = 0.0_f64;
+    for (family, mc_family, gum_family, gum_before_family, estimates) in [
+        (
+            "pitch",
+            &mc.pitch_deviation,
+            &gum.pitch_deviation,
+            &gum_before.pitch_deviation,
+            &after.pitch_deviation,
+        ),
+        (
+            "face",
+            &mc.face_deviation,
+            &gum.face_deviation,
+            &gum_before.face_deviation,
+            &after.face_deviation,
+        ),
+        (
+            "encoder",
+            &mc.encoder_error,
+            &gum.encoder_error,
+            &gum_before.encoder_error,
+            &after.encoder_error,
+        ),
+    ] {
+        for (i, &estimate) in estimates.iter().enumerate() {
+            let u = gum_family.u[i];
+            if u == 0.0 {
+                continue; // φ[N] = 0 by definition
+            }
+            let k = gum_family.k[i].expect("a finite k");
+            assert!((k - 1.959_964).abs() < 1e-5, "normal k {k}");
+            let u_mc = mc_family.u[i];
+            assert!(
+                (u_mc / u - 1.0).abs() < 5.0 * relative_u_noise,
+                "{family} {i}: u {u_mc} against u_c {u}"
+            );
+            let low = estimate - 1.959_964 * u;
+            let high = estimate + 1.959_964 * u;
+            for (end, gum_end) in [(mc_family.low[i], low), (mc_family.high[i], high)] {
+                assert!(
+                    (end - gum_end).abs() < 5.0 * end_noise * u,
+                    "{family} {i}: interval end {end} against {gum_end}"
+                );
+            }
+            largest_change = largest_change.max((gum_before_family.u[i] / u - 1.0).abs());
+        }
+    }
+    assert!(
+        largest_change > 3.0 * 5.0 * relative_u_noise,
+        "the effect columns change some u_c by {largest_change}"
+    );
+}
