@@ -1,7 +1,7 @@
 //! The cofactor matrix Q of a fit (Cov(θ) = σ²·Q) as an operator: entries, the diagonal
 //! and products Q·x without forming the (2N + K + E)² matrix unless a caller asks for it.
 //!
-//! Two representations:
+//! Three representations:
 //!
 //! - **dense**: the matrix itself, in θ = [β (N), α (N), U (K), effects (E)]
 //!   ([`ParameterLayout`]), as the dense reference solver produces it;
@@ -20,6 +20,11 @@
 //!   The reported θ is a fixed sparse map of g (β_f = φ′_f − φ′_{f−1},
 //!   U_s = U′_s + φ′_N, the gauge of docs/FORMAT.md §1), so an entry of Q in θ costs
 //!   O(r), its diagonal O((2N + K)·r) and a product Q·x O(N log N + (2N + K)·r).
+//! - **structured on cosets**: a sub-pitch fit's Q_g = B + W M Wᵀ in the coset gauge
+//!   g = [α_0, …, α_{C−1}, φ′, U′], B block-circulant with a (C + 1) × (C + 1) block
+//!   per harmonic ([`super::coset`]), reported in the effect-column path's θ (the
+//!   cosets' differences δ_c = α_c − α_0 as its effect terms), again through a sparse
+//!   map of two terms per entry.
 
 use std::sync::{Arc, OnceLock};
 
