@@ -199,7 +199,8 @@ pub enum SolveError {
         effects: usize,
         /// Readings.
         readings: usize,
-        /// The engine the design needs (`dense` or `circulant`).
+        /// The engine the design needs (`dense`, `circulant`, `coset-circulant`, or
+        /// `sub-pitch` for the effect columns of sub-pitch cosets).
         engine: &'static str,
         /// Bytes it would need.
         needed_bytes: u128,
