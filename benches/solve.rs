@@ -9,12 +9,18 @@
 //! - `lsq_growth/{circulant,dense}/N`: the same for N = 24 … 5760 × 6 cycles (dense up to
 //!   1440), to show how the cost grows with N;
 //! - `bare_cycle/65536`: the bare two-autocollimator cycle at 65 536 positions, σ stated,
-//!   every u (the closed form and its covariance in closed form).
+//!   every u (the closed form and its covariance in closed form);
+//! - `sub_pitch_all_u/{coset,dense}/N`: sub-pitch mountings through `solve_shifted` with
+//!   every u (α at every table angle of every coset): N × 2 cycles with closing readings,
+//!   two mountings at 0° and 0.1° for N = 360 and 1440 (the design), four at 0°,
+//!   0.0125°, 0.03° and 0.05° for N = 5760; on the coset engine, and with the differences
+//!   as effect columns of the dense reference at N = 360.
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use nalgebra::{DVector, SVector};
 use polycal::measurement::Sigma;
 use polycal::simulate::{SimulationConfig, simulate};
+use polycal::solve::sub_pitch::{SubPitchSolution, solve_shifted};
 use polycal::solve::{Method, Solution, SolveOptions, closed_form, dense_least_squares, solve};
 use std::hint::black_box;
 use std::time::Duration;
@@ -114,11 +120,54 @@ fn bench_bare_cycle(c: &mut Criterion) {
     group.finish();
 }
 
+/// Every u of a sub-pitch result: α at every table angle of every coset, β, φ and U.
+fn all_sub_pitch_u(solved: &SubPitchSolution) -> f64 {
+    solved.encoder_error_u.iter().flatten().sum::<f64>() + all_u(&solved.solution)
+}
+
+/// Sub-pitch mountings on the coset engine and, at N = 360, with the cosets' differences
+/// as effect columns of the dense reference.
+fn bench_sub_pitch(c: &mut Criterion) {
+    let mut group = c.benchmark_group("sub_pitch_all_u");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(5));
+    let designs: [(usize, Vec<f64>); 3] = [
+        (360, vec![0.0, 0.1]),
+        (1440, vec![0.0, 0.1]),
+        (5760, vec![0.0, 0.0125, 0.03, 0.05]),
+    ];
+    for (faces, shifts) in designs {
+        let config = SimulationConfig {
+            faces,
+            cycles: 2,
+            closing: true,
+            setups: shifts.len() as u32,
+            table_shift_deg: shifts,
+            ..SimulationConfig::default()
+        };
+        let (set, _) = simulate(&config).expect("valid configuration");
+        let options = SolveOptions::new();
+        group.bench_with_input(BenchmarkId::new("coset", faces), &set, |b, set| {
+            b.iter(|| all_sub_pitch_u(&solve_shifted(black_box(set), &options).expect("solvable")))
+        });
+        if faces <= 360 {
+            let dense = SolveOptions::new().with_method(Method::Dense);
+            group.bench_with_input(BenchmarkId::new("dense", faces), &set, |b, set| {
+                b.iter(|| {
+                    all_sub_pitch_u(&solve_shifted(black_box(set), &dense).expect("solvable"))
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
 criterion_group!(
     benches,
     bench_closed_form,
     bench_lsq,
     bench_growth,
-    bench_bare_cycle
+    bench_bare_cycle,
+    bench_sub_pitch
 );
 criterion_main!(benches);

@@ -381,8 +381,11 @@ fn a_monte_carlo_too_big_for_the_machine_is_refused_up_front() {
 fn a_design_too_big_for_the_machine_is_refused_up_front() {
     let dir = temp_dir("design");
     let path = dir.join("sub-pitch.csv").display().to_string();
-    // 40 000 faces in two mountings 0.01° apart: 39 999 contrast columns of 320 000
-    // readings, 8 bytes each, about 95.4 GiB before the engine allocates anything.
+    // 40 000 faces in two mountings 0.01° apart, the second mounting's second
+    // autocollimator read at every third step only: too irregular for the coset engine
+    // (that stream reads most positions zero times), so the cosets' differences are
+    // effect columns, 39 999 of them of 266 668 readings, 8 bytes each, about 79.5 GiB
+    // before the engine allocates anything.
     let out = polycal(&[
         "simulate",
         "--faces",
@@ -402,11 +405,22 @@ fn a_design_too_big_for_the_machine_is_refused_up_front() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let text = std::fs::read_to_string(&path).unwrap();
+    let kept: Vec<&str> = text
+        .lines()
+        .filter(|line| {
+            // cycle,step,ac,face,reading,direction,setup,…
+            let fields: Vec<&str> = line.split(',').collect();
+            let number = |i: usize| fields.get(i).and_then(|f| f.parse::<usize>().ok());
+            !(number(6) == Some(2) && number(2) == Some(2) && number(1).is_some_and(|s| s % 3 != 0))
+        })
+        .collect();
+    std::fs::write(&path, kept.join("\n") + "\n").unwrap();
     let message = one_error_line(&polycal(&["solve", &path]));
     assert!(
         message.starts_with(&format!(
             "{path}: cannot solve: the design (40000 positions, 4 autocollimator streams, 39999 \
-             effect terms, 320000 readings) needs about 95.4 GiB of memory for the sub-pitch solver; "
+             effect terms, 266668 readings) needs about 79.5 GiB of memory for the sub-pitch solver; "
         )),
         "{message}"
     );

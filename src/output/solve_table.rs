@@ -42,6 +42,9 @@ fn write_summary<W: Write>(out: &mut W, solution: &Solution, source: &str) -> fm
         Engine::Circulant { low_rank } => {
             format!("least squares (circulant engine, low rank {low_rank})")
         }
+        Engine::CosetCirculant { cosets, low_rank } => {
+            format!("least squares (coset-circulant engine, {cosets} cosets, low rank {low_rank})")
+        }
         _ => "least squares (dense)".to_string(),
     };
     writeln!(out, "polycal solve: {source}")?;

@@ -451,7 +451,7 @@ pub(crate) fn solve(
 /// precision: a pivot below 1e-10 of `scale` (the size of the terms it was formed from;
 /// the dense path's test of its Cholesky factor is the same ratio), or a product with
 /// the inverse that is not the identity to 1e-8.
-fn invert_checked(matrix: &DMatrix<f64>, scale: f64) -> Option<DMatrix<f64>> {
+pub(crate) fn invert_checked(matrix: &DMatrix<f64>, scale: f64) -> Option<DMatrix<f64>> {
     let size = matrix.nrows();
     if size == 0 {
         return Some(DMatrix::zeros(0, 0));

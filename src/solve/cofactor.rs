@@ -1,7 +1,7 @@
 //! The cofactor matrix Q of a fit (Cov(θ) = σ²·Q) as an operator: entries, the diagonal
 //! and products Q·x without forming the (2N + K + E)² matrix unless a caller asks for it.
 //!
-//! Two representations:
+//! Three representations:
 //!
 //! - **dense**: the matrix itself, in θ = [β (N), α (N), U (K), effects (E)]
 //!   ([`ParameterLayout`]), as the dense reference solver produces it;
@@ -20,6 +20,11 @@
 //!   The reported θ is a fixed sparse map of g (β_f = φ′_f − φ′_{f−1},
 //!   U_s = U′_s + φ′_N, the gauge of docs/FORMAT.md §1), so an entry of Q in θ costs
 //!   O(r), its diagonal O((2N + K)·r) and a product Q·x O(N log N + (2N + K)·r).
+//! - **structured on cosets**: a sub-pitch fit's Q_g = B + W M Wᵀ in the coset gauge
+//!   g = [α_0, …, α_{C−1}, φ′, U′], B block-circulant with a (C + 1) × (C + 1) block
+//!   per harmonic ([`super::coset`]), reported in the effect-column path's θ (the
+//!   cosets' differences δ_c = α_c − α_0 as its effect terms), again through a sparse
+//!   map of two terms per entry.
 
 use std::sync::{Arc, OnceLock};
 
@@ -28,6 +33,7 @@ use rustfft::num_complex::Complex;
 use rustfft::{Fft, FftPlanner};
 
 use super::ParameterLayout;
+use super::coset::operator::CosetStructured;
 
 /// The cofactor matrix Q of θ = [β (N), α (N), U (K), effects (E)]: Cov(θ) = σ²·Q.
 ///
@@ -60,6 +66,8 @@ pub struct Cofactor {
 enum Repr {
     Dense(DMatrix<f64>),
     Structured(Box<Structured>),
+    /// A sub-pitch fit's Q_g = B + W M Wᵀ in the coset gauge ([`super::coset`]).
+    Cosets(Box<CosetStructured>),
 }
 
 /// Q_g = B + W M Wᵀ (module documentation).
@@ -582,6 +590,14 @@ impl Cofactor {
         }
     }
 
+    /// A sub-pitch fit's cofactor from the coset engine ([`super::coset`]).
+    pub(crate) fn cosets(layout: ParameterLayout, structured: CosetStructured) -> Self {
+        Self {
+            layout,
+            repr: Repr::Cosets(Box::new(structured)),
+        }
+    }
+
     /// The layout of θ.
     pub fn layout(&self) -> ParameterLayout {
         self.layout
@@ -608,6 +624,7 @@ impl Cofactor {
         match &self.repr {
             Repr::Dense(_) => None,
             Repr::Structured(s) => Some(s.rank()),
+            Repr::Cosets(s) => Some(s.rank()),
         }
     }
 
@@ -633,6 +650,7 @@ impl Cofactor {
                 }
                 v
             }
+            Repr::Cosets(s) => s.theta_entry(&self.layout, i, j),
         }
     }
 
@@ -674,6 +692,21 @@ impl Cofactor {
                     })
                     .collect()
             }
+            Repr::Cosets(s) => {
+                // φ_f = φ′_f − φ′_N
+                let last = s.phi(n - 1);
+                let q_last = s.entry(last, last);
+                (0..n)
+                    .map(|f| {
+                        if f == n - 1 {
+                            0.0
+                        } else {
+                            let a = s.phi(f);
+                            s.entry(a, a) + q_last - 2.0 * s.entry(a, last)
+                        }
+                    })
+                    .collect()
+            }
         }
     }
 
@@ -685,6 +718,9 @@ impl Cofactor {
         let n = self.layout.faces;
         if let Repr::Structured(s) = &self.repr {
             return (0..n).map(|f| s.entry(n + f, n + f)).collect();
+        }
+        if let Repr::Cosets(s) = &self.repr {
+            return (0..n).map(|f| s.entry(s.phi(f), s.phi(f))).collect();
         }
         // φ = T β (T the cumulative sum): cov(φ, φ̄) = T Q_ββ Tᵀ 1/N, with (Tᵀ 1)_i = N − i
         let mut x = vec![0.0; self.len()];
@@ -736,6 +772,7 @@ impl Cofactor {
                     })
                     .collect()
             }
+            Repr::Cosets(s) => s.theta_apply(&self.layout, x),
         }
     }
 
@@ -778,14 +815,15 @@ impl Cofactor {
                 }
                 q
             }
+            Repr::Cosets(s) => s.theta_dense(&self.layout),
         }
     }
 
-    /// The structured form, when there is one.
+    /// The structured form of a closure fit on one coset, when there is one.
     pub(crate) fn as_structured(&self) -> Option<&Structured> {
         match &self.repr {
             Repr::Structured(s) => Some(s),
-            Repr::Dense(_) => None,
+            Repr::Dense(_) | Repr::Cosets(_) => None,
         }
     }
 }

@@ -11,12 +11,19 @@
 //! 3. otherwise — or when its corrections turn out singular, so that what is lost must be
 //!    named — the dense reference ([`super::dense`]).
 //!
-//! Before either engine allocates, its memory is estimated and a design that does not
+//! Sub-pitch mountings ([`super::sub_pitch`]) are tried on the coset engine first
+//! ([`super::coset`], by the same rule: a regular part in every coset and few
+//! corrections), and otherwise fitted with their cosets' differences as effect columns
+//! by the decision above.
+//!
+//! Before any engine allocates, its memory is estimated and a design that does not
 //! fit is refused ([`SolveError::TooLarge`]). [`Solution::engine`] says which one ran.
 
 use super::circulant::{self, Plan};
+use super::coset;
 use super::dense::{dense_bytes_needed, dense_least_squares};
 use super::observability::describe;
+use super::sub_pitch::ShiftGeometry;
 use super::{Solution, SolveError, SolveOptions, memory};
 use crate::measurement::{MeasurementSet, Sigma};
 
@@ -94,6 +101,37 @@ pub fn least_squares_with_options(
     }
     refuse("dense", dense_bytes_needed(n, k, e))?;
     dense_least_squares(set, regressors, options.sigma)
+}
+
+/// Least squares of a set with sub-pitch mountings on the coset engine
+/// ([`super::coset`]): the set in encoder `positions`
+/// ([`ShiftGeometry::encoder_set`]) and its `geometry`. `Ok(None)` where the design's
+/// structure breaks (the caller then fits the cosets' differences as effect columns); a
+/// design the engine serves but whose memory does not fit is refused
+/// ([`SolveError::TooLarge`]) before anything is allocated.
+pub(crate) fn least_squares_on_cosets(
+    positions: &MeasurementSet,
+    geometry: &ShiftGeometry,
+    options: &SolveOptions,
+) -> Result<Option<Solution>, SolveError> {
+    let streams = positions.streams();
+    let Some(plan) = coset::plan(positions, geometry, &streams) else {
+        return Ok(None);
+    };
+    if !plan.is_cheaper_than_dense() {
+        return Ok(None);
+    }
+    let n = positions.faces;
+    let effects = geometry.cosets().saturating_sub(1) * n.saturating_sub(1);
+    fits(
+        positions,
+        streams.len(),
+        effects,
+        "coset-circulant",
+        plan.bytes_needed(positions.readings.len()),
+        options,
+    )?;
+    coset::solve(positions, &streams, &plan, options.sigma)
 }
 
 /// Least squares by the dense reference only ([`super::Method::Dense`]), refused when its

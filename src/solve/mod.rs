@@ -29,6 +29,7 @@
 pub mod circulant;
 pub mod closed_form;
 pub mod cofactor;
+pub mod coset;
 pub mod dense;
 pub mod least_squares;
 pub mod memory;
@@ -89,16 +90,26 @@ pub enum Engine {
         /// Rank of the correction: irregular (stream, position) cells plus effect terms.
         low_rank: usize,
     },
+    /// The coset engine ([`coset`]) of a set with sub-pitch mountings: every coset's
+    /// regular part solved harmonic by harmonic (FFT, a (C + 1) × (C + 1) block per
+    /// harmonic), what breaks the symmetry as a low-rank correction of rank `low_rank`.
+    CosetCirculant {
+        /// The number of cosets C.
+        cosets: usize,
+        /// Rank of the correction: irregular (stream, position) cells.
+        low_rank: usize,
+    },
     /// The dense reference: the reduced normal matrix factorised by Cholesky.
     Dense,
 }
 
 impl Engine {
-    /// The name used in reports: `closed-form`, `circulant` or `dense`.
+    /// The name used in reports: `closed-form`, `circulant`, `coset-circulant` or `dense`.
     pub fn as_str(self) -> &'static str {
         match self {
             Engine::ClosedForm => "closed-form",
             Engine::Circulant { .. } => "circulant",
+            Engine::CosetCirculant { .. } => "coset-circulant",
             Engine::Dense => "dense",
         }
     }
@@ -188,7 +199,8 @@ pub enum SolveError {
         effects: usize,
         /// Readings.
         readings: usize,
-        /// The engine the design needs (`dense` or `circulant`).
+        /// The engine the design needs (`dense`, `circulant`, `coset-circulant`, or
+        /// `sub-pitch` for the effect columns of sub-pitch cosets).
         engine: &'static str,
         /// Bytes it would need.
         needed_bytes: u128,
@@ -305,7 +317,8 @@ pub struct Solution {
     pub effect_values: Vec<f64>,
     /// The effect columns of the design matrix, in the order of `effect_values`: one
     /// regressor per effect term, one value per reading of the measurement set (empty for
-    /// the base model). The uncertainty propagation through the design
+    /// the base model, and for the coset engine's sub-pitch fit, whose effect terms are
+    /// the cosets' differences and whose columns it never forms: [`coset`]). The uncertainty propagation through the design
     /// ([`crate::uncertainty::calibration`]) needs them.
     pub effect_regressors: Vec<Vec<f64>>,
     /// Reading minus model, in the order of the measurement set.

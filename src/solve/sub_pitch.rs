@@ -27,16 +27,27 @@
 //! errors are therefore determined only up to a constant, fixed by Σα_c = 0 within the
 //! coset (the notes of [`SubPitchSolution`] say so).
 //!
-//! The fit reparametrises α_c = α_0 + δ_c for c = 1 … C−1, with α_0 the engine's encoder
-//! errors (the readings' positions from [`ShiftGeometry::encoder_set`]) and δ_c (Σδ_c = 0)
-//! as effect columns of the least-squares engine, in contrast coding: for q = 0 … N−2 a
-//! column that is +1 on the readings of coset c at position q and −1 on those at position
-//! N−1, so that δ_c\[N−1\] = −Σ_{q<N−1} δ_c\[q\]. The engine (circulant or dense, as
-//! [`super::least_squares_with_options`] decides) returns α_0, δ and their cofactor, from
-//! which α_c\[q\] = α_0\[q\] + δ_c\[q\] and u²(α_c\[q\]) = σ²·wᵀQw for the w that forms it.
+//! The result is written α_c = α_0 + δ_c for c = 1 … C−1, with α_0 the encoder errors
+//! at the readings' positions from [`ShiftGeometry::encoder_set`] and δ_c (Σδ_c = 0) the
+//! differences, whichever engine fits them:
+//!
+//! - the coset engine ([`super::coset`]), where the design's structure serves it: every
+//!   coset is the regular design in its own positions, so the unknowns of each harmonic
+//!   form a (C + 1) × (C + 1) block, solved by FFT in near-linear time, with the cofactor
+//!   as an operator in the same θ as below;
+//! - otherwise (and for [`Method::Dense`]) δ_c as effect columns of the least-squares
+//!   engine, in contrast coding: for q = 0 … N−2 a column that is +1 on the readings of
+//!   coset c at position q and −1 on those at position N−1, so that
+//!   δ_c\[N−1\] = −Σ_{q<N−1} δ_c\[q\]. The engine (circulant or dense, as
+//!   [`super::least_squares_with_options`] decides) returns α_0, δ and their cofactor.
+//!   This is the reference the coset engine is tested against.
+//!
+//! From either, α_c\[q\] = α_0\[q\] + δ_c\[q\] and u²(α_c\[q\]) = σ²·wᵀQw for the w that
+//! forms it.
 
 use std::collections::BTreeMap;
 
+use super::least_squares::least_squares_on_cosets;
 use super::{
     Method, Solution, SolveError, SolveOptions, Unobservable, dense_with_options,
     least_squares_with_options, solve_positions,
@@ -289,9 +300,11 @@ impl SubPitchSolution {
 /// every coset (module documentation), sorted by angle.
 ///
 /// With whole-face shifts only (or none) this is [`super::solve`] of the set in encoder
-/// positions, its α at the N angles p·360°/N and no notes. With sub-pitch cosets the
-/// method decides the engine as for [`super::solve`], except that the closed form does
-/// not apply to several cosets (their differences are effect columns).
+/// positions, its α at the N angles p·360°/N and no notes. With sub-pitch cosets
+/// [`Method::Auto`] and [`Method::LeastSquares`] take the coset engine
+/// ([`super::Engine::CosetCirculant`]) where the design's structure serves it and fit
+/// the differences as effect columns otherwise; [`Method::Dense`] fits them as effect
+/// columns of the dense reference; the closed form does not apply to several cosets.
 ///
 /// ```
 /// use polycal::simulate::{simulate, SimulationConfig};
@@ -336,6 +349,12 @@ pub fn solve_shifted(
     let positions = geometry.encoder_set(set);
     let n = set.faces;
     let c_count = geometry.cosets();
+    if c_count > 1
+        && matches!(options.method, Method::Auto | Method::LeastSquares)
+        && let Some(solution) = least_squares_on_cosets(&positions, &geometry, options)?
+    {
+        return Ok(from_engine_solution(solution, &geometry));
+    }
     // The contrast columns are dense (one value per reading each): check that they fit
     // before building them; the engine checks what it needs beyond them.
     let column_count = c_count.saturating_sub(1) * n.saturating_sub(1);
