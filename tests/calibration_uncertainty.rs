@@ -1265,3 +1265,90 @@ fn cli_diagnose_monte_carlo_on_the_final_model() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `selfcal --budget --monte-carlo` adds the budget's monte_carlo object (e and the heads'
+/// errors; its u that of the budget), a table section, status 1 when some GUM interval is
+/// not validated; it needs --budget, and heads between the positions are refused
+/// (status 2, the heads named).
+#[test]
+fn cli_selfcal_monte_carlo() {
+    let dir = temp_dir("selfcal-mc");
+    let budget = "examples/budgets/selfcal.toml";
+    let data = "examples/data/selfa-168.csv";
+    let out = polycal(&[
+        "selfcal",
+        data,
+        "--budget",
+        budget,
+        "--monte-carlo",
+        "2e4",
+        "--seed",
+        "5",
+        "--format",
+        "json",
+    ]);
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mc = &json["monte_carlo"];
+    assert_eq!(
+        (mc["trials"].as_u64(), mc["seed"].as_u64()),
+        (Some(20_000), Some(5))
+    );
+    for (family, len) in [("encoder_error", 168), ("head_error", 11)] {
+        let u_mc = mc[family]["u"].as_array().unwrap();
+        let u_gum = json["uncertainty"][family]["u"].as_array().unwrap();
+        assert_eq!((u_mc.len(), u_gum.len()), (len, len));
+        for (a, b) in u_mc.iter().zip(u_gum) {
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            assert!(close(a, b, 0.03), "{family}: {a} vs {b}");
+        }
+    }
+    let validated = mc["validated"].as_bool().unwrap();
+    assert_eq!(out.status.code(), Some(if validated { 0 } else { 1 }));
+    let table = polycal(&["selfcal", data, "--budget", budget, "--monte-carlo", "2e4"]);
+    let text = String::from_utf8(table.stdout).unwrap();
+    assert!(
+        text.contains("Monte Carlo (JCGM 101): 20000 trials"),
+        "{text}"
+    );
+
+    let refused = |args: &[&str], wanted: &str| {
+        let out = polycal(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert!(
+            stderr.starts_with("error: ") && stderr.contains(wanted),
+            "{stderr:?} lacks {wanted:?}"
+        );
+    };
+    refused(&["selfcal", data, "--monte-carlo", "1e4"], "--budget");
+    let off_grid = dir.join("off-grid.csv");
+    let out = polycal(&[
+        "simulate",
+        "--selfcal",
+        "--positions",
+        "24",
+        "--heads",
+        "0,97,180",
+        "--cycles",
+        "2",
+        "--out",
+        off_grid.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    refused(
+        &[
+            "selfcal",
+            off_grid.to_str().unwrap(),
+            "--budget",
+            budget,
+            "--monte-carlo",
+            "1e4",
+        ],
+        "head 2 sits between the 24 positions",
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

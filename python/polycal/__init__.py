@@ -112,12 +112,22 @@ def diagnose(
 
 
 def selfcal(
-    set: SelfcalSet, sigma: Optional[float] = None, budget: Optional[Budget] = None
+    set: SelfcalSet,
+    sigma: Optional[float] = None,
+    budget: Optional[Budget] = None,
+    monte_carlo: Union[None, int, str] = None,
+    seed: int = 1,
 ) -> Result:
-    """Self-calibrates the encoder from a multi-head run as ``polycal selfcal`` does."""
+    """Self-calibrates the encoder from a multi-head run as ``polycal selfcal`` does; with
+    a budget, U and k of e and of the heads' errors, and with ``monte_carlo`` (a number of
+    trials or ``"adaptive"``) the budget's JCGM 101 evaluation (``monte_carlo``)."""
     return Result(
         _polycal.selfcal(
-            set._inner, sigma=_sigma(sigma), budget=None if budget is None else budget._inner
+            set._inner,
+            sigma=_sigma(sigma),
+            budget=None if budget is None else budget._inner,
+            monte_carlo=monte_carlo,
+            seed=seed,
         )
     )
 

@@ -115,5 +115,9 @@ def selfcal_set_from_columns(
     name: str = "<arrays>",
 ) -> SelfcalSet: ...
 def selfcal(
-    set: SelfcalSet, sigma: Optional[float] = None, budget: Optional[Budget] = None
+    set: SelfcalSet,
+    sigma: Optional[float] = None,
+    budget: Optional[Budget] = None,
+    monte_carlo: Union[None, int, str] = None,
+    seed: int = 1,
 ) -> str: ...

@@ -348,16 +348,25 @@ pub(crate) fn diagnose(
     })
 }
 
-/// Self-calibrates the encoder as `polycal selfcal` does; returns its JSON object.
+/// Self-calibrates the encoder as `polycal selfcal` does; returns its JSON object (with
+/// the budget's Monte Carlo when asked).
 #[pyfunction]
-#[pyo3(signature = (set, sigma=None, budget=None))]
+#[pyo3(signature = (set, sigma=None, budget=None, monte_carlo=None, seed=1))]
 pub(crate) fn selfcal(
     py: Python<'_>,
     set: &PySelfcalSet,
     sigma: Option<f64>,
     budget: Option<&PyBudget>,
+    monte_carlo: Option<&Bound<'_, PyAny>>,
+    seed: u64,
 ) -> PyResult<String> {
     let options = SelfcalOptions::new().with_sigma_opt(crate::sigma(sigma)?);
+    let trials = trials(monte_carlo)?;
+    if trials.is_some() && budget.is_none() {
+        return Err(PyValueError::new_err(
+            "monte_carlo needs a budget: the Monte Carlo propagates the instrument budget with the reading noise",
+        ));
+    }
     let budget = budget.map(|b| &b.inner);
     let name = set.name.clone();
     py.detach(|| {
@@ -366,6 +375,14 @@ pub(crate) fn selfcal(
         if let Some(b) = budget {
             let u = polycal::selfcal::evaluate_budget(&solution, b).map_err(|e| e.to_string())?;
             report = report.with_uncertainty(&u);
+            if let Some(trials) = trials {
+                let options = McOptions::new(trials)
+                    .with_seed(seed)
+                    .with_significant_digits(2);
+                let mc = polycal::selfcal::monte_carlo(&set.inner, &solution, b, &u, &options)
+                    .map_err(|e| e.to_string())?;
+                report = report.with_monte_carlo(mc);
+            }
         }
         report.to_json().map_err(|e| e.to_string())
     })

@@ -93,6 +93,22 @@ def test_diagnose_monte_carlo_is_the_clis_for_the_same_seed():
         polycal.diagnose(ms, monte_carlo=3000)
 
 
+def test_selfcal_monte_carlo_is_the_clis_for_the_same_seed():
+    s = polycal.read_selfcal(str(SELFCAL))
+    result = polycal.selfcal(
+        s, budget=polycal.budget(SELFCAL_BUDGET), monte_carlo=2000, seed=3
+    )
+    expected = cli(
+        "selfcal", SELFCAL, "--budget", SELFCAL_BUDGET, "--monte-carlo", "2000",
+        "--seed", "3", "--format", "json",
+    )
+    assert result.to_json() == expected
+    mc = json.loads(expected)["monte_carlo"]
+    assert mc["trials"] == 2000 and len(mc["head_error"]["u"]) == 11
+    with pytest.raises(ValueError, match="needs a budget"):
+        polycal.selfcal(s, monte_carlo=2000)
+
+
 def test_diagnose_selfcal_and_compare_are_the_clis():
     ms = polycal.read_measurements(DATA)
     assert polycal.diagnose(ms).to_json() == cli("diagnose", DATA, "--format", "json")

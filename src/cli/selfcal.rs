@@ -7,12 +7,13 @@ use anyhow::{Context, Result};
 use clap::ValueEnum;
 use polycal::input::display_name;
 use polycal::measurement::Sigma;
-use polycal::output::selfcal::{SelfcalReport, result_rows, write_table};
+use polycal::output::selfcal::{SelfcalReport, result_rows, write_monte_carlo, write_table};
 use polycal::selfcal::{self, SelfcalOptions, SelfcalSet, SelfcalSolveError};
 use polycal::uncertainty::calibration::CalibrationError;
 
-use super::EXIT_OK;
+use super::monte_carlo::McArgs;
 use super::output::Output;
+use super::{EXIT_OK, EXIT_VERDICT};
 
 /// After `polycal selfcal --help`.
 pub const EXAMPLES: &str = "\
@@ -57,6 +58,8 @@ pub struct SelfcalArgs {
     #[arg(long, value_name = "FILE.toml")]
     budget: Option<PathBuf>,
     /// Output format (csv: the result file of docs/FORMAT.md §3 with angle_deg).
+    #[command(flatten)]
+    monte_carlo: McArgs,
     #[arg(long, value_enum, default_value = "table")]
     format: SelfcalFormat,
     /// Write the figures as SVG files into DIR (created if missing), one file per figure
@@ -93,6 +96,7 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
             .with_lost_harmonic_bound(bound)
             .context("--lost-harmonic-bound")?;
     }
+    let mc_options = args.monte_carlo.options(args.budget.is_some())?;
     let budget = super::solve::read_budget(args.budget.as_deref(), out)?;
     let solution = selfcal::solve(&set, &options)
         .map_err(|e| match e {
@@ -115,22 +119,37 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
         })
         .transpose()
         .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
-    if let Some(dir) = &args.plot {
+    // The Monte Carlo of the budget (JCGM 101), with the validation of its GUM intervals.
+    let mc = match (&budget, &uncertainty, &mc_options) {
+        (Some(budget), Some(gum), Some(options)) => {
+            let progress = out.progress_bar("Monte Carlo");
+            let options = (*options).with_progress(&progress);
+            Some(
+                selfcal::monte_carlo(&set, &solution, budget, gum, &options)
+                    .with_context(|| format!("{name}: Monte Carlo failed"))?,
+            )
+        }
+        _ => None,
+    };
+    let report_of = || {
         let mut report = SelfcalReport::new(&solution, &name);
         if let Some(uncertainty) = &uncertainty {
             report = report.with_uncertainty(uncertainty);
         }
+        if let Some(mc) = &mc {
+            report = report.with_monte_carlo(mc.clone());
+        }
+        report
+    };
+    if let Some(dir) = &args.plot {
+        let report = report_of();
         super::write_plot(dir, &polycal::figure::selfcal_figures(&report))?;
     }
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         SelfcalFormat::Json => {
-            let mut report = SelfcalReport::new(&solution, &name);
-            if let Some(uncertainty) = &uncertainty {
-                report = report.with_uncertainty(uncertainty);
-            }
-            writeln!(stdout, "{}", report.to_json()?)?;
+            writeln!(stdout, "{}", report_of().to_json()?)?;
         }
         SelfcalFormat::Table => {
             let mut text = String::new();
@@ -140,6 +159,9 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
                 &args.file.display().to_string(),
                 uncertainty.as_ref(),
             )?;
+            if let (Some(gum), Some(mc)) = (&uncertainty, &mc) {
+                write_monte_carlo(&mut text, &solution, gum, mc)?;
+            }
             write!(stdout, "{text}")?;
         }
         SelfcalFormat::Csv => {
@@ -151,5 +173,12 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
         }
     }
     stdout.flush()?;
+    if mc.as_ref().is_some_and(|mc| !mc.validated) {
+        out.warning(
+            "Monte Carlo does not validate the GUM uncertainty of some results (JCGM 101 §8); \
+             see the monte_carlo results",
+        );
+        return Ok(EXIT_VERDICT);
+    }
     Ok(EXIT_OK)
 }

@@ -6,8 +6,11 @@ use std::fmt::{self, Write};
 use serde::Serialize;
 
 use crate::results::{Quantity, ResultRow};
-use crate::selfcal::{COVERAGE_PROBABILITY, HeadGrid, SelfcalSolution, SelfcalUncertainty};
+use crate::selfcal::{
+    COVERAGE_PROBABILITY, HeadGrid, SelfcalMonteCarlo, SelfcalSolution, SelfcalUncertainty,
+};
 use crate::solve::{Engine, SigmaSource};
+use crate::uncertainty::calibration::McFamily;
 
 /// Up to this many positions the table lists every position; above it, a summary
 /// (the JSON and the CSV always carry every position).
@@ -88,6 +91,10 @@ pub struct SelfcalReport {
     /// `U` and `k` are the budget's).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub uncertainty: Option<SelfcalUncertainty>,
+    /// With `--monte-carlo`: the JCGM 101 evaluation and the validation of the budget's
+    /// GUM intervals.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub monte_carlo: Option<SelfcalMonteCarlo>,
 }
 
 impl SelfcalReport {
@@ -135,6 +142,7 @@ impl SelfcalReport {
             lost_harmonic_u: solution.lost_harmonic_u,
             notes: solution.notes.clone(),
             uncertainty: None,
+            monte_carlo: None,
         }
     }
 
@@ -156,6 +164,12 @@ impl SelfcalReport {
             h.k = uncertainty.head_error.k[j];
         }
         self.uncertainty = Some(uncertainty.clone());
+        self
+    }
+
+    /// With the Monte Carlo of the budget ([`crate::selfcal::monte_carlo()`]).
+    pub fn with_monte_carlo(mut self, monte_carlo: SelfcalMonteCarlo) -> Self {
+        self.monte_carlo = Some(monte_carlo);
         self
     }
 
@@ -410,6 +424,96 @@ pub fn write_table<W: Write>(
         for note in &solution.notes {
             writeln!(out, "note: {note}")?;
         }
+    }
+    Ok(())
+}
+
+/// Writes the Monte Carlo section of `polycal selfcal --monte-carlo` after its table:
+/// the run, then per head error and per e (every position up to
+/// [`TABLE_POSITIONS_LISTED`], else a summary) the mean, u, the interval, the GUM's U and
+/// the JCGM 101 §8 validation.
+///
+/// # Errors
+///
+/// The writer's error.
+pub fn write_monte_carlo<W: Write>(
+    out: &mut W,
+    solution: &SelfcalSolution,
+    uncertainty: &SelfcalUncertainty,
+    mc: &SelfcalMonteCarlo,
+) -> fmt::Result {
+    writeln!(
+        out,
+        "\nMonte Carlo (JCGM 101): {} trials{}, seed {}, reading noise {}",
+        mc.trials,
+        mc.sequences
+            .map_or(String::new(), |h| format!(" (adaptive, {h} sequences)")),
+        mc.seed,
+        match mc.reading_noise_dof {
+            Some(nu) => format!("t (ν = {nu})"),
+            None => mc.reading_noise.to_string(),
+        }
+    )?;
+    writeln!(
+        out,
+        "{} % probabilistically symmetric intervals; GUM validated when |y ∓ U − end| ≤ δ ({} significant digits of u_c): {}",
+        crate::uncertainty::format::percent(mc.p),
+        mc.significant_digits,
+        if mc.validated {
+            "validated"
+        } else {
+            "NOT validated"
+        }
+    )?;
+    let header = |out: &mut W, index: &str, symbol: &str| {
+        writeln!(
+            out,
+            "\n{index:>8} {symbol:>9} {:>9} {:>8} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8}  GUM",
+            "mean", "u", "low", "high", "U(GUM)", "d_low", "d_high", "δ"
+        )
+    };
+    let row = |out: &mut W, index: u64, value: f64, f: &McFamily, i: usize, expanded: f64| {
+        writeln!(
+            out,
+            "{:>8} {:>9.4} {:>9.4} {:>8.4} {:>9.4} {:>9.4} {:>8.4} {:>8.5} {:>8.5} {:>8.5}  {}",
+            index,
+            value,
+            f.mean[i],
+            f.u[i],
+            f.low[i],
+            f.high[i],
+            expanded,
+            f.d_low[i],
+            f.d_high[i],
+            f.delta[i],
+            if f.passed[i] { "passed" } else { "FAILED" }
+        )
+    };
+    header(out, "head", "c")?;
+    for (j, h) in solution.head_error.iter().enumerate() {
+        let expanded = uncertainty.head_error.expanded_u[j];
+        row(out, u64::from(h.head), h.value, &mc.head_error, j, expanded)?;
+    }
+    let p = solution.positions;
+    if p <= TABLE_POSITIONS_LISTED {
+        header(out, "pos", "e")?;
+        for x in 0..p {
+            let expanded = uncertainty.encoder_error.expanded_u[x];
+            let value = solution.encoder_error[x];
+            row(out, x as u64, value, &mc.encoder_error, x, expanded)?;
+        }
+    } else {
+        let f = &mc.encoder_error;
+        let failed = f.passed.iter().filter(|&&p| !p).count();
+        let worst = (0..p)
+            .map(|x| f.d_low[x].max(f.d_high[x]) / f.delta[x].max(f64::MIN_POSITIVE))
+            .fold(0.0f64, f64::max);
+        writeln!(
+            out,
+            "e: {p} positions (every one in the JSON), {failed} not validated, largest d/δ {worst:.3}; u from {:.4} to {:.4}",
+            f.u.iter().copied().fold(f64::INFINITY, f64::min),
+            f.u.iter().copied().fold(0.0f64, f64::max)
+        )?;
     }
     Ok(())
 }

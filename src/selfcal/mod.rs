@@ -74,10 +74,12 @@ mod budget;
 mod file;
 mod fourier;
 mod head_angle;
+mod monte_carlo;
 mod solve;
 
 pub use budget::{SelfcalContribution, SelfcalUncertainty, evaluate_budget};
 pub use file::SelfcalError;
+pub use monte_carlo::{SelfcalMonteCarlo, monte_carlo};
 pub use solve::{
     COVERAGE_PROBABILITY, HeadError, HeadGrid, ON_GRID_TOLERANCE_POSITIONS, SelfcalOptions,
     SelfcalSolution, SelfcalSolveError, solve,

@@ -126,6 +126,48 @@ pub struct McFamily {
     pub passed: Vec<bool>,
 }
 
+impl McFamily {
+    /// The Monte Carlo summaries of a family (`summary(i)` of quantity i) with the
+    /// validation of its GUM results y ± U (JCGM 101 §8) at `digits` significant digits
+    /// of u_c.
+    pub(crate) fn validating(
+        estimates: &[f64],
+        gum: &FamilyUncertainty,
+        digits: u32,
+        summary: impl Fn(usize) -> OutputSummary,
+    ) -> Self {
+        let n = estimates.len();
+        let mut f = McFamily {
+            mean: Vec::with_capacity(n),
+            u: Vec::with_capacity(n),
+            low: Vec::with_capacity(n),
+            high: Vec::with_capacity(n),
+            d_low: Vec::with_capacity(n),
+            d_high: Vec::with_capacity(n),
+            delta: Vec::with_capacity(n),
+            passed: Vec::with_capacity(n),
+        };
+        for (i, &estimate) in estimates.iter().enumerate() {
+            let mc = summary(i);
+            let v = validate_gum(estimate, gum.u[i], gum.expanded_u[i], &mc, digits);
+            f.mean.push(mc.mean);
+            f.u.push(mc.u);
+            f.low.push(mc.low);
+            f.high.push(mc.high);
+            f.d_low.push(v.d_low);
+            f.d_high.push(v.d_high);
+            f.delta.push(v.delta);
+            f.passed.push(v.passed);
+        }
+        f
+    }
+
+    /// Whether every quantity's GUM interval is validated.
+    pub(crate) fn all_passed(&self) -> bool {
+        self.passed.iter().all(|&p| p)
+    }
+}
+
 /// The Monte Carlo evaluation of a calibration ([`monte_carlo()`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CalibrationMonteCarlo {
@@ -198,43 +240,18 @@ pub fn monte_carlo_with_corrections(
     let n = model.faces;
     let digits = options.significant_digits.max(1);
     let family = |estimates: &[f64], gum: &FamilyUncertainty, first: usize, len: usize| {
-        let mut f = McFamily {
-            mean: Vec::with_capacity(n),
-            u: Vec::with_capacity(n),
-            low: Vec::with_capacity(n),
-            high: Vec::with_capacity(n),
-            d_low: Vec::with_capacity(n),
-            d_high: Vec::with_capacity(n),
-            delta: Vec::with_capacity(n),
-            passed: Vec::with_capacity(n),
-        };
-        for (i, &estimate) in estimates.iter().enumerate() {
-            let mc = if i < len {
+        McFamily::validating(estimates, gum, digits, |i| {
+            if i < len {
                 summary.outputs[first + i]
             } else {
                 OutputSummary::new(0.0, 0.0, budget.p, 0.0, 0.0) // φ[N] = 0 in every trial
-            };
-            let OutputSummary {
-                mean, u, low, high, ..
-            } = mc;
-            let v = validate_gum(estimate, gum.u[i], gum.expanded_u[i], &mc, digits);
-            f.mean.push(mean);
-            f.u.push(u);
-            f.low.push(low);
-            f.high.push(high);
-            f.d_low.push(v.d_low);
-            f.d_high.push(v.d_high);
-            f.delta.push(v.delta);
-            f.passed.push(v.passed);
-        }
-        f
+            }
+        })
     };
     let pitch = family(&solution.pitch_deviation, &gum.pitch_deviation, 0, n);
     let face = family(&solution.face_deviation, &gum.face_deviation, n, n - 1);
     let encoder = family(&solution.encoder_error, &gum.encoder_error, 2 * n - 1, n);
-    let validated = [&pitch, &face, &encoder]
-        .iter()
-        .all(|f| f.passed.iter().all(|&p| p));
+    let validated = [&pitch, &face, &encoder].iter().all(|f| f.all_passed());
     let (reading_noise, reading_noise_dof) = model.reading_noise();
     Ok(CalibrationMonteCarlo {
         trials: summary.trials,

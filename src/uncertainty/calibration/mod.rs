@@ -161,6 +161,22 @@ pub enum CalibrationError {
          not 0) yet"
     )]
     ShiftedMountings,
+    /// A self-calibration whose heads sit between the positions: its Monte Carlo solves
+    /// the trials with the closure model's operator, which needs every head on the grid.
+    #[error(
+        "head{} {} sit{} between the {positions} positions: the Monte Carlo of a \
+         self-calibration needs every head on the position grid (head angles multiples of \
+         360°/{positions}); its GUM budget does not",
+        if heads.len() == 1 { "" } else { "s" },
+        heads.iter().map(u32::to_string).collect::<Vec<_>>().join(", "),
+        if heads.len() == 1 { "s" } else { "" }
+    )]
+    HeadsOffGrid {
+        /// The heads between positions.
+        heads: Vec<u32>,
+        /// P.
+        positions: usize,
+    },
 }
 
 #[cfg(test)]

@@ -121,6 +121,8 @@ pub struct McModel {
     trapezoid_targets: Option<Vec<usize>>,
     plans: Vec<Plan>,
     result_draws: Vec<(Sampler, f64)>,
+    /// The setup errors among the outputs (after α): their number K, or 0.
+    setup_outputs: usize,
     centre: Vec<f64>,
 }
 
@@ -153,6 +155,32 @@ impl McModel {
         corrections: &[KnownCorrection],
         solver: McSolver,
     ) -> Result<Self, CalibrationError> {
+        Self::build(set, solution, budget, corrections, solver, false)
+    }
+
+    /// The trial model, solved by least squares, whose outputs end with the K setup
+    /// errors (after β, φ\[1..N−1\], α): a self-calibration's heads are the closure
+    /// model's setups, and an error every reading of one head shares moves only them.
+    ///
+    /// # Errors
+    ///
+    /// As [`McModel::new`].
+    pub(crate) fn with_setup_outputs(
+        set: &MeasurementSet,
+        solution: &Solution,
+        budget: &InstrumentBudget,
+    ) -> Result<Self, CalibrationError> {
+        Self::build(set, solution, budget, &[], McSolver::LeastSquares, true)
+    }
+
+    fn build(
+        set: &MeasurementSet,
+        solution: &Solution,
+        budget: &InstrumentBudget,
+        corrections: &[KnownCorrection],
+        solver: McSolver,
+        setups: bool,
+    ) -> Result<Self, CalibrationError> {
         budget.check()?;
         for c in corrections {
             c.check(set.readings.len())?;
@@ -163,7 +191,9 @@ impl McModel {
         // The closed form has no effect terms: a model with effects is solved by its
         // operator, effect columns included.
         let design = match solver {
-            McSolver::Auto if solution.layout.effects == 0 => PaperDesign::detect(set).ok(),
+            McSolver::Auto if solution.layout.effects == 0 && !setups => {
+                PaperDesign::detect(set).ok()
+            }
             McSolver::Auto | McSolver::LeastSquares => None,
         };
         // Where each reading lands: (target, weight).
@@ -281,6 +311,10 @@ impl McModel {
         centre.extend_from_slice(&solution.pitch_deviation);
         centre.extend_from_slice(&solution.face_deviation[..n - 1]);
         centre.extend_from_slice(&solution.encoder_error);
+        let setup_outputs = if setups { op.streams } else { 0 };
+        if setups {
+            centre.extend(solution.setup_error.iter().map(|s| s.value));
+        }
         let solver = match design {
             Some(d) => TrialSolver::ClosedForm {
                 offset: d.offset,
@@ -304,6 +338,7 @@ impl McModel {
             trapezoid_targets: None,
             plans: Vec::new(),
             result_draws,
+            setup_outputs,
             centre,
         };
         // The model is linear: an error that reaches no output (one absorbed by the setup
@@ -351,9 +386,10 @@ impl McModel {
         self.base.len()
     }
 
-    /// Number of outputs: β (N), φ\[1..N−1\] (φ\[N\] = 0 is not drawn), α (N).
+    /// Number of outputs: β (N), φ\[1..N−1\] (φ\[N\] = 0 is not drawn), α (N), and the
+    /// setup errors (K) when the model was built to give them.
     pub fn outputs(&self) -> usize {
-        3 * self.faces - 1
+        3 * self.faces - 1 + self.setup_outputs
     }
 
     /// `closed-form` or `lsq`.
@@ -393,7 +429,7 @@ impl McModel {
             sd: vec![0.0; self.targets()],
             uniforms: vec![0.0; self.trapezoids.len()],
             quantiles: vec![0.0; self.trapezoids.len()],
-            theta: vec![0.0; 2 * self.faces],
+            theta: vec![0.0; 2 * self.faces + self.setup_outputs],
             face_sums: vec![0.0; faces_len],
             b: vec![0.0; b_len],
         }
@@ -487,7 +523,8 @@ impl McModel {
     }
 
     /// Solves the targets drawn by [`McModel::sample`] into `out` ([`McModel::outputs`]
-    /// values: β, φ\[1..N−1\], α), without the `result` offsets. False if the solver
+    /// values: β, φ\[1..N−1\], α, and the setup errors when asked for), without the
+    /// `result` offsets. False if the solver
     /// failed.
     pub fn solve(&self, scratch: &mut McScratch, out: &mut [f64]) -> bool {
         let n = self.faces;
@@ -498,7 +535,7 @@ impl McModel {
                     &scratch.targets,
                     &mut scratch.face_sums,
                     &mut scratch.b,
-                    0..2 * n,
+                    0..2 * n + self.setup_outputs,
                     &mut scratch.theta,
                 );
                 let theta = &scratch.theta;
@@ -509,6 +546,8 @@ impl McModel {
                     out[n + f] = running;
                 }
                 out[2 * n - 1..3 * n - 1].copy_from_slice(&theta[n..2 * n]);
+                let k = self.setup_outputs;
+                out[3 * n - 1..3 * n - 1 + k].copy_from_slice(&theta[2 * n..2 * n + k]);
                 true
             }
         }
@@ -557,6 +596,12 @@ impl McScratch {
     /// The targets of the last [`McModel::sample`].
     pub fn targets(&self) -> &[f64] {
         &self.targets
+    }
+
+    /// The `result` components' draws of the last [`McModel::sample`], one independent
+    /// draw of their sum per output (zeros without such components).
+    pub(crate) fn result_offsets(&self) -> &[f64] {
+        &self.offsets
     }
 }
 
