@@ -71,18 +71,17 @@ pub struct SelfcalMonteCarlo {
 /// use polycal::uncertainty::calibration::{InstrumentBudget, McOptions};
 /// use polycal::uncertainty::monte_carlo::Trials;
 ///
-/// let mut config = SelfcalSimConfig::default();
-/// (config.positions, config.cycles) = (24, 3);
-/// let (set, _truth) = simulate_selfcal(&config)?;
+/// // SelfA's twelve heads on 168 positions, two cycles
+/// let (set, _truth) = simulate_selfcal(&SelfcalSimConfig::default())?;
 /// let solution = selfcal::solve(&set, &SelfcalOptions::new())?;
 /// let budget = InstrumentBudget::from_toml_str(
-///     "[[component]]\nname = \"r\"\ndistribution = \"rectangular\"\nhalf_width = 0.05\nacts_on = \"each-reading\"\n",
+///     "[[component]]\nname = \"r\"\ntype = \"B\"\ndistribution = \"rectangular\"\nhalf_width = 0.05\nacts_on = \"each-reading\"\n",
 ///     "budget.toml",
 /// )?;
 /// let gum = selfcal::evaluate_budget(&solution, &budget)?;
-/// let mc = selfcal::monte_carlo(&set, &solution, &budget, &gum, &McOptions::new(Trials::Fixed(20_000)))?;
-/// assert_eq!(mc.encoder_error.u.len(), 24);
-/// assert!((mc.encoder_error.u[3] / gum.encoder_error.u[3] - 1.0).abs() < 0.05);
+/// let mc = selfcal::monte_carlo(&set, &solution, &budget, &gum, &McOptions::new(Trials::Fixed(5_000)))?;
+/// assert_eq!((mc.encoder_error.u.len(), mc.head_error.u.len()), (168, 11));
+/// assert!((mc.encoder_error.u[3] / gum.encoder_error.u[3] - 1.0).abs() < 0.1);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 ///

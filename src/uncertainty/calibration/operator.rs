@@ -24,6 +24,10 @@ pub(super) struct Operator {
     position: Vec<usize>,
     face: Vec<usize>,
     stream: Vec<usize>,
+    /// Per reading, its cell (the readings of one stream at one position share position,
+    /// face and stream): an index into `cells`, (position, face − 1, stream) each.
+    cell: Vec<usize>,
+    cells: Vec<(usize, usize, usize)>,
     /// Per reading, its E effect regressors: x\[i·E + e\].
     x: Vec<f64>,
 }
@@ -124,16 +128,37 @@ impl Operator {
         let x = (0..set.readings.len())
             .flat_map(|i| solution.effect_regressors.iter().map(move |x| x[i]))
             .collect();
+        let position: Vec<usize> = set.readings.iter().map(|r| r.position(n)).collect();
+        let face: Vec<usize> = set.readings.iter().map(|r| r.face - 1).collect();
+        let mut index = std::collections::HashMap::new();
+        let mut cells = Vec::new();
+        let cell = (0..set.readings.len())
+            .map(|i| {
+                let key = (position[i], face[i], stream[i]);
+                *index.entry(key).or_insert_with(|| {
+                    cells.push(key);
+                    cells.len() - 1
+                })
+            })
+            .collect();
         Ok(Operator {
             faces: n,
             streams: layout.setups,
             effects: e,
             map,
-            position: set.readings.iter().map(|r| r.position(n)).collect(),
-            face: set.readings.iter().map(|r| r.face - 1).collect(),
+            position,
+            face,
             stream,
+            cell,
+            cells,
             x,
         })
+    }
+
+    /// The length of the scratch `sums` of [`Operator::solve`]: N face sums and one sum
+    /// per cell.
+    pub(super) fn sums_len(&self) -> usize {
+        self.faces + self.cells.len()
     }
 
     pub(super) fn len(&self) -> usize {
@@ -200,8 +225,8 @@ impl Operator {
         }
     }
 
-    /// θ̂ rows `rows` for the readings `y`: b = Xᵀy, then θ = Q b. `face_sums` (N) and
-    /// `b` (2N + K + E) are scratch.
+    /// θ̂ rows `rows` for the readings `y`: b = Xᵀy, then θ = Q b. `face_sums`
+    /// ([`Operator::sums_len`]) and `b` (2N + K + E) are scratch.
     pub(super) fn solve(
         &self,
         y: &[f64],
@@ -213,33 +238,13 @@ impl Operator {
         let n = self.faces;
         match &self.map {
             Map::Dense { q, .. } => {
-                face_sums.fill(0.0);
-                b.fill(0.0);
-                let first_effect = 2 * n + self.streams;
-                let (alpha, setup) = b[n..first_effect].split_at_mut(n);
-                let cells = self.position.iter().zip(&self.face).zip(&self.stream);
-                for (((&a, &f), &s), &v) in cells.zip(y) {
-                    face_sums[f] += v;
-                    alpha[a] += v;
-                    setup[s] += v;
+                #[cfg(target_arch = "x86_64")]
+                if crate::uncertainty::monte_carlo::has_avx2() {
+                    // SAFETY: the processor has AVX2 (just checked).
+                    unsafe { self.solve_dense_avx2(q, y, face_sums, b, rows, theta) };
+                    return;
                 }
-                if self.effects > 0 {
-                    for (i, &v) in y.iter().enumerate() {
-                        for (b, x) in b[first_effect..].iter_mut().zip(self.regressors(i)) {
-                            *b += x * v;
-                        }
-                    }
-                }
-                // X has a 1 in β_k for every face ≥ k (φ_f = β_1 + … + β_f).
-                let mut suffix = 0.0;
-                for k in (0..n).rev() {
-                    suffix += face_sums[k];
-                    b[k] = suffix;
-                }
-                let len = self.len();
-                for (t, j) in theta.iter_mut().zip(rows) {
-                    *t = dot(&q[j * len..(j + 1) * len], b);
-                }
+                self.solve_dense(q, y, face_sums, b, rows, theta);
             }
             Map::Structured(cofactor) => {
                 b.fill(0.0);
@@ -267,6 +272,70 @@ impl Operator {
         }
     }
 
+    /// [`Operator::solve`] through the dense map `q`: b = Xᵀy by sums over the readings,
+    /// θ = Q b by four-way dot products; the same arithmetic value by value whatever the
+    /// vector units.
+    #[inline(always)]
+    fn solve_dense(
+        &self,
+        q: &[f64],
+        y: &[f64],
+        face_sums: &mut [f64],
+        b: &mut [f64],
+        rows: Range<usize>,
+        theta: &mut [f64],
+    ) {
+        let n = self.faces;
+        let (face_sums, cell_sums) = face_sums.split_at_mut(n);
+        face_sums.fill(0.0);
+        cell_sums.fill(0.0);
+        b.fill(0.0);
+        let first_effect = 2 * n + self.streams;
+        let (alpha, setup) = b[n..first_effect].split_at_mut(n);
+        // The readings' sums per cell (one addition per reading), then per face,
+        // position and stream (three per cell).
+        for (&c, &v) in self.cell.iter().zip(y) {
+            cell_sums[c] += v;
+        }
+        for (&(a, f, s), &v) in self.cells.iter().zip(cell_sums.iter()) {
+            face_sums[f] += v;
+            alpha[a] += v;
+            setup[s] += v;
+        }
+        if self.effects > 0 {
+            for (i, &v) in y.iter().enumerate() {
+                for (b, x) in b[first_effect..].iter_mut().zip(self.regressors(i)) {
+                    *b += x * v;
+                }
+            }
+        }
+        // X has a 1 in β_k for every face ≥ k (φ_f = β_1 + … + β_f).
+        let mut suffix = 0.0;
+        for k in (0..n).rev() {
+            suffix += face_sums[k];
+            b[k] = suffix;
+        }
+        let len = self.len();
+        for (t, j) in theta.iter_mut().zip(rows) {
+            *t = dot(&q[j * len..(j + 1) * len], b);
+        }
+    }
+
+    /// [`Operator::solve_dense`] with the AVX2 vector units.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn solve_dense_avx2(
+        &self,
+        q: &[f64],
+        y: &[f64],
+        face_sums: &mut [f64],
+        b: &mut [f64],
+        rows: Range<usize>,
+        theta: &mut [f64],
+    ) {
+        self.solve_dense(q, y, face_sums, b, rows, theta)
+    }
+
     /// The gains of independent errors on every reading, Σ_i L_ji² = Q_jj (L Lᵀ = Q for
     /// a least-squares fit), in [`quantities`] order, from the structured cofactor
     /// without a pass over the readings; `None` for a dense map.
@@ -286,6 +355,7 @@ impl Operator {
 
 /// Σ aᵢbᵢ in four interleaved partial sums (the vector units can add them side by side;
 /// a single running sum waits for every addition), always in this order.
+#[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut partial = [0.0; 4];
     let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
@@ -296,9 +366,16 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
         .map(|(x, y)| x * y)
         .sum();
     for (x, y) in a4.zip(b4) {
-        for k in 0..4 {
-            partial[k] += x[k] * y[k];
-        }
+        let (x, y): (&[f64; 4], &[f64; 4]) = match (x.try_into(), y.try_into()) {
+            (Ok(x), Ok(y)) => (x, y),
+            _ => unreachable!("chunks of four"),
+        };
+        partial = [
+            partial[0] + x[0] * y[0],
+            partial[1] + x[1] * y[1],
+            partial[2] + x[2] * y[2],
+            partial[3] + x[3] * y[3],
+        ];
     }
     (partial[0] + partial[1]) + (partial[2] + partial[3]) + tail
 }
@@ -443,7 +520,7 @@ mod tests {
             let mut theta2 = vec![0.0; op.len()];
             op.solve(
                 &y,
-                &mut [0.0; 7],
+                &mut vec![0.0; op.sums_len()],
                 &mut vec![0.0; op.len()],
                 0..op.len(),
                 &mut theta2,
@@ -495,7 +572,7 @@ mod tests {
         let mut theta2 = vec![0.0; op.len()];
         op.solve(
             &y,
-            &mut [0.0; 7],
+            &mut vec![0.0; op.sums_len()],
             &mut vec![0.0; op.len()],
             0..op.len(),
             &mut theta2,
@@ -591,14 +668,14 @@ mod tests {
         let (mut t1, mut t2) = (vec![0.0; len], vec![0.0; len]);
         op_fast.solve(
             &y,
-            &mut vec![0.0; 150],
+            &mut vec![0.0; op_fast.sums_len().max(op_dense.sums_len())],
             &mut vec![0.0; len],
             0..len,
             &mut t1,
         );
         op_dense.solve(
             &y,
-            &mut vec![0.0; 150],
+            &mut vec![0.0; op_fast.sums_len().max(op_dense.sums_len())],
             &mut vec![0.0; len],
             0..len,
             &mut t2,

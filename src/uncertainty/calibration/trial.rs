@@ -88,7 +88,7 @@ fn closed_form_fn(n: usize) -> ClosedFormFn {
 
 enum TrialSolver {
     ClosedForm { offset: usize, solve: ClosedFormFn },
-    LeastSquares(Operator),
+    LeastSquares(Box<Operator>),
 }
 
 enum Noise {
@@ -320,7 +320,7 @@ impl McModel {
                 offset: d.offset,
                 solve: closed_form_fn(n),
             },
-            None => TrialSolver::LeastSquares(op),
+            None => TrialSolver::LeastSquares(Box::new(op)),
         };
         let mut model = McModel {
             faces: n,
@@ -411,7 +411,7 @@ impl McModel {
     /// A scratch buffer for [`McModel::trial`].
     pub fn scratch(&self) -> McScratch {
         let (faces_len, b_len) = match &self.solver {
-            TrialSolver::LeastSquares(op) => (op.faces, op.len()),
+            TrialSolver::LeastSquares(op) => (op.sums_len(), op.len()),
             TrialSolver::ClosedForm { .. } => (0, 0),
         };
         let draws = self

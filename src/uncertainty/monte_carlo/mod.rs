@@ -31,6 +31,8 @@ pub use engine::{
 pub(crate) use model::monte_carlo_distribution;
 pub use model::{McInput, MonteCarlo, linear_budget_inputs};
 pub use statistics::{numerical_tolerance, symmetric_interval_positions};
+#[cfg(target_arch = "x86_64")]
+pub(crate) use stream::has_avx2;
 pub use stream::{BlockRng, block_rng};
 pub use validation::{GumValidation, validate_gum};
 
