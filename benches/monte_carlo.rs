@@ -126,6 +126,30 @@ fn calibration(c: &mut Criterion) {
         })
     });
     group.finish();
+
+    // Many outputs in bounded memory: 1440 positions × 2 cycles with closing readings
+    // (4319 outputs, a pilot shorter than J, brackets refined at every doubling).
+    let config = SimulationConfig {
+        faces: 1440,
+        cycles: 2,
+        closing: true,
+        ..SimulationConfig::default()
+    };
+    let (large, _) = simulate(&config).unwrap();
+    let large_solution = solve(&large, &SolveOptions::default()).unwrap();
+    let large_gum = calibration::evaluate(&large, &large_solution, &budget).unwrap();
+    let large_trials = 20_000;
+    let mut group = c.benchmark_group("calibration_many_outputs");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(large_trials as u64));
+    let options = McOptions::new(Trials::Fixed(large_trials));
+    group.bench_function("monte_carlo_1440x2_closing_2e4", |b| {
+        b.iter(|| {
+            calibration::monte_carlo(&large, &large_solution, &budget, &large_gum, &options)
+                .unwrap()
+        })
+    });
+    group.finish();
 }
 
 fn student(c: &mut Criterion) {

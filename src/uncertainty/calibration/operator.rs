@@ -249,11 +249,16 @@ impl Operator {
             Map::Structured(cofactor) => {
                 b.fill(0.0);
                 if self.effects == 0 {
-                    // Xᵀy without effect columns: three sums per reading.
+                    // Xᵀy without effect columns: the readings' sums per cell (one
+                    // addition per reading), then three sums per cell.
+                    let cell_sums = &mut face_sums[n..];
+                    cell_sums.fill(0.0);
+                    for (&c, &v) in self.cell.iter().zip(y) {
+                        cell_sums[c] += v;
+                    }
                     let (alpha, rest) = b.split_at_mut(n);
                     let (phi, setup) = rest.split_at_mut(n);
-                    let cells = self.position.iter().zip(&self.face).zip(&self.stream);
-                    for (((&a, &f), &s), &v) in cells.zip(y) {
+                    for (&(a, f, s), &v) in self.cells.iter().zip(cell_sums.iter()) {
                         alpha[a] += v;
                         phi[f] += v;
                         setup[s] += v;

@@ -435,23 +435,25 @@ type Raw = Vec<f64>;
 
 impl<T: Trial> Engine<'_, T> {
     /// Runs trials `range` (its start a multiple of [`BLOCK_SIZE`]) in parallel blocks.
-    /// With `brackets`, merges each block's sums and bracket contents into `into`, block
+    /// With `brackets` (and the share of the values they are expected to hold), merges
+    /// each block's sums and bracket contents into `into`, block
     /// by block in block order (so that the sums are added in the same order however
     /// the trials are split into stages, and whatever the number of threads); returns
     /// every trial's outputs (trial-major) without brackets, or when all are kept.
     fn blocks(
         &self,
         range: Range<usize>,
-        brackets: Option<(&Brackets, &mut Acc)>,
+        brackets: Option<(&Brackets, &mut Acc, f64)>,
     ) -> Result<Raw, McError> {
         debug_assert_eq!(range.start % BLOCK_SIZE, 0);
         let trial = self.trial;
         let outputs = trial.outputs();
         let centre = trial.centre();
         let keep = self.keep || brackets.is_none();
-        let (brackets, into) = match brackets {
-            Some((b, into)) => (Some(b), Some(into)),
-            None => (None, None),
+        // The share of all values the brackets are expected to hold.
+        let (brackets, into, share) = match brackets {
+            Some((b, into, share)) => (Some(b), Some(into), share.clamp(0.0, 2.0)),
+            None => (None, None, 0.0),
         };
         let first = range.start / BLOCK_SIZE;
         let last = range.end.div_ceil(BLOCK_SIZE);
@@ -465,10 +467,13 @@ impl<T: Trial> Engine<'_, T> {
                 // The outputs of the last few trials, trial-major, recorded together.
                 let mut rows = vec![0.0; ROWS * outputs];
                 let mut filled = 0;
-                // Room for about 1/32 of the values inside a bracket: more is made as
-                // needed, and what is left over given back at the end of the block.
-                let mut acc =
-                    brackets.map(|_| Acc::with_capacity(outputs, outputs * (to - from) / 16 + 64));
+                // Room for the share of the values the brackets are expected to hold
+                // (and a fifth more): more is made as needed, and a store left more than
+                // half empty is given back at the end of the block.
+                let mut acc = brackets.map(|_| {
+                    let expected = share * (outputs * (to - from)) as f64 * 1.2;
+                    Acc::with_capacity(outputs, expected.ceil() as usize + 64)
+                });
                 let mut raw = Vec::new();
                 if keep {
                     raw.reserve((to - from) * outputs);
@@ -594,7 +599,16 @@ impl<T: Trial> Engine<'_, T> {
                     brackets = acc.refine(from, m, self.p, factor, &brackets);
                 }
                 let stage = range.start + from..range.start + to;
-                let values = self.blocks(stage, Some((&brackets, &mut acc)))?;
+                // Each bracket holds about 2·margin + 1 of the ranks of the trials it
+                // was set from (the pilot's, or the trials before the stage).
+                let set_from = if k == 0 { pilot_len } else { from };
+                let pi = (1.0 - self.p) / 2.0;
+                let share = if wide {
+                    2.0
+                } else {
+                    2.0 * (2.0 * rank_margin(set_from, pi, factor) + 1.0) / set_from as f64
+                };
+                let values = self.blocks(stage, Some((&brackets, &mut acc, share)))?;
                 self.note_kept(acc.kept());
                 raw.extend(values);
             }

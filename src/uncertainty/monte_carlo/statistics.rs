@@ -290,10 +290,12 @@ impl Acc {
         self.inside.len() + self.merged.iter().map(Vec::len).sum::<usize>()
     }
 
-    /// Gives back the room reserved beyond the values kept (a block's store is reserved
-    /// for the widest brackets).
+    /// Gives back the room reserved beyond the values kept when the store is more than
+    /// half empty (a block's store is reserved for the values expected inside).
     pub(crate) fn shrink(&mut self) {
-        self.inside.shrink_to_fit();
+        if self.inside.capacity() > 2 * self.inside.len() + 64 {
+            self.inside.shrink_to_fit();
+        }
     }
 
     /// The values inside every bracket so far, per bracket (2j low, 2j + 1 high); the
