@@ -114,6 +114,8 @@ pub struct McModel {
     /// deviation when the noise is normal.
     noise_var: Vec<f64>,
     fixed_var: Vec<f64>,
+    /// (Σw², the normal components' variance) when every target has the same.
+    uniform_var: Option<(f64, f64)>,
     normal_sd: Vec<f64>,
     /// Pairs of rectangular errors of each reading, drawn as one trapezoid each, and
     /// the targets they land on (`None`: trapezoid k on target k, every target once).
@@ -332,6 +334,14 @@ impl McModel {
                 .map(|(v, f)| (sigma * sigma * v + f).sqrt())
                 .collect(),
             noise,
+            uniform_var: match (noise_var.first(), fixed_var.first()) {
+                (Some(&v), Some(&f))
+                    if noise_var.iter().all(|&x| x == v) && fixed_var.iter().all(|&x| x == f) =>
+                {
+                    Some((v, f))
+                }
+                _ => None,
+            },
             noise_var,
             fixed_var,
             trapezoids: Trapezoids::default(),
@@ -445,13 +455,20 @@ impl McModel {
             Noise::Normal => &self.normal_sd,
             Noise::ScaledT { sigma, dof, chi } => {
                 let s2 = sigma * sigma * dof / chi.sample(rng);
-                for ((sd, v), f) in scratch
-                    .sd
-                    .iter_mut()
-                    .zip(&self.noise_var)
-                    .zip(&self.fixed_var)
-                {
-                    *sd = (s2 * v + f).sqrt();
+                match self.uniform_var {
+                    // every target alike (each one reading): one square root, the same
+                    // value as per target
+                    Some((v, f)) => scratch.sd.fill((s2 * v + f).sqrt()),
+                    None => {
+                        for ((sd, v), f) in scratch
+                            .sd
+                            .iter_mut()
+                            .zip(&self.noise_var)
+                            .zip(&self.fixed_var)
+                        {
+                            *sd = (s2 * v + f).sqrt();
+                        }
+                    }
                 }
                 &scratch.sd
             }
