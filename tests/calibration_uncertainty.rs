@@ -919,6 +919,17 @@ fn polycal(args: &[&str]) -> Output {
         .expect("the binary runs")
 }
 
+/// `polycal args` is refused: status 2 and one `error:` line that contains `wanted`.
+fn refused(args: &[&str], wanted: &str) {
+    let out = polycal(args);
+    assert_eq!(out.status.code(), Some(2), "{args:?}");
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.starts_with("error: ") && stderr.contains(wanted),
+        "{stderr:?} lacks {wanted:?}"
+    );
+}
+
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("polycal-unc-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -1118,15 +1129,6 @@ fn cli_monte_carlo_and_refusals() {
     );
     assert!(text.contains("U(β)") && text.contains("each-autocollimator"));
 
-    let refused = |args: &[&str], wanted: &str| {
-        let out = polycal(args);
-        assert_eq!(out.status.code(), Some(2), "{args:?}");
-        let stderr = String::from_utf8(out.stderr).unwrap();
-        assert!(
-            stderr.starts_with("error: ") && stderr.contains(wanted),
-            "{stderr:?} lacks {wanted:?}"
-        );
-    };
     refused(
         &["solve", d, "--sigma", "0.05", "--monte-carlo", "1e5"],
         "--budget",
@@ -1242,15 +1244,6 @@ fn cli_diagnose_monte_carlo_on_the_final_model() {
     let monte_carlo = text.find("Monte Carlo (JCGM 101): 20000 trials").unwrap();
     assert!(final_model < monte_carlo, "{text}");
 
-    let refused = |args: &[&str], wanted: &str| {
-        let out = polycal(args);
-        assert_eq!(out.status.code(), Some(2), "{args:?}");
-        let stderr = String::from_utf8(out.stderr).unwrap();
-        assert!(
-            stderr.starts_with("error: ") && stderr.contains(wanted),
-            "{stderr:?} lacks {wanted:?}"
-        );
-    };
     refused(&["diagnose", d, "--monte-carlo", "1e4"], "--budget");
     refused(
         &[
@@ -1311,15 +1304,6 @@ fn cli_selfcal_monte_carlo() {
         "{text}"
     );
 
-    let refused = |args: &[&str], wanted: &str| {
-        let out = polycal(args);
-        assert_eq!(out.status.code(), Some(2), "{args:?}");
-        let stderr = String::from_utf8(out.stderr).unwrap();
-        assert!(
-            stderr.starts_with("error: ") && stderr.contains(wanted),
-            "{stderr:?} lacks {wanted:?}"
-        );
-    };
     refused(&["selfcal", data, "--monte-carlo", "1e4"], "--budget");
     let off_grid = dir.join("off-grid.csv");
     let out = polycal(&[

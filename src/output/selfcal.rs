@@ -442,29 +442,22 @@ pub fn write_monte_carlo<W: Write>(
     uncertainty: &SelfcalUncertainty,
     mc: &SelfcalMonteCarlo,
 ) -> fmt::Result {
-    writeln!(
-        out,
-        "\nMonte Carlo (JCGM 101): {} trials{}, seed {}, reading noise {}",
-        mc.trials,
-        mc.sequences
-            .map_or(String::new(), |h| format!(" (adaptive, {h} sequences)")),
-        mc.seed,
-        match mc.reading_noise_dof {
-            Some(nu) => format!("t (ν = {nu})"),
-            None => mc.reading_noise.to_string(),
-        }
-    )?;
-    writeln!(
-        out,
-        "{} % probabilistically symmetric intervals; GUM validated when |y ∓ U − end| ≤ δ ({} significant digits of u_c): {}",
-        crate::uncertainty::format::percent(mc.p),
-        mc.significant_digits,
-        if mc.validated {
-            "validated"
-        } else {
-            "NOT validated"
-        }
-    )?;
+    let run = super::solve_table::McRun {
+        trials: mc.trials,
+        sequences: mc.sequences,
+        seed: mc.seed,
+        solver: None,
+        reading_noise: mc.reading_noise,
+        reading_noise_dof: mc.reading_noise_dof,
+        p: mc.p,
+        significant_digits: mc.significant_digits,
+    };
+    let verdict = if mc.validated {
+        ": validated"
+    } else {
+        ": NOT validated"
+    };
+    super::solve_table::write_monte_carlo_heading(out, &run, verdict)?;
     let header = |out: &mut W, index: &str, symbol: &str| {
         writeln!(
             out,

@@ -405,6 +405,48 @@ fn rms_text(solution: &Solution) -> String {
         })
 }
 
+/// What the heading of a Monte Carlo section says of its run.
+pub(super) struct McRun<'a> {
+    pub(super) trials: usize,
+    pub(super) sequences: Option<usize>,
+    pub(super) seed: u64,
+    /// `closed-form` or `lsq`, when the command chooses.
+    pub(super) solver: Option<&'a str>,
+    pub(super) reading_noise: &'a str,
+    pub(super) reading_noise_dof: Option<f64>,
+    pub(super) p: f64,
+    pub(super) significant_digits: u32,
+}
+
+/// The two heading lines of a Monte Carlo section (`solve`, `diagnose`, `selfcal`): the
+/// run, then the intervals and the validation rule, ending with `verdict`.
+pub(super) fn write_monte_carlo_heading<W: Write>(
+    out: &mut W,
+    run: &McRun<'_>,
+    verdict: &str,
+) -> fmt::Result {
+    writeln!(
+        out,
+        "\nMonte Carlo (JCGM 101): {} trials{}, seed {}, {}reading noise {}",
+        run.trials,
+        run.sequences
+            .map_or(String::new(), |h| format!(" (adaptive, {h} sequences)")),
+        run.seed,
+        run.solver
+            .map_or(String::new(), |s| format!("{s} solver, ")),
+        match run.reading_noise_dof {
+            Some(nu) => format!("t (ν = {nu})"),
+            None => run.reading_noise.to_string(),
+        }
+    )?;
+    writeln!(
+        out,
+        "{} % probabilistically symmetric intervals; GUM validated when |y ∓ U − end| ≤ δ ({} significant digits of u_c){verdict}",
+        crate::uncertainty::format::percent(run.p),
+        run.significant_digits
+    )
+}
+
 fn write_monte_carlo<W: Write>(
     out: &mut W,
     solution: &Solution,
@@ -412,25 +454,17 @@ fn write_monte_carlo<W: Write>(
     mc: &CalibrationMonteCarlo,
 ) -> fmt::Result {
     let n = solution.faces;
-    writeln!(
-        out,
-        "\nMonte Carlo (JCGM 101): {} trials{}, seed {}, {} solver, reading noise {}",
-        mc.trials,
-        mc.sequences
-            .map_or(String::new(), |h| format!(" (adaptive, {h} sequences)")),
-        mc.seed,
-        mc.solver,
-        match mc.reading_noise_dof {
-            Some(nu) => format!("t (ν = {nu})"),
-            None => mc.reading_noise.to_string(),
-        }
-    )?;
-    writeln!(
-        out,
-        "{} % probabilistically symmetric intervals; GUM validated when |y ∓ U − end| ≤ δ ({} significant digits of u_c)",
-        crate::uncertainty::format::percent(mc.p),
-        mc.significant_digits
-    )?;
+    let run = McRun {
+        trials: mc.trials,
+        sequences: mc.sequences,
+        seed: mc.seed,
+        solver: Some(mc.solver),
+        reading_noise: mc.reading_noise,
+        reading_noise_dof: mc.reading_noise_dof,
+        p: mc.p,
+        significant_digits: mc.significant_digits,
+    };
+    write_monte_carlo_heading(out, &run, "")?;
     // (index name, symbol, Monte Carlo, estimates, GUM U)
     type Row<'a> = (&'a str, &'a str, &'a McFamily, &'a [f64], Option<&'a [f64]>);
     let families: [Row<'_>; 3] = [
