@@ -111,26 +111,45 @@ pub(crate) enum Failure {
     Other(String),
 }
 
-/// The Monte Carlo option: a number of trials or `"adaptive"`.
-pub(crate) fn trials(monte_carlo: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Trials>> {
+/// The Monte Carlo options of `monte_carlo` (a number of trials or `"adaptive"`) and
+/// `seed`, as the commands' `--monte-carlo` and `--seed` make them; `None` without
+/// `monte_carlo`, refused without a budget, which is what the Monte Carlo propagates.
+pub(crate) fn mc_options(
+    monte_carlo: Option<&Bound<'_, PyAny>>,
+    has_budget: bool,
+    seed: u64,
+) -> PyResult<Option<McOptions<'static>>> {
     let Some(value) = monte_carlo else {
         return Ok(None);
     };
-    if let Ok(text) = value.extract::<String>() {
-        return match text.as_str() {
-            "adaptive" => Ok(Some(Trials::Adaptive {
+    let trials = if let Ok(text) = value.extract::<String>() {
+        match text.as_str() {
+            "adaptive" => Trials::Adaptive {
                 significant_digits: 2,
                 max_trials: 10_000_000,
-            })),
-            other => Err(PyValueError::new_err(format!(
-                "monte_carlo: expected a number of trials or \"adaptive\", got {other:?}"
-            ))),
-        };
+            },
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "monte_carlo: expected a number of trials or \"adaptive\", got {other:?}"
+                )));
+            }
+        }
+    } else {
+        Trials::Fixed(value.extract().map_err(|_| {
+            PyValueError::new_err("monte_carlo: expected a number of trials or \"adaptive\"")
+        })?)
+    };
+    if !has_budget {
+        return Err(PyValueError::new_err(
+            "monte_carlo needs a budget: the Monte Carlo propagates the instrument budget with the reading noise",
+        ));
     }
-    let count: usize = value.extract().map_err(|_| {
-        PyValueError::new_err("monte_carlo: expected a number of trials or \"adaptive\"")
-    })?;
-    Ok(Some(Trials::Fixed(count)))
+    Ok(Some(
+        McOptions::new(trials)
+            .with_seed(seed)
+            .with_significant_digits(2)
+            .with_solver(McSolver::Auto),
+    ))
 }
 
 /// Solves a measurement set as `polycal solve` does: the closed form or least squares,
@@ -160,12 +179,7 @@ pub(crate) fn solve(
     let options = SolveOptions::new()
         .with_method(method)
         .with_sigma_opt(crate::sigma(sigma)?);
-    let trials = trials(monte_carlo)?;
-    if trials.is_some() && budget.is_none() {
-        return Err(PyValueError::new_err(
-            "monte_carlo needs a budget: the Monte Carlo propagates the instrument budget with the reading noise",
-        ));
-    }
+    let mc = mc_options(monte_carlo, budget.is_some(), seed)?;
     let set = &ms.inner;
     let budget = budget.map(|b| &b.inner);
     let done = py.detach(|| {
@@ -200,13 +214,9 @@ pub(crate) fn solve(
         if let Some(gum) = &gum {
             report = report.with_uncertainty(gum);
         }
-        if let (Some(trials), Some(budget), Some(gum)) = (trials, budget, &gum) {
-            let options = McOptions::new(trials)
-                .with_seed(seed)
-                .with_significant_digits(2)
-                .with_solver(McSolver::Auto);
+        if let (Some(options), Some(budget), Some(gum)) = (&mc, budget, &gum) {
             match polycal::uncertainty::calibration::monte_carlo(
-                set, &solution, budget, gum, &options,
+                set, &solution, budget, gum, options,
             ) {
                 Ok(mc) => report = report.with_monte_carlo(mc),
                 Err(e) => return Err(Failure::Other(e.to_string())),
@@ -309,12 +319,7 @@ pub(crate) fn diagnose(
         .transpose()
         .map_err(|e| PyValueError::new_err(format!("truth: {e}")))?;
     let options = DiagnoseOptions::new().with_sigma_opt(crate::sigma(sigma)?);
-    let trials = trials(monte_carlo)?;
-    if trials.is_some() && budget.is_none() {
-        return Err(PyValueError::new_err(
-            "monte_carlo needs a budget: the Monte Carlo propagates the instrument budget with the reading noise",
-        ));
-    }
+    let mc = mc_options(monte_carlo, budget.is_some(), seed)?;
     let set = &ms.inner;
     let budget = budget.map(|b| &b.inner);
     let done = py.detach(|| {
@@ -324,17 +329,13 @@ pub(crate) fn diagnose(
         if let Some(b) = budget {
             let gum = evaluate(set, &found.after, b).map_err(|e| Failure::Other(e.to_string()))?;
             report.after = report.after.with_uncertainty(&gum);
-            if let Some(trials) = trials {
-                let options = McOptions::new(trials)
-                    .with_seed(seed)
-                    .with_significant_digits(2)
-                    .with_solver(McSolver::Auto);
+            if let Some(options) = &mc {
                 let mc = polycal::uncertainty::calibration::monte_carlo(
                     set,
                     &found.after,
                     b,
                     &gum,
-                    &options,
+                    options,
                 )
                 .map_err(|e| Failure::Other(e.to_string()))?;
                 report.after = report.after.with_monte_carlo(mc);
@@ -361,12 +362,7 @@ pub(crate) fn selfcal(
     seed: u64,
 ) -> PyResult<String> {
     let options = SelfcalOptions::new().with_sigma_opt(crate::sigma(sigma)?);
-    let trials = trials(monte_carlo)?;
-    if trials.is_some() && budget.is_none() {
-        return Err(PyValueError::new_err(
-            "monte_carlo needs a budget: the Monte Carlo propagates the instrument budget with the reading noise",
-        ));
-    }
+    let mc = mc_options(monte_carlo, budget.is_some(), seed)?;
     let budget = budget.map(|b| &b.inner);
     let name = set.name.clone();
     py.detach(|| {
@@ -375,11 +371,8 @@ pub(crate) fn selfcal(
         if let Some(b) = budget {
             let u = polycal::selfcal::evaluate_budget(&solution, b).map_err(|e| e.to_string())?;
             report = report.with_uncertainty(&u);
-            if let Some(trials) = trials {
-                let options = McOptions::new(trials)
-                    .with_seed(seed)
-                    .with_significant_digits(2);
-                let mc = polycal::selfcal::monte_carlo(&set.inner, &solution, b, &u, &options)
+            if let Some(options) = &mc {
+                let mc = polycal::selfcal::monte_carlo(&set.inner, &solution, b, &u, options)
                     .map_err(|e| e.to_string())?;
                 report = report.with_monte_carlo(mc);
             }

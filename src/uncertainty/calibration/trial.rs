@@ -724,7 +724,8 @@ mod tests {
     }
 
     /// The calibration trial on the engine: the summary of every trial without storing
-    /// them is the summary of the stored trials, for 9 positions (fixed and adaptive)
+    /// them is the summary of the stored trials, for 9 positions (fixed and adaptive), 24
+    /// (the paper's polygon, closing readings: least squares, stages after a pilot of J)
     /// and for 1440 positions (4319 outputs: a pilot shorter than `J`, brackets refined
     /// at every doubling of the trials).
     #[test]
@@ -736,6 +737,7 @@ mod tests {
         for (faces, trials) in [
             (9, Trials::Fixed(34_500)),
             (9, adaptive),
+            (24, Trials::Fixed(25_000)),
             (1440, Trials::Fixed(9_000)),
         ] {
             the_engine_summarizes(faces, trials);
