@@ -494,19 +494,37 @@ proptest! {
 /// The interval of Monte Carlo is the exact one: a normal type A part (stated σ) plus a
 /// dominant rectangular `result` error has the quantiles of N(0, s²) ⊕ U(−a, a),
 /// computed here by bisection on its distribution function; the GUM interval (k from the
-/// normal) is then too wide and is not validated.
+/// normal) is then too wide and is not validated. On one cycle by the closed form, and
+/// on three cycles by least squares, whose trials draw each cell's three readings as one
+/// sum: s = σ·√(2(N − 1)/(N·R)) by hand (the paper's eq. (11) over R cycles) checks both.
 #[test]
 fn monte_carlo_interval_is_the_exact_convolution() {
+    for (cycles, solver, name) in [
+        (1, McSolver::Auto, "closed-form"),
+        (3, McSolver::LeastSquares, "lsq"),
+    ] {
+        exact_convolution(cycles, solver, name);
+    }
+}
+
+fn exact_convolution(cycles: u32, solver: McSolver, name: &str) {
     let n = 8;
     let sigma = 0.05;
     let a = 0.3;
-    let set = design(n, 1, false, 11);
-    let solution = solved(&set, Method::Auto, Some(sigma));
+    let set = design(n, cycles, false, 11);
+    let mut solution = solved(&set, Method::Auto, Some(sigma));
+    // σ stated (the fit of several cycles would take it from its residuals)
+    solution.sigma = Some((sigma, solve::SigmaSource::Stated));
     let budget = one(Distribution::Rectangular { half_width: a }, Scope::Result);
     let trials = 200_000;
-    let (unc, result) = mc(&set, &solution, &budget, trials, 5, McSolver::Auto);
+    let (unc, result) = mc(&set, &solution, &budget, trials, 5, solver);
+    assert_eq!(result.solver, name);
     let s = unc.pitch_deviation.u_a[0];
-    assert!(close(s, sigma * (2.0 * 7.0 / 8.0f64).sqrt(), 1e-12));
+    assert!(close(
+        s,
+        sigma * (2.0 * 7.0 / (8.0 * f64::from(cycles))).sqrt(),
+        1e-12
+    ));
     let g = |z: f64| z * normal_cdf(z) + (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt();
     let cdf = |x: f64| s / (2.0 * a) * (g((x + a) / s) - g((x - a) / s));
     let density = |x: f64| (normal_cdf((x + a) / s) - normal_cdf((x - a) / s)) / (2.0 * a);

@@ -124,22 +124,42 @@ impl Trapezoids {
         }
     }
 
-    /// `q[k] = F⁻¹(u[k])` for `u[k]` ∈ [0, 1): the flat tops in one pass (in the vector
-    /// units), then the few values on a sloped side.
+    /// `q[k] = F⁻¹(u[k])` for `u[k]` ∈ [0, 1): eight values at a time on the flat tops
+    /// (in the vector units), then, only in the few chunks of eight where some value is
+    /// on a sloped side (for the instrument budget's resolution and angle error, 0.4 %
+    /// of the values), those values.
+    #[inline]
     pub(super) fn quantiles(&self, u: &[f64], q: &mut [f64]) {
+        const CHUNK: usize = 8;
         let n = self.len();
         let (u, q) = (&u[..n], &mut q[..n]);
-        // Whether any value is on a sloped side (for the instrument budget's resolution
-        // and angle error, 0.4 % of the values): then, and only then, a second pass.
-        let mut sloped = false;
-        for (((q, u), a), side) in q.iter_mut().zip(u).zip(&self.a).zip(&self.side) {
-            *q = a * (2.0 * u - 1.0);
-            sloped |= (*u < *side) | (*u >= 1.0 - side);
-        }
-        if sloped {
-            for (k, (&u, &side)) in u.iter().zip(&self.side).enumerate() {
-                if (u < side) | (u >= 1.0 - side) {
-                    q[k] = self.slope(k, u);
+        let chunks = q
+            .chunks_mut(CHUNK)
+            .zip(u.chunks(CHUNK))
+            .zip(self.a.chunks(CHUNK).zip(self.side.chunks(CHUNK)));
+        for (c, ((q, u), (a, side))) in chunks.enumerate() {
+            let mut sloped = false;
+            if let (Ok(q), Ok(u), Ok(a), Ok(side)) = (
+                <&mut [f64; CHUNK]>::try_from(&mut *q),
+                <&[f64; CHUNK]>::try_from(u),
+                <&[f64; CHUNK]>::try_from(a),
+                <&[f64; CHUNK]>::try_from(side),
+            ) {
+                for k in 0..CHUNK {
+                    q[k] = a[k] * (2.0 * u[k] - 1.0);
+                    sloped |= (u[k] < side[k]) | (u[k] >= 1.0 - side[k]);
+                }
+            } else {
+                for k in 0..q.len() {
+                    q[k] = a[k] * (2.0 * u[k] - 1.0);
+                    sloped |= (u[k] < side[k]) | (u[k] >= 1.0 - side[k]);
+                }
+            }
+            if sloped {
+                for k in 0..q.len() {
+                    if (u[k] < side[k]) | (u[k] >= 1.0 - side[k]) {
+                        q[k] = self.slope(c * CHUNK + k, u[k]);
+                    }
                 }
             }
         }

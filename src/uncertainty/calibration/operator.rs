@@ -41,6 +41,8 @@ enum Map {
         q: Vec<f64>,
         /// Q with its β columns summed cumulatively: qc\[j·N + f\] = Σ_{k ≤ f} Q\[j, k\].
         qc: Vec<f64>,
+        /// Q by columns: qt\[k·len + j\] = Q\[j, k\].
+        qt: Vec<f64>,
     },
     Structured(Cofactor),
 }
@@ -107,7 +109,10 @@ impl Operator {
                     qc[j * n + f] = running;
                 }
             }
-            Map::Dense { q, qc }
+            let qt = (0..len * len)
+                .map(|i| q[(i % len) * len + i / len])
+                .collect();
+            Map::Dense { q, qc, qt }
         } else {
             Map::Structured(solution.cofactor.clone())
         };
@@ -194,7 +199,7 @@ impl Operator {
     pub(super) fn add_column(&self, i: usize, w: f64, theta: &mut [f64]) {
         let (n, len) = (self.faces, self.len());
         match &self.map {
-            Map::Dense { q, qc } => {
+            Map::Dense { q, qc, .. } => {
                 let (a, f, s) = (n + self.position[i], self.face[i], 2 * n + self.stream[i]);
                 let first_effect = 2 * n + self.streams;
                 let x = self.regressors(i);
@@ -225,11 +230,61 @@ impl Operator {
         }
     }
 
-    /// θ̂ rows `rows` for the readings `y`: b = Xᵀy, then θ = Q b. `face_sums`
+    /// θ̂ rows `rows` for the readings `y`: b = Xᵀy, then θ = Q b. `sums`
     /// ([`Operator::sums_len`]) and `b` (2N + K + E) are scratch.
     pub(super) fn solve(
         &self,
         y: &[f64],
+        sums: &mut [f64],
+        b: &mut [f64],
+        rows: Range<usize>,
+        theta: &mut [f64],
+    ) {
+        let (face_sums, cell_sums) = sums.split_at_mut(self.faces);
+        // The readings' sums per cell: one addition per reading.
+        cell_sums.fill(0.0);
+        for (&c, &v) in self.cell.iter().zip(y) {
+            cell_sums[c] += v;
+        }
+        b.fill(0.0);
+        if self.effects > 0 {
+            let first_effect = 2 * self.faces + self.streams;
+            for (i, &v) in y.iter().enumerate() {
+                for (b, x) in b[first_effect..].iter_mut().zip(self.regressors(i)) {
+                    *b += x * v;
+                }
+            }
+        }
+        self.solve_from_cells(cell_sums, face_sums, b, rows, theta);
+    }
+
+    /// [`Operator::solve`] of readings given by their sums per cell (`cell_sums`, one
+    /// per [`Operator::cell_of`] index), for a model without effect terms (whose Xᵀy
+    /// needs every reading). `sums` and `b` are scratch as there.
+    pub(super) fn solve_cells(
+        &self,
+        cell_sums: &[f64],
+        sums: &mut [f64],
+        b: &mut [f64],
+        rows: Range<usize>,
+        theta: &mut [f64],
+    ) {
+        debug_assert_eq!(self.effects, 0, "effect terms need every reading");
+        b.fill(0.0);
+        self.solve_from_cells(cell_sums, &mut sums[..self.faces], b, rows, theta);
+    }
+
+    /// The readings' cell (an index into the cell sums of [`Operator::solve_cells`]),
+    /// reading by reading, and the number of cells.
+    pub(super) fn cell_of(&self) -> (&[usize], usize) {
+        (&self.cell, self.cells.len())
+    }
+
+    /// b = Xᵀy (effect terms already in `b`, the rest zero) from the cell sums (three
+    /// additions per cell), then θ = Q b.
+    fn solve_from_cells(
+        &self,
+        cell_sums: &[f64],
         face_sums: &mut [f64],
         b: &mut [f64],
         rows: Range<usize>,
@@ -237,36 +292,33 @@ impl Operator {
     ) {
         let n = self.faces;
         match &self.map {
-            Map::Dense { q, .. } => {
-                #[cfg(target_arch = "x86_64")]
-                if crate::uncertainty::monte_carlo::has_avx2() {
-                    // SAFETY: the processor has AVX2 (just checked).
-                    unsafe { self.solve_dense_avx2(q, y, face_sums, b, rows, theta) };
-                    return;
+            Map::Dense { qt, .. } => {
+                // θ through Q's columns: the cell sums per face, position and stream, X's
+                // β columns (a 1 in β_k for every face ≥ k: φ_f = β_1 + … + β_f) as
+                // suffix sums, then θ_j = Σ_k Q_jk b_k, k in order.
+                face_sums.fill(0.0);
+                let (alpha, setup) = b[n..2 * n + self.streams].split_at_mut(n);
+                for (&(a, f, s), &v) in self.cells.iter().zip(cell_sums) {
+                    face_sums[f] += v;
+                    alpha[a] += v;
+                    setup[s] += v;
                 }
-                self.solve_dense(q, y, face_sums, b, rows, theta);
+                let mut suffix = 0.0;
+                for k in (0..n).rev() {
+                    suffix += face_sums[k];
+                    b[k] = suffix;
+                }
+                columns_times(qt, self.len(), b, rows, theta);
             }
             Map::Structured(cofactor) => {
-                b.fill(0.0);
-                if self.effects == 0 {
-                    // Xᵀy without effect columns: the readings' sums per cell (one
-                    // addition per reading), then three sums per cell.
-                    let cell_sums = &mut face_sums[n..];
-                    cell_sums.fill(0.0);
-                    for (&c, &v) in self.cell.iter().zip(y) {
-                        cell_sums[c] += v;
-                    }
-                    let (alpha, rest) = b.split_at_mut(n);
-                    let (phi, setup) = rest.split_at_mut(n);
-                    for (&(a, f, s), &v) in self.cells.iter().zip(cell_sums.iter()) {
-                        alpha[a] += v;
-                        phi[f] += v;
-                        setup[s] += v;
-                    }
-                } else {
-                    for (i, &v) in y.iter().enumerate() {
-                        self.add_row_g(i, v, b);
-                    }
+                // In the gauge g = [α, φ′, U′, effects]: sums per position, face and
+                // stream.
+                let (alpha, rest) = b.split_at_mut(n);
+                let (phi, setup) = rest.split_at_mut(n);
+                for (&(a, f, s), &v) in self.cells.iter().zip(cell_sums) {
+                    alpha[a] += v;
+                    phi[f] += v;
+                    setup[s] += v;
                 }
                 let mut all = vec![0.0; self.len()];
                 self.add_structured(cofactor, b, &mut all);
@@ -275,70 +327,6 @@ impl Operator {
                 }
             }
         }
-    }
-
-    /// [`Operator::solve`] through the dense map `q`: b = Xᵀy by sums over the readings,
-    /// θ = Q b by four-way dot products; the same arithmetic value by value whatever the
-    /// vector units.
-    #[inline(always)]
-    fn solve_dense(
-        &self,
-        q: &[f64],
-        y: &[f64],
-        face_sums: &mut [f64],
-        b: &mut [f64],
-        rows: Range<usize>,
-        theta: &mut [f64],
-    ) {
-        let n = self.faces;
-        let (face_sums, cell_sums) = face_sums.split_at_mut(n);
-        face_sums.fill(0.0);
-        cell_sums.fill(0.0);
-        b.fill(0.0);
-        let first_effect = 2 * n + self.streams;
-        let (alpha, setup) = b[n..first_effect].split_at_mut(n);
-        // The readings' sums per cell (one addition per reading), then per face,
-        // position and stream (three per cell).
-        for (&c, &v) in self.cell.iter().zip(y) {
-            cell_sums[c] += v;
-        }
-        for (&(a, f, s), &v) in self.cells.iter().zip(cell_sums.iter()) {
-            face_sums[f] += v;
-            alpha[a] += v;
-            setup[s] += v;
-        }
-        if self.effects > 0 {
-            for (i, &v) in y.iter().enumerate() {
-                for (b, x) in b[first_effect..].iter_mut().zip(self.regressors(i)) {
-                    *b += x * v;
-                }
-            }
-        }
-        // X has a 1 in β_k for every face ≥ k (φ_f = β_1 + … + β_f).
-        let mut suffix = 0.0;
-        for k in (0..n).rev() {
-            suffix += face_sums[k];
-            b[k] = suffix;
-        }
-        let len = self.len();
-        for (t, j) in theta.iter_mut().zip(rows) {
-            *t = dot(&q[j * len..(j + 1) * len], b);
-        }
-    }
-
-    /// [`Operator::solve_dense`] with the AVX2 vector units.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn solve_dense_avx2(
-        &self,
-        q: &[f64],
-        y: &[f64],
-        face_sums: &mut [f64],
-        b: &mut [f64],
-        rows: Range<usize>,
-        theta: &mut [f64],
-    ) {
-        self.solve_dense(q, y, face_sums, b, rows, theta)
     }
 
     /// The gains of independent errors on every reading, Σ_i L_ji² = Q_jj (L Lᵀ = Q for
@@ -358,31 +346,64 @@ impl Operator {
     }
 }
 
-/// Σ aᵢbᵢ in four interleaved partial sums (the vector units can add them side by side;
-/// a single running sum waits for every addition), always in this order.
-#[inline(always)]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut partial = [0.0; 4];
-    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = a4
-        .remainder()
-        .iter()
-        .zip(b4.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in a4.zip(b4) {
-        let (x, y): (&[f64; 4], &[f64; 4]) = match (x.try_into(), y.try_into()) {
-            (Ok(x), Ok(y)) => (x, y),
-            _ => unreachable!("chunks of four"),
-        };
-        partial = [
-            partial[0] + x[0] * y[0],
-            partial[1] + x[1] * y[1],
-            partial[2] + x[2] * y[2],
-            partial[3] + x[3] * y[3],
-        ];
+/// `theta[i] = Σ_k M[rows.start + i, k]·b[k]` for M of size len × len held by columns
+/// (`columns[k·len + j]` = M\[j, k\]): every sum in the order of k, sixteen rows at a
+/// time side by side (independent sums the vector units add together, where a dot
+/// product per row waits for every addition), the same value whatever the vector units.
+fn columns_times(columns: &[f64], len: usize, b: &[f64], rows: Range<usize>, theta: &mut [f64]) {
+    #[cfg(target_arch = "x86_64")]
+    if crate::uncertainty::monte_carlo::has_avx2() {
+        // SAFETY: the processor has AVX2 (just checked).
+        unsafe { columns_times_avx2(columns, len, b, rows, theta) };
+        return;
     }
-    (partial[0] + partial[1]) + (partial[2] + partial[3]) + tail
+    columns_times_portable(columns, len, b, rows, theta);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn columns_times_avx2(
+    columns: &[f64],
+    len: usize,
+    b: &[f64],
+    rows: Range<usize>,
+    theta: &mut [f64],
+) {
+    columns_times_portable(columns, len, b, rows, theta);
+}
+
+#[inline(always)]
+fn columns_times_portable(
+    columns: &[f64],
+    len: usize,
+    b: &[f64],
+    rows: Range<usize>,
+    theta: &mut [f64],
+) {
+    const BLOCK: usize = 16;
+    let theta = &mut theta[..rows.len()];
+    let b = &b[..len];
+    let mut first = rows.start;
+    for chunk in theta.chunks_mut(BLOCK) {
+        let mut acc = [0.0; BLOCK];
+        if chunk.len() == BLOCK {
+            for (k, &bk) in b.iter().enumerate() {
+                let column = &columns[k * len + first..k * len + first + BLOCK];
+                for (a, m) in acc.iter_mut().zip(column) {
+                    *a += m * bk;
+                }
+            }
+        } else {
+            for (k, &bk) in b.iter().enumerate() {
+                let column = &columns[k * len + first..k * len + first + chunk.len()];
+                for (a, m) in acc.iter_mut().zip(column) {
+                    *a += m * bk;
+                }
+            }
+        }
+        chunk.copy_from_slice(&acc[..chunk.len()]);
+        first += chunk.len();
+    }
 }
 
 /// The quantities reported, from θ = [β, α, U, effects]: [β (N), φ (N), α (N), U (K)]
@@ -503,6 +524,28 @@ mod tests {
     use crate::solve::{Method, SolveOptions, solve};
     use crate::uncertainty::calibration::test_support::set;
 
+    /// Q b by columns is the row-by-row product, in any rows, and the vector units give
+    /// the same bits as the portable code.
+    #[test]
+    fn columns_times_is_the_product() {
+        let len = 50;
+        let m: Vec<f64> = (0..len * len)
+            .map(|i| ((i * 7919) % 1013) as f64 / 1013.0 - 0.5)
+            .collect();
+        let b: Vec<f64> = (0..len).map(|k| (k as f64 * 0.37).sin()).collect();
+        for rows in [0..len, 0..48, 3..40, 17..18] {
+            let mut theta = vec![0.0; rows.len()];
+            columns_times(&m, len, &b, rows.clone(), &mut theta);
+            let mut portable = vec![0.0; rows.len()];
+            columns_times_portable(&m, len, &b, rows.clone(), &mut portable);
+            assert_eq!(theta, portable);
+            for (t, j) in theta.iter().zip(rows) {
+                let row: f64 = (0..len).map(|k| m[k * len + j] * b[k]).sum();
+                assert!((t - row).abs() < 1e-13, "{t} {row}");
+            }
+        }
+    }
+
     /// L = Q Xᵀ reproduces the solver: θ̂ = L y, for least squares and the closed form.
     #[test]
     fn operator_is_the_solver() {
@@ -530,6 +573,23 @@ mod tests {
                 0..op.len(),
                 &mut theta2,
             );
+            // The same from the readings' sums per cell (three cycles: three readings
+            // in every cell).
+            let (cell, cells) = op.cell_of();
+            assert_eq!(cells, 14);
+            let mut cell_sums = vec![0.0; cells];
+            for (&c, &v) in cell.iter().zip(&y) {
+                cell_sums[c] += v;
+            }
+            let mut theta3 = vec![0.0; op.len()];
+            op.solve_cells(
+                &cell_sums,
+                &mut vec![0.0; op.sums_len()],
+                &mut vec![0.0; op.len()],
+                0..op.len(),
+                &mut theta3,
+            );
+            assert_eq!(theta3, theta2);
             for k in 0..7 {
                 assert!((theta[k] - solution.pitch_deviation[k]).abs() < 1e-12);
                 assert!((theta2[k] - solution.pitch_deviation[k]).abs() < 1e-12);

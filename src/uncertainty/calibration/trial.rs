@@ -87,8 +87,16 @@ fn closed_form_fn(n: usize) -> ClosedFormFn {
 }
 
 enum TrialSolver {
-    ClosedForm { offset: usize, solve: ClosedFormFn },
-    LeastSquares(Box<Operator>),
+    ClosedForm {
+        offset: usize,
+        solve: ClosedFormFn,
+    },
+    /// The operator, and whether the targets are the readings' sums per cell (else the
+    /// readings).
+    LeastSquares {
+        op: Box<Operator>,
+        cells: bool,
+    },
 }
 
 enum Noise {
@@ -102,7 +110,10 @@ enum Noise {
 }
 
 /// One Monte Carlo trial of a calibration: draws the readings (as targets of the solver:
-/// per-step means for the closed form, the readings for least squares) and solves them.
+/// per-step means for the closed form; for least squares the readings' sums per cell,
+/// or the readings themselves when the model has effect terms) and solves them. The
+/// normal parts of a target's readings (noise, normal errors of each reading) are drawn
+/// as one normal with their summed variance, the same distribution as their sum.
 /// Built by [`McModel::new`]; [`super::monte_carlo`] runs it on the engine.
 pub struct McModel {
     pub(super) faces: usize,
@@ -117,10 +128,11 @@ pub struct McModel {
     /// (Σw², the normal components' variance) when every target has the same.
     uniform_var: Option<(f64, f64)>,
     normal_sd: Vec<f64>,
-    /// Pairs of rectangular errors of each reading, drawn as one trapezoid each, and
-    /// the targets they land on (`None`: trapezoid k on target k, every target once).
+    /// Pairs of rectangular errors of each reading, drawn as one trapezoid each, in the
+    /// order of the targets they land on: those of target t are
+    /// `trapezoid_starts[t]..trapezoid_starts[t + 1]`.
     trapezoids: Trapezoids,
-    trapezoid_targets: Option<Vec<usize>>,
+    trapezoid_starts: Vec<usize>,
     plans: Vec<Plan>,
     result_draws: Vec<(Sampler, f64)>,
     /// The setup errors among the outputs (after α): their number K, or 0.
@@ -210,11 +222,19 @@ impl McModel {
                     })
                     .collect(),
             ),
+            // Least squares without effect terms needs the readings only through their
+            // sums per cell (one autocollimator's readings of one face at one position):
+            // the trial draws those sums.
+            None if solution.layout.effects == 0 => {
+                let (cell, cells) = op.cell_of();
+                (cells, cell.iter().map(|&c| (c, 1.0)).collect())
+            }
             None => (
                 set.readings.len(),
                 (0..set.readings.len()).map(|i| (i, 1.0)).collect(),
             ),
         };
+        let by_cells = design.is_none() && solution.layout.effects == 0;
         let mut base = vec![0.0; targets];
         let mut noise_var = vec![0.0; targets];
         for (i, r) in set.readings.iter().enumerate() {
@@ -322,7 +342,10 @@ impl McModel {
                 offset: d.offset,
                 solve: closed_form_fn(n),
             },
-            None => TrialSolver::LeastSquares(Box::new(op)),
+            None => TrialSolver::LeastSquares {
+                op: Box::new(op),
+                cells: by_cells,
+            },
         };
         let mut model = McModel {
             faces: n,
@@ -345,7 +368,7 @@ impl McModel {
             noise_var,
             fixed_var,
             trapezoids: Trapezoids::default(),
-            trapezoid_targets: None,
+            trapezoid_starts: vec![0; targets + 1],
             plans: Vec::new(),
             result_draws,
             setup_outputs,
@@ -355,20 +378,15 @@ impl McModel {
         // errors, say) is not drawn at all.
         plans.retain(|plan| model.reaches_outputs(plan));
         let (trapezoids, trapezoid_targets, plans) = pair_rectangles(plans);
-        // One trapezoid on every target (each reading's own errors): put them in target
-        // order, to be added with the noise.
+        // In target order (a stable sort), each target's trapezoids together.
         let mut order: Vec<usize> = (0..trapezoid_targets.len()).collect();
         order.sort_by_key(|&k| trapezoid_targets[k]);
-        let every_target = trapezoid_targets.len() == targets
-            && order
-                .iter()
-                .enumerate()
-                .all(|(t, &k)| trapezoid_targets[k] == t);
-        if every_target {
-            model.trapezoids = trapezoids.permuted(&order);
-        } else {
-            model.trapezoids = trapezoids;
-            model.trapezoid_targets = Some(trapezoid_targets);
+        model.trapezoids = trapezoids.permuted(&order);
+        for &t in &trapezoid_targets {
+            model.trapezoid_starts[t + 1] += 1;
+        }
+        for t in 0..targets {
+            model.trapezoid_starts[t + 1] += model.trapezoid_starts[t];
         }
         model.plans = plans;
         Ok(model)
@@ -390,8 +408,9 @@ impl McModel {
         })
     }
 
-    /// Number of targets a trial draws (2N per-step means for the closed form, else the
-    /// number of readings).
+    /// Number of targets a trial draws (2N per-step means for the closed form; for least
+    /// squares one sum per cell of readings, or the readings when the model has effect
+    /// terms).
     pub fn targets(&self) -> usize {
         self.base.len()
     }
@@ -406,7 +425,7 @@ impl McModel {
     pub fn solver_name(&self) -> &'static str {
         match self.solver {
             TrialSolver::ClosedForm { .. } => "closed-form",
-            TrialSolver::LeastSquares(_) => "lsq",
+            TrialSolver::LeastSquares { .. } => "lsq",
         }
     }
 
@@ -421,7 +440,7 @@ impl McModel {
     /// A scratch buffer for [`McModel::trial`].
     pub fn scratch(&self) -> McScratch {
         let (faces_len, b_len) = match &self.solver {
-            TrialSolver::LeastSquares(op) => (op.sums_len(), op.len()),
+            TrialSolver::LeastSquares { op, .. } => (op.sums_len(), op.len()),
             TrialSolver::ClosedForm { .. } => (0, 0),
         };
         let draws = self
@@ -448,6 +467,24 @@ impl McModel {
     /// Draws one trial's targets and the per-output offsets of the `result` components
     /// (into `scratch`), without solving.
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R, scratch: &mut McScratch) {
+        #[cfg(target_arch = "x86_64")]
+        if crate::uncertainty::monte_carlo::has_avx2() {
+            // SAFETY: the processor has AVX2 (just checked).
+            unsafe { self.sample_avx2(rng, scratch) };
+            return;
+        }
+        self.sample_portable(rng, scratch);
+    }
+
+    /// [`McModel::sample`] in the AVX2 vector units: the same arithmetic, value by value.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn sample_avx2<R: Rng + ?Sized>(&self, rng: &mut R, scratch: &mut McScratch) {
+        self.sample_portable(rng, scratch);
+    }
+
+    #[inline(always)]
+    fn sample_portable<R: Rng + ?Sized>(&self, rng: &mut R, scratch: &mut McScratch) {
         let t = &mut scratch.targets;
         let n = t.len();
         let bits = &mut scratch.bits;
@@ -475,34 +512,22 @@ impl McModel {
         };
         let z = &mut scratch.draws[..n];
         standard_normals(rng, bits, z);
-        // The trapezoids: added with the noise when there is one on every target in
-        // order (each reading's errors of the paper's design), else after it.
         let q = &mut scratch.quantiles[..self.trapezoids.len()];
         if !q.is_empty() {
             let u = &mut scratch.uniforms[..q.len()];
             uniforms(rng, bits, u);
             self.trapezoids.quantiles(u, q);
         }
-        match (&self.trapezoid_targets, q.len() == n) {
-            (None, true) => {
-                for ((((x, b), sd), z), q) in t
-                    .iter_mut()
-                    .zip(&self.base)
-                    .zip(sd)
-                    .zip(z.iter())
-                    .zip(q.iter())
-                {
-                    *x = b + sd * z + q;
-                }
-            }
-            (targets, _) => {
-                for (((x, b), sd), z) in t.iter_mut().zip(&self.base).zip(sd).zip(z.iter()) {
-                    *x = b + sd * z;
-                }
-                for (&target, q) in targets.iter().flatten().zip(q.iter()) {
-                    t[target] += q;
-                }
-            }
+        // The noise, the normal errors and the trapezoids of each target.
+        let trapezoids = self.trapezoid_starts.windows(2);
+        for ((((x, b), sd), z), range) in t
+            .iter_mut()
+            .zip(&self.base)
+            .zip(sd)
+            .zip(z.iter())
+            .zip(trapezoids)
+        {
+            *x = b + sd * z + q[range[0]..range[1]].iter().sum::<f64>();
         }
         for plan in &self.plans {
             let draws = &mut scratch.draws[..plan.spread.groups()];
@@ -547,8 +572,14 @@ impl McModel {
         let n = self.faces;
         match &self.solver {
             TrialSolver::ClosedForm { offset, solve } => solve(&scratch.targets, *offset, out),
-            TrialSolver::LeastSquares(op) => {
-                op.solve(
+            TrialSolver::LeastSquares { op, cells } => {
+                let solve = if *cells {
+                    Operator::solve_cells
+                } else {
+                    Operator::solve
+                };
+                solve(
+                    op,
                     &scratch.targets,
                     &mut scratch.face_sums,
                     &mut scratch.b,
@@ -651,7 +682,7 @@ impl Trial for McModel {
         }
     }
 
-    /// The targets of the trial (per-step means for the closed form, else the readings).
+    /// The targets of the trial ([`McModel::targets`]).
     fn inputs(&self, scratch: &McScratch) -> Vec<f64> {
         scratch.targets.clone()
     }
@@ -659,6 +690,8 @@ impl Trial for McModel {
 
 #[cfg(test)]
 mod tests {
+    use rand::SeedableRng;
+
     use super::*;
     use crate::solve::{SolveOptions, solve};
     use crate::uncertainty::calibration::ScopedComponent;
@@ -713,7 +746,7 @@ mod tests {
         let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
         assert_eq!(model.solver_name(), "closed-form");
         assert_eq!(model.trapezoids.len(), 48);
-        assert_eq!(model.trapezoid_targets, None);
+        assert_eq!(model.trapezoid_starts, (0..=48).collect::<Vec<_>>());
         assert_eq!(model.plans.len(), 1);
         assert!(matches!(model.plans[0].sampler, Sampler::Rectangular(a) if a == 0.02));
         assert_eq!(model.plans[0].spread.groups(), 24);
@@ -721,6 +754,38 @@ mod tests {
         // too.
         let lsq = McModel::new(&s, &solution, &budget, McSolver::LeastSquares).unwrap();
         assert_eq!((lsq.trapezoids.len(), lsq.plans.len()), (48, 1));
+    }
+
+    /// Least squares draws one sum per cell (here 24 positions × 2 autocollimators over
+    /// three cycles, each cycle's closing readings in the cells of position 0): each
+    /// sum's noise variance is its number of readings; the vector units draw the same
+    /// bits as the portable code.
+    #[test]
+    fn least_squares_draws_the_sums_per_cell() {
+        let s = set(24, 3, true, 4);
+        let solution = solve(&s, &SolveOptions::default()).unwrap();
+        let budget = InstrumentBudget::read_path("examples/budgets/instrument.toml").unwrap();
+        let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
+        assert_eq!(model.solver_name(), "lsq");
+        assert_eq!((model.targets(), s.readings.len()), (48, 150));
+        let mut counts = vec![0.0; 48];
+        counts[..2].fill(6.0);
+        counts[2..].fill(3.0);
+        assert_eq!(model.noise_var, counts);
+        // 150 readings' trapezoids, six or three per cell, in cell order
+        assert_eq!(model.trapezoids.len(), 150);
+        assert_eq!(model.trapezoid_starts[..4], [0, 6, 12, 15]);
+        let (mut a, mut b) = (model.scratch(), model.scratch());
+        let (mut rng_a, mut rng_b) = (
+            rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9),
+            rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9),
+        );
+        for _ in 0..100 {
+            model.sample(&mut rng_a, &mut a);
+            model.sample_portable(&mut rng_b, &mut b);
+            assert_eq!(a.targets, b.targets);
+            assert_eq!(a.offsets, b.offsets);
+        }
     }
 
     /// The calibration trial on the engine: the summary of every trial without storing
