@@ -9,7 +9,8 @@
 //! also solves every trial (the closed form on `Const<24>`); `monte_carlo` is the whole
 //! run (draw, solve, mean, u, exact coverage interval); `monte_carlo_lsq` solves with the
 //! least-squares operator instead of the closed form; `monte_carlo_6_cycles_closing` is
-//! the bundled example run (6 cycles with closing readings: least squares, 312 readings).
+//! the bundled example run (6 cycles with closing readings: least squares, 300 readings
+//! drawn as 48 sums per cell).
 
 use std::hint::black_box;
 

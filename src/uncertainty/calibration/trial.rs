@@ -133,6 +133,9 @@ pub struct McModel {
     /// `trapezoid_starts[t]..trapezoid_starts[t + 1]`.
     trapezoids: Trapezoids,
     trapezoid_starts: Vec<usize>,
+    /// Whether every target has exactly one trapezoid (each reading's errors of the
+    /// paper's design): trapezoid t lands on target t.
+    one_trapezoid_each: bool,
     plans: Vec<Plan>,
     result_draws: Vec<(Sampler, f64)>,
     /// The setup errors among the outputs (after α): their number K, or 0.
@@ -369,6 +372,7 @@ impl McModel {
             fixed_var,
             trapezoids: Trapezoids::default(),
             trapezoid_starts: vec![0; targets + 1],
+            one_trapezoid_each: false,
             plans: Vec::new(),
             result_draws,
             setup_outputs,
@@ -388,6 +392,11 @@ impl McModel {
         for t in 0..targets {
             model.trapezoid_starts[t + 1] += model.trapezoid_starts[t];
         }
+        model.one_trapezoid_each = model
+            .trapezoid_starts
+            .iter()
+            .enumerate()
+            .all(|(t, &s)| s == t);
         model.plans = plans;
         Ok(model)
     }
@@ -519,15 +528,27 @@ impl McModel {
             self.trapezoids.quantiles(u, q);
         }
         // The noise, the normal errors and the trapezoids of each target.
-        let trapezoids = self.trapezoid_starts.windows(2);
-        for ((((x, b), sd), z), range) in t
-            .iter_mut()
-            .zip(&self.base)
-            .zip(sd)
-            .zip(z.iter())
-            .zip(trapezoids)
-        {
-            *x = b + sd * z + q[range[0]..range[1]].iter().sum::<f64>();
+        if self.one_trapezoid_each {
+            for ((((x, b), sd), z), q) in t
+                .iter_mut()
+                .zip(&self.base)
+                .zip(sd)
+                .zip(z.iter())
+                .zip(q.iter())
+            {
+                *x = b + sd * z + q;
+            }
+        } else {
+            let trapezoids = self.trapezoid_starts.windows(2);
+            for ((((x, b), sd), z), range) in t
+                .iter_mut()
+                .zip(&self.base)
+                .zip(sd)
+                .zip(z.iter())
+                .zip(trapezoids)
+            {
+                *x = b + sd * z + q[range[0]..range[1]].iter().sum::<f64>();
+            }
         }
         for plan in &self.plans {
             let draws = &mut scratch.draws[..plan.spread.groups()];
@@ -747,6 +768,7 @@ mod tests {
         assert_eq!(model.solver_name(), "closed-form");
         assert_eq!(model.trapezoids.len(), 48);
         assert_eq!(model.trapezoid_starts, (0..=48).collect::<Vec<_>>());
+        assert!(model.one_trapezoid_each);
         assert_eq!(model.plans.len(), 1);
         assert!(matches!(model.plans[0].sampler, Sampler::Rectangular(a) if a == 0.02));
         assert_eq!(model.plans[0].spread.groups(), 24);
@@ -775,6 +797,7 @@ mod tests {
         // 150 readings' trapezoids, six or three per cell, in cell order
         assert_eq!(model.trapezoids.len(), 150);
         assert_eq!(model.trapezoid_starts[..4], [0, 6, 12, 15]);
+        assert!(!model.one_trapezoid_each);
         let (mut a, mut b) = (model.scratch(), model.scratch());
         let (mut rng_a, mut rng_b) = (
             rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9),
