@@ -8,7 +8,9 @@
 //! of one stop — and solves them through the closure model's least-squares operator with
 //! the lost harmonics set to zero, as [`super::solve`] does (the heads on the grid): the
 //! table's per-stop nuisance absorbs an error shared by a stop, and the heads' errors one
-//! shared by a head, in every trial as in the fit. e is then referenced to the solution's
+//! shared by a head, in every trial as in the fit (heads between the positions: the
+//! band-limited fit, as a map of the readings' sums per head and
+//! step). e is then referenced to the solution's
 //! gauge and the heads' errors to head 1, and the `result` errors are added. The noise is
 //! normal for a stated σ; for σ from the residuals its scale is drawn per trial as
 //! s·√(ν/χ²_ν), ν the self-calibration's residual degrees of freedom.
@@ -26,12 +28,13 @@ use rand_distr::{Distribution as _, StandardNormal};
 use serde::Serialize;
 
 use super::budget::SelfcalUncertainty;
+use super::fourier::OffGridMap;
 use super::solve::{closure_set, grid_offsets};
-use super::{HeadGrid, SelfcalSet, SelfcalSolution};
+use super::{Head, HeadGrid, SelfcalSet, SelfcalSolution};
 use crate::solve::SolveOptions;
 use crate::solve::least_squares::least_squares_zeroing_lost;
 use crate::uncertainty::calibration::{
-    CalibrationError, InstrumentBudget, McFamily, McModel, McOptions, McScratch,
+    CalibrationError, CellRoute, InstrumentBudget, McFamily, McModel, McOptions, McScratch,
 };
 use crate::uncertainty::monte_carlo::{self, EngineOptions, Trial, TrialFailure};
 
@@ -87,8 +90,6 @@ pub struct SelfcalMonteCarlo {
 ///
 /// # Errors
 ///
-/// [`CalibrationError::HeadsOffGrid`] when a head sits between the positions (the trials
-/// are solved by the closure model's operator, which needs the heads on the grid),
 /// [`CalibrationError::NoSigma`] without σ, an invalid budget, and
 /// [`CalibrationError::MonteCarlo`] for too few trials, a non-finite trial, an adaptive
 /// run that does not stabilise or a run too large for the memory.
@@ -154,37 +155,31 @@ impl SelfcalTrial {
     ) -> Result<Self, CalibrationError> {
         let heads = set.heads();
         let p = solution.positions;
-        let off_grid = || CalibrationError::HeadsOffGrid {
-            heads: heads
-                .iter()
-                .filter(|h| {
-                    let d = h.angle_deg * p as f64 / 360.0;
-                    (d - d.round()).abs() > super::ON_GRID_TOLERANCE_POSITIONS
-                })
-                .map(|h| h.head)
-                .collect(),
-            positions: p,
+        let model = match solution.grid {
+            HeadGrid::OnGrid => {
+                let offsets = grid_offsets(set, &heads).ok_or_else(|| {
+                    mismatch("a solution on the grid of heads off the grid".into())
+                })?;
+                let closure =
+                    closure_set(set, &heads, &offsets).map_err(|e| mismatch(e.to_string()))?;
+                let (mut fit, _) = least_squares_zeroing_lost(&closure, &SolveOptions::new())
+                    .map_err(|e| mismatch(e.to_string()))?;
+                // The trials start from the self-calibration's fit (the table's error at
+                // every stop), with its σ and degrees of freedom.
+                if fit.readings != solution.residuals.len() {
+                    return Err(mismatch(format!(
+                        "{} readings, the solution {}",
+                        fit.readings,
+                        solution.residuals.len()
+                    )));
+                }
+                fit.residuals.clone_from(&solution.residuals);
+                fit.sigma = solution.sigma;
+                fit.dof = solution.dof;
+                McModel::with_setup_outputs(&closure, &fit, budget)?
+            }
+            _ => off_grid_model(set, &heads, solution, budget)?,
         };
-        if solution.grid != HeadGrid::OnGrid {
-            return Err(off_grid());
-        }
-        let offsets = grid_offsets(set, &heads).ok_or_else(off_grid)?;
-        let closure = closure_set(set, &heads, &offsets).map_err(|e| mismatch(e.to_string()))?;
-        let (mut fit, _) = least_squares_zeroing_lost(&closure, &SolveOptions::new())
-            .map_err(|e| mismatch(e.to_string()))?;
-        // The trials start from the self-calibration's fit (the table's error at every
-        // stop), with its σ and degrees of freedom.
-        if fit.readings != solution.residuals.len() {
-            return Err(mismatch(format!(
-                "{} readings, the solution {}",
-                fit.readings,
-                solution.residuals.len()
-            )));
-        }
-        fit.residuals.clone_from(&solution.residuals);
-        fit.sigma = solution.sigma;
-        fit.dof = solution.dof;
-        let model = McModel::with_setup_outputs(&closure, &fit, budget)?;
         let stride = solution.gauge_positions.map_or(1, |n| p / n.max(1));
         let lost = solution.lost_harmonic_u.and_then(|u| {
             let count = solution.lost_harmonics.len();
@@ -215,6 +210,51 @@ impl SelfcalTrial {
             centre,
         })
     }
+}
+
+/// The trial model of heads between the positions: the readings' sums per (head, step)
+/// solved by the band-limited closure ([`OffGridMap`], what [`super::solve`] fits). The
+/// budget's scopes group the readings as the closure set does (by head, stop and table
+/// position; no scope looks at the faces, which stand at the nearest whole offsets).
+fn off_grid_model(
+    set: &SelfcalSet,
+    heads: &[Head],
+    solution: &SelfcalSolution,
+    budget: &InstrumentBudget,
+) -> Result<McModel, CalibrationError> {
+    let p = set.positions;
+    let offsets: Vec<f64> = heads
+        .iter()
+        .map(|h| h.angle_deg * p as f64 / 360.0)
+        .collect();
+    let nearest: Vec<usize> = offsets
+        .iter()
+        .map(|d| (d.round() as i64).rem_euclid(p as i64) as usize)
+        .collect();
+    let closure = closure_set(set, heads, &nearest).map_err(|e| mismatch(e.to_string()))?;
+    let head_index = |head: u32| heads.binary_search_by_key(&head, |h| h.head).ok();
+    let cell = set
+        .readings
+        .iter()
+        .map(|r| head_index(r.head).map(|j| j * p + r.step))
+        .collect::<Option<Vec<usize>>>()
+        .ok_or_else(|| mismatch("a reading of no listed head".into()))?;
+    let mut count = vec![0; heads.len() * p];
+    for &c in &cell {
+        count[c] += 1;
+    }
+    let map = OffGridMap::new(p, &offsets, &count);
+    let route = CellRoute {
+        residuals: &solution.residuals,
+        sigma: solution.sigma,
+        dof: solution.dof,
+        cell,
+        cells: heads.len() * p,
+        faces: p,
+        setups: heads.len(),
+        map: Box::new(map),
+    };
+    McModel::with_cell_map(&closure, route, budget)
 }
 
 fn mismatch(message: String) -> CalibrationError {

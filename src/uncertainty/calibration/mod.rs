@@ -110,6 +110,7 @@ pub(crate) use gum::{Combined, combine};
 pub use mc::{
     CalibrationMonteCarlo, McFamily, McOptions, monte_carlo, monte_carlo_with_corrections,
 };
+pub(crate) use trial::{CellMap, CellRoute};
 pub use trial::{McModel, McScratch, McSolver};
 
 use super::monte_carlo::McError;
@@ -161,22 +162,6 @@ pub enum CalibrationError {
          not 0) yet"
     )]
     ShiftedMountings,
-    /// A self-calibration whose heads sit between the positions: its Monte Carlo solves
-    /// the trials with the closure model's operator, which needs every head on the grid.
-    #[error(
-        "head{} {} sit{} between the {positions} positions: the Monte Carlo of a \
-         self-calibration needs every head on the position grid (head angles multiples of \
-         360°/{positions}); its GUM budget does not",
-        if heads.len() == 1 { "" } else { "s" },
-        heads.iter().map(u32::to_string).collect::<Vec<_>>().join(", "),
-        if heads.len() == 1 { "s" } else { "" }
-    )]
-    HeadsOffGrid {
-        /// The heads between positions.
-        heads: Vec<u32>,
-        /// P.
-        positions: usize,
-    },
 }
 
 #[cfg(test)]

@@ -97,6 +97,32 @@ enum TrialSolver {
         op: Box<Operator>,
         cells: bool,
     },
+    /// A linear map of the sums per cell.
+    Cells(Box<dyn CellMap>),
+}
+
+/// A linear map of a trial's targets — the readings' sums per cell — to the outputs
+/// ([`McModel::outputs`] order: β, φ\[1..N−1\], α, the setup errors), for a design the
+/// calibration's operator does not solve (a self-calibration's heads between the
+/// positions).
+pub(crate) trait CellMap: Send + Sync {
+    /// Writes the outputs of the sums per cell `cell_sums` into `out`.
+    fn solve(&self, cell_sums: &[f64], out: &mut [f64]);
+}
+
+/// A design solved by a [`CellMap`] ([`McModel::with_cell_map`]): the fit's residuals,
+/// σ and residual degrees of freedom, each reading's cell, and the outputs' layout.
+pub(crate) struct CellRoute<'a> {
+    pub(crate) residuals: &'a [f64],
+    pub(crate) sigma: Option<(f64, SigmaSource)>,
+    pub(crate) dof: usize,
+    /// Per reading, its cell (an index into the sums `map` solves), and the number of
+    /// cells.
+    pub(crate) cell: Vec<usize>,
+    pub(crate) cells: usize,
+    pub(crate) faces: usize,
+    pub(crate) setups: usize,
+    pub(crate) map: Box<dyn CellMap>,
 }
 
 enum Noise {
@@ -107,6 +133,20 @@ enum Noise {
         dof: f64,
         chi: ChiSquared<f64>,
     },
+}
+
+/// What a trial model starts from: the fit's residuals (the fitted model is the readings
+/// less them), its σ and residual degrees of freedom, where each reading lands (target,
+/// weight), and the outputs' layout and centre.
+struct Start<'a> {
+    residuals: &'a [f64],
+    sigma: (f64, SigmaSource),
+    dof: usize,
+    targets: usize,
+    map: Vec<(usize, f64)>,
+    faces: usize,
+    setup_outputs: usize,
+    centre: Vec<f64>,
 }
 
 /// One Monte Carlo trial of a calibration: draws the readings (as targets of the solver:
@@ -190,6 +230,52 @@ impl McModel {
         Self::build(set, solution, budget, &[], McSolver::LeastSquares, true)
     }
 
+    /// The trial model of readings `set` whose sums per cell `route.map` solves, with the
+    /// setup errors among the outputs as [`McModel::with_setup_outputs`]; its
+    /// [`McModel::estimates`] are the map's solution of the fitted model.
+    ///
+    /// # Errors
+    ///
+    /// As [`McModel::new`].
+    pub(crate) fn with_cell_map(
+        set: &MeasurementSet,
+        route: CellRoute<'_>,
+        budget: &InstrumentBudget,
+    ) -> Result<Self, CalibrationError> {
+        budget.check()?;
+        let sigma = route.sigma.ok_or(CalibrationError::NoSigma)?;
+        let readings = set.readings.len();
+        if route.residuals.len() != readings
+            || route.cell.len() != readings
+            || route.cell.iter().any(|&c| c >= route.cells)
+        {
+            return Err(CalibrationError::Mismatch(format!(
+                "{readings} readings, {} residuals and {} cells of {}",
+                route.residuals.len(),
+                route.cell.len(),
+                route.cells
+            )));
+        }
+        let outputs = 3 * route.faces - 1 + route.setups;
+        let start = Start {
+            residuals: route.residuals,
+            sigma,
+            dof: route.dof,
+            targets: route.cells,
+            map: route.cell.iter().map(|&c| (c, 1.0)).collect(),
+            faces: route.faces,
+            setup_outputs: route.setups,
+            centre: vec![0.0; outputs],
+        };
+        let mut model = Self::assemble(set, start, budget, &[], TrialSolver::Cells(route.map))?;
+        let mut scratch = model.scratch();
+        scratch.targets.copy_from_slice(&model.base);
+        let mut centre = vec![0.0; outputs];
+        model.solve(&mut scratch, &mut centre);
+        model.centre = centre;
+        Ok(model)
+    }
+
     fn build(
         set: &MeasurementSet,
         solution: &Solution,
@@ -238,17 +324,68 @@ impl McModel {
             ),
         };
         let by_cells = design.is_none() && solution.layout.effects == 0;
+        let mut centre = Vec::with_capacity(3 * n - 1);
+        centre.extend_from_slice(&solution.pitch_deviation);
+        centre.extend_from_slice(&solution.face_deviation[..n - 1]);
+        centre.extend_from_slice(&solution.encoder_error);
+        let setup_outputs = if setups { op.streams } else { 0 };
+        if setups {
+            centre.extend(solution.setup_error.iter().map(|s| s.value));
+        }
+        let solver = match design {
+            Some(d) => TrialSolver::ClosedForm {
+                offset: d.offset,
+                solve: closed_form_fn(n),
+            },
+            None => TrialSolver::LeastSquares {
+                op: Box::new(op),
+                cells: by_cells,
+            },
+        };
+        let start = Start {
+            residuals: &solution.residuals,
+            sigma: (sigma, source),
+            dof: solution.dof,
+            targets,
+            map,
+            faces: n,
+            setup_outputs,
+            centre,
+        };
+        Self::assemble(set, start, budget, corrections, solver)
+    }
+
+    /// The trial model of `start` and `solver`: the fitted model and the reading noise
+    /// of each target, the budget's draws by scope, the known corrections' draws, and the
+    /// rectangular errors of each reading paired into trapezoids.
+    fn assemble(
+        set: &MeasurementSet,
+        start: Start<'_>,
+        budget: &InstrumentBudget,
+        corrections: &[KnownCorrection],
+        solver: TrialSolver,
+    ) -> Result<Self, CalibrationError> {
+        let Start {
+            residuals,
+            sigma: (sigma, source),
+            dof,
+            targets,
+            map,
+            faces: n,
+            setup_outputs,
+            centre,
+        } = start;
         let mut base = vec![0.0; targets];
         let mut noise_var = vec![0.0; targets];
         for (i, r) in set.readings.iter().enumerate() {
             let (t, w) = map[i];
-            base[t] += w * (r.reading_arcsec - solution.residuals[i]);
+            base[t] += w * (r.reading_arcsec - residuals[i]);
             noise_var[t] += w * w;
         }
         let noise = match source {
             SigmaSource::Stated => Noise::Normal,
             SigmaSource::Residual => {
-                let dof = solution.dof as f64;
+                let dof = dof as f64;
                 Noise::ScaledT {
                     sigma,
                     dof,
@@ -332,24 +469,6 @@ impl McModel {
                 spread: Spread::Groups { groups: 1, entries }.densified(targets),
             });
         }
-        let mut centre = Vec::with_capacity(3 * n - 1);
-        centre.extend_from_slice(&solution.pitch_deviation);
-        centre.extend_from_slice(&solution.face_deviation[..n - 1]);
-        centre.extend_from_slice(&solution.encoder_error);
-        let setup_outputs = if setups { op.streams } else { 0 };
-        if setups {
-            centre.extend(solution.setup_error.iter().map(|s| s.value));
-        }
-        let solver = match design {
-            Some(d) => TrialSolver::ClosedForm {
-                offset: d.offset,
-                solve: closed_form_fn(n),
-            },
-            None => TrialSolver::LeastSquares {
-                op: Box::new(op),
-                cells: by_cells,
-            },
-        };
         let mut model = McModel {
             faces: n,
             solver,
@@ -434,7 +553,7 @@ impl McModel {
     pub fn solver_name(&self) -> &'static str {
         match self.solver {
             TrialSolver::ClosedForm { .. } => "closed-form",
-            TrialSolver::LeastSquares { .. } => "lsq",
+            TrialSolver::LeastSquares { .. } | TrialSolver::Cells(_) => "lsq",
         }
     }
 
@@ -450,7 +569,7 @@ impl McModel {
     pub fn scratch(&self) -> McScratch {
         let (faces_len, b_len) = match &self.solver {
             TrialSolver::LeastSquares { op, .. } => (op.sums_len(), op.len()),
-            TrialSolver::ClosedForm { .. } => (0, 0),
+            TrialSolver::ClosedForm { .. } | TrialSolver::Cells(_) => (0, 0),
         };
         let draws = self
             .plans
@@ -593,6 +712,10 @@ impl McModel {
         let n = self.faces;
         match &self.solver {
             TrialSolver::ClosedForm { offset, solve } => solve(&scratch.targets, *offset, out),
+            TrialSolver::Cells(map) => {
+                map.solve(&scratch.targets, out);
+                true
+            }
             TrialSolver::LeastSquares { op, cells } => {
                 let solve = if *cells {
                     Operator::solve_cells
