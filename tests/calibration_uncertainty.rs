@@ -1189,7 +1189,7 @@ fn cli_monte_carlo_and_refusals() {
 /// `after`, and a table section after the final model's results) with the effect columns
 /// in the trials: its u follows the final model's GUM u_c, not the base model's; status 1
 /// when an effect makes the model inadequate or the GUM is not validated, 0 otherwise; it
-/// needs --budget, and a self-calibration file's diagnosis refuses it (status 2).
+/// needs --budget; a self-calibration file's diagnosis gets its final model's too.
 #[test]
 fn cli_diagnose_monte_carlo_on_the_final_model() {
     let dir = temp_dir("diagnose-mc");
@@ -1263,16 +1263,45 @@ fn cli_diagnose_monte_carlo_on_the_final_model() {
     assert!(final_model < monte_carlo, "{text}");
 
     refused(&["diagnose", d, "--monte-carlo", "1e4"], "--budget");
-    refused(
-        &[
-            "diagnose",
-            "examples/data/selfa-168.csv",
-            "--budget",
-            INSTRUMENT,
-            "--monte-carlo",
-            "1e4",
-        ],
-        "selfa-168.csv: --monte-carlo is not available for a self-calibration",
+    // a self-calibration file: the final model's Monte Carlo in its `after`, its u the
+    // budget's on the final model
+    let out = polycal(&[
+        "diagnose",
+        "examples/data/selfa-168.csv",
+        "--budget",
+        "examples/budgets/selfcal.toml",
+        "--monte-carlo",
+        "1e4",
+        "--format",
+        "json",
+    ]);
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mc = &json["after"]["monte_carlo"];
+    for (family, len) in [("encoder_error", 168), ("head_error", 11)] {
+        let u_mc = mc[family]["u"].as_array().unwrap();
+        let u_gum = json["after"]["uncertainty"][family]["u"]
+            .as_array()
+            .unwrap();
+        assert_eq!((u_mc.len(), u_gum.len()), (len, len));
+        for (a, b) in u_mc.iter().zip(u_gum) {
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            assert!(close(a, b, 0.05), "{family}: {a} vs {b}");
+        }
+    }
+    let verdict = !json["adequate"].as_bool().unwrap() || !mc["validated"].as_bool().unwrap();
+    assert_eq!(out.status.code(), Some(if verdict { 1 } else { 0 }));
+    let table = polycal(&[
+        "diagnose",
+        "examples/data/selfa-168.csv",
+        "--budget",
+        "examples/budgets/selfcal.toml",
+        "--monte-carlo",
+        "1e4",
+    ]);
+    let text = String::from_utf8(table.stdout).unwrap();
+    assert!(
+        text.contains("Monte Carlo (JCGM 101): 10000 trials"),
+        "{text}"
     );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -147,3 +147,100 @@ fn final_model_monte_carlo_agrees_with_the_gum_for_normal_inputs() {
         "the effect columns change some u_c by {largest_change}"
     );
 }
+
+/// A self-calibration's diagnosis (`diagnose --budget --monte-carlo` on a
+/// self-calibration file): a jump of head 3's zero, found, adds a column through which
+/// every error reaches the heads' errors; the Monte Carlo of the final model solves each
+/// trial with it (and with the table's error at every stop) and agrees with the GUM
+/// budget of the final model — u within five times its noise, interval ends within five
+/// times theirs — while the base model's budget differs by far more: a Monte Carlo
+/// without the effect's column would fail.
+#[test]
+fn selfcal_final_model_monte_carlo_agrees_with_the_gum() {
+    use polycal::diagnose::selfcal::{self as diagnose_selfcal, diagnose_selfcal as run};
+    use polycal::selfcal::{self, SelfcalOptions};
+    use polycal::simulate::{SelfcalSimConfig, simulate_selfcal};
+
+    let mut config = SelfcalSimConfig::default();
+    config.positions = 36;
+    config.cycles = 12;
+    config.head_angles_deg = vec![0.0, 50.0, 130.0, 230.0];
+    config.noise_arcsec = 0.02;
+    config.seed = 6;
+    let (mut set, _) = simulate_selfcal(&config).unwrap();
+    for r in &mut set.readings {
+        if r.head == 3 && (r.cycle, r.step) >= (3, 10) {
+            r.reading_arcsec += 0.5;
+        }
+    }
+    let found = run(&set, &DiagnoseOptions::default(), &SelfcalOptions::new()).unwrap();
+    assert!(
+        matches!(
+            found.diagnosis.effects[0].effect,
+            Effect::OffsetStep {
+                ac: 3,
+                cycle: 3,
+                step: Some(10),
+                ..
+            }
+        ),
+        "{:?}",
+        found.diagnosis.effects
+    );
+    assert!(found.after.dof > 1000, "dof {}", found.after.dof);
+    let budget = InstrumentBudget::from_toml_str(NORMAL_BUDGET, "normal.toml").unwrap();
+    let gum = selfcal::evaluate_budget(&found.after, &budget).unwrap();
+    let gum_before = selfcal::evaluate_budget(&found.before, &budget).unwrap();
+    let m = 200_000;
+    let options = McOptions::new(Trials::Fixed(m))
+        .with_seed(4)
+        .with_significant_digits(1);
+    let mc = diagnose_selfcal::monte_carlo(&set, &found, &budget, &gum, &options).unwrap();
+    assert_eq!(mc.trials, m);
+    assert!(mc.validated, "JCGM 101 §8 at one digit");
+    let relative_u_noise = (1.0 / (2.0 * m as f64)).sqrt();
+    let end_noise = (0.025 * 0.975 / m as f64).sqrt() / 0.058_445;
+    let heads: Vec<f64> = found.after.head_error.iter().map(|h| h.value).collect();
+    let mut largest_change = 0.0_f64;
+    for (family, mc_family, gum_family, gum_before_family, estimates) in [
+        (
+            "e",
+            &mc.encoder_error,
+            &gum.encoder_error,
+            &gum_before.encoder_error,
+            &found.after.encoder_error,
+        ),
+        (
+            "c",
+            &mc.head_error,
+            &gum.head_error,
+            &gum_before.head_error,
+            &heads,
+        ),
+    ] {
+        for (i, &estimate) in estimates.iter().enumerate() {
+            let u = gum_family.u[i];
+            let k = gum_family.k[i].expect("a finite k");
+            assert!((k - 1.96).abs() < 0.002, "{family} {i}: k {k}");
+            let u_mc = mc_family.u[i];
+            assert!(
+                (u_mc / u - 1.0).abs() < 5.0 * relative_u_noise,
+                "{family} {i}: u {u_mc} against u_c {u}"
+            );
+            for (end, gum_end) in [
+                (mc_family.low[i], estimate - gum_family.expanded_u[i]),
+                (mc_family.high[i], estimate + gum_family.expanded_u[i]),
+            ] {
+                assert!(
+                    (end - gum_end).abs() < 5.0 * end_noise * u,
+                    "{family} {i}: interval end {end} against {gum_end}"
+                );
+            }
+            largest_change = largest_change.max((gum_before_family.u[i] / u - 1.0).abs());
+        }
+    }
+    assert!(
+        largest_change > 3.0 * 5.0 * relative_u_noise,
+        "the base model's u differ by {largest_change}"
+    );
+}

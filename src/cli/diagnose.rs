@@ -16,7 +16,7 @@ use polycal::results::ResultRow;
 use polycal::selfcal::{SelfcalOptions, SelfcalSet};
 use polycal::simulate::{SelfcalTruth, SimulateError, Truth};
 use polycal::uncertainty::calibration::{
-    self, CalibrationError, InstrumentBudget, KnownCorrection,
+    self, CalibrationError, InstrumentBudget, KnownCorrection, McOptions,
 };
 
 use super::monte_carlo::McArgs;
@@ -128,22 +128,19 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             }
         };
         if SelfcalSet::is_selfcal_file(&bytes) {
-            if mc_options.is_some() {
-                out.error_message(format_args!(
-                    "{name}: --monte-carlo is not available for a self-calibration's diagnosis \
-                     yet: its GUM budget (--budget) is (docs/FORMAT.md §9)"
-                ));
-                failures += 1;
-                continue;
-            }
             let file = SelfcalFile {
                 bytes: &bytes,
                 name: &name,
                 label: &label,
             };
-            match selfcal_file(args, file, truth.as_ref(), budget.as_ref(), several) {
+            let evaluation = SelfcalEvaluation {
+                budget: budget.as_ref(),
+                monte_carlo: mc_options.as_ref(),
+            };
+            match selfcal_file(args, file, truth.as_ref(), evaluation, several, out) {
                 Ok(done) => {
                     inadequate += usize::from(!done.adequate);
+                    not_validated += usize::from(!done.validated);
                     match (args.format, done.output) {
                         (DiagnoseFormat::Csv, Printed::Rows(rows)) => csv_rows.push((label, rows)),
                         (_, Printed::Text(text)) => write!(stdout, "{text}")?,
@@ -368,7 +365,15 @@ enum Printed {
 /// A self-calibration file diagnosed.
 struct SelfcalDone {
     adequate: bool,
+    /// False when a Monte Carlo does not validate the GUM budget.
+    validated: bool,
     output: Printed,
+}
+
+/// The budget of `--budget` and the options of `--monte-carlo`, when given.
+struct SelfcalEvaluation<'a> {
+    budget: Option<&'a InstrumentBudget>,
+    monte_carlo: Option<&'a McOptions<'static>>,
 }
 
 /// `polycal diagnose` of a self-calibration file (docs/FORMAT.md §5.2).
@@ -376,9 +381,11 @@ fn selfcal_file(
     args: &DiagnoseArgs,
     file: SelfcalFile<'_>,
     truth: Option<&AnyTruth>,
-    budget: Option<&InstrumentBudget>,
+    evaluation: SelfcalEvaluation<'_>,
     several: bool,
+    out: &Output,
 ) -> Result<SelfcalDone> {
+    let budget = evaluation.budget;
     let SelfcalFile { bytes, name, label } = file;
     if !args.cross_talk.is_empty() {
         anyhow::bail!(
@@ -411,12 +418,27 @@ fn selfcal_file(
         })
         .transpose()
         .with_context(|| format!("{name}: cannot evaluate the uncertainty"))?;
-    let report = || {
-        let report = SelfcalDiagnoseReport::new(&diagnosis, truth, label);
-        match &uncertainty {
-            Some(u) => report.with_uncertainty(u),
-            None => report,
+    // The Monte Carlo of the final model, effect columns included, as a polygon run's.
+    let mc = match (budget, &uncertainty, evaluation.monte_carlo) {
+        (Some(budget), Some(gum), Some(options)) => {
+            let progress = out.progress_bar("Monte Carlo");
+            let options = (*options).with_progress(&progress);
+            Some(
+                polycal::diagnose::selfcal::monte_carlo(&set, &diagnosis, budget, gum, &options)
+                    .with_context(|| format!("{name}: Monte Carlo failed"))?,
+            )
         }
+        _ => None,
+    };
+    let report = || {
+        let mut report = SelfcalDiagnoseReport::new(&diagnosis, truth, label);
+        if let Some(u) = &uncertainty {
+            report = report.with_uncertainty(u);
+        }
+        if let Some(mc) = &mc {
+            report = report.with_monte_carlo(mc.clone());
+        }
+        report
     };
     if let Some(dir) = &args.plot {
         super::write_plot(dir, &polycal::figure::selfcal_figures(&report().after))?;
@@ -435,6 +457,9 @@ fn selfcal_file(
                 label,
                 uncertainty.as_ref(),
             )?;
+            if let (Some(gum), Some(mc)) = (&uncertainty, &mc) {
+                polycal::output::selfcal::write_monte_carlo(&mut text, &diagnosis.after, gum, mc)?;
+            }
             Printed::Text(text)
         }
         DiagnoseFormat::Csv => {
@@ -447,6 +472,7 @@ fn selfcal_file(
     };
     Ok(SelfcalDone {
         adequate: diagnosis.diagnosis.adequacy.adequate,
+        validated: mc.as_ref().is_none_or(|mc| mc.validated),
         output,
     })
 }

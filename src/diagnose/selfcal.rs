@@ -18,12 +18,15 @@
 
 use super::base::Base;
 use super::{DiagnoseOptions, Diagnosis, clock, diagnose_base};
+use crate::measurement::MeasurementSet;
+use crate::selfcal::{SelfcalMonteCarlo, SelfcalUncertainty, monte_carlo_of_closure_fit};
 use crate::selfcal::{
     SelfcalOptions, SelfcalSet, SelfcalSolution, SelfcalSolveError, add_head_angle_u, closure_set,
     from_closure_fit, grid_offsets,
 };
 use crate::solve::SolveOptions;
 use crate::solve::least_squares::least_squares_zeroing_lost;
+use crate::uncertainty::calibration::{CalibrationError, InstrumentBudget, McOptions};
 
 /// The diagnosis of a self-calibration: the diagnosis of its closure model (effects on
 /// the heads: an effect's `ac` is the head), and the self-calibration before and after.
@@ -89,22 +92,7 @@ pub fn diagnose_selfcal(
             gauge,
         });
     }
-    let heads = set.heads();
-    let Some(offsets) = grid_offsets(set, &heads) else {
-        let off: Vec<u32> = heads
-            .iter()
-            .filter(|h| {
-                let d = h.angle_deg * p as f64 / 360.0;
-                (d - d.round()).abs() > crate::selfcal::ON_GRID_TOLERANCE_POSITIONS
-            })
-            .map(|h| h.head)
-            .collect();
-        return Err(SelfcalSolveError::HeadsOffGrid {
-            heads: off,
-            positions: p,
-        });
-    };
-    let closure = closure_set(set, &heads, &offsets)?;
+    let closure = diagnosed_closure(set)?;
     let (lost, clocked, clock) = {
         let mut solve_options = SolveOptions::new().with_sigma_opt(selfcal_options.sigma);
         if let Some(bytes) = selfcal_options.memory_limit_bytes {
@@ -133,4 +121,77 @@ pub fn diagnose_selfcal(
         after: add_head_angle_u(set, after, selfcal_options)?,
         diagnosis,
     })
+}
+
+/// Monte Carlo of a self-calibration's final model (JCGM 101; docs/FORMAT.md §5.2,
+/// §9.3.2): as [`crate::selfcal::monte_carlo()`], every trial solved through the closure
+/// model with the effects found and the table's error at every stop (effect columns
+/// included), so that it checks `gum`, the budget evaluated on `diagnosis.after`
+/// ([`crate::selfcal::evaluate_budget`]).
+///
+/// ```
+/// use polycal::diagnose::{DiagnoseOptions, selfcal::{diagnose_selfcal, monte_carlo}};
+/// use polycal::selfcal::{self, SelfcalOptions};
+/// use polycal::simulate::{SelfcalSimConfig, equally_spaced_head_angles_deg, simulate_selfcal};
+/// use polycal::uncertainty::calibration::{InstrumentBudget, McOptions};
+/// use polycal::uncertainty::monte_carlo::Trials;
+///
+/// let mut config = SelfcalSimConfig::default();
+/// config.positions = 24;
+/// config.cycles = 3;
+/// config.head_angles_deg = equally_spaced_head_angles_deg(4);
+/// let (set, _truth) = simulate_selfcal(&config)?;
+/// let found = diagnose_selfcal(&set, &DiagnoseOptions::default(), &SelfcalOptions::new())?;
+/// let budget = InstrumentBudget::from_toml_str(
+///     "[[component]]\nname = \"r\"\ntype = \"B\"\ndistribution = \"normal\"\nu = 0.02\nacts_on = \"each-reading\"\n",
+///     "budget.toml",
+/// )?;
+/// let gum = selfcal::evaluate_budget(&found.after, &budget)?;
+/// let mc = monte_carlo(&set, &found, &budget, &gum, &McOptions::new(Trials::Fixed(5_000)))?;
+/// assert!((mc.encoder_error.u[3] / gum.encoder_error.u[3] - 1.0).abs() < 0.1);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+///
+/// As [`crate::selfcal::monte_carlo()`]; [`CalibrationError::Mismatch`] when the
+/// diagnosis is not of `set`.
+pub fn monte_carlo(
+    set: &SelfcalSet,
+    diagnosis: &SelfcalDiagnosis,
+    budget: &InstrumentBudget,
+    gum: &SelfcalUncertainty,
+    options: &McOptions<'_>,
+) -> Result<SelfcalMonteCarlo, CalibrationError> {
+    let closure = diagnosed_closure(set).map_err(|e| CalibrationError::Mismatch(e.to_string()))?;
+    let (clocked, _) = clock::clocked(&closure);
+    monte_carlo_of_closure_fit(
+        &clocked,
+        &diagnosis.diagnosis.after,
+        &diagnosis.after,
+        budget,
+        gum,
+        options,
+    )
+}
+
+/// The closure set of a self-calibration whose heads are on the grid.
+fn diagnosed_closure(set: &SelfcalSet) -> Result<MeasurementSet, SelfcalSolveError> {
+    let p = set.positions;
+    let heads = set.heads();
+    let Some(offsets) = grid_offsets(set, &heads) else {
+        let off: Vec<u32> = heads
+            .iter()
+            .filter(|h| {
+                let d = h.angle_deg * p as f64 / 360.0;
+                (d - d.round()).abs() > crate::selfcal::ON_GRID_TOLERANCE_POSITIONS
+            })
+            .map(|h| h.head)
+            .collect();
+        return Err(SelfcalSolveError::HeadsOffGrid {
+            heads: off,
+            positions: p,
+        });
+    };
+    Ok(closure_set(set, &heads, &offsets)?)
 }

@@ -17,7 +17,7 @@ use serde_json::{Map, Value};
 use super::diagnose::{CheckReport, DiagnoseReport};
 use super::selfcal::SelfcalReport;
 use crate::diagnose::selfcal::SelfcalDiagnosis;
-use crate::selfcal::{SelfcalSolution, SelfcalUncertainty};
+use crate::selfcal::{SelfcalMonteCarlo, SelfcalSolution, SelfcalUncertainty};
 use crate::simulate::SelfcalTruth;
 
 /// The words of a polygon diagnosis that a self-calibration's differ in, in the order
@@ -245,6 +245,12 @@ impl SelfcalDiagnoseReport {
     /// With an instrument budget evaluated on the final model: its U and k.
     pub fn with_uncertainty(mut self, uncertainty: &SelfcalUncertainty) -> Self {
         self.after = self.after.with_uncertainty(uncertainty);
+        self
+    }
+
+    /// With the Monte Carlo of the final model ([`crate::diagnose::selfcal::monte_carlo`]).
+    pub fn with_monte_carlo(mut self, monte_carlo: SelfcalMonteCarlo) -> Self {
+        self.after = self.after.with_monte_carlo(monte_carlo);
         self
     }
 

@@ -31,8 +31,9 @@ use super::budget::SelfcalUncertainty;
 use super::fourier::OffGridMap;
 use super::solve::{closure_set, grid_offsets};
 use super::{Head, HeadGrid, SelfcalSet, SelfcalSolution};
-use crate::solve::SolveOptions;
+use crate::measurement::MeasurementSet;
 use crate::solve::least_squares::least_squares_zeroing_lost;
+use crate::solve::{Solution, SolveOptions};
 use crate::uncertainty::calibration::{
     CalibrationError, CellRoute, InstrumentBudget, McFamily, McModel, McOptions, McScratch,
 };
@@ -101,6 +102,32 @@ pub fn monte_carlo(
     options: &McOptions<'_>,
 ) -> Result<SelfcalMonteCarlo, CalibrationError> {
     let trial = SelfcalTrial::new(set, solution, budget)?;
+    run(trial, solution, budget, gum, options)
+}
+
+/// Monte Carlo of a self-calibration fitted by the closure model `fit` of the readings
+/// `closure` (its heads as setups, effect columns included: a diagnosis's final model),
+/// `solution` the self-calibration it gives; otherwise as [`monte_carlo()`].
+pub(crate) fn monte_carlo_of_closure_fit(
+    closure: &MeasurementSet,
+    fit: &Solution,
+    solution: &SelfcalSolution,
+    budget: &InstrumentBudget,
+    gum: &SelfcalUncertainty,
+    options: &McOptions<'_>,
+) -> Result<SelfcalMonteCarlo, CalibrationError> {
+    let model = McModel::with_setup_outputs(closure, fit, budget)?;
+    let trial = SelfcalTrial::with_model(model, solution);
+    run(trial, solution, budget, gum, options)
+}
+
+fn run(
+    trial: SelfcalTrial,
+    solution: &SelfcalSolution,
+    budget: &InstrumentBudget,
+    gum: &SelfcalUncertainty,
+    options: &McOptions<'_>,
+) -> Result<SelfcalMonteCarlo, CalibrationError> {
     let mut engine = EngineOptions::new(options.trials)
         .with_coverage(budget.p)
         .with_seed(options.seed);
@@ -154,7 +181,6 @@ impl SelfcalTrial {
         budget: &InstrumentBudget,
     ) -> Result<Self, CalibrationError> {
         let heads = set.heads();
-        let p = solution.positions;
         let model = match solution.grid {
             HeadGrid::OnGrid => {
                 let offsets = grid_offsets(set, &heads).ok_or_else(|| {
@@ -180,6 +206,13 @@ impl SelfcalTrial {
             }
             _ => off_grid_model(set, &heads, solution, budget)?,
         };
+        Ok(Self::with_model(model, solution))
+    }
+
+    /// The trial of a closure model's trial `model` (outputs β, φ\[1..P−1\], α and the
+    /// heads' setup errors) for the self-calibration `solution`.
+    fn with_model(model: McModel, solution: &SelfcalSolution) -> Self {
+        let p = solution.positions;
         let stride = solution.gauge_positions.map_or(1, |n| p / n.max(1));
         let lost = solution.lost_harmonic_u.and_then(|u| {
             let count = solution.lost_harmonics.len();
@@ -200,15 +233,15 @@ impl SelfcalTrial {
         });
         let mut centre = solution.encoder_error.clone();
         centre.extend(solution.head_error.iter().map(|h| h.value));
-        Ok(SelfcalTrial {
+        SelfcalTrial {
             model,
             positions: p,
-            heads: heads.len(),
+            heads: solution.heads.len(),
             gauge: (0..p).step_by(stride.max(1)).collect(),
             lost,
             head_angle,
             centre,
-        })
+        }
     }
 }
 
