@@ -1,19 +1,25 @@
 //! The Monte Carlo trial model of a calibration (JCGM 101 §7.2 through the solver): draw
 //! the readings as the fitted model plus the reading noise plus the scoped type-B errors,
 //! solve them, add the `result` components ([`McModel`], the engine's
-//! [`Trial`](crate::uncertainty::monte_carlo::Trial)).
+//! [`Trial`](crate::uncertainty::monte_carlo::Trial)): how a trial is built here, how it
+//! is drawn in `sample`, what solves it in `solver`.
 
-use nalgebra::{DVector, DefaultAllocator, Dim, SVector, allocator::Allocator};
 use rand::Rng;
-use rand_distr::{ChiSquared, Distribution as _};
+use rand_distr::ChiSquared;
 
-use super::draws::{Plan, Spread, Trapezoids, draw_into, pair_rectangles};
+use super::draws::{Plan, Spread, Trapezoids, pair_rectangles};
 use super::operator::{Operator, groups};
 use super::{CalibrationError, InstrumentBudget, KnownCorrection, Scope};
 use crate::measurement::MeasurementSet;
-use crate::solve::{ClosedFormSolution, PaperDesign, SigmaSource, Solution, closed_form};
-use crate::uncertainty::distribution::{Distribution, Sampler, standard_normals, uniforms};
+use crate::solve::{PaperDesign, SigmaSource, Solution};
+use crate::uncertainty::distribution::{Distribution, Sampler};
 use crate::uncertainty::monte_carlo::{Trial, TrialFailure};
+
+mod sample;
+mod solver;
+
+pub(crate) use solver::CellMap;
+use solver::{TrialSolver, closed_form_fn};
 
 /// Which solver the Monte Carlo trials use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -24,90 +30,6 @@ pub enum McSolver {
     Auto,
     /// The least-squares solution operator θ = Q Xᵀ y, whatever the design.
     LeastSquares,
-}
-
-/// Solves one trial's targets into the outputs; false on failure.
-type ClosedFormFn = fn(&[f64], usize, &mut [f64]) -> bool;
-
-fn write_closed_form<D: Dim>(s: &ClosedFormSolution<D>, offset: usize, out: &mut [f64])
-where
-    DefaultAllocator: Allocator<D>,
-{
-    let n = s.encoder_error.len();
-    let (beta, rest) = out.split_at_mut(n);
-    let (phi, alpha) = rest.split_at_mut(n - 1);
-    beta.copy_from_slice(s.polygon.pitch_deviation_arcsec().as_slice());
-    phi.copy_from_slice(&s.polygon.face_deviation_arcsec().as_slice()[..n - 1]);
-    // α of position p is the solution's α[(p + offset) mod N]: a rotation, without a
-    // division per position.
-    let offset = offset % n;
-    let encoder = s.encoder_error.as_slice();
-    alpha[..n - offset].copy_from_slice(&encoder[offset..]);
-    alpha[n - offset..n].copy_from_slice(&encoder[..offset]);
-}
-
-fn closed_form_const<const N: usize>(t: &[f64], offset: usize, out: &mut [f64]) -> bool {
-    let m1 = SVector::<f64, N>::from_column_slice(&t[..N]);
-    let m2 = SVector::<f64, N>::from_column_slice(&t[N..2 * N]);
-    // By reference: the solution is not moved out of the result (a copy of 3N values).
-    match &closed_form(&m1, &m2) {
-        Ok(s) => {
-            write_closed_form(s, offset, out);
-            true
-        }
-        Err(_) => false,
-    }
-}
-
-fn closed_form_dyn(t: &[f64], offset: usize, out: &mut [f64]) -> bool {
-    let n = t.len() / 2;
-    let m1 = DVector::from_column_slice(&t[..n]);
-    let m2 = DVector::from_column_slice(&t[n..]);
-    match closed_form(&m1, &m2) {
-        Ok(s) => {
-            write_closed_form(&s, offset, out);
-            true
-        }
-        Err(_) => false,
-    }
-}
-
-macro_rules! closed_form_for {
-    ($n:expr; $($c:literal),*) => {
-        match $n {
-            $($c => closed_form_const::<$c> as ClosedFormFn,)*
-            _ => closed_form_dyn as ClosedFormFn,
-        }
-    };
-}
-
-/// The closed form for N faces: `Const<N>` (stack only) for the usual N, else `Dyn`.
-fn closed_form_fn(n: usize) -> ClosedFormFn {
-    closed_form_for!(n; 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 14, 15, 16, 18, 20, 24, 30, 36, 40, 45, 48, 60, 72)
-}
-
-enum TrialSolver {
-    ClosedForm {
-        offset: usize,
-        solve: ClosedFormFn,
-    },
-    /// The operator, and whether the targets are the readings' sums per cell (else the
-    /// readings).
-    LeastSquares {
-        op: Box<Operator>,
-        cells: bool,
-    },
-    /// A linear map of the sums per cell.
-    Cells(Box<dyn CellMap>),
-}
-
-/// A linear map of a trial's targets — the readings' sums per cell — to the outputs
-/// ([`McModel::outputs`] order: β, φ\[1..N−1\], α, the setup errors), for a design the
-/// calibration's operator does not solve (a self-calibration's heads between the
-/// positions).
-pub(crate) trait CellMap: Send + Sync {
-    /// Writes the outputs of the sums per cell `cell_sums` into `out`.
-    fn solve(&self, cell_sums: &[f64], out: &mut [f64]);
 }
 
 /// A design solved by a [`CellMap`] ([`McModel::with_cell_map`]): the fit's residuals,
@@ -592,159 +514,6 @@ impl McModel {
         }
     }
 
-    /// Draws one trial's targets and the per-output offsets of the `result` components
-    /// (into `scratch`), without solving.
-    pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R, scratch: &mut McScratch) {
-        #[cfg(target_arch = "x86_64")]
-        if crate::uncertainty::monte_carlo::has_avx2() {
-            // SAFETY: the processor has AVX2 (just checked).
-            unsafe { self.sample_avx2(rng, scratch) };
-            return;
-        }
-        self.sample_portable(rng, scratch);
-    }
-
-    /// [`McModel::sample`] in the AVX2 vector units: the same arithmetic, value by value.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn sample_avx2<R: Rng + ?Sized>(&self, rng: &mut R, scratch: &mut McScratch) {
-        self.sample_portable(rng, scratch);
-    }
-
-    #[inline(always)]
-    fn sample_portable<R: Rng + ?Sized>(&self, rng: &mut R, scratch: &mut McScratch) {
-        let t = &mut scratch.targets;
-        let n = t.len();
-        let bits = &mut scratch.bits;
-        let sd = match &self.noise {
-            Noise::Normal => &self.normal_sd,
-            Noise::ScaledT { sigma, dof, chi } => {
-                let s2 = sigma * sigma * dof / chi.sample(rng);
-                match self.uniform_var {
-                    // every target alike (each one reading): one square root, the same
-                    // value as per target
-                    Some((v, f)) => scratch.sd.fill((s2 * v + f).sqrt()),
-                    None => {
-                        for ((sd, v), f) in scratch
-                            .sd
-                            .iter_mut()
-                            .zip(&self.noise_var)
-                            .zip(&self.fixed_var)
-                        {
-                            *sd = (s2 * v + f).sqrt();
-                        }
-                    }
-                }
-                &scratch.sd
-            }
-        };
-        let z = &mut scratch.draws[..n];
-        standard_normals(rng, bits, z);
-        let q = &mut scratch.quantiles[..self.trapezoids.len()];
-        if !q.is_empty() {
-            let u = &mut scratch.uniforms[..q.len()];
-            uniforms(rng, bits, u);
-            self.trapezoids.quantiles(u, q);
-        }
-        // The noise, the normal errors and the trapezoids of each target.
-        if self.one_trapezoid_each {
-            for ((((x, b), sd), z), q) in t
-                .iter_mut()
-                .zip(&self.base)
-                .zip(sd)
-                .zip(z.iter())
-                .zip(q.iter())
-            {
-                *x = b + sd * z + q;
-            }
-        } else {
-            let trapezoids = self.trapezoid_starts.windows(2);
-            for ((((x, b), sd), z), range) in t
-                .iter_mut()
-                .zip(&self.base)
-                .zip(sd)
-                .zip(z.iter())
-                .zip(trapezoids)
-            {
-                *x = b + sd * z + q[range[0]..range[1]].iter().sum::<f64>();
-            }
-        }
-        for plan in &self.plans {
-            let draws = &mut scratch.draws[..plan.spread.groups()];
-            draw_into(&plan.sampler, rng, bits, draws);
-            match &plan.spread {
-                Spread::Single(targets) => {
-                    for (&(target, w), e) in targets.iter().zip(draws.iter()) {
-                        t[target] += w * e;
-                    }
-                }
-                Spread::Groups { entries, .. } => {
-                    for &(target, w, group) in entries {
-                        t[target] += w * draws[group];
-                    }
-                }
-                Spread::Dense {
-                    weights, group_of, ..
-                } => {
-                    for ((x, w), &g) in t.iter_mut().zip(weights).zip(group_of) {
-                        *x += w * draws[g];
-                    }
-                }
-            }
-        }
-        if !self.result_draws.is_empty() {
-            scratch.offsets.fill(0.0);
-            let draws = &mut scratch.draws[..scratch.offsets.len()];
-            for (sampler, c) in &self.result_draws {
-                draw_into(sampler, rng, &mut scratch.bits, draws);
-                for (o, d) in scratch.offsets.iter_mut().zip(draws.iter()) {
-                    *o += c * d;
-                }
-            }
-        }
-    }
-
-    /// Solves the targets drawn by [`McModel::sample`] into `out` ([`McModel::outputs`]
-    /// values: β, φ\[1..N−1\], α, and the setup errors when asked for), without the
-    /// `result` offsets. False if the solver
-    /// failed.
-    pub fn solve(&self, scratch: &mut McScratch, out: &mut [f64]) -> bool {
-        let n = self.faces;
-        match &self.solver {
-            TrialSolver::ClosedForm { offset, solve } => solve(&scratch.targets, *offset, out),
-            TrialSolver::Cells(map) => {
-                map.solve(&scratch.targets, out);
-                true
-            }
-            TrialSolver::LeastSquares { op, cells } => {
-                let solve = if *cells {
-                    Operator::solve_cells
-                } else {
-                    Operator::solve
-                };
-                solve(
-                    op,
-                    &scratch.targets,
-                    &mut scratch.face_sums,
-                    &mut scratch.b,
-                    0..2 * n + self.setup_outputs,
-                    &mut scratch.theta,
-                );
-                let theta = &scratch.theta;
-                out[..n].copy_from_slice(&theta[..n]);
-                let mut running = 0.0;
-                for f in 0..n - 1 {
-                    running += theta[f];
-                    out[n + f] = running;
-                }
-                out[2 * n - 1..3 * n - 1].copy_from_slice(&theta[n..2 * n]);
-                let k = self.setup_outputs;
-                out[3 * n - 1..3 * n - 1 + k].copy_from_slice(&theta[2 * n..2 * n + k]);
-                true
-            }
-        }
-    }
-
     /// One trial: draw, solve, add the `result` draws. False if the solver failed.
     pub fn trial<R: Rng + ?Sized>(
         &self,
@@ -833,164 +602,4 @@ impl Trial for McModel {
 }
 
 #[cfg(test)]
-mod tests {
-    use rand::SeedableRng;
-
-    use super::*;
-    use crate::solve::{SolveOptions, solve};
-    use crate::uncertainty::calibration::ScopedComponent;
-    use crate::uncertainty::calibration::test_support::set;
-    use crate::uncertainty::monte_carlo::{self, EngineOptions, Trials};
-
-    /// The closed-form trial and the least-squares trial solve the same targets alike.
-    #[test]
-    fn closed_form_and_least_squares_trials_agree() {
-        let s = set(24, 2, false, 9);
-        let solution = solve(&s, &SolveOptions::default()).unwrap();
-        let budget = InstrumentBudget::new(vec![
-            ScopedComponent::type_b(
-                "r",
-                Distribution::Rectangular { half_width: 0.1 },
-                Scope::EachStop,
-            ),
-            ScopedComponent::type_b("n", Distribution::Normal { u: 0.1 }, Scope::EachReading),
-        ]);
-        let cf = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
-        let ls = McModel::new(&s, &solution, &budget, McSolver::LeastSquares).unwrap();
-        assert_eq!((cf.solver_name(), ls.solver_name()), ("closed-form", "lsq"));
-        let mut scratch = cf.scratch();
-        let mut out = vec![0.0; cf.outputs()];
-        scratch.targets.copy_from_slice(&cf.base);
-        assert!(cf.solve(&mut scratch, &mut out));
-        for (a, b) in out.iter().zip(cf.estimates()) {
-            assert!((a - b).abs() < 1e-12, "{a} {b}");
-        }
-        let mut ls_scratch = ls.scratch();
-        let mut ls_out = vec![0.0; ls.outputs()];
-        ls_scratch.targets.copy_from_slice(&ls.base);
-        assert!(ls.solve(&mut ls_scratch, &mut ls_out));
-        for (a, b) in ls_out.iter().zip(ls.estimates()) {
-            assert!((a - b).abs() < 1e-12, "{a} {b}");
-        }
-    }
-
-    /// The instrument budget on the paper's bare cycle: the two rectangular errors of
-    /// each reading become one trapezoid per target, in order; the zero offset of each
-    /// autocollimator, which reaches no result, is not drawn; the encoder's error of each
-    /// position remains.
-    #[test]
-    fn instrument_budget_draws() {
-        let s = set(24, 1, false, 4);
-        let solution = solve(
-            &s,
-            &SolveOptions::new().with_sigma(crate::measurement::Sigma::new(0.05).unwrap()),
-        )
-        .unwrap();
-        let budget = InstrumentBudget::read_path("examples/budgets/instrument.toml").unwrap();
-        let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
-        assert_eq!(model.solver_name(), "closed-form");
-        assert_eq!(model.trapezoids.len(), 48);
-        assert_eq!(model.trapezoid_starts, (0..=48).collect::<Vec<_>>());
-        assert!(model.one_trapezoid_each);
-        assert_eq!(model.plans.len(), 1);
-        assert!(matches!(model.plans[0].sampler, Sampler::Rectangular(a) if a == 0.02));
-        assert_eq!(model.plans[0].spread.groups(), 24);
-        // With least squares the same: the offset is absorbed by the setup errors there
-        // too.
-        let lsq = McModel::new(&s, &solution, &budget, McSolver::LeastSquares).unwrap();
-        assert_eq!((lsq.trapezoids.len(), lsq.plans.len()), (48, 1));
-    }
-
-    /// Least squares draws one sum per cell (here 24 positions × 2 autocollimators over
-    /// three cycles, each cycle's closing readings in the cells of position 0): each
-    /// sum's noise variance is its number of readings; the vector units draw the same
-    /// bits as the portable code.
-    #[test]
-    fn least_squares_draws_the_sums_per_cell() {
-        let s = set(24, 3, true, 4);
-        let solution = solve(&s, &SolveOptions::default()).unwrap();
-        let budget = InstrumentBudget::read_path("examples/budgets/instrument.toml").unwrap();
-        let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
-        assert_eq!(model.solver_name(), "lsq");
-        assert_eq!((model.targets(), s.readings.len()), (48, 150));
-        let mut counts = vec![0.0; 48];
-        counts[..2].fill(6.0);
-        counts[2..].fill(3.0);
-        assert_eq!(model.noise_var, counts);
-        // 150 readings' trapezoids, six or three per cell, in cell order
-        assert_eq!(model.trapezoids.len(), 150);
-        assert_eq!(model.trapezoid_starts[..4], [0, 6, 12, 15]);
-        assert!(!model.one_trapezoid_each);
-        let (mut a, mut b) = (model.scratch(), model.scratch());
-        let (mut rng_a, mut rng_b) = (
-            rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9),
-            rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9),
-        );
-        for _ in 0..100 {
-            model.sample(&mut rng_a, &mut a);
-            model.sample_portable(&mut rng_b, &mut b);
-            assert_eq!(a.targets, b.targets);
-            assert_eq!(a.offsets, b.offsets);
-        }
-    }
-
-    /// The calibration trial on the engine: the summary of every trial without storing
-    /// them is the summary of the stored trials, for 9 positions (fixed and adaptive), 24
-    /// (the paper's polygon, closing readings: least squares, stages after a pilot of J)
-    /// and for 1440 positions (4319 outputs: a pilot shorter than `J`, brackets refined
-    /// at every doubling of the trials).
-    #[test]
-    fn the_engine_summarizes_every_trial() {
-        let adaptive = Trials::Adaptive {
-            significant_digits: 1,
-            max_trials: 500_000,
-        };
-        for (faces, trials) in [
-            (9, Trials::Fixed(34_500)),
-            (9, adaptive),
-            (24, Trials::Fixed(25_000)),
-            (1440, Trials::Fixed(9_000)),
-        ] {
-            the_engine_summarizes(faces, trials);
-        }
-    }
-
-    fn the_engine_summarizes(faces: usize, trials: Trials) {
-        let s = set(faces, 2, true, 5);
-        let solution = solve(&s, &SolveOptions::default()).unwrap();
-        let budget = InstrumentBudget::new(vec![
-            ScopedComponent::type_b(
-                "r",
-                Distribution::Rectangular { half_width: 0.2 },
-                Scope::Result,
-            ),
-            ScopedComponent::type_b(
-                "each stop",
-                Distribution::Rectangular { half_width: 0.05 },
-                Scope::EachStop,
-            ),
-        ]);
-        let model = McModel::new(&s, &solution, &budget, McSolver::Auto).unwrap();
-        {
-            let options = EngineOptions::new(trials).with_seed(11);
-            let summary = monte_carlo::run(&model, &options).unwrap();
-            let kept = monte_carlo::run(&model, &options.with_samples(true)).unwrap();
-            let m = summary.trials;
-            let (r_low, r_high) = monte_carlo::symmetric_interval_positions(m, 0.95);
-            let samples = kept.samples.unwrap();
-            assert_eq!(samples.len(), model.outputs());
-            for (j, column) in samples.iter().enumerate() {
-                let mut column = column.clone();
-                column.sort_unstable_by(f64::total_cmp);
-                let y = summary.outputs[j];
-                assert_eq!(y.low, column[r_low]);
-                assert_eq!(y.high, column[r_high]);
-                let mean = column.iter().sum::<f64>() / m as f64;
-                let ss = column.iter().map(|x| (x - mean).powi(2)).sum::<f64>();
-                let u = (ss / (m - 1) as f64).sqrt();
-                assert!((y.mean - mean).abs() < 1e-12);
-                assert!((y.u - u).abs() < 1e-12 * u);
-            }
-        }
-    }
-}
+mod tests;
