@@ -1277,17 +1277,7 @@ fn cli_diagnose_monte_carlo_on_the_final_model() {
     ]);
     let json: Value = serde_json::from_slice(&out.stdout).unwrap();
     let mc = &json["after"]["monte_carlo"];
-    for (family, len) in [("encoder_error", 168), ("head_error", 11)] {
-        let u_mc = mc[family]["u"].as_array().unwrap();
-        let u_gum = json["after"]["uncertainty"][family]["u"]
-            .as_array()
-            .unwrap();
-        assert_eq!((u_mc.len(), u_gum.len()), (len, len));
-        for (a, b) in u_mc.iter().zip(u_gum) {
-            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
-            assert!(close(a, b, 0.05), "{family}: {a} vs {b}");
-        }
-    }
+    selfcal_mc_follows_the_budget(mc, &json["after"]["uncertainty"], (168, 11), 0.05);
     let verdict = !json["adequate"].as_bool().unwrap() || !mc["validated"].as_bool().unwrap();
     assert_eq!(out.status.code(), Some(if verdict { 1 } else { 0 }));
     let table = polycal(&[
@@ -1304,6 +1294,26 @@ fn cli_diagnose_monte_carlo_on_the_final_model() {
         "{text}"
     );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A self-calibration's `monte_carlo` JSON object against the budget's `uncertainty`
+/// object: (P, M − 1) values of u for e and the heads' errors, each within `tolerance`
+/// (relative) of u_c.
+fn selfcal_mc_follows_the_budget(
+    mc: &Value,
+    uncertainty: &Value,
+    (positions, heads): (usize, usize),
+    tolerance: f64,
+) {
+    for (family, len) in [("encoder_error", positions), ("head_error", heads)] {
+        let u_mc = mc[family]["u"].as_array().unwrap();
+        let u_gum = uncertainty[family]["u"].as_array().unwrap();
+        assert_eq!((u_mc.len(), u_gum.len()), (len, len));
+        for (a, b) in u_mc.iter().zip(u_gum) {
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            assert!(close(a, b, tolerance), "{family}: {a} vs {b}");
+        }
+    }
 }
 
 /// `selfcal --budget --monte-carlo` adds the budget's monte_carlo object (e and the heads'
@@ -1332,15 +1342,7 @@ fn cli_selfcal_monte_carlo() {
         (mc["trials"].as_u64(), mc["seed"].as_u64()),
         (Some(20_000), Some(5))
     );
-    for (family, len) in [("encoder_error", 168), ("head_error", 11)] {
-        let u_mc = mc[family]["u"].as_array().unwrap();
-        let u_gum = json["uncertainty"][family]["u"].as_array().unwrap();
-        assert_eq!((u_mc.len(), u_gum.len()), (len, len));
-        for (a, b) in u_mc.iter().zip(u_gum) {
-            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
-            assert!(close(a, b, 0.03), "{family}: {a} vs {b}");
-        }
-    }
+    selfcal_mc_follows_the_budget(mc, &json["uncertainty"], (168, 11), 0.03);
     let validated = mc["validated"].as_bool().unwrap();
     assert_eq!(out.status.code(), Some(if validated { 0 } else { 1 }));
     let table = polycal(&["selfcal", data, "--budget", budget, "--monte-carlo", "2e4"]);
@@ -1382,15 +1384,7 @@ fn cli_selfcal_monte_carlo() {
     ]);
     let json: Value = serde_json::from_slice(&out.stdout).unwrap();
     let mc = &json["monte_carlo"];
-    for (family, len) in [("encoder_error", 24), ("head_error", 2)] {
-        let u_mc = mc[family]["u"].as_array().unwrap();
-        let u_gum = json["uncertainty"][family]["u"].as_array().unwrap();
-        assert_eq!((u_mc.len(), u_gum.len()), (len, len));
-        for (a, b) in u_mc.iter().zip(u_gum) {
-            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
-            assert!(close(a, b, 0.05), "{family}: {a} vs {b}");
-        }
-    }
+    selfcal_mc_follows_the_budget(mc, &json["uncertainty"], (24, 2), 0.05);
     let validated = mc["validated"].as_bool().unwrap();
     assert_eq!(out.status.code(), Some(if validated { 0 } else { 1 }));
     std::fs::remove_dir_all(&dir).ok();

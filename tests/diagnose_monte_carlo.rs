@@ -7,7 +7,9 @@ use polycal::diagnose::{DiagnoseOptions, diagnose};
 use polycal::effects::Effect;
 use polycal::simulate::{SimulationConfig, simulate};
 use polycal::solve::{SigmaSource, Solution};
-use polycal::uncertainty::calibration::{self, InstrumentBudget, McOptions};
+use polycal::uncertainty::calibration::{
+    self, FamilyUncertainty, InstrumentBudget, McFamily, McOptions,
+};
 use polycal::uncertainty::monte_carlo::Trials;
 
 /// Normal components of infinite degrees of freedom on every scope the design has.
@@ -43,6 +45,54 @@ fn stated(solution: &Solution, sigma: f64) -> Solution {
     let mut solution = solution.clone();
     solution.sigma = Some((sigma, SigmaSource::Stated));
     solution
+}
+
+/// Per family (name, Monte Carlo, the final model's GUM, the base model's GUM, the
+/// estimates): every u within five Monte Carlo standard errors (relative √(1/2M)) of
+/// u_c, every interval end within five of its standard errors (√(p(1 − p)/M)/f(1.96)·u,
+/// f the normal density) of y ± U, k within `k_tolerance` of the normal 1.959964; returns
+/// the largest relative difference of the base model's u_c from the final model's.
+fn agree_with_the_gum(
+    families: &[(
+        &str,
+        &McFamily,
+        &FamilyUncertainty,
+        &FamilyUncertainty,
+        &Vec<f64>,
+    )],
+    m: usize,
+    k_tolerance: f64,
+) -> f64 {
+    let relative_u_noise = (1.0 / (2.0 * m as f64)).sqrt();
+    let end_noise = (0.025 * 0.975 / m as f64).sqrt() / 0.058_445;
+    let mut largest_change = 0.0_f64;
+    for &(family, mc_family, gum_family, gum_before_family, estimates) in families {
+        for (i, &estimate) in estimates.iter().enumerate() {
+            let u = gum_family.u[i];
+            if u == 0.0 {
+                continue; // φ[N] = 0 by definition
+            }
+            let k = gum_family.k[i].expect("a finite k");
+            assert!((k - 1.959_964).abs() < k_tolerance, "{family} {i}: k {k}");
+            let u_mc = mc_family.u[i];
+            assert!(
+                (u_mc / u - 1.0).abs() < 5.0 * relative_u_noise,
+                "{family} {i}: u {u_mc} against u_c {u}"
+            );
+            let expanded = gum_family.expanded_u[i];
+            for (end, gum_end) in [
+                (mc_family.low[i], estimate - expanded),
+                (mc_family.high[i], estimate + expanded),
+            ] {
+                assert!(
+                    (end - gum_end).abs() < 5.0 * end_noise * u,
+                    "{family} {i}: interval end {end} against {gum_end}"
+                );
+            }
+            largest_change = largest_change.max((gum_before_family.u[i] / u - 1.0).abs());
+        }
+    }
+    largest_change
 }
 
 /// A drift and a zero jump found by the diagnosis change the design through which every
@@ -92,11 +142,7 @@ fn final_model_monte_carlo_agrees_with_the_gum_for_normal_inputs() {
     let mc = calibration::monte_carlo(&set, &after, &budget, &gum, &options).unwrap();
     assert_eq!(mc.trials, m);
     assert!(mc.validated, "JCGM 101 §8 at one digit");
-    let relative_u_noise = (1.0 / (2.0 * m as f64)).sqrt();
-    // sd of an order statistic at 2.5 %: √(p(1 − p)/M)/f(1.96), f the normal density
-    let end_noise = (0.025 * 0.975 / m as f64).sqrt() / 0.058_445;
-    let mut largest_change = 0.0_f64;
-    for (family, mc_family, gum_family, gum_before_family, estimates) in [
+    let families = [
         (
             "pitch",
             &mc.pitch_deviation,
@@ -118,30 +164,10 @@ fn final_model_monte_carlo_agrees_with_the_gum_for_normal_inputs() {
             &gum_before.encoder_error,
             &after.encoder_error,
         ),
-    ] {
-        for (i, &estimate) in estimates.iter().enumerate() {
-            let u = gum_family.u[i];
-            if u == 0.0 {
-                continue; // φ[N] = 0 by definition
-            }
-            let k = gum_family.k[i].expect("a finite k");
-            assert!((k - 1.959_964).abs() < 1e-5, "normal k {k}");
-            let u_mc = mc_family.u[i];
-            assert!(
-                (u_mc / u - 1.0).abs() < 5.0 * relative_u_noise,
-                "{family} {i}: u {u_mc} against u_c {u}"
-            );
-            let low = estimate - 1.959_964 * u;
-            let high = estimate + 1.959_964 * u;
-            for (end, gum_end) in [(mc_family.low[i], low), (mc_family.high[i], high)] {
-                assert!(
-                    (end - gum_end).abs() < 5.0 * end_noise * u,
-                    "{family} {i}: interval end {end} against {gum_end}"
-                );
-            }
-            largest_change = largest_change.max((gum_before_family.u[i] / u - 1.0).abs());
-        }
-    }
+    ];
+    // normal inputs of infinite degrees of freedom: k is the normal one
+    let largest_change = agree_with_the_gum(&families, m, 1e-5);
+    let relative_u_noise = (1.0 / (2.0 * m as f64)).sqrt();
     assert!(
         largest_change > 3.0 * 5.0 * relative_u_noise,
         "the effect columns change some u_c by {largest_change}"
@@ -198,11 +224,8 @@ fn selfcal_final_model_monte_carlo_agrees_with_the_gum() {
     let mc = diagnose_selfcal::monte_carlo(&set, &found, &budget, &gum, &options).unwrap();
     assert_eq!(mc.trials, m);
     assert!(mc.validated, "JCGM 101 §8 at one digit");
-    let relative_u_noise = (1.0 / (2.0 * m as f64)).sqrt();
-    let end_noise = (0.025 * 0.975 / m as f64).sqrt() / 0.058_445;
     let heads: Vec<f64> = found.after.head_error.iter().map(|h| h.value).collect();
-    let mut largest_change = 0.0_f64;
-    for (family, mc_family, gum_family, gum_before_family, estimates) in [
+    let families = [
         (
             "e",
             &mc.encoder_error,
@@ -217,28 +240,10 @@ fn selfcal_final_model_monte_carlo_agrees_with_the_gum() {
             &gum_before.head_error,
             &heads,
         ),
-    ] {
-        for (i, &estimate) in estimates.iter().enumerate() {
-            let u = gum_family.u[i];
-            let k = gum_family.k[i].expect("a finite k");
-            assert!((k - 1.96).abs() < 0.002, "{family} {i}: k {k}");
-            let u_mc = mc_family.u[i];
-            assert!(
-                (u_mc / u - 1.0).abs() < 5.0 * relative_u_noise,
-                "{family} {i}: u {u_mc} against u_c {u}"
-            );
-            for (end, gum_end) in [
-                (mc_family.low[i], estimate - gum_family.expanded_u[i]),
-                (mc_family.high[i], estimate + gum_family.expanded_u[i]),
-            ] {
-                assert!(
-                    (end - gum_end).abs() < 5.0 * end_noise * u,
-                    "{family} {i}: interval end {end} against {gum_end}"
-                );
-            }
-            largest_change = largest_change.max((gum_before_family.u[i] / u - 1.0).abs());
-        }
-    }
+    ];
+    // σ from more than 1000 residual degrees of freedom: k within 0.002 of the normal
+    let largest_change = agree_with_the_gum(&families, m, 0.002);
+    let relative_u_noise = (1.0 / (2.0 * m as f64)).sqrt();
     assert!(
         largest_change > 3.0 * 5.0 * relative_u_noise,
         "the base model's u differ by {largest_change}"

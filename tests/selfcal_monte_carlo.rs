@@ -2,7 +2,9 @@
 //! --monte-carlo`): trials drawn with every scope of the budget and solved through the
 //! closure model, against the GUM budget of `selfcal::evaluate_budget`.
 
-use polycal::selfcal::{self, SelfcalOptions, SelfcalSet, SelfcalSolution};
+use polycal::selfcal::{
+    self, SelfcalMonteCarlo, SelfcalOptions, SelfcalSet, SelfcalSolution, SelfcalUncertainty,
+};
 use polycal::simulate::{SelfcalSimConfig, simulate_selfcal};
 use polycal::uncertainty::calibration::FamilyUncertainty;
 use polycal::uncertainty::calibration::{InstrumentBudget, McFamily, McOptions};
@@ -90,6 +92,20 @@ fn agrees(
     }
 }
 
+/// [`agrees`] for e and for the heads' errors.
+fn both_agree(
+    mc: &SelfcalMonteCarlo,
+    gum: &SelfcalUncertainty,
+    solution: &SelfcalSolution,
+    m: usize,
+    normal: bool,
+) {
+    let e = &solution.encoder_error;
+    agrees("e", &mc.encoder_error, &gum.encoder_error, e, m, normal);
+    let heads: Vec<f64> = solution.head_error.iter().map(|h| h.value).collect();
+    agrees("c", &mc.head_error, &gum.head_error, &heads, m, normal);
+}
+
 /// The balanced design (every head reads every position in every cycle), normal inputs on
 /// every scope: the Monte Carlo's u and intervals are the GUM budget's within their noise
 /// — for e and for the heads' errors, which a head's zero offset (gain 2 on c[j] − c[1])
@@ -120,16 +136,7 @@ fn balanced_design_monte_carlo_agrees_with_the_gum_budget() {
     let mc = selfcal::monte_carlo(&set, &solution, &budget, &gum, &options).unwrap();
     assert_eq!((mc.trials, mc.reading_noise), (m, "t"));
     assert!(mc.validated, "JCGM 101 §8 at one digit");
-    agrees(
-        "e",
-        &mc.encoder_error,
-        &gum.encoder_error,
-        &solution.encoder_error,
-        m,
-        true,
-    );
-    let heads: Vec<f64> = solution.head_error.iter().map(|h| h.value).collect();
-    agrees("c", &mc.head_error, &gum.head_error, &heads, m, true);
+    both_agree(&mc, &gum, &solution, m, true);
     // the same seed gives the same numbers
     let again = selfcal::monte_carlo(&set, &solution, &budget, &gum, &options).unwrap();
     assert_eq!(mc, again);
@@ -171,16 +178,7 @@ fn lost_harmonics_and_head_angles_are_drawn_as_the_gum_states_them() {
         &McOptions::new(Trials::Fixed(m)).with_seed(3),
     )
     .unwrap();
-    agrees(
-        "e",
-        &mc.encoder_error,
-        &gum.encoder_error,
-        &solution.encoder_error,
-        m,
-        false,
-    );
-    let heads: Vec<f64> = solution.head_error.iter().map(|h| h.value).collect();
-    agrees("c", &mc.head_error, &gum.head_error, &heads, m, false);
+    both_agree(&mc, &gum, &solution, m, false);
 }
 
 /// Heads between the positions (97° on 36 positions: 9.7 positions), normal inputs on
@@ -205,15 +203,6 @@ fn heads_off_the_grid_agree_with_the_gum_budget() {
         .with_significant_digits(1);
     let mc = selfcal::monte_carlo(&set, &solution, &budget, &gum, &options).unwrap();
     assert_eq!(mc.trials, m);
-    agrees(
-        "e",
-        &mc.encoder_error,
-        &gum.encoder_error,
-        &solution.encoder_error,
-        m,
-        true,
-    );
-    let heads: Vec<f64> = solution.head_error.iter().map(|h| h.value).collect();
-    agrees("c", &mc.head_error, &gum.head_error, &heads, m, true);
+    both_agree(&mc, &gum, &solution, m, true);
     assert!(mc.validated, "JCGM 101 §8 at one digit");
 }

@@ -109,6 +109,26 @@ def test_selfcal_monte_carlo_is_the_clis_for_the_same_seed():
         polycal.selfcal(s, monte_carlo=2000)
 
 
+def test_selfcal_monte_carlo_between_the_positions_is_the_clis(tmp_path):
+    # heads at 97° on 24 positions sit between them: the band-limited fit's trials
+    data = tmp_path / "off-grid.csv"
+    cli(
+        "simulate", "--selfcal", "--positions", "24", "--heads", "0,97,180",
+        "--cycles", "2", "--out", data,
+    )
+    s = polycal.read_selfcal(str(data))
+    result = polycal.selfcal(
+        s, budget=polycal.budget(SELFCAL_BUDGET), monte_carlo=2000, seed=7
+    )
+    expected = cli(
+        "selfcal", data, "--budget", SELFCAL_BUDGET, "--monte-carlo", "2000",
+        "--seed", "7", "--format", "json",
+    )
+    assert result.to_json() == expected
+    mc = json.loads(expected)["monte_carlo"]
+    assert len(mc["encoder_error"]["u"]) == 24 and len(mc["head_error"]["u"]) == 2
+
+
 def test_diagnose_selfcal_and_compare_are_the_clis():
     ms = polycal.read_measurements(DATA)
     assert polycal.diagnose(ms).to_json() == cli("diagnose", DATA, "--format", "json")

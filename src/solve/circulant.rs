@@ -25,7 +25,9 @@ use nalgebra::DMatrix;
 
 use super::cofactor::{Base, RegularStream, Structured};
 use super::observability::{describe, lost_harmonics};
-use super::{Cofactor, Engine, Method, ParameterLayout, SetupError, Solution, SolveError};
+use super::{
+    Cofactor, Engine, Method, ParameterLayout, SetupError, Solution, SolveError, woodbury,
+};
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::polygon::face_deviation_from_pitch;
 
@@ -110,34 +112,12 @@ pub(crate) fn plan(
     let offsets: Vec<usize> = set.face_offsets().into_iter().map(|(_, d)| d).collect();
     let mut weights = Vec::with_capacity(k);
     let mut corrections = Vec::new();
-    let mut sorted = Vec::with_capacity(n);
     for s in 0..k {
-        let cells = &count[s * n..(s + 1) * n];
-        sorted.clear();
-        sorted.extend_from_slice(cells);
-        sorted.sort_unstable();
-        // the most frequent count (ties: the larger)
-        let (mut mode, mut best, mut run) = (sorted[0], 0usize, 0usize);
-        for (i, &c) in sorted.iter().enumerate() {
-            run = if i > 0 && sorted[i - 1] == c {
-                run + 1
-            } else {
-                1
-            };
-            if run >= best {
-                best = run;
-                mode = c;
-            }
-        }
+        let mode = woodbury::regular_weight(s, &count[s * n..(s + 1) * n], &mut corrections);
         if mode == 0 {
             return Ok(Plan::NoRegularPart);
         }
         weights.push(f64::from(mode));
-        for (p, &c) in cells.iter().enumerate() {
-            if c != mode {
-                corrections.push((s, p, f64::from(c) - f64::from(mode)));
-            }
-        }
     }
     let lost = lost_harmonics(n, &offsets);
     if !lost.is_empty() {
@@ -257,35 +237,15 @@ pub(crate) fn solve(
 
     // Woodbury: W1 = B V, C1 = D⁻¹ + Vᵀ B V
     let m = plan.corrections.len();
-    let cell_row = |&(s, p, _): &(usize, usize, f64)| [p, n + (p + plan.offsets[s]) % n, 2 * n + s];
-    let mut w1 = vec![0.0; base_len * m];
-    for (c, cell) in plan.corrections.iter().enumerate() {
-        let x = cell_row(cell);
-        let column = &mut w1[c * base_len..(c + 1) * base_len];
-        for (a, v) in column.iter_mut().enumerate() {
-            *v = x.iter().map(|&j| base.entry(a, j)).sum();
-        }
-    }
-    let mut capacitance = DMatrix::<f64>::zeros(m, m);
-    for (c, cell) in plan.corrections.iter().enumerate() {
-        let x = cell_row(cell);
-        for d in 0..m {
-            capacitance[(c, d)] = x.iter().map(|&a| w1[d * base_len + a]).sum();
-        }
-        capacitance[(c, c)] += 1.0 / cell.2;
-    }
-    // the scale of the two parts: a capacitance that cancels to rounding level against
-    // them is singular (in a design of one reading per cell every reading has leverage 1,
-    // and D⁻¹ + VᵀBV of missing readings is then 0)
-    let scale = plan
+    let cells: Vec<([usize; 3], f64)> = plan
         .corrections
         .iter()
-        .enumerate()
-        .map(|(c, cell)| (1.0 / cell.2).abs() + (capacitance[(c, c)] - 1.0 / cell.2).abs())
-        .fold(0.0_f64, f64::max);
-    let capacitance_inverse = match invert_checked(&capacitance, scale) {
-        Some(inverse) => inverse,
-        None => return Ok(None),
+        .map(|&(s, p, d)| ([p, n + (p + plan.offsets[s]) % n, 2 * n + s], d))
+        .collect();
+    let Some((w1, capacitance_inverse)) =
+        woodbury::cell_correction(base_len, &cells, |a, b| base.entry(a, b))
+    else {
+        return Ok(None);
     };
     // Q_A v = B v − W1 C1⁻¹ W1ᵀ v for v in the base coordinates
     let q_a = |v: &[f64]| -> Vec<f64> {
@@ -445,33 +405,4 @@ pub(crate) fn solve(
         cofactor: Cofactor::structured(layout, structured),
         layout,
     }))
-}
-
-/// The inverse of a small matrix by LU, or `None` when it is singular to working
-/// precision: a pivot below 1e-10 of `scale` (the size of the terms it was formed from;
-/// the dense path's test of its Cholesky factor is the same ratio), or a product with
-/// the inverse that is not the identity to 1e-8.
-pub(crate) fn invert_checked(matrix: &DMatrix<f64>, scale: f64) -> Option<DMatrix<f64>> {
-    let size = matrix.nrows();
-    if size == 0 {
-        return Some(DMatrix::zeros(0, 0));
-    }
-    let lu = matrix.clone().lu();
-    let u = lu.u();
-    let pivots: Vec<f64> = (0..size).map(|i| u[(i, i)].abs()).collect();
-    let largest = pivots.iter().fold(scale, |a, &b| a.max(b));
-    let smallest = pivots.iter().fold(f64::INFINITY, |a, &b| a.min(b));
-    if smallest.is_nan() || smallest <= 1e-10 * largest {
-        return None;
-    }
-    let inverse = lu.try_inverse()?;
-    if inverse.iter().any(|v| !v.is_finite()) {
-        return None;
-    }
-    let product = matrix * &inverse;
-    let worst = (0..size)
-        .flat_map(|i| (0..size).map(move |j| (i, j)))
-        .map(|(i, j)| (product[(i, j)] - if i == j { 1.0 } else { 0.0 }).abs())
-        .fold(0.0_f64, f64::max);
-    (worst < 1e-8).then_some(inverse)
 }

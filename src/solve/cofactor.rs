@@ -34,6 +34,7 @@ use rustfft::{Fft, FftPlanner};
 
 use super::ParameterLayout;
 use super::coset::operator::CosetStructured;
+use super::woodbury::LowRank;
 
 /// The cofactor matrix Q of θ = [β (N), α (N), U (K), effects (E)]: Cov(θ) = σ²·Q.
 ///
@@ -74,11 +75,8 @@ enum Repr {
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Structured {
     pub(crate) base: Base,
-    /// W, column-major: `rank` columns of length 2N + K + E.
-    w: Vec<f64>,
-    /// W·M, same shape.
-    wm: Vec<f64>,
-    rank: usize,
+    /// W M Wᵀ, columns of length 2N + K + E.
+    low_rank: LowRank,
 }
 
 /// The cofactor B of a regular closure design in g = [α, φ′, U′, effects] (effects: 0).
@@ -448,22 +446,8 @@ fn trig_table(n: usize) -> (Vec<f64>, Vec<f64>) {
 impl Structured {
     /// Q_g = B + W M Wᵀ; `w` column-major (r columns of length 2N + K + E), `m` r × r.
     pub(crate) fn new(base: Base, w: Vec<f64>, m: &DMatrix<f64>) -> Self {
-        let len = base.len();
-        let rank = m.nrows();
-        let mut wm = vec![0.0; w.len()];
-        for c in 0..rank {
-            for k in 0..rank {
-                let f = m[(k, c)];
-                if f == 0.0 {
-                    continue;
-                }
-                let (src, dst) = (&w[k * len..(k + 1) * len], &mut wm[c * len..(c + 1) * len]);
-                for (d, s) in dst.iter_mut().zip(src) {
-                    *d += f * s;
-                }
-            }
-        }
-        Self { base, w, wm, rank }
+        let low_rank = LowRank::new(base.len(), w, m);
+        Self { base, low_rank }
     }
 
     fn len(&self) -> usize {
@@ -472,34 +456,20 @@ impl Structured {
 
     /// Q_g[a, b].
     pub(crate) fn entry(&self, a: usize, b: usize) -> f64 {
-        let len = self.len();
-        let mut v = self.base.entry(a, b);
-        for c in 0..self.rank {
-            v += self.wm[c * len + a] * self.w[c * len + b];
-        }
-        v
+        self.low_rank.add_entry(self.base.entry(a, b), a, b)
     }
 
     /// Q_g x.
     pub(crate) fn apply(&self, x: &[f64]) -> Vec<f64> {
-        let len = self.len();
-        let mut out = vec![0.0; len];
+        let mut out = vec![0.0; self.len()];
         self.base.apply_add(x, &mut out);
-        for c in 0..self.rank {
-            let w = &self.w[c * len..(c + 1) * len];
-            let dot: f64 = w.iter().zip(x).map(|(a, b)| a * b).sum();
-            if dot != 0.0 {
-                for (o, v) in out.iter_mut().zip(&self.wm[c * len..(c + 1) * len]) {
-                    *o += dot * v;
-                }
-            }
-        }
+        self.low_rank.apply_add(x, &mut out);
         out
     }
 
     /// The rank r of the low-rank part.
     pub(crate) fn rank(&self) -> usize {
-        self.rank
+        self.low_rank.rank()
     }
 
     /// The length 2N + K + E of g.
@@ -515,12 +485,8 @@ impl Structured {
     /// For a sparse vector c in g: Wᵀc and (WM)ᵀc into `a` and `b` (each of length r),
     /// so that cᵀ W M Wᵀ d = (WM)ᵀc · Wᵀd.
     pub(crate) fn low_rank_into(&self, c: &[(usize, f64)], a: &mut [f64], b: &mut [f64]) {
-        let len = self.len();
-        for k in 0..self.rank {
-            let (w, wm) = (
-                &self.w[k * len..(k + 1) * len],
-                &self.wm[k * len..(k + 1) * len],
-            );
+        for k in 0..self.rank() {
+            let (w, wm) = self.low_rank.column(k);
             let (mut x, mut y) = (0.0, 0.0);
             for &(i, v) in c {
                 x += v * w[i];
@@ -533,13 +499,9 @@ impl Structured {
 
     /// cᵀ W M Wᵀ d for sparse vectors c and d in g, without allocating.
     pub(crate) fn low_rank_product(&self, c: &[(usize, f64)], d: &[(usize, f64)]) -> f64 {
-        let len = self.len();
-        (0..self.rank)
+        (0..self.rank())
             .map(|k| {
-                let (w, wm) = (
-                    &self.w[k * len..(k + 1) * len],
-                    &self.wm[k * len..(k + 1) * len],
-                );
+                let (w, wm) = self.low_rank.column(k);
                 let x: f64 = c.iter().map(|&(i, v)| v * wm[i]).sum();
                 let y: f64 = d.iter().map(|&(i, v)| v * w[i]).sum();
                 x * y
@@ -790,11 +752,7 @@ impl Cofactor {
                 let len = self.len();
                 // Q_g = B + W (W M)ᵀ, then Q = T Q_g Tᵀ by rows and by columns
                 let mut qg = DMatrix::from_fn(len, len, |a, b| s.base.entry(a, b));
-                if s.rank > 0 {
-                    let w = DMatrix::from_column_slice(len, s.rank, &s.w);
-                    let wm = DMatrix::from_column_slice(len, s.rank, &s.wm);
-                    qg.gemm(1.0, &wm, &w.transpose(), 1.0);
-                }
+                s.low_rank.add_to_dense(&mut qg);
                 let map: Vec<[(usize, f64); 2]> =
                     (0..len).map(|i| theta_row(&self.layout, i)).collect();
                 let mut rows = DMatrix::<f64>::zeros(len, len);

@@ -35,6 +35,7 @@ pub mod least_squares;
 pub mod memory;
 pub mod observability;
 pub mod sub_pitch;
+pub(crate) mod woodbury;
 
 pub use closed_form::{ClosedFormSolution, NotPaperDesign, PaperDesign, closed_form};
 pub use cofactor::Cofactor;

@@ -44,12 +44,12 @@
 mod base;
 pub(crate) mod operator;
 
-use nalgebra::DMatrix;
-
 use self::base::{CosetBase, CosetStream};
 use self::operator::CosetStructured;
 use super::sub_pitch::ShiftGeometry;
-use super::{Cofactor, Engine, Method, ParameterLayout, SetupError, Solution, SolveError};
+use super::{
+    Cofactor, Engine, Method, ParameterLayout, SetupError, Solution, SolveError, woodbury,
+};
 use crate::measurement::{MeasurementSet, Reading, Sigma};
 use crate::polygon::face_deviation_from_pitch;
 
@@ -165,25 +165,9 @@ pub(crate) fn plan(
     }
     let mut plan_streams = Vec::with_capacity(k);
     let mut corrections = Vec::new();
-    let mut sorted = Vec::with_capacity(n);
     for s in 0..k {
-        let cells = &count[s * n..(s + 1) * n];
-        sorted.clear();
-        sorted.extend_from_slice(cells);
-        sorted.sort_unstable();
-        // the most frequent count (ties: the larger), as the circulant engine's plan
-        let (mut mode, mut best, mut run) = (sorted[0], 0usize, 0usize);
-        for (i, &c) in sorted.iter().enumerate() {
-            run = if i > 0 && sorted[i - 1] == c {
-                run + 1
-            } else {
-                1
-            };
-            if run >= best {
-                best = run;
-                mode = c;
-            }
-        }
+        // the regular weight as the circulant engine's plan
+        let mode = woodbury::regular_weight(s, &count[s * n..(s + 1) * n], &mut corrections);
         if mode == 0 {
             return None;
         }
@@ -192,11 +176,6 @@ pub(crate) fn plan(
             offset: offsets[s],
             weight: f64::from(mode),
         });
-        for (p, &c) in cells.iter().enumerate() {
-            if c != mode {
-                corrections.push((s, p, f64::from(c) - f64::from(mode)));
-            }
-        }
     }
     Some(CosetPlan {
         faces: n,
@@ -266,40 +245,24 @@ pub(crate) fn solve(
     }
 
     // Woodbury: W = B V, C1 = D⁻¹ + Vᵀ B V
-    let m = plan.corrections.len();
-    let cell_row = |&(s, p, _): &(usize, usize, f64)| {
-        let stream = plan.streams[s];
-        [
-            stream.coset * n + p,
-            phi + (p + stream.offset) % n,
-            setup + s,
-        ]
-    };
-    let mut w = vec![0.0; len * m];
-    for (c, cell) in plan.corrections.iter().enumerate() {
-        let x = cell_row(cell);
-        let column = &mut w[c * len..(c + 1) * len];
-        for (a, v) in column.iter_mut().enumerate() {
-            *v = x.iter().map(|&j| base.entry(a, j)).sum();
-        }
-    }
-    let mut capacitance = DMatrix::<f64>::zeros(m, m);
-    for (c, cell) in plan.corrections.iter().enumerate() {
-        let x = cell_row(cell);
-        for d in 0..m {
-            capacitance[(c, d)] = x.iter().map(|&a| w[d * len + a]).sum();
-        }
-        capacitance[(c, c)] += 1.0 / cell.2;
-    }
-    // singular to working precision against the size of its two parts (the circulant
-    // engine's test)
-    let scale = plan
+    let cells: Vec<([usize; 3], f64)> = plan
         .corrections
         .iter()
-        .enumerate()
-        .map(|(c, cell)| (1.0 / cell.2).abs() + (capacitance[(c, c)] - 1.0 / cell.2).abs())
-        .fold(0.0_f64, f64::max);
-    let Some(capacitance_inverse) = super::circulant::invert_checked(&capacitance, scale) else {
+        .map(|&(s, p, d)| {
+            let stream = plan.streams[s];
+            (
+                [
+                    stream.coset * n + p,
+                    phi + (p + stream.offset) % n,
+                    setup + s,
+                ],
+                d,
+            )
+        })
+        .collect();
+    let Some((w, capacitance_inverse)) =
+        woodbury::cell_correction(len, &cells, |a, b| base.entry(a, b))
+    else {
         return Ok(None);
     };
     let structured = CosetStructured::new(base, w, &(-capacitance_inverse));
@@ -360,7 +323,7 @@ pub(crate) fn solve(
         method: Method::LeastSquares,
         engine: Engine::CosetCirculant {
             cosets,
-            low_rank: m,
+            low_rank: plan.corrections.len(),
         },
         pitch_deviation,
         face_deviation,

@@ -16,42 +16,26 @@ use nalgebra::DMatrix;
 
 use super::base::CosetBase;
 use crate::solve::ParameterLayout;
+use crate::solve::woodbury::LowRank;
 
 /// Q_g = B + W M Wᵀ of a sub-pitch fit (module documentation).
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct CosetStructured {
     base: CosetBase,
-    /// W, column-major: `rank` columns of length L.
-    w: Vec<f64>,
-    /// W·M, same shape.
-    wm: Vec<f64>,
-    rank: usize,
+    /// W M Wᵀ, columns of length L.
+    low_rank: LowRank,
 }
 
 impl CosetStructured {
     /// Q_g = B + W M Wᵀ; `w` column-major (r columns of length L), `m` r × r.
     pub(crate) fn new(base: CosetBase, w: Vec<f64>, m: &DMatrix<f64>) -> Self {
-        let len = base.len();
-        let rank = m.nrows();
-        let mut wm = vec![0.0; w.len()];
-        for c in 0..rank {
-            for k in 0..rank {
-                let f = m[(k, c)];
-                if f == 0.0 {
-                    continue;
-                }
-                let (src, dst) = (&w[k * len..(k + 1) * len], &mut wm[c * len..(c + 1) * len]);
-                for (d, s) in dst.iter_mut().zip(src) {
-                    *d += f * s;
-                }
-            }
-        }
-        Self { base, w, wm, rank }
+        let low_rank = LowRank::new(base.len(), w, m);
+        Self { base, low_rank }
     }
 
     /// The rank r of the low-rank part.
     pub(crate) fn rank(&self) -> usize {
-        self.rank
+        self.low_rank.rank()
     }
 
     /// The length L of g.
@@ -66,28 +50,14 @@ impl CosetStructured {
 
     /// Q_g\[a, b\].
     pub(crate) fn entry(&self, a: usize, b: usize) -> f64 {
-        let len = self.len();
-        let mut v = self.base.entry(a, b);
-        for c in 0..self.rank {
-            v += self.wm[c * len + a] * self.w[c * len + b];
-        }
-        v
+        self.low_rank.add_entry(self.base.entry(a, b), a, b)
     }
 
     /// Q_g x.
     pub(crate) fn apply(&self, x: &[f64]) -> Vec<f64> {
-        let len = self.len();
-        let mut out = vec![0.0; len];
+        let mut out = vec![0.0; self.len()];
         self.base.apply_add(x, &mut out);
-        for c in 0..self.rank {
-            let w = &self.w[c * len..(c + 1) * len];
-            let dot: f64 = w.iter().zip(x).map(|(a, b)| a * b).sum();
-            if dot != 0.0 {
-                for (o, v) in out.iter_mut().zip(&self.wm[c * len..(c + 1) * len]) {
-                    *o += dot * v;
-                }
-            }
-        }
+        self.low_rank.apply_add(x, &mut out);
         out
     }
 
