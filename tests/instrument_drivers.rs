@@ -140,6 +140,7 @@ fn the_traffic_log_records_every_line_with_time_and_port() {
     let log = TrafficLog::new(buf.clone(), RunClock::new(10.0));
     let stream = ScriptedStream::new()
         .expect("a\n", "")
+        .expect("d\n", "8 ELCOMAT\r") // back in step after the lost reply
         .expect("a\n", "4 003 1.5 -2.5\r");
     let transport = LoggedTransport::new(StreamTransport::new("/dev/ttyX", stream), "ac1", log);
     let mut ac = Elcomat3000::new(transport, fast());
@@ -154,7 +155,10 @@ fn the_traffic_log_records_every_line_with_time_and_port() {
         .iter()
         .map(|r| r["event"].as_str().unwrap())
         .collect();
-    assert_eq!(events, ["sent", "timeout", "clear", "sent", "received"]);
+    assert_eq!(
+        events,
+        ["sent", "timeout", "sent", "received", "sent", "received"]
+    );
     for r in &records {
         assert_eq!(r["port"], "/dev/ttyX");
         assert_eq!(r["device"], "ac1");
@@ -164,7 +168,8 @@ fn the_traffic_log_records_every_line_with_time_and_port() {
         records[0]["text"], "a\n",
         "sent text is exact, terminator included"
     );
-    assert_eq!(records[4]["text"], "4 003 1.5 -2.5");
+    assert_eq!(records[2]["text"], "d\n", "resynchronised with `d`");
+    assert_eq!(records[5]["text"], "4 003 1.5 -2.5");
 }
 
 // ---------------------------------------------------------------- ELCOMAT 3000
@@ -236,12 +241,13 @@ fn elcomat_x_invalid_is_retried_and_then_refused() {
 fn elcomat_lost_and_garbled_replies_are_retried() {
     let stream = ScriptedStream::new()
         .expect("a\n", "")
+        .expect("d\n", "8 ELCOMAT\r") // a lost reply may still come: back in step first
         .expect("a\n", "?3 0?3 1.?00000\r")
         .expect("a\n", "4 003 1.000000 2.000000\r");
     let written = stream.written();
     let mut ac = elcomat(stream);
     assert_eq!(ac.measure().unwrap().x_arcsec, 1.0);
-    assert_eq!(written.text(), "a\na\na\n");
+    assert_eq!(written.text(), "a\nd\na\na\n");
 }
 
 #[test]
@@ -539,11 +545,14 @@ fn smc100_a_lost_reply_during_a_move_asks_again_and_never_resends_the_move() {
         .expect("1TS\r\n", "1TS000033\r\n")
         .expect("1PA90\r\n", "")
         .expect("1TE\r\n", "") // lost
+        .expect("1VE\r\n", "1VE SMC100CC\r\n") // back in step
         .expect("1TE\r\n", "1TE@\r\n")
         .expect("1TS\r\n", "") // lost
-        .expect("1TS\r\n", "1T?00?02?\r\n") // garbled
+        .expect("1VE\r\n", "1VE SMC100CC\r\n")
+        .expect("1TS\r\n", "1T?00?02?\r\n") // garbled: asked again at once
         .expect("1TS\r\n", "1TS000033\r\n")
         .expect("1TP\r\n", "") // lost
+        .expect("1VE\r\n", "1VE SMC100CC\r\n")
         .expect("1TP\r\n", "1TP90\r\n");
     let written = stream.written();
     let mut table = smc(stream);
@@ -558,9 +567,11 @@ fn smc100_a_silent_controller_ends_the_move_without_resending_it() {
     let mut stream = ScriptedStream::new()
         .expect("1TS\r\n", "1TS000033\r\n")
         .expect("1PA90\r\n", "")
-        .expect("1TE\r\n", "1TE@\r\n");
-    for _ in 0..4 {
-        stream = stream.expect("1TS\r\n", "");
+        .expect("1TE\r\n", "1TE@\r\n")
+        .expect("1TS\r\n", "");
+    // No reply either to the resynchronisation, on every attempt left.
+    for _ in 0..3 {
+        stream = stream.expect("1VE\r\n", "");
     }
     let written = stream.written();
     let mut table = smc(stream);

@@ -84,7 +84,8 @@ fn a_run_against_the_simulated_lab_is_a_calibration() {
         "ELCOMAT start, then identification"
     );
     assert!(sent.contains(&"1VE\r\n") && sent.contains(&"1OR\r\n"));
-    assert_eq!(sent.iter().filter(|s| **s == "a\n").count(), 36);
+    // Two readings of each autocollimator at every stop (docs/FORMAT.md §7.3).
+    assert_eq!(sent.iter().filter(|s| **s == "a\n").count(), 72);
     assert!(!sent.contains(&"1ST\r\n"), "a completed run needs no stop");
 
     // time rises, encoder is the reported position, the closing step at 360°.

@@ -42,8 +42,12 @@ fn of<'a>(session: &'a [Value], device: &str) -> Vec<&'a Value> {
     session.iter().filter(|r| r["device"] == device).collect()
 }
 
-/// Asserts that the first event of `device` matching `bad` is followed by clearing the
-/// input and sending the same query again.
+/// The commands that bring a device back in step (docs/FORMAT.md §7.3).
+const RESYNC: [&str; 2] = ["d\n", "1VE\r\n"];
+
+/// Asserts that the first event of `device` matching `bad` is followed by the same query
+/// again — after a timeout, once the device was brought back in step with its
+/// identification command — and by nothing else.
 fn assert_retried(session: &[Value], device: &str, bad: impl Fn(&Value) -> bool) {
     let events = of(session, device);
     let i = events
@@ -56,9 +60,27 @@ fn assert_retried(session: &[Value], device: &str, bad: impl Fn(&Value) -> bool)
         .find(|r| r["event"] == "sent")
         .map(|r| r["text"].clone())
         .unwrap();
-    assert_eq!(events[i + 1]["event"], "clear", "{:?}", events[i + 1]);
-    assert_eq!(events[i + 2]["event"], "sent");
-    assert_eq!(events[i + 2]["text"], query, "the same query again");
+    let resent = events[i + 1..]
+        .iter()
+        .position(|r| r["event"] == "sent" && !RESYNC.contains(&r["text"].as_str().unwrap()))
+        .unwrap()
+        + i
+        + 1;
+    for r in &events[i + 1..resent] {
+        let resync = r["event"] == "sent" && RESYNC.contains(&r["text"].as_str().unwrap());
+        let its_reply = r["event"] == "received"
+            && ["8 ", "1VE"]
+                .iter()
+                .any(|p| r["text"].as_str().unwrap().starts_with(p));
+        assert!(resync || its_reply || r["event"] == "discarded", "{r:?}");
+    }
+    if events[i]["event"] == "timeout" {
+        assert!(
+            resent > i + 1,
+            "a timeout is followed by a resynchronisation"
+        );
+    }
+    assert_eq!(events[resent]["text"], query, "the same query again");
     assert!(!query.as_str().unwrap().starts_with("1PA"), "never a move");
 }
 
@@ -81,7 +103,7 @@ fn assert_completed_with_retry(
 
 #[test]
 fn a_lost_autocollimator_reply_is_asked_again() {
-    assert_completed_with_retry("lost-ac1", "lost-reply:ac1:after=5", "ac1", |r| {
+    assert_completed_with_retry("lost-ac1", "lost-reply:ac1:after=10", "ac1", |r| {
         r["event"] == "timeout"
     });
 }
@@ -95,7 +117,7 @@ fn a_lost_table_reply_is_asked_again_not_the_move() {
 
 #[test]
 fn a_garbled_autocollimator_reply_is_asked_again() {
-    assert_completed_with_retry("garbled-ac2", "garbled:ac2:after=3", "ac2", |r| {
+    assert_completed_with_retry("garbled-ac2", "garbled:ac2:after=6", "ac2", |r| {
         r["event"] == "received" && r["text"].as_str().unwrap().contains('?')
     });
 }
@@ -109,7 +131,7 @@ fn a_garbled_table_reply_is_asked_again() {
 
 #[test]
 fn an_x_invalid_reading_is_taken_again() {
-    assert_completed_with_retry("xinv-ac1", "x-invalid:ac1:after=7", "ac1", |r| {
+    assert_completed_with_retry("xinv-ac1", "x-invalid:ac1:after=14", "ac1", |r| {
         r["event"] == "received" && r["text"].as_str().unwrap().starts_with("4 002 ")
     });
 }
@@ -154,7 +176,7 @@ fn a_table_stuck_in_disable_stops_the_run_cleanly() {
 
 #[test]
 fn a_port_closing_mid_run_stops_it_cleanly() {
-    let (out, _lab, result) = run_with_fault("close", "close:ac2:after=7");
+    let (out, _lab, result) = run_with_fault("close", "close:ac2:after=14");
     // The closed port is seen either when the next command is flushed (the serial
     // driver's "flush failed") or when its reply is awaited ("the port was closed"),
     // depending on which comes first under load; both are the same clean stop.
@@ -168,13 +190,13 @@ fn a_port_closing_mid_run_stops_it_cleanly() {
 
 #[test]
 fn persistent_x_invalid_stops_the_run_cleanly() {
-    let (out, _lab, result) = run_with_fault("xinv-stop", "x-invalid:ac2:after=2:count=4");
+    let (out, _lab, result) = run_with_fault("xinv-stop", "x-invalid:ac2:after=4:count=4");
     assert_clean_stop(&out, &result, "X axis not valid", 5);
 }
 
 #[test]
 fn a_silent_autocollimator_stops_the_run_and_resume_completes_it() {
-    let (out, lab, result) = run_with_fault("silent", "lost-reply:ac1:after=3:count=4");
+    let (out, lab, result) = run_with_fault("silent", "lost-reply:ac1:after=6:count=4");
     assert_clean_stop(&out, &result, "no reply to \"a\\n\"", 6);
     // The fault is spent: resuming carries on from the first missing reading.
     let mut args = lab.run_args(&out, &DESIGN);

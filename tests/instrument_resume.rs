@@ -147,10 +147,10 @@ fn ctrl_c_stops_the_table_keeps_the_data_and_resume_completes() {
 #[test]
 fn a_second_ctrl_c_ends_at_once_records_interrupted_and_resume_completes() {
     let dir = scratch("ctrl-c-twice");
-    // Autocollimator 1's third reply is lost four times: with --timeout 2 its driver
-    // waits 8 s without looking at the stop flag, so the first Ctrl-C cannot end the run
-    // quickly.
-    let lab = SimLab::start(&dir, &["--fault", "lost-reply:ac1:after=2:count=4"]);
+    // Autocollimator 1's fifth reply (its first at stop 2; two readings a stop) and the
+    // three resynchronisations after it are lost: with --timeout 2 its driver waits 8 s
+    // without looking at the stop flag, so the first Ctrl-C cannot end the run quickly.
+    let lab = SimLab::start(&dir, &["--fault", "lost-reply:ac1:after=4:count=4"]);
     let out = dir.join("run");
     let s = settings(1, true, 0.0);
     let design = [
@@ -166,13 +166,13 @@ fn a_second_ctrl_c_ends_at_once_records_interrupted_and_resume_completes() {
     ];
     let child = spawn_run(&lab.run_args(&out, &design));
     wait_for_rows(&out, 4, Duration::from_secs(20));
-    // The fifth `a` (autocollimator 1 at stop 2) is sent: its driver waits for the reply.
+    // The ninth `a` (autocollimator 1 at stop 2) is sent: its driver waits for the reply.
     let start = std::time::Instant::now();
     while std::fs::read_to_string(out.join("traffic.jsonl"))
         .unwrap()
         .matches(r#""event":"sent","text":"a\n""#)
         .count()
-        < 5
+        < 9
     {
         assert!(start.elapsed() < Duration::from_secs(20));
         std::thread::sleep(Duration::from_millis(5));

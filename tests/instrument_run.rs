@@ -220,6 +220,12 @@ fn fault_specs() {
             FaultProblem::NotAWholeNumber("x".into()),
         ),
         ("garbled:ac2:count=0", FaultProblem::ZeroCount),
+        ("stale:ac2:seconds=2", FaultProblem::SecondsNotLate),
+        ("late:ac2:seconds=0", FaultProblem::BadSeconds("0".into())),
+        (
+            "late:table:seconds=NaN",
+            FaultProblem::BadSeconds("NaN".into()),
+        ),
         (
             "garbled:ac2:when=3",
             FaultProblem::UnknownOption("when".into()),
@@ -228,11 +234,12 @@ fn fault_specs() {
         let e = bad.parse::<Fault>().unwrap_err();
         assert_eq!((e.spec.as_str(), &e.problem), (bad, &problem));
     }
-    // The message, as `sim-lab --fault` has always printed it.
+    // The message, as `sim-lab --fault` prints it.
     assert_eq!(
         "x-invalid:table".parse::<Fault>().unwrap_err().to_string(),
         "fault \"x-invalid:table\": x-invalid is a fault of an autocollimator \
-         (expected KIND:DEVICE[:after=K][:count=M], e.g. lost-reply:ac1:after=10)"
+         (expected KIND:DEVICE[:after=K][:count=M][:seconds=S], e.g. lost-reply:ac1:after=10 \
+         or late:ac2:seconds=1.3)"
     );
     assert_eq!(
         FaultProblem::WrongDevice(FaultKind::Disable).to_string(),

@@ -37,6 +37,7 @@ pub const SIM_LAB_EXAMPLES: &str = "\
 Examples:
   polycal sim-lab --faces 24 --time-scale 0 --truth-out lab.truth.json
   polycal sim-lab --faces 8 --fault lost-reply:ac1:after=5 --format json
+  polycal sim-lab --faces 8 --fault late:ac2:after=7:seconds=1.3 --fault unsolicited:ac1:after=20
   polycal sim-lab --direction -0.3 --drift 2:1.5 --bidirectional";
 
 /// Arguments of `polycal run`.
@@ -66,6 +67,14 @@ pub struct RunArgs {
     /// Wait after the table arrived before reading, seconds.
     #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     settle: f64,
+    /// Readings of each autocollimator at a stop (2 … 20); the last READS must agree
+    /// before their mean is stored (docs/FORMAT.md §7.3).
+    #[arg(long, default_value_t = polycal::lab::run::DEFAULT_READS_PER_STOP)]
+    reads: u32,
+    /// The autocollimators' noise, σ of one reading, arcsec: readings at a stop agree
+    /// within 5·√2·σ.
+    #[arg(long, value_name = "ARCSEC", default_value_t = polycal::lab::run::DEFAULT_READING_NOISE_ARCSEC, allow_negative_numbers = true)]
+    reading_noise: f64,
     /// Directory for measurements.csv, manifest.json and traffic.jsonl.
     #[arg(long)]
     out: PathBuf,
@@ -97,8 +106,10 @@ pub struct SimLabArgs {
     /// Factor on every simulated duration (0: instantaneous motion).
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     time_scale: f64,
-    /// Inject a fault KIND:DEVICE[:after=K][:count=M]; KIND lost-reply, garbled,
-    /// x-invalid, disable or close; DEVICE ac1, ac2 or table; repeatable.
+    /// Inject a fault KIND:DEVICE[:after=K][:count=M][:seconds=S]; KIND lost-reply,
+    /// garbled, x-invalid, disable, close, late (by S seconds, default 1.5),
+    /// duplicated, unsolicited, swapped or stale; DEVICE ac1, ac2 or table; repeatable
+    /// (docs/FORMAT.md §7.4).
     #[arg(long = "fault")]
     faults: Vec<String>,
     /// How to print the device paths.
@@ -139,12 +150,18 @@ fn open_port(
     }
 }
 
+/// How the library ends the message of readings that did not agree at a stop; the
+/// option that states the noise is this command's to name.
+const NOISE_ADVICE: &str = "state the autocollimator's real noise";
+
 /// `polycal run`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
     let settings = RunSettings::new(args.faces, args.cycles)
         .with_closing(args.closing || args.bidirectional)
         .with_bidirectional(args.bidirectional)
-        .with_settle_seconds(args.settle);
+        .with_settle_seconds(args.settle)
+        .with_reads_per_stop(args.reads)
+        .with_reading_noise_arcsec(args.reading_noise);
     // The library names the setting (`faces 2: …`); the option is `--faces`.
     settings.validate().map_err(|e| anyhow!("--{e}"))?;
     let query = QueryOptions::new(seconds("timeout", args.timeout)?, 3);
@@ -316,6 +333,9 @@ fn ended(
             return Ok(0);
         }
         Outcome::Interrupted => "run interrupted (table stopped)".to_string(),
+        Outcome::InstrumentError(message) if message.contains(NOISE_ADVICE) => {
+            format!("{message} (--reading-noise); the run stopped")
+        }
         Outcome::InstrumentError(message) | Outcome::FileError(message) => {
             format!("{message}; the run stopped")
         }
@@ -373,8 +393,12 @@ fn show_progress(bar: &indicatif::ProgressBar, p: &Progress) {
     };
     bar.set_length(p.total as u64);
     bar.set_position(p.done as u64);
+    let refused = match p.refused {
+        0 => String::new(),
+        n => format!(" · {n} re-read"),
+    };
     bar.set_message(format!(
-        "cycle {}/{} step {}/{} · {}/{} readings · {left}",
+        "cycle {}/{} step {}/{} · {}/{} readings{refused} · {left}",
         p.cycle.0, p.cycle.1, p.stop.0, p.stop.1, p.done, p.total
     ));
 }

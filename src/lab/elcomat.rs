@@ -15,7 +15,7 @@
 
 use std::time::Duration;
 
-use super::query::query;
+use super::query::{Resync, query};
 use super::transport::Transport;
 use super::{AcReading, Autocollimator, InstrumentError, QueryOptions, ReplyError};
 
@@ -25,6 +25,13 @@ pub const IDENTIFY: &str = "d\n";
 pub const STOP_STREAM: &str = "s\n";
 /// One absolute measurement.
 pub const MEASURE: &str = "a\n";
+
+/// How the driver brings the device back in step after a late or doubtful reply: `d`,
+/// whose `8 …` reply no measurement can be mistaken for.
+const RESYNC: Resync = Resync {
+    command: IDENTIFY,
+    is_reply: |line| parse_identification(line).is_ok(),
+};
 
 /// Parses a `d` reply, `8 <text>`, into the text.
 ///
@@ -173,6 +180,7 @@ impl<T: Transport> Autocollimator for Elcomat3000<T> {
         query(
             &mut self.transport,
             &self.options,
+            None,
             IDENTIFY,
             parse_identification,
         )
@@ -180,9 +188,13 @@ impl<T: Transport> Autocollimator for Elcomat3000<T> {
     }
 
     fn measure(&mut self) -> Result<AcReading, InstrumentError> {
-        query(&mut self.transport, &self.options, MEASURE, |line| {
-            parse_measurement(line, '4')
-        })
+        query(
+            &mut self.transport,
+            &self.options,
+            Some(&RESYNC),
+            MEASURE,
+            |line| parse_measurement(line, '4'),
+        )
         .map(|(reading, _)| reading)
     }
 }

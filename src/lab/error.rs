@@ -155,4 +155,11 @@ pub enum ReplyError {
         /// The status as received.
         status: String,
     },
+    /// A reply followed at once by more input: which line answers the query cannot be
+    /// told, so neither is taken.
+    #[error("followed at once by {extra:?}: which line answers the query cannot be told")]
+    NotAlone {
+        /// The line(s) that followed, joined by ` | `.
+        extra: String,
+    },
 }

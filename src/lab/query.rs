@@ -1,5 +1,6 @@
-//! Queries: commands whose reply only reports, and how they are retried (see
-//! [`crate::lab`], *Retries and motion*).
+//! Queries: commands whose reply only reports, how a reply is tied to the query that
+//! asked for it, and how a query is retried (see [`crate::lab`], *Retries and motion*,
+//! and docs/FORMAT.md §7.3, *No reading on the wrong stop*).
 
 use std::time::Duration;
 
@@ -12,8 +13,8 @@ use super::{InstrumentError, ReplyError};
 pub struct QueryOptions {
     /// Deadline for one complete reply line.
     pub reply_timeout: Duration,
-    /// How many more times a query is sent after a lost, garbled or invalid reply (the
-    /// input is cleared first). A motion is never retried.
+    /// How many more times a query is sent after a lost, garbled, doubtful or invalid
+    /// reply. A motion is never retried.
     pub retries: u32,
 }
 
@@ -34,30 +35,108 @@ impl Default for QueryOptions {
     }
 }
 
+/// A command whose reply cannot be mistaken for any other (an identification), sent to
+/// bring a device's replies back in step with the host after a reply was late or
+/// doubtful: every line that comes before its reply is discarded.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Resync {
+    /// The command, terminator included.
+    pub(crate) command: &'static str,
+    /// Whether a line is the command's reply.
+    pub(crate) is_reply: fn(&str) -> bool,
+}
+
+/// How many lines a resynchronisation reads at most before it gives up.
+const MAX_RESYNC_LINES: usize = 32;
+
+/// Brings the device back in step: sends `resync.command` and reads until its reply,
+/// noting every line before it as discarded (a late or extra reply to an earlier
+/// query). A device answers in order, so nothing sent before the resynchronisation can
+/// arrive after its reply. `Ok(false)` when its reply did not come.
+fn resync<T: Transport + ?Sized>(
+    transport: &mut T,
+    options: &QueryOptions,
+    resync: &Resync,
+) -> Result<bool, InstrumentError> {
+    transport.drain()?;
+    transport.send(resync.command)?;
+    for _ in 0..MAX_RESYNC_LINES {
+        match transport.read_line(options.reply_timeout)? {
+            None => return Ok(false),
+            Some(line) if (resync.is_reply)(&line) => {
+                // Whatever came with it is older than any query still to come.
+                transport.drain()?;
+                return Ok(true);
+            }
+            Some(line) => transport.note("discarded", &line),
+        }
+    }
+    Ok(false)
+}
+
 /// Sends `command` and reads its reply with `parse`, retrying as a query (module
-/// [`crate::lab`]): after a timeout or a reply `parse` refuses, the input is
-/// cleared and the command sent again, up to `options.retries` more times. Returns the
-/// parsed value and the reply line. Port failures are not retried.
+/// [`crate::lab`]). Returns the parsed value and the reply line. Port failures are not
+/// retried.
+///
+/// A reply is taken only when it is tied to this query beyond doubt:
+///
+/// - whatever is pending before the command is sent is drained (and logged as
+///   discarded): it answers an earlier command;
+/// - a reply that `parse` accepts but that is followed at once by more input is not
+///   taken ([`ReplyError::NotAlone`]);
+/// - after a reply that did not come in time or was not taken for that reason, the
+///   device is resynchronised with `resync` (when the driver has one) before the command
+///   is sent again, so that a late reply is discarded when it arrives instead of being
+///   read as the answer to the retry.
+///
+/// A reply `parse` refuses is retried after the drain alone. At most
+/// `options.retries` more attempts are made.
 pub(crate) fn query<T: Transport + ?Sized, V>(
     transport: &mut T,
     options: &QueryOptions,
+    resync_with: Option<&Resync>,
     command: &str,
     parse: impl Fn(&str) -> Result<V, ReplyError>,
 ) -> Result<(V, String), InstrumentError> {
     let attempts = options.retries.saturating_add(1);
     let mut last: Option<(String, ReplyError)> = None; // (reply, reason) of the last bad reply
     let mut timed_out = false;
+    let mut out_of_step = false;
     for attempt in 1..=attempts {
-        if attempt > 1 {
-            transport.clear_input()?;
+        if attempt > 1
+            && out_of_step
+            && let Some(with) = resync_with
+            && !resync(transport, options, with)?
+        {
+            // The device did not come back in step: this attempt is spent on it.
+            timed_out = true;
+            continue;
         }
+        transport.drain()?;
         transport.send(command)?;
         match transport.read_line(options.reply_timeout)? {
-            None => timed_out = true,
+            None => {
+                timed_out = true;
+                out_of_step = true;
+            }
             Some(line) => match parse(&line) {
-                Ok(value) => return Ok((value, line)),
+                Ok(value) => {
+                    let extra = transport.drain()?;
+                    if extra.is_empty() {
+                        return Ok((value, line));
+                    }
+                    timed_out = false;
+                    out_of_step = true;
+                    last = Some((
+                        line,
+                        ReplyError::NotAlone {
+                            extra: extra.join(" | "),
+                        },
+                    ));
+                }
                 Err(reason) => {
                     timed_out = false;
+                    out_of_step = false;
                     last = Some((line, reason));
                 }
             },

@@ -22,7 +22,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::query::query;
+use super::query::{Resync, query};
 use super::transport::Transport;
 use super::{InstrumentError, QueryOptions, ReplyError, RotaryTable, StopFlag};
 
@@ -38,6 +38,13 @@ pub const STOP: &str = "1ST\r\n";
 pub const HOME: &str = "1OR\r\n";
 /// Version (identification).
 pub const VERSION: &str = "1VE\r\n";
+
+/// How the driver brings the controller back in step after a late or doubtful reply:
+/// `1VE`, whose reply no state, position or error reply can be mistaken for.
+const RESYNC: Resync = Resync {
+    command: VERSION,
+    is_reply: |line| parse_version(line).is_ok(),
+};
 
 /// The controller state, from the two hex digits of a `1TS` reply.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -371,6 +378,7 @@ impl<T: Transport> Smc100<T> {
         query(
             &mut self.transport,
             &self.options.query,
+            Some(&RESYNC),
             STATE,
             parse_status,
         )
@@ -428,6 +436,7 @@ impl<T: Transport> Smc100<T> {
         let (code, line) = query(
             &mut self.transport,
             &self.options.query,
+            Some(&RESYNC),
             LAST_ERROR,
             parse_last_error,
         )?;
@@ -510,6 +519,7 @@ impl<T: Transport> RotaryTable for Smc100<T> {
         query(
             &mut self.transport,
             &self.options.query,
+            None,
             VERSION,
             parse_version,
         )
@@ -541,6 +551,7 @@ impl<T: Transport> RotaryTable for Smc100<T> {
         let (position, line) = query(
             &mut self.transport,
             &self.options.query,
+            Some(&RESYNC),
             POSITION,
             parse_position,
         )?;
@@ -558,6 +569,7 @@ impl<T: Transport> RotaryTable for Smc100<T> {
         query(
             &mut self.transport,
             &self.options.query,
+            Some(&RESYNC),
             POSITION,
             parse_position,
         )

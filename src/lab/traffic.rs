@@ -264,4 +264,18 @@ impl<T: Transport> Transport for LoggedTransport<T> {
             .record(&self.device, self.inner.port(), "clear", "");
         self.inner.clear_input().inspect_err(|e| self.error(e))
     }
+
+    fn drain(&mut self) -> Result<Vec<String>, InstrumentError> {
+        let lines = self.inner.drain().inspect_err(|e| self.error(e))?;
+        for line in &lines {
+            self.log
+                .record(&self.device, self.inner.port(), "discarded", line);
+        }
+        Ok(lines)
+    }
+
+    fn note(&mut self, event: &str, text: &str) {
+        self.log
+            .record(&self.device, self.inner.port(), event, text);
+    }
 }

@@ -35,6 +35,16 @@ pub trait Transport: Send {
 
     /// Discards everything received and not yet read (a stale or late reply).
     fn clear_input(&mut self) -> Result<(), InstrumentError>;
+
+    /// Takes everything received and not yet read, without waiting for more, and returns
+    /// it as lines (a last line without its terminator included): what a query discards
+    /// before it is sent, and what follows a reply that should have come alone. Nothing
+    /// pending gives an empty list.
+    fn drain(&mut self) -> Result<Vec<String>, InstrumentError>;
+
+    /// Notes an event about a line already received, e.g. `discarded` for a late reply
+    /// read while resynchronising. Only a logging transport records it.
+    fn note(&mut self, _event: &str, _text: &str) {}
 }
 
 impl<T: Transport + ?Sized> Transport for Box<T> {
@@ -49,6 +59,12 @@ impl<T: Transport + ?Sized> Transport for Box<T> {
     }
     fn clear_input(&mut self) -> Result<(), InstrumentError> {
         (**self).clear_input()
+    }
+    fn drain(&mut self) -> Result<Vec<String>, InstrumentError> {
+        (**self).drain()
+    }
+    fn note(&mut self, event: &str, text: &str) {
+        (**self).note(event, text)
     }
 }
 
@@ -137,7 +153,24 @@ impl LineBuffer {
             }
         }
     }
+
+    /// Takes every complete line and then the unterminated rest, if any.
+    fn take_all(&mut self) -> Vec<String> {
+        let mut lines = Vec::new();
+        while let Some(line) = self.take_line() {
+            lines.push(line);
+        }
+        if !self.bytes.is_empty() {
+            lines.push(String::from_utf8_lossy(&self.bytes).into_owned());
+            self.bytes.clear();
+        }
+        lines
+    }
 }
+
+/// How many reads [`Transport::drain`] makes at most: a device that never stops talking
+/// must not hold the host.
+const MAX_DRAIN_READS: usize = 64;
 
 fn closed(port: &str, context: &str) -> InstrumentError {
     InstrumentError::Closed {
@@ -250,5 +283,18 @@ impl<S: ByteStream> Transport for StreamTransport<S> {
         self.stream
             .discard_input()
             .map_err(|e| port_error(&self.name, "clearing the input", e))
+    }
+
+    fn drain(&mut self) -> Result<Vec<String>, InstrumentError> {
+        let mut chunk = [0u8; 256];
+        for _ in 0..MAX_DRAIN_READS {
+            match self.stream.receive(&mut chunk, Duration::ZERO) {
+                Ok(0) => return Err(closed(&self.name, "end of input while draining it")),
+                Ok(n) => self.buffer.bytes.extend_from_slice(&chunk[..n]),
+                Err(e) if is_no_data(&e) => break,
+                Err(e) => return Err(port_error(&self.name, "draining the input", e)),
+            }
+        }
+        Ok(self.buffer.take_all())
     }
 }

@@ -1,13 +1,14 @@
 //! The measuring loop: start and identify the instruments, then visit every remaining
-//! stop of the plan, read both autocollimators there and put each reading on disk
-//! before the table moves again.
+//! stop of the plan, read both autocollimators there until their readings agree
+//! (`repeat`), and put each reading on disk before the table moves again.
 
 use std::fmt;
 use std::time::{Duration, Instant};
 
+use super::repeat::{DeviceMemory, RepeatError, read_at_stop};
 use super::{Identification, RunDir, RunError, TRAFFIC};
 use crate::lab::traffic::TrafficLog;
-use crate::lab::{AcReading, Autocollimator, InstrumentError, RotaryTable, StopFlag};
+use crate::lab::{Autocollimator, InstrumentError, RotaryTable, StopFlag};
 use crate::measurement::{Direction, Reading};
 
 /// How a measuring session ended.
@@ -86,6 +87,9 @@ pub struct Progress {
     pub step: usize,
     /// Estimated seconds until the run is complete, once a reading was taken.
     pub seconds_left: Option<f64>,
+    /// Readings taken in this session and not stored: refused (stale, not agreeing
+    /// with the others at their stop) or beyond the agreeing ones.
+    pub refused: usize,
 }
 
 /// Starts and identifies the instruments, then measures every remaining reading of
@@ -188,6 +192,8 @@ fn measure_stops(
     let session_start = Instant::now();
     let before = run.readings_done();
     let settle = Duration::try_from_secs_f64(settings.settle_seconds).unwrap_or(Duration::ZERO);
+    let mut memory = [DeviceMemory::default(); 2];
+    let mut refused = 0;
     for (stop, acs) in run.remaining() {
         if stop_flag.is_set() {
             return Outcome::Interrupted;
@@ -213,11 +219,26 @@ fn measure_stops(
                 return Outcome::Interrupted;
             }
             let device: &mut dyn Autocollimator = if ac == 1 { &mut *ac1 } else { &mut *ac2 };
-            let AcReading {
-                x_arcsec, y_arcsec, ..
-            } = match device.measure() {
-                Ok(r) => r,
-                Err(e) => return Outcome::from_instrument(ROLES[ac as usize - 1], e),
+            let role = ROLES[ac as usize - 1];
+            let at = format!("cycle {}, step {}", stop.cycle, stop.step);
+            let label = if ac == 1 { "ac1" } else { "ac2" };
+            let taken = read_at_stop(
+                device,
+                &mut memory[ac as usize - 1],
+                &settings,
+                traffic,
+                (label, role, &at),
+                stop.degrees(settings.faces),
+            );
+            let (x_arcsec, y_arcsec) = match taken {
+                Ok(r) => {
+                    refused += r.refused;
+                    (r.x_arcsec, r.y_arcsec)
+                }
+                Err(RepeatError::Instrument(e)) => return Outcome::from_instrument(role, e),
+                Err(RepeatError::NoAgreement(message)) => {
+                    return Outcome::InstrumentError(message);
+                }
             };
             let reading = Reading {
                 setup: 1,
@@ -260,6 +281,7 @@ fn measure_stops(
                 step: stop.step,
                 seconds_left: (this_session > 0)
                     .then(|| elapsed / this_session as f64 * (total - done) as f64),
+                refused,
             });
         }
     }

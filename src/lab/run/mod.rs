@@ -88,6 +88,7 @@ mod directory;
 mod error;
 mod manifest;
 mod measure;
+mod repeat;
 mod resume;
 mod settings;
 
@@ -96,4 +97,8 @@ pub use directory::{COLUMNS, MANIFEST, MEASUREMENTS, RunDir, TRAFFIC};
 pub use error::RunError;
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
 pub use measure::{Instruments, Outcome, Progress, measure};
-pub use settings::{RunSettings, SettingsError};
+pub use repeat::EXTRA_READS;
+pub use settings::{
+    AGREEMENT_SIGMAS, DEFAULT_READING_NOISE_ARCSEC, DEFAULT_READS_PER_STOP, MAX_READS_PER_STOP,
+    RunSettings, SettingsError,
+};

@@ -19,6 +19,34 @@ pub struct RunSettings {
     pub bidirectional: bool,
     /// Wait after the table arrived before reading, seconds.
     pub settle_seconds: f64,
+    /// How many readings of each autocollimator are taken at a stop and must agree
+    /// before their mean is stored (≥ 2; docs/FORMAT.md §7.3, *No reading on the wrong
+    /// stop*). Absent from manifests written before it existed: 2.
+    #[serde(default = "default_reads_per_stop")]
+    pub reads_per_stop: u32,
+    /// The autocollimators' noise, the standard deviation σ of one reading, arcsec: the
+    /// readings at a stop agree when they lie within [`RunSettings::agreement_arcsec`]
+    /// (5·√2·σ) of each other. Absent from older manifests: [`DEFAULT_READING_NOISE_ARCSEC`].
+    #[serde(default = "default_reading_noise")]
+    pub reading_noise_arcsec: f64,
+}
+
+/// Readings of each autocollimator at a stop unless set otherwise.
+pub const DEFAULT_READS_PER_STOP: u32 = 2;
+/// The autocollimators' noise σ unless stated otherwise, arcsec.
+pub const DEFAULT_READING_NOISE_ARCSEC: f64 = 0.1;
+/// Most readings of an autocollimator at a stop.
+pub const MAX_READS_PER_STOP: u32 = 20;
+/// How many standard deviations of a difference of two readings the readings at a
+/// stop may lie apart: 5, so that two honest readings are refused once in 1.7 million.
+pub const AGREEMENT_SIGMAS: f64 = 5.0;
+
+fn default_reads_per_stop() -> u32 {
+    DEFAULT_READS_PER_STOP
+}
+
+fn default_reading_noise() -> f64 {
+    DEFAULT_READING_NOISE_ARCSEC
 }
 
 /// A setting out of its range. The message starts with the setting's name and value
@@ -38,16 +66,26 @@ pub enum SettingsError {
     /// A settle time that is not a number of seconds from 0 to 3600.
     #[error("settle {0}: must be a number of seconds from 0 to 3600")]
     Settle(f64),
+    /// Fewer than 2 or more than [`MAX_READS_PER_STOP`] readings at a stop.
+    #[error(
+        "reads {0}: each autocollimator is read 2 to 20 times at a stop (two readings that agree tie a reading to its stop)"
+    )]
+    Reads(u32),
+    /// A reading noise that is not a number of arcseconds above 0 and at most 100.
+    #[error("reading-noise {0}: must be a number of arcseconds above 0 and at most 100")]
+    ReadingNoise(f64),
 }
 
 impl SettingsError {
     /// The setting's name, as in [`RunSettings::as_options`] without the dashes:
-    /// `faces`, `cycles` or `settle`.
+    /// `faces`, `cycles`, `settle`, `reads` or `reading-noise`.
     pub fn setting(&self) -> &'static str {
         match self {
             SettingsError::TooFewFaces(_) | SettingsError::TooManyFaces(_) => "faces",
             SettingsError::NoCycle => "cycles",
             SettingsError::Settle(_) => "settle",
+            SettingsError::Reads(_) => "reads",
+            SettingsError::ReadingNoise(_) => "reading-noise",
         }
     }
 }
@@ -73,7 +111,27 @@ impl RunSettings {
             closing: false,
             bidirectional: false,
             settle_seconds: 0.0,
+            reads_per_stop: DEFAULT_READS_PER_STOP,
+            reading_noise_arcsec: DEFAULT_READING_NOISE_ARCSEC,
         }
+    }
+
+    /// Sets how many readings of each autocollimator are taken at a stop.
+    pub fn with_reads_per_stop(mut self, reads_per_stop: u32) -> RunSettings {
+        self.reads_per_stop = reads_per_stop;
+        self
+    }
+
+    /// Sets the autocollimators' noise σ of one reading, arcsec.
+    pub fn with_reading_noise_arcsec(mut self, reading_noise_arcsec: f64) -> RunSettings {
+        self.reading_noise_arcsec = reading_noise_arcsec;
+        self
+    }
+
+    /// How far apart the readings of an autocollimator at one stop may lie, arcsec:
+    /// [`AGREEMENT_SIGMAS`]·√2·σ.
+    pub fn agreement_arcsec(&self) -> f64 {
+        AGREEMENT_SIGMAS * std::f64::consts::SQRT_2 * self.reading_noise_arcsec
     }
 
     /// Sets whether clockwise cycles end with the closing step N.
@@ -112,6 +170,13 @@ impl RunSettings {
         }
         if !(self.settle_seconds.is_finite() && (0.0..=3600.0).contains(&self.settle_seconds)) {
             return Err(SettingsError::Settle(self.settle_seconds));
+        }
+        if !(2..=MAX_READS_PER_STOP).contains(&self.reads_per_stop) {
+            return Err(SettingsError::Reads(self.reads_per_stop));
+        }
+        let noise = self.reading_noise_arcsec;
+        if !(noise.is_finite() && noise > 0.0 && noise <= 100.0) {
+            return Err(SettingsError::ReadingNoise(noise));
         }
         Ok(())
     }
@@ -162,7 +227,10 @@ impl RunSettings {
         if self.bidirectional {
             s.push_str(" --bidirectional");
         }
-        s.push_str(&format!(" --settle {}", self.settle_seconds));
+        s.push_str(&format!(
+            " --settle {} --reads {} --reading-noise {}",
+            self.settle_seconds, self.reads_per_stop, self.reading_noise_arcsec
+        ));
         s
     }
 
@@ -194,12 +262,25 @@ impl RunSettings {
                 self.settle_seconds, other.settle_seconds
             ));
         }
+        if self.reads_per_stop != other.reads_per_stop {
+            d.push(format!(
+                "reads {} vs {}",
+                self.reads_per_stop, other.reads_per_stop
+            ));
+        }
+        if self.reading_noise_arcsec != other.reading_noise_arcsec {
+            d.push(format!(
+                "reading noise {}″ vs {}″",
+                self.reading_noise_arcsec, other.reading_noise_arcsec
+            ));
+        }
         d
     }
 }
 
 impl std::fmt::Display for RunSettings {
-    /// `faces 8, cycles 2, closing, settle 0 s` (`bidirectional` when it is).
+    /// `faces 8, cycles 2, closing, settle 0 s, 2 readings per stop, reading noise 0.1″`
+    /// (`bidirectional` when it is).
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "faces {}, cycles {}", self.faces, self.cycles)?;
         if self.closing {
@@ -208,7 +289,11 @@ impl std::fmt::Display for RunSettings {
         if self.bidirectional {
             f.write_str(", bidirectional")?;
         }
-        write!(f, ", settle {} s", self.settle_seconds)
+        write!(
+            f,
+            ", settle {} s, {} readings per stop, reading noise {}″",
+            self.settle_seconds, self.reads_per_stop, self.reading_noise_arcsec
+        )
     }
 }
 
@@ -225,9 +310,14 @@ mod tests {
         assert_eq!(s.readings().len(), 36);
         assert_eq!(
             s.as_options(),
-            "--faces 8 --cycles 2 --closing --settle 0.5"
+            "--faces 8 --cycles 2 --closing --settle 0.5 --reads 2 --reading-noise 0.1"
         );
-        assert_eq!(s.to_string(), "faces 8, cycles 2, closing, settle 0.5 s");
+        assert_eq!(
+            s.to_string(),
+            "faces 8, cycles 2, closing, settle 0.5 s, 2 readings per stop, reading noise 0.1″"
+        );
+        // 5·√2·0.1″ = √2/2″
+        assert!((s.agreement_arcsec() - 2f64.sqrt() / 2.0).abs() < 1e-15);
         let other = s.clone().with_bidirectional(true);
         assert_eq!(other.differences(&s), ["bidirectional true vs false"]);
         assert_eq!(RunSettings::new(8, 1).reading_count(), 16);
@@ -248,5 +338,11 @@ mod tests {
         assert_eq!(e, Err(SettingsError::Settle(-1.0)));
         assert!(RunSettings::new(100_001, 1).validate().is_err());
         assert!(RunSettings::new(8, 1).validate().is_ok());
+        let e = RunSettings::new(8, 1).with_reads_per_stop(1).validate();
+        assert_eq!(e, Err(SettingsError::Reads(1)));
+        let e = RunSettings::new(8, 1)
+            .with_reading_noise_arcsec(0.0)
+            .validate();
+        assert_eq!(e.map_err(|e| e.setting()), Err("reading-noise"));
     }
 }

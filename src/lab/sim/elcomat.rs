@@ -18,6 +18,8 @@ pub struct ElcomatSim {
     stream: Option<(char, Instant)>,
     measurements: u64,
     x_invalid: Vec<(u64, u64)>,
+    /// The last measurement's X and Y, arcsec.
+    last: (f64, f64),
 }
 
 impl ElcomatSim {
@@ -28,6 +30,7 @@ impl ElcomatSim {
             ac,
             stream: None,
             measurements: 0,
+            last: (0.0, 0.0),
             x_invalid: faults
                 .iter()
                 .filter(|f| f.kind == FaultKind::XInvalid)
@@ -46,6 +49,7 @@ impl ElcomatSim {
                 axes = 2;
             }
         }
+        self.last = (x, y);
         format!("{kind} 00{axes} {x:.6} {y:.6}\r")
     }
 }
@@ -87,5 +91,11 @@ impl SimDevice for ElcomatSim {
 
     fn events(&self) -> u64 {
         self.measurements
+    }
+
+    /// An absolute measurement 99″ beyond the last one in X.
+    fn unsolicited(&mut self, _now: Instant) -> String {
+        let (x, y) = self.last;
+        format!("4 003 {:.6} {y:.6}\r", x + 99.0)
     }
 }

@@ -1,9 +1,10 @@
 //! A simulated device behind its reply faults and input line buffer ([`Endpoint`]), and
 //! an in-memory stream to it ([`SimStream`]).
 
+use std::collections::VecDeque;
 use std::fmt;
 use std::io::{self, Read, Write};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use super::{Fault, FaultKind};
 
@@ -16,6 +17,9 @@ pub trait SimDevice: Send {
     fn tick(&mut self, now: Instant) -> Option<String>;
     /// Events so far (measurements, or move commands), which arm faults.
     fn events(&self) -> u64;
+    /// A line in the form of a reply that nothing asked for (an `unsolicited` fault),
+    /// terminator included.
+    fn unsolicited(&mut self, now: Instant) -> String;
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -31,6 +35,12 @@ pub struct Endpoint {
     faults: Vec<Armed>,
     input: Vec<u8>,
     closed: bool,
+    /// Replies on their way, each with the instant it is due, in the order sent.
+    outgoing: VecDeque<(Instant, Vec<u8>)>,
+    /// A reply held back by a `swapped` fault, sent after the next one.
+    held: Option<String>,
+    /// The last reply sent (for a `stale` fault).
+    last_reply: Option<String>,
 }
 
 impl fmt::Debug for Endpoint {
@@ -43,19 +53,14 @@ impl fmt::Debug for Endpoint {
 }
 
 impl Endpoint {
-    /// A device with the faults that act on its replies (`lost-reply`, `garbled`,
-    /// `close`); the others are the device's own.
+    /// A device with the faults that act on its replies (every kind but `x-invalid` and
+    /// `disable`, which are the device's own).
     pub fn new(device: Box<dyn SimDevice>, faults: &[Fault]) -> Endpoint {
         Endpoint {
             device,
             faults: faults
                 .iter()
-                .filter(|f| {
-                    matches!(
-                        f.kind,
-                        FaultKind::LostReply | FaultKind::Garbled | FaultKind::Close
-                    )
-                })
+                .filter(|f| f.kind.acts_on_replies())
                 .map(|&fault| Armed {
                     fault,
                     left: fault.count,
@@ -63,6 +68,9 @@ impl Endpoint {
                 .collect(),
             input: Vec::new(),
             closed: false,
+            outgoing: VecDeque::new(),
+            held: None,
+            last_reply: None,
         }
     }
 
@@ -71,11 +79,10 @@ impl Endpoint {
         self.closed
     }
 
-    /// Feeds bytes from the host; returns the bytes to send back.
+    /// Feeds bytes from the host; returns the bytes due to be sent back now.
     pub fn input(&mut self, bytes: &[u8], now: Instant) -> Vec<u8> {
-        let mut out = Vec::new();
         if self.closed {
-            return out;
+            return Vec::new();
         }
         self.input.extend_from_slice(bytes);
         while let Some(i) = self.input.iter().position(|&b| b == b'\r' || b == b'\n') {
@@ -91,48 +98,91 @@ impl Endpoint {
                 .any(|a| a.fault.kind == FaultKind::Close && events >= a.fault.after)
             {
                 self.closed = true;
-                return out;
+                self.outgoing.clear();
+                return Vec::new();
             }
             let Some(reply) = self.device.handle(&command, now) else {
                 continue;
             };
-            out.extend(self.apply_faults(reply, events).into_bytes());
+            self.send_reply(reply, events, now);
         }
         if self.input.len() > 4096 {
             self.input.clear();
         }
-        out
+        self.due(now)
     }
 
-    fn apply_faults(&mut self, reply: String, events: u64) -> String {
+    /// Puts one reply on its way, as the armed faults make it.
+    fn send_reply(&mut self, reply: String, events: u64, now: Instant) {
+        let mut text = reply;
+        let mut delay = Duration::ZERO;
+        let mut before = String::new();
+        let mut copies = 1;
+        let mut hold = false;
         for armed in &mut self.faults {
             if armed.left == 0 || events < armed.fault.after {
                 continue;
             }
+            armed.left -= 1;
             match armed.fault.kind {
-                FaultKind::LostReply => {
-                    armed.left -= 1;
-                    return String::new();
+                FaultKind::LostReply => return,
+                FaultKind::Garbled => text = garble(&text),
+                FaultKind::Late => delay = delay.max(armed.fault.late),
+                FaultKind::Duplicated => copies = 2,
+                FaultKind::Unsolicited => before = self.device.unsolicited(now),
+                FaultKind::Swapped => hold = true,
+                FaultKind::Stale => {
+                    if let Some(previous) = &self.last_reply {
+                        text = previous.clone();
+                    }
                 }
-                FaultKind::Garbled => {
-                    armed.left -= 1;
-                    return garble(&reply);
-                }
-                _ => {}
+                _ => armed.left += 1, // not a fault of the replies
             }
         }
-        reply
+        self.last_reply = Some(text.clone());
+        if hold && self.held.is_none() {
+            self.held = Some(text);
+            return;
+        }
+        let mut bytes = before.into_bytes();
+        for _ in 0..copies {
+            bytes.extend_from_slice(text.as_bytes());
+        }
+        if let Some(held) = self.held.take() {
+            bytes.extend(held.into_bytes());
+        }
+        // A device answers in order: nothing overtakes a late reply.
+        let due = self
+            .outgoing
+            .back()
+            .map_or(now + delay, |&(last, _)| last.max(now + delay));
+        self.outgoing.push_back((due, bytes));
     }
 
-    /// Output the device sends by itself, if due.
+    /// The replies due at `now`, in order.
+    fn due(&mut self, now: Instant) -> Vec<u8> {
+        let mut out = Vec::new();
+        while let Some((due, _)) = self.outgoing.front() {
+            if *due > now {
+                break;
+            }
+            if let Some((_, bytes)) = self.outgoing.pop_front() {
+                out.extend(bytes);
+            }
+        }
+        out
+    }
+
+    /// Output due now: replies on their way, and what the device sends by itself.
     pub fn tick(&mut self, now: Instant) -> Vec<u8> {
         if self.closed {
             return Vec::new();
         }
-        self.device
-            .tick(now)
-            .map(String::into_bytes)
-            .unwrap_or_default()
+        let mut out = self.due(now);
+        if let Some(line) = self.device.tick(now) {
+            out.extend(line.into_bytes());
+        }
+        out
     }
 }
 

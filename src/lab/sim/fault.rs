@@ -1,7 +1,9 @@
-//! Injected faults: `KIND:DEVICE[:after=K][:count=M]` (see [`crate::lab::sim`], *Faults*).
+//! Injected faults: `KIND:DEVICE[:after=K][:count=M][:seconds=S]` (see
+//! [`crate::lab::sim`], *Faults*).
 
 use std::fmt;
 use std::str::FromStr;
+use std::time::Duration;
 
 /// Which simulated device.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -45,7 +47,34 @@ pub enum FaultKind {
     Disable,
     /// The device closes its port.
     Close,
+    /// Replies are sent late, by the fault's `seconds`; later replies wait behind them
+    /// (a device answers in order).
+    Late,
+    /// Replies are sent twice.
+    Duplicated,
+    /// A line in the form of a reply, that nothing asked for, is sent just before the
+    /// reply.
+    Unsolicited,
+    /// A reply is held back and sent after the next one: two consecutive replies
+    /// swapped.
+    Swapped,
+    /// The previous reply is sent again instead of the reply (a stale value).
+    Stale,
 }
+
+/// Every fault kind, in the order of the documentation.
+pub const FAULT_KINDS: [FaultKind; 10] = [
+    FaultKind::LostReply,
+    FaultKind::Garbled,
+    FaultKind::XInvalid,
+    FaultKind::Disable,
+    FaultKind::Close,
+    FaultKind::Late,
+    FaultKind::Duplicated,
+    FaultKind::Unsolicited,
+    FaultKind::Swapped,
+    FaultKind::Stale,
+];
 
 impl FaultKind {
     /// The devices that can have this fault: `an autocollimator`, `the table` or `any
@@ -54,7 +83,7 @@ impl FaultKind {
         match self {
             FaultKind::XInvalid => "an autocollimator",
             FaultKind::Disable => "the table",
-            FaultKind::LostReply | FaultKind::Garbled | FaultKind::Close => "any device",
+            _ => "any device",
         }
     }
 
@@ -63,7 +92,7 @@ impl FaultKind {
         match self {
             FaultKind::XInvalid => device != DeviceId::Table,
             FaultKind::Disable => device == DeviceId::Table,
-            FaultKind::LostReply | FaultKind::Garbled | FaultKind::Close => true,
+            _ => true,
         }
     }
 
@@ -75,11 +104,25 @@ impl FaultKind {
             FaultKind::XInvalid => "x-invalid",
             FaultKind::Disable => "disable",
             FaultKind::Close => "close",
+            FaultKind::Late => "late",
+            FaultKind::Duplicated => "duplicated",
+            FaultKind::Unsolicited => "unsolicited",
+            FaultKind::Swapped => "swapped",
+            FaultKind::Stale => "stale",
         }
+    }
+
+    /// Whether the fault acts on a device's replies on the wire (the endpoint's), not
+    /// inside the device.
+    pub fn acts_on_replies(self) -> bool {
+        !matches!(self, FaultKind::XInvalid | FaultKind::Disable)
     }
 }
 
-/// One injected fault: `KIND:DEVICE[:after=K][:count=M]`.
+/// The default lateness of a `late` fault.
+pub const DEFAULT_LATE: Duration = Duration::from_millis(1500);
+
+/// One injected fault: `KIND:DEVICE[:after=K][:count=M][:seconds=S]`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub struct Fault {
@@ -89,16 +132,18 @@ pub struct Fault {
     pub device: DeviceId,
     /// Events (measurements or moves) before the fault is armed.
     pub after: u64,
-    /// How many replies or measurements it hits (lost-reply, garbled, x-invalid).
+    /// How many replies or measurements it hits (all kinds but `disable` and `close`).
     pub count: u64,
+    /// How late a `late` fault's replies are ([`DEFAULT_LATE`] unless given).
+    pub late: Duration,
 }
 
 /// The form of a fault, for messages.
-const FORM: &str = "KIND:DEVICE[:after=K][:count=M], e.g. lost-reply:ac1:after=10";
+const FORM: &str = "KIND:DEVICE[:after=K][:count=M][:seconds=S], e.g. lost-reply:ac1:after=10 or late:ac2:seconds=1.3";
 
 /// A fault specification that could not be read: which one, and what is wrong with it.
 ///
-/// Displayed as `fault "SPEC": PROBLEM (expected KIND:DEVICE[:after=K][:count=M], …)`.
+/// Displayed as `fault "SPEC": PROBLEM (expected KIND:DEVICE[:after=K][:count=M][:seconds=S], …)`.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("fault \"{spec}\": {problem} (expected {FORM})")]
 #[non_exhaustive]
@@ -116,8 +161,10 @@ pub enum FaultProblem {
     /// Fewer than two `:`-separated parts.
     #[error("too few parts")]
     TooFewParts,
-    /// A kind that is not one of the five.
-    #[error("unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close)")]
+    /// A kind that is not one of [`FAULT_KINDS`].
+    #[error(
+        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale)"
+    )]
     UnknownKind(String),
     /// A device that is not `ac1`, `ac2` or `table`.
     #[error("unknown device \"{0}\" (ac1, ac2, table)")]
@@ -127,7 +174,7 @@ pub enum FaultProblem {
     #[error("{} is a fault of {}", .0.as_str(), .0.devices())]
     WrongDevice(FaultKind),
     /// An option that is not `NAME=VALUE`.
-    #[error("\"{0}\" is not after=K or count=M")]
+    #[error("\"{0}\" is not after=K, count=M or seconds=S")]
     NotAnOption(String),
     /// An option value that is not a whole number.
     #[error("\"{0}\" is not a whole number")]
@@ -135,9 +182,15 @@ pub enum FaultProblem {
     /// `count=0`.
     #[error("count must be at least 1")]
     ZeroCount,
-    /// An option other than `after` and `count`.
+    /// An option other than `after`, `count` and `seconds`.
     #[error("unknown option \"{0}\"")]
     UnknownOption(String),
+    /// `seconds=S` of a fault other than `late`.
+    #[error("seconds=S is an option of late")]
+    SecondsNotLate,
+    /// `seconds=S` that is not a number of seconds from 0.001 to 3600.
+    #[error("seconds \"{0}\" must be a number of seconds from 0.001 to 3600")]
+    BadSeconds(String),
 }
 
 impl FromStr for Fault {
@@ -161,13 +214,8 @@ impl FromStr for Fault {
         let [kind, device, options @ ..] = parts.as_slice() else {
             return Err(bad(FaultProblem::TooFewParts));
         };
-        let kind = match *kind {
-            "lost-reply" => FaultKind::LostReply,
-            "garbled" => FaultKind::Garbled,
-            "x-invalid" => FaultKind::XInvalid,
-            "disable" => FaultKind::Disable,
-            "close" => FaultKind::Close,
-            other => return Err(bad(FaultProblem::UnknownKind(other.to_string()))),
+        let Some(kind) = FAULT_KINDS.into_iter().find(|k| k.as_str() == *kind) else {
+            return Err(bad(FaultProblem::UnknownKind(kind.to_string())));
         };
         let device = match *device {
             "ac1" => DeviceId::Ac1,
@@ -183,6 +231,18 @@ impl FromStr for Fault {
             let (key, value) = option
                 .split_once('=')
                 .ok_or_else(|| bad(FaultProblem::NotAnOption(option.to_string())))?;
+            if key == "seconds" {
+                if kind != FaultKind::Late {
+                    return Err(bad(FaultProblem::SecondsNotLate));
+                }
+                fault.late = match value.parse::<f64>() {
+                    Ok(s) if s.is_finite() && (0.001..=3600.0).contains(&s) => {
+                        Duration::from_secs_f64(s)
+                    }
+                    _ => return Err(bad(FaultProblem::BadSeconds(value.to_string()))),
+                };
+                continue;
+            }
             let n: u64 = value
                 .parse()
                 .map_err(|_| bad(FaultProblem::NotAWholeNumber(value.to_string())))?;
@@ -205,7 +265,14 @@ impl Fault {
             device,
             after: 0,
             count: 1,
+            late: DEFAULT_LATE,
         }
+    }
+
+    /// Makes a `late` fault's replies late by `late`.
+    pub fn with_late(mut self, late: Duration) -> Fault {
+        self.late = late;
+        self
     }
 
     /// Arms the fault after `after` events (measurements or moves).
@@ -230,6 +297,10 @@ impl fmt::Display for Fault {
             self.device,
             self.after,
             self.count
-        )
+        )?;
+        if self.kind == FaultKind::Late {
+            write!(f, ":seconds={}", self.late.as_secs_f64())?;
+        }
+        Ok(())
     }
 }

@@ -182,4 +182,10 @@ impl SimDevice for Smc100Sim {
     fn events(&self) -> u64 {
         self.moves
     }
+
+    /// A position reply 1° beyond where the table is.
+    fn unsolicited(&mut self, now: Instant) -> String {
+        let position = lock(&self.world).encoder_position(now);
+        format!("1TP{}\r\n", format_position(position + 1.0))
+    }
 }

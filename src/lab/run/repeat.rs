@@ -1,0 +1,273 @@
+//! A reading tied to its stop: each autocollimator is read several times at a stop, and
+//! a reading is stored only when the last [`RunSettings::reads_per_stop`] readings agree
+//! within [`RunSettings::agreement_arcsec`]; their mean is stored (docs/FORMAT.md §7.3,
+//! *No reading on the wrong stop*).
+//!
+//! What the drivers cannot see — a reply that belongs to another query but looks like a
+//! good one — shows here: a value carried over from an earlier stop (a stale reply, the
+//! very same X, Y and status as the device's last reply at an earlier stop) is refused,
+//! and a value from anywhere else (an unsolicited line, a late or swapped reply) does not
+//! agree with the readings around it. (The same value at the same table angle — the
+//! closing stop at 360° and the next cycle's first at 0° — is no sign of staleness: a
+//! steady instrument reads it again.) Every refused reading is recorded in the traffic
+//! log as `refused`, with why.
+
+use super::RunSettings;
+use crate::lab::traffic::TrafficLog;
+use crate::lab::{AcReading, Autocollimator, InstrumentError};
+
+/// Readings beyond [`RunSettings::reads_per_stop`] an autocollimator may be asked for at
+/// one stop before the run gives up on it.
+pub const EXTRA_READS: u32 = 4;
+
+/// One autocollimator's readings at one stop, accepted.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct StopReading {
+    /// The mean X of the agreeing readings, arcsec.
+    pub(super) x_arcsec: f64,
+    /// The mean Y of the agreeing readings when every one has a valid Y, arcsec.
+    pub(super) y_arcsec: Option<f64>,
+    /// Readings taken and not used (refused or not among the agreeing ones).
+    pub(super) refused: usize,
+}
+
+/// Why an autocollimator gave no reading that can be tied to its stop.
+#[derive(Debug)]
+pub(super) enum RepeatError {
+    /// The instrument failed.
+    Instrument(InstrumentError),
+    /// Every reading was taken, and no `reads_per_stop` consecutive ones agreed.
+    NoAgreement(String),
+}
+
+/// What the run remembers of one autocollimator between stops.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct DeviceMemory {
+    /// Its last reply at an earlier stop, and that stop's table angle (degrees, 0 … 360).
+    last_at_earlier_stop: Option<(AcReading, f64)>,
+}
+
+/// A table angle in 0 … 360°.
+fn turn(angle_deg: f64) -> f64 {
+    angle_deg.rem_euclid(360.0)
+}
+
+/// Reads `device` at the current stop until `settings.reads_per_stop` consecutive
+/// readings agree (at most that many plus [`EXTRA_READS`]). `label` names the device in
+/// the traffic log (`ac1`), `role` in messages (`autocollimator 1`), `at` the stop;
+/// `angle_deg` is the stop's table angle.
+pub(super) fn read_at_stop(
+    device: &mut dyn Autocollimator,
+    memory: &mut DeviceMemory,
+    settings: &RunSettings,
+    traffic: Option<&TrafficLog>,
+    (label, role, at): (&str, &str, &str),
+    angle_deg: f64,
+) -> Result<StopReading, RepeatError> {
+    let here = turn(angle_deg);
+    let stale_value = memory
+        .last_at_earlier_stop
+        .filter(|&(_, angle)| (angle - here).abs() > 1e-9)
+        .map(|(reading, _)| reading);
+    let needed = settings.reads_per_stop.max(2) as usize;
+    let most = needed + EXTRA_READS as usize;
+    let tolerance = settings.agreement_arcsec();
+    let port = device.port().to_string();
+    let refuse = |reading: &AcReading, why: &str| {
+        if let Some(log) = traffic {
+            log.record(
+                label,
+                &port,
+                "refused",
+                &format!("{} ({why})", text(reading)),
+            );
+        }
+    };
+    let mut taken: Vec<AcReading> = Vec::new();
+    let mut asked = 0;
+    let mut stale = 0;
+    let mut last_here: Option<AcReading> = None;
+    while asked < most {
+        asked += 1;
+        let reading = device.measure().map_err(RepeatError::Instrument)?;
+        last_here = Some(reading);
+        if stale_value == Some(reading) {
+            stale += 1;
+            refuse(
+                &reading,
+                "stale: the same X, Y and status as the last reply at an earlier stop",
+            );
+            continue;
+        }
+        taken.push(reading);
+        if taken.len() < needed {
+            continue;
+        }
+        let window = &taken[taken.len() - needed..];
+        let spread = spread(window);
+        if spread <= tolerance {
+            memory.last_at_earlier_stop = last_here.map(|r| (r, here));
+            for early in &taken[..taken.len() - needed] {
+                refuse(early, "does not agree with the readings after it");
+            }
+            return Ok(StopReading {
+                x_arcsec: mean(window.iter().map(|r| r.x_arcsec)),
+                y_arcsec: window
+                    .iter()
+                    .map(|r| r.y_arcsec)
+                    .collect::<Option<Vec<f64>>>()
+                    .map(|y| mean(y.into_iter())),
+                refused: asked - needed,
+            });
+        }
+    }
+    memory.last_at_earlier_stop = last_here.map(|r| (r, here));
+    for reading in &taken {
+        refuse(reading, "no agreement at this stop");
+    }
+    let values: Vec<String> = taken.iter().map(|r| format!("{}", r.x_arcsec)).collect();
+    Err(RepeatError::NoAgreement(format!(
+        "{role} ({port}) at {at}: no {needed} consecutive readings of {asked} agreed within \
+         {tolerance:.3}″ (5·√2 times the stated reading noise {}″): X {}{}; the reading is \
+         not stored — check the autocollimator, the polygon's mounting and the air, or state \
+         the autocollimator's real noise",
+        settings.reading_noise_arcsec,
+        if values.is_empty() {
+            "none".to_string()
+        } else {
+            values.join(", ")
+        },
+        if stale > 0 {
+            format!(" ({stale} stale repeated from an earlier stop)")
+        } else {
+            String::new()
+        }
+    )))
+}
+
+/// The largest minus the smallest X, arcsec.
+fn spread(readings: &[AcReading]) -> f64 {
+    let (lo, hi) = readings
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+            (lo.min(r.x_arcsec), hi.max(r.x_arcsec))
+        });
+    hi - lo
+}
+
+fn mean(values: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    sum / n as f64
+}
+
+/// A reading as the log shows it: `status 003, X 12.345, Y -1.234`.
+fn text(reading: &AcReading) -> String {
+    match reading.y_arcsec {
+        Some(y) => format!(
+            "status {:03}, X {}, Y {y}",
+            reading.status, reading.x_arcsec
+        ),
+        None => format!("status {:03}, X {}", reading.status, reading.x_arcsec),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An autocollimator that gives a list of X values, Y 0.
+    struct Replay(Vec<f64>);
+
+    impl Autocollimator for Replay {
+        fn port(&self) -> &str {
+            "mem"
+        }
+        fn start(&mut self) -> Result<(), InstrumentError> {
+            Ok(())
+        }
+        fn identify(&mut self) -> Result<String, InstrumentError> {
+            Ok("replay".into())
+        }
+        fn measure(&mut self) -> Result<AcReading, InstrumentError> {
+            if self.0.is_empty() {
+                return Err(InstrumentError::Closed {
+                    port: "mem".into(),
+                    context: "end".into(),
+                });
+            }
+            Ok(AcReading::new(3, self.0.remove(0), Some(0.0)))
+        }
+    }
+
+    fn read(values: &[f64], memory: &mut DeviceMemory) -> Result<StopReading, RepeatError> {
+        read_at(values, memory, 0.0)
+    }
+
+    fn read_at(
+        values: &[f64],
+        memory: &mut DeviceMemory,
+        angle_deg: f64,
+    ) -> Result<StopReading, RepeatError> {
+        let settings = RunSettings::new(8, 1).with_reading_noise_arcsec(0.05); // 0.354″
+        read_at_stop(
+            &mut Replay(values.to_vec()),
+            memory,
+            &settings,
+            None,
+            ("ac1", "autocollimator 1", "cycle 1, step 0"),
+            angle_deg,
+        )
+    }
+
+    #[test]
+    fn two_agreeing_readings_give_their_mean() {
+        let r = read(&[1.0, 1.2], &mut DeviceMemory::default()).unwrap();
+        assert!((r.x_arcsec - 1.1).abs() < 1e-12);
+        assert_eq!((r.y_arcsec, r.refused), (Some(0.0), 0));
+    }
+
+    #[test]
+    fn a_reading_from_elsewhere_is_outvoted_and_counted() {
+        // 99″ off (an unsolicited line), then two that agree.
+        let r = read(&[100.0, 1.0, 1.1], &mut DeviceMemory::default()).unwrap();
+        assert!((r.x_arcsec - 1.05).abs() < 1e-12);
+        assert_eq!(r.refused, 1);
+        // 0.36″ apart is beyond 5·√2·0.05″ = 0.3536″; 0.35″ is within.
+        let r = read(&[1.0, 1.36, 1.5], &mut DeviceMemory::default()).unwrap();
+        assert_eq!(r.refused, 1);
+        assert!((r.x_arcsec - 1.43).abs() < 1e-12);
+        let r = read(&[1.0, 1.35], &mut DeviceMemory::default()).unwrap();
+        assert_eq!(r.refused, 0);
+    }
+
+    #[test]
+    fn a_value_repeated_from_an_earlier_stop_is_refused() {
+        let mut memory = DeviceMemory::default();
+        read_at(&[5.0, 5.0], &mut memory, 0.0).unwrap();
+        // The next stop's first reply is the last one again (stale): not used.
+        let r = read_at(&[5.0, 5.1, 5.2], &mut memory, 45.0).unwrap();
+        assert!((r.x_arcsec - 5.15).abs() < 1e-12);
+        assert_eq!(r.refused, 1);
+        // At the same table angle (360° after 0°... here 405° after 45°) a steady
+        // instrument may read the very same value again.
+        let r = read_at(&[5.2, 5.2], &mut memory, 405.0).unwrap();
+        assert_eq!((r.x_arcsec, r.refused), (5.2, 0));
+    }
+
+    #[test]
+    fn readings_that_never_agree_end_in_an_error_naming_them() {
+        let e = read(
+            &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0],
+            &mut DeviceMemory::default(),
+        )
+        .unwrap_err();
+        let RepeatError::NoAgreement(message) = e else {
+            panic!("{e:?}")
+        };
+        assert!(
+            message.contains("no 2 consecutive readings of 6 agreed within 0.354″"),
+            "{message}"
+        );
+        assert!(message.contains("X 0, 1, 2, 3, 4, 5"), "{message}");
+    }
+}
