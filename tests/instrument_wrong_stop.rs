@@ -50,12 +50,6 @@ fn config(faults: Vec<Fault>) -> LabConfig {
     .with_faults(faults)
 }
 
-/// What autocollimator `ac` reads at `step` with the table at `encoder_deg`, without noise.
-fn truth_at(truth: &Truth, step: usize, ac: u32, encoder_deg: f64) -> f64 {
-    let nominal = step as f64 * 360.0 / truth.faces as f64;
-    expected(truth, step, ac) + (encoder_deg - nominal) * 3600.0
-}
-
 /// One session against `devices`; the outcome.
 fn session(dir: &std::path::Path, devices: Devices, resume: bool) -> Outcome {
     let mut run = RunDir::open(dir, &settings(), &ports(), resume).unwrap();
@@ -83,7 +77,7 @@ fn assert_every_reading_at_its_stop(dir: &std::path::Path, truth: &Truth, what: 
     assert_eq!(set.readings.len(), settings().reading_count(), "{what}");
     for r in &set.readings {
         let encoder = r.encoder_degrees.unwrap();
-        let want = truth_at(truth, r.step, r.ac, encoder);
+        let want = expected_at(truth, r.step, r.ac, encoder);
         assert!(
             (r.reading_arcsec - want).abs() <= 6.0 * SIGMA,
             "{what}: cycle {} step {} ac {}: {} but {} at this stop",
@@ -103,9 +97,9 @@ fn the_stops_are_told_apart_by_the_check() {
     let truth = Devices::new(config(vec![])).unwrap().truth();
     for ac in [1, 2] {
         for step in 0..8 {
-            let here = truth_at(&truth, step, ac, step as f64 * 45.0);
+            let here = expected_at(&truth, step, ac, step as f64 * 45.0);
             for other in [step + 1, (step + 7) % 8] {
-                let there = truth_at(&truth, other, ac, other as f64 * 45.0);
+                let there = expected_at(&truth, other, ac, other as f64 * 45.0);
                 assert!(
                     (here - there).abs() > 12.0 * SIGMA,
                     "ac {ac} steps {step} and {other}: {here} vs {there}"

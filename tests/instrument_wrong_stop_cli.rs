@@ -7,8 +7,10 @@
 #![cfg(unix)]
 
 mod instrument_support;
+mod lab_support;
 
 use instrument_support::*;
+use lab_support::expected_at;
 use polycal::measurement::MeasurementSet;
 use polycal::simulate::Truth;
 use serde_json::Value;
@@ -65,13 +67,7 @@ fn assert_at_their_stops(out: &std::path::Path, truth: &Truth, fault: &str) {
     let set = MeasurementSet::read_path(&out.join("measurements.csv"), None).unwrap();
     assert_eq!(set.readings.len(), 36);
     for r in &set.readings {
-        let n = truth.faces;
-        let face = (r.step + r.ac as usize - 1) % n + 1;
-        let nominal = r.step as f64 * 360.0 / n as f64;
-        let want = truth.encoder_error[r.step % n]
-            + truth.face_deviation_at(face)
-            + truth.setup_error_of(1, r.ac).unwrap_or(0.0)
-            + (r.encoder_degrees.unwrap() - nominal) * 3600.0;
+        let want = expected_at(truth, r.step, r.ac, r.encoder_degrees.unwrap());
         assert!(
             (r.reading_arcsec - want).abs() <= 6.0 * SIGMA,
             "{fault}: cycle {} step {} ac {}: {} but {want} at this stop",

@@ -66,6 +66,13 @@ pub fn expected(truth: &Truth, step: usize, ac: u32) -> f64 {
         + truth.setup_error_of(1, ac).unwrap_or(0.0)
 }
 
+/// What autocollimator `ac` reads at `step` with the table at `encoder_deg` (its offset
+/// from the nominal stop added), without noise.
+pub fn expected_at(truth: &Truth, step: usize, ac: u32, encoder_deg: f64) -> f64 {
+    let nominal = step as f64 * 360.0 / truth.faces as f64;
+    expected(truth, step, ac) + (encoder_deg - nominal) * 3600.0
+}
+
 /// A path for a run directory of this test (removed if it exists).
 pub fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("polycal-inst-run-{}-{name}", std::process::id()));
