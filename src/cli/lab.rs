@@ -10,7 +10,7 @@ use clap::ValueEnum;
 use polycal::lab::QueryOptions;
 use polycal::lab::elcomat::Elcomat3000;
 use polycal::lab::run::{
-    self, Instruments, Outcome, Ports, Progress, RunDir, RunError, RunSettings,
+    self, CycleCheck, Instruments, Outcome, Ports, Progress, RunDir, RunError, RunSettings,
 };
 use polycal::lab::serial::{SerialSettings, SerialTransport};
 #[cfg(unix)]
@@ -279,7 +279,14 @@ fn run_session(
     let bar = out.bar();
     bar.set_style(output::style("[{bar:30}] {msg}"));
     interrupts.show_progress(&bar);
-    let mut on_progress = |p: &Progress| show_progress(&bar, p);
+    let mut checks: Vec<CycleCheck> = Vec::new();
+    let mut on_progress = |p: &Progress| {
+        show_progress(&bar, p);
+        if let Some(check) = &p.cycle_check {
+            bar.suspend(|| show_cycle_check(out, check));
+            checks.push(check.clone());
+        }
+    };
     let before = dir.readings_done();
     let outcome = run::measure(
         &mut dir,
@@ -295,7 +302,112 @@ fn run_session(
     bar.finish_and_clear();
     let outcome = outcome?;
     let recorded = dir.finish(&outcome);
+    if outcome == Outcome::Completed && recorded.is_ok() {
+        summary(args, out, &dir, &checks);
+    }
     ended(args, out, &dir, &outcome, recorded, before)
+}
+
+/// What the check after a cycle found, as it is found: one line for the cycle, one per
+/// reading measured again or suspect, a `warning:` line per warning.
+fn show_cycle_check(out: &Output, check: &CycleCheck) {
+    let closure = check
+        .closure_arcsec
+        .iter()
+        .map(|(ac, c)| format!("ac{ac} {c:+.4}″"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let rms = match (
+        check.residual_rms_arcsec,
+        check.previous_residual_rms_arcsec,
+    ) {
+        (Some(now), Some(before)) => {
+            format!("residual RMS {now:.4}″ (cycles before {before:.4}″)")
+        }
+        (Some(now), None) => format!("residual RMS {now:.4}″"),
+        _ => "residual RMS: too few readings yet".to_string(),
+    };
+    let closure = if closure.is_empty() {
+        String::new()
+    } else {
+        format!("closure {closure} · ")
+    };
+    out.info(format_args!("cycle {}: {closure}{rms}", check.cycle));
+    for r in &check.remeasured {
+        out.info(format_args!(
+            "  measured again: cycle {}, step {}, autocollimator {}: {}″ (residual {:+.4}″, σ {:.4}″) replaced by {}″",
+            r.cycle, r.step, r.ac, r.first_arcsec, r.residual_arcsec, r.sigma_arcsec, r.reading_arcsec
+        ));
+    }
+    for r in &check.suspect {
+        out.warning(format_args!(
+            "cycle {}, step {}, autocollimator {}: {}″ lies {:+.4}″ off the fit (σ {:.4}″), and measuring its stop again gave {}″: kept, and named suspect in the manifest",
+            r.cycle, r.step, r.ac, r.reading_arcsec, r.residual_arcsec, r.sigma_arcsec, r.measured_again_arcsec
+        ));
+    }
+    for w in &check.warnings {
+        out.warning(w);
+    }
+}
+
+/// The end of a completed run: readings, what was measured again, closure and residual
+/// RMS per cycle, the diagnosis of the file, and the commands that evaluate it.
+fn summary(args: &RunArgs, out: &Output, dir: &RunDir, checks: &[CycleCheck]) {
+    let m = dir.manifest();
+    let file = args.out.join(run::MEASUREMENTS);
+    out.info(format_args!(
+        "polycal run: {} readings in {}; {} measured again, {} suspect (manifest.json)",
+        dir.readings_done(),
+        file.display(),
+        m.remeasured.len(),
+        m.suspect.len()
+    ));
+    for check in checks {
+        let closure = check
+            .closure_arcsec
+            .iter()
+            .map(|(ac, c)| format!("ac{ac} {c:+.4}″"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let rms = check
+            .residual_rms_arcsec
+            .map_or("—".to_string(), |r| format!("{r:.4}″"));
+        out.info(format_args!(
+            "  cycle {}: closure {} · residual RMS {rms}",
+            check.cycle,
+            if closure.is_empty() {
+                "—".into()
+            } else {
+                closure
+            }
+        ));
+    }
+    let verdict = polycal::MeasurementSet::read_path(&file, None)
+        .map_err(|e| e.to_string())
+        .and_then(|set| {
+            polycal::diagnose::diagnose(&set, &polycal::diagnose::DiagnoseOptions::default())
+                .map_err(|e| e.to_string())
+        });
+    match verdict {
+        Ok(d) => out.info(format_args!(
+            "  diagnose: {}, {} effect(s) found, residual RMS {}",
+            if d.adequacy.adequate {
+                "adequate"
+            } else {
+                "NOT adequate"
+            },
+            d.effects.len(),
+            d.after
+                .residual_rms()
+                .map_or("—".to_string(), |r| format!("{r:.4}″"))
+        )),
+        Err(e) => out.info(format_args!("  diagnose: could not evaluate the file: {e}")),
+    }
+    out.info(format_args!(
+        "  evaluate: polycal diagnose {f} · polycal solve {f} --budget B.toml · polycal report {f} --run-dir {d} --diagnose --budget B.toml --out {d}/report.html",
+        f = file.display(),
+        d = args.out.display()
+    ));
 }
 
 /// The end of a session: its summary (status 0) or its `error:` line, which says when
@@ -330,7 +442,9 @@ fn ended(
                 done - before,
                 file.display()
             ));
-            return Ok(0);
+            // Status 1: complete, with readings measured again or suspect (§8).
+            let m = dir.manifest();
+            return Ok(u8::from(!m.remeasured.is_empty() || !m.suspect.is_empty()));
         }
         Outcome::Interrupted => "run interrupted (table stopped)".to_string(),
         Outcome::InstrumentError(message) if message.contains(NOISE_ADVICE) => {

@@ -193,6 +193,11 @@ impl LineFile {
         &self.path
     }
 
+    /// Takes note that the file was renamed to `path`.
+    pub(crate) fn renamed(&mut self, path: PathBuf) {
+        self.path = path;
+    }
+
     /// Puts its data on disk (`fsync` of the data).
     pub(crate) fn sync_data(&self) -> io::Result<()> {
         self.file().sync_data()

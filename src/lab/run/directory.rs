@@ -25,6 +25,8 @@ pub const MEASUREMENTS: &str = "measurements.csv";
 pub const MANIFEST: &str = "manifest.json";
 /// The traffic log's name in the run directory.
 pub const TRAFFIC: &str = "traffic.jsonl";
+/// The run directory's record of the first values of readings measured again.
+pub const REMEASURED: &str = "remeasured.csv";
 
 /// The columns of the run's measurement file, in order:
 /// `cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder`.
@@ -176,6 +178,8 @@ impl RunDir {
             readings: 0,
             expected_readings: settings.reading_count(),
             sessions: Vec::new(),
+            remeasured: Vec::new(),
+            suspect: Vec::new(),
         };
         let path = dir.join(MEASUREMENTS);
         let file = LineFile::open(&path, true, budget)
@@ -327,6 +331,101 @@ impl RunDir {
         self.done.insert((reading.cycle, reading.step, reading.ac));
         on_disk.readings = self.done.len();
         Ok(())
+    }
+
+    /// Replaces the reading `first` in the measurement file by `again`, the same
+    /// reading (cycle, step, autocollimator) measured again at its stop, and records it
+    /// in the manifest as `record`:
+    ///
+    /// 1. `first`'s row is appended to `remeasured.csv` (with the measurement file's
+    ///    header when the file is new) and synced: it is never lost;
+    /// 2. the measurement file is written anew beside (`measurements.csv.tmp`, locked,
+    ///    synced) with `again`'s row in `first`'s place and renamed over the old one, so
+    ///    that it holds either the one or the other, whole;
+    /// 3. the manifest lists `record` under `remeasured`.
+    ///
+    /// # Errors
+    ///
+    /// [`RunError::Io`] naming the file that could not be written (the measurement file
+    /// is then the one before); [`RunError::Closed`] after an [`AbortHandle::abort`].
+    pub(super) fn replace_reading(
+        &mut self,
+        first: &Reading,
+        again: &Reading,
+        record: super::Remeasured,
+    ) -> Result<(), RunError> {
+        let path = self.dir.join(MEASUREMENTS);
+        let record_path = self.dir.join(REMEASURED);
+        {
+            let on_disk = abort::lock(&self.shared);
+            if on_disk.closed {
+                return Err(RunError::Closed { path });
+            }
+            let mut kept = LineFile::open(&record_path, false, &self.budget)
+                .map_err(io_error(&record_path))?;
+            let mut lines = String::new();
+            if kept.file().metadata().map(|m| m.len()).unwrap_or(0) == 0 {
+                lines.push_str(&self.measurements.columns().header());
+                lines.push('\n');
+            }
+            lines.push_str(&self.row(first));
+            lines.push('\n');
+            kept.append_line(lines.as_bytes())
+                .and_then(|()| kept.sync_data())
+                .map_err(io_error(&record_path))?;
+
+            let text = fs::read_to_string(&path).map_err(io_error(&path))?;
+            let key = format!("{},{},{},", first.cycle, first.step, first.ac);
+            let mut found = false;
+            let mut rewritten = String::with_capacity(text.len() + 64);
+            for line in text.lines() {
+                if !found && line.starts_with(&key) {
+                    found = true;
+                    rewritten.push_str(&self.row(again));
+                } else {
+                    rewritten.push_str(line);
+                }
+                rewritten.push('\n');
+            }
+            if !found {
+                return Err(io_error(&path)(io::Error::other(format!(
+                    "no row of cycle {}, step {}, autocollimator {} to replace",
+                    first.cycle, first.step, first.ac
+                ))));
+            }
+            let tmp = self.dir.join(format!("{MEASUREMENTS}.tmp"));
+            let _ = fs::remove_file(&tmp);
+            let mut file = LineFile::open(&tmp, true, &self.budget).map_err(io_error(&path))?;
+            lock_exclusive(file.file(), &path)?;
+            let written = file
+                .append_line(rewritten.as_bytes())
+                .and_then(|()| file.file().sync_all())
+                .and_then(|()| fs::rename(&tmp, &path));
+            if let Err(e) = written {
+                drop(file);
+                let _ = fs::remove_file(&tmp);
+                return Err(io_error(&path)(e));
+            }
+            if let Ok(d) = File::open(&self.dir) {
+                let _ = d.sync_all();
+            }
+            file.renamed(path.clone());
+            let columns = self.measurements.columns().clone();
+            // The old file's lock goes with its handle; the new one is locked already.
+            self.measurements = ReadingWriter::resume(file, columns);
+        }
+        self.manifest.remeasured.push(record);
+        self.write_manifest(false)
+    }
+
+    /// Lists `suspect` in the manifest.
+    ///
+    /// # Errors
+    ///
+    /// As [`RunDir::finish`].
+    pub(super) fn record_suspect(&mut self, suspect: super::Suspect) -> Result<(), RunError> {
+        self.manifest.suspect.push(suspect);
+        self.write_manifest(false)
     }
 
     /// The row `reading` has (or would have) in the measurement file, without its line

@@ -115,6 +115,13 @@ pub struct Manifest {
     pub expected_readings: usize,
     /// Every session, oldest first.
     pub sessions: Vec<Session>,
+    /// Readings measured again at the end of their cycle because they lay far beyond
+    /// the run's noise; their first values are in `remeasured.csv` (docs/FORMAT.md §7.3).
+    #[serde(default)]
+    pub remeasured: Vec<super::Remeasured>,
+    /// Readings far beyond the run's noise that measuring their stop again confirmed.
+    #[serde(default)]
+    pub suspect: Vec<super::Suspect>,
 }
 
 /// The software of this build, e.g. `polycal 0.1.0`.

@@ -5,11 +5,13 @@
 use std::fmt;
 use std::time::{Duration, Instant};
 
+use super::live::{self, Cell, CycleCheck, MAX_REMEASURED_PER_CYCLE};
 use super::repeat::{DeviceMemory, RepeatError, read_at_stop};
-use super::{Identification, RunDir, RunError, TRAFFIC};
+use super::{Identification, MEASUREMENTS, Remeasured, RunDir, RunError, Suspect, TRAFFIC};
 use crate::lab::traffic::TrafficLog;
 use crate::lab::{Autocollimator, InstrumentError, RotaryTable, StopFlag};
 use crate::measurement::{Direction, Reading};
+use crate::measurement::{MeasurementSet, Stop};
 
 /// How a measuring session ended.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -72,7 +74,7 @@ impl fmt::Debug for Instruments<'_> {
 }
 
 /// Where a run is, for a progress display.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub struct Progress {
     /// Readings on disk.
@@ -90,6 +92,9 @@ pub struct Progress {
     /// Readings taken in this session and not stored: refused (stale, not agreeing
     /// with the others at their stop) or beyond the agreeing ones.
     pub refused: usize,
+    /// At the end of a cycle: what the check of the run so far found (docs/FORMAT.md
+    /// §7.3, *Checked while it runs*), after any reading it measured again.
+    pub cycle_check: Option<CycleCheck>,
 }
 
 /// Starts and identifies the instruments, then measures every remaining reading of
@@ -194,7 +199,10 @@ fn measure_stops(
     let settle = Duration::try_from_secs_f64(settings.settle_seconds).unwrap_or(Duration::ZERO);
     let mut memory = [DeviceMemory::default(); 2];
     let mut refused = 0;
-    for (stop, acs) in run.remaining() {
+    let remaining = run.remaining();
+    let mut handled: Vec<Cell> = Vec::new();
+    for (index, (stop, acs)) in remaining.iter().enumerate() {
+        let stop = *stop;
         if stop_flag.is_set() {
             return Outcome::Interrupted;
         }
@@ -214,58 +222,7 @@ fn measure_stops(
         if stop_flag.sleep(settle) {
             return Outcome::Interrupted;
         }
-        for ac in acs {
-            if stop_flag.is_set() {
-                return Outcome::Interrupted;
-            }
-            let device: &mut dyn Autocollimator = if ac == 1 { &mut *ac1 } else { &mut *ac2 };
-            let role = ROLES[ac as usize - 1];
-            let at = format!("cycle {}, step {}", stop.cycle, stop.step);
-            let label = if ac == 1 { "ac1" } else { "ac2" };
-            let taken = read_at_stop(
-                device,
-                &mut memory[ac as usize - 1],
-                &settings,
-                traffic,
-                (label, role, &at),
-                stop.degrees(settings.faces),
-            );
-            let (x_arcsec, y_arcsec) = match taken {
-                Ok(r) => {
-                    refused += r.refused;
-                    (r.x_arcsec, r.y_arcsec)
-                }
-                Err(RepeatError::Instrument(e)) => return Outcome::from_instrument(role, e),
-                Err(RepeatError::NoAgreement(message)) => {
-                    return Outcome::InstrumentError(message);
-                }
-            };
-            let reading = Reading {
-                setup: 1,
-                cycle: stop.cycle,
-                step: stop.step,
-                ac,
-                face: settings.face(ac, stop.step),
-                reading_arcsec: x_arcsec,
-                direction: stop.direction,
-                time_seconds: Some(run.clock.now()),
-                reading_y_arcsec: y_arcsec,
-                temperature_celsius: None,
-                encoder_degrees: Some(encoder),
-                line: 0,
-            };
-            // The reading was taken: when it cannot go on disk, say it, so that it is
-            // not lost with the file. Every reading on disk has its traffic logged.
-            let row = run.row(&reading);
-            let not_written = |e: &dyn fmt::Display| {
-                Outcome::FileError(format!("{e} (the reading not written: {row})"))
-            };
-            if let Some(Outcome::FileError(e)) = log_failure(run, traffic) {
-                return not_written(&e);
-            }
-            if let Err(e) = run.append(&reading) {
-                return not_written(&e);
-            }
+        let mut progress_now = |run: &RunDir, refused: usize, cycle_check: Option<CycleCheck>| {
             let done = run.readings_done();
             let this_session = done - before;
             let elapsed = session_start.elapsed().as_secs_f64();
@@ -282,8 +239,285 @@ fn measure_stops(
                 seconds_left: (this_session > 0)
                     .then(|| elapsed / this_session as f64 * (total - done) as f64),
                 refused,
+                cycle_check,
             });
+        };
+        for &ac in acs {
+            if stop_flag.is_set() {
+                return Outcome::Interrupted;
+            }
+            let devices: [&mut dyn Autocollimator; 2] = [&mut *ac1, &mut *ac2];
+            let taken = take_reading(
+                run,
+                devices,
+                &mut memory,
+                traffic,
+                stop,
+                ac,
+                encoder,
+                &mut refused,
+            );
+            let reading = match taken {
+                Ok(reading) => reading,
+                Err(outcome) => return outcome,
+            };
+            // The reading was taken: when it cannot go on disk, say it, so that it is
+            // not lost with the file. Every reading on disk has its traffic logged.
+            let row = run.row(&reading);
+            let not_written = |e: &dyn fmt::Display| {
+                Outcome::FileError(format!("{e} (the reading not written: {row})"))
+            };
+            if let Some(Outcome::FileError(e)) = log_failure(run, traffic) {
+                return not_written(&e);
+            }
+            if let Err(e) = run.append(&reading) {
+                return not_written(&e);
+            }
+            progress_now(run, refused, None);
+        }
+        let cycle_ends = remaining
+            .get(index + 1)
+            .is_none_or(|(next, _)| next.cycle != stop.cycle);
+        if cycle_ends {
+            let checked = check_cycle(
+                run,
+                Devices {
+                    acs: [&mut *ac1, &mut *ac2],
+                    table: &mut *table,
+                },
+                &mut memory,
+                stop_flag,
+                traffic,
+                stop.cycle,
+                &mut handled,
+                &mut refused,
+            );
+            match checked {
+                Ok(check) => progress_now(run, refused, Some(check)),
+                Err(outcome) => return outcome,
+            }
         }
     }
     Outcome::Completed
+}
+
+/// The instruments the check after a cycle drives.
+struct Devices<'a> {
+    acs: [&'a mut dyn Autocollimator; 2],
+    table: &'a mut dyn RotaryTable,
+}
+
+/// Reads autocollimator `ac` at `stop` (the table at `encoder`) until its readings agree
+/// and gives the reading to store; the outcome that ends the session otherwise.
+#[allow(clippy::too_many_arguments)]
+fn take_reading(
+    run: &RunDir,
+    devices: [&mut dyn Autocollimator; 2],
+    memory: &mut [DeviceMemory; 2],
+    traffic: Option<&TrafficLog>,
+    stop: Stop,
+    ac: u32,
+    encoder: f64,
+    refused: &mut usize,
+) -> Result<Reading, Outcome> {
+    let settings = &run.manifest.settings;
+    let i = ac as usize - 1;
+    let [first, second] = devices;
+    let device = if i == 0 { first } else { second };
+    let role = ROLES[i];
+    let at = format!("cycle {}, step {}", stop.cycle, stop.step);
+    let label = if ac == 1 { "ac1" } else { "ac2" };
+    let taken = read_at_stop(
+        device,
+        &mut memory[i],
+        settings,
+        traffic,
+        (label, role, &at),
+        stop.degrees(settings.faces),
+    );
+    let (x_arcsec, y_arcsec) = match taken {
+        Ok(r) => {
+            *refused += r.refused;
+            (r.x_arcsec, r.y_arcsec)
+        }
+        Err(RepeatError::Instrument(e)) => return Err(Outcome::from_instrument(role, e)),
+        Err(RepeatError::NoAgreement(message)) => return Err(Outcome::InstrumentError(message)),
+    };
+    Ok(Reading {
+        setup: 1,
+        cycle: stop.cycle,
+        step: stop.step,
+        ac,
+        face: settings.face(ac, stop.step),
+        reading_arcsec: x_arcsec,
+        direction: stop.direction,
+        time_seconds: Some(run.clock.now()),
+        reading_y_arcsec: y_arcsec,
+        temperature_celsius: None,
+        encoder_degrees: Some(encoder),
+        line: 0,
+    })
+}
+
+/// The check after `cycle` (module `live`): fits the measurement file as it is on disk,
+/// measures again the stop of the reading furthest beyond the run's noise (at most
+/// [`MAX_REMEASURED_PER_CYCLE`] stops, each cell once a session: `handled`) and
+/// replaces the reading of that stop's cell that disagrees with the new one (the
+/// flagged reading or, with two cycles, its twin), or names the flagged reading suspect
+/// when none does. Returns the cycle's summary.
+#[allow(clippy::too_many_arguments)]
+fn check_cycle(
+    run: &mut RunDir,
+    devices: Devices<'_>,
+    memory: &mut [DeviceMemory; 2],
+    stop_flag: &StopFlag,
+    traffic: Option<&TrafficLog>,
+    cycle: u32,
+    handled: &mut Vec<Cell>,
+    refused: &mut usize,
+) -> Result<CycleCheck, Outcome> {
+    let Devices {
+        acs: [ac1, ac2],
+        table,
+    } = devices;
+    let settings = run.manifest.settings.clone();
+    let path = run.dir.join(MEASUREMENTS);
+    let read = || MeasurementSet::read_path(&path, Some(settings.faces)).ok();
+    let mut remeasured = Vec::new();
+    let mut suspect = Vec::new();
+    let mut offsets = Vec::new();
+    for round in 0..=MAX_REMEASURED_PER_CYCLE {
+        let Some(set) = read() else {
+            break;
+        };
+        let fit = live::fit(&set, &settings);
+        if round == 0 {
+            offsets = live::summary(&set, fit.as_ref(), cycle).offsets;
+        }
+        let Some(fit) = fit else {
+            break;
+        };
+        if round == MAX_REMEASURED_PER_CYCLE {
+            break;
+        }
+        let Some(i) = live::worst(&fit, handled, &offsets) else {
+            break;
+        };
+        if stop_flag.is_set() {
+            return Err(Outcome::Interrupted);
+        }
+        let flagged = fit.readings[i].clone();
+        let residual = fit.residuals[i];
+        handled.push(live::cell(&flagged));
+        let stop = Stop {
+            cycle: flagged.cycle,
+            step: flagged.step,
+            direction: flagged.direction,
+        };
+        let encoder = match table.move_to(stop.degrees(settings.faces)) {
+            Ok(p) => p,
+            Err(e) => return Err(Outcome::from_instrument(ROLES[2], e)),
+        };
+        if let Some(failed) = log_failure(run, traffic) {
+            return Err(failed);
+        }
+        let settle = Duration::try_from_secs_f64(settings.settle_seconds).unwrap_or(Duration::ZERO);
+        if stop_flag.sleep(settle) {
+            return Err(Outcome::Interrupted);
+        }
+        let again = take_reading(
+            run,
+            [&mut *ac1, &mut *ac2],
+            memory,
+            traffic,
+            stop,
+            flagged.ac,
+            encoder,
+            refused,
+        )?;
+        // The reading of the cell furthest from the new one is replaced if it disagrees.
+        let tolerance = settings.agreement_arcsec();
+        let off = fit
+            .readings
+            .iter()
+            .filter(|r| live::cell(r) == live::cell(&flagged))
+            .max_by(|a, b| {
+                (a.reading_arcsec - again.reading_arcsec)
+                    .abs()
+                    .total_cmp(&(b.reading_arcsec - again.reading_arcsec).abs())
+            })
+            .filter(|r| (r.reading_arcsec - again.reading_arcsec).abs() > tolerance)
+            .cloned();
+        match off {
+            Some(first) => {
+                let residual_of_first = fit
+                    .readings
+                    .iter()
+                    .position(|r| (r.cycle, r.step, r.ac) == (first.cycle, first.step, first.ac))
+                    .map_or(residual, |j| fit.residuals[j]);
+                let replacement = Reading {
+                    cycle: first.cycle,
+                    ..again.clone()
+                };
+                let record = Remeasured {
+                    cycle: first.cycle,
+                    step: first.step,
+                    ac: first.ac,
+                    first_arcsec: first.reading_arcsec,
+                    reading_arcsec: replacement.reading_arcsec,
+                    residual_arcsec: residual_of_first,
+                    sigma_arcsec: fit.sigma,
+                    found_after_cycle: cycle,
+                };
+                if let Some(log) = traffic {
+                    log.record(
+                        "",
+                        "",
+                        "remeasured",
+                        &format!(
+                            "cycle {}, step {}, autocollimator {}: {}″ replaced by {}″ (residual {:+.4}″, σ {:.4}″)",
+                            first.cycle,
+                            first.step,
+                            first.ac,
+                            first.reading_arcsec,
+                            replacement.reading_arcsec,
+                            residual_of_first,
+                            fit.sigma
+                        ),
+                    );
+                }
+                if let Err(e) = run.replace_reading(&first, &replacement, record.clone()) {
+                    return Err(Outcome::FileError(format!(
+                        "{e} (the reading measured again not written: {})",
+                        run.row(&replacement)
+                    )));
+                }
+                remeasured.push(record);
+            }
+            None => {
+                let record = Suspect {
+                    cycle: flagged.cycle,
+                    step: flagged.step,
+                    ac: flagged.ac,
+                    reading_arcsec: flagged.reading_arcsec,
+                    measured_again_arcsec: again.reading_arcsec,
+                    residual_arcsec: residual,
+                    sigma_arcsec: fit.sigma,
+                    found_after_cycle: cycle,
+                };
+                if let Err(e) = run.record_suspect(record.clone()) {
+                    return Err(Outcome::FileError(e.to_string()));
+                }
+                suspect.push(record);
+            }
+        }
+    }
+    let set = read();
+    let mut check = match &set {
+        Some(set) => live::summary(set, live::fit(set, &settings).as_ref(), cycle),
+        None => live::unchecked(cycle),
+    };
+    check.remeasured = remeasured;
+    check.suspect = suspect;
+    Ok(check)
 }

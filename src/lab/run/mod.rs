@@ -86,6 +86,7 @@
 mod abort;
 mod directory;
 mod error;
+mod live;
 mod manifest;
 mod measure;
 mod repeat;
@@ -93,8 +94,12 @@ mod resume;
 mod settings;
 
 pub use abort::AbortHandle;
-pub use directory::{COLUMNS, MANIFEST, MEASUREMENTS, RunDir, TRAFFIC};
+pub use directory::{COLUMNS, MANIFEST, MEASUREMENTS, REMEASURED, RunDir, TRAFFIC};
 pub use error::RunError;
+pub use live::{
+    CycleCheck, MAX_REMEASURED_PER_CYCLE, MIN_DOF, OFFSET_SIGMAS, OUTLIER_SIGMAS, Remeasured,
+    Suspect,
+};
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
 pub use measure::{Instruments, Outcome, Progress, measure};
 pub use repeat::EXTRA_READS;

@@ -32,7 +32,10 @@
 //! `outlier` need. The world follows the run design of its [`SimulationConfig`](crate::simulate::SimulationConfig)
 //! (cycles, closing, bidirectional): each arrival of the table at a stop advances to the
 //! next planned stop with that step, unless the current one has not been read by both
-//! autocollimators yet (a resumed run comes back to it). Give `sim-lab` the run's
+//! autocollimators yet (a resumed run comes back to it). A visit to another step (a
+//! stop measured again at the end of a cycle) is off the plan: it reads with the cycle
+//! and direction of the run's current stop, without the truth's outliers (an outlier is
+//! one reading's), and does not move the run's place in the plan. Give `sim-lab` the run's
 //! `--cycles`, `--closing` and `--bidirectional` when you simulate such effects.
 //!
 //! # Faults

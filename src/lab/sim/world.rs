@@ -26,6 +26,9 @@ struct PlannedStop {
 struct Tracker {
     plan: Vec<PlannedStop>,
     current: Option<usize>,
+    /// The step of a visit off the plan (a stop measured again at the end of a cycle):
+    /// the run's place in the plan stays where it was.
+    off_plan: Option<usize>,
 }
 
 impl Tracker {
@@ -47,24 +50,39 @@ impl Tracker {
         Tracker {
             plan,
             current: None,
+            off_plan: None,
         }
     }
 
+    /// The table arrived at `step`: the current stop again (while not read by both
+    /// autocollimators, as when a resumed run comes back to it), the next planned stop,
+    /// or — at another step — a visit off the plan, which does not move the run's place.
     fn arrive(&mut self, step: usize) {
-        if let Some(c) = self.current {
-            let stop = &self.plan[c];
-            if stop.step == step && !stop.read.iter().all(|&r| r) {
-                return;
-            }
+        self.off_plan = None;
+        let Some(c) = self.current else {
+            self.current = self.plan.iter().position(|s| s.step == step);
+            return;
+        };
+        let stop = &self.plan[c];
+        if stop.step == step && !stop.read.iter().all(|&r| r) {
+            return;
         }
-        let from = self.current.map_or(0, |c| c + 1);
-        self.current = (from..self.plan.len())
-            .find(|&i| self.plan[i].step == step)
-            .or(self.current.filter(|&c| self.plan[c].step == step));
+        match self.plan.get(c + 1) {
+            Some(next) if next.step == step => self.current = Some(c + 1),
+            _ if stop.step == step => {}
+            _ => self.off_plan = Some(step),
+        }
     }
 
-    /// (cycle, direction) of the current stop if it has `step`, else of cycle 1, cw.
+    /// (cycle, direction) of the current stop if the table is at it; at a visit off the
+    /// plan those of the current stop (the cycle the run is in); else cycle 1, cw.
     fn context(&mut self, step: usize, ac: u32) -> (u32, Direction) {
+        if let (Some(c), Some(visit)) = (self.current, self.off_plan)
+            && visit == step
+        {
+            let stop = &self.plan[c];
+            return (stop.cycle, stop.direction);
+        }
         match self.current {
             Some(c) if self.plan[c].step == step => {
                 let stop = &mut self.plan[c];
@@ -118,6 +136,9 @@ pub(super) struct Table {
 pub struct World {
     pub(super) config: LabConfig,
     pub(super) truth: Truth,
+    /// The truth without its outliers: what a visit off the plan reads (an outlier is
+    /// one reading's, at its planned stop).
+    without_outliers: Truth,
     pyramidal: Vec<f64>,
     noise: ChaCha8Rng,
     pub(super) table: Table,
@@ -157,9 +178,14 @@ impl World {
                 PYRAMIDAL_SPREAD_ARCSEC * z
             })
             .collect();
+        let mut without_outliers = truth.clone();
+        without_outliers
+            .effects
+            .retain(|e| !matches!(e, crate::effects::Effect::Outlier { .. }));
         World {
             tracker: Tracker::new(&config.simulation),
             config,
+            without_outliers,
             truth,
             pyramidal,
             noise,
@@ -263,6 +289,7 @@ impl World {
         };
         let ac_face = self.config.simulation.ac_faces[ac as usize - 1];
         let face = face_at(step, ac_face - 1, n);
+        let off_plan = self.tracker.off_plan == Some(step);
         let (cycle, direction) = self.tracker.context(step, ac);
         let time = self
             .first_command
@@ -282,7 +309,12 @@ impl World {
             line: 0,
         };
         let sigma = self.config.simulation.noise_arcsec;
-        let x = self.truth.model_reading(&reading) + delta_arcsec + sigma * z_x;
+        let truth = if off_plan {
+            &self.without_outliers
+        } else {
+            &self.truth
+        };
+        let x = truth.model_reading(&reading) + delta_arcsec + sigma * z_x;
         let y = self.pyramidal[face - 1] + sigma * z_y;
         if !x.is_finite() || x.abs() > AC_RANGE_ARCSEC {
             return (0, 0.0, 0.0);
