@@ -200,12 +200,16 @@ fn fault_specs() {
     let f = fault("lost-reply:ac1:after=10");
     assert_eq!(
         (f.kind, f.device, f.after, f.count),
-        (FaultKind::LostReply, DeviceId::Ac1, 10, 1)
+        (FaultKind::LostReply, DeviceId::Ac(1), 10, 1)
     );
     for (bad, problem) in [
         ("lost-reply", FaultProblem::TooFewParts),
         ("melt:ac1", FaultProblem::UnknownKind("melt".into())),
-        ("lost-reply:ac3", FaultProblem::UnknownDevice("ac3".into())),
+        (
+            "lost-reply:ac17",
+            FaultProblem::UnknownDevice("ac17".into()),
+        ),
+        ("lost-reply:ac0", FaultProblem::UnknownDevice("ac0".into())),
         ("disable:ac1", FaultProblem::WrongDevice(FaultKind::Disable)),
         (
             "x-invalid:table",
@@ -271,6 +275,7 @@ fn run_in_process(
             ac1: &mut d.0,
             ac2: &mut d.1,
             table: &mut d.2,
+            more: Vec::new(),
         },
         stop,
         Some(&log),

@@ -61,6 +61,7 @@ fn session(dir: &std::path::Path, devices: Devices, resume: bool) -> Outcome {
             ac1: &mut ac1,
             ac2: &mut ac2,
             table: &mut table,
+            more: Vec::new(),
         },
         &stop,
         None,
@@ -122,7 +123,7 @@ fn positions(device: DeviceId) -> [u64; 3] {
 fn every_reply_fault_on_every_device_at_every_place_keeps_readings_at_their_stops() {
     let mut stopped = Vec::new();
     for kind in KINDS {
-        for device in [DeviceId::Ac1, DeviceId::Ac2, DeviceId::Table] {
+        for device in [DeviceId::Ac(1), DeviceId::Ac(2), DeviceId::Table] {
             for after in positions(device) {
                 let mut fault = Fault::new(kind, device).with_after(after);
                 if kind == FaultKind::Late {
@@ -156,7 +157,7 @@ fn every_reply_fault_on_every_device_at_every_place_keeps_readings_at_their_stop
 fn a_reply_arriving_after_its_deadline_is_discarded_not_read_as_the_next_answer() {
     // Five late replies in a row on autocollimator 1, from the middle of the run on,
     // each later than the deadline: none of them is stored, every reading is at its stop.
-    let fault = Fault::new(FaultKind::Late, DeviceId::Ac1)
+    let fault = Fault::new(FaultKind::Late, DeviceId::Ac(1))
         .with_after(10)
         .with_count(5)
         .with_late(Duration::from_millis(30));

@@ -44,11 +44,24 @@ Examples:
 #[derive(clap::Args)]
 pub struct RunArgs {
     /// Port of autocollimator 1 (ELCOMAT 3000 protocol), e.g. /dev/ttyUSB0.
-    #[arg(long)]
-    ac1: String,
+    #[arg(long, required_unless_present = "ac", conflicts_with = "ac")]
+    ac1: Option<String>,
     /// Port of autocollimator 2 (ELCOMAT 3000 protocol).
-    #[arg(long)]
-    ac2: String,
+    #[arg(
+        long,
+        required_unless_present = "ac",
+        conflicts_with = "ac",
+        requires = "ac1"
+    )]
+    ac2: Option<String>,
+    /// Port of the next autocollimator, repeatable: autocollimator 1, 2, 3, … in order
+    /// (instead of --ac1/--ac2), as many as --ac-faces names.
+    #[arg(long, value_name = "PORT")]
+    ac: Vec<String>,
+    /// The face each autocollimator reads at step 0, autocollimator 1 first, as
+    /// `plan` and `simulate` take it (default 1,2: the paper's design).
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    ac_faces: Vec<usize>,
     /// Port of the rotary table (SMC100 protocol, address 1).
     #[arg(long)]
     table: String,
@@ -112,6 +125,10 @@ pub struct SimLabArgs {
     /// (docs/FORMAT.md §7.4).
     #[arg(long = "fault")]
     faults: Vec<String>,
+    /// The face each simulated autocollimator reads at step 0, autocollimator 1 first
+    /// (2 … 16 autocollimators), as `run --ac-faces` takes it.
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    ac_faces: Vec<usize>,
     /// How to print the device paths.
     #[arg(long, value_enum, default_value = "table")]
     format: PathsFormat,
@@ -161,7 +178,8 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
         .with_bidirectional(args.bidirectional)
         .with_settle_seconds(args.settle)
         .with_reads_per_stop(args.reads)
-        .with_reading_noise_arcsec(args.reading_noise);
+        .with_reading_noise_arcsec(args.reading_noise)
+        .with_ac_faces(args.ac_faces.clone());
     // The library names the setting (`faces 2: …`); the option is `--faces`.
     settings.validate().map_err(|e| anyhow!("--{e}"))?;
     let query = QueryOptions::new(seconds("timeout", args.timeout)?, 3);
@@ -186,7 +204,17 @@ fn run_session(
     motion_timeout: Duration,
     interrupts: &Interrupts,
 ) -> Result<u8> {
-    let ports = Ports::new(args.ac1.clone(), args.ac2.clone(), args.table.clone());
+    let ac_ports = args.ac_ports();
+    if ac_ports.len() != settings.autocollimators() {
+        bail!(
+            "{} autocollimator port(s) given for the {} autocollimators of --ac-faces {}: give \
+             one --ac PORT per autocollimator, in order",
+            ac_ports.len(),
+            settings.autocollimators(),
+            settings.ac_faces_text()
+        );
+    }
+    let ports = Ports::of(&ac_ports, args.table.clone());
     let stop = interrupts.stop_flag();
     let mut dir = RunDir::open(&args.out, settings, &ports, args.resume).map_err(open_hint)?;
     interrupts.run_dir_opened(dir.abort_handle());
@@ -231,20 +259,16 @@ fn run_session(
         ),
     );
     let opened = (|| {
-        let ac1 = open_port(
-            &args.ac1,
-            "ac1",
-            "autocollimator 1",
-            SerialSettings::ELCOMAT,
-            &log,
-        )?;
-        let ac2 = open_port(
-            &args.ac2,
-            "ac2",
-            "autocollimator 2",
-            SerialSettings::ELCOMAT,
-            &log,
-        )?;
+        let mut acs = Vec::with_capacity(ac_ports.len());
+        for (i, port) in ac_ports.iter().enumerate() {
+            acs.push(open_port(
+                port,
+                &format!("ac{}", i + 1),
+                &format!("autocollimator {}", i + 1),
+                SerialSettings::ELCOMAT,
+                &log,
+            )?);
+        }
         let table = open_port(
             &args.table,
             "table",
@@ -252,9 +276,9 @@ fn run_session(
             SerialSettings::SMC100,
             &log,
         )?;
-        Ok::<_, String>((ac1, ac2, table))
+        Ok::<_, String>((acs, table))
     })();
-    let (ac1, ac2, table) = match opened {
+    let (acs, table) = match opened {
         Ok(ports) => ports,
         Err(e) => {
             let outcome = Outcome::InstrumentError(e.clone());
@@ -268,8 +292,10 @@ fn run_session(
             );
         }
     };
-    let mut ac1 = Elcomat3000::new(ac1, query);
-    let mut ac2 = Elcomat3000::new(ac2, query);
+    let mut acs: Vec<_> = acs
+        .into_iter()
+        .map(|port| Elcomat3000::new(port, query))
+        .collect();
     let mut table = Smc100::new(
         table,
         Smc100Options::new(query).with_motion_timeout(motion_timeout),
@@ -290,11 +316,8 @@ fn run_session(
     let before = dir.readings_done();
     let outcome = run::measure(
         &mut dir,
-        Instruments {
-            ac1: &mut ac1,
-            ac2: &mut ac2,
-            table: &mut table,
-        },
+        instruments(&mut acs, &mut table)
+            .ok_or_else(|| anyhow!("a run needs two autocollimators at least"))?,
         stop,
         Some(&log),
         &mut on_progress,
@@ -408,6 +431,40 @@ fn summary(args: &RunArgs, out: &Output, dir: &RunDir, checks: &[CycleCheck]) {
         f = file.display(),
         d = args.out.display()
     ));
+}
+
+/// The instruments of a run: the autocollimators in order and the table; `None` with
+/// fewer than two autocollimators (the settings refuse that before).
+fn instruments<'a, A: polycal::lab::Autocollimator, T: polycal::lab::RotaryTable>(
+    acs: &'a mut [A],
+    table: &'a mut T,
+) -> Option<Instruments<'a>> {
+    let mut acs = acs
+        .iter_mut()
+        .map(|a| a as &mut dyn polycal::lab::Autocollimator);
+    let (ac1, ac2) = (acs.next(), acs.next());
+    let more = acs.collect();
+    Some(Instruments {
+        ac1: ac1?,
+        ac2: ac2?,
+        table,
+        more,
+    })
+}
+
+impl RunArgs {
+    /// The autocollimators' ports in order: the --ac list, or --ac1 and --ac2.
+    fn ac_ports(&self) -> Vec<String> {
+        if self.ac.is_empty() {
+            [&self.ac1, &self.ac2]
+                .into_iter()
+                .flatten()
+                .cloned()
+                .collect()
+        } else {
+            self.ac.clone()
+        }
+    }
 }
 
 /// The end of a session: its summary (status 0) or its `error:` line, which says when
@@ -527,7 +584,7 @@ pub fn sim_lab(args: &SimLabArgs, out: &Output) -> Result<u8> {
                 .map_err(|m| anyhow!("--fault {spec}: {m}"))
         })
         .collect::<Result<Vec<_>>>()?;
-    let config = LabConfig::new(args.truth.config(vec![1, 2], 1, 1, 20.0)?)
+    let config = LabConfig::new(args.truth.config(args.ac_faces.clone(), 1, 1, 20.0)?)
         .with_speed_deg_per_s(args.speed)
         .with_home_seconds(args.home_seconds)
         .with_time_scale(args.time_scale)
@@ -547,27 +604,46 @@ fn serve(_devices: Devices, _format: PathsFormat, _out: &Output) -> Result<u8> {
 #[cfg(unix)]
 fn serve(devices: Devices, format: PathsFormat, out: &Output) -> Result<u8> {
     let faces = devices.truth().faces;
+    let ac_faces_text = devices
+        .ac_faces()
+        .iter()
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join(",");
     let lab = Lab::start(devices)?;
     let paths = lab.paths().clone();
+    let acs = paths.acs();
     {
         let stdout = std::io::stdout();
         let mut stdout = stdout.lock();
         match format {
             PathsFormat::Table => {
-                writeln!(stdout, "ac1 {}", paths.ac1)?;
-                writeln!(stdout, "ac2 {}", paths.ac2)?;
+                for (i, path) in acs.iter().enumerate() {
+                    writeln!(stdout, "ac{} {path}", i + 1)?;
+                }
                 writeln!(stdout, "table {}", paths.table)?;
             }
             PathsFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&paths)?)?,
         }
         stdout.flush()?;
     }
+    let ports = if acs.len() == 2 {
+        format!("--ac1 {} --ac2 {}", paths.ac1, paths.ac2)
+    } else {
+        acs.iter()
+            .map(|p| format!("--ac {p}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
     out.info(format_args!(
-        "polycal sim-lab: serving; try\n  polycal run --ac1 {} --ac2 {} --table {} --faces {} --cycles 2 --closing --settle 0 --out RUN_DIR\nstop with Ctrl-C{}",
-        paths.ac1,
-        paths.ac2,
+        "polycal sim-lab: serving; try\n  polycal run {ports} --table {} --faces {}{} --cycles 2 --closing --settle 0 --out RUN_DIR\nstop with Ctrl-C{}",
         paths.table,
         faces,
+        if acs.len() == 2 {
+            String::new()
+        } else {
+            format!(" --ac-faces {}", ac_faces_text)
+        },
         if stdin_is_null() {
             ""
         } else {

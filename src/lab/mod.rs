@@ -1,4 +1,4 @@
-//! The lab: two ELCOMAT 3000 autocollimators and an SMC100 rotary table on serial lines,
+//! The lab: ELCOMAT 3000 autocollimators (two or more) and an SMC100 rotary table on serial lines,
 //! and the run procedure that drives them through a calibration and keeps every reading
 //! on disk (docs/FORMAT.md §7). Built with the cargo feature `lab`.
 //!
@@ -11,7 +11,7 @@
 //!        │ lines                ──► traffic.jsonl: every line sent and received (traffic)
 //!  Elcomat3000, Smc100: commands, replies, retries       (elcomat, smc100, query)
 //!        │ AcReading, table position
-//!  run::measure: the stops of the plan, both autocollimators at each   (run)
+//!  run::measure: the stops of the plan, every autocollimator at each  (run)
 //!        │ Reading                   ──► manifest.json: settings, instruments, outcome
 //!  measurement::ReadingWriter ──► measurements.csv: one row per reading, synced before
 //!                                 the table moves again

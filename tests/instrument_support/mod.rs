@@ -28,6 +28,8 @@ pub struct SimLab {
     _stdin: ChildStdin,
     pub ac1: String,
     pub ac2: String,
+    /// Every autocollimator's path, 1 … K.
+    pub acs: Vec<String>,
     pub table: String,
     pub truth: PathBuf,
 }
@@ -57,36 +59,50 @@ impl SimLab {
             .expect("sim-lab starts");
         let stdin = child.stdin.take().unwrap();
         let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-        let mut path = |name: &str| {
+        // `ac1 PATH`, `ac2 PATH`, … then `table PATH`.
+        let mut acs = Vec::new();
+        let table = loop {
             let line = lines.next().expect("a device line").unwrap();
             let (label, path) = line.split_once(' ').expect("NAME PATH");
-            assert_eq!(label, name);
-            path.to_string()
+            if label == "table" {
+                break path.to_string();
+            }
+            assert_eq!(label, format!("ac{}", acs.len() + 1));
+            acs.push(path.to_string());
         };
-        let (ac1, ac2, table) = (path("ac1"), path("ac2"), path("table"));
         SimLab {
             child,
             _stdin: stdin,
-            ac1,
-            ac2,
+            ac1: acs[0].clone(),
+            ac2: acs[1].clone(),
+            acs,
             table,
             truth,
         }
     }
 
-    /// The `polycal run` arguments for this lab, writing to `out`.
+    /// The `polycal run` arguments for this lab, writing to `out` (`--ac1`, `--ac2` for
+    /// two autocollimators, one `--ac` each for more).
     pub fn run_args(&self, out: &Path, design: &[&str]) -> Vec<String> {
-        let mut args = vec![
-            "run".to_string(),
-            "--ac1".into(),
-            self.ac1.clone(),
-            "--ac2".into(),
-            self.ac2.clone(),
+        let mut args = vec!["run".to_string()];
+        if self.acs.len() == 2 {
+            args.extend([
+                "--ac1".into(),
+                self.ac1.clone(),
+                "--ac2".into(),
+                self.ac2.clone(),
+            ]);
+        } else {
+            for path in &self.acs {
+                args.extend(["--ac".to_string(), path.clone()]);
+            }
+        }
+        args.extend([
             "--table".into(),
             self.table.clone(),
             "--out".into(),
             out.display().to_string(),
-        ];
+        ]);
         args.extend(design.iter().map(|s| s.to_string()));
         args
     }
@@ -149,7 +165,7 @@ pub fn plan_readings(settings: &RunSettings) -> Vec<(u32, usize, u32)> {
     settings
         .plan()
         .into_iter()
-        .flat_map(|s| [(s.cycle, s.step, 1), (s.cycle, s.step, 2)])
+        .flat_map(|s| (1..=settings.ac_faces.len() as u32).map(move |ac| (s.cycle, s.step, ac)))
         .collect()
 }
 

@@ -235,7 +235,10 @@ impl RunDir {
             .plan()
             .into_iter()
             .filter_map(|stop| {
-                let acs: Vec<u32> = (1..=2)
+                let acs: Vec<u32> = self
+                    .manifest
+                    .settings
+                    .acs()
                     .filter(|&ac| !self.done.contains(&(stop.cycle, stop.step, ac)))
                     .collect();
                 (!acs.is_empty()).then_some((stop, acs))
@@ -276,14 +279,21 @@ impl RunDir {
     pub fn begin_session(&mut self, identification: Identification) -> Result<(), RunError> {
         if let Some(before) = &self.manifest.instruments {
             let mut differences = Vec::new();
-            for (name, a, b) in [
-                ("ac1", &before.ac1, &identification.ac1),
-                ("ac2", &before.ac2, &identification.ac2),
-                ("table", &before.table, &identification.table),
-            ] {
+            for ac in self.manifest.settings.acs() {
+                let (a, b) = (before.ac(ac), identification.ac(ac));
                 if a != b {
-                    differences.push(format!("{name} was {a:?}, is now {b:?}"));
+                    differences.push(format!(
+                        "ac{ac} was {:?}, is now {:?}",
+                        a.unwrap_or(""),
+                        b.unwrap_or("")
+                    ));
                 }
+            }
+            if before.table != identification.table {
+                differences.push(format!(
+                    "table was {:?}, is now {:?}",
+                    before.table, identification.table
+                ));
             }
             if !differences.is_empty() {
                 return Err(RunError::OtherInstruments {

@@ -3,6 +3,7 @@
 
 pub use crate::clock::{rfc3339, unix_now};
 
+use std::collections::BTreeMap;
 use std::fs::{self, File};
 use std::io::{self, Write};
 use std::path::Path;
@@ -16,7 +17,7 @@ use crate::lab::WriteBudget;
 /// The manifest format tag.
 pub const MANIFEST_FORMAT: &str = "polycal-run/1";
 
-/// The ports of the three instruments.
+/// The ports of the instruments.
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct Ports {
@@ -26,6 +27,9 @@ pub struct Ports {
     pub ac2: String,
     /// The rotary table.
     pub table: String,
+    /// Autocollimators 3 … K, as `ac3`, `ac4`, … (fields of the object).
+    #[serde(flatten)]
+    pub more: BTreeMap<String, String>,
 }
 
 impl Ports {
@@ -35,7 +39,47 @@ impl Ports {
             ac1: ac1.into(),
             ac2: ac2.into(),
             table: table.into(),
+            more: BTreeMap::new(),
         }
+    }
+
+    /// The ports of autocollimators 1 … K (at least two) and the rotary table.
+    pub fn of(acs: &[String], table: impl Into<String>) -> Ports {
+        let at = |i: usize| acs.get(i).cloned().unwrap_or_default();
+        Ports {
+            ac1: at(0),
+            ac2: at(1),
+            table: table.into(),
+            more: further(acs),
+        }
+    }
+
+    /// The port of autocollimator `ac` (1 … K).
+    pub fn ac(&self, ac: u32) -> Option<&str> {
+        pick(ac, &self.ac1, &self.ac2, &self.more)
+    }
+}
+
+/// Autocollimators 3 … K of a list, keyed `ac3`, `ac4`, ….
+fn further(acs: &[String]) -> BTreeMap<String, String> {
+    acs.iter()
+        .enumerate()
+        .skip(2)
+        .map(|(i, v)| (format!("ac{}", i + 1), v.clone()))
+        .collect()
+}
+
+/// Autocollimator `ac`'s entry: `ac1`, `ac2` or one of `more`.
+fn pick<'a>(
+    ac: u32,
+    ac1: &'a str,
+    ac2: &'a str,
+    more: &'a BTreeMap<String, String>,
+) -> Option<&'a str> {
+    match ac {
+        1 => Some(ac1),
+        2 => Some(ac2),
+        _ => more.get(&format!("ac{ac}")).map(String::as_str),
     }
 }
 
@@ -49,9 +93,29 @@ pub struct Identification {
     pub ac2: String,
     /// The rotary table's controller.
     pub table: String,
+    /// Autocollimators 3 … K, as `ac3`, `ac4`, … (fields of the object).
+    #[serde(flatten)]
+    pub more: BTreeMap<String, String>,
 }
 
 impl Identification {
+    /// The identification of autocollimators 1 … K (at least two) and the table's
+    /// controller.
+    pub fn of(acs: &[String], table: impl Into<String>) -> Identification {
+        let at = |i: usize| acs.get(i).cloned().unwrap_or_default();
+        Identification {
+            ac1: at(0),
+            ac2: at(1),
+            table: table.into(),
+            more: further(acs),
+        }
+    }
+
+    /// Autocollimator `ac`'s identification (1 … K).
+    pub fn ac(&self, ac: u32) -> Option<&str> {
+        pick(ac, &self.ac1, &self.ac2, &self.more)
+    }
+
     /// The identification of autocollimator 1, autocollimator 2 and the table's controller.
     pub fn new(
         ac1: impl Into<String>,
@@ -62,6 +126,7 @@ impl Identification {
             ac1: ac1.into(),
             ac2: ac2.into(),
             table: table.into(),
+            more: BTreeMap::new(),
         }
     }
 }

@@ -1,5 +1,5 @@
 //! The measuring loop: start and identify the instruments, then visit every remaining
-//! stop of the plan, read both autocollimators there until their readings agree
+//! stop of the plan, read every autocollimator there until its readings agree
 //! (`repeat`), and put each reading on disk before the table moves again.
 
 use std::fmt;
@@ -50,10 +50,16 @@ impl Outcome {
     }
 }
 
-/// The instruments' names in messages.
-const ROLES: [&str; 3] = ["autocollimator 1", "autocollimator 2", "rotary table"];
+/// The table's name in messages.
+const TABLE: &str = "rotary table";
 
-/// The three instruments of a run.
+/// Autocollimator `ac`'s name in messages, `autocollimator 3`.
+fn role(ac: u32) -> String {
+    format!("autocollimator {ac}")
+}
+
+/// The instruments of a run: the autocollimators 1 … K (as many as the run's
+/// `ac_faces`) and the rotary table.
 pub struct Instruments<'a> {
     /// Autocollimator 1.
     pub ac1: &'a mut dyn Autocollimator,
@@ -61,14 +67,18 @@ pub struct Instruments<'a> {
     pub ac2: &'a mut dyn Autocollimator,
     /// The rotary table.
     pub table: &'a mut dyn RotaryTable,
+    /// Autocollimators 3 … K, in order (empty for the paper's two).
+    pub more: Vec<&'a mut dyn Autocollimator>,
 }
 
 impl fmt::Debug for Instruments<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let more: Vec<&str> = self.more.iter().map(|a| a.port()).collect();
         f.debug_struct("Instruments")
             .field("ac1", &self.ac1.port())
             .field("ac2", &self.ac2.port())
             .field("table", &self.table.port())
+            .field("more", &more)
             .finish()
     }
 }
@@ -120,18 +130,33 @@ pub fn measure(
     traffic: Option<&TrafficLog>,
     progress: &mut dyn FnMut(&Progress),
 ) -> Result<Outcome, RunError> {
-    let Instruments { ac1, ac2, table } = instruments;
-    let identification = match identify(ac1, ac2, table) {
+    let Instruments {
+        ac1,
+        ac2,
+        table,
+        more,
+    } = instruments;
+    let mut acs: Vec<&mut dyn Autocollimator> = vec![ac1, ac2];
+    acs.extend(more);
+    let k = run.manifest.settings.autocollimators();
+    if acs.len() != k {
+        let _ = table.stop();
+        return Ok(Outcome::InstrumentError(format!(
+            "the run has {k} autocollimators, {} were connected",
+            acs.len()
+        )));
+    }
+    let identification = match identify(&mut acs, table) {
         Ok(id) => id,
         Err((role, e)) => {
             let _ = table.stop();
-            return Ok(Outcome::from_instrument(role, e));
+            return Ok(Outcome::from_instrument(&role, e));
         }
     };
     let outcome = match run.begin_session(identification) {
         Ok(()) => match log_failure(run, traffic) {
             Some(failed) => failed,
-            None => measure_stops(run, ac1, ac2, table, stop_flag, traffic, progress),
+            None => measure_stops(run, &mut acs, table, stop_flag, traffic, progress),
         },
         Err(e @ RunError::OtherInstruments { .. }) => {
             let _ = table.stop();
@@ -164,28 +189,24 @@ fn log_failure(run: &RunDir, traffic: Option<&TrafficLog>) -> Option<Outcome> {
 }
 
 fn identify(
-    ac1: &mut dyn Autocollimator,
-    ac2: &mut dyn Autocollimator,
+    acs: &mut [&mut dyn Autocollimator],
     table: &mut dyn RotaryTable,
-) -> Result<Identification, (&'static str, InstrumentError)> {
-    let role = |i: usize| move |e| (ROLES[i], e);
-    ac1.start().map_err(role(0))?;
-    let id1 = ac1.identify().map_err(role(0))?;
-    ac2.start().map_err(role(1))?;
-    let id2 = ac2.identify().map_err(role(1))?;
-    table.start().map_err(role(2))?;
-    let id_table = table.identify().map_err(role(2))?;
-    Ok(Identification {
-        ac1: id1,
-        ac2: id2,
-        table: id_table,
-    })
+) -> Result<Identification, (String, InstrumentError)> {
+    let mut ids = Vec::with_capacity(acs.len());
+    for (i, ac) in acs.iter_mut().enumerate() {
+        let named = |e| (role(i as u32 + 1), e);
+        ac.start().map_err(named)?;
+        ids.push(ac.identify().map_err(named)?);
+    }
+    let named = |e| (TABLE.to_string(), e);
+    table.start().map_err(named)?;
+    let id_table = table.identify().map_err(named)?;
+    Ok(Identification::of(&ids, id_table))
 }
 
 fn measure_stops(
     run: &mut RunDir,
-    ac1: &mut dyn Autocollimator,
-    ac2: &mut dyn Autocollimator,
+    acs: &mut [&mut dyn Autocollimator],
     table: &mut dyn RotaryTable,
     stop_flag: &StopFlag,
     traffic: Option<&TrafficLog>,
@@ -197,11 +218,11 @@ fn measure_stops(
     let session_start = Instant::now();
     let before = run.readings_done();
     let settle = Duration::try_from_secs_f64(settings.settle_seconds).unwrap_or(Duration::ZERO);
-    let mut memory = [DeviceMemory::default(); 2];
+    let mut memory = vec![DeviceMemory::default(); acs.len()];
     let mut refused = 0;
     let remaining = run.remaining();
     let mut handled: Vec<Cell> = Vec::new();
-    for (index, (stop, acs)) in remaining.iter().enumerate() {
+    for (index, (stop, to_read)) in remaining.iter().enumerate() {
         let stop = *stop;
         if stop_flag.is_set() {
             return Outcome::Interrupted;
@@ -214,7 +235,7 @@ fn measure_stops(
         }
         let encoder = match table.move_to(stop.degrees(settings.faces)) {
             Ok(p) => p,
-            Err(e) => return Outcome::from_instrument(ROLES[2], e),
+            Err(e) => return Outcome::from_instrument(TABLE, e),
         };
         if let Some(failed) = log_failure(run, traffic) {
             return failed;
@@ -242,14 +263,13 @@ fn measure_stops(
                 cycle_check,
             });
         };
-        for &ac in acs {
+        for &ac in to_read {
             if stop_flag.is_set() {
                 return Outcome::Interrupted;
             }
-            let devices: [&mut dyn Autocollimator; 2] = [&mut *ac1, &mut *ac2];
             let taken = take_reading(
                 run,
-                devices,
+                acs,
                 &mut memory,
                 traffic,
                 stop,
@@ -282,7 +302,7 @@ fn measure_stops(
             let checked = check_cycle(
                 run,
                 Devices {
-                    acs: [&mut *ac1, &mut *ac2],
+                    acs: &mut *acs,
                     table: &mut *table,
                 },
                 &mut memory,
@@ -302,8 +322,8 @@ fn measure_stops(
 }
 
 /// The instruments the check after a cycle drives.
-struct Devices<'a> {
-    acs: [&'a mut dyn Autocollimator; 2],
+struct Devices<'a, 'b> {
+    acs: &'a mut [&'b mut dyn Autocollimator],
     table: &'a mut dyn RotaryTable,
 }
 
@@ -312,8 +332,8 @@ struct Devices<'a> {
 #[allow(clippy::too_many_arguments)]
 fn take_reading(
     run: &RunDir,
-    devices: [&mut dyn Autocollimator; 2],
-    memory: &mut [DeviceMemory; 2],
+    acs: &mut [&mut dyn Autocollimator],
+    memory: &mut [DeviceMemory],
     traffic: Option<&TrafficLog>,
     stop: Stop,
     ac: u32,
@@ -322,17 +342,18 @@ fn take_reading(
 ) -> Result<Reading, Outcome> {
     let settings = &run.manifest.settings;
     let i = ac as usize - 1;
-    let [first, second] = devices;
-    let device = if i == 0 { first } else { second };
-    let role = ROLES[i];
+    let role = role(ac);
     let at = format!("cycle {}, step {}", stop.cycle, stop.step);
-    let label = if ac == 1 { "ac1" } else { "ac2" };
+    let label = format!("ac{ac}");
+    let (Some(device), Some(memory)) = (acs.get_mut(i), memory.get_mut(i)) else {
+        return Err(Outcome::InstrumentError(format!("{role} is not connected")));
+    };
     let taken = read_at_stop(
-        device,
-        &mut memory[i],
+        &mut **device,
+        memory,
         settings,
         traffic,
-        (label, role, &at),
+        (&label, &role, &at),
         stop.degrees(settings.faces),
     );
     let (x_arcsec, y_arcsec) = match taken {
@@ -340,7 +361,7 @@ fn take_reading(
             *refused += r.refused;
             (r.x_arcsec, r.y_arcsec)
         }
-        Err(RepeatError::Instrument(e)) => return Err(Outcome::from_instrument(role, e)),
+        Err(RepeatError::Instrument(e)) => return Err(Outcome::from_instrument(&role, e)),
         Err(RepeatError::NoAgreement(message)) => return Err(Outcome::InstrumentError(message)),
     };
     Ok(Reading {
@@ -368,18 +389,15 @@ fn take_reading(
 #[allow(clippy::too_many_arguments)]
 fn check_cycle(
     run: &mut RunDir,
-    devices: Devices<'_>,
-    memory: &mut [DeviceMemory; 2],
+    devices: Devices<'_, '_>,
+    memory: &mut [DeviceMemory],
     stop_flag: &StopFlag,
     traffic: Option<&TrafficLog>,
     cycle: u32,
     handled: &mut Vec<Cell>,
     refused: &mut usize,
 ) -> Result<CycleCheck, Outcome> {
-    let Devices {
-        acs: [ac1, ac2],
-        table,
-    } = devices;
+    let Devices { acs, table } = devices;
     let settings = run.manifest.settings.clone();
     let path = run.dir.join(MEASUREMENTS);
     let read = || MeasurementSet::read_path(&path, Some(settings.faces)).ok();
@@ -416,7 +434,7 @@ fn check_cycle(
         };
         let encoder = match table.move_to(stop.degrees(settings.faces)) {
             Ok(p) => p,
-            Err(e) => return Err(Outcome::from_instrument(ROLES[2], e)),
+            Err(e) => return Err(Outcome::from_instrument(TABLE, e)),
         };
         if let Some(failed) = log_failure(run, traffic) {
             return Err(failed);
@@ -426,14 +444,7 @@ fn check_cycle(
             return Err(Outcome::Interrupted);
         }
         let again = take_reading(
-            run,
-            [&mut *ac1, &mut *ac2],
-            memory,
-            traffic,
-            stop,
-            flagged.ac,
-            encoder,
-            refused,
+            run, &mut *acs, memory, traffic, stop, flagged.ac, encoder, refused,
         )?;
         // The reading of the cell furthest from the new one is replaced if it disagrees.
         let tolerance = settings.agreement_arcsec();

@@ -1,5 +1,5 @@
 //! The run procedure of `polycal run` (docs/FORMAT.md §7): step the table through full
-//! cycles, read both autocollimators at every stop, and keep every reading on disk.
+//! cycles, read every autocollimator at every stop, and keep every reading on disk.
 //!
 //! One concept a file: the settings and the plan (`settings.rs`: [`RunSettings`]), the
 //! manifest (`manifest.rs`: [`Manifest`]), the run directory and its lock
@@ -39,7 +39,7 @@
 //!
 //! Cycles 1 … R; a clockwise cycle visits steps 0 … N−1, then N with the closing step; a
 //! counter-clockwise one (cycles 2, 4, … with `bidirectional`, closing implied) visits
-//! N … 0. At each stop autocollimator 1 is read, then 2. A resumed run continues from
+//! N … 0. At each stop autocollimators 1 … K are read in order. A resumed run continues from
 //! the first reading (cycle, step, ac) of that order missing from `measurements.csv`:
 //! the table is sent to that stop again and only the missing readings are taken. A file
 //! whose readings are not exactly the first ones of that order is refused, as is a
@@ -72,7 +72,8 @@
 //! let dir = std::env::temp_dir().join(format!("polycal-doc-run-{}", std::process::id()));
 //! # let _ = std::fs::remove_dir_all(&dir);
 //! let mut run = RunDir::open(&dir, &settings, &Ports::default(), false)?;
-//! let instruments = Instruments { ac1: &mut ac1, ac2: &mut ac2, table: &mut table };
+//! let instruments =
+//!     Instruments { ac1: &mut ac1, ac2: &mut ac2, table: &mut table, more: Vec::new() };
 //! let outcome = run::measure(&mut run, instruments, &StopFlag::new(), None, &mut |_| {})?;
 //! run.finish(&outcome)?;
 //! assert_eq!(outcome, Outcome::Completed);
@@ -104,6 +105,6 @@ pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rf
 pub use measure::{Instruments, Outcome, Progress, measure};
 pub use repeat::EXTRA_READS;
 pub use settings::{
-    AGREEMENT_SIGMAS, DEFAULT_READING_NOISE_ARCSEC, DEFAULT_READS_PER_STOP, MAX_READS_PER_STOP,
-    RunSettings, SettingsError,
+    AGREEMENT_SIGMAS, DEFAULT_READING_NOISE_ARCSEC, DEFAULT_READS_PER_STOP, MAX_AUTOCOLLIMATORS,
+    MAX_READS_PER_STOP, RunSettings, SettingsError,
 };

@@ -29,6 +29,11 @@ pub struct RunSettings {
     /// (5·√2·σ) of each other. Absent from older manifests: [`DEFAULT_READING_NOISE_ARCSEC`].
     #[serde(default = "default_reading_noise")]
     pub reading_noise_arcsec: f64,
+    /// The face each autocollimator reads at step 0, autocollimator 1 first (docs/FORMAT.md
+    /// §7.3, as `plan` and `simulate` take it): at step p autocollimator j reads face
+    /// `((ac_faces[j-1] − 1) + p) mod N + 1`. Absent from older manifests: `[1, 2]`.
+    #[serde(default = "default_ac_faces")]
+    pub ac_faces: Vec<usize>,
 }
 
 /// Readings of each autocollimator at a stop unless set otherwise.
@@ -48,6 +53,14 @@ fn default_reads_per_stop() -> u32 {
 fn default_reading_noise() -> f64 {
     DEFAULT_READING_NOISE_ARCSEC
 }
+
+/// The paper's design: autocollimators on faces 1 and 2.
+fn default_ac_faces() -> Vec<usize> {
+    vec![1, 2]
+}
+
+/// Most autocollimators of a run.
+pub const MAX_AUTOCOLLIMATORS: usize = 16;
 
 /// A setting out of its range. The message starts with the setting's name and value
 /// (`faces 2: …`), the way a command line names its option.
@@ -74,11 +87,20 @@ pub enum SettingsError {
     /// A reading noise that is not a number of arcseconds above 0 and at most 100.
     #[error("reading-noise {0}: must be a number of arcseconds above 0 and at most 100")]
     ReadingNoise(f64),
+    /// Autocollimators' faces that are fewer than 2 or more than
+    /// [`MAX_AUTOCOLLIMATORS`], outside 1 … N, or repeated.
+    #[error("ac-faces {faces}: {problem}")]
+    AcFaces {
+        /// The faces as given, e.g. `1,2,2`.
+        faces: String,
+        /// What is wrong.
+        problem: String,
+    },
 }
 
 impl SettingsError {
     /// The setting's name, as in [`RunSettings::as_options`] without the dashes:
-    /// `faces`, `cycles`, `settle`, `reads` or `reading-noise`.
+    /// `faces`, `cycles`, `settle`, `reads`, `reading-noise` or `ac-faces`.
     pub fn setting(&self) -> &'static str {
         match self {
             SettingsError::TooFewFaces(_) | SettingsError::TooManyFaces(_) => "faces",
@@ -86,6 +108,7 @@ impl SettingsError {
             SettingsError::Settle(_) => "settle",
             SettingsError::Reads(_) => "reads",
             SettingsError::ReadingNoise(_) => "reading-noise",
+            SettingsError::AcFaces { .. } => "ac-faces",
         }
     }
 }
@@ -113,7 +136,28 @@ impl RunSettings {
             settle_seconds: 0.0,
             reads_per_stop: DEFAULT_READS_PER_STOP,
             reading_noise_arcsec: DEFAULT_READING_NOISE_ARCSEC,
+            ac_faces: default_ac_faces(),
         }
+    }
+
+    /// Sets the face each autocollimator reads at step 0 (autocollimator 1 first).
+    pub fn with_ac_faces(mut self, ac_faces: Vec<usize>) -> RunSettings {
+        self.ac_faces = ac_faces;
+        self
+    }
+
+    /// Number of autocollimators K.
+    pub fn autocollimators(&self) -> usize {
+        self.ac_faces.len()
+    }
+
+    /// The faces as written in options and messages, e.g. `1,2,9`.
+    pub fn ac_faces_text(&self) -> String {
+        self.ac_faces
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(",")
     }
 
     /// Sets how many readings of each autocollimator are taken at a stop.
@@ -178,6 +222,31 @@ impl RunSettings {
         if !(noise.is_finite() && noise > 0.0 && noise <= 100.0) {
             return Err(SettingsError::ReadingNoise(noise));
         }
+        let bad = |problem: String| SettingsError::AcFaces {
+            faces: self.ac_faces_text(),
+            problem,
+        };
+        let k = self.ac_faces.len();
+        if !(2..=MAX_AUTOCOLLIMATORS).contains(&k) {
+            return Err(bad(format!(
+                "a run has 2 to {MAX_AUTOCOLLIMATORS} autocollimators, not {k}"
+            )));
+        }
+        for (j, &face) in self.ac_faces.iter().enumerate() {
+            if !(1..=self.faces).contains(&face) {
+                return Err(bad(format!(
+                    "autocollimator {}: face {face} is not one of 1 … {}",
+                    j + 1,
+                    self.faces
+                )));
+            }
+            if self.ac_faces[..j].contains(&face) {
+                return Err(bad(format!(
+                    "autocollimator {}: face {face} is read by an autocollimator before it",
+                    j + 1
+                )));
+            }
+        }
         Ok(())
     }
 
@@ -191,10 +260,21 @@ impl RunSettings {
         run_stops(self.faces, self.cycles, self.closing, self.bidirectional)
     }
 
-    /// The face autocollimator `ac` (1 or 2) reads at `step`: p+1 for autocollimator 1,
-    /// p+2 (wrapping) for autocollimator 2 ([`face_at`] with the face offset `ac` − 1).
+    /// The face autocollimator `ac` (1 … K) reads at `step`: with the default faces p+1
+    /// for autocollimator 1, p+2 (wrapping) for autocollimator 2 ([`face_at`] with the
+    /// face offset `ac_faces[ac − 1]` − 1).
     pub fn face(&self, ac: u32, step: usize) -> usize {
-        face_at(step, (ac as usize).saturating_sub(1), self.faces)
+        let first = self
+            .ac_faces
+            .get((ac as usize).saturating_sub(1))
+            .copied()
+            .unwrap_or(ac as usize);
+        face_at(step, first.saturating_sub(1), self.faces)
+    }
+
+    /// The autocollimators, 1 … K.
+    pub fn acs(&self) -> std::ops::RangeInclusive<u32> {
+        1..=self.ac_faces.len() as u32
     }
 
     /// Number of stops in one cycle: N, or N+1 with the closing step.
@@ -204,15 +284,15 @@ impl RunSettings {
 
     /// Number of readings of the whole run.
     pub fn reading_count(&self) -> usize {
-        self.stops_per_cycle() * self.cycles as usize * 2
+        self.stops_per_cycle() * self.cycles as usize * self.autocollimators()
     }
 
     /// The readings of the whole run in order, (stop, autocollimator): at each stop
-    /// autocollimator 1, then 2.
+    /// autocollimator 1, 2, … K.
     pub fn readings(&self) -> Vec<(Stop, u32)> {
         self.plan()
             .into_iter()
-            .flat_map(|stop| [(stop, 1), (stop, 2)])
+            .flat_map(|stop| self.acs().map(move |ac| (stop, ac)))
             .collect()
     }
 
@@ -231,6 +311,9 @@ impl RunSettings {
             " --settle {} --reads {} --reading-noise {}",
             self.settle_seconds, self.reads_per_stop, self.reading_noise_arcsec
         ));
+        if self.ac_faces != default_ac_faces() {
+            s.push_str(&format!(" --ac-faces {}", self.ac_faces_text()));
+        }
         s
     }
 
@@ -274,6 +357,13 @@ impl RunSettings {
                 self.reading_noise_arcsec, other.reading_noise_arcsec
             ));
         }
+        if self.ac_faces != other.ac_faces {
+            d.push(format!(
+                "autocollimators' faces {} vs {}",
+                self.ac_faces_text(),
+                other.ac_faces_text()
+            ));
+        }
         d
     }
 }
@@ -293,7 +383,11 @@ impl std::fmt::Display for RunSettings {
             f,
             ", settle {} s, {} readings per stop, reading noise {}″",
             self.settle_seconds, self.reads_per_stop, self.reading_noise_arcsec
-        )
+        )?;
+        if self.ac_faces != default_ac_faces() {
+            write!(f, ", autocollimators on faces {}", self.ac_faces_text())?;
+        }
+        Ok(())
     }
 }
 

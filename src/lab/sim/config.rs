@@ -63,8 +63,8 @@ impl LabConfig {
         self
     }
 
-    /// Checks the settings: the simulation's ([`SimulationConfig::validate`]), two
-    /// autocollimators, one mounting, a speed > 0, home time and time scale ≥ 0, and none
+    /// Checks the settings: the simulation's ([`SimulationConfig::validate`]), 2 … 16
+    /// autocollimators, faults only on devices the lab has, one mounting, a speed > 0, home time and time scale ≥ 0, and none
     /// of the run simulator's temperature model, elevation model or Student-t noise, which
     /// the lab does not simulate.
     ///
@@ -74,12 +74,21 @@ impl LabConfig {
     pub fn validate(&self) -> Result<(), SimulateError> {
         self.simulation.validate()?;
         let bad = |m: String| Err(SimulateError::Config(m));
-        if self.simulation.ac_faces.len() != 2 {
+        let k = self.simulation.ac_faces.len();
+        if !(2..=16).contains(&k) {
             return bad(format!(
-                "the lab has two autocollimators; ac faces {:?} name {}",
-                self.simulation.ac_faces,
-                self.simulation.ac_faces.len()
+                "the lab has 2 to 16 autocollimators; ac faces {:?} name {k}",
+                self.simulation.ac_faces
             ));
+        }
+        for fault in &self.faults {
+            if let DeviceId::Ac(n) = fault.device
+                && n as usize > k
+            {
+                return bad(format!(
+                    "fault {fault}: the lab has {k} autocollimators, not an ac{n}"
+                ));
+            }
         }
         if self.simulation.setups != 1 {
             return bad("the lab simulates one polygon mounting (setup 1)".into());

@@ -8,28 +8,36 @@ use std::time::Duration;
 /// Which simulated device.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum DeviceId {
-    /// Autocollimator 1.
-    Ac1,
-    /// Autocollimator 2.
-    Ac2,
+    /// Autocollimator 1, 2, … K.
+    Ac(u32),
     /// The rotary table.
     Table,
 }
 
-impl DeviceId {
-    /// `ac1`, `ac2` or `table`.
-    pub fn as_str(self) -> &'static str {
+impl fmt::Display for DeviceId {
+    /// `ac1`, `ac2`, … or `table`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            DeviceId::Ac1 => "ac1",
-            DeviceId::Ac2 => "ac2",
-            DeviceId::Table => "table",
+            DeviceId::Ac(n) => write!(f, "ac{n}"),
+            DeviceId::Table => f.write_str("table"),
         }
     }
 }
 
-impl fmt::Display for DeviceId {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
+impl FromStr for DeviceId {
+    type Err = ();
+
+    /// `ac1`, `ac2`, … (1 … 16) or `table`.
+    fn from_str(text: &str) -> Result<DeviceId, ()> {
+        if text == "table" {
+            return Ok(DeviceId::Table);
+        }
+        match text.strip_prefix("ac").map(str::parse::<u32>) {
+            Some(Ok(n)) if (1..=16).contains(&n) && !text[2..].starts_with('0') => {
+                Ok(DeviceId::Ac(n))
+            }
+            _ => Err(()),
+        }
     }
 }
 
@@ -166,8 +174,8 @@ pub enum FaultProblem {
         "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale)"
     )]
     UnknownKind(String),
-    /// A device that is not `ac1`, `ac2` or `table`.
-    #[error("unknown device \"{0}\" (ac1, ac2, table)")]
+    /// A device that is not `ac1` … `ac16` or `table`.
+    #[error("unknown device \"{0}\" (ac1, ac2, … ac16, table)")]
     UnknownDevice(String),
     /// A kind of fault the device cannot have (`x-invalid` of the table, `disable` of an
     /// autocollimator).
@@ -217,11 +225,8 @@ impl FromStr for Fault {
         let Some(kind) = FAULT_KINDS.into_iter().find(|k| k.as_str() == *kind) else {
             return Err(bad(FaultProblem::UnknownKind(kind.to_string())));
         };
-        let device = match *device {
-            "ac1" => DeviceId::Ac1,
-            "ac2" => DeviceId::Ac2,
-            "table" => DeviceId::Table,
-            other => return Err(bad(FaultProblem::UnknownDevice(other.to_string()))),
+        let Ok(device) = device.parse::<DeviceId>() else {
+            return Err(bad(FaultProblem::UnknownDevice(device.to_string())));
         };
         if !kind.applies_to(device) {
             return Err(bad(FaultProblem::WrongDevice(kind)));

@@ -22,6 +22,23 @@ pub struct LabPaths {
     pub ac2: String,
     /// The rotary table.
     pub table: String,
+    /// Autocollimators 3 … K, as `ac3`, `ac4`, … (fields of the object).
+    #[serde(flatten)]
+    pub more: std::collections::BTreeMap<String, String>,
+}
+
+impl LabPaths {
+    /// The autocollimators' paths, 1 … K.
+    pub fn acs(&self) -> Vec<String> {
+        let mut acs = vec![self.ac1.clone(), self.ac2.clone()];
+        for n in 3.. {
+            match self.more.get(&format!("ac{n}")) {
+                Some(path) => acs.push(path.clone()),
+                None => break,
+            }
+        }
+        acs
+    }
 }
 
 /// Three simulated instruments served on pseudo-terminals, each by its own thread.
@@ -47,7 +64,7 @@ impl std::fmt::Debug for Lab {
 }
 
 impl Lab {
-    /// Opens three pseudo-terminals and starts serving `devices` on them.
+    /// Opens one pseudo-terminal per device and starts serving `devices` on them.
     ///
     /// # Errors
     ///
@@ -59,10 +76,18 @@ impl Lab {
             ac1,
             ac2,
             table,
+            more,
         } = devices;
         let mut threads = Vec::new();
         let mut names = Vec::new();
-        for (label, endpoint) in [("ac1", ac1), ("ac2", ac2), ("table", table)] {
+        let mut endpoints = vec![("ac1".to_string(), ac1), ("ac2".to_string(), ac2)];
+        endpoints.extend(
+            more.into_iter()
+                .enumerate()
+                .map(|(i, e)| (format!("ac{}", i + 3), e)),
+        );
+        endpoints.push(("table".to_string(), table));
+        for (label, endpoint) in endpoints {
             let (master, slave) = TTYPort::pair().map_err(|e| InstrumentError::Open {
                 port: format!("pseudo-terminal for {label}"),
                 message: e.to_string(),
@@ -82,13 +107,23 @@ impl Lab {
                 })?;
             threads.push(handle);
         }
-        let [ac1, ac2, table]: [String; 3] =
-            names.try_into().map_err(|_| InstrumentError::Open {
-                port: "pseudo-terminals".into(),
-                message: "not three device paths".into(),
-            })?;
+        let table = names.pop().unwrap_or_default();
+        let mut acs = names.into_iter();
+        let (ac1, ac2) = (
+            acs.next().unwrap_or_default(),
+            acs.next().unwrap_or_default(),
+        );
+        let more = acs
+            .enumerate()
+            .map(|(i, path)| (format!("ac{}", i + 3), path))
+            .collect();
         Ok(Lab {
-            paths: LabPaths { ac1, ac2, table },
+            paths: LabPaths {
+                ac1,
+                ac2,
+                table,
+                more,
+            },
             world,
             stop,
             threads,

@@ -89,7 +89,8 @@ pub const PYRAMIDAL_SPREAD_ARCSEC: f64 = 2.0;
 /// Period of the simulated autocollimators' continuous streams.
 pub const STREAM_PERIOD: Duration = Duration::from_millis(50);
 
-/// The three simulated devices of one world, ready to serve.
+/// The simulated devices of one world, ready to serve: one autocollimator per face of
+/// the simulation's `ac_faces` (two by default) and the table.
 pub struct Devices {
     /// The shared world.
     pub world: Arc<Mutex<World>>,
@@ -99,6 +100,8 @@ pub struct Devices {
     pub ac2: Endpoint,
     /// The table.
     pub table: Endpoint,
+    /// Autocollimators 3 … K, in order.
+    pub more: Vec<Endpoint>,
 }
 
 impl fmt::Debug for Devices {
@@ -108,7 +111,7 @@ impl fmt::Debug for Devices {
 }
 
 impl Devices {
-    /// A world for `config` and its three devices, with their faults.
+    /// A world for `config` and its devices, with their faults.
     ///
     /// # Errors
     ///
@@ -141,23 +144,30 @@ impl Devices {
     fn from_world(world: World) -> Devices {
         let config = world.config.clone();
         let world = Arc::new(Mutex::new(world));
-        let ac = |id: DeviceId, number: u32| {
-            let faults = config.faults_of(id);
+        let ac = |number: u32| {
+            let faults = config.faults_of(DeviceId::Ac(number));
             Endpoint::new(
                 Box::new(ElcomatSim::new(Arc::clone(&world), number, &faults)),
                 &faults,
             )
         };
+        let k = config.simulation.ac_faces.len().max(2) as u32;
         let table_faults = config.faults_of(DeviceId::Table);
         Devices {
-            ac1: ac(DeviceId::Ac1, 1),
-            ac2: ac(DeviceId::Ac2, 2),
+            ac1: ac(1),
+            ac2: ac(2),
+            more: (3..=k).map(ac).collect(),
             table: Endpoint::new(
                 Box::new(Smc100Sim::new(Arc::clone(&world), &table_faults)),
                 &table_faults,
             ),
             world,
         }
+    }
+
+    /// The face each autocollimator reads at step 0, autocollimator 1 first.
+    pub fn ac_faces(&self) -> Vec<usize> {
+        lock(&self.world).config.simulation.ac_faces.clone()
     }
 
     /// A copy of the truth.

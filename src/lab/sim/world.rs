@@ -13,12 +13,12 @@ use crate::measurement::{Direction, Reading, face_at, run_stops};
 use crate::simulate::{SimulateError, SimulationConfig, Truth};
 
 /// A planned stop of the run design the world follows.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 struct PlannedStop {
     cycle: u32,
     step: usize,
     direction: Direction,
-    read: [bool; 2],
+    read: Vec<bool>,
 }
 
 /// Which planned stop the table is at.
@@ -44,7 +44,7 @@ impl Tracker {
             cycle: stop.cycle,
             step: stop.step,
             direction: stop.direction,
-            read: [false; 2],
+            read: vec![false; config.ac_faces.len()],
         })
         .collect();
         Tracker {

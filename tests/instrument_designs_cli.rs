@@ -1,0 +1,149 @@
+//! Every design `run` acquires (docs/FORMAT.md §7.3): three autocollimators at any
+//! faces and a bidirectional run, each against `polycal sim-lab` serving the same
+//! design on pseudo-terminals, evaluated by `solve` and compared with the lab's truth.
+
+#![cfg(unix)]
+
+mod instrument_support;
+
+use instrument_support::*;
+use polycal::lab::run::RunSettings;
+use polycal::measurement::MeasurementSet;
+
+fn design(extra: &[&'static str]) -> Vec<&'static str> {
+    let mut d = vec![
+        "--faces",
+        "8",
+        "--cycles",
+        "2",
+        "--closing",
+        "--settle",
+        "0",
+        "--timeout",
+        "0.3",
+        "--reading-noise",
+        "0.05",
+        "-q",
+    ];
+    d.extend_from_slice(extra);
+    d
+}
+
+#[test]
+fn three_autocollimators_at_any_faces_are_run_and_solve_to_the_truth() {
+    let dir = scratch("three-acs");
+    let lab = SimLab::start(
+        &dir,
+        &[
+            "--ac-faces",
+            "1,2,5",
+            "--cycles",
+            "2",
+            "--closing",
+            "--noise",
+            "0.05",
+        ],
+    );
+    assert_eq!(lab.acs.len(), 3);
+    let out = dir.join("run");
+    let result = polycal(&lab.run_args(&out, &design(&["--ac-faces", "1,2,5"])));
+    assert!(result.status.success(), "{}", stderr(&result));
+    let settings = RunSettings::new(8, 2)
+        .with_closing(true)
+        .with_ac_faces(vec![1, 2, 5]);
+    assert_eq!(rows(&out), plan_readings(&settings));
+    let set = MeasurementSet::read_path(&out.join("measurements.csv"), None).unwrap();
+    // Autocollimator 3 reads face 5 at step 0 and face 4 at step 7.
+    for r in set.readings.iter().filter(|r| r.ac == 3) {
+        assert_eq!(r.face, (r.step + 4) % 8 + 1, "{r:?}");
+    }
+    assert_solves_to_truth(&out, &lab.truth);
+    let m = manifest(&out);
+    assert!(m["instruments"]["ac3"].as_str().unwrap().ends_with("SIM-3"));
+    assert_eq!(m["ports"]["ac3"], lab.acs[2]);
+    assert_eq!(m["settings"]["ac_faces"], serde_json::json!([1, 2, 5]));
+}
+
+#[test]
+fn a_bidirectional_run_solves_to_the_truth() {
+    let dir = scratch("bidirectional");
+    let lab = SimLab::start(
+        &dir,
+        &["--cycles", "2", "--bidirectional", "--noise", "0.05"],
+    );
+    let out = dir.join("run");
+    let result = polycal(&lab.run_args(&out, &design(&["--bidirectional"])));
+    assert!(result.status.success(), "{}", stderr(&result));
+    let settings = RunSettings::new(8, 2)
+        .with_closing(true)
+        .with_bidirectional(true);
+    assert_eq!(rows(&out), plan_readings(&settings));
+    let set = MeasurementSet::read_path(&out.join("measurements.csv"), None).unwrap();
+    assert!(
+        set.readings
+            .iter()
+            .any(|r| r.cycle == 2 && r.direction == polycal::measurement::Direction::Ccw)
+    );
+    assert_solves_to_truth(&out, &lab.truth);
+}
+
+#[test]
+fn a_late_reply_on_the_third_autocollimator_is_discarded_too() {
+    let dir = scratch("three-acs-late");
+    let lab = SimLab::start(
+        &dir,
+        &[
+            "--ac-faces",
+            "1,2,5",
+            "--cycles",
+            "2",
+            "--closing",
+            "--noise",
+            "0.05",
+            "--fault",
+            "late:ac3:after=17:seconds=0.5",
+        ],
+    );
+    let out = dir.join("run");
+    let result = polycal(&lab.run_args(&out, &design(&["--ac-faces", "1,2,5"])));
+    assert!(result.status.success(), "{}", stderr(&result));
+    assert_solves_to_truth(&out, &lab.truth);
+    let discarded = sessions(&out)
+        .concat()
+        .into_iter()
+        .filter(|r| r["event"] == "discarded" && r["device"] == "ac3")
+        .count();
+    assert_eq!(discarded, 1);
+}
+
+#[test]
+fn ports_that_do_not_match_the_autocollimators_are_refused() {
+    let dir = scratch("three-acs-two-ports");
+    let lab = SimLab::start(&dir, &["--ac-faces", "1,2,5"]);
+    let out = dir.join("run");
+    // Two ports for three autocollimators.
+    let mut args = vec![
+        "run".to_string(),
+        "--ac1".into(),
+        lab.ac1.clone(),
+        "--ac2".into(),
+        lab.ac2.clone(),
+        "--table".into(),
+        lab.table.clone(),
+        "--out".into(),
+        out.display().to_string(),
+    ];
+    args.extend(
+        design(&["--ac-faces", "1,2,5"])
+            .iter()
+            .map(|s| s.to_string()),
+    );
+    assert_error(
+        &polycal(&args),
+        "2 autocollimator port(s) given for the 3 autocollimators",
+    );
+    assert!(!out.exists(), "nothing written");
+    // A fault on an autocollimator the lab does not have.
+    let refused = polycal(&["sim-lab", "--fault", "late:ac3"]);
+    assert_error(&refused, "the lab has 2 autocollimators, not an ac3");
+}
