@@ -147,3 +147,91 @@ fn ports_that_do_not_match_the_autocollimators_are_refused() {
     let refused = polycal(&["sim-lab", "--fault", "late:ac3"]);
     assert_error(&refused, "the lab has 2 autocollimators, not an ac3");
 }
+
+#[test]
+fn a_planned_design_is_run_exactly() {
+    let dir = scratch("planned");
+    // Two designs planned; the run takes the one named.
+    let planned = polycal(&[
+        "plan",
+        "--sigma",
+        "0.05",
+        "--design",
+        "name=paper;faces=8;cycles=2;closing=true",
+        "--design",
+        "name=three;faces=8;ac-faces=1,2,5;cycles=2;bidirectional=true",
+        "--format",
+        "json",
+    ]);
+    assert!(planned.status.success(), "{}", stderr(&planned));
+    let plan = dir.join("plan.json");
+    std::fs::write(&plan, &planned.stdout).unwrap();
+    let lab = SimLab::start(
+        &dir,
+        &[
+            "--ac-faces",
+            "1,2,5",
+            "--cycles",
+            "2",
+            "--bidirectional",
+            "--noise",
+            "0.05",
+        ],
+    );
+    let out = dir.join("run");
+    let mut args = lab.run_args(
+        &out,
+        &[
+            "--plan",
+            plan.to_str().unwrap(),
+            "--design",
+            "three",
+            "--settle",
+            "0",
+            "--timeout",
+            "0.3",
+            "--reading-noise",
+            "0.05",
+            "-q",
+        ],
+    );
+    let result = polycal(&args);
+    assert!(result.status.success(), "{}", stderr(&result));
+    let settings = RunSettings::new(8, 2)
+        .with_closing(true)
+        .with_bidirectional(true)
+        .with_ac_faces(vec![1, 2, 5]);
+    assert_eq!(rows(&out), plan_readings(&settings));
+    let m = manifest(&out);
+    assert_eq!(m["settings"]["ac_faces"], serde_json::json!([1, 2, 5]));
+    assert_eq!(m["settings"]["bidirectional"], true);
+    assert_solves_to_truth(&out, &lab.truth);
+
+    // Without a name, a file of two designs is refused, naming them and the option.
+    args.retain(|a| a != "--design" && a != "three");
+    let out2 = dir.join("run2");
+    let i = args.iter().position(|a| a == "--out").unwrap();
+    args[i + 1] = out2.display().to_string();
+    let text = assert_error(&polycal(&args), "holds 2 designs (paper, three)");
+    assert!(text.contains("--design NAME"), "{text}");
+    assert!(!out2.exists());
+    // A design of two mountings is refused at its line.
+    let two = polycal(&[
+        "plan",
+        "--sigma",
+        "0.05",
+        "--design",
+        "name=two;faces=8;cycles=2;setups=2",
+        "--format",
+        "json",
+    ]);
+    assert!(two.status.success(), "{}", stderr(&two));
+    let plan2 = dir.join("two.json");
+    std::fs::write(&plan2, &two.stdout).unwrap();
+    let i = args.iter().position(|a| a == "--plan").unwrap();
+    args[i + 1] = plan2.display().to_string();
+    assert_error(
+        &polycal(&args),
+        "two.json:1:1: design \"two\" has 2 mountings",
+    );
+}

@@ -66,17 +66,25 @@ pub struct RunArgs {
     #[arg(long)]
     table: String,
     /// Number of polygon faces N (= table stops per turn).
-    #[arg(long)]
-    faces: usize,
+    #[arg(long, required_unless_present = "plan", conflicts_with = "plan")]
+    faces: Option<usize>,
     /// Number of cycles.
-    #[arg(long)]
-    cycles: u32,
+    #[arg(long, required_unless_present = "plan", conflicts_with = "plan")]
+    cycles: Option<u32>,
     /// Add the closing step N (table back at 360°) to every cycle.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "plan")]
     closing: bool,
     /// Run every second cycle counter-clockwise, steps N … 0 (implies --closing).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "plan")]
     bidirectional: bool,
+    /// Run exactly the design of a `polycal plan --format json` output: its faces,
+    /// autocollimators' faces, cycles, closing step and directions (instead of those
+    /// options; docs/FORMAT.md §7.3).
+    #[arg(long, value_name = "FILE")]
+    plan: Option<PathBuf>,
+    /// With --plan: the name of the design to run, when the file holds several.
+    #[arg(long, value_name = "NAME", requires = "plan")]
+    design: Option<String>,
     /// Wait after the table arrived before reading, seconds.
     #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     settle: f64,
@@ -173,15 +181,34 @@ const NOISE_ADVICE: &str = "state the autocollimator's real noise";
 
 /// `polycal run`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
-    let settings = RunSettings::new(args.faces, args.cycles)
+    let settings = RunSettings::new(args.faces.unwrap_or(0), args.cycles.unwrap_or(0))
         .with_closing(args.closing || args.bidirectional)
         .with_bidirectional(args.bidirectional)
         .with_settle_seconds(args.settle)
         .with_reads_per_stop(args.reads)
         .with_reading_noise_arcsec(args.reading_noise)
         .with_ac_faces(args.ac_faces.clone());
-    // The library names the setting (`faces 2: …`); the option is `--faces`.
-    settings.validate().map_err(|e| anyhow!("--{e}"))?;
+    let settings = match &args.plan {
+        Some(path) => {
+            let (bytes, name) =
+                polycal::input::read_bytes(path).map_err(|(file, e)| anyhow!("{file}: {e}"))?;
+            let text =
+                std::str::from_utf8(&bytes).map_err(|e| anyhow!("{name}: not UTF-8 text ({e})"))?;
+            run::settings_from_plan(text, &name, args.design.as_deref(), &settings).map_err(
+                |e| match e {
+                    run::PlanFileError::Several { .. } => {
+                        with_hint(e, "--design", "with --design NAME")
+                    }
+                    e => e.into(),
+                },
+            )?
+        }
+        None => {
+            // The library names the setting (`faces 2: …`); the option is `--faces`.
+            settings.validate().map_err(|e| anyhow!("--{e}"))?;
+            settings
+        }
+    };
     let query = QueryOptions::new(seconds("timeout", args.timeout)?, 3);
     let motion_timeout = seconds("motion-timeout", args.motion_timeout)?;
     let interrupts = Interrupts::install(

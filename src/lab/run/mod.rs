@@ -90,6 +90,7 @@ mod error;
 mod live;
 mod manifest;
 mod measure;
+mod plan_file;
 mod repeat;
 mod resume;
 mod settings;
@@ -103,6 +104,7 @@ pub use live::{
 };
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
 pub use measure::{Instruments, Outcome, Progress, measure};
+pub use plan_file::{PlanFileError, settings_from_plan};
 pub use repeat::EXTRA_READS;
 pub use settings::{
     AGREEMENT_SIGMAS, DEFAULT_READING_NOISE_ARCSEC, DEFAULT_READS_PER_STOP, MAX_AUTOCOLLIMATORS,

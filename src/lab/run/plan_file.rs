@@ -1,0 +1,216 @@
+//! A run that executes a planned design: the design of a `polycal plan --format json`
+//! output (docs/FORMAT.md §5.6) as run settings (docs/FORMAT.md §7.3, `--plan`).
+
+use serde::Deserialize;
+
+use super::{RunSettings, SettingsError};
+use crate::input::Location;
+
+/// Why a plan file cannot be run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlanFileError {
+    /// A line that is not a `plan --format json` object with its `design`.
+    #[error("{location}: not a design of `plan --format json`: {message}")]
+    Form {
+        /// Where.
+        location: Location,
+        /// What the JSON reader said.
+        message: String,
+    },
+    /// No design in the file.
+    #[error("{file}: holds no design")]
+    Empty {
+        /// The file.
+        file: String,
+    },
+    /// Several designs and none chosen.
+    #[error("{file}: holds {} designs ({}): choose one by its name", names.len(), names.join(", "))]
+    Several {
+        /// The file.
+        file: String,
+        /// Their names.
+        names: Vec<String>,
+    },
+    /// The chosen design is not in the file.
+    #[error("{file}: no design named {name:?} (it holds {})", names.join(", "))]
+    NotFound {
+        /// The file.
+        file: String,
+        /// The name asked for.
+        name: String,
+        /// The names it holds.
+        names: Vec<String>,
+    },
+    /// A design of several mountings, which a run measures one at a time.
+    #[error(
+        "{location}: design {name:?} has {setups} mountings; a run measures one mounting (plan \
+         each mounting as its own design)"
+    )]
+    Mountings {
+        /// Where the design is.
+        location: Location,
+        /// Its name.
+        name: String,
+        /// Its mountings.
+        setups: u32,
+    },
+    /// A design whose settings a run refuses.
+    #[error("{location}: design {name:?}: {error}")]
+    Settings {
+        /// Where the design is.
+        location: Location,
+        /// Its name.
+        name: String,
+        /// The setting out of range.
+        error: SettingsError,
+    },
+}
+
+#[derive(Deserialize)]
+struct PlanLine {
+    name: String,
+    design: PlannedDesign,
+}
+
+#[derive(Deserialize)]
+struct PlannedDesign {
+    faces: usize,
+    ac_faces: Vec<usize>,
+    cycles: u32,
+    closing: bool,
+    bidirectional: bool,
+    setups: u32,
+}
+
+/// The run settings of the design named `name` (the only one when `None`) of the
+/// `plan --format json` output `text` (one JSON object per line, as `plan` writes it
+/// for one design or several), read from `file`: faces, the autocollimators' faces,
+/// cycles, the closing step and the direction of the cycles; `base` gives the rest
+/// (settle time, readings per stop, noise).
+///
+/// # Errors
+///
+/// [`PlanFileError`]: a line that is not a plan's JSON (at its line and column), no
+/// design, several without a choice, an unknown name, several mountings, settings a run
+/// refuses.
+pub fn settings_from_plan(
+    text: &str,
+    file: &str,
+    name: Option<&str>,
+    base: &RunSettings,
+) -> Result<RunSettings, PlanFileError> {
+    let mut designs = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let parsed: PlanLine = serde_json::from_str(line).map_err(|e| PlanFileError::Form {
+            location: Location::new(file, i as u64 + 1, e.column() as u64),
+            message: e.to_string(),
+        })?;
+        designs.push((i as u64 + 1, parsed));
+    }
+    let names: Vec<String> = designs.iter().map(|(_, d)| d.name.clone()).collect();
+    let chosen = match name {
+        Some(wanted) => designs
+            .into_iter()
+            .find(|(_, d)| d.name == wanted)
+            .ok_or_else(|| PlanFileError::NotFound {
+                file: file.to_string(),
+                name: wanted.to_string(),
+                names: names.clone(),
+            })?,
+        None if designs.len() > 1 => {
+            return Err(PlanFileError::Several {
+                file: file.to_string(),
+                names,
+            });
+        }
+        None => designs.pop().ok_or_else(|| PlanFileError::Empty {
+            file: file.to_string(),
+        })?,
+    };
+    let (line, PlanLine { name, design }) = chosen;
+    let location = Location::new(file, line, 1);
+    if design.setups != 1 {
+        return Err(PlanFileError::Mountings {
+            location,
+            name,
+            setups: design.setups,
+        });
+    }
+    let mut settings = base.clone();
+    settings.faces = design.faces;
+    settings.cycles = design.cycles;
+    settings.closing = design.closing || design.bidirectional;
+    settings.bidirectional = design.bidirectional;
+    settings.ac_faces = design.ac_faces;
+    settings
+        .validate()
+        .map_err(|error| PlanFileError::Settings {
+            location,
+            name,
+            error,
+        })?;
+    Ok(settings)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const A: &str = r#"{"version":"0.1.0","name":"A","design":{"faces":8,"ac_faces":[1,2,5],"cycles":3,"closing":true,"bidirectional":false,"setups":1,"setup_shift":1,"shift_deg":[],"step_seconds":20.0},"faces":8}"#;
+    const B: &str = r#"{"version":"0.1.0","name":"B","design":{"faces":12,"ac_faces":[1,2],"cycles":2,"closing":true,"bidirectional":true,"setups":1,"setup_shift":1,"shift_deg":[],"step_seconds":20.0},"faces":12}"#;
+    const TWO: &str = r#"{"version":"0.1.0","name":"M","design":{"faces":8,"ac_faces":[1,2],"cycles":2,"closing":true,"bidirectional":false,"setups":2,"setup_shift":1,"shift_deg":[],"step_seconds":20.0},"faces":8}"#;
+
+    fn base() -> RunSettings {
+        RunSettings::new(3, 1).with_settle_seconds(0.5)
+    }
+
+    #[test]
+    fn the_planned_design_becomes_the_runs_settings() {
+        let s = settings_from_plan(A, "p.json", None, &base()).unwrap();
+        assert_eq!(
+            (
+                s.faces,
+                s.cycles,
+                s.closing,
+                s.bidirectional,
+                s.ac_faces.clone()
+            ),
+            (8, 3, true, false, vec![1, 2, 5])
+        );
+        assert_eq!(s.settle_seconds, 0.5, "the rest from the command");
+        let both = format!("{A}\n{B}\n");
+        let s = settings_from_plan(&both, "p.json", Some("B"), &base()).unwrap();
+        assert_eq!((s.faces, s.bidirectional), (12, true));
+    }
+
+    #[test]
+    fn what_a_run_cannot_take_is_refused_at_its_place() {
+        let both = format!("{A}\n{B}\n");
+        let e = settings_from_plan(&both, "p.json", None, &base()).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "p.json: holds 2 designs (A, B): choose one by its name"
+        );
+        let e = settings_from_plan(&both, "p.json", Some("C"), &base()).unwrap_err();
+        assert!(e.to_string().contains("no design named \"C\""), "{e}");
+        let e = settings_from_plan(TWO, "p.json", None, &base()).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("p.json:1:1: design \"M\" has 2 mountings"),
+            "{e}"
+        );
+        let e = settings_from_plan("{\"name\": 3}", "p.json", None, &base()).unwrap_err();
+        assert!(e.to_string().starts_with("p.json:1:"), "{e}");
+        let e = settings_from_plan("", "p.json", None, &base()).unwrap_err();
+        assert_eq!(
+            e,
+            PlanFileError::Empty {
+                file: "p.json".into()
+            }
+        );
+    }
+}
