@@ -358,15 +358,21 @@ fn run_session(
     ended(args, out, &dir, &outcome, recorded, before)
 }
 
-/// What the check after a cycle found, as it is found: one line for the cycle, one per
-/// reading measured again or suspect, a `warning:` line per warning.
-fn show_cycle_check(out: &Output, check: &CycleCheck) {
-    let closure = check
+/// A cycle's closure per autocollimator, `ac1 +0.0123″, ac2 -0.0081″` (empty without
+/// the closing step).
+fn closure_text(check: &CycleCheck) -> String {
+    check
         .closure_arcsec
         .iter()
         .map(|(ac, c)| format!("ac{ac} {c:+.4}″"))
         .collect::<Vec<_>>()
-        .join(", ");
+        .join(", ")
+}
+
+/// What the check after a cycle found, as it is found: one line for the cycle, one per
+/// reading measured again or suspect, a `warning:` line per warning.
+fn show_cycle_check(out: &Output, check: &CycleCheck) {
+    let closure = closure_text(check);
     let rms = match (
         check.residual_rms_arcsec,
         check.previous_residual_rms_arcsec,
@@ -413,12 +419,7 @@ fn summary(args: &RunArgs, out: &Output, dir: &RunDir, checks: &[CycleCheck]) {
         m.suspect.len()
     ));
     for check in checks {
-        let closure = check
-            .closure_arcsec
-            .iter()
-            .map(|(ac, c)| format!("ac{ac} {c:+.4}″"))
-            .collect::<Vec<_>>()
-            .join(", ");
+        let closure = closure_text(check);
         let rms = check
             .residual_rms_arcsec
             .map_or("—".to_string(), |r| format!("{r:.4}″"));

@@ -45,12 +45,12 @@ impl Ports {
 
     /// The ports of autocollimators 1 … K (at least two) and the rotary table.
     pub fn of(acs: &[String], table: impl Into<String>) -> Ports {
-        let at = |i: usize| acs.get(i).cloned().unwrap_or_default();
+        let (ac1, ac2, more) = split(acs);
         Ports {
-            ac1: at(0),
-            ac2: at(1),
+            ac1,
+            ac2,
             table: table.into(),
-            more: further(acs),
+            more,
         }
     }
 
@@ -60,13 +60,16 @@ impl Ports {
     }
 }
 
-/// Autocollimators 3 … K of a list, keyed `ac3`, `ac4`, ….
-fn further(acs: &[String]) -> BTreeMap<String, String> {
-    acs.iter()
+/// Autocollimators 1 and 2 of a list, and 3 … K keyed `ac3`, `ac4`, ….
+fn split(acs: &[String]) -> (String, String, BTreeMap<String, String>) {
+    let at = |i: usize| acs.get(i).cloned().unwrap_or_default();
+    let more = acs
+        .iter()
         .enumerate()
         .skip(2)
         .map(|(i, v)| (format!("ac{}", i + 1), v.clone()))
-        .collect()
+        .collect();
+    (at(0), at(1), more)
 }
 
 /// Autocollimator `ac`'s entry: `ac1`, `ac2` or one of `more`.
@@ -102,12 +105,12 @@ impl Identification {
     /// The identification of autocollimators 1 … K (at least two) and the table's
     /// controller.
     pub fn of(acs: &[String], table: impl Into<String>) -> Identification {
-        let at = |i: usize| acs.get(i).cloned().unwrap_or_default();
+        let (ac1, ac2, more) = split(acs);
         Identification {
-            ac1: at(0),
-            ac2: at(1),
+            ac1,
+            ac2,
             table: table.into(),
-            more: further(acs),
+            more,
         }
     }
 
