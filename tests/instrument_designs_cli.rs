@@ -10,6 +10,17 @@ use instrument_support::*;
 use polycal::lab::run::RunSettings;
 use polycal::measurement::MeasurementSet;
 
+/// A lab of three autocollimators on faces 1, 2 and 5, two cycles with the closing step.
+const THREE: [&str; 7] = [
+    "--ac-faces",
+    "1,2,5",
+    "--cycles",
+    "2",
+    "--closing",
+    "--noise",
+    "0.05",
+];
+
 fn design(extra: &[&'static str]) -> Vec<&'static str> {
     let mut d = vec![
         "--faces",
@@ -32,18 +43,7 @@ fn design(extra: &[&'static str]) -> Vec<&'static str> {
 #[test]
 fn three_autocollimators_at_any_faces_are_run_and_solve_to_the_truth() {
     let dir = scratch("three-acs");
-    let lab = SimLab::start(
-        &dir,
-        &[
-            "--ac-faces",
-            "1,2,5",
-            "--cycles",
-            "2",
-            "--closing",
-            "--noise",
-            "0.05",
-        ],
-    );
+    let lab = SimLab::start(&dir, &THREE);
     assert_eq!(lab.acs.len(), 3);
     let out = dir.join("run");
     let result = polycal(&lab.run_args(&out, &design(&["--ac-faces", "1,2,5"])));
@@ -92,17 +92,7 @@ fn a_late_reply_on_the_third_autocollimator_is_discarded_too() {
     let dir = scratch("three-acs-late");
     let lab = SimLab::start(
         &dir,
-        &[
-            "--ac-faces",
-            "1,2,5",
-            "--cycles",
-            "2",
-            "--closing",
-            "--noise",
-            "0.05",
-            "--fault",
-            "late:ac3:after=17:seconds=0.5",
-        ],
+        &[&THREE[..], &["--fault", "late:ac3:after=17:seconds=0.5"]].concat(),
     );
     let out = dir.join("run");
     let result = polycal(&lab.run_args(&out, &design(&["--ac-faces", "1,2,5"])));

@@ -28,7 +28,14 @@ pub const RUN_EXAMPLES: &str = "\
 Examples:
   polycal run --ac1 /dev/ttyUSB0 --ac2 /dev/ttyUSB1 --table /dev/ttyUSB2 --faces 24 --cycles 6 --closing --out run1
   polycal run --ac1 /dev/ttyUSB0 --ac2 /dev/ttyUSB1 --table /dev/ttyUSB2 --faces 24 --cycles 6 --closing --out run1 --resume
+  polycal run --ac /dev/ttyUSB0 --ac /dev/ttyUSB1 --ac /dev/ttyUSB3 --ac-faces 1,2,9 --table /dev/ttyUSB2 --faces 24 --cycles 6 --closing --out run2
+  polycal run --ac1 /dev/ttyUSB0 --ac2 /dev/ttyUSB1 --table /dev/ttyUSB2 --plan plan.json --design B --out run3
   polycal solve run1/measurements.csv
+
+Every stop is read --reads times per autocollimator and stored only when the readings
+agree; after every cycle the run is evaluated and a reading far off is measured again.
+Status 0: completed; 1: completed with readings measured again or suspect (manifest.json);
+2: stopped (docs/FORMAT.md §7.3, §8).
 
 Without instruments, `polycal sim-lab` serves simulated ones and prints a `run` command for them.";
 
@@ -192,9 +199,7 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
         Some(path) => {
             let (bytes, name) =
                 polycal::input::read_bytes(path).map_err(|(file, e)| anyhow!("{file}: {e}"))?;
-            let text =
-                std::str::from_utf8(&bytes).map_err(|e| anyhow!("{name}: not UTF-8 text ({e})"))?;
-            run::settings_from_plan(text, &name, args.design.as_deref(), &settings).map_err(
+            run::settings_from_plan(&bytes, &name, args.design.as_deref(), &settings).map_err(
                 |e| match e {
                     run::PlanFileError::Several { .. } => {
                         with_hint(e, "--design", "with --design NAME")

@@ -84,22 +84,29 @@ struct PlannedDesign {
 }
 
 /// The run settings of the design named `name` (the only one when `None`) of the
-/// `plan --format json` output `text` (one JSON object per line, as `plan` writes it
-/// for one design or several), read from `file`: faces, the autocollimators' faces,
+/// `plan --format json` output `bytes` (UTF-8, one JSON object per line, as `plan`
+/// writes it for one design or several), read from `file`: faces, the autocollimators' faces,
 /// cycles, the closing step and the direction of the cycles; `base` gives the rest
 /// (settle time, readings per stop, noise).
 ///
 /// # Errors
 ///
-/// [`PlanFileError`]: a line that is not a plan's JSON (at its line and column), no
+/// [`PlanFileError`]: bytes that are not UTF-8 or a line that is not a plan's JSON (at
+/// their line and column), no
 /// design, several without a choice, an unknown name, several mountings, settings a run
 /// refuses.
 pub fn settings_from_plan(
-    text: &str,
+    bytes: &[u8],
     file: &str,
     name: Option<&str>,
     base: &RunSettings,
 ) -> Result<RunSettings, PlanFileError> {
+    let text = crate::input::text::utf8(bytes).map_err(|((line, column), message)| {
+        PlanFileError::Form {
+            location: Location::new(file, line, column),
+            message,
+        }
+    })?;
     let mut designs = Vec::new();
     for (i, line) in text.lines().enumerate() {
         if line.trim().is_empty() {
@@ -170,7 +177,7 @@ mod tests {
 
     #[test]
     fn the_planned_design_becomes_the_runs_settings() {
-        let s = settings_from_plan(A, "p.json", None, &base()).unwrap();
+        let s = settings_from_plan(A.as_bytes(), "p.json", None, &base()).unwrap();
         assert_eq!(
             (
                 s.faces,
@@ -183,29 +190,31 @@ mod tests {
         );
         assert_eq!(s.settle_seconds, 0.5, "the rest from the command");
         let both = format!("{A}\n{B}\n");
-        let s = settings_from_plan(&both, "p.json", Some("B"), &base()).unwrap();
+        let s = settings_from_plan(both.as_bytes(), "p.json", Some("B"), &base()).unwrap();
         assert_eq!((s.faces, s.bidirectional), (12, true));
     }
 
     #[test]
     fn what_a_run_cannot_take_is_refused_at_its_place() {
         let both = format!("{A}\n{B}\n");
-        let e = settings_from_plan(&both, "p.json", None, &base()).unwrap_err();
+        let e = settings_from_plan(both.as_bytes(), "p.json", None, &base()).unwrap_err();
         assert_eq!(
             e.to_string(),
             "p.json: holds 2 designs (A, B): choose one by its name"
         );
-        let e = settings_from_plan(&both, "p.json", Some("C"), &base()).unwrap_err();
+        let e = settings_from_plan(both.as_bytes(), "p.json", Some("C"), &base()).unwrap_err();
         assert!(e.to_string().contains("no design named \"C\""), "{e}");
-        let e = settings_from_plan(TWO, "p.json", None, &base()).unwrap_err();
+        let e = settings_from_plan(TWO.as_bytes(), "p.json", None, &base()).unwrap_err();
         assert!(
             e.to_string()
                 .starts_with("p.json:1:1: design \"M\" has 2 mountings"),
             "{e}"
         );
-        let e = settings_from_plan("{\"name\": 3}", "p.json", None, &base()).unwrap_err();
+        let e = settings_from_plan(b"{\"name\": 3}", "p.json", None, &base()).unwrap_err();
         assert!(e.to_string().starts_with("p.json:1:"), "{e}");
-        let e = settings_from_plan("", "p.json", None, &base()).unwrap_err();
+        let e = settings_from_plan(b"{}\n\xff", "p.json", None, &base()).unwrap_err();
+        assert!(e.to_string().starts_with("p.json:2:1: "), "{e}");
+        let e = settings_from_plan(b"", "p.json", None, &base()).unwrap_err();
         assert_eq!(
             e,
             PlanFileError::Empty {
