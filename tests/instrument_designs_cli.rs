@@ -205,7 +205,7 @@ fn a_planned_design_is_run_exactly() {
     let text = assert_error(&polycal(&args), "holds 2 designs (paper, three)");
     assert!(text.contains("--design NAME"), "{text}");
     assert!(!out2.exists());
-    // A design of two mountings is refused at its line.
+    // A mounting the design does not have is refused at its line.
     let two = polycal(&[
         "plan",
         "--sigma",
@@ -220,8 +220,173 @@ fn a_planned_design_is_run_exactly() {
     std::fs::write(&plan2, &two.stdout).unwrap();
     let i = args.iter().position(|a| a == "--plan").unwrap();
     args[i + 1] = plan2.display().to_string();
+    args.extend(["--setup".into(), "3".into()]);
     assert_error(
         &polycal(&args),
-        "two.json:1:1: design \"two\" has 2 mountings",
+        "two.json:1:1: design \"two\" has 2 mounting(s), not a mounting 3",
     );
+    assert!(!out2.exists());
+}
+
+/// The (setup, cycle, step, ac) of every data row of a run's measurement file, and its
+/// `shift` per row.
+fn places(dir: &std::path::Path) -> Vec<((u32, u32, usize, u32), f64)> {
+    let set = MeasurementSet::read_path(&dir.join("measurements.csv"), None).unwrap();
+    set.readings
+        .iter()
+        .map(|r| ((r.setup, r.cycle, r.step, r.ac), set.shift_deg(r.setup)))
+        .collect()
+}
+
+/// Every reading of mountings 1 … `setups` of `settings`, in order, with its shift.
+fn planned_places(settings: &RunSettings, shifts: &[f64]) -> Vec<((u32, u32, usize, u32), f64)> {
+    let mut all = Vec::new();
+    for (s, shift) in shifts.iter().enumerate() {
+        for (cycle, step, ac) in plan_readings(settings) {
+            all.push(((s as u32 + 1, cycle, step, ac), *shift));
+        }
+    }
+    all
+}
+
+#[test]
+fn a_run_in_two_mountings_between_the_stops_solves_to_the_truth() {
+    let dir = scratch("two-mountings");
+    let mut lab = SimLab::start(
+        &dir,
+        &[
+            "--cycles",
+            "2",
+            "--closing",
+            "--noise",
+            "0.05",
+            "--setups",
+            "2",
+            "--shift-deg",
+            "0,22.5",
+        ],
+    );
+    let out = dir.join("run");
+    let first = polycal(&lab.run_args(&out, &design(&[])));
+    assert!(first.status.success(), "{}", stderr(&first));
+    let second_args = lab.run_args(
+        &out,
+        &design(&["--setup", "2", "--shift", "22.5", "--face-shift", "1"]),
+    );
+    // Nobody confirms the remount (standard input closed): the prompt, then one error
+    // line; nothing measured.
+    let declined = polycal(&second_args);
+    let text = stderr(&declined);
+    assert_eq!(declined.status.code(), Some(2), "{text}");
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(
+        lines[0].starts_with(
+            "polycal run: mounting 2 (shift 22.5°, turned 1 face): the table stands at 22.5°."
+        ),
+        "{text}"
+    );
+    assert_eq!(
+        lines.iter().filter(|l| l.starts_with("error:")).count(),
+        1,
+        "{text}"
+    );
+    assert!(
+        lines[lines.len() - 1].starts_with("error: no confirmation that the polygon is remounted for mounting 2 (shift 22.5°, turned 1 face) (standard input closed); the run stopped; 36 of 72 readings"),
+        "{text}"
+    );
+    assert_eq!(places(&out).len(), 36);
+    // The operator remounts, the run is told so: the second mounting is measured.
+    assert_eq!(lab.remount(), 2);
+    let result = polycal_with_input(&second_args, "\n");
+    let err = stderr(&result);
+    assert!(result.status.success(), "{err}");
+    assert!(
+        err.contains("Remount the polygon with the table there, not moved: face 2 faces autocollimator 1, face 3 faces autocollimator 2."),
+        "{err}"
+    );
+    let settings = RunSettings::new(8, 2).with_closing(true);
+    assert_eq!(places(&out), planned_places(&settings, &[0.0, 22.5]));
+    let m = manifest(&out);
+    assert_eq!(m["mountings"][1]["setup"], 2);
+    assert_eq!(m["mountings"][1]["table_deg"], 22.5);
+    // α at 16 table angles, two cosets, and β, against the truth.
+    assert_solves_to_truth(&out, &lab.truth);
+    // A third mounting the run was not told of is refused before anything is moved.
+    let third = lab.run_args(&out, &design(&["--setup", "4"]));
+    assert_error(&polycal(&third), "the next one is 3, not 4");
+}
+
+#[test]
+fn a_planned_design_of_two_mountings_is_run_mounting_by_mounting() {
+    let dir = scratch("planned-mountings");
+    let planned = polycal(&[
+        "plan",
+        "--sigma",
+        "0.05",
+        "--design",
+        "name=turned;faces=8;cycles=2;closing=true;setups=2;setup-shift=3",
+        "--format",
+        "json",
+    ]);
+    assert!(planned.status.success(), "{}", stderr(&planned));
+    let plan = dir.join("plan.json");
+    std::fs::write(&plan, &planned.stdout).unwrap();
+    let mut lab = SimLab::start(
+        &dir,
+        &[
+            "--cycles",
+            "2",
+            "--closing",
+            "--noise",
+            "0.05",
+            "--setups",
+            "2",
+            "--setup-shift",
+            "3",
+        ],
+    );
+    let out = dir.join("run");
+    let options = |extra: &[&'static str]| {
+        let mut o = vec![
+            "--plan",
+            plan.to_str().unwrap(),
+            "--settle",
+            "0",
+            "--timeout",
+            "0.3",
+            "--reading-noise",
+            "0.05",
+            "-q",
+        ];
+        o.extend_from_slice(extra);
+        o.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let first = polycal(&lab.run_args(&out, &strs(&options(&[]))));
+    assert!(first.status.success(), "{}", stderr(&first));
+    // The plan's second mounting turns the polygon 3 faces; another face shift is refused.
+    assert_error(
+        &polycal(&lab.run_args(
+            &out,
+            &strs(&options(&["--setup", "2", "--face-shift", "1"])),
+        )),
+        "--face-shift 1: the plan turns the polygon 3 faces in mounting 2",
+    );
+    assert_eq!(lab.remount(), 2);
+    let second = polycal_with_input(
+        &lab.run_args(&out, &strs(&options(&["--setup", "2"]))),
+        "\n",
+    );
+    assert!(second.status.success(), "{}", stderr(&second));
+    let set = MeasurementSet::read_path(&out.join("measurements.csv"), None).unwrap();
+    for r in set.readings.iter().filter(|r| r.setup == 2) {
+        assert_eq!(r.face, (r.ac as usize - 1 + 3 + r.step) % 8 + 1, "{r:?}");
+    }
+    let settings = RunSettings::new(8, 2).with_closing(true);
+    assert_eq!(places(&out), planned_places(&settings, &[0.0, 0.0]));
+    assert_solves_to_truth(&out, &lab.truth);
+}
+
+/// The strings of `v` borrowed.
+fn strs(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
 }

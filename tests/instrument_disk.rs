@@ -352,7 +352,7 @@ fn the_measurement_file_filling_up_stops_the_run_at_that_reading() {
         .unwrap()
         .trim_end_matches(')');
     let next = read_rows(
-        format!("cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder\n{row}\n")
+        format!("cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder,shift\n{row}\n")
             .as_bytes(),
         "row",
     )

@@ -322,9 +322,9 @@ fn a_run_in_process_is_a_calibration() {
         );
         assert_solves_to_truth(&dir.join(run::MEASUREMENTS), &d.3, 36);
         let text = std::fs::read_to_string(dir.join(run::MEASUREMENTS)).unwrap();
-        assert!(
-            text.contains("\ncycle,step,ac,face,reading,direction,time,setup,reading_y,encoder\n")
-        );
+        assert!(text.contains(
+            "\ncycle,step,ac,face,reading,direction,time,setup,reading_y,encoder,shift\n"
+        ));
         if bidirectional {
             assert!(text.contains(",ccw,"));
         }
@@ -390,7 +390,7 @@ fn the_run_directory_refuses_what_would_lose_or_mix_data() {
     // A reading out of order (a file changed by hand) is refused.
     let path = dir.join(run::MEASUREMENTS);
     let mut text = std::fs::read_to_string(&path).unwrap();
-    text.push_str("1,0,1,1,0.5,cw,0.1,1,,0\n1,1,1,2,0.5,cw,0.2,1,,45\n");
+    text.push_str("1,0,1,1,0.5,cw,0.1,1,,0,0\n1,1,1,2,0.5,cw,0.2,1,,45,0\n");
     std::fs::write(&path, &text).unwrap();
     let m = refused(RunDir::open(&dir, &s, &ports(), true));
     assert!(
@@ -403,8 +403,8 @@ fn the_run_directory_refuses_what_would_lose_or_mix_data() {
     // A last line cut short is removed, with a warning, and the run goes on from there.
     let mut text = std::fs::read_to_string(&path).unwrap();
     text = text.replace(
-        "1,1,1,2,0.5,cw,0.2,1,,45\n",
-        "1,0,2,2,0.25,cw,0.2,1,,0\n1,1,1,2,0.",
+        "1,1,1,2,0.5,cw,0.2,1,,45,0\n",
+        "1,0,2,2,0.25,cw,0.2,1,,0,0\n1,1,1,2,0.",
     );
     std::fs::write(&path, &text).unwrap();
     let run = RunDir::open(&dir, &s, &ports(), true).unwrap();
@@ -429,10 +429,13 @@ fn resume_reads_the_file_with_the_measurement_rules() {
     let dir = temp_dir("resume-rules");
     let s = settings(8, 1, false);
     drop(RunDir::open(&dir, &s, &ports(), false).unwrap());
-    let ok = "1,0,1,1,0.5,cw,0.1,1,,0\n";
+    let ok = "1,0,1,1,0.5,cw,0.1,1,,0,0\n";
 
     // A row the measurement file's rules refuse, named by line and column.
-    let m = refused(resume_with(&dir, &format!("{ok}1,0,2,x,0.5,cw,0.2,1,,0\n")));
+    let m = refused(resume_with(
+        &dir,
+        &format!("{ok}1,0,2,x,0.5,cw,0.2,1,,0,0\n"),
+    ));
     assert!(
         m.contains(
             "measurements.csv:4:7: column \"face\": \"x\" is not an integer; refusing to resume"
@@ -440,7 +443,7 @@ fn resume_reads_the_file_with_the_measurement_rules() {
         "{m}"
     );
     // A value the run always writes, missing.
-    let m = refused(resume_with(&dir, &format!("{ok}1,0,2,2,0.5,cw,,1,,0\n")));
+    let m = refused(resume_with(&dir, &format!("{ok}1,0,2,2,0.5,cw,,1,,0,0\n")));
     assert!(m.contains(":4: column \"time\" is empty"), "{m}");
     // More readings than the run has (18 for 8 faces, one cycle with closing).
     let all: String = s
@@ -450,7 +453,10 @@ fn resume_reads_the_file_with_the_measurement_rules() {
         .chain(std::iter::once((&s.plan()[0], 1)))
         .map(|(stop, ac)| {
             let face = (stop.step + ac as usize - 1) % 8 + 1;
-            format!("{},{},{ac},{face},0.5,cw,0.1,1,,0\n", stop.cycle, stop.step)
+            format!(
+                "{},{},{ac},{face},0.5,cw,0.1,1,,0,0\n",
+                stop.cycle, stop.step
+            )
         })
         .collect();
     let m = refused(resume_with(&dir, &all));
@@ -484,7 +490,7 @@ fn resume_reads_the_file_with_the_measurement_rules() {
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(
         text.starts_with(
-            "# a run\ncycle,step,ac,face,reading,direction,time,setup,reading_y,encoder\n1,0,1,1,"
+            "# a run\ncycle,step,ac,face,reading,direction,time,setup,reading_y,encoder,shift\n1,0,1,1,"
         ),
         "{text}"
     );

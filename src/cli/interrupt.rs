@@ -39,20 +39,20 @@ struct AtOnce {
     bar: OnceLock<indicatif::ProgressBar>,
     /// The measurement file and the readings of the whole run, for the message.
     file: PathBuf,
-    total: usize,
+    total: OnceLock<usize>,
 }
 
 impl Interrupts {
     /// Installs the handlers of SIGINT and SIGTERM for a run whose measurement file is
-    /// `file`, of `total` readings.
-    pub fn install(out: &Output, file: PathBuf, total: usize) -> Result<Interrupts> {
+    /// `file`.
+    pub fn install(out: &Output, file: PathBuf) -> Result<Interrupts> {
         let interrupts = Interrupts {
             stop: StopFlag::new(),
             at_once: Arc::new(AtOnce {
                 handle: OnceLock::new(),
                 bar: OnceLock::new(),
                 file,
-                total,
+                total: OnceLock::new(),
             }),
         };
         interrupts
@@ -66,9 +66,10 @@ impl Interrupts {
         &self.stop
     }
 
-    /// The run directory is open: a second interrupt records `interrupted` through
-    /// `handle`.
-    pub fn run_dir_opened(&self, handle: AbortHandle) {
+    /// The run directory is open, of `total` readings in its mountings so far: a second
+    /// interrupt records `interrupted` through `handle`.
+    pub fn run_dir_opened(&self, handle: AbortHandle, total: usize) {
+        let _ = self.at_once.total.set(total);
         let _ = self.at_once.handle.set(handle);
     }
 
@@ -157,7 +158,7 @@ impl AtOnce {
             None => "run stopped at once by a second interrupt, before it began measuring".into(),
             Some(Ok(readings)) => format!(
                 "{stopped}; {readings} of {} readings are in {file}; {resume}",
-                self.total
+                self.total.get().copied().unwrap_or(0)
             ),
             Some(Err(e)) => format!(
                 "{stopped}; the manifest was not updated ({e}); the readings taken are in {file}; {resume}"

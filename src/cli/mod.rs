@@ -8,13 +8,15 @@ mod diagnose;
 mod docs;
 #[cfg(feature = "lab")]
 mod interrupt;
-#[cfg(feature = "lab")]
-mod lab;
 mod monte_carlo;
 pub mod output;
 mod plan;
 mod report;
+#[cfg(feature = "lab")]
+mod run;
 mod selfcal;
+#[cfg(feature = "lab")]
+mod sim_lab;
 mod simulate;
 mod solve;
 
@@ -121,12 +123,12 @@ pub enum Command {
     Simulate(simulate::SimulateArgs),
     /// Drive the instruments through a calibration run (docs/FORMAT.md §7).
     #[cfg(feature = "lab")]
-    #[command(after_help = lab::RUN_EXAMPLES)]
-    Run(lab::RunArgs),
+    #[command(after_help = run::RUN_EXAMPLES)]
+    Run(run::RunArgs),
     /// Serve simulated instruments on pseudo-terminals, to try `run` without hardware.
     #[cfg(feature = "lab")]
-    #[command(after_help = lab::SIM_LAB_EXAMPLES)]
-    SimLab(lab::SimLabArgs),
+    #[command(after_help = sim_lab::SIM_LAB_EXAMPLES)]
+    SimLab(sim_lab::SimLabArgs),
     /// Print a shell completion script on standard output.
     #[command(after_help = docs::COMPLETIONS_EXAMPLES)]
     Completions(docs::CompletionsArgs),
@@ -248,9 +250,9 @@ pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
         Command::Report(args) => report::run(&args, out),
         Command::Simulate(args) => simulate::run(&args, out),
         #[cfg(feature = "lab")]
-        Command::Run(args) => lab::run(&args, out),
+        Command::Run(args) => run::run(&args, out),
         #[cfg(feature = "lab")]
-        Command::SimLab(args) => lab::sim_lab(&args, out),
+        Command::SimLab(args) => sim_lab::sim_lab(&args, out),
         Command::Completions(args) => docs::completions(&args),
         Command::Man(args) => docs::man(&args),
     }

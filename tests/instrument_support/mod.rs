@@ -3,9 +3,9 @@
 
 #![allow(dead_code)]
 
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Lines, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, Command, Output, Stdio};
+use std::process::{Child, ChildStdin, ChildStdout, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use polycal::lab::run::RunSettings;
@@ -25,7 +25,8 @@ pub fn scratch(name: &str) -> PathBuf {
 /// A running `polycal sim-lab`; killed when dropped.
 pub struct SimLab {
     child: Child,
-    _stdin: ChildStdin,
+    stdin: ChildStdin,
+    stdout: Lines<BufReader<ChildStdout>>,
     pub ac1: String,
     pub ac2: String,
     /// Every autocollimator's path, 1 … K.
@@ -72,13 +73,25 @@ impl SimLab {
         };
         SimLab {
             child,
-            _stdin: stdin,
+            stdin,
+            stdout: lines,
             ac1: acs[0].clone(),
             ac2: acs[1].clone(),
             acs,
             table,
             truth,
         }
+    }
+
+    /// The operator remounts the polygon for the lab's next setup: `remount` on the
+    /// lab's standard input, and its `remounted N` line awaited.
+    pub fn remount(&mut self) -> u32 {
+        writeln!(self.stdin, "remount").unwrap();
+        self.stdin.flush().unwrap();
+        let line = self.stdout.next().expect("a line").unwrap();
+        line.strip_prefix("remounted ")
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("not a remount: {line}"))
     }
 
     /// The `polycal run` arguments for this lab, writing to `out` (`--ac1`, `--ac2` for
@@ -124,6 +137,23 @@ pub fn polycal<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
         .expect("the binary runs")
 }
 
+/// Runs the binary to completion with `input` on its standard input (the answer to a
+/// prompt).
+pub fn polycal_with_input<S: AsRef<std::ffi::OsStr>>(args: &[S], input: &str) -> Output {
+    let mut child = Command::new(BIN)
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the binary runs");
+    let mut stdin = child.stdin.take().unwrap();
+    // The run may end before it reads (a refusal): a closed pipe is not the test's error.
+    let _ = stdin.write_all(input.as_bytes());
+    drop(stdin);
+    child.wait_with_output().expect("the binary ends")
+}
+
 pub fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
@@ -140,7 +170,8 @@ pub fn assert_error(out: &Output, says: &str) -> String {
 }
 
 /// The header of a run's measurement file (docs/FORMAT.md §7), as the run has always written it.
-pub const RUN_HEADER: &str = "cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder";
+pub const RUN_HEADER: &str =
+    "cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder,shift";
 
 /// The (cycle, step, ac) of every data row of a run's measurement file.
 pub fn rows(dir: &Path) -> Vec<(u32, usize, u32)> {
@@ -150,7 +181,7 @@ pub fn rows(dir: &Path) -> Vec<(u32, usize, u32)> {
     lines
         .map(|l| {
             let f: Vec<&str> = l.split(',').collect();
-            assert_eq!(f.len(), 10, "{l}");
+            assert_eq!(f.len(), 11, "{l}");
             (
                 f[0].parse().unwrap(),
                 f[1].parse().unwrap(),

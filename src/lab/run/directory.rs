@@ -11,8 +11,8 @@ use super::abort::{self, AbortHandle, OnDisk, Shared};
 use super::error::io_error;
 use super::manifest::software;
 use super::{
-    Identification, MANIFEST_FORMAT, Manifest, Outcome, Ports, RunError, RunSettings, rfc3339,
-    unix_now,
+    Identification, MANIFEST_FORMAT, Manifest, Mounting, MountingRecord, Outcome, Ports, RunError,
+    RunSettings, rfc3339, unix_now,
 };
 use crate::lab::WriteBudget;
 use crate::lab::disk::LineFile;
@@ -29,8 +29,24 @@ pub const TRAFFIC: &str = "traffic.jsonl";
 pub const REMEASURED: &str = "remeasured.csv";
 
 /// The columns of the run's measurement file, in order:
-/// `cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder`.
-pub const COLUMNS: [Column; 10] = [
+/// `cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder,shift`.
+pub const COLUMNS: [Column; 11] = [
+    Column::CYCLE,
+    Column::STEP,
+    Column::AC,
+    Column::FACE,
+    Column::READING,
+    Column::DIRECTION,
+    Column::TIME,
+    Column::SETUP,
+    Column::READING_Y,
+    Column::ENCODER,
+    Column::SHIFT,
+];
+
+/// The columns of a run started before the `shift` column: a run that has them is
+/// resumed with them, in its one mounting or in further unshifted ones.
+pub(super) const COLUMNS_WITHOUT_SHIFT: [Column; 10] = [
     Column::CYCLE,
     Column::STEP,
     Column::AC,
@@ -43,6 +59,14 @@ pub const COLUMNS: [Column; 10] = [
     Column::ENCODER,
 ];
 
+/// A reading's place in the run: (setup, cycle, step, autocollimator).
+pub(super) type Key = (u32, u32, usize, u32);
+
+/// The place of `reading` in the run.
+pub(super) fn key(reading: &Reading) -> Key {
+    (reading.setup, reading.cycle, reading.step, reading.ac)
+}
+
 /// A run directory opened for measuring: its manifest, the readings on disk and the
 /// measurement file open for appending.
 #[derive(Debug)]
@@ -50,7 +74,9 @@ pub struct RunDir {
     pub(super) dir: PathBuf,
     pub(super) manifest: Manifest,
     pub(super) measurements: ReadingWriter<LineFile>,
-    pub(super) done: BTreeSet<(u32, usize, u32)>,
+    /// The mounting this session measures (the manifest's last).
+    pub(super) mounting: Mounting,
+    pub(super) done: BTreeSet<Key>,
     pub(super) clock: RunClock,
     pub(super) session_open: bool,
     pub(super) session_readings_before: usize,
@@ -102,19 +128,52 @@ impl RunDir {
         resume: bool,
         budget: &WriteBudget,
     ) -> Result<RunDir, RunError> {
-        settings.validate().map_err(|error| RunError::Settings {
+        RunDir::open_mounting(dir, settings, ports, None, resume, budget)
+    }
+
+    /// As [`RunDir::open_with_budget`], in a given mounting of the polygon
+    /// (docs/FORMAT.md §7.3, *Several mountings*); `None`: the first for a new run, the
+    /// last one the manifest lists for a resumed run.
+    ///
+    /// A mounting after the first continues the run in `dir` (whether `resume` is set or
+    /// not): it is the manifest's last mounting again (the same shift and face shift:
+    /// its readings go on; with none on disk yet, it may be restated), or the next one
+    /// when the last is complete, which then awaits the operator's remount
+    /// ([`RunDir::awaits_remount`]). The first mounting starts a new run unless `resume`.
+    ///
+    /// # Errors
+    ///
+    /// As [`RunDir::open`]; a mounting out of range ([`RunError::Settings`]), for a run
+    /// with none ([`RunError::NoRunForMounting`]), other than the run recorded
+    /// ([`RunError::OtherMounting`]), already complete ([`RunError::MountingDone`]), out
+    /// of order ([`RunError::MountingOrder`]), after one not complete
+    /// ([`RunError::MountingIncomplete`]), or shifted in a run whose file has no `shift`
+    /// column ([`RunError::NoShiftColumn`]).
+    pub fn open_mounting(
+        dir: &Path,
+        settings: &RunSettings,
+        ports: &Ports,
+        mounting: Option<Mounting>,
+        resume: bool,
+        budget: &WriteBudget,
+    ) -> Result<RunDir, RunError> {
+        let refused = |error| RunError::Settings {
             path: dir.to_path_buf(),
             error,
-        })?;
+        };
+        settings.validate().map_err(refused)?;
+        if let Some(m) = &mounting {
+            m.validate(settings).map_err(refused)?;
+        }
         if fs::metadata(dir).is_ok_and(|m| !m.is_dir()) {
             return Err(RunError::NotADirectory {
                 path: dir.to_path_buf(),
             });
         }
-        if resume {
-            RunDir::resume(dir, settings, ports, budget)
+        if resume || mounting.is_some_and(|m| m.setup > 1) {
+            RunDir::resume(dir, settings, ports, mounting, budget)
         } else {
-            RunDir::create(dir, settings, ports, budget)
+            RunDir::create(dir, settings, ports, mounting.unwrap_or_default(), budget)
         }
     }
 
@@ -123,7 +182,7 @@ impl RunDir {
         dir: &Path,
         manifest: Manifest,
         measurements: ReadingWriter<LineFile>,
-        done: BTreeSet<(u32, usize, u32)>,
+        done: BTreeSet<Key>,
         clock: RunClock,
         warnings: Vec<String>,
         budget: &WriteBudget,
@@ -136,10 +195,15 @@ impl RunDir {
             ended: false,
             closed: false,
         }));
+        let mounting = manifest
+            .mountings
+            .last()
+            .map_or_else(Mounting::default, |m| m.mounting);
         RunDir {
             dir: dir.to_path_buf(),
             manifest,
             measurements,
+            mounting,
             session_readings_before: done.len(),
             done,
             clock,
@@ -154,6 +218,7 @@ impl RunDir {
         dir: &Path,
         settings: &RunSettings,
         ports: &Ports,
+        mounting: Mounting,
         budget: &WriteBudget,
     ) -> Result<RunDir, RunError> {
         for name in [MANIFEST, MEASUREMENTS] {
@@ -180,6 +245,7 @@ impl RunDir {
             sessions: Vec::new(),
             remeasured: Vec::new(),
             suspect: Vec::new(),
+            mountings: vec![MountingRecord::new(mounting)],
         };
         let path = dir.join(MEASUREMENTS);
         let file = LineFile::open(&path, true, budget)
@@ -227,9 +293,58 @@ impl RunDir {
         self.done.len()
     }
 
-    /// The stops still to visit, each with the autocollimators still to read there, in
-    /// order.
+    /// The mounting this session measures.
+    pub fn mounting(&self) -> Mounting {
+        self.mounting
+    }
+
+    /// Whether the polygon is still to be remounted for this session's mounting, and the
+    /// remount confirmed ([`RunDir::confirm_remount`]) before it is measured.
+    pub fn awaits_remount(&self) -> bool {
+        self.manifest
+            .mountings
+            .last()
+            .is_some_and(MountingRecord::awaits_remount)
+    }
+
+    /// Records that the operator confirmed the remount, the table reporting `table_deg`.
+    ///
+    /// # Errors
+    ///
+    /// As [`RunDir::finish`].
+    pub fn confirm_remount(&mut self, table_deg: f64) -> Result<(), RunError> {
+        if let Some(last) = self.manifest.mountings.last_mut() {
+            last.confirmed = Some(rfc3339(unix_now()));
+            last.table_deg = Some(table_deg);
+        }
+        self.write_manifest(false)
+    }
+
+    /// Records that the readings of this session's mounting do not fit those of the
+    /// mountings before it (`warning`).
+    ///
+    /// # Errors
+    ///
+    /// As [`RunDir::finish`].
+    pub(super) fn record_misfit(&mut self, warning: &str) -> Result<(), RunError> {
+        if let Some(last) = self.manifest.mountings.last_mut() {
+            last.misfit = Some(warning.to_string());
+        }
+        self.write_manifest(false)
+    }
+
+    /// Whether the run holds readings to look at again: measured again, suspect, or of a
+    /// mounting that did not fit the mountings before it.
+    pub fn has_doubts(&self) -> bool {
+        !self.manifest.remeasured.is_empty()
+            || !self.manifest.suspect.is_empty()
+            || self.manifest.mountings.iter().any(|m| m.misfit.is_some())
+    }
+
+    /// The stops of this session's mounting still to visit, each with the
+    /// autocollimators still to read there, in order.
     pub fn remaining(&self) -> Vec<(Stop, Vec<u32>)> {
+        let setup = self.mounting.setup;
         self.manifest
             .settings
             .plan()
@@ -239,11 +354,20 @@ impl RunDir {
                     .manifest
                     .settings
                     .acs()
-                    .filter(|&ac| !self.done.contains(&(stop.cycle, stop.step, ac)))
+                    .filter(|&ac| !self.done.contains(&(setup, stop.cycle, stop.step, ac)))
                     .collect();
                 (!acs.is_empty()).then_some((stop, acs))
             })
             .collect()
+    }
+
+    /// The shift of mounting `setup`, degrees (0 for one the run does not have).
+    fn shift_of(&self, setup: u32) -> f64 {
+        self.manifest
+            .mountings
+            .iter()
+            .find(|m| m.mounting.setup == setup)
+            .map_or(0.0, |m| m.mounting.shift_deg)
     }
 
     /// Opens the traffic log (appending) on the run's clock, written through the run
@@ -327,9 +451,10 @@ impl RunDir {
         if on_disk.closed {
             return Err(RunError::Closed { path });
         }
+        let shift_deg = self.shift_of(reading.setup);
         let written = self
             .measurements
-            .write(reading)
+            .write_with_shift(reading, shift_deg)
             .and_then(|()| self.measurements.get_ref().sync_data());
         if let Err(e) = written {
             // The write's error is the one to tell; a cut line left behind (the file
@@ -338,7 +463,7 @@ impl RunDir {
             return Err(io_error(&path)(e));
         }
         self.measurements.get_mut().commit();
-        self.done.insert((reading.cycle, reading.step, reading.ac));
+        self.done.insert(key(reading));
         on_disk.readings = self.done.len();
         Ok(())
     }
@@ -385,11 +510,29 @@ impl RunDir {
                 .map_err(io_error(&record_path))?;
 
             let text = fs::read_to_string(&path).map_err(io_error(&path))?;
-            let key = format!("{},{},{},", first.cycle, first.step, first.ac);
+            // The row of `first`'s place: its cycle, step and autocollimator first, its
+            // setup where the columns have it.
+            let place = [
+                first.cycle.to_string(),
+                first.step.to_string(),
+                first.ac.to_string(),
+            ];
+            let setup_field = self
+                .measurements
+                .columns()
+                .as_slice()
+                .iter()
+                .position(|c| *c == Column::SETUP);
+            let is_first = |line: &str| {
+                let fields: Vec<&str> = line.split(',').collect();
+                fields.len() == self.measurements.columns().as_slice().len()
+                    && fields[..3] == place
+                    && setup_field.is_none_or(|i| fields[i] == first.setup.to_string())
+            };
             let mut found = false;
             let mut rewritten = String::with_capacity(text.len() + 64);
             for line in text.lines() {
-                if !found && line.starts_with(&key) {
+                if !found && !line.starts_with('#') && is_first(line) {
                     found = true;
                     rewritten.push_str(&self.row(again));
                 } else {
@@ -441,7 +584,9 @@ impl RunDir {
     /// The row `reading` has (or would have) in the measurement file, without its line
     /// feed.
     pub fn row(&self, reading: &Reading) -> String {
-        self.measurements.columns().row(reading)
+        self.measurements
+            .columns()
+            .row_with_shift(reading, self.shift_of(reading.setup))
     }
 
     /// Records how the session ended in the manifest.
@@ -564,7 +709,7 @@ mod tests {
         let columns = Columns::new(COLUMNS);
         assert_eq!(
             columns.header(),
-            "cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder"
+            "cycle,step,ac,face,reading,direction,time,setup,reading_y,encoder,shift"
         );
         let mut reading = Reading {
             setup: 1,
@@ -582,13 +727,13 @@ mod tests {
         };
         assert_eq!(
             columns.row(&reading),
-            "2,8,2,1,-0.12345678901234566,ccw,12.5,1,,360"
+            "2,8,2,1,-0.12345678901234566,ccw,12.5,1,,360,0"
         );
         reading.reading_y_arcsec = Some(1e-7);
         reading.direction = Direction::Cw;
         assert_eq!(
-            columns.row(&reading),
-            "2,8,2,1,-0.12345678901234566,cw,12.5,1,0.0000001,360"
+            columns.row_with_shift(&reading, 22.5),
+            "2,8,2,1,-0.12345678901234566,cw,12.5,1,0.0000001,360,22.5"
         );
     }
 }

@@ -126,6 +126,84 @@ pub enum RunError {
         /// Where the first reading too many is.
         at: Location,
     },
+    /// A later mounting for a directory that holds no run.
+    #[error(
+        "{}: no run here (no {MANIFEST}): mounting {setup} continues a run whose first mounting was measured in this directory",
+        path.display()
+    )]
+    NoRunForMounting {
+        /// The directory.
+        path: PathBuf,
+        /// The mounting asked for.
+        setup: u32,
+    },
+    /// A mounting stated otherwise than the run recorded it, with readings of it on disk.
+    #[error(
+        "{}: the run measures {recorded}, this command says {requested}; refusing to mix two mountings in one setup",
+        path.display()
+    )]
+    OtherMounting {
+        /// The manifest.
+        path: PathBuf,
+        /// The mounting as recorded.
+        recorded: super::Mounting,
+        /// The mounting as given now.
+        requested: super::Mounting,
+    },
+    /// A mounting the run has left behind.
+    #[error(
+        "{}: mounting {setup} is complete and the run has gone on to mounting {last}; the polygon cannot be mounted as before again",
+        path.display()
+    )]
+    MountingDone {
+        /// The manifest.
+        path: PathBuf,
+        /// The mounting asked for.
+        setup: u32,
+        /// The run's last mounting.
+        last: u32,
+    },
+    /// A mounting that is not the next one.
+    #[error(
+        "{}: the run's last mounting is {last}; the next one is {}, not {requested}",
+        path.display(),
+        last + 1
+    )]
+    MountingOrder {
+        /// The manifest.
+        path: PathBuf,
+        /// The mounting asked for.
+        requested: u32,
+        /// The run's last mounting.
+        last: u32,
+    },
+    /// A next mounting while the last one is not complete.
+    #[error(
+        "{}: mounting {setup} has {done} of its {expected} readings; complete it (resume it) before the polygon is remounted",
+        path.display()
+    )]
+    MountingIncomplete {
+        /// The manifest.
+        path: PathBuf,
+        /// The incomplete mounting.
+        setup: u32,
+        /// Its readings on disk.
+        done: usize,
+        /// Its readings when complete.
+        expected: usize,
+    },
+    /// A shifted mounting in a run whose measurement file has no `shift` column (started
+    /// by an older polycal).
+    #[error(
+        "{}: {mounting} needs the measurement file's shift column, which this run's file (started by an older polycal) lacks; measure it in a new run directory",
+        path.display()
+    )]
+    NoShiftColumn {
+        /// The manifest.
+        path: PathBuf,
+        /// The mounting asked for.
+        mounting: super::Mounting,
+    },
     /// A file could not be read or written.
     #[error("{}: {source}", path.display())]
     Io {

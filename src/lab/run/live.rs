@@ -12,13 +12,18 @@
 //!   measures again;
 //! - an autocollimator whose readings of the cycle sit off the fit as a whole (their
 //!   mean residual beyond [`OFFSET_SIGMAS`] standard errors): a drift or a jump of its
-//!   zero, as a warning.
+//!   zero, as a warning;
+//! - in a mounting after the first, readings that do not fit those of the mountings
+//!   before (an F test of the fit with them against the fit without, p below
+//!   [`MOUNTING_MISFIT_P`]): a polygon not mounted as the run was told, as a warning.
 
 use serde::{Deserialize, Serialize};
 
 use super::RunSettings;
 use crate::measurement::{Direction, MeasurementSet, Reading};
+use crate::solve::sub_pitch::solve_shifted;
 use crate::solve::{SolveOptions, solve};
+use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 /// How many σ a reading's residual must lie beyond for the reading to be measured again.
 pub const OUTLIER_SIGMAS: f64 = 6.0;
@@ -29,12 +34,22 @@ pub const OFFSET_SIGMAS: f64 = 5.0;
 pub const MIN_DOF: usize = 4;
 /// Most stops measured again after one cycle.
 pub const MAX_REMEASURED_PER_CYCLE: usize = 3;
+/// The p-value below which the readings of a mounting are said not to fit those of the
+/// mountings before it.
+pub const MOUNTING_MISFIT_P: f64 = 1e-3;
+
+fn first_setup() -> u32 {
+    1
+}
 
 /// A reading measured again at the end of a cycle, whose first value was not kept in
 /// the measurement file (it is in `remeasured.csv` and here).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct Remeasured {
+    /// The reading's mounting (absent from older manifests: 1).
+    #[serde(default = "first_setup")]
+    pub setup: u32,
     /// The reading's cycle, step and autocollimator.
     pub cycle: u32,
     /// Its step.
@@ -58,6 +73,9 @@ pub struct Remeasured {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct Suspect {
+    /// The reading's mounting (absent from older manifests: 1).
+    #[serde(default = "first_setup")]
+    pub setup: u32,
     /// The reading's cycle.
     pub cycle: u32,
     /// Its step.
@@ -80,6 +98,8 @@ pub struct Suspect {
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub struct CycleCheck {
+    /// The mounting of the cycle.
+    pub setup: u32,
     /// The cycle just measured.
     pub cycle: u32,
     /// Per autocollimator, its reading at the closing step minus that at step 0 in this
@@ -97,8 +117,11 @@ pub struct CycleCheck {
     pub suspect: Vec<Suspect>,
     /// What the residuals show that the run should know now (a drift or a jump).
     pub warnings: Vec<String>,
-    /// The (cycle, autocollimator) pairs the warnings are about.
+    /// The (cycle, autocollimator) pairs of the mounting the warnings are about.
     pub offsets: Vec<(u32, u32)>,
+    /// The warning that the mounting's readings do not fit those of the mountings before
+    /// it (also among `warnings`), if they do not.
+    pub misfit: Option<String>,
 }
 
 /// The run's fit at a check.
@@ -111,18 +134,69 @@ pub(super) struct Fit {
     pub(super) sigma: f64,
 }
 
-/// A reading's cell: (step, autocollimator, direction).
-pub(super) type Cell = (usize, u32, Direction);
+/// A reading's cell: (setup, step, autocollimator, direction).
+pub(super) type Cell = (u32, usize, u32, Direction);
 
 /// The cell of `reading`.
 pub(super) fn cell(reading: &Reading) -> Cell {
-    (reading.step, reading.ac, reading.direction)
+    (reading.setup, reading.step, reading.ac, reading.direction)
+}
+
+/// `solve`'s fit of `set`: mountings between the stops in their encoder positions, as
+/// `solve` takes them.
+fn solved(set: &MeasurementSet) -> Option<crate::solve::Solution> {
+    if set.has_shifts() {
+        Some(solve_shifted(set, &SolveOptions::new()).ok()?.solution)
+    } else {
+        solve(set, &SolveOptions::new()).ok()
+    }
+}
+
+/// Whether the readings of mounting `setup` so far fit those of the mountings before it:
+/// F = ((RSS − RSS₀)/(ν − ν₀)) / (RSS₀/ν₀), the fit of every reading against the fit of
+/// the earlier mountings alone (RSS₀ with ν₀ degrees of freedom), both without the
+/// readings `fit` finds beyond [`OUTLIER_SIGMAS`]·σ (one reading off is not a mounting
+/// off). The warning when p < [`MOUNTING_MISFIT_P`]; `None` when it fits, for the first
+/// mounting, or when a fit cannot tell.
+pub(super) fn mounting_misfit(set: &MeasurementSet, fit: &Fit, setup: u32) -> Option<String> {
+    if setup < 2 || fit.residuals.len() != set.readings.len() {
+        return None;
+    }
+    let limit = OUTLIER_SIGMAS * fit.sigma;
+    let mut set = set.clone();
+    let mut kept = fit.residuals.iter().map(|e| e.abs() <= limit);
+    set.readings.retain(|_| kept.next().unwrap_or(true));
+    let set = &set;
+    let mut before = set.clone();
+    before.readings.retain(|r| r.setup < setup);
+    before.setup_shift_deg.retain(|&s, _| s < setup);
+    let earlier = solved(&before)?;
+    let all = solved(set)?;
+    if earlier.dof < MIN_DOF || all.dof <= earlier.dof || earlier.rss.is_nan() || earlier.rss <= 0.0
+    {
+        return None;
+    }
+    let (nu0, nu) = (earlier.dof as f64, (all.dof - earlier.dof) as f64);
+    let f = ((all.rss - earlier.rss).max(0.0) / nu) / (earlier.rss / nu0);
+    let p = FisherSnedecor::new(nu, nu0).ok()?.sf(f);
+    if p.is_nan() || p >= MOUNTING_MISFIT_P {
+        return None;
+    }
+    let rms = |rss: f64, n: usize| (rss / n.max(1) as f64).sqrt();
+    Some(format!(
+        "the readings of mounting {setup} do not fit those of the mountings before it: \
+         residual RMS {:.4}″ with them, {:.4}″ without (F = {f:.1} on {nu} and {nu0} degrees \
+         of freedom, p = {p:.1e}): is the polygon mounted as the run was told (the faces \
+         named when it asked)? If not, stop the run (Ctrl-C): these readings carry the wrong faces",
+        rms(all.rss, set.readings.len()),
+        rms(earlier.rss, before.readings.len()),
+    ))
 }
 
 /// Fits the readings so far; `None` while there are too few to estimate the noise (or
 /// the design cannot be solved yet).
 pub(super) fn fit(set: &MeasurementSet, settings: &RunSettings) -> Option<Fit> {
-    let solution = solve(set, &SolveOptions::new()).ok()?;
+    let solution = solved(set)?;
     if solution.dof < MIN_DOF || solution.residuals.len() != set.readings.len() {
         return None;
     }
@@ -144,10 +218,16 @@ pub(super) fn fit(set: &MeasurementSet, settings: &RunSettings) -> Option<Fit> {
     })
 }
 
-/// The reading (its index) whose residual lies furthest beyond [`OUTLIER_SIGMAS`]·σ,
-/// outside the cells in `handled` and the (cycle, autocollimator) pairs in `explained`
-/// (whose readings sit off as a whole: a drift or a jump, not one reading).
-pub(super) fn worst(fit: &Fit, handled: &[Cell], explained: &[(u32, u32)]) -> Option<usize> {
+/// The reading (its index) of mounting `setup` — the polygon is mounted so now — whose
+/// residual lies furthest beyond [`OUTLIER_SIGMAS`]·σ, outside the cells in `handled` and
+/// the (cycle, autocollimator) pairs in `explained` (whose readings sit off as a whole: a
+/// drift or a jump, not one reading).
+pub(super) fn worst(
+    fit: &Fit,
+    setup: u32,
+    handled: &[Cell],
+    explained: &[(u32, u32)],
+) -> Option<usize> {
     let limit = OUTLIER_SIGMAS * fit.sigma;
     fit.residuals
         .iter()
@@ -155,6 +235,7 @@ pub(super) fn worst(fit: &Fit, handled: &[Cell], explained: &[(u32, u32)]) -> Op
         .filter(|&(i, r)| {
             let reading = &fit.readings[i];
             r.abs() > limit
+                && reading.setup == setup
                 && !handled.contains(&cell(reading))
                 && !explained.contains(&(reading.cycle, reading.ac))
         })
@@ -163,8 +244,9 @@ pub(super) fn worst(fit: &Fit, handled: &[Cell], explained: &[(u32, u32)]) -> Op
 }
 
 /// The summary of a cycle whose file could not be read back: nothing but its number.
-pub(super) fn unchecked(cycle: u32) -> CycleCheck {
+pub(super) fn unchecked(setup: u32, cycle: u32) -> CycleCheck {
     CycleCheck {
+        setup,
         cycle,
         closure_arcsec: Vec::new(),
         residual_rms_arcsec: None,
@@ -174,12 +256,20 @@ pub(super) fn unchecked(cycle: u32) -> CycleCheck {
         suspect: Vec::new(),
         warnings: Vec::new(),
         offsets: Vec::new(),
+        misfit: None,
     }
 }
 
-/// The summary of `cycle`: closure, residual RMS against the cycles before, the noise,
-/// and the warnings (the lists of readings measured again are the loop's to fill).
-pub(super) fn summary(set: &MeasurementSet, fit: Option<&Fit>, cycle: u32) -> CycleCheck {
+/// The summary of `cycle` of mounting `setup`: closure, residual RMS against the cycles
+/// before (those of the earlier mountings included), the noise, and the warnings (the
+/// lists of readings measured again are the loop's to fill).
+pub(super) fn summary(
+    set: &MeasurementSet,
+    fit: Option<&Fit>,
+    setup: u32,
+    cycle: u32,
+) -> CycleCheck {
+    let this = |r: &Reading| r.setup == setup && r.cycle == cycle;
     let mut closure_arcsec = Vec::new();
     let faces = set.faces;
     let mut acs: Vec<u32> = set.readings.iter().map(|r| r.ac).collect();
@@ -189,7 +279,7 @@ pub(super) fn summary(set: &MeasurementSet, fit: Option<&Fit>, cycle: u32) -> Cy
         let at = |step: usize| {
             set.readings
                 .iter()
-                .find(|r| r.cycle == cycle && r.ac == ac && r.step == step)
+                .find(|r| this(r) && r.ac == ac && r.step == step)
                 .map(|r| r.reading_arcsec)
         };
         if let (Some(last), Some(first)) = (at(faces), at(0)) {
@@ -198,7 +288,7 @@ pub(super) fn summary(set: &MeasurementSet, fit: Option<&Fit>, cycle: u32) -> Cy
     }
     let mut check = CycleCheck {
         closure_arcsec,
-        ..unchecked(cycle)
+        ..unchecked(setup, cycle)
     };
     let Some(fit) = fit else {
         return check;
@@ -212,16 +302,21 @@ pub(super) fn summary(set: &MeasurementSet, fit: Option<&Fit>, cycle: u32) -> Cy
             .fold((0.0, 0usize), |(s, n), (_, e)| (s + e * e, n + 1));
         (n > 0).then(|| (sum / n as f64).sqrt())
     };
-    check.residual_rms_arcsec = rms(&|r| r.cycle == cycle);
-    check.previous_residual_rms_arcsec = rms(&|r| r.cycle < cycle);
+    check.residual_rms_arcsec = rms(&this);
+    check.previous_residual_rms_arcsec =
+        rms(&|r| r.setup < setup || (r.setup == setup && r.cycle < cycle));
     check.sigma_arcsec = Some(fit.sigma);
+    if let Some(warning) = mounting_misfit(set, fit, setup) {
+        check.warnings.push(warning.clone());
+        check.misfit = Some(warning);
+    }
     if cycle >= 2 {
         for &ac in &acs {
             let (sum, n) = fit
                 .readings
                 .iter()
                 .zip(&fit.residuals)
-                .filter(|(r, _)| r.cycle == cycle && r.ac == ac)
+                .filter(|(r, _)| this(r) && r.ac == ac)
                 .fold((0.0, 0usize), |(s, n), (_, e)| (s + e, n + 1));
             if n == 0 {
                 continue;
@@ -277,19 +372,21 @@ mod tests {
     fn a_reading_two_arcseconds_off_is_the_one_found() {
         let set = run_set(Some((2, 5, 1, 2.0)));
         let fit = fit(&set, &settings()).unwrap();
-        let i = worst(&fit, &[], &[]).unwrap();
+        let i = worst(&fit, 1, &[], &[]).unwrap();
         let r = &fit.readings[i];
         assert_eq!((r.cycle, r.step, r.ac), (2, 5, 1));
         // Handled, nothing else stands out.
-        assert_eq!(worst(&fit, &[cell(r)], &[]), None);
+        assert_eq!(worst(&fit, 1, &[cell(r)], &[]), None);
+        // Not in the mounting on the table now.
+        assert_eq!(worst(&fit, 2, &[], &[]), None);
     }
 
     #[test]
     fn a_clean_run_has_nothing_to_measure_again_and_no_warning() {
         let set = run_set(None);
         let fit = fit(&set, &settings()).unwrap();
-        assert_eq!(worst(&fit, &[], &[]), None);
-        let check = summary(&set, Some(&fit), 3);
+        assert_eq!(worst(&fit, 1, &[], &[]), None);
+        let check = summary(&set, Some(&fit), 1, 3);
         assert!(check.warnings.is_empty(), "{:?}", check.warnings);
         // The closure of a clean cycle is the noise of two readings (and the stated σ
         // of a stored reading bounds σ from below).
@@ -310,11 +407,59 @@ mod tests {
             }
         }
         let fit = fit(&set, &settings()).unwrap();
-        let check = summary(&set, Some(&fit), 3);
+        let check = summary(&set, Some(&fit), 1, 3);
         assert_eq!(check.warnings.len(), 1, "{:?}", check.warnings);
         assert!(check.warnings[0].starts_with("autocollimator 2:"));
         assert_eq!(check.offsets, [(3, 2)]);
         // Its readings are not chased one by one.
-        assert_eq!(worst(&fit, &[], &check.offsets), None);
+        assert_eq!(worst(&fit, 1, &[], &check.offsets), None);
+    }
+
+    #[test]
+    fn a_second_mounting_between_the_stops_is_checked_too() {
+        let config = SimulationConfig {
+            faces: 8,
+            cycles: 2,
+            closing: true,
+            noise_arcsec: 0.05,
+            setups: 2,
+            table_shift_deg: vec![0.0, 22.5],
+            seed: 5,
+            ..SimulationConfig::default()
+        };
+        let (mut set, _) = simulate(&config).unwrap();
+        for r in &mut set.readings {
+            if (r.setup, r.cycle, r.step, r.ac) == (2, 2, 3, 2) {
+                r.reading_arcsec += 2.0;
+            }
+        }
+        let settings = RunSettings::new(8, 2)
+            .with_closing(true)
+            .with_reading_noise_arcsec(0.05);
+        let fit = fit(&set, &settings).expect("a fit of two mountings");
+        let i = worst(&fit, 2, &[], &[]).unwrap();
+        let r = &fit.readings[i];
+        assert_eq!((r.setup, r.cycle, r.step, r.ac), (2, 2, 3, 2));
+        // The first mounting is off the table: nothing of it is measured again.
+        assert_eq!(worst(&fit, 1, &[], &[]), None);
+        let check = summary(&set, Some(&fit), 2, 2);
+        assert_eq!((check.setup, check.closure_arcsec.len()), (2, 2));
+        assert!(check.residual_rms_arcsec.is_some());
+        // One reading off does not make the mounting a misfit…
+        assert_eq!(mounting_misfit(&set, &fit, 2), None, "{:?}", check.warnings);
+        // … the polygon mounted one face off from what the run was told does.
+        for r in &mut set.readings {
+            if r.setup == 2 {
+                r.face = r.face % 8 + 1;
+            }
+        }
+        let fit = super::fit(&set, &settings).unwrap();
+        let warning = mounting_misfit(&set, &fit, 2).expect("a misfit");
+        assert!(
+            warning.starts_with(
+                "the readings of mounting 2 do not fit those of the mountings before it"
+            ),
+            "{warning}"
+        );
     }
 }

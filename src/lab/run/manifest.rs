@@ -190,6 +190,11 @@ pub struct Manifest {
     /// Readings far beyond the run's noise that measuring their stop again confirmed.
     #[serde(default)]
     pub suspect: Vec<super::Suspect>,
+    /// The polygon's mountings, in the order measured (docs/FORMAT.md §7.3, *Several
+    /// mountings*); the last is the one being measured. Absent from older manifests: the
+    /// first mounting alone.
+    #[serde(default)]
+    pub mountings: Vec<super::MountingRecord>,
 }
 
 /// The software of this build, e.g. `polycal 0.1.0`.
@@ -198,6 +203,14 @@ pub(super) fn software() -> String {
 }
 
 impl Manifest {
+    /// The mountings, the first alone when the manifest lists none (an older one).
+    pub(super) fn normalize_mountings(&mut self) {
+        if self.mountings.is_empty() {
+            self.mountings
+                .push(super::MountingRecord::new(super::Mounting::default()));
+        }
+    }
+
     /// Starts a session of this software on the manifest's ports, with `readings_before`
     /// readings on disk: the outcome is `running` again.
     pub(super) fn open_session(&mut self, readings_before: usize) {

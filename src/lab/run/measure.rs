@@ -7,7 +7,10 @@ use std::time::{Duration, Instant};
 
 use super::live::{self, Cell, CycleCheck, MAX_REMEASURED_PER_CYCLE};
 use super::repeat::{DeviceMemory, RepeatError, read_at_stop};
-use super::{Identification, MEASUREMENTS, Remeasured, RunDir, RunError, Suspect, TRAFFIC};
+use super::{
+    Identification, MEASUREMENTS, REMOUNT_TOLERANCE_DEG, Remeasured, Remount, RunDir, RunError,
+    Suspect, TRAFFIC,
+};
 use crate::lab::traffic::TrafficLog;
 use crate::lab::{Autocollimator, InstrumentError, RotaryTable, StopFlag};
 use crate::measurement::{Direction, Reading};
@@ -89,6 +92,8 @@ impl fmt::Debug for Instruments<'_> {
 pub struct Progress {
     /// Readings on disk.
     pub done: usize,
+    /// The mounting measured (1 for a run of one).
+    pub setup: u32,
     /// Readings of the whole run.
     pub total: usize,
     /// Current cycle, and the number of cycles.
@@ -107,10 +112,64 @@ pub struct Progress {
     pub cycle_check: Option<CycleCheck>,
 }
 
+/// What a run asks of the person at the table, and tells them.
+pub trait Attendant {
+    /// Where the run is: after every reading, and with the check after every cycle.
+    fn progress(&mut self, progress: &Progress);
+
+    /// The polygon is to be remounted for `remount.mounting`, the table standing at the
+    /// mounting's step 0: returns once it is, `true` to measure it, `false` to end the
+    /// session without measuring (then [`Outcome::Interrupted`]).
+    fn remount(&mut self, remount: &Remount) -> bool;
+}
+
+/// An attendant that shows progress through a closure and confirms no remount.
+struct Unattended<'a>(&'a mut dyn FnMut(&Progress));
+
+impl Attendant for Unattended<'_> {
+    fn progress(&mut self, progress: &Progress) {
+        (self.0)(progress);
+    }
+
+    fn remount(&mut self, _remount: &Remount) -> bool {
+        false
+    }
+}
+
+/// [`measure_attended`] without anyone at the table: `progress` is told where the run is,
+/// and a mounting that awaits its remount ([`RunDir::awaits_remount`]) is not measured
+/// (the session ends as [`Outcome::Interrupted`]).
+///
+/// # Errors
+///
+/// As [`measure_attended`].
+pub fn measure(
+    run: &mut RunDir,
+    instruments: Instruments<'_>,
+    stop_flag: &StopFlag,
+    traffic: Option<&TrafficLog>,
+    progress: &mut dyn FnMut(&Progress),
+) -> Result<Outcome, RunError> {
+    measure_attended(
+        run,
+        instruments,
+        stop_flag,
+        traffic,
+        &mut Unattended(progress),
+    )
+}
+
 /// Starts and identifies the instruments, then measures every remaining reading of
-/// `run`, syncing each to disk (and the traffic log, if given) before the table moves
-/// again. Returns how the session ended; on anything but completion the table is sent a
-/// stop. The manifest is not finished here: call [`RunDir::finish`].
+/// `run` in its mounting, syncing each to disk (and the traffic log, if given) before
+/// the table moves again. Returns how the session ended; on anything but completion the
+/// table is sent a stop. The manifest is not finished here: call [`RunDir::finish`].
+///
+/// A mounting that awaits its remount ([`RunDir::awaits_remount`]) is measured only once
+/// the attendant confirmed it ([`Attendant::remount`], the table sent to the mounting's
+/// step 0 before) and the table still reports that position within
+/// [`REMOUNT_TOLERANCE_DEG`] (else [`Outcome::InstrumentError`]: the table was moved
+/// while the polygon was remounted); the confirmation and the position are recorded in
+/// the manifest ([`RunDir::confirm_remount`]).
 ///
 /// The first write that fails ends the session with [`Outcome::FileError`]: a reading
 /// that cannot be appended (the measurement file is cut back to its last whole line, and
@@ -123,12 +182,12 @@ pub struct Progress {
 ///
 /// [`RunError::OtherInstruments`] when a resumed run meets other instruments than it
 /// started with (nothing was measured then).
-pub fn measure(
+pub fn measure_attended(
     run: &mut RunDir,
     instruments: Instruments<'_>,
     stop_flag: &StopFlag,
     traffic: Option<&TrafficLog>,
-    progress: &mut dyn FnMut(&Progress),
+    attendant: &mut dyn Attendant,
 ) -> Result<Outcome, RunError> {
     let Instruments {
         ac1,
@@ -156,7 +215,10 @@ pub fn measure(
     let outcome = match run.begin_session(identification) {
         Ok(()) => match log_failure(run, traffic) {
             Some(failed) => failed,
-            None => measure_stops(run, &mut acs, table, stop_flag, traffic, progress),
+            None => match remounted(run, &mut acs, table, stop_flag, traffic, attendant) {
+                Some(failed) => failed,
+                None => measure_stops(run, &mut acs, table, stop_flag, traffic, attendant),
+            },
         },
         Err(e @ RunError::OtherInstruments { .. }) => {
             let _ = table.stop();
@@ -188,6 +250,83 @@ fn log_failure(run: &RunDir, traffic: Option<&TrafficLog>) -> Option<Outcome> {
     )))
 }
 
+/// A mounting that awaits its remount: the table to the mounting's first stop, the
+/// attendant's confirmation, the table's position checked and recorded. The outcome that
+/// ends the session, if any.
+fn remounted(
+    run: &mut RunDir,
+    acs: &mut [&mut dyn Autocollimator],
+    table: &mut dyn RotaryTable,
+    stop_flag: &StopFlag,
+    traffic: Option<&TrafficLog>,
+    attendant: &mut dyn Attendant,
+) -> Option<Outcome> {
+    if !run.awaits_remount() {
+        return None;
+    }
+    let mounting = run.mounting();
+    let settings = run.manifest.settings.clone();
+    let stop = run.remaining().first()?.0;
+    let commanded = mounting.table_deg(&stop, settings.faces);
+    let at = match table.move_to(commanded) {
+        Ok(p) => p,
+        Err(e) => return Some(Outcome::from_instrument(TABLE, e)),
+    };
+    if let Some(failed) = log_failure(run, traffic) {
+        return Some(failed);
+    }
+    let remount = Remount {
+        mounting,
+        table_deg: at,
+        faces: settings
+            .acs()
+            .map(|ac| (ac, mounting.face(&settings, ac, stop.step)))
+            .collect(),
+    };
+    if !attendant.remount(&remount) || stop_flag.is_set() {
+        return Some(Outcome::Interrupted);
+    }
+    let reported = match table.position() {
+        Ok(p) => p,
+        Err(e) => return Some(Outcome::from_instrument(TABLE, e)),
+    };
+    let off_deg = (reported - commanded).abs();
+    if off_deg.is_nan() || off_deg > REMOUNT_TOLERANCE_DEG {
+        return Some(Outcome::InstrumentError(format!(
+            "{TABLE}: after the remount of {mounting} it reports {reported}°, not {commanded}° \
+             where the polygon was to be mounted: the table was moved while the polygon was \
+             remounted; mount it again with the table at {commanded}°"
+        )));
+    }
+    // Every autocollimator must see a face: a polygon mounted off the faces' directions
+    // leaves them without light (whole faces off is left to the check after the cycle).
+    for (i, ac) in acs.iter_mut().enumerate() {
+        if let Err(e) = ac.measure() {
+            if e.is_interrupted() {
+                return Some(Outcome::Interrupted);
+            }
+            let face = remount.faces.get(i).map_or(0, |f| f.1);
+            return Some(Outcome::InstrumentError(format!(
+                "{} sees no face after the remount of {mounting} ({e}): mount the polygon with \
+                 face {face} facing it, the table at {commanded}°",
+                role(i as u32 + 1)
+            )));
+        }
+    }
+    if let Some(log) = traffic {
+        log.record(
+            "",
+            "",
+            "remounted",
+            &format!("{mounting}: confirmed, the table at {reported}°"),
+        );
+    }
+    if let Err(e) = run.confirm_remount(reported) {
+        return Some(Outcome::FileError(e.to_string()));
+    }
+    log_failure(run, traffic)
+}
+
 fn identify(
     acs: &mut [&mut dyn Autocollimator],
     table: &mut dyn RotaryTable,
@@ -210,10 +349,11 @@ fn measure_stops(
     table: &mut dyn RotaryTable,
     stop_flag: &StopFlag,
     traffic: Option<&TrafficLog>,
-    progress: &mut dyn FnMut(&Progress),
+    attendant: &mut dyn Attendant,
 ) -> Outcome {
     let settings = run.manifest.settings.clone();
-    let total = settings.reading_count();
+    let mounting = run.mounting();
+    let total = run.manifest.expected_readings;
     let stops_per_cycle = settings.stops_per_cycle();
     let session_start = Instant::now();
     let before = run.readings_done();
@@ -233,7 +373,7 @@ fn measure_stops(
         {
             return Outcome::FileError(format!("{}: {e}", run.dir.join(TRAFFIC).display()));
         }
-        let encoder = match table.move_to(stop.degrees(settings.faces)) {
+        let encoder = match table.move_to(mounting.table_deg(&stop, settings.faces)) {
             Ok(p) => p,
             Err(e) => return Outcome::from_instrument(TABLE, e),
         };
@@ -251,8 +391,9 @@ fn measure_stops(
                 Direction::Cw => stop.step + 1,
                 Direction::Ccw => stops_per_cycle - stop.step,
             };
-            progress(&Progress {
+            attendant.progress(&Progress {
                 done,
+                setup: mounting.setup,
                 total,
                 cycle: (stop.cycle, settings.cycles),
                 stop: (position, stops_per_cycle),
@@ -341,9 +482,17 @@ fn take_reading(
     refused: &mut usize,
 ) -> Result<Reading, Outcome> {
     let settings = &run.manifest.settings;
+    let mounting = run.mounting();
     let i = ac as usize - 1;
     let role = role(ac);
-    let at = format!("cycle {}, step {}", stop.cycle, stop.step);
+    let at = if mounting.setup > 1 {
+        format!(
+            "mounting {}, cycle {}, step {}",
+            mounting.setup, stop.cycle, stop.step
+        )
+    } else {
+        format!("cycle {}, step {}", stop.cycle, stop.step)
+    };
     let label = format!("ac{ac}");
     let (Some(device), Some(memory)) = (acs.get_mut(i), memory.get_mut(i)) else {
         return Err(Outcome::InstrumentError(format!("{role} is not connected")));
@@ -354,7 +503,7 @@ fn take_reading(
         settings,
         traffic,
         (&label, &role, &at),
-        stop.degrees(settings.faces),
+        mounting.table_deg(&stop, settings.faces),
     );
     let (x_arcsec, y_arcsec) = match taken {
         Ok(r) => {
@@ -365,11 +514,11 @@ fn take_reading(
         Err(RepeatError::NoAgreement(message)) => return Err(Outcome::InstrumentError(message)),
     };
     Ok(Reading {
-        setup: 1,
+        setup: mounting.setup,
         cycle: stop.cycle,
         step: stop.step,
         ac,
-        face: settings.face(ac, stop.step),
+        face: mounting.face(settings, ac, stop.step),
         reading_arcsec: x_arcsec,
         direction: stop.direction,
         time_seconds: Some(run.clock.now()),
@@ -399,6 +548,7 @@ fn check_cycle(
 ) -> Result<CycleCheck, Outcome> {
     let Devices { acs, table } = devices;
     let settings = run.manifest.settings.clone();
+    let mounting = run.mounting();
     let path = run.dir.join(MEASUREMENTS);
     let read = || MeasurementSet::read_path(&path, Some(settings.faces)).ok();
     let mut remeasured = Vec::new();
@@ -410,7 +560,7 @@ fn check_cycle(
         };
         let fit = live::fit(&set, &settings);
         if round == 0 {
-            offsets = live::summary(&set, fit.as_ref(), cycle).offsets;
+            offsets = live::summary(&set, fit.as_ref(), mounting.setup, cycle).offsets;
         }
         let Some(fit) = fit else {
             break;
@@ -418,7 +568,7 @@ fn check_cycle(
         if round == MAX_REMEASURED_PER_CYCLE {
             break;
         }
-        let Some(i) = live::worst(&fit, handled, &offsets) else {
+        let Some(i) = live::worst(&fit, mounting.setup, handled, &offsets) else {
             break;
         };
         if stop_flag.is_set() {
@@ -432,7 +582,7 @@ fn check_cycle(
             step: flagged.step,
             direction: flagged.direction,
         };
-        let encoder = match table.move_to(stop.degrees(settings.faces)) {
+        let encoder = match table.move_to(mounting.table_deg(&stop, settings.faces)) {
             Ok(p) => p,
             Err(e) => return Err(Outcome::from_instrument(TABLE, e)),
         };
@@ -464,13 +614,14 @@ fn check_cycle(
                 let residual_of_first = fit
                     .readings
                     .iter()
-                    .position(|r| (r.cycle, r.step, r.ac) == (first.cycle, first.step, first.ac))
+                    .position(|r| super::directory::key(r) == super::directory::key(&first))
                     .map_or(residual, |j| fit.residuals[j]);
                 let replacement = Reading {
                     cycle: first.cycle,
                     ..again.clone()
                 };
                 let record = Remeasured {
+                    setup: first.setup,
                     cycle: first.cycle,
                     step: first.step,
                     ac: first.ac,
@@ -507,6 +658,7 @@ fn check_cycle(
             }
             None => {
                 let record = Suspect {
+                    setup: flagged.setup,
                     cycle: flagged.cycle,
                     step: flagged.step,
                     ac: flagged.ac,
@@ -525,10 +677,20 @@ fn check_cycle(
     }
     let set = read();
     let mut check = match &set {
-        Some(set) => live::summary(set, live::fit(set, &settings).as_ref(), cycle),
-        None => live::unchecked(cycle),
+        Some(set) => live::summary(
+            set,
+            live::fit(set, &settings).as_ref(),
+            mounting.setup,
+            cycle,
+        ),
+        None => live::unchecked(mounting.setup, cycle),
     };
     check.remeasured = remeasured;
     check.suspect = suspect;
+    if let Some(warning) = &check.misfit
+        && let Err(e) = run.record_misfit(warning)
+    {
+        return Err(Outcome::FileError(e.to_string()));
+    }
     Ok(check)
 }

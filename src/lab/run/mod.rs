@@ -90,6 +90,7 @@ mod error;
 mod live;
 mod manifest;
 mod measure;
+mod mounting;
 mod plan_file;
 mod repeat;
 mod resume;
@@ -103,8 +104,9 @@ pub use live::{
     Suspect,
 };
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
-pub use measure::{Instruments, Outcome, Progress, measure};
-pub use plan_file::{PlanFileError, settings_from_plan};
+pub use measure::{Attendant, Instruments, Outcome, Progress, measure, measure_attended};
+pub use mounting::{MAX_MOUNTINGS, Mounting, MountingRecord, REMOUNT_TOLERANCE_DEG, Remount};
+pub use plan_file::{PlanFileError, PlannedRun, run_from_plan};
 pub use repeat::EXTRA_READS;
 pub use settings::{
     AGREEMENT_SIGMAS, DEFAULT_READING_NOISE_ARCSEC, DEFAULT_READS_PER_STOP, MAX_AUTOCOLLIMATORS,

@@ -3,7 +3,7 @@
 
 use serde::Deserialize;
 
-use super::{RunSettings, SettingsError};
+use super::{Mounting, RunSettings, SettingsError};
 use crate::input::Location;
 
 /// Why a plan file cannot be run.
@@ -42,11 +42,8 @@ pub enum PlanFileError {
         /// The names it holds.
         names: Vec<String>,
     },
-    /// A design of several mountings, which a run measures one at a time.
-    #[error(
-        "{location}: design {name:?} has {setups} mountings; a run measures one mounting (plan \
-         each mounting as its own design)"
-    )]
+    /// A mounting the design does not have.
+    #[error("{location}: design {name:?} has {setups} mounting(s), not a mounting {setup}")]
     Mountings {
         /// Where the design is.
         location: Location,
@@ -54,6 +51,19 @@ pub enum PlanFileError {
         name: String,
         /// Its mountings.
         setups: u32,
+        /// The mounting asked for.
+        setup: u32,
+    },
+    /// A design whose mountings a run cannot take (a table shift out of range, or not one
+    /// per mounting).
+    #[error("{location}: design {name:?}: {error}")]
+    Mounting {
+        /// Where the design is.
+        location: Location,
+        /// Its name.
+        name: String,
+        /// What is wrong.
+        error: String,
     },
     /// A design whose settings a run refuses.
     #[error("{location}: design {name:?}: {error}")]
@@ -81,26 +91,65 @@ struct PlannedDesign {
     closing: bool,
     bidirectional: bool,
     setups: u32,
+    #[serde(default)]
+    setup_shift: usize,
+    #[serde(default)]
+    shift_deg: Vec<f64>,
 }
 
-/// The run settings of the design named `name` (the only one when `None`) of the
+/// A planned design as a run executes it: the settings of every mounting, and the
+/// mountings (docs/FORMAT.md §7.3, *Several mountings*).
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct PlannedRun {
+    /// The settings of each mounting.
+    pub settings: RunSettings,
+    /// The mountings, setup 1 first: setup s at the design's table shift of s (0 without
+    /// shifts), the polygon turned (s − 1)·`setup_shift` faces (modulo N).
+    pub mountings: Vec<Mounting>,
+    /// The design's name.
+    pub name: String,
+    /// Where the design is in its file.
+    pub location: Location,
+}
+
+impl PlannedRun {
+    /// Mounting `setup` of the design.
+    ///
+    /// # Errors
+    ///
+    /// [`PlanFileError::Mountings`] for a mounting the design does not have.
+    pub fn mounting(&self, setup: u32) -> Result<Mounting, PlanFileError> {
+        (setup as usize)
+            .checked_sub(1)
+            .and_then(|i| self.mountings.get(i))
+            .copied()
+            .ok_or_else(|| PlanFileError::Mountings {
+                location: self.location.clone(),
+                name: self.name.clone(),
+                setups: self.mountings.len() as u32,
+                setup,
+            })
+    }
+}
+
+/// The run of the design named `name` (the only one when `None`) of the
 /// `plan --format json` output `bytes` (UTF-8, one JSON object per line, as `plan`
-/// writes it for one design or several), read from `file`: faces, the autocollimators' faces,
-/// cycles, the closing step and the direction of the cycles; `base` gives the rest
-/// (settle time, readings per stop, noise).
+/// writes it for one design or several), read from `file`: faces, the autocollimators'
+/// faces, cycles, the closing step and the direction of the cycles, and its mountings;
+/// `base` gives the rest (settle time, readings per stop, noise).
 ///
 /// # Errors
 ///
 /// [`PlanFileError`]: bytes that are not UTF-8 or a line that is not a plan's JSON (at
-/// their line and column), no
-/// design, several without a choice, an unknown name, several mountings, settings a run
-/// refuses.
-pub fn settings_from_plan(
+/// their line and column), no design, several without a choice, an unknown name,
+/// settings or mountings a run refuses.
+pub fn run_from_plan(
     bytes: &[u8],
     file: &str,
     name: Option<&str>,
     base: &RunSettings,
-) -> Result<RunSettings, PlanFileError> {
+) -> Result<PlannedRun, PlanFileError> {
     let text = crate::input::text::utf8(bytes).map_err(|((line, column), message)| {
         PlanFileError::Form {
             location: Location::new(file, line, column),
@@ -140,13 +189,6 @@ pub fn settings_from_plan(
     };
     let (line, PlanLine { name, design }) = chosen;
     let location = Location::new(file, line, 1);
-    if design.setups != 1 {
-        return Err(PlanFileError::Mountings {
-            location,
-            name,
-            setups: design.setups,
-        });
-    }
     let mut settings = base.clone();
     settings.faces = design.faces;
     settings.cycles = design.cycles;
@@ -156,11 +198,41 @@ pub fn settings_from_plan(
     settings
         .validate()
         .map_err(|error| PlanFileError::Settings {
-            location,
-            name,
+            location: location.clone(),
+            name: name.clone(),
             error,
         })?;
-    Ok(settings)
+    let refused = |error: String| PlanFileError::Mounting {
+        location: location.clone(),
+        name: name.clone(),
+        error,
+    };
+    if !design.shift_deg.is_empty() && design.shift_deg.len() != design.setups as usize {
+        return Err(refused(format!(
+            "{} table shift(s) for {} mounting(s)",
+            design.shift_deg.len(),
+            design.setups
+        )));
+    }
+    if design.setups == 0 || design.setups > super::MAX_MOUNTINGS {
+        return Err(refused(format!("{} mountings", design.setups)));
+    }
+    let n = settings.faces;
+    let mut mountings = Vec::with_capacity(design.setups as usize);
+    for s in 1..=design.setups {
+        let m = Mounting::new(s)
+            .with_shift_deg(design.shift_deg.get(s as usize - 1).copied().unwrap_or(0.0))
+            .with_face_shift((s as usize - 1) % n * (design.setup_shift % n) % n);
+        m.validate(&settings)
+            .map_err(|e| refused(format!("mounting {s}: {e}")))?;
+        mountings.push(m);
+    }
+    Ok(PlannedRun {
+        settings,
+        mountings,
+        name,
+        location,
+    })
 }
 
 #[cfg(test)]
@@ -177,7 +249,9 @@ mod tests {
 
     #[test]
     fn the_planned_design_becomes_the_runs_settings() {
-        let s = settings_from_plan(A.as_bytes(), "p.json", None, &base()).unwrap();
+        let s = run_from_plan(A.as_bytes(), "p.json", None, &base())
+            .unwrap()
+            .settings;
         assert_eq!(
             (
                 s.faces,
@@ -190,31 +264,44 @@ mod tests {
         );
         assert_eq!(s.settle_seconds, 0.5, "the rest from the command");
         let both = format!("{A}\n{B}\n");
-        let s = settings_from_plan(both.as_bytes(), "p.json", Some("B"), &base()).unwrap();
-        assert_eq!((s.faces, s.bidirectional), (12, true));
+        let s = run_from_plan(both.as_bytes(), "p.json", Some("B"), &base()).unwrap();
+        assert_eq!((s.settings.faces, s.settings.bidirectional), (12, true));
+        assert_eq!(s.mountings, [Mounting::default()]);
+        // Two mountings, the polygon turned one face in the second.
+        let two = run_from_plan(TWO.as_bytes(), "p.json", None, &base()).unwrap();
+        assert_eq!(
+            two.mountings,
+            [Mounting::new(1), Mounting::new(2).with_face_shift(1)]
+        );
+        assert_eq!(two.mounting(2), Ok(Mounting::new(2).with_face_shift(1)));
+        assert_eq!(
+            two.mounting(3).unwrap_err().to_string(),
+            "p.json:1:1: design \"M\" has 2 mounting(s), not a mounting 3"
+        );
     }
 
     #[test]
     fn what_a_run_cannot_take_is_refused_at_its_place() {
         let both = format!("{A}\n{B}\n");
-        let e = settings_from_plan(both.as_bytes(), "p.json", None, &base()).unwrap_err();
+        let e = run_from_plan(both.as_bytes(), "p.json", None, &base()).unwrap_err();
         assert_eq!(
             e.to_string(),
             "p.json: holds 2 designs (A, B): choose one by its name"
         );
-        let e = settings_from_plan(both.as_bytes(), "p.json", Some("C"), &base()).unwrap_err();
+        let e = run_from_plan(both.as_bytes(), "p.json", Some("C"), &base()).unwrap_err();
         assert!(e.to_string().contains("no design named \"C\""), "{e}");
-        let e = settings_from_plan(TWO.as_bytes(), "p.json", None, &base()).unwrap_err();
+        let shifts = TWO.replace(r#""shift_deg":[]"#, r#""shift_deg":[0,400]"#);
+        let e = run_from_plan(shifts.as_bytes(), "p.json", None, &base()).unwrap_err();
         assert!(
             e.to_string()
-                .starts_with("p.json:1:1: design \"M\" has 2 mountings"),
+                .starts_with("p.json:1:1: design \"M\": mounting 2: shift 400"),
             "{e}"
         );
-        let e = settings_from_plan(b"{\"name\": 3}", "p.json", None, &base()).unwrap_err();
+        let e = run_from_plan(b"{\"name\": 3}", "p.json", None, &base()).unwrap_err();
         assert!(e.to_string().starts_with("p.json:1:"), "{e}");
-        let e = settings_from_plan(b"{}\n\xff", "p.json", None, &base()).unwrap_err();
+        let e = run_from_plan(b"{}\n\xff", "p.json", None, &base()).unwrap_err();
         assert!(e.to_string().starts_with("p.json:2:1: "), "{e}");
-        let e = settings_from_plan(b"", "p.json", None, &base()).unwrap_err();
+        let e = run_from_plan(b"", "p.json", None, &base()).unwrap_err();
         assert_eq!(
             e,
             PlanFileError::Empty {

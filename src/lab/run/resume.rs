@@ -1,16 +1,22 @@
-//! Continuing an interrupted run: the manifest must be the run's and its settings the
-//! same, a last line cut short when the run stopped (in the measurement file or the
-//! traffic log) is removed, and the measurement file must hold exactly the first
-//! readings of the run in order.
+//! Continuing an interrupted run, or a run in its next mounting: the manifest must be
+//! the run's and its settings the same, a last line cut short when the run stopped (in
+//! the measurement file or the traffic log) is removed, the measurement file must hold
+//! exactly the first readings of the run's mountings in order, and a next mounting must
+//! follow a complete one.
 
 use std::collections::BTreeSet;
 use std::fs::{self, OpenOptions};
 use std::io;
 use std::path::Path;
 
-use super::directory::{COLUMNS, first_comment, lock_exclusive, start_file};
+use super::directory::{
+    COLUMNS, COLUMNS_WITHOUT_SHIFT, Key, first_comment, key, lock_exclusive, start_file,
+};
 use super::error::io_error;
-use super::{MANIFEST, MEASUREMENTS, Manifest, Ports, RunDir, RunError, RunSettings, TRAFFIC};
+use super::{
+    MANIFEST, MEASUREMENTS, Manifest, Mounting, MountingRecord, Ports, RunDir, RunError,
+    RunSettings, TRAFFIC,
+};
 use crate::input::Location;
 use crate::lab::WriteBudget;
 use crate::lab::disk::LineFile;
@@ -25,14 +31,21 @@ impl RunDir {
         dir: &Path,
         settings: &RunSettings,
         ports: &Ports,
+        mounting: Option<Mounting>,
         budget: &WriteBudget,
     ) -> Result<RunDir, RunError> {
         let manifest_path = dir.join(MANIFEST);
         let text = match fs::read_to_string(&manifest_path) {
             Ok(text) => text,
             Err(e) if e.kind() == io::ErrorKind::NotFound => {
-                return Err(RunError::NoRunToResume {
-                    path: dir.to_path_buf(),
+                return Err(match mounting {
+                    Some(m) if m.setup > 1 => RunError::NoRunForMounting {
+                        path: dir.to_path_buf(),
+                        setup: m.setup,
+                    },
+                    _ => RunError::NoRunToResume {
+                        path: dir.to_path_buf(),
+                    },
                 });
             }
             Err(e) => return Err(io_error(&manifest_path)(e)),
@@ -53,12 +66,16 @@ impl RunDir {
         let mut file = LineFile::open(&path, false, budget).map_err(io_error(&path))?;
         lock_exclusive(file.file(), &path)?;
         let mut warnings = Vec::new();
-        let existing = read_existing(&path, settings, &mut warnings)?;
+        manifest.normalize_mountings();
+        let existing = read_existing(&path, settings, &manifest.mountings, &mut warnings)?;
+        let mountings_before = manifest.mountings.clone();
+        choose_mounting(&mut manifest, &manifest_path, settings, mounting, &existing)?;
+        let mountings_changed = manifest.mountings != mountings_before;
         // The line removed (if any) is no longer in the file.
         file.reload_len().map_err(io_error(&path))?;
         repair_cut_line(&dir.join(TRAFFIC), &mut warnings)?;
-        let measurements = if existing.header {
-            ReadingWriter::resume(file, Columns::new(COLUMNS))
+        let measurements = if let Some(columns) = existing.columns {
+            ReadingWriter::resume(file, columns)
         } else if existing.empty {
             start_file(file, &[first_comment(&manifest)])?
         } else {
@@ -67,8 +84,9 @@ impl RunDir {
         };
         manifest.ports = ports.clone();
         manifest.readings = existing.done.len();
+        manifest.expected_readings = settings.reading_count() * manifest.mountings.len();
         let offset = (unix_now() - manifest.started_unix).max(0.0);
-        Ok(RunDir::assemble(
+        let mut run = RunDir::assemble(
             dir,
             manifest,
             measurements,
@@ -76,18 +94,101 @@ impl RunDir {
             RunClock::new(offset),
             warnings,
             budget,
-        ))
+        );
+        // A mounting begun or restated is on record before anything is measured in it.
+        if mountings_changed {
+            run.write_manifest(false)?;
+        }
+        Ok(run)
     }
+}
+
+/// The mounting a session measures (module docs of [`RunDir::open_mounting`]): the
+/// manifest's last, restated, or the next one after a complete last one, which is then
+/// added to the manifest.
+fn choose_mounting(
+    manifest: &mut Manifest,
+    path: &Path,
+    settings: &RunSettings,
+    requested: Option<Mounting>,
+    existing: &Existing,
+) -> Result<(), RunError> {
+    let Some(last) = manifest.mountings.last().map(|m| m.mounting) else {
+        return Ok(());
+    };
+    let target = requested.unwrap_or(last);
+    let readings_of = |setup: u32| existing.done.iter().filter(|k| k.0 == setup).count();
+    let shifted_without_column = existing
+        .columns
+        .as_ref()
+        .is_some_and(|c| !c.as_slice().contains(&crate::measurement::Column::SHIFT))
+        && target.shift_deg != 0.0;
+    if let Some(i) = manifest
+        .mountings
+        .iter()
+        .position(|m| m.mounting.setup == target.setup)
+    {
+        if target.setup != last.setup {
+            return Err(RunError::MountingDone {
+                path: path.to_path_buf(),
+                setup: target.setup,
+                last: last.setup,
+            });
+        }
+        let recorded = manifest.mountings[i].mounting;
+        if recorded != target {
+            if readings_of(target.setup) > 0 || target.setup == 1 {
+                return Err(RunError::OtherMounting {
+                    path: path.to_path_buf(),
+                    recorded,
+                    requested: target,
+                });
+            }
+            // Nothing measured in it yet: restated, and to be confirmed again.
+            if shifted_without_column {
+                return Err(RunError::NoShiftColumn {
+                    path: path.to_path_buf(),
+                    mounting: target,
+                });
+            }
+            manifest.mountings[i] = MountingRecord::new(target);
+        }
+        return Ok(());
+    }
+    if target.setup != last.setup + 1 {
+        return Err(RunError::MountingOrder {
+            path: path.to_path_buf(),
+            requested: target.setup,
+            last: last.setup,
+        });
+    }
+    let done = readings_of(last.setup);
+    if done < settings.reading_count() {
+        return Err(RunError::MountingIncomplete {
+            path: path.to_path_buf(),
+            setup: last.setup,
+            done,
+            expected: settings.reading_count(),
+        });
+    }
+    if shifted_without_column {
+        return Err(RunError::NoShiftColumn {
+            path: path.to_path_buf(),
+            mounting: target,
+        });
+    }
+    manifest.mountings.push(MountingRecord::new(target));
+    Ok(())
 }
 
 /// What an interrupted run left in its measurement file.
 struct Existing {
     /// Whether the file has no byte (after the repair of a cut last line).
     empty: bool,
-    /// Whether it has the header.
-    header: bool,
-    /// The (cycle, step, ac) of each reading.
-    done: BTreeSet<(u32, usize, u32)>,
+    /// Its columns, when it has a header.
+    columns: Option<Columns>,
+    /// The place of each reading.
+    done: BTreeSet<Key>,
 }
 
 /// Removes a last line cut short when the run stopped (no line feed at the end of the
@@ -118,11 +219,12 @@ fn repair_cut_line(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<u8>, R
 }
 
 /// Reads the readings already on disk, after removing a cut-short last line: the file
-/// must have the run's header (unless it has no header yet) and hold exactly the first
-/// readings of the run, in order.
+/// must have the run's header (or that of a run started before the `shift` column; none
+/// yet is fine) and hold exactly the first readings of the run's `mountings`, in order.
 fn read_existing(
     path: &Path,
     settings: &RunSettings,
+    mountings: &[MountingRecord],
     warnings: &mut Vec<String>,
 ) -> Result<Existing, RunError> {
     let bytes = repair_cut_line(path, warnings)?;
@@ -133,34 +235,64 @@ fn read_existing(
         .lines()
         .enumerate()
         .find(|(_, line)| !line.starts_with('#') && !line.trim().is_empty());
-    let expected = Columns::new(COLUMNS).header();
-    if let Some((index, line)) = header
-        && line != expected
-    {
-        return Err(RunError::Header {
-            at: Location::new(name, index as u64 + 1, 0),
-            found: line.to_string(),
-            expected,
-        });
-    }
+    let columns = match header {
+        None => None,
+        Some((index, line)) => {
+            let known = [Columns::new(COLUMNS), Columns::new(COLUMNS_WITHOUT_SHIFT)];
+            let Some(columns) = known.into_iter().find(|c| c.header() == line) else {
+                return Err(RunError::Header {
+                    at: Location::new(name, index as u64 + 1, 0),
+                    found: line.to_string(),
+                    expected: Columns::new(COLUMNS).header(),
+                });
+            };
+            Some(columns)
+        }
+    };
     let readings =
         read_rows(bytes.as_slice(), &name).map_err(|error| RunError::Unreadable { error })?;
-    let order = settings.readings();
+    let several = mountings.len() > 1;
+    let place = |setup: u32, rest: String| {
+        if several {
+            format!("setup {setup}: {rest}")
+        } else {
+            rest
+        }
+    };
+    let mut order = mountings.iter().flat_map(|m| {
+        settings
+            .readings()
+            .into_iter()
+            .map(move |(stop, ac)| (m.mounting, stop, ac))
+    });
     let mut done = BTreeSet::new();
     for (k, reading) in readings.iter().enumerate() {
         let at = || Location::new(name.clone(), reading.line, 0);
-        let Some(&(stop, ac)) = order.get(k) else {
+        let Some((mounting, stop, ac)) = order.next() else {
             return Err(RunError::TooManyReadings { at: at() });
         };
-        let face = settings.face(ac, stop.step);
-        let found = (reading.cycle, reading.step, reading.ac, reading.face);
-        if found != (stop.cycle, stop.step, ac, face) || reading.direction != stop.direction {
+        let face = mounting.face(settings, ac, stop.step);
+        let found = (
+            reading.setup,
+            reading.cycle,
+            reading.step,
+            reading.ac,
+            reading.face,
+        );
+        let expected = (mounting.setup, stop.cycle, stop.step, ac, face);
+        if found != expected || reading.direction != stop.direction {
             return Err(RunError::OutOfOrder {
                 at: at(),
-                found: format!("{},{},{},{}", found.0, found.1, found.2, found.3),
+                found: place(
+                    found.0,
+                    format!("{},{},{},{}", found.1, found.2, found.3, found.4),
+                ),
                 found_direction: reading.direction,
                 number: k + 1,
-                expected: format!("{},{},{},{face}", stop.cycle, stop.step, ac),
+                expected: place(
+                    expected.0,
+                    format!("{},{},{},{face}", stop.cycle, stop.step, ac),
+                ),
                 expected_direction: stop.direction,
             });
         }
@@ -172,11 +304,11 @@ fn read_existing(
                 return Err(RunError::Missing { at: at(), column });
             }
         }
-        done.insert((stop.cycle, stop.step, ac));
+        done.insert(key(reading));
     }
     Ok(Existing {
         empty: bytes.is_empty(),
-        header: header.is_some(),
+        columns,
         done,
     })
 }

@@ -96,11 +96,26 @@ pub enum SettingsError {
         /// What is wrong.
         problem: String,
     },
+    /// A mounting numbered 0 or beyond [`MAX_MOUNTINGS`](super::MAX_MOUNTINGS).
+    #[error("setup {0}: mountings are numbered 1 … 1000")]
+    Setup(u32),
+    /// A table shift that is not a number of degrees in 0 ≤ shift < 360.
+    #[error("shift {0}: the table's angle at step 0 is a number of degrees, 0 ≤ shift < 360")]
+    Shift(f64),
+    /// A face shift of N or more.
+    #[error("face-shift {face_shift}: the polygon has {faces} faces: 0 … {}", faces.saturating_sub(1))]
+    FaceShift {
+        /// The face shift given.
+        face_shift: usize,
+        /// N.
+        faces: usize,
+    },
 }
 
 impl SettingsError {
     /// The setting's name, as in [`RunSettings::as_options`] without the dashes:
-    /// `faces`, `cycles`, `settle`, `reads`, `reading-noise` or `ac-faces`.
+    /// `faces`, `cycles`, `settle`, `reads`, `reading-noise`, `ac-faces`, or of a
+    /// mounting `setup`, `shift`, `face-shift`.
     pub fn setting(&self) -> &'static str {
         match self {
             SettingsError::TooFewFaces(_) | SettingsError::TooManyFaces(_) => "faces",
@@ -109,6 +124,9 @@ impl SettingsError {
             SettingsError::Reads(_) => "reads",
             SettingsError::ReadingNoise(_) => "reading-noise",
             SettingsError::AcFaces { .. } => "ac-faces",
+            SettingsError::Setup(_) => "setup",
+            SettingsError::Shift(_) => "shift",
+            SettingsError::FaceShift { .. } => "face-shift",
         }
     }
 }

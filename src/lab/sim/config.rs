@@ -64,7 +64,7 @@ impl LabConfig {
     }
 
     /// Checks the settings: the simulation's ([`SimulationConfig::validate`]), 2 … 16
-    /// autocollimators, faults only on devices the lab has, one mounting, a speed > 0, home time and time scale ≥ 0, and none
+    /// autocollimators, faults only on devices the lab has, a speed > 0, home time and time scale ≥ 0, and none
     /// of the run simulator's temperature model, elevation model or Student-t noise, which
     /// the lab does not simulate.
     ///
@@ -89,9 +89,6 @@ impl LabConfig {
                     "fault {fault}: the lab has {k} autocollimators, not an ac{n}"
                 ));
             }
-        }
-        if self.simulation.setups != 1 {
-            return bad("the lab simulates one polygon mounting (setup 1)".into());
         }
         // The lab's instruments have no thermometer, their Y axis has its own model, and
         // their noise is normal: refuse what the run simulator has beyond that rather

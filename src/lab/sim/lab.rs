@@ -140,6 +140,16 @@ impl Lab {
         lock(&self.world).truth().clone()
     }
 
+    /// The operator remounts the polygon for the simulation's next setup
+    /// ([`World::remount`]).
+    ///
+    /// # Errors
+    ///
+    /// The last setup is mounted already.
+    pub fn remount(&self) -> Result<u32, String> {
+        lock(&self.world).remount()
+    }
+
     /// Stops serving and closes the pseudo-terminals.
     pub fn shutdown(mut self) {
         self.stop.store(true, Ordering::SeqCst);

@@ -16,7 +16,19 @@
 //!
 //! where `reading` has step p (N for 360°), face `((ac_faces[j-1] − 1) + p) mod N + 1`,
 //! setup 1, and the cycle and direction of the run's stop the table is at (see
-//! *Cycles* below); its `time` is the real time since the lab's first command. The
+//! *Cycles* below); its `time` is the real time since the lab's first command.
+//!
+//! # Mountings
+//!
+//! The polygon starts in the simulation's setup 1; each [`Devices::remount`] (`sim-lab`:
+//! a `remount` line on its standard input) mounts it as the next setup, the operator's
+//! part of a run in several mountings. In setup s the stops are at `table_shift_deg[s-1]`
+//! (0 without shifts) + p·360°/N: p and δ are taken against that shift, the face is
+//! [`SimulationConfig::face_at`](crate::simulate::SimulationConfig::face_at)`(s, j, p)`
+//! (the setup's face shift included), α the truth's encoder error at the table's angle
+//! ([`Truth::model_reading_shifted`]) and U the setup's. A run that goes on to the next
+//! setup's stops without the remount finds the faces where the old mounting put them: off
+//! its range by a sub-pitch shift (no axis valid), or other faces. The
 //! noise is drawn from stream 1 of `ChaCha8Rng::seed_from_u64(seed)`, one standard
 //! normal for X and one for Y per measurement, in the order the measurements are asked.
 //! Y is the face's pyramidal error (spread 2″, stream 2) plus noise.
@@ -173,5 +185,30 @@ impl Devices {
     /// A copy of the truth.
     pub fn truth(&self) -> Truth {
         lock(&self.world).truth.clone()
+    }
+
+    /// Every setup of the simulation as the run states its mounting (`run --setup S
+    /// --shift DEG --face-shift K`), setup 1 first.
+    pub fn mountings(&self) -> Vec<crate::lab::run::Mounting> {
+        let world = lock(&self.world);
+        let simulation = &world.config.simulation;
+        let n = simulation.faces.max(1);
+        (1..=simulation.setups)
+            .map(|s| {
+                crate::lab::run::Mounting::new(s)
+                    .with_shift_deg(simulation.table_shift_of(s))
+                    .with_face_shift((s as usize - 1) % n * (simulation.setup_shift_faces % n) % n)
+            })
+            .collect()
+    }
+
+    /// The operator remounts the polygon for the simulation's next setup
+    /// ([`World::remount`]).
+    ///
+    /// # Errors
+    ///
+    /// The last setup is mounted already.
+    pub fn remount(&self) -> Result<u32, String> {
+        lock(&self.world).remount()
     }
 }

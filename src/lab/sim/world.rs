@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::{AC_RANGE_ARCSEC, LabConfig, PYRAMIDAL_SPREAD_ARCSEC};
-use crate::measurement::{Direction, Reading, face_at, run_stops};
+use crate::measurement::{Direction, Reading, run_stops};
 use crate::simulate::{SimulateError, SimulationConfig, Truth};
 
 /// A planned stop of the run design the world follows.
@@ -144,6 +144,8 @@ pub struct World {
     pub(super) table: Table,
     tracker: Tracker,
     first_command: Option<Instant>,
+    /// The mounting of the polygon on the table (the simulation's setup), from 1.
+    mounting: u32,
 }
 
 /// What the table is doing, as the autocollimators see it.
@@ -198,7 +200,47 @@ impl World {
                 stuck: false,
             },
             first_command: None,
+            mounting: 1,
         }
+    }
+
+    /// The polygon's mounting on the table now (the simulation's setup, from 1).
+    pub fn mounting(&self) -> u32 {
+        self.mounting
+    }
+
+    /// The operator remounts the polygon for the next setup of the simulation: at step p
+    /// of setup s the table stands at the setup's table shift + p·360°/N and
+    /// autocollimator j faces the face [`SimulationConfig::face_at`] gives. The run's
+    /// place in the plan starts anew (the setup's cycles). Returns the new mounting.
+    ///
+    /// # Errors
+    ///
+    /// The simulation's last setup is mounted already: its message.
+    pub fn remount(&mut self) -> Result<u32, String> {
+        let setups = self.config.simulation.setups;
+        if self.mounting >= setups {
+            return Err(format!(
+                "the lab simulates {setups} mounting(s), and mounting {} is on the table",
+                self.mounting
+            ));
+        }
+        self.mounting += 1;
+        self.tracker = Tracker::new(&self.config.simulation);
+        Ok(self.mounting)
+    }
+
+    /// Someone turns the table by hand by `degrees` while it is at rest, as can happen
+    /// while the polygon is remounted: the encoder follows, the controller stays ready.
+    pub fn turn_table_by_hand(&mut self, degrees: f64) {
+        if self.table.motion.is_none() && degrees.is_finite() {
+            self.table.position += degrees;
+        }
+    }
+
+    /// The table's angle at step 0 of the mounting now, degrees.
+    fn shift_deg(&self) -> f64 {
+        self.config.simulation.table_shift_of(self.mounting)
     }
 
     /// The truth the readings are drawn from.
@@ -246,10 +288,11 @@ impl World {
         }
     }
 
-    /// The stop index nearest to `degrees` (0 … N for 0° … 360°), if it is in that range.
+    /// The stop index nearest to `degrees` in the mounting now (0 … N for the shift …
+    /// the shift + 360°), if it is in that range.
     fn nominal_step(&self, degrees: f64) -> Option<usize> {
         let n = self.truth.faces as f64;
-        let p = (degrees * n / 360.0).round();
+        let p = ((degrees - self.shift_deg()) * n / 360.0).round();
         (p >= 0.0 && p <= n).then_some(p as usize)
     }
 
@@ -279,23 +322,23 @@ impl World {
             return (0, 0.0, 0.0);
         };
         let n = self.truth.faces;
-        let p = (theta * n as f64 / 360.0).round();
-        let delta_arcsec = (theta - p * 360.0 / n as f64) * 3600.0;
+        let shift = self.shift_deg();
+        let p = ((theta - shift) * n as f64 / 360.0).round();
+        let delta_arcsec = (theta - shift - p * 360.0 / n as f64) * 3600.0;
         let p = p as i64;
         let step = if (0..=n as i64).contains(&p) {
             p as usize
         } else {
             p.rem_euclid(n as i64) as usize
         };
-        let ac_face = self.config.simulation.ac_faces[ac as usize - 1];
-        let face = face_at(step, ac_face - 1, n);
+        let face = self.config.simulation.face_at(self.mounting, ac, step);
         let off_plan = self.tracker.off_plan == Some(step);
         let (cycle, direction) = self.tracker.context(step, ac);
         let time = self
             .first_command
             .map_or(0.0, |t| now.saturating_duration_since(t).as_secs_f64());
         let reading = Reading {
-            setup: 1,
+            setup: self.mounting,
             cycle,
             step,
             ac,
@@ -314,7 +357,7 @@ impl World {
         } else {
             &self.truth
         };
-        let x = truth.model_reading(&reading) + delta_arcsec + sigma * z_x;
+        let x = truth.model_reading_shifted(&reading, shift) + delta_arcsec + sigma * z_x;
         let y = self.pyramidal[face - 1] + sigma * z_y;
         if !x.is_finite() || x.abs() > AC_RANGE_ARCSEC {
             return (0, 0.0, 0.0);
