@@ -498,3 +498,54 @@ fn resume_reads_the_file_with_the_measurement_rules() {
     assert_eq!(set.readings.len(), 18);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_session_stopped_before_the_check_of_its_last_cycle_has_it_done_on_resume() {
+    // A 2″ outlier at the last cycle's step 3 (autocollimator 2); the session is asked to
+    // stop at the cycle's last reading, so the check that would measure it again ends
+    // before it could (and is not recorded as done).
+    let dir = temp_dir("unchecked-cycle");
+    let s = settings(8, 2, false).with_reading_noise_arcsec(0.02);
+    let mut config = lab(8, 0.02, vec![]);
+    config
+        .simulation
+        .effects
+        .push(polycal::effects::Effect::Outlier {
+            cycle: 2,
+            step: 3,
+            ac: 2,
+            setup: None,
+            value: 2.0,
+        });
+    let stop = StopFlag::new();
+    let mut d = drivers(Devices::new(config).unwrap(), &stop);
+    // 36 readings and the check after cycle 1: the 37th report is the last reading.
+    let outcome = run_in_process(&dir, &s, false, &mut d, &stop, Some(37));
+    assert_eq!(outcome, Outcome::Interrupted);
+    let run = RunDir::open(&dir, &s, &ports(), true).unwrap();
+    assert!(run.remaining().is_empty(), "every reading on disk");
+    assert_eq!(run.unchecked_cycle(), Some(2));
+    assert!(!run.is_complete());
+    assert!(run.manifest().remeasured.is_empty());
+    drop(run);
+
+    // Resumed: the check after cycle 2 is done first, and measures the outlier again.
+    stop.shared()
+        .store(false, std::sync::atomic::Ordering::SeqCst);
+    let outcome = run_in_process(&dir, &s, true, &mut d, &stop, None);
+    assert_eq!(outcome, Outcome::Completed);
+    let run = RunDir::open(&dir, &s, &ports(), true).unwrap();
+    assert!(run.is_complete());
+    let remeasured = &run.manifest().remeasured;
+    assert_eq!(remeasured.len(), 1, "{remeasured:?}");
+    assert_eq!(
+        (remeasured[0].cycle, remeasured[0].step, remeasured[0].ac),
+        (2, 3, 2)
+    );
+    assert!((remeasured[0].first_arcsec - remeasured[0].reading_arcsec - 2.0).abs() < 0.2);
+    assert_eq!(
+        run.manifest().checked_cycles.as_deref(),
+        Some(&[(1, 1), (1, 2)][..])
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -289,7 +289,7 @@ impl Session<'_> {
             out.warning(warning);
         }
         let file = args.out.join(run::MEASUREMENTS);
-        if dir.remaining().is_empty() {
+        if dir.is_complete() {
             dir.finish(&Outcome::Completed).map_err(|e| {
             anyhow!(
                 "{e}; the run is complete ({} readings in {}), but the manifest could not record it; \

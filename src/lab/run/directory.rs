@@ -246,6 +246,7 @@ impl RunDir {
             remeasured: Vec::new(),
             suspect: Vec::new(),
             mountings: vec![MountingRecord::new(mounting)],
+            checked_cycles: Some(Vec::new()),
         };
         let path = dir.join(MEASUREMENTS);
         let file = LineFile::open(&path, true, budget)
@@ -331,6 +332,45 @@ impl RunDir {
             last.misfit = Some(warning.to_string());
         }
         self.write_manifest(false)
+    }
+
+    /// The latest cycle of this session's mounting whose readings are all on disk, when
+    /// its check after the cycle was not done (the session before ended first).
+    pub fn unchecked_cycle(&self) -> Option<u32> {
+        let checked = self.manifest.checked_cycles.as_ref()?;
+        let setup = self.mounting.setup;
+        let settings = &self.manifest.settings;
+        let plan = settings.plan();
+        let complete = (1..=settings.cycles).rev().find(|&c| {
+            plan.iter().filter(|s| s.cycle == c).all(|s| {
+                settings
+                    .acs()
+                    .all(|ac| self.done.contains(&(setup, c, s.step, ac)))
+            })
+        })?;
+        (!checked.contains(&(setup, complete))).then_some(complete)
+    }
+
+    /// Whether this session's mounting is complete: every reading on disk and the check
+    /// after its last cycle done.
+    pub fn is_complete(&self) -> bool {
+        self.remaining().is_empty() && self.unchecked_cycle().is_none()
+    }
+
+    /// Records that the check after `cycle` of this session's mounting was done.
+    ///
+    /// # Errors
+    ///
+    /// As [`RunDir::finish`].
+    pub(super) fn record_checked(&mut self, cycle: u32) -> Result<(), RunError> {
+        let key = (self.mounting.setup, cycle);
+        if let Some(checked) = self.manifest.checked_cycles.as_mut()
+            && !checked.contains(&key)
+        {
+            checked.push(key);
+            return self.write_manifest(false);
+        }
+        Ok(())
     }
 
     /// Whether the run holds readings to look at again: measured again, suspect, or of a

@@ -195,6 +195,12 @@ pub struct Manifest {
     /// first mounting alone.
     #[serde(default)]
     pub mountings: Vec<super::MountingRecord>,
+    /// The cycles whose check after the cycle (docs/FORMAT.md §7.3, *Checked while it
+    /// runs*) was done, as (setup, cycle): a session that ended before the check of its
+    /// last complete cycle has it done when the run is resumed. Absent from older
+    /// manifests (`None`): every complete cycle counts as checked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checked_cycles: Option<Vec<(u32, u32)>>,
 }
 
 /// The software of this build, e.g. `polycal 0.1.0`.

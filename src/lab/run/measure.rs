@@ -360,8 +360,48 @@ fn measure_stops(
     let settle = Duration::try_from_secs_f64(settings.settle_seconds).unwrap_or(Duration::ZERO);
     let mut memory = vec![DeviceMemory::default(); acs.len()];
     let mut refused = 0;
-    let remaining = run.remaining();
     let mut handled: Vec<Cell> = Vec::new();
+    if let Some(cycle) = run.unchecked_cycle() {
+        // The session before ended before the check after this cycle: done now, while
+        // the polygon is still mounted so.
+        let checked = check_cycle(
+            run,
+            Devices {
+                acs: &mut *acs,
+                table: &mut *table,
+            },
+            &mut memory,
+            stop_flag,
+            traffic,
+            cycle,
+            &mut handled,
+            &mut refused,
+        );
+        let check = match checked {
+            Ok(check) => check,
+            Err(outcome) => return outcome,
+        };
+        if let Err(e) = run.record_checked(cycle) {
+            return Outcome::FileError(e.to_string());
+        }
+        let done = run.readings_done();
+        attendant.progress(&Progress {
+            done,
+            setup: mounting.setup,
+            total,
+            cycle: (cycle, settings.cycles),
+            stop: (stops_per_cycle, stops_per_cycle),
+            step: settings
+                .plan()
+                .iter()
+                .rfind(|s| s.cycle == cycle)
+                .map_or(0, |s| s.step),
+            seconds_left: None,
+            refused,
+            cycle_check: Some(check),
+        });
+    }
+    let remaining = run.remaining();
     for (index, (stop, to_read)) in remaining.iter().enumerate() {
         let stop = *stop;
         if stop_flag.is_set() {
@@ -454,7 +494,12 @@ fn measure_stops(
                 &mut refused,
             );
             match checked {
-                Ok(check) => progress_now(run, refused, Some(check)),
+                Ok(check) => {
+                    if let Err(e) = run.record_checked(stop.cycle) {
+                        return Outcome::FileError(e.to_string());
+                    }
+                    progress_now(run, refused, Some(check));
+                }
                 Err(outcome) => return outcome,
             }
         }
