@@ -334,3 +334,81 @@ fn clean_runs_of_four_designs_rarely_get_a_false_effect() {
         assert!(inadequate <= 5, "{name}: {inadequate} of 100 inadequate");
     }
 }
+
+/// With one clockwise and one counter-clockwise cycle, a direction offset of
+/// autocollimator 2 and a jump of its zero from the start of cycle 2 are the same column
+/// (issue 35): whichever is found carries the other as an exact equivalent — fitted as
+/// well, the calibration unchanged — and the verdict stays adequate. Injected both ways,
+/// five seeds each.
+#[test]
+fn a_direction_offset_and_a_jump_at_the_ccw_cycle_name_each_other_as_equivalent() {
+    let direction = |e: &Effect| matches!(e, Effect::Direction { ac: Some(2), .. });
+    let jump = |e: &Effect| {
+        matches!(
+            e,
+            Effect::OffsetStep {
+                ac: 2,
+                cycle: 2,
+                step: None,
+                ..
+            }
+        )
+    };
+    let injected = [
+        Effect::Direction {
+            ac: Some(2),
+            value: 0.4,
+        },
+        Effect::OffsetStep {
+            ac: 2,
+            cycle: 2,
+            step: None,
+            setup: None,
+            value: 0.4,
+        },
+    ];
+    for effect in injected {
+        for seed in 1..=5u64 {
+            let config = SimulationConfig {
+                faces: 12,
+                cycles: 2,
+                closing: true,
+                bidirectional: true,
+                noise_arcsec: 0.05,
+                effects: vec![effect.clone()],
+                ..base(seed)
+            };
+            let (set, _) = simulate(&config).unwrap();
+            let d = diagnose(&set, &DiagnoseOptions::default()).unwrap();
+            let found = d
+                .effects
+                .iter()
+                .find(|f| direction(&f.effect) || jump(&f.effect))
+                .unwrap_or_else(|| panic!("{effect:?}, seed {seed}: {:#?}", d.effects));
+            let other: &dyn Fn(&Effect) -> bool = if direction(&found.effect) {
+                &jump
+            } else {
+                &direction
+            };
+            let equivalent = found
+                .alternatives
+                .iter()
+                .find(|a| a.effects.len() == 1 && other(&a.effects[0]))
+                .unwrap_or_else(|| {
+                    panic!(
+                        "{effect:?}, seed {seed}: no equivalent: {:#?}",
+                        found.alternatives
+                    )
+                });
+            assert!(equivalent.equivalent, "{equivalent:?}");
+            assert!(equivalent.change_over_expanded_u < 1e-6, "{equivalent:?}");
+            assert!(
+                (equivalent.effects[0].value() - found.effect.value()).abs() < 1e-9,
+                "{equivalent:?} vs {:?}",
+                found.effect
+            );
+            assert!(!found.ambiguous());
+            assert!(d.adequacy.adequate, "{effect:?}, seed {seed}");
+        }
+    }
+}

@@ -662,3 +662,63 @@ fn an_infinite_f_is_written_for_people_and_null_in_json() {
         "{json}"
     );
 }
+
+/// A file argument that is not UTF-8 (a Latin-1 `café.csv`) is a file like any other:
+/// `report` records the command line without panicking (it did, status 101), and `solve`,
+/// `diagnose` and `plan` read the same file (issue 34).
+#[cfg(unix)]
+#[test]
+fn a_file_name_that_is_not_utf8_is_read_without_a_panic() {
+    use std::ffi::OsStr;
+    use std::os::unix::ffi::OsStrExt;
+    let dir = temp_dir("latin1-name");
+    let name = dir.join(OsStr::from_bytes(b"caf\xe9.csv"));
+    std::fs::copy(EXAMPLE, &name).unwrap();
+    let html = dir.join("r.html");
+    let run = |args: &[&OsStr]| {
+        Command::new(env!("CARGO_BIN_EXE_polycal"))
+            .args(args)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .expect("the binary runs")
+    };
+    let report = run(&[
+        OsStr::new("report"),
+        name.as_os_str(),
+        OsStr::new("--out"),
+        html.as_os_str(),
+    ]);
+    assert_eq!(
+        report.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&report.stderr)
+    );
+    let text = std::fs::read_to_string(&html).unwrap();
+    assert!(
+        text.contains("caf\u{fffd}.csv"),
+        "the name as it could be shown"
+    );
+    for command in ["solve", "diagnose"] {
+        let out = run(&[OsStr::new(command), name.as_os_str()]);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{command}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let plan = run(&[
+        OsStr::new("plan"),
+        name.as_os_str(),
+        OsStr::new("--sigma"),
+        OsStr::new("0.05"),
+    ]);
+    assert_eq!(
+        plan.status.code(),
+        Some(0),
+        "plan: {}",
+        String::from_utf8_lossy(&plan.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

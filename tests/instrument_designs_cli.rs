@@ -10,6 +10,17 @@ use instrument_support::*;
 use polycal::lab::run::RunSettings;
 use polycal::measurement::MeasurementSet;
 
+/// A lab of two cycles with the closing step and two mountings.
+const TWO_MOUNTINGS: [&str; 7] = [
+    "--cycles",
+    "2",
+    "--closing",
+    "--noise",
+    "0.05",
+    "--setups",
+    "2",
+];
+
 /// A lab of three autocollimators on faces 1, 2 and 5, two cycles with the closing step.
 const THREE: [&str; 7] = [
     "--ac-faces",
@@ -254,17 +265,7 @@ fn a_run_in_two_mountings_between_the_stops_solves_to_the_truth() {
     let dir = scratch("two-mountings");
     let mut lab = SimLab::start(
         &dir,
-        &[
-            "--cycles",
-            "2",
-            "--closing",
-            "--noise",
-            "0.05",
-            "--setups",
-            "2",
-            "--shift-deg",
-            "0,22.5",
-        ],
+        &[&TWO_MOUNTINGS[..], &["--shift-deg", "0,22.5"]].concat(),
     );
     let out = dir.join("run");
     let first = polycal(&lab.run_args(&out, &design(&[])));
@@ -333,17 +334,7 @@ fn a_planned_design_of_two_mountings_is_run_mounting_by_mounting() {
     std::fs::write(&plan, &planned.stdout).unwrap();
     let mut lab = SimLab::start(
         &dir,
-        &[
-            "--cycles",
-            "2",
-            "--closing",
-            "--noise",
-            "0.05",
-            "--setups",
-            "2",
-            "--setup-shift",
-            "3",
-        ],
+        &[&TWO_MOUNTINGS[..], &["--setup-shift", "3"]].concat(),
     );
     let out = dir.join("run");
     let options = |extra: &[&'static str]| {

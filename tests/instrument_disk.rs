@@ -215,11 +215,13 @@ fn resume_completes(dir: &Path, before: usize) {
 }
 
 /// The bytes each file takes in a whole run without a limit: the measurement file and
-/// the manifest when the run has started, and the manifest's three writes.
+/// the manifest when the run has started, and the manifest's writes: when the session
+/// starts, after each cycle's check (the cycles checked), when it ends.
 struct Sizes {
     header: u64,
     manifest_start: u64,
     manifest_session: u64,
+    manifest_checks: u64,
     manifest_end: u64,
 }
 
@@ -242,6 +244,8 @@ fn measure_sizes() -> Sizes {
     run = RunDir::open_with_budget(&dir, &settings(), &ports(), false, &manifest).unwrap();
     let manifest_start = used(&manifest, run::MANIFEST);
     let (mut ac1, mut ac2, mut table, _) = drivers(noiseless(), &StopFlag::new());
+    // The session's first write is done when the first reading is reported.
+    let mut at_first_reading = None;
     let outcome = run::measure(
         &mut run,
         Instruments {
@@ -252,12 +256,16 @@ fn measure_sizes() -> Sizes {
         },
         &StopFlag::new(),
         None,
-        &mut |_| {},
+        &mut |_| {
+            at_first_reading.get_or_insert_with(|| used(&manifest, run::MANIFEST));
+        },
     )
     .unwrap();
-    let manifest_session = used(&manifest, run::MANIFEST) - manifest_start;
+    let manifest_session = at_first_reading.unwrap() - manifest_start;
+    let manifest_checks = used(&manifest, run::MANIFEST) - manifest_start - manifest_session;
     run.finish(&outcome).unwrap();
-    let manifest_end = used(&manifest, run::MANIFEST) - manifest_start - manifest_session;
+    let manifest_end =
+        used(&manifest, run::MANIFEST) - manifest_start - manifest_session - manifest_checks;
     assert_eq!(
         std::fs::metadata(dir.join(run::MANIFEST)).unwrap().len(),
         manifest_end
@@ -267,6 +275,7 @@ fn measure_sizes() -> Sizes {
         header,
         manifest_start,
         manifest_session,
+        manifest_checks,
         manifest_end,
     }
 }
@@ -483,7 +492,7 @@ fn the_manifest_not_written_stops_the_run_and_resume_records_it() {
     // When the session ends: every reading is on disk, the manifest says the session
     // runs; resuming records that the run is complete.
     let dir = temp_dir("disk-manifest-end");
-    let k = z.manifest_start + z.manifest_session + z.manifest_end / 2;
+    let k = z.manifest_start + z.manifest_session + z.manifest_checks + z.manifest_end / 2;
     let s = session(&dir, false, &WriteBudget::for_file(run::MANIFEST, k)).unwrap();
     assert_eq!(s.outcome, Outcome::Completed);
     assert!(s.finished.is_err());

@@ -10,8 +10,7 @@ use polycal::MeasurementSet;
 use polycal::lab::StopFlag;
 use polycal::lab::WriteBudget;
 use polycal::lab::run::{
-    self, Attendant, Instruments, Mounting, Outcome, Progress, Remount, RunDir, RunError,
-    RunSettings,
+    self, Attendant, Mounting, Outcome, Progress, Remount, RunDir, RunError, RunSettings,
 };
 use polycal::lab::sim::{Devices, LabConfig, World};
 use polycal::simulate::{SimulationConfig, Truth};
@@ -115,18 +114,7 @@ fn session(
         resume,
         &WriteBudget::unlimited(),
     )?;
-    let outcome = run::measure_attended(
-        &mut run,
-        Instruments {
-            ac1: &mut d.0,
-            ac2: &mut d.1,
-            table: &mut d.2,
-            more: Vec::new(),
-        },
-        &StopFlag::new(),
-        None,
-        person,
-    )?;
+    let outcome = run::measure_attended(&mut run, instruments(d), &StopFlag::new(), None, person)?;
     run.finish(&outcome)?;
     Ok(outcome)
 }
@@ -376,23 +364,12 @@ fn the_mountings_of_a_run_directory_stay_in_order() {
     {
         let mut run = open(&dir, None, false).unwrap();
         let mut taken = 0;
-        let outcome = run::measure(
-            &mut run,
-            Instruments {
-                ac1: &mut d.0,
-                ac2: &mut d.1,
-                table: &mut d.2,
-                more: Vec::new(),
-            },
-            &stop,
-            None,
-            &mut |_| {
-                taken += 1;
-                if taken == 10 {
-                    stop.request();
-                }
-            },
-        )
+        let outcome = run::measure(&mut run, instruments(&mut d), &stop, None, &mut |_| {
+            taken += 1;
+            if taken == 10 {
+                stop.request();
+            }
+        })
         .unwrap();
         assert_eq!(outcome, Outcome::Interrupted);
         run.finish(&outcome).unwrap();
@@ -427,19 +404,8 @@ fn the_mountings_of_a_run_directory_stay_in_order() {
     {
         let mut run = open(&dir, None, true).unwrap();
         assert_eq!(run.mounting(), Mounting::new(1));
-        let outcome = run::measure(
-            &mut run,
-            Instruments {
-                ac1: &mut d.0,
-                ac2: &mut d.1,
-                table: &mut d.2,
-                more: Vec::new(),
-            },
-            &stop,
-            None,
-            &mut |_| {},
-        )
-        .unwrap();
+        let outcome =
+            run::measure(&mut run, instruments(&mut d), &stop, None, &mut |_| {}).unwrap();
         assert_eq!(outcome, Outcome::Completed);
         run.finish(&outcome).unwrap();
     }

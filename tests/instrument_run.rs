@@ -9,7 +9,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use lab_support::*;
-use polycal::lab::run::{self, Instruments, Outcome, RunDir, RunError, RunSettings};
+use polycal::lab::run::{self, Outcome, RunDir, RunError, RunSettings};
 use polycal::lab::sim::{DeviceId, Devices, Endpoint, Fault, FaultKind, FaultProblem};
 use polycal::lab::{Autocollimator, InstrumentError, RotaryTable, StopFlag};
 use polycal::measurement::MeasurementSet;
@@ -269,23 +269,12 @@ fn run_in_process(
     let mut run = RunDir::open(dir, s, &ports(), resume).unwrap();
     let log = run.traffic_log().unwrap();
     let mut taken = 0;
-    let outcome = run::measure(
-        &mut run,
-        Instruments {
-            ac1: &mut d.0,
-            ac2: &mut d.1,
-            table: &mut d.2,
-            more: Vec::new(),
-        },
-        stop,
-        Some(&log),
-        &mut |_| {
-            taken += 1;
-            if Some(taken) == stop_after {
-                stop.request();
-            }
-        },
-    )
+    let outcome = run::measure(&mut run, instruments(d), stop, Some(&log), &mut |_| {
+        taken += 1;
+        if Some(taken) == stop_after {
+            stop.request();
+        }
+    })
     .unwrap();
     run.finish(&outcome).unwrap();
     outcome

@@ -62,20 +62,8 @@ pub struct PlanArgs {
     /// Run every second cycle counter-clockwise (implies --closing).
     #[arg(long)]
     bidirectional: bool,
-    /// Number of polygon mountings.
-    #[arg(long, default_value_t = 1)]
-    setups: u32,
-    /// Whole faces the polygon is turned between mountings.
-    #[arg(long, default_value_t = 1)]
-    setup_shift: usize,
-    /// The table's angle at step 0 of each mounting, degrees, one per setup.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        value_name = "DEG,...",
-        allow_negative_numbers = true
-    )]
-    shift_deg: Vec<f64>,
+    #[command(flatten)]
+    mountings: super::simulate::MountingsArgs,
     /// Seconds per table stop.
     #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     step_seconds: f64,
@@ -129,8 +117,8 @@ impl PlanArgs {
             self.cycles,
             self.closing,
             self.bidirectional,
-            self.setups,
-            self.setup_shift,
+            self.mountings.setups,
+            self.mountings.setup_shift,
             self.step_seconds
         );
         let list = |v: &[String]| v.join(",");
@@ -152,7 +140,7 @@ impl PlanArgs {
         let mut design = Design::default()
             .with_spec(&spec)
             .map_err(|e| anyhow::anyhow!("{e}").context("the design of the options"))?;
-        design.table_shift_deg = self.shift_deg.clone();
+        design.table_shift_deg = self.mountings.shift_deg.clone();
         Ok(design)
     }
 }

@@ -102,8 +102,11 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
             );
         }
     }
-    let command_line = std::env::args()
+    // An argument that is not UTF-8 (a file name in another encoding) is recorded with
+    // U+FFFD where its bytes are not text: `args()` would panic on it.
+    let command_line = std::env::args_os()
         .skip(1)
+        .map(|a| a.to_string_lossy().into_owned())
         .map(|a| {
             if a.is_empty() || a.contains(|c: char| c.is_whitespace() || "'\"$\\".contains(c)) {
                 format!("'{}'", a.replace('\'', "'\\''"))

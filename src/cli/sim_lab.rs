@@ -50,23 +50,11 @@ pub struct SimLabArgs {
     /// (2 … 16 autocollimators), as `run --ac-faces` takes it.
     #[arg(long, value_delimiter = ',', default_value = "1,2")]
     ac_faces: Vec<usize>,
-    /// Mountings of the polygon, as `simulate` takes them: the lab starts in the first,
-    /// and a `remount` line on standard input mounts the next.
-    #[arg(long, default_value_t = 1)]
-    setups: u32,
-    /// Whole faces the polygon is turned between mountings (`run --face-shift` of
-    /// mounting s: (s − 1) times this, modulo N).
-    #[arg(long, default_value_t = 1)]
-    setup_shift: usize,
-    /// The table's angle at step 0 of each mounting, degrees, one per mounting (`run
-    /// --shift`); default: every mounting at 0.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        value_name = "DEG,...",
-        allow_negative_numbers = true
-    )]
-    shift_deg: Vec<f64>,
+    /// The lab's mountings of the polygon, as `simulate` takes them: the lab starts in
+    /// the first, and a `remount` line on standard input mounts the next (`run --setup
+    /// S --shift D --face-shift K`, K = (S − 1)·--setup-shift mod N).
+    #[command(flatten)]
+    mountings: super::simulate::MountingsArgs,
     /// How to print the device paths.
     #[arg(long, value_enum, default_value = "table")]
     format: PathsFormat,
@@ -92,10 +80,13 @@ pub fn sim_lab(args: &SimLabArgs, out: &Output) -> Result<u8> {
                 .map_err(|m| anyhow!("--fault {spec}: {m}"))
         })
         .collect::<Result<Vec<_>>>()?;
-    let mut simulation =
-        args.truth
-            .config(args.ac_faces.clone(), args.setups, args.setup_shift, 20.0)?;
-    simulation.table_shift_deg = args.shift_deg.clone();
+    let mut simulation = args.truth.config(
+        args.ac_faces.clone(),
+        args.mountings.setups,
+        args.mountings.setup_shift,
+        20.0,
+    )?;
+    simulation.table_shift_deg = args.mountings.shift_deg.clone();
     let config = LabConfig::new(simulation)
         .with_speed_deg_per_s(args.speed)
         .with_home_seconds(args.home_seconds)

@@ -58,23 +58,8 @@ pub struct SimulateArgs {
     /// Face read at step 0 by each autocollimator (the paper: 1,2).
     #[arg(long, value_delimiter = ',', default_value = "1,2")]
     ac_faces: Vec<usize>,
-    /// Number of polygon mountings (shift-angle data).
-    #[arg(long, default_value_t = 1)]
-    setups: u32,
-    /// Whole faces the polygon is turned between mountings.
-    #[arg(long, default_value_t = 1)]
-    setup_shift: usize,
-    /// The table's angle at step 0 of each mounting, degrees (the `shift` column), one per
-    /// setup (e.g. 0,10,20 with --setups 3); default: every mounting at 0. A shift that is
-    /// not a whole multiple of 360/N puts the mounting's stops between the encoder
-    /// positions (sub-pitch).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        value_name = "DEG,...",
-        allow_negative_numbers = true
-    )]
-    shift_deg: Vec<f64>,
+    #[command(flatten)]
+    mountings: MountingsArgs,
     /// Seconds per table stop.
     #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     step_seconds: f64,
@@ -143,6 +128,30 @@ struct SelfcalArgs {
     max_order: usize,
 }
 
+/// The polygon's mountings of a simulated or planned run (`simulate`, `sim-lab`, `plan`):
+/// how many, the faces the polygon is turned between them, the table's angle at step 0
+/// of each.
+#[derive(clap::Args, Clone)]
+pub struct MountingsArgs {
+    /// Number of polygon mountings (shift-angle data).
+    #[arg(long, default_value_t = 1)]
+    pub setups: u32,
+    /// Whole faces the polygon is turned between mountings.
+    #[arg(long, default_value_t = 1)]
+    pub setup_shift: usize,
+    /// The table's angle at step 0 of each mounting, degrees (the `shift` column), one per
+    /// setup (e.g. 0,10,20 with --setups 3); default: every mounting at 0. A shift that is
+    /// not a whole multiple of 360/N puts the mounting's stops between the encoder
+    /// positions (sub-pitch).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "DEG,...",
+        allow_negative_numbers = true
+    )]
+    pub shift_deg: Vec<f64>,
+}
+
 /// `polycal simulate`: writes the measurement CSV (or with `--selfcal` the
 /// self-calibration CSV) and the truth.
 pub fn run(args: &SimulateArgs, out: &Output) -> Result<u8> {
@@ -151,11 +160,11 @@ pub fn run(args: &SimulateArgs, out: &Output) -> Result<u8> {
     }
     let mut config = args.truth.config(
         args.ac_faces.clone(),
-        args.setups,
-        args.setup_shift,
+        args.mountings.setups,
+        args.mountings.setup_shift,
         args.step_seconds,
     )?;
-    config.table_shift_deg = args.shift_deg.clone();
+    config.table_shift_deg = args.mountings.shift_deg.clone();
     let (set, truth) = simulate::simulate(&config)?;
     let mut comment = format!(
         "polycal {} simulate: {} faces, ac faces {:?}, {} cycles, noise {} arcsec, seed {}",

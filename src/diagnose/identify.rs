@@ -2,7 +2,8 @@
 //!
 //! For every effect found, the alternatives are the terms of its family that stand in
 //! its place — the same kind on another autocollimator, in another mounting or stream
-//! (for a jump, at the same stop), and pairs of them. Each alternative model (the final
+//! (for a jump, at the same stop), and pairs of them — and the terms of another kind that
+//! can (a direction offset and a jump of the same zero at a cycle's start). Each alternative model (the final
 //! model with the finding replaced by the alternative) is fitted. It explains the data as
 //! well when the increase of the residual sum of squares it brings is not significant:
 //! F = ΔRSS/(r·s²) with r the finding's columns and s² the final model's residual mean
@@ -51,6 +52,11 @@ pub struct Alternative {
     /// The largest change of a β or α as a multiple of its expanded uncertainty
     /// (k = [`AMBIGUITY_COVERAGE_FACTOR`]); above 1 the finding is ambiguous.
     pub change_over_expanded_u: f64,
+    /// Whether it fits exactly as well as the finding (the increase of the residual sum
+    /// of squares within the readings' rounding): the same explanation in other words
+    /// when it changes no β or α either, e.g. a direction offset of an autocollimator and a
+    /// jump of its zero at the start of the one counter-clockwise cycle.
+    pub equivalent: bool,
 }
 
 impl Alternative {
@@ -165,6 +171,52 @@ fn siblings(
     }
 }
 
+/// Terms of another kind that can stand in a finding's place, tried one by one (never in
+/// pairs): for a direction offset of one autocollimator, a jump of its zero at the start
+/// of each cycle after the first (with one clockwise and one counter-clockwise cycle, the
+/// same column); for such a jump, the direction offset of its autocollimator, when the run
+/// has both directions.
+fn other_kinds(set: &MeasurementSet, block: &[Term]) -> Vec<Vec<Term>> {
+    use crate::measurement::Direction as Rotation;
+    let has = |d: Rotation| set.readings.iter().any(|r| r.direction == d);
+    match block {
+        [Term::Effect(Effect::Direction { ac: Some(ac), .. })] => {
+            let mut cycles: Vec<u32> = set
+                .readings
+                .iter()
+                .map(|r| r.cycle)
+                .filter(|&c| c >= 2)
+                .collect();
+            cycles.sort_unstable();
+            cycles.dedup();
+            step_streams(set)
+                .into_iter()
+                .filter(|&(a, _)| a == *ac)
+                .flat_map(|(a, setup)| {
+                    cycles.iter().map(move |&cycle| {
+                        vec![Term::Effect(Effect::OffsetStep {
+                            ac: a,
+                            cycle,
+                            step: None,
+                            setup,
+                            value: 0.0,
+                        })]
+                    })
+                })
+                .collect()
+        }
+        [Term::Effect(Effect::OffsetStep { ac, step: None, .. })]
+            if has(Rotation::Cw) && has(Rotation::Ccw) =>
+        {
+            vec![vec![Term::Effect(Effect::Direction {
+                ac: Some(*ac),
+                value: 0.0,
+            })]]
+        }
+        _ => Vec::new(),
+    }
+}
+
 /// What [`alternatives`] needs of the final model.
 #[derive(Debug, Clone, Copy)]
 pub struct FinalModel<'a> {
@@ -219,6 +271,11 @@ pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
             sets.push(pair);
         }
     }
+    sets.extend(
+        other_kinds(set, block)
+            .into_iter()
+            .filter(|s| !s.iter().any(|t| rest.contains(t) || block.contains(t))),
+    );
     let [u_pitch, u_encoder] = base.calibrated_u(fit);
     let [fit_pitch, fit_encoder] = base.calibrated(fit);
     let columns_of =
@@ -289,6 +346,7 @@ pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
             pitch_change_max: max_abs(&pitch_change),
             encoder_change_max: max_abs(&encoder_change),
             change_over_expanded_u,
+            equivalent: increase <= tiny,
         });
     }
     out.sort_by(|a, b| a.f_statistic.total_cmp(&b.f_statistic));

@@ -273,7 +273,13 @@ pub(super) fn run(
                 continue;
             };
             let lof_new = base.lack_of_fit(set, &fit, &new_columns, options.lack_of_fit_alpha);
-            if let Some(new) = &lof_new
+            // A term that acts on many cells must reduce a lack of fit the data shows; a
+            // single reading is decided by its own statistic (its externally studentized
+            // residual, Bonferroni over the readings): in a replicated cell it inflates
+            // the pure error as much as the lack of fit, and a gross error must never stay
+            // in the fit for that.
+            if candidate.outlier.is_none()
+                && let Some(new) = &lof_new
                 && !new.passed()
                 && lof_current
                     .as_ref()

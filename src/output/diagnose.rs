@@ -463,6 +463,7 @@ fn alternative_json(alternative: &Alternative, clock: Clock) -> Value {
         "change_over_expanded_u".into(),
         number(alternative.change_over_expanded_u),
     );
+    object.insert("equivalent".into(), Value::Bool(alternative.equivalent));
     Value::Object(object)
 }
 

@@ -132,6 +132,14 @@ pub fn write_table<W: std::fmt::Write>(
                     .iter()
                     .map(|e| format!("{} = {:+.5}", label(e), e.value()))
                     .collect();
+                if alternative.equivalent && !alternative.changes_calibration() {
+                    writeln!(
+                        out,
+                        "     equivalently: {} (the same fit and the same calibration: the data cannot tell them apart)",
+                        names.join(" with ")
+                    )?;
+                    continue;
+                }
                 writeln!(
                     out,
                     "     {}: {} fits as well (F = {}, p = {:.2}) and changes pitch deviations by up to {:.4}″, encoder errors by up to {:.4}″ ({:.1} expanded uncertainties)",

@@ -56,6 +56,16 @@ pub fn drivers(devices: Devices, stop: &StopFlag) -> (Ac, Ac, Table, Truth) {
     (ac("mem:ac1", ac1), ac("mem:ac2", ac2), table, truth)
 }
 
+/// The run's instruments: the two autocollimators and the table of `d`.
+pub fn instruments(d: &mut (Ac, Ac, Table, Truth)) -> polycal::lab::run::Instruments<'_> {
+    polycal::lab::run::Instruments {
+        ac1: &mut d.0,
+        ac2: &mut d.1,
+        table: &mut d.2,
+        more: Vec::new(),
+    }
+}
+
 /// What autocollimator `ac` reads at `step` without noise: α + φ of its face + its
 /// setup error (docs/FORMAT.md §1).
 pub fn expected(truth: &Truth, step: usize, ac: u32) -> f64 {

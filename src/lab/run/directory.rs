@@ -44,20 +44,12 @@ pub const COLUMNS: [Column; 11] = [
     Column::SHIFT,
 ];
 
-/// The columns of a run started before the `shift` column: a run that has them is
-/// resumed with them, in its one mounting or in further unshifted ones.
-pub(super) const COLUMNS_WITHOUT_SHIFT: [Column; 10] = [
-    Column::CYCLE,
-    Column::STEP,
-    Column::AC,
-    Column::FACE,
-    Column::READING,
-    Column::DIRECTION,
-    Column::TIME,
-    Column::SETUP,
-    Column::READING_Y,
-    Column::ENCODER,
-];
+/// The columns of a run started before the `shift` column ([`COLUMNS`] without it): a
+/// run that has them is resumed with them, in its one mounting or in further unshifted
+/// ones.
+pub(super) fn columns_without_shift() -> Columns {
+    Columns::new(&COLUMNS[..COLUMNS.len() - 1])
+}
 
 /// A reading's place in the run: (setup, cycle, step, autocollimator).
 pub(super) type Key = (u32, u32, usize, u32);

@@ -361,69 +361,9 @@ fn measure_stops(
     let mut memory = vec![DeviceMemory::default(); acs.len()];
     let mut refused = 0;
     let mut handled: Vec<Cell> = Vec::new();
-    if let Some(cycle) = run.unchecked_cycle() {
-        // The session before ended before the check after this cycle: done now, while
-        // the polygon is still mounted so.
-        let checked = check_cycle(
-            run,
-            Devices {
-                acs: &mut *acs,
-                table: &mut *table,
-            },
-            &mut memory,
-            stop_flag,
-            traffic,
-            cycle,
-            &mut handled,
-            &mut refused,
-        );
-        let check = match checked {
-            Ok(check) => check,
-            Err(outcome) => return outcome,
-        };
-        if let Err(e) = run.record_checked(cycle) {
-            return Outcome::FileError(e.to_string());
-        }
-        let done = run.readings_done();
-        attendant.progress(&Progress {
-            done,
-            setup: mounting.setup,
-            total,
-            cycle: (cycle, settings.cycles),
-            stop: (stops_per_cycle, stops_per_cycle),
-            step: settings
-                .plan()
-                .iter()
-                .rfind(|s| s.cycle == cycle)
-                .map_or(0, |s| s.step),
-            seconds_left: None,
-            refused,
-            cycle_check: Some(check),
-        });
-    }
-    let remaining = run.remaining();
-    for (index, (stop, to_read)) in remaining.iter().enumerate() {
-        let stop = *stop;
-        if stop_flag.is_set() {
-            return Outcome::Interrupted;
-        }
-        // Everything on disk before the table moves.
-        if let Some(log) = traffic
-            && let Err(e) = log.sync()
-        {
-            return Outcome::FileError(format!("{}: {e}", run.dir.join(TRAFFIC).display()));
-        }
-        let encoder = match table.move_to(mounting.table_deg(&stop, settings.faces)) {
-            Ok(p) => p,
-            Err(e) => return Outcome::from_instrument(TABLE, e),
-        };
-        if let Some(failed) = log_failure(run, traffic) {
-            return failed;
-        }
-        if stop_flag.sleep(settle) {
-            return Outcome::Interrupted;
-        }
-        let mut progress_now = |run: &RunDir, refused: usize, cycle_check: Option<CycleCheck>| {
+    let plan = settings.plan();
+    let mut progress_now =
+        |run: &RunDir, stop: Stop, refused: usize, cycle_check: Option<CycleCheck>| {
             let done = run.readings_done();
             let this_session = done - before;
             let elapsed = session_start.elapsed().as_secs_f64();
@@ -444,7 +384,56 @@ fn measure_stops(
                 cycle_check,
             });
         };
-        for &ac in to_read {
+    for work in session_work(run) {
+        let (stop, to_read) = match work {
+            Work::Stop(stop, to_read) => (stop, to_read),
+            Work::Check(cycle) => {
+                let checked = check_cycle(
+                    run,
+                    Devices {
+                        acs: &mut *acs,
+                        table: &mut *table,
+                    },
+                    &mut memory,
+                    stop_flag,
+                    traffic,
+                    cycle,
+                    &mut handled,
+                    &mut refused,
+                );
+                let check = match checked {
+                    Ok(check) => check,
+                    Err(outcome) => return outcome,
+                };
+                if let Err(e) = run.record_checked(cycle) {
+                    return Outcome::FileError(e.to_string());
+                }
+                if let Some(&last) = plan.iter().rfind(|s| s.cycle == cycle) {
+                    progress_now(run, last, refused, Some(check));
+                }
+                continue;
+            }
+        };
+        if stop_flag.is_set() {
+            return Outcome::Interrupted;
+        }
+        // Everything on disk before the table moves.
+        if let Some(log) = traffic
+            && let Err(e) = log.sync()
+        {
+            return Outcome::FileError(format!("{}: {e}", run.dir.join(TRAFFIC).display()));
+        }
+        let encoder = match table.move_to(mounting.table_deg(&stop, settings.faces)) {
+            Ok(p) => p,
+            Err(e) => return Outcome::from_instrument(TABLE, e),
+        };
+        if let Some(failed) = log_failure(run, traffic) {
+            return failed;
+        }
+        if stop_flag.sleep(settle) {
+            return Outcome::Interrupted;
+        }
+        for ac in to_read {
             if stop_flag.is_set() {
                 return Outcome::Interrupted;
             }
@@ -474,37 +463,40 @@ fn measure_stops(
             if let Err(e) = run.append(&reading) {
                 return not_written(&e);
             }
-            progress_now(run, refused, None);
+            progress_now(run, stop, refused, None);
         }
+    }
+    Outcome::Completed
+}
+
+/// One piece of a session's work, in order.
+enum Work {
+    /// Visit the stop and read these autocollimators.
+    Stop(Stop, Vec<u32>),
+    /// The check after this cycle.
+    Check(u32),
+}
+
+/// The session's work: the check of a cycle the session before did not check, then the
+/// remaining stops, each cycle followed by its check.
+fn session_work(run: &RunDir) -> Vec<Work> {
+    let mut work = Vec::new();
+    if let Some(cycle) = run.unchecked_cycle() {
+        // The session before ended before the check after this cycle: done now, while
+        // the polygon is still mounted so.
+        work.push(Work::Check(cycle));
+    }
+    let remaining = run.remaining();
+    for (index, (stop, to_read)) in remaining.iter().enumerate() {
+        work.push(Work::Stop(*stop, to_read.clone()));
         let cycle_ends = remaining
             .get(index + 1)
             .is_none_or(|(next, _)| next.cycle != stop.cycle);
         if cycle_ends {
-            let checked = check_cycle(
-                run,
-                Devices {
-                    acs: &mut *acs,
-                    table: &mut *table,
-                },
-                &mut memory,
-                stop_flag,
-                traffic,
-                stop.cycle,
-                &mut handled,
-                &mut refused,
-            );
-            match checked {
-                Ok(check) => {
-                    if let Err(e) = run.record_checked(stop.cycle) {
-                        return Outcome::FileError(e.to_string());
-                    }
-                    progress_now(run, refused, Some(check));
-                }
-                Err(outcome) => return outcome,
-            }
+            work.push(Work::Check(stop.cycle));
         }
     }
-    Outcome::Completed
+    work
 }
 
 /// The instruments the check after a cycle drives.

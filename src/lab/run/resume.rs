@@ -10,7 +10,7 @@ use std::io;
 use std::path::Path;
 
 use super::directory::{
-    COLUMNS, COLUMNS_WITHOUT_SHIFT, Key, first_comment, key, lock_exclusive, start_file,
+    COLUMNS, Key, columns_without_shift, first_comment, key, lock_exclusive, start_file,
 };
 use super::error::io_error;
 use super::{
@@ -238,7 +238,7 @@ fn read_existing(
     let columns = match header {
         None => None,
         Some((index, line)) => {
-            let known = [Columns::new(COLUMNS), Columns::new(COLUMNS_WITHOUT_SHIFT)];
+            let known = [Columns::new(COLUMNS), columns_without_shift()];
             let Some(columns) = known.into_iter().find(|c| c.header() == line) else {
                 return Err(RunError::Header {
                     at: Location::new(name, index as u64 + 1, 0),
