@@ -17,6 +17,7 @@
 //! with I the regularized incomplete beta function.
 
 use statrs::function::beta::beta_reg;
+use statrs::function::gamma::ln_gamma;
 
 /// P(F′ > f) for the noncentral F distribution with `r` and `nu` degrees of freedom and
 /// noncentrality `lambda` (≥ 0); `nu` = ∞ (`f64::INFINITY`) gives the noncentral χ²/r law.
@@ -26,16 +27,28 @@ pub fn noncentral_f_sf(f: f64, r: usize, nu: f64, lambda: f64) -> f64 {
     }
     let r = r.max(1) as f64;
     let half = 0.5 * lambda.max(0.0);
-    // the Poisson weights, summed from j = 0 until they are spent
-    let mut weight = (-half).exp();
-    let mut log_weight = -half;
-    let upper = (half + 12.0 * half.sqrt() + 40.0).ceil() as usize;
+    // The Poisson weights that are not spent: those within 12√(λ/2) + 40 of their mean
+    // (the rest weigh below 1e-30 together), so that a large λ costs O(√λ) terms, not λ.
+    let (first, last) = if half > 0.0 {
+        let spread = 12.0 * half.sqrt() + 40.0;
+        (
+            (half - spread).floor().max(0.0) as usize,
+            (half + spread).ceil() as usize,
+        )
+    } else {
+        (0, 0)
+    };
+    let mut log_weight = if half > 0.0 {
+        -half + first as f64 * half.ln() - ln_gamma(first as f64 + 1.0)
+    } else {
+        0.0
+    };
     let mut cdf = 0.0;
-    for j in 0..=upper {
-        if j > 0 {
+    for j in first..=last {
+        if j > first {
             log_weight += half.ln() - (j as f64).ln();
-            weight = log_weight.exp();
         }
+        let weight = log_weight.exp();
         let a = 0.5 * r + j as f64;
         let term = if nu.is_infinite() {
             // χ²_{r+2j} cdf at r·f: the regularized lower gamma P(a, r·f/2)
@@ -44,13 +57,15 @@ pub fn noncentral_f_sf(f: f64, r: usize, nu: f64, lambda: f64) -> f64 {
             beta_reg(a, 0.5 * nu, r * f / (r * f + nu))
         };
         cdf += weight * term;
-        if half == 0.0 {
-            break;
-        }
     }
-    // the weights sum to 1 up to the tail left out (below 1e-15 past `upper`)
+    // the weights sum to 1 up to the tails left out (below 1e-15 outside the window)
     (1.0 - cdf).clamp(0.0, 1.0)
 }
+
+/// The largest noncentrality [`noncentrality_for_power`] searches: a test that needs
+/// more — an effect some thousand times the noise over the reach of its columns — is
+/// said not to detect it with the design.
+pub const MAX_NONCENTRALITY: f64 = 1e4;
 
 /// The critical value f with P(F > f) = `alpha` under the central F(r, ν) law (ν may be
 /// ∞); bisection on the survival function, to a relative 1e-12.
@@ -78,7 +93,8 @@ pub fn critical_f(alpha: f64, r: usize, nu: f64) -> f64 {
 /// The noncentrality λ at which the F test of `r` numerator and `nu` denominator degrees
 /// of freedom at level `alpha` rejects with probability `power` (the test alone, with no
 /// other candidate competing): bisection on λ, to a relative 1e-10. `None` when ν is not
-/// positive or the levels are not probabilities.
+/// positive, the levels are not probabilities, or λ would exceed [`MAX_NONCENTRALITY`]
+/// (a design with few residual degrees of freedom and a small level: not detectable).
 pub fn noncentrality_for_power(alpha: f64, power: f64, r: usize, nu: f64) -> Option<f64> {
     let probability = |p: f64| p > 0.0 && p < 1.0;
     if nu.is_nan() || nu <= 0.0 || !probability(alpha) || !probability(power) {
@@ -90,7 +106,7 @@ pub fn noncentrality_for_power(alpha: f64, power: f64, r: usize, nu: f64) -> Opt
     while reach(hi) < power {
         lo = hi;
         hi *= 2.0;
-        if hi > 1e12 {
+        if hi > MAX_NONCENTRALITY {
             return None;
         }
     }
@@ -167,5 +183,54 @@ mod tests {
         let exact = noncentral_f_sf(f, 2, 8.0, mu * mu);
         // four standard errors of a proportion near 0.3 over 2·10⁵ trials: 0.004
         assert!((p - exact).abs() < 0.004, "{p} vs {exact}");
+    }
+
+    /// The window of Poisson weights against the whole sum from j = 0, written out here,
+    /// where the whole sum is still cheap (λ up to 4000: the window starts at j > 0 from
+    /// λ/2 ≈ 1300 on).
+    #[test]
+    fn the_window_of_weights_is_the_whole_sum() {
+        let whole = |f: f64, r: usize, nu: f64, lambda: f64| {
+            let half = 0.5 * lambda;
+            let mut log_weight = -half;
+            let mut cdf = 0.0;
+            for j in 0..(half + 20.0 * half.sqrt() + 60.0) as usize {
+                if j > 0 {
+                    log_weight += half.ln() - (j as f64).ln();
+                }
+                let a = 0.5 * r as f64 + j as f64;
+                cdf += log_weight.exp() * beta_reg(a, 0.5 * nu, r as f64 * f / (r as f64 * f + nu));
+            }
+            1.0 - cdf
+        };
+        for (f, r, nu, lambda) in [
+            (3.0, 1, 2.0, 10.0),
+            (50.0, 2, 3.0, 900.0),
+            (400.0, 1, 1.0, 2700.0),
+            (1500.0, 3, 2.0, 4000.0),
+        ] {
+            let (a, b) = (noncentral_f_sf(f, r, nu, lambda), whole(f, r, nu, lambda));
+            assert!(
+                (a - b).abs() < 1e-12,
+                "f {f} r {r} ν {nu} λ {lambda}: {a} vs {b}"
+            );
+        }
+    }
+
+    /// A test with one or two residual degrees of freedom at a Bonferroni level of 1e-4
+    /// needs a noncentrality beyond [`MAX_NONCENTRALITY`] (at ν = 2, λ ≈ 23 000, found by
+    /// the bisection before the cap): not detectable. The search went on to 10¹², summing
+    /// λ/2 terms at each step, and did not come back for minutes.
+    #[test]
+    fn a_test_of_few_degrees_of_freedom_is_not_detectable_rather_than_endless() {
+        assert_eq!(noncentrality_for_power(1e-5, 0.9, 3, 1.0), None);
+        assert_eq!(noncentrality_for_power(1e-4, 0.9, 1, 2.0), None);
+        // the law at the λ the bisection found for ν = 2 before the cap: power 0.9
+        let f = critical_f(1e-4, 1, 2.0);
+        assert!((noncentral_f_sf(f, 1, 2.0, 23_026.002_136) - 0.9).abs() < 1e-6);
+        // with ν = 20 it is an ordinary answer
+        let lambda = noncentrality_for_power(1e-4, 0.9, 1, 20.0).unwrap();
+        let f = critical_f(1e-4, 1, 20.0);
+        assert!((noncentral_f_sf(f, 1, 20.0, lambda) - 0.9).abs() < 1e-6);
     }
 }
