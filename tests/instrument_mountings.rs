@@ -106,14 +106,7 @@ fn session(
     d: &mut (Ac, Ac, Table, Truth),
     person: &mut Person,
 ) -> Result<Outcome, RunError> {
-    let mut run = RunDir::open_mounting(
-        dir,
-        &settings(),
-        &ports(),
-        mounting,
-        resume,
-        &WriteBudget::unlimited(),
-    )?;
+    let mut run = open(dir, mounting, resume)?;
     let outcome = run::measure_attended(&mut run, instruments(d), &StopFlag::new(), None, person)?;
     run.finish(&outcome)?;
     Ok(outcome)

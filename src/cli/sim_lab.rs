@@ -21,7 +21,11 @@ Examples:
   polycal sim-lab --faces 24 --time-scale 0 --truth-out lab.truth.json
   polycal sim-lab --faces 8 --fault lost-reply:ac1:after=5 --format json
   polycal sim-lab --faces 8 --fault late:ac2:after=7:seconds=1.3 --fault unsolicited:ac1:after=20
-  polycal sim-lab --direction -0.3 --drift 2:1.5 --bidirectional";
+  polycal sim-lab --direction -0.3 --drift 2:1.5 --bidirectional
+  polycal sim-lab --faces 24 --setups 2 --shift-deg 0,7.5 --time-scale 0
+
+With --setups, a line `remount` on standard input mounts the polygon for the next setup
+(the operator's part of `run --setup S`); the lab answers `remounted S` on standard output.";
 
 /// Arguments of `polycal sim-lab`.
 #[derive(clap::Args)]

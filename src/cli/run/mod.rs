@@ -37,8 +37,9 @@ Every stop is read --reads times per autocollimator and stored only when the rea
 agree; after every cycle the run is evaluated and a reading far off is measured again.
 --setup 2, 3, … continue the run in --out in a new mounting: the table goes to the
 mounting's step 0 and the run waits for Enter once the polygon is remounted there.
-Status 0: completed; 1: completed with readings measured again or suspect (manifest.json);
-2: stopped (docs/FORMAT.md §7.3, §8).
+Status 0: completed; 1: completed with readings measured again or suspect, or with a
+mounting that does not fit those before it (manifest.json); 2: stopped (docs/FORMAT.md
+§7.3, §8).
 
 Without instruments, `polycal sim-lab` serves simulated ones and prints a `run` command for them.";
 
