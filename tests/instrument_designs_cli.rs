@@ -10,6 +10,30 @@ use instrument_support::*;
 use polycal::lab::run::RunSettings;
 use polycal::measurement::MeasurementSet;
 
+/// The run's options beside a design: no settle time, short deadlines, the lab's noise.
+const RUN_OPTIONS: [&str; 7] = [
+    "--settle",
+    "0",
+    "--timeout",
+    "0.3",
+    "--reading-noise",
+    "0.05",
+    "-q",
+];
+
+/// `polycal plan --sigma 0.05 --format json` of `designs`, written to `dir/name`.
+fn planned(dir: &std::path::Path, name: &str, designs: &[&str]) -> std::path::PathBuf {
+    let mut args = vec!["plan", "--sigma", "0.05", "--format", "json"];
+    for d in designs {
+        args.extend(["--design", d]);
+    }
+    let out = polycal(&args);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let path = dir.join(name);
+    std::fs::write(&path, &out.stdout).unwrap();
+    path
+}
+
 /// A lab of two cycles with the closing step and two mountings.
 const TWO_MOUNTINGS: [&str; 7] = [
     "--cycles",
@@ -33,20 +57,8 @@ const THREE: [&str; 7] = [
 ];
 
 fn design(extra: &[&'static str]) -> Vec<&'static str> {
-    let mut d = vec![
-        "--faces",
-        "8",
-        "--cycles",
-        "2",
-        "--closing",
-        "--settle",
-        "0",
-        "--timeout",
-        "0.3",
-        "--reading-noise",
-        "0.05",
-        "-q",
-    ];
+    let mut d = vec!["--faces", "8", "--cycles", "2", "--closing"];
+    d.extend_from_slice(&RUN_OPTIONS);
     d.extend_from_slice(extra);
     d
 }
@@ -153,20 +165,14 @@ fn ports_that_do_not_match_the_autocollimators_are_refused() {
 fn a_planned_design_is_run_exactly() {
     let dir = scratch("planned");
     // Two designs planned; the run takes the one named.
-    let planned = polycal(&[
-        "plan",
-        "--sigma",
-        "0.05",
-        "--design",
-        "name=paper;faces=8;cycles=2;closing=true",
-        "--design",
-        "name=three;faces=8;ac-faces=1,2,5;cycles=2;bidirectional=true",
-        "--format",
-        "json",
-    ]);
-    assert!(planned.status.success(), "{}", stderr(&planned));
-    let plan = dir.join("plan.json");
-    std::fs::write(&plan, &planned.stdout).unwrap();
+    let plan = planned(
+        &dir,
+        "plan.json",
+        &[
+            "name=paper;faces=8;cycles=2;closing=true",
+            "name=three;faces=8;ac-faces=1,2,5;cycles=2;bidirectional=true",
+        ],
+    );
     let lab = SimLab::start(
         &dir,
         &[
@@ -183,18 +189,10 @@ fn a_planned_design_is_run_exactly() {
     let mut args = lab.run_args(
         &out,
         &[
-            "--plan",
-            plan.to_str().unwrap(),
-            "--design",
-            "three",
-            "--settle",
-            "0",
-            "--timeout",
-            "0.3",
-            "--reading-noise",
-            "0.05",
-            "-q",
-        ],
+            &["--plan", plan.to_str().unwrap(), "--design", "three"][..],
+            &RUN_OPTIONS,
+        ]
+        .concat(),
     );
     let result = polycal(&args);
     assert!(result.status.success(), "{}", stderr(&result));
@@ -217,18 +215,7 @@ fn a_planned_design_is_run_exactly() {
     assert!(text.contains("--design NAME"), "{text}");
     assert!(!out2.exists());
     // A mounting the design does not have is refused at its line.
-    let two = polycal(&[
-        "plan",
-        "--sigma",
-        "0.05",
-        "--design",
-        "name=two;faces=8;cycles=2;setups=2",
-        "--format",
-        "json",
-    ]);
-    assert!(two.status.success(), "{}", stderr(&two));
-    let plan2 = dir.join("two.json");
-    std::fs::write(&plan2, &two.stdout).unwrap();
+    let plan2 = planned(&dir, "two.json", &["name=two;faces=8;cycles=2;setups=2"]);
     let i = args.iter().position(|a| a == "--plan").unwrap();
     args[i + 1] = plan2.display().to_string();
     args.extend(["--setup".into(), "3".into()]);
@@ -320,35 +307,19 @@ fn a_run_in_two_mountings_between_the_stops_solves_to_the_truth() {
 #[test]
 fn a_planned_design_of_two_mountings_is_run_mounting_by_mounting() {
     let dir = scratch("planned-mountings");
-    let planned = polycal(&[
-        "plan",
-        "--sigma",
-        "0.05",
-        "--design",
-        "name=turned;faces=8;cycles=2;closing=true;setups=2;setup-shift=3",
-        "--format",
-        "json",
-    ]);
-    assert!(planned.status.success(), "{}", stderr(&planned));
-    let plan = dir.join("plan.json");
-    std::fs::write(&plan, &planned.stdout).unwrap();
+    let plan = planned(
+        &dir,
+        "plan.json",
+        &["name=turned;faces=8;cycles=2;closing=true;setups=2;setup-shift=3"],
+    );
     let mut lab = SimLab::start(
         &dir,
         &[&TWO_MOUNTINGS[..], &["--setup-shift", "3"]].concat(),
     );
     let out = dir.join("run");
     let options = |extra: &[&'static str]| {
-        let mut o = vec![
-            "--plan",
-            plan.to_str().unwrap(),
-            "--settle",
-            "0",
-            "--timeout",
-            "0.3",
-            "--reading-noise",
-            "0.05",
-            "-q",
-        ];
+        let mut o = vec!["--plan", plan.to_str().unwrap()];
+        o.extend_from_slice(&RUN_OPTIONS);
         o.extend_from_slice(extra);
         o.into_iter().map(String::from).collect::<Vec<_>>()
     };
