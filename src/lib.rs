@@ -32,6 +32,8 @@
 //!   ([`certificate::html`]) and the Digital Calibration Certificate
 //!   ([`certificate::dcc`]);
 //! - [`clock`]: RFC 3339 time stamps;
+//! - [`output_file`]: how every file polycal writes is written: only where meant (never
+//!   an input, never a device), whole or not at all;
 //! - `lab` (cargo feature `lab`): the instruments on serial lines, simulated instruments,
 //!   and the run procedure that drives them through a calibration.
 
@@ -46,6 +48,7 @@ pub mod input;
 pub mod lab;
 pub mod measurement;
 pub mod output;
+pub mod output_file;
 pub mod plan;
 pub mod polygon;
 pub mod results;

@@ -722,3 +722,211 @@ fn a_file_name_that_is_not_utf8_is_read_without_a_panic() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Runs polycal with `args` under `ulimit -v KB` (the address-space limit).
+fn polycal_under_ulimit_v(kilobytes: u64, args: &[&str]) -> Output {
+    let quoted: Vec<String> = args
+        .iter()
+        .map(|a| format!("'{}'", a.replace('\'', "'\\''")))
+        .collect();
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v {kilobytes} && exec '{}' {}",
+            env!("CARGO_BIN_EXE_polycal"),
+            quoted.join(" ")
+        ))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("sh runs")
+}
+
+#[test]
+fn work_beyond_the_address_space_limit_is_refused_up_front() {
+    // The machine may have gigabytes available while `ulimit -v` leaves 1.43 GiB: the
+    // guard takes the tightest. The dense solver of 6000 positions needs (2·6000)² · 8
+    // bytes and more, about 7.5 GiB; a plan of 4 000 000 faces about 11.4 GiB.
+    let dir = temp_dir("ulimit");
+    let path = dir.join("d6000.csv").display().to_string();
+    let out = polycal(&[
+        "simulate", "--faces", "6000", "--cycles", "1", "--out", &path,
+    ]);
+    assert_eq!(out.status.code(), Some(0));
+    let limited = "are left under this process's address-space limit (ulimit -v)";
+    let message = one_error_line(&polycal_under_ulimit_v(
+        1_500_000,
+        &["solve", &path, "--method", "dense"],
+    ));
+    assert!(
+        message.starts_with(&format!("{path}: cannot solve: the design (6000 positions")),
+        "{message}"
+    );
+    assert!(
+        message.contains("GiB of memory for the dense solver; 1.4 GiB "),
+        "{message}"
+    );
+    assert!(message.ends_with(limited), "{message}");
+    let message = one_error_line(&polycal_under_ulimit_v(
+        4_000_000,
+        &["plan", "--sigma", "0.05", "--faces", "4000000"],
+    ));
+    assert!(
+        message.contains("need about 11.4 GiB of memory; 3."),
+        "{message}"
+    );
+    assert!(message.ends_with(limited), "{message}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn trial_counts_at_their_edges_are_refused_or_bounded() {
+    // 0, 1 and 2 trials are too few for a 95 % interval (at least 20); 2⁶³ and 2⁶⁴ − 1
+    // trials are planned and refused on their memory (a doubling counter once wrapped to
+    // 0 and aborted); 1e13 is read as the number it is; a negative count is named as
+    // such, not taken for an option.
+    for (trials, expected) in [
+        (
+            "0",
+            "0 trials are too few for a 0.95 coverage interval: use at least 20",
+        ),
+        ("1", "1 trials are too few"),
+        ("2", "2 trials are too few"),
+        (
+            "9223372036854775808",
+            "9223372036854775808 trials of 71 outputs need about ",
+        ),
+        (
+            "18446744073709551615",
+            "18446744073709551615 trials of 71 outputs need about ",
+        ),
+        ("1e13", "10000000000000 trials of 71 outputs need about "),
+    ] {
+        let message = one_error_line(&polycal(&[
+            "solve",
+            EXAMPLE,
+            "--budget",
+            BUDGET,
+            "--monte-carlo",
+            trials,
+        ]));
+        assert!(
+            message.starts_with(&format!("{EXAMPLE}: Monte Carlo failed: {expected}")),
+            "{trials}: {message}"
+        );
+    }
+    for (trials, why) in [
+        ("-1", "\"-1\": a number of trials is not negative"),
+        ("1e20", "\"1e20\": more than 18446744073709551615 trials"),
+    ] {
+        let message = one_error_line(&polycal(&[
+            "solve",
+            EXAMPLE,
+            "--budget",
+            BUDGET,
+            "--monte-carlo",
+            trials,
+        ]));
+        assert!(message.contains(why), "{trials}: {message}");
+    }
+    // the adaptive procedure needs room for two sequences of 10 000 trials at p = 0.95
+    for (max, expected) in [
+        (
+            "0",
+            "the adaptive procedure may run at most 0 trials, fewer than the 20000 of two sequences",
+        ),
+        (
+            "19999",
+            "the adaptive procedure may run at most 19999 trials, fewer than the 20000 of two sequences",
+        ),
+        (
+            "18446744073709551615",
+            "18446744073709551615 trials of 71 outputs need about ",
+        ),
+    ] {
+        let message = one_error_line(&polycal(&[
+            "solve",
+            EXAMPLE,
+            "--budget",
+            BUDGET,
+            "--monte-carlo",
+            "adaptive",
+            "--mc-max-trials",
+            max,
+        ]));
+        assert!(
+            message.starts_with(&format!("{EXAMPLE}: Monte Carlo failed: {expected}")),
+            "{max}: {message}"
+        );
+    }
+}
+
+#[test]
+fn a_selfcal_bound_beyond_a_reading_is_refused_not_printed_as_inf() {
+    // 1e160 once gave every u and U as inf with status 0: a bound on the lost harmonics
+    // or on the heads' angles is an angle, within a reading's range (0 … 1e6″).
+    for (option, value, shown) in [
+        ("--lost-harmonic-bound", "1e160", "1e160"),
+        ("--lost-harmonic-bound", "1000001", "1.000001e6"),
+        ("--head-angle-u", "1e300", "1e300"),
+        ("--head-angle-u", "-0.5", "−0.5"),
+    ] {
+        let message = one_error_line(&polycal(&["selfcal", SELFCAL, option, value]));
+        assert!(
+            message.starts_with(&format!("{option}: ")),
+            "{option} {value}: {message}"
+        );
+        assert!(
+            message.ends_with(&format!(
+                "must be a number from 0 to 1e6 arcsec (the range of a reading), not {shown}"
+            )),
+            "{option} {value}: {message}"
+        );
+    }
+    let out = polycal(&["selfcal", SELFCAL, "--lost-harmonic-bound", "1e6"]);
+    assert_eq!(out.status.code(), Some(0));
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("inf"));
+}
+
+#[test]
+fn a_line_of_commas_is_refused_within_a_small_memory() {
+    // 20 million commas in a header or a row took about 64 bytes of memory per byte
+    // (1.3 GB: an abort under a 1 GB limit); refused at the 1024th comma now (the 1025th
+    // field), with the file held once: under a 200 MB address-space limit. Columns by
+    // hand: the header's 1024th comma is character 1024; the row `1,0,1,1,0.5` has 11
+    // characters and 4 commas, so its 1024th is character 11 + 1020 = 1031; the
+    // self-calibration header has 34 characters and 4 commas: 34 + 1020 = 1054.
+    let dir = temp_dir("commas");
+    let commas = ",".repeat(20_000_000);
+    let cases = [
+        (
+            "header.csv",
+            "solve",
+            format!("# a comment, with, commas\n{commas}\n"),
+            "2:1024",
+        ),
+        (
+            "row.csv",
+            "solve",
+            format!("cycle,step,ac,face,reading\n1,0,1,1,0.5{commas}\n"),
+            "2:1031",
+        ),
+        (
+            "selfcal-header.csv",
+            "selfcal",
+            format!("cycle,step,head,head_angle,reading{commas}\n"),
+            "1:1054",
+        ),
+    ];
+    for (name, command, text, at) in cases {
+        let path = write(&dir, name, &text);
+        let message = one_error_line(&polycal_under_ulimit_v(200_000, &[command, &path]));
+        assert_eq!(
+            message,
+            format!(
+                "{path}:{at}: a line of more than 1024 fields; polycal's CSV files have a few \
+                 columns (docs/FORMAT.md §2.2)"
+            )
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

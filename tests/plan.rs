@@ -279,6 +279,60 @@ fn written_designs_are_read_with_their_errors_located() {
     assert_eq!(designs[0].ac_faces, vec![1, 3]);
 }
 
+#[test]
+fn a_designs_files_values_are_refused_at_their_place_and_of_their_type() {
+    // each value well formed alone but no design together: refused at the header of its
+    // [[design]] (line 5 here), with the design's number and the rule it breaks
+    let base = Design::default();
+    let head = "# plans\n[[design]]\nname = \"ok\"\n\n[[design]]\n";
+    for (body, at, says) in [
+        (
+            "faces = 0\n",
+            "d.toml:5:1: design 2: ",
+            "a polygon needs at least 3 faces",
+        ),
+        (
+            "ac-faces = [1, 1]\n",
+            "d.toml:5:1: design 2: ",
+            "like an earlier one",
+        ),
+        (
+            "setups = 2\nshift-deg = [0, nan]\n",
+            "d.toml:5:1: design 2: ",
+            "table shift NaN° of setup 2",
+        ),
+        // a value of the wrong TOML type, at its key (line 6)
+        (
+            "faces = \"24\"\n",
+            "d.toml:6:1: design 2: ",
+            "`faces` must be an integer, not string \"24\"",
+        ),
+        (
+            "closing = \"yes\"\n",
+            "d.toml:6:1: design 2: ",
+            "`closing` must be true or false",
+        ),
+        (
+            "cycles = 3\nac-faces = [1, \"2\"]\n",
+            "d.toml:7:1: design 2: ",
+            "`ac-faces` must be an array of integers",
+        ),
+        (
+            "name = \"a\\u001b[31mb\"\n",
+            "d.toml:6:1: design 2: ",
+            "holds a control character",
+        ),
+    ] {
+        let text = format!("{head}{body}");
+        let e = Design::parse_designs_file(&text, "d.toml", &base)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with(at) && e.contains(says), "{body}: {e}");
+    }
+    let e = base.with_spec("name=a\u{7}b").unwrap_err().to_string();
+    assert!(e.contains("holds a control character"), "{e}");
+}
+
 /// How often `diagnose` finds the effect in 200 runs of the design with the effect at
 /// `size`: a drift of autocollimator 2, or a jump of its zero at (cycle, step).
 fn found_in_runs(design: &Design, effect: &Effect) -> usize {

@@ -46,6 +46,13 @@ pub struct CompareArgs {
     plot: Option<PathBuf>,
 }
 
+impl CompareArgs {
+    /// The files this command reads, which no output may replace.
+    fn inputs(&self) -> Vec<&std::path::Path> {
+        vec![self.a.as_path(), self.b.as_path()]
+    }
+}
+
 /// `compare --format`.
 #[derive(Clone, Copy, ValueEnum)]
 enum CompareFormat {
@@ -78,7 +85,7 @@ pub fn run(args: &CompareArgs) -> Result<u8> {
             &display_name(&args.a),
             &display_name(&args.b),
         );
-        super::write_plot(dir, &figures)?;
+        super::write_plot(dir, &figures, &args.inputs())?;
     }
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();

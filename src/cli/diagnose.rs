@@ -83,6 +83,16 @@ pub struct DiagnoseArgs {
     plot: Option<PathBuf>,
 }
 
+impl DiagnoseArgs {
+    /// The files this command reads, which no output may replace.
+    fn inputs(&self) -> Vec<&std::path::Path> {
+        let mut v: Vec<&std::path::Path> = self.files.iter().map(PathBuf::as_path).collect();
+        v.extend(self.truth.as_deref());
+        v.extend(self.budget.as_deref());
+        v
+    }
+}
+
 /// `diagnose --format`.
 #[derive(Clone, Copy, ValueEnum)]
 enum DiagnoseFormat {
@@ -264,7 +274,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             if let Some(gum) = &gum {
                 figures.extend(polycal::figure::budget_figures(gum));
             }
-            super::write_plot(dir, &figures)?;
+            super::write_plot(dir, &figures, &args.inputs())?;
         }
         match args.format {
             DiagnoseFormat::Json => {
@@ -441,7 +451,11 @@ fn selfcal_file(
         report
     };
     if let Some(dir) = &args.plot {
-        super::write_plot(dir, &polycal::figure::selfcal_figures(&report().after))?;
+        super::write_plot(
+            dir,
+            &polycal::figure::selfcal_figures(&report().after),
+            &args.inputs(),
+        )?;
     }
     let output = match args.format {
         DiagnoseFormat::Json => Printed::Text(format!("{}\n", report().to_json()?)),

@@ -6,6 +6,7 @@ mod budget;
 mod compare;
 mod diagnose;
 mod docs;
+mod files;
 #[cfg(feature = "lab")]
 mod interrupt;
 mod monte_carlo;
@@ -240,6 +241,13 @@ fn color_in_args(args: &[std::ffi::OsString]) -> Option<ColorWhen> {
 /// Runs a parsed command: returns its exit status, or the error for the final `error:`
 /// line.
 pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
+    #[cfg(feature = "lab")]
+    let handles_signals = matches!(command, Command::Run(_) | Command::SimLab(_));
+    #[cfg(not(feature = "lab"))]
+    let handles_signals = false;
+    if !handles_signals {
+        files::clean_up_on_interrupt();
+    }
     match command {
         Command::Solve(args) => solve::run(&args, out),
         Command::Diagnose(args) => diagnose::run(&args, out),
@@ -337,13 +345,14 @@ mod tests {
     }
 }
 
-/// Writes the figures of `--plot DIR` (docs/FORMAT.md §10); a write failure is an error
-/// naming the path.
+/// Writes the figures of `--plot DIR` (docs/FORMAT.md §10, §8.1), all or none, none of
+/// them one of `inputs`; a write failure is an error naming the path.
 pub fn write_plot(
     dir: &std::path::Path,
     figures: &[polycal::figure::Figure],
+    inputs: &[&std::path::Path],
 ) -> anyhow::Result<()> {
-    polycal::figure::write_figures(dir, figures)
+    polycal::figure::write_figures(dir, figures, inputs)
         .map(|_| ())
         .map_err(|e| anyhow::anyhow!("--plot: cannot write the figures: {e}"))
 }

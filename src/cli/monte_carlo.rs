@@ -12,7 +12,12 @@ use polycal::uncertainty::monte_carlo::Trials;
 pub struct McArgs {
     /// Monte Carlo through the solver (JCGM 101): a number of trials (e.g. 1000000 or
     /// 1e6) or `adaptive` (JCGM 101 §7.9). Needs --budget.
-    #[arg(long, value_name = "N|adaptive", value_parser = parse_trials)]
+    #[arg(
+        long,
+        value_name = "N|adaptive",
+        value_parser = parse_trials,
+        allow_negative_numbers = true
+    )]
     monte_carlo: Option<McTrials>,
     /// Seed of the Monte Carlo (same seed, same numbers, whatever the threads).
     #[arg(long, default_value_t = 1)]
@@ -21,8 +26,9 @@ pub struct McArgs {
     /// for the adaptive procedure.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=6))]
     mc_digits: u32,
-    /// Largest number of trials of the adaptive procedure.
-    #[arg(long, default_value_t = 10_000_000)]
+    /// Largest number of trials of the adaptive procedure (e.g. 10000000 or 1e7; at
+    /// least two of its sequences, 20000 at p = 0.95).
+    #[arg(long, default_value = "10000000", value_parser = parse_count, allow_negative_numbers = true)]
     mc_max_trials: usize,
 }
 
@@ -37,19 +43,34 @@ fn parse_trials(text: &str) -> Result<McTrials, String> {
     if text == "adaptive" {
         return Ok(McTrials::Adaptive);
     }
-    let trials = text
-        .parse::<usize>()
-        .ok()
-        .or_else(|| {
-            text.parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite() && *v >= 1.0 && v.fract() == 0.0 && *v <= 1e12)
-                .map(|v| v as usize)
-        })
-        .ok_or_else(|| {
-            format!("expected a number of trials (e.g. 1000000 or 1e6) or `adaptive`, got {text:?}")
-        })?;
-    Ok(McTrials::Fixed(trials))
+    count(text, " or `adaptive`").map(McTrials::Fixed)
+}
+
+/// `--mc-max-trials`.
+fn parse_count(text: &str) -> Result<usize, String> {
+    count(text, "")
+}
+
+/// A number of trials, written whole (`1000000`) or as a whole number in E notation
+/// (`1e6`), up to the largest count this machine holds (18446744073709551615 on 64 bits):
+/// what is too many for the memory is refused by the Monte Carlo itself, with the memory
+/// it would need. `or` names what else the option takes.
+fn count(text: &str, or: &str) -> Result<usize, String> {
+    if let Ok(n) = text.parse::<usize>() {
+        return Ok(n);
+    }
+    let value = text.parse::<f64>().ok().filter(|v| v.is_finite());
+    let why = match value {
+        // below 2^64 exactly (usize::MAX as f64 rounds up to 2^64)
+        Some(v) if v >= 0.0 && v.fract() == 0.0 && v < usize::MAX as f64 => return Ok(v as usize),
+        Some(v) if v < 0.0 => ": a number of trials is not negative".to_string(),
+        Some(v) if v.fract() != 0.0 => ": not a whole number".to_string(),
+        Some(_) => format!(": more than {} trials", usize::MAX),
+        None => String::new(),
+    };
+    Err(format!(
+        "expected a number of trials (e.g. 1000000 or 1e6){or}, got {text:?}{why}"
+    ))
 }
 
 impl McArgs {
@@ -92,8 +113,21 @@ mod tests {
         ));
         assert!(matches!(parse_trials("20000"), Ok(McTrials::Fixed(20_000))));
         assert!(matches!(parse_trials("adaptive"), Ok(McTrials::Adaptive)));
-        for bad in ["1.5", "-3", "many", "1e13"] {
+        assert!(matches!(
+            parse_trials("1e13"),
+            Ok(McTrials::Fixed(10_000_000_000_000))
+        ));
+        assert!(matches!(
+            parse_trials("18446744073709551615"),
+            Ok(McTrials::Fixed(usize::MAX))
+        ));
+        for bad in ["1.5", "-3", "-1", "many", "1e20", "2e19", "inf", "nan"] {
             assert!(parse_trials(bad).is_err(), "{bad}");
         }
+        assert!(
+            parse_trials("-1")
+                .err()
+                .is_some_and(|e| e.ends_with("got \"-1\": a number of trials is not negative")),
+        );
     }
 }

@@ -101,6 +101,17 @@ pub struct PlanArgs {
     plot: Option<PathBuf>,
 }
 
+impl PlanArgs {
+    /// The files this command reads, which no output may replace.
+    fn inputs(&self) -> Vec<&std::path::Path> {
+        let mut v: Vec<&std::path::Path> = Vec::new();
+        v.extend(self.file.as_deref());
+        v.extend(self.designs.as_deref());
+        v.extend(self.budget.as_deref());
+        v
+    }
+}
+
 /// `plan --format`.
 #[derive(Clone, Copy, ValueEnum)]
 enum PlanFormat {
@@ -204,7 +215,11 @@ pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
         }
     }
     if let Some(dir) = &args.plot {
-        super::write_plot(dir, &polycal::figure::plan_figures(&reports))?;
+        super::write_plot(
+            dir,
+            &polycal::figure::plan_figures(&reports),
+            &args.inputs(),
+        )?;
     }
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();

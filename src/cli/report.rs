@@ -1,14 +1,14 @@
 //! `polycal report`: the documents of a calibration (docs/FORMAT.md §10): the
 //! self-contained HTML report and the Digital Calibration Certificate (§10.3).
 
-use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use polycal::certificate::dcc::{self, DccError};
 use polycal::certificate::{CalibrationReport, ReportError, ReportInputs};
 use polycal::measurement::Sigma;
 
+use super::files::CommandOutputs;
 use super::output::Output;
 use super::{EXIT_OK, EXIT_VERDICT};
 
@@ -70,7 +70,8 @@ pub struct ReportArgs {
     /// Run directory of `polycal run` (its manifest.json: instruments, run times).
     #[arg(long, value_name = "DIR")]
     run_dir: Option<PathBuf>,
-    /// The HTML file to write (replaced atomically).
+    /// The HTML file to write (whole or not at all, never over an input: docs/FORMAT.md
+    /// §8.1).
     #[arg(long, value_name = "REPORT.html", required_unless_present = "dcc")]
     out: Option<PathBuf>,
     /// The Digital Calibration Certificate to write: XML valid against DCC 3.1.2 with
@@ -91,17 +92,29 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         ("--meta", args.meta.as_deref()),
     ])?;
     super::solve::check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
-    for (flag, path, what) in [
-        ("--out", &args.out, "HTML file"),
-        ("--dcc", &args.dcc, "XML file"),
-    ] {
-        if let Some(path) = path.as_ref().filter(|p| p.is_dir()) {
-            bail!(
-                "{flag} {}: is a directory; name the {what} to write",
-                path.display()
-            );
-        }
-    }
+    // refused before any work: an output that is an input, two outputs of one file, an
+    // output that is not a regular file (docs/FORMAT.md §8.1)
+    let manifest = args.run_dir.as_ref().map(|d| d.join("manifest.json"));
+    let mut files = CommandOutputs::new(
+        [
+            Some(args.file.as_path()),
+            args.budget.as_deref(),
+            args.truth.as_deref(),
+            args.reference.as_deref(),
+            args.meta.as_deref(),
+            manifest.as_deref(),
+        ]
+        .into_iter()
+        .flatten(),
+    )?;
+    files.check(
+        [
+            ("--out", args.out.as_deref()),
+            ("--dcc", args.dcc.as_deref()),
+        ]
+        .into_iter()
+        .filter_map(|(flag, path)| Some((flag, path?))),
+    )?;
     // An argument that is not UTF-8 (a file name in another encoding) is recorded with
     // U+FFFD where its bytes are not text: `args()` would panic on it.
     let command_line = std::env::args_os()
@@ -166,10 +179,10 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         )),
         None => None,
     };
+    // both written, then both put into place: all or none
     let mut written = Vec::new();
     if let Some(path) = &args.out {
-        write_atomically(path, report.to_html().as_bytes())
-            .with_context(|| format!("--out {}: cannot write the report", path.display()))?;
+        files.write("--out", path, report.to_html().as_bytes())?;
         written.push(format!(
             "{} ({} figures)",
             path.display(),
@@ -177,10 +190,10 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         ));
     }
     if let Some((path, xml)) = dcc {
-        write_atomically(path, xml.as_bytes())
-            .with_context(|| format!("--dcc {}: cannot write the DCC", path.display()))?;
+        files.write("--dcc", path, xml.as_bytes())?;
         written.push(format!("{} (DCC {})", path.display(), dcc::SCHEMA_VERSION));
     }
+    files.commit()?;
     let verdict = report.verdict();
     out.info(format!(
         "wrote {}{}{}",
@@ -221,28 +234,4 @@ fn source_date() -> Result<Option<String>> {
             bail!("SOURCE_DATE_EPOCH: not a number of seconds")
         }
     }
-}
-
-/// Writes `bytes` beside `path`, syncs, and renames it over `path`: a reader never sees
-/// half a report.
-fn write_atomically(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "report.html".into());
-    let temporary = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| {
-        let mut file = std::fs::File::create(&temporary)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        std::fs::rename(&temporary, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&temporary);
-    }
-    result
 }

@@ -68,6 +68,15 @@ pub struct SelfcalArgs {
     plot: Option<PathBuf>,
 }
 
+impl SelfcalArgs {
+    /// The files this command reads, which no output may replace.
+    fn inputs(&self) -> Vec<&std::path::Path> {
+        let mut v: Vec<&std::path::Path> = vec![self.file.as_path()];
+        v.extend(self.budget.as_deref());
+        v
+    }
+}
+
 /// `selfcal --format`.
 #[derive(Clone, Copy, ValueEnum)]
 enum SelfcalFormat {
@@ -143,7 +152,11 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
     };
     if let Some(dir) = &args.plot {
         let report = report_of();
-        super::write_plot(dir, &polycal::figure::selfcal_figures(&report))?;
+        super::write_plot(
+            dir,
+            &polycal::figure::selfcal_figures(&report),
+            &args.inputs(),
+        )?;
     }
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();

@@ -11,6 +11,7 @@ use polycal::simulate::{
     SelfcalSimConfig, SimulateError, SimulationConfig, TemperatureModel, Truth,
 };
 
+use super::files::CommandOutputs;
 use super::output::Output;
 use super::{EXIT_OK, with_hint};
 
@@ -152,9 +153,28 @@ pub struct MountingsArgs {
     pub shift_deg: Vec<f64>,
 }
 
+impl SimulateArgs {
+    /// The files `simulate` writes, checked before anything is simulated: `--out` and
+    /// `--truth-out` neither one file nor anything but a regular file (docs/FORMAT.md
+    /// §8.1); both are put into place together.
+    fn outputs(&self) -> Result<CommandOutputs> {
+        let files = CommandOutputs::new([])?;
+        files.check(
+            [
+                ("--out", self.out.as_deref()),
+                ("--truth-out", self.truth.truth_out.as_deref()),
+            ]
+            .into_iter()
+            .filter_map(|(flag, path)| Some((flag, path?))),
+        )?;
+        Ok(files)
+    }
+}
+
 /// `polycal simulate`: writes the measurement CSV (or with `--selfcal` the
 /// self-calibration CSV) and the truth.
 pub fn run(args: &SimulateArgs, out: &Output) -> Result<u8> {
+    args.outputs()?;
     if args.selfcal {
         return run_selfcal(args, out);
     }
@@ -188,15 +208,17 @@ pub fn run(args: &SimulateArgs, out: &Output) -> Result<u8> {
         comment += &format!(", elevation {model}");
     }
     let comments = vec![comment];
+    let mut files = args.outputs()?;
     match &args.out {
-        Some(path) => set.write_path(path, &comments)?,
+        Some(path) => files.write_with("--out", path, |w| set.write_to(w, &comments))?,
         None => {
             let stdout = std::io::stdout();
             set.write_to(stdout.lock(), &comments)
                 .context("cannot write to standard output")?;
         }
     }
-    args.truth.write_truth(&truth)?;
+    args.truth.stage_json(&mut files, &truth.to_json_pretty())?;
+    files.commit()?;
     Ok(EXIT_OK)
 }
 
@@ -257,17 +279,20 @@ fn run_selfcal(args: &SimulateArgs, out: &Output) -> Result<u8> {
         config.seed
     );
     let comments = [comment];
+    let mut files = args.outputs()?;
     match &args.out {
-        Some(path) => {
-            set.write_path(path, &comments)?;
-        }
+        Some(path) => files.write_with("--out", path, |w| {
+            set.write_with_comments(w, &comments)
+                .map_err(|e| std::io::Error::other(e.to_string()))
+        })?,
         None => {
             let stdout = std::io::stdout();
             set.write_with_comments(stdout.lock(), &comments)
                 .context("cannot write to standard output")?;
         }
     }
-    args.truth.write_json(&truth.to_json_pretty())?;
+    args.truth.stage_json(&mut files, &truth.to_json_pretty())?;
+    files.commit()?;
     Ok(EXIT_OK)
 }
 
@@ -554,16 +579,18 @@ impl TruthArgs {
             .collect()
     }
 
-    /// Writes the truth to `--truth-out`, if given.
+    /// Writes the truth to `--truth-out`, if given, whole or not at all.
     pub fn write_truth(&self, truth: &Truth) -> Result<()> {
-        self.write_json(&truth.to_json_pretty())
+        let mut files = CommandOutputs::new([])?;
+        self.stage_json(&mut files, &truth.to_json_pretty())?;
+        files.commit().map(|_| ())
     }
 
-    /// Writes a truth's JSON text (and a line feed) to `--truth-out`, if given.
-    fn write_json(&self, json: &str) -> Result<()> {
+    /// Writes a truth's JSON text (and a line feed) to `--truth-out` among `files`, if
+    /// given.
+    fn stage_json(&self, files: &mut CommandOutputs, json: &str) -> Result<()> {
         if let Some(path) = &self.truth_out {
-            std::fs::write(path, format!("{json}\n"))
-                .with_context(|| format!("{}: cannot write the truth", path.display()))?;
+            files.write("--truth-out", path, format!("{json}\n").as_bytes())?;
         }
         Ok(())
     }

@@ -74,6 +74,15 @@ pub struct SolveArgs {
     plot: Option<PathBuf>,
 }
 
+impl SolveArgs {
+    /// The files this command reads, which no output may replace.
+    fn inputs(&self) -> Vec<&Path> {
+        let mut v: Vec<&Path> = self.files.iter().map(PathBuf::as_path).collect();
+        v.extend(self.budget.as_deref());
+        v
+    }
+}
+
 /// `solve --format`.
 #[derive(Clone, Copy, ValueEnum)]
 enum SolveFormat {
@@ -197,7 +206,11 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             Solved::SubPitch(solved) => {
                 if let Some(dir) = &args.plot {
                     let report = SolveReport::sub_pitch(&solved, None);
-                    super::write_plot(dir, &polycal::figure::solve_figures(&report))?;
+                    super::write_plot(
+                        dir,
+                        &polycal::figure::solve_figures(&report),
+                        &args.inputs(),
+                    )?;
                 }
                 match args.format {
                     SolveFormat::Json => {
@@ -235,7 +248,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                 report
             });
         if let (Some(dir), Some(report)) = (&args.plot, &json_report) {
-            super::write_plot(dir, &polycal::figure::solve_figures(report))?;
+            super::write_plot(dir, &polycal::figure::solve_figures(report), &args.inputs())?;
         }
         match args.format {
             SolveFormat::Json => {

@@ -64,6 +64,9 @@ pub enum FigureError {
         /// The operating system's error.
         source: std::io::Error,
     },
+    /// A figure that cannot be written where it would go.
+    #[error(transparent)]
+    Output(#[from] crate::output_file::OutputError),
     /// The path given for the figures' directory is a file (or another non-directory).
     #[error("{path}: is a file, not a directory; the figures need a directory")]
     NotADirectory {
@@ -131,14 +134,21 @@ pub fn plan_figures(reports: &[PlanReport]) -> Vec<Figure> {
     plan::figures(reports)
 }
 
-/// Writes every figure into `dir` (created if missing) as `{name}.svg`; returns the paths
-/// written.
+/// Writes every figure into `dir` (created if missing) as `{name}.svg`, all or none
+/// ([`crate::output_file::Outputs`]: none of them one of `inputs`, each written whole and
+/// renamed into place once every figure is written); returns the paths written.
 ///
 /// # Errors
 ///
 /// [`FigureError::NotADirectory`] when `dir` is an existing file; [`FigureError::Write`]
-/// naming the directory or file that could not be written.
-pub fn write_figures(dir: &Path, figures: &[Figure]) -> Result<Vec<PathBuf>, FigureError> {
+/// naming the directory that could not be created; [`FigureError::Output`] for a figure
+/// that cannot be written where it would go (an input, not a regular file, a failed
+/// write).
+pub fn write_figures(
+    dir: &Path,
+    figures: &[Figure],
+    inputs: &[&Path],
+) -> Result<Vec<PathBuf>, FigureError> {
     if dir.exists() && !dir.is_dir() {
         return Err(FigureError::NotADirectory {
             path: dir.to_path_buf(),
@@ -148,14 +158,9 @@ pub fn write_figures(dir: &Path, figures: &[Figure]) -> Result<Vec<PathBuf>, Fig
         path: dir.to_path_buf(),
         source,
     })?;
-    let mut written = Vec::with_capacity(figures.len());
+    let mut outputs = crate::output_file::Outputs::new(inputs.iter().copied())?;
     for figure in figures {
-        let path = dir.join(figure.file_name());
-        std::fs::write(&path, &figure.svg).map_err(|source| FigureError::Write {
-            path: path.clone(),
-            source,
-        })?;
-        written.push(path);
+        outputs.write(&dir.join(figure.file_name()), figure.svg.as_bytes())?;
     }
-    Ok(written)
+    Ok(outputs.commit()?)
 }

@@ -56,6 +56,49 @@ impl<'a> LineIndex<'a> {
     }
 }
 
+/// The most fields a line of the crate's CSV files may hold (docs/FORMAT.md §2.2): far
+/// more than any file's columns, few enough that a line of separators alone is refused
+/// before the CSV reader holds its fields (tens of bytes each).
+pub(crate) const MAX_FIELDS_PER_LINE: usize = 1024;
+
+/// The byte offset of the separator that gives a line more than
+/// [`MAX_FIELDS_PER_LINE`] fields, if one does (every comma counted, quoted ones too;
+/// comment lines, which begin with `#`, are not CSV and are passed over). One pass, no
+/// allocation: run before the CSV reader.
+pub(crate) fn too_many_fields(text: &str) -> Option<usize> {
+    let mut commas = 0usize;
+    let mut comment = false;
+    let mut line_start = true;
+    for (i, &b) in text.as_bytes().iter().enumerate() {
+        if line_start {
+            comment = b == b'#';
+            line_start = false;
+        }
+        match b {
+            b'\n' | b'\r' => {
+                commas = 0;
+                line_start = true;
+            }
+            b',' if !comment => {
+                commas += 1;
+                if commas >= MAX_FIELDS_PER_LINE {
+                    return Some(i);
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+/// The message of [`too_many_fields`].
+pub(crate) fn too_many_fields_message() -> String {
+    format!(
+        "a line of more than {MAX_FIELDS_PER_LINE} fields; polycal's CSV files have a few \
+         columns (docs/FORMAT.md §2.2)"
+    )
+}
+
 pub(crate) fn to_u64(x: usize) -> u64 {
     u64::try_from(x).unwrap_or(u64::MAX)
 }

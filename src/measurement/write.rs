@@ -293,8 +293,8 @@ impl MeasurementSet {
         w.into_inner().flush()
     }
 
-    /// Writes the measurement CSV to a file (created or truncated), as
-    /// [`MeasurementSet::write_to`] does.
+    /// Writes the measurement CSV to a file, as [`MeasurementSet::write_to`] does, whole
+    /// or not at all ([`crate::output_file`]: a new file renamed over the old one).
     ///
     /// # Errors
     ///
@@ -304,7 +304,7 @@ impl MeasurementSet {
             file: path.display().to_string(),
             source,
         };
-        let file = std::fs::File::create(path).map_err(io_error)?;
-        self.write_to(file, comments).map_err(io_error)
+        crate::output_file::write_file_with(path, |w| self.write_to(w, comments))
+            .map_err(|e| io_error(e.into_io()))
     }
 }

@@ -375,11 +375,33 @@ pub fn write_results_with_file<W: std::io::Write>(
     out.flush()
 }
 
-/// A CSV field, quoted when it needs to be.
+/// A text cell of a CSV polycal writes (docs/FORMAT.md §3.1): a cell that begins with
+/// `=`, `+`, `-`, `@`, a tab or a carriage return — what a spreadsheet runs as a formula —
+/// gets a leading `'`, which spreadsheets show as text; then the cell is quoted when it
+/// needs to be. Number cells are never text cells.
 fn csv_field(text: &str) -> String {
+    let text = if text.starts_with(['=', '+', '-', '@', '\t', '\r']) {
+        format!("'{text}")
+    } else {
+        text.to_string()
+    };
     if text.contains([',', '"', '\n', '\r']) {
         format!("\"{}\"", text.replace('"', "\"\""))
     } else {
-        text.to_string()
+        text
+    }
+}
+
+#[cfg(test)]
+mod csv_field_tests {
+    #[test]
+    fn a_formula_leading_cell_is_neutralised_and_quoted_when_needed() {
+        assert_eq!(super::csv_field("run 1.csv"), "run 1.csv");
+        assert_eq!(super::csv_field("=HYPERLINK(1).csv"), "'=HYPERLINK(1).csv");
+        assert_eq!(super::csv_field("+1.csv"), "'+1.csv");
+        assert_eq!(super::csv_field("-2.csv"), "'-2.csv");
+        assert_eq!(super::csv_field("@sum.csv"), "'@sum.csv");
+        assert_eq!(super::csv_field("=a,b.csv"), "\"'=a,b.csv\"");
+        assert_eq!(super::csv_field("a\"b.csv"), "\"a\"\"b.csv\"");
     }
 }

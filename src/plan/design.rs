@@ -243,7 +243,16 @@ impl Design {
             Some(other) => Err(bad(format!("`{key}={other}`: want true or false"))),
         };
         match key.replace('_', "-").as_str() {
-            "name" => self.name = Some(need(value)?.to_string()),
+            "name" => {
+                let name = need(value)?;
+                if name.contains(char::is_control) {
+                    return Err(bad(format!(
+                        "`{key}`: {:?} holds a control character; a name is printed in tables and messages",
+                        name
+                    )));
+                }
+                self.name = Some(name.to_string())
+            }
             "faces" => self.faces = number(key, need(value)?).map_err(bad)?,
             "cycles" => self.cycles = number(key, need(value)?).map_err(bad)?,
             "setups" => self.setups = number(key, need(value)?).map_err(bad)?,
@@ -342,6 +351,16 @@ impl Design {
         for (index, table) in file.design.iter().enumerate() {
             let mut design = base.clone();
             for (key, value) in table {
+                if let Some(wanted) = toml_type_mismatch(key, value) {
+                    return Err(located(
+                        key_span(text, index, key),
+                        format!(
+                            "design {}: `{key}` must be {wanted}, not {} {value}",
+                            index + 1,
+                            value.type_str()
+                        ),
+                    ));
+                }
                 let text_value = match value {
                     toml::Value::String(s) => s.clone(),
                     toml::Value::Integer(i) => i.to_string(),
@@ -371,6 +390,26 @@ impl Design {
                         )
                     })?;
             }
+            // a design whose values are each well formed but do not make a design
+            // together (0 faces, an autocollimator twice, a shift not a number) is
+            // refused at its table's header
+            if let Err(e) = design.validate() {
+                let header = text
+                    .match_indices("[[design]]")
+                    .nth(index)
+                    .map(|(i, _)| i..i + "[[design]]".len());
+                return Err(located(
+                    header,
+                    format!(
+                        "design {}: {}",
+                        index + 1,
+                        match e {
+                            PlanError::Design(reason) => reason,
+                            other => other.to_string(),
+                        }
+                    ),
+                ));
+            }
             designs.push(design);
         }
         if designs.is_empty() {
@@ -378,6 +417,36 @@ impl Design {
         }
         Ok(designs)
     }
+}
+
+/// What a designs file's `key` must be in TOML when `value` is not that (docs/FORMAT.md
+/// §5.6): a count is an integer (`faces = "24"` is refused), a flag a boolean, a list an
+/// array; `None` when the type fits (or the key is unknown, refused by its name later).
+fn toml_type_mismatch(key: &str, value: &toml::Value) -> Option<&'static str> {
+    use toml::Value::{Array, Boolean, Float, Integer, String};
+    let all = |items: &[toml::Value], ok: fn(&toml::Value) -> bool| items.iter().all(ok);
+    let (fits, wanted) = match key.replace('_', "-").as_str() {
+        "name" => (matches!(value, String(_)), "a string"),
+        "faces" | "cycles" | "setups" | "setup-shift" => {
+            (matches!(value, Integer(_)), "an integer")
+        }
+        "step-seconds" => (matches!(value, Integer(_) | Float(_)), "a number"),
+        "closing" | "bidirectional" => (matches!(value, Boolean(_)), "true or false"),
+        "temperature" => (
+            matches!(value, String(_)),
+            "a string (a profile, \"default\" or \"none\")",
+        ),
+        "ac-faces" => (
+            matches!(value, Array(items) if all(items, |v| matches!(v, Integer(_)))),
+            "an array of integers",
+        ),
+        "shift-deg" => (
+            matches!(value, Array(items) if all(items, |v| matches!(v, Integer(_) | Float(_)))),
+            "an array of numbers",
+        ),
+        _ => (true, ""),
+    };
+    (!fits).then_some(wanted)
 }
 
 /// A design the simulation settings refuse: their reason, without their prefix.

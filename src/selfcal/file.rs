@@ -245,8 +245,9 @@ impl SelfcalSet {
         })
     }
 
-    /// Writes the self-calibration CSV to a file (created or truncated), as
-    /// [`SelfcalSet::write_with_comments`] does.
+    /// Writes the self-calibration CSV to a file, as [`SelfcalSet::write_with_comments`]
+    /// does, whole or not at all ([`crate::output_file`]: a new file renamed over the old
+    /// one).
     ///
     /// # Errors
     ///
@@ -261,7 +262,7 @@ impl SelfcalSet {
             file: path.display().to_string(),
             source,
         };
-        let file = std::fs::File::create(path).map_err(io_error)?;
-        write::write(self, file, comments).map_err(io_error)
+        crate::output_file::write_file_with(path, |w| write::write(self, w, comments))
+            .map_err(|e| io_error(e.into_io()))
     }
 }

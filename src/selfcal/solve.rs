@@ -24,6 +24,7 @@ use nalgebra::DMatrix;
 
 use super::head_angle::head_angle_u;
 use super::{Head, SelfcalError, SelfcalSet, fourier};
+use crate::input::limits::READING_ARCSEC;
 use crate::measurement::{MeasurementError, MeasurementSet, Reading, Sigma, step_angle_deg};
 use crate::solve::cofactor::Cofactor;
 use crate::solve::least_squares::least_squares_zeroing_lost;
@@ -78,26 +79,28 @@ impl SelfcalOptions {
         self
     }
 
-    /// With a bound on the amplitude of the lost harmonics, arcsec (finite, ≥ 0).
+    /// With a bound on the amplitude of the lost harmonics, arcsec (0 … 10⁶, the range
+    /// of a reading: docs/FORMAT.md §2.2).
     ///
     /// # Errors
     ///
-    /// [`SelfcalSolveError::InvalidBound`] for a negative or non-finite value.
+    /// [`SelfcalSolveError::InvalidBound`] for a negative, non-finite or larger value.
     pub fn with_lost_harmonic_bound(mut self, arcsec: f64) -> Result<Self, SelfcalSolveError> {
-        if !(arcsec.is_finite() && arcsec >= 0.0) {
+        if !(arcsec >= 0.0 && arcsec <= READING_ARCSEC.max()) {
             return Err(SelfcalSolveError::InvalidBound { arcsec });
         }
         self.lost_harmonic_bound_arcsec = Some(arcsec);
         Ok(self)
     }
 
-    /// With a standard uncertainty of the heads' nominal angles, arcsec (finite, ≥ 0).
+    /// With a standard uncertainty of the heads' nominal angles, arcsec (0 … 10⁶, the
+    /// range of a reading: docs/FORMAT.md §2.2).
     ///
     /// # Errors
     ///
-    /// [`SelfcalSolveError::InvalidHeadAngleU`] for a negative or non-finite value.
+    /// [`SelfcalSolveError::InvalidHeadAngleU`] for a negative, non-finite or larger value.
     pub fn with_head_angle_u(mut self, arcsec: f64) -> Result<Self, SelfcalSolveError> {
-        if !(arcsec.is_finite() && arcsec >= 0.0) {
+        if !(arcsec >= 0.0 && arcsec <= READING_ARCSEC.max()) {
             return Err(SelfcalSolveError::InvalidHeadAngleU { arcsec });
         }
         self.head_angle_u_arcsec = Some(arcsec);
@@ -132,14 +135,21 @@ pub enum SelfcalSolveError {
     /// A set that breaks the self-calibration file's rules (built field by field).
     #[error("the self-calibration set is not valid: {0}")]
     Invalid(#[from] SelfcalError),
-    /// The bound on the lost harmonics is negative or not finite.
-    #[error("the bound on the lost harmonics must be a finite number ≥ 0 arcsec, not {arcsec}")]
+    /// The bound on the lost harmonics is negative, not finite, or beyond a reading's range.
+    #[error(
+        "the bound on the lost harmonics must be a number from 0 to 1e6 arcsec (the range of a reading), not {}",
+        crate::input::limits::show(*arcsec)
+    )]
     InvalidBound {
         /// The value given.
         arcsec: f64,
     },
-    /// The uncertainty of the head angles is negative or not finite.
-    #[error("the uncertainty of the head angles must be a finite number ≥ 0 arcsec, not {arcsec}")]
+    /// The uncertainty of the head angles is negative, not finite, or beyond a reading's
+    /// range.
+    #[error(
+        "the uncertainty of the head angles must be a number from 0 to 1e6 arcsec (the range of a reading), not {}",
+        crate::input::limits::show(*arcsec)
+    )]
     InvalidHeadAngleU {
         /// The value given.
         arcsec: f64,

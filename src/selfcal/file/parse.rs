@@ -154,6 +154,9 @@ fn parse_text(
     let index = LineIndex::new(text);
     let bytes = text.as_bytes();
     let err = |offset: usize, message: String| invalid(source, index.location(offset), message);
+    if let Some(offset) = crate::input::text::too_many_fields(text) {
+        return Err(err(offset, crate::input::text::too_many_fields_message()));
+    }
 
     // Comment and blank lines before the header.
     let mut header_line = None;

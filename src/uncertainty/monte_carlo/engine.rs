@@ -74,10 +74,15 @@ pub(crate) fn pilot_len(m: usize, outputs: usize, p: f64) -> usize {
 /// refinement at `s` trials a bracket holds about `2·rank_margin(s)/s` of the trials.
 fn refinements(pilot: usize, m: usize) -> Vec<usize> {
     let mut at = Vec::new();
-    let mut s = pilot.max(1) * 2;
+    // (doubled without overflow: a run of up to usize::MAX trials is planned, and then
+    // refused on its memory, never wrapped to 0)
+    let mut s = pilot.max(1).saturating_mul(2);
     while s < m {
         at.push(s);
-        s *= 2;
+        match s.checked_mul(2) {
+            Some(next) => s = next,
+            None => break,
+        }
     }
     at
 }
@@ -310,7 +315,14 @@ pub fn run<T: Trial>(trial: &T, options: &EngineOptions<'_>) -> Result<McResult,
     );
     let planned = match options.trials {
         Trials::Fixed(m) => m,
-        Trials::Adaptive { max_trials, .. } => max_trials,
+        Trials::Adaptive { max_trials, .. } => {
+            // two sequences are the fewest with which stability can be judged
+            let fewest = 2 * adaptive_sequence_length(p);
+            if max_trials < fewest {
+                return Err(McError::AdaptiveLimitTooLow { max_trials, fewest });
+            }
+            max_trials
+        }
     };
     let needed_bytes = memory_needed(planned, outputs, options.keep_samples, p);
     if let Some((limit_bytes, limit_source)) = crate::solve::memory::limit_for(needed_bytes, None)

@@ -191,6 +191,18 @@ pub enum McError {
         /// Significant digits asked for.
         digits: u32,
     },
+    /// The adaptive procedure's largest number of trials is below two of its sequences,
+    /// the fewest with which it can judge stability (JCGM 101 §7.9.4).
+    #[error(
+        "the adaptive procedure may run at most {max_trials} trials, fewer than the {fewest} \
+         of two sequences with which it can judge stability (JCGM 101 §7.9.4): allow at least {fewest}"
+    )]
+    AdaptiveLimitTooLow {
+        /// The largest number of trials allowed.
+        max_trials: usize,
+        /// Two sequences' trials.
+        fewest: usize,
+    },
     /// A budget cannot be turned into a Monte Carlo model.
     #[error("{0}")]
     Budget(String),

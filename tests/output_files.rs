@@ -1,0 +1,512 @@
+//! Writing files (issue 34, docs/FORMAT.md §8.1): every command writes an output only
+//! where the user meant it — never over one of its inputs, never two outputs into one
+//! file, never over a device, a FIFO or a directory — and whole or not at all, keeping
+//! the mode of the file it replaces. Tried through the binary as a user meets it, in a
+//! scratch directory with the bundled example; every expectation below is what the
+//! files on disk must be, read back byte for byte.
+
+use std::os::unix::fs::PermissionsExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const EXAMPLE: &str = "examples/data/polygon24-2ac-6cycles.csv";
+const BUDGET: &str = "examples/budgets/instrument.toml";
+const META: &str = "examples/report/meta.toml";
+
+fn polycal_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_polycal"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the binary runs")
+}
+
+/// A scratch directory holding copies of the example, its budget and its metadata.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("polycal-outputs-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch directory");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (from, to) in [(EXAMPLE, "m.csv"), (BUDGET, "b.toml"), (META, "meta.toml")] {
+        std::fs::copy(root.join(from), dir.join(to)).expect("copy");
+    }
+    dir
+}
+
+/// Status 2 and one `error:` line; returns it.
+fn refused(out: &Output) -> String {
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "stderr:\n{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "one line:\n{stderr}");
+    assert!(stderr.starts_with("error: "), "{stderr}");
+    stderr
+}
+
+/// The names in `dir`, sorted.
+fn names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .expect("read_dir")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+fn bytes(path: &Path) -> Vec<u8> {
+    std::fs::read(path).expect("read")
+}
+
+#[test]
+fn an_input_named_as_an_output_is_refused_and_kept() {
+    let dir = scratch("input");
+    std::fs::hard_link(dir.join("m.csv"), dir.join("same.csv")).expect("hard link");
+    std::os::unix::fs::symlink("m.csv", dir.join("link.csv")).expect("symlink");
+    let before: Vec<(String, Vec<u8>)> = ["m.csv", "b.toml", "meta.toml"]
+        .iter()
+        .map(|n| (n.to_string(), bytes(&dir.join(n))))
+        .collect();
+    let names_before = names(&dir);
+    let report = [
+        "report",
+        "m.csv",
+        "--budget",
+        "b.toml",
+        "--meta",
+        "meta.toml",
+    ];
+    for (extra, flag, input) in [
+        (&["--out", "m.csv"][..], "--out m.csv", "m.csv"),
+        (&["--out", "./m.csv"], "--out ./m.csv", "m.csv"),
+        (&["--out", "same.csv"], "--out same.csv", "m.csv"),
+        (&["--out", "link.csv"], "--out link.csv", "m.csv"),
+        (&["--out", "b.toml"], "--out b.toml", "b.toml"),
+        (&["--out", "meta.toml"], "--out meta.toml", "meta.toml"),
+        (
+            &["--out", "r.html", "--dcc", "m.csv"],
+            "--dcc m.csv",
+            "m.csv",
+        ),
+        (&["--dcc", "meta.toml"], "--dcc meta.toml", "meta.toml"),
+    ] {
+        let args: Vec<&str> = report.iter().chain(extra).copied().collect();
+        let line = refused(&polycal_in(&dir, &args));
+        assert!(
+            line.starts_with(&format!(
+                "error: {flag}: is the input {input} (the same file)"
+            )),
+            "{args:?}: {line}"
+        );
+    }
+    for (name, was) in &before {
+        assert_eq!(&bytes(&dir.join(name)), was, "{name} kept");
+    }
+    assert_eq!(
+        names(&dir),
+        names_before,
+        "nothing written, no temporary file left"
+    );
+
+    // the figures of --plot are never written over an input either
+    std::fs::create_dir_all(dir.join("plots")).expect("mkdir");
+    std::fs::copy(dir.join("m.csv"), dir.join("plots/pitch-deviation.svg")).expect("copy");
+    let line = refused(&polycal_in(
+        &dir,
+        &["solve", "plots/pitch-deviation.svg", "--plot", "plots"],
+    ));
+    assert!(
+        line.contains("is the input plots/pitch-deviation.svg"),
+        "{line}"
+    );
+    assert_eq!(bytes(&dir.join("plots/pitch-deviation.svg")), before[0].1);
+    assert_eq!(names(&dir.join("plots")), ["pitch-deviation.svg"]);
+}
+
+#[test]
+fn two_outputs_of_one_file_are_refused_before_anything_is_written() {
+    let dir = scratch("twice");
+    for args in [
+        &["simulate", "--out", "x.csv", "--truth-out", "x.csv"][..],
+        &["simulate", "--out", "x.csv", "--truth-out", "./x.csv"],
+        &[
+            "simulate",
+            "--selfcal",
+            "--out",
+            "s.csv",
+            "--truth-out",
+            "s.csv",
+        ],
+        &[
+            "report",
+            "m.csv",
+            "--budget",
+            "b.toml",
+            "--meta",
+            "meta.toml",
+            "--out",
+            "r.xml",
+            "--dcc",
+            "r.xml",
+        ],
+    ] {
+        let line = refused(&polycal_in(&dir, args));
+        assert!(
+            line.contains("(the same file); give each output its own file"),
+            "{line}"
+        );
+    }
+    assert_eq!(names(&dir), ["b.toml", "m.csv", "meta.toml"]);
+}
+
+#[test]
+fn only_regular_files_are_replaced() {
+    let dir = scratch("kinds");
+    assert!(
+        Command::new("mkfifo")
+            .arg(dir.join("fifo"))
+            .status()
+            .expect("mkfifo runs")
+            .success()
+    );
+    std::fs::create_dir(dir.join("sub")).expect("mkdir");
+    for (args, what) in [
+        (
+            &["report", "m.csv", "--out", "/dev/null"][..],
+            "--out /dev/null: is a character device",
+        ),
+        (&["simulate", "--out", "fifo"], "--out fifo: is a FIFO"),
+        (
+            &["simulate", "--truth-out", "sub"],
+            "--truth-out sub: is a directory",
+        ),
+        (
+            &["report", "m.csv", "--out", "sub"],
+            "--out sub: is a directory",
+        ),
+    ] {
+        let line = refused(&polycal_in(&dir, args));
+        assert!(
+            line.starts_with(&format!("error: {what}, not a regular file")),
+            "{args:?}: {line}"
+        );
+    }
+    // a symbolic link the user names is followed and kept; one to nothing is refused
+    std::os::unix::fs::symlink("reports/r1.html", dir.join("latest.html")).expect("symlink");
+    let line = refused(&polycal_in(
+        &dir,
+        &["report", "m.csv", "--out", "latest.html"],
+    ));
+    assert!(
+        line.contains("--out latest.html: is a symbolic link to nothing"),
+        "{line}"
+    );
+    std::fs::create_dir(dir.join("reports")).expect("mkdir");
+    std::fs::write(dir.join("reports/r1.html"), "old").expect("write");
+    let out = polycal_in(&dir, &["report", "m.csv", "--out", "latest.html"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        std::fs::symlink_metadata(dir.join("latest.html"))
+            .expect("link")
+            .file_type()
+            .is_symlink()
+    );
+    assert!(bytes(&dir.join("reports/r1.html")).starts_with(b"<!DOCTYPE html>"));
+    assert_eq!(names(&dir.join("reports")), ["r1.html"]);
+}
+
+#[test]
+fn a_replaced_file_keeps_its_mode_and_a_new_one_gets_the_umask() {
+    let dir = scratch("mode");
+    for (args, file) in [
+        (&["report", "m.csv", "--out", "r.html"][..], "r.html"),
+        (
+            &["simulate", "--out", "s.csv", "--truth-out", "t.json"],
+            "s.csv",
+        ),
+        (
+            &["simulate", "--out", "s.csv", "--truth-out", "t.json"],
+            "t.json",
+        ),
+    ] {
+        std::fs::write(dir.join(file), "old").expect("write");
+        std::fs::set_permissions(dir.join(file), std::fs::Permissions::from_mode(0o640))
+            .expect("chmod");
+        let out = polycal_in(&dir, args);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let metadata = std::fs::metadata(dir.join(file)).expect("metadata");
+        assert_eq!(metadata.permissions().mode() & 0o7777, 0o640, "{file}");
+        assert_ne!(bytes(&dir.join(file)), b"old", "{file} rewritten");
+    }
+    // a new file: 0666 less the umask (027, set by the shell that runs it)
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "umask 027 && exec '{}' simulate --out new.csv",
+            env!("CARGO_BIN_EXE_polycal")
+        ))
+        .current_dir(&dir)
+        .output()
+        .expect("sh runs");
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mode = std::fs::metadata(dir.join("new.csv"))
+        .expect("metadata")
+        .permissions()
+        .mode();
+    assert_eq!(mode & 0o777, 0o640);
+}
+
+#[test]
+fn a_command_writes_all_its_outputs_or_none() {
+    let dir = scratch("all-or-none");
+    std::fs::write(dir.join("r.html"), "old report").expect("write");
+    // the DCC cannot be written (its directory does not exist): the report is not
+    // replaced either, and no temporary file is left
+    let out = polycal_in(
+        &dir,
+        &[
+            "report",
+            "m.csv",
+            "--budget",
+            "b.toml",
+            "--meta",
+            "meta.toml",
+            "--out",
+            "r.html",
+            "--dcc",
+            "missing/c.xml",
+        ],
+    );
+    let line = refused(&out);
+    assert!(
+        line.starts_with("error: --dcc missing/c.xml: cannot be written"),
+        "{line}"
+    );
+    assert_eq!(bytes(&dir.join("r.html")), b"old report");
+    assert_eq!(names(&dir), ["b.toml", "m.csv", "meta.toml", "r.html"]);
+    // simulate: a truth that cannot be written keeps the run's file from being written
+    let line = refused(&polycal_in(
+        &dir,
+        &[
+            "simulate",
+            "--out",
+            "run.csv",
+            "--truth-out",
+            "missing/t.json",
+        ],
+    ));
+    assert!(
+        line.contains("--truth-out missing/t.json: cannot be written"),
+        "{line}"
+    );
+    assert!(!dir.join("run.csv").exists());
+    // and both written when both can be
+    let out = polycal_in(
+        &dir,
+        &[
+            "report",
+            "m.csv",
+            "--budget",
+            "b.toml",
+            "--meta",
+            "meta.toml",
+            "--out",
+            "r.html",
+            "--dcc",
+            "c.xml",
+        ],
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(bytes(&dir.join("r.html")).starts_with(b"<!DOCTYPE html>"));
+    assert!(bytes(&dir.join("c.xml")).starts_with(b"<?xml"));
+}
+
+#[test]
+fn file_names_cannot_run_as_formulas_nor_recolour_the_terminal() {
+    let dir = scratch("names");
+    for name in ["=HYPERLINK(1).csv", "-2.csv", "+3.csv", "@4.csv"] {
+        std::fs::copy(dir.join("m.csv"), dir.join(name)).expect("copy");
+    }
+    let out = polycal_in(
+        &dir,
+        &[
+            "solve",
+            "--format",
+            "csv",
+            "--",
+            "=HYPERLINK(1).csv",
+            "-2.csv",
+            "+3.csv",
+            "@4.csv",
+            "m.csv",
+        ],
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).expect("UTF-8");
+    let mut first_cells: Vec<&str> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap_or_default())
+        .collect();
+    first_cells.dedup();
+    assert_eq!(
+        first_cells,
+        [
+            "'=HYPERLINK(1).csv",
+            "'-2.csv",
+            "'+3.csv",
+            "'@4.csv",
+            "m.csv"
+        ]
+    );
+    // an escape sequence and a line feed in a file name are shown escaped
+    let line = refused(&polycal_in(
+        &dir,
+        &["solve", "a\u{1b}[31mred\nerror: forged.csv"],
+    ));
+    assert!(!line.contains('\u{1b}'), "{line:?}");
+    assert!(
+        line.contains("a\\u{1b}[31mred\\nerror: forged.csv"),
+        "{line:?}"
+    );
+}
+
+/// A temporary file of `name` in `dir`, if one is there.
+fn temporary_of(dir: &Path, name: &str) -> Option<PathBuf> {
+    std::fs::read_dir(dir).ok()?.find_map(|e| {
+        let e = e.ok()?;
+        let n = e.file_name().to_string_lossy().into_owned();
+        (n.starts_with(&format!(".{name}.")) && n.ends_with(".polycal-tmp")).then(|| e.path())
+    })
+}
+
+#[test]
+fn a_reader_never_sees_half_a_file_and_a_kill_leaves_the_old_one() {
+    let dir = scratch("kill");
+    let args = [
+        "simulate", "--faces", "5760", "--cycles", "20", "--out", "big.csv",
+    ];
+    let spawn = || {
+        std::fs::write(dir.join("big.csv"), "old\n").expect("write");
+        Command::new(env!("CARGO_BIN_EXE_polycal"))
+            .args(args)
+            .current_dir(&dir)
+            .spawn()
+            .expect("the binary runs")
+    };
+    // watched while it is written: the old file, then the whole new one, nothing between
+    // (written in place, 12 MB showed thousands of sizes between)
+    let mut child = spawn();
+    let mut sizes = std::collections::BTreeSet::new();
+    while child.try_wait().expect("wait").is_none() {
+        if let Ok(m) = std::fs::metadata(dir.join("big.csv")) {
+            sizes.insert(m.len());
+        }
+    }
+    let whole = bytes(&dir.join("big.csv"));
+    assert!(
+        whole.len() > 10_000_000,
+        "a file that takes a while to write"
+    );
+    sizes.remove(&4);
+    sizes.remove(&(whole.len() as u64));
+    assert!(
+        sizes.is_empty(),
+        "sizes seen between the old and the new file: {sizes:?}"
+    );
+    // killed while its temporary file is being written: the old file stays
+    let mut killed = 0;
+    for _ in 0..5 {
+        let mut child = spawn();
+        let mut this_one = false;
+        while child.try_wait().expect("wait").is_none() {
+            if let Some(temporary) = temporary_of(&dir, "big.csv") {
+                let _ = child.kill();
+                let _ = child.wait();
+                this_one = true;
+                let _ = std::fs::remove_file(temporary);
+                break;
+            }
+        }
+        killed += usize::from(this_one);
+        let now = bytes(&dir.join("big.csv"));
+        let expected: &[u8] = if this_one { b"old\n" } else { &whole };
+        assert!(now == expected, "killed: {this_one}; {} bytes", now.len());
+    }
+    assert!(killed > 0, "no kill came while the file was written");
+}
+
+#[test]
+fn ctrl_c_while_writing_leaves_the_old_file_and_no_temporary() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = scratch("interrupt");
+    let mut interrupted = 0;
+    for _ in 0..5 {
+        std::fs::write(dir.join("big.csv"), "old\n").expect("write");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_polycal"))
+            .args([
+                "simulate", "--faces", "5760", "--cycles", "20", "--out", "big.csv",
+            ])
+            .current_dir(&dir)
+            .spawn()
+            .expect("the binary runs");
+        let mut this_one = false;
+        while child.try_wait().expect("wait").is_none() {
+            if temporary_of(&dir, "big.csv").is_some() {
+                let sent = Command::new("kill")
+                    .args(["-INT", &child.id().to_string()])
+                    .status()
+                    .expect("kill runs");
+                assert!(sent.success());
+                this_one = true;
+                break;
+            }
+        }
+        let started = std::time::Instant::now();
+        let status = child.wait().expect("wait");
+        if !this_one {
+            continue;
+        }
+        interrupted += 1;
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(1),
+            "ended {:?} after Ctrl-C",
+            started.elapsed()
+        );
+        // ended as Ctrl-C ends a program, so that a calling script stops too
+        assert!(
+            status.signal() == Some(2) || status.code() == Some(130),
+            "{status:?}"
+        );
+        assert_eq!(bytes(&dir.join("big.csv")), b"old\n");
+        assert_eq!(
+            temporary_of(&dir, "big.csv"),
+            None,
+            "the temporary file removed"
+        );
+    }
+    assert!(interrupted > 0, "no Ctrl-C came while the file was written");
+}
