@@ -35,6 +35,7 @@ seed truth examples/data/polygon24-2ac-6cycles.truth.json \
 seed selfcal_truth tests/fixtures/expected/sim-selfcal.file.selfcal.json \
     examples/data/selfa-168.truth.json
 seed meta examples/report/meta.toml
+seed designs examples/designs.toml
 # Reply lines of docs/FORMAT.md §7.1–7.2, without their terminators.
 mkdir -p fuzz/corpus/replies
 n=0

@@ -10,8 +10,9 @@
 //!   §4, §5.3, §9.2.1);
 //! - when it accepts the input, the value goes through the computation it feeds (solve a
 //!   measurement set and evaluate an instrument budget on it, solve a self-calibration,
-//!   compare two results, evaluate a budget, compare a diagnosis with a truth), which
-//!   must not panic either.
+//!   compare two results, evaluate a budget, compare a diagnosis with a truth, plan a
+//!   design, write the example's HTML report and DCC with fuzzed metadata — a DCC must be
+//!   well-formed XML), which must not panic either.
 //!
 //! `POLYCAL_FUZZ_CASES`, `POLYCAL_FUZZ_SEED` and `POLYCAL_FUZZ_SURVEY` scale and steer
 //! it (`fuzz/harness.rs`); a failure prints the mutated input and saves it under

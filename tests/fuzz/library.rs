@@ -470,6 +470,40 @@ pub fn meta(case: &Case) -> Result<(), Box<Finding>> {
                 let _ = metadata.value(field.key);
             }
         })?;
+        // the documents a lab hands over, with this metadata: the HTML report and the
+        // DCC, which is well-formed XML or refused with a message
+        let mut report = report24().clone();
+        report.metadata = metadata;
+        no_panic(case, "toml", "CalibrationReport::to_html", || {
+            let _ = report.to_html();
+        })?;
+        let dcc = no_panic(case, "toml", "CalibrationReport::to_dcc", || {
+            report.to_dcc()
+        })?;
+        if let Ok(xml) = dcc
+            && let Err(e) = roxmltree::Document::parse(&xml)
+        {
+            return Err(Finding::of(
+                case,
+                "toml",
+                "a DCC that is not well-formed XML",
+                e.to_string(),
+            ));
+        }
     }
     Ok(())
+}
+
+/// The 24-faced example's report with the instrument budget (once): the documents the
+/// fuzzed metadata goes into.
+fn report24() -> &'static polycal::certificate::CalibrationReport {
+    use polycal::certificate::{CalibrationReport, ReportInputs};
+    static CELL: OnceLock<CalibrationReport> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let inputs = ReportInputs::new(root.join("examples/data/polygon24-2ac-6cycles.csv"))
+            .with_budget(root.join("examples/budgets/instrument.toml"))
+            .with_generated_utc("2026-11-26T12:00:00.000Z");
+        CalibrationReport::build(&inputs).expect("the example's report")
+    })
 }
