@@ -749,3 +749,47 @@ fn designs_with_few_residual_degrees_of_freedom_are_answered() {
         assert!(dof <= 3, "{design:?}: dof {dof} of {readings} readings");
     }
 }
+
+/// `polycal ARGS` on a pseudo-terminal (util-linux `script`, which Debian always has):
+/// what the terminal showed, standard output and error together.
+fn on_a_terminal(args: &str) -> String {
+    let out = Command::new("script")
+        .args([
+            "-qec",
+            &format!("{} {args}", env!("CARGO_BIN_EXE_polycal")),
+            "/dev/null",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdin(std::process::Stdio::null())
+        .output()
+        .expect("script (util-linux) runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn a_long_plan_shows_its_progress_on_a_terminal_only() {
+    // four autocollimators on 24 faces: seconds of predicting what a diagnosis finds
+    let args = "plan --sigma 0.05 --faces 24 --ac-faces 1,2,3,4 --cycles 6";
+    let shown = on_a_terminal(args);
+    let bar = "Planning 24 faces, autocollimators at 1,2,3,4, 6 cycles [";
+    assert!(shown.contains(bar), "no progress bar:\n{shown}");
+    assert!(
+        shown.contains(" sizes · ") && shown.contains(" left"),
+        "{shown}"
+    );
+    // the bar is cleared (erased, line by line) before the table is printed
+    let table = shown
+        .find("polycal plan: 24 faces")
+        .expect("the table follows");
+    assert!(shown[..table].ends_with("\u{1b}[1A"), "{shown}");
+    // -q, and standard error not a terminal: no bar
+    assert!(!on_a_terminal(&format!("-q {args}")).contains("Planning"));
+    let out = polycal(&args.split(' ').collect::<Vec<_>>());
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(out.stderr.is_empty(), "{}", stderr(&out));
+}

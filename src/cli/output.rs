@@ -114,7 +114,21 @@ impl Output {
     /// Monte Carlo ⠙ 352000 trials · 4s
     /// ```
     pub fn progress_bar(&self, what: &str) -> impl Fn(u64, Option<u64>) + Sync + Send + use<> {
+        self.progress_bar_of(what, "trials")
+    }
+
+    /// As [`Output::progress_bar`], counting `unit` (the sizes a plan predicts, say):
+    ///
+    /// ```text
+    /// Planning design 1 [##########....................] 12/36 sizes · 8s left
+    /// ```
+    pub fn progress_bar_of(
+        &self,
+        what: &str,
+        unit: &str,
+    ) -> impl Fn(u64, Option<u64>) + Sync + Send + use<> {
         let enabled = self.shows_progress();
+        let unit = unit.to_string();
         let bar = ProgressBar::hidden()
             .with_prefix(what.to_string())
             .with_finish(indicatif::ProgressFinish::AndClear);
@@ -138,11 +152,15 @@ impl Output {
             if length.swap(total_or_zero, Ordering::AcqRel) != total_or_zero {
                 match total {
                     Some(total) => {
-                        bar.set_style(style("{prefix} [{bar:30}] {pos}/{len} trials · {eta} left"));
+                        bar.set_style(style(&format!(
+                            "{{prefix}} [{{bar:30}}] {{pos}}/{{len}} {unit} · {{eta}} left"
+                        )));
                         bar.set_length(total);
                     }
                     None => {
-                        bar.set_style(style("{prefix} {spinner} {pos} trials · {elapsed}"));
+                        bar.set_style(style(&format!(
+                            "{{prefix}} {{spinner}} {{pos}} {unit} · {{elapsed}}"
+                        )));
                         bar.unset_length();
                     }
                 }

@@ -178,6 +178,9 @@ pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
             );
         }
         let set = MeasurementSet::read_path(path, None)?;
+        let options = options.clone().with_progress(std::sync::Arc::new(
+            out.progress_bar_of("Planning", "sizes"),
+        ));
         let planned = plan::plan_set(&set, &options)
             .map_err(actionable)
             .with_context(|| format!("{name}: cannot plan its design"))?;
@@ -208,6 +211,9 @@ pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
             if several && design.name.is_none() {
                 design.name = Some(format!("design {}", i + 1));
             }
+            // a bar per design, cleared when its plan is done
+            let bar = out.progress_bar_of(&format!("Planning {}", design.label()), "sizes");
+            let options = options.clone().with_progress(std::sync::Arc::new(bar));
             let planned = plan::plan(&design, &options)
                 .map_err(actionable)
                 .with_context(|| format!("design \"{}\"", design.label()))?;

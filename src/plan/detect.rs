@@ -31,6 +31,7 @@ use crate::diagnose::geometry::FitGeometry;
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::MeasurementSet;
 use crate::solve::Solution;
+use crate::uncertainty::monte_carlo::Progress;
 
 /// The false-alarm probability of the ambiguity test (as `diagnose`'s).
 const AMBIGUITY_ALPHA: f64 = 0.05;
@@ -248,6 +249,7 @@ pub fn detectable(
     sigma: f64,
     options: &DiagnoseOptions,
     memory_limit_bytes: Option<u64>,
+    progress: Option<&(dyn Progress + Send)>,
 ) -> Result<(Vec<Detectable>, Vec<Ambiguity>), PlanError> {
     super::check_memory(
         geometry_bytes(solution, 1),
@@ -402,23 +404,36 @@ pub fn detectable(
         }
     }
 
-    // the sizes, term by term in parallel (each a bisection over the same draws)
+    // the sizes, term by term in parallel (each a bisection over the same draws), each
+    // counted for the progress observer once known
+    let total_sizes = (blocks.len() + sized.iter().map(Vec::len).sum::<usize>()) as u64;
+    let sizes_known = std::sync::atomic::AtomicU64::new(0);
+    let one_more = || {
+        if let Some(progress) = progress {
+            let done = sizes_known.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress.update(done, Some(total_sizes));
+        }
+    };
     let systematic_sizes: Vec<Option<f64>> = blocks
         .par_iter()
         .zip(&systematic_index)
         .map(|((block, _, testable, _), &index)| {
-            let l = block.first().and_then(looked)?;
-            if !*testable || (l.kind == "drift" && block.len() > 1) {
-                return None;
-            }
-            round
-                .size_for(
-                    column_start(index),
-                    l.kind == "rezero",
-                    &class[index],
-                    DETECTION_POWER,
-                )
-                .map(|s| s * sigma)
+            let size = (|| {
+                let l = block.first().and_then(looked)?;
+                if !*testable || (l.kind == "drift" && block.len() > 1) {
+                    return None;
+                }
+                round
+                    .size_for(
+                        column_start(index),
+                        l.kind == "rezero",
+                        &class[index],
+                        DETECTION_POWER,
+                    )
+                    .map(|s| s * sigma)
+            })();
+            one_more();
+            size
         })
         .collect();
     let jump_sizes: Vec<Vec<(usize, f64)>> = sized
@@ -426,9 +441,11 @@ pub fn detectable(
         .map(|here| {
             here.par_iter()
                 .filter_map(|&(k, index)| {
-                    round
+                    let size = round
                         .size_for(column_start(index), false, &class[index], DETECTION_POWER)
-                        .map(|s| (k, s * sigma))
+                        .map(|s| (k, s * sigma));
+                    one_more();
+                    size
                 })
                 .collect()
         })

@@ -48,6 +48,7 @@ use crate::solve::{SigmaSource, Solution, SolveError, SolveOptions};
 use crate::uncertainty::calibration::{
     self, CalibrationError, CalibrationUncertainty, InstrumentBudget,
 };
+use crate::uncertainty::monte_carlo::Progress;
 
 /// What one reading of a design costs in memory while it is planned (the reading and
 /// its share of the solver's per-reading arrays), bytes.
@@ -139,7 +140,7 @@ pub(crate) fn check_memory(
 }
 
 /// Options of [`plan`].
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 #[non_exhaustive]
 pub struct PlanOptions {
     /// σ of one reading, arcsec.
@@ -157,6 +158,24 @@ pub struct PlanOptions {
     /// The most memory, in bytes, the planning may use (else the machine's available
     /// memory); a design that needs more is refused up front.
     pub memory_limit_bytes: Option<u64>,
+    /// Told, from any thread, how many of the sizes a diagnosis finds are known and how
+    /// many there are (the part of planning that takes long: seconds with several
+    /// autocollimators).
+    pub progress: Option<std::sync::Arc<dyn Progress + Send>>,
+}
+
+impl std::fmt::Debug for PlanOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PlanOptions")
+            .field("sigma", &self.sigma)
+            .field("budget", &self.budget)
+            .field("diagnose", &self.diagnose)
+            .field("target_encoder_u", &self.target_encoder_u)
+            .field("detect", &self.detect)
+            .field("memory_limit_bytes", &self.memory_limit_bytes)
+            .field("progress", &self.progress.as_ref().map(|_| "observer"))
+            .finish()
+    }
 }
 
 impl PlanOptions {
@@ -169,7 +188,14 @@ impl PlanOptions {
             target_encoder_u: None,
             detect: true,
             memory_limit_bytes: None,
+            progress: None,
         }
+    }
+
+    /// With a progress observer of the detection sizes ([`PlanOptions::progress`]).
+    pub fn with_progress(mut self, progress: std::sync::Arc<dyn Progress + Send>) -> Self {
+        self.progress = Some(progress);
+        self
     }
 
     /// With or without the prediction of what a diagnosis can see.
@@ -410,6 +436,7 @@ pub fn plan_set(set: &MeasurementSet, options: &PlanOptions) -> Result<Plan, Pla
             sigma,
             &options.diagnose,
             options.memory_limit_bytes,
+            options.progress.as_deref(),
         ) {
             Ok((detectable, ambiguous)) => {
                 planned.detectable = detectable;
