@@ -778,6 +778,20 @@ fn work_beyond_the_address_space_limit_is_refused_up_front() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// The one error line of `solve EXAMPLE --budget BUDGET --monte-carlo TRIALS [extra]`.
+fn monte_carlo_refusal(trials: &str, extra: &[&str]) -> String {
+    let mut args = vec![
+        "solve",
+        EXAMPLE,
+        "--budget",
+        BUDGET,
+        "--monte-carlo",
+        trials,
+    ];
+    args.extend_from_slice(extra);
+    one_error_line(&polycal(&args))
+}
+
 #[test]
 fn trial_counts_at_their_edges_are_refused_or_bounded() {
     // 0, 1 and 2 trials are too few for a 95 % interval (at least 20); 2⁶³ and 2⁶⁴ − 1
@@ -801,14 +815,7 @@ fn trial_counts_at_their_edges_are_refused_or_bounded() {
         ),
         ("1e13", "10000000000000 trials of 71 outputs need about "),
     ] {
-        let message = one_error_line(&polycal(&[
-            "solve",
-            EXAMPLE,
-            "--budget",
-            BUDGET,
-            "--monte-carlo",
-            trials,
-        ]));
+        let message = monte_carlo_refusal(trials, &[]);
         assert!(
             message.starts_with(&format!("{EXAMPLE}: Monte Carlo failed: {expected}")),
             "{trials}: {message}"
@@ -818,14 +825,7 @@ fn trial_counts_at_their_edges_are_refused_or_bounded() {
         ("-1", "\"-1\": a number of trials is not negative"),
         ("1e20", "\"1e20\": more than 18446744073709551615 trials"),
     ] {
-        let message = one_error_line(&polycal(&[
-            "solve",
-            EXAMPLE,
-            "--budget",
-            BUDGET,
-            "--monte-carlo",
-            trials,
-        ]));
+        let message = monte_carlo_refusal(trials, &[]);
         assert!(message.contains(why), "{trials}: {message}");
     }
     // the adaptive procedure needs room for two sequences of 10 000 trials at p = 0.95
@@ -843,16 +843,7 @@ fn trial_counts_at_their_edges_are_refused_or_bounded() {
             "18446744073709551615 trials of 71 outputs need about ",
         ),
     ] {
-        let message = one_error_line(&polycal(&[
-            "solve",
-            EXAMPLE,
-            "--budget",
-            BUDGET,
-            "--monte-carlo",
-            "adaptive",
-            "--mc-max-trials",
-            max,
-        ]));
+        let message = monte_carlo_refusal("adaptive", &["--mc-max-trials", max]);
         assert!(
             message.starts_with(&format!("{EXAMPLE}: Monte Carlo failed: {expected}")),
             "{max}: {message}"

@@ -269,14 +269,10 @@ fn a_replaced_file_keeps_its_mode_and_a_new_one_gets_the_umask() {
     assert_eq!(mode & 0o777, 0o640);
 }
 
-#[test]
-fn a_command_writes_all_its_outputs_or_none() {
-    let dir = scratch("all-or-none");
-    std::fs::write(dir.join("r.html"), "old report").expect("write");
-    // the DCC cannot be written (its directory does not exist): the report is not
-    // replaced either, and no temporary file is left
-    let out = polycal_in(
-        &dir,
+/// `report m.csv` with the budget and metadata, the HTML to `out` and the DCC to `dcc`.
+fn report_with_dcc(dir: &Path, out: &str, dcc: &str) -> Output {
+    polycal_in(
+        dir,
         &[
             "report",
             "m.csv",
@@ -285,12 +281,20 @@ fn a_command_writes_all_its_outputs_or_none() {
             "--meta",
             "meta.toml",
             "--out",
-            "r.html",
+            out,
             "--dcc",
-            "missing/c.xml",
+            dcc,
         ],
-    );
-    let line = refused(&out);
+    )
+}
+
+#[test]
+fn a_command_writes_all_its_outputs_or_none() {
+    let dir = scratch("all-or-none");
+    std::fs::write(dir.join("r.html"), "old report").expect("write");
+    // the DCC cannot be written (its directory does not exist): the report is not
+    // replaced either, and no temporary file is left
+    let line = refused(&report_with_dcc(&dir, "r.html", "missing/c.xml"));
     assert!(
         line.starts_with("error: --dcc missing/c.xml: cannot be written"),
         "{line}"
@@ -314,21 +318,7 @@ fn a_command_writes_all_its_outputs_or_none() {
     );
     assert!(!dir.join("run.csv").exists());
     // and both written when both can be
-    let out = polycal_in(
-        &dir,
-        &[
-            "report",
-            "m.csv",
-            "--budget",
-            "b.toml",
-            "--meta",
-            "meta.toml",
-            "--out",
-            "r.html",
-            "--dcc",
-            "c.xml",
-        ],
-    );
+    let out = report_with_dcc(&dir, "r.html", "c.xml");
     assert_eq!(
         out.status.code(),
         Some(0),
