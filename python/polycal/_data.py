@@ -147,9 +147,26 @@ def _one_dimensional(name: str, values: Any) -> _np.ndarray:
     return array
 
 
+_INT64_MAX = 2**63 - 1
+
+
+def _beyond_int64(name: str, array: Any, too_large: Any) -> None:
+    """Refuses the first value the library's integers cannot hold (a uint64 above 2⁶³ − 1
+    once wrapped to a negative number and was called negative)."""
+    if too_large.any():
+        index = int(_np.argmax(too_large))
+        raise ValueError(
+            f"column {name}, index {index}: {array[index].item()!r} is too large "
+            f"(at most {_INT64_MAX})"
+        )
+
+
 def _integer_column(name: str, values: Any) -> list:
     array = _one_dimensional(name, values)
-    if array.dtype.kind in "iu":
+    if array.dtype.kind == "u":
+        _beyond_int64(name, array, array > _np.uint64(_INT64_MAX))
+        return array.astype(_np.int64).tolist()
+    if array.dtype.kind == "i":
         return array.astype(_np.int64).tolist()
     if array.dtype.kind == "f":
         bad = ~_np.isfinite(array) | (array != _np.round(array))
@@ -158,6 +175,8 @@ def _integer_column(name: str, values: Any) -> list:
             raise ValueError(
                 f"column {name}, index {index}: {array[index].item()!r} is not a whole number"
             )
+        # 2⁶³ is the first float beyond int64
+        _beyond_int64(name, array, _np.abs(array) >= 2.0**63)
         return array.astype(_np.int64).tolist()
     if array.dtype.kind == "b":
         raise ValueError(f"column {name}: booleans are not numbers of {name}")

@@ -236,6 +236,18 @@ def test_bad_shapes_dtypes_and_nan_are_refused_by_column_and_index():
         polycal.MeasurementSet.from_arrays(**{**c, "ac": -c["ac"]})
     with pytest.raises(ValueError, match=r"column cycle has 299 values, reading has 300"):
         polycal.MeasurementSet.from_arrays(**{**c, "cycle": c["cycle"][1:]})
+    # the largest uint64 was wrapped to -1 and called negative
+    ac = c["ac"].astype(np.uint64)
+    ac[4] = np.iinfo(np.uint64).max
+    with pytest.raises(
+        ValueError,
+        match=r"column ac, index 4: 18446744073709551615 is too large \(at most 9223372036854775807\)",
+    ):
+        polycal.MeasurementSet.from_arrays(**{**c, "ac": ac})
+    face = c["face"].astype(float)
+    face[2] = 1e20
+    with pytest.raises(ValueError, match=r"column face, index 2: 1e\+20 is too large"):
+        polycal.MeasurementSet.from_arrays(**{**c, "face": face})
 
 
 def test_covariance_is_formed_on_request_and_its_diagonal_is_u_squared():
