@@ -88,13 +88,42 @@ pub fn is_stdin(path: &Path) -> bool {
     path == Path::new(STDIN_PATH)
 }
 
-/// The name of a path in messages: the path as displayed, or [`STDIN_NAME`] for `-`.
+/// The name of a path in messages, tables and reports: the path as displayed (bytes
+/// that are not UTF-8 as U+FFFD), its control characters shown escaped (`\u{1b}`,
+/// `\n`: a file name cannot recolour a terminal or forge a line; docs/FORMAT.md §8), or
+/// [`STDIN_NAME`] for `-`.
+///
+/// ```
+/// use polycal::input::display_name;
+/// use std::path::Path;
+/// assert_eq!(display_name(Path::new("run 1.csv")), "run 1.csv");
+/// assert_eq!(display_name(Path::new("a\u{1b}[31mb.csv")), "a\\u{1b}[31mb.csv");
+/// assert_eq!(display_name(Path::new("-")), "<stdin>");
+/// ```
 pub fn display_name(path: &Path) -> String {
     if is_stdin(path) {
-        STDIN_NAME.to_string()
-    } else {
-        path.display().to_string()
+        return STDIN_NAME.to_string();
     }
+    shown_path(path)
+}
+
+/// A path as given, for the `file` of results, tables and reports (`-` stays `-`): as
+/// displayed, its control characters shown escaped as [`display_name`] shows them.
+pub fn shown_path(path: &Path) -> String {
+    let shown = path.display().to_string();
+    if !shown.contains(char::is_control) {
+        return shown;
+    }
+    shown
+        .chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 /// Opens a path for reading, or standard input for `-`; returns the reader and the name

@@ -1083,3 +1083,38 @@ mod not_utf8_arguments {
         }
     }
 }
+
+#[test]
+fn a_long_monte_carlo_shows_its_progress_and_ends_within_a_second_of_ctrl_c() {
+    // 10⁹ trials take hours: on a pseudo-terminal (util-linux `script`) the bar shows the
+    // trials and the time left after a second; Ctrl-C (SIGINT from `timeout` after 3 s)
+    // ends the process within a second of it.
+    let started = std::time::Instant::now();
+    let out = Command::new("script")
+        .args([
+            "-qec",
+            &format!(
+                "timeout -s INT 3 {} solve {EXAMPLE} --budget {BUDGET} --monte-carlo 1e9",
+                env!("CARGO_BIN_EXE_polycal")
+            ),
+            "/dev/null",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdin(Stdio::null())
+        .output()
+        .expect("script (util-linux) runs");
+    let elapsed = started.elapsed();
+    let shown = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        shown.contains("Monte Carlo [") && shown.contains("/1000000000 trials · "),
+        "no progress bar:\n{shown}"
+    );
+    assert!(
+        shown.contains(" left"),
+        "no estimate of the time left:\n{shown}"
+    );
+    assert!(
+        elapsed < std::time::Duration::from_secs(4),
+        "ended {elapsed:?} after its start, 3 s of it before Ctrl-C"
+    );
+}

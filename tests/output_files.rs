@@ -372,7 +372,28 @@ fn file_names_cannot_run_as_formulas_nor_recolour_the_terminal() {
             "m.csv"
         ]
     );
-    // an escape sequence and a line feed in a file name are shown escaped
+    // an escape sequence and a line feed in a file name are shown escaped: in the
+    // tables, the CSV's file column and the JSON's file as in the messages
+    let odd = "a\u{1b}[31mred\nb.csv";
+    std::fs::copy(dir.join("m.csv"), dir.join(odd)).expect("copy");
+    for format in ["table", "csv", "json"] {
+        let out = polycal_in(&dir, &["solve", "--format", format, "m.csv", odd]);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8(out.stdout).expect("UTF-8");
+        assert!(!text.contains('\u{1b}'), "{format}: {text}");
+        // (in JSON the backslashes are escaped in turn)
+        let shown = if format == "json" {
+            "a\\\\u{1b}[31mred\\\\nb.csv"
+        } else {
+            "a\\u{1b}[31mred\\nb.csv"
+        };
+        assert!(text.contains(shown), "{format}: {text}");
+    }
     let line = refused(&polycal_in(
         &dir,
         &["solve", "a\u{1b}[31mred\nerror: forged.csv"],

@@ -88,6 +88,8 @@ class MeasurementSet:
         columns take any integer dtype (or floats that are whole numbers), value columns any
         real dtype; NaN in an optional column means no value there. A bad shape, a bad
         dtype or a NaN reading is refused naming the column and the index."""
+        # refused up front when the set would not fit (MemoryError), before any copy
+        _polycal.check_columns_fit(len(reading))
         integers = {
             "cycle": cycle,
             "step": step,
@@ -235,6 +237,7 @@ class SelfcalSet:
         name: str = "<arrays>",
     ) -> "SelfcalSet":
         """A set from columns named as the file's, checked as a file is."""
+        _polycal.check_columns_fit(len(reading))
         arguments: Dict[str, Any] = {
             key: _integer_column(key, values)
             for key, values in (("cycle", cycle), ("step", step), ("head", head))

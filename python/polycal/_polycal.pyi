@@ -45,6 +45,7 @@ def read_measurements(
     name: str = "<text>",
     faces: Optional[int] = None,
 ) -> MeasurementSet: ...
+def check_columns_fit(rows: int) -> None: ...
 def measurement_set_from_columns(
     cycle: Sequence[int],
     step: Sequence[int],

@@ -146,6 +146,7 @@ fn _polycal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySelfcalSet>()?;
     m.add_function(wrap_pyfunction!(sets::read_measurements, m)?)?;
     m.add_function(wrap_pyfunction!(sets::measurement_set_from_columns, m)?)?;
+    m.add_function(wrap_pyfunction!(sets::check_columns_fit, m)?)?;
     m.add_function(wrap_pyfunction!(sets::read_budget, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::read_results, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::solve, m)?)?;

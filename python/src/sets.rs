@@ -7,7 +7,7 @@ use polycal::measurement::{MeasurementSet, Reading};
 use polycal::selfcal::SelfcalSet;
 use polycal::uncertainty::BudgetError;
 use polycal::uncertainty::calibration::InstrumentBudget;
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -97,6 +97,32 @@ pub(crate) fn read_measurements(
     )?;
     read.map(|inner| PyMeasurementSet { inner })
         .map_err(|e| measurement_error(py, e))
+}
+
+/// What building a set of one row from columns takes, bytes: the package's Python lists
+/// of the columns (about 225), the binding's copies of them (about 80) and the reading
+/// itself (about 100), with room to spare.
+const BYTES_PER_ROW_FROM_COLUMNS: u128 = 448;
+
+/// Refuses, with `MemoryError` and before any column is converted, a set of `rows` rows
+/// that would not fit in the memory this process may take (the library's
+/// `solve::memory::room`: available memory, `ulimit -v`, the control group's limit).
+#[pyfunction]
+pub(crate) fn check_columns_fit(rows: usize) -> PyResult<()> {
+    use polycal::solve::memory::{human_bytes, room};
+    let needed = rows as u128 * BYTES_PER_ROW_FROM_COLUMNS;
+    // small sets are not worth reading the limits for
+    if needed < 64 << 20 {
+        return Ok(());
+    }
+    match room() {
+        Some((left, text)) if needed > u128::from(left) => Err(PyMemoryError::new_err(format!(
+            "{rows} rows need about {} of memory to become a set; {} {text}",
+            human_bytes(needed),
+            human_bytes(u128::from(left))
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// Builds a measurement set from columns; every reading is checked as the file reader

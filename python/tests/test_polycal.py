@@ -250,6 +250,21 @@ def test_bad_shapes_dtypes_and_nan_are_refused_by_column_and_index():
         polycal.MeasurementSet.from_arrays(**{**c, "face": face})
 
 
+def test_a_set_too_big_for_the_memory_is_refused_before_any_copy():
+    # 10¹² rows of zero-stride columns take no memory themselves; as a set they would
+    # take about 400 TB: MemoryError at once (they were converted row by row first,
+    # about 225 bytes a row, until the interpreter aborted)
+    n = 10**12
+    ints = np.broadcast_to(np.int64(1), (n,))
+    reals = np.broadcast_to(np.float64(0.5), (n,))
+    with pytest.raises(MemoryError, match=r"1000000000000 rows need about .* of memory to become a set; "):
+        polycal.MeasurementSet.from_arrays(cycle=ints, step=ints, ac=ints, face=ints, reading=reals)
+    with pytest.raises(MemoryError, match=r"1000000000000 rows need about "):
+        polycal.SelfcalSet.from_arrays(
+            cycle=ints, step=ints, head=ints, head_angle=reals, reading=reals
+        )
+
+
 def test_covariance_is_formed_on_request_and_its_diagonal_is_u_squared():
     r = polycal.solve(polycal.read_measurements(DATA), budget=polycal.budget(BUDGET))
     for family in ("pitch_deviation", "face_deviation", "encoder_error"):

@@ -128,7 +128,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
     for path in &args.files {
         // The name in messages (`<stdin>` for `-`); reports keep the path as given.
         let name = display_name(path);
-        let label = path.display().to_string();
+        let label = polycal::input::shown_path(path);
         let bytes = match polycal::input::read_bytes(path) {
             Ok((bytes, _)) => bytes,
             Err((file, source)) => {

@@ -185,11 +185,11 @@ pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
             .map_err(actionable)
             .with_context(|| format!("{name}: cannot plan its design"))?;
         let mut planned = planned;
-        planned.name = path.display().to_string();
+        planned.name = polycal::input::shown_path(path);
         reports.push(PlanReport::new(
             &planned,
             None,
-            Some(path.display().to_string()),
+            Some(polycal::input::shown_path(path)),
         ));
     } else {
         let base = args.base_design()?;

@@ -169,7 +169,7 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
             write_table(
                 &mut text,
                 &solution,
-                &args.file.display().to_string(),
+                &polycal::input::shown_path(&args.file),
                 uncertainty.as_ref(),
             )?;
             if let (Some(gum), Some(mc)) = (&uncertainty, &mc) {

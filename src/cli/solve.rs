@@ -134,7 +134,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
     for path in files {
         // The name in messages (`<stdin>` for `-`); results keep the path as given.
         let name = display_name(path);
-        let label = path.display().to_string();
+        let label = polycal::input::shown_path(path);
         let solved = MeasurementSet::read_path(path, args.faces)
             .map_err(anyhow::Error::from)
             .and_then(|set| corrected(set, &args.cross_talk))
