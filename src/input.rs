@@ -110,20 +110,33 @@ pub fn display_name(path: &Path) -> String {
 /// A path as given, for the `file` of results, tables and reports (`-` stays `-`): as
 /// displayed, its control characters shown escaped as [`display_name`] shows them.
 pub fn shown_path(path: &Path) -> String {
-    let shown = path.display().to_string();
-    if !shown.contains(char::is_control) {
-        return shown;
+    escaped(&path.display().to_string()).into_owned()
+}
+
+/// A text with its control characters shown escaped (`\n`, `\u{1b}`, …): a file name
+/// with an escape sequence or a line feed cannot recolour a terminal or forge a line of
+/// its own (docs/FORMAT.md §8). The one place names and messages are escaped.
+///
+/// ```
+/// use polycal::input::escaped;
+/// assert_eq!(escaped("plain ünïcode"), "plain ünïcode");
+/// assert_eq!(escaped("a\u{1b}[31m\n"), "a\\u{1b}[31m\\n");
+/// ```
+pub fn escaped(text: &str) -> std::borrow::Cow<'_, str> {
+    if !text.contains(char::is_control) {
+        return std::borrow::Cow::Borrowed(text);
     }
-    shown
-        .chars()
-        .map(|c| {
-            if c.is_control() {
-                c.escape_default().to_string()
-            } else {
-                c.to_string()
-            }
-        })
-        .collect()
+    std::borrow::Cow::Owned(
+        text.chars()
+            .map(|c| {
+                if c.is_control() {
+                    c.escape_default().to_string()
+                } else {
+                    c.to_string()
+                }
+            })
+            .collect(),
+    )
 }
 
 /// Opens a path for reading, or standard input for `-`; returns the reader and the name

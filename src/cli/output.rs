@@ -65,14 +65,14 @@ impl Output {
     pub fn info(&self, message: impl Display) {
         if !self.quiet {
             let message = message.to_string();
-            let message = escaped(&message);
+            let message = polycal::input::escaped(&message);
             let _ = writeln!(std::io::stderr().lock(), "{message}");
         }
     }
 
     fn prefixed(&self, style: Style, label: &str, message: impl Display) {
         let message = message.to_string();
-        let message = escaped(&message);
+        let message = polycal::input::escaped(&message);
         let mut err = std::io::stderr().lock();
         let _ = if self.color {
             writeln!(
@@ -188,27 +188,6 @@ fn color_on(when: ColorWhen, terminal: bool, no_color: bool) -> bool {
 
 /// The error and its causes on one line, `: ` between them; a cause whose text the
 /// message before it already contains (an OS error a file error quotes) is left out.
-/// A message with its control characters shown escaped (`\n`, `\u{1b}`, …): a file
-/// name with an escape sequence or a line feed cannot recolour the terminal or forge a
-/// line of its own (docs/FORMAT.md §8).
-pub fn escaped(message: &str) -> std::borrow::Cow<'_, str> {
-    if !message.contains(char::is_control) {
-        return std::borrow::Cow::Borrowed(message);
-    }
-    std::borrow::Cow::Owned(
-        message
-            .chars()
-            .map(|c| {
-                if c.is_control() {
-                    c.escape_default().to_string()
-                } else {
-                    c.to_string()
-                }
-            })
-            .collect(),
-    )
-}
-
 pub fn one_line(error: &anyhow::Error) -> String {
     let mut parts: Vec<String> = Vec::new();
     let mut previous: Option<String> = None;
@@ -227,9 +206,10 @@ pub fn one_line(error: &anyhow::Error) -> String {
 mod tests {
     #[test]
     fn control_characters_are_shown_escaped() {
-        assert_eq!(super::escaped("plain ünïcode"), "plain ünïcode");
+        use polycal::input::escaped;
+        assert_eq!(escaped("plain ünïcode"), "plain ünïcode");
         assert_eq!(
-            super::escaped("a\u{1b}[31mred\nerror: forged\r"),
+            escaped("a\u{1b}[31mred\nerror: forged\r"),
             "a\\u{1b}[31mred\\nerror: forged\\r"
         );
     }
