@@ -165,6 +165,41 @@ fn the_structured_geometry_equals_the_dense_one_on_random_designs() {
         for (x, y) in a.iter().zip(b.iter()) {
             assert!(close(*x, *y, scale), "design {seed}: Gram {x} against {y}");
         }
+        // (I − H)z: the same in both forms, a projection (applied twice, the same), its
+        // inner products those of the projected Gram matrix, and nothing left of a column
+        // the model spans (the fit's own drift term)
+        let z: Vec<f64> = (0..n).map(|_| random.unit() - 0.5).collect();
+        let (e, e_reference) = (fast.residual_of(&z), reference.residual_of(&z));
+        let length: f64 = z.iter().map(|v| v * v).sum::<f64>();
+        for (a, b) in e.iter().zip(&e_reference) {
+            assert!(
+                close(*a, *b, length.sqrt()),
+                "design {seed}: (I − H)z {a} against {b}"
+            );
+        }
+        for (a, b) in fast.residual_of(&e).iter().zip(&e) {
+            assert!(
+                close(*a, *b, length.sqrt()),
+                "design {seed}: (I − H)²z {a} against {b}"
+            );
+        }
+        let cross: f64 = block[0]
+            .iter()
+            .zip(fast.residual_of(&block[1]))
+            .map(|(x, y)| x * y)
+            .sum();
+        assert!(
+            close(cross, b[(0, 1)], scale),
+            "design {seed}: x̃ᵀỹ {cross} against the Gram matrix's {}",
+            b[(0, 1)]
+        );
+        let drift_norm = terms[0].iter().map(|v| v * v).sum::<f64>().sqrt();
+        for v in fast.residual_of(&terms[0]) {
+            assert!(
+                close(v, 0.0, drift_norm),
+                "design {seed}: a spanned column leaves {v}"
+            );
+        }
     }
     println!("{checked} designs, {structured} with the structured geometry");
     assert!(structured >= 100, "only {structured} structured");

@@ -98,6 +98,22 @@ impl StopNuisance {
         h
     }
 
+    /// P_D·x: every value's stop mean less its step mean.
+    pub fn hat_times(&self, x: &[f64]) -> Vec<f64> {
+        let mut stop = vec![0.0; self.stop_size.len()];
+        let mut step = vec![0.0; self.step_size.len()];
+        for (i, v) in x.iter().enumerate() {
+            stop[self.stop_of[i]] += v;
+            step[self.step_of[i]] += v;
+        }
+        (0..x.len())
+            .map(|i| {
+                let (s, p) = (self.stop_of[i], self.step_of[i]);
+                stop[s] / self.stop_size[s] - step[p] / self.step_size[p]
+            })
+            .collect()
+    }
+
     /// xᵀ P_D y = Σ_stops (Σx)(Σy)/size − Σ_steps (Σx)(Σy)/size.
     pub fn quadratic(&self, x: &[f64], y: &[f64]) -> f64 {
         let mut stop = vec![(0.0, 0.0); self.stop_size.len()];
@@ -145,5 +161,31 @@ impl SuffixQuadratic<'_> {
         self.stop[s] += 1.0;
         self.step[p] += 1.0;
         self.value
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hat_times_is_the_hat_matrix_applied() {
+        let nuisance = StopNuisance {
+            stop_of: vec![0, 0, 1, 1, 1, 2],
+            step_of: vec![0, 0, 1, 1, 1, 0],
+            stop_size: vec![2.0, 3.0, 1.0],
+            step_size: vec![3.0, 3.0],
+        };
+        let x = [1.0, -2.0, 0.5, 4.0, 3.0, 7.0];
+        let applied = nuisance.hat_times(&x);
+        for (i, a) in applied.iter().enumerate() {
+            let by_entries: f64 = (0..x.len()).map(|j| nuisance.hat(i, j) * x[j]).sum();
+            assert!(
+                (a - by_entries).abs() < 1e-12,
+                "{i}: {a} against {by_entries}"
+            );
+        }
+        // by hand, reading 0: stop mean (1 − 2)/2 less step mean (1 − 2 + 7)/3
+        assert!((applied[0] - (-0.5 - 2.0)).abs() < 1e-12);
     }
 }

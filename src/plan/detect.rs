@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::power::{critical_f, noncentrality_for_power};
-use super::selection::Round;
+use super::selection::{Column, Round};
 use super::{DETECTION_POWER, PlanError};
 use crate::diagnose::DiagnoseOptions;
 use crate::diagnose::base::Base;
@@ -301,7 +301,7 @@ pub fn detectable(
             groups.len() - 1
         }
     };
-    let mut offered: Vec<(Family, usize, Vec<Vec<f64>>)> = Vec::new();
+    let mut offered: Vec<(Family, usize, Vec<Column>)> = Vec::new();
     // (index into offered, block) of the systematic candidates
     let mut systematic_index = Vec::new();
     for (block, columns, testable, _) in &blocks {
@@ -310,7 +310,7 @@ pub fn detectable(
             offered.push((
                 Family::Systematic,
                 group_of(group_key(block)),
-                columns.clone(),
+                columns.iter().cloned().map(Column::Values).collect(),
             ));
         } else {
             systematic_index.push(usize::MAX);
@@ -318,7 +318,7 @@ pub fn detectable(
     }
     // the stops sized per stream, and the offered index of each
     let mut sized: Vec<Vec<(usize, usize)>> = Vec::new();
-    for stream in &streams {
+    for (stream_index, stream) in streams.iter().enumerate() {
         let group = group_of(format!("jump {} {:?}", stream.ac, stream.setup));
         let ks: Vec<usize> = stream.stops.iter().map(|s| s.0).collect();
         let mut picks = spread(&ks, JUMP_COLUMNS_PER_STREAM);
@@ -333,13 +333,28 @@ pub fn detectable(
             if chosen.contains(&k) {
                 here.push((k, offered.len()));
             }
-            offered.push((Family::OffsetStep, group, vec![stream.column(k, n)]));
+            offered.push((
+                Family::OffsetStep,
+                group,
+                vec![Column::Suffix {
+                    stream: stream_index,
+                    from: k,
+                }],
+            ));
         }
         sized.push(here);
     }
+    let orders: Vec<Vec<usize>> = streams.iter().map(|s| s.order.clone()).collect();
+    let round_columns: usize = offered.iter().map(|o| o.2.len()).sum();
+    super::check_memory(
+        Round::bytes_needed(round_columns, n),
+        "the simulated rounds of a diagnosis of the design",
+        memory_limit_bytes,
+    )?;
     let round = Round::new(
         &geometry,
         dof,
+        orders.clone(),
         offered,
         [systematic_family, jump_family, n],
         alpha,
@@ -374,12 +389,14 @@ pub fn detectable(
         .filter_map(|(b, &index)| looked(&b.0[0]).map(|l| (index, l)))
         .collect();
     if let Some(lambda) = lambda_alone(systematic_family) {
+        let indices: Vec<usize> = singles.iter().map(|(index, _)| *index).collect();
+        let correlations = round.correlations(&indices);
         for (i, (a, la)) in singles.iter().enumerate() {
-            for (b, lb) in &singles[i + 1..] {
+            for (j, (b, lb)) in singles.iter().enumerate().skip(i + 1) {
                 if la.kind != lb.kind {
                     continue;
                 }
-                let Some(rho) = round.correlation(*a, *b) else {
+                let Some(rho) = correlations[i][j] else {
                     continue;
                 };
                 if lambda * (1.0 - (rho * rho).min(1.0)) < chi_critical {
@@ -568,19 +585,31 @@ pub fn detectable(
                 }
             }
             if *testable {
-                offered2.push((Family::Systematic, group, columns.clone()));
+                offered2.push((
+                    Family::Systematic,
+                    group,
+                    columns.iter().cloned().map(Column::Values).collect(),
+                ));
             }
         }
-        for stream in &streams {
+        for (stream_index, stream) in streams.iter().enumerate() {
             let group = groups2.len() + 1;
             let ks: Vec<usize> = stream.stops.iter().map(|s| s.0).collect();
             for k in spread(&ks, JUMP_COLUMNS_PER_STREAM) {
-                offered2.push((Family::OffsetStep, group, vec![stream.column(k, n)]));
+                offered2.push((
+                    Family::OffsetStep,
+                    group,
+                    vec![Column::Suffix {
+                        stream: stream_index,
+                        from: k,
+                    }],
+                ));
             }
         }
         let round2 = Round::new(
             &g,
             with_drift.dof,
+            orders.clone(),
             offered2,
             [family2, jump_family, n],
             alpha,

@@ -163,6 +163,11 @@ impl FitGeometry {
         }
     }
 
+    /// The number of readings the geometry's fit has.
+    pub fn readings(&self) -> usize {
+        self.rows.len()
+    }
+
     /// Whether the geometry is the structured form.
     pub fn is_structured(&self) -> bool {
         matches!(self.form, Form::Structured(_))
@@ -259,6 +264,22 @@ impl FitGeometry {
     /// fitted values of readings i and j in units of σ² (the leverage when i = j).
     pub fn hat(&self, i: usize, j: usize) -> f64 {
         self.engine_hat(i, j) + self.nuisance.as_ref().map_or(0.0, |n| n.hat(i, j))
+    }
+
+    /// (I − H)·z: the part of a vector of readings `z` (one value per reading) the model
+    /// does not span — the residuals a fit of `z` would leave, in O(n) plus one product
+    /// with the cofactor. With z standard normal, (I − H)·z are the residuals of a run of
+    /// pure noise of unit σ (H is a projection).
+    pub fn residual_of(&self, z: &[f64]) -> Vec<f64> {
+        let qg = self.product(&self.summed_rows(z));
+        let nuisance = self.nuisance.as_ref().map(|n| n.hat_times(z));
+        z.iter()
+            .enumerate()
+            .map(|(i, &zi)| {
+                let fitted: f64 = self.rows[i].iter().map(|&(a, v)| v * qg[a]).sum();
+                zi - fitted - nuisance.as_ref().map_or(0.0, |h| h[i])
+            })
+            .collect()
     }
 
     /// The leverage h_ii of every reading.
