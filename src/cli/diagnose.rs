@@ -3,6 +3,7 @@
 
 use std::io::Write;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use clap::ValueEnum;
@@ -189,7 +190,9 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                 {
                     return Err(refusal);
                 }
-                diagnose::diagnose(&set, &options)
+                // the forward selection's rounds, a spinner: how many it takes is the data's
+                let progress = Arc::new(out.progress_bar_of("Diagnosing", "rounds"));
+                diagnose::diagnose(&set, &options.clone().with_progress(progress))
                     .with_context(|| format!("{name}: cannot solve"))
                     .map(|diagnosis| (set, diagnosis))
             });
@@ -415,10 +418,14 @@ fn selfcal_file(
         Some(AnyTruth::Selfcal(t)) => Some(t),
         None => None,
     };
-    let options = DiagnoseOptions::new().with_sigma_opt(args.sigma);
+    let options = DiagnoseOptions::new()
+        .with_sigma_opt(args.sigma)
+        .with_progress(Arc::new(out.progress_bar_of("Diagnosing", "rounds")));
     let selfcal_options = SelfcalOptions::new().with_sigma_opt(args.sigma);
     let diagnosis = polycal::diagnose::selfcal::diagnose_selfcal(&set, &options, &selfcal_options)
         .with_context(|| format!("{name}: cannot solve"))?;
+    // the bar is cleared before anything else is written
+    drop(options);
     let uncertainty = budget
         .map(|budget| {
             polycal::selfcal::evaluate_budget(&diagnosis.after, budget).map_err(|e| match e {

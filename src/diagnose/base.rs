@@ -21,6 +21,8 @@
 //! nuisance.
 
 use std::borrow::Cow;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::geometry::FitGeometry;
 use super::lack_of_fit::{self, LackOfFit};
@@ -29,6 +31,41 @@ use crate::measurement::{MeasurementSet, Sigma};
 use crate::solve::least_squares::least_squares_zeroing_lost_with;
 use crate::solve::sub_pitch::{self, ShiftGeometry, SubPitchSolution};
 use crate::solve::{Solution, SolveError, SolveOptions, least_squares_with_regressors};
+use crate::uncertainty::monte_carlo::Progress;
+
+/// The progress of a diagnosis as its observer is told it ([`super::DiagnoseOptions::progress`]):
+/// the rounds of the forward selection done, with no total (the search ends when nothing
+/// significant remains), told again after every fit and geometry so that a spinner moves
+/// while a round, the doubt and the identifiability checks run.
+#[derive(Clone, Default)]
+pub(crate) struct Ticker {
+    observer: Option<Arc<dyn Progress + Send>>,
+    rounds: Arc<AtomicU64>,
+}
+
+impl std::fmt::Debug for Ticker {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Ticker")
+            .field("observer", &self.observer.as_ref().map(|_| "observer"))
+            .field("rounds", &self.rounds.load(Ordering::Relaxed))
+            .finish()
+    }
+}
+
+impl Ticker {
+    /// Tells the observer, if any, the rounds done so far.
+    pub(crate) fn tick(&self) {
+        if let Some(observer) = &self.observer {
+            observer.update(self.rounds.load(Ordering::Relaxed), None);
+        }
+    }
+
+    /// One more round of the forward selection done.
+    pub(crate) fn round_done(&self) {
+        self.rounds.fetch_add(1, Ordering::Relaxed);
+        self.tick();
+    }
+}
 
 /// The base model of a diagnosis (module documentation).
 #[derive(Debug, Clone)]
@@ -44,6 +81,8 @@ pub struct Base<'a> {
     nuisance: Option<StopNuisance>,
     /// Whether the geometry is the dense reference's whatever the fit's cofactor.
     dense_geometry: bool,
+    /// Told after every fit and geometry.
+    ticker: Ticker,
 }
 
 impl<'a> Base<'a> {
@@ -56,6 +95,7 @@ impl<'a> Base<'a> {
                 shifts: None,
                 nuisance: None,
                 dense_geometry: false,
+                ticker: Ticker::default(),
             };
         }
         let geometry = ShiftGeometry::of(set);
@@ -66,6 +106,7 @@ impl<'a> Base<'a> {
             shifts: Some(geometry),
             nuisance: None,
             dense_geometry: false,
+            ticker: Ticker::default(),
         }
     }
 
@@ -85,6 +126,7 @@ impl<'a> Base<'a> {
             shifts: None,
             nuisance: Some(nuisance),
             dense_geometry: false,
+            ticker: Ticker::default(),
         }
     }
 
@@ -93,6 +135,21 @@ impl<'a> Base<'a> {
     pub fn with_dense_geometry(mut self, dense: bool) -> Self {
         self.dense_geometry = dense;
         self
+    }
+
+    /// This base model with a progress observer, told the forward selection's rounds done
+    /// after every fit and geometry ([`super::DiagnoseOptions::progress`]).
+    pub fn with_progress(mut self, observer: Option<Arc<dyn Progress + Send>>) -> Self {
+        self.ticker = Ticker {
+            observer,
+            rounds: Arc::default(),
+        };
+        self
+    }
+
+    /// The progress of the diagnosis fitted with this base model.
+    pub(crate) fn ticker(&self) -> &Ticker {
+        &self.ticker
     }
 
     /// Whether this is a self-calibration's closure model.
@@ -211,7 +268,9 @@ impl<'a> Base<'a> {
     ///
     /// The solver's, as [`least_squares_with_regressors`].
     pub fn fit(&self, terms: &[Vec<f64>], sigma: Option<Sigma>) -> Result<Solution, SolveError> {
-        self.fit_columns(&self.with(terms), sigma)
+        let fit = self.fit_columns(&self.with(terms), sigma);
+        self.ticker.tick();
+        fit
     }
 
     /// The fit of the base model to `values` in place of the readings (one per reading).
@@ -234,14 +293,19 @@ impl<'a> Base<'a> {
             shifts: None,
             nuisance: self.nuisance.clone(),
             dense_geometry: self.dense_geometry,
+            ticker: Ticker::default(),
         };
-        base.fit_columns(&self.columns, None)
+        let fit = base.fit_columns(&self.columns, None);
+        self.ticker.tick();
+        fit
     }
 
     /// The hat-matrix geometry of `fit`, a fit with the columns `terms`.
     pub fn geometry(&self, fit: &Solution, terms: &[Vec<f64>]) -> FitGeometry {
-        FitGeometry::new(fit, &self.positions, &self.with(terms))
-            .with_nuisance(self.nuisance.clone())
+        let geometry = FitGeometry::new(fit, &self.positions, &self.with(terms))
+            .with_nuisance(self.nuisance.clone());
+        self.ticker.tick();
+        geometry
     }
 
     /// The values of the diagnosis's terms in `fit`.

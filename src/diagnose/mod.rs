@@ -29,10 +29,13 @@ pub mod residuals;
 mod search;
 pub mod selfcal;
 
+use std::sync::Arc;
+
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::solve::sub_pitch::SubPitchSolution;
 use crate::solve::{Solution, SolveError};
+use crate::uncertainty::monte_carlo::Progress;
 use base::Base;
 use candidates::Term;
 pub use clock::Clock;
@@ -42,7 +45,7 @@ use lack_of_fit::LackOfFit;
 use residuals::{Adequacy, AdequacyInputs, Check};
 
 /// Options of [`diagnose`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Clone)]
 #[non_exhaustive]
 pub struct DiagnoseOptions {
     /// False-alarm probability of each family of effects per round (Bonferroni over the
@@ -71,6 +74,46 @@ pub struct DiagnoseOptions {
     /// whatever the fits' cofactors: the reference the structured geometry is tested
     /// against (memory O((2N + K + E)²)).
     pub dense_geometry: bool,
+    /// Told, from the diagnosing thread, how many rounds of the forward selection are done,
+    /// with no total (`None`: the search ends when nothing significant remains), and told
+    /// again after every fit, so that a command can show the work going on (default none;
+    /// the library draws nothing).
+    pub progress: Option<Arc<dyn Progress + Send>>,
+}
+
+impl std::fmt::Debug for DiagnoseOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DiagnoseOptions")
+            .field("family_alpha", &self.family_alpha)
+            .field("adequacy_alpha", &self.adequacy_alpha)
+            .field("lack_of_fit_alpha", &self.lack_of_fit_alpha)
+            .field("stability_alpha", &self.stability_alpha)
+            .field("max_effects", &self.max_effects)
+            .field("sigma", &self.sigma)
+            .field("stated_cross_talk", &self.stated_cross_talk)
+            .field("dense_geometry", &self.dense_geometry)
+            .field("progress", &self.progress.as_ref().map(|_| "observer"))
+            .finish()
+    }
+}
+
+impl PartialEq for DiagnoseOptions {
+    /// Equal settings, and the same progress observer (or none on both).
+    fn eq(&self, other: &Self) -> bool {
+        self.family_alpha == other.family_alpha
+            && self.adequacy_alpha == other.adequacy_alpha
+            && self.lack_of_fit_alpha == other.lack_of_fit_alpha
+            && self.stability_alpha == other.stability_alpha
+            && self.max_effects == other.max_effects
+            && self.sigma == other.sigma
+            && self.stated_cross_talk == other.stated_cross_talk
+            && self.dense_geometry == other.dense_geometry
+            && match (&self.progress, &other.progress) {
+                (None, None) => true,
+                (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+                _ => false,
+            }
+    }
 }
 
 impl DiagnoseOptions {
@@ -127,6 +170,40 @@ impl DiagnoseOptions {
         self
     }
 
+    /// With a progress observer of the forward selection's rounds
+    /// ([`DiagnoseOptions::progress`]).
+    ///
+    /// ```
+    /// use std::sync::Arc;
+    /// use std::sync::atomic::{AtomicU64, Ordering};
+    /// use polycal::diagnose::{diagnose, DiagnoseOptions};
+    /// use polycal::effects::Effect;
+    /// use polycal::simulate::{simulate, SimulationConfig};
+    ///
+    /// let config = SimulationConfig {
+    ///     effects: vec![Effect::Drift { ac: 2, value: 2.0, quadratic: None }],
+    ///     ..SimulationConfig::default()
+    /// };
+    /// let (set, _truth) = simulate(&config)?;
+    /// let rounds = Arc::new(AtomicU64::new(0));
+    /// let seen = Arc::clone(&rounds);
+    /// let options = DiagnoseOptions::new().with_progress(Arc::new(
+    ///     move |done: u64, total: Option<u64>| {
+    ///         assert_eq!(total, None);
+    ///         seen.store(done, Ordering::Relaxed);
+    ///     },
+    /// ));
+    /// let diagnosis = diagnose(&set, &options)?;
+    /// // a round that found the drift, and one that found nothing more
+    /// assert_eq!(diagnosis.effects.len(), 1);
+    /// assert_eq!(rounds.load(Ordering::Relaxed), 2);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn with_progress(mut self, progress: Arc<dyn Progress + Send>) -> Self {
+        self.progress = Some(progress);
+        self
+    }
+
     /// With another largest number of effects.
     pub fn with_max_effects(mut self, max_effects: usize) -> Self {
         self.max_effects = max_effects;
@@ -149,6 +226,7 @@ impl Default for DiagnoseOptions {
             sigma: None,
             stated_cross_talk: Vec::new(),
             dense_geometry: false,
+            progress: None,
         }
     }
 }
@@ -370,7 +448,9 @@ fn rounding_rss(set: &MeasurementSet) -> f64 {
 pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagnosis, SolveError> {
     let (work, clock) = clock::clocked(set);
     let set: &MeasurementSet = &work;
-    let base = Base::of(set).with_dense_geometry(options.dense_geometry);
+    let base = Base::of(set)
+        .with_dense_geometry(options.dense_geometry)
+        .with_progress(options.progress.clone());
     diagnose_base(set, &base, clock, options)
 }
 

@@ -118,6 +118,7 @@ pub(super) fn run(
         let studentized = residuals::studentized(&current, &leverage);
         let mut candidates: Vec<Candidate> = Vec::new();
         for block in candidates::systematic_blocks(set, &terms, &options.stated_cross_talk) {
+            base.ticker().tick();
             if let [term] = block.as_slice() {
                 let column = term.column(set, context);
                 let score = geometry.score(&column, &current.residuals);
@@ -329,6 +330,7 @@ pub(super) fn run(
             accepted = true;
             break;
         }
+        base.ticker().round_done();
         if !accepted {
             // The last round's verdict on every kind of term not in the model.
             record_not_significant(&mut tried, &scored, options.family_alpha);

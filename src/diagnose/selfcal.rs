@@ -102,7 +102,9 @@ pub fn diagnose_selfcal(
         let (clocked, clock) = clock::clocked(&closure);
         (lost, clocked.into_owned(), clock)
     };
-    let base = Base::self_calibration(&clocked).with_dense_geometry(options.dense_geometry);
+    let base = Base::self_calibration(&clocked)
+        .with_dense_geometry(options.dense_geometry)
+        .with_progress(options.progress.clone());
     let options = options
         .clone()
         .with_sigma_opt(options.sigma.or(selfcal_options.sigma));

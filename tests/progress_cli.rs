@@ -1,0 +1,134 @@
+//! Progress of the long jobs on standard error, and Ctrl-C during them (issue 34): a bar
+//! on a terminal only, none with `-q`, and the process ended within a second of the
+//! signal. The terminal is util-linux `script`'s pseudo-terminal; Ctrl-C is the SIGINT
+//! `timeout -s INT` sends.
+
+use std::path::PathBuf;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_polycal");
+
+/// A fresh directory of this test process.
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("polycal-progress-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary directory");
+    dir
+}
+
+/// A diagnosis that takes many seconds: 1080 faces, 4 cycles with closing readings, a
+/// drift and a zero jump, and one stop in six left out (every cell that loses a reading
+/// is irregular, so every fit is the dense reference's, about a second each).
+fn long_diagnosis_input(dir: &std::path::Path) -> PathBuf {
+    let full = dir.join("full.csv");
+    let out = Command::new(BIN)
+        .args([
+            "simulate",
+            "--faces",
+            "1080",
+            "--cycles",
+            "4",
+            "--closing",
+            "--drift",
+            "2:1.5",
+            "--offset-step",
+            "1:3:0.4",
+            "--out",
+        ])
+        .arg(&full)
+        .output()
+        .expect("the binary runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&full).expect("the simulated run");
+    let mut kept = String::new();
+    for line in text.lines() {
+        let mut fields = line.split(',');
+        let (cycle, step) = (fields.next(), fields.next());
+        let left_out = match (
+            cycle.and_then(|c| c.parse::<usize>().ok()),
+            step.and_then(|s| s.parse::<usize>().ok()),
+        ) {
+            (Some(cycle), Some(step)) => (step * 7 + cycle) % 6 == 0,
+            _ => false, // the comment and the header
+        };
+        if !left_out {
+            kept.push_str(line);
+            kept.push('\n');
+        }
+    }
+    let path = dir.join("irregular.csv");
+    std::fs::write(&path, kept).expect("the input is written");
+    path
+}
+
+/// `polycal ARGS` sent SIGINT after `seconds`, on a pseudo-terminal: what the terminal
+/// showed, the status (`timeout`'s 124 when the signal came before the end) and how long
+/// it ran.
+fn interrupted_on_a_terminal(args: &str, seconds: u32) -> (String, Option<i32>, Duration) {
+    let started = Instant::now();
+    let out = Command::new("script")
+        .args([
+            "-qec",
+            &format!("timeout -s INT {seconds} {BIN} {args}"),
+            "/dev/null",
+        ])
+        .stdin(Stdio::null())
+        .output()
+        .expect("script (util-linux) runs");
+    let elapsed = started.elapsed();
+    (
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        out.status.code(),
+        elapsed,
+    )
+}
+
+/// `polycal ARGS` sent SIGINT after `seconds`, standard error a pipe.
+fn interrupted_in_a_pipe(args: &[&str], seconds: u32) -> Output {
+    Command::new("timeout")
+        .args(["-s", "INT", &seconds.to_string(), BIN])
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .expect("timeout (coreutils) runs")
+}
+
+#[test]
+fn a_long_diagnosis_shows_its_rounds_and_ends_within_a_second_of_ctrl_c() {
+    let dir = temp_dir("diagnose");
+    let input = long_diagnosis_input(&dir);
+    let file = input.display();
+    // the rounds of the forward selection, a spinner (their number is the data's: no
+    // estimate of the time left); Ctrl-C after 3 s ends the process within a second
+    let (shown, status, elapsed) = interrupted_on_a_terminal(&format!("diagnose {file}"), 3);
+    assert_eq!(status, Some(124), "ended before Ctrl-C:\n{shown}");
+    assert!(
+        shown.contains("Diagnosing ") && shown.contains(" rounds · "),
+        "no progress:\n{shown}"
+    );
+    assert!(
+        !shown.contains(" left"),
+        "an estimate without a total:\n{shown}"
+    );
+    assert!(
+        elapsed < Duration::from_secs(4),
+        "ended {elapsed:?} after its start, 3 s of it before Ctrl-C"
+    );
+    // -q: no bar
+    let (shown, status, _) = interrupted_on_a_terminal(&format!("-q diagnose {file}"), 2);
+    assert_eq!(status, Some(124), "ended before Ctrl-C:\n{shown}");
+    assert!(!shown.contains("Diagnosing"), "a bar with -q:\n{shown}");
+    // standard error not a terminal: nothing on it
+    let out = interrupted_in_a_pipe(&["diagnose", &input.to_string_lossy()], 2);
+    assert_eq!(out.status.code(), Some(124));
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
