@@ -23,6 +23,7 @@ mod solve;
 
 use anyhow::Result;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
+pub use files::wait_if_interrupted;
 use output::Output;
 
 /// Exit status: done, every check passed.
