@@ -874,6 +874,11 @@ fn a_directory_the_process_cannot_write_is_refused_and_nothing_is_left() {
         ),
         (&["simulate", "--out", "s.csv"], "--out s.csv"),
         (&["simulate", "--truth-out", "t.json"], "--truth-out t.json"),
+        (&["solve", "m.csv", "--plot", "plots"], "--plot plots"),
+        (
+            &["solve", "m.csv", "--plot", "new-plots"],
+            "--plot new-plots",
+        ),
     ] {
         let out = Command::new(&command[0])
             .args(&command[1..])

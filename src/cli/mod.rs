@@ -358,6 +358,23 @@ pub fn write_plot(
         .map_err(|e| anyhow::anyhow!("--plot: cannot write the figures: {e}"))
 }
 
+/// Refuses `--plot DIR`, before any work, when its figures cannot be written there
+/// ([`polycal::figure::check_figures`]: DIR not a directory nor creatable, not
+/// writable, or a figure that would replace one of `inputs`); one `error:` line naming
+/// `--plot`. The residual figures of `diagnose`, named after the file's autocollimators,
+/// are checked again as they are written ([`write_plot`]).
+pub fn check_plot(
+    dir: Option<&std::path::Path>,
+    set: polycal::figure::FigureSet,
+    inputs: &[&std::path::Path],
+) -> anyhow::Result<()> {
+    match dir {
+        Some(dir) => polycal::figure::check_figures(dir, set, inputs)
+            .map_err(|e| anyhow::anyhow!("--plot {e}")),
+        None => Ok(()),
+    }
+}
+
 /// The refusal of `--plot` with several input files (their figures would share names).
 pub fn plot_one_file(plot: Option<&std::path::Path>, files: usize) -> anyhow::Result<()> {
     if plot.is_some() && files > 1 {
