@@ -14,6 +14,7 @@ fn main() -> ExitCode {
     match cli::dispatch(cli.command, &out) {
         Ok(code) => ExitCode::from(code),
         Err(error) => {
+            cli::wait_if_interrupted();
             out.error(&error);
             ExitCode::from(cli::EXIT_ERROR)
         }

@@ -10,7 +10,9 @@
 //!   refused, as are two outputs that are one file. Only a regular file is replaced: a
 //!   directory, a device node, a FIFO or a socket is refused. A symbolic link the user
 //!   names is followed: the file it points to is replaced and the link kept; a link to
-//!   nothing is refused.
+//!   nothing is refused. A directory the process cannot write into (its permissions, a
+//!   read-only file system) is refused by [`Outputs::check`] before any work, found by
+//!   creating a probe file there and removing it at once.
 //! - **Whole or not at all.** Each output is written to a new temporary file in the
 //!   target's directory, created exclusively (`O_CREAT | O_EXCL`, so a file or link
 //!   planted at the name is never opened) under an unpredictable name
@@ -65,13 +67,45 @@ fn settle(temporary: &Path, remove: bool) {
     pending().retain(|p| p != temporary);
 }
 
+/// Set by [`remove_temporaries`]: no temporary file is created after it.
+static CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
 /// Removes every temporary file of this process that is not yet in place: for a
 /// program's interrupt handler (a thread woken by Ctrl-C), so that an interrupted
-/// command leaves no temporary file behind, only the old files.
+/// command leaves no temporary file behind, only the old files. After it no new
+/// temporary file is created (a write then fails as interrupted), so that one being
+/// created by another thread at that moment is removed too or never made.
 pub fn remove_temporaries() {
-    for temporary in pending().drain(..) {
+    let mut pending = pending();
+    CLOSED.store(true, std::sync::atomic::Ordering::SeqCst);
+    for temporary in pending.drain(..) {
         let _ = std::fs::remove_file(temporary);
     }
+}
+
+/// Whether [`remove_temporaries`] has run: an interrupt is ending the process, and a
+/// write that fails now fails because of it (its temporary file removed, or not made).
+pub fn interrupted() -> bool {
+    CLOSED.load(std::sync::atomic::Ordering::SeqCst)
+}
+
+/// Creates the file `path` exclusively through `options`, registered for
+/// [`remove_temporaries`] while it is created (under the registry's lock, so that an
+/// interrupt removes it whatever the moment); refused once the temporaries are removed.
+fn create_registered(options: &OpenOptions, path: &Path) -> io::Result<File> {
+    let mut pending = pending();
+    if CLOSED.load(std::sync::atomic::Ordering::SeqCst) {
+        return Err(io::Error::new(
+            io::ErrorKind::Interrupted,
+            "interrupted: no file is written any more",
+        ));
+    }
+    pending.push(path.to_path_buf());
+    let opened = options.open(path);
+    if opened.is_err() {
+        pending.retain(|p| p != path);
+    }
+    opened
 }
 
 /// Why an output cannot be written.
@@ -318,7 +352,8 @@ impl Outputs {
     }
 
     /// Checks that `outputs` can be written (none an input, no two the same file, each a
-    /// regular file or new), before any work is done; writes nothing.
+    /// regular file or new, each in a directory the process can write — tried by
+    /// [`check_writable_directory`]), before any work is done; leaves nothing.
     ///
     /// # Errors
     ///
@@ -331,6 +366,16 @@ impl Outputs {
         for path in outputs {
             let target = self.checked_target(path, seen.iter())?;
             seen.push(target);
+        }
+        // each directory written into once: a read-only one is refused now, not after
+        // the work
+        let mut probed: Vec<PathBuf> = Vec::new();
+        for target in &seen {
+            let dir = directory_of(&target.file);
+            if !probed.contains(&dir) {
+                probe_directory(&dir).map_err(io_error(&target.given))?;
+                probed.push(dir);
+            }
         }
         Ok(())
     }
@@ -487,9 +532,8 @@ fn create_temporary(target: &Target) -> Result<(File, PathBuf), OutputError> {
             // readable by its owner alone until it has the target's mode
             options.mode(0o600);
         }
-        // registered before it exists, so that an interrupt at any moment removes it
-        pending().push(temporary.clone());
-        match options.open(&temporary) {
+        // registered as it is created, so that an interrupt at any moment removes it
+        match create_registered(&options, &temporary) {
             Ok(file) => {
                 if let Err(e) = set_mode(&file, target.existing.as_ref()) {
                     settle(&temporary, true);
@@ -497,20 +541,56 @@ fn create_temporary(target: &Target) -> Result<(File, PathBuf), OutputError> {
                 }
                 return Ok((file, temporary));
             }
-            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {
-                // someone else's file: forgotten, not removed
-                settle(&temporary, false);
-                last = Some(e);
-            }
-            Err(e) => {
-                settle(&temporary, false);
-                return Err(io_error(&target.given)(e));
-            }
+            // someone else's file: not removed
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last = Some(e),
+            Err(e) => return Err(io_error(&target.given)(e)),
         }
     }
     Err(io_error(&target.given)(last.unwrap_or_else(|| {
         io::Error::new(io::ErrorKind::AlreadyExists, "no free temporary name")
     })))
+}
+
+/// Checks that the process can create a file in the directory `dir`, by creating one
+/// exclusively (`.polycal-probe.XXXXXXXXXXXXXXXX.polycal-tmp`) and removing it at once:
+/// a directory the process may not write (its permissions, a read-only file system) is
+/// refused before any work, and nothing is left.
+///
+/// # Errors
+///
+/// [`OutputError::Io`] naming `dir`, with the operating system's error (e.g. permission
+/// denied).
+pub fn check_writable_directory(dir: &Path) -> Result<(), OutputError> {
+    probe_directory(dir).map_err(io_error(dir))
+}
+
+/// Creates and removes a probe file in `dir` (see [`check_writable_directory`]).
+fn probe_directory(dir: &Path) -> io::Result<()> {
+    let mut last = None;
+    for _ in 0..NAME_ATTEMPTS {
+        let probe = dir.join(format!(
+            ".polycal-probe.{:016x}.polycal-tmp",
+            rand::random::<u64>()
+        ));
+        let mut options = OpenOptions::new();
+        options.write(true).create_new(true);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::OpenOptionsExt;
+            options.mode(0o600);
+        }
+        match create_registered(&options, &probe) {
+            Ok(file) => {
+                drop(file);
+                settle(&probe, true);
+                return Ok(());
+            }
+            // someone else's file: not removed
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last.unwrap_or_else(|| io::Error::new(io::ErrorKind::AlreadyExists, "no free probe name")))
 }
 
 /// The replaced file's mode; a new file's, that of any file the process creates.
@@ -602,6 +682,18 @@ mod tests {
         drop(outputs);
         assert!(!dir.join("a.json").exists());
         assert!(leftovers(&dir).is_empty());
+    }
+
+    #[test]
+    fn a_check_leaves_nothing_behind() {
+        let dir = scratch("check");
+        let outputs = Outputs::default();
+        outputs
+            .check([dir.join("a.html").as_path(), dir.join("b.xml").as_path()])
+            .expect("can be written");
+        check_writable_directory(&dir).expect("writable");
+        assert!(leftovers(&dir).is_empty());
+        assert!(std::fs::read_dir(&dir).expect("read_dir").next().is_none());
     }
 
     #[test]

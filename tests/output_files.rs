@@ -521,3 +521,384 @@ fn ctrl_c_while_writing_leaves_the_old_file_and_no_temporary() {
     }
     assert!(interrupted > 0, "no Ctrl-C came while the file was written");
 }
+
+/// When a signal is sent to a command: after a delay, or as soon as one of its
+/// temporary files appears in a directory.
+#[derive(Clone, Copy, Debug)]
+enum When {
+    After(std::time::Duration),
+    Writing,
+}
+
+/// Runs `args` in `dir` and sends `signal` (`KILL` or `INT`) when `when` says, looking
+/// for temporary files in `watch`; returns the status and whether the signal was sent
+/// (false when the command ended first).
+fn signalled(
+    dir: &Path,
+    args: &[&str],
+    watch: &Path,
+    when: When,
+    signal: &str,
+) -> (std::process::ExitStatus, bool) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_polycal"))
+        .args(args)
+        .current_dir(dir)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("the binary runs");
+    let started = std::time::Instant::now();
+    let mut sent = false;
+    while child.try_wait().expect("wait").is_none() {
+        let now = match when {
+            When::After(delay) => started.elapsed() >= delay,
+            // an output's temporary file, not the probe of its directory's check
+            When::Writing => temporaries(watch).iter().any(|t| {
+                t.file_name()
+                    .is_some_and(|n| !n.to_string_lossy().starts_with(".polycal-probe."))
+            }),
+        };
+        if now {
+            let status = Command::new("kill")
+                .args([format!("-{signal}"), child.id().to_string()])
+                .status()
+                .expect("kill runs");
+            // (it may have ended between the two)
+            sent = status.success();
+            break;
+        }
+        if matches!(when, When::After(_)) {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+    }
+    (child.wait().expect("wait"), sent)
+}
+
+/// The temporary files in `dir`.
+fn temporaries(dir: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .filter_map(|e| e.ok())
+                .filter(|e| e.file_name().to_string_lossy().ends_with(".polycal-tmp"))
+                .map(|e| e.path())
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// How long `args` take in `dir` (run to the end, status 0).
+fn duration_of(dir: &Path, args: &[&str]) -> std::time::Duration {
+    let started = std::time::Instant::now();
+    let out = polycal_in(dir, args);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    started.elapsed()
+}
+
+/// Kill moments for a command that takes `whole`: `n` delays spread over 0 … 1.2·whole
+/// (each moved by up to a tenth of its step, from the clock), and as many at the moment
+/// a temporary file appears.
+fn moments(whole: std::time::Duration, n: u32) -> Vec<When> {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    let step = whole.mul_f64(1.2) / n;
+    let mut moments = Vec::new();
+    for i in 0..n {
+        let jitter = step.mul_f64(f64::from((nanos / (i + 1)) % 100) / 1000.0);
+        moments.push(When::After(step * i + jitter));
+        moments.push(When::Writing);
+    }
+    moments
+}
+
+/// A big run (360 faces) as `big.csv` in `dir`, for commands that take a while.
+fn big_run(dir: &Path) {
+    let out = polycal_in(dir, &["simulate", "--faces", "360", "--out", "big.csv"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// The report `r.html` and DCC `c.xml` of `big.csv`.
+const BIG_REPORT: [&str; 10] = [
+    "report",
+    "big.csv",
+    "--budget",
+    "b.toml",
+    "--meta",
+    "meta.toml",
+    "--out",
+    "r.html",
+    "--dcc",
+    "c.xml",
+];
+
+/// `r.html` and `c.xml` are each their old content or a whole new document.
+fn old_or_whole_report(dir: &Path, why: &str) {
+    let html = bytes(&dir.join("r.html"));
+    assert!(
+        html == b"old\n"
+            || (html.starts_with(b"<!DOCTYPE html>")
+                && html.trim_ascii_end().ends_with(b"</html>")),
+        "{why}: r.html is neither the old file nor a whole report ({} bytes)",
+        html.len()
+    );
+    let xml = bytes(&dir.join("c.xml"));
+    if xml != b"old\n" {
+        let text = String::from_utf8(xml).expect("UTF-8");
+        let doc = roxmltree::Document::parse(&text)
+            .unwrap_or_else(|e| panic!("{why}: c.xml is not well-formed: {e}"));
+        assert_eq!(
+            doc.root_element().tag_name().name(),
+            "digitalCalibrationCertificate",
+            "{why}"
+        );
+    }
+}
+
+#[test]
+fn a_kill_during_report_leaves_each_file_old_or_whole() {
+    let dir = scratch("kill-report");
+    big_run(&dir);
+    let whole = duration_of(&dir, &BIG_REPORT);
+    let mut during = 0;
+    for when in moments(whole, 4) {
+        for name in ["r.html", "c.xml"] {
+            std::fs::write(dir.join(name), "old\n").expect("write");
+        }
+        let (_, sent) = signalled(&dir, &BIG_REPORT, &dir, when, "KILL");
+        let why = format!("SIGKILL {when:?}");
+        old_or_whole_report(&dir, &why);
+        let left = temporaries(&dir);
+        during += usize::from(sent && matches!(when, When::Writing));
+        // at most the temporary files of the two outputs
+        assert!(left.len() <= 2, "{why}: {left:?}");
+        for temporary in left {
+            std::fs::remove_file(temporary).expect("rm");
+        }
+    }
+    assert!(during > 0, "no kill came while the report was written");
+}
+
+#[test]
+fn ctrl_c_during_report_leaves_each_file_old_or_whole_and_no_temporary() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = scratch("interrupt-report");
+    big_run(&dir);
+    let whole = duration_of(&dir, &BIG_REPORT);
+    for when in moments(whole, 4) {
+        for name in ["r.html", "c.xml"] {
+            std::fs::write(dir.join(name), "old\n").expect("write");
+        }
+        let (status, sent) = signalled(&dir, &BIG_REPORT, &dir, when, "INT");
+        let why = format!("SIGINT {when:?}: {status:?}");
+        assert!(
+            status.code() == Some(0)
+                || (sent && (status.signal() == Some(2) || status.code() == Some(130))),
+            "{why}"
+        );
+        old_or_whole_report(&dir, &why);
+        assert_eq!(temporaries(&dir), Vec::<PathBuf>::new(), "{why}");
+    }
+}
+
+/// The six figures of `solve big.csv --budget b.toml --plot plots`.
+const BIG_FIGURES: [&str; 6] = [
+    "pitch-deviation.svg",
+    "face-deviation.svg",
+    "encoder-error.svg",
+    "budget-pitch-deviation.svg",
+    "budget-face-deviation.svg",
+    "budget-encoder-error.svg",
+];
+
+/// Every figure in `plots` is its old content or a whole SVG document.
+fn old_or_whole_figures(plots: &Path, why: &str) {
+    for name in BIG_FIGURES {
+        let svg = bytes(&plots.join(name));
+        if svg == b"old\n" {
+            continue;
+        }
+        let text = String::from_utf8(svg).expect("UTF-8");
+        assert!(
+            text.trim_end().ends_with("</svg>"),
+            "{why}: {name} cut short"
+        );
+        let doc = roxmltree::Document::parse(&text)
+            .unwrap_or_else(|e| panic!("{why}: {name} is not well-formed: {e}"));
+        assert_eq!(doc.root_element().tag_name().name(), "svg", "{why}: {name}");
+    }
+}
+
+/// Puts the old content in every figure of `plots`.
+fn old_figures(plots: &Path) {
+    std::fs::create_dir_all(plots).expect("mkdir");
+    for name in BIG_FIGURES {
+        std::fs::write(plots.join(name), "old\n").expect("write");
+    }
+}
+
+const BIG_PLOT: [&str; 6] = ["solve", "big.csv", "--budget", "b.toml", "--plot", "plots"];
+
+#[test]
+fn a_kill_while_the_figures_are_written_leaves_each_old_or_whole() {
+    let dir = scratch("kill-plot");
+    big_run(&dir);
+    let plots = dir.join("plots");
+    old_figures(&plots);
+    let whole = duration_of(&dir, &BIG_PLOT);
+    let mut during = 0;
+    for when in moments(whole, 4) {
+        old_figures(&plots);
+        let (_, sent) = signalled(&dir, &BIG_PLOT, &plots, when, "KILL");
+        let why = format!("SIGKILL {when:?}");
+        old_or_whole_figures(&plots, &why);
+        during += usize::from(sent && matches!(when, When::Writing));
+        for temporary in temporaries(&plots) {
+            std::fs::remove_file(temporary).expect("rm");
+        }
+    }
+    assert!(during > 0, "no kill came while the figures were written");
+}
+
+#[test]
+fn ctrl_c_while_the_figures_are_written_leaves_no_temporary() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = scratch("interrupt-plot");
+    big_run(&dir);
+    let plots = dir.join("plots");
+    old_figures(&plots);
+    let whole = duration_of(&dir, &BIG_PLOT);
+    for when in moments(whole, 4) {
+        old_figures(&plots);
+        let (status, sent) = signalled(&dir, &BIG_PLOT, &plots, when, "INT");
+        let why = format!("SIGINT {when:?}: {status:?}");
+        assert!(
+            status.code() == Some(0)
+                || (sent && (status.signal() == Some(2) || status.code() == Some(130))),
+            "{why}"
+        );
+        old_or_whole_figures(&plots, &why);
+        assert_eq!(temporaries(&plots), Vec::<PathBuf>::new(), "{why}");
+    }
+}
+
+/// How the read-only test runs the binary: as root through `setpriv` as the unprivileged
+/// user 65534 (root ignores permissions), as it is otherwise; `None`, with the reason,
+/// when neither can.
+fn unprivileged() -> Result<Vec<String>, String> {
+    let binary = env!("CARGO_BIN_EXE_polycal").to_string();
+    let root = Command::new("id")
+        .arg("-u")
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
+        .map_err(|e| format!("id -u: {e}"))?;
+    if !root {
+        return Ok(vec![binary]);
+    }
+    let prefix: Vec<String> = [
+        "setpriv",
+        "--reuid=65534",
+        "--regid=65534",
+        "--clear-groups",
+    ]
+    .map(String::from)
+    .to_vec();
+    let tried = Command::new(&prefix[0])
+        .args(&prefix[1..])
+        .args([binary.as_str(), "--version"])
+        .output()
+        .map_err(|e| format!("running as root and setpriv cannot run: {e}"))?;
+    if !tried.status.success() {
+        return Err(format!(
+            "running as root and the binary cannot run as user 65534 through setpriv: {}",
+            String::from_utf8_lossy(&tried.stderr).trim()
+        ));
+    }
+    let mut command = prefix;
+    command.push(binary);
+    Ok(command)
+}
+
+#[test]
+fn a_directory_the_process_cannot_write_is_refused_and_nothing_is_left() {
+    let command = match unprivileged() {
+        Ok(command) => command,
+        Err(why) => {
+            eprintln!("skipped: {why}");
+            return;
+        }
+    };
+    // a directory of /tmp (parents 0755 or sticky 1777) the user can read but not write
+    let dir = std::env::temp_dir().join(format!("polycal-outputs-ro-{}", std::process::id()));
+    if dir.exists() {
+        std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+        std::fs::remove_dir_all(&dir).expect("rm");
+    }
+    std::fs::create_dir(&dir).expect("mkdir");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (from, to) in [(EXAMPLE, "m.csv"), (BUDGET, "b.toml"), (META, "meta.toml")] {
+        std::fs::copy(root.join(from), dir.join(to)).expect("copy");
+        std::fs::set_permissions(dir.join(to), std::fs::Permissions::from_mode(0o644))
+            .expect("chmod");
+    }
+    std::fs::create_dir(dir.join("plots")).expect("mkdir");
+    for d in [dir.join("plots"), dir.clone()] {
+        std::fs::set_permissions(&d, std::fs::Permissions::from_mode(0o555)).expect("chmod");
+    }
+    let before = names(&dir);
+    for (args, path) in [
+        (&["report", "m.csv", "--out", "r.html"][..], "--out r.html"),
+        (
+            &[
+                "report",
+                "m.csv",
+                "--dcc",
+                "c.xml",
+                "--budget",
+                "b.toml",
+                "--meta",
+                "meta.toml",
+            ],
+            "--dcc c.xml",
+        ),
+        (&["simulate", "--out", "s.csv"], "--out s.csv"),
+        (&["simulate", "--truth-out", "t.json"], "--truth-out t.json"),
+        (&["solve", "m.csv", "--plot", "plots"], "--plot plots"),
+        (
+            &["solve", "m.csv", "--plot", "new-plots"],
+            "--plot new-plots",
+        ),
+    ] {
+        let out = Command::new(&command[0])
+            .args(&command[1..])
+            .args(args)
+            .current_dir(&dir)
+            .output()
+            .expect("the binary runs");
+        let line = refused(&out);
+        assert_eq!(
+            line.trim_end(),
+            format!("error: {path}: cannot be written: Permission denied (os error 13)"),
+            "{args:?}"
+        );
+        // refused before any work: nothing printed
+        assert!(out.stdout.is_empty(), "{args:?}");
+    }
+    assert_eq!(names(&dir), before, "nothing left");
+    assert!(names(&dir.join("plots")).is_empty(), "nothing left");
+    for d in [dir.clone(), dir.join("plots")] {
+        std::fs::set_permissions(&d, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+    }
+    std::fs::remove_dir_all(&dir).expect("rm");
+}

@@ -64,6 +64,11 @@ enum CompareFormat {
 /// `polycal compare`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &CompareArgs) -> Result<u8> {
     super::stdin_once([("A", Some(args.a.as_path())), ("B", Some(args.b.as_path()))])?;
+    super::check_plot(
+        args.plot.as_deref(),
+        polycal::figure::FigureSet::Compare,
+        &args.inputs(),
+    )?;
     let file_a = read_result_file(&args.a)?;
     let file_b = read_result_file(&args.b)?;
     let options = CompareOptions::new()

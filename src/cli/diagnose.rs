@@ -113,8 +113,15 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                 ("--budget", args.budget.as_deref()),
             ]),
     )?;
-    let truth = args.truth.as_deref().map(read_truth).transpose()?;
     super::plot_one_file(args.plot.as_deref(), args.files.len())?;
+    super::check_plot(
+        args.plot.as_deref(),
+        polycal::figure::FigureSet::Diagnose {
+            budget: args.budget.is_some(),
+        },
+        &args.inputs(),
+    )?;
+    let truth = args.truth.as_deref().map(read_truth).transpose()?;
     let mc_options = args.monte_carlo.options(args.budget.is_some())?;
     let budget = read_budget(args.budget.as_deref(), out)?;
     check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;

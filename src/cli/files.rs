@@ -63,6 +63,18 @@ impl CommandOutputs {
     }
 }
 
+/// Called before the final `error:` line: when Ctrl-C or SIGTERM is being handled (its
+/// temporary files removed), the command's error is its consequence — an output whose
+/// temporary file went, or that could no longer be made — and the handler is ending the
+/// process as the signal would. Waits for it, so that the status is the signal's, not
+/// 2 (at most a second, then status 130).
+pub fn wait_if_interrupted() {
+    if polycal::output_file::interrupted() {
+        std::thread::sleep(std::time::Duration::from_secs(1));
+        std::process::exit(130);
+    }
+}
+
 /// On Ctrl-C or SIGTERM, removes the temporary files of the outputs not yet in place
 /// ([`polycal::output_file::remove_temporaries`]) and ends the process as the signal
 /// would have (docs/FORMAT.md §8.1): an interrupted command leaves its old files and no

@@ -23,6 +23,7 @@ mod solve;
 
 use anyhow::Result;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
+pub use files::wait_if_interrupted;
 use output::Output;
 
 /// Exit status: done, every check passed.
@@ -355,6 +356,23 @@ pub fn write_plot(
     polycal::figure::write_figures(dir, figures, inputs)
         .map(|_| ())
         .map_err(|e| anyhow::anyhow!("--plot: cannot write the figures: {e}"))
+}
+
+/// Refuses `--plot DIR`, before any work, when its figures cannot be written there
+/// ([`polycal::figure::check_figures`]: DIR not a directory nor creatable, not
+/// writable, or a figure that would replace one of `inputs`); one `error:` line naming
+/// `--plot`. The residual figures of `diagnose`, named after the file's autocollimators,
+/// are checked again as they are written ([`write_plot`]).
+pub fn check_plot(
+    dir: Option<&std::path::Path>,
+    set: polycal::figure::FigureSet,
+    inputs: &[&std::path::Path],
+) -> anyhow::Result<()> {
+    match dir {
+        Some(dir) => polycal::figure::check_figures(dir, set, inputs)
+            .map_err(|e| anyhow::anyhow!("--plot {e}")),
+        None => Ok(()),
+    }
 }
 
 /// The refusal of `--plot` with several input files (their figures would share names).

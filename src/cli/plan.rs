@@ -163,6 +163,11 @@ pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
         ("--designs", args.designs.as_deref()),
         ("--budget", args.budget.as_deref()),
     ])?;
+    super::check_plot(
+        args.plot.as_deref(),
+        polycal::figure::FigureSet::Plan,
+        &args.inputs(),
+    )?;
     let budget = read_budget(args.budget.as_deref(), out)?;
     let options = PlanOptions::new(args.sigma)
         .with_budget(budget)

@@ -91,6 +91,11 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
         ("the self-calibration file", Some(args.file.as_path())),
         ("--budget", args.budget.as_deref()),
     ])?;
+    super::check_plot(
+        args.plot.as_deref(),
+        polycal::figure::FigureSet::Selfcal,
+        &args.inputs(),
+    )?;
     let name = display_name(&args.file);
     let set = SelfcalSet::read_path(&args.file, args.positions)?;
     let mut options = SelfcalOptions::new().with_sigma_opt(args.sigma);

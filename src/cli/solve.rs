@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::ValueEnum;
+use polycal::figure::FigureSet;
 use polycal::input::display_name;
 use polycal::measurement::cross_talk::{StatedCrossTalk, check_distinct, correct_cross_talk};
 use polycal::measurement::{MeasurementSet, Sigma};
@@ -112,9 +113,16 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             .map(|f| ("a measurement file", Some(f.as_path())))
             .chain([("--budget", args.budget.as_deref())]),
     )?;
+    super::plot_one_file(args.plot.as_deref(), args.files.len())?;
+    super::check_plot(
+        args.plot.as_deref(),
+        FigureSet::Solve {
+            budget: args.budget.is_some(),
+        },
+        &args.inputs(),
+    )?;
     check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
     let mc_options = args.monte_carlo.options(args.budget.is_some())?;
-    super::plot_one_file(args.plot.as_deref(), args.files.len())?;
     let budget = read_budget(args.budget.as_deref(), out)?;
     let options = SolveOptions::new()
         .with_method(match args.method {

@@ -134,6 +134,189 @@ pub fn plan_figures(reports: &[PlanReport]) -> Vec<Figure> {
     plan::figures(reports)
 }
 
+/// The figures a command may write, known before it computes, so that `--plot DIR` can
+/// be checked before any work (docs/FORMAT.md §10.1).
+///
+/// Most names are fixed: a command's figures take some of [`FigureSet::file_names`]
+/// (the budget's only with a budget; a set of names a given run may not all use). The
+/// residual figures of a diagnosis, `diagnose-residuals-ac<j>.svg`, one per
+/// autocollimator, are known only once the file is read: [`check_figures`] checks
+/// every file already in the directory under such a name, and the figures are checked
+/// again as they are written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum FigureSet {
+    /// `polycal solve` ([`solve_figures`]); with a budget, its figures too.
+    Solve {
+        /// `--budget` is given.
+        budget: bool,
+    },
+    /// `polycal diagnose` ([`diagnose_figures`], and [`selfcal_figures`] for a
+    /// self-calibration file); with a budget, its figures too.
+    Diagnose {
+        /// `--budget` is given.
+        budget: bool,
+    },
+    /// `polycal selfcal` ([`selfcal_figures`]).
+    Selfcal,
+    /// `polycal compare` ([`compare_figures`]): two figures per family.
+    Compare,
+    /// `polycal plan` ([`plan_figures`]).
+    Plan,
+}
+
+/// The stem of the residual figures of a diagnosis, before the autocollimator's number.
+const RESIDUALS_STEM: &str = "diagnose-residuals-ac";
+
+impl FigureSet {
+    /// The fixed file names (`{name}.svg`) the command's figures may take.
+    pub fn file_names(self) -> Vec<String> {
+        let budget = |with: bool| {
+            let families: &[&str] = if with {
+                &["pitch-deviation", "face-deviation", "encoder-error"]
+            } else {
+                &[]
+            };
+            families
+                .iter()
+                .map(|f| format!("budget-{f}.svg"))
+                .collect::<Vec<_>>()
+        };
+        let selfcal = ["selfcal-encoder-error.svg", "selfcal-head-error.svg"].map(String::from);
+        match self {
+            FigureSet::Solve { budget: with } => {
+                let mut names: Vec<String> = [
+                    "pitch-deviation.svg",
+                    "face-deviation.svg",
+                    "encoder-error.svg",
+                ]
+                .map(String::from)
+                .to_vec();
+                names.extend(budget(with));
+                names
+            }
+            FigureSet::Diagnose { budget: with } => {
+                let mut names = selfcal.to_vec();
+                names.extend(budget(with));
+                names
+            }
+            FigureSet::Selfcal => selfcal.to_vec(),
+            FigureSet::Compare => crate::results::Quantity::ALL
+                .iter()
+                .flat_map(|q| {
+                    let slug = compare::family_slug(*q);
+                    [
+                        format!("compare-{slug}.svg"),
+                        format!("compare-{slug}-difference.svg"),
+                    ]
+                })
+                .collect(),
+            FigureSet::Plan => ["plan-encoder-error-u.svg", "plan-pitch-deviation-u.svg"]
+                .map(String::from)
+                .to_vec(),
+        }
+    }
+
+    /// Whether a file named `file_name` may be one of the command's figures: one of
+    /// [`FigureSet::file_names`], or for `diagnose` `diagnose-residuals-ac<j>.svg`.
+    pub fn may_take(self, file_name: &str) -> bool {
+        if matches!(self, FigureSet::Diagnose { .. })
+            && let Some(number) = file_name
+                .strip_prefix(RESIDUALS_STEM)
+                .and_then(|rest| rest.strip_suffix(".svg"))
+            && !number.is_empty()
+            && number.bytes().all(|b| b.is_ascii_digit())
+        {
+            return true;
+        }
+        self.file_names().iter().any(|n| n == file_name)
+    }
+}
+
+/// Checks, before any work, that the figures of `set` can be written into `dir`
+/// (docs/FORMAT.md §10.1): `dir` a directory, or missing with a directory as its
+/// nearest existing ancestor; a directory the process can write into (tried by
+/// [`crate::output_file::check_writable_directory`]); and none of the figures' names
+/// one of `inputs` or not a regular file ([`crate::output_file::Outputs::check`]):
+/// every fixed name of [`FigureSet::file_names`], and every file already in `dir` that
+/// [`FigureSet::may_take`]. Writes nothing and leaves nothing.
+///
+/// # Errors
+///
+/// [`FigureError::NotADirectory`] naming `dir` (or the ancestor that is a file);
+/// [`FigureError::Output`] for a directory that cannot be written into, or a figure
+/// that would replace an input or something other than a regular file;
+/// [`FigureError::Write`] when `dir` cannot be examined.
+pub fn check_figures(dir: &Path, set: FigureSet, inputs: &[&Path]) -> Result<(), FigureError> {
+    let metadata = match std::fs::metadata(dir) {
+        Ok(metadata) => metadata,
+        Err(e)
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+            ) =>
+        {
+            // created when the figures are written: where it would be created must be
+            // a directory the process can write into
+            let ancestor = nearest_existing(dir);
+            if !ancestor.is_dir() {
+                return Err(FigureError::NotADirectory { path: ancestor });
+            }
+            return crate::output_file::check_writable_directory(&ancestor).map_err(|e| {
+                crate::output_file::OutputError::Io {
+                    path: dir.to_path_buf(),
+                    source: e.into_io(),
+                }
+                .into()
+            });
+        }
+        Err(source) => {
+            return Err(FigureError::Write {
+                path: dir.to_path_buf(),
+                source,
+            });
+        }
+    };
+    if !metadata.is_dir() {
+        return Err(FigureError::NotADirectory {
+            path: dir.to_path_buf(),
+        });
+    }
+    crate::output_file::check_writable_directory(dir)?;
+    let mut names = set.file_names();
+    let entries = std::fs::read_dir(dir).map_err(|source| FigureError::Write {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    for entry in entries.flatten() {
+        if let Some(name) = entry.file_name().to_str()
+            && set.may_take(name)
+            && !names.iter().any(|n| n == name)
+        {
+            names.push(name.to_string());
+        }
+    }
+    let paths: Vec<PathBuf> = names.iter().map(|n| dir.join(n)).collect();
+    let outputs = crate::output_file::Outputs::new(inputs.iter().copied())?;
+    outputs.check(paths.iter().map(PathBuf::as_path))?;
+    Ok(())
+}
+
+/// `path` itself if it exists, else its nearest ancestor that does (`.` for a relative
+/// path none of whose ancestors exists).
+fn nearest_existing(path: &Path) -> PathBuf {
+    let mut at = path;
+    loop {
+        if std::fs::symlink_metadata(at).is_ok() {
+            return at.to_path_buf();
+        }
+        match at.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => at = parent,
+            _ => return PathBuf::from("."),
+        }
+    }
+}
+
 /// Writes every figure into `dir` (created if missing) as `{name}.svg`, all or none
 /// ([`crate::output_file::Outputs`]: none of them one of `inputs`, each written whole and
 /// renamed into place once every figure is written); returns the paths written.
