@@ -9,51 +9,20 @@ use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod files_support;
+use files_support::{bytes, names, polycal_in, refused, scratch_with};
+
 const EXAMPLE: &str = "examples/data/polygon24-2ac-6cycles.csv";
 const BUDGET: &str = "examples/budgets/instrument.toml";
 const META: &str = "examples/report/meta.toml";
 
-fn polycal_in(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polycal"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the binary runs")
-}
-
 /// A scratch directory holding copies of the example, its budget and its metadata.
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("polycal-outputs-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch directory");
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    for (from, to) in [(EXAMPLE, "m.csv"), (BUDGET, "b.toml"), (META, "meta.toml")] {
-        std::fs::copy(root.join(from), dir.join(to)).expect("copy");
-    }
-    dir
-}
-
-/// Status 2 and one `error:` line; returns it.
-fn refused(out: &Output) -> String {
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(2), "stderr:\n{stderr}");
-    assert_eq!(stderr.lines().count(), 1, "one line:\n{stderr}");
-    assert!(stderr.starts_with("error: "), "{stderr}");
-    stderr
-}
-
-/// The names in `dir`, sorted.
-fn names(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .expect("read_dir")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
-
-fn bytes(path: &Path) -> Vec<u8> {
-    std::fs::read(path).expect("read")
+    scratch_with(
+        "outputs",
+        name,
+        &[(EXAMPLE, "m.csv"), (BUDGET, "b.toml"), (META, "meta.toml")],
+    )
 }
 
 #[test]

@@ -5,66 +5,38 @@
 //! kept byte for byte and nothing written. Tried through the binary in a scratch
 //! directory with the bundled examples.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::PathBuf;
+use std::process::Output;
+
+mod files_support;
+use files_support::{bytes, names, polycal_in, refused, scratch_with};
 
 use polycal::figure::FigureSet;
 
-fn polycal_in(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polycal"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the binary runs")
-}
-
 /// A scratch directory holding copies of the examples a command with `--plot` reads.
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "polycal-outputs-plot-{}-{name}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch directory");
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    for (from, to) in [
-        ("examples/data/polygon24-2ac-6cycles.csv", "m.csv"),
-        ("examples/budgets/instrument.toml", "b.toml"),
-        ("examples/data/selfa-168.csv", "selfa.csv"),
-        ("examples/data/polygon24-shift-angle.result.csv", "r.csv"),
-        ("examples/designs.toml", "designs.toml"),
-    ] {
-        std::fs::copy(root.join(from), dir.join(to)).expect("copy");
-    }
-    dir
+    scratch_with(
+        "outputs-plot",
+        name,
+        &[
+            ("examples/data/polygon24-2ac-6cycles.csv", "m.csv"),
+            ("examples/budgets/instrument.toml", "b.toml"),
+            ("examples/data/selfa-168.csv", "selfa.csv"),
+            ("examples/data/polygon24-shift-angle.result.csv", "r.csv"),
+            ("examples/designs.toml", "designs.toml"),
+        ],
+    )
 }
 
 /// Status 2, one `error:` line and nothing on standard output; returns the line.
-fn refused(out: &Output) -> String {
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(2), "stderr:\n{stderr}");
-    assert_eq!(stderr.lines().count(), 1, "one line:\n{stderr}");
-    assert!(stderr.starts_with("error: "), "{stderr}");
+fn refused_before_work(out: &Output) -> String {
+    let stderr = refused(out);
     assert!(
         out.stdout.is_empty(),
         "nothing printed: {}",
         String::from_utf8_lossy(&out.stdout)
     );
     stderr
-}
-
-/// The names in `dir`, sorted.
-fn names(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .expect("read_dir")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
-
-fn bytes(path: &Path) -> Vec<u8> {
-    std::fs::read(path).expect("read")
 }
 
 #[test]
@@ -109,7 +81,7 @@ fn every_command_refuses_a_figure_over_an_input_before_any_work() {
             .map(|a| if *a == "{}" { input.as_str() } else { a })
             .collect();
         args.extend(["--plot", "plots"]);
-        let line = refused(&polycal_in(&dir, &args));
+        let line = refused_before_work(&polycal_in(&dir, &args));
         assert!(
             line.starts_with(&format!(
                 "error: --plot {input}: is the input {input} (the same file)"
@@ -128,7 +100,7 @@ fn every_command_refuses_a_figure_over_an_input_before_any_work() {
     std::fs::remove_dir_all(&plots).expect("rm");
     std::fs::create_dir(&plots).expect("mkdir");
     std::fs::copy(dir.join("m.csv"), plots.join("plan-encoder-error-u.svg")).expect("copy");
-    let line = refused(&polycal_in(
+    let line = refused_before_work(&polycal_in(
         &dir,
         &[
             "plan",
@@ -153,7 +125,7 @@ fn a_figure_linked_to_an_input_is_refused_whatever_its_name() {
     let before = bytes(&dir.join("m.csv"));
     // a hard link under a fixed name of solve's figures
     std::fs::hard_link(dir.join("m.csv"), plots.join("face-deviation.svg")).expect("link");
-    let line = refused(&polycal_in(&dir, &["solve", "m.csv", "--plot", "plots"]));
+    let line = refused_before_work(&polycal_in(&dir, &["solve", "m.csv", "--plot", "plots"]));
     assert!(
         line.starts_with(
             "error: --plot plots/face-deviation.svg: is the input m.csv (the same file)"
@@ -165,7 +137,7 @@ fn a_figure_linked_to_an_input_is_refused_whatever_its_name() {
     // second autocollimator's residuals): found among the directory's files up front
     std::os::unix::fs::symlink("../m.csv", plots.join("diagnose-residuals-ac2.svg"))
         .expect("symlink");
-    let line = refused(&polycal_in(&dir, &["diagnose", "m.csv", "--plot", "plots"]));
+    let line = refused_before_work(&polycal_in(&dir, &["diagnose", "m.csv", "--plot", "plots"]));
     assert!(
         line.starts_with(
             "error: --plot plots/diagnose-residuals-ac2.svg: is the input m.csv (the same file)"
@@ -202,7 +174,7 @@ fn a_plot_directory_that_cannot_be_one_is_refused_before_any_work() {
             "error: --plot designs.toml: is a file, not a directory",
         ),
     ] {
-        let line = refused(&polycal_in(&dir, args));
+        let line = refused_before_work(&polycal_in(&dir, args));
         assert!(line.starts_with(line_start), "{args:?}: {line}");
     }
     assert_eq!(names(&dir), before, "nothing written");

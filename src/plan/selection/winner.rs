@@ -210,6 +210,23 @@ impl Round<'_> {
         }
     }
 
+    /// The residual sum of squares of `trial` with the effect `size`·Σ wⱼ·(column j):
+    /// RSS₀ + 2·size·wᵀs₀ + size²·wᵀG w over the target's columns.
+    fn rss_with(&self, target: &Target, trial: usize, size: f64, w: &[f64]) -> f64 {
+        let c = self.columns.len();
+        let noise = &self.noise[trial * c..(trial + 1) * c];
+        let t0 = target.start;
+        let mut cross = 0.0;
+        let mut quad = 0.0;
+        for a in 0..target.len {
+            cross += w[a] * noise[t0 + a];
+            for b in 0..target.len {
+                quad += w[a] * w[b] * target.gram_columns[b][t0 + a];
+            }
+        }
+        self.rss[trial] + 2.0 * size * cross + size * size * quad
+    }
+
     /// Whether the effect is found in `trial` (module documentation): the best candidate
     /// of the target's groups passes α and no other candidate beats it.
     pub(super) fn found_in_trial(
@@ -221,16 +238,8 @@ impl Round<'_> {
     ) -> bool {
         let c = self.columns.len();
         let noise = &self.noise[trial * c..(trial + 1) * c];
-        let (t0, tlen) = (target.start, target.len);
-        let mut cross = 0.0;
-        let mut quad = 0.0;
-        for a in 0..tlen {
-            cross += w[a] * noise[t0 + a];
-            for b in 0..tlen {
-                quad += w[a] * w[b] * target.gram_columns[b][t0 + a];
-            }
-        }
-        let rss = self.rss[trial] + 2.0 * size * cross + size * size * quad;
+        let tlen = target.len;
+        let rss = self.rss_with(target, trial, size, w);
         let shift = |k: usize| -> f64 {
             w.iter()
                 .zip(&target.gram_columns)
@@ -382,14 +391,8 @@ mod tests {
         ) -> bool {
             let c = self.columns.len();
             let noise = &self.noise[trial * c..(trial + 1) * c];
-            let (t0, tlen) = (target.start, target.len);
-            let mut rss = self.rss[trial];
-            for a in 0..tlen {
-                rss += 2.0 * size * w[a] * noise[t0 + a];
-                for b in 0..tlen {
-                    rss += size * size * w[a] * w[b] * target.gram_columns[b][t0 + a];
-                }
-            }
+            let tlen = target.len;
+            let rss = self.rss_with(target, trial, size, w);
             let mut best: Option<((usize, f64), bool)> = None;
             for (o, offered) in self.offered.iter().enumerate() {
                 let Some(k) = offered.class else { continue };
