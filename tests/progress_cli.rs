@@ -132,3 +132,82 @@ fn a_long_diagnosis_shows_its_rounds_and_ends_within_a_second_of_ctrl_c() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A sub-pitch solve that takes seconds: 720 faces, three autocollimators, four mountings
+/// 0.1° apart (four cosets), one reading in ten left out at random, so that the coset engine cannot
+/// take it and the dense reference fits the cosets' differences as effect columns (a
+/// reduced system of about 2900 unknowns).
+fn long_sub_pitch_input(dir: &std::path::Path) -> PathBuf {
+    let full = dir.join("full.csv");
+    let out = Command::new(BIN)
+        .args([
+            "simulate",
+            "--faces",
+            "720",
+            "--ac-faces",
+            "1,2,3",
+            "--setups",
+            "4",
+            "--shift-deg",
+            "0,0.1,0.2,0.3",
+            "--out",
+        ])
+        .arg(&full)
+        .output()
+        .expect("the binary runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&full).expect("the simulated run");
+    let mut kept = String::new();
+    let mut data = 0;
+    for line in text.lines() {
+        let header = line.starts_with('#') || line.starts_with("cycle");
+        if !header {
+            // one in ten at random (a regular pattern the coset engine would take)
+            data += 1_u64;
+            if (data.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) % 10 == 0 {
+                continue;
+            }
+        }
+        kept.push_str(line);
+        kept.push('\n');
+    }
+    let path = dir.join("sub-pitch.csv");
+    std::fs::write(&path, kept).expect("the input is written");
+    path
+}
+
+#[test]
+fn a_long_sub_pitch_solve_shows_the_time_left_and_ends_within_a_second_of_ctrl_c() {
+    let dir = temp_dir("solve");
+    let input = long_sub_pitch_input(&dir);
+    let file = input.display();
+    // a bar with a total and the time left; Ctrl-C after 3 s ends it within a second
+    let (shown, status, elapsed) = interrupted_on_a_terminal(&format!("solve {file}"), 3);
+    assert_eq!(status, Some(124), "ended before Ctrl-C:\n{shown}");
+    assert!(shown.contains("Solving ["), "no progress bar:\n{shown}");
+    assert!(
+        shown.contains(" steps · ") && shown.contains(" left"),
+        "no estimate of the time left:\n{shown}"
+    );
+    assert!(
+        elapsed < Duration::from_secs(4),
+        "ended {elapsed:?} after its start, 3 s of it before Ctrl-C"
+    );
+    // -q: no bar
+    let (shown, status, _) = interrupted_on_a_terminal(&format!("-q solve {file}"), 2);
+    assert_eq!(status, Some(124), "ended before Ctrl-C:\n{shown}");
+    assert!(!shown.contains("Solving"), "a bar with -q:\n{shown}");
+    // standard error not a terminal: nothing on it
+    let out = interrupted_in_a_pipe(&["solve", &input.to_string_lossy()], 2);
+    assert_eq!(out.status.code(), Some(124));
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -12,7 +12,7 @@ use polycal::measurement::cross_talk::{StatedCrossTalk, check_distinct, correct_
 use polycal::measurement::{MeasurementSet, Sigma};
 use polycal::output::{self, SolveReport};
 use polycal::results::ResultRow;
-use polycal::solve::sub_pitch::{ShiftGeometry, SubPitchSolution, solve_shifted};
+use polycal::solve::sub_pitch::{ShiftGeometry, SubPitchSolution, solve_shifted_with_progress};
 use polycal::solve::{self, Method, Solution, SolveError, SolveOptions};
 use polycal::uncertainty::calibration::{
     self, CalibrationUncertainty, InstrumentBudget, KnownCorrection,
@@ -157,14 +157,17 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                 {
                     return Err(refusal);
                 }
+                // One bar per file (the dense reference's work: seconds to minutes for
+                // hundreds of faces), cleared when its solution is done.
+                let bar = out.progress_bar_of("Solving", "steps");
                 if set.has_shifts() && ShiftGeometry::of(&set).is_sub_pitch() {
                     // docs/FORMAT.md §9.1: encoder errors at every angle of every coset
-                    return solve_shifted(&set, &options)
+                    return solve_shifted_with_progress(&set, &options, Some(&bar))
                         .map_err(actionable)
                         .with_context(|| format!("{name}: cannot solve"))
                         .map(|solved| (set, Solved::SubPitch(solved)));
                 }
-                solve::solve(&set, &options)
+                solve::solve_with_progress(&set, &options, Some(&bar))
                     .map_err(actionable)
                     .with_context(|| format!("{name}: cannot solve"))
                     .map(|solution| (set, Solved::Positions(solution)))

@@ -21,11 +21,12 @@
 
 use super::circulant::{self, Plan};
 use super::coset;
-use super::dense::{dense_bytes_needed, dense_least_squares};
+use super::dense::{dense_bytes_needed, dense_least_squares_observed};
 use super::observability::describe;
 use super::sub_pitch::ShiftGeometry;
 use super::{Solution, SolveError, SolveOptions, memory};
 use crate::measurement::{MeasurementSet, Sigma};
+use crate::uncertainty::monte_carlo::Progress;
 
 /// Fits the base model (no effect terms) by least squares.
 ///
@@ -79,6 +80,18 @@ pub fn least_squares_with_options(
     regressors: &[Vec<f64>],
     options: &SolveOptions,
 ) -> Result<Solution, SolveError> {
+    least_squares_observed(set, regressors, options, None)
+}
+
+/// [`least_squares_with_options`] telling `progress` how far the dense reference is,
+/// when it is the engine that runs (the circulant engine takes well under a second and
+/// reports nothing).
+pub(crate) fn least_squares_observed(
+    set: &MeasurementSet,
+    regressors: &[Vec<f64>],
+    options: &SolveOptions,
+    progress: Option<&dyn Progress>,
+) -> Result<Solution, SolveError> {
     check_regressors(set, regressors)?;
     let streams = set.streams();
     let n = set.faces;
@@ -100,7 +113,7 @@ pub fn least_squares_with_options(
         _ => {}
     }
     refuse("dense", dense_bytes_needed(n, k, e))?;
-    dense_least_squares(set, regressors, options.sigma)
+    dense_least_squares_observed(set, regressors, options.sigma, progress)
 }
 
 /// Least squares of a set with sub-pitch mountings on the coset engine
@@ -141,6 +154,16 @@ pub fn dense_with_options(
     regressors: &[Vec<f64>],
     options: &SolveOptions,
 ) -> Result<Solution, SolveError> {
+    dense_observed(set, regressors, options, None)
+}
+
+/// [`dense_with_options`] telling `progress` how far it is.
+pub(crate) fn dense_observed(
+    set: &MeasurementSet,
+    regressors: &[Vec<f64>],
+    options: &SolveOptions,
+    progress: Option<&dyn Progress>,
+) -> Result<Solution, SolveError> {
     check_regressors(set, regressors)?;
     let k = set.streams().len();
     let e = regressors.len();
@@ -152,7 +175,7 @@ pub fn dense_with_options(
         dense_bytes_needed(set.faces, k, e),
         options,
     )?;
-    dense_least_squares(set, regressors, options.sigma)
+    dense_least_squares_observed(set, regressors, options.sigma, progress)
 }
 
 /// Refuses a plan of `needed_bytes` for `engine` that exceeds the memory limit.

@@ -46,6 +46,7 @@ pub use least_squares::{
 pub use observability::{Unobservable, lost_harmonics};
 
 use crate::measurement::{MeasurementSet, Sigma};
+use crate::uncertainty::monte_carlo::Progress;
 use nalgebra::{DMatrix, DVector, Dyn};
 
 /// Which solver to use.
@@ -506,8 +507,44 @@ impl Solution {
 /// ([`SolveError::Unobservable`]), is too large ([`SolveError::TooLarge`]) or, for
 /// [`Method::ClosedForm`], is not the paper's ([`SolveError::ClosedFormNotApplicable`]).
 pub fn solve(set: &MeasurementSet, options: &SolveOptions) -> Result<Solution, SolveError> {
+    solve_with_progress(set, options, None)
+}
+
+/// [`solve`] telling `progress` how far it is: `update(done, Some(total))` with a total
+/// known from the start, a count weighted by the work each step takes (about one unit per
+/// column of the reduced matrix's inverse), rising to its total when the solution is
+/// done. Only the dense reference reports (the closed form and the circulant engine take
+/// well under a second); the solution is the one [`solve`] gives, number for number.
+///
+/// ```
+/// use std::sync::atomic::{AtomicU64, Ordering};
+/// use polycal::simulate::{simulate, SimulationConfig};
+/// use polycal::solve::{solve, solve_with_progress, Method, SolveOptions};
+///
+/// let (set, _) = simulate(&SimulationConfig::default())?;
+/// let options = SolveOptions::new().with_method(Method::Dense);
+/// let (done, total) = (AtomicU64::new(0), AtomicU64::new(0));
+/// let observer = |d: u64, t: Option<u64>| {
+///     done.store(d, Ordering::Relaxed);
+///     total.store(t.unwrap_or(0), Ordering::Relaxed);
+/// };
+/// let observed = solve_with_progress(&set, &options, Some(&observer))?;
+/// assert_eq!(observed.encoder_error, solve(&set, &options)?.encoder_error);
+/// assert!(total.load(Ordering::Relaxed) > 0);
+/// assert_eq!(done.load(Ordering::Relaxed), total.load(Ordering::Relaxed));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+///
+/// As [`solve`].
+pub fn solve_with_progress(
+    set: &MeasurementSet,
+    options: &SolveOptions,
+    progress: Option<&dyn Progress>,
+) -> Result<Solution, SolveError> {
     if !set.has_shifts() {
-        return solve_positions(set, options);
+        return solve_positions(set, options, progress);
     }
     let geometry = sub_pitch::ShiftGeometry::of(set);
     if geometry.is_sub_pitch() {
@@ -516,24 +553,26 @@ pub fn solve(set: &MeasurementSet, options: &SolveOptions) -> Result<Solution, S
             cosets: geometry.cosets(),
         });
     }
-    solve_positions(&geometry.encoder_set(set), options)
+    solve_positions(&geometry.encoder_set(set), options, progress)
 }
 
-/// [`solve`] of a set whose steps are its encoder positions (shifts not consulted).
+/// [`solve`] of a set whose steps are its encoder positions (shifts not consulted), the
+/// dense reference telling `progress` how far it is.
 pub(crate) fn solve_positions(
     set: &MeasurementSet,
     options: &SolveOptions,
+    progress: Option<&dyn Progress>,
 ) -> Result<Solution, SolveError> {
     match options.method {
-        Method::LeastSquares => least_squares_with_options(set, &[], options),
-        Method::Dense => least_squares::dense_with_options(set, &[], options),
+        Method::LeastSquares => least_squares::least_squares_observed(set, &[], options, progress),
+        Method::Dense => least_squares::dense_observed(set, &[], options, progress),
         Method::ClosedForm => match PaperDesign::detect(set) {
             Ok(design) => Ok(design.solve(set, options.sigma)?),
             Err(reason) => Err(SolveError::ClosedFormNotApplicable(reason.to_string())),
         },
         Method::Auto => match PaperDesign::detect(set) {
             Ok(design) => Ok(design.solve(set, options.sigma)?),
-            Err(_) => least_squares_with_options(set, &[], options),
+            Err(_) => least_squares::least_squares_observed(set, &[], options, progress),
         },
     }
 }

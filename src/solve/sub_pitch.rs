@@ -47,12 +47,10 @@
 
 use std::collections::BTreeMap;
 
-use super::least_squares::least_squares_on_cosets;
-use super::{
-    Method, Solution, SolveError, SolveOptions, Unobservable, dense_with_options,
-    least_squares_with_options, solve_positions,
-};
+use super::least_squares::{dense_observed, least_squares_observed, least_squares_on_cosets};
+use super::{Method, Solution, SolveError, SolveOptions, Unobservable, solve_positions};
 use crate::measurement::MeasurementSet;
+use crate::uncertainty::monte_carlo::Progress;
 
 /// Tolerance, in positions (units of 360°/N): a shift within it of a whole number of
 /// positions is a whole-face shift, and two fractions within it are one coset.
@@ -345,6 +343,24 @@ pub fn solve_shifted(
     set: &MeasurementSet,
     options: &SolveOptions,
 ) -> Result<SubPitchSolution, SolveError> {
+    solve_shifted_with_progress(set, options, None)
+}
+
+/// [`solve_shifted`] telling `progress` how far it is, as
+/// [`super::solve_with_progress`] does: a set the coset engine cannot take is fitted by
+/// the dense reference with the cosets' differences as effect columns, which takes
+/// seconds to minutes for hundreds of faces and reports a count rising to a total known
+/// from the start (the coset engine, near-linear, reports nothing). The solution is the
+/// one [`solve_shifted`] gives, number for number.
+///
+/// # Errors
+///
+/// As [`solve_shifted`].
+pub fn solve_shifted_with_progress(
+    set: &MeasurementSet,
+    options: &SolveOptions,
+    progress: Option<&dyn Progress>,
+) -> Result<SubPitchSolution, SolveError> {
     let geometry = ShiftGeometry::of(set);
     let positions = geometry.encoder_set(set);
     let n = set.faces;
@@ -376,13 +392,13 @@ pub fn solve_shifted(
     }
     let columns = coset_columns(&geometry, set);
     let solution = if columns.is_empty() {
-        solve_positions(&positions, options)?
+        solve_positions(&positions, options, progress)?
     } else {
         match options.method {
             Method::Auto | Method::LeastSquares => {
-                least_squares_with_options(&positions, &columns, options)
+                least_squares_observed(&positions, &columns, options, progress)
             }
-            Method::Dense => dense_with_options(&positions, &columns, options),
+            Method::Dense => dense_observed(&positions, &columns, options, progress),
             Method::ClosedForm => Err(SolveError::ClosedFormNotApplicable(format!(
                 "the mountings' shifts put the encoder errors at {c_count} cosets of table \
                  angles, whose differences the paper's design does not have"
