@@ -12,9 +12,9 @@
 //! the (2N + K)² system.
 //!
 //! The inverse is solved against the Cholesky factor one block of identity columns at a
-//! time ([`inverse_by_blocks`]): each column as nalgebra's `Cholesky::inverse` solves
+//! time (`inverse_by_blocks`): each column as nalgebra's `Cholesky::inverse` solves
 //! it, to the bit, with the factor read once per block instead of twice per column,
-//! and a progress observer told after every block ([`Work`]: the factorisation, the
+//! and a progress observer told after every block (`Work`: the factorisation, the
 //! inverse's blocks and the cofactor's other steps weighted by their cost, so that the
 //! total is known from the start).
 

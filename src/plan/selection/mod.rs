@@ -11,8 +11,8 @@
 //!   ([`FitGeometry::residual_of`]: O(n) and one product with the fit's cofactor), with
 //!   RSS₀ = ‖e₀‖² ~ χ²(dof), and every candidate's scores s₀ = X̂ᵀe₀ (its columns X̂ at
 //!   unit length; every jump of a stream from one running sum, [`Column::Suffix`]);
-//! - a run with the effect x·δ adds δ·G[:, target] to the scores, G = X̂ᵀ(I − H)X̂, and
-//!   2δ·s₀[target] + δ²·G[target, target] to the RSS: only the target's columns of G
+//! - a run with the effect x·δ adds δ·G\[:, target\] to the scores, G = X̂ᵀ(I − H)X̂, and
+//!   2δ·s₀\[target\] + δ²·G\[target, target\] to the RSS: only the target's columns of G
 //!   are ever formed, each from one (I − H)x;
 //! - every candidate's F statistic and p-value follow from its scores and the RSS as in
 //!   `diagnose`.
