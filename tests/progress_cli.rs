@@ -97,39 +97,53 @@ fn interrupted_in_a_pipe(args: &[&str], seconds: u32) -> Output {
         .expect("timeout (coreutils) runs")
 }
 
-#[test]
-fn a_long_diagnosis_shows_its_rounds_and_ends_within_a_second_of_ctrl_c() {
-    let dir = temp_dir("diagnose");
-    let input = long_diagnosis_input(&dir);
+/// `polycal COMMAND FILE` on a pseudo-terminal shows `bar` (checked by `shows`) and is
+/// still running when Ctrl-C comes after 3 s, then ends within a second; with `-q` it
+/// shows nothing of it, and into a pipe its standard error stays empty.
+fn bar_shown_only_on_a_terminal_and_ctrl_c_ends_it(
+    command: &str,
+    input: &std::path::Path,
+    bar: &str,
+    shows: impl Fn(&str),
+) {
     let file = input.display();
-    // the rounds of the forward selection, a spinner (their number is the data's: no
-    // estimate of the time left); Ctrl-C after 3 s ends the process within a second
-    let (shown, status, elapsed) = interrupted_on_a_terminal(&format!("diagnose {file}"), 3);
+    let (shown, status, elapsed) = interrupted_on_a_terminal(&format!("{command} {file}"), 3);
     assert_eq!(status, Some(124), "ended before Ctrl-C:\n{shown}");
-    assert!(
-        shown.contains("Diagnosing ") && shown.contains(" rounds · "),
-        "no progress:\n{shown}"
-    );
-    assert!(
-        !shown.contains(" left"),
-        "an estimate without a total:\n{shown}"
-    );
+    shows(&shown);
     assert!(
         elapsed < Duration::from_secs(4),
         "ended {elapsed:?} after its start, 3 s of it before Ctrl-C"
     );
     // -q: no bar
-    let (shown, status, _) = interrupted_on_a_terminal(&format!("-q diagnose {file}"), 2);
+    let (shown, status, _) = interrupted_on_a_terminal(&format!("-q {command} {file}"), 2);
     assert_eq!(status, Some(124), "ended before Ctrl-C:\n{shown}");
-    assert!(!shown.contains("Diagnosing"), "a bar with -q:\n{shown}");
+    assert!(!shown.contains(bar), "a bar with -q:\n{shown}");
     // standard error not a terminal: nothing on it
-    let out = interrupted_in_a_pipe(&["diagnose", &input.to_string_lossy()], 2);
+    let out = interrupted_in_a_pipe(&[command, &input.to_string_lossy()], 2);
     assert_eq!(out.status.code(), Some(124));
     assert!(
         out.stderr.is_empty(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+#[test]
+fn a_long_diagnosis_shows_its_rounds_and_ends_within_a_second_of_ctrl_c() {
+    let dir = temp_dir("diagnose");
+    let input = long_diagnosis_input(&dir);
+    // the rounds of the forward selection, a spinner (their number is the data's: no
+    // estimate of the time left)
+    bar_shown_only_on_a_terminal_and_ctrl_c_ends_it("diagnose", &input, "Diagnosing", |shown| {
+        assert!(
+            shown.contains("Diagnosing ") && shown.contains(" rounds · "),
+            "no progress:\n{shown}"
+        );
+        assert!(
+            !shown.contains(" left"),
+            "an estimate without a total:\n{shown}"
+        );
+    });
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -184,30 +198,13 @@ fn long_sub_pitch_input(dir: &std::path::Path) -> PathBuf {
 fn a_long_sub_pitch_solve_shows_the_time_left_and_ends_within_a_second_of_ctrl_c() {
     let dir = temp_dir("solve");
     let input = long_sub_pitch_input(&dir);
-    let file = input.display();
-    // a bar with a total and the time left; Ctrl-C after 3 s ends it within a second
-    let (shown, status, elapsed) = interrupted_on_a_terminal(&format!("solve {file}"), 3);
-    assert_eq!(status, Some(124), "ended before Ctrl-C:\n{shown}");
-    assert!(shown.contains("Solving ["), "no progress bar:\n{shown}");
-    assert!(
-        shown.contains(" steps · ") && shown.contains(" left"),
-        "no estimate of the time left:\n{shown}"
-    );
-    assert!(
-        elapsed < Duration::from_secs(4),
-        "ended {elapsed:?} after its start, 3 s of it before Ctrl-C"
-    );
-    // -q: no bar
-    let (shown, status, _) = interrupted_on_a_terminal(&format!("-q solve {file}"), 2);
-    assert_eq!(status, Some(124), "ended before Ctrl-C:\n{shown}");
-    assert!(!shown.contains("Solving"), "a bar with -q:\n{shown}");
-    // standard error not a terminal: nothing on it
-    let out = interrupted_in_a_pipe(&["solve", &input.to_string_lossy()], 2);
-    assert_eq!(out.status.code(), Some(124));
-    assert!(
-        out.stderr.is_empty(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    // a bar with a total and the time left
+    bar_shown_only_on_a_terminal_and_ctrl_c_ends_it("solve", &input, "Solving", |shown| {
+        assert!(shown.contains("Solving ["), "no progress bar:\n{shown}");
+        assert!(
+            shown.contains(" steps · ") && shown.contains(" left"),
+            "no estimate of the time left:\n{shown}"
+        );
+    });
     let _ = std::fs::remove_dir_all(&dir);
 }
