@@ -16,25 +16,20 @@ fn temp_dir(name: &str) -> PathBuf {
     dir
 }
 
-/// A diagnosis that takes many seconds: 1080 faces, 4 cycles with closing readings, a
-/// drift and a zero jump, and one stop in six left out (every cell that loses a reading
-/// is irregular, so every fit is the dense reference's, about a second each).
-fn long_diagnosis_input(dir: &std::path::Path) -> PathBuf {
+/// `polycal simulate ARGS` written to `dir`, then written again as `name` without the
+/// readings `left_out` picks (the comment and header lines kept): a run whose missing
+/// readings make its fits slow.
+fn simulated_without(
+    dir: &std::path::Path,
+    args: &[&str],
+    name: &str,
+    mut left_out: impl FnMut(&str) -> bool,
+) -> PathBuf {
     let full = dir.join("full.csv");
     let out = Command::new(BIN)
-        .args([
-            "simulate",
-            "--faces",
-            "1080",
-            "--cycles",
-            "4",
-            "--closing",
-            "--drift",
-            "2:1.5",
-            "--offset-step",
-            "1:3:0.4",
-            "--out",
-        ])
+        .arg("simulate")
+        .args(args)
+        .arg("--out")
         .arg(&full)
         .output()
         .expect("the binary runs");
@@ -46,23 +41,43 @@ fn long_diagnosis_input(dir: &std::path::Path) -> PathBuf {
     let text = std::fs::read_to_string(&full).expect("the simulated run");
     let mut kept = String::new();
     for line in text.lines() {
-        let mut fields = line.split(',');
-        let (cycle, step) = (fields.next(), fields.next());
-        let left_out = match (
-            cycle.and_then(|c| c.parse::<usize>().ok()),
-            step.and_then(|s| s.parse::<usize>().ok()),
-        ) {
-            (Some(cycle), Some(step)) => (step * 7 + cycle) % 6 == 0,
-            _ => false, // the comment and the header
-        };
-        if !left_out {
+        let header = line.starts_with('#') || line.starts_with("cycle");
+        if header || !left_out(line) {
             kept.push_str(line);
             kept.push('\n');
         }
     }
-    let path = dir.join("irregular.csv");
+    let path = dir.join(name);
     std::fs::write(&path, kept).expect("the input is written");
     path
+}
+
+/// A diagnosis that takes many seconds: 1080 faces, 4 cycles with closing readings, a
+/// drift and a zero jump, and one stop in six left out (every cell that loses a reading
+/// is irregular, so every fit is the dense reference's, about a second each).
+fn long_diagnosis_input(dir: &std::path::Path) -> PathBuf {
+    let args = [
+        "--faces",
+        "1080",
+        "--cycles",
+        "4",
+        "--closing",
+        "--drift",
+        "2:1.5",
+        "--offset-step",
+        "1:3:0.4",
+    ];
+    simulated_without(dir, &args, "irregular.csv", |line| {
+        let mut fields = line.split(',');
+        let (cycle, step) = (fields.next(), fields.next());
+        match (
+            cycle.and_then(|c| c.parse::<usize>().ok()),
+            step.and_then(|s| s.parse::<usize>().ok()),
+        ) {
+            (Some(cycle), Some(step)) => (step * 7 + cycle) % 6 == 0,
+            _ => false,
+        }
+    })
 }
 
 /// `polycal ARGS` sent SIGINT after `seconds`, on a pseudo-terminal: what the terminal
@@ -152,46 +167,22 @@ fn a_long_diagnosis_shows_its_rounds_and_ends_within_a_second_of_ctrl_c() {
 /// take it and the dense reference fits the cosets' differences as effect columns (a
 /// reduced system of about 2900 unknowns).
 fn long_sub_pitch_input(dir: &std::path::Path) -> PathBuf {
-    let full = dir.join("full.csv");
-    let out = Command::new(BIN)
-        .args([
-            "simulate",
-            "--faces",
-            "720",
-            "--ac-faces",
-            "1,2,3",
-            "--setups",
-            "4",
-            "--shift-deg",
-            "0,0.1,0.2,0.3",
-            "--out",
-        ])
-        .arg(&full)
-        .output()
-        .expect("the binary runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = std::fs::read_to_string(&full).expect("the simulated run");
-    let mut kept = String::new();
-    let mut data = 0;
-    for line in text.lines() {
-        let header = line.starts_with('#') || line.starts_with("cycle");
-        if !header {
-            // one in ten at random (a regular pattern the coset engine would take)
-            data += 1_u64;
-            if (data.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) % 10 == 0 {
-                continue;
-            }
-        }
-        kept.push_str(line);
-        kept.push('\n');
-    }
-    let path = dir.join("sub-pitch.csv");
-    std::fs::write(&path, kept).expect("the input is written");
-    path
+    let args = [
+        "--faces",
+        "720",
+        "--ac-faces",
+        "1,2,3",
+        "--setups",
+        "4",
+        "--shift-deg",
+        "0,0.1,0.2,0.3",
+    ];
+    // one in ten at random (a regular pattern the coset engine would take)
+    let mut data = 0_u64;
+    simulated_without(dir, &args, "sub-pitch.csv", |_| {
+        data += 1;
+        (data.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40).is_multiple_of(10)
+    })
 }
 
 #[test]

@@ -331,42 +331,33 @@ impl<'g> Round<'g> {
     /// span: element \[a\]\[b\] for `singles[a]` and `singles[b]` (`None` when either adds
     /// nothing or has several columns).
     pub fn correlations(&self, singles: &[usize]) -> Vec<Vec<Option<f64>>> {
-        let usable = |i: usize| {
-            let o = &self.offered[i];
-            o.len == 1 && o.rank > 0
-        };
-        let residuals: Vec<Option<Vec<f64>>> = singles
-            .par_iter()
-            .map(|&i| {
-                usable(i).then(|| {
-                    self.geometry
-                        .residual_of(&self.columns.unit(self.offered[i].start))
-                })
-            })
-            .collect();
+        // G_aa of a one-column candidate that adds a direction: the inverse of its
+        // pseudo-inverse (its columns are at unit length)
         let diagonal: Vec<Option<f64>> = singles
             .iter()
-            .zip(&residuals)
-            .map(|(&i, v)| {
-                v.as_ref()
-                    .map(|v| self.columns.dot(self.offered[i].start, v))
+            .map(|&i| {
+                let o = &self.offered[i];
+                (o.len == 1 && o.rank > 0).then(|| 1.0 / o.pinv[(0, 0)])
             })
             .collect();
+        // a row at a time from its column's (I − H)x: memory O(n) per row, not per single
         singles
-            .iter()
-            .enumerate()
-            .map(|(a, _)| {
+            .par_iter()
+            .zip(&diagonal)
+            .map(|(&i, aa)| {
+                let Some(aa) = *aa else {
+                    return vec![None; singles.len()];
+                };
+                let v = self
+                    .geometry
+                    .residual_of(&self.columns.unit(self.offered[i].start));
                 singles
                     .iter()
-                    .enumerate()
-                    .map(|(b, &j)| {
-                        let (Some(v), Some(aa), Some(bb)) =
-                            (residuals[a].as_ref(), diagonal[a], diagonal[b])
-                        else {
-                            return None;
-                        };
-                        let ab = self.columns.dot(self.offered[j].start, v);
-                        (aa > 0.0 && bb > 0.0).then(|| ab / (aa * bb).sqrt())
+                    .zip(&diagonal)
+                    .map(|(&j, bb)| {
+                        let bb = (*bb)?;
+                        let ab = self.columns.dot(self.offered[j].start, &v);
+                        Some(ab / (aa * bb).sqrt())
                     })
                     .collect()
             })
