@@ -7,111 +7,18 @@
 //! that fit's (within 1.3×), clean runs rarely get a false effect, and the base model is
 //! exactly what `selfcal` reports.
 
+mod selfcal_support;
+
 use nalgebra::{DMatrix, DVector};
+use polycal::diagnose::DiagnoseOptions;
 use polycal::diagnose::selfcal::{SelfcalDiagnosis, diagnose_selfcal};
-use polycal::diagnose::{DiagnoseOptions, FoundEffect};
 use polycal::effects::Effect;
-use polycal::measurement::Direction;
 use polycal::selfcal::{self, SelfcalOptions, SelfcalSet, SelfcalSolution};
-use polycal::simulate::{
-    SelfcalSimConfig, SelfcalTruth, equally_spaced_head_angles_deg, selfa_head_angles_deg,
-    simulate_selfcal,
-};
+use polycal::simulate::{SelfcalTruth, equally_spaced_head_angles_deg, selfa_head_angles_deg};
+use selfcal_support::{Injected, find, inject, kinds, rms, run};
 
 /// Runs with effects injected, per design.
 const SEEDS: u64 = 20;
-
-/// Seconds between two stops of the table.
-const STEP_SECONDS: f64 = 20.0;
-
-/// An effect put into the readings, and its column (one value per reading).
-#[derive(Debug, Clone, Copy)]
-enum Injected {
-    /// The head's zero drifts, arcsec per hour.
-    Drift { head: u32, per_hour: f64 },
-    /// The head's zero jumps by `value` from (cycle, step) on, in time order.
-    Jump {
-        head: u32,
-        cycle: u32,
-        step: usize,
-        value: f64,
-    },
-    /// One bad reading.
-    Outlier {
-        head: u32,
-        cycle: u32,
-        step: usize,
-        value: f64,
-    },
-    /// The head reads `value` more in counter-clockwise cycles.
-    Direction { head: u32, value: f64 },
-}
-
-impl Injected {
-    fn column(self, set: &SelfcalSet) -> Vec<f64> {
-        // time order: the stop's ordinal (every head of a stop shares it)
-        let time_of = |r: &selfcal::HeadReading| r.time_seconds.unwrap_or(0.0);
-        let start_of = |cycle: u32, step: usize| {
-            set.readings
-                .iter()
-                .find(|r| r.cycle == cycle && r.step == step)
-                .map_or(0.0, time_of)
-        };
-        set.readings
-            .iter()
-            .map(|r| match self {
-                Injected::Drift { head, per_hour } if r.head == head => {
-                    per_hour * time_of(r) / 3600.0
-                }
-                Injected::Jump {
-                    head,
-                    cycle,
-                    step,
-                    value,
-                } if r.head == head && time_of(r) >= start_of(cycle, step) => value,
-                Injected::Outlier {
-                    head,
-                    cycle,
-                    step,
-                    value,
-                } if (r.head, r.cycle, r.step) == (head, cycle, step) => value,
-                Injected::Direction { head, value }
-                    if r.head == head && r.direction == Direction::Ccw =>
-                {
-                    value
-                }
-                _ => 0.0,
-            })
-            .collect()
-    }
-}
-
-/// A simulated run with time (20 s per stop), σ = 0.02″, table error 1″ per stop.
-fn run(
-    heads: Vec<f64>,
-    positions: usize,
-    cycles: u32,
-    bidirectional: bool,
-    seed: u64,
-) -> (SelfcalSet, SelfcalTruth) {
-    let mut config = SelfcalSimConfig::default();
-    config.positions = positions;
-    config.cycles = cycles;
-    config.head_angles_deg = heads;
-    config.bidirectional = bidirectional;
-    config.step_seconds = Some(STEP_SECONDS);
-    config.seed = seed;
-    simulate_selfcal(&config).unwrap()
-}
-
-fn inject(set: &mut SelfcalSet, effects: &[Injected]) {
-    for effect in effects {
-        let column = effect.column(set);
-        for (r, v) in set.readings.iter_mut().zip(column) {
-            r.reading_arcsec += v;
-        }
-    }
-}
 
 /// The head layout's lost harmonics, derived here: harmonic k of e is invisible when
 /// k·d_j ≡ 0 (mod P) for every head's position offset d_j (then it reads alike at every
@@ -147,10 +54,6 @@ fn observable(values: &[f64], lost: &[usize]) -> Vec<f64> {
         }
     }
     out
-}
-
-fn rms(values: &[f64]) -> f64 {
-    (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
 }
 
 /// RMS errors (observable e, heads' errors) of an estimate against the truth.
@@ -263,14 +166,6 @@ impl Tally {
             assert!(ratio <= 1.3, "{design}: {name} {ratio}× the oracle's");
         }
     }
-}
-
-fn kinds(found: &SelfcalDiagnosis) -> Vec<&Effect> {
-    found.diagnosis.effects.iter().map(|f| &f.effect).collect()
-}
-
-fn find(found: &SelfcalDiagnosis, test: impl Fn(&Effect) -> bool) -> Option<&FoundEffect> {
-    found.diagnosis.effects.iter().find(|f| test(&f.effect))
 }
 
 #[test]
@@ -688,17 +583,4 @@ fn the_base_model_is_what_selfcal_reports() {
             assert_eq!(mine.notes, solved.notes);
         }
     }
-}
-
-#[test]
-fn heads_between_positions_are_refused_with_their_numbers() {
-    // SelfA on 360 positions: the group of 7 sits between the positions
-    let (set, _) = run(selfa_head_angles_deg(), 360, 2, false, 1);
-    let error =
-        diagnose_selfcal(&set, &DiagnoseOptions::default(), &SelfcalOptions::new()).unwrap_err();
-    let text = error.to_string();
-    assert!(
-        text.starts_with("heads 7, 8, 9, 10, 11, 12 sit between the 360 positions"),
-        "{text}"
-    );
 }

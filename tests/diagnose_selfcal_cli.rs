@@ -314,7 +314,12 @@ fn what_does_not_apply_is_refused_with_one_line() {
     let out = polycal(&["diagnose", &file, "--cross-talk", "1:0.01"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--cross-talk does not apply"));
-    // heads between the positions: SelfA on 360 positions
+}
+
+/// Heads between the positions (SelfA on 360 positions: the group of 7 sits between
+/// them) are diagnosed on the band-limited model, as `selfcal` solves them.
+#[test]
+fn heads_between_the_positions_are_diagnosed_on_the_band_limited_model() {
     let off = scratch("off-grid.csv");
     let made = polycal(&[
         "simulate",
@@ -327,12 +332,16 @@ fn what_does_not_apply_is_refused_with_one_line() {
         off.to_str().unwrap(),
     ]);
     assert!(made.status.success());
-    let out = polycal(&["diagnose", off.to_str().unwrap()]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(
-        err.contains("heads 7, 8, 9, 10, 11, 12 sit between the 360 positions"),
-        "{err}"
+    let out = polycal(&["diagnose", off.to_str().unwrap(), "--format", "json"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
     );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["before"]["head_grid"], "off-grid");
+    assert_eq!(json["after"]["head_grid"], "off-grid");
+    assert_eq!(json["effects"].as_array().map(Vec::len), Some(0));
+    assert_eq!(json["adequate"], true, "{json:#}");
 }

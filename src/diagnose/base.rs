@@ -18,7 +18,10 @@
 //! The harmonics the head layout cannot see are set to zero, as `selfcal::solve` does,
 //! and a term is judged by what a self-calibration certifies: the disc's encoder error
 //! e = φ − φ̄ and the heads' errors c_j − c_1 ([`Base::calibrated`]), not the table's
-//! nuisance.
+//! nuisance. When some head sits between the positions
+//! ([`Base::self_calibration_off_grid`]) the closure model is the band-limited one
+//! `selfcal` solves such heads with ([`OffGridDesign`]): its fits and its geometry go
+//! through that design, the rest of the diagnosis is the same.
 
 use std::borrow::Cow;
 use std::sync::Arc;
@@ -28,6 +31,7 @@ use super::geometry::FitGeometry;
 use super::lack_of_fit::{self, LackOfFit};
 use super::nuisance::StopNuisance;
 use crate::measurement::{MeasurementSet, Sigma};
+use crate::selfcal::OffGridDesign;
 use crate::solve::least_squares::least_squares_zeroing_lost_with;
 use crate::solve::sub_pitch::{self, ShiftGeometry, SubPitchSolution};
 use crate::solve::{Solution, SolveError, SolveOptions, least_squares_with_regressors};
@@ -79,6 +83,9 @@ pub struct Base<'a> {
     /// A self-calibration's table error at every stop, taken out of the readings and the
     /// terms (the lost harmonics set to zero, e and the heads' errors certified).
     nuisance: Option<StopNuisance>,
+    /// A self-calibration's band-limited closure design, when some head sits between the
+    /// positions (the fits and the geometry go through it).
+    off_grid: Option<Arc<OffGridDesign>>,
     /// Whether the geometry is the dense reference's whatever the fit's cofactor.
     dense_geometry: bool,
     /// Told after every fit and geometry.
@@ -94,6 +101,7 @@ impl<'a> Base<'a> {
                 columns: Vec::new(),
                 shifts: None,
                 nuisance: None,
+                off_grid: None,
                 dense_geometry: false,
                 ticker: Ticker::default(),
             };
@@ -105,6 +113,7 @@ impl<'a> Base<'a> {
             columns,
             shifts: Some(geometry),
             nuisance: None,
+            off_grid: None,
             dense_geometry: false,
             ticker: Ticker::default(),
         }
@@ -125,9 +134,23 @@ impl<'a> Base<'a> {
             columns: Vec::new(),
             shifts: None,
             nuisance: Some(nuisance),
+            off_grid: None,
             dense_geometry: false,
             ticker: Ticker::default(),
         }
+    }
+
+    /// The base model of a self-calibration whose heads are not all on the position grid:
+    /// as [`Base::self_calibration`], with `design` (the band-limited closure design of
+    /// `closure`'s readings) in place of the closure engine. The dense geometry is not
+    /// offered for it.
+    pub(crate) fn self_calibration_off_grid(
+        closure: &'a MeasurementSet,
+        design: OffGridDesign,
+    ) -> Base<'a> {
+        let mut base = Self::self_calibration(closure);
+        base.off_grid = Some(Arc::new(design));
+        base
     }
 
     /// This base model with the dense geometry ([`FitGeometry::dense`]) whatever the
@@ -150,6 +173,12 @@ impl<'a> Base<'a> {
     /// The progress of the diagnosis fitted with this base model.
     pub(crate) fn ticker(&self) -> &Ticker {
         &self.ticker
+    }
+
+    /// Whether this is a self-calibration's band-limited closure model (some head between
+    /// the positions).
+    pub fn is_off_grid(&self) -> bool {
+        self.off_grid.is_some()
     }
 
     /// Whether this is a self-calibration's closure model.
@@ -241,8 +270,21 @@ impl<'a> Base<'a> {
         let Some(n) = &self.nuisance else {
             return least_squares_with_regressors(&self.positions, all, sigma);
         };
-        let options = SolveOptions::new().with_sigma_opt(sigma);
-        let (mut fit, _) = least_squares_zeroing_lost_with(&self.positions, all, &options)?;
+        let mut fit = match &self.off_grid {
+            Some(design) => {
+                let values: Vec<f64> = self
+                    .positions
+                    .readings
+                    .iter()
+                    .map(|r| r.reading_arcsec)
+                    .collect();
+                design.fit(&values, all, sigma)?
+            }
+            None => {
+                let options = SolveOptions::new().with_sigma_opt(sigma);
+                least_squares_zeroing_lost_with(&self.positions, all, &options)?.0
+            }
+        };
         fit.dof = fit.dof.saturating_sub(n.parameters());
         fit.sigma = crate::solve::choose_sigma(fit.rss, fit.dof, sigma);
         Ok(fit)
@@ -292,6 +334,7 @@ impl<'a> Base<'a> {
             columns: self.columns.clone(),
             shifts: None,
             nuisance: self.nuisance.clone(),
+            off_grid: self.off_grid.clone(),
             dense_geometry: self.dense_geometry,
             ticker: Ticker::default(),
         };
@@ -302,7 +345,13 @@ impl<'a> Base<'a> {
 
     /// The hat-matrix geometry of `fit`, a fit with the columns `terms`.
     pub fn geometry(&self, fit: &Solution, terms: &[Vec<f64>]) -> FitGeometry {
-        let geometry = FitGeometry::new(fit, &self.positions, &self.with(terms))
+        let columns = self.with(terms);
+        let off_grid = self
+            .off_grid
+            .as_ref()
+            .and_then(|design| FitGeometry::off_grid(fit, Arc::clone(design), &columns));
+        let geometry = off_grid
+            .unwrap_or_else(|| FitGeometry::new(fit, &self.positions, &columns))
             .with_nuisance(self.nuisance.clone());
         self.ticker.tick();
         geometry

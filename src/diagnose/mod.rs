@@ -735,6 +735,9 @@ pub(crate) fn diagnose_base(
         && !lof.passed()
     {
         notes.extend(lof.carriers.iter().cloned());
+        if base.is_off_grid() {
+            notes.push(notes::band_limit(base.positions().faces));
+        }
     }
     let before_sub_pitch = base.sub_pitch_solution(&before);
     let after_sub_pitch = base.sub_pitch_solution(&current);

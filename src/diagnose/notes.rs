@@ -139,3 +139,12 @@ pub(super) fn string_of_jumps(ac: u32, setup: Option<u32>) -> String {
         setup.map_or(String::new(), |s| format!(" in setup {s}"))
     )
 }
+
+/// The plain words on a lack of fit of a self-calibration whose heads sit between the
+/// positions: the model's band limit is one explanation the data cannot rule out.
+pub(super) fn band_limit(positions: usize) -> String {
+    format!(
+        "Some heads sit between the {positions} positions, where the model reads the encoder error as band-limited (orders below {half}, the order {half} as a cosine on the grid). An encoder error with orders of {half} or more reads differently between the positions and is left as lack of fit: a run on a number of positions where every head sits on a position would tell it from the other causes.",
+        half = positions / 2
+    )
+}

@@ -11,6 +11,13 @@
 //! final model's are given as self-calibrations ([`SelfcalSolution`], the encoder error e
 //! and the heads' errors), exactly as [`crate::selfcal::solve`] reports them.
 //!
+//! Heads between the positions (SelfA's 7-fold heads on a grid of 72, say) are diagnosed
+//! on the band-limited closure model `selfcal` solves them with (docs/FORMAT.md §9.3.1):
+//! the same candidates, checks and verdicts, the fits and the hat matrix through the
+//! band-limited design ([`crate::selfcal::OffGridDesign`]) in near-linear time. Its
+//! readings keep their file's steps; a head's nominal face (its nearest position) only
+//! names the stream.
+//!
 //! What the closure model cannot place: a change common to every head at a stop is the
 //! table's, so a drift or jump of all heads together is invisible, and with two heads a
 //! head's drift is the other's with the opposite sign (the finding names one and its
@@ -19,13 +26,14 @@
 use super::base::Base;
 use super::{DiagnoseOptions, Diagnosis, clock, diagnose_base};
 use crate::measurement::MeasurementSet;
-use crate::selfcal::{SelfcalMonteCarlo, SelfcalUncertainty, monte_carlo_of_closure_fit};
 use crate::selfcal::{
-    SelfcalOptions, SelfcalSet, SelfcalSolution, SelfcalSolveError, add_head_angle_u, closure_set,
-    from_closure_fit, grid_offsets,
+    HeadGrid, OffGridDesign, SelfcalOptions, SelfcalSet, SelfcalSolution, SelfcalSolveError,
+    add_head_angle_u, closure_set, from_closure_fit, grid_offsets,
 };
-use crate::solve::SolveOptions;
+use crate::selfcal::{SelfcalMonteCarlo, SelfcalUncertainty, monte_carlo_of_closure_fit};
 use crate::solve::least_squares::least_squares_zeroing_lost;
+use crate::solve::observability::Unobservable;
+use crate::solve::{SolveError, SolveOptions};
 use crate::uncertainty::calibration::{CalibrationError, InstrumentBudget, McOptions};
 
 /// The diagnosis of a self-calibration: the diagnosis of its closure model (effects on
@@ -74,9 +82,10 @@ pub struct SelfcalDiagnosis {
 /// # Errors
 ///
 /// [`SelfcalSolveError::Invalid`] for a set that breaks the file's rules,
-/// [`SelfcalSolveError::HeadsOffGrid`] when some head sits between the positions,
 /// [`SelfcalSolveError::InvalidGauge`] for a gauge that does not divide P,
-/// [`SelfcalSolveError::Solve`] when the engine refuses the design (memory).
+/// [`SelfcalSolveError::Solve`] when the engine refuses the design (memory),
+/// [`SelfcalSolveError::TooLarge`] when the band-limited design of heads between the
+/// positions would not fit in memory.
 pub fn diagnose_selfcal(
     set: &SelfcalSet,
     options: &DiagnoseOptions,
@@ -92,32 +101,61 @@ pub fn diagnose_selfcal(
             gauge,
         });
     }
-    let closure = diagnosed_closure(set)?;
-    let (lost, clocked, clock) = {
-        let mut solve_options = SolveOptions::new().with_sigma_opt(selfcal_options.sigma);
-        if let Some(bytes) = selfcal_options.memory_limit_bytes {
-            solve_options = solve_options.with_memory_limit(bytes);
+    let (closure, off_grid) = diagnosed_closure(set)?;
+    let (clocked, clock) = clock::clocked(&closure);
+    let clocked = clocked.into_owned();
+    let (base, lost) = match off_grid {
+        None => {
+            let mut solve_options = SolveOptions::new().with_sigma_opt(selfcal_options.sigma);
+            if let Some(bytes) = selfcal_options.memory_limit_bytes {
+                solve_options = solve_options.with_memory_limit(bytes);
+            }
+            let (_, lost) = least_squares_zeroing_lost(&closure, &solve_options)?;
+            let base = Base::self_calibration(&clocked).with_dense_geometry(options.dense_geometry);
+            (base, lost)
         }
-        let (_, lost) = least_squares_zeroing_lost(&closure, &solve_options)?;
-        let (clocked, clock) = clock::clocked(&closure);
-        (lost, clocked.into_owned(), clock)
+        Some(offsets) => {
+            check_off_grid_memory(set, options, selfcal_options)?;
+            let heads: Vec<u32> = set.heads().iter().map(|h| h.head).collect();
+            // a checked set reads every (step, head) once per cycle, as the design needs
+            let design = OffGridDesign::new(&clocked, &heads, &offsets).ok_or_else(|| {
+                SelfcalSolveError::Solve(SolveError::Unobservable(Unobservable {
+                    harmonics: Vec::new(),
+                    effects: Vec::new(),
+                    message: "the band-limited closure model needs every head to read every step equally often".into(),
+                }))
+            })?;
+            let lost = design.lost().to_vec();
+            (Base::self_calibration_off_grid(&clocked, design), lost)
+        }
     };
-    let base = Base::self_calibration(&clocked)
-        .with_dense_geometry(options.dense_geometry)
-        .with_progress(options.progress.clone());
+    let base = base.with_progress(options.progress.clone());
     let options = options
         .clone()
         .with_sigma_opt(options.sigma.or(selfcal_options.sigma));
     let diagnosis = diagnose_base(&clocked, &base, clock, &options)?;
     let terms = diagnosis.after.effect_values.len() - base.offset();
+    let grid = if base.is_off_grid() {
+        HeadGrid::OffGrid
+    } else {
+        HeadGrid::OnGrid
+    };
     let before = from_closure_fit(
         set,
         diagnosis.before.clone(),
         lost.clone(),
         0,
+        grid,
         selfcal_options,
     );
-    let after = from_closure_fit(set, diagnosis.after.clone(), lost, terms, selfcal_options);
+    let after = from_closure_fit(
+        set,
+        diagnosis.after.clone(),
+        lost,
+        terms,
+        grid,
+        selfcal_options,
+    );
     Ok(SelfcalDiagnosis {
         before: add_head_angle_u(set, before, selfcal_options)?,
         after: add_head_angle_u(set, after, selfcal_options)?,
@@ -165,7 +203,16 @@ pub fn monte_carlo(
     gum: &SelfcalUncertainty,
     options: &McOptions<'_>,
 ) -> Result<SelfcalMonteCarlo, CalibrationError> {
-    let closure = diagnosed_closure(set).map_err(|e| CalibrationError::Mismatch(e.to_string()))?;
+    let (closure, off_grid) =
+        diagnosed_closure(set).map_err(|e| CalibrationError::Mismatch(e.to_string()))?;
+    if off_grid.is_some() {
+        // without terms the final model is `selfcal`'s own, whose Monte Carlo takes heads
+        // between the positions
+        if !diagnosis.diagnosis.after.effect_values.is_empty() {
+            return Err(CalibrationError::OffGridEffects);
+        }
+        return crate::selfcal::monte_carlo(set, &diagnosis.after, budget, gum, options);
+    }
     let (clocked, _) = clock::clocked(&closure);
     monte_carlo_of_closure_fit(
         &clocked,
@@ -177,23 +224,52 @@ pub fn monte_carlo(
     )
 }
 
-/// The closure set of a self-calibration whose heads are on the grid.
-fn diagnosed_closure(set: &SelfcalSet) -> Result<MeasurementSet, SelfcalSolveError> {
+/// The closure set of a self-calibration, and the heads' fractional offsets (positions)
+/// when some head sits between the positions (the closure set then gives every head the
+/// nearest position as its face, which names its stream only).
+fn diagnosed_closure(
+    set: &SelfcalSet,
+) -> Result<(MeasurementSet, Option<Vec<f64>>), SelfcalSolveError> {
     let p = set.positions;
     let heads = set.heads();
-    let Some(offsets) = grid_offsets(set, &heads) else {
-        let off: Vec<u32> = heads
-            .iter()
-            .filter(|h| {
-                let d = h.angle_deg * p as f64 / 360.0;
-                (d - d.round()).abs() > crate::selfcal::ON_GRID_TOLERANCE_POSITIONS
-            })
-            .map(|h| h.head)
-            .collect();
-        return Err(SelfcalSolveError::HeadsOffGrid {
-            heads: off,
-            positions: p,
+    if let Some(offsets) = grid_offsets(set, &heads) {
+        return Ok((closure_set(set, &heads, &offsets)?, None));
+    }
+    let fractional: Vec<f64> = heads
+        .iter()
+        .map(|h| h.angle_deg * p as f64 / 360.0)
+        .collect();
+    let nearest: Vec<usize> = fractional
+        .iter()
+        .map(|d| (d.round() as usize) % p)
+        .collect();
+    Ok((closure_set(set, &heads, &nearest)?, Some(fractional)))
+}
+
+/// Refuses up front a diagnosis of heads between the positions that would not fit in
+/// memory: per reading the set, its closure set, the projected readings, the residuals
+/// and the candidates' columns (a few dozen values each), per low-rank column of a fit
+/// two values, and M² kernels of length P.
+fn check_off_grid_memory(
+    set: &SelfcalSet,
+    options: &DiagnoseOptions,
+    selfcal_options: &SelfcalOptions,
+) -> Result<(), SelfcalSolveError> {
+    let n = set.readings.len() as u128;
+    let m = set.heads().len() as u128;
+    let p = set.positions as u128;
+    let columns = 64 + 4 * options.max_effects as u128;
+    let needed_bytes = 8 * n * columns + 8 * m * m * p + 16 * 12 * m * p;
+    if let Some((limit_bytes, _)) =
+        crate::solve::memory::limit_for(needed_bytes, selfcal_options.memory_limit_bytes)
+        && needed_bytes > u128::from(limit_bytes)
+    {
+        return Err(SelfcalSolveError::TooLarge {
+            positions: set.positions,
+            heads: m as usize,
+            needed_bytes,
+            limit_bytes,
         });
-    };
-    Ok(closure_set(set, &heads, &offsets)?)
+    }
+    Ok(())
 }

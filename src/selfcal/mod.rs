@@ -64,7 +64,8 @@
 //! [`SelfcalSet::from_readings`] are named `<readings>`, with their line and column 0.
 //!
 //! The solving: `solve.rs` maps the readings onto the closure model and back
-//! ([`solve()`]); `fourier.rs` solves heads that sit between the positions;
+//! ([`solve()`]); `fourier/` solves heads that sit between the positions (and
+//! `fourier/design.rs` fits them with effect columns, for the diagnosis);
 //! `head_angle.rs` propagates the uncertainty of the heads' angles; `budget.rs` combines
 //! an instrument budget with the fit ([`evaluate_budget`]).
 
@@ -79,6 +80,7 @@ mod solve;
 
 pub use budget::{SelfcalContribution, SelfcalUncertainty, evaluate_budget};
 pub use file::SelfcalError;
+pub(crate) use fourier::design::OffGridDesign;
 pub(crate) use monte_carlo::monte_carlo_of_closure_fit;
 pub use monte_carlo::{SelfcalMonteCarlo, monte_carlo};
 pub use solve::{

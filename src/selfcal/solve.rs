@@ -566,12 +566,13 @@ pub(crate) fn from_closure_fit(
     fit: Solution,
     lost: Vec<usize>,
     extra_parameters: usize,
+    grid: HeadGrid,
     options: &SelfcalOptions,
 ) -> SelfcalSolution {
     let heads = set.heads();
     let cycles = set.cycles().len();
     let closure = Closure::of_fit(fit, lost, extra_parameters);
-    assemble(set, heads, cycles, closure, HeadGrid::OnGrid, options)
+    assemble(set, heads, cycles, closure, grid, options)
 }
 
 /// The self-calibration's results from the closure model's.

@@ -294,6 +294,13 @@ impl Base {
         }
     }
 
+    /// This cofactor with room for `effects` effect columns after the setups (their
+    /// block of B is 0: a bordered inverse adds them through its low-rank part).
+    pub(crate) fn with_effects(mut self, effects: usize) -> Self {
+        self.effects = effects;
+        self
+    }
+
     /// The paper's design (two streams on adjacent faces, offsets d and d + 1, r readings
     /// per step) in closed form: with Cφ(j) = [(N² − 1)/6 − j(N − j)] / (N·r) (the
     /// Green's function of the cycle's second difference),
@@ -480,6 +487,11 @@ impl Structured {
     /// N.
     pub(crate) fn faces(&self) -> usize {
         self.base.faces
+    }
+
+    /// Column k of W and of W·M (each of length 2N + K + E).
+    pub(crate) fn low_rank_column(&self, k: usize) -> (&[f64], &[f64]) {
+        self.low_rank.column(k)
     }
 
     /// For a sparse vector c in g: Wᵀc and (WM)ᵀc into `a` and `b` (each of length r),

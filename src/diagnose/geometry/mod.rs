@@ -22,14 +22,23 @@
 //!   (`structured.rs`). Memory O(n + N·r).
 //! - **dense** (the dense reference solver's fits, and [`FitGeometry::dense`] for tests):
 //!   Q formed in ψ, a column scored in O(n + P²), every suffix in O(P) per reading.
+//! - **off the grid** (a self-calibration whose heads sit between the positions,
+//!   [`FitGeometry::off_grid`]): the rows are dense in φ′ and never formed; products go
+//!   through the band-limited design and the fit's structured cofactor, the entries of H
+//!   through one kernel per pair of heads (`off_grid.rs`).
 
+mod off_grid;
 mod structured;
+
+use std::sync::Arc;
 
 use nalgebra::DMatrix;
 
 use super::nuisance::StopNuisance;
 use crate::measurement::MeasurementSet;
+use crate::selfcal::OffGridDesign;
 use crate::solve::Solution;
+use off_grid::OffGridGeometry;
 use structured::StructuredGeometry;
 
 /// The hat-matrix geometry of one fit: its cofactor (dense in ψ, or structured in g) and
@@ -52,6 +61,8 @@ enum Form {
     Dense(DMatrix<f64>),
     /// Q_g = B + W M Wᵀ in g = [α (N), φ′ (N), U′ (K), effects (E)].
     Structured(Box<StructuredGeometry>),
+    /// The band-limited closure design of heads between the positions (no rows).
+    OffGrid(Box<OffGridGeometry>),
 }
 
 /// What adding one column to the model would do.
@@ -108,6 +119,23 @@ impl FitGeometry {
             }
             None => Self::dense(solution, set, columns),
         }
+    }
+
+    /// The geometry of `solution`, a fit of a self-calibration whose heads sit between
+    /// the positions (`design`'s readings, with the effect `columns`); `None` when the
+    /// fit is not that design's.
+    pub(crate) fn off_grid(
+        solution: &Solution,
+        design: Arc<OffGridDesign>,
+        columns: &[Vec<f64>],
+    ) -> Option<Self> {
+        let n = design.readings();
+        let geometry = OffGridGeometry::new(solution, design, columns)?;
+        Some(Self {
+            form: Form::OffGrid(Box::new(geometry)),
+            rows: vec![Vec::new(); n],
+            nuisance: None,
+        })
     }
 
     /// The dense geometry of `solution` whatever its cofactor (the reference the
@@ -168,9 +196,10 @@ impl FitGeometry {
         self.rows.len()
     }
 
-    /// Whether the geometry is the structured form.
+    /// Whether the geometry is the structured form (or the off-grid form, which is
+    /// structured too).
     pub fn is_structured(&self) -> bool {
-        matches!(self.form, Form::Structured(_))
+        matches!(self.form, Form::Structured(_) | Form::OffGrid(_))
     }
 
     /// The geometry of a fit of M·y with the stop nuisance `nuisance` taken out: the hat
@@ -193,6 +222,7 @@ impl FitGeometry {
                 h
             }
             Form::Structured(s) => s.hat(&self.rows[i], &self.rows[j]),
+            Form::OffGrid(o) => o.hat(i, j),
         }
     }
 
@@ -201,6 +231,7 @@ impl FitGeometry {
         match &self.form {
             Form::Dense(q) => q.nrows(),
             Form::Structured(s) => s.size(),
+            Form::OffGrid(o) => o.size(),
         }
     }
 
@@ -224,6 +255,8 @@ impl FitGeometry {
                 let qg = s.apply(g);
                 g.iter().zip(&qg).map(|(a, b)| a * b).sum()
             }
+            // the off-grid form has no rows: its callers go through `engine_fitted`
+            Form::OffGrid(_) => 0.0,
         }
     }
 
@@ -244,7 +277,28 @@ impl FitGeometry {
                 out
             }
             Form::Structured(s) => s.apply(g),
+            Form::OffGrid(_) => vec![0.0; g.len()],
         }
+    }
+
+    /// H·x without a stop nuisance's part: the fitted values of a fit of `x`.
+    fn engine_fitted(&self, x: &[f64]) -> Vec<f64> {
+        if let Form::OffGrid(o) = &self.form {
+            return o.fitted(x);
+        }
+        let qg = self.product(&self.summed_rows(x));
+        self.rows
+            .iter()
+            .map(|row| row.iter().map(|&(a, v)| v * qg[a]).sum())
+            .collect()
+    }
+
+    /// xᵀHx without a stop nuisance's part.
+    fn engine_quadratic(&self, x: &[f64]) -> f64 {
+        if let Form::OffGrid(o) = &self.form {
+            return x.iter().zip(o.fitted(x)).map(|(a, b)| a * b).sum();
+        }
+        self.quadratic(&self.summed_rows(x))
     }
 
     /// g = Σᵢ xᵢ cᵢ, the design rows summed with the column's values.
@@ -271,14 +325,12 @@ impl FitGeometry {
     /// with the cofactor. With z standard normal, (I − H)·z are the residuals of a run of
     /// pure noise of unit σ (H is a projection).
     pub fn residual_of(&self, z: &[f64]) -> Vec<f64> {
-        let qg = self.product(&self.summed_rows(z));
+        let fitted = self.engine_fitted(z);
         let nuisance = self.nuisance.as_ref().map(|n| n.hat_times(z));
         z.iter()
+            .zip(&fitted)
             .enumerate()
-            .map(|(i, &zi)| {
-                let fitted: f64 = self.rows[i].iter().map(|&(a, v)| v * qg[a]).sum();
-                zi - fitted - nuisance.as_ref().map_or(0.0, |h| h[i])
-            })
+            .map(|(i, (&zi, fitted))| zi - fitted - nuisance.as_ref().map_or(0.0, |h| h[i]))
             .collect()
     }
 
@@ -296,7 +348,7 @@ impl FitGeometry {
                 length_squared += xi * xi;
             }
         }
-        let mut quad = self.quadratic(&self.summed_rows(x));
+        let mut quad = self.engine_quadratic(x);
         if let Some(n) = &self.nuisance {
             quad += n.quadratic(x, x);
         }
@@ -315,6 +367,7 @@ impl FitGeometry {
         let quads = match &self.form {
             Form::Dense(q) => dense_suffix_quads(q, &self.rows, order),
             Form::Structured(s) => s.suffix_quads(&self.rows, order),
+            Form::OffGrid(o) => o.suffix_quads(order),
         };
         let mut nuisance = self.nuisance.as_ref().map(StopNuisance::suffix);
         let mut scores = vec![
@@ -425,8 +478,18 @@ impl FitGeometry {
     /// told apart, follow from it alone).
     pub fn projected_gram(&self, columns: &[Vec<f64>]) -> nalgebra::DMatrix<f64> {
         let m = columns.len();
-        let g: Vec<Vec<f64>> = columns.iter().map(|x| self.summed_rows(x)).collect();
-        let qg: Vec<Vec<f64>> = g.iter().map(|g| self.product(g)).collect();
+        // xᵀ H y as gₓᵀ Q g_y through the sparse rows, or xᵀ (H y) off the grid
+        let (g, qg): (Vec<Vec<f64>>, Vec<Vec<f64>>) = match &self.form {
+            Form::OffGrid(o) => (
+                columns.to_vec(),
+                columns.iter().map(|x| o.fitted(x)).collect(),
+            ),
+            _ => {
+                let g: Vec<Vec<f64>> = columns.iter().map(|x| self.summed_rows(x)).collect();
+                let qg = g.iter().map(|g| self.product(g)).collect();
+                (g, qg)
+            }
+        };
         let mut gram = nalgebra::DMatrix::<f64>::zeros(m, m);
         for a in 0..m {
             for b in a..m {

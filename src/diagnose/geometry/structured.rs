@@ -195,7 +195,7 @@ impl StructuredGeometry {
 
 /// For readings at `positions` (m of them, in order): element k is
 /// Σ_{i > k} K((p_k − p_i) mod N), the kernel summed over the later readings.
-fn suffix_convolution(
+pub(super) fn suffix_convolution(
     kernel: &[f64],
     positions: impl Iterator<Item = usize>,
     m: usize,

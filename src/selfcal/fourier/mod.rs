@@ -23,6 +23,8 @@
 //! Φ(k) = 0, A(k) = Σ w_j Ȳ_j / W. The cofactor is the engine's regular part
 //! ([`crate::solve::cofactor`]) built from this spectrum.
 
+pub(crate) mod design;
+
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
 

@@ -1,0 +1,128 @@
+//! What the self-calibration diagnosis tests share: simulated runs with time, the effects
+//! they inject (each as its column, derived here from the effect's definition) and how a
+//! finding is looked up.
+
+#![allow(dead_code)]
+
+use polycal::diagnose::FoundEffect;
+use polycal::diagnose::selfcal::SelfcalDiagnosis;
+use polycal::effects::Effect;
+use polycal::measurement::Direction;
+use polycal::selfcal::{self, SelfcalSet};
+use polycal::simulate::{SelfcalSimConfig, SelfcalTruth, simulate_selfcal};
+
+/// Seconds between two stops of the table.
+pub const STEP_SECONDS: f64 = 20.0;
+
+/// An effect put into the readings, and its column (one value per reading).
+#[derive(Debug, Clone, Copy)]
+pub enum Injected {
+    /// The head's zero drifts, arcsec per hour.
+    Drift { head: u32, per_hour: f64 },
+    /// The head's zero jumps by `value` from (cycle, step) on, in time order.
+    Jump {
+        head: u32,
+        cycle: u32,
+        step: usize,
+        value: f64,
+    },
+    /// One bad reading.
+    Outlier {
+        head: u32,
+        cycle: u32,
+        step: usize,
+        value: f64,
+    },
+    /// The head reads `value` more in counter-clockwise cycles.
+    Direction { head: u32, value: f64 },
+}
+
+impl Injected {
+    pub fn column(self, set: &SelfcalSet) -> Vec<f64> {
+        // time order: the stop's ordinal (every head of a stop shares it)
+        let time_of = |r: &selfcal::HeadReading| r.time_seconds.unwrap_or(0.0);
+        let start_of = |cycle: u32, step: usize| {
+            set.readings
+                .iter()
+                .find(|r| r.cycle == cycle && r.step == step)
+                .map_or(0.0, time_of)
+        };
+        set.readings
+            .iter()
+            .map(|r| match self {
+                Injected::Drift { head, per_hour } if r.head == head => {
+                    per_hour * time_of(r) / 3600.0
+                }
+                Injected::Jump {
+                    head,
+                    cycle,
+                    step,
+                    value,
+                } if r.head == head && time_of(r) >= start_of(cycle, step) => value,
+                Injected::Outlier {
+                    head,
+                    cycle,
+                    step,
+                    value,
+                } if (r.head, r.cycle, r.step) == (head, cycle, step) => value,
+                Injected::Direction { head, value }
+                    if r.head == head && r.direction == Direction::Ccw =>
+                {
+                    value
+                }
+                _ => 0.0,
+            })
+            .collect()
+    }
+}
+
+/// The configuration of a simulated run with time (20 s per stop), σ = 0.02″, table
+/// error 1″ per stop.
+pub fn run_config(
+    heads: Vec<f64>,
+    positions: usize,
+    cycles: u32,
+    bidirectional: bool,
+    seed: u64,
+) -> SelfcalSimConfig {
+    let mut config = SelfcalSimConfig::default();
+    config.positions = positions;
+    config.cycles = cycles;
+    config.head_angles_deg = heads;
+    config.bidirectional = bidirectional;
+    config.step_seconds = Some(STEP_SECONDS);
+    config.seed = seed;
+    config
+}
+
+/// A simulated run of [`run_config`].
+pub fn run(
+    heads: Vec<f64>,
+    positions: usize,
+    cycles: u32,
+    bidirectional: bool,
+    seed: u64,
+) -> (SelfcalSet, SelfcalTruth) {
+    simulate_selfcal(&run_config(heads, positions, cycles, bidirectional, seed)).unwrap()
+}
+
+pub fn inject(set: &mut SelfcalSet, effects: &[Injected]) {
+    for effect in effects {
+        let column = effect.column(set);
+        for (r, v) in set.readings.iter_mut().zip(column) {
+            r.reading_arcsec += v;
+        }
+    }
+}
+
+pub fn rms(values: &[f64]) -> f64 {
+    (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
+}
+
+pub fn kinds(found: &SelfcalDiagnosis) -> Vec<&Effect> {
+    found.diagnosis.effects.iter().map(|f| &f.effect).collect()
+}
+
+pub fn find(found: &SelfcalDiagnosis, test: impl Fn(&Effect) -> bool) -> Option<&FoundEffect> {
+    found.diagnosis.effects.iter().find(|f| test(&f.effect))
+}
