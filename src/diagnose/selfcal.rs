@@ -195,7 +195,8 @@ pub fn diagnose_selfcal(
 /// # Errors
 ///
 /// As [`crate::selfcal::monte_carlo()`]; [`CalibrationError::Mismatch`] when the
-/// diagnosis is not of `set`.
+/// diagnosis is not of `set`; [`CalibrationError::OffGridEffects`] when some head sits
+/// between the positions and the final model holds effect terms.
 pub fn monte_carlo(
     set: &SelfcalSet,
     diagnosis: &SelfcalDiagnosis,
