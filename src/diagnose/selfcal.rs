@@ -30,7 +30,9 @@ use crate::selfcal::{
     HeadGrid, OffGridDesign, SelfcalOptions, SelfcalSet, SelfcalSolution, SelfcalSolveError,
     add_head_angle_u, closure_set, from_closure_fit, grid_offsets,
 };
-use crate::selfcal::{SelfcalMonteCarlo, SelfcalUncertainty, monte_carlo_of_closure_fit};
+use crate::selfcal::{
+    SelfcalMonteCarlo, SelfcalUncertainty, monte_carlo_of_closure_fit, monte_carlo_of_off_grid_fit,
+};
 use crate::solve::least_squares::least_squares_zeroing_lost;
 use crate::solve::observability::Unobservable;
 use crate::solve::{SolveError, SolveOptions};
@@ -195,8 +197,7 @@ pub fn diagnose_selfcal(
 /// # Errors
 ///
 /// As [`crate::selfcal::monte_carlo()`]; [`CalibrationError::Mismatch`] when the
-/// diagnosis is not of `set`; [`CalibrationError::OffGridEffects`] when some head sits
-/// between the positions and the final model holds effect terms.
+/// diagnosis is not of `set`.
 pub fn monte_carlo(
     set: &SelfcalSet,
     diagnosis: &SelfcalDiagnosis,
@@ -206,15 +207,22 @@ pub fn monte_carlo(
 ) -> Result<SelfcalMonteCarlo, CalibrationError> {
     let (closure, off_grid) =
         diagnosed_closure(set).map_err(|e| CalibrationError::Mismatch(e.to_string()))?;
-    if off_grid.is_some() {
-        // without terms the final model is `selfcal`'s own, whose Monte Carlo takes heads
-        // between the positions
-        if !diagnosis.diagnosis.after.effect_values.is_empty() {
-            return Err(CalibrationError::OffGridEffects);
-        }
-        return crate::selfcal::monte_carlo(set, &diagnosis.after, budget, gum, options);
-    }
     let (clocked, _) = clock::clocked(&closure);
+    if let Some(offsets) = off_grid {
+        let heads: Vec<u32> = set.heads().iter().map(|h| h.head).collect();
+        let design = OffGridDesign::new(&clocked, &heads, &offsets).ok_or_else(|| {
+            CalibrationError::Mismatch("readings not read equally often by every head".into())
+        })?;
+        return monte_carlo_of_off_grid_fit(
+            &clocked,
+            design,
+            &diagnosis.diagnosis.after,
+            &diagnosis.after,
+            budget,
+            gum,
+            options,
+        );
+    }
     monte_carlo_of_closure_fit(
         &clocked,
         &diagnosis.diagnosis.after,

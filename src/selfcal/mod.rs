@@ -81,8 +81,8 @@ mod solve;
 pub use budget::{SelfcalContribution, SelfcalUncertainty, evaluate_budget};
 pub use file::SelfcalError;
 pub(crate) use fourier::design::OffGridDesign;
-pub(crate) use monte_carlo::monte_carlo_of_closure_fit;
 pub use monte_carlo::{SelfcalMonteCarlo, monte_carlo};
+pub(crate) use monte_carlo::{monte_carlo_of_closure_fit, monte_carlo_of_off_grid_fit};
 pub use solve::{
     COVERAGE_PROBABILITY, HeadError, HeadGrid, ON_GRID_TOLERANCE_POSITIONS, SelfcalOptions,
     SelfcalSolution, SelfcalSolveError, solve,

@@ -29,6 +29,7 @@ use serde::Serialize;
 
 use super::budget::SelfcalUncertainty;
 use super::fourier::OffGridMap;
+use super::fourier::design::{OffGridDesign, OffGridFitMap};
 use super::solve::{closure_set, grid_offsets};
 use super::{Head, HeadGrid, SelfcalSet, SelfcalSolution};
 use crate::measurement::MeasurementSet;
@@ -119,6 +120,43 @@ pub(crate) fn monte_carlo_of_closure_fit(
     let model = McModel::with_setup_outputs(closure, fit, budget)?;
     let trial = SelfcalTrial::with_model(model, solution);
     run(trial, solution, budget, gum, options)
+}
+
+/// Monte Carlo of a self-calibration whose heads sit between the positions, fitted by
+/// the band-limited design `design` with effect columns (`fit`, a diagnosis's final model
+/// of the readings `closure`): every trial's readings solved by that fit's linear map
+/// ([`OffGridFitMap`]); otherwise as [`monte_carlo()`].
+pub(crate) fn monte_carlo_of_off_grid_fit(
+    closure: &MeasurementSet,
+    design: OffGridDesign,
+    fit: &Solution,
+    solution: &SelfcalSolution,
+    budget: &InstrumentBudget,
+    gum: &SelfcalUncertainty,
+    options: &McOptions<'_>,
+) -> Result<SelfcalMonteCarlo, CalibrationError> {
+    let n = closure.readings.len();
+    let (p, heads) = (design.positions(), design.heads());
+    let map = OffGridFitMap::new(design, fit)
+        .ok_or_else(|| mismatch("a final model not fitted by the band-limited design".into()))?;
+    let route = CellRoute {
+        residuals: &fit.residuals,
+        sigma: fit.sigma,
+        dof: fit.dof,
+        cell: (0..n).collect(),
+        cells: n,
+        faces: p,
+        setups: heads,
+        map: Box::new(map),
+    };
+    let model = McModel::with_cell_map(closure, route, budget)?;
+    run(
+        SelfcalTrial::with_model(model, solution),
+        solution,
+        budget,
+        gum,
+        options,
+    )
 }
 
 fn run(

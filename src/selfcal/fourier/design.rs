@@ -41,6 +41,7 @@ use crate::solve::observability::Unobservable;
 use crate::solve::{
     Engine, Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma,
 };
+use crate::uncertainty::calibration::CellMap;
 
 /// The band-limited closure design of heads at fractional position offsets (module
 /// documentation), for the readings of one closure set.
@@ -376,5 +377,58 @@ impl OffGridDesign {
             cofactor: Cofactor::structured(layout, structured),
             layout,
         })
+    }
+}
+
+/// A fit of the band-limited design with effect columns as a linear map of the readings
+/// (every reading its own cell): g = Q_g Xᵀy with the fit's cofactor and columns, the
+/// outputs as [`super::OffGridMap`] gives them. What a Monte Carlo trial of a diagnosed
+/// self-calibration's final model solves.
+pub(crate) struct OffGridFitMap {
+    design: OffGridDesign,
+    q: Structured,
+    columns: Vec<Vec<f64>>,
+}
+
+impl OffGridFitMap {
+    /// The map of `fit`, a fit of `design`'s readings by [`OffGridDesign::fit`]; `None`
+    /// when its cofactor is not that fit's.
+    pub(crate) fn new(design: OffGridDesign, fit: &Solution) -> Option<Self> {
+        let q = fit.cofactor.as_structured()?.clone();
+        let columns = fit.effect_regressors.clone();
+        (q.size() == design.size(columns.len())
+            && columns.iter().all(|c| c.len() == design.readings()))
+        .then_some(Self { design, q, columns })
+    }
+}
+
+/// The outputs of one trial's readings: β, φ\[1..P−1\] and α in the reported gauge, then
+/// the heads' constants U_j = U′_j + φ′_P.
+impl CellMap for OffGridFitMap {
+    fn solve(&self, readings: &[f64], out: &mut [f64]) {
+        let p = self.design.positions;
+        let g = self
+            .q
+            .apply(&self.design.transpose(readings, &self.columns));
+        let last = g[2 * p - 1];
+        let (beta, rest) = out.split_at_mut(p);
+        let (phi, rest) = rest.split_at_mut(p - 1);
+        let (alpha, setups) = rest.split_at_mut(p);
+        let mut previous = 0.0;
+        for (f, b) in beta.iter_mut().enumerate() {
+            let phi_f = g[p + f] - last;
+            *b = phi_f - previous;
+            previous = phi_f;
+        }
+        for (o, v) in phi.iter_mut().zip(&g[p..2 * p]) {
+            *o = v - last;
+        }
+        alpha.copy_from_slice(&g[..p]);
+        for (o, u) in setups
+            .iter_mut()
+            .zip(&g[2 * p..2 * p + self.design.heads.len()])
+        {
+            *o = u + last;
+        }
     }
 }

@@ -162,14 +162,6 @@ pub enum CalibrationError {
          not 0) yet"
     )]
     ShiftedMountings,
-    /// A Monte Carlo of a self-calibration's final model with effect terms when some head
-    /// sits between the positions: its trials would need the band-limited design with
-    /// effect columns, which the Monte Carlo does not have yet.
-    #[error(
-        "the Monte Carlo of a self-calibration whose heads sit between the positions does not \
-         handle the diagnosis's effect terms yet; the GUM evaluation of its final model does"
-    )]
-    OffGridEffects,
 }
 
 #[cfg(test)]
