@@ -5,8 +5,13 @@
 //! column), displayed as `file:line:column` like a compiler's message, and names standard
 //! input [`STDIN_NAME`]. The path `-` means standard input wherever a path is read
 //! (docs/FORMAT.md §8).
+//!
+//! The crate's CSV tables (the measurement file, the self-calibration file) are read by one
+//! table reader (the crate's `input::table`): each file kind describes its columns, and
+//! the rules of the text, the header and the rows, with their messages, are the reader's.
 
 pub mod limits;
+pub(crate) mod table;
 pub(crate) mod text;
 use std::fmt;
 use std::io::{self, Read};

@@ -103,6 +103,23 @@ pub(crate) fn to_u64(x: usize) -> u64 {
     u64::try_from(x).unwrap_or(u64::MAX)
 }
 
+/// Where a record's first field starts, from the position the CSV reader reports for it:
+/// after the line breaks of blank lines before it and a byte-order mark (as [`Span::scan`]
+/// finds it, without scanning the fields).
+pub(crate) fn record_begin(bytes: &[u8], from: usize) -> usize {
+    let mut pos = from;
+    while matches!(bytes.get(pos), Some(b'\r' | b'\n')) {
+        pos += 1;
+    }
+    if bytes
+        .get(pos..)
+        .is_some_and(|b| b.starts_with(b"\xef\xbb\xbf"))
+    {
+        pos += 3;
+    }
+    pos
+}
+
 /// Where a record's fields start in the text, found by following the CSV quoting rules
 /// from the position the CSV reader reports (which may lie before skipped blank lines).
 pub(crate) struct Span {
@@ -116,16 +133,7 @@ pub(crate) struct Span {
 
 impl Span {
     pub(crate) fn scan(bytes: &[u8], from: usize, fields: usize) -> Span {
-        let mut pos = from;
-        while matches!(bytes.get(pos), Some(b'\r' | b'\n')) {
-            pos += 1;
-        }
-        if bytes
-            .get(pos..)
-            .is_some_and(|b| b.starts_with(b"\xef\xbb\xbf"))
-        {
-            pos += 3;
-        }
+        let mut pos = record_begin(bytes, from);
         let start = pos;
         let mut starts = vec![pos];
         loop {

@@ -60,6 +60,9 @@ pub use write::{Column, Columns, ReadingWriter};
 
 pub use sigma::{Sigma, SigmaError};
 
+pub(crate) use parse::{DIRECTION_WORDS, direction_text};
+
+use crate::input::table::Locator;
 use parse::*;
 use validate::*;
 

@@ -3,6 +3,7 @@
 
 use super::parse::*;
 use super::*;
+use crate::input::table::Locator;
 use std::collections::hash_map::Entry;
 use std::collections::{BTreeSet, HashMap};
 
@@ -88,7 +89,7 @@ pub(super) fn validate(
 ) -> Result<usize, MeasurementError> {
     let err = |at: (u64, u64), message: String| invalid(source, at, message);
     if readings.is_empty() {
-        return Err(err(loc.header(None), loc.no_rows().to_string()));
+        return Err(err(loc.header_start(), loc.no_rows().to_string()));
     }
 
     // Values (already checked, with their text, when read from a file).
@@ -103,7 +104,7 @@ pub(super) fn validate(
             if zero {
                 let name = col.name();
                 return Err(err(
-                    loc.row(i, readings, Some(col)),
+                    loc.row(i, readings, col.at()),
                     format!("{p}column {name:?}: 0 is not allowed; {name} must be at least 1"),
                 ));
             }
@@ -119,7 +120,7 @@ pub(super) fn validate(
                 && let Err(rule) = limit.check(x, what)
             {
                 return Err(err(
-                    loc.row(i, readings, Some(col)),
+                    loc.row(i, readings, col.at()),
                     format!("{p}column {:?}: {rule}", col.name()),
                 ));
             }
@@ -131,7 +132,7 @@ pub(super) fn validate(
         Some(n) => {
             if n < 3 {
                 return Err(err(
-                    loc.header(Some(Col::Face)),
+                    loc.header(Col::Face.at()),
                     format!("a polygon needs at least 3 faces, {n} were stated"),
                 ));
             }
@@ -148,7 +149,7 @@ pub(super) fn validate(
             }
             if largest < 3 {
                 return Err(err(
-                    loc.row(at, readings, Some(Col::Face)),
+                    loc.row(at, readings, Col::Face.at()),
                     format!(
                         "{}column \"face\": the largest face is {largest}, so N = {largest}; \
                          a polygon needs at least 3 faces",
@@ -169,7 +170,7 @@ pub(super) fn validate(
         let mut range = Vec::new();
         if r.face > n {
             range.push((
-                loc.row(i, readings, Some(Col::Face)),
+                loc.row(i, readings, Col::Face.at()),
                 format!(
                     "{p}column \"face\": {} is outside 1 to {n} (N = {n}, {n_from})",
                     r.face
@@ -178,7 +179,7 @@ pub(super) fn validate(
         }
         if r.step > n {
             range.push((
-                loc.row(i, readings, Some(Col::Step)),
+                loc.row(i, readings, Col::Step.at()),
                 format!(
                     "{p}column \"step\": {} is outside 0 to {n} (N = {n}, {n_from})",
                     r.step
@@ -192,7 +193,7 @@ pub(super) fn validate(
         match first_read.entry((r.setup, r.cycle, r.step, r.ac)) {
             Entry::Occupied(first) => {
                 return Err(err(
-                    loc.row(i, readings, None),
+                    loc.row_start(i, readings),
                     format!(
                         "{p}duplicate reading: setup {}, cycle {}, step {}, ac {} was already \
                          read at {}",
@@ -215,12 +216,12 @@ pub(super) fn validate(
                 let direction = readings.get(j).map(|f| f.direction).unwrap_or_default();
                 if direction != r.direction {
                     return Err(err(
-                        loc.row(i, readings, Some(Col::Direction)),
+                        loc.row(i, readings, Col::Direction.at()),
                         format!(
                             "{p}column \"direction\": {} disagrees with {} set for setup {}, \
                              cycle {} at {}; a cycle has one direction",
-                            loc.direction_text(i, readings),
-                            loc.direction_text(j, readings),
+                            direction_text(loc, i, Col::Direction.at(), r.direction),
+                            direction_text(loc, j, Col::Direction.at(), direction),
                             r.setup,
                             r.cycle,
                             loc.name(j, readings)
@@ -239,7 +240,7 @@ pub(super) fn validate(
                 let (d0, j) = *first.get();
                 if d != d0 {
                     return Err(err(
-                        loc.row(i, readings, Some(Col::Face)),
+                        loc.row(i, readings, Col::Face.at()),
                         format!(
                             "{p}column \"face\": face {} at step {} does not fit setup {}, \
                              ac {}: face {} was expected, as {} set the offset \
@@ -270,7 +271,7 @@ pub(super) fn validate(
             ("faces", "are")
         };
         return Err(err(
-            loc.header(Some(Col::Face)),
+            loc.header(Col::Face.at()),
             format!(
                 "column \"face\": {what} {} {verb} never read; every face 1 to {n} must be \
                  read (N = {n}, {n_from})",
@@ -287,7 +288,7 @@ pub(super) fn validate(
             ("steps", "are")
         };
         return Err(err(
-            loc.header(Some(Col::Step)),
+            loc.header(Col::Step.at()),
             format!(
                 "column \"step\": {what} {} {verb} never present; every step 0 to {} must be \
                  present (N = {n}, {n_from})",

@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
-use super::parse::{Col, split_lines};
+use super::parse::Col;
 use super::{MeasurementError, MeasurementSet, Reading};
 
 /// A column of the measurement file (docs/FORMAT.md §2).
@@ -307,4 +307,10 @@ impl MeasurementSet {
         crate::output_file::write_file_with(path, |w| self.write_to(w, comments))
             .map_err(|e| io_error(e.into_io()))
     }
+}
+
+/// The lines of a comment: split at `\n`, `\r\n` and a lone `\r`.
+fn split_lines(text: &str) -> impl Iterator<Item = &str> {
+    text.split('\n')
+        .flat_map(|line| line.strip_suffix('\r').unwrap_or(line).split('\r'))
 }

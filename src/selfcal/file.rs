@@ -184,7 +184,7 @@ impl SelfcalSet {
         let positions = validate::validate(
             &readings,
             positions,
-            &validate::Locator::Memory,
+            &crate::input::table::Locator::Memory,
             MEMORY_NAME,
         )?;
         Ok(Self {
@@ -204,7 +204,7 @@ impl SelfcalSet {
         validate::validate(
             &self.readings,
             Some(self.positions),
-            &validate::Locator::Memory,
+            &crate::input::table::Locator::Memory,
             MEMORY_NAME,
         )
         .map(|_| ())

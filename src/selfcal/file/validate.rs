@@ -6,119 +6,22 @@ use std::collections::hash_map::Entry;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 use super::SelfcalError;
-use super::parse::{Col, LineIndex, NCOLS, angle_outside, invalid, show};
+use super::parse::{Col, angle_outside, invalid};
+use crate::input::table::Locator;
+use crate::measurement::direction_text;
 use crate::selfcal::HeadReading;
 
 /// Two head angles closer than this (degrees, modulo 360) are the same place.
 pub(super) const SAME_ANGLE_DEG: f64 = 1e-9;
 
-/// Where the fields of one parsed row are, for messages.
-pub(super) struct RowLoc {
-    /// Byte offset where the row starts.
-    pub(super) start: usize,
-    /// Byte offset of each column's field.
-    pub(super) fields: [Option<usize>; NCOLS],
-    /// Whether `direction` was empty (meaning `cw`).
-    pub(super) direction_empty: bool,
-    /// The `head_angle` field as written.
-    pub(super) head_angle_text: String,
-}
-
-/// Finds where a reading or a header column is, for messages.
-pub(super) enum Locator<'a> {
-    /// Readings of a file: positions in its text.
-    File {
-        index: &'a LineIndex<'a>,
-        header_start: usize,
-        header_fields: &'a [Option<usize>; NCOLS],
-        rows: &'a [RowLoc],
-    },
-    /// Readings built in memory: the reading's line, column 0.
-    Memory,
-}
-
-impl Locator<'_> {
-    fn row(&self, i: usize, readings: &[HeadReading], col: Option<Col>) -> (u64, u64) {
-        match self {
-            Locator::File { index, rows, .. } => match rows.get(i) {
-                Some(r) => {
-                    let offset = col
-                        .and_then(|c| r.fields.get(c as usize).copied().flatten())
-                        .unwrap_or(r.start);
-                    index.location(offset)
-                }
-                None => (readings.get(i).map_or(1, |r| r.line.max(1)), 1),
-            },
-            Locator::Memory => (readings.get(i).map_or(0, |r| r.line), 0),
-        }
-    }
-
-    fn header(&self, col: Option<Col>) -> (u64, u64) {
-        match self {
-            Locator::File {
-                index,
-                header_start,
-                header_fields,
-                ..
-            } => {
-                let offset = col
-                    .and_then(|c| header_fields.get(c as usize).copied().flatten())
-                    .unwrap_or(*header_start);
-                index.location(offset)
-            }
-            Locator::Memory => (0, 0),
-        }
-    }
-
-    /// `reading K: ` for an in-memory reading without a line, else nothing.
-    fn prefix(&self, i: usize, readings: &[HeadReading]) -> String {
-        match self {
-            Locator::Memory if readings.get(i).is_none_or(|r| r.line == 0) => {
-                format!("reading {}: ", i + 1)
-            }
-            _ => String::new(),
-        }
-    }
-
-    /// How to name another reading in a message: `line L` or `reading K`.
-    fn name(&self, i: usize, readings: &[HeadReading]) -> String {
-        match readings.get(i) {
-            Some(r) if r.line > 0 => format!("line {}", r.line),
-            _ => format!("reading {}", i + 1),
-        }
-    }
-
-    /// The direction of a reading as it was written.
-    fn direction_text(&self, i: usize, readings: &[HeadReading]) -> String {
-        let direction = readings.get(i).map(|r| r.direction).unwrap_or_default();
-        match self {
-            Locator::File { rows, .. } if rows.get(i).is_some_and(|r| r.direction_empty) => {
-                format!("\"\" (empty, meaning {direction})")
-            }
-            _ => format!("{:?}", direction.as_str()),
-        }
-    }
-
-    /// The head angle of a reading as it was written (quoted), or its value.
-    fn angle_text(&self, i: usize, readings: &[HeadReading]) -> String {
-        let row = match self {
-            Locator::File { rows, .. } => rows.get(i),
-            Locator::Memory => None,
-        };
-        match row {
-            Some(r) => show(&r.head_angle_text),
-            None => readings
-                .get(i)
-                .map_or_else(String::new, |r| r.head_angle_deg.to_string()),
-        }
-    }
-
-    fn no_rows(&self) -> &'static str {
-        match self {
-            Locator::File { .. } => "no data rows after the header",
-            Locator::Memory => "no readings",
-        }
-    }
+/// Row `i`'s head angle as it was written (quoted), or its value for a reading built in
+/// memory.
+fn angle_text(loc: &Locator<'_>, i: usize, readings: &[HeadReading]) -> String {
+    loc.shown(i, Col::HeadAngle.at()).unwrap_or_else(|| {
+        readings
+            .get(i)
+            .map_or_else(String::new, |r| r.head_angle_deg.to_string())
+    })
 }
 
 /// A list of numbers for a message, cut after 20.
@@ -151,7 +54,7 @@ pub(super) fn validate(
 ) -> Result<usize, SelfcalError> {
     let err = |at: (u64, u64), message: String| invalid(source, at, message);
     if readings.is_empty() {
-        return Err(err(loc.header(None), loc.no_rows().to_string()));
+        return Err(err(loc.header_start(), loc.no_rows().to_string()));
     }
 
     // Values (already checked, with their text, when read from a file).
@@ -161,7 +64,7 @@ pub(super) fn validate(
             if zero {
                 let name = col.name();
                 return Err(err(
-                    loc.row(i, readings, Some(col)),
+                    loc.row(i, readings, col.at()),
                     format!("{p}column {name:?}: 0 is not allowed; {name} must be at least 1"),
                 ));
             }
@@ -178,14 +81,14 @@ pub(super) fn validate(
             };
             if let Some(rule) = rule {
                 return Err(err(
-                    loc.row(i, readings, Some(col)),
+                    loc.row(i, readings, col.at()),
                     format!("{p}column {:?}: {rule}", col.name()),
                 ));
             }
         }
         if !(0.0..360.0).contains(&r.head_angle_deg) {
             return Err(err(
-                loc.row(i, readings, Some(Col::HeadAngle)),
+                loc.row(i, readings, Col::HeadAngle.at()),
                 format!("{p}{}", angle_outside(&r.head_angle_deg.to_string())),
             ));
         }
@@ -196,7 +99,7 @@ pub(super) fn validate(
         Some(n) => {
             if n < 3 {
                 return Err(err(
-                    loc.header(Some(Col::Step)),
+                    loc.header(Col::Step.at()),
                     format!(
                         "column \"step\": {n} positions were stated; self-calibration needs \
                          at least 3 positions"
@@ -215,7 +118,7 @@ pub(super) fn validate(
                 }
             }
             let p = loc.prefix(at, readings);
-            let at = loc.row(at, readings, Some(Col::Step));
+            let at = loc.row(at, readings, Col::Step.at());
             let Some(n) = largest.checked_add(1) else {
                 return Err(err(
                     at,
@@ -246,7 +149,7 @@ pub(super) fn validate(
         let p = loc.prefix(i, readings);
         if r.step >= n {
             return Err(err(
-                loc.row(i, readings, Some(Col::Step)),
+                loc.row(i, readings, Col::Step.at()),
                 format!(
                     "{p}column \"step\": {} is outside 0 to {} (P = {n}, {n_from})",
                     r.step,
@@ -258,7 +161,7 @@ pub(super) fn validate(
         match first_read.entry((r.cycle, r.step, r.head)) {
             Entry::Occupied(first) => {
                 return Err(err(
-                    loc.row(i, readings, None),
+                    loc.row_start(i, readings),
                     format!(
                         "{p}duplicate reading: cycle {}, step {}, head {} was already read at {}",
                         r.cycle,
@@ -279,12 +182,12 @@ pub(super) fn validate(
                 let direction = readings.get(j).map(|f| f.direction).unwrap_or_default();
                 if direction != r.direction {
                     return Err(err(
-                        loc.row(i, readings, Some(Col::Direction)),
+                        loc.row(i, readings, Col::Direction.at()),
                         format!(
                             "{p}column \"direction\": {} disagrees with {} set for cycle {} at \
                              {}; a cycle has one direction",
-                            loc.direction_text(i, readings),
-                            loc.direction_text(j, readings),
+                            direction_text(loc, i, Col::Direction.at(), r.direction),
+                            direction_text(loc, j, Col::Direction.at(), direction),
                             r.cycle,
                             loc.name(j, readings)
                         ),
@@ -296,7 +199,7 @@ pub(super) fn validate(
             }
         }
 
-        let angle_at = loc.row(i, readings, Some(Col::HeadAngle));
+        let angle_at = loc.row(i, readings, Col::HeadAngle.at());
         let angle = r.head_angle_deg;
         if r.head == 1 && angle != 0.0 {
             return Err(err(
@@ -304,7 +207,7 @@ pub(super) fn validate(
                 format!(
                     "{p}column \"head_angle\": {} for head 1; head 1 is the reference and its \
                      angle must be 0",
-                    loc.angle_text(i, readings)
+                    angle_text(loc, i, readings)
                 ),
             ));
         }
@@ -317,8 +220,8 @@ pub(super) fn validate(
                         format!(
                             "{p}column \"head_angle\": {} disagrees with {} set for head {} at \
                              {}; a head has one angle",
-                            loc.angle_text(i, readings),
-                            loc.angle_text(j, readings),
+                            angle_text(loc, i, readings),
+                            angle_text(loc, j, readings),
                             r.head,
                             loc.name(j, readings)
                         ),
@@ -347,8 +250,8 @@ pub(super) fn validate(
                              {other} ({} at {}); two heads cannot be at the same angle (equal \
                              modulo 360 within {SAME_ANGLE_DEG:e} degrees)",
                             r.head,
-                            loc.angle_text(i, readings),
-                            loc.angle_text(j, readings),
+                            angle_text(loc, i, readings),
+                            angle_text(loc, j, readings),
                             loc.name(j, readings)
                         ),
                     ));
@@ -362,7 +265,7 @@ pub(super) fn validate(
     let heads: BTreeSet<u32> = head_first.keys().copied().collect();
     if heads.len() < 2 {
         return Err(err(
-            loc.header(Some(Col::Head)),
+            loc.header(Col::Head.at()),
             format!(
                 "column \"head\": only head {} is read; self-calibration needs at least 2 heads",
                 list(&heads)
@@ -371,7 +274,7 @@ pub(super) fn validate(
     }
     if !heads.contains(&1) {
         return Err(err(
-            loc.header(Some(Col::Head)),
+            loc.header(Col::Head.at()),
             format!(
                 "column \"head\": head 1, the reference, is never read (the heads read are {})",
                 list(&heads)
@@ -409,7 +312,7 @@ pub(super) fn validate(
         }
         if let Some((step, head)) = first_missing {
             return Err(err(
-                loc.header(Some(Col::Step)),
+                loc.header(Col::Step.at()),
                 format!(
                     "column \"step\": cycle {cycle}, step {step} is never read by head {head}; \
                      every head must read every step 0 to {} in every cycle (P = {n}, {n_from})",
