@@ -25,6 +25,7 @@
 //! - [`results`]: the result CSV file (one row per calibrated quantity);
 //! - [`uncertainty`]: GUM uncertainty budgets and Student's t;
 //! - [`compare`]: En numbers between two results;
+//! - [`kc`]: interlaboratory (key) comparisons: reference values, χ² tests, degrees of equivalence;
 //! - [`diagnose`]: residual analysis that finds, adds and reports the effects a model lacks;
 //! - [`figure`]: the figures (SVG) of every command, drawn from its report object;
 //! - [`certificate`]: the documents a lab hands over, both built from one evaluated
@@ -44,6 +45,7 @@ pub mod diagnose;
 pub mod effects;
 pub mod figure;
 pub mod input;
+pub mod kc;
 #[cfg(feature = "lab")]
 pub mod lab;
 pub mod measurement;

@@ -501,7 +501,7 @@ fn usage_errors_are_one_line() {
     }
     assert_eq!(
         one_error_line(&polycal(&[])),
-        "no command given; the commands are solve, diagnose, budget, compare, selfcal, plan, report, \
+        "no command given; the commands are solve, diagnose, budget, compare, kc, selfcal, plan, report, \
          simulate, run, sim-lab, completions, man (see --help)"
     );
 }

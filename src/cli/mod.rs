@@ -9,6 +9,7 @@ mod docs;
 mod files;
 #[cfg(feature = "lab")]
 mod interrupt;
+mod kc;
 mod monte_carlo;
 pub mod output;
 mod plan;
@@ -36,7 +37,7 @@ pub const EXIT_ERROR: u8 = 2;
 /// After the list of commands in `polycal --help`.
 const EXIT_STATUS_HELP: &str = "\
 Exit status: 0 done and every check passed; 1 done, but a verdict is negative (compare:
-some |En| > 1; diagnose: a model not adequate; solve: Monte Carlo does not validate GUM;
+some |En| > 1; kc: not consistent after the stated exclusions; diagnose: a model not adequate; solve: Monte Carlo does not validate GUM;
 plan: a design cannot calibrate or misses --target-u);
 2 an error (usage, refused input, instrument or file failure); 130 `run` stopped at once by
 a second Ctrl-C (docs/FORMAT.md §8).
@@ -105,6 +106,11 @@ pub enum Command {
     /// status 1 when some |En| > 1 (setup errors only with --include-setup).
     #[command(after_help = compare::EXAMPLES)]
     Compare(compare::CompareArgs),
+    /// Evaluate an interlaboratory (key) comparison of a polygon or an encoder: reference
+    /// per face with χ², exclusions, degrees of equivalence, the closed vector
+    /// (docs/FORMAT.md §12); status 1 when not consistent after the stated exclusions.
+    #[command(after_help = kc::EXAMPLES)]
+    Kc(kc::KcArgs),
     /// Self-calibrate a rotary encoder with several read heads (SelfA): the disc's
     /// graduation error and the heads' errors (docs/FORMAT.md §9).
     #[command(after_help = selfcal::EXAMPLES)]
@@ -254,6 +260,7 @@ pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
         Command::Diagnose(args) => diagnose::run(&args, out),
         Command::Budget(args) => budget::run(&args),
         Command::Compare(args) => compare::run(&args),
+        Command::Kc(args) => kc::run(&args),
         Command::Selfcal(args) => selfcal::run(&args, out),
         Command::Plan(args) => plan::run(&args, out),
         Command::Report(args) => report::run(&args, out),

@@ -6,6 +6,7 @@
 //!   (β, φ, α with their uncertainties) `diagnose` also prints for its final model;
 //! - [`diagnose`]: the JSON object of `polycal diagnose`; [`diagnose_table`]: its table;
 //! - [`compare`]: the table of `polycal compare` (its JSON is [`crate::compare::Comparison`]);
+//! - [`kc`]: the table and the CSV of `polycal kc` (its JSON is [`crate::kc::KeyComparison`]);
 //! - [`selfcal`]: the JSON object, the table and the result rows of `polycal selfcal`;
 //! - [`plan`]: the JSON object of one design of `polycal plan`, its table, and the table
 //!   comparing designs.
@@ -19,6 +20,7 @@ pub mod compare;
 pub mod diagnose;
 pub mod diagnose_selfcal;
 pub mod diagnose_table;
+pub mod kc;
 pub mod plan;
 pub mod selfcal;
 pub mod solve;

@@ -1,0 +1,153 @@
+//! `polycal kc`: an interlaboratory (key) comparison of several laboratories' results
+//! (docs/FORMAT.md §12).
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::ValueEnum;
+use polycal::kc::{KcOptions, LabResult, ReferenceMethod, evaluate};
+use polycal::results::{Quantity, read_result_file};
+
+use super::{EXIT_OK, EXIT_VERDICT};
+
+/// After `polycal kc --help`.
+pub const EXAMPLES: &str = "\
+The contract (JSON names, exclusions, the closed vector, the pilot's repeats):
+docs/FORMAT.md §12 (Key comparisons). Status 0 consistent, 1 not consistent after the
+stated exclusions, 2 an input refused.
+
+Examples:
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv D=examples/data/kc/D.csv E=examples/data/kc/E.csv F=examples/data/kc/F.csv --format json
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv --pilot start=examples/data/kc/pilot-start.csv --pilot end=examples/data/kc/pilot-end.csv
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv F=examples/data/kc/F.csv --method dersimonian-laird --format csv";
+
+/// One `NAME=RESULT.csv` argument.
+#[derive(Clone, Debug)]
+pub struct Named {
+    name: String,
+    path: PathBuf,
+}
+
+/// Parses `NAME=PATH` (a name not empty; the path may contain `=`).
+fn named(text: &str) -> std::result::Result<Named, String> {
+    match text.split_once('=') {
+        Some((name, path)) if !name.is_empty() && !path.is_empty() => Ok(Named {
+            name: name.to_string(),
+            path: PathBuf::from(path),
+        }),
+        _ => Err(format!(
+            "expected NAME=RESULT.csv (a laboratory's name, `=`, its result file), got {text:?}"
+        )),
+    }
+}
+
+/// Arguments of `polycal kc`.
+#[derive(clap::Args)]
+pub struct KcArgs {
+    /// The laboratories' results, NAME=RESULT.csv each (docs/FORMAT.md §3: U and k, or u,
+    /// on every row of the quantity); at least 2.
+    #[arg(value_name = "NAME=RESULT.csv", required = true, value_parser = named)]
+    labs: Vec<Named>,
+    /// The pilot's repeated result of the artefact (start, middle, end of the
+    /// circulation), NAME=RESULT.csv; give it at least twice.
+    #[arg(long, value_name = "NAME=RESULT.csv", value_parser = named)]
+    pilot: Vec<Named>,
+    /// The compared quantity.
+    #[arg(long, value_enum, default_value = "pitch_deviation")]
+    quantity: KcQuantity,
+    /// The reference: the weighted mean (with the largest consistent subset), or the
+    /// DerSimonian–Laird random-effects mean (with its dark uncertainty τ, nobody left out).
+    #[arg(long, value_enum, default_value = "weighted-mean")]
+    method: KcMethod,
+    /// Output format (csv: the degrees of equivalence, columns
+    /// lab,index,angle_deg,d,U,in_reference; docs/FORMAT.md §12).
+    #[arg(long, value_enum, default_value = "table")]
+    format: KcFormat,
+}
+
+/// `kc --quantity`.
+#[derive(Clone, Copy, ValueEnum)]
+#[allow(non_camel_case_types)]
+enum KcQuantity {
+    #[value(name = "pitch_deviation")]
+    PitchDeviation,
+    #[value(name = "encoder_error")]
+    EncoderError,
+}
+
+/// `kc --method`.
+#[derive(Clone, Copy, ValueEnum)]
+enum KcMethod {
+    WeightedMean,
+    DersimonianLaird,
+}
+
+/// `kc --format`.
+#[derive(Clone, Copy, ValueEnum)]
+enum KcFormat {
+    Table,
+    Json,
+    Csv,
+}
+
+/// `polycal kc`: returns the exit status, or an error for the `error:` line.
+pub fn run(args: &KcArgs) -> Result<u8> {
+    let roles: Vec<(String, &std::path::Path)> = args
+        .labs
+        .iter()
+        .chain(&args.pilot)
+        .map(|n| (n.name.clone(), n.path.as_path()))
+        .collect();
+    super::stdin_once(
+        roles
+            .iter()
+            .map(|(role, path)| (role.as_str(), Some(*path))),
+    )?;
+    let read = |list: &[Named]| -> Result<Vec<LabResult>> {
+        list.iter()
+            .map(|n| {
+                Ok(LabResult::from_file(
+                    n.name.clone(),
+                    read_result_file(&n.path)?,
+                ))
+            })
+            .collect()
+    };
+    let labs = read(&args.labs)?;
+    let pilot = read(&args.pilot)?;
+    let options = KcOptions::new()
+        .with_quantity(match args.quantity {
+            KcQuantity::PitchDeviation => Quantity::PitchDeviation,
+            KcQuantity::EncoderError => Quantity::EncoderError,
+        })
+        .with_method(match args.method {
+            KcMethod::WeightedMean => ReferenceMethod::WeightedMean,
+            KcMethod::DersimonianLaird => ReferenceMethod::DersimonianLaird,
+        });
+    let kc = evaluate(&labs, &pilot, &options).map_err(|e| match e {
+        // Library messages name no flags: the CLI adds the one that helps.
+        polycal::kc::KcError::TooFewRepeats(_) => {
+            super::with_hint(e, "--pilot", "give --pilot twice or more, or not at all")
+        }
+        e => e.into(),
+    })?;
+    let stdout = std::io::stdout();
+    let mut stdout = stdout.lock();
+    match args.format {
+        KcFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&kc)?)?,
+        KcFormat::Table => {
+            let mut text = String::new();
+            polycal::output::kc::write_table(&mut text, &kc)?;
+            write!(stdout, "{text}")?;
+        }
+        KcFormat::Csv => polycal::output::kc::write_csv(&mut stdout, &kc)?,
+    }
+    stdout.flush()?;
+    Ok(if kc.comparison_consistent {
+        EXIT_OK
+    } else {
+        EXIT_VERDICT
+    })
+}

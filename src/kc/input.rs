@@ -1,0 +1,248 @@
+//! The laboratories' results lined up quantity by quantity: every face (pitch deviations)
+//! or every common table angle (encoder errors) with each result's value and standard
+//! uncertainty, and the refusals of results that cannot be lined up.
+
+use std::collections::BTreeMap;
+
+use super::{KcError, LabResult};
+use crate::results::{ANGLE_TOLERANCE_DEG, Quantity, ResultRow};
+
+/// The results lined up: `values[r][k]` and `u[r][k]` of result `r` (laboratories first,
+/// then the pilot's repeats) at position `k`.
+#[derive(Debug, Clone)]
+pub(crate) struct Aligned {
+    /// Face 1 … N, or the first laboratory's index of each common encoder error.
+    pub index: Vec<u32>,
+    /// The table angle of each common encoder error, degrees (encoder errors matched by
+    /// angle only).
+    pub angle_deg: Option<Vec<f64>>,
+    /// Values, arcseconds, per result and position.
+    pub values: Vec<Vec<f64>>,
+    /// Standard uncertainties, arcseconds, per result and position.
+    pub u: Vec<Vec<f64>>,
+    /// What was left out, in words.
+    pub notes: Vec<String>,
+}
+
+/// `file:line` of row `i` of a result, or `name (row i+1)` for rows given in memory.
+fn location(result: &LabResult, i: usize) -> String {
+    match result.lines.get(i) {
+        Some(line) => format!("{}:{line}", result.source),
+        None => format!("{} (row {})", result.source, i + 1),
+    }
+}
+
+/// The standard uncertainty of a row: its `u` when given, else `U/k`; `U` and `u`, where
+/// given, must be positive.
+fn standard_u(result: &LabResult, i: usize, row: &ResultRow) -> Result<f64, KcError> {
+    let non_positive = |column: &'static str, value: f64| KcError::NonPositiveUncertainty {
+        location: location(result, i),
+        quantity: row.quantity,
+        index: row.index,
+        column,
+        value,
+    };
+    if let Some(expanded_u) = row.expanded_u
+        && !(expanded_u > 0.0 && expanded_u.is_finite())
+    {
+        return Err(non_positive("U", expanded_u));
+    }
+    if let Some(u) = row.u {
+        if !(u > 0.0 && u.is_finite()) {
+            return Err(non_positive("u", u));
+        }
+        return Ok(u);
+    }
+    match (row.expanded_u, row.k) {
+        (Some(expanded_u), Some(k)) if k > 0.0 && k.is_finite() => Ok(expanded_u / k),
+        _ => Err(KcError::MissingUncertainty {
+            location: location(result, i),
+            quantity: row.quantity,
+            index: row.index,
+        }),
+    }
+}
+
+/// The rows of `quantity` of one result, with their position in the result.
+fn rows_of(result: &LabResult, quantity: Quantity) -> Vec<(usize, &ResultRow)> {
+    result
+        .rows
+        .iter()
+        .enumerate()
+        .filter(|(_, row)| row.quantity == quantity)
+        .collect()
+}
+
+/// Lines up the pitch deviations: every result must have faces 1 … N, the same N.
+pub(crate) fn pitch(results: &[&LabResult]) -> Result<Aligned, KcError> {
+    let mut faces_first: Option<(u32, &str)> = None;
+    let (mut values, mut u) = (Vec::new(), Vec::new());
+    for result in results {
+        let rows = rows_of(result, Quantity::PitchDeviation);
+        let Some(&(last_at, _)) = rows.iter().max_by_key(|(_, row)| row.index) else {
+            return Err(KcError::NoRows {
+                lab: result.name.clone(),
+                file: result.source.clone(),
+                quantity: Quantity::PitchDeviation,
+            });
+        };
+        let faces = result.rows[last_at].index;
+        let mut by_face: BTreeMap<u32, usize> = BTreeMap::new();
+        for &(i, row) in &rows {
+            if row.index == 0 || by_face.insert(row.index, i).is_some() {
+                return Err(KcError::Duplicate {
+                    location: location(result, i),
+                    quantity: row.quantity,
+                    index: row.index,
+                });
+            }
+        }
+        match faces_first {
+            None => faces_first = Some((faces, &result.source)),
+            Some((first, first_source)) if first != faces => {
+                return Err(KcError::FacesDiffer {
+                    location: location(result, last_at),
+                    faces,
+                    first_source: first_source.to_string(),
+                    first_faces: first,
+                });
+            }
+            Some(_) => {}
+        }
+        let (mut x, mut s) = (Vec::new(), Vec::new());
+        for face in 1..=faces {
+            let Some(&i) = by_face.get(&face) else {
+                return Err(KcError::FaceMissing {
+                    file: result.source.clone(),
+                    face,
+                    faces,
+                });
+            };
+            let row = &result.rows[i];
+            x.push(row.value);
+            s.push(standard_u(result, i, row)?);
+        }
+        values.push(x);
+        u.push(s);
+    }
+    let faces = faces_first.map_or(0, |(n, _)| n);
+    Ok(Aligned {
+        index: (1..=faces).collect(),
+        angle_deg: None,
+        values,
+        u,
+        notes: Vec::new(),
+    })
+}
+
+/// One position of an encoder error across the results: the row of each result there.
+struct Group {
+    key: f64,
+    rows: Vec<Option<usize>>,
+}
+
+/// Lines up the encoder errors: by table angle (within [`ANGLE_TOLERANCE_DEG`] around the
+/// circle) when every encoder error of every result carries `angle_deg`, else by index.
+/// Positions not in every result are left out and named in a note.
+pub(crate) fn encoder(results: &[&LabResult]) -> Result<Aligned, KcError> {
+    let by_angle = results.iter().all(|result| {
+        let rows = rows_of(result, Quantity::EncoderError);
+        !rows.is_empty() && rows.iter().all(|(_, row)| row.angle_deg.is_some())
+    });
+    // Every (key, result, row), sorted by key.
+    let mut all: Vec<(f64, usize, usize)> = Vec::new();
+    for (r, result) in results.iter().enumerate() {
+        let rows = rows_of(result, Quantity::EncoderError);
+        if rows.is_empty() {
+            return Err(KcError::NoRows {
+                lab: result.name.clone(),
+                file: result.source.clone(),
+                quantity: Quantity::EncoderError,
+            });
+        }
+        for (i, row) in rows {
+            let key = match (by_angle, row.angle_deg) {
+                (true, Some(angle)) if angle >= 360.0 - ANGLE_TOLERANCE_DEG => angle - 360.0,
+                (true, Some(angle)) => angle,
+                _ => f64::from(row.index),
+            };
+            all.push((key, r, i));
+        }
+    }
+    all.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let tolerance = if by_angle { ANGLE_TOLERANCE_DEG } else { 0.0 };
+    let mut groups: Vec<Group> = Vec::new();
+    for (key, r, i) in all {
+        let fresh = groups
+            .last()
+            .is_none_or(|group| key - group.key > tolerance);
+        if fresh {
+            groups.push(Group {
+                key,
+                rows: vec![None; results.len()],
+            });
+        }
+        let Some(group) = groups.last_mut() else {
+            continue;
+        };
+        if group.rows[r].is_some() {
+            return Err(KcError::Duplicate {
+                location: location(results[r], i),
+                quantity: Quantity::EncoderError,
+                index: results[r].rows[i].index,
+            });
+        }
+        group.rows[r] = Some(i);
+    }
+    let mut aligned = Aligned {
+        index: Vec::new(),
+        angle_deg: by_angle.then(Vec::new),
+        values: vec![Vec::new(); results.len()],
+        u: vec![Vec::new(); results.len()],
+        notes: Vec::new(),
+    };
+    let mut left_out = Vec::new();
+    for group in &groups {
+        if group.rows.iter().any(Option::is_none) {
+            let missing: Vec<&str> = group
+                .rows
+                .iter()
+                .zip(results)
+                .filter(|(row, _)| row.is_none())
+                .map(|(_, result)| result.name.as_str())
+                .collect();
+            let at = if by_angle {
+                format!("{}°", group.key.max(0.0))
+            } else {
+                format!("index {}", group.key)
+            };
+            left_out.push(format!("{at} (not in {})", missing.join(", ")));
+            continue;
+        }
+        for (r, row) in group.rows.iter().enumerate() {
+            let Some(i) = *row else { continue };
+            let result = results[r];
+            let found = &result.rows[i];
+            if r == 0 {
+                aligned.index.push(found.index);
+                if let Some(angles) = aligned.angle_deg.as_mut() {
+                    angles.push(found.angle_deg.unwrap_or(group.key));
+                }
+            }
+            aligned.values[r].push(found.value);
+            aligned.u[r].push(standard_u(result, i, found)?);
+        }
+    }
+    if aligned.index.is_empty() {
+        return Err(KcError::NothingInCommon);
+    }
+    if !left_out.is_empty() {
+        aligned.notes.push(format!(
+            "encoder errors matched by {}: {} position(s) not in every result left out: {}",
+            if by_angle { "angle" } else { "index" },
+            left_out.len(),
+            left_out.join("; ")
+        ));
+    }
+    Ok(aligned)
+}

@@ -1,0 +1,390 @@
+//! Interlaboratory (key) comparisons of a polygon or an encoder (docs/FORMAT.md §12,
+//! `polycal kc`): the reference value of every face (or common table angle), its
+//! consistency, the degrees of equivalence of every laboratory, and for pitch deviations
+//! the test of the whole closed vector.
+//!
+//! Per quantity (face or angle), with the laboratories i in the reference:
+//!
+//! ```text
+//! weighted mean (Cox 2002, procedure A):
+//!   x_ref = Σ x_i/u_i² / Σ 1/u_i²,   u_ref = (Σ 1/u_i²)^(−1/2)
+//!   χ² = Σ (x_i − x_ref)²/u_i²,  ν = n − 1,  consistent when χ² ≤ χ²_{0.95}(ν)
+//! DerSimonian–Laird (random effects):
+//!   τ² = max(0, (χ² − ν) / (S1 − S2/S1)),  S1 = Σ 1/u_i²,  S2 = Σ 1/u_i⁴
+//!   x_ref = Σ x_i/(u_i² + τ²) / Σ 1/(u_i² + τ²),  u_ref² = 1 / Σ 1/(u_i² + τ²)
+//! degrees of equivalence: d_i = x_i − x_ref,
+//!   U(d_i) = 2·√(u_i² + τ² − u_ref² + u_stab²)   laboratory i in the reference
+//!   U(d_i) = 2·√(u_i² + τ² + u_ref² + u_stab²)   not in it (excluded, a pilot's repeat)
+//! pairs: d_ij = x_i − x_j,  U(d_ij) = 2·√(u_i² + u_j²)
+//! ```
+//!
+//! The in-reference formula is exact for both methods: with v_i = u_i² + τ² and the
+//! normalised weights w'_i = (1/v_i)/Σ 1/v_j, u²(d_i) = (1 − w'_i)² v_i + Σ_{j≠i} w'_j² v_j
+//! = v_i − u_ref², since w'_i v_i = u_ref². `u_stab` is the pilot's instability term (0
+//! without pilot repeats or when they agree; see [`PilotStability`]).
+//!
+//! **Exclusions** (weighted mean only): while some quantity fails its χ² test and more
+//! than two laboratories are in the reference, the laboratory with the largest normalised
+//! deviation |d_i|/u(d_i) on a failing quantity is left out **of the whole comparison**
+//! (every face), and everything is evaluated again (the largest consistent subset). Each
+//! step is an [`Exclusion`] with its face, normalised deviation and the χ² before it. The
+//! DerSimonian–Laird method excludes nobody: its dark uncertainty τ takes inconsistency
+//! into the reference's uncertainty instead.
+//!
+//! **The closed vector** (pitch deviations only): a result without a covariance is taken
+//! as closed (Σβ = 0) with V_i = N/(N − 1)·P·diag(u_i²)·P, P = I − J/N; the GLS reference
+//! x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i (pseudo-inverses on the closed subspace) and
+//! χ²_vector = Σ (x_i − x_ref)ᵀ V_i⁺ (x_i − x_ref) with ν = (N − 1)(n − 1). Encoder errors
+//! have no closure test.
+
+mod evaluate;
+mod input;
+mod reference;
+
+use serde::Serialize;
+
+use crate::results::{Quantity, ResultFile, ResultRow};
+
+pub use evaluate::evaluate;
+pub use reference::{chi2_quantile_95, closed_covariance};
+
+/// How the reference value of each quantity is formed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+#[non_exhaustive]
+pub enum ReferenceMethod {
+    /// The weighted mean (Cox 2002, procedure A), with the largest consistent subset.
+    WeightedMean,
+    /// The DerSimonian–Laird random-effects mean, with its dark uncertainty τ.
+    DersimonianLaird,
+}
+
+/// Options of a key comparison: [`KcOptions::new`] and the `with_…` methods.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct KcOptions {
+    /// Which quantity is compared: pitch deviations (default) or encoder errors.
+    pub quantity: Quantity,
+    /// The reference method (default the weighted mean).
+    pub method: ReferenceMethod,
+    /// Whether laboratories are left out until every quantity is consistent (default
+    /// `true`; the weighted mean only).
+    pub largest_consistent_subset: bool,
+}
+
+impl Default for KcOptions {
+    fn default() -> Self {
+        KcOptions {
+            quantity: Quantity::PitchDeviation,
+            method: ReferenceMethod::WeightedMean,
+            largest_consistent_subset: true,
+        }
+    }
+}
+
+impl KcOptions {
+    /// Pitch deviations, the weighted mean, with exclusions.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// With the compared quantity (pitch deviations or encoder errors).
+    pub fn with_quantity(mut self, quantity: Quantity) -> Self {
+        self.quantity = quantity;
+        self
+    }
+
+    /// With the reference method.
+    pub fn with_method(mut self, method: ReferenceMethod) -> Self {
+        self.method = method;
+        self
+    }
+
+    /// With (`true`, the default) or without the search for the largest consistent
+    /// subset: without it every laboratory stays in the reference.
+    pub fn with_largest_consistent_subset(mut self, on: bool) -> Self {
+        self.largest_consistent_subset = on;
+        self
+    }
+}
+
+/// One laboratory's result (or one of the pilot's repeats), by name.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct LabResult {
+    /// The laboratory's name.
+    pub name: String,
+    /// Where the result came from (its file), for messages.
+    pub source: String,
+    /// Its rows.
+    pub rows: Vec<ResultRow>,
+    /// The 1-based line of each row in its file (empty for rows given in memory).
+    pub lines: Vec<u64>,
+}
+
+impl LabResult {
+    /// A laboratory's result read from a file: rows are named by file and line.
+    pub fn from_file(name: impl Into<String>, file: ResultFile) -> LabResult {
+        LabResult {
+            name: name.into(),
+            source: file.source,
+            rows: file.rows,
+            lines: file.lines,
+        }
+    }
+
+    /// A laboratory's result from rows in memory: rows are named by the laboratory and
+    /// their row number.
+    pub fn from_rows(name: impl Into<String>, rows: Vec<ResultRow>) -> LabResult {
+        let name = name.into();
+        LabResult {
+            source: name.clone(),
+            name,
+            rows,
+            lines: Vec::new(),
+        }
+    }
+}
+
+/// A laboratory left out of the reference, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
+pub struct Exclusion {
+    /// The laboratory.
+    pub lab: String,
+    /// The reason in words.
+    pub reason: String,
+    /// The face (or encoder index) whose test failed.
+    pub index: u32,
+    /// |d_i|/u(d_i) of the laboratory there, the largest of the failing quantities.
+    pub normalised_deviation: f64,
+    /// χ² there before the exclusion.
+    pub chi2_before: f64,
+    /// χ²_{0.95}(ν) there.
+    pub chi2_critical: f64,
+}
+
+/// The test of the whole closed vector of pitch deviations.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
+pub struct VectorTest {
+    /// χ²_vector = Σ (x_i − x_ref)ᵀ V_i⁺ (x_i − x_ref).
+    pub chi2: f64,
+    /// ν = (N − 1)(n − 1).
+    pub dof: usize,
+    /// Whether χ² ≤ χ²_{0.95}(ν).
+    pub consistent: bool,
+    /// χ²_{0.95}(ν).
+    pub chi2_critical: f64,
+    /// The GLS reference vector x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i, arcseconds.
+    pub reference: Vec<f64>,
+}
+
+/// A degree of equivalence: one laboratory (or pilot repeat) against the reference.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
+pub struct DegreeOfEquivalence {
+    /// The laboratory.
+    pub lab: String,
+    /// d_i = x_i − x_ref per quantity, arcseconds.
+    pub d: Vec<f64>,
+    /// U(d_i) at k = 2 per quantity, arcseconds.
+    #[serde(rename = "U")]
+    pub expanded_u: Vec<f64>,
+    /// Whether the laboratory is in the reference.
+    pub in_reference: bool,
+}
+
+/// A pair of laboratories: d_ij = x_i − x_j, U(d_ij) = 2·√(u_i² + u_j²).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
+pub struct PairDifference {
+    /// The first laboratory.
+    pub a: String,
+    /// The second.
+    pub b: String,
+    /// d_ab per quantity, arcseconds.
+    pub d: Vec<f64>,
+    /// U(d_ab) at k = 2 per quantity, arcseconds.
+    #[serde(rename = "U")]
+    pub expanded_u: Vec<f64>,
+}
+
+/// The pilot's repeated results (start, middle, end of the circulation): how stable the
+/// artefact was. Per quantity, χ² of the repeats about their weighted mean with m − 1
+/// degrees of freedom; where it exceeds χ²_{0.95}(m − 1), the repeats' sample standard
+/// deviation s = √(Σ (y_r − ȳ)²/(m − 1)) is the instability u_stab, added in quadrature
+/// to u_ref and to every u(d_i).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
+pub struct PilotStability {
+    /// The repeats' names, in the order given.
+    pub repeats: Vec<String>,
+    /// The repeats' plain mean ȳ per quantity, arcseconds.
+    pub mean: Vec<f64>,
+    /// Their sample standard deviation s per quantity, arcseconds.
+    pub spread: Vec<f64>,
+    /// χ² of the repeats about their weighted mean per quantity.
+    pub chi2: Vec<f64>,
+    /// m − 1.
+    pub chi2_dof: usize,
+    /// Whether χ² > χ²_{0.95}(m − 1) per quantity.
+    pub significant: Vec<bool>,
+    /// u_stab per quantity: s where significant, else 0, arcseconds.
+    pub stability_u: Vec<f64>,
+    /// Each repeat against the reference (never in it).
+    pub degrees_of_equivalence: Vec<DegreeOfEquivalence>,
+}
+
+/// A key comparison evaluated. Serializes to the JSON of docs/FORMAT.md §12.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
+pub struct KeyComparison {
+    /// The compared quantity.
+    pub quantity: Quantity,
+    /// The reference method.
+    pub method: ReferenceMethod,
+    /// Face 1 … N, or the first laboratory's index of each common encoder error.
+    pub index: Vec<u32>,
+    /// The table angle of each common encoder error, degrees (when matched by angle).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub angle_deg: Option<Vec<f64>>,
+    /// The laboratories, in the order given.
+    pub labs: Vec<String>,
+    /// The reference value per quantity, arcseconds.
+    pub reference: Vec<f64>,
+    /// Its standard uncertainty per quantity (with u_stab where the pilot's repeats call
+    /// for it), arcseconds.
+    pub reference_u: Vec<f64>,
+    /// χ² per quantity, about the weighted mean of the laboratories in the reference.
+    pub chi2: Vec<f64>,
+    /// n − 1 per quantity.
+    pub chi2_dof: Vec<usize>,
+    /// χ²_{0.95}(n − 1) per quantity.
+    pub chi2_critical: Vec<f64>,
+    /// Whether χ² ≤ χ²_{0.95}(n − 1) per quantity.
+    pub consistent: Vec<bool>,
+    /// The closed-vector test (pitch deviations only).
+    pub vector: Option<VectorTest>,
+    /// The laboratories left out, in the order they were.
+    pub excluded: Vec<Exclusion>,
+    /// The dark uncertainty τ per quantity (0 for the weighted mean), arcseconds.
+    pub tau: Vec<f64>,
+    /// Every laboratory against the reference, in the order given.
+    pub degrees_of_equivalence: Vec<DegreeOfEquivalence>,
+    /// Every pair of laboratories.
+    pub pairs: Vec<PairDifference>,
+    /// The pilot's repeats, when given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pilot: Option<PilotStability>,
+    /// Whether every quantity and the closed vector are consistent after the exclusions.
+    pub comparison_consistent: bool,
+    /// What was left out or added, in words.
+    pub notes: Vec<String>,
+}
+
+/// Why a key comparison cannot be evaluated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum KcError {
+    /// Fewer than two laboratories.
+    #[error("a key comparison needs at least 2 laboratories, {0} given")]
+    TooFewLabs(usize),
+    /// One pilot repeat only.
+    #[error("the pilot's stability needs at least 2 repeated results, {0} given")]
+    TooFewRepeats(usize),
+    /// Two results with one name.
+    #[error("the laboratory name {name:?} is given twice ({first} and {second})")]
+    DuplicateName {
+        /// The name.
+        name: String,
+        /// The first result of that name.
+        first: String,
+        /// The second.
+        second: String,
+    },
+    /// A result without a row of the compared quantity.
+    #[error("{file} (laboratory {lab}) has no {quantity} rows")]
+    NoRows {
+        /// The laboratory.
+        lab: String,
+        /// Its file.
+        file: String,
+        /// The quantity.
+        quantity: Quantity,
+    },
+    /// A face between 1 and the last is missing.
+    #[error("{file}: pitch_deviation of face {face} is missing (faces 1 … {faces} expected)")]
+    FaceMissing {
+        /// The file.
+        file: String,
+        /// The missing face.
+        face: u32,
+        /// The last face of the file.
+        faces: u32,
+    },
+    /// Two results of polygons with different numbers of faces.
+    #[error(
+        "{location}: {faces} faces, but {first_source} has {first_faces}: every result must be \
+         of the same polygon"
+    )]
+    FacesDiffer {
+        /// `file:line` of the last face.
+        location: String,
+        /// Its number of faces.
+        faces: u32,
+        /// The first result.
+        first_source: String,
+        /// Its number of faces.
+        first_faces: u32,
+    },
+    /// A quantity appears twice in one result.
+    #[error("{location}: {quantity} {index} appears twice")]
+    Duplicate {
+        /// `file:line`.
+        location: String,
+        /// The quantity.
+        quantity: Quantity,
+        /// Its index.
+        index: u32,
+    },
+    /// An uncertainty that is not positive.
+    #[error(
+        "{location}: {quantity} {index} has {column} = {value}: a key comparison needs a \
+         positive uncertainty (column {column})"
+    )]
+    NonPositiveUncertainty {
+        /// `file:line`.
+        location: String,
+        /// The quantity.
+        quantity: Quantity,
+        /// Its index.
+        index: u32,
+        /// `U` or `u`.
+        column: &'static str,
+        /// The value.
+        value: f64,
+    },
+    /// A row without a standard uncertainty.
+    #[error(
+        "{location}: {quantity} {index} has no standard uncertainty: a key comparison needs \
+         u, or U with its k (columns u, U, k)"
+    )]
+    MissingUncertainty {
+        /// `file:line`.
+        location: String,
+        /// The quantity.
+        quantity: Quantity,
+        /// Its index.
+        index: u32,
+    },
+    /// No encoder error position is in every result.
+    #[error("no encoder error position is in every result: nothing to compare")]
+    NothingInCommon,
+    /// A quantity other than pitch deviations and encoder errors.
+    #[error(
+        "a key comparison is of pitch_deviation or encoder_error, not {0} (face deviations \
+         follow from the pitch deviations; setup errors depend on the mounting)"
+    )]
+    Quantity(Quantity),
+}

@@ -1,0 +1,273 @@
+//! The table of `polycal kc` for people, and its CSV of degrees of equivalence (its JSON
+//! is [`crate::kc::KeyComparison`]).
+
+use std::fmt::{self, Write};
+
+use crate::kc::{DegreeOfEquivalence, KeyComparison, ReferenceMethod};
+use crate::uncertainty::format::table;
+
+/// Writes a key comparison as tables: the header lines naming the formulas, the reference
+/// per quantity (x_ref, u_ref, τ, χ², ν, χ²_0.95, consistent), the exclusions with their
+/// reasons, the closed vector's test, the degrees of equivalence (d and U(d) per
+/// laboratory and quantity, `*` where |d| > U(d)), the pilot's repeats, the notes and the
+/// verdict. Numbers are rounded for reading (0.001″, χ² to 0.01); JSON and CSV carry them
+/// at full precision.
+///
+/// # Errors
+///
+/// The writer's error.
+pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
+    let name = kc.quantity.name();
+    let position = if kc.angle_deg.is_some() {
+        "Angle °"
+    } else if kc.quantity == crate::results::Quantity::PitchDeviation {
+        "Face"
+    } else {
+        "Index"
+    };
+    let at = |k: usize| match &kc.angle_deg {
+        Some(angles) => format!("{:.4}", angles[k]),
+        None => kc.index[k].to_string(),
+    };
+    writeln!(
+        out,
+        "Key comparison of {name}, {} laboratories: {}",
+        kc.labs.len(),
+        kc.labs.join(", ")
+    )?;
+    match kc.method {
+        ReferenceMethod::WeightedMean => writeln!(
+            out,
+            "Reference: weighted mean x_ref = Σ x_i/u_i² / Σ 1/u_i², u_ref = (Σ 1/u_i²)^(-1/2) \
+             (Cox 2002, procedure A)"
+        )?,
+        ReferenceMethod::DersimonianLaird => writeln!(
+            out,
+            "Reference: DerSimonian–Laird x_ref = Σ x_i/(u_i²+τ²) / Σ 1/(u_i²+τ²), \
+             u_ref² = 1/Σ 1/(u_i²+τ²), τ² = max(0, (χ² − ν)/(S1 − S2/S1))"
+        )?,
+    }
+    writeln!(
+        out,
+        "Consistency: χ² = Σ (x_i − x̄_w)²/u_i², ν = n − 1, consistent when χ² ≤ χ²_0.95(ν)\n"
+    )?;
+    let header = [
+        position,
+        "x_ref",
+        "u_ref",
+        "τ",
+        "χ²",
+        "ν",
+        "χ²_0.95",
+        "Consistent",
+    ]
+    .map(String::from);
+    let rows: Vec<[String; 8]> = (0..kc.index.len())
+        .map(|k| {
+            [
+                at(k),
+                format!("{:.3}", kc.reference[k]),
+                format!("{:.3}", kc.reference_u[k]),
+                format!("{:.3}", kc.tau[k]),
+                format!("{:.2}", kc.chi2[k]),
+                kc.chi2_dof[k].to_string(),
+                format!("{:.2}", kc.chi2_critical[k]),
+                if kc.consistent[k] { "yes" } else { "no *" }.to_string(),
+            ]
+        })
+        .collect();
+    let mut right = [true; 8];
+    right[0] = false;
+    right[7] = false;
+    writeln!(out, "{}", table(&header, &rows, &right))?;
+
+    if kc.excluded.is_empty() {
+        writeln!(out, "Excluded: none")?;
+    } else {
+        writeln!(out, "Excluded (largest consistent subset, in order):")?;
+        for (step, e) in kc.excluded.iter().enumerate() {
+            writeln!(out, "  {}. {}: {}", step + 1, e.lab, e.reason)?;
+        }
+    }
+    match &kc.vector {
+        Some(v) => writeln!(
+            out,
+            "Closed vector (GLS, V_i = N/(N−1)·P·diag(u²)·P, P = I − J/N): χ² = {:.2}, \
+             ν = (N−1)(n−1) = {}, χ²_0.95 = {:.2}: {}",
+            v.chi2,
+            v.dof,
+            v.chi2_critical,
+            if v.consistent {
+                "consistent"
+            } else {
+                "not consistent *"
+            }
+        )?,
+        None => writeln!(out, "Closed vector: not tested ({name} is not closed)")?,
+    }
+
+    writeln!(
+        out,
+        "\nDegrees of equivalence d_i = x_i − x_ref, U(d_i) = 2·√(u_i² + τ² ∓ u_ref² + u_stab²) \
+         (− in the reference, + out of it), arcsec; * where |d| > U(d)"
+    )?;
+    let mut labs: Vec<&DegreeOfEquivalence> = kc.degrees_of_equivalence.iter().collect();
+    if let Some(pilot) = &kc.pilot {
+        labs.extend(&pilot.degrees_of_equivalence);
+    }
+    let mut header = vec![position.to_string()];
+    for doe in &labs {
+        let mark = if doe.in_reference { "" } else { " (out)" };
+        header.push(format!("d {}{mark}", doe.lab));
+        header.push(format!("U {}", doe.lab));
+    }
+    let rows: Vec<Vec<String>> = (0..kc.index.len())
+        .map(|k| {
+            let mut row = vec![at(k)];
+            for doe in &labs {
+                let star = if doe.d[k].abs() > doe.expanded_u[k] {
+                    " *"
+                } else {
+                    ""
+                };
+                row.push(format!("{:.3}{star}", doe.d[k]));
+                row.push(format!("{:.3}", doe.expanded_u[k]));
+            }
+            row
+        })
+        .collect();
+    writeln!(out, "{}", dynamic_table(&header, &rows))?;
+
+    if let Some(pilot) = &kc.pilot {
+        writeln!(
+            out,
+            "Pilot's repeats ({}): χ² about their weighted mean with ν = {}; where significant, \
+             u_stab = their sample standard deviation s",
+            pilot.repeats.join(", "),
+            pilot.chi2_dof
+        )?;
+        let header = [position, "Mean", "s", "χ²", "Significant", "u_stab"].map(String::from);
+        let rows: Vec<[String; 6]> = (0..kc.index.len())
+            .map(|k| {
+                [
+                    at(k),
+                    format!("{:.3}", pilot.mean[k]),
+                    format!("{:.3}", pilot.spread[k]),
+                    format!("{:.2}", pilot.chi2[k]),
+                    if pilot.significant[k] { "yes" } else { "no" }.to_string(),
+                    format!("{:.3}", pilot.stability_u[k]),
+                ]
+            })
+            .collect();
+        writeln!(
+            out,
+            "{}",
+            table(&header, &rows, &[false, true, true, true, false, true])
+        )?;
+    }
+    for note in &kc.notes {
+        writeln!(out, "Note: {note}")?;
+    }
+    let failing = kc.consistent.iter().filter(|c| !**c).count();
+    if kc.comparison_consistent {
+        writeln!(
+            out,
+            "Consistent: every {name} passes its χ² test{}",
+            if kc.vector.is_some() {
+                ", and so does the closed vector"
+            } else {
+                ""
+            }
+        )
+    } else {
+        writeln!(
+            out,
+            "Not consistent: {failing} of {} fail their χ² test{}",
+            kc.index.len(),
+            match &kc.vector {
+                Some(v) if !v.consistent => ", and the closed vector fails its test",
+                _ => "",
+            }
+        )
+    }
+}
+
+/// A table with any number of columns, the first left-aligned.
+fn dynamic_table(header: &[String], rows: &[Vec<String>]) -> String {
+    let columns = header.len();
+    let mut widths: Vec<usize> = header.iter().map(|h| h.chars().count()).collect();
+    for row in rows {
+        for (w, cell) in widths.iter_mut().zip(row) {
+            *w = (*w).max(cell.chars().count());
+        }
+    }
+    let line = |cells: &[String]| {
+        let mut text = String::new();
+        for (c, cell) in cells.iter().enumerate().take(columns) {
+            let pad = " ".repeat(widths[c] - cell.chars().count());
+            if c > 0 {
+                text.push_str("  ");
+            }
+            if c == 0 {
+                text.push_str(cell);
+                text.push_str(&pad);
+            } else {
+                text.push_str(&pad);
+                text.push_str(cell);
+            }
+        }
+        text.trim_end().to_string()
+    };
+    let mut text = line(header);
+    text.push('\n');
+    let total: usize = widths.iter().sum::<usize>() + 2 * columns.saturating_sub(1);
+    text.push_str(&"-".repeat(total));
+    for row in rows {
+        text.push('\n');
+        text.push_str(&line(row));
+    }
+    text
+}
+
+/// Writes the degrees of equivalence as CSV, one row per laboratory per quantity (the
+/// laboratories in the order given, then the pilot's repeats), under the header
+/// `lab,index,angle_deg,d,U,in_reference`: `index` is the face (or the first
+/// laboratory's index of the encoder error), `angle_deg` the table angle of an encoder
+/// error matched by angle (else empty), `d` = x_i − x_ref and `U` = U(d_i) at k = 2 in
+/// arcseconds at full precision, `in_reference` `true` or `false`.
+///
+/// # Errors
+///
+/// The I/O error of the writer, as a [`csv::Error`].
+pub fn write_csv<W: std::io::Write>(writer: W, kc: &KeyComparison) -> Result<(), csv::Error> {
+    let mut csv = csv::Writer::from_writer(writer);
+    csv.write_record(["lab", "index", "angle_deg", "d", "U", "in_reference"])?;
+    let pilot = kc.pilot.iter().flat_map(|p| &p.degrees_of_equivalence);
+    for doe in kc.degrees_of_equivalence.iter().chain(pilot) {
+        for k in 0..kc.index.len() {
+            csv.write_record([
+                text_cell(&doe.lab),
+                kc.index[k].to_string(),
+                kc.angle_deg
+                    .as_ref()
+                    .map_or(String::new(), |a| a[k].to_string()),
+                doe.d[k].to_string(),
+                doe.expanded_u[k].to_string(),
+                doe.in_reference.to_string(),
+            ])?;
+        }
+    }
+    csv.flush()?;
+    Ok(())
+}
+
+/// A text cell (docs/FORMAT.md §3.1): one that begins with `=`, `+`, `-`, `@`, a tab or a
+/// carriage return — what a spreadsheet runs as a formula — gets a leading `'` (the CSV
+/// writer quotes it when it needs to be).
+fn text_cell(text: &str) -> String {
+    if text.starts_with(['=', '+', '-', '@', '\t', '\r']) {
+        format!("'{text}")
+    } else {
+        text.to_string()
+    }
+}
