@@ -113,7 +113,7 @@ pub(crate) fn pitch(results: &[&LabResult]) -> Result<Aligned, KcError> {
         for face in 1..=faces {
             let Some(&i) = by_face.get(&face) else {
                 return Err(KcError::FaceMissing {
-                    file: result.source.clone(),
+                    location: location(result, last_at),
                     face,
                     faces,
                 });

@@ -314,10 +314,13 @@ pub enum KcError {
         quantity: Quantity,
     },
     /// A face between 1 and the last is missing.
-    #[error("{file}: pitch_deviation of face {face} is missing (faces 1 … {faces} expected)")]
+    #[error(
+        "{location}: the last face is {faces}, but pitch_deviation of face {face} is missing \
+         (faces 1 … {faces} expected)"
+    )]
     FaceMissing {
-        /// The file.
-        file: String,
+        /// `file:line` of the last face.
+        location: String,
         /// The missing face.
         face: u32,
         /// The last face of the file.
