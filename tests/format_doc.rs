@@ -363,6 +363,22 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
     ]) {
         fields.add("compare --format json", &v);
     }
+    // `kc` on the bundled example, with the pilot's repeats, and of encoder errors.
+    let kc = |name: &str| format!("{name}=examples/data/kc/{name}.csv");
+    let labs: Vec<String> = ["A", "B", "C", "D", "E", "F"].iter().map(|n| kc(n)).collect();
+    let pilot: Vec<String> = ["pilot-start", "pilot-end"].iter().map(|n| kc(n)).collect();
+    let mut args: Vec<&str> = vec!["kc", "--format", "json"];
+    args.extend(labs.iter().map(String::as_str));
+    for repeat in &pilot {
+        args.extend(["--pilot", repeat.as_str()]);
+    }
+    for v in json_lines(&args) {
+        fields.add("kc --format json", &v);
+    }
+    args.extend(["--quantity", "encoder_error"]);
+    for v in json_lines(&args) {
+        fields.add("kc --quantity encoder_error --format json", &v);
+    }
 }
 
 /// A `polycal sim-lab` process; killed when dropped.
