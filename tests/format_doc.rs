@@ -365,7 +365,10 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
     }
     // `kc` on the bundled example, with the pilot's repeats, and of encoder errors.
     let kc = |name: &str| format!("{name}=examples/data/kc/{name}.csv");
-    let labs: Vec<String> = ["A", "B", "C", "D", "E", "F"].iter().map(|n| kc(n)).collect();
+    let labs: Vec<String> = ["A", "B", "C", "D", "E", "F"]
+        .iter()
+        .map(|n| kc(n))
+        .collect();
     let pilot: Vec<String> = ["pilot-start", "pilot-end"].iter().map(|n| kc(n)).collect();
     let mut args: Vec<&str> = vec!["kc", "--format", "json"];
     args.extend(labs.iter().map(String::as_str));

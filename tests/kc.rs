@@ -3,6 +3,9 @@
 //! (the χ² test's size, the coverage of U(d_i), the biased laboratory found first, the
 //! closed vector's degrees of freedom).
 
+// The independent implementation is written with indices, as the textbooks write it.
+#![allow(clippy::needless_range_loop)]
+
 use polycal::kc::{KcOptions, LabResult, ReferenceMethod, evaluate};
 use polycal::results::{Quantity, ResultRow};
 use rand::SeedableRng;

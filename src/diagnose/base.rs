@@ -19,8 +19,8 @@
 //! and a term is judged by what a self-calibration certifies: the disc's encoder error
 //! e = φ − φ̄ and the heads' errors c_j − c_1 ([`Base::calibrated`]), not the table's
 //! nuisance. When some head sits between the positions
-//! ([`Base::self_calibration_off_grid`]) the closure model is the band-limited one
-//! `selfcal` solves such heads with ([`OffGridDesign`]): its fits and its geometry go
+//! (`Base::self_calibration_off_grid`) the closure model is the band-limited one
+//! `selfcal` solves such heads with (`OffGridDesign`): its fits and its geometry go
 //! through that design, the rest of the diagnosis is the same.
 
 use std::borrow::Cow;

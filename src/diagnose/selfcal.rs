@@ -14,7 +14,7 @@
 //! Heads between the positions (SelfA's 7-fold heads on a grid of 72, say) are diagnosed
 //! on the band-limited closure model `selfcal` solves them with (docs/FORMAT.md §9.3.1):
 //! the same candidates, checks and verdicts, the fits and the hat matrix through the
-//! band-limited design ([`crate::selfcal::OffGridDesign`]) in near-linear time. Its
+//! band-limited design (`crate::selfcal::OffGridDesign`) in near-linear time. Its
 //! readings keep their file's steps; a head's nominal face (its nearest position) only
 //! names the stream.
 //!

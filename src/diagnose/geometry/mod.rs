@@ -23,7 +23,7 @@
 //! - **dense** (the dense reference solver's fits, and [`FitGeometry::dense`] for tests):
 //!   Q formed in ψ, a column scored in O(n + P²), every suffix in O(P) per reading.
 //! - **off the grid** (a self-calibration whose heads sit between the positions,
-//!   [`FitGeometry::off_grid`]): the rows are dense in φ′ and never formed; products go
+//!   `FitGeometry::off_grid`): the rows are dense in φ′ and never formed; products go
 //!   through the band-limited design and the fit's structured cofactor, the entries of H
 //!   through one kernel per pair of heads (`off_grid.rs`).
 
