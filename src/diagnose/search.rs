@@ -55,14 +55,14 @@ impl Outcome {
     }
 }
 
-/// The F test of a scored candidate against the current fit: F = (Δ/r)/(rest/(dof − r))
-/// with r the directions it adds (for r = 1 through Student's t, as before blocks).
-fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny: f64) -> Evidence {
+/// The F statistic of a scored candidate against the current fit:
+/// F = (Δ/r)/(rest/(dof − r)) with r the directions it adds.
+fn f_statistic(candidate: &Candidate, current: &Solution, tiny: f64) -> f64 {
     let reduction = candidate.reduction;
     let r = candidate.rank.max(1);
     let dof = current.dof.saturating_sub(r);
     let rest = (current.rss - reduction).max(0.0);
-    let f_statistic = if dof == 0 {
+    if dof == 0 {
         0.0
     } else if rest > tiny {
         (reduction / r as f64) / (rest / dof as f64)
@@ -70,7 +70,20 @@ fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny:
         f64::INFINITY
     } else {
         0.0
-    };
+    }
+}
+
+/// The F test of a scored candidate against the current fit, its statistic
+/// `f_statistic` ([`f_statistic`]): the p-value (for r = 1 through Student's t, as before
+/// blocks) and its Bonferroni adjustment over `family_size`.
+fn evidence(
+    candidate: &Candidate,
+    f_statistic: f64,
+    current: &Solution,
+    family_size: usize,
+) -> Evidence {
+    let r = candidate.rank.max(1);
+    let dof = current.dof.saturating_sub(r);
     let p_value = if dof == 0 || f_statistic <= 0.0 {
         1.0
     } else if r == 1 {
@@ -87,6 +100,64 @@ fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny:
     }
 }
 
+/// The candidates of a round whose F tests the round can use, with them, in the
+/// candidates' order: every one of the systematic and outlier families (a few), and of
+/// the jumps (one per stop of every stream: thousands) the significant ones at
+/// `family_alpha` and the strongest of each stream that is not — the only ones the round
+/// tries or records as not significant. A jump's p-value falls as its F statistic grows
+/// (one numerator degree of freedom, the same denominator and family for all), so the
+/// jumps are ranked by F and a p-value is computed only for those.
+fn rank(
+    candidates: &[Candidate],
+    current: &Solution,
+    tiny: f64,
+    family_alpha: f64,
+    family_size: impl Fn(Family) -> usize,
+) -> Vec<(usize, Evidence)> {
+    let f: Vec<f64> = candidates
+        .iter()
+        .map(|c| f_statistic(c, current, tiny))
+        .collect();
+    let evidence_of = |i: usize| {
+        let c = &candidates[i];
+        evidence(c, f[i], current, family_size(c.family))
+    };
+    let mut out: Vec<(usize, Evidence)> = Vec::new();
+    let mut steps: Vec<usize> = Vec::new();
+    for (i, c) in candidates.iter().enumerate() {
+        match (c.family, &c.term) {
+            (Family::OffsetStep, Term::Effect(Effect::OffsetStep { .. })) if c.rank == 1 => {
+                steps.push(i);
+            }
+            _ => out.push((i, evidence_of(i))),
+        }
+    }
+    steps.sort_by(|&a, &b| f[b].total_cmp(&f[a]).then(a.cmp(&b)));
+    let stream = |i: usize| match candidates[i].term {
+        Term::Effect(Effect::OffsetStep { ac, setup, .. }) => (ac, setup),
+        _ => (0, None),
+    };
+    let mut significant = true;
+    let mut recorded: Vec<(u32, Option<u32>)> = Vec::new();
+    for i in steps {
+        if significant {
+            let e = evidence_of(i);
+            // as the round's loop decides: a candidate is tried unless p·m ≥ α
+            if e.p_adjusted < family_alpha || e.p_adjusted.is_nan() {
+                out.push((i, e));
+                continue;
+            }
+            significant = false;
+        }
+        if !recorded.contains(&stream(i)) {
+            recorded.push(stream(i));
+            out.push((i, evidence_of(i)));
+        }
+    }
+    out.sort_unstable_by_key(|&(i, _)| i);
+    out
+}
+
 /// Runs the forward selection from the base model `before`; notes for people go to
 /// `notes`.
 pub(super) fn run(
@@ -99,9 +170,12 @@ pub(super) fn run(
     notes: &mut Vec<String>,
 ) -> Outcome {
     let sigma = options.sigma;
-    let columns_of = |terms: &[Term]| -> Vec<Vec<f64>> {
-        terms.iter().map(|t| t.column(set, context)).collect()
+    let mut known = Columns {
+        set,
+        context,
+        known: Vec::new(),
     };
+    let mut step_search = candidates::StepSearch::new();
     let mut terms: Vec<Term> = Vec::new();
     let mut findings: Vec<Finding> = Vec::new();
     let mut tried: Vec<TriedEffect> = Vec::new();
@@ -112,7 +186,7 @@ pub(super) fn run(
     let mut current = before.clone();
     let mut lof_current = base.lack_of_fit(set, &current, &[], options.lack_of_fit_alpha);
     while findings.len() < options.max_effects && current.dof >= 2 {
-        let columns = columns_of(&terms);
+        let columns = known.of(&terms);
         let geometry = base.geometry(&current, &columns);
         let leverage = geometry.leverage();
         let studentized = residuals::studentized(&current, &leverage);
@@ -120,8 +194,7 @@ pub(super) fn run(
         for block in candidates::systematic_blocks(set, &terms, &options.stated_cross_talk) {
             base.ticker().tick();
             if let [term] = block.as_slice() {
-                let column = term.column(set, context);
-                let score = geometry.score(&column, &current.residuals);
+                let score = geometry.score(known.column(term), &current.residuals);
                 if let Term::Effect(Effect::CrossTalk { ac, .. }) = term
                     && score.new_fraction() < 0.1
                 {
@@ -143,7 +216,7 @@ pub(super) fn run(
                     candidates.push(Candidate::single(term.clone(), Family::Systematic, &score));
                 }
             } else {
-                let score = geometry.score_block(&columns_of(&block), &current.residuals);
+                let score = geometry.score_block(&known.of(&block), &current.residuals);
                 if score.rank > 0
                     && let Some(c) = Candidate::block(block, Family::Systematic, &score)
                 {
@@ -151,11 +224,12 @@ pub(super) fn run(
                 }
             }
         }
-        candidates.extend(candidates::offset_step_candidates(
+        candidates.extend(candidates::offset_step_candidates_with(
             set,
             &geometry,
             &current.residuals,
             &terms,
+            &mut step_search,
         ));
         let eligible = studentized.iter().filter(|t| t.is_some()).count();
         if let Some((i, t)) = studentized
@@ -191,12 +265,10 @@ pub(super) fn run(
             Family::Systematic => systematic_count,
             Family::OffsetStep => step_count,
         };
-        let mut scored: Vec<(Candidate, Evidence)> = candidates
-            .iter()
-            .map(|c| {
-                let e = evidence(c, &current, family_size(c.family), tiny);
-                (c.clone(), e)
-            })
+        let scored = rank(&candidates, &current, tiny, options.family_alpha, family_size);
+        let mut scored: Vec<(Candidate, Evidence)> = scored
+            .into_iter()
+            .map(|(i, e)| (candidates[i].clone(), e))
             .collect();
         scored.sort_by(|a, b| {
             a.1.p_adjusted
@@ -268,7 +340,7 @@ pub(super) fn run(
                 .cloned()
                 .collect();
             new_terms.extend(added.iter().cloned());
-            let new_columns = columns_of(&new_terms);
+            let new_columns = known.of(&new_terms);
             let Ok(fit) = base.fit(&new_columns, sigma) else {
                 tried.push(rejected(Rejection::NotDetermined));
                 continue;
@@ -345,6 +417,35 @@ pub(super) fn run(
         jumps_exceeded,
         fit: current,
         lack_of_fit: lof_current,
+    }
+}
+
+/// The columns of the terms met so far in a search: a term's column is the same in every
+/// round, so it is formed once.
+struct Columns<'s> {
+    set: &'s MeasurementSet,
+    context: &'s EffectContext,
+    /// (term, its column).
+    known: Vec<(Term, Vec<f64>)>,
+}
+
+impl Columns<'_> {
+    /// The column of `term`.
+    fn column(&mut self, term: &Term) -> &[f64] {
+        let index = match self.known.iter().position(|(t, _)| t == term) {
+            Some(index) => index,
+            None => {
+                let column = term.column(self.set, self.context);
+                self.known.push((term.clone(), column));
+                self.known.len() - 1
+            }
+        };
+        &self.known[index].1
+    }
+
+    /// The columns of `terms`, in their order.
+    fn of(&mut self, terms: &[Term]) -> Vec<Vec<f64>> {
+        terms.iter().map(|t| self.column(t).to_vec()).collect()
     }
 }
 

@@ -30,6 +30,7 @@ use nalgebra::DMatrix;
 use super::nuisance::StopNuisance;
 use crate::measurement::MeasurementSet;
 use crate::solve::Solution;
+pub use structured::SuffixCache;
 use structured::StructuredGeometry;
 
 /// The hat-matrix geometry of one fit: its cofactor (dense in ψ, or structured in g) and
@@ -311,10 +312,22 @@ impl FitGeometry {
     /// that is 1 on the readings `order[k..]` and 0 elsewhere (a jump of the stream's zero
     /// from its k-th reading on). Element k of the result belongs to that column.
     pub fn suffix_scores(&self, order: &[usize], residuals: &[f64]) -> Vec<ColumnScore> {
+        self.suffix_scores_with(order, residuals, &mut SuffixCache::new())
+    }
+
+    /// [`FitGeometry::suffix_scores`] with the structured form's suffix convolutions kept
+    /// in `cache` from one fit to the next ([`SuffixCache`]): a diagnosis's rounds share
+    /// them.
+    pub fn suffix_scores_with(
+        &self,
+        order: &[usize],
+        residuals: &[f64],
+        cache: &mut SuffixCache,
+    ) -> Vec<ColumnScore> {
         // the engine's gᵀ Q g of every suffix, then the stop nuisance's part
         let quads = match &self.form {
             Form::Dense(q) => dense_suffix_quads(q, &self.rows, order),
-            Form::Structured(s) => s.suffix_quads(&self.rows, order),
+            Form::Structured(s) => s.suffix_quads(&self.rows, order, cache),
         };
         let mut nuisance = self.nuisance.as_ref().map(StopNuisance::suffix);
         let mut scores = vec![

@@ -118,8 +118,15 @@ impl StructuredGeometry {
         h + self.q.low_rank_product(ci, cj)
     }
 
-    /// gᵀ Q_g g of every suffix `order[k..]` of one stream's readings (element k).
-    pub(super) fn suffix_quads(&self, rows: &[Vec<(usize, f64)>], order: &[usize]) -> Vec<f64> {
+    /// gᵀ Q_g g of every suffix `order[k..]` of one stream's readings (element k); the
+    /// stream's suffix convolution is taken from `cache` when it holds it for the same
+    /// kernel and order, and kept there otherwise.
+    pub(super) fn suffix_quads(
+        &self,
+        rows: &[Vec<(usize, f64)>],
+        order: &[usize],
+        cache: &mut SuffixCache,
+    ) -> Vec<f64> {
         let m = order.len();
         let Some(&first) = order.first() else {
             return Vec::new();
@@ -143,7 +150,9 @@ impl StructuredGeometry {
             })
             .collect();
         let setup = base.entry(2 * n + stream, 2 * n + stream);
-        let later = suffix_convolution(&kernel, order.iter().map(|&i| self.position[i]), m);
+        let later = cache.convolution(&kernel, order, || {
+            suffix_convolution(&kernel, order.iter().map(|&i| self.position[i]), m)
+        });
         // the rows beyond α, φ′ and U′ (effect values) and the low-rank part: through
         // W, with the running sum of Wᵀcᵢ
         let rank = self.q.rank();
@@ -193,6 +202,50 @@ impl StructuredGeometry {
     }
 }
 
+/// The suffix convolutions of the streams of a change-point search
+/// ([`super::FitGeometry::suffix_scores_with`]), kept from one round of a diagnosis to the
+/// next: a stream's convolution depends only on its readings' positions and on its
+/// circulant kernel, which comes from the regular part B of the cofactor — and adding
+/// effect columns to the model changes only the low-rank part. An entry is used only for
+/// the same order of readings and a kernel equal to the bit, so a cached convolution is
+/// the one that would be computed.
+#[derive(Debug, Clone, Default)]
+pub struct SuffixCache {
+    /// (order of the readings, kernel, Σ_{i > k} K(p_k − p_i) for every k).
+    entries: Vec<(Vec<usize>, Vec<f64>, Vec<f64>)>,
+}
+
+impl SuffixCache {
+    /// An empty cache.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The convolution of `order` with `kernel`: cached, or `compute`d and kept.
+    fn convolution(
+        &mut self,
+        kernel: &[f64],
+        order: &[usize],
+        compute: impl FnOnce() -> Vec<f64>,
+    ) -> &[f64] {
+        let same = |(o, k, _): &(Vec<usize>, Vec<f64>, Vec<f64>)| {
+            o.as_slice() == order
+                && k.len() == kernel.len()
+                && k.iter().zip(kernel).all(|(a, b)| a.to_bits() == b.to_bits())
+        };
+        let index = match self.entries.iter().position(same) {
+            Some(index) => index,
+            None => {
+                let later = compute();
+                self.entries
+                    .push((order.to_vec(), kernel.to_vec(), later));
+                self.entries.len() - 1
+            }
+        };
+        &self.entries[index].2
+    }
+}
+
 /// For readings at `positions` (m of them, in order): element k is
 /// Σ_{i > k} K((p_k − p_i) mod N), the kernel summed over the later readings.
 fn suffix_convolution(
@@ -203,7 +256,9 @@ fn suffix_convolution(
     let n = kernel.len();
     let p: Vec<usize> = positions.collect();
     let mut out = vec![0.0; m];
-    let pair = |a: usize, b: usize| kernel[(p[a] + n - p[b]) % n];
+    // the kernel laid out twice: K((p_a − p_b) mod N) = twice[p_a + N − p_b], no division
+    let twice: Vec<f64> = kernel.iter().chain(kernel).copied().collect();
+    let pair = |a: usize, b: usize| twice[p[a] + n - p[b]];
     if m <= DIRECT_PAIRS || n < 64 {
         for (k, o) in out.iter_mut().enumerate() {
             *o = (k + 1..m).map(|i| pair(k, i)).sum();
