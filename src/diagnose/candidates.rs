@@ -417,7 +417,16 @@ pub fn offset_step_candidates(
     residuals: &[f64],
     present: &[Term],
 ) -> Vec<Candidate> {
-    offset_step_candidates_with(set, geometry, residuals, present, &mut StepSearch::new())
+    let mut out = Vec::new();
+    offset_step_candidates_with(
+        set,
+        geometry,
+        residuals,
+        present,
+        &mut StepSearch::new(),
+        &mut out,
+    );
+    out
 }
 
 /// What a change-point search keeps from one round of a diagnosis to the next (of one
@@ -439,15 +448,15 @@ impl StepSearch {
 }
 
 /// [`offset_step_candidates`] with what does not change between rounds kept in `search`
-/// (for one set).
+/// (for one set), the candidates pushed onto `out`.
 pub fn offset_step_candidates_with(
     set: &MeasurementSet,
     geometry: &FitGeometry,
     residuals: &[f64],
     present: &[Term],
     search: &mut StepSearch,
-) -> Vec<Candidate> {
-    let mut out = Vec::new();
+    out: &mut Vec<Candidate>,
+) {
     let streams = search.streams.get_or_insert_with(|| {
         step_streams(set)
             .into_iter()
@@ -489,5 +498,4 @@ pub fn offset_step_candidates_with(
             out.push(Candidate::single(term, Family::OffsetStep, &scores[k]));
         }
     }
-    out
 }

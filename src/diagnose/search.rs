@@ -176,6 +176,8 @@ pub(super) fn run(
         known: Vec::new(),
     };
     let mut step_search = candidates::StepSearch::new();
+    // the candidates of a round (thousands of jumps): one vector for every round
+    let mut candidates: Vec<Candidate> = Vec::new();
     let mut terms: Vec<Term> = Vec::new();
     let mut findings: Vec<Finding> = Vec::new();
     let mut tried: Vec<TriedEffect> = Vec::new();
@@ -190,8 +192,12 @@ pub(super) fn run(
         let geometry = base.geometry(&current, &columns);
         let leverage = geometry.leverage();
         let studentized = residuals::studentized(&current, &leverage);
-        let mut candidates: Vec<Candidate> = Vec::new();
-        for block in candidates::systematic_blocks(set, &terms, &options.stated_cross_talk) {
+        candidates.clear();
+        let blocks = candidates::systematic_blocks(set, &terms, &options.stated_cross_talk);
+        // a drift's orders are nested blocks: each one's Gram matrix is the leading part
+        // of the longest block it begins, formed once
+        let mut grams: Vec<Option<nalgebra::DMatrix<f64>>> = vec![None; blocks.len()];
+        for (b, block) in blocks.iter().enumerate() {
             base.ticker().tick();
             if let [term] = block.as_slice() {
                 let score = geometry.score(known.column(term), &current.residuals);
@@ -216,21 +222,31 @@ pub(super) fn run(
                     candidates.push(Candidate::single(term.clone(), Family::Systematic, &score));
                 }
             } else {
-                let score = geometry.score_block(&known.of(&block), &current.residuals);
+                let longest = (0..blocks.len())
+                    .filter(|&o| blocks[o].len() >= block.len() && blocks[o].starts_with(block))
+                    .max_by_key(|&o| (blocks[o].len(), std::cmp::Reverse(o)))
+                    .unwrap_or(b);
+                let gram = grams[longest]
+                    .get_or_insert_with(|| geometry.projected_gram(&known.of(&blocks[longest])));
+                let m = block.len();
+                let gram = gram.view((0, 0), (m, m)).into_owned();
+                let score =
+                    geometry.score_block_with_gram(&known.of(block), gram, &current.residuals);
                 if score.rank > 0
-                    && let Some(c) = Candidate::block(block, Family::Systematic, &score)
+                    && let Some(c) = Candidate::block(block.clone(), Family::Systematic, &score)
                 {
                     candidates.push(c);
                 }
             }
         }
-        candidates.extend(candidates::offset_step_candidates_with(
+        candidates::offset_step_candidates_with(
             set,
             &geometry,
             &current.residuals,
             &terms,
             &mut step_search,
-        ));
+            &mut candidates,
+        );
         let eligible = studentized.iter().filter(|t| t.is_some()).count();
         if let Some((i, t)) = studentized
             .iter()

@@ -401,8 +401,18 @@ impl FitGeometry {
     /// and how many directions they add. A direction whose squared length outside the
     /// span is below `1e-9` of the block's largest squared length adds nothing.
     pub fn score_block(&self, columns: &[Vec<f64>], residuals: &[f64]) -> BlockScore {
+        self.score_block_with_gram(columns, self.projected_gram(columns), residuals)
+    }
+
+    /// [`FitGeometry::score_block`] with the block's [`FitGeometry::projected_gram`]
+    /// given (a block that begins another block has the leading part of its Gram matrix).
+    pub fn score_block_with_gram(
+        &self,
+        columns: &[Vec<f64>],
+        gram: nalgebra::DMatrix<f64>,
+        residuals: &[f64],
+    ) -> BlockScore {
         let m = columns.len();
-        let gram = self.projected_gram(columns);
         let mut projection = nalgebra::DVector::<f64>::zeros(m);
         for a in 0..m {
             projection[a] = columns[a].iter().zip(residuals).map(|(x, e)| x * e).sum();
