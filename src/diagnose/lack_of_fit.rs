@@ -59,17 +59,19 @@ impl Cells {
             let r = &set.readings[i];
             (r.setup, r.step, r.ac, r.direction)
         };
-        let mut members: Vec<usize> = (0..set.readings.len()).collect();
-        members.sort_unstable_by_key(|&i| (key(i), i));
+        let mut sorted: Vec<(CellKey, usize)> =
+            (0..set.readings.len()).map(|i| (key(i), i)).collect();
+        sorted.sort_unstable();
         let mut keys: Vec<CellKey> = Vec::new();
         let mut starts: Vec<usize> = Vec::new();
-        for (k, &i) in members.iter().enumerate() {
-            if keys.last() != Some(&key(i)) {
-                keys.push(key(i));
+        for (k, (cell, _)) in sorted.iter().enumerate() {
+            if keys.last() != Some(cell) {
+                keys.push(*cell);
                 starts.push(k);
             }
         }
-        starts.push(members.len());
+        starts.push(sorted.len());
+        let members = sorted.into_iter().map(|(_, i)| i).collect();
         Cells {
             keys,
             members,

@@ -132,28 +132,52 @@ fn rank(
             _ => out.push((i, evidence_of(i))),
         }
     }
-    steps.sort_by(|&a, &b| f[b].total_cmp(&f[a]).then(a.cmp(&b)));
+    // strongest first; ties in candidate order
+    let stronger = |a: &usize, b: &usize| f[*b].total_cmp(&f[*a]).then(a.cmp(b));
     let stream = |i: usize| match candidates[i].term {
         Term::Effect(Effect::OffsetStep { ac, setup, .. }) => (ac, setup),
         _ => (0, None),
     };
-    let mut significant = true;
-    let mut recorded: Vec<(u32, Option<u32>)> = Vec::new();
-    for i in steps {
-        if significant {
-            let e = evidence_of(i);
+    // the strongest `top` jumps in order, `top` growing until one of them is not
+    // significant (the rest are not either)
+    let mut top = 64;
+    let (significant, rest) = loop {
+        let (head, rest) = if top < steps.len() {
+            steps.select_nth_unstable_by(top, stronger);
+            steps.split_at_mut(top)
+        } else {
+            let all = steps.len();
+            steps.split_at_mut(all)
+        };
+        head.sort_unstable_by(stronger);
+        let tried: Vec<(usize, Evidence)> = head
+            .iter()
+            .map(|&i| (i, evidence_of(i)))
             // as the round's loop decides: a candidate is tried unless p·m ≥ α
-            if e.p_adjusted < family_alpha || e.p_adjusted.is_nan() {
-                out.push((i, e));
-                continue;
-            }
-            significant = false;
+            .take_while(|(_, e)| e.p_adjusted < family_alpha || e.p_adjusted.is_nan())
+            .collect();
+        if tried.len() < head.len() || rest.is_empty() {
+            let boundary = tried.len();
+            let mut others: Vec<usize> = head[boundary..].to_vec();
+            others.extend_from_slice(rest);
+            break (tried, others);
         }
-        if !recorded.contains(&stream(i)) {
-            recorded.push(stream(i));
-            out.push((i, evidence_of(i)));
+        top *= 4;
+    };
+    out.extend(significant);
+    // the strongest jump of each stream that is not significant
+    let mut strongest: Vec<((u32, Option<u32>), usize)> = Vec::new();
+    for i in rest {
+        match strongest.iter_mut().find(|(s, _)| *s == stream(i)) {
+            Some((_, best)) => {
+                if stronger(&i, best).is_lt() {
+                    *best = i;
+                }
+            }
+            None => strongest.push((stream(i), i)),
         }
     }
+    out.extend(strongest.into_iter().map(|(_, i)| (i, evidence_of(i))));
     out.sort_unstable_by_key(|&(i, _)| i);
     out
 }

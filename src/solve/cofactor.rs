@@ -482,31 +482,9 @@ impl Structured {
         self.base.faces
     }
 
-    /// For a sparse vector c in g: Wᵀc and (WM)ᵀc into `a` and `b` (each of length r),
-    /// so that cᵀ W M Wᵀ d = (WM)ᵀc · Wᵀd.
-    pub(crate) fn low_rank_into(&self, c: &[(usize, f64)], a: &mut [f64], b: &mut [f64]) {
-        for k in 0..self.rank() {
-            let (w, wm) = self.low_rank.column(k);
-            let (mut x, mut y) = (0.0, 0.0);
-            for &(i, v) in c {
-                x += v * w[i];
-                y += v * wm[i];
-            }
-            a[k] = x;
-            b[k] = y;
-        }
-    }
-
-    /// cᵀ W M Wᵀ d for sparse vectors c and d in g, without allocating.
-    pub(crate) fn low_rank_product(&self, c: &[(usize, f64)], d: &[(usize, f64)]) -> f64 {
-        (0..self.rank())
-            .map(|k| {
-                let (w, wm) = self.low_rank.column(k);
-                let x: f64 = c.iter().map(|&(i, v)| v * wm[i]).sum();
-                let y: f64 = d.iter().map(|&(i, v)| v * w[i]).sum();
-                x * y
-            })
-            .sum()
+    /// Column k of W and of W·M (each of length 2N + K + E).
+    pub(crate) fn low_rank_column(&self, k: usize) -> (&[f64], &[f64]) {
+        self.low_rank.column(k)
     }
 }
 

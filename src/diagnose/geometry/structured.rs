@@ -36,6 +36,12 @@ pub(super) struct StructuredGeometry {
     face: Vec<usize>,
     /// Every reading's stream index s.
     stream: Vec<usize>,
+    /// The rank r of the low-rank part.
+    rank: usize,
+    /// W by rows: entry (a, k) at a·r + k, so that a design row's r values lie together.
+    w_rows: Vec<f64>,
+    /// W·M by rows, likewise.
+    wm_rows: Vec<f64>,
 }
 
 /// Streams with at most this many readings sum their pairs directly.
@@ -85,6 +91,16 @@ impl StructuredGeometry {
                 row
             })
             .collect();
+        let (rank, size) = (q.rank(), q.size());
+        let mut w_rows = vec![0.0; size * rank];
+        let mut wm_rows = vec![0.0; size * rank];
+        for k in 0..rank {
+            let (w, wm) = q.low_rank_column(k);
+            for (a, (&x, &y)) in w.iter().zip(wm).enumerate() {
+                w_rows[a * rank + k] = x;
+                wm_rows[a * rank + k] = y;
+            }
+        }
         (
             Self {
                 q: q.clone(),
@@ -92,9 +108,40 @@ impl StructuredGeometry {
                 position,
                 face,
                 stream,
+                rank,
+                w_rows,
+                wm_rows,
             },
             rows,
         )
+    }
+
+    /// Wᵀc and (WM)ᵀc of a design row c into `a` and `b` (each of length r), so that
+    /// cᵀ W M Wᵀ d = (WM)ᵀc · Wᵀd: each value summed over c's entries in order, from the
+    /// rows of W (a design row's r values lie together).
+    fn low_rank_into(&self, c: &[(usize, f64)], a: &mut [f64], b: &mut [f64]) {
+        let r = self.rank;
+        for k in 0..r {
+            let (mut x, mut y) = (0.0, 0.0);
+            for &(i, v) in c {
+                x += v * self.w_rows[i * r + k];
+                y += v * self.wm_rows[i * r + k];
+            }
+            a[k] = x;
+            b[k] = y;
+        }
+    }
+
+    /// cᵀ W M Wᵀ d for two design rows, without allocating: Σ_k ((WM)ᵀc)_k (Wᵀd)_k.
+    fn low_rank_product(&self, c: &[(usize, f64)], d: &[(usize, f64)]) -> f64 {
+        let r = self.rank;
+        (0..r)
+            .map(|k| {
+                let x: f64 = c.iter().map(|&(i, v)| v * self.wm_rows[i * r + k]).sum();
+                let y: f64 = d.iter().map(|&(i, v)| v * self.w_rows[i * r + k]).sum();
+                x * y
+            })
+            .sum()
     }
 
     /// The length of g.
@@ -115,7 +162,7 @@ impl StructuredGeometry {
                 h += va * vb * self.q.base.entry(a, b);
             }
         }
-        h + self.q.low_rank_product(ci, cj)
+        h + self.low_rank_product(ci, cj)
     }
 
     /// gᵀ Q_g g of every suffix `order[k..]` of one stream's readings (element k); the
@@ -155,14 +202,14 @@ impl StructuredGeometry {
         });
         // the rows beyond α, φ′ and U′ (effect values) and the low-rank part: through
         // W, with the running sum of Wᵀcᵢ
-        let rank = self.q.rank();
+        let rank = self.rank;
         let mut v = vec![0.0; rank];
         let (mut a, mut b) = (vec![0.0; rank], vec![0.0; rank]);
         let mut quads = vec![0.0; m];
         let mut quad = 0.0;
         for (k, &i) in order.iter().enumerate().rev() {
             let row = &rows[i];
-            self.q.low_rank_into(row, &mut a, &mut b);
+            self.low_rank_into(row, &mut a, &mut b);
             let after = (m - 1 - k) as f64;
             // effect values of this row against the stream's α, φ′, U′ part: B is zero
             // there, so only the low-rank part couples them
