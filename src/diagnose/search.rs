@@ -55,6 +55,9 @@ impl Outcome {
     }
 }
 
+/// The most candidates a round refits (tries) before it gives up.
+const MAX_ATTEMPTS: usize = 4;
+
 /// The F statistic of a scored candidate against the current fit:
 /// F = (Δ/r)/(rest/(dof − r)) with r the directions it adds.
 fn f_statistic(candidate: &Candidate, current: &Solution, tiny: f64) -> f64 {
@@ -102,17 +105,21 @@ fn evidence(
 
 /// The candidates of a round whose F tests the round can use, with them, in the
 /// candidates' order: every one of the systematic and outlier families (a few), and of
-/// the jumps (one per stop of every stream: thousands) the significant ones at
-/// `family_alpha` and the strongest of each stream that is not — the only ones the round
-/// tries or records as not significant. A jump's p-value falls as its F statistic grows
-/// (one numerator degree of freedom, the same denominator and family for all), so the
-/// jumps are ranked by F and a p-value is computed only for those.
+/// the jumps (one per stop of every stream: thousands) only those the round's loop can
+/// reach or records — the four strongest significant jumps of streams that may take
+/// another (the loop tries at most four candidates), the strongest significant jump of
+/// each stream that may not (its one refusal), and the strongest jump of each stream
+/// that is not significant (the round's record when nothing is added). A jump's p-value
+/// falls as its F statistic grows (one numerator degree of freedom, the same
+/// denominator and family for all), so the jumps are ordered by F and the p-values are
+/// computed for those and for the few a bisection for the significant ones needs.
 fn rank(
     candidates: &[Candidate],
     current: &Solution,
     tiny: f64,
     family_alpha: f64,
     family_size: impl Fn(Family) -> usize,
+    full: impl Fn(u32, Option<u32>) -> bool,
 ) -> Vec<(usize, Evidence)> {
     let f: Vec<f64> = candidates
         .iter()
@@ -122,6 +129,8 @@ fn rank(
         let c = &candidates[i];
         evidence(c, f[i], current, family_size(c.family))
     };
+    // as the round's loop decides: a candidate is tried unless p·m ≥ α
+    let significant = |e: &Evidence| e.p_adjusted < family_alpha || e.p_adjusted.is_nan();
     let mut out: Vec<(usize, Evidence)> = Vec::new();
     let mut steps: Vec<usize> = Vec::new();
     for (i, c) in candidates.iter().enumerate() {
@@ -138,46 +147,54 @@ fn rank(
         Term::Effect(Effect::OffsetStep { ac, setup, .. }) => (ac, setup),
         _ => (0, None),
     };
-    // the strongest `top` jumps in order, `top` growing until one of them is not
-    // significant (the rest are not either)
-    let mut top = 64;
-    let (significant, rest) = loop {
-        let (head, rest) = if top < steps.len() {
-            steps.select_nth_unstable_by(top, stronger);
-            steps.split_at_mut(top)
+    // the number of significant jumps: the first `count` in the order of `stronger`,
+    // by bisection over partitions (each step halves the part still open)
+    let (mut lo, mut hi) = (0, steps.len());
+    while lo < hi {
+        let part = &mut steps[lo..hi];
+        let mid = part.len() / 2;
+        part.select_nth_unstable_by(mid, stronger);
+        if significant(&evidence_of(part[mid])) {
+            lo += mid + 1;
         } else {
-            let all = steps.len();
-            steps.split_at_mut(all)
-        };
-        head.sort_unstable_by(stronger);
-        let tried: Vec<(usize, Evidence)> = head
-            .iter()
-            .map(|&i| (i, evidence_of(i)))
-            // as the round's loop decides: a candidate is tried unless p·m ≥ α
-            .take_while(|(_, e)| e.p_adjusted < family_alpha || e.p_adjusted.is_nan())
-            .collect();
-        if tried.len() < head.len() || rest.is_empty() {
-            let boundary = tried.len();
-            let mut others: Vec<usize> = head[boundary..].to_vec();
-            others.extend_from_slice(rest);
-            break (tried, others);
-        }
-        top *= 4;
-    };
-    out.extend(significant);
-    // the strongest jump of each stream that is not significant
-    let mut strongest: Vec<((u32, Option<u32>), usize)> = Vec::new();
-    for i in rest {
-        match strongest.iter_mut().find(|(s, _)| *s == stream(i)) {
-            Some((_, best)) => {
-                if stronger(&i, best).is_lt() {
-                    *best = i;
-                }
-            }
-            None => strongest.push((stream(i), i)),
+            hi = lo + mid;
         }
     }
-    out.extend(strongest.into_iter().map(|(_, i)| (i, evidence_of(i))));
+    let (tried, others) = steps.split_at_mut(lo);
+    // the strongest of each stream among `items` that `keep` keeps
+    let strongest_of_streams = |items: &[usize], keep: &dyn Fn((u32, Option<u32>)) -> bool| {
+        let mut best: Vec<((u32, Option<u32>), usize)> = Vec::new();
+        for &i in items {
+            if !keep(stream(i)) {
+                continue;
+            }
+            match best.iter_mut().find(|(s, _)| *s == stream(i)) {
+                Some((_, b)) => {
+                    if stronger(&i, b).is_lt() {
+                        *b = i;
+                    }
+                }
+                None => best.push((stream(i), i)),
+            }
+        }
+        best.into_iter().map(|(_, i)| i).collect::<Vec<usize>>()
+    };
+    let mut keep: Vec<usize> = strongest_of_streams(tried, &|(ac, setup)| full(ac, setup));
+    let mut open: Vec<usize> = tried
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let (ac, setup) = stream(i);
+            !full(ac, setup)
+        })
+        .collect();
+    if open.len() > MAX_ATTEMPTS {
+        open.select_nth_unstable_by(MAX_ATTEMPTS, stronger);
+        open.truncate(MAX_ATTEMPTS);
+    }
+    keep.extend(open);
+    keep.extend(strongest_of_streams(others, &|_| true));
+    out.extend(keep.into_iter().map(|i| (i, evidence_of(i))));
     out.sort_unstable_by_key(|&(i, _)| i);
     out
 }
@@ -305,7 +322,24 @@ pub(super) fn run(
             Family::Systematic => systematic_count,
             Family::OffsetStep => step_count,
         };
-        let scored = rank(&candidates, &current, tiny, options.family_alpha, family_size);
+        let jumps_of = |ac: u32, setup: Option<u32>, terms: &[Term]| {
+            terms
+                .iter()
+                .filter(|t| {
+                    matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
+                })
+                .count()
+        };
+        let full =
+            |ac: u32, setup: Option<u32>| jumps_of(ac, setup, &terms) >= MAX_JUMPS_PER_STREAM;
+        let scored = rank(
+            &candidates,
+            &current,
+            tiny,
+            options.family_alpha,
+            family_size,
+            full,
+        );
         let mut scored: Vec<(Candidate, Evidence)> = scored
             .into_iter()
             .map(|(i, e)| (candidates[i].clone(), e))
@@ -319,18 +353,10 @@ pub(super) fn run(
         // not tried: the stream is marked, and a smooth drift or a zero per cycle of it
         // may still take the structure.
         jumps_exceeded.clear();
-        let jumps_of = |ac: u32, setup: Option<u32>, terms: &[Term]| {
-            terms
-                .iter()
-                .filter(|t| {
-                    matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
-                })
-                .count()
-        };
         let mut attempts = 0;
         let mut accepted = false;
         for (candidate, ev) in &scored {
-            if attempts >= 4 || ev.p_adjusted >= options.family_alpha {
+            if attempts >= MAX_ATTEMPTS || ev.p_adjusted >= options.family_alpha {
                 break;
             }
             let rejected = |rejection| TriedEffect {

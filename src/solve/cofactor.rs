@@ -356,12 +356,15 @@ impl Base {
     pub(crate) fn entry(&self, a: usize, b: usize) -> f64 {
         let n = self.faces;
         let (a, b) = if a <= b { (a, b) } else { (b, a) };
+        // every lag below is already in 0..N (no division): b − a < N within a block,
+        // and a + N − (b − N) lies in 1..2N
         if b < n {
-            self.aa[(b - a) % n]
+            self.aa[b - a]
         } else if a < n && b < 2 * n {
-            self.ap[(a + n - (b - n)) % n]
+            let lag = a + n - (b - n);
+            self.ap[if lag >= n { lag - n } else { lag }]
         } else if b < 2 * n {
-            self.pp[(b - a) % n]
+            self.pp[b - a]
         } else if a == b && a < 2 * n + self.streams() {
             self.setup[a - 2 * n]
         } else {

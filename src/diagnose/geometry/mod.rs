@@ -30,8 +30,8 @@ use nalgebra::DMatrix;
 use super::nuisance::StopNuisance;
 use crate::measurement::MeasurementSet;
 use crate::solve::Solution;
-pub use structured::SuffixCache;
 use structured::StructuredGeometry;
+pub use structured::SuffixCache;
 
 /// The hat-matrix geometry of one fit: its cofactor (dense in ψ, or structured in g) and
 /// the sparse design row of every reading.

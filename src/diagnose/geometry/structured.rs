@@ -278,14 +278,15 @@ impl SuffixCache {
         let same = |(o, k, _): &(Vec<usize>, Vec<f64>, Vec<f64>)| {
             o.as_slice() == order
                 && k.len() == kernel.len()
-                && k.iter().zip(kernel).all(|(a, b)| a.to_bits() == b.to_bits())
+                && k.iter()
+                    .zip(kernel)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
         };
         let index = match self.entries.iter().position(same) {
             Some(index) => index,
             None => {
                 let later = compute();
-                self.entries
-                    .push((order.to_vec(), kernel.to_vec(), later));
+                self.entries.push((order.to_vec(), kernel.to_vec(), later));
                 self.entries.len() - 1
             }
         };
