@@ -429,13 +429,16 @@ pub fn offset_step_candidates(
     out
 }
 
+/// A stream a jump can belong to: (autocollimator, mounting when the file has several).
+type StepStream = (u32, Option<u32>);
+
 /// What a change-point search keeps from one round of a diagnosis to the next (of one
 /// set): every stream's readings in time order, and their suffix convolutions
 /// ([`SuffixCache`]), which adding a term to the model does not change.
 #[derive(Debug, Clone, Default)]
 pub struct StepSearch {
     /// The streams of [`step_streams`] with their readings in time order.
-    streams: Option<Vec<((u32, Option<u32>), Vec<usize>)>>,
+    streams: Option<Vec<(StepStream, Vec<usize>)>>,
     /// The suffix convolutions of the structured geometry.
     suffix: SuffixCache,
 }
