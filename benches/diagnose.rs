@@ -14,6 +14,12 @@
 //!   with closing readings (4 332, 17 292 and 69 132 readings), a drift and a jump: the
 //!   structured geometry (issue 22's targets: 0.1 s at 1 440, 1 s at 5 760, growth at
 //!   most N^1.3);
+//! - `side_by_side/{solve,diagnose}_{1440,5760}x6_{drift_step,clean}`: `solve` and
+//!   `diagnose` of the same runs (1 440 and 5 760 positions × 6 cycles with closing
+//!   readings, with a drift and a jump, and without effects), each from the file's bytes
+//!   in memory as the commands read them (parsing included, output and process start-up
+//!   not), so that their ratio is measured in one run (issue 35: `diagnose` at most 3×
+//!   `solve`);
 //! - `diagnose/selfa168x3_drift_step_outlier`: a SelfA self-calibration (12 heads, 168
 //!   positions, 3 cycles, 6 048 readings) with a head's drift, another head's jump and an
 //!   outlier: the closure model with the table's error at every stop taken out.
@@ -22,9 +28,11 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use polycal::diagnose::selfcal::diagnose_selfcal;
 use polycal::diagnose::{DiagnoseOptions, diagnose};
 use polycal::effects::Effect;
+use polycal::measurement::MeasurementSet;
 use polycal::selfcal::SelfcalOptions;
 use polycal::simulate::{SelfcalSimConfig, simulate_selfcal};
 use polycal::simulate::{SimulationConfig, simulate};
+use polycal::solve::{SolveOptions, solve};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -159,5 +167,57 @@ fn bench_diagnose(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_diagnose);
+/// `solve` against `diagnose` of the same file, both from its bytes (parsing included).
+fn bench_side_by_side(c: &mut Criterion) {
+    let mut group = c.benchmark_group("side_by_side");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(5));
+    for faces in [1440, 5760] {
+        for (name, effects) in [
+            (
+                "drift_step",
+                vec![
+                    Effect::Drift {
+                        ac: 1,
+                        value: 0.8,
+                        quadratic: None,
+                    },
+                    Effect::OffsetStep {
+                        ac: 2,
+                        cycle: 4,
+                        step: Some(faces / 3),
+                        setup: None,
+                        value: 0.3,
+                    },
+                ],
+            ),
+            ("clean", Vec::new()),
+        ] {
+            let config = SimulationConfig {
+                faces,
+                closing: true,
+                step_seconds: 2.0,
+                effects,
+                ..SimulationConfig::default()
+            };
+            let (set, _) = simulate(&config).expect("a valid simulation");
+            let mut bytes = Vec::new();
+            set.write_to(&mut bytes, &[]).expect("written to memory");
+            let read = |bytes: &[u8]| {
+                MeasurementSet::read_from(bytes, "run.csv", None).expect("a valid file")
+            };
+            let solve_options = SolveOptions::default();
+            group.bench_function(format!("solve_{faces}x6_{name}"), |b| {
+                b.iter(|| solve(&read(black_box(&bytes)), &solve_options))
+            });
+            let options = DiagnoseOptions::default();
+            group.bench_function(format!("diagnose_{faces}x6_{name}"), |b| {
+                b.iter(|| diagnose(&read(black_box(&bytes)), &options))
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_diagnose, bench_side_by_side);
 criterion_main!(benches);

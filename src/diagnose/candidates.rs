@@ -18,7 +18,7 @@
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, MeasurementSet, Reading};
 
-use super::geometry::{BlockScore, ColumnScore, FitGeometry};
+use super::geometry::{BlockScore, ColumnScore, FitGeometry, SuffixCache};
 
 /// The fewest readings of a stream on either side of a jump (fewer are outliers).
 pub const MIN_STEP_READINGS: usize = 3;
@@ -418,12 +418,67 @@ pub fn offset_step_candidates(
     present: &[Term],
 ) -> Vec<Candidate> {
     let mut out = Vec::new();
-    for (ac, setup) in step_streams(set) {
-        let order = stream_in_time_order(set, ac, setup);
+    offset_step_candidates_with(
+        set,
+        geometry,
+        residuals,
+        present,
+        &mut StepSearch::new(),
+        &mut out,
+    );
+    out
+}
+
+/// A stream a jump can belong to: (autocollimator, mounting when the file has several).
+type StepStream = (u32, Option<u32>);
+
+/// What a change-point search keeps from one round of a diagnosis to the next (of one
+/// set): every stream's readings in time order, and their suffix convolutions
+/// ([`SuffixCache`]), which adding a term to the model does not change.
+#[derive(Debug, Clone, Default)]
+pub struct StepSearch {
+    /// The streams of [`step_streams`] with their readings in time order.
+    streams: Option<Vec<(StepStream, Vec<usize>)>>,
+    /// The suffix convolutions of the structured geometry.
+    suffix: SuffixCache,
+}
+
+impl StepSearch {
+    /// Nothing kept yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+}
+
+/// [`offset_step_candidates`] with what does not change between rounds kept in `search`
+/// (for one set), the candidates pushed onto `out`.
+pub fn offset_step_candidates_with(
+    set: &MeasurementSet,
+    geometry: &FitGeometry,
+    residuals: &[f64],
+    present: &[Term],
+    search: &mut StepSearch,
+    out: &mut Vec<Candidate>,
+) {
+    let streams = search.streams.get_or_insert_with(|| {
+        step_streams(set)
+            .into_iter()
+            .map(|(ac, setup)| ((ac, setup), stream_in_time_order(set, ac, setup)))
+            .collect()
+    });
+    for ((ac, setup), order) in streams.iter() {
+        let (ac, setup) = (*ac, *setup);
         if order.len() < 2 * MIN_STEP_READINGS {
             continue;
         }
-        let scores = geometry.suffix_scores(&order, residuals);
+        // only a jump of this stream can be the same term as a candidate of it
+        let present: Vec<&Term> = present
+            .iter()
+            .filter(|t| {
+                matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
+            })
+            .collect();
+        let scores = geometry.suffix_scores_with(order, residuals, &mut search.suffix);
         for k in MIN_STEP_READINGS..=order.len() - MIN_STEP_READINGS {
             let r = &set.readings[order[k]];
             let previous = &set.readings[order[k - 1]];
@@ -446,5 +501,4 @@ pub fn offset_step_candidates(
             out.push(Candidate::single(term, Family::OffsetStep, &scores[k]));
         }
     }
-    out
 }

@@ -41,6 +41,57 @@ pub fn cells(set: &MeasurementSet) -> BTreeMap<CellKey, Vec<usize>> {
     cells
 }
 
+/// The cells of [`cells`] as one sorted list: every reading's index ordered by its cell's
+/// key and then by index (the order of [`cells`]' map and of its members), without a map
+/// node or a vector per cell.
+struct Cells {
+    /// The keys of the cells, ascending.
+    keys: Vec<CellKey>,
+    /// The readings, cell after cell.
+    members: Vec<usize>,
+    /// Where each cell's readings start in `members` (one more entry: the end).
+    starts: Vec<usize>,
+}
+
+impl Cells {
+    fn of(set: &MeasurementSet) -> Self {
+        let key = |i: usize| {
+            let r = &set.readings[i];
+            (r.setup, r.step, r.ac, r.direction)
+        };
+        let mut sorted: Vec<(CellKey, usize)> =
+            (0..set.readings.len()).map(|i| (key(i), i)).collect();
+        sorted.sort_unstable();
+        let mut keys: Vec<CellKey> = Vec::new();
+        let mut starts: Vec<usize> = Vec::new();
+        for (k, (cell, _)) in sorted.iter().enumerate() {
+            if keys.last() != Some(cell) {
+                keys.push(*cell);
+                starts.push(k);
+            }
+        }
+        starts.push(sorted.len());
+        let members = sorted.into_iter().map(|(_, i)| i).collect();
+        Cells {
+            keys,
+            members,
+            starts,
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.keys.len()
+    }
+
+    fn values(&self) -> impl Iterator<Item = &[usize]> {
+        self.starts.windows(2).map(|w| &self.members[w[0]..w[1]])
+    }
+
+    fn iter(&self) -> impl Iterator<Item = (&CellKey, &[usize])> {
+        self.keys.iter().zip(self.values())
+    }
+}
+
 /// The result of the lack-of-fit test.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LackOfFit {
@@ -120,7 +171,7 @@ pub fn lack_of_fit_with(
     alpha: f64,
     nuisance: Option<&StopNuisance>,
 ) -> Option<LackOfFit> {
-    let cells = cells(set);
+    let cells = Cells::of(set);
     let n = set.readings.len();
     let replicated_cells = cells.values().filter(|c| c.len() > 1).count();
     if replicated_cells == 0 {

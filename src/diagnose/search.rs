@@ -55,14 +55,17 @@ impl Outcome {
     }
 }
 
-/// The F test of a scored candidate against the current fit: F = (Δ/r)/(rest/(dof − r))
-/// with r the directions it adds (for r = 1 through Student's t, as before blocks).
-fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny: f64) -> Evidence {
+/// The most candidates a round refits (tries) before it gives up.
+const MAX_ATTEMPTS: usize = 4;
+
+/// The F statistic of a scored candidate against the current fit:
+/// F = (Δ/r)/(rest/(dof − r)) with r the directions it adds.
+fn f_statistic(candidate: &Candidate, current: &Solution, tiny: f64) -> f64 {
     let reduction = candidate.reduction;
     let r = candidate.rank.max(1);
     let dof = current.dof.saturating_sub(r);
     let rest = (current.rss - reduction).max(0.0);
-    let f_statistic = if dof == 0 {
+    if dof == 0 {
         0.0
     } else if rest > tiny {
         (reduction / r as f64) / (rest / dof as f64)
@@ -70,7 +73,20 @@ fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny:
         f64::INFINITY
     } else {
         0.0
-    };
+    }
+}
+
+/// The F test of a scored candidate against the current fit, its statistic
+/// `f_statistic` ([`f_statistic`]): the p-value (for r = 1 through Student's t, as before
+/// blocks) and its Bonferroni adjustment over `family_size`.
+fn evidence(
+    candidate: &Candidate,
+    f_statistic: f64,
+    current: &Solution,
+    family_size: usize,
+) -> Evidence {
+    let r = candidate.rank.max(1);
+    let dof = current.dof.saturating_sub(r);
     let p_value = if dof == 0 || f_statistic <= 0.0 {
         1.0
     } else if r == 1 {
@@ -87,6 +103,102 @@ fn evidence(candidate: &Candidate, current: &Solution, family_size: usize, tiny:
     }
 }
 
+/// The candidates of a round whose F tests the round can use, with them, in the
+/// candidates' order: every one of the systematic and outlier families (a few), and of
+/// the jumps (one per stop of every stream: thousands) only those the round's loop can
+/// reach or records — the four strongest significant jumps of streams that may take
+/// another (the loop tries at most four candidates), the strongest significant jump of
+/// each stream that may not (its one refusal), and the strongest jump of each stream
+/// that is not significant (the round's record when nothing is added). A jump's p-value
+/// falls as its F statistic grows (one numerator degree of freedom, the same
+/// denominator and family for all), so the jumps are ordered by F and the p-values are
+/// computed for those and for the few a bisection for the significant ones needs.
+fn rank(
+    candidates: &[Candidate],
+    current: &Solution,
+    tiny: f64,
+    family_alpha: f64,
+    family_size: impl Fn(Family) -> usize,
+    full: impl Fn(u32, Option<u32>) -> bool,
+) -> Vec<(usize, Evidence)> {
+    let f: Vec<f64> = candidates
+        .iter()
+        .map(|c| f_statistic(c, current, tiny))
+        .collect();
+    let evidence_of = |i: usize| {
+        let c = &candidates[i];
+        evidence(c, f[i], current, family_size(c.family))
+    };
+    // as the round's loop decides: a candidate is tried unless p·m ≥ α
+    let significant = |e: &Evidence| e.p_adjusted < family_alpha || e.p_adjusted.is_nan();
+    let mut out: Vec<(usize, Evidence)> = Vec::new();
+    let mut steps: Vec<usize> = Vec::new();
+    for (i, c) in candidates.iter().enumerate() {
+        match (c.family, &c.term) {
+            (Family::OffsetStep, Term::Effect(Effect::OffsetStep { .. })) if c.rank == 1 => {
+                steps.push(i);
+            }
+            _ => out.push((i, evidence_of(i))),
+        }
+    }
+    // strongest first; ties in candidate order
+    let stronger = |a: &usize, b: &usize| f[*b].total_cmp(&f[*a]).then(a.cmp(b));
+    let stream = |i: usize| match candidates[i].term {
+        Term::Effect(Effect::OffsetStep { ac, setup, .. }) => (ac, setup),
+        _ => (0, None),
+    };
+    // the number of significant jumps: the first `count` in the order of `stronger`,
+    // by bisection over partitions (each step halves the part still open)
+    let (mut lo, mut hi) = (0, steps.len());
+    while lo < hi {
+        let part = &mut steps[lo..hi];
+        let mid = part.len() / 2;
+        part.select_nth_unstable_by(mid, stronger);
+        if significant(&evidence_of(part[mid])) {
+            lo += mid + 1;
+        } else {
+            hi = lo + mid;
+        }
+    }
+    let (tried, others) = steps.split_at_mut(lo);
+    // the strongest of each stream among `items` that `keep` keeps
+    let strongest_of_streams = |items: &[usize], keep: &dyn Fn((u32, Option<u32>)) -> bool| {
+        let mut best: Vec<((u32, Option<u32>), usize)> = Vec::new();
+        for &i in items {
+            if !keep(stream(i)) {
+                continue;
+            }
+            match best.iter_mut().find(|(s, _)| *s == stream(i)) {
+                Some((_, b)) => {
+                    if stronger(&i, b).is_lt() {
+                        *b = i;
+                    }
+                }
+                None => best.push((stream(i), i)),
+            }
+        }
+        best.into_iter().map(|(_, i)| i).collect::<Vec<usize>>()
+    };
+    let mut keep: Vec<usize> = strongest_of_streams(tried, &|(ac, setup)| full(ac, setup));
+    let mut open: Vec<usize> = tried
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let (ac, setup) = stream(i);
+            !full(ac, setup)
+        })
+        .collect();
+    if open.len() > MAX_ATTEMPTS {
+        open.select_nth_unstable_by(MAX_ATTEMPTS, stronger);
+        open.truncate(MAX_ATTEMPTS);
+    }
+    keep.extend(open);
+    keep.extend(strongest_of_streams(others, &|_| true));
+    out.extend(keep.into_iter().map(|i| (i, evidence_of(i))));
+    out.sort_unstable_by_key(|&(i, _)| i);
+    out
+}
+
 /// Runs the forward selection from the base model `before`; notes for people go to
 /// `notes`.
 pub(super) fn run(
@@ -99,9 +211,14 @@ pub(super) fn run(
     notes: &mut Vec<String>,
 ) -> Outcome {
     let sigma = options.sigma;
-    let columns_of = |terms: &[Term]| -> Vec<Vec<f64>> {
-        terms.iter().map(|t| t.column(set, context)).collect()
+    let mut known = Columns {
+        set,
+        context,
+        known: Vec::new(),
     };
+    let mut step_search = candidates::StepSearch::new();
+    // the candidates of a round (thousands of jumps): one vector for every round
+    let mut candidates: Vec<Candidate> = Vec::new();
     let mut terms: Vec<Term> = Vec::new();
     let mut findings: Vec<Finding> = Vec::new();
     let mut tried: Vec<TriedEffect> = Vec::new();
@@ -112,16 +229,19 @@ pub(super) fn run(
     let mut current = before.clone();
     let mut lof_current = base.lack_of_fit(set, &current, &[], options.lack_of_fit_alpha);
     while findings.len() < options.max_effects && current.dof >= 2 {
-        let columns = columns_of(&terms);
+        let columns = known.of(&terms);
         let geometry = base.geometry(&current, &columns);
         let leverage = geometry.leverage();
         let studentized = residuals::studentized(&current, &leverage);
-        let mut candidates: Vec<Candidate> = Vec::new();
-        for block in candidates::systematic_blocks(set, &terms, &options.stated_cross_talk) {
+        candidates.clear();
+        let blocks = candidates::systematic_blocks(set, &terms, &options.stated_cross_talk);
+        // a drift's orders are nested blocks: each one's Gram matrix is the leading part
+        // of the longest block it begins, formed once
+        let mut grams: Vec<Option<nalgebra::DMatrix<f64>>> = vec![None; blocks.len()];
+        for (b, block) in blocks.iter().enumerate() {
             base.ticker().tick();
             if let [term] = block.as_slice() {
-                let column = term.column(set, context);
-                let score = geometry.score(&column, &current.residuals);
+                let score = geometry.score(known.column(term), &current.residuals);
                 if let Term::Effect(Effect::CrossTalk { ac, .. }) = term
                     && score.new_fraction() < 0.1
                 {
@@ -143,20 +263,31 @@ pub(super) fn run(
                     candidates.push(Candidate::single(term.clone(), Family::Systematic, &score));
                 }
             } else {
-                let score = geometry.score_block(&columns_of(&block), &current.residuals);
+                let longest = (0..blocks.len())
+                    .filter(|&o| blocks[o].len() >= block.len() && blocks[o].starts_with(block))
+                    .max_by_key(|&o| (blocks[o].len(), std::cmp::Reverse(o)))
+                    .unwrap_or(b);
+                let gram = grams[longest]
+                    .get_or_insert_with(|| geometry.projected_gram(&known.of(&blocks[longest])));
+                let m = block.len();
+                let gram = gram.view((0, 0), (m, m)).into_owned();
+                let score =
+                    geometry.score_block_with_gram(&known.of(block), gram, &current.residuals);
                 if score.rank > 0
-                    && let Some(c) = Candidate::block(block, Family::Systematic, &score)
+                    && let Some(c) = Candidate::block(block.clone(), Family::Systematic, &score)
                 {
                     candidates.push(c);
                 }
             }
         }
-        candidates.extend(candidates::offset_step_candidates(
+        candidates::offset_step_candidates_with(
             set,
             &geometry,
             &current.residuals,
             &terms,
-        ));
+            &mut step_search,
+            &mut candidates,
+        );
         let eligible = studentized.iter().filter(|t| t.is_some()).count();
         if let Some((i, t)) = studentized
             .iter()
@@ -191,12 +322,27 @@ pub(super) fn run(
             Family::Systematic => systematic_count,
             Family::OffsetStep => step_count,
         };
-        let mut scored: Vec<(Candidate, Evidence)> = candidates
-            .iter()
-            .map(|c| {
-                let e = evidence(c, &current, family_size(c.family), tiny);
-                (c.clone(), e)
-            })
+        let jumps_of = |ac: u32, setup: Option<u32>, terms: &[Term]| {
+            terms
+                .iter()
+                .filter(|t| {
+                    matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
+                })
+                .count()
+        };
+        let full =
+            |ac: u32, setup: Option<u32>| jumps_of(ac, setup, &terms) >= MAX_JUMPS_PER_STREAM;
+        let scored = rank(
+            &candidates,
+            &current,
+            tiny,
+            options.family_alpha,
+            family_size,
+            full,
+        );
+        let mut scored: Vec<(Candidate, Evidence)> = scored
+            .into_iter()
+            .map(|(i, e)| (candidates[i].clone(), e))
             .collect();
         scored.sort_by(|a, b| {
             a.1.p_adjusted
@@ -207,18 +353,10 @@ pub(super) fn run(
         // not tried: the stream is marked, and a smooth drift or a zero per cycle of it
         // may still take the structure.
         jumps_exceeded.clear();
-        let jumps_of = |ac: u32, setup: Option<u32>, terms: &[Term]| {
-            terms
-                .iter()
-                .filter(|t| {
-                    matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
-                })
-                .count()
-        };
         let mut attempts = 0;
         let mut accepted = false;
         for (candidate, ev) in &scored {
-            if attempts >= 4 || ev.p_adjusted >= options.family_alpha {
+            if attempts >= MAX_ATTEMPTS || ev.p_adjusted >= options.family_alpha {
                 break;
             }
             let rejected = |rejection| TriedEffect {
@@ -268,7 +406,7 @@ pub(super) fn run(
                 .cloned()
                 .collect();
             new_terms.extend(added.iter().cloned());
-            let new_columns = columns_of(&new_terms);
+            let new_columns = known.of(&new_terms);
             let Ok(fit) = base.fit(&new_columns, sigma) else {
                 tried.push(rejected(Rejection::NotDetermined));
                 continue;
@@ -345,6 +483,35 @@ pub(super) fn run(
         jumps_exceeded,
         fit: current,
         lack_of_fit: lof_current,
+    }
+}
+
+/// The columns of the terms met so far in a search: a term's column is the same in every
+/// round, so it is formed once.
+struct Columns<'s> {
+    set: &'s MeasurementSet,
+    context: &'s EffectContext,
+    /// (term, its column).
+    known: Vec<(Term, Vec<f64>)>,
+}
+
+impl Columns<'_> {
+    /// The column of `term`.
+    fn column(&mut self, term: &Term) -> &[f64] {
+        let index = match self.known.iter().position(|(t, _)| t == term) {
+            Some(index) => index,
+            None => {
+                let column = term.column(self.set, self.context);
+                self.known.push((term.clone(), column));
+                self.known.len() - 1
+            }
+        };
+        &self.known[index].1
+    }
+
+    /// The columns of `terms`, in their order.
+    fn of(&mut self, terms: &[Term]) -> Vec<Vec<f64>> {
+        terms.iter().map(|t| self.column(t).to_vec()).collect()
     }
 }
 

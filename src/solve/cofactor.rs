@@ -363,12 +363,15 @@ impl Base {
     pub(crate) fn entry(&self, a: usize, b: usize) -> f64 {
         let n = self.faces;
         let (a, b) = if a <= b { (a, b) } else { (b, a) };
+        // every lag below is already in 0..N (no division): b − a < N within a block,
+        // and a + N − (b − N) lies in 1..2N
         if b < n {
-            self.aa[(b - a) % n]
+            self.aa[b - a]
         } else if a < n && b < 2 * n {
-            self.ap[(a + n - (b - n)) % n]
+            let lag = a + n - (b - n);
+            self.ap[if lag >= n { lag - n } else { lag }]
         } else if b < 2 * n {
-            self.pp[(b - a) % n]
+            self.pp[b - a]
         } else if a == b && a < 2 * n + self.streams() {
             self.setup[a - 2 * n]
         } else {
@@ -492,33 +495,6 @@ impl Structured {
     /// Column k of W and of W·M (each of length 2N + K + E).
     pub(crate) fn low_rank_column(&self, k: usize) -> (&[f64], &[f64]) {
         self.low_rank.column(k)
-    }
-
-    /// For a sparse vector c in g: Wᵀc and (WM)ᵀc into `a` and `b` (each of length r),
-    /// so that cᵀ W M Wᵀ d = (WM)ᵀc · Wᵀd.
-    pub(crate) fn low_rank_into(&self, c: &[(usize, f64)], a: &mut [f64], b: &mut [f64]) {
-        for k in 0..self.rank() {
-            let (w, wm) = self.low_rank.column(k);
-            let (mut x, mut y) = (0.0, 0.0);
-            for &(i, v) in c {
-                x += v * w[i];
-                y += v * wm[i];
-            }
-            a[k] = x;
-            b[k] = y;
-        }
-    }
-
-    /// cᵀ W M Wᵀ d for sparse vectors c and d in g, without allocating.
-    pub(crate) fn low_rank_product(&self, c: &[(usize, f64)], d: &[(usize, f64)]) -> f64 {
-        (0..self.rank())
-            .map(|k| {
-                let (w, wm) = self.low_rank.column(k);
-                let x: f64 = c.iter().map(|&(i, v)| v * wm[i]).sum();
-                let y: f64 = d.iter().map(|&(i, v)| v * w[i]).sum();
-                x * y
-            })
-            .sum()
     }
 }
 

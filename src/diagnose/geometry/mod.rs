@@ -40,6 +40,7 @@ use crate::selfcal::OffGridDesign;
 use crate::solve::Solution;
 use off_grid::OffGridGeometry;
 use structured::StructuredGeometry;
+pub use structured::SuffixCache;
 
 /// The hat-matrix geometry of one fit: its cofactor (dense in ψ, or structured in g) and
 /// the sparse design row of every reading.
@@ -363,10 +364,22 @@ impl FitGeometry {
     /// that is 1 on the readings `order[k..]` and 0 elsewhere (a jump of the stream's zero
     /// from its k-th reading on). Element k of the result belongs to that column.
     pub fn suffix_scores(&self, order: &[usize], residuals: &[f64]) -> Vec<ColumnScore> {
+        self.suffix_scores_with(order, residuals, &mut SuffixCache::new())
+    }
+
+    /// [`FitGeometry::suffix_scores`] with the structured form's suffix convolutions kept
+    /// in `cache` from one fit to the next ([`SuffixCache`]): a diagnosis's rounds share
+    /// them.
+    pub fn suffix_scores_with(
+        &self,
+        order: &[usize],
+        residuals: &[f64],
+        cache: &mut SuffixCache,
+    ) -> Vec<ColumnScore> {
         // the engine's gᵀ Q g of every suffix, then the stop nuisance's part
         let quads = match &self.form {
             Form::Dense(q) => dense_suffix_quads(q, &self.rows, order),
-            Form::Structured(s) => s.suffix_quads(&self.rows, order),
+            Form::Structured(s) => s.suffix_quads(&self.rows, order, cache),
             Form::OffGrid(o) => o.suffix_quads(order),
         };
         let mut nuisance = self.nuisance.as_ref().map(StopNuisance::suffix);
@@ -441,8 +454,18 @@ impl FitGeometry {
     /// and how many directions they add. A direction whose squared length outside the
     /// span is below `1e-9` of the block's largest squared length adds nothing.
     pub fn score_block(&self, columns: &[Vec<f64>], residuals: &[f64]) -> BlockScore {
+        self.score_block_with_gram(columns, self.projected_gram(columns), residuals)
+    }
+
+    /// [`FitGeometry::score_block`] with the block's [`FitGeometry::projected_gram`]
+    /// given (a block that begins another block has the leading part of its Gram matrix).
+    pub fn score_block_with_gram(
+        &self,
+        columns: &[Vec<f64>],
+        gram: nalgebra::DMatrix<f64>,
+        residuals: &[f64],
+    ) -> BlockScore {
         let m = columns.len();
-        let gram = self.projected_gram(columns);
         let mut projection = nalgebra::DVector::<f64>::zeros(m);
         for a in 0..m {
             projection[a] = columns[a].iter().zip(residuals).map(|(x, e)| x * e).sum();

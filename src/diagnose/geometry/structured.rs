@@ -36,6 +36,12 @@ pub(super) struct StructuredGeometry {
     face: Vec<usize>,
     /// Every reading's stream index s.
     stream: Vec<usize>,
+    /// The rank r of the low-rank part.
+    rank: usize,
+    /// W by rows: entry (a, k) at a·r + k, so that a design row's r values lie together.
+    w_rows: Vec<f64>,
+    /// W·M by rows, likewise.
+    wm_rows: Vec<f64>,
 }
 
 /// Streams with at most this many readings sum their pairs directly.
@@ -85,6 +91,16 @@ impl StructuredGeometry {
                 row
             })
             .collect();
+        let (rank, size) = (q.rank(), q.size());
+        let mut w_rows = vec![0.0; size * rank];
+        let mut wm_rows = vec![0.0; size * rank];
+        for k in 0..rank {
+            let (w, wm) = q.low_rank_column(k);
+            for (a, (&x, &y)) in w.iter().zip(wm).enumerate() {
+                w_rows[a * rank + k] = x;
+                wm_rows[a * rank + k] = y;
+            }
+        }
         (
             Self {
                 q: q.clone(),
@@ -92,9 +108,40 @@ impl StructuredGeometry {
                 position,
                 face,
                 stream,
+                rank,
+                w_rows,
+                wm_rows,
             },
             rows,
         )
+    }
+
+    /// Wᵀc and (WM)ᵀc of a design row c into `a` and `b` (each of length r), so that
+    /// cᵀ W M Wᵀ d = (WM)ᵀc · Wᵀd: each value summed over c's entries in order, from the
+    /// rows of W (a design row's r values lie together).
+    fn low_rank_into(&self, c: &[(usize, f64)], a: &mut [f64], b: &mut [f64]) {
+        let r = self.rank;
+        for k in 0..r {
+            let (mut x, mut y) = (0.0, 0.0);
+            for &(i, v) in c {
+                x += v * self.w_rows[i * r + k];
+                y += v * self.wm_rows[i * r + k];
+            }
+            a[k] = x;
+            b[k] = y;
+        }
+    }
+
+    /// cᵀ W M Wᵀ d for two design rows, without allocating: Σ_k ((WM)ᵀc)_k (Wᵀd)_k.
+    fn low_rank_product(&self, c: &[(usize, f64)], d: &[(usize, f64)]) -> f64 {
+        let r = self.rank;
+        (0..r)
+            .map(|k| {
+                let x: f64 = c.iter().map(|&(i, v)| v * self.wm_rows[i * r + k]).sum();
+                let y: f64 = d.iter().map(|&(i, v)| v * self.w_rows[i * r + k]).sum();
+                x * y
+            })
+            .sum()
     }
 
     /// The length of g.
@@ -115,11 +162,18 @@ impl StructuredGeometry {
                 h += va * vb * self.q.base.entry(a, b);
             }
         }
-        h + self.q.low_rank_product(ci, cj)
+        h + self.low_rank_product(ci, cj)
     }
 
-    /// gᵀ Q_g g of every suffix `order[k..]` of one stream's readings (element k).
-    pub(super) fn suffix_quads(&self, rows: &[Vec<(usize, f64)>], order: &[usize]) -> Vec<f64> {
+    /// gᵀ Q_g g of every suffix `order[k..]` of one stream's readings (element k); the
+    /// stream's suffix convolution is taken from `cache` when it holds it for the same
+    /// kernel and order, and kept there otherwise.
+    pub(super) fn suffix_quads(
+        &self,
+        rows: &[Vec<(usize, f64)>],
+        order: &[usize],
+        cache: &mut SuffixCache,
+    ) -> Vec<f64> {
         let m = order.len();
         let Some(&first) = order.first() else {
             return Vec::new();
@@ -143,17 +197,19 @@ impl StructuredGeometry {
             })
             .collect();
         let setup = base.entry(2 * n + stream, 2 * n + stream);
-        let later = suffix_convolution(&kernel, order.iter().map(|&i| self.position[i]), m);
+        let later = cache.convolution(&kernel, order, || {
+            suffix_convolution(&kernel, order.iter().map(|&i| self.position[i]), m)
+        });
         // the rows beyond α, φ′ and U′ (effect values) and the low-rank part: through
         // W, with the running sum of Wᵀcᵢ
-        let rank = self.q.rank();
+        let rank = self.rank;
         let mut v = vec![0.0; rank];
         let (mut a, mut b) = (vec![0.0; rank], vec![0.0; rank]);
         let mut quads = vec![0.0; m];
         let mut quad = 0.0;
         for (k, &i) in order.iter().enumerate().rev() {
             let row = &rows[i];
-            self.q.low_rank_into(row, &mut a, &mut b);
+            self.low_rank_into(row, &mut a, &mut b);
             let after = (m - 1 - k) as f64;
             // effect values of this row against the stream's α, φ′, U′ part: B is zero
             // there, so only the low-rank part couples them
@@ -193,6 +249,51 @@ impl StructuredGeometry {
     }
 }
 
+/// The suffix convolutions of the streams of a change-point search
+/// ([`super::FitGeometry::suffix_scores_with`]), kept from one round of a diagnosis to the
+/// next: a stream's convolution depends only on its readings' positions and on its
+/// circulant kernel, which comes from the regular part B of the cofactor — and adding
+/// effect columns to the model changes only the low-rank part. An entry is used only for
+/// the same order of readings and a kernel equal to the bit, so a cached convolution is
+/// the one that would be computed.
+#[derive(Debug, Clone, Default)]
+pub struct SuffixCache {
+    /// (order of the readings, kernel, Σ_{i > k} K(p_k − p_i) for every k).
+    entries: Vec<(Vec<usize>, Vec<f64>, Vec<f64>)>,
+}
+
+impl SuffixCache {
+    /// An empty cache.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The convolution of `order` with `kernel`: cached, or `compute`d and kept.
+    fn convolution(
+        &mut self,
+        kernel: &[f64],
+        order: &[usize],
+        compute: impl FnOnce() -> Vec<f64>,
+    ) -> &[f64] {
+        let same = |(o, k, _): &(Vec<usize>, Vec<f64>, Vec<f64>)| {
+            o.as_slice() == order
+                && k.len() == kernel.len()
+                && k.iter()
+                    .zip(kernel)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+        };
+        let index = match self.entries.iter().position(same) {
+            Some(index) => index,
+            None => {
+                let later = compute();
+                self.entries.push((order.to_vec(), kernel.to_vec(), later));
+                self.entries.len() - 1
+            }
+        };
+        &self.entries[index].2
+    }
+}
+
 /// For readings at `positions` (m of them, in order): element k is
 /// Σ_{i > k} K((p_k − p_i) mod N), the kernel summed over the later readings.
 pub(super) fn suffix_convolution(
@@ -203,7 +304,9 @@ pub(super) fn suffix_convolution(
     let n = kernel.len();
     let p: Vec<usize> = positions.collect();
     let mut out = vec![0.0; m];
-    let pair = |a: usize, b: usize| kernel[(p[a] + n - p[b]) % n];
+    // the kernel laid out twice: K((p_a − p_b) mod N) = twice[p_a + N − p_b], no division
+    let twice: Vec<f64> = kernel.iter().chain(kernel).copied().collect();
+    let pair = |a: usize, b: usize| twice[p[a] + n - p[b]];
     if m <= DIRECT_PAIRS || n < 64 {
         for (k, o) in out.iter_mut().enumerate() {
             *o = (k + 1..m).map(|i| pair(k, i)).sum();
