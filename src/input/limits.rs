@@ -73,7 +73,9 @@ impl Limit {
     /// [`LimitError`] naming `what` (e.g. "a reading"), the value and the range; the
     /// caller adds where the number stands (a reader: file, line and column).
     pub fn check(&self, x: f64, what: &str) -> Result<f64, LimitError> {
-        if x.is_finite() {
+        if self.contains(x) {
+            Ok(x)
+        } else if x.is_finite() {
             self.check_shown(x, &show(x), what)
         } else {
             self.check_shown(x, &x.to_string(), what)

@@ -211,6 +211,8 @@ fn parse_float(text: &str, name: &str, range: Range) -> Result<f64, String> {
     }
     match text.parse::<f64>() {
         Ok(x) if x.is_finite() => match range {
+            // the text is shown only for a refusal (most fields pass)
+            Range::Limit(limit, _) if limit.contains(x) => Ok(x),
             Range::Limit(limit, what) => limit
                 .check_shown(x, &show(text), what)
                 .map_err(|rule| format!("column {name:?}: {rule}")),
