@@ -15,7 +15,7 @@ use polycal::diagnose::selfcal::{SelfcalDiagnosis, diagnose_selfcal};
 use polycal::effects::Effect;
 use polycal::selfcal::{self, SelfcalOptions, SelfcalSet, SelfcalSolution};
 use polycal::simulate::{SelfcalTruth, equally_spaced_head_angles_deg, selfa_head_angles_deg};
-use selfcal_support::{Injected, find, inject, kinds, rms, run};
+use selfcal_support::{Injected, errors, find, head_errors, inject, kinds, run};
 
 /// Runs with effects injected, per design.
 const SEEDS: u64 = 20;
@@ -33,45 +33,6 @@ fn lost_harmonics(set: &SelfcalSet) -> Vec<usize> {
     (1..p)
         .filter(|&k| offsets.iter().all(|&d| (k * d) % p == 0))
         .collect()
-}
-
-/// `values` (one per position) with the mean and the lost harmonics removed: the part of
-/// e a self-calibration can determine (a real DFT, O(P²)).
-fn observable(values: &[f64], lost: &[usize]) -> Vec<f64> {
-    let p = values.len();
-    let mean = values.iter().sum::<f64>() / p as f64;
-    let mut out: Vec<f64> = values.iter().map(|v| v - mean).collect();
-    for &k in lost.iter().filter(|&&k| 2 * k <= p) {
-        let w = 2.0 * std::f64::consts::PI * k as f64 / p as f64;
-        let (mut a, mut b) = (0.0, 0.0);
-        for (x, v) in out.iter().enumerate() {
-            a += v * (w * x as f64).cos();
-            b += v * (w * x as f64).sin();
-        }
-        let scale = if 2 * k == p { 1.0 } else { 2.0 } / p as f64;
-        for (x, v) in out.iter_mut().enumerate() {
-            *v -= scale * (a * (w * x as f64).cos() + b * (w * x as f64).sin());
-        }
-    }
-    out
-}
-
-/// RMS errors (observable e, heads' errors) of an estimate against the truth.
-fn errors(set: &SelfcalSet, truth: &SelfcalTruth, e: &[f64], c: &[f64]) -> (f64, f64) {
-    let lost = lost_harmonics(set);
-    let p = set.positions;
-    let true_e: Vec<f64> = (0..p)
-        .map(|x| truth.encoder_error_at_deg(x as f64 * 360.0 / p as f64))
-        .collect();
-    let difference: Vec<f64> = e.iter().zip(&true_e).map(|(a, b)| a - b).collect();
-    let heads = set.heads();
-    let true_c: Vec<f64> = heads
-        .iter()
-        .skip(1)
-        .map(|h| truth.head_error_of(h.head).unwrap() - truth.head_error_of(1).unwrap())
-        .collect();
-    let c_difference: Vec<f64> = c.iter().zip(&true_c).map(|(a, b)| a - b).collect();
-    (rms(&observable(&difference, &lost)), rms(&c_difference))
 }
 
 /// The independent fit: t per (cycle, step), e per position, c per head 2 … M, and the
@@ -114,10 +75,6 @@ fn diagnose(set: &SelfcalSet) -> SelfcalDiagnosis {
     diagnose_selfcal(set, &DiagnoseOptions::default(), &SelfcalOptions::new()).unwrap()
 }
 
-fn head_errors(solution: &SelfcalSolution) -> Vec<f64> {
-    solution.head_error.iter().map(|h| h.value).collect()
-}
-
 /// RMS errors of one run against the truth: (e, heads' errors) before and after the
 /// diagnosis, and of the oracle told the true effects.
 struct RunErrors {
@@ -134,11 +91,12 @@ fn run_errors(
 ) -> RunErrors {
     let columns: Vec<Vec<f64>> = effects.iter().map(|e| e.column(set)).collect();
     let (oracle_e, oracle_c) = oracle(set, &columns);
-    let of = |s: &SelfcalSolution| errors(set, truth, &s.encoder_error, &head_errors(s));
+    let lost = lost_harmonics(set);
+    let of = |s: &SelfcalSolution| errors(set, truth, &s.encoder_error, &head_errors(s), &lost);
     RunErrors {
         before: of(&found.before),
         after: of(&found.after),
-        oracle: errors(set, truth, &oracle_e, &oracle_c),
+        oracle: errors(set, truth, &oracle_e, &oracle_c, &lost),
     }
 }
 

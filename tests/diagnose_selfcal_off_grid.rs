@@ -15,9 +15,11 @@ use nalgebra::{DMatrix, DVector};
 use polycal::diagnose::DiagnoseOptions;
 use polycal::diagnose::selfcal::{SelfcalDiagnosis, diagnose_selfcal};
 use polycal::effects::Effect;
-use polycal::selfcal::{self, SelfcalOptions, SelfcalSet, SelfcalSolution};
+use polycal::selfcal::{self, SelfcalOptions, SelfcalSet};
 use polycal::simulate::{SelfcalTruth, selfa_head_angles_deg, simulate_selfcal};
-use selfcal_support::{Injected, find, inject, kinds, rms, run, run_config};
+use selfcal_support::{
+    Injected, errors, find, head_errors, inject, kinds, observable, run, run_config,
+};
 
 /// Positions: SelfA's heads at multiples of 360°/7 sit between them.
 const P: usize = 72;
@@ -53,26 +55,6 @@ fn lost_harmonics(set: &SelfcalSet) -> Vec<usize> {
             })
         })
         .collect()
-}
-
-/// `values` with the mean and the lost harmonics removed (a real DFT, O(P²)).
-fn observable(values: &[f64], lost: &[usize]) -> Vec<f64> {
-    let p = values.len();
-    let mean = values.iter().sum::<f64>() / p as f64;
-    let mut out: Vec<f64> = values.iter().map(|v| v - mean).collect();
-    for &k in lost.iter().filter(|&&k| 2 * k <= p) {
-        let w = 2.0 * std::f64::consts::PI * k as f64 / p as f64;
-        let (mut a, mut b) = (0.0, 0.0);
-        for (x, v) in out.iter().enumerate() {
-            a += v * (w * x as f64).cos();
-            b += v * (w * x as f64).sin();
-        }
-        let scale = if 2 * k == p { 1.0 } else { 2.0 } / p as f64;
-        for (x, v) in out.iter_mut().enumerate() {
-            *v -= scale * (a * (w * x as f64).cos() + b * (w * x as f64).sin());
-        }
-    }
-    out
 }
 
 /// The independent band-limited fit: t per (cycle, step), e as cos/sin of 2πkx/P for
@@ -138,28 +120,6 @@ fn oracle(set: &SelfcalSet, effect_columns: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>,
 
 fn diagnose(set: &SelfcalSet) -> SelfcalDiagnosis {
     diagnose_selfcal(set, &DiagnoseOptions::default(), &SelfcalOptions::new()).unwrap()
-}
-
-fn head_errors(solution: &SelfcalSolution) -> Vec<f64> {
-    solution.head_error.iter().map(|h| h.value).collect()
-}
-
-/// RMS errors (observable e, heads' errors) of an estimate against the truth.
-fn errors(set: &SelfcalSet, truth: &SelfcalTruth, e: &[f64], c: &[f64]) -> (f64, f64) {
-    let lost = lost_harmonics(set);
-    let p = set.positions;
-    let true_e: Vec<f64> = (0..p)
-        .map(|x| truth.encoder_error_at_deg(x as f64 * 360.0 / p as f64))
-        .collect();
-    let difference: Vec<f64> = e.iter().zip(&true_e).map(|(a, b)| a - b).collect();
-    let true_c: Vec<f64> = set
-        .heads()
-        .iter()
-        .skip(1)
-        .map(|h| truth.head_error_of(h.head).unwrap() - truth.head_error_of(1).unwrap())
-        .collect();
-    let c_difference: Vec<f64> = c.iter().zip(&true_c).map(|(a, b)| a - b).collect();
-    (rms(&observable(&difference, &lost)), rms(&c_difference))
 }
 
 fn close(a: &[f64], b: &[f64], tolerance: f64) -> bool {
@@ -266,14 +226,22 @@ fn a_head_drift_a_head_jump_and_a_bad_reading_off_the_grid_are_found_where_they_
             &truth,
             &found.after.encoder_error,
             &head_errors(&found.after),
+            &lost_harmonics(&set),
         );
         let before = errors(
             &set,
             &truth,
             &found.before.encoder_error,
             &head_errors(&found.before),
+            &lost_harmonics(&set),
         );
-        let twin_errors = errors(&clean, &truth, &twin.encoder_error, &head_errors(&twin));
+        let twin_errors = errors(
+            &clean,
+            &truth,
+            &twin.encoder_error,
+            &head_errors(&twin),
+            &lost_harmonics(&clean),
+        );
         for k in 0..2 {
             let (a, t) = ([after.0, after.1][k], [twin_errors.0, twin_errors.1][k]);
             after_sq[k] += a * a;

@@ -115,6 +115,56 @@ pub fn inject(set: &mut SelfcalSet, effects: &[Injected]) {
     }
 }
 
+/// `values` (one per position) with the mean and the lost harmonics removed: the part of
+/// e a self-calibration can determine (a real DFT, O(P²)).
+pub fn observable(values: &[f64], lost: &[usize]) -> Vec<f64> {
+    let p = values.len();
+    let mean = values.iter().sum::<f64>() / p as f64;
+    let mut out: Vec<f64> = values.iter().map(|v| v - mean).collect();
+    for &k in lost.iter().filter(|&&k| 2 * k <= p) {
+        let w = 2.0 * std::f64::consts::PI * k as f64 / p as f64;
+        let (mut a, mut b) = (0.0, 0.0);
+        for (x, v) in out.iter().enumerate() {
+            a += v * (w * x as f64).cos();
+            b += v * (w * x as f64).sin();
+        }
+        let scale = if 2 * k == p { 1.0 } else { 2.0 } / p as f64;
+        for (x, v) in out.iter_mut().enumerate() {
+            *v -= scale * (a * (w * x as f64).cos() + b * (w * x as f64).sin());
+        }
+    }
+    out
+}
+
+/// RMS errors (observable e, heads' errors) of an estimate against the truth, e without
+/// its mean and the harmonics `lost` (those the head layout cannot see).
+pub fn errors(
+    set: &SelfcalSet,
+    truth: &SelfcalTruth,
+    e: &[f64],
+    c: &[f64],
+    lost: &[usize],
+) -> (f64, f64) {
+    let p = set.positions;
+    let true_e: Vec<f64> = (0..p)
+        .map(|x| truth.encoder_error_at_deg(x as f64 * 360.0 / p as f64))
+        .collect();
+    let difference: Vec<f64> = e.iter().zip(&true_e).map(|(a, b)| a - b).collect();
+    let true_c: Vec<f64> = set
+        .heads()
+        .iter()
+        .skip(1)
+        .map(|h| truth.head_error_of(h.head).unwrap() - truth.head_error_of(1).unwrap())
+        .collect();
+    let c_difference: Vec<f64> = c.iter().zip(&true_c).map(|(a, b)| a - b).collect();
+    (rms(&observable(&difference, lost)), rms(&c_difference))
+}
+
+/// The heads' errors of a solution, in head order.
+pub fn head_errors(solution: &selfcal::SelfcalSolution) -> Vec<f64> {
+    solution.head_error.iter().map(|h| h.value).collect()
+}
+
 pub fn rms(values: &[f64]) -> f64 {
     (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
 }
