@@ -15,7 +15,7 @@ use polycal::diagnose::selfcal::{SelfcalDiagnosis, diagnose_selfcal};
 use polycal::effects::Effect;
 use polycal::selfcal::{self, SelfcalOptions, SelfcalSet, SelfcalSolution};
 use polycal::simulate::{SelfcalTruth, equally_spaced_head_angles_deg, selfa_head_angles_deg};
-use selfcal_support::{Injected, errors, find, head_errors, inject, kinds, run};
+use selfcal_support::{Injected, check_clean_runs, errors, find, head_errors, inject, kinds, run};
 
 /// Runs with effects injected, per design.
 const SEEDS: u64 = 20;
@@ -404,67 +404,20 @@ fn a_direction_offset_of_one_head_in_a_bidirectional_run_is_found() {
 /// Clean runs diagnosed.
 const CLEAN_RUNS: u64 = 200;
 
-/// [`CLEAN_RUNS`] clean runs diagnosed: (runs with some effect found, runs not adequate).
-fn clean_runs(heads: fn() -> Vec<f64>, positions: usize, cycles: u32) -> (usize, usize) {
-    let seeds: Vec<u64> = (1..=CLEAN_RUNS).collect();
-    let results: Vec<(bool, bool)> = std::thread::scope(|scope| {
-        let handles: Vec<_> = seeds
-            .chunks(CLEAN_RUNS as usize / 2)
-            .map(|chunk| {
-                scope.spawn(move || {
-                    chunk
-                        .iter()
-                        .map(|&seed| {
-                            let (set, _) = run(heads(), positions, cycles, false, 1000 + seed);
-                            let found = diagnose(&set);
-                            (
-                                !found.diagnosis.effects.is_empty(),
-                                !found.diagnosis.adequacy.adequate,
-                            )
-                        })
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap())
-            .collect()
-    });
-    (
-        results.iter().filter(|r| r.0).count(),
-        results.iter().filter(|r| r.1).count(),
-    )
-}
-
 #[test]
 fn clean_selfa_runs_rarely_get_a_false_effect_or_verdict() {
-    let (effects, inadequate) = clean_runs(selfa_head_angles_deg, 84, 3);
-    println!("SelfA, {CLEAN_RUNS} clean runs: {effects} with an effect, {inadequate} not adequate");
-    assert!(
-        effects * 20 <= CLEAN_RUNS as usize,
-        "{effects} of {CLEAN_RUNS}"
-    );
-    assert!(
-        inadequate * 20 <= CLEAN_RUNS as usize,
-        "{inadequate} of {CLEAN_RUNS}"
-    );
+    let seeds: Vec<u64> = (1..=CLEAN_RUNS).collect();
+    check_clean_runs("SelfA", &seeds, |seed| {
+        run(selfa_head_angles_deg(), 84, 3, false, 1000 + seed).0
+    });
 }
 
 #[test]
 fn clean_two_head_runs_rarely_get_a_false_effect_or_verdict() {
-    let (effects, inadequate) = clean_runs(|| equally_spaced_head_angles_deg(2), 36, 4);
-    println!(
-        "two heads, {CLEAN_RUNS} clean runs: {effects} with an effect, {inadequate} not adequate"
-    );
-    assert!(
-        effects * 20 <= CLEAN_RUNS as usize,
-        "{effects} of {CLEAN_RUNS}"
-    );
-    assert!(
-        inadequate * 20 <= CLEAN_RUNS as usize,
-        "{inadequate} of {CLEAN_RUNS}"
-    );
+    let seeds: Vec<u64> = (1..=CLEAN_RUNS).collect();
+    check_clean_runs("two heads", &seeds, |seed| {
+        run(equally_spaced_head_angles_deg(2), 36, 4, false, 1000 + seed).0
+    });
 }
 
 #[test]

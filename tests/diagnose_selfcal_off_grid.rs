@@ -18,7 +18,8 @@ use polycal::effects::Effect;
 use polycal::selfcal::{self, SelfcalOptions, SelfcalSet};
 use polycal::simulate::{SelfcalTruth, selfa_head_angles_deg, simulate_selfcal};
 use selfcal_support::{
-    Injected, errors, find, head_errors, inject, kinds, observable, run, run_config,
+    Injected, check_clean_runs, errors, find, head_errors, inject, kinds, observable, run,
+    run_config,
 };
 
 /// Positions: SelfA's heads at multiples of 360°/7 sit between them.
@@ -293,41 +294,7 @@ fn a_head_drift_a_head_jump_and_a_bad_reading_off_the_grid_are_found_where_they_
 #[test]
 fn clean_runs_off_the_grid_rarely_get_a_false_effect_or_verdict() {
     let seeds: Vec<u64> = (1..=CLEAN_SEEDS).collect();
-    let results: Vec<(bool, bool)> = std::thread::scope(|scope| {
-        let handles: Vec<_> = seeds
-            .chunks(CLEAN_SEEDS as usize / 2)
-            .map(|chunk| {
-                scope.spawn(move || {
-                    chunk
-                        .iter()
-                        .map(|&seed| {
-                            let (set, _) = selfa(5000 + seed);
-                            let found = diagnose(&set);
-                            (
-                                !found.diagnosis.effects.is_empty(),
-                                !found.diagnosis.adequacy.adequate,
-                            )
-                        })
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap())
-            .collect()
-    });
-    let effects = results.iter().filter(|r| r.0).count();
-    let inadequate = results.iter().filter(|r| r.1).count();
-    println!("{CLEAN_SEEDS} clean runs: {effects} with an effect, {inadequate} not adequate");
-    assert!(
-        effects * 20 <= CLEAN_SEEDS as usize,
-        "{effects} of {CLEAN_SEEDS}"
-    );
-    assert!(
-        inadequate * 20 <= CLEAN_SEEDS as usize,
-        "{inadequate} of {CLEAN_SEEDS}"
-    );
+    check_clean_runs("SelfA on 72 positions", &seeds, |seed| selfa(5000 + seed).0);
 }
 
 /// A gross error is never left in the fit: one reading 10σ … 29σ off (σ = 0.02″, either

@@ -176,3 +176,57 @@ pub fn kinds(found: &SelfcalDiagnosis) -> Vec<&Effect> {
 pub fn find(found: &SelfcalDiagnosis, test: impl Fn(&Effect) -> bool) -> Option<&FoundEffect> {
     found.diagnosis.effects.iter().find(|f| test(&f.effect))
 }
+
+/// Clean runs `make(seed)` for every seed, diagnosed on two threads: (runs with some
+/// effect found, runs not adequate), each checked to be at most 5 % of the runs.
+pub fn check_clean_runs(
+    name: &str,
+    seeds: &[u64],
+    make: impl Fn(u64) -> SelfcalSet + Sync,
+) -> (usize, usize) {
+    use polycal::diagnose::DiagnoseOptions;
+    use polycal::diagnose::selfcal::diagnose_selfcal;
+    use polycal::selfcal::SelfcalOptions;
+    let make = &make;
+    let results: Vec<(bool, bool)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = seeds
+            .chunks(seeds.len().div_ceil(2).max(1))
+            .map(|chunk| {
+                scope.spawn(move || {
+                    chunk
+                        .iter()
+                        .map(|&seed| {
+                            let found = diagnose_selfcal(
+                                &make(seed),
+                                &DiagnoseOptions::default(),
+                                &SelfcalOptions::new(),
+                            )
+                            .unwrap();
+                            (
+                                !found.diagnosis.effects.is_empty(),
+                                !found.diagnosis.adequacy.adequate,
+                            )
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap())
+            .collect()
+    });
+    let runs = seeds.len();
+    let effects = results.iter().filter(|r| r.0).count();
+    let inadequate = results.iter().filter(|r| r.1).count();
+    println!("{name}, {runs} clean runs: {effects} with an effect, {inadequate} not adequate");
+    assert!(
+        effects * 20 <= runs,
+        "{name}: {effects} of {runs} with an effect"
+    );
+    assert!(
+        inadequate * 20 <= runs,
+        "{name}: {inadequate} of {runs} not adequate"
+    );
+    (effects, inadequate)
+}
