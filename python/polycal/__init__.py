@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json as _json
 import os as _os
-from typing import Any, Dict, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
 
 
 from . import _polycal
@@ -48,6 +48,7 @@ __all__ = [
     "diagnose",
     "selfcal",
     "compare",
+    "kc",
     "simulate",
     "__version__",
 ]
@@ -142,16 +143,48 @@ def compare(
     compare`` does: ``rows`` with ``en`` per quantity, ``max_abs_en``; each of ``a`` and
     ``b`` a :class:`SolveResult` (with a budget) or a result file."""
 
-    def rows(x: Any) -> Any:
-        if isinstance(x, SolveResult):
-            return x._inner.rows()
-        if isinstance(x, _Rows):
-            return x._inner
-        return _polycal.read_results(_os.fspath(x))
-
     return Result(
         _polycal.compare_rows(
-            rows(a), rows(b), correlation=float(correlation), include_setup=bool(include_setup)
+            _rows_of(a),
+            _rows_of(b),
+            correlation=float(correlation),
+            include_setup=bool(include_setup),
+        )
+    )
+
+
+def _rows_of(x: Any) -> Any:
+    """The result rows of a :class:`SolveResult`, of rows, or of a result file."""
+    if isinstance(x, SolveResult):
+        return x._inner.rows()
+    if isinstance(x, _Rows):
+        return x._inner
+    return _polycal.read_results(_os.fspath(x))
+
+
+def kc(
+    labs: Mapping[str, Union[SolveResult, _Rows, PathOrText]],
+    pilot: Optional[Sequence[Tuple[str, Union[SolveResult, _Rows, PathOrText]]]] = None,
+    quantity: str = "pitch_deviation",
+    method: str = "weighted-mean",
+) -> Result:
+    """Evaluates a key comparison as ``polycal kc`` does (docs/FORMAT.md §12): per face
+    (or per common angle for ``quantity="encoder_error"``) the reference (weighted mean,
+    or ``method="dersimonian-laird"``) with ``reference_u``, ``chi2`` and ``consistent``;
+    the closed vector's test in ``vector``; the laboratories left out in ``excluded``;
+    ``degrees_of_equivalence`` and ``pairs``. ``labs`` maps each laboratory's name to its
+    result (a :class:`SolveResult` with a budget, rows, or a result file), in order;
+    ``pilot`` lists the pilot's repeated results as (name, result) pairs."""
+
+    def named(items: Any) -> Any:
+        return [(str(name), _rows_of(result)) for name, result in items]
+
+    return Result(
+        _polycal.kc(
+            named(labs.items()),
+            named(pilot or ()),
+            quantity=str(quantity),
+            method=str(method),
         )
     )
 

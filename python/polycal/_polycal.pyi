@@ -76,6 +76,12 @@ def solve(
 def compare_rows(
     a: ResultRows, b: ResultRows, correlation: float = 0.0, include_setup: bool = False
 ) -> str: ...
+def kc(
+    labs: Sequence[Tuple[str, ResultRows]],
+    pilot: Sequence[Tuple[str, ResultRows]] = ...,
+    quantity: str = "pitch_deviation",
+    method: str = "weighted-mean",
+) -> str: ...
 def simulate(
     faces: int = 24,
     ac_faces: Sequence[int] = ...,

@@ -4,6 +4,7 @@
 use polycal::compare::{CompareOptions, Comparison, compare};
 use polycal::diagnose::{DiagnoseOptions, diagnose as diagnose_set};
 use polycal::input::Location;
+use polycal::kc::{KcOptions, LabResult, ReferenceMethod};
 use polycal::output::SolveReport;
 use polycal::output::diagnose::DiagnoseReport;
 use polycal::output::selfcal::SelfcalReport;
@@ -25,6 +26,8 @@ use crate::{PolycalError, input_error, refusal, results_error, solve_error, to_j
 pub(crate) struct PyRows {
     pub(crate) rows: Vec<ResultRow>,
     pub(crate) label: String,
+    /// The file the rows were read from (rows named by file and line in messages).
+    pub(crate) file: Option<polycal::results::ResultFile>,
 }
 
 #[pymethods]
@@ -48,8 +51,9 @@ pub(crate) fn read_results(py: Python<'_>, path: &str) -> PyResult<PyRows> {
     let file = polycal::results::read_results_from(bytes.as_slice(), path)
         .map_err(|e| results_error(py, e))?;
     Ok(PyRows {
-        rows: file.rows,
+        rows: file.rows.clone(),
         label: path.to_string(),
+        file: Some(file),
     })
 }
 
@@ -75,6 +79,7 @@ impl PySolveResult {
         PyRows {
             rows: self.rows.clone(),
             label: self.label.clone(),
+            file: None,
         }
     }
 
@@ -254,6 +259,51 @@ pub(crate) fn compare_rows(
         .with_labels(a.label.clone(), b.label.clone());
     let comparison: Comparison = py
         .detach(|| compare(&a.rows, &b.rows, &options))
+        .map_err(refusal)?;
+    to_json(&comparison)
+}
+
+/// Evaluates a key comparison as `polycal kc` does (docs/FORMAT.md §12); returns its JSON
+/// object. `labs` and `pilot` are (name, rows) pairs in order.
+#[pyfunction]
+#[pyo3(signature = (labs, pilot=Vec::new(), quantity="pitch_deviation", method="weighted-mean"))]
+pub(crate) fn kc(
+    py: Python<'_>,
+    labs: Vec<(String, PyRef<'_, PyRows>)>,
+    pilot: Vec<(String, PyRef<'_, PyRows>)>,
+    quantity: &str,
+    method: &str,
+) -> PyResult<String> {
+    let quantity = match quantity {
+        "pitch_deviation" => Quantity::PitchDeviation,
+        "encoder_error" => Quantity::EncoderError,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "quantity {other:?}: expected pitch_deviation or encoder_error"
+            )));
+        }
+    };
+    let method = match method {
+        "weighted-mean" => ReferenceMethod::WeightedMean,
+        "dersimonian-laird" => ReferenceMethod::DersimonianLaird,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "method {other:?}: expected weighted-mean or dersimonian-laird"
+            )));
+        }
+    };
+    let results = |list: &[(String, PyRef<'_, PyRows>)]| -> Vec<LabResult> {
+        list.iter()
+            .map(|(name, rows)| match &rows.file {
+                Some(file) => LabResult::from_file(name.clone(), file.clone()),
+                None => LabResult::from_rows(name.clone(), rows.rows.clone()),
+            })
+            .collect()
+    };
+    let (labs, pilot) = (results(&labs), results(&pilot));
+    let options = KcOptions::new().with_quantity(quantity).with_method(method);
+    let comparison = py
+        .detach(|| polycal::kc::evaluate(&labs, &pilot, &options))
         .map_err(refusal)?;
     to_json(&comparison)
 }

@@ -151,6 +151,7 @@ fn _polycal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate::read_results, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::solve, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::compare_rows, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate::kc, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(sets::read_selfcal, m)?)?;

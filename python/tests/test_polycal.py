@@ -475,3 +475,38 @@ def test_a_budget_warns_as_the_cli_does_and_a_bad_dict_names_its_entry():
         polycal.budget({"p": 0.95, "component": [component]})
     with pytest.raises(ValueError, match=r"budget: .* \(at `p = 2.0`\)"):
         polycal.budget({"p": 2.0, "component": [component]})
+
+
+# ---------------------------------------------------------------- key comparisons
+
+KC = ROOT / "examples/data/kc"
+
+
+def test_kc_is_the_clis_json_to_the_byte():
+    labs = {name: KC / f"{name}.csv" for name in "ABCDEF"}
+    args = [f"{name}={path}" for name, path in labs.items()]
+    result = polycal.kc(labs)
+    assert result.to_json() == cli("kc", *args, "--format", "json")
+    # the reference and the laboratories' degrees of equivalence as numpy arrays
+    assert isinstance(result["reference"], np.ndarray)
+    assert result["reference"].shape == (12,)
+    assert [e["lab"] for e in result["excluded"]] == ["F"]
+    random = polycal.kc(labs, method="dersimonian-laird")
+    expected = cli("kc", *args, "--method", "dersimonian-laird", "--format", "json")
+    assert random.to_json() == expected
+    encoder = polycal.kc(labs, quantity="encoder_error")
+    assert encoder.to_json() == cli(
+        "kc", *args, "--quantity", "encoder_error", "--format", "json"
+    )
+
+
+def test_kc_refuses_as_the_cli_does():
+    with pytest.raises(polycal.PolycalError) as caught:
+        polycal.kc({"A": KC / "A.csv"})
+    out = subprocess.run(
+        [_binary(), "kc", f"A={KC / 'A.csv'}"], capture_output=True, text=True, cwd=ROOT
+    )
+    assert out.returncode == 2
+    assert str(caught.value) in out.stderr
+    with pytest.raises(ValueError):
+        polycal.kc({"A": KC / "A.csv", "B": KC / "B.csv"}, method="median")
