@@ -24,11 +24,11 @@
 //! through that design, the rest of the diagnosis is the same.
 
 use std::borrow::Cow;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::geometry::FitGeometry;
-use super::lack_of_fit::{self, LackOfFit};
+use super::lack_of_fit::{LackOfFit, PureError};
 use super::nuisance::StopNuisance;
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::selfcal::OffGridDesign;
@@ -90,6 +90,9 @@ pub struct Base<'a> {
     dense_geometry: bool,
     /// Told after every fit and geometry.
     ticker: Ticker,
+    /// The lack-of-fit test's cells and centred readings, formed at its first test (the
+    /// same for every fit of one diagnosis).
+    pure_error: OnceLock<Option<PureError>>,
 }
 
 impl<'a> Base<'a> {
@@ -104,6 +107,7 @@ impl<'a> Base<'a> {
                 off_grid: None,
                 dense_geometry: false,
                 ticker: Ticker::default(),
+                pure_error: OnceLock::new(),
             };
         }
         let geometry = ShiftGeometry::of(set);
@@ -116,6 +120,7 @@ impl<'a> Base<'a> {
             off_grid: None,
             dense_geometry: false,
             ticker: Ticker::default(),
+            pure_error: OnceLock::new(),
         }
     }
 
@@ -137,6 +142,7 @@ impl<'a> Base<'a> {
             off_grid: None,
             dense_geometry: false,
             ticker: Ticker::default(),
+            pure_error: OnceLock::new(),
         }
     }
 
@@ -291,9 +297,10 @@ impl<'a> Base<'a> {
     }
 
     /// The lack-of-fit test of `fit`, a fit of the base model with the columns `terms`,
-    /// at false-alarm probability `alpha` ([`lack_of_fit::lack_of_fit`]; for a
+    /// at false-alarm probability `alpha` ([`lack_of_fit`](super::lack_of_fit::lack_of_fit); for a
     /// self-calibration the pure error is the scatter within cells beyond the table's
-    /// error at every stop).
+    /// error at every stop). `set` is the diagnosis's readings, the same at every call:
+    /// its cells are formed at the first.
     pub fn lack_of_fit(
         &self,
         set: &MeasurementSet,
@@ -301,7 +308,11 @@ impl<'a> Base<'a> {
         terms: &[Vec<f64>],
         alpha: f64,
     ) -> Option<LackOfFit> {
-        lack_of_fit::lack_of_fit_with(set, fit, &self.with(terms), alpha, self.nuisance.as_ref())
+        let nuisance = self.nuisance.as_ref();
+        self.pure_error
+            .get_or_init(|| PureError::of(set, nuisance))
+            .as_ref()?
+            .test(set, fit, &self.with(terms), alpha, nuisance)
     }
 
     /// The fit of the base model with the columns `terms`.
@@ -337,6 +348,7 @@ impl<'a> Base<'a> {
             off_grid: self.off_grid.clone(),
             dense_geometry: self.dense_geometry,
             ticker: Ticker::default(),
+            pure_error: OnceLock::new(),
         };
         let fit = base.fit_columns(&self.columns, None);
         self.ticker.tick();

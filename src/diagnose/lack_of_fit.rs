@@ -44,6 +44,7 @@ pub fn cells(set: &MeasurementSet) -> BTreeMap<CellKey, Vec<usize>> {
 /// The cells of [`cells`] as one sorted list: every reading's index ordered by its cell's
 /// key and then by index (the order of [`cells`]' map and of its members), without a map
 /// node or a vector per cell.
+#[derive(Debug, Clone)]
 struct Cells {
     /// The keys of the cells, ascending.
     keys: Vec<CellKey>,
@@ -81,6 +82,18 @@ impl Cells {
 
     fn len(&self) -> usize {
         self.keys.len()
+    }
+
+    /// `values` (one per reading) less the mean of each one's cell.
+    fn centre(&self, values: &dyn Fn(usize) -> f64) -> Vec<f64> {
+        let mut out = vec![0.0; self.members.len()];
+        for members in self.values() {
+            let mean = members.iter().map(|&i| values(i)).sum::<f64>() / members.len() as f64;
+            for &i in members {
+                out[i] = values(i) - mean;
+            }
+        }
+        out
     }
 
     fn values(&self) -> impl Iterator<Item = &[usize]> {
@@ -171,117 +184,165 @@ pub fn lack_of_fit_with(
     alpha: f64,
     nuisance: Option<&StopNuisance>,
 ) -> Option<LackOfFit> {
-    let cells = Cells::of(set);
-    let n = set.readings.len();
-    let replicated_cells = cells.values().filter(|c| c.len() > 1).count();
-    if replicated_cells == 0 {
-        return None;
-    }
-    // Centre y and every effect column within its cell.
-    let centre = |values: &dyn Fn(usize) -> f64| {
-        let mut out = vec![0.0; n];
-        for members in cells.values() {
-            let mean = members.iter().map(|&i| values(i)).sum::<f64>() / members.len() as f64;
-            for &i in members {
-                out[i] = values(i) - mean;
-            }
-        }
-        out
-    };
-    let mut wy = centre(&|i| set.readings[i].reading_arcsec);
-    let mut stop_parameters = 0;
-    if let Some(nuisance) = nuisance {
-        nuisance.center_within_stops(&mut wy);
-        let mut groups: Vec<(usize, Direction)> =
-            set.readings.iter().map(|r| (r.step, r.direction)).collect();
-        groups.sort_unstable_by_key(|&(step, d)| (step, d == Direction::Ccw));
-        groups.dedup();
-        let mut stops: Vec<(u32, usize)> = set.readings.iter().map(|r| (r.cycle, r.step)).collect();
-        stops.sort_unstable();
-        stops.dedup();
-        stop_parameters = stops.len().checked_sub(groups.len())?;
-    }
-    let wx: Vec<Vec<f64>> = columns
-        .iter()
-        .map(|x| {
-            let mut w = centre(&|i| x[i]);
-            if let Some(nuisance) = nuisance {
-                nuisance.center_within_stops(&mut w);
-            }
-            w
-        })
-        .filter(|w| w.iter().any(|v| v.abs() > 1e-12))
-        .collect();
-    let (rss_full, rank) = project_out(&wy, &wx);
-    let dof_pure = n.checked_sub(cells.len() + stop_parameters + rank)?;
-    let dof_lack = solution.dof.checked_sub(dof_pure)?;
-    if dof_pure == 0 || dof_lack == 0 {
-        return None;
-    }
-    let rss_lack = (solution.rss - rss_full).max(0.0);
-    let pure_ms = rss_full / dof_pure as f64;
-    let lack_ms = rss_lack / dof_lack as f64;
-    let scale = set
-        .readings
-        .iter()
-        .map(|r| r.reading_arcsec.abs())
-        .fold(1.0, f64::max);
-    let rounding = (64.0 * f64::EPSILON * scale).powi(2);
-    let f_statistic = if pure_ms > rounding {
-        lack_ms / pure_ms
-    } else if lack_ms > rounding {
-        f64::INFINITY
-    } else {
-        // Noise-free data: nothing between cells, nothing within.
-        0.0
-    };
-    let distribution = FisherSnedecor::new(dof_lack as f64, dof_pure as f64).ok()?;
-    let limit = distribution.inverse_cdf(1.0 - alpha);
-    let p_value = if f_statistic.is_finite() {
-        distribution.sf(f_statistic)
-    } else {
-        0.0
-    };
-    let pure_error_sigma = pure_ms.sqrt();
-    let mut all_cells: Vec<CellResidual> = cells
-        .iter()
-        .map(|(&(setup, step, ac, direction), members)| {
-            let mean =
-                members.iter().map(|&i| solution.residuals[i]).sum::<f64>() / members.len() as f64;
-            let z = if pure_error_sigma > 0.0 {
-                mean * (members.len() as f64).sqrt() / pure_error_sigma
-            } else {
-                0.0
-            };
-            CellResidual {
-                setup,
-                step,
-                ac,
-                direction,
-                face: set.readings[members[0]].face,
-                readings: members.len(),
-                mean_residual_arcsec: mean,
-                z,
-            }
-        })
-        .collect();
-    let carriers = carriers(&all_cells);
-    all_cells.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
-    all_cells.truncate(8);
-    let worst_cells = all_cells;
-    Some(LackOfFit {
-        f_statistic,
-        dof_lack,
-        dof_pure,
-        limit,
-        p_value,
-        pure_error_sigma,
-        cells: cells.len(),
-        replicated_cells,
-        worst_cells,
-        carriers,
-    })
+    PureError::of(set, nuisance)?.test(set, solution, columns, alpha, nuisance)
 }
+
+/// What the lack-of-fit test needs of the readings alone, whatever the model: the cells,
+/// the readings centred within them (and within stops, with a stop nuisance), and the
+/// stop parameters of the full model. A diagnosis tests many fits of one set: it forms
+/// this once ([`PureError::of`]) and tests every fit with it ([`PureError::test`]).
+#[derive(Debug, Clone)]
+pub struct PureError {
+    /// The cells of the set.
+    cells: Cells,
+    /// The readings centred within their cells (and stops).
+    centred_readings: Vec<f64>,
+    /// The cells read more than once.
+    replicated_cells: usize,
+    /// The table errors per stop beyond one per (step, direction), with a stop nuisance.
+    stop_parameters: usize,
+}
+
+impl PureError {
+    /// The pure-error structure of `set` (with the stop nuisance `nuisance` taken out);
+    /// `None` when no cell is read more than once.
+    pub fn of(set: &MeasurementSet, nuisance: Option<&StopNuisance>) -> Option<Self> {
+        let cells = Cells::of(set);
+        let replicated_cells = cells.values().filter(|c| c.len() > 1).count();
+        if replicated_cells == 0 {
+            return None;
+        }
+        let mut centred_readings = cells.centre(&|i| set.readings[i].reading_arcsec);
+        let mut stop_parameters = 0;
+        if let Some(nuisance) = nuisance {
+            nuisance.center_within_stops(&mut centred_readings);
+            let mut groups: Vec<(usize, Direction)> =
+                set.readings.iter().map(|r| (r.step, r.direction)).collect();
+            groups.sort_unstable_by_key(|&(step, d)| (step, d == Direction::Ccw));
+            groups.dedup();
+            let mut stops: Vec<(u32, usize)> =
+                set.readings.iter().map(|r| (r.cycle, r.step)).collect();
+            stops.sort_unstable();
+            stops.dedup();
+            stop_parameters = stops.len().checked_sub(groups.len())?;
+        }
+        Some(PureError {
+            cells,
+            centred_readings,
+            replicated_cells,
+            stop_parameters,
+        })
+    }
+
+    /// The lack-of-fit test of `solution`, a fit of `set` (the set this was formed of)
+    /// with the effect `columns`, at false-alarm probability `alpha`, as
+    /// [`lack_of_fit_with`].
+    pub fn test(
+        &self,
+        set: &MeasurementSet,
+        solution: &Solution,
+        columns: &[Vec<f64>],
+        alpha: f64,
+        nuisance: Option<&StopNuisance>,
+    ) -> Option<LackOfFit> {
+        let cells = &self.cells;
+        let n = set.readings.len();
+        if self.centred_readings.len() != n {
+            return None;
+        }
+        let wx: Vec<Vec<f64>> = columns
+            .iter()
+            .map(|x| {
+                let mut w = cells.centre(&|i| x[i]);
+                if let Some(nuisance) = nuisance {
+                    nuisance.center_within_stops(&mut w);
+                }
+                w
+            })
+            .filter(|w| w.iter().any(|v| v.abs() > 1e-12))
+            .collect();
+        let (rss_full, rank) = project_out(&self.centred_readings, &wx);
+        let dof_pure = n.checked_sub(cells.len() + self.stop_parameters + rank)?;
+        let dof_lack = solution.dof.checked_sub(dof_pure)?;
+        if dof_pure == 0 || dof_lack == 0 {
+            return None;
+        }
+        let replicated_cells = self.replicated_cells;
+        let rss_lack = (solution.rss - rss_full).max(0.0);
+        let pure_ms = rss_full / dof_pure as f64;
+        let lack_ms = rss_lack / dof_lack as f64;
+        let scale = set
+            .readings
+            .iter()
+            .map(|r| r.reading_arcsec.abs())
+            .fold(1.0, f64::max);
+        let rounding = (64.0 * f64::EPSILON * scale).powi(2);
+        let f_statistic = if pure_ms > rounding {
+            lack_ms / pure_ms
+        } else if lack_ms > rounding {
+            f64::INFINITY
+        } else {
+            // Noise-free data: nothing between cells, nothing within.
+            0.0
+        };
+        let distribution = FisherSnedecor::new(dof_lack as f64, dof_pure as f64).ok()?;
+        let limit = distribution.inverse_cdf(1.0 - alpha);
+        let p_value = if f_statistic.is_finite() {
+            distribution.sf(f_statistic)
+        } else {
+            0.0
+        };
+        let pure_error_sigma = pure_ms.sqrt();
+        let all_cells: Vec<CellResidual> = cells
+            .iter()
+            .map(|(&(setup, step, ac, direction), members)| {
+                let mean =
+                    members.iter().map(|&i| solution.residuals[i]).sum::<f64>() / members.len() as f64;
+                let z = if pure_error_sigma > 0.0 {
+                    mean * (members.len() as f64).sqrt() / pure_error_sigma
+                } else {
+                    0.0
+                };
+                CellResidual {
+                    setup,
+                    step,
+                    ac,
+                    direction,
+                    face: set.readings[members[0]].face,
+                    readings: members.len(),
+                    mean_residual_arcsec: mean,
+                    z,
+                }
+            })
+            .collect();
+        let carriers = carriers(&all_cells);
+        // the eight largest |z| in the order of a stable sort (ties in cell order)
+        let worst_first =
+            |a: &(usize, &CellResidual), b: &(usize, &CellResidual)| b.1.z.abs().total_cmp(&a.1.z.abs()).then(a.0.cmp(&b.0));
+        let mut ranked: Vec<(usize, &CellResidual)> = all_cells.iter().enumerate().collect();
+        if ranked.len() > WORST_CELLS {
+            ranked.select_nth_unstable_by(WORST_CELLS, worst_first);
+            ranked.truncate(WORST_CELLS);
+        }
+        ranked.sort_unstable_by(worst_first);
+        let worst_cells = ranked.into_iter().map(|(_, c)| c.clone()).collect();
+        Some(LackOfFit {
+            f_statistic,
+            dof_lack,
+            dof_pure,
+            limit,
+            p_value,
+            pure_error_sigma,
+            cells: cells.len(),
+            replicated_cells,
+            worst_cells,
+            carriers,
+        })
+    }
+}
+
+/// The cells a lack-of-fit test lists, largest |z| first.
+const WORST_CELLS: usize = 8;
 
 /// The levels of autocollimator, mounting and direction that carry at least 60 % of the
 /// cells' Σz² while holding at most 2/3 of that share of the cells.
@@ -291,17 +352,21 @@ fn carriers(cells: &[CellResidual]) -> Vec<String> {
         return Vec::new();
     }
     let mut out = Vec::new();
-    let mut factor = |name: &dyn Fn(&CellResidual) -> String| {
-        let mut levels: BTreeMap<String, (f64, usize)> = BTreeMap::new();
+    // a factor's levels keyed by a number, named (and ordered by name) only at the end
+    let mut factor = |level: &dyn Fn(&CellResidual) -> u32, name: &dyn Fn(u32) -> String| {
+        let mut levels: BTreeMap<u32, (f64, usize)> = BTreeMap::new();
         for c in cells {
-            let entry = levels.entry(name(c)).or_default();
+            let entry = levels.entry(level(c)).or_default();
             entry.0 += c.z * c.z;
             entry.1 += 1;
         }
         if levels.len() < 2 {
             return;
         }
-        for (level, (sum, count)) in levels {
+        let mut named: Vec<(String, (f64, usize))> =
+            levels.into_iter().map(|(l, v)| (name(l), v)).collect();
+        named.sort_by(|a, b| a.0.cmp(&b.0));
+        for (level, (sum, count)) in named {
             let share = sum / total;
             let fraction = count as f64 / cells.len() as f64;
             if share >= 0.6 && share >= 1.5 * fraction {
@@ -313,12 +378,18 @@ fn carriers(cells: &[CellResidual]) -> Vec<String> {
             }
         }
     };
-    factor(&|c| format!("autocollimator {}", c.ac));
-    factor(&|c| format!("mounting (setup) {}", c.setup));
-    factor(&|c| match c.direction {
-        Direction::Cw => "the clockwise cycles".to_string(),
-        Direction::Ccw => "the counter-clockwise cycles".to_string(),
-    });
+    factor(&|c| c.ac, &|ac| format!("autocollimator {ac}"));
+    factor(&|c| c.setup, &|setup| format!("mounting (setup) {setup}"));
+    factor(
+        &|c| u32::from(c.direction == Direction::Ccw),
+        &|ccw| {
+            if ccw == 1 {
+                "the counter-clockwise cycles".to_string()
+            } else {
+                "the clockwise cycles".to_string()
+            }
+        },
+    );
     out
 }
 

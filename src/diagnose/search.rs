@@ -229,10 +229,13 @@ pub(super) fn run(
     let mut current = before.clone();
     let mut lof_current = base.lack_of_fit(set, &current, &[], options.lack_of_fit_alpha);
     while findings.len() < options.max_effects && current.dof >= 2 {
+        let t0 = std::time::Instant::now();
         let columns = known.of(&terms);
         let geometry = base.geometry(&current, &columns);
+        eprintln!("  R geometry {:?}", t0.elapsed());
         let leverage = geometry.leverage();
         let studentized = residuals::studentized(&current, &leverage);
+        eprintln!("  R leverage {:?}", t0.elapsed());
         candidates.clear();
         let blocks = candidates::systematic_blocks(set, &terms, &options.stated_cross_talk);
         // a drift's orders are nested blocks: each one's Gram matrix is the leading part
@@ -280,6 +283,7 @@ pub(super) fn run(
                 }
             }
         }
+        eprintln!("  R blocks {:?}", t0.elapsed());
         candidates::offset_step_candidates_with(
             set,
             &geometry,
@@ -288,6 +292,7 @@ pub(super) fn run(
             &mut step_search,
             &mut candidates,
         );
+        eprintln!("  R steps {:?}", t0.elapsed());
         let eligible = studentized.iter().filter(|t| t.is_some()).count();
         if let Some((i, t)) = studentized
             .iter()
@@ -352,6 +357,7 @@ pub(super) fn run(
         // A further jump of a zero that already jumped as often as a diagnosis accepts is
         // not tried: the stream is marked, and a smooth drift or a zero per cycle of it
         // may still take the structure.
+        eprintln!("  R ranked {:?}", t0.elapsed());
         jumps_exceeded.clear();
         let mut attempts = 0;
         let mut accepted = false;
@@ -411,7 +417,9 @@ pub(super) fn run(
                 tried.push(rejected(Rejection::NotDetermined));
                 continue;
             };
+            eprintln!("  R fit {:?}", t0.elapsed());
             let lof_new = base.lack_of_fit(set, &fit, &new_columns, options.lack_of_fit_alpha);
+            eprintln!("  R lof {:?}", t0.elapsed());
             // A term that acts on many cells must reduce a lack of fit the data shows; a
             // single reading is decided by its own statistic (its externally studentized
             // residual, Bonferroni over the readings): in a replicated cell it inflates
@@ -468,6 +476,7 @@ pub(super) fn run(
             accepted = true;
             break;
         }
+        eprintln!("  R done {:?}", t0.elapsed());
         base.ticker().round_done();
         if !accepted {
             // The last round's verdict on every kind of term not in the model.
