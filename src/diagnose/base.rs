@@ -24,8 +24,8 @@
 //! through that design, the rest of the diagnosis is the same.
 
 use std::borrow::Cow;
-use std::sync::{Arc, OnceLock};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
 
 use super::geometry::FitGeometry;
 use super::lack_of_fit::{LackOfFit, PureError};
@@ -93,6 +93,9 @@ pub struct Base<'a> {
     /// The lack-of-fit test's cells and centred readings, formed at its first test (the
     /// same for every fit of one diagnosis).
     pure_error: OnceLock<Option<PureError>>,
+    /// The geometry of the base fit, formed at its first use: every geometry of the
+    /// diagnosis adds its terms to it.
+    base_geometry: OnceLock<FitGeometry>,
 }
 
 impl<'a> Base<'a> {
@@ -108,6 +111,7 @@ impl<'a> Base<'a> {
                 dense_geometry: false,
                 ticker: Ticker::default(),
                 pure_error: OnceLock::new(),
+                base_geometry: OnceLock::new(),
             };
         }
         let geometry = ShiftGeometry::of(set);
@@ -121,6 +125,7 @@ impl<'a> Base<'a> {
             dense_geometry: false,
             ticker: Ticker::default(),
             pure_error: OnceLock::new(),
+            base_geometry: OnceLock::new(),
         }
     }
 
@@ -143,6 +148,7 @@ impl<'a> Base<'a> {
             dense_geometry: false,
             ticker: Ticker::default(),
             pure_error: OnceLock::new(),
+            base_geometry: OnceLock::new(),
         }
     }
 
@@ -349,24 +355,63 @@ impl<'a> Base<'a> {
             dense_geometry: self.dense_geometry,
             ticker: Ticker::default(),
             pure_error: OnceLock::new(),
+            base_geometry: OnceLock::new(),
         };
         let fit = base.fit_columns(&self.columns, None);
         self.ticker.tick();
         fit
     }
 
-    /// The hat-matrix geometry of `fit`, a fit with the columns `terms`.
+    /// The hat-matrix geometry of `fit`, a fit with the columns `terms`: the geometry of
+    /// the base fit (formed at the first call, from `fit` when `terms` is empty, else from
+    /// a fit of the base model) with the terms' columns added
+    /// ([`FitGeometry::with_columns`]), which is the geometry of `fit` to the round-off.
+    /// With the dense reference geometry ([`Base::with_dense_geometry`]) it is formed
+    /// from `fit` itself, every time.
     pub fn geometry(&self, fit: &Solution, terms: &[Vec<f64>]) -> FitGeometry {
+        let geometry = if self.dense_geometry {
+            self.geometry_of_fit(fit, terms)
+        } else if terms.is_empty() {
+            self.base_geometry
+                .get_or_init(|| self.geometry_of_fit(fit, terms))
+                .clone()
+        } else {
+            let base = match self.base_geometry.get() {
+                Some(base) => Some(base),
+                None => self.fit(&[], None).ok().map(|base_fit| {
+                    self.base_geometry
+                        .get_or_init(|| self.geometry_of_fit(&base_fit, &[]))
+                }),
+            };
+            match base {
+                Some(base) => base.with_columns(&self.with_terms_only(terms)),
+                None => self.geometry_of_fit(fit, terms),
+            }
+        };
+        self.ticker.tick();
+        geometry
+    }
+
+    /// The columns `terms` as the geometry adds them to the base fit's: a
+    /// self-calibration's taken within stops, as its fits take them (the same span with
+    /// the stop nuisance: the stop means are in the base model).
+    fn with_terms_only(&self, terms: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        match &self.nuisance {
+            Some(n) => terms.iter().map(|x| n.project(x)).collect(),
+            None => terms.to_vec(),
+        }
+    }
+
+    /// The geometry formed from `fit` itself, a fit with the columns `terms`.
+    fn geometry_of_fit(&self, fit: &Solution, terms: &[Vec<f64>]) -> FitGeometry {
         let columns = self.with(terms);
         let off_grid = self
             .off_grid
             .as_ref()
             .and_then(|design| FitGeometry::off_grid(fit, Arc::clone(design), &columns));
-        let geometry = off_grid
+        off_grid
             .unwrap_or_else(|| FitGeometry::new(fit, &self.positions, &columns))
-            .with_nuisance(self.nuisance.clone());
-        self.ticker.tick();
-        geometry
+            .with_nuisance(self.nuisance.clone())
     }
 
     /// The values of the diagnosis's terms in `fit`.

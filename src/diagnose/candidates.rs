@@ -18,6 +18,8 @@
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, MeasurementSet, Reading};
 
+use rayon::prelude::*;
+
 use super::geometry::{BlockScore, ColumnScore, FitGeometry, SuffixCache};
 
 /// The fewest readings of a stream on either side of a jump (fewer are outliers).
@@ -89,45 +91,74 @@ pub fn time_span(set: &MeasurementSet) -> (f64, f64) {
 impl Term {
     /// The term's column: one value per reading.
     pub fn column(&self, set: &MeasurementSet, context: &EffectContext) -> Vec<f64> {
+        Term::columns(std::slice::from_ref(self), set, context)
+            .pop()
+            .unwrap_or_default()
+    }
+
+    /// The columns of `terms`, in their order: one pass over the readings in chunks that
+    /// stay in cache, every term's values of a chunk filled from it (a reading is read
+    /// once, not once per term).
+    pub fn columns(terms: &[Term], set: &MeasurementSet, context: &EffectContext) -> Vec<Vec<f64>> {
+        const CHUNK: usize = 2048;
+        let n = set.readings.len();
+        let span = time_span(set);
+        let mut out = vec![vec![0.0; n]; terms.len()];
+        for start in (0..n).step_by(CHUNK) {
+            let end = (start + CHUNK).min(n);
+            let readings = &set.readings[start..end];
+            for (term, column) in terms.iter().zip(out.iter_mut()) {
+                term.fill(readings, &mut column[start..end], context, span);
+            }
+        }
+        out
+    }
+
+    /// The term's values of `readings` into `out` (one each); `span` is the run's
+    /// [`time_span`].
+    fn fill(
+        &self,
+        readings: &[Reading],
+        out: &mut [f64],
+        context: &EffectContext,
+        span: (f64, f64),
+    ) {
+        let values = out.iter_mut().zip(readings);
         match self {
-            Term::Effect(effect) => set
-                .readings
-                .iter()
-                .map(|r| effect.regressor(r, context))
-                .collect(),
+            Term::Effect(effect) => {
+                for (o, r) in values {
+                    *o = effect.regressor(r, context);
+                }
+            }
             Term::Quadratic { ac } => {
                 let drift = Effect::Drift {
                     ac: *ac,
                     value: 0.0,
                     quadratic: None,
                 };
-                set.readings
-                    .iter()
-                    .map(|r| drift.quadratic_regressor(r))
-                    .collect()
+                for (o, r) in values {
+                    *o = drift.quadratic_regressor(r);
+                }
             }
             Term::DriftShape { ac, order } => {
-                let (lo, hi) = time_span(set);
+                let (lo, hi) = span;
                 let half = 0.5 * (hi - lo);
-                set.readings
-                    .iter()
-                    .map(|r| match r.time_seconds {
+                for (o, r) in values {
+                    *o = match r.time_seconds {
                         Some(t) if r.ac == *ac && half > 0.0 => {
                             legendre(*order, (t - lo) / half - 1.0)
                         }
                         _ => 0.0,
-                    })
-                    .collect()
+                    };
+                }
             }
-            Term::RezeroCycle { ac, setup, cycle } => set
-                .readings
-                .iter()
-                .map(|r| {
+            Term::RezeroCycle { ac, setup, cycle } => {
+                for (o, r) in values {
                     let hit =
                         r.ac == *ac && setup.is_none_or(|s| r.setup == s) && r.cycle == *cycle;
-                    if hit { 1.0 } else { 0.0 }
-                })
-                .collect(),
+                    *o = if hit { 1.0 } else { 0.0 };
+                }
+            }
         }
     }
 
@@ -280,18 +311,83 @@ pub fn both_directions(set: &MeasurementSet) -> bool {
 /// added together: for every autocollimator its drift's next orders (when every reading
 /// has a clock: `time`, or the stop order), temperature, cross-talk (unless `stated`),
 /// direction, and a zero set anew every cycle (per stream of [`step_streams`], with at
-/// least [`MIN_REZERO_CYCLES`] cycles).
+/// least [`MIN_REZERO_CYCLES`] cycles). ([`SystematicLayout`] keeps what this reads of
+/// the set for the rounds of a search.)
 pub fn systematic_blocks(set: &MeasurementSet, present: &[Term], stated: &[u32]) -> Vec<Vec<Term>> {
-    let acs = autocollimators(set);
-    let mut blocks: Vec<Vec<Term>> = Vec::new();
-    if set.readings.iter().all(|r| r.time_seconds.is_some()) {
-        for &ac in &acs {
+    SystematicLayout::of(set, stated).blocks(present)
+}
+
+/// What [`systematic_blocks`] reads of a set, read once: a search asks for the blocks of
+/// every round.
+#[derive(Debug, Clone)]
+pub struct SystematicLayout {
+    /// The autocollimators with their readings, when every reading has a clock.
+    timed: Option<Vec<(u32, usize)>>,
+    /// The autocollimators, when every reading has a temperature.
+    temperature: Vec<u32>,
+    /// The autocollimators whose cross-talk is a candidate.
+    cross_talk: Vec<u32>,
+    /// The autocollimators, when both directions were measured (with several, each one's
+    /// direction offset too).
+    direction: Option<Vec<u32>>,
+    /// The zero-per-cycle blocks of the streams that have enough cycles.
+    rezero: Vec<Vec<Term>>,
+}
+
+impl SystematicLayout {
+    /// The layout of `set`, with the cross-talk of the autocollimators `stated` known.
+    pub fn of(set: &MeasurementSet, stated: &[u32]) -> Self {
+        let acs = autocollimators(set);
+        let timed = set
+            .readings
+            .iter()
+            .all(|r| r.time_seconds.is_some())
+            .then(|| {
+                acs.iter()
+                    .map(|&ac| (ac, set.readings.iter().filter(|r| r.ac == ac).count()))
+                    .collect()
+            });
+        let temperature = if set.readings.iter().all(|r| r.temperature_celsius.is_some()) {
+            acs.clone()
+        } else {
+            Vec::new()
+        };
+        let cross_talk = acs
+            .iter()
+            .copied()
+            .filter(|ac| {
+                !stated.contains(ac)
+                    && set
+                        .readings
+                        .iter()
+                        .filter(|r| r.ac == *ac)
+                        .all(|r| r.reading_y_arcsec.is_some())
+            })
+            .collect();
+        let direction = both_directions(set).then(|| acs.clone());
+        let rezero = step_streams(set)
+            .into_iter()
+            .map(|(ac, setup)| rezero_block(set, ac, setup))
+            .filter(|block| block.len() + 1 >= MIN_REZERO_CYCLES as usize)
+            .collect();
+        SystematicLayout {
+            timed,
+            temperature,
+            cross_talk,
+            direction,
+            rezero,
+        }
+    }
+
+    /// The blocks not yet in the model (`present`), as [`systematic_blocks`].
+    pub fn blocks(&self, present: &[Term]) -> Vec<Vec<Term>> {
+        let mut blocks: Vec<Vec<Term>> = Vec::new();
+        for &(ac, readings) in self.timed.iter().flatten() {
             let have = present
                 .iter()
                 .filter_map(|t| t.drift_order(ac))
                 .max()
                 .unwrap_or(0);
-            let readings = set.readings.iter().filter(|r| r.ac == ac).count();
             for order in have + 1..=MAX_DRIFT_ORDER {
                 if readings < 4 * order {
                     break;
@@ -303,47 +399,35 @@ pub fn systematic_blocks(set: &MeasurementSet, present: &[Term], stated: &[u32])
                 );
             }
         }
-    }
-    let single = |t: Term| vec![t];
-    if set.readings.iter().all(|r| r.temperature_celsius.is_some()) {
+        let single = |t: Term| vec![t];
         blocks.extend(
-            acs.iter()
+            self.temperature
+                .iter()
                 .map(|&ac| single(Term::Effect(Effect::Temperature { ac, value: 0.0 }))),
         );
-    }
-    for &ac in &acs {
-        if !stated.contains(&ac)
-            && set
-                .readings
+        blocks.extend(
+            self.cross_talk
                 .iter()
-                .filter(|r| r.ac == ac)
-                .all(|r| r.reading_y_arcsec.is_some())
-        {
-            blocks.push(single(Term::Effect(Effect::CrossTalk { ac, value: 0.0 })));
+                .map(|&ac| single(Term::Effect(Effect::CrossTalk { ac, value: 0.0 }))),
+        );
+        if let Some(acs) = &self.direction {
+            blocks.push(single(Term::Effect(Effect::Direction {
+                ac: None,
+                value: 0.0,
+            })));
+            if acs.len() > 1 {
+                blocks.extend(acs.iter().map(|&ac| {
+                    single(Term::Effect(Effect::Direction {
+                        ac: Some(ac),
+                        value: 0.0,
+                    }))
+                }));
+            }
         }
+        blocks.extend(self.rezero.iter().cloned());
+        blocks.retain(|b| !b.iter().any(|t| present.iter().any(|p| p.same(t))));
+        blocks
     }
-    if both_directions(set) {
-        blocks.push(single(Term::Effect(Effect::Direction {
-            ac: None,
-            value: 0.0,
-        })));
-        if acs.len() > 1 {
-            blocks.extend(acs.iter().map(|&ac| {
-                single(Term::Effect(Effect::Direction {
-                    ac: Some(ac),
-                    value: 0.0,
-                }))
-            }));
-        }
-    }
-    for (ac, setup) in step_streams(set) {
-        let block = rezero_block(set, ac, setup);
-        if block.len() + 1 >= MIN_REZERO_CYCLES as usize {
-            blocks.push(block);
-        }
-    }
-    blocks.retain(|b| !b.iter().any(|t| present.iter().any(|p| p.same(t))));
-    blocks
 }
 
 /// The columns of a zero set anew every cycle in stream (`ac`, `setup`): one offset per
@@ -433,14 +517,13 @@ pub fn offset_step_candidates(
 type StepStream = (u32, Option<u32>);
 
 /// What a change-point search keeps from one round of a diagnosis to the next (of one
-/// set): every stream's readings in time order, and their suffix convolutions
-/// ([`SuffixCache`]), which adding a term to the model does not change.
+/// set): every stream's readings in time order. (The streams' suffix quadratics are kept
+/// by the geometry: a diagnosis's geometries share its base fit's, which adding a term to
+/// the model does not change.)
 #[derive(Debug, Clone, Default)]
 pub struct StepSearch {
     /// The streams of [`step_streams`] with their readings in time order.
     streams: Option<Vec<(StepStream, Vec<usize>)>>,
-    /// The suffix convolutions of the structured geometry.
-    suffix: SuffixCache,
 }
 
 impl StepSearch {
@@ -466,11 +549,19 @@ pub fn offset_step_candidates_with(
             .map(|(ac, setup)| ((ac, setup), stream_in_time_order(set, ac, setup)))
             .collect()
     });
-    for ((ac, setup), order) in streams.iter() {
+    // every stream's suffix scan, side by side
+    let scored: Vec<Option<Vec<ColumnScore>>> = streams
+        .par_iter()
+        .map(|(_, order)| {
+            (order.len() >= 2 * MIN_STEP_READINGS)
+                .then(|| geometry.suffix_scores_with(order, residuals, &mut SuffixCache::new()))
+        })
+        .collect();
+    for (((ac, setup), order), scores) in streams.iter().zip(scored) {
         let (ac, setup) = (*ac, *setup);
-        if order.len() < 2 * MIN_STEP_READINGS {
+        let Some(scores) = scores else {
             continue;
-        }
+        };
         // only a jump of this stream can be the same term as a candidate of it
         let present: Vec<&Term> = present
             .iter()
@@ -478,7 +569,6 @@ pub fn offset_step_candidates_with(
                 matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
             })
             .collect();
-        let scores = geometry.suffix_scores_with(order, residuals, &mut search.suffix);
         for k in MIN_STEP_READINGS..=order.len() - MIN_STEP_READINGS {
             let r = &set.readings[order[k]];
             let previous = &set.readings[order[k - 1]];

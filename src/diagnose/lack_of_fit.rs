@@ -296,8 +296,8 @@ impl PureError {
         let all_cells: Vec<CellResidual> = cells
             .iter()
             .map(|(&(setup, step, ac, direction), members)| {
-                let mean =
-                    members.iter().map(|&i| solution.residuals[i]).sum::<f64>() / members.len() as f64;
+                let mean = members.iter().map(|&i| solution.residuals[i]).sum::<f64>()
+                    / members.len() as f64;
                 let z = if pure_error_sigma > 0.0 {
                     mean * (members.len() as f64).sqrt() / pure_error_sigma
                 } else {
@@ -317,8 +317,9 @@ impl PureError {
             .collect();
         let carriers = carriers(&all_cells);
         // the eight largest |z| in the order of a stable sort (ties in cell order)
-        let worst_first =
-            |a: &(usize, &CellResidual), b: &(usize, &CellResidual)| b.1.z.abs().total_cmp(&a.1.z.abs()).then(a.0.cmp(&b.0));
+        let worst_first = |a: &(usize, &CellResidual), b: &(usize, &CellResidual)| {
+            b.1.z.abs().total_cmp(&a.1.z.abs()).then(a.0.cmp(&b.0))
+        };
         let mut ranked: Vec<(usize, &CellResidual)> = all_cells.iter().enumerate().collect();
         if ranked.len() > WORST_CELLS {
             ranked.select_nth_unstable_by(WORST_CELLS, worst_first);
@@ -380,16 +381,13 @@ fn carriers(cells: &[CellResidual]) -> Vec<String> {
     };
     factor(&|c| c.ac, &|ac| format!("autocollimator {ac}"));
     factor(&|c| c.setup, &|setup| format!("mounting (setup) {setup}"));
-    factor(
-        &|c| u32::from(c.direction == Direction::Ccw),
-        &|ccw| {
-            if ccw == 1 {
-                "the counter-clockwise cycles".to_string()
-            } else {
-                "the clockwise cycles".to_string()
-            }
-        },
-    );
+    factor(&|c| u32::from(c.direction == Direction::Ccw), &|ccw| {
+        if ccw == 1 {
+            "the counter-clockwise cycles".to_string()
+        } else {
+            "the clockwise cycles".to_string()
+        }
+    });
     out
 }
 

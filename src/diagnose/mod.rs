@@ -463,10 +463,8 @@ pub(crate) fn diagnose_base(
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, SolveError> {
     let sigma = options.sigma;
-    let t0 = std::time::Instant::now();
     let context = EffectContext::of(&set.readings);
     let before = base.fit(&[], sigma)?;
-    eprintln!("TIMING base fit {:?}", t0.elapsed());
     // the dense hat-matrix geometry (the dense reference solver's fits) holds the
     // cofactor densely (three matrices of the parameters with every effect term the
     // search may add): refused up front when it cannot fit, before the search allocates
@@ -522,7 +520,6 @@ pub(crate) fn diagnose_base(
     } else {
         search::Outcome::base(&before)
     };
-    eprintln!("TIMING search {:?}", t0.elapsed());
     let columns_of = |terms: &[Term]| -> Vec<Vec<f64>> {
         terms.iter().map(|t| t.column(set, &context)).collect()
     };
@@ -573,7 +570,6 @@ pub(crate) fn diagnose_base(
         lack_of_fit: lof_current,
         ..
     } = model;
-    eprintln!("TIMING doubt {:?}", t0.elapsed());
     let columns = columns_of(&terms);
 
     let with_blocks = final_effects(&current, base, &terms, findings);
@@ -595,7 +591,6 @@ pub(crate) fn diagnose_base(
             found
         })
         .collect();
-    eprintln!("TIMING identify {:?}", t0.elapsed());
     tried.retain(|t| {
         !effects
             .iter()
@@ -638,7 +633,6 @@ pub(crate) fn diagnose_base(
 
     let geometry = base.geometry(&current, &columns);
     let studentized = residuals::studentized(&current, &geometry.leverage());
-    eprintln!("TIMING final geometry {:?}", t0.elapsed());
     let mut adequacy = if testable {
         residuals::adequacy(
             &current,

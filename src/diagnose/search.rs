@@ -6,12 +6,15 @@
 
 use std::collections::HashSet;
 
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
-use super::base::Base;
+use super::base::{Base, Ticker};
 use super::candidates::{self, Candidate, Family, Term};
 use super::findings::{Finding, candidate_effect, difference, max_abs, record_not_significant};
-use super::geometry::FitGeometry;
+use super::geometry::{BlockScore, ColumnScore, FitGeometry};
 use super::lack_of_fit::LackOfFit;
 use super::{
     DiagnoseOptions, Evidence, FoundEffect, MAX_JUMPS_PER_STREAM, Rejection, TriedEffect, notes,
@@ -114,7 +117,7 @@ fn evidence(
 /// denominator and family for all), so the jumps are ordered by F and the p-values are
 /// computed for those and for the few a bisection for the significant ones needs.
 fn rank(
-    candidates: &[Candidate],
+    candidates: &[&Candidate],
     current: &Solution,
     tiny: f64,
     family_alpha: f64,
@@ -126,7 +129,7 @@ fn rank(
         .map(|c| f_statistic(c, current, tiny))
         .collect();
     let evidence_of = |i: usize| {
-        let c = &candidates[i];
+        let c = candidates[i];
         evidence(c, f[i], current, family_size(c.family))
     };
     // as the round's loop decides: a candidate is tried unless p·m ≥ α
@@ -217,8 +220,11 @@ pub(super) fn run(
         known: Vec::new(),
     };
     let mut step_search = candidates::StepSearch::new();
-    // the candidates of a round (thousands of jumps): one vector for every round
+    let layout = candidates::SystematicLayout::of(set, &options.stated_cross_talk);
+    // the candidates of a round: the jumps (thousands) in one vector for every round,
+    // the others (a few) in another
     let mut candidates: Vec<Candidate> = Vec::new();
+    let mut steps: Vec<Candidate> = Vec::new();
     let mut terms: Vec<Term> = Vec::new();
     let mut findings: Vec<Finding> = Vec::new();
     let mut tried: Vec<TriedEffect> = Vec::new();
@@ -228,71 +234,65 @@ pub(super) fn run(
     let mut jumps_exceeded: Vec<(u32, Option<u32>)> = Vec::new();
     let mut current = before.clone();
     let mut lof_current = base.lack_of_fit(set, &current, &[], options.lack_of_fit_alpha);
+    // the Gram matrices of the systematic blocks off the base fit's span (geometry's
+    // `core_projected_gram`): (the longest block of nested ones, its matrix)
+    let mut core_grams: Vec<(Vec<Term>, nalgebra::DMatrix<f64>)> = Vec::new();
+    let mut core_of_grams: Option<FitGeometry> = None;
     while findings.len() < options.max_effects && current.dof >= 2 {
-        let t0 = std::time::Instant::now();
         let columns = known.of(&terms);
         let geometry = base.geometry(&current, &columns);
-        eprintln!("  R geometry {:?}", t0.elapsed());
-        let leverage = geometry.leverage();
-        let studentized = residuals::studentized(&current, &leverage);
-        eprintln!("  R leverage {:?}", t0.elapsed());
+        // the Gram matrices kept are of the core they were formed with (a new one with
+        // the dense reference geometry, formed from every round's fit)
+        if core_of_grams
+            .as_ref()
+            .is_none_or(|core| !core.same_core(&geometry))
+        {
+            core_grams.clear();
+            core_of_grams = Some(geometry.clone());
+        }
         candidates.clear();
-        let blocks = candidates::systematic_blocks(set, &terms, &options.stated_cross_talk);
-        // a drift's orders are nested blocks: each one's Gram matrix is the leading part
-        // of the longest block it begins, formed once
-        let mut grams: Vec<Option<nalgebra::DMatrix<f64>>> = vec![None; blocks.len()];
-        for (b, block) in blocks.iter().enumerate() {
-            base.ticker().tick();
-            if let [term] = block.as_slice() {
-                let score = geometry.score(known.column(term), &current.residuals);
-                if let Term::Effect(Effect::CrossTalk { ac, .. }) = term
-                    && score.new_fraction() < 0.1
-                {
-                    // untestable against the base model; against another
-                    // autocollimator's cross-talk it is that term's alternative instead
-                    let other_in_model = terms
-                        .iter()
-                        .any(|t| matches!(t, Term::Effect(Effect::CrossTalk { .. })));
-                    if !cross_talk_noted
-                        && !other_in_model
-                        && let Some(note) = notes::cross_talk_untestable(set, *ac)
-                    {
-                        notes.push(note);
-                        cross_talk_noted = true;
-                    }
-                    continue;
-                }
-                if score.is_new() {
-                    candidates.push(Candidate::single(term.clone(), Family::Systematic, &score));
-                }
-            } else {
-                let longest = (0..blocks.len())
-                    .filter(|&o| blocks[o].len() >= block.len() && blocks[o].starts_with(block))
-                    .max_by_key(|&o| (blocks[o].len(), std::cmp::Reverse(o)))
-                    .unwrap_or(b);
-                let gram = grams[longest]
-                    .get_or_insert_with(|| geometry.projected_gram(&known.of(&blocks[longest])));
-                let m = block.len();
-                let gram = gram.view((0, 0), (m, m)).into_owned();
-                let score =
-                    geometry.score_block_with_gram(&known.of(block), gram, &current.residuals);
-                if score.rank > 0
-                    && let Some(c) = Candidate::block(block.clone(), Family::Systematic, &score)
-                {
-                    candidates.push(c);
-                }
+        let blocks = layout.blocks(&terms);
+        known.form(blocks.iter().flatten());
+        // the systematic blocks, the jumps of every stream and the leverages side by side
+        let residuals = &current.residuals;
+        steps.clear();
+        let step_candidates = &mut steps;
+        let ((leverage, systematic), ()) = rayon::join(
+            || {
+                rayon::join(
+                    || geometry.leverage(),
+                    || {
+                        let systematic = Systematic {
+                            geometry: &geometry,
+                            known: &known,
+                            residuals,
+                            terms: &terms,
+                            ticker: base.ticker(),
+                        };
+                        systematic.candidates(&blocks, &mut core_grams)
+                    },
+                )
+            },
+            || {
+                candidates::offset_step_candidates_with(
+                    set,
+                    &geometry,
+                    residuals,
+                    &terms,
+                    &mut step_search,
+                    step_candidates,
+                );
+            },
+        );
+        let (systematic, cross_talk_untestable) = systematic;
+        for ac in cross_talk_untestable {
+            if !cross_talk_noted && let Some(note) = notes::cross_talk_untestable(set, ac) {
+                notes.push(note);
+                cross_talk_noted = true;
             }
         }
-        eprintln!("  R blocks {:?}", t0.elapsed());
-        candidates::offset_step_candidates_with(
-            set,
-            &geometry,
-            &current.residuals,
-            &terms,
-            &mut step_search,
-            &mut candidates,
-        );
-        eprintln!("  R steps {:?}", t0.elapsed());
+        candidates.extend(systematic);
+        let studentized = residuals::studentized(&current, &leverage);
         let eligible = studentized.iter().filter(|t| t.is_some()).count();
         if let Some((i, t)) = studentized
             .iter()
@@ -303,9 +303,12 @@ pub(super) fn run(
         {
             let r = &set.readings[i];
             let several_setups = set.readings.iter().any(|q| q.setup != r.setup);
-            let mut column = vec![0.0; set.readings.len()];
-            column[i] = 1.0;
-            let score = geometry.score(&column, &current.residuals);
+            // the reading's own column: eᵢ against the residuals, 1 − hᵢᵢ outside the span
+            let score = ColumnScore {
+                projection: current.residuals[i],
+                new_length_squared: 1.0 - leverage[i],
+                length_squared: 1.0,
+            };
             let mut candidate = Candidate::single(
                 Term::Effect(Effect::Outlier {
                     cycle: r.cycle,
@@ -320,7 +323,13 @@ pub(super) fn run(
             candidate.outlier = Some((i, t));
             candidates.push(candidate);
         }
-        let count = |family: Family| candidates.iter().filter(|c| c.family == family).count();
+        // in the order systematic, jumps, outlier
+        let (systematic, outlier) = match candidates.last() {
+            Some(c) if c.family == Family::Outlier => candidates.split_at(candidates.len() - 1),
+            _ => candidates.split_at(candidates.len()),
+        };
+        let all: Vec<&Candidate> = systematic.iter().chain(&steps).chain(outlier).collect();
+        let count = |family: Family| all.iter().filter(|c| c.family == family).count();
         let (systematic_count, step_count) = (count(Family::Systematic), count(Family::OffsetStep));
         let family_size = |family: Family| match family {
             Family::Outlier => eligible,
@@ -338,7 +347,7 @@ pub(super) fn run(
         let full =
             |ac: u32, setup: Option<u32>| jumps_of(ac, setup, &terms) >= MAX_JUMPS_PER_STREAM;
         let scored = rank(
-            &candidates,
+            &all,
             &current,
             tiny,
             options.family_alpha,
@@ -347,7 +356,7 @@ pub(super) fn run(
         );
         let mut scored: Vec<(Candidate, Evidence)> = scored
             .into_iter()
-            .map(|(i, e)| (candidates[i].clone(), e))
+            .map(|(i, e)| (all[i].clone(), e))
             .collect();
         scored.sort_by(|a, b| {
             a.1.p_adjusted
@@ -357,7 +366,6 @@ pub(super) fn run(
         // A further jump of a zero that already jumped as often as a diagnosis accepts is
         // not tried: the stream is marked, and a smooth drift or a zero per cycle of it
         // may still take the structure.
-        eprintln!("  R ranked {:?}", t0.elapsed());
         jumps_exceeded.clear();
         let mut attempts = 0;
         let mut accepted = false;
@@ -417,9 +425,7 @@ pub(super) fn run(
                 tried.push(rejected(Rejection::NotDetermined));
                 continue;
             };
-            eprintln!("  R fit {:?}", t0.elapsed());
             let lof_new = base.lack_of_fit(set, &fit, &new_columns, options.lack_of_fit_alpha);
-            eprintln!("  R lof {:?}", t0.elapsed());
             // A term that acts on many cells must reduce a lack of fit the data shows; a
             // single reading is decided by its own statistic (its externally studentized
             // residual, Bonferroni over the readings): in a replicated cell it inflates
@@ -476,7 +482,6 @@ pub(super) fn run(
             accepted = true;
             break;
         }
-        eprintln!("  R done {:?}", t0.elapsed());
         base.ticker().round_done();
         if !accepted {
             // The last round's verdict on every kind of term not in the model.
@@ -492,6 +497,143 @@ pub(super) fn run(
         jumps_exceeded,
         fit: current,
         lack_of_fit: lof_current,
+    }
+}
+
+/// A term's column against a round's fit: xᵀe, xᵀx and its coordinates on the basis of
+/// the columns added to the base fit (Uᵀx).
+struct TermStats {
+    projection: f64,
+    length_squared: f64,
+    coordinates: Vec<f64>,
+}
+
+/// What the systematic blocks of a round are scored with.
+struct Systematic<'r> {
+    geometry: &'r FitGeometry,
+    /// Every block's columns, formed.
+    known: &'r Columns<'r>,
+    residuals: &'r [f64],
+    /// The terms of the model.
+    terms: &'r [Term],
+    ticker: &'r Ticker,
+}
+
+impl Systematic<'_> {
+    /// The candidates of the systematic `blocks`, in their order, and the autocollimators
+    /// whose cross-talk is untestable against the base model, in the blocks' order (none
+    /// when another autocollimator's cross-talk is in the model: it is that term's
+    /// alternative then).
+    /// A drift's orders are nested blocks: each one's Gram matrix is the leading part of
+    /// the longest block it begins; its part off the base fit's span is the same in every
+    /// round (formed once, side by side, into `core_grams`), the terms found take theirs
+    /// off.
+    fn candidates(
+        &self,
+        blocks: &[Vec<Term>],
+        core_grams: &mut Vec<(Vec<Term>, DMatrix<f64>)>,
+    ) -> (Vec<Candidate>, Vec<u32>) {
+        let longest_of = |block: &Vec<Term>| -> Vec<Term> {
+            blocks
+                .iter()
+                .filter(|o| o.len() >= block.len() && o.starts_with(block))
+                .max_by_key(|o| o.len())
+                .unwrap_or(block)
+                .clone()
+        };
+        let mut missing: Vec<Vec<Term>> = Vec::new();
+        for block in blocks {
+            let longest = longest_of(block);
+            if !core_grams.iter().any(|(terms, _)| *terms == longest) && !missing.contains(&longest)
+            {
+                missing.push(longest);
+            }
+        }
+        let grams: Vec<DMatrix<f64>> = missing
+            .par_iter()
+            .map(|block| {
+                self.geometry
+                    .core_projected_gram(&self.known.columns(block))
+            })
+            .collect();
+        core_grams.extend(missing.into_iter().zip(grams));
+        // every term's xᵀe, xᵀx and Uᵀx once (a term is in several nested blocks)
+        let mut stats: Vec<(&Term, TermStats)> = Vec::new();
+        for term in blocks.iter().flatten() {
+            if stats.iter().any(|(t, _)| *t == term) {
+                continue;
+            }
+            let Some(&x) = self.known.columns(std::slice::from_ref(term)).first() else {
+                continue;
+            };
+            stats.push((
+                term,
+                TermStats {
+                    projection: x.iter().zip(self.residuals).map(|(a, b)| a * b).sum(),
+                    length_squared: x.iter().map(|v| v * v).sum(),
+                    coordinates: self.geometry.added_coordinates(x),
+                },
+            ));
+        }
+        let stats_of = |term: &Term| stats.iter().find(|(t, _)| *t == term).map(|(_, s)| s);
+        let mut out = Vec::new();
+        let mut untestable = Vec::new();
+        for block in blocks {
+            self.ticker.tick();
+            let longest = longest_of(block);
+            let Some((_, core_gram)) = core_grams.iter().find(|(terms, _)| *terms == longest)
+            else {
+                continue;
+            };
+            let Some(block_stats) = block.iter().map(stats_of).collect::<Option<Vec<_>>>() else {
+                continue;
+            };
+            let m = block.len();
+            let coordinates: Vec<&[f64]> = block_stats
+                .iter()
+                .map(|s| s.coordinates.as_slice())
+                .collect();
+            let gram = FitGeometry::projected_gram_from_coordinates(
+                core_gram.view((0, 0), (m, m)).into_owned(),
+                &coordinates,
+            );
+            if let [term] = block.as_slice() {
+                let score = ColumnScore {
+                    projection: block_stats[0].projection,
+                    new_length_squared: gram[(0, 0)],
+                    length_squared: block_stats[0].length_squared,
+                };
+                if let Term::Effect(Effect::CrossTalk { ac, .. }) = term
+                    && score.new_fraction() < 0.1
+                {
+                    let other_in_model = self
+                        .terms
+                        .iter()
+                        .any(|t| matches!(t, Term::Effect(Effect::CrossTalk { .. })));
+                    if !other_in_model {
+                        untestable.push(*ac);
+                    }
+                    continue;
+                }
+                if score.is_new() {
+                    out.push(Candidate::single(term.clone(), Family::Systematic, &score));
+                }
+            } else {
+                let projection =
+                    nalgebra::DVector::from_iterator(m, block_stats.iter().map(|s| s.projection));
+                let scale = block_stats
+                    .iter()
+                    .map(|s| s.length_squared)
+                    .fold(0.0, f64::max);
+                let score = BlockScore::of(projection, scale, gram);
+                if score.rank > 0
+                    && let Some(c) = Candidate::block(block.clone(), Family::Systematic, &score)
+                {
+                    out.push(c);
+                }
+            }
+        }
+        (out, untestable)
     }
 }
 
@@ -516,6 +658,33 @@ impl Columns<'_> {
             }
         };
         &self.known[index].1
+    }
+
+    /// Forms the columns of `terms` not formed yet, in one pass over the readings
+    /// ([`Term::columns`]).
+    fn form<'t>(&mut self, terms: impl Iterator<Item = &'t Term>) {
+        let mut missing: Vec<Term> = Vec::new();
+        for term in terms {
+            if !self.known.iter().any(|(t, _)| t == term) && !missing.contains(term) {
+                missing.push(term.clone());
+            }
+        }
+        let columns = Term::columns(&missing, self.set, self.context);
+        self.known.extend(missing.into_iter().zip(columns));
+    }
+
+    /// The columns of `terms`, formed before ([`Columns::column`]), in their order
+    /// (none for a term not formed).
+    fn columns(&self, terms: &[Term]) -> Vec<&[f64]> {
+        terms
+            .iter()
+            .filter_map(|t| {
+                self.known
+                    .iter()
+                    .find(|(k, _)| k == t)
+                    .map(|(_, c)| c.as_slice())
+            })
+            .collect()
     }
 
     /// The columns of `terms`, in their order.

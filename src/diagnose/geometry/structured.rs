@@ -296,6 +296,13 @@ impl SuffixCache {
 
 /// For readings at `positions` (m of them, in order): element k is
 /// Σ_{i > k} K((p_k − p_i) mod N), the kernel summed over the later readings.
+///
+/// A run of a table's cycles visits the positions in order (p, p ± 1, …): when the
+/// readings fall into few such runs ([`Run`]), every later run adds a sum of the kernel
+/// over consecutive lags, one difference of its prefix sums — O(runs) per reading
+/// ([`by_runs`]). Otherwise the later readings are counted by position in blocks, each
+/// block's count convolved with K by FFT, the pairs within a block summed directly —
+/// O((m/b)·N log N + m·b) — or, for short streams, every pair directly.
 pub(super) fn suffix_convolution(
     kernel: &[f64],
     positions: impl Iterator<Item = usize>,
@@ -307,13 +314,17 @@ pub(super) fn suffix_convolution(
     // the kernel laid out twice: K((p_a − p_b) mod N) = twice[p_a + N − p_b], no division
     let twice: Vec<f64> = kernel.iter().chain(kernel).copied().collect();
     let pair = |a: usize, b: usize| twice[p[a] + n - p[b]];
+    let block = ((n as f64 * (n as f64).log2()).sqrt() as usize).clamp(256, 4096);
+    let runs = Run::split(&p, n);
+    if runs.len() <= block && 4 * runs.len() <= m {
+        return by_runs(kernel, &p, &runs);
+    }
     if m <= DIRECT_PAIRS || n < 64 {
         for (k, o) in out.iter_mut().enumerate() {
             *o = (k + 1..m).map(|i| pair(k, i)).sum();
         }
         return out;
     }
-    let block = ((n as f64 * (n as f64).log2()).sqrt() as usize).clamp(256, 4096);
     let mut planner = FftPlanner::<f64>::new();
     let forward = planner.plan_fft_forward(n);
     let inverse = planner.plan_fft_inverse(n);
@@ -348,4 +359,200 @@ pub(super) fn suffix_convolution(
         hi = lo;
     }
     out
+}
+
+/// A stretch of a stream's readings whose positions step by the same amount, −1, 0 or +1
+/// (mod N): a table turning one way reads its positions so, cycle after cycle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Run {
+    /// The index of the run's first reading.
+    start: usize,
+    /// Its readings.
+    length: usize,
+    /// The step from one reading's position to the next: −1, 0 or 1.
+    step: i64,
+}
+
+impl Run {
+    /// The maximal runs of the positions `p` on N positions, in order.
+    fn split(p: &[usize], n: usize) -> Vec<Run> {
+        let step_of = |a: usize, b: usize| -> Option<i64> {
+            if b == a {
+                Some(0)
+            } else if b == (a + 1) % n {
+                Some(1)
+            } else if (b + 1) % n == a {
+                Some(-1)
+            } else {
+                None
+            }
+        };
+        let mut runs: Vec<Run> = Vec::new();
+        for i in 0..p.len() {
+            if let Some(run) = runs.last_mut()
+                && run.start + run.length == i
+            {
+                let step = step_of(p[i - 1], p[i]);
+                if run.length == 1
+                    && let Some(step) = step
+                {
+                    run.step = step;
+                    run.length += 1;
+                    continue;
+                }
+                if step == Some(run.step) {
+                    run.length += 1;
+                    continue;
+                }
+            }
+            runs.push(Run {
+                start: i,
+                length: 1,
+                step: 0,
+            });
+        }
+        runs
+    }
+}
+
+/// [`suffix_convolution`] by runs: for the later readings of reading k's own run and of
+/// every later run, Σ_j K((p_k − q₀ − s·j) mod N) over the run's readings, a sum of K over
+/// consecutive lags (or L·K(d) for a run that stays at one position).
+fn by_runs(kernel: &[f64], p: &[usize], runs: &[Run]) -> Vec<f64> {
+    let n = kernel.len();
+    let ni = n as i64;
+    // prefix[x] = Σ_{t < x} K(t), x = 0 … N
+    let mut prefix = vec![0.0; n + 1];
+    for (t, &v) in kernel.iter().enumerate() {
+        prefix[t + 1] = prefix[t] + v;
+    }
+    let total = prefix[n];
+    // Σ_{t = 0 … length − 1} K((first + t) mod N)
+    let ascending = |first: i64, length: usize| -> f64 {
+        let first = first.rem_euclid(ni) as usize;
+        let (whole, rest) = (length / n, length % n);
+        let part = if first + rest <= n {
+            prefix[first + rest] - prefix[first]
+        } else {
+            (total - prefix[first]) + prefix[first + rest - n]
+        };
+        whole as f64 * total + part
+    };
+    // Σ over `length` readings from position `q0` stepping by `step`, against position pk
+    let over = |pk: usize, q0: usize, step: i64, length: usize| -> f64 {
+        if length == 0 {
+            return 0.0;
+        }
+        let d = pk as i64 - q0 as i64;
+        match step {
+            0 => length as f64 * kernel[d.rem_euclid(ni) as usize],
+            // lags d, d − 1, …, d − L + 1
+            1 => ascending(d - (length as i64 - 1), length),
+            // lags d, d + 1, …, d + L − 1
+            _ => ascending(d, length),
+        }
+    };
+    let mut out = vec![0.0; p.len()];
+    for (r, run) in runs.iter().enumerate() {
+        for k in run.start..run.start + run.length {
+            let rest = run.start + run.length - k - 1;
+            let mut sum = if rest > 0 {
+                over(p[k], p[k + 1], run.step, rest)
+            } else {
+                0.0
+            };
+            for later in &runs[r + 1..] {
+                sum += over(p[k], p[later.start], later.step, later.length);
+            }
+            out[k] = sum;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    //! The suffix convolution against its definition, summed pair by pair.
+
+    use super::{Run, suffix_convolution};
+
+    /// Σ_{i > k} K((p_k − p_i) mod N), pair by pair.
+    fn direct(kernel: &[f64], p: &[usize]) -> Vec<f64> {
+        let n = kernel.len();
+        (0..p.len())
+            .map(|k| {
+                (k + 1..p.len())
+                    .map(|i| kernel[(p[k] + n - p[i]) % n])
+                    .sum()
+            })
+            .collect()
+    }
+
+    fn check(kernel: &[f64], p: &[usize], what: &str) {
+        let fast = suffix_convolution(kernel, p.iter().copied(), p.len());
+        let truth = direct(kernel, p);
+        let scale: f64 =
+            kernel.iter().map(|v| v.abs()).sum::<f64>() * p.len() as f64 / kernel.len() as f64;
+        for (k, (a, b)) in fast.iter().zip(&truth).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-12 * scale.max(1.0),
+                "{what}: reading {k}: {a} against {b}"
+            );
+        }
+    }
+
+    /// A kernel with no symmetry, of length n.
+    fn kernel(n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|t| ((t * 7919 % 101) as f64 - 50.0) * 0.01 + if t == 0 { 3.0 } else { 0.0 })
+            .collect()
+    }
+
+    #[test]
+    fn runs_of_cycles_give_the_pairwise_sums() {
+        for n in [5, 24, 97, 360] {
+            let k = kernel(n);
+            // cw cycles with a closing reading, ccw cycles, both, and a repeated stop
+            let cw: Vec<usize> = (0..4).flat_map(|_| (0..=n).map(move |s| s % n)).collect();
+            let ccw: Vec<usize> = (0..3)
+                .flat_map(|_| (0..=n).rev().map(move |s| s % n))
+                .collect();
+            let both: Vec<usize> = cw.iter().chain(&ccw).copied().collect();
+            let mut repeated = cw.clone();
+            repeated.insert(n / 2, repeated[n / 2]);
+            repeated.insert(n / 2, repeated[n / 2]);
+            for (p, what) in [
+                (&cw, "cw"),
+                (&ccw, "ccw"),
+                (&both, "both"),
+                (&repeated, "repeated"),
+            ] {
+                let runs = Run::split(p, n);
+                assert!(runs.len() <= 2 * 7 + 2, "{what}: {} runs", runs.len());
+                check(&k, p, &format!("{n} positions, {what}"));
+            }
+        }
+    }
+
+    #[test]
+    fn scattered_orders_take_the_other_ways_and_agree() {
+        // a pseudo-random order (runs of one or two readings): blocks and FFTs, or pairs
+        for (n, m) in [(97, 500), (128, 6000)] {
+            let k = kernel(n);
+            let p: Vec<usize> = (0..m).map(|i| (i * 7919 + i * i * 31) % n).collect();
+            assert!(Run::split(&p, n).len() * 4 > m);
+            check(&k, &p, &format!("{n} positions, scattered"));
+        }
+    }
+
+    #[test]
+    fn a_run_longer_than_the_circle_wraps_whole_turns() {
+        // one run of 2.5 turns on 7 positions, then a short one
+        let n = 7;
+        let k = kernel(n);
+        let mut p: Vec<usize> = (0..18).map(|i| i % n).collect();
+        p.extend([3, 2, 1]);
+        assert_eq!(Run::split(&p, n).len(), 2);
+        check(&k, &p, "wrapping");
+    }
 }
