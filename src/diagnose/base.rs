@@ -392,6 +392,28 @@ impl<'a> Base<'a> {
         geometry
     }
 
+    /// The residual sum of squares a fit of the base model with the columns `terms` would
+    /// leave, from the geometry of the base fit ((I − H)·y with the terms added to it,
+    /// [`FitGeometry::with_columns`]) without a fit: equal to the fit's to the round-off.
+    /// `None` before the base fit's geometry is formed ([`Base::geometry`] with no terms)
+    /// or with the dense reference geometry (which forms every geometry from a fit).
+    pub fn rss_without_fit(&self, terms: &[Vec<f64>]) -> Option<f64> {
+        if self.dense_geometry {
+            return None;
+        }
+        let geometry = self
+            .base_geometry
+            .get()?
+            .with_columns(&self.with_terms_only(terms));
+        let readings: Vec<f64> = self
+            .positions
+            .readings
+            .iter()
+            .map(|r| r.reading_arcsec)
+            .collect();
+        Some(geometry.residual_of(&readings).iter().map(|e| e * e).sum())
+    }
+
     /// The columns `terms` as the geometry adds them to the base fit's: a
     /// self-calibration's taken within stops, as its fits take them (the same span with
     /// the stop nuisance: the stop means are in the base model).

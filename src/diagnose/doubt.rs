@@ -174,26 +174,33 @@ impl Model<'_> {
             if drift.is_empty() {
                 continue;
             }
-            let mut columns = columns.clone();
-            for t in &drift {
-                let mut x = t.column(set, self.context);
-                for (v, r) in x.iter_mut().zip(&set.readings) {
-                    if r.time_seconds.is_none_or(|t| t <= middle) {
-                        *v = 0.0;
+            // the drift's columns restricted to the second half, scored against the
+            // model's geometry: what a refit with them would reduce the residuals by
+            let second_half: Vec<Vec<f64>> = drift
+                .iter()
+                .map(|t| {
+                    let mut x = t.column(set, self.context);
+                    for (v, r) in x.iter_mut().zip(&set.readings) {
+                        if r.time_seconds.is_none_or(|t| t <= middle) {
+                            *v = 0.0;
+                        }
                     }
-                }
-                columns.push(x);
-            }
-            let Ok(fit) = self.base.fit(&columns, self.sigma) else {
+                    x
+                })
+                .collect();
+            let score = geometry.score_block(&second_half, &current.residuals);
+            if score.rank < drift.len() {
+                // the restricted columns are not new to the model: nothing to compare
                 continue;
-            };
+            }
             let r = drift.len() as f64;
-            let dof = fit.dof as f64;
+            let dof = current.dof.saturating_sub(drift.len()) as f64;
+            let rss = (current.rss - score.reduction).max(0.0);
             if dof > 0.0
-                && fit.rss > tiny
+                && rss > tiny
                 && let Ok(distribution) = FisherSnedecor::new(r, dof)
             {
-                let f = ((current.rss - fit.rss).max(0.0) / r) / (fit.rss / dof);
+                let f = (score.reduction.max(0.0) / r) / (rss / dof);
                 let limit = distribution.inverse_cdf(1.0 - options.stability_alpha);
                 let passed = f <= limit;
                 any_time_structure |= !passed;

@@ -217,6 +217,10 @@ fn other_kinds(set: &MeasurementSet, block: &[Term]) -> Vec<Vec<Term>> {
     }
 }
 
+/// An alternative whose p-value by the geometry's residual sum of squares is at most
+/// this fraction of [`AMBIGUITY_ALPHA`] is rejected without a refit.
+const SCREEN_MARGIN: f64 = 1e-3;
+
 /// What [`alternatives`] needs of the final model.
 #[derive(Debug, Clone, Copy)]
 pub struct FinalModel<'a> {
@@ -288,14 +292,8 @@ pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
         0.0
     };
     let mut out: Vec<Alternative> = Vec::new();
-    for alternative in sets {
-        let mut columns = rest_columns.clone();
-        columns.extend(columns_of(&alternative));
-        let Ok(other) = base.fit(&columns, sigma) else {
-            continue;
-        };
-        let increase = other.rss - fit.rss;
-        let (f_statistic, p_value) = if increase <= tiny {
+    let f_test = |increase: f64| -> (f64, f64) {
+        if increase <= tiny {
             (0.0, 1.0)
         } else if mean_square <= tiny / (fit.dof.max(1) as f64) {
             (f64::INFINITY, 0.0)
@@ -303,7 +301,24 @@ pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
             let f = increase / (r * mean_square);
             let p = FisherSnedecor::new(r, fit.dof.max(1) as f64).map_or(0.0, |d| d.sf(f));
             (f, p)
+        }
+    };
+    for alternative in sets {
+        let mut columns = rest_columns.clone();
+        columns.extend(columns_of(&alternative));
+        // an alternative that fits far worse (p a thousandth of the level or less, from
+        // the geometry's residual sum of squares) is not refitted: its refit would be
+        // rejected too, the round-off of either sum being nowhere near the margin
+        if let Some(rss) = base.rss_without_fit(&columns)
+            && f_test(rss - fit.rss).1 <= AMBIGUITY_ALPHA * SCREEN_MARGIN
+        {
+            continue;
+        }
+        let Ok(other) = base.fit(&columns, sigma) else {
+            continue;
         };
+        let increase = other.rss - fit.rss;
+        let (f_statistic, p_value) = f_test(increase);
         if p_value <= AMBIGUITY_ALPHA {
             continue;
         }
