@@ -52,13 +52,14 @@ fn simulated_without(
     path
 }
 
-/// A diagnosis that takes many seconds: 1080 faces, 4 cycles with closing readings, a
-/// drift and a zero jump, and one stop in six left out (every cell that loses a reading
-/// is irregular, so every fit is the dense reference's, about a second each).
+/// A diagnosis that takes seconds: 1440 faces, 4 cycles with closing readings, a drift
+/// and a zero jump, and one stop in six left out (every cell that loses a reading is
+/// irregular, so every fit is the dense reference's, about a second each; about 6 s in
+/// all on two cores).
 fn long_diagnosis_input(dir: &std::path::Path) -> PathBuf {
     let args = [
         "--faces",
-        "1080",
+        "1440",
         "--cycles",
         "4",
         "--closing",
