@@ -392,26 +392,38 @@ impl<'a> Base<'a> {
         geometry
     }
 
-    /// The residual sum of squares a fit of the base model with the columns `terms` would
-    /// leave, from the geometry of the base fit ((I − H)·y with the terms added to it,
-    /// [`FitGeometry::with_columns`]) without a fit: equal to the fit's to the round-off.
-    /// `None` before the base fit's geometry is formed ([`Base::geometry`] with no terms)
-    /// or with the dense reference geometry (which forms every geometry from a fit).
-    pub fn rss_without_fit(&self, terms: &[Vec<f64>]) -> Option<f64> {
+    /// The geometry of the base model with the columns `terms`, from the geometry of the
+    /// base fit without a fit ([`FitGeometry::with_columns`]; what [`Base::geometry`]
+    /// gives for a fit with them). `None` before the base fit's geometry is formed
+    /// ([`Base::geometry`] with no terms) or with the dense reference geometry (which
+    /// forms every geometry from a fit).
+    pub fn geometry_without_fit(&self, terms: &[Vec<f64>]) -> Option<FitGeometry> {
         if self.dense_geometry {
             return None;
         }
-        let geometry = self
-            .base_geometry
-            .get()?
-            .with_columns(&self.with_terms_only(terms));
+        Some(
+            self.base_geometry
+                .get()?
+                .with_columns(&self.with_terms_only(terms)),
+        )
+    }
+
+    /// `geometry` (of [`Base::geometry_without_fit`]) with the columns `terms` added.
+    pub fn add_terms(&self, geometry: &FitGeometry, terms: &[Vec<f64>]) -> FitGeometry {
+        geometry.with_columns(&self.with_terms_only(terms))
+    }
+
+    /// The residual sum of squares a fit of the base model would leave whose geometry is
+    /// `geometry` (of [`Base::geometry_without_fit`]): |(I − H)·y|², equal to the fit's
+    /// to the round-off.
+    pub fn rss_without_fit(&self, geometry: &FitGeometry) -> f64 {
         let readings: Vec<f64> = self
             .positions
             .readings
             .iter()
             .map(|r| r.reading_arcsec)
             .collect();
-        Some(geometry.residual_of(&readings).iter().map(|e| e * e).sum())
+        geometry.residual_of(&readings).iter().map(|e| e * e).sum()
     }
 
     /// The columns `terms` as the geometry adds them to the base fit's: a

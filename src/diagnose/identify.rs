@@ -282,9 +282,7 @@ pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
     );
     let [u_pitch, u_encoder] = base.calibrated_u(fit);
     let [fit_pitch, fit_encoder] = base.calibrated(fit);
-    let columns_of =
-        |ts: &[Term]| -> Vec<Vec<f64>> { ts.iter().map(|t| t.column(set, context)).collect() };
-    let rest_columns = columns_of(&rest);
+    let rest_columns = Term::columns(&rest, set, context);
     let r = block.len().max(1) as f64;
     let mean_square = if fit.dof > 0 {
         fit.rss / fit.dof as f64
@@ -303,17 +301,22 @@ pub fn alternatives(model: FinalModel<'_>, block: &[Term]) -> Vec<Alternative> {
             (f, p)
         }
     };
+    // the geometry of the model without the finding, for a screen of the alternatives
+    let rest_geometry = base.geometry_without_fit(&rest_columns);
     for alternative in sets {
-        let mut columns = rest_columns.clone();
-        columns.extend(columns_of(&alternative));
+        let alternative_columns = Term::columns(&alternative, set, context);
         // an alternative that fits far worse (p a thousandth of the level or less, from
         // the geometry's residual sum of squares) is not refitted: its refit would be
         // rejected too, the round-off of either sum being nowhere near the margin
-        if let Some(rss) = base.rss_without_fit(&columns)
-            && f_test(rss - fit.rss).1 <= AMBIGUITY_ALPHA * SCREEN_MARGIN
-        {
-            continue;
+        if let Some(rest_geometry) = &rest_geometry {
+            let geometry = base.add_terms(rest_geometry, &alternative_columns);
+            let rss = base.rss_without_fit(&geometry);
+            if f_test(rss - fit.rss).1 <= AMBIGUITY_ALPHA * SCREEN_MARGIN {
+                continue;
+            }
         }
+        let mut columns = rest_columns.clone();
+        columns.extend(alternative_columns);
         let Ok(other) = base.fit(&columns, sigma) else {
             continue;
         };

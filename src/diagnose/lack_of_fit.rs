@@ -60,14 +60,28 @@ impl Cells {
             let r = &set.readings[i];
             (r.setup, r.step, r.ac, r.direction)
         };
-        let mut sorted: Vec<(CellKey, usize)> =
-            (0..set.readings.len()).map(|i| (key(i), i)).collect();
-        sorted.sort_unstable();
+        // the key packed into one number in the key's order (setup, step, ac,
+        // direction), then the reading: one integer sort
+        let packed = |(setup, step, ac, direction): CellKey| -> u128 {
+            (u128::from(setup) << 96)
+                | ((step as u128 & 0xFFFF_FFFF) << 64)
+                | (u128::from(ac) << 32)
+                | u128::from(direction == Direction::Ccw)
+        };
+        let mut sorted: Vec<(u128, usize)> = (0..set.readings.len())
+            .map(|i| (packed(key(i)), i))
+            .collect();
+        if set.readings.iter().all(|r| r.step <= 0xFFFF_FFFF) {
+            sorted.sort_unstable();
+        } else {
+            sorted.sort_unstable_by_key(|&(_, i)| (key(i), i));
+        }
         let mut keys: Vec<CellKey> = Vec::new();
         let mut starts: Vec<usize> = Vec::new();
-        for (k, (cell, _)) in sorted.iter().enumerate() {
-            if keys.last() != Some(cell) {
-                keys.push(*cell);
+        for (k, &(_, i)) in sorted.iter().enumerate() {
+            let cell = key(i);
+            if keys.last() != Some(&cell) {
+                keys.push(cell);
                 starts.push(k);
             }
         }

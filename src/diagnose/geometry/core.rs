@@ -30,7 +30,15 @@ pub(super) struct Core {
     leverage: OnceLock<Vec<f64>>,
     /// The suffix quadratics of the streams met so far: (order of the readings, them).
     suffix: Mutex<Vec<(Vec<usize>, Arc<SuffixQuads>)>>,
+    /// The columns added to the fit's model so far with their (I − H)·x: (a fingerprint
+    /// of the column, it, its part outside the span).
+    #[allow(clippy::type_complexity)]
+    outside: Mutex<Vec<(u64, Vec<f64>, Vec<f64>)>>,
 }
+
+/// The most added columns a core keeps with their part outside its span (a diagnosis
+/// meets a few terms and their alternatives; the oldest is let go).
+const KEPT_COLUMNS: usize = 32;
 
 /// The quadratics of every suffix of one stream's readings under a core (element k for
 /// the suffix from the stream's k-th reading on).
@@ -62,6 +70,7 @@ impl Core {
             nuisance: None,
             leverage: OnceLock::new(),
             suffix: Mutex::new(Vec::new()),
+            outside: Mutex::new(Vec::new()),
         }
     }
 
@@ -80,6 +89,7 @@ impl Core {
         self.nuisance = nuisance;
         self.leverage = OnceLock::new();
         self.suffix = Mutex::new(Vec::new());
+        self.outside = Mutex::new(Vec::new());
         self
     }
 
@@ -295,6 +305,36 @@ impl Core {
             .enumerate()
             .map(|(i, (&zi, fitted))| zi - fitted - nuisance.as_ref().map_or(0.0, |h| h[i]))
             .collect()
+    }
+
+    /// (I − H)·x of a column added to the fit's model ([`Core::residual_of`]), kept for
+    /// the next call with the same column (to the bit): a diagnosis adds its terms to
+    /// one core round after round.
+    pub(super) fn outside_of(&self, x: &[f64]) -> Vec<f64> {
+        let fingerprint = x
+            .iter()
+            .fold(x.len() as u64, |h, v| h.rotate_left(5) ^ v.to_bits());
+        let same = |(f, column, _): &(u64, Vec<f64>, Vec<f64>)| {
+            *f == fingerprint
+                && column.len() == x.len()
+                && column
+                    .iter()
+                    .zip(x)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+        };
+        if let Ok(kept) = self.outside.lock()
+            && let Some((_, _, outside)) = kept.iter().find(|entry| same(entry))
+        {
+            return outside.clone();
+        }
+        let outside = self.residual_of(x);
+        if let Ok(mut kept) = self.outside.lock() {
+            if kept.len() == KEPT_COLUMNS {
+                kept.remove(0);
+            }
+            kept.push((fingerprint, x.to_vec(), outside.clone()));
+        }
+        outside
     }
 
     /// Scores a column x (one value per reading) against the residuals of the fit.

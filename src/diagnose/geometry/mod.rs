@@ -160,7 +160,7 @@ impl FitGeometry {
     pub fn with_columns(&self, columns: &[Vec<f64>]) -> Self {
         let mut added = self.added.clone();
         for x in columns {
-            added.push(x, self.core.residual_of(x));
+            added.push(x, self.core.outside_of(x));
         }
         Self {
             core: Arc::clone(&self.core),
