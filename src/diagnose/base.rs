@@ -423,7 +423,11 @@ impl<'a> Base<'a> {
             .iter()
             .map(|r| r.reading_arcsec)
             .collect();
-        geometry.residual_of(&readings).iter().map(|e| e * e).sum()
+        geometry
+            .residual_of_kept(&readings)
+            .iter()
+            .map(|e| e * e)
+            .sum()
     }
 
     /// The columns `terms` as the geometry adds them to the base fit's: a

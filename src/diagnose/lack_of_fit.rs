@@ -60,25 +60,10 @@ impl Cells {
             let r = &set.readings[i];
             (r.setup, r.step, r.ac, r.direction)
         };
-        // the key packed into one number in the key's order (setup, step, ac,
-        // direction), then the reading: one integer sort
-        let packed = |(setup, step, ac, direction): CellKey| -> u128 {
-            (u128::from(setup) << 96)
-                | ((step as u128 & 0xFFFF_FFFF) << 64)
-                | (u128::from(ac) << 32)
-                | u128::from(direction == Direction::Ccw)
-        };
-        let mut sorted: Vec<(u128, usize)> = (0..set.readings.len())
-            .map(|i| (packed(key(i)), i))
-            .collect();
-        if set.readings.iter().all(|r| r.step <= 0xFFFF_FFFF) {
-            sorted.sort_unstable();
-        } else {
-            sorted.sort_unstable_by_key(|&(_, i)| (key(i), i));
-        }
+        let sorted = sorted_by_cell(set, &key);
         let mut keys: Vec<CellKey> = Vec::new();
         let mut starts: Vec<usize> = Vec::new();
-        for (k, &(_, i)) in sorted.iter().enumerate() {
+        for (k, &i) in sorted.iter().enumerate() {
             let cell = key(i);
             if keys.last() != Some(&cell) {
                 keys.push(cell);
@@ -86,7 +71,7 @@ impl Cells {
             }
         }
         starts.push(sorted.len());
-        let members = sorted.into_iter().map(|(_, i)| i).collect();
+        let members = sorted;
         Cells {
             keys,
             members,
@@ -354,6 +339,57 @@ impl PureError {
             carriers,
         })
     }
+}
+
+/// The readings' indices ordered by their cell's key (setup, step, ac, direction), then
+/// by index: a counting sort over the dense index of the key when that index is small
+/// (setups × steps × autocollimators × 2 within a few times the readings, as in every
+/// run), a sort otherwise.
+fn sorted_by_cell(set: &MeasurementSet, key: &dyn Fn(usize) -> CellKey) -> Vec<usize> {
+    let n = set.readings.len();
+    let mut setups: Vec<u32> = set.readings.iter().map(|r| r.setup).collect();
+    setups.sort_unstable();
+    setups.dedup();
+    let mut acs: Vec<u32> = set.readings.iter().map(|r| r.ac).collect();
+    acs.sort_unstable();
+    acs.dedup();
+    let steps = set
+        .readings
+        .iter()
+        .map(|r| r.step)
+        .max()
+        .map_or(0, |s| s + 1);
+    let buckets = setups
+        .len()
+        .checked_mul(steps)
+        .and_then(|b| b.checked_mul(acs.len()))
+        .and_then(|b| b.checked_mul(2));
+    let Some(buckets) = buckets.filter(|&b| b <= 4 * n.max(1024)) else {
+        let mut sorted: Vec<usize> = (0..n).collect();
+        sorted.sort_by_key(|&i| key(i));
+        return sorted;
+    };
+    // ascending in (setup, step, ac, direction), as the key's order
+    let index = |i: usize| -> usize {
+        let r = &set.readings[i];
+        let s = setups.binary_search(&r.setup).unwrap_or(0);
+        let a = acs.binary_search(&r.ac).unwrap_or(0);
+        ((s * steps + r.step) * acs.len() + a) * 2 + usize::from(r.direction == Direction::Ccw)
+    };
+    let indices: Vec<usize> = (0..n).map(index).collect();
+    let mut start = vec![0usize; buckets + 1];
+    for &b in &indices {
+        start[b + 1] += 1;
+    }
+    for b in 0..buckets {
+        start[b + 1] += start[b];
+    }
+    let mut sorted = vec![0usize; n];
+    for (i, &b) in indices.iter().enumerate() {
+        sorted[start[b]] = i;
+        start[b] += 1;
+    }
+    sorted
 }
 
 /// The cells a lack-of-fit test lists, largest |z| first.

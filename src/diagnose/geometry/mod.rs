@@ -190,6 +190,14 @@ impl FitGeometry {
         residual
     }
 
+    /// [`FitGeometry::residual_of`] of a vector the core keeps its part of for the next
+    /// call (the readings a diagnosis screens alternatives with, the same every time).
+    pub fn residual_of_kept(&self, z: &[f64]) -> Vec<f64> {
+        let mut residual = self.core.outside_of(z);
+        self.added.take_out(z, &mut residual);
+        residual
+    }
+
     /// The leverage h_ii of every reading.
     pub fn leverage(&self) -> Vec<f64> {
         let mut leverage = self.core.leverage().to_vec();
