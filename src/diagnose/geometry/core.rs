@@ -37,8 +37,10 @@ pub(super) struct Core {
 }
 
 /// The most added columns a core keeps with their part outside its span (a diagnosis
-/// meets a few terms and their alternatives; the oldest is let go).
-const KEPT_COLUMNS: usize = 32;
+/// meets a few terms and their alternatives; the oldest is let go, a miss only costs the
+/// product again). Each holds two vectors of the readings: 16 of them add at most 32
+/// readings' worth of memory (67 MB at 262 144 readings), beside the diagnosis's own.
+const KEPT_COLUMNS: usize = 16;
 
 /// The quadratics of every suffix of one stream's readings under a core (element k for
 /// the suffix from the stream's k-th reading on).
