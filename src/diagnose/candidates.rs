@@ -501,16 +501,13 @@ pub fn offset_step_candidates(
     residuals: &[f64],
     present: &[Term],
 ) -> Vec<Candidate> {
-    let mut out = Vec::new();
-    offset_step_candidates_with(
-        set,
-        geometry,
-        residuals,
-        present,
-        &mut StepSearch::new(),
-        &mut out,
-    );
-    out
+    let mut search = StepSearch::new();
+    let mut scores = Vec::new();
+    offset_step_scores_with(set, geometry, residuals, present, &mut search, &mut scores);
+    scores
+        .iter()
+        .map(|score| search.candidate(set, score))
+        .collect()
 }
 
 /// A stream a jump can belong to: (autocollimator, mounting when the file has several).
@@ -526,22 +523,92 @@ pub struct StepSearch {
     streams: Option<Vec<(StepStream, Vec<usize>)>>,
 }
 
+/// A jump candidate of a round, as compact as a round's thousands of them need: its
+/// stream, the reading it starts at and its score. [`StepSearch::candidate`] gives its
+/// [`Candidate`] (one column, one direction: `rank` 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepScore {
+    /// The stream: its index in the search's streams ([`StepSearch::stream`]).
+    pub stream: usize,
+    /// The reading the jump starts at: its place in the stream's time order.
+    pub position: usize,
+    /// The reduction of the residual sum of squares it would bring.
+    pub reduction: f64,
+    /// The jump's value if it were added, arcsec.
+    pub value: f64,
+}
+
 impl StepSearch {
     /// Nothing kept yet.
     pub fn new() -> Self {
         Self::default()
     }
+
+    /// The stream of `score`: (autocollimator, mounting when the file has several).
+    pub fn stream(&self, score: &StepScore) -> StepStream {
+        self.streams
+            .as_ref()
+            .and_then(|streams| streams.get(score.stream))
+            .map_or((0, None), |(stream, _)| *stream)
+    }
+
+    /// The candidate `score` names (of this search's set `set`, whose
+    /// [`offset_step_scores_with`] gave it).
+    pub fn candidate(&self, set: &MeasurementSet, score: &StepScore) -> Candidate {
+        let (ac, setup) = self.stream(score);
+        let effect = self
+            .streams
+            .as_ref()
+            .and_then(|streams| streams.get(score.stream))
+            .and_then(|(_, order)| step_at(set, order, score.position))
+            .map_or(
+                Effect::OffsetStep {
+                    ac,
+                    cycle: 0,
+                    step: None,
+                    setup,
+                    value: 0.0,
+                },
+                |(cycle, step)| Effect::OffsetStep {
+                    ac,
+                    cycle,
+                    step,
+                    setup,
+                    value: 0.0,
+                },
+            );
+        Candidate {
+            term: Term::Effect(effect),
+            block: Vec::new(),
+            family: Family::OffsetStep,
+            reduction: score.reduction,
+            rank: 1,
+            value: score.value,
+            outlier: None,
+        }
+    }
 }
 
-/// [`offset_step_candidates`] with what does not change between rounds kept in `search`
-/// (for one set), the candidates pushed onto `out`.
-pub fn offset_step_candidates_with(
+/// The (cycle, stop) of a jump at reading `order[position]` of a stream: a jump at a
+/// cycle's (or a mounting's) first reading is a jump "from that cycle on" (stop `None`).
+fn step_at(set: &MeasurementSet, order: &[usize], position: usize) -> Option<(u32, Option<usize>)> {
+    let r = &set.readings[*order.get(position)?];
+    let previous = &set.readings[*order.get(position.checked_sub(1)?)?];
+    let from_cycle_start = previous.cycle != r.cycle || previous.setup != r.setup;
+    Some((r.cycle, (!from_cycle_start).then_some(r.step)))
+}
+
+/// Every jump candidate of every stream, scored by one suffix scan per stream, with what
+/// does not change between rounds kept in `search` (for one set), the scores pushed onto
+/// `out` in the streams' order and each stream's time order; a jump the model holds
+/// (`present`) or whose column adds no direction is left out.
+pub fn offset_step_scores_with(
     set: &MeasurementSet,
     geometry: &FitGeometry,
     residuals: &[f64],
     present: &[Term],
     search: &mut StepSearch,
-    out: &mut Vec<Candidate>,
+    out: &mut Vec<StepScore>,
 ) {
     let streams = search.streams.get_or_insert_with(|| {
         step_streams(set)
@@ -557,38 +624,42 @@ pub fn offset_step_candidates_with(
                 .then(|| geometry.suffix_scores_with(order, residuals, &mut SuffixCache::new()))
         })
         .collect();
-    for (((ac, setup), order), scores) in streams.iter().zip(scored) {
-        let (ac, setup) = (*ac, *setup);
+    for (stream, (((ac, setup), order), scores)) in streams.iter().zip(scored).enumerate() {
         let Some(scores) = scores else {
             continue;
         };
         // only a jump of this stream can be the same term as a candidate of it
-        let present: Vec<&Term> = present
+        let present: Vec<(u32, Option<usize>)> = present
             .iter()
-            .filter(|t| {
-                matches!(t, Term::Effect(Effect::OffsetStep { ac: a, setup: s, .. }) if *a == ac && *s == setup)
+            .filter_map(|t| match t {
+                Term::Effect(Effect::OffsetStep {
+                    ac: a,
+                    setup: s,
+                    cycle,
+                    step,
+                    ..
+                }) if a == ac && s == setup => Some((*cycle, *step)),
+                _ => None,
             })
             .collect();
-        for k in MIN_STEP_READINGS..=order.len() - MIN_STEP_READINGS {
-            let r = &set.readings[order[k]];
-            let previous = &set.readings[order[k - 1]];
-            // A jump at a cycle's first reading is a jump "from that cycle on".
-            let step = (previous.cycle != r.cycle || previous.setup != r.setup).then_some(());
-            let effect = Effect::OffsetStep {
-                ac,
-                cycle: r.cycle,
-                step: match step {
-                    Some(()) => None,
-                    None => Some(r.step),
-                },
-                setup,
-                value: 0.0,
-            };
-            let term = Term::Effect(effect);
-            if present.iter().any(|p| p.same(&term)) || !scores[k].is_new() {
+        for (position, score) in scores
+            .iter()
+            .enumerate()
+            .take(order.len() - MIN_STEP_READINGS + 1)
+            .skip(MIN_STEP_READINGS)
+        {
+            if !score.is_new()
+                || (!present.is_empty()
+                    && step_at(set, order, position).is_some_and(|at| present.contains(&at)))
+            {
                 continue;
             }
-            out.push(Candidate::single(term, Family::OffsetStep, &scores[k]));
+            out.push(StepScore {
+                stream,
+                position,
+                reduction: score.reduction(),
+                value: score.projection / score.new_length_squared,
+            });
         }
     }
 }

@@ -12,9 +12,9 @@ use rayon::prelude::*;
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 use super::base::{Base, Ticker};
-use super::candidates::{self, Candidate, Family, Term};
+use super::candidates::{self, Candidate, Family, StepScore, StepSearch, Term};
 use super::findings::{Finding, candidate_effect, difference, max_abs, record_not_significant};
-use super::geometry::{BlockScore, ColumnScore, FitGeometry};
+use super::geometry::{BlockScore, ColumnScore, FitGeometry, dot};
 use super::lack_of_fit::LackOfFit;
 use super::{
     DiagnoseOptions, Evidence, FoundEffect, MAX_JUMPS_PER_STREAM, Rejection, TriedEffect, notes,
@@ -61,11 +61,11 @@ impl Outcome {
 /// The most candidates a round refits (tries) before it gives up.
 const MAX_ATTEMPTS: usize = 4;
 
-/// The F statistic of a scored candidate against the current fit:
-/// F = (Δ/r)/(rest/(dof − r)) with r the directions it adds.
-fn f_statistic(candidate: &Candidate, current: &Solution, tiny: f64) -> f64 {
-    let reduction = candidate.reduction;
-    let r = candidate.rank.max(1);
+/// The F statistic of a scored candidate against the current fit, from the reduction
+/// Δ of the residual sum of squares it brings and the `rank` r of directions it adds:
+/// F = (Δ/r)/(rest/(dof − r)).
+fn f_statistic(reduction: f64, rank: usize, current: &Solution, tiny: f64) -> f64 {
+    let r = rank.max(1);
     let dof = current.dof.saturating_sub(r);
     let rest = (current.rss - reduction).max(0.0);
     if dof == 0 {
@@ -79,16 +79,11 @@ fn f_statistic(candidate: &Candidate, current: &Solution, tiny: f64) -> f64 {
     }
 }
 
-/// The F test of a scored candidate against the current fit, its statistic
-/// `f_statistic` ([`f_statistic`]): the p-value (for r = 1 through Student's t, as before
-/// blocks) and its Bonferroni adjustment over `family_size`.
-fn evidence(
-    candidate: &Candidate,
-    f_statistic: f64,
-    current: &Solution,
-    family_size: usize,
-) -> Evidence {
-    let r = candidate.rank.max(1);
+/// The F test of a scored candidate adding `rank` directions against the current fit,
+/// its statistic `f_statistic` ([`f_statistic`]): the p-value (for r = 1 through
+/// Student's t, as before blocks) and its Bonferroni adjustment over `family_size`.
+fn evidence(rank: usize, f_statistic: f64, current: &Solution, family_size: usize) -> Evidence {
+    let r = rank.max(1);
     let dof = current.dof.saturating_sub(r);
     let p_value = if dof == 0 || f_statistic <= 0.0 {
         1.0
@@ -106,6 +101,55 @@ fn evidence(
     }
 }
 
+/// A round's candidates in their order: the systematic ones, the jumps (compact, one per
+/// stop of every stream), the outlier; an index runs over them in that order.
+struct RoundCandidates<'c> {
+    systematic: &'c [Candidate],
+    steps: &'c [StepScore],
+    outlier: Option<&'c Candidate>,
+}
+
+impl RoundCandidates<'_> {
+    /// How many there are.
+    fn len(&self) -> usize {
+        self.systematic.len() + self.steps.len() + usize::from(self.outlier.is_some())
+    }
+
+    /// The jump at index `i`, if it is one.
+    fn step(&self, i: usize) -> Option<&StepScore> {
+        i.checked_sub(self.systematic.len())
+            .and_then(|j| self.steps.get(j))
+    }
+
+    /// The candidate at index `i` that is not a jump.
+    fn other(&self, i: usize) -> Option<&Candidate> {
+        if i < self.systematic.len() {
+            self.systematic.get(i)
+        } else if i == self.systematic.len() + self.steps.len() {
+            self.outlier
+        } else {
+            None
+        }
+    }
+
+    /// (Δ, directions, family) of the candidate at index `i`.
+    fn score(&self, i: usize) -> (f64, usize, Family) {
+        match (self.step(i), self.other(i)) {
+            (Some(s), _) => (s.reduction, 1, Family::OffsetStep),
+            (None, Some(c)) => (c.reduction, c.rank, c.family),
+            (None, None) => (0.0, 0, Family::Systematic),
+        }
+    }
+
+    /// The candidate at index `i`, formed (a jump's term made from its stream and stop).
+    fn candidate(&self, i: usize, set: &MeasurementSet, search: &StepSearch) -> Option<Candidate> {
+        match (self.step(i), self.other(i)) {
+            (Some(s), _) => Some(search.candidate(set, s)),
+            (None, other) => other.cloned(),
+        }
+    }
+}
+
 /// The candidates of a round whose F tests the round can use, with them, in the
 /// candidates' order: every one of the systematic and outlier families (a few), and of
 /// the jumps (one per stop of every stream: thousands) only those the round's loop can
@@ -117,39 +161,38 @@ fn evidence(
 /// denominator and family for all), so the jumps are ordered by F and the p-values are
 /// computed for those and for the few a bisection for the significant ones needs.
 fn rank(
-    candidates: &[&Candidate],
+    candidates: &RoundCandidates<'_>,
     current: &Solution,
     tiny: f64,
     family_alpha: f64,
     family_size: impl Fn(Family) -> usize,
+    stream: impl Fn(&StepScore) -> (u32, Option<u32>),
     full: impl Fn(u32, Option<u32>) -> bool,
 ) -> Vec<(usize, Evidence)> {
-    let f: Vec<f64> = candidates
-        .iter()
-        .map(|c| f_statistic(c, current, tiny))
+    let f: Vec<f64> = (0..candidates.len())
+        .map(|i| {
+            let (reduction, rank, _) = candidates.score(i);
+            f_statistic(reduction, rank, current, tiny)
+        })
         .collect();
     let evidence_of = |i: usize| {
-        let c = candidates[i];
-        evidence(c, f[i], current, family_size(c.family))
+        let (_, rank, family) = candidates.score(i);
+        evidence(rank, f[i], current, family_size(family))
     };
     // as the round's loop decides: a candidate is tried unless p·m ≥ α
     let significant = |e: &Evidence| e.p_adjusted < family_alpha || e.p_adjusted.is_nan();
     let mut out: Vec<(usize, Evidence)> = Vec::new();
-    let mut steps: Vec<usize> = Vec::new();
-    for (i, c) in candidates.iter().enumerate() {
-        match (c.family, &c.term) {
-            (Family::OffsetStep, Term::Effect(Effect::OffsetStep { .. })) if c.rank == 1 => {
-                steps.push(i);
-            }
-            _ => out.push((i, evidence_of(i))),
+    let mut steps: Vec<usize> = Vec::with_capacity(candidates.steps.len());
+    for i in 0..candidates.len() {
+        if candidates.step(i).is_some() {
+            steps.push(i);
+        } else {
+            out.push((i, evidence_of(i)));
         }
     }
     // strongest first; ties in candidate order
     let stronger = |a: &usize, b: &usize| f[*b].total_cmp(&f[*a]).then(a.cmp(b));
-    let stream = |i: usize| match candidates[i].term {
-        Term::Effect(Effect::OffsetStep { ac, setup, .. }) => (ac, setup),
-        _ => (0, None),
-    };
+    let stream = |i: usize| candidates.step(i).map_or((0, None), &stream);
     // the number of significant jumps: the first `count` in the order of `stronger`,
     // by bisection over partitions (each step halves the part still open)
     let (mut lo, mut hi) = (0, steps.len());
@@ -168,16 +211,17 @@ fn rank(
     let strongest_of_streams = |items: &[usize], keep: &dyn Fn((u32, Option<u32>)) -> bool| {
         let mut best: Vec<((u32, Option<u32>), usize)> = Vec::new();
         for &i in items {
-            if !keep(stream(i)) {
+            let of = stream(i);
+            if !keep(of) {
                 continue;
             }
-            match best.iter_mut().find(|(s, _)| *s == stream(i)) {
+            match best.iter_mut().find(|(s, _)| *s == of) {
                 Some((_, b)) => {
                     if stronger(&i, b).is_lt() {
                         *b = i;
                     }
                 }
-                None => best.push((stream(i), i)),
+                None => best.push((of, i)),
             }
         }
         best.into_iter().map(|(_, i)| i).collect::<Vec<usize>>()
@@ -224,7 +268,7 @@ pub(super) fn run(
     // the candidates of a round: the jumps (thousands) in one vector for every round,
     // the others (a few) in another
     let mut candidates: Vec<Candidate> = Vec::new();
-    let mut steps: Vec<Candidate> = Vec::new();
+    let mut steps: Vec<StepScore> = Vec::new();
     let mut terms: Vec<Term> = Vec::new();
     let mut findings: Vec<Finding> = Vec::new();
     let mut tried: Vec<TriedEffect> = Vec::new();
@@ -274,7 +318,7 @@ pub(super) fn run(
                 )
             },
             || {
-                candidates::offset_step_candidates_with(
+                candidates::offset_step_scores_with(
                     set,
                     &geometry,
                     residuals,
@@ -328,9 +372,16 @@ pub(super) fn run(
             Some(c) if c.family == Family::Outlier => candidates.split_at(candidates.len() - 1),
             _ => candidates.split_at(candidates.len()),
         };
-        let all: Vec<&Candidate> = systematic.iter().chain(&steps).chain(outlier).collect();
-        let count = |family: Family| all.iter().filter(|c| c.family == family).count();
-        let (systematic_count, step_count) = (count(Family::Systematic), count(Family::OffsetStep));
+        let round = RoundCandidates {
+            systematic,
+            steps: &steps,
+            outlier: outlier.first(),
+        };
+        let systematic_count = systematic
+            .iter()
+            .filter(|c| c.family == Family::Systematic)
+            .count();
+        let step_count = steps.len();
         let family_size = |family: Family| match family {
             Family::Outlier => eligible,
             Family::Systematic => systematic_count,
@@ -347,16 +398,17 @@ pub(super) fn run(
         let full =
             |ac: u32, setup: Option<u32>| jumps_of(ac, setup, &terms) >= MAX_JUMPS_PER_STREAM;
         let scored = rank(
-            &all,
+            &round,
             &current,
             tiny,
             options.family_alpha,
             family_size,
+            |score| step_search.stream(score),
             full,
         );
         let mut scored: Vec<(Candidate, Evidence)> = scored
             .into_iter()
-            .map(|(i, e)| (all[i].clone(), e))
+            .filter_map(|(i, e)| Some((round.candidate(i, set, &step_search)?, e)))
             .collect();
         scored.sort_by(|a, b| {
             a.1.p_adjusted
@@ -569,8 +621,8 @@ impl Systematic<'_> {
             stats.push((
                 term,
                 TermStats {
-                    projection: x.iter().zip(self.residuals).map(|(a, b)| a * b).sum(),
-                    length_squared: x.iter().map(|v| v * v).sum(),
+                    projection: dot(x, self.residuals),
+                    length_squared: dot(x, x),
                     coordinates: self.geometry.added_coordinates(x),
                 },
             ));

@@ -13,6 +13,8 @@
 //! a leverage gains Σₖ uₖ[i]², a column's xᵀH′x gains Σₖ (uₖᵀx)², a suffix's gains the
 //! squares of the running sums of the uₖ — O(n) per term instead of a new geometry.
 
+use super::dot;
+
 /// An orthonormal basis U of the added columns' part outside a core's span, one vector
 /// per reading each.
 #[derive(Debug, Clone, Default)]
@@ -35,7 +37,7 @@ impl Added {
     /// span ((I − H)x): orthogonalised against the basis (twice, for the round-off) and
     /// kept when it adds a direction.
     pub(super) fn push(&mut self, x: &[f64], mut outside: Vec<f64>) {
-        let length_squared: f64 = x.iter().map(|v| v * v).sum();
+        let length_squared = dot(x, x);
         for _ in 0..2 {
             for u in &self.directions {
                 let c = dot(u, &outside);
@@ -44,7 +46,7 @@ impl Added {
                 }
             }
         }
-        let norm_squared: f64 = outside.iter().map(|v| v * v).sum();
+        let norm_squared = dot(&outside, &outside);
         if length_squared > 0.0 && norm_squared > NEW_DIRECTION * length_squared {
             let scale = 1.0 / norm_squared.sqrt();
             outside.iter_mut().for_each(|v| *v *= scale);
@@ -110,9 +112,4 @@ impl Added {
         }
         quads
     }
-}
-
-/// aᵀb.
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }

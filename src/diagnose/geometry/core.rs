@@ -11,10 +11,55 @@ use nalgebra::DMatrix;
 
 use super::off_grid::OffGridGeometry;
 use super::structured::{StructuredGeometry, SuffixCache};
-use super::{ColumnScore, StopNuisance};
+use super::{ColumnScore, StopNuisance, dot};
 use crate::measurement::MeasurementSet;
 use crate::selfcal::OffGridDesign;
 use crate::solve::Solution;
+
+/// The design rows of a fit's readings, sparse, in one buffer (no allocation per
+/// reading): row i is its (index in ψ or g, coefficient) pairs.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Rows {
+    /// Every row's pairs, row after row.
+    entries: Vec<(usize, f64)>,
+    /// Where row i begins in `entries` (`starts[i]`) and ends (`starts[i + 1]`).
+    starts: Vec<usize>,
+}
+
+impl Rows {
+    /// No rows yet, room for `rows` of about `per_row` pairs.
+    pub(super) fn with_capacity(rows: usize, per_row: usize) -> Self {
+        let mut starts = Vec::with_capacity(rows + 1);
+        starts.push(0);
+        Rows {
+            entries: Vec::with_capacity(rows.saturating_mul(per_row)),
+            starts,
+        }
+    }
+
+    /// A pair of the row being built (the last one [`Rows::end_row`] has not closed).
+    pub(super) fn push(&mut self, index: usize, value: f64) {
+        self.entries.push((index, value));
+    }
+
+    /// Closes the row being built.
+    pub(super) fn end_row(&mut self) {
+        self.starts.push(self.entries.len());
+    }
+
+    /// The number of rows.
+    pub(super) fn len(&self) -> usize {
+        self.starts.len().saturating_sub(1)
+    }
+}
+
+impl std::ops::Index<usize> for Rows {
+    type Output = [(usize, f64)];
+
+    fn index(&self, i: usize) -> &[(usize, f64)] {
+        &self.entries[self.starts[i]..self.starts[i + 1]]
+    }
+}
 
 /// The hat-matrix geometry of one fit (module documentation).
 #[derive(Debug)]
@@ -22,7 +67,7 @@ pub(super) struct Core {
     /// The cofactor.
     form: Form,
     /// The design row of every reading: (index in ψ or g, coefficient).
-    rows: Vec<Vec<(usize, f64)>>,
+    rows: Rows,
     /// A self-calibration's table error at every stop, taken out of the fit
     /// ([`StopNuisance`]): its P_D is added to the hat matrix.
     nuisance: Option<StopNuisance>,
@@ -65,7 +110,7 @@ enum Form {
 
 impl Core {
     /// A core of the cofactor `form` and the design `rows`, without a stop nuisance.
-    fn of(form: Form, rows: Vec<Vec<(usize, f64)>>) -> Self {
+    fn of(form: Form, rows: Rows) -> Self {
         Core {
             form,
             rows,
@@ -118,10 +163,11 @@ impl Core {
     ) -> Option<Self> {
         let n = design.readings();
         let geometry = OffGridGeometry::new(solution, design, columns)?;
-        Some(Self::of(
-            Form::OffGrid(Box::new(geometry)),
-            vec![Vec::new(); n],
-        ))
+        let mut rows = Rows::with_capacity(n, 0);
+        for _ in 0..n {
+            rows.end_row();
+        }
+        Some(Self::of(Form::OffGrid(Box::new(geometry)), rows))
     }
 
     /// The dense geometry of `solution` whatever its cofactor (the reference the
@@ -151,25 +197,20 @@ impl Core {
             .iter()
             .map(|s| (s.setup, s.ac))
             .collect();
-        let rows = set
-            .readings
-            .iter()
-            .enumerate()
-            .map(|(i, r)| {
-                let mut row = Vec::with_capacity(3 + columns.len());
-                row.push((r.face - 1, 1.0));
-                row.push((layout.encoder(r.step % n), 1.0));
-                if let Some(s) = streams.iter().position(|&k| k == (r.setup, r.ac)) {
-                    row.push((layout.setup(s), 1.0));
+        let mut rows = Rows::with_capacity(set.readings.len(), 3 + columns.len());
+        for (i, r) in set.readings.iter().enumerate() {
+            rows.push(r.face - 1, 1.0);
+            rows.push(layout.encoder(r.step % n), 1.0);
+            if let Some(s) = streams.iter().position(|&k| k == (r.setup, r.ac)) {
+                rows.push(layout.setup(s), 1.0);
+            }
+            for (j, x) in columns.iter().enumerate() {
+                if x[i] != 0.0 {
+                    rows.push(layout.effect(j), x[i]);
                 }
-                for (j, x) in columns.iter().enumerate() {
-                    if x[i] != 0.0 {
-                        row.push((layout.effect(j), x[i]));
-                    }
-                }
-                row
-            })
-            .collect();
+            }
+            rows.end_row();
+        }
         Self::of(Form::Dense(q), rows)
     }
 
@@ -228,7 +269,7 @@ impl Core {
             }
             Form::Structured(s) => {
                 let qg = s.apply(g);
-                g.iter().zip(&qg).map(|(a, b)| a * b).sum()
+                dot(g, &qg)
             }
             // the off-grid form has no rows: its callers go through `engine_fitted`
             Form::OffGrid(_) => 0.0,
@@ -262,16 +303,15 @@ impl Core {
             return o.fitted(x);
         }
         let qg = self.product(&self.summed_rows(x));
-        self.rows
-            .iter()
-            .map(|row| row.iter().map(|&(a, v)| v * qg[a]).sum())
+        (0..self.rows.len())
+            .map(|i| self.rows[i].iter().map(|&(a, v)| v * qg[a]).sum())
             .collect()
     }
 
     /// xᵀHx without a stop nuisance's part.
     pub(super) fn engine_quadratic(&self, x: &[f64]) -> f64 {
         if let Form::OffGrid(o) = &self.form {
-            return x.iter().zip(o.fitted(x)).map(|(a, b)| a * b).sum();
+            return dot(x, &o.fitted(x));
         }
         self.quadratic(&self.summed_rows(x))
     }
@@ -422,8 +462,8 @@ impl Core {
         let mut gram = nalgebra::DMatrix::<f64>::zeros(m, m);
         for a in 0..m {
             for b in a..m {
-                let xx: f64 = columns[a].iter().zip(columns[b]).map(|(x, y)| x * y).sum();
-                let mut xhx: f64 = g[a].iter().zip(&qg[b]).map(|(x, y)| x * y).sum();
+                let xx = dot(columns[a], columns[b]);
+                let mut xhx = dot(&g[a], &qg[b]);
                 if let Some(n) = &self.nuisance {
                     xhx += n.quadratic(columns[a], columns[b]);
                 }
@@ -437,7 +477,7 @@ impl Core {
 
 /// The dense form's gᵀ Q g of every suffix `order[k..]` (element k): w = Q g kept for the
 /// running suffix sum g of the design rows, O(P) per reading.
-fn dense_suffix_quads(q: &DMatrix<f64>, rows: &[Vec<(usize, f64)>], order: &[usize]) -> Vec<f64> {
+fn dense_suffix_quads(q: &DMatrix<f64>, rows: &Rows, order: &[usize]) -> Vec<f64> {
     let size = q.nrows();
     let mut w = vec![0.0; size];
     let mut quad = 0.0;

@@ -48,6 +48,29 @@ use added::Added;
 use core::Core;
 pub use structured::SuffixCache;
 
+/// aᵀb (over the shorter of the two), by four running sums in a fixed order: the same
+/// bits on every machine, and about four times the speed of one running sum, whose
+/// additions wait on each other. The one dot product of the geometry's reading-length
+/// vectors.
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let (a_quads, b_quads) = (a.chunks_exact(4), b.chunks_exact(4));
+    let rest: f64 = a_quads
+        .remainder()
+        .iter()
+        .zip(b_quads.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    let mut sums = [0.0_f64; 4];
+    for (x, y) in a_quads.zip(b_quads) {
+        for lane in 0..4 {
+            sums[lane] += x[lane] * y[lane];
+        }
+    }
+    (sums[0] + sums[1]) + (sums[2] + sums[3]) + rest
+}
+
 /// The hat-matrix geometry of one fit: the core of a fit (its cofactor, dense in ψ or
 /// structured in g, and the sparse design row of every reading) and the columns added to
 /// its model since ([`FitGeometry::with_columns`]). Clones share the core.

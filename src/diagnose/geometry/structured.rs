@@ -19,6 +19,7 @@
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
 
+use super::core::Rows;
 use crate::measurement::MeasurementSet;
 use crate::solve::Solution;
 use crate::solve::cofactor::Structured;
@@ -55,7 +56,7 @@ impl StructuredGeometry {
         set: &MeasurementSet,
         columns: &[Vec<f64>],
         q: &Structured,
-    ) -> (Self, Vec<Vec<(usize, f64)>>) {
+    ) -> (Self, Rows) {
         let n = q.faces();
         let k = solution.setup_error.len();
         let streams: Vec<(u32, u32)> = solution
@@ -66,31 +67,26 @@ impl StructuredGeometry {
         let mut position = Vec::with_capacity(set.readings.len());
         let mut face = Vec::with_capacity(set.readings.len());
         let mut stream = Vec::with_capacity(set.readings.len());
-        let rows = set
-            .readings
-            .iter()
-            .enumerate()
-            .map(|(i, r)| {
-                let (p, f) = (r.step % n, (r.face - 1) % n);
-                let s = streams
-                    .iter()
-                    .position(|&key| key == (r.setup, r.ac))
-                    .unwrap_or(0);
-                position.push(p);
-                face.push(f);
-                stream.push(s);
-                let mut row = Vec::with_capacity(3 + columns.len());
-                row.push((p, 1.0));
-                row.push((n + f, 1.0));
-                row.push((2 * n + s, 1.0));
-                for (j, x) in columns.iter().enumerate() {
-                    if x[i] != 0.0 {
-                        row.push((2 * n + k + j, x[i]));
-                    }
+        let mut rows = Rows::with_capacity(set.readings.len(), 3 + columns.len());
+        for (i, r) in set.readings.iter().enumerate() {
+            let (p, f) = (r.step % n, (r.face - 1) % n);
+            let s = streams
+                .iter()
+                .position(|&key| key == (r.setup, r.ac))
+                .unwrap_or(0);
+            position.push(p);
+            face.push(f);
+            stream.push(s);
+            rows.push(p, 1.0);
+            rows.push(n + f, 1.0);
+            rows.push(2 * n + s, 1.0);
+            for (j, x) in columns.iter().enumerate() {
+                if x[i] != 0.0 {
+                    rows.push(2 * n + k + j, x[i]);
                 }
-                row
-            })
-            .collect();
+            }
+            rows.end_row();
+        }
         let (rank, size) = (q.rank(), q.size());
         let mut w_rows = vec![0.0; size * rank];
         let mut wm_rows = vec![0.0; size * rank];
@@ -170,7 +166,7 @@ impl StructuredGeometry {
     /// kernel and order, and kept there otherwise.
     pub(super) fn suffix_quads(
         &self,
-        rows: &[Vec<(usize, f64)>],
+        rows: &Rows,
         order: &[usize],
         cache: &mut SuffixCache,
     ) -> Vec<f64> {
@@ -227,7 +223,7 @@ impl StructuredGeometry {
 
     /// The suffix quadratics by one product per reading (readings of several streams or
     /// offsets: not expected of a change-point search).
-    fn suffix_quads_by_products(&self, rows: &[Vec<(usize, f64)>], order: &[usize]) -> Vec<f64> {
+    fn suffix_quads_by_products(&self, rows: &Rows, order: &[usize]) -> Vec<f64> {
         let size = self.size();
         let mut w = vec![0.0; size];
         let mut quad = 0.0;
