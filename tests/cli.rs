@@ -1425,7 +1425,10 @@ fn the_solve_table_puts_face_f_at_f_times_360_over_n() {
             lines[title]
         );
         assert_eq!(
-            lines[title + 1].split_whitespace().take(2).collect::<Vec<_>>(),
+            lines[title + 1]
+                .split_whitespace()
+                .take(2)
+                .collect::<Vec<_>>(),
             ["face", "nominal/°"]
         );
         for f in 1..=24usize {
@@ -1435,6 +1438,10 @@ fn the_solve_table_puts_face_f_at_f_times_360_over_n() {
         }
         let last: Vec<&str> = lines[title + 1 + 24].split_whitespace().collect();
         let phi_column = if args.len() > 2 { 7 } else { 4 };
-        assert_eq!(last[phi_column].trim_start_matches('-'), "0.0000", "{last:?}");
+        assert_eq!(
+            last[phi_column].trim_start_matches('-'),
+            "0.0000",
+            "{last:?}"
+        );
     }
 }

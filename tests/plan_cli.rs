@@ -863,8 +863,18 @@ fn the_comparison_shows_the_cycles_the_target_needs_and_their_time() {
     assert_eq!(
         header,
         [
-            "design", "cycles", "readings", "time", "u(β)max", "u(α)max", "drift″/h", "step″",
-            "target", "cycles", "target", "time"
+            "design",
+            "cycles",
+            "readings",
+            "time",
+            "u(β)max",
+            "u(α)max",
+            "drift″/h",
+            "step″",
+            "target",
+            "cycles",
+            "target",
+            "time"
         ],
         "{table}"
     );

@@ -296,7 +296,7 @@ pub fn write_plan_table<W: Write>(out: &mut W, report: &PlanReport) -> fmt::Resu
     )?;
     writeln!(
         out,
-        "(time: from the first stop to the last; dof: the residual degrees of freedom of a run, readings less parameters)"
+        "(time: first stop to last; dof: residual degrees of freedom of a run, readings less parameters)"
     )?;
     if !report.lost_harmonics.is_empty() {
         let list: Vec<String> = report.lost_harmonics.iter().map(usize::to_string).collect();
@@ -395,11 +395,16 @@ pub fn write_plan_table<W: Write>(out: &mut W, report: &PlanReport) -> fmt::Resu
         )?;
         writeln!(
             out,
-            "(size in its unit, \"not seen\" when the design cannot tell the term from the base model; \
-             df: the degrees of freedom of the term's F test; false alarms: {} per family of \
-             candidates — systematic terms, offset steps, outliers — shared by its candidates \
-             (Bonferroni), as diagnose tests them)",
+            "(size in its unit, \"not seen\" when the design cannot tell the term from the base model;"
+        )?;
+        writeln!(
+            out,
+            " df: the degrees of freedom of the term's F test; false alarms: {} per family of candidates",
             percent(report.false_alarm_per_family)
+        )?;
+        writeln!(
+            out,
+            " — systematic terms, offset steps, outliers —, shared by its candidates (Bonferroni), as diagnose tests them)"
         )?;
         writeln!(
             out,
@@ -568,30 +573,41 @@ pub fn write_comparison_table<W: Write>(out: &mut W, reports: &[PlanReport]) -> 
     }
     writeln!(
         out,
-        "cycles: planned per mounting; readings and time (first stop to last) are those of the planned cycles"
+        "cycles: planned per mounting; readings and time (first stop to last): those of the planned cycles"
     )?;
     writeln!(
         out,
-        "u(β)max, u(α)max: the largest standard uncertainty (k = 1) of a pitch deviation and of an encoder error, arcsec{}",
-        if budget {
-            "; U(α)max: the largest expanded uncertainty of an encoder error with the budget"
-        } else {
-            ""
-        }
+        "u(β)max, u(α)max: the largest u (k = 1) of a pitch deviation and of an encoder error, arcsec"
     )?;
+    if budget {
+        writeln!(
+            out,
+            "U(α)max: the largest expanded uncertainty of an encoder error with the budget"
+        )?;
+    }
     let alarms = reports
         .first()
         .map_or("—".into(), |r| percent(r.false_alarm_per_family));
     writeln!(
         out,
-        "drift″/h: the smallest autocollimator drift, step″: the smallest offset step (a jump of an \
-         autocollimator's zero) a diagnosis finds in 90 % of runs, with {alarms} false alarms per family"
+        "drift″/h: the smallest autocollimator drift a diagnosis finds in 90 % of runs"
+    )?;
+    writeln!(
+        out,
+        "step″: the smallest offset step (a jump of an autocollimator's zero) it finds in 90 % of runs"
+    )?;
+    writeln!(
+        out,
+        "(each with {alarms} false alarms per family of candidates, as diagnose tests them)"
     )?;
     if let Some(a) = target {
         writeln!(
             out,
-            "{TARGET_CYCLES}: the fewest cycles per mounting that bring u(α)max to {a}″ or below; \
-             {TARGET_TIME}: how long a run of them takes"
+            "{TARGET_CYCLES}: the fewest cycles per mounting that bring u(α)max to {a}″ or below"
+        )?;
+        writeln!(
+            out,
+            "{TARGET_TIME}: how long a run of the target cycles takes (first stop to last)"
         )?;
     }
     Ok(())
