@@ -1396,3 +1396,52 @@ fn designs_too_large_for_the_machine_are_refused_up_front() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The solve table's `nominal/°` column is the angle φ is defined against: face f at
+/// f·360°/N from face N, whose φ is 0 (docs/FORMAT.md §1), so face N at 360°. By hand for
+/// N = 24: 15° per face; and φ of face N printed as 0.
+#[test]
+fn the_solve_table_puts_face_f_at_f_times_360_over_n() {
+    for args in [
+        vec!["solve", EXAMPLE],
+        vec![
+            "solve",
+            EXAMPLE,
+            "--budget",
+            "examples/budgets/instrument.toml",
+        ],
+    ] {
+        let out = polycal(&args);
+        assert_status(&out, 0);
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        let lines: Vec<&str> = text.lines().collect();
+        let title = lines
+            .iter()
+            .position(|l| l.starts_with("Polygon (arcsec"))
+            .unwrap_or_else(|| panic!("a polygon section:\n{text}"));
+        assert!(
+            lines[title].contains("f·360°/N") && lines[title].contains("face N at 360°"),
+            "the title says which angle the column is: {}",
+            lines[title]
+        );
+        assert_eq!(
+            lines[title + 1]
+                .split_whitespace()
+                .take(2)
+                .collect::<Vec<_>>(),
+            ["face", "nominal/°"]
+        );
+        for f in 1..=24usize {
+            let row: Vec<&str> = lines[title + 1 + f].split_whitespace().collect();
+            assert_eq!(row[0], f.to_string(), "{}", lines[title + 1 + f]);
+            assert_eq!(row[1], format!("{:.4}", f as f64 * 15.0), "face {f}");
+        }
+        let last: Vec<&str> = lines[title + 1 + 24].split_whitespace().collect();
+        let phi_column = if args.len() > 2 { 7 } else { 4 };
+        assert_eq!(
+            last[phi_column].trim_start_matches('-'),
+            "0.0000",
+            "{last:?}"
+        );
+    }
+}

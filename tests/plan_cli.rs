@@ -793,3 +793,187 @@ fn a_long_plan_shows_its_progress_on_a_terminal_only() {
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
     assert!(out.stderr.is_empty(), "{}", stderr(&out));
 }
+
+/// The stops of a run of the paper's design without closing readings, by hand: every
+/// cycle stops at the N steps, one stop every `step_seconds` (20 s by default), the
+/// first at time 0; so a run of R cycles lasts (R·N − 1)·20 s from the first stop to the
+/// last.
+fn hand_duration_seconds(faces: u64, cycles: u64) -> f64 {
+    (cycles * faces - 1) as f64 * 20.0
+}
+
+/// The fewest cycles of the paper's design (two adjacent autocollimators, no closing
+/// readings) with u(α) ≤ u: u(α) = σ·√((N² − 1)/(6·N·R)) for every position, so
+/// R = ⌈(N² − 1)/(6·N)·(σ/u)²⌉.
+fn hand_cycles(faces: u64, sigma: f64, u: f64) -> u64 {
+    let n = faces as f64;
+    ((n * n - 1.0) / (6.0 * n) * (sigma / u).powi(2)).ceil() as u64
+}
+
+/// 9. The comparison names the cycles planned and the cycles the target needs, with the
+///    time each takes, all by hand: 72 faces need 75 cycles for u(α) ≤ 0.02″ at
+///    σ = 0.05″ ((72² − 1)/(6·72)·2.5² = 74.99), a run of (75·72 − 1)·20 s = 29.99 h;
+///    24 faces need 25 cycles (24.96), 3.33 h. Every column has its legend line.
+#[test]
+fn the_comparison_shows_the_cycles_the_target_needs_and_their_time() {
+    assert_eq!(hand_cycles(72, 0.05, 0.02), 75);
+    assert_eq!(hand_cycles(24, 0.05, 0.02), 25);
+    let args = [
+        "plan",
+        "--sigma",
+        "0.05",
+        "--faces",
+        "72",
+        "--design",
+        "name=N72",
+        "--design",
+        "name=N24;faces=24",
+        "--target-u",
+        "0.02",
+    ];
+    let mut json_args = args.to_vec();
+    json_args.extend(["--format", "json"]);
+    let lines = json_lines(&json_args, 0);
+    for (line, faces) in lines.iter().zip([72u64, 24]) {
+        let cycles = hand_cycles(faces, 0.05, 0.02);
+        let target = &line["target"];
+        assert_eq!(target["cycles"], cycles, "{faces} faces");
+        assert_eq!(target["readings"], 2 * faces * cycles, "{faces} faces");
+        let seconds = target["duration_seconds"].as_f64().expect("a duration");
+        assert!(
+            (seconds - hand_duration_seconds(faces, cycles)).abs() < 1e-6,
+            "{faces} faces: {seconds} s"
+        );
+        // the planned run is the 6 cycles of the options
+        assert_eq!(line["design"]["cycles"], 6);
+        let planned = line["duration_seconds"].as_f64().expect("a duration");
+        assert!((planned - hand_duration_seconds(faces, 6)).abs() < 1e-6);
+    }
+    assert!((hand_duration_seconds(72, 75) / 3600.0 - 29.994).abs() < 1e-3);
+
+    let out = polycal(&args);
+    assert_eq!(out.status.code(), Some(0), "table: {}", stderr(&out));
+    let table = stdout(&out);
+    let header: Vec<&str> = table
+        .lines()
+        .find(|l| l.starts_with("design"))
+        .unwrap_or_else(|| panic!("a header line:\n{table}"))
+        .split_whitespace()
+        .collect();
+    assert_eq!(
+        header,
+        [
+            "design",
+            "cycles",
+            "readings",
+            "time",
+            "u(β)max",
+            "u(α)max",
+            "drift″/h",
+            "step″",
+            "target",
+            "cycles",
+            "target",
+            "time"
+        ],
+        "{table}"
+    );
+    for (name, faces) in [("N72", 72u64), ("N24", 24)] {
+        let row: Vec<&str> = table
+            .lines()
+            .find(|l| l.starts_with(name))
+            .unwrap_or_else(|| panic!("a row for {name}:\n{table}"))
+            .split_whitespace()
+            .collect();
+        let cycles = hand_cycles(faces, 0.05, 0.02);
+        let hours = |s: f64| format!("{:.2}", s / 3600.0);
+        assert_eq!(
+            (row[1], row[2], row[3], row[4]),
+            (
+                "6",
+                (2 * faces * 6).to_string().as_str(),
+                hours(hand_duration_seconds(faces, 6)).as_str(),
+                "h"
+            ),
+            "{name}: {row:?}"
+        );
+        assert_eq!(
+            (row[9], row[10], row[11]),
+            (
+                cycles.to_string().as_str(),
+                hours(hand_duration_seconds(faces, cycles)).as_str(),
+                "h"
+            ),
+            "{name}: {row:?}"
+        );
+    }
+    // a legend line for every column
+    for (column, words) in [
+        ("cycles:", "planned per mounting"),
+        ("u(β)max, u(α)max:", "k = 1"),
+        ("drift″/h:", "90 % of runs"),
+        ("step″:", "offset step"),
+        ("target cycles:", "0.02″"),
+        ("target time:", "how long"),
+    ] {
+        assert!(
+            table
+                .lines()
+                .any(|l| l.contains(column) && l.contains(words)),
+            "a legend line with {column:?} and {words:?}:\n{table}"
+        );
+    }
+    assert!(table.contains("0.5 % false alarms per family"), "{table}");
+}
+
+/// 10. `--design`'s help lists exactly the keys the parser accepts: the keys of the
+///     parser's own refusal of an unknown key, each of which a design takes.
+#[test]
+fn the_design_help_lists_every_key_the_parser_accepts() {
+    let out = polycal(&["plan", "--help"]);
+    assert_eq!(out.status.code(), Some(0));
+    let help = stdout(&out).replace('\n', " ");
+    let help = help.split_whitespace().collect::<Vec<_>>().join(" ");
+    let keys_of = |text: &str, after: &str| -> Vec<String> {
+        let start = text
+            .find(after)
+            .unwrap_or_else(|| panic!("{after:?} in {text}"))
+            + after.len();
+        let rest = &text[start..];
+        let end = rest.find([';', ')']).expect("the end of the list");
+        rest[..end]
+            .split(',')
+            .map(|k| k.trim().to_string())
+            .collect()
+    };
+    let in_help = keys_of(&help, "joined by `;` (keys ");
+    let refusal = one_error_line(&polycal(&[
+        "plan",
+        "--sigma",
+        "0.05",
+        "--design",
+        "colour=red",
+    ]));
+    let in_parser = keys_of(&refusal, "(keys: ");
+    assert_eq!(in_help, in_parser, "help:\n{help}\nrefusal: {refusal}");
+    assert!(in_help.iter().any(|k| k == "temperature"), "{in_help:?}");
+    // each key listed is one a design takes
+    let value = |key: &str| match key {
+        "name" => "x",
+        "faces" => "24",
+        "ac-faces" => "1,2",
+        "cycles" | "setups" => "2",
+        "closing" | "bidirectional" => "true",
+        "setup-shift" => "5",
+        "shift-deg" => "0,15",
+        "step-seconds" => "10",
+        "temperature" => "default",
+        other => panic!("a key the test does not know: {other}"),
+    };
+    for key in &in_help {
+        let spec = format!("{key}={}", value(key));
+        polycal::plan::Design::default()
+            .with_spec(&spec)
+            .unwrap_or_else(|e| panic!("{spec}: {e}"));
+    }
+}

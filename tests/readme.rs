@@ -1,10 +1,21 @@
-//! The README's shell blocks, run as written (issue 8: "every command the README shows
-//! must run as written"): every ```sh block, in order, in one scratch directory that sees
-//! the repository's `examples/`, with `cargo run --release --` and `target/release/polycal`
-//! standing for the built binary. `cargo build`/`cargo test` lines are left out (this test
-//! is run by them), and so are blocks preceded by a `<!-- tests/readme.rs skips … -->`
-//! line (the two-terminal instructions, whose device paths differ on every machine; the
-//! same run is shown as one script, which is run).
+//! The README's and the guides' shell blocks, run as written (issue 8: "every command the
+//! README shows must run as written"), and every output they show compared with what the
+//! command beside it prints (issue 36: "every table in the README comes from a command
+//! shown beside it, run in CI").
+//!
+//! - Every ```sh block of `README.md` and of each guide in `docs/` is run, in order, one
+//!   document at a time in its own scratch directory that sees the repository's
+//!   `examples/` (so that each guide's commands run as a reader who starts there runs
+//!   them), with `cargo run --release --` and `target/release/polycal` standing for the
+//!   built binary. `cargo build`/`cargo test` lines are left out (this test is run by
+//!   them), and so are blocks preceded by a `<!-- tests/readme.rs skips … -->` line (the
+//!   two-terminal instructions, whose device paths differ on every machine; the same run
+//!   is shown as one script, which is run).
+//! - A ```sh block followed by a `<!-- output of the block above -->` line and then a
+//!   ```text block shows its output: the block's standard output must be that text (line
+//!   by line, trailing spaces aside), so that a figure that drifts fails here.
+//! - Every relative link of these documents (`[…](path)`, `[…](path#anchor)`,
+//!   `[…](#anchor)`) names a file that exists and, with an anchor, a heading of it.
 
 #![cfg(unix)]
 
@@ -12,13 +23,29 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 const BIN: &str = env!("CARGO_BIN_EXE_polycal");
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-/// The ```sh blocks of the README that are to be run, each as its lines.
-fn runnable_blocks(readme: &str) -> Vec<(usize, Vec<String>)> {
+/// The marker between a ```sh block and the ```text block of its output.
+const OUTPUT_MARKER: &str = "<!-- output of the block above -->";
+
+/// A ```sh block to run: where it starts, its lines, and the output it shows, if any
+/// (the line of that ```text block and its text).
+#[derive(Debug)]
+struct Block {
+    line: usize,
+    body: Vec<String>,
+    output: Option<(usize, String)>,
+}
+
+/// The ```sh blocks of a document that are to be run, each with the output it shows.
+fn runnable_blocks(document: &str) -> Vec<Block> {
+    let lines: Vec<&str> = document.lines().collect();
     let mut blocks = Vec::new();
-    let mut lines = readme.lines().enumerate().peekable();
     let mut skip_next = false;
-    while let Some((number, line)) = lines.next() {
+    let mut i = 0;
+    while i < lines.len() {
+        let line = lines[i];
+        i += 1;
         if line.starts_with("<!-- tests/readme.rs skips") {
             skip_next = true;
             continue;
@@ -26,17 +53,47 @@ fn runnable_blocks(readme: &str) -> Vec<(usize, Vec<String>)> {
         if line.trim_end() != "```sh" {
             continue;
         }
+        let start = i;
         let mut body = Vec::new();
-        for (_, inner) in lines.by_ref() {
-            if inner.starts_with("```") {
-                break;
+        while i < lines.len() && !lines[i].starts_with("```") {
+            body.push(lines[i].to_string());
+            i += 1;
+        }
+        i += 1; // the closing fence
+        // the output shown beside it: the marker, then a ```text block
+        let mut j = i;
+        while j < lines.len() && lines[j].trim().is_empty() {
+            j += 1;
+        }
+        let mut output = None;
+        if j < lines.len() && lines[j].trim_end() == OUTPUT_MARKER {
+            j += 1;
+            while j < lines.len() && lines[j].trim().is_empty() {
+                j += 1;
             }
-            body.push(inner.to_string());
+            assert!(
+                j < lines.len() && lines[j].trim_end() == "```text",
+                "line {}: {OUTPUT_MARKER} is followed by a ```text block",
+                j + 1
+            );
+            let text_line = j + 1;
+            j += 1;
+            let mut text = Vec::new();
+            while j < lines.len() && !lines[j].starts_with("```") {
+                text.push(lines[j]);
+                j += 1;
+            }
+            output = Some((text_line, text.join("\n")));
+            i = j + 1;
         }
         if std::mem::take(&mut skip_next) {
             continue;
         }
-        blocks.push((number + 1, body));
+        blocks.push(Block {
+            line: start,
+            body,
+            output,
+        });
     }
     blocks
 }
@@ -59,22 +116,47 @@ fn script(body: &[String]) -> String {
     out
 }
 
-#[test]
-fn the_readme_shell_blocks_run_as_written() {
-    let readme = std::fs::read_to_string("README.md").expect("README.md");
-    let blocks = runnable_blocks(&readme);
-    assert!(
-        blocks.len() >= 5,
-        "expected the README's set-up, diagnose, uncertainty, command and lab blocks, found {}",
-        blocks.len()
-    );
-    let scratch = std::env::temp_dir().join(format!("polycal-readme-{}", std::process::id()));
+/// Text compared line by line, trailing spaces and trailing blank lines aside.
+fn normalized(text: &str) -> Vec<String> {
+    let mut lines: Vec<String> = text.lines().map(|l| l.trim_end().to_string()).collect();
+    while lines.last().is_some_and(|l| l.is_empty()) {
+        lines.pop();
+    }
+    lines
+}
+
+/// README.md and the guides in docs/, each a path relative to the repository.
+fn documents() -> Vec<PathBuf> {
+    let mut guides: Vec<PathBuf> = std::fs::read_dir(Path::new(ROOT).join("docs"))
+        .expect("docs/")
+        .map(|e| e.expect("a docs/ entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+        .map(|p| Path::new("docs").join(p.file_name().expect("a file name")))
+        .collect();
+    guides.sort();
+    let mut all = vec![PathBuf::from("README.md")];
+    all.extend(guides);
+    all
+}
+
+/// Runs a document's blocks in a scratch directory of its own; a failure names the
+/// document and line.
+fn run_document(document: &Path) -> usize {
+    let text = std::fs::read_to_string(Path::new(ROOT).join(document))
+        .unwrap_or_else(|e| panic!("{}: {e}", document.display()));
+    let blocks = runnable_blocks(&text);
+    if blocks.is_empty() {
+        return 0;
+    }
+    let stem = document.display().to_string().replace(['/', '.'], "-");
+    let scratch =
+        std::env::temp_dir().join(format!("polycal-readme-{}-{stem}", std::process::id()));
     let _ = std::fs::remove_dir_all(&scratch);
-    std::fs::create_dir_all(&scratch).unwrap();
-    let examples: PathBuf = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
-    std::os::unix::fs::symlink(&examples, scratch.join("examples")).unwrap();
-    for (line, body) in &blocks {
-        let text = script(body);
+    std::fs::create_dir_all(&scratch).expect("a scratch directory");
+    let examples: PathBuf = Path::new(ROOT).join("examples");
+    std::os::unix::fs::symlink(&examples, scratch.join("examples")).expect("a link");
+    for block in &blocks {
+        let text = script(&block.body);
         let output = Command::new("bash")
             .arg("-c")
             .arg(&text)
@@ -83,15 +165,58 @@ fn the_readme_shell_blocks_run_as_written() {
             .env_remove("NO_COLOR")
             .output()
             .expect("bash runs");
+        let stdout = String::from_utf8_lossy(&output.stdout);
         assert!(
             output.status.success(),
-            "README.md block at line {line} failed ({}):\n{text}\nstdout:\n{}\nstderr:\n{}",
+            "{} block at line {} failed ({}):\n{text}\nstdout:\n{stdout}\nstderr:\n{}",
+            document.display(),
+            block.line,
             output.status,
-            String::from_utf8_lossy(&output.stdout),
             String::from_utf8_lossy(&output.stderr)
         );
+        if let Some((line, shown)) = &block.output {
+            let (shown, printed) = (normalized(shown), normalized(&stdout));
+            assert!(
+                shown == printed,
+                "{}: the output shown at line {line} is not what the block at line {} prints \
+                 (first difference at its line {}):\nshown:\n{}\nprinted:\n{}",
+                document.display(),
+                block.line,
+                shown
+                    .iter()
+                    .zip(&printed)
+                    .position(|(a, b)| a != b)
+                    .unwrap_or(shown.len().min(printed.len()))
+                    + 1,
+                shown.join("\n"),
+                printed.join("\n")
+            );
+        }
     }
     let _ = std::fs::remove_dir_all(&scratch);
+    blocks.len()
+}
+
+#[test]
+fn the_shell_blocks_run_as_written_and_print_what_is_shown() {
+    let mut total = 0;
+    let mut shown = 0;
+    for document in documents() {
+        let text = std::fs::read_to_string(Path::new(ROOT).join(&document)).expect("readable");
+        shown += runnable_blocks(&text)
+            .iter()
+            .filter(|b| b.output.is_some())
+            .count();
+        total += run_document(&document);
+    }
+    assert!(
+        total >= 5,
+        "expected the set-up, diagnose, uncertainty, command and lab blocks, found {total}"
+    );
+    assert!(
+        shown >= 2,
+        "expected the plan comparison and the solve table beside their commands, found {shown}"
+    );
 }
 
 #[test]
@@ -100,7 +225,139 @@ fn the_skip_marker_and_the_cargo_lines_are_honoured() {
     let blocks = runnable_blocks(readme);
     assert_eq!(blocks.len(), 1);
     assert_eq!(
-        script(&blocks[0].1),
+        script(&blocks[0].body),
         "set -euo pipefail\n\"$POLYCAL\" solve x.csv\n"
     );
+}
+
+#[test]
+fn an_output_block_is_paired_with_the_block_above_and_compared() {
+    let document = format!(
+        "```sh\necho a\n```\n\n{OUTPUT_MARKER}\n\n```text\na\n```\n\n```sh\necho b\n```\n\n```text\nnot an output\n```\n"
+    );
+    let blocks = runnable_blocks(&document);
+    assert_eq!(blocks.len(), 2);
+    assert_eq!(blocks[0].output, Some((7, "a".to_string())));
+    assert_eq!(blocks[1].output, None);
+    // the comparison: trailing spaces and blank lines aside, nothing else
+    assert_eq!(normalized("x  \ny\n\n"), normalized("x\ny"));
+    assert_ne!(normalized("0.0282"), normalized("0.0283"));
+}
+
+/// GitHub's anchor of a heading: lower case, punctuation but `-` and `_` dropped, spaces
+/// as `-`.
+fn anchor_of(heading: &str) -> String {
+    heading
+        .trim()
+        .to_lowercase()
+        .chars()
+        .filter(|c| c.is_alphanumeric() || matches!(c, ' ' | '-' | '_'))
+        .map(|c| if c == ' ' { '-' } else { c })
+        .collect()
+}
+
+/// The anchors of a document's headings (outside code blocks).
+fn anchors(document: &str) -> Vec<String> {
+    let mut in_code = false;
+    let mut out = Vec::new();
+    for line in document.lines() {
+        if line.starts_with("```") {
+            in_code = !in_code;
+            continue;
+        }
+        if !in_code && line.starts_with('#') {
+            out.push(anchor_of(line.trim_start_matches('#')));
+        }
+    }
+    out
+}
+
+/// The relative link targets of a document (outside code blocks and code spans): what
+/// stands in `](…)`, without web addresses.
+fn links(document: &str) -> Vec<(usize, String)> {
+    let mut in_code = false;
+    let mut out = Vec::new();
+    for (number, line) in document.lines().enumerate() {
+        if line.starts_with("```") {
+            in_code = !in_code;
+            continue;
+        }
+        if in_code {
+            continue;
+        }
+        // code spans hold no links
+        let text: String = line
+            .split('`')
+            .enumerate()
+            .filter(|(i, _)| i % 2 == 0)
+            .map(|(_, part)| part)
+            .collect::<Vec<_>>()
+            .join(" ");
+        let mut rest = text.as_str();
+        while let Some(at) = rest.find("](") {
+            let after = &rest[at + 2..];
+            let Some(end) = after.find(')') else { break };
+            let target = after[..end].trim();
+            if !target.contains("://") && !target.starts_with("mailto:") {
+                out.push((number + 1, target.to_string()));
+            }
+            rest = &after[end..];
+        }
+    }
+    out
+}
+
+#[test]
+fn every_link_between_the_readme_and_the_guides_resolves() {
+    let mut checked = 0;
+    for document in documents() {
+        let text = std::fs::read_to_string(Path::new(ROOT).join(&document)).expect("readable");
+        let dir = document.parent().unwrap_or(Path::new(""));
+        for (line, target) in links(&text) {
+            let (path, anchor) = match target.split_once('#') {
+                Some((p, a)) => (p, Some(a)),
+                None => (target.as_str(), None),
+            };
+            let file = if path.is_empty() {
+                document.clone()
+            } else {
+                dir.join(path)
+            };
+            let full = Path::new(ROOT).join(&file);
+            assert!(
+                full.exists(),
+                "{}:{line}: the link {target:?} names {}, which does not exist",
+                document.display(),
+                file.display()
+            );
+            if let Some(anchor) = anchor {
+                let linked = std::fs::read_to_string(&full).unwrap_or_else(|e| {
+                    panic!("{}:{line}: {}: {e}", document.display(), file.display())
+                });
+                assert!(
+                    anchors(&linked).iter().any(|a| a == anchor),
+                    "{}:{line}: the link {target:?}: {} has no heading #{anchor}",
+                    document.display(),
+                    file.display()
+                );
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 0, "the README links to its guides");
+}
+
+#[test]
+fn anchors_and_links_are_read_as_github_reads_them() {
+    assert_eq!(
+        anchor_of(" Closing the loop: `polycal diagnose`"),
+        "closing-the-loop-polycal-diagnose"
+    );
+    assert_eq!(
+        anchor_of("The paper's Table 1 with `polycal budget`"),
+        "the-papers-table-1-with-polycal-budget"
+    );
+    let text =
+        "see [a](docs/a.md#x) and `[b](no.md)` and [c](https://e.org)\n```\n[d](no.md)\n```\n";
+    assert_eq!(links(text), vec![(1, "docs/a.md#x".to_string())]);
 }

@@ -37,6 +37,16 @@ const DESIGN_OPTIONS: [&str; 10] = [
     "temperature",
 ];
 
+/// The help of `--design`, its keys the list the parser accepts
+/// ([`plan::design::DESIGN_KEYS`]), so that the two cannot drift apart.
+pub static DESIGN_HELP: std::sync::LazyLock<String> = std::sync::LazyLock::new(|| {
+    format!(
+        "A design to plan, as changes to the design of the options: KEY=VALUE pairs joined \
+         by `;` (keys {}; docs/FORMAT.md §5.6); repeatable, the designs compared side by side",
+        plan::design::DESIGN_KEYS.join(", ")
+    )
+});
+
 /// Arguments of `polycal plan`.
 #[derive(clap::Args)]
 pub struct PlanArgs {
@@ -76,11 +86,13 @@ pub struct PlanArgs {
         allow_negative_numbers = true
     )]
     temperature: Option<Option<String>>,
-    /// A design to plan, as changes to the design of the options: KEY=VALUE pairs joined
-    /// by `;` (keys name, faces, ac-faces, cycles, closing, bidirectional, setups,
-    /// setup-shift, shift-deg, step-seconds; docs/FORMAT.md §5.6); repeatable, the
-    /// designs compared side by side.
-    #[arg(long, value_name = "SPEC", conflicts_with = "file")]
+    // the help of --design: DESIGN_HELP, its keys the parser's own
+    #[arg(
+        long,
+        value_name = "SPEC",
+        conflicts_with = "file",
+        help = std::sync::LazyLock::force(&DESIGN_HELP).as_str()
+    )]
     design: Vec<String>,
     /// A TOML file of designs (`[[design]]` tables with the keys of --design), each a
     /// change to the design of the options; added after the --design ones.
@@ -90,7 +102,9 @@ pub struct PlanArgs {
     /// --budget` would give for a run of the design.
     #[arg(long, value_name = "FILE.toml")]
     budget: Option<PathBuf>,
-    /// Find the fewest cycles whose largest u(α) is at most this, arcsec (each design).
+    /// Find the fewest cycles per mounting whose largest u(α) is at most this, arcsec, and
+    /// the time a run of them takes (each design; the table's `target cycles` and `target
+    /// time`).
     #[arg(long, value_name = "ARCSEC", allow_negative_numbers = true)]
     target_u: Option<f64>,
     /// Output format.

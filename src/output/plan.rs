@@ -82,6 +82,11 @@ pub struct TargetReport {
     pub cycles: Option<u32>,
     /// The largest u(α) with them.
     pub reached_u: Option<f64>,
+    /// The readings of a run with them; `null` when not reached.
+    pub readings: Option<usize>,
+    /// From the first stop to the last of a run with them, seconds; `null` when not
+    /// reached or without times.
+    pub duration_seconds: Option<f64>,
 }
 
 /// The JSON object of one design (docs/FORMAT.md §5.6).
@@ -105,6 +110,9 @@ pub struct PlanReport {
     pub sigma: f64,
     /// Residual degrees of freedom of a run; `null` when the design cannot calibrate.
     pub dof: Option<usize>,
+    /// The false-alarm probability of each family of candidates of the diagnosis whose
+    /// power `detectable` predicts.
+    pub false_alarm_per_family: f64,
     /// Harmonics the design loses (empty when none).
     pub lost_harmonics: Vec<usize>,
     /// Why the design cannot determine everything, when it cannot.
@@ -170,6 +178,7 @@ impl PlanReport {
             duration_seconds: plan.duration_seconds,
             sigma: plan.sigma,
             dof: plan.prediction.as_ref().map(|_| plan.dof),
+            false_alarm_per_family: plan.false_alarm_per_family,
             lost_harmonics: plan.lost_harmonics.clone(),
             unobservable: plan.unobservable.clone(),
             pitch_deviation_u: None,
@@ -192,6 +201,8 @@ impl PlanReport {
                 encoder_error_u: t.encoder_error_u,
                 cycles: t.cycles,
                 reached_u: t.reached_u,
+                readings: t.readings,
+                duration_seconds: t.duration_seconds,
             }),
             notes: plan.notes.clone(),
         };
@@ -261,6 +272,11 @@ fn num(value: Option<f64>, digits: usize) -> String {
     })
 }
 
+/// A probability as a percentage, to the digits it has (0.005 → "0.5 %").
+fn percent(p: f64) -> String {
+    format!("{} %", (p * 100.0 * 1e9).round() / 1e9)
+}
+
 fn hours(seconds: Option<f64>) -> String {
     seconds.map_or("—".into(), |s| format!("{:.2} h", s / 3600.0))
 }
@@ -277,6 +293,10 @@ pub fn write_plan_table<W: Write>(out: &mut W, report: &PlanReport) -> fmt::Resu
         hours(report.duration_seconds),
         report.sigma,
         report.dof.map_or("—".into(), |d| d.to_string())
+    )?;
+    writeln!(
+        out,
+        "(time: first stop to last; dof: residual degrees of freedom of a run, readings less parameters)"
     )?;
     if !report.lost_harmonics.is_empty() {
         let list: Vec<String> = report.lost_harmonics.iter().map(usize::to_string).collect();
@@ -371,7 +391,20 @@ pub fn write_plan_table<W: Write>(out: &mut W, report: &PlanReport) -> fmt::Resu
         writeln!(out)?;
         writeln!(
             out,
-            "what a diagnosis can see: the size found in 90 % of runs (false alarms per family as diagnose)"
+            "what a diagnosis can see: the smallest size it finds in 90 % of runs of the design"
+        )?;
+        writeln!(
+            out,
+            "(size in its unit, \"not seen\" when the design cannot tell the term from the base model;"
+        )?;
+        writeln!(
+            out,
+            " df: the degrees of freedom of the term's F test; false alarms: {} per family of candidates",
+            percent(report.false_alarm_per_family)
+        )?;
+        writeln!(
+            out,
+            " — systematic terms, offset steps, outliers —, shared by its candidates (Bonferroni), as diagnose tests them)"
         )?;
         writeln!(
             out,
@@ -396,10 +429,12 @@ pub fn write_plan_table<W: Write>(out: &mut W, report: &PlanReport) -> fmt::Resu
         match t.cycles {
             Some(c) => writeln!(
                 out,
-                "target u(α) ≤ {}″: {c} cycle{} (largest u(α) {})",
+                "target u(α) ≤ {}″: {c} cycle{} per mounting (largest u(α) {}), {} readings, {} of measuring",
                 t.encoder_error_u,
                 if c == 1 { "" } else { "s" },
-                num(t.reached_u, 4)
+                num(t.reached_u, 4),
+                t.readings.map_or("—".into(), |n| n.to_string()),
+                hours(t.duration_seconds)
             )?,
             None => writeln!(
                 out,
@@ -458,11 +493,20 @@ fn write_detectable<W: Write>(out: &mut W, d: &Detectable) -> fmt::Result {
     )
 }
 
-/// The table comparing designs side by side: readings, time, worst u(β), worst u(α), U
-/// with the budget, the smallest detectable drift and jump, the cycles for a target.
+/// The header of the comparison's target columns.
+const TARGET_CYCLES: &str = "target cycles";
+/// The header of the time the target's cycles take.
+const TARGET_TIME: &str = "target time";
+
+/// The table comparing designs side by side: the cycles planned with their readings and
+/// time, worst u(β), worst u(α), U with the budget, the smallest detectable drift and
+/// offset step, and with a target the cycles it needs and the time they take; a legend
+/// line below for every column.
 pub fn write_comparison_table<W: Write>(out: &mut W, reports: &[PlanReport]) -> fmt::Result {
     let budget = reports.iter().any(|r| r.encoder_error_expanded_u.is_some());
-    let target = reports.iter().any(|r| r.target.is_some());
+    let target = reports
+        .iter()
+        .find_map(|r| r.target.as_ref().map(|t| t.encoder_error_u));
     writeln!(out, "polycal plan: {} designs", reports.len())?;
     let width = reports
         .iter()
@@ -472,15 +516,15 @@ pub fn write_comparison_table<W: Write>(out: &mut W, reports: &[PlanReport]) -> 
         .clamp(6, 40);
     write!(
         out,
-        "{:<width$} {:>8} {:>8} {:>9} {:>9}",
-        "design", "readings", "time", "u(β)max", "u(α)max"
+        "{:<width$} {:>6} {:>8} {:>8} {:>9} {:>9}",
+        "design", "cycles", "readings", "time", "u(β)max", "u(α)max"
     )?;
     if budget {
         write!(out, " {:>9}", "U(α)max")?;
     }
-    write!(out, " {:>10} {:>8}", "drift″/h", "jump″")?;
-    if target {
-        write!(out, " {:>7}", "cycles")?;
+    write!(out, " {:>10} {:>8}", "drift″/h", "step″")?;
+    if target.is_some() {
+        write!(out, " {TARGET_CYCLES:>13} {TARGET_TIME:>11}")?;
     }
     writeln!(out)?;
     for r in reports {
@@ -488,8 +532,11 @@ pub fn write_comparison_table<W: Write>(out: &mut W, reports: &[PlanReport]) -> 
         let worst = r.worst.as_ref();
         write!(
             out,
-            "{:<width$} {:>8} {:>8} {:>9} {:>9}",
+            "{:<width$} {:>6} {:>8} {:>8} {:>9} {:>9}",
             name,
+            r.design
+                .as_ref()
+                .map_or("—".into(), |d| d.cycles.to_string()),
             r.readings,
             hours(r.duration_seconds),
             num(worst.map(|w| w.pitch_deviation_u), 4),
@@ -508,14 +555,14 @@ pub fn write_comparison_table<W: Write>(out: &mut W, reports: &[PlanReport]) -> 
             num(r.smallest("drift"), 4),
             num(r.smallest("offset-step"), 4)
         )?;
-        if target {
+        if target.is_some() {
+            let t = r.target.as_ref();
             write!(
                 out,
-                " {:>7}",
-                r.target
-                    .as_ref()
-                    .and_then(|t| t.cycles)
-                    .map_or("—".into(), |c| c.to_string())
+                " {:>13} {:>11}",
+                t.and_then(|t| t.cycles)
+                    .map_or("—".into(), |c| c.to_string()),
+                hours(t.and_then(|t| t.duration_seconds))
             )?;
         }
         if !r.lost_harmonics.is_empty() {
@@ -526,7 +573,42 @@ pub fn write_comparison_table<W: Write>(out: &mut W, reports: &[PlanReport]) -> 
     }
     writeln!(
         out,
-        "drift and jump: the smallest size a diagnosis finds in 90 % of runs; u at k = 1{}",
-        if budget { ", U with the budget" } else { "" }
-    )
+        "cycles: planned per mounting; readings and time (first stop to last): those of the planned cycles"
+    )?;
+    writeln!(
+        out,
+        "u(β)max, u(α)max: the largest u (k = 1) of a pitch deviation and of an encoder error, arcsec"
+    )?;
+    if budget {
+        writeln!(
+            out,
+            "U(α)max: the largest expanded uncertainty of an encoder error with the budget"
+        )?;
+    }
+    let alarms = reports
+        .first()
+        .map_or("—".into(), |r| percent(r.false_alarm_per_family));
+    writeln!(
+        out,
+        "drift″/h: the smallest autocollimator drift a diagnosis finds in 90 % of runs"
+    )?;
+    writeln!(
+        out,
+        "step″: the smallest offset step (a jump of an autocollimator's zero) it finds in 90 % of runs"
+    )?;
+    writeln!(
+        out,
+        "(each with {alarms} false alarms per family of candidates, as diagnose tests them)"
+    )?;
+    if let Some(a) = target {
+        writeln!(
+            out,
+            "{TARGET_CYCLES}: the fewest cycles per mounting that bring u(α)max to {a}″ or below"
+        )?;
+        writeln!(
+            out,
+            "{TARGET_TIME}: how long a run of the target cycles takes (first stop to last)"
+        )?;
+    }
+    Ok(())
 }

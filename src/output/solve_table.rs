@@ -100,6 +100,12 @@ pub fn write_sub_pitch_table<W: Write>(
     Ok(())
 }
 
+/// The nominal angle of face `face` (1 … N), degrees: f·360°/N from face N, the face
+/// whose deviation φ is 0 by definition (docs/FORMAT.md §1), so face N is at 360°.
+fn nominal_face_deg(face: usize, faces: usize) -> f64 {
+    face as f64 * 360.0 / faces as f64
+}
+
 /// The results section, with the encoder errors of every coset when `sub_pitch` has
 /// sub-pitch mountings.
 fn write_results_with<W: Write>(
@@ -144,7 +150,11 @@ fn write_results_with<W: Write>(
     let encoder_u = solution.encoder_error_u();
     let at = |v: &Option<Vec<f64>>, i: usize| v.as_ref().map(|v| v[i]);
     let opt = |v: Option<f64>, decimals: usize| fixed(v, decimals);
-    writeln!(out, "\nPolygon (arcsec)")?;
+    // the angle φ is measured against: face f at f·360°/N from face N (φ[N] = 0)
+    writeln!(
+        out,
+        "\nPolygon (arcsec; nominal/°: face f at f·360°/N from face N, where φ = 0, so face N at 360°)"
+    )?;
     match uncertainty {
         None => {
             writeln!(
@@ -157,7 +167,7 @@ fn write_results_with<W: Write>(
                     out,
                     "{:>5} {:>11.4} {:>9.4} {:>8} {:>9.4} {:>8}",
                     f + 1,
-                    f as f64 * 360.0 / n as f64,
+                    nominal_face_deg(f + 1, n),
                     solution.pitch_deviation[f],
                     fixed(at(&pitch_u, f), 4),
                     solution.face_deviation[f],
@@ -187,7 +197,7 @@ fn write_results_with<W: Write>(
                     out,
                     "{:>5} {:>11.4} {:>9.4} {:>8.4} {:>8.4} {:>6} {:>8.4} {:>9.4} {:>8.4} {:>6} {:>8.4}",
                     f + 1,
-                    f as f64 * 360.0 / n as f64,
+                    nominal_face_deg(f + 1, n),
                     solution.pitch_deviation[f],
                     b.u_a[f],
                     b.u[f],

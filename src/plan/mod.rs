@@ -305,6 +305,11 @@ pub struct TargetCycles {
     pub cycles: Option<u32>,
     /// The largest u(α) with that many cycles.
     pub reached_u: Option<f64>,
+    /// The readings of a run with that many cycles.
+    pub readings: Option<usize>,
+    /// From the first stop to the last of a run with that many cycles, seconds (as
+    /// [`Plan::duration_seconds`]); `None` when not reached or without times.
+    pub duration_seconds: Option<f64>,
 }
 
 /// What a design gives ([`plan`]).
@@ -322,6 +327,9 @@ pub struct Plan {
     pub sigma: f64,
     /// Residual degrees of freedom.
     pub dof: usize,
+    /// The false-alarm probability of each family of the diagnosis whose power
+    /// [`Plan::detectable`] predicts (`diagnose`'s, Bonferroni-divided within a family).
+    pub false_alarm_per_family: f64,
     /// The harmonics the design loses (empty when none); then there is no prediction.
     pub lost_harmonics: Vec<usize>,
     /// Why the design determines nothing when it loses something other than harmonics
@@ -368,6 +376,20 @@ pub fn plan(design: &Design, options: &PlanOptions) -> Result<Plan, PlanError> {
     Ok(planned)
 }
 
+/// From the first stop to the last, seconds: the span of the readings' `time`; `None`
+/// when a reading has none.
+fn duration_of(set: &MeasurementSet) -> Option<f64> {
+    let times: Vec<f64> = set.readings.iter().filter_map(|r| r.time_seconds).collect();
+    (!times.is_empty() && times.len() == set.readings.len()).then(|| {
+        let (lo, hi) = times
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+                (lo.min(t), hi.max(t))
+            });
+        hi - lo
+    })
+}
+
 /// Plans the design of a measurement set (its readings are not used): the uncertainties
 /// with σ, the lost harmonics, and what a diagnosis can see.
 ///
@@ -381,15 +403,7 @@ pub fn plan_set(set: &MeasurementSet, options: &PlanOptions) -> Result<Plan, Pla
         options.memory_limit_bytes,
     )?;
     let sigma = options.sigma.arcsec();
-    let times: Vec<f64> = set.readings.iter().filter_map(|r| r.time_seconds).collect();
-    let duration_seconds = (!times.is_empty() && times.len() == set.readings.len()).then(|| {
-        let (lo, hi) = times
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
-                (lo.min(t), hi.max(t))
-            });
-        hi - lo
-    });
+    let duration_seconds = duration_of(set);
     let mut planned = Plan {
         name: set.source.clone(),
         faces: set.faces,
@@ -397,6 +411,7 @@ pub fn plan_set(set: &MeasurementSet, options: &PlanOptions) -> Result<Plan, Pla
         duration_seconds,
         sigma,
         dof: 0,
+        false_alarm_per_family: options.diagnose.family_alpha,
         lost_harmonics: Vec::new(),
         unobservable: None,
         prediction: None,
@@ -567,6 +582,8 @@ fn fewest_cycles_within(
         encoder_error_u: target_arcsec,
         cycles: None,
         reached_u: None,
+        readings: None,
+        duration_seconds: None,
     };
     let (mut lo, mut hi) = (0u32, 1u32);
     let mut at_hi = match worst(1)? {
@@ -592,9 +609,15 @@ fn fewest_cycles_within(
             lo = mid;
         }
     }
+    // the run those cycles make: its readings and how long it takes
+    let set = design
+        .with_cycles(hi)
+        .measurement_set_within(memory_limit_bytes)?;
     Ok(TargetCycles {
         encoder_error_u: target_arcsec,
         cycles: Some(hi),
         reached_u: Some(at_hi),
+        readings: Some(set.readings.len()),
+        duration_seconds: duration_of(&set),
     })
 }
