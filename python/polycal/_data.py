@@ -68,20 +68,22 @@ class MeasurementSet:
         """The readings as a pandas DataFrame, one row per reading in file order, the
         columns of :meth:`columns` (named as the file's: ``setup``, ``cycle``, ``step``,
         ``ac``, ``face``, ``reading``, ``direction``, ``time``, ``reading_y``,
-        ``temperature``; NaN where a reading has no value). Needs pandas; the inverse of
-        :meth:`from_dataframe`."""
+        ``temperature``, ``encoder`` — the commanded position a file gave, degrees — and
+        ``shift`` for a set with shifted mountings; NaN where a reading has no value).
+        Needs pandas; the inverse of :meth:`from_dataframe`."""
         import pandas as pd
 
         return pd.DataFrame(self.columns())
 
     def columns(self) -> Dict[str, _np.ndarray]:
-        """The readings as numpy columns named as the file's; optional columns hold NaN
-        where a reading has no value."""
+        """The readings as numpy columns named as the file's (``encoder`` the commanded
+        position a file gave, degrees; ``shift`` only with shifted mountings); optional
+        columns hold NaN where a reading has no value."""
         out = {}
         for name, values in self._inner.columns().items():
             if name == "direction":
                 out[name] = _np.asarray(values, dtype=object)
-            elif name in ("reading", "time", "reading_y", "temperature"):
+            elif name in ("reading", "time", "reading_y", "temperature", "encoder", "shift"):
                 out[name] = _np.asarray(
                     [_np.nan if v is None else v for v in values], dtype=_np.float64
                 )

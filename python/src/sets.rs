@@ -78,7 +78,9 @@ impl PyMeasurementSet {
     }
 
     /// The readings as columns named as the file's (docs/FORMAT.md §2): lists, `None`
-    /// where a reading has no value of an optional column.
+    /// where a reading has no value of an optional column (`encoder` the commanded
+    /// position a file gave, degrees); `shift` (each reading's mounting's) only for a set
+    /// with shifted mountings.
     fn columns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let r = &self.inner.readings;
         let d = PyDict::new(py);
@@ -104,6 +106,17 @@ impl PyMeasurementSet {
             "temperature",
             r.iter().map(|x| x.temperature_celsius).collect::<Vec<_>>(),
         )?;
+        d.set_item(
+            "encoder",
+            r.iter().map(|x| x.encoder_degrees).collect::<Vec<_>>(),
+        )?;
+        if self.inner.has_shifts() {
+            let set = &self.inner;
+            d.set_item(
+                "shift",
+                r.iter().map(|x| set.shift_deg(x.setup)).collect::<Vec<_>>(),
+            )?;
+        }
         Ok(d)
     }
 }

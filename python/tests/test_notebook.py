@@ -184,6 +184,9 @@ def test_a_measurement_set_as_a_dataframe_has_the_files_columns():
     for column in ("cycle", "step", "ac", "face"):
         assert frame[column].tolist() == [int(r[column]) for r in rows], column
     assert frame["reading"].tolist() == [float(r["reading"]) for r in rows]
+    if "encoder" in rows[0]:
+        assert frame["encoder"].tolist() == [float(r["encoder"]) for r in rows]
+    assert "shift" not in frame
     again = polycal.MeasurementSet.from_dataframe(frame)
     assert polycal.solve(again).to_json() == polycal.solve(polycal.read_measurements(DATA)).to_json()
     selfcal = polycal.read_selfcal(SELFCAL).to_dataframe()
@@ -191,6 +194,21 @@ def test_a_measurement_set_as_a_dataframe_has_the_files_columns():
         rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
     assert selfcal["head_angle"].tolist() == [float(r["head_angle"]) for r in rows]
     assert isinstance(selfcal, pd.DataFrame)
+
+
+def test_a_set_with_shifted_mountings_keeps_its_shifts_in_the_dataframe(tmp_path):
+    pytest.importorskip("pandas")
+    path = tmp_path / "subpitch.csv"
+    cli("simulate", "--faces", "12", "--setups", "2", "--shift-deg", "0,7.5", "--cycles", "2",
+        "--seed", "3", "--out", path)
+    frame = polycal.read_measurements(path).to_dataframe()
+    with open(path) as f:
+        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    assert frame["shift"].tolist() == [float(r["shift"] or 0) for r in rows]
+    assert frame["encoder"].tolist() == [float(r["encoder"]) for r in rows]
+    again = polycal.solve(polycal.MeasurementSet.from_dataframe(frame))
+    assert again.to_dict()["encoder_error"] == json.loads(
+        cli("solve", path, "--format", "json"))["encoder_error"]
 
 
 def test_a_solve_result_as_a_dataframe_is_the_result_files_rows_with_angles():
