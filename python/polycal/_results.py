@@ -226,9 +226,10 @@ class SolveResult(Result):
         parts.append(f"α={_summary(d['encoder_error'])} arcsec")
         if "pitch_deviation_U" in d:
             k = d["pitch_deviation_k"]
+            low, high = _number(_np.nanmin(k)), _number(_np.nanmax(k))
             parts.append(
                 f"U(β) ≤ {_number(_np.nanmax(d['pitch_deviation_U']))} arcsec "
-                f"(k = {_number(_np.nanmin(k))} … {_number(_np.nanmax(k))}, p = {d['p']})"
+                f"(k = {low if low == high else f'{low} … {high}'}, p = {d['p']})"
             )
         elif d.get("pitch_deviation_u") is not None:
             parts.append(f"u(β) ≤ {_number(_np.nanmax(d['pitch_deviation_u']))} arcsec (k = 1)")

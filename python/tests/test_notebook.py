@@ -250,9 +250,11 @@ def test_a_dataframe_of_4320_rows_is_made_in_well_under_a_tenth_of_a_second():
     ms, _ = polycal.simulate(faces=1440, cycles=2, seed=2)
     result = polycal.solve(ms, budget=polycal.budget(BUDGET))
     result.to_dataframe()  # pandas' first call imports its parts
-    start = time.perf_counter()
-    frame = result.to_dataframe()
-    elapsed = time.perf_counter() - start
+    elapsed = math.inf
+    for _ in range(3):  # the best of three: a busy machine can stall any one call
+        start = time.perf_counter()
+        frame = result.to_dataframe()
+        elapsed = min(elapsed, time.perf_counter() - start)
     assert len(frame) == 3 * 1440 + 2  # β, φ (with φ[N]), α, two setup errors
     print(f"to_dataframe of {len(frame)} rows: {elapsed * 1000:.1f} ms")
     assert elapsed < 0.1
