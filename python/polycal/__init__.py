@@ -28,18 +28,36 @@ from ._data import (
     read_measurements,
     read_selfcal,
 )
-from ._polycal import DesignError, InputError, PolycalError
-from ._results import Result, SolveResult, _Rows, read_results
+from ._polycal import DesignError, FileNotFound, InputError, PolycalError, PolycalWarning
+from ._results import (
+    Comparison,
+    DiagnoseResult,
+    KeyComparison,
+    Result,
+    Section,
+    SelfcalResult,
+    SolveResult,
+    _Rows,
+    _warn_without_u,
+    read_results,
+)
 
 __all__ = [
     "PolycalError",
     "InputError",
     "DesignError",
+    "FileNotFound",
+    "PolycalWarning",
     "MeasurementSet",
     "SelfcalSet",
     "Budget",
     "Result",
+    "Section",
     "SolveResult",
+    "DiagnoseResult",
+    "SelfcalResult",
+    "Comparison",
+    "KeyComparison",
     "read_measurements",
     "read_selfcal",
     "read_results",
@@ -50,10 +68,13 @@ __all__ = [
     "compare",
     "kc",
     "simulate",
+    "simulate_selfcal",
     "__version__",
 ]
 
 __version__ = _polycal.version()
+
+
 def _sigma(sigma: Optional[float]) -> Optional[float]:
     return None if sigma is None else float(sigma)
 
@@ -71,8 +92,10 @@ def solve(
     ``closed-form``, ``lsq``, ``dense``); with a budget, U and k of every result (eqs.
     (11)–(13)); with ``monte_carlo`` (a number of trials or ``"adaptive"``) the JCGM 101
     evaluation. ``sigma`` is σ of one reading for an exactly determined fit (dof = 0).
-    A design that cannot determine some harmonics raises ``DesignError``."""
-    return SolveResult(
+    A design that cannot determine some harmonics raises ``DesignError``; a fit without
+    residual degrees of freedom and without ``sigma`` has no u (``None``) and warns
+    (``PolycalWarning``)."""
+    result = SolveResult(
         _polycal.solve(
             ms._inner,
             method=method,
@@ -82,6 +105,8 @@ def solve(
             seed=seed,
         )
     )
+    _warn_without_u(result, "solve")
+    return result
 
 
 def diagnose(
@@ -91,7 +116,7 @@ def diagnose(
     budget: Optional[Budget] = None,
     monte_carlo: Union[None, int, str] = None,
     seed: int = 1,
-) -> Result:
+) -> DiagnoseResult:
     """Diagnoses the set as ``polycal diagnose`` does: finds the effects the model lacks,
     adds them, and says whether the final model is adequate; with a truth (a dict or JSON
     text, as :func:`simulate` returns) the error before and after. With a budget, U and k
@@ -100,7 +125,7 @@ def diagnose(
     ``monte_carlo``)."""
     if isinstance(truth, dict):
         truth = _json.dumps(truth)
-    return Result(
+    result = DiagnoseResult(
         _polycal.diagnose(
             ms._inner,
             truth=truth,
@@ -110,6 +135,8 @@ def diagnose(
             seed=seed,
         )
     )
+    _warn_without_u(result, "diagnose")
+    return result
 
 
 def selfcal(
@@ -118,11 +145,11 @@ def selfcal(
     budget: Optional[Budget] = None,
     monte_carlo: Union[None, int, str] = None,
     seed: int = 1,
-) -> Result:
+) -> SelfcalResult:
     """Self-calibrates the encoder from a multi-head run as ``polycal selfcal`` does; with
     a budget, U and k of e and of the heads' errors, and with ``monte_carlo`` (a number of
     trials or ``"adaptive"``) the budget's JCGM 101 evaluation (``monte_carlo``)."""
-    return Result(
+    result = SelfcalResult(
         _polycal.selfcal(
             set._inner,
             sigma=_sigma(sigma),
@@ -131,6 +158,8 @@ def selfcal(
             seed=seed,
         )
     )
+    _warn_without_u(result, "selfcal")
+    return result
 
 
 def compare(
@@ -138,12 +167,12 @@ def compare(
     b: Union[SolveResult, _Rows, PathOrText],
     correlation: float = 0.0,
     include_setup: bool = False,
-) -> Result:
+) -> Comparison:
     """Compares two results by En (the paper's eqs. (14)–(15), ISO 13528) as ``polycal
     compare`` does: ``rows`` with ``en`` per quantity, ``max_abs_en``; each of ``a`` and
     ``b`` a :class:`SolveResult` (with a budget) or a result file."""
 
-    return Result(
+    return Comparison(
         _polycal.compare_rows(
             _rows_of(a),
             _rows_of(b),
@@ -167,7 +196,7 @@ def kc(
     pilot: Optional[Sequence[Tuple[str, Union[SolveResult, _Rows, PathOrText]]]] = None,
     quantity: str = "pitch_deviation",
     method: str = "weighted-mean",
-) -> Result:
+) -> KeyComparison:
     """Evaluates a key comparison as ``polycal kc`` does (docs/FORMAT.md §12): per face
     (or per common angle for ``quantity="encoder_error"``) the reference (weighted mean,
     or ``method="dersimonian-laird"``) with ``reference_u``, ``chi2`` and ``consistent``;
@@ -179,7 +208,7 @@ def kc(
     def named(items: Any) -> Any:
         return [(str(name), _rows_of(result)) for name, result in items]
 
-    return Result(
+    return KeyComparison(
         _polycal.kc(
             named(labs.items()),
             named(pilot or ()),
@@ -187,6 +216,41 @@ def kc(
             method=str(method),
         )
     )
+
+
+Specs = Union[str, Sequence[Any], Sequence[Union[str, Sequence[Any]]]]
+
+
+def _specs(name: str, value: Any) -> list:
+    """An effect option as the command's specs: one spec (``"2:1.5"`` or ``(2, 1.5)``) or
+    a list of them; a tuple's parts joined by ``:`` (numbers as Python writes them, which
+    the library reads back to the same float)."""
+    if value is None:
+        return []
+    if isinstance(value, str):
+        return [value]
+    items = list(value)
+    if items and all(not isinstance(v, (str, list, tuple)) for v in items):
+        items = [items]  # one spec given as a tuple of numbers
+    out = []
+    for item in items:
+        if isinstance(item, str):
+            out.append(item)
+        elif isinstance(item, (list, tuple)):
+            out.append(":".join(repr(float(v)) if isinstance(v, float) else str(v) for v in item))
+        else:
+            raise TypeError(f"{name}: expected a spec such as \"1:0.5\" or a tuple, got {item!r}")
+    return out
+
+
+def _model(name: str, value: Any) -> Optional[str]:
+    """A model option: ``None``/``False`` none, ``True`` the command's default model, a
+    spec string, or a tuple of the spec's numbers."""
+    if value is None or value is False:
+        return None
+    if value is True:
+        return ""
+    return _specs(name, value)[0] if not isinstance(value, str) else value
 
 
 def simulate(
@@ -202,9 +266,44 @@ def simulate(
     setups: int = 1,
     setup_shift_faces: Optional[int] = None,
     seed: int = 1,
+    *,
+    setup_shift: Optional[int] = None,
+    shift_deg: Optional[Sequence[float]] = None,
+    harmonic: Specs = None,
+    noise_dof: Optional[float] = None,
+    temperature: Union[None, bool, str, Sequence[float]] = None,
+    elevation: Union[None, bool, str, Sequence[float]] = None,
+    drift: Specs = None,
+    offset_step: Specs = None,
+    temperature_effect: Specs = None,
+    cross_talk: Specs = None,
+    direction: Specs = None,
+    outlier: Specs = None,
+    rezero: Specs = None,
+    random_walk: Specs = None,
+    no_time: bool = False,
 ) -> Tuple[MeasurementSet, Dict[str, Any]]:
-    """A simulated run with a known truth, as ``polycal simulate`` draws it: the set and
-    the truth (β, α, the setup errors) as a dict."""
+    """A simulated polygon run with a known truth, as ``polycal simulate`` draws it: the
+    set and the truth (β, α, the setup errors, the effects; docs/FORMAT.md §4) as a dict.
+    Same seed and options, same readings: ``set.write(path)`` is the command's ``--out``
+    file to the byte (``closing`` is on by default here, off on the command line).
+
+    Every option is the command's (docs/FORMAT.md §5.5), named with ``_`` for ``-`` and
+    in its units: ``harmonic`` (encoder harmonics ``ORDER:AMPLITUDE[:PHASE]``, arcsec and
+    radians), ``setup_shift`` (whole faces between mountings; ``setup_shift_faces`` is the
+    same), ``shift_deg`` (the table's angle at step 0 of each mounting, degrees),
+    ``noise_dof`` (Student-t noise), ``temperature`` and ``elevation`` (``True`` for the
+    command's default model, or its spec), and the effects, each one spec or a list of
+    them, a spec a string or a tuple of its numbers: ``drift`` ``AC:RATE[:QUADRATIC]``
+    (arcsec per hour), ``offset_step`` ``[SETUP:AC:CYCLE:STEP|AC:CYCLE[:STEP]]:VALUE``,
+    ``temperature_effect`` ``AC:COEFF`` (arcsec per °C; needs ``temperature``),
+    ``cross_talk`` ``AC:COEFF`` (needs ``elevation``), ``direction`` ``[AC:]VALUE``
+    (needs ``bidirectional``), ``outlier`` ``[SETUP:]CYCLE:STEP:AC:VALUE``, ``rezero``
+    ``AC:SIGMA`` (re-zeroing every cycle), ``random_walk`` ``AC:RATE_PER_SQRT_H``, and
+    ``no_time`` (no ``time`` column). A spec the library refuses raises ``ValueError``
+    naming the option."""
+    if setup_shift is not None and setup_shift_faces is not None and setup_shift != setup_shift_faces:
+        raise ValueError("setup_shift and setup_shift_faces are one option: give one of them")
     inner, truth = _polycal.simulate(
         faces=faces,
         ac_faces=list(ac_faces),
@@ -213,11 +312,69 @@ def simulate(
         bidirectional=bidirectional,
         noise=noise,
         pitch_spread=pitch_spread,
+        harmonic=_specs("harmonic", harmonic),
         setup_spread=setup_spread,
         step_seconds=step_seconds,
         setups=setups,
-        setup_shift_faces=setup_shift_faces,
+        setup_shift_faces=setup_shift if setup_shift is not None else setup_shift_faces,
+        shift_deg=[float(v) for v in (shift_deg or ())],
         seed=seed,
+        noise_dof=None if noise_dof is None else float(noise_dof),
+        temperature=_model("temperature", temperature),
+        elevation=_model("elevation", elevation),
+        drift=_specs("drift", drift),
+        offset_step=_specs("offset_step", offset_step),
+        temperature_effect=_specs("temperature_effect", temperature_effect),
+        cross_talk=_specs("cross_talk", cross_talk),
+        direction=_specs("direction", direction),
+        outlier=_specs("outlier", outlier),
+        rezero=_specs("rezero", rezero),
+        random_walk=_specs("random_walk", random_walk),
+        no_time=bool(no_time),
     )
     return MeasurementSet(inner), _json.loads(truth)
 
+
+def simulate_selfcal(
+    positions: int = 168,
+    heads: Union[str, Sequence[float]] = "selfa",
+    cycles: int = 2,
+    bidirectional: bool = False,
+    noise: float = 0.02,
+    harmonic: Specs = None,
+    max_order: int = 60,
+    table_error: float = 1.0,
+    head_error: float = 2.0,
+    step_seconds: float = 20.0,
+    seed: int = 1,
+) -> Tuple[SelfcalSet, Dict[str, Any]]:
+    """A simulated self-calibration run with a known truth, as ``polycal simulate
+    --selfcal`` draws it (docs/FORMAT.md §9): reading = t[cycle, step] + e(step·360°/P +
+    head angle) + c[head] + noise. The set and the truth as a dict; ``set.write(path)`` is
+    the command's ``--out`` file to the byte. The options are the command's, with its
+    defaults and units: ``positions`` P, ``heads`` (``"selfa"``, the SelfA encoder's
+    twelve, or the head angles from head 1 in degrees, head 1 first at 0), ``cycles``,
+    ``bidirectional``, ``noise`` (arcsec), ``harmonic`` (the disc's graduation error as
+    ``ORDER:AMPLITUDE[:PHASE]`` specs, else drawn to ``max_order``), ``table_error`` (σ of
+    the table's error at every stop, arcsec), ``head_error`` (the head errors drawn in
+    ± this, arcsec), ``step_seconds`` and ``seed``."""
+    if isinstance(heads, str):
+        if heads.strip().lower() != "selfa":
+            raise ValueError(f"heads {heads!r}: expected \"selfa\" or the head angles in degrees")
+        angles = None
+    else:
+        angles = [float(a) for a in heads]
+    inner, truth = _polycal.simulate_selfcal(
+        positions=positions,
+        heads=angles,
+        cycles=cycles,
+        bidirectional=bidirectional,
+        noise=noise,
+        harmonic=_specs("harmonic", harmonic),
+        max_order=max_order,
+        table_error=table_error,
+        head_error=head_error,
+        step_seconds=step_seconds,
+        seed=seed,
+    )
+    return SelfcalSet(inner), _json.loads(truth)

@@ -7,11 +7,12 @@ from __future__ import annotations
 import json as _json
 import os as _os
 import warnings as _warnings
-from typing import Any, Dict, Optional, Sequence, Union
+from typing import Any, Dict, List, Optional, Sequence, Union
 
 import numpy as _np
 
 from . import _polycal
+from ._polycal import PolycalWarning
 
 PathOrText = Union[str, "_os.PathLike[str]"]
 
@@ -51,14 +52,38 @@ class MeasurementSet:
     def __repr__(self) -> str:
         return repr(self._inner)
 
+    @property
+    def comments(self) -> List[str]:
+        """The comment lines :meth:`write` puts at the head of the file (a simulated run's
+        description, as ``polycal simulate`` writes it); empty for a set read or built."""
+        return self._inner.comments
+
+    def write(self, path: PathOrText) -> None:
+        """Writes the set as a measurement file (docs/FORMAT.md §2), whole or not at all
+        (a new file renamed over the old one), with its :attr:`comments` first: a set of
+        :func:`simulate` is then the file ``polycal simulate --out`` writes, to the byte."""
+        self._inner.write(_os.fspath(path))
+
+    def to_dataframe(self) -> Any:
+        """The readings as a pandas DataFrame, one row per reading in file order, the
+        columns of :meth:`columns` (named as the file's: ``setup``, ``cycle``, ``step``,
+        ``ac``, ``face``, ``reading``, ``direction``, ``time``, ``reading_y``,
+        ``temperature``, ``encoder`` — the commanded position a file gave, degrees — and
+        ``shift`` for a set with shifted mountings; NaN where a reading has no value).
+        Needs pandas; the inverse of :meth:`from_dataframe`."""
+        import pandas as pd
+
+        return pd.DataFrame(self.columns())
+
     def columns(self) -> Dict[str, _np.ndarray]:
-        """The readings as numpy columns named as the file's; optional columns hold NaN
-        where a reading has no value."""
+        """The readings as numpy columns named as the file's (``encoder`` the commanded
+        position a file gave, degrees; ``shift`` only with shifted mountings); optional
+        columns hold NaN where a reading has no value."""
         out = {}
         for name, values in self._inner.columns().items():
             if name == "direction":
                 out[name] = _np.asarray(values, dtype=object)
-            elif name in ("reading", "time", "reading_y", "temperature"):
+            elif name in ("reading", "time", "reading_y", "temperature", "encoder", "shift"):
                 out[name] = _np.asarray(
                     [_np.nan if v is None else v for v in values], dtype=_np.float64
                 )
@@ -208,7 +233,8 @@ def _real_column(name: str, values: Any, optional: bool) -> list:
 def read_measurements(source: PathOrText, faces: Optional[int] = None) -> MeasurementSet:
     """Reads a measurement file, or a measurement file's text (a string with a line
     break). A file that is not valid raises ``InputError`` with ``path``, ``line`` and
-    ``column``."""
+    ``column``; a file that is not there ``FileNotFound`` (a ``FileNotFoundError``, with
+    ``filename`` and ``path``)."""
     return MeasurementSet(_polycal.read_measurements(faces=faces, **_path_or_text(source)))
 
 
@@ -221,6 +247,54 @@ class SelfcalSet:
 
     def __len__(self) -> int:
         return len(self._inner)
+
+    def __repr__(self) -> str:
+        return repr(self._inner)
+
+    @property
+    def positions(self) -> int:
+        """P, the number of table positions per turn."""
+        return self._inner.positions
+
+    @property
+    def source(self) -> str:
+        """Where the readings came from."""
+        return self._inner.source
+
+    @property
+    def comments(self) -> List[str]:
+        """The comment lines :meth:`write` puts at the head of the file (a simulated run's
+        description, as ``polycal simulate --selfcal`` writes it)."""
+        return self._inner.comments
+
+    def write(self, path: PathOrText) -> None:
+        """Writes the set as a self-calibration file (docs/FORMAT.md §9.2), whole or not
+        at all, with its :attr:`comments` first: a set of :func:`simulate_selfcal` is then
+        the file ``polycal simulate --selfcal --out`` writes, to the byte."""
+        self._inner.write(_os.fspath(path))
+
+    def columns(self) -> Dict[str, _np.ndarray]:
+        """The readings as numpy columns named as the file's (``cycle``, ``step``,
+        ``head``, ``head_angle``, ``reading``, ``direction``, ``time``; NaN where a
+        reading has no time)."""
+        out = {}
+        for name, values in self._inner.columns().items():
+            if name == "direction":
+                out[name] = _np.asarray(values, dtype=object)
+            elif name in ("head_angle", "reading", "time"):
+                out[name] = _np.asarray(
+                    [_np.nan if v is None else v for v in values], dtype=_np.float64
+                )
+            else:
+                out[name] = _np.asarray(values, dtype=_np.int64)
+        return out
+
+    def to_dataframe(self) -> Any:
+        """The readings as a pandas DataFrame with the columns of :meth:`columns`. Needs
+        pandas; the inverse of :meth:`from_dataframe`."""
+        import pandas as pd
+
+        return pd.DataFrame(self.columns())
 
     @classmethod
     def from_arrays(
@@ -266,17 +340,51 @@ def read_selfcal(source: PathOrText, positions: Optional[int] = None) -> Selfcal
 
 
 class Budget:
-    """An instrument budget (docs/FORMAT.md §5.1)."""
+    """An instrument budget (docs/FORMAT.md §5.1): its coverage probability ``p`` and its
+    ``components``; the repr lists them."""
 
     def __init__(self, inner: Any) -> None:
         self._inner = inner
+
+    @property
+    def p(self) -> float:
+        """The coverage probability of every U."""
+        return self._inner.p
+
+    @property
+    def source(self) -> str:
+        """Where the budget came from: its path, or the name of its text."""
+        return self._inner.source
+
+    @property
+    def components(self) -> List[Dict[str, Any]]:
+        """The components in file order (nested budgets flattened), each a dict: ``name``,
+        ``type`` (A or B), ``distribution``, ``u`` (|c|·u(x), arcsec: the standard
+        uncertainty one draw adds to a reading), ``sensitivity``, ``dof`` (``None``:
+        infinitely many) and ``acts_on`` (which readings share one draw)."""
+        return self._inner.components()
+
+    def notes(self) -> List[str]:
+        """The cautions ``polycal`` prints when it reads the budget."""
+        return self._inner.notes()
+
+    def __repr__(self) -> str:
+        lines = [f"Budget(p = {self.p}, from {self.source}:"]
+        for c in self.components:
+            dof = "∞" if c["dof"] is None else f"{c['dof']:g}"
+            lines.append(
+                f"  {c['name']}: type {c['type']}, {c['distribution']}, "
+                f"u = {c['u']:.4g} arcsec, ν = {dof}, acts on {c['acts_on']}"
+            )
+        return "\n".join(lines) + ")"
 
 
 def budget(source: Union[PathOrText, Dict[str, Any]]) -> Budget:
     """An instrument budget from a TOML file, its text, or a dict with the file's keys
     (e.g. ``{"p": 0.95, "component": [{...}, ...]}``). The cautions ``polycal`` prints when
     it reads a budget (a type A component that the fit already counts) are issued as
-    ``UserWarning``. A dict that is not a valid budget raises ``ValueError`` quoting the
+    ``PolycalWarning`` (a ``UserWarning``). A file that is not there raises
+    ``FileNotFound`` (a ``FileNotFoundError``). A dict that is not a valid budget raises ``ValueError`` quoting the
     entry at fault."""
     if isinstance(source, dict):
         text = _toml(source)
@@ -290,7 +398,7 @@ def budget(source: Union[PathOrText, Dict[str, Any]]) -> Budget:
     else:
         inner = _polycal.read_budget(**_path_or_text(source))
     for note in inner.notes():
-        _warnings.warn(note, UserWarning, stacklevel=2)
+        _warnings.warn(note, PolycalWarning, stacklevel=2)
     return Budget(inner)
 
 

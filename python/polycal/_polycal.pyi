@@ -1,9 +1,14 @@
 """Type stubs of the native module (python/src/lib.rs); the package's public API is
 polycal/__init__.py, typed inline."""
 
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 class PolycalError(Exception): ...
+
+class FileNotFound(PolycalError, FileNotFoundError):
+    path: str
+
+class PolycalWarning(UserWarning): ...
 
 class InputError(PolycalError):
     path: str
@@ -18,13 +23,29 @@ class MeasurementSet:
     def faces(self) -> int: ...
     @property
     def source(self) -> str: ...
+    @property
+    def comments(self) -> List[str]: ...
     def __len__(self) -> int: ...
     def columns(self) -> Dict[str, list]: ...
+    def write(self, path: str) -> None: ...
 
 class SelfcalSet:
+    @property
+    def positions(self) -> int: ...
+    @property
+    def source(self) -> str: ...
+    @property
+    def comments(self) -> List[str]: ...
     def __len__(self) -> int: ...
+    def columns(self) -> Dict[str, list]: ...
+    def write(self, path: str) -> None: ...
 
 class Budget:
+    @property
+    def source(self) -> str: ...
+    @property
+    def p(self) -> float: ...
+    def components(self) -> List[Dict[str, Any]]: ...
     def notes(self) -> List[str]: ...
 
 class ResultRows:
@@ -36,6 +57,7 @@ class SolveResult:
     def json(self) -> str: ...
     def rows(self) -> ResultRows: ...
     def encoder_angle_deg(self) -> List[float]: ...
+    def face_angle_deg(self) -> List[float]: ...
     def covariance(self, family: str) -> Optional[Tuple[int, List[float]]]: ...
 
 def version() -> str: ...
@@ -90,12 +112,39 @@ def simulate(
     bidirectional: bool = False,
     noise: float = 0.05,
     pitch_spread: Optional[float] = None,
+    harmonic: Sequence[str] = ...,
     setup_spread: Optional[float] = None,
     step_seconds: Optional[float] = None,
     setups: int = 1,
     setup_shift_faces: Optional[int] = None,
+    shift_deg: Sequence[float] = ...,
     seed: int = 1,
+    noise_dof: Optional[float] = None,
+    temperature: Optional[str] = None,
+    elevation: Optional[str] = None,
+    drift: Sequence[str] = ...,
+    offset_step: Sequence[str] = ...,
+    temperature_effect: Sequence[str] = ...,
+    cross_talk: Sequence[str] = ...,
+    direction: Sequence[str] = ...,
+    outlier: Sequence[str] = ...,
+    rezero: Sequence[str] = ...,
+    random_walk: Sequence[str] = ...,
+    no_time: bool = False,
 ) -> Tuple[MeasurementSet, str]: ...
+def simulate_selfcal(
+    positions: int = 168,
+    heads: Optional[Sequence[float]] = None,
+    cycles: int = 2,
+    bidirectional: bool = False,
+    noise: float = 0.02,
+    harmonic: Sequence[str] = ...,
+    max_order: int = 60,
+    table_error: float = 1.0,
+    head_error: float = 2.0,
+    step_seconds: float = 20.0,
+    seed: int = 1,
+) -> Tuple[SelfcalSet, str]: ...
 def diagnose(
     ms: MeasurementSet,
     truth: Optional[str] = None,

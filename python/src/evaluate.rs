@@ -1,5 +1,5 @@
 //! The evaluations, each as its command makes it and returning its JSON object: solve
-//! (with the budget and Monte Carlo), compare, simulate, diagnose, selfcal.
+//! (with the budget and Monte Carlo), compare, kc, diagnose, selfcal.
 
 use polycal::compare::{CompareOptions, Comparison, compare};
 use polycal::diagnose::{DiagnoseOptions, diagnose as diagnose_set};
@@ -10,7 +10,7 @@ use polycal::output::diagnose::DiagnoseReport;
 use polycal::output::selfcal::SelfcalReport;
 use polycal::results::{Quantity, ResultRow};
 use polycal::selfcal::SelfcalOptions;
-use polycal::simulate::{SimulationConfig, Truth};
+use polycal::simulate::Truth;
 use polycal::solve::sub_pitch::{ShiftGeometry, solve_shifted};
 use polycal::solve::{Method, Solution, SolveError, SolveOptions};
 use polycal::uncertainty::calibration::{McOptions, McSolver, evaluate};
@@ -46,8 +46,12 @@ impl PyRows {
 /// Reads a result file (docs/FORMAT.md §3).
 #[pyfunction]
 pub(crate) fn read_results(py: Python<'_>, path: &str) -> PyResult<PyRows> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| input_error(py, format!("{path}: {e}"), Some(&Location::file_only(path))))?;
+    let bytes = std::fs::read(path).map_err(|e| {
+        if crate::is_not_found(&e) {
+            return crate::file_not_found(py, path, &e);
+        }
+        input_error(py, format!("{path}: {e}"), Some(&Location::file_only(path)))
+    })?;
     let file = polycal::results::read_results_from(bytes.as_slice(), path)
         .map_err(|e| results_error(py, e))?;
     Ok(PyRows {
@@ -88,6 +92,15 @@ impl PySolveResult {
         let positions = self.solution.encoder_error.len();
         (0..positions)
             .map(|p| polycal::measurement::step_angle_deg(p as u32, positions))
+            .collect()
+    }
+
+    /// The nominal angle of every face f = 1 … N, degrees: f·360°/N (`step_angle_deg`,
+    /// face N at 360°).
+    fn face_angle_deg(&self) -> Vec<f64> {
+        let faces = self.solution.pitch_deviation.len();
+        (1..=faces)
+            .map(|f| polycal::measurement::step_angle_deg(f as u32, faces))
             .collect()
     }
 
@@ -306,48 +319,6 @@ pub(crate) fn kc(
         .detach(|| polycal::kc::evaluate(&labs, &pilot, &options))
         .map_err(refusal)?;
     to_json(&comparison)
-}
-
-/// Simulates a run with a known truth (`polycal simulate`): the set and the truth's JSON.
-#[pyfunction]
-#[pyo3(signature = (faces=24, ac_faces=vec![1, 2], cycles=6, closing=true, bidirectional=false, noise=0.05, pitch_spread=None, setup_spread=None, step_seconds=None, setups=1, setup_shift_faces=None, seed=1))]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn simulate(
-    py: Python<'_>,
-    faces: usize,
-    ac_faces: Vec<usize>,
-    cycles: u32,
-    closing: bool,
-    bidirectional: bool,
-    noise: f64,
-    pitch_spread: Option<f64>,
-    setup_spread: Option<f64>,
-    step_seconds: Option<f64>,
-    setups: u32,
-    setup_shift_faces: Option<usize>,
-    seed: u64,
-) -> PyResult<(PyMeasurementSet, String)> {
-    let defaults = SimulationConfig::default();
-    let config = SimulationConfig {
-        faces,
-        ac_faces,
-        cycles,
-        closing,
-        bidirectional,
-        noise_arcsec: noise,
-        pitch_spread_arcsec: pitch_spread.unwrap_or(defaults.pitch_spread_arcsec),
-        setup_error_spread_arcsec: setup_spread.unwrap_or(defaults.setup_error_spread_arcsec),
-        step_seconds: step_seconds.unwrap_or(defaults.step_seconds),
-        setups,
-        setup_shift_faces: setup_shift_faces.unwrap_or(defaults.setup_shift_faces),
-        seed,
-        ..defaults
-    };
-    let (set, truth) = py
-        .detach(|| polycal::simulate::simulate(&config))
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
-    let truth = serde_json::to_string(&truth).map_err(refusal)?;
-    Ok((PyMeasurementSet { inner: set }, truth))
 }
 
 /// Diagnoses a measurement set as `polycal diagnose` does; returns its JSON object (the

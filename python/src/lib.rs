@@ -6,11 +6,15 @@
 //! Every refusal of the library becomes a Python exception with the library's one-line
 //! message: `InputError` (with `path`, `line`, `column`) for a file or text that is not
 //! valid, `DesignError` (with `lost_harmonics`) for a design that cannot determine some
-//! harmonics, `PolycalError` for the rest, `ValueError` for a bad argument. A Rust panic
-//! becomes `pyo3_runtime.PanicException`, never an abort.
+//! harmonics, `FileNotFound` (a `PolycalError` and a `FileNotFoundError`, with `filename`,
+//! `path` and `errno`) for a file that is not there, `PolycalError` for the rest,
+//! `ValueError` for a bad argument. A Rust panic becomes `pyo3_runtime.PanicException`,
+//! never an abort. The cautions the commands print as `warning:` lines are
+//! `PolycalWarning`s (a `UserWarning`).
 
 mod evaluate;
 mod sets;
+mod simulate;
 
 use std::path::Path;
 
@@ -20,8 +24,10 @@ use polycal::results::ResultsError;
 use polycal::selfcal::SelfcalError;
 use polycal::solve::SolveError;
 use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyValueError};
+use pyo3::exceptions::{PyException, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyDict, PyTuple, PyType};
 
 use evaluate::{PyRows, PySolveResult};
 use sets::{PyBudget, PyMeasurementSet, PySelfcalSet};
@@ -45,6 +51,64 @@ create_exception!(
     "A design that cannot determine some harmonics: `lost_harmonics` lists them."
 );
 
+create_exception!(
+    _polycal,
+    PolycalWarning,
+    PyUserWarning,
+    "A caution of the polycal library (what the command line prints as a `warning:` line)."
+);
+
+/// The class `FileNotFound(PolycalError, FileNotFoundError)`, made when the module is.
+static FILE_NOT_FOUND: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+
+/// Makes the class `FileNotFound`: a refusal of the library that a Python user catches as
+/// the built-in `FileNotFoundError` too.
+fn file_not_found_class(py: Python<'_>) -> PyResult<Bound<'_, PyType>> {
+    let builtins = py.import("builtins")?;
+    let bases = PyTuple::new(
+        py,
+        [
+            py.get_type::<PolycalError>().into_any(),
+            builtins.getattr("FileNotFoundError")?,
+        ],
+    )?;
+    let namespace = PyDict::new(py);
+    namespace.set_item("__module__", "polycal")?;
+    namespace.set_item(
+        "__doc__",
+        "A file that is not there: a `PolycalError` and a `FileNotFoundError`, with \
+         `filename` and `path` the path as given and `errno` ENOENT.",
+    )?;
+    let class = builtins
+        .getattr("type")?
+        .call1(("FileNotFound", bases, namespace))?;
+    Ok(class.cast_into::<PyType>()?)
+}
+
+/// A `FileNotFound` for `path` (the path as given), from the error the system gave.
+pub(crate) fn file_not_found(py: Python<'_>, path: &str, source: &std::io::Error) -> PyErr {
+    let Some(class) = FILE_NOT_FOUND.get(py) else {
+        return PolycalError::new_err(format!("{path}: {source}"));
+    };
+    // ENOENT is 2 on every system Python runs on; the system's own number when it gave one
+    let errno = source.raw_os_error().unwrap_or(2);
+    match class
+        .bind(py)
+        .call1((errno, "No such file or directory", path))
+    {
+        Ok(value) => {
+            let _ = value.setattr("path", path);
+            PyErr::from_value(value)
+        }
+        Err(e) => e,
+    }
+}
+
+/// Whether an input/output error says the file is not there.
+pub(crate) fn is_not_found(source: &std::io::Error) -> bool {
+    source.kind() == std::io::ErrorKind::NotFound
+}
+
 /// An `InputError` at a location (or none).
 pub(crate) fn input_error(py: Python<'_>, message: String, at: Option<&Location>) -> PyErr {
     let error = InputError::new_err(message);
@@ -60,6 +124,11 @@ pub(crate) fn input_error(py: Python<'_>, message: String, at: Option<&Location>
 }
 
 pub(crate) fn measurement_error(py: Python<'_>, e: MeasurementError) -> PyErr {
+    if let MeasurementError::Io { file, source } = &e
+        && is_not_found(source)
+    {
+        return file_not_found(py, file, source);
+    }
     let at = e.location().cloned();
     input_error(py, e.to_string(), at.as_ref())
 }
@@ -70,6 +139,11 @@ pub(crate) fn results_error(py: Python<'_>, e: ResultsError) -> PyErr {
 }
 
 pub(crate) fn selfcal_error(py: Python<'_>, e: SelfcalError) -> PyErr {
+    if let SelfcalError::Io { file, source } = &e
+        && is_not_found(source)
+    {
+        return file_not_found(py, file, source);
+    }
     let at = e.location().cloned();
     input_error(py, e.to_string(), at.as_ref())
 }
@@ -139,6 +213,10 @@ fn _polycal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("PolycalError", py.get_type::<PolycalError>())?;
     m.add("InputError", py.get_type::<InputError>())?;
     m.add("DesignError", py.get_type::<DesignError>())?;
+    m.add("PolycalWarning", py.get_type::<PolycalWarning>())?;
+    let file_not_found =
+        FILE_NOT_FOUND.get_or_try_init(py, || file_not_found_class(py).map(Bound::unbind))?;
+    m.add("FileNotFound", file_not_found.bind(py))?;
     m.add_class::<PyMeasurementSet>()?;
     m.add_class::<PyBudget>()?;
     m.add_class::<PyRows>()?;
@@ -152,7 +230,8 @@ fn _polycal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate::solve, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::compare_rows, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::kc, m)?)?;
-    m.add_function(wrap_pyfunction!(evaluate::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate::simulate_selfcal, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(sets::read_selfcal, m)?)?;
     m.add_function(wrap_pyfunction!(sets::selfcal_set_from_columns, m)?)?;

@@ -11,13 +11,28 @@ use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::{direction_at, input_error, measurement_error, read_source, refusal, selfcal_error};
+use crate::{
+    direction_at, file_not_found, input_error, is_not_found, measurement_error, read_source,
+    refusal, selfcal_error,
+};
 
 /// A measurement set (docs/FORMAT.md §2).
 #[pyclass(name = "MeasurementSet", module = "polycal._polycal", frozen)]
 #[derive(Clone)]
 pub(crate) struct PyMeasurementSet {
     pub(crate) inner: MeasurementSet,
+    /// The comment lines a written file starts with (a simulated run's description).
+    pub(crate) comments: Vec<String>,
+}
+
+impl PyMeasurementSet {
+    /// A set without comment lines.
+    pub(crate) fn new(inner: MeasurementSet) -> Self {
+        PyMeasurementSet {
+            inner,
+            comments: Vec::new(),
+        }
+    }
 }
 
 #[pymethods]
@@ -47,8 +62,25 @@ impl PyMeasurementSet {
         )
     }
 
+    /// Writes the set as a measurement file (docs/FORMAT.md §2) at `path`, whole or not
+    /// at all, starting with its comment lines (a simulated run's, as `polycal simulate`
+    /// writes them).
+    fn write(&self, py: Python<'_>, path: &str) -> PyResult<()> {
+        let comments = &self.comments;
+        py.detach(|| self.inner.write_path(Path::new(path), comments))
+            .map_err(|e| measurement_error(py, e))
+    }
+
+    /// The comment lines a written file starts with.
+    #[getter]
+    fn comments(&self) -> Vec<String> {
+        self.comments.clone()
+    }
+
     /// The readings as columns named as the file's (docs/FORMAT.md §2): lists, `None`
-    /// where a reading has no value of an optional column.
+    /// where a reading has no value of an optional column (`encoder` the commanded
+    /// position a file gave, degrees); `shift` (each reading's mounting's) only for a set
+    /// with shifted mountings.
     fn columns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let r = &self.inner.readings;
         let d = PyDict::new(py);
@@ -74,6 +106,17 @@ impl PyMeasurementSet {
             "temperature",
             r.iter().map(|x| x.temperature_celsius).collect::<Vec<_>>(),
         )?;
+        d.set_item(
+            "encoder",
+            r.iter().map(|x| x.encoder_degrees).collect::<Vec<_>>(),
+        )?;
+        if self.inner.has_shifts() {
+            let set = &self.inner;
+            d.set_item(
+                "shift",
+                r.iter().map(|x| set.shift_deg(x.setup)).collect::<Vec<_>>(),
+            )?;
+        }
         Ok(d)
     }
 }
@@ -95,7 +138,7 @@ pub(crate) fn read_measurements(
         |p| MeasurementSet::read_path(p, faces),
         |bytes, name| MeasurementSet::read_from(bytes, name, faces),
     )?;
-    read.map(|inner| PyMeasurementSet { inner })
+    read.map(PyMeasurementSet::new)
         .map_err(|e| measurement_error(py, e))
 }
 
@@ -228,7 +271,7 @@ pub(crate) fn measurement_set_from_columns(
                 .and_then(|set| set.with_setup_shifts(shifts))
         })
         .map_err(|e| measurement_error(py, e))?;
-    Ok(PyMeasurementSet { inner })
+    Ok(PyMeasurementSet::new(inner))
 }
 
 /// An instrument budget (docs/FORMAT.md §5.1).
@@ -239,6 +282,40 @@ pub(crate) struct PyBudget {
 
 #[pymethods]
 impl PyBudget {
+    /// Where the budget came from (a path, or the name of its text).
+    #[getter]
+    fn source(&self) -> String {
+        self.inner.source.clone()
+    }
+
+    /// The coverage probability p.
+    #[getter]
+    fn p(&self) -> f64 {
+        self.inner.p
+    }
+
+    /// The components in file order (nested budgets flattened), each a dict: `name`,
+    /// `type` (A or B), `distribution`, `u` (|c|·u(x), arcsec: the standard uncertainty
+    /// one draw adds to a reading), `sensitivity`, `dof` (`None`: infinitely many) and
+    /// `acts_on` (which readings share one draw, docs/FORMAT.md §5.1).
+    fn components<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.inner
+            .components
+            .iter()
+            .map(|c| {
+                let d = PyDict::new(py);
+                d.set_item("name", &c.name)?;
+                d.set_item("type", c.evaluation.to_string())?;
+                d.set_item("distribution", c.distribution.name())?;
+                d.set_item("u", c.standard_uncertainty())?;
+                d.set_item("sensitivity", c.sensitivity)?;
+                d.set_item("dof", c.dof)?;
+                d.set_item("acts_on", c.scope.as_str())?;
+                Ok(d)
+            })
+            .collect()
+    }
+
     /// The cautions `polycal` prints as warnings when it reads the budget (a type A
     /// component counted twice).
     fn notes(&self) -> Vec<String> {
@@ -262,6 +339,9 @@ pub(crate) fn read_budget(
         |bytes, name| InstrumentBudget::from_toml_str(&String::from_utf8_lossy(bytes), name),
     )?;
     read.map(|inner| PyBudget { inner }).map_err(|e| match &e {
+        BudgetError::Io { source, .. } if is_not_found(source) => {
+            Python::attach(|py| file_not_found(py, path.unwrap_or(name), source))
+        }
         BudgetError::File { location, .. } => {
             Python::attach(|py| input_error(py, e.to_string(), Some(location)))
         }
@@ -274,12 +354,73 @@ pub(crate) fn read_budget(
 pub(crate) struct PySelfcalSet {
     pub(crate) inner: SelfcalSet,
     pub(crate) name: String,
+    /// The comment lines a written file starts with (a simulated run's description).
+    pub(crate) comments: Vec<String>,
 }
 
 #[pymethods]
 impl PySelfcalSet {
     fn __len__(&self) -> usize {
         self.inner.readings.len()
+    }
+
+    /// P, the number of table positions per turn.
+    #[getter]
+    fn positions(&self) -> usize {
+        self.inner.positions
+    }
+
+    /// Where the readings came from.
+    #[getter]
+    fn source(&self) -> String {
+        self.name.clone()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "SelfcalSet({} readings, {} positions, from {})",
+            self.inner.readings.len(),
+            self.inner.positions,
+            self.name
+        )
+    }
+
+    /// The comment lines a written file starts with.
+    #[getter]
+    fn comments(&self) -> Vec<String> {
+        self.comments.clone()
+    }
+
+    /// Writes the set as a self-calibration file (docs/FORMAT.md §9.2) at `path`, whole
+    /// or not at all, starting with its comment lines.
+    fn write(&self, py: Python<'_>, path: &str) -> PyResult<()> {
+        let comments = &self.comments;
+        py.detach(|| self.inner.write_path(Path::new(path), comments))
+            .map_err(|e| selfcal_error(py, e))
+    }
+
+    /// The readings as columns named as the file's (docs/FORMAT.md §9.2): lists, `None`
+    /// where a reading has no time.
+    fn columns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let r = &self.inner.readings;
+        let d = PyDict::new(py);
+        d.set_item("cycle", r.iter().map(|x| x.cycle).collect::<Vec<_>>())?;
+        d.set_item("step", r.iter().map(|x| x.step).collect::<Vec<_>>())?;
+        d.set_item("head", r.iter().map(|x| x.head).collect::<Vec<_>>())?;
+        d.set_item(
+            "head_angle",
+            r.iter().map(|x| x.head_angle_deg).collect::<Vec<_>>(),
+        )?;
+        d.set_item(
+            "reading",
+            r.iter().map(|x| x.reading_arcsec).collect::<Vec<_>>(),
+        )?;
+        d.set_item(
+            "direction",
+            r.iter().map(|x| x.direction.as_str()).collect::<Vec<_>>(),
+        )?;
+        d.set_item("time", r.iter().map(|x| x.time_seconds).collect::<Vec<_>>())?;
+        Ok(d)
     }
 }
 
@@ -301,8 +442,12 @@ pub(crate) fn read_selfcal(
         |bytes, name| SelfcalSet::read_from(bytes, name, positions),
     )?;
     let name = path.unwrap_or(name).to_string();
-    read.map(|inner| PySelfcalSet { inner, name })
-        .map_err(|e| selfcal_error(py, e))
+    read.map(|inner| PySelfcalSet {
+        inner,
+        name,
+        comments: Vec::new(),
+    })
+    .map_err(|e| selfcal_error(py, e))
 }
 
 /// Builds a self-calibration set from columns, checked as the file reader checks them.
@@ -355,5 +500,6 @@ pub(crate) fn selfcal_set_from_columns(
     Ok(PySelfcalSet {
         inner,
         name: name.to_string(),
+        comments: Vec::new(),
     })
 }

@@ -214,7 +214,7 @@ def test_lists_and_a_dataframe_are_taken_too():
     from_frame = polycal.MeasurementSet.from_dataframe(frame)
     assert polycal.solve(from_frame).encoder_error.tolist() == polycal.solve(ms).encoder_error.tolist()
     df = polycal.solve(ms, budget=polycal.budget(BUDGET)).to_dataframe()
-    assert set(df["quantity"]) == {"pitch_deviation", "face_deviation", "encoder_error"}
+    assert set(df["quantity"]) == {"pitch_deviation", "face_deviation", "encoder_error", "setup_error"}
 
 
 def test_bad_shapes_dtypes_and_nan_are_refused_by_column_and_index():

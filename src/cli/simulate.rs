@@ -186,28 +186,7 @@ pub fn run(args: &SimulateArgs, out: &Output) -> Result<u8> {
     )?;
     config.table_shift_deg = args.mountings.shift_deg.clone();
     let (set, truth) = simulate::simulate(&config)?;
-    let mut comment = format!(
-        "polycal {} simulate: {} faces, ac faces {:?}, {} cycles, noise {} arcsec, seed {}",
-        env!("CARGO_PKG_VERSION"),
-        config.faces,
-        config.ac_faces,
-        config.cycles,
-        config.noise_arcsec,
-        config.seed
-    );
-    if !config.table_shift_deg.is_empty() {
-        comment += &format!(", table shifts {:?} degrees", config.table_shift_deg);
-    }
-    if let Some(nu) = config.noise_student_dof {
-        comment += &format!(", Student-t noise with {nu} dof");
-    }
-    if let Some(model) = &config.temperature {
-        comment += &format!(", temperature {model}");
-    }
-    if let Some(model) = &config.elevation {
-        comment += &format!(", elevation {model}");
-    }
-    let comments = vec![comment];
+    let comments = vec![config.comment()];
     let mut files = args.outputs()?;
     match &args.out {
         Some(path) => files.write_with("--out", path, |w| set.write_to(w, &comments))?,
@@ -254,31 +233,7 @@ fn run_selfcal(args: &SimulateArgs, out: &Output) -> Result<u8> {
         ));
     }
 
-    let angles: Vec<String> = config.head_angles_deg.iter().map(f64::to_string).collect();
-    let encoder = if args.truth.harmonics.is_empty() {
-        format!("encoder error drawn to order {}", config.max_order)
-    } else {
-        format!("encoder harmonics {}", args.truth.harmonics.join(" "))
-    };
-    let comment = format!(
-        "polycal {} simulate --selfcal: {} positions, {} heads at {} degrees, {} cycles{}, \
-         {encoder}, table error {} arcsec, head error ±{} arcsec, noise {} arcsec, seed {}",
-        env!("CARGO_PKG_VERSION"),
-        config.positions,
-        config.head_count(),
-        angles.join(","),
-        config.cycles,
-        if config.bidirectional {
-            " (bidirectional)"
-        } else {
-            ""
-        },
-        config.table_error_arcsec,
-        config.head_error_arcsec,
-        config.noise_arcsec,
-        config.seed
-    );
-    let comments = [comment];
+    let comments = [config.comment(&args.truth.harmonics)];
     let mut files = args.outputs()?;
     match &args.out {
         Some(path) => files.write_with("--out", path, |w| {

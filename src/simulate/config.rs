@@ -285,6 +285,35 @@ impl SimulationConfig {
             .unwrap_or(0.0)
     }
 
+    /// The comment line `polycal simulate` writes at the head of the measurement CSV:
+    /// the version, the design, the noise and the seed, and the table shifts, Student-t
+    /// noise and the temperature and elevation models when there are any. The CLI and the
+    /// Python package write the same line, so that one run is the same file from both.
+    pub fn comment(&self) -> String {
+        let mut comment = format!(
+            "polycal {} simulate: {} faces, ac faces {:?}, {} cycles, noise {} arcsec, seed {}",
+            crate::output::SOFTWARE_VERSION,
+            self.faces,
+            self.ac_faces,
+            self.cycles,
+            self.noise_arcsec,
+            self.seed
+        );
+        if !self.table_shift_deg.is_empty() {
+            comment += &format!(", table shifts {:?} degrees", self.table_shift_deg);
+        }
+        if let Some(nu) = self.noise_student_dof {
+            comment += &format!(", Student-t noise with {nu} dof");
+        }
+        if let Some(model) = &self.temperature {
+            comment += &format!(", temperature {model}");
+        }
+        if let Some(model) = &self.elevation {
+            comment += &format!(", elevation {model}");
+        }
+        comment
+    }
+
     /// Checks the settings; the error names the first problem found.
     ///
     /// Refused: faces < 3; no autocollimator, a face outside 1 … N or the same face twice

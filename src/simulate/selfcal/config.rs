@@ -182,6 +182,37 @@ pub enum SelfcalConfigError {
 }
 
 impl SelfcalSimConfig {
+    /// The comment line `polycal simulate --selfcal` writes at the head of the
+    /// self-calibration CSV. `harmonic_specs` are the encoder harmonics as the user wrote
+    /// them (`ORDER:AMPLITUDE[:PHASE]`); empty when the encoder error is drawn. The CLI
+    /// and the Python package write the same line.
+    pub fn comment(&self, harmonic_specs: &[String]) -> String {
+        let angles: Vec<String> = self.head_angles_deg.iter().map(f64::to_string).collect();
+        let encoder = if harmonic_specs.is_empty() {
+            format!("encoder error drawn to order {}", self.max_order)
+        } else {
+            format!("encoder harmonics {}", harmonic_specs.join(" "))
+        };
+        format!(
+            "polycal {} simulate --selfcal: {} positions, {} heads at {} degrees, {} cycles{}, \
+             {encoder}, table error {} arcsec, head error ±{} arcsec, noise {} arcsec, seed {}",
+            crate::output::SOFTWARE_VERSION,
+            self.positions,
+            self.head_count(),
+            angles.join(","),
+            self.cycles,
+            if self.bidirectional {
+                " (bidirectional)"
+            } else {
+                ""
+            },
+            self.table_error_arcsec,
+            self.head_error_arcsec,
+            self.noise_arcsec,
+            self.seed
+        )
+    }
+
     /// Number of heads M (`head_angles_deg.len()`).
     pub fn head_count(&self) -> usize {
         self.head_angles_deg.len()
