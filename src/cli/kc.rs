@@ -6,8 +6,8 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::ValueEnum;
-use polycal::kc::{KcOptions, LabResult, ReferenceMethod, evaluate};
-use polycal::results::{Quantity, read_result_file};
+use polycal::kc::{KcOptions, LabResult, ReferenceMethod, evaluate, lab_from_solve_json};
+use polycal::results::{Quantity, read_results_from};
 
 use super::{EXIT_OK, EXIT_VERDICT};
 
@@ -47,7 +47,8 @@ fn named(text: &str) -> std::result::Result<Named, String> {
 #[derive(clap::Args)]
 pub struct KcArgs {
     /// The laboratories' results, NAME=RESULT.csv each (docs/FORMAT.md §3: U and k, or u,
-    /// on every row of the quantity); at least 2.
+    /// on every row of the quantity), or NAME=SOLVE.json (`solve --format json
+    /// [--covariance]`, whose covariance the closed vector then uses); at least 2.
     #[arg(value_name = "NAME=RESULT.csv", required = true, value_parser = named)]
     labs: Vec<Named>,
     /// The pilot's repeated result of the artefact (start, middle, end of the
@@ -92,6 +93,20 @@ enum KcFormat {
     Csv,
 }
 
+/// One laboratory's result: a solve result in JSON (docs/FORMAT.md §5.1, its first
+/// character other than white space `{`), else a result file (§3).
+fn read_lab(name: &str, path: &std::path::Path) -> Result<LabResult> {
+    let (bytes, source) = polycal::input::read_bytes(path)
+        .map_err(|(file, source)| polycal::results::ResultsError::Io { file, source })?;
+    if bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
+        return Ok(lab_from_solve_json(name, &bytes, &source)?);
+    }
+    Ok(LabResult::from_file(
+        name,
+        read_results_from(&bytes[..], &source)?,
+    ))
+}
+
 /// `polycal kc`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &KcArgs) -> Result<u8> {
     let roles: Vec<(String, &std::path::Path)> = args
@@ -106,14 +121,7 @@ pub fn run(args: &KcArgs) -> Result<u8> {
             .map(|(role, path)| (role.as_str(), Some(*path))),
     )?;
     let read = |list: &[Named]| -> Result<Vec<LabResult>> {
-        list.iter()
-            .map(|n| {
-                Ok(LabResult::from_file(
-                    n.name.clone(),
-                    read_result_file(&n.path)?,
-                ))
-            })
-            .collect()
+        list.iter().map(|n| read_lab(&n.name, &n.path)).collect()
     };
     let labs = read(&args.labs)?;
     let pilot = read(&args.pilot)?;

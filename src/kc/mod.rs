@@ -31,12 +31,17 @@
 //! DerSimonian–Laird method excludes nobody: its dark uncertainty τ takes inconsistency
 //! into the reference's uncertainty instead.
 //!
-//! **The closed vector** (pitch deviations only): a result without a covariance is taken
-//! as closed (Σβ = 0) with V_i = N/(N − 1)·P·diag(u_i²)·P, P = I − J/N; the GLS reference
+//! **The closed vector** (pitch deviations only): a laboratory's own covariance V_i of its
+//! pitch deviations ([`LabResult::with_covariance`], or `pitch_deviation_covariance` of a
+//! solve result in JSON, [`lab_from_solve_json`]) is used as given once checked
+//! (symmetric, positive semi-definite, rows summing to 0, rank N − 1); a result without
+//! one is taken as closed (Σβ = 0) with V_i = N/(N − 1)·P·diag(u_i²)·P, P = I − J/N. The
+//! per-face tests use each row's u either way. The GLS reference
 //! x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i (pseudo-inverses on the closed subspace) and
 //! χ²_vector = Σ (x_i − x_ref)ᵀ V_i⁺ (x_i − x_ref) with ν = (N − 1)(n − 1). Encoder errors
 //! have no closure test.
 
+mod covariance;
 mod evaluate;
 mod input;
 mod reference;
@@ -45,6 +50,7 @@ use serde::Serialize;
 
 use crate::results::{Quantity, ResultFile, ResultRow};
 
+pub use covariance::lab_from_solve_json;
 pub use evaluate::evaluate;
 pub use reference::{chi2_quantile_95, closed_covariance};
 
@@ -120,6 +126,9 @@ pub struct LabResult {
     pub rows: Vec<ResultRow>,
     /// The 1-based line of each row in its file (empty for rows given in memory).
     pub lines: Vec<u64>,
+    /// The laboratory's covariance of its pitch deviations, faces 1 … N row-major
+    /// (N × N), arcsec², when it gives one; else `None` (taken as closed with its u).
+    pub covariance: Option<Vec<f64>>,
 }
 
 impl LabResult {
@@ -130,6 +139,7 @@ impl LabResult {
             source: file.source,
             rows: file.rows,
             lines: file.lines,
+            covariance: None,
         }
     }
 
@@ -142,7 +152,16 @@ impl LabResult {
             name,
             rows,
             lines: Vec::new(),
+            covariance: None,
         }
+    }
+
+    /// With the laboratory's covariance of its pitch deviations, faces 1 … N row-major
+    /// (N × N), arcsec²; [`evaluate`] checks it (symmetric, positive semi-definite,
+    /// closed, rank N − 1) and refuses it with the reason.
+    pub fn with_covariance(mut self, covariance_arcsec2: Vec<f64>) -> LabResult {
+        self.covariance = Some(covariance_arcsec2);
+        self
     }
 }
 
@@ -384,6 +403,26 @@ pub enum KcError {
     /// No encoder error position is in every result.
     #[error("no encoder error position is in every result: nothing to compare")]
     NothingInCommon,
+    /// A file that is not a solve result in JSON.
+    #[error("{file}: not a solve result in JSON (docs/FORMAT.md §5.1): {message}")]
+    SolveJson {
+        /// The file.
+        file: String,
+        /// What is wrong, with serde's line and column where it has them.
+        message: String,
+    },
+    /// A laboratory's covariance of its pitch deviations that cannot be used.
+    #[error(
+        "{file} (laboratory {lab}): its covariance of the pitch deviations is refused: {reason}"
+    )]
+    Covariance {
+        /// The file.
+        file: String,
+        /// The laboratory.
+        lab: String,
+        /// Why, in words.
+        reason: String,
+    },
     /// A quantity other than pitch deviations and encoder errors.
     #[error(
         "a key comparison is of pitch_deviation or encoder_error, not {0} (face deviations \
