@@ -66,6 +66,11 @@ pub struct KcArgs {
     /// lab,index,angle_deg,d,U,in_reference; docs/FORMAT.md §12).
     #[arg(long, value_enum, default_value = "table")]
     format: KcFormat,
+    /// Write the figures as SVG files into DIR (created if missing; docs/FORMAT.md §10):
+    /// kc-degrees-of-equivalence.svg, kc-reference.svg and with --pilot
+    /// kc-pilot-stability.svg, whatever --format is.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
 }
 
 /// `kc --quantity`.
@@ -120,6 +125,14 @@ pub fn run(args: &KcArgs) -> Result<u8> {
             .iter()
             .map(|(role, path)| (role.as_str(), Some(*path))),
     )?;
+    let inputs: Vec<&std::path::Path> = roles.iter().map(|(_, path)| *path).collect();
+    super::check_plot(
+        args.plot.as_deref(),
+        polycal::figure::FigureSet::Kc {
+            pilot: !args.pilot.is_empty(),
+        },
+        &inputs,
+    )?;
     let read = |list: &[Named]| -> Result<Vec<LabResult>> {
         list.iter().map(|n| read_lab(&n.name, &n.path)).collect()
     };
@@ -141,6 +154,9 @@ pub fn run(args: &KcArgs) -> Result<u8> {
         }
         e => e.into(),
     })?;
+    if let Some(dir) = &args.plot {
+        super::write_plot(dir, &polycal::figure::kc_figures(&kc), &inputs)?;
+    }
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
     match args.format {
