@@ -323,3 +323,27 @@ fn kc_refuses_a_solve_json_whose_covariance_is_not_closed_or_not_json() {
     let line = refused(&["solve", run.as_str(), "--covariance"]);
     assert!(line.contains("--format json"), "{line}");
 }
+
+/// `--method` and `--quantity` are parsed by the library (as Python's `polycal.kc` is):
+/// the same words refused with the library's message.
+#[test]
+fn kc_method_and_quantity_words_are_the_librarys() {
+    use polycal::kc::{ReferenceMethod, compared_quantity};
+    let (a, b) = (example("A"), example("B"));
+    for word in ["weighted-mean", "dersimonian-laird"] {
+        let out = polycal(&["kc", &a, &b, "--method", word, "--format", "json"]);
+        let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(json["method"], word);
+        assert!(word.parse::<ReferenceMethod>().is_ok());
+    }
+    for word in ["weighted_mean", "Weighted-Mean", "mean", ""] {
+        let line = refused(&["kc", &a, &b, "--method", word]);
+        let message = word.parse::<ReferenceMethod>().unwrap_err().to_string();
+        assert!(line.contains(&message), "{line} / {message}");
+    }
+    for word in ["face_deviation", "setup_error", "pitch-deviation"] {
+        let line = refused(&["kc", &a, &b, "--quantity", word]);
+        let message = compared_quantity(word).unwrap_err().to_string();
+        assert!(line.contains(&message), "{line} / {message}");
+    }
+}

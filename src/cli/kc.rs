@@ -55,13 +55,14 @@ pub struct KcArgs {
     /// circulation), NAME=RESULT.csv; give it at least twice.
     #[arg(long, value_name = "NAME=RESULT.csv", value_parser = named)]
     pilot: Vec<Named>,
-    /// The compared quantity.
-    #[arg(long, value_enum, default_value = "pitch_deviation")]
-    quantity: KcQuantity,
-    /// The reference: the weighted mean (with the largest consistent subset), or the
-    /// DerSimonian–Laird random-effects mean (with its dark uncertainty τ, nobody left out).
-    #[arg(long, value_enum, default_value = "weighted-mean")]
-    method: KcMethod,
+    /// The compared quantity: pitch_deviation or encoder_error.
+    #[arg(long, default_value = "pitch_deviation", value_parser = parse_quantity)]
+    quantity: Quantity,
+    /// The reference: weighted-mean (with the largest consistent subset), or
+    /// dersimonian-laird (the random-effects mean with its dark uncertainty τ, nobody left
+    /// out).
+    #[arg(long, default_value = "weighted-mean", value_parser = parse_method)]
+    method: ReferenceMethod,
     /// Output format (csv: the degrees of equivalence, columns
     /// lab,index,angle_deg,d,U,in_reference; docs/FORMAT.md §12).
     #[arg(long, value_enum, default_value = "table")]
@@ -73,21 +74,14 @@ pub struct KcArgs {
     plot: Option<PathBuf>,
 }
 
-/// `kc --quantity`.
-#[derive(Clone, Copy, ValueEnum)]
-#[allow(non_camel_case_types)]
-enum KcQuantity {
-    #[value(name = "pitch_deviation")]
-    PitchDeviation,
-    #[value(name = "encoder_error")]
-    EncoderError,
+/// `kc --quantity`: the library's parsing, so that Python accepts the same words.
+fn parse_quantity(name: &str) -> std::result::Result<Quantity, String> {
+    polycal::kc::compared_quantity(name).map_err(|e| e.to_string())
 }
 
-/// `kc --method`.
-#[derive(Clone, Copy, ValueEnum)]
-enum KcMethod {
-    WeightedMean,
-    DersimonianLaird,
+/// `kc --method`: the library's `FromStr`.
+fn parse_method(name: &str) -> std::result::Result<ReferenceMethod, String> {
+    name.parse::<ReferenceMethod>().map_err(|e| e.to_string())
 }
 
 /// `kc --format`.
@@ -139,14 +133,8 @@ pub fn run(args: &KcArgs) -> Result<u8> {
     let labs = read(&args.labs)?;
     let pilot = read(&args.pilot)?;
     let options = KcOptions::new()
-        .with_quantity(match args.quantity {
-            KcQuantity::PitchDeviation => Quantity::PitchDeviation,
-            KcQuantity::EncoderError => Quantity::EncoderError,
-        })
-        .with_method(match args.method {
-            KcMethod::WeightedMean => ReferenceMethod::WeightedMean,
-            KcMethod::DersimonianLaird => ReferenceMethod::DersimonianLaird,
-        });
+        .with_quantity(args.quantity)
+        .with_method(args.method);
     let kc = evaluate(&labs, &pilot, &options).map_err(|e| match e {
         // Library messages name no flags: the CLI adds the one that helps.
         polycal::kc::KcError::TooFewRepeats(_) => {

@@ -65,6 +65,72 @@ pub enum ReferenceMethod {
     DersimonianLaird,
 }
 
+impl ReferenceMethod {
+    /// Every method, in the order of their names in messages.
+    pub const ALL: [ReferenceMethod; 2] = [
+        ReferenceMethod::WeightedMean,
+        ReferenceMethod::DersimonianLaird,
+    ];
+
+    /// The name as spelled in the JSON and on the command line, e.g. `weighted-mean`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ReferenceMethod::WeightedMean => "weighted-mean",
+            ReferenceMethod::DersimonianLaird => "dersimonian-laird",
+        }
+    }
+}
+
+/// A name a key comparison does not know: one message for every caller (the command
+/// line, Python).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum KcNameError {
+    /// Not a reference method's name.
+    #[error("method {0:?}: expected weighted-mean or dersimonian-laird")]
+    Method(String),
+    /// Not the name of a compared quantity.
+    #[error("quantity {0:?}: expected pitch_deviation or encoder_error")]
+    Quantity(String),
+}
+
+impl std::str::FromStr for ReferenceMethod {
+    type Err = KcNameError;
+
+    /// `weighted-mean` or `dersimonian-laird`, exactly.
+    ///
+    /// ```
+    /// use polycal::kc::ReferenceMethod;
+    /// assert_eq!("dersimonian-laird".parse(), Ok(ReferenceMethod::DersimonianLaird));
+    /// assert!("mean".parse::<ReferenceMethod>().is_err());
+    /// ```
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        ReferenceMethod::ALL
+            .into_iter()
+            .find(|m| m.name() == name)
+            .ok_or_else(|| KcNameError::Method(name.to_string()))
+    }
+}
+
+/// The quantity a key comparison compares, by its name: `pitch_deviation` or
+/// `encoder_error` (exactly; face deviations and setup errors are not compared).
+///
+/// # Errors
+///
+/// [`KcNameError::Quantity`] for any other word.
+///
+/// ```
+/// use polycal::results::Quantity;
+/// assert_eq!(polycal::kc::compared_quantity("encoder_error"), Ok(Quantity::EncoderError));
+/// assert!(polycal::kc::compared_quantity("face_deviation").is_err());
+/// ```
+pub fn compared_quantity(name: &str) -> Result<Quantity, KcNameError> {
+    [Quantity::PitchDeviation, Quantity::EncoderError]
+        .into_iter()
+        .find(|q| q.name() == name)
+        .ok_or_else(|| KcNameError::Quantity(name.to_string()))
+}
+
 /// Options of a key comparison: [`KcOptions::new`] and the `with_…` methods.
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
