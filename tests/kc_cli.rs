@@ -347,3 +347,51 @@ fn kc_method_and_quantity_words_are_the_librarys() {
         assert!(line.contains(&message), "{line} / {message}");
     }
 }
+
+/// A solve JSON with a budget: its u is the budget's U/k (not the fit's u), so two copies
+/// of one result give U(d) = 2·√(u² − u²/2) = √2·U/k on every face; its covariance, the
+/// fit's plus the budget's excess closed, passes the checks.
+#[test]
+fn kc_solve_json_with_a_budget_uses_u_from_its_expanded_uncertainty() {
+    let text = stdout_of(&[
+        "solve",
+        "examples/data/polygon24-2ac-6cycles.csv",
+        "--budget",
+        "examples/budgets/instrument.toml",
+        "--covariance",
+        "--format",
+        "json",
+    ]);
+    let path = scratch("budget.json", &text);
+    let solve: Value = serde_json::from_str(&text).unwrap();
+    let out = polycal(&[
+        "kc",
+        &format!("A={path}"),
+        &format!("B={path}"),
+        "--format",
+        "json",
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let kc: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let expanded = solve["pitch_deviation_U"].as_array().unwrap();
+    let k = solve["pitch_deviation_k"].as_array().unwrap();
+    let fit_u = solve["pitch_deviation_u"].as_array().unwrap();
+    let got = kc["degrees_of_equivalence"][0]["U"].as_array().unwrap();
+    for f in 0..expanded.len() {
+        let u = expanded[f].as_f64().unwrap() / k[f].as_f64().unwrap();
+        assert!(u > fit_u[f].as_f64().unwrap(), "the budget adds to the fit");
+        let want = 2f64.sqrt() * u;
+        let g = got[f].as_f64().unwrap();
+        assert!(
+            (g - want).abs() < 1e-12 * want,
+            "face {}: {g} vs {want}",
+            f + 1
+        );
+    }
+    assert!(kc["vector"]["chi2"].as_f64().unwrap().abs() < 1e-20);
+}
