@@ -291,6 +291,11 @@ fn kc_reads_solve_json_with_its_covariance() {
             reference[f]
         );
     }
+    let notes = kc["notes"].to_string();
+    assert!(
+        notes.contains("own covariances") && notes.contains("for A, B;"),
+        "{notes}"
+    );
     // the per-face test of lab A uses the JSON's u: U(d) ≥ 2u_A·√(1 − w) > 0, finite
     assert!(kc["degrees_of_equivalence"][0]["U"][0].as_f64().unwrap() > 0.0);
 }

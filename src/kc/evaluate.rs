@@ -272,6 +272,18 @@ fn evaluate_aligned(
         }
     }
 
+    let own: Vec<&str> = inside
+        .iter()
+        .filter(|&&r| covariances[r].is_some())
+        .map(|&r| labs[r].name.as_str())
+        .collect();
+    if options.quantity == Quantity::PitchDeviation && !own.is_empty() {
+        notes.push(format!(
+            "the closed vector uses the laboratories' own covariances of their pitch deviations \
+             for {}; the others are taken as closed with V = N/(N − 1)·P·diag(u²)·P",
+            own.join(", ")
+        ));
+    }
     let vector = if options.quantity == Quantity::PitchDeviation {
         let x: Vec<&[f64]> = inside
             .iter()
