@@ -732,3 +732,79 @@ fn plot_refuses_several_files_and_reports_an_unwritable_directory() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.starts_with("error:") && err.contains("a-file"), "{err}");
 }
+
+/// `kc --plot`: every laboratory's d_i with its U(d_i) bar, the reference with
+/// U = 2·u_ref and each laboratory's x_ref + d_i, and the pilot's repeats' d_r with U(d_r),
+/// read back through the axes' ticks and checked against the JSON's numbers; the
+/// laboratory left out is drawn with open squares and said so in the legend.
+#[test]
+fn kc_degrees_of_equivalence_reference_and_pilot_against_the_json() {
+    let dir = temp_dir("kc");
+    let d = dir.to_str().unwrap();
+    let k = "examples/data/kc";
+    let labs: Vec<String> = ["A", "B", "C", "D", "E", "F"]
+        .iter()
+        .map(|n| format!("{n}={k}/{n}.csv"))
+        .collect();
+    let mut args: Vec<&str> = vec!["kc"];
+    args.extend(labs.iter().map(String::as_str));
+    let start = format!("start={k}/pilot-start.csv");
+    let end = format!("end={k}/pilot-end.csv");
+    args.extend([
+        "--pilot", &start, "--pilot", &end, "--format", "json", "--plot", d,
+    ]);
+    let json = json_of(&polycal(&args));
+    let faces = floats(&json["index"]);
+    let reference = floats(&json["reference"]);
+    let reference_u = floats(&json["reference_u"]);
+    let text = svg_text(&dir.join("kc-degrees-of-equivalence.svg"));
+    let doe = json["degrees_of_equivalence"].as_array().unwrap();
+    for (i, lab) in doe.iter().enumerate() {
+        let series = format!("lab{i}");
+        let (dd, u) = (floats(&lab["d"]), floats(&lab["U"]));
+        check_series(&text, "main", &series, &faces, &dd, Some(&u), 10.0);
+        if lab["in_reference"] == false {
+            let name = lab["lab"].as_str().unwrap();
+            assert!(text.contains(&format!("{name} (left out of the reference)")));
+        }
+    }
+    assert_eq!(json["excluded"][0]["lab"], "F");
+    let text = svg_text(&dir.join("kc-reference.svg"));
+    let twice: Vec<f64> = reference_u.iter().map(|u| 2.0 * u).collect();
+    check_series(
+        &text,
+        "main",
+        "reference",
+        &faces,
+        &reference,
+        Some(&twice),
+        10.0,
+    );
+    for (i, lab) in doe.iter().enumerate() {
+        let x: Vec<f64> = floats(&lab["d"])
+            .iter()
+            .zip(&reference)
+            .map(|(d, r)| r + d)
+            .collect();
+        check_series(&text, "main", &format!("lab{i}"), &faces, &x, None, 10.0);
+    }
+    let text = svg_text(&dir.join("kc-pilot-stability.svg"));
+    for (r, repeat) in json["pilot"]["degrees_of_equivalence"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .enumerate()
+    {
+        let (dd, u) = (floats(&repeat["d"]), floats(&repeat["U"]));
+        check_series(
+            &text,
+            "main",
+            &format!("repeat{r}"),
+            &faces,
+            &dd,
+            Some(&u),
+            10.0,
+        );
+    }
+    assert!(text.contains("k = 2") && text.contains("″"));
+}

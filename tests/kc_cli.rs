@@ -186,3 +186,217 @@ fn kc_refusals_are_one_error_line_naming_file_and_line() {
     let message = refused(&["kc", &lab("A", &twelve), &lab("B", &bad)]);
     assert!(message.contains(&format!("{bad}:2:")), "{message}");
 }
+
+/// Runs polycal and returns its standard output (status 0 expected).
+fn stdout_of(args: &[&str]) -> String {
+    let out = polycal(args);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// P = I − J/N.
+fn projector(n: usize) -> nalgebra::DMatrix<f64> {
+    nalgebra::DMatrix::identity(n, n) - nalgebra::DMatrix::from_element(n, n, 1.0 / n as f64)
+}
+
+/// Laboratories given as `solve --covariance --format json` (two designs, so two
+/// correlation structures) beside one result CSV: the closed vector's GLS reference is
+/// (Σ V_i⁺)⁺ Σ V_i⁺ x_i computed here by SVD with the JSON's covariances and
+/// N/(N − 1)·P·diag(u²)·P for the CSV; the per-face tests use the JSON's u.
+#[test]
+fn kc_reads_solve_json_with_its_covariance() {
+    use nalgebra::{DMatrix, DVector};
+    let faces = 12;
+    let designs: [(&str, &[&str]); 3] = [
+        ("A", &["--ac-faces", "1,2"]),
+        ("B", &["--ac-faces", "1,6", "--noise", "0.08"]),
+        ("C", &["--ac-faces", "1,8", "--noise", "0.06"]),
+    ];
+    let mut args = vec!["kc".to_string()];
+    let mut solved = Vec::new();
+    for (name, extra) in designs {
+        let mut sim = vec!["simulate", "--faces", "12", "--seed", "7", "--closing"];
+        sim.extend_from_slice(extra);
+        let run = scratch(&format!("{name}-run.csv"), &stdout_of(&sim));
+        let format = if name == "C" { "csv" } else { "json" };
+        let mut solve = vec!["solve", run.as_str(), "--format", format];
+        if name != "C" {
+            solve.push("--covariance");
+        }
+        let text = stdout_of(&solve);
+        let path = scratch(&format!("{name}.{format}"), &text);
+        args.push(format!("{name}={path}"));
+        solved.push(text);
+    }
+    args.extend(["--format".to_string(), "json".to_string()]);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = polycal(&args);
+    assert!(out.status.code() == Some(0) || out.status.code() == Some(1));
+    let kc: Value = serde_json::from_slice(&out.stdout).unwrap();
+    // the laboratories' x and V, read here
+    let mut x = Vec::new();
+    let mut v = Vec::new();
+    for text in &solved[..2] {
+        let json: Value = serde_json::from_str(text).unwrap();
+        let beta: Vec<f64> = json["pitch_deviation"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|b| b.as_f64().unwrap())
+            .collect();
+        let cov = &json["pitch_deviation_covariance"];
+        let c = DMatrix::from_fn(faces, faces, |i, j| cov[i][j].as_f64().unwrap());
+        let u = json["pitch_deviation_u"][0].as_f64().unwrap();
+        assert!((c[(0, 0)].sqrt() - u).abs() < 1e-12 * u);
+        x.push(DVector::from_vec(beta));
+        v.push(c);
+    }
+    let mut beta = vec![0.0; faces];
+    let mut u2 = vec![0.0; faces];
+    for line in solved[2]
+        .lines()
+        .filter(|l| l.starts_with("pitch_deviation,"))
+    {
+        let cells: Vec<&str> = line.split(',').collect();
+        let face: usize = cells[1].parse().unwrap();
+        beta[face - 1] = cells[2].parse().unwrap();
+        // columns quantity,index,value,U,u,k,… (docs/FORMAT.md §3.1)
+        let u: f64 = cells[4].parse().unwrap();
+        u2[face - 1] = u * u;
+    }
+    let p = projector(faces);
+    let n = faces as f64;
+    v.push(&p * DMatrix::from_diagonal(&DVector::from_vec(u2)) * &p * (n / (n - 1.0)));
+    x.push(&p * DVector::from_vec(beta));
+    let pinv = |m: &DMatrix<f64>| m.clone().pseudo_inverse(1e-12).unwrap();
+    let mut sum_inverse = DMatrix::zeros(faces, faces);
+    let mut sum_weighted = DVector::zeros(faces);
+    for (x, v) in x.iter().zip(&v) {
+        sum_inverse += pinv(v);
+        sum_weighted += pinv(v) * x;
+    }
+    let reference = pinv(&sum_inverse) * sum_weighted;
+    let got = &kc["vector"]["reference"];
+    for f in 0..faces {
+        let g = got[f].as_f64().unwrap();
+        assert!(
+            (g - reference[f]).abs() < 1e-9,
+            "face {}: {g} vs {}",
+            f + 1,
+            reference[f]
+        );
+    }
+    let notes = kc["notes"].to_string();
+    assert!(
+        notes.contains("own covariances") && notes.contains("for A, B;"),
+        "{notes}"
+    );
+    // the per-face test of lab A uses the JSON's u: U(d) ≥ 2u_A·√(1 − w) > 0, finite
+    assert!(kc["degrees_of_equivalence"][0]["U"][0].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn kc_refuses_a_solve_json_whose_covariance_is_not_closed_or_not_json() {
+    let run = scratch(
+        "cov-run.csv",
+        &stdout_of(&["simulate", "--faces", "8", "--seed", "3"]),
+    );
+    let text = stdout_of(&["solve", run.as_str(), "--covariance", "--format", "json"]);
+    let mut json: Value = serde_json::from_str(&text).unwrap();
+    json["pitch_deviation_covariance"][0][0] = Value::from(1.0);
+    let bad = scratch("open.json", &json.to_string());
+    let good = scratch("good.json", &text);
+    let line = refused(&["kc", &format!("A={bad}"), &format!("B={good}")]);
+    assert!(
+        line.contains(&bad) && line.contains("laboratory A") && line.contains("not closed"),
+        "{line}"
+    );
+    let broken = scratch(
+        "broken.json",
+        "{\n  \"faces\": 8,\n  \"pitch_deviation\": [1, 2,\n",
+    );
+    let line = refused(&["kc", &format!("A={broken}"), &format!("B={good}")]);
+    assert!(
+        line.contains(&broken) && line.contains("line 4 column 0"),
+        "{line}"
+    );
+    let line = refused(&["solve", run.as_str(), "--covariance"]);
+    assert!(line.contains("--format json"), "{line}");
+}
+
+/// `--method` and `--quantity` are parsed by the library (as Python's `polycal.kc` is):
+/// the same words refused with the library's message.
+#[test]
+fn kc_method_and_quantity_words_are_the_librarys() {
+    use polycal::kc::{ReferenceMethod, compared_quantity};
+    let (a, b) = (example("A"), example("B"));
+    for word in ["weighted-mean", "dersimonian-laird"] {
+        let out = polycal(&["kc", &a, &b, "--method", word, "--format", "json"]);
+        let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(json["method"], word);
+        assert!(word.parse::<ReferenceMethod>().is_ok());
+    }
+    for word in ["weighted_mean", "Weighted-Mean", "mean", ""] {
+        let line = refused(&["kc", &a, &b, "--method", word]);
+        let message = word.parse::<ReferenceMethod>().unwrap_err().to_string();
+        assert!(line.contains(&message), "{line} / {message}");
+    }
+    for word in ["face_deviation", "setup_error", "pitch-deviation"] {
+        let line = refused(&["kc", &a, &b, "--quantity", word]);
+        let message = compared_quantity(word).unwrap_err().to_string();
+        assert!(line.contains(&message), "{line} / {message}");
+    }
+}
+
+/// A solve JSON with a budget: its u is the budget's U/k (not the fit's u), so two copies
+/// of one result give U(d) = 2·√(u² − u²/2) = √2·U/k on every face; its covariance, the
+/// fit's plus the budget's excess closed, passes the checks.
+#[test]
+fn kc_solve_json_with_a_budget_uses_u_from_its_expanded_uncertainty() {
+    let text = stdout_of(&[
+        "solve",
+        "examples/data/polygon24-2ac-6cycles.csv",
+        "--budget",
+        "examples/budgets/instrument.toml",
+        "--covariance",
+        "--format",
+        "json",
+    ]);
+    let path = scratch("budget.json", &text);
+    let solve: Value = serde_json::from_str(&text).unwrap();
+    let out = polycal(&[
+        "kc",
+        &format!("A={path}"),
+        &format!("B={path}"),
+        "--format",
+        "json",
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let kc: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let expanded = solve["pitch_deviation_U"].as_array().unwrap();
+    let k = solve["pitch_deviation_k"].as_array().unwrap();
+    let fit_u = solve["pitch_deviation_u"].as_array().unwrap();
+    let got = kc["degrees_of_equivalence"][0]["U"].as_array().unwrap();
+    for f in 0..expanded.len() {
+        let u = expanded[f].as_f64().unwrap() / k[f].as_f64().unwrap();
+        assert!(u > fit_u[f].as_f64().unwrap(), "the budget adds to the fit");
+        let want = 2f64.sqrt() * u;
+        let g = got[f].as_f64().unwrap();
+        assert!(
+            (g - want).abs() < 1e-12 * want,
+            "face {}: {g} vs {want}",
+            f + 1
+        );
+    }
+    assert!(kc["vector"]["chi2"].as_f64().unwrap().abs() < 1e-20);
+}

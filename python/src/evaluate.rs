@@ -287,24 +287,11 @@ pub(crate) fn kc(
     quantity: &str,
     method: &str,
 ) -> PyResult<String> {
-    let quantity = match quantity {
-        "pitch_deviation" => Quantity::PitchDeviation,
-        "encoder_error" => Quantity::EncoderError,
-        other => {
-            return Err(PyValueError::new_err(format!(
-                "quantity {other:?}: expected pitch_deviation or encoder_error"
-            )));
-        }
-    };
-    let method = match method {
-        "weighted-mean" => ReferenceMethod::WeightedMean,
-        "dersimonian-laird" => ReferenceMethod::DersimonianLaird,
-        other => {
-            return Err(PyValueError::new_err(format!(
-                "method {other:?}: expected weighted-mean or dersimonian-laird"
-            )));
-        }
-    };
+    let quantity = polycal::kc::compared_quantity(quantity)
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let method = method
+        .parse::<ReferenceMethod>()
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
     let results = |list: &[(String, PyRef<'_, PyRows>)]| -> Vec<LabResult> {
         list.iter()
             .map(|(name, rows)| match &rows.file {

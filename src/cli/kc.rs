@@ -6,8 +6,8 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::ValueEnum;
-use polycal::kc::{KcOptions, LabResult, ReferenceMethod, evaluate};
-use polycal::results::{Quantity, read_result_file};
+use polycal::kc::{KcOptions, LabResult, ReferenceMethod, evaluate, lab_from_solve_json};
+use polycal::results::{Quantity, read_results_from};
 
 use super::{EXIT_OK, EXIT_VERDICT};
 
@@ -47,41 +47,41 @@ fn named(text: &str) -> std::result::Result<Named, String> {
 #[derive(clap::Args)]
 pub struct KcArgs {
     /// The laboratories' results, NAME=RESULT.csv each (docs/FORMAT.md §3: U and k, or u,
-    /// on every row of the quantity); at least 2.
+    /// on every row of the quantity), or NAME=SOLVE.json (`solve --format json
+    /// [--covariance]`, whose covariance the closed vector then uses); at least 2.
     #[arg(value_name = "NAME=RESULT.csv", required = true, value_parser = named)]
     labs: Vec<Named>,
     /// The pilot's repeated result of the artefact (start, middle, end of the
     /// circulation), NAME=RESULT.csv; give it at least twice.
     #[arg(long, value_name = "NAME=RESULT.csv", value_parser = named)]
     pilot: Vec<Named>,
-    /// The compared quantity.
-    #[arg(long, value_enum, default_value = "pitch_deviation")]
-    quantity: KcQuantity,
-    /// The reference: the weighted mean (with the largest consistent subset), or the
-    /// DerSimonian–Laird random-effects mean (with its dark uncertainty τ, nobody left out).
-    #[arg(long, value_enum, default_value = "weighted-mean")]
-    method: KcMethod,
+    /// The compared quantity: pitch_deviation or encoder_error.
+    #[arg(long, default_value = "pitch_deviation", value_parser = parse_quantity)]
+    quantity: Quantity,
+    /// The reference: weighted-mean (with the largest consistent subset), or
+    /// dersimonian-laird (the random-effects mean with its dark uncertainty τ, nobody left
+    /// out).
+    #[arg(long, default_value = "weighted-mean", value_parser = parse_method)]
+    method: ReferenceMethod,
     /// Output format (csv: the degrees of equivalence, columns
     /// lab,index,angle_deg,d,U,in_reference; docs/FORMAT.md §12).
     #[arg(long, value_enum, default_value = "table")]
     format: KcFormat,
+    /// Write the figures as SVG files into DIR (created if missing; docs/FORMAT.md §10):
+    /// kc-degrees-of-equivalence.svg, kc-reference.svg and with --pilot
+    /// kc-pilot-stability.svg, whatever --format is.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
 }
 
-/// `kc --quantity`.
-#[derive(Clone, Copy, ValueEnum)]
-#[allow(non_camel_case_types)]
-enum KcQuantity {
-    #[value(name = "pitch_deviation")]
-    PitchDeviation,
-    #[value(name = "encoder_error")]
-    EncoderError,
+/// `kc --quantity`: the library's parsing, so that Python accepts the same words.
+fn parse_quantity(name: &str) -> std::result::Result<Quantity, String> {
+    polycal::kc::compared_quantity(name).map_err(|e| e.to_string())
 }
 
-/// `kc --method`.
-#[derive(Clone, Copy, ValueEnum)]
-enum KcMethod {
-    WeightedMean,
-    DersimonianLaird,
+/// `kc --method`: the library's `FromStr`.
+fn parse_method(name: &str) -> std::result::Result<ReferenceMethod, String> {
+    name.parse::<ReferenceMethod>().map_err(|e| e.to_string())
 }
 
 /// `kc --format`.
@@ -90,6 +90,20 @@ enum KcFormat {
     Table,
     Json,
     Csv,
+}
+
+/// One laboratory's result: a solve result in JSON (docs/FORMAT.md §5.1, its first
+/// character other than white space `{`), else a result file (§3).
+fn read_lab(name: &str, path: &std::path::Path) -> Result<LabResult> {
+    let (bytes, source) = polycal::input::read_bytes(path)
+        .map_err(|(file, source)| polycal::results::ResultsError::Io { file, source })?;
+    if bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
+        return Ok(lab_from_solve_json(name, &bytes, &source)?);
+    }
+    Ok(LabResult::from_file(
+        name,
+        read_results_from(&bytes[..], &source)?,
+    ))
 }
 
 /// `polycal kc`: returns the exit status, or an error for the `error:` line.
@@ -105,27 +119,22 @@ pub fn run(args: &KcArgs) -> Result<u8> {
             .iter()
             .map(|(role, path)| (role.as_str(), Some(*path))),
     )?;
+    let inputs: Vec<&std::path::Path> = roles.iter().map(|(_, path)| *path).collect();
+    super::check_plot(
+        args.plot.as_deref(),
+        polycal::figure::FigureSet::Kc {
+            pilot: !args.pilot.is_empty(),
+        },
+        &inputs,
+    )?;
     let read = |list: &[Named]| -> Result<Vec<LabResult>> {
-        list.iter()
-            .map(|n| {
-                Ok(LabResult::from_file(
-                    n.name.clone(),
-                    read_result_file(&n.path)?,
-                ))
-            })
-            .collect()
+        list.iter().map(|n| read_lab(&n.name, &n.path)).collect()
     };
     let labs = read(&args.labs)?;
     let pilot = read(&args.pilot)?;
     let options = KcOptions::new()
-        .with_quantity(match args.quantity {
-            KcQuantity::PitchDeviation => Quantity::PitchDeviation,
-            KcQuantity::EncoderError => Quantity::EncoderError,
-        })
-        .with_method(match args.method {
-            KcMethod::WeightedMean => ReferenceMethod::WeightedMean,
-            KcMethod::DersimonianLaird => ReferenceMethod::DersimonianLaird,
-        });
+        .with_quantity(args.quantity)
+        .with_method(args.method);
     let kc = evaluate(&labs, &pilot, &options).map_err(|e| match e {
         // Library messages name no flags: the CLI adds the one that helps.
         polycal::kc::KcError::TooFewRepeats(_) => {
@@ -133,6 +142,9 @@ pub fn run(args: &KcArgs) -> Result<u8> {
         }
         e => e.into(),
     })?;
+    if let Some(dir) = &args.plot {
+        super::write_plot(dir, &polycal::figure::kc_figures(&kc), &inputs)?;
+    }
     let stdout = std::io::stdout();
     let mut stdout = stdout.lock();
     match args.format {

@@ -73,6 +73,11 @@ pub struct SolveArgs {
     /// with several, run once per file.
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
+    /// Add `pitch_deviation_covariance` to the JSON: the fit's N × N covariance of the
+    /// pitch deviations, arcsec² (docs/FORMAT.md §5.1), for `polycal kc`. With
+    /// --format json only.
+    #[arg(long)]
+    covariance: bool,
 }
 
 impl SolveArgs {
@@ -113,6 +118,9 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
             .map(|f| ("a measurement file", Some(f.as_path())))
             .chain([("--budget", args.budget.as_deref())]),
     )?;
+    if args.covariance && !matches!(args.format, SolveFormat::Json) {
+        anyhow::bail!("--covariance adds a member to the JSON: give --format json with it");
+    }
     super::plot_one_file(args.plot.as_deref(), args.files.len())?;
     super::check_plot(
         args.plot.as_deref(),
@@ -255,6 +263,9 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
                 }
                 if let Some(mc) = mc.clone() {
                     report = report.with_monte_carlo(mc);
+                }
+                if args.covariance {
+                    report = report.with_pitch_deviation_covariance(&solution);
                 }
                 report
             });

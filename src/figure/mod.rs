@@ -12,6 +12,7 @@ mod budget;
 mod chart;
 mod compare;
 mod diagnose;
+mod kc;
 mod plan;
 mod selfcal;
 mod solve;
@@ -127,6 +128,14 @@ pub fn budget_figures(uncertainty: &CalibrationUncertainty) -> Vec<Figure> {
     budget::figures(uncertainty)
 }
 
+/// The figures of `polycal kc`: every laboratory's degree of equivalence d_i with its
+/// U(d_i) bar per face (those left out of the reference drawn with open squares and
+/// labelled so), the reference value per face with U = 2·u_ref beside every laboratory's
+/// value, and with the pilot's repeats each repeat's d_r with U(d_r).
+pub fn kc_figures(kc: &crate::kc::KeyComparison) -> Vec<Figure> {
+    kc::figures(kc)
+}
+
 /// The figures of `polycal plan`: the predicted u(α) against the table angle and u(β)
 /// against the face's angle, one series per design (designs that cannot calibrate are
 /// left out, and the figure says how many).
@@ -163,6 +172,11 @@ pub enum FigureSet {
     Compare,
     /// `polycal plan` ([`plan_figures`]).
     Plan,
+    /// `polycal kc` ([`kc_figures`]); with the pilot's repeats, their figure too.
+    Kc {
+        /// `--pilot` is given.
+        pilot: bool,
+    },
 }
 
 /// The stem of the residual figures of a diagnosis, before the autocollimator's number.
@@ -214,6 +228,11 @@ impl FigureSet {
             FigureSet::Plan => ["plan-encoder-error-u.svg", "plan-pitch-deviation-u.svg"]
                 .map(String::from)
                 .to_vec(),
+            FigureSet::Kc { pilot } => kc::NAMES
+                .iter()
+                .chain(pilot.then_some(&kc::PILOT))
+                .map(|n| format!("{n}.svg"))
+                .collect(),
         }
     }
 

@@ -2,6 +2,9 @@
 //! quantity with the exclusions, the closed vector, the pilot's stability, and the
 //! degrees of equivalence (the formulas are in the module's documentation, [`super`]).
 
+use nalgebra::DMatrix;
+
+use super::covariance;
 use super::input::{self, Aligned};
 use super::reference::{self, Estimate, chi2_quantile_95};
 use super::{
@@ -78,7 +81,24 @@ pub fn evaluate(
         Quantity::EncoderError => input::encoder(&all)?,
         other => return Err(KcError::Quantity(other)),
     };
-    Ok(evaluate_aligned(labs, pilot, options, aligned))
+    // Every laboratory's own covariance is checked, whether or not it ends in the
+    // reference (pitch deviations only: encoder errors have no closed vector).
+    let mut covariances = Vec::with_capacity(labs.len());
+    for lab in labs {
+        covariances.push(match (&lab.covariance, options.quantity) {
+            (Some(_), Quantity::PitchDeviation) => {
+                Some(covariance::checked(lab, aligned.index.len())?)
+            }
+            _ => None,
+        });
+    }
+    Ok(evaluate_aligned(
+        labs,
+        pilot,
+        options,
+        aligned,
+        &covariances,
+    ))
 }
 
 /// The estimates of every quantity from the laboratories `inside`.
@@ -97,6 +117,7 @@ fn evaluate_aligned(
     pilot: &[LabResult],
     options: &KcOptions,
     aligned: Aligned,
+    covariances: &[Option<DMatrix<f64>>],
 ) -> KeyComparison {
     let random_effects = options.method == ReferenceMethod::DersimonianLaird;
     let positions = aligned.index.len();
@@ -251,13 +272,32 @@ fn evaluate_aligned(
         }
     }
 
+    let own: Vec<&str> = inside
+        .iter()
+        .filter(|&&r| covariances[r].is_some())
+        .map(|&r| labs[r].name.as_str())
+        .collect();
+    if options.quantity == Quantity::PitchDeviation && !own.is_empty() {
+        notes.push(format!(
+            "the closed vector uses the laboratories' own covariances of their pitch deviations \
+             for {}; the others are taken as closed with V = N/(N − 1)·P·diag(u²)·P",
+            own.join(", ")
+        ));
+    }
     let vector = if options.quantity == Quantity::PitchDeviation {
         let x: Vec<&[f64]> = inside
             .iter()
             .map(|&r| aligned.values[r].as_slice())
             .collect();
-        let u: Vec<&[f64]> = inside.iter().map(|&r| aligned.u[r].as_slice()).collect();
-        reference::closed_vector(&x, &u).map(|fit| {
+        let v: Vec<DMatrix<f64>> = inside
+            .iter()
+            .map(|&r| {
+                covariances[r]
+                    .clone()
+                    .unwrap_or_else(|| reference::closed_covariance(&aligned.u[r]))
+            })
+            .collect();
+        reference::closed_vector(&x, &v).map(|fit| {
             let critical = chi2_quantile_95(fit.dof);
             VectorTest {
                 chi2: fit.chi2,

@@ -31,12 +31,17 @@
 //! DerSimonian–Laird method excludes nobody: its dark uncertainty τ takes inconsistency
 //! into the reference's uncertainty instead.
 //!
-//! **The closed vector** (pitch deviations only): a result without a covariance is taken
-//! as closed (Σβ = 0) with V_i = N/(N − 1)·P·diag(u_i²)·P, P = I − J/N; the GLS reference
+//! **The closed vector** (pitch deviations only): a laboratory's own covariance V_i of its
+//! pitch deviations ([`LabResult::with_covariance`], or `pitch_deviation_covariance` of a
+//! solve result in JSON, [`lab_from_solve_json`]) is used as given once checked
+//! (symmetric, positive semi-definite, rows summing to 0, rank N − 1); a result without
+//! one is taken as closed (Σβ = 0) with V_i = N/(N − 1)·P·diag(u_i²)·P, P = I − J/N. The
+//! per-face tests use each row's u either way. The GLS reference
 //! x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i (pseudo-inverses on the closed subspace) and
 //! χ²_vector = Σ (x_i − x_ref)ᵀ V_i⁺ (x_i − x_ref) with ν = (N − 1)(n − 1). Encoder errors
 //! have no closure test.
 
+mod covariance;
 mod evaluate;
 mod input;
 mod reference;
@@ -45,6 +50,7 @@ use serde::Serialize;
 
 use crate::results::{Quantity, ResultFile, ResultRow};
 
+pub use covariance::lab_from_solve_json;
 pub use evaluate::evaluate;
 pub use reference::{chi2_quantile_95, closed_covariance};
 
@@ -57,6 +63,72 @@ pub enum ReferenceMethod {
     WeightedMean,
     /// The DerSimonian–Laird random-effects mean, with its dark uncertainty τ.
     DersimonianLaird,
+}
+
+impl ReferenceMethod {
+    /// Every method, in the order of their names in messages.
+    pub const ALL: [ReferenceMethod; 2] = [
+        ReferenceMethod::WeightedMean,
+        ReferenceMethod::DersimonianLaird,
+    ];
+
+    /// The name as spelled in the JSON and on the command line, e.g. `weighted-mean`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ReferenceMethod::WeightedMean => "weighted-mean",
+            ReferenceMethod::DersimonianLaird => "dersimonian-laird",
+        }
+    }
+}
+
+/// A name a key comparison does not know: one message for every caller (the command
+/// line, Python).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum KcNameError {
+    /// Not a reference method's name.
+    #[error("method {0:?}: expected weighted-mean or dersimonian-laird")]
+    Method(String),
+    /// Not the name of a compared quantity.
+    #[error("quantity {0:?}: expected pitch_deviation or encoder_error")]
+    Quantity(String),
+}
+
+impl std::str::FromStr for ReferenceMethod {
+    type Err = KcNameError;
+
+    /// `weighted-mean` or `dersimonian-laird`, exactly.
+    ///
+    /// ```
+    /// use polycal::kc::ReferenceMethod;
+    /// assert_eq!("dersimonian-laird".parse(), Ok(ReferenceMethod::DersimonianLaird));
+    /// assert!("mean".parse::<ReferenceMethod>().is_err());
+    /// ```
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        ReferenceMethod::ALL
+            .into_iter()
+            .find(|m| m.name() == name)
+            .ok_or_else(|| KcNameError::Method(name.to_string()))
+    }
+}
+
+/// The quantity a key comparison compares, by its name: `pitch_deviation` or
+/// `encoder_error` (exactly; face deviations and setup errors are not compared).
+///
+/// # Errors
+///
+/// [`KcNameError::Quantity`] for any other word.
+///
+/// ```
+/// use polycal::results::Quantity;
+/// assert_eq!(polycal::kc::compared_quantity("encoder_error"), Ok(Quantity::EncoderError));
+/// assert!(polycal::kc::compared_quantity("face_deviation").is_err());
+/// ```
+pub fn compared_quantity(name: &str) -> Result<Quantity, KcNameError> {
+    [Quantity::PitchDeviation, Quantity::EncoderError]
+        .into_iter()
+        .find(|q| q.name() == name)
+        .ok_or_else(|| KcNameError::Quantity(name.to_string()))
 }
 
 /// Options of a key comparison: [`KcOptions::new`] and the `with_…` methods.
@@ -120,6 +192,9 @@ pub struct LabResult {
     pub rows: Vec<ResultRow>,
     /// The 1-based line of each row in its file (empty for rows given in memory).
     pub lines: Vec<u64>,
+    /// The laboratory's covariance of its pitch deviations, faces 1 … N row-major
+    /// (N × N), arcsec², when it gives one; else `None` (taken as closed with its u).
+    pub covariance: Option<Vec<f64>>,
 }
 
 impl LabResult {
@@ -130,6 +205,7 @@ impl LabResult {
             source: file.source,
             rows: file.rows,
             lines: file.lines,
+            covariance: None,
         }
     }
 
@@ -142,7 +218,16 @@ impl LabResult {
             name,
             rows,
             lines: Vec::new(),
+            covariance: None,
         }
+    }
+
+    /// With the laboratory's covariance of its pitch deviations, faces 1 … N row-major
+    /// (N × N), arcsec²; [`evaluate`] checks it (symmetric, positive semi-definite,
+    /// closed, rank N − 1) and refuses it with the reason.
+    pub fn with_covariance(mut self, covariance_arcsec2: Vec<f64>) -> LabResult {
+        self.covariance = Some(covariance_arcsec2);
+        self
     }
 }
 
@@ -384,6 +469,26 @@ pub enum KcError {
     /// No encoder error position is in every result.
     #[error("no encoder error position is in every result: nothing to compare")]
     NothingInCommon,
+    /// A file that is not a solve result in JSON.
+    #[error("{file}: not a solve result in JSON (docs/FORMAT.md §5.1): {message}")]
+    SolveJson {
+        /// The file.
+        file: String,
+        /// What is wrong, with serde's line and column where it has them.
+        message: String,
+    },
+    /// A laboratory's covariance of its pitch deviations that cannot be used.
+    #[error(
+        "{file} (laboratory {lab}): its covariance of the pitch deviations is refused: {reason}"
+    )]
+    Covariance {
+        /// The file.
+        file: String,
+        /// The laboratory.
+        lab: String,
+        /// Why, in words.
+        reason: String,
+    },
     /// A quantity other than pitch deviations and encoder errors.
     #[error(
         "a key comparison is of pitch_deviation or encoder_error, not {0} (face deviations \

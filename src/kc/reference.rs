@@ -76,7 +76,7 @@ pub(crate) fn estimate(x: &[f64], u: &[f64], random_effects: bool) -> Estimate {
 }
 
 /// The projector onto closed vectors, P = I − J/N.
-fn closing_projector(faces: usize) -> DMatrix<f64> {
+pub(crate) fn closing_projector(faces: usize) -> DMatrix<f64> {
     let n = faces as f64;
     DMatrix::from_fn(
         faces,
@@ -90,7 +90,7 @@ fn closing_projector(faces: usize) -> DMatrix<f64> {
 /// The pseudo-inverse of a symmetric matrix whose null space is exactly the constant
 /// vectors: A⁺ = (A + J/N)⁻¹ − J/N (the constant direction given eigenvalue 1, inverted,
 /// and taken out again). `None` when A + J/N is not positive definite.
-fn closed_pseudo_inverse(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+pub(crate) fn closed_pseudo_inverse(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let faces = a.nrows();
     let j_over_n = DMatrix::from_element(faces, faces, 1.0 / faces as f64);
     let inverse = (a + &j_over_n).cholesky()?.inverse();
@@ -117,11 +117,11 @@ pub(crate) struct VectorFit {
     pub dof: usize,
 }
 
-/// The GLS reference of closed vectors x_i (each projected onto Σ = 0 first) with the
-/// closed covariances of [`closed_covariance`]: x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i, and its χ².
-/// `None` for fewer than 2 faces or a covariance that cannot be inverted on the closed
-/// subspace.
-pub(crate) fn closed_vector(x: &[&[f64]], u: &[&[f64]]) -> Option<VectorFit> {
+/// The GLS reference of closed vectors x_i (each projected onto Σ = 0 first) with their
+/// covariances `v` (a laboratory's own, or [`closed_covariance`] of its u):
+/// x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i, and its χ². `None` for fewer than 2 faces or a
+/// covariance that cannot be inverted on the closed subspace.
+pub(crate) fn closed_vector(x: &[&[f64]], v: &[DMatrix<f64>]) -> Option<VectorFit> {
     let faces = x.first()?.len();
     if faces < 2 {
         return None;
@@ -131,8 +131,8 @@ pub(crate) fn closed_vector(x: &[&[f64]], u: &[&[f64]]) -> Option<VectorFit> {
     let mut sum_weighted = DVector::zeros(faces);
     let mut closed = Vec::new();
     let mut weights = Vec::new();
-    for (x, u) in x.iter().zip(u) {
-        let v_plus = closed_pseudo_inverse(&closed_covariance(u))?;
+    for (x, v) in x.iter().zip(v) {
+        let v_plus = closed_pseudo_inverse(v)?;
         let xi = &p * DVector::from_column_slice(x);
         sum_weighted += &v_plus * &xi;
         sum_inverse += &v_plus;

@@ -117,6 +117,11 @@ pub struct SolveReport {
     /// validation of the GUM result.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub monte_carlo: Option<CalibrationMonteCarlo>,
+    /// The fit's covariance of the pitch deviations σ²Q, N rows of N, arcsec² (on
+    /// request, [`SolveReport::with_pitch_deviation_covariance`]; `null` when σ is
+    /// unknown; an addition).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pitch_deviation_covariance: Option<Option<Vec<Vec<f64>>>>,
 }
 
 impl SolveReport {
@@ -167,7 +172,19 @@ impl SolveReport {
             encoder_error_k: None,
             uncertainty: None,
             monte_carlo: None,
+            pitch_deviation_covariance: None,
         }
+    }
+
+    /// Adds the fit's covariance of the pitch deviations, σ²Q of β (N rows of N,
+    /// arcsec²; `null` when σ is unknown), for a key comparison's closed vector.
+    pub fn with_pitch_deviation_covariance(mut self, solution: &Solution) -> Self {
+        self.pitch_deviation_covariance = Some(
+            solution
+                .family_covariance(crate::results::Quantity::PitchDeviation)
+                .map(|(n, flat)| flat.chunks(n.max(1)).map(<[f64]>::to_vec).collect()),
+        );
+        self
     }
 
     /// The report of a set with shifted mountings
