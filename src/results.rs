@@ -26,7 +26,7 @@ use std::path::Path;
 
 use crate::input::Location;
 use crate::input::limits::{self, Limit};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The four families of calibrated quantities (docs/FORMAT.md §3), the crate's one list
 /// of them: result files, reports, uncertainties and truths name them through this type.
@@ -37,7 +37,7 @@ use serde::Serialize;
 /// assert_eq!(Quantity::from_name("pitch_deviation"), Some(Quantity::PitchDeviation));
 /// assert_eq!(Quantity::ALL.len(), 4);
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Quantity {
     /// β\[k\], pitch deviation of face k = 1 … N.

@@ -45,6 +45,9 @@ pub struct ReportInputs {
     /// readings are corrected for it, its U enters the budget, and the diagnosis tries no
     /// cross-talk term for those autocollimators.
     pub stated_cross_talk: Vec<crate::measurement::cross_talk::StatedCrossTalk>,
+    /// The JSON of `polycal kc --format json` to report (docs/FORMAT.md §12), and the
+    /// laboratory the report is for, when one is named.
+    pub key_comparison: Option<(PathBuf, Option<String>)>,
 }
 
 impl ReportInputs {
@@ -63,6 +66,7 @@ impl ReportInputs {
             generated_utc: None,
             command_line: None,
             stated_cross_talk: Vec::new(),
+            key_comparison: None,
         }
     }
     /// With the number of faces (or positions).
@@ -111,6 +115,12 @@ impl ReportInputs {
     /// With a run directory.
     pub fn with_run_dir(mut self, run_dir: impl Into<PathBuf>) -> Self {
         self.run_dir = Some(run_dir.into());
+        self
+    }
+    /// With a key comparison's JSON (`polycal kc --format json`) and the laboratory the
+    /// report is for (`None`: every laboratory's degrees of equivalence).
+    pub fn with_key_comparison(mut self, kc_json: impl Into<PathBuf>, lab: Option<String>) -> Self {
+        self.key_comparison = Some((kc_json.into(), lab));
         self
     }
     /// With the report's date and time (RFC 3339 UTC), instead of now.
@@ -213,5 +223,24 @@ pub enum ReportError {
         what: &'static str,
         /// What the file is.
         kind: &'static str,
+    },
+    /// The key comparison file is not the JSON of `polycal kc --format json`, or its lists
+    /// do not hold one entry per compared quantity.
+    #[error("{location}: {message}")]
+    KeyComparison {
+        /// The file, with serde's line and column where it has them.
+        location: Location,
+        /// What is wrong.
+        message: String,
+    },
+    /// The laboratory named for the key comparison is not one of its laboratories.
+    #[error("{file}: laboratory {lab:?} is not in this key comparison; its laboratories: {labs}")]
+    KeyComparisonLab {
+        /// The key comparison file.
+        file: String,
+        /// The name given.
+        lab: String,
+        /// The comparison's laboratories, comma-separated.
+        labs: String,
     },
 }

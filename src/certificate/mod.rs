@@ -28,6 +28,7 @@
 pub mod dcc;
 pub mod html;
 mod inputs;
+mod kc;
 pub mod meta;
 
 use std::path::Path;
@@ -54,6 +55,7 @@ use crate::uncertainty::calibration::{
 };
 
 pub use inputs::{ReportError, ReportInputs};
+pub use kc::KeyComparisonSection;
 pub use meta::Metadata;
 
 /// One input file of a report, with its fingerprint.
@@ -206,6 +208,8 @@ pub struct CalibrationReport {
     /// Cross-talk stated from the autocollimators' calibrations, the readings corrected
     /// for it (docs/FORMAT.md §6); shown in the method section.
     pub stated_cross_talk: Vec<crate::measurement::cross_talk::StatedCrossTalk>,
+    /// The key comparison, when one is reported (docs/FORMAT.md §10.2).
+    pub key_comparison: Option<KeyComparisonSection>,
 }
 
 /// Reads a whole input file (at most [`crate::input::MAX_INPUT_BYTES`]) and fingerprints it.
@@ -477,6 +481,17 @@ impl CalibrationReport {
             }
             None => None,
         };
+        let key_comparison = match &inputs.key_comparison {
+            Some((path, lab)) => {
+                let (bytes, mut file) = read_input(path, "key comparison")?;
+                // named by its file name and SHA-256, never by its directories
+                let section = kc::parse(&bytes, &file.path, file.sha256.clone(), lab.as_deref())?;
+                file.path = section.file_name.clone();
+                files.push(file);
+                Some(section)
+            }
+            None => None,
+        };
         let mut figures = match &evaluation {
             // with a budget, the solve figures include the budget's
             Evaluation::Polygon { solve, .. } => figure::solve_figures(solve),
@@ -501,6 +516,7 @@ impl CalibrationReport {
                 .unwrap_or_else(|| crate::clock::rfc3339(crate::clock::unix_now())),
             command_line: inputs.command_line.clone(),
             stated_cross_talk: inputs.stated_cross_talk.clone(),
+            key_comparison,
         })
     }
 

@@ -22,6 +22,9 @@ Examples:
   polycal report examples/data/selfa-168.csv --budget examples/budgets/selfcal.toml --out selfcal.html
   polycal report examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml \\
       --meta examples/report/meta.toml --out report.html --dcc certificate.xml
+  polycal kc A=A.csv B=B.csv C=C.csv --format json > kc.json
+  polycal report examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml \\
+      --kc kc.json --kc-lab A --out report.html
 
 The report's date is now (UTC), or SOURCE_DATE_EPOCH (seconds since 1970) when it is set:
 the same inputs then give the same bytes.";
@@ -63,6 +66,14 @@ pub struct ReportArgs {
     /// |En| > 1.
     #[arg(long, value_name = "REF.csv")]
     reference: Option<PathBuf>,
+    /// Key comparison to report: the JSON of `polycal kc --format json` (docs/FORMAT.md
+    /// §12); adds its section to the HTML and its result to the DCC (§10.2, §10.3).
+    #[arg(long, value_name = "KC.json")]
+    kc: Option<PathBuf>,
+    /// The laboratory the report is for, one of the key comparison's: its d_i and U(d_i)
+    /// alone; without it, every laboratory's.
+    #[arg(long, value_name = "NAME", requires = "kc")]
+    kc_lab: Option<String>,
     /// Metadata (TOML, docs/FORMAT.md §10): customer, artefact, operator, instruments,
     /// environment.
     #[arg(long, value_name = "META.toml")]
@@ -90,6 +101,7 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         ("--truth", args.truth.as_deref()),
         ("--reference", args.reference.as_deref()),
         ("--meta", args.meta.as_deref()),
+        ("--kc", args.kc.as_deref()),
     ])?;
     super::solve::check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
     // refused before any work: an output that is an input, two outputs of one file, an
@@ -102,6 +114,7 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
             args.truth.as_deref(),
             args.reference.as_deref(),
             args.meta.as_deref(),
+            args.kc.as_deref(),
             manifest.as_deref(),
         ]
         .into_iter()
@@ -154,6 +167,9 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
     if let Some(p) = &args.run_dir {
         inputs = inputs.with_run_dir(p);
     }
+    if let Some(p) = &args.kc {
+        inputs = inputs.with_key_comparison(p, args.kc_lab.clone());
+    }
     let report = CalibrationReport::build(&inputs).map_err(|e| match e {
         // Library messages name no flags: the CLI adds the one that helps.
         ReportError::NoExpandedUncertainty { .. } => {
@@ -163,6 +179,7 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
             source: polycal::uncertainty::calibration::CalibrationError::NoSigma,
             ..
         } => anyhow::anyhow!("{e} (--sigma)"),
+        ReportError::KeyComparisonLab { .. } => anyhow::anyhow!("{e} (--kc-lab)"),
         e => e.into(),
     })?;
     // both documents made before either is written: a refusal writes nothing

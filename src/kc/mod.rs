@@ -46,7 +46,7 @@ mod evaluate;
 mod input;
 mod reference;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::results::{Quantity, ResultFile, ResultRow};
 
@@ -55,7 +55,7 @@ pub use evaluate::evaluate;
 pub use reference::{chi2_quantile_95, closed_covariance};
 
 /// How the reference value of each quantity is formed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 #[non_exhaustive]
 pub enum ReferenceMethod {
@@ -232,7 +232,7 @@ impl LabResult {
 }
 
 /// A laboratory left out of the reference, and why.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct Exclusion {
     /// The laboratory.
@@ -250,7 +250,7 @@ pub struct Exclusion {
 }
 
 /// The test of the whole closed vector of pitch deviations.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct VectorTest {
     /// χ²_vector = Σ (x_i − x_ref)ᵀ V_i⁺ (x_i − x_ref).
@@ -266,7 +266,7 @@ pub struct VectorTest {
 }
 
 /// A degree of equivalence: one laboratory (or pilot repeat) against the reference.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct DegreeOfEquivalence {
     /// The laboratory.
@@ -281,7 +281,7 @@ pub struct DegreeOfEquivalence {
 }
 
 /// A pair of laboratories: d_ij = x_i − x_j, U(d_ij) = 2·√(u_i² + u_j²).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct PairDifference {
     /// The first laboratory.
@@ -300,7 +300,7 @@ pub struct PairDifference {
 /// degrees of freedom; where it exceeds χ²_{0.95}(m − 1), the repeats' sample standard
 /// deviation s = √(Σ (y_r − ȳ)²/(m − 1)) is the instability u_stab, added in quadrature
 /// to u_ref and to every u(d_i).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct PilotStability {
     /// The repeats' names, in the order given.
@@ -322,7 +322,7 @@ pub struct PilotStability {
 }
 
 /// A key comparison evaluated. Serializes to the JSON of docs/FORMAT.md §12.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct KeyComparison {
     /// The compared quantity.

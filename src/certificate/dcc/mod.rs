@@ -33,6 +33,7 @@
 //! ```
 
 mod calibrated;
+mod kc;
 mod results;
 mod xml;
 

@@ -1,7 +1,7 @@
 //! `measurementResults` of a DCC: the method, the software, the equipment, the
 //! conditions and the results — β, φ, α (or a self-calibration's e and head errors) as
-//! D-SI lists with U, k and p per value, the fit, the diagnosis, the comparison — and the
-//! SHA-256 of every input.
+//! D-SI lists with U, k and p per value, the fit, the diagnosis, the comparison, the key
+//! comparison (`kc`) — and the SHA-256 of every input.
 
 use super::calibrated::{Column, Stage, polygon_results, real_quantity, selfcal_results};
 use super::xml::Xml;
@@ -163,6 +163,7 @@ pub(super) fn measurement_results(x: &mut Xml, report: &CalibrationReport) -> Re
     diagnosis(x, report)?;
     final_model(x, report)?;
     comparison(x, report)?;
+    super::kc::key_comparison(x, report)?;
     x.close();
     x.open("dcc:measurementMetaData", &[]);
     for input in &report.inputs {

@@ -1,10 +1,12 @@
 //! The HTML document of a [`CalibrationReport`]: numbered sections (details, method,
-//! results, budget, figures, diagnosis, comparison, provenance, signatures), every
-//! number rounded for reading with its full-precision value in `data-value` (the JSON's
-//! number), every text from a file escaped, the style inline and made for A4.
+//! results, budget, figures, diagnosis, comparison, key comparison, provenance,
+//! signatures), every number rounded for reading with its full-precision value in
+//! `data-value` (the JSON's number), every text from a file escaped, the style inline and
+//! made for A4.
 
 use std::fmt::Write;
 
+mod kc;
 mod tables;
 
 use super::{CalibrationReport, DesignSummary, Evaluation};
@@ -69,6 +71,7 @@ pub fn document(report: &CalibrationReport) -> String {
     figures(&mut s, report);
     diagnosis(&mut s, report);
     comparison(&mut s, report);
+    kc::section(&mut s, report);
     provenance(&mut s, report);
     signatures(&mut s, report);
     format!(

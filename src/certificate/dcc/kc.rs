@@ -1,0 +1,206 @@
+//! The key comparison in a DCC's results (`report --kc`, docs/FORMAT.md §10.3): one
+//! `dcc:result` of refType `polycal_keyComparison` whose list holds, per compared quantity,
+//! the reference value with U = 2·u_ref, the χ² of its test and χ²_0.95(ν), and the
+//! degrees of equivalence d_i with U(d_i) (the named laboratory's, or every laboratory's)
+//! as D-SI lists; the formulas, the closed vector's test, the exclusions with their reasons
+//! and the verdict in words.
+
+use super::DccError;
+use super::calibrated::Column;
+use super::xml::Xml;
+use crate::certificate::{CalibrationReport, KeyComparisonSection};
+use crate::kc::ReferenceMethod;
+use crate::results::Quantity;
+
+/// The coverage factor of the comparison's expanded uncertainties (U(d_i) and U_ref).
+const K: f64 = 2.0;
+
+/// The coverage probability stated with k = 2: about 95 % for a normal distribution.
+const P: f64 = 0.95;
+
+/// The key comparison's `dcc:result`; nothing without one.
+pub(super) fn key_comparison(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
+    let Some(section) = &report.key_comparison else {
+        return Ok(());
+    };
+    let kc = &section.comparison;
+    let n = kc.index.len();
+    x.open("dcc:result", &[("refType", "polycal_keyComparison")]);
+    x.content(
+        "dcc:name",
+        &format!(
+            "Key comparison of the {}: reference values and degrees of equivalence",
+            kc.quantity.name()
+        ),
+    )?;
+    x.content("dcc:description", &description(section))?;
+    x.open("dcc:data", &[]);
+    x.open("dcc:list", &[]);
+    let labels: Vec<String> = kc
+        .index
+        .iter()
+        .map(|i| match kc.quantity {
+            Quantity::PitchDeviation => format!("face{i}"),
+            _ => format!("index{i}"),
+        })
+        .collect();
+    if let Some(angles) = &kc.angle_deg {
+        Column {
+            refs: "polycal_kcTableAngle",
+            name: "Table angle of the encoder error",
+            unit: "\\degree",
+            labels: Some(labels.clone()),
+            values: angles.clone(),
+            expanded: None,
+        }
+        .write(x)?;
+    }
+    Column {
+        refs: "polycal_kcReferenceValue",
+        name: "Reference value x_ref",
+        unit: "\\arcsecond",
+        labels: Some(labels.clone()),
+        values: kc.reference.clone(),
+        expanded: Some((
+            kc.reference_u.iter().map(|u| K * u).collect(),
+            vec![K; n],
+            P,
+        )),
+    }
+    .write(x)?;
+    Column {
+        refs: "polycal_kcChi2",
+        name: "χ² of the reference's consistency test",
+        unit: "\\one",
+        labels: Some(labels.clone()),
+        values: kc.chi2.clone(),
+        expanded: None,
+    }
+    .write(x)?;
+    Column {
+        refs: "polycal_kcChi2Critical",
+        name: "χ²_0.95(ν) of the consistency test",
+        unit: "\\one",
+        labels: Some(labels.clone()),
+        values: kc.chi2_critical.clone(),
+        expanded: None,
+    }
+    .write(x)?;
+    for doe in section.shown_degrees_of_equivalence() {
+        let name = format!(
+            "Degree of equivalence d of laboratory {}{}",
+            doe.lab,
+            if doe.in_reference {
+                " (in the reference)"
+            } else {
+                " (left out of the reference)"
+            }
+        );
+        Column {
+            refs: "polycal_kcDegreeOfEquivalence",
+            name: &name,
+            unit: "\\arcsecond",
+            labels: Some(labels.clone()),
+            values: doe.d.clone(),
+            expanded: Some((doe.expanded_u.clone(), vec![K; n], P)),
+        }
+        .write(x)?;
+    }
+    x.close();
+    for line in statements(section) {
+        x.content("dcc:text", &line)?;
+    }
+    x.close();
+    x.close();
+    Ok(())
+}
+
+/// The formulas and the file, in words.
+fn description(section: &KeyComparisonSection) -> String {
+    let kc = &section.comparison;
+    let method = match kc.method {
+        ReferenceMethod::WeightedMean => {
+            "the weighted mean (Cox 2002, procedure A), x_ref = Σ x_i/u_i² / Σ 1/u_i², u_ref = (Σ 1/u_i²)^(−1/2), with the largest consistent subset"
+        }
+        ReferenceMethod::DersimonianLaird => {
+            "the DerSimonian–Laird random-effects mean, x_ref = Σ x_i/(u_i² + τ²) / Σ 1/(u_i² + τ²), u_ref² = 1/Σ 1/(u_i² + τ²), τ² = max(0, (χ² − ν)/(S1 − S2/S1))"
+        }
+    };
+    format!(
+        "Interlaboratory comparison of {} laboratories ({}) evaluated by polycal kc (file {}, SHA-256 {}). Reference per quantity: {method}; its U = 2·u_ref. Consistency: χ² = Σ (x_i − x̄_w)²/u_i² with ν = n − 1, consistent when χ² ≤ χ²_0.95(ν). Degrees of equivalence d_i = x_i − x_ref with U(d_i) = 2·√(u_i² + τ² − u_ref² + u_stab²) in the reference and 2·√(u_i² + τ² + u_ref² + u_stab²) out of it. {} Values in arcseconds, labelled by {}; k = 2 with the coverage probability stated as 0.95 (normal distribution).",
+        kc.labs.len(),
+        kc.labs.join(", "),
+        section.file_name,
+        section.sha256,
+        match &section.lab {
+            Some(lab) => format!("The degrees of equivalence are those of laboratory {lab}."),
+            None => "The degrees of equivalence of every laboratory follow.".to_string(),
+        },
+        if kc.quantity == Quantity::PitchDeviation {
+            "face"
+        } else {
+            "the first laboratory's encoder index"
+        }
+    )
+}
+
+/// The closed vector's test, the exclusions with their reasons, the pilot's stability, the
+/// notes and the verdict, one statement each.
+fn statements(section: &KeyComparisonSection) -> Vec<String> {
+    let kc = &section.comparison;
+    let mut lines = Vec::new();
+    match &kc.vector {
+        Some(v) => lines.push(format!(
+            "Closed vector (GLS, V_i = N/(N−1)·P·diag(u²)·P unless the laboratory sent its covariance, P = I − J/N): χ² = {}, ν = (N − 1)(n − 1) = {}, χ²_0.95(ν) = {}: {}.",
+            v.chi2,
+            v.dof,
+            v.chi2_critical,
+            if v.consistent {
+                "consistent"
+            } else {
+                "NOT consistent"
+            }
+        )),
+        None => lines.push(format!(
+            "Closed vector: not tested ({} are not closed).",
+            kc.quantity.name()
+        )),
+    }
+    if kc.excluded.is_empty() {
+        lines.push("Exclusions: none; every laboratory is in the reference.".to_string());
+    }
+    for (step, e) in kc.excluded.iter().enumerate() {
+        lines.push(format!(
+            "Exclusion {}: laboratory {} left out of the reference: {}",
+            step + 1,
+            e.lab,
+            e.reason
+        ));
+    }
+    if let Some(p) = &kc.pilot {
+        let significant: Vec<String> = kc
+            .index
+            .iter()
+            .zip(&p.significant)
+            .filter(|(_, s)| **s)
+            .map(|(i, _)| i.to_string())
+            .collect();
+        lines.push(format!(
+            "The pilot's stability from its repeats ({}): χ² about their weighted mean with ν = {}; significant at {} — there u_stab, their sample standard deviation, is added to u_ref and to every u(d_i).",
+            p.repeats.join(", "),
+            p.chi2_dof,
+            if significant.is_empty() {
+                "no quantity".to_string()
+            } else {
+                significant.join(", ")
+            }
+        ));
+    }
+    lines.extend(kc.notes.iter().cloned());
+    lines.push(if kc.comparison_consistent {
+        "Verdict: consistent after the exclusions stated.".to_string()
+    } else {
+        "Verdict: NOT consistent.".to_string()
+    });
+    lines
+}
