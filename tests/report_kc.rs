@@ -232,6 +232,19 @@ fn the_named_laboratorys_section_carries_the_kc_json_numbers() {
         sha256_hex(&std::fs::read(&kc_path).unwrap())
     );
     assert_eq!(text(&html, "kc-lab"), "F");
+    // the figures of `kc` with its pilot, inlined in the figures section
+    for name in [
+        "kc-degrees-of-equivalence",
+        "kc-reference",
+        "kc-pilot-stability",
+    ] {
+        assert_eq!(
+            html.select(&sel(&format!("#figures #figure-{name} svg")))
+                .count(),
+            1,
+            "{name}"
+        );
+    }
 
     // the reference per face: x_ref, u_ref, τ, χ², χ²_0.95 and ν as in the JSON
     let reference = rows(&html, "kc-reference");
@@ -413,6 +426,8 @@ fn without_a_laboratory_every_degree_of_equivalence_is_shown() {
         }
         assert_eq!(data_values(*row), want, "angle {}", angles[k]);
     }
+    assert_eq!(html.select(&sel("#figure-kc-reference svg")).count(), 1);
+    assert_eq!(html.select(&sel("#figure-kc-pilot-stability")).count(), 0);
     // encoder errors: no closed vector
     assert!(text(&html, "kc-vector").contains("not tested"));
     let doc = Document::parse(&dcc).unwrap();

@@ -503,6 +503,9 @@ impl CalibrationReport {
         if let Some((c, reference)) = &comparison {
             figures.extend(figure::compare_figures_labelled(c, &name, reference));
         }
+        if let Some(k) = &key_comparison {
+            figures.extend(figure::kc_figures(&k.comparison));
+        }
         Ok(Self {
             inputs: files,
             metadata,

@@ -22,7 +22,8 @@ Examples:
   polycal report examples/data/selfa-168.csv --budget examples/budgets/selfcal.toml --out selfcal.html
   polycal report examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml \\
       --meta examples/report/meta.toml --out report.html --dcc certificate.xml
-  polycal kc A=A.csv B=B.csv C=C.csv --format json > kc.json
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv \\
+      --format json > kc.json
   polycal report examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml \\
       --kc kc.json --kc-lab A --out report.html
 
