@@ -6,7 +6,8 @@
 //! (computed here) and never by its directories; the DCC validates against the vendored
 //! schema (xmllint, as `tests/certificate_dcc.rs`); a malformed, foreign or inconsistent
 //! file and a `--kc-lab` not in the comparison are refused with one `error:` line, status
-//! 2 and nothing written.
+//! 2 and nothing written; read through the library's `KeyComparison` and written again,
+//! the kc JSON is the command's to the byte.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -527,4 +528,27 @@ fn the_documents_hold_no_absolute_path_of_the_kc_file() {
     assert!(dcc.contains("kc.json"));
     assert!(!html.contains(directory), "the HTML names {directory}");
     assert!(!dcc.contains(directory), "the DCC names {directory}");
+}
+
+/// The report reads the kc JSON through the library's own `KeyComparison`: read back and
+/// written again, the JSON is the command's to the byte, with and without a pilot and
+/// angles, so no member is dropped or changed on the way into the documents.
+#[test]
+fn the_kc_json_reads_back_to_the_same_bytes() {
+    let dir = temp_dir("round-trip");
+    let cases: [(&str, &[&str]); 3] = [
+        ("pilot.json", &with_pilot()),
+        ("encoder.json", &["--quantity", "encoder_error"]),
+        ("dl.json", &["--method", "dersimonian-laird"]),
+    ];
+    for (name, extra) in cases {
+        let (path, _) = kc_json(&dir, name, extra);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let kc: polycal::kc::KeyComparison = serde_json::from_str(&text).unwrap();
+        assert_eq!(
+            polycal::output::to_json(&kc).unwrap(),
+            text.trim_end(),
+            "{name}"
+        );
+    }
 }
