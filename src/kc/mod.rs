@@ -321,7 +321,8 @@ pub struct PilotStability {
     pub degrees_of_equivalence: Vec<DegreeOfEquivalence>,
 }
 
-/// A key comparison evaluated. Serializes to the JSON of docs/FORMAT.md §12.
+/// A key comparison evaluated. Serializes to the JSON of docs/FORMAT.md §12, and reads it
+/// back (`polycal report --kc`, [`crate::certificate::KeyComparisonSection`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct KeyComparison {
