@@ -121,8 +121,6 @@ struct SiList {
     /// The texts of the values, U and k, as written.
     texts: [Vec<String>; 3],
     values: Vec<f64>,
-    expanded_u: Vec<f64>,
-    k: Vec<f64>,
     p: Vec<f64>,
     unit: String,
 }
@@ -171,8 +169,6 @@ fn si_list(doc: &Document, result_ref: &str, quantity: &str) -> SiList {
             texts("coverageFactorXMLList"),
         ],
         values: list("valueXMLList"),
-        expanded_u: list("uncertaintyXMLList"),
-        k: list("coverageFactorXMLList"),
         p: list("coverageProbabilityXMLList"),
         unit,
     }

@@ -178,8 +178,9 @@ fn details(s: &mut Sections, report: &CalibrationReport) {
         .iter()
         .any(|k| m.value(k).is_some());
     let shown = |f: &&super::meta::MetaField| {
-        !matches!(f.key, "title" | "certificate" | "customer")
-            && !(f.key == "environment" && f.value.is_none() && conditions)
+        let in_title = matches!(f.key, "title" | "certificate" | "customer");
+        let no_environment = f.key == "environment" && f.value.is_none() && conditions;
+        !(in_title || no_environment)
     };
     for f in m.fields.iter().filter(shown) {
         let _ = writeln!(
