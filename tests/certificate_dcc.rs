@@ -2,10 +2,12 @@
 //! against the vendored DCC 3.1.2 and D-SI 2.1.0 schemas (`docs/schema/`, xmllint, offline
 //! through the catalog), and the validator is shown to reject a broken document; read
 //! back with an XML parser, every β, φ, α, U and k is the `solve --format json` number
-//! exactly, a self-calibration's e and head errors are `selfcal`'s, the En are
-//! `compare`'s, and the HTML report of the same inputs carries the same numbers; missing
-//! metadata is refused naming the key, with nothing written; XML specials survive the
-//! round trip and control characters are refused where they are read.
+//! stated as GUM 7.2.6 says (checked from the rule's definition, docs/FORMAT.md §10.4),
+//! the face numbers integers, a self-calibration's e and head errors are `selfcal`'s, the
+//! En are `compare`'s, and the HTML report of the same inputs shows the same text;
+//! missing metadata is refused naming every key missing, with nothing written; XML
+//! specials survive the round trip and control characters are refused where they are
+//! read.
 //!
 //! The schema validation needs `xmllint` (Debian: libxml2-utils). `.ci/run` installs it
 //! and sets `POLYCAL_REQUIRE_XMLLINT=1`, which turns its absence into a failure; without

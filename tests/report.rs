@@ -1,6 +1,8 @@
 //! `polycal report` (docs/FORMAT.md §10): the HTML parses without a single HTML5 parse
 //! error; every number it shows is the number the JSON commands print (`solve`,
-//! `diagnose`, `compare`, `selfcal`), shown rounded; each section is there exactly when
+//! `diagnose`, `compare`, `selfcal`), shown rounded (a result as GUM 7.2.6 states it);
+//! no document names a directory; printed, every page carries "Page i of n" and the
+//! certificate number; each section is there exactly when
 //! asked for; missing metadata is shown as missing; the SHA-256 of every input equals
 //! an independent computation (coreutils' `sha256sum`); the status follows the verdicts.
 

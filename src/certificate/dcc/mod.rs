@@ -6,10 +6,12 @@
 //!
 //! It is written from the same evaluated report as the HTML document, so the two carry
 //! the same numbers: β, φ and α (eqs. (6)–(10) or the least-squares closure) with their
-//! expanded uncertainties U, coverage factors k and coverage probability, at full
-//! precision (the shortest text that reads back to the JSON's double). What the schema
-//! requires and no source gives is refused, never invented: [`DccError`] names the
-//! missing metadata key; a DCC is written whole or not at all.
+//! expanded uncertainties U, coverage factors k and coverage probability, stated as
+//! GUM 7.2.6 says ([`crate::certificate::rounding`]: U to two significant digits rounded
+//! up, the value at U's decimal place, k to three significant digits; the text the HTML
+//! shows). What the schema requires and no source gives is refused, never invented:
+//! [`DccError`] names every missing metadata key at once; a DCC is written whole or not
+//! at all.
 //!
 //! ```
 //! use polycal::certificate::{CalibrationReport, ReportInputs};
