@@ -978,8 +978,8 @@ fn no_document_holds_an_absolute_path() {
 
 /// A program the printing test needs, or `None` (skipped, saying so) when it is not
 /// installed and `POLYCAL_REQUIRE_BROWSER` is not set; `.ci/run` sets it, so that CI fails.
-fn print_tool(program: &str) -> Option<()> {
-    match Command::new(program).arg("--version").output() {
+fn print_tool(program: &str, version: &str) -> Option<()> {
+    match Command::new(program).arg(version).output() {
         Ok(out) if out.status.success() => Some(()),
         other => {
             assert!(
@@ -997,7 +997,8 @@ fn print_tool(program: &str) -> Option<()> {
 /// `@page` margin boxes; the text of each page read back by poppler's `pdftotext`.
 #[test]
 fn every_printed_page_carries_page_i_of_n_and_the_certificate_number() {
-    if print_tool("chromium").is_none() || print_tool("pdftotext").is_none() {
+    // (poppler's tools take `-v`, not `--version`)
+    if print_tool("chromium", "--version").is_none() || print_tool("pdftotext", "-v").is_none() {
         return;
     }
     let dir = temp_dir("print");

@@ -617,3 +617,23 @@ fn signatures(s: &mut Sections, report: &CalibrationReport) {
             .map_or_else(|| MISSING.to_string(), esc),
     );
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A certificate number with CSS's and HTML's specials stays one string of the style
+    /// sheet: quotes and backslashes escaped, `<` as `\3C ` (no `</style>`), line ends as
+    /// spaces.
+    #[test]
+    fn the_certificate_number_is_one_css_string() {
+        assert_eq!(
+            css_string("A\"B\\C</style>\nD"),
+            "\"A\\\"B\\\\C\\3C /style> D\""
+        );
+        let margins = page_margins(Some("K-1"));
+        assert!(margins.contains("@top-right { content: \"Certificate K-1\";"));
+        assert!(margins.contains("\"Page \" counter(page) \" of \" counter(pages)"));
+        assert!(page_margins(None).contains("\"Certificate number not given\""));
+    }
+}
