@@ -356,16 +356,27 @@ fn the_full_example_validates_and_carries_the_json_numbers() {
         "--format",
         "json",
     ]);
+    // En to two decimals, as the report shows it
     let en = si_list(&doc, "polycal_comparison", "En");
-    assert_eq!(
-        en.values,
-        compared["rows"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|r| r["en"].as_f64().unwrap())
-            .collect::<Vec<_>>()
-    );
+    let compared_en: Vec<f64> = compared["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["en"].as_f64().unwrap())
+        .collect();
+    assert_eq!(en.values.len(), compared_en.len());
+    for (i, (shown, en)) in en.texts[0].iter().zip(&compared_en).enumerate() {
+        assert_eq!(
+            shown.split_once('.').map(|(_, d)| d.len()),
+            Some(2),
+            "En[{i}] {shown}"
+        );
+        let value: f64 = shown.parse().unwrap();
+        assert!(
+            (value - en).abs() <= 0.005 + 1e-12,
+            "En[{i}]: {shown} is not {en}"
+        );
+    }
     // the diagnosis's verdict is diagnose's
     let diagnosed = json(&["diagnose", DATA, "--format", "json"]);
     let verdict = doc

@@ -55,8 +55,19 @@ pub(super) struct Column<'a> {
     /// (U, k) per value, and p: the values and U rounded by GUM 7.2.6 and k to three
     /// significant digits ([`crate::certificate::rounding`]).
     pub(super) expanded: Option<(Vec<f64>, Vec<f64>, f64)>,
-    /// Whole numbers (face numbers), written without a decimal point.
-    pub(super) whole: bool,
+    /// How the values without U are written.
+    pub(super) form: Form,
+}
+
+/// How a column's values without an expanded uncertainty are written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Form {
+    /// At full precision: the shortest text that reads back to the double.
+    Real,
+    /// Whole numbers (face numbers), without a decimal point.
+    Whole,
+    /// Rounded to this many decimals (En, as the HTML report shows it).
+    Decimals(usize),
 }
 
 impl Column<'_> {
@@ -74,10 +85,20 @@ impl Column<'_> {
             .enumerate()
             .map(|(i, &v)| {
                 let text = xml::real(v, &what(i))?;
-                Ok(if self.whole && v.fract() == 0.0 && v.abs() < 1e15 {
-                    format!("{v:.0}")
-                } else {
-                    text
+                Ok(match self.form {
+                    Form::Whole if v.fract() == 0.0 && v.abs() < 1e15 => format!("{v:.0}"),
+                    // "-0.00" is zero
+                    Form::Decimals(places) => match format!("{v:.places$}") {
+                        t if t
+                            .trim_start_matches('-')
+                            .bytes()
+                            .all(|b| b"0.".contains(&b)) =>
+                        {
+                            t.trim_start_matches('-').to_string()
+                        }
+                        t => t,
+                    },
+                    _ => text,
                 })
             })
             .collect::<Result<Vec<_>, DccError>>()?;
@@ -250,7 +271,7 @@ pub(super) fn polygon_results(
                 labels: None,
                 values: face_numbers(),
                 expanded: None,
-                whole: true,
+                form: Form::Whole,
             },
             Column {
                 refs: "basic_measurementError polycal_pitchDeviation",
@@ -259,7 +280,7 @@ pub(super) fn polygon_results(
                 labels: Some(labels("beta", 1..=n)),
                 values: solve.pitch_deviation.clone(),
                 expanded: Some((beta_u.clone(), every_k(beta_k, "a pitch deviation")?, p)),
-                whole: false,
+                form: Form::Real,
             },
         ],
     )?;
@@ -279,7 +300,7 @@ pub(super) fn polygon_results(
                 labels: None,
                 values: face_numbers()[..m].to_vec(),
                 expanded: None,
-                whole: true,
+                form: Form::Whole,
             },
             Column {
                 refs: "basic_measurementError polycal_faceDeviation",
@@ -292,7 +313,7 @@ pub(super) fn polygon_results(
                     every_k(&phi_k[..m], "a face deviation")?,
                     p,
                 )),
-                whole: false,
+                form: Form::Real,
             },
         ],
     )?;
@@ -316,7 +337,7 @@ pub(super) fn polygon_results(
                 labels: None,
                 values: angles,
                 expanded: None,
-                whole: false,
+                form: Form::Real,
             },
             Column {
                 refs: "basic_measurementError polycal_encoderError",
@@ -325,7 +346,7 @@ pub(super) fn polygon_results(
                 labels: Some(labels("alpha", 0..solve.encoder_error.len())),
                 values: solve.encoder_error.clone(),
                 expanded: Some((alpha_u.clone(), every_k(alpha_k, "an encoder error")?, p)),
-                whole: false,
+                form: Form::Real,
             },
         ],
     )?;
@@ -384,7 +405,7 @@ pub(super) fn selfcal_results(
                 labels: None,
                 values: r.encoder_angle_deg.clone(),
                 expanded: None,
-                whole: false,
+                form: Form::Real,
             },
             Column {
                 refs: "basic_measurementError polycal_encoderError",
@@ -393,7 +414,7 @@ pub(super) fn selfcal_results(
                 labels: Some(labels("e", 0..r.encoder_error.len())),
                 values: r.encoder_error.clone(),
                 expanded: Some((expanded_u.clone(), k.clone(), r.p)),
-                whole: false,
+                form: Form::Real,
             },
         ],
     )?;
@@ -420,7 +441,7 @@ pub(super) fn selfcal_results(
                     labels: None,
                     values: r.head_error.iter().map(|h| h.angle_deg).collect(),
                     expanded: None,
-                    whole: false,
+                    form: Form::Real,
                 },
                 Column {
                     refs: "basic_measurementError polycal_headError",
@@ -438,7 +459,7 @@ pub(super) fn selfcal_results(
                         expanded.iter().map(|e| e.1).collect(),
                         r.p,
                     )),
-                    whole: false,
+                    form: Form::Real,
                 },
             ],
         )?;

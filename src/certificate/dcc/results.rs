@@ -3,7 +3,7 @@
 //! D-SI lists with U, k and p per value, the fit, the diagnosis, the comparison — and the
 //! SHA-256 of every input.
 
-use super::calibrated::{Column, Stage, polygon_results, real_quantity, selfcal_results};
+use super::calibrated::{Column, Form, Stage, polygon_results, real_quantity, selfcal_results};
 use super::xml::Xml;
 use super::{DccError, METHOD_REFERENCE, equipment, software};
 use crate::certificate::{
@@ -326,7 +326,7 @@ fn setup_errors(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError>
             expanded.iter().map(|e| e.1).collect(),
             p,
         )),
-        whole: false,
+        form: Form::Real,
     }
     .write(x)?;
     x.close();
@@ -361,8 +361,12 @@ fn diagnosis(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     }
     for e in effects {
         let (kind, fields, value, u) = effect_text(e);
+        // the value with its standard uncertainty as GUM 7.2.6 states them
         let value = match (value, u) {
-            (Some(v), Some(u)) => format!(": {v} (u = {u})"),
+            (Some(v), Some(u)) => match crate::certificate::rounding::round_result(v, u) {
+                Some(r) => format!(": {} (u = {})", r.value, r.expanded_u),
+                None => format!(": {v} (u = {u})"),
+            },
             (Some(v), None) => format!(": {v}"),
             _ => String::new(),
         };
@@ -370,7 +374,7 @@ fn diagnosis(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     }
     for c in checks {
         lines.push(format!(
-            "Check {}: statistic {}, limit {}, {}.",
+            "Check {}: statistic {:.3}, limit {:.3}, {}.",
             c.name,
             c.statistic,
             c.limit,
@@ -428,14 +432,15 @@ fn comparison(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
         ),
         values: c.rows.iter().map(|r| r.en).collect(),
         expanded: None,
-        whole: false,
+        // to two decimals, as the report shows it
+        form: Form::Decimals(2),
     }
     .write(x)?;
     x.close();
     x.content(
         "dcc:text",
         &format!(
-            "Largest |En| = {}: {}.",
+            "Largest |En| = {:.2}: {}.",
             c.max_abs_en,
             if c.verdict_ok() {
                 "every |En| ≤ 1, the results agree"
