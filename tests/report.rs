@@ -825,7 +825,7 @@ fn an_exactly_determined_run_takes_a_stated_sigma() {
 /// No document polycal writes names a directory of the machine that wrote it: run from a
 /// temporary directory with absolute paths to every input and output, the HTML report,
 /// the DCC (a polygon run with every option, and a self-calibration), and the `--plot`
-/// figures of `solve`, `diagnose`, `compare` and `selfcal` hold neither the repository's
+/// figures of `solve`, `diagnose`, `compare`, `selfcal` and `kc` hold neither the repository's
 /// path nor the temporary directory's (docs/FORMAT.md §10.2).
 #[test]
 fn no_document_holds_an_absolute_path() {
@@ -913,6 +913,24 @@ fn no_document_holds_an_absolute_path() {
             "--plot".into(),
             out("selfcal-figures"),
         ],
+        {
+            let mut kc: Vec<String> = vec!["kc".into()];
+            for lab in ["A", "B", "C", "D", "E", "F"] {
+                kc.push(format!(
+                    "{lab}={}",
+                    abs(&format!("examples/data/kc/{lab}.csv"))
+                ));
+            }
+            for when in ["start", "middle", "end"] {
+                kc.push("--pilot".into());
+                kc.push(format!(
+                    "{when}={}",
+                    abs(&format!("examples/data/kc/pilot-{when}.csv"))
+                ));
+            }
+            kc.extend(["--plot".into(), out("kc-figures")]);
+            kc
+        },
     ];
     for args in &runs {
         let done = Command::new(env!("CARGO_BIN_EXE_polycal"))
@@ -949,7 +967,7 @@ fn no_document_holds_an_absolute_path() {
     };
     assert_eq!(kinds("html"), 2, "{documents:?}");
     assert_eq!(kinds("xml"), 2, "{documents:?}");
-    assert!(kinds("svg") >= 8, "{documents:?}");
+    assert!(kinds("svg") >= 11, "{documents:?}");
     let prefixes = [root.to_str().unwrap(), dir.to_str().unwrap()];
     for document in &documents {
         let text = std::fs::read_to_string(document).unwrap();
