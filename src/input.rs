@@ -118,6 +118,30 @@ pub fn shown_path(path: &Path) -> String {
     escaped(&path.display().to_string()).into_owned()
 }
 
+/// A file as a document handed to a customer names it (the report, the DCC, figures):
+/// its file name alone, never the directories of the machine that wrote it (the SHA-256
+/// beside it identifies the file); escaped as [`display_name`] escapes, [`STDIN_NAME`]
+/// for standard input. Works on a name already shown (`display_name`'s text) as well.
+///
+/// ```
+/// use polycal::input::document_name;
+/// assert_eq!(document_name("/home/lab/runs/p24.csv"), "p24.csv");
+/// assert_eq!(document_name("data/p24.csv"), "p24.csv");
+/// assert_eq!(document_name("p24.csv"), "p24.csv");
+/// assert_eq!(document_name("-"), "<stdin>");
+/// assert_eq!(document_name("<stdin>"), "<stdin>");
+/// ```
+pub fn document_name(path: &str) -> String {
+    let path = Path::new(path);
+    if is_stdin(path) {
+        return STDIN_NAME.to_string();
+    }
+    match path.file_name() {
+        Some(name) => escaped(&name.to_string_lossy()).into_owned(),
+        None => display_name(path),
+    }
+}
+
 /// A text with its control characters shown escaped (`\n`, `\u{1b}`, …): a file name
 /// with an escape sequence or a line feed cannot recolour a terminal or forge a line of
 /// its own (docs/FORMAT.md §8). The one place names and messages are escaped.

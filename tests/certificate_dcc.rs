@@ -2,10 +2,12 @@
 //! against the vendored DCC 3.1.2 and D-SI 2.1.0 schemas (`docs/schema/`, xmllint, offline
 //! through the catalog), and the validator is shown to reject a broken document; read
 //! back with an XML parser, every β, φ, α, U and k is the `solve --format json` number
-//! exactly, a self-calibration's e and head errors are `selfcal`'s, the En are
-//! `compare`'s, and the HTML report of the same inputs carries the same numbers; missing
-//! metadata is refused naming the key, with nothing written; XML specials survive the
-//! round trip and control characters are refused where they are read.
+//! stated as GUM 7.2.6 says (checked from the rule's definition, docs/FORMAT.md §10.4),
+//! the face numbers integers, a self-calibration's e and head errors are `selfcal`'s, the
+//! En are `compare`'s, and the HTML report of the same inputs shows the same text;
+//! missing metadata is refused naming every key missing, with nothing written; XML
+//! specials survive the round trip and control characters are refused where they are
+//! read.
 //!
 //! The schema validation needs `xmllint` (Debian: libxml2-utils). `.ci/run` installs it
 //! and sets `POLYCAL_REQUIRE_XMLLINT=1`, which turns its absence into a failure; without
@@ -33,7 +35,7 @@ fn root() -> &'static Path {
 
 mod document_support;
 
-use document_support::{json, polycal};
+use document_support::{assert_gum_rounded, assert_k_rounded, json, polycal};
 
 fn temp_dir(name: &str) -> PathBuf {
     document_support::temp_dir("dcc", name)
@@ -118,9 +120,9 @@ fn name_of(node: Node) -> String {
 /// The D-SI list of the quantity named `quantity` in the result (or influence condition)
 /// with refType containing `result_ref`: its values, and its U, k and p when given.
 struct SiList {
+    /// The texts of the values, U and k, as written.
+    texts: [Vec<String>; 3],
     values: Vec<f64>,
-    expanded_u: Vec<f64>,
-    k: Vec<f64>,
     p: Vec<f64>,
     unit: String,
 }
@@ -149,6 +151,13 @@ fn si_list(doc: &Document, result_ref: &str, quantity: &str) -> SiList {
             })
             .unwrap_or_default()
     };
+    let texts = |name: &str| -> Vec<String> {
+        q.descendants()
+            .find(|n| n.tag_name().name() == name && n.tag_name().namespace() == Some(SI))
+            .and_then(|n| n.text())
+            .map(|t| t.split_whitespace().map(str::to_string).collect())
+            .unwrap_or_default()
+    };
     let unit = q
         .descendants()
         .find(|n| n.tag_name().name() == "unitXMLList")
@@ -156,11 +165,35 @@ fn si_list(doc: &Document, result_ref: &str, quantity: &str) -> SiList {
         .unwrap_or_default()
         .to_string();
     SiList {
+        texts: [
+            texts("valueXMLList"),
+            texts("uncertaintyXMLList"),
+            texts("coverageFactorXMLList"),
+        ],
         values: list("valueXMLList"),
-        expanded_u: list("uncertaintyXMLList"),
-        k: list("coverageFactorXMLList"),
         p: list("coverageProbabilityXMLList"),
         unit,
+    }
+}
+
+impl SiList {
+    /// Asserts that the list states the evaluated values, U and k (the JSON's) rounded
+    /// as GUM 7.2.6 says (docs/FORMAT.md §10.4), one per value.
+    fn states(&self, values: &[f64], expanded_u: &[f64], k: &[f64], what: &str) {
+        assert_eq!(self.texts[0].len(), values.len(), "{what}: values");
+        assert_eq!(self.texts[1].len(), values.len(), "{what}: U");
+        assert_eq!(self.texts[2].len(), values.len(), "{what}: k");
+        for i in 0..values.len() {
+            let at = format!("{what}[{i}]");
+            assert_gum_rounded(
+                &self.texts[0][i],
+                &self.texts[1][i],
+                values[i],
+                expanded_u[i],
+                &at,
+            );
+            assert_k_rounded(&self.texts[2][i], k[i], &at);
+        }
     }
 }
 
@@ -197,7 +230,7 @@ fn the_validator_rejects_a_broken_certificate() {
         ),
         (
             "a value NaN",
-            text.replacen("<si:valueXMLList>1.0 ", "<si:valueXMLList>NaN ", 1),
+            text.replacen("<si:valueXMLList>1 ", "<si:valueXMLList>NaN ", 1),
         ),
         (
             "a negative uncertainty",
@@ -242,52 +275,65 @@ fn the_full_example_validates_and_carries_the_json_numbers() {
     assert_eq!(top.attribute("schemaVersion"), Some("3.1.2"));
     let solve = json(&["solve", DATA, "--budget", BUDGET, "--format", "json"]);
     let n = 24;
-    // β: every value, U and k the JSON's to the last bit; p for each
+    // β: every value, U and k the JSON's, rounded as GUM 7.2.6 states them; p for each
     let beta = si_list(&doc, "polycal_pitchDeviations", "Pitch deviation β");
     assert_eq!(beta.unit, "\\arcsecond");
-    assert_eq!(beta.values, numbers(&solve["pitch_deviation"]));
-    assert_eq!(beta.expanded_u, numbers(&solve["pitch_deviation_U"]));
-    assert_eq!(beta.k, numbers(&solve["pitch_deviation_k"]));
+    beta.states(
+        &numbers(&solve["pitch_deviation"]),
+        &numbers(&solve["pitch_deviation_U"]),
+        &numbers(&solve["pitch_deviation_k"]),
+        "β",
+    );
     assert_eq!(beta.p, vec![0.95; n]);
+    // the face numbers are integers
     let faces = si_list(&doc, "polycal_pitchDeviations", "Face");
-    assert_eq!(faces.values, (1..=n).map(|f| f as f64).collect::<Vec<_>>());
+    assert_eq!(
+        faces.texts[0],
+        (1..=n).map(|f| f.to_string()).collect::<Vec<_>>()
+    );
     // φ[1..N−1] (φ[N] = 0 by definition, not listed)
     let phi = si_list(&doc, "polycal_faceDeviations", "Face deviation φ");
-    assert_eq!(phi.values, numbers(&solve["face_deviation"])[..n - 1]);
-    assert_eq!(phi.expanded_u, numbers(&solve["face_deviation_U"])[..n - 1]);
     let phi_k: Vec<f64> = solve["face_deviation_k"].as_array().unwrap()[..n - 1]
         .iter()
         .map(|v| v.as_f64().unwrap())
         .collect();
-    assert_eq!(phi.k, phi_k);
+    phi.states(
+        &numbers(&solve["face_deviation"])[..n - 1],
+        &numbers(&solve["face_deviation_U"])[..n - 1],
+        &phi_k,
+        "φ",
+    );
     // α with its table angles in degrees
     let alpha = si_list(&doc, "polycal_encoderErrors", "Encoder error α");
-    assert_eq!(alpha.values, numbers(&solve["encoder_error"]));
-    assert_eq!(alpha.expanded_u, numbers(&solve["encoder_error_U"]));
-    assert_eq!(alpha.k, numbers(&solve["encoder_error_k"]));
+    alpha.states(
+        &numbers(&solve["encoder_error"]),
+        &numbers(&solve["encoder_error_U"]),
+        &numbers(&solve["encoder_error_k"]),
+        "α",
+    );
     let angles = si_list(&doc, "polycal_encoderErrors", "Table angle");
     assert_eq!(angles.unit, "\\degree");
     assert_eq!(
         angles.values,
         (0..n).map(|p| p as f64 * 15.0).collect::<Vec<_>>()
     );
-    // the setup errors, an influence condition
-    let setup = si_list(&doc, "polycal_setupErrors", "Setup error U");
+    // the setup errors: a result (estimated with β and α), not an influence condition,
+    // and not named U
+    assert!(
+        !doc.descendants()
+            .any(|n| n.tag_name().name() == "influenceCondition"
+                && n.attribute("refType") == Some("polycal_setupErrors")),
+        "setup errors under influenceConditions"
+    );
+    let setup = si_list(&doc, "polycal_setupErrors", "Setup error");
     let setup_json = solve["setup_error"].as_array().unwrap();
-    assert_eq!(
-        setup.values,
+    let field = |key: &str| {
         setup_json
             .iter()
-            .map(|s| s["value"].as_f64().unwrap())
+            .map(|s| s[key].as_f64().unwrap())
             .collect::<Vec<_>>()
-    );
-    assert_eq!(
-        setup.expanded_u,
-        setup_json
-            .iter()
-            .map(|s| s["U"].as_f64().unwrap())
-            .collect::<Vec<_>>()
-    );
+    };
+    setup.states(&field("value"), &field("U"), &field("k"), "setup error");
     // the fit
     let rms = doc
         .descendants()
@@ -310,16 +356,27 @@ fn the_full_example_validates_and_carries_the_json_numbers() {
         "--format",
         "json",
     ]);
+    // En to two decimals, as the report shows it
     let en = si_list(&doc, "polycal_comparison", "En");
-    assert_eq!(
-        en.values,
-        compared["rows"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|r| r["en"].as_f64().unwrap())
-            .collect::<Vec<_>>()
-    );
+    let compared_en: Vec<f64> = compared["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["en"].as_f64().unwrap())
+        .collect();
+    assert_eq!(en.values.len(), compared_en.len());
+    for (i, (shown, en)) in en.texts[0].iter().zip(&compared_en).enumerate() {
+        assert_eq!(
+            shown.split_once('.').map(|(_, d)| d.len()),
+            Some(2),
+            "En[{i}] {shown}"
+        );
+        let value: f64 = shown.parse().unwrap();
+        assert!(
+            (value - en).abs() <= 0.005 + 1e-12,
+            "En[{i}]: {shown} is not {en}"
+        );
+    }
     // the diagnosis's verdict is diagnose's
     let diagnosed = json(&["diagnose", DATA, "--format", "json"]);
     let verdict = doc
@@ -354,31 +411,54 @@ fn the_full_example_validates_and_carries_the_json_numbers() {
             .output()
             .unwrap();
         let hex = String::from_utf8(sum.stdout).unwrap()[..64].to_string();
+        // named by its file name alone, never the directories it was read from
+        let name = Path::new(file).file_name().unwrap().to_str().unwrap();
         assert!(
-            text.contains(&format!("{file} (")) && text.contains(&hex),
+            text.contains(&format!(">{name} (")) && text.contains(&hex),
             "{file}: {hex}"
         );
     }
-    // the HTML report of the same run shows the same numbers (its data-value)
+    // the accreditation, the traceability statement and the customer's country
+    assert_eq!(
+        text_of(&doc, "calibrationLaboratoryCode"),
+        ["EAB-K-99999-01"]
+    );
+    assert_eq!(text_of(&doc, "countryCode"), ["DE", "GB"]);
+    assert_eq!(text_of(&doc, "traceable"), ["true"]);
+    let statement = |kind: &str| {
+        doc.descendants()
+            .find(|n| n.tag_name().name() == "statement" && n.attribute("refType") == Some(kind))
+            .and_then(|n| n.descendants().find(|c| c.tag_name().name() == "content"))
+            .and_then(|c| c.text())
+            .unwrap_or_else(|| panic!("no statement {kind}"))
+            .to_string()
+    };
+    assert!(statement("polycal_traceability").starts_with("The angle is traced to the SI radian"));
+    assert_eq!(
+        statement("polycal_accreditation"),
+        "Accredited by Example Accreditation Body (EAB), accreditation number EAB-K-99999-01."
+    );
+    // the HTML report of the same run shows the same numbers, rounded alike (its visible
+    // text, with a true minus sign)
     let html = Html::parse_document(&std::fs::read_to_string(&html_path).unwrap());
-    let cells = |id: &str, column: usize| -> Vec<f64> {
+    let cells = |id: &str, column: usize| -> Vec<String> {
         html.select(&Selector::parse(&format!("table#{id} > tbody > tr")).unwrap())
             .map(|row| {
                 row.select(&Selector::parse("td").unwrap())
                     .nth(column)
-                    .and_then(|c| c.value().attr("data-value"))
-                    .map_or(f64::NAN, |v| v.parse().unwrap())
+                    .map(|c| c.text().collect::<String>().replace('−', "-"))
+                    .unwrap_or_default()
             })
             .collect()
     };
-    assert_eq!(cells("pitch-deviation", 1), beta.values);
-    assert_eq!(cells("pitch-deviation", 3), beta.expanded_u);
-    assert_eq!(cells("pitch-deviation", 4), beta.k);
-    assert_eq!(cells("encoder-error", 1), angles.values);
-    assert_eq!(cells("encoder-error", 2), alpha.values);
-    assert_eq!(cells("encoder-error", 4), alpha.expanded_u);
-    assert_eq!(cells("encoder-error", 5), alpha.k);
-    assert_eq!(cells("face-deviation", 1)[..n - 1], phi.values);
+    assert_eq!(cells("pitch-deviation", 1), beta.texts[0]);
+    assert_eq!(cells("pitch-deviation", 3), beta.texts[1]);
+    assert_eq!(cells("pitch-deviation", 4), beta.texts[2]);
+    assert_eq!(cells("encoder-error", 2), alpha.texts[0]);
+    assert_eq!(cells("encoder-error", 4), alpha.texts[1]);
+    assert_eq!(cells("encoder-error", 5), alpha.texts[2]);
+    assert_eq!(cells("face-deviation", 1)[..n - 1], phi.texts[0]);
+    assert_eq!(cells("setup-error", 1), setup.texts[0]);
 }
 
 /// A self-calibration with its budget and diagnosis: a valid DCC with selfcal's e and
@@ -417,27 +497,23 @@ fn a_self_calibration_gives_a_valid_dcc_with_selfcals_numbers() {
         "json",
     ]);
     let e = si_list(&doc, "polycal_encoderErrors", "Encoder error e");
-    assert_eq!(e.values, numbers(&selfcal["encoder_error"]));
-    assert_eq!(e.expanded_u, numbers(&selfcal["encoder_error_U"]));
-    assert_eq!(e.k, numbers(&selfcal["encoder_error_k"]));
+    e.states(
+        &numbers(&selfcal["encoder_error"]),
+        &numbers(&selfcal["encoder_error_U"]),
+        &numbers(&selfcal["encoder_error_k"]),
+        "e",
+    );
     let angles = si_list(&doc, "polycal_encoderErrors", "Table angle");
     assert_eq!(angles.values, numbers(&selfcal["encoder_angle_deg"]));
     let heads = si_list(&doc, "polycal_headErrors", "Head error");
     let head_json = selfcal["head_error"].as_array().unwrap();
-    assert_eq!(
-        heads.values,
+    let field = |key: &str| {
         head_json
             .iter()
-            .map(|h| h["value"].as_f64().unwrap())
+            .map(|h| h[key].as_f64().unwrap())
             .collect::<Vec<_>>()
-    );
-    assert_eq!(
-        heads.expanded_u,
-        head_json
-            .iter()
-            .map(|h| h["U"].as_f64().unwrap())
-            .collect::<Vec<_>>()
-    );
+    };
+    heads.states(&field("value"), &field("U"), &field("k"), "head error");
     assert!(!text.contains("id=\"polygon\""));
     assert!(!text.contains("polycal_pitchDeviations"));
     assert_eq!(text_of(&doc, "performanceLocation"), ["customer"]);
@@ -566,6 +642,23 @@ fn missing_metadata_is_refused_by_name_and_nothing_is_written() {
             "{key}: {stderr}"
         );
     }
+    // four keys missing: one refusal names all four, in the metadata file's order
+    let four = ["customer_email", "country", "encoder_serial", "laboratory"];
+    let text = four
+        .iter()
+        .fold(full.clone(), |t, key| with_line(&t, key, None));
+    std::fs::write(&meta, text).unwrap();
+    let stderr = refused(&dir, DATA, &["--budget", BUDGET, "--meta", meta_text]);
+    let at: Vec<usize> = ["customer_email", "laboratory", "country", "encoder_serial"]
+        .iter()
+        .map(|key| {
+            stderr
+                .find(&format!("`{key}`"))
+                .unwrap_or_else(|| panic!("{key} not named: {stderr}"))
+        })
+        .collect();
+    assert!(at.windows(2).all(|w| w[0] < w[1]), "{stderr}");
+    assert!(stderr.contains("add them"), "{stderr}");
     // no responsible person
     let text = with_line(&with_line(&full, "operator", None), "approved_by", None);
     std::fs::write(&meta, text).unwrap();
@@ -729,16 +822,28 @@ fn a_diagnosis_that_adds_effects_gives_the_final_models_results() {
         "polycal_finalModelPitchDeviations",
         "Pitch deviation β",
     );
-    assert_eq!(beta.values, numbers(&after["pitch_deviation"]));
-    assert_eq!(beta.expanded_u, numbers(&after["pitch_deviation_U"]));
-    assert_eq!(beta.k, numbers(&after["pitch_deviation_k"]));
+    beta.states(
+        &numbers(&after["pitch_deviation"]),
+        &numbers(&after["pitch_deviation_U"]),
+        &numbers(&after["pitch_deviation_k"]),
+        "final β",
+    );
     let alpha = si_list(&doc, "polycal_finalModelEncoderErrors", "Encoder error α");
-    assert_eq!(alpha.values, numbers(&after["encoder_error"]));
-    assert_eq!(alpha.expanded_u, numbers(&after["encoder_error_U"]));
+    alpha.states(
+        &numbers(&after["encoder_error"]),
+        &numbers(&after["encoder_error_U"]),
+        &numbers(&after["encoder_error_k"]),
+        "final α",
+    );
     // the evaluation's results stay solve's (without the drift)
     let solve = json(&["solve", data_text, "--budget", BUDGET, "--format", "json"]);
     let evaluated = si_list(&doc, "polycal_pitchDeviations", "Pitch deviation β");
-    assert_eq!(evaluated.values, numbers(&solve["pitch_deviation"]));
+    evaluated.states(
+        &numbers(&solve["pitch_deviation"]),
+        &numbers(&solve["pitch_deviation_U"]),
+        &numbers(&solve["pitch_deviation_k"]),
+        "evaluated β",
+    );
     assert_ne!(evaluated.values, beta.values);
     // the effect is named in the diagnosis
     assert!(text.contains("Effect found: drift"), "the drift in words");

@@ -1,6 +1,8 @@
 //! `polycal report` (docs/FORMAT.md §10): the HTML parses without a single HTML5 parse
 //! error; every number it shows is the number the JSON commands print (`solve`,
-//! `diagnose`, `compare`, `selfcal`), shown rounded; each section is there exactly when
+//! `diagnose`, `compare`, `selfcal`), shown rounded (a result as GUM 7.2.6 states it);
+//! no document names a directory; printed, every page carries "Page i of n" and the
+//! certificate number; each section is there exactly when
 //! asked for; missing metadata is shown as missing; the SHA-256 of every input equals
 //! an independent computation (coreutils' `sha256sum`); the status follows the verdicts.
 
@@ -18,7 +20,7 @@ const META: &str = "examples/report/meta.toml";
 
 mod document_support;
 
-use document_support::{json, polycal};
+use document_support::{assert_gum_rounded, assert_k_rounded, json, polycal};
 
 fn temp_dir(name: &str) -> PathBuf {
     document_support::temp_dir("report", name)
@@ -99,6 +101,71 @@ fn assert_column(html: &Html, id: &str, col: usize, expected: &Value, decimals: 
     }
 }
 
+/// Asserts that table `id`'s result columns from `col` — value, u, U, k — carry
+/// `json`'s `key`, `key_u`, `key_U` and `key_k`: each `data-value` the JSON's number, the
+/// text as GUM 7.2.6 states it, checked from its definition (docs/FORMAT.md §10.4).
+fn assert_results(html: &Html, id: &str, col: usize, json: &Value, key: &str) {
+    let values_of = |suffix: &str| json[format!("{key}{suffix}")].as_array().cloned();
+    let field = |suffix: &str| {
+        values_of(suffix)
+            .unwrap_or_else(|| panic!("{key}{suffix}"))
+            .iter()
+            .map(Value::as_f64)
+            .collect::<Vec<_>>()
+    };
+    let cells: Vec<Vec<(Option<f64>, String)>> =
+        (col..col + 4).map(|c| column(html, id, c)).collect();
+    let (values, u) = (field(""), field("_u"));
+    assert_eq!(cells[0].len(), values.len(), "{id}");
+    if values_of("_U").is_none() {
+        // without a budget: value and u (type A) as GUM 7.2.6 states a result with its
+        // standard uncertainty; no U, no k
+        for i in 0..values.len() {
+            let at = format!("{id}[{i}]");
+            assert_eq!(cells[0][i].0, values[i], "{at}: data-value");
+            assert_eq!(cells[1][i].0, u[i], "{at}: data-value of u");
+            match (values[i], u[i]) {
+                (Some(value), Some(u)) if u > 0.0 => {
+                    assert_gum_rounded(&cells[0][i].1, &cells[1][i].1, value, u, &at);
+                }
+                _ => assert_eq!(values[i], Some(0.0), "{at}"),
+            }
+            assert_eq!((cells[2][i].1.as_str(), cells[3][i].1.as_str()), ("—", "—"));
+        }
+        return;
+    }
+    let (expanded, k) = (field("_U"), field("_k"));
+    for i in 0..values.len() {
+        let at = format!("{id}[{i}]");
+        for (c, want) in [values[i], u[i], expanded[i], k[i]].iter().enumerate() {
+            assert_eq!(cells[c][i].0, *want, "{at} column {}: data-value", col + c);
+        }
+        let (Some(value), Some(u), Some(expanded), Some(k)) = (values[i], u[i], expanded[i], k[i])
+        else {
+            // φ[N] = 0 by definition: no uncertainty
+            assert_eq!(values[i], Some(0.0), "{at}: a number missing");
+            continue;
+        };
+        if expanded == 0.0 {
+            assert_eq!((cells[0][i].1.as_str(), cells[2][i].1.as_str()), ("0", "0"));
+            continue;
+        }
+        assert_gum_rounded(&cells[0][i].1, &cells[2][i].1, value, expanded, &at);
+        assert_k_rounded(&cells[3][i].1, k, &at);
+        // u: two significant digits, rounded up
+        let shown_u = document_support::shown_number(&cells[1][i].1);
+        let places = cells[1][i]
+            .1
+            .split_once('.')
+            .map_or(0, |(_, d)| d.len() as i32);
+        assert!(
+            shown_u >= u * (1.0 - 1e-12) && shown_u - u < 10f64.powi(-places) * (1.0 + 1e-9),
+            "{at}: u {} of {u}",
+            cells[1][i].1
+        );
+    }
+}
+
 /// The largest number of a JSON array.
 fn largest(values: &Value) -> f64 {
     values
@@ -159,44 +226,40 @@ fn every_number_is_the_jsons_and_every_section_is_there() {
         ("pitch-deviation", "pitch_deviation"),
         ("face-deviation", "face_deviation"),
     ] {
-        assert_column(&html, id, 1, &solve[key], 4);
-        assert_column(&html, id, 2, &solve[format!("{key}_u")], 4);
-        assert_column(&html, id, 3, &solve[format!("{key}_U")], 4);
-        assert_column(&html, id, 4, &solve[format!("{key}_k")], 2);
+        assert_results(&html, id, 1, &solve, key);
     }
     // α has its angle in the second column
     let angles: Vec<Value> = (0..24).map(|p| Value::from(f64::from(p) * 15.0)).collect();
     assert_column(&html, "encoder-error", 1, &Value::Array(angles), 3);
-    assert_column(&html, "encoder-error", 2, &solve["encoder_error"], 4);
-    assert_column(&html, "encoder-error", 3, &solve["encoder_error_u"], 4);
-    assert_column(&html, "encoder-error", 4, &solve["encoder_error_U"], 4);
-    assert_column(&html, "encoder-error", 5, &solve["encoder_error_k"], 2);
-    let setup_values: Vec<Value> = solve["setup_error"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["value"].clone())
-        .collect();
-    assert_column(&html, "setup-error", 1, &Value::Array(setup_values), 4);
+    assert_results(&html, "encoder-error", 2, &solve, "encoder_error");
+    let setup = solve["setup_error"].as_array().unwrap();
+    let setup_field = |key: &str| Value::Array(setup.iter().map(|s| s[key].clone()).collect());
+    let setup_json = serde_json::json!({
+        "setup_error": setup_field("value"),
+        "setup_error_u": setup_field("u"),
+        "setup_error_U": setup_field("U"),
+        "setup_error_k": setup_field("k"),
+    });
+    assert_results(&html, "setup-error", 1, &setup_json, "setup_error");
     let fit = column(&html, "fit", 1);
     assert_eq!(fit[1].0, solve["residual_rms"].as_f64());
     // the diagnosis: diagnose --budget --truth's JSON
     let diagnose = json(&[
         "diagnose", DATA, "--budget", BUDGET, "--truth", TRUTH, "--format", "json",
     ]);
-    assert_column(
+    assert_results(
         &html,
         "final-pitch-deviation",
-        3,
-        &diagnose["after"]["pitch_deviation_U"],
-        4,
+        1,
+        &diagnose["after"],
+        "pitch_deviation",
     );
-    assert_column(
+    assert_results(
         &html,
         "final-encoder-error",
         2,
-        &diagnose["after"]["encoder_error"],
-        4,
+        &diagnose["after"],
+        "encoder_error",
     );
     let adequacy = select(&html, "#adequacy")[0].text().collect::<String>();
     assert_eq!(
@@ -259,13 +322,34 @@ fn every_number_is_the_jsons_and_every_section_is_there() {
             "{stem}"
         );
     }
-    // metadata from the meta file, with its source
-    let customer = select(&html, "tr[data-key=customer] td");
+    // metadata from the meta file, with its source by its file name
     assert_eq!(
-        customer[0].text().collect::<String>(),
+        select(&html, "#customer")[0].text().collect::<String>(),
         "Example Precision Ltd."
     );
-    assert_eq!(customer[1].text().collect::<String>(), META);
+    let operator = select(&html, "tr[data-key=operator] td");
+    assert_eq!(operator[0].text().collect::<String>(), "A. Operator");
+    assert_eq!(operator[1].text().collect::<String>(), "meta.toml");
+    // the new keys, shown: accreditation in the title block, traceability in the method
+    assert_eq!(
+        select(&html, "#accreditation")[0]
+            .text()
+            .collect::<String>(),
+        "Accredited by Example Accreditation Body (EAB), accreditation number EAB-K-99999-01."
+    );
+    assert!(
+        select(&html, "#traceability")[0]
+            .text()
+            .collect::<String>()
+            .contains("traced to the SI radian")
+    );
+    let country = select(&html, "tr[data-key=customer_country] td");
+    assert_eq!(country[0].text().collect::<String>(), "GB");
+    // the environment's quantities are given: no "not given" environment
+    assert!(select(&html, "tr[data-key=environment]").is_empty());
+    // numeric headings right-aligned over their numbers
+    let headings = select(&html, "table#pitch-deviation thead th.num");
+    assert_eq!(headings.len(), 4);
 }
 
 #[test]
@@ -280,33 +364,31 @@ fn without_options_the_optional_sections_are_absent_and_metadata_is_missing() {
         assert_eq!(select(&html, &format!("section#{id}")).len(), 1, "{id}");
     }
     // nothing invented: every field but the ones the file's comments give is missing
-    for key in [
-        "customer",
-        "operator",
-        "certificate",
-        "artefact",
-        "approved_by",
-    ] {
+    for key in ["operator", "artefact", "approved_by", "traceability"] {
         let cells = select(&html, &format!("tr[data-key={key}] td"));
         assert_eq!(cells[0].text().collect::<String>(), "not given", "{key}");
         assert_eq!(cells[1].text().collect::<String>(), "", "{key}");
     }
-    assert_eq!(
-        select(&html, "#certificate")[0].text().collect::<String>(),
-        "not given"
-    );
+    // the certificate number and the customer once, in the title block
+    for id in ["certificate", "customer"] {
+        assert_eq!(
+            select(&html, &format!("#{id}"))[0]
+                .text()
+                .collect::<String>(),
+            "not given"
+        );
+        assert!(
+            select(&html, &format!("tr[data-key={id}]")).is_empty(),
+            "{id} twice"
+        );
+    }
     assert_eq!(
         select(&html, "#instruments")[0].text().collect::<String>(),
         "not given"
     );
     // without a budget: u from the fit, no U, no k
     let solve = json(&["solve", DATA, "--format", "json"]);
-    assert_column(&html, "pitch-deviation", 2, &solve["pitch_deviation_u"], 4);
-    assert!(
-        column(&html, "pitch-deviation", 3)
-            .iter()
-            .all(|(v, t)| v.is_none() && t == "—")
-    );
+    assert_results(&html, "pitch-deviation", 1, &solve, "pitch_deviation");
     // self-contained: nothing fetched, no script
     for needle in ["<script", "<link", "@import", " src=", "href=", "url("] {
         assert!(!text.contains(needle), "{needle}");
@@ -324,20 +406,18 @@ fn comments_of_the_file_are_metadata_and_a_conflict_is_said() {
     )
     .unwrap();
     let (_, html, _) = report(&dir, &[data.to_str().unwrap()]);
-    let customer = select(&html, "tr[data-key=customer] td");
     assert_eq!(
-        customer[0].text().collect::<String>(),
+        select(&html, "#customer")[0].text().collect::<String>(),
         "Other Customer <b>&co</b>",
         "escaped, shown as text"
     );
-    assert_eq!(
-        customer[1].text().collect::<String>(),
-        format!("{}:1", data.display())
-    );
+    // its source by file name and line (no directory)
+    let operator = select(&html, "tr[data-key=operator] td");
+    assert_eq!(operator[0].text().collect::<String>(), "C. Comment");
+    assert_eq!(operator[1].text().collect::<String>(), "run.csv:2");
     let (_, html, _) = report(&dir, &[data.to_str().unwrap(), "--meta", META]);
-    let customer = select(&html, "tr[data-key=customer] td");
     assert_eq!(
-        customer[0].text().collect::<String>(),
+        select(&html, "#customer")[0].text().collect::<String>(),
         "Example Precision Ltd."
     );
     let notes: String = select(&html, "#details p.note")
@@ -360,14 +440,19 @@ fn the_sha256_of_every_input_is_its_own() {
             .select(&Selector::parse("td").unwrap())
             .map(|c| c.text().collect())
             .collect();
+        // named by its file name alone
+        let path = [DATA, BUDGET, META]
+            .into_iter()
+            .find(|p| Path::new(p).file_name().unwrap().to_str() == Some(cells[1].as_str()))
+            .unwrap_or_else(|| panic!("{} is not an input's file name", cells[1]));
         let out = Command::new("sha256sum")
-            .arg(&cells[1])
+            .arg(path)
             .current_dir(env!("CARGO_MANIFEST_DIR"))
             .output()
             .expect("coreutils sha256sum");
         let independent = String::from_utf8(out.stdout).unwrap();
         assert_eq!(cells[3], independent.split_whitespace().next().unwrap());
-        let bytes = std::fs::metadata(Path::new(env!("CARGO_MANIFEST_DIR")).join(&cells[1]))
+        let bytes = std::fs::metadata(Path::new(env!("CARGO_MANIFEST_DIR")).join(path))
             .unwrap()
             .len();
         assert_eq!(cells[2], bytes.to_string());
@@ -469,8 +554,7 @@ fn a_self_calibration_report_shows_the_selfcal_numbers() {
         "json",
     ]);
     assert_column(&html, "encoder-error", 1, &selfcal["encoder_angle_deg"], 3);
-    assert_column(&html, "encoder-error", 2, &selfcal["encoder_error"], 4);
-    assert_column(&html, "encoder-error", 4, &selfcal["encoder_error_U"], 4);
+    assert_results(&html, "encoder-error", 2, &selfcal, "encoder_error");
     // the budget: the largest U(e), its components and the fit's type A
     let largest = largest(&selfcal["encoder_error_U"]);
     assert_eq!(budget_u(&html, "budget-encoder-error"), largest);
@@ -636,7 +720,8 @@ fn a_run_directory_gives_the_instruments_and_the_run() {
     assert_eq!(date[0].text().collect::<String>(), "2026-11-03");
     assert_eq!(
         date[1].text().collect::<String>(),
-        format!("{} (run started)", run.join("manifest.json").display())
+        // by its file name alone (docs/FORMAT.md §10.2)
+        "manifest.json (run started)"
     );
     // the manifest is an input: its SHA-256 is listed
     let inputs: String = select(&html, "table#inputs")[0].text().collect();
@@ -684,8 +769,7 @@ fn sub_pitch_mountings_give_every_table_angle() {
     let solve = json(&["solve", data.to_str().unwrap(), "--format", "json"]);
     assert_eq!(solve["encoder_error"].as_array().unwrap().len(), 48);
     assert_column(&html, "encoder-error", 1, &solve["encoder_angle_deg"], 3);
-    assert_column(&html, "encoder-error", 2, &solve["encoder_error"], 4);
-    assert_column(&html, "encoder-error", 3, &solve["encoder_error_u"], 4);
+    assert_results(&html, "encoder-error", 2, &solve, "encoder_error");
     let design: String = select(&html, "#design")[0].text().collect();
     let note = solve["notes"][0].as_str().unwrap();
     assert!(design.contains(note), "{design}");
@@ -734,6 +818,270 @@ fn an_exactly_determined_run_takes_a_stated_sigma() {
         "json",
     ]);
     assert_eq!(solve["dof"], 0);
-    assert_column(&html, "pitch-deviation", 2, &solve["pitch_deviation_u"], 4);
-    assert_column(&html, "encoder-error", 4, &solve["encoder_error_U"], 4);
+    assert_results(&html, "pitch-deviation", 1, &solve, "pitch_deviation");
+    assert_results(&html, "encoder-error", 2, &solve, "encoder_error");
+}
+
+/// No document polycal writes names a directory of the machine that wrote it: run from a
+/// temporary directory with absolute paths to every input and output, the HTML report,
+/// the DCC (a polygon run with every option, and a self-calibration), and the `--plot`
+/// figures of `solve`, `diagnose`, `compare`, `selfcal` and `kc` hold neither the repository's
+/// path nor the temporary directory's (docs/FORMAT.md §10.2).
+#[test]
+fn no_document_holds_an_absolute_path() {
+    let dir = temp_dir("absolute");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let abs = |p: &str| root.join(p).to_str().unwrap().to_string();
+    let out = |p: &str| dir.join(p).to_str().unwrap().to_string();
+    let run = dir.join("run1");
+    std::fs::create_dir_all(&run).unwrap();
+    std::fs::write(
+        run.join("manifest.json"),
+        r#"{"software": "polycal 0.1.0", "instruments": {"ac1": "AC 1"}, "started": "2026-11-03T14:05:09.123Z", "ended": "2026-11-03T15:01:00.000Z", "outcome": "completed"}"#,
+    )
+    .unwrap();
+    let reference = abs(REFERENCE);
+    let ours = out("ours.csv");
+    let solved = Command::new(env!("CARGO_BIN_EXE_polycal"))
+        .args([
+            "solve",
+            &abs(DATA),
+            "--budget",
+            &abs(BUDGET),
+            "--format",
+            "csv",
+        ])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    std::fs::write(&ours, &solved.stdout).unwrap();
+    let runs: Vec<Vec<String>> = vec![
+        vec![
+            "report".into(),
+            abs(DATA),
+            "--budget".into(),
+            abs(BUDGET),
+            "--diagnose".into(),
+            "--truth".into(),
+            abs(TRUTH),
+            "--reference".into(),
+            reference.clone(),
+            "--meta".into(),
+            abs(META),
+            format!("--run-dir={}", run.display()),
+            "--out".into(),
+            out("report.html"),
+            format!("--dcc={}", out("certificate.xml")),
+        ],
+        vec![
+            "report".into(),
+            abs("examples/data/selfa-168.csv"),
+            "--budget".into(),
+            abs("examples/budgets/selfcal.toml"),
+            "--diagnose".into(),
+            "--meta".into(),
+            abs(META),
+            "--out".into(),
+            out("selfcal.html"),
+            "--dcc".into(),
+            out("selfcal.xml"),
+        ],
+        vec![
+            "solve".into(),
+            abs(DATA),
+            "--budget".into(),
+            abs(BUDGET),
+            "--plot".into(),
+            out("solve-figures"),
+        ],
+        vec![
+            "diagnose".into(),
+            abs(DATA),
+            "--plot".into(),
+            out("diagnose-figures"),
+        ],
+        vec![
+            "compare".into(),
+            ours.clone(),
+            reference,
+            "--plot".into(),
+            out("compare-figures"),
+        ],
+        vec![
+            "selfcal".into(),
+            abs("examples/data/selfa-168.csv"),
+            "--plot".into(),
+            out("selfcal-figures"),
+        ],
+        {
+            let mut kc: Vec<String> = vec!["kc".into()];
+            for lab in ["A", "B", "C", "D", "E", "F"] {
+                kc.push(format!(
+                    "{lab}={}",
+                    abs(&format!("examples/data/kc/{lab}.csv"))
+                ));
+            }
+            for when in ["start", "middle", "end"] {
+                kc.push("--pilot".into());
+                kc.push(format!(
+                    "{when}={}",
+                    abs(&format!("examples/data/kc/pilot-{when}.csv"))
+                ));
+            }
+            kc.extend(["--plot".into(), out("kc-figures")]);
+            kc
+        },
+    ];
+    for args in &runs {
+        let done = Command::new(env!("CARGO_BIN_EXE_polycal"))
+            .args(args)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert!(
+            done.status.code().is_some_and(|c| c <= 1),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&done.stderr)
+        );
+    }
+    // every file written, the figures' directories walked
+    let mut documents = Vec::new();
+    let mut pending = vec![dir.clone()];
+    while let Some(d) = pending.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                if path != run {
+                    pending.push(path);
+                }
+            } else if path != Path::new(&ours) {
+                documents.push(path);
+            }
+        }
+    }
+    let kinds = |ext: &str| {
+        documents
+            .iter()
+            .filter(|p| p.extension().is_some_and(|e| e == ext))
+            .count()
+    };
+    assert_eq!(kinds("html"), 2, "{documents:?}");
+    assert_eq!(kinds("xml"), 2, "{documents:?}");
+    assert!(kinds("svg") >= 11, "{documents:?}");
+    let prefixes = [root.to_str().unwrap(), dir.to_str().unwrap()];
+    for document in &documents {
+        let text = std::fs::read_to_string(document).unwrap();
+        for prefix in prefixes {
+            assert!(
+                !text.contains(prefix),
+                "{} holds {prefix}: …{}…",
+                document.display(),
+                text.find(prefix)
+                    .map(|i| &text[i.saturating_sub(80)..(i + 120).min(text.len())])
+                    .unwrap_or_default()
+            );
+        }
+    }
+    // the files are named all the same: by name and SHA-256
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    for name in [
+        "polygon24-2ac-6cycles.csv",
+        "instrument.toml",
+        "meta.toml",
+        "manifest.json",
+    ] {
+        assert!(html.contains(name), "{name} not named");
+    }
+}
+
+/// A program the printing test needs, or `None` (skipped, saying so) when it is not
+/// installed and `POLYCAL_REQUIRE_BROWSER` is not set; `.ci/run` sets it, so that CI fails.
+fn print_tool(program: &str, version: &str) -> Option<()> {
+    match Command::new(program).arg(version).output() {
+        Ok(out) if out.status.success() => Some(()),
+        other => {
+            assert!(
+                std::env::var_os("POLYCAL_REQUIRE_BROWSER").is_none(),
+                "POLYCAL_REQUIRE_BROWSER is set and {program} cannot run: {other:?}"
+            );
+            eprintln!("{program} not found: the printed report is not checked");
+            None
+        }
+    }
+}
+
+/// The report printed to PDF by a headless browser (Chromium, with its own header and
+/// footer off): every page carries "Page i of n" and the certificate number, in the
+/// `@page` margin boxes; the text of each page read back by poppler's `pdftotext`.
+#[test]
+fn every_printed_page_carries_page_i_of_n_and_the_certificate_number() {
+    // (poppler's tools take `-v`, not `--version`)
+    if print_tool("chromium", "--version").is_none() || print_tool("pdftotext", "-v").is_none() {
+        return;
+    }
+    let dir = temp_dir("print");
+    report(
+        &dir,
+        &[
+            DATA,
+            "--budget",
+            BUDGET,
+            "--diagnose",
+            "--reference",
+            REFERENCE,
+            "--meta",
+            META,
+        ],
+    );
+    let pdf = dir.join("report.pdf");
+    let printed = Command::new("chromium")
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-pdf-header-footer",
+        ])
+        .arg(format!("--user-data-dir={}", dir.join("profile").display()))
+        .arg(format!("--print-to-pdf={}", pdf.display()))
+        .arg(format!("file://{}", dir.join("report.html").display()))
+        .output()
+        .unwrap();
+    assert!(
+        pdf.exists(),
+        "chromium printed nothing: {}",
+        String::from_utf8_lossy(&printed.stderr)
+    );
+    let page = |i: usize| -> Option<String> {
+        let out = Command::new("pdftotext")
+            .args(["-f", &i.to_string(), "-l", &i.to_string(), "-layout"])
+            .arg(&pdf)
+            .arg("-")
+            .output()
+            .unwrap();
+        out.status
+            .success()
+            .then(|| String::from_utf8_lossy(&out.stdout).into_owned())
+    };
+    // the number of pages: the first page's "Page 1 of n"
+    let first = page(1).unwrap();
+    let n: usize = first
+        .split("Page 1 of ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no \"Page 1 of n\" on page 1:\n{first}"));
+    assert!(n >= 3, "the report has {n} pages");
+    for i in 1..=n {
+        let text = page(i).unwrap_or_else(|| panic!("no page {i}"));
+        assert!(
+            text.contains(&format!("Page {i} of {n}")),
+            "page {i}: no \"Page {i} of {n}\":\n{text}"
+        );
+        assert!(
+            text.contains("Certificate EXAMPLE-2026-117"),
+            "page {i}: no certificate number:\n{text}"
+        );
+    }
+    // and no page beyond n
+    assert!(page(n + 1).is_none_or(|t| t.trim().is_empty()));
 }

@@ -1,8 +1,9 @@
 //! `polycal report --kc KC.json [--kc-lab NAME]` (docs/FORMAT.md §10.2, §10.3, §12): the
 //! key comparison's section of the HTML report and its result in the DCC carry the
-//! numbers of `polycal kc --format json` exactly — read back from the HTML's `data-value`
-//! cells and the DCC's D-SI lists and compared with the JSON parsed here with serde_json
-//! alone —, the exclusions with their reasons, the file by its name and its SHA-256
+//! numbers of `polycal kc --format json` — exactly in the HTML's `data-value` cells, and in
+//! the DCC's D-SI lists as GUM 7.2.6 states a value with its U (docs/FORMAT.md §10.4),
+//! checked from the rule's definition against the JSON parsed here with serde_json alone
+//! —, the exclusions with their reasons, the file by its name and its SHA-256
 //! (computed here) and never by its directories; the DCC validates against the vendored
 //! schema (xmllint, as `tests/certificate_dcc.rs`); a malformed, foreign or inconsistent
 //! file and a `--kc-lab` not in the comparison are refused with one `error:` line, status
@@ -216,6 +217,40 @@ fn si_lists(result: Node, refs: &str) -> Vec<SiList> {
         .collect()
 }
 
+/// The value and U texts of the D-SI lists of `refs` in a DCC result, as written.
+fn si_texts(result: Node, refs: &str) -> Vec<(Vec<String>, Vec<String>)> {
+    result
+        .descendants()
+        .filter(|n| n.tag_name().name() == "quantity" && n.attribute("refType") == Some(refs))
+        .map(|q| {
+            let list = |name: &str| -> Vec<String> {
+                q.descendants()
+                    .find(|n| n.tag_name().name() == name && n.tag_name().namespace() == Some(SI))
+                    .and_then(|n| n.text())
+                    .map(|t| t.split_whitespace().map(str::to_string).collect())
+                    .unwrap_or_default()
+            };
+            (list("valueXMLList"), list("uncertaintyXMLList"))
+        })
+        .collect()
+}
+
+/// Every value and its U as the DCC states them: GUM 7.2.6 from its definition
+/// (`document_support::assert_gum_rounded`), against the kc JSON's numbers.
+fn assert_stated(texts: &(Vec<String>, Vec<String>), values: &[f64], us: &[f64], what: &str) {
+    let (value_texts, u_texts) = texts;
+    assert_eq!(value_texts.len(), values.len(), "{what}");
+    assert_eq!(u_texts.len(), us.len(), "{what}");
+    for (k, ((vt, ut), (&v, &u))) in value_texts
+        .iter()
+        .zip(u_texts)
+        .zip(values.iter().zip(us))
+        .enumerate()
+    {
+        document_support::assert_gum_rounded(vt, ut, v, u, &format!("{what} {}", k + 1));
+    }
+}
+
 fn temp_dir(name: &str) -> PathBuf {
     document_support::temp_dir("report-kc", name)
 }
@@ -371,12 +406,16 @@ fn the_named_laboratorys_section_carries_the_kc_json_numbers() {
     let result = kc_result(&doc);
     let refs = si_lists(result, "polycal_kcReferenceValue");
     assert_eq!(refs.len(), 1);
-    assert_eq!(refs[0].1, numbers(&kc["reference"]));
     let twice_u: Vec<f64> = numbers(&kc["reference_u"])
         .iter()
         .map(|u| 2.0 * u)
         .collect();
-    assert_eq!(refs[0].2, twice_u);
+    assert_stated(
+        &si_texts(result, "polycal_kcReferenceValue")[0],
+        &numbers(&kc["reference"]),
+        &twice_u,
+        "reference",
+    );
     assert_eq!(refs[0].3, vec![2.0; faces]);
     assert_eq!(
         si_lists(result, "polycal_kcChi2")[0].1,
@@ -389,8 +428,12 @@ fn the_named_laboratorys_section_carries_the_kc_json_numbers() {
     let doe = si_lists(result, "polycal_kcDegreeOfEquivalence");
     assert_eq!(doe.len(), 1);
     assert!(doe[0].0.contains("laboratory F (left out"), "{}", doe[0].0);
-    assert_eq!(doe[0].1, numbers(&f["d"]));
-    assert_eq!(doe[0].2, numbers(&f["U"]));
+    assert_stated(
+        &si_texts(result, "polycal_kcDegreeOfEquivalence")[0],
+        &numbers(&f["d"]),
+        &numbers(&f["U"]),
+        "d of F",
+    );
     let statements: Vec<&str> = result
         .descendants()
         .filter(|n| n.tag_name().name() == "content")
@@ -441,8 +484,12 @@ fn without_a_laboratory_every_degree_of_equivalence_is_shown() {
             list.0
                 .contains(&format!("laboratory {}", d["lab"].as_str().unwrap()))
         );
-        assert_eq!(list.1, numbers(&d["d"]));
-        assert_eq!(list.2, numbers(&d["U"]));
+    }
+    for (texts, d) in si_texts(result, "polycal_kcDegreeOfEquivalence")
+        .iter()
+        .zip(does)
+    {
+        assert_stated(texts, &numbers(&d["d"]), &numbers(&d["U"]), "d");
     }
 }
 

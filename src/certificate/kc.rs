@@ -3,8 +3,6 @@
 //! [`KeyComparison`], checked for the shape the documents rely on (one entry per compared
 //! quantity in every list), and the laboratory the report is for, when one is named.
 
-use std::path::Path;
-
 use crate::input::Location;
 use crate::kc::KeyComparison;
 
@@ -43,14 +41,6 @@ impl KeyComparisonSection {
         let lab = self.lab.as_ref()?;
         self.comparison.excluded.iter().find(|e| &e.lab == lab)
     }
-}
-
-/// The file name of a path, without its directories (`-` for standard input).
-pub(super) fn file_name(path: &Path) -> String {
-    path.file_name().map_or_else(
-        || crate::input::display_name(path),
-        |n| n.to_string_lossy().into_owned(),
-    )
 }
 
 /// Reads a key comparison from the bytes of `polycal kc --format json` (`name` names the
@@ -93,7 +83,7 @@ pub(super) fn parse(
     Ok(KeyComparisonSection {
         comparison,
         lab: lab.map(str::to_string),
-        file_name: file_name(Path::new(name)),
+        file_name: crate::input::document_name(name),
         sha256,
     })
 }

@@ -16,12 +16,13 @@ use crate::uncertainty::budget_file::location;
 use super::ReportError;
 
 /// The metadata keys, in the order a report shows them, with their labels.
-pub const KEYS: [(&str, &str); 25] = [
+pub const KEYS: [(&str, &str); 29] = [
     ("title", "Title"),
     ("certificate", "Certificate number"),
     ("customer", "Customer"),
     ("customer_address", "Customer address"),
     ("customer_email", "Customer e-mail"),
+    ("customer_country", "Country of the customer (ISO 3166-1)"),
     ("artefact", "Artefact (polygon)"),
     ("artefact_manufacturer", "Artefact manufacturer"),
     ("artefact_serial", "Artefact serial number"),
@@ -32,11 +33,17 @@ pub const KEYS: [(&str, &str); 25] = [
     ("laboratory_address", "Laboratory address"),
     ("laboratory_email", "Laboratory e-mail"),
     ("country", "Country of the laboratory (ISO 3166-1)"),
+    ("accreditation_body", "Accreditation body"),
+    (
+        "accreditation_code",
+        "Accreditation number / laboratory code",
+    ),
     ("location", "Place of calibration"),
     ("performance_location", "Calibrated at"),
     ("date_of_measurement", "Date of measurement"),
     ("operator", "Operator"),
     ("approved_by", "Approved by"),
+    ("traceability", "Traceability"),
     ("temperature_c", "Air temperature / °C"),
     ("humidity_percent", "Relative humidity / %"),
     ("pressure_hpa", "Air pressure / hPa"),
@@ -141,6 +148,46 @@ pub struct Metadata {
 }
 
 impl Metadata {
+    /// The accreditation in words, as both documents state it: the body, and the
+    /// laboratory's accreditation number when given; `None` without a body.
+    pub fn accreditation(&self) -> Option<String> {
+        let body = self.value("accreditation_body")?;
+        Some(match self.value("accreditation_code") {
+            Some(code) => format!("Accredited by {body}, accreditation number {code}."),
+            None => format!("Accredited by {body}."),
+        })
+    }
+
+    /// Names every source by the file name the documents show: each `(given, shown)`
+    /// pair's given path replaced in the fields' and instruments' sources, the run's and
+    /// the conflicts (their [`MetaField::location`]s, for messages, keep the path).
+    pub fn name_files(&mut self, names: &[(String, String)]) {
+        // the longest first: a path that begins another is replaced after it
+        let mut names: Vec<&(String, String)> = names.iter().collect();
+        names.sort_by_key(|(given, _)| std::cmp::Reverse(given.len()));
+        let rename = |text: &mut String| {
+            for (given, shown) in &names {
+                if !given.is_empty() && given != shown && text.contains(given.as_str()) {
+                    *text = text.replace(given.as_str(), shown.as_str());
+                }
+            }
+        };
+        for field in &mut self.fields {
+            if let Some(source) = &mut field.source {
+                rename(source);
+            }
+        }
+        for instrument in &mut self.instruments {
+            rename(&mut instrument.source);
+        }
+        for conflict in &mut self.conflicts {
+            rename(conflict);
+        }
+        if let Some(run) = &mut self.run {
+            rename(&mut run.source);
+        }
+    }
+
     /// The value of `key`, if a source gives it.
     pub fn value(&self, key: &str) -> Option<&str> {
         self.fields
@@ -158,6 +205,7 @@ struct MetaFile {
     customer: Option<Spanned<String>>,
     customer_address: Option<Spanned<String>>,
     customer_email: Option<Spanned<String>>,
+    customer_country: Option<Spanned<String>>,
     artefact: Option<Spanned<String>>,
     artefact_manufacturer: Option<Spanned<String>>,
     artefact_serial: Option<Spanned<String>>,
@@ -168,11 +216,14 @@ struct MetaFile {
     laboratory_address: Option<Spanned<String>>,
     laboratory_email: Option<Spanned<String>>,
     country: Option<Spanned<String>>,
+    accreditation_body: Option<Spanned<String>>,
+    accreditation_code: Option<Spanned<String>>,
     location: Option<Spanned<String>>,
     performance_location: Option<Spanned<String>>,
     date_of_measurement: Option<Spanned<String>>,
     operator: Option<Spanned<String>>,
     approved_by: Option<Spanned<String>>,
+    traceability: Option<Spanned<String>>,
     temperature_c: Option<Spanned<f64>>,
     humidity_percent: Option<Spanned<f64>>,
     pressure_hpa: Option<Spanned<f64>>,
@@ -242,17 +293,15 @@ fn read_meta_file(
     let plain = |value: Option<Spanned<String>>| checked(value).map(|v| v.map(|(_, v)| v));
     let placed =
         |value: Option<Spanned<String>>| checked(value).map(|v| v.map(|(span, v)| (v, span.start)));
-    let country = match checked(file.country)? {
-        Some((span, v)) if !is_country_code(&v) => {
-            return Err(at(
-                span.start,
-                format!(
-                    "country “{v}” is not an ISO 3166-1 alpha-2 code (two capital letters, e.g. DE)"
-                ),
-            ));
-        }
-        other => other.map(|(span, v)| (v, span.start)),
+    let country_code = |key: &str, value: Option<Spanned<String>>| match checked(value)? {
+        Some((span, v)) if !is_country_code(&v) => Err(at(
+            span.start,
+            format!("{key} “{v}” is not an ISO 3166-1 alpha-2 code (two capital letters, e.g. DE)"),
+        )),
+        other => Ok(other.map(|(span, v)| (v, span.start))),
     };
+    let country = country_code("country", file.country)?;
+    let customer_country = country_code("customer_country", file.customer_country)?;
     let performance_location = match checked(file.performance_location)? {
         Some((span, v)) if !PERFORMANCE_LOCATIONS.contains(&v.as_str()) => {
             return Err(at(
@@ -265,12 +314,13 @@ fn read_meta_file(
         }
         other => other.map(|(span, v)| (v, span.start)),
     };
-    let values: [(&'static str, Option<(String, usize)>); 25] = [
+    let values: [(&'static str, Option<(String, usize)>); 29] = [
         ("title", placed(file.title)?),
         ("certificate", placed(file.certificate)?),
         ("customer", placed(file.customer)?),
         ("customer_address", placed(file.customer_address)?),
         ("customer_email", placed(file.customer_email)?),
+        ("customer_country", customer_country),
         ("artefact", placed(file.artefact)?),
         ("artefact_manufacturer", placed(file.artefact_manufacturer)?),
         ("artefact_serial", placed(file.artefact_serial)?),
@@ -281,11 +331,14 @@ fn read_meta_file(
         ("laboratory_address", placed(file.laboratory_address)?),
         ("laboratory_email", placed(file.laboratory_email)?),
         ("country", country),
+        ("accreditation_body", placed(file.accreditation_body)?),
+        ("accreditation_code", placed(file.accreditation_code)?),
         ("location", placed(file.location)?),
         ("performance_location", performance_location),
         ("date_of_measurement", placed(file.date_of_measurement)?),
         ("operator", placed(file.operator)?),
         ("approved_by", placed(file.approved_by)?),
+        ("traceability", placed(file.traceability)?),
         ("temperature_c", temperature),
         ("humidity_percent", humidity),
         ("pressure_hpa", pressure),

@@ -30,6 +30,7 @@ pub mod html;
 mod inputs;
 mod kc;
 pub mod meta;
+pub mod rounding;
 
 use std::path::Path;
 
@@ -63,7 +64,9 @@ pub use meta::Metadata;
 pub struct InputFile {
     /// What it is (`measurement`, `budget`, `reference`, …).
     pub role: &'static str,
-    /// Its path as given.
+    /// Its file name, without the directories it was read from
+    /// ([`crate::input::document_name`]): the documents name a file by its name and
+    /// SHA-256 alone.
     pub path: String,
     /// Its size, bytes.
     pub bytes: u64,
@@ -212,17 +215,22 @@ pub struct CalibrationReport {
     pub key_comparison: Option<KeyComparisonSection>,
 }
 
-/// Reads a whole input file (at most [`crate::input::MAX_INPUT_BYTES`]) and fingerprints it.
-fn read_input(path: &Path, role: &'static str) -> Result<(Vec<u8>, InputFile), ReportError> {
+/// Reads a whole input file (at most [`crate::input::MAX_INPUT_BYTES`]) and fingerprints
+/// it; with its name as given, for messages.
+fn read_input(
+    path: &Path,
+    role: &'static str,
+) -> Result<(Vec<u8>, InputFile, String), ReportError> {
     let (bytes, name) = crate::input::read_bytes(path)
         .map_err(|(file, source)| ReportError::Io { file, source })?;
+    let given = name.clone();
     let input = InputFile {
         role,
-        path: name,
+        path: crate::input::document_name(&name),
         bytes: bytes.len() as u64,
         sha256: sha256_hex(&bytes),
     };
-    Ok((bytes, input))
+    Ok((bytes, input, given))
 }
 
 /// SHA-256 of bytes, lower-case hex (FIPS 180-4).
@@ -250,18 +258,24 @@ impl CalibrationReport {
     /// column), a design that cannot be solved, a budget that does not apply, a
     /// comparison that cannot be made.
     pub fn build(inputs: &ReportInputs) -> Result<Self, ReportError> {
-        let (bytes, measurement_file) = read_input(&inputs.measurement, "measurement")?;
-        let name = measurement_file.path.clone();
+        let (bytes, measurement_file, name) = read_input(&inputs.measurement, "measurement")?;
+        // the name the documents show: the file name alone
+        let shown = measurement_file.path.clone();
+        // every name as given and as the documents show it
+        let mut names = vec![(name.clone(), shown.clone())];
         let text = String::from_utf8_lossy(&bytes).into_owned();
         let mut files = vec![measurement_file];
         let budget = match &inputs.budget {
             Some(path) => {
-                let (bytes, file) = read_input(path, "instrument budget")?;
+                let (bytes, file, given) = read_input(path, "instrument budget")?;
                 // parsed from the bytes fingerprinted; not UTF-8: the reader's located error
-                let budget = match std::str::from_utf8(&bytes) {
-                    Ok(text) => InstrumentBudget::from_toml_str(text, &file.path)?,
+                let mut budget = match std::str::from_utf8(&bytes) {
+                    Ok(text) => InstrumentBudget::from_toml_str(text, &given)?,
                     Err(_) => InstrumentBudget::read_path(path)?,
                 };
+                // the documents name the budget by its file name
+                budget.source = file.path.clone();
+                names.push((given, file.path.clone()));
                 files.push(file);
                 Some(budget)
             }
@@ -271,8 +285,8 @@ impl CalibrationReport {
         // the kind of the measurement file
         let truth_bytes = match &inputs.truth {
             Some(path) => {
-                let (bytes, file) = read_input(path, "truth")?;
-                let source = file.path.clone();
+                let (bytes, file, source) = read_input(path, "truth")?;
+                names.push((source.clone(), file.path.clone()));
                 files.push(file);
                 Some((bytes, source))
             }
@@ -280,28 +294,35 @@ impl CalibrationReport {
         };
         let meta_text = match &inputs.meta {
             Some(path) => {
-                let (meta_bytes, file) = read_input(path, "metadata")?;
+                let (meta_bytes, file, given) = read_input(path, "metadata")?;
                 let text = crate::input::text::utf8(&meta_bytes)
                     .map_err(|((line, column), message)| ReportError::Meta {
-                        location: Location::new(file.path.clone(), line, column),
+                        location: Location::new(given.clone(), line, column),
                         message,
                     })?
                     .to_string();
-                let source = file.path.clone();
+                names.push((given.clone(), file.path.clone()));
+                let source = given;
                 files.push(file);
                 Some((text, source))
             }
             None => None,
         };
         if let Some(dir) = &inputs.run_dir {
-            let (_, file) = read_input(&dir.join("manifest.json"), "run manifest")?;
+            let (_, file, given) = read_input(&dir.join("manifest.json"), "run manifest")?;
+            names.push((
+                dir.join("manifest.json").display().to_string(),
+                file.path.clone(),
+            ));
+            names.push((given, file.path.clone()));
             files.push(file);
         }
-        let metadata = meta::gather(
+        let mut metadata = meta::gather(
             meta_text.as_ref().map(|(t, s)| (t.as_str(), s.as_str())),
             (&text, &name),
             inputs.run_dir.as_deref(),
         )?;
+        metadata.name_files(&names);
         let (evaluation, diagnosis, rows) = if SelfcalSet::is_selfcal_file(&bytes) {
             if !inputs.stated_cross_talk.is_empty() {
                 return Err(ReportError::NotSupported {
@@ -325,7 +346,7 @@ impl CalibrationReport {
                     file: name.clone(),
                     source,
                 })?;
-            let mut report = SelfcalReport::new(&solution, &name);
+            let mut report = SelfcalReport::new(&solution, &shown);
             if let Some(u) = &uncertainty {
                 report = report.with_uncertainty(u);
             }
@@ -344,7 +365,7 @@ impl CalibrationReport {
                     file: name.clone(),
                     source,
                 })?;
-                let mut d = SelfcalDiagnoseReport::new(&found, selfcal_truth.as_ref(), &name);
+                let mut d = SelfcalDiagnoseReport::new(&found, selfcal_truth.as_ref(), &shown);
                 // the budget acts on the final model, as in `polycal diagnose --budget`
                 if let Some(b) = &budget {
                     let after =
@@ -460,20 +481,20 @@ impl CalibrationReport {
         };
         let comparison = match &inputs.reference {
             Some(path) => {
-                let (bytes, file) = read_input(path, "reference result")?;
+                let (bytes, file, reference_given) = read_input(path, "reference result")?;
                 let reference_name = file.path.clone();
                 files.push(file);
-                let reference = read_results_from(bytes.as_slice(), &reference_name)?;
+                let reference = read_results_from(bytes.as_slice(), &reference_given)?;
                 let Some(rows) = rows else {
                     return Err(ReportError::NoExpandedUncertainty {
-                        reference: reference_name,
+                        reference: reference_given,
                     });
                 };
                 let options =
-                    CompareOptions::new().with_labels(name.clone(), reference_name.clone());
+                    CompareOptions::new().with_labels(shown.clone(), reference_name.clone());
                 let comparison = compare(&rows, &reference.rows, &options).map_err(|source| {
                     ReportError::Compare {
-                        reference: reference_name.clone(),
+                        reference: reference_given.clone(),
                         source,
                     }
                 })?;
@@ -483,10 +504,10 @@ impl CalibrationReport {
         };
         let key_comparison = match &inputs.key_comparison {
             Some((path, lab)) => {
-                let (bytes, mut file) = read_input(path, "key comparison")?;
-                // named by its file name and SHA-256, never by its directories
-                let section = kc::parse(&bytes, &file.path, file.sha256.clone(), lab.as_deref())?;
-                file.path = section.file_name.clone();
+                // refusals name the file as given; the documents by its file name and
+                // SHA-256 (read_input's `path`), never by its directories
+                let (bytes, file, given) = read_input(path, "key comparison")?;
+                let section = kc::parse(&bytes, &given, file.sha256.clone(), lab.as_deref())?;
                 files.push(file);
                 Some(section)
             }
@@ -501,7 +522,7 @@ impl CalibrationReport {
             figures.extend(figure::diagnose_figures(d));
         }
         if let Some((c, reference)) = &comparison {
-            figures.extend(figure::compare_figures_labelled(c, &name, reference));
+            figures.extend(figure::compare_figures_labelled(c, &shown, reference));
         }
         if let Some(k) = &key_comparison {
             figures.extend(figure::kc_figures(&k.comparison));

@@ -87,8 +87,9 @@ pub fn run(args: &CompareArgs) -> Result<u8> {
     if let Some(dir) = &args.plot {
         let figures = polycal::figure::compare_figures_labelled(
             &comparison,
-            &display_name(&args.a),
-            &display_name(&args.b),
+            // figures are documents: the files by their names alone
+            &polycal::input::document_name(&display_name(&args.a)),
+            &polycal::input::document_name(&display_name(&args.b)),
         );
         super::write_plot(dir, &figures, &args.inputs())?;
     }

@@ -134,6 +134,15 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
     let command_line = std::env::args_os()
         .skip(1)
         .map(|a| a.to_string_lossy().into_owned())
+        // files by their names alone, as the documents name them: `--out=/a/b.html`
+        // as `--out=b.html`, `/a/run.csv` as `run.csv`
+        .map(|a| match a.split_once('=') {
+            Some((flag, path)) if flag.starts_with("--") && path.contains('/') => {
+                format!("{flag}={}", polycal::input::document_name(path))
+            }
+            _ if !a.starts_with('-') && a.contains('/') => polycal::input::document_name(&a),
+            _ => a,
+        })
         .map(|a| {
             if a.is_empty() || a.contains(|c: char| c.is_whitespace() || "'\"$\\".contains(c)) {
                 format!("'{}'", a.replace('\'', "'\\''"))

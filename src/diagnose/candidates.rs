@@ -102,7 +102,12 @@ impl Term {
     pub fn columns(terms: &[Term], set: &MeasurementSet, context: &EffectContext) -> Vec<Vec<f64>> {
         const CHUNK: usize = 2048;
         let n = set.readings.len();
-        let span = time_span(set);
+        // the run's span is read by a drift's shapes alone
+        let span = if terms.iter().any(|t| matches!(t, Term::DriftShape { .. })) {
+            time_span(set)
+        } else {
+            (0.0, 0.0)
+        };
         let mut out = vec![vec![0.0; n]; terms.len()];
         for start in (0..n).step_by(CHUNK) {
             let end = (start + CHUNK).min(n);

@@ -169,35 +169,49 @@ fn rank(
     stream: impl Fn(&StepScore) -> (u32, Option<u32>),
     full: impl Fn(u32, Option<u32>) -> bool,
 ) -> Vec<(usize, Evidence)> {
-    let f: Vec<f64> = (0..candidates.len())
-        .map(|i| {
-            let (reduction, rank, _) = candidates.score(i);
-            f_statistic(reduction, rank, current, tiny)
-        })
-        .collect();
-    let evidence_of = |i: usize| {
-        let (_, rank, family) = candidates.score(i);
-        evidence(rank, f[i], current, family_size(family))
-    };
     // as the round's loop decides: a candidate is tried unless p·m ≥ α
     let significant = |e: &Evidence| e.p_adjusted < family_alpha || e.p_adjusted.is_nan();
-    let mut out: Vec<(usize, Evidence)> = Vec::new();
-    let mut steps: Vec<usize> = Vec::with_capacity(candidates.steps.len());
-    for i in 0..candidates.len() {
-        if candidates.step(i).is_some() {
-            steps.push(i);
-        } else {
-            out.push((i, evidence_of(i)));
-        }
-    }
+    let mut out: Vec<(usize, Evidence)> = (0..candidates.len())
+        .filter(|&i| candidates.step(i).is_none())
+        .map(|i| {
+            let (reduction, rank, family) = candidates.score(i);
+            let f = f_statistic(reduction, rank, current, tiny);
+            (i, evidence(rank, f, current, family_size(family)))
+        })
+        .collect();
+    let steps = candidates.steps;
+    let first = candidates.systematic.len();
+    let step_family = family_size(Family::OffsetStep);
+    let f: Vec<f64> = steps
+        .iter()
+        .map(|s| f_statistic(s.reduction, 1, current, tiny))
+        .collect();
+    let evidence_of = |j: usize| evidence(1, f[j], current, step_family);
     // strongest first; ties in candidate order
     let stronger = |a: &usize, b: &usize| f[*b].total_cmp(&f[*a]).then(a.cmp(b));
-    let stream = |i: usize| candidates.step(i).map_or((0, None), &stream);
+    // A jump whose F is at most LOW is not significant when one at LOW is not (the
+    // p-value falls as F grows): only those above it are ordered; of the others, each
+    // stream's strongest is kept in one pass.
+    const LOW: f64 = 4.0;
+    let low_is_not_significant = !significant(&evidence(1, LOW, current, step_family));
+    let streams = steps.iter().map(|s| s.stream + 1).max().unwrap_or(0);
+    let mut strongest_low: Vec<Option<usize>> = vec![None; streams];
+    let mut open_part: Vec<usize> = Vec::new();
+    for (j, (score, &fj)) in steps.iter().zip(&f).enumerate() {
+        if low_is_not_significant && fj <= LOW {
+            let best = &mut strongest_low[score.stream];
+            if best.is_none_or(|b| stronger(&j, &b).is_lt()) {
+                *best = Some(j);
+            }
+        } else {
+            open_part.push(j);
+        }
+    }
     // the number of significant jumps: the first `count` in the order of `stronger`,
     // by bisection over partitions (each step halves the part still open)
-    let (mut lo, mut hi) = (0, steps.len());
+    let (mut lo, mut hi) = (0, open_part.len());
     while lo < hi {
-        let part = &mut steps[lo..hi];
+        let part = &mut open_part[lo..hi];
         let mid = part.len() / 2;
         part.select_nth_unstable_by(mid, stronger);
         if significant(&evidence_of(part[mid])) {
@@ -206,42 +220,48 @@ fn rank(
             hi = lo + mid;
         }
     }
-    let (tried, others) = steps.split_at_mut(lo);
-    // the strongest of each stream among `items` that `keep` keeps
-    let strongest_of_streams = |items: &[usize], keep: &dyn Fn((u32, Option<u32>)) -> bool| {
-        let mut best: Vec<((u32, Option<u32>), usize)> = Vec::new();
-        for &i in items {
-            let of = stream(i);
-            if !keep(of) {
+    let (tried, others) = open_part.split_at(lo);
+    // the strongest of each stream among `items` that `keep` keeps, by stream index
+    let strongest_of_streams = |items: &[usize], keep: &dyn Fn(&StepScore) -> bool| {
+        let mut best: Vec<Option<usize>> = vec![None; streams];
+        for &j in items {
+            if !keep(&steps[j]) {
                 continue;
             }
-            match best.iter_mut().find(|(s, _)| *s == of) {
-                Some((_, b)) => {
-                    if stronger(&i, b).is_lt() {
-                        *b = i;
-                    }
-                }
-                None => best.push((of, i)),
+            let b = &mut best[steps[j].stream];
+            if b.is_none_or(|b| stronger(&j, &b).is_lt()) {
+                *b = Some(j);
             }
         }
-        best.into_iter().map(|(_, i)| i).collect::<Vec<usize>>()
+        best
     };
-    let mut keep: Vec<usize> = strongest_of_streams(tried, &|(ac, setup)| full(ac, setup));
+    let full_stream = |score: &StepScore| {
+        let (ac, setup) = stream(score);
+        full(ac, setup)
+    };
+    let mut keep: Vec<usize> = strongest_of_streams(tried, &full_stream)
+        .into_iter()
+        .flatten()
+        .collect();
     let mut open: Vec<usize> = tried
         .iter()
         .copied()
-        .filter(|&i| {
-            let (ac, setup) = stream(i);
-            !full(ac, setup)
-        })
+        .filter(|&j| !full_stream(&steps[j]))
         .collect();
     if open.len() > MAX_ATTEMPTS {
         open.select_nth_unstable_by(MAX_ATTEMPTS, stronger);
         open.truncate(MAX_ATTEMPTS);
     }
     keep.extend(open);
-    keep.extend(strongest_of_streams(others, &|_| true));
-    out.extend(keep.into_iter().map(|i| (i, evidence_of(i))));
+    let above = strongest_of_streams(others, &|_| true);
+    for (a, b) in above.into_iter().zip(strongest_low) {
+        let best = match (a, b) {
+            (Some(a), Some(b)) => Some(if stronger(&a, &b).is_lt() { a } else { b }),
+            (a, b) => a.or(b),
+        };
+        keep.extend(best);
+    }
+    out.extend(keep.into_iter().map(|j| (first + j, evidence_of(j))));
     out.sort_unstable_by_key(|&(i, _)| i);
     out
 }
@@ -615,14 +635,14 @@ impl Systematic<'_> {
             if stats.iter().any(|(t, _)| *t == term) {
                 continue;
             }
-            let Some(&x) = self.known.columns(std::slice::from_ref(term)).first() else {
+            let Some((x, length_squared)) = self.known.with_length(term) else {
                 continue;
             };
             stats.push((
                 term,
                 TermStats {
                     projection: dot(x, self.residuals),
-                    length_squared: dot(x, x),
+                    length_squared,
                     coordinates: self.geometry.added_coordinates(x),
                 },
             ));
@@ -694,18 +714,19 @@ impl Systematic<'_> {
 struct Columns<'s> {
     set: &'s MeasurementSet,
     context: &'s EffectContext,
-    /// (term, its column).
-    known: Vec<(Term, Vec<f64>)>,
+    /// (term, its column, xᵀx).
+    known: Vec<(Term, Vec<f64>, f64)>,
 }
 
 impl Columns<'_> {
     /// The column of `term`.
     fn column(&mut self, term: &Term) -> &[f64] {
-        let index = match self.known.iter().position(|(t, _)| t == term) {
+        let index = match self.known.iter().position(|(t, ..)| t == term) {
             Some(index) => index,
             None => {
                 let column = term.column(self.set, self.context);
-                self.known.push((term.clone(), column));
+                let length_squared = dot(&column, &column);
+                self.known.push((term.clone(), column, length_squared));
                 self.known.len() - 1
             }
         };
@@ -717,12 +738,16 @@ impl Columns<'_> {
     fn form<'t>(&mut self, terms: impl Iterator<Item = &'t Term>) {
         let mut missing: Vec<Term> = Vec::new();
         for term in terms {
-            if !self.known.iter().any(|(t, _)| t == term) && !missing.contains(term) {
+            if !self.known.iter().any(|(t, ..)| t == term) && !missing.contains(term) {
                 missing.push(term.clone());
             }
         }
         let columns = Term::columns(&missing, self.set, self.context);
-        self.known.extend(missing.into_iter().zip(columns));
+        self.known
+            .extend(missing.into_iter().zip(columns).map(|(term, column)| {
+                let length_squared = dot(&column, &column);
+                (term, column, length_squared)
+            }));
     }
 
     /// The columns of `terms`, formed before ([`Columns::column`]), in their order
@@ -733,10 +758,18 @@ impl Columns<'_> {
             .filter_map(|t| {
                 self.known
                     .iter()
-                    .find(|(k, _)| k == t)
-                    .map(|(_, c)| c.as_slice())
+                    .find(|(k, ..)| k == t)
+                    .map(|(_, c, _)| c.as_slice())
             })
             .collect()
+    }
+
+    /// The column of `term` and its xᵀx, formed before.
+    fn with_length(&self, term: &Term) -> Option<(&[f64], f64)> {
+        self.known
+            .iter()
+            .find(|(k, ..)| k == term)
+            .map(|(_, c, l)| (c.as_slice(), *l))
     }
 
     /// The columns of `terms`, in their order.

@@ -34,7 +34,10 @@ pub(crate) fn figures(report: &SelfcalReport) -> Vec<Figure> {
         (None, Some(u)) => (Some(u.clone()), "error bars: u (k = 1)".to_string()),
         (None, None) => (None, "no error bars: σ of a reading is unknown".to_string()),
     };
-    let title = format!("Graduation errors e with U — {}", report.file);
+    let title = format!(
+        "Graduation errors e with U — {}",
+        crate::input::document_name(&report.file)
+    );
     let chart = Chart {
         title: title.clone(),
         subtitles: vec![format!(
@@ -78,7 +81,10 @@ pub(crate) fn figures(report: &SelfcalReport) -> Vec<Figure> {
         } else {
             "no error bars: σ of a reading is unknown".into()
         };
-        let title = format!("Head errors c with U — {}", report.file);
+        let title = format!(
+            "Head errors c with U — {}",
+            crate::input::document_name(&report.file)
+        );
         let chart = Chart {
             title: title.clone(),
             subtitles: vec![format!(

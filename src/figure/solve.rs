@@ -107,7 +107,10 @@ pub(crate) fn figures(report: &SolveReport) -> Vec<Figure> {
     let source = report
         .file
         .as_ref()
-        .map_or(String::new(), |f| format!(" — {f}"));
+        // a figure is a document: the file by its name alone
+        .map_or(String::new(), |f| {
+            format!(" — {}", crate::input::document_name(f))
+        });
     let mut out = Vec::new();
 
     let beta = bars(

@@ -4,6 +4,7 @@
 
 use super::DccError;
 use super::xml::{self, Xml};
+use crate::certificate::rounding::{round_coverage_factor, round_result};
 use crate::output::SolveReport;
 use crate::output::selfcal::SelfcalReport;
 
@@ -51,8 +52,22 @@ pub(super) struct Column<'a> {
     pub(super) unit: &'a str,
     pub(super) labels: Option<Vec<String>>,
     pub(super) values: Vec<f64>,
-    /// (U, k) per value, and p.
+    /// (U, k) per value, and p: the values and U rounded by GUM 7.2.6 and k to three
+    /// significant digits ([`crate::certificate::rounding`]).
     pub(super) expanded: Option<(Vec<f64>, Vec<f64>, f64)>,
+    /// How the values without U are written.
+    pub(super) form: Form,
+}
+
+/// How a column's values without an expanded uncertainty are written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Form {
+    /// At full precision: the shortest text that reads back to the double.
+    Real,
+    /// Whole numbers (face numbers), without a decimal point.
+    Whole,
+    /// Rounded to this many decimals (En, as the HTML report shows it).
+    Decimals(usize),
 }
 
 impl Column<'_> {
@@ -64,26 +79,62 @@ impl Column<'_> {
             x.text("si:labelXMLList", &[], &labels.join(" "))?;
         }
         let what = |i: usize| format!("{} {}", self.name, i + 1);
-        let values = self
+        let mut values = self
             .values
             .iter()
             .enumerate()
-            .map(|(i, &v)| xml::real(v, &what(i)))
-            .collect::<Result<Vec<_>, _>>()?;
+            .map(|(i, &v)| {
+                let text = xml::real(v, &what(i))?;
+                Ok(match self.form {
+                    Form::Whole if v.fract() == 0.0 && v.abs() < 1e15 => format!("{v:.0}"),
+                    // "-0.00" is zero
+                    Form::Decimals(places) => match format!("{v:.places$}") {
+                        t if t
+                            .trim_start_matches('-')
+                            .bytes()
+                            .all(|b| b"0.".contains(&b)) =>
+                        {
+                            t.trim_start_matches('-').to_string()
+                        }
+                        t => t,
+                    },
+                    _ => text,
+                })
+            })
+            .collect::<Result<Vec<_>, DccError>>()?;
+        let rounded = match &self.expanded {
+            Some((expanded_u, k, p)) => {
+                let mut u_texts = Vec::with_capacity(expanded_u.len());
+                for (i, &u) in expanded_u.iter().enumerate() {
+                    // checked as D-SI takes it, then rounded (GUM 7.2.6)
+                    xml::uncertainty(u, &format!("U of {}", what(i)))?;
+                    let r = round_result(self.values.get(i).copied().unwrap_or(0.0), u).ok_or(
+                        DccError::NotFinite {
+                            what: format!("U of {}", what(i)),
+                        },
+                    )?;
+                    if let Some(value) = values.get_mut(i) {
+                        *value = r.value;
+                    }
+                    u_texts.push(r.expanded_u);
+                }
+                let k = k
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &k)| {
+                        xml::coverage_factor(k, &what(i))?;
+                        round_coverage_factor(k)
+                            .ok_or(DccError::CoverageFactor { what: what(i), k })
+                    })
+                    .collect::<Result<Vec<_>, _>>()?;
+                Some((u_texts, k, *p))
+            }
+            None => None,
+        };
         x.text("si:valueXMLList", &[], &values.join(" "))?;
         x.text("si:unitXMLList", &[], self.unit)?;
-        if let Some((expanded_u, k, p)) = &self.expanded {
-            let expanded_u = expanded_u
-                .iter()
-                .enumerate()
-                .map(|(i, &u)| xml::uncertainty(u, &format!("U of {}", what(i))))
-                .collect::<Result<Vec<_>, _>>()?;
-            let k = k
-                .iter()
-                .enumerate()
-                .map(|(i, &k)| xml::coverage_factor(k, &what(i)))
-                .collect::<Result<Vec<_>, _>>()?;
-            let p = vec![xml::coverage_probability(*p)?; k.len()];
+        if let Some((expanded_u, k, p)) = rounded {
+            let p = vec![xml::coverage_probability(p)?; k.len()];
             x.open("si:expandedUncXMLList", &[]);
             x.text("si:uncertaintyXMLList", &[], &expanded_u.join(" "))?;
             x.text("si:coverageFactorXMLList", &[], &k.join(" "))?;
@@ -149,7 +200,14 @@ pub(super) fn real_quantity(
 ) -> Result<(), DccError> {
     x.open("dcc:quantity", &[]);
     x.open("si:real", &[]);
-    x.text("si:value", &[], &xml::real(value, what)?)?;
+    let text = xml::real(value, what)?;
+    // a whole number (degrees of freedom) without a decimal point
+    let text = if value.fract() == 0.0 && value.abs() < 1e15 {
+        format!("{value:.0}")
+    } else {
+        text
+    };
+    x.text("si:value", &[], &text)?;
     x.text("si:unit", &[], unit)?;
     x.close();
     x.close();
@@ -213,6 +271,7 @@ pub(super) fn polygon_results(
                 labels: None,
                 values: face_numbers(),
                 expanded: None,
+                form: Form::Whole,
             },
             Column {
                 refs: "basic_measurementError polycal_pitchDeviation",
@@ -221,6 +280,7 @@ pub(super) fn polygon_results(
                 labels: Some(labels("beta", 1..=n)),
                 values: solve.pitch_deviation.clone(),
                 expanded: Some((beta_u.clone(), every_k(beta_k, "a pitch deviation")?, p)),
+                form: Form::Real,
             },
         ],
     )?;
@@ -240,6 +300,7 @@ pub(super) fn polygon_results(
                 labels: None,
                 values: face_numbers()[..m].to_vec(),
                 expanded: None,
+                form: Form::Whole,
             },
             Column {
                 refs: "basic_measurementError polycal_faceDeviation",
@@ -252,6 +313,7 @@ pub(super) fn polygon_results(
                     every_k(&phi_k[..m], "a face deviation")?,
                     p,
                 )),
+                form: Form::Real,
             },
         ],
     )?;
@@ -275,6 +337,7 @@ pub(super) fn polygon_results(
                 labels: None,
                 values: angles,
                 expanded: None,
+                form: Form::Real,
             },
             Column {
                 refs: "basic_measurementError polycal_encoderError",
@@ -283,6 +346,7 @@ pub(super) fn polygon_results(
                 labels: Some(labels("alpha", 0..solve.encoder_error.len())),
                 values: solve.encoder_error.clone(),
                 expanded: Some((alpha_u.clone(), every_k(alpha_k, "an encoder error")?, p)),
+                form: Form::Real,
             },
         ],
     )?;
@@ -341,6 +405,7 @@ pub(super) fn selfcal_results(
                 labels: None,
                 values: r.encoder_angle_deg.clone(),
                 expanded: None,
+                form: Form::Real,
             },
             Column {
                 refs: "basic_measurementError polycal_encoderError",
@@ -349,6 +414,7 @@ pub(super) fn selfcal_results(
                 labels: Some(labels("e", 0..r.encoder_error.len())),
                 values: r.encoder_error.clone(),
                 expanded: Some((expanded_u.clone(), k.clone(), r.p)),
+                form: Form::Real,
             },
         ],
     )?;
@@ -375,6 +441,7 @@ pub(super) fn selfcal_results(
                     labels: None,
                     values: r.head_error.iter().map(|h| h.angle_deg).collect(),
                     expanded: None,
+                    form: Form::Real,
                 },
                 Column {
                     refs: "basic_measurementError polycal_headError",
@@ -392,6 +459,7 @@ pub(super) fn selfcal_results(
                         expanded.iter().map(|e| e.1).collect(),
                         r.p,
                     )),
+                    form: Form::Real,
                 },
             ],
         )?;

@@ -6,7 +6,7 @@
 //! and the verdict in words.
 
 use super::DccError;
-use super::calibrated::Column;
+use super::calibrated::{Column, Form};
 use super::xml::Xml;
 use crate::certificate::{CalibrationReport, KeyComparisonSection};
 use crate::kc::ReferenceMethod;
@@ -52,6 +52,7 @@ pub(super) fn key_comparison(x: &mut Xml, report: &CalibrationReport) -> Result<
             labels: Some(labels.clone()),
             values: angles.clone(),
             expanded: None,
+            form: Form::Real,
         }
         .write(x)?;
     }
@@ -66,6 +67,7 @@ pub(super) fn key_comparison(x: &mut Xml, report: &CalibrationReport) -> Result<
             vec![K; n],
             P,
         )),
+        form: Form::Real,
     }
     .write(x)?;
     Column {
@@ -75,6 +77,7 @@ pub(super) fn key_comparison(x: &mut Xml, report: &CalibrationReport) -> Result<
         labels: Some(labels.clone()),
         values: kc.chi2.clone(),
         expanded: None,
+        form: Form::Real,
     }
     .write(x)?;
     Column {
@@ -84,6 +87,7 @@ pub(super) fn key_comparison(x: &mut Xml, report: &CalibrationReport) -> Result<
         labels: Some(labels.clone()),
         values: kc.chi2_critical.clone(),
         expanded: None,
+        form: Form::Real,
     }
     .write(x)?;
     for doe in section.shown_degrees_of_equivalence() {
@@ -103,6 +107,7 @@ pub(super) fn key_comparison(x: &mut Xml, report: &CalibrationReport) -> Result<
             labels: Some(labels.clone()),
             values: doe.d.clone(),
             expanded: Some((doe.expanded_u.clone(), vec![K; n], P)),
+            form: Form::Real,
         }
         .write(x)?;
     }

@@ -6,10 +6,12 @@
 //!
 //! It is written from the same evaluated report as the HTML document, so the two carry
 //! the same numbers: β, φ and α (eqs. (6)–(10) or the least-squares closure) with their
-//! expanded uncertainties U, coverage factors k and coverage probability, at full
-//! precision (the shortest text that reads back to the JSON's double). What the schema
-//! requires and no source gives is refused, never invented: [`DccError`] names the
-//! missing metadata key; a DCC is written whole or not at all.
+//! expanded uncertainties U, coverage factors k and coverage probability, stated as
+//! GUM 7.2.6 says ([`crate::certificate::rounding`]: U to two significant digits rounded
+//! up, the value at U's decimal place, k to three significant digits; the text the HTML
+//! shows). What the schema requires and no source gives is refused, never invented:
+//! [`DccError`] names every missing metadata key at once; a DCC is written whole or not
+//! at all.
 //!
 //! ```
 //! use polycal::certificate::{CalibrationReport, ReportInputs};
@@ -53,17 +55,15 @@ pub const METHOD_REFERENCE: &str = "Hsieh, Lin, Yeh and Watanabe, Calibration of
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum DccError {
-    /// The schema requires what no metadata source gives.
+    /// The schema requires what no metadata source gives: every key missing, at once.
     #[error(
-        "cannot write the DCC: it needs `{key}` ({label}; the DCC's {element}), which no metadata source gives: add it to the metadata file or as a `# {key}: …` comment of the measurement file (docs/FORMAT.md §10)"
+        "cannot write the DCC: it needs {}, which no metadata source gives: add {} to the metadata file or as `# key: …` comments of the measurement file (docs/FORMAT.md §10)",
+        missing_list(.missing),
+        if .missing.len() == 1 { "it" } else { "them" }
     )]
     MissingMetadata {
-        /// The metadata key.
-        key: &'static str,
-        /// Its label.
-        label: &'static str,
-        /// The DCC element it fills.
-        element: &'static str,
+        /// Every key missing, in the order the metadata file lists them.
+        missing: Vec<MissingKey>,
     },
     /// A date that is not `YYYY-MM-DD`.
     #[error(
@@ -127,16 +127,42 @@ pub enum DccError {
     },
 }
 
-/// The metadata the DCC cannot do without, by key, with the element each fills.
+/// A metadata key the DCC needs and no source gives.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct MissingKey {
+    /// The metadata key.
+    pub key: &'static str,
+    /// Its label.
+    pub label: &'static str,
+    /// The DCC element it fills.
+    pub element: &'static str,
+}
+
+/// The missing keys as a message lists them: `` `key` (label; the DCC's element)``.
+fn missing_list(missing: &[MissingKey]) -> String {
+    missing
+        .iter()
+        .map(|m| format!("`{}` ({}; the DCC's {})", m.key, m.label, m.element))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The metadata the DCC cannot do without, by key, with the element each fills: a key
+/// no source gives is noted in `missing` (all are named in one refusal) and read as "".
 fn required<'a>(
     meta: &'a Metadata,
+    missing: &mut Vec<MissingKey>,
     key: &'static str,
     element: &'static str,
-) -> Result<&'a str, DccError> {
-    meta.value(key).ok_or(DccError::MissingMetadata {
-        key,
-        label: label_of(key),
-        element,
+) -> &'a str {
+    meta.value(key).unwrap_or_else(|| {
+        missing.push(MissingKey {
+            key,
+            label: label_of(key),
+            element,
+        });
+        ""
     })
 }
 
@@ -176,7 +202,15 @@ pub fn is_date(text: &str) -> bool {
 /// The performance dates: the date of measurement, and the run's end date when the date
 /// is the run's start.
 fn performance_dates(meta: &Metadata) -> Result<(String, String), DccError> {
-    let begin = required(meta, "date_of_measurement", "beginPerformanceDate")?;
+    let Some(begin) = meta.value("date_of_measurement") else {
+        return Err(DccError::MissingMetadata {
+            missing: vec![MissingKey {
+                key: "date_of_measurement",
+                label: label_of("date_of_measurement"),
+                element: "beginPerformanceDate",
+            }],
+        });
+    };
     if !is_date(begin) {
         let location = meta
             .fields
@@ -242,19 +276,26 @@ fn software(x: &mut Xml, wrapper: &'static str) -> Result<(), DccError> {
 /// customer, statements.
 fn administrative_data(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     let meta = &report.metadata;
-    // every required value first: a refusal names the first key missing, in the order
-    // the metadata file lists them
-    let certificate = required(meta, "certificate", "uniqueIdentifier")?;
-    let customer = required(meta, "customer", "customer name")?;
-    let customer_address = required(meta, "customer_address", "customer location")?;
-    let customer_email = required(meta, "customer_email", "customer eMail")?;
-    let laboratory = required(meta, "laboratory", "calibrationLaboratory name")?;
-    let laboratory_address =
-        required(meta, "laboratory_address", "calibrationLaboratory location")?;
-    let laboratory_email = required(meta, "laboratory_email", "calibrationLaboratory eMail")?;
-    let country = required(meta, "country", "countryCodeISO3166_1")?;
-    let performance_location = required(meta, "performance_location", "performanceLocation")?;
-    let (begin, end) = performance_dates(meta)?;
+    // every required value first: a refusal names every key missing at once, in the
+    // order the metadata file lists them
+    let mut missing = Vec::new();
+    let m = &mut missing;
+    let certificate = required(meta, m, "certificate", "uniqueIdentifier");
+    let customer = required(meta, m, "customer", "customer name");
+    let customer_address = required(meta, m, "customer_address", "customer location");
+    let customer_email = required(meta, m, "customer_email", "customer eMail");
+    let laboratory = required(meta, m, "laboratory", "calibrationLaboratory name");
+    let laboratory_address = required(
+        meta,
+        m,
+        "laboratory_address",
+        "calibrationLaboratory location",
+    );
+    let laboratory_email = required(meta, m, "laboratory_email", "calibrationLaboratory eMail");
+    let country = required(meta, m, "country", "countryCodeISO3166_1");
+    let performance_location = required(meta, m, "performance_location", "performanceLocation");
+    // its form is checked below, once every key is known to be there
+    required(meta, m, "date_of_measurement", "beginPerformanceDate");
     let persons: Vec<(&str, &str, bool)> = [
         ("approved_by", "Approved by", true),
         ("operator", "Operator", false),
@@ -263,23 +304,27 @@ fn administrative_data(x: &mut Xml, report: &CalibrationReport) -> Result<(), Dc
     .filter_map(|(key, role, main)| meta.value(key).map(|name| (name, role, main)))
     .collect();
     if persons.is_empty() {
-        return Err(DccError::MissingMetadata {
+        m.push(MissingKey {
             key: "approved_by",
             label: label_of("approved_by"),
             element: "respPerson (approved_by or operator)",
         });
     }
     let polygon = matches!(report.evaluation, Evaluation::Polygon { .. });
-    let encoder_manufacturer = required(meta, "encoder_manufacturer", "item manufacturer")?;
-    let encoder_serial = required(meta, "encoder_serial", "item identification")?;
     let artefact = if polygon {
         Some((
-            required(meta, "artefact_manufacturer", "item manufacturer")?,
-            required(meta, "artefact_serial", "item identification")?,
+            required(meta, m, "artefact_manufacturer", "item manufacturer"),
+            required(meta, m, "artefact_serial", "item identification"),
         ))
     } else {
         None
     };
+    let encoder_manufacturer = required(meta, m, "encoder_manufacturer", "item manufacturer");
+    let encoder_serial = required(meta, m, "encoder_serial", "item identification");
+    if !missing.is_empty() {
+        return Err(DccError::MissingMetadata { missing });
+    }
+    let (begin, end) = performance_dates(meta)?;
 
     x.open("dcc:administrativeData", &[]);
     software(x, "dcc:dccSoftware")?;
@@ -325,6 +370,9 @@ fn administrative_data(x: &mut Xml, report: &CalibrationReport) -> Result<(), Dc
     x.close();
 
     x.open("dcc:calibrationLaboratory", &[]);
+    if let Some(code) = meta.value("accreditation_code") {
+        x.text("dcc:calibrationLaboratoryCode", &[], code)?;
+    }
     contact(
         x,
         laboratory,
@@ -352,6 +400,9 @@ fn administrative_data(x: &mut Xml, report: &CalibrationReport) -> Result<(), Dc
     x.content("dcc:name", customer)?;
     x.text("dcc:eMail", &[], customer_email)?;
     x.open("dcc:location", &[]);
+    if let Some(country) = meta.value("customer_country") {
+        x.text("dcc:countryCode", &[], country)?;
+    }
     x.content("dcc:further", customer_address)?;
     x.close();
     x.close();
@@ -449,7 +500,16 @@ fn statements(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
             },
         ));
     }
+    if let Some(accreditation) = meta.accreditation() {
+        said.push(("polycal_accreditation", accreditation));
+    }
     x.open("dcc:statements", &[]);
+    if let Some(traceability) = meta.value("traceability") {
+        x.open("dcc:statement", &[("refType", "polycal_traceability")]);
+        x.text("dcc:traceable", &[], "true")?;
+        x.content("dcc:declaration", traceability)?;
+        x.close();
+    }
     for (kind, text) in said {
         x.open("dcc:statement", &[("refType", kind)]);
         x.content("dcc:declaration", &text)?;

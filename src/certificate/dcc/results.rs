@@ -3,7 +3,7 @@
 //! D-SI lists with U, k and p per value, the fit, the diagnosis, the comparison, the key
 //! comparison (`kc`) — and the SHA-256 of every input.
 
-use super::calibrated::{Column, Stage, polygon_results, real_quantity, selfcal_results};
+use super::calibrated::{Column, Form, Stage, polygon_results, real_quantity, selfcal_results};
 use super::xml::Xml;
 use super::{DccError, METHOD_REFERENCE, equipment, software};
 use crate::certificate::{
@@ -34,7 +34,7 @@ pub(super) fn uncertainty_statement(report: &CalibrationReport) -> String {
             .to_string(),
     };
     format!(
-        "The uncertainties were evaluated according to the GUM (JCGM 100:2008), {source}. Each expanded uncertainty U = k·u is stated for the coverage probability{p}; each value's coverage factor k is Student's t for its effective degrees of freedom (Welch–Satterthwaite). The results relate only to the items calibrated."
+        "The uncertainties were evaluated according to the GUM (JCGM 100:2008), {source}. Each expanded uncertainty U = k·u is stated for the coverage probability{p}; each value's coverage factor k is Student's t for its effective degrees of freedom (Welch–Satterthwaite). U is stated to two significant digits, rounded up, each value rounded to the decimal place of its U (GUM 7.2.6), and k to three significant digits. The results relate only to the items calibrated."
     )
 }
 
@@ -111,7 +111,7 @@ pub(super) fn measurement_results(x: &mut Xml, report: &CalibrationReport) -> Re
             x.content(
                 "dcc:description",
                 &format!(
-                    "Each reading is modelled as α[p mod N] + φ[face] + U[mounting, autocollimator] + noise, with Σα = 0 and Σβ = 0 (the reference's eqs. (1)–(3)); solved by polycal's {} solver ({} engine). Design: {}",
+                    "Each reading is modelled as α[p mod N] + φ[face] + s[mounting, autocollimator] + noise, s the setup errors (the reference's U), with Σα = 0 and Σβ = 0 (the reference's eqs. (1)–(3)); solved by polycal's {} solver ({} engine). Design: {}",
                     solve.method,
                     solve.engine,
                     design_words(design)
@@ -160,6 +160,7 @@ pub(super) fn measurement_results(x: &mut Xml, report: &CalibrationReport) -> Re
         Evaluation::Polygon { solve, .. } => polygon_results(x, solve, Stage::Evaluation)?,
         Evaluation::Selfcal { report: r, .. } => selfcal_results(x, r, Stage::Evaluation)?,
     }
+    setup_errors(x, report)?;
     diagnosis(x, report)?;
     final_model(x, report)?;
     comparison(x, report)?;
@@ -202,8 +203,8 @@ pub(super) fn measurement_results(x: &mut Xml, report: &CalibrationReport) -> Re
     Ok(())
 }
 
-/// `influenceConditions`: temperature, humidity, pressure, environment, the setup errors,
-/// a stated cross-talk. None given: no element.
+/// `influenceConditions`: temperature, humidity, pressure, environment, a stated
+/// cross-talk. None given: no element.
 fn influence_conditions(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     let meta = &report.metadata;
     let mut any = false;
@@ -276,55 +277,62 @@ fn influence_conditions(x: &mut Xml, report: &CalibrationReport) -> Result<(), D
         x.close();
         x.close();
     }
-    if let Evaluation::Polygon { solve, .. } = &report.evaluation
-        && !solve.setup_error.is_empty()
-    {
-        begin(x);
-        let setup = &solve.setup_error;
-        let expanded = setup
-            .iter()
-            .map(|s| s.expanded_u.zip(s.k))
-            .collect::<Option<Vec<_>>>()
-            .ok_or(DccError::NoExpandedUncertainty {
-                what: "a setup error",
-            })?;
-        let p = solve.p.ok_or(DccError::NoExpandedUncertainty {
-            what: "the setup errors",
-        })?;
-        x.open(
-            "dcc:influenceCondition",
-            &[("refType", "polycal_setupErrors")],
-        );
-        x.content("dcc:name", "Setup errors U of the autocollimators")?;
-        x.content(
-            "dcc:description",
-            "The zero of each autocollimator in each mounting of the polygon, estimated with β and α (the reference's U₁, U₂); labelled mounting_autocollimator.",
-        )?;
-        x.open("dcc:data", &[]);
-        Column {
-            refs: "polycal_setupError",
-            name: "Setup error U",
-            unit: "\\arcsecond",
-            labels: Some(
-                setup
-                    .iter()
-                    .map(|s| format!("setup{}_ac{}", s.setup, s.ac))
-                    .collect(),
-            ),
-            values: setup.iter().map(|s| s.value).collect(),
-            expanded: Some((
-                expanded.iter().map(|e| e.0).collect(),
-                expanded.iter().map(|e| e.1).collect(),
-                p,
-            )),
-        }
-        .write(x)?;
-        x.close();
-        x.close();
-    }
     if any {
         x.close();
     }
+    Ok(())
+}
+
+/// The setup errors of the autocollimators: estimated with β and α, so a result (not an
+/// influence condition), named apart from the expanded uncertainty U.
+fn setup_errors(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
+    let Evaluation::Polygon { solve, .. } = &report.evaluation else {
+        return Ok(());
+    };
+    if solve.setup_error.is_empty() {
+        return Ok(());
+    }
+    let setup = &solve.setup_error;
+    let expanded = setup
+        .iter()
+        .map(|s| s.expanded_u.zip(s.k))
+        .collect::<Option<Vec<_>>>()
+        .ok_or(DccError::NoExpandedUncertainty {
+            what: "a setup error",
+        })?;
+    let p = solve.p.ok_or(DccError::NoExpandedUncertainty {
+        what: "the setup errors",
+    })?;
+    x.open("dcc:result", &[("refType", "polycal_setupErrors")]);
+    x.content("dcc:name", "Setup errors of the autocollimators")?;
+    x.content(
+        "dcc:description",
+        "The zero of each autocollimator in each mounting of the polygon, estimated with β and α (the reference's U₁, U₂; not an uncertainty); labelled mounting_autocollimator. They depend on the mounting and are not a property of the items.",
+    )?;
+    x.open("dcc:data", &[]);
+    x.open("dcc:list", &[]);
+    Column {
+        refs: "polycal_setupError",
+        name: "Setup error",
+        unit: "\\arcsecond",
+        labels: Some(
+            setup
+                .iter()
+                .map(|s| format!("setup{}_ac{}", s.setup, s.ac))
+                .collect(),
+        ),
+        values: setup.iter().map(|s| s.value).collect(),
+        expanded: Some((
+            expanded.iter().map(|e| e.0).collect(),
+            expanded.iter().map(|e| e.1).collect(),
+            p,
+        )),
+        form: Form::Real,
+    }
+    .write(x)?;
+    x.close();
+    x.close();
+    x.close();
     Ok(())
 }
 
@@ -354,8 +362,12 @@ fn diagnosis(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     }
     for e in effects {
         let (kind, fields, value, u) = effect_text(e);
+        // the value with its standard uncertainty as GUM 7.2.6 states them
         let value = match (value, u) {
-            (Some(v), Some(u)) => format!(": {v} (u = {u})"),
+            (Some(v), Some(u)) => match crate::certificate::rounding::round_result(v, u) {
+                Some(r) => format!(": {} (u = {})", r.value, r.expanded_u),
+                None => format!(": {v} (u = {u})"),
+            },
             (Some(v), None) => format!(": {v}"),
             _ => String::new(),
         };
@@ -363,7 +375,7 @@ fn diagnosis(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     }
     for c in checks {
         lines.push(format!(
-            "Check {}: statistic {}, limit {}, {}.",
+            "Check {}: statistic {:.3}, limit {:.3}, {}.",
             c.name,
             c.statistic,
             c.limit,
@@ -421,13 +433,15 @@ fn comparison(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
         ),
         values: c.rows.iter().map(|r| r.en).collect(),
         expanded: None,
+        // to two decimals, as the report shows it
+        form: Form::Decimals(2),
     }
     .write(x)?;
     x.close();
     x.content(
         "dcc:text",
         &format!(
-            "Largest |En| = {}: {}.",
+            "Largest |En| = {:.2}: {}.",
             c.max_abs_en,
             if c.verdict_ok() {
                 "every |En| ≤ 1, the results agree"

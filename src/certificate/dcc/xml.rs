@@ -123,7 +123,8 @@ impl Xml {
 }
 
 /// A value as D-SI writes a real (`si:value`): the shortest text that reads back to the
-/// same double (so a DCC carries the JSON's numbers exactly), `-0` as `0`.
+/// same double (so a DCC carries the JSON's numbers exactly where no U states them:
+/// table angles, En, the fit), `-0` as `0`.
 ///
 /// # Errors
 ///

@@ -8,7 +8,7 @@
 use std::fmt::Write;
 
 use super::Sections;
-use super::tables::{ARCSEC_DECIMALS, num};
+use super::tables::{ARCSEC_DECIMALS, num, rounded_pair_cells};
 use crate::certificate::{CalibrationReport, KeyComparisonSection};
 use crate::figure::svg::esc;
 use crate::kc::{KeyComparison, ReferenceMethod};
@@ -202,11 +202,10 @@ fn reference_table(out: &mut String, kc: &KeyComparison) {
         let consistent = kc.consistent[k];
         let _ = writeln!(
             out,
-            "<tr{}>{}{}{}{}{}<td class=\"num\">{}</td>{}<td>{}</td></tr>",
+            "<tr{}>{}{}{}{}<td class=\"num\">{}</td>{}<td>{}</td></tr>",
             if consistent { "" } else { " class=\"fail\"" },
             position_cells(kc, k),
-            num(Some(kc.reference[k]), ARCSEC_DECIMALS),
-            num(Some(kc.reference_u[k]), ARCSEC_DECIMALS),
+            rounded_pair_cells(kc.reference[k], kc.reference_u[k]),
             num(Some(kc.tau[k]), ARCSEC_DECIMALS),
             num(Some(kc.chi2[k]), CHI2_DECIMALS),
             kc.chi2_dof[k],
@@ -317,9 +316,8 @@ fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection) {
             let within = d.d[k].abs() <= d.expanded_u[k];
             let _ = write!(
                 out,
-                "{}{}<td>{}</td>",
-                num(Some(d.d[k]), ARCSEC_DECIMALS),
-                num(Some(d.expanded_u[k]), ARCSEC_DECIMALS),
+                "{}<td>{}</td>",
+                rounded_pair_cells(d.d[k], d.expanded_u[k]),
                 if within { "yes" } else { "no *" }
             );
         }

@@ -77,9 +77,42 @@ pub fn document(report: &CalibrationReport) -> String {
     format!(
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n\
          <meta name=\"generator\" content=\"polycal {SOFTWARE_VERSION}\">\n\
-         <title>{}</title>\n<style>\n{STYLE}</style>\n</head>\n<body>\n{}</body>\n</html>\n",
+         <title>{}</title>\n<style>\n{STYLE}{}</style>\n</head>\n<body>\n{}</body>\n</html>\n",
         esc(&title),
+        page_margins(report.metadata.value("certificate")),
         s.html
+    )
+}
+
+/// A text as a CSS string literal: quotes, backslashes and line ends escaped, and `<` as
+/// `\3C ` so that no `</style>` can end the style sheet.
+fn css_string(text: &str) -> String {
+    let mut out = String::from("\"");
+    for c in text.chars() {
+        match c {
+            '"' | '\\' => {
+                out.push('\\');
+                out.push(c);
+            }
+            '<' => out.push_str("\\3C "),
+            '\n' | '\r' | '\t' => out.push(' '),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+/// The printed page's margin boxes: the certificate number at the top of every page and
+/// "Page x of y" at the bottom (CSS Paged Media `@page` margin boxes).
+fn page_margins(certificate: Option<&str>) -> String {
+    let number = certificate.map_or_else(
+        || "\"Certificate number not given\"".to_string(),
+        |c| css_string(&format!("Certificate {c}")),
+    );
+    format!(
+        "@page {{ @top-right {{ content: {number}; font: 8pt sans-serif; color: #333; }} \
+         @bottom-right {{ content: \"Page \" counter(page) \" of \" counter(pages); font: 8pt sans-serif; color: #333; }} }}\n"
     )
 }
 
@@ -98,6 +131,13 @@ fn title_block(out: &mut String, report: &CalibrationReport, title: &str) {
         field("customer").unwrap_or_else(|| MISSING.to_string()),
         field("artefact").unwrap_or_else(|| MISSING.to_string()),
     );
+    if let Some(accreditation) = report.metadata.accreditation() {
+        let _ = writeln!(
+            out,
+            "<p class=\"accreditation\" id=\"accreditation\">{}</p>",
+            esc(&accreditation)
+        );
+    }
     let verdict = report.verdict();
     let mut checks = Vec::new();
     if let Some(d) = &report.diagnosis {
@@ -135,7 +175,17 @@ fn details(s: &mut Sections, report: &CalibrationReport) {
     s.html.push_str(
         "<table class=\"meta\"><thead><tr><th>Item</th><th>Value</th><th>Source</th></tr></thead><tbody>\n",
     );
-    for f in m.fields.iter().filter(|f| f.key != "title") {
+    // the title, the certificate number and the customer stand in the title block; a
+    // missing free-text environment is no gap when its quantities are given
+    let conditions = ["temperature_c", "humidity_percent", "pressure_hpa"]
+        .iter()
+        .any(|k| m.value(k).is_some());
+    let shown = |f: &&super::meta::MetaField| {
+        let in_title = matches!(f.key, "title" | "certificate" | "customer");
+        let no_environment = f.key == "environment" && f.value.is_none() && conditions;
+        !(in_title || no_environment)
+    };
+    for f in m.fields.iter().filter(shown) {
         let _ = writeln!(
             s.html,
             "<tr data-key=\"{}\"><th>{}</th><td>{}</td><td class=\"source\">{}</td></tr>",
@@ -205,6 +255,13 @@ fn details(s: &mut Sections, report: &CalibrationReport) {
 
 fn method(s: &mut Sections, report: &CalibrationReport) {
     s.open("method", "Method");
+    if let Some(traceability) = report.metadata.value("traceability") {
+        let _ = writeln!(
+            s.html,
+            "<p id=\"traceability\"><strong>Traceability.</strong> {}</p>",
+            esc(traceability)
+        );
+    }
     match &report.evaluation {
         Evaluation::Polygon { solve, design, .. } => {
             polygon_method(&mut s.html, solve, design);
@@ -218,7 +275,9 @@ fn method(s: &mut Sections, report: &CalibrationReport) {
          instrument budget, every component is propagated through the design and combined with \
          the type A part (JCGM 100, eq. (10)); the effective degrees of freedom follow \
          Welch–Satterthwaite (JCGM 100, eq. (G.2b)) and U = k·u<sub>c</sub> with k Student's t at \
-         the coverage probability p. A comparison uses En = (a − b)/√(U<sub>a</sub>² + \
+         the coverage probability p. U is stated to two significant digits, rounded up, each \
+         value rounded to the decimal place of its U (GUM 7.2.6), and k to three significant \
+         digits. A comparison uses En = (a − b)/√(U<sub>a</sub>² + \
          U<sub>b</sub>²) (eqs. (14)–(15), ISO 13528; the paper prints a minus under the root, its \
          numbers use the plus); |En| ≤ 1 is agreement.</p>\n",
     );
@@ -251,9 +310,10 @@ fn polygon_method(out: &mut String, solve: &SolveReport, d: &DesignSummary) {
         out,
         "<p>Two-autocollimator closure method (Hsieh, Lin, Yeh, Watanabe, Appl. Sci. 2023, 13, 1865). \
          Each reading is modelled as (eq. (2))</p>\n<p class=\"eq\">reading = α[p mod N] + φ[face] + \
-         U[setup, ac] + noise</p>\n<p>with the encoder errors α and the pitch deviations β closed \
+         s[setup, ac] + noise</p>\n<p>with the encoder errors α and the pitch deviations β closed \
          over a full turn: Σα = 0 (eq. (3)) and Σβ = 0 (eq. (1)); φ[f] = β[1] + … + β[f] is the face \
-         deviation, φ[N] = 0. U is the setup error of each autocollimator in each mounting.</p>\n\
+         deviation, φ[N] = 0. s is the setup error of each autocollimator in each mounting (the \
+         paper's U; here U is only ever the expanded uncertainty).</p>\n\
          <table class=\"design\" id=\"design\"><tbody>\n\
          <tr><th>Faces N</th><td>{}</td></tr>\n<tr><th>Autocollimators (face read at step p)</th><td>{}</td></tr>\n\
          <tr><th>Cycles</th><td>{}</td></tr>\n<tr><th>Closing reading (step N)</th><td>{}</td></tr>\n\
@@ -559,4 +619,24 @@ fn signatures(s: &mut Sections, report: &CalibrationReport) {
         m.value("approved_by")
             .map_or_else(|| MISSING.to_string(), esc),
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A certificate number with CSS's and HTML's specials stays one string of the style
+    /// sheet: quotes and backslashes escaped, `<` as `\3C ` (no `</style>`), line ends as
+    /// spaces.
+    #[test]
+    fn the_certificate_number_is_one_css_string() {
+        assert_eq!(
+            css_string("A\"B\\C</style>\nD"),
+            "\"A\\\"B\\\\C\\3C /style> D\""
+        );
+        let margins = page_margins(Some("K-1"));
+        assert!(margins.contains("@top-right { content: \"Certificate K-1\";"));
+        assert!(margins.contains("\"Page \" counter(page) \" of \" counter(pages)"));
+        assert!(page_margins(None).contains("\"Certificate number not given\""));
+    }
 }

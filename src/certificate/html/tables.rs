@@ -42,6 +42,74 @@ pub(super) fn num(value: Option<f64>, decimals: usize) -> String {
     }
 }
 
+/// Two cells, a value and its uncertainty (standard or expanded), stated as GUM 7.2.6
+/// states them ([`crate::certificate::rounding::round_result`]: the uncertainty to two
+/// significant digits rounded up, the value at its place), each with its full-precision
+/// `data-value`; the arcsecond decimals when they cannot be rounded so.
+pub(super) fn rounded_pair_cells(value: f64, uncertainty: f64) -> String {
+    match crate::certificate::rounding::round_result(value, uncertainty) {
+        Some(r) => format!(
+            "<td class=\"num\" data-value=\"{value}\">{}</td><td class=\"num\" data-value=\"{uncertainty}\">{}</td>",
+            r.value.replace('-', "−"),
+            r.expanded_u.replace('-', "−")
+        ),
+        None => format!(
+            "{}{}",
+            num(Some(value), ARCSEC_DECIMALS),
+            num(Some(uncertainty), ARCSEC_DECIMALS)
+        ),
+    }
+}
+
+/// A result's cells as a certificate states them ([`crate::certificate::rounding`]):
+/// value and U rounded by GUM 7.2.6, u to two significant digits rounded up, k to three
+/// significant digits; each with its unrounded number in `data-value`. Without U, the
+/// value rounded at the place of u's second significant digit.
+pub(super) fn result_cells(
+    value: f64,
+    u: Option<f64>,
+    expanded_u: Option<f64>,
+    k: Option<f64>,
+) -> String {
+    use crate::certificate::rounding::{round_coverage_factor, round_result};
+    let cell = |v: f64, text: &str| {
+        format!(
+            "<td class=\"num\" data-value=\"{v}\">{}</td>",
+            text.replace('-', "−")
+        )
+    };
+    let u_text = u.and_then(|u| round_result(0.0, u)).map(|r| r.expanded_u);
+    let u_cell = match (u, u_text) {
+        (Some(u), Some(text)) => cell(u, &text),
+        _ => num(u, ARCSEC_DECIMALS),
+    };
+    let k_cell = match (k, k.and_then(round_coverage_factor)) {
+        (Some(k), Some(text)) => cell(k, &text),
+        _ => num(k, 2),
+    };
+    match expanded_u.and_then(|eu| round_result(value, eu).map(|r| (eu, r))) {
+        Some((eu, r)) => format!(
+            "{}{u_cell}{}{k_cell}",
+            cell(value, &r.value),
+            cell(eu, &r.expanded_u)
+        ),
+        // no U: the value with its standard uncertainty u as GUM 7.2.6 states them
+        None => match u.and_then(|u| round_result(value, u).map(|r| (u, r))) {
+            Some((u, r)) => format!(
+                "{}{}{}{k_cell}",
+                cell(value, &r.value),
+                cell(u, &r.expanded_u),
+                num(expanded_u, ARCSEC_DECIMALS)
+            ),
+            None => format!(
+                "{}{u_cell}{}{k_cell}",
+                num(Some(value), ARCSEC_DECIMALS),
+                num(expanded_u, ARCSEC_DECIMALS)
+            ),
+        },
+    }
+}
+
 /// One family's table: index (and angle) columns, value, u, U, k.
 pub(super) struct FamilyTable<'a> {
     pub(super) id: &'a str,
@@ -59,12 +127,12 @@ pub(super) fn family_table(out: &mut String, t: &FamilyTable) {
     let _ = writeln!(
         out,
         "<table class=\"results\" id=\"{}\"><caption>{}</caption><thead><tr><th>{}</th>{}\
-         <th>value / ″</th><th>u / ″</th><th>U / ″</th><th>k</th></tr></thead><tbody>",
+         <th class=\"num\">value / ″</th><th class=\"num\">u / ″</th><th class=\"num\">U / ″</th><th class=\"num\">k</th></tr></thead><tbody>",
         t.id,
         esc(t.caption),
         esc(t.index_header),
         if t.angles_deg.is_some() {
-            "<th>angle / °</th>"
+            "<th class=\"num\">angle / °</th>"
         } else {
             ""
         }
@@ -72,17 +140,16 @@ pub(super) fn family_table(out: &mut String, t: &FamilyTable) {
     for (i, value) in t.values.iter().enumerate() {
         let _ = writeln!(
             out,
-            "<tr><td>{}</td>{}{}{}{}{}</tr>",
+            "<tr><td>{}</td>{}{}</tr>",
             t.indices.get(i).map_or("", String::as_str),
             t.angles_deg
                 .map_or(String::new(), |a| num(a.get(i).copied(), 3)),
-            num(Some(*value), ARCSEC_DECIMALS),
-            num(t.u.and_then(|u| u.get(i).copied()), ARCSEC_DECIMALS),
-            num(
+            result_cells(
+                *value,
+                t.u.and_then(|u| u.get(i).copied()),
                 t.expanded_u.and_then(|u| u.get(i).copied()),
-                ARCSEC_DECIMALS
+                t.k.as_ref().and_then(|k| k.get(i).copied().flatten()),
             ),
-            num(t.k.as_ref().and_then(|k| k.get(i).copied().flatten()), 2),
         );
     }
     out.push_str("</tbody></table>\n");
@@ -149,7 +216,7 @@ pub(super) fn solve_tables(out: &mut String, r: &SolveReport, prefix: &str) {
         out,
         &FamilyTable {
             id: &id("setup-error"),
-            caption: "Setup errors U (they depend on the mounting)",
+            caption: "Setup errors of the autocollimators (they depend on the mounting)",
             index_header: "mounting / autocollimator",
             indices: r
                 .setup_error
@@ -282,9 +349,12 @@ pub(super) fn budget_table(out: &mut String, t: &BudgetTable) {
          {}<td></td>{}<td class=\"num\">k = {}</td><td class=\"num\" data-value=\"{}\">U = {}</td></tr></tfoot></table>",
         num(Some(uc), ARCSEC_DECIMALS),
         num(family.dof_eff[j], 1),
-        family.k[j].map_or("—".to_string(), |k| rounded(k, 2)),
+        family.k[j]
+            .and_then(crate::certificate::rounding::round_coverage_factor)
+            .unwrap_or_else(|| "—".to_string()),
         family.expanded_u[j],
-        rounded(family.expanded_u[j], ARCSEC_DECIMALS),
+        crate::certificate::rounding::round_result(0.0, family.expanded_u[j])
+            .map_or_else(|| "—".to_string(), |r| r.expanded_u),
     );
 }
 
