@@ -217,8 +217,8 @@ fn si_lists(result: Node, refs: &str) -> Vec<SiList> {
         .collect()
 }
 
-/// The value and U texts of the D-SI lists of `refs` in a DCC result, as written.
-fn si_texts(result: Node, refs: &str) -> Vec<(Vec<String>, Vec<String>)> {
+/// The value, U and k texts of the D-SI lists of `refs` in a DCC result, as written.
+fn si_texts(result: Node, refs: &str) -> Vec<(Vec<String>, Vec<String>, Vec<String>)> {
     result
         .descendants()
         .filter(|n| n.tag_name().name() == "quantity" && n.attribute("refType") == Some(refs))
@@ -230,17 +230,31 @@ fn si_texts(result: Node, refs: &str) -> Vec<(Vec<String>, Vec<String>)> {
                     .map(|t| t.split_whitespace().map(str::to_string).collect())
                     .unwrap_or_default()
             };
-            (list("valueXMLList"), list("uncertaintyXMLList"))
+            (
+                list("valueXMLList"),
+                list("uncertaintyXMLList"),
+                list("coverageFactorXMLList"),
+            )
         })
         .collect()
 }
 
 /// Every value and its U as the DCC states them: GUM 7.2.6 from its definition
-/// (`document_support::assert_gum_rounded`), against the kc JSON's numbers.
-fn assert_stated(texts: &(Vec<String>, Vec<String>), values: &[f64], us: &[f64], what: &str) {
-    let (value_texts, u_texts) = texts;
+/// (`document_support::assert_gum_rounded`), against the kc JSON's numbers; k = 2 with
+/// three significant digits.
+fn assert_stated(
+    texts: &(Vec<String>, Vec<String>, Vec<String>),
+    values: &[f64],
+    us: &[f64],
+    what: &str,
+) {
+    let (value_texts, u_texts, k_texts) = texts;
     assert_eq!(value_texts.len(), values.len(), "{what}");
     assert_eq!(u_texts.len(), us.len(), "{what}");
+    assert_eq!(k_texts.len(), values.len(), "{what}");
+    for k_text in k_texts {
+        document_support::assert_k_rounded(k_text, 2.0, what);
+    }
     for (k, ((vt, ut), (&v, &u))) in value_texts
         .iter()
         .zip(u_texts)
