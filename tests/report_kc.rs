@@ -459,6 +459,16 @@ fn the_named_laboratorys_section_carries_the_kc_json_numbers() {
             .any(|s| s.contains("laboratory F left out") && s.contains(reason)),
         "{statements:?}"
     );
+    // the closed vector's χ² as the report states numbers without U: two decimals
+    let vector = &kc["vector"];
+    let chi2 = format!("χ² = {:.2},", vector["chi2"].as_f64().unwrap());
+    let dof = format!("= {},", vector["dof"].as_u64().unwrap());
+    assert!(
+        statements
+            .iter()
+            .any(|s| s.starts_with("Closed vector (GLS") && s.contains(&chi2) && s.contains(&dof)),
+        "{chi2} {dof} in {statements:?}"
+    );
 }
 
 #[test]

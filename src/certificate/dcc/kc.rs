@@ -156,7 +156,7 @@ fn statements(section: &KeyComparisonSection) -> Vec<String> {
     let mut lines = Vec::new();
     match &kc.vector {
         Some(v) => lines.push(format!(
-            "Closed vector (GLS, V_i = N/(N−1)·P·diag(u²)·P unless the laboratory sent its covariance, P = I − J/N): χ² = {}, ν = (N − 1)(n − 1) = {}, χ²_0.95(ν) = {}: {}.",
+            "Closed vector (GLS, V_i = N/(N−1)·P·diag(u²)·P unless the laboratory sent its covariance, P = I − J/N): χ² = {:.2}, ν = (N − 1)(n − 1) = {}, χ²_0.95(ν) = {:.2}: {}.",
             v.chi2,
             v.dof,
             v.chi2_critical,
