@@ -9,9 +9,8 @@
 //! specials survive the round trip and control characters are refused where they are
 //! read.
 //!
-//! The schema validation needs `xmllint` (Debian: libxml2-utils). `.ci/run` installs it
-//! and sets `POLYCAL_REQUIRE_XMLLINT=1`, which turns its absence into a failure; without
-//! that variable a machine without xmllint skips only the validation, saying so.
+//! The schema validation needs `xmllint` (`tests/dcc_schema` says how it is found and
+//! when its absence fails).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -33,56 +32,14 @@ fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
+mod dcc_schema;
 mod document_support;
 
+use dcc_schema::{assert_valid, schema_valid};
 use document_support::{assert_gum_rounded, assert_k_rounded, json, polycal};
 
 fn temp_dir(name: &str) -> PathBuf {
     document_support::temp_dir("dcc", name)
-}
-
-/// xmllint's verdict on `file` against the vendored schema: `Some(true)` valid,
-/// `Some(false)` invalid (with its messages), `None` when xmllint is not installed and
-/// not required.
-fn schema_valid(file: &Path) -> Option<(bool, String)> {
-    let schema = root().join("docs/schema");
-    let run = Command::new("xmllint")
-        .env("XML_CATALOG_FILES", schema.join("catalog.xml"))
-        .args(["--nonet", "--noout", "--schema"])
-        .arg(schema.join("dcc.xsd"))
-        .arg(file)
-        .output();
-    match run {
-        Ok(out) => {
-            let messages = String::from_utf8_lossy(&out.stderr).into_owned();
-            // 5: the schema did not compile (the import not resolved offline): a failure
-            // of the test set-up, never a pass
-            assert_ne!(
-                out.status.code(),
-                Some(5),
-                "the schema does not compile: {messages}"
-            );
-            Some((out.status.success(), messages))
-        }
-        Err(e) => {
-            assert!(
-                std::env::var_os("POLYCAL_REQUIRE_XMLLINT").is_none(),
-                "POLYCAL_REQUIRE_XMLLINT is set and xmllint cannot run: {e}"
-            );
-            eprintln!(
-                "xmllint not found: schema validation of {} skipped",
-                file.display()
-            );
-            None
-        }
-    }
-}
-
-/// Asserts that `file` validates (when a validator is there).
-fn assert_valid(file: &Path) {
-    if let Some((valid, messages)) = schema_valid(file) {
-        assert!(valid, "{} does not validate:\n{messages}", file.display());
-    }
 }
 
 /// Runs `polycal report ARGS --dcc DIR/NAME`; returns the status and the document text

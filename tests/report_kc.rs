@@ -5,13 +5,12 @@
 //! checked from the rule's definition against the JSON parsed here with serde_json alone
 //! —, the exclusions with their reasons, the file by its name and its SHA-256
 //! (computed here) and never by its directories; the DCC validates against the vendored
-//! schema (xmllint, as `tests/certificate_dcc.rs`); a malformed, foreign or inconsistent
+//! schema (xmllint, `tests/dcc_schema`, as `tests/certificate_dcc.rs`); a malformed, foreign or inconsistent
 //! file and a `--kc-lab` not in the comparison are refused with one `error:` line, status
 //! 2 and nothing written; read through the library's `KeyComparison` and written again,
 //! the kc JSON is the command's to the byte.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use polycal::certificate::{CalibrationReport, ReportInputs};
 use roxmltree::{Document, Node};
@@ -19,8 +18,10 @@ use scraper::{ElementRef, Html, Selector};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
 
+mod dcc_schema;
 mod document_support;
 
+use dcc_schema::assert_valid;
 use document_support::polycal;
 
 const DATA: &str = "examples/data/polygon24-2ac-6cycles.csv";
@@ -29,10 +30,6 @@ const META: &str = "examples/report/meta.toml";
 const KC: &str = "examples/data/kc";
 const LABS: [&str; 6] = ["A", "B", "C", "D", "E", "F"];
 const SI: &str = "https://ptb.de/si";
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
 
 /// `polycal kc` of the bundled comparison (with `extra` options) written to `dir/name`;
 /// returns its path and its JSON parsed by serde_json alone.
@@ -140,39 +137,6 @@ fn report(dir: &Path, kc: &Path, extra: &[&str]) -> (Html, String) {
         Html::parse_document(&std::fs::read_to_string(&html_path).unwrap()),
         std::fs::read_to_string(&dcc_path).unwrap(),
     )
-}
-
-/// Asserts that the DCC at `file` validates against the vendored DCC 3.1.2 schema, when
-/// xmllint is there (required when `POLYCAL_REQUIRE_XMLLINT` is set, as in `.ci/run`).
-fn assert_valid(file: &Path) {
-    let schema = root().join("docs/schema");
-    match Command::new("xmllint")
-        .env("XML_CATALOG_FILES", schema.join("catalog.xml"))
-        .args(["--nonet", "--noout", "--schema"])
-        .arg(schema.join("dcc.xsd"))
-        .arg(file)
-        .output()
-    {
-        Ok(out) => {
-            let messages = String::from_utf8_lossy(&out.stderr);
-            assert_ne!(out.status.code(), Some(5), "the schema does not compile");
-            assert!(
-                out.status.success(),
-                "{} does not validate:\n{messages}",
-                file.display()
-            );
-        }
-        Err(e) => {
-            assert!(
-                std::env::var_os("POLYCAL_REQUIRE_XMLLINT").is_none(),
-                "POLYCAL_REQUIRE_XMLLINT is set and xmllint cannot run: {e}"
-            );
-            eprintln!(
-                "xmllint not found: validation of {} skipped",
-                file.display()
-            );
-        }
-    }
 }
 
 /// The key comparison's `dcc:result`.

@@ -32,9 +32,10 @@ use super::lack_of_fit::{LackOfFit, PureError};
 use super::nuisance::StopNuisance;
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::selfcal::OffGridDesign;
-use crate::solve::least_squares::least_squares_zeroing_lost_with;
+use crate::solve::circulant::Prepared;
+use crate::solve::least_squares::{least_squares_prepared, least_squares_zeroing_lost_with};
 use crate::solve::sub_pitch::{self, ShiftGeometry, SubPitchSolution};
-use crate::solve::{Solution, SolveError, SolveOptions, least_squares_with_regressors};
+use crate::solve::{Solution, SolveError, SolveOptions};
 use crate::uncertainty::monte_carlo::Progress;
 
 /// The progress of a diagnosis as its observer is told it ([`super::DiagnoseOptions::progress`]):
@@ -96,6 +97,9 @@ pub struct Base<'a> {
     /// The geometry of the base fit, formed at its first use: every geometry of the
     /// diagnosis adds its terms to it.
     base_geometry: OnceLock<FitGeometry>,
+    /// The design planned for the circulant engine once, with its regular cofactor,
+    /// for every fit of the base model with terms (plain and whole-face runs).
+    prepared: OnceLock<Option<Prepared>>,
 }
 
 impl<'a> Base<'a> {
@@ -112,6 +116,7 @@ impl<'a> Base<'a> {
                 ticker: Ticker::default(),
                 pure_error: OnceLock::new(),
                 base_geometry: OnceLock::new(),
+                prepared: OnceLock::new(),
             };
         }
         let geometry = ShiftGeometry::of(set);
@@ -126,6 +131,7 @@ impl<'a> Base<'a> {
             ticker: Ticker::default(),
             pure_error: OnceLock::new(),
             base_geometry: OnceLock::new(),
+            prepared: OnceLock::new(),
         }
     }
 
@@ -149,6 +155,7 @@ impl<'a> Base<'a> {
             ticker: Ticker::default(),
             pure_error: OnceLock::new(),
             base_geometry: OnceLock::new(),
+            prepared: OnceLock::new(),
         }
     }
 
@@ -280,7 +287,12 @@ impl<'a> Base<'a> {
     /// freedom taken off.
     fn fit_columns(&self, all: &[Vec<f64>], sigma: Option<Sigma>) -> Result<Solution, SolveError> {
         let Some(n) = &self.nuisance else {
-            return least_squares_with_regressors(&self.positions, all, sigma);
+            let prepared = self
+                .prepared
+                .get_or_init(|| Prepared::of(&self.positions))
+                .as_ref();
+            let options = SolveOptions::new().with_sigma_opt(sigma);
+            return least_squares_prepared(&self.positions, prepared, all, &options);
         };
         let mut fit = match &self.off_grid {
             Some(design) => {
@@ -325,7 +337,7 @@ impl<'a> Base<'a> {
     ///
     /// # Errors
     ///
-    /// The solver's, as [`least_squares_with_regressors`].
+    /// The solver's, as [`least_squares_with_regressors`](crate::solve::least_squares_with_regressors).
     pub fn fit(&self, terms: &[Vec<f64>], sigma: Option<Sigma>) -> Result<Solution, SolveError> {
         let fit = self.fit_columns(&self.with(terms), sigma);
         self.ticker.tick();
@@ -356,6 +368,8 @@ impl<'a> Base<'a> {
             ticker: Ticker::default(),
             pure_error: OnceLock::new(),
             base_geometry: OnceLock::new(),
+            // the same design: only the readings' values differ
+            prepared: self.prepared.clone(),
         };
         let fit = base.fit_columns(&self.columns, None);
         self.ticker.tick();

@@ -511,7 +511,7 @@ pub fn offset_step_candidates(
     offset_step_scores_with(set, geometry, residuals, present, &mut search, &mut scores);
     scores
         .iter()
-        .map(|score| search.candidate(set, score))
+        .filter_map(|score| search.candidate(set, score))
         .collect()
 }
 
@@ -549,48 +549,35 @@ impl StepSearch {
         Self::default()
     }
 
-    /// The stream of `score`: (autocollimator, mounting when the file has several).
-    pub fn stream(&self, score: &StepScore) -> StepStream {
+    /// The stream of `score`: (autocollimator, mounting when the file has several);
+    /// `None` for a score this search did not give.
+    pub fn stream(&self, score: &StepScore) -> Option<StepStream> {
         self.streams
-            .as_ref()
-            .and_then(|streams| streams.get(score.stream))
-            .map_or((0, None), |(stream, _)| *stream)
+            .as_ref()?
+            .get(score.stream)
+            .map(|(stream, _)| *stream)
     }
 
     /// The candidate `score` names (of this search's set `set`, whose
-    /// [`offset_step_scores_with`] gave it).
-    pub fn candidate(&self, set: &MeasurementSet, score: &StepScore) -> Candidate {
-        let (ac, setup) = self.stream(score);
-        let effect = self
-            .streams
-            .as_ref()
-            .and_then(|streams| streams.get(score.stream))
-            .and_then(|(_, order)| step_at(set, order, score.position))
-            .map_or(
-                Effect::OffsetStep {
-                    ac,
-                    cycle: 0,
-                    step: None,
-                    setup,
-                    value: 0.0,
-                },
-                |(cycle, step)| Effect::OffsetStep {
-                    ac,
-                    cycle,
-                    step,
-                    setup,
-                    value: 0.0,
-                },
-            );
-        Candidate {
-            term: Term::Effect(effect),
+    /// [`offset_step_scores_with`] gave it); `None` for a score it did not give.
+    pub fn candidate(&self, set: &MeasurementSet, score: &StepScore) -> Option<Candidate> {
+        let ((ac, setup), order) = self.streams.as_ref()?.get(score.stream)?;
+        let (cycle, step) = step_at(set, order, score.position)?;
+        Some(Candidate {
+            term: Term::Effect(Effect::OffsetStep {
+                ac: *ac,
+                cycle,
+                step,
+                setup: *setup,
+                value: 0.0,
+            }),
             block: Vec::new(),
             family: Family::OffsetStep,
             reduction: score.reduction,
             rank: 1,
             value: score.value,
             outlier: None,
-        }
+        })
     }
 }
 

@@ -144,7 +144,7 @@ impl RoundCandidates<'_> {
     /// The candidate at index `i`, formed (a jump's term made from its stream and stop).
     fn candidate(&self, i: usize, set: &MeasurementSet, search: &StepSearch) -> Option<Candidate> {
         match (self.step(i), self.other(i)) {
-            (Some(s), _) => Some(search.candidate(set, s)),
+            (Some(s), _) => search.candidate(set, s),
             (None, other) => other.cloned(),
         }
     }
@@ -166,7 +166,7 @@ fn rank(
     tiny: f64,
     family_alpha: f64,
     family_size: impl Fn(Family) -> usize,
-    stream: impl Fn(&StepScore) -> (u32, Option<u32>),
+    stream: impl Fn(&StepScore) -> Option<(u32, Option<u32>)>,
     full: impl Fn(u32, Option<u32>) -> bool,
 ) -> Vec<(usize, Evidence)> {
     // as the round's loop decides: a candidate is tried unless p·m ≥ α
@@ -235,10 +235,8 @@ fn rank(
         }
         best
     };
-    let full_stream = |score: &StepScore| {
-        let (ac, setup) = stream(score);
-        full(ac, setup)
-    };
+    // a score of no stream of the search names no candidate (the round drops it)
+    let full_stream = |score: &StepScore| stream(score).is_some_and(|(ac, setup)| full(ac, setup));
     let mut keep: Vec<usize> = strongest_of_streams(tried, &full_stream)
         .into_iter()
         .flatten()

@@ -265,6 +265,26 @@ pub struct VectorTest {
     pub reference: Vec<f64>,
 }
 
+impl VectorTest {
+    /// The test in words, as the text table and the DCC state it: the covariance used,
+    /// χ², ν and χ²_0.95(ν) (two decimals, as the report states numbers without U) and
+    /// the verdict, `consistent` or `not consistent`, without a final stop.
+    pub fn statement(&self) -> String {
+        format!(
+            "Closed vector (GLS, V_i = N/(N−1)·P·diag(u²)·P unless the laboratory sent its \
+             covariance, P = I − J/N): χ² = {:.2}, ν = (N − 1)(n − 1) = {}, χ²_0.95(ν) = {:.2}: {}",
+            self.chi2,
+            self.dof,
+            self.chi2_critical,
+            if self.consistent {
+                "consistent"
+            } else {
+                "not consistent"
+            }
+        )
+    }
+}
+
 /// A degree of equivalence: one laboratory (or pilot repeat) against the reference.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
@@ -367,6 +387,20 @@ pub struct KeyComparison {
     pub comparison_consistent: bool,
     /// What was left out or added, in words.
     pub notes: Vec<String>,
+}
+
+impl KeyComparison {
+    /// The closed vector's test in words ([`VectorTest::statement`]), or why it was not
+    /// tested (only pitch deviations are a closed vector).
+    pub fn closed_vector_statement(&self) -> String {
+        match &self.vector {
+            Some(v) => v.statement(),
+            None => format!(
+                "Closed vector: not tested ({} is not a closed vector)",
+                self.quantity.name()
+            ),
+        }
+    }
 }
 
 /// Why a key comparison cannot be evaluated.

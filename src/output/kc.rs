@@ -89,22 +89,13 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
             writeln!(out, "  {}. {}: {}", step + 1, e.lab, e.reason)?;
         }
     }
-    match &kc.vector {
-        Some(v) => writeln!(
-            out,
-            "Closed vector (GLS, V_i = N/(N−1)·P·diag(u²)·P, P = I − J/N): χ² = {:.2}, \
-             ν = (N−1)(n−1) = {}, χ²_0.95 = {:.2}: {}",
-            v.chi2,
-            v.dof,
-            v.chi2_critical,
-            if v.consistent {
-                "consistent"
-            } else {
-                "not consistent *"
-            }
-        )?,
-        None => writeln!(out, "Closed vector: not tested ({name} is not closed)")?,
-    }
+    let unmarked = kc.vector.as_ref().is_none_or(|v| v.consistent);
+    writeln!(
+        out,
+        "{}{}",
+        kc.closed_vector_statement(),
+        if unmarked { "" } else { " *" }
+    )?;
 
     writeln!(
         out,

@@ -150,6 +150,103 @@ pub(crate) fn plan(
     }))
 }
 
+/// A design the engine serves, with what it forms from the design alone — its streams,
+/// plan, regular cofactor B and every reading's stream — kept for fits of it that
+/// differ only in their effect columns (the diagnosis refits the base model with each
+/// round's terms: [`crate::diagnose`]).
+#[derive(Clone)]
+pub(crate) struct Prepared {
+    streams: Vec<(u32, u32)>,
+    /// The plan without effect terms ([`CirculantPlan::with_effects`] adds them).
+    plan: CirculantPlan,
+    base: Base,
+    reading_stream: Vec<usize>,
+}
+
+impl std::fmt::Debug for Prepared {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Prepared")
+            .field("streams", &self.streams)
+            .field("plan", &self.plan)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Prepared {
+    /// `set`'s design prepared, when the engine serves it with every harmonic seen (the
+    /// plan is then the same whatever the effect terms); `None` otherwise (the caller
+    /// fits by [`super::least_squares`]'s decision) and for a design that is refused.
+    pub(crate) fn of(set: &MeasurementSet) -> Option<Self> {
+        let streams = set.streams();
+        let Ok(Plan::Circulant(plan)) = plan(set, &streams, 0, false) else {
+            return None;
+        };
+        if !plan.lost.is_empty() {
+            return None;
+        }
+        let base = regular_base(set.faces, &plan);
+        let reading_stream = set
+            .readings
+            .iter()
+            .map(|r| stream_index(&streams, r.setup, r.ac))
+            .collect();
+        Some(Self {
+            streams,
+            plan,
+            base,
+            reading_stream,
+        })
+    }
+
+    /// The streams, in [`MeasurementSet::streams`] order.
+    pub(crate) fn streams(&self) -> &[(u32, u32)] {
+        &self.streams
+    }
+
+    /// The plan with `effects` effect terms.
+    pub(crate) fn plan(&self, effects: usize) -> CirculantPlan {
+        CirculantPlan {
+            effects,
+            ..self.plan.clone()
+        }
+    }
+
+    /// [`solve`] of `set` (the set prepared) with the effect columns `regressors`.
+    pub(crate) fn solve(
+        &self,
+        set: &MeasurementSet,
+        regressors: &[Vec<f64>],
+        stated_sigma: Option<Sigma>,
+    ) -> Result<Option<Solution>, SolveError> {
+        let plan = self.plan(regressors.len());
+        let base = self.base.clone().with_effects(regressors.len());
+        solve_on(
+            set,
+            &self.streams,
+            &plan,
+            base,
+            &self.reading_stream,
+            regressors,
+            stated_sigma,
+        )
+    }
+}
+
+/// The regular part's cofactor B of a planned design (no effect terms).
+fn regular_base(faces: usize, plan: &CirculantPlan) -> Base {
+    Base::new(
+        faces,
+        &plan
+            .offsets
+            .iter()
+            .zip(&plan.weights)
+            .map(|(&offset, &weight)| RegularStream { offset, weight })
+            .collect::<Vec<_>>(),
+        0,
+        &plan.lost,
+    )
+}
+
 fn stream_index(streams: &[(u32, u32)], setup: u32, ac: u32) -> usize {
     streams
         .binary_search(&(setup, ac))
@@ -166,37 +263,48 @@ pub(crate) fn solve(
     regressors: &[Vec<f64>],
     stated_sigma: Option<Sigma>,
 ) -> Result<Option<Solution>, SolveError> {
+    let base = regular_base(set.faces, plan).with_effects(regressors.len());
+    let reading_stream: Vec<usize> = set
+        .readings
+        .iter()
+        .map(|r| stream_index(streams, r.setup, r.ac))
+        .collect();
+    solve_on(
+        set,
+        streams,
+        plan,
+        base,
+        &reading_stream,
+        regressors,
+        stated_sigma,
+    )
+}
+
+/// [`solve`] with the regular part's cofactor `base` (room for the effect terms) and
+/// every reading's stream (an index into `streams`) formed.
+fn solve_on(
+    set: &MeasurementSet,
+    streams: &[(u32, u32)],
+    plan: &CirculantPlan,
+    base: Base,
+    reading_stream: &[usize],
+    regressors: &[Vec<f64>],
+    stated_sigma: Option<Sigma>,
+) -> Result<Option<Solution>, SolveError> {
     let n = set.faces;
     let k = streams.len();
     let e = regressors.len();
     let base_len = 2 * n + k;
     let len = base_len + e;
-    let base = Base::new(
-        n,
-        &plan
-            .offsets
-            .iter()
-            .zip(&plan.weights)
-            .map(|(&offset, &weight)| RegularStream { offset, weight })
-            .collect::<Vec<_>>(),
-        e,
-        &plan.lost,
-    );
 
     // Each stream's mean is taken out of its readings first (the U′ column absorbs it
     // exactly), so that the sums the FFT sees carry the variations, not the zeros.
     let mut stream_sum = vec![0.0; k];
     let mut stream_count = vec![0usize; k];
-    let reading_stream: Vec<usize> = set
-        .readings
-        .iter()
-        .map(|r| {
-            let s = stream_index(streams, r.setup, r.ac);
-            stream_sum[s] += r.reading_arcsec;
-            stream_count[s] += 1;
-            s
-        })
-        .collect();
+    for (r, &s) in set.readings.iter().zip(reading_stream) {
+        stream_sum[s] += r.reading_arcsec;
+        stream_count[s] += 1;
+    }
     let stream_mean: Vec<f64> = stream_sum
         .iter()
         .zip(&stream_count)

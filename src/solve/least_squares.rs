@@ -116,6 +116,41 @@ pub(crate) fn least_squares_observed(
     dense_least_squares_observed(set, regressors, options.sigma, progress)
 }
 
+/// [`least_squares_with_options`] of a design `prepared` once
+/// ([`circulant::Prepared::of`] of `set`): the same decision and the same numbers,
+/// without planning the design and forming its regular cofactor again at every fit
+/// (the diagnosis refits one design with each round's effect columns). `None` fits as
+/// [`least_squares_with_options`].
+pub(crate) fn least_squares_prepared(
+    set: &MeasurementSet,
+    prepared: Option<&circulant::Prepared>,
+    regressors: &[Vec<f64>],
+    options: &SolveOptions,
+) -> Result<Solution, SolveError> {
+    let Some(prepared) = prepared else {
+        return least_squares_with_options(set, regressors, options);
+    };
+    check_regressors(set, regressors)?;
+    let n = set.faces;
+    let (k, e) = (prepared.streams().len(), regressors.len());
+    let plan = prepared.plan(e);
+    if plan.is_cheaper_than_dense(n) {
+        fits(
+            set,
+            k,
+            e,
+            "circulant",
+            plan.bytes_needed(n, set.readings.len()),
+            options,
+        )?;
+        if let Some(solution) = prepared.solve(set, regressors, options.sigma)? {
+            return Ok(solution);
+        }
+    }
+    fits(set, k, e, "dense", dense_bytes_needed(n, k, e), options)?;
+    dense_least_squares_observed(set, regressors, options.sigma, None)
+}
+
 /// Least squares of a set with sub-pitch mountings on the coset engine
 /// ([`super::coset`]): the set in encoder `positions`
 /// ([`ShiftGeometry::encoder_set`]) and its `geometry`. `Ok(None)` where the design's

@@ -153,24 +153,7 @@ fn description(section: &KeyComparisonSection) -> String {
 /// notes and the verdict, one statement each.
 fn statements(section: &KeyComparisonSection) -> Vec<String> {
     let kc = &section.comparison;
-    let mut lines = Vec::new();
-    match &kc.vector {
-        Some(v) => lines.push(format!(
-            "Closed vector (GLS, V_i = N/(N−1)·P·diag(u²)·P unless the laboratory sent its covariance, P = I − J/N): χ² = {:.2}, ν = (N − 1)(n − 1) = {}, χ²_0.95(ν) = {:.2}: {}.",
-            v.chi2,
-            v.dof,
-            v.chi2_critical,
-            if v.consistent {
-                "consistent"
-            } else {
-                "NOT consistent"
-            }
-        )),
-        None => lines.push(format!(
-            "Closed vector: not tested ({} are not closed).",
-            kc.quantity.name()
-        )),
-    }
+    let mut lines = vec![format!("{}.", kc.closed_vector_statement())];
     if kc.excluded.is_empty() {
         lines.push("Exclusions: none; every laboratory is in the reference.".to_string());
     }

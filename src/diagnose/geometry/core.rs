@@ -8,6 +8,7 @@
 use std::sync::{Arc, Mutex, OnceLock};
 
 use nalgebra::DMatrix;
+use rayon::prelude::*;
 
 use super::off_grid::OffGridGeometry;
 use super::structured::{StructuredGeometry, SuffixCache};
@@ -399,10 +400,16 @@ impl Core {
         }
     }
 
-    /// The leverage h_ii of every reading, formed at the first call.
+    /// The leverage h_ii of every reading, formed at the first call (in chunks that
+    /// idle threads take: a round forms it beside its other candidates).
     pub(super) fn leverage(&self) -> &[f64] {
-        self.leverage
-            .get_or_init(|| (0..self.rows.len()).map(|i| self.hat(i, i)).collect())
+        self.leverage.get_or_init(|| {
+            (0..self.rows.len())
+                .into_par_iter()
+                .with_min_len(1024)
+                .map(|i| self.hat(i, i))
+                .collect()
+        })
     }
 
     /// The engine's gᵀ Q g and the stop nuisance's xᵀ P_D x of every suffix
