@@ -270,16 +270,17 @@ impl<'a> Base<'a> {
 
     /// The columns a fit holds: the base columns followed by `terms` (the columns of the
     /// diagnosis's terms; for a self-calibration, each minus its stop's mean).
-    pub fn with(&self, terms: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    /// `terms` themselves when that is all a fit holds (no copy).
+    pub fn with<'t>(&self, terms: &'t [Vec<f64>]) -> Cow<'t, [Vec<f64>]> {
         if let Some(n) = &self.nuisance {
-            return terms.iter().map(|x| n.project(x)).collect();
+            return Cow::Owned(terms.iter().map(|x| n.project(x)).collect());
         }
         if self.columns.is_empty() {
-            return terms.to_vec();
+            return Cow::Borrowed(terms);
         }
         let mut all = self.columns.clone();
         all.extend(terms.iter().cloned());
-        all
+        Cow::Owned(all)
     }
 
     /// A fit of the positions' readings with the columns `all` (of [`Base::with`]); for a

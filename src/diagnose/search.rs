@@ -61,6 +61,11 @@ impl Outcome {
 /// The most candidates a round refits (tries) before it gives up.
 const MAX_ATTEMPTS: usize = 4;
 
+/// Terms whose columns one task forms ([`Columns::form`]): enough that a task reads the
+/// readings for several columns at once, few enough that a round's columns (tens of
+/// terms) keep both threads busy.
+const FORMED_TOGETHER: usize = 4;
+
 /// The F statistic of a scored candidate against the current fit, from the reduction
 /// Δ of the residual sum of squares it brings and the `rank` r of directions it adds:
 /// F = (Δ/r)/(rest/(dof − r)).
@@ -314,19 +319,22 @@ pub(super) fn run(
         }
         candidates.clear();
         let blocks = layout.blocks(&terms);
-        known.form(blocks.iter().flatten());
-        // the systematic blocks, the jumps of every stream and the leverages side by side
+        // the systematic blocks (their columns formed first), the jumps of every stream
+        // and the leverages side by side
         let residuals = &current.residuals;
         steps.clear();
         let step_candidates = &mut steps;
+        let known_columns = &mut known;
         let ((leverage, systematic), ()) = rayon::join(
             || {
                 rayon::join(
                     || geometry.leverage(),
                     || {
+                        known_columns.form(blocks.iter().flatten());
+                        let known = &*known_columns;
                         let systematic = Systematic {
                             geometry: &geometry,
-                            known: &known,
+                            known,
                             residuals,
                             terms: &terms,
                             ticker: base.ticker(),
@@ -740,12 +748,22 @@ impl Columns<'_> {
                 missing.push(term.clone());
             }
         }
-        let columns = Term::columns(&missing, self.set, self.context);
-        self.known
-            .extend(missing.into_iter().zip(columns).map(|(term, column)| {
+        // a few terms to a task, side by side (each task reads the readings once for its
+        // terms: [`Term::columns`])
+        let columns: Vec<(Vec<f64>, f64)> = missing
+            .par_chunks(FORMED_TOGETHER)
+            .flat_map_iter(|terms| Term::columns(terms, self.set, self.context))
+            .map(|column| {
                 let length_squared = dot(&column, &column);
-                (term, column, length_squared)
-            }));
+                (column, length_squared)
+            })
+            .collect();
+        self.known.extend(
+            missing
+                .into_iter()
+                .zip(columns)
+                .map(|(term, (column, length_squared))| (term, column, length_squared)),
+        );
     }
 
     /// The columns of `terms`, formed before ([`Columns::column`]), in their order
