@@ -67,3 +67,50 @@ pub use polygon::Polygon;
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]
 pub struct ReadmeDoctests;
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    /// Every `.rs` file under `dir`.
+    fn sources(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+        for entry in std::fs::read_dir(dir).expect("src is readable").flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                sources(&path, out);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                out.push(path);
+            }
+        }
+    }
+
+    /// Only the binary (`src/cli`, `main.rs`), the instrument layer (`src/lab`) and this
+    /// file's `lab` module line depend on a cargo feature: the maths is the same code in
+    /// both configurations, which is why CI runs the integration tests in one of them
+    /// only (docs/ARCHITECTURE.md, "Cargo features").
+    #[test]
+    fn only_the_binary_and_the_instrument_layer_depend_on_a_feature() {
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+        let mut files = Vec::new();
+        sources(&src, &mut files);
+        assert!(files.len() > 50, "the sources were found: {}", files.len());
+        let mut offending = Vec::new();
+        for file in &files {
+            let relative = file.strip_prefix(&src).expect("under src");
+            let first = relative.components().next().map(|c| c.as_os_str());
+            if first.is_some_and(|c| c == "cli" || c == "lab" || c == "main.rs") {
+                continue;
+            }
+            let text = std::fs::read_to_string(file).expect("a source file is text");
+            // (spelt in pieces, so that these lines are not what they look for)
+            let lab_module = concat!("#[cfg(feat", "ure = \"lab\")]");
+            for (number, line) in text.lines().enumerate() {
+                let allowed = relative == Path::new("lib.rs") && line.trim() == lab_module;
+                if line.contains(concat!("feat", "ure =")) && line.contains("cfg") && !allowed {
+                    offending.push(format!("{}:{}: {line}", relative.display(), number + 1));
+                }
+            }
+        }
+        assert!(offending.is_empty(), "{offending:#?}");
+    }
+}
