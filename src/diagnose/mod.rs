@@ -31,6 +31,8 @@ pub mod selfcal;
 
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::solve::sub_pitch::SubPitchSolution;
@@ -584,8 +586,9 @@ pub(crate) fn diagnose_base(
         stated_cross_talk: &options.stated_cross_talk,
         tiny,
     };
+    // each finding's alternatives side by side (their refits are independent)
     let effects: Vec<FoundEffect> = with_blocks
-        .into_iter()
+        .into_par_iter()
         .map(|(mut found, block)| {
             found.alternatives = identify::alternatives(model, &block);
             found
