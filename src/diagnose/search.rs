@@ -300,7 +300,10 @@ pub(super) fn run(
     let mut cross_talk_noted = false;
     let mut jumps_exceeded: Vec<(u32, Option<u32>)> = Vec::new();
     let mut current = before.clone();
-    let mut lof_current = base.lack_of_fit(set, &current, &[], options.lack_of_fit_alpha);
+    // the base fit's lack-of-fit test, formed beside the first round's candidates (its
+    // cells are the longest part of it; nothing before the round's loop reads it)
+    let mut lof_current: Option<LackOfFit> = None;
+    let mut lof_pending = true;
     // the Gram matrices of the systematic blocks off the base fit's span (geometry's
     // `core_projected_gram`): (the longest block of nested ones, its matrix)
     let mut core_grams: Vec<(Vec<Term>, nalgebra::DMatrix<f64>)> = Vec::new();
@@ -344,6 +347,10 @@ pub(super) fn run(
                 )
             },
             || {
+                if lof_pending {
+                    lof_current = base.lack_of_fit(set, &current, &[], options.lack_of_fit_alpha);
+                    lof_pending = false;
+                }
                 candidates::offset_step_scores_with(
                     set,
                     &geometry,
@@ -574,7 +581,12 @@ pub(super) fn run(
         unattributed_sets,
         jumps_exceeded,
         fit: current,
-        lack_of_fit: lof_current,
+        // no round ran: the fit is the base fit
+        lack_of_fit: if lof_pending {
+            base.lack_of_fit(set, before, &[], options.lack_of_fit_alpha)
+        } else {
+            lof_current
+        },
     }
 }
 
