@@ -19,7 +19,11 @@
 //!   readings, with a drift and a jump, and without effects), each from the file's bytes
 //!   in memory as the commands read them (parsing included, output and process start-up
 //!   not), so that their ratio is measured in one run (issue 35: `diagnose` at most 3×
-//!   `solve`);
+//!   `solve`); after them, `side_by_side/interleaved` (printed, not a criterion
+//!   measurement) times the same pairs one after the other, a solve then a diagnosis, 30
+//!   times at 1 440 and 10 at 5 760, and prints the median of each pair's ratio: a busy
+//!   machine slows both halves of a pair alike, where criterion measures the two seconds
+//!   apart;
 //! - `diagnose/selfa168x3_drift_step_outlier`: a SelfA self-calibration (12 heads, 168
 //!   positions, 3 cycles, 6 048 readings) with a head's drift, another head's jump and an
 //!   outlier: the closure model with the table's error at every stop taken out.
@@ -34,7 +38,7 @@ use polycal::simulate::{SelfcalSimConfig, simulate_selfcal};
 use polycal::simulate::{SimulationConfig, simulate};
 use polycal::solve::{SolveOptions, solve};
 use std::hint::black_box;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 fn outlier(cycle: u32, step: usize, ac: u32, value: f64) -> Effect {
     Effect::Outlier {
@@ -214,9 +218,59 @@ fn bench_side_by_side(c: &mut Criterion) {
             group.bench_function(format!("diagnose_{faces}x6_{name}"), |b| {
                 b.iter(|| diagnose(&read(black_box(&bytes)), &options))
             });
+            if interleaved_wanted() {
+                let pairs = if faces <= 1440 { 30 } else { 10 };
+                let time = |f: &dyn Fn()| {
+                    let start = Instant::now();
+                    f();
+                    start.elapsed().as_secs_f64()
+                };
+                let mut solve_seconds = Vec::new();
+                let mut diagnose_seconds = Vec::new();
+                let mut ratios = Vec::new();
+                for _ in 0..pairs {
+                    let s = time(&|| {
+                        black_box(solve(&read(black_box(&bytes)), &solve_options).ok());
+                    });
+                    let d = time(&|| {
+                        black_box(diagnose(&read(black_box(&bytes)), &options).ok());
+                    });
+                    solve_seconds.push(s);
+                    diagnose_seconds.push(d);
+                    ratios.push(d / s);
+                }
+                println!(
+                    "side_by_side/interleaved_{faces}x6_{name}: {pairs} pairs, solve median {:.1} ms, \
+                     diagnose median {:.1} ms, median of the pairs' ratios {:.2} (least {:.2}, most {:.2})",
+                    1e3 * median(&mut solve_seconds),
+                    1e3 * median(&mut diagnose_seconds),
+                    median(&mut ratios),
+                    ratios.iter().copied().fold(f64::INFINITY, f64::min),
+                    ratios.iter().copied().fold(0.0, f64::max),
+                );
+            }
         }
     }
     group.finish();
+}
+
+/// The middle value (the upper of the two middle ones for an even count).
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// Whether the interleaved pairs run: without a filter, or with one naming them (criterion
+/// takes the first argument that is not an option as its filter).
+fn interleaved_wanted() -> bool {
+    let filters: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    filters.is_empty()
+        || filters
+            .iter()
+            .any(|f| f.contains("side_by_side") || f.contains("interleaved"))
 }
 
 criterion_group!(benches, bench_diagnose, bench_side_by_side);
