@@ -135,14 +135,7 @@ pub(crate) fn least_squares_prepared(
     let (k, e) = (prepared.streams().len(), regressors.len());
     let plan = prepared.plan(e);
     if plan.is_cheaper_than_dense(n) {
-        fits(
-            set,
-            k,
-            e,
-            "circulant",
-            plan.bytes_needed(n, set.readings.len()),
-            options,
-        )?;
+        circulant_fits(set, &plan, k, e, options)?;
         if let Some(solution) = prepared.solve(set, regressors, options.sigma)? {
             return Ok(solution);
         }
@@ -239,6 +232,18 @@ fn fits(
     }
 }
 
+/// [`fits`] of the circulant engine's `plan` (`streams` streams, `effects` effect terms).
+fn circulant_fits(
+    set: &MeasurementSet,
+    plan: &circulant::CirculantPlan,
+    streams: usize,
+    effects: usize,
+    options: &SolveOptions,
+) -> Result<(), SolveError> {
+    let needed_bytes = plan.bytes_needed(set.faces, set.readings.len());
+    fits(set, streams, effects, "circulant", needed_bytes, options)
+}
+
 /// Every regressor has one finite value per reading.
 pub(crate) fn check_regressors(
     set: &MeasurementSet,
@@ -287,17 +292,9 @@ pub(crate) fn least_squares_zeroing_lost_with(
 ) -> Result<(Solution, Vec<usize>), SolveError> {
     check_regressors(set, regressors)?;
     let streams = set.streams();
-    let n = set.faces;
     let (k, e) = (streams.len(), regressors.len());
     if let Plan::Circulant(plan) = circulant::plan(set, &streams, e, true)? {
-        fits(
-            set,
-            k,
-            e,
-            "circulant",
-            plan.bytes_needed(n, set.readings.len()),
-            options,
-        )?;
+        circulant_fits(set, &plan, k, e, options)?;
         if let Some(solution) = circulant::solve(set, &streams, &plan, regressors, options.sigma)? {
             return Ok((solution, plan.lost));
         }
