@@ -260,12 +260,17 @@ fn median(values: &mut [f64]) -> f64 {
     values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
-/// Whether the interleaved pairs run: without a filter, or with one naming them (criterion
-/// takes the first argument that is not an option as its filter).
+/// Whether the interleaved pairs run: under `cargo bench` (not `cargo test`'s single
+/// pass), without a filter or with one naming them (criterion takes an argument that is
+/// not an option, nor an option's number, as its filter).
 fn interleaved_wanted() -> bool {
-    let filters: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with('-'))
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if !args.iter().any(|a| a == "--bench") {
+        return false;
+    }
+    let filters: Vec<&String> = args
+        .iter()
+        .filter(|a| !a.starts_with('-') && a.parse::<f64>().is_err())
         .collect();
     filters.is_empty()
         || filters

@@ -301,3 +301,60 @@ pub(crate) fn least_squares_zeroing_lost_with(
     }
     least_squares_with_options(set, regressors, options).map(|solution| (solution, Vec::new()))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulate::{SimulationConfig, simulate};
+    use crate::solve::circulant::Prepared;
+
+    /// A fit of a prepared design is the unprepared fit to the bit (the same engine and
+    /// the same arithmetic), and both agree with the dense reference — an independent
+    /// implementation — to 1e-9″; a column the design already holds is refused alike.
+    #[test]
+    fn a_prepared_design_fits_as_the_unprepared_one_and_the_dense_reference() {
+        let config = SimulationConfig {
+            faces: 36,
+            closing: true,
+            step_seconds: 2.0,
+            ..SimulationConfig::default()
+        };
+        let (set, _) = simulate(&config).expect("a valid simulation");
+        let n = set.readings.len();
+        let time: Vec<f64> = set
+            .readings
+            .iter()
+            .map(|r| r.time_seconds.unwrap_or(0.0) / 3600.0)
+            .collect();
+        let jump: Vec<f64> = (0..n).map(|i| if i >= n / 2 { 1.0 } else { 0.0 }).collect();
+        let prepared = Prepared::of(&set).expect("the circulant engine serves the design");
+        let options = SolveOptions::new();
+        for regressors in [vec![], vec![time.clone()], vec![time.clone(), jump.clone()]] {
+            let a = least_squares_prepared(&set, Some(&prepared), &regressors, &options)
+                .expect("a fit");
+            let b = least_squares_with_options(&set, &regressors, &options).expect("a fit");
+            let dense = dense_with_options(&set, &regressors, &options).expect("a fit");
+            assert_eq!(a.pitch_deviation, b.pitch_deviation);
+            assert_eq!(a.encoder_error, b.encoder_error);
+            assert_eq!(a.effect_values, b.effect_values);
+            assert_eq!(a.residuals, b.residuals);
+            assert_eq!(a.pitch_deviation_u(), b.pitch_deviation_u());
+            assert_eq!(a.dof, dense.dof);
+            for (x, y) in a.encoder_error.iter().zip(&dense.encoder_error) {
+                assert!((x - y).abs() < 1e-9, "{x} against {y}");
+            }
+            for (x, y) in a.effect_values.iter().zip(&dense.effect_values) {
+                assert!((x - y).abs() < 1e-9, "{x} against {y}");
+            }
+        }
+        // a constant column is the setup errors' own: neither path determines it
+        let constant = vec![vec![1.0; n]];
+        let prepared_fit = least_squares_prepared(&set, Some(&prepared), &constant, &options);
+        let unprepared = least_squares_with_options(&set, &constant, &options);
+        assert!(prepared_fit.is_err() && unprepared.is_err());
+        assert_eq!(
+            prepared_fit.err().map(|e| e.to_string()),
+            unprepared.err().map(|e| e.to_string())
+        );
+    }
+}
