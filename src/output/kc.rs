@@ -81,21 +81,45 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     right[7] = false;
     writeln!(out, "{}", table(&header, &rows, &right))?;
 
+    if let Some(v) = &kc.vector_all {
+        writeln!(
+            out,
+            "Every laboratory: {}",
+            v.statement()
+        )?;
+    }
+    if let Some(search) = &kc.search {
+        writeln!(
+            out,
+            "Largest consistent subset ({}, {} subsets fitted), the best of each size:",
+            match search.method {
+                crate::kc::SearchMethod::Exhaustive => "every subset tried",
+                _ => "greedy",
+            },
+            search.subsets_tested
+        )?;
+        for step in &search.steps {
+            writeln!(
+                out,
+                "  {} laboratories: {} — χ² = {:.2}, ν = {}, χ²_0.95(ν) = {:.2}: {}",
+                step.size,
+                step.best.join(", "),
+                step.chi2,
+                step.dof,
+                step.chi2_critical,
+                if step.consistent { "passes" } else { "fails" }
+            )?;
+        }
+    }
     if kc.excluded.is_empty() {
         writeln!(out, "Excluded: none")?;
     } else {
-        writeln!(out, "Excluded (largest consistent subset, in order):")?;
-        for (step, e) in kc.excluded.iter().enumerate() {
-            writeln!(out, "  {}. {}: {}", step + 1, e.lab, e.reason)?;
+        writeln!(out, "Excluded (left out of every quantity):")?;
+        for e in &kc.excluded {
+            writeln!(out, "  {}: {}", e.lab, e.reason)?;
         }
     }
-    let unmarked = kc.vector.as_ref().is_none_or(|v| v.consistent);
-    writeln!(
-        out,
-        "{}{}",
-        kc.closed_vector_statement(),
-        if unmarked { "" } else { " *" }
-    )?;
+    writeln!(out, "In the reference: {}", kc.closed_vector_statement())?;
 
     writeln!(
         out,
@@ -130,11 +154,12 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     writeln!(out, "{}", dynamic_table(&header, &rows))?;
 
     if let Some(pilot) = &kc.pilot {
+        if let Some(statement) = kc.pilot_statement() {
+            writeln!(out, "{statement}")?;
+        }
         writeln!(
             out,
-            "Pilot's repeats ({}): χ² about their weighted mean with ν = {}; where significant, \
-             u_stab = their sample standard deviation s",
-            pilot.repeats.join(", "),
+            "Per quantity (information): χ² about the repeats' weighted mean with ν = {}",
             pilot.chi2_dof
         )?;
         let header = [position, "Mean", "s", "χ²", "Significant", "u_stab"].map(String::from);
@@ -159,28 +184,7 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     for note in &kc.notes {
         writeln!(out, "Note: {note}")?;
     }
-    let failing = kc.consistent.iter().filter(|c| !**c).count();
-    if kc.comparison_consistent {
-        writeln!(
-            out,
-            "Consistent: every {name} passes its χ² test{}",
-            if kc.vector.is_some() {
-                ", and so does the closed vector"
-            } else {
-                ""
-            }
-        )
-    } else {
-        writeln!(
-            out,
-            "Not consistent: {failing} of {} fail their χ² test{}",
-            kc.index.len(),
-            match &kc.vector {
-                Some(v) if !v.consistent => ", and the closed vector fails its test",
-                _ => "",
-            }
-        )
-    }
+    writeln!(out, "{}", kc.verdict_statement())
 }
 
 /// A table with any number of columns, the first left-aligned.

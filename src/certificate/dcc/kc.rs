@@ -153,42 +153,39 @@ fn description(section: &KeyComparisonSection) -> String {
 /// notes and the verdict, one statement each.
 fn statements(section: &KeyComparisonSection) -> Vec<String> {
     let kc = &section.comparison;
-    let mut lines = vec![format!("{}.", kc.closed_vector_statement())];
+    let mut lines = Vec::new();
+    if let Some(v) = &kc.vector_all {
+        lines.push(format!("Every laboratory: {}.", v.statement()));
+    }
+    if let Some(search) = &kc.search {
+        for step in &search.steps {
+            lines.push(format!(
+                "Subset search, {} laboratories: the smallest χ² of {} subsets is {} ({}): χ² = {:.2}, ν = {}, χ²_0.95(ν) = {:.2}: {}.",
+                step.size,
+                step.subsets,
+                step.best.join(", "),
+                if step.consistent { "passes" } else { "fails" },
+                step.chi2,
+                step.dof,
+                step.chi2_critical,
+                if step.consistent { "consistent" } else { "not consistent" }
+            ));
+        }
+    }
+    lines.push(format!("In the reference: {}.", kc.closed_vector_statement()));
     if kc.excluded.is_empty() {
         lines.push("Exclusions: none; every laboratory is in the reference.".to_string());
     }
-    for (step, e) in kc.excluded.iter().enumerate() {
+    for e in &kc.excluded {
         lines.push(format!(
-            "Exclusion {}: laboratory {} left out of the reference: {}",
-            step + 1,
-            e.lab,
-            e.reason
+            "Laboratory {} left out of the reference: {}",
+            e.lab, e.reason
         ));
     }
-    if let Some(p) = &kc.pilot {
-        let significant: Vec<String> = kc
-            .index
-            .iter()
-            .zip(&p.significant)
-            .filter(|(_, s)| **s)
-            .map(|(i, _)| i.to_string())
-            .collect();
-        lines.push(format!(
-            "The pilot's stability from its repeats ({}): χ² about their weighted mean with ν = {}; significant at {} — there u_stab, their sample standard deviation, is added to u_ref and to every u(d_i).",
-            p.repeats.join(", "),
-            p.chi2_dof,
-            if significant.is_empty() {
-                "no quantity".to_string()
-            } else {
-                significant.join(", ")
-            }
-        ));
+    if let Some(statement) = kc.pilot_statement() {
+        lines.push(format!("{statement}."));
     }
     lines.extend(kc.notes.iter().cloned());
-    lines.push(if kc.comparison_consistent {
-        "Verdict: consistent after the exclusions stated.".to_string()
-    } else {
-        "Verdict: NOT consistent.".to_string()
-    });
+    lines.push(format!("Verdict: {}.", kc.verdict_statement()));
     lines
 }
