@@ -291,17 +291,30 @@ fn the_named_laboratorys_section_carries_the_kc_json_numbers() {
         );
     }
 
-    // the closed vector's test
+    // the closed vector's tests: every laboratory (the decision), then those in the reference
     let vector = rows(&html, "kc-vector");
-    assert_eq!(vector.len(), 1);
+    assert_eq!(vector.len(), 2);
+    for (row, key) in vector.iter().zip(["vector_all", "vector"]) {
+        assert_eq!(
+            data_values(*row),
+            vec![
+                kc[key]["chi2"].as_f64().unwrap(),
+                kc[key]["chi2_critical"].as_f64().unwrap()
+            ]
+        );
+        let row_text: String = row.text().collect();
+        assert!(row_text.contains(&kc[key]["dof"].to_string()), "{row_text}");
+    }
+    // the search's one step, with the subset that passed
+    let search = rows(&html, "kc-search");
+    assert_eq!(search.len(), kc["search"]["steps"].as_array().unwrap().len());
     assert_eq!(
-        data_values(vector[0]),
+        data_values(search[0]),
         vec![
-            kc["vector"]["chi2"].as_f64().unwrap(),
-            kc["vector"]["chi2_critical"].as_f64().unwrap()
+            kc["search"]["steps"][0]["chi2"].as_f64().unwrap(),
+            kc["search"]["steps"][0]["chi2_critical"].as_f64().unwrap()
         ]
     );
-    assert!(text(&html, "kc-vector").contains(&kc["vector"]["dof"].to_string()));
 
     // the exclusion of F with its reason, in the introduction too
     let excluded = kc["excluded"].as_array().unwrap();
@@ -313,14 +326,6 @@ fn the_named_laboratorys_section_carries_the_kc_json_numbers() {
     let reason = excluded[0]["reason"].as_str().unwrap();
     let row_text: String = exclusions[0].text().collect();
     assert!(row_text.contains(reason), "{row_text}");
-    assert_eq!(
-        data_values(exclusions[0]),
-        vec![
-            excluded[0]["normalised_deviation"].as_f64().unwrap(),
-            excluded[0]["chi2_before"].as_f64().unwrap(),
-            excluded[0]["chi2_critical"].as_f64().unwrap()
-        ]
-    );
     let section: String = html
         .select(&sel("#key-comparison > p"))
         .next()
@@ -460,8 +465,12 @@ fn without_a_laboratory_every_degree_of_equivalence_is_shown() {
     }
     assert_eq!(html.select(&sel("#figure-kc-reference svg")).count(), 1);
     assert_eq!(html.select(&sel("#figure-kc-pilot-stability")).count(), 0);
-    // encoder errors: no closed vector
-    assert!(text(&html, "kc-vector").contains("not tested"));
+    // encoder errors: a closed vector too, each result less its mean
+    assert!(text(&html, "kc-vector").contains("defined up to a constant"));
+    assert_eq!(
+        data_values(rows(&html, "kc-vector")[0])[0],
+        kc["vector_all"]["chi2"].as_f64().unwrap()
+    );
     let doc = Document::parse(&dcc).unwrap();
     let result = kc_result(&doc);
     assert_eq!(si_lists(result, "polycal_kcTableAngle")[0].1, angles);

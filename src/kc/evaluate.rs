@@ -338,16 +338,8 @@ fn evaluate_aligned(
         let pilot_fit = fit_of(&repeats, &stated).ok_or_else(not_fitted)?;
         let pilot_vector = vector_test(&pilot_fit, scale);
         if !pilot_vector.consistent {
+            // stated by `KeyComparison::pilot_statement`
             stability_u.clone_from(&spread);
-            notes.push(format!(
-                "the pilot's repeats differ beyond their uncertainties (their closed vector: \
-                 χ² = {:.3} > χ²_0.95({}) = {:.3}): their sample standard deviation on each \
-                 {} is added in quadrature to u_ref and to every u(d_i)",
-                pilot_vector.chi2,
-                pilot_vector.dof,
-                pilot_vector.chi2_critical,
-                options.quantity
-            ));
         }
         pilot_report = Some(PilotStability {
             repeats: pilot.iter().map(|p| p.name.clone()).collect(),
