@@ -90,7 +90,8 @@ fn fixed_data(varying: bool) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
             (0..FACES)
                 .map(|f| {
                     if varying {
-                        u * (1.0 + 0.05 * f as f64) + 0.01 * ((f * 3 + (u * 100.0) as usize) % 4) as f64
+                        u * (1.0 + 0.05 * f as f64)
+                            + 0.01 * ((f * 3 + (u * 100.0) as usize) % 4) as f64
                     } else {
                         *u
                     }
@@ -216,7 +217,12 @@ fn kc_dersimonian_laird_matches_the_textbook() {
     let g = gls(&values, &v);
     let positive = tau.iter().filter(|t| **t > 0.0).count();
     for f in 0..FACES {
-        assert!((kc.tau[f] - tau[f]).abs() < 1e-12, "{} vs {}", kc.tau[f], tau[f]);
+        assert!(
+            (kc.tau[f] - tau[f]).abs() < 1e-12,
+            "{} vs {}",
+            kc.tau[f],
+            tau[f]
+        );
         assert!((kc.reference[f] - g.reference[f]).abs() < 1e-12);
         assert!((kc.reference_u[f] - g.covariance[(f, f)].sqrt()).abs() < 1e-12);
         for (i, doe) in kc.degrees_of_equivalence.iter().enumerate() {
@@ -270,7 +276,10 @@ fn kc_exclusion_leaves_out_the_largest_consistent_subset_for_the_whole_compariso
     }
     assert!(kc.comparison_consistent);
     assert_eq!(kc.vector.as_ref().unwrap().dof, 11 * 3);
-    assert!(kc.verdict_statement().starts_with("Consistent after leaving out D"));
+    assert!(
+        kc.verdict_statement()
+            .starts_with("Consistent after leaving out D")
+    );
     // Kept in by the pilot: D stays, another laboratory goes or the comparison fails.
     let kept = evaluate(&labs, &[], &KcOptions::new().with_keep(["D"])).unwrap();
     assert!(kept.degrees_of_equivalence[3].in_reference);
@@ -346,7 +355,10 @@ fn kc_the_search_finds_the_largest_consistent_subset_where_one_at_a_time_does_no
     assert_eq!(inside, [2, 3, 4]);
     greedy_smaller += 1;
     eprintln!("{compared} comparisons; one at a time kept fewer in {greedy_smaller}");
-    assert!(greedy_smaller >= 1, "no comparison where one at a time keeps fewer");
+    assert!(
+        greedy_smaller >= 1,
+        "no comparison where one at a time keeps fewer"
+    );
 }
 
 // ------------------------------------------------------------ simulated comparisons
@@ -396,7 +408,9 @@ fn kc_closed_vector_chi2_has_its_degrees_of_freedom_and_u_d_covers() {
         let dof = ((FACES - 1) * 5) as f64;
         let mean = sum / trials as f64;
         let coverage = covered as f64 / does as f64;
-        eprintln!("varying u {varying}: mean vector χ² {mean:.2} (ν = {dof}), coverage {coverage:.4}");
+        eprintln!(
+            "varying u {varying}: mean vector χ² {mean:.2} (ν = {dof}), coverage {coverage:.4}"
+        );
         let standard_error = (2.0 * dof / trials as f64).sqrt();
         assert!((mean - dof).abs() < 4.0 * standard_error, "{mean}");
         assert!((mean - (FACES * 5) as f64).abs() > 10.0 * standard_error);
@@ -438,9 +452,19 @@ fn kc_pilot_repeats_are_one_test_of_their_closed_vectors() {
     assert_eq!(report.degrees_of_equivalence.len(), 2);
     assert!(!report.degrees_of_equivalence[1].in_reference);
     // Repeats that agree: u_stab = 0 everywhere.
-    let same = [lab("start", &values[0], &u[0]), lab("end", &values[0], &u[0])];
+    let same = [
+        lab("start", &values[0], &u[0]),
+        lab("end", &values[0], &u[0]),
+    ];
     let kc = evaluate(&labs, &same, &KcOptions::new()).unwrap();
-    assert!(kc.pilot.as_ref().unwrap().stability_u.iter().all(|s| *s == 0.0));
+    assert!(
+        kc.pilot
+            .as_ref()
+            .unwrap()
+            .stability_u
+            .iter()
+            .all(|s| *s == 0.0)
+    );
     // One repeat is no stability test.
     assert!(evaluate(&labs, &pilot[..1], &KcOptions::new()).is_err());
 }
@@ -491,7 +515,11 @@ fn kc_encoder_errors_are_matched_by_angle_compared_less_their_mean() {
     );
     // Each less its mean (0.25, 0.26, 5.245), then the weighted mean of equal u.
     let expected = ((0.1 - 0.25) + (0.12 - 0.26) + (5.11 - 5.245)) / 3.0;
-    assert!((kc.reference[0] - expected).abs() < 1e-12, "{}", kc.reference[0]);
+    assert!(
+        (kc.reference[0] - expected).abs() < 1e-12,
+        "{}",
+        kc.reference[0]
+    );
     assert!(kc.excluded.is_empty(), "{:?}", kc.excluded);
     assert!(kc.comparison_consistent);
     assert_eq!(kc.vector_all.as_ref().unwrap().dof, 3 * 2);
@@ -529,8 +557,13 @@ fn kc_tiny_uncertainties_are_computed_in_scaled_form_or_refused() {
             lab(&format!("L{i}"), &values[i], &s)
         })
         .collect();
-    let error = evaluate(&tiny, &[], &KcOptions::new()).unwrap_err().to_string();
-    assert!(error.contains("L0 (row 1)") && error.contains("below 1e-9″"), "{error}");
+    let error = evaluate(&tiny, &[], &KcOptions::new())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("L0 (row 1)") && error.contains("below 1e-9″"),
+        "{error}"
+    );
 }
 
 /// 3 000 faces, 8 laboratories: the closed vector without an N × N matrix (a dense GLS

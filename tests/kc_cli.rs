@@ -95,7 +95,10 @@ fn kc_the_bundled_example_in_json_table_and_csv() {
     assert_eq!(json["vector_all"]["dof"], 55);
     assert_eq!(json["vector_all"]["consistent"], false);
     assert_eq!(json["search"]["method"], "exhaustive");
-    assert_eq!(json["search"]["steps"][0]["best"], serde_json::json!(["A", "B", "C", "D", "E"]));
+    assert_eq!(
+        json["search"]["steps"][0]["best"],
+        serde_json::json!(["A", "B", "C", "D", "E"])
+    );
     assert_eq!(json["pairs"].as_array().unwrap().len(), 15);
 
     let out = polycal(&args);
@@ -130,7 +133,9 @@ fn kc_status_1_when_not_consistent_after_the_exclusions() {
         "{}",
         String::from_utf8_lossy(&out.stdout)
     );
-    assert!(String::from_utf8_lossy(&out.stdout).contains("NOT consistent: the closed vector of all 2"));
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("NOT consistent: the closed vector of all 2")
+    );
 }
 
 #[test]
@@ -406,9 +411,8 @@ fn kc_solve_json_with_a_budget_uses_u_from_its_expanded_uncertainty() {
         let u = expanded[f].as_f64().unwrap() / k[f].as_f64().unwrap();
         assert!(u > fit_u[f].as_f64().unwrap(), "the budget adds to the fit");
         // (P·diag(e²)·P)_ff = e_f²(1 − 2/N) + Σ e²/N²
-        let v_ff = covariance[f][f].as_f64().unwrap()
-            + excess[f] * (1.0 - 2.0 / n as f64)
-            + mean_excess;
+        let v_ff =
+            covariance[f][f].as_f64().unwrap() + excess[f] * (1.0 - 2.0 / n as f64) + mean_excess;
         let want = 2f64.sqrt() * v_ff.sqrt();
         let g = got[f].as_f64().unwrap();
         assert!(

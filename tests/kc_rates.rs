@@ -54,7 +54,11 @@ fn kc_a_laboratory_is_left_out_of_consistent_comparisons_at_five_percent() {
         rate(per_face_any)
     );
     assert!(near(rate(left_out), 0.05, 0.015), "{}", rate(left_out));
-    assert!(near(rate(dl_status_1), 0.05, 0.015), "{}", rate(dl_status_1));
+    assert!(
+        near(rate(dl_status_1), 0.05, 0.015),
+        "{}",
+        rate(dl_status_1)
+    );
     assert!(rate(not_consistent) <= 0.05 + 0.015);
 }
 
@@ -92,11 +96,23 @@ fn kc_a_biased_laboratory_is_left_out_and_an_innocent_one_is_not() {
         measured.push((amount, alone, innocent));
     }
     let (_, alone_3u, innocent_3u) = measured[0];
-    assert!(alone_3u >= 0.3, "3u on 3 faces left out alone in {alone_3u}");
-    assert!(innocent_3u <= 0.085, "3u: innocent left out in {innocent_3u}");
+    assert!(
+        alone_3u >= 0.3,
+        "3u on 3 faces left out alone in {alone_3u}"
+    );
+    assert!(
+        innocent_3u <= 0.085,
+        "3u: innocent left out in {innocent_3u}"
+    );
     let (_, alone_5u, innocent_5u) = measured[1];
-    assert!(alone_5u >= 0.8, "5u on 3 faces left out alone in {alone_5u}");
-    assert!(innocent_5u <= 0.065, "5u: innocent left out in {innocent_5u}");
+    assert!(
+        alone_5u >= 0.8,
+        "5u on 3 faces left out alone in {alone_5u}"
+    );
+    assert!(
+        innocent_5u <= 0.065,
+        "5u: innocent left out in {innocent_5u}"
+    );
 }
 
 /// The pilot's repeats of a stable artefact (3 repeats, 12 faces, u = 0.05″) called

@@ -172,8 +172,8 @@ fn additive(x: &[&[f64]], u: &[&[f64]]) -> Option<ClosedFit> {
     let mut row_sum = vec![0.0; faces]; // (A′⁻¹ 1)_k
     let mut zt_one = vec![0.0; rest]; // Zᵀ 1
     for k in 0..faces {
-        for p in 0..rest {
-            zt_one[p] += z(k, p);
+        for (p, sum) in zt_one.iter_mut().enumerate() {
+            *sum += z(k, p);
         }
     }
     let m_zt_one = &m_inverse * DVector::from_column_slice(&zt_one);
@@ -272,18 +272,33 @@ mod tests {
     #[test]
     fn kc_closed_additive_fit_is_the_dense_gls() {
         let u: Vec<Vec<f64>> = (0..4)
-            .map(|i| (0..7).map(|k| 0.05 + 0.02 * i as f64 + 0.013 * k as f64).collect())
+            .map(|i| {
+                (0..7)
+                    .map(|k| 0.05 + 0.02 * i as f64 + 0.013 * k as f64)
+                    .collect()
+            })
             .collect();
         let x: Vec<Vec<f64>> = (0..4)
-            .map(|i| closed(&(0..7).map(|k| ((i * 7 + k) as f64).sin() * 0.1).collect::<Vec<_>>()))
+            .map(|i| {
+                closed(
+                    &(0..7)
+                        .map(|k| ((i * 7 + k) as f64).sin() * 0.1)
+                        .collect::<Vec<_>>(),
+                )
+            })
             .collect();
-        let covariances: Vec<ClosedCovariance> =
-            u.iter().map(|u| ClosedCovariance::Stated(u.clone())).collect();
+        let covariances: Vec<ClosedCovariance> = u
+            .iter()
+            .map(|u| ClosedCovariance::Stated(u.clone()))
+            .collect();
         let xs: Vec<&[f64]> = x.iter().map(Vec::as_slice).collect();
         let vs: Vec<&ClosedCovariance> = covariances.iter().collect();
         let fast = additive(&xs, &u.iter().map(Vec::as_slice).collect::<Vec<_>>()).unwrap();
         let slow = dense(&xs, &vs).unwrap();
-        assert!((fast.chi2 - slow.chi2).abs() < 1e-9 * slow.chi2, "{fast:?} {slow:?}");
+        assert!(
+            (fast.chi2 - slow.chi2).abs() < 1e-9 * slow.chi2,
+            "{fast:?} {slow:?}"
+        );
         for k in 0..7 {
             assert!((fast.reference[k] - slow.reference[k]).abs() < 1e-12);
             let (a, b) = (fast.reference_variance[k], slow.reference_variance[k]);

@@ -98,7 +98,12 @@ pub fn evaluate(
 }
 
 /// The estimates of every quantity from the results `inside` (values and u as given).
-fn estimates(values: &[Vec<f64>], u: &[Vec<f64>], inside: &[usize], random_effects: bool) -> Vec<Estimate> {
+fn estimates(
+    values: &[Vec<f64>],
+    u: &[Vec<f64>],
+    inside: &[usize],
+    random_effects: bool,
+) -> Vec<Estimate> {
     (0..values.first().map_or(0, Vec::len))
         .map(|k| {
             let x: Vec<f64> = inside.iter().map(|&r| values[r][k]).collect();
@@ -159,7 +164,12 @@ fn evaluate_aligned(
         .iter()
         .flatten()
         .copied()
-        .chain(covariances.iter().flatten().map(|v| v.diagonal().amax().sqrt()))
+        .chain(
+            covariances
+                .iter()
+                .flatten()
+                .map(|v| v.diagonal().amax().sqrt()),
+        )
         .fold(0.0, f64::max);
     let values: Vec<Vec<f64>> = aligned
         .values
@@ -209,11 +219,13 @@ fn evaluate_aligned(
         closed::fit(&x, &c)
     };
     let everyone: Vec<usize> = (0..labs.len()).collect();
-    let not_fitted = || KcError::NotComputable(
-        "the closed vector of the laboratories cannot be fitted (a covariance singular on the \
+    let not_fitted = || {
+        KcError::NotComputable(
+            "the closed vector of the laboratories cannot be fitted (a covariance singular on the \
          closed subspace, or numbers out of range)"
-            .to_string(),
-    );
+                .to_string(),
+        )
+    };
     let all_fit = fit_of(&everyone, &stated).ok_or_else(not_fitted)?;
     let vector_all = vector_test(&all_fit, scale);
 

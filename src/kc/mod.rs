@@ -64,8 +64,8 @@ use crate::results::{Quantity, ResultFile, ResultRow};
 
 pub use covariance::lab_from_solve_json;
 pub use evaluate::evaluate;
-pub use reference::{chi2_quantile_95, closed_covariance};
 pub use input::MIN_STANDARD_U_ARCSEC;
+pub use reference::{chi2_quantile_95, closed_covariance};
 pub use search::{SearchMethod, SearchStep, SubsetSearch};
 
 /// How the reference value of each quantity is formed.
@@ -469,7 +469,11 @@ impl KeyComparison {
         let all = match &self.vector_all {
             Some(v) => format!(
                 "the closed vector of all {n} laboratories {} (χ² = {:.2} {} χ²_0.95({}) = {:.2})",
-                if v.consistent { "passes its test at 5 %" } else { "fails its test at 5 %" },
+                if v.consistent {
+                    "passes its test at 5 %"
+                } else {
+                    "fails its test at 5 %"
+                },
                 v.chi2,
                 if v.consistent { "≤" } else { ">" },
                 v.dof,

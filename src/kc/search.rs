@@ -133,7 +133,8 @@ pub(crate) fn largest_consistent(
         let mut best: Option<(Vec<usize>, ClosedFit)> = None;
         let mut best_passing: Option<(Vec<usize>, ClosedFit)> = None;
         let mut subsets = 0;
-        if method == SearchMethod::Exhaustive && tested.saturating_add(count) <= EXHAUSTIVE_SUBSETS {
+        if method == SearchMethod::Exhaustive && tested.saturating_add(count) <= EXHAUSTIVE_SUBSETS
+        {
             for_each_subset(&free, take, |chosen| {
                 let mut subset: Vec<usize> = kept.iter().chain(chosen).copied().collect();
                 subset.sort_unstable();

@@ -89,11 +89,7 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     writeln!(out, "{}", table(&header, &rows, &right))?;
 
     if let Some(v) = &kc.vector_all {
-        writeln!(
-            out,
-            "Every laboratory: {}",
-            v.statement()
-        )?;
+        writeln!(out, "Every laboratory: {}", v.statement())?;
     }
     if let Some(search) = &kc.search {
         writeln!(

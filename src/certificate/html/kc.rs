@@ -259,7 +259,11 @@ fn exclusions(out: &mut String, kc: &KeyComparison) {
             let _ = writeln!(
                 out,
                 "<tr{}><td>{}</td><td>{}</td>{}<td class=\"num\">{}</td>{}<td>{}</td></tr>",
-                if step.consistent { "" } else { " class=\"fail\"" },
+                if step.consistent {
+                    ""
+                } else {
+                    " class=\"fail\""
+                },
                 step.size,
                 esc(&step.best.join(", ")),
                 num(Some(step.chi2), CHI2_DECIMALS),
