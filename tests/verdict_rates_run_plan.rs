@@ -32,6 +32,11 @@ const LIVE_CYCLES: u32 = 3;
 const LIVE_RUNS: u64 = 1000;
 /// The sizes of the reading off in the power runs, in σ.
 const LIVE_OFF_SIGMAS: [f64; 2] = [8.0, 12.0];
+/// The power stated for each size (docs/verdicts.md), held to ± 1.5 %. The limit is
+/// 6σ on the residual itself, which leverage shrinks by 1 − h (h ≈ 0.5 after cycle 2,
+/// 0.31 after cycle 3 of this design): a reading 8σ off leaves a residual of about
+/// 4σ … 5.5σ, and is measured again in about a fifth of the runs.
+const LIVE_POWER_STATED: [f64; 2] = [0.19, 0.93];
 
 fn live_config(seed: u64) -> SimulationConfig {
     SimulationConfig {
@@ -106,7 +111,7 @@ fn live_rates(reading_noise: f64) -> (usize, Vec<usize>) {
 }
 
 #[test]
-fn the_live_re_measure_keeps_its_false_alarm_rate() {
+fn the_live_re_measure_keeps_its_false_alarm_rate_and_its_stated_power() {
     let n = LIVE_RUNS as f64;
     // The stated noise right (the stored reading's σ is the simulated one), then far
     // below the truth (σ is the robust estimate alone).
@@ -128,6 +133,15 @@ fn the_live_re_measure_keeps_its_false_alarm_rate() {
         // Nominal: 2Φ(−6) = 2.0e-9 per reading and check, under 1e-6 per run of 78
         // readings checked after each cycle; held to it + 1.5 %.
         assert!(alarm_rate <= 0.015, "false alarm {alarm_rate}{what}");
+        if what.is_empty() {
+            for ((size, f), stated) in LIVE_OFF_SIGMAS.iter().zip(&found).zip(LIVE_POWER_STATED) {
+                let power = *f as f64 / n;
+                assert!(
+                    (power - stated).abs() <= 0.015,
+                    "power {power} at {size}σ, stated {stated}"
+                );
+            }
+        }
     }
 }
 
