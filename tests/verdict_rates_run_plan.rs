@@ -2,10 +2,10 @@
 //!
 //! - `run`'s live re-measure (`lab::run::to_measure_again`, the loop's own decision after
 //!   every cycle): the fraction of clean runs in which any reading is measured again
-//!   (its false alarms per run), and the fraction of runs with one reading off by 8σ in
-//!   which that reading's stop is measured again (its power);
+//!   (its false alarms per run), and the fraction of runs with one reading off by 8σ (and
+//!   12σ) in which that reading's stop is measured again (its power);
 //! - `plan`'s "detectable" (the size found in 90 %): `diagnose` itself on runs of the
-//!   design with a drift at the planned size, and on their clean twins.
+//!   design with a drift, and with a jump, at the planned size, and on their clean twins.
 //!
 //! Fixed seeds; each prints its figures in one stable line.
 
