@@ -146,6 +146,23 @@ fn kc_refusals_are_one_error_line_naming_file_and_line() {
     let zero = scratch("zero.csv", &result(12, None, Some(3)));
     let lab = |name: &str, path: &str| format!("{name}={path}");
 
+    // a standard uncertainty below 1e-9″ (U = 1e-12 at k = 2 on face 4, line 5)
+    let tiny = scratch(
+        "tiny.csv",
+        &result(12, None, None).replace("pitch_deviation,4,0,0.2,2", "pitch_deviation,4,0,1e-12,2"),
+    );
+    let message = refused(&["kc", &lab("A", &twelve), &lab("B", &tiny)]);
+    assert!(
+        message.contains(&format!("{tiny}:5")) && message.contains("below 1e-9″"),
+        "{message}"
+    );
+    // --keep of a name that is not a laboratory's
+    let message = refused(&["kc", &lab("A", &twelve), &lab("B", &twelve), "--keep", "Z"]);
+    assert!(
+        message.contains("\"Z\"") && message.contains("--keep"),
+        "{message}"
+    );
+
     let message = refused(&["kc", &lab("A", &twelve), &lab("B", &eight)]);
     assert!(message.contains(&format!("{eight}:9:")), "{message}");
     assert!(

@@ -147,9 +147,11 @@ pub fn run(args: &KcArgs) -> Result<u8> {
         polycal::kc::KcError::TooFewRepeats(_) => {
             super::with_hint(e, "--pilot", "give --pilot twice or more, or not at all")
         }
-        polycal::kc::KcError::UnknownKeep(_) => {
-            super::with_hint(e, "--keep", "name a laboratory given as NAME=RESULT.csv")
-        }
+        polycal::kc::KcError::UnknownKeep(_) => super::with_hint(
+            e,
+            "--keep",
+            "--keep takes a laboratory given as NAME=RESULT.csv",
+        ),
         e => e.into(),
     })?;
     if let Some(dir) = &args.plot {
