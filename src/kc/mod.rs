@@ -44,7 +44,7 @@
 mod covariance;
 mod evaluate;
 mod input;
-mod reference;
+pub(crate) mod reference;
 
 use serde::{Deserialize, Serialize};
 
