@@ -942,10 +942,17 @@ fn compare_vector_verdict_and_the_per_row_rule_through_the_binary() {
     let (json, status) = run(&one_off, &["--verdict", "en"]);
     assert_eq!(status, 1);
     assert_eq!(json["verdict"], "en");
-    assert_eq!(json["vector"]["consistent"], true, "stated beside the per-row rule");
+    assert_eq!(
+        json["vector"]["consistent"], true,
+        "stated beside the per-row rule"
+    );
 
     // The table states the verdict in one line.
-    let out = polycal(&["compare", alternating.to_str().unwrap(), zero.to_str().unwrap()]);
+    let out = polycal(&[
+        "compare",
+        alternating.to_str().unwrap(),
+        zero.to_str().unwrap(),
+    ]);
     let table = String::from_utf8(out.stdout).unwrap();
     assert!(
         table.contains(

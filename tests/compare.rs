@@ -474,15 +474,25 @@ fn encoder_errors_are_matched_by_angle_24_against_168() {
     // among 24, Σ (d − d̄)² = 0.5²·23/24, and χ² = 0.5²·(23/24)/v = 3.76, ν = 23.
     let v = 24.0 / 23.0 * 0.15f64.powi(2) + 168.0 / 167.0 * 0.2f64.powi(2);
     let vector = c.vector.as_ref().unwrap();
-    assert!((vector.chi2 - 0.25 * 23.0 / 24.0 / v).abs() < 1e-12, "{}", vector.chi2);
+    assert!(
+        (vector.chi2 - 0.25 * 23.0 / 24.0 / v).abs() < 1e-12,
+        "{}",
+        vector.chi2
+    );
     assert_eq!(vector.dof, 23);
     assert!(c.verdict_ok(), "one row at 1.2 U among 24 is chance");
     assert_eq!(c.en_exceeding, 1);
     // Each row: s = 1/2 (k = 2 on both sides), P(|En| > 1) = erfc(2/√2) = 4.55 % (statrs's
     // erfc is good to about 1e-10 here).
     let expected = c.en_expected.unwrap();
-    assert!((expected - 24.0 * 0.045_500_263_896_358_4).abs() < 1e-9, "{expected}");
-    assert!(!compare_files(&fa, &fb, &en_rule()).unwrap().verdict_ok(), "45° differs by 1.2 U");
+    assert!(
+        (expected - 24.0 * 0.045_500_263_896_358_4).abs() < 1e-9,
+        "{expected}"
+    );
+    assert!(
+        !compare_files(&fa, &fb, &en_rule()).unwrap().verdict_ok(),
+        "45° differs by 1.2 U"
+    );
 
     // The unmatched rows, as unmatched rows always are.
     assert_eq!(c.only_in_b.len(), 144);
@@ -641,7 +651,10 @@ fn setup_errors_are_left_out_of_the_verdict_unless_included() {
     let vector = c.vector.as_ref().unwrap();
     assert!((vector.chi2 - 0.8).abs() < 1e-12, "{}", vector.chi2);
     assert_eq!(vector.dof, 2);
-    assert!(table.contains("Verdict: consistent: χ² = 0.80 ≤ χ²_0.95(2) = 5.99"), "{table}");
+    assert!(
+        table.contains("Verdict: consistent: χ² = 0.80 ≤ χ²_0.95(2) = 5.99"),
+        "{table}"
+    );
 
     let included = CompareOptions::new().with_include_setup(true);
     let c = compare_files(&fa, &fb, &included).unwrap();
@@ -654,7 +667,11 @@ fn setup_errors_are_left_out_of_the_verdict_unless_included() {
     assert!((vector.chi2 - 6.0).abs() < 1e-12, "{}", vector.chi2);
     assert_eq!(vector.dof, 4);
     assert!(c.verdict_ok());
-    assert!(!compare_files(&fa, &fb, &included.clone().with_verdict(VerdictRule::En)).unwrap().verdict_ok());
+    assert!(
+        !compare_files(&fa, &fb, &included.clone().with_verdict(VerdictRule::En))
+            .unwrap()
+            .verdict_ok()
+    );
     let mut table = String::new();
     polycal::output::compare::write_table(&mut table, &c).unwrap();
     assert!(table.contains("1.10 *"), "{table}");

@@ -47,16 +47,28 @@ fn four_faces_by_hand() {
     let b = pitch(&[0.0; 4], &[0.1; 4]);
     let c = compare(&a, &b, &CompareOptions::default()).unwrap();
     let vector = c.vector.as_ref().unwrap();
-    assert!((vector.chi2 - 459.0 / 70.0).abs() < 1e-12, "{}", vector.chi2);
+    assert!(
+        (vector.chi2 - 459.0 / 70.0).abs() < 1e-12,
+        "{}",
+        vector.chi2
+    );
     assert_eq!(vector.dof, 3);
     assert!((vector.critical - 7.814_727_903_251_178).abs() < 1e-9);
     assert!(vector.consistent && c.verdict_ok());
     assert_eq!(c.en_exceeding, 1);
     assert!((c.en_expected.unwrap() - 4.0 * 0.045_500_263_896_358_4).abs() < 1e-9);
     // The per-row rule fails the same comparison.
-    let c_en = compare(&a, &b, &CompareOptions::default().with_verdict(VerdictRule::En)).unwrap();
+    let c_en = compare(
+        &a,
+        &b,
+        &CompareOptions::default().with_verdict(VerdictRule::En),
+    )
+    .unwrap();
     assert!(!c_en.verdict_ok());
-    assert_eq!(c_en.vector, c.vector, "the vector is stated under either rule");
+    assert_eq!(
+        c_en.vector, c.vector,
+        "the vector is stated under either rule"
+    );
     assert_eq!(
         c.verdict_sentence(),
         "consistent: χ² = 6.56 ≤ χ²_0.95(3) = 7.81, the differences tested as one vector at \
@@ -154,9 +166,8 @@ fn agrees_with_a_dense_pseudo_inverse() {
     for trial in 0..10 {
         let (m_a, m_b) = (24usize, 72usize);
         let enc = |p: usize, m: usize, value: f64, u: f64| {
-            row(Quantity::EncoderError, p as u32, value, u, 2.0).with_angle_deg(
-                (p as f64) * 360.0 / m as f64,
-            )
+            row(Quantity::EncoderError, p as u32, value, u, 2.0)
+                .with_angle_deg((p as f64) * 360.0 / m as f64)
         };
         let u_a: Vec<f64> = (0..m_a).map(|_| rng.random_range(0.02..0.3)).collect();
         let u_b: Vec<f64> = (0..m_b).map(|_| rng.random_range(0.02..0.3)).collect();
@@ -302,8 +313,7 @@ fn thousands_of_positions_without_a_dense_matrix() {
             .iter()
             .enumerate()
             .map(|(p, v)| {
-                row(Quantity::EncoderError, p as u32, *v, u[p], 2.0)
-                    .with_angle_deg(p as f64 * 0.1)
+                row(Quantity::EncoderError, p as u32, *v, u[p], 2.0).with_angle_deg(p as f64 * 0.1)
             })
             .collect()
     };

@@ -37,8 +37,8 @@ use serde::Serialize;
 
 use crate::results::{ResultFile, ResultRow};
 use matching::Matcher;
-pub use vector::{FamilyTest, UnknownVerdictRule, VectorTest, VerdictRule};
 use vector::{FamilySizes, Pair};
+pub use vector::{FamilyTest, UnknownVerdictRule, VectorTest, VerdictRule};
 
 /// Options of a comparison: [`CompareOptions::new`] (or `default()`) and the `with_…`
 /// methods.

@@ -179,7 +179,10 @@ pub(super) fn vector_test(
             variances.push(variance);
         }
         let (chi2, dof) = if closed {
-            (closed_difference_chi2(&differences, &variances).0, rows.len() - 1)
+            (
+                closed_difference_chi2(&differences, &variances).0,
+                rows.len() - 1,
+            )
         } else {
             let chi2 = differences
                 .iter()
@@ -307,9 +310,7 @@ impl Comparison {
             (VerdictRule::En, vector) => {
                 let mut sentence = format!("{word} by the per-row rule (|En| ≤ 1): {exceeding}");
                 if let Some(vector) = vector {
-                    sentence.push_str(&format!(
-                        "; as one vector (not the verdict): {vector}"
-                    ));
+                    sentence.push_str(&format!("; as one vector (not the verdict): {vector}"));
                 }
                 sentence
             }
