@@ -11,7 +11,7 @@
 //! across them and vanish with the mean, so the covariance of the centred differences is
 //! P_n·D·P_n, D = diag(c_a·u_a² + c_b·u_b² − 2·r·√(c_a·c_b)·u_a·u_b), c = M/(M − 1), and
 //! χ² = dᵀ(P_n·D·P_n)⁺d = Σ w_i·(d_i − d̄_w)², w_i = 1/D_i, with ν = n − 1
-//! ([`crate::kc::reference::closed_difference_chi2`], Sherman–Morrison: O(n), no matrix).
+//! (`kc::reference::closed_difference_chi2`, Sherman–Morrison: O(n), no matrix).
 //! When both results have the same n rows (the usual case, faces 1 … N) this is the test of
 //! the closed vector with V_d = V_a + V_b exactly; with fewer rows in common (24 angles of a
 //! 168-position self-calibration) it costs the one degree of freedom of the mean.
@@ -247,7 +247,7 @@ pub(super) fn probability_en_exceeds_one(
     let variance = (ua * ua + ub * ub - 2.0 * r * ua * ub).max(0.0);
     let denominator = ea * ea + eb * eb - 2.0 * r * ea * eb;
     let s = (variance / denominator).sqrt();
-    if !(s > 0.0) {
+    if s.is_nan() || s <= 0.0 {
         return 0.0;
     }
     statrs::function::erf::erfc(1.0 / (s * std::f64::consts::SQRT_2))
