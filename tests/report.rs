@@ -624,6 +624,31 @@ fn bad_input_is_one_error_line_with_status_2() {
     let stderr = String::from_utf8(out.stderr).unwrap();
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.contains("--budget"), "{stderr}");
+    // a reference with U alone (no u, no k): the comparison's verdict needs u, named by
+    // the reference's line (docs/FORMAT.md §5.4)
+    let u_alone = dir.join("u-alone.csv");
+    std::fs::write(
+        &u_alone,
+        "quantity,index,value,U\npitch_deviation,1,0.8,0.1\npitch_deviation,2,-0.3,0.1\n",
+    )
+    .unwrap();
+    let out = polycal(&[
+        "report",
+        DATA,
+        "--budget",
+        BUDGET,
+        "--reference",
+        u_alone.to_str().unwrap(),
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("u-alone.csv:2: pitch_deviation 1 has U but no standard uncertainty"),
+        "{stderr}"
+    );
     // an endless stream is read to the limit (256 MiB) and refused, never to the end
     let out = polycal(&["report", "/dev/zero", "--out", out_path.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));

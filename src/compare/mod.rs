@@ -493,6 +493,16 @@ pub fn compare_files(
     compare_located(&a.rows, &b.rows, &options, Some(&a.lines), Some(&b.lines))
 }
 
+/// Compares rows in memory with a result file (see [`compare`]): a row of the file is named
+/// by its line (the report's reference).
+pub(crate) fn compare_with_file(
+    a: &[ResultRow],
+    b: &ResultFile,
+    options: &CompareOptions,
+) -> Result<Comparison, CompareError> {
+    compare_located(a, &b.rows, options, None, Some(&b.lines))
+}
+
 /// `file:line` of row `i`, or the label and row number for rows given in memory.
 fn location(label: &str, lines: Option<&[u64]>, i: usize) -> String {
     match lines.and_then(|l| l.get(i)) {
