@@ -298,6 +298,18 @@ fn every_number_is_the_jsons_and_every_section_is_there() {
         .text()
         .collect::<String>();
     assert!(verdict.contains(&shown(max, 2)), "{verdict}");
+    // the verdict in the very words of compare's table (docs/FORMAT.md §5.4)
+    let table =
+        String::from_utf8(polycal(&["compare", result.to_str().unwrap(), REFERENCE]).stdout)
+            .unwrap();
+    let verdict_line = table
+        .lines()
+        .find(|l| l.starts_with("Verdict: "))
+        .expect("the table states the verdict");
+    assert!(
+        verdict.starts_with(&format!("{verdict_line}. Largest |En| = ")),
+        "{verdict} vs {verdict_line}"
+    );
     // the budget: its U is the largest U of the family
     assert_eq!(
         budget_u(&html, "budget-encoder-error"),

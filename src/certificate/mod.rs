@@ -492,12 +492,13 @@ impl CalibrationReport {
                 };
                 let options =
                     CompareOptions::new().with_labels(shown.clone(), reference_name.clone());
-                let comparison = compare_with_file(&rows, &reference, &options).map_err(|source| {
-                    ReportError::Compare {
-                        reference: reference_given.clone(),
-                        source,
-                    }
-                })?;
+                let comparison =
+                    compare_with_file(&rows, &reference, &options).map_err(|source| {
+                        ReportError::Compare {
+                            reference: reference_given.clone(),
+                            source,
+                        }
+                    })?;
                 Some((comparison, reference_name))
             }
             None => None,
