@@ -744,15 +744,7 @@ fn compare_located(
                 })
                 .collect();
             let en_expected: f64 = in_verdict()
-                .filter_map(|row| {
-                    Some(vector::probability_en_exceeds_one(
-                        row.u_a?,
-                        row.u_b?,
-                        row.expanded_u_a,
-                        row.expanded_u_b,
-                        r,
-                    ))
-                })
+                .filter_map(|row| row.probability_en_exceeds_one(r))
                 .sum();
             vector::vector_test(
                 &pairs,
@@ -770,15 +762,7 @@ fn compare_located(
         (Err(error), VerdictRule::En) => {
             // The count expected by chance needs only the standard uncertainties.
             let expected = in_verdict()
-                .map(|row| {
-                    Some(vector::probability_en_exceeds_one(
-                        row.u_a?,
-                        row.u_b?,
-                        row.expanded_u_a,
-                        row.expanded_u_b,
-                        r,
-                    ))
-                })
+                .map(|row| row.probability_en_exceeds_one(r))
                 .sum::<Option<f64>>();
             (None, expected, Some(error.to_string()))
         }

@@ -227,7 +227,7 @@ pub(super) fn vector_test(
 /// The probability that a row of consistent results has |En| > 1: En is normal with mean
 /// 0 and standard deviation s = √(u_a² + u_b² − 2·r·u_a·u_b) / √(U_a² + U_b² − 2·r·U_a·U_b),
 /// so P(|En| > 1) = 2·(1 − Φ(1/s)) = erfc(1/(s·√2)); 4.55 % for k = 2 on both sides.
-pub(super) fn probability_en_exceeds_one(
+fn probability_en_exceeds_one(
     u_a: f64,
     u_b: f64,
     expanded_u_a: f64,
@@ -251,6 +251,22 @@ pub(super) fn probability_en_exceeds_one(
         return 0.0;
     }
     statrs::function::erf::erfc(1.0 / (s * std::f64::consts::SQRT_2))
+}
+
+impl super::ComparisonRow {
+    /// The probability that this row has |En| > 1 by chance when the results are
+    /// consistent, with the correlation `correlation` between them: 2·(1 − Φ(1/s)),
+    /// s = √(u_a² + u_b² − 2·r·u_a·u_b) / √(U_a² + U_b² − 2·r·U_a·U_b) (4.55 % for k = 2 on
+    /// both sides). `None` when a standard uncertainty is not known.
+    pub fn probability_en_exceeds_one(&self, correlation: f64) -> Option<f64> {
+        Some(probability_en_exceeds_one(
+            self.u_a?,
+            self.u_b?,
+            self.expanded_u_a,
+            self.expanded_u_b,
+            correlation,
+        ))
+    }
 }
 
 /// `1 row` or `n rows`.
