@@ -20,22 +20,24 @@
 //! for schemes that prescribe it.
 //!
 //! Encoder errors are matched by their table angle (`angle_deg`, within
-//! [`ANGLE_TOLERANCE_DEG`] around the circle) when every encoder error of both results
+//! [`ANGLE_TOLERANCE_DEG`](crate::results::ANGLE_TOLERANCE_DEG) around the circle) when every encoder error of both results
 //! carries one, so that results with different numbers of positions (a 24-position
 //! two-autocollimator calibration against a 168-position self-calibration) are compared
 //! at the angles they share; otherwise by index. Setup errors depend on the mounting: they
 //! are listed, but left out of the verdict and of the largest |En| unless
 //! [`CompareOptions::with_include_setup`] asks for them.
 
+mod error;
 mod matching;
 pub mod vector;
 
 use std::collections::HashMap;
 
-use crate::results::{ANGLE_TOLERANCE_DEG, AngleCheck, Quantity};
+use crate::results::{AngleCheck, Quantity};
 use serde::Serialize;
 
 use crate::results::{ResultFile, ResultRow};
+pub use error::CompareError;
 use matching::Matcher;
 use vector::{FamilySizes, Pair};
 pub use vector::{FamilyTest, UnknownVerdictRule, VectorTest, VerdictRule};
@@ -108,7 +110,7 @@ impl CompareOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum EncoderMatching {
-    /// By table angle (`angle_deg` within [`ANGLE_TOLERANCE_DEG`]): every encoder error
+    /// By table angle (`angle_deg` within [`ANGLE_TOLERANCE_DEG`](crate::results::ANGLE_TOLERANCE_DEG)): every encoder error
     /// of both results carries one.
     Angle,
     /// By index: at least one of the results has encoder errors without an angle (or has
@@ -129,7 +131,7 @@ pub struct ComparisonRow {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub index_b: Option<u32>,
     /// The table angle of an encoder error matched by angle, degrees: the first result's
-    /// (the second's is within [`ANGLE_TOLERANCE_DEG`] of it); present only then.
+    /// (the second's is within [`ANGLE_TOLERANCE_DEG`](crate::results::ANGLE_TOLERANCE_DEG) of it); present only then.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub angle_deg: Option<f64>,
     /// Value in the first result.
@@ -217,167 +219,6 @@ pub struct Comparison {
 
 fn is_zero(x: &f64) -> bool {
     *x == 0.0
-}
-
-/// Why two results cannot be compared.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[non_exhaustive]
-pub enum CompareError {
-    /// A row in the verdict has `U` but no standard uncertainty: neither `u` nor a coverage
-    /// factor `k` (the vector's test needs u = U/k).
-    #[error(
-        "{location}: {quantity} {index} has U but no standard uncertainty (neither u nor k): the \
-         verdict's vector test needs u, or U with its coverage factor k (columns u, k)"
-    )]
-    NoStandardU {
-        /// `file:line`, or the label and row number.
-        location: String,
-        /// The quantity.
-        quantity: Quantity,
-        /// Its index.
-        index: u32,
-    },
-    /// The difference of a row in the vector's test has no variance (or one beyond the
-    /// range of numbers beside the family's largest u).
-    #[error(
-        "{quantity} {index}: the difference has no variance for the vector test \
-         (u_a = {u_a}, u_b = {u_b}, r = {r}): the test would divide by zero"
-    )]
-    NoVariance {
-        /// The quantity.
-        quantity: Quantity,
-        /// Its index.
-        index: u32,
-        /// Standard uncertainty in the first result, arcseconds.
-        u_a: f64,
-        /// Standard uncertainty in the second result, arcseconds.
-        u_b: f64,
-        /// The correlation coefficient.
-        r: f64,
-    },
-    /// The vector's χ² of a family is beyond the range of numbers: its differences are more
-    /// than about 1e150 times their standard uncertainties.
-    #[error(
-        "the {quantity} differences are more than about 1e150 times their standard \
-         uncertainties: the vector's χ² is beyond the range of numbers"
-    )]
-    Chi2OutOfRange {
-        /// The family.
-        quantity: Quantity,
-    },
-    /// No family can be tested as a vector: fewer than 2 pitch deviations and fewer than 2
-    /// encoder errors in common (and no setup errors counted).
-    #[error(
-        "{a} and {b} have nothing to test as one vector: the verdict needs 2 or more pitch \
-         deviations or encoder errors in common (face deviations are the pitch deviations \
-         accumulated and do not enter it; setup errors enter only when counted)"
-    )]
-    NoVector {
-        /// First label.
-        a: String,
-        /// Second label.
-        b: String,
-    },
-    /// A row has no expanded uncertainty.
-    #[error(
-        "{location}: {quantity} {index} has no expanded uncertainty U: compare needs U for \
-         every row (column U)"
-    )]
-    MissingU {
-        /// `file:line`, or the label and row number.
-        location: String,
-        /// The quantity.
-        quantity: Quantity,
-        /// Its index.
-        index: u32,
-    },
-    /// A `(quantity, index)` appears twice in one result.
-    #[error("{location}: {quantity} {index} appears twice")]
-    Duplicate {
-        /// `file:line`, or the label and row number.
-        location: String,
-        /// The quantity.
-        quantity: Quantity,
-        /// Its index.
-        index: u32,
-    },
-    /// The denominator of En is zero.
-    #[error(
-        "{quantity} {index}: En is undefined, U_a² + U_b² − 2·r·U_a·U_b = {denominator} \
-         (U_a = {expanded_u_a}, U_b = {expanded_u_b}, r = {r})"
-    )]
-    Undefined {
-        /// The quantity.
-        quantity: Quantity,
-        /// Its index.
-        index: u32,
-        /// `U_a² + U_b² − 2·r·U_a·U_b`.
-        denominator: f64,
-        /// `U_a`.
-        expanded_u_a: f64,
-        /// `U_b`.
-        expanded_u_b: f64,
-        /// `r`.
-        r: f64,
-    },
-    /// No quantity is in both results.
-    #[error("{a} and {b} have no (quantity, index) in common: nothing to compare")]
-    NothingInCommon {
-        /// First label.
-        a: String,
-        /// Second label.
-        b: String,
-    },
-    /// The correlation coefficient is not in [−1, 1].
-    #[error(
-        "the correlation coefficient must be between -1 and 1, got {}",
-        crate::input::limits::show(*.0)
-    )]
-    Correlation(f64),
-    /// The rows in common are setup errors only, and they are left out of the verdict:
-    /// there is nothing to judge.
-    #[error(
-        "{a} and {b} have only setup errors in common, and setup errors are left out of the \
-         verdict (they depend on the mounting): nothing to judge"
-    )]
-    OnlySetupInCommon {
-        /// First label.
-        a: String,
-        /// Second label.
-        b: String,
-    },
-    /// A row breaks the angle rules of a result (docs/FORMAT.md §3.2): an angle outside
-    /// 0 ≤ angle < 360 or on a row that is not an encoder error, encoder errors with and
-    /// without angles in one result, two at one position. (Only rows given as slices can;
-    /// a result file that does is refused when read.)
-    #[error("{location}: {reason}")]
-    Angle {
-        /// The label and row number.
-        location: String,
-        /// What is wrong.
-        reason: String,
-    },
-    /// An encoder error is within the matching tolerance of two encoder errors of the
-    /// other result, so matching by angle would have to guess.
-    #[error(
-        "{label}: encoder_error {index} at {angle_deg}° is within {tolerance:e}° of two encoder \
-         errors of {other}, {first} and {second}: matching by angle would be a guess",
-        tolerance = ANGLE_TOLERANCE_DEG
-    )]
-    AmbiguousAngle {
-        /// The result of the encoder error.
-        label: String,
-        /// Its index.
-        index: u32,
-        /// Its angle, degrees.
-        angle_deg: f64,
-        /// The other result.
-        other: String,
-        /// The smaller index of two encoder errors of the other result near it.
-        first: u32,
-        /// The larger.
-        second: u32,
-    },
 }
 
 /// Compares two results quantity by quantity: En for every `(quantity, index)` in both,
