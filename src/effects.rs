@@ -354,6 +354,47 @@ impl Effect {
         }
     }
 
+    /// The effect's name without its value, in the words every report uses, e.g.
+    /// `drift of autocollimator 2` or `offset-step of autocollimator 1 from cycle 3`.
+    pub fn label(&self) -> String {
+        match self {
+            Effect::Drift { ac, .. } => format!("drift of autocollimator {ac}"),
+            Effect::OffsetStep {
+                ac,
+                cycle,
+                step,
+                setup,
+                ..
+            } => format!(
+                "offset-step of autocollimator {ac} from {}cycle {cycle}{}",
+                setup.map_or(String::new(), |s| format!("setup {s}, ")),
+                step.map_or(String::new(), |s| format!(", step {s}"))
+            ),
+            Effect::Temperature { ac, .. } => {
+                format!("temperature coefficient of autocollimator {ac}")
+            }
+            Effect::CrossTalk { ac, .. } => format!("cross-talk of autocollimator {ac}"),
+            Effect::Rezero { ac, setup, .. } => format!(
+                "zero of autocollimator {ac}{} set anew every cycle",
+                setup.map_or(String::new(), |s| format!(" in setup {s}"))
+            ),
+            Effect::Direction { ac: None, .. } => "direction (ccw − cw)".into(),
+            Effect::Direction { ac: Some(ac), .. } => {
+                format!("direction (ccw − cw) of autocollimator {ac}")
+            }
+            Effect::Outlier {
+                cycle,
+                step,
+                ac,
+                setup,
+                ..
+            } => format!(
+                "outlier at {}cycle {cycle}, step {step}, autocollimator {ac}",
+                setup.map_or(String::new(), |s| format!("setup {s}, "))
+            ),
+        }
+    }
+
     /// Parses a command-line spec of an effect of kind `kind` (one of [`KINDS`]):
     ///
     /// | kind | spec | example |

@@ -12,7 +12,7 @@ use polycal::lab::WriteBudget;
 use polycal::lab::run::{
     self, Attendant, Mounting, Outcome, Progress, Remount, RunDir, RunError, RunSettings,
 };
-use polycal::lab::sim::{Devices, LabConfig, World};
+use polycal::lab::sim::{Devices, LabConfig, RemountError, World};
 use polycal::simulate::{SimulationConfig, Truth};
 use polycal::solve::SolveOptions;
 use polycal::solve::sub_pitch::solve_shifted;
@@ -157,6 +157,26 @@ fn assert_every_reading_at_its_place(set: &MeasurementSet, truth: &Truth, shift:
             "{r:?}: expected {expected}"
         );
     }
+}
+
+/// The lab mounts the polygon as its next setup, and refuses a remount past its last
+/// with a typed error that says how many mountings it simulates.
+#[test]
+fn the_lab_refuses_a_remount_past_its_last_mounting() {
+    let devices = Devices::new(two_mountings(22.5)).unwrap();
+    assert_eq!(devices.remount(), Ok(2));
+    let refused = devices.remount().unwrap_err();
+    assert_eq!(
+        refused,
+        RemountError::LastMounting {
+            setups: 2,
+            mounting: 2
+        }
+    );
+    assert_eq!(
+        refused.to_string(),
+        "the lab simulates 2 mounting(s), and mounting 2 is on the table"
+    );
 }
 
 #[test]

@@ -90,13 +90,22 @@ fn kc_the_bundled_example_in_json_table_and_csv() {
     }
     assert_eq!(json["index"].as_array().unwrap().len(), 12);
     assert_eq!(json["excluded"][0]["lab"], "F");
+    assert_eq!(json["excluded"].as_array().unwrap().len(), 1);
     assert_eq!(json["vector"]["dof"], 44);
+    assert_eq!(json["vector_all"]["dof"], 55);
+    assert_eq!(json["vector_all"]["consistent"], false);
+    assert_eq!(json["search"]["method"], "exhaustive");
+    assert_eq!(
+        json["search"]["steps"][0]["best"],
+        serde_json::json!(["A", "B", "C", "D", "E"])
+    );
     assert_eq!(json["pairs"].as_array().unwrap().len(), 15);
 
     let out = polycal(&args);
     assert_eq!(out.status.code(), Some(0));
     let table = String::from_utf8(out.stdout).unwrap();
-    assert!(table.contains("Excluded (largest consistent subset, in order):"));
+    assert!(table.contains("Excluded (left out of every quantity):"));
+    assert!(table.contains("Consistent after leaving out F: the closed vector of all 6"));
     assert!(table.contains("Cox 2002"));
 
     let mut csv_args = args.clone();
@@ -113,9 +122,9 @@ fn kc_the_bundled_example_in_json_table_and_csv() {
 
 #[test]
 fn kc_status_1_when_not_consistent_after_the_exclusions() {
-    // Two laboratories cannot be reduced: 0.5″ apart with u = 0.1″.
+    // Two laboratories cannot be reduced: 1″ apart on one face with u = 0.1″.
     let a = scratch("far-a.csv", &result(6, None, None));
-    let far = result(6, None, None).replace("pitch_deviation,1,0,", "pitch_deviation,1,0.5,");
+    let far = result(6, None, None).replace("pitch_deviation,1,0,", "pitch_deviation,1,1.0,");
     let b = scratch("far-b.csv", &far);
     let out = polycal(&["kc", &format!("A={a}"), &format!("B={b}")]);
     assert_eq!(
@@ -124,7 +133,9 @@ fn kc_status_1_when_not_consistent_after_the_exclusions() {
         "{}",
         String::from_utf8_lossy(&out.stdout)
     );
-    assert!(String::from_utf8_lossy(&out.stdout).contains("Not consistent"));
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("NOT consistent: the closed vector of all 2")
+    );
 }
 
 #[test]
@@ -353,9 +364,9 @@ fn kc_method_and_quantity_words_are_the_librarys() {
     }
 }
 
-/// A solve JSON with a budget: its u is the budget's U/k (not the fit's u), so two copies
-/// of one result give U(d) = 2·√(u² − u²/2) = √2·U/k on every face; its covariance, the
-/// fit's plus the budget's excess closed, passes the checks.
+/// A solve JSON with a budget: its u is the budget's U/k (not the fit's u); its covariance
+/// is the fit's plus the budget's excess e_f² = u_f² − C_ff closed, V = C + P·diag(e²)·P,
+/// so two copies of one result give U(d) = 2·√(V_ff − V_ff/2) = √2·√V_ff on every face.
 #[test]
 fn kc_solve_json_with_a_budget_uses_u_from_its_expanded_uncertainty() {
     let text = stdout_of(&[
@@ -387,10 +398,22 @@ fn kc_solve_json_with_a_budget_uses_u_from_its_expanded_uncertainty() {
     let k = solve["pitch_deviation_k"].as_array().unwrap();
     let fit_u = solve["pitch_deviation_u"].as_array().unwrap();
     let got = kc["degrees_of_equivalence"][0]["U"].as_array().unwrap();
-    for f in 0..expanded.len() {
+    let covariance = solve["pitch_deviation_covariance"].as_array().unwrap();
+    let n = expanded.len();
+    let excess: Vec<f64> = (0..n)
+        .map(|f| {
+            let u = expanded[f].as_f64().unwrap() / k[f].as_f64().unwrap();
+            (u * u - covariance[f][f].as_f64().unwrap()).max(0.0)
+        })
+        .collect();
+    let mean_excess = excess.iter().sum::<f64>() / (n * n) as f64;
+    for f in 0..n {
         let u = expanded[f].as_f64().unwrap() / k[f].as_f64().unwrap();
         assert!(u > fit_u[f].as_f64().unwrap(), "the budget adds to the fit");
-        let want = 2f64.sqrt() * u;
+        // (P·diag(e²)·P)_ff = e_f²(1 − 2/N) + Σ e²/N²
+        let v_ff =
+            covariance[f][f].as_f64().unwrap() + excess[f] * (1.0 - 2.0 / n as f64) + mean_excess;
+        let want = 2f64.sqrt() * v_ff.sqrt();
         let g = got[f].as_f64().unwrap();
         assert!(
             (g - want).abs() < 1e-12 * want,

@@ -201,14 +201,17 @@ def kc(
     pilot: Optional[Sequence[Tuple[str, Union[SolveResult, _Rows, PathOrText]]]] = None,
     quantity: str = "pitch_deviation",
     method: str = "weighted-mean",
+    keep: Sequence[str] = (),
 ) -> KeyComparison:
-    """Evaluates a key comparison as ``polycal kc`` does (docs/FORMAT.md §12): per face
-    (or per common angle for ``quantity="encoder_error"``) the reference (weighted mean,
-    or ``method="dersimonian-laird"``) with ``reference_u``, ``chi2`` and ``consistent``;
-    the closed vector's test in ``vector``; the laboratories left out in ``excluded``;
+    """Evaluates a key comparison as ``polycal kc`` does (docs/FORMAT.md §12): the one
+    decision at 5 % in ``vector_all`` (the closed vector of every laboratory) and, when it
+    fails, the largest consistent subset in ``search`` and ``excluded``; the closed
+    reference (``method="dersimonian-laird"``: with the dark uncertainty τ, nobody left
+    out) with ``reference_u``; per face ``chi2`` and ``consistent`` as information;
     ``degrees_of_equivalence`` and ``pairs``. ``labs`` maps each laboratory's name to its
     result (a :class:`SolveResult` with a budget, rows, or a result file), in order;
-    ``pilot`` lists the pilot's repeated results as (name, result) pairs."""
+    ``pilot`` lists the pilot's repeated results as (name, result) pairs; ``keep`` names
+    laboratories held in the reference (``--keep``)."""
 
     def named(items: Any) -> Any:
         return [(str(name), _rows_of(result)) for name, result in items]
@@ -219,6 +222,7 @@ def kc(
             named(pilot or ()),
             quantity=str(quantity),
             method=str(method),
+            keep=[str(name) for name in keep],
         )
     )
 

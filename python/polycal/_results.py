@@ -511,6 +511,7 @@ class KeyComparison(Result):
     chi2_critical: _np.ndarray
     consistent: List[bool]
     vector: Section
+    vector_all: Section
     excluded: List[Section]
     tau: _np.ndarray
     degrees_of_equivalence: List[Section]

@@ -286,13 +286,14 @@ pub(crate) fn compare_rows(
 /// Evaluates a key comparison as `polycal kc` does (docs/FORMAT.md §12); returns its JSON
 /// object. `labs` and `pilot` are (name, rows) pairs in order.
 #[pyfunction]
-#[pyo3(signature = (labs, pilot=Vec::new(), quantity="pitch_deviation", method="weighted-mean"))]
+#[pyo3(signature = (labs, pilot=Vec::new(), quantity="pitch_deviation", method="weighted-mean", keep=Vec::new()))]
 pub(crate) fn kc(
     py: Python<'_>,
     labs: Vec<(String, PyRef<'_, PyRows>)>,
     pilot: Vec<(String, PyRef<'_, PyRows>)>,
     quantity: &str,
     method: &str,
+    keep: Vec<String>,
 ) -> PyResult<String> {
     let quantity = polycal::kc::compared_quantity(quantity)
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
@@ -308,7 +309,10 @@ pub(crate) fn kc(
             .collect()
     };
     let (labs, pilot) = (results(&labs), results(&pilot));
-    let options = KcOptions::new().with_quantity(quantity).with_method(method);
+    let options = KcOptions::new()
+        .with_quantity(quantity)
+        .with_method(method)
+        .with_keep(keep);
     let comparison = py
         .detach(|| polycal::kc::evaluate(&labs, &pilot, &options))
         .map_err(refusal)?;

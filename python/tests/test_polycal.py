@@ -512,6 +512,12 @@ def test_kc_is_the_clis_json_to_the_byte():
     assert encoder.to_json() == cli(
         "kc", *args, "--quantity", "encoder_error", "--format", "json"
     )
+    # the one decision and the search, and a laboratory kept in by the pilot
+    assert not result["vector_all"]["consistent"]
+    assert list(result["search"]["steps"][0]["best"]) == list("ABCDE")
+    kept = polycal.kc(labs, keep=["F"])
+    assert kept.to_json() == cli("kc", *args, "--keep", "F", "--format", "json")
+    assert list(kept["kept"]) == ["F"]
 
 
 def test_kc_refuses_as_the_cli_does():

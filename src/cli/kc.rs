@@ -13,9 +13,10 @@ use super::{EXIT_OK, EXIT_VERDICT};
 
 /// After `polycal kc --help`.
 pub const EXAMPLES: &str = "\
-The contract (JSON names, exclusions, the closed vector, the pilot's repeats):
-docs/FORMAT.md §12 (Key comparisons). Status 0 consistent, 1 not consistent after the
-stated exclusions, 2 an input refused.
+The contract (JSON names, the one decision at 5 %, the largest consistent subset, the
+closed vector, the pilot's repeats): docs/FORMAT.md §12 (Key comparisons). Status 0
+consistent (the closed vector of every laboratory passes, or a subset passes after the
+stated exclusions), 1 not consistent, 2 an input refused.
 
 Examples:
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv
@@ -58,11 +59,16 @@ pub struct KcArgs {
     /// The compared quantity: pitch_deviation or encoder_error.
     #[arg(long, default_value = "pitch_deviation", value_parser = parse_quantity)]
     quantity: Quantity,
-    /// The reference: weighted-mean (with the largest consistent subset), or
-    /// dersimonian-laird (the random-effects mean with its dark uncertainty τ, nobody left
-    /// out).
+    /// The reference: weighted-mean (when the closed vector of every laboratory fails its
+    /// test at 5 %, the largest subset that passes), or dersimonian-laird (the
+    /// random-effects reference with its dark uncertainty τ, nobody left out; its verdict
+    /// is the test of τ = 0).
     #[arg(long, default_value = "weighted-mean", value_parser = parse_method)]
     method: ReferenceMethod,
+    /// Hold laboratory NAME in the reference whatever the tests say (the pilot's decision,
+    /// stated in the notes); may be given more than once.
+    #[arg(long, value_name = "NAME")]
+    keep: Vec<String>,
     /// Output format (csv: the degrees of equivalence, columns
     /// lab,index,angle_deg,d,U,in_reference; docs/FORMAT.md §12).
     #[arg(long, value_enum, default_value = "table")]
@@ -134,11 +140,15 @@ pub fn run(args: &KcArgs) -> Result<u8> {
     let pilot = read(&args.pilot)?;
     let options = KcOptions::new()
         .with_quantity(args.quantity)
-        .with_method(args.method);
+        .with_method(args.method)
+        .with_keep(args.keep.iter().cloned());
     let kc = evaluate(&labs, &pilot, &options).map_err(|e| match e {
         // Library messages name no flags: the CLI adds the one that helps.
         polycal::kc::KcError::TooFewRepeats(_) => {
             super::with_hint(e, "--pilot", "give --pilot twice or more, or not at all")
+        }
+        polycal::kc::KcError::UnknownKeep(_) => {
+            super::with_hint(e, "--keep", "name a laboratory given as NAME=RESULT.csv")
         }
         e => e.into(),
     })?;

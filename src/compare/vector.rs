@@ -11,7 +11,7 @@
 //! across them and vanish with the mean, so the covariance of the centred differences is
 //! P_n·D·P_n, D = diag(c_a·u_a² + c_b·u_b² − 2·r·√(c_a·c_b)·u_a·u_b), c = M/(M − 1), and
 //! χ² = dᵀ(P_n·D·P_n)⁺d = Σ w_i·(d_i − d̄_w)², w_i = 1/D_i, with ν = n − 1
-//! (`kc::reference::closed_difference_chi2`, Sherman–Morrison: O(n), no matrix).
+//! (`kc::closed::difference_chi2`, Sherman–Morrison: O(n), no matrix).
 //! When both results have the same n rows (the usual case, faces 1 … N) this is the test of
 //! the closed vector with V_d = V_a + V_b exactly; with fewer rows in common (24 angles of a
 //! 168-position self-calibration) it costs the one degree of freedom of the mean.
@@ -30,7 +30,7 @@ use serde::Serialize;
 
 use super::{CompareError, Comparison};
 use crate::kc::chi2_quantile_95;
-use crate::kc::reference::closed_difference_chi2;
+use crate::kc::closed::difference_chi2;
 use crate::results::Quantity;
 
 /// Which rule gives the comparison's verdict and its exit status (JSON `verdict`).
@@ -179,10 +179,7 @@ pub(super) fn vector_test(
             variances.push(variance);
         }
         let (chi2, dof) = if closed {
-            (
-                closed_difference_chi2(&differences, &variances).0,
-                rows.len() - 1,
-            )
+            (difference_chi2(&differences, &variances).0, rows.len() - 1)
         } else {
             let chi2 = differences
                 .iter()

@@ -692,7 +692,7 @@ pub(crate) fn diagnose_base(
         adequacy.checks.push(Check {
             name: format!(
                 "identifiability of the {} (largest change of β or α by an explanation that fits as well, in expanded uncertainties)",
-                crate::output::diagnose::label(&found.effect)
+                found.effect.label()
             ),
             statistic: worst,
             limit: 1.0,

@@ -10,7 +10,6 @@ use crate::measurement::{Direction, MeasurementSet};
 /// The plain words on a finding with alternatives: what cannot be told apart, how far
 /// the calibration moves, and what would decide it.
 pub(super) fn ambiguity(found: &FoundEffect, clock: Clock) -> String {
-    use crate::output::diagnose::label;
     let value = |e: &Effect| match e {
         Effect::Drift { .. } => format!("{:+.4}{}", e.value(), clock.drift_unit_text()),
         Effect::CrossTalk { value, .. } => format!("{value:+.5}″/″"),
@@ -23,7 +22,7 @@ pub(super) fn ambiguity(found: &FoundEffect, clock: Clock) -> String {
             let names: Vec<String> = a
                 .effects
                 .iter()
-                .map(|e| format!("the {} ({})", label(e), value(e)))
+                .map(|e| format!("the {} ({})", e.label(), value(e)))
                 .collect();
             format!(
                 "{} (F = {:.2}, p = {:.2}; β would change by up to {:.4}″, α by up to {:.4}″)",
@@ -46,14 +45,14 @@ pub(super) fn ambiguity(found: &FoundEffect, clock: Clock) -> String {
     if found.ambiguous() {
         format!(
             "The data cannot tell the {} ({}) from {}: they fit equally well, but give calibrations that differ by more than the expanded uncertainty. This is not a finding, and the result is not certified. {decide}",
-            label(&found.effect),
+            found.effect.label(),
             value(&found.effect),
             alternatives.join("; or ")
         )
     } else {
         format!(
             "The data cannot tell the {} ({}) from {}; they fit equally well, and the calibrations they give agree within the expanded uncertainty.",
-            label(&found.effect),
+            found.effect.label(),
             value(&found.effect),
             alternatives.join("; or ")
         )

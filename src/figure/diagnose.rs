@@ -22,7 +22,7 @@ use super::svg::{
 };
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, Reading};
-use crate::output::diagnose::{DiagnoseReport, ResidualsReport, label};
+use crate::output::diagnose::{DiagnoseReport, ResidualsReport};
 
 /// An effect's line: its class, its value, its (x, contribution) points.
 type EffectLine = (&'static str, f64, Vec<(f64, f64)>);
@@ -152,7 +152,7 @@ fn one_ac(
     let mut step_x: Vec<f64> = Vec::new();
     let mut rings: Vec<usize> = Vec::new();
     for effect in &mine {
-        let name = label(effect);
+        let name = effect.label();
         match effect {
             Effect::Drift { value, .. } | Effect::OffsetStep { value, .. } => {
                 let class = if matches!(effect, Effect::Drift { .. }) {

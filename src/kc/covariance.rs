@@ -6,7 +6,7 @@
 use nalgebra::DMatrix;
 use serde::Deserialize;
 
-use super::reference::closing_projector;
+use super::closed::closing_projector;
 use super::{KcError, LabResult};
 use crate::measurement::step_angle_deg;
 use crate::results::{Quantity, ResultRow};

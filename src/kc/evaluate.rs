@@ -4,9 +4,11 @@
 
 use nalgebra::DMatrix;
 
+use super::closed::{self, ClosedCovariance, ClosedFit, closed, closed_pseudo_inverse};
 use super::covariance;
 use super::input::{self, Aligned};
-use super::reference::{self, Estimate, chi2_quantile_95};
+use super::reference::{self, Estimate, chi2_quantile_95, closed_covariance};
+use super::search::{self, SearchMethod};
 use super::{
     DegreeOfEquivalence, Exclusion, KcError, KcOptions, KeyComparison, LabResult, PairDifference,
     PilotStability, ReferenceMethod, VectorTest,
@@ -92,24 +94,43 @@ pub fn evaluate(
             _ => None,
         });
     }
-    Ok(evaluate_aligned(
-        labs,
-        pilot,
-        options,
-        aligned,
-        &covariances,
-    ))
+    evaluate_aligned(labs, pilot, options, aligned, &covariances)
 }
 
-/// The estimates of every quantity from the laboratories `inside`.
-fn estimates(aligned: &Aligned, inside: &[usize], random_effects: bool) -> Vec<Estimate> {
-    (0..aligned.index.len())
+/// The estimates of every quantity from the results `inside` (values and u as given).
+fn estimates(
+    values: &[Vec<f64>],
+    u: &[Vec<f64>],
+    inside: &[usize],
+    random_effects: bool,
+) -> Vec<Estimate> {
+    (0..values.first().map_or(0, Vec::len))
         .map(|k| {
-            let x: Vec<f64> = inside.iter().map(|&r| aligned.values[r][k]).collect();
-            let u: Vec<f64> = inside.iter().map(|&r| aligned.u[r][k]).collect();
+            let x: Vec<f64> = inside.iter().map(|&r| values[r][k]).collect();
+            let u: Vec<f64> = inside.iter().map(|&r| u[r][k]).collect();
             reference::estimate(&x, &u, random_effects)
         })
         .collect()
+}
+
+/// A closed fit's test at 5 %, in arcseconds (`scale` undone).
+fn vector_test(fit: &ClosedFit, scale: f64) -> VectorTest {
+    let critical = chi2_quantile_95(fit.dof);
+    VectorTest {
+        chi2: fit.chi2,
+        dof: fit.dof,
+        consistent: fit.chi2 <= critical,
+        chi2_critical: critical,
+        reference: fit.reference.iter().map(|r| r * scale).collect(),
+    }
+}
+
+/// The names of `set` joined with commas.
+fn joined(labs: &[LabResult], set: &[usize]) -> String {
+    set.iter()
+        .map(|&r| labs[r].name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn evaluate_aligned(
@@ -118,92 +139,219 @@ fn evaluate_aligned(
     options: &KcOptions,
     aligned: Aligned,
     covariances: &[Option<DMatrix<f64>>],
-) -> KeyComparison {
+) -> Result<KeyComparison, KcError> {
     let random_effects = options.method == ReferenceMethod::DersimonianLaird;
     let positions = aligned.index.len();
-    let mut inside: Vec<usize> = (0..labs.len()).collect();
-    let mut excluded = Vec::new();
+    let results = labs.len() + pilot.len();
+    if positions < 2 {
+        return Err(KcError::TooFewPositions(positions));
+    }
     let mut notes = aligned.notes.clone();
-    let mut found = estimates(&aligned, &inside, random_effects);
-    let fails = |e: &Estimate| e.chi2 > chi2_quantile_95(e.dof);
-    // The largest consistent subset: the worst laboratory of the failing quantities out,
-    // one at a time, for the whole comparison.
-    while !random_effects && options.largest_consistent_subset && inside.len() > 2 {
-        let mut worst: Option<(f64, usize, usize)> = None; // (|d|/u(d), lab, position)
-        for (k, e) in found.iter().enumerate().filter(|(_, e)| fails(e)) {
-            for &r in &inside {
-                let u = aligned.u[r][k];
-                let z = (aligned.values[r][k] - e.reference).abs()
-                    / (u * u - e.reference_u * e.reference_u).sqrt();
-                if worst.is_none_or(|(best, _, _)| z > best) {
-                    worst = Some((z, r, k));
+    let mut kept = Vec::new();
+    for name in &options.keep {
+        match labs.iter().position(|l| &l.name == name) {
+            Some(r) => kept.push(r),
+            None => return Err(KcError::UnknownKeep(name.clone())),
+        }
+    }
+    kept.sort_unstable();
+    kept.dedup();
+    // Every result as a closed vector: pitch deviations closed already (their mean, 0 to
+    // rounding, taken out); encoder errors, defined up to a constant, less their mean.
+    // Everything in units of the largest u, so that χ² is as accurate for any scale.
+    let scale = aligned
+        .u
+        .iter()
+        .flatten()
+        .copied()
+        .chain(
+            covariances
+                .iter()
+                .flatten()
+                .map(|v| v.diagonal().amax().sqrt()),
+        )
+        .fold(0.0, f64::max);
+    let values: Vec<Vec<f64>> = aligned
+        .values
+        .iter()
+        .map(|x| closed(x).iter().map(|x| x / scale).collect())
+        .collect();
+    let u: Vec<Vec<f64>> = aligned
+        .u
+        .iter()
+        .map(|u| u.iter().map(|u| u / scale).collect())
+        .collect();
+    if options.quantity == Quantity::EncoderError {
+        notes.push(
+            "encoder errors are defined up to a constant: each result's mean over the compared \
+             positions is taken out before it is compared (so a laboratory with another zero \
+             convention is not left out), and each is taken as closed with \
+             V = N/(N − 1)·P·diag(u²)·P"
+                .to_string(),
+        );
+    }
+    let own = |r: usize, extra: Option<&[f64]>| -> Result<ClosedCovariance, KcError> {
+        match covariances.get(r).and_then(Option::as_ref) {
+            None => Ok(ClosedCovariance::Stated(match extra {
+                None => u[r].clone(),
+                Some(tau) => u[r].iter().zip(tau).map(|(u, t)| u.hypot(*t)).collect(),
+            })),
+            Some(v) => {
+                let mut v = v / (scale * scale);
+                if let Some(tau) = extra {
+                    v += closed_covariance(tau);
                 }
+                let v_plus = closed_pseudo_inverse(&v).ok_or_else(|| KcError::Covariance {
+                    file: labs[r].source.clone(),
+                    lab: labs[r].name.clone(),
+                    reason: "it cannot be inverted on the closed subspace".to_string(),
+                })?;
+                Ok(ClosedCovariance::Own { v, v_plus })
             }
         }
-        let Some((z, r, k)) = worst else { break };
-        let e = found[k];
-        let critical = chi2_quantile_95(e.dof);
-        excluded.push(Exclusion {
-            lab: labs[r].name.clone(),
-            reason: format!(
-                "{} {}: χ² = {:.3} > χ²_0.95({}) = {:.3} with {} laboratories; its |d|/u(d) = {:.3} \
-                 there is the largest of the failing quantities; left out of the whole comparison",
-                options.quantity,
-                aligned.index[k],
-                e.chi2,
-                e.dof,
-                critical,
-                inside.len(),
-                z
-            ),
-            index: aligned.index[k],
-            normalised_deviation: z,
-            chi2_before: e.chi2,
-            chi2_critical: critical,
-        });
-        inside.retain(|&i| i != r);
-        found = estimates(&aligned, &inside, random_effects);
+    };
+    let stated: Vec<ClosedCovariance> = (0..results)
+        .map(|r| own(r, None))
+        .collect::<Result<_, _>>()?;
+    let fit_of = |set: &[usize], v: &[ClosedCovariance]| {
+        let x: Vec<&[f64]> = set.iter().map(|&r| values[r].as_slice()).collect();
+        let c: Vec<&ClosedCovariance> = set.iter().map(|&r| &v[r]).collect();
+        closed::fit(&x, &c)
+    };
+    let everyone: Vec<usize> = (0..labs.len()).collect();
+    let not_fitted = || {
+        KcError::NotComputable(
+            "the closed vector of the laboratories cannot be fitted (a covariance singular on the \
+         closed subspace, or numbers out of range)"
+                .to_string(),
+        )
+    };
+    let all_fit = fit_of(&everyone, &stated).ok_or_else(not_fitted)?;
+    let vector_all = vector_test(&all_fit, scale);
+
+    // The one decision at 5 %, then (weighted mean) the largest subset that passes.
+    let mut search = None;
+    let mut inside = everyone.clone();
+    let mut decided_consistent = vector_all.consistent;
+    if !random_effects && options.largest_consistent_subset && !vector_all.consistent {
+        let names: Vec<String> = labs.iter().map(|l| l.name.clone()).collect();
+        let found = search::largest_consistent(&names, &kept, &|set| fit_of(set, &stated));
+        if found.passed {
+            inside = found.inside;
+            decided_consistent = true;
+        }
+        search = Some(found.search);
     }
     let in_reference: Vec<bool> = (0..labs.len()).map(|r| inside.contains(&r)).collect();
+    let mut excluded = Vec::new();
+    if let Some(search) = &search {
+        let last = search.steps.last();
+        for r in (0..labs.len()).filter(|r| !in_reference[*r]) {
+            let Some(chosen) = last else { break };
+            let before = search
+                .steps
+                .iter()
+                .rev()
+                .nth(1)
+                .map(|s| {
+                    format!(
+                        "; the best subset of {} laboratories ({}) fails, χ² = {:.3} > {:.3}",
+                        s.size,
+                        s.best.join(", "),
+                        s.chi2,
+                        s.chi2_critical
+                    )
+                })
+                .unwrap_or_default();
+            excluded.push(Exclusion {
+                lab: labs[r].name.clone(),
+                reason: format!(
+                    "left out of the whole comparison: the closed vector of all {} laboratories \
+                     fails (χ² = {:.3} > χ²_0.95({}) = {:.3}); the largest subset that passes \
+                     is {} ({} laboratories, χ² = {:.3} ≤ χ²_0.95({}) = {:.3}, the smallest χ² \
+                     of its size){before}",
+                    labs.len(),
+                    vector_all.chi2,
+                    vector_all.dof,
+                    vector_all.chi2_critical,
+                    chosen.best.join(", "),
+                    chosen.size,
+                    chosen.chi2,
+                    chosen.dof,
+                    chosen.chi2_critical,
+                ),
+            });
+        }
+        notes.push(match search.method {
+            SearchMethod::Exhaustive => format!(
+                "the largest consistent subset was found by trying every subset of each size \
+                 ({} in all), ties broken by the smaller χ²",
+                search.subsets_tested
+            ),
+            SearchMethod::Greedy => format!(
+                "the subsets were too many to try every one (more than {}): from the size where \
+                 they were, the laboratory whose removal lowers χ² most was left out one at a \
+                 time; a larger consistent subset may exist",
+                search::EXHAUSTIVE_SUBSETS
+            ),
+        });
+        if !decided_consistent {
+            notes.push(
+                "no subset of the laboratories passes the closed vector's test: every \
+                 laboratory is kept in the reference, and the comparison is not consistent"
+                    .to_string(),
+            );
+        }
+    }
+    if !kept.is_empty() {
+        notes.push(format!(
+            "kept in the reference whatever the tests say, as the pilot decided: {}",
+            joined(labs, &kept)
+        ));
+    }
 
-    // The pilot's stability.
-    let repeats: Vec<usize> = (labs.len()..labs.len() + pilot.len()).collect();
+    // The reference: the closed GLS of the laboratories inside (with τ for DL).
+    let per_face_all = estimates(&values, &u, &everyone, random_effects);
+    let tau: Vec<f64> = if random_effects {
+        per_face_all.iter().map(|e| e.tau).collect()
+    } else {
+        vec![0.0; positions]
+    };
+    let widened: Vec<ClosedCovariance> = if random_effects {
+        (0..results)
+            .map(|r| own(r, Some(&tau)))
+            .collect::<Result<_, _>>()?
+    } else {
+        stated.clone()
+    };
+    let final_fit = fit_of(&inside, &widened).ok_or_else(not_fitted)?;
+    let vector = vector_test(&final_fit, scale);
+    let found = estimates(&values, &u, &inside, random_effects);
+
+    // The pilot's stability: one test of the repeats' closed vectors.
+    let repeats: Vec<usize> = (labs.len()..results).collect();
     let mut stability_u = vec![0.0; positions];
     let mut pilot_report = None;
     if !repeats.is_empty() {
         let m = repeats.len();
         let (mut mean, mut spread, mut chi2, mut significant) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        for (k, stab) in stability_u.iter_mut().enumerate() {
-            let y: Vec<f64> = repeats.iter().map(|&r| aligned.values[r][k]).collect();
-            let u: Vec<f64> = repeats.iter().map(|&r| aligned.u[r][k]).collect();
+        for k in 0..positions {
+            let y: Vec<f64> = repeats.iter().map(|&r| values[r][k]).collect();
+            let uk: Vec<f64> = repeats.iter().map(|&r| u[r][k]).collect();
             let plain = y.iter().sum::<f64>() / m as f64;
             let s = (y.iter().map(|y| (y - plain).powi(2)).sum::<f64>() / (m - 1) as f64).sqrt();
-            let (_, _, c) = reference::weighted_mean(&y, &u);
-            let signal = c > chi2_quantile_95(m - 1);
-            if signal {
-                *stab = s;
-            }
-            mean.push(plain);
-            spread.push(s);
+            let (_, _, c) = reference::weighted_mean(&y, &uk);
+            mean.push(plain * scale);
+            spread.push(s * scale);
             chi2.push(c);
-            significant.push(signal);
+            significant.push(c > chi2_quantile_95(m - 1));
         }
-        let flagged: Vec<String> = significant
-            .iter()
-            .zip(&aligned.index)
-            .filter(|(s, _)| **s)
-            .map(|(_, i)| i.to_string())
-            .collect();
-        if !flagged.is_empty() {
-            notes.push(format!(
-                "the pilot's repeats differ beyond their uncertainties at {} {} (χ² about their \
-                 weighted mean > χ²_0.95({})): their sample standard deviation is added in \
-                 quadrature to u_ref and to every u(d_i) there",
-                options.quantity,
-                flagged.join(", "),
-                m - 1
-            ));
+        let pilot_fit = fit_of(&repeats, &stated).ok_or_else(not_fitted)?;
+        let pilot_vector = vector_test(&pilot_fit, scale);
+        if !pilot_vector.consistent {
+            // stated by `KeyComparison::pilot_statement`
+            stability_u.clone_from(&spread);
         }
         pilot_report = Some(PilotStability {
             repeats: pilot.iter().map(|p| p.name.clone()).collect(),
@@ -213,20 +361,22 @@ fn evaluate_aligned(
             chi2_dof: m - 1,
             significant,
             stability_u: stability_u.clone(),
+            vector: Some(pilot_vector),
             degrees_of_equivalence: Vec::new(),
         });
     }
 
+    // Degrees of equivalence against the closed reference: Σ_k d_ik = 0.
+    let reference_variance = &final_fit.reference_variance;
     let doe = |r: usize, inside_reference: bool| {
-        let (mut d, mut expanded_u) = (Vec::new(), Vec::new());
-        for (k, e) in found.iter().enumerate() {
-            let (u, tau) = (aligned.u[r][k], e.tau);
-            let sign = if inside_reference { -1.0 } else { 1.0 };
-            let variance = u * u
-                + tau * tau
-                + sign * e.reference_u * e.reference_u
+        let diagonal = widened[r].diagonal();
+        let sign = if inside_reference { -1.0 } else { 1.0 };
+        let mut d = Vec::with_capacity(positions);
+        let mut expanded_u = Vec::with_capacity(positions);
+        for k in 0..positions {
+            let variance = (diagonal[k] + sign * reference_variance[k]).max(0.0) * scale * scale
                 + stability_u[k] * stability_u[k];
-            d.push(aligned.values[r][k] - e.reference);
+            d.push((values[r][k] - final_fit.reference[k]) * scale);
             expanded_u.push(2.0 * variance.sqrt());
         }
         (d, expanded_u)
@@ -258,113 +408,90 @@ fn evaluate_aligned(
     }
     let mut pairs = Vec::new();
     for a in 0..labs.len() {
+        let diagonal_a = stated[a].diagonal();
         for b in a + 1..labs.len() {
+            let diagonal_b = stated[b].diagonal();
             pairs.push(PairDifference {
                 a: labs[a].name.clone(),
                 b: labs[b].name.clone(),
                 d: (0..positions)
-                    .map(|k| aligned.values[a][k] - aligned.values[b][k])
+                    .map(|k| (values[a][k] - values[b][k]) * scale)
                     .collect(),
                 expanded_u: (0..positions)
-                    .map(|k| 2.0 * aligned.u[a][k].hypot(aligned.u[b][k]))
+                    .map(|k| 2.0 * (diagonal_a[k] + diagonal_b[k]).sqrt() * scale)
                     .collect(),
             });
         }
     }
 
-    let own: Vec<&str> = inside
+    let with_own: Vec<&str> = inside
         .iter()
         .filter(|&&r| covariances[r].is_some())
         .map(|&r| labs[r].name.as_str())
         .collect();
-    if options.quantity == Quantity::PitchDeviation && !own.is_empty() {
+    if !with_own.is_empty() {
         notes.push(format!(
             "the closed vector uses the laboratories' own covariances of their pitch deviations \
              for {}; the others are taken as closed with V = N/(N − 1)·P·diag(u²)·P",
-            own.join(", ")
+            with_own.join(", ")
         ));
     }
-    let vector = if options.quantity == Quantity::PitchDeviation {
-        let x: Vec<&[f64]> = inside
-            .iter()
-            .map(|&r| aligned.values[r].as_slice())
-            .collect();
-        let v: Vec<DMatrix<f64>> = inside
-            .iter()
-            .map(|&r| {
-                covariances[r]
-                    .clone()
-                    .unwrap_or_else(|| reference::closed_covariance(&aligned.u[r]))
-            })
-            .collect();
-        reference::closed_vector(&x, &v).map(|fit| {
-            let critical = chi2_quantile_95(fit.dof);
-            VectorTest {
-                chi2: fit.chi2,
-                dof: fit.dof,
-                consistent: fit.chi2 <= critical,
-                chi2_critical: critical,
-                reference: fit.reference,
-            }
-        })
-    } else {
-        notes.push(
-            "encoder errors are not closed: no test of the whole vector (vector is null)"
-                .to_string(),
-        );
-        None
-    };
     if random_effects {
         notes.push(
-            "DerSimonian–Laird: nobody is left out; χ² and consistent are those of the weighted \
-             mean (Cochran's Q), τ is the dark uncertainty in u_ref and every u(d_i)"
+            "DerSimonian–Laird: nobody is left out. τ is the dark uncertainty: the spread of the \
+             laboratories' results on each quantity beyond their stated uncertainties (the \
+             method of moments from χ² about the weighted mean), added to every laboratory's \
+             variance there, so that it enters u_ref and every U(d_i). The verdict is the test \
+             of τ = 0 for the whole comparison (the closed vector of every laboratory, \
+             vector_all): not consistent means the laboratories differ beyond their stated \
+             uncertainties, and τ carries that into the reference"
                 .to_string(),
         );
     }
-    if !excluded.is_empty() {
-        // the per-quantity tests are many: say how often a consistent comparison fails one
-        let tests = aligned.index.len() as i32;
-        notes.push(format!(
-            "each of the {tests} quantities is tested at 5 %: a comparison of consistent \
-             laboratories fails at least one of them by chance with probability \
-             1 − 0.95^{tests} = {:.0} %, and a laboratory left out for one quantity may be \
-             consistent; the closed vector's test weighs every quantity at once",
-            100.0 * (1.0 - 0.95_f64.powi(tests))
-        ));
-    }
+    notes.push(format!(
+        "the comparison is decided by one test at 5 %, the closed vector's χ²; the χ² of each \
+         of the {positions} quantities is information (by chance about 1 in 20 fails in a \
+         consistent comparison)"
+    ));
     let chi2_critical: Vec<f64> = found.iter().map(|e| chi2_quantile_95(e.dof)).collect();
     let consistent: Vec<bool> = found
         .iter()
         .zip(&chi2_critical)
         .map(|(e, q)| e.chi2 <= *q)
         .collect();
-    let comparison_consistent =
-        consistent.iter().all(|c| *c) && vector.as_ref().is_none_or(|v| v.consistent);
-    KeyComparison {
+    let comparison_consistent = if random_effects {
+        vector_all.consistent
+    } else {
+        decided_consistent && vector.consistent
+    };
+    Ok(KeyComparison {
         quantity: options.quantity,
         method: options.method,
         index: aligned.index.clone(),
         angle_deg: aligned.angle_deg.clone(),
         labs: labs.iter().map(|l| l.name.clone()).collect(),
-        reference: found.iter().map(|e| e.reference).collect(),
-        reference_u: found
+        reference: final_fit.reference.iter().map(|r| r * scale).collect(),
+        reference_u: reference_variance
             .iter()
             .zip(&stability_u)
-            .map(|(e, s)| e.reference_u.hypot(*s))
+            .map(|(v, s)| (v.sqrt() * scale).hypot(*s))
             .collect(),
         chi2: found.iter().map(|e| e.chi2).collect(),
         chi2_dof: found.iter().map(|e| e.dof).collect(),
         chi2_critical,
         consistent,
-        vector,
+        vector_all: Some(vector_all),
+        vector: Some(vector),
+        search,
+        kept: kept.iter().map(|&r| labs[r].name.clone()).collect(),
         excluded,
-        tau: found.iter().map(|e| e.tau).collect(),
+        tau: tau.iter().map(|t| t * scale).collect(),
         degrees_of_equivalence,
         pairs,
         pilot: pilot_report,
         comparison_consistent,
         notes,
-    }
+    })
 }
 
 /// The name of result `r` of the laboratories followed by the pilot's repeats.

@@ -47,21 +47,38 @@ fn standard_u(result: &LabResult, i: usize, row: &ResultRow) -> Result<f64, KcEr
     {
         return Err(non_positive("U", expanded_u));
     }
-    if let Some(u) = row.u {
+    let u = if let Some(u) = row.u {
         if !(u > 0.0 && u.is_finite()) {
             return Err(non_positive("u", u));
         }
-        return Ok(u);
-    }
-    match (row.expanded_u, row.k) {
-        (Some(expanded_u), Some(k)) if k > 0.0 && k.is_finite() => Ok(expanded_u / k),
-        _ => Err(KcError::MissingUncertainty {
+        u
+    } else {
+        match (row.expanded_u, row.k) {
+            (Some(expanded_u), Some(k)) if k > 0.0 && k.is_finite() => expanded_u / k,
+            _ => {
+                return Err(KcError::MissingUncertainty {
+                    location: location(result, i),
+                    quantity: row.quantity,
+                    index: row.index,
+                });
+            }
+        }
+    };
+    if u < MIN_STANDARD_U_ARCSEC {
+        return Err(KcError::UncertaintyTooSmall {
             location: location(result, i),
             quantity: row.quantity,
             index: row.index,
-        }),
+            value: u,
+            minimum: MIN_STANDARD_U_ARCSEC,
+        });
     }
+    Ok(u)
 }
+
+/// The smallest standard uncertainty a comparison takes, arcseconds (10⁻⁹″ ≈ 4.8·10⁻¹⁵ rad,
+/// far below any angle measurement): smaller ones are refused, not computed with.
+pub const MIN_STANDARD_U_ARCSEC: f64 = 1e-9;
 
 /// The rows of `quantity` of one result, with their position in the result.
 fn rows_of(result: &LabResult, quantity: Quantity) -> Vec<(usize, &ResultRow)> {

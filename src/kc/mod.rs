@@ -23,13 +23,22 @@
 //! = v_i − u_ref², since w'_i v_i = u_ref². `u_stab` is the pilot's instability term (0
 //! without pilot repeats or when they agree; see [`PilotStability`]).
 //!
-//! **Exclusions** (weighted mean only): while some quantity fails its χ² test and more
-//! than two laboratories are in the reference, the laboratory with the largest normalised
-//! deviation |d_i|/u(d_i) on a failing quantity is left out **of the whole comparison**
-//! (every face), and everything is evaluated again (the largest consistent subset). Each
-//! step is an [`Exclusion`] with its face, normalised deviation and the χ² before it. The
-//! DerSimonian–Laird method excludes nobody: its dark uncertainty τ takes inconsistency
-//! into the reference's uncertainty instead.
+//! **Decisions at their stated rate** (docs/FORMAT.md §12). The comparison's consistency is
+//! one test at 5 %: the closed vector's χ² over every laboratory ([`KeyComparison::vector_all`],
+//! reported before any exclusion). Only when it fails (weighted mean only) are laboratories
+//! left out, each from every face: the largest subset whose closed vector passes, found by
+//! trying every subset of each size from n − 1 down while that is cheap (else greedily,
+//! said in a note), ties broken by the smaller χ² ([`SubsetSearch`], each size with the
+//! statistic that decided it); laboratories the pilot keeps ([`KcOptions::with_keep`]) are
+//! in every subset. The per-quantity χ² tests are information. The DerSimonian–Laird
+//! method leaves nobody out: its dark uncertainty τ takes the spread into the reference's
+//! uncertainty, and its verdict is the test of τ = 0 (the same closed vector of every
+//! laboratory). The pilot's repeats are one test of their closed vectors at 5 % too.
+//!
+//! **The reference** is the closed GLS reference of the laboratories in it (Σ x_ref = 0,
+//! so Σ_k d_ik = 0); with the same u on every face it is the per-face weighted mean above.
+//! Encoder errors are defined up to a constant: each result's mean over the compared
+//! positions is taken out first, so that they too are closed vectors.
 //!
 //! **The closed vector** (pitch deviations only): a laboratory's own covariance V_i of its
 //! pitch deviations ([`LabResult::with_covariance`], or `pitch_deviation_covariance` of a
@@ -38,13 +47,16 @@
 //! one is taken as closed (Σβ = 0) with V_i = N/(N − 1)·P·diag(u_i²)·P, P = I − J/N. The
 //! per-face tests use each row's u either way. The GLS reference
 //! x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i (pseudo-inverses on the closed subspace) and
-//! χ²_vector = Σ (x_i − x_ref)ᵀ V_i⁺ (x_i − x_ref) with ν = (N − 1)(n − 1). Encoder errors
-//! have no closure test.
+//! χ²_vector = Σ (x_i − x_ref)ᵀ V_i⁺ (x_i − x_ref) with ν = (N − 1)(n − 1), in O(N·n²) time
+//! when no laboratory gives its own covariance (the closed covariance is diagonal plus rank
+//! one). With a laboratory's covariance, u(d_i)² is the diagonal of V_i ∓ (Σ V_j⁺)⁺.
 
+pub(crate) mod closed;
 mod covariance;
 mod evaluate;
 mod input;
-pub(crate) mod reference;
+mod reference;
+mod search;
 
 use serde::{Deserialize, Serialize};
 
@@ -52,7 +64,9 @@ use crate::results::{Quantity, ResultFile, ResultRow};
 
 pub use covariance::lab_from_solve_json;
 pub use evaluate::evaluate;
+pub use input::MIN_STANDARD_U_ARCSEC;
 pub use reference::{chi2_quantile_95, closed_covariance};
+pub use search::{SearchMethod, SearchStep, SubsetSearch};
 
 /// How the reference value of each quantity is formed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -139,9 +153,11 @@ pub struct KcOptions {
     pub quantity: Quantity,
     /// The reference method (default the weighted mean).
     pub method: ReferenceMethod,
-    /// Whether laboratories are left out until every quantity is consistent (default
-    /// `true`; the weighted mean only).
+    /// Whether laboratories are left out when the closed vector of all of them fails
+    /// (default `true`; the weighted mean only): the largest consistent subset.
     pub largest_consistent_subset: bool,
+    /// Laboratories held in the reference whatever the tests say (the pilot's decision).
+    pub keep: Vec<String>,
 }
 
 impl Default for KcOptions {
@@ -150,6 +166,7 @@ impl Default for KcOptions {
             quantity: Quantity::PitchDeviation,
             method: ReferenceMethod::WeightedMean,
             largest_consistent_subset: true,
+            keep: Vec::new(),
         }
     }
 }
@@ -176,6 +193,13 @@ impl KcOptions {
     /// subset: without it every laboratory stays in the reference.
     pub fn with_largest_consistent_subset(mut self, on: bool) -> Self {
         self.largest_consistent_subset = on;
+        self
+    }
+
+    /// With laboratories held in the reference, by name: every subset the search tries
+    /// contains them ([`evaluate`] refuses a name that is not a laboratory's).
+    pub fn with_keep(mut self, names: impl IntoIterator<Item = impl Into<String>>) -> Self {
+        self.keep = names.into_iter().map(Into::into).collect();
         self
     }
 }
@@ -237,19 +261,12 @@ impl LabResult {
 pub struct Exclusion {
     /// The laboratory.
     pub lab: String,
-    /// The reason in words.
+    /// The reason in words: the test of every laboratory that failed and the subset that
+    /// passes, with their χ² (the steps are in [`KeyComparison::search`]).
     pub reason: String,
-    /// The face (or encoder index) whose test failed.
-    pub index: u32,
-    /// |d_i|/u(d_i) of the laboratory there, the largest of the failing quantities.
-    pub normalised_deviation: f64,
-    /// χ² there before the exclusion.
-    pub chi2_before: f64,
-    /// χ²_{0.95}(ν) there.
-    pub chi2_critical: f64,
 }
 
-/// The test of the whole closed vector of pitch deviations.
+/// The test of a whole closed vector (pitch deviations, or encoder errors less their mean).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct VectorTest {
@@ -316,10 +333,11 @@ pub struct PairDifference {
 }
 
 /// The pilot's repeated results (start, middle, end of the circulation): how stable the
-/// artefact was. Per quantity, χ² of the repeats about their weighted mean with m − 1
-/// degrees of freedom; where it exceeds χ²_{0.95}(m − 1), the repeats' sample standard
-/// deviation s = √(Σ (y_r − ȳ)²/(m − 1)) is the instability u_stab, added in quadrature
-/// to u_ref and to every u(d_i).
+/// artefact was. One test at 5 %: the repeats' closed vectors, χ² about their GLS reference
+/// with ν = (N − 1)(m − 1). When it fails, the repeats' sample standard deviation
+/// s = √(Σ (y_r − ȳ)²/(m − 1)) on each quantity is the instability u_stab, added in
+/// quadrature to u_ref and to every u(d_i). Per quantity, χ² about the weighted mean is
+/// information.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct PilotStability {
@@ -333,10 +351,15 @@ pub struct PilotStability {
     pub chi2: Vec<f64>,
     /// m − 1.
     pub chi2_dof: usize,
-    /// Whether χ² > χ²_{0.95}(m − 1) per quantity.
+    /// Whether χ² > χ²_{0.95}(m − 1) per quantity (information: the decision is
+    /// [`PilotStability::vector`]'s).
     pub significant: Vec<bool>,
-    /// u_stab per quantity: s where significant, else 0, arcseconds.
+    /// u_stab per quantity: s on every quantity when the repeats' closed vector fails its
+    /// test, else 0, arcseconds.
     pub stability_u: Vec<f64>,
+    /// The one test of the repeats' closed vectors at 5 %, ν = (N − 1)(m − 1).
+    #[serde(default)]
+    pub vector: Option<VectorTest>,
     /// Each repeat against the reference (never in it).
     pub degrees_of_equivalence: Vec<DegreeOfEquivalence>,
 }
@@ -370,9 +393,21 @@ pub struct KeyComparison {
     pub chi2_critical: Vec<f64>,
     /// Whether χ² ≤ χ²_{0.95}(n − 1) per quantity.
     pub consistent: Vec<bool>,
-    /// The closed-vector test (pitch deviations only).
+    /// The closed vector's test of the laboratories in the reference (with τ for
+    /// DerSimonian–Laird).
     pub vector: Option<VectorTest>,
-    /// The laboratories left out, in the order they were.
+    /// The closed vector's test of every laboratory, before any exclusion: the one
+    /// decision of the comparison's consistency.
+    #[serde(default)]
+    pub vector_all: Option<VectorTest>,
+    /// The search for the largest consistent subset, when the test of every laboratory
+    /// failed (weighted mean).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub search: Option<SubsetSearch>,
+    /// The laboratories held in the reference whatever the tests say.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub kept: Vec<String>,
+    /// The laboratories left out, in the order given.
     pub excluded: Vec<Exclusion>,
     /// The dark uncertainty τ per quantity (0 for the weighted mean), arcseconds.
     pub tau: Vec<f64>,
@@ -383,15 +418,17 @@ pub struct KeyComparison {
     /// The pilot's repeats, when given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pilot: Option<PilotStability>,
-    /// Whether every quantity and the closed vector are consistent after the exclusions.
+    /// Whether the comparison is consistent: the closed vector of every laboratory passes,
+    /// or (weighted mean) a subset passes after the stated exclusions; for
+    /// DerSimonian–Laird, whether τ = 0 passes (the vector of every laboratory).
     pub comparison_consistent: bool,
     /// What was left out or added, in words.
     pub notes: Vec<String>,
 }
 
 impl KeyComparison {
-    /// The closed vector's test in words ([`VectorTest::statement`]), or why it was not
-    /// tested (only pitch deviations are a closed vector).
+    /// The closed vector's test in words ([`VectorTest::statement`]) of the laboratories
+    /// in the reference, or why it was not tested.
     pub fn closed_vector_statement(&self) -> String {
         match &self.vector {
             Some(v) => v.statement(),
@@ -400,6 +437,89 @@ impl KeyComparison {
                 self.quantity.name()
             ),
         }
+    }
+
+    /// The pilot's one test in words, when there are repeats: the repeats' closed vector,
+    /// its χ², ν, χ²_0.95(ν), and what follows (u_stab added or not); no final stop.
+    pub fn pilot_statement(&self) -> Option<String> {
+        let p = self.pilot.as_ref()?;
+        let names = p.repeats.join(", ");
+        Some(match &p.vector {
+            Some(v) if v.consistent => format!(
+                "The pilot's repeats ({names}) agree: their closed vector χ² = {:.2} ≤ \
+                 χ²_0.95({}) = {:.2}; the artefact is taken as stable (u_stab = 0)",
+                v.chi2, v.dof, v.chi2_critical
+            ),
+            Some(v) => format!(
+                "The pilot's repeats ({names}) differ beyond their uncertainties: their closed \
+                 vector χ² = {:.2} > χ²_0.95({}) = {:.2}; the artefact is taken as unstable, \
+                 and the repeats' sample standard deviation on each quantity (u_stab) is added \
+                 to u_ref and to every u(d_i)",
+                v.chi2, v.dof, v.chi2_critical
+            ),
+            None => format!("The pilot's repeats ({names}): not tested"),
+        })
+    }
+
+    /// The comparison's verdict in words, as the text table, the HTML report and the DCC
+    /// state it: the one test of every laboratory at 5 %, the subset that passes when it
+    /// failed (weighted mean), or for DerSimonian–Laird the test of τ = 0; no final stop.
+    pub fn verdict_statement(&self) -> String {
+        let n = self.labs.len();
+        let all = match &self.vector_all {
+            Some(v) => format!(
+                "the closed vector of all {n} laboratories {} (χ² = {:.2} {} χ²_0.95({}) = {:.2})",
+                if v.consistent {
+                    "passes its test at 5 %"
+                } else {
+                    "fails its test at 5 %"
+                },
+                v.chi2,
+                if v.consistent { "≤" } else { ">" },
+                v.dof,
+                v.chi2_critical
+            ),
+            None => "the closed vector of every laboratory was not tested".to_string(),
+        };
+        if self.method == ReferenceMethod::DersimonianLaird {
+            return if self.comparison_consistent {
+                format!(
+                    "Consistent (DerSimonian–Laird, τ = 0 not rejected): {all}; nobody is left out"
+                )
+            } else {
+                format!(
+                    "NOT consistent (DerSimonian–Laird, τ = 0 rejected): {all}; the laboratories \
+                     differ beyond their stated uncertainties, nobody is left out, and τ carries \
+                     the spread into u_ref and every U(d_i)"
+                )
+            };
+        }
+        let left_out: Vec<&str> = self.excluded.iter().map(|e| e.lab.as_str()).collect();
+        if self.comparison_consistent && left_out.is_empty() {
+            return format!("Consistent: {all}");
+        }
+        if self.comparison_consistent {
+            let subset = match self.search.as_ref().and_then(|s| s.steps.last()) {
+                Some(step) => format!(
+                    "; the largest subset that passes is {} (χ² = {:.2} ≤ χ²_0.95({}) = {:.2})",
+                    step.best.join(", "),
+                    step.chi2,
+                    step.dof,
+                    step.chi2_critical
+                ),
+                None => String::new(),
+            };
+            return format!(
+                "Consistent after leaving out {}: {all}{subset}",
+                left_out.join(", ")
+            );
+        }
+        let why = if self.search.is_some() {
+            "; no subset of them passes"
+        } else {
+            ""
+        };
+        format!("NOT consistent: {all}{why}")
     }
 }
 
@@ -524,6 +644,35 @@ pub enum KcError {
         /// Why, in words.
         reason: String,
     },
+    /// Fewer than two compared positions: no closed vector.
+    #[error(
+        "{0} position(s) in common: a key comparison compares closed vectors of at least 2 \
+         positions"
+    )]
+    TooFewPositions(usize),
+    /// A laboratory to keep that is not among the laboratories.
+    #[error("the laboratory {0:?} to keep is not among the laboratories")]
+    UnknownKeep(String),
+    /// A standard uncertainty below what the comparison computes with.
+    #[error(
+        "{location}: {quantity} {index} has u = {value:e}″, below {minimum:e}″: an angle's \
+         uncertainty that small is not a measured one (a unit mistake?)"
+    )]
+    UncertaintyTooSmall {
+        /// `file:line`.
+        location: String,
+        /// The quantity.
+        quantity: Quantity,
+        /// Its index.
+        index: u32,
+        /// The standard uncertainty.
+        value: f64,
+        /// The smallest accepted.
+        minimum: f64,
+    },
+    /// The closed vector could not be computed.
+    #[error("{0}")]
+    NotComputable(String),
     /// A quantity other than pitch deviations and encoder errors.
     #[error(
         "a key comparison is of pitch_deviation or encoder_error, not {0} (face deviations \

@@ -250,46 +250,6 @@ impl ResidualsReport {
     }
 }
 
-/// The effect's name without its value, e.g. `drift of autocollimator 2`.
-pub fn label(effect: &Effect) -> String {
-    match effect {
-        Effect::Drift { ac, .. } => format!("drift of autocollimator {ac}"),
-        Effect::OffsetStep {
-            ac,
-            cycle,
-            step,
-            setup,
-            ..
-        } => format!(
-            "offset-step of autocollimator {ac} from {}cycle {cycle}{}",
-            setup.map_or(String::new(), |s| format!("setup {s}, ")),
-            step.map_or(String::new(), |s| format!(", step {s}"))
-        ),
-        Effect::Temperature { ac, .. } => {
-            format!("temperature coefficient of autocollimator {ac}")
-        }
-        Effect::CrossTalk { ac, .. } => format!("cross-talk of autocollimator {ac}"),
-        Effect::Rezero { ac, setup, .. } => format!(
-            "zero of autocollimator {ac}{} set anew every cycle",
-            setup.map_or(String::new(), |s| format!(" in setup {s}"))
-        ),
-        Effect::Direction { ac: None, .. } => "direction (ccw − cw)".into(),
-        Effect::Direction { ac: Some(ac), .. } => {
-            format!("direction (ccw − cw) of autocollimator {ac}")
-        }
-        Effect::Outlier {
-            cycle,
-            step,
-            ac,
-            setup,
-            ..
-        } => format!(
-            "outlier at {}cycle {cycle}, step {step}, autocollimator {ac}",
-            setup.map_or(String::new(), |s| format!("setup {s}, "))
-        ),
-    }
-}
-
 /// [`explanation`] with a drift's unit of time on the diagnosis's clock (per stop in a
 /// file without `time`), and a drift's order when it has a shape beyond its curvature.
 pub fn explanation_on(found: &FoundEffect, clock: Clock) -> String {

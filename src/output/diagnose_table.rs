@@ -2,7 +2,7 @@
 //! that pointed to it, its size, evidence and what it changed, the verdict with its
 //! checks, what was tried and not added, and (with a truth) the errors before and after.
 
-use super::diagnose::{ErrorSummary, direction_text, explanation_on, label};
+use super::diagnose::{ErrorSummary, direction_text, explanation_on};
 use crate::diagnose::Diagnosis;
 use crate::effects::Effect;
 use crate::simulate::Truth;
@@ -86,7 +86,7 @@ pub fn write_table<W: std::fmt::Write>(
                 out,
                 "{:>3}. {} = {value:+.4}{unit}{u}",
                 i + 1,
-                label(&found.effect)
+                found.effect.label()
             )?;
             if let Effect::Drift {
                 quadratic: Some(q), ..
@@ -130,7 +130,7 @@ pub fn write_table<W: std::fmt::Write>(
                 let names: Vec<String> = alternative
                     .effects
                     .iter()
-                    .map(|e| format!("{} = {:+.5}", label(e), e.value()))
+                    .map(|e| format!("{} = {:+.5}", e.label(), e.value()))
                     .collect();
                 if alternative.equivalent && !alternative.changes_calibration() {
                     writeln!(
@@ -266,9 +266,9 @@ pub fn write_table<W: std::fmt::Write>(
         writeln!(out, "\nTried and not added:")?;
         for t in &diagnosis.tried {
             let name = if t.quadratic {
-                format!("curvature of the {}", label(&t.effect))
+                format!("curvature of the {}", t.effect.label())
             } else {
-                label(&t.effect)
+                t.effect.label()
             };
             writeln!(
                 out,

@@ -38,18 +38,25 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     match kc.method {
         ReferenceMethod::WeightedMean => writeln!(
             out,
-            "Reference: weighted mean x_ref = Σ x_i/u_i² / Σ 1/u_i², u_ref = (Σ 1/u_i²)^(-1/2) \
-             (Cox 2002, procedure A)"
+            "Reference: the closed GLS reference of the laboratories in it; with one u per \
+             laboratory the weighted mean x_ref = Σ x_i/u_i² / Σ 1/u_i², u_ref = (Σ 1/u_i²)^(-1/2) \
+             (Cox 2002, procedure A)\n\
+             Decision: one test at 5 %, the closed vector of every laboratory; when it fails, the \
+             largest subset that passes (docs/FORMAT.md §12)"
         )?,
         ReferenceMethod::DersimonianLaird => writeln!(
             out,
-            "Reference: DerSimonian–Laird x_ref = Σ x_i/(u_i²+τ²) / Σ 1/(u_i²+τ²), \
-             u_ref² = 1/Σ 1/(u_i²+τ²), τ² = max(0, (χ² − ν)/(S1 − S2/S1))"
+            "Reference: DerSimonian–Laird, every u_i² widened by τ² = max(0, (χ² − ν)/(S1 − S2/S1)) \
+             (the dark uncertainty of each quantity), then the closed GLS reference; with one u \
+             per laboratory x_ref = Σ x_i/(u_i²+τ²) / Σ 1/(u_i²+τ²), u_ref² = 1/Σ 1/(u_i²+τ²)\n\
+             Decision: the test of τ = 0 at 5 %, the closed vector of every laboratory; nobody is \
+             left out (docs/FORMAT.md §12)"
         )?,
     }
     writeln!(
         out,
-        "Consistency: χ² = Σ (x_i − x̄_w)²/u_i², ν = n − 1, consistent when χ² ≤ χ²_0.95(ν)\n"
+        "Per quantity, information only: χ² = Σ (x_i − x̄_w)²/u_i², ν = n − 1, against \
+         χ²_0.95(ν)\n"
     )?;
     let header = [
         position,
@@ -59,7 +66,7 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
         "χ²",
         "ν",
         "χ²_0.95",
-        "Consistent",
+        "Passes",
     ]
     .map(String::from);
     let rows: Vec<[String; 8]> = (0..kc.index.len())
@@ -72,7 +79,7 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
                 format!("{:.2}", kc.chi2[k]),
                 kc.chi2_dof[k].to_string(),
                 format!("{:.2}", kc.chi2_critical[k]),
-                if kc.consistent[k] { "yes" } else { "no *" }.to_string(),
+                if kc.consistent[k] { "yes" } else { "no" }.to_string(),
             ]
         })
         .collect();
@@ -81,21 +88,41 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     right[7] = false;
     writeln!(out, "{}", table(&header, &rows, &right))?;
 
+    if let Some(v) = &kc.vector_all {
+        writeln!(out, "Every laboratory: {}", v.statement())?;
+    }
+    if let Some(search) = &kc.search {
+        writeln!(
+            out,
+            "Largest consistent subset ({}, {} subsets fitted), the best of each size:",
+            match search.method {
+                crate::kc::SearchMethod::Exhaustive => "every subset tried",
+                _ => "greedy",
+            },
+            search.subsets_tested
+        )?;
+        for step in &search.steps {
+            writeln!(
+                out,
+                "  {} laboratories: {} — χ² = {:.2}, ν = {}, χ²_0.95(ν) = {:.2}: {}",
+                step.size,
+                step.best.join(", "),
+                step.chi2,
+                step.dof,
+                step.chi2_critical,
+                if step.consistent { "passes" } else { "fails" }
+            )?;
+        }
+    }
     if kc.excluded.is_empty() {
         writeln!(out, "Excluded: none")?;
     } else {
-        writeln!(out, "Excluded (largest consistent subset, in order):")?;
-        for (step, e) in kc.excluded.iter().enumerate() {
-            writeln!(out, "  {}. {}: {}", step + 1, e.lab, e.reason)?;
+        writeln!(out, "Excluded (left out of every quantity):")?;
+        for e in &kc.excluded {
+            writeln!(out, "  {}: {}", e.lab, e.reason)?;
         }
     }
-    let unmarked = kc.vector.as_ref().is_none_or(|v| v.consistent);
-    writeln!(
-        out,
-        "{}{}",
-        kc.closed_vector_statement(),
-        if unmarked { "" } else { " *" }
-    )?;
+    writeln!(out, "In the reference: {}", kc.closed_vector_statement())?;
 
     writeln!(
         out,
@@ -130,11 +157,12 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     writeln!(out, "{}", dynamic_table(&header, &rows))?;
 
     if let Some(pilot) = &kc.pilot {
+        if let Some(statement) = kc.pilot_statement() {
+            writeln!(out, "{statement}")?;
+        }
         writeln!(
             out,
-            "Pilot's repeats ({}): χ² about their weighted mean with ν = {}; where significant, \
-             u_stab = their sample standard deviation s",
-            pilot.repeats.join(", "),
+            "Per quantity (information): χ² about the repeats' weighted mean with ν = {}",
             pilot.chi2_dof
         )?;
         let header = [position, "Mean", "s", "χ²", "Significant", "u_stab"].map(String::from);
@@ -159,28 +187,7 @@ pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     for note in &kc.notes {
         writeln!(out, "Note: {note}")?;
     }
-    let failing = kc.consistent.iter().filter(|c| !**c).count();
-    if kc.comparison_consistent {
-        writeln!(
-            out,
-            "Consistent: every {name} passes its χ² test{}",
-            if kc.vector.is_some() {
-                ", and so does the closed vector"
-            } else {
-                ""
-            }
-        )
-    } else {
-        writeln!(
-            out,
-            "Not consistent: {failing} of {} fail their χ² test{}",
-            kc.index.len(),
-            match &kc.vector {
-                Some(v) if !v.consistent => ", and the closed vector fails its test",
-                _ => "",
-            }
-        )
-    }
+    writeln!(out, "{}", kc.verdict_statement())
 }
 
 /// A table with any number of columns, the first left-aligned.

@@ -125,14 +125,14 @@ fn description(section: &KeyComparisonSection) -> String {
     let kc = &section.comparison;
     let method = match kc.method {
         ReferenceMethod::WeightedMean => {
-            "the weighted mean (Cox 2002, procedure A), x_ref = Σ x_i/u_i² / Σ 1/u_i², u_ref = (Σ 1/u_i²)^(−1/2), with the largest consistent subset"
+            "the closed GLS reference of the laboratories in it (with one u per laboratory the weighted mean, Cox 2002, procedure A, x_ref = Σ x_i/u_i² / Σ 1/u_i², u_ref = (Σ 1/u_i²)^(−1/2)); the comparison decided by one test at 5 %, the closed vector of every laboratory, and when it fails the largest subset that passes"
         }
         ReferenceMethod::DersimonianLaird => {
-            "the DerSimonian–Laird random-effects mean, x_ref = Σ x_i/(u_i² + τ²) / Σ 1/(u_i² + τ²), u_ref² = 1/Σ 1/(u_i² + τ²), τ² = max(0, (χ² − ν)/(S1 − S2/S1))"
+            "the DerSimonian–Laird random-effects reference, every u_i² widened by the dark uncertainty τ² = max(0, (χ² − ν)/(S1 − S2/S1)) of each quantity, then the closed GLS reference (with one u per laboratory x_ref = Σ x_i/(u_i² + τ²) / Σ 1/(u_i² + τ²), u_ref² = 1/Σ 1/(u_i² + τ²)); nobody left out, the verdict the test of τ = 0 (the closed vector of every laboratory at 5 %)"
         }
     };
     format!(
-        "Interlaboratory comparison of {} laboratories ({}) evaluated by polycal kc (file {}, SHA-256 {}). Reference per quantity: {method}; its U = 2·u_ref. Consistency: χ² = Σ (x_i − x̄_w)²/u_i² with ν = n − 1, consistent when χ² ≤ χ²_0.95(ν). Degrees of equivalence d_i = x_i − x_ref with U(d_i) = 2·√(u_i² + τ² − u_ref² + u_stab²) in the reference and 2·√(u_i² + τ² + u_ref² + u_stab²) out of it. {} Values in arcseconds, labelled by {}; k = 2 with the coverage probability stated as 0.95 (normal distribution).",
+        "Interlaboratory comparison of {} laboratories ({}) evaluated by polycal kc (file {}, SHA-256 {}). Reference per quantity: {method}; its U = 2·u_ref. Per quantity, as information: χ² = Σ (x_i − x̄_w)²/u_i² with ν = n − 1 against χ²_0.95(ν). Degrees of equivalence d_i = x_i − x_ref with U(d_i) = 2·√(u_i² + τ² − u_ref² + u_stab²) in the reference and 2·√(u_i² + τ² + u_ref² + u_stab²) out of it. {} Values in arcseconds, labelled by {}; k = 2 with the coverage probability stated as 0.95 (normal distribution).",
         kc.labs.len(),
         kc.labs.join(", "),
         section.file_name,
@@ -153,42 +153,42 @@ fn description(section: &KeyComparisonSection) -> String {
 /// notes and the verdict, one statement each.
 fn statements(section: &KeyComparisonSection) -> Vec<String> {
     let kc = &section.comparison;
-    let mut lines = vec![format!("{}.", kc.closed_vector_statement())];
+    let mut lines = Vec::new();
+    if let Some(v) = &kc.vector_all {
+        lines.push(format!("Every laboratory: {}.", v.statement()));
+    }
+    if let Some(search) = &kc.search {
+        for step in &search.steps {
+            lines.push(format!(
+                "Subset search, {} laboratories: the smallest χ² of {} subsets is {} ({}): χ² = {:.2}, ν = {}, χ²_0.95(ν) = {:.2}: {}.",
+                step.size,
+                step.subsets,
+                step.best.join(", "),
+                if step.consistent { "passes" } else { "fails" },
+                step.chi2,
+                step.dof,
+                step.chi2_critical,
+                if step.consistent { "consistent" } else { "not consistent" }
+            ));
+        }
+    }
+    lines.push(format!(
+        "In the reference: {}.",
+        kc.closed_vector_statement()
+    ));
     if kc.excluded.is_empty() {
         lines.push("Exclusions: none; every laboratory is in the reference.".to_string());
     }
-    for (step, e) in kc.excluded.iter().enumerate() {
+    for e in &kc.excluded {
         lines.push(format!(
-            "Exclusion {}: laboratory {} left out of the reference: {}",
-            step + 1,
-            e.lab,
-            e.reason
+            "Exclusion: laboratory {} left out of the reference: {}",
+            e.lab, e.reason
         ));
     }
-    if let Some(p) = &kc.pilot {
-        let significant: Vec<String> = kc
-            .index
-            .iter()
-            .zip(&p.significant)
-            .filter(|(_, s)| **s)
-            .map(|(i, _)| i.to_string())
-            .collect();
-        lines.push(format!(
-            "The pilot's stability from its repeats ({}): χ² about their weighted mean with ν = {}; significant at {} — there u_stab, their sample standard deviation, is added to u_ref and to every u(d_i).",
-            p.repeats.join(", "),
-            p.chi2_dof,
-            if significant.is_empty() {
-                "no quantity".to_string()
-            } else {
-                significant.join(", ")
-            }
-        ));
+    if let Some(statement) = kc.pilot_statement() {
+        lines.push(format!("{statement}."));
     }
     lines.extend(kc.notes.iter().cloned());
-    lines.push(if kc.comparison_consistent {
-        "Verdict: consistent after the exclusions stated.".to_string()
-    } else {
-        "Verdict: NOT consistent.".to_string()
-    });
+    lines.push(format!("Verdict: {}.", kc.verdict_statement()));
     lines
 }

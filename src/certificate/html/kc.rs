@@ -11,7 +11,7 @@ use super::Sections;
 use super::tables::{ARCSEC_DECIMALS, num, rounded_pair_cells};
 use crate::certificate::{CalibrationReport, KeyComparisonSection};
 use crate::figure::svg::esc;
-use crate::kc::{KeyComparison, ReferenceMethod};
+use crate::kc::{KeyComparison, ReferenceMethod, SearchMethod};
 use crate::results::Quantity;
 
 /// Decimals of χ² values.
@@ -41,47 +41,17 @@ pub(super) fn section(s: &mut Sections, report: &CalibrationReport) {
         }
         s.html.push_str("</ul>\n");
     }
-    let failing = kc.consistent.iter().filter(|c| !**c).count();
     let _ = writeln!(
         s.html,
-        "<p class=\"verdict {}\" id=\"kc-verdict\">{}</p>",
+        "<p class=\"verdict {}\" id=\"kc-verdict\">{}.</p>",
         if kc.comparison_consistent {
             "pass"
         } else {
             "fail"
         },
-        esc(&if kc.comparison_consistent {
-            format!(
-                "Consistent after the exclusions stated: every {} passes its χ² test{}.",
-                quantity_word(kc.quantity),
-                if kc.vector.is_some() {
-                    ", and so does the closed vector"
-                } else {
-                    ""
-                }
-            )
-        } else {
-            format!(
-                "NOT consistent: {failing} of {} fail their χ² test{}.",
-                kc.index.len(),
-                match &kc.vector {
-                    Some(v) if !v.consistent => ", and the closed vector fails its test",
-                    _ => "",
-                }
-            )
-        })
+        esc(&kc.verdict_statement())
     );
     s.close();
-}
-
-/// The compared quantity in words, singular.
-fn quantity_word(quantity: Quantity) -> &'static str {
-    match quantity {
-        Quantity::PitchDeviation => "pitch deviation β",
-        Quantity::EncoderError => "encoder error α",
-        Quantity::FaceDeviation => "face deviation φ",
-        Quantity::SetupError => "setup error",
-    }
 }
 
 /// The compared quantity in words, plural.
@@ -161,29 +131,36 @@ fn introduction(out: &mut String, section: &KeyComparisonSection) {
 fn formulas(out: &mut String, kc: &KeyComparison) {
     let reference = match kc.method {
         ReferenceMethod::WeightedMean => {
-            "the weighted mean (Cox 2002, procedure A): x<sub>ref</sub> = Σ x<sub>i</sub>/u<sub>i</sub>² \
-             / Σ 1/u<sub>i</sub>², u<sub>ref</sub> = (Σ 1/u<sub>i</sub>²)<sup>−1/2</sup>, over the \
-             laboratories in the reference; a laboratory is left out of the whole comparison while \
-             some quantity fails its χ² test and more than two remain (the largest consistent \
-             subset, the one with the largest |d<sub>i</sub>|/u(d<sub>i</sub>) on a failing \
-             quantity first)"
+            "the closed GLS reference of the laboratories in it (the weighted mean x<sub>ref</sub> \
+             = Σ x<sub>i</sub>/u<sub>i</sub>² / Σ 1/u<sub>i</sub>², u<sub>ref</sub> = (Σ \
+             1/u<sub>i</sub>²)<sup>−1/2</sup> of each quantity when every laboratory's u is the \
+             same on every quantity). The comparison is decided by one test at 5 %, the closed \
+             vector of every laboratory; only when it fails are laboratories left out, each \
+             from every quantity: the largest subset whose closed vector passes, every subset \
+             tried while that is cheap, ties broken by the smaller χ²"
         }
         ReferenceMethod::DersimonianLaird => {
-            "the DerSimonian–Laird random-effects mean: x<sub>ref</sub> = Σ x<sub>i</sub>/(u<sub>i</sub>² + τ²) \
-             / Σ 1/(u<sub>i</sub>² + τ²), u<sub>ref</sub>² = 1/Σ 1/(u<sub>i</sub>² + τ²), the dark \
-             uncertainty τ² = max(0, (χ² − ν)/(S<sub>1</sub> − S<sub>2</sub>/S<sub>1</sub>)), \
-             S<sub>1</sub> = Σ 1/u<sub>i</sub>², S<sub>2</sub> = Σ 1/u<sub>i</sub>⁴; nobody is left out"
+            "the DerSimonian–Laird random-effects reference: every laboratory's variance widened \
+             by the dark uncertainty τ² = max(0, (χ² − ν)/(S<sub>1</sub> − S<sub>2</sub>/S<sub>1</sub>)) \
+             of each quantity, S<sub>1</sub> = Σ 1/u<sub>i</sub>², S<sub>2</sub> = Σ \
+             1/u<sub>i</sub>⁴ (the spread of the laboratories beyond their stated uncertainties), \
+             then the closed GLS reference (x<sub>ref</sub> = Σ x<sub>i</sub>/(u<sub>i</sub>² + τ²) \
+             / Σ 1/(u<sub>i</sub>² + τ²) with the same u on every quantity); nobody is left out, \
+             and the verdict is the test of τ = 0, the closed vector of every laboratory at 5 %"
         }
     };
     let _ = writeln!(
         out,
-        "<p id=\"kc-method\" data-method=\"{}\">Reference value ({}): {reference}. Consistency: \
-         χ² = Σ (x<sub>i</sub> − x̄<sub>w</sub>)²/u<sub>i</sub>² with ν = n − 1, consistent when \
-         χ² ≤ χ²<sub>0.95</sub>(ν). Degrees of equivalence: d<sub>i</sub> = x<sub>i</sub> − \
-         x<sub>ref</sub>, U(d<sub>i</sub>) = 2·√(u<sub>i</sub>² + τ² − u<sub>ref</sub>² + \
+        "<p id=\"kc-method\" data-method=\"{}\">Reference value ({}): {reference}. Per \
+         quantity, as information: χ² = Σ (x<sub>i</sub> − x̄<sub>w</sub>)²/u<sub>i</sub>² with \
+         ν = n − 1 against χ²<sub>0.95</sub>(ν) (about one quantity in twenty fails by chance). \
+         Degrees of equivalence: d<sub>i</sub> = x<sub>i</sub> − x<sub>ref</sub> (Σ d<sub>i</sub> \
+         = 0), U(d<sub>i</sub>) = 2·√(u<sub>i</sub>² + τ² − u<sub>ref</sub>² + \
          u<sub>stab</sub>²) for a laboratory in the reference, 2·√(u<sub>i</sub>² + τ² + \
-         u<sub>ref</sub>² + u<sub>stab</sub>²) for one out of it (k = 2); u<sub>stab</sub> is the \
-         pilot's instability (0 without repeats or where they agree). All values in arcseconds.</p>",
+         u<sub>ref</sub>² + u<sub>stab</sub>²) for one out of it (k = 2; u<sub>i</sub>² the \
+         diagonal of the laboratory's closed covariance, u<sub>ref</sub>² that of the \
+         reference's); u<sub>stab</sub> is the pilot's instability (0 without repeats or when \
+         they agree). All values in arcseconds.</p>",
         kc.method.name(),
         kc.method.name()
     );
@@ -217,62 +194,102 @@ fn reference_table(out: &mut String, kc: &KeyComparison) {
 }
 
 fn vector(out: &mut String, kc: &KeyComparison) {
-    match &kc.vector {
-        Some(v) => {
-            let _ = writeln!(
-                out,
-                "<p>The closed vector: each laboratory's β sum to 0, so its faces are correlated. \
-                 Generalised least squares with each laboratory's covariance V<sub>i</sub> (its own \
-                 when it sent one, else V<sub>i</sub> = N/(N − 1)·P·diag(u<sub>i</sub>²)·P, \
-                 P = I − J/N): x<sub>ref</sub> = (Σ V<sub>i</sub>⁺)⁺ Σ V<sub>i</sub>⁺ x<sub>i</sub>, \
-                 χ² = Σ (x<sub>i</sub> − x<sub>ref</sub>)ᵀ V<sub>i</sub>⁺ (x<sub>i</sub> − \
-                 x<sub>ref</sub>), ν = (N − 1)(n − 1).</p>\n\
-                 <table id=\"kc-vector\"><thead><tr><th>χ²</th><th>ν</th><th>χ²<sub>0.95</sub>(ν)</th>\
-                 <th>Consistent</th></tr></thead><tbody><tr{}>{}<td class=\"num\">{}</td>{}<td>{}</td></tr>\
-                 </tbody></table>",
-                if v.consistent { "" } else { " class=\"fail\"" },
-                num(Some(v.chi2), CHI2_DECIMALS),
-                v.dof,
-                num(Some(v.chi2_critical), CHI2_DECIMALS),
-                if v.consistent { "yes" } else { "NO" }
-            );
-        }
-        None => {
-            let _ = writeln!(
-                out,
-                "<p id=\"kc-vector\">The closed vector is not tested: {} are not closed.</p>",
-                quantity_plural(kc.quantity)
-            );
-        }
+    let rows: Vec<(&str, &crate::kc::VectorTest)> = [
+        ("Every laboratory (the decision)", kc.vector_all.as_ref()),
+        ("The laboratories in the reference", kc.vector.as_ref()),
+    ]
+    .into_iter()
+    .filter_map(|(name, v)| Some((name, v?)))
+    .collect();
+    if rows.is_empty() {
+        let _ = writeln!(
+            out,
+            "<p id=\"kc-vector\">The closed vector is not tested: {} are not closed.</p>",
+            quantity_plural(kc.quantity)
+        );
+        return;
     }
+    let _ = write!(
+        out,
+        "<p>The closed vector: each laboratory's {} sum to 0 ({}), so its quantities are \
+         correlated. Generalised least squares with each laboratory's covariance V<sub>i</sub> \
+         (its own when it sent one, else V<sub>i</sub> = N/(N − 1)·P·diag(u<sub>i</sub>²)·P, \
+         P = I − J/N): x<sub>ref</sub> = (Σ V<sub>i</sub>⁺)⁺ Σ V<sub>i</sub>⁺ x<sub>i</sub>, \
+         χ² = Σ (x<sub>i</sub> − x<sub>ref</sub>)ᵀ V<sub>i</sub>⁺ (x<sub>i</sub> − \
+         x<sub>ref</sub>), ν = (N − 1)(n − 1).</p>\n\
+         <table id=\"kc-vector\"><thead><tr><th>Laboratories</th><th>χ²</th><th>ν</th>\
+         <th>χ²<sub>0.95</sub>(ν)</th><th>Consistent</th></tr></thead><tbody>",
+        quantity_plural(kc.quantity),
+        if kc.quantity == Quantity::EncoderError {
+            "each result's mean over the compared positions taken out: encoder errors are \
+             defined up to a constant"
+        } else {
+            "a polygon closes"
+        }
+    );
+    for (name, v) in rows {
+        let _ = write!(
+            out,
+            "<tr{}><td>{name}</td>{}<td class=\"num\">{}</td>{}<td>{}</td></tr>",
+            if v.consistent { "" } else { " class=\"fail\"" },
+            num(Some(v.chi2), CHI2_DECIMALS),
+            v.dof,
+            num(Some(v.chi2_critical), CHI2_DECIMALS),
+            if v.consistent { "yes" } else { "NO" }
+        );
+    }
+    out.push_str("</tbody></table>\n");
 }
 
 fn exclusions(out: &mut String, kc: &KeyComparison) {
+    if let Some(search) = &kc.search {
+        let _ = writeln!(
+            out,
+            "<table id=\"kc-search\"><caption>The largest consistent subset ({}, {} subsets \
+             fitted): the subset of each size with the smallest χ²</caption><thead><tr>\
+             <th>Laboratories</th><th>Subset</th><th>χ²</th><th>ν</th><th>χ²<sub>0.95</sub>(ν)</th>\
+             <th>Passes</th></tr></thead><tbody>",
+            match search.method {
+                SearchMethod::Exhaustive => "every subset tried",
+                _ => "greedy: the subsets were too many to try",
+            },
+            search.subsets_tested
+        );
+        for step in &search.steps {
+            let _ = writeln!(
+                out,
+                "<tr{}><td>{}</td><td>{}</td>{}<td class=\"num\">{}</td>{}<td>{}</td></tr>",
+                if step.consistent {
+                    ""
+                } else {
+                    " class=\"fail\""
+                },
+                step.size,
+                esc(&step.best.join(", ")),
+                num(Some(step.chi2), CHI2_DECIMALS),
+                step.dof,
+                num(Some(step.chi2_critical), CHI2_DECIMALS),
+                if step.consistent { "yes" } else { "NO" }
+            );
+        }
+        out.push_str("</tbody></table>\n");
+    }
     if kc.excluded.is_empty() {
         out.push_str(
             "<p id=\"kc-exclusions\">Exclusions: none; every laboratory is in the reference.</p>\n",
         );
         return;
     }
-    let _ = writeln!(
-        out,
-        "<table id=\"kc-exclusions\"><caption>Laboratories left out of the reference, in the \
-         order they were</caption><thead><tr><th>Step</th><th>Laboratory</th><th>{}</th>\
-         <th>|d<sub>i</sub>|/u(d<sub>i</sub>)</th><th>χ² before</th><th>χ²<sub>0.95</sub>(ν)</th>\
-         <th>Reason</th></tr></thead><tbody>",
-        position_header(kc)
+    out.push_str(
+        "<table id=\"kc-exclusions\"><caption>Laboratories left out of the reference (of \
+         every quantity)</caption><thead><tr><th>Laboratory</th><th>Reason</th></tr></thead><tbody>\n",
     );
-    for (step, e) in kc.excluded.iter().enumerate() {
+    for e in &kc.excluded {
         let _ = writeln!(
             out,
-            "<tr data-lab=\"{}\"><td>{}</td><td>{}</td><td>{}</td>{}{}{}<td>{}</td></tr>",
+            "<tr data-lab=\"{}\"><td>{}</td><td>{}</td></tr>",
             esc(&e.lab),
-            step + 1,
             esc(&e.lab),
-            e.index,
-            num(Some(e.normalised_deviation), CHI2_DECIMALS),
-            num(Some(e.chi2_before), CHI2_DECIMALS),
-            num(Some(e.chi2_critical), CHI2_DECIMALS),
             esc(&e.reason)
         );
     }
@@ -337,11 +354,10 @@ fn pilot(out: &mut String, kc: &KeyComparison) {
     let Some(p) = &kc.pilot else { return };
     let _ = writeln!(
         out,
-        "<table class=\"results\" id=\"kc-pilot\"><caption>The pilot's stability: its repeats {} — \
-         χ² about their weighted mean with ν = {}; where χ² &gt; χ²<sub>0.95</sub>(ν), \
-         u<sub>stab</sub> = their sample standard deviation s, added in quadrature to u<sub>ref</sub> \
-         and to every u(d<sub>i</sub>)</caption><thead><tr>{}<th>mean / ″</th><th>s / ″</th>\
+        "<p id=\"kc-pilot-verdict\">{}.</p>\n<table class=\"results\" id=\"kc-pilot\"><caption>The pilot's repeats {} per quantity \
+         (information): χ² about their weighted mean with ν = {}, and u<sub>stab</sub></caption><thead><tr>{}<th>mean / ″</th><th>s / ″</th>\
          <th>χ²</th><th>Significant</th><th>u<sub>stab</sub> / ″</th></tr></thead><tbody>",
+        esc(&kc.pilot_statement().unwrap_or_default()),
         esc(&p.repeats.join(", ")),
         p.chi2_dof,
         position_headers(kc)

@@ -135,7 +135,7 @@ pub(super) struct Fit {
 }
 
 /// A reading's cell: (setup, step, autocollimator, direction).
-pub(super) type Cell = (u32, usize, u32, Direction);
+pub type Cell = (u32, usize, u32, Direction);
 
 /// The cell of `reading`.
 pub(super) fn cell(reading: &Reading) -> Cell {
@@ -241,6 +241,47 @@ pub(super) fn worst(
         })
         .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
         .map(|(i, _)| i)
+}
+
+/// A reading the check after a cycle measures again: the first decision of the check
+/// ([`to_measure_again`]).
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct ToMeasureAgain {
+    /// The reading's index in the measurement set checked.
+    pub index: usize,
+    /// Its residual in the run's fit, arcsec (beyond [`OUTLIER_SIGMAS`]·σ).
+    pub residual_arcsec: f64,
+    /// The run's noise σ as the check took it, arcsec.
+    pub sigma_arcsec: f64,
+}
+
+/// The check's decision after cycle `cycle` of mounting `setup`, with the file on disk
+/// holding `set` (docs/FORMAT.md §7.3, *Checked while it runs*): the reading the run
+/// measures again first, or `None`. It is the measuring loop's own first decision —
+/// `solve`'s fit of every reading so far, σ robust (1.4826·MAD·√(n/ν)) and not below
+/// the stated noise of a stored reading (`reading_noise`/√`reads`), and the reading of
+/// the mounting on the table whose residual lies furthest beyond [`OUTLIER_SIGMAS`]·σ,
+/// outside the cells in `handled` (measured again already in this session) and the
+/// readings of an autocollimator whose cycle sits off the fit as a whole (a warning,
+/// not one reading). `None` too while the fit has fewer than [`MIN_DOF`] residual
+/// degrees of freedom. The run asks again after every stop it measures again, up to
+/// [`MAX_REMEASURED_PER_CYCLE`] stops a cycle.
+pub fn to_measure_again(
+    set: &MeasurementSet,
+    settings: &RunSettings,
+    setup: u32,
+    cycle: u32,
+    handled: &[Cell],
+) -> Option<ToMeasureAgain> {
+    let fit = fit(set, settings)?;
+    let offsets = summary(set, Some(&fit), setup, cycle).offsets;
+    let index = worst(&fit, setup, handled, &offsets)?;
+    Some(ToMeasureAgain {
+        index,
+        residual_arcsec: fit.residuals[index],
+        sigma_arcsec: fit.sigma,
+    })
 }
 
 /// The summary of a cycle whose file could not be read back: nothing but its number.

@@ -100,8 +100,8 @@ pub use abort::AbortHandle;
 pub use directory::{COLUMNS, MANIFEST, MEASUREMENTS, REMEASURED, RunDir, TRAFFIC};
 pub use error::RunError;
 pub use live::{
-    CycleCheck, MAX_REMEASURED_PER_CYCLE, MIN_DOF, OFFSET_SIGMAS, OUTLIER_SIGMAS, Remeasured,
-    Suspect,
+    Cell, CycleCheck, MAX_REMEASURED_PER_CYCLE, MIN_DOF, OFFSET_SIGMAS, OUTLIER_SIGMAS, Remeasured,
+    Suspect, ToMeasureAgain, to_measure_again,
 };
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
 pub use measure::{Attendant, Instruments, Outcome, Progress, measure, measure_attended};

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
 
-use super::{Devices, Endpoint, World, lock};
+use super::{Devices, Endpoint, RemountError, World, lock};
 use crate::lab::InstrumentError;
 use crate::simulate::Truth;
 
@@ -145,8 +145,8 @@ impl Lab {
     ///
     /// # Errors
     ///
-    /// The last setup is mounted already.
-    pub fn remount(&self) -> Result<u32, String> {
+    /// [`RemountError::LastMounting`]: the last setup is mounted already.
+    pub fn remount(&self) -> Result<u32, RemountError> {
         lock(&self.world).remount()
     }
 

@@ -89,7 +89,7 @@ pub use fault::{DEFAULT_LATE, DeviceId, FAULT_KINDS, Fault, FaultError, FaultKin
 #[cfg(unix)]
 pub use lab::{Lab, LabPaths};
 pub use smc100::Smc100Sim;
-pub use world::{TableView, World};
+pub use world::{RemountError, TableView, World};
 
 use crate::simulate::{SimulateError, Truth};
 use world::lock;
@@ -207,8 +207,8 @@ impl Devices {
     ///
     /// # Errors
     ///
-    /// The last setup is mounted already.
-    pub fn remount(&self) -> Result<u32, String> {
+    /// [`RemountError::LastMounting`]: the last setup is mounted already.
+    pub fn remount(&self) -> Result<u32, RemountError> {
         lock(&self.world).remount()
     }
 }

@@ -12,6 +12,20 @@ use super::{AC_RANGE_ARCSEC, LabConfig, PYRAMIDAL_SPREAD_ARCSEC};
 use crate::measurement::{Direction, Reading, run_stops};
 use crate::simulate::{SimulateError, SimulationConfig, Truth};
 
+/// Why the simulated lab could not remount the polygon.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum RemountError {
+    /// The simulation's last setup is on the table already: there is no next mounting.
+    #[error("the lab simulates {setups} mounting(s), and mounting {mounting} is on the table")]
+    LastMounting {
+        /// The setups the simulation has.
+        setups: u32,
+        /// The mounting on the table.
+        mounting: u32,
+    },
+}
+
 /// A planned stop of the run design the world follows.
 #[derive(Debug, Clone)]
 struct PlannedStop {
@@ -216,14 +230,14 @@ impl World {
     ///
     /// # Errors
     ///
-    /// The simulation's last setup is mounted already: its message.
-    pub fn remount(&mut self) -> Result<u32, String> {
+    /// [`RemountError::LastMounting`]: the simulation's last setup is mounted already.
+    pub fn remount(&mut self) -> Result<u32, RemountError> {
         let setups = self.config.simulation.setups;
         if self.mounting >= setups {
-            return Err(format!(
-                "the lab simulates {setups} mounting(s), and mounting {} is on the table",
-                self.mounting
-            ));
+            return Err(RemountError::LastMounting {
+                setups,
+                mounting: self.mounting,
+            });
         }
         self.mounting += 1;
         self.tracker = Tracker::new(&self.config.simulation);

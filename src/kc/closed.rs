@@ -1,0 +1,370 @@
+//! The closed vector: the GLS reference of several laboratories' closed vectors (Σ = 0)
+//! and its χ², the one test of a comparison's consistency (docs/FORMAT.md §12).
+//!
+//! A laboratory's closed result given without a covariance has V = c·P·D·P, c = N/(N − 1),
+//! D = diag(u²), P = I − J/N: diagonal plus rank one on the closed subspace, whose
+//! pseudo-inverse is V⁺ = W − w wᵀ/s with W = diag(w), w_k = 1/(c·u_k²), s = Σ_k w_k.
+//! Then (x − r)ᵀ V⁺ (x − r) = min_a Σ_k w_k (x_k − r_k − a)², so the GLS of n such
+//! laboratories is the weighted two-way additive fit
+//!
+//! ```text
+//! x_ik = r_k + a_i + e_ik,   weights w_ik,   Σ_k r_k = 0
+//! χ² = Σ_ik w_ik (x_ik − r_k − a_i)²,   ν = (N − 1)(n − 1)
+//! ```
+//!
+//! r eliminated (r_k = Σ_i w_ik (x_ik − a_i) / W_k, W_k = Σ_i w_ik) leaves the n × n
+//! system M a = h, M = diag(s) − G, G_ij = Σ_k w_ik w_jk / W_k, whose null space is the
+//! constants (the gauge a + t, r − t): fixing a_1 = 0 makes it positive definite. The
+//! reference's covariance is (Σ V_i⁺)⁺ = P·A′⁻¹·P with A′ = diag(W) − Σ_{i≥2} w_i w_iᵀ/s_i
+//! (the gauge a_1 = 0), and by Woodbury A′⁻¹ = W⁻¹ + W⁻¹U′ M′⁻¹ U′ᵀW⁻¹ (U′ the columns
+//! w_i, i ≥ 2; M′ the system without lab 1): O(N·n² + n³) time, O(N·n) memory, no N × N
+//! matrix. A laboratory's own covariance (dense, from `solve --covariance`) takes the
+//! dense GLS x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i instead, the same numbers.
+//!
+//! Every calculation is scaled by the comparison's largest standard uncertainty, so that
+//! χ² is as accurate for u = 10⁻⁸″ as for u = 0.1″ (χ² is invariant under the scale).
+
+use nalgebra::{DMatrix, DVector};
+
+/// One laboratory's covariance on the closed subspace, in the comparison's scaled units.
+#[derive(Debug, Clone)]
+pub(crate) enum ClosedCovariance {
+    /// Taken as closed from the row's standard uncertainties: V = c·P·diag(u²)·P.
+    Stated(Vec<f64>),
+    /// Its own covariance V (N × N) with its pseudo-inverse V⁺, scaled.
+    Own {
+        /// V.
+        v: DMatrix<f64>,
+        /// V⁺ on the closed subspace.
+        v_plus: DMatrix<f64>,
+    },
+}
+
+impl ClosedCovariance {
+    /// The diagonal of V: c·(u_k²(1 − 2/N) + Σ u²/N²) for a stated one.
+    pub(crate) fn diagonal(&self) -> Vec<f64> {
+        match self {
+            ClosedCovariance::Stated(u) => {
+                let faces = u.len() as f64;
+                let c = faces / (faces - 1.0);
+                let mean_square = u.iter().map(|u| u * u).sum::<f64>() / (faces * faces);
+                u.iter()
+                    .map(|u| c * (u * u * (1.0 - 2.0 / faces) + mean_square))
+                    .collect()
+            }
+            ClosedCovariance::Own { v, .. } => v.diagonal().iter().copied().collect(),
+        }
+    }
+
+    /// V⁺ as a dense matrix (the dense path).
+    fn dense_plus(&self) -> DMatrix<f64> {
+        match self {
+            ClosedCovariance::Stated(u) => {
+                let (w, s) = weights(u);
+                DMatrix::from_fn(u.len(), u.len(), |i, j| {
+                    let diagonal = if i == j { w[i] } else { 0.0 };
+                    diagonal - w[i] * w[j] / s
+                })
+            }
+            ClosedCovariance::Own { v_plus, .. } => v_plus.clone(),
+        }
+    }
+}
+
+/// w_k = 1/(c·u_k²) and s = Σ w_k.
+fn weights(u: &[f64]) -> (Vec<f64>, f64) {
+    let faces = u.len() as f64;
+    let c = faces / (faces - 1.0);
+    let w: Vec<f64> = u.iter().map(|u| 1.0 / (c * u * u)).collect();
+    let s = w.iter().sum();
+    (w, s)
+}
+
+/// The GLS fit of closed vectors.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ClosedFit {
+    /// The closed reference r (Σ r = 0).
+    pub reference: Vec<f64>,
+    /// The diagonal of its covariance (Σ V_i⁺)⁺.
+    pub reference_variance: Vec<f64>,
+    /// χ² = Σ_i (x_i − r)ᵀ V_i⁺ (x_i − r).
+    pub chi2: f64,
+    /// (N − 1)(n − 1).
+    pub dof: usize,
+}
+
+/// The GLS fit of the closed vectors `x` (each already closed) with covariances `v`; `None`
+/// for fewer than 2 vectors or 2 positions, or a system that cannot be solved (a
+/// covariance singular on the closed subspace).
+pub(crate) fn fit(x: &[&[f64]], v: &[&ClosedCovariance]) -> Option<ClosedFit> {
+    let faces = x.first()?.len();
+    if x.len() < 2 || faces < 2 || v.len() != x.len() {
+        return None;
+    }
+    let all_stated: Option<Vec<&[f64]>> = v
+        .iter()
+        .map(|c| match c {
+            ClosedCovariance::Stated(u) => Some(u.as_slice()),
+            ClosedCovariance::Own { .. } => None,
+        })
+        .collect();
+    let fit = match all_stated {
+        Some(u) => additive(x, &u)?,
+        None => dense(x, v)?,
+    };
+    let finite = fit.chi2.is_finite()
+        && fit.reference.iter().all(|r| r.is_finite())
+        && fit.reference_variance.iter().all(|r| r.is_finite());
+    finite.then_some(fit)
+}
+
+/// The two-way additive fit (module documentation): every laboratory's covariance stated.
+fn additive(x: &[&[f64]], u: &[&[f64]]) -> Option<ClosedFit> {
+    let (labs, faces) = (x.len(), x[0].len());
+    let mut w = Vec::with_capacity(labs);
+    let mut s = Vec::with_capacity(labs);
+    for u in u {
+        let (wi, si) = weights(u);
+        w.push(wi);
+        s.push(si);
+    }
+    let total: Vec<f64> = (0..faces)
+        .map(|k| (0..labs).map(|i| w[i][k]).sum())
+        .collect();
+    // m_k, the per-face weighted mean; b_i = Σ_k w_ik x_ik; h_i = b_i − Σ_k w_ik m_k.
+    let mean: Vec<f64> = (0..faces)
+        .map(|k| (0..labs).map(|i| w[i][k] * x[i][k]).sum::<f64>() / total[k])
+        .collect();
+    let h: Vec<f64> = (0..labs)
+        .map(|i| (0..faces).map(|k| w[i][k] * (x[i][k] - mean[k])).sum())
+        .collect();
+    // M′ (labs 2 … n): s_i δ_ij − G_ij.
+    let rest = labs - 1;
+    let mut m = DMatrix::zeros(rest, rest);
+    for p in 0..rest {
+        for q in p..rest {
+            let g: f64 = (0..faces)
+                .map(|k| w[p + 1][k] * w[q + 1][k] / total[k])
+                .sum();
+            let entry = if p == q { s[p + 1] - g } else { -g };
+            m[(p, q)] = entry;
+            m[(q, p)] = entry;
+        }
+    }
+    let cholesky = m.cholesky()?;
+    let a_rest = cholesky.solve(&DVector::from_iterator(rest, h[1..].iter().copied()));
+    let a: Vec<f64> = std::iter::once(0.0).chain(a_rest.iter().copied()).collect();
+    let raw: Vec<f64> = (0..faces)
+        .map(|k| mean[k] - (0..labs).map(|i| w[i][k] * a[i]).sum::<f64>() / total[k])
+        .collect();
+    let shift = raw.iter().sum::<f64>() / faces as f64;
+    let reference: Vec<f64> = raw.iter().map(|r| r - shift).collect();
+    let mut chi2 = 0.0;
+    for i in 0..labs {
+        for k in 0..faces {
+            chi2 += w[i][k] * (x[i][k] - raw[k] - a[i]).powi(2);
+        }
+    }
+    // The reference's covariance: P·A′⁻¹·P, A′⁻¹ = W⁻¹ + Z M′⁻¹ Zᵀ with Z_kp = w_{p+1,k}/W_k.
+    let m_inverse = cholesky.inverse();
+    let z = |k: usize, p: usize| w[p + 1][k] / total[k];
+    let mut diagonal = vec![0.0; faces];
+    let mut row_sum = vec![0.0; faces]; // (A′⁻¹ 1)_k
+    let mut zt_one = vec![0.0; rest]; // Zᵀ 1
+    for k in 0..faces {
+        for (p, sum) in zt_one.iter_mut().enumerate() {
+            *sum += z(k, p);
+        }
+    }
+    let m_zt_one = &m_inverse * DVector::from_column_slice(&zt_one);
+    for k in 0..faces {
+        let zk: Vec<f64> = (0..rest).map(|p| z(k, p)).collect();
+        let mut quadratic = 0.0;
+        for p in 0..rest {
+            let mut inner = 0.0;
+            for q in 0..rest {
+                inner += m_inverse[(p, q)] * zk[q];
+            }
+            quadratic += zk[p] * inner;
+        }
+        diagonal[k] = 1.0 / total[k] + quadratic;
+        row_sum[k] = 1.0 / total[k] + (0..rest).map(|p| zk[p] * m_zt_one[p]).sum::<f64>();
+    }
+    let n = faces as f64;
+    let grand = row_sum.iter().sum::<f64>();
+    let reference_variance = (0..faces)
+        .map(|k| (diagonal[k] - 2.0 * row_sum[k] / n + grand / (n * n)).max(0.0))
+        .collect();
+    Some(ClosedFit {
+        reference,
+        reference_variance,
+        chi2,
+        dof: (faces - 1) * (labs - 1),
+    })
+}
+
+/// The dense GLS: x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i, its covariance (Σ V_i⁺)⁺.
+fn dense(x: &[&[f64]], v: &[&ClosedCovariance]) -> Option<ClosedFit> {
+    let faces = x[0].len();
+    let mut sum_inverse = DMatrix::zeros(faces, faces);
+    let mut sum_weighted = DVector::zeros(faces);
+    let mut weights = Vec::with_capacity(x.len());
+    for (x, v) in x.iter().zip(v) {
+        let v_plus = v.dense_plus();
+        sum_weighted += &v_plus * DVector::from_column_slice(x);
+        sum_inverse += &v_plus;
+        weights.push(v_plus);
+    }
+    let covariance = closed_pseudo_inverse(&sum_inverse)?;
+    let reference = &covariance * sum_weighted;
+    let mut chi2 = 0.0;
+    for (xi, v_plus) in x.iter().zip(&weights) {
+        let d = DVector::from_column_slice(xi) - &reference;
+        chi2 += d.dot(&(v_plus * &d));
+    }
+    Some(ClosedFit {
+        reference: reference.iter().copied().collect(),
+        reference_variance: covariance.diagonal().iter().map(|v| v.max(0.0)).collect(),
+        chi2,
+        dof: (faces - 1) * (x.len() - 1),
+    })
+}
+
+/// The χ² of a vector of differences d whose covariance is P·diag(v)·P, P = I − J/N (each
+/// of two results closed, and their sum, as `compare` takes them): dᵀ(P·D·P)⁺d, its
+/// constant part left out (P·D·P has the constants as its null space). As for one
+/// laboratory above, (P·D·P)⁺ = W − w·wᵀ/s (Sherman–Morrison), so the χ² is the weighted sum
+/// of squares about the weighted mean, Σ w_i·(d_i − d̄_w)², w_i = 1/v_i,
+/// d̄_w = Σ w_i·d_i / Σ w_i: O(N), no matrix formed. Returns (χ², d̄_w). Every `v_i` must be
+/// positive with a finite 1/v_i (the caller checks and scales).
+pub(crate) fn difference_chi2(d: &[f64], variance: &[f64]) -> (f64, f64) {
+    let weight_sum: f64 = variance.iter().map(|v| 1.0 / v).sum();
+    let mean = d.iter().zip(variance).map(|(d, v)| d / v).sum::<f64>() / weight_sum;
+    let chi2 = d
+        .iter()
+        .zip(variance)
+        .map(|(d, v)| (d - mean).powi(2) / v)
+        .sum();
+    (chi2, mean)
+}
+
+/// The projector onto closed vectors, P = I − J/N.
+pub(crate) fn closing_projector(faces: usize) -> DMatrix<f64> {
+    let n = faces as f64;
+    DMatrix::from_fn(
+        faces,
+        faces,
+        |i, j| {
+            if i == j { 1.0 - 1.0 / n } else { -1.0 / n }
+        },
+    )
+}
+
+/// The pseudo-inverse of a symmetric matrix whose null space is exactly the constant
+/// vectors: A⁺ = (A + β·J/N)⁻¹ − J/(β·N), β the mean of A's diagonal (the constant
+/// direction given an eigenvalue of A's own scale, inverted, and taken out again). `None`
+/// when A + β·J/N is not positive definite.
+pub(crate) fn closed_pseudo_inverse(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let faces = a.nrows();
+    let n = faces as f64;
+    let beta = a.diagonal().iter().sum::<f64>() / n;
+    if !(beta > 0.0 && beta.is_finite()) {
+        return None;
+    }
+    let j_over_n = DMatrix::from_element(faces, faces, 1.0 / n);
+    let inverse = (a + &j_over_n * beta).cholesky()?.inverse();
+    Some(inverse - j_over_n / beta)
+}
+
+/// `x` closed: its mean taken out.
+pub(crate) fn closed(x: &[f64]) -> Vec<f64> {
+    let mean = x.iter().sum::<f64>() / x.len() as f64;
+    x.iter().map(|x| x - mean).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    /// The O(N) χ² of a closed difference is the dense one through the pseudo-inverse of
+    /// the sum of two closed covariances.
+    #[test]
+    fn kc_difference_chi2_is_the_dense_one() {
+        let u_a = [0.1, 0.2, 0.15, 0.3, 0.12, 0.05];
+        let u_b = [0.3, 0.1, 0.1, 0.2, 0.02, 0.5];
+        let v = crate::kc::closed_covariance(&u_a) + crate::kc::closed_covariance(&u_b);
+        let v_plus = closed_pseudo_inverse(&v).expect("invertible on the closed subspace");
+        // Not closed: the constant part is left out by both.
+        let d = DVector::from_column_slice(&[0.3, -0.2, 0.05, 0.4, -0.1, 0.7]);
+        let dense = (d.transpose() * &v_plus * &d)[(0, 0)];
+        let c = 6.0 / 5.0;
+        let variance: Vec<f64> = u_a
+            .iter()
+            .zip(&u_b)
+            .map(|(a, b)| c * (a * a + b * b))
+            .collect();
+        let (chi2, _) = difference_chi2(d.as_slice(), &variance);
+        assert!((chi2 - dense).abs() < 1e-10 * dense, "{chi2} vs {dense}");
+    }
+
+    use super::*;
+
+    /// The additive fit is the dense GLS: reference, its covariance's diagonal and χ².
+    #[test]
+    fn kc_closed_additive_fit_is_the_dense_gls() {
+        let u: Vec<Vec<f64>> = (0..4)
+            .map(|i| {
+                (0..7)
+                    .map(|k| 0.05 + 0.02 * i as f64 + 0.013 * k as f64)
+                    .collect()
+            })
+            .collect();
+        let x: Vec<Vec<f64>> = (0..4)
+            .map(|i| {
+                closed(
+                    &(0..7)
+                        .map(|k| ((i * 7 + k) as f64).sin() * 0.1)
+                        .collect::<Vec<_>>(),
+                )
+            })
+            .collect();
+        let covariances: Vec<ClosedCovariance> = u
+            .iter()
+            .map(|u| ClosedCovariance::Stated(u.clone()))
+            .collect();
+        let xs: Vec<&[f64]> = x.iter().map(Vec::as_slice).collect();
+        let vs: Vec<&ClosedCovariance> = covariances.iter().collect();
+        let fast = additive(&xs, &u.iter().map(Vec::as_slice).collect::<Vec<_>>()).unwrap();
+        let slow = dense(&xs, &vs).unwrap();
+        assert!(
+            (fast.chi2 - slow.chi2).abs() < 1e-9 * slow.chi2,
+            "{fast:?} {slow:?}"
+        );
+        for k in 0..7 {
+            assert!((fast.reference[k] - slow.reference[k]).abs() < 1e-12);
+            let (a, b) = (fast.reference_variance[k], slow.reference_variance[k]);
+            assert!((a - b).abs() < 1e-9 * b, "{a} {b}");
+        }
+        assert!(fast.reference.iter().sum::<f64>().abs() < 1e-14);
+    }
+
+    #[test]
+    fn kc_pseudo_inverse_is_the_moore_penrose_one() {
+        let u = [0.1, 0.2, 0.15, 0.3, 0.12];
+        let v = ClosedCovariance::Stated(u.to_vec());
+        let faces = u.len() as f64;
+        let p = closing_projector(5);
+        let d = DMatrix::from_diagonal(&DVector::from_iterator(5, u.iter().map(|u| u * u)));
+        let dense_v = (&p * d * &p) * (faces / (faces - 1.0));
+        let v_plus = v.dense_plus();
+        assert!((&dense_v * &v_plus - &p).amax() < 1e-10);
+        assert!((&dense_v * &v_plus * &dense_v - &dense_v).amax() < 1e-12);
+        let from_trick = closed_pseudo_inverse(&dense_v).unwrap();
+        assert!((from_trick - &v_plus).amax() < 1e-8 * v_plus.amax());
+        let diagonal = v.diagonal();
+        for k in 0..5 {
+            assert!((diagonal[k] - dense_v[(k, k)]).abs() < 1e-15);
+        }
+        // Equal u: the diagonal is u².
+        let v = ClosedCovariance::Stated(vec![0.2; 6]);
+        assert!(v.diagonal().iter().all(|d| (d - 0.04).abs() < 1e-15));
+    }
+}
