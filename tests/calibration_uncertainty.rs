@@ -1035,9 +1035,9 @@ fn cli_budget_csv_goes_into_compare() {
     );
     assert!(json["setup_error"][0]["U"].as_f64().unwrap() > 0.9); // the zero offset
 
-    // the truth as a reference result with U = 0
+    // the truth as a reference result with U = u = 0 (exact)
     let t: Value = serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
-    let mut reference = String::from("quantity,index,value,U\n");
+    let mut reference = String::from("quantity,index,value,U,u\n");
     let pitch: Vec<f64> = t["pitch_deviation"]
         .as_array()
         .unwrap()
@@ -1046,14 +1046,14 @@ fn cli_budget_csv_goes_into_compare() {
         .collect();
     let mut phi = 0.0;
     for (k, b) in pitch.iter().enumerate() {
-        reference += &format!("pitch_deviation,{},{b},0\n", k + 1);
+        reference += &format!("pitch_deviation,{},{b},0,0\n", k + 1);
         phi += b;
         if k < 23 {
-            reference += &format!("face_deviation,{},{phi},0\n", k + 1);
+            reference += &format!("face_deviation,{},{phi},0,0\n", k + 1);
         }
     }
     for (p, a) in t["encoder_error"].as_array().unwrap().iter().enumerate() {
-        reference += &format!("encoder_error,{p},{},0\n", a.as_f64().unwrap());
+        reference += &format!("encoder_error,{p},{},0,0\n", a.as_f64().unwrap());
     }
     let reference_path = dir.join("truth.csv");
     std::fs::write(&reference_path, reference).unwrap();
@@ -1071,6 +1071,7 @@ fn cli_budget_csv_goes_into_compare() {
         max_en <= 1.0,
         "the budget's U covers the truth: max |En| = {max_en}"
     );
+    assert_eq!(comparison["vector"]["consistent"], true);
     assert_eq!(out.status.code(), Some(0));
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -334,6 +334,19 @@ fn the_full_example_validates_and_carries_the_json_numbers() {
             "En[{i}]: {shown} is not {en}"
         );
     }
+    // the comparison's verdict in the very words of compare's table (docs/FORMAT.md §5.4)
+    let table =
+        String::from_utf8(polycal(&["compare", ours.to_str().unwrap(), REFERENCE]).stdout).unwrap();
+    let verdict_line = table
+        .lines()
+        .find(|l| l.starts_with("Verdict: "))
+        .expect("the table states the verdict");
+    let stated = doc
+        .descendants()
+        .filter(|n| n.tag_name().name() == "content")
+        .filter_map(|n| n.text())
+        .any(|t| t.starts_with(&format!("{verdict_line}. Largest |En| = ")));
+    assert!(stated, "the DCC states {verdict_line:?}");
     // the diagnosis's verdict is diagnose's
     let diagnosed = json(&["diagnose", DATA, "--format", "json"]);
     let verdict = doc

@@ -441,17 +441,18 @@ fn truth_result(truth: &Path, path: &Path) {
     let t: Value = serde_json::from_str(&std::fs::read_to_string(truth).unwrap()).unwrap();
     let pitch = numbers(&t["pitch_deviation"]);
     let n = pitch.len();
-    let mut text = String::from("quantity,index,value,U\n");
+    // The truth is exact: U = u = 0.
+    let mut text = String::from("quantity,index,value,U,u\n");
     let mut phi = 0.0;
     for (k, b) in pitch.iter().enumerate() {
-        text += &format!("pitch_deviation,{},{b},0\n", k + 1);
+        text += &format!("pitch_deviation,{},{b},0,0\n", k + 1);
         phi += b;
         if k + 1 < n {
-            text += &format!("face_deviation,{},{phi},0\n", k + 1);
+            text += &format!("face_deviation,{},{phi},0,0\n", k + 1);
         }
     }
     for (p, a) in numbers(&t["encoder_error"]).iter().enumerate() {
-        text += &format!("encoder_error,{p},{a},0\n");
+        text += &format!("encoder_error,{p},{a},0,0\n");
     }
     std::fs::write(path, text).unwrap();
 }
@@ -482,7 +483,8 @@ fn result_rows(text: &str) -> Rows {
 }
 
 /// `compare A B --format json`: its rows, each checked against En computed here from the
-/// two files' values and U (ISO 13528: (a − b)/√(U_a² + U_b²)), and its exit status.
+/// two files' values and U (ISO 13528: (a − b)/√(U_a² + U_b²)), the rows with |En| > 1
+/// counted, and its exit status (the vector's verdict).
 fn compare_checked(a: &Path, b: &Path, a_rows: &Rows, b_rows: &Rows) -> (Vec<f64>, i32) {
     let out = polycal(&[
         "compare",
@@ -525,7 +527,14 @@ fn compare_checked(a: &Path, b: &Path, a_rows: &Rows, b_rows: &Rows) -> (Vec<f64
         en.push(got);
     }
     assert_eq!(json["max_abs_en"].as_f64().unwrap(), max);
-    assert_eq!(status, if max > 1.0 { 1 } else { 0 });
+    let exceeding = rows
+        .iter()
+        .filter(|r| r["in_verdict"] == true && r["en"].as_f64().unwrap().abs() > 1.0)
+        .count();
+    assert_eq!(json["en_exceeding"].as_u64().unwrap() as usize, exceeding);
+    assert_eq!(json["verdict"], "vector");
+    let consistent = json["vector"]["consistent"].as_bool().unwrap();
+    assert_eq!(status, if consistent { 0 } else { 1 });
     (en, status)
 }
 
@@ -803,8 +812,10 @@ fn budget_reproduces_paper_table_1() {
     assert!(table.contains("ν_eff = 72.6"), "{table}");
 }
 
-/// `compare` reproduces the paper's En numbers (0.58 and 0.59, status 0), says 1 when
-/// some |En| > 1, and refuses a result without U (status 2, file and line named).
+/// `compare --verdict en` reproduces the paper's En numbers (0.58 and 0.59, status 0) and
+/// says 1 when some |En| > 1; the vector's verdict refuses rows with U alone (no u, no k:
+/// status 2, file and line named, `--verdict en` offered); a result without U is refused
+/// (status 2, file and line named).
 #[test]
 fn compare_en_and_status() {
     let dir = temp_dir("compare");
@@ -826,9 +837,14 @@ fn compare_en_and_status() {
         b.to_str().unwrap(),
         "--format",
         "json",
+        "--verdict",
+        "en",
     ]);
     assert_eq!(out.status.code(), Some(0));
     let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["verdict"], "en");
+    assert!(json["vector"].is_null() && json["en_expected"].is_null());
+    assert!(json["vector_not_formed"].is_string());
     let en: Vec<f64> = json["rows"]
         .as_array()
         .unwrap()
@@ -843,8 +859,25 @@ fn compare_en_and_status() {
 
     let far = dir.join("far.csv");
     std::fs::write(&far, "quantity,index,value,U\npitch_deviation,1,0.9,0.1\n").unwrap();
-    let out = polycal(&["compare", far.to_str().unwrap(), b.to_str().unwrap()]);
+    let out = polycal(&[
+        "compare",
+        far.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--verdict",
+        "en",
+    ]);
     assert_eq!(out.status.code(), Some(1));
+    let out = polycal(&["compare", far.to_str().unwrap(), b.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with(&format!(
+            "error: {}:2: pitch_deviation 1 has U but no standard uncertainty",
+            far.display()
+        )) && stderr.contains("--verdict en"),
+        "{stderr}"
+    );
 
     let no_u = dir.join("no-u.csv");
     std::fs::write(&no_u, "quantity,index,value,u\npitch_deviation,1,0.9,0.1\n").unwrap();
@@ -855,6 +888,88 @@ fn compare_en_and_status() {
         stderr.starts_with("error: ") && stderr.contains(&format!("{}:2", no_u.display())),
         "{stderr}"
     );
+}
+
+/// The status of the two verdicts on two small files of 4 faces (u = 0.1″, k = 2): one
+/// result 0.25″ off on every face in turn (+, −, +, −) passes every |En| (0.88) but fails
+/// the vector (χ² = 4·0.25²/((4/3)·0.02) = 9.375 > χ²_0.95(3) = 7.81); the hand case of
+/// tests/compare_verdict.rs (one |En| = 1.06, χ² = 459/70 = 6.56) the other way round.
+#[test]
+fn compare_vector_verdict_and_the_per_row_rule_through_the_binary() {
+    let dir = temp_dir("compare-vector");
+    let write = |name: &str, values: [f64; 4], u: [f64; 4]| {
+        let path = dir.join(name);
+        let mut text = String::from("quantity,index,value,U,u,k\n");
+        for (face, (v, u)) in values.iter().zip(u).enumerate() {
+            text += &format!("pitch_deviation,{},{v},{},{u},2\n", face + 1, 2.0 * u);
+        }
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let zero = write("zero.csv", [0.0; 4], [0.1; 4]);
+    let alternating = write("alternating.csv", [0.25, -0.25, 0.25, -0.25], [0.1; 4]);
+    let one_off = write("one-off.csv", [0.3, -0.1, -0.4, 0.2], [0.1, 0.1, 0.2, 0.2]);
+    let run = |a: &Path, extra: &[&str]| -> (Value, i32) {
+        let mut args = vec![
+            "compare",
+            a.to_str().unwrap(),
+            zero.to_str().unwrap(),
+            "--format",
+            "json",
+        ];
+        args.extend_from_slice(extra);
+        let out = polycal(&args);
+        (
+            serde_json::from_slice(&out.stdout).unwrap(),
+            out.status.code().unwrap(),
+        )
+    };
+    let (json, status) = run(&alternating, &[]);
+    assert_eq!(status, 1);
+    assert!((json["vector"]["chi2"].as_f64().unwrap() - 9.375).abs() < 1e-12);
+    assert_eq!(json["vector"]["dof"], 3);
+    assert_eq!(json["vector"]["consistent"], false);
+    assert!((json["vector"]["critical"].as_f64().unwrap() - 7.814_727_903_251_178).abs() < 1e-9);
+    assert_eq!(json["en_exceeding"], 0);
+    assert!((json["en_expected"].as_f64().unwrap() - 0.182).abs() < 1e-3);
+    assert_eq!(run(&alternating, &["--verdict", "en"]).1, 0);
+    assert_eq!(run(&alternating, &["--verdict", "vector"]).1, 1);
+
+    let (json, status) = run(&one_off, &[]);
+    assert_eq!(status, 0);
+    assert_eq!(json["vector"]["consistent"], true);
+    assert_eq!(json["en_exceeding"], 1);
+    let (json, status) = run(&one_off, &["--verdict", "en"]);
+    assert_eq!(status, 1);
+    assert_eq!(json["verdict"], "en");
+    assert_eq!(
+        json["vector"]["consistent"], true,
+        "stated beside the per-row rule"
+    );
+
+    // The table states the verdict in one line.
+    let out = polycal(&[
+        "compare",
+        alternating.to_str().unwrap(),
+        zero.to_str().unwrap(),
+    ]);
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        table.contains(
+            "Verdict: NOT consistent: χ² = 9.38 > χ²_0.95(3) = 7.81, the differences tested as \
+             one vector at 5 %; 0 rows of 4 with |En| > 1, about 0.2 expected by chance\n"
+        ),
+        "{table}"
+    );
+    // An unknown rule is a usage error.
+    let out = polycal(&[
+        "compare",
+        alternating.to_str().unwrap(),
+        zero.to_str().unwrap(),
+        "--verdict",
+        "max",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
 }
 
 fn polycal_env(args: &[&str], env: &[(&str, &str)]) -> Output {
@@ -949,7 +1064,8 @@ fn negative_harmonic_amplitude_is_accepted() {
 
 /// `compare --include-setup` through the binary: on results where only a setup error has
 /// |En| > 1 (tests/data/results/setup-a.csv and setup-b.csv, En = 1.1), the status is 0
-/// without it (the setup error listed, in parentheses, out of the verdict) and 1 with it.
+/// without it (the setup error listed, in parentheses, out of the verdict); with it the
+/// vector (χ² = 6.0, ν = 4) still passes, the per-row rule (`--verdict en`) does not.
 /// A 24-position result against a 168-position one is matched by angle, and the table
 /// says so.
 #[test]
@@ -965,12 +1081,21 @@ fn compare_include_setup_and_angles_through_the_binary() {
     assert!(table.contains("Largest |En| = 0.40"), "{table}");
     assert!(table.contains("left out of the verdict"), "{table}");
     let out = polycal(&["compare", a, b, "--include-setup"]);
-    assert_status(&out, 1);
+    assert_status(&out, 0);
     let table = String::from_utf8(out.stdout).unwrap();
     assert!(table.contains("1.10 *"), "{table}");
     assert!(
-        table.contains("Largest |En| = 1.10: 1 of 6 rows"),
+        table.contains("Largest |En| = 1.10 (|En| > 1 marked *)"),
         "{table}"
+    );
+    assert!(
+        table.contains("Verdict: consistent: χ² = 6.00 ≤ χ²_0.95(4) = 9.49"),
+        "{table}"
+    );
+    assert!(table.contains("1 row of 6 with |En| > 1"), "{table}");
+    assert_status(
+        &polycal(&["compare", a, b, "--include-setup", "--verdict", "en"]),
+        1,
     );
 
     let json = |extra: &[&str]| -> (Value, i32) {
@@ -988,10 +1113,23 @@ fn compare_include_setup_and_angles_through_the_binary() {
     assert_eq!(without["rows"][5]["in_verdict"], false);
     assert!((without["max_abs_en"].as_f64().unwrap() - 0.4).abs() < 1e-12);
     let (with, status) = json(&["--include-setup"]);
-    assert_eq!(status, 1);
+    assert_eq!(status, 0);
     assert_eq!(with["rows"][5]["in_verdict"], true);
     assert!((with["max_abs_en"].as_f64().unwrap() - 1.1).abs() < 1e-12);
-    let out = polycal(&["compare", a, b, "--include-setup", "--format", "csv"]);
+    assert_eq!(with["vector"]["dof"], 4);
+    assert_eq!(with["en_exceeding"], 1);
+    let (_, status) = json(&["--include-setup", "--verdict", "en"]);
+    assert_eq!(status, 1);
+    let out = polycal(&[
+        "compare",
+        a,
+        b,
+        "--include-setup",
+        "--verdict",
+        "en",
+        "--format",
+        "csv",
+    ]);
     assert_status(&out, 1);
     assert!(
         String::from_utf8(out.stdout)
@@ -1013,15 +1151,18 @@ fn compare_include_setup_and_angles_through_the_binary() {
         stderr.starts_with("error: ") && stderr.contains("--include-setup"),
         "{stderr}"
     );
-    assert_status(&polycal(&["compare", sa, sb, "--include-setup"]), 1);
+    assert_status(
+        &polycal(&["compare", sa, sb, "--include-setup", "--verdict", "en"]),
+        1,
+    );
 
     // By angle: 24 positions against 168.
-    let out = polycal(&[
-        "compare",
+    let (two_ac, selfcal) = (
         "tests/data/results/two-ac-24.csv",
         "tests/data/results/selfcal-168.csv",
-    ]);
-    assert_status(&out, 1);
+    );
+    let out = polycal(&["compare", two_ac, selfcal]);
+    assert_status(&out, 0);
     let table = String::from_utf8(out.stdout).unwrap();
     assert!(
         table.contains(
@@ -1029,10 +1170,18 @@ fn compare_include_setup_and_angles_through_the_binary() {
         ),
         "{table}"
     );
-    assert!(table.contains("1 of 24 rows have |En| > 1"), "{table}");
+    assert!(
+        table.contains("1 row of 24 with |En| > 1, about 1.1 expected by chance"),
+        "{table}"
+    );
+    assert_status(
+        &polycal(&["compare", two_ac, selfcal, "--verdict", "en"]),
+        1,
+    );
 }
 
-/// Two result files for `compare`: the paper's numbers (see `compare_en_and_status`).
+/// Two result files for `compare`: the paper's numbers (see `compare_en_and_status`), U
+/// alone, for the per-row rule (`--verdict en`).
 fn two_results(name: &str) -> (PathBuf, PathBuf) {
     let dir = temp_dir(name);
     let a = dir.join("a.csv");
@@ -1063,6 +1212,8 @@ fn negative_correlation_is_accepted() {
         "-0.5",
         "--format",
         "json",
+        "--verdict",
+        "en",
     ]);
     assert_status(&out, 0);
     let json: Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -1078,9 +1229,12 @@ fn negative_correlation_is_accepted() {
 fn compare_csv() {
     let (a, b) = two_results("compare-csv");
     let (a, b) = (a.to_str().unwrap(), b.to_str().unwrap());
-    let json: Value =
-        serde_json::from_slice(&polycal(&["compare", a, b, "--format", "json"]).stdout).unwrap();
-    let out = polycal(&["compare", a, b, "--format", "csv"]);
+    let en = ["--verdict", "en"];
+    let json: Value = serde_json::from_slice(
+        &polycal(&[&["compare", a, b, "--format", "json"][..], &en].concat()).stdout,
+    )
+    .unwrap();
+    let out = polycal(&[&["compare", a, b, "--format", "csv"][..], &en].concat());
     assert_eq!(out.status.code(), Some(0));
     assert!(
         out.stdout.as_slice().starts_with(

@@ -3,7 +3,9 @@
 
 use std::path::{Path, PathBuf};
 
-use polycal::compare::{CompareError, CompareOptions, EncoderMatching, compare, compare_files};
+use polycal::compare::{
+    CompareError, CompareOptions, EncoderMatching, VerdictRule, compare, compare_files,
+};
 use polycal::results::{
     Quantity, ResultRow, read_result_file, read_results_from, read_results_path, write_results,
 };
@@ -17,6 +19,11 @@ fn row(quantity: &str, index: u32, value: f64, expanded_u: Option<f64>) -> Resul
             value,
         )
     }
+}
+
+/// The per-row rule: rows with U alone (no u, no k) and single rows have no vector test.
+fn en_rule() -> CompareOptions {
+    CompareOptions::default().with_verdict(VerdictRule::En)
 }
 
 fn temp_file(name: &str, contents: &str) -> PathBuf {
@@ -35,7 +42,12 @@ fn en_of_the_paper_pitch_deviations() {
     // and U = 0.15″ (shift-angle method): the paper's maximum En = 0.58.
     let a = [row("pitch_deviation", 5, 0.28, Some(0.46))];
     let b = [row("pitch_deviation", 5, 0.0, Some(0.15))];
-    let c = compare(&a, &b, &CompareOptions::default()).unwrap();
+    // One row given with U alone: the per-row rule, the vector not formed (and said why).
+    let e = compare(&a, &b, &CompareOptions::default()).unwrap_err();
+    assert!(matches!(e, CompareError::NoStandardU { .. }), "{e}");
+    let c = compare(&a, &b, &en_rule()).unwrap();
+    assert!(c.vector.is_none() && c.en_expected.is_none());
+    assert!(c.vector_not_formed.is_some());
     assert_eq!(format!("{:.2}", c.rows[0].en), "0.58");
     assert_eq!(format!("{:.2}", c.max_abs_en), "0.58");
     assert!(c.verdict_ok());
@@ -52,7 +64,7 @@ fn en_of_the_paper_encoder_errors() {
     // the paper's maximum En = 0.59.
     let a = [row("encoder_error", 3, -0.27, Some(0.46))];
     let b = [row("encoder_error", 3, 0.0, Some(0.02))];
-    let c = compare(&a, &b, &CompareOptions::default()).unwrap();
+    let c = compare(&a, &b, &en_rule()).unwrap();
     assert_eq!(format!("{:.2}", c.rows[0].en), "-0.59"); // En is signed: (a − b)/…
     assert_eq!(format!("{:.2}", c.max_abs_en), "0.59");
     assert_eq!(c.rows[0].difference, -0.27);
@@ -63,7 +75,7 @@ fn correlation_between_results_reduces_the_denominator() {
     // cov = r·U_a·U_b: En = d/√(U_a² + U_b² − 2 r U_a U_b).
     let a = [row("face_deviation", 2, 0.30, Some(0.4))];
     let b = [row("face_deviation", 2, 0.10, Some(0.3))];
-    let options = CompareOptions::new().with_correlation(0.5);
+    let options = en_rule().with_correlation(0.5);
     let c = compare(&a, &b, &options).unwrap();
     let want = (0.30f64 - 0.10) / (0.16f64 + 0.09 - 2.0 * 0.5 * 0.4 * 0.3).sqrt();
     assert!((c.rows[0].en - want).abs() < 1e-15);
@@ -95,7 +107,7 @@ fn comparison_json_and_verdict() {
         row("pitch_deviation", 1, 0.31, Some(0.15)),
         row("setup_error", 1, 0.0, Some(0.1)),
     ];
-    let c = compare(&a, &b, &CompareOptions::default()).unwrap();
+    let c = compare(&a, &b, &en_rule()).unwrap();
     assert!(!c.verdict_ok()); // |En| = 8.5 for face 2
     assert_eq!(c.rows.len(), 2);
     let json = serde_json::to_value(&c).unwrap();
@@ -114,7 +126,16 @@ fn comparison_json_and_verdict() {
     assert!(json.get("correlation").is_none());
     let mut table = String::new();
     polycal::output::compare::write_table(&mut table, &c).unwrap();
-    assert!(table.contains("1 of 2 rows have |En| > 1"), "{table}");
+    assert!(
+        table.contains(
+            "Verdict: NOT consistent by the per-row rule (|En| ≤ 1): 1 row of 2 with |En| > 1\n"
+        ),
+        "{table}"
+    );
+    assert!(table.contains("No vector test: "), "{table}");
+    assert_eq!(json["verdict"], "en");
+    assert!(json["vector"].is_null() && json["en_expected"].is_null());
+    assert_eq!(json["en_exceeding"], 1);
     assert!(table.contains("-8.49 *"), "{table}");
     assert!(table.contains("Only in the first result (not compared): encoder_error 0"));
     // A duplicate row.
@@ -169,7 +190,7 @@ fn compare_refuses_rows_without_expanded_uncertainty_naming_file_and_line() {
         "quantity,index,value,U\npitch_deviation,1,0.4,0.15\n",
     );
     let fc = read_result_file(&good).unwrap();
-    let c = compare_files(&fc, &fc, &CompareOptions::default()).unwrap();
+    let c = compare_files(&fc, &fc, &en_rule()).unwrap();
     assert_eq!(c.max_abs_en, 0.0);
 }
 
@@ -407,7 +428,9 @@ fn encoder_rows(path: &Path) -> std::collections::BTreeMap<u32, (f64, f64, Optio
 /// 7·p of the second, among them 0° (written 359.9999996 in the second, across the wrap)
 /// and 345° (written 345.0000008); the 144 other positions of the second are unmatched,
 /// and so are the first's pitch, face and setup rows. Every En is derived here from the
-/// two files' values: (a − b)/√(U_a² + U_b²) with U = 0.3 and 0.4, so 2·(a − b).
+/// two files' values: (a − b)/√(U_a² + U_b²) with U = 0.3 and 0.4, so 2·(a − b). The
+/// shared angles differ by 0.1 but at 45° by 0.6: the vector (its mean difference taken
+/// out, encoder errors being defined up to a constant) is consistent, the per-row rule not.
 #[test]
 fn encoder_errors_are_matched_by_angle_24_against_168() {
     let (pa, pb) = (data("two-ac-24.csv"), data("selfcal-168.csv"));
@@ -445,7 +468,31 @@ fn encoder_errors_are_matched_by_angle_24_against_168() {
     assert!((encoder[3].en - 1.2).abs() < 1e-12, "{}", encoder[3].en);
     assert!((encoder[23].en - 0.2).abs() < 1e-12, "{}", encoder[23].en);
     assert!((c.max_abs_en - 1.2).abs() < 1e-12);
-    assert!(!c.verdict_ok(), "45° differs by 1.2 U");
+    // The vector by hand: u = 0.15 and 0.2 (k = 2), each result closed over its own 24
+    // and 168 positions, so every difference has the variance
+    // v = (24/23)·0.15² + (168/167)·0.2²; about their mean, the differences are one 0.5
+    // among 24, Σ (d − d̄)² = 0.5²·23/24, and χ² = 0.5²·(23/24)/v = 3.76, ν = 23.
+    let v = 24.0 / 23.0 * 0.15f64.powi(2) + 168.0 / 167.0 * 0.2f64.powi(2);
+    let vector = c.vector.as_ref().unwrap();
+    assert!(
+        (vector.chi2 - 0.25 * 23.0 / 24.0 / v).abs() < 1e-12,
+        "{}",
+        vector.chi2
+    );
+    assert_eq!(vector.dof, 23);
+    assert!(c.verdict_ok(), "one row at 1.2 U among 24 is chance");
+    assert_eq!(c.en_exceeding, 1);
+    // Each row: s = 1/2 (k = 2 on both sides), P(|En| > 1) = erfc(2/√2) = 4.55 % (statrs's
+    // erfc is good to about 1e-10 here).
+    let expected = c.en_expected.unwrap();
+    assert!(
+        (expected - 24.0 * 0.045_500_263_896_358_4).abs() < 1e-9,
+        "{expected}"
+    );
+    assert!(
+        !compare_files(&fa, &fb, &en_rule()).unwrap().verdict_ok(),
+        "45° differs by 1.2 U"
+    );
 
     // The unmatched rows, as unmatched rows always are.
     assert_eq!(c.only_in_b.len(), 144);
@@ -481,7 +528,10 @@ fn encoder_errors_are_matched_by_angle_24_against_168() {
         ),
         "{table}"
     );
-    assert!(table.contains("1 of 24 rows have |En| > 1"), "{table}");
+    assert!(
+        table.contains("1 row of 24 with |En| > 1, about 1.1 expected by chance"),
+        "{table}"
+    );
     assert!(table.contains("Angle °"), "{table}");
 
     // The other way round: the same pairs, the first result's index and angle.
@@ -505,8 +555,19 @@ fn a_file_without_angles_is_matched_by_index() {
         read_result_file(&pb).unwrap(),
     );
     assert!(fa.rows.iter().all(|r| r.angle_deg.is_none()));
+    // The first file gives U without k or u: the vector's test refuses it at its first
+    // row in the verdict, by file and line; the per-row rule takes it.
+    let e = compare_files(&fa, &fb, &CompareOptions::default()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}:51: encoder_error 0 has U but no standard uncertainty (neither u nor k): the \
+             verdict's vector test needs u, or U with its coverage factor k (columns u, k)",
+            pa.display()
+        )
+    );
     for (x, y) in [(&fa, &fb), (&fb, &fa)] {
-        let c = compare_files(x, y, &CompareOptions::default()).unwrap();
+        let c = compare_files(x, y, &en_rule()).unwrap();
         assert_eq!(c.encoder_matched_by, EncoderMatching::Index);
         assert_eq!(c.rows.len(), 24);
         assert!(
@@ -525,7 +586,7 @@ fn a_file_without_angles_is_matched_by_index() {
         assert!(json["rows"][0].get("angle_deg").is_none());
         assert!(json["rows"][0].get("index_b").is_none());
     }
-    let c = compare_files(&fa, &fb, &CompareOptions::default()).unwrap();
+    let c = compare_files(&fa, &fb, &en_rule()).unwrap();
     let (ea, eb) = (encoder_rows(&pa), encoder_rows(&pb));
     for row in &c.rows {
         let (a, ua, _) = ea[&row.index];
@@ -583,8 +644,15 @@ fn setup_errors_are_left_out_of_the_verdict_unless_included() {
     assert!(table.contains("(1.10)"), "{table}");
     assert!(!table.contains("1.10 *"), "{table}");
     assert!(table.contains("left out of the verdict"), "{table}");
+    assert!(table.contains("Largest |En| = 0.40\n"), "{table}");
+    // The vector by hand (u = U/2, each family closed over its 2 rows, c = 2): pitch
+    // d = ±0.2, encoder d = ±0.1, v = 2·(0.15² + 0.2²) = 0.125; χ² = 2·0.2²/v + 2·0.1²/v
+    // = 0.64 + 0.16 = 0.8, ν = 2.
+    let vector = c.vector.as_ref().unwrap();
+    assert!((vector.chi2 - 0.8).abs() < 1e-12, "{}", vector.chi2);
+    assert_eq!(vector.dof, 2);
     assert!(
-        table.contains("Largest |En| = 0.40: every |En| ≤ 1"),
+        table.contains("Verdict: consistent: χ² = 0.80 ≤ χ²_0.95(2) = 5.99"),
         "{table}"
     );
 
@@ -592,11 +660,22 @@ fn setup_errors_are_left_out_of_the_verdict_unless_included() {
     let c = compare_files(&fa, &fb, &included).unwrap();
     assert!(c.rows.iter().all(|r| r.in_verdict));
     assert!((c.max_abs_en - 1.1).abs() < 1e-12);
-    assert!(!c.verdict_ok());
+    // Setup errors as independent rows: d = 0.3, 1.1 with v = 0.3² + 0.4² = 0.25, so
+    // χ² = 0.8 + (0.09 + 1.21)/0.25 = 6.0 with ν = 4: consistent (χ²_0.95(4) = 9.49), though
+    // setup error 2 has |En| = 1.1, which the per-row rule fails.
+    let vector = c.vector.as_ref().unwrap();
+    assert!((vector.chi2 - 6.0).abs() < 1e-12, "{}", vector.chi2);
+    assert_eq!(vector.dof, 4);
+    assert!(c.verdict_ok());
+    assert!(
+        !compare_files(&fa, &fb, &included.clone().with_verdict(VerdictRule::En))
+            .unwrap()
+            .verdict_ok()
+    );
     let mut table = String::new();
     polycal::output::compare::write_table(&mut table, &c).unwrap();
     assert!(table.contains("1.10 *"), "{table}");
-    assert!(table.contains("1 of 6 rows have |En| > 1"), "{table}");
+    assert!(table.contains("1 row of 6 with |En| > 1"), "{table}");
     assert!(!table.contains("left out of the verdict"), "{table}");
 
     // Only setup errors in common: nothing to judge unless they are included.
@@ -630,7 +709,7 @@ fn angle_matching_tolerance_and_refusals() {
         at(6, 0.1, 90.000_002),    // 2e-6° from 90: not matched
         at(7, 0.2, 179.999_999_5), // 5e-7° from 180: matched
     ];
-    let c = compare(&a, &b, &CompareOptions::default()).unwrap();
+    let c = compare(&a, &b, &en_rule()).unwrap();
     let pairs: Vec<_> = c.rows.iter().map(|r| (r.index, r.index_b)).collect();
     assert_eq!(pairs, vec![(0, Some(5)), (2, Some(7))]);
     assert_eq!(c.only_in_a.len(), 1);

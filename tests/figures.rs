@@ -450,6 +450,19 @@ fn compare_band_is_the_en_denominator_and_every_en_over_one_is_marked() {
         );
 
         let text = svg_text(&plot.join(format!("compare-{slug}-difference.svg")));
+        // the rows with |En| > 1 beside the number expected by chance: 4.55 % a row when
+        // U = k·u with k near 2 on both sides (docs/FORMAT.md §5.4)
+        let exceeding = rows
+            .iter()
+            .filter(|r| r["en"].as_f64().unwrap().abs() > 1.0)
+            .count();
+        assert!(
+            text.contains(&format!(
+                "{exceeding} of {} rows with |En| &gt; 1, about ",
+                rows.len()
+            )) && text.contains("expected by chance"),
+            "{slug}"
+        );
         check_series(
             &text,
             "difference",

@@ -298,6 +298,18 @@ fn every_number_is_the_jsons_and_every_section_is_there() {
         .text()
         .collect::<String>();
     assert!(verdict.contains(&shown(max, 2)), "{verdict}");
+    // the verdict in the very words of compare's table (docs/FORMAT.md §5.4)
+    let table =
+        String::from_utf8(polycal(&["compare", result.to_str().unwrap(), REFERENCE]).stdout)
+            .unwrap();
+    let verdict_line = table
+        .lines()
+        .find(|l| l.starts_with("Verdict: "))
+        .expect("the table states the verdict");
+    assert!(
+        verdict.starts_with(&format!("{verdict_line}. Largest |En| = ")),
+        "{verdict} vs {verdict_line}"
+    );
     // the budget: its U is the largest U of the family
     assert_eq!(
         budget_u(&html, "budget-encoder-error"),
@@ -462,10 +474,13 @@ fn the_sha256_of_every_input_is_its_own() {
 #[test]
 fn a_failing_comparison_and_an_inadequate_model_give_status_1() {
     let dir = temp_dir("verdicts");
-    // the reference with every value 5″ off
+    // the reference with every value 5″ off, +5″ and −5″ in turn (a constant offset alone
+    // would be taken out with the mean difference of the closed families, docs/FORMAT.md
+    // §5.4)
     let text = std::fs::read_to_string(REFERENCE).unwrap();
     let mut shifted = String::new();
     let mut value_column = None;
+    let mut sign = 1.0;
     for line in text.lines() {
         if line.starts_with('#') {
             continue;
@@ -479,7 +494,8 @@ fn a_failing_comparison_and_an_inadequate_model_give_status_1() {
             Some(c) => {
                 let mut fields: Vec<String> = fields.iter().map(|f| f.to_string()).collect();
                 let v: f64 = fields[c].parse().unwrap();
-                fields[c] = (v + 5.0).to_string();
+                fields[c] = (v + sign * 5.0).to_string();
+                sign = -sign;
                 shifted.push_str(&fields.join(","));
             }
         }
@@ -620,6 +636,31 @@ fn bad_input_is_one_error_line_with_status_2() {
     let stderr = String::from_utf8(out.stderr).unwrap();
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.contains("--budget"), "{stderr}");
+    // a reference with U alone (no u, no k): the comparison's verdict needs u, named by
+    // the reference's line (docs/FORMAT.md §5.4)
+    let u_alone = dir.join("u-alone.csv");
+    std::fs::write(
+        &u_alone,
+        "quantity,index,value,U\npitch_deviation,1,0.8,0.1\npitch_deviation,2,-0.3,0.1\n",
+    )
+    .unwrap();
+    let out = polycal(&[
+        "report",
+        DATA,
+        "--budget",
+        BUDGET,
+        "--reference",
+        u_alone.to_str().unwrap(),
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("u-alone.csv:2: pitch_deviation 1 has U but no standard uncertainty"),
+        "{stderr}"
+    );
     // an endless stream is read to the limit (256 MiB) and refused, never to the end
     let out = polycal(&["report", "/dev/zero", "--out", out_path.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));

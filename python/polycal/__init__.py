@@ -167,10 +167,14 @@ def compare(
     b: Union[SolveResult, _Rows, PathOrText],
     correlation: float = 0.0,
     include_setup: bool = False,
+    verdict: str = "vector",
 ) -> Comparison:
     """Compares two results by En (the paper's eqs. (14)–(15), ISO 13528) as ``polycal
-    compare`` does: ``rows`` with ``en`` per quantity, ``max_abs_en``; each of ``a`` and
-    ``b`` a :class:`SolveResult` (with a budget) or a result file."""
+    compare`` does: ``rows`` with ``en`` per quantity, ``max_abs_en``, and one verdict for
+    the whole comparison (docs/FORMAT.md §5.4): ``vector`` (the closed families'
+    differences as one χ² test at 5 %), ``en_exceeding`` beside ``en_expected``;
+    ``verdict="en"`` for the per-row rule. Each of ``a`` and ``b`` a :class:`SolveResult`
+    (with a budget) or a result file."""
 
     return Comparison(
         _polycal.compare_rows(
@@ -178,6 +182,7 @@ def compare(
             _rows_of(b),
             correlation=float(correlation),
             include_setup=bool(include_setup),
+            verdict=str(verdict),
         )
     )
 

@@ -96,7 +96,11 @@ def solve(
     seed: int = 1,
 ) -> SolveResult: ...
 def compare_rows(
-    a: ResultRows, b: ResultRows, correlation: float = 0.0, include_setup: bool = False
+    a: ResultRows,
+    b: ResultRows,
+    correlation: float = 0.0,
+    include_setup: bool = False,
+    verdict: str = "vector",
 ) -> str: ...
 def kc(
     labs: Sequence[Tuple[str, ResultRows]],

@@ -475,13 +475,21 @@ class SelfcalResult(Result):
 
 class Comparison(Result):
     """The result of :func:`compare`, the JSON object of ``polycal compare --format
-    json`` (docs/FORMAT.md §5.4): ``rows`` with En per quantity, ``max_abs_en``."""
+    json`` (docs/FORMAT.md §5.4): ``rows`` with En per quantity, ``max_abs_en``, the
+    verdict's rule (``verdict``), the test of the whole comparison as one vector
+    (``vector``: ``chi2``, ``dof``, ``critical``, ``consistent``, ``families``) and the rows
+    with |En| > 1 (``en_exceeding``) beside the number expected by chance
+    (``en_expected``)."""
 
-    _main = ("max_abs_en", "encoder_matched_by", "rows")
+    _main = ("max_abs_en", "verdict", "en_exceeding", "en_expected", "encoder_matched_by", "rows")
 
     version: str
     rows: List[Section]
     max_abs_en: Optional[float]
+    verdict: str
+    vector: Optional[Section]
+    en_exceeding: int
+    en_expected: Optional[float]
     encoder_matched_by: str
 
 

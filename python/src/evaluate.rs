@@ -1,7 +1,7 @@
 //! The evaluations, each as its command makes it and returning its JSON object: solve
 //! (with the budget and Monte Carlo), compare, kc, diagnose, selfcal.
 
-use polycal::compare::{CompareOptions, Comparison, compare};
+use polycal::compare::{CompareOptions, Comparison, VerdictRule, compare};
 use polycal::diagnose::{DiagnoseOptions, diagnose as diagnose_set};
 use polycal::input::Location;
 use polycal::kc::{KcOptions, LabResult, ReferenceMethod};
@@ -256,19 +256,26 @@ pub(crate) fn solve(
     }
 }
 
-/// Compares two results by En as `polycal compare` does; returns its JSON object.
+/// Compares two results by En, with one verdict for the whole comparison (`verdict`:
+/// `vector` or `en`, docs/FORMAT.md §5.4), as `polycal compare` does; returns its JSON
+/// object.
 #[pyfunction]
-#[pyo3(signature = (a, b, correlation=0.0, include_setup=false))]
+#[pyo3(signature = (a, b, correlation=0.0, include_setup=false, verdict="vector"))]
 pub(crate) fn compare_rows(
     py: Python<'_>,
     a: &PyRows,
     b: &PyRows,
     correlation: f64,
     include_setup: bool,
+    verdict: &str,
 ) -> PyResult<String> {
+    let verdict = verdict
+        .parse::<VerdictRule>()
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
     let options = CompareOptions::new()
         .with_correlation(correlation)
         .with_include_setup(include_setup)
+        .with_verdict(verdict)
         .with_labels(a.label.clone(), b.label.clone());
     let comparison: Comparison = py
         .detach(|| compare(&a.rows, &b.rows, &options))

@@ -158,8 +158,22 @@ def test_diagnose_selfcal_and_compare_are_the_clis():
     got = polycal.compare(solved, polycal.read_results(REFERENCE))
     assert [r["en"] for r in got["rows"]] == [r["en"] for r in expected["rows"]]
     assert got["max_abs_en"] == expected["max_abs_en"]
-    # and from two files, exactly the CLI's object
-    assert polycal.compare(str(ours), str(REFERENCE)).to_dict()["rows"] == expected["rows"]
+    # and from two files, exactly the CLI's object, its verdict's fields with it
+    from_files = polycal.compare(str(ours), str(REFERENCE)).to_dict()
+    assert from_files["rows"] == expected["rows"]
+    for key in ("verdict", "vector", "en_exceeding", "en_expected"):
+        assert from_files[key] == expected[key], key
+    assert got["vector"]["consistent"] is True and got["verdict"] == "vector"
+    # the per-row rule, as `--verdict en`
+    expected_en = json.loads(
+        cli("compare", ours, REFERENCE, "--format", "json", "--verdict", "en")
+    )
+    got_en = polycal.compare(str(ours), str(REFERENCE), verdict="en").to_dict()
+    assert got_en["verdict"] == "en"
+    for key in ("rows", "vector", "en_exceeding", "en_expected"):
+        assert got_en[key] == expected_en[key], key
+    with pytest.raises(ValueError):
+        polycal.compare(str(ours), str(REFERENCE), verdict="max")
 
 
 def test_simulate_is_the_clis():

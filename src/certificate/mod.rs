@@ -36,7 +36,7 @@ use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
-use crate::compare::{CompareOptions, Comparison, compare};
+use crate::compare::{CompareOptions, Comparison, compare_with_file};
 use crate::diagnose::selfcal::diagnose_selfcal;
 use crate::diagnose::{DiagnoseOptions, diagnose};
 use crate::figure::{self, Figure};
@@ -492,12 +492,13 @@ impl CalibrationReport {
                 };
                 let options =
                     CompareOptions::new().with_labels(shown.clone(), reference_name.clone());
-                let comparison = compare(&rows, &reference.rows, &options).map_err(|source| {
-                    ReportError::Compare {
-                        reference: reference_given.clone(),
-                        source,
-                    }
-                })?;
+                let comparison =
+                    compare_with_file(&rows, &reference, &options).map_err(|source| {
+                        ReportError::Compare {
+                            reference: reference_given.clone(),
+                            source,
+                        }
+                    })?;
                 Some((comparison, reference_name))
             }
             None => None,

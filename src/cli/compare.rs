@@ -1,11 +1,12 @@
-//! `polycal compare`: two results quantity by quantity with En (docs/FORMAT.md §5.4).
+//! `polycal compare`: two results quantity by quantity with En, and one verdict for the
+//! whole comparison (docs/FORMAT.md §5.4).
 
 use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::ValueEnum;
-use polycal::compare::{CompareError, CompareOptions, compare_files};
+use polycal::compare::{CompareError, CompareOptions, VerdictRule, compare_files};
 use polycal::input::display_name;
 use polycal::results::read_result_file;
 
@@ -18,7 +19,8 @@ Examples:
   polycal simulate --closing --seed 2 | polycal solve - --budget examples/budgets/instrument.toml --format csv > b.csv
   polycal compare a.csv b.csv
   polycal compare a.csv b.csv --include-setup --format json
-  polycal compare a.csv b.csv --correlation 0.3 --format csv";
+  polycal compare a.csv b.csv --correlation 0.3 --format csv
+  polycal compare a.csv b.csv --verdict en";
 
 /// Arguments of `polycal compare`.
 #[derive(clap::Args)]
@@ -35,6 +37,13 @@ pub struct CompareArgs {
     /// Encoder errors are matched by angle_deg when both files carry it, by index otherwise.
     #[arg(long)]
     include_setup: bool,
+    /// The rule of the verdict and the exit status (docs/FORMAT.md §5.4): vector, one test
+    /// at 5 % of the differences of the closed quantities as one vector (status 1 when
+    /// χ² > χ²_0.95(ν); needs u, or k for u = U/k, on every row); en, the per-row rule for
+    /// schemes that prescribe it (status 1 when some |En| > 1; with 24 rows some |En| > 1 in
+    /// about two consistent comparisons of three).
+    #[arg(long, value_enum, default_value = "vector")]
+    verdict: VerdictArg,
     /// Output format (csv: one row per compared quantity, columns
     /// quantity,index,a,b,difference,U_a,U_b,en,index_b,angle_deg,in_verdict;
     /// docs/FORMAT.md §5.4).
@@ -50,6 +59,22 @@ impl CompareArgs {
     /// The files this command reads, which no output may replace.
     fn inputs(&self) -> Vec<&std::path::Path> {
         vec![self.a.as_path(), self.b.as_path()]
+    }
+}
+
+/// `compare --verdict`.
+#[derive(Clone, Copy, ValueEnum)]
+enum VerdictArg {
+    Vector,
+    En,
+}
+
+impl From<VerdictArg> for VerdictRule {
+    fn from(arg: VerdictArg) -> Self {
+        match arg {
+            VerdictArg::Vector => VerdictRule::Vector,
+            VerdictArg::En => VerdictRule::En,
+        }
     }
 }
 
@@ -74,6 +99,7 @@ pub fn run(args: &CompareArgs) -> Result<u8> {
     let options = CompareOptions::new()
         .with_correlation(args.correlation)
         .with_include_setup(args.include_setup)
+        .with_verdict(args.verdict.into())
         .with_labels(display_name(&args.a), display_name(&args.b));
     let comparison = compare_files(&file_a, &file_b, &options).map_err(|e| match e {
         // Library messages name no flags: the CLI adds the one that helps.
@@ -81,6 +107,11 @@ pub fn run(args: &CompareArgs) -> Result<u8> {
             e,
             "--include-setup",
             "--include-setup counts them in the verdict",
+        ),
+        CompareError::NoStandardU { .. } | CompareError::NoVector { .. } => super::with_hint(
+            e,
+            "--verdict en",
+            "--verdict en judges row by row with U alone",
         ),
         e => e.into(),
     })?;

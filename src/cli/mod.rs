@@ -37,7 +37,7 @@ pub const EXIT_ERROR: u8 = 2;
 /// After the list of commands in `polycal --help`.
 const EXIT_STATUS_HELP: &str = "\
 Exit status: 0 done and every check passed; 1 done, but a verdict is negative (compare:
-some |En| > 1; kc: not consistent after the stated exclusions; diagnose: a model not adequate; solve: Monte Carlo does not validate GUM;
+the differences fail their χ² test as one vector, or some |En| > 1 with --verdict en; kc: not consistent after the stated exclusions; diagnose: a model not adequate; solve: Monte Carlo does not validate GUM;
 plan: a design cannot calibrate or misses --target-u);
 2 an error (usage, refused input, instrument or file failure); 130 `run` stopped at once by
 a second Ctrl-C (docs/FORMAT.md §8).
@@ -102,8 +102,9 @@ pub enum Command {
     /// Evaluate a GUM uncertainty budget (TOML, docs/FORMAT.md §5).
     #[command(after_help = budget::EXAMPLES)]
     Budget(budget::BudgetArgs),
-    /// Compare two results quantity by quantity with En (ISO 13528, docs/FORMAT.md §5.4);
-    /// status 1 when some |En| > 1 (setup errors only with --include-setup).
+    /// Compare two results quantity by quantity with En (ISO 13528) and give one verdict for
+    /// the whole comparison, docs/FORMAT.md §5.4: status 1 when the closed quantities'
+    /// differences fail their χ² test as one vector at 5 % (--verdict en: some |En| > 1).
     #[command(after_help = compare::EXAMPLES)]
     Compare(compare::CompareArgs),
     /// Evaluate an interlaboratory (key) comparison of a polygon or an encoder: reference

@@ -225,10 +225,11 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
     out.info(format!(
         "wrote {}{}{}",
         written.join(" and "),
-        if verdict.comparison_failed {
-            "; the comparison fails: some |En| > 1"
-        } else {
-            ""
+        match &report.comparison {
+            Some((comparison, _)) if verdict.comparison_failed => {
+                format!("; the comparison: {}", comparison.verdict_sentence())
+            }
+            _ => String::new(),
         },
         if verdict.not_adequate {
             "; the diagnosis: the final model is not adequate"

@@ -146,6 +146,11 @@ fn difference(
     let (words, symbol) = family_words(quantity);
     let title = format!("{words}: difference a − b and En");
     let exceeding = rows.iter().filter(|r| r.en.abs() > 1.0).count();
+    // The number expected by chance when the results are consistent (docs/FORMAT.md §5.4).
+    let expected: Option<f64> = rows
+        .iter()
+        .map(|r| r.probability_en_exceeds_one(correlation))
+        .sum();
     let mut subtitles = vec![
         format!("a: {label_a}, b: {label_b}"),
         if correlation == 0.0 {
@@ -153,10 +158,17 @@ fn difference(
         } else {
             format!("band: ±√(U_a² + U_b² − 2·r·U_a·U_b), r = {correlation}, the En denominator")
         },
-        format!(
-            "{exceeding} of {} rows with |En| > 1 (ringed above, filled below)",
-            rows.len()
-        ),
+        match expected {
+            Some(expected) => format!(
+                "{exceeding} of {} rows with |En| > 1, about {expected:.1} expected by chance \
+                 (ringed above, filled below)",
+                rows.len()
+            ),
+            None => format!(
+                "{exceeding} of {} rows with |En| > 1 (ringed above, filled below)",
+                rows.len()
+            ),
+        },
     ];
     let skipped = rows
         .iter()

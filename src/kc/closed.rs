@@ -230,6 +230,24 @@ fn dense(x: &[&[f64]], v: &[&ClosedCovariance]) -> Option<ClosedFit> {
     })
 }
 
+/// The χ² of a vector of differences d whose covariance is P·diag(v)·P, P = I − J/N (each
+/// of two results closed, and their sum, as `compare` takes them): dᵀ(P·D·P)⁺d, its
+/// constant part left out (P·D·P has the constants as its null space). As for one
+/// laboratory above, (P·D·P)⁺ = W − w·wᵀ/s (Sherman–Morrison), so the χ² is the weighted sum
+/// of squares about the weighted mean, Σ w_i·(d_i − d̄_w)², w_i = 1/v_i,
+/// d̄_w = Σ w_i·d_i / Σ w_i: O(N), no matrix formed. Returns (χ², d̄_w). Every `v_i` must be
+/// positive with a finite 1/v_i (the caller checks and scales).
+pub(crate) fn difference_chi2(d: &[f64], variance: &[f64]) -> (f64, f64) {
+    let weight_sum: f64 = variance.iter().map(|v| 1.0 / v).sum();
+    let mean = d.iter().zip(variance).map(|(d, v)| d / v).sum::<f64>() / weight_sum;
+    let chi2 = d
+        .iter()
+        .zip(variance)
+        .map(|(d, v)| (d - mean).powi(2) / v)
+        .sum();
+    (chi2, mean)
+}
+
 /// The projector onto closed vectors, P = I − J/N.
 pub(crate) fn closing_projector(faces: usize) -> DMatrix<f64> {
     let n = faces as f64;
@@ -266,6 +284,27 @@ pub(crate) fn closed(x: &[f64]) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
+    /// The O(N) χ² of a closed difference is the dense one through the pseudo-inverse of
+    /// the sum of two closed covariances.
+    #[test]
+    fn kc_difference_chi2_is_the_dense_one() {
+        let u_a = [0.1, 0.2, 0.15, 0.3, 0.12, 0.05];
+        let u_b = [0.3, 0.1, 0.1, 0.2, 0.02, 0.5];
+        let v = crate::kc::closed_covariance(&u_a) + crate::kc::closed_covariance(&u_b);
+        let v_plus = closed_pseudo_inverse(&v).expect("invertible on the closed subspace");
+        // Not closed: the constant part is left out by both.
+        let d = DVector::from_column_slice(&[0.3, -0.2, 0.05, 0.4, -0.1, 0.7]);
+        let dense = (d.transpose() * &v_plus * &d)[(0, 0)];
+        let c = 6.0 / 5.0;
+        let variance: Vec<f64> = u_a
+            .iter()
+            .zip(&u_b)
+            .map(|(a, b)| c * (a * a + b * b))
+            .collect();
+        let (chi2, _) = difference_chi2(d.as_slice(), &variance);
+        assert!((chi2 - dense).abs() < 1e-10 * dense, "{chi2} vs {dense}");
+    }
+
     use super::*;
 
     /// The additive fit is the dense GLS: reference, its covariance's diagonal and χ².

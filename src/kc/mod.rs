@@ -51,7 +51,7 @@
 //! when no laboratory gives its own covariance (the closed covariance is diagonal plus rank
 //! one). With a laboratory's covariance, u(d_i)² is the diagonal of V_i ∓ (Σ V_j⁺)⁺.
 
-mod closed;
+pub(crate) mod closed;
 mod covariance;
 mod evaluate;
 mod input;

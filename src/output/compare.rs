@@ -6,10 +6,11 @@ use std::fmt::{self, Write};
 
 /// Writes a comparison as a table: quantity, index (with encoder errors matched by angle,
 /// also the second result's index and the angle), a, b, a − b, U_a, U_b, En, then how the
-/// encoder errors were matched, which rows are left out of the verdict and the verdict.
+/// encoder errors were matched, which rows are left out of the verdict, the largest |En|,
+/// the vector's families and the verdict in one line ([`Comparison::verdict_sentence`]).
 /// Numbers are rounded for reading (0.001″, En to 0.01, angles to 0.0001°); JSON and CSV
-/// carry them at full precision. An En marked `*` fails (|En| > 1); an En in parentheses
-/// is a setup error's, left out of the verdict.
+/// carry them at full precision. An En marked `*` has |En| > 1; an En in parentheses is a
+/// setup error's, left out of the verdict.
 ///
 /// # Errors
 ///
@@ -106,22 +107,43 @@ pub fn write_table<W: Write>(out: &mut W, comparison: &Comparison) -> fmt::Resul
         )?;
     }
 
-    let counted = comparison.rows.iter().filter(|r| r.in_verdict).count();
-    let failing = comparison
-        .rows
-        .iter()
-        .filter(|r| r.in_verdict && r.en.abs() > 1.0)
-        .count();
     writeln!(
         out,
-        "Largest |En| = {:.2}: {}",
+        "Largest |En| = {:.2}{}",
         comparison.max_abs_en,
-        if failing == 0 {
-            "every |En| ≤ 1, the results agree within their uncertainties".to_string()
+        if comparison.en_exceeding > 0 {
+            " (|En| > 1 marked *)"
         } else {
-            format!("{failing} of {counted} rows have |En| > 1 (marked *)")
+            ""
         }
     )?;
+    match (&comparison.vector, &comparison.vector_not_formed) {
+        (Some(vector), _) => writeln!(
+            out,
+            "The vector: {}{}",
+            vector
+                .families
+                .iter()
+                .map(|f| format!(
+                    "{} {} rows, χ² = {:.2}, ν = {}",
+                    f.quantity, f.rows, f.chi2, f.dof
+                ))
+                .collect::<Vec<_>>()
+                .join("; "),
+            if comparison
+                .rows
+                .iter()
+                .any(|r| r.quantity == Quantity::FaceDeviation)
+            {
+                " (face deviations are the pitch deviations accumulated: not in the vector)"
+            } else {
+                ""
+            }
+        )?,
+        (None, Some(why)) => writeln!(out, "No vector test: {why}")?,
+        (None, None) => {}
+    }
+    writeln!(out, "Verdict: {}", comparison.verdict_sentence())?;
     for (label, list) in [
         ("first", &comparison.only_in_a),
         ("second", &comparison.only_in_b),
@@ -172,14 +194,15 @@ fn columns<const N: usize>(header: Vec<String>, rows: Vec<Vec<String>>) -> Strin
 /// # Examples
 ///
 /// ```
-/// use polycal::compare::{compare, CompareOptions};
+/// use polycal::compare::{compare, CompareOptions, VerdictRule};
 /// use polycal::output::compare::write_csv;
 /// use polycal::results::{Quantity, ResultRow};
 ///
 /// let row = |value, expanded_u| {
 ///     ResultRow::new(Quantity::PitchDeviation, 7, value).with_expanded_u(expanded_u)
 /// };
-/// let c = compare(&[row(0.28, 0.46)], &[row(0.0, 0.15)], &CompareOptions::default())?;
+/// let options = CompareOptions::default().with_verdict(VerdictRule::En);
+/// let c = compare(&[row(0.28, 0.46)], &[row(0.0, 0.15)], &options)?;
 /// let mut csv = Vec::new();
 /// write_csv(&mut csv, &c)?;
 /// let text = String::from_utf8(csv)?;
@@ -232,7 +255,7 @@ pub fn write_csv<W: std::io::Write>(writer: W, comparison: &Comparison) -> Resul
 #[cfg(test)]
 mod write_csv_tests {
     use super::*;
-    use crate::compare::{CompareOptions, compare};
+    use crate::compare::{CompareOptions, VerdictRule, compare};
     use crate::results::{Quantity, ResultRow};
 
     fn row(quantity: &str, index: u32, value: f64, expanded_u: f64) -> ResultRow {
@@ -257,7 +280,8 @@ mod write_csv_tests {
             row("pitch_deviation", 1, 1e-300, 0.15),
             row("encoder_error", 0, 2.0f64.sqrt(), 1e-7),
         ];
-        let mut comparison = compare(&a, &b, &CompareOptions::default()).unwrap();
+        let options = CompareOptions::default().with_verdict(VerdictRule::En);
+        let mut comparison = compare(&a, &b, &options).unwrap();
         assert_eq!(comparison.only_in_a.len(), 1);
         let mut out = Vec::new();
         write_csv(&mut out, &comparison).unwrap();

@@ -441,13 +441,9 @@ fn comparison(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     x.content(
         "dcc:text",
         &format!(
-            "Largest |En| = {:.2}: {}.",
-            c.max_abs_en,
-            if c.verdict_ok() {
-                "every |En| ≤ 1, the results agree"
-            } else {
-                "some |En| > 1, the results do NOT agree"
-            }
+            "Verdict: {}. Largest |En| = {:.2}.",
+            c.verdict_sentence(),
+            c.max_abs_en
         ),
     )?;
     x.close();

@@ -148,15 +148,7 @@ fn title_block(out: &mut String, report: &CalibrationReport, title: &str) {
         });
     }
     if let Some((c, _)) = &report.comparison {
-        checks.push(format!(
-            "comparison: {} (largest |En| {})",
-            if c.verdict_ok() {
-                "agrees, every |En| ≤ 1"
-            } else {
-                "FAILS, some |En| > 1"
-            },
-            rounded(c.max_abs_en, 2)
-        ));
+        checks.push(format!("comparison: {}", c.verdict_sentence()));
     }
     if !checks.is_empty() {
         let _ = writeln!(
@@ -534,18 +526,14 @@ fn comparison(s: &mut Sections, report: &CalibrationReport) {
     let _ = write!(
         s.html,
         "<p>a: this calibration; b: {}. Encoder errors matched by {}. Setup errors are listed but left out of the verdict.</p>\n\
-         <p class=\"verdict {}\" id=\"comparison-verdict\">{} — largest |En| = {}.</p>\n",
+         <p class=\"verdict {}\" id=\"comparison-verdict\">Verdict: {}. Largest |En| = {}.</p>\n",
         esc(reference),
         match c.encoder_matched_by {
             crate::compare::EncoderMatching::Angle => "angle",
             _ => "index",
         },
         if c.verdict_ok() { "pass" } else { "fail" },
-        if c.verdict_ok() {
-            "The results agree: every |En| ≤ 1"
-        } else {
-            "The results do NOT agree: some |En| > 1"
-        },
+        esc(&c.verdict_sentence()),
         rounded(c.max_abs_en, 2)
     );
     s.html.push_str(

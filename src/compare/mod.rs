@@ -9,23 +9,38 @@
 //! (ISO 13528; the reference paper's equations (14)–(15) print a minus between the squares,
 //! but its numbers use the plus). `r` is an optional correlation coefficient between the
 //! two results, for results that share inputs (the same reference standard, the same
-//! autocollimator): the covariance term is `r·U_a·U_b`; by default `r = 0`. `|En| ≤ 1`
-//! means the results agree within their uncertainties.
+//! autocollimator): the covariance term is `r·U_a·U_b`; by default `r = 0`.
+//!
+//! **The verdict** is one test of the whole comparison at 5 % ([`vector`]): the differences
+//! of the closed quantities (pitch deviations, encoder errors) tested as one vector, χ² with
+//! the closed covariance of both results, ν = n − 1 per family. It needs each row's
+//! standard uncertainty: its `u`, or `U/k`. Rows with |En| > 1 are counted beside the number
+//! expected by chance ([`Comparison::en_expected`]): with 24 rows some |En| > 1 in about two
+//! consistent comparisons of three, so the per-row rule ([`VerdictRule::En`]) is kept only
+//! for schemes that prescribe it.
 //!
 //! Encoder errors are matched by their table angle (`angle_deg`, within
-//! [`ANGLE_TOLERANCE_DEG`] around the circle) when every encoder error of both results
+//! [`ANGLE_TOLERANCE_DEG`](crate::results::ANGLE_TOLERANCE_DEG) around the circle) when every encoder error of both results
 //! carries one, so that results with different numbers of positions (a 24-position
 //! two-autocollimator calibration against a 168-position self-calibration) are compared
 //! at the angles they share; otherwise by index. Setup errors depend on the mounting: they
 //! are listed, but left out of the verdict and of the largest |En| unless
 //! [`CompareOptions::with_include_setup`] asks for them.
 
+mod error;
+mod matching;
+pub mod vector;
+
 use std::collections::HashMap;
 
-use crate::results::{ANGLE_TOLERANCE_DEG, AngleCheck, Quantity, angle_distance_deg};
+use crate::results::{AngleCheck, Quantity};
 use serde::Serialize;
 
 use crate::results::{ResultFile, ResultRow};
+pub use error::CompareError;
+use matching::Matcher;
+use vector::{FamilySizes, Pair};
+pub use vector::{FamilyTest, UnknownVerdictRule, VectorTest, VerdictRule};
 
 /// Options of a comparison: [`CompareOptions::new`] (or `default()`) and the `with_…`
 /// methods.
@@ -41,6 +56,8 @@ pub struct CompareOptions {
     /// Whether setup errors count in the verdict and in the largest |En| (default
     /// `false`: they depend on the mounting, so they are listed but not judged).
     pub include_setup: bool,
+    /// Which rule gives the verdict (default [`VerdictRule::Vector`]).
+    pub verdict: VerdictRule,
 }
 
 impl Default for CompareOptions {
@@ -50,6 +67,7 @@ impl Default for CompareOptions {
             label_a: "A".to_string(),
             label_b: "B".to_string(),
             include_setup: false,
+            verdict: VerdictRule::Vector,
         }
     }
 }
@@ -79,13 +97,20 @@ impl CompareOptions {
         self.include_setup = include_setup;
         self
     }
+
+    /// With the rule that gives the verdict: the vector's test (the default) or the
+    /// per-row rule [`VerdictRule::En`].
+    pub fn with_verdict(mut self, verdict: VerdictRule) -> Self {
+        self.verdict = verdict;
+        self
+    }
 }
 
 /// How the encoder errors of two results were matched (JSON `encoder_matched_by`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum EncoderMatching {
-    /// By table angle (`angle_deg` within [`ANGLE_TOLERANCE_DEG`]): every encoder error
+    /// By table angle (`angle_deg` within [`ANGLE_TOLERANCE_DEG`](crate::results::ANGLE_TOLERANCE_DEG)): every encoder error
     /// of both results carries one.
     Angle,
     /// By index: at least one of the results has encoder errors without an angle (or has
@@ -106,7 +131,7 @@ pub struct ComparisonRow {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub index_b: Option<u32>,
     /// The table angle of an encoder error matched by angle, degrees: the first result's
-    /// (the second's is within [`ANGLE_TOLERANCE_DEG`] of it); present only then.
+    /// (the second's is within [`ANGLE_TOLERANCE_DEG`](crate::results::ANGLE_TOLERANCE_DEG) of it); present only then.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub angle_deg: Option<f64>,
     /// Value in the first result.
@@ -123,6 +148,13 @@ pub struct ComparisonRow {
     /// Expanded uncertainty in the second result.
     #[serde(rename = "U_b")]
     pub expanded_u_b: f64,
+    /// Standard uncertainty in the first result, arcseconds: its `u`, or `U/k` (absent
+    /// when the row has neither `u` nor `k`, which only the per-row rule accepts).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub u_a: Option<f64>,
+    /// Standard uncertainty in the second result, arcseconds (as [`ComparisonRow::u_a`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub u_b: Option<f64>,
     /// Whether the row counts in the verdict and in the largest |En|: every row but the
     /// setup errors, and those too with [`CompareOptions::with_include_setup`].
     pub in_verdict: bool,
@@ -143,10 +175,11 @@ pub struct Unmatched {
     pub angle_deg: Option<f64>,
 }
 
-/// The comparison of two results. Serializes to the JSON of docs/FORMAT.md §5
-/// (`rows`, `max_abs_en`), plus `U_a`, `U_b`, `in_verdict` (and, for encoder errors
-/// matched by angle, `index_b` and `angle_deg`) in each row, `encoder_matched_by`, and,
-/// when not empty or zero, `only_in_a`, `only_in_b` and `correlation`.
+/// The comparison of two results. Serializes to the JSON of docs/FORMAT.md §5.4
+/// (`rows`, `max_abs_en`, `verdict`, `vector`, `en_exceeding`, `en_expected`), plus
+/// `U_a`, `U_b`, `u_a`, `u_b`, `in_verdict` (and, for encoder errors matched by angle,
+/// `index_b` and `angle_deg`) in each row, `encoder_matched_by`, and, when not empty or
+/// zero, `vector_not_formed`, `only_in_a`, `only_in_b` and `correlation`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[non_exhaustive]
 pub struct Comparison {
@@ -155,6 +188,22 @@ pub struct Comparison {
     pub rows: Vec<ComparisonRow>,
     /// The largest `|En|` of the rows in the verdict ([`ComparisonRow::in_verdict`]).
     pub max_abs_en: f64,
+    /// The rule that gives the verdict ([`Comparison::verdict_ok`]).
+    pub verdict: VerdictRule,
+    /// The test of the whole comparison as one vector; always there with
+    /// [`VerdictRule::Vector`], `None` (JSON `null`) with [`VerdictRule::En`] when it could
+    /// not be formed ([`Comparison::vector_not_formed`] says why).
+    pub vector: Option<VectorTest>,
+    /// How many rows in the verdict have |En| > 1.
+    pub en_exceeding: usize,
+    /// How many rows in the verdict are expected to have |En| > 1 by chance when the results
+    /// are consistent: Σ P(|En| > 1) over those rows, each 2·(1 − Φ(1/s)),
+    /// s = √(u_a² + u_b² − 2·r·u_a·u_b) / √(U_a² + U_b² − 2·r·U_a·U_b) (4.55 % for k = 2).
+    /// `None` (JSON `null`) when some row has no standard uncertainty (per-row rule only).
+    pub en_expected: Option<f64>,
+    /// Why there is no vector test (with [`VerdictRule::En`] only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vector_not_formed: Option<String>,
     /// How the encoder errors were matched.
     pub encoder_matched_by: EncoderMatching,
     /// Rows of the first result missing from the second.
@@ -172,160 +221,78 @@ fn is_zero(x: &f64) -> bool {
     *x == 0.0
 }
 
-impl Comparison {
-    /// Whether every `|En| ≤ 1` among the rows in the verdict (the comparison passes;
-    /// otherwise `polycal compare` exits with status 1). Setup errors left out of the
-    /// verdict do not count, whatever their En.
-    pub fn verdict_ok(&self) -> bool {
-        self.rows
-            .iter()
-            .filter(|r| r.in_verdict)
-            .all(|r| r.en.abs() <= 1.0)
-    }
-}
-
-/// Why two results cannot be compared.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[non_exhaustive]
-pub enum CompareError {
-    /// A row has no expanded uncertainty.
-    #[error(
-        "{location}: {quantity} {index} has no expanded uncertainty U: compare needs U for \
-         every row (column U)"
-    )]
-    MissingU {
-        /// `file:line`, or the label and row number.
-        location: String,
-        /// The quantity.
-        quantity: Quantity,
-        /// Its index.
-        index: u32,
-    },
-    /// A `(quantity, index)` appears twice in one result.
-    #[error("{location}: {quantity} {index} appears twice")]
-    Duplicate {
-        /// `file:line`, or the label and row number.
-        location: String,
-        /// The quantity.
-        quantity: Quantity,
-        /// Its index.
-        index: u32,
-    },
-    /// The denominator of En is zero.
-    #[error(
-        "{quantity} {index}: En is undefined, U_a² + U_b² − 2·r·U_a·U_b = {denominator} \
-         (U_a = {expanded_u_a}, U_b = {expanded_u_b}, r = {r})"
-    )]
-    Undefined {
-        /// The quantity.
-        quantity: Quantity,
-        /// Its index.
-        index: u32,
-        /// `U_a² + U_b² − 2·r·U_a·U_b`.
-        denominator: f64,
-        /// `U_a`.
-        expanded_u_a: f64,
-        /// `U_b`.
-        expanded_u_b: f64,
-        /// `r`.
-        r: f64,
-    },
-    /// No quantity is in both results.
-    #[error("{a} and {b} have no (quantity, index) in common: nothing to compare")]
-    NothingInCommon {
-        /// First label.
-        a: String,
-        /// Second label.
-        b: String,
-    },
-    /// The correlation coefficient is not in [−1, 1].
-    #[error(
-        "the correlation coefficient must be between -1 and 1, got {}",
-        crate::input::limits::show(*.0)
-    )]
-    Correlation(f64),
-    /// The rows in common are setup errors only, and they are left out of the verdict:
-    /// there is nothing to judge.
-    #[error(
-        "{a} and {b} have only setup errors in common, and setup errors are left out of the \
-         verdict (they depend on the mounting): nothing to judge"
-    )]
-    OnlySetupInCommon {
-        /// First label.
-        a: String,
-        /// Second label.
-        b: String,
-    },
-    /// A row breaks the angle rules of a result (docs/FORMAT.md §3.2): an angle outside
-    /// 0 ≤ angle < 360 or on a row that is not an encoder error, encoder errors with and
-    /// without angles in one result, two at one position. (Only rows given as slices can;
-    /// a result file that does is refused when read.)
-    #[error("{location}: {reason}")]
-    Angle {
-        /// The label and row number.
-        location: String,
-        /// What is wrong.
-        reason: String,
-    },
-    /// An encoder error is within the matching tolerance of two encoder errors of the
-    /// other result, so matching by angle would have to guess.
-    #[error(
-        "{label}: encoder_error {index} at {angle_deg}° is within {tolerance:e}° of two encoder \
-         errors of {other}, {first} and {second}: matching by angle would be a guess",
-        tolerance = ANGLE_TOLERANCE_DEG
-    )]
-    AmbiguousAngle {
-        /// The result of the encoder error.
-        label: String,
-        /// Its index.
-        index: u32,
-        /// Its angle, degrees.
-        angle_deg: f64,
-        /// The other result.
-        other: String,
-        /// The smaller index of two encoder errors of the other result near it.
-        first: u32,
-        /// The larger.
-        second: u32,
-    },
-}
-
 /// Compares two results quantity by quantity: En for every `(quantity, index)` in both,
 /// encoder errors by table angle when every encoder error of both carries one
-/// ([`EncoderMatching`]). Every row of both must have `U`. Setup errors are compared but
-/// left out of the verdict and of the largest |En| unless
+/// ([`EncoderMatching`]), and gives one verdict for the whole comparison
+/// ([`Comparison::verdict_ok`], [`Comparison::verdict_sentence`]): by default the vector's
+/// test of the closed families ([`vector`]), with [`VerdictRule::En`] the per-row rule.
+/// Every row of both must have `U`; with the vector's test every row in the verdict must
+/// have its standard uncertainty too (`u`, or `k` for u = U/k). Setup errors are compared
+/// but left out of the verdict and of the largest |En| unless
 /// [`CompareOptions::with_include_setup`].
 ///
 /// # Errors
 ///
-/// [`CompareError`]: a row without `U`, a duplicate `(quantity, index)` or a row that
-/// breaks the angle rules (named by label and row number; use [`compare_files`] for file
-/// and line), an encoder error within the tolerance of two of the other result, an
-/// undefined En, nothing in common (or only setup errors, left out of the verdict), an
-/// invalid correlation coefficient.
+/// [`CompareError`]: a row without `U` (or, for the vector's test, without `u` and `k`), a
+/// duplicate `(quantity, index)` or a row that breaks the angle rules (named by label and
+/// row number; use [`compare_files`] for file and line), an encoder error within the
+/// tolerance of two of the other result, an undefined En, nothing in common (or only setup
+/// errors, left out of the verdict), an invalid correlation coefficient; for the vector's
+/// test, nothing to test as a vector, a difference without variance, or a χ² beyond the
+/// range of numbers.
 ///
 /// # Examples
 ///
-/// The reference paper's largest pitch-deviation difference, 0.28″ with
-/// `U = 0.46″` (two-autocollimator method) and `U = 0.15″` (shift-angle method):
+/// Four faces, one result 0 everywhere (u = 0.1″), the other closed with u = 0.1″ on faces 1
+/// and 2 and 0.2″ on faces 3 and 4, k = 2. The closed covariances give the weights
+/// w = (3/4)·(50, 50, 20, 20) and χ² = Σ w·d² − (Σ w·d)²/Σ w = 27/4 − 27/140 = 459/70 with
+/// ν = 3, below χ²_0.95(3) = 7.81:
 ///
 /// ```
 /// use polycal::compare::{compare, CompareOptions};
 /// use polycal::results::{Quantity, ResultRow};
 ///
+/// let row = |face, value, u: f64| {
+///     ResultRow::new(Quantity::PitchDeviation, face, value)
+///         .with_u(u)
+///         .with_k(2.0)
+///         .with_expanded_u(2.0 * u)
+/// };
+/// let a = [row(1, 0.3, 0.1), row(2, -0.1, 0.1), row(3, -0.4, 0.2), row(4, 0.2, 0.2)];
+/// let b = [row(1, 0.0, 0.1), row(2, 0.0, 0.1), row(3, 0.0, 0.1), row(4, 0.0, 0.1)];
+/// let c = compare(&a, &b, &CompareOptions::default())?;
+/// let vector = c.vector.as_ref().expect("the vector's test");
+/// assert!((vector.chi2 - 459.0 / 70.0).abs() < 1e-12);
+/// assert_eq!(vector.dof, 3);
+/// assert!(c.verdict_ok());
+/// assert_eq!(c.en_exceeding, 1); // face 1: En = 0.3/√0.08 = 1.06
+/// assert!(c.verdict_sentence().starts_with("consistent: χ² = 6.56 ≤ χ²_0.95(3) = 7.81"));
+/// # Ok::<(), polycal::compare::CompareError>(())
+/// ```
+///
+/// The reference paper's largest pitch-deviation difference, 0.28″ with `U = 0.46″`
+/// (two-autocollimator method) and `U = 0.15″` (shift-angle method), judged alone by the
+/// per-row rule (one row is no vector, and U alone gives no u):
+///
+/// ```
+/// use polycal::compare::{compare, CompareOptions, VerdictRule};
+/// use polycal::results::{Quantity, ResultRow};
+///
 /// let row = |value, expanded_u| {
 ///     ResultRow::new(Quantity::PitchDeviation, 7, value).with_expanded_u(expanded_u)
 /// };
-/// let c = compare(&[row(0.28, 0.46)], &[row(0.0, 0.15)], &CompareOptions::default())?;
+/// let options = CompareOptions::default().with_verdict(VerdictRule::En);
+/// let c = compare(&[row(0.28, 0.46)], &[row(0.0, 0.15)], &options)?;
 /// assert_eq!(format!("{:.2}", c.max_abs_en), "0.58"); // the paper's 0.58
 /// assert!(c.verdict_ok());
+/// assert!(c.vector.is_none());
 /// # Ok::<(), polycal::compare::CompareError>(())
 /// ```
 ///
 /// Encoder errors at 15° — position 1 of 24 and position 7 of 168 — are compared:
 ///
 /// ```
-/// use polycal::compare::{compare, CompareOptions, EncoderMatching};
+/// use polycal::compare::{compare, CompareOptions, EncoderMatching, VerdictRule};
 /// use polycal::results::{Quantity, ResultRow};
 ///
 /// let at = |index, positions: u32, value| {
@@ -333,7 +300,8 @@ pub enum CompareError {
 ///         .with_expanded_u(0.1)
 ///         .with_angle_deg(f64::from(index) * 360.0 / f64::from(positions))
 /// };
-/// let c = compare(&[at(1, 24, 0.3)], &[at(6, 168, 0.0), at(7, 168, 0.2)], &CompareOptions::default())?;
+/// let options = CompareOptions::default().with_verdict(VerdictRule::En);
+/// let c = compare(&[at(1, 24, 0.3)], &[at(6, 168, 0.0), at(7, 168, 0.2)], &options)?;
 /// assert_eq!(c.encoder_matched_by, EncoderMatching::Angle);
 /// assert_eq!((c.rows[0].index, c.rows[0].index_b, c.rows[0].angle_deg), (1, Some(7), Some(15.0)));
 /// assert_eq!(c.only_in_b[0].index, 6);
@@ -366,80 +334,42 @@ pub fn compare_files(
     compare_located(&a.rows, &b.rows, &options, Some(&a.lines), Some(&b.lines))
 }
 
-/// The rows of the other result matched to one row: by `(quantity, index)`, or the
-/// encoder errors by angle.
-struct Matcher<'r> {
-    by_key: HashMap<(Quantity, u32), &'r ResultRow>,
-    /// The encoder errors sorted by angle (when matching by angle).
-    by_angle: Vec<(f64, &'r ResultRow)>,
-    by: EncoderMatching,
+/// Compares rows in memory with a result file (see [`compare`]): a row of the file is named
+/// by its line (the report's reference).
+pub(crate) fn compare_with_file(
+    a: &[ResultRow],
+    b: &ResultFile,
+    options: &CompareOptions,
+) -> Result<Comparison, CompareError> {
+    compare_located(a, &b.rows, options, None, Some(&b.lines))
 }
 
-impl<'r> Matcher<'r> {
-    fn new(rows: &'r [ResultRow], by: EncoderMatching) -> Matcher<'r> {
-        let by_angle_here = |row: &ResultRow| {
-            by == EncoderMatching::Angle && row.quantity == Quantity::EncoderError
-        };
-        let by_key = rows
-            .iter()
-            .filter(|row| !by_angle_here(row))
-            .map(|row| ((row.quantity, row.index), row))
-            .collect();
-        let mut by_angle: Vec<(f64, &ResultRow)> = rows
-            .iter()
-            .filter(|row| by_angle_here(row))
-            .filter_map(|row| row.angle_deg.map(|angle| (angle, row)))
-            .collect();
-        by_angle.sort_by(|x, y| x.0.total_cmp(&y.0));
-        Matcher {
-            by_key,
-            by_angle,
-            by,
-        }
+/// `file:line` of row `i`, or the label and row number for rows given in memory.
+fn location(label: &str, lines: Option<&[u64]>, i: usize) -> String {
+    match lines.and_then(|l| l.get(i)) {
+        Some(line) => format!("{label}:{line}"),
+        None => format!("{label} (row {})", i + 1),
     }
+}
 
-    /// Whether `row` (of the other result) is matched by angle.
-    fn by_angle(&self, row: &ResultRow) -> bool {
-        self.by == EncoderMatching::Angle && row.quantity == Quantity::EncoderError
-    }
+/// The standard uncertainty of a row, arcseconds: its `u` when given, else `U/k`; `None`
+/// when it has neither `u` nor a coverage factor `k > 0` (no k is assumed).
+fn standard_u(row: &ResultRow) -> Option<f64> {
+    let u = match (row.u, row.expanded_u, row.k) {
+        (Some(u), _, _) => u,
+        (None, Some(expanded_u), Some(k)) if k > 0.0 => expanded_u / k,
+        _ => return None,
+    };
+    (u.is_finite() && u >= 0.0).then_some(u)
+}
 
-    /// The rows matching `row` of the other result: at most one by key; by angle, every
-    /// encoder error within the tolerance around the circle, nearest first.
-    fn matches(&self, row: &ResultRow) -> Vec<&'r ResultRow> {
-        if !self.by_angle(row) {
-            return self
-                .by_key
-                .get(&(row.quantity, row.index))
-                .copied()
-                .into_iter()
-                .collect();
-        }
-        let Some(angle) = row.angle_deg else {
-            return Vec::new();
-        };
-        let tolerance = ANGLE_TOLERANCE_DEG;
-        let mut windows = vec![(angle - tolerance, angle + tolerance)];
-        if angle - tolerance < 0.0 {
-            windows.push((angle - tolerance + 360.0, f64::INFINITY));
-        }
-        if angle + tolerance >= 360.0 {
-            windows.push((f64::NEG_INFINITY, angle + tolerance - 360.0));
-        }
-        let mut found: Vec<(f64, &ResultRow)> = Vec::new();
-        for (low, high) in windows {
-            // Widened by a hair, then judged by the distance itself.
-            let (low, high) = (low - tolerance, high + tolerance);
-            let from = self.by_angle.partition_point(|(a, _)| *a < low);
-            for &(a, other) in self.by_angle[from..].iter().take_while(|(a, _)| *a <= high) {
-                let distance = angle_distance_deg(a, angle);
-                if distance <= tolerance && !found.iter().any(|(_, r)| std::ptr::eq(*r, other)) {
-                    found.push((distance, other));
-                }
-            }
-        }
-        found.sort_by(|x, y| x.0.total_cmp(&y.0));
-        found.into_iter().map(|(_, r)| r).collect()
+/// How many rows of each family a result has.
+fn family_sizes(rows: &[ResultRow]) -> FamilySizes {
+    let mut sizes = FamilySizes::new();
+    for row in rows {
+        *sizes.entry(row.quantity).or_insert(0) += 1;
     }
+    sizes
 }
 
 fn compare_located(
@@ -454,10 +384,6 @@ fn compare_located(
         return Err(CompareError::Correlation(r));
     }
     let check = |rows: &[ResultRow], label: &str, lines: Option<&[u64]>| {
-        let location = |i: usize| match lines.and_then(|l| l.get(i)) {
-            Some(line) => format!("{label}:{line}"),
-            None => format!("{label} (row {})", i + 1),
-        };
         let place = |i: usize| match lines.and_then(|l| l.get(i)) {
             Some(line) => format!("line {line}"),
             None => format!("row {}", i + 1),
@@ -467,14 +393,14 @@ fn compare_located(
         for (i, row) in rows.iter().enumerate() {
             if row.expanded_u.is_none() {
                 return Err(CompareError::MissingU {
-                    location: location(i),
+                    location: location(label, lines, i),
                     quantity: row.quantity,
                     index: row.index,
                 });
             }
             if seen.insert((row.quantity, row.index), i).is_some() {
                 return Err(CompareError::Duplicate {
-                    location: location(i),
+                    location: location(label, lines, i),
                     quantity: row.quantity,
                     index: row.index,
                 });
@@ -485,7 +411,7 @@ fn compare_located(
                     _ => i,
                 };
                 return Err(CompareError::Angle {
-                    location: location(at),
+                    location: location(label, lines, at),
                     reason: problem.message(row, &rows[..i], place),
                 });
             }
@@ -511,30 +437,40 @@ fn compare_located(
     };
     let in_b = Matcher::new(b, by);
     let in_a = Matcher::new(a, by);
-    let ambiguous = |row: &ResultRow, label: &str, other: &str, found: &[&ResultRow]| {
+    let ambiguous = |row: &ResultRow, label: &str, other: &str, found: &[usize], of: &Matcher| {
+        let (first, second) = (of.row(found[0]).index, of.row(found[1]).index);
         CompareError::AmbiguousAngle {
             label: label.to_string(),
             index: row.index,
             angle_deg: row.angle_deg.unwrap_or(f64::NAN),
             other: other.to_string(),
-            first: found[0].index.min(found[1].index),
-            second: found[0].index.max(found[1].index),
+            first: first.min(second),
+            second: first.max(second),
         }
     };
     // Each encoder error of B is matched by one of A at most.
     for rb in b.iter().filter(|rb| in_a.by_angle(rb)) {
         let found = in_a.matches(rb);
         if found.len() > 1 {
-            return Err(ambiguous(rb, &options.label_b, &options.label_a, &found));
+            return Err(ambiguous(
+                rb,
+                &options.label_b,
+                &options.label_a,
+                &found,
+                &in_a,
+            ));
         }
     }
 
     let mut rows = Vec::new();
+    // The first row in the verdict without a standard uncertainty, as the error the
+    // vector's test gives for it.
+    let mut without_u: Option<CompareError> = None;
     let mut only_in_a = Vec::new();
-    for ra in a {
+    for (i, ra) in a.iter().enumerate() {
         let by_angle = in_b.by_angle(ra);
         let found = in_b.matches(ra);
-        let rb = match found.as_slice() {
+        let j = match found.as_slice() {
             [] => {
                 only_in_a.push(Unmatched {
                     quantity: ra.quantity,
@@ -543,11 +479,18 @@ fn compare_located(
                 });
                 continue;
             }
-            [rb] => *rb,
+            [j] => *j,
             _ => {
-                return Err(ambiguous(ra, &options.label_a, &options.label_b, &found));
+                return Err(ambiguous(
+                    ra,
+                    &options.label_a,
+                    &options.label_b,
+                    &found,
+                    &in_b,
+                ));
             }
         };
+        let rb = in_b.row(j);
         // Every row has U (checked above).
         let (Some(ua), Some(ub)) = (ra.expanded_u, rb.expanded_u) else {
             continue;
@@ -563,6 +506,22 @@ fn compare_located(
                 r,
             });
         }
+        let in_verdict = options.include_setup || ra.quantity != Quantity::SetupError;
+        let (u_a, u_b) = (standard_u(ra), standard_u(rb));
+        if in_verdict && without_u.is_none() {
+            let missing = |label: &str, lines: Option<&[u64]>, i: usize, row: &ResultRow| {
+                CompareError::NoStandardU {
+                    location: location(label, lines, i),
+                    quantity: row.quantity,
+                    index: row.index,
+                }
+            };
+            if u_a.is_none() {
+                without_u = Some(missing(&options.label_a, lines_a, i, ra));
+            } else if u_b.is_none() {
+                without_u = Some(missing(&options.label_b, lines_b, j, rb));
+            }
+        }
         let difference = ra.value - rb.value;
         rows.push(ComparisonRow {
             quantity: ra.quantity,
@@ -575,7 +534,9 @@ fn compare_located(
             en: difference / denominator.sqrt(),
             expanded_u_a: ua,
             expanded_u_b: ub,
-            in_verdict: options.include_setup || ra.quantity != Quantity::SetupError,
+            u_a,
+            u_b,
+            in_verdict,
         });
     }
     let only_in_b = b
@@ -603,14 +564,58 @@ fn compare_located(
             b: options.label_b.clone(),
         });
     }
-    let max_abs_en = rows
-        .iter()
-        .filter(|row| row.in_verdict)
-        .map(|row| row.en.abs())
-        .fold(0.0, f64::max);
+    let in_verdict = || rows.iter().filter(|row| row.in_verdict);
+    let max_abs_en = in_verdict().map(|row| row.en.abs()).fold(0.0, f64::max);
+    let en_exceeding = in_verdict().filter(|row| row.en.abs() > 1.0).count();
+
+    // The vector's test and the number of |En| > 1 expected by chance, both from the
+    // standard uncertainties.
+    let formed = match without_u {
+        Some(error) => Err(error),
+        None => {
+            let pairs: Vec<Pair> = in_verdict()
+                .filter_map(|row| {
+                    Some(Pair {
+                        quantity: row.quantity,
+                        index: row.index,
+                        difference_arcsec: row.difference,
+                        u_a_arcsec: row.u_a?,
+                        u_b_arcsec: row.u_b?,
+                    })
+                })
+                .collect();
+            let en_expected: f64 = in_verdict()
+                .filter_map(|row| row.probability_en_exceeds_one(r))
+                .sum();
+            vector::vector_test(
+                &pairs,
+                &family_sizes(a),
+                &family_sizes(b),
+                r,
+                (&options.label_a, &options.label_b),
+            )
+            .map(|test| (test, en_expected))
+        }
+    };
+    let (vector, en_expected, vector_not_formed) = match (formed, options.verdict) {
+        (Ok((test, expected)), _) => (Some(test), Some(expected), None),
+        (Err(error), VerdictRule::Vector) => return Err(error),
+        (Err(error), VerdictRule::En) => {
+            // The count expected by chance needs only the standard uncertainties.
+            let expected = in_verdict()
+                .map(|row| row.probability_en_exceeds_one(r))
+                .sum::<Option<f64>>();
+            (None, expected, Some(error.to_string()))
+        }
+    };
     Ok(Comparison {
         rows,
         max_abs_en,
+        verdict: options.verdict,
+        vector,
+        en_exceeding,
+        en_expected,
+        vector_not_formed,
         encoder_matched_by: by,
         only_in_a,
         only_in_b,
