@@ -569,7 +569,7 @@ pub(crate) fn diagnose_base(
         terms,
         fit: current,
         findings,
-        lack_of_fit: lof_current,
+        lack_of_fit: mut lof_current,
         ..
     } = model;
     let columns = columns_of(&terms);
@@ -734,10 +734,19 @@ pub(crate) fn diagnose_base(
     for &(ac, setup) in &jumps_exceeded {
         notes.push(notes::string_of_jumps(ac, setup));
     }
+    if let Some(lof) = &mut lof_current
+        && base.is_off_grid()
+    {
+        lof.band_limit_order = Some(base.positions().faces / 2);
+    }
     if let Some(lof) = &lof_current
         && !lof.passed()
     {
         notes.extend(lof.carriers.iter().cloned());
+        // the effects found are findings of their own, and so is what they leave
+        if !effects.is_empty() {
+            notes.push(notes::lack_of_fit_left(lof, effects.len()));
+        }
         if base.is_off_grid() {
             notes.push(notes::band_limit(base.positions().faces));
         }
