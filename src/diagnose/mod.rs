@@ -11,9 +11,12 @@
 //! squares it would bring ([`geometry`], no refit), and adds the most significant by an
 //! extra-sum-of-squares F test with a Bonferroni threshold within its family. The chosen
 //! term is refitted and kept only if it does not leave the lack of fit against pure error
-//! ([`lack_of_fit`]) failing and no better than before. The search stops when nothing
-//! significant remains; the final residuals are then checked for structure the model
-//! still lacks ([`residuals::adequacy`]).
+//! ([`lack_of_fit`]) failing and no better than before, the fits with and without it
+//! judged against one pure error (the full model of the fit with it, so that a term
+//! varying within cells is not refused for a lack of fit it was hiding). A lack of fit
+//! left beside the effects found is reported as a finding of its own. The search stops
+//! when nothing significant remains; the final residuals are then checked for structure
+//! the model still lacks ([`residuals::adequacy`]).
 
 pub mod base;
 pub mod candidates;

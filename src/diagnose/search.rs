@@ -1,8 +1,9 @@
 //! The forward selection of a diagnosis: round by round, every candidate term is scored
 //! against the current fit without refitting, the most significant (by its family's
 //! Bonferroni-adjusted F test) is refitted and kept unless the lack of fit then fails and
-//! is no smaller; outliers with an indistinguishable twin are named, not dropped; a jump
-//! beyond [`MAX_JUMPS_PER_STREAM`] of one zero is not added.
+//! is no smaller, judged against one pure error ([`refused_for_lack_of_fit`]); outliers
+//! with an indistinguishable twin are named, not dropped; a jump beyond
+//! [`MAX_JUMPS_PER_STREAM`] of one zero is not added.
 
 use std::collections::HashSet;
 
@@ -153,10 +154,14 @@ fn evidence(rank: usize, f_statistic: f64, current: &Solution, family_size: usiz
 /// The rule differs from the comparison with F₀ only by moving the candidate's
 /// within-cell sum of squares w from the pure error into the lack of fit. When the
 /// candidate is not real, w is noise, about r_w·σ² for r_w within-cell directions; as a
-/// lack of fit that fails has a mean square above σ², moving w lowers F₀* below F₀ (or
-/// leaves it), so a term that only mops up the between-cell structure of a lack of fit
-/// is refused at least as often as before. Only a term whose within-cell part is
-/// signal — evidence no between-cell structure can give — raises F₀*. A candidate
+/// lack of fit that fails has a mean square above σ², moving w pulls the lack-of-fit
+/// mean square towards σ² and leaves s² about as it was, so F₀* is at most about F₀: a
+/// term that only mops up the between-cell structure of a lack of fit is refused about
+/// as often as before, or more. Only a term whose within-cell part is signal — evidence
+/// no between-cell structure can give — raises F₀*. When that signal is another term's
+/// of the same zero (a drift taken for a jump), the term is kept as any significant
+/// term is, and the rules of doubt decide (a drift's orders the final model does not
+/// need dropped, a zero that needs several kinds of terms left out as a wander). A candidate
 /// without within-cell part (a direction offset) has F₀* = F₀: the rule is then the
 /// old one. The search's F tests and their Bonferroni families are not touched, so the
 /// false-alarm rates stay as stated (`tests/diagnose_monte_carlo.rs`,
