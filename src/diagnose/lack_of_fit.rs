@@ -128,6 +128,11 @@ pub struct LackOfFit {
     /// Factor levels that carry most of the lack of fit, e.g. "autocollimator 2 carries
     /// 91 % of it over 50 % of the cells".
     pub carriers: Vec<String>,
+    /// For a self-calibration with heads between the positions: the band limit of its
+    /// model, P/2 — the lowest harmonic order of the encoder error the band-limited model
+    /// cannot fit between the positions (the order P/2 itself only as a cosine on the
+    /// grid), a cause of a lack of fit no effect term expresses. `None` otherwise.
+    pub band_limit_order: Option<usize>,
 }
 
 /// The mean residual of one cell, in units of its standard error under the pure error.
@@ -337,6 +342,7 @@ impl PureError {
             replicated_cells,
             worst_cells,
             carriers,
+            band_limit_order: None,
         })
     }
 }

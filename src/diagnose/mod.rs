@@ -11,9 +11,12 @@
 //! squares it would bring ([`geometry`], no refit), and adds the most significant by an
 //! extra-sum-of-squares F test with a Bonferroni threshold within its family. The chosen
 //! term is refitted and kept only if it does not leave the lack of fit against pure error
-//! ([`lack_of_fit`]) failing and no better than before. The search stops when nothing
-//! significant remains; the final residuals are then checked for structure the model
-//! still lacks ([`residuals::adequacy`]).
+//! ([`lack_of_fit`]) failing and no better than before, the fits with and without it
+//! judged against one pure error (the full model of the fit with it, so that a term
+//! varying within cells is not refused for a lack of fit it was hiding). A lack of fit
+//! left beside the effects found is reported as a finding of its own. The search stops
+//! when nothing significant remains; the final residuals are then checked for structure
+//! the model still lacks ([`residuals::adequacy`]).
 
 pub mod base;
 pub mod candidates;
@@ -569,7 +572,7 @@ pub(crate) fn diagnose_base(
         terms,
         fit: current,
         findings,
-        lack_of_fit: lof_current,
+        lack_of_fit: mut lof_current,
         ..
     } = model;
     let columns = columns_of(&terms);
@@ -734,10 +737,19 @@ pub(crate) fn diagnose_base(
     for &(ac, setup) in &jumps_exceeded {
         notes.push(notes::string_of_jumps(ac, setup));
     }
+    if let Some(lof) = &mut lof_current
+        && base.is_off_grid()
+    {
+        lof.band_limit_order = Some(base.positions().faces / 2);
+    }
     if let Some(lof) = &lof_current
         && !lof.passed()
     {
         notes.extend(lof.carriers.iter().cloned());
+        // the effects found are findings of their own, and so is what they leave
+        if !effects.is_empty() {
+            notes.push(notes::lack_of_fit_left(lof, effects.len()));
+        }
         if base.is_off_grid() {
             notes.push(notes::band_limit(base.positions().faces));
         }

@@ -3,6 +3,7 @@
 
 use super::candidates::autocollimators;
 use super::clock::Clock;
+use super::lack_of_fit::LackOfFit;
 use super::{FoundEffect, MAX_JUMPS_PER_STREAM, identify};
 use crate::effects::Effect;
 use crate::measurement::{Direction, MeasurementSet};
@@ -139,11 +140,34 @@ pub(super) fn string_of_jumps(ac: u32, setup: Option<u32>) -> String {
     )
 }
 
+/// The plain words on a lack of fit left beside the `effects` effects found: a finding of
+/// its own, not theirs (each was kept because, judged against one pure error with and
+/// without it, it reduces the lack of fit: the search's gate).
+pub(super) fn lack_of_fit_left(lof: &LackOfFit, effects: usize) -> String {
+    let statistic = if lof.f_statistic.is_finite() {
+        format!("F = {:.2}", lof.f_statistic)
+    } else {
+        "F infinite".to_string()
+    };
+    format!(
+        "A lack of fit against pure error is left beside the {} found ({statistic} with {} and {} degrees of freedom, limit {:.2}): it is a finding of its own, not {}. Each effect was kept because it reduces the lack of fit, the fits with and without it judged against one pure error (the scatter within cells the effect leaves); what remains is structure between cells that no term of the search expresses, and the result is not adequate.",
+        if effects == 1 { "effect" } else { "effects" },
+        lof.dof_lack,
+        lof.dof_pure,
+        lof.limit,
+        if effects == 1 {
+            "the effect's"
+        } else {
+            "the effects'"
+        },
+    )
+}
+
 /// The plain words on a lack of fit of a self-calibration whose heads sit between the
 /// positions: the model's band limit is one explanation the data cannot rule out.
 pub(super) fn band_limit(positions: usize) -> String {
     format!(
-        "Some heads sit between the {positions} positions, where the model reads the encoder error as band-limited (orders below {half}, the order {half} as a cosine on the grid). An encoder error with orders of {half} or more reads differently between the positions and is left as lack of fit: a run on a number of positions where every head sits on a position would tell it from the other causes.",
+        "Some heads sit between the {positions} positions, where the model reads the encoder error as band-limited (orders below {half}, the order {half} as a cosine on the grid). Harmonic orders of the encoder error at or above the band limit {half} cannot be fitted between the positions: they read differently there and are left as lack of fit, whatever effects are found (a run without them shows the same lack of fit). A run on a number of positions where every head sits on a position would tell it from the other causes.",
         half = positions / 2
     )
 }

@@ -1,8 +1,9 @@
 //! The forward selection of a diagnosis: round by round, every candidate term is scored
 //! against the current fit without refitting, the most significant (by its family's
 //! Bonferroni-adjusted F test) is refitted and kept unless the lack of fit then fails and
-//! is no smaller; outliers with an indistinguishable twin are named, not dropped; a jump
-//! beyond [`MAX_JUMPS_PER_STREAM`] of one zero is not added.
+//! is no smaller, judged against one pure error ([`refused_for_lack_of_fit`]); outliers
+//! with an indistinguishable twin are named, not dropped; a jump beyond
+//! [`MAX_JUMPS_PER_STREAM`] of one zero is not added.
 
 use std::collections::HashSet;
 
@@ -104,6 +105,74 @@ fn evidence(rank: usize, f_statistic: f64, current: &Solution, family_size: usiz
         p_value,
         p_adjusted: (p_value * family_size.max(1) as f64).min(1.0),
     }
+}
+
+/// Whether a candidate the round's F test chose is refused because the lack of fit
+/// against pure error still fails with it and is no smaller (`new`: the lack-of-fit test
+/// of the fit with it; `old_against_new_pure_error`: the current fit's lack-of-fit test
+/// recomputed with the candidate's within-cell columns in the full model).
+///
+/// # The rule: both fits judged against one pure error
+///
+/// Let the current model M₀ hold the terms T, the candidate add the columns X_c (rank
+/// r), and M₁ = M₀ + X_c. The lack-of-fit test of a model M compares it with its full
+/// model F(M): one free mean per cell (and the stops' table errors of a
+/// self-calibration) plus the within-cell part W of every effect column of M (its
+/// deviations from its cells' means), so that M is nested in F(M). A term that varies
+/// within cells (a drift, a jump, a zero per cycle, a temperature, a reading) has a
+/// within-cell part W_c, so F(M₁) = F(M₀) + W_c: the two fits' F statistics
+///
+/// ```text
+/// F(M) = [(RSS_M − RSS_F) / (dof_M − ν_F)] / [RSS_F / ν_F]
+/// ```
+///
+/// have different denominators. When the candidate is real, RSS_{F(M₀)} holds its
+/// within-cell signal (a head drifting 0.6″/h inflates the pure error of the old fit
+/// many times over): the old fit's F is small because its yardstick is inflated, and
+/// once the term is fitted the yardstick shrinks to σ², so that a lack of fit the term
+/// was hiding (say an encoder's orders above a band limit) shows with a larger F. The
+/// comparison `F₁ ≥ F₀` then throws away a real term for a finding that is not its own
+/// (issue 46) — the same reason that exempts single readings, in a new form.
+///
+/// Both M₀ and M₁ are nested in F₁ = F(M₁) (M₀'s columns are cell means, stop effects
+/// and terms of T, whose within-cell parts F₁ holds). Judged against that one full
+/// model, with s² = RSS_{F₁}/ν₁, ν_L = dof₀ − ν₁ and dof₁ = dof₀ − r,
+///
+/// ```text
+/// F₀* = [(RSS₀ − RSS_{F₁}) / ν_L] / s²,   F₁ = [(RSS₁ − RSS_{F₁}) / (ν_L − r)] / s²,
+/// F₁ < F₀*  ⇔  (RSS₀ − RSS₁) / r  >  (RSS₀ − RSS_{F₁}) / ν_L :
+/// ```
+///
+/// the term is kept when its mean square exceeds the mean square of all the current
+/// model lacks against F₁ — it explains more per degree of freedom than the average
+/// direction the current model falls short in, which is what "reduces the lack of fit"
+/// means on one scale. F₀* is the current fit's lack-of-fit test with the candidate's
+/// columns in the full model (`old_against_new_pure_error`).
+///
+/// # Why no false finding comes through it
+///
+/// The rule differs from the comparison with F₀ only by moving the candidate's
+/// within-cell sum of squares w from the pure error into the lack of fit. When the
+/// candidate is not real, w is noise, about r_w·σ² for r_w within-cell directions; as a
+/// lack of fit that fails has a mean square above σ², moving w pulls the lack-of-fit
+/// mean square towards σ² and leaves s² about as it was, so F₀* is at most about F₀: a
+/// term that only mops up the between-cell structure of a lack of fit is refused about
+/// as often as before, or more. Only a term whose within-cell part is signal — evidence
+/// no between-cell structure can give — raises F₀*. When that signal is another term's
+/// of the same zero (a drift taken for a jump), the term is kept as any significant
+/// term is, and the rules of doubt decide (a drift's orders the final model does not
+/// need dropped, a zero that needs several kinds of terms left out as a wander). A candidate
+/// without within-cell part (a direction offset) has F₀* = F₀: the rule is then the
+/// old one. The search's F tests and their Bonferroni families are not touched, so the
+/// false-alarm rates stay as stated (`tests/diagnose_monte_carlo.rs`,
+/// `tests/diagnose_selfcal_within_cells.rs`). F₀* is formed only when `new` fails (one
+/// more projection onto the within-cell columns, no refit).
+fn refused_for_lack_of_fit(
+    new: &LackOfFit,
+    old_against_new_pure_error: impl FnOnce() -> Option<LackOfFit>,
+) -> bool {
+    !new.passed()
+        && old_against_new_pure_error().is_none_or(|old| new.f_statistic >= old.f_statistic)
 }
 
 /// A round's candidates in their order: the systematic ones, the jumps (compact, one per
@@ -511,17 +580,18 @@ pub(super) fn run(
                 continue;
             };
             let lof_new = base.lack_of_fit(set, &fit, &new_columns, options.lack_of_fit_alpha);
-            // A term that acts on many cells must reduce a lack of fit the data shows; a
+            // A term that acts on many cells must reduce a lack of fit the data shows,
+            // judged against the pure error it leaves ([`refused_for_lack_of_fit`]); a
             // single reading is decided by its own statistic (its externally studentized
-            // residual, Bonferroni over the readings): in a replicated cell it inflates
-            // the pure error as much as the lack of fit, and a gross error must never stay
-            // in the fit for that.
+            // residual, Bonferroni over the readings): a gross error must never stay in
+            // the fit for a lack of fit it has no part in.
             if candidate.outlier.is_none()
                 && let Some(new) = &lof_new
-                && !new.passed()
-                && lof_current
-                    .as_ref()
-                    .is_none_or(|old| new.f_statistic >= old.f_statistic)
+                && refused_for_lack_of_fit(new, || {
+                    let mut full = columns.clone();
+                    full.extend(known.of(&added));
+                    base.lack_of_fit(set, &current, &full, options.lack_of_fit_alpha)
+                })
             {
                 tried.push(rejected(Rejection::DoesNotReduceLackOfFit));
                 continue;

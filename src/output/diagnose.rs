@@ -368,7 +368,7 @@ fn lack_of_fit_json(lof: &LackOfFit) -> Value {
             })
         })
         .collect();
-    serde_json::json!({
+    let mut object = serde_json::json!({
         "F": number(lof.f_statistic),
         "dof_lack": lof.dof_lack,
         "dof_pure": lof.dof_pure,
@@ -380,7 +380,11 @@ fn lack_of_fit_json(lof: &LackOfFit) -> Value {
         "replicated_cells": lof.replicated_cells,
         "worst_cells": cells,
         "carriers": lof.carriers,
-    })
+    });
+    if let (Some(order), Value::Object(map)) = (lof.band_limit_order, &mut object) {
+        map.insert("band_limit_order".into(), order.into());
+    }
+    object
 }
 
 fn tried_json(tried: &TriedEffect) -> Value {

@@ -200,7 +200,19 @@ pub fn write_table<W: std::fmt::Write>(
                     "\nNOT adequate: structure is left that no known effect explains."
                 )?;
             }
-            if !diagnosis.effects.is_empty() && !ambiguous_only {
+            // a lack of fit the band-limited model of heads between the positions leaves
+            // (and nothing else failed) has a cause of its own beside the effects found
+            let band_limit = diagnosis
+                .lack_of_fit
+                .as_ref()
+                .and_then(|lof| lof.band_limit_order)
+                .filter(|_| failed.iter().all(|name| name.starts_with("lack of fit")));
+            if let (Some(order), false) = (band_limit, diagnosis.effects.is_empty()) {
+                writeln!(
+                    out,
+                    "  The lack of fit is left beside the effects above, a finding of its own: the band-limited model of heads between the positions cannot fit the encoder error's orders of {order} or more (see the notes). Each effect was kept because it reduces the lack of fit, judged against one pure error with and without it; the result is not certified until that cause is settled."
+                )?;
+            } else if !diagnosis.effects.is_empty() && !ambiguous_only {
                 writeln!(
                     out,
                     "  Caution: the effects above are the closest terms the model has to a structure it cannot express, not a confirmed explanation; do not take the final model's result as corrected until the cause of the structure below is found."
