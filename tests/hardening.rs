@@ -759,10 +759,15 @@ fn work_beyond_the_address_space_limit_is_refused_up_front() {
         message.starts_with(&format!("{path}: cannot solve: the design (6000 positions")),
         "{message}"
     );
-    assert!(
-        message.contains("GiB of memory for the dense solver; 1.4 GiB "),
-        "{message}"
-    );
+    // what is left is the limit less the process's own address space at the check (its
+    // threads' malloc arenas included, which vary with the machine's load): 1.2–1.43 GiB
+    let left: f64 = message
+        .split("GiB of memory for the dense solver; ")
+        .nth(1)
+        .and_then(|rest| rest.split(" GiB ").next())
+        .and_then(|number| number.parse().ok())
+        .unwrap_or_else(|| panic!("{message}"));
+    assert!((1.2..=1.43).contains(&left), "{message}");
     assert!(message.ends_with(limited), "{message}");
     let message = one_error_line(&polycal_under_ulimit_v(
         4_000_000,
