@@ -100,8 +100,12 @@ pub(crate) fn figures(kc: &KeyComparison) -> Vec<Figure> {
 
 fn method_words(kc: &KeyComparison) -> &'static str {
     match kc.method {
-        crate::kc::ReferenceMethod::WeightedMean => "weighted mean (Cox 2002, procedure A)",
-        crate::kc::ReferenceMethod::DersimonianLaird => "DerSimonian–Laird mean",
+        crate::kc::ReferenceMethod::WeightedMean => {
+            "closed GLS reference (the weighted mean with one u per laboratory)"
+        }
+        crate::kc::ReferenceMethod::DersimonianLaird => {
+            "DerSimonian–Laird, u widened by τ, closed GLS reference"
+        }
     }
 }
 
@@ -238,21 +242,10 @@ fn pilot(kc: &KeyComparison) -> Figure {
                 doe,
             ));
         }
-        let flagged: Vec<String> = (0..kc.index.len())
-            .filter(|&k| pilot.significant.get(k).copied().unwrap_or(false))
-            .map(|k| kc.index[k].to_string())
-            .collect();
-        subtitles.push(if flagged.is_empty() {
-            format!(
-                "the repeats agree within their uncertainties everywhere (χ² ≤ χ²_0.95({})): u_stab = 0",
-                pilot.chi2_dof
-            )
-        } else {
-            format!(
-                "the repeats differ beyond their uncertainties at {}: their standard deviation is u_stab there",
-                flagged.join(", ")
-            )
-        });
+        // the one test of the repeats, in the words of the table and the documents
+        if let Some(statement) = kc.pilot_statement() {
+            subtitles.push(statement);
+        }
     }
     let chart = Chart {
         title: title.clone(),
