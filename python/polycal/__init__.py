@@ -28,6 +28,7 @@ from ._data import (
     read_measurements,
     read_selfcal,
 )
+from ._data import budget as _read_budget
 from ._polycal import DesignError, FileNotFound, InputError, PolycalError, PolycalWarning
 from ._results import (
     Comparison,
@@ -79,11 +80,55 @@ def _sigma(sigma: Optional[float]) -> Optional[float]:
     return None if sigma is None else float(sigma)
 
 
+def _measurement_set(ms: Union[MeasurementSet, PathOrText]) -> Any:
+    """The native set of a :class:`MeasurementSet`, or of a measurement file (a path
+    string or an ``os.PathLike``) or its text, read by :func:`read_measurements`."""
+    if isinstance(ms, MeasurementSet):
+        return ms._inner
+    if isinstance(ms, (str, _os.PathLike)):
+        return read_measurements(ms)._inner
+    raise TypeError(
+        f"expected a MeasurementSet, a path or a measurement file's text, got {type(ms).__name__}"
+    )
+
+
+def _selfcal_set(set: Union[SelfcalSet, PathOrText]) -> Any:
+    """The native set of a :class:`SelfcalSet`, or of a self-calibration file (a path
+    string or an ``os.PathLike``) or its text, read by :func:`read_selfcal`."""
+    if isinstance(set, SelfcalSet):
+        return set._inner
+    if isinstance(set, (str, _os.PathLike)):
+        return read_selfcal(set)._inner
+    raise TypeError(
+        f"expected a SelfcalSet, a path or a self-calibration file's text, got {type(set).__name__}"
+    )
+
+
+def _budget(given: Union[None, Budget, PathOrText, Dict[str, Any]]) -> Any:
+    """The native budget of a :class:`Budget`, or of a TOML file (a path string or an
+    ``os.PathLike``), its text or a dict, read by :func:`budget`; ``None`` for none."""
+    if given is None:
+        return None
+    if isinstance(given, Budget):
+        return given._inner
+    if isinstance(given, (str, _os.PathLike, dict)):
+        return _read_budget(given)._inner
+    raise TypeError(
+        f"budget: expected a Budget, a path, a TOML text or a dict, got {type(given).__name__}"
+    )
+
+
+#: What a set is given as: the set, a file's path (``str`` or ``os.PathLike``) or its text.
+SetLike = Union[MeasurementSet, PathOrText]
+#: What a budget is given as: the budget, a TOML file's path, its text or a dict.
+BudgetLike = Union[Budget, PathOrText, Dict[str, Any]]
+
+
 def solve(
-    ms: MeasurementSet,
+    ms: SetLike,
     method: str = "auto",
     sigma: Optional[float] = None,
-    budget: Optional[Budget] = None,
+    budget: Optional[BudgetLike] = None,
     monte_carlo: Union[None, int, str] = None,
     seed: int = 1,
 ) -> SolveResult:
@@ -94,13 +139,15 @@ def solve(
     evaluation. ``sigma`` is σ of one reading for an exactly determined fit (dof = 0).
     A design that cannot determine some harmonics raises ``DesignError``; a fit without
     residual degrees of freedom and without ``sigma`` has no u (``None``) and warns
-    (``PolycalWarning``)."""
+    (``PolycalWarning``). ``ms`` is a :class:`MeasurementSet` or a measurement file (a
+    path string or ``os.PathLike``, read as :func:`read_measurements` reads it), ``budget``
+    a :class:`Budget` or what :func:`budget` takes."""
     result = SolveResult(
         _polycal.solve(
-            ms._inner,
+            _measurement_set(ms),
             method=method,
             sigma=_sigma(sigma),
-            budget=None if budget is None else budget._inner,
+            budget=_budget(budget),
             monte_carlo=monte_carlo,
             seed=seed,
         )
@@ -110,10 +157,10 @@ def solve(
 
 
 def diagnose(
-    ms: MeasurementSet,
+    ms: SetLike,
     truth: Optional[Union[Dict[str, Any], str]] = None,
     sigma: Optional[float] = None,
-    budget: Optional[Budget] = None,
+    budget: Optional[BudgetLike] = None,
     monte_carlo: Union[None, int, str] = None,
     seed: int = 1,
 ) -> DiagnoseResult:
@@ -122,15 +169,15 @@ def diagnose(
     text, as :func:`simulate` returns) the error before and after. With a budget, U and k
     of the final model's results, and with ``monte_carlo`` (a number of trials or
     ``"adaptive"``) its JCGM 101 evaluation, effect columns included (``after``'s
-    ``monte_carlo``)."""
+    ``monte_carlo``). ``ms`` and ``budget`` as :func:`solve` takes them."""
     if isinstance(truth, dict):
         truth = _json.dumps(truth)
     result = DiagnoseResult(
         _polycal.diagnose(
-            ms._inner,
+            _measurement_set(ms),
             truth=truth,
             sigma=_sigma(sigma),
-            budget=None if budget is None else budget._inner,
+            budget=_budget(budget),
             monte_carlo=monte_carlo,
             seed=seed,
         )
@@ -140,20 +187,23 @@ def diagnose(
 
 
 def selfcal(
-    set: SelfcalSet,
+    set: Union[SelfcalSet, PathOrText],
     sigma: Optional[float] = None,
-    budget: Optional[Budget] = None,
+    budget: Optional[BudgetLike] = None,
     monte_carlo: Union[None, int, str] = None,
     seed: int = 1,
 ) -> SelfcalResult:
     """Self-calibrates the encoder from a multi-head run as ``polycal selfcal`` does; with
     a budget, U and k of e and of the heads' errors, and with ``monte_carlo`` (a number of
-    trials or ``"adaptive"``) the budget's JCGM 101 evaluation (``monte_carlo``)."""
+    trials or ``"adaptive"``) the budget's JCGM 101 evaluation (``monte_carlo``). ``set``
+    is a :class:`SelfcalSet` or a self-calibration file (a path string or
+    ``os.PathLike``, read as :func:`read_selfcal` reads it), ``budget`` as :func:`solve`
+    takes it."""
     result = SelfcalResult(
         _polycal.selfcal(
-            set._inner,
+            _selfcal_set(set),
             sigma=_sigma(sigma),
-            budget=None if budget is None else budget._inner,
+            budget=_budget(budget),
             monte_carlo=monte_carlo,
             seed=seed,
         )
@@ -188,12 +238,17 @@ def compare(
 
 
 def _rows_of(x: Any) -> Any:
-    """The result rows of a :class:`SolveResult`, of rows, or of a result file."""
+    """The result rows of a :class:`SolveResult`, of rows, or of a result file (a path
+    string or ``os.PathLike``)."""
     if isinstance(x, SolveResult):
         return x._inner.rows()
     if isinstance(x, _Rows):
         return x._inner
-    return _polycal.read_results(_os.fspath(x))
+    if isinstance(x, (str, _os.PathLike)):
+        return _polycal.read_results(_os.fspath(x))
+    raise TypeError(
+        f"expected a SolveResult, result rows or a result file's path, got {type(x).__name__}"
+    )
 
 
 def kc(

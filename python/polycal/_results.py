@@ -34,6 +34,31 @@ def _array(values: list) -> Optional[_np.ndarray]:
     return _np.asarray([_np.nan if v is None else v for v in values], dtype=_np.float64)
 
 
+#: The fields of a solve's JSON object (and of ``diagnose``'s ``before`` and ``after``)
+#: that only an uncertainty evaluation gives: with a budget (``p``, U, k, ``uncertainty``)
+#: or with ``monte_carlo=``. Without it they read as ``None`` (the JSON has no such key).
+_SOLVE_EVALUATED = frozenset(
+    {
+        "p",
+        "pitch_deviation_U",
+        "face_deviation_U",
+        "encoder_error_U",
+        "pitch_deviation_k",
+        "face_deviation_k",
+        "encoder_error_k",
+        "uncertainty",
+        "monte_carlo",
+    }
+)
+
+#: The same for a setup error of a solve (``setup_error[i]``): U and k with a budget.
+_SETUP_EVALUATED = frozenset({"U", "k"})
+
+#: The same for ``selfcal``'s object: its U and k are the fit's and always there; the
+#: budget's evaluation and the Monte Carlo are not.
+_SELFCAL_EVALUATED = frozenset({"uncertainty", "monte_carlo"})
+
+
 def _convert(value: Any) -> Any:
     """The JSON value with its number lists as numpy arrays and its objects as
     :class:`Section`, at every depth; scalars and strings as they are."""
@@ -67,7 +92,12 @@ def _number(v: Any) -> str:
 
 class Section(dict):
     """An object of a command's JSON: a dict whose keys are attributes too (``dir()``
-    lists them), its number lists numpy arrays."""
+    lists them), its number lists numpy arrays. A field only an uncertainty evaluation
+    gives (U, k, ``p``, ``uncertainty``, ``monte_carlo``) reads as ``None`` when the
+    evaluation was not made."""
+
+    #: The fields that read as ``None`` when absent.
+    _optional: frozenset = frozenset()
 
     def __getattr__(self, key: str) -> Any:
         try:
@@ -75,22 +105,58 @@ class Section(dict):
         except KeyError:
             raise AttributeError(key) from None
 
+    def __missing__(self, key: Any) -> Any:
+        if key in self._optional:
+            return None
+        raise KeyError(key)
+
     def __dir__(self) -> List[str]:
-        return sorted(set(dir(dict)) | {k for k in self if k.isidentifier()})
+        keys = set(self) | set(self._optional)
+        return sorted(set(dir(dict)) | {k for k in keys if k.isidentifier()})
+
+
+
+def _optional_section(value: Any, optional: frozenset) -> Any:
+    """``value`` (a :class:`Section`) with its ``optional`` fields reading as ``None``
+    when absent; anything else as it is."""
+    if isinstance(value, Section):
+        value._optional = optional
+    return value
 
 
 class Result:
     """A command's JSON object (docs/FORMAT.md §5): ``result.key`` and ``result["key"]``
     give a field, its number lists as numpy arrays (float64 with NaN for ``null``, int64
     for whole numbers) and its objects as :class:`Section` at every depth; ``dir()`` lists
-    the fields; ``to_json()`` is the command's text, ``to_dict()`` the plain object."""
+    the fields; ``to_json()`` is the command's text, ``to_dict()`` the plain object.
+
+    A field that only an uncertainty evaluation gives — with a budget ``p``, the ``_U``
+    and ``_k`` arrays and ``uncertainty``, with ``monte_carlo=`` ``monte_carlo`` — is
+    ``None`` when it was not made (``result.pitch_deviation_U`` and
+    ``result["pitch_deviation_U"]`` alike; the JSON has no such key, so ``"pitch_deviation_U"
+    in result`` is ``False``), as the fit's ``_u`` are ``None`` when σ is unknown.
+
+    Results pickle and deep-copy as their JSON text (``copy.deepcopy``, ``pickle``,
+    ``multiprocessing``): the copy is the same text, parsed again, equal to the bit."""
 
     _main: tuple = ()
+    #: The fields that read as ``None`` when the JSON has none of that name.
+    _optional: frozenset = frozenset()
 
     def __init__(self, text: str) -> None:
         self._json = text
         self._dict = _json.loads(text)
         self._data = {k: _convert(v) for k, v in self._dict.items()}
+        self._mark_optional()
+
+    def _mark_optional(self) -> None:
+        """Marks the nested objects whose fields read as ``None`` when absent."""
+
+    def __getstate__(self) -> Dict[str, Any]:
+        return {"json": self._json}
+
+    def __setstate__(self, state: Dict[str, Any]) -> None:
+        Result.__init__(self, state["json"])
 
     def to_json(self) -> str:
         """The JSON text the command prints with ``--format json``."""
@@ -101,7 +167,12 @@ class Result:
         return _json.loads(self._json)
 
     def __getitem__(self, key: str) -> Any:
-        return self._data[key]
+        try:
+            return self._data[key]
+        except KeyError:
+            if key in self._optional:
+                return None
+            raise
 
     def __contains__(self, key: object) -> bool:
         return key in self._data
@@ -122,12 +193,15 @@ class Result:
         try:
             return self._data[key]
         except KeyError:
+            if key in self._optional:
+                return None
             raise AttributeError(
                 f"{type(self).__name__} has no field {key!r}; its fields: {', '.join(self._data)}"
             ) from None
 
     def __dir__(self) -> List[str]:
-        return sorted(set(super().__dir__()) | {k for k in self._data if k.isidentifier()})
+        keys = set(self._data) | set(self._optional)
+        return sorted(set(super().__dir__()) | {k for k in keys if k.isidentifier()})
 
     def keys(self):
         """The fields, in the JSON's order."""
@@ -198,21 +272,34 @@ class SolveResult(Result):
     engine: str
     sigma: Optional[float]
     sigma_source: Optional[str]
-    p: float
-    pitch_deviation_U: _np.ndarray
-    face_deviation_U: _np.ndarray
-    encoder_error_U: _np.ndarray
-    pitch_deviation_k: _np.ndarray
-    face_deviation_k: _np.ndarray
-    encoder_error_k: _np.ndarray
-    uncertainty: Section
-    monte_carlo: Section
+    p: Optional[float]
+    pitch_deviation_U: Optional[_np.ndarray]
+    face_deviation_U: Optional[_np.ndarray]
+    encoder_error_U: Optional[_np.ndarray]
+    pitch_deviation_k: Optional[_np.ndarray]
+    face_deviation_k: Optional[_np.ndarray]
+    encoder_error_k: Optional[_np.ndarray]
+    uncertainty: Optional[Section]
+    monte_carlo: Optional[Section]
     encoder_angle_deg: _np.ndarray
     notes: List[str]
+
+    _optional = _SOLVE_EVALUATED
 
     def __init__(self, inner: Any) -> None:
         super().__init__(inner.json())
         self._inner = inner
+
+    def _mark_optional(self) -> None:
+        for setup_error in self._data.get("setup_error", ()):
+            _optional_section(setup_error, _SETUP_EVALUATED)
+
+    def __getstate__(self) -> Dict[str, Any]:
+        # the native result pickles its JSON, rows and set (python/src/evaluate.rs)
+        return {"inner": self._inner}
+
+    def __setstate__(self, state: Dict[str, Any]) -> None:
+        SolveResult.__init__(self, state["inner"])
 
     def __repr__(self) -> str:
         d = self._data
@@ -258,18 +345,25 @@ class SolveResult(Result):
         return _np.asarray([s["ac"] for s in self._dict["setup_error"]], dtype=_np.int64)
 
     @property
-    def setup_error_u(self) -> _np.ndarray:
-        """u of each setup error (NaN when σ is unknown)."""
+    def setup_error_u(self) -> Optional[_np.ndarray]:
+        """u of each setup error, the fit's (k = 1); ``None`` when σ is unknown, as the
+        ``_u`` arrays."""
+        if self.sigma is None:
+            return None
         return self._setup("u")
 
     @property
-    def setup_error_U(self) -> _np.ndarray:
-        """U of each setup error (with a budget; NaN without)."""
+    def setup_error_U(self) -> Optional[_np.ndarray]:
+        """U of each setup error; ``None`` without a budget, as the ``_U`` arrays."""
+        if "uncertainty" not in self._dict:
+            return None
         return self._setup("U")
 
     @property
-    def setup_error_k(self) -> _np.ndarray:
-        """k of each setup error (with a budget; NaN without)."""
+    def setup_error_k(self) -> Optional[_np.ndarray]:
+        """k of each setup error; ``None`` without a budget, as the ``_k`` arrays."""
+        if "uncertainty" not in self._dict:
+            return None
         return self._setup("k")
 
     @property
@@ -394,10 +488,11 @@ class SolveResult(Result):
         standard = self._data.get(family + "_u")
         if expanded is not None:
             k = _np.asarray(self._data[family + "_k"], dtype=float)
-            finite = k[_np.isfinite(k)]
+            shown = sorted({f"{v:.2f}" for v in k[_np.isfinite(k)]}, key=float)
             k_text = (
-                f"k = {finite.min():.2f}" if finite.size and finite.min() == finite.max()
-                else f"k = {finite.min():.2f} … {finite.max():.2f}" if finite.size else "k unknown"
+                "k unknown" if not shown
+                else f"k = {shown[0]}" if len(shown) == 1
+                else f"k = {shown[0]} … {shown[-1]}"
             )
             bars = _np.asarray(expanded, dtype=float)
             label = f"{symbol} with expanded uncertainty U ({k_text}, p = {self._data['p']})"
@@ -411,8 +506,41 @@ class SolveResult(Result):
         ax.axhline(0.0, color="0.6", linewidth=0.8)
         ax.set_ylabel(f"{words} {symbol} / arcsec")
         ax.set_title(f"{words[0].upper()}{words[1:]} {symbol}, N = {self._data['faces']}")
-        ax.legend()
+        legend = ax.legend(loc="upper left")
+        _room_for_legend(ax, legend, _np.asarray(values, dtype=float), bars)
         return ax
+
+
+def _room_for_legend(ax: Any, legend: Any, values: _np.ndarray, bars: Optional[_np.ndarray]) -> None:
+    """Raises the top of the y axis so that the legend, in the upper left corner, sits
+    above every point and every bar: the data keep to the band below the legend's
+    bottom edge (as the axes are now sized; a later change of the figure's layout or
+    limits is the caller's)."""
+    low_ends = values if bars is None else values - _np.nan_to_num(bars)
+    high_ends = values if bars is None else values + _np.nan_to_num(bars)
+    finite = _np.isfinite(values)
+    if not finite.any():
+        return
+    low = min(float(_np.min(low_ends[finite])), 0.0)
+    high = max(float(_np.max(high_ends[finite])), 0.0)
+    span = high - low if high > low else 1.0
+    figure = ax.figure
+    get_renderer = getattr(figure.canvas, "get_renderer", None)
+    renderer = get_renderer() if get_renderer is not None else figure._get_renderer()
+    box = legend.get_window_extent(renderer)
+    axes = ax.get_window_extent(renderer)
+    # the share of the axes' height from the legend's bottom edge to the top
+    taken = (axes.y1 - box.y0) / axes.height if axes.height > 0 else 0.0
+    if not 0.0 < taken < 0.8:
+        # no room to make inside axes this small: the legend goes above them
+        if hasattr(legend, "set_loc"):  # matplotlib 3.8 and later
+            legend.set_loc("lower left")
+            legend.set_bbox_to_anchor((0.0, 1.02), transform=ax.transAxes)
+        return
+    bottom = low - 0.05 * span
+    # the highest end 3 % of the span below the legend
+    top = bottom + (high + 0.03 * span - bottom) / (1.0 - taken)
+    ax.set_ylim(bottom, top)
 
 
 class DiagnoseResult(Result):
@@ -436,6 +564,13 @@ class DiagnoseResult(Result):
     unattributed: List[Section]
     residuals: Section
     truth: Section
+
+    def _mark_optional(self) -> None:
+        for key in ("before", "after"):
+            model = _optional_section(self._data.get(key), _SOLVE_EVALUATED)
+            if isinstance(model, Section):
+                for setup_error in model.get("setup_error", ()):
+                    _optional_section(setup_error, _SETUP_EVALUATED)
 
 
 class SelfcalResult(Result):
@@ -469,8 +604,10 @@ class SelfcalResult(Result):
     lost_harmonics: Any
     lost_harmonic_u: Optional[float]
     notes: List[str]
-    uncertainty: Section
-    monte_carlo: Section
+    uncertainty: Optional[Section]
+    monte_carlo: Optional[Section]
+
+    _optional = _SELFCAL_EVALUATED
 
 
 class Comparison(Result):

@@ -8,6 +8,9 @@ use polycal::kc::{KcOptions, LabResult, ReferenceMethod};
 use polycal::output::SolveReport;
 use polycal::output::diagnose::DiagnoseReport;
 use polycal::output::selfcal::SelfcalReport;
+use std::sync::{Arc, OnceLock};
+
+use polycal::measurement::MeasurementSet;
 use polycal::results::{Quantity, ResultRow};
 use polycal::selfcal::SelfcalOptions;
 use polycal::simulate::Truth;
@@ -19,6 +22,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::sets::{PyBudget, PyMeasurementSet, PySelfcalSet};
+use crate::state::{RowsState, SolveState, restorer, rows_state};
 use crate::{PolycalError, input_error, refusal, results_error, solve_error, to_json};
 
 /// The rows of a result (docs/FORMAT.md §3): a solve's, or a result file's.
@@ -40,6 +44,17 @@ impl PyRows {
     #[getter]
     fn label(&self) -> String {
         self.label.clone()
+    }
+
+    /// Pickles the rows (and, for a file's, its name and the rows' lines) as Python
+    /// values: back equal to the bit.
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (RowsState,))> {
+        let file = self
+            .file
+            .as_ref()
+            .map(|f| (f.source.clone(), f.lines.clone()));
+        let state = (rows_state(&self.rows), self.label.clone(), file);
+        Ok((restorer(py, "_restore_rows")?, (state,)))
     }
 }
 
@@ -63,12 +78,41 @@ pub(crate) fn read_results(py: Python<'_>, path: &str) -> PyResult<PyRows> {
 
 /// A solved measurement: the JSON object of `polycal solve --format json`, the solution
 /// (for covariances) and the result rows (for comparisons).
+///
+/// It keeps the set and the solve's options: a pickled result carries its JSON, rows and
+/// set, not the solution (whose cofactor is an operator, not data), and re-solves the set
+/// with the same options — the same code on the same readings, the same bits — the first
+/// time `covariance` is asked after the round trip.
 #[pyclass(name = "SolveResult", module = "polycal._polycal", frozen)]
 pub(crate) struct PySolveResult {
     pub(crate) json: String,
-    pub(crate) solution: Solution,
+    /// Set when solved; after a pickle, on the first `covariance`.
+    pub(crate) solution: OnceLock<Solution>,
     pub(crate) rows: Vec<ResultRow>,
     pub(crate) label: String,
+    /// The set solved, shared with its `MeasurementSet`.
+    pub(crate) set: Arc<MeasurementSet>,
+    /// The solve's `method` and `sigma`, as given.
+    pub(crate) method: String,
+    pub(crate) sigma: Option<f64>,
+    /// The number of encoder positions the solution has (α's length).
+    pub(crate) positions: usize,
+}
+
+impl PySolveResult {
+    /// The solution: the one solved, or after a pickle the set solved again.
+    fn solution(&self, py: Python<'_>) -> PyResult<&Solution> {
+        if let Some(solution) = self.solution.get() {
+            return Ok(solution);
+        }
+        let options = solve_options(&self.method, self.sigma)?;
+        let set = &self.set;
+        let (solution, _) = py
+            .detach(|| solve_set(set, &options))
+            .map_err(|e| solve_error(py, e))?;
+        // another thread may have set it meanwhile: the same solution either way
+        Ok(self.solution.get_or_init(|| solution))
+    }
 }
 
 #[pymethods]
@@ -89,7 +133,7 @@ impl PySolveResult {
 
     /// The table angle of every encoder position, degrees (`step_angle_deg`).
     fn encoder_angle_deg(&self) -> Vec<f64> {
-        let positions = self.solution.encoder_error.len();
+        let positions = self.positions;
         (0..positions)
             .map(|p| polycal::measurement::step_angle_deg(p as u32, positions))
             .collect()
@@ -98,7 +142,7 @@ impl PySolveResult {
     /// The nominal angle of every face f = 1 … N, degrees: f·360°/N (`step_angle_deg`,
     /// face N at 360°).
     fn face_angle_deg(&self) -> Vec<f64> {
-        let faces = self.solution.pitch_deviation.len();
+        let faces = self.set.faces;
         (1..=faces)
             .map(|f| polycal::measurement::step_angle_deg(f as u32, faces))
             .collect()
@@ -118,7 +162,64 @@ impl PySolveResult {
                 )));
             }
         };
-        Ok(py.detach(|| self.solution.family_covariance(family)))
+        let solution = self.solution(py)?;
+        Ok(py.detach(|| solution.family_covariance(family)))
+    }
+
+    /// Pickles the result as its JSON, rows and set (module documentation of the type):
+    /// back equal to the bit.
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (SolveState,))> {
+        let state = (
+            self.json.clone(),
+            rows_state(&self.rows),
+            self.label.clone(),
+            Py::new(
+                py,
+                PyMeasurementSet {
+                    inner: Arc::clone(&self.set),
+                    comments: Vec::new(),
+                },
+            )?,
+            self.method.clone(),
+            self.sigma,
+            self.positions,
+        );
+        Ok((restorer(py, "_restore_solve_result")?, (state,)))
+    }
+}
+
+/// The options of `solve(method=, sigma=)`.
+pub(crate) fn solve_options(method: &str, sigma: Option<f64>) -> PyResult<SolveOptions> {
+    let method = match method {
+        "auto" => Method::Auto,
+        "closed-form" => Method::ClosedForm,
+        "lsq" => Method::LeastSquares,
+        "dense" => Method::Dense,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "method {other:?}: expected auto, closed-form, lsq or dense"
+            )));
+        }
+    };
+    Ok(SolveOptions::new()
+        .with_method(method)
+        .with_sigma_opt(crate::sigma(sigma)?))
+}
+
+/// Solves a set as `polycal solve` does: by cosets for sub-pitch mountings, else the
+/// closed form or least squares; the solution and its report.
+fn solve_set(
+    set: &MeasurementSet,
+    options: &SolveOptions,
+) -> Result<(Solution, SolveReport), SolveError> {
+    if set.has_shifts() && ShiftGeometry::of(set).is_sub_pitch() {
+        let solved = solve_shifted(set, options)?;
+        let report = SolveReport::sub_pitch(&solved, None);
+        Ok((solved.solution, report))
+    } else {
+        let solution = polycal::solve::solve(set, options)?;
+        let report = SolveReport::new(&solution, None);
+        Ok((solution, report))
     }
 }
 
@@ -183,20 +284,7 @@ pub(crate) fn solve(
     monte_carlo: Option<&Bound<'_, PyAny>>,
     seed: u64,
 ) -> PyResult<PySolveResult> {
-    let method = match method {
-        "auto" => Method::Auto,
-        "closed-form" => Method::ClosedForm,
-        "lsq" => Method::LeastSquares,
-        "dense" => Method::Dense,
-        other => {
-            return Err(PyValueError::new_err(format!(
-                "method {other:?}: expected auto, closed-form, lsq or dense"
-            )));
-        }
-    };
-    let options = SolveOptions::new()
-        .with_method(method)
-        .with_sigma_opt(crate::sigma(sigma)?);
+    let options = solve_options(method, sigma)?;
     let mc = mc_options(monte_carlo, budget.is_some(), seed)?;
     let set = &ms.inner;
     let budget = budget.map(|b| &b.inner);
@@ -207,23 +295,8 @@ pub(crate) fn solve(
                 set.source
             )));
         }
-        let (solution, report) = if set.has_shifts() && ShiftGeometry::of(set).is_sub_pitch() {
-            match solve_shifted(set, &options) {
-                Ok(solved) => {
-                    let report = SolveReport::sub_pitch(&solved, None);
-                    (solved.solution.clone(), report)
-                }
-                Err(e) => return Err(Failure::Solve(Box::new(e))),
-            }
-        } else {
-            match polycal::solve::solve(set, &options) {
-                Ok(solution) => {
-                    let report = SolveReport::new(&solution, None);
-                    (solution, report)
-                }
-                Err(e) => return Err(Failure::Solve(Box::new(e))),
-            }
-        };
+        let (solution, report) =
+            solve_set(set, &options).map_err(|e| Failure::Solve(Box::new(e)))?;
         let gum = match budget.map(|b| evaluate(set, &solution, b)).transpose() {
             Ok(gum) => gum,
             Err(e) => return Err(Failure::Other(e.to_string())),
@@ -247,9 +320,13 @@ pub(crate) fn solve(
     match done {
         Ok((solution, rows, json)) => Ok(PySolveResult {
             json,
-            solution,
+            positions: solution.encoder_error.len(),
+            solution: OnceLock::from(solution),
             rows,
             label: set.source.clone(),
+            set: Arc::clone(&ms.inner),
+            method: method.to_string(),
+            sigma,
         }),
         Err(Failure::Solve(e)) => Err(solve_error(py, *e)),
         Err(Failure::Other(message)) => Err(PolycalError::new_err(message)),

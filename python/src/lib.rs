@@ -10,11 +10,16 @@
 //! `path` and `errno`) for a file that is not there, `PolycalError` for the rest,
 //! `ValueError` for a bad argument. A Rust panic becomes `pyo3_runtime.PanicException`,
 //! never an abort. The cautions the commands print as `warning:` lines are
-//! `PolycalWarning`s (a `UserWarning`).
+//! `PolycalWarning`s (a `UserWarning`). Every exception class is `polycal.`'s
+//! (`type(e).__module__ == "polycal"`): the package re-exports them, so they pickle.
+//!
+//! Sets, result rows and solve results pickle (`state.rs`) through their own fields as
+//! Python values and come back equal to the bit.
 
 mod evaluate;
 mod sets;
 mod simulate;
+mod state;
 
 use std::path::Path;
 
@@ -33,26 +38,26 @@ use evaluate::{PyRows, PySolveResult};
 use sets::{PyBudget, PyMeasurementSet, PySelfcalSet};
 
 create_exception!(
-    _polycal,
+    polycal,
     PolycalError,
     PyException,
     "A refusal of the polycal library."
 );
 create_exception!(
-    _polycal,
+    polycal,
     InputError,
     PolycalError,
     "A file or text that is not valid: `path`, `line` and `column` say where (0 when unknown)."
 );
 create_exception!(
-    _polycal,
+    polycal,
     DesignError,
     PolycalError,
     "A design that cannot determine some harmonics: `lost_harmonics` lists them."
 );
 
 create_exception!(
-    _polycal,
+    polycal,
     PolycalWarning,
     PyUserWarning,
     "A caution of the polycal library (what the command line prints as a `warning:` line)."
@@ -237,5 +242,9 @@ fn _polycal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sets::selfcal_set_from_columns, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::selfcal, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
+    m.add_function(wrap_pyfunction!(state::_restore_measurement_set, m)?)?;
+    m.add_function(wrap_pyfunction!(state::_restore_selfcal_set, m)?)?;
+    m.add_function(wrap_pyfunction!(state::_restore_rows, m)?)?;
+    m.add_function(wrap_pyfunction!(state::_restore_solve_result, m)?)?;
     Ok(())
 }

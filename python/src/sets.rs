@@ -2,14 +2,17 @@
 //! a text or columns, each checked as the file reader checks it) and instrument budgets.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use polycal::measurement::{MeasurementSet, Reading};
-use polycal::selfcal::SelfcalSet;
+use polycal::selfcal::{HeadReading, SelfcalSet};
 use polycal::uncertainty::BudgetError;
 use polycal::uncertainty::calibration::InstrumentBudget;
 use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+
+use crate::state::{self, restorer};
 
 use crate::{
     direction_at, file_not_found, input_error, is_not_found, measurement_error, read_source,
@@ -20,7 +23,8 @@ use crate::{
 #[pyclass(name = "MeasurementSet", module = "polycal._polycal", frozen)]
 #[derive(Clone)]
 pub(crate) struct PyMeasurementSet {
-    pub(crate) inner: MeasurementSet,
+    /// Shared with the solve results made from it (which re-solve it after a pickle).
+    pub(crate) inner: Arc<MeasurementSet>,
     /// The comment lines a written file starts with (a simulated run's description).
     pub(crate) comments: Vec<String>,
 }
@@ -29,7 +33,7 @@ impl PyMeasurementSet {
     /// A set without comment lines.
     pub(crate) fn new(inner: MeasurementSet) -> Self {
         PyMeasurementSet {
-            inner,
+            inner: Arc::new(inner),
             comments: Vec::new(),
         }
     }
@@ -51,6 +55,17 @@ impl PyMeasurementSet {
 
     fn __len__(&self) -> usize {
         self.inner.readings.len()
+    }
+
+    /// Pickles the set as its fields (every float its own 8 bytes): back equal to the bit.
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (state::MeasurementState,))> {
+        Ok((
+            restorer(py, "_restore_measurement_set")?,
+            (state::measurement_state(self),),
+        ))
     }
 
     fn __repr__(&self) -> String {
@@ -376,6 +391,17 @@ impl PySelfcalSet {
         self.name.clone()
     }
 
+    /// Pickles the set as its fields (every float its own 8 bytes): back equal to the bit.
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (state::SelfcalState,))> {
+        Ok((
+            restorer(py, "_restore_selfcal_set")?,
+            (state::selfcal_state(self),),
+        ))
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "SelfcalSet({} readings, {} positions, from {})",
@@ -483,7 +509,7 @@ pub(crate) fn selfcal_set_from_columns(
     }
     let mut readings = Vec::with_capacity(n);
     for i in 0..n {
-        readings.push(polycal::selfcal::HeadReading {
+        readings.push(HeadReading {
             cycle: cycle[i],
             step: step[i],
             head: head[i],

@@ -133,7 +133,7 @@ pub(crate) fn simulate(
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
     Ok((
         PyMeasurementSet {
-            inner: set,
+            inner: std::sync::Arc::new(set),
             comments: vec![config.comment()],
         },
         truth.to_json_pretty(),

@@ -1,0 +1,325 @@
+//! The pickled states of the native objects: each `__reduce__` gives its object's fields
+//! as Python values — every float as its own 8 bytes, pickled exactly — and the
+//! `_restore_…` function of the module builds the object again from them, equal to the
+//! bit. A solve result carries its JSON, rows and set, and re-solves the set when its
+//! solution is first needed (`PySolveResult::solution`): the solution's cofactor is an
+//! operator, not data.
+
+use std::collections::BTreeMap;
+use std::sync::{Arc, OnceLock};
+
+use polycal::measurement::{MeasurementSet, Reading};
+use polycal::results::{Quantity, ResultFile, ResultRow};
+use polycal::selfcal::{HeadReading, SelfcalSet};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+use crate::direction_at;
+use crate::evaluate::{PyRows, PySolveResult, solve_options};
+use crate::sets::{PyMeasurementSet, PySelfcalSet};
+
+/// The function of this module named `name`, for a `__reduce__` to return.
+pub(crate) fn restorer<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
+    py.import("polycal._polycal")?.getattr(name)
+}
+
+/// Refuses a pickled state whose columns differ in length (a state not made by
+/// `__reduce__`).
+fn same_lengths(what: &str, lengths: &[usize]) -> PyResult<()> {
+    if lengths.windows(2).any(|w| w[0] != w[1]) {
+        return Err(PyValueError::new_err(format!(
+            "{what}: a pickled state whose columns differ in length: {lengths:?}"
+        )));
+    }
+    Ok(())
+}
+
+/// A measurement set's readings as the columns of its pickled state: setup, cycle, step,
+/// ac, face, reading, direction, time, reading_y, temperature, encoder, line.
+pub(crate) type ReadingColumns = (
+    Vec<u32>,
+    Vec<u32>,
+    Vec<usize>,
+    Vec<u32>,
+    Vec<usize>,
+    Vec<f64>,
+    Vec<String>,
+    Vec<Option<f64>>,
+    Vec<Option<f64>>,
+    Vec<Option<f64>>,
+    Vec<Option<f64>>,
+    Vec<u64>,
+);
+
+/// The pickled state of a measurement set: faces, source, the shifts by setup, the
+/// comment lines and the readings' columns.
+pub(crate) type MeasurementState = (usize, String, Vec<(u32, f64)>, Vec<String>, ReadingColumns);
+
+/// The pickled state of a measurement set (`MeasurementSet.__reduce__`).
+pub(crate) fn measurement_state(set: &PyMeasurementSet) -> MeasurementState {
+    let comments = &set.comments;
+    let set = &set.inner;
+    let r = &set.readings;
+    let columns = (
+        r.iter().map(|x| x.setup).collect(),
+        r.iter().map(|x| x.cycle).collect(),
+        r.iter().map(|x| x.step).collect(),
+        r.iter().map(|x| x.ac).collect(),
+        r.iter().map(|x| x.face).collect(),
+        r.iter().map(|x| x.reading_arcsec).collect(),
+        r.iter().map(|x| x.direction.as_str().to_string()).collect(),
+        r.iter().map(|x| x.time_seconds).collect(),
+        r.iter().map(|x| x.reading_y_arcsec).collect(),
+        r.iter().map(|x| x.temperature_celsius).collect(),
+        r.iter().map(|x| x.encoder_degrees).collect(),
+        r.iter().map(|x| x.line).collect(),
+    );
+    (
+        set.faces,
+        set.source.clone(),
+        set.setup_shift_deg.iter().map(|(&s, &d)| (s, d)).collect(),
+        comments.clone(),
+        columns,
+    )
+}
+
+/// The set a pickled state (`MeasurementSet.__reduce__`) describes, field by field.
+#[pyfunction]
+pub(crate) fn _restore_measurement_set(state: MeasurementState) -> PyResult<PyMeasurementSet> {
+    let (faces, source, shifts, comments, columns) = state;
+    let (
+        setup,
+        cycle,
+        step,
+        ac,
+        face,
+        reading,
+        direction,
+        time,
+        reading_y,
+        temperature,
+        encoder,
+        line,
+    ) = columns;
+    same_lengths(
+        "MeasurementSet",
+        &[
+            setup.len(),
+            cycle.len(),
+            step.len(),
+            ac.len(),
+            face.len(),
+            reading.len(),
+            direction.len(),
+            time.len(),
+            reading_y.len(),
+            temperature.len(),
+            encoder.len(),
+            line.len(),
+        ],
+    )?;
+    let readings = (0..reading.len())
+        .map(|i| {
+            Ok(Reading {
+                setup: setup[i],
+                cycle: cycle[i],
+                step: step[i],
+                ac: ac[i],
+                face: face[i],
+                reading_arcsec: reading[i],
+                direction: direction_at(Some(&direction), i)?,
+                time_seconds: time[i],
+                reading_y_arcsec: reading_y[i],
+                temperature_celsius: temperature[i],
+                encoder_degrees: encoder[i],
+                line: line[i],
+            })
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let inner = MeasurementSet {
+        faces,
+        readings,
+        source,
+        setup_shift_deg: shifts.into_iter().collect::<BTreeMap<_, _>>(),
+    };
+    Ok(PyMeasurementSet {
+        inner: Arc::new(inner),
+        comments,
+    })
+}
+
+/// A self-calibration set's readings as the columns of its pickled state: cycle, step,
+/// head, head_angle, reading, direction, time, line.
+type HeadColumns = (
+    Vec<u32>,
+    Vec<usize>,
+    Vec<u32>,
+    Vec<f64>,
+    Vec<f64>,
+    Vec<String>,
+    Vec<Option<f64>>,
+    Vec<u64>,
+);
+
+/// The pickled state of a self-calibration set: positions, source, comment lines and
+/// the readings' columns.
+pub(crate) type SelfcalState = (usize, String, Vec<String>, HeadColumns);
+
+/// The pickled state of a self-calibration set (`SelfcalSet.__reduce__`).
+pub(crate) fn selfcal_state(set: &PySelfcalSet) -> SelfcalState {
+    let r = &set.inner.readings;
+    let columns = (
+        r.iter().map(|x| x.cycle).collect(),
+        r.iter().map(|x| x.step).collect(),
+        r.iter().map(|x| x.head).collect(),
+        r.iter().map(|x| x.head_angle_deg).collect(),
+        r.iter().map(|x| x.reading_arcsec).collect(),
+        r.iter().map(|x| x.direction.as_str().to_string()).collect(),
+        r.iter().map(|x| x.time_seconds).collect(),
+        r.iter().map(|x| x.line).collect(),
+    );
+    (
+        set.inner.positions,
+        set.name.clone(),
+        set.comments.clone(),
+        columns,
+    )
+}
+
+/// The set a pickled state (`SelfcalSet.__reduce__`) describes, field by field.
+#[pyfunction]
+pub(crate) fn _restore_selfcal_set(state: SelfcalState) -> PyResult<PySelfcalSet> {
+    let (positions, name, comments, columns) = state;
+    let (cycle, step, head, head_angle, reading, direction, time, line) = columns;
+    same_lengths(
+        "SelfcalSet",
+        &[
+            cycle.len(),
+            step.len(),
+            head.len(),
+            head_angle.len(),
+            reading.len(),
+            direction.len(),
+            time.len(),
+            line.len(),
+        ],
+    )?;
+    let readings = (0..reading.len())
+        .map(|i| {
+            Ok(HeadReading {
+                cycle: cycle[i],
+                step: step[i],
+                head: head[i],
+                head_angle_deg: head_angle[i],
+                reading_arcsec: reading[i],
+                direction: direction_at(Some(&direction), i)?,
+                time_seconds: time[i],
+                line: line[i],
+            })
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    Ok(PySelfcalSet {
+        inner: SelfcalSet {
+            positions,
+            readings,
+        },
+        name,
+        comments,
+    })
+}
+
+/// A result row in a pickled state: quantity, index, value, u, U, k, angle_deg.
+type RowState = (
+    String,
+    u32,
+    f64,
+    Option<f64>,
+    Option<f64>,
+    Option<f64>,
+    Option<f64>,
+);
+
+/// The pickled state of result rows: the rows, the label and, for a file's, its name
+/// and the rows' lines.
+pub(crate) type RowsState = (Vec<RowState>, String, Option<(String, Vec<u64>)>);
+
+pub(crate) fn rows_state(rows: &[ResultRow]) -> Vec<RowState> {
+    rows.iter()
+        .map(|r| {
+            (
+                r.quantity.name().to_string(),
+                r.index,
+                r.value,
+                r.u,
+                r.expanded_u,
+                r.k,
+                r.angle_deg,
+            )
+        })
+        .collect()
+}
+
+pub(crate) fn rows_from_state(state: Vec<RowState>) -> PyResult<Vec<ResultRow>> {
+    state
+        .into_iter()
+        .map(|(quantity, index, value, u, expanded_u, k, angle_deg)| {
+            let quantity = Quantity::from_name(&quantity).ok_or_else(|| {
+                PyValueError::new_err(format!("a pickled row of quantity {quantity:?}"))
+            })?;
+            let mut row = ResultRow::new(quantity, index, value);
+            row.u = u;
+            row.expanded_u = expanded_u;
+            row.k = k;
+            row.angle_deg = angle_deg;
+            Ok(row)
+        })
+        .collect()
+}
+
+/// The rows a pickled state (`ResultRows.__reduce__`) describes.
+#[pyfunction]
+pub(crate) fn _restore_rows(state: RowsState) -> PyResult<PyRows> {
+    let (rows, label, file) = state;
+    let rows = rows_from_state(rows)?;
+    let file = match file {
+        Some((source, lines)) => {
+            same_lengths("ResultRows", &[rows.len(), lines.len()])?;
+            Some(ResultFile {
+                source,
+                rows: rows.clone(),
+                lines,
+            })
+        }
+        None => None,
+    };
+    Ok(PyRows { rows, label, file })
+}
+
+/// The pickled state of a solve result: the JSON, the rows, the label, the set, the
+/// method and σ as given, and α's length.
+pub(crate) type SolveState = (
+    String,
+    Vec<RowState>,
+    String,
+    Py<PyMeasurementSet>,
+    String,
+    Option<f64>,
+    usize,
+);
+
+/// The result a pickled state (`SolveResult.__reduce__`) describes.
+#[pyfunction]
+pub(crate) fn _restore_solve_result(state: SolveState) -> PyResult<PySolveResult> {
+    let (json, rows, label, set, method, sigma, positions) = state;
+    solve_options(&method, sigma)?;
+    Ok(PySolveResult {
+        json,
+        solution: OnceLock::new(),
+        rows: rows_from_state(rows)?,
+        label,
+        set: Arc::clone(&set.get().inner),
+        method,
+        sigma,
+        positions,
+    })
+}
