@@ -13,7 +13,7 @@
 //! `PolycalWarning`s (a `UserWarning`). Every exception class is `polycal.`'s
 //! (`type(e).__module__ == "polycal"`): the package re-exports them, so they pickle.
 //!
-//! Sets, result rows and solve results pickle (`state.rs`) through their own fields as
+//! Sets, budgets, result rows and solve results pickle (`state.rs`) through their own fields as
 //! Python values and come back equal to the bit.
 
 mod evaluate;
@@ -245,6 +245,7 @@ fn _polycal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(state::_restore_measurement_set, m)?)?;
     m.add_function(wrap_pyfunction!(state::_restore_selfcal_set, m)?)?;
     m.add_function(wrap_pyfunction!(state::_restore_rows, m)?)?;
+    m.add_function(wrap_pyfunction!(state::_restore_budget, m)?)?;
     m.add_function(wrap_pyfunction!(state::_restore_solve_result, m)?)?;
     Ok(())
 }

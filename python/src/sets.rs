@@ -331,6 +331,18 @@ impl PyBudget {
             .collect()
     }
 
+    /// Pickles the budget as its components (every float its own 8 bytes): back equal
+    /// to the bit.
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (state::BudgetState,))> {
+        Ok((
+            restorer(py, "_restore_budget")?,
+            (state::budget_state(&self.inner),),
+        ))
+    }
+
     /// The cautions `polycal` prints as warnings when it reads the budget (a type A
     /// component counted twice).
     fn notes(&self) -> Vec<String> {

@@ -1,7 +1,8 @@
 //! The pickled states of the native objects: each `__reduce__` gives its object's fields
 //! as Python values — every float as its own 8 bytes, pickled exactly — and the
 //! `_restore_…` function of the module builds the object again from them, equal to the
-//! bit. A solve result carries its JSON, rows and set, and re-solves the set when its
+//! bit. A budget travels as its components (not its file, which may name others). A
+//! solve result carries its JSON, rows and set, and re-solves the set when its
 //! solution is first needed (`PySolveResult::solution`): the solution's cofactor is an
 //! operator, not data.
 
@@ -11,12 +12,14 @@ use std::sync::{Arc, OnceLock};
 use polycal::measurement::{MeasurementSet, Reading};
 use polycal::results::{Quantity, ResultFile, ResultRow};
 use polycal::selfcal::{HeadReading, SelfcalSet};
+use polycal::uncertainty::calibration::{InstrumentBudget, Scope, ScopedComponent};
+use polycal::uncertainty::{Distribution, DofPolicy, EvaluationType};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::direction_at;
 use crate::evaluate::{PyRows, PySolveResult, solve_options};
-use crate::sets::{PyMeasurementSet, PySelfcalSet};
+use crate::sets::{PyBudget, PyMeasurementSet, PySelfcalSet};
 
 /// The function of this module named `name`, for a `__reduce__` to return.
 pub(crate) fn restorer<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
@@ -321,5 +324,94 @@ pub(crate) fn _restore_solve_result(state: SolveState) -> PyResult<PySolveResult
         method,
         sigma,
         positions,
+    })
+}
+
+/// A budget component in a pickled state: name, type (`A`/`B`), the distribution (its
+/// kind and its one or two parameters), sensitivity, dof and scope.
+type ComponentState = (String, String, (String, f64, f64), f64, Option<f64>, String);
+
+/// The pickled state of a budget: source, p, the dof policy and the components.
+pub(crate) type BudgetState = (String, f64, String, Vec<ComponentState>);
+
+/// The pickled state of a budget (`Budget.__reduce__`).
+pub(crate) fn budget_state(budget: &InstrumentBudget) -> BudgetState {
+    let components = budget
+        .components
+        .iter()
+        .map(|c| {
+            // the kind by the library's name of it, and its one or two parameters
+            let (x, y) = match c.distribution {
+                Distribution::Normal { u } => (u, 0.0),
+                Distribution::Rectangular { half_width }
+                | Distribution::Triangular { half_width }
+                | Distribution::Arcsine { half_width } => (half_width, 0.0),
+                Distribution::StudentT { scale, dof } => (scale, dof),
+            };
+            (
+                c.name.clone(),
+                c.evaluation.to_string(),
+                (c.distribution.name().to_string(), x, y),
+                c.sensitivity,
+                c.dof,
+                c.scope.as_str().to_string(),
+            )
+        })
+        .collect();
+    (
+        budget.source.clone(),
+        budget.p,
+        budget.dof_policy.as_str().to_string(),
+        components,
+    )
+}
+
+/// The budget a pickled state (`Budget.__reduce__`) describes, field by field.
+#[pyfunction]
+pub(crate) fn _restore_budget(state: BudgetState) -> PyResult<PyBudget> {
+    let (source, p, dof_policy, components) = state;
+    let bad = |what: &str, value: &str| {
+        PyValueError::new_err(format!("Budget: a pickled state with {what} {value:?}"))
+    };
+    let components = components
+        .into_iter()
+        .map(
+            |(name, evaluation, (kind, x, y), sensitivity, dof, scope)| {
+                let evaluation = match evaluation.as_str() {
+                    "A" => EvaluationType::A,
+                    "B" => EvaluationType::B,
+                    other => return Err(bad("the type", other)),
+                };
+                let distribution = match kind.as_str() {
+                    "normal" => Distribution::Normal { u: x },
+                    "rectangular" => Distribution::Rectangular { half_width: x },
+                    "triangular" => Distribution::Triangular { half_width: x },
+                    "arcsine" => Distribution::Arcsine { half_width: x },
+                    "t" => Distribution::StudentT { scale: x, dof: y },
+                    other => return Err(bad("the distribution", other)),
+                };
+                Ok(ScopedComponent {
+                    name,
+                    evaluation,
+                    distribution,
+                    sensitivity,
+                    dof,
+                    scope: scope
+                        .parse::<Scope>()
+                        .map_err(|_| bad("the scope", &scope))?,
+                })
+            },
+        )
+        .collect::<PyResult<Vec<_>>>()?;
+    let dof_policy = dof_policy
+        .parse::<DofPolicy>()
+        .map_err(|_| bad("the dof policy", &dof_policy))?;
+    Ok(PyBudget {
+        inner: InstrumentBudget {
+            source,
+            p,
+            dof_policy,
+            components,
+        },
     })
 }

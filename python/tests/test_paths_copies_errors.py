@@ -260,6 +260,36 @@ def test_every_set_type_pickles_and_deep_copies_to_the_bit(tmp_path):
     assert polycal.selfcal(copy.deepcopy(sets[4])).to_json() == polycal.selfcal(sets[4]).to_json()
 
 
+def test_a_budget_pickles_and_deep_copies_to_the_bit():
+    nested = polycal.budget(
+        {
+            "p": 0.99,
+            "dof_policy": "floor",
+            "component": [
+                {"name": "scale", "type": "B", "distribution": "rectangular",
+                 "half_width": 0.05, "acts_on": "each-position"},
+                {"name": "mount", "type": "B", "distribution": "triangular",
+                 "half_width": 0.02, "sensitivity": 1.5, "acts_on": "each-stop"},
+                {"name": "cyclic", "type": "B", "distribution": "arcsine",
+                 "half_width": 0.03, "acts_on": "each-autocollimator"},
+                {"name": "cert", "type": "B", "distribution": "t", "scale": 0.01,
+                 "dof": 9},
+                {"name": "ref", "type": "B", "distribution": "normal", "u": 0.015, "dof": 20},
+            ],
+        }
+    )
+    for budget in (polycal.budget(BUDGET), polycal.budget(SELFCAL_BUDGET), nested):
+        expected = polycal.solve(DATA, budget=budget).to_json()
+        for back in _round_trips(budget):
+            assert (back.p, back.source, repr(back)) == (budget.p, budget.source, repr(budget))
+            _same_bits(back.components, budget.components)
+            # the same evaluation to the byte, its dof policy, scopes and k included
+            assert polycal.solve(DATA, budget=back).to_json() == expected
+    assert {c["distribution"] for c in nested.components} == {
+        "rectangular", "triangular", "arcsine", "t", "normal"
+    }
+
+
 def test_result_rows_pickle_with_their_file_and_lines(tmp_path):
     # a result file whose second row breaks the closure is named by file and line in
     # kc's refusal, from the rows read and from their copy alike
