@@ -260,6 +260,25 @@ def test_every_set_type_pickles_and_deep_copies_to_the_bit(tmp_path):
     assert polycal.selfcal(copy.deepcopy(sets[4])).to_json() == polycal.selfcal(sets[4]).to_json()
 
 
+def _solve_in_a_worker(ms, budget):
+    return polycal.solve(ms, budget=budget)
+
+
+def test_sets_budgets_and_results_travel_to_and_from_worker_processes():
+    import concurrent.futures
+    import multiprocessing
+
+    ms = polycal.read_measurements(DATA)
+    budget = polycal.budget(BUDGET)
+    here = polycal.solve(ms, budget=budget)
+    context = multiprocessing.get_context("spawn")  # a fresh interpreter: all by pickle
+    with concurrent.futures.ProcessPoolExecutor(max_workers=1, mp_context=context) as pool:
+        there = pool.submit(_solve_in_a_worker, ms, budget).result(timeout=120)
+    assert there.to_json() == here.to_json()
+    for family in ("pitch_deviation", "encoder_error"):
+        assert there.covariance(family).tobytes() == here.covariance(family).tobytes()
+
+
 def test_a_budget_pickles_and_deep_copies_to_the_bit():
     nested = polycal.budget(
         {
@@ -395,6 +414,14 @@ def test_every_field_of_an_uncertainty_evaluation_is_none_without_it():
             "pitch_deviation_U"
         ]
     )
+    # and so after a pickle or a deep copy
+    for back in _round_trips(plain):
+        assert back.pitch_deviation_U is None and back["p"] is None
+        assert back.setup_error[0].U is None and back.setup_error_k is None
+    for back in _round_trips(found):
+        assert back.after.pitch_deviation_U is None and back.after.setup_error[0].k is None
+        with pytest.raises(AttributeError):
+            back.after.pitch_deviation_V
     disc = polycal.selfcal(SELFCAL)
     assert disc.uncertainty is None and disc.monte_carlo is None
     # selfcal's U is the fit's and there without a budget, as the command's JSON has it
