@@ -1,16 +1,16 @@
 //! The evaluations, each as its command makes it and returning its JSON object: solve
 //! (with the budget and Monte Carlo), compare, kc, diagnose, selfcal.
 
+use std::sync::{Arc, OnceLock};
+
 use polycal::compare::{CompareOptions, Comparison, VerdictRule, compare};
 use polycal::diagnose::{DiagnoseOptions, diagnose as diagnose_set};
 use polycal::input::Location;
 use polycal::kc::{KcOptions, LabResult, ReferenceMethod};
+use polycal::measurement::MeasurementSet;
 use polycal::output::SolveReport;
 use polycal::output::diagnose::DiagnoseReport;
 use polycal::output::selfcal::SelfcalReport;
-use std::sync::{Arc, OnceLock};
-
-use polycal::measurement::MeasurementSet;
 use polycal::results::{Quantity, ResultRow};
 use polycal::selfcal::SelfcalOptions;
 use polycal::simulate::Truth;
