@@ -158,24 +158,36 @@ def solve(
 
 def diagnose(
     ms: SetLike,
-    truth: Optional[Union[Dict[str, Any], str]] = None,
+    truth: Optional[Union[Dict[str, Any], PathOrText]] = None,
     sigma: Optional[float] = None,
     budget: Optional[BudgetLike] = None,
     monte_carlo: Union[None, int, str] = None,
     seed: int = 1,
 ) -> DiagnoseResult:
     """Diagnoses the set as ``polycal diagnose`` does: finds the effects the model lacks,
-    adds them, and says whether the final model is adequate; with a truth (a dict or JSON
-    text, as :func:`simulate` returns) the error before and after. With a budget, U and k
+    adds them, and says whether the final model is adequate; with a truth (a dict as
+    :func:`simulate` returns it, its JSON text, or a truth file's path — a string that
+    does not start with ``{``, or an ``os.PathLike`` — read as ``--truth`` reads it) the
+    error before and after. With a budget, U and k
     of the final model's results, and with ``monte_carlo`` (a number of trials or
     ``"adaptive"``) its JCGM 101 evaluation, effect columns included (``after``'s
     ``monte_carlo``). ``ms`` and ``budget`` as :func:`solve` takes them."""
+    truth_path = None
     if isinstance(truth, dict):
         truth = _json.dumps(truth)
+    elif isinstance(truth, _os.PathLike) or (
+        isinstance(truth, str) and not truth.lstrip().startswith("{")
+    ):
+        truth, truth_path = None, _os.fspath(truth)
+    elif truth is not None and not isinstance(truth, str):
+        raise TypeError(
+            f"truth: expected a dict, a JSON text or a truth file's path, got {type(truth).__name__}"
+        )
     result = DiagnoseResult(
         _polycal.diagnose(
             _measurement_set(ms),
             truth=truth,
+            truth_path=truth_path,
             sigma=_sigma(sigma),
             budget=_budget(budget),
             monte_carlo=monte_carlo,

@@ -163,6 +163,7 @@ def diagnose(
     budget: Optional[Budget] = None,
     monte_carlo: Union[None, int, str] = None,
     seed: int = 1,
+    truth_path: Optional[str] = None,
 ) -> str: ...
 def read_selfcal(
     path: Optional[str] = None,

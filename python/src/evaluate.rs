@@ -1,6 +1,7 @@
 //! The evaluations, each as its command makes it and returning its JSON object: solve
 //! (with the budget and Monte Carlo), compare, kc, diagnose, selfcal.
 
+use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
 use polycal::compare::{CompareOptions, Comparison, VerdictRule, compare};
@@ -13,7 +14,7 @@ use polycal::output::diagnose::DiagnoseReport;
 use polycal::output::selfcal::SelfcalReport;
 use polycal::results::{Quantity, ResultRow};
 use polycal::selfcal::SelfcalOptions;
-use polycal::simulate::Truth;
+use polycal::simulate::{SimulateError, Truth};
 use polycal::solve::sub_pitch::{ShiftGeometry, solve_shifted};
 use polycal::solve::{Method, Solution, SolveError, SolveOptions};
 use polycal::uncertainty::calibration::{McOptions, McSolver, evaluate};
@@ -399,7 +400,10 @@ pub(crate) fn kc(
 /// Diagnoses a measurement set as `polycal diagnose` does; returns its JSON object (the
 /// budget, and the Monte Carlo when asked, act on the final model).
 #[pyfunction]
-#[pyo3(signature = (ms, truth=None, sigma=None, budget=None, monte_carlo=None, seed=1))]
+/// `truth` is a truth's JSON text, `truth_path` a truth file (docs/FORMAT.md §4), read
+/// as `--truth` reads it: a missing file is `FileNotFound`, a file that is not a valid
+/// truth an `InputError` naming it (line and column for bad JSON).
+#[pyo3(signature = (ms, truth=None, sigma=None, budget=None, monte_carlo=None, seed=1, truth_path=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn diagnose(
     py: Python<'_>,
@@ -409,11 +413,27 @@ pub(crate) fn diagnose(
     budget: Option<&PyBudget>,
     monte_carlo: Option<&Bound<'_, PyAny>>,
     seed: u64,
+    truth_path: Option<&str>,
 ) -> PyResult<String> {
-    let truth = truth
-        .map(|t| Truth::from_json_bytes(t.as_bytes(), "<truth>"))
-        .transpose()
-        .map_err(|e| PyValueError::new_err(format!("truth: {e}")))?;
+    let truth = match (truth, truth_path) {
+        (Some(_), Some(_)) => {
+            return Err(PyValueError::new_err(
+                "give a truth or a truth file, one of them",
+            ));
+        }
+        (Some(t), None) => Some(
+            Truth::from_json_bytes(t.as_bytes(), "<truth>")
+                .map_err(|e| PyValueError::new_err(format!("truth: {e}")))?,
+        ),
+        (None, Some(path)) => Some(Truth::read_path(Path::new(path)).map_err(|e| match &e {
+            SimulateError::Io { source, .. } if crate::is_not_found(source) => {
+                crate::file_not_found(py, path, source)
+            }
+            SimulateError::Json { location, .. } => input_error(py, e.to_string(), Some(location)),
+            _ => input_error(py, e.to_string(), Some(&Location::file_only(path))),
+        })?),
+        (None, None) => None,
+    };
     let options = DiagnoseOptions::new().with_sigma_opt(crate::sigma(sigma)?);
     let mc = mc_options(monte_carlo, budget.is_some(), seed)?;
     let set = &ms.inner;

@@ -11,6 +11,7 @@ made the same way."""
 import copy
 import json
 import pickle
+import subprocess
 import warnings
 from pathlib import Path
 
@@ -18,7 +19,7 @@ import numpy as np
 import pytest
 
 import polycal
-from test_polycal import BUDGET, DATA, KC, REFERENCE, SELFCAL, SELFCAL_BUDGET, cli
+from test_polycal import BUDGET, DATA, KC, REFERENCE, SELFCAL, SELFCAL_BUDGET, _binary, cli
 
 SHIFTED = DATA.parent / "polygon24-shift-angle-5setups.csv"
 
@@ -27,6 +28,13 @@ def _sub_pitch():
     """A simulated set of two mountings 7.5° apart (sub-pitch: the `shift` column)."""
     ms, _ = polycal.simulate(faces=12, setups=2, shift_deg=[0, 7.5], cycles=2, seed=3)
     return ms
+
+
+def cli_error(*args):
+    """The command's one `error:` line for a refused input (status 2)."""
+    out = subprocess.run([_binary(), *map(str, args)], capture_output=True, text=True)
+    assert out.returncode == 2, out.stderr
+    return out.stderr.strip()
 
 
 def _three_ways(path):
@@ -60,6 +68,23 @@ def test_solve_and_diagnose_take_a_path_string_and_a_pathlib_path():
     expected = json.loads(budgeted)
     assert expected["uncertainty"].pop("budget") == str(BUDGET)
     assert from_text == expected
+
+
+def test_diagnose_takes_its_truth_as_a_path_string_and_a_pathlib_path(tmp_path):
+    truth = DATA.parent / "polygon24-2ac-6cycles.truth.json"
+    expected = cli("diagnose", DATA, "--truth", truth, "--format", "json")
+    for given in _three_ways(truth) + [truth.read_text(), json.loads(truth.read_text())]:
+        assert polycal.diagnose(DATA, truth=given).to_json() == expected
+    with pytest.raises(FileNotFoundError) as raised:
+        polycal.diagnose(DATA, truth=tmp_path / "no-truth.json")
+    assert raised.value.filename == str(tmp_path / "no-truth.json")
+    bad = tmp_path / "bad-truth.json"
+    bad.write_text('{"faces": 24,\n  "pitch_deviation": [1, 2,]}\n')
+    with pytest.raises(polycal.InputError) as raised:
+        polycal.diagnose(DATA, truth=bad)
+    out = cli_error("diagnose", DATA, "--truth", bad)
+    assert out == f"error: {raised.value}"
+    assert (raised.value.path, raised.value.line) == (str(bad), 2)
 
 
 def test_selfcal_takes_a_path_string_and_a_pathlib_path():
