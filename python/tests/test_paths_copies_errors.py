@@ -394,6 +394,10 @@ def test_every_raised_exception_shows_as_polycals(tmp_path):
     assert (back.path, back.line, back.column) == (str(bad), 3, 9)
     back = pickle.loads(pickle.dumps(raised["DesignError"]))
     assert back.lost_harmonics == list(range(2, 24, 2))
+    missing = raised["FileNotFound"]
+    back = pickle.loads(pickle.dumps(missing))
+    assert type(back) is polycal.FileNotFound and isinstance(back, FileNotFoundError)
+    assert (back.filename, back.errno, back.path) == (missing.filename, missing.errno, missing.path)
 
 
 # ---------------------------------------------------------------- U without a budget
