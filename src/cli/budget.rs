@@ -38,7 +38,7 @@ pub fn run(args: &BudgetArgs) -> Result<u8> {
     let budget = BudgetFile::read_path(&args.file)?;
     // the evaluation's errors name the file already
     let result = budget.evaluate()?;
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         ReportFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&result)?)?,

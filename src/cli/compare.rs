@@ -124,7 +124,7 @@ pub fn run(args: &CompareArgs) -> Result<u8> {
         );
         super::write_plot(dir, &figures, &args.inputs())?;
     }
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         CompareFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&comparison)?)?,

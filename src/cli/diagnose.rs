@@ -129,7 +129,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         .with_sigma_opt(args.sigma)
         .with_stated_cross_talk(args.cross_talk.iter().map(|s| s.ac).collect());
     let several = args.files.len() > 1;
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     let (mut failures, mut inadequate, mut not_validated) = (0, 0, 0);
     let mut csv_rows = Vec::new();

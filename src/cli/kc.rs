@@ -157,7 +157,7 @@ pub fn run(args: &KcArgs) -> Result<u8> {
     if let Some(dir) = &args.plot {
         super::write_plot(dir, &polycal::figure::kc_figures(&kc), &inputs)?;
     }
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         KcFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&kc)?)?,

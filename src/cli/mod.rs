@@ -21,6 +21,7 @@ mod selfcal;
 mod sim_lab;
 mod simulate;
 mod solve;
+pub mod stdout;
 
 use anyhow::Result;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
@@ -40,7 +41,7 @@ Exit status: 0 done and every check passed; 1 done, but a verdict is negative (c
 the differences fail their χ² test as one vector, or some |En| > 1 with --verdict en; kc: not consistent after the stated exclusions; diagnose: a model not adequate; solve: Monte Carlo does not validate GUM;
 plan: a design cannot calibrate or misses --target-u);
 2 an error (usage, refused input, instrument or file failure); 130 `run` stopped at once by
-a second Ctrl-C (docs/FORMAT.md §8).
+a second Ctrl-C; 141 standard output closed by its reader (`| head`), quietly (docs/FORMAT.md §8).
 
 The data and command contract: docs/FORMAT.md. Completions: `polycal completions SHELL`;
 manual page: `polycal man`.";

@@ -246,7 +246,7 @@ pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
             &args.inputs(),
         )?;
     }
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         PlanFormat::Json => {

@@ -163,7 +163,7 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
             &args.inputs(),
         )?;
     }
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         SelfcalFormat::Json => {

@@ -142,7 +142,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         .with_sigma_opt(args.sigma);
     let files = &args.files;
     let several = files.len() > 1;
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     let mut failures = 0;
     let mut not_validated = 0;
