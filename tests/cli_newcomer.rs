@@ -119,3 +119,40 @@ fn the_sim_lab_banner_is_lines() {
         "{err}"
     );
 }
+
+/// A negative count is a value out of range, not an unknown option `-5`.
+#[test]
+fn a_negative_count_is_out_of_range() {
+    for (args, option) in [
+        (&["simulate", "--faces", "-5"][..], "--faces -5"),
+        (&["simulate", "--faces=-5"][..], "--faces -5"),
+        (&["simulate", "--cycles", "-1"][..], "--cycles -1"),
+        (
+            &[
+                "solve",
+                "examples/data/polygon24-2ac-6cycles.csv",
+                "--faces",
+                "-24",
+            ][..],
+            "--faces -24",
+        ),
+    ] {
+        let out = polycal(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = stderr(&out);
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(
+            err.starts_with(&format!("error: {option}: out of range")),
+            "{err}"
+        );
+        assert!(!err.contains("unexpected argument"), "{err}");
+    }
+    // A parser with a message of its own keeps it.
+    let out = polycal(&["solve", "-", "--sigma", "-1"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("must be a positive, finite number"),
+        "{}",
+        stderr(&out)
+    );
+}

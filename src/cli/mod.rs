@@ -154,7 +154,7 @@ impl Cli {
     pub fn parse_args() -> Cli {
         let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
         let choice = color_in_args(&args);
-        let mut command = Cli::command();
+        let mut command = negative_numbers_are_values(Cli::command());
         if let Some(choice) = choice {
             command = command.color(match choice {
                 ColorWhen::Auto => clap::ColorChoice::Auto,
@@ -182,6 +182,8 @@ impl Cli {
                         "no command given; the commands are {} (see --help)",
                         command_names().join(", ")
                     ));
+                } else if let Some(line) = negative_out_of_range(&error) {
+                    out.error_message(line);
                 } else {
                     out.error_message(usage_error_line(&error.render().to_string()));
                 }
@@ -189,6 +191,52 @@ impl Cli {
             }
         }
     }
+}
+
+/// Every option that takes a value takes a negative number as its value (`--faces -5`), so
+/// that the value is judged by the option's own parser ([`negative_out_of_range`]) rather
+/// than taken for an unknown option `-5`.
+fn negative_numbers_are_values(command: clap::Command) -> clap::Command {
+    fn option(arg: clap::Arg) -> clap::Arg {
+        if arg.get_long().is_some() && arg.get_action().takes_values() {
+            arg.allow_negative_numbers(true)
+        } else {
+            arg
+        }
+    }
+    command
+        .mut_args(option)
+        .mut_subcommands(|sub| sub.mut_args(option))
+}
+
+/// A negative number refused by an option's parser (a count, a seed: `--faces -5`), as
+/// one line saying it is out of range; `None` for any other usage error.
+fn negative_out_of_range(error: &clap::Error) -> Option<String> {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    if error.kind() != ErrorKind::ValueValidation {
+        return None;
+    }
+    let (Some(ContextValue::String(arg)), Some(ContextValue::String(value))) = (
+        error.get(ContextKind::InvalidArg),
+        error.get(ContextKind::InvalidValue),
+    ) else {
+        return None;
+    };
+    // an integer option's parser: clap's for usize/u64 (a `ParseIntError`) or for the
+    // narrower types (`-1 is not in 0..=4294967295`); a parser of its own keeps its message
+    let integer = std::error::Error::source(error).is_some_and(|cause| {
+        cause.is::<std::num::ParseIntError>()
+            || cause
+                .to_string()
+                .starts_with(&format!("{value} is not in "))
+    });
+    if !integer || !value.parse::<f64>().is_ok_and(|v| v < 0.0) {
+        return None;
+    }
+    let option = arg.split_whitespace().next().unwrap_or(arg);
+    Some(format!(
+        "{option} {value}: out of range: {option} takes a whole number, not a negative one (see --help)"
+    ))
 }
 
 /// The names of polycal's commands, in the order of `--help` (without `help`).
