@@ -156,3 +156,195 @@ fn a_negative_count_is_out_of_range() {
         stderr(&out)
     );
 }
+
+const EXAMPLE: &str = "examples/data/polygon24-2ac-6cycles.csv";
+const BUDGET: &str = "examples/budgets/instrument.toml";
+const RESULT: &str = "examples/data/polygon24-shift-angle.result.csv";
+const SELFCAL: &str = "examples/data/selfa-168.csv";
+
+/// One refusal: status 2, one `error:` line beginning with `at` (file:line:column),
+/// holding every one of `says`.
+fn assert_refused(out: &Output, at: &str, says: &[&str]) -> String {
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(out));
+    assert!(out.stdout.is_empty());
+    let err = stderr(out);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.starts_with(&format!("error: {at}: ")), "{err}");
+    for word in says {
+        assert!(err.contains(word), "{word:?} in {err}");
+    }
+    err
+}
+
+/// The example measurement file rewritten as a spreadsheet in a comma-decimal locale
+/// writes it: `;` or a tab between fields, and `,` for the decimal point when asked.
+fn rewritten(dir: &Path, name: &str, separator: &str, decimal_comma: bool) -> PathBuf {
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(EXAMPLE)).unwrap();
+    let mut out = String::new();
+    for line in text.lines().filter(|l| !l.starts_with('#')) {
+        let mut line = line.replace(',', separator);
+        if decimal_comma {
+            line = line.replace('.', ",");
+        }
+        out.push_str(&line);
+        out.push('\n');
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, out).unwrap();
+    path
+}
+
+/// A table separated by semicolons or tabs, or with decimal commas, is named so, with the
+/// fix, at the header (line 1 once the comments are left out, column 1).
+#[test]
+fn separators_and_decimal_commas_are_named_with_the_fix() {
+    let dir = temp_dir("separators");
+    let semi = rewritten(&dir, "semi.csv", ";", false);
+    let err = assert_refused(
+        &polycal(&["solve", path_str(&semi)]),
+        &format!("{}:1:1", semi.display()),
+        &["separated by semicolons", "`,` between fields"],
+    );
+    assert!(!err.contains("decimal commas"), "{err}");
+    assert!(!err.contains("missing required"), "{err}");
+
+    let tab = rewritten(&dir, "tab.csv", "\t", false);
+    assert_refused(
+        &polycal(&["solve", path_str(&tab)]),
+        &format!("{}:1:1", tab.display()),
+        &["separated by tabs", "`,` between fields"],
+    );
+
+    let european = rewritten(&dir, "european.csv", ";", true);
+    assert_refused(
+        &polycal(&["diagnose", path_str(&european)]),
+        &format!("{}:1:1", european.display()),
+        &[
+            "separated by semicolons",
+            "decimal commas",
+            "`.` in numbers",
+        ],
+    );
+
+    // Decimal commas in a comma-separated file: the first row has more fields than the
+    // header; line 2, at the first extra field. The example's first row is
+    // `1,0,1,1,1.6009...,cw,1,0,0` (9 fields); with a decimal comma the fraction is field 6.
+    let commas = rewritten(&dir, "commas.csv", ",", true);
+    let first_row = std::fs::read_to_string(&commas).unwrap();
+    let first_row = first_row.lines().nth(1).unwrap();
+    let fields: Vec<&str> = first_row.split(',').collect();
+    // the column of the 10th field: the characters of the nine before it and their commas
+    let column = fields[..9]
+        .iter()
+        .map(|f| f.chars().count() + 1)
+        .sum::<usize>()
+        + 1;
+    assert_refused(
+        &polycal(&["solve", path_str(&commas)]),
+        &format!("{}:2:{column}", commas.display()),
+        &[
+            "row has 10 fields but the header has 9",
+            "decimal commas",
+            "points",
+        ],
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A file of another kind says what it is and what to do, at the line that tells.
+#[test]
+fn a_file_of_another_kind_says_what_it_is_and_what_to_do() {
+    // The budget's first line that is not a comment: its `p = 0.95`.
+    let budget_text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(BUDGET)).unwrap();
+    let p_line = budget_text
+        .lines()
+        .position(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .unwrap()
+        + 1;
+    assert!(
+        budget_text
+            .lines()
+            .nth(p_line - 1)
+            .unwrap()
+            .starts_with("p = ")
+    );
+    let err = assert_refused(
+        &polycal(&["solve", BUDGET]),
+        &format!("{BUDGET}:{p_line}:1"),
+        &[
+            "this is a budget (TOML",
+            "not a measurement file",
+            "with --budget",
+        ],
+    );
+    assert!(!err.contains("missing required"), "{err}");
+
+    // A measurement file given to `budget`, and as `--budget`: not TOML's "key with no value".
+    for (args, what_to_do) in [
+        (&["budget", EXAMPLE][..], "polycal solve FILE --budget"),
+        (
+            &["solve", EXAMPLE, "--budget", EXAMPLE][..],
+            "--budget takes a budget",
+        ),
+    ] {
+        let err = assert_refused(
+            &polycal(args),
+            &format!("{EXAMPLE}:2:1"),
+            &["this is a measurement file", "not a budget", what_to_do],
+        );
+        assert!(!err.contains("key with no value"), "{err}");
+    }
+
+    // A measurement file where a result file is expected: solve it first.
+    for args in [
+        &["compare", EXAMPLE, RESULT][..],
+        &["kc", &format!("A={EXAMPLE}"), &format!("B={RESULT}")][..],
+    ] {
+        assert_refused(
+            &polycal(args),
+            &format!("{EXAMPLE}:2:1"),
+            &[
+                "this is a measurement file",
+                "not a result file",
+                "polycal solve FILE --format csv",
+            ],
+        );
+    }
+
+    // A result file and a self-calibration file given to solve, a measurement file to selfcal.
+    let result_header = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(RESULT))
+        .unwrap()
+        .lines()
+        .position(|l| l.starts_with("quantity"))
+        .unwrap()
+        + 1;
+    assert_refused(
+        &polycal(&["solve", RESULT]),
+        &format!("{RESULT}:{result_header}:1"),
+        &[
+            "this is a result file",
+            "not a measurement file",
+            "polycal compare",
+        ],
+    );
+    assert_refused(
+        &polycal(&["solve", SELFCAL]),
+        &format!("{SELFCAL}:2:1"),
+        &[
+            "this is a self-calibration file",
+            "not a measurement file",
+            "polycal selfcal FILE",
+        ],
+    );
+    assert_refused(
+        &polycal(&["selfcal", EXAMPLE]),
+        &format!("{EXAMPLE}:2:1"),
+        &[
+            "this is a measurement file",
+            "not a self-calibration file",
+            "polycal solve FILE",
+        ],
+    );
+}

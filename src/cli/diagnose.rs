@@ -184,7 +184,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             None => None,
         };
         let diagnosed = MeasurementSet::read_from(bytes.as_slice(), &name, args.faces)
-            .map_err(anyhow::Error::from)
+            .map_err(super::wrong_file::measurement)
             .and_then(|set| corrected(set, &args.cross_talk))
             .and_then(|set| {
                 if args.budget.is_some()
@@ -412,7 +412,7 @@ fn selfcal_file(
             "{name}: a self-calibration file has no reading_y: --cross-talk does not apply to it"
         );
     }
-    let set = SelfcalSet::read_from(bytes, name, args.faces)?;
+    let set = SelfcalSet::read_from(bytes, name, args.faces).map_err(super::wrong_file::selfcal)?;
     let truth = match truth {
         Some(AnyTruth::Polygon(_)) => anyhow::bail!(
             "{name}: the truth is a polygon run's (faces), the file a self-calibration file"

@@ -108,7 +108,7 @@ fn read_lab(name: &str, path: &std::path::Path) -> Result<LabResult> {
     }
     Ok(LabResult::from_file(
         name,
-        read_results_from(&bytes[..], &source)?,
+        read_results_from(&bytes[..], &source).map_err(super::wrong_file::results)?,
     ))
 }
 

@@ -22,6 +22,7 @@ mod sim_lab;
 mod simulate;
 mod solve;
 pub mod stdout;
+mod wrong_file;
 
 use anyhow::Result;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};

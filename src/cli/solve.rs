@@ -152,7 +152,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         let name = display_name(path);
         let label = polycal::input::shown_path(path);
         let solved = MeasurementSet::read_path(path, args.faces)
-            .map_err(anyhow::Error::from)
+            .map_err(super::wrong_file::measurement)
             .and_then(|set| corrected(set, &args.cross_talk))
             .and_then(|set| {
                 if budget.is_some()
@@ -328,7 +328,10 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
 /// The instrument budget of `--budget` (`solve` and `diagnose`), read once, with a
 /// `warning:` for each of its notes (a type-A component counts twice).
 pub(super) fn read_budget(path: Option<&Path>, out: &Output) -> Result<Option<InstrumentBudget>> {
-    let budget = path.map(InstrumentBudget::read_path).transpose()?;
+    let budget = path
+        .map(InstrumentBudget::read_path)
+        .transpose()
+        .map_err(super::wrong_file::budget_option)?;
     if let Some(budget) = &budget {
         for note in budget.notes() {
             out.warning(note);
