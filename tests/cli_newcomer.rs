@@ -348,3 +348,109 @@ fn a_file_of_another_kind_says_what_it_is_and_what_to_do() {
         ],
     );
 }
+
+const EXAMPLE_TRUTH: &str = "examples/data/polygon24-2ac-6cycles.truth.json";
+
+fn numbers(value: &serde_json::Value) -> Vec<f64> {
+    value
+        .as_array()
+        .expect("an array")
+        .iter()
+        .map(|v| v.as_f64().expect("a number"))
+        .collect()
+}
+
+/// The example run (24 faces, 6 cycles of 25 stops, the closing one included, 2
+/// autocollimators) with its last cycle cut after step 9, as a run interrupted there
+/// would leave it: one `warning:` naming cycle 6 and its missing steps 10–24, the same
+/// in the JSON, and the result still agreeing with the truth the data were simulated
+/// from within the uncertainties it states.
+#[test]
+fn an_incomplete_last_cycle_is_named_and_the_result_still_holds() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join(EXAMPLE)).unwrap();
+    let mut kept = String::new();
+    let mut dropped = 0;
+    for line in text.lines() {
+        let fields: Vec<&str> = line.split(',').collect();
+        if fields[0] == "6" && fields[1].parse::<usize>().is_ok_and(|step| step >= 10) {
+            dropped += 1;
+            continue;
+        }
+        kept.push_str(line);
+        kept.push('\n');
+    }
+    assert_eq!(
+        dropped,
+        15 * 2,
+        "steps 10 … 24 of cycle 6, both autocollimators"
+    );
+    let dir = temp_dir("incomplete");
+    let cut = dir.join("cut.csv");
+    std::fs::write(&cut, kept).unwrap();
+
+    // The whole file has no incomplete cycle.
+    let whole = polycal(&["solve", EXAMPLE]);
+    assert_eq!(whole.status.code(), Some(0));
+    assert_eq!(stderr(&whole), "");
+
+    let out = polycal(&["solve", path_str(&cut), "--format", "json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert_eq!(
+        stderr(&out),
+        format!(
+            "warning: {}: cycle 6 is incomplete: it read 10 of the 25 steps of a whole cycle \
+             (steps 10–24 missing); it is evaluated with the readings it has\n",
+            cut.display()
+        )
+    );
+    // -q silences the warning, not the JSON's record of it
+    let quiet = polycal(&["-q", "solve", path_str(&cut), "--format", "json"]);
+    assert_eq!(stderr(&quiet), "");
+    assert_eq!(quiet.stdout, out.stdout);
+
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        json["incomplete_cycles"],
+        serde_json::json!([{
+            "setup": 1, "cycle": 6, "steps": 10, "expected_steps": 25,
+            "missing_steps": (10..25).collect::<Vec<usize>>(),
+        }])
+    );
+    assert!(
+        json["warnings"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("cycle 6 is incomplete")
+    );
+    // 300 readings less 30; 2N − 2 + K = 48 parameters (K = 2 setup errors)
+    assert_eq!(json["readings"], 270);
+    assert_eq!(json["dof"], 270 - 48);
+
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join(EXAMPLE_TRUTH)).unwrap()).unwrap();
+    for (estimate, u, truth) in [
+        (
+            "pitch_deviation",
+            "pitch_deviation_u",
+            &truth["pitch_deviation"],
+        ),
+        ("encoder_error", "encoder_error_u", &truth["encoder_error"]),
+    ] {
+        let estimate = numbers(&json[estimate]);
+        let u = numbers(&json[u]);
+        let truth = numbers(truth);
+        assert_eq!(estimate.len(), 24);
+        for k in 0..24 {
+            let z = (estimate[k] - truth[k]) / u[k];
+            assert!(
+                z.abs() < 4.5,
+                "index {k}: {} vs truth {} (u {})",
+                estimate[k],
+                truth[k],
+                u[k]
+            );
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -220,6 +220,13 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         if mc.as_ref().is_some_and(|mc| !mc.validated) {
             not_validated += 1;
         }
+        let incomplete = match &solved {
+            Solved::Positions(solution) => &solution.incomplete_cycles,
+            Solved::SubPitch(solved) => &solved.solution.incomplete_cycles,
+        };
+        for cycle in incomplete {
+            out.warning(format_args!("{name}: {cycle}"));
+        }
         let solution = match solved {
             Solved::Positions(solution) => solution,
             Solved::SubPitch(solved) => {

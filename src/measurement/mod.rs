@@ -51,6 +51,7 @@ use std::io::Read;
 use std::path::Path;
 
 pub mod cross_talk;
+mod cycles;
 mod parse;
 mod sigma;
 mod validate;
@@ -58,6 +59,7 @@ mod write;
 
 pub use write::{Column, Columns, ReadingWriter};
 
+pub use cycles::IncompleteCycle;
 pub use sigma::{Sigma, SigmaError};
 
 pub(crate) use parse::{COLUMNS, DIRECTION_WORDS, direction_text};
