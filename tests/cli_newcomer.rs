@@ -454,3 +454,25 @@ fn an_incomplete_last_cycle_is_named_and_the_result_still_holds() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `diagnose` names an incomplete cycle as `solve` does: the example run without its
+/// last four rows (steps 23 and 24 of cycle 6, both autocollimators), on standard input.
+#[test]
+fn diagnose_names_an_incomplete_cycle_too() {
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(EXAMPLE)).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(
+        lines[lines.len() - 4..]
+            .iter()
+            .all(|l| l.starts_with("6,23,") || l.starts_with("6,24,"))
+    );
+    let cut = lines[..lines.len() - 4].join("\n") + "\n";
+    let out = polycal_stdin(&["diagnose", "-", "--format", "json"], cut.as_bytes());
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert_eq!(
+        stderr(&out),
+        "warning: <stdin>: cycle 6 is incomplete: it read 23 of the 25 steps of a whole \
+         cycle (steps 23–24 missing); it is evaluated with the readings it has\n"
+    );
+}

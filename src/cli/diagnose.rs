@@ -185,6 +185,12 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         };
         let diagnosed = MeasurementSet::read_from(bytes.as_slice(), &name, args.faces)
             .map_err(super::wrong_file::measurement)
+            .inspect(|set| {
+                // docs/FORMAT.md §2.1: named as `solve` names them
+                for cycle in set.incomplete_cycles() {
+                    out.warning(format_args!("{name}: {cycle}"));
+                }
+            })
             .and_then(|set| corrected(set, &args.cross_talk))
             .and_then(|set| {
                 if args.budget.is_some()
