@@ -161,7 +161,9 @@ pub(crate) fn telling_line(text: &str) -> u64 {
 
 /// A table written with another separator than the comma, or with decimal commas: the
 /// message saying so and what to do, given the header's line and the line after it;
-/// `None` when the header is not one of `required`'s separated otherwise.
+/// `None` when the header, split at `;` or a tab, names neither every one of `required`
+/// nor the required columns of another kind (a measurement file in semicolons given
+/// where a result file is expected is named for its semicolons first).
 pub(crate) fn separator_problem(
     header: &str,
     next: Option<&str>,
@@ -171,7 +173,8 @@ pub(crate) fn separator_problem(
         .into_iter()
         .find(|(sep, _)| {
             let names: Vec<&str> = header.split(*sep).map(str::trim).collect();
-            names.len() > 1 && required.iter().all(|r| names.contains(r))
+            names.len() > 1
+                && (required.iter().all(|r| names.contains(r)) || csv_kind(&names).is_some())
         })?;
     let mut message = format!(
         "the fields are separated by {name}, not commas: polycal reads comma-separated \
@@ -257,6 +260,9 @@ mod tests {
         assert!(tab.contains("tabs"), "{tab}");
         assert!(!tab.contains("decimal commas"), "{tab}");
         assert_eq!(separator_problem("cycle;step;ac", None, &MEASUREMENT), None);
+        // another kind's header in semicolons: the separator is named first
+        let result = ["quantity", "index", "value"];
+        assert!(separator_problem("cycle;step;ac;face;reading", None, &result).is_some());
         assert_eq!(
             separator_problem("cycle,step,ac,face,reading", None, &MEASUREMENT),
             None
