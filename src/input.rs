@@ -10,6 +10,7 @@
 //! table reader (the crate's `input::table`): each file kind describes its columns, and
 //! the rules of the text, the header and the rows, with their messages, are the reader's.
 
+pub mod kind;
 pub mod limits;
 pub(crate) mod table;
 pub(crate) mod text;

@@ -15,6 +15,11 @@ fn main() -> ExitCode {
         Ok(code) => ExitCode::from(code),
         Err(error) => {
             cli::wait_if_interrupted();
+            if cli::stdout::is_closed(&error) {
+                // Standard output closed by its reader (`| head`): not an error, no
+                // line (docs/FORMAT.md §8).
+                return ExitCode::from(cli::stdout::EXIT_CLOSED);
+            }
             out.error(&error);
             ExitCode::from(cli::EXIT_ERROR)
         }

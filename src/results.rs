@@ -25,6 +25,7 @@ use std::io::{Read, Write};
 use std::path::Path;
 
 use crate::input::Location;
+use crate::input::kind::{self, FileKind};
 use crate::input::limits::{self, Limit};
 use serde::{Deserialize, Serialize};
 
@@ -80,8 +81,19 @@ impl ResultsError {
     /// Where the problem is ([`ResultsError::At`]); `None` for an I/O error.
     pub fn location(&self) -> Option<&Location> {
         match self {
-            ResultsError::At { location, .. } => Some(location),
+            ResultsError::At { location, .. } | ResultsError::WrongKind { location, .. } => {
+                Some(location)
+            }
             ResultsError::Io { .. } => None,
+        }
+    }
+
+    /// What the file is, when it is of another kind than a result file
+    /// ([`ResultsError::WrongKind`]).
+    pub fn found_kind(&self) -> Option<crate::input::kind::FileKind> {
+        match self {
+            ResultsError::WrongKind { found, .. } => Some(*found),
+            _ => None,
         }
     }
 }
@@ -346,6 +358,9 @@ pub struct ResultFile {
     pub lines: Vec<u64>,
 }
 
+/// The columns a result file must have (docs/FORMAT.md §3).
+pub(crate) const REQUIRED_COLUMNS: [&str; 3] = ["quantity", "index", "value"];
+
 /// Why a result file cannot be read.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -358,6 +373,18 @@ pub enum ResultsError {
         location: Location,
         /// What is wrong.
         message: String,
+    },
+    /// A file of another kind given as a result file: a measurement file, a budget, …
+    /// (docs/FORMAT.md §8). Displayed as `file:line:column: … this is a measurement file
+    /// (…), not a result file`.
+    #[error("{location}: {message}")]
+    WrongKind {
+        /// Where: the file and the line that tells its kind.
+        location: Location,
+        /// What the file is, and what was expected.
+        message: String,
+        /// What the file is.
+        found: crate::input::kind::FileKind,
     },
     /// The file could not be read.
     #[error("{file}: {source}")]
@@ -504,6 +531,18 @@ pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile,
     let required = |name: &str, found: Option<usize>| {
         found.ok_or_else(|| {
             let (line, _) = field_position(header_start, 0);
+            let header_line = body.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
+            let next = body.lines().filter(|l| !l.trim().is_empty()).nth(1);
+            if let Some(message) = kind::separator_problem(header_line, next, &REQUIRED_COLUMNS) {
+                return err(line, 1, message);
+            }
+            if let Some(found) = kind::recognize(text).filter(|&k| k != FileKind::Result) {
+                return ResultsError::WrongKind {
+                    location: Location::new(source, line, 1),
+                    message: kind::other_kind_message(found, FileKind::Result.name(), text),
+                    found,
+                };
+            }
             err(
                 line,
                 1,

@@ -369,7 +369,7 @@ pub(crate) fn read_budget(
         BudgetError::Io { source, .. } if is_not_found(source) => {
             Python::attach(|py| file_not_found(py, path.unwrap_or(name), source))
         }
-        BudgetError::File { location, .. } => {
+        BudgetError::File { location, .. } | BudgetError::WrongKind { location, .. } => {
             Python::attach(|py| input_error(py, e.to_string(), Some(location)))
         }
         _ => refusal(e),

@@ -35,10 +35,10 @@ enum ReportFormat {
 
 /// `polycal budget`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &BudgetArgs) -> Result<u8> {
-    let budget = BudgetFile::read_path(&args.file)?;
+    let budget = BudgetFile::read_path(&args.file).map_err(super::wrong_file::budget)?;
     // the evaluation's errors name the file already
     let result = budget.evaluate()?;
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         ReportFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&result)?)?,

@@ -94,8 +94,8 @@ pub fn run(args: &CompareArgs) -> Result<u8> {
         polycal::figure::FigureSet::Compare,
         &args.inputs(),
     )?;
-    let file_a = read_result_file(&args.a)?;
-    let file_b = read_result_file(&args.b)?;
+    let file_a = read_result_file(&args.a).map_err(super::wrong_file::results)?;
+    let file_b = read_result_file(&args.b).map_err(super::wrong_file::results)?;
     let options = CompareOptions::new()
         .with_correlation(args.correlation)
         .with_include_setup(args.include_setup)
@@ -124,7 +124,7 @@ pub fn run(args: &CompareArgs) -> Result<u8> {
         );
         super::write_plot(dir, &figures, &args.inputs())?;
     }
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         CompareFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&comparison)?)?,

@@ -129,7 +129,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         .with_sigma_opt(args.sigma)
         .with_stated_cross_talk(args.cross_talk.iter().map(|s| s.ac).collect());
     let several = args.files.len() > 1;
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     let (mut failures, mut inadequate, mut not_validated) = (0, 0, 0);
     let mut csv_rows = Vec::new();
@@ -184,7 +184,13 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             None => None,
         };
         let diagnosed = MeasurementSet::read_from(bytes.as_slice(), &name, args.faces)
-            .map_err(anyhow::Error::from)
+            .map_err(super::wrong_file::measurement)
+            .inspect(|set| {
+                // docs/FORMAT.md §2.1: named as `solve` names them
+                for cycle in set.incomplete_cycles() {
+                    out.warning(format_args!("{name}: {cycle}"));
+                }
+            })
             .and_then(|set| corrected(set, &args.cross_talk))
             .and_then(|set| {
                 if args.budget.is_some()
@@ -412,7 +418,7 @@ fn selfcal_file(
             "{name}: a self-calibration file has no reading_y: --cross-talk does not apply to it"
         );
     }
-    let set = SelfcalSet::read_from(bytes, name, args.faces)?;
+    let set = SelfcalSet::read_from(bytes, name, args.faces).map_err(super::wrong_file::selfcal)?;
     let truth = match truth {
         Some(AnyTruth::Polygon(_)) => anyhow::bail!(
             "{name}: the truth is a polygon run's (faces), the file a self-calibration file"

@@ -75,7 +75,7 @@ pub fn man(args: &ManArgs) -> Result<u8> {
 }
 
 fn write_stdout(bytes: &[u8]) -> Result<()> {
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     stdout.write_all(bytes)?;
     stdout.flush()?;

@@ -108,7 +108,7 @@ fn read_lab(name: &str, path: &std::path::Path) -> Result<LabResult> {
     }
     Ok(LabResult::from_file(
         name,
-        read_results_from(&bytes[..], &source)?,
+        read_results_from(&bytes[..], &source).map_err(super::wrong_file::results)?,
     ))
 }
 
@@ -157,7 +157,7 @@ pub fn run(args: &KcArgs) -> Result<u8> {
     if let Some(dir) = &args.plot {
         super::write_plot(dir, &polycal::figure::kc_figures(&kc), &inputs)?;
     }
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         KcFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&kc)?)?,

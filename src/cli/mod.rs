@@ -21,6 +21,8 @@ mod selfcal;
 mod sim_lab;
 mod simulate;
 mod solve;
+pub mod stdout;
+mod wrong_file;
 
 use anyhow::Result;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
@@ -40,7 +42,7 @@ Exit status: 0 done and every check passed; 1 done, but a verdict is negative (c
 the differences fail their χ² test as one vector, or some |En| > 1 with --verdict en; kc: not consistent after the stated exclusions; diagnose: a model not adequate; solve: Monte Carlo does not validate GUM;
 plan: a design cannot calibrate or misses --target-u);
 2 an error (usage, refused input, instrument or file failure); 130 `run` stopped at once by
-a second Ctrl-C (docs/FORMAT.md §8).
+a second Ctrl-C; 141 standard output closed by its reader (`| head`), quietly (docs/FORMAT.md §8).
 
 The data and command contract: docs/FORMAT.md. Completions: `polycal completions SHELL`;
 manual page: `polycal man`.";
@@ -153,7 +155,7 @@ impl Cli {
     pub fn parse_args() -> Cli {
         let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
         let choice = color_in_args(&args);
-        let mut command = Cli::command();
+        let mut command = negative_numbers_are_values(Cli::command());
         if let Some(choice) = choice {
             command = command.color(match choice {
                 ColorWhen::Auto => clap::ColorChoice::Auto,
@@ -181,6 +183,8 @@ impl Cli {
                         "no command given; the commands are {} (see --help)",
                         command_names().join(", ")
                     ));
+                } else if let Some(line) = negative_out_of_range(&error) {
+                    out.error_message(line);
                 } else {
                     out.error_message(usage_error_line(&error.render().to_string()));
                 }
@@ -188,6 +192,52 @@ impl Cli {
             }
         }
     }
+}
+
+/// Every option that takes a value takes a negative number as its value (`--faces -5`), so
+/// that the value is judged by the option's own parser ([`negative_out_of_range`]) rather
+/// than taken for an unknown option `-5`.
+fn negative_numbers_are_values(command: clap::Command) -> clap::Command {
+    fn option(arg: clap::Arg) -> clap::Arg {
+        if arg.get_long().is_some() && arg.get_action().takes_values() {
+            arg.allow_negative_numbers(true)
+        } else {
+            arg
+        }
+    }
+    command
+        .mut_args(option)
+        .mut_subcommands(|sub| sub.mut_args(option))
+}
+
+/// A negative number refused by an option's parser (a count, a seed: `--faces -5`), as
+/// one line saying it is out of range; `None` for any other usage error.
+fn negative_out_of_range(error: &clap::Error) -> Option<String> {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    if error.kind() != ErrorKind::ValueValidation {
+        return None;
+    }
+    let (Some(ContextValue::String(arg)), Some(ContextValue::String(value))) = (
+        error.get(ContextKind::InvalidArg),
+        error.get(ContextKind::InvalidValue),
+    ) else {
+        return None;
+    };
+    // an integer option's parser: clap's for usize/u64 (a `ParseIntError`) or for the
+    // narrower types (`-1 is not in 0..=4294967295`); a parser of its own keeps its message
+    let integer = std::error::Error::source(error).is_some_and(|cause| {
+        cause.is::<std::num::ParseIntError>()
+            || cause
+                .to_string()
+                .starts_with(&format!("{value} is not in "))
+    });
+    if !integer || !value.parse::<f64>().is_ok_and(|v| v < 0.0) {
+        return None;
+    }
+    let option = arg.split_whitespace().next().unwrap_or(arg);
+    Some(format!(
+        "{option} {value}: out of range: {option} takes a whole number, not a negative one (see --help)"
+    ))
 }
 
 /// The names of polycal's commands, in the order of `--help` (without `help`).

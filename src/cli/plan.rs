@@ -196,7 +196,7 @@ pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
                  cycles of a file's design are its own"
             );
         }
-        let set = MeasurementSet::read_path(path, None)?;
+        let set = MeasurementSet::read_path(path, None).map_err(super::wrong_file::measurement)?;
         let options = options.clone().with_progress(std::sync::Arc::new(
             out.progress_bar_of("Planning", "sizes"),
         ));
@@ -246,7 +246,7 @@ pub fn run(args: &PlanArgs, out: &Output) -> Result<u8> {
             &args.inputs(),
         )?;
     }
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         PlanFormat::Json => {

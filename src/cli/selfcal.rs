@@ -97,7 +97,8 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
         &args.inputs(),
     )?;
     let name = display_name(&args.file);
-    let set = SelfcalSet::read_path(&args.file, args.positions)?;
+    let set =
+        SelfcalSet::read_path(&args.file, args.positions).map_err(super::wrong_file::selfcal)?;
     let mut options = SelfcalOptions::new().with_sigma_opt(args.sigma);
     if let Some(u) = args.head_angle_u {
         options = options.with_head_angle_u(u).context("--head-angle-u")?;
@@ -163,7 +164,7 @@ pub fn run(args: &SelfcalArgs, out: &Output) -> Result<u8> {
             &args.inputs(),
         )?;
     }
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
         SelfcalFormat::Json => {

@@ -122,7 +122,7 @@ fn serve(devices: Devices, format: PathsFormat, out: &Output) -> Result<u8> {
     let paths = lab.paths().clone();
     let acs = paths.acs();
     {
-        let stdout = std::io::stdout();
+        let stdout = super::stdout::stdout();
         let mut stdout = stdout.lock();
         match format {
             PathsFormat::Table => {
@@ -152,21 +152,27 @@ fn serve(devices: Devices, format: PathsFormat, out: &Output) -> Result<u8> {
             format!(" --ac-faces {}", ac_faces_text)
         },
     );
-    let mut then = String::new();
+    // One line at a time: a line of information is shown with its control characters
+    // escaped, so a line feed inside one would print as a literal `\n`.
+    let mut lines = vec![
+        "polycal sim-lab: serving; try".to_string(),
+        format!("  {run}"),
+    ];
     for m in &mountings {
-        then.push_str(&format!(
-            "\nthen type `remount` here (the polygon remounted) and\n  {run} {}",
-            m.as_options()
-        ));
+        lines.push("then type `remount` here (the polygon remounted) and".to_string());
+        lines.push(format!("  {run} {}", m.as_options()));
     }
-    out.info(format_args!(
-        "polycal sim-lab: serving; try\n  {run}{then}\nstop with Ctrl-C{}",
+    lines.push(format!(
+        "stop with Ctrl-C{}",
         if stdin_is_null() {
             ""
         } else {
             " or by closing standard input (Ctrl-D)"
         }
     ));
+    for line in lines {
+        out.info(line);
+    }
     if stdin_is_null() {
         loop {
             std::thread::park();
@@ -179,7 +185,7 @@ fn serve(devices: Devices, format: PathsFormat, out: &Output) -> Result<u8> {
             "remount" => match lab.remount() {
                 Ok(m) => {
                     // On standard output too, for a script that waits for it.
-                    let mut stdout = std::io::stdout().lock();
+                    let mut stdout = super::stdout::stdout().lock();
                     writeln!(stdout, "remounted {m}")?;
                     stdout.flush()?;
                     out.info(format_args!(

@@ -191,7 +191,7 @@ pub fn run(args: &SimulateArgs, out: &Output) -> Result<u8> {
     match &args.out {
         Some(path) => files.write_with("--out", path, |w| set.write_to(w, &comments))?,
         None => {
-            let stdout = std::io::stdout();
+            let stdout = super::stdout::stdout();
             set.write_to(stdout.lock(), &comments)
                 .context("cannot write to standard output")?;
         }
@@ -241,7 +241,7 @@ fn run_selfcal(args: &SimulateArgs, out: &Output) -> Result<u8> {
                 .map_err(|e| std::io::Error::other(e.to_string()))
         })?,
         None => {
-            let stdout = std::io::stdout();
+            let stdout = super::stdout::stdout();
             set.write_with_comments(stdout.lock(), &comments)
                 .context("cannot write to standard output")?;
         }

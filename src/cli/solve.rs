@@ -142,7 +142,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         .with_sigma_opt(args.sigma);
     let files = &args.files;
     let several = files.len() > 1;
-    let stdout = std::io::stdout();
+    let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     let mut failures = 0;
     let mut not_validated = 0;
@@ -152,7 +152,7 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         let name = display_name(path);
         let label = polycal::input::shown_path(path);
         let solved = MeasurementSet::read_path(path, args.faces)
-            .map_err(anyhow::Error::from)
+            .map_err(super::wrong_file::measurement)
             .and_then(|set| corrected(set, &args.cross_talk))
             .and_then(|set| {
                 if budget.is_some()
@@ -219,6 +219,13 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         };
         if mc.as_ref().is_some_and(|mc| !mc.validated) {
             not_validated += 1;
+        }
+        let incomplete = match &solved {
+            Solved::Positions(solution) => &solution.incomplete_cycles,
+            Solved::SubPitch(solved) => &solved.solution.incomplete_cycles,
+        };
+        for cycle in incomplete {
+            out.warning(format_args!("{name}: {cycle}"));
         }
         let solution = match solved {
             Solved::Positions(solution) => solution,
@@ -328,7 +335,10 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
 /// The instrument budget of `--budget` (`solve` and `diagnose`), read once, with a
 /// `warning:` for each of its notes (a type-A component counts twice).
 pub(super) fn read_budget(path: Option<&Path>, out: &Output) -> Result<Option<InstrumentBudget>> {
-    let budget = path.map(InstrumentBudget::read_path).transpose()?;
+    let budget = path
+        .map(InstrumentBudget::read_path)
+        .transpose()
+        .map_err(super::wrong_file::budget_option)?;
     if let Some(budget) = &budget {
         for note in budget.notes() {
             out.warning(note);

@@ -51,6 +51,7 @@ use std::io::Read;
 use std::path::Path;
 
 pub mod cross_talk;
+mod cycles;
 mod parse;
 mod sigma;
 mod validate;
@@ -58,9 +59,10 @@ mod write;
 
 pub use write::{Column, Columns, ReadingWriter};
 
+pub use cycles::IncompleteCycle;
 pub use sigma::{Sigma, SigmaError};
 
-pub(crate) use parse::{DIRECTION_WORDS, direction_text};
+pub(crate) use parse::{COLUMNS, DIRECTION_WORDS, direction_text};
 
 use crate::input::table::Locator;
 use parse::*;
@@ -249,6 +251,17 @@ pub enum MeasurementError {
         /// What is wrong, naming the column and quoting the offending text.
         message: String,
     },
+    /// A file of another kind given as a measurement file: a budget, a result file, … (docs/FORMAT.md
+    /// §8). Displayed as `file:line:column: this is a budget (TOML, …), not a measurement file …`.
+    #[error("{location}: {message}")]
+    WrongKind {
+        /// Where: the file and the line that tells its kind.
+        location: Location,
+        /// What the file is, and what was expected.
+        message: String,
+        /// What the file is.
+        found: crate::input::kind::FileKind,
+    },
     /// The file could not be opened, read or written.
     #[error("{file}: {source}")]
     Io {
@@ -265,8 +278,18 @@ impl MeasurementError {
     /// for an I/O error.
     pub fn location(&self) -> Option<&Location> {
         match self {
-            MeasurementError::Invalid { location, .. } => Some(location),
+            MeasurementError::Invalid { location, .. }
+            | MeasurementError::WrongKind { location, .. } => Some(location),
             MeasurementError::Io { .. } => None,
+        }
+    }
+
+    /// What the file is, when it is of another kind than a measurement file
+    /// ([`MeasurementError::WrongKind`]).
+    pub fn found_kind(&self) -> Option<crate::input::kind::FileKind> {
+        match self {
+            MeasurementError::WrongKind { found, .. } => Some(*found),
+            _ => None,
         }
     }
 }

@@ -38,7 +38,7 @@ const USIZE_MAX: u128 = usize::MAX as u128;
 pub(crate) const DIRECTION_WORDS: &[&str] = &["cw", "ccw"];
 
 /// The measurement file's columns (docs/FORMAT.md §2), indexed by [`Col`].
-pub(super) const COLUMNS: [Column; NCOLS] = [
+pub(crate) const COLUMNS: [Column; NCOLS] = [
     Column::integer("cycle", 1, U32_MAX),
     Column::integer("step", 0, USIZE_MAX),
     Column::integer("ac", 1, U32_MAX),
@@ -130,6 +130,13 @@ pub(super) fn invalid(file: &str, (line, column): (u64, u64), message: String) -
 
 impl From<TableError> for MeasurementError {
     fn from(e: TableError) -> Self {
+        if let Some(found) = e.found() {
+            return MeasurementError::WrongKind {
+                location: e.location,
+                message: e.message,
+                found,
+            };
+        }
         MeasurementError::Invalid {
             location: e.location,
             message: e.message,

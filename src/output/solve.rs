@@ -87,6 +87,15 @@ pub struct SolveReport {
     /// encoder errors are determined up to a constant, docs/FORMAT.md §9.1).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub notes: Option<Vec<String>>,
+    /// What the user should check in the data, one sentence each (the `warning:` lines of
+    /// the command): a cycle with fewer steps than a whole cycle. Absent when there is
+    /// none (an addition).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+    /// The cycles with fewer steps than a whole cycle (docs/FORMAT.md §5.1), for a
+    /// program; absent when there is none (an addition).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub incomplete_cycles: Vec<crate::measurement::IncompleteCycle>,
     /// Coverage probability of the expanded uncertainties (with `--budget`; an addition,
     /// like every field below).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -163,6 +172,12 @@ impl SolveReport {
                 SigmaSource::Stated => "stated",
             }),
             notes: None,
+            warnings: solution
+                .incomplete_cycles
+                .iter()
+                .map(ToString::to_string)
+                .collect(),
+            incomplete_cycles: solution.incomplete_cycles.clone(),
             p: None,
             pitch_deviation_expanded_u: None,
             pitch_deviation_k: None,

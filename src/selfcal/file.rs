@@ -17,6 +17,7 @@ use super::{HeadReading, SelfcalSet};
 use crate::input::Location;
 
 mod parse;
+pub(crate) use parse::COLUMNS;
 mod validate;
 mod write;
 
@@ -46,6 +47,17 @@ pub enum SelfcalError {
         /// What is wrong, naming the column and quoting the offending text.
         message: String,
     },
+    /// A file of another kind given as a self-calibration file: a budget, a result file, … (docs/FORMAT.md
+    /// §8). Displayed as `file:line:column: this is a budget (TOML, …), not a self-calibration file …`.
+    #[error("{location}: {message}")]
+    WrongKind {
+        /// Where: the file and the line that tells its kind.
+        location: Location,
+        /// What the file is, and what was expected.
+        message: String,
+        /// What the file is.
+        found: crate::input::kind::FileKind,
+    },
     /// The file could not be opened, read or written.
     #[error("{file}: {source}")]
     Io {
@@ -62,8 +74,19 @@ impl SelfcalError {
     /// an I/O error.
     pub fn location(&self) -> Option<&Location> {
         match self {
-            SelfcalError::Invalid { location, .. } => Some(location),
+            SelfcalError::Invalid { location, .. } | SelfcalError::WrongKind { location, .. } => {
+                Some(location)
+            }
             SelfcalError::Io { .. } => None,
+        }
+    }
+
+    /// What the file is, when it is of another kind than a self-calibration file
+    /// ([`SelfcalError::WrongKind`]).
+    pub fn found_kind(&self) -> Option<crate::input::kind::FileKind> {
+        match self {
+            SelfcalError::WrongKind { found, .. } => Some(*found),
+            _ => None,
         }
     }
 }

@@ -79,6 +79,7 @@ mod monte_carlo;
 mod solve;
 
 pub use budget::{SelfcalContribution, SelfcalUncertainty, evaluate_budget};
+pub(crate) use file::COLUMNS;
 pub use file::SelfcalError;
 pub(crate) use fourier::design::OffGridDesign;
 pub use monte_carlo::{SelfcalMonteCarlo, monte_carlo};

@@ -512,5 +512,6 @@ fn solve_on(
         sigma: super::choose_sigma(rss, dof, stated_sigma),
         cofactor: Cofactor::structured(layout, structured),
         layout,
+        incomplete_cycles: Vec::new(),
     }))
 }

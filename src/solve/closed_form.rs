@@ -293,6 +293,7 @@ impl PaperDesign {
             sigma: choose_sigma(rss, dof, stated_sigma),
             cofactor,
             layout,
+            incomplete_cycles: Vec::new(),
         })
     }
 }

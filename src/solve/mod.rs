@@ -338,6 +338,11 @@ pub struct Solution {
     pub cofactor: Cofactor,
     /// Layout of θ.
     pub layout: ParameterLayout,
+    /// The cycles of the measurement set with fewer steps than a whole cycle
+    /// ([`MeasurementSet::incomplete_cycles`]): evaluated with the readings they have, and
+    /// reported as warnings (docs/FORMAT.md §5.1 `warnings`). Set by [`solve`] and
+    /// [`sub_pitch::solve_shifted`] from the set as read; empty from an engine alone.
+    pub incomplete_cycles: Vec<crate::measurement::IncompleteCycle>,
 }
 
 impl Solution {
@@ -543,17 +548,20 @@ pub fn solve_with_progress(
     options: &SolveOptions,
     progress: Option<&dyn Progress>,
 ) -> Result<Solution, SolveError> {
-    if !set.has_shifts() {
-        return solve_positions(set, options, progress);
-    }
-    let geometry = sub_pitch::ShiftGeometry::of(set);
-    if geometry.is_sub_pitch() {
-        return Err(SolveError::SubPitch {
-            faces: set.faces,
-            cosets: geometry.cosets(),
-        });
-    }
-    solve_positions(&geometry.encoder_set(set), options, progress)
+    let mut solution = if !set.has_shifts() {
+        solve_positions(set, options, progress)?
+    } else {
+        let geometry = sub_pitch::ShiftGeometry::of(set);
+        if geometry.is_sub_pitch() {
+            return Err(SolveError::SubPitch {
+                faces: set.faces,
+                cosets: geometry.cosets(),
+            });
+        }
+        solve_positions(&geometry.encoder_set(set), options, progress)?
+    };
+    solution.incomplete_cycles = set.incomplete_cycles();
+    Ok(solution)
 }
 
 /// [`solve`] of a set whose steps are its encoder positions (shifts not consulted), the

@@ -361,6 +361,17 @@ pub fn solve_shifted_with_progress(
     options: &SolveOptions,
     progress: Option<&dyn Progress>,
 ) -> Result<SubPitchSolution, SolveError> {
+    let mut solved = solve_shifted_positions(set, options, progress)?;
+    solved.solution.incomplete_cycles = set.incomplete_cycles();
+    Ok(solved)
+}
+
+/// [`solve_shifted_with_progress`] without the set's incomplete cycles.
+fn solve_shifted_positions(
+    set: &MeasurementSet,
+    options: &SolveOptions,
+    progress: Option<&dyn Progress>,
+) -> Result<SubPitchSolution, SolveError> {
     let geometry = ShiftGeometry::of(set);
     let positions = geometry.encoder_set(set);
     let n = set.faces;

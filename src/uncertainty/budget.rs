@@ -265,6 +265,18 @@ pub enum BudgetError {
         /// The problem.
         error: Box<BudgetError>,
     },
+    /// A file of another kind given as a budget: a measurement file, a result file, …
+    /// (docs/FORMAT.md §8). Displayed as `file:line:column: … this is a measurement file
+    /// (…), not a budget`.
+    #[error("{location}: {message}")]
+    WrongKind {
+        /// Where: the file and the line that tells its kind.
+        location: Location,
+        /// What the file is, and what was expected.
+        message: String,
+        /// What the file is.
+        found: crate::input::kind::FileKind,
+    },
     /// The file could not be read.
     #[error("{location}: {source}")]
     Io {

@@ -43,6 +43,7 @@ use super::budget::{
     Budget, BudgetError, BudgetResult, Component, Correlation, DofPolicy, EvaluationType,
 };
 use super::distribution::Distribution;
+use crate::input::kind::{self, FileKind};
 use crate::input::limits;
 use crate::input::{self, Location};
 
@@ -68,7 +69,19 @@ pub(crate) fn read_budget_text(path: &Path) -> Result<(String, String), BudgetEr
     };
     let (bytes, name) = input::read_bytes(path).map_err(|(name, e)| io(name, e))?;
     match input::text::utf8(&bytes) {
-        Ok(text) => Ok((name, text.to_string())),
+        Ok(text) => {
+            // a table given as a budget: say what it is rather than TOML's "key with no value"
+            if let Some(found) =
+                kind::recognize(text).filter(|k| !matches!(k, FileKind::Budget | FileKind::Json))
+            {
+                return Err(BudgetError::WrongKind {
+                    location: Location::new(name.clone(), kind::telling_line(text), 1),
+                    message: kind::other_kind_message(found, FileKind::Budget.name(), text),
+                    found,
+                });
+            }
+            Ok((name, text.to_string()))
+        }
         Err(((line, column), message)) => Err(BudgetError::File {
             location: Location::new(name, line, column),
             message,

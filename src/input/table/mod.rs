@@ -26,6 +26,7 @@ pub(crate) use column::{Column, Range, Value, count, show};
 pub(crate) use locate::{Locator, Numbered, Positions};
 
 use crate::input::Location;
+use crate::input::kind::{self, FileKind};
 use crate::input::text::{self, LineIndex, Span, to_u64};
 use std::collections::HashMap;
 
@@ -41,6 +42,10 @@ pub(crate) struct TableError {
     /// Whether the table has no rows: no header row (only comments or blank lines), or
     /// a header and no data rows. A file still being written may be read so.
     empty: bool,
+    /// The kind of file the text is when it is not the table described (a budget given
+    /// as a measurement file): the header lacks a required column and
+    /// [`kind::recognize`] tells what it is instead.
+    found: Option<FileKind>,
 }
 
 impl TableError {
@@ -48,6 +53,12 @@ impl TableError {
     /// rows after it (a file still being written may be read so, as no rows).
     pub(crate) fn is_empty_table(&self) -> bool {
         self.empty
+    }
+
+    /// The kind of file the text is instead of the table described, when the refusal is
+    /// that (a budget or a result file given as a measurement file).
+    pub(crate) fn found(&self) -> Option<FileKind> {
+        self.found
     }
 }
 
@@ -94,6 +105,7 @@ impl<'t> Reader<'t> {
             location: Location::new(source, line, column),
             message,
             empty: false,
+            found: None,
         })?;
         let index = LineIndex::new(text);
         let at = |offset: usize, message: String| refusal(source, index.location(offset), message);
@@ -252,16 +264,7 @@ impl<'t> Reader<'t> {
             .map(|(c, _)| format!("{:?}", c.name))
             .collect();
         if !missing.is_empty() {
-            let shown: Vec<String> = names.iter().map(|n| show(n)).collect();
-            return Err(self.at(
-                span.start,
-                format!(
-                    "missing required column{} {}; the header has {}",
-                    if missing.len() > 1 { "s" } else { "" },
-                    missing.join(", "),
-                    shown.join(", ")
-                ),
-            ));
+            return Err(self.missing_columns(&names, &missing, span.start));
         }
         self.positions.header_start = span.start;
         self.positions.fields = names.len();
@@ -275,6 +278,50 @@ impl<'t> Reader<'t> {
             }
         }
         Ok(())
+    }
+
+    /// The refusal of a header without every required column (`missing`), at `start`:
+    /// a table separated by semicolons or tabs (and with decimal commas) named so, a file
+    /// of another kind named as what it is (docs/FORMAT.md §8), else the missing columns
+    /// and the header as found.
+    fn missing_columns(&self, names: &[String], missing: &[String], start: usize) -> TableError {
+        let index = &self.positions.index;
+        let line = index.line_of(start);
+        let header = index.line_text(line);
+        let next = (line + 1..index.starts.len())
+            .map(|l| index.line_text(l))
+            .find(|l| !l.trim().is_empty());
+        let required: Vec<&str> = self
+            .columns
+            .iter()
+            .filter(|c| c.required)
+            .map(|c| c.name)
+            .collect();
+        if let Some(message) = kind::separator_problem(header, next, &required) {
+            return self.at(start, message);
+        }
+        let text = std::str::from_utf8(self.positions.bytes).unwrap_or("");
+        let expected = kind::kind_of_description(self.columns);
+        if let Some(found) = kind::recognize(text).filter(|&k| Some(k) != expected) {
+            let expected = expected.map_or_else(
+                || format!("a table with the columns {}", required.join(", ")),
+                |k| k.name().to_string(),
+            );
+            return TableError {
+                found: Some(found),
+                ..self.at(start, kind::other_kind_message(found, &expected, text))
+            };
+        }
+        let shown: Vec<String> = names.iter().map(|n| show(n)).collect();
+        self.at(
+            start,
+            format!(
+                "missing required column{} {}; the header has {}",
+                if missing.len() > 1 { "s" } else { "" },
+                missing.join(", "),
+                shown.join(", ")
+            ),
+        )
     }
 
     /// A described column that `name` resembles (differs only by case, surrounding spaces
@@ -330,12 +377,26 @@ impl<'t> Reader<'t> {
         if found != fields {
             let span = Span::scan(bytes, position, found);
             return Err(if found > fields {
+                // extra fields of digits alone, and no decimal point in the row: the
+                // fractions of numbers written `1,5`
+                let decimal_commas = self
+                    .record
+                    .iter()
+                    .skip(fields)
+                    .all(|f| !f.is_empty() && f.bytes().all(|b| b.is_ascii_digit()))
+                    && !self.record.iter().any(|f| f.contains('.'));
                 self.at(
                     span.field(fields),
                     format!(
-                        "row has {} but the header has {fields}: extra field {}",
+                        "row has {} but the header has {fields}: extra field {}{}",
                         count(found, "field"),
-                        show(self.record.get(fields).unwrap_or(""))
+                        show(self.record.get(fields).unwrap_or("")),
+                        if decimal_commas {
+                            "; if its numbers are written with decimal commas (1,5), write \
+                             them with points (1.5): a comma separates fields"
+                        } else {
+                            ""
+                        }
                     ),
                 )
             } else {
@@ -484,5 +545,6 @@ fn refusal(source: &str, (line, column): (u64, u64), message: String) -> TableEr
         location: Location::new(source, line, column),
         message,
         empty: false,
+        found: None,
     }
 }

@@ -261,3 +261,13 @@ fn locates_a_row_field_for_the_kind_s_own_rules() {
     assert_eq!(memory.name(0, &built), "reading 1");
     assert_eq!(memory.no_rows(), "no readings");
 }
+
+#[test]
+fn extra_fields_of_digits_in_a_row_without_points_suggest_decimal_commas() {
+    // `0,5` and `0,1` written with decimal commas: five fields for three
+    let message = refusal("face,value,u\n1,0,5,0,1\n");
+    assert!(
+        message.starts_with("kc.csv:2:7: row has 5 fields but the header has 3: extra field \"0\"; if its numbers are written with decimal commas (1,5)"),
+        "{message}"
+    );
+}

@@ -38,7 +38,7 @@ fn valid_angle(angle: f64) -> bool {
 }
 
 /// The self-calibration file's columns (docs/FORMAT.md §9.2), indexed by [`Col`].
-const COLUMNS: [Column; NCOLS] = [
+pub(crate) const COLUMNS: [Column; NCOLS] = [
     Column::integer("cycle", 1, U32_MAX),
     Column::integer("step", 0, USIZE_MAX),
     Column::integer("head", 1, U32_MAX),
@@ -89,6 +89,13 @@ pub(super) fn invalid(file: &str, (line, column): (u64, u64), message: String) -
 
 impl From<TableError> for SelfcalError {
     fn from(e: TableError) -> Self {
+        if let Some(found) = e.found() {
+            return SelfcalError::WrongKind {
+                location: e.location,
+                message: e.message,
+                found,
+            };
+        }
         SelfcalError::Invalid {
             location: e.location,
             message: e.message,

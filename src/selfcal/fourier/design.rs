@@ -376,6 +376,7 @@ impl OffGridDesign {
             sigma: choose_sigma(rss, dof, stated_sigma),
             cofactor: Cofactor::structured(layout, structured),
             layout,
+            incomplete_cycles: Vec::new(),
         })
     }
 }

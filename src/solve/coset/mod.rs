@@ -342,5 +342,6 @@ pub(crate) fn solve(
         sigma: super::choose_sigma(rss, dof, stated_sigma),
         cofactor: Cofactor::cosets(layout, structured),
         layout,
+        incomplete_cycles: Vec::new(),
     }))
 }

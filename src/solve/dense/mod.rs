@@ -199,6 +199,7 @@ pub(crate) fn dense_least_squares_observed(
         sigma: choose_sigma(rss, dof, stated_sigma),
         cofactor,
         layout,
+        incomplete_cycles: Vec::new(),
     })
 }
 
