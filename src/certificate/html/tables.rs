@@ -110,6 +110,17 @@ pub(super) fn result_cells(
     }
 }
 
+/// The heading of the u column: the combined standard uncertainty behind U (U = k·u)
+/// where U is stated; the fit's own type A u, labelled as such, where it is not
+/// (docs/FORMAT.md §10.4).
+pub(super) fn u_header(combined: bool) -> &'static str {
+    if combined {
+        "u / ″"
+    } else {
+        "u of the fit (type A) / ″"
+    }
+}
+
 /// One family's table: index (and angle) columns, value, u, U, k.
 pub(super) struct FamilyTable<'a> {
     pub(super) id: &'a str,
@@ -118,7 +129,11 @@ pub(super) struct FamilyTable<'a> {
     pub(super) indices: Vec<String>,
     pub(super) angles_deg: Option<&'a [f64]>,
     pub(super) values: &'a [f64],
+    /// The standard uncertainty shown: the one behind U where U is stated
+    /// ([`u_header`]).
     pub(super) u: Option<&'a [f64]>,
+    /// Whether `u` is the combined standard uncertainty behind U (else the fit's own).
+    pub(super) u_combined: bool,
     pub(super) expanded_u: Option<&'a [f64]>,
     pub(super) k: Option<Vec<Option<f64>>>,
 }
@@ -127,7 +142,7 @@ pub(super) fn family_table(out: &mut String, t: &FamilyTable) {
     let _ = writeln!(
         out,
         "<table class=\"results\" id=\"{}\"><caption>{}</caption><thead><tr><th>{}</th>{}\
-         <th class=\"num\">value / ″</th><th class=\"num\">u / ″</th><th class=\"num\">U / ″</th><th class=\"num\">k</th></tr></thead><tbody>",
+         <th class=\"num\">value / ″</th><th class=\"num\">{}</th><th class=\"num\">U / ″</th><th class=\"num\">k</th></tr></thead><tbody>",
         t.id,
         esc(t.caption),
         esc(t.index_header),
@@ -135,7 +150,8 @@ pub(super) fn family_table(out: &mut String, t: &FamilyTable) {
             "<th class=\"num\">angle / °</th>"
         } else {
             ""
-        }
+        },
+        u_header(t.u_combined),
     );
     for (i, value) in t.values.iter().enumerate() {
         let _ = writeln!(
@@ -167,16 +183,37 @@ pub(super) fn solve_tables(out: &mut String, r: &SolveReport, prefix: &str) {
             .map(|p| crate::measurement::step_angle_deg(p as u32, r.encoder_error.len()))
             .collect(),
     };
+    // with a budget, the u beside U and k is its combined u_c (U = k·u_c); without one,
+    // the fit's own type A u, labelled so
+    let budget = r.uncertainty.as_ref();
+    let combined = budget.is_some();
+    let pick =
+        |family: Option<&FamilyUncertainty>, fit: Option<&'_ Vec<f64>>| -> Option<Vec<f64>> {
+            match family {
+                Some(f) => Some(f.u.clone()),
+                None => fit.cloned(),
+            }
+        };
+    let pitch_u = pick(
+        budget.map(|b| &b.pitch_deviation),
+        r.pitch_deviation_u.as_ref(),
+    );
+    let face_u = pick(
+        budget.map(|b| &b.face_deviation),
+        r.face_deviation_u.as_ref(),
+    );
+    let encoder_u = pick(budget.map(|b| &b.encoder_error), r.encoder_error_u.as_ref());
     family_table(
         out,
         &FamilyTable {
             id: &id("pitch-deviation"),
             caption: "Pitch deviations β",
-            index_header: "face k",
+            index_header: "face",
             indices: faces.clone(),
             angles_deg: None,
             values: &r.pitch_deviation,
-            u: r.pitch_deviation_u.as_deref(),
+            u: pitch_u.as_deref(),
+            u_combined: combined,
             expanded_u: r.pitch_deviation_expanded_u.as_deref(),
             k: r.pitch_deviation_k.clone(),
         },
@@ -186,11 +223,12 @@ pub(super) fn solve_tables(out: &mut String, r: &SolveReport, prefix: &str) {
         &FamilyTable {
             id: &id("face-deviation"),
             caption: "Face deviations φ (φ[N] = 0 by definition)",
-            index_header: "face k",
+            index_header: "face",
             indices: faces,
             angles_deg: None,
             values: &r.face_deviation,
-            u: r.face_deviation_u.as_deref(),
+            u: face_u.as_deref(),
+            u_combined: combined,
             expanded_u: r.face_deviation_expanded_u.as_deref(),
             k: r.face_deviation_k.clone(),
         },
@@ -204,13 +242,17 @@ pub(super) fn solve_tables(out: &mut String, r: &SolveReport, prefix: &str) {
             indices: (0..r.encoder_error.len()).map(|p| p.to_string()).collect(),
             angles_deg: Some(&angles),
             values: &r.encoder_error,
-            u: r.encoder_error_u.as_deref(),
+            u: encoder_u.as_deref(),
+            u_combined: combined,
             expanded_u: r.encoder_error_expanded_u.as_deref(),
             k: r.encoder_error_k.clone(),
         },
     );
     let setup_values: Vec<f64> = r.setup_error.iter().map(|s| s.value).collect();
-    let setup_u: Option<Vec<f64>> = r.setup_error.iter().map(|s| s.u).collect();
+    let setup_u: Option<Vec<f64>> = match budget {
+        Some(b) => Some(b.setup_error.u.clone()),
+        None => r.setup_error.iter().map(|s| s.u).collect(),
+    };
     let setup_expanded: Option<Vec<f64>> = r.setup_error.iter().map(|s| s.expanded_u).collect();
     family_table(
         out,
@@ -226,6 +268,7 @@ pub(super) fn solve_tables(out: &mut String, r: &SolveReport, prefix: &str) {
             angles_deg: None,
             values: &setup_values,
             u: setup_u.as_deref(),
+            u_combined: combined,
             expanded_u: setup_expanded.as_deref(),
             k: Some(r.setup_error.iter().map(|s| s.k).collect()),
         },
@@ -343,18 +386,41 @@ pub(super) fn budget_table(out: &mut String, t: &BudgetTable) {
             num(share(r.contribution), 1),
         );
     }
+    // the combination, each number on its own labelled line, under the contributions
+    // it combines (u_c is their root sum of squares)
+    let k_text = family.k[j]
+        .and_then(crate::certificate::rounding::round_coverage_factor)
+        .unwrap_or_else(|| "—".to_string());
+    let u_text = crate::certificate::rounding::round_result(0.0, family.expanded_u[j])
+        .map_or_else(|| "—".to_string(), |r| r.expanded_u);
+    let line = |label: &str, cell: String| {
+        format!("<tr><th colspan=\"7\">{label}</th>{cell}<td></td></tr>")
+    };
     let _ = writeln!(
         out,
-        "</tbody><tfoot><tr><th colspan=\"4\">Combined standard uncertainty u<sub>c</sub>; ν<sub>eff</sub>; k; U</th>\
-         {}<td></td>{}<td class=\"num\">k = {}</td><td class=\"num\" data-value=\"{}\">U = {}</td></tr></tfoot></table>",
-        num(Some(uc), ARCSEC_DECIMALS),
-        num(family.dof_eff[j], 1),
-        family.k[j]
-            .and_then(crate::certificate::rounding::round_coverage_factor)
-            .unwrap_or_else(|| "—".to_string()),
-        family.expanded_u[j],
-        crate::certificate::rounding::round_result(0.0, family.expanded_u[j])
-            .map_or_else(|| "—".to_string(), |r| r.expanded_u),
+        "</tbody><tfoot>{}{}{}{}</tfoot></table>",
+        line(
+            "Combined standard uncertainty u<sub>c</sub> / ″",
+            num(Some(uc), ARCSEC_DECIMALS)
+        ),
+        line(
+            "Effective degrees of freedom ν<sub>eff</sub>",
+            num(family.dof_eff[j], 1)
+        ),
+        line(
+            "Coverage factor k",
+            match family.k[j] {
+                Some(k) => format!("<td class=\"num\" data-value=\"{k}\">{k_text}</td>"),
+                None => num(None, 0),
+            }
+        ),
+        line(
+            "Expanded uncertainty U = k·u<sub>c</sub> / ″",
+            format!(
+                "<td class=\"num\" data-value=\"{}\">{u_text}</td>",
+                family.expanded_u[j]
+            )
+        ),
     );
 }
 
@@ -442,6 +508,12 @@ pub(super) fn selfcal_tables(out: &mut String, r: &SelfcalReport, id_prefix: &st
         format!("{id_prefix}encoder-error"),
         format!("{id_prefix}head-error"),
     );
+    // the u behind U = k·u: the budget's u_c with a budget, else the fit's u (with the
+    // lost harmonics' and the head angles' parts), from which U is formed
+    let encoder_u = match &r.uncertainty {
+        Some(b) => Some(b.encoder_error.u.clone()),
+        None => r.encoder_error_u.clone(),
+    };
     family_table(
         out,
         &FamilyTable {
@@ -451,7 +523,8 @@ pub(super) fn selfcal_tables(out: &mut String, r: &SelfcalReport, id_prefix: &st
             indices: (0..r.encoder_error.len()).map(|p| p.to_string()).collect(),
             angles_deg: Some(&r.encoder_angle_deg),
             values: &r.encoder_error,
-            u: r.encoder_error_u.as_deref(),
+            u: encoder_u.as_deref(),
+            u_combined: true,
             expanded_u: r.encoder_error_expanded_u.as_deref(),
             k: r.encoder_error_k
                 .as_ref()
@@ -460,7 +533,10 @@ pub(super) fn selfcal_tables(out: &mut String, r: &SelfcalReport, id_prefix: &st
     );
     let values: Vec<f64> = r.head_error.iter().map(|h| h.value).collect();
     let angles: Vec<f64> = r.head_error.iter().map(|h| h.angle_deg).collect();
-    let u: Option<Vec<f64>> = r.head_error.iter().map(|h| h.u).collect();
+    let u: Option<Vec<f64>> = match &r.uncertainty {
+        Some(b) => Some(b.head_error.u.clone()),
+        None => r.head_error.iter().map(|h| h.u).collect(),
+    };
     let expanded: Option<Vec<f64>> = r.head_error.iter().map(|h| h.expanded_u).collect();
     family_table(
         out,
@@ -472,6 +548,7 @@ pub(super) fn selfcal_tables(out: &mut String, r: &SelfcalReport, id_prefix: &st
             angles_deg: Some(&angles),
             values: &values,
             u: u.as_deref(),
+            u_combined: true,
             expanded_u: expanded.as_deref(),
             k: Some(r.head_error.iter().map(|h| h.k).collect()),
         },
