@@ -16,8 +16,8 @@ use crate::output::SOFTWARE_VERSION;
 use crate::output::SolveReport;
 use crate::output::selfcal::SelfcalReport;
 use tables::{
-    ARCSEC_DECIMALS, diagnosis_body, fit_summary, num, polygon_budget, rounded, selfcal_budget,
-    selfcal_tables, solve_tables,
+    decision_pair_cells, diagnosis_body, en_cell, fit_summary, num, polygon_budget,
+    rounded_pair_cells, selfcal_budget, selfcal_tables, solve_tables,
 };
 
 /// The style sheet: print on A4, repeated table headers, no figure split over two pages.
@@ -549,12 +549,15 @@ fn comparison(s: &mut Sections, report: &CalibrationReport) {
         },
         if c.verdict_ok() { "pass" } else { "fail" },
         esc(&c.verdict_sentence()),
-        rounded(c.max_abs_en, 2)
+        crate::certificate::rounding::en_text(c.max_abs_en).replace('-', "−")
     );
     s.html.push_str(
-        "<table class=\"comparison\" id=\"comparison-rows\"><thead><tr><th>Quantity</th><th>Index</th>\
-         <th>angle / °</th><th>a / ″</th><th>b / ″</th><th>a − b / ″</th><th>U<sub>a</sub> / ″</th>\
-         <th>U<sub>b</sub> / ″</th><th>En</th></tr></thead><tbody>\n",
+        "<table class=\"comparison\" id=\"comparison-rows\"><caption>Each value with its U as \
+         GUM 7.2.6 states it; a − b beside U(a − b) = √(U<sub>a</sub>² + U<sub>b</sub>²), the En \
+         denominator, with the digits it takes to see whether |a − b| exceeds it</caption>\
+         <thead><tr><th>Quantity</th><th>Index</th>\
+         <th>angle / °</th><th>a / ″</th><th>U<sub>a</sub> / ″</th><th>b / ″</th>\
+         <th>U<sub>b</sub> / ″</th><th>a − b / ″</th><th>U(a − b) / ″</th><th>En</th></tr></thead><tbody>\n",
     );
     for r in &c.rows {
         let class = if !r.in_verdict {
@@ -564,18 +567,18 @@ fn comparison(s: &mut Sections, report: &CalibrationReport) {
         } else {
             ""
         };
+        // the report compares without a correlation: En's denominator
+        let expanded_d = r.expanded_u_a.hypot(r.expanded_u_b);
         let _ = writeln!(
             s.html,
-            "<tr{class}><td>{}</td><td>{}</td>{}{}{}{}{}{}{}</tr>",
+            "<tr{class}><td>{}</td><td>{}</td>{}{}{}{}{}</tr>",
             r.quantity.name(),
             r.index,
             num(r.angle_deg, 3),
-            num(Some(r.a), ARCSEC_DECIMALS),
-            num(Some(r.b), ARCSEC_DECIMALS),
-            num(Some(r.difference), ARCSEC_DECIMALS),
-            num(Some(r.expanded_u_a), ARCSEC_DECIMALS),
-            num(Some(r.expanded_u_b), ARCSEC_DECIMALS),
-            num(Some(r.en), 2),
+            rounded_pair_cells(r.a, r.expanded_u_a),
+            rounded_pair_cells(r.b, r.expanded_u_b),
+            decision_pair_cells(r.difference, expanded_d),
+            en_cell(r.en),
         );
     }
     s.html.push_str("</tbody></table>\n");

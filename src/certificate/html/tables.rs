@@ -61,6 +61,33 @@ pub(super) fn rounded_pair_cells(value: f64, uncertainty: f64) -> String {
     }
 }
 
+/// Two cells, a value and the expanded uncertainty it is judged against (a difference
+/// and En's denominator, a degree of equivalence and its U), with the digits it takes
+/// for the shown numbers to say what the unrounded ones decide
+/// ([`crate::certificate::rounding::round_against`]); each with its `data-value`.
+pub(super) fn decision_pair_cells(value: f64, uncertainty: f64) -> String {
+    match crate::certificate::rounding::round_against(value, uncertainty) {
+        Some(r) => format!(
+            "<td class=\"num\" data-value=\"{value}\">{}</td><td class=\"num\" data-value=\"{uncertainty}\">{}</td>",
+            r.value.replace('-', "−"),
+            r.expanded_u.replace('-', "−")
+        ),
+        None => rounded_pair_cells(value, uncertainty),
+    }
+}
+
+/// The cell of an En number ([`crate::certificate::rounding::en_text`]), its value in
+/// `data-value`.
+pub(super) fn en_cell(en: f64) -> String {
+    if !en.is_finite() {
+        return num(None, 2);
+    }
+    format!(
+        "<td class=\"num\" data-value=\"{en}\">{}</td>",
+        crate::certificate::rounding::en_text(en).replace('-', "−")
+    )
+}
+
 /// A result's cells as a certificate states them ([`crate::certificate::rounding`]):
 /// value and U rounded by GUM 7.2.6, u to two significant digits rounded up, k to three
 /// significant digits; each with its unrounded number in `data-value`. Without U, the
@@ -683,6 +710,14 @@ pub(super) fn diagnosis_body(out: &mut String, report: &DiagnosisReport) {
         let _ = writeln!(out, "<p class=\"note\">{}</p>", esc(note));
     }
     out.push_str("<h3>Results of the final model</h3>\n");
+    if effects.is_empty() {
+        // the final model is the base model: its results are the Results section's
+        out.push_str(
+            "<p id=\"final-model-same\">No effect was found: the final model is the base \
+             model, and its results are those of the section Results above.</p>\n",
+        );
+        return;
+    }
     match report {
         DiagnosisReport::Polygon(d) => solve_tables(out, &d.after, "final-"),
         DiagnosisReport::Selfcal(d) => selfcal_tables(out, &d.after, "final-"),
