@@ -29,6 +29,7 @@ pub mod dcc;
 pub mod html;
 mod inputs;
 mod kc;
+mod manifest;
 pub mod meta;
 pub mod rounding;
 

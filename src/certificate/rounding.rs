@@ -211,6 +211,36 @@ pub fn round_coverage_factor(k: f64) -> Option<String> {
 mod tests {
     use super::*;
 
+    /// A value judged against U: the digits its mark needs, by hand.
+    #[test]
+    fn a_value_against_its_u_shows_what_decides() {
+        // (value, U) → (value, U): |d| > U needs a larger shown |d|
+        let cases: [(f64, f64, &str, &str); 6] = [
+            // tie at GUM's 0.13/0.13 with |d| > U: 0.131/0.129 at three places
+            (-0.1312, 0.1281, "-0.131", "0.129"),
+            // 0.1285 against 0.1281: three places tie (0.129 up, 0.129 near) → four
+            (0.1285, 0.1281, "0.1285", "0.1281"),
+            // |d| ≤ U shown as 0.13 and 0.13 agrees with "|d| ≤ U": as GUM states it
+            (0.1279, 0.1281, "0.13", "0.13"),
+            // far apart: GUM's own digits
+            (0.5, 0.1281, "0.50", "0.13"),
+            (-0.01, 0.1281, "-0.01", "0.13"),
+            // no uncertainty: as round_result
+            (0.0, 0.0, "0", "0"),
+        ];
+        for (value, u, want_value, want_u) in cases {
+            let r = round_against(value, u).unwrap();
+            assert_eq!(
+                (r.value.as_str(), r.expanded_u.as_str()),
+                (want_value, want_u),
+                "{value} against {u}"
+            );
+        }
+        assert_eq!(en_text(1.0), "1.00");
+        assert_eq!(en_text(1.00004), "1.00004");
+        assert_eq!(en_text(-0.001), "0.00");
+    }
+
     /// (value, U) → (value, U, decimals), each worked by hand.
     #[test]
     fn results_round_as_gum_7_2_6_with_u_rounded_up() {
