@@ -693,3 +693,90 @@ fn with_no_effect_found_the_final_model_is_said_once() {
         "a U without its unit: {foot:?}"
     );
 }
+
+#[test]
+fn with_effects_found_the_final_model_is_shown_with_its_u_behind_u() {
+    let dir = temp_dir("effects");
+    let data = dir.join("drift.csv");
+    let out = polycal(&[
+        "simulate",
+        "--drift",
+        "2:2.0",
+        "--seed",
+        "7",
+        "--out",
+        data.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0));
+    let data_text = data.to_str().unwrap();
+    let (html_text, _) = documents(
+        &dir,
+        &[data_text, "--budget", BUDGET, "--diagnose"],
+        false,
+        &[],
+    );
+    let html = Html::parse_document(&html_text);
+    let diagnosed = document_support::json(&[
+        "diagnose", data_text, "--budget", BUDGET, "--format", "json",
+    ]);
+    let effects = diagnosed["effects"].as_array().unwrap();
+    assert!(!effects.is_empty(), "the drift is found");
+    assert!(select(&html, "#final-model-same").is_empty());
+    // the final model's β: u is the budget's u_c of the final model (diagnose --budget's
+    // after.uncertainty), u·k is U to rounding
+    let after = &diagnosed["after"];
+    let floats = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let (u_c, k, big_u) = (
+        floats(&after["uncertainty"]["pitch_deviation"]["u"]),
+        floats(&after["pitch_deviation_k"]),
+        floats(&after["pitch_deviation_U"]),
+    );
+    let td = Selector::parse("td").unwrap();
+    let rows = select(&html, "table#final-pitch-deviation > tbody > tr");
+    assert_eq!(rows.len(), u_c.len());
+    for (i, row) in rows.iter().enumerate() {
+        let cells: Vec<ElementRef> = row.select(&td).collect();
+        let u_value: f64 = cells[2]
+            .value()
+            .attr("data-value")
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert_eq!(u_value, u_c[i], "final β[{}]: u", i + 1);
+        assert!((k[i] * u_c[i] - big_u[i]).abs() <= 1e-12 * big_u[i]);
+        assert_u_behind(
+            Some(&text(&cells[2])),
+            &text(&cells[3]),
+            &text(&cells[4]),
+            (big_u[i], u_c[i], k[i]),
+            &format!("final β[{}]", i + 1),
+        );
+    }
+    // an effect's u is the fit's own, labelled so, its value stated with it (GUM 7.2.6)
+    let headings: Vec<String> = select(&html, "table#effects thead th")
+        .iter()
+        .map(text)
+        .collect();
+    assert_eq!(headings[3], "u of the fit (type A)");
+    let effect_row = &select(&html, "table#effects > tbody > tr")[0];
+    let cells: Vec<ElementRef> = effect_row.select(&td).collect();
+    let (value, u) = (
+        effects[0]["value"].as_f64().unwrap(),
+        effects[0]["u"].as_f64().unwrap(),
+    );
+    document_support::assert_gum_rounded(&text(&cells[2]), &text(&cells[3]), value, u, "effect");
+    // the residual figures: before and after, two panels
+    for ac in [1, 2] {
+        let id = format!("figure-diagnose-residuals-ac{ac}");
+        assert!(
+            !select(&html, &format!("figure#{id} g.point[data-series=after]")).is_empty(),
+            "ac {ac}"
+        );
+    }
+}

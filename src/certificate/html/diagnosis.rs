@@ -5,7 +5,7 @@
 
 use std::fmt::Write;
 
-use super::tables::{ARCSEC_DECIMALS, num, selfcal_tables, solve_tables};
+use super::tables::{ARCSEC_DECIMALS, num, rounded_pair_cells, selfcal_tables, solve_tables};
 use crate::certificate::DiagnosisReport;
 use crate::figure::svg::esc;
 
@@ -107,11 +107,14 @@ pub(super) fn diagnosis_body(out: &mut String, report: &DiagnosisReport) {
         let (kind, fields, value, u) = crate::certificate::effect_text(e);
         let _ = writeln!(
             out,
-            "<tr><td>{}</td><td>{}</td>{}{}</tr>",
+            "<tr><td>{}</td><td>{}</td>{}</tr>",
             esc(&kind),
             esc(&fields),
-            num(value, ARCSEC_DECIMALS),
-            num(u, ARCSEC_DECIMALS)
+            // the value with its u as section 10.4 states them, as the DCC's text does
+            match (value, u) {
+                (Some(value), Some(u)) if u > 0.0 => rounded_pair_cells(value, u),
+                _ => format!("{}{}", num(value, ARCSEC_DECIMALS), num(u, ARCSEC_DECIMALS)),
+            }
         );
     }
     out.push_str("</tbody></table>\n");
