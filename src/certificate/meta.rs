@@ -16,7 +16,7 @@ use crate::uncertainty::budget_file::location;
 use super::ReportError;
 
 /// The metadata keys, in the order a report shows them, with their labels.
-pub const KEYS: [(&str, &str); 29] = [
+pub const KEYS: [(&str, &str); 32] = [
     ("title", "Title"),
     ("certificate", "Certificate number"),
     ("customer", "Customer"),
@@ -29,6 +29,7 @@ pub const KEYS: [(&str, &str); 29] = [
     ("encoder", "Rotary table / encoder"),
     ("encoder_manufacturer", "Encoder manufacturer"),
     ("encoder_serial", "Encoder serial number"),
+    ("item_condition", "Condition of the item"),
     ("laboratory", "Laboratory"),
     ("laboratory_address", "Laboratory address"),
     ("laboratory_email", "Laboratory e-mail"),
@@ -40,7 +41,9 @@ pub const KEYS: [(&str, &str); 29] = [
     ),
     ("location", "Place of calibration"),
     ("performance_location", "Calibrated at"),
+    ("date_of_receipt", "Date of receipt of the item"),
     ("date_of_measurement", "Date of measurement"),
+    ("date_of_issue", "Date of issue"),
     ("operator", "Operator"),
     ("approved_by", "Approved by"),
     ("traceability", "Traceability"),
@@ -78,11 +81,20 @@ pub fn control_character(text: &str) -> Option<(usize, char)> {
 }
 
 /// Why a text with the control character `c` is refused.
-fn refused_character(c: char) -> String {
+pub(super) fn refused_character(c: char) -> String {
     format!(
         "a control character (U+{:04X}) cannot be written in a report or certificate",
         c as u32
     )
+}
+
+/// The metadata keys whose value must be a day `YYYY-MM-DD` wherever it is given (the
+/// metadata file or a comment line), checked when read.
+pub const DATE_KEYS: [&str; 2] = ["date_of_receipt", "date_of_issue"];
+
+/// Why the value of a date key is refused.
+fn not_a_day(key: &str, value: &str) -> String {
+    format!("{key} “{value}” is not a date YYYY-MM-DD (a real day, e.g. 2026-11-03)")
 }
 
 /// One metadata field: its value and where it came from, or missing.
@@ -188,6 +200,22 @@ impl Metadata {
         }
     }
 
+    /// Gives the date of issue, when no source gives one, the day the report is written:
+    /// the first ten characters (`YYYY-MM-DD`) of its RFC 3339 UTC time.
+    pub fn default_date_of_issue(&mut self, generated_utc: &str) {
+        let Some(day) = generated_utc.get(..10) else {
+            return;
+        };
+        if let Some(field) = self
+            .fields
+            .iter_mut()
+            .find(|f| f.key == "date_of_issue" && f.value.is_none())
+        {
+            field.value = Some(day.to_string());
+            field.source = Some("the day the report was written (UTC)".to_string());
+        }
+    }
+
     /// The value of `key`, if a source gives it.
     pub fn value(&self, key: &str) -> Option<&str> {
         self.fields
@@ -212,6 +240,7 @@ struct MetaFile {
     encoder: Option<Spanned<String>>,
     encoder_manufacturer: Option<Spanned<String>>,
     encoder_serial: Option<Spanned<String>>,
+    item_condition: Option<Spanned<String>>,
     laboratory: Option<Spanned<String>>,
     laboratory_address: Option<Spanned<String>>,
     laboratory_email: Option<Spanned<String>>,
@@ -220,7 +249,9 @@ struct MetaFile {
     accreditation_code: Option<Spanned<String>>,
     location: Option<Spanned<String>>,
     performance_location: Option<Spanned<String>>,
+    date_of_receipt: Option<Spanned<String>>,
     date_of_measurement: Option<Spanned<String>>,
+    date_of_issue: Option<Spanned<String>>,
     operator: Option<Spanned<String>>,
     approved_by: Option<Spanned<String>>,
     traceability: Option<Spanned<String>>,
@@ -314,7 +345,16 @@ fn read_meta_file(
         }
         other => other.map(|(span, v)| (v, span.start)),
     };
-    let values: [(&'static str, Option<(String, usize)>); 29] = [
+    // the dates ISO/IEC 17025 7.8.2.1 asks for, days YYYY-MM-DD (the DCC's xs:date)
+    let day = |key: &str, value: Option<Spanned<String>>| match checked(value)? {
+        Some((span, v)) if !super::dcc::is_date(v.trim()) => {
+            Err(at(span.start, not_a_day(key, &v)))
+        }
+        other => Ok(other.map(|(span, v)| (v.trim().to_string(), span.start))),
+    };
+    let date_of_receipt = day("date_of_receipt", file.date_of_receipt)?;
+    let date_of_issue = day("date_of_issue", file.date_of_issue)?;
+    let values: [(&'static str, Option<(String, usize)>); 32] = [
         ("title", placed(file.title)?),
         ("certificate", placed(file.certificate)?),
         ("customer", placed(file.customer)?),
@@ -327,6 +367,7 @@ fn read_meta_file(
         ("encoder", placed(file.encoder)?),
         ("encoder_manufacturer", placed(file.encoder_manufacturer)?),
         ("encoder_serial", placed(file.encoder_serial)?),
+        ("item_condition", placed(file.item_condition)?),
         ("laboratory", placed(file.laboratory)?),
         ("laboratory_address", placed(file.laboratory_address)?),
         ("laboratory_email", placed(file.laboratory_email)?),
@@ -335,7 +376,9 @@ fn read_meta_file(
         ("accreditation_code", placed(file.accreditation_code)?),
         ("location", placed(file.location)?),
         ("performance_location", performance_location),
+        ("date_of_receipt", date_of_receipt),
         ("date_of_measurement", placed(file.date_of_measurement)?),
+        ("date_of_issue", date_of_issue),
         ("operator", placed(file.operator)?),
         ("approved_by", placed(file.approved_by)?),
         ("traceability", placed(file.traceability)?),
@@ -399,103 +442,6 @@ pub fn comment_metadata(text: &str) -> (Vec<(&'static str, String, u64)>, Vec<St
     (values, notes)
 }
 
-/// A run directory's manifest: the run's facts and the instruments' identification.
-fn read_manifest(dir: &Path) -> Result<(RunRecord, Vec<InstrumentEntry>), ReportError> {
-    let path = dir.join("manifest.json");
-    let source = path.display().to_string();
-    let (bytes, _) = crate::input::read_bytes(&path)
-        .map_err(|(file, source)| ReportError::Io { file, source })?;
-    let manifest: serde_json::Value =
-        serde_json::from_slice(&bytes).map_err(|e| ReportError::Meta {
-            location: Location::new(&source, e.line() as u64, e.column() as u64),
-            message: format!("not a run manifest: {e}"),
-        })?;
-    let Some(object) = manifest.as_object() else {
-        return Err(ReportError::Meta {
-            location: Location::new(&source, 1, 1),
-            message: "not a run manifest: not a JSON object".into(),
-        });
-    };
-    let text_of = |value: &serde_json::Value| match value {
-        serde_json::Value::String(s) => s.clone(),
-        other => other.to_string(),
-    };
-    let date_of = |key: &str| {
-        object
-            .get(key)
-            .and_then(serde_json::Value::as_str)
-            .and_then(|t| t.get(..10))
-            .map(str::to_string)
-    };
-    let (started, ended) = (date_of("started"), date_of("ended"));
-    let mut facts = Vec::new();
-    for (key, label) in [
-        ("software", "Software of the run"),
-        ("started", "Run started (UTC)"),
-        ("ended", "Run ended (UTC)"),
-        ("outcome", "How the run ended"),
-        ("readings", "Readings on disk"),
-        ("expected_readings", "Readings of the complete run"),
-    ] {
-        match object.get(key) {
-            Some(serde_json::Value::Null) | None => {}
-            Some(value) => facts.push((label.to_string(), text_of(value))),
-        }
-    }
-    if let Some(settings) = object.get("settings").and_then(|s| s.as_object()) {
-        let text: Vec<String> = settings
-            .iter()
-            .map(|(k, v)| format!("{k} = {}", text_of(v)))
-            .collect();
-        facts.push(("Run settings".into(), text.join(", ")));
-    }
-    let mut instruments = Vec::new();
-    if let Some(ids) = object.get("instruments").and_then(|s| s.as_object()) {
-        for (key, role) in [
-            ("ac1", "autocollimator 1"),
-            ("ac2", "autocollimator 2"),
-            ("table", "rotary table controller"),
-        ] {
-            if let Some(id) = ids.get(key).filter(|v| !v.is_null()) {
-                instruments.push(InstrumentEntry {
-                    role: Some(role.into()),
-                    name: Some(text_of(id)),
-                    source: format!("{source} (identification reply)"),
-                    ..InstrumentEntry::default()
-                });
-            }
-        }
-    }
-    let shown = facts
-        .iter()
-        .map(|(_, v)| v.as_str())
-        .chain(instruments.iter().filter_map(|i| i.name.as_deref()));
-    for value in shown {
-        if let Some((_, c)) = control_character(value) {
-            // where the manifest writes it: raw (not JSON) or as an escape
-            let text = String::from_utf8_lossy(&bytes);
-            let escape = format!("\\u{:04x}", c as u32);
-            let offset = text
-                .find(&escape)
-                .or_else(|| text.find(&escape.to_uppercase().replace("\\U", "\\u")))
-                .unwrap_or(0);
-            return Err(ReportError::Meta {
-                location: location(&source, &text, offset),
-                message: refused_character(c),
-            });
-        }
-    }
-    Ok((
-        RunRecord {
-            source,
-            facts,
-            started_date: started,
-            ended_date: ended,
-        },
-        instruments,
-    ))
-}
-
 /// Gathers the metadata of a report from its sources: the metadata file's text (with its
 /// name), the measurement file's text, and a run directory. A key given by more than one
 /// source takes the metadata file's value, then the measurement file's, then the
@@ -531,13 +477,15 @@ pub fn gather(
     let (comment_values, file_notes) = comment_metadata(measurement_text);
     let run = match run_dir {
         Some(dir) => {
-            let (record, ids) = read_manifest(dir)?;
+            let (record, ids) = super::manifest::read_manifest(dir)?;
             instruments.extend(ids);
             Some(record)
         }
         None => None,
     };
     let mut conflicts = Vec::new();
+    // the first comment line whose date is not a day
+    let mut date_error = None;
     let fields = KEYS
         .iter()
         .map(|&(key, label)| {
@@ -580,6 +528,15 @@ pub fn gather(
                         )
                     })
                 });
+            if let Some((value, _, at)) = from_comment
+                .as_ref()
+                .filter(|(v, _, _)| DATE_KEYS.contains(&key) && !super::dcc::is_date(v))
+            {
+                date_error = date_error.take().or(Some(ReportError::Meta {
+                    location: at.clone(),
+                    message: not_a_day(key, value),
+                }));
+            }
             let chosen = match (from_meta, from_comment.or(from_manifest)) {
                 (Some(m), Some(c)) => {
                     if m.0 != c.0 {
@@ -601,6 +558,9 @@ pub fn gather(
             }
         })
         .collect();
+    if let Some(error) = date_error {
+        return Err(error);
+    }
     Ok(Metadata {
         fields,
         instruments,

@@ -29,6 +29,7 @@ pub mod dcc;
 pub mod html;
 mod inputs;
 mod kc;
+mod manifest;
 pub mod meta;
 pub mod rounding;
 
@@ -528,6 +529,11 @@ impl CalibrationReport {
         if let Some(k) = &key_comparison {
             figures.extend(figure::kc_figures(&k.comparison));
         }
+        let generated_utc = inputs
+            .generated_utc
+            .clone()
+            .unwrap_or_else(|| crate::clock::rfc3339(crate::clock::unix_now()));
+        metadata.default_date_of_issue(&generated_utc);
         Ok(Self {
             inputs: files,
             metadata,
@@ -535,14 +541,50 @@ impl CalibrationReport {
             diagnosis,
             comparison,
             figures,
-            generated_utc: inputs
-                .generated_utc
-                .clone()
-                .unwrap_or_else(|| crate::clock::rfc3339(crate::clock::unix_now())),
+            generated_utc,
             command_line: inputs.command_line.clone(),
             stated_cross_talk: inputs.stated_cross_talk.clone(),
             key_comparison,
         })
+    }
+
+    /// The items the results relate to, in words (ISO/IEC 17025 7.8.2.1 o): the polygon
+    /// and the encoder of a polygon calibration, the encoder of a self-calibration, each
+    /// by its name and serial number where given.
+    pub fn items_calibrated(&self) -> String {
+        let m = &self.metadata;
+        let named = |name: String, serial: Option<&str>| match serial {
+            Some(serial) => format!("{name} (serial number {serial})"),
+            None => name,
+        };
+        let encoder = named(
+            m.value("encoder")
+                .unwrap_or("the rotary table with its encoder")
+                .to_string(),
+            m.value("encoder_serial"),
+        );
+        match &self.evaluation {
+            Evaluation::Polygon { solve, .. } => format!(
+                "{} and {encoder}",
+                named(
+                    m.value("artefact").map_or_else(
+                        || format!("the optical polygon of {} faces", solve.faces),
+                        str::to_string
+                    ),
+                    m.value("artefact_serial")
+                )
+            ),
+            Evaluation::Selfcal { .. } => encoder,
+        }
+    }
+
+    /// The statement that the results relate only to the items calibrated (ISO/IEC 17025
+    /// 7.8.2.1 o), as both documents state it.
+    pub fn results_relate_statement(&self) -> String {
+        format!(
+            "The results relate only to the items calibrated: {}.",
+            self.items_calibrated()
+        )
     }
 
     /// The verdicts: a failed comparison, a model not adequate.

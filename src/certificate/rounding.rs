@@ -104,6 +104,95 @@ pub fn round_result(value: f64, expanded_u: f64) -> Option<RoundedResult> {
     })
 }
 
+/// Extra digits [`round_against`] adds at most.
+const MAX_EXTRA_DIGITS: i32 = 6;
+
+/// A value and the expanded uncertainty it is judged against (a degree of equivalence
+/// d and U(d), a difference a − b and the En denominator), stated as [`round_result`]
+/// states them, with as many more digits as it takes for the shown numbers to say what
+/// the unrounded ones decide: |value| > U shown as a larger |value|, |value| ≤ U as one
+/// no larger (at most six digits more; U is always rounded up, the value to nearest).
+/// Without it a row could show d = −0.13 beside U = 0.13 and be marked "|d| > U".
+///
+/// ```
+/// use polycal::certificate::rounding::{round_against, round_result};
+///
+/// // |d| = 0.1452 > U = 0.144502: GUM 7.2.6 alone shows 0.15 and 0.15
+/// let plain = round_result(-0.1452, 0.144502).unwrap();
+/// assert_eq!((plain.value.as_str(), plain.expanded_u.as_str()), ("-0.15", "0.15"));
+/// let told = round_against(-0.1452, 0.144502).unwrap();
+/// assert_eq!((told.value.as_str(), told.expanded_u.as_str()), ("-0.1452", "0.1446"));
+/// ```
+///
+/// `None` where [`round_result`] gives none.
+pub fn round_against(value: f64, expanded_u: f64) -> Option<RoundedResult> {
+    let gum = round_result(value, expanded_u)?;
+    if expanded_u == 0.0 {
+        return Some(gum);
+    }
+    let exceeds = value.abs() > expanded_u;
+    let agrees = |r: &RoundedResult| {
+        let (v, u) = (
+            r.value.parse::<f64>().map(f64::abs),
+            r.expanded_u.parse::<f64>(),
+        );
+        match (v, u) {
+            (Ok(v), Ok(u)) => (v > u) == exceeds,
+            _ => true,
+        }
+    };
+    let mut shown = gum;
+    for _ in 0..MAX_EXTRA_DIGITS {
+        if agrees(&shown) {
+            break;
+        }
+        let decimals = shown.decimals + 1;
+        shown = RoundedResult {
+            value: fixed(value, decimals),
+            expanded_u: fixed(rounded_up(expanded_u, decimals), decimals),
+            decimals,
+        };
+    }
+    Some(shown)
+}
+
+/// `x` ≥ 0 rounded up at `decimals` places (to tens, hundreds, … for `decimals` < 0),
+/// not past a digit it equals up to the error of its binary form.
+fn rounded_up(x: f64, decimals: i32) -> f64 {
+    let scale = 10f64.powi(decimals);
+    let m = x * scale;
+    let digits = if m - m.floor() <= ROUND_UP_SLACK * m.max(1.0) {
+        m.floor()
+    } else {
+        m.ceil()
+    };
+    digits / scale
+}
+
+/// An En number as both documents show it: two decimals, and more (up to six) where
+/// two would hide that |En| > 1 (1.0048 is `1.005`, not `1.00` beside a "fails" mark).
+/// ASCII minus; `-0.00` is `0.00`.
+///
+/// ```
+/// use polycal::certificate::rounding::en_text;
+///
+/// assert_eq!(en_text(0.4812), "0.48");
+/// assert_eq!(en_text(-1.0048), "-1.005");
+/// assert_eq!(en_text(0.9996), "1.00");
+/// ```
+pub fn en_text(en: f64) -> String {
+    let mut decimals = 2;
+    while en.abs() > 1.0
+        && decimals < 2 + MAX_EXTRA_DIGITS
+        && fixed(en.abs(), decimals)
+            .parse::<f64>()
+            .is_ok_and(|t| t <= 1.0)
+    {
+        decimals += 1;
+    }
+    fixed(en, decimals)
+}
+
 /// A coverage factor to three significant digits, rounded to nearest (`2.00`, `1.99`,
 /// `12.7`, `128`). `None` for one below 1 or not finite.
 pub fn round_coverage_factor(k: f64) -> Option<String> {
@@ -121,6 +210,36 @@ pub fn round_coverage_factor(k: f64) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A value judged against U: the digits its mark needs, by hand.
+    #[test]
+    fn a_value_against_its_u_shows_what_decides() {
+        // (value, U) → (value, U): |d| > U needs a larger shown |d|
+        let cases: [(f64, f64, &str, &str); 6] = [
+            // tie at GUM's 0.13/0.13 with |d| > U: 0.131/0.129 at three places
+            (-0.1312, 0.1281, "-0.131", "0.129"),
+            // 0.1285 against 0.1281: three places tie (0.129 up, 0.129 near) → four
+            (0.1285, 0.1281, "0.1285", "0.1281"),
+            // |d| ≤ U shown as 0.13 and 0.13 agrees with "|d| ≤ U": as GUM states it
+            (0.1279, 0.1281, "0.13", "0.13"),
+            // far apart: GUM's own digits
+            (0.5, 0.1281, "0.50", "0.13"),
+            (-0.01, 0.1281, "-0.01", "0.13"),
+            // no uncertainty: as round_result
+            (0.0, 0.0, "0", "0"),
+        ];
+        for (value, u, want_value, want_u) in cases {
+            let r = round_against(value, u).unwrap();
+            assert_eq!(
+                (r.value.as_str(), r.expanded_u.as_str()),
+                (want_value, want_u),
+                "{value} against {u}"
+            );
+        }
+        assert_eq!(en_text(1.0), "1.00");
+        assert_eq!(en_text(1.00004), "1.00004");
+        assert_eq!(en_text(-0.001), "0.00");
+    }
 
     /// (value, U) → (value, U, decimals), each worked by hand.
     #[test]

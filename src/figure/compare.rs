@@ -19,6 +19,10 @@ use super::svg::{
 use crate::compare::{Comparison, ComparisonRow};
 use crate::results::Quantity;
 
+/// The marker of a − b in the difference figure: its own, apart from the En markers
+/// (open squares within ±1, filled circles beyond) below it.
+const DIFFERENCE_MARKER: Marker = Marker::Triangle;
+
 /// The family's name in file names, e.g. `pitch-deviation`.
 pub(crate) fn family_slug(quantity: Quantity) -> String {
     quantity.name().replace('_', "-")
@@ -180,23 +184,38 @@ fn difference(
         ));
     }
     let mut body = String::new();
-    let entries = vec![
+    // one marker per series, and a key only for what the figure shows: the ring and the
+    // filled En only where some |En| > 1, the open En only where some |En| ≤ 1
+    let drawn: Vec<f64> = rows
+        .iter()
+        .filter(|r| x_of(r).is_finite() && r.difference.is_finite() && r.en.is_finite())
+        .map(|r| r.en.abs())
+        .collect();
+    let some_over = drawn.iter().any(|&en| en > 1.0);
+    let some_within = drawn.iter().any(|&en| en <= 1.0);
+    let mut entries = vec![
         (
-            LegendKey::Marker(Marker::FilledCircle, false),
+            LegendKey::Marker(DIFFERENCE_MARKER, false),
             "a − b".to_string(),
         ),
         (LegendKey::Band, "±√(U_a² + U_b²)".to_string()),
-        (LegendKey::Ring, "|En| > 1".to_string()),
-        (
+    ];
+    if some_over {
+        entries.push((LegendKey::Ring, "a − b with |En| > 1".to_string()));
+    }
+    if some_within {
+        entries.push((
             LegendKey::Marker(Marker::OpenSquare, false),
             "En, |En| ≤ 1".to_string(),
-        ),
-        (
+        ));
+    }
+    if some_over {
+        entries.push((
             LegendKey::Marker(Marker::FilledCircle, false),
             "En, |En| > 1".to_string(),
-        ),
-        (LegendKey::Line(Some("5,3")), "En = ±1".to_string()),
-    ];
+        ));
+    }
+    entries.push((LegendKey::Line(Some("5,3")), "En = ±1".to_string()));
     let top = header_px(&subtitles);
     let legend_px = legend(&mut body, &entries, top);
     let finite = |r: &&&ComparisonRow| x_of(r).is_finite() && r.difference.is_finite();
@@ -291,7 +310,7 @@ fn difference(
     let diff = Series {
         id: "difference".into(),
         label: "a − b".into(),
-        marker: Marker::FilledCircle,
+        marker: DIFFERENCE_MARKER,
         dx_px: 0.0,
         points: rows
             .iter()

@@ -1,7 +1,8 @@
 //! The figures of `polycal diagnose`: per autocollimator, its readings' residuals against
 //! time (or against their order in the file when it has no time), under the base model
 //! (upper panel `before`) and the final model (lower panel `after`), with each effect
-//! found drawn where it acts.
+//! found drawn where it acts; with no effect found the final model is the base model,
+//! and one panel (`before`) shows its residuals.
 //!
 //! Classes (docs/FORMAT.md §10): `point` with `data-series` `before`/`after` and
 //! `data-index` the reading's index in the file; `effect-drift` and `effect-step-level`
@@ -121,29 +122,52 @@ fn one_ac(
             ),
         ),
     };
-    let title = format!("Residuals of autocollimator {ac}, before and after the effects");
+    // no effect found: the final model is the base model, and one panel shows its
+    // residuals (two would be the same panel twice)
+    let one_model = report.effects.is_empty();
     let rms = |r: Option<f64>| r.map_or("—".to_string(), |r| format!("{r:.4}″"));
-    let mut subtitles = vec![format!(
-        "upper: base model (residual RMS {}); lower: final model (RMS {}); {} readings",
-        rms(report.before.residual_rms),
-        rms(report.after.residual_rms),
-        indices.len()
-    )];
+    let (title, mut subtitles) = if one_model {
+        (
+            format!("Residuals of autocollimator {ac} (no effect found)"),
+            vec![format!(
+                "no effect found: the final model is the base model (residual RMS {}); {} readings",
+                rms(report.before.residual_rms),
+                indices.len()
+            )],
+        )
+    } else {
+        (
+            format!("Residuals of autocollimator {ac}, before and after the effects"),
+            vec![format!(
+                "upper: base model (residual RMS {}); lower: final model (RMS {}); {} readings",
+                rms(report.before.residual_rms),
+                rms(report.after.residual_rms),
+                indices.len()
+            )],
+        )
+    };
     subtitles.extend(x_note);
     let mine: Vec<&Effect> = effects
         .iter()
         .filter(|e| effect_ac(e).is_none_or(|a| a == ac))
         .collect();
-    let mut entries = vec![
-        (
+    let mut entries = if one_model {
+        vec![(
             LegendKey::Marker(Marker::FilledCircle, false),
-            "before (base model)".to_string(),
-        ),
-        (
-            LegendKey::Marker(Marker::OpenSquare, false),
-            "after (final model)".to_string(),
-        ),
-    ];
+            "residual (base model = final model)".to_string(),
+        )]
+    } else {
+        vec![
+            (
+                LegendKey::Marker(Marker::FilledCircle, false),
+                "before (base model)".to_string(),
+            ),
+            (
+                LegendKey::Marker(Marker::OpenSquare, false),
+                "after (final model)".to_string(),
+            ),
+        ]
+    };
     let context = EffectContext::default();
     let readings: Vec<Option<Reading>> =
         indices.iter().map(|&i| reading_at(residuals, i)).collect();
@@ -241,7 +265,11 @@ fn one_ac(
         height_px: 150.0,
         x: Axis::covering(xs.iter().copied(), &[], 8, x_label),
         y: Axis {
-            label: "before: residual / ″".into(),
+            label: if one_model {
+                "residual / ″".into()
+            } else {
+                "before: residual / ″".into()
+            },
             ..y.clone()
         },
     };
@@ -254,8 +282,16 @@ fn one_ac(
         },
         ..upper.clone()
     };
-    upper.draw_axes(&mut body, false);
-    lower.draw_axes(&mut body, true);
+    // the panels drawn: the lower only when the final model differs
+    let panels: Vec<&Panel> = if one_model {
+        vec![&upper]
+    } else {
+        vec![&upper, &lower]
+    };
+    upper.draw_axes(&mut body, one_model);
+    if !one_model {
+        lower.draw_axes(&mut body, true);
+    }
     let series = |id: &str, marker, values: &[f64]| Series {
         id: id.into(),
         label: id.into(),
@@ -278,11 +314,13 @@ fn one_ac(
         &upper,
         &[series("before", Marker::FilledCircle, &before)],
     );
-    draw_series(
-        &mut body,
-        &lower,
-        &[series("after", Marker::OpenSquare, &after)],
-    );
+    if !one_model {
+        draw_series(
+            &mut body,
+            &lower,
+            &[series("after", Marker::OpenSquare, &after)],
+        );
+    }
     for (class, value, line) in &lines {
         let points: Vec<String> = line
             .iter()
@@ -300,7 +338,7 @@ fn one_ac(
         );
     }
     for x in &step_x {
-        for panel in [&upper, &lower] {
+        for panel in &panels {
             let xp = px(panel.x_px(*x));
             let _ = writeln!(
                 body,
@@ -313,7 +351,7 @@ fn one_ac(
     }
     let (r_px, _) = marker_px(indices.len());
     for &k in &rings {
-        for (panel, values) in [(&upper, &before), (&lower, &after)] {
+        for (panel, values) in panels.iter().zip([&before, &after]) {
             let (x, y) = (xs[k], values[k]);
             if x.is_finite() && y.is_finite() {
                 let _ = writeln!(
@@ -328,6 +366,7 @@ fn one_ac(
             }
         }
     }
-    let svg = document(lower.bottom_px() + 42.0, &title, &subtitles, &body);
+    let bottom = panels.last().map_or(upper.bottom_px(), |p| p.bottom_px());
+    let svg = document(bottom + 42.0, &title, &subtitles, &body);
     Figure::new(format!("diagnose-residuals-ac{ac}"), title, svg)
 }

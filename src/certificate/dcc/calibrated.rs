@@ -66,8 +66,8 @@ pub(super) enum Form {
     Real,
     /// Whole numbers (face numbers), without a decimal point.
     Whole,
-    /// Rounded to this many decimals (En, as the HTML report shows it).
-    Decimals(usize),
+    /// An En number as the HTML report shows it ([`crate::certificate::rounding::en_text`]).
+    En,
 }
 
 impl Column<'_> {
@@ -87,17 +87,7 @@ impl Column<'_> {
                 let text = xml::real(v, &what(i))?;
                 Ok(match self.form {
                     Form::Whole if v.fract() == 0.0 && v.abs() < 1e15 => format!("{v:.0}"),
-                    // "-0.00" is zero
-                    Form::Decimals(places) => match format!("{v:.places$}") {
-                        t if t
-                            .trim_start_matches('-')
-                            .bytes()
-                            .all(|b| b"0.".contains(&b)) =>
-                        {
-                            t.trim_start_matches('-').to_string()
-                        }
-                        t => t,
-                    },
+                    Form::En => crate::certificate::rounding::en_text(v),
                     _ => text,
                 })
             })

@@ -333,6 +333,10 @@ fn administrative_data(x: &mut Xml, report: &CalibrationReport) -> Result<(), Dc
     x.text("dcc:usedLangCodeISO639_1", &[], "en")?;
     x.text("dcc:mandatoryLangCodeISO639_1", &[], "en")?;
     x.text("dcc:uniqueIdentifier", &[], certificate)?;
+    // a day, checked when the metadata was read
+    if let Some(receipt) = meta.value("date_of_receipt") {
+        x.text("dcc:receiptDate", &[], receipt)?;
+    }
     x.text("dcc:beginPerformanceDate", &[], &begin)?;
     x.text("dcc:endPerformanceDate", &[], &end)?;
     x.text("dcc:performanceLocation", &[], performance_location)?;
@@ -503,11 +507,29 @@ fn statements(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
     if let Some(accreditation) = meta.accreditation() {
         said.push(("polycal_accreditation", accreditation));
     }
+    // ISO/IEC 17025 7.8.2.1 h), o)
+    if let Some(condition) = meta.value("item_condition") {
+        said.push((
+            "polycal_itemCondition",
+            format!("Condition of the item: {condition}"),
+        ));
+    }
+    said.push((
+        "polycal_resultsRelateToItem",
+        report.results_relate_statement(),
+    ));
     x.open("dcc:statements", &[]);
     if let Some(traceability) = meta.value("traceability") {
         x.open("dcc:statement", &[("refType", "polycal_traceability")]);
         x.text("dcc:traceable", &[], "true")?;
         x.content("dcc:declaration", traceability)?;
+        x.close();
+    }
+    // ISO/IEC 17025 7.8.2.1 k): the date of issue, a day (the report's day by default)
+    if let Some(issue) = meta.value("date_of_issue").filter(|d| is_date(d)) {
+        x.open("dcc:statement", &[("refType", "polycal_dateOfIssue")]);
+        x.content("dcc:declaration", &format!("Date of issue: {issue}"))?;
+        x.text("dcc:date", &[], issue)?;
         x.close();
     }
     for (kind, text) in said {

@@ -433,17 +433,17 @@ fn comparison(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
         ),
         values: c.rows.iter().map(|r| r.en).collect(),
         expanded: None,
-        // to two decimals, as the report shows it
-        form: Form::Decimals(2),
+        // to two decimals (more where two would hide |En| > 1), as the report shows it
+        form: Form::En,
     }
     .write(x)?;
     x.close();
     x.content(
         "dcc:text",
         &format!(
-            "Verdict: {}. Largest |En| = {:.2}.",
+            "Verdict: {}. Largest |En| = {}.",
             c.verdict_sentence(),
-            c.max_abs_en
+            crate::certificate::rounding::en_text(c.max_abs_en)
         ),
     )?;
     x.close();

@@ -8,7 +8,7 @@
 use std::fmt::Write;
 
 use super::Sections;
-use super::tables::{ARCSEC_DECIMALS, num, rounded_pair_cells};
+use super::tables::{ARCSEC_DECIMALS, decision_pair_cells, num, rounded_pair_cells};
 use crate::certificate::{CalibrationReport, KeyComparisonSection};
 use crate::figure::svg::esc;
 use crate::kc::{KeyComparison, ReferenceMethod, SearchMethod};
@@ -334,7 +334,8 @@ fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection) {
             let _ = write!(
                 out,
                 "{}<td>{}</td>",
-                rounded_pair_cells(d.d[k], d.expanded_u[k]),
+                // the digits it takes to see whether |d| > U, as the mark says
+                decision_pair_cells(d.d[k], d.expanded_u[k]),
                 if within { "yes" } else { "no *" }
             );
         }

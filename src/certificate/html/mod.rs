@@ -6,6 +6,8 @@
 
 use std::fmt::Write;
 
+mod comparison;
+mod diagnosis;
 mod kc;
 mod tables;
 
@@ -15,10 +17,8 @@ use crate::measurement::cross_talk::StatedCrossTalk;
 use crate::output::SOFTWARE_VERSION;
 use crate::output::SolveReport;
 use crate::output::selfcal::SelfcalReport;
-use tables::{
-    ARCSEC_DECIMALS, diagnosis_body, fit_summary, num, polygon_budget, rounded, selfcal_budget,
-    selfcal_tables, solve_tables,
-};
+use diagnosis::diagnosis_body;
+use tables::{fit_summary, polygon_budget, selfcal_budget, selfcal_tables, solve_tables};
 
 /// The style sheet: print on A4, repeated table headers, no figure split over two pages.
 const STYLE: &str = include_str!("style.css");
@@ -70,7 +70,7 @@ pub fn document(report: &CalibrationReport) -> String {
     budget(&mut s, report);
     figures(&mut s, report);
     diagnosis(&mut s, report);
-    comparison(&mut s, report);
+    comparison::section(&mut s, report);
     kc::section(&mut s, report);
     provenance(&mut s, report);
     signatures(&mut s, report);
@@ -118,18 +118,23 @@ fn page_margins(certificate: Option<&str>) -> String {
 
 fn title_block(out: &mut String, report: &CalibrationReport, title: &str) {
     let field = |key: &str| report.metadata.value(key).map(esc);
+    // the item calibrated: a self-calibration has no polygon, its item is the encoder
+    let (item_label, item) = match report.evaluation {
+        Evaluation::Polygon { .. } => ("Artefact", field("artefact")),
+        Evaluation::Selfcal { .. } => ("Encoder", field("encoder")),
+    };
     let _ = write!(
         out,
         "<header class=\"title-block\">\n<p class=\"lab\">{}</p>\n<h1>{}</h1>\n\
          <table class=\"ident\"><tr><th>Certificate number</th><td id=\"certificate\">{}</td>\
-         <th>Date of report (UTC)</th><td id=\"generated\">{}</td></tr>\n\
-         <tr><th>Customer</th><td id=\"customer\">{}</td><th>Artefact</th><td id=\"artefact\">{}</td></tr></table>\n",
+         <th>Date of issue</th><td id=\"date-of-issue\">{}</td></tr>\n\
+         <tr><th>Customer</th><td id=\"customer\">{}</td><th>{item_label}</th><td id=\"artefact\">{}</td></tr></table>\n",
         field("laboratory").unwrap_or_else(|| MISSING.to_string()),
         esc(title),
         field("certificate").unwrap_or_else(|| MISSING.to_string()),
-        esc(&report.generated_utc),
+        field("date_of_issue").unwrap_or_else(|| MISSING.to_string()),
         field("customer").unwrap_or_else(|| MISSING.to_string()),
-        field("artefact").unwrap_or_else(|| MISSING.to_string()),
+        item.unwrap_or_else(|| MISSING.to_string()),
     );
     if let Some(accreditation) = report.metadata.accreditation() {
         let _ = writeln!(
@@ -172,10 +177,13 @@ fn details(s: &mut Sections, report: &CalibrationReport) {
     let conditions = ["temperature_c", "humidity_percent", "pressure_hpa"]
         .iter()
         .any(|k| m.value(k).is_some());
+    // a self-calibration has no polygon: no artefact rows (the encoder is its item)
+    let polygon = matches!(report.evaluation, Evaluation::Polygon { .. });
     let shown = |f: &&super::meta::MetaField| {
         let in_title = matches!(f.key, "title" | "certificate" | "customer");
         let no_environment = f.key == "environment" && f.value.is_none() && conditions;
-        !(in_title || no_environment)
+        let no_polygon = !polygon && f.key.starts_with("artefact");
+        !(in_title || no_environment || no_polygon)
     };
     for f in m.fields.iter().filter(shown) {
         let _ = writeln!(
@@ -354,8 +362,9 @@ fn selfcal_method(out: &mut String, r: &SelfcalReport) {
     let lost: Vec<String> = r.lost_harmonics.iter().map(|h| h.to_string()).collect();
     let _ = write!(
         out,
-        "<p>Multi-head self-calibration: the closure model with the graduated disc in the polygon's \
-         place and the read heads in the autocollimators' place. Each reading is</p>\n\
+        "<p>Multi-head self-calibration: the closure model of the two-autocollimator method, with \
+         the encoder's graduated disc as the artefact calibrated and its read heads in the \
+         autocollimators' place. Each reading is</p>\n\
          <p class=\"eq\">reading = t[cycle, step] + e(step·360°/P + head angle) + c[head] + noise</p>\n\
          <p>with t the table's error at each stop (a nuisance), e the disc's graduation error (Σe = 0) \
          and c the heads' placement errors (c[1] = 0).</p>\n<table class=\"design\" id=\"design\"><tbody>\n\
@@ -382,6 +391,12 @@ fn selfcal_method(out: &mut String, r: &SelfcalReport) {
 
 fn results(s: &mut Sections, report: &CalibrationReport) {
     s.open("results", "Results");
+    // ISO/IEC 17025 7.8.2.1 o)
+    let _ = writeln!(
+        s.html,
+        "<p id=\"results-relate\">{}</p>",
+        esc(&report.results_relate_statement())
+    );
     match &report.evaluation {
         Evaluation::Polygon { solve, .. } => {
             fit_summary(
@@ -518,60 +533,11 @@ fn diagnosis(s: &mut Sections, report: &CalibrationReport) {
     s.close();
 }
 
-fn comparison(s: &mut Sections, report: &CalibrationReport) {
-    let Some((c, reference)) = &report.comparison else {
-        return;
-    };
-    s.open("comparison", "Comparison with a reference");
-    let _ = write!(
-        s.html,
-        "<p>a: this calibration; b: {}. Encoder errors matched by {}. Setup errors are listed but left out of the verdict.</p>\n\
-         <p class=\"verdict {}\" id=\"comparison-verdict\">Verdict: {}. Largest |En| = {}.</p>\n",
-        esc(reference),
-        match c.encoder_matched_by {
-            crate::compare::EncoderMatching::Angle => "angle",
-            _ => "index",
-        },
-        if c.verdict_ok() { "pass" } else { "fail" },
-        esc(&c.verdict_sentence()),
-        rounded(c.max_abs_en, 2)
-    );
-    s.html.push_str(
-        "<table class=\"comparison\" id=\"comparison-rows\"><thead><tr><th>Quantity</th><th>Index</th>\
-         <th>angle / °</th><th>a / ″</th><th>b / ″</th><th>a − b / ″</th><th>U<sub>a</sub> / ″</th>\
-         <th>U<sub>b</sub> / ″</th><th>En</th></tr></thead><tbody>\n",
-    );
-    for r in &c.rows {
-        let class = if !r.in_verdict {
-            " class=\"out-of-verdict\""
-        } else if r.en.abs() > 1.0 {
-            " class=\"fail\""
-        } else {
-            ""
-        };
-        let _ = writeln!(
-            s.html,
-            "<tr{class}><td>{}</td><td>{}</td>{}{}{}{}{}{}{}</tr>",
-            r.quantity.name(),
-            r.index,
-            num(r.angle_deg, 3),
-            num(Some(r.a), ARCSEC_DECIMALS),
-            num(Some(r.b), ARCSEC_DECIMALS),
-            num(Some(r.difference), ARCSEC_DECIMALS),
-            num(Some(r.expanded_u_a), ARCSEC_DECIMALS),
-            num(Some(r.expanded_u_b), ARCSEC_DECIMALS),
-            num(Some(r.en), 2),
-        );
-    }
-    s.html.push_str("</tbody></table>\n");
-    s.close();
-}
-
 fn provenance(s: &mut Sections, report: &CalibrationReport) {
     s.open("provenance", "Provenance");
     let _ = write!(
         s.html,
-        "<p>Evaluated by polycal {SOFTWARE_VERSION} on {} (UTC). The input files are identified by \
+        "<p>Evaluated by polycal {SOFTWARE_VERSION} on <span id=\"generated\">{}</span> (UTC). The input files are identified by \
          their SHA-256.</p>\n<table id=\"inputs\"><thead><tr><th>Input</th><th>File</th>\
          <th>Bytes</th><th>SHA-256</th></tr></thead><tbody>\n",
         esc(&report.generated_utc)

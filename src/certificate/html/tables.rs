@@ -1,11 +1,11 @@
 //! The tables of a calibration report: every number through one cell ([`num`]) that
 //! shows it rounded and keeps the JSON's full-precision value in `data-value`; the result
 //! tables of a family (value, u, U, k), the fit, the budget of the quantity with the
-//! largest U, and the diagnosis.
+//! largest U; a difference or a degree of equivalence beside the U it is judged against,
+//! and En (the diagnosis's body is in `diagnosis`).
 
 use std::fmt::Write;
 
-use crate::certificate::DiagnosisReport;
 use crate::figure::svg::esc;
 use crate::output::SolveReport;
 use crate::output::selfcal::SelfcalReport;
@@ -61,6 +61,33 @@ pub(super) fn rounded_pair_cells(value: f64, uncertainty: f64) -> String {
     }
 }
 
+/// Two cells, a value and the expanded uncertainty it is judged against (a difference
+/// and En's denominator, a degree of equivalence and its U), with the digits it takes
+/// for the shown numbers to say what the unrounded ones decide
+/// ([`crate::certificate::rounding::round_against`]); each with its `data-value`.
+pub(super) fn decision_pair_cells(value: f64, uncertainty: f64) -> String {
+    match crate::certificate::rounding::round_against(value, uncertainty) {
+        Some(r) => format!(
+            "<td class=\"num\" data-value=\"{value}\">{}</td><td class=\"num\" data-value=\"{uncertainty}\">{}</td>",
+            r.value.replace('-', "−"),
+            r.expanded_u.replace('-', "−")
+        ),
+        None => rounded_pair_cells(value, uncertainty),
+    }
+}
+
+/// The cell of an En number ([`crate::certificate::rounding::en_text`]), its value in
+/// `data-value`.
+pub(super) fn en_cell(en: f64) -> String {
+    if !en.is_finite() {
+        return num(None, 2);
+    }
+    format!(
+        "<td class=\"num\" data-value=\"{en}\">{}</td>",
+        crate::certificate::rounding::en_text(en).replace('-', "−")
+    )
+}
+
 /// A result's cells as a certificate states them ([`crate::certificate::rounding`]):
 /// value and U rounded by GUM 7.2.6, u to two significant digits rounded up, k to three
 /// significant digits; each with its unrounded number in `data-value`. Without U, the
@@ -110,6 +137,17 @@ pub(super) fn result_cells(
     }
 }
 
+/// The heading of the u column: the combined standard uncertainty behind U (U = k·u)
+/// where U is stated; the fit's own type A u, labelled as such, where it is not
+/// (docs/FORMAT.md §10.4).
+pub(super) fn u_header(combined: bool) -> &'static str {
+    if combined {
+        "u / ″"
+    } else {
+        "u of the fit (type A) / ″"
+    }
+}
+
 /// One family's table: index (and angle) columns, value, u, U, k.
 pub(super) struct FamilyTable<'a> {
     pub(super) id: &'a str,
@@ -118,7 +156,11 @@ pub(super) struct FamilyTable<'a> {
     pub(super) indices: Vec<String>,
     pub(super) angles_deg: Option<&'a [f64]>,
     pub(super) values: &'a [f64],
+    /// The standard uncertainty shown: the one behind U where U is stated
+    /// ([`u_header`]).
     pub(super) u: Option<&'a [f64]>,
+    /// Whether `u` is the combined standard uncertainty behind U (else the fit's own).
+    pub(super) u_combined: bool,
     pub(super) expanded_u: Option<&'a [f64]>,
     pub(super) k: Option<Vec<Option<f64>>>,
 }
@@ -127,7 +169,7 @@ pub(super) fn family_table(out: &mut String, t: &FamilyTable) {
     let _ = writeln!(
         out,
         "<table class=\"results\" id=\"{}\"><caption>{}</caption><thead><tr><th>{}</th>{}\
-         <th class=\"num\">value / ″</th><th class=\"num\">u / ″</th><th class=\"num\">U / ″</th><th class=\"num\">k</th></tr></thead><tbody>",
+         <th class=\"num\">value / ″</th><th class=\"num\">{}</th><th class=\"num\">U / ″</th><th class=\"num\">k</th></tr></thead><tbody>",
         t.id,
         esc(t.caption),
         esc(t.index_header),
@@ -135,7 +177,8 @@ pub(super) fn family_table(out: &mut String, t: &FamilyTable) {
             "<th class=\"num\">angle / °</th>"
         } else {
             ""
-        }
+        },
+        u_header(t.u_combined),
     );
     for (i, value) in t.values.iter().enumerate() {
         let _ = writeln!(
@@ -167,16 +210,37 @@ pub(super) fn solve_tables(out: &mut String, r: &SolveReport, prefix: &str) {
             .map(|p| crate::measurement::step_angle_deg(p as u32, r.encoder_error.len()))
             .collect(),
     };
+    // with a budget, the u beside U and k is its combined u_c (U = k·u_c); without one,
+    // the fit's own type A u, labelled so
+    let budget = r.uncertainty.as_ref();
+    let combined = budget.is_some();
+    let pick =
+        |family: Option<&FamilyUncertainty>, fit: Option<&'_ Vec<f64>>| -> Option<Vec<f64>> {
+            match family {
+                Some(f) => Some(f.u.clone()),
+                None => fit.cloned(),
+            }
+        };
+    let pitch_u = pick(
+        budget.map(|b| &b.pitch_deviation),
+        r.pitch_deviation_u.as_ref(),
+    );
+    let face_u = pick(
+        budget.map(|b| &b.face_deviation),
+        r.face_deviation_u.as_ref(),
+    );
+    let encoder_u = pick(budget.map(|b| &b.encoder_error), r.encoder_error_u.as_ref());
     family_table(
         out,
         &FamilyTable {
             id: &id("pitch-deviation"),
             caption: "Pitch deviations β",
-            index_header: "face k",
+            index_header: "face",
             indices: faces.clone(),
             angles_deg: None,
             values: &r.pitch_deviation,
-            u: r.pitch_deviation_u.as_deref(),
+            u: pitch_u.as_deref(),
+            u_combined: combined,
             expanded_u: r.pitch_deviation_expanded_u.as_deref(),
             k: r.pitch_deviation_k.clone(),
         },
@@ -186,11 +250,12 @@ pub(super) fn solve_tables(out: &mut String, r: &SolveReport, prefix: &str) {
         &FamilyTable {
             id: &id("face-deviation"),
             caption: "Face deviations φ (φ[N] = 0 by definition)",
-            index_header: "face k",
+            index_header: "face",
             indices: faces,
             angles_deg: None,
             values: &r.face_deviation,
-            u: r.face_deviation_u.as_deref(),
+            u: face_u.as_deref(),
+            u_combined: combined,
             expanded_u: r.face_deviation_expanded_u.as_deref(),
             k: r.face_deviation_k.clone(),
         },
@@ -204,13 +269,17 @@ pub(super) fn solve_tables(out: &mut String, r: &SolveReport, prefix: &str) {
             indices: (0..r.encoder_error.len()).map(|p| p.to_string()).collect(),
             angles_deg: Some(&angles),
             values: &r.encoder_error,
-            u: r.encoder_error_u.as_deref(),
+            u: encoder_u.as_deref(),
+            u_combined: combined,
             expanded_u: r.encoder_error_expanded_u.as_deref(),
             k: r.encoder_error_k.clone(),
         },
     );
     let setup_values: Vec<f64> = r.setup_error.iter().map(|s| s.value).collect();
-    let setup_u: Option<Vec<f64>> = r.setup_error.iter().map(|s| s.u).collect();
+    let setup_u: Option<Vec<f64>> = match budget {
+        Some(b) => Some(b.setup_error.u.clone()),
+        None => r.setup_error.iter().map(|s| s.u).collect(),
+    };
     let setup_expanded: Option<Vec<f64>> = r.setup_error.iter().map(|s| s.expanded_u).collect();
     family_table(
         out,
@@ -226,6 +295,7 @@ pub(super) fn solve_tables(out: &mut String, r: &SolveReport, prefix: &str) {
             angles_deg: None,
             values: &setup_values,
             u: setup_u.as_deref(),
+            u_combined: combined,
             expanded_u: setup_expanded.as_deref(),
             k: Some(r.setup_error.iter().map(|s| s.k).collect()),
         },
@@ -343,18 +413,41 @@ pub(super) fn budget_table(out: &mut String, t: &BudgetTable) {
             num(share(r.contribution), 1),
         );
     }
+    // the combination, each number on its own labelled line, under the contributions
+    // it combines (u_c is their root sum of squares)
+    let k_text = family.k[j]
+        .and_then(crate::certificate::rounding::round_coverage_factor)
+        .unwrap_or_else(|| "—".to_string());
+    let u_text = crate::certificate::rounding::round_result(0.0, family.expanded_u[j])
+        .map_or_else(|| "—".to_string(), |r| r.expanded_u);
+    let line = |label: &str, cell: String| {
+        format!("<tr><th colspan=\"7\">{label}</th>{cell}<td></td></tr>")
+    };
     let _ = writeln!(
         out,
-        "</tbody><tfoot><tr><th colspan=\"4\">Combined standard uncertainty u<sub>c</sub>; ν<sub>eff</sub>; k; U</th>\
-         {}<td></td>{}<td class=\"num\">k = {}</td><td class=\"num\" data-value=\"{}\">U = {}</td></tr></tfoot></table>",
-        num(Some(uc), ARCSEC_DECIMALS),
-        num(family.dof_eff[j], 1),
-        family.k[j]
-            .and_then(crate::certificate::rounding::round_coverage_factor)
-            .unwrap_or_else(|| "—".to_string()),
-        family.expanded_u[j],
-        crate::certificate::rounding::round_result(0.0, family.expanded_u[j])
-            .map_or_else(|| "—".to_string(), |r| r.expanded_u),
+        "</tbody><tfoot>{}{}{}{}</tfoot></table>",
+        line(
+            "Combined standard uncertainty u<sub>c</sub> / ″",
+            num(Some(uc), ARCSEC_DECIMALS)
+        ),
+        line(
+            "Effective degrees of freedom ν<sub>eff</sub>",
+            num(family.dof_eff[j], 1)
+        ),
+        line(
+            "Coverage factor k",
+            match family.k[j] {
+                Some(k) => format!("<td class=\"num\" data-value=\"{k}\">{k_text}</td>"),
+                None => num(None, 0),
+            }
+        ),
+        line(
+            "Expanded uncertainty U = k·u<sub>c</sub> / ″",
+            format!(
+                "<td class=\"num\" data-value=\"{}\">{u_text}</td>",
+                family.expanded_u[j]
+            )
+        ),
     );
 }
 
@@ -442,6 +535,12 @@ pub(super) fn selfcal_tables(out: &mut String, r: &SelfcalReport, id_prefix: &st
         format!("{id_prefix}encoder-error"),
         format!("{id_prefix}head-error"),
     );
+    // the u behind U = k·u: the budget's u_c with a budget, else the fit's u (with the
+    // lost harmonics' and the head angles' parts), from which U is formed
+    let encoder_u = match &r.uncertainty {
+        Some(b) => Some(b.encoder_error.u.clone()),
+        None => r.encoder_error_u.clone(),
+    };
     family_table(
         out,
         &FamilyTable {
@@ -451,7 +550,8 @@ pub(super) fn selfcal_tables(out: &mut String, r: &SelfcalReport, id_prefix: &st
             indices: (0..r.encoder_error.len()).map(|p| p.to_string()).collect(),
             angles_deg: Some(&r.encoder_angle_deg),
             values: &r.encoder_error,
-            u: r.encoder_error_u.as_deref(),
+            u: encoder_u.as_deref(),
+            u_combined: true,
             expanded_u: r.encoder_error_expanded_u.as_deref(),
             k: r.encoder_error_k
                 .as_ref()
@@ -460,7 +560,10 @@ pub(super) fn selfcal_tables(out: &mut String, r: &SelfcalReport, id_prefix: &st
     );
     let values: Vec<f64> = r.head_error.iter().map(|h| h.value).collect();
     let angles: Vec<f64> = r.head_error.iter().map(|h| h.angle_deg).collect();
-    let u: Option<Vec<f64>> = r.head_error.iter().map(|h| h.u).collect();
+    let u: Option<Vec<f64>> = match &r.uncertainty {
+        Some(b) => Some(b.head_error.u.clone()),
+        None => r.head_error.iter().map(|h| h.u).collect(),
+    };
     let expanded: Option<Vec<f64>> = r.head_error.iter().map(|h| h.expanded_u).collect();
     family_table(
         out,
@@ -472,142 +575,9 @@ pub(super) fn selfcal_tables(out: &mut String, r: &SelfcalReport, id_prefix: &st
             angles_deg: Some(&angles),
             values: &values,
             u: u.as_deref(),
+            u_combined: true,
             expanded_u: expanded.as_deref(),
             k: Some(r.head_error.iter().map(|h| h.k).collect()),
         },
     );
-}
-
-pub(super) fn diagnosis_body(out: &mut String, report: &DiagnosisReport) {
-    let (adequate, checks, effects, notes) = report.parts();
-    let (rms_before, rms_after, dof_before, dof_after) = match report {
-        DiagnosisReport::Polygon(d) => (
-            d.before.residual_rms,
-            d.after.residual_rms,
-            d.before.dof,
-            d.after.dof,
-        ),
-        DiagnosisReport::Selfcal(d) => (
-            d.before.residual_rms,
-            d.after.residual_rms,
-            d.before.dof,
-            d.after.dof,
-        ),
-    };
-    // against a truth: (label, before, after)
-    let errors: Vec<(&str, f64, f64)> = match report {
-        DiagnosisReport::Polygon(d) => d.error.as_ref().map_or_else(Vec::new, |e| {
-            vec![
-                (
-                    "Pitch deviation error, RMS / ″",
-                    e.before.pitch_rms,
-                    e.after.pitch_rms,
-                ),
-                (
-                    "Pitch deviation error, largest / ″",
-                    e.before.pitch_max,
-                    e.after.pitch_max,
-                ),
-                (
-                    "Encoder error error, RMS / ″",
-                    e.before.encoder_rms,
-                    e.after.encoder_rms,
-                ),
-                (
-                    "Encoder error error, largest / ″",
-                    e.before.encoder_max,
-                    e.after.encoder_max,
-                ),
-            ]
-        }),
-        DiagnosisReport::Selfcal(d) => d.error.as_ref().map_or_else(Vec::new, |e| {
-            vec![
-                (
-                    "Graduation error e error, RMS / ″",
-                    e.before.encoder_rms,
-                    e.after.encoder_rms,
-                ),
-                (
-                    "Graduation error e error, largest / ″",
-                    e.before.encoder_max,
-                    e.after.encoder_max,
-                ),
-                (
-                    "Head error error, RMS / ″",
-                    e.before.head_rms,
-                    e.after.head_rms,
-                ),
-                (
-                    "Head error error, largest / ″",
-                    e.before.head_max,
-                    e.after.head_max,
-                ),
-            ]
-        }),
-    };
-    let _ = writeln!(
-        out,
-        "<p class=\"verdict {}\" id=\"adequacy\">The final model is {}adequate: {}.</p>",
-        if adequate { "pass" } else { "fail" },
-        if adequate { "" } else { "NOT " },
-        if adequate {
-            "its residuals are consistent with noise"
-        } else {
-            "structure is left that no known effect explains"
-        },
-    );
-    out.push_str("<table id=\"checks\"><caption>Checks of the final model</caption><thead><tr><th>Check</th><th>Statistic</th><th>Limit</th><th>Passed</th></tr></thead><tbody>\n");
-    for c in checks {
-        let _ = writeln!(
-            out,
-            "<tr><td>{}</td>{}{}<td>{}</td></tr>",
-            esc(&c.name),
-            num(Some(c.statistic), 3),
-            num(Some(c.limit), 3),
-            if c.passed { "yes" } else { "no" }
-        );
-    }
-    out.push_str("</tbody></table>\n");
-    out.push_str("<table id=\"effects\"><caption>Effects found and added to the model</caption><thead><tr><th>Effect</th><th>Where</th><th>Value</th><th>u</th></tr></thead><tbody>\n");
-    if effects.is_empty() {
-        out.push_str("<tr><td colspan=\"4\">none</td></tr>\n");
-    }
-    for e in effects {
-        let (kind, fields, value, u) = crate::certificate::effect_text(e);
-        let _ = writeln!(
-            out,
-            "<tr><td>{}</td><td>{}</td>{}{}</tr>",
-            esc(&kind),
-            esc(&fields),
-            num(value, ARCSEC_DECIMALS),
-            num(u, ARCSEC_DECIMALS)
-        );
-    }
-    out.push_str("</tbody></table>\n");
-    let _ = write!(
-        out,
-        "<table id=\"diagnosis-fit\"><thead><tr><th></th><th>Before (base model)</th><th>After (final model)</th></tr></thead><tbody>\n\
-         <tr><th>Residual RMS / ″</th>{}{}</tr>\n<tr><th>Residual degrees of freedom</th><td>{}</td><td>{}</td></tr>\n",
-        num(rms_before, ARCSEC_DECIMALS),
-        num(rms_after, ARCSEC_DECIMALS),
-        dof_before,
-        dof_after
-    );
-    for (label, before, after) in errors {
-        let _ = writeln!(
-            out,
-            "<tr class=\"truth\"><th>{label} (against the truth)</th>{}{}</tr>",
-            num(Some(before), ARCSEC_DECIMALS),
-            num(Some(after), ARCSEC_DECIMALS)
-        );
-    }
-    out.push_str("</tbody></table>\n");
-    for note in notes {
-        let _ = writeln!(out, "<p class=\"note\">{}</p>", esc(note));
-    }
-    out.push_str("<h3>Results of the final model</h3>\n");
-    match report {
-        DiagnosisReport::Polygon(d) => solve_tables(out, &d.after, "final-"),
-        DiagnosisReport::Selfcal(d) => selfcal_tables(out, &d.after, "final-"),
-    }
 }
