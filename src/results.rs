@@ -356,6 +356,27 @@ pub struct ResultFile {
     pub rows: Vec<ResultRow>,
     /// The 1-based line of each row.
     pub lines: Vec<u64>,
+    /// The 1-based character columns of each row's fields (empty when not known, as for
+    /// rows restored from elsewhere): what a later refusal of a row's value names.
+    pub columns: Vec<RowColumns>,
+}
+
+/// Where a result row's fields start on its line: 1-based character columns, `None` for a
+/// column the file does not have.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RowColumns {
+    /// The `quantity` field.
+    pub quantity: u64,
+    /// The `index` field.
+    pub index: u64,
+    /// The `value` field.
+    pub value: u64,
+    /// The `U` field.
+    pub expanded_u: Option<u64>,
+    /// The `u` field.
+    pub u: Option<u64>,
+    /// The `k` field.
+    pub k: Option<u64>,
 }
 
 /// The columns a result file must have (docs/FORMAT.md §3).
@@ -563,6 +584,7 @@ pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile,
 
     let mut rows: Vec<ResultRow> = Vec::new();
     let mut lines: Vec<u64> = Vec::new();
+    let mut columns: Vec<RowColumns> = Vec::new();
     // Where each row's record starts in `body` (for the column of an earlier row's field).
     let mut starts: Vec<u64> = Vec::new();
     let mut angles = AngleCheck::default();
@@ -682,6 +704,15 @@ pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile,
             let (line, column) = field_position(record_start, column);
             return Err(err(line, column, message));
         }
+        let field_column = |i: usize| field_position(start, i).1;
+        columns.push(RowColumns {
+            quantity: field_column(c_quantity),
+            index: field_column(c_index),
+            value: field_column(c_value),
+            expanded_u: c_expanded.map(field_column),
+            u: c_u.map(field_column),
+            k: c_k.map(field_column),
+        });
         rows.push(row);
         lines.push(line);
         starts.push(start);
@@ -690,6 +721,7 @@ pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile,
         source: source.to_string(),
         rows,
         lines,
+        columns,
     })
 }
 

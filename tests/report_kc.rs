@@ -260,6 +260,7 @@ fn the_named_laboratorys_section_carries_the_kc_json_numbers() {
     for name in [
         "kc-degrees-of-equivalence",
         "kc-reference",
+        "kc-pairwise",
         "kc-pilot-stability",
     ] {
         assert_eq!(

@@ -23,7 +23,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::sets::{PyBudget, PyMeasurementSet, PySelfcalSet};
-use crate::state::{RowsState, SolveState, restorer, rows_state};
+use crate::state::{RowsState, SolveState, columns_state, restorer, rows_state};
 use crate::{PolycalError, input_error, refusal, results_error, solve_error, to_json};
 
 /// The rows of a result (docs/FORMAT.md §3): a solve's, or a result file's.
@@ -47,13 +47,13 @@ impl PyRows {
         self.label.clone()
     }
 
-    /// Pickles the rows (and, for a file's, its name and the rows' lines) as Python
+    /// Pickles the rows (and, for a file's, its name, the rows' lines and columns) as Python
     /// values: back equal to the bit.
     fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (RowsState,))> {
         let file = self
             .file
             .as_ref()
-            .map(|f| (f.source.clone(), f.lines.clone()));
+            .map(|f| (f.source.clone(), f.lines.clone(), columns_state(&f.columns)));
         let state = (rows_state(&self.rows), self.label.clone(), file);
         Ok((restorer(py, "_restore_rows")?, (state,)))
     }

@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::sync::{Arc, OnceLock};
 
 use polycal::measurement::{MeasurementSet, Reading};
-use polycal::results::{Quantity, ResultFile, ResultRow};
+use polycal::results::{Quantity, ResultFile, ResultRow, RowColumns};
 use polycal::selfcal::{HeadReading, SelfcalSet};
 use polycal::uncertainty::calibration::{InstrumentBudget, Scope, ScopedComponent};
 use polycal::uncertainty::{Distribution, DofPolicy, EvaluationType};
@@ -242,9 +242,24 @@ type RowState = (
     Option<f64>,
 );
 
-/// The pickled state of result rows: the rows, the label and, for a file's, its name
-/// and the rows' lines.
-pub(crate) type RowsState = (Vec<RowState>, String, Option<(String, Vec<u64>)>);
+/// The columns of a row's fields as pickled: quantity, index, value, U, u, k.
+pub(crate) type ColumnsState = (u64, u64, u64, Option<u64>, Option<u64>, Option<u64>);
+
+/// The pickled state of result rows: the rows, the label and, for a file's, its name,
+/// the rows' lines and their fields' columns.
+pub(crate) type RowsState = (
+    Vec<RowState>,
+    String,
+    Option<(String, Vec<u64>, Vec<ColumnsState>)>,
+);
+
+/// The columns of a file's rows as pickled.
+pub(crate) fn columns_state(columns: &[RowColumns]) -> Vec<ColumnsState> {
+    columns
+        .iter()
+        .map(|c| (c.quantity, c.index, c.value, c.expanded_u, c.u, c.k))
+        .collect()
+}
 
 pub(crate) fn rows_state(rows: &[ResultRow]) -> Vec<RowState> {
     rows.iter()
@@ -285,12 +300,24 @@ pub(crate) fn _restore_rows(state: RowsState) -> PyResult<PyRows> {
     let (rows, label, file) = state;
     let rows = rows_from_state(rows)?;
     let file = match file {
-        Some((source, lines)) => {
-            same_lengths("ResultRows", &[rows.len(), lines.len()])?;
+        Some((source, lines, columns)) => {
+            same_lengths("ResultRows", &[rows.len(), lines.len(), columns.len()])?;
+            let columns = columns
+                .into_iter()
+                .map(|(quantity, index, value, expanded_u, u, k)| RowColumns {
+                    quantity,
+                    index,
+                    value,
+                    expanded_u,
+                    u,
+                    k,
+                })
+                .collect();
             Some(ResultFile {
                 source,
                 rows: rows.clone(),
                 lines,
+                columns,
             })
         }
         None => None,

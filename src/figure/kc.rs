@@ -1,10 +1,11 @@
 //! The figures of `polycal kc` (docs/FORMAT.md §12), the classic ones of a key
 //! comparison's report: every laboratory's degree of equivalence d_i with its U(d_i) bar
-//! around zero per face (`kc-degrees-of-equivalence`; laboratories left out drawn with
-//! open markers and "left out" in the legend); the reference value per face with its
-//! expanded uncertainty 2·u_ref and every laboratory's value x_i = x_ref + d_i
-//! (`kc-reference`); and with the pilot's repeats each repeat's d_r with U(d_r)
-//! (`kc-pilot-stability`).
+//! around zero per face (`kc-degrees-of-equivalence`; laboratories left out say so in the
+//! legend); the reference value per face with its expanded uncertainty 2·u_ref and every
+//! laboratory's value x_i = x_ref + d_i (`kc-reference`); the pairwise degrees of
+//! equivalence as a matrix of the laboratories (`kc-pairwise`); and with the pilot's
+//! repeats each repeat's d_r with U(d_r) (`kc-pilot-stability`). Every laboratory has its
+//! own marker and colour, the same in every figure; the reference is black.
 //!
 //! Classes (docs/FORMAT.md §10): `point` and `error-bar` in panel `main`, with
 //! `data-series` `lab<i>` (laboratory i of `labs`, from 0), `reference`, or `repeat<r>`
@@ -12,20 +13,21 @@
 
 use super::Figure;
 use super::chart::{Chart, Point, Series};
-use super::svg::Marker;
+use super::svg::{LEFT_PX, Marker, RIGHT_PX, WIDTH_PX, document, esc, header_px, px};
 use crate::kc::{DegreeOfEquivalence, KeyComparison};
 use crate::results::Quantity;
 
 /// The fixed names of the figures, and the pilot's.
-pub(crate) const NAMES: [&str; 2] = ["kc-degrees-of-equivalence", "kc-reference"];
+pub(crate) const NAMES: [&str; 3] = ["kc-degrees-of-equivalence", "kc-reference", "kc-pairwise"];
 /// The pilot's figure.
 pub(crate) const PILOT: &str = "kc-pilot-stability";
 
 /// The markers of successive repeats, in turn.
 const MARKERS: [Marker; 2] = [Marker::FilledCircle, Marker::OpenSquare];
-/// The markers of successive laboratories in the reference (open squares are for those
-/// left out).
-const IN_REFERENCE: [Marker; 2] = [Marker::FilledCircle, Marker::Triangle];
+/// Laboratory i's own marker and colour, the same in every figure (left out or not).
+fn lab_marker(i: usize) -> Marker {
+    Marker::Lab(u16::try_from(i).unwrap_or(u16::MAX))
+}
 
 /// x of position k: its table angle when matched by angle, else face or index.
 fn x_of(kc: &KeyComparison, k: usize) -> f64 {
@@ -91,7 +93,7 @@ fn doe_series(
 
 /// The figures of a key comparison (the pilot's only with its repeats).
 pub(crate) fn figures(kc: &KeyComparison) -> Vec<Figure> {
-    let mut out = vec![degrees_of_equivalence(kc), reference(kc)];
+    let mut out = vec![degrees_of_equivalence(kc), reference(kc), pairwise(kc)];
     if kc.pilot.is_some() {
         out.push(pilot(kc));
     }
@@ -118,13 +120,11 @@ fn degrees_of_equivalence(kc: &KeyComparison) -> Figure {
         .iter()
         .enumerate()
         .map(|(i, doe)| {
-            let (label, marker) = if doe.in_reference {
-                (doe.lab.clone(), IN_REFERENCE[i % 2])
+            let marker = lab_marker(i);
+            let label = if doe.in_reference {
+                doe.lab.clone()
             } else {
-                (
-                    format!("{} (left out of the reference)", doe.lab),
-                    Marker::OpenSquare,
-                )
+                format!("{} (left out of the reference)", doe.lab)
             };
             doe_series(
                 kc,
@@ -147,7 +147,7 @@ fn degrees_of_equivalence(kc: &KeyComparison) -> Figure {
     ];
     if !left_out.is_empty() {
         subtitles.push(format!(
-            "left out (open squares): {}; reasons in the JSON's excluded",
+            "left out: {}; reasons in the JSON's excluded",
             left_out.join(", ")
         ));
     }
@@ -188,11 +188,7 @@ fn reference(kc: &KeyComparison) -> Figure {
             } else {
                 format!("{} (left out)", doe.lab)
             },
-            marker: if doe.in_reference {
-                Marker::Triangle
-            } else {
-                Marker::OpenSquare
-            },
+            marker: lab_marker(i),
             dx_px: offset_px(i + 1, n, kc.index.len()),
             points: (0..kc.index.len())
                 .map(|k| Point {
@@ -211,7 +207,7 @@ fn reference(kc: &KeyComparison) -> Figure {
                 "x_ref: {}; bars U = 2·u_ref (k = 2, with u_stab where the pilot's repeats call for it)",
                 method_words(kc)
             ),
-            "laboratories' values x_i = x_ref + d_i: triangles, open squares those left out; no bars (their U(d_i) in kc-degrees-of-equivalence)"
+            "laboratories' values x_i = x_ref + d_i, each with its own marker and colour; no bars (their U(d_i) in kc-degrees-of-equivalence)"
                 .to_string(),
         ],
         x_label,
@@ -256,4 +252,114 @@ fn pilot(kc: &KeyComparison) -> Figure {
         x_include: x_include(kc),
     };
     Figure::new(PILOT, title, chart.render())
+}
+
+/// The pairwise degrees of equivalence as a Draft A report shows them: a matrix, one cell
+/// per pair of laboratories, with the largest |d_ij|/U(d_ij) over the positions (and
+/// where), and how many positions have |d_ij| > U(d_ij); d_ij = x_i − x_j,
+/// U(d_ij) = 2·√(u_i² + u_j²) from [`crate::kc::PairDifference`]. A cell over 1 is shaded.
+/// Every pair's d_ij and U(d_ij) at every position are in the JSON's `pairs`.
+///
+/// Classes: `cell` with `data-a`, `data-b` (laboratories' positions in `labs`),
+/// `data-ratio` (the largest |d|/U), `data-at` (its position in `index`) and
+/// `data-exceeding`.
+fn pairwise(kc: &KeyComparison) -> Figure {
+    let (family, _, _) = words(kc);
+    let title = format!("Pairwise degrees of equivalence d_ij = x_i − x_j, {family}");
+    let n = kc.labs.len();
+    let position = |k: usize| match &kc.angle_deg {
+        Some(angles) => format!("{:.4}°", angles[k]),
+        None if kc.quantity == Quantity::PitchDeviation => format!("face {}", kc.index[k]),
+        None => format!("index {}", kc.index[k]),
+    };
+    let subtitles = vec![
+        "each cell: the largest |d_ij|/U(d_ij) over the positions (where), and the number of \
+         positions with |d_ij| > U(d_ij); shaded when over 1"
+            .to_string(),
+        format!(
+            "U(d_ij) = 2·√(u_i² + u_j²), k = 2; {} positions; every d_ij with its U in the JSON's pairs",
+            kc.index.len()
+        ),
+    ];
+    let top = header_px(&subtitles) + 24.0;
+    let label_px = 110.0;
+    let cell_px = ((WIDTH_PX - LEFT_PX - RIGHT_PX - label_px) / n.max(1) as f64).clamp(14.0, 90.0);
+    let font = (cell_px / 6.0).clamp(5.0, 10.0);
+    let left = LEFT_PX + label_px;
+    let mut body = String::new();
+    use std::fmt::Write;
+    for (i, name) in kc.labs.iter().enumerate() {
+        let _ = writeln!(
+            body,
+            r#"<text class="row-label" x="{}" y="{}" font-size="10" text-anchor="end">{}</text>"#,
+            px(left - 6.0),
+            px(top + (i as f64 + 0.5) * cell_px + 3.5),
+            esc(name)
+        );
+        let _ = writeln!(
+            body,
+            r#"<text class="column-label" x="{}" y="{}" font-size="10" text-anchor="middle">{}</text>"#,
+            px(left + (i as f64 + 0.5) * cell_px),
+            px(top - 6.0),
+            esc(name)
+        );
+    }
+    let index_of = |name: &str| kc.labs.iter().position(|l| l == name);
+    for pair in &kc.pairs {
+        let (Some(a), Some(b)) = (index_of(&pair.a), index_of(&pair.b)) else {
+            continue;
+        };
+        let Some((at, ratio)) = pair.largest_ratio() else {
+            continue;
+        };
+        let exceeding = pair.exceeding();
+        // Both cells of the pair (d_ji = −d_ij): the matrix reads from either side.
+        for (row, column) in [(a, b), (b, a)] {
+            let (x, y) = (left + column as f64 * cell_px, top + row as f64 * cell_px);
+            let fill = if ratio > 1.0 { "#f4b6a8" } else { "#ffffff" };
+            let _ = writeln!(
+                body,
+                r##"<rect class="cell" data-a="{row}" data-b="{column}" data-ratio="{ratio}" data-at="{at}" data-exceeding="{exceeding}" x="{}" y="{}" width="{}" height="{}" fill="{fill}" stroke="#000" stroke-width="0.6"/>"##,
+                px(x),
+                px(y),
+                px(cell_px),
+                px(cell_px)
+            );
+            if cell_px >= 30.0 {
+                for (line, text) in [
+                    format!("{ratio:.2}"),
+                    position(at),
+                    format!("{exceeding}/{} > U", kc.index.len()),
+                ]
+                .iter()
+                .enumerate()
+                {
+                    let _ = writeln!(
+                        body,
+                        r#"<text x="{}" y="{}" font-size="{}" text-anchor="middle">{}</text>"#,
+                        px(x + cell_px / 2.0),
+                        px(y + cell_px / 2.0 + (line as f64 - 1.0) * (font + 2.0) + font / 3.0),
+                        px(font),
+                        esc(text)
+                    );
+                }
+            }
+        }
+    }
+    for i in 0..n {
+        let _ = writeln!(
+            body,
+            r##"<rect class="diagonal" x="{}" y="{}" width="{}" height="{}" fill="#d9d9d9" stroke="#000" stroke-width="0.6"/>"##,
+            px(left + i as f64 * cell_px),
+            px(top + i as f64 * cell_px),
+            px(cell_px),
+            px(cell_px)
+        );
+    }
+    let height = top + n as f64 * cell_px + 24.0;
+    Figure::new(
+        NAMES[2],
+        title.clone(),
+        document(height, &title, &subtitles, &body),
+    )
 }

@@ -313,6 +313,34 @@ pub(crate) enum Marker {
     OpenSquare,
     /// Open triangle, apex up.
     Triangle,
+    /// Laboratory i's own marker in a figure of many laboratories: one of eight shapes in
+    /// one of eight colours (colour-blind-safe, none black), no two of the first 64 alike
+    /// ([`lab_marker`]).
+    Lab(u16),
+}
+
+/// The shapes of laboratories' markers, in turn.
+const LAB_SHAPES: [&str; 8] = [
+    "circle",
+    "square",
+    "triangle",
+    "diamond",
+    "triangle-down",
+    "open-circle",
+    "open-square",
+    "open-diamond",
+];
+
+/// The colours of laboratories' markers (Okabe & Ito's palette without its black and
+/// yellow, with a grey and a brown): black stays the reference's.
+const LAB_COLOURS: [&str; 8] = [
+    "#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#7F7F7F", "#8C564B",
+];
+
+/// Laboratory `i`'s shape and colour: shape i mod 8, colour (i + ⌊i/8⌋) mod 8, so the
+/// first 64 laboratories each have their own pair.
+pub(crate) fn lab_marker(i: usize) -> (&'static str, &'static str) {
+    (LAB_SHAPES[i % 8], LAB_COLOURS[(i + i / 8) % 8])
 }
 
 impl Marker {
@@ -335,6 +363,44 @@ impl Marker {
                 px(-1.1 * r),
                 px(0.8 * r)
             ),
+            Marker::Lab(i) => {
+                let (shape, colour) = lab_marker(usize::from(i));
+                let open = shape.starts_with("open-");
+                let fill = if open { "#fff" } else { colour };
+                let attributes = format!(
+                    r#"class="marker" data-shape="{shape}" data-colour="{colour}" fill="{fill}" stroke="{colour}" stroke-width="1.2""#
+                );
+                let (rr, h) = (px(r), px(1.25 * r));
+                match shape.trim_start_matches("open-") {
+                    "circle" => format!(r#"<circle r="{rr}" {attributes}/>"#),
+                    "square" => format!(
+                        r#"<rect x="{}" y="{}" width="{}" height="{}" {attributes}/>"#,
+                        px(-r),
+                        px(-r),
+                        px(2.0 * r),
+                        px(2.0 * r)
+                    ),
+                    "diamond" => {
+                        format!(r#"<path d="M0,-{h} L{h},0 L0,{h} L-{h},0 Z" {attributes}/>"#)
+                    }
+                    "triangle-down" => format!(
+                        r#"<path d="M0,{} L{},{} L{},{} Z" {attributes}/>"#,
+                        px(1.2 * r),
+                        px(1.1 * r),
+                        px(-0.8 * r),
+                        px(-1.1 * r),
+                        px(-0.8 * r)
+                    ),
+                    _ => format!(
+                        r#"<path d="M0,{} L{},{} L{},{} Z" {attributes}/>"#,
+                        px(-1.2 * r),
+                        px(1.1 * r),
+                        px(0.8 * r),
+                        px(-1.1 * r),
+                        px(0.8 * r)
+                    ),
+                }
+            }
         }
     }
 }

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 
 use super::{KcError, LabResult};
-use crate::results::{ANGLE_TOLERANCE_DEG, Quantity, ResultRow};
+use crate::results::{ANGLE_TOLERANCE_DEG, Quantity, ResultRow, RowColumns};
 
 /// The results lined up: `values[r][k]` and `u[r][k]` of result `r` (laboratories first,
 /// then the pilot's repeats) at position `k`.
@@ -24,11 +24,41 @@ pub(crate) struct Aligned {
     pub notes: Vec<String>,
 }
 
-/// `file:line` of row `i` of a result, or `name (row i+1)` for rows given in memory.
-fn location(result: &LabResult, i: usize) -> String {
+/// `file:line:column` of a field of row `i` of a result (`file:line` when its columns are
+/// not known), or `name (row i+1)` for rows given in memory.
+fn location(result: &LabResult, i: usize, field: Field) -> String {
     match result.lines.get(i) {
-        Some(line) => format!("{}:{line}", result.source),
+        Some(line) => match result.columns.get(i).and_then(|c| field.column(c)) {
+            Some(column) => format!("{}:{line}:{column}", result.source),
+            None => format!("{}:{line}", result.source),
+        },
         None => format!("{} (row {})", result.source, i + 1),
+    }
+}
+
+/// The field of a row a refusal points at.
+#[derive(Debug, Clone, Copy)]
+enum Field {
+    Index,
+    ExpandedU,
+    U,
+    /// Where a missing standard uncertainty would be: `u`, else `k` (U without its k),
+    /// else `U`, else the row's index.
+    MissingU,
+}
+
+impl Field {
+    fn column(self, columns: &RowColumns) -> Option<u64> {
+        match self {
+            Field::Index => Some(columns.index),
+            Field::ExpandedU => columns.expanded_u,
+            Field::U => columns.u,
+            Field::MissingU => columns
+                .u
+                .or(columns.k)
+                .or(columns.expanded_u)
+                .or(Some(columns.index)),
+        }
     }
 }
 
@@ -36,7 +66,15 @@ fn location(result: &LabResult, i: usize) -> String {
 /// given, must be positive.
 fn standard_u(result: &LabResult, i: usize, row: &ResultRow) -> Result<f64, KcError> {
     let non_positive = |column: &'static str, value: f64| KcError::NonPositiveUncertainty {
-        location: location(result, i),
+        location: location(
+            result,
+            i,
+            if column == "U" {
+                Field::ExpandedU
+            } else {
+                Field::U
+            },
+        ),
         quantity: row.quantity,
         index: row.index,
         column,
@@ -57,7 +95,7 @@ fn standard_u(result: &LabResult, i: usize, row: &ResultRow) -> Result<f64, KcEr
             (Some(expanded_u), Some(k)) if k > 0.0 && k.is_finite() => expanded_u / k,
             _ => {
                 return Err(KcError::MissingUncertainty {
-                    location: location(result, i),
+                    location: location(result, i, Field::MissingU),
                     quantity: row.quantity,
                     index: row.index,
                 });
@@ -66,7 +104,15 @@ fn standard_u(result: &LabResult, i: usize, row: &ResultRow) -> Result<f64, KcEr
     };
     if u < MIN_STANDARD_U_ARCSEC {
         return Err(KcError::UncertaintyTooSmall {
-            location: location(result, i),
+            location: location(
+                result,
+                i,
+                if row.u.is_some() {
+                    Field::U
+                } else {
+                    Field::ExpandedU
+                },
+            ),
             quantity: row.quantity,
             index: row.index,
             value: u,
@@ -108,7 +154,7 @@ pub(crate) fn pitch(results: &[&LabResult]) -> Result<Aligned, KcError> {
         for &(i, row) in &rows {
             if row.index == 0 || by_face.insert(row.index, i).is_some() {
                 return Err(KcError::Duplicate {
-                    location: location(result, i),
+                    location: location(result, i, Field::Index),
                     quantity: row.quantity,
                     index: row.index,
                 });
@@ -118,7 +164,7 @@ pub(crate) fn pitch(results: &[&LabResult]) -> Result<Aligned, KcError> {
             None => faces_first = Some((faces, &result.source)),
             Some((first, first_source)) if first != faces => {
                 return Err(KcError::FacesDiffer {
-                    location: location(result, last_at),
+                    location: location(result, last_at, Field::Index),
                     faces,
                     first_source: first_source.to_string(),
                     first_faces: first,
@@ -130,7 +176,7 @@ pub(crate) fn pitch(results: &[&LabResult]) -> Result<Aligned, KcError> {
         for face in 1..=faces {
             let Some(&i) = by_face.get(&face) else {
                 return Err(KcError::FaceMissing {
-                    location: location(result, last_at),
+                    location: location(result, last_at, Field::Index),
                     face,
                     faces,
                 });
@@ -204,7 +250,7 @@ pub(crate) fn encoder(results: &[&LabResult]) -> Result<Aligned, KcError> {
         };
         if group.rows[r].is_some() {
             return Err(KcError::Duplicate {
-                location: location(results[r], i),
+                location: location(results[r], i, Field::Index),
                 quantity: Quantity::EncoderError,
                 index: results[r].rows[i].index,
             });

@@ -60,7 +60,7 @@ mod search;
 
 use serde::{Deserialize, Serialize};
 
-use crate::results::{Quantity, ResultFile, ResultRow};
+use crate::results::{Quantity, ResultFile, ResultRow, RowColumns};
 
 pub use covariance::lab_from_solve_json;
 pub use evaluate::evaluate;
@@ -216,6 +216,8 @@ pub struct LabResult {
     pub rows: Vec<ResultRow>,
     /// The 1-based line of each row in its file (empty for rows given in memory).
     pub lines: Vec<u64>,
+    /// Where each row's fields start on its line (empty when not known).
+    pub columns: Vec<RowColumns>,
     /// The laboratory's covariance of its pitch deviations, faces 1 … N row-major
     /// (N × N), arcsec², when it gives one; else `None` (taken as closed with its u).
     pub covariance: Option<Vec<f64>>,
@@ -229,6 +231,7 @@ impl LabResult {
             source: file.source,
             rows: file.rows,
             lines: file.lines,
+            columns: file.columns,
             covariance: None,
         }
     }
@@ -242,6 +245,7 @@ impl LabResult {
             name,
             rows,
             lines: Vec::new(),
+            columns: Vec::new(),
             covariance: None,
         }
     }
@@ -330,6 +334,33 @@ pub struct PairDifference {
     /// U(d_ab) at k = 2 per quantity, arcseconds.
     #[serde(rename = "U")]
     pub expanded_u: Vec<f64>,
+}
+
+impl PairDifference {
+    /// The position where |d_ab|/U(d_ab) is largest (the first of equals), and that ratio
+    /// (`None` with no position): what the pairwise figure shows of a pair.
+    pub fn largest_ratio(&self) -> Option<(usize, f64)> {
+        let ratios = self
+            .d
+            .iter()
+            .zip(&self.expanded_u)
+            .map(|(d, u)| d.abs() / u);
+        ratios
+            .enumerate()
+            .fold(None, |best: Option<(usize, f64)>, (k, ratio)| match best {
+                Some((_, largest)) if ratio <= largest => best,
+                _ => Some((k, ratio)),
+            })
+    }
+
+    /// How many positions have |d_ab| > U(d_ab).
+    pub fn exceeding(&self) -> usize {
+        self.d
+            .iter()
+            .zip(&self.expanded_u)
+            .filter(|(d, u)| d.abs() > **u)
+            .count()
+    }
 }
 
 /// The pilot's repeated results (start, middle, end of the circulation): how stable the
@@ -559,7 +590,7 @@ pub enum KcError {
          (faces 1 … {faces} expected)"
     )]
     FaceMissing {
-        /// `file:line` of the last face.
+        /// `file:line:column` of the last face's index.
         location: String,
         /// The missing face.
         face: u32,
@@ -572,7 +603,7 @@ pub enum KcError {
          of the same polygon"
     )]
     FacesDiffer {
-        /// `file:line` of the last face.
+        /// `file:line:column` of the last face's index.
         location: String,
         /// Its number of faces.
         faces: u32,
@@ -584,7 +615,7 @@ pub enum KcError {
     /// A quantity appears twice in one result.
     #[error("{location}: {quantity} {index} appears twice")]
     Duplicate {
-        /// `file:line`.
+        /// `file:line:column` of the index.
         location: String,
         /// The quantity.
         quantity: Quantity,
@@ -597,7 +628,7 @@ pub enum KcError {
          positive uncertainty (column {column})"
     )]
     NonPositiveUncertainty {
-        /// `file:line`.
+        /// `file:line:column` of the uncertainty.
         location: String,
         /// The quantity.
         quantity: Quantity,
@@ -614,7 +645,7 @@ pub enum KcError {
          u, or U with its k (columns u, U, k)"
     )]
     MissingUncertainty {
-        /// `file:line`.
+        /// `file:line:column` where the uncertainty is missing.
         location: String,
         /// The quantity.
         quantity: Quantity,
@@ -659,7 +690,7 @@ pub enum KcError {
          uncertainty that small is not a measured one (a unit mistake?)"
     )]
     UncertaintyTooSmall {
-        /// `file:line`.
+        /// `file:line:column` of the uncertainty.
         location: String,
         /// The quantity.
         quantity: Quantity,

@@ -1,8 +1,10 @@
 //! The table of `polycal kc` for people, and its CSV of degrees of equivalence (its JSON
 //! is [`crate::kc::KeyComparison`]).
 
+use std::borrow::Cow;
 use std::fmt::{self, Write};
 
+use crate::input::escaped;
 use crate::kc::{DegreeOfEquivalence, KeyComparison, ReferenceMethod};
 use crate::uncertainty::format::table;
 
@@ -13,10 +15,74 @@ use crate::uncertainty::format::table;
 /// verdict. Numbers are rounded for reading (0.001″, χ² to 0.01); JSON and CSV carry them
 /// at full precision.
 ///
+/// A laboratory's name (or any text) with a control character — an escape sequence, a
+/// line feed — is shown escaped as [`crate::input::escaped`] shows it, so a name cannot
+/// recolour the terminal or forge a line of the table.
+///
 /// # Errors
 ///
 /// The writer's error.
 pub fn write_table<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
+    let mut text = String::new();
+    write_table_text(&mut text, &names_escaped(kc))?;
+    // What the names' escaping cannot reach (a control character in a note, say): every
+    // one but the table's own line feeds.
+    for (i, line) in text.split('\n').enumerate() {
+        if i > 0 {
+            out.write_char('\n')?;
+        }
+        out.write_str(&escaped(line))?;
+    }
+    Ok(())
+}
+
+/// The comparison with every laboratory's name escaped (and the texts that quote the
+/// names: the exclusions' reasons and the notes).
+fn names_escaped(kc: &KeyComparison) -> Cow<'_, KeyComparison> {
+    let names = kc
+        .labs
+        .iter()
+        .chain(kc.pilot.iter().flat_map(|p| &p.repeats));
+    if !names.clone().any(|name| name.contains(char::is_control))
+        && !kc.notes.iter().any(|n| n.contains(char::is_control))
+        && !kc
+            .excluded
+            .iter()
+            .any(|e| e.reason.contains(char::is_control))
+    {
+        return Cow::Borrowed(kc);
+    }
+    let fix = |text: &mut String| *text = escaped(text).into_owned();
+    let mut kc = kc.clone();
+    kc.labs.iter_mut().for_each(fix);
+    kc.kept.iter_mut().for_each(fix);
+    kc.notes.iter_mut().for_each(fix);
+    for e in &mut kc.excluded {
+        fix(&mut e.lab);
+        fix(&mut e.reason);
+    }
+    if let Some(search) = &mut kc.search {
+        for step in &mut search.steps {
+            step.best.iter_mut().for_each(fix);
+        }
+    }
+    for doe in &mut kc.degrees_of_equivalence {
+        fix(&mut doe.lab);
+    }
+    for pair in &mut kc.pairs {
+        fix(&mut pair.a);
+        fix(&mut pair.b);
+    }
+    if let Some(pilot) = &mut kc.pilot {
+        pilot.repeats.iter_mut().for_each(fix);
+        for doe in &mut pilot.degrees_of_equivalence {
+            fix(&mut doe.lab);
+        }
+    }
+    Cow::Owned(kc)
+}
+
+fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     let name = kc.quantity.name();
     let position = if kc.angle_deg.is_some() {
         "Angle °"
