@@ -533,6 +533,23 @@ fn encoder_errors_are_matched_by_angle_24_against_168() {
         "{table}"
     );
     assert!(table.contains("Angle °"), "{table}");
+    // The 144 positions only in the 168-position result: their number, the first six
+    // (the positions not a multiple of 7: 1 … 6) and where every one is, on one short
+    // line; the 49 rows only in the first (24 β, 23 φ, 2 U) likewise counted.
+    let line = table
+        .lines()
+        .find(|l| l.starts_with("Only in the second result"))
+        .unwrap_or_else(|| panic!("no line for the second result's rows:\n{table}"));
+    assert_eq!(
+        line,
+        "Only in the second result (not compared): 144 quantities: encoder_error 1, \
+         encoder_error 2, encoder_error 3, encoder_error 4, encoder_error 5, encoder_error 6, \
+         … (every one in the JSON output's only_in_a/only_in_b)"
+    );
+    assert!(
+        table.contains("Only in the first result (not compared): 49 quantities: "),
+        "{table}"
+    );
 
     // The other way round: the same pairs, the first result's index and angle.
     let c = compare_files(&fb, &fa, &CompareOptions::default()).unwrap();

@@ -4,10 +4,14 @@
 //! shown beside it, run in CI").
 //!
 //! - Every ```sh block of `README.md` and of each guide in `docs/` is run, in order, one
-//!   document at a time in its own scratch directory that sees the repository's
-//!   `examples/` (so that each guide's commands run as a reader who starts there runs
-//!   them), with `cargo run --release --` and `target/release/polycal` standing for the
-//!   built binary. `cargo build`/`cargo test` lines are left out (this test is run by
+//!   document at a time, in a copy of the repository's tracked files (`git ls-files`,
+//!   as they are in the working tree) made a git repository of its own, from its root as
+//!   the README says, with `cargo run --release --` and `target/release/polycal` standing
+//!   for the built binary. After each document `git status --porcelain` must be empty
+//!   (issue 48: following the README left about 25 untracked files in the repository's
+//!   root): what the commands write goes under `out/`, which git ignores. The copy is
+//!   then cleaned, so that each guide's commands run as a reader who starts there runs
+//!   them. `cargo build`/`cargo test` lines are left out (this test is run by
 //!   them), and so are blocks preceded by a `<!-- tests/readme.rs skips … -->` line (the
 //!   two-terminal instructions, whose device paths differ on every machine; the same run
 //!   is shown as one script, which is run).
@@ -139,28 +143,92 @@ fn documents() -> Vec<PathBuf> {
     all
 }
 
-/// Runs a document's blocks in a scratch directory of its own; a failure names the
-/// document and line.
-fn run_document(document: &Path) -> usize {
+/// Runs `git ARGS` in `dir`; its standard output, or a panic naming the command.
+fn git(dir: &Path, args: &[&str]) -> String {
+    let output = Command::new("git")
+        .args([
+            "-c",
+            "user.name=polycal tests",
+            "-c",
+            "user.email=tests@polycal.invalid",
+        ])
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap_or_else(|e| panic!("git {args:?} cannot run: {e}"));
+    assert!(
+        output.status.success(),
+        "git {args:?} in {} failed: {}",
+        dir.display(),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    String::from_utf8_lossy(&output.stdout).into_owned()
+}
+
+/// A copy of the repository's tracked files as they are in the working tree (a fresh
+/// clone, with the changes not yet committed), committed as a repository of its own in
+/// a new directory named after `name`.
+fn repository_copy(name: &str) -> PathBuf {
+    let copy = std::env::temp_dir().join(format!("polycal-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&copy);
+    std::fs::create_dir_all(&copy).expect("a scratch directory");
+    for path in git(Path::new(ROOT), &["ls-files", "-z"]).split('\0') {
+        let from = Path::new(ROOT).join(path);
+        if path.is_empty() || !from.is_file() {
+            continue; // the end, or a tracked file deleted in the working tree
+        }
+        let to = copy.join(path);
+        std::fs::create_dir_all(to.parent().expect("a parent")).expect("a directory");
+        std::fs::copy(&from, &to).unwrap_or_else(|e| panic!("{path}: {e}"));
+    }
+    git(&copy, &["init", "-q"]);
+    git(&copy, &["add", "-A"]);
+    git(
+        &copy,
+        &["commit", "-q", "--no-gpg-sign", "-m", "the tracked files"],
+    );
+    copy
+}
+
+/// What commands left in a repository copy: `git status --porcelain`, one line a path
+/// (every untracked file named, not only its directory).
+fn left_behind(copy: &Path) -> Vec<String> {
+    git(copy, &["status", "--porcelain", "--untracked-files=all"])
+        .lines()
+        .map(str::to_string)
+        .collect()
+}
+
+/// Runs a document's blocks from the root of the repository copy `copy`; a failure names
+/// the document and line. Afterwards nothing may be left but under `out/` (ignored), and
+/// the copy is cleaned for the next document.
+fn run_document(document: &Path, copy: &Path) -> usize {
     let text = std::fs::read_to_string(Path::new(ROOT).join(document))
         .unwrap_or_else(|e| panic!("{}: {e}", document.display()));
     let blocks = runnable_blocks(&text);
     if blocks.is_empty() {
         return 0;
     }
-    let stem = document.display().to_string().replace(['/', '.'], "-");
-    let scratch =
-        std::env::temp_dir().join(format!("polycal-readme-{}-{stem}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&scratch);
-    std::fs::create_dir_all(&scratch).expect("a scratch directory");
-    let examples: PathBuf = Path::new(ROOT).join("examples");
-    std::os::unix::fs::symlink(&examples, scratch.join("examples")).expect("a link");
-    for block in &blocks {
+    run_blocks(document, &blocks, copy);
+    let left = left_behind(copy);
+    assert!(
+        left.is_empty(),
+        "{}: its commands left files outside out/ (git status --porcelain):\n{}",
+        document.display(),
+        left.join("\n")
+    );
+    git(copy, &["clean", "-q", "-f", "-d", "-x"]);
+    blocks.len()
+}
+
+/// Runs blocks, in order, from `dir`; a failure names the document and line.
+fn run_blocks(document: &Path, blocks: &[Block], dir: &Path) {
+    for block in blocks {
         let text = script(&block.body);
         let output = Command::new("bash")
             .arg("-c")
             .arg(&text)
-            .current_dir(&scratch)
+            .current_dir(dir)
             .env("POLYCAL", BIN)
             .env_remove("NO_COLOR")
             .output()
@@ -193,22 +261,22 @@ fn run_document(document: &Path) -> usize {
             );
         }
     }
-    let _ = std::fs::remove_dir_all(&scratch);
-    blocks.len()
 }
 
 #[test]
 fn the_shell_blocks_run_as_written_and_print_what_is_shown() {
     let mut total = 0;
     let mut shown = 0;
+    let copy = repository_copy("readme");
     for document in documents() {
         let text = std::fs::read_to_string(Path::new(ROOT).join(&document)).expect("readable");
         shown += runnable_blocks(&text)
             .iter()
             .filter(|b| b.output.is_some())
             .count();
-        total += run_document(&document);
+        total += run_document(&document, &copy);
     }
+    let _ = std::fs::remove_dir_all(&copy);
     assert!(
         total >= 5,
         "expected the set-up, diagnose, uncertainty, command and lab blocks, found {total}"
@@ -217,6 +285,26 @@ fn the_shell_blocks_run_as_written_and_print_what_is_shown() {
         shown >= 2,
         "expected the plan comparison and the solve table beside their commands, found {shown}"
     );
+}
+
+/// The check of what commands leave: a file written in the root is named, one under
+/// `out/` is not, and a changed tracked file is named too.
+#[test]
+fn what_commands_leave_outside_out_is_found() {
+    let copy = repository_copy("readme-check");
+    assert_eq!(
+        left_behind(&copy),
+        Vec::<String>::new(),
+        "a fresh copy is clean"
+    );
+    let document = "```sh\nmkdir -p figures\necho x > out/result.csv\necho x > result.csv\n\
+                    echo x > figures/a.svg\necho x >> Cargo.toml\n```\n";
+    run_blocks(Path::new("test"), &runnable_blocks(document), &copy);
+    assert_eq!(
+        left_behind(&copy),
+        vec![" M Cargo.toml", "?? figures/a.svg", "?? result.csv"]
+    );
+    let _ = std::fs::remove_dir_all(&copy);
 }
 
 #[test]
@@ -360,4 +448,85 @@ fn anchors_and_links_are_read_as_github_reads_them() {
     let text =
         "see [a](docs/a.md#x) and `[b](no.md)` and [c](https://e.org)\n```\n[d](no.md)\n```\n";
     assert_eq!(links(text), vec![(1, "docs/a.md#x".to_string())]);
+}
+
+/// The flags `polycal COMMAND --help` lists (every `--name` at the start of a line of
+/// its Options section).
+fn help_flags(command: &str) -> Vec<String> {
+    let output = Command::new(BIN)
+        .args([command, "--help"])
+        .output()
+        .expect("polycal runs");
+    assert!(output.status.success(), "polycal {command} --help");
+    let help = String::from_utf8_lossy(&output.stdout);
+    // the options, not the examples after them
+    let options = help
+        .split("\nOptions:")
+        .nth(1)
+        .expect("an Options: section");
+    let options = options.split("\nExamples:").next().unwrap_or(options);
+    let mut flags: Vec<String> = options
+        .lines()
+        .map(str::trim_start)
+        .filter(|l| l.starts_with('-'))
+        .flat_map(|l| l.split([' ', ',', '=', '[', '<']).take(3))
+        .filter(|w| w.starts_with("--") && w.len() > 2)
+        .map(str::to_string)
+        .collect();
+    flags.sort();
+    flags.dedup();
+    flags
+}
+
+/// Issue 48: the README's command summary lacked `--covariance`, `--cross-talk`,
+/// `--head-angle-u` and `--step-seconds`. Every flag of every evaluating command's
+/// `--help` is in its entry of the summary (its `polycal COMMAND` lines and their
+/// continuation lines), `--plot` in the note that names the commands taking it, and
+/// `--help`, `--quiet` and `--color` in the paragraph that says every command takes them.
+#[test]
+fn the_command_summary_lists_every_flag_of_every_command() {
+    let readme = std::fs::read_to_string(Path::new(ROOT).join("README.md")).expect("README");
+    let section = &readme[readme.find("\n## Commands\n").expect("## Commands")..];
+    let block_start = section.find("```text\n").expect("the summary block") + 8;
+    let block = &section[block_start..block_start + section[block_start..].find("```").unwrap()];
+    let paragraph = section[block_start + block.len() + 3..].trim_start();
+    let paragraph = &paragraph[..paragraph.find("\n\n").expect("a paragraph")];
+    let plot_note = block
+        .lines()
+        .find(|l| l.trim_start().starts_with('(') && l.contains("--plot"))
+        .expect("the --plot note");
+    for command in [
+        "solve", "diagnose", "budget", "compare", "kc", "simulate", "selfcal", "plan", "report",
+    ] {
+        // the command's entries: its lines and their indented continuations
+        let mut entry = String::new();
+        let mut inside = false;
+        for line in block.lines() {
+            if line.starts_with("polycal ") {
+                inside = line.starts_with(&format!("polycal {command} "));
+            } else if line.trim_start().starts_with('(') {
+                inside = false;
+            }
+            if inside {
+                entry.push_str(line);
+                entry.push('\n');
+            }
+        }
+        assert!(!entry.is_empty(), "no entry for polycal {command}");
+        let flags = help_flags(command);
+        assert!(flags.len() >= 3, "polycal {command} --help: {flags:?}");
+        for flag in flags {
+            let listed = match flag.as_str() {
+                "--help" | "--quiet" | "--color" => paragraph.contains(flag.as_str()),
+                "--plot" => plot_note.contains(command),
+                _ => entry
+                    .split(|c: char| !(c.is_alphanumeric() || c == '-'))
+                    .any(|w| w == flag),
+            };
+            assert!(
+                listed,
+                "README's command summary: polycal {command} {flag} is not listed"
+            );
+        }
+    }
 }

@@ -1,6 +1,6 @@
 //! The table of `polycal compare` for people, and its CSV.
 
-use crate::compare::{Comparison, EncoderMatching};
+use crate::compare::{Comparison, EncoderMatching, Unmatched};
 use crate::results::{ANGLE_TOLERANCE_DEG, Quantity};
 use std::fmt::{self, Write};
 
@@ -152,14 +152,35 @@ pub fn write_table<W: Write>(out: &mut W, comparison: &Comparison) -> fmt::Resul
             writeln!(
                 out,
                 "Only in the {label} result (not compared): {}",
-                list.iter()
-                    .map(|u| format!("{} {}", u.quantity, u.index))
-                    .collect::<Vec<_>>()
-                    .join(", ")
+                unmatched_names(list)
             )?;
         }
     }
     Ok(())
+}
+
+/// How many names of unmatched quantities the table lists before it summarises.
+const UNMATCHED_LISTED: usize = 6;
+
+/// The quantities found in one result only, as the table names them: every one when
+/// there are at most [`UNMATCHED_LISTED`], otherwise their number, the first few and
+/// where the full list is (the JSON's `only_in_a`/`only_in_b`), so that a 24-position
+/// result against a 168-position one is one readable line, not 144 names.
+fn unmatched_names(list: &[Unmatched]) -> String {
+    let names = list
+        .iter()
+        .take(UNMATCHED_LISTED)
+        .map(|u| format!("{} {}", u.quantity, u.index))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if list.len() <= UNMATCHED_LISTED {
+        names
+    } else {
+        format!(
+            "{} quantities: {names}, … (every one in the JSON output's only_in_a/only_in_b)",
+            list.len()
+        )
+    }
 }
 
 /// The table of N columns, the first left-aligned.
