@@ -1468,13 +1468,13 @@ fn completions_and_man_page() {
 fn help_examples_run() {
     let dir = temp_dir("help-examples");
     let link = dir.join("examples");
-    if !link.exists() {
-        std::os::unix::fs::symlink(
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("examples"),
-            &link,
-        )
-        .unwrap();
-    }
+    // A link left by an earlier run whose process id this one reuses may point nowhere.
+    let _ = std::fs::remove_file(&link);
+    std::os::unix::fs::symlink(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples"),
+        &link,
+    )
+    .unwrap();
     let bin_dir = Path::new(env!("CARGO_BIN_EXE_polycal")).parent().unwrap();
     let path = format!(
         "{}:{}",

@@ -7,8 +7,9 @@ use super::MeasurementSet;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 
-/// A cycle of one mounting that read fewer steps than the most any cycle of that
-/// mounting read (and at least the N steps 0 … N−1 a cycle has).
+/// A cycle of one mounting that read only some of the steps every other cycle of that
+/// mounting read alike (a run interrupted in its last cycle, a cycle cut short); cycles
+/// of a design in which the cycles read different steps are not incomplete.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 #[non_exhaustive]
 pub struct IncompleteCycle {
@@ -18,8 +19,8 @@ pub struct IncompleteCycle {
     pub cycle: u32,
     /// The number of distinct steps the cycle read.
     pub steps: usize,
-    /// The number of steps a whole cycle of its mounting reads: the most any of its
-    /// cycles read, at least N.
+    /// The number of steps a whole cycle of its mounting reads: what every other cycle
+    /// read.
     pub expected_steps: usize,
     /// The steps of a whole cycle it did not read, ascending.
     pub missing_steps: Vec<usize>,
@@ -51,7 +52,11 @@ impl fmt::Display for IncompleteCycle {
     }
 }
 
-/// Ascending numbers as runs: `5–23`, `1, 3–4`.
+/// The most runs a message lists; the rest are counted.
+const RUNS_SHOWN: usize = 8;
+
+/// Ascending numbers as runs: `5–23`, `1, 3–4`; beyond [`RUNS_SHOWN`] runs, the first ones
+/// and how many numbers in all.
 fn ranges(numbers: &[usize]) -> String {
     let mut runs: Vec<(usize, usize)> = Vec::new();
     for &n in numbers {
@@ -60,7 +65,9 @@ fn ranges(numbers: &[usize]) -> String {
             _ => runs.push((n, n)),
         }
     }
-    runs.iter()
+    let shown = runs
+        .iter()
+        .take(RUNS_SHOWN)
         .map(|&(a, b)| {
             if a == b {
                 a.to_string()
@@ -69,14 +76,21 @@ fn ranges(numbers: &[usize]) -> String {
             }
         })
         .collect::<Vec<_>>()
-        .join(", ")
+        .join(", ");
+    if runs.len() > RUNS_SHOWN {
+        format!("{shown}, … ({} in all)", numbers.len())
+    } else {
+        shown
+    }
 }
 
 impl MeasurementSet {
     /// The cycles with fewer steps than a whole cycle of their mounting, in (setup, cycle)
-    /// order: a whole cycle reads the most steps any cycle of its mounting reads (step N,
-    /// the closing reading, counting when some cycle has it), and at least the N steps
-    /// 0 … N−1. A step counts as read when any autocollimator read it.
+    /// order. A whole cycle is what every other cycle of the mounting read, all alike (step
+    /// N, the closing reading, counting when they have it); a cycle that read only part of
+    /// it is incomplete. A mounting of one cycle, or whose other cycles read different
+    /// steps (a design that skips steps on purpose), has none. A step counts as read when
+    /// any autocollimator read it.
     ///
     /// ```
     /// use polycal::measurement::MeasurementSet;
@@ -99,26 +113,42 @@ impl MeasurementSet {
         for r in &self.readings {
             steps.entry((r.setup, r.cycle)).or_default().insert(r.step);
         }
-        let mut whole: BTreeMap<u32, usize> = BTreeMap::new();
-        for (&(setup, _), read) in &steps {
-            let most = whole.entry(setup).or_insert(self.faces);
-            *most = (*most).max(read.len());
-        }
-        let several_setups = whole.len() > 1;
-        steps
-            .iter()
-            .filter_map(|(&(setup, cycle), read)| {
-                let expected = whole.get(&setup).copied().unwrap_or(self.faces);
-                (read.len() < expected).then(|| IncompleteCycle {
+        let setups: BTreeSet<u32> = steps.keys().map(|&(setup, _)| setup).collect();
+        let several_setups = setups.len() > 1;
+        let mut found = Vec::new();
+        for &setup in &setups {
+            let cycles: Vec<(u32, &BTreeSet<usize>)> = steps
+                .iter()
+                .filter(|((s, _), _)| *s == setup)
+                .map(|(&(_, cycle), read)| (cycle, read))
+                .collect();
+            for (i, &(cycle, read)) in cycles.iter().enumerate() {
+                // The other cycles of the mounting, all alike: what a whole cycle reads.
+                let mut others = cycles
+                    .iter()
+                    .enumerate()
+                    .filter(|&(j, _)| j != i)
+                    .map(|(_, &(_, other))| other);
+                let Some(whole) = others.next() else {
+                    continue;
+                };
+                if !others.all(|other| other == whole)
+                    || read.len() >= whole.len()
+                    || !read.is_subset(whole)
+                {
+                    continue;
+                }
+                found.push(IncompleteCycle {
                     setup,
                     cycle,
                     steps: read.len(),
-                    expected_steps: expected,
-                    missing_steps: (0..expected).filter(|s| !read.contains(s)).collect(),
+                    expected_steps: whole.len(),
+                    missing_steps: whole.difference(read).copied().collect(),
                     several_setups,
-                })
-            })
-            .collect()
+                });
+            }
+        }
+        found
     }
 }
 
@@ -179,5 +209,19 @@ mod tests {
         assert_eq!(ranges(&[5, 6, 7, 8]), "5–8");
         assert_eq!(ranges(&[1, 3, 4, 9]), "1, 3–4, 9");
         assert_eq!(ranges(&[2]), "2");
+        let every_other: Vec<usize> = (0..20).map(|i| 2 * i).collect();
+        assert_eq!(
+            ranges(&every_other),
+            "0, 2, 4, 6, 8, 10, 12, 14, … (20 in all)"
+        );
+    }
+
+    #[test]
+    fn a_design_whose_cycles_read_different_steps_has_no_incomplete_cycle() {
+        // three cycles of a 4-faced polygon, each skipping another step on purpose
+        let s = set("1,0,1,1,0\n1,1,1,2,0\n1,2,1,3,0\n\
+             2,1,1,2,0\n2,2,1,3,0\n2,3,1,4,0\n\
+             3,0,1,1,0\n3,2,1,3,0\n3,3,1,4,0\n");
+        assert!(s.incomplete_cycles().is_empty());
     }
 }
