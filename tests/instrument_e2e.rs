@@ -170,6 +170,25 @@ fn refusals_are_one_error_line_and_status_2() {
     let missing = dir.join("missing");
     let mut args = lab.run_args(&missing, &short);
     args[2] = "/dev/polycal-no-such-port".into();
+    let first = polycal(&args);
+    assert_error(&first, "/dev/polycal-no-such-port");
+    // the line says how to go on: the directory holds the run, so only --resume does
+    assert!(
+        stderr(&first).contains("0 of 16 readings are in") // 8 stops × 2 autocollimators
+            && stderr(&first).contains("continue with the same command and --resume"),
+        "{}",
+        stderr(&first)
+    );
+    // and as it says, once the port is there --resume measures the run
+    let mut resumed = lab.run_args(&missing, &short);
+    resumed.push("--resume".into());
+    let done = polycal(&resumed);
+    assert!(done.status.success(), "{}", stderr(&done));
+    let m = manifest(&missing);
+    assert_eq!(m["outcome"], "completed", "{m}");
+    let missing = dir.join("missing-again");
+    let mut args = lab.run_args(&missing, &short);
+    args[2] = "/dev/polycal-no-such-port".into();
     assert_error(&polycal(&args), "/dev/polycal-no-such-port");
     let m = manifest(&missing);
     assert!(

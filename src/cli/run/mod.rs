@@ -357,9 +357,13 @@ impl Session<'_> {
                     Ok(()) => String::new(),
                     Err(e) => format!("; the manifest could not record it ({e})"),
                 };
+                // The directory holds the run now: only --resume continues it.
                 bail!(
-                    "{e}; nothing was measured in this session ({}){note}",
-                    args.out.display()
+                    "{e}; nothing was measured in this session; {} of {} readings are in {}; \
+                     continue with the same command and --resume once the port is there{note}",
+                    dir.readings_done(),
+                    dir.manifest().expected_readings,
+                    file.display()
                 );
             }
         };
