@@ -15,10 +15,10 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 use lab_support::*;
-use polycal::lab::elcomat::Elcomat3000;
+use polycal::lab::driver::ProfileAutocollimator;
+use polycal::lab::driver::{ProfileTable, TableOptions};
 use polycal::lab::run::{self, Instruments, Outcome, RunDir, RunError, RunSettings};
 use polycal::lab::sim::{Devices, SimStream};
-use polycal::lab::smc100::{Smc100, Smc100Options};
 use polycal::lab::traffic::{LoggedTransport, TrafficLog};
 use polycal::lab::transport::StreamTransport;
 use polycal::lab::{StopFlag, WriteBudget};
@@ -48,7 +48,13 @@ fn truth() -> &'static Truth {
 type Logged = LoggedTransport<StreamTransport<SimStream>>;
 
 /// The drivers of a new noiseless lab, every line they exchange recorded in `log`.
-fn logged_drivers(log: &TrafficLog) -> (Elcomat3000<Logged>, Elcomat3000<Logged>, Smc100<Logged>) {
+fn logged_drivers(
+    log: &TrafficLog,
+) -> (
+    ProfileAutocollimator<Logged>,
+    ProfileAutocollimator<Logged>,
+    ProfileTable<Logged>,
+) {
     let Devices {
         ac1, ac2, table, ..
     } = noiseless();
@@ -56,14 +62,15 @@ fn logged_drivers(log: &TrafficLog) -> (Elcomat3000<Logged>, Elcomat3000<Logged>
         LoggedTransport::new(StreamTransport::new(name, stream), device, log.clone())
     };
     let ac = |name: &str, device: &str, stream| {
-        Elcomat3000::new(port(name, device, stream), query()).with_drain(Duration::ZERO)
+        ProfileAutocollimator::elcomat3000(port(name, device, stream), query())
+            .with_drain(Duration::ZERO)
     };
     (
         ac("mem:ac1", "ac1", SimStream::new(ac1)),
         ac("mem:ac2", "ac2", SimStream::new(ac2)),
-        Smc100::new(
+        ProfileTable::smc100(
             port("mem:table", "table", SimStream::new(table)),
-            Smc100Options::new(query()).with_poll_interval(Duration::from_millis(1)),
+            TableOptions::new(query()).with_poll_interval(Duration::from_millis(1)),
         ),
     )
 }

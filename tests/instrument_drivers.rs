@@ -1,5 +1,5 @@
 //! The instrument layer over in-memory transports: the transport's line deadline and
-//! framing, the traffic log, and the ELCOMAT 3000 and SMC100 drivers: each command's
+//! framing, the traffic log, and the drivers with the ELCOMAT 3000 and SMC100 profiles: each command's
 //! exact bytes, each reply form, each error state, retries of queries, and motion never
 //! sent twice.
 
@@ -7,9 +7,9 @@ use std::io::{self, Read, Write};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use polycal::lab::elcomat::Elcomat3000;
+use polycal::lab::driver::{ProfileAutocollimator, ProfileTable, TableOptions, TableState};
+use polycal::lab::profile::{Profile, format_degrees};
 use polycal::lab::scripted::ScriptedStream;
-use polycal::lab::smc100::{self, ControllerState, Smc100, Smc100Options, parse_status};
 use polycal::lab::traffic::{LoggedTransport, RunClock, TrafficLog};
 use polycal::lab::transport::{StreamTransport, Transport};
 use polycal::lab::{
@@ -21,14 +21,15 @@ fn fast() -> QueryOptions {
     QueryOptions::new(Duration::from_millis(30), 3)
 }
 
-fn elcomat(stream: ScriptedStream) -> Elcomat3000<StreamTransport<ScriptedStream>> {
-    Elcomat3000::new(StreamTransport::new("mem:ac", stream), fast()).with_drain(Duration::ZERO)
+fn elcomat(stream: ScriptedStream) -> ProfileAutocollimator<StreamTransport<ScriptedStream>> {
+    ProfileAutocollimator::elcomat3000(StreamTransport::new("mem:ac", stream), fast())
+        .with_drain(Duration::ZERO)
 }
 
-fn smc(stream: ScriptedStream) -> Smc100<StreamTransport<ScriptedStream>> {
-    Smc100::new(
+fn smc(stream: ScriptedStream) -> ProfileTable<StreamTransport<ScriptedStream>> {
+    ProfileTable::smc100(
         StreamTransport::new("mem:table", stream),
-        Smc100Options::new(fast())
+        TableOptions::new(fast())
             .with_poll_interval(Duration::from_millis(1))
             .with_motion_timeout(Duration::from_secs(2))
             .with_position_tolerance_deg(0.001),
@@ -143,7 +144,7 @@ fn the_traffic_log_records_every_line_with_time_and_port() {
         .expect("d\n", "8 ELCOMAT\r") // back in step after the lost reply
         .expect("a\n", "4 003 1.5 -2.5\r");
     let transport = LoggedTransport::new(StreamTransport::new("/dev/ttyX", stream), "ac1", log);
-    let mut ac = Elcomat3000::new(transport, fast());
+    let mut ac = ProfileAutocollimator::elcomat3000(transport, fast());
     let r = ac.measure().unwrap();
     assert_eq!((r.x_arcsec, r.y_arcsec), (1.5, Some(-2.5)));
     let text = String::from_utf8(buf.0.lock().unwrap().clone()).unwrap();
@@ -276,51 +277,16 @@ fn elcomat_refuses_wrong_reply_forms() {
     }
 }
 
-/// Each refused reply is a typed reason whose message says what is wrong, in the words
-/// the drivers have always used.
+/// Each refused reply is a typed reason whose message says what is wrong.
 #[test]
 fn refused_replies_are_typed_reasons_with_their_messages() {
-    use polycal::lab::elcomat::{parse_identification, parse_measurement};
-    let measurement = |line: &str| parse_measurement(line, '4').unwrap_err();
     for (line, reason, text) in [
         (
             "2 003 1.0 2.0",
-            ReplyError::ReplyType {
-                found: "2".into(),
-                expected: '4',
+            ReplyError::NotTheForm {
+                form: "4 {status:d3} {x:f} {y:f}".into(),
             },
-            r#"reply type "2", expected '4' (`4 <sss> <x> <y>`)"#,
-        ),
-        (
-            "4 003 1.0",
-            ReplyError::FieldCount {
-                count: 3,
-                expected: '4',
-            },
-            "3 field(s), a measurement reply is `4 <sss> <x> <y>`",
-        ),
-        (
-            "4 03 1.0 2.0",
-            ReplyError::Status {
-                status: "03".into(),
-            },
-            r#"status "03" is not three digits"#,
-        ),
-        (
-            "4 003 1.0 NaN",
-            ReplyError::NotFinite {
-                name: "Y",
-                text: "NaN".into(),
-            },
-            r#"Y "NaN" is not a finite number"#,
-        ),
-        (
-            "4 007 1.0 2.0",
-            ReplyError::AxisDigit {
-                status: "007".into(),
-                digit: 7,
-            },
-            "status 007: axis digit 7 is not 0 … 3",
+            "not of the form `4 {status:d3} {x:f} {y:f}`",
         ),
         (
             "4 002 1.0 2.0",
@@ -330,39 +296,17 @@ fn refused_replies_are_typed_reasons_with_their_messages() {
             "X axis not valid (status 002: no reflected light, or out of range)",
         ),
     ] {
-        let e = measurement(line);
-        assert_eq!(e, reason, "{line}");
-        assert_eq!(e.to_string(), text, "{line}");
-    }
-    assert_eq!(
-        parse_identification("4 003 1.0 2.0")
-            .unwrap_err()
-            .to_string(),
-        "not a device-information reply (`8 <text>`)"
-    );
-    for (e, text) in [
-        (
-            parse_status("1TP000033").unwrap_err(),
-            "not a state reply (`1TS<eeee><ss>`)",
-        ),
-        (
-            parse_status("1TS00G033").unwrap_err(),
-            "a state reply is `1TS` and six hex digits (`<eeee><ss>`)",
-        ),
-        (
-            smc100::parse_position("1TPinf").unwrap_err(),
-            r#"position "inf" is not a finite number"#,
-        ),
-        (
-            smc100::parse_last_error("1TE").unwrap_err(),
-            "an error reply is `1TE` and one character",
-        ),
-        (
-            smc100::parse_version("1VE ").unwrap_err(),
-            "not a version reply (`1VE<text>`)",
-        ),
-    ] {
-        assert_eq!(e.to_string(), text);
+        let mut stream = ScriptedStream::new();
+        for _ in 0..4 {
+            stream = stream.expect("a\n", &format!("{line}\r"));
+        }
+        match elcomat(stream).measure() {
+            Err(InstrumentError::BadReply { reason: e, .. }) => {
+                assert_eq!(*e, reason, "{line}");
+                assert_eq!(e.to_string(), text, "{line}");
+            }
+            other => panic!("{line}: {other:?}"),
+        }
     }
 }
 
@@ -408,55 +352,48 @@ fn elcomat_a_closed_port_is_not_retried() {
 
 // ---------------------------------------------------------------- SMC100
 
+/// The SMC100 profile reads every state of the manual's table as the old driver did.
 #[test]
 fn smc100_status_replies() {
-    let s = parse_status("1TS00000A").unwrap();
-    assert_eq!(s.state, ControllerState::NotReferenced(0x0A));
-    assert_eq!(
-        parse_status("1TS00001E").unwrap().state,
-        ControllerState::Homing(0x1E)
-    );
-    assert_eq!(
-        parse_status("1TS000028").unwrap().state,
-        ControllerState::Moving
-    );
+    let profile = Profile::load("smc100").unwrap();
+    let state = |reply: &str| {
+        let stream = ScriptedStream::new().expect("1TS\r\n", &format!("{reply}\r\n"));
+        ProfileTable::new(
+            StreamTransport::new("mem:table", stream),
+            &profile,
+            TableOptions::new(fast()),
+        )
+        .unwrap()
+        .state()
+    };
+    assert_eq!(state("1TS00000A").unwrap(), TableState::NotReferenced);
+    assert_eq!(state("1TS000011").unwrap(), TableState::NotReferenced);
+    assert_eq!(state("1TS00001E").unwrap(), TableState::Moving);
+    assert_eq!(state("1TS000028").unwrap(), TableState::Moving);
     for code in ["32", "33", "34"] {
-        assert!(
-            parse_status(&format!("1TS0000{code}"))
-                .unwrap()
-                .state
-                .is_ready()
+        assert_eq!(
+            state(&format!("1TS0000{code}")).unwrap(),
+            TableState::Ready,
+            "{code}"
         );
     }
-    for code in ["3C", "3D", "3E"] {
-        assert!(matches!(
-            parse_status(&format!("1TS0000{code}")).unwrap().state,
-            ControllerState::Disable(_)
-        ));
-    }
-    assert_eq!(
-        parse_status("1TS000014").unwrap().state,
-        ControllerState::Configuration
-    );
-    assert_eq!(parse_status("1TS020033").unwrap().error_bits, 0x0200);
-    for bad in [
-        "1TS0033",
-        "1TP000033",
-        "1TS00G033",
-        "1TS0000333",
-        "TS000033",
+    for (code, name) in [
+        ("3C", "DISABLE from READY"),
+        ("3D", "DISABLE from MOVING"),
+        ("14", "CONFIGURATION"),
     ] {
-        assert!(parse_status(bad).is_err(), "{bad}");
+        let e = state(&format!("1TS0000{code}")).unwrap_err().to_string();
+        assert!(e.contains(code) && e.contains(name), "{e}");
     }
-    assert_eq!(smc100::parse_position("1TP45.000000").unwrap(), 45.0);
-    assert!(smc100::parse_position("1TPinf").is_err());
-    assert_eq!(smc100::parse_last_error("1TE@").unwrap(), '@');
-    assert_eq!(smc100::parse_last_error("1TEH").unwrap(), 'H');
-    assert!(smc100::parse_last_error("1TE").is_err());
-    assert_eq!(smc100::format_position(45.0), "45");
-    assert_eq!(smc100::format_position(360.0), "360");
-    assert_eq!(smc100::format_position(360.0 / 7.0), "51.428571");
-    assert_eq!(smc100::format_position(-0.0), "0");
+    let e = state("1TS020033").unwrap_err().to_string();
+    assert!(
+        e.contains("fault") && e.contains("0200") && e.contains("80 W output power exceeded"),
+        "{e}"
+    );
+    assert_eq!(format_degrees(45.0), "45");
+    assert_eq!(format_degrees(360.0), "360");
+    assert_eq!(format_degrees(360.0 / 7.0), "51.428571");
+    assert_eq!(format_degrees(-0.0), "0");
 }
 
 #[test]
@@ -496,7 +433,7 @@ fn smc100_start_refuses_disable_configuration_and_error_bits() {
         ("1TS00003D\r\n", "DISABLE from MOVING"),
         ("1TS000014\r\n", "CONFIGURATION"),
         ("1TS002033\r\n", "following error"),
-        ("1TS000146\r\n", "error bits"),
+        ("1TS000146\r\n", "fault (errors 0001: negative end of run)"),
     ] {
         let stream = ScriptedStream::new().expect("1TS\r\n", reply);
         let written = stream.written();
@@ -663,9 +600,9 @@ fn smc100_a_move_that_never_ends_is_stopped() {
         stream = stream.expect("1TS\r\n", "1TS000028\r\n");
     }
     let written = stream.written();
-    let mut table = Smc100::new(
+    let mut table = ProfileTable::smc100(
         StreamTransport::new("mem:table", stream),
-        Smc100Options::new(fast())
+        TableOptions::new(fast())
             .with_poll_interval(Duration::from_millis(1))
             .with_motion_timeout(Duration::from_millis(50))
             .with_position_tolerance_deg(0.001),
@@ -683,7 +620,7 @@ fn transports_are_usable_as_trait_objects() {
         "mem",
         ScriptedStream::new().expect("d\n", "8 X\r"),
     ));
-    let mut ac = Elcomat3000::new(boxed, fast());
+    let mut ac = ProfileAutocollimator::elcomat3000(boxed, fast());
     assert_eq!(ac.identify().unwrap(), "X");
     assert_eq!(ac.port(), "mem");
 }

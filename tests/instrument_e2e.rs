@@ -273,10 +273,11 @@ fn sim_lab_prints_its_paths_as_json_too() {
 /// noise 0, and a port opened twice is refused.
 #[test]
 fn serial_transport_against_the_library_lab() {
-    use polycal::lab::elcomat::Elcomat3000;
-    use polycal::lab::serial::{SerialSettings, SerialTransport};
+    use polycal::lab::driver::ProfileAutocollimator;
+    use polycal::lab::driver::{ProfileTable, TableOptions};
+    use polycal::lab::profile::Profile;
+    use polycal::lab::serial::SerialTransport;
     use polycal::lab::sim::{Devices, Lab, LabConfig};
-    use polycal::lab::smc100::{Smc100, Smc100Options};
     use polycal::lab::{Autocollimator, QueryOptions, RotaryTable};
     use polycal::simulate::SimulationConfig;
 
@@ -290,15 +291,16 @@ fn serial_transport_against_the_library_lab() {
     let truth = lab.truth();
     let paths = lab.paths().clone();
     let q = QueryOptions::default();
-    let open = |path: &str, s| SerialTransport::open(path, s).unwrap();
-    let mut ac1 = Elcomat3000::new(open(&paths.ac1, SerialSettings::ELCOMAT), q);
-    let mut ac2 = Elcomat3000::new(open(&paths.ac2, SerialSettings::ELCOMAT), q);
-    let mut table = Smc100::new(
-        open(&paths.table, SerialSettings::SMC100),
-        Smc100Options::default(),
+    let (elcomat, smc100) = (
+        Profile::load("elcomat3000").unwrap(),
+        Profile::load("smc100").unwrap(),
     );
+    let open = |path: &str, p: &Profile| SerialTransport::open(path, &p.line).unwrap();
+    let mut ac1 = ProfileAutocollimator::elcomat3000(open(&paths.ac1, &elcomat), q);
+    let mut ac2 = ProfileAutocollimator::elcomat3000(open(&paths.ac2, &elcomat), q);
+    let mut table = ProfileTable::smc100(open(&paths.table, &smc100), TableOptions::default());
     assert!(matches!(
-        SerialTransport::open(&paths.ac1, SerialSettings::ELCOMAT),
+        SerialTransport::open(&paths.ac1, &elcomat.line),
         Err(polycal::lab::InstrumentError::Open { .. })
     ));
     ac1.start().unwrap();

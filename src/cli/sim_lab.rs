@@ -9,6 +9,7 @@ use std::io::Write;
 use anyhow::bail;
 use anyhow::{Result, anyhow};
 use clap::ValueEnum;
+use polycal::lab::profile::Profile;
 #[cfg(unix)]
 use polycal::lab::sim::Lab;
 use polycal::lab::sim::{Devices, Fault, LabConfig};
@@ -23,6 +24,7 @@ Examples:
   polycal sim-lab --faces 8 --fault late:ac2:after=7:seconds=1.3 --fault unsolicited:ac1:after=20
   polycal sim-lab --direction -0.3 --drift 2:1.5 --bidirectional
   polycal sim-lab --faces 24 --setups 2 --shift-deg 0,7.5 --time-scale 0
+  polycal sim-lab --faces 12 --table-profile pi-gcs2 --tcp --time-scale 0
 
 With --setups, a line `remount` on standard input mounts the polygon for the next setup
 (the operator's part of `run --setup S`); the lab answers `remounted S` on standard output.";
@@ -59,6 +61,18 @@ pub struct SimLabArgs {
     /// S --shift D --face-shift K`, K = (S − 1)·--setup-shift mod N).
     #[command(flatten)]
     mountings: super::simulate::MountingsArgs,
+    /// The protocol the simulated autocollimators speak: a bundled profile
+    /// (elcomat3000) or a profile file FILE.toml (docs/instruments.md).
+    #[arg(long, value_name = "NAME|FILE.toml", default_value = "elcomat3000")]
+    ac_profile: String,
+    /// The protocol the simulated table speaks: a bundled profile (smc100, pi-gcs2,
+    /// aerotech-ascii, esp301) or a profile file FILE.toml.
+    #[arg(long, value_name = "NAME|FILE.toml", default_value = "smc100")]
+    table_profile: String,
+    /// Serve every device on a TCP port of 127.0.0.1 (tcp://127.0.0.1:PORT) instead of
+    /// a pseudo-terminal.
+    #[arg(long)]
+    tcp: bool,
     /// How to print the device paths.
     #[arg(long, value_enum, default_value = "table")]
     format: PathsFormat,
@@ -91,25 +105,39 @@ pub fn sim_lab(args: &SimLabArgs, out: &Output) -> Result<u8> {
         20.0,
     )?;
     simulation.table_shift_deg = args.mountings.shift_deg.clone();
+    let load = |option: &str, name: &str| {
+        Profile::load(name).map_err(|e| anyhow!("--{option} {name}: {e}"))
+    };
+    let ac_profile = load("ac-profile", &args.ac_profile)?;
+    ac_profile
+        .autocollimator()
+        .map_err(|e| anyhow!("--ac-profile {}: {e}", args.ac_profile))?;
+    let table_profile = load("table-profile", &args.table_profile)?;
+    table_profile
+        .table()
+        .map_err(|e| anyhow!("--table-profile {}: {e}", args.table_profile))?;
     let config = LabConfig::new(simulation)
         .with_speed_deg_per_s(args.speed)
         .with_home_seconds(args.home_seconds)
         .with_time_scale(args.time_scale)
-        .with_faults(faults);
+        .with_faults(faults)
+        .with_ac_profile(ac_profile)
+        .with_table_profile(table_profile);
     let devices = Devices::new(config)?;
     args.truth.write_truth(&devices.truth())?;
-    serve(devices, args.format, out)
+    serve(devices, args, out)
 }
 
 /// Without pseudo-terminals there is no lab to serve.
 #[cfg(not(unix))]
-fn serve(_devices: Devices, _format: PathsFormat, _out: &Output) -> Result<u8> {
+fn serve(_devices: Devices, _args: &SimLabArgs, _out: &Output) -> Result<u8> {
     bail!("sim-lab needs pseudo-terminals, which this system does not have")
 }
 
 /// Serves the devices on pseudo-terminals and prints their paths.
 #[cfg(unix)]
-fn serve(devices: Devices, format: PathsFormat, out: &Output) -> Result<u8> {
+fn serve(devices: Devices, args: &SimLabArgs, out: &Output) -> Result<u8> {
+    let format = args.format;
     let faces = devices.truth().faces;
     let mountings: Vec<_> = devices.mountings().into_iter().skip(1).collect();
     let ac_faces_text = devices
@@ -118,7 +146,11 @@ fn serve(devices: Devices, format: PathsFormat, out: &Output) -> Result<u8> {
         .map(usize::to_string)
         .collect::<Vec<_>>()
         .join(",");
-    let lab = Lab::start(devices)?;
+    let lab = if args.tcp {
+        Lab::start_tcp(devices)?
+    } else {
+        Lab::start(devices)?
+    };
     let paths = lab.paths().clone();
     let acs = paths.acs();
     {
@@ -143,8 +175,15 @@ fn serve(devices: Devices, format: PathsFormat, out: &Output) -> Result<u8> {
             .collect::<Vec<_>>()
             .join(" ")
     };
+    let mut profiles = String::new();
+    if args.ac_profile != "elcomat3000" {
+        profiles.push_str(&format!(" --ac-profile {}", args.ac_profile));
+    }
+    if args.table_profile != "smc100" {
+        profiles.push_str(&format!(" --table-profile {}", args.table_profile));
+    }
     let run = format!(
-        "polycal run {ports} --table {} --faces {faces}{} --cycles 2 --closing --settle 0 --out RUN_DIR",
+        "polycal run {ports} --table {}{profiles} --faces {faces}{} --cycles 2 --closing --settle 0 --out RUN_DIR",
         paths.table,
         if acs.len() == 2 {
             String::new()

@@ -90,57 +90,11 @@ impl InstrumentError {
 }
 
 /// Why a reply line is not what the protocol allows for the command that was sent: the
-/// reason of [`InstrumentError::BadReply`], returned by the reply parsers of
-/// [`crate::lab::elcomat`] and [`crate::lab::smc100`].
+/// reason of [`InstrumentError::BadReply`], as the drivers of [`crate::lab::driver`] read
+/// a reply against its profile.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
 pub enum ReplyError {
-    /// A reply of another kind than the command asks for.
-    #[error("not {what} (`{form}`)")]
-    NotThisReply {
-        /// The reply expected, e.g. `a state reply`.
-        what: &'static str,
-        /// Its form, e.g. `1TS<eeee><ss>`.
-        form: &'static str,
-    },
-    /// A reply of the right kind in the wrong form.
-    #[error("{what} is {form}")]
-    Form {
-        /// The reply, e.g. `a state reply`.
-        what: &'static str,
-        /// What it must be, e.g. `` `1TS` and six hex digits (`<eeee><ss>`) ``.
-        form: &'static str,
-    },
-    /// A measurement reply without its four fields.
-    #[error("{count} field(s), a measurement reply is `{expected} <sss> <x> <y>`")]
-    FieldCount {
-        /// The fields found.
-        count: usize,
-        /// The reply type expected (`4` for `a`, `2` for `r`).
-        expected: char,
-    },
-    /// A measurement reply of another type than the command asks for.
-    #[error("reply type {found:?}, expected {expected:?} (`{expected} <sss> <x> <y>`)")]
-    ReplyType {
-        /// The type found.
-        found: String,
-        /// The type expected.
-        expected: char,
-    },
-    /// A measurement status that is not three digits.
-    #[error("status {status:?} is not three digits")]
-    Status {
-        /// The status as received.
-        status: String,
-    },
-    /// A status whose axis digit (the last) is not 0 … 3.
-    #[error("status {status}: axis digit {digit} is not 0 … 3")]
-    AxisDigit {
-        /// The status as received.
-        status: String,
-        /// Its last digit.
-        digit: u16,
-    },
     /// A value that is not a finite number.
     #[error("{name} {text:?} is not a finite number")]
     NotFinite {
@@ -154,6 +108,18 @@ pub enum ReplyError {
     XNotValid {
         /// The status as received.
         status: String,
+    },
+    /// A reply that does not have the form its profile gives.
+    #[error("not of the form `{form}`")]
+    NotTheForm {
+        /// The reply's template, as in the profile.
+        form: String,
+    },
+    /// A reply that says the device refused the command (a profile's `refusal`).
+    #[error("the device refused the command (a reply of the form `{form}`)")]
+    Refused {
+        /// The refusal's template, as in the profile.
+        form: String,
     },
     /// A reply followed at once by more input: which line answers the query cannot be
     /// told, so neither is taken.

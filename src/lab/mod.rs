@@ -50,7 +50,7 @@
 //! # Example: the ELCOMAT driver over an in-memory transport
 //!
 //! ```
-//! use polycal::lab::elcomat::Elcomat3000;
+//! use polycal::lab::driver::ProfileAutocollimator;
 //! use polycal::lab::scripted::ScriptedStream;
 //! use polycal::lab::transport::StreamTransport;
 //! use polycal::lab::{Autocollimator, QueryOptions};
@@ -62,7 +62,7 @@
 //!     .expect("a\n", "4 003 12.345000 -1.234000\r");
 //! let written = stream.written();
 //! let transport = StreamTransport::new("mem:ac1", stream);
-//! let mut ac = Elcomat3000::new(transport, QueryOptions::default());
+//! let mut ac = ProfileAutocollimator::elcomat3000(transport, QueryOptions::default());
 //! ac.start()?;
 //! assert_eq!(ac.identify()?, "ELCOMAT 3000 S/N 4711");
 //! let reading = ac.measure()?;
@@ -72,17 +72,19 @@
 //! # Ok::<(), polycal::lab::InstrumentError>(())
 //! ```
 
+pub mod check;
 mod disk;
-pub mod elcomat;
+pub mod driver;
 mod error;
 mod instruments;
+pub mod profile;
 mod query;
 pub mod run;
 pub mod scripted;
 pub mod serial;
 pub mod sim;
-pub mod smc100;
 mod stop;
+pub mod tcp;
 pub mod traffic;
 pub mod transport;
 

@@ -38,12 +38,12 @@ impl Default for QueryOptions {
 /// A command whose reply cannot be mistaken for any other (an identification), sent to
 /// bring a device's replies back in step with the host after a reply was late or
 /// doubtful: every line that comes before its reply is discarded.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Resync {
+#[derive(Clone, Copy)]
+pub(crate) struct Resync<'a> {
     /// The command, terminator included.
-    pub(crate) command: &'static str,
+    pub(crate) command: &'a str,
     /// Whether a line is the command's reply.
-    pub(crate) is_reply: fn(&str) -> bool,
+    pub(crate) is_reply: &'a dyn Fn(&str) -> bool,
 }
 
 /// How many lines a resynchronisation reads at most before it gives up.
@@ -53,10 +53,10 @@ const MAX_RESYNC_LINES: usize = 32;
 /// noting every line before it as discarded (a late or extra reply to an earlier
 /// query). A device answers in order, so nothing sent before the resynchronisation can
 /// arrive after its reply. `Ok(false)` when its reply did not come.
-fn resync<T: Transport + ?Sized>(
+pub(crate) fn resync<T: Transport + ?Sized>(
     transport: &mut T,
     options: &QueryOptions,
-    resync: &Resync,
+    resync: &Resync<'_>,
 ) -> Result<bool, InstrumentError> {
     transport.drain()?;
     transport.send(resync.command)?;
@@ -94,7 +94,7 @@ fn resync<T: Transport + ?Sized>(
 pub(crate) fn query<T: Transport + ?Sized, V>(
     transport: &mut T,
     options: &QueryOptions,
-    resync_with: Option<&Resync>,
+    resync_with: Option<&Resync<'_>>,
     command: &str,
     parse: impl Fn(&str) -> Result<V, ReplyError>,
 ) -> Result<(V, String), InstrumentError> {

@@ -1,46 +1,12 @@
 //! The serial port (a real one, a USB adapter or a pseudo-terminal) as a [`ByteStream`],
-//! and its line settings.
+//! opened with a profile's line settings ([`LineSettings`]).
 
 use std::io::{self, Read, Write};
 use std::time::Duration;
 
 use super::InstrumentError;
+use super::profile::{FlowControl, LineSettings, Parity};
 use super::transport::{ByteStream, StreamTransport};
-
-/// Flow control of a serial line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[non_exhaustive]
-pub enum FlowControl {
-    /// None.
-    None,
-    /// XON/XOFF (software).
-    Software,
-}
-
-/// Serial line settings; the data format is always 8 data bits, no parity, 1 stop bit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[non_exhaustive]
-pub struct SerialSettings {
-    /// Baud rate.
-    pub baud_rate: u32,
-    /// Flow control.
-    pub flow_control: FlowControl,
-}
-
-impl SerialSettings {
-    /// The ELCOMAT 3000: 19200 baud, 8N1, no flow control.
-    pub const ELCOMAT: SerialSettings = SerialSettings::new(19_200, FlowControl::None);
-    /// The SMC100: 57600 baud, 8N1, XON/XOFF.
-    pub const SMC100: SerialSettings = SerialSettings::new(57_600, FlowControl::Software);
-
-    /// Settings of a line: baud rate and flow control (8N1).
-    pub const fn new(baud_rate: u32, flow_control: FlowControl) -> SerialSettings {
-        SerialSettings {
-            baud_rate,
-            flow_control,
-        }
-    }
-}
 
 /// An open serial port: waits for input in the operating system (the port's timeout set
 /// to what is left of the reply's deadline before each read) and discards input with the
@@ -75,20 +41,35 @@ impl ByteStream for SerialStream {
 pub type SerialTransport = StreamTransport<SerialStream>;
 
 impl StreamTransport<SerialStream> {
-    /// Opens `path` with `settings` (8N1) and discards anything already received.
+    /// Opens `path` with a profile's line settings and discards anything already
+    /// received.
     ///
     /// # Errors
     ///
     /// [`InstrumentError::Open`] naming the path if it cannot be opened or configured.
-    pub fn open(path: &str, settings: SerialSettings) -> Result<SerialTransport, InstrumentError> {
+    pub fn open(path: &str, line: &LineSettings) -> Result<SerialTransport, InstrumentError> {
         use super::transport::Transport;
-        let port = serialport::new(path, settings.baud_rate)
-            .data_bits(serialport::DataBits::Eight)
-            .parity(serialport::Parity::None)
-            .stop_bits(serialport::StopBits::One)
-            .flow_control(match settings.flow_control {
+        let port = serialport::new(path, line.baud)
+            .data_bits(match line.data_bits {
+                5 => serialport::DataBits::Five,
+                6 => serialport::DataBits::Six,
+                7 => serialport::DataBits::Seven,
+                _ => serialport::DataBits::Eight,
+            })
+            .parity(match line.parity {
+                Parity::None => serialport::Parity::None,
+                Parity::Even => serialport::Parity::Even,
+                Parity::Odd => serialport::Parity::Odd,
+            })
+            .stop_bits(if line.stop_bits == 2 {
+                serialport::StopBits::Two
+            } else {
+                serialport::StopBits::One
+            })
+            .flow_control(match line.flow_control {
                 FlowControl::None => serialport::FlowControl::None,
                 FlowControl::Software => serialport::FlowControl::Software,
+                FlowControl::Hardware => serialport::FlowControl::Hardware,
             })
             .timeout(Duration::from_millis(100))
             .open()

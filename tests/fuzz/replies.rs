@@ -1,9 +1,9 @@
-//! The instruments' reply parsers (docs/FORMAT.md §7.1–7.2): valid reply lines, mutated
-//! like the files, given to every parser. A parser must not panic, and what it accepts
-//! must be what its protocol allows (finite angles, a valid X axis, a known error code).
+//! The bundled profiles' reply templates (docs/FORMAT.md §7, docs/instruments.md): valid
+//! reply lines of every bundled instrument, mutated like the files, given to every
+//! template and condition. None may panic, and what they accept must be what the profile
+//! allows (a valid reading's X and a position finite numbers).
 
-use polycal::lab::elcomat::{parse_identification, parse_measurement};
-use polycal::lab::smc100::{parse_last_error, parse_position, parse_status, parse_version};
+use polycal::lab::profile::{BUNDLED, Profile, ProfileKind};
 use proptest::prelude::*;
 
 use super::harness::{Finding, no_panic};
@@ -29,6 +29,20 @@ const REPLIES: &[&str] = &[
     "1TE@",
     "1TEC",
     "1VESMC_CC - Controller-driver version 3.0.1",
+    "1=45.0001",
+    "1=1",
+    "0",
+    "-1024",
+    "(c)2015 Physik Instrumente (PI) GmbH & Co. KG, C-863.11, 0115500028, 01.00.00.00",
+    "%",
+    "%7",
+    "%-1675099646",
+    "%45.250000",
+    "%X",
+    "!",
+    "#",
+    "ESP301 Version 3.0.1 6/1/99",
+    "12.500000",
 ];
 
 /// A case: a valid reply and one to four mutations.
@@ -44,57 +58,60 @@ pub fn case() -> impl Strategy<Value = Case> {
         .prop_map(|(seed, mutations)| Case { seed, mutations })
 }
 
-/// Every parser on the mutated line (read as the transport reads it: invalid UTF-8
-/// replaced).
+/// Every bundled profile's templates and conditions on the mutated line (read as the
+/// transport reads it: invalid UTF-8 replaced).
 pub fn check(case: &Case) -> Result<(), Box<Finding>> {
     let bytes = case.bytes();
     let line = String::from_utf8_lossy(&bytes).into_owned();
     let bad = |what: &str, detail: String| Finding::of(case, "txt", what.to_string(), detail);
-    if let Ok(text) = no_panic(case, "txt", "parse_identification", || {
-        parse_identification(&line).map_err(|e| e.to_string())
-    })? && text.trim().is_empty()
-    {
-        return Err(bad("parse_identification accepted no text", text));
+    static PROFILES: std::sync::OnceLock<Vec<Profile>> = std::sync::OnceLock::new();
+    let profiles = PROFILES.get_or_init(|| {
+        BUNDLED
+            .iter()
+            .filter_map(|(name, _, _)| Profile::load(name).ok())
+            .collect()
+    });
+    if profiles.len() != BUNDLED.len() {
+        return Err(bad("a bundled profile does not read", String::new()));
     }
-    for kind in ['4', '2'] {
-        let parsed = no_panic(case, "txt", "parse_measurement", || {
-            parse_measurement(&line, kind).map_err(|e| e.to_string())
-        })?;
-        if let Ok(r) = parsed {
-            let y_ok = r.y_arcsec.is_none_or(f64::is_finite);
-            if !r.x_arcsec.is_finite() || !y_ok || !matches!(r.status % 10, 1 | 3) {
-                return Err(bad(
-                    "parse_measurement accepted a reading the protocol does not allow",
-                    format!("{r:?}"),
-                ));
+    for profile in profiles {
+        let name = profile.name.as_str();
+        let accepted = no_panic(case, "txt", name, || {
+            for refusal in &profile.line.refusals {
+                let _ = refusal.matches(&line);
             }
+            match &profile.kind {
+                ProfileKind::Autocollimator(ac) => {
+                    let _ = ac.identify.reply.matches(&line);
+                    if let Some(c) = ac.measure.reply.matches(&line)
+                        && ac.x_valid.holds(&ac.measure.reply, &c)
+                        && c.number("x").is_none()
+                    {
+                        return Err(format!("a valid reading without a finite X: {c:?}"));
+                    }
+                }
+                ProfileKind::Table(table) => {
+                    let _ = table.identify.reply.matches(&line);
+                    if let Some(c) = table.state.query.reply.matches(&line) {
+                        let _ = table.state.ready.holds(&table.state.query.reply, &c);
+                        let _ = table.state.moving.holds(&table.state.query.reply, &c);
+                    }
+                    if let Some(c) = table.position.reply.matches(&line)
+                        && c.number("deg").is_none()
+                    {
+                        return Err(format!("a position that is not a finite number: {c:?}"));
+                    }
+                }
+                _ => {}
+            }
+            Ok(())
+        })?;
+        if let Err(detail) = accepted {
+            return Err(bad(
+                "a template accepted what its profile does not allow",
+                format!("{name}: {detail}"),
+            ));
         }
     }
-    no_panic(case, "txt", "parse_status", || {
-        parse_status(&line).map(|_| ()).map_err(|e| e.to_string())
-    })?
-    .ok();
-    if let Ok(position) = no_panic(case, "txt", "parse_position", || {
-        parse_position(&line).map_err(|e| e.to_string())
-    })? && !position.is_finite()
-    {
-        return Err(bad(
-            "parse_position accepted a position that is not finite",
-            format!("{position}"),
-        ));
-    }
-    if let Ok(code) = no_panic(case, "txt", "parse_last_error", || {
-        parse_last_error(&line).map_err(|e| e.to_string())
-    })? && !(code == '@' || code.is_ascii_uppercase())
-    {
-        return Err(bad(
-            "parse_last_error accepted an unknown code",
-            format!("{code:?}"),
-        ));
-    }
-    no_panic(case, "txt", "parse_version", || {
-        parse_version(&line).map(|_| ()).map_err(|e| e.to_string())
-    })?
-    .ok();
     Ok(())
 }

@@ -6,18 +6,18 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use polycal::lab::elcomat::Elcomat3000;
+use polycal::lab::driver::ProfileAutocollimator;
+use polycal::lab::driver::{ProfileTable, TableOptions};
 use polycal::lab::run::Ports;
 use polycal::lab::sim::{Devices, Endpoint, Fault, LabConfig, SimStream};
-use polycal::lab::smc100::{Smc100, Smc100Options};
 use polycal::lab::transport::StreamTransport;
 use polycal::lab::{QueryOptions, StopFlag};
 use polycal::simulate::{SimulationConfig, Truth};
 
 /// A simulated autocollimator's driver.
-pub type Ac = Elcomat3000<StreamTransport<SimStream>>;
+pub type Ac = ProfileAutocollimator<StreamTransport<SimStream>>;
 /// The simulated table's driver.
-pub type Table = Smc100<StreamTransport<SimStream>>;
+pub type Table = ProfileTable<StreamTransport<SimStream>>;
 
 /// A lab of `faces` faces (two cycles with the closing step, seed 7), instantaneous.
 pub fn lab(faces: usize, noise: f64, faults: Vec<Fault>) -> LabConfig {
@@ -45,12 +45,12 @@ pub fn drivers(devices: Devices, stop: &StopFlag) -> (Ac, Ac, Table, Truth) {
         ac1, ac2, table, ..
     } = devices;
     let ac = |name: &str, e: Endpoint| {
-        Elcomat3000::new(StreamTransport::new(name, SimStream::new(e)), query())
+        ProfileAutocollimator::elcomat3000(StreamTransport::new(name, SimStream::new(e)), query())
             .with_drain(Duration::ZERO)
     };
-    let table = Smc100::new(
+    let table = ProfileTable::smc100(
         StreamTransport::new("mem:table", SimStream::new(table)),
-        Smc100Options::new(query()).with_poll_interval(Duration::from_millis(1)),
+        TableOptions::new(query()).with_poll_interval(Duration::from_millis(1)),
     )
     .with_stop_flag(stop.clone());
     (ac("mem:ac1", ac1), ac("mem:ac2", ac2), table, truth)

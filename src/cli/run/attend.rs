@@ -160,7 +160,7 @@ fn show_cycle_check(out: &Output, check: &CycleCheck) {
 /// RMS per cycle, the diagnosis of the file, and the commands that evaluate it.
 pub(super) fn summary(args: &RunArgs, out: &Output, dir: &RunDir, checks: &[CycleCheck]) {
     let m = dir.manifest();
-    let file = args.out.join(run::MEASUREMENTS);
+    let file = args.out().join(run::MEASUREMENTS);
     out.info(format_args!(
         "polycal run: {} readings in {}; {} measured again, {} suspect (manifest.json)",
         dir.readings_done(),
@@ -213,7 +213,7 @@ pub(super) fn summary(args: &RunArgs, out: &Output, dir: &RunDir, checks: &[Cycl
     out.info(format_args!(
         "  evaluate: polycal diagnose {f} · polycal solve {f} --budget B.toml · polycal report {f} --run-dir {d} --diagnose --budget B.toml --out {d}/report.html",
         f = file.display(),
-        d = args.out.display()
+        d = args.out().display()
     ));
 }
 

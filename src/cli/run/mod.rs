@@ -7,13 +7,15 @@ use std::time::Duration;
 
 use anyhow::{Result, anyhow, bail};
 use polycal::lab::QueryOptions;
-use polycal::lab::elcomat::Elcomat3000;
+use polycal::lab::driver::{ProfileAutocollimator, ProfileTable, TableOptions};
+use polycal::lab::profile::Profile;
 use polycal::lab::run::{
     self, Instruments, Mounting, Outcome, Ports, RunDir, RunError, RunSettings,
 };
-use polycal::lab::serial::{SerialSettings, SerialTransport};
-use polycal::lab::smc100::{Smc100, Smc100Options};
+use polycal::lab::serial::SerialTransport;
+use polycal::lab::tcp::{TcpTransport, tcp_address};
 use polycal::lab::traffic::{LoggedTransport, TrafficLog};
+use polycal::lab::transport::Transport;
 
 use super::interrupt::Interrupts;
 use super::output::{self, Output};
@@ -46,10 +48,11 @@ Without instruments, `polycal sim-lab` serves simulated ones and prints a `run` 
 /// Arguments of `polycal run`.
 #[derive(clap::Args)]
 pub struct RunArgs {
-    /// Port of autocollimator 1 (ELCOMAT 3000 protocol), e.g. /dev/ttyUSB0.
+    /// Port of autocollimator 1, e.g. /dev/ttyUSB0 or tcp://HOST:PORT (its protocol:
+    /// --ac-profile).
     #[arg(long, required_unless_present = "ac", conflicts_with = "ac")]
     ac1: Option<String>,
-    /// Port of autocollimator 2 (ELCOMAT 3000 protocol).
+    /// Port of autocollimator 2.
     #[arg(
         long,
         required_unless_present = "ac",
@@ -65,14 +68,28 @@ pub struct RunArgs {
     /// `plan` and `simulate` take it (default 1,2: the paper's design).
     #[arg(long, value_delimiter = ',', default_value = "1,2")]
     ac_faces: Vec<usize>,
-    /// Port of the rotary table (SMC100 protocol, address 1).
+    /// Port of the rotary table, a serial device or tcp://HOST:PORT (its protocol:
+    /// --table-profile).
     #[arg(long)]
     table: String,
+    /// The autocollimators' protocol: a bundled profile (elcomat3000) or a profile file
+    /// FILE.toml (docs/instruments.md).
+    #[arg(long, value_name = "NAME|FILE.toml", default_value = "elcomat3000")]
+    ac_profile: String,
+    /// The rotary table's protocol: a bundled profile (smc100, pi-gcs2, aerotech-ascii,
+    /// esp301) or a profile file FILE.toml (docs/instruments.md).
+    #[arg(long, value_name = "NAME|FILE.toml", default_value = "smc100")]
+    table_profile: String,
+    /// Talk to each instrument once — identify it, ask the table's position and one
+    /// reading of every autocollimator — say what was found, and stop: nothing moves and
+    /// nothing is written.
+    #[arg(long)]
+    check_instruments: bool,
     /// Number of polygon faces N (= table stops per turn).
-    #[arg(long, required_unless_present = "plan", conflicts_with = "plan")]
+    #[arg(long, required_unless_present_any = ["plan", "check_instruments"], conflicts_with = "plan")]
     faces: Option<usize>,
     /// Number of cycles.
-    #[arg(long, required_unless_present = "plan", conflicts_with = "plan")]
+    #[arg(long, required_unless_present_any = ["plan", "check_instruments"], conflicts_with = "plan")]
     cycles: Option<u32>,
     /// Add the closing step N (table back at 360°) to every cycle.
     #[arg(long, conflicts_with = "plan")]
@@ -115,8 +132,12 @@ pub struct RunArgs {
     #[arg(long, value_name = "ARCSEC", default_value_t = polycal::lab::run::DEFAULT_READING_NOISE_ARCSEC, allow_negative_numbers = true)]
     reading_noise: f64,
     /// Directory for measurements.csv, manifest.json and traffic.jsonl.
-    #[arg(long)]
-    out: PathBuf,
+    #[arg(
+        long = "out",
+        value_name = "OUT",
+        required_unless_present = "check_instruments"
+    )]
+    out_dir: Option<PathBuf>,
     /// Continue an interrupted run in --out from its first missing reading.
     #[arg(long)]
     resume: bool,
@@ -135,15 +156,27 @@ fn seconds(name: &str, value: f64) -> Result<Duration> {
     Duration::try_from_secs_f64(value).map_err(|e| anyhow!("--{name} {value}: {e}"))
 }
 
+/// A port: a serial device, or `tcp://HOST:PORT`.
+type Port = Box<dyn Transport>;
+
+/// Opens a port with a profile's line settings (a serial device) or connects to it
+/// (`tcp://HOST:PORT`).
+fn open_raw(path: &str, profile: &Profile) -> Result<Port, polycal::lab::InstrumentError> {
+    Ok(match tcp_address(path) {
+        Some(_) => Box::new(TcpTransport::connect(path)?),
+        None => Box::new(SerialTransport::open(path, &profile.line)?),
+    })
+}
+
 /// Opens one instrument's port, logged as `device`; the error names the instrument.
 fn open_port(
     path: &str,
     device: &str,
     role: &str,
-    settings: SerialSettings,
+    profile: &Profile,
     log: &TrafficLog,
-) -> Result<LoggedTransport<SerialTransport>, String> {
-    match SerialTransport::open(path, settings) {
+) -> Result<LoggedTransport<Port>, String> {
+    match open_raw(path, profile) {
         Ok(transport) => Ok(LoggedTransport::new(transport, device, log.clone())),
         Err(e) => {
             log.record(device, path, "error", &e.to_string());
@@ -152,12 +185,90 @@ fn open_port(
     }
 }
 
+/// The profiles named by --ac-profile and --table-profile, each checked for its kind of
+/// instrument.
+fn profiles(args: &RunArgs) -> Result<(Profile, Profile)> {
+    let load = |option: &str, name: &str, table: bool| -> Result<Profile> {
+        let profile = Profile::load(name).map_err(|e| anyhow!("--{option} {name}: {e}"))?;
+        let kind = if table {
+            profile.table().map(|_| ())
+        } else {
+            profile.autocollimator().map(|_| ())
+        };
+        kind.map_err(|e| anyhow!("--{option} {name}: {e}"))?;
+        Ok(profile)
+    };
+    Ok((
+        load("ac-profile", &args.ac_profile, false)?,
+        load("table-profile", &args.table_profile, true)?,
+    ))
+}
+
+/// `polycal run --check-instruments`: each instrument once, what was found, status 0
+/// when every one answered as its profile says, else an `error:` line (status 2).
+fn check_instruments(
+    args: &RunArgs,
+    out: &Output,
+    ac_profile: &Profile,
+    table_profile: &Profile,
+) -> Result<u8> {
+    use polycal::lab::check::{CheckedInstrument, check_autocollimator, check_table};
+    let query = QueryOptions::new(seconds("timeout", args.timeout)?, 3);
+    let mut found: Vec<CheckedInstrument> = Vec::new();
+    for (i, port) in args.ac_ports().iter().enumerate() {
+        let role = format!("autocollimator {}", i + 1);
+        found.push(match open_raw(port, ac_profile) {
+            Ok(transport) => check_autocollimator(&role, transport, ac_profile, query),
+            Err(e) => CheckedInstrument::failed(&role, port, &ac_profile.name, e.to_string()),
+        });
+    }
+    found.push(match open_raw(&args.table, table_profile) {
+        Ok(transport) => check_table(
+            "rotary table",
+            transport,
+            table_profile,
+            TableOptions::new(query),
+        ),
+        Err(e) => CheckedInstrument::failed(
+            "rotary table",
+            &args.table,
+            &table_profile.name,
+            e.to_string(),
+        ),
+    });
+    for instrument in &found {
+        println!("{instrument}");
+    }
+    let failed: Vec<&CheckedInstrument> = found.iter().filter(|c| c.problem.is_some()).collect();
+    if failed.is_empty() {
+        out.info(format_args!(
+            "polycal run --check-instruments: all {} instruments answered as their profiles say; nothing moved",
+            found.len()
+        ));
+        return Ok(0);
+    }
+    bail!(
+        "{} of {} instruments did not answer as their profiles say: {}",
+        failed.len(),
+        found.len(),
+        failed
+            .iter()
+            .map(|c| c.role.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    )
+}
+
 /// How the library ends the message of readings that did not agree at a stop; the
 /// option that states the noise is this command's to name.
 const NOISE_ADVICE: &str = "state the autocollimator's real noise";
 
 /// `polycal run`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
+    let (ac_profile, table_profile) = profiles(args)?;
+    if args.check_instruments {
+        return check_instruments(args, out, &ac_profile, &table_profile);
+    }
     let settings = RunSettings::new(args.faces.unwrap_or(0), args.cycles.unwrap_or(0))
         .with_closing(args.closing || args.bidirectional)
         .with_bidirectional(args.bidirectional)
@@ -190,9 +301,11 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
     let mounting = mounting(args, planned.as_ref())?;
     let query = QueryOptions::new(seconds("timeout", args.timeout)?, 3);
     let motion_timeout = seconds("motion-timeout", args.motion_timeout)?;
-    let interrupts = Interrupts::install(out, args.out.join(run::MEASUREMENTS))?;
+    let interrupts = Interrupts::install(out, args.out().join(run::MEASUREMENTS))?;
     let session = Session {
         args,
+        ac_profile: &ac_profile,
+        table_profile: &table_profile,
         out,
         settings: &settings,
         mounting,
@@ -244,6 +357,8 @@ fn mounting(args: &RunArgs, planned: Option<&run::PlannedRun>) -> Result<Option<
 /// One `polycal run` session: what its options say.
 struct Session<'a> {
     args: &'a RunArgs,
+    ac_profile: &'a Profile,
+    table_profile: &'a Profile,
     out: &'a Output,
     settings: &'a RunSettings,
     mounting: Option<Mounting>,
@@ -277,7 +392,7 @@ impl Session<'_> {
         let ports = Ports::of(&ac_ports, args.table.clone());
         let stop = interrupts.stop_flag();
         let mut dir = RunDir::open_mounting(
-            &args.out,
+            args.out(),
             settings,
             &ports,
             self.mounting,
@@ -289,7 +404,7 @@ impl Session<'_> {
         for warning in dir.warnings() {
             out.warning(warning);
         }
-        let file = args.out.join(run::MEASUREMENTS);
+        let file = args.out().join(run::MEASUREMENTS);
         if dir.is_complete() {
             dir.finish(&Outcome::Completed).map_err(|e| {
             anyhow!(
@@ -301,7 +416,7 @@ impl Session<'_> {
         })?;
             out.info(format_args!(
                 "polycal run: {}: {} is complete ({} readings in the run); nothing to do",
-                args.out.display(),
+                args.out().display(),
                 dir.mounting(),
                 dir.readings_done()
             ));
@@ -322,11 +437,13 @@ impl Session<'_> {
             "",
             "session",
             &format!(
-                "polycal {} run{} {} {}",
+                "polycal {} run{} {} {} --ac-profile {} --table-profile {}",
                 env!("CARGO_PKG_VERSION"),
                 if args.resume { " --resume" } else { "" },
                 settings.as_options(),
-                dir.mounting().as_options()
+                dir.mounting().as_options(),
+                self.ac_profile.name,
+                self.table_profile.name
             ),
         );
         let opened = (|| {
@@ -336,7 +453,7 @@ impl Session<'_> {
                     port,
                     &format!("ac{}", i + 1),
                     &format!("autocollimator {}", i + 1),
-                    SerialSettings::ELCOMAT,
+                    self.ac_profile,
                     &log,
                 )?);
             }
@@ -344,7 +461,7 @@ impl Session<'_> {
                 &args.table,
                 "table",
                 "rotary table",
-                SerialSettings::SMC100,
+                self.table_profile,
                 &log,
             )?;
             Ok::<_, String>((acs, table))
@@ -367,14 +484,15 @@ impl Session<'_> {
                 );
             }
         };
-        let mut acs: Vec<_> = acs
+        let mut acs = acs
             .into_iter()
-            .map(|port| Elcomat3000::new(port, query))
-            .collect();
-        let mut table = Smc100::new(
+            .map(|port| ProfileAutocollimator::new(port, self.ac_profile, query))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut table = ProfileTable::new(
             table,
-            Smc100Options::new(query).with_motion_timeout(motion_timeout),
-        )
+            self.table_profile,
+            TableOptions::new(query).with_motion_timeout(motion_timeout),
+        )?
         .with_stop_flag(stop.clone());
 
         let bar = out.bar();
@@ -452,6 +570,12 @@ fn instruments<'a, A: polycal::lab::Autocollimator, T: polycal::lab::RotaryTable
 }
 
 impl RunArgs {
+    /// The run directory (--out; clap requires it unless --check-instruments, which
+    /// returns before it is needed).
+    pub(super) fn out(&self) -> &std::path::Path {
+        self.out_dir.as_deref().unwrap_or(std::path::Path::new("."))
+    }
+
     /// The autocollimators' ports in order: the --ac list, or --ac1 and --ac2.
     fn ac_ports(&self) -> Vec<String> {
         if self.ac.is_empty() {
@@ -480,7 +604,7 @@ fn ended(
 ) -> Result<u8> {
     let done = dir.readings_done();
     let total = dir.manifest().expected_readings;
-    let file = args.out.join(run::MEASUREMENTS);
+    let file = args.out().join(run::MEASUREMENTS);
     let kept = format!(
         "{done} of {total} readings are in {}; continue with the same command and --resume",
         file.display()

@@ -49,10 +49,10 @@
 //! # Example: a whole run against simulated instruments, in memory
 //!
 //! ```
-//! use polycal::lab::elcomat::Elcomat3000;
+//! use polycal::lab::driver::ProfileAutocollimator;
 //! use polycal::lab::run::{self, Instruments, Outcome, Ports, RunDir, RunSettings};
 //! use polycal::lab::sim::{Devices, LabConfig, SimStream};
-//! use polycal::lab::smc100::{Smc100, Smc100Options};
+//! use polycal::lab::driver::{ProfileTable, TableOptions};
 //! use polycal::lab::transport::StreamTransport;
 //! use polycal::lab::{QueryOptions, StopFlag};
 //! use polycal::simulate::SimulationConfig;
@@ -61,11 +61,11 @@
 //! let lab = LabConfig::new(simulation).with_time_scale(0.0); // instantaneous motion
 //! let Devices { ac1, ac2, table, .. } = Devices::new(lab)?;
 //! let q = QueryOptions::default();
-//! let mut ac1 = Elcomat3000::new(StreamTransport::new("sim:ac1", SimStream::new(ac1)), q);
-//! let mut ac2 = Elcomat3000::new(StreamTransport::new("sim:ac2", SimStream::new(ac2)), q);
-//! let mut table = Smc100::new(
+//! let mut ac1 = ProfileAutocollimator::elcomat3000(StreamTransport::new("sim:ac1", SimStream::new(ac1)), q);
+//! let mut ac2 = ProfileAutocollimator::elcomat3000(StreamTransport::new("sim:ac2", SimStream::new(ac2)), q);
+//! let mut table = ProfileTable::smc100(
 //!     StreamTransport::new("sim:table", SimStream::new(table)),
-//!     Smc100Options::default(),
+//!     TableOptions::default(),
 //! );
 //!
 //! let settings = RunSettings::new(6, 2).with_closing(true);

@@ -1,6 +1,7 @@
 //! The settings of a simulated lab.
 
 use super::{DeviceId, Fault};
+use crate::lab::profile::Profile;
 use crate::simulate::{SimulateError, SimulationConfig};
 
 /// Settings of a simulated lab.
@@ -17,6 +18,10 @@ pub struct LabConfig {
     pub time_scale: f64,
     /// Injected faults.
     pub faults: Vec<Fault>,
+    /// The autocollimators' profile (`None`: the ELCOMAT 3000's own simulation).
+    pub ac_profile: Option<Profile>,
+    /// The table's profile (`None`: the SMC100's own simulation).
+    pub table_profile: Option<Profile>,
 }
 
 impl Default for LabConfig {
@@ -36,7 +41,26 @@ impl LabConfig {
             home_seconds: 2.0,
             time_scale: 1.0,
             faults: Vec::new(),
+            ac_profile: None,
+            table_profile: None,
         }
+    }
+
+    /// The autocollimators speak `profile` (an autocollimator's). The bundled
+    /// `elcomat3000` keeps the ELCOMAT 3000's own simulation, written from its manual
+    /// apart from the profile; any other is served from its profile.
+    pub fn with_ac_profile(mut self, profile: Profile) -> LabConfig {
+        self.ac_profile =
+            (profile.name != "elcomat3000" || profile.autocollimator().is_err()).then_some(profile);
+        self
+    }
+
+    /// The table speaks `profile` (a table's). The bundled `smc100` keeps the SMC100's
+    /// own simulation; any other is served from its profile.
+    pub fn with_table_profile(mut self, profile: Profile) -> LabConfig {
+        self.table_profile =
+            (profile.name != "smc100" || profile.table().is_err()).then_some(profile);
+        self
     }
 
     /// Sets the table speed, degrees per second.

@@ -130,6 +130,76 @@ impl Lab {
         })
     }
 
+    /// Starts serving `devices` on TCP ports of 127.0.0.1 instead, one per device: the
+    /// paths are `tcp://127.0.0.1:PORT`. A device serves one connection at a time and
+    /// takes the next when it closes; a `close` fault closes the connection and stops
+    /// listening (the port is gone).
+    ///
+    /// # Errors
+    ///
+    /// [`InstrumentError::Open`] when a port cannot be bound.
+    pub fn start_tcp(devices: Devices) -> Result<Lab, InstrumentError> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let Devices {
+            world,
+            ac1,
+            ac2,
+            table,
+            more,
+        } = devices;
+        let mut threads = Vec::new();
+        let mut names = Vec::new();
+        let mut endpoints = vec![("ac1".to_string(), ac1), ("ac2".to_string(), ac2)];
+        endpoints.extend(
+            more.into_iter()
+                .enumerate()
+                .map(|(i, e)| (format!("ac{}", i + 3), e)),
+        );
+        endpoints.push(("table".to_string(), table));
+        for (label, endpoint) in endpoints {
+            let open_error = |message: String| InstrumentError::Open {
+                port: format!("TCP port for {label}"),
+                message,
+            };
+            let listener = std::net::TcpListener::bind("127.0.0.1:0")
+                .map_err(|e| open_error(e.to_string()))?;
+            let address = listener
+                .local_addr()
+                .map_err(|e| open_error(e.to_string()))?;
+            listener
+                .set_nonblocking(true)
+                .map_err(|e| open_error(e.to_string()))?;
+            names.push(format!("tcp://{address}"));
+            let stop = Arc::clone(&stop);
+            let handle = std::thread::Builder::new()
+                .name(format!("sim-{label}"))
+                .spawn(move || serve_tcp(listener, endpoint, &stop))
+                .map_err(|e| open_error(format!("cannot start its thread: {e}")))?;
+            threads.push(handle);
+        }
+        let table = names.pop().unwrap_or_default();
+        let mut acs = names.into_iter();
+        let (ac1, ac2) = (
+            acs.next().unwrap_or_default(),
+            acs.next().unwrap_or_default(),
+        );
+        let more = acs
+            .enumerate()
+            .map(|(i, path)| (format!("ac{}", i + 3), path))
+            .collect();
+        Ok(Lab {
+            paths: LabPaths {
+                ac1,
+                ac2,
+                table,
+                more,
+            },
+            world,
+            stop,
+            threads,
+        })
+    }
+
     /// The device paths.
     pub fn paths(&self) -> &LabPaths {
         &self.paths
@@ -203,4 +273,45 @@ fn serve(mut master: TTYPort, slave: TTYPort, mut endpoint: Endpoint, stop: &Ato
     }
     drop(slave);
     drop(master);
+}
+
+fn serve_tcp(listener: std::net::TcpListener, mut endpoint: Endpoint, stop: &AtomicBool) {
+    let mut buf = [0u8; 512];
+    while !stop.load(Ordering::SeqCst) {
+        let mut client = match listener.accept() {
+            Ok((client, _)) => client,
+            Err(_) => {
+                std::thread::sleep(Duration::from_millis(10));
+                continue;
+            }
+        };
+        if client.set_nonblocking(false).is_err()
+            || client
+                .set_read_timeout(Some(Duration::from_millis(10)))
+                .is_err()
+        {
+            continue;
+        }
+        let _ = client.set_nodelay(true);
+        while !stop.load(Ordering::SeqCst) {
+            let mut out = Vec::new();
+            match client.read(&mut buf) {
+                Ok(0) => break, // the client went away: take the next one
+                Ok(n) => out = endpoint.input(&buf[..n], Instant::now()),
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) => {}
+                Err(_) => break,
+            }
+            if endpoint.is_closed() {
+                return; // drops the connection and the listener: the port is gone
+            }
+            out.extend(endpoint.tick(Instant::now()));
+            if !out.is_empty() && client.write_all(&out).is_err() {
+                break;
+            }
+        }
+    }
 }

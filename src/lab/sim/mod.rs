@@ -75,6 +75,7 @@ mod endpoint;
 mod fault;
 #[cfg(unix)]
 mod lab;
+mod profiled;
 mod smc100;
 mod world;
 
@@ -88,6 +89,7 @@ pub use endpoint::{Endpoint, SimDevice, SimStream};
 pub use fault::{DEFAULT_LATE, DeviceId, FAULT_KINDS, Fault, FaultError, FaultKind, FaultProblem};
 #[cfg(unix)]
 pub use lab::{Lab, LabPaths};
+pub use profiled::ProfileSim;
 pub use smc100::Smc100Sim;
 pub use world::{RemountError, TableView, World};
 
@@ -158,21 +160,30 @@ impl Devices {
         let world = Arc::new(Mutex::new(world));
         let ac = |number: u32| {
             let faults = config.faults_of(DeviceId::Ac(number));
-            Endpoint::new(
-                Box::new(ElcomatSim::new(Arc::clone(&world), number, &faults)),
-                &faults,
-            )
+            let device: Box<dyn SimDevice> =
+                match config.ac_profile.as_ref().and_then(|p| {
+                    ProfileSim::autocollimator(Arc::clone(&world), p, number, &faults)
+                }) {
+                    Some(sim) => Box::new(sim),
+                    None => Box::new(ElcomatSim::new(Arc::clone(&world), number, &faults)),
+                };
+            Endpoint::new(device, &faults)
         };
         let k = config.simulation.ac_faces.len().max(2) as u32;
         let table_faults = config.faults_of(DeviceId::Table);
+        let table: Box<dyn SimDevice> = match config
+            .table_profile
+            .as_ref()
+            .and_then(|p| ProfileSim::table(Arc::clone(&world), p, &table_faults))
+        {
+            Some(sim) => Box::new(sim),
+            None => Box::new(Smc100Sim::new(Arc::clone(&world), &table_faults)),
+        };
         Devices {
             ac1: ac(1),
             ac2: ac(2),
             more: (3..=k).map(ac).collect(),
-            table: Endpoint::new(
-                Box::new(Smc100Sim::new(Arc::clone(&world), &table_faults)),
-                &table_faults,
-            ),
+            table: Endpoint::new(table, &table_faults),
             world,
         }
     }

@@ -3,12 +3,9 @@
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use super::world::Motion;
+use super::world::Refused;
 use super::{Fault, FaultKind, SimDevice, World, lock};
-use crate::lab::smc100::format_position;
-
-/// Travel limits of the simulated table, degrees.
-pub const TRAVEL_DEG: (f64, f64) = (-720.0, 720.0);
+use crate::lab::profile::format_degrees as format_position;
 
 /// A simulated SMC100 with a rotary stage.
 ///
@@ -44,8 +41,6 @@ impl Smc100Sim {
     fn move_absolute(&mut self, argument: &str, now: Instant) {
         let moves_before = self.moves;
         self.moves += 1;
-        let mut world = lock(&self.world);
-        let state = world.table_state(now);
         let target = match argument.trim().parse::<f64>() {
             Ok(v) if v.is_finite() => v,
             _ => {
@@ -53,56 +48,27 @@ impl Smc100Sim {
                 return;
             }
         };
-        let refused = match state {
-            0x0A..=0x11 => Some('H'),
-            0x1E | 0x1F => Some('L'),
-            0x28 => Some('M'),
-            0x3C..=0x3E => Some('J'),
-            0x32..=0x34 => None,
-            _ => Some('D'),
-        };
-        if let Some(code) = refused {
-            self.last_error = code;
-            return;
+        let fails = self.disable_after.is_some_and(|k| moves_before >= k);
+        if let Err(refused) = lock(&self.world).start_move(target, fails, now) {
+            self.last_error = match refused {
+                Refused::NotReferenced => 'H',
+                Refused::Homing => 'L',
+                Refused::Moving => 'M',
+                Refused::Disabled => 'J',
+                Refused::OutOfTravel => 'G',
+                Refused::AlreadyReferenced => 'D',
+            };
         }
-        if !(TRAVEL_DEG.0..=TRAVEL_DEG.1).contains(&target) {
-            self.last_error = 'G';
-            return;
-        }
-        let from = world.table.position;
-        let duration = world.duration(target - from, 0.0);
-        world.table.motion = Some(Motion {
-            from,
-            to: target,
-            start: now,
-            duration,
-            homing: false,
-            fails: self.disable_after.is_some_and(|k| moves_before >= k),
-        });
-        world.update(now);
     }
 
     fn home(&mut self, now: Instant) {
-        let mut world = lock(&self.world);
-        match world.table_state(now) {
-            0x0A..=0x11 => {
-                let from = world.table.position;
-                let home_seconds = world.config.home_seconds;
-                let duration = world.duration(from, home_seconds);
-                world.table.motion = Some(Motion {
-                    from,
-                    to: 0.0,
-                    start: now,
-                    duration,
-                    homing: true,
-                    fails: false,
-                });
-                world.update(now);
-            }
-            0x1E | 0x1F => self.last_error = 'E',
-            0x3C..=0x3E => self.last_error = 'J',
-            0x28 => self.last_error = 'M',
-            _ => self.last_error = 'K',
+        if let Err(refused) = lock(&self.world).start_home(false, now) {
+            self.last_error = match refused {
+                Refused::Homing => 'E',
+                Refused::Disabled => 'J',
+                Refused::Moving => 'M',
+                _ => 'K',
+            };
         }
     }
 }
@@ -142,16 +108,7 @@ impl SimDevice for Smc100Sim {
                 None
             }
             "ST" => {
-                let mut world = lock(&self.world);
-                world.touch(now);
-                if let Some(m) = world.table.motion.take() {
-                    world.table.position = m.position_at(now);
-                    if m.homing {
-                        world.table.referenced = false;
-                    } else {
-                        world.table.ready_code = 0x33;
-                    }
-                }
+                lock(&self.world).stop_motion(now);
                 None
             }
             "MM" => {

@@ -399,6 +399,100 @@ impl World {
     }
 }
 
+/// Why the simulated controller refuses a motion command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Refused {
+    /// Not referenced: a move needs a home search first.
+    NotReferenced,
+    /// A home search is under way.
+    Homing,
+    /// A move is under way.
+    Moving,
+    /// The controller is disabled.
+    Disabled,
+    /// The target is beyond the travel.
+    OutOfTravel,
+    /// A home search asked of a referenced, ready table.
+    AlreadyReferenced,
+}
+
+/// Travel limits of the simulated table, degrees.
+pub const TRAVEL_DEG: (f64, f64) = (-720.0, 720.0);
+
+impl World {
+    /// Starts a move to `target` (the controller's part of a move command); `fails`: the
+    /// `disable` fault stops it midway.
+    pub(super) fn start_move(
+        &mut self,
+        target: f64,
+        fails: bool,
+        now: Instant,
+    ) -> Result<(), Refused> {
+        match self.table_state(now) {
+            0x0A..=0x11 => return Err(Refused::NotReferenced),
+            0x1E | 0x1F => return Err(Refused::Homing),
+            0x28 => return Err(Refused::Moving),
+            0x32..=0x34 => {}
+            _ => return Err(Refused::Disabled),
+        }
+        if !(TRAVEL_DEG.0..=TRAVEL_DEG.1).contains(&target) {
+            return Err(Refused::OutOfTravel);
+        }
+        let from = self.table.position;
+        let duration = self.duration(target - from, 0.0);
+        self.table.motion = Some(Motion {
+            from,
+            to: target,
+            start: now,
+            duration,
+            homing: false,
+            fails,
+        });
+        self.update(now);
+        Ok(())
+    }
+
+    /// Starts a home search; `always`: also when the table is referenced already (a
+    /// controller that homes on request whatever its state).
+    pub(super) fn start_home(&mut self, always: bool, now: Instant) -> Result<(), Refused> {
+        match self.table_state(now) {
+            0x0A..=0x11 => {}
+            0x32..=0x34 if always => {}
+            0x1E | 0x1F => return Err(Refused::Homing),
+            0x3C..=0x3E => return Err(Refused::Disabled),
+            0x28 => return Err(Refused::Moving),
+            _ => return Err(Refused::AlreadyReferenced),
+        }
+        let from = self.table.position;
+        let home_seconds = self.config.home_seconds;
+        let duration = self.duration(from, home_seconds);
+        self.table.referenced = false;
+        self.table.motion = Some(Motion {
+            from,
+            to: 0.0,
+            start: now,
+            duration,
+            homing: true,
+            fails: false,
+        });
+        self.update(now);
+        Ok(())
+    }
+
+    /// Stops any motion where it is.
+    pub(super) fn stop_motion(&mut self, now: Instant) {
+        self.touch(now);
+        if let Some(m) = self.table.motion.take() {
+            self.table.position = m.position_at(now);
+            if m.homing {
+                self.table.referenced = false;
+            } else {
+                self.table.ready_code = 0x33;
+            }
+        }
+    }
+}
+
 /// Locks the world, recovering from a poisoned lock (a panicked device thread must not
 /// take the others down).
 pub(super) fn lock(world: &Mutex<World>) -> MutexGuard<'_, World> {
