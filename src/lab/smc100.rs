@@ -38,6 +38,9 @@ pub const STOP: &str = "1ST\r\n";
 pub const HOME: &str = "1OR\r\n";
 /// Version (identification).
 pub const VERSION: &str = "1VE\r\n";
+/// The largest difference between the reported and the commanded position a move
+/// accepts unless set otherwise, degrees.
+pub const POSITION_TOLERANCE_DEG: f64 = 0.001;
 
 /// How the driver brings the controller back in step after a late or doubtful reply:
 /// `1VE`, whose reply no state, position or error reply can be mistaken for.
@@ -306,7 +309,7 @@ impl Smc100Options {
             query,
             poll_interval: Duration::from_millis(20),
             motion_timeout: Duration::from_secs(120),
-            position_tolerance_deg: 0.001,
+            position_tolerance_deg: POSITION_TOLERANCE_DEG,
         }
     }
 

@@ -1,4 +1,4 @@
-//! Injected faults: `KIND:DEVICE[:after=K][:count=M][:seconds=S]` (see
+//! Injected faults: `KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F]` (see
 //! [`crate::lab::sim`], *Faults*).
 
 use std::fmt;
@@ -68,10 +68,14 @@ pub enum FaultKind {
     Swapped,
     /// The previous reply is sent again instead of the reply (a stale value).
     Stale,
+    /// The table's move ends short of its target by the fault's `fraction` of the
+    /// position tolerance ([`crate::lab::smc100::POSITION_TOLERANCE_DEG`]) and reports
+    /// where it stands: within the tolerance for a fraction below 1.
+    Stall,
 }
 
 /// Every fault kind, in the order of the documentation.
-pub const FAULT_KINDS: [FaultKind; 10] = [
+pub const FAULT_KINDS: [FaultKind; 11] = [
     FaultKind::LostReply,
     FaultKind::Garbled,
     FaultKind::XInvalid,
@@ -82,6 +86,7 @@ pub const FAULT_KINDS: [FaultKind; 10] = [
     FaultKind::Unsolicited,
     FaultKind::Swapped,
     FaultKind::Stale,
+    FaultKind::Stall,
 ];
 
 impl FaultKind {
@@ -90,7 +95,7 @@ impl FaultKind {
     pub fn devices(self) -> &'static str {
         match self {
             FaultKind::XInvalid => "an autocollimator",
-            FaultKind::Disable => "the table",
+            FaultKind::Disable | FaultKind::Stall => "the table",
             _ => "any device",
         }
     }
@@ -99,7 +104,7 @@ impl FaultKind {
     pub fn applies_to(self, device: DeviceId) -> bool {
         match self {
             FaultKind::XInvalid => device != DeviceId::Table,
-            FaultKind::Disable => device == DeviceId::Table,
+            FaultKind::Disable | FaultKind::Stall => device == DeviceId::Table,
             _ => true,
         }
     }
@@ -117,21 +122,28 @@ impl FaultKind {
             FaultKind::Unsolicited => "unsolicited",
             FaultKind::Swapped => "swapped",
             FaultKind::Stale => "stale",
+            FaultKind::Stall => "stall",
         }
     }
 
     /// Whether the fault acts on a device's replies on the wire (the endpoint's), not
     /// inside the device.
     pub fn acts_on_replies(self) -> bool {
-        !matches!(self, FaultKind::XInvalid | FaultKind::Disable)
+        !matches!(
+            self,
+            FaultKind::XInvalid | FaultKind::Disable | FaultKind::Stall
+        )
     }
 }
 
 /// The default lateness of a `late` fault.
 pub const DEFAULT_LATE: Duration = Duration::from_millis(1500);
 
-/// One injected fault: `KIND:DEVICE[:after=K][:count=M][:seconds=S]`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// The default shortfall of a `stall` fault, as a fraction of the position tolerance.
+pub const DEFAULT_STALL_FRACTION: f64 = 0.5;
+
+/// One injected fault: `KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub struct Fault {
     /// What happens.
@@ -144,14 +156,17 @@ pub struct Fault {
     pub count: u64,
     /// How late a `late` fault's replies are ([`DEFAULT_LATE`] unless given).
     pub late: Duration,
+    /// How far short of its target a `stall` fault ends a move, as a fraction of the
+    /// position tolerance ([`DEFAULT_STALL_FRACTION`] unless given).
+    pub stall_fraction: f64,
 }
 
 /// The form of a fault, for messages.
-const FORM: &str = "KIND:DEVICE[:after=K][:count=M][:seconds=S], e.g. lost-reply:ac1:after=10 or late:ac2:seconds=1.3";
+const FORM: &str = "KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F], e.g. lost-reply:ac1:after=10, late:ac2:seconds=1.3 or stall:table:after=3:fraction=0.5";
 
 /// A fault specification that could not be read: which one, and what is wrong with it.
 ///
-/// Displayed as `fault "SPEC": PROBLEM (expected KIND:DEVICE[:after=K][:count=M][:seconds=S], …)`.
+/// Displayed as `fault "SPEC": PROBLEM (expected KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F], …)`.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("fault \"{spec}\": {problem} (expected {FORM})")]
 #[non_exhaustive]
@@ -171,7 +186,7 @@ pub enum FaultProblem {
     TooFewParts,
     /// A kind that is not one of [`FAULT_KINDS`].
     #[error(
-        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale)"
+        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale, stall)"
     )]
     UnknownKind(String),
     /// A device that is not `ac1` … `ac16` or `table`.
@@ -182,7 +197,7 @@ pub enum FaultProblem {
     #[error("{} is a fault of {}", .0.as_str(), .0.devices())]
     WrongDevice(FaultKind),
     /// An option that is not `NAME=VALUE`.
-    #[error("\"{0}\" is not after=K, count=M or seconds=S")]
+    #[error("\"{0}\" is not after=K, count=M, seconds=S or fraction=F")]
     NotAnOption(String),
     /// An option value that is not a whole number.
     #[error("\"{0}\" is not a whole number")]
@@ -199,6 +214,12 @@ pub enum FaultProblem {
     /// `seconds=S` that is not a number of seconds from 0.001 to 3600.
     #[error("seconds \"{0}\" must be a number of seconds from 0.001 to 3600")]
     BadSeconds(String),
+    /// `fraction=F` of a fault other than `stall`.
+    #[error("fraction=F is an option of stall")]
+    FractionNotStall,
+    /// `fraction=F` that is not a number from 0 to 10.
+    #[error("fraction \"{0}\" must be a number from 0 to 10 (of the position tolerance)")]
+    BadFraction(String),
 }
 
 impl FromStr for Fault {
@@ -236,6 +257,16 @@ impl FromStr for Fault {
             let (key, value) = option
                 .split_once('=')
                 .ok_or_else(|| bad(FaultProblem::NotAnOption(option.to_string())))?;
+            if key == "fraction" {
+                if kind != FaultKind::Stall {
+                    return Err(bad(FaultProblem::FractionNotStall));
+                }
+                fault.stall_fraction = match value.parse::<f64>() {
+                    Ok(f) if f.is_finite() && (0.0..=10.0).contains(&f) => f,
+                    _ => return Err(bad(FaultProblem::BadFraction(value.to_string()))),
+                };
+                continue;
+            }
             if key == "seconds" {
                 if kind != FaultKind::Late {
                     return Err(bad(FaultProblem::SecondsNotLate));
@@ -271,12 +302,19 @@ impl Fault {
             after: 0,
             count: 1,
             late: DEFAULT_LATE,
+            stall_fraction: DEFAULT_STALL_FRACTION,
         }
     }
 
     /// Makes a `late` fault's replies late by `late`.
     pub fn with_late(mut self, late: Duration) -> Fault {
         self.late = late;
+        self
+    }
+
+    /// Makes a `stall` fault end a move `fraction` of the position tolerance short.
+    pub fn with_stall_fraction(mut self, fraction: f64) -> Fault {
+        self.stall_fraction = fraction;
         self
     }
 
@@ -305,6 +343,9 @@ impl fmt::Display for Fault {
         )?;
         if self.kind == FaultKind::Late {
             write!(f, ":seconds={}", self.late.as_secs_f64())?;
+        }
+        if self.kind == FaultKind::Stall {
+            write!(f, ":fraction={}", self.stall_fraction)?;
         }
         Ok(())
     }

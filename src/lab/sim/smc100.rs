@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use super::world::Motion;
 use super::{Fault, FaultKind, SimDevice, World, lock};
-use crate::lab::smc100::format_position;
+use crate::lab::smc100::{POSITION_TOLERANCE_DEG, format_position};
 
 /// Travel limits of the simulated table, degrees.
 pub const TRAVEL_DEG: (f64, f64) = (-720.0, 720.0);
@@ -25,10 +25,13 @@ pub struct Smc100Sim {
     last_error: char,
     moves: u64,
     disable_after: Option<u64>,
+    /// `stall` faults: (armed after, moves left, shortfall as a fraction of the
+    /// position tolerance).
+    stalls: Vec<(u64, u64, f64)>,
 }
 
 impl Smc100Sim {
-    /// The table of `world`, with its `disable` fault if any.
+    /// The table of `world`, with its `disable` fault if any and its `stall` faults.
     pub fn new(world: Arc<Mutex<World>>, faults: &[Fault]) -> Smc100Sim {
         Smc100Sim {
             world,
@@ -38,6 +41,11 @@ impl Smc100Sim {
                 .iter()
                 .find(|f| f.kind == FaultKind::Disable)
                 .map(|f| f.after),
+            stalls: faults
+                .iter()
+                .filter(|f| f.kind == FaultKind::Stall)
+                .map(|f| (f.after, f.count, f.stall_fraction))
+                .collect(),
         }
     }
 
@@ -70,6 +78,15 @@ impl Smc100Sim {
             return;
         }
         let from = world.table.position;
+        // A stall ends the move short of its target, where the encoder then reads.
+        let mut target = target;
+        for (after, left, fraction) in &mut self.stalls {
+            if moves_before >= *after && *left > 0 && target != from {
+                *left -= 1;
+                target -= (target - from).signum() * *fraction * POSITION_TOLERANCE_DEG;
+                break;
+            }
+        }
         let duration = world.duration(target - from, 0.0);
         world.table.motion = Some(Motion {
             from,
