@@ -40,7 +40,44 @@ impl SerialSettings {
             flow_control,
         }
     }
+
+    /// The time `bytes` bytes take on the line: 10 bits each (start, 8 data, stop).
+    ///
+    /// ```
+    /// use polycal::lab::serial::SerialSettings;
+    /// // An ELCOMAT reply, `4 003 12.345000 -1.234000` and CR: 26 bytes, 13.5 ms.
+    /// let t = SerialSettings::ELCOMAT.line_time(26);
+    /// assert!((t.as_secs_f64() - 0.0135417).abs() < 1e-6);
+    /// ```
+    pub fn line_time(&self, bytes: usize) -> std::time::Duration {
+        std::time::Duration::from_secs_f64(bytes as f64 * 10.0 / f64::from(self.baud_rate.max(1)))
+    }
+
+    /// How long a reply is watched for a line after it on this line
+    /// ([`crate::lab::QueryOptions::alone_wait`]): twice the time of a reply of
+    /// [`REPLY_BYTES`] on the line, plus [`ALONE_MARGIN`] for the adapter's and the
+    /// operating system's latency — 47.3 ms for an ELCOMAT at 19200 baud, 26.4 ms for
+    /// the SMC100 at 57600.
+    ///
+    /// ```
+    /// use polycal::lab::serial::SerialSettings;
+    /// let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
+    /// assert_eq!(ms(SerialSettings::ELCOMAT.alone_wait()), 47.3);
+    /// assert_eq!(ms(SerialSettings::SMC100.alone_wait()), 26.4);
+    /// ```
+    pub fn alone_wait(&self) -> std::time::Duration {
+        self.line_time(2 * REPLY_BYTES) + ALONE_MARGIN
+    }
 }
+
+/// The bytes of a long reply line of the instruments `run` drives (an ELCOMAT
+/// measurement, `4 003 -123.456789 -12.345678` and CR: 30).
+pub const REPLY_BYTES: usize = 30;
+
+/// What [`SerialSettings::alone_wait`] adds to the time of the replies on the line: a
+/// USB-serial adapter may hold what it received for its latency timer (16 ms, an
+/// FTDI's default) before it hands it on.
+pub const ALONE_MARGIN: std::time::Duration = std::time::Duration::from_millis(16);
 
 /// An open serial port: waits for input in the operating system (the port's timeout set
 /// to what is left of the reply's deadline before each read) and discards input with the

@@ -367,13 +367,16 @@ impl Session<'_> {
                 );
             }
         };
+        // A reply is taken once no line followed it for two replies' time on its line.
+        let ac_query = query.with_alone_wait(SerialSettings::ELCOMAT.alone_wait());
+        let table_query = query.with_alone_wait(SerialSettings::SMC100.alone_wait());
         let mut acs: Vec<_> = acs
             .into_iter()
-            .map(|port| Elcomat3000::new(port, query))
+            .map(|port| Elcomat3000::new(port, ac_query))
             .collect();
         let mut table = Smc100::new(
             table,
-            Smc100Options::new(query).with_motion_timeout(motion_timeout),
+            Smc100Options::new(table_query).with_motion_timeout(motion_timeout),
         )
         .with_stop_flag(stop.clone());
 

@@ -1,4 +1,4 @@
-//! Injected faults: `KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F]` (see
+//! Injected faults: `KIND:DEVICE[:after=K][:count=M][:seconds=S|:commands=C][:fraction=F]` (see
 //! [`crate::lab::sim`], *Faults*).
 
 use std::fmt;
@@ -56,7 +56,9 @@ pub enum FaultKind {
     /// The device closes its port.
     Close,
     /// Replies are sent late, by the fault's `seconds`; later replies wait behind them
-    /// (a device answers in order).
+    /// (a device answers in order). With `commands=C` a reply is held instead until C
+    /// more commands have come and sent just inside the C-th's reply window, ahead of
+    /// its reply; later replies do not wait behind it.
     Late,
     /// Replies are sent twice.
     Duplicated,
@@ -159,14 +161,17 @@ pub struct Fault {
     /// How far short of its target a `stall` fault ends a move, as a fraction of the
     /// position tolerance ([`DEFAULT_STALL_FRACTION`] unless given).
     pub stall_fraction: f64,
+    /// A `late` fault's replies held until this many more commands have come, instead
+    /// of [`Fault::late`] (`commands=C`).
+    pub late_commands: Option<u32>,
 }
 
 /// The form of a fault, for messages.
-const FORM: &str = "KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F], e.g. lost-reply:ac1:after=10, late:ac2:seconds=1.3 or stall:table:after=3:fraction=0.5";
+const FORM: &str = "KIND:DEVICE[:after=K][:count=M][:seconds=S|:commands=C][:fraction=F], e.g. lost-reply:ac1:after=10, late:ac2:seconds=1.3, late:ac1:commands=4 or stall:table:after=3:fraction=0.5";
 
 /// A fault specification that could not be read: which one, and what is wrong with it.
 ///
-/// Displayed as `fault "SPEC": PROBLEM (expected KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F], …)`.
+/// Displayed as `fault "SPEC": PROBLEM (expected KIND:DEVICE[:after=K][:count=M][:seconds=S|:commands=C][:fraction=F], …)`.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("fault \"{spec}\": {problem} (expected {FORM})")]
 #[non_exhaustive]
@@ -197,7 +202,7 @@ pub enum FaultProblem {
     #[error("{} is a fault of {}", .0.as_str(), .0.devices())]
     WrongDevice(FaultKind),
     /// An option that is not `NAME=VALUE`.
-    #[error("\"{0}\" is not after=K, count=M, seconds=S or fraction=F")]
+    #[error("\"{0}\" is not after=K, count=M, seconds=S, commands=C or fraction=F")]
     NotAnOption(String),
     /// An option value that is not a whole number.
     #[error("\"{0}\" is not a whole number")]
@@ -214,6 +219,12 @@ pub enum FaultProblem {
     /// `seconds=S` that is not a number of seconds from 0.001 to 3600.
     #[error("seconds \"{0}\" must be a number of seconds from 0.001 to 3600")]
     BadSeconds(String),
+    /// `commands=C` of a fault other than `late`.
+    #[error("commands=C is an option of late")]
+    CommandsNotLate,
+    /// `commands=C` that is not a whole number from 1 to 1000.
+    #[error("commands \"{0}\" must be a whole number from 1 to 1000")]
+    BadCommands(String),
     /// `fraction=F` of a fault other than `stall`.
     #[error("fraction=F is an option of stall")]
     FractionNotStall,
@@ -257,6 +268,16 @@ impl FromStr for Fault {
             let (key, value) = option
                 .split_once('=')
                 .ok_or_else(|| bad(FaultProblem::NotAnOption(option.to_string())))?;
+            if key == "commands" {
+                if kind != FaultKind::Late {
+                    return Err(bad(FaultProblem::CommandsNotLate));
+                }
+                fault.late_commands = match value.parse::<u32>() {
+                    Ok(c) if (1..=1000).contains(&c) => Some(c),
+                    _ => return Err(bad(FaultProblem::BadCommands(value.to_string()))),
+                };
+                continue;
+            }
             if key == "fraction" {
                 if kind != FaultKind::Stall {
                     return Err(bad(FaultProblem::FractionNotStall));
@@ -303,12 +324,20 @@ impl Fault {
             count: 1,
             late: DEFAULT_LATE,
             stall_fraction: DEFAULT_STALL_FRACTION,
+            late_commands: None,
         }
     }
 
     /// Makes a `late` fault's replies late by `late`.
     pub fn with_late(mut self, late: Duration) -> Fault {
         self.late = late;
+        self
+    }
+
+    /// Makes a `late` fault hold its replies until `commands` more commands have come
+    /// (`commands=C`).
+    pub fn with_late_commands(mut self, commands: u32) -> Fault {
+        self.late_commands = Some(commands);
         self
     }
 
@@ -342,7 +371,10 @@ impl fmt::Display for Fault {
             self.count
         )?;
         if self.kind == FaultKind::Late {
-            write!(f, ":seconds={}", self.late.as_secs_f64())?;
+            match self.late_commands {
+                Some(c) => write!(f, ":commands={c}")?,
+                None => write!(f, ":seconds={}", self.late.as_secs_f64())?,
+            }
         }
         if self.kind == FaultKind::Stall {
             write!(f, ":fraction={}", self.stall_fraction)?;
