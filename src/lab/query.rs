@@ -48,12 +48,9 @@ fn after_reply<T: Transport + ?Sized>(
     transport: &mut T,
     options: &QueryOptions,
 ) -> Result<Vec<String>, InstrumentError> {
-    let mut extra = transport.drain()?;
+    let extra = transport.drain()?;
     if extra.is_empty() && !options.alone_wait.is_zero() {
-        if let Some(line) = transport.read_line(options.alone_wait)? {
-            extra.push(line);
-        }
-        extra.extend(transport.drain()?);
+        return transport.await_input(options.alone_wait);
     }
     Ok(extra)
 }
