@@ -111,7 +111,8 @@ pub struct RunArgs {
     #[arg(long, default_value_t = polycal::lab::run::DEFAULT_READS_PER_STOP)]
     reads: u32,
     /// The autocollimators' noise, σ of one reading, arcsec: readings at a stop agree
-    /// within 5·√2·σ.
+    /// within 5·√2·σ, or within the tolerance of the smaller noise their repeats
+    /// measure once they show it (σ is its upper bound).
     #[arg(long, value_name = "ARCSEC", default_value_t = polycal::lab::run::DEFAULT_READING_NOISE_ARCSEC, allow_negative_numbers = true)]
     reading_noise: f64,
     /// Directory for measurements.csv, manifest.json and traffic.jsonl.
