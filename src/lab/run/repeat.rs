@@ -289,6 +289,22 @@ mod tests {
     }
 
     #[test]
+    fn an_error_names_the_measured_noise_it_judged_by() {
+        let mut memory = DeviceMemory::default();
+        for _ in 0..40 {
+            read(&[5.0, 5.02], &mut memory).unwrap();
+        }
+        let e = read(&[0.0, 0.3, 0.6, 0.9, 1.2, 1.5], &mut memory).unwrap_err();
+        let RepeatError::NoAgreement(message) = e else {
+            panic!("{e:?}")
+        };
+        assert!(
+            message.contains("the noise measured at the stops before, 0.0141″ on 40 degrees"),
+            "{message}"
+        );
+    }
+
+    #[test]
     fn readings_that_never_agree_end_in_an_error_naming_them() {
         let e = read(
             &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0],

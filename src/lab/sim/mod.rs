@@ -63,7 +63,7 @@
 //! | `x-invalid` | ac1, ac2 | the next M measurements have status `002` (X not valid) |
 //! | `disable` | table | the next move stops midway in state `3D` (DISABLE from MOVING) and stays disabled |
 //! | `close` | all | at the next command the device closes its port |
-//! | `late` | all | the next M replies are sent `seconds=S` late (default 1.5 s); later replies wait behind them |
+//! | `late` | all | the next M replies are sent `seconds=S` late (default 1.5 s); later replies wait behind them. With `commands=C`: each is held until C more commands have come and sent just inside the C-th's reply window, ahead of its reply (later replies do not wait) |
 //! | `duplicated` | all | the next M replies are sent twice |
 //! | `unsolicited` | all | before each of the next M replies, a line in the form of a reply that nothing asked for (an autocollimator: its last measurement + 99″; the table: its position + 1°) |
 //! | `swapped` | all | each of the next M replies is held back and sent after the reply that follows it |
