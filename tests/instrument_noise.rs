@@ -138,6 +138,47 @@ fn the_manifest_records_the_measured_noise() {
     }
 }
 
+/// A resumed session goes on from the noise the session before measured (the
+/// manifest's record at its latest check), not from the stated noise: the first
+/// session ends when autocollimator 1's port closes in cycle 2 (after the check of
+/// cycle 1 recorded 9 stops' repeats), the second completes the run, and the record
+/// after its check counts both sessions' stops.
+#[test]
+fn a_resumed_session_goes_on_from_the_measured_noise() {
+    let dir = temp_dir("noise-resumed");
+    let session = |faults: Vec<Fault>, resume: bool| {
+        let devices = Devices::new(config(vec![], faults)).unwrap();
+        let stop = StopFlag::new();
+        let mut d = drivers(devices, &stop);
+        let mut run = RunDir::open(&dir, &settings(), &ports(), resume).unwrap();
+        let outcome =
+            run::measure(&mut run, instruments(&mut d), &stop, None, &mut |_| {}).unwrap();
+        run.finish(&outcome).unwrap();
+        (outcome, run.manifest().repeat_noise.clone())
+    };
+    let close = Fault::new(FaultKind::Close, DeviceId::Ac(1)).with_after(26);
+    let (outcome, first) = session(vec![close], false);
+    assert!(
+        matches!(outcome, Outcome::InstrumentError(_)),
+        "{outcome:?}"
+    );
+    assert_eq!(first.len(), 2, "{first:?}");
+    assert!(
+        first.iter().all(|r| r.dof == 9 && r.session == 1),
+        "{first:?}"
+    );
+    let (outcome, second) = session(vec![], true);
+    assert_eq!(outcome, Outcome::Completed);
+    for (before, after) in first.iter().zip(&second) {
+        assert_eq!(after.session, 2);
+        // 9 stops of the first session's record, and at least the 5 stops of cycle 2
+        // the second measured.
+        assert!(after.dof >= before.dof + 5, "{before:?} then {after:?}");
+        let measured = after.measured_arcsec.unwrap();
+        assert!((0.5 * SIGMA..1.6 * SIGMA).contains(&measured), "{after:?}");
+    }
+}
+
 /// The lab of the late-reply tests: `faces` faces, one clockwise cycle with the closing
 /// step (no check after the cycle, which needs a second, so that what the loop stored
 /// stays stored).

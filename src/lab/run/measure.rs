@@ -360,6 +360,12 @@ fn measure_stops(
     let before = run.readings_done();
     let settle = Duration::try_from_secs_f64(settings.settle_seconds).unwrap_or(Duration::ZERO);
     let mut memory = vec![DeviceMemory::default(); acs.len()];
+    // The noise the sessions before measured, as the manifest recorded it.
+    for record in &run.manifest.repeat_noise {
+        if let Some(m) = memory.get_mut((record.ac as usize).wrapping_sub(1)) {
+            m.noise = RepeatNoise::from_record(record);
+        }
+    }
     let mut refused = 0;
     let mut handled: Vec<Cell> = Vec::new();
     let plan = settings.plan();

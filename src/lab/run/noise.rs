@@ -46,6 +46,18 @@ impl RepeatNoise {
         self.dof += x_arcsec.len() as u32 - 1;
     }
 
+    /// The pool a manifest recorded ([`NoiseRecord`]): s² on ν degrees of freedom, as
+    /// the session before left it, for a resumed session to go on from.
+    pub fn from_record(record: &NoiseRecord) -> RepeatNoise {
+        match record.measured_arcsec {
+            Some(s) if s.is_finite() && s >= 0.0 && record.dof > 0 => RepeatNoise {
+                sum_squares_arcsec2: s * s * f64::from(record.dof),
+                dof: record.dof,
+            },
+            _ => RepeatNoise::default(),
+        }
+    }
+
     /// The degrees of freedom pooled, ν.
     pub fn dof(&self) -> u32 {
         self.dof
@@ -91,8 +103,8 @@ impl RepeatNoise {
 pub struct NoiseRecord {
     /// The autocollimator, 1 … K.
     pub ac: u32,
-    /// The session (1 for the first) whose repeats were pooled: the pool starts anew
-    /// with every session.
+    /// The session (1 for the first) at whose check the record was made; a resumed
+    /// session goes on from the pool recorded.
     pub session: usize,
     /// The degrees of freedom pooled, ν (readings at a stop minus one, summed).
     pub dof: u32,
@@ -157,6 +169,19 @@ fn t_quantile_two_sided(dof: f64, p: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_recorded_pool_is_the_pool() {
+        let mut noise = RepeatNoise::default();
+        for i in 0..30 {
+            noise.add_stop(&[0.0, 0.01 * f64::from(i % 4)]);
+        }
+        let again = RepeatNoise::from_record(&NoiseRecord::of(1, 1, &noise, 0.1));
+        assert_eq!(again.dof(), noise.dof());
+        assert!((again.agreement_arcsec(0.1) - noise.agreement_arcsec(0.1)).abs() < 1e-12);
+        let empty = RepeatNoise::from_record(&NoiseRecord::of(1, 1, &RepeatNoise::default(), 0.1));
+        assert_eq!(empty, RepeatNoise::default());
+    }
 
     #[test]
     fn the_t_quantile_matches_tables_and_tends_to_the_normal() {
