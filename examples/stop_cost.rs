@@ -139,7 +139,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             (
                 c.sent_lines as f64 / stops,
                 c.received_lines as f64 / stops,
-                p.wire_time(bytes.round() as usize).as_secs_f64() * 1000.0,
+                p.line.line_time(bytes.round() as usize).as_secs_f64() * 1000.0,
             )
         };
         let tc = *table_count.lock().unwrap_or_else(|p| p.into_inner());

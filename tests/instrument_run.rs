@@ -202,6 +202,18 @@ fn fault_specs() {
         (f.kind, f.device, f.after, f.count),
         (FaultKind::LostReply, DeviceId::Ac(1), 10, 1)
     );
+    let f = fault("late:ac1:after=2:commands=4");
+    assert_eq!(
+        (f.kind, f.after, f.late_commands),
+        (FaultKind::Late, 2, Some(4))
+    );
+    assert_eq!(f.to_string(), "late:ac1:after=2:count=1:commands=4");
+    let f = fault("stall:table:after=3:fraction=0.25");
+    assert_eq!(
+        (f.kind, f.after, f.stall_fraction),
+        (FaultKind::Stall, 3, 0.25)
+    );
+    assert_eq!(f.to_string(), "stall:table:after=3:count=1:fraction=0.25");
     for (bad, problem) in [
         ("lost-reply", FaultProblem::TooFewParts),
         ("melt:ac1", FaultProblem::UnknownKind("melt".into())),
@@ -226,6 +238,14 @@ fn fault_specs() {
         ("garbled:ac2:count=0", FaultProblem::ZeroCount),
         ("stale:ac2:seconds=2", FaultProblem::SecondsNotLate),
         ("late:ac2:seconds=0", FaultProblem::BadSeconds("0".into())),
+        ("stale:ac2:commands=2", FaultProblem::CommandsNotLate),
+        ("late:ac1:commands=0", FaultProblem::BadCommands("0".into())),
+        ("late:table:fraction=0.5", FaultProblem::FractionNotStall),
+        (
+            "stall:table:fraction=-1",
+            FaultProblem::BadFraction("-1".into()),
+        ),
+        ("stall:ac1", FaultProblem::WrongDevice(FaultKind::Stall)),
         (
             "late:table:seconds=NaN",
             FaultProblem::BadSeconds("NaN".into()),
@@ -242,8 +262,9 @@ fn fault_specs() {
     assert_eq!(
         "x-invalid:table".parse::<Fault>().unwrap_err().to_string(),
         "fault \"x-invalid:table\": x-invalid is a fault of an autocollimator \
-         (expected KIND:DEVICE[:after=K][:count=M][:seconds=S], e.g. lost-reply:ac1:after=10 \
-         or late:ac2:seconds=1.3)"
+         (expected KIND:DEVICE[:after=K][:count=M][:seconds=S|:commands=C][:fraction=F], e.g. \
+         lost-reply:ac1:after=10, late:ac2:seconds=1.3, late:ac1:commands=4 or \
+         stall:table:after=3:fraction=0.5)"
     );
     assert_eq!(
         FaultProblem::WrongDevice(FaultKind::Disable).to_string(),

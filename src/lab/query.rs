@@ -16,6 +16,13 @@ pub struct QueryOptions {
     /// How many more times a query is sent after a lost, garbled, doubtful or invalid
     /// reply. A motion is never retried.
     pub retries: u32,
+    /// How long a reply is watched for a line after it before it is taken as coming
+    /// alone: on a serial line the next line is still on the wire when a reply was read
+    /// (an ELCOMAT reply takes 13.5 ms at 19200 baud), so a look at what is pending
+    /// alone cannot see it. [`QueryOptions::new`] gives zero (only what is pending);
+    /// `run` sets [`LineSettings::alone_wait`](super::profile::LineSettings::alone_wait)
+    /// for each line.
+    pub alone_wait: Duration,
 }
 
 impl QueryOptions {
@@ -24,8 +31,28 @@ impl QueryOptions {
         QueryOptions {
             reply_timeout,
             retries,
+            alone_wait: Duration::ZERO,
         }
     }
+
+    /// Sets how long a reply is watched for a line after it ([`QueryOptions::alone_wait`]).
+    pub fn with_alone_wait(mut self, alone_wait: Duration) -> QueryOptions {
+        self.alone_wait = alone_wait;
+        self
+    }
+}
+
+/// What follows a reply: what is pending, and — when nothing is — whatever arrives
+/// within `options.alone_wait` (a line, or part of one).
+fn after_reply<T: Transport + ?Sized>(
+    transport: &mut T,
+    options: &QueryOptions,
+) -> Result<Vec<String>, InstrumentError> {
+    let extra = transport.drain()?;
+    if extra.is_empty() && !options.alone_wait.is_zero() {
+        return transport.await_input(options.alone_wait);
+    }
+    Ok(extra)
 }
 
 impl Default for QueryOptions {
@@ -82,8 +109,10 @@ pub(crate) fn resync<T: Transport + ?Sized>(
 ///
 /// - whatever is pending before the command is sent is drained (and logged as
 ///   discarded): it answers an earlier command;
-/// - a reply that `parse` accepts but that is followed at once by more input is not
-///   taken ([`ReplyError::NotAlone`]);
+/// - a reply that `parse` accepts but that is followed by more input — pending, or
+///   arriving within `options.alone_wait`, the time another reply line takes on the
+///   wire — is not taken ([`ReplyError::NotAlone`]): a late reply to an earlier query
+///   read as this one's answer has this one's own reply right behind it;
 /// - after a reply that did not come in time or was not taken for that reason, the
 ///   device is resynchronised with `resync` (when the driver has one) before the command
 ///   is sent again, so that a late reply is discarded when it arrives instead of being
@@ -121,7 +150,7 @@ pub(crate) fn query<T: Transport + ?Sized, V>(
             }
             Some(line) => match parse(&line) {
                 Ok(value) => {
-                    let extra = transport.drain()?;
+                    let extra = after_reply(transport, options)?;
                     if extra.is_empty() {
                         return Ok((value, line));
                     }

@@ -274,6 +274,18 @@ impl<T: Transport> Transport for LoggedTransport<T> {
         Ok(lines)
     }
 
+    fn await_input(&mut self, timeout: Duration) -> Result<Vec<String>, InstrumentError> {
+        let lines = self
+            .inner
+            .await_input(timeout)
+            .inspect_err(|e| self.error(e))?;
+        for line in &lines {
+            self.log
+                .record(&self.device, self.inner.port(), "discarded", line);
+        }
+        Ok(lines)
+    }
+
     fn note(&mut self, event: &str, text: &str) {
         self.log
             .record(&self.device, self.inner.port(), event, text);

@@ -42,6 +42,17 @@ pub trait Transport: Send {
     /// pending gives an empty list.
     fn drain(&mut self) -> Result<Vec<String>, InstrumentError>;
 
+    /// Waits at most `timeout` for input and takes what arrived, as [`Transport::drain`]
+    /// does (a line not yet ended included): what follows a reply that should come
+    /// alone, watched for as long as another reply takes on the line. Nothing within
+    /// `timeout` gives an empty list, which is no timeout of a query (a logging
+    /// transport records the lines taken as `discarded`, and nothing else).
+    fn await_input(&mut self, timeout: Duration) -> Result<Vec<String>, InstrumentError> {
+        let mut lines: Vec<String> = self.read_line(timeout)?.into_iter().collect();
+        lines.extend(self.drain()?);
+        Ok(lines)
+    }
+
     /// Notes an event about a line already received, e.g. `discarded` for a late reply
     /// read while resynchronising. Only a logging transport records it.
     fn note(&mut self, _event: &str, _text: &str) {}
@@ -62,6 +73,9 @@ impl<T: Transport + ?Sized> Transport for Box<T> {
     }
     fn drain(&mut self) -> Result<Vec<String>, InstrumentError> {
         (**self).drain()
+    }
+    fn await_input(&mut self, timeout: Duration) -> Result<Vec<String>, InstrumentError> {
+        (**self).await_input(timeout)
     }
     fn note(&mut self, event: &str, text: &str) {
         (**self).note(event, text)

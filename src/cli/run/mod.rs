@@ -128,7 +128,8 @@ pub struct RunArgs {
     #[arg(long, default_value_t = polycal::lab::run::DEFAULT_READS_PER_STOP)]
     reads: u32,
     /// The autocollimators' noise, σ of one reading, arcsec: readings at a stop agree
-    /// within 5·√2·σ.
+    /// within 5·√2·σ, or within the tolerance of the smaller noise their repeats
+    /// measure once they show it (σ is its upper bound).
     #[arg(long, value_name = "ARCSEC", default_value_t = polycal::lab::run::DEFAULT_READING_NOISE_ARCSEC, allow_negative_numbers = true)]
     reading_noise: f64,
     /// Directory for measurements.csv, manifest.json and traffic.jsonl.
@@ -166,6 +167,15 @@ fn open_raw(path: &str, profile: &Profile) -> Result<Port, polycal::lab::Instrum
         Some(_) => Box::new(TcpTransport::connect(path)?),
         None => Box::new(SerialTransport::open(path, &profile.line)?),
     })
+}
+
+/// How long a reply on `path` is watched for a line after it: two replies' time on a
+/// serial line at the profile's rate, or the margin alone over TCP.
+fn alone_wait(path: &str, profile: &Profile) -> Duration {
+    match tcp_address(path) {
+        Some(_) => polycal::lab::profile::ALONE_MARGIN,
+        None => profile.line.alone_wait(),
+    }
 }
 
 /// Opens one instrument's port, logged as `device`; the error names the instrument.
@@ -484,14 +494,20 @@ impl Session<'_> {
                 );
             }
         };
+        // A reply is taken once no line followed it for two replies' time on its line.
         let mut acs = acs
             .into_iter()
-            .map(|port| ProfileAutocollimator::new(port, self.ac_profile, query))
+            .zip(&ac_ports)
+            .map(|(port, path)| {
+                let q = query.with_alone_wait(alone_wait(path, self.ac_profile));
+                ProfileAutocollimator::new(port, self.ac_profile, q)
+            })
             .collect::<Result<Vec<_>, _>>()?;
+        let table_query = query.with_alone_wait(alone_wait(&args.table, self.table_profile));
         let mut table = ProfileTable::new(
             table,
             self.table_profile,
-            TableOptions::new(query).with_motion_timeout(motion_timeout),
+            TableOptions::new(table_query).with_motion_timeout(motion_timeout),
         )?
         .with_stop_flag(stop.clone());
 

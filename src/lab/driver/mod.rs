@@ -13,7 +13,7 @@ mod autocollimator;
 mod table;
 
 pub use autocollimator::ProfileAutocollimator;
-pub use table::{ProfileTable, TableOptions, TableState};
+pub use table::{POSITION_TOLERANCE_DEG, ProfileTable, TableOptions, TableState};
 
 use super::ReplyError;
 use super::profile::{Captures, LineSettings, Template};

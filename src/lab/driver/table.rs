@@ -11,6 +11,10 @@ use crate::lab::query::{Resync, query};
 use crate::lab::transport::Transport;
 use crate::lab::{InstrumentError, QueryOptions, RotaryTable, StopFlag};
 
+/// The largest difference between the reported and the commanded position a move
+/// accepts unless set otherwise, degrees.
+pub const POSITION_TOLERANCE_DEG: f64 = 0.001;
+
 /// How the runner waits for and checks a table: the same for every profile.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
@@ -33,7 +37,7 @@ impl TableOptions {
             query,
             poll_interval: Duration::from_millis(20),
             motion_timeout: Duration::from_secs(120),
-            position_tolerance_deg: 0.001,
+            position_tolerance_deg: POSITION_TOLERANCE_DEG,
         }
     }
 

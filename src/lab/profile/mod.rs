@@ -351,17 +351,50 @@ impl Profile {
     pub fn wire(&self, command: &str) -> String {
         format!("{command}{}", self.line.command_end)
     }
+}
 
-    /// The time one reply line of `characters` characters takes on the serial line
-    /// (start, data, parity and stop bits per character).
-    pub fn wire_time(&self, characters: usize) -> std::time::Duration {
+/// The bytes of a long reply line (an ELCOMAT measurement, `4 003 -123.456789 -12.345678`
+/// and CR: 30), for [`LineSettings::alone_wait`].
+pub const REPLY_BYTES: usize = 30;
+
+/// What [`LineSettings::alone_wait`] adds to the time of the replies on the line: a
+/// USB-serial adapter may hold what it received for its latency timer (16 ms, an FTDI's
+/// default) before it hands it on; over TCP it is the whole watch.
+pub const ALONE_MARGIN: std::time::Duration = std::time::Duration::from_millis(16);
+
+impl LineSettings {
+    /// The time `bytes` bytes take on the serial line (start, data, parity and stop bits
+    /// each).
+    ///
+    /// ```
+    /// use polycal::lab::profile::Profile;
+    /// // An ELCOMAT reply, `4 003 12.345000 -1.234000` and CR: 26 bytes, 13.5 ms.
+    /// let line = Profile::load("elcomat3000")?.line;
+    /// assert!((line.line_time(26).as_secs_f64() - 0.0135417).abs() < 1e-6);
+    /// # Ok::<(), polycal::lab::profile::ProfileError>(())
+    /// ```
+    pub fn line_time(&self, bytes: usize) -> std::time::Duration {
         let bits = 1
-            + u64::from(self.line.data_bits)
-            + u64::from(self.line.parity != Parity::None)
-            + u64::from(self.line.stop_bits);
-        std::time::Duration::from_secs_f64(
-            characters as f64 * bits as f64 / f64::from(self.line.baud.max(1)),
-        )
+            + u64::from(self.data_bits)
+            + u64::from(self.parity != Parity::None)
+            + u64::from(self.stop_bits);
+        std::time::Duration::from_secs_f64(bytes as f64 * bits as f64 / f64::from(self.baud.max(1)))
+    }
+
+    /// How long a reply is watched for a line after it on this line
+    /// ([`crate::lab::QueryOptions::alone_wait`]): twice the time of a reply of
+    /// [`REPLY_BYTES`] on the line, plus [`ALONE_MARGIN`] — 47.3 ms for an ELCOMAT at
+    /// 19200 baud, 26.4 ms for the SMC100 at 57600.
+    ///
+    /// ```
+    /// use polycal::lab::profile::Profile;
+    /// let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
+    /// assert_eq!(ms(Profile::load("elcomat3000")?.line.alone_wait()), 47.3);
+    /// assert_eq!(ms(Profile::load("smc100")?.line.alone_wait()), 26.4);
+    /// # Ok::<(), polycal::lab::profile::ProfileError>(())
+    /// ```
+    pub fn alone_wait(&self) -> std::time::Duration {
+        self.line_time(2 * REPLY_BYTES) + ALONE_MARGIN
     }
 }
 

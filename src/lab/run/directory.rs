@@ -239,6 +239,7 @@ impl RunDir {
             suspect: Vec::new(),
             mountings: vec![MountingRecord::new(mounting)],
             checked_cycles: Some(Vec::new()),
+            repeat_noise: Vec::new(),
         };
         let path = dir.join(MEASUREMENTS);
         let file = LineFile::open(&path, true, budget)
@@ -600,6 +601,23 @@ impl RunDir {
             self.measurements = ReadingWriter::resume(file, columns);
         }
         self.manifest.remeasured.push(record);
+        self.write_manifest(false)
+    }
+
+    /// Records the noise each autocollimator's readings were judged by
+    /// (`repeat_noise`), autocollimator 1 first.
+    ///
+    /// # Errors
+    ///
+    /// As [`RunDir::finish`].
+    pub(super) fn record_noise(&mut self, noise: &[super::RepeatNoise]) -> Result<(), RunError> {
+        let session = self.manifest.sessions.len().max(1);
+        let stated = self.manifest.settings.reading_noise_arcsec;
+        self.manifest.repeat_noise = noise
+            .iter()
+            .zip(1..)
+            .map(|(n, ac)| super::NoiseRecord::of(ac, session, n, stated))
+            .collect();
         self.write_manifest(false)
     }
 

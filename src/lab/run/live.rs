@@ -142,9 +142,44 @@ pub(super) fn cell(reading: &Reading) -> Cell {
     (reading.setup, reading.step, reading.ac, reading.direction)
 }
 
-/// `solve`'s fit of `set`: mountings between the stops in their encoder positions, as
-/// `solve` takes them.
+/// The table's offset from the commanded stop that `reading` includes, arcsec: its
+/// `encoder` (the position the table reported, within the position tolerance of the
+/// stop) minus the stop's angle (`shift_deg` + step·360°/N), times 3600. The
+/// autocollimator sees the polygon where the table stands, so its reading carries the
+/// offset. 0 without an encoder, and for an encoder more than a degree off (not this
+/// stop).
+pub(super) fn stop_offset_arcsec(reading: &Reading, faces: usize, shift_deg: f64) -> f64 {
+    let Some(encoder) = reading.encoder_degrees else {
+        return 0.0;
+    };
+    let commanded = shift_deg + reading.step as f64 * 360.0 / faces.max(1) as f64;
+    let off = (encoder - commanded + 180.0).rem_euclid(360.0) - 180.0;
+    if off.is_finite() && off.abs() <= 1.0 {
+        off * 3600.0
+    } else {
+        0.0
+    }
+}
+
+/// `set` with every reading's table offset ([`stop_offset_arcsec`]) taken out: what the
+/// autocollimators would have read with the table exactly at its stops.
+fn at_commanded_stops(set: &MeasurementSet) -> MeasurementSet {
+    let mut set = set.clone();
+    let faces = set.faces;
+    let shifts = set.setup_shift_deg.clone();
+    for r in &mut set.readings {
+        let shift = shifts.get(&r.setup).copied().unwrap_or(0.0);
+        r.reading_arcsec -= stop_offset_arcsec(r, faces, shift);
+    }
+    set
+}
+
+/// `solve`'s fit of `set`, the table's offsets from the commanded stops taken out of the
+/// readings ([`at_commanded_stops`]): a table that stopped within its tolerance but off
+/// the stop moved the readings by what its encoder reports, not by a fault. Mountings
+/// between the stops in their encoder positions, as `solve` takes them.
 fn solved(set: &MeasurementSet) -> Option<crate::solve::Solution> {
+    let set = &at_commanded_stops(set);
     if set.has_shifts() {
         Some(solve_shifted(set, &SolveOptions::new()).ok()?.solution)
     } else {
@@ -194,8 +229,14 @@ pub(super) fn mounting_misfit(set: &MeasurementSet, fit: &Fit, setup: u32) -> Op
 }
 
 /// Fits the readings so far; `None` while there are too few to estimate the noise (or
-/// the design cannot be solved yet).
-pub(super) fn fit(set: &MeasurementSet, settings: &RunSettings) -> Option<Fit> {
+/// the design cannot be solved yet). σ is not taken below `reading_noise_arcsec` (the
+/// noise of one reading the run judges by: the stated one, or the smaller one its
+/// repeats measured, [`super::RepeatNoise::sigma_used_arcsec`]) over √`reads`.
+pub(super) fn fit(
+    set: &MeasurementSet,
+    settings: &RunSettings,
+    reading_noise_arcsec: f64,
+) -> Option<Fit> {
     let solution = solved(set)?;
     if solution.dof < MIN_DOF || solution.residuals.len() != set.readings.len() {
         return None;
@@ -210,11 +251,12 @@ pub(super) fn fit(set: &MeasurementSet, settings: &RunSettings) -> Option<Fit> {
     };
     // Residuals shrink by dof/n on average; the MAD of normal residuals is 0.6745 σ.
     let robust = 1.4826 * median * (n as f64 / solution.dof as f64).sqrt();
-    let stated = settings.reading_noise_arcsec / f64::from(settings.reads_per_stop).sqrt();
+    let floor = reading_noise_arcsec.min(settings.reading_noise_arcsec)
+        / f64::from(settings.reads_per_stop).sqrt();
     Some(Fit {
         readings: set.readings.clone(),
         residuals: solution.residuals,
-        sigma: robust.max(stated),
+        sigma: robust.max(floor),
     })
 }
 
@@ -274,7 +316,27 @@ pub fn to_measure_again(
     cycle: u32,
     handled: &[Cell],
 ) -> Option<ToMeasureAgain> {
-    let fit = fit(set, settings)?;
+    to_measure_again_judged(
+        set,
+        settings,
+        settings.reading_noise_arcsec,
+        (setup, cycle),
+        handled,
+    )
+}
+
+/// [`to_measure_again`] with σ's floor from `reading_noise_arcsec`, the noise of one
+/// reading the run judges by (the loop's: the largest of the autocollimators'
+/// [`super::RepeatNoise::sigma_used_arcsec`], never above the stated noise), over
+/// √`reads`; `(setup, cycle)` as there.
+pub fn to_measure_again_judged(
+    set: &MeasurementSet,
+    settings: &RunSettings,
+    reading_noise_arcsec: f64,
+    (setup, cycle): (u32, u32),
+    handled: &[Cell],
+) -> Option<ToMeasureAgain> {
+    let fit = fit(set, settings, reading_noise_arcsec)?;
     let offsets = summary(set, Some(&fit), setup, cycle).offsets;
     let index = worst(&fit, setup, handled, &offsets)?;
     Some(ToMeasureAgain {
@@ -412,7 +474,7 @@ mod tests {
     #[test]
     fn a_reading_two_arcseconds_off_is_the_one_found() {
         let set = run_set(Some((2, 5, 1, 2.0)));
-        let fit = fit(&set, &settings()).unwrap();
+        let fit = fit(&set, &settings(), 0.05).unwrap();
         let i = worst(&fit, 1, &[], &[]).unwrap();
         let r = &fit.readings[i];
         assert_eq!((r.cycle, r.step, r.ac), (2, 5, 1));
@@ -425,7 +487,7 @@ mod tests {
     #[test]
     fn a_clean_run_has_nothing_to_measure_again_and_no_warning() {
         let set = run_set(None);
-        let fit = fit(&set, &settings()).unwrap();
+        let fit = fit(&set, &settings(), 0.05).unwrap();
         assert_eq!(worst(&fit, 1, &[], &[]), None);
         let check = summary(&set, Some(&fit), 1, 3);
         assert!(check.warnings.is_empty(), "{:?}", check.warnings);
@@ -447,7 +509,7 @@ mod tests {
                 r.reading_arcsec += 0.5;
             }
         }
-        let fit = fit(&set, &settings()).unwrap();
+        let fit = fit(&set, &settings(), 0.05).unwrap();
         let check = summary(&set, Some(&fit), 1, 3);
         assert_eq!(check.warnings.len(), 1, "{:?}", check.warnings);
         assert!(check.warnings[0].starts_with("autocollimator 2:"));
@@ -477,7 +539,7 @@ mod tests {
         let settings = RunSettings::new(8, 2)
             .with_closing(true)
             .with_reading_noise_arcsec(0.05);
-        let fit = fit(&set, &settings).expect("a fit of two mountings");
+        let fit = fit(&set, &settings, 0.05).expect("a fit of two mountings");
         let i = worst(&fit, 2, &[], &[]).unwrap();
         let r = &fit.readings[i];
         assert_eq!((r.setup, r.cycle, r.step, r.ac), (2, 2, 3, 2));
@@ -494,7 +556,7 @@ mod tests {
                 r.face = r.face % 8 + 1;
             }
         }
-        let fit = super::fit(&set, &settings).unwrap();
+        let fit = super::fit(&set, &settings, 0.05).unwrap();
         let warning = mounting_misfit(&set, &fit, 2).expect("a misfit");
         assert!(
             warning.starts_with(

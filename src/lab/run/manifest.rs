@@ -201,6 +201,11 @@ pub struct Manifest {
     /// manifests (`None`): every complete cycle counts as checked.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checked_cycles: Option<Vec<(u32, u32)>>,
+    /// The noise the run judged each autocollimator's readings by at its latest check
+    /// after a cycle: measured from the repeats at the stops, bounded by the stated one
+    /// (docs/FORMAT.md §7.3, *The noise the run measures*). Absent from older manifests.
+    #[serde(default)]
+    pub repeat_noise: Vec<super::NoiseRecord>,
 }
 
 /// The software of this build, e.g. `polycal 0.1.0`.

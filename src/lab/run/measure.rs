@@ -6,6 +6,7 @@ use std::fmt;
 use std::time::{Duration, Instant};
 
 use super::live::{self, Cell, CycleCheck, MAX_REMEASURED_PER_CYCLE};
+use super::noise::RepeatNoise;
 use super::repeat::{DeviceMemory, RepeatError, read_at_stop};
 use super::{
     Identification, MEASUREMENTS, REMOUNT_TOLERANCE_DEG, Remeasured, Remount, RunDir, RunError,
@@ -359,6 +360,12 @@ fn measure_stops(
     let before = run.readings_done();
     let settle = Duration::try_from_secs_f64(settings.settle_seconds).unwrap_or(Duration::ZERO);
     let mut memory = vec![DeviceMemory::default(); acs.len()];
+    // The noise the sessions before measured, as the manifest recorded it.
+    for record in &run.manifest.repeat_noise {
+        if let Some(m) = memory.get_mut((record.ac as usize).wrapping_sub(1)) {
+            m.noise = RepeatNoise::from_record(record);
+        }
+    }
     let mut refused = 0;
     let mut handled: Vec<Cell> = Vec::new();
     let plan = settings.plan();
@@ -595,7 +602,7 @@ fn check_cycle(
         let Some(set) = read() else {
             break;
         };
-        let fit = live::fit(&set, &settings);
+        let fit = live::fit(&set, &settings, judged_noise(memory, &settings));
         if round == 0 {
             offsets = live::summary(&set, fit.as_ref(), mounting.setup, cycle).offsets;
         }
@@ -633,18 +640,26 @@ fn check_cycle(
         let again = take_reading(
             run, &mut *acs, memory, traffic, stop, flagged.ac, encoder, refused,
         )?;
-        // The reading of the cell furthest from the new one is replaced if it disagrees.
-        let tolerance = settings.agreement_arcsec();
+        // The reading of the cell furthest from the new one is replaced if it disagrees
+        // beyond the tolerance of the autocollimator's measured noise (two means of
+        // `reads` readings each differ by less than two readings do).
+        let tolerance = memory
+            .get(flagged.ac as usize - 1)
+            .map_or(settings.agreement_arcsec(), |m| {
+                m.noise.agreement_arcsec(settings.reading_noise_arcsec)
+            });
+        // Each compared with the table's offset from the stop taken out (a table that
+        // stopped within its tolerance but off the stop is no fault of the reading).
+        let at_stop = |r: &Reading| {
+            r.reading_arcsec - live::stop_offset_arcsec(r, settings.faces, mounting.shift_deg)
+        };
+        let apart = |r: &Reading| (at_stop(r) - at_stop(&again)).abs();
         let off = fit
             .readings
             .iter()
             .filter(|r| live::cell(r) == live::cell(&flagged))
-            .max_by(|a, b| {
-                (a.reading_arcsec - again.reading_arcsec)
-                    .abs()
-                    .total_cmp(&(b.reading_arcsec - again.reading_arcsec).abs())
-            })
-            .filter(|r| (r.reading_arcsec - again.reading_arcsec).abs() > tolerance)
+            .max_by(|a, b| apart(a).total_cmp(&apart(b)))
+            .filter(|r| apart(r) > tolerance)
             .cloned();
         match off {
             Some(first) => {
@@ -716,7 +731,7 @@ fn check_cycle(
     let mut check = match &set {
         Some(set) => live::summary(
             set,
-            live::fit(set, &settings).as_ref(),
+            live::fit(set, &settings, judged_noise(memory, &settings)).as_ref(),
             mounting.setup,
             cycle,
         ),
@@ -724,10 +739,31 @@ fn check_cycle(
     };
     check.remeasured = remeasured;
     check.suspect = suspect;
+    let noise: Vec<RepeatNoise> = memory.iter().map(|m| m.noise).collect();
+    if let Err(e) = run.record_noise(&noise) {
+        return Err(Outcome::FileError(e.to_string()));
+    }
     if let Some(warning) = &check.misfit
         && let Err(e) = run.record_misfit(warning)
     {
         return Err(Outcome::FileError(e.to_string()));
     }
     Ok(check)
+}
+
+/// The noise of one reading the live check judges by: the largest of the
+/// autocollimators' [`RepeatNoise::sigma_used_arcsec`] (each the stated noise until its
+/// repeats show less), so that no autocollimator's readings are judged by another's
+/// smaller noise.
+fn judged_noise(memory: &[DeviceMemory], settings: &super::RunSettings) -> f64 {
+    let stated = settings.reading_noise_arcsec;
+    if memory.is_empty() {
+        return stated;
+    }
+    memory
+        .iter()
+        .map(|m| m.noise.sigma_used_arcsec(stated))
+        .fold(0.0, f64::max)
+        .min(stated)
+        .max(f64::MIN_POSITIVE)
 }

@@ -91,6 +91,7 @@ mod live;
 mod manifest;
 mod measure;
 mod mounting;
+mod noise;
 mod plan_file;
 mod repeat;
 mod resume;
@@ -101,11 +102,12 @@ pub use directory::{COLUMNS, MANIFEST, MEASUREMENTS, REMEASURED, RunDir, TRAFFIC
 pub use error::RunError;
 pub use live::{
     Cell, CycleCheck, MAX_REMEASURED_PER_CYCLE, MIN_DOF, OFFSET_SIGMAS, OUTLIER_SIGMAS, Remeasured,
-    Suspect, ToMeasureAgain, to_measure_again,
+    Suspect, ToMeasureAgain, to_measure_again, to_measure_again_judged,
 };
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
 pub use measure::{Attendant, Instruments, Outcome, Progress, measure, measure_attended};
 pub use mounting::{MAX_MOUNTINGS, Mounting, MountingRecord, REMOUNT_TOLERANCE_DEG, Remount};
+pub use noise::{NOISE_FLOOR_ARCSEC, NoiseRecord, RepeatNoise};
 pub use plan_file::{PlanFileError, PlannedRun, run_from_plan};
 pub use repeat::EXTRA_READS;
 pub use settings::{

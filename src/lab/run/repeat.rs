@@ -1,7 +1,9 @@
 //! A reading tied to its stop: each autocollimator is read several times at a stop, and
 //! a reading is stored only when the last [`RunSettings::reads_per_stop`] readings agree
-//! within [`RunSettings::agreement_arcsec`]; their mean is stored (docs/FORMAT.md §7.3,
-//! *No reading on the wrong stop*).
+//! within the tolerance of the noise the run measured ([`RepeatNoise::agreement_arcsec`],
+//! never wider than [`RunSettings::agreement_arcsec`]); their mean is stored, and their
+//! scatter joins the measured noise (docs/FORMAT.md §7.3, *No reading on the wrong
+//! stop*).
 //!
 //! What the drivers cannot see — a reply that belongs to another query but looks like a
 //! good one — shows here: a value carried over from an earlier stop (a stale reply, the
@@ -13,6 +15,7 @@
 //! log as `refused`, with why.
 
 use super::RunSettings;
+use super::noise::RepeatNoise;
 use crate::lab::traffic::TrafficLog;
 use crate::lab::{AcReading, Autocollimator, InstrumentError};
 
@@ -45,6 +48,8 @@ pub(super) enum RepeatError {
 pub(super) struct DeviceMemory {
     /// Its last reply at an earlier stop, and that stop's table angle (degrees, 0 … 360).
     last_at_earlier_stop: Option<(AcReading, f64)>,
+    /// The scatter of its readings at the stops so far in the session.
+    pub(super) noise: RepeatNoise,
 }
 
 /// A table angle in 0 … 360°.
@@ -71,7 +76,7 @@ pub(super) fn read_at_stop(
         .map(|(reading, _)| reading);
     let needed = settings.reads_per_stop.max(2) as usize;
     let most = needed + EXTRA_READS as usize;
-    let tolerance = settings.agreement_arcsec();
+    let tolerance = memory.noise.agreement_arcsec(settings.reading_noise_arcsec);
     let port = device.port().to_string();
     let refuse = |reading: &AcReading, why: &str| {
         if let Some(log) = traffic {
@@ -107,6 +112,8 @@ pub(super) fn read_at_stop(
         let spread = spread(window);
         if spread <= tolerance {
             memory.last_at_earlier_stop = last_here.map(|r| (r, here));
+            let xs: Vec<f64> = window.iter().map(|r| r.x_arcsec).collect();
+            memory.noise.add_stop(&xs);
             for early in &taken[..taken.len() - needed] {
                 refuse(early, "does not agree with the readings after it");
             }
@@ -126,12 +133,23 @@ pub(super) fn read_at_stop(
         refuse(reading, "no agreement at this stop");
     }
     let values: Vec<String> = taken.iter().map(|r| format!("{}", r.x_arcsec)).collect();
+    let judged = match memory.noise.measured_arcsec() {
+        Some(s) if tolerance < settings.agreement_arcsec() => format!(
+            "the noise measured at the stops before, {s:.4}″ on {} degrees of freedom \
+             (the stated reading noise {}″ bounds it)",
+            memory.noise.dof(),
+            settings.reading_noise_arcsec
+        ),
+        _ => format!(
+            "5·√2 times the stated reading noise {}″",
+            settings.reading_noise_arcsec
+        ),
+    };
     Err(RepeatError::NoAgreement(format!(
         "{role} ({port}) at {at}: no {needed} consecutive readings of {asked} agreed within \
-         {tolerance:.3}″ (5·√2 times the stated reading noise {}″): X {}{}; the reading is \
+         {tolerance:.3}″ ({judged}): X {}{}; the reading is \
          not stored — check the autocollimator, the polygon's mounting and the air, or state \
          the autocollimator's real noise",
-        settings.reading_noise_arcsec,
         if values.is_empty() {
             "none".to_string()
         } else {
@@ -252,6 +270,38 @@ mod tests {
         // instrument may read the very same value again.
         let r = read_at(&[5.2, 5.2], &mut memory, 405.0).unwrap();
         assert_eq!((r.x_arcsec, r.refused), (5.2, 0));
+    }
+
+    #[test]
+    fn a_wrong_value_within_the_stated_tolerance_is_refused_once_the_noise_is_measured() {
+        // Stated 0.05″ (tolerance 0.354″), real scatter 0.02″ apart at 40 stops.
+        let r = read(&[1.0, 1.3], &mut DeviceMemory::default()).unwrap();
+        assert_eq!(r.refused, 0, "stated tolerance before any repeats");
+        let mut memory = DeviceMemory::default();
+        for i in 0..40 {
+            let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+            read(&[5.0, 5.0 + sign * 0.02], &mut memory).unwrap();
+        }
+        // 0.3″ off: within the stated tolerance, beyond the measured one.
+        let r = read(&[1.0, 1.3, 1.31], &mut memory).unwrap();
+        assert_eq!(r.refused, 1);
+        assert!((r.x_arcsec - 1.305).abs() < 1e-12);
+    }
+
+    #[test]
+    fn an_error_names_the_measured_noise_it_judged_by() {
+        let mut memory = DeviceMemory::default();
+        for _ in 0..40 {
+            read(&[5.0, 5.02], &mut memory).unwrap();
+        }
+        let e = read(&[0.0, 0.3, 0.6, 0.9, 1.2, 1.5], &mut memory).unwrap_err();
+        let RepeatError::NoAgreement(message) = e else {
+            panic!("{e:?}")
+        };
+        assert!(
+            message.contains("the noise measured at the stops before, 0.0141″ on 40 degrees"),
+            "{message}"
+        );
     }
 
     #[test]

@@ -41,6 +41,11 @@ pub struct Endpoint {
     held: Option<String>,
     /// The last reply sent (for a `stale` fault).
     last_reply: Option<String>,
+    /// Replies of a `late` fault with `commands=C`: the commands still to come before
+    /// each is sent.
+    held_late: Vec<(u32, Vec<u8>)>,
+    /// The time one byte takes on the line (zero: a reply arrives whole at once).
+    byte_time: Duration,
 }
 
 impl fmt::Debug for Endpoint {
@@ -71,6 +76,35 @@ impl Endpoint {
             outgoing: VecDeque::new(),
             held: None,
             last_reply: None,
+            held_late: Vec::new(),
+            byte_time: Duration::ZERO,
+        }
+    }
+
+    /// Puts the replies on a line of `baud_rate` baud (10 bits a byte): each reply line
+    /// arrives once its last byte would have, after the line before it — a reply read
+    /// while the next is still on the wire, as on a real serial line.
+    pub fn with_baud_rate(mut self, baud_rate: u32) -> Endpoint {
+        self.byte_time = Duration::from_secs_f64(10.0 / f64::from(baud_rate.max(1)));
+        self
+    }
+
+    /// Queues `bytes` to start on the line at `start` (or once the line before it is
+    /// through), line by line, each due when its last byte has arrived.
+    fn queue(&mut self, start: Instant, bytes: Vec<u8>) {
+        let mut at = self
+            .outgoing
+            .back()
+            .map_or(start, |&(last, _)| last.max(start));
+        let mut line = Vec::new();
+        let mut bytes = bytes.into_iter().peekable();
+        while let Some(b) = bytes.next() {
+            line.push(b);
+            let ends = b == b'\n' || (b == b'\r' && bytes.peek() != Some(&b'\n'));
+            if ends || bytes.peek().is_none() {
+                at += self.byte_time * line.len() as u32;
+                self.outgoing.push_back((at, std::mem::take(&mut line)));
+            }
         }
     }
 
@@ -90,6 +124,19 @@ impl Endpoint {
             let command = String::from_utf8_lossy(&line[..i]).trim().to_string();
             if command.is_empty() {
                 continue;
+            }
+            // Replies held by a `late` fault with `commands=C` come just inside the
+            // window of the C-th command after them, ahead of its reply.
+            let mut released = Vec::new();
+            for (left, bytes) in &mut self.held_late {
+                *left = left.saturating_sub(1);
+                if *left == 0 {
+                    released.push(std::mem::take(bytes));
+                }
+            }
+            self.held_late.retain(|(left, _)| *left > 0);
+            for bytes in released {
+                self.queue(now, bytes);
             }
             let events = self.device.events();
             if self
@@ -119,6 +166,7 @@ impl Endpoint {
         let mut before = String::new();
         let mut copies = 1;
         let mut hold = false;
+        let mut held_for: Option<u32> = None;
         for armed in &mut self.faults {
             if armed.left == 0 || events < armed.fault.after {
                 continue;
@@ -127,7 +175,10 @@ impl Endpoint {
             match armed.fault.kind {
                 FaultKind::LostReply => return,
                 FaultKind::Garbled => text = garble(&text),
-                FaultKind::Late => delay = delay.max(armed.fault.late),
+                FaultKind::Late => match armed.fault.late_commands {
+                    Some(c) => held_for = Some(c),
+                    None => delay = delay.max(armed.fault.late),
+                },
                 FaultKind::Duplicated => copies = 2,
                 FaultKind::Unsolicited => before = self.device.unsolicited(now),
                 FaultKind::Swapped => hold = true,
@@ -151,12 +202,12 @@ impl Endpoint {
         if let Some(held) = self.held.take() {
             bytes.extend(held.into_bytes());
         }
+        if let Some(commands) = held_for {
+            self.held_late.push((commands, bytes));
+            return;
+        }
         // A device answers in order: nothing overtakes a late reply.
-        let due = self
-            .outgoing
-            .back()
-            .map_or(now + delay, |&(last, _)| last.max(now + delay));
-        self.outgoing.push_back((due, bytes));
+        self.queue(now + delay, bytes);
     }
 
     /// The replies due at `now`, in order.

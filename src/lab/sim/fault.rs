@@ -1,4 +1,4 @@
-//! Injected faults: `KIND:DEVICE[:after=K][:count=M][:seconds=S]` (see
+//! Injected faults: `KIND:DEVICE[:after=K][:count=M][:seconds=S|:commands=C][:fraction=F]` (see
 //! [`crate::lab::sim`], *Faults*).
 
 use std::fmt;
@@ -56,7 +56,9 @@ pub enum FaultKind {
     /// The device closes its port.
     Close,
     /// Replies are sent late, by the fault's `seconds`; later replies wait behind them
-    /// (a device answers in order).
+    /// (a device answers in order). With `commands=C` a reply is held instead until C
+    /// more commands have come and sent just inside the C-th's reply window, ahead of
+    /// its reply; later replies do not wait behind it.
     Late,
     /// Replies are sent twice.
     Duplicated,
@@ -68,10 +70,14 @@ pub enum FaultKind {
     Swapped,
     /// The previous reply is sent again instead of the reply (a stale value).
     Stale,
+    /// The table's move ends short of its target by the fault's `fraction` of the
+    /// position tolerance ([`crate::lab::driver::POSITION_TOLERANCE_DEG`]) and reports
+    /// where it stands: within the tolerance for a fraction below 1.
+    Stall,
 }
 
 /// Every fault kind, in the order of the documentation.
-pub const FAULT_KINDS: [FaultKind; 10] = [
+pub const FAULT_KINDS: [FaultKind; 11] = [
     FaultKind::LostReply,
     FaultKind::Garbled,
     FaultKind::XInvalid,
@@ -82,6 +88,7 @@ pub const FAULT_KINDS: [FaultKind; 10] = [
     FaultKind::Unsolicited,
     FaultKind::Swapped,
     FaultKind::Stale,
+    FaultKind::Stall,
 ];
 
 impl FaultKind {
@@ -90,7 +97,7 @@ impl FaultKind {
     pub fn devices(self) -> &'static str {
         match self {
             FaultKind::XInvalid => "an autocollimator",
-            FaultKind::Disable => "the table",
+            FaultKind::Disable | FaultKind::Stall => "the table",
             _ => "any device",
         }
     }
@@ -99,7 +106,7 @@ impl FaultKind {
     pub fn applies_to(self, device: DeviceId) -> bool {
         match self {
             FaultKind::XInvalid => device != DeviceId::Table,
-            FaultKind::Disable => device == DeviceId::Table,
+            FaultKind::Disable | FaultKind::Stall => device == DeviceId::Table,
             _ => true,
         }
     }
@@ -117,21 +124,28 @@ impl FaultKind {
             FaultKind::Unsolicited => "unsolicited",
             FaultKind::Swapped => "swapped",
             FaultKind::Stale => "stale",
+            FaultKind::Stall => "stall",
         }
     }
 
     /// Whether the fault acts on a device's replies on the wire (the endpoint's), not
     /// inside the device.
     pub fn acts_on_replies(self) -> bool {
-        !matches!(self, FaultKind::XInvalid | FaultKind::Disable)
+        !matches!(
+            self,
+            FaultKind::XInvalid | FaultKind::Disable | FaultKind::Stall
+        )
     }
 }
 
 /// The default lateness of a `late` fault.
 pub const DEFAULT_LATE: Duration = Duration::from_millis(1500);
 
-/// One injected fault: `KIND:DEVICE[:after=K][:count=M][:seconds=S]`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// The default shortfall of a `stall` fault, as a fraction of the position tolerance.
+pub const DEFAULT_STALL_FRACTION: f64 = 0.5;
+
+/// One injected fault: `KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub struct Fault {
     /// What happens.
@@ -144,14 +158,20 @@ pub struct Fault {
     pub count: u64,
     /// How late a `late` fault's replies are ([`DEFAULT_LATE`] unless given).
     pub late: Duration,
+    /// How far short of its target a `stall` fault ends a move, as a fraction of the
+    /// position tolerance ([`DEFAULT_STALL_FRACTION`] unless given).
+    pub stall_fraction: f64,
+    /// A `late` fault's replies held until this many more commands have come, instead
+    /// of [`Fault::late`] (`commands=C`).
+    pub late_commands: Option<u32>,
 }
 
 /// The form of a fault, for messages.
-const FORM: &str = "KIND:DEVICE[:after=K][:count=M][:seconds=S], e.g. lost-reply:ac1:after=10 or late:ac2:seconds=1.3";
+const FORM: &str = "KIND:DEVICE[:after=K][:count=M][:seconds=S|:commands=C][:fraction=F], e.g. lost-reply:ac1:after=10, late:ac2:seconds=1.3, late:ac1:commands=4 or stall:table:after=3:fraction=0.5";
 
 /// A fault specification that could not be read: which one, and what is wrong with it.
 ///
-/// Displayed as `fault "SPEC": PROBLEM (expected KIND:DEVICE[:after=K][:count=M][:seconds=S], …)`.
+/// Displayed as `fault "SPEC": PROBLEM (expected KIND:DEVICE[:after=K][:count=M][:seconds=S|:commands=C][:fraction=F], …)`.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("fault \"{spec}\": {problem} (expected {FORM})")]
 #[non_exhaustive]
@@ -171,7 +191,7 @@ pub enum FaultProblem {
     TooFewParts,
     /// A kind that is not one of [`FAULT_KINDS`].
     #[error(
-        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale)"
+        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale, stall)"
     )]
     UnknownKind(String),
     /// A device that is not `ac1` … `ac16` or `table`.
@@ -182,7 +202,7 @@ pub enum FaultProblem {
     #[error("{} is a fault of {}", .0.as_str(), .0.devices())]
     WrongDevice(FaultKind),
     /// An option that is not `NAME=VALUE`.
-    #[error("\"{0}\" is not after=K, count=M or seconds=S")]
+    #[error("\"{0}\" is not after=K, count=M, seconds=S, commands=C or fraction=F")]
     NotAnOption(String),
     /// An option value that is not a whole number.
     #[error("\"{0}\" is not a whole number")]
@@ -199,6 +219,18 @@ pub enum FaultProblem {
     /// `seconds=S` that is not a number of seconds from 0.001 to 3600.
     #[error("seconds \"{0}\" must be a number of seconds from 0.001 to 3600")]
     BadSeconds(String),
+    /// `commands=C` of a fault other than `late`.
+    #[error("commands=C is an option of late")]
+    CommandsNotLate,
+    /// `commands=C` that is not a whole number from 1 to 1000.
+    #[error("commands \"{0}\" must be a whole number from 1 to 1000")]
+    BadCommands(String),
+    /// `fraction=F` of a fault other than `stall`.
+    #[error("fraction=F is an option of stall")]
+    FractionNotStall,
+    /// `fraction=F` that is not a number from 0 to 10.
+    #[error("fraction \"{0}\" must be a number from 0 to 10 (of the position tolerance)")]
+    BadFraction(String),
 }
 
 impl FromStr for Fault {
@@ -236,6 +268,26 @@ impl FromStr for Fault {
             let (key, value) = option
                 .split_once('=')
                 .ok_or_else(|| bad(FaultProblem::NotAnOption(option.to_string())))?;
+            if key == "commands" {
+                if kind != FaultKind::Late {
+                    return Err(bad(FaultProblem::CommandsNotLate));
+                }
+                fault.late_commands = match value.parse::<u32>() {
+                    Ok(c) if (1..=1000).contains(&c) => Some(c),
+                    _ => return Err(bad(FaultProblem::BadCommands(value.to_string()))),
+                };
+                continue;
+            }
+            if key == "fraction" {
+                if kind != FaultKind::Stall {
+                    return Err(bad(FaultProblem::FractionNotStall));
+                }
+                fault.stall_fraction = match value.parse::<f64>() {
+                    Ok(f) if f.is_finite() && (0.0..=10.0).contains(&f) => f,
+                    _ => return Err(bad(FaultProblem::BadFraction(value.to_string()))),
+                };
+                continue;
+            }
             if key == "seconds" {
                 if kind != FaultKind::Late {
                     return Err(bad(FaultProblem::SecondsNotLate));
@@ -271,12 +323,27 @@ impl Fault {
             after: 0,
             count: 1,
             late: DEFAULT_LATE,
+            stall_fraction: DEFAULT_STALL_FRACTION,
+            late_commands: None,
         }
     }
 
     /// Makes a `late` fault's replies late by `late`.
     pub fn with_late(mut self, late: Duration) -> Fault {
         self.late = late;
+        self
+    }
+
+    /// Makes a `late` fault hold its replies until `commands` more commands have come
+    /// (`commands=C`).
+    pub fn with_late_commands(mut self, commands: u32) -> Fault {
+        self.late_commands = Some(commands);
+        self
+    }
+
+    /// Makes a `stall` fault end a move `fraction` of the position tolerance short.
+    pub fn with_stall_fraction(mut self, fraction: f64) -> Fault {
+        self.stall_fraction = fraction;
         self
     }
 
@@ -304,7 +371,13 @@ impl fmt::Display for Fault {
             self.count
         )?;
         if self.kind == FaultKind::Late {
-            write!(f, ":seconds={}", self.late.as_secs_f64())?;
+            match self.late_commands {
+                Some(c) => write!(f, ":commands={c}")?,
+                None => write!(f, ":seconds={}", self.late.as_secs_f64())?,
+            }
+        }
+        if self.kind == FaultKind::Stall {
+            write!(f, ":fraction={}", self.stall_fraction)?;
         }
         Ok(())
     }

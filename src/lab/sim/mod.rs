@@ -52,7 +52,7 @@
 //!
 //! # Faults
 //!
-//! [`Fault`]s are injected per device: `KIND:DEVICE[:after=K][:count=M][:seconds=S]`. The device
+//! [`Fault`]s are injected per device: `KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F]`. The device
 //! counts *events*, measurements for an autocollimator and move commands (`1PA`) for
 //! the table; a fault is armed once K events happened, and then:
 //!
@@ -63,11 +63,12 @@
 //! | `x-invalid` | ac1, ac2 | the next M measurements have status `002` (X not valid) |
 //! | `disable` | table | the next move stops midway in state `3D` (DISABLE from MOVING) and stays disabled |
 //! | `close` | all | at the next command the device closes its port |
-//! | `late` | all | the next M replies are sent `seconds=S` late (default 1.5 s); later replies wait behind them |
+//! | `late` | all | the next M replies are sent `seconds=S` late (default 1.5 s); later replies wait behind them. With `commands=C`: each is held until C more commands have come and sent just inside the C-th's reply window, ahead of its reply (later replies do not wait) |
 //! | `duplicated` | all | the next M replies are sent twice |
 //! | `unsolicited` | all | before each of the next M replies, a line in the form of a reply that nothing asked for (an autocollimator: its last measurement + 99″; the table: its position + 1°) |
 //! | `swapped` | all | each of the next M replies is held back and sent after the reply that follows it |
 //! | `stale` | all | the next M replies are the previous reply again |
+//! | `stall` | table | the next M moves end `fraction=F` (default 0.5) of the position tolerance (0.001°) short of their target, where the encoder then reads |
 
 mod config;
 mod elcomat;
@@ -86,7 +87,10 @@ use std::time::Duration;
 pub use config::LabConfig;
 pub use elcomat::ElcomatSim;
 pub use endpoint::{Endpoint, SimDevice, SimStream};
-pub use fault::{DEFAULT_LATE, DeviceId, FAULT_KINDS, Fault, FaultError, FaultKind, FaultProblem};
+pub use fault::{
+    DEFAULT_LATE, DEFAULT_STALL_FRACTION, DeviceId, FAULT_KINDS, Fault, FaultError, FaultKind,
+    FaultProblem,
+};
 #[cfg(unix)]
 pub use lab::{Lab, LabPaths};
 pub use profiled::ProfileSim;

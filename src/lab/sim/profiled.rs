@@ -15,7 +15,7 @@ use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use super::world::Refused;
+use super::world::{Refused, Stalls};
 use super::{Fault, FaultKind, SimDevice, World, lock};
 use crate::lab::profile::{
     AcProfile, Condition, Field, FieldKind, LineSettings, Profile, TableProfile, Template,
@@ -57,6 +57,7 @@ enum Kind {
         error_none: Option<String>,
         pending_error: bool,
         disable_after: Option<u64>,
+        stalls: Stalls,
     },
 }
 
@@ -249,6 +250,7 @@ impl ProfileSim {
                     .iter()
                     .find(|f| f.kind == FaultKind::Disable)
                     .map(|f| f.after),
+                stalls: Stalls::of(faults),
             },
             events: 0,
         })
@@ -349,6 +351,7 @@ impl ProfileSim {
             error_none,
             pending_error,
             disable_after,
+            stalls,
             ..
         } = &mut self.device
         else {
@@ -430,10 +433,11 @@ impl ProfileSim {
             let moves_before = self.events;
             self.events += 1;
             let fails = disable_after.is_some_and(|k| moves_before >= k);
+            let short_deg = stalls.shortfall_deg(moves_before);
             let refused = match number.trim().parse::<f64>() {
-                Ok(target) if target.is_finite() => {
-                    lock(&self.world).start_move(target, fails, now).err()
-                }
+                Ok(target) if target.is_finite() => lock(&self.world)
+                    .start_move(target, fails, short_deg, now)
+                    .err(),
                 _ => Some(Refused::OutOfTravel),
             };
             if refused.is_some() {

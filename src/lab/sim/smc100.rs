@@ -3,7 +3,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use super::world::Refused;
+use super::world::{Refused, Stalls};
 use super::{Fault, FaultKind, SimDevice, World, lock};
 use crate::lab::profile::format_degrees as format_position;
 
@@ -22,10 +22,12 @@ pub struct Smc100Sim {
     last_error: char,
     moves: u64,
     disable_after: Option<u64>,
+    /// `stall` faults.
+    stalls: Stalls,
 }
 
 impl Smc100Sim {
-    /// The table of `world`, with its `disable` fault if any.
+    /// The table of `world`, with its `disable` fault if any and its `stall` faults.
     pub fn new(world: Arc<Mutex<World>>, faults: &[Fault]) -> Smc100Sim {
         Smc100Sim {
             world,
@@ -35,6 +37,7 @@ impl Smc100Sim {
                 .iter()
                 .find(|f| f.kind == FaultKind::Disable)
                 .map(|f| f.after),
+            stalls: Stalls::of(faults),
         }
     }
 
@@ -49,7 +52,8 @@ impl Smc100Sim {
             }
         };
         let fails = self.disable_after.is_some_and(|k| moves_before >= k);
-        if let Err(refused) = lock(&self.world).start_move(target, fails, now) {
+        let short_deg = self.stalls.shortfall_deg(moves_before);
+        if let Err(refused) = lock(&self.world).start_move(target, fails, short_deg, now) {
             self.last_error = match refused {
                 Refused::NotReferenced => 'H',
                 Refused::Homing => 'L',

@@ -416,16 +416,48 @@ pub(super) enum Refused {
     AlreadyReferenced,
 }
 
+/// The `stall` faults of a table: (armed after, moves left, shortfall as a fraction of
+/// the position tolerance).
+#[derive(Debug, Clone)]
+pub(super) struct Stalls(Vec<(u64, u64, f64)>);
+
+impl Stalls {
+    /// The `stall` faults among `faults`.
+    pub(super) fn of(faults: &[super::Fault]) -> Stalls {
+        Stalls(
+            faults
+                .iter()
+                .filter(|f| f.kind == super::FaultKind::Stall)
+                .map(|f| (f.after, f.count, f.stall_fraction))
+                .collect(),
+        )
+    }
+
+    /// How far short the move after `moves_before` moves ends, degrees (0: no stall).
+    pub(super) fn shortfall_deg(&mut self, moves_before: u64) -> f64 {
+        for (after, left, fraction) in &mut self.0 {
+            if moves_before >= *after && *left > 0 {
+                *left -= 1;
+                return *fraction * crate::lab::driver::POSITION_TOLERANCE_DEG;
+            }
+        }
+        0.0
+    }
+}
+
 /// Travel limits of the simulated table, degrees.
 pub const TRAVEL_DEG: (f64, f64) = (-720.0, 720.0);
 
 impl World {
     /// Starts a move to `target` (the controller's part of a move command); `fails`: the
     /// `disable` fault stops it midway.
+    /// `short_deg`: a `stall` fault's shortfall — the move ends that far short of its
+    /// target, where the encoder then reads.
     pub(super) fn start_move(
         &mut self,
         target: f64,
         fails: bool,
+        short_deg: f64,
         now: Instant,
     ) -> Result<(), Refused> {
         match self.table_state(now) {
@@ -439,6 +471,11 @@ impl World {
             return Err(Refused::OutOfTravel);
         }
         let from = self.table.position;
+        let target = if target != from {
+            target - (target - from).signum() * short_deg
+        } else {
+            target
+        };
         let duration = self.duration(target - from, 0.0);
         self.table.motion = Some(Motion {
             from,
