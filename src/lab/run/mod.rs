@@ -95,6 +95,7 @@ mod plan_file;
 mod repeat;
 mod resume;
 mod settings;
+mod verify;
 
 pub use abort::AbortHandle;
 pub use directory::{COLUMNS, MANIFEST, MEASUREMENTS, REMEASURED, RunDir, TRAFFIC};

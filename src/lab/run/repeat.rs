@@ -41,10 +41,49 @@ pub(super) enum RepeatError {
 }
 
 /// What the run remembers of one autocollimator between stops.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 pub(super) struct DeviceMemory {
     /// Its last reply at an earlier stop, and that stop's table angle (degrees, 0 … 360).
     last_at_earlier_stop: Option<(AcReading, f64)>,
+    /// Until it gave a reading in this session: its last values before the session (the
+    /// last reply the traffic log holds, its last stored reading), each with the table
+    /// angle it was read at (degrees, 0 … 360), refused as stale at another angle.
+    before_session: Vec<(LastValue, f64)>,
+}
+
+/// A value an autocollimator gave before this session, which it must not give again as
+/// a new stop's reading (docs/FORMAT.md §7.3, *A stale reply is refused*).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct LastValue {
+    /// X, arcsec.
+    pub(super) x_arcsec: f64,
+    /// Y, arcsec, when valid.
+    pub(super) y_arcsec: Option<f64>,
+    /// The status, when known (a reply's; not a stored reading's).
+    pub(super) status: Option<u16>,
+}
+
+impl LastValue {
+    /// Whether `reading` repeats this value exactly (X, Y and, when known, the status).
+    fn repeated_by(&self, reading: &AcReading) -> bool {
+        reading.x_arcsec == self.x_arcsec
+            && reading.y_arcsec == self.y_arcsec
+            && self.status.is_none_or(|s| s == reading.status)
+    }
+}
+
+impl DeviceMemory {
+    /// The memory of a device at the start of a resumed session: `values` it gave before,
+    /// each with the table angle it was read at, degrees.
+    pub(super) fn carried_over(values: Vec<(LastValue, f64)>) -> DeviceMemory {
+        DeviceMemory {
+            last_at_earlier_stop: None,
+            before_session: values
+                .into_iter()
+                .map(|(value, angle)| (value, turn(angle)))
+                .collect(),
+        }
+    }
 }
 
 /// A table angle in 0 … 360°.
@@ -83,6 +122,12 @@ pub(super) fn read_at_stop(
             );
         }
     };
+    let carried: Vec<LastValue> = memory
+        .before_session
+        .iter()
+        .filter(|&&(_, angle)| (angle - here).abs() > 1e-9)
+        .map(|&(value, _)| value)
+        .collect();
     let mut taken: Vec<AcReading> = Vec::new();
     let mut asked = 0;
     let mut stale = 0;
@@ -99,6 +144,14 @@ pub(super) fn read_at_stop(
             );
             continue;
         }
+        if carried.iter().any(|v| v.repeated_by(&reading)) {
+            stale += 1;
+            refuse(
+                &reading,
+                "stale: the same value as its last one before this session, at another stop",
+            );
+            continue;
+        }
         taken.push(reading);
         if taken.len() < needed {
             continue;
@@ -107,6 +160,7 @@ pub(super) fn read_at_stop(
         let spread = spread(window);
         if spread <= tolerance {
             memory.last_at_earlier_stop = last_here.map(|r| (r, here));
+            memory.before_session.clear();
             for early in &taken[..taken.len() - needed] {
                 refuse(early, "does not agree with the readings after it");
             }
@@ -122,6 +176,7 @@ pub(super) fn read_at_stop(
         }
     }
     memory.last_at_earlier_stop = last_here.map(|r| (r, here));
+    memory.before_session.clear();
     for reading in &taken {
         refuse(reading, "no agreement at this stop");
     }
