@@ -9,8 +9,10 @@
 //! and a value from anywhere else (an unsolicited line, a late or swapped reply) does not
 //! agree with the readings around it. (The same value at the same table angle — the
 //! closing stop at 360° and the next cycle's first at 0° — is no sign of staleness: a
-//! steady instrument reads it again.) Every refused reading is recorded in the traffic
-//! log as `refused`, with why.
+//! steady instrument reads it again.) A resumed session carries the values each device
+//! gave before it over ([`DeviceMemory::carried_over`]): until the device gave a reading
+//! in the session, they are refused as stale at any other table angle. Every refused
+//! reading is recorded in the traffic log as `refused`, with why.
 
 use super::RunSettings;
 use crate::lab::traffic::TrafficLog;
@@ -307,6 +309,31 @@ mod tests {
         // instrument may read the very same value again.
         let r = read_at(&[5.2, 5.2], &mut memory, 405.0).unwrap();
         assert_eq!((r.x_arcsec, r.refused), (5.2, 0));
+    }
+
+    #[test]
+    fn a_value_from_before_the_session_is_refused_at_another_stop_only() {
+        let value = |status| LastValue {
+            x_arcsec: 5.0,
+            y_arcsec: Some(0.0),
+            status,
+        };
+        // Its last reply (status known) and its stored reading (status not), at 405° = 45°.
+        let carried = || DeviceMemory::carried_over(vec![(value(Some(3)), 405.0)]);
+        let r = read_at(&[5.0, 5.1, 5.2], &mut carried(), 90.0).unwrap();
+        assert_eq!(r.refused, 1);
+        assert!((r.x_arcsec - 5.15).abs() < 1e-12);
+        // At the angle it was given at, a steady instrument may read it again.
+        let r = read_at(&[5.0, 5.1], &mut carried(), 45.0).unwrap();
+        assert_eq!(r.refused, 0);
+        // A stored reading's value repeats whatever the status.
+        let mut memory = DeviceMemory::carried_over(vec![(value(None), 0.0)]);
+        let r = read_at(&[5.0, 5.0, 5.1, 5.15], &mut memory, 90.0).unwrap();
+        assert_eq!(r.refused, 2);
+        assert!((r.x_arcsec - 5.125).abs() < 1e-12);
+        // Once the device gave a reading in the session, the carried value is forgotten.
+        let r = read_at(&[5.0, 5.0], &mut memory, 180.0).unwrap();
+        assert_eq!(r.refused, 0);
     }
 
     #[test]
