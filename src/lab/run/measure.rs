@@ -339,8 +339,8 @@ fn remounted(
         }
     }
     // The faces the autocollimators see are those the mounting says.
-    if let Some(refused) = verify::new_mounting_fits(run, bench) {
-        return Some(refused);
+    if let Some(stopped) = verify::new_mounting_fits(run, bench) {
+        return Some(stopped.outcome());
     }
     if let Some(log) = traffic {
         log.record(

@@ -232,14 +232,37 @@ pub(super) fn before_first_reading(run: &mut RunDir, bench: &mut Bench<'_, '_>) 
         return last_stop_agrees(run, bench, &rows);
     }
     if setup > 1 {
-        let refused = new_mounting_fits(run, bench)?;
-        // The polygon is to be mounted again: its remount is asked for again.
-        if let Err(e) = run.withdraw_remount() {
-            return Some(Outcome::FileError(e.to_string()));
-        }
-        return Some(refused);
+        return match new_mounting_fits(run, bench)? {
+            Stopped::Ended(outcome) => Some(outcome),
+            Stopped::Refused(outcome) => {
+                // The polygon is to be mounted again: its remount is asked for again.
+                if let Err(e) = run.withdraw_remount() {
+                    return Some(Outcome::FileError(e.to_string()));
+                }
+                Some(outcome)
+            }
+        };
     }
     None
+}
+
+/// How the check of a new mounting's first stop ended the session.
+#[derive(Debug)]
+pub(super) enum Stopped {
+    /// An instrument or a file failed, or the run was interrupted.
+    Ended(Outcome),
+    /// The readings show the polygon not mounted as stated ([`Outcome::InstrumentError`]
+    /// saying how).
+    Refused(Outcome),
+}
+
+impl Stopped {
+    /// The session's outcome.
+    pub(super) fn outcome(self) -> Outcome {
+        match self {
+            Stopped::Ended(outcome) | Stopped::Refused(outcome) => outcome,
+        }
+    }
 }
 
 /// A resumed mounting: the last stop with readings on disk is visited again, every
@@ -364,7 +387,7 @@ fn values_text(values: &[f64]) -> String {
 /// table angle) or turned otherwise than stated. Without Y readings to compare (an
 /// autocollimator whose Y is not valid), or when no face shift matches, nothing is
 /// decided here (the check after the first cycle tests the mounting as a whole).
-pub(super) fn new_mounting_fits(run: &RunDir, bench: &mut Bench<'_, '_>) -> Option<Outcome> {
+pub(super) fn new_mounting_fits(run: &RunDir, bench: &mut Bench<'_, '_>) -> Option<Stopped> {
     let mounting = run.mounting();
     let settings = run.manifest.settings.clone();
     let n = settings.faces;
@@ -375,7 +398,7 @@ pub(super) fn new_mounting_fits(run: &RunDir, bench: &mut Bench<'_, '_>) -> Opti
         .collect();
     let read = match read_every_ac(run, bench, &stop) {
         Ok(read) => read,
-        Err(outcome) => return Some(outcome),
+        Err(outcome) => return Some(Stopped::Ended(outcome)),
     };
     let at = format!("cycle {}, step {}", stop.cycle, stop.step);
     let x: Vec<f64> = read.iter().map(|r| r.x_arcsec).collect();
@@ -522,5 +545,5 @@ pub(super) fn new_mounting_fits(run: &RunDir, bench: &mut Bench<'_, '_>) -> Opti
             )
         }
     };
-    Some(Outcome::InstrumentError(message))
+    Some(Stopped::Refused(Outcome::InstrumentError(message)))
 }
