@@ -267,8 +267,8 @@ impl Stopped {
 
 /// A resumed mounting: the last stop with readings on disk is visited again, every
 /// autocollimator read there, and each reading compared with the one the run stored of
-/// it at that stop; they must agree within [`RunSettings::agreement_arcsec`]
-/// (super::RunSettings::agreement_arcsec). Otherwise the autocollimators are not where
+/// it at that stop; they must agree within
+/// [`RunSettings::agreement_arcsec`](super::RunSettings::agreement_arcsec). Otherwise the autocollimators are not where
 /// they were (their ports swapped: autocollimators that identify alike pass
 /// [`RunDir::begin_session`]) or the polygon moved, and the session ends with
 /// [`Outcome::InstrumentError`] saying which.
