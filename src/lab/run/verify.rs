@@ -268,7 +268,8 @@ impl Stopped {
 /// A resumed mounting: the last stop with readings on disk is visited again, every
 /// autocollimator read there, and each reading compared with the one the run stored of
 /// it at that stop; they must agree within
-/// [`RunSettings::agreement_arcsec`](super::RunSettings::agreement_arcsec). Otherwise the autocollimators are not where
+/// [`RunSettings::agreement_arcsec`](super::RunSettings::agreement_arcsec), X and (where
+/// both have one) Y, the face's pyramidal error. Otherwise the autocollimators are not where
 /// they were (their ports swapped: autocollimators that identify alike pass
 /// [`RunDir::begin_session`]) or the polygon moved, and the session ends with
 /// [`Outcome::InstrumentError`] saying which.
@@ -288,6 +289,15 @@ fn last_stop_agrees(run: &RunDir, bench: &mut Bench<'_, '_>, rows: &[Reading]) -
     };
     let tolerance = settings.agreement_arcsec();
     let at = place(mounting, &stop);
+    // Two axes agree when X does, and Y too where both have one.
+    let apart = |x: f64, y: Option<f64>, s: &Reading| -> (bool, bool) {
+        let y_apart = match (y, s.reading_y_arcsec) {
+            (Some(a), Some(b)) => (a - b).abs() > tolerance,
+            _ => false,
+        };
+        ((x - s.reading_arcsec).abs() > tolerance, y_apart)
+    };
+    let y_text = |y: Option<f64>| y.map_or_else(|| "none".to_string(), |y| format!("{y:.4}″"));
     let mut seen = Vec::new();
     let mut off = Vec::new();
     for (i, r) in read.iter().enumerate() {
@@ -295,14 +305,22 @@ fn last_stop_agrees(run: &RunDir, bench: &mut Bench<'_, '_>, rows: &[Reading]) -
         match at_stop(ac) {
             Some(s) => {
                 seen.push(format!(
-                    "ac{ac} {:.4}″ (stored {:.4}″)",
-                    r.x_arcsec, s.reading_arcsec
+                    "ac{ac} X {:.4}″, Y {} (stored {:.4}″, {})",
+                    r.x_arcsec,
+                    y_text(r.y_arcsec),
+                    s.reading_arcsec,
+                    y_text(s.reading_y_arcsec)
                 ));
-                if (r.x_arcsec - s.reading_arcsec).abs() > tolerance {
-                    off.push((ac, r.x_arcsec, s.reading_arcsec));
+                let (x_apart, y_apart) = apart(r.x_arcsec, r.y_arcsec, s);
+                if x_apart || y_apart {
+                    off.push((ac, r, s, x_apart));
                 }
             }
-            None => seen.push(format!("ac{ac} {:.4}″ (none stored)", r.x_arcsec)),
+            None => seen.push(format!(
+                "ac{ac} X {:.4}″, Y {} (none stored)",
+                r.x_arcsec,
+                y_text(r.y_arcsec)
+            )),
         }
     }
     let agree = if off.is_empty() {
@@ -326,9 +344,20 @@ fn last_stop_agrees(run: &RunDir, bench: &mut Bench<'_, '_>, rows: &[Reading]) -
     };
     let found: Vec<String> = off
         .iter()
-        .map(|&(ac, now, before)| {
+        .map(|&(ac, r, s, x_apart)| {
+            let (now, before) = if x_apart {
+                (
+                    format!("{:.3}″", r.x_arcsec),
+                    format!("{:.3}″", s.reading_arcsec),
+                )
+            } else {
+                (
+                    format!("Y {}", y_text(r.y_arcsec)),
+                    format!("Y {}", y_text(s.reading_y_arcsec)),
+                )
+            };
             format!(
-                "ac{ac} ({}) reads {now:.3}″ at {at} where the run stored {before:.3}″ before the interruption",
+                "ac{ac} ({}) reads {now} at {at} where the run stored {before} before the interruption",
                 port(ac)
             )
         })
@@ -336,12 +365,13 @@ fn last_stop_agrees(run: &RunDir, bench: &mut Bench<'_, '_>, rows: &[Reading]) -
     // Each one off reads what another autocollimator stored there: swapped ports.
     let like: Vec<String> = off
         .iter()
-        .filter_map(|&(ac, now, _)| {
+        .filter_map(|&(ac, r, _, _)| {
             settings
                 .acs()
                 .filter(|&other| other != ac)
                 .find(|&other| {
-                    at_stop(other).is_some_and(|s| (s.reading_arcsec - now).abs() <= tolerance)
+                    at_stop(other)
+                        .is_some_and(|s| apart(r.x_arcsec, r.y_arcsec, s) == (false, false))
                 })
                 .map(|other| format!("ac{ac} reads what ac{other} stored"))
         })
