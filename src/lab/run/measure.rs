@@ -172,6 +172,13 @@ pub fn measure(
 /// while the polygon was remounted); the confirmation and the position are recorded in
 /// the manifest ([`RunDir::confirm_remount`]).
 ///
+/// Nothing is stored before the instruments are shown to be where the run left them
+/// (docs/FORMAT.md §7.3, *Before the first reading of a session*): a mounting with
+/// readings on disk has its last stop read again and compared with them, a new mounting
+/// its first stop compared with the mountings before; readings that do not agree end the
+/// session with [`Outcome::InstrumentError`] saying what was found. The values each
+/// autocollimator gave before the session are refused as stale at another stop.
+///
 /// The first write that fails ends the session with [`Outcome::FileError`]: a reading
 /// that cannot be appended (the measurement file is cut back to its last whole line, and
 /// the message gives the reading), the traffic log (checked after every exchange with an
@@ -324,7 +331,7 @@ fn remounted(
         )));
     }
     // Every autocollimator must see a face: a polygon mounted off the faces' directions
-    // leaves them without light (whole faces off is left to the check after the cycle).
+    // leaves them without light (whole faces off: the first stop's check below).
     for (i, ac) in bench.acs.iter_mut().enumerate() {
         if let Err(e) = ac.measure() {
             if e.is_interrupted() {
