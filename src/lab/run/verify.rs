@@ -577,3 +577,75 @@ pub(super) fn new_mounting_fits(run: &RunDir, bench: &mut Bench<'_, '_>) -> Opti
     };
     Some(Stopped::Refused(Outcome::InstrumentError(message)))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lab::run::{Ports, RunSettings};
+    use crate::lab::{AcReading, InstrumentError};
+
+    /// An autocollimator that gives a list of X values, Y 0, status 003.
+    struct Replay(Vec<f64>);
+
+    impl Autocollimator for Replay {
+        fn port(&self) -> &str {
+            "mem"
+        }
+        fn start(&mut self) -> Result<(), InstrumentError> {
+            Ok(())
+        }
+        fn identify(&mut self) -> Result<String, InstrumentError> {
+            Ok("replay".into())
+        }
+        fn measure(&mut self) -> Result<AcReading, InstrumentError> {
+            if self.0.is_empty() {
+                return Err(InstrumentError::Closed {
+                    port: "mem".into(),
+                    context: "end".into(),
+                });
+            }
+            Ok(AcReading::new(3, self.0.remove(0), Some(0.0)))
+        }
+    }
+
+    #[test]
+    fn the_last_reply_in_the_traffic_log_is_carried_over_with_its_table_position() {
+        let dir = std::env::temp_dir().join(format!("polycal-verify-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let settings = RunSettings::new(8, 1).with_reading_noise_arcsec(0.05);
+        let run = RunDir::open(&dir, &settings, &Ports::default(), false).unwrap();
+        // ac1 last replied 1.5″ with the table sent to 405° (= 45°); a line that is not a
+        // measurement and a record cut short change nothing.
+        let records = [
+            r#"{"t":0,"device":"table","port":"p","event":"sent","text":"1PA405\r\n"}"#,
+            r#"{"t":0,"device":"ac1","port":"p","event":"received","text":"4 003 1.5 0.0"}"#,
+            r#"{"t":0,"device":"ac1","port":"p","event":"received","text":"8 ELCOMAT 3000"}"#,
+            r#"{"t":0,"device":"ac2","port":"p","event":"recei"#,
+        ];
+        std::fs::write(dir.join(TRAFFIC), records.join("\n")).unwrap();
+        let read = |memory: &mut DeviceMemory, values: &[f64], angle: f64| {
+            read_at_stop(
+                &mut Replay(values.to_vec()),
+                memory,
+                &settings,
+                None,
+                ("ac1", "autocollimator 1", "cycle 1, step 2"),
+                angle,
+            )
+            .map_err(|_| "no reading")
+        };
+        let mut carried = carried_memory(&run);
+        assert_eq!(carried.len(), 2);
+        // At another stop the value is refused as stale, at 45° read again.
+        let r = read(&mut carried[0].clone(), &[1.5, 1.6, 1.7], 90.0).unwrap();
+        assert_eq!(r.refused, 1);
+        assert!((r.x_arcsec - 1.65).abs() < 1e-12);
+        let r = read(&mut carried[0], &[1.5, 1.6], 45.0).unwrap();
+        assert_eq!(r.refused, 0);
+        // ac2 has nothing carried over.
+        let r = read(&mut carried[1], &[1.5, 1.6], 90.0).unwrap();
+        assert_eq!(r.refused, 0);
+        drop(run);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
