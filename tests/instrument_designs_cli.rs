@@ -352,3 +352,99 @@ fn a_planned_design_of_two_mountings_is_run_mounting_by_mounting() {
 fn strs(v: &[String]) -> Vec<&str> {
     v.iter().map(String::as_str).collect()
 }
+
+#[test]
+fn a_forgotten_remount_stops_the_run_at_the_mountings_first_stop() {
+    let dir = scratch("forgotten-remount");
+    // Mounting 2 with the table at 0° at step 0, the polygon turned 1 face.
+    let mut lab = SimLab::start(&dir, &TWO_MOUNTINGS);
+    let out = dir.join("run");
+    let first = polycal(&lab.run_args(&out, &design(&[])));
+    assert!(first.status.success(), "{}", stderr(&first));
+    let second_args = lab.run_args(&out, &design(&["--setup", "2", "--face-shift", "1"]));
+    // Enter pressed, the polygon where it was: every autocollimator sees a face (faces
+    // 1, 2 of mounting 1, not 2, 3), and the first stop says so in one error line.
+    let forgot = polycal_with_input(&second_args, "\n");
+    let text = stderr(&forgot);
+    assert_eq!(forgot.status.code(), Some(2), "{text}");
+    let errors: Vec<&str> = text.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(errors.len(), 1, "{text}");
+    assert_eq!(text.lines().last(), errors.first().copied(), "{text}");
+    assert!(
+        errors[0].starts_with(
+            "error: at the first stop of mounting 2 (shift 0°, turned 1 face), cycle 1, step 0, \
+             the table at 0°, the autocollimators read what they read at this table angle in \
+             mounting 1"
+        ),
+        "{text}"
+    );
+    assert!(
+        errors[0]
+            .contains("Y as faces 1, 2 (not faces 2, 3 as stated): the polygon was not remounted"),
+        "{text}"
+    );
+    assert_eq!(places(&out).len(), 36, "nothing of mounting 2 stored");
+    assert_eq!(
+        manifest(&out)["mountings"][1]["confirmed"],
+        serde_json::Value::Null
+    );
+    // Remounted when asked again: measured, and solved to the lab's truth.
+    assert_eq!(lab.remount(), 2);
+    let result = polycal_with_input(&second_args, "\n");
+    assert!(result.status.success(), "{}", stderr(&result));
+    let settings = RunSettings::new(8, 2).with_closing(true);
+    assert_eq!(places(&out), planned_places(&settings, &[0.0, 0.0]));
+    assert_solves_to_truth(&out, &lab.truth);
+}
+
+#[test]
+fn a_misstated_face_shift_stops_the_run_at_the_mountings_first_stop() {
+    let dir = scratch("misstated-face-shift");
+    // Mounting 2 with the table at 22.5° at step 0, the polygon turned 1 face.
+    let mut lab = SimLab::start(
+        &dir,
+        &[&TWO_MOUNTINGS[..], &["--shift-deg", "0,22.5"]].concat(),
+    );
+    let out = dir.join("run");
+    let first = polycal(&lab.run_args(&out, &design(&[])));
+    assert!(first.status.success(), "{}", stderr(&first));
+    assert_eq!(lab.remount(), 2);
+    // Told 2 faces: faces 3, 4 expected at step 0, faces 2, 3 there.
+    let told = lab.run_args(
+        &out,
+        &design(&["--setup", "2", "--shift", "22.5", "--face-shift", "2"]),
+    );
+    let result = polycal_with_input(&told, "\n");
+    let text = stderr(&result);
+    assert_eq!(result.status.code(), Some(2), "{text}");
+    let errors: Vec<&str> = text.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(errors.len(), 1, "{text}");
+    assert!(
+        errors[0].starts_with(
+            "error: at the first stop of mounting 2 (shift 22.5°, turned 2 faces), cycle 1, \
+             step 0, the autocollimators see faces 2, 3 (the polygon turned 1 face(s)), not \
+             faces 3, 4 as stated"
+        ),
+        "{text}"
+    );
+    // The way on is the mounting stated as it is, not the same command.
+    assert!(
+        errors[0].ends_with(&format!(
+            "state the mounting as it is (--setup 2 --shift 22.5 --face-shift 1) or mount it \
+             as stated, and run again; nothing of mounting 2 was stored; the run stopped; 36 \
+             of 72 readings are in {}",
+            out.join("measurements.csv").display()
+        )),
+        "{text}"
+    );
+    assert_eq!(places(&out).len(), 36, "nothing of mounting 2 stored");
+    // Stated as it is (and confirmed again): every reading of mounting 2 measured.
+    let as_is = lab.run_args(
+        &out,
+        &design(&["--setup", "2", "--shift", "22.5", "--face-shift", "1"]),
+    );
+    let result = polycal_with_input(&as_is, "\n");
+    assert!(result.status.success(), "{}", stderr(&result));
+    let settings = RunSettings::new(8, 2).with_closing(true);
+    assert_eq!(places(&out), planned_places(&settings, &[0.0, 22.5]));
+}

@@ -207,7 +207,8 @@ fn a_silent_autocollimator_stops_the_run_and_resume_completes_it() {
     assert_solves_to_truth(&out, &lab.truth);
     let sessions = sessions(&out);
     assert_eq!(sessions.len(), 2);
-    assert_moves_follow_plan(&sessions[1], &settings(), 3);
+    // The last stop measured (step 2) read again first, then the stops from step 3 on.
+    assert_resumed_moves_follow_plan(&sessions[1], &settings(), 6);
     let m = manifest(&out);
     assert_eq!(m["outcome"], "completed");
     assert_eq!(m["sessions"][0]["readings_after"], 6);

@@ -314,10 +314,117 @@ fn a_remount_not_confirmed_or_not_done_measures_nothing_and_is_asked_again() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The manifest's record of mounting 2.
+fn second_record(dir: &std::path::Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join(run::MANIFEST)).unwrap();
+    let m: serde_json::Value = serde_json::from_str(&text).unwrap();
+    m["mountings"][1].clone()
+}
+
 #[test]
-fn a_polygon_mounted_otherwise_than_the_run_was_told_is_a_warning_after_its_first_cycle() {
+fn a_misstated_face_shift_is_refused_at_the_first_stop_of_the_mounting() {
     // The run is told the polygon is turned 2 faces; the person turns it 3 (the lab's).
     let (dir, mut d, mut person) = first_done("told-otherwise", Operator::Remounts, 22.5);
+    let truth = d.3.clone();
+    let told = Mounting::new(2).with_shift_deg(22.5).with_face_shift(2);
+    let outcome = session(&dir, Some(told), false, &mut d, &mut person).unwrap();
+    let Outcome::InstrumentError(message) = outcome else {
+        panic!("{outcome:?}")
+    };
+    // At step 0 autocollimators 1, 2 face faces 4, 5 (turned 3), not 3, 4 (turned 2);
+    // the Y readings they compare are the lab's pyramidal errors of those faces.
+    assert!(
+        message.starts_with(
+            "at the first stop of mounting 2 (shift 22.5°, turned 2 faces), cycle 1, step 0, \
+             the autocollimators see faces 4, 5 (the polygon turned 3 face(s)), not faces 3, 4 \
+             as stated"
+        ),
+        "{message}"
+    );
+    assert!(
+        message.contains("state the mounting as it is (--setup 2 --shift 22.5 --face-shift 3)"),
+        "{message}"
+    );
+    assert_eq!(readings_of(&dir, 2), 0, "nothing of the mounting stored");
+    assert_eq!(second_record(&dir)["confirmed"], serde_json::Value::Null);
+    assert!(person.warned.is_empty(), "{:?}", person.warned);
+
+    // Stated as mounted (nothing of it measured yet: restated), it is asked for again
+    // and measured where the truth puts it. (The lab is in its second mounting already.)
+    person.does = Operator::Forgets;
+    let outcome = session(&dir, Some(second()), false, &mut d, &mut person).unwrap();
+    assert_eq!(outcome, Outcome::Completed);
+    assert_eq!(person.asked.len(), 2);
+    let set = MeasurementSet::read_path(&dir.join(run::MEASUREMENTS), None).unwrap();
+    assert_eq!(set.readings.len(), 72);
+    assert_every_reading_at_its_place(&set, &truth, 22.5);
+    assert!(person.warned.is_empty(), "{:?}", person.warned);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_forgotten_remount_is_refused_at_the_first_stop_of_the_mounting() {
+    // Both mountings with the table at 0° at step 0; the second turns the polygon 3
+    // faces. The person confirms without remounting: every autocollimator sees a face,
+    // the faces of mounting 1.
+    let (dir, mut d, mut person) = first_done("forgotten", Operator::Forgets, 0.0);
+    let truth = d.3.clone();
+    let turned = Mounting::new(2).with_face_shift(3);
+    let outcome = session(&dir, Some(turned), false, &mut d, &mut person).unwrap();
+    let Outcome::InstrumentError(message) = outcome else {
+        panic!("{outcome:?}")
+    };
+    assert!(
+        message.starts_with(
+            "at the first stop of mounting 2 (shift 0°, turned 3 faces), cycle 1, step 0, the \
+             table at 0°, the autocollimators read what they read at this table angle in \
+             mounting 1"
+        ),
+        "{message}"
+    );
+    assert!(
+        message.contains(
+            "and Y as faces 1, 2 (not faces 4, 5 as stated): the polygon was not remounted"
+        ),
+        "{message}"
+    );
+    assert_eq!(readings_of(&dir, 2), 0, "nothing of the mounting stored");
+    assert_eq!(second_record(&dir)["confirmed"], serde_json::Value::Null);
+
+    // Remounted when asked again: measured where the truth puts it.
+    person.does = Operator::Remounts;
+    let outcome = session(&dir, None, true, &mut d, &mut person).unwrap();
+    assert_eq!(outcome, Outcome::Completed);
+    assert_eq!(person.asked.len(), 2);
+    assert!(second_record(&dir)["confirmed"].is_string());
+    let set = MeasurementSet::read_path(&dir.join(run::MEASUREMENTS), None).unwrap();
+    assert_eq!(set.readings.len(), 72);
+    assert_every_reading_at_its_place(&set, &truth, 0.0);
+    assert!(person.warned.is_empty(), "{:?}", person.warned);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_polygon_mounted_otherwise_without_y_readings_is_a_warning_after_its_first_cycle() {
+    // Mounting 1's Y readings left out of the file (an autocollimator without a valid Y
+    // axis): the first stop cannot tell the faces apart, the check after the cycle can.
+    let (dir, mut d, mut person) = first_done("told-otherwise-no-y", Operator::Remounts, 22.5);
+    let path = dir.join(run::MEASUREMENTS);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut rows = 0;
+    let without_y: String = text
+        .lines()
+        .map(|l| {
+            let mut f: Vec<&str> = l.split(',').collect();
+            if !l.starts_with('#') && f.len() == 11 && f[0] != "cycle" {
+                f[8] = "";
+                rows += 1;
+            }
+            format!("{}\n", f.join(","))
+        })
+        .collect();
+    assert_eq!(rows, 36);
+    std::fs::write(&path, without_y).unwrap();
     let told = Mounting::new(2).with_shift_deg(22.5).with_face_shift(2);
     let outcome = session(&dir, Some(told), false, &mut d, &mut person).unwrap();
     assert_eq!(outcome, Outcome::Completed);

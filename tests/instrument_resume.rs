@@ -19,12 +19,6 @@ fn settings(cycles: u32, closing: bool, settle: f64) -> RunSettings {
         .with_settle_seconds(settle)
 }
 
-/// The first stop of the plan with a missing reading, given the rows on disk (two
-/// readings per stop, in order).
-fn first_missing_stop(dir: &std::path::Path) -> usize {
-    rows(dir).len() / 2
-}
-
 #[test]
 fn killed_in_mid_cycle_then_resumed_loses_and_repeats_nothing() {
     let dir = scratch("kill");
@@ -62,7 +56,6 @@ fn killed_in_mid_cycle_then_resumed_loses_and_repeats_nothing() {
 
     let mut args = lab.run_args(&out, &design);
     args.push("--resume".into());
-    let first = first_missing_stop(&out);
     let resumed = polycal(&args);
     assert!(resumed.status.success(), "{}", stderr(&resumed));
 
@@ -79,7 +72,7 @@ fn killed_in_mid_cycle_then_resumed_loses_and_repeats_nothing() {
     let traffic = sessions(&out);
     assert_eq!(traffic.len(), 2);
     assert_moves_follow_plan(&traffic[0], &s, 0);
-    assert_moves_follow_plan(&traffic[1], &s, first);
+    assert_resumed_moves_follow_plan(&traffic[1], &s, before.len());
     // Time goes on from the run's start across the sessions.
     let text = std::fs::read_to_string(out.join("measurements.csv")).unwrap();
     let times: Vec<f64> = text
@@ -135,13 +128,12 @@ fn ctrl_c_stops_the_table_keeps_the_data_and_resume_completes() {
 
     let mut args = lab.run_args(&out, &design);
     args.extend(["--resume".to_string(), "-q".into()]);
-    let first = first_missing_stop(&out);
     let resumed = polycal(&args);
     assert!(resumed.status.success(), "{}", stderr(&resumed));
     assert_complete(&out, &s);
     assert_solves_to_truth(&out, &lab.truth);
     assert_eq!(manifest(&out)["outcome"], "completed");
-    assert_moves_follow_plan(&sessions(&out)[1], &s, first);
+    assert_resumed_moves_follow_plan(&sessions(&out)[1], &s, kept.len());
 }
 
 #[test]
@@ -335,7 +327,7 @@ fn a_real_full_disk_stops_the_run_and_resume_completes_with_space() {
     assert_solves_to_truth(&out, &lab.truth);
     assert_eq!(manifest(&out)["outcome"], "completed");
     let traffic = sessions(&out);
-    assert_moves_follow_plan(traffic.last().unwrap(), &s, kept.len() / 2);
+    assert_resumed_moves_follow_plan(traffic.last().unwrap(), &s, kept.len());
 }
 
 /// `polycal run` with `args` as a child process: standard output and error piped, no

@@ -234,7 +234,11 @@ pub fn moves(session: &[Value]) -> Vec<f64> {
 /// Asserts that a session sent exactly one move per stop, in the run's order, from stop
 /// `first` on: a move is never sent twice.
 pub fn assert_moves_follow_plan(session: &[Value], settings: &RunSettings, first: usize) {
-    let sent = moves(session);
+    assert_follow_plan(&moves(session), settings, first);
+}
+
+/// Asserts that the moves `sent` are the run's stops in order from stop `first` on.
+fn assert_follow_plan(sent: &[f64], settings: &RunSettings, first: usize) {
     let plan: Vec<f64> = settings
         .plan()
         .iter()
@@ -250,6 +254,27 @@ pub fn assert_moves_follow_plan(session: &[Value], settings: &RunSettings, first
             "move {i}: sent {a}, the plan says {b}"
         );
     }
+}
+
+/// Asserts that a resumed session, begun with `done` readings on disk, first went back
+/// to the last stop with a stored reading (read again there and compared, docs/FORMAT.md
+/// §7.3, nothing stored), then sent one move per stop in the run's order from the first
+/// stop with a missing reading on.
+pub fn assert_resumed_moves_follow_plan(session: &[Value], settings: &RunSettings, done: usize) {
+    let k = settings.ac_faces.len();
+    let plan: Vec<f64> = settings
+        .plan()
+        .iter()
+        .map(|s| s.degrees(settings.faces))
+        .collect();
+    let sent = moves(session);
+    let last_stored = plan[(done - 1) / k];
+    assert!(
+        sent.first().is_some_and(|a| (a - last_stored).abs() < 1e-6),
+        "the last stop with a stored reading, {last_stored}°, first: {sent:?}"
+    );
+    assert_follow_plan(&sent[1..], settings, done / k);
+    assert_eq!(sent.len() - 1, plan.len() - done / k, "{sent:?}");
 }
 
 /// Every reading of the run is in the file exactly once, in order.

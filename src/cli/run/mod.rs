@@ -273,6 +273,10 @@ fn check_instruments(
 /// option that states the noise is this command's to name.
 const NOISE_ADVICE: &str = "state the autocollimator's real noise";
 
+/// How the library's message of a polygon turned otherwise than the mounting states says
+/// to go on: with the mounting stated as it is, not the same command.
+const RESTATE_ADVICE: &str = "state the mounting as it is (";
+
 /// `polycal run`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
     let (ac_profile, table_profile) = profiles(args)?;
@@ -621,10 +625,15 @@ fn ended(
     let done = dir.readings_done();
     let total = dir.manifest().expected_readings;
     let file = args.out().join(run::MEASUREMENTS);
-    let kept = format!(
-        "{done} of {total} readings are in {}; continue with the same command and --resume",
-        file.display()
-    );
+    let restate = matches!(outcome, Outcome::InstrumentError(m) if m.contains(RESTATE_ADVICE));
+    let kept = if restate {
+        format!("{done} of {total} readings are in {}", file.display())
+    } else {
+        format!(
+            "{done} of {total} readings are in {}; continue with the same command and --resume",
+            file.display()
+        )
+    };
     let what = match outcome {
         Outcome::Completed => {
             if let Err(e) = recorded {

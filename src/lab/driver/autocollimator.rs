@@ -6,7 +6,7 @@ use super::read_reply;
 use crate::lab::profile::{AcProfile, LineSettings, Profile, ProfileError};
 use crate::lab::query::{Resync, query};
 use crate::lab::transport::Transport;
-use crate::lab::{AcReading, Autocollimator, InstrumentError, QueryOptions, ReplyError};
+use crate::lab::{AcReading, Autocollimator, InstrumentError, QueryOptions};
 
 /// An autocollimator driven through its profile's commands (module
 /// [`crate::lab::driver`]).
@@ -154,25 +154,9 @@ impl<T: Transport> Autocollimator for ProfileAutocollimator<T> {
             Some(&resync),
             &command,
             |reply| {
-                let template = &ac.measure.reply;
-                let captures = read_reply(line, template, reply)?;
-                let status_text = captures.get("status").unwrap_or("").to_string();
-                if !ac.x_valid.holds(template, &captures) {
-                    return Err(ReplyError::XNotValid {
-                        status: status_text,
-                    });
-                }
-                let x = captures.number("x").ok_or_else(|| ReplyError::NotFinite {
-                    name: "X",
-                    text: captures.get("x").unwrap_or("").to_string(),
-                })?;
-                let y_valid = ac
-                    .y_valid
-                    .as_ref()
-                    .is_none_or(|c| c.holds(template, &captures));
-                let y = if y_valid { captures.number("y") } else { None };
-                let status = status_text.parse::<u16>().unwrap_or(0);
-                Ok(AcReading::new(status, x, y))
+                // A refusal of the line's is named as such; the rest is the profile's.
+                read_reply(line, &ac.measure.reply, reply)?;
+                ac.reading(reply)
             },
         )
         .map(|(reading, _)| reading)

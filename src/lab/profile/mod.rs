@@ -196,6 +196,74 @@ pub struct AcProfile {
     pub y_valid: Option<Condition>,
 }
 
+impl AcProfile {
+    /// Reads a measurement reply: its form, X valid (else
+    /// [`ReplyError::XNotValid`](crate::lab::ReplyError::XNotValid)), X a finite number, Y
+    /// when valid, the status when the reply has one.
+    ///
+    /// ```
+    /// use polycal::lab::profile::Profile;
+    /// let elcomat = Profile::load("elcomat3000")?;
+    /// let ac = elcomat.autocollimator()?;
+    /// let r = ac.reading("4 001 12.5 0.0").unwrap();
+    /// assert_eq!((r.status, r.x_arcsec, r.y_arcsec), (1, 12.5, None)); // Y not valid
+    /// assert!(ac.reading("4 002 12.5 0.0").is_err()); // X not valid
+    /// # Ok::<(), polycal::lab::profile::ProfileError>(())
+    /// ```
+    ///
+    /// # Errors
+    ///
+    /// The [`ReplyError`](crate::lab::ReplyError) saying what is wrong with the reply.
+    pub fn reading(&self, reply: &str) -> Result<crate::lab::AcReading, crate::lab::ReplyError> {
+        use crate::lab::ReplyError;
+        let template = &self.measure.reply;
+        let captures = template
+            .matches(reply)
+            .ok_or_else(|| ReplyError::NotTheForm {
+                form: template.as_str().to_string(),
+            })?;
+        let status_text = captures.get("status").unwrap_or("").to_string();
+        if !self.x_valid.holds(template, &captures) {
+            return Err(ReplyError::XNotValid {
+                status: status_text,
+            });
+        }
+        let x = captures.number("x").ok_or_else(|| ReplyError::NotFinite {
+            name: "X",
+            text: captures.get("x").unwrap_or("").to_string(),
+        })?;
+        let y_valid = self
+            .y_valid
+            .as_ref()
+            .is_none_or(|c| c.holds(template, &captures));
+        let y = if y_valid { captures.number("y") } else { None };
+        Ok(crate::lab::AcReading::new(
+            status_text.parse::<u16>().unwrap_or(0),
+            x,
+            y,
+        ))
+    }
+}
+
+impl TableProfile {
+    /// The position a move command as sent (terminator or not) commands, degrees; `None`
+    /// for any other command.
+    ///
+    /// ```
+    /// use polycal::lab::profile::Profile;
+    /// let pi = Profile::load("pi-gcs2")?;
+    /// assert_eq!(pi.table()?.commanded_deg("MOV 1 22.5\n"), Some(22.5));
+    /// assert_eq!(pi.table()?.commanded_deg("POS? 1\n"), None);
+    /// # Ok::<(), polycal::lab::profile::ProfileError>(())
+    /// ```
+    pub fn commanded_deg(&self, command: &str) -> Option<f64> {
+        let command = command.trim_end_matches(['\r', '\n']);
+        let (before, after) = self.motion.send.split_once("{deg}")?;
+        let number = command.strip_prefix(before)?.strip_suffix(after)?;
+        number.trim().parse::<f64>().ok().filter(|d| d.is_finite())
+    }
+}
+
 /// The state query of a table: ready, moving, and optionally not referenced and a fault.
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]

@@ -314,6 +314,23 @@ impl RunDir {
         self.write_manifest(false)
     }
 
+    /// Withdraws the confirmation of this session's mounting's remount (its first stop
+    /// showed the polygon not mounted as stated): the next session asks for it again.
+    ///
+    /// # Errors
+    ///
+    /// As [`RunDir::finish`].
+    pub(super) fn withdraw_remount(&mut self) -> Result<(), RunError> {
+        match self.manifest.mountings.last_mut() {
+            Some(last) if last.mounting.setup > 1 && last.confirmed.is_some() => {
+                last.confirmed = None;
+                last.table_deg = None;
+                self.write_manifest(false)
+            }
+            _ => Ok(()),
+        }
+    }
+
     /// Records that the readings of this session's mounting do not fit those of the
     /// mountings before it (`warning`).
     ///

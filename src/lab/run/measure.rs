@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 use super::live::{self, Cell, CycleCheck, MAX_REMEASURED_PER_CYCLE};
 use super::noise::RepeatNoise;
 use super::repeat::{DeviceMemory, RepeatError, read_at_stop};
+use super::verify::{self, Bench};
 use super::{
     Identification, MEASUREMENTS, REMOUNT_TOLERANCE_DEG, Remeasured, Remount, RunDir, RunError,
     Suspect, TRAFFIC,
@@ -45,7 +46,7 @@ impl fmt::Display for Outcome {
 impl Outcome {
     /// The outcome of an instrument's failure; `role` names the instrument
     /// (`autocollimator 1`, `rotary table`).
-    fn from_instrument(role: &str, e: InstrumentError) -> Outcome {
+    pub(super) fn from_instrument(role: &str, e: InstrumentError) -> Outcome {
         if e.is_interrupted() {
             Outcome::Interrupted
         } else {
@@ -55,10 +56,10 @@ impl Outcome {
 }
 
 /// The table's name in messages.
-const TABLE: &str = "rotary table";
+pub(super) const TABLE: &str = "rotary table";
 
 /// Autocollimator `ac`'s name in messages, `autocollimator 3`.
-fn role(ac: u32) -> String {
+pub(super) fn role(ac: u32) -> String {
     format!("autocollimator {ac}")
 }
 
@@ -172,6 +173,13 @@ pub fn measure(
 /// while the polygon was remounted); the confirmation and the position are recorded in
 /// the manifest ([`RunDir::confirm_remount`]).
 ///
+/// Nothing is stored before the instruments are shown to be where the run left them
+/// (docs/FORMAT.md §7.3, *Before the first reading of a session*): a mounting with
+/// readings on disk has its last stop read again and compared with them, a new mounting
+/// its first stop compared with the mountings before; readings that do not agree end the
+/// session with [`Outcome::InstrumentError`] saying what was found. The values each
+/// autocollimator gave before the session are refused as stale at another stop.
+///
 /// The first write that fails ends the session with [`Outcome::FileError`]: a reading
 /// that cannot be appended (the measurement file is cut back to its last whole line, and
 /// the message gives the reading), the traffic log (checked after every exchange with an
@@ -213,13 +221,38 @@ pub fn measure_attended(
             return Ok(Outcome::from_instrument(&role, e));
         }
     };
+    let mut memory = verify::carried_memory(run);
     let outcome = match run.begin_session(identification) {
         Ok(()) => match log_failure(run, traffic) {
             Some(failed) => failed,
-            None => match remounted(run, &mut acs, table, stop_flag, traffic, attendant) {
-                Some(failed) => failed,
-                None => measure_stops(run, &mut acs, table, stop_flag, traffic, attendant),
-            },
+            None => {
+                let awaited = run.awaits_remount();
+                let mut bench = Bench {
+                    acs: &mut acs,
+                    table: &mut *table,
+                    memory: &mut memory,
+                    stop_flag,
+                    traffic,
+                };
+                let checked = match remounted(run, &mut bench, attendant) {
+                    Some(failed) => Some(failed),
+                    // A remount checked its first stop already.
+                    None if awaited => None,
+                    None => verify::before_first_reading(run, &mut bench),
+                };
+                match checked {
+                    Some(failed) => failed,
+                    None => measure_stops(
+                        run,
+                        &mut acs,
+                        table,
+                        &mut memory,
+                        stop_flag,
+                        traffic,
+                        attendant,
+                    ),
+                }
+            }
         },
         Err(e @ RunError::OtherInstruments { .. }) => {
             let _ = table.stop();
@@ -243,7 +276,7 @@ pub fn measure_attended(
 }
 
 /// The outcome of a traffic log that failed to write, if it did.
-fn log_failure(run: &RunDir, traffic: Option<&TrafficLog>) -> Option<Outcome> {
+pub(super) fn log_failure(run: &RunDir, traffic: Option<&TrafficLog>) -> Option<Outcome> {
     let e = traffic?.check().err()?;
     Some(Outcome::FileError(format!(
         "{}: {e}",
@@ -252,24 +285,23 @@ fn log_failure(run: &RunDir, traffic: Option<&TrafficLog>) -> Option<Outcome> {
 }
 
 /// A mounting that awaits its remount: the table to the mounting's first stop, the
-/// attendant's confirmation, the table's position checked and recorded. The outcome that
-/// ends the session, if any.
+/// attendant's confirmation, the table's position checked, the first stop's readings
+/// against the mountings before ([`verify::new_mounting_fits`]), and the confirmation
+/// recorded. The outcome that ends the session, if any.
 fn remounted(
     run: &mut RunDir,
-    acs: &mut [&mut dyn Autocollimator],
-    table: &mut dyn RotaryTable,
-    stop_flag: &StopFlag,
-    traffic: Option<&TrafficLog>,
+    bench: &mut Bench<'_, '_>,
     attendant: &mut dyn Attendant,
 ) -> Option<Outcome> {
     if !run.awaits_remount() {
         return None;
     }
+    let (stop_flag, traffic) = (bench.stop_flag, bench.traffic);
     let mounting = run.mounting();
     let settings = run.manifest.settings.clone();
     let stop = run.remaining().first()?.0;
     let commanded = mounting.table_deg(&stop, settings.faces);
-    let at = match table.move_to(commanded) {
+    let at = match bench.table.move_to(commanded) {
         Ok(p) => p,
         Err(e) => return Some(Outcome::from_instrument(TABLE, e)),
     };
@@ -287,7 +319,7 @@ fn remounted(
     if !attendant.remount(&remount) || stop_flag.is_set() {
         return Some(Outcome::Interrupted);
     }
-    let reported = match table.position() {
+    let reported = match bench.table.position() {
         Ok(p) => p,
         Err(e) => return Some(Outcome::from_instrument(TABLE, e)),
     };
@@ -300,8 +332,8 @@ fn remounted(
         )));
     }
     // Every autocollimator must see a face: a polygon mounted off the faces' directions
-    // leaves them without light (whole faces off is left to the check after the cycle).
-    for (i, ac) in acs.iter_mut().enumerate() {
+    // leaves them without light (whole faces off: the first stop's check below).
+    for (i, ac) in bench.acs.iter_mut().enumerate() {
         if let Err(e) = ac.measure() {
             if e.is_interrupted() {
                 return Some(Outcome::Interrupted);
@@ -313,6 +345,10 @@ fn remounted(
                 role(i as u32 + 1)
             )));
         }
+    }
+    // The faces the autocollimators see are those the mounting says.
+    if let Some(stopped) = verify::new_mounting_fits(run, bench) {
+        return Some(stopped.outcome());
     }
     if let Some(log) = traffic {
         log.record(
@@ -348,6 +384,7 @@ fn measure_stops(
     run: &mut RunDir,
     acs: &mut [&mut dyn Autocollimator],
     table: &mut dyn RotaryTable,
+    memory: &mut [DeviceMemory],
     stop_flag: &StopFlag,
     traffic: Option<&TrafficLog>,
     attendant: &mut dyn Attendant,
@@ -359,13 +396,7 @@ fn measure_stops(
     let session_start = Instant::now();
     let before = run.readings_done();
     let settle = Duration::try_from_secs_f64(settings.settle_seconds).unwrap_or(Duration::ZERO);
-    let mut memory = vec![DeviceMemory::default(); acs.len()];
-    // The noise the sessions before measured, as the manifest recorded it.
-    for record in &run.manifest.repeat_noise {
-        if let Some(m) = memory.get_mut((record.ac as usize).wrapping_sub(1)) {
-            m.noise = RepeatNoise::from_record(record);
-        }
-    }
+
     let mut refused = 0;
     let mut handled: Vec<Cell> = Vec::new();
     let plan = settings.plan();
@@ -401,7 +432,7 @@ fn measure_stops(
                         acs: &mut *acs,
                         table: &mut *table,
                     },
-                    &mut memory,
+                    &mut *memory,
                     stop_flag,
                     traffic,
                     cycle,
@@ -447,7 +478,7 @@ fn measure_stops(
             let taken = take_reading(
                 run,
                 acs,
-                &mut memory,
+                &mut *memory,
                 traffic,
                 stop,
                 ac,

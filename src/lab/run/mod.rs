@@ -4,7 +4,9 @@
 //! One concept a file: the settings and the plan (`settings.rs`: [`RunSettings`]), the
 //! manifest (`manifest.rs`: [`Manifest`]), the run directory and its lock
 //! (`directory.rs`: [`RunDir`]), continuing an interrupted run (`resume.rs`), the
-//! measuring loop (`measure.rs`: [`measure`]), ending a run at once from another thread
+//! measuring loop (`measure.rs`: [`measure`]), the checks before a session's first
+//! reading (`verify.rs`: a resumed mounting's last stop read again, a new mounting's
+//! first stop against the mountings before), ending a run at once from another thread
 //! (`abort.rs`: [`AbortHandle`]) and the refusals (`error.rs`: [`RunError`]).
 //!
 //! # A full disk
@@ -44,7 +46,9 @@
 //! the table is sent to that stop again and only the missing readings are taken. A file
 //! whose readings are not exactly the first ones of that order is refused, as is a
 //! manifest whose settings differ from the ones given, or instruments that identify
-//! differently from those the run started with.
+//! differently from those the run started with. Before the first new reading the last
+//! stop with a stored reading is visited and read again (not stored): readings that do not
+//! agree with the stored ones end the session (`verify.rs`).
 //!
 //! # Example: a whole run against simulated instruments, in memory
 //!
@@ -96,6 +100,7 @@ mod plan_file;
 mod repeat;
 mod resume;
 mod settings;
+mod verify;
 
 pub use abort::AbortHandle;
 pub use directory::{COLUMNS, MANIFEST, MEASUREMENTS, REMEASURED, RunDir, TRAFFIC};

@@ -11,8 +11,10 @@
 //! and a value from anywhere else (an unsolicited line, a late or swapped reply) does not
 //! agree with the readings around it. (The same value at the same table angle — the
 //! closing stop at 360° and the next cycle's first at 0° — is no sign of staleness: a
-//! steady instrument reads it again.) Every refused reading is recorded in the traffic
-//! log as `refused`, with why.
+//! steady instrument reads it again.) A resumed session carries the values each device
+//! gave before it over ([`DeviceMemory::carried_over`]): until the device gave a reading
+//! in the session, they are refused as stale at any other table angle. Every refused
+//! reading is recorded in the traffic log as `refused`, with why.
 
 use super::RunSettings;
 use super::noise::RepeatNoise;
@@ -44,12 +46,52 @@ pub(super) enum RepeatError {
 }
 
 /// What the run remembers of one autocollimator between stops.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 pub(super) struct DeviceMemory {
     /// Its last reply at an earlier stop, and that stop's table angle (degrees, 0 … 360).
     last_at_earlier_stop: Option<(AcReading, f64)>,
     /// The scatter of its readings at the stops so far in the session.
     pub(super) noise: RepeatNoise,
+    /// Until it gave a reading in this session: its last values before the session (the
+    /// last reply the traffic log holds, its last stored reading), each with the table
+    /// angle it was read at (degrees, 0 … 360), refused as stale at another angle.
+    before_session: Vec<(LastValue, f64)>,
+}
+
+/// A value an autocollimator gave before this session, which it must not give again as
+/// a new stop's reading (docs/FORMAT.md §7.3, *A stale reply is refused*).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct LastValue {
+    /// X, arcsec.
+    pub(super) x_arcsec: f64,
+    /// Y, arcsec, when valid.
+    pub(super) y_arcsec: Option<f64>,
+    /// The status, when known (a reply's; not a stored reading's).
+    pub(super) status: Option<u16>,
+}
+
+impl LastValue {
+    /// Whether `reading` repeats this value exactly (X, Y and, when known, the status).
+    fn repeated_by(&self, reading: &AcReading) -> bool {
+        reading.x_arcsec == self.x_arcsec
+            && reading.y_arcsec == self.y_arcsec
+            && self.status.is_none_or(|s| s == reading.status)
+    }
+}
+
+impl DeviceMemory {
+    /// The memory of a device at the start of a resumed session: `values` it gave before,
+    /// each with the table angle it was read at, degrees.
+    pub(super) fn carried_over(values: Vec<(LastValue, f64)>) -> DeviceMemory {
+        DeviceMemory {
+            last_at_earlier_stop: None,
+            noise: RepeatNoise::default(),
+            before_session: values
+                .into_iter()
+                .map(|(value, angle)| (value, turn(angle)))
+                .collect(),
+        }
+    }
 }
 
 /// A table angle in 0 … 360°.
@@ -88,6 +130,12 @@ pub(super) fn read_at_stop(
             );
         }
     };
+    let carried: Vec<LastValue> = memory
+        .before_session
+        .iter()
+        .filter(|&&(_, angle)| (angle - here).abs() > 1e-9)
+        .map(|&(value, _)| value)
+        .collect();
     let mut taken: Vec<AcReading> = Vec::new();
     let mut asked = 0;
     let mut stale = 0;
@@ -104,6 +152,14 @@ pub(super) fn read_at_stop(
             );
             continue;
         }
+        if carried.iter().any(|v| v.repeated_by(&reading)) {
+            stale += 1;
+            refuse(
+                &reading,
+                "stale: the same value as its last one before this session, at another stop",
+            );
+            continue;
+        }
         taken.push(reading);
         if taken.len() < needed {
             continue;
@@ -114,6 +170,7 @@ pub(super) fn read_at_stop(
             memory.last_at_earlier_stop = last_here.map(|r| (r, here));
             let xs: Vec<f64> = window.iter().map(|r| r.x_arcsec).collect();
             memory.noise.add_stop(&xs);
+            memory.before_session.clear();
             for early in &taken[..taken.len() - needed] {
                 refuse(early, "does not agree with the readings after it");
             }
@@ -129,6 +186,7 @@ pub(super) fn read_at_stop(
         }
     }
     memory.last_at_earlier_stop = last_here.map(|r| (r, here));
+    memory.before_session.clear();
     for reading in &taken {
         refuse(reading, "no agreement at this stop");
     }
@@ -302,6 +360,31 @@ mod tests {
             message.contains("the noise measured at the stops before, 0.0141″ on 40 degrees"),
             "{message}"
         );
+    }
+
+    #[test]
+    fn a_value_from_before_the_session_is_refused_at_another_stop_only() {
+        let value = |status| LastValue {
+            x_arcsec: 5.0,
+            y_arcsec: Some(0.0),
+            status,
+        };
+        // Its last reply (status known) and its stored reading (status not), at 405° = 45°.
+        let carried = || DeviceMemory::carried_over(vec![(value(Some(3)), 405.0)]);
+        let r = read_at(&[5.0, 5.1, 5.2], &mut carried(), 90.0).unwrap();
+        assert_eq!(r.refused, 1);
+        assert!((r.x_arcsec - 5.15).abs() < 1e-12);
+        // At the angle it was given at, a steady instrument may read it again.
+        let r = read_at(&[5.0, 5.1], &mut carried(), 45.0).unwrap();
+        assert_eq!(r.refused, 0);
+        // A stored reading's value repeats whatever the status.
+        let mut memory = DeviceMemory::carried_over(vec![(value(None), 0.0)]);
+        let r = read_at(&[5.0, 5.0, 5.1, 5.15], &mut memory, 90.0).unwrap();
+        assert_eq!(r.refused, 2);
+        assert!((r.x_arcsec - 5.125).abs() < 1e-12);
+        // Once the device gave a reading in the session, the carried value is forgotten.
+        let r = read_at(&[5.0, 5.0], &mut memory, 180.0).unwrap();
+        assert_eq!(r.refused, 0);
     }
 
     #[test]
