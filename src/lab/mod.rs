@@ -1,15 +1,17 @@
-//! The lab: ELCOMAT 3000 autocollimators (two or more) and an SMC100 rotary table on serial lines,
-//! and the run procedure that drives them through a calibration and keeps every reading
-//! on disk (docs/FORMAT.md §7). Built with the cargo feature `lab`.
+//! The lab: autocollimators (two or more) and a rotary table of any make, described by
+//! profiles (the ELCOMAT 3000 and the SMC100 by default), on serial lines or TCP, and the
+//! run procedure that drives them through a calibration and keeps every reading on disk
+//! (docs/FORMAT.md §7). Built with the cargo feature `lab`.
 //!
 //! # What flows from the instruments to the run directory
 //!
 //! ```text
-//!  serial line / pseudo-terminal / in-memory stream      (serial, sim, scripted)
+//!  serial line / TCP / pseudo-terminal / in-memory stream (serial, tcp, sim, scripted)
 //!        │ bytes
 //!  StreamTransport: one reply line per deadline           (transport)
 //!        │ lines                ──► traffic.jsonl: every line sent and received (traffic)
-//!  Elcomat3000, Smc100: commands, replies, retries       (elcomat, smc100, query)
+//!  ProfileAutocollimator, ProfileTable: a profile's       (profile, driver, query)
+//!    commands and replies, the runner's retries
 //!        │ AcReading, table position
 //!  run::measure: the stops of the plan, every autocollimator at each  (run)
 //!        │ Reading                   ──► manifest.json: settings, instruments, outcome
@@ -23,14 +25,18 @@
 //!   channel whose `read_line` has one overall deadline per reply (not per `read()`), and
 //!   its one implementation [`StreamTransport`](transport::StreamTransport) over any byte
 //!   stream;
-//! - [`serial`]: the serial port as such a stream ([`serial::SerialTransport`]);
+//! - [`serial`]: the serial port as such a stream ([`serial::SerialTransport`]), and
+//!   [`tcp`] a network port (`tcp://HOST:PORT`);
 //! - [`scripted`]: an in-memory device for tests, a script of exchanges;
 //! - [`traffic`]: [`LoggedTransport`](traffic::LoggedTransport), which records every line
 //!   sent and received, with time and port, as JSON Lines (`traffic.jsonl`);
-//! - [`elcomat`] and [`smc100`]: the drivers, behind the [`Autocollimator`] and
+//! - [`profile`]: how an instrument talks — its line, commands and reply templates — read
+//!   from TOML; five bundled from the makers' command sets;
+//! - [`driver`]: the drivers that speak any profile, behind the [`Autocollimator`] and
 //!   [`RotaryTable`] traits; their replies are read by the [`QueryOptions`] rules below;
-//! - [`sim`]: state machines speaking both protocols, fed by the simulator's truth model,
-//!   served on pseudo-terminals by `polycal sim-lab`;
+//!   [`check`]: each instrument once, before a run;
+//! - [`sim`]: state machines speaking every profile, fed by the simulator's truth model,
+//!   served on pseudo-terminals or TCP ports by `polycal sim-lab`;
 //! - [`run`]: the run procedure: its settings and plan, the run directory and its
 //!   manifest, resuming an interrupted run, and the measuring loop;
 //! - `disk`: the run directory's files on a disk that can fill up: lines appended whole
@@ -42,8 +48,8 @@
 //! A *query* (a command whose reply only reports) is retried when its reply is lost,
 //! garbled or reports an invalid measurement: the input is cleared and the command sent
 //! again, at most [`QueryOptions::retries`] more times (three by default). A *motion*
-//! (`1PA`, `1OR`) is never sent twice: after a lost reply the driver asks the state
-//! (`1TS`) and the position (`1TP`) instead. A failing port, a device in a state that
+//! (a profile's move and home, e.g. the SMC100's `1PA`, `1OR`) is never sent twice: after
+//! a lost reply the driver asks the state and the position instead. A failing port, a device in a state that
 //! forbids going on (disable, error bits) and a query that still fails after its retries
 //! end in an [`InstrumentError`] naming the port, what was sent and what came back.
 //!

@@ -33,6 +33,8 @@ Examples:
   polycal run --ac /dev/ttyUSB0 --ac /dev/ttyUSB1 --ac /dev/ttyUSB3 --ac-faces 1,2,9 --table /dev/ttyUSB2 --faces 24 --cycles 6 --closing --out run2
   polycal run --ac1 /dev/ttyUSB0 --ac2 /dev/ttyUSB1 --table /dev/ttyUSB2 --plan plan.json --design B --out run3
   polycal run --ac1 /dev/ttyUSB0 --ac2 /dev/ttyUSB1 --table /dev/ttyUSB2 --faces 24 --cycles 6 --closing --out run1 --setup 2 --shift 7.5
+  polycal run --ac1 /dev/ttyUSB0 --ac2 /dev/ttyUSB1 --table tcp://192.168.1.20:50000 --table-profile pi-gcs2 --check-instruments
+  polycal run --ac1 /dev/ttyUSB0 --ac2 /dev/ttyUSB1 --table tcp://192.168.1.20:8000 --table-profile aerotech-ascii --faces 24 --cycles 6 --closing --out run4
   polycal solve run1/measurements.csv
 
 Every stop is read --reads times per autocollimator and stored only when the readings
@@ -42,6 +44,10 @@ mounting's step 0 and the run waits for Enter once the polygon is remounted ther
 Status 0: completed; 1: completed with readings measured again or suspect, or with a
 mounting that does not fit those before it (manifest.json); 2: stopped (docs/FORMAT.md
 §7.3, §8).
+
+Instruments of other makes: --ac-profile / --table-profile NAME (bundled: elcomat3000, smc100,
+pi-gcs2, aerotech-ascii, esp301) or FILE.toml (docs/instruments.md); a port is a serial device
+or tcp://HOST:PORT.
 
 Without instruments, `polycal sim-lab` serves simulated ones and prints a `run` command for them.";
 
