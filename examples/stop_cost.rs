@@ -67,14 +67,23 @@ impl<T: Transport> Transport for Counted<T> {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    print!("{}", table()?);
+    Ok(())
+}
+
+/// The table the README shows (`tests/stop_cost_readme.rs` compares the two).
+pub fn table() -> Result<String, Box<dyn std::error::Error>> {
+    use std::fmt::Write as _;
+    let mut out = String::new();
     let faces = 8;
     let settings = RunSettings::new(faces, 1).with_closing(true);
     let stops = (faces + 1) as f64;
     let ac_profile = Profile::load("elcomat3000")?;
-    println!(
+    writeln!(
+        out,
         "| table profile | table: lines sent / received per stop | table: wire time per stop | autocollimators (both): lines sent / received per stop | their wire time per stop |"
-    );
-    println!("|---|---|---|---|---|");
+    )?;
+    writeln!(out, "|---|---|---|---|---|")?;
     for name in ["smc100", "pi-gcs2", "aerotech-ascii", "esp301"] {
         let table_profile = Profile::load(name)?;
         let lab = LabConfig::new(SimulationConfig {
@@ -146,7 +155,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let acc = *ac_count.lock().unwrap_or_else(|p| p.into_inner());
         let (ts, tr, tw) = per(tc, &table_profile);
         let (as_, ar, aw) = per(acc, &ac_profile);
-        println!("| `{name}` | {ts:.1} / {tr:.1} | {tw:.1} ms | {as_:.1} / {ar:.1} | {aw:.1} ms |");
+        writeln!(
+            out,
+            "| `{name}` | {ts:.1} / {tr:.1} | {tw:.1} ms | {as_:.1} / {ar:.1} | {aw:.1} ms |"
+        )?;
     }
-    Ok(())
+    Ok(out)
 }
