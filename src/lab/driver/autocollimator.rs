@@ -71,7 +71,7 @@ impl<T: Transport> ProfileAutocollimator<T> {
             name: profile.name.clone(),
             line: profile.line.clone(),
             ac: match profile.kind {
-                crate::lab::profile::ProfileKind::Autocollimator(ac) => ac,
+                crate::lab::profile::ProfileKind::Autocollimator(ac) => *ac,
                 crate::lab::profile::ProfileKind::Table(_) => {
                     unreachable!("the bundled elcomat3000 describes an autocollimator")
                 }

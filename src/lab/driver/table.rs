@@ -155,7 +155,7 @@ impl<T: Transport> ProfileTable<T> {
             name: profile.name.clone(),
             line: profile.line.clone(),
             table: match profile.kind {
-                crate::lab::profile::ProfileKind::Table(table) => table,
+                crate::lab::profile::ProfileKind::Table(table) => *table,
                 crate::lab::profile::ProfileKind::Autocollimator(_) => {
                     unreachable!("the bundled smc100 describes a table")
                 }

@@ -326,9 +326,9 @@ pub struct TableProfile {
 #[non_exhaustive]
 pub enum ProfileKind {
     /// An autocollimator.
-    Autocollimator(AcProfile),
+    Autocollimator(Box<AcProfile>),
     /// A rotary table.
-    Table(TableProfile),
+    Table(Box<TableProfile>),
 }
 
 /// An instrument profile (module docs).

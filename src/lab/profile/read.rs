@@ -298,7 +298,7 @@ pub(super) fn parse(text: &str, source: &str) -> Result<Profile, ProfileError> {
                 .reply
                 .render(&|f| sample(f, &ac.measure.reply, &[&ac.x_valid]));
             distinct(&ac.identify, &raw.identify, &[("measurement", x)], &at)?;
-            ProfileKind::Autocollimator(ac)
+            ProfileKind::Autocollimator(Box::new(ac))
         }
         "table" => {
             let who = "a rotary table";
@@ -423,7 +423,7 @@ pub(super) fn parse(text: &str, source: &str) -> Result<Profile, ProfileError> {
                 ));
             }
             distinct(&table.identify, &raw.identify, &others, &at)?;
-            ProfileKind::Table(table)
+            ProfileKind::Table(Box::new(table))
         }
         other => {
             return Err(at.error(

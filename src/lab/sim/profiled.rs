@@ -43,7 +43,7 @@ pub struct ProfileSim {
 enum Kind {
     Ac {
         number: u32,
-        profile: AcProfile,
+        profile: Box<AcProfile>,
         /// Status field values by (X valid, Y valid).
         status: BTreeMap<(bool, bool), Option<String>>,
         x_invalid: Vec<(u64, u64)>,
@@ -156,7 +156,7 @@ impl ProfileSim {
             name: profile.name.clone(),
             device: Kind::Ac {
                 number,
-                profile: ac,
+                profile: Box::new(ac),
                 status,
                 x_invalid: faults
                     .iter()
