@@ -447,3 +447,74 @@ fn starting_references_the_axis_as_each_make_allows() {
         "1MO\rTE?\r1MD?\r1OR\rTE?\r1MD?\rVE?\r1MD?\r1MD?\r"
     );
 }
+
+/// A reply of the right form with a wrong value (a sign lost, X and Y exchanged, a digit
+/// dropped) at the second stop of a run: refused by the agreement at its stop. The check
+/// sees it: told a noise wide enough to let it through (100″), the same run stores it
+/// off its stop.
+#[test]
+fn a_wrong_value_in_the_right_form_is_refused_at_its_stop() {
+    use polycal::lab::sim::SimStream;
+    for kind in [FaultKind::SignFlip, FaultKind::SwapXy, FaultKind::DropDigit] {
+        let mut off = Vec::new();
+        for stated in [SIGMA, 100.0] {
+            // The first reading at step 1, where autocollimator 1 reads −5.21″.
+            let fault = Fault::new(kind, DeviceId::Ac(1)).with_after(2);
+            let ac = Profile::load("elcomat3000").unwrap();
+            let table = Profile::load("smc100").unwrap();
+            let devices = Devices::new(config(vec![fault], &ac, &table)).unwrap();
+            let truth = devices.truth();
+            let Devices {
+                ac1, ac2, table: t, ..
+            } = devices;
+            let q = QueryOptions::new(Duration::from_millis(30), 3);
+            let driver = |name: &str, e| {
+                ProfileAutocollimator::elcomat3000(StreamTransport::new(name, SimStream::new(e)), q)
+                    .with_drain(Duration::ZERO)
+            };
+            let (mut a1, mut a2) = (driver("mem:ac1", ac1), driver("mem:ac2", ac2));
+            let mut tb = ProfileTable::smc100(
+                StreamTransport::new("mem:table", SimStream::new(t)),
+                TableOptions::new(q).with_poll_interval(Duration::from_millis(1)),
+            );
+            let dir = std::env::temp_dir().join(format!(
+                "polycal-value-fault-{}-{}-{stated}",
+                std::process::id(),
+                kind.as_str()
+            ));
+            let _ = std::fs::remove_dir_all(&dir);
+            let settings = RunSettings::new(FACES, 1)
+                .with_closing(true)
+                .with_reading_noise_arcsec(stated);
+            let mut run = RunDir::open(&dir, &settings, &Ports::new("a", "b", "c"), false).unwrap();
+            let outcome = run::measure(
+                &mut run,
+                Instruments {
+                    ac1: &mut a1,
+                    ac2: &mut a2,
+                    table: &mut tb,
+                    more: Vec::new(),
+                },
+                &StopFlag::new(),
+                None,
+                &mut |_| {},
+            )
+            .unwrap();
+            run.finish(&outcome).unwrap();
+            assert_eq!(outcome, Outcome::Completed, "{kind:?}");
+            let set = MeasurementSet::read_path(&dir.join(run::MEASUREMENTS), None).unwrap();
+            off.push(
+                set.readings
+                    .iter()
+                    .filter(|r| {
+                        let want = expected_at(&truth, r.step, r.ac, r.encoder_degrees.unwrap());
+                        (r.reading_arcsec - want).abs() > 6.0 * SIGMA
+                    })
+                    .count(),
+            );
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+        assert_eq!(off[0], 0, "{kind:?}: refused at its stop");
+        assert_eq!(off[1], 1, "{kind:?}: the check sees it when let through");
+    }
+}

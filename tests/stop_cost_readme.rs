@@ -19,6 +19,11 @@ fn the_readme_shows_what_the_stop_cost_example_prints() {
         .nth(1)
         .and_then(|rest| rest.split("\n```").next())
         .expect("the README shows the example's output");
-    let lines = |t: &str| t.lines().map(str::trim_end).map(String::from).collect::<Vec<_>>();
+    let lines = |t: &str| {
+        t.lines()
+            .map(str::trim_end)
+            .map(String::from)
+            .collect::<Vec<_>>()
+    };
     assert_eq!(lines(block), lines(&printed));
 }

@@ -49,8 +49,9 @@ pub struct SimLabArgs {
     /// Inject a fault KIND:DEVICE[:after=K][:count=M][:seconds=S|:commands=C][:fraction=F];
     /// KIND lost-reply, garbled, x-invalid, disable, close, late (by S seconds, default
     /// 1.5, or held until C more commands came), duplicated, unsolicited, swapped,
-    /// stale or stall (the table's move ends F of its 0.001° tolerance short, default
-    /// 0.5); DEVICE ac1, ac2 or table; repeatable (docs/FORMAT.md §7.4).
+    /// stale, stall (the table's move ends F of its 0.001° tolerance short, default
+    /// 0.5), sign-flip, swap-xy or drop-digit (a measurement's value changed, its form
+    /// right); DEVICE ac1, ac2 or table; repeatable (docs/FORMAT.md §7.4).
     #[arg(long = "fault")]
     faults: Vec<String>,
     /// The face each simulated autocollimator reads at step 0, autocollimator 1 first

@@ -3,6 +3,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use super::fault::ValueFaults;
 use super::{Fault, FaultKind, STREAM_PERIOD, SimDevice, World, lock};
 
 /// A simulated ELCOMAT 3000 looking at the polygon of a shared [`World`].
@@ -20,10 +21,12 @@ pub struct ElcomatSim {
     x_invalid: Vec<(u64, u64)>,
     /// The last measurement's X and Y, arcsec.
     last: (f64, f64),
+    /// `sign-flip`, `swap-xy` and `drop-digit` faults.
+    values: ValueFaults,
 }
 
 impl ElcomatSim {
-    /// Autocollimator `ac` (1 or 2) of `world`, with its `x-invalid` faults.
+    /// Autocollimator `ac` (1 or 2) of `world`, with its `x-invalid` and value faults.
     pub fn new(world: Arc<Mutex<World>>, ac: u32, faults: &[Fault]) -> ElcomatSim {
         ElcomatSim {
             world,
@@ -31,6 +34,7 @@ impl ElcomatSim {
             stream: None,
             measurements: 0,
             last: (0.0, 0.0),
+            values: ValueFaults::of(faults),
             x_invalid: faults
                 .iter()
                 .filter(|f| f.kind == FaultKind::XInvalid)
@@ -50,6 +54,7 @@ impl ElcomatSim {
             }
         }
         self.last = (x, y);
+        let (x, y) = self.values.apply(before, x, y);
         format!("{kind} 00{axes} {x:.6} {y:.6}\r")
     }
 }

@@ -74,10 +74,17 @@ pub enum FaultKind {
     /// position tolerance ([`crate::lab::driver::POSITION_TOLERANCE_DEG`]) and reports
     /// where it stands: within the tolerance for a fraction below 1.
     Stall,
+    /// A measurement of the right form with its X negated (a sign lost on the way).
+    SignFlip,
+    /// A measurement of the right form with X and Y exchanged.
+    SwapXy,
+    /// A measurement of the right form with X's units digit dropped (`12.345678` →
+    /// `1.345678`).
+    DropDigit,
 }
 
 /// Every fault kind, in the order of the documentation.
-pub const FAULT_KINDS: [FaultKind; 11] = [
+pub const FAULT_KINDS: [FaultKind; 14] = [
     FaultKind::LostReply,
     FaultKind::Garbled,
     FaultKind::XInvalid,
@@ -89,6 +96,9 @@ pub const FAULT_KINDS: [FaultKind; 11] = [
     FaultKind::Swapped,
     FaultKind::Stale,
     FaultKind::Stall,
+    FaultKind::SignFlip,
+    FaultKind::SwapXy,
+    FaultKind::DropDigit,
 ];
 
 impl FaultKind {
@@ -96,7 +106,10 @@ impl FaultKind {
     /// device`.
     pub fn devices(self) -> &'static str {
         match self {
-            FaultKind::XInvalid => "an autocollimator",
+            FaultKind::XInvalid
+            | FaultKind::SignFlip
+            | FaultKind::SwapXy
+            | FaultKind::DropDigit => "an autocollimator",
             FaultKind::Disable | FaultKind::Stall => "the table",
             _ => "any device",
         }
@@ -105,7 +118,10 @@ impl FaultKind {
     /// Whether `device` can have this fault.
     pub fn applies_to(self, device: DeviceId) -> bool {
         match self {
-            FaultKind::XInvalid => device != DeviceId::Table,
+            FaultKind::XInvalid
+            | FaultKind::SignFlip
+            | FaultKind::SwapXy
+            | FaultKind::DropDigit => device != DeviceId::Table,
             FaultKind::Disable | FaultKind::Stall => device == DeviceId::Table,
             _ => true,
         }
@@ -125,6 +141,9 @@ impl FaultKind {
             FaultKind::Swapped => "swapped",
             FaultKind::Stale => "stale",
             FaultKind::Stall => "stall",
+            FaultKind::SignFlip => "sign-flip",
+            FaultKind::SwapXy => "swap-xy",
+            FaultKind::DropDigit => "drop-digit",
         }
     }
 
@@ -133,7 +152,12 @@ impl FaultKind {
     pub fn acts_on_replies(self) -> bool {
         !matches!(
             self,
-            FaultKind::XInvalid | FaultKind::Disable | FaultKind::Stall
+            FaultKind::XInvalid
+                | FaultKind::Disable
+                | FaultKind::Stall
+                | FaultKind::SignFlip
+                | FaultKind::SwapXy
+                | FaultKind::DropDigit
         )
     }
 }
@@ -191,7 +215,7 @@ pub enum FaultProblem {
     TooFewParts,
     /// A kind that is not one of [`FAULT_KINDS`].
     #[error(
-        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale, stall)"
+        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale, stall, sign-flip, swap-xy, drop-digit)"
     )]
     UnknownKind(String),
     /// A device that is not `ac1` … `ac16` or `table`.
@@ -380,5 +404,82 @@ impl fmt::Display for Fault {
             write!(f, ":fraction={}", self.stall_fraction)?;
         }
         Ok(())
+    }
+}
+
+/// A measurement's (X, Y) as a value fault leaves it: `sign-flip` negates X, `swap-xy`
+/// exchanges X and Y, `drop-digit` drops X's units digit (as written with six decimals:
+/// `12.345678` → `1.345678`, `-5.2` → `-.2`). Every other kind leaves them.
+pub(super) fn corrupt(kind: FaultKind, x: f64, y: f64) -> (f64, f64) {
+    match kind {
+        FaultKind::SignFlip => (-x, y),
+        FaultKind::SwapXy => (y, x),
+        FaultKind::DropDigit => {
+            let text = format!("{x:.6}");
+            let dropped = match text.find('.') {
+                Some(i) if i > 0 && text[..i].ends_with(|c: char| c.is_ascii_digit()) => {
+                    format!("{}{}", &text[..i - 1], &text[i..])
+                }
+                _ => text,
+            };
+            (dropped.parse().unwrap_or(x), y)
+        }
+        _ => (x, y),
+    }
+}
+
+/// The value faults of one autocollimator, armed after K measurements for M of them.
+#[derive(Debug, Clone, Default)]
+pub(super) struct ValueFaults(Vec<(FaultKind, u64, u64)>);
+
+impl ValueFaults {
+    /// The value faults among `faults`.
+    pub(super) fn of(faults: &[Fault]) -> ValueFaults {
+        ValueFaults(
+            faults
+                .iter()
+                .filter(|f| {
+                    matches!(
+                        f.kind,
+                        FaultKind::SignFlip | FaultKind::SwapXy | FaultKind::DropDigit
+                    )
+                })
+                .map(|f| (f.kind, f.after, f.count))
+                .collect(),
+        )
+    }
+
+    /// (X, Y) of the measurement after `before` measurements, as the armed faults leave
+    /// it.
+    pub(super) fn apply(&mut self, before: u64, x: f64, y: f64) -> (f64, f64) {
+        let (mut x, mut y) = (x, y);
+        for (kind, after, left) in &mut self.0 {
+            if before >= *after && *left > 0 {
+                *left -= 1;
+                (x, y) = corrupt(*kind, x, y);
+            }
+        }
+        (x, y)
+    }
+}
+
+#[cfg(test)]
+mod value_tests {
+    use super::*;
+
+    #[test]
+    fn value_faults_corrupt_as_documented() {
+        assert_eq!(corrupt(FaultKind::SignFlip, 1.5, 2.0), (-1.5, 2.0));
+        assert_eq!(corrupt(FaultKind::SwapXy, 1.5, 2.0), (2.0, 1.5));
+        assert_eq!(
+            corrupt(FaultKind::DropDigit, 12.345678, 2.0),
+            (1.345678, 2.0)
+        );
+        assert_eq!(corrupt(FaultKind::DropDigit, -5.25, 0.0), (-0.25, 0.0));
+        let mut v =
+            ValueFaults::of(&[Fault::new(FaultKind::SignFlip, DeviceId::Ac(1)).with_after(2)]);
+        assert_eq!(v.apply(0, 1.0, 0.0), (1.0, 0.0));
+        assert_eq!(v.apply(2, 1.0, 0.0), (-1.0, 0.0));
+        assert_eq!(v.apply(3, 1.0, 0.0), (1.0, 0.0), "count 1");
     }
 }

@@ -69,6 +69,9 @@
 //! | `swapped` | all | each of the next M replies is held back and sent after the reply that follows it |
 //! | `stale` | all | the next M replies are the previous reply again |
 //! | `stall` | table | the next M moves end `fraction=F` (default 0.5) of the position tolerance (0.001°) short of their target, where the encoder then reads |
+//! | `sign-flip` | autocollimators | the next M measurements have X negated, in the reply's right form |
+//! | `swap-xy` | autocollimators | the next M measurements have X and Y exchanged |
+//! | `drop-digit` | autocollimators | the next M measurements have X's units digit dropped (`12.345678` → `1.345678`) |
 
 mod config;
 mod elcomat;

@@ -15,6 +15,7 @@ use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use super::fault::ValueFaults;
 use super::world::{Refused, Stalls};
 use super::{Fault, FaultKind, SimDevice, World, lock};
 use crate::lab::profile::{
@@ -47,6 +48,7 @@ enum Kind {
         /// Status field values by (X valid, Y valid).
         status: BTreeMap<(bool, bool), Option<String>>,
         x_invalid: Vec<(u64, u64)>,
+        values: ValueFaults,
         last: (f64, f64),
     },
     Table {
@@ -163,6 +165,7 @@ impl ProfileSim {
                     .filter(|f| f.kind == FaultKind::XInvalid)
                     .map(|f| (f.after, f.count))
                     .collect(),
+                values: ValueFaults::of(faults),
                 last: (0.0, 0.0),
             },
             events: 0,
@@ -279,6 +282,7 @@ impl ProfileSim {
             profile,
             status,
             x_invalid,
+            values,
             last,
         } = &mut self.device
         else {
@@ -292,6 +296,7 @@ impl ProfileSim {
             }
         }
         *last = (x, y);
+        let (x, y) = values.apply(before, x, y);
         let valid = (axes & 1 != 0, axes & 2 != 0);
         let status_value = status.get(&valid).cloned().flatten();
         profile.measure.reply.render(&|f| match f.name.as_str() {
