@@ -218,3 +218,40 @@ fn a_silent_autocollimator_stops_the_run_and_resume_completes_it() {
             .starts_with("instrument-error: ")
     );
 }
+
+#[test]
+fn replies_padded_with_nul_bytes_give_the_right_readings() {
+    // Every reply of every device padded with NUL bytes, before it and after its
+    // terminator: the run completes, one move per stop, and solves to the lab's truth.
+    let dir = scratch("nul-padding");
+    let lab = SimLab::start(
+        &dir,
+        &[
+            "--fault",
+            "nul-padding:ac1",
+            "--fault",
+            "nul-padding:ac2",
+            "--fault",
+            "nul-padding:table",
+        ],
+    );
+    let out = dir.join("run");
+    let mut args = lab.run_args(&out, &DESIGN);
+    args.push("-q".into());
+    let result = polycal(&args);
+    assert!(result.status.success(), "{}", stderr(&result));
+    assert_complete(&out, &settings());
+    assert_solves_to_truth(&out, &lab.truth);
+    let sessions = sessions(&out);
+    assert_moves_follow_plan(&sessions[0], &settings(), 0);
+    assert_eq!(moves(&sessions[0]).len(), 18, "one move per stop");
+    assert_eq!(manifest(&out)["outcome"], "completed");
+    // No reply was refused, timed out or discarded: the padding is invisible.
+    for r in &sessions[0] {
+        assert!(
+            !["timeout", "discarded", "refused", "error"].contains(&r["event"].as_str().unwrap()),
+            "{r:?}"
+        );
+        assert!(!r["text"].as_str().unwrap().contains('\0'), "{r:?}");
+    }
+}

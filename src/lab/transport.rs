@@ -6,7 +6,9 @@
 //!
 //! Lines are split at CR or LF (the ELCOMAT ends replies with CR, the SMC100 with CR LF);
 //! empty lines are skipped, and a line longer than [`MAX_LINE_BYTES`] bytes is cut there
-//! (it cannot be a valid reply, and the buffer must not grow without end). Bytes that are
+//! (it cannot be a valid reply, and the buffer must not grow without end). NUL bytes are
+//! dropped as they arrive: a device that pads its replies with them (before a reply or
+//! after its terminator) gives the same lines as one that does not. Bytes that are
 //! not UTF-8 are replaced (`U+FFFD`): a garbled reply stays visible, never panics.
 //!
 //! There is one implementation, [`StreamTransport`], over any [`ByteStream`]: every
@@ -131,6 +133,12 @@ struct LineBuffer {
 }
 
 impl LineBuffer {
+    /// Appends bytes received, without their NUL bytes (pad bytes, never part of a reply).
+    fn extend(&mut self, received: &[u8]) {
+        self.bytes
+            .extend(received.iter().copied().filter(|&b| b != 0));
+    }
+
     /// Takes the next complete non-empty line, if there is one.
     fn take_line(&mut self) -> Option<String> {
         loop {
@@ -261,7 +269,7 @@ impl<S: ByteStream> Transport for StreamTransport<S> {
             let got_data = match self.stream.receive(&mut chunk, remaining) {
                 Ok(0) => return Err(closed(&self.name, "end of input while reading a reply")),
                 Ok(n) => {
-                    self.buffer.bytes.extend_from_slice(&chunk[..n]);
+                    self.buffer.extend(&chunk[..n]);
                     true
                 }
                 Err(e) if is_no_data(&e) => false,
@@ -290,7 +298,7 @@ impl<S: ByteStream> Transport for StreamTransport<S> {
         for _ in 0..MAX_DRAIN_READS {
             match self.stream.receive(&mut chunk, Duration::ZERO) {
                 Ok(0) => return Err(closed(&self.name, "end of input while draining it")),
-                Ok(n) => self.buffer.bytes.extend_from_slice(&chunk[..n]),
+                Ok(n) => self.buffer.extend(&chunk[..n]),
                 Err(e) if is_no_data(&e) => break,
                 Err(e) => return Err(port_error(&self.name, "draining the input", e)),
             }

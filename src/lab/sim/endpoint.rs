@@ -6,7 +6,7 @@ use std::fmt;
 use std::io::{self, Read, Write};
 use std::time::{Duration, Instant};
 
-use super::{Fault, FaultKind};
+use super::{Fault, FaultKind, fault::NUL_PADDING};
 
 /// A simulated device: answers command lines.
 pub trait SimDevice: Send {
@@ -119,7 +119,13 @@ impl Endpoint {
         let mut before = String::new();
         let mut copies = 1;
         let mut hold = false;
+        let mut pad = false;
         for armed in &mut self.faults {
+            if armed.fault.kind == FaultKind::NulPadding {
+                // Every reply once armed: `count` does not run out.
+                pad |= events >= armed.fault.after;
+                continue;
+            }
             if armed.left == 0 || events < armed.fault.after {
                 continue;
             }
@@ -146,7 +152,13 @@ impl Endpoint {
         }
         let mut bytes = before.into_bytes();
         for _ in 0..copies {
+            if pad {
+                bytes.extend_from_slice(NUL_PADDING);
+            }
             bytes.extend_from_slice(text.as_bytes());
+            if pad {
+                bytes.extend_from_slice(NUL_PADDING);
+            }
         }
         if let Some(held) = self.held.take() {
             bytes.extend(held.into_bytes());

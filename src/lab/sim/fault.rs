@@ -68,10 +68,16 @@ pub enum FaultKind {
     Swapped,
     /// The previous reply is sent again instead of the reply (a stale value).
     Stale,
+    /// Every reply (from the fault's `after` on, whatever its `count`) is padded with NUL
+    /// bytes: [`NUL_PADDING`] before it and after its terminator.
+    NulPadding,
 }
 
+/// The NUL bytes a `nul-padding` fault puts before a reply and after its terminator.
+pub const NUL_PADDING: &[u8] = b"\0\0\0";
+
 /// Every fault kind, in the order of the documentation.
-pub const FAULT_KINDS: [FaultKind; 10] = [
+pub const FAULT_KINDS: [FaultKind; 11] = [
     FaultKind::LostReply,
     FaultKind::Garbled,
     FaultKind::XInvalid,
@@ -82,6 +88,7 @@ pub const FAULT_KINDS: [FaultKind; 10] = [
     FaultKind::Unsolicited,
     FaultKind::Swapped,
     FaultKind::Stale,
+    FaultKind::NulPadding,
 ];
 
 impl FaultKind {
@@ -117,6 +124,7 @@ impl FaultKind {
             FaultKind::Unsolicited => "unsolicited",
             FaultKind::Swapped => "swapped",
             FaultKind::Stale => "stale",
+            FaultKind::NulPadding => "nul-padding",
         }
     }
 
@@ -171,7 +179,7 @@ pub enum FaultProblem {
     TooFewParts,
     /// A kind that is not one of [`FAULT_KINDS`].
     #[error(
-        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale)"
+        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale, nul-padding)"
     )]
     UnknownKind(String),
     /// A device that is not `ac1` … `ac16` or `table`.

@@ -68,6 +68,7 @@
 //! | `unsolicited` | all | before each of the next M replies, a line in the form of a reply that nothing asked for (an autocollimator: its last measurement + 99″; the table: its position + 1°) |
 //! | `swapped` | all | each of the next M replies is held back and sent after the reply that follows it |
 //! | `stale` | all | the next M replies are the previous reply again |
+//! | `nul-padding` | all | every reply (M ignored) is padded with NUL bytes, three before it and three after its terminator |
 
 mod config;
 mod elcomat;
@@ -85,7 +86,9 @@ use std::time::Duration;
 pub use config::LabConfig;
 pub use elcomat::ElcomatSim;
 pub use endpoint::{Endpoint, SimDevice, SimStream};
-pub use fault::{DEFAULT_LATE, DeviceId, FAULT_KINDS, Fault, FaultError, FaultKind, FaultProblem};
+pub use fault::{
+    DEFAULT_LATE, DeviceId, FAULT_KINDS, Fault, FaultError, FaultKind, FaultProblem, NUL_PADDING,
+};
 #[cfg(unix)]
 pub use lab::{Lab, LabPaths};
 pub use smc100::Smc100Sim;
