@@ -352,3 +352,88 @@ fn a_planned_design_of_two_mountings_is_run_mounting_by_mounting() {
 fn strs(v: &[String]) -> Vec<&str> {
     v.iter().map(String::as_str).collect()
 }
+
+/// Asserts that nothing was measured: the run directory not created (or empty) and no
+/// move sent to the lab's table (none logged, nothing created to log it in).
+fn assert_nothing_moved(out: &std::path::Path) {
+    let entries = std::fs::read_dir(out).map(|d| d.count()).unwrap_or(0);
+    assert_eq!(entries, 0, "the run directory {} is empty", out.display());
+}
+
+#[test]
+fn a_design_that_loses_harmonics_is_refused_before_the_first_move() {
+    // Autocollimators at faces 1 and 5 of 8: face offsets 0 and 4 lose harmonics 2, 4, 6.
+    let dir = scratch("lost-harmonics");
+    let lab = SimLab::start(&dir, &["--ac-faces", "1,5", "--cycles", "1", "--closing"]);
+    let out = dir.join("run");
+    let one = [
+        "--faces",
+        "8",
+        "--cycles",
+        "1",
+        "--closing",
+        "--ac-faces",
+        "1,5",
+    ];
+    let args = lab.run_args(&out, &[&one[..], &RUN_OPTIONS[..]].concat());
+    let text = assert_error(&polycal(&args), "harmonics 2, 4 and 6");
+    assert!(text.contains("run from a plan"), "{text}");
+    assert!(text.contains("--plan"), "{text}");
+    assert_nothing_moved(&out);
+
+    // The same design from a plan is refused with the plan's file named.
+    // `plan` writes the design and warns that it cannot calibrate (status 1).
+    let planned_out = polycal(&[
+        "plan",
+        "--sigma",
+        "0.05",
+        "--format",
+        "json",
+        "--design",
+        "name=lost;faces=8;ac-faces=1,5;cycles=1;closing=true",
+    ]);
+    assert!(stderr(&planned_out).contains("cannot calibrate"));
+    let plan = dir.join("lost.json");
+    std::fs::write(&plan, &planned_out.stdout).unwrap();
+    let mut with_plan = vec!["--plan", plan.to_str().unwrap()];
+    with_plan.extend_from_slice(&RUN_OPTIONS);
+    let text = assert_error(
+        &polycal(&lab.run_args(&out, &with_plan)),
+        "harmonics 2, 4 and 6",
+    );
+    assert!(text.contains("lost.json"), "{text}");
+    assert_nothing_moved(&out);
+}
+
+#[test]
+fn a_planned_design_whose_second_mounting_completes_the_first_is_run() {
+    // Faces 1 and 5 lose the even harmonics in the first mounting; the second, turned by
+    // one face, adds offsets 1 and 5: the whole plan is evaluable, so the first mounting
+    // is measured.
+    let dir = scratch("completed-by-plan");
+    let plan = planned(
+        &dir,
+        "plan.json",
+        &["name=two;faces=8;ac-faces=1,5;cycles=1;closing=true;setups=2;setup-shift=1"],
+    );
+    let lab = SimLab::start(
+        &dir,
+        &[
+            "--ac-faces",
+            "1,5",
+            "--cycles",
+            "1",
+            "--closing",
+            "--setups",
+            "2",
+            "--setup-shift",
+            "1",
+        ],
+    );
+    let out = dir.join("run");
+    let mut with_plan = vec!["--plan", plan.to_str().unwrap()];
+    with_plan.extend_from_slice(&RUN_OPTIONS);
+    let first = polycal(&lab.run_args(&out, &with_plan));
+    assert!(first.status.success(), "{}", stderr(&first));
+    assert_eq!(rows(&out).len(), 9 * 2, "the first mounting measured");
+}

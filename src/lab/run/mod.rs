@@ -105,7 +105,10 @@ pub use live::{
 };
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
 pub use measure::{Attendant, Instruments, Outcome, Progress, measure, measure_attended};
-pub use mounting::{MAX_MOUNTINGS, Mounting, MountingRecord, REMOUNT_TOLERANCE_DEG, Remount};
+pub use mounting::{
+    MAX_MOUNTINGS, Mounting, MountingRecord, REMOUNT_TOLERANCE_DEG, Remount, lost_harmonics,
+    unevaluable,
+};
 pub use plan_file::{PlanFileError, PlannedRun, run_from_plan};
 pub use repeat::EXTRA_READS;
 pub use settings::{
