@@ -167,8 +167,10 @@ fn assert_clean_stop(
 
 #[test]
 fn a_table_stuck_in_disable_stops_the_run_cleanly() {
-    let (out, _lab, result) = run_with_fault("disable", "disable:table:after=5");
-    // Five stops measured; the sixth move stopped midway in DISABLE from MOVING.
+    // Six moves — the pre-position before step 0 (approached clockwise) and five stops —
+    // then the move to the sixth stop stops midway in DISABLE from MOVING.
+    let (out, _lab, result) = run_with_fault("disable", "disable:table:after=6");
+    // Five stops measured.
     assert_clean_stop(&out, &result, "3D", 10);
     let m = moves(&sessions(&out)[0]);
     assert_eq!(m.len(), 6, "the failed move was sent once: {m:?}");

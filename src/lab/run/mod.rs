@@ -104,7 +104,10 @@ pub use live::{
     Suspect, ToMeasureAgain, to_measure_again,
 };
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
-pub use measure::{Attendant, Instruments, Outcome, Progress, measure, measure_attended};
+pub use measure::{
+    APPROACH_OVERSHOOT_DEG, Attendant, Instruments, Outcome, Progress, approach_overshoot_deg,
+    measure, measure_attended,
+};
 pub use mounting::{
     MAX_MOUNTINGS, Mounting, MountingRecord, REMOUNT_TOLERANCE_DEG, Remount, lost_harmonics,
     unevaluable,
