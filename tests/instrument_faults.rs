@@ -257,3 +257,52 @@ fn replies_padded_with_nul_bytes_give_the_right_readings() {
         assert!(!r["text"].as_str().unwrap().contains('\0'), "{r:?}");
     }
 }
+
+/// The longest gap between two consecutive table records of a session, seconds.
+fn longest_table_gap(session: &[Value]) -> f64 {
+    let t: Vec<f64> = of(session, "table")
+        .iter()
+        .map(|r| r["t"].as_f64().unwrap())
+        .collect();
+    t.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max)
+}
+
+#[test]
+fn a_table_holding_xoff_for_two_seconds_pauses_the_run() {
+    // After its third move the table holds the host's output with XOFF for 2 s (the
+    // SMC100's line has XON/XOFF): the next command waits for XON, and the run goes on.
+    let (out, lab, result) = run_with_fault("xoff-2s", "xoff:table:after=3:seconds=2");
+    assert!(result.status.success(), "{}", stderr(&result));
+    assert_complete(&out, &settings());
+    assert_solves_to_truth(&out, &lab.truth);
+    let sessions = sessions(&out);
+    assert_moves_follow_plan(&sessions[0], &settings(), 0);
+    assert_eq!(moves(&sessions[0]).len(), 18, "one move per stop");
+    assert_eq!(manifest(&out)["outcome"], "completed");
+    // The pause happened (the lab's 2 s, less the run's own time to its next command).
+    let gap = longest_table_gap(&sessions[0]);
+    assert!((1.5..5.0).contains(&gap), "longest gap {gap} s");
+    assert!(
+        !sessions[0]
+            .iter()
+            .any(|r| r["event"] == "timeout" || r["event"] == "error"),
+        "nothing timed out"
+    );
+}
+
+#[test]
+fn a_table_holding_xoff_past_the_limit_stops_the_run_naming_its_port() {
+    // 12 s of XOFF is more than the 10 s a write waits: one error naming the table's port.
+    let (out, lab, result) = run_with_fault("xoff-12s", "xoff:table:after=3:seconds=12");
+    let text = assert_error(&result, &lab.table);
+    assert!(text.contains("within 10 s"), "{text}");
+    assert!(text.contains("XOFF"), "{text}");
+    let m = manifest(&out);
+    assert!(
+        m["outcome"]
+            .as_str()
+            .unwrap()
+            .starts_with("instrument-error: "),
+        "{m:#}"
+    );
+}

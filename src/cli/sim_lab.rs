@@ -46,8 +46,9 @@ pub struct SimLabArgs {
     time_scale: f64,
     /// Inject a fault KIND:DEVICE[:after=K][:count=M][:seconds=S]; KIND lost-reply,
     /// garbled, x-invalid, disable, close, late (by S seconds, default 1.5),
-    /// duplicated, unsolicited, swapped, stale or nul-padding (every reply padded with
-    /// NUL bytes); DEVICE ac1, ac2 or table; repeatable
+    /// duplicated, unsolicited, swapped, stale, nul-padding (every reply padded with
+    /// NUL bytes) or xoff (the table holds the host's output with XOFF for S seconds,
+    /// then XON); DEVICE ac1, ac2 or table; repeatable
     /// (docs/FORMAT.md §7.4).
     #[arg(long = "fault")]
     faults: Vec<String>,

@@ -250,9 +250,19 @@ impl<S: ByteStream> Transport for StreamTransport<S> {
     }
 
     fn send(&mut self, text: &str) -> Result<(), InstrumentError> {
-        self.stream
-            .send_bytes(text.as_bytes())
-            .map_err(|e| port_error(&self.name, &format!("sending {text:?}"), e))
+        self.stream.send_bytes(text.as_bytes()).map_err(|e| {
+            let context = if e.kind() == io::ErrorKind::TimedOut {
+                // The serial port waits out a flow-control pause that long.
+                format!(
+                    "sending {text:?}: the device did not take it within {} s (flow control \
+                     held, XOFF, or the line stalled)",
+                    super::serial::WRITE_PAUSE_LIMIT_SECONDS
+                )
+            } else {
+                format!("sending {text:?}")
+            };
+            port_error(&self.name, &context, e)
+        })
     }
 
     fn read_line(&mut self, timeout: Duration) -> Result<Option<String>, InstrumentError> {

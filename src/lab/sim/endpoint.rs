@@ -121,6 +121,9 @@ impl Endpoint {
         let mut hold = false;
         let mut pad = false;
         for armed in &mut self.faults {
+            if armed.fault.kind == FaultKind::Xoff {
+                continue; // the serving loop's (`flow_pause`)
+            }
             if armed.fault.kind == FaultKind::NulPadding {
                 // Every reply once armed: `count` does not run out.
                 pad |= events >= armed.fault.after;
@@ -183,6 +186,19 @@ impl Endpoint {
             }
         }
         out
+    }
+
+    /// How long the device now holds the host's output with XOFF, once per reply an
+    /// `xoff` fault hits (armed after its `after` events, for `count` pauses); the
+    /// pseudo-terminal lab sends XOFF, then XON when the pause is over.
+    pub fn flow_pause(&mut self) -> Option<Duration> {
+        let events = self.device.events();
+        let armed = self
+            .faults
+            .iter_mut()
+            .find(|a| a.fault.kind == FaultKind::Xoff && a.left > 0 && events >= a.fault.after)?;
+        armed.left -= 1;
+        Some(armed.fault.late)
     }
 
     /// Output due now: replies on their way, and what the device sends by itself.

@@ -71,13 +71,17 @@ pub enum FaultKind {
     /// Every reply (from the fault's `after` on, whatever its `count`) is padded with NUL
     /// bytes: [`NUL_PADDING`] before it and after its terminator.
     NulPadding,
+    /// The device holds the host's output with XOFF for the fault's `seconds`, then sends
+    /// XON (a flow-control pause; only on the pseudo-terminal lab, whose host side honours
+    /// XON/XOFF when its line has software flow control, as the table's has).
+    Xoff,
 }
 
 /// The NUL bytes a `nul-padding` fault puts before a reply and after its terminator.
 pub const NUL_PADDING: &[u8] = b"\0\0\0";
 
 /// Every fault kind, in the order of the documentation.
-pub const FAULT_KINDS: [FaultKind; 11] = [
+pub const FAULT_KINDS: [FaultKind; 12] = [
     FaultKind::LostReply,
     FaultKind::Garbled,
     FaultKind::XInvalid,
@@ -89,6 +93,7 @@ pub const FAULT_KINDS: [FaultKind; 11] = [
     FaultKind::Swapped,
     FaultKind::Stale,
     FaultKind::NulPadding,
+    FaultKind::Xoff,
 ];
 
 impl FaultKind {
@@ -97,7 +102,7 @@ impl FaultKind {
     pub fn devices(self) -> &'static str {
         match self {
             FaultKind::XInvalid => "an autocollimator",
-            FaultKind::Disable => "the table",
+            FaultKind::Disable | FaultKind::Xoff => "the table",
             _ => "any device",
         }
     }
@@ -106,7 +111,7 @@ impl FaultKind {
     pub fn applies_to(self, device: DeviceId) -> bool {
         match self {
             FaultKind::XInvalid => device != DeviceId::Table,
-            FaultKind::Disable => device == DeviceId::Table,
+            FaultKind::Disable | FaultKind::Xoff => device == DeviceId::Table,
             _ => true,
         }
     }
@@ -125,6 +130,7 @@ impl FaultKind {
             FaultKind::Swapped => "swapped",
             FaultKind::Stale => "stale",
             FaultKind::NulPadding => "nul-padding",
+            FaultKind::Xoff => "xoff",
         }
     }
 
@@ -150,7 +156,8 @@ pub struct Fault {
     pub after: u64,
     /// How many replies or measurements it hits (all kinds but `disable` and `close`).
     pub count: u64,
-    /// How late a `late` fault's replies are ([`DEFAULT_LATE`] unless given).
+    /// How late a `late` fault's replies are, or how long an `xoff` fault holds the
+    /// host's output ([`DEFAULT_LATE`] unless given).
     pub late: Duration,
 }
 
@@ -179,7 +186,7 @@ pub enum FaultProblem {
     TooFewParts,
     /// A kind that is not one of [`FAULT_KINDS`].
     #[error(
-        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale, nul-padding)"
+        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale, nul-padding, xoff)"
     )]
     UnknownKind(String),
     /// A device that is not `ac1` … `ac16` or `table`.
@@ -201,8 +208,8 @@ pub enum FaultProblem {
     /// An option other than `after`, `count` and `seconds`.
     #[error("unknown option \"{0}\"")]
     UnknownOption(String),
-    /// `seconds=S` of a fault other than `late`.
-    #[error("seconds=S is an option of late")]
+    /// `seconds=S` of a fault other than `late` and `xoff`.
+    #[error("seconds=S is an option of late and xoff")]
     SecondsNotLate,
     /// `seconds=S` that is not a number of seconds from 0.001 to 3600.
     #[error("seconds \"{0}\" must be a number of seconds from 0.001 to 3600")]
@@ -245,7 +252,7 @@ impl FromStr for Fault {
                 .split_once('=')
                 .ok_or_else(|| bad(FaultProblem::NotAnOption(option.to_string())))?;
             if key == "seconds" {
-                if kind != FaultKind::Late {
+                if !matches!(kind, FaultKind::Late | FaultKind::Xoff) {
                     return Err(bad(FaultProblem::SecondsNotLate));
                 }
                 fault.late = match value.parse::<f64>() {
@@ -311,7 +318,7 @@ impl fmt::Display for Fault {
             self.after,
             self.count
         )?;
-        if self.kind == FaultKind::Late {
+        if matches!(self.kind, FaultKind::Late | FaultKind::Xoff) {
             write!(f, ":seconds={}", self.late.as_secs_f64())?;
         }
         Ok(())

@@ -52,7 +52,8 @@
 //!
 //! # Faults
 //!
-//! [`Fault`]s are injected per device: `KIND:DEVICE[:after=K][:count=M][:seconds=S]`. The device
+//! [`Fault`]s are injected per device: `KIND:DEVICE[:after=K][:count=M][:seconds=S]` (S of
+//! `late` and `xoff`). The device
 //! counts *events*, measurements for an autocollimator and move commands (`1PA`) for
 //! the table; a fault is armed once K events happened, and then:
 //!
@@ -69,6 +70,7 @@
 //! | `swapped` | all | each of the next M replies is held back and sent after the reply that follows it |
 //! | `stale` | all | the next M replies are the previous reply again |
 //! | `nul-padding` | all | every reply (M ignored) is padded with NUL bytes, three before it and three after its terminator |
+//! | `xoff` | table | after each of the next M replies, the device sends XOFF and holds the host's output `seconds=S` (default 1.5 s), then sends XON: a flow-control pause, on the pseudo-terminal lab only (the table's line has XON/XOFF) |
 
 mod config;
 mod elcomat;
