@@ -448,3 +448,254 @@ fn a_misstated_face_shift_stops_the_run_at_the_mountings_first_stop() {
     let settings = RunSettings::new(8, 2).with_closing(true);
     assert_eq!(places(&out), planned_places(&settings, &[0.0, 22.5]));
 }
+/// Asserts that nothing was measured: the run directory not created (or empty) and no
+/// move sent to the lab's table (none logged, nothing created to log it in).
+fn assert_nothing_moved(out: &std::path::Path) {
+    let entries = std::fs::read_dir(out).map(|d| d.count()).unwrap_or(0);
+    assert_eq!(entries, 0, "the run directory {} is empty", out.display());
+}
+
+#[test]
+fn a_design_that_loses_harmonics_is_refused_before_the_first_move() {
+    // Autocollimators at faces 1 and 5 of 8: face offsets 0 and 4 lose harmonics 2, 4, 6.
+    let dir = scratch("lost-harmonics");
+    let lab = SimLab::start(&dir, &["--ac-faces", "1,5", "--cycles", "1", "--closing"]);
+    let out = dir.join("run");
+    let one = [
+        "--faces",
+        "8",
+        "--cycles",
+        "1",
+        "--closing",
+        "--ac-faces",
+        "1,5",
+    ];
+    let args = lab.run_args(&out, &[&one[..], &RUN_OPTIONS[..]].concat());
+    let text = assert_error(&polycal(&args), "harmonics 2, 4 and 6");
+    assert!(text.contains("run from a plan"), "{text}");
+    assert!(text.contains("--plan"), "{text}");
+    assert_nothing_moved(&out);
+
+    // The same design from a plan is refused with the plan's file named.
+    // `plan` writes the design and warns that it cannot calibrate (status 1).
+    let planned_out = polycal(&[
+        "plan",
+        "--sigma",
+        "0.05",
+        "--format",
+        "json",
+        "--design",
+        "name=lost;faces=8;ac-faces=1,5;cycles=1;closing=true",
+    ]);
+    assert!(stderr(&planned_out).contains("cannot calibrate"));
+    let plan = dir.join("lost.json");
+    std::fs::write(&plan, &planned_out.stdout).unwrap();
+    let mut with_plan = vec!["--plan", plan.to_str().unwrap()];
+    with_plan.extend_from_slice(&RUN_OPTIONS);
+    let text = assert_error(
+        &polycal(&lab.run_args(&out, &with_plan)),
+        "harmonics 2, 4 and 6",
+    );
+    assert!(text.contains("lost.json"), "{text}");
+    assert_nothing_moved(&out);
+}
+
+#[test]
+fn a_planned_design_whose_second_mounting_completes_the_first_is_run() {
+    // Faces 1 and 5 lose the even harmonics in the first mounting; the second, turned by
+    // one face, adds offsets 1 and 5: the whole plan is evaluable, so the first mounting
+    // is measured.
+    let dir = scratch("completed-by-plan");
+    let plan = planned(
+        &dir,
+        "plan.json",
+        &["name=two;faces=8;ac-faces=1,5;cycles=1;closing=true;setups=2;setup-shift=1"],
+    );
+    let lab = SimLab::start(
+        &dir,
+        &[
+            "--ac-faces",
+            "1,5",
+            "--cycles",
+            "1",
+            "--closing",
+            "--setups",
+            "2",
+            "--setup-shift",
+            "1",
+        ],
+    );
+    let out = dir.join("run");
+    let mut with_plan = vec!["--plan", plan.to_str().unwrap()];
+    with_plan.extend_from_slice(&RUN_OPTIONS);
+    let first = polycal(&lab.run_args(&out, &with_plan));
+    assert!(first.status.success(), "{}", stderr(&first));
+    assert_eq!(rows(&out).len(), 9 * 2, "the first mounting measured");
+}
+
+/// The stops a session approached, in order, each with the position commanded just
+/// before its final move (`None` for the session's first move): every move followed by
+/// an autocollimator's query before the next move.
+fn approaches(session: &[serde_json::Value]) -> Vec<(f64, Option<f64>)> {
+    let position = |r: &serde_json::Value| -> Option<f64> {
+        let text = r["text"].as_str()?;
+        (r["event"] == "sent" && r["device"] == "table")
+            .then(|| text.strip_prefix("1PA"))??
+            .trim()
+            .parse()
+            .ok()
+    };
+    let mut out = Vec::new();
+    let mut previous: Option<f64> = None;
+    for (i, r) in session.iter().enumerate() {
+        let Some(target) = position(r) else { continue };
+        let rest = &session[i + 1..];
+        let next = rest
+            .iter()
+            .position(|e| position(e).is_some())
+            .unwrap_or(rest.len());
+        let read = rest[..next]
+            .iter()
+            .any(|e| e["device"].as_str().is_some_and(|d| d.starts_with("ac")));
+        if read {
+            out.push((target, previous));
+        }
+        previous = Some(target);
+    }
+    out
+}
+
+#[test]
+fn every_stop_is_approached_from_its_cycles_direction() {
+    use polycal::measurement::Direction;
+    // Three cycles, the second counter-clockwise; the reading of cycle 2, step 3,
+    // autocollimator 1 is 2″ off, so that a check measures it again.
+    let dir = scratch("approach");
+    let lab = SimLab::start(
+        &dir,
+        &[
+            "--cycles",
+            "3",
+            "--bidirectional",
+            "--noise",
+            "0.05",
+            "--seed",
+            "7",
+            "--outlier",
+            "2:3:1:2",
+        ],
+    );
+    let out = dir.join("run");
+    let mut args = lab.run_args(&out, &design(&["--bidirectional"]));
+    let cycles = args.iter().position(|a| a == "--cycles").unwrap() + 1;
+    args[cycles] = "3".into();
+    let result = polycal(&args);
+    // Completed, with a reading measured again: status 1.
+    assert_eq!(result.status.code(), Some(1), "{}", stderr(&result));
+    assert_eq!(manifest(&out)["outcome"], "completed");
+    let settings = RunSettings::new(8, 3)
+        .with_closing(true)
+        .with_bidirectional(true);
+    let plan = settings.plan();
+    let set = MeasurementSet::read_path(&out.join("measurements.csv"), None).unwrap();
+    // The outlier was measured again, in its own (counter-clockwise) cycle.
+    let m = manifest(&out);
+    let remeasured = m["remeasured"].as_array().unwrap();
+    assert_eq!(remeasured.len(), 1, "{m:#}");
+    assert_eq!(
+        (
+            &remeasured[0]["cycle"],
+            &remeasured[0]["step"],
+            &remeasured[0]["ac"]
+        ),
+        (&2.into(), &3.into(), &1.into())
+    );
+    let stored = set
+        .readings
+        .iter()
+        .find(|r| (r.cycle, r.step, r.ac) == (2, 3, 1))
+        .unwrap();
+    assert_eq!(stored.direction, Direction::Ccw);
+    let session = &sessions(&out)[0];
+    let visits = approaches(session);
+    // The planned stops, and after each cycle's check the stops it measured again
+    // (measured again or suspect, from the manifest), each in its reading's direction.
+    let direction_of = |cycle: u64| {
+        if cycle == 2 {
+            Direction::Ccw
+        } else {
+            Direction::Cw
+        }
+    };
+    let again: Vec<(u64, f64, Direction)> = m["remeasured"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .chain(m["suspect"].as_array().unwrap())
+        .map(|r| {
+            (
+                r["found_after_cycle"].as_u64().unwrap(),
+                r["step"].as_f64().unwrap() * 45.0,
+                direction_of(r["cycle"].as_u64().unwrap()),
+            )
+        })
+        .collect();
+    let mut directions: Vec<(f64, Direction)> = Vec::new();
+    for (i, s) in plan.iter().enumerate() {
+        directions.push((s.degrees(8), s.direction));
+        if plan.get(i + 1).is_none_or(|n| n.cycle != s.cycle) {
+            directions.extend(
+                again
+                    .iter()
+                    .filter(|a| a.0 == u64::from(s.cycle))
+                    .map(|a| (a.1, a.2)),
+            );
+        }
+    }
+    assert_eq!(visits.len(), directions.len(), "{visits:?}");
+    // Among them the counter-clockwise reading, measured again after cycle 3.
+    assert!(again.contains(&(3, 135.0, Direction::Ccw)), "{again:?}");
+    for (i, ((target, previous), (planned, direction))) in
+        visits.iter().zip(&directions).enumerate()
+    {
+        assert!(
+            (target - planned).abs() < 1e-9,
+            "visit {i}: {target}°, not {planned}°"
+        );
+        let previous = previous.unwrap_or_else(|| panic!("visit {i}: no move before"));
+        match direction {
+            Direction::Cw => assert!(previous < *target, "visit {i} cw from {previous}°"),
+            Direction::Ccw => assert!(previous > *target, "visit {i} ccw from {previous}°"),
+        }
+    }
+    // The first stop of the counter-clockwise cycle (360°, where cycle 1 ended) is
+    // approached from above, and the table was sent there again.
+    assert_eq!(plan[9].direction, Direction::Ccw);
+    assert_eq!(visits[9].0, 360.0);
+    assert!(visits[9].1.is_some_and(|p| p > 360.0));
+    // Every stored reading of a ccw cycle is labelled so.
+    for r in &set.readings {
+        let want = if r.cycle == 2 {
+            Direction::Ccw
+        } else {
+            Direction::Cw
+        };
+        assert_eq!(r.direction, want, "{r:?}");
+    }
+    // The reading that replaced the outlier was taken after a move onto 135° from a
+    // position above it (the traffic's `remeasured` record follows its readings).
+    let i = session
+        .iter()
+        .position(|r| r["event"] == "remeasured")
+        .unwrap();
+    let last_two: Vec<f64> = session[..i]
+        .iter()
+        .rev()
+        .filter_map(|r| r["text"].as_str()?.strip_prefix("1PA"))
+        .take(2)
+        .map(|t| t.trim().parse::<f64>().unwrap())
+        .collect();
+    assert_eq!(last_two[0], 135.0);
+    assert!(last_two[1] > 135.0, "{last_two:?}");
+    assert_solves_to_truth(&out, &lab.truth);
+}

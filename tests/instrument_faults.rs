@@ -167,8 +167,10 @@ fn assert_clean_stop(
 
 #[test]
 fn a_table_stuck_in_disable_stops_the_run_cleanly() {
-    let (out, _lab, result) = run_with_fault("disable", "disable:table:after=5");
-    // Five stops measured; the sixth move stopped midway in DISABLE from MOVING.
+    // Six moves — the pre-position before step 0 (approached clockwise) and five stops —
+    // then the move to the sixth stop stops midway in DISABLE from MOVING.
+    let (out, _lab, result) = run_with_fault("disable", "disable:table:after=6");
+    // Five stops measured.
     assert_clean_stop(&out, &result, "3D", 10);
     let m = moves(&sessions(&out)[0]);
     assert_eq!(m.len(), 6, "the failed move was sent once: {m:?}");
@@ -217,5 +219,91 @@ fn a_silent_autocollimator_stops_the_run_and_resume_completes_it() {
             .as_str()
             .unwrap()
             .starts_with("instrument-error: ")
+    );
+}
+
+#[test]
+fn replies_padded_with_nul_bytes_give_the_right_readings() {
+    // Every reply of every device padded with NUL bytes, before it and after its
+    // terminator: the run completes, one move per stop, and solves to the lab's truth.
+    let dir = scratch("nul-padding");
+    let lab = SimLab::start(
+        &dir,
+        &[
+            "--fault",
+            "nul-padding:ac1",
+            "--fault",
+            "nul-padding:ac2",
+            "--fault",
+            "nul-padding:table",
+        ],
+    );
+    let out = dir.join("run");
+    let mut args = lab.run_args(&out, &DESIGN);
+    args.push("-q".into());
+    let result = polycal(&args);
+    assert!(result.status.success(), "{}", stderr(&result));
+    assert_complete(&out, &settings());
+    assert_solves_to_truth(&out, &lab.truth);
+    let sessions = sessions(&out);
+    assert_moves_follow_plan(&sessions[0], &settings(), 0);
+    assert_eq!(moves(&sessions[0]).len(), 18, "one move per stop");
+    assert_eq!(manifest(&out)["outcome"], "completed");
+    // No reply was refused, timed out or discarded: the padding is invisible.
+    for r in &sessions[0] {
+        assert!(
+            !["timeout", "discarded", "refused", "error"].contains(&r["event"].as_str().unwrap()),
+            "{r:?}"
+        );
+        assert!(!r["text"].as_str().unwrap().contains('\0'), "{r:?}");
+    }
+}
+
+/// The longest gap between two consecutive table records of a session, seconds.
+fn longest_table_gap(session: &[Value]) -> f64 {
+    let t: Vec<f64> = of(session, "table")
+        .iter()
+        .map(|r| r["t"].as_f64().unwrap())
+        .collect();
+    t.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max)
+}
+
+#[test]
+fn a_table_holding_xoff_for_two_seconds_pauses_the_run() {
+    // After its third move the table holds the host's output with XOFF for 2 s (the
+    // SMC100's line has XON/XOFF): the next command waits for XON, and the run goes on.
+    let (out, lab, result) = run_with_fault("xoff-2s", "xoff:table:after=3:seconds=2");
+    assert!(result.status.success(), "{}", stderr(&result));
+    assert_complete(&out, &settings());
+    assert_solves_to_truth(&out, &lab.truth);
+    let sessions = sessions(&out);
+    assert_moves_follow_plan(&sessions[0], &settings(), 0);
+    assert_eq!(moves(&sessions[0]).len(), 18, "one move per stop");
+    assert_eq!(manifest(&out)["outcome"], "completed");
+    // The pause happened (the lab's 2 s, less the run's own time to its next command).
+    let gap = longest_table_gap(&sessions[0]);
+    assert!((1.5..5.0).contains(&gap), "longest gap {gap} s");
+    assert!(
+        !sessions[0]
+            .iter()
+            .any(|r| r["event"] == "timeout" || r["event"] == "error"),
+        "nothing timed out"
+    );
+}
+
+#[test]
+fn a_table_holding_xoff_past_the_limit_stops_the_run_naming_its_port() {
+    // 12 s of XOFF is more than the 10 s a write waits: one error naming the table's port.
+    let (out, lab, result) = run_with_fault("xoff-12s", "xoff:table:after=3:seconds=12");
+    let text = assert_error(&result, &lab.table);
+    assert!(text.contains("within 10 s"), "{text}");
+    assert!(text.contains("XOFF"), "{text}");
+    let m = manifest(&out);
+    assert!(
+        m["outcome"]
+            .as_str()
+            .unwrap()
+            .starts_with("instrument-error: "),
+        "{m:#}"
     );
 }

@@ -51,7 +51,9 @@ pub struct SimLabArgs {
     /// 1.5, or held until C more commands came), duplicated, unsolicited, swapped,
     /// stale, stall (the table's move ends F of its 0.001° tolerance short, default
     /// 0.5), sign-flip, swap-xy or drop-digit (a measurement's value changed, its form
-    /// right); DEVICE ac1, ac2 or table; repeatable (docs/FORMAT.md §7.4).
+    /// right), nul-padding (every reply padded with NUL bytes) or xoff (the table holds
+    /// the host's output with XOFF for S seconds, then XON); DEVICE ac1, ac2 or table;
+    /// repeatable (docs/FORMAT.md §7.4).
     #[arg(long = "fault")]
     faults: Vec<String>,
     /// The face each simulated autocollimator reads at step 0, autocollimator 1 first

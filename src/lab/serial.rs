@@ -21,8 +21,18 @@ impl std::fmt::Debug for SerialStream {
     }
 }
 
+/// How long a write waits out a flow-control pause (the device holding XOFF, or a full
+/// output buffer) before it fails, seconds: a device may pause the host for a moment
+/// (the SMC100 while it is busy); one that holds it longer than this is not answering.
+pub const WRITE_PAUSE_LIMIT_SECONDS: u64 = 10;
+
 impl ByteStream for SerialStream {
+    /// Writes with the port's timeout set to [`WRITE_PAUSE_LIMIT_SECONDS`] (the reads set
+    /// their own before each read, down to none while draining): a write stopped by XOFF
+    /// waits for XON that long, then fails as `TimedOut`.
     fn send_bytes(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.port
+            .set_timeout(Duration::from_secs(WRITE_PAUSE_LIMIT_SECONDS))?;
         self.port.write_all(bytes)?;
         self.port.flush()
     }

@@ -6,7 +6,9 @@
 //!
 //! Lines are split at CR or LF (the ELCOMAT ends replies with CR, the SMC100 with CR LF);
 //! empty lines are skipped, and a line longer than [`MAX_LINE_BYTES`] bytes is cut there
-//! (it cannot be a valid reply, and the buffer must not grow without end). Bytes that are
+//! (it cannot be a valid reply, and the buffer must not grow without end). NUL bytes are
+//! dropped as they arrive: a device that pads its replies with them (before a reply or
+//! after its terminator) gives the same lines as one that does not. Bytes that are
 //! not UTF-8 are replaced (`U+FFFD`): a garbled reply stays visible, never panics.
 //!
 //! There is one implementation, [`StreamTransport`], over any [`ByteStream`]: every
@@ -145,6 +147,12 @@ struct LineBuffer {
 }
 
 impl LineBuffer {
+    /// Appends bytes received, without their NUL bytes (pad bytes, never part of a reply).
+    fn extend(&mut self, received: &[u8]) {
+        self.bytes
+            .extend(received.iter().copied().filter(|&b| b != 0));
+    }
+
     /// Takes the next complete non-empty line, if there is one.
     fn take_line(&mut self) -> Option<String> {
         loop {
@@ -256,9 +264,19 @@ impl<S: ByteStream> Transport for StreamTransport<S> {
     }
 
     fn send(&mut self, text: &str) -> Result<(), InstrumentError> {
-        self.stream
-            .send_bytes(text.as_bytes())
-            .map_err(|e| port_error(&self.name, &format!("sending {text:?}"), e))
+        self.stream.send_bytes(text.as_bytes()).map_err(|e| {
+            let context = if e.kind() == io::ErrorKind::TimedOut {
+                // The serial port waits out a flow-control pause that long.
+                format!(
+                    "sending {text:?}: the device did not take it within {} s (flow control \
+                     held, XOFF, or the line stalled)",
+                    super::serial::WRITE_PAUSE_LIMIT_SECONDS
+                )
+            } else {
+                format!("sending {text:?}")
+            };
+            port_error(&self.name, &context, e)
+        })
     }
 
     fn read_line(&mut self, timeout: Duration) -> Result<Option<String>, InstrumentError> {
@@ -275,7 +293,7 @@ impl<S: ByteStream> Transport for StreamTransport<S> {
             let got_data = match self.stream.receive(&mut chunk, remaining) {
                 Ok(0) => return Err(closed(&self.name, "end of input while reading a reply")),
                 Ok(n) => {
-                    self.buffer.bytes.extend_from_slice(&chunk[..n]);
+                    self.buffer.extend(&chunk[..n]);
                     true
                 }
                 Err(e) if is_no_data(&e) => false,
@@ -304,7 +322,7 @@ impl<S: ByteStream> Transport for StreamTransport<S> {
         for _ in 0..MAX_DRAIN_READS {
             match self.stream.receive(&mut chunk, Duration::ZERO) {
                 Ok(0) => return Err(closed(&self.name, "end of input while draining it")),
-                Ok(n) => self.buffer.bytes.extend_from_slice(&chunk[..n]),
+                Ok(n) => self.buffer.extend(&chunk[..n]),
                 Err(e) if is_no_data(&e) => break,
                 Err(e) => return Err(port_error(&self.name, "draining the input", e)),
             }

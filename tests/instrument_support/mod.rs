@@ -221,14 +221,44 @@ pub fn sessions(dir: &Path) -> Vec<Vec<Value>> {
     out
 }
 
-/// The positions of the `1PA` commands sent in a session, degrees.
-pub fn moves(session: &[Value]) -> Vec<f64> {
+/// The positions of every `1PA` command sent in a session, degrees, pre-positions
+/// included.
+pub fn all_moves(session: &[Value]) -> Vec<f64> {
     session
         .iter()
         .filter(|r| r["event"] == "sent" && r["device"] == "table")
         .filter_map(|r| r["text"].as_str()?.strip_prefix("1PA"))
         .map(|a| a.trim().parse().unwrap())
         .collect()
+}
+
+/// Whether a traffic record is a `1PA` command sent to the table.
+fn is_move(r: &Value) -> bool {
+    r["event"] == "sent"
+        && r["device"] == "table"
+        && r["text"].as_str().is_some_and(|t| t.starts_with("1PA"))
+}
+
+/// The positions of the `1PA` commands sent in a session onto stops, degrees: without
+/// the pre-positions from which a stop is approached in its cycle's direction (a move
+/// followed by another move before any autocollimator is asked anything).
+pub fn moves(session: &[Value]) -> Vec<f64> {
+    let mut out = Vec::new();
+    for (i, r) in session.iter().enumerate() {
+        if !is_move(r) {
+            continue;
+        }
+        let rest = &session[i + 1..];
+        let next_move = rest.iter().position(is_move).unwrap_or(rest.len());
+        let read_before = rest[..next_move]
+            .iter()
+            .any(|e| e["device"].as_str().is_some_and(|d| d.starts_with("ac")));
+        if read_before || next_move == rest.len() {
+            let text = r["text"].as_str().unwrap();
+            out.push(text["1PA".len()..].trim().parse().unwrap());
+        }
+    }
+    out
 }
 
 /// Asserts that a session sent exactly one move per stop, in the run's order, from stop

@@ -319,6 +319,7 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
     };
     let settings = planned.as_ref().map_or(settings, |p| p.settings.clone());
     let mounting = mounting(args, planned.as_ref())?;
+    evaluable(args, &settings, mounting, planned.as_ref())?;
     let query = QueryOptions::new(seconds("timeout", args.timeout)?, 3);
     let motion_timeout = seconds("motion-timeout", args.motion_timeout)?;
     let interrupts = Interrupts::install(out, args.out().join(run::MEASUREMENTS))?;
@@ -335,6 +336,53 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
     // From here on a second Ctrl-C leaves the last line to this run.
     interrupts.ending();
     result
+}
+
+/// Refuses, before anything moves, a design `solve` could not evaluate (the harmonics
+/// it loses, as `plan` words them): with `--plan`, the whole planned design (all its
+/// mountings); without, the run directory's mountings so far and this one, with the hint
+/// that a design whose later mountings complete it is run from a plan.
+fn evaluable(
+    args: &RunArgs,
+    settings: &RunSettings,
+    mounting: Option<Mounting>,
+    planned: Option<&run::PlannedRun>,
+) -> Result<()> {
+    if let Some(planned) = planned {
+        if let Some(why) = run::unevaluable(&planned.settings, &planned.mountings) {
+            let plan = args
+                .plan
+                .as_deref()
+                .unwrap_or(std::path::Path::new("--plan"));
+            bail!("{}: {why}", plan.display());
+        }
+        return Ok(());
+    }
+    // The run so far, when there is one to read (anything else is the run directory's
+    // own refusal, given when it is opened).
+    let so_far: Option<run::Manifest> = std::fs::read_to_string(args.out().join(run::MANIFEST))
+        .ok()
+        .and_then(|text| serde_json::from_str(&text).ok());
+    let (settings, mut mountings) = match &so_far {
+        Some(m) => (
+            &m.settings,
+            m.mountings.iter().map(|r| r.mounting).collect::<Vec<_>>(),
+        ),
+        None => (settings, Vec::new()),
+    };
+    match mounting {
+        Some(m) if !mountings.iter().any(|r| r.setup == m.setup) => mountings.push(m),
+        None if mountings.is_empty() => mountings.push(Mounting::default()),
+        _ => {}
+    }
+    if let Some(why) = run::unevaluable(settings, &mountings) {
+        bail!(
+            "{why}; nothing was measured: a design whose later mountings complete it is run \
+             from a plan (`polycal plan … --format json > plan.json`, then `polycal run --plan \
+             plan.json`)"
+        );
+    }
+    Ok(())
 }
 
 /// The mounting the options name: `--setup`, `--shift` and `--face-shift` (with

@@ -1,6 +1,10 @@
 //! The measuring loop: start and identify the instruments, then visit every remaining
 //! stop of the plan, read every autocollimator there until its readings agree
-//! (`repeat`), and put each reading on disk before the table moves again.
+//! (`repeat`), and put each reading on disk before the table moves again. Every stop is
+//! approached from its cycle's direction (a re-measured reading from its own): the last
+//! move onto it increases the angle in a clockwise cycle and decreases it in a
+//! counter-clockwise one, from a pre-position [`approach_overshoot_deg`] past the stop
+//! when the table is not already on that side.
 
 use std::fmt;
 use std::time::{Duration, Instant};
@@ -57,6 +61,58 @@ impl Outcome {
 
 /// The table's name in messages.
 pub(super) const TABLE: &str = "rotary table";
+
+/// How far past a stop the table is pre-positioned so that its last move onto the stop
+/// comes from the cycle's direction, degrees: 0.5°, or a quarter of the pitch when that
+/// is less (a pre-position is never another stop). Far more than any backlash of a
+/// rotary table, little enough not to cost time.
+pub const APPROACH_OVERSHOOT_DEG: f64 = 0.5;
+
+/// The overshoot of the pre-position before a stop of a polygon of `faces` faces,
+/// degrees: [`APPROACH_OVERSHOOT_DEG`] or a quarter of the pitch, the smaller.
+///
+/// ```
+/// use polycal::lab::run::approach_overshoot_deg;
+/// assert_eq!(approach_overshoot_deg(8), 0.5);
+/// assert_eq!(approach_overshoot_deg(1440), 0.0625);
+/// ```
+pub fn approach_overshoot_deg(faces: usize) -> f64 {
+    APPROACH_OVERSHOOT_DEG.min(360.0 / faces.max(1) as f64 / 4.0)
+}
+
+/// Moves the table onto `target_deg` so that its last move comes from `direction`
+/// (clockwise: increasing angle, counter-clockwise: decreasing). When the position last
+/// commanded (`commanded`, `None` when not known) is not on that side of the target, or
+/// is the target, the table first goes to a pre-position past the target by
+/// [`approach_overshoot_deg`] on that side. Every move is sent once (the driver's rule).
+/// Returns the position the table reports at the target; `commanded` follows every move.
+fn approach(
+    table: &mut dyn RotaryTable,
+    target_deg: f64,
+    direction: Direction,
+    faces: usize,
+    commanded: &mut Option<f64>,
+) -> Result<f64, InstrumentError> {
+    let from_its_side = commanded.is_some_and(|at| match direction {
+        Direction::Cw => at < target_deg,
+        Direction::Ccw => at > target_deg,
+    });
+    if !from_its_side {
+        let overshoot = approach_overshoot_deg(faces);
+        let pre_deg = match direction {
+            Direction::Cw => target_deg - overshoot,
+            Direction::Ccw => target_deg + overshoot,
+        };
+        // A move that failed leaves the table somewhere unknown.
+        *commanded = None;
+        table.move_to(pre_deg)?;
+        *commanded = Some(pre_deg);
+    }
+    *commanded = None;
+    let at = table.move_to(target_deg)?;
+    *commanded = Some(target_deg);
+    Ok(at)
+}
 
 /// Autocollimator `ac`'s name in messages, `autocollimator 3`.
 pub(super) fn role(ac: u32) -> String {
@@ -400,6 +456,9 @@ fn measure_stops(
     let mut refused = 0;
     let mut handled: Vec<Cell> = Vec::new();
     let plan = settings.plan();
+    // Where the table was last sent: not known at the start of a session, so the first
+    // stop is approached from a pre-position.
+    let mut commanded: Option<f64> = None;
     let mut progress_now =
         |run: &RunDir, stop: Stop, refused: usize, cycle_check: Option<CycleCheck>| {
             let done = run.readings_done();
@@ -438,6 +497,7 @@ fn measure_stops(
                     cycle,
                     &mut handled,
                     &mut refused,
+                    &mut commanded,
                 );
                 let check = match checked {
                     Ok(check) => check,
@@ -461,7 +521,15 @@ fn measure_stops(
         {
             return Outcome::FileError(format!("{}: {e}", run.dir.join(TRAFFIC).display()));
         }
-        let encoder = match table.move_to(mounting.table_deg(&stop, settings.faces)) {
+        let target = mounting.table_deg(&stop, settings.faces);
+        let approached = approach(
+            table,
+            target,
+            stop.direction,
+            settings.faces,
+            &mut commanded,
+        );
+        let encoder = match approached {
             Ok(p) => p,
             Err(e) => return Outcome::from_instrument(TABLE, e),
         };
@@ -620,6 +688,7 @@ fn check_cycle(
     cycle: u32,
     handled: &mut Vec<Cell>,
     refused: &mut usize,
+    commanded: &mut Option<f64>,
 ) -> Result<CycleCheck, Outcome> {
     let Devices { acs, table } = devices;
     let settings = run.manifest.settings.clone();
@@ -657,7 +726,15 @@ fn check_cycle(
             step: flagged.step,
             direction: flagged.direction,
         };
-        let encoder = match table.move_to(mounting.table_deg(&stop, settings.faces)) {
+        // Measured again from the reading's own direction.
+        let target = mounting.table_deg(&stop, settings.faces);
+        let encoder = match approach(
+            &mut *table,
+            target,
+            stop.direction,
+            settings.faces,
+            commanded,
+        ) {
             Ok(p) => p,
             Err(e) => return Err(Outcome::from_instrument(TABLE, e)),
         };

@@ -110,8 +110,14 @@ pub use live::{
     Suspect, ToMeasureAgain, to_measure_again, to_measure_again_judged,
 };
 pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
-pub use measure::{Attendant, Instruments, Outcome, Progress, measure, measure_attended};
-pub use mounting::{MAX_MOUNTINGS, Mounting, MountingRecord, REMOUNT_TOLERANCE_DEG, Remount};
+pub use measure::{
+    APPROACH_OVERSHOOT_DEG, Attendant, Instruments, Outcome, Progress, approach_overshoot_deg,
+    measure, measure_attended,
+};
+pub use mounting::{
+    MAX_MOUNTINGS, Mounting, MountingRecord, REMOUNT_TOLERANCE_DEG, Remount, lost_harmonics,
+    unevaluable,
+};
 pub use noise::{NOISE_FLOOR_ARCSEC, NoiseRecord, RepeatNoise};
 pub use plan_file::{PlanFileError, PlannedRun, run_from_plan};
 pub use repeat::EXTRA_READS;

@@ -195,6 +195,91 @@ pub struct Remount {
     pub faces: Vec<(u32, usize)>,
 }
 
+/// The Fourier harmonics (1 … N−1) of the pitch deviations and encoder errors that a
+/// run of `settings` in `mountings` cannot determine ([`crate::solve::lost_harmonics`] of
+/// its face offsets: autocollimator j in mounting m reads face step +
+/// `ac_faces[j-1] − 1 + face_shift`). Judged only when every mounting stands at shift 0:
+/// a shifted mounting reads other encoder positions, which `solve` judges from the
+/// readings (empty then, as for a design that loses nothing).
+///
+/// ```
+/// use polycal::lab::run::{Mounting, RunSettings, lost_harmonics};
+/// let s = RunSettings::new(8, 1).with_ac_faces(vec![1, 5]);
+/// assert_eq!(lost_harmonics(&s, &[Mounting::new(1)]), [2, 4, 6]);
+/// // A second mounting turned by one face completes it.
+/// let both = [Mounting::new(1), Mounting::new(2).with_face_shift(1)];
+/// assert!(lost_harmonics(&s, &both).is_empty());
+/// ```
+pub fn lost_harmonics(settings: &RunSettings, mountings: &[Mounting]) -> Vec<usize> {
+    let n = settings.faces;
+    if n < 2 || mountings.iter().any(|m| m.shift_deg != 0.0) {
+        return Vec::new();
+    }
+    let offsets: Vec<usize> = mountings
+        .iter()
+        .flat_map(|m| {
+            settings
+                .ac_faces
+                .iter()
+                .map(move |&f| (f.saturating_sub(1) + m.face_shift) % n)
+        })
+        .collect();
+    crate::solve::lost_harmonics(n, &offsets)
+}
+
+/// Why a run of `settings` in `mountings` cannot be evaluated, in the words of `polycal
+/// plan` (the harmonics it loses and the face each autocollimator reads); `None` when
+/// [`lost_harmonics`] finds nothing lost.
+pub fn unevaluable(settings: &RunSettings, mountings: &[Mounting]) -> Option<String> {
+    let lost = lost_harmonics(settings, mountings);
+    if lost.is_empty() {
+        return None;
+    }
+    let n = settings.faces;
+    let names: Vec<String> = lost.iter().map(ToString::to_string).collect();
+    let list = match names.as_slice() {
+        [one] => one.clone(),
+        [init @ .., last] => format!("{} and {last}", init.join(", ")),
+        [] => String::new(),
+    };
+    let reads: Vec<String> = mountings
+        .iter()
+        .flat_map(|m| {
+            settings.ac_faces.iter().enumerate().map(move |(j, &f)| {
+                format!(
+                    "setup {} ac {} reads face step+{}",
+                    m.setup,
+                    j + 1,
+                    (f.saturating_sub(1) + m.face_shift) % n + 1
+                )
+            })
+        })
+        .collect();
+    // Every offset differs from the first by a multiple of g faces (g = N / the period of
+    // the harmonics seen), as `plan` says it.
+    let g = n / lost.first().copied().unwrap_or(n).max(1);
+    let advice = if reads.len() > 1 {
+        format!(
+            "; here all offsets differ by multiples of {g} faces: add an autocollimator or a \
+             mounting whose offset differs by a number of faces sharing no factor with {n}"
+        )
+    } else {
+        String::new()
+    };
+    Some(format!(
+        "the design cannot determine every pitch deviation and encoder error: {} {list} of \
+         the pitch deviations and the encoder errors {} undetermined ({}; harmonic k is lost \
+         when k times every difference of face offsets is a multiple of {n}{advice})",
+        if lost.len() == 1 {
+            "harmonic"
+        } else {
+            "harmonics"
+        },
+        if lost.len() == 1 { "is" } else { "are" },
+        reads.join(", ")
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -227,6 +312,27 @@ mod tests {
             Mounting::new(2).with_face_shift(1).to_string(),
             "mounting 2 (shift 0°, turned 1 face)"
         );
+    }
+
+    #[test]
+    fn a_design_that_loses_harmonics_is_named_until_a_mounting_completes_it() {
+        let s = RunSettings::new(8, 1).with_ac_faces(vec![1, 5]);
+        let first = [Mounting::new(1)];
+        // Offsets 0 and 4 of 8: only the even harmonics' period 2 is seen.
+        assert_eq!(lost_harmonics(&s, &first), [2, 4, 6]);
+        let why = unevaluable(&s, &first).unwrap_or_default();
+        assert!(why.contains("harmonics 2, 4 and 6"), "{why}");
+        assert!(why.contains("setup 1 ac 2 reads face step+5"), "{why}");
+        assert!(why.contains("differ by multiples of 4 faces"), "{why}");
+        // A second mounting turned by 2 faces leaves offsets 0, 2, 4, 6: harmonic 4 lost.
+        let two = [Mounting::new(1), Mounting::new(2).with_face_shift(2)];
+        assert_eq!(lost_harmonics(&s, &two), [4]);
+        let three = [Mounting::new(1), Mounting::new(2).with_face_shift(1)];
+        assert!(unevaluable(&s, &three).is_none());
+        // The paper's design loses nothing; a shifted mounting is left to `solve`.
+        assert!(lost_harmonics(&RunSettings::new(8, 1), &first).is_empty());
+        let shifted = [Mounting::new(1), Mounting::new(2).with_shift_deg(22.5)];
+        assert!(lost_harmonics(&s, &shifted).is_empty());
     }
 
     #[test]

@@ -6,7 +6,7 @@ use std::fmt;
 use std::io::{self, Read, Write};
 use std::time::{Duration, Instant};
 
-use super::{Fault, FaultKind};
+use super::{Fault, FaultKind, fault::NUL_PADDING};
 
 /// A simulated device: answers command lines.
 pub trait SimDevice: Send {
@@ -167,7 +167,16 @@ impl Endpoint {
         let mut copies = 1;
         let mut hold = false;
         let mut held_for: Option<u32> = None;
+        let mut pad = false;
         for armed in &mut self.faults {
+            if armed.fault.kind == FaultKind::Xoff {
+                continue; // the serving loop's (`flow_pause`)
+            }
+            if armed.fault.kind == FaultKind::NulPadding {
+                // Every reply once armed: `count` does not run out.
+                pad |= events >= armed.fault.after;
+                continue;
+            }
             if armed.left == 0 || events < armed.fault.after {
                 continue;
             }
@@ -197,7 +206,13 @@ impl Endpoint {
         }
         let mut bytes = before.into_bytes();
         for _ in 0..copies {
+            if pad {
+                bytes.extend_from_slice(NUL_PADDING);
+            }
             bytes.extend_from_slice(text.as_bytes());
+            if pad {
+                bytes.extend_from_slice(NUL_PADDING);
+            }
         }
         if let Some(held) = self.held.take() {
             bytes.extend(held.into_bytes());
@@ -222,6 +237,19 @@ impl Endpoint {
             }
         }
         out
+    }
+
+    /// How long the device now holds the host's output with XOFF, once per reply an
+    /// `xoff` fault hits (armed after its `after` events, for `count` pauses); the
+    /// pseudo-terminal lab sends XOFF, then XON when the pause is over.
+    pub fn flow_pause(&mut self) -> Option<Duration> {
+        let events = self.device.events();
+        let armed = self
+            .faults
+            .iter_mut()
+            .find(|a| a.fault.kind == FaultKind::Xoff && a.left > 0 && events >= a.fault.after)?;
+        armed.left -= 1;
+        Some(armed.fault.late)
     }
 
     /// Output due now: replies on their way, and what the device sends by itself.

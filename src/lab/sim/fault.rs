@@ -81,10 +81,20 @@ pub enum FaultKind {
     /// A measurement of the right form with X's units digit dropped (`12.345678` →
     /// `1.345678`).
     DropDigit,
+    /// Every reply (from the fault's `after` on, whatever its `count`) is padded with NUL
+    /// bytes: [`NUL_PADDING`] before it and after its terminator.
+    NulPadding,
+    /// The device holds the host's output with XOFF for the fault's `seconds`, then sends
+    /// XON (a flow-control pause; only on the pseudo-terminal lab, whose host side honours
+    /// XON/XOFF when its line has software flow control, as the table's has).
+    Xoff,
 }
 
+/// The NUL bytes a `nul-padding` fault puts before a reply and after its terminator.
+pub const NUL_PADDING: &[u8] = b"\0\0\0";
+
 /// Every fault kind, in the order of the documentation.
-pub const FAULT_KINDS: [FaultKind; 14] = [
+pub const FAULT_KINDS: [FaultKind; 16] = [
     FaultKind::LostReply,
     FaultKind::Garbled,
     FaultKind::XInvalid,
@@ -99,6 +109,8 @@ pub const FAULT_KINDS: [FaultKind; 14] = [
     FaultKind::SignFlip,
     FaultKind::SwapXy,
     FaultKind::DropDigit,
+    FaultKind::NulPadding,
+    FaultKind::Xoff,
 ];
 
 impl FaultKind {
@@ -110,7 +122,7 @@ impl FaultKind {
             | FaultKind::SignFlip
             | FaultKind::SwapXy
             | FaultKind::DropDigit => "an autocollimator",
-            FaultKind::Disable | FaultKind::Stall => "the table",
+            FaultKind::Disable | FaultKind::Stall | FaultKind::Xoff => "the table",
             _ => "any device",
         }
     }
@@ -122,7 +134,7 @@ impl FaultKind {
             | FaultKind::SignFlip
             | FaultKind::SwapXy
             | FaultKind::DropDigit => device != DeviceId::Table,
-            FaultKind::Disable | FaultKind::Stall => device == DeviceId::Table,
+            FaultKind::Disable | FaultKind::Stall | FaultKind::Xoff => device == DeviceId::Table,
             _ => true,
         }
     }
@@ -144,6 +156,8 @@ impl FaultKind {
             FaultKind::SignFlip => "sign-flip",
             FaultKind::SwapXy => "swap-xy",
             FaultKind::DropDigit => "drop-digit",
+            FaultKind::NulPadding => "nul-padding",
+            FaultKind::Xoff => "xoff",
         }
     }
 
@@ -180,7 +194,8 @@ pub struct Fault {
     pub after: u64,
     /// How many replies or measurements it hits (all kinds but `disable` and `close`).
     pub count: u64,
-    /// How late a `late` fault's replies are ([`DEFAULT_LATE`] unless given).
+    /// How late a `late` fault's replies are, or how long an `xoff` fault holds the
+    /// host's output ([`DEFAULT_LATE`] unless given).
     pub late: Duration,
     /// How far short of its target a `stall` fault ends a move, as a fraction of the
     /// position tolerance ([`DEFAULT_STALL_FRACTION`] unless given).
@@ -215,7 +230,7 @@ pub enum FaultProblem {
     TooFewParts,
     /// A kind that is not one of [`FAULT_KINDS`].
     #[error(
-        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale, stall, sign-flip, swap-xy, drop-digit)"
+        "unknown kind \"{0}\" (kinds: lost-reply, garbled, x-invalid, disable, close, late, duplicated, unsolicited, swapped, stale, stall, sign-flip, swap-xy, drop-digit, nul-padding, xoff)"
     )]
     UnknownKind(String),
     /// A device that is not `ac1` … `ac16` or `table`.
@@ -237,8 +252,8 @@ pub enum FaultProblem {
     /// An option other than `after`, `count` and `seconds`.
     #[error("unknown option \"{0}\"")]
     UnknownOption(String),
-    /// `seconds=S` of a fault other than `late`.
-    #[error("seconds=S is an option of late")]
+    /// `seconds=S` of a fault other than `late` and `xoff`.
+    #[error("seconds=S is an option of late and xoff")]
     SecondsNotLate,
     /// `seconds=S` that is not a number of seconds from 0.001 to 3600.
     #[error("seconds \"{0}\" must be a number of seconds from 0.001 to 3600")]
@@ -313,7 +328,7 @@ impl FromStr for Fault {
                 continue;
             }
             if key == "seconds" {
-                if kind != FaultKind::Late {
+                if !matches!(kind, FaultKind::Late | FaultKind::Xoff) {
                     return Err(bad(FaultProblem::SecondsNotLate));
                 }
                 fault.late = match value.parse::<f64>() {
@@ -399,6 +414,9 @@ impl fmt::Display for Fault {
                 Some(c) => write!(f, ":commands={c}")?,
                 None => write!(f, ":seconds={}", self.late.as_secs_f64())?,
             }
+        }
+        if self.kind == FaultKind::Xoff {
+            write!(f, ":seconds={}", self.late.as_secs_f64())?;
         }
         if self.kind == FaultKind::Stall {
             write!(f, ":fraction={}", self.stall_fraction)?;

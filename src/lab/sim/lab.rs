@@ -246,14 +246,27 @@ fn release_exclusive(slave: &TTYPort) {
     let _ = slave.as_raw_fd();
 }
 
+/// XOFF (DC3): the receiver asks the sender to pause.
+const XOFF: u8 = 0x13;
+/// XON (DC1): the sender may go on.
+const XON: u8 = 0x11;
+
 fn serve(mut master: TTYPort, slave: TTYPort, mut endpoint: Endpoint, stop: &AtomicBool) {
     let _ = master.set_timeout(Duration::from_millis(10));
     let mut buf = [0u8; 512];
     let mut last_release = Instant::now();
+    // When an `xoff` fault's pause ends (XON due).
+    let mut xon_at: Option<Instant> = None;
     while !stop.load(Ordering::SeqCst) {
         let mut out = Vec::new();
+        let mut pause = None;
         match master.read(&mut buf) {
-            Ok(n) if n > 0 => out = endpoint.input(&buf[..n], Instant::now()),
+            Ok(n) if n > 0 => {
+                out = endpoint.input(&buf[..n], Instant::now());
+                if xon_at.is_none() {
+                    pause = endpoint.flow_pause();
+                }
+            }
             Ok(_) => std::thread::sleep(Duration::from_millis(10)),
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
             Err(_) => std::thread::sleep(Duration::from_millis(10)),
@@ -265,6 +278,15 @@ fn serve(mut master: TTYPort, slave: TTYPort, mut endpoint: Endpoint, stop: &Ato
         if !out.is_empty() {
             // A client that does not read must not stall the device: give up on a full buffer.
             let _ = master.write_all(&out);
+        }
+        if let Some(pause) = pause {
+            // After the reply: the host's next command waits until XON.
+            let _ = master.write_all(&[XOFF]);
+            xon_at = Some(Instant::now() + pause);
+        }
+        if xon_at.is_some_and(|at| Instant::now() >= at) {
+            let _ = master.write_all(&[XON]);
+            xon_at = None;
         }
         if last_release.elapsed() >= Duration::from_millis(100) {
             release_exclusive(&slave);

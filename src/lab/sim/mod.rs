@@ -52,7 +52,8 @@
 //!
 //! # Faults
 //!
-//! [`Fault`]s are injected per device: `KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F]`. The device
+//! [`Fault`]s are injected per device: `KIND:DEVICE[:after=K][:count=M][:seconds=S][:fraction=F]` (S of
+//! `late` and `xoff`). The device
 //! counts *events*, measurements for an autocollimator and move commands (`1PA`) for
 //! the table; a fault is armed once K events happened, and then:
 //!
@@ -72,6 +73,8 @@
 //! | `sign-flip` | autocollimators | the next M measurements have X negated, in the reply's right form |
 //! | `swap-xy` | autocollimators | the next M measurements have X and Y exchanged |
 //! | `drop-digit` | autocollimators | the next M measurements have X's units digit dropped (`12.345678` → `1.345678`) |
+//! | `nul-padding` | all | every reply (M ignored) is padded with NUL bytes, three before it and three after its terminator |
+//! | `xoff` | table | after each of the next M replies, the device sends XOFF and holds the host's output `seconds=S` (default 1.5 s), then sends XON: a flow-control pause, on the pseudo-terminal lab only (the table's line has XON/XOFF) |
 
 mod config;
 mod elcomat;
@@ -92,7 +95,7 @@ pub use elcomat::ElcomatSim;
 pub use endpoint::{Endpoint, SimDevice, SimStream};
 pub use fault::{
     DEFAULT_LATE, DEFAULT_STALL_FRACTION, DeviceId, FAULT_KINDS, Fault, FaultError, FaultKind,
-    FaultProblem,
+    FaultProblem, NUL_PADDING,
 };
 #[cfg(unix)]
 pub use lab::{Lab, LabPaths};
