@@ -268,8 +268,21 @@ impl ProfileSim {
             Kind::Ac { number, .. } => format!("polycal simulated {} SIM-{number}", self.name),
             Kind::Table { .. } => format!("polycal simulated {}", self.name),
         };
+        // A text field glued to a literal word (`ESP301{version:s}`) is written apart
+        // from it, as a device would (`ESP301 Version …`).
+        let text = template.as_str();
         template.render(&|f| match f.kind {
-            FieldKind::Text => who.clone(),
+            FieldKind::Text => {
+                let glued = text
+                    .find(&format!("{{{}:", f.name))
+                    .and_then(|i| text[..i].chars().last())
+                    .is_some_and(|c| c.is_alphanumeric());
+                if glued {
+                    format!(" {who}")
+                } else {
+                    who.clone()
+                }
+            }
             _ => placeholder(f),
         })
     }
