@@ -31,6 +31,7 @@ pub mod nuisance;
 pub mod residuals;
 mod search;
 pub mod selfcal;
+pub mod stop_scatter;
 
 use std::sync::Arc;
 
@@ -416,6 +417,10 @@ pub struct Diagnosis {
     pub before_sub_pitch: Option<SubPitchSolution>,
     /// For sub-pitch mountings: the final model likewise.
     pub after_sub_pitch: Option<SubPitchSolution>,
+    /// The scatter the autocollimators share at a stop beyond the final model
+    /// ([`stop_scatter`]), when it could be evaluated; when it is significant, `after`'s
+    /// u(α) carries it.
+    pub stop_scatter: Option<stop_scatter::StopScatter>,
 }
 
 /// The readings' rounding level: residual sums of squares below it are zero.
@@ -755,6 +760,20 @@ pub(crate) fn diagnose_base(
             notes.push(notes::band_limit(base.positions().faces));
         }
     }
+    // what the stops share and no position resolves enters u(α) (module stop_scatter)
+    let mut current = current;
+    let stop_scatter = (testable && !exact && !base.is_self_calibration())
+        .then(|| stop_scatter::stop_scatter(set, &current))
+        .flatten();
+    if let Some(scatter) = stop_scatter.as_ref().filter(|s| s.significant)
+        && let Some((sigma, _)) = current.sigma
+        && sigma > 0.0
+    {
+        current.cofactor = current
+            .cofactor
+            .with_encoder_variance((scatter.sigma_arcsec / sigma).powi(2));
+        notes.push(notes::stop_scatter(scatter, set.faces));
+    }
     let before_sub_pitch = base.sub_pitch_solution(&before);
     let after_sub_pitch = base.sub_pitch_solution(&current);
     Ok(Diagnosis {
@@ -770,6 +789,7 @@ pub(crate) fn diagnose_base(
         testable,
         notes,
         clock,
+        stop_scatter,
     })
 }
 

@@ -171,3 +171,19 @@ pub(super) fn band_limit(positions: usize) -> String {
         half = positions / 2
     )
 }
+
+/// The scatter the autocollimators share at a stop, carried into u(α).
+pub(super) fn stop_scatter(scatter: &super::stop_scatter::StopScatter, faces: usize) -> String {
+    format!(
+        "The readings of one stop share a scatter of {:.4}″ beyond the autocollimators' own noise ({:.4}″): F = {:.2} on {} and {} degrees of freedom, p = {:.1e}. It is the table's angle at the stop, not an autocollimator: a table that stops off its nominal angle over an encoder error of orders above the band limit N/2 = {} (an interpolation error, say), which {} positions cannot resolve, samples that error at another phase at every stop. The encoder error at the nominal angle was sampled by no stop, so u(α) carries this scatter: each u(α) is the fit's combined with {:.4}″. To resolve it, measure at more positions or stop the table at its nominal angle (its reported position within a small fraction of the encoder's signal period).",
+        scatter.sigma_arcsec,
+        scatter.noise_sigma_arcsec,
+        scatter.f_statistic,
+        scatter.dof_numerator,
+        scatter.dof_denominator,
+        scatter.p_value,
+        faces / 2,
+        faces,
+        scatter.sigma_arcsec,
+    )
+}

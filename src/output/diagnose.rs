@@ -164,6 +164,11 @@ pub struct DiagnoseReport {
     /// The lack-of-fit test of the final model against pure error, `null` when no cell is
     /// read more than once (an addition).
     pub lack_of_fit: Option<Value>,
+    /// The scatter the autocollimators share at a stop beyond the final model (an
+    /// addition, docs/FORMAT.md §5): `{"significant", "sigma", "noise_sigma", "F", "dof",
+    /// "dof_denominator", "p"}`, `null` when it could not be evaluated; when significant,
+    /// `after`'s `encoder_error_u` carries `sigma`.
+    pub stop_scatter: Option<Value>,
     /// Where structure is left when a check fails (an addition).
     pub structure: Vec<Value>,
     /// Terms tried and not added, with F, p and the reason (an addition).
@@ -566,6 +571,17 @@ impl DiagnoseReport {
                 .collect(),
             notes: diagnosis.notes.clone(),
             lack_of_fit: diagnosis.lack_of_fit.as_ref().map(lack_of_fit_json),
+            stop_scatter: diagnosis.stop_scatter.as_ref().map(|s| {
+                serde_json::json!({
+                    "significant": s.significant,
+                    "sigma": number(s.sigma_arcsec),
+                    "noise_sigma": number(s.noise_sigma_arcsec),
+                    "F": number(s.f_statistic),
+                    "dof": s.dof_numerator,
+                    "dof_denominator": s.dof_denominator,
+                    "p": number(s.p_value),
+                })
+            }),
             structure: diagnosis
                 .adequacy
                 .structure

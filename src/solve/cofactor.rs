@@ -61,6 +61,9 @@ use super::woodbury::LowRank;
 pub struct Cofactor {
     layout: ParameterLayout,
     repr: Repr,
+    /// A variance added to every encoder error in the closed gauge, in units of σ²:
+    /// `encoder_extra`·(I − J/N) on the α block ([`Cofactor::with_encoder_variance`]).
+    encoder_extra: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -529,6 +532,7 @@ impl Cofactor {
         Self {
             layout,
             repr: Repr::Dense(matrix),
+            encoder_extra: 0.0,
         }
     }
 
@@ -537,6 +541,7 @@ impl Cofactor {
         Self {
             layout,
             repr: Repr::Structured(Box::new(structured)),
+            encoder_extra: 0.0,
         }
     }
 
@@ -545,6 +550,7 @@ impl Cofactor {
         Self {
             layout,
             repr: Repr::Cosets(Box::new(structured)),
+            encoder_extra: 0.0,
         }
     }
 
@@ -584,6 +590,41 @@ impl Cofactor {
     ///
     /// When i or j is not below [`Cofactor::len`].
     pub fn entry(&self, i: usize, j: usize) -> f64 {
+        self.repr_entry(i, j) + self.encoder_extra_entry(i, j)
+    }
+
+    /// This cofactor with the variance `extra` (in units of σ², ≥ 0) added to every
+    /// encoder error in the closed gauge Σα = 0: `extra`·(I − J/N) on the α block, the
+    /// other blocks as they are. A variance the fit's residuals cannot show — the scatter
+    /// the autocollimators share at a stop, which no position resolves
+    /// ([`crate::diagnose::stop_scatter`]) — enters u(α), the covariance and every product
+    /// through it.
+    pub fn with_encoder_variance(mut self, extra: f64) -> Self {
+        self.encoder_extra += extra.max(0.0);
+        self
+    }
+
+    /// The variance added to every encoder error, in units of σ²
+    /// ([`Cofactor::with_encoder_variance`]; 0 for a fit alone).
+    pub fn encoder_variance(&self) -> f64 {
+        self.encoder_extra
+    }
+
+    fn encoder_extra_entry(&self, i: usize, j: usize) -> f64 {
+        if self.encoder_extra == 0.0 {
+            return 0.0;
+        }
+        let n = self.layout.faces;
+        let start = self.layout.encoder(0);
+        let block = start..start + n;
+        if !block.contains(&i) || !block.contains(&j) {
+            return 0.0;
+        }
+        let delta = if i == j { 1.0 } else { 0.0 };
+        self.encoder_extra * (delta - 1.0 / n as f64)
+    }
+
+    fn repr_entry(&self, i: usize, j: usize) -> f64 {
         match &self.repr {
             Repr::Dense(m) => m[(i, j)],
             Repr::Structured(s) => {
@@ -700,6 +741,19 @@ impl Cofactor {
     /// When x does not have [`Cofactor::len`] values.
     pub fn apply(&self, x: &[f64]) -> Vec<f64> {
         assert_eq!(x.len(), self.len(), "a vector of θ's length");
+        let mut out = self.repr_apply(x);
+        if self.encoder_extra != 0.0 {
+            let n = self.layout.faces;
+            let start = self.layout.encoder(0);
+            let mean = x[start..start + n].iter().sum::<f64>() / n as f64;
+            for p in start..start + n {
+                out[p] += self.encoder_extra * (x[p] - mean);
+            }
+        }
+        out
+    }
+
+    fn repr_apply(&self, x: &[f64]) -> Vec<f64> {
         match &self.repr {
             Repr::Dense(m) => (0..self.len())
                 .map(|i| m.row(i).iter().zip(x).map(|(a, b)| a * b).sum())
@@ -734,6 +788,20 @@ impl Cofactor {
     /// The whole matrix in θ. It takes [`Cofactor::dense_bytes`] of memory and
     /// O((2N + K + E)²·r) work when structured: for callers that need every entry.
     pub fn to_dense(&self) -> DMatrix<f64> {
+        let mut q = self.repr_dense();
+        if self.encoder_extra != 0.0 {
+            let n = self.layout.faces;
+            let start = self.layout.encoder(0);
+            for i in start..start + n {
+                for j in start..start + n {
+                    q[(i, j)] += self.encoder_extra_entry(i, j);
+                }
+            }
+        }
+        q
+    }
+
+    fn repr_dense(&self) -> DMatrix<f64> {
         match &self.repr {
             Repr::Dense(m) => m.clone(),
             Repr::Structured(s) => {
