@@ -22,6 +22,7 @@ pub mod base;
 pub mod candidates;
 pub mod clock;
 mod doubt;
+mod drift_shape;
 pub mod findings;
 pub mod geometry;
 pub mod identify;
@@ -44,10 +45,12 @@ use crate::uncertainty::monte_carlo::Progress;
 use base::Base;
 use candidates::Term;
 pub use clock::Clock;
+pub use drift_shape::{DriftKink, MAX_KINK_POSITIONS};
 use findings::final_effects;
 pub use identify::Alternative;
 use lack_of_fit::LackOfFit;
 use residuals::{Adequacy, AdequacyInputs, Check};
+pub use search::SearchStop;
 
 /// Options of [`diagnose`].
 #[derive(Clone)]
@@ -288,6 +291,9 @@ pub struct FoundEffect {
     pub shape: Vec<f64>,
     /// Their standard uncertainties, when the fit gives them.
     pub shape_u: Option<Vec<f64>>,
+    /// For a drift whose rate changes at a time the data locate: the kink (a continuous
+    /// piecewise-linear drift; `effect`'s value is the rate before it).
+    pub kink: Option<DriftKink>,
     /// Other explanations that fit the data as well ([`identify`]), best first.
     pub alternatives: Vec<Alternative>,
 }
@@ -329,6 +335,9 @@ pub enum Rejection {
     /// approximates a slow variation and can make β and α worse than the base model, so
     /// the final model leaves it out.
     LeftOutOfString,
+    /// A jump of a zero whose drift, given the shape the data demand (a higher order or a
+    /// kink), explains it: a jump found beside a drift of the wrong shape.
+    ExplainedByDriftShape,
 }
 
 /// The most jumps (`offset-step`) of one autocollimator's zero in one mounting that a
@@ -350,6 +359,9 @@ impl Rejection {
             Rejection::LeftOutWandering => "left out: the zero wanders in a way no term expresses",
             Rejection::LeftOutOfString => {
                 "left out: one of a string of jumps, a slow variation no term expresses"
+            }
+            Rejection::ExplainedByDriftShape => {
+                "explained by the drift's shape the data demand (a higher order or a kink)"
             }
         }
     }
@@ -416,6 +428,10 @@ pub struct Diagnosis {
     pub before_sub_pitch: Option<SubPitchSolution>,
     /// For sub-pitch mountings: the final model likewise.
     pub after_sub_pitch: Option<SubPitchSolution>,
+    /// The limit that ended the search while something more was significant; `None` when
+    /// it ended because nothing more was (or did not run). A stopped search is never
+    /// adequate (docs/FORMAT.md §5).
+    pub search_stopped: Option<SearchStop>,
 }
 
 /// The readings' rounding level: residual sums of squares below it are zero.
@@ -521,6 +537,7 @@ pub(crate) fn diagnose_base(
         jumps_exceeded,
         fit: current,
         lack_of_fit: mut lof_current,
+        stopped: search_stopped,
     } = if testable && !exact {
         search::run(set, base, &context, options, &before, tiny, &mut notes)
     } else {
@@ -555,6 +572,12 @@ pub(crate) fn diagnose_base(
             &mut tried,
         );
     }
+    // before a zero is called wandering, the drift shapes the data demand are tried
+    let shapes = if testable && !exact {
+        model.demanded_drift_shapes(options, tiny, &mut tried)
+    } else {
+        Vec::new()
+    };
     let (wandering, stability) = if testable && !exact {
         model.wandering(options, tiny)
     } else {
@@ -569,6 +592,12 @@ pub(crate) fn diagnose_base(
     if left_out_wandering {
         notes.extend(wandering.iter().map(|&ac| notes::wandering(ac)));
     }
+    notes.extend(
+        shapes
+            .iter()
+            .filter(|shape| !(left_out_wandering && wandering.contains(&shape.ac)))
+            .map(|shape| shape.note(clock)),
+    );
     let doubt::Model {
         terms,
         fit: current,
@@ -738,10 +767,18 @@ pub(crate) fn diagnose_base(
     for &(ac, setup) in &jumps_exceeded {
         notes.push(notes::string_of_jumps(ac, setup));
     }
+    if let Some(stop) = search_stopped {
+        search_stopped_check(stop, &mut adequacy, &mut notes);
+    }
     if let Some(lof) = &mut lof_current
         && base.is_off_grid()
     {
         lof.band_limit_order = Some(base.positions().faces / 2);
+    }
+    if let Some(lof) = &lof_current
+        && lof.too_good()
+    {
+        notes.push(notes::lack_of_fit_too_good(lof));
     }
     if let Some(lof) = &lof_current
         && !lof.passed()
@@ -770,7 +807,24 @@ pub(crate) fn diagnose_base(
         testable,
         notes,
         clock,
+        search_stopped,
     })
+}
+
+/// A search a limit ended is not certified: its check fails, and a note says why.
+fn search_stopped_check(stop: SearchStop, adequacy: &mut Adequacy, notes: &mut Vec<String>) {
+    adequacy.checks.push(Check {
+        name: format!(
+            "search ended because nothing more was significant (not a limit: {})",
+            stop.as_str()
+        ),
+        statistic: 1.0,
+        limit: 0.0,
+        passed: false,
+        stream: None,
+    });
+    adequacy.adequate = false;
+    notes.push(notes::search_stopped(stop));
 }
 
 fn same_effect(a: &Effect, b: &Effect) -> bool {
