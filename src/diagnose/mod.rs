@@ -222,7 +222,7 @@ impl DiagnoseOptions {
 impl Default for DiagnoseOptions {
     /// Families at 0.005, serial correlation and χ² at 0.001, lack of fit and a drift's
     /// stability at 0.01 (so that
-    /// clean data are called inadequate in at most 2.7 % of runs by the union of the checks;
+    /// clean data are called inadequate in at most 2.8 % of runs by the union of the checks;
     /// measured 1.0–2.0 % over nine kinds of run, docs/verdicts.md), at most 12
     /// effects, no stated σ.
     fn default() -> Self {
