@@ -59,6 +59,10 @@ fn kink_run() -> Run {
     }
 }
 
+/// One kinked run diagnosed: its seed, errors, verdict and the kink found (autocollimator,
+/// time, change of rate, its u).
+type KinkRun = (u64, Errors, bool, Option<(u32, f64, f64, f64)>);
+
 const KINK: Fault = Fault::KinkedDrift {
     ac: 1,
     rate_before: 1.2,
@@ -74,7 +78,7 @@ const KINK: Fault = Fault::KinkedDrift {
 #[test]
 fn a_kinked_drift_is_fitted_as_the_data_demand() {
     let seeds: Vec<u64> = (0..16).map(|s| 5300 + s).collect();
-    let results: Vec<(u64, Errors, bool, Option<(u32, f64, f64, f64)>)> = seeds
+    let results: Vec<KinkRun> = seeds
         .par_iter()
         .map(|&seed| {
             let pair = generate(&kink_run(), &KINK, seed);

@@ -7,7 +7,7 @@
 #[non_exhaustive]
 pub enum SearchStop {
     /// The model holds the most effects a diagnosis adds
-    /// ([`super::super::DiagnoseOptions::max_effects`]) and a further candidate is
+    /// ([`crate::diagnose::DiagnoseOptions::max_effects`]) and a further candidate is
     /// significant.
     MaxEffects {
         /// The limit, effects.
@@ -20,7 +20,7 @@ pub enum SearchStop {
         dof: usize,
     },
     /// The only significant candidates left are further jumps of a zero that already
-    /// jumped as often as a diagnosis accepts as events ([`super::super::MAX_JUMPS_PER_STREAM`]).
+    /// jumped as often as a diagnosis accepts as events ([`crate::diagnose::MAX_JUMPS_PER_STREAM`]).
     JumpsPerZero {
         /// The most jumps of one zero, per stream.
         limit: usize,
