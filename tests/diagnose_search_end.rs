@@ -358,3 +358,30 @@ fn a_lack_of_fit_too_good_to_be_true_is_a_finding() {
     );
     assert_eq!(hidden, 20);
 }
+
+/// The issue's one cycle logged one stop late (`Run::typical(5, 0.04)`, cycle 3), 16 runs:
+/// before issue 53 most searches ran to their limit of 12 effects and said nothing. A
+/// search a limit ends now says so and is never adequate; the runs the search ends on
+/// its own are reported (the cycle test of part A repairs such a cycle).
+#[test]
+fn one_stop_late_runs_name_the_limit_that_ended_their_search() {
+    let fault = Fault::OneStopLate { cycle: 3 };
+    let results: Vec<(Option<SearchStop>, bool, bool)> = (0..16u64)
+        .into_par_iter()
+        .map(|s| {
+            let pair = generate(&Run::typical(5, 0.04), &fault, 3300 + s);
+            let d = diagnose(&pair.faulty, &DiagnoseOptions::default()).expect("diagnosed");
+            let good = within_twice_the_twin(&errors(&pair, &d));
+            (d.search_stopped, d.adequacy.adequate, good)
+        })
+        .collect();
+    let stopped = results.iter().filter(|r| r.0.is_some()).count();
+    let adequate_bad = results.iter().filter(|r| r.1 && !r.2).count();
+    eprintln!(
+        "one stop late: {stopped} of 16 stopped by a limit ({:?}), {adequate_bad} adequate while worse than 2× the twin",
+        results.iter().filter_map(|r| r.0).collect::<Vec<_>>()
+    );
+    for (stop, adequate, _) in &results {
+        assert!(stop.is_none() || !adequate);
+    }
+}
