@@ -2,7 +2,8 @@
 //! their clean twins (the same truth and noise without the fault):
 //!
 //! - a limit that ends the search (the number of effects, too few degrees of freedom) is
-//!   named in `search_stopped`, a failed check and a note, and the run is not adequate;
+//!   named in `search_stopped` (JSON, table), a failed check and a note, and the run is
+//!   not adequate (also on the runs with one cycle logged one stop late);
 //! - a drift whose rate changes half-way (+1.2″/h for 35 minutes, then −0.4″/h) is fitted
 //!   as the kinked drift the data demand, not left out as a wandering zero, and ends within
 //!   2× the twin's error (+0.01″) for β and α;
@@ -17,6 +18,8 @@ use polycal::diagnose::lack_of_fit::LOWER_TAIL_ALPHA;
 use polycal::diagnose::{DiagnoseOptions, Diagnosis, SearchStop, diagnose};
 use polycal::effects::Effect;
 use polycal::measurement::MeasurementSet;
+use polycal::output::diagnose::DiagnoseReport;
+use polycal::output::diagnose_table::write_table;
 use polycal::solve::{SolveOptions, solve};
 use rayon::prelude::*;
 
@@ -222,6 +225,16 @@ fn a_search_stopped_by_its_limit_of_effects_is_not_adequate() {
             "seed {seed}: {:?}",
             one.notes
         );
+        let mut table = String::new();
+        write_table(&mut table, &one, None, "two-effects.csv").expect("written");
+        assert!(
+            table.contains("Search STOPPED by a limit (max-effects)"),
+            "{table}"
+        );
+        let json = serde_json::to_value(DiagnoseReport::new(&one, None, None)).expect("json");
+        assert_eq!(json["search_stopped"], "max-effects");
+        let json = serde_json::to_value(DiagnoseReport::new(&full, None, None)).expect("json");
+        assert!(json["search_stopped"].is_null());
     }
 }
 
