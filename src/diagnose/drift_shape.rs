@@ -20,8 +20,10 @@
 //! the significant shapes, the one with the fewest columns (then the smallest residual sum
 //! of squares) whose fit leaves no time structure of that zero — its streams' serial
 //! correlation and slow variation pass, its drift has the same shape in both halves of
-//! the run — and no failing lack of fit is kept; the jumps of that zero it replaces are
-//! withdrawn as explained by the drift's shape. When none passes, nothing changes and the
+//! the run —, no failing lack of fit, and to which the jumps of that zero it replaces add
+//! nothing significant (their F test at `family_alpha`, Bonferroni over the stops of the
+//! stream, as the search found them) is kept; those jumps are withdrawn as explained by the drift's
+//! shape. When none passes, nothing changes and the
 //! rules of doubt leave the zero out as a wander, as before.
 //!
 //! # Why the false-alarm rates stay as stated
@@ -45,7 +47,7 @@ use crate::uncertainty::student::t_two_sided_tail;
 
 /// The most kink positions tried for one drift (evenly spread over the stops of the
 /// stream's middle 80 %): the Bonferroni factor of the kink search.
-pub const MAX_KINK_POSITIONS: usize = 100;
+pub const MAX_KINK_POSITIONS: usize = 300;
 
 /// The fraction of a stream's stops at either end where no kink is tried (a kink there is
 /// seen by too few readings to be told from a bad reading or a curvature).
@@ -302,6 +304,11 @@ impl Model<'_> {
             if lack_of_fit.as_ref().is_some_and(|lof| !lof.passed()) {
                 continue;
             }
+            // the jumps of that zero it would replace must add nothing significant to it
+            // (at the search's level for a jump, Bonferroni over the stream's stops)
+            if self.jumps_still_significant(&current_terms, &trial.terms, &fit, options) {
+                continue;
+            }
             // judged as the final model would be: the trial in the model's place
             let saved = (
                 std::mem::replace(&mut self.terms, trial.terms.clone()),
@@ -316,6 +323,50 @@ impl Model<'_> {
             return Some(self.adopt(ac, &current_terms, &trial, tried));
         }
         None
+    }
+
+    /// Whether the jumps among `before` that `trial` leaves out still reduce the residuals
+    /// of its fit `fit` significantly: their F test, its p-value times the readings of the
+    /// zero's stream (the stops a jump was searched at), below `family_alpha`.
+    fn jumps_still_significant(
+        &self,
+        before: &[Term],
+        trial: &[Term],
+        fit: &Solution,
+        options: &DiagnoseOptions,
+    ) -> bool {
+        let jumps: Vec<Term> = before
+            .iter()
+            .filter(|t| !trial.contains(t))
+            .filter(|t| matches!(t, Term::Effect(Effect::OffsetStep { .. })))
+            .cloned()
+            .collect();
+        if jumps.is_empty() {
+            return false;
+        }
+        let geometry = self.base.geometry(fit, &self.columns(trial));
+        let score = geometry.score_block(&self.columns(&jumps), &fit.residuals);
+        if score.rank == 0 || fit.dof <= score.rank {
+            return false;
+        }
+        let dof = fit.dof - score.rank;
+        let rest = (fit.rss - score.reduction).max(0.0);
+        if rest <= 0.0 {
+            return true;
+        }
+        let f = (score.reduction.max(0.0) / score.rank as f64) / (rest / dof as f64);
+        let p = FisherSnedecor::new(score.rank as f64, dof as f64).map_or(1.0, |d| d.sf(f));
+        let of_ac = |t: &Term| match *t {
+            Term::Effect(Effect::OffsetStep { ac, .. }) => Some(ac),
+            _ => None,
+        };
+        let stops = self
+            .set
+            .readings
+            .iter()
+            .filter(|r| jumps.iter().filter_map(of_ac).any(|ac| ac == r.ac))
+            .count();
+        p * (stops.max(1) as f64) < options.family_alpha
     }
 
     /// The model has taken `trial`'s terms: the drift's finding holds its terms (and its
