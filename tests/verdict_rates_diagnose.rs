@@ -13,12 +13,14 @@
 //!
 //! **"Not adequate" on clean data.** When nothing is added the final model is the base
 //! model, and the verdict fails only by a check of `residuals::adequacy`: the lack of fit
-//! against pure error at `lack_of_fit_alpha` (0.01), the lag-1 serial correlation of
+//! against pure error at `lack_of_fit_alpha` (0.01), its lower tail (a lack of fit too
+//! small to be true, `lack_of_fit::LOWER_TAIL_ALPHA`, 0.001), the lag-1 serial correlation of
 //! every stream's residuals at `adequacy_alpha` (0.001) divided among the streams, the
 //! slow variation of every stream's residuals likewise at 0.001, and χ² at 0.001 when a
 //! σ is stated (none here). The other checks (a drift's stability at `stability_alpha`,
 //! identifiability, an outlier not attributed, a jump too many, a wandering zero) need a
-//! term found first. So the bound is 0.01 + 0.001 + 0.001 + 0.015 = **0.027**.
+//! term found first; a search a limit ends needs one too). So the bound is 0.01 + 0.001 +
+//! 0.001 + 0.001 + 0.015 = **0.028**.
 //!
 //! Kinds of run: polygon runs (two autocollimators, closing readings, σ = 0.05″) of 12
 //! faces × 3 clockwise cycles, 12 faces × 4 cycles cw/ccw, 24 faces × 6 cycles; two
@@ -42,6 +44,7 @@ mod selfcal_support;
 
 use std::time::Instant;
 
+use polycal::diagnose::lack_of_fit::LOWER_TAIL_ALPHA;
 use polycal::diagnose::selfcal::diagnose_selfcal;
 use polycal::diagnose::{DiagnoseOptions, Diagnosis, diagnose};
 use polycal::effects::Effect;
@@ -58,11 +61,14 @@ fn effect_bound(options: &DiagnoseOptions) -> f64 {
     3.0 * options.family_alpha
 }
 
-/// The bound on the chance that a clean run is called not adequate: the lack of fit, the
-/// serial correlation and the slow variation of the base model's residuals, or a false
-/// effect first.
+/// The bound on the chance that a clean run is called not adequate: the lack of fit (too
+/// large, or too small to be true), the serial correlation and the slow variation of the
+/// base model's residuals, or a false effect first.
 fn inadequate_bound(options: &DiagnoseOptions) -> f64 {
-    options.lack_of_fit_alpha + 2.0 * options.adequacy_alpha + effect_bound(options)
+    options.lack_of_fit_alpha
+        + LOWER_TAIL_ALPHA
+        + 2.0 * options.adequacy_alpha
+        + effect_bound(options)
 }
 
 /// How far above a bound a measured rate may lie with `n` runs.

@@ -555,6 +555,7 @@ class DiagnoseResult(Result):
     after: Section
     effects: List[Section]
     adequate: bool
+    search_stopped: Optional[str]
     testable: bool
     checks: List[Section]
     notes: List[str]

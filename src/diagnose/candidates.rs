@@ -53,6 +53,16 @@ pub enum Term {
         /// Polynomial order, 3 … [`MAX_DRIFT_ORDER`].
         order: usize,
     },
+    /// The change of rate of autocollimator `ac`'s drift from the clock time `at_seconds`
+    /// on: the hinge max(0, t − t_k) in hours, so that with the linear drift the drift is
+    /// continuous and piecewise linear with its kink at t_k; its value is in arcsec/h
+    /// (per stop on the stop clock).
+    DriftKink {
+        /// Autocollimator number.
+        ac: u32,
+        /// Where the rate changes, seconds of the clock.
+        at_seconds: f64,
+    },
     /// The offset of autocollimator `ac`'s zero in cycle `cycle` (of mounting `setup`,
     /// when given) against its first cycle: one column of a `rezero`.
     RezeroCycle {
@@ -157,6 +167,14 @@ impl Term {
                     };
                 }
             }
+            Term::DriftKink { ac, at_seconds } => {
+                for (o, r) in values {
+                    *o = match r.time_seconds {
+                        Some(t) if r.ac == *ac => ((t - at_seconds) / 3600.0).max(0.0),
+                        _ => 0.0,
+                    };
+                }
+            }
             Term::RezeroCycle { ac, setup, cycle } => {
                 for (o, r) in values {
                     let hit =
@@ -182,7 +200,7 @@ impl Term {
     pub fn kind(&self) -> &'static str {
         match self {
             Term::Effect(e) => e.kind(),
-            Term::Quadratic { .. } | Term::DriftShape { .. } => "drift",
+            Term::Quadratic { .. } | Term::DriftShape { .. } | Term::DriftKink { .. } => "drift",
             Term::RezeroCycle { .. } => "rezero",
         }
     }
@@ -196,6 +214,13 @@ impl Term {
             Term::DriftShape { ac, order } if ac == of_ac => Some(order),
             _ => None,
         }
+    }
+
+    /// Whether this term is part of autocollimator `ac`'s drift: an order of it
+    /// ([`Term::drift_order`]) or its kink.
+    pub fn is_drift_of(&self, of_ac: u32) -> bool {
+        self.drift_order(of_ac).is_some()
+            || matches!(*self, Term::DriftKink { ac, .. } if ac == of_ac)
     }
 
     /// The drift term of order `order` of autocollimator `ac`.

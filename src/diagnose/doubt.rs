@@ -19,7 +19,7 @@ use crate::uncertainty::student::t_two_sided_tail;
 /// Whether a term follows autocollimator `ac`'s zero in time (a drift of any order, a
 /// jump): what a wandering zero makes untrustworthy.
 pub(super) fn wanders_with(term: &Term, ac: u32) -> bool {
-    term.drift_order(ac).is_some()
+    term.is_drift_of(ac)
         || matches!(term, Term::Effect(Effect::OffsetStep { ac: a, .. }) if *a == ac)
 }
 
@@ -46,7 +46,7 @@ pub(super) struct Model<'a> {
 }
 
 impl Model<'_> {
-    fn columns(&self, terms: &[Term]) -> Vec<Vec<f64>> {
+    pub(super) fn columns(&self, terms: &[Term]) -> Vec<Vec<f64>> {
         terms
             .iter()
             .map(|t| t.column(self.set, self.context))
@@ -81,7 +81,7 @@ impl Model<'_> {
 
     /// The fit with the terms `kept` and its lack-of-fit test (when the model had one);
     /// `None` when the refit fails.
-    fn refitted(&self, kept: &[Term]) -> Option<(Solution, Option<LackOfFit>)> {
+    pub(super) fn refitted(&self, kept: &[Term]) -> Option<(Solution, Option<LackOfFit>)> {
         let columns = self.columns(kept);
         let fit = self.base.fit(&columns, self.sigma).ok()?;
         let lack_of_fit = self.lack_of_fit.as_ref().and_then(|_| {
@@ -144,6 +144,23 @@ impl Model<'_> {
     /// cycle), and the stability checks of every drift: the drift's columns restricted to
     /// the second half of the run, tested together.
     pub fn wandering(&self, options: &DiagnoseOptions, tiny: f64) -> (Vec<u32>, Vec<Check>) {
+        let (flagged, stability) = self.time_structure(options, tiny);
+        let wandering = if flagged.is_empty() {
+            Vec::new()
+        } else {
+            candidates::autocollimators(self.set)
+                .into_iter()
+                .filter(|&ac| self.terms.iter().any(|t| wanders_with(t, ac)))
+                .collect()
+        };
+        (wandering, stability)
+    }
+
+    /// The autocollimators whose zero shows time structure the model does not follow —
+    /// a stream's residuals failing a check of time order, a drift failing its stability
+    /// check, one zero needing several kinds of terms — and the stability checks of every
+    /// drift ([`Model::wandering`]).
+    pub fn time_structure(&self, options: &DiagnoseOptions, tiny: f64) -> (Vec<u32>, Vec<Check>) {
         let (set, terms, current) = (self.set, &self.terms, &self.fit);
         let columns = self.columns(terms);
         let geometry = self.base.geometry(current, &columns);
@@ -161,14 +178,19 @@ impl Model<'_> {
                 exact: false,
             },
         );
-        let mut any_time_structure = check.checks.iter().any(|c| !c.passed && c.stream.is_some());
+        let mut flagged: Vec<u32> = check
+            .checks
+            .iter()
+            .filter(|c| !c.passed)
+            .filter_map(|c| c.stream.map(|(_, ac)| ac))
+            .collect();
         let mut stability: Vec<Check> = Vec::new();
         let (lo, hi) = candidates::time_span(set);
         let middle = 0.5 * (lo + hi);
         for ac in candidates::autocollimators(set) {
             let drift: Vec<Term> = terms
                 .iter()
-                .filter(|t| t.drift_order(ac).is_some())
+                .filter(|t| t.is_drift_of(ac))
                 .cloned()
                 .collect();
             if drift.is_empty() {
@@ -203,7 +225,9 @@ impl Model<'_> {
                 let f = (score.reduction.max(0.0) / r) / (rss / dof);
                 let limit = distribution.inverse_cdf(1.0 - options.stability_alpha);
                 let passed = f <= limit;
-                any_time_structure |= !passed;
+                if !passed {
+                    flagged.push(ac);
+                }
                 stability.push(Check {
                     name: format!(
                         "drift of ac {ac} the same in both halves of the run (F of its {} column{} restricted to the second half)",
@@ -220,7 +244,7 @@ impl Model<'_> {
         // a zero that needs several kinds of terms to follow it in time (a drift and
         // jumps, a drift and a zero per cycle, jumps and a zero per cycle) wanders
         for ac in candidates::autocollimators(set) {
-            let drift = terms.iter().any(|t| t.drift_order(ac).is_some());
+            let drift = terms.iter().any(|t| t.is_drift_of(ac));
             let jumps = terms
                 .iter()
                 .any(|t| matches!(t, Term::Effect(Effect::OffsetStep { ac: a, .. }) if *a == ac));
@@ -228,17 +252,11 @@ impl Model<'_> {
                 .iter()
                 .any(|t| matches!(t, Term::RezeroCycle { ac: a, .. } if *a == ac));
             if usize::from(drift) + usize::from(jumps) + usize::from(rezero) >= 2 {
-                any_time_structure = true;
+                flagged.push(ac);
             }
         }
-        let wandering = if any_time_structure {
-            candidates::autocollimators(set)
-                .into_iter()
-                .filter(|&ac| terms.iter().any(|t| wanders_with(t, ac)))
-                .collect()
-        } else {
-            Vec::new()
-        };
-        (wandering, stability)
+        flagged.sort_unstable();
+        flagged.dedup();
+        (flagged, stability)
     }
 }

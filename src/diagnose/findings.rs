@@ -25,7 +25,8 @@ pub fn block_effect(terms: &[Term], values: &[f64]) -> Option<Effect> {
     match first {
         Term::Effect(Effect::Drift { ac, .. })
         | Term::Quadratic { ac }
-        | Term::DriftShape { ac, .. } => {
+        | Term::DriftShape { ac, .. }
+        | Term::DriftKink { ac, .. } => {
             let ac = *ac;
             Some(Effect::Drift {
                 ac,
@@ -52,7 +53,7 @@ pub fn candidate_effect(candidate: &Candidate) -> Effect {
             value: 0.0,
             quadratic: Some(candidate.value()),
         },
-        Term::DriftShape { ac, .. } => Effect::Drift {
+        Term::DriftShape { ac, .. } | Term::DriftKink { ac, .. } => Effect::Drift {
             ac: *ac,
             value: 0.0,
             quadratic: None,
@@ -97,7 +98,8 @@ fn drift_of(terms: &[Term]) -> Option<(u32, usize)> {
     terms.iter().find_map(|t| match *t {
         Term::Effect(Effect::Drift { ac, .. })
         | Term::Quadratic { ac }
-        | Term::DriftShape { ac, .. } => Some((
+        | Term::DriftShape { ac, .. }
+        | Term::DriftKink { ac, .. } => Some((
             ac,
             terms
                 .iter()
@@ -141,7 +143,7 @@ pub fn final_effects(
         if let Some((ac, _)) = drift_of(&block) {
             let all: Vec<Term> = terms
                 .iter()
-                .filter(|t| t.drift_order(ac).is_some())
+                .filter(|t| t.is_drift_of(ac))
                 .cloned()
                 .collect();
             let order = all
@@ -162,6 +164,21 @@ pub fn final_effects(
                 .map(|k| u_of(&Term::DriftShape { ac, order: k }))
                 .collect();
             let quadratic_u = u_of(&quadratic);
+            // a kink the final model holds, its change of rate from the fit
+            let kink_term = all.iter().find_map(|t| match *t {
+                Term::DriftKink { at_seconds, .. } => Some((t.clone(), at_seconds)),
+                _ => None,
+            });
+            let kink = |found: Option<super::DriftKink>| {
+                let (term, at_seconds) = kink_term.clone()?;
+                let found = found?;
+                Some(super::DriftKink {
+                    at_seconds,
+                    rate_change: value_of(&term),
+                    rate_change_u: u_of(&term),
+                    ..found
+                })
+            };
             let quadratic_evidence = match (index(&quadratic), quadratic_u) {
                 (Some(_), Some(uq)) if uq > 0.0 => {
                     let t = value_of(&quadratic) / uq;
@@ -186,6 +203,7 @@ pub fn final_effects(
                 drift.drift_order = Some(order);
                 drift.shape = shape;
                 drift.shape_u = shape_u;
+                drift.kink = kink(drift.kink.or(entry.kink));
                 continue;
             }
             entry.effect = effect;
@@ -195,6 +213,7 @@ pub fn final_effects(
             entry.drift_order = Some(order);
             entry.shape = shape;
             entry.shape_u = shape_u;
+            entry.kink = kink(entry.kink);
             entry.changes_calibration = changes;
             effects.push((entry, all));
             continue;
@@ -245,7 +264,8 @@ pub fn record_not_significant(
             Term::Effect(Effect::Outlier { .. }) => "outlier".into(),
             Term::Effect(Effect::Drift { ac, .. })
             | Term::Quadratic { ac }
-            | Term::DriftShape { ac, .. } => {
+            | Term::DriftShape { ac, .. }
+            | Term::DriftKink { ac, .. } => {
                 format!("drift {ac}")
             }
             Term::RezeroCycle { ac, setup, .. } => format!("rezero {ac} {setup:?}"),

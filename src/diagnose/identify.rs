@@ -101,11 +101,28 @@ fn siblings(
             .collect(),
         Term::Effect(Effect::Drift { ac, .. })
         | Term::Quadratic { ac }
-        | Term::DriftShape { ac, .. } => {
+        | Term::DriftShape { ac, .. }
+        | Term::DriftKink { ac, .. } => {
             let orders: Vec<usize> = block.iter().filter_map(|t| t.drift_order(*ac)).collect();
+            let kinks: Vec<f64> = block
+                .iter()
+                .filter_map(|t| match *t {
+                    Term::DriftKink { at_seconds, .. } => Some(at_seconds),
+                    _ => None,
+                })
+                .collect();
             acs.iter()
                 .filter(|&&a| a != *ac)
-                .map(|&a| orders.iter().map(|&k| Term::drift_of_order(a, k)).collect())
+                .map(|&a| {
+                    let mut terms: Vec<Term> =
+                        orders.iter().map(|&k| Term::drift_of_order(a, k)).collect();
+                    terms.extend(
+                        kinks
+                            .iter()
+                            .map(|&at_seconds| Term::DriftKink { ac: a, at_seconds }),
+                    );
+                    terms
+                })
                 .collect()
         }
         Term::Effect(Effect::Direction { ac, .. }) => {
@@ -378,7 +395,8 @@ fn split_siblings(terms: &[Term]) -> Vec<Vec<Term>> {
         match *t {
             Term::Effect(Effect::Drift { ac, .. })
             | Term::Quadratic { ac }
-            | Term::DriftShape { ac, .. } => (ac, None, "drift"),
+            | Term::DriftShape { ac, .. }
+            | Term::DriftKink { ac, .. } => (ac, None, "drift"),
             Term::RezeroCycle { ac, setup, .. } => (ac, setup, "rezero"),
             _ => (u32::MAX, None, "single"),
         }

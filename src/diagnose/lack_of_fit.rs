@@ -115,6 +115,9 @@ pub struct LackOfFit {
     pub dof_pure: usize,
     /// The upper `alpha` quantile of F(ν_lack, ν_pure).
     pub limit: f64,
+    /// The lower [`LOWER_TAIL_ALPHA`] quantile of F(ν_lack, ν_pure) (0 for noise-free
+    /// data): an F below it is a lack of fit too small to be true ([`LackOfFit::too_good`]).
+    pub lower_limit: f64,
     /// P(F(ν_lack, ν_pure) > f_statistic).
     pub p_value: f64,
     /// σ from the scatter within cells, √(RSS_full / ν_pure), arcsec.
@@ -156,10 +159,23 @@ pub struct CellResidual {
     pub z: f64,
 }
 
+/// The false-alarm probability of the lower-tail check of the lack of fit
+/// ([`LackOfFit::too_good`]): 0.1 % of clean runs have an F below the lower limit.
+pub const LOWER_TAIL_ALPHA: f64 = 0.001;
+
 impl LackOfFit {
     /// Whether the model passes (F within its limit).
     pub fn passed(&self) -> bool {
         self.f_statistic <= self.limit
+    }
+
+    /// Whether the lack of fit is too small to be true: F below the lower
+    /// [`LOWER_TAIL_ALPHA`] quantile of F(ν_lack, ν_pure). The scatter within the cells
+    /// is then larger than the scatter between them can explain: a group of readings (a
+    /// cycle logged wrongly, an autocollimator whose noise rose) inflates the pure error,
+    /// and the upper test is blind to what the model lacks.
+    pub fn too_good(&self) -> bool {
+        self.f_statistic < self.lower_limit
     }
 }
 
@@ -291,6 +307,11 @@ impl PureError {
         };
         let distribution = FisherSnedecor::new(dof_lack as f64, dof_pure as f64).ok()?;
         let limit = distribution.inverse_cdf(1.0 - alpha);
+        let lower_limit = if pure_ms > rounding {
+            distribution.inverse_cdf(LOWER_TAIL_ALPHA)
+        } else {
+            0.0
+        };
         let p_value = if f_statistic.is_finite() {
             distribution.sf(f_statistic)
         } else {
@@ -336,6 +357,7 @@ impl PureError {
             dof_lack,
             dof_pure,
             limit,
+            lower_limit,
             p_value,
             pure_error_sigma,
             cells: cells.len(),

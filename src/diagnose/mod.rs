@@ -22,6 +22,7 @@ pub mod base;
 pub mod candidates;
 pub mod clock;
 mod doubt;
+mod drift_shape;
 pub mod findings;
 pub mod geometry;
 pub mod identify;
@@ -45,10 +46,12 @@ use crate::uncertainty::monte_carlo::Progress;
 use base::Base;
 use candidates::Term;
 pub use clock::Clock;
+pub use drift_shape::{DriftKink, MAX_KINK_POSITIONS};
 use findings::final_effects;
 pub use identify::Alternative;
 use lack_of_fit::LackOfFit;
 use residuals::{Adequacy, AdequacyInputs, Check};
+pub use search::SearchStop;
 
 /// Options of [`diagnose`].
 #[derive(Clone)]
@@ -220,7 +223,7 @@ impl DiagnoseOptions {
 impl Default for DiagnoseOptions {
     /// Families at 0.005, serial correlation and χ² at 0.001, lack of fit and a drift's
     /// stability at 0.01 (so that
-    /// clean data are called inadequate in at most 2.7 % of runs by the union of the checks;
+    /// clean data are called inadequate in at most 2.8 % of runs by the union of the checks;
     /// measured 1.0–2.0 % over nine kinds of run, docs/verdicts.md), at most 12
     /// effects, no stated σ.
     fn default() -> Self {
@@ -289,6 +292,9 @@ pub struct FoundEffect {
     pub shape: Vec<f64>,
     /// Their standard uncertainties, when the fit gives them.
     pub shape_u: Option<Vec<f64>>,
+    /// For a drift whose rate changes at a time the data locate: the kink (a continuous
+    /// piecewise-linear drift; `effect`'s value is the rate before it).
+    pub kink: Option<DriftKink>,
     /// Other explanations that fit the data as well ([`identify`]), best first.
     pub alternatives: Vec<Alternative>,
 }
@@ -330,6 +336,9 @@ pub enum Rejection {
     /// approximates a slow variation and can make β and α worse than the base model, so
     /// the final model leaves it out.
     LeftOutOfString,
+    /// A jump of a zero whose drift, given the shape the data demand (a higher order or a
+    /// kink), explains it: a jump found beside a drift of the wrong shape.
+    ExplainedByDriftShape,
 }
 
 /// The most jumps (`offset-step`) of one autocollimator's zero in one mounting that a
@@ -351,6 +360,9 @@ impl Rejection {
             Rejection::LeftOutWandering => "left out: the zero wanders in a way no term expresses",
             Rejection::LeftOutOfString => {
                 "left out: one of a string of jumps, a slow variation no term expresses"
+            }
+            Rejection::ExplainedByDriftShape => {
+                "explained by the drift's shape the data demand (a higher order or a kink)"
             }
         }
     }
@@ -421,6 +433,10 @@ pub struct Diagnosis {
     /// ([`stop_scatter`]), when it could be evaluated; when it is significant, `after`'s
     /// u(α) carries it.
     pub stop_scatter: Option<stop_scatter::StopScatter>,
+    /// The limit that ended the search while something more was significant; `None` when
+    /// it ended because nothing more was (or did not run). A stopped search is never
+    /// adequate (docs/FORMAT.md §5).
+    pub search_stopped: Option<SearchStop>,
 }
 
 /// The readings' rounding level: residual sums of squares below it are zero.
@@ -526,6 +542,7 @@ pub(crate) fn diagnose_base(
         jumps_exceeded,
         fit: current,
         lack_of_fit: mut lof_current,
+        stopped: search_stopped,
     } = if testable && !exact {
         search::run(set, base, &context, options, &before, tiny, &mut notes)
     } else {
@@ -560,6 +577,12 @@ pub(crate) fn diagnose_base(
             &mut tried,
         );
     }
+    // before a zero is called wandering, the drift shapes the data demand are tried
+    let shapes = if testable && !exact {
+        model.demanded_drift_shapes(options, tiny, &mut tried)
+    } else {
+        Vec::new()
+    };
     let (wandering, stability) = if testable && !exact {
         model.wandering(options, tiny)
     } else {
@@ -574,6 +597,12 @@ pub(crate) fn diagnose_base(
     if left_out_wandering {
         notes.extend(wandering.iter().map(|&ac| notes::wandering(ac)));
     }
+    notes.extend(
+        shapes
+            .iter()
+            .filter(|shape| !(left_out_wandering && wandering.contains(&shape.ac)))
+            .map(|shape| shape.note(clock)),
+    );
     let doubt::Model {
         terms,
         fit: current,
@@ -743,10 +772,18 @@ pub(crate) fn diagnose_base(
     for &(ac, setup) in &jumps_exceeded {
         notes.push(notes::string_of_jumps(ac, setup));
     }
+    if let Some(stop) = search_stopped {
+        search_stopped_check(stop, &mut adequacy, &mut notes);
+    }
     if let Some(lof) = &mut lof_current
         && base.is_off_grid()
     {
         lof.band_limit_order = Some(base.positions().faces / 2);
+    }
+    if let Some(lof) = &lof_current
+        && lof.too_good()
+    {
+        notes.push(notes::lack_of_fit_too_good(lof));
     }
     if let Some(lof) = &lof_current
         && !lof.passed()
@@ -790,7 +827,24 @@ pub(crate) fn diagnose_base(
         notes,
         clock,
         stop_scatter,
+        search_stopped,
     })
+}
+
+/// A search a limit ended is not certified: its check fails, and a note says why.
+fn search_stopped_check(stop: SearchStop, adequacy: &mut Adequacy, notes: &mut Vec<String>) {
+    adequacy.checks.push(Check {
+        name: format!(
+            "search ended because nothing more was significant (not a limit: {})",
+            stop.as_str()
+        ),
+        statistic: 1.0,
+        limit: 0.0,
+        passed: false,
+        stream: None,
+    });
+    adequacy.adequate = false;
+    notes.push(notes::search_stopped(stop));
 }
 
 fn same_effect(a: &Effect, b: &Effect) -> bool {

@@ -187,3 +187,39 @@ pub(super) fn stop_scatter(scatter: &super::stop_scatter::StopScatter, faces: us
         scatter.sigma_arcsec,
     )
 }
+
+/// The plain words on a search a limit ended: which limit, and that the model may lack
+/// what was still significant.
+pub(super) fn search_stopped(stop: super::SearchStop) -> String {
+    let advice = match stop {
+        super::SearchStop::MaxEffects { .. } => {
+            "Many terms found one after another usually approximate something no single term expresses (a cycle logged wrongly, a wandering zero): look at the cycles and streams the terms name, or raise the limit to see what follows."
+        }
+        super::SearchStop::TooFewDegreesOfFreedom { .. } => {
+            "Measure with more redundancy (more cycles, closing readings, a counter-clockwise cycle) so that further terms can be tested."
+        }
+        super::SearchStop::JumpsPerZero { .. } => {
+            "A string of jumps is a slow variation no term expresses; see the note on the jumps."
+        }
+        super::SearchStop::AttemptsPerRound { .. } => {
+            "The significant terms each failed to reduce the lack of fit: the residuals carry a structure no term of the catalogue expresses."
+        }
+    };
+    format!(
+        "Not certified: {}, so the final model may lack what was still significant. {advice}",
+        stop.describe()
+    )
+}
+
+/// The plain words on a lack of fit too small to be true ([`LackOfFit::too_good`]).
+pub(super) fn lack_of_fit_too_good(lof: &LackOfFit) -> String {
+    format!(
+        "Not certified: the lack of fit is too small to be true (F = {:.3} with {} and {} degrees of freedom, below its lower {} % quantile {:.3}). The scatter within the cells (σ = {:.4}″ from the readings of one cell) is larger than the model's lack of fit can explain: a group of readings — a cycle logged wrongly (autocollimators exchanged, one stop late), an autocollimator whose noise rose — inflates it and hides what the model lacks. Look at the residuals cycle by cycle and autocollimator by autocollimator for the group that scatters most.",
+        lof.f_statistic,
+        lof.dof_lack,
+        lof.dof_pure,
+        100.0 * super::lack_of_fit::LOWER_TAIL_ALPHA,
+        lof.lower_limit,
+        lof.pure_error_sigma
+    )
+}

@@ -131,6 +131,16 @@ pub fn adequacy(
             passed: lof.passed(),
             stream: None,
         });
+        checks.push(Check {
+            name: format!(
+                "lack of fit not too small to be true (F must not fall below the limit, its lower {} % quantile: the scatter within cells no larger than the model's lack of fit can explain)",
+                100.0 * super::lack_of_fit::LOWER_TAIL_ALPHA
+            ),
+            statistic: lof.f_statistic,
+            limit: lof.lower_limit,
+            passed: !lof.too_good(),
+            stream: None,
+        });
     }
     if inputs.unattributed_outliers > 0 {
         checks.push(Check {

@@ -155,6 +155,11 @@ pub struct DiagnoseReport {
     pub error: Option<ErrorReport>,
     /// Whether the final residuals are consistent with noise.
     pub adequate: bool,
+    /// The limit that ended the search while something more was significant
+    /// (`max-effects`, `too-few-degrees-of-freedom`, `jumps-per-zero`,
+    /// `attempts-per-round`); `null` when it ended because nothing more was significant
+    /// (docs/FORMAT.md §5). A stopped search is never adequate.
+    pub search_stopped: Option<&'static str>,
     /// Whether the data had the redundancy to test effects (an addition).
     pub testable: bool,
     /// The adequacy checks (an addition).
@@ -270,6 +275,19 @@ pub fn explanation_on(found: &FoundEffect, clock: Clock) -> String {
             "; its shape over the run is a polynomial of order {order}, picked by F tests"
         ));
     }
+    if let Some(kink) = &found.kink {
+        let (at, unit) = match clock {
+            Clock::Time => (format!("{:.0} s", kink.at_seconds), "″ per hour"),
+            Clock::StopOrder => (
+                format!("stop {:.0}", kink.at_seconds / 3600.0),
+                "″ per stop",
+            ),
+        };
+        text.push_str(&format!(
+            "; its rate changes by {:+.4}{unit} at {at} (a kink the data locate among {} positions)",
+            kink.rate_change, kink.positions_tried
+        ));
+    }
     text
 }
 
@@ -380,6 +398,8 @@ fn lack_of_fit_json(lof: &LackOfFit) -> Value {
         "limit": number(lof.limit),
         "p": number(lof.p_value),
         "passed": lof.passed(),
+        "lower_limit": number(lof.lower_limit),
+        "too_good": lof.too_good(),
         "pure_error_sigma": number(lof.pure_error_sigma),
         "cells": lof.cells,
         "replicated_cells": lof.replicated_cells,
@@ -462,6 +482,23 @@ fn effect_json(found: &FoundEffect, clock: Clock) -> Value {
                 }),
             );
         }
+    }
+    if let Some(kink) = &found.kink {
+        let at = match clock {
+            Clock::Time => kink.at_seconds,
+            Clock::StopOrder => kink.at_seconds / 3600.0,
+        };
+        object.insert(
+            "kink".into(),
+            serde_json::json!({
+                "at": number(at),
+                "rate_change": number(kink.rate_change),
+                "rate_change_u": kink.rate_change_u.map_or(Value::Null, number),
+                "F": number(kink.evidence.f_statistic),
+                "p_adjusted": number(kink.evidence.p_adjusted),
+                "positions_tried": kink.positions_tried,
+            }),
+        );
     }
     if found.dof_numerator > 1 {
         object.insert("df".into(), Value::from(found.dof_numerator));
@@ -557,6 +594,7 @@ impl DiagnoseReport {
             effects,
             error,
             adequate: diagnosis.adequacy.adequate,
+            search_stopped: diagnosis.search_stopped.map(|stop| stop.as_str()),
             testable: diagnosis.testable,
             checks: diagnosis
                 .adequacy

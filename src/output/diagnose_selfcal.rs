@@ -156,6 +156,9 @@ pub struct SelfcalDiagnoseReport {
     pub error: Option<SelfcalErrorReport>,
     /// The verdict.
     pub adequate: bool,
+    /// The limit that ended the search, `null` when nothing more was significant
+    /// (docs/FORMAT.md §5).
+    pub search_stopped: Option<&'static str>,
     /// Whether the run had redundancy enough to test any effect.
     pub testable: bool,
     /// The checks of the verdict.
@@ -221,6 +224,7 @@ impl SelfcalDiagnoseReport {
             effects,
             error,
             adequate: polygon.adequate,
+            search_stopped: polygon.search_stopped,
             testable: polygon.testable,
             checks: polygon
                 .checks

@@ -171,6 +171,14 @@ pub fn write_table<W: std::fmt::Write>(
             rms_text(after)
         )?;
     }
+    if let Some(stop) = diagnosis.search_stopped {
+        writeln!(
+            out,
+            "\nSearch STOPPED by a limit ({}): {}.",
+            stop.as_str(),
+            stop.describe()
+        )?;
+    }
     if diagnosis.testable {
         if diagnosis.adequacy.adequate {
             writeln!(

@@ -154,7 +154,9 @@ pub const JUMP_STOPS_SIZED: usize = 9;
 fn group_key(block: &[Term]) -> String {
     match block.first() {
         Some(Term::Effect(Effect::Drift { ac, .. })) => format!("drift {ac}"),
-        Some(Term::Quadratic { ac }) | Some(Term::DriftShape { ac, .. }) => {
+        Some(Term::Quadratic { ac })
+        | Some(Term::DriftShape { ac, .. })
+        | Some(Term::DriftKink { ac, .. }) => {
             format!("drift-curvature {ac}")
         }
         Some(Term::RezeroCycle { ac, setup, .. }) => format!("rezero {ac} {setup:?}"),
