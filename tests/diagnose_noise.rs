@@ -94,7 +94,19 @@ fn noise_rise(offsets: &[usize], ac: u32, seed: u64) -> Outcome {
     let diagnosis = run_diagnosis(&pair.faulty);
     let twin = run_diagnosis(&pair.twin);
     if std::env::var("NOISE_DEBUG").is_ok() {
-        println!("{seed} {:?}", diagnosis.noise);
+        let failed: Vec<&str> = diagnosis
+            .adequacy
+            .checks
+            .iter()
+            .filter(|c| !c.passed)
+            .map(|c| c.name.as_str())
+            .collect();
+        let effects: Vec<String> = diagnosis.effects.iter().map(|f| f.effect.label()).collect();
+        println!(
+            "{seed} weighted {:?} changes {:?} failed {failed:?} effects {effects:?}",
+            diagnosis.noise.as_ref().map(|n| n.weighted),
+            diagnosis.noise.as_ref().map(|n| n.changes.len())
+        );
     }
     let reported = diagnosis.noise.as_ref().is_some_and(|n| {
         !n.equal
@@ -162,4 +174,36 @@ fn a_noise_rise_is_reported_and_weighted_not_turned_into_a_term() {
             o.twin
         );
     }
+}
+
+/// The fraction of runs (24 faces, 2 autocollimators, 6 cycles, σ 0.035″) whose noise is
+/// called unequal when autocollimator 2's noise is multiplied by `factor` from cycle 4.
+fn power(factor: f64, runs: u64, seed: u64) -> f64 {
+    let run = design(&[0, 1], 6, 0.035);
+    let fault = Fault::NoiseRise {
+        ac: 2,
+        from_cycle: 4,
+        factor,
+    };
+    let found = (0..runs)
+        .into_par_iter()
+        .filter(|k| {
+            let pair = generate(&run, &fault, seed + k);
+            run_diagnosis(&pair.faulty).noise.is_some_and(|n| !n.equal)
+        })
+        .count();
+    found as f64 / runs as f64
+}
+
+#[test]
+fn the_power_of_the_noise_test() {
+    let (p3, p2, p15) = (
+        power(3.0, 100, 7_000),
+        power(2.0, 200, 8_000),
+        power(1.5, 200, 9_000),
+    );
+    println!("power: factor 3 {p3:.3}, factor 2 {p2:.3}, factor 1.5 {p15:.3}");
+    assert!(p3 >= 0.99, "{p3}");
+    assert!(p2 >= 0.75, "{p2}");
+    assert!(p15 >= 0.2, "{p15}");
 }

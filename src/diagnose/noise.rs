@@ -30,7 +30,7 @@ use std::sync::Arc;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::base::Base;
-use super::{Clock, DiagnoseOptions, Diagnosis};
+use super::{Clock, DiagnoseOptions, Diagnosis, Rejection};
 use crate::measurement::MeasurementSet;
 use crate::solve::SolveError;
 
@@ -429,6 +429,33 @@ fn note(test: &NoiseTest, several_setups: bool, weighted: bool) -> String {
     )
 }
 
+/// Whether the final residuals of `diagnosis` vary slowly in time: a failed check of a
+/// stream's time order, or a wandering zero left out.
+fn varies_slowly(diagnosis: &Diagnosis) -> bool {
+    diagnosis
+        .adequacy
+        .checks
+        .iter()
+        .any(|c| !c.passed && c.stream.is_some())
+        || diagnosis
+            .tried
+            .iter()
+            .any(|t| t.rejection == Rejection::LeftOutWandering)
+}
+
+/// The note of a test that failed beside residuals that vary slowly in time.
+fn note_slow(test: &NoiseTest, several_setups: bool) -> String {
+    let unequal = note(test, several_setups, false);
+    let found = unequal
+        .split_once("): ")
+        .and_then(|(_, rest)| rest.split_once("; "))
+        .map_or(String::new(), |(found, _)| format!(" ({found})"));
+    format!(
+        "The scatter of the residuals is not the same in every cycle and autocollimator (Bartlett T = {:.1}, {} dof, p = {:.1e}){found}, but the residuals also vary slowly in time (see the checks): the larger scatter may be that structure rather than noise, so the fits keep equal weights.",
+        test.statistic, test.dof, test.p_value
+    )
+}
+
 /// The diagnosis `first` (unweighted, its [`Diagnosis::noise`] tested) or, when its noise
 /// is not equal, the diagnosis anew with every fit weighted by its groups' σ
 /// (`diagnose_fitted` of a weighted `base`), the base model before kept as `first`'s
@@ -478,6 +505,15 @@ pub(super) fn reweighted(
         first.notes.push(note(&test, several_setups, false));
         return Ok(first);
     };
+    // residuals that still vary slowly in time with the weights (a failed serial-correlation
+    // or slow-variation check, a wandering zero left out) scatter more in some cycles for
+    // that reason: the groups' σ weigh the structure, not the noise, and the unweighted
+    // diagnosis stands (a noise rise alone misleads the unweighted search, not the
+    // weighted one)
+    if varies_slowly(&second) {
+        first.notes.push(note_slow(&test, several_setups));
+        return Ok(first);
+    }
     // the final model's residuals in arcsec (its fits' are whitened)
     for (e, w) in second.after.residuals.iter_mut().zip(weights.iter()) {
         *e /= w;
