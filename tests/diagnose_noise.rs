@@ -93,21 +93,6 @@ fn noise_rise(offsets: &[usize], ac: u32, seed: u64) -> Outcome {
     let pair = generate(&run, &fault, seed);
     let diagnosis = run_diagnosis(&pair.faulty);
     let twin = run_diagnosis(&pair.twin);
-    if std::env::var("NOISE_DEBUG").is_ok() {
-        let failed: Vec<&str> = diagnosis
-            .adequacy
-            .checks
-            .iter()
-            .filter(|c| !c.passed)
-            .map(|c| c.name.as_str())
-            .collect();
-        let effects: Vec<String> = diagnosis.effects.iter().map(|f| f.effect.label()).collect();
-        println!(
-            "{seed} weighted {:?} changes {:?} failed {failed:?} effects {effects:?}",
-            diagnosis.noise.as_ref().map(|n| n.weighted),
-            diagnosis.noise.as_ref().map(|n| n.changes.len())
-        );
-    }
     let reported = diagnosis.noise.as_ref().is_some_and(|n| {
         !n.equal
             && n.weighted
@@ -206,4 +191,177 @@ fn the_power_of_the_noise_test() {
     assert!(p3 >= 0.99, "{p3}");
     assert!(p2 >= 0.75, "{p2}");
     assert!(p15 >= 0.2, "{p15}");
+}
+
+/// The weighted fit and its geometry against an independent whitened least squares: the
+/// design matrix written out (an α per position, a face deviation per face, a zero per
+/// autocollimator, one effect column), every row and reading times its weight, the
+/// fitted values as the projection of W·y on the span of W·X by SVD (gauge-free). The
+/// whitened residuals, every leverage and the reduction a jump from every reading of a
+/// stream on would bring agree to 1e-9.
+#[test]
+fn the_weighted_fit_and_its_geometry_are_the_whitened_least_squares() {
+    use nalgebra::{DMatrix, DVector};
+    use polycal::diagnose::geometry::FitGeometry;
+    use polycal::solve::dense::dense_weighted_least_squares;
+    use std::sync::Arc;
+
+    let run = Run {
+        faces: 12,
+        ..design(&[0, 1], 3, 0.05)
+    };
+    let set = generate(&run, &Fault::None, 11).faulty;
+    let n = set.readings.len();
+    let weights: Vec<f64> = (0..n)
+        .map(|i| 0.5 + 1.5 * ((i * 7919) % 13) as f64 / 12.0)
+        .collect();
+    let hours: Vec<f64> = set
+        .readings
+        .iter()
+        .map(|r| r.time_seconds.unwrap_or(0.0) / 3600.0)
+        .collect();
+    let drift: Vec<f64> = hours.iter().zip(&weights).map(|(t, w)| t * w).collect();
+    let fit = dense_weighted_least_squares(&set, std::slice::from_ref(&drift), &weights, None)
+        .expect("a solvable design");
+
+    // the whitened design written out
+    let faces = set.faces;
+    let columns = 2 * faces + 2 + 1;
+    let x = DMatrix::from_fn(n, columns, |i, c| {
+        let r = &set.readings[i];
+        let w = weights[i];
+        if c < faces {
+            w * f64::from(u8::from(r.step % faces == c))
+        } else if c < 2 * faces {
+            w * f64::from(u8::from(r.face - 1 == c - faces))
+        } else if c < 2 * faces + 2 {
+            w * f64::from(u8::from(r.ac as usize - 1 == c - 2 * faces))
+        } else {
+            drift[i]
+        }
+    });
+    let y = DVector::from_fn(n, |i, _| weights[i] * set.readings[i].reading_arcsec);
+    let svd = x.clone().svd(true, false);
+    let u = svd.u.expect("U");
+    let largest = svd.singular_values.max();
+    let kept: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&k| svd.singular_values[k] > 1e-10 * largest)
+        .collect();
+    let basis = DMatrix::from_fn(n, kept.len(), |i, k| u[(i, kept[k])]);
+    let hat = &basis * basis.transpose();
+    let residual = &y - &hat * &y;
+    for i in 0..n {
+        assert!(
+            (fit.residuals[i] - residual[i]).abs() < 1e-9,
+            "residual {i}: {} against {}",
+            fit.residuals[i],
+            residual[i]
+        );
+    }
+    assert_eq!(fit.dof, n - kept.len());
+
+    let geometry = FitGeometry::weighted(
+        &fit,
+        &set,
+        std::slice::from_ref(&drift),
+        Arc::from(weights.clone()),
+    );
+    let leverage = geometry.leverage();
+    for i in 0..n {
+        assert!((leverage[i] - hat[(i, i)]).abs() < 1e-9, "leverage {i}");
+    }
+    // a jump of autocollimator 2's zero from its k-th reading (in time) on: the whitened
+    // column wᵢ on the suffix
+    let mut order: Vec<usize> = (0..n).filter(|&i| set.readings[i].ac == 2).collect();
+    order.sort_by(|&a, &b| hours[a].total_cmp(&hours[b]));
+    let scores = geometry.suffix_scores(&order, &fit.residuals);
+    for k in 1..order.len() {
+        let column = DVector::from_fn(n, |i, _| {
+            if order[k..].contains(&i) {
+                weights[i]
+            } else {
+                0.0
+            }
+        });
+        let outside = &column - &hat * &column;
+        let expected = column.dot(&residual).powi(2) / outside.dot(&outside);
+        let reduction = scores[k].reduction();
+        assert!(
+            (reduction - expected).abs() < 1e-9 * (1.0 + expected),
+            "suffix {k}: {reduction} against {expected}"
+        );
+    }
+}
+
+/// The JSON and the table of a run whose autocollimator 2 got three times noisier from
+/// cycle 4: the `noise` object of docs/FORMAT.md §5 with the change the generator put,
+/// and the words of the report; on its clean twin `equal` is true and the table says so
+/// in one line.
+#[test]
+fn the_noise_in_the_json_and_the_table() {
+    use polycal::output::diagnose::DiagnoseReport;
+    use polycal::output::diagnose_table::write_table;
+
+    let pair = generate(
+        &design(&[0, 1], 6, 0.035),
+        &Fault::NoiseRise {
+            ac: 2,
+            from_cycle: 4,
+            factor: 3.0,
+        },
+        5301,
+    );
+    let diagnosis = run_diagnosis(&pair.faulty);
+    let json: serde_json::Value = serde_json::from_str(
+        &DiagnoseReport::new(&diagnosis, None, None)
+            .to_json()
+            .expect("JSON"),
+    )
+    .expect("valid JSON");
+    let noise = &json["noise"];
+    assert_eq!(noise["equal"], false);
+    assert_eq!(noise["weighted"], true);
+    assert!(noise["statistic"].as_f64().is_some_and(|t| t > 30.0));
+    assert_eq!(noise["dof"], 11, "12 groups: 2 autocollimators × 6 cycles");
+    assert!(noise["p"].as_f64().is_some_and(|p| p < 1e-6));
+    let sigma = noise["sigma"].as_array().expect("groups");
+    let group = |ac: u32, first: u32| {
+        sigma
+            .iter()
+            .find(|g| g["ac"] == ac && g["cycles"][0] == first)
+            .and_then(|g| g["sigma"].as_f64())
+    };
+    let (quiet, loud) = (
+        group(2, 1).expect("ac 2 before"),
+        group(2, 4).expect("ac 2 after"),
+    );
+    assert!((0.025..0.05).contains(&quiet), "{quiet}");
+    assert!((0.075..0.15).contains(&loud), "{loud}");
+    assert!(
+        sigma.iter().all(|g| g.get("setup").is_none()),
+        "one mounting"
+    );
+    let mut table = String::new();
+    write_table(&mut table, &diagnosis, None, "faulty.csv").expect("table");
+    assert!(
+        table.contains("autocollimator 2's noise rose from cycle 4: "),
+        "{table}"
+    );
+    assert!(
+        table.contains("every fit weights each group by 1/σ²"),
+        "{table}"
+    );
+
+    let twin = run_diagnosis(&pair.twin);
+    let json: serde_json::Value = serde_json::from_str(
+        &DiagnoseReport::new(&twin, None, None)
+            .to_json()
+            .expect("JSON"),
+    )
+    .expect("valid JSON");
+    assert_eq!(json["noise"]["equal"], true);
+    assert_eq!(json["noise"]["weighted"], false);
+    let mut table = String::new();
+    write_table(&mut table, &twin, None, "twin.csv").expect("table");
+    assert!(table.contains("Noise: the same in every cycle and autocollimator"));
 }

@@ -178,8 +178,7 @@ impl NoiseTest {
                     .sigma
                     .iter()
                     .filter(|g| g.setup == r.setup && g.ac == r.ac)
-                    .filter(|g| g.cycles.first().is_none_or(|&first| r.cycle >= first))
-                    .last()
+                    .rfind(|g| g.cycles.first().is_none_or(|&first| r.cycle >= first))
                     .or_else(|| {
                         self.sigma
                             .iter()
