@@ -6,7 +6,7 @@
 //! diagnosis (its terms and outliers in the model, so that a drift, a jump or one bad
 //! reading is not taken for noise; a reading whose |studentized residual| exceeds
 //! [`TRIM_T`] is left out of the sums, a reading the model fits exactly adds nothing).
-//! E[Σe²] = σ² Σ(1 − h) exactly under equal noise, so Σ(1 − h) is the group's effective
+//! E\[Σe²\] = σ² Σ(1 − h) exactly under equal noise, so Σ(1 − h) is the group's effective
 //! degrees of freedom νg. Bartlett's statistic with those degrees of freedom,
 //!
 //! ```text
@@ -548,6 +548,73 @@ mod tests {
         assert!(t.abs() < 1e-12, "{t}");
         assert!(bartlett(&[(3.0, 3.0)]).is_none());
         assert!(bartlett(&[(0.0, 3.0), (0.0, 3.0)]).is_none());
+    }
+
+    /// Four cycles of 4 faces, two adjacent autocollimators, no closing reading.
+    fn small_set() -> MeasurementSet {
+        use crate::measurement::{Direction, Reading, face_at};
+        let mut readings = Vec::new();
+        for cycle in 1..=4 {
+            for step in 0..4 {
+                for ac in 1..=2_u32 {
+                    readings.push(Reading {
+                        setup: 1,
+                        cycle,
+                        step,
+                        ac,
+                        face: face_at(step, ac as usize - 1, 4),
+                        reading_arcsec: 0.0,
+                        direction: Direction::Cw,
+                        time_seconds: None,
+                        reading_y_arcsec: None,
+                        temperature_celsius: None,
+                        encoder_degrees: None,
+                        line: readings.len() as u64 + 2,
+                    });
+                }
+            }
+        }
+        MeasurementSet::from_readings(readings, Some(4), "small.csv").expect("a valid set")
+    }
+
+    #[test]
+    fn every_reading_weighs_its_groups_sigma() {
+        // ac 1 one group of σ 0.03 (100 dof); ac 2 σ 0.03 in cycles 1–3 and 0.09 from
+        // cycle 4 (50 dof each): σ_ref² = (0.0009·100 + 0.0009·50 + 0.0081·50)/200 = 0.0027
+        let group = |ac, cycles: Vec<u32>, sigma_arcsec, dof| NoiseGroup {
+            setup: 1,
+            ac,
+            cycles,
+            sigma_arcsec,
+            dof,
+        };
+        let test = NoiseTest {
+            equal: false,
+            statistic: 0.0,
+            dof: 7,
+            p_value: 0.0,
+            alpha: NOISE_ALPHA,
+            groups: 8,
+            sigma: vec![
+                group(1, vec![1, 2, 3, 4], 0.03, 100.0),
+                group(2, vec![1, 2, 3], 0.03, 50.0),
+                group(2, vec![4], 0.09, 50.0),
+            ],
+            changes: Vec::new(),
+            weighted: false,
+            sums: Vec::new(),
+        };
+        let set = small_set();
+        let weights = test.weights(&set);
+        let reference = 0.0027_f64.sqrt();
+        for (r, w) in set.readings.iter().zip(&weights) {
+            let sigma = if r.ac == 2 && r.cycle == 4 {
+                0.09
+            } else {
+                0.03
+            };
+            assert!((w - reference / sigma).abs() < 1e-12, "{r:?}: {w}");
+        }
     }
 
     #[test]
