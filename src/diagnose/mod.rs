@@ -30,6 +30,7 @@ pub mod noise;
 mod notes;
 pub mod nuisance;
 pub mod residuals;
+mod reweight;
 mod search;
 pub mod selfcal;
 
@@ -487,7 +488,7 @@ pub(crate) fn diagnose_base(
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, SolveError> {
     let first = diagnose_fitted(set, base, clock, options)?;
-    noise::reweighted(set, base, clock, options, first, diagnose_fitted)
+    reweight::reweighted(set, base, clock, options, first, diagnose_fitted)
 }
 
 /// [`diagnose_base`] with the fits of `base` as they are (weighted or not); an unweighted
