@@ -140,11 +140,16 @@ pub const KINDS: [&str; 7] = [
 
 /// What an effect's regressor needs to know about the whole run: the mean of the
 /// `temperature` column, against which a temperature coefficient acts.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 #[non_exhaustive]
 pub struct EffectContext {
     /// Mean of the readings' `temperature` values, °C (0 when none has one).
     pub mean_temperature_celsius: f64,
+    /// A weighted diagnosis's whitening factors, one per reading (σ_ref/σ of the reading's
+    /// noise group): the diagnosis's term columns are formed whitened, each value times
+    /// its reading's factor (`diagnose`'s noise groups). `None`: unweighted. An effect's
+    /// own regressor ([`Effect::regressor`]) never uses them.
+    pub weights: Option<std::sync::Arc<[f64]>>,
 }
 
 impl EffectContext {
@@ -156,6 +161,7 @@ impl EffectContext {
             .fold((0.0, 0usize), |(s, c), t| (s + t, c + 1));
         Self {
             mean_temperature_celsius: if count > 0 { sum / count as f64 } else { 0.0 },
+            weights: None,
         }
     }
 
@@ -163,7 +169,15 @@ impl EffectContext {
     pub fn with_mean_temperature(mean_temperature_celsius: f64) -> Self {
         Self {
             mean_temperature_celsius,
+            weights: None,
         }
+    }
+
+    /// This context with the whitening factors `weights` (one per reading) for the
+    /// diagnosis's term columns ([`EffectContext::weights`]).
+    pub fn with_weights(mut self, weights: Option<std::sync::Arc<[f64]>>) -> Self {
+        self.weights = weights;
+        self
     }
 }
 

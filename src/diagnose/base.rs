@@ -72,6 +72,11 @@ impl Ticker {
     }
 }
 
+/// The most encoder positions of a design a diagnosis fits by weighted least squares
+/// ([`Base::with_weights`]): beyond, the dense path's cost at every fit of the search is
+/// too high, and the fits stay unweighted (with a note).
+pub const WEIGHTED_MAX_POSITIONS: usize = 360;
+
 /// The base model of a diagnosis (module documentation).
 #[derive(Debug, Clone)]
 pub struct Base<'a> {
@@ -89,6 +94,8 @@ pub struct Base<'a> {
     off_grid: Option<Arc<OffGridDesign>>,
     /// Whether the geometry is the dense reference's whatever the fit's cofactor.
     dense_geometry: bool,
+    /// A weighted diagnosis's whitening factors, one per reading ([`Base::with_weights`]).
+    weights: Option<Arc<[f64]>>,
     /// Told after every fit and geometry.
     ticker: Ticker,
     /// The lack-of-fit test's cells and centred readings, formed at its first test (the
@@ -113,6 +120,7 @@ impl<'a> Base<'a> {
                 nuisance: None,
                 off_grid: None,
                 dense_geometry: false,
+                weights: None,
                 ticker: Ticker::default(),
                 pure_error: OnceLock::new(),
                 base_geometry: OnceLock::new(),
@@ -128,6 +136,7 @@ impl<'a> Base<'a> {
             nuisance: None,
             off_grid: None,
             dense_geometry: false,
+            weights: None,
             ticker: Ticker::default(),
             pure_error: OnceLock::new(),
             base_geometry: OnceLock::new(),
@@ -152,6 +161,7 @@ impl<'a> Base<'a> {
             nuisance: Some(nuisance),
             off_grid: None,
             dense_geometry: false,
+            weights: None,
             ticker: Ticker::default(),
             pure_error: OnceLock::new(),
             base_geometry: OnceLock::new(),
@@ -187,6 +197,49 @@ impl<'a> Base<'a> {
             rounds: Arc::default(),
         };
         self
+    }
+
+    /// This base model fitted by weighted least squares: reading i weighs `weights[i]`²
+    /// (`weights[i]` = σ_ref/σ of its noise group), every fit and geometry in whitened
+    /// quantities (the readings, the base columns and the residuals times wᵢ; the terms'
+    /// columns come whitened from an [`crate::effects::EffectContext`] with the same
+    /// weights). The fits go through the dense reference solver
+    /// ([`crate::solve::dense::dense_weighted_least_squares`]). `None` when the weights do
+    /// not fit the readings, for a self-calibration (its stop nuisance is unweighted), and
+    /// for designs of more than [`WEIGHTED_MAX_POSITIONS`] positions (the dense path's
+    /// cost at every fit of a search).
+    pub fn with_weights(&self, weights: Arc<[f64]>) -> Option<Base<'a>> {
+        if weights.len() != self.positions.readings.len()
+            || weights.iter().any(|w| !(w.is_finite() && *w > 0.0))
+            || self.nuisance.is_some()
+            || self.off_grid.is_some()
+            || self.positions.faces > WEIGHTED_MAX_POSITIONS
+        {
+            return None;
+        }
+        let columns = self
+            .columns
+            .iter()
+            .map(|x| x.iter().zip(weights.iter()).map(|(x, w)| x * w).collect())
+            .collect();
+        Some(Base {
+            positions: self.positions.clone(),
+            columns,
+            shifts: self.shifts.clone(),
+            nuisance: None,
+            off_grid: None,
+            dense_geometry: self.dense_geometry,
+            weights: Some(weights),
+            ticker: self.ticker.clone(),
+            pure_error: OnceLock::new(),
+            base_geometry: OnceLock::new(),
+            prepared: OnceLock::new(),
+        })
+    }
+
+    /// The whitening factors of a weighted base model ([`Base::with_weights`]).
+    pub fn weights(&self) -> Option<&Arc<[f64]>> {
+        self.weights.as_ref()
     }
 
     /// The progress of the diagnosis fitted with this base model.
@@ -287,6 +340,14 @@ impl<'a> Base<'a> {
     /// self-calibration the lost harmonics set to zero and the stop nuisance's degrees of
     /// freedom taken off.
     fn fit_columns(&self, all: &[Vec<f64>], sigma: Option<Sigma>) -> Result<Solution, SolveError> {
+        if let Some(weights) = &self.weights {
+            return crate::solve::dense::dense_weighted_least_squares(
+                &self.positions,
+                all,
+                weights,
+                sigma,
+            );
+        }
         let Some(n) = &self.nuisance else {
             let prepared = self
                 .prepared
@@ -329,7 +390,7 @@ impl<'a> Base<'a> {
     ) -> Option<LackOfFit> {
         let nuisance = self.nuisance.as_ref();
         self.pure_error
-            .get_or_init(|| PureError::of(set, nuisance))
+            .get_or_init(|| PureError::of_weighted(set, nuisance, self.weights.clone()))
             .as_ref()?
             .test(set, fit, &self.with(terms), alpha, nuisance)
     }
@@ -366,6 +427,7 @@ impl<'a> Base<'a> {
             nuisance: self.nuisance.clone(),
             off_grid: self.off_grid.clone(),
             dense_geometry: self.dense_geometry,
+            weights: self.weights.clone(),
             ticker: Ticker::default(),
             pure_error: OnceLock::new(),
             base_geometry: OnceLock::new(),
@@ -432,11 +494,13 @@ impl<'a> Base<'a> {
     /// `geometry` (of [`Base::geometry_without_fit`]): |(I − H)·y|², equal to the fit's
     /// to the round-off.
     pub fn rss_without_fit(&self, geometry: &FitGeometry) -> f64 {
+        let weight = |i: usize| self.weights.as_ref().map_or(1.0, |w| w[i]);
         let readings: Vec<f64> = self
             .positions
             .readings
             .iter()
-            .map(|r| r.reading_arcsec)
+            .enumerate()
+            .map(|(i, r)| weight(i) * r.reading_arcsec)
             .collect();
         geometry
             .residual_of_kept(&readings)
@@ -458,6 +522,9 @@ impl<'a> Base<'a> {
     /// The geometry formed from `fit` itself, a fit with the columns `terms`.
     fn geometry_of_fit(&self, fit: &Solution, terms: &[Vec<f64>]) -> FitGeometry {
         let columns = self.with(terms);
+        if let Some(weights) = &self.weights {
+            return FitGeometry::weighted(fit, &self.positions, &columns, Arc::clone(weights));
+        }
         let off_grid = self
             .off_grid
             .as_ref()

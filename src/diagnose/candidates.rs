@@ -126,6 +126,16 @@ impl Term {
                 term.fill(readings, &mut column[start..end], context, span);
             }
         }
+        // a weighted diagnosis's columns are whitened, as its fits' readings are
+        if let Some(weights) = &context.weights
+            && weights.len() == n
+        {
+            for column in &mut out {
+                for (x, w) in column.iter_mut().zip(weights.iter()) {
+                    *x *= w;
+                }
+            }
+        }
         out
     }
 

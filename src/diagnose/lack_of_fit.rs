@@ -95,6 +95,31 @@ impl Cells {
         out
     }
 
+    /// Whitened `values` (one per reading) with their cell's whitened mean taken out: the
+    /// part orthogonal to every cell's whitened indicator (wᵢ on its readings), as the
+    /// full model of a weighted fit leaves it.
+    fn centre_weighted(&self, values: &dyn Fn(usize) -> f64, weights: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.members.len()];
+        for members in self.values() {
+            let (wz, ww) = members.iter().fold((0.0, 0.0), |(wz, ww), &i| {
+                (wz + weights[i] * values(i), ww + weights[i] * weights[i])
+            });
+            let c = if ww > 0.0 { wz / ww } else { 0.0 };
+            for &i in members {
+                out[i] = values(i) - c * weights[i];
+            }
+        }
+        out
+    }
+
+    /// [`Cells::centre`], or [`Cells::centre_weighted`] with `weights`.
+    fn centre_with(&self, values: &dyn Fn(usize) -> f64, weights: Option<&[f64]>) -> Vec<f64> {
+        match weights {
+            Some(w) => self.centre_weighted(values, w),
+            None => self.centre(values),
+        }
+    }
+
     fn values(&self) -> impl Iterator<Item = &[usize]> {
         self.starts.windows(2).map(|w| &self.members[w[0]..w[1]])
     }
@@ -221,18 +246,37 @@ pub struct PureError {
     replicated_cells: usize,
     /// The table errors per stop beyond one per (step, direction), with a stop nuisance.
     stop_parameters: usize,
+    /// A weighted fit's whitening factors ([`PureError::of_weighted`]).
+    weights: Option<std::sync::Arc<[f64]>>,
 }
 
 impl PureError {
     /// The pure-error structure of `set` (with the stop nuisance `nuisance` taken out);
     /// `None` when no cell is read more than once.
     pub fn of(set: &MeasurementSet, nuisance: Option<&StopNuisance>) -> Option<Self> {
+        Self::of_weighted(set, nuisance, None)
+    }
+
+    /// [`PureError::of`] for weighted fits (reading i weighing `weights[i]`²): the full
+    /// model's cells are whitened like the fits' rows, the readings and the columns
+    /// tested against it are the whitened ones (the columns given whitened), and the
+    /// pure error is Σ wᵢ²(yᵢ − ȳ_w)² over the cells. Not with a stop nuisance.
+    pub fn of_weighted(
+        set: &MeasurementSet,
+        nuisance: Option<&StopNuisance>,
+        weights: Option<std::sync::Arc<[f64]>>,
+    ) -> Option<Self> {
+        let weights = weights.filter(|w| w.len() == set.readings.len() && nuisance.is_none());
         let cells = Cells::of(set);
         let replicated_cells = cells.values().filter(|c| c.len() > 1).count();
         if replicated_cells == 0 {
             return None;
         }
-        let mut centred_readings = cells.centre(&|i| set.readings[i].reading_arcsec);
+        let w = weights.as_deref();
+        let mut centred_readings = cells.centre_with(
+            &|i| w.map_or(1.0, |w| w[i]) * set.readings[i].reading_arcsec,
+            w,
+        );
         let mut stop_parameters = 0;
         if let Some(nuisance) = nuisance {
             nuisance.center_within_stops(&mut centred_readings);
@@ -251,6 +295,7 @@ impl PureError {
             centred_readings,
             replicated_cells,
             stop_parameters,
+            weights,
         })
     }
 
@@ -273,7 +318,7 @@ impl PureError {
         let wx: Vec<Vec<f64>> = columns
             .iter()
             .map(|x| {
-                let mut w = cells.centre(&|i| x[i]);
+                let mut w = cells.centre_with(&|i| x[i], self.weights.as_deref());
                 if let Some(nuisance) = nuisance {
                     nuisance.center_within_stops(&mut w);
                 }
@@ -321,7 +366,12 @@ impl PureError {
         let all_cells: Vec<CellResidual> = cells
             .iter()
             .map(|(&(setup, step, ac, direction), members)| {
-                let mean = members.iter().map(|&i| solution.residuals[i]).sum::<f64>()
+                // a weighted fit's residuals are whitened: the cell's mean in arcsec
+                let weight = |i: usize| self.weights.as_deref().map_or(1.0, |w| w[i]);
+                let mean = members
+                    .iter()
+                    .map(|&i| solution.residuals[i] / weight(i))
+                    .sum::<f64>()
                     / members.len() as f64;
                 let z = if pure_error_sigma > 0.0 {
                     mean * (members.len() as f64).sqrt() / pure_error_sigma

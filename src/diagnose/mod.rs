@@ -27,9 +27,11 @@ pub mod findings;
 pub mod geometry;
 pub mod identify;
 pub mod lack_of_fit;
+pub mod noise;
 mod notes;
 pub mod nuisance;
 pub mod residuals;
+mod reweight;
 mod search;
 pub mod selfcal;
 pub mod stop_scatter;
@@ -72,6 +74,9 @@ pub struct DiagnoseOptions {
     pub stability_alpha: f64,
     /// Most effects to add.
     pub max_effects: usize,
+    /// Level of the test of equal noise of every (setup, autocollimator, cycle) group
+    /// ([`noise`]).
+    pub noise_alpha: f64,
     /// Reading noise σ stated by the caller (uncertainties for dof = 0 and a χ² check of
     /// the final residuals).
     pub sigma: Option<Sigma>,
@@ -98,6 +103,7 @@ impl std::fmt::Debug for DiagnoseOptions {
             .field("lack_of_fit_alpha", &self.lack_of_fit_alpha)
             .field("stability_alpha", &self.stability_alpha)
             .field("max_effects", &self.max_effects)
+            .field("noise_alpha", &self.noise_alpha)
             .field("sigma", &self.sigma)
             .field("stated_cross_talk", &self.stated_cross_talk)
             .field("dense_geometry", &self.dense_geometry)
@@ -114,6 +120,7 @@ impl PartialEq for DiagnoseOptions {
             && self.lack_of_fit_alpha == other.lack_of_fit_alpha
             && self.stability_alpha == other.stability_alpha
             && self.max_effects == other.max_effects
+            && self.noise_alpha == other.noise_alpha
             && self.sigma == other.sigma
             && self.stated_cross_talk == other.stated_cross_talk
             && self.dense_geometry == other.dense_geometry
@@ -213,6 +220,12 @@ impl DiagnoseOptions {
         self
     }
 
+    /// With another level of the test of equal noise.
+    pub fn with_noise_alpha(mut self, noise_alpha: f64) -> Self {
+        self.noise_alpha = noise_alpha;
+        self
+    }
+
     /// With another largest number of effects.
     pub fn with_max_effects(mut self, max_effects: usize) -> Self {
         self.max_effects = max_effects;
@@ -233,6 +246,7 @@ impl Default for DiagnoseOptions {
             lack_of_fit_alpha: 0.01,
             stability_alpha: 0.01,
             max_effects: 12,
+            noise_alpha: noise::NOISE_ALPHA,
             sigma: None,
             stated_cross_talk: Vec::new(),
             dense_geometry: false,
@@ -437,6 +451,11 @@ pub struct Diagnosis {
     /// it ended because nothing more was (or did not run). A stopped search is never
     /// adequate (docs/FORMAT.md §5).
     pub search_stopped: Option<SearchStop>,
+    /// The test of equal noise of every (setup, autocollimator, cycle) group and the
+    /// noise's description ([`noise`]); `None` when it could not run. When it fails the
+    /// fits are weighted by the groups' σ (`weighted`), `after`'s residual sum of squares
+    /// and σ are the whitened ones and its residuals are in arcsec.
+    pub noise: Option<noise::NoiseTest>,
 }
 
 /// The readings' rounding level: residual sums of squares below it are zero.
@@ -489,8 +508,20 @@ pub(crate) fn diagnose_base(
     clock: Clock,
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, SolveError> {
+    let first = diagnose_fitted(set, base, clock, options)?;
+    reweight::reweighted(set, base, clock, options, first, diagnose_fitted)
+}
+
+/// [`diagnose_base`] with the fits of `base` as they are (weighted or not); an unweighted
+/// one tests the noise of its final model ([`noise::test`]).
+fn diagnose_fitted(
+    set: &MeasurementSet,
+    base: &Base<'_>,
+    clock: Clock,
+    options: &DiagnoseOptions,
+) -> Result<Diagnosis, SolveError> {
     let sigma = options.sigma;
-    let context = EffectContext::of(&set.readings);
+    let context = EffectContext::of(&set.readings).with_weights(base.weights().cloned());
     let before = base.fit(&[], sigma)?;
     // the dense hat-matrix geometry (the dense reference solver's fits) holds the
     // cofactor densely (three matrices of the parameters with every effect term the
@@ -673,7 +704,20 @@ pub(crate) fn diagnose_base(
     }
 
     let geometry = base.geometry(&current, &columns);
-    let studentized = residuals::studentized(&current, &geometry.leverage());
+    let leverage = geometry.leverage();
+    let studentized = residuals::studentized(&current, &leverage);
+    let noise = (testable && !exact)
+        .then(|| {
+            let residuals = &current.residuals;
+            noise::test_of_fit(
+                set,
+                base.weights(),
+                residuals,
+                &leverage,
+                options.noise_alpha,
+            )
+        })
+        .flatten();
     let mut adequacy = if testable {
         residuals::adequacy(
             &current,
@@ -799,7 +843,8 @@ pub(crate) fn diagnose_base(
     }
     // what the stops share and no position resolves enters u(α) (module stop_scatter)
     let mut current = current;
-    let stop_scatter = (testable && !exact && !base.is_self_calibration())
+    // (a weighted diagnosis's columns and residuals are whitened: not evaluated there)
+    let stop_scatter = (testable && !exact && !base.is_self_calibration() && base.weights().is_none())
         .then(|| stop_scatter::stop_scatter(set, &current))
         .flatten();
     if let Some(scatter) = stop_scatter.as_ref().filter(|s| s.significant)
@@ -828,6 +873,7 @@ pub(crate) fn diagnose_base(
         clock,
         stop_scatter,
         search_stopped,
+        noise,
     })
 }
 

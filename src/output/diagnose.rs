@@ -3,6 +3,7 @@
 //! it). The table for people is in [`super::diagnose_table`].
 
 use crate::diagnose::lack_of_fit::LackOfFit;
+use crate::diagnose::noise::NoiseTest;
 use crate::diagnose::{Alternative, Clock, Diagnosis, FoundEffect, TriedEffect};
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{Direction, MeasurementSet};
@@ -176,6 +177,11 @@ pub struct DiagnoseReport {
     pub stop_scatter: Option<Value>,
     /// Where structure is left when a check fails (an addition).
     pub structure: Vec<Value>,
+    /// The test of equal noise of every (setup, autocollimator, cycle) group and the
+    /// noise as groups (docs/FORMAT.md §5, `noise`): `equal`, `statistic`, `dof`, `p`,
+    /// `sigma` (with `alpha`, `groups`, `changes`, `weighted` added); `null` when the test
+    /// could not run.
+    pub noise: Option<Value>,
     /// Terms tried and not added, with F, p and the reason (an addition).
     pub tried: Vec<Value>,
     /// Outliers the data cannot attribute to one reading: each a list of the readings of
@@ -376,6 +382,48 @@ pub(super) fn direction_text(direction: Direction) -> &'static str {
         Direction::Cw => "cw",
         Direction::Ccw => "ccw",
     }
+}
+
+fn noise_json(noise: &NoiseTest, several_setups: bool) -> Value {
+    let sigma: Vec<Value> = noise
+        .sigma
+        .iter()
+        .map(|g| {
+            let mut object = serde_json::json!({
+                "ac": g.ac, "cycles": g.cycles, "sigma": number(g.sigma_arcsec),
+            });
+            if let (true, Value::Object(map)) = (several_setups, &mut object) {
+                map.insert("setup".into(), g.setup.into());
+            }
+            object
+        })
+        .collect();
+    let changes: Vec<Value> = noise
+        .changes
+        .iter()
+        .map(|c| {
+            let mut object = serde_json::json!({
+                "ac": c.ac, "from_cycle": c.from_cycle,
+                "sigma_before": number(c.sigma_before_arcsec),
+                "sigma_after": number(c.sigma_after_arcsec),
+            });
+            if let (true, Value::Object(map)) = (several_setups, &mut object) {
+                map.insert("setup".into(), c.setup.into());
+            }
+            object
+        })
+        .collect();
+    serde_json::json!({
+        "equal": noise.equal,
+        "statistic": number(noise.statistic),
+        "dof": noise.dof,
+        "p": number(noise.p_value),
+        "alpha": number(noise.alpha),
+        "groups": noise.groups,
+        "sigma": sigma,
+        "changes": changes,
+        "weighted": noise.weighted,
+    })
 }
 
 fn lack_of_fit_json(lof: &LackOfFit) -> Value {
@@ -619,6 +667,14 @@ impl DiagnoseReport {
                     "dof_denominator": s.dof_denominator,
                     "p": number(s.p_value),
                 })
+            }),
+            noise: diagnosis.noise.as_ref().map(|noise| {
+                let several_setups = diagnosis
+                    .before
+                    .setup_error
+                    .iter()
+                    .any(|s| s.setup != diagnosis.before.setup_error[0].setup);
+                noise_json(noise, several_setups)
             }),
             structure: diagnosis
                 .adequacy

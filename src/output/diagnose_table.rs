@@ -26,6 +26,60 @@ fn f_text(f: f64) -> String {
     }
 }
 
+/// The test of equal noise: one line when equal; the groups, the changes in words and
+/// the weighting when not.
+fn write_noise<W: std::fmt::Write>(out: &mut W, diagnosis: &Diagnosis) -> std::fmt::Result {
+    let Some(noise) = &diagnosis.noise else {
+        return Ok(());
+    };
+    let several_setups = noise.sigma.iter().any(|g| g.setup != noise.sigma[0].setup);
+    if noise.equal {
+        return writeln!(
+            out,
+            "Noise: the same in every cycle and autocollimator (Bartlett T = {:.1}, {} dof, p = {})",
+            noise.statistic,
+            noise.dof,
+            p_text(noise.p_value)
+        );
+    }
+    writeln!(
+        out,
+        "Noise: not the same in every cycle and autocollimator (Bartlett T = {:.1}, {} dof, p = {} < {}){}",
+        noise.statistic,
+        noise.dof,
+        p_text(noise.p_value),
+        noise.alpha,
+        if noise.weighted {
+            "; every fit weights each group by 1/σ²"
+        } else {
+            "; the fits keep equal weights"
+        }
+    )?;
+    for change in &noise.changes {
+        writeln!(
+            out,
+            "  {}",
+            crate::diagnose::noise::change_words(change, several_setups)
+        )?;
+    }
+    for g in &noise.sigma {
+        let cycles: Vec<String> = g.cycles.iter().map(u32::to_string).collect();
+        let mounting = if several_setups {
+            format!("setup {} ", g.setup)
+        } else {
+            String::new()
+        };
+        writeln!(
+            out,
+            "  {mounting}autocollimator {} cycles {}: σ {:.4}″",
+            g.ac,
+            cycles.join(", "),
+            g.sigma_arcsec
+        )?;
+    }
+    Ok(())
+}
+
 fn p_text(p: f64) -> String {
     if p < 1e-300 {
         "< 1e-300".into()
@@ -60,6 +114,7 @@ pub fn write_table<W: std::fmt::Write>(
     for note in &diagnosis.notes {
         writeln!(out, "  note: {note}")?;
     }
+    write_noise(out, diagnosis)?;
     if diagnosis.effects.is_empty() {
         if diagnosis.testable {
             writeln!(

@@ -101,12 +101,13 @@ impl Added {
 
     /// 1ᵀ U Uᵀ 1 over every suffix `order[k..]` (element k): the squares of the running
     /// sums of every uₖ over the stream.
-    pub(super) fn suffix_quads(&self, order: &[usize]) -> Vec<f64> {
+    /// With `weights`, the suffix's whitened column (wᵢ on it): the running sums of wᵢuₖ[i].
+    pub(super) fn suffix_quads(&self, order: &[usize], weights: Option<&[f64]>) -> Vec<f64> {
         let mut quads = vec![0.0; order.len()];
         for u in &self.directions {
             let mut running = 0.0;
             for (k, &i) in order.iter().enumerate().rev() {
-                running += u[i];
+                running += weights.map_or(1.0, |w| w[i]) * u[i];
                 quads[k] += running * running;
             }
         }

@@ -72,6 +72,9 @@ pub(super) struct Core {
     /// A self-calibration's table error at every stop, taken out of the fit
     /// ([`StopNuisance`]): its P_D is added to the hat matrix.
     nuisance: Option<StopNuisance>,
+    /// A weighted fit's whitening factors (its rows are whitened; a stream's suffix
+    /// column is wᵢ on the suffix).
+    weights: Option<Arc<[f64]>>,
     /// Every reading's leverage, once formed.
     leverage: OnceLock<Vec<f64>>,
     /// The suffix quadratics of the streams met so far: (order of the readings, them).
@@ -116,6 +119,7 @@ impl Core {
             form,
             rows,
             nuisance: None,
+            weights: None,
             leverage: OnceLock::new(),
             suffix: Mutex::new(Vec::new()),
             outside: Mutex::new(Vec::new()),
@@ -127,6 +131,7 @@ impl Core {
     pub(super) fn detached(&self) -> Self {
         Core {
             nuisance: self.nuisance.clone(),
+            weights: self.weights.clone(),
             ..Self::of(self.form.clone(), self.rows.clone())
         }
     }
@@ -174,6 +179,17 @@ impl Core {
     /// The dense geometry of `solution` whatever its cofactor (the reference the
     /// structured form is tested against; O((2N + K + E)²) memory).
     pub(super) fn dense(solution: &Solution, set: &MeasurementSet, columns: &[Vec<f64>]) -> Self {
+        Self::dense_weighted(solution, set, columns, None)
+    }
+
+    /// [`Core::dense`] of a weighted fit: reading i's row of α, φ and U times
+    /// `weights[i]` (the whitened design), the effect `columns` as given (whitened).
+    pub(super) fn dense_weighted(
+        solution: &Solution,
+        set: &MeasurementSet,
+        columns: &[Vec<f64>],
+        weights: Option<Arc<[f64]>>,
+    ) -> Self {
         let n = solution.faces;
         let layout = solution.layout;
         let size = layout.len();
@@ -200,10 +216,11 @@ impl Core {
             .collect();
         let mut rows = Rows::with_capacity(set.readings.len(), 3 + columns.len());
         for (i, r) in set.readings.iter().enumerate() {
-            rows.push(r.face - 1, 1.0);
-            rows.push(layout.encoder(r.step % n), 1.0);
+            let w = weights.as_ref().map_or(1.0, |w| w[i]);
+            rows.push(r.face - 1, w);
+            rows.push(layout.encoder(r.step % n), w);
             if let Some(s) = streams.iter().position(|&k| k == (r.setup, r.ac)) {
-                rows.push(layout.setup(s), 1.0);
+                rows.push(layout.setup(s), w);
             }
             for (j, x) in columns.iter().enumerate() {
                 if x[i] != 0.0 {
@@ -212,7 +229,10 @@ impl Core {
             }
             rows.end_row();
         }
-        Self::of(Form::Dense(q), rows)
+        Core {
+            weights,
+            ..Self::of(Form::Dense(q), rows)
+        }
     }
 
     /// The number of readings the geometry's fit has.
@@ -426,7 +446,7 @@ impl Core {
             return Arc::clone(quads);
         }
         let engine = match &self.form {
-            Form::Dense(q) => dense_suffix_quads(q, &self.rows, order),
+            Form::Dense(q) => dense_suffix_quads(q, &self.rows, order, self.weights.as_deref()),
             Form::Structured(s) => s.suffix_quads(&self.rows, order, cache),
             Form::OffGrid(o) => o.suffix_quads(order),
         };
@@ -484,13 +504,28 @@ impl Core {
 
 /// The dense form's gᵀ Q g of every suffix `order[k..]` (element k): w = Q g kept for the
 /// running suffix sum g of the design rows, O(P) per reading.
-fn dense_suffix_quads(q: &DMatrix<f64>, rows: &Rows, order: &[usize]) -> Vec<f64> {
+/// With `weights` (a weighted fit's whitened rows), the suffix's whitened column is wᵢ
+/// on the suffix: each row enters times its wᵢ.
+fn dense_suffix_quads(
+    q: &DMatrix<f64>,
+    rows: &Rows,
+    order: &[usize],
+    weights: Option<&[f64]>,
+) -> Vec<f64> {
     let size = q.nrows();
     let mut w = vec![0.0; size];
     let mut quad = 0.0;
     let mut quads = vec![0.0; order.len()];
+    let mut scaled: Vec<(usize, f64)> = Vec::new();
     for (k, &i) in order.iter().enumerate().rev() {
-        let row = &rows[i];
+        let row: &[(usize, f64)] = match weights {
+            Some(weights) => {
+                scaled.clear();
+                scaled.extend(rows[i].iter().map(|&(a, v)| (a, weights[i] * v)));
+                &scaled
+            }
+            None => &rows[i],
+        };
         // quad += 2 cᵀ w + cᵀ Q c, then w += Q c
         let c_w: f64 = row.iter().map(|&(a, v)| v * w[a]).sum();
         let mut c_q_c = 0.0;

@@ -80,6 +80,9 @@ pub struct FitGeometry {
     core: Arc<Core>,
     /// The columns added to its model.
     added: Added,
+    /// A weighted fit's whitening factors, one per reading (its rows, columns and
+    /// residuals are the whitened ones; a jump's suffix column is wᵢ on the suffix).
+    weights: Option<Arc<[f64]>>,
 }
 
 /// What adding one column to the model would do.
@@ -126,7 +129,29 @@ impl FitGeometry {
         Self {
             core: Arc::new(core),
             added: Added::default(),
+            weights: None,
         }
+    }
+
+    /// The geometry of `solution`, a weighted fit of `set` (reading i weighing
+    /// `weights[i]`², [`crate::solve::dense::dense_weighted_least_squares`]) with the
+    /// whitened effect `columns`: dense, in whitened quantities. Every vector given to it
+    /// (a column, the residuals) is a whitened one; a jump's suffix column is wᵢ on the
+    /// suffix ([`FitGeometry::suffix_scores`]).
+    pub fn weighted(
+        solution: &Solution,
+        set: &MeasurementSet,
+        columns: &[Vec<f64>],
+        weights: Arc<[f64]>,
+    ) -> Self {
+        let mut geometry = Self::of(Core::dense_weighted(
+            solution,
+            set,
+            columns,
+            Some(Arc::clone(&weights)),
+        ));
+        geometry.weights = Some(weights);
+        geometry
     }
 
     /// The geometry of `solution`, a fit of `set` with the effect `columns` (one value per
@@ -168,11 +193,15 @@ impl FitGeometry {
     /// matrix of the full model is the fit's plus P_D. Columns added before are dropped
     /// (add them after).
     pub fn with_nuisance(self, nuisance: Option<StopNuisance>) -> Self {
+        let weights = self.weights;
         let core = match Arc::try_unwrap(self.core) {
             Ok(core) => core,
             Err(shared) => shared.detached(),
         };
-        Self::of(core.with_nuisance(nuisance))
+        Self {
+            weights,
+            ..Self::of(core.with_nuisance(nuisance))
+        }
     }
 
     /// The geometry of this fit's model with the effect `columns` (one value per reading
@@ -188,6 +217,7 @@ impl FitGeometry {
         Self {
             core: Arc::clone(&self.core),
             added,
+            weights: self.weights.clone(),
         }
     }
 
@@ -253,8 +283,10 @@ impl FitGeometry {
         residuals: &[f64],
         cache: &mut SuffixCache,
     ) -> Vec<ColumnScore> {
+        let weights = self.weights.as_deref();
+        let weight = |i: usize| weights.map_or(1.0, |w| w[i]);
         let core = self.core.suffix_quads(order, cache);
-        let added = (!self.added.is_empty()).then(|| self.added.suffix_quads(order));
+        let added = (!self.added.is_empty()).then(|| self.added.suffix_quads(order, weights));
         let mut scores = vec![
             ColumnScore {
                 projection: 0.0,
@@ -263,10 +295,10 @@ impl FitGeometry {
             };
             order.len()
         ];
-        let mut projection = 0.0;
+        let (mut projection, mut length_squared) = (0.0, 0.0);
         for (k, &i) in order.iter().enumerate().rev() {
-            projection += residuals[i];
-            let length_squared = (order.len() - k) as f64;
+            projection += weight(i) * residuals[i];
+            length_squared += weight(i) * weight(i);
             let nuisance_quad = core.nuisance.as_ref().map_or(0.0, |q| q[k]);
             let mut new_length_squared = length_squared - core.engine[k] - nuisance_quad;
             if let Some(added) = &added {

@@ -122,12 +122,44 @@ pub(crate) fn dense_least_squares_observed(
     stated_sigma: Option<Sigma>,
     progress: Option<&dyn Progress>,
 ) -> Result<Solution, SolveError> {
+    dense_fit(set, regressors, None, stated_sigma, progress)
+}
+
+/// [`dense_least_squares`] by weighted least squares: reading i weighs `weights[i]`² (a
+/// whitening factor, e.g. σ_ref/σᵢ), the regressors are given already whitened (each
+/// value times its reading's `weights[i]`). The residuals, the residual sum of squares
+/// and σ are the whitened ones (wᵢ·(yᵢ − model)); the cofactor is (XᵀW²X)⁻¹.
+///
+/// # Errors
+///
+/// As [`dense_least_squares`]. A reading whose weight is not finite and positive is left
+/// out of the normal equations (a position left without readings is refused as
+/// unobservable); `weights` of another length than the readings are ignored (an
+/// unweighted fit).
+pub fn dense_weighted_least_squares(
+    set: &MeasurementSet,
+    regressors: &[Vec<f64>],
+    weights: &[f64],
+    stated_sigma: Option<Sigma>,
+) -> Result<Solution, SolveError> {
+    let weights = (weights.len() == set.readings.len()).then_some(weights);
+    dense_fit(set, regressors, weights, stated_sigma, None)
+}
+
+/// The dense fit, weighted when `weights` are given ([`dense_weighted_least_squares`]).
+fn dense_fit(
+    set: &MeasurementSet,
+    regressors: &[Vec<f64>],
+    weights: Option<&[f64]>,
+    stated_sigma: Option<Sigma>,
+    progress: Option<&dyn Progress>,
+) -> Result<Solution, SolveError> {
     super::least_squares::check_regressors(set, regressors)?;
     let streams = set.streams();
     let (n, k, e) = (set.faces, streams.len(), regressors.len());
     let cells = set.readings.len() * (3 + e);
     let mut work = Work::new(progress, n - 1 + k - 1 + e, 2 * n + k + e, cells);
-    let reduced = reduce(set, &streams, regressors)?;
+    let reduced = reduce_weighted(set, &streams, regressors, weights)?;
     work.reduced();
     let m = reduced.rest_len();
     let cholesky = factorise(&reduced.schur, |j0, j1| work.factorised(j0, j1))
@@ -158,11 +190,13 @@ pub(crate) fn dense_least_squares_observed(
         .enumerate()
         .map(|(i, r)| {
             let s = stream_index(r.setup, r.ac);
-            let mut model = theta[n + r.step % n] + face_deviation[r.face - 1] + theta[2 * n + s];
+            let w = weights.map_or(1.0, |w| w[i]);
+            let mut model =
+                w * (theta[n + r.step % n] + face_deviation[r.face - 1] + theta[2 * n + s]);
             for (j, regressor) in regressors.iter().enumerate() {
                 model += theta[2 * n + k + j] * regressor[i];
             }
-            r.reading_arcsec - model
+            w * r.reading_arcsec - model
         })
         .collect();
     let rss: f64 = residuals.iter().map(|r| r * r).sum();
@@ -203,11 +237,14 @@ pub(crate) fn dense_least_squares_observed(
     })
 }
 
-/// Builds the normal equations with the α block eliminated.
-pub(crate) fn reduce(
+/// Builds the normal equations with the α block eliminated; with `weights`, of the
+/// whitened problem: reading i's row of α, φ and U and its reading times `weights[i]`, the
+/// regressors as given (whitened by the caller).
+fn reduce_weighted(
     set: &MeasurementSet,
     streams: &[(u32, u32)],
     regressors: &[Vec<f64>],
+    weights: Option<&[f64]>,
 ) -> Result<Reduced, SolveError> {
     let n = set.faces;
     let k = streams.len();
@@ -222,14 +259,18 @@ pub(crate) fn reduce(
     for (i, r) in set.readings.iter().enumerate() {
         x.clear();
         let p = r.step % n;
+        let w = weights.map_or(1.0, |w| w[i]);
+        if !(w.is_finite() && w > 0.0) {
+            continue;
+        }
         if r.face < n {
-            x.push((r.face - 1, 1.0));
+            x.push((r.face - 1, w));
         }
         let s = streams
             .binary_search(&(r.setup, r.ac))
             .unwrap_or_else(|_| unreachable!("every stream was listed"));
         if s > 0 {
-            x.push((n - 1 + s - 1, 1.0));
+            x.push((n - 1 + s - 1, w));
         }
         for (j, regressor) in regressors.iter().enumerate() {
             let v = regressor[i];
@@ -237,16 +278,16 @@ pub(crate) fn reduce(
                 x.push((n - 1 + k - 1 + j, v));
             }
         }
-        let y = r.reading_arcsec;
-        count[p] += 1.0;
-        sum_alpha[p] += y;
+        let y = w * r.reading_arcsec;
+        count[p] += w * w;
+        sum_alpha[p] += w * y;
         for &(a, va) in &x {
             rhs[a] += va * y;
             for &(b, vb) in &x {
                 normal[(a, b)] += va * vb;
             }
         }
-        rows[p].extend_from_slice(&x);
+        rows[p].extend(x.iter().map(|&(j, v)| (j, w * v)));
     }
     for row in &mut rows {
         row.sort_by_key(|&(j, _)| j);
