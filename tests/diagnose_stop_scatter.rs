@@ -100,17 +100,25 @@ fn two_u_alpha_covers_the_encoder_error_a_table_samples_off_its_angles() {
 fn the_test_of_a_shared_scatter_keeps_its_level_on_clean_runs() {
     let run = Run::typical(4, 0.04);
     let runs = 1000u64;
-    let alarms = (0..runs)
+    // (a run whose equal-noise test fails is weighted, and its scatter not evaluated: a
+    // few in a thousand clean runs)
+    let called: Vec<Option<bool>> = (0..runs)
         .into_par_iter()
-        .filter(|&seed| {
+        .map(|seed| {
             let pair = generate(&run, &Fault::None, 10_000 + seed);
             let diagnosis = diagnose(&pair.twin, &DiagnoseOptions::default()).expect("diagnoses");
-            diagnosis.stop_scatter.expect("evaluated").significant
+            diagnosis.stop_scatter.map(|s| s.significant)
         })
-        .count();
-    let rate = alarms as f64 / runs as f64;
+        .collect();
+    let evaluated = called.iter().flatten().count();
+    let alarms = called.iter().flatten().filter(|&&s| s).count();
+    assert!(
+        evaluated as u64 >= runs - 10,
+        "evaluated in {evaluated} of {runs}"
+    );
+    let rate = alarms as f64 / evaluated as f64;
     eprintln!(
-        "a shared scatter called on {alarms} of {runs} clean runs ({rate:.4}, level {STOP_SCATTER_ALPHA})"
+        "a shared scatter called on {alarms} of {evaluated} clean runs evaluated ({rate:.4}, level {STOP_SCATTER_ALPHA})"
     );
     assert!((rate - STOP_SCATTER_ALPHA).abs() <= 0.015, "rate {rate}");
 }
