@@ -227,6 +227,19 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             failures += 1;
             continue;
         }
+        // A budget is propagated through an equally weighted fit only: a final model
+        // weighted by the noise of each cycle (docs/FORMAT.md §5.2 `noise`) is refused
+        // with it rather than given another fit's U.
+        if budget.is_some()
+            && let Some(noise) = diagnosis.noise.as_ref().filter(|n| n.weighted)
+        {
+            out.error_message(format_args!(
+                "{name}: --budget: the noise differs between the cycles (equal-noise test p = {:.1e}), so the final model weights each group by its own σ, and a budget is propagated through equally weighted fits only; run `polycal diagnose` without --budget for the weighted result and its u, or `polycal solve --budget` for the equally weighted calibration",
+                noise.p_value
+            ));
+            failures += 1;
+            continue;
+        }
         // The budget acts on the final model: its results are the ones reported.
         let gum = match budget
             .as_ref()

@@ -844,9 +844,10 @@ fn diagnose_fitted(
     // what the stops share and no position resolves enters u(α) (module stop_scatter)
     let mut current = current;
     // (a weighted diagnosis's columns and residuals are whitened: not evaluated there)
-    let stop_scatter = (testable && !exact && !base.is_self_calibration() && base.weights().is_none())
-        .then(|| stop_scatter::stop_scatter(set, &current))
-        .flatten();
+    let stop_scatter =
+        (testable && !exact && !base.is_self_calibration() && base.weights().is_none())
+            .then(|| stop_scatter::stop_scatter(set, &current))
+            .flatten();
     if let Some(scatter) = stop_scatter.as_ref().filter(|s| s.significant)
         && let Some((sigma, _)) = current.sigma
         && sigma > 0.0
