@@ -21,6 +21,7 @@
 pub mod base;
 pub mod candidates;
 pub mod clock;
+pub mod cycles;
 mod doubt;
 pub mod findings;
 pub mod geometry;
@@ -416,6 +417,9 @@ pub struct Diagnosis {
     pub before_sub_pitch: Option<SubPitchSolution>,
     /// For sub-pitch mountings: the final model likewise.
     pub after_sub_pitch: Option<SubPitchSolution>,
+    /// The cycles that disagree with the others ([`cycles`]), repaired or set aside;
+    /// empty when none (and for self-calibration runs, which are not tested).
+    pub cycles: Vec<cycles::CycleFinding>,
 }
 
 /// The readings' rounding level: residual sums of squares below it are zero.
@@ -453,11 +457,12 @@ fn rounding_rss(set: &MeasurementSet) -> f64 {
 /// Shifted mountings (a `shift` column) are fitted in encoder positions ([`base`]).
 pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagnosis, SolveError> {
     let (work, clock) = clock::clocked(set);
-    let set: &MeasurementSet = &work;
-    let base = Base::of(set)
-        .with_dense_geometry(options.dense_geometry)
-        .with_progress(options.progress.clone());
-    diagnose_base(set, &base, clock, options)
+    cycles::diagnose_checked(&work, options, |set| {
+        let base = Base::of(set)
+            .with_dense_geometry(options.dense_geometry)
+            .with_progress(options.progress.clone());
+        diagnose_base(set, &base, clock, options)
+    })
 }
 
 /// [`diagnose`] of `set` (on `clock`) with the base model `base` (of `set`, or of a
@@ -770,6 +775,7 @@ pub(crate) fn diagnose_base(
         testable,
         notes,
         clock,
+        cycles: Vec::new(),
     })
 }
 
