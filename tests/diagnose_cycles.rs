@@ -253,3 +253,42 @@ fn a_cycle_no_cause_explains_is_set_aside() {
         assert!(!far(e, et), "β, α {e:?} against the twin's {et:?}");
     }
 }
+
+/// The JSON and the table say which cycle was repaired, why, and what left the fit; a
+/// clean run's JSON has an empty `cycles`.
+#[test]
+fn the_report_names_the_cycle_its_cause_and_the_reading_set_aside() {
+    let (run, seed) = runs(1)[0].clone();
+    let pair = generate(&run, &Fault::OneStopLate { cycle: 3 }, seed);
+    let d = diagnose(&pair.faulty, &DiagnoseOptions::default()).expect("a diagnosis");
+    let json = polycal::output::diagnose::DiagnoseReport::new(&d, None, None)
+        .to_json()
+        .expect("JSON");
+    let value: serde_json::Value = serde_json::from_str(&json).expect("valid JSON");
+    let cycles = value["cycles"].as_array().expect("cycles");
+    assert_eq!(cycles.len(), 1);
+    let c = &cycles[0];
+    assert_eq!(c["setup"], 1);
+    assert_eq!(c["cycle"], 3);
+    assert_eq!(c["cause"], "one-stop-late");
+    assert_eq!(c["action"], "repaired");
+    assert_eq!(c["consistent"], false);
+    assert!(c["statistic"].as_f64().expect("F") > 10.0);
+    assert!(c["p"].as_f64().expect("p") < 1e-6);
+    // the first stop's values (one per autocollimator) belong to the stop before the cycle
+    let aside = c["set_aside"].as_array().expect("set_aside");
+    assert_eq!(aside.len(), run.face_offsets.len());
+    assert!(aside.iter().all(|r| r["step"] == 0 && r["cycle"] == 3));
+    let mut table = String::new();
+    polycal::output::diagnose_table::write_table(&mut table, &d, None, "late.csv")
+        .expect("a table");
+    assert!(table.contains("setup 1 cycle 3"), "{table}");
+    assert!(table.contains("one-stop-late; repaired"), "{table}");
+
+    let clean = diagnose(&pair.twin, &DiagnoseOptions::default()).expect("a diagnosis");
+    let json = polycal::output::diagnose::DiagnoseReport::new(&clean, None, None)
+        .to_json()
+        .expect("JSON");
+    let value: serde_json::Value = serde_json::from_str(&json).expect("valid JSON");
+    assert_eq!(value["cycles"], serde_json::json!([]));
+}
