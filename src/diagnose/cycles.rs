@@ -14,8 +14,9 @@
 //! or one bad reading also break the additivity), and tested again on the final model's
 //! residuals (a handful of outliers of the cycle counted as found, more put back: a
 //! cycle that disagrees as a whole is not removed reading by reading); still
-//! disagreeing, it is set aside as `unexplained`, the search run again without it, and
-//! the verdict is not adequate. `before` stays the fit of the readings as logged.
+//! disagreeing, and grossly ([`GROSS_F`]), it is set aside as `unexplained`, the search
+//! run again without it, and the verdict is not adequate (a milder disagreement no cause
+//! explains is left to the search's own checks and not listed). `before` stays the fit of the readings as logged.
 //!
 //! Self-calibration runs are not tested (their diagnosis goes through
 //! [`super::selfcal`]), nor mountings against each other.
@@ -46,6 +47,13 @@ pub const MIN_CYCLES: usize = 3;
 
 /// The fewest degrees of freedom the other cycles must leave for a test.
 const MIN_REST_DOF: usize = 10;
+
+/// The smallest F at which a cycle no logging error explains is set aside: its
+/// disagreement with the others is then gross (the variance of its interaction at least
+/// four times theirs), the cycle disagrees as a whole. A milder disagreement no cause
+/// explains is left to the search and its checks (a slow wander or a temperature the
+/// search cannot express also breaks the additivity a little, in every cycle).
+pub const GROSS_F: f64 = 4.0;
 
 /// The most outliers the search may find in a cycle that first disagreed for the cycle
 /// to count as agreeing without them; with more, they are put back for the retest.
@@ -233,6 +241,23 @@ fn tested(set: &MeasurementSet) -> Vec<(u32, u32)> {
         .collect()
 }
 
+/// The cycles of `set` that disagree with the others at the run's level, as logged and
+/// before any repair: (setup, cycle, F, p), the decision whose false-alarm rate is
+/// [`CYCLE_ALPHA`] per run (docs/verdicts.md).
+pub fn disagreeing_cycles(set: &MeasurementSet) -> Vec<(u32, u32, f64, f64)> {
+    let pairs = tested(set);
+    let level = CYCLE_ALPHA / pairs.len().max(1) as f64;
+    let v = values(set);
+    let none = BTreeSet::new();
+    pairs
+        .iter()
+        .filter_map(|&(setup, cycle)| {
+            let t = chow(&tables(set, &v, setup, None, &none), cycle, MIN_REST_DOF)?;
+            (t.p_value < level).then_some((setup, cycle, t.f_statistic, t.p_value))
+        })
+        .collect()
+}
+
 fn aside_readings(set: &MeasurementSet, indices: &[usize], reason: &str) -> Vec<SetAsideReading> {
     indices
         .iter()
@@ -340,6 +365,7 @@ fn examine(set: &MeasurementSet) -> Examined {
         let mut found = finding(setup, cycle, logged, level);
         match explaining.len() {
             0 => pending.push((setup, cycle, logged)),
+            n if n > 1 && logged.f_statistic < GROSS_F => pending.push((setup, cycle, logged)),
             1 => {
                 let Some((cause, t, repaired, aside)) = explaining.into_iter().next() else {
                     continue;
@@ -433,7 +459,7 @@ fn still_disagreeing(
                 cycle,
                 MIN_REST_DOF,
             )
-            .is_some_and(|t| t.p_value < level)
+            .is_some_and(|t| t.p_value < level && t.f_statistic >= GROSS_F)
         })
         .collect()
 }
