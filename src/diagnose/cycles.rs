@@ -137,6 +137,9 @@ pub struct CycleFinding {
     pub encoder_change_max: f64,
 }
 
+/// One reading of a cycle as the test sees it: autocollimator, stop, value.
+type CycleReading = (u32, usize, f64);
+
 /// The tables of `setup`'s autocollimators (rows cycles, columns stops) of `values` (one
 /// per reading of `set`), the readings of `cycle` replaced by `replacement` (ac, step,
 /// value) when given, and readings whose index is in `skip` left out.
@@ -144,7 +147,7 @@ fn tables(
     set: &MeasurementSet,
     values: &[f64],
     setup: u32,
-    replaced: Option<(u32, &[(u32, usize, f64)])>,
+    replaced: Option<(u32, &[CycleReading])>,
     skip: &BTreeSet<usize>,
 ) -> Vec<Vec<Entry>> {
     let mut acs: Vec<u32> = set
@@ -190,9 +193,9 @@ fn undone(
     setup: u32,
     cycle: u32,
     cause: CycleCause,
-) -> Option<(Vec<(u32, usize, f64)>, MeasurementSet, Vec<usize>)> {
+) -> Option<(Vec<CycleReading>, MeasurementSet, Vec<usize>)> {
     let (repaired, aside) = causes::repair(set, setup, cycle, cause)?;
-    let entries: Vec<(u32, usize, f64)> = match cause {
+    let entries: Vec<CycleReading> = match cause {
         CycleCause::FacesShifted { by } => {
             // the values are of the face `by` on: compared with the autocollimator of
             // this mounting that reads that face at the same stop, where there is one

@@ -59,14 +59,14 @@ impl Run {
             self.faces - 1
         };
         let mut steps: Vec<usize> = (0..=last).collect();
-        if self.bidirectional && cycle % 2 == 0 {
+        if self.bidirectional && cycle.is_multiple_of(2) {
             steps.reverse();
         }
         steps
     }
 
     fn direction(&self, cycle: u32) -> Direction {
-        if self.bidirectional && cycle % 2 == 0 {
+        if self.bidirectional && cycle.is_multiple_of(2) {
             Direction::Ccw
         } else {
             Direction::Cw

@@ -165,7 +165,7 @@ mod tests {
                 })
             })
             .collect();
-        let test = chow(&[entries.clone()], 3, 1).expect("a test");
+        let test = chow(std::slice::from_ref(&entries), 3, 1).expect("a test");
         assert_eq!((test.dof_numerator, test.dof_denominator), (5, 10));
         assert!(test.p_value < 1e-6, "{test:?}");
         let other = chow(&[entries], 1, 1).expect("a test");
