@@ -4,6 +4,8 @@
 //! values) and only says which stop, face or autocollimator it belongs to; a reading the
 //! repair leaves without a stop of the cycle is set aside and named.
 
+use std::collections::HashMap;
+
 use crate::measurement::{MeasurementSet, Reading, face_at};
 
 /// A logging error that explains a cycle's disagreement with the rest of its run
@@ -104,7 +106,7 @@ pub(super) fn candidates(set: &MeasurementSet, setup: u32, cycle: u32) -> Vec<Cy
 /// The stops (steps) of a cycle in time order: by the readings' times when every reading
 /// of the cycle has one, else by the cycle's direction.
 fn stops_in_time_order(readings: &[&Reading]) -> Vec<usize> {
-    let mut stops: Vec<(f64, usize)> = Vec::new();
+    let mut first: HashMap<usize, f64> = HashMap::new();
     let timed = readings.iter().all(|r| r.time_seconds.is_some());
     for r in readings {
         let key = if timed {
@@ -114,11 +116,10 @@ fn stops_in_time_order(readings: &[&Reading]) -> Vec<usize> {
         } else {
             r.step as f64
         };
-        match stops.iter_mut().find(|(_, s)| *s == r.step) {
-            Some(stop) => stop.0 = stop.0.min(key),
-            None => stops.push((key, r.step)),
-        }
+        let entry = first.entry(r.step).or_insert(key);
+        *entry = entry.min(key);
     }
+    let mut stops: Vec<(f64, usize)> = first.into_iter().map(|(s, k)| (k, s)).collect();
     stops.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     stops.into_iter().map(|(_, s)| s).collect()
 }
@@ -149,7 +150,8 @@ pub(super) fn repair(
     if stops.len() < 2 {
         return None;
     }
-    let rank = |step: usize| stops.iter().position(|&s| s == step);
+    let ranks: HashMap<usize, usize> = stops.iter().enumerate().map(|(k, &s)| (s, k)).collect();
+    let rank = |step: usize| ranks.get(&step).copied();
     let mut readings = set.readings.clone();
     let mut aside = Vec::new();
     let mut shifts = set.setup_shift_deg.clone();
@@ -160,14 +162,17 @@ pub(super) fn repair(
     };
     match cause {
         CycleCause::SwappedAcs { a, b } => {
+            let of_b: HashMap<usize, usize> = in_cycle
+                .iter()
+                .filter(|&&j| set.readings[j].ac == b)
+                .map(|&j| (set.readings[j].step, j))
+                .collect();
             for &i in &in_cycle {
                 let r = &set.readings[i];
                 if r.ac != a {
                     continue;
                 }
-                let j = *in_cycle
-                    .iter()
-                    .find(|&&j| set.readings[j].ac == b && set.readings[j].step == r.step)?;
+                let j = *of_b.get(&r.step)?;
                 let other = &set.readings[j];
                 readings[i].reading_arcsec = other.reading_arcsec;
                 readings[i].reading_y_arcsec = other.reading_y_arcsec;
@@ -214,10 +219,11 @@ pub(super) fn repair(
         }
         CycleCause::Unexplained => return None,
     }
+    let aside_set: std::collections::HashSet<usize> = aside.iter().copied().collect();
     let keep: Vec<Reading> = readings
         .into_iter()
         .enumerate()
-        .filter(|(i, _)| !aside.contains(i))
+        .filter(|(i, _)| !aside_set.contains(i))
         .map(|(_, r)| r)
         .collect();
     Some((

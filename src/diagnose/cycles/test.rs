@@ -26,55 +26,46 @@ pub(super) fn additive_rss(entries: &[Entry]) -> (f64, usize) {
     if entries.is_empty() {
         return (0.0, 0);
     }
-    let mut rows: Vec<u32> = entries.iter().map(|e| e.0).collect();
-    rows.sort_unstable();
-    rows.dedup();
-    let mut columns: Vec<usize> = entries.iter().map(|e| e.1).collect();
-    columns.sort_unstable();
-    columns.dedup();
-    let row_of: Vec<usize> = entries
-        .iter()
-        .map(|e| rows.binary_search(&e.0).unwrap_or(0))
-        .collect();
-    let column_of: Vec<usize> = entries
-        .iter()
-        .map(|e| columns.binary_search(&e.1).unwrap_or(0))
-        .collect();
-    let mut a = vec![0.0; columns.len()];
-    let mut b = vec![0.0; rows.len()];
+    // rows and columns indexed directly (cycles and stops are small integers)
+    let row_count = entries.iter().map(|e| e.0 as usize).max().unwrap_or(0) + 1;
+    let column_count = entries.iter().map(|e| e.1).max().unwrap_or(0) + 1;
+    let mut in_row = vec![0usize; row_count];
+    let mut in_column = vec![0usize; column_count];
+    for e in entries {
+        in_row[e.0 as usize] += 1;
+        in_column[e.1] += 1;
+    }
+    let mut a = vec![0.0; column_count];
+    let mut b = vec![0.0; row_count];
     let mut previous = f64::INFINITY;
     let mut rss = 0.0;
     for _ in 0..500 {
-        let mut sum = vec![0.0; columns.len()];
-        let mut count = vec![0usize; columns.len()];
-        for (k, e) in entries.iter().enumerate() {
-            sum[column_of[k]] += e.2 - b[row_of[k]];
-            count[column_of[k]] += 1;
+        a.iter_mut().for_each(|x| *x = 0.0);
+        for e in entries {
+            a[e.1] += e.2 - b[e.0 as usize];
         }
-        for j in 0..columns.len() {
-            a[j] = sum[j] / count[j].max(1) as f64;
+        for (x, &n) in a.iter_mut().zip(&in_column) {
+            *x /= n.max(1) as f64;
         }
-        let mut sum = vec![0.0; rows.len()];
-        let mut count = vec![0usize; rows.len()];
-        for (k, e) in entries.iter().enumerate() {
-            sum[row_of[k]] += e.2 - a[column_of[k]];
-            count[row_of[k]] += 1;
+        b.iter_mut().for_each(|x| *x = 0.0);
+        for e in entries {
+            b[e.0 as usize] += e.2 - a[e.1];
         }
-        for i in 0..rows.len() {
-            b[i] = sum[i] / count[i].max(1) as f64;
+        for (x, &n) in b.iter_mut().zip(&in_row) {
+            *x /= n.max(1) as f64;
         }
         rss = entries
             .iter()
-            .enumerate()
-            .map(|(k, e)| (e.2 - a[column_of[k]] - b[row_of[k]]).powi(2))
+            .map(|e| (e.2 - a[e.1] - b[e.0 as usize]).powi(2))
             .sum::<f64>();
-        if previous - rss <= 1e-13 * previous.max(f64::MIN_POSITIVE) {
+        if previous - rss <= 1e-10 * previous.max(f64::MIN_POSITIVE) {
             break;
         }
         previous = rss;
     }
-    let parameters = rows.len() + columns.len() - 1;
-    (rss, entries.len().saturating_sub(parameters))
+    let rows = in_row.iter().filter(|&&n| n > 0).count();
+    let columns = in_column.iter().filter(|&&n| n > 0).count();
+    (rss, entries.len().saturating_sub(rows + columns - 1))
 }
 
 /// A Chow F test of one cycle against the others.
