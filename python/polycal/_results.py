@@ -563,6 +563,7 @@ class DiagnoseResult(Result):
     structure: List[Section]
     tried: List[Section]
     unattributed: List[Section]
+    cycles: List[Section]
     residuals: Section
     truth: Section
 

@@ -21,6 +21,7 @@
 pub mod base;
 pub mod candidates;
 pub mod clock;
+pub mod cycles;
 mod doubt;
 mod drift_shape;
 pub mod findings;
@@ -456,6 +457,9 @@ pub struct Diagnosis {
     /// fits are weighted by the groups' σ (`weighted`), `after`'s residual sum of squares
     /// and σ are the whitened ones and its residuals are in arcsec.
     pub noise: Option<noise::NoiseTest>,
+    /// The cycles that disagree with the others ([`cycles`]), repaired or set aside;
+    /// empty when none (and for self-calibration runs, which are not tested).
+    pub cycles: Vec<cycles::CycleFinding>,
 }
 
 /// The readings' rounding level: residual sums of squares below it are zero.
@@ -493,11 +497,12 @@ fn rounding_rss(set: &MeasurementSet) -> f64 {
 /// Shifted mountings (a `shift` column) are fitted in encoder positions ([`base`]).
 pub fn diagnose(set: &MeasurementSet, options: &DiagnoseOptions) -> Result<Diagnosis, SolveError> {
     let (work, clock) = clock::clocked(set);
-    let set: &MeasurementSet = &work;
-    let base = Base::of(set)
-        .with_dense_geometry(options.dense_geometry)
-        .with_progress(options.progress.clone());
-    diagnose_base(set, &base, clock, options)
+    cycles::diagnose_checked(&work, options, |set| {
+        let base = Base::of(set)
+            .with_dense_geometry(options.dense_geometry)
+            .with_progress(options.progress.clone());
+        diagnose_base(set, &base, clock, options)
+    })
 }
 
 /// [`diagnose`] of `set` (on `clock`) with the base model `base` (of `set`, or of a
@@ -875,6 +880,7 @@ fn diagnose_fitted(
         stop_scatter,
         search_stopped,
         noise,
+        cycles: Vec::new(),
     })
 }
 

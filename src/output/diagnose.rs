@@ -187,6 +187,13 @@ pub struct DiagnoseReport {
     /// Outliers the data cannot attribute to one reading: each a list of the readings of
     /// which one is bad (an addition).
     pub unattributed: Vec<Vec<Value>>,
+    /// The cycles that disagree with the others (docs/FORMAT.md §5, `cycles`): `setup`,
+    /// `cycle`, `statistic`, `dof`, `p`, `consistent`, `cause`, `action`, and the
+    /// additions `dof_denominator`, `level`, `alternatives`, `acs` (swapped-acs), `by`
+    /// (faces-shifted), `repaired` (F and p undone), `pitch_change_max`,
+    /// `encoder_change_max` and `set_aside` (the readings that left the fit, with the
+    /// reason). Always present, empty when none.
+    pub cycles: Vec<Value>,
     /// Every reading's residual before and after, in file order (an addition; present
     /// when built with [`DiagnoseReport::with_residuals`], as `polycal diagnose` does).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -707,6 +714,7 @@ impl DiagnoseReport {
                         .collect()
                 })
                 .collect(),
+            cycles: diagnosis.cycles.iter().map(cycle_json).collect(),
             residuals: None,
         }
     }
@@ -726,4 +734,35 @@ impl DiagnoseReport {
     pub fn to_json(&self) -> Result<String, serde_json::Error> {
         crate::output::to_json(self)
     }
+}
+
+/// One cycle that disagrees, as in docs/FORMAT.md §5 (`cycles`).
+fn cycle_json(c: &crate::diagnose::cycles::CycleFinding) -> Value {
+    use crate::diagnose::cycles::CycleCause;
+    let mut object = serde_json::json!({
+        "setup": c.setup,
+        "cycle": c.cycle,
+        "statistic": number(c.f_statistic),
+        "dof": c.dof_numerator,
+        "dof_denominator": c.dof_denominator,
+        "p": number(c.p_value),
+        "level": number(c.level),
+        "consistent": c.consistent,
+        "cause": c.cause.as_str(),
+        "action": c.action.as_str(),
+        "alternatives": c.alternatives.iter().map(|a| a.as_str()).collect::<Vec<_>>(),
+        "repaired": c.repaired.map(|(f, p)| serde_json::json!({"statistic": number(f), "p": number(p)})),
+        "pitch_change_max": number(c.pitch_change_max),
+        "encoder_change_max": number(c.encoder_change_max),
+        "set_aside": c.set_aside.iter().map(|r| serde_json::json!({
+            "setup": r.setup, "cycle": r.cycle, "step": r.step, "ac": r.ac, "line": r.line,
+            "reading": number(r.reading_arcsec), "reason": r.reason,
+        })).collect::<Vec<_>>(),
+    });
+    match c.cause {
+        CycleCause::SwappedAcs { a, b } => object["acs"] = serde_json::json!([a, b]),
+        CycleCause::FacesShifted { by } => object["by"] = serde_json::json!(by),
+        _ => {}
+    }
+    object
 }

@@ -115,6 +115,7 @@ pub fn write_table<W: std::fmt::Write>(
         writeln!(out, "  note: {note}")?;
     }
     write_noise(out, diagnosis)?;
+    write_cycles(out, diagnosis)?;
     if diagnosis.effects.is_empty() {
         if diagnosis.testable {
             writeln!(
@@ -369,6 +370,64 @@ pub fn write_table<W: std::fmt::Write>(
                 out,
                 "  {label:<32} {:>9.4}  {:>9.4}  {:>11.4}  {:>11.4}",
                 e.pitch_rms, e.pitch_max, e.encoder_rms, e.encoder_max
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// The cycles that disagree with the others: which, the statistic, the cause, what was
+/// done, what it changed, and the readings that left the fit.
+fn write_cycles<W: std::fmt::Write>(out: &mut W, diagnosis: &Diagnosis) -> std::fmt::Result {
+    if diagnosis.cycles.is_empty() {
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "\nCycles that disagree with the others (each tested against the rest of its mounting, 1 % for the run):"
+    )?;
+    for c in &diagnosis.cycles {
+        let cause = if c.alternatives.is_empty() {
+            c.cause.as_str().to_string()
+        } else {
+            let names: Vec<&str> = c.alternatives.iter().map(|a| a.as_str()).collect();
+            format!("unexplained ({} fit equally well)", names.join(" or "))
+        };
+        let repaired = c.repaired.map_or(String::new(), |(f, p)| {
+            format!("; undone, F = {f:.2} (p = {})", p_text(p))
+        });
+        writeln!(
+            out,
+            "  setup {} cycle {}: F = {} on {} and {} dof, p = {} (level {:.1e}); cause {cause}; {}{repaired}",
+            c.setup,
+            c.cycle,
+            f_text(c.f_statistic),
+            c.dof_numerator,
+            c.dof_denominator,
+            p_text(c.p_value),
+            c.level,
+            c.action.as_str(),
+        )?;
+        writeln!(
+            out,
+            "    changes against the readings as logged: β by up to {:.4}″, α by up to {:.4}″; {} reading{} left the fit",
+            c.pitch_change_max,
+            c.encoder_change_max,
+            c.set_aside.len(),
+            if c.set_aside.len() == 1 { "" } else { "s" }
+        )?;
+        for r in c.set_aside.iter().take(4) {
+            writeln!(
+                out,
+                "    left out: step {} ac {} (line {}, {:+.4}″): {}",
+                r.step, r.ac, r.line, r.reading_arcsec, r.reason
+            )?;
+        }
+        if c.set_aside.len() > 4 {
+            writeln!(
+                out,
+                "    … and {} more (see the JSON)",
+                c.set_aside.len() - 4
             )?;
         }
     }

@@ -1,0 +1,264 @@
+//! The usual logging errors of one cycle, and how each is undone on the readings.
+//!
+//! Each repair keeps every reading's own record (its time, its line of the file, its
+//! values) and only says which stop, face or autocollimator it belongs to; a reading the
+//! repair leaves without a stop of the cycle is set aside and named.
+
+use std::collections::HashMap;
+
+use crate::measurement::{MeasurementSet, Reading, face_at};
+
+/// A logging error that explains a cycle's disagreement with the rest of its run
+/// (docs/FORMAT.md §5, `cycles[].cause`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum CycleCause {
+    /// Autocollimators `a` and `b`'s readings exchanged at every stop of the cycle.
+    SwappedAcs {
+        /// The first autocollimator of the pair.
+        a: u32,
+        /// The second.
+        b: u32,
+    },
+    /// Every reading stored against a stop is the reading of the stop before it in time
+    /// (the logger latched before the table settled).
+    OneStopLate,
+    /// Every reading stored against a stop is the reading of the stop after it in time.
+    OneStopEarly,
+    /// The autocollimators read the face `by` (±1) after the one the file names (the
+    /// polygon sat a pitch round for that cycle).
+    FacesShifted {
+        /// +1 or −1.
+        by: i64,
+    },
+    /// The cycle was run the other way round and logged in the order of the logged
+    /// direction: the k-th stop in time holds the reading of the k-th from the end.
+    Reversed,
+    /// No usual logging error explains it (or several explain it equally well).
+    Unexplained,
+}
+
+impl CycleCause {
+    /// The cause as spelled in the JSON: `swapped-acs`, `one-stop-late`,
+    /// `one-stop-early`, `faces-shifted`, `reversed`, `unexplained`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            CycleCause::SwappedAcs { .. } => "swapped-acs",
+            CycleCause::OneStopLate => "one-stop-late",
+            CycleCause::OneStopEarly => "one-stop-early",
+            CycleCause::FacesShifted { .. } => "faces-shifted",
+            CycleCause::Reversed => "reversed",
+            CycleCause::Unexplained => "unexplained",
+        }
+    }
+
+    /// The cause for people: "autocollimators 1 and 2 exchanged", ….
+    pub fn describe(self) -> String {
+        match self {
+            CycleCause::SwappedAcs { a, b } => {
+                format!("the readings of autocollimators {a} and {b} exchanged at every stop")
+            }
+            CycleCause::OneStopLate => {
+                "every reading logged one stop late (against the next stop in time)".into()
+            }
+            CycleCause::OneStopEarly => {
+                "every reading logged one stop early (against the previous stop in time)".into()
+            }
+            CycleCause::FacesShifted { by } => format!(
+                "every autocollimator read the face {} the one the file names",
+                if by > 0 { "after" } else { "before" }
+            ),
+            CycleCause::Reversed => {
+                "the cycle run the other way round and logged in the logged direction's order"
+                    .into()
+            }
+            CycleCause::Unexplained => "no usual logging error explains it".into(),
+        }
+    }
+}
+
+/// The causes worth trying on cycle `cycle` of `setup` of `set`.
+pub(super) fn candidates(set: &MeasurementSet, setup: u32, cycle: u32) -> Vec<CycleCause> {
+    let mut acs: Vec<u32> = set
+        .readings
+        .iter()
+        .filter(|r| r.setup == setup && r.cycle == cycle)
+        .map(|r| r.ac)
+        .collect();
+    acs.sort_unstable();
+    acs.dedup();
+    let mut causes = Vec::new();
+    for (i, &a) in acs.iter().enumerate() {
+        for &b in &acs[i + 1..] {
+            causes.push(CycleCause::SwappedAcs { a, b });
+        }
+    }
+    causes.extend([
+        CycleCause::OneStopLate,
+        CycleCause::OneStopEarly,
+        CycleCause::FacesShifted { by: 1 },
+        CycleCause::FacesShifted { by: -1 },
+        CycleCause::Reversed,
+    ]);
+    causes
+}
+
+/// The stops (steps) of a cycle in time order: by the readings' times when every reading
+/// of the cycle has one, else by the cycle's direction.
+fn stops_in_time_order(readings: &[&Reading]) -> Vec<usize> {
+    let mut first: HashMap<usize, f64> = HashMap::new();
+    let timed = readings.iter().all(|r| r.time_seconds.is_some());
+    for r in readings {
+        let key = if timed {
+            r.time_seconds.unwrap_or(0.0)
+        } else if r.direction == crate::measurement::Direction::Ccw {
+            -(r.step as f64)
+        } else {
+            r.step as f64
+        };
+        let entry = first.entry(r.step).or_insert(key);
+        *entry = entry.min(key);
+    }
+    let mut stops: Vec<(f64, usize)> = first.into_iter().map(|(s, k)| (k, s)).collect();
+    stops.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    stops.into_iter().map(|(_, s)| s).collect()
+}
+
+/// `set` with `cause` undone in cycle `cycle` of `setup`, and the indices (into `set`)
+/// of the readings the repair leaves without a stop of the cycle (removed from the
+/// repaired set). `None` when the cause cannot be undone on this cycle (an
+/// autocollimator missing at some stop, a cycle of one stop).
+pub(super) fn repair(
+    set: &MeasurementSet,
+    setup: u32,
+    cycle: u32,
+    cause: CycleCause,
+) -> Option<(MeasurementSet, Vec<usize>)> {
+    let n = set.faces;
+    let offsets = set.face_offsets();
+    let offset_of = |s: u32, ac: u32| {
+        offsets
+            .iter()
+            .find(|((os, oa), _)| *os == s && *oa == ac)
+            .map(|(_, d)| *d)
+    };
+    let in_cycle: Vec<usize> = (0..set.readings.len())
+        .filter(|&i| set.readings[i].setup == setup && set.readings[i].cycle == cycle)
+        .collect();
+    let refs: Vec<&Reading> = in_cycle.iter().map(|&i| &set.readings[i]).collect();
+    let stops = stops_in_time_order(&refs);
+    if stops.len() < 2 {
+        return None;
+    }
+    let ranks: HashMap<usize, usize> = stops.iter().enumerate().map(|(k, &s)| (s, k)).collect();
+    let rank = |step: usize| ranks.get(&step).copied();
+    let mut readings = set.readings.clone();
+    let mut aside = Vec::new();
+    let mut shifts = set.setup_shift_deg.clone();
+    let relabel = |r: &mut Reading, step: usize| -> Option<()> {
+        r.step = step;
+        r.face = face_at(step, offset_of(r.setup, r.ac)?, n);
+        Some(())
+    };
+    match cause {
+        CycleCause::SwappedAcs { a, b } => {
+            let of_b: HashMap<usize, usize> = in_cycle
+                .iter()
+                .filter(|&&j| set.readings[j].ac == b)
+                .map(|&j| (set.readings[j].step, j))
+                .collect();
+            for &i in &in_cycle {
+                let r = &set.readings[i];
+                if r.ac != a {
+                    continue;
+                }
+                let j = *of_b.get(&r.step)?;
+                let other = &set.readings[j];
+                readings[i].reading_arcsec = other.reading_arcsec;
+                readings[i].reading_y_arcsec = other.reading_y_arcsec;
+                readings[j].reading_arcsec = r.reading_arcsec;
+                readings[j].reading_y_arcsec = r.reading_y_arcsec;
+            }
+            if in_cycle
+                .iter()
+                .filter(|&&i| set.readings[i].ac == a || set.readings[i].ac == b)
+                .count()
+                % 2
+                != 0
+            {
+                return None;
+            }
+        }
+        CycleCause::OneStopLate | CycleCause::OneStopEarly | CycleCause::Reversed => {
+            let last = stops.len() - 1;
+            for &i in &in_cycle {
+                let k = rank(set.readings[i].step)?;
+                let to = match cause {
+                    CycleCause::OneStopLate if k == 0 => None,
+                    CycleCause::OneStopLate => Some(k - 1),
+                    CycleCause::OneStopEarly if k == last => None,
+                    CycleCause::OneStopEarly => Some(k + 1),
+                    _ => Some(last - k),
+                };
+                match to {
+                    Some(to) => relabel(&mut readings[i], stops[to])?,
+                    None => aside.push(i),
+                }
+            }
+        }
+        CycleCause::FacesShifted { by } => {
+            let new_setup = set.readings.iter().map(|r| r.setup).max().unwrap_or(1) + 1;
+            for &i in &in_cycle {
+                let r = &mut readings[i];
+                r.setup = new_setup;
+                r.face = ((r.face as i64 - 1 + by).rem_euclid(n as i64) + 1) as usize;
+            }
+            if let Some(&shift) = set.setup_shift_deg.get(&setup) {
+                shifts.insert(new_setup, shift);
+            }
+        }
+        CycleCause::Unexplained => return None,
+    }
+    let aside_set: std::collections::HashSet<usize> = aside.iter().copied().collect();
+    let keep: Vec<Reading> = readings
+        .into_iter()
+        .enumerate()
+        .filter(|(i, _)| !aside_set.contains(i))
+        .map(|(_, r)| r)
+        .collect();
+    Some((
+        MeasurementSet {
+            faces: n,
+            readings: keep,
+            source: set.source.clone(),
+            setup_shift_deg: shifts,
+        },
+        aside,
+    ))
+}
+
+/// `set` without the readings of cycle `cycle` of `setup`, and their indices.
+pub(super) fn without_cycle(
+    set: &MeasurementSet,
+    setup: u32,
+    cycle: u32,
+) -> (MeasurementSet, Vec<usize>) {
+    let aside: Vec<usize> = (0..set.readings.len())
+        .filter(|&i| set.readings[i].setup == setup && set.readings[i].cycle == cycle)
+        .collect();
+    let readings = set
+        .readings
+        .iter()
+        .filter(|r| !(r.setup == setup && r.cycle == cycle))
+        .cloned()
+        .collect();
+    (
+        MeasurementSet {
+            faces: set.faces,
+            readings,
+            source: set.source.clone(),
+            setup_shift_deg: set.setup_shift_deg.clone(),
+        },
+        aside,
+    )
+}

@@ -1,0 +1,165 @@
+//! The test of one cycle against the others: an exact F test of the cycle × stop
+//! interaction, autocollimator by autocollimator, with no model fitted.
+//!
+//! For each autocollimator of a mounting, the readings form a table: one row per cycle,
+//! one column per stop (the closing stop its own column). Whatever the base model and the
+//! effects it may lack, as long as they are the same at a stop in every cycle, the table
+//! is additive: reading = a[stop] + b[cycle] + noise (the stop's α, φ and setup error in
+//! a[stop]; a zero re-set per cycle, a direction offset, a linear drift of a clockwise run
+//! in a[stop] + b[cycle]). A cycle logged wrongly breaks the additivity in its own row.
+//! The statistic for cycle c is the Chow F of its row against the additive fit of the
+//! other rows, summed over the autocollimators:
+//!
+//! F = [(RSS_all − RSS_rest) / (dof_all − dof_rest)] / [RSS_rest / dof_rest],
+//!
+//! exactly F-distributed under the additive model with Gaussian noise of one σ.
+
+use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+
+/// One value of a table: row (cycle), column (stop), value.
+pub(super) type Entry = (u32, usize, f64);
+
+/// The residual sum of squares and degrees of freedom of the additive fit
+/// value = a[column] + b[row] of `entries` (alternating means; exact after one pass when
+/// the table is complete).
+pub(super) fn additive_rss(entries: &[Entry]) -> (f64, usize) {
+    if entries.is_empty() {
+        return (0.0, 0);
+    }
+    // rows and columns indexed directly (cycles and stops are small integers)
+    let row_count = entries.iter().map(|e| e.0 as usize).max().unwrap_or(0) + 1;
+    let column_count = entries.iter().map(|e| e.1).max().unwrap_or(0) + 1;
+    let mut in_row = vec![0usize; row_count];
+    let mut in_column = vec![0usize; column_count];
+    for e in entries {
+        in_row[e.0 as usize] += 1;
+        in_column[e.1] += 1;
+    }
+    let mut a = vec![0.0; column_count];
+    let mut b = vec![0.0; row_count];
+    let mut previous = f64::INFINITY;
+    let mut rss = 0.0;
+    for _ in 0..500 {
+        a.iter_mut().for_each(|x| *x = 0.0);
+        for e in entries {
+            a[e.1] += e.2 - b[e.0 as usize];
+        }
+        for (x, &n) in a.iter_mut().zip(&in_column) {
+            *x /= n.max(1) as f64;
+        }
+        b.iter_mut().for_each(|x| *x = 0.0);
+        for e in entries {
+            b[e.0 as usize] += e.2 - a[e.1];
+        }
+        for (x, &n) in b.iter_mut().zip(&in_row) {
+            *x /= n.max(1) as f64;
+        }
+        rss = entries
+            .iter()
+            .map(|e| (e.2 - a[e.1] - b[e.0 as usize]).powi(2))
+            .sum::<f64>();
+        if previous - rss <= 1e-10 * previous.max(f64::MIN_POSITIVE) {
+            break;
+        }
+        previous = rss;
+    }
+    let rows = in_row.iter().filter(|&&n| n > 0).count();
+    let columns = in_column.iter().filter(|&&n| n > 0).count();
+    (rss, entries.len().saturating_sub(rows + columns - 1))
+}
+
+/// A Chow F test of one cycle against the others.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Chow {
+    /// The F statistic.
+    pub f_statistic: f64,
+    /// Numerator degrees of freedom (the cycle's readings less its zeros and the stops
+    /// only it reads).
+    pub dof_numerator: usize,
+    /// Denominator degrees of freedom (the interaction of the other cycles).
+    pub dof_denominator: usize,
+    /// Upper-tail p-value.
+    pub p_value: f64,
+}
+
+/// The test of row `cycle` of every table in `tables` against their other rows; `None`
+/// when the others leave fewer than `min_rest_dof` degrees of freedom or the cycle adds
+/// none.
+pub(super) fn chow(tables: &[Vec<Entry>], cycle: u32, min_rest_dof: usize) -> Option<Chow> {
+    let (mut rss_all, mut dof_all, mut rss_rest, mut dof_rest) = (0.0, 0, 0.0, 0);
+    for table in tables {
+        let (r, d) = additive_rss(table);
+        rss_all += r;
+        dof_all += d;
+        let rest: Vec<Entry> = table.iter().copied().filter(|e| e.0 != cycle).collect();
+        let (r, d) = additive_rss(&rest);
+        rss_rest += r;
+        dof_rest += d;
+    }
+    let dof_numerator = dof_all.checked_sub(dof_rest)?;
+    if dof_numerator == 0 || dof_rest < min_rest_dof {
+        return None;
+    }
+    let denominator = rss_rest / dof_rest as f64;
+    let numerator = (rss_all - rss_rest).max(0.0) / dof_numerator as f64;
+    let f_statistic = if denominator > 0.0 {
+        numerator / denominator
+    } else if numerator > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    };
+    let p_value = FisherSnedecor::new(dof_numerator as f64, dof_rest as f64)
+        .map_or(1.0, |d| d.sf(f_statistic));
+    Some(Chow {
+        f_statistic,
+        dof_numerator,
+        dof_denominator: dof_rest,
+        p_value,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_additive_table_fits_exactly_and_counts_its_parameters() {
+        // 3 rows × 4 columns of a[c] + b[r]: rss 0, dof 12 − 6 = 6
+        let entries: Vec<Entry> = (1..=3u32)
+            .flat_map(|r| (0..4usize).map(move |c| (r, c, c as f64 * 0.7 - r as f64 * 1.3)))
+            .collect();
+        let (rss, dof) = additive_rss(&entries);
+        assert!(rss < 1e-20, "{rss}");
+        assert_eq!(dof, 6);
+    }
+
+    #[test]
+    fn one_interaction_cell_by_hand() {
+        // 2 × 2 table with one cell off by d: the interaction contrast carries d²/4
+        let d = 2.0;
+        let entries: Vec<Entry> = vec![(1, 0, 0.0), (1, 1, 0.0), (2, 0, 0.0), (2, 1, d)];
+        let (rss, dof) = additive_rss(&entries);
+        assert!((rss - d * d / 4.0).abs() < 1e-12, "{rss}");
+        assert_eq!(dof, 1);
+    }
+
+    #[test]
+    fn a_row_off_at_one_column_is_found() {
+        // 4 rows, 6 columns, small deterministic "noise"; row 3 off by 1 at column 2
+        let entries: Vec<Entry> = (1..=4u32)
+            .flat_map(|r| {
+                (0..6usize).map(move |c| {
+                    let noise = 0.01 * (((r as usize * 7 + c * 3) % 5) as f64 - 2.0);
+                    let off = if r == 3 && c == 2 { 1.0 } else { 0.0 };
+                    (r, c, c as f64 + r as f64 + noise + off)
+                })
+            })
+            .collect();
+        let test = chow(std::slice::from_ref(&entries), 3, 1).expect("a test");
+        assert_eq!((test.dof_numerator, test.dof_denominator), (5, 10));
+        assert!(test.p_value < 1e-6, "{test:?}");
+        let other = chow(&[entries], 1, 1).expect("a test");
+        assert!(other.f_statistic < test.f_statistic);
+    }
+}
