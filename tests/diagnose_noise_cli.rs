@@ -59,6 +59,9 @@ fn a_budget_on_a_weighted_diagnosis_is_refused_with_one_error_line() {
     let stderr = String::from_utf8_lossy(&budgeted.stderr);
     let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
     assert_eq!(errors.len(), 1, "{stderr}");
-    assert!(errors[0].contains("noisy.csv: --budget: the noise differs"), "{stderr}");
+    assert!(
+        errors[0].contains("noisy.csv: --budget: the noise differs"),
+        "{stderr}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
