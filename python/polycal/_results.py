@@ -546,7 +546,10 @@ def _room_for_legend(ax: Any, legend: Any, values: _np.ndarray, bars: Optional[_
 class DiagnoseResult(Result):
     """The result of :func:`diagnose`, the JSON object of ``polycal diagnose --format
     json`` (docs/FORMAT.md §5.2): ``before`` and ``after`` (each a solve's object), the
-    findings, the verdict and the notes."""
+    findings, the verdict and the notes; the cycles that disagree with the others
+    (``cycles``: repaired or set aside), the test of equal noise (``noise``), what ended
+    the search when a limit did (``search_stopped``) and the scatter the autocollimators
+    share at a stop (``stop_scatter``)."""
 
     _main = ("adequate", "testable", "effects")
 
@@ -564,6 +567,8 @@ class DiagnoseResult(Result):
     tried: List[Section]
     unattributed: List[Section]
     cycles: List[Section]
+    noise: Optional[Section]
+    stop_scatter: Optional[Section]
     residuals: Section
     truth: Section
 

@@ -135,6 +135,12 @@ def test_fields_are_attributes_in_dir_and_in_the_stubs():
         assert key in names, key
         assert key in polycal.SolveResult.__annotations__, key
     assert "pitch_deviation" in dir(result.uncertainty)
+    # diagnose's object likewise, the members of issue 53 among them
+    diagnosed = json.loads(cli("diagnose", DATA, "--format", "json"))
+    for key in ("cycles", "noise", "search_stopped", "stop_scatter"):
+        assert key in diagnosed, key
+    for key in diagnosed:
+        assert key in polycal.DiagnoseResult.__annotations__, key
     with pytest.raises(AttributeError, match="has no field 'beta'; its fields: version, faces"):
         result.beta
     # the stub of the native module lists what the package calls
