@@ -192,7 +192,10 @@ impl NoiseTest {
 }
 
 /// Bartlett's statistic of groups given as (Σe², effective degrees of freedom), and its
-/// degrees of freedom k − 1; `None` with fewer than two groups or no noise at all.
+/// degrees of freedom k − 1; `None` with fewer than two groups, no noise at all, or a
+/// group without scatter (its variance below 10⁻²⁰ of the pooled one: readings the fit
+/// meets to the rounding level, where the logarithm of its variance, and the statistic,
+/// are not defined).
 pub fn bartlett(groups: &[(f64, f64)]) -> Option<(f64, usize)> {
     let k = groups.len();
     if k < 2 {
@@ -205,6 +208,9 @@ pub fn bartlett(groups: &[(f64, f64)]) -> Option<(f64, usize)> {
         return None;
     }
     let pooled = ss / nu;
+    if groups.iter().any(|&(ss, nu)| !(ss / nu > 1e-20 * pooled)) {
+        return None;
+    }
     let m = nu * pooled.ln()
         - groups
             .iter()
@@ -400,6 +406,15 @@ mod tests {
         assert_eq!(dof, 1);
         assert!((t - 1.586_798_587_123_27).abs() < 1e-12, "{t}");
         assert!((chi2_sf(t, dof) - 0.207_784_123_345_636).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_group_without_scatter_leaves_the_test_undefined() {
+        // Σe² = 0 in one group: ln 0 would make the statistic infinite
+        assert_eq!(bartlett(&[(0.0, 3.0), (0.02, 4.0), (0.03, 5.0)]), None);
+        assert!(
+            bartlett(&[(1e-6, 3.0), (0.02, 4.0), (0.03, 5.0)]).is_some_and(|(t, _)| t.is_finite())
+        );
     }
 
     #[test]
