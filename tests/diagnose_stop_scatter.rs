@@ -40,6 +40,11 @@ fn coverage(run: &Run, fault: &Fault, seeds: std::ops::Range<u64>) -> (f64, f64,
                 .stop_scatter
                 .as_ref()
                 .is_some_and(|s| s.significant);
+            // what no position can attribute is not certified
+            assert!(
+                !(significant && diagnosis.adequacy.adequate),
+                "adequate with a scatter"
+            );
             (covered, covered_fit, u.len(), significant)
         })
         .collect();
@@ -58,7 +63,7 @@ fn coverage(run: &Run, fault: &Fault, seeds: std::ops::Range<u64>) -> (f64, f64,
 /// A 39.6″ interpolation error of 0.3″ amplitude under a table that stops within ±6″ of
 /// its nominal angles: the fit's u(α) alone covers 80 % with three autocollimators (the
 /// issue's 78 %); carried into u(α), the scatter the stops share makes 2u(α) cover every
-/// design at ≥ 93 %, and it is found in every run.
+/// design at ≥ 93 %, and it is found in every run, which is then not adequate.
 #[test]
 fn two_u_alpha_covers_the_encoder_error_a_table_samples_off_its_angles() {
     let fault = Fault::Interpolation {

@@ -862,6 +862,18 @@ fn diagnose_fitted(
             .with_encoder_variance((scatter.sigma_arcsec / sigma).powi(2));
         notes.push(notes::stop_scatter(scatter, set.faces));
     }
+    // a scatter the stops share is structure the model lacks, which no position can
+    // attribute: reported in u(α), and not certified
+    if let Some(scatter) = &stop_scatter {
+        adequacy.checks.push(Check {
+            name: "no scatter shared by the autocollimators at a stop (the table's angle: an encoder error beyond the band limit N/2; F of a parameter per stop, 1 %)".into(),
+            statistic: scatter.f_statistic,
+            limit: scatter.f_limit,
+            passed: !scatter.significant,
+            stream: None,
+        });
+        adequacy.adequate &= !scatter.significant;
+    }
     let before_sub_pitch = base.sub_pitch_solution(&before);
     let after_sub_pitch = base.sub_pitch_solution(&current);
     Ok(Diagnosis {

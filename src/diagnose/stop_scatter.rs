@@ -54,6 +54,8 @@ pub struct StopScatter {
     pub dof_denominator: usize,
     /// Its p-value.
     pub p_value: f64,
+    /// The F at which the scatter is called ([`STOP_SCATTER_ALPHA`]'s upper quantile).
+    pub f_limit: f64,
     /// Whether the scatter is there at [`STOP_SCATTER_ALPHA`].
     pub significant: bool,
     /// σ of the autocollimators' own noise (the readings of one stop against each
@@ -192,8 +194,9 @@ pub fn stop_scatter(set: &MeasurementSet, fit: &Solution) -> Option<StopScatter>
     } else {
         0.0
     };
-    let p_value = FisherSnedecor::new(dof_numerator as f64, dof_within as f64)
-        .map_or(1.0, |d| d.sf(f_statistic));
+    let distribution = FisherSnedecor::new(dof_numerator as f64, dof_within as f64).ok()?;
+    let p_value = distribution.sf(f_statistic);
+    let f_limit = distribution.inverse_cdf(1.0 - STOP_SCATTER_ALPHA);
 
     // moments: E[RSS_final] = σ²·dof_final + σ_s²·Σ_s (n_s − ‖Q_finalᵀ z_s‖²)
     let mut projection = DMatrix::<f64>::zeros(stops, rank_final);
@@ -223,6 +226,7 @@ pub fn stop_scatter(set: &MeasurementSet, fit: &Solution) -> Option<StopScatter>
         dof_numerator,
         dof_denominator: dof_within,
         p_value,
+        f_limit,
         significant: p_value < STOP_SCATTER_ALPHA,
         noise_sigma_arcsec: noise_variance.sqrt(),
         sigma_arcsec,
