@@ -22,8 +22,8 @@
 //! term found first; a search a limit ends needs one too). Two tests of issue 53 can fail
 //! a clean run too: a cycle set aside against the others (`cycles::CYCLE_ALPHA`, 0.01 per
 //! run; only a gross disagreement sets a cycle aside) and a scatter the autocollimators
-//! share at a stop (`stop_scatter::STOP_SCATTER_ALPHA`, 0.01; polygon runs only). So the
-//! bound is 0.01 + 0.001 + 0.001 + 0.001 + 0.015 + 0.01 + 0.01 = **0.048**.
+//! share at a stop (`stop_scatter::STOP_SCATTER_ALPHA`, 0.001; polygon runs only). So the
+//! bound is 0.01 + 0.001 + 0.001 + 0.001 + 0.015 + 0.01 + 0.001 = **0.039**.
 //!
 //! Kinds of run: polygon runs (two autocollimators, closing readings, σ = 0.05″) of 12
 //! faces × 3 clockwise cycles, 12 faces × 4 cycles cw/ccw, 24 faces × 6 cycles; two

@@ -866,7 +866,7 @@ fn diagnose_fitted(
     // attribute: reported in u(α), and not certified
     if let Some(scatter) = &stop_scatter {
         adequacy.checks.push(Check {
-            name: "no scatter shared by the autocollimators at a stop (the table's angle: an encoder error beyond the band limit N/2; F of a parameter per stop, 1 %)".into(),
+            name: "no scatter shared by the autocollimators at a stop (the table's angle: an encoder error beyond the band limit N/2; F of a parameter per stop, 0.1 %)".into(),
             statistic: scatter.f_statistic,
             limit: scatter.f_limit,
             passed: !scatter.significant,
