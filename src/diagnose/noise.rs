@@ -208,7 +208,10 @@ pub fn bartlett(groups: &[(f64, f64)]) -> Option<(f64, usize)> {
         return None;
     }
     let pooled = ss / nu;
-    if groups.iter().any(|&(ss, nu)| !(ss / nu > 1e-20 * pooled)) {
+    if groups
+        .iter()
+        .any(|&(ss, nu)| (ss / nu).is_nan() || ss / nu <= 1e-20 * pooled)
+    {
         return None;
     }
     let m = nu * pooled.ln()
