@@ -36,6 +36,7 @@ mod reweight;
 mod search;
 pub mod selfcal;
 pub mod stop_scatter;
+mod verdict;
 
 use std::sync::Arc;
 
@@ -53,7 +54,7 @@ pub use drift_shape::{DriftKink, MAX_KINK_POSITIONS};
 use findings::final_effects;
 pub use identify::Alternative;
 use lack_of_fit::LackOfFit;
-use residuals::{Adequacy, AdequacyInputs, Check};
+use residuals::{Adequacy, AdequacyInputs};
 pub use search::SearchStop;
 
 /// Options of [`diagnose`].
@@ -528,47 +529,11 @@ fn diagnose_fitted(
     let sigma = options.sigma;
     let context = EffectContext::of(&set.readings).with_weights(base.weights().cloned());
     let before = base.fit(&[], sigma)?;
-    // the dense hat-matrix geometry (the dense reference solver's fits) holds the
-    // cofactor densely (three matrices of the parameters with every effect term the
-    // search may add): refused up front when it cannot fit, before the search allocates
-    // it; the structured geometry needs O(n + N·r)
-    let parameters =
-        (before.layout.len() + options.max_effects * candidates::MAX_DRIFT_ORDER) as u128;
-    let needed_bytes = 3 * parameters * parameters * 8;
-    if (before.cofactor.is_dense() || options.dense_geometry)
-        && let Some((limit_bytes, limit_source)) =
-            crate::solve::memory::limit_for(needed_bytes, None)
-        && needed_bytes > u128::from(limit_bytes)
-    {
-        return Err(SolveError::TooLarge {
-            faces: set.faces,
-            streams: before.layout.setups,
-            effects: options.max_effects,
-            readings: set.readings.len(),
-            engine: "diagnose hat-matrix",
-            needed_bytes,
-            limit_bytes,
-            limit_source,
-        });
-    }
-    let mut notes = Vec::new();
+    refuse_too_large(set, &before, options)?;
     let testable = before.dof >= 2;
-    if !testable {
-        notes.push(format!(
-            "The fit has {} residual degree{} of freedom: the readings determine the model exactly, so an effect (drift, a zero jump, a direction offset, an outlier) biases the result without leaving a residual, and none can be detected. To make effects visible, measure with redundancy: closing readings (step N), repeated cycles, and a counter-clockwise cycle.",
-            before.dof,
-            if before.dof == 1 { "" } else { "s" }
-        ));
-    }
-    notes.extend(notes::untestable_kinds(set, clock));
-    if let Some(note) = notes::common_cross_talk(set, base, &options.stated_cross_talk) {
-        notes.push(note);
-    }
     let tiny = rounding_rss(set);
     let exact = testable && before.rss <= tiny;
-    if exact {
-        notes.push("The residuals are at the rounding level of the readings (noise-free data): the base model explains them exactly, and no effect is tested.".into());
-    }
+    let mut notes = opening_notes(set, base, clock, options, before.dof, exact);
 
     let search::Outcome {
         terms,
@@ -648,65 +613,25 @@ fn diagnose_fitted(
     } = model;
     let columns = columns_of(&terms);
 
-    let with_blocks = final_effects(&current, base, &terms, findings);
-    // identifiability: the alternatives of every finding, against the final model
-    let model = identify::FinalModel {
-        set,
-        base,
-        context: &context,
-        terms: &terms,
-        fit: &current,
-        sigma,
-        stated_cross_talk: &options.stated_cross_talk,
-        tiny,
-    };
-    // each finding's alternatives side by side (their refits are independent)
-    let effects: Vec<FoundEffect> = with_blocks
-        .into_par_iter()
-        .map(|(mut found, block)| {
-            found.alternatives = identify::alternatives(model, &block);
-            found
-        })
-        .collect();
+    let effects = with_alternatives(
+        final_effects(&current, base, &terms, findings),
+        identify::FinalModel {
+            set,
+            base,
+            context: &context,
+            terms: &terms,
+            fit: &current,
+            sigma,
+            stated_cross_talk: &options.stated_cross_talk,
+            tiny,
+        },
+    );
     tried.retain(|t| {
         !effects
             .iter()
             .any(|f| same_effect(&f.effect, &t.effect) && !t.quadratic)
     });
-    let unattributed: Vec<Vec<SuspectReading>> = unattributed_sets
-        .iter()
-        .map(|group| {
-            group
-                .iter()
-                .map(|&(i, t)| {
-                    let r = &set.readings[i];
-                    SuspectReading {
-                        setup: r.setup,
-                        cycle: r.cycle,
-                        step: r.step,
-                        ac: r.ac,
-                        residual_arcsec: current.residuals[i],
-                        studentized_residual: t,
-                    }
-                })
-                .collect()
-        })
-        .collect();
-    for group in &unattributed {
-        let names: Vec<String> = group
-            .iter()
-            .map(|s| {
-                format!(
-                    "setup {} cycle {} step {} autocollimator {} (residual {:+.4}″)",
-                    s.setup, s.cycle, s.step, s.ac, s.residual_arcsec
-                )
-            })
-            .collect();
-        notes.push(format!(
-            "One of these readings is bad, but the data cannot tell which: {}. Their residuals are equally large because the design determines their cell only by these readings. Both are kept in the fit, so the result carries about half of the bad reading's error there; repeat that stop (a third reading tells which one is bad).",
-            names.join(" and ")
-        ));
-    }
+    let unattributed = verdict::unattributed(set, &current, &unattributed_sets, &mut notes);
 
     let geometry = base.geometry(&current, &columns);
     let leverage = geometry.leverage();
@@ -745,135 +670,32 @@ fn diagnose_fitted(
         }
     };
     if testable && !exact {
-        for check in stability {
-            adequacy.adequate &= check.passed;
-            adequacy.checks.push(check);
-        }
+        verdict::stability(stability, &mut adequacy);
     }
-    // a zero whose drifts and jumps were left out as a wander is not certified, whether
-    // or not the residuals without them still show it
     if left_out_wandering {
-        for &ac in &wandering {
-            adequacy.checks.push(Check {
-                name: format!(
-                    "zero of ac {ac} followed by the terms found (not a wander they only approximate: its drift and jumps are left out)"
-                ),
-                statistic: 1.0,
-                limit: 0.0,
-                passed: false,
-                stream: None,
-            });
-        }
-        adequacy.adequate = false;
+        verdict::wandering(&wandering, &mut adequacy);
     }
-    for found in &effects {
-        if found.alternatives.is_empty() {
-            continue;
-        }
-        let worst = found
-            .alternatives
-            .iter()
-            .map(|a| a.change_over_expanded_u)
-            .fold(0.0, f64::max);
-        let passed = worst <= 1.0;
-        adequacy.checks.push(Check {
-            name: format!(
-                "identifiability of the {} (largest change of β or α by an explanation that fits as well, in expanded uncertainties)",
-                found.effect.label()
-            ),
-            statistic: worst,
-            limit: 1.0,
-            passed,
-            stream: None,
-        });
-        adequacy.adequate &= passed;
-        notes.push(notes::ambiguity(found, clock));
-    }
-    if !options.stated_cross_talk.is_empty() {
-        let stated: Vec<String> = options
-            .stated_cross_talk
-            .iter()
-            .map(u32::to_string)
-            .collect();
-        let found: Vec<String> = effects
-            .iter()
-            .filter_map(|f| match f.effect {
-                Effect::CrossTalk { ac, value } if !f.ambiguous() => {
-                    Some(format!("autocollimator {ac}'s ({value:+.5}″/″)"))
-                }
-                _ => None,
-            })
-            .collect();
-        notes.push(format!(
-            "The cross-talk of autocollimator{} {} is stated from its calibration and corrected for{}",
-            if stated.len() == 1 { "" } else { "s" },
-            stated.join(", "),
-            if found.is_empty() {
-                ": no further cross-talk is significant.".to_string()
-            } else {
-                format!(
-                    "; against it, {} follows from the data, and the ambiguity of a cross-talk the closure cannot place is resolved.",
-                    found.join(" and ")
-                )
-            }
-        ));
-    }
+    verdict::identifiability(&effects, clock, &mut adequacy, &mut notes);
+    notes.extend(verdict::stated_cross_talk_note(
+        &options.stated_cross_talk,
+        &effects,
+    ));
     for &(ac, setup) in &jumps_exceeded {
         notes.push(notes::string_of_jumps(ac, setup));
     }
     if let Some(stop) = search_stopped {
-        search_stopped_check(stop, &mut adequacy, &mut notes);
+        verdict::search_stopped(stop, &mut adequacy, &mut notes);
     }
-    if let Some(lof) = &mut lof_current
-        && base.is_off_grid()
-    {
-        lof.band_limit_order = Some(base.positions().faces / 2);
-    }
-    if let Some(lof) = &lof_current
-        && lof.too_good()
-    {
-        notes.push(notes::lack_of_fit_too_good(lof));
-    }
-    if let Some(lof) = &lof_current
-        && !lof.passed()
-    {
-        notes.extend(lof.carriers.iter().cloned());
-        // the effects found are findings of their own, and so is what they leave
-        if !effects.is_empty() {
-            notes.push(notes::lack_of_fit_left(lof, effects.len()));
-        }
-        if base.is_off_grid() {
-            notes.push(notes::band_limit(base.positions().faces));
-        }
-    }
-    // what the stops share and no position resolves enters u(α) (module stop_scatter)
-    let mut current = current;
+    verdict::lack_of_fit_notes(&mut lof_current, base, effects.len(), &mut notes);
+    // what the stops share and no position resolves enters u(α), and is not certified
     // (a weighted diagnosis's columns and residuals are whitened: not evaluated there)
+    let mut current = current;
     let stop_scatter =
-        (testable && !exact && !base.is_self_calibration() && base.weights().is_none())
-            .then(|| stop_scatter::stop_scatter(set, &current))
-            .flatten();
-    if let Some(scatter) = stop_scatter.as_ref().filter(|s| s.significant)
-        && let Some((sigma, _)) = current.sigma
-        && sigma > 0.0
-    {
-        current.cofactor = current
-            .cofactor
-            .with_encoder_variance((scatter.sigma_arcsec / sigma).powi(2));
-        notes.push(notes::stop_scatter(scatter, set.faces));
-    }
-    // a scatter the stops share is structure the model lacks, which no position can
-    // attribute: reported in u(α), and not certified
-    if let Some(scatter) = &stop_scatter {
-        adequacy.checks.push(Check {
-            name: "no scatter shared by the autocollimators at a stop (the table's angle: an encoder error beyond the band limit N/2; F of a parameter per stop, 0.1 %)".into(),
-            statistic: scatter.f_statistic,
-            limit: scatter.f_limit,
-            passed: !scatter.significant,
-            stream: None,
-        });
-        adequacy.adequate &= !scatter.significant;
-    }
+        if testable && !exact && !base.is_self_calibration() && base.weights().is_none() {
+            verdict::stop_scatter(set, &mut current, &mut adequacy, &mut notes)
+        } else {
+            None
+        };
     let before_sub_pitch = base.sub_pitch_solution(&before);
     let after_sub_pitch = base.sub_pitch_solution(&current);
     Ok(Diagnosis {
@@ -896,20 +718,79 @@ fn diagnose_fitted(
     })
 }
 
-/// A search a limit ended is not certified: its check fails, and a note says why.
-fn search_stopped_check(stop: SearchStop, adequacy: &mut Adequacy, notes: &mut Vec<String>) {
-    adequacy.checks.push(Check {
-        name: format!(
-            "search ended because nothing more was significant (not a limit: {})",
-            stop.as_str()
-        ),
-        statistic: 1.0,
-        limit: 0.0,
-        passed: false,
-        stream: None,
-    });
-    adequacy.adequate = false;
-    notes.push(notes::search_stopped(stop));
+/// Identifiability: the alternatives of every finding against the final `model`, each
+/// finding's side by side (their refits are independent).
+fn with_alternatives(
+    with_blocks: Vec<(FoundEffect, Vec<Term>)>,
+    model: identify::FinalModel<'_>,
+) -> Vec<FoundEffect> {
+    with_blocks
+        .into_par_iter()
+        .map(|(mut found, block)| {
+            found.alternatives = identify::alternatives(model, &block);
+            found
+        })
+        .collect()
+}
+
+/// The notes a diagnosis opens with: no residual degrees of freedom (`dof` < 2), the
+/// kinds of effect the file cannot test, a cross-talk common to every autocollimator,
+/// noise-free (`exact`) readings.
+fn opening_notes(
+    set: &MeasurementSet,
+    base: &Base<'_>,
+    clock: Clock,
+    options: &DiagnoseOptions,
+    dof: usize,
+    exact: bool,
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    if dof < 2 {
+        notes.push(format!(
+            "The fit has {} residual degree{} of freedom: the readings determine the model exactly, so an effect (drift, a zero jump, a direction offset, an outlier) biases the result without leaving a residual, and none can be detected. To make effects visible, measure with redundancy: closing readings (step N), repeated cycles, and a counter-clockwise cycle.",
+            dof,
+            if dof == 1 { "" } else { "s" }
+        ));
+    }
+    notes.extend(notes::untestable_kinds(set, clock));
+    if let Some(note) = notes::common_cross_talk(set, base, &options.stated_cross_talk) {
+        notes.push(note);
+    }
+    if exact {
+        notes.push("The residuals are at the rounding level of the readings (noise-free data): the base model explains them exactly, and no effect is tested.".into());
+    }
+    notes
+}
+
+/// The dense hat-matrix geometry (the dense reference solver's fits) holds the cofactor
+/// densely (three matrices of the parameters with every effect term the search may add):
+/// refused up front when it cannot fit, before the search allocates it; the structured
+/// geometry needs O(n + N·r).
+fn refuse_too_large(
+    set: &MeasurementSet,
+    before: &Solution,
+    options: &DiagnoseOptions,
+) -> Result<(), SolveError> {
+    let parameters =
+        (before.layout.len() + options.max_effects * candidates::MAX_DRIFT_ORDER) as u128;
+    let needed_bytes = 3 * parameters * parameters * 8;
+    if (before.cofactor.is_dense() || options.dense_geometry)
+        && let Some((limit_bytes, limit_source)) =
+            crate::solve::memory::limit_for(needed_bytes, None)
+        && needed_bytes > u128::from(limit_bytes)
+    {
+        return Err(SolveError::TooLarge {
+            faces: set.faces,
+            streams: before.layout.setups,
+            effects: options.max_effects,
+            readings: set.readings.len(),
+            engine: "diagnose hat-matrix",
+            needed_bytes,
+            limit_bytes,
+            limit_source,
+        });
+    }
+    Ok(())
 }
 
 fn same_effect(a: &Effect, b: &Effect) -> bool {
