@@ -22,12 +22,14 @@
 //! [`super::selfcal`]), nor mountings against each other.
 
 mod causes;
+mod table;
 mod test;
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 
 pub use causes::CycleCause;
-use test::{Chow, Entry, chow};
+use table::{Entry, Table};
+use test::{Chow, chow, chow_of, sum};
 
 use super::base::Base;
 use super::residuals::Check;
@@ -141,93 +143,73 @@ pub struct CycleFinding {
 type CycleReading = (u32, usize, f64);
 
 /// The tables of `setup`'s autocollimators (rows cycles, columns stops) of `values` (one
-/// per reading of `set`), the readings of `cycle` replaced by `replacement` (ac, step,
-/// value) when given, and readings whose index is in `skip` left out.
+/// per reading of `set`), readings whose index is in `skip` left out; each with its
+/// autocollimator.
 fn tables(
     set: &MeasurementSet,
     values: &[f64],
     setup: u32,
-    replaced: Option<(u32, &[CycleReading])>,
     skip: &BTreeSet<usize>,
-) -> Vec<Vec<Entry>> {
-    let mut acs: Vec<u32> = set
-        .readings
-        .iter()
-        .filter(|r| r.setup == setup)
-        .map(|r| r.ac)
-        .collect();
-    acs.sort_unstable();
-    acs.dedup();
-    acs.iter()
-        .map(|&ac| {
-            let mut table: Vec<Entry> = set
-                .readings
-                .iter()
-                .zip(values)
-                .enumerate()
-                .filter(|(i, (r, _))| {
-                    r.setup == setup
-                        && r.ac == ac
-                        && !skip.contains(i)
-                        && replaced.is_none_or(|(c, _)| r.cycle != c)
-                })
-                .map(|(_, (r, v))| (r.cycle, r.step, *v))
-                .collect();
-            if let Some((cycle, entries)) = replaced {
-                table.extend(
-                    entries
-                        .iter()
-                        .filter(|e| e.0 == ac)
-                        .map(|&(_, step, v)| (cycle, step, v)),
-                );
-            }
-            table
-        })
+) -> Vec<(u32, Table)> {
+    let mut by_ac: BTreeMap<u32, Vec<Entry>> = BTreeMap::new();
+    for (i, (r, v)) in set.readings.iter().zip(values).enumerate() {
+        if r.setup == setup && !skip.contains(&i) {
+            by_ac.entry(r.ac).or_default().push((r.cycle, r.step, *v));
+        }
+    }
+    by_ac
+        .into_iter()
+        .map(|(ac, entries)| (ac, Table::of(entries)))
         .collect()
 }
 
-/// The cycle's readings (ac, step, value) with `cause` undone, in the tables of its own
-/// mounting, and the readings the repair sets aside; `None` when it cannot be undone.
-fn undone(
-    set: &MeasurementSet,
-    setup: u32,
+/// The tables of `tables` alone.
+fn tables_only(tables: Vec<(u32, Table)>) -> Vec<Table> {
+    tables.into_iter().map(|(_, t)| t).collect()
+}
+
+/// The fits of `tables` with row `cycle` replaced by `replacement` (ac, step, value).
+fn fits_replaced(
+    tables: &[(u32, Table)],
     cycle: u32,
-    cause: CycleCause,
-) -> Option<(Vec<CycleReading>, MeasurementSet, Vec<usize>)> {
-    let (repaired, aside) = causes::repair(set, setup, cycle, cause)?;
+    replacement: &[CycleReading],
+) -> (f64, usize) {
+    sum(tables.iter().map(|(ac, table)| {
+        let row: Vec<(usize, f64)> = replacement
+            .iter()
+            .filter(|e| e.0 == *ac)
+            .map(|&(_, step, v)| (step, v))
+            .collect();
+        table.fit_replaced(cycle, &row)
+    }))
+}
+
+/// The cycle's readings (ac, step, value) with `cause` undone, in the tables of its own
+/// mounting, and the number of readings the repair sets aside; `None` when it cannot be
+/// undone.
+fn undone(cycle: &causes::Cycle<'_>, cause: CycleCause) -> Option<(Vec<CycleReading>, usize)> {
+    let undone = cycle.undo(cause)?;
     let entries: Vec<CycleReading> = match cause {
         CycleCause::FacesShifted { by } => {
             // the values are of the face `by` on: compared with the autocollimator of
             // this mounting that reads that face at the same stop, where there is one
-            let offsets = set.face_offsets();
-            let n = set.faces as i64;
-            let offset = |ac: u32| {
-                offsets
-                    .iter()
-                    .find(|((s, a), _)| *s == setup && *a == ac)
-                    .map(|(_, d)| *d as i64)
-            };
-            set.readings
-                .iter()
-                .filter(|r| r.setup == setup && r.cycle == cycle)
+            let n = cycle.faces() as i64;
+            cycle
+                .readings()
                 .filter_map(|r| {
-                    let target = (offset(r.ac)? + by).rem_euclid(n);
-                    let (&(_, ac), _) = offsets
-                        .iter()
-                        .map(|(k, d)| (k, *d as i64))
-                        .find(|((s, _), d)| *s == setup && *d == target)?;
+                    let target = (cycle.offset_of(r.setup, r.ac)? as i64 + by).rem_euclid(n);
+                    let ac = cycle.ac_with_offset(target as usize)?;
                     Some((ac, r.step, r.reading_arcsec))
                 })
                 .collect()
         }
-        _ => repaired
+        _ => undone
             .readings
             .iter()
-            .filter(|r| r.setup == setup && r.cycle == cycle)
-            .map(|r| (r.ac, r.step, r.reading_arcsec))
+            .map(|(_, r)| (r.ac, r.step, r.reading_arcsec))
             .collect(),
     };
-    Some((entries, repaired, aside))
+    Some((entries, undone.aside.len()))
 }
 
 fn values(set: &MeasurementSet) -> Vec<f64> {
@@ -250,15 +232,55 @@ fn tested(set: &MeasurementSet) -> Vec<(u32, u32)> {
 pub fn disagreeing_cycles(set: &MeasurementSet) -> Vec<(u32, u32, f64, f64)> {
     let pairs = tested(set);
     let level = CYCLE_ALPHA / pairs.len().max(1) as f64;
+    tests(set, &pairs)
+        .0
+        .into_iter()
+        .filter(|t| t.chow.p_value < level)
+        .map(|t| (t.setup, t.cycle, t.chow.f_statistic, t.chow.p_value))
+        .collect()
+}
+
+/// Each mounting's tables, by mounting: each autocollimator's, with the autocollimator.
+type Mountings = BTreeMap<u32, Vec<(u32, Table)>>;
+
+/// One cycle's test as logged, with the fits of its mounting's tables (shared by the
+/// tests of the cycle's repairs).
+struct CycleTest {
+    setup: u32,
+    cycle: u32,
+    chow: Chow,
+    /// The fits of the mounting's tables without the cycle.
+    rest: (f64, usize),
+}
+
+/// The test of every cycle of `pairs` in `set`, with each mounting's tables (built and
+/// fitted once for all its cycles).
+fn tests(
+    set: &MeasurementSet,
+    pairs: &[(u32, u32)],
+) -> (Vec<CycleTest>, Mountings) {
     let v = values(set);
     let none = BTreeSet::new();
-    pairs
-        .iter()
-        .filter_map(|&(setup, cycle)| {
-            let t = chow(&tables(set, &v, setup, None, &none), cycle, MIN_REST_DOF)?;
-            (t.p_value < level).then_some((setup, cycle, t.f_statistic, t.p_value))
-        })
-        .collect()
+    let setups: BTreeSet<u32> = pairs.iter().map(|p| p.0).collect();
+    let mut found = Vec::new();
+    let mut by_setup = BTreeMap::new();
+    for setup in setups {
+        let tables = tables(set, &v, setup, &none);
+        let all = sum(tables.iter().map(|(_, t)| t.fit()));
+        for &(_, cycle) in pairs.iter().filter(|p| p.0 == setup) {
+            let rest = sum(tables.iter().map(|(_, t)| t.fit_without(cycle)));
+            if let Some(chow) = chow_of(all, rest, MIN_REST_DOF) {
+                found.push(CycleTest {
+                    setup,
+                    cycle,
+                    chow,
+                    rest,
+                });
+            }
+        }
+        by_setup.insert(setup, tables);
+    }
+    (found, by_setup)
 }
 
 fn aside_readings(set: &MeasurementSet, indices: &[usize], reason: &str) -> Vec<SetAsideReading> {
@@ -316,61 +338,56 @@ fn examine(set: &MeasurementSet) -> Examined {
     let mut handled = BTreeSet::new();
     let mut findings = Vec::new();
     let mut pending = Vec::new();
-    let none = BTreeSet::new();
+    // the tests as logged, computed anew only when a cycle is repaired or set aside
+    let (mut logged_tests, mut mountings) = tests(&current, &pairs);
     loop {
-        let v = values(&current);
-        let worst = pairs
+        let worst = logged_tests
             .iter()
-            .filter(|pair| !handled.contains(*pair))
-            .filter_map(|&(setup, cycle)| {
-                let t = chow(
-                    &tables(&current, &v, setup, None, &none),
-                    cycle,
-                    MIN_REST_DOF,
-                )?;
-                (t.p_value < level).then_some((setup, cycle, t))
-            })
-            .max_by(|a, b| a.2.f_statistic.total_cmp(&b.2.f_statistic));
-        let Some((setup, cycle, logged)) = worst else {
+            .filter(|t| !handled.contains(&(t.setup, t.cycle)) && t.chow.p_value < level)
+            .max_by(|a, b| a.chow.f_statistic.total_cmp(&b.chow.f_statistic));
+        let Some(&CycleTest {
+            setup,
+            cycle,
+            chow: logged,
+            rest,
+        }) = worst
+        else {
             break;
         };
         handled.insert((setup, cycle));
+        let Some(mounting) = mountings.get(&setup) else {
+            continue;
+        };
         // the causes whose undoing makes the cycle agree, with the number of the cycle's
         // readings the test could compare (faces shifted onto a face no autocollimator
         // of the mounting reads at that stop cannot be compared)
-        let consistent: Vec<(usize, CycleCause, Chow, MeasurementSet, Vec<usize>)> =
-            causes::candidates(&current, setup, cycle)
-                .into_iter()
-                .filter_map(|cause| {
-                    let (entries, repaired, aside) = undone(&current, setup, cycle, cause)?;
-                    let t = chow(
-                        &tables(&current, &v, setup, Some((cycle, &entries)), &none),
-                        cycle,
-                        MIN_REST_DOF,
-                    )?;
-                    (t.p_value >= level).then_some((
-                        entries.len() + aside.len(),
-                        cause,
-                        t,
-                        repaired,
-                        aside,
-                    ))
-                })
-                .collect();
+        let prepared = causes::Cycle::of(&current, setup, cycle);
+        let consistent: Vec<(usize, CycleCause, Chow)> = prepared
+            .iter()
+            .flat_map(|c| c.candidates().into_iter().map(move |cause| (c, cause)))
+            .filter_map(|(prepared, cause)| {
+                let (entries, aside) = undone(prepared, cause)?;
+                let t = chow_of(fits_replaced(mounting, cycle, &entries), rest, MIN_REST_DOF)?;
+                (t.p_value >= level).then_some((entries.len() + aside, cause, t))
+            })
+            .collect();
         // a cause that leaves some of the cycle's readings unchecked does not explain it
         // as well as one that checks them all
         let most = consistent.iter().map(|e| e.0).max().unwrap_or(0);
-        let explaining: Vec<(CycleCause, Chow, MeasurementSet, Vec<usize>)> = consistent
+        let explaining: Vec<(CycleCause, Chow)> = consistent
             .into_iter()
             .filter(|e| e.0 == most)
-            .map(|(_, cause, t, repaired, aside)| (cause, t, repaired, aside))
+            .map(|(_, cause, t)| (cause, t))
             .collect();
         let mut found = finding(setup, cycle, logged, level);
         match explaining.len() {
             0 => pending.push((setup, cycle, logged)),
             n if n > 1 && logged.f_statistic < GROSS_F => pending.push((setup, cycle, logged)),
             1 => {
-                let Some((cause, t, repaired, aside)) = explaining.into_iter().next() else {
+                let Some((cause, t)) = explaining.into_iter().next() else {
+                    continue;
+                };
+                let Some((repaired, aside)) = causes::repair(&current, setup, cycle, cause) else {
                     continue;
                 };
                 found.cause = cause;
@@ -385,6 +402,7 @@ fn examine(set: &MeasurementSet) -> Examined {
                     ),
                 );
                 current = repaired;
+                (logged_tests, mountings) = tests(&current, &pairs);
                 findings.push(found);
             }
             _ => {
@@ -400,6 +418,7 @@ fn examine(set: &MeasurementSet) -> Examined {
                     ),
                 );
                 current = rest;
+                (logged_tests, mountings) = tests(&current, &pairs);
                 findings.push(found);
             }
         }
@@ -458,7 +477,7 @@ fn still_disagreeing(
                 }
             }
             chow(
-                &tables(set, &values, setup, None, &skip),
+                &tables_only(tables(set, &values, setup, &skip)),
                 cycle,
                 MIN_REST_DOF,
             )

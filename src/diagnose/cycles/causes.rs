@@ -77,32 +77,6 @@ impl CycleCause {
     }
 }
 
-/// The causes worth trying on cycle `cycle` of `setup` of `set`.
-pub(super) fn candidates(set: &MeasurementSet, setup: u32, cycle: u32) -> Vec<CycleCause> {
-    let mut acs: Vec<u32> = set
-        .readings
-        .iter()
-        .filter(|r| r.setup == setup && r.cycle == cycle)
-        .map(|r| r.ac)
-        .collect();
-    acs.sort_unstable();
-    acs.dedup();
-    let mut causes = Vec::new();
-    for (i, &a) in acs.iter().enumerate() {
-        for &b in &acs[i + 1..] {
-            causes.push(CycleCause::SwappedAcs { a, b });
-        }
-    }
-    causes.extend([
-        CycleCause::OneStopLate,
-        CycleCause::OneStopEarly,
-        CycleCause::FacesShifted { by: 1 },
-        CycleCause::FacesShifted { by: -1 },
-        CycleCause::Reversed,
-    ]);
-    causes
-}
-
 /// The stops (steps) of a cycle in time order: by the readings' times when every reading
 /// of the cycle has one, else by the cycle's direction.
 fn stops_in_time_order(readings: &[&Reading]) -> Vec<usize> {
@@ -124,116 +98,215 @@ fn stops_in_time_order(readings: &[&Reading]) -> Vec<usize> {
     stops.into_iter().map(|(_, s)| s).collect()
 }
 
-/// `set` with `cause` undone in cycle `cycle` of `setup`, and the indices (into `set`)
-/// of the readings the repair leaves without a stop of the cycle (removed from the
-/// repaired set). `None` when the cause cannot be undone on this cycle (an
-/// autocollimator missing at some stop, a cycle of one stop).
+/// A cycle's readings with a cause undone ([`Cycle::undo`]).
+pub(super) struct Undone {
+    /// The cycle's readings the repair keeps, each with its index into the set, as
+    /// repaired.
+    pub readings: Vec<(usize, Reading)>,
+    /// The indices (into the set) of the readings the repair leaves without a stop of
+    /// the cycle.
+    pub aside: Vec<usize>,
+    /// The mounting a faces-shifted cycle becomes (a new one), with its shift.
+    new_setup: Option<(u32, Option<f64>)>,
+}
+
+/// One cycle of a set, prepared for its causes to be undone one after the other.
+pub(super) struct Cycle<'s> {
+    set: &'s MeasurementSet,
+    setup: u32,
+    /// The indices (into the set) of the cycle's readings.
+    in_cycle: Vec<usize>,
+    /// The cycle's stops in time order.
+    stops: Vec<usize>,
+    /// Each stop's place in `stops`.
+    ranks: HashMap<usize, usize>,
+    /// The set's face offsets ([`MeasurementSet::face_offsets`]).
+    offsets: Vec<((u32, u32), usize)>,
+}
+
+impl<'s> Cycle<'s> {
+    /// Cycle `cycle` of `setup` of `set`; `None` for a cycle of fewer than two stops.
+    pub(super) fn of(set: &'s MeasurementSet, setup: u32, cycle: u32) -> Option<Cycle<'s>> {
+        let in_cycle: Vec<usize> = (0..set.readings.len())
+            .filter(|&i| set.readings[i].setup == setup && set.readings[i].cycle == cycle)
+            .collect();
+        let refs: Vec<&Reading> = in_cycle.iter().map(|&i| &set.readings[i]).collect();
+        let stops = stops_in_time_order(&refs);
+        if stops.len() < 2 {
+            return None;
+        }
+        let ranks = stops.iter().enumerate().map(|(k, &s)| (s, k)).collect();
+        Some(Cycle {
+            set,
+            setup,
+            in_cycle,
+            stops,
+            ranks,
+            offsets: set.face_offsets(),
+        })
+    }
+
+    /// The causes worth trying on the cycle.
+    pub(super) fn candidates(&self) -> Vec<CycleCause> {
+        let mut acs: Vec<u32> = self.readings().map(|r| r.ac).collect();
+        acs.sort_unstable();
+        acs.dedup();
+        let mut causes = Vec::new();
+        for (i, &a) in acs.iter().enumerate() {
+            for &b in &acs[i + 1..] {
+                causes.push(CycleCause::SwappedAcs { a, b });
+            }
+        }
+        causes.extend([
+            CycleCause::OneStopLate,
+            CycleCause::OneStopEarly,
+            CycleCause::FacesShifted { by: 1 },
+            CycleCause::FacesShifted { by: -1 },
+            CycleCause::Reversed,
+        ]);
+        causes
+    }
+
+    /// The polygon's number of faces.
+    pub(super) fn faces(&self) -> usize {
+        self.set.faces
+    }
+
+    /// The face offset of autocollimator `ac` in mounting `setup`.
+    pub(super) fn offset_of(&self, setup: u32, ac: u32) -> Option<usize> {
+        self.offsets
+            .iter()
+            .find(|((s, a), _)| *s == setup && *a == ac)
+            .map(|(_, d)| *d)
+    }
+
+    /// The autocollimator of the cycle's mounting with face offset `offset`.
+    pub(super) fn ac_with_offset(&self, offset: usize) -> Option<u32> {
+        self.offsets
+            .iter()
+            .find(|((s, _), d)| *s == self.setup && *d == offset)
+            .map(|((_, ac), _)| *ac)
+    }
+
+    /// The cycle's readings as logged.
+    pub(super) fn readings(&self) -> impl Iterator<Item = &'s Reading> + '_ {
+        self.in_cycle.iter().map(|&i| &self.set.readings[i])
+    }
+
+    /// The cycle with `cause` undone, without touching the rest of the set; `None` when
+    /// the cause cannot be undone on this cycle (an autocollimator missing at some stop).
+    pub(super) fn undo(&self, cause: CycleCause) -> Option<Undone> {
+        let set = self.set;
+        let n = set.faces;
+        let refs: Vec<&Reading> = self.readings().collect();
+        let rank = |step: usize| self.ranks.get(&step).copied();
+        // the cycle's readings, parallel to `in_cycle`
+        let mut readings: Vec<Reading> = refs.iter().map(|&r| r.clone()).collect();
+        let mut aside = Vec::new();
+        let mut new_setup = None;
+        let relabel = |r: &mut Reading, step: usize| -> Option<()> {
+            r.step = step;
+            r.face = face_at(step, self.offset_of(r.setup, r.ac)?, n);
+            Some(())
+        };
+        match cause {
+            CycleCause::SwappedAcs { a, b } => {
+                let of_b: HashMap<usize, usize> = refs
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, r)| r.ac == b)
+                    .map(|(k, r)| (r.step, k))
+                    .collect();
+                for (k, r) in refs.iter().enumerate() {
+                    if r.ac != a {
+                        continue;
+                    }
+                    let j = *of_b.get(&r.step)?;
+                    let other = refs[j];
+                    readings[k].reading_arcsec = other.reading_arcsec;
+                    readings[k].reading_y_arcsec = other.reading_y_arcsec;
+                    readings[j].reading_arcsec = r.reading_arcsec;
+                    readings[j].reading_y_arcsec = r.reading_y_arcsec;
+                }
+                if refs.iter().filter(|r| r.ac == a || r.ac == b).count() % 2 != 0 {
+                    return None;
+                }
+            }
+            CycleCause::OneStopLate | CycleCause::OneStopEarly | CycleCause::Reversed => {
+                let last = self.stops.len() - 1;
+                for (k, r) in readings.iter_mut().enumerate() {
+                    let at = rank(r.step)?;
+                    let to = match cause {
+                        CycleCause::OneStopLate if at == 0 => None,
+                        CycleCause::OneStopLate => Some(at - 1),
+                        CycleCause::OneStopEarly if at == last => None,
+                        CycleCause::OneStopEarly => Some(at + 1),
+                        _ => Some(last - at),
+                    };
+                    match to {
+                        Some(to) => relabel(r, self.stops[to])?,
+                        None => aside.push(self.in_cycle[k]),
+                    }
+                }
+            }
+            CycleCause::FacesShifted { by } => {
+                let shifted = set.readings.iter().map(|r| r.setup).max().unwrap_or(1) + 1;
+                for r in &mut readings {
+                    r.setup = shifted;
+                    r.face = ((r.face as i64 - 1 + by).rem_euclid(n as i64) + 1) as usize;
+                }
+                new_setup = Some((shifted, set.setup_shift_deg.get(&self.setup).copied()));
+            }
+            CycleCause::Unexplained => return None,
+        }
+        let readings = self
+            .in_cycle
+            .iter()
+            .copied()
+            .zip(readings)
+            .filter(|(i, _)| !aside.contains(i))
+            .collect();
+        Some(Undone {
+            readings,
+            aside,
+            new_setup,
+        })
+    }
+}
+
+/// `set` with `cause` undone in cycle `cycle` of `setup` ([`Cycle::undo`]), and the indices
+/// (into `set`) of the readings the repair leaves without a stop of the cycle (removed
+/// from the repaired set).
 pub(super) fn repair(
     set: &MeasurementSet,
     setup: u32,
     cycle: u32,
     cause: CycleCause,
 ) -> Option<(MeasurementSet, Vec<usize>)> {
-    let n = set.faces;
-    let offsets = set.face_offsets();
-    let offset_of = |s: u32, ac: u32| {
-        offsets
-            .iter()
-            .find(|((os, oa), _)| *os == s && *oa == ac)
-            .map(|(_, d)| *d)
-    };
-    let in_cycle: Vec<usize> = (0..set.readings.len())
-        .filter(|&i| set.readings[i].setup == setup && set.readings[i].cycle == cycle)
-        .collect();
-    let refs: Vec<&Reading> = in_cycle.iter().map(|&i| &set.readings[i]).collect();
-    let stops = stops_in_time_order(&refs);
-    if stops.len() < 2 {
-        return None;
-    }
-    let ranks: HashMap<usize, usize> = stops.iter().enumerate().map(|(k, &s)| (s, k)).collect();
-    let rank = |step: usize| ranks.get(&step).copied();
+    let undone = Cycle::of(set, setup, cycle)?.undo(cause)?;
     let mut readings = set.readings.clone();
-    let mut aside = Vec::new();
-    let mut shifts = set.setup_shift_deg.clone();
-    let relabel = |r: &mut Reading, step: usize| -> Option<()> {
-        r.step = step;
-        r.face = face_at(step, offset_of(r.setup, r.ac)?, n);
-        Some(())
-    };
-    match cause {
-        CycleCause::SwappedAcs { a, b } => {
-            let of_b: HashMap<usize, usize> = in_cycle
-                .iter()
-                .filter(|&&j| set.readings[j].ac == b)
-                .map(|&j| (set.readings[j].step, j))
-                .collect();
-            for &i in &in_cycle {
-                let r = &set.readings[i];
-                if r.ac != a {
-                    continue;
-                }
-                let j = *of_b.get(&r.step)?;
-                let other = &set.readings[j];
-                readings[i].reading_arcsec = other.reading_arcsec;
-                readings[i].reading_y_arcsec = other.reading_y_arcsec;
-                readings[j].reading_arcsec = r.reading_arcsec;
-                readings[j].reading_y_arcsec = r.reading_y_arcsec;
-            }
-            if in_cycle
-                .iter()
-                .filter(|&&i| set.readings[i].ac == a || set.readings[i].ac == b)
-                .count()
-                % 2
-                != 0
-            {
-                return None;
-            }
-        }
-        CycleCause::OneStopLate | CycleCause::OneStopEarly | CycleCause::Reversed => {
-            let last = stops.len() - 1;
-            for &i in &in_cycle {
-                let k = rank(set.readings[i].step)?;
-                let to = match cause {
-                    CycleCause::OneStopLate if k == 0 => None,
-                    CycleCause::OneStopLate => Some(k - 1),
-                    CycleCause::OneStopEarly if k == last => None,
-                    CycleCause::OneStopEarly => Some(k + 1),
-                    _ => Some(last - k),
-                };
-                match to {
-                    Some(to) => relabel(&mut readings[i], stops[to])?,
-                    None => aside.push(i),
-                }
-            }
-        }
-        CycleCause::FacesShifted { by } => {
-            let new_setup = set.readings.iter().map(|r| r.setup).max().unwrap_or(1) + 1;
-            for &i in &in_cycle {
-                let r = &mut readings[i];
-                r.setup = new_setup;
-                r.face = ((r.face as i64 - 1 + by).rem_euclid(n as i64) + 1) as usize;
-            }
-            if let Some(&shift) = set.setup_shift_deg.get(&setup) {
-                shifts.insert(new_setup, shift);
-            }
-        }
-        CycleCause::Unexplained => return None,
+    for (i, r) in &undone.readings {
+        readings[*i] = r.clone();
     }
-    let aside_set: std::collections::HashSet<usize> = aside.iter().copied().collect();
+    let aside_set: std::collections::HashSet<usize> = undone.aside.iter().copied().collect();
     let keep: Vec<Reading> = readings
         .into_iter()
         .enumerate()
         .filter(|(i, _)| !aside_set.contains(i))
         .map(|(_, r)| r)
         .collect();
+    let mut shifts = set.setup_shift_deg.clone();
+    if let Some((new_setup, Some(shift))) = undone.new_setup {
+        shifts.insert(new_setup, shift);
+    }
     Some((
         MeasurementSet {
-            faces: n,
+            faces: set.faces,
             readings: keep,
             source: set.source.clone(),
             setup_shift_deg: shifts,
         },
-        aside,
+        undone.aside,
     ))
 }
 

@@ -16,12 +16,11 @@
 
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
-/// One value of a table: row (cycle), column (stop), value.
-pub(super) type Entry = (u32, usize, f64);
+use super::table::{Entry, Table};
 
 /// The residual sum of squares and degrees of freedom of the additive fit
-/// value = a[column] + b[row] of `entries` (alternating means; exact after one pass when
-/// the table is complete).
+/// value = a[column] + b[row] of `entries`, by alternating means until the RSS stops
+/// falling (a complete table has its closed form in [`Table`]).
 pub(super) fn additive_rss(entries: &[Entry]) -> (f64, usize) {
     if entries.is_empty() {
         return (0.0, 0);
@@ -58,7 +57,8 @@ pub(super) fn additive_rss(entries: &[Entry]) -> (f64, usize) {
             .iter()
             .map(|e| (e.2 - a[e.1] - b[e.0 as usize]).powi(2))
             .sum::<f64>();
-        if previous - rss <= 1e-10 * previous.max(f64::MIN_POSITIVE) {
+        // (the first pass has nothing to compare with: ∞ − rss ≤ ∞ would stop it there)
+        if previous.is_finite() && previous - rss <= 1e-12 * previous.max(f64::MIN_POSITIVE) {
             break;
         }
         previous = rss;
@@ -82,20 +82,32 @@ pub(super) struct Chow {
     pub p_value: f64,
 }
 
+/// The additive fits of every table in `tables`: summed RSS and degrees of freedom.
+pub(super) fn fits(tables: &[Table]) -> (f64, usize) {
+    sum(tables.iter().map(Table::fit))
+}
+
+/// The additive fits of every table in `tables` without row `cycle`.
+pub(super) fn fits_without(tables: &[Table], cycle: u32) -> (f64, usize) {
+    sum(tables.iter().map(|t| t.fit_without(cycle)))
+}
+
+/// The sum of fits' RSS and degrees of freedom.
+pub(super) fn sum(fits: impl Iterator<Item = (f64, usize)>) -> (f64, usize) {
+    fits.fold((0.0, 0), |acc, (r, d)| (acc.0 + r, acc.1 + d))
+}
+
 /// The test of row `cycle` of every table in `tables` against their other rows; `None`
 /// when the others leave fewer than `min_rest_dof` degrees of freedom or the cycle adds
 /// none.
-pub(super) fn chow(tables: &[Vec<Entry>], cycle: u32, min_rest_dof: usize) -> Option<Chow> {
-    let (mut rss_all, mut dof_all, mut rss_rest, mut dof_rest) = (0.0, 0, 0.0, 0);
-    for table in tables {
-        let (r, d) = additive_rss(table);
-        rss_all += r;
-        dof_all += d;
-        let rest: Vec<Entry> = table.iter().copied().filter(|e| e.0 != cycle).collect();
-        let (r, d) = additive_rss(&rest);
-        rss_rest += r;
-        dof_rest += d;
-    }
+pub(super) fn chow(tables: &[Table], cycle: u32, min_rest_dof: usize) -> Option<Chow> {
+    chow_of(fits(tables), fits_without(tables, cycle), min_rest_dof)
+}
+
+/// The test from the fits of the whole tables, `all`, and of the tables without the
+/// cycle tested, `rest` ([`fits`], [`fits_without`]): a cycle's repairs share `rest`.
+pub(super) fn chow_of(all: (f64, usize), rest: (f64, usize), min_rest_dof: usize) -> Option<Chow> {
+    let ((rss_all, dof_all), (rss_rest, dof_rest)) = (all, rest);
     let dof_numerator = dof_all.checked_sub(dof_rest)?;
     if dof_numerator == 0 || dof_rest < min_rest_dof {
         return None;
@@ -156,10 +168,10 @@ mod tests {
                 })
             })
             .collect();
-        let test = chow(std::slice::from_ref(&entries), 3, 1).expect("a test");
+        let test = chow(&[Table::of(entries.clone())], 3, 1).expect("a test");
         assert_eq!((test.dof_numerator, test.dof_denominator), (5, 10));
         assert!(test.p_value < 1e-6, "{test:?}");
-        let other = chow(&[entries], 1, 1).expect("a test");
+        let other = chow(&[Table::of(entries)], 1, 1).expect("a test");
         assert!(other.f_statistic < test.f_statistic);
     }
 }
