@@ -547,7 +547,8 @@ class DiagnoseResult(Result):
     """The result of :func:`diagnose`, the JSON object of ``polycal diagnose --format
     json`` (docs/FORMAT.md §5.2): ``before`` and ``after`` (each a solve's object), the
     findings, the verdict and the notes; the cycles that disagree with the others
-    (``cycles``: repaired or set aside), the test of equal noise (``noise``), what ended
+    (``cycles``: repaired or set aside), likewise whole mountings (``mountings``), the
+    test of equal noise (``noise``), what ended
     the search when a limit did (``search_stopped``) and the scatter the autocollimators
     share at a stop (``stop_scatter``)."""
 
@@ -567,6 +568,7 @@ class DiagnoseResult(Result):
     tried: List[Section]
     unattributed: List[Section]
     cycles: List[Section]
+    mountings: List[Section]
     noise: Optional[Section]
     stop_scatter: Optional[Section]
     residuals: Section

@@ -137,7 +137,7 @@ def test_fields_are_attributes_in_dir_and_in_the_stubs():
     assert "pitch_deviation" in dir(result.uncertainty)
     # diagnose's object likewise, the members of issue 53 among them
     diagnosed = json.loads(cli("diagnose", DATA, "--format", "json"))
-    for key in ("cycles", "noise", "search_stopped", "stop_scatter"):
+    for key in ("cycles", "mountings", "noise", "search_stopped", "stop_scatter"):
         assert key in diagnosed, key
     for key in diagnosed:
         assert key in polycal.DiagnoseResult.__annotations__, key

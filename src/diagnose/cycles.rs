@@ -19,9 +19,11 @@
 //! explains is left to the search's own checks and not listed). `before` stays the fit of the readings as logged.
 //!
 //! Self-calibration runs are not tested (their diagnosis goes through
-//! [`super::selfcal`]), nor mountings against each other.
+//! [`super::selfcal`]). Whole mountings are tested against each other after the cycles
+//! ([`mountings`]).
 
 mod causes;
+pub mod mountings;
 mod table;
 mod test;
 
@@ -48,7 +50,7 @@ pub const CYCLE_ALPHA: f64 = 0.01;
 pub const MIN_CYCLES: usize = 3;
 
 /// The fewest degrees of freedom the other cycles must leave for a test.
-const MIN_REST_DOF: usize = 10;
+pub(super) const MIN_REST_DOF: usize = 10;
 
 /// The smallest F at which a cycle no logging error explains is set aside: its
 /// disagreement with the others is then gross (the variance of its interaction at least
@@ -255,10 +257,7 @@ struct CycleTest {
 
 /// The test of every cycle of `pairs` in `set`, with each mounting's tables (built and
 /// fitted once for all its cycles).
-fn tests(
-    set: &MeasurementSet,
-    pairs: &[(u32, u32)],
-) -> (Vec<CycleTest>, Mountings) {
+fn tests(set: &MeasurementSet, pairs: &[(u32, u32)]) -> (Vec<CycleTest>, Mountings) {
     let v = values(set);
     let none = BTreeSet::new();
     let setups: BTreeSet<u32> = pairs.iter().map(|p| p.0).collect();
@@ -283,7 +282,11 @@ fn tests(
     (found, by_setup)
 }
 
-fn aside_readings(set: &MeasurementSet, indices: &[usize], reason: &str) -> Vec<SetAsideReading> {
+pub(super) fn aside_readings(
+    set: &MeasurementSet,
+    indices: &[usize],
+    reason: &str,
+) -> Vec<SetAsideReading> {
     indices
         .iter()
         .map(|&i| {
@@ -494,32 +497,40 @@ pub(crate) fn diagnose_checked(
     plain: impl Fn(&MeasurementSet) -> Result<Diagnosis, SolveError>,
 ) -> Result<Diagnosis, SolveError> {
     let Examined {
-        set: mut used,
+        set: cycles_repaired,
         mut findings,
         pending,
         level,
     } = examine(logged);
-    let mut diagnosis = plain(&used)?;
+    // then every mounting against the others, on the cycles as repaired
+    let mut mounted = mountings::examine(cycles_repaired);
+    let mut diagnosis = plain(&mounted.set)?;
+    let mut changed = false;
     if !pending.is_empty() {
-        let still = still_disagreeing(&used, &diagnosis, &pending, level);
+        let used = &mut mounted.set;
+        let still = still_disagreeing(used, &diagnosis, &pending, level);
         for &(setup, cycle, logged_test) in &still {
-            let (rest, aside) = causes::without_cycle(&used, setup, cycle);
+            let (rest, aside) = causes::without_cycle(used, setup, cycle);
             let mut found = finding(setup, cycle, logged_test, level);
             found.set_aside = aside_readings(
-                &used,
+                used,
                 &aside,
                 &format!(
                     "cycle {cycle} set aside: it disagrees with the others, no usual logging error explains it, and no effect the search found does"
                 ),
             );
             findings.push(found);
-            used = rest;
+            *used = rest;
         }
-        if !still.is_empty() {
-            diagnosis = plain(&used)?;
-        }
+        changed = !still.is_empty();
     }
-    if findings.is_empty() {
+    // (a cycle set aside changes the readings: the mountings are then not tested again)
+    changed = changed || mounted.set_aside_still_disagreeing(&diagnosis);
+    if changed {
+        diagnosis = plain(&mounted.set)?;
+    }
+    let used = mounted.set;
+    if findings.is_empty() && mounted.findings.is_empty() {
         return Ok(diagnosis);
     }
     // `before` is the fit of every reading as logged
@@ -558,9 +569,31 @@ pub(crate) fn diagnose_checked(
             diagnosis.adequacy.adequate = false;
         }
     }
+    for found in &mounted.findings {
+        diagnosis.notes.push(mountings::note(found));
+        if found.action == CycleAction::SetAside {
+            diagnosis.adequacy.checks.push(Check {
+                name: format!(
+                    "setup {} agrees with the other mountings (set aside: {})",
+                    found.setup,
+                    if found.alternatives.is_empty() {
+                        "no cause explains it"
+                    } else {
+                        "several causes explain it equally well"
+                    }
+                ),
+                statistic: found.f_statistic,
+                limit: f64::NAN,
+                passed: false,
+                stream: None,
+            });
+            diagnosis.adequacy.adequate = false;
+        }
+    }
     diagnosis.before_sub_pitch = base.sub_pitch_solution(&before);
     diagnosis.before = before;
     diagnosis.cycles = findings;
+    diagnosis.mountings = mounted.findings;
     Ok(diagnosis)
 }
 

@@ -461,6 +461,10 @@ pub struct Diagnosis {
     /// The cycles that disagree with the others ([`cycles`]), repaired or set aside;
     /// empty when none (and for self-calibration runs, which are not tested).
     pub cycles: Vec<cycles::CycleFinding>,
+    /// The mountings that disagree with the others ([`cycles::mountings`]), repaired or
+    /// set aside; empty when none (runs of fewer than three mountings, shifted mountings
+    /// and self-calibration runs are not tested).
+    pub mountings: Vec<cycles::mountings::MountingFinding>,
 }
 
 /// The readings' rounding level: residual sums of squares below it are zero.
@@ -715,6 +719,7 @@ fn diagnose_fitted(
         search_stopped,
         noise,
         cycles: Vec::new(),
+        mountings: Vec::new(),
     })
 }
 

@@ -194,6 +194,11 @@ pub struct DiagnoseReport {
     /// `encoder_change_max` and `set_aside` (the readings that left the fit, with the
     /// reason). Always present, empty when none.
     pub cycles: Vec<Value>,
+    /// The mountings that disagree with the others (an addition, docs/FORMAT.md §5.2,
+    /// `mountings`): `setup`, `statistic`, `dof`, `dof_denominator`, `p`, `level`,
+    /// `cause`, `action`, `alternatives`, `acs` (swapped-acs), `by` (faces-shifted),
+    /// `repaired` and `set_aside`, as in `cycles`. Always present, empty when none.
+    pub mountings: Vec<Value>,
     /// Every reading's residual before and after, in file order (an addition; present
     /// when built with [`DiagnoseReport::with_residuals`], as `polycal diagnose` does).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -715,6 +720,7 @@ impl DiagnoseReport {
                 })
                 .collect(),
             cycles: diagnosis.cycles.iter().map(cycle_json).collect(),
+            mountings: diagnosis.mountings.iter().map(mounting_json).collect(),
             residuals: None,
         }
     }
@@ -738,7 +744,6 @@ impl DiagnoseReport {
 
 /// One cycle that disagrees, as in docs/FORMAT.md §5 (`cycles`).
 fn cycle_json(c: &crate::diagnose::cycles::CycleFinding) -> Value {
-    use crate::diagnose::cycles::CycleCause;
     let mut object = serde_json::json!({
         "setup": c.setup,
         "cycle": c.cycle,
@@ -754,15 +759,51 @@ fn cycle_json(c: &crate::diagnose::cycles::CycleFinding) -> Value {
         "repaired": c.repaired.map(|(f, p)| serde_json::json!({"statistic": number(f), "p": number(p)})),
         "pitch_change_max": number(c.pitch_change_max),
         "encoder_change_max": number(c.encoder_change_max),
-        "set_aside": c.set_aside.iter().map(|r| serde_json::json!({
-            "setup": r.setup, "cycle": r.cycle, "step": r.step, "ac": r.ac, "line": r.line,
-            "reading": number(r.reading_arcsec), "reason": r.reason,
-        })).collect::<Vec<_>>(),
+        "set_aside": set_aside_json(&c.set_aside),
     });
-    match c.cause {
+    cause_details(&mut object, c.cause);
+    object
+}
+
+/// The pair of a swapped-acs cause (`acs`) and the shift of a faces-shifted one (`by`).
+fn cause_details(object: &mut Value, cause: crate::diagnose::cycles::CycleCause) {
+    use crate::diagnose::cycles::CycleCause;
+    match cause {
         CycleCause::SwappedAcs { a, b } => object["acs"] = serde_json::json!([a, b]),
         CycleCause::FacesShifted { by } => object["by"] = serde_json::json!(by),
         _ => {}
     }
+}
+
+/// The readings that left the fit with a cycle or a mounting.
+fn set_aside_json(readings: &[crate::diagnose::cycles::SetAsideReading]) -> Vec<Value> {
+    readings
+        .iter()
+        .map(|r| {
+            serde_json::json!({
+                "setup": r.setup, "cycle": r.cycle, "step": r.step, "ac": r.ac, "line": r.line,
+                "reading": number(r.reading_arcsec), "reason": r.reason,
+            })
+        })
+        .collect()
+}
+
+/// One mounting that disagrees (docs/FORMAT.md §5.2, `mountings`).
+fn mounting_json(m: &crate::diagnose::cycles::mountings::MountingFinding) -> Value {
+    let mut object = serde_json::json!({
+        "setup": m.setup,
+        "statistic": number(m.f_statistic),
+        "dof": m.dof_numerator,
+        "dof_denominator": m.dof_denominator,
+        "p": number(m.p_value),
+        "level": number(m.level),
+        "consistent": false,
+        "cause": m.cause.as_str(),
+        "action": m.action.as_str(),
+        "alternatives": m.alternatives.iter().map(|a| a.as_str()).collect::<Vec<_>>(),
+        "repaired": m.repaired.map(|(f, p)| serde_json::json!({"statistic": number(f), "p": number(p)})),
+        "set_aside": set_aside_json(&m.set_aside),
+    });
+    cause_details(&mut object, m.cause);
     object
 }

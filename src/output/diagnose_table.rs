@@ -116,6 +116,7 @@ pub fn write_table<W: std::fmt::Write>(
     }
     write_noise(out, diagnosis)?;
     write_cycles(out, diagnosis)?;
+    write_mountings(out, diagnosis)?;
     if diagnosis.effects.is_empty() {
         if diagnosis.testable {
             writeln!(
@@ -430,6 +431,43 @@ fn write_cycles<W: std::fmt::Write>(out: &mut W, diagnosis: &Diagnosis) -> std::
                 c.set_aside.len() - 4
             )?;
         }
+    }
+    Ok(())
+}
+
+/// The mountings that disagree with the others: which, the statistic, the cause and what
+/// was done.
+fn write_mountings<W: std::fmt::Write>(out: &mut W, diagnosis: &Diagnosis) -> std::fmt::Result {
+    if diagnosis.mountings.is_empty() {
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "\nMountings that disagree with the others (each tested against the rest, 1 % for the run):"
+    )?;
+    for m in &diagnosis.mountings {
+        let cause = if m.alternatives.is_empty() {
+            m.cause.as_str().to_string()
+        } else {
+            let names: Vec<&str> = m.alternatives.iter().map(|a| a.as_str()).collect();
+            format!("unexplained ({} fit equally well)", names.join(" or "))
+        };
+        let repaired = m.repaired.map_or(String::new(), |(f, p)| {
+            format!("; undone, F = {f:.2} (p = {})", p_text(p))
+        });
+        writeln!(
+            out,
+            "  setup {}: F = {} on {} and {} dof, p = {} (level {:.1e}); cause {cause} in every cycle; {}{repaired}; {} reading{} left the fit",
+            m.setup,
+            f_text(m.f_statistic),
+            m.dof_numerator,
+            m.dof_denominator,
+            p_text(m.p_value),
+            m.level,
+            m.action.as_str(),
+            m.set_aside.len(),
+            if m.set_aside.len() == 1 { "" } else { "s" }
+        )?;
     }
     Ok(())
 }
