@@ -71,7 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-/// The table the README shows (`tests/stop_cost_readme.rs` compares the two).
+/// The table the README shows (`tests/lab/stop_cost_readme.rs` compares the two).
 pub fn table() -> Result<String, Box<dyn std::error::Error>> {
     use std::fmt::Write as _;
     let mut out = String::new();

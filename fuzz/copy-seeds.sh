@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Copies the seed corpora of the cargo-fuzz targets from the repository's example and
-# test files (the same seeds as the CI harness, tests/fuzz/seeds.rs) into
+# test files (the same seeds as the CI harness, tests/sweeps/fuzz/seeds.rs) into
 # fuzz/corpus/TARGET/seed-*. Run it again when those files change; libFuzzer's own
 # additions to fuzz/corpus are not kept in git (fuzz/.gitignore).
 set -euo pipefail

@@ -127,9 +127,9 @@ pub(crate) const MAX_ATTEMPTS: usize = 4;
 /// need dropped, a zero that needs several kinds of terms left out as a wander). A candidate
 /// without within-cell part (a direction offset) has F₀* = F₀: the rule is then the
 /// old one. The search's F tests and their Bonferroni families are not touched, so the
-/// false-alarm rates stay as stated (`tests/diagnose_monte_carlo.rs`,
-/// `tests/diagnose_selfcal_within_cells.rs`). F₀* is formed only when `new` fails (one
-/// more projection onto the within-cell columns, no refit).
+/// false-alarm rates stay as stated (`tests/maths/diagnose_monte_carlo.rs`,
+/// `tests/maths/diagnose_selfcal_within_cells.rs`). F₀* is formed only when `new` fails
+/// (one more projection onto the within-cell columns, no refit).
 fn refused_for_lack_of_fit(
     new: &LackOfFit,
     old_against_new_pure_error: impl FnOnce() -> Option<LackOfFit>,

@@ -467,7 +467,7 @@ impl LineSettings {
 }
 
 /// A bundled profile by name; the bundled profiles are read and checked by the tests
-/// (`tests/instrument_profiles.rs`), so a failure here is a defect of the build.
+/// (`tests/sweeps/instrument_profiles.rs`), so a failure here is a defect of the build.
 pub(crate) fn bundled(name: &str) -> Profile {
     match Profile::load(name) {
         Ok(profile) => profile,

@@ -77,7 +77,8 @@ impl RepeatNoise {
 
     /// [`RepeatNoise::agreement_arcsec`] for `sigmas` normal standard deviations instead
     /// of [`AGREEMENT_SIGMAS`]: two honest readings lie further apart with probability
-    /// 2Φ(−`sigmas`), whatever ν (what `tests/verdict_rates_repeat_noise.rs` measures).
+    /// 2Φ(−`sigmas`), whatever ν (what `tests/sweeps/verdict_rates_repeat_noise.rs`
+    /// measures).
     pub fn agreement_at(&self, stated_arcsec: f64, sigmas: f64) -> f64 {
         let stated = sigmas * std::f64::consts::SQRT_2 * stated_arcsec;
         let Some(s) = self.measured_arcsec() else {

@@ -1,0 +1,621 @@
+//! `polycal report --kc KC.json [--kc-lab NAME]` (docs/FORMAT.md §10.2, §10.3, §12): the
+//! key comparison's section of the HTML report and its result in the DCC carry the
+//! numbers of `polycal kc --format json` — exactly in the HTML's `data-value` cells, and in
+//! the DCC's D-SI lists as GUM 7.2.6 states a value with its U (docs/FORMAT.md §10.4),
+//! checked from the rule's definition against the JSON parsed here with serde_json alone
+//! —, the exclusions with their reasons, the file by its name and its SHA-256
+//! (computed here) and never by its directories; the DCC validates against the vendored
+//! schema (xmllint, `tests/commands/dcc_schema`, as `tests/commands/certificate_dcc.rs`);
+//! a malformed, foreign or inconsistent file and a `--kc-lab` not in the comparison are
+//! refused with one `error:` line, status 2 and nothing written; read through the
+//! library's `KeyComparison` and written again, the kc JSON is the command's to the byte.
+
+use std::path::{Path, PathBuf};
+
+use polycal::certificate::{CalibrationReport, ReportInputs};
+use roxmltree::{Document, Node};
+use scraper::{ElementRef, Html, Selector};
+use serde_json::Value;
+use sha2::{Digest, Sha256};
+
+use crate::document_support;
+
+use crate::dcc_schema::assert_valid;
+use crate::document_support::polycal;
+
+const DATA: &str = "examples/data/polygon24-2ac-6cycles.csv";
+const BUDGET: &str = "examples/budgets/instrument.toml";
+const META: &str = "examples/report/meta.toml";
+const KC: &str = "examples/data/kc";
+const LABS: [&str; 6] = ["A", "B", "C", "D", "E", "F"];
+const SI: &str = "https://ptb.de/si";
+
+/// `polycal kc` of the bundled comparison (with `extra` options) written to `dir/name`;
+/// returns its path and its JSON parsed by serde_json alone.
+fn kc_json(dir: &Path, name: &str, extra: &[&str]) -> (PathBuf, Value) {
+    let labs: Vec<String> = LABS.iter().map(|l| format!("{l}={KC}/{l}.csv")).collect();
+    let mut args: Vec<&str> = vec!["kc"];
+    args.extend(labs.iter().map(String::as_str));
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--format", "json"]);
+    let out = polycal(&args);
+    assert!(
+        out.status.code().is_some_and(|c| c <= 1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let path = dir.join(name);
+    std::fs::write(&path, &out.stdout).unwrap();
+    (path, serde_json::from_slice(&out.stdout).unwrap())
+}
+
+fn with_pilot() -> [&'static str; 6] {
+    [
+        "--pilot",
+        "start=examples/data/kc/pilot-start.csv",
+        "--pilot",
+        "middle=examples/data/kc/pilot-middle.csv",
+        "--pilot",
+        "end=examples/data/kc/pilot-end.csv",
+    ]
+}
+
+/// The numbers of a JSON array.
+fn numbers(value: &Value) -> Vec<f64> {
+    value
+        .as_array()
+        .unwrap_or_else(|| panic!("not an array: {value}"))
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect()
+}
+
+fn sel(s: &str) -> Selector {
+    Selector::parse(s).unwrap()
+}
+
+/// The `data-value` numbers of a row's cells, in order.
+fn data_values(row: ElementRef) -> Vec<f64> {
+    row.select(&sel("td[data-value]"))
+        .map(|td| td.value().attr("data-value").unwrap().parse().unwrap())
+        .collect()
+}
+
+/// The rows of the table `id`'s body.
+/// The comparison's verdict as the library words it, from the JSON read back.
+fn polycal_verdict(kc: &Value) -> String {
+    let comparison: polycal::kc::KeyComparison = serde_json::from_value(kc.clone()).unwrap();
+    comparison.verdict_statement()
+}
+
+fn super_rows<'a>(html: &'a Html, id: &str) -> Vec<ElementRef<'a>> {
+    rows(html, id)
+}
+
+fn rows<'a>(html: &'a Html, id: &str) -> Vec<ElementRef<'a>> {
+    html.select(&sel(&format!("#{id} tbody tr"))).collect()
+}
+
+/// The text of the element `id`.
+fn text(html: &Html, id: &str) -> String {
+    html.select(&sel(&format!("#{id}")))
+        .next()
+        .unwrap_or_else(|| panic!("no #{id}"))
+        .text()
+        .collect()
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// Runs `polycal report DATA --budget --meta --kc KC [extra] --out DIR/r.html --dcc
+/// DIR/c.xml`; returns the HTML and the DCC after asserting status 0 and validity.
+fn report(dir: &Path, kc: &Path, extra: &[&str]) -> (Html, String) {
+    let html_path = dir.join("r.html");
+    let dcc_path = dir.join("c.xml");
+    let mut args = vec![
+        "report",
+        DATA,
+        "--budget",
+        BUDGET,
+        "--meta",
+        META,
+        "--kc",
+        kc.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&[
+        "--out",
+        html_path.to_str().unwrap(),
+        "--dcc",
+        dcc_path.to_str().unwrap(),
+    ]);
+    let out = polycal(&args);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_valid(&dcc_path);
+    (
+        Html::parse_document(&std::fs::read_to_string(&html_path).unwrap()),
+        std::fs::read_to_string(&dcc_path).unwrap(),
+    )
+}
+
+/// The key comparison's `dcc:result`.
+fn kc_result<'a>(doc: &'a Document<'a>) -> Node<'a, 'a> {
+    doc.descendants()
+        .find(|n| {
+            n.tag_name().name() == "result"
+                && n.attribute("refType") == Some("polycal_keyComparison")
+        })
+        .expect("a polycal_keyComparison result")
+}
+
+/// The D-SI lists of the quantities of refType `refs` in the result, in order:
+/// (name, values, U, k).
+type SiList = (String, Vec<f64>, Vec<f64>, Vec<f64>);
+
+fn si_lists(result: Node, refs: &str) -> Vec<SiList> {
+    result
+        .descendants()
+        .filter(|n| n.tag_name().name() == "quantity" && n.attribute("refType") == Some(refs))
+        .map(|q| {
+            let list = |name: &str| -> Vec<f64> {
+                q.descendants()
+                    .find(|n| n.tag_name().name() == name && n.tag_name().namespace() == Some(SI))
+                    .and_then(|n| n.text())
+                    .map(|t| t.split_whitespace().map(|v| v.parse().unwrap()).collect())
+                    .unwrap_or_default()
+            };
+            let name = q
+                .descendants()
+                .find(|n| n.tag_name().name() == "content")
+                .and_then(|n| n.text())
+                .unwrap_or_default()
+                .to_string();
+            (
+                name,
+                list("valueXMLList"),
+                list("uncertaintyXMLList"),
+                list("coverageFactorXMLList"),
+            )
+        })
+        .collect()
+}
+
+/// The value, U and k texts of the D-SI lists of `refs` in a DCC result, as written.
+fn si_texts(result: Node, refs: &str) -> Vec<(Vec<String>, Vec<String>, Vec<String>)> {
+    result
+        .descendants()
+        .filter(|n| n.tag_name().name() == "quantity" && n.attribute("refType") == Some(refs))
+        .map(|q| {
+            let list = |name: &str| -> Vec<String> {
+                q.descendants()
+                    .find(|n| n.tag_name().name() == name && n.tag_name().namespace() == Some(SI))
+                    .and_then(|n| n.text())
+                    .map(|t| t.split_whitespace().map(str::to_string).collect())
+                    .unwrap_or_default()
+            };
+            (
+                list("valueXMLList"),
+                list("uncertaintyXMLList"),
+                list("coverageFactorXMLList"),
+            )
+        })
+        .collect()
+}
+
+/// Every value and its U as the DCC states them: GUM 7.2.6 from its definition
+/// (`document_support::assert_gum_rounded`), against the kc JSON's numbers; k = 2 with
+/// three significant digits.
+fn assert_stated(
+    texts: &(Vec<String>, Vec<String>, Vec<String>),
+    values: &[f64],
+    us: &[f64],
+    what: &str,
+) {
+    let (value_texts, u_texts, k_texts) = texts;
+    assert_eq!(value_texts.len(), values.len(), "{what}");
+    assert_eq!(u_texts.len(), us.len(), "{what}");
+    assert_eq!(k_texts.len(), values.len(), "{what}");
+    for k_text in k_texts {
+        document_support::assert_k_rounded(k_text, 2.0, what);
+    }
+    for (k, ((vt, ut), (&v, &u))) in value_texts
+        .iter()
+        .zip(u_texts)
+        .zip(values.iter().zip(us))
+        .enumerate()
+    {
+        document_support::assert_gum_rounded(vt, ut, v, u, &format!("{what} {}", k + 1));
+    }
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    document_support::temp_dir("report-kc", name)
+}
+
+#[test]
+fn the_named_laboratorys_section_carries_the_kc_json_numbers() {
+    let dir = temp_dir("lab");
+    let (kc_path, kc) = kc_json(&dir, "kc.json", &with_pilot());
+    let (html, dcc) = report(&dir, &kc_path, &["--kc-lab", "F"]);
+
+    // the file by its name and its SHA-256, computed here
+    assert_eq!(text(&html, "kc-file"), "kc.json");
+    assert_eq!(
+        text(&html, "kc-sha256"),
+        sha256_hex(&std::fs::read(&kc_path).unwrap())
+    );
+    assert_eq!(text(&html, "kc-lab"), "F");
+    // the figures of `kc` with its pilot, inlined in the figures section
+    for name in [
+        "kc-degrees-of-equivalence",
+        "kc-reference",
+        "kc-pairwise",
+        "kc-pilot-stability",
+    ] {
+        assert_eq!(
+            html.select(&sel(&format!("#figures #figure-{name} svg")))
+                .count(),
+            1,
+            "{name}"
+        );
+    }
+
+    // the reference per face: x_ref, u_ref, τ, χ², χ²_0.95 and ν as in the JSON
+    let reference = rows(&html, "kc-reference");
+    let faces = kc["index"].as_array().unwrap().len();
+    assert_eq!(faces, 12);
+    assert_eq!(reference.len(), faces);
+    for (k, row) in reference.iter().enumerate() {
+        assert_eq!(
+            data_values(*row),
+            vec![
+                numbers(&kc["reference"])[k],
+                numbers(&kc["reference_u"])[k],
+                numbers(&kc["tau"])[k],
+                numbers(&kc["chi2"])[k],
+                numbers(&kc["chi2_critical"])[k],
+            ],
+            "face {}",
+            k + 1
+        );
+        let cells: Vec<String> = row.select(&sel("td")).map(|c| c.text().collect()).collect();
+        assert_eq!(cells[0], kc["index"][k].to_string());
+        assert_eq!(cells[5], kc["chi2_dof"][k].to_string());
+        assert_eq!(
+            cells[7],
+            if kc["consistent"][k].as_bool().unwrap() {
+                "yes"
+            } else {
+                "NO"
+            }
+        );
+    }
+
+    // the closed vector's tests: every laboratory (the decision), then those in the reference
+    let vector = rows(&html, "kc-vector");
+    assert_eq!(vector.len(), 2);
+    for (row, key) in vector.iter().zip(["vector_all", "vector"]) {
+        assert_eq!(
+            data_values(*row),
+            vec![
+                kc[key]["chi2"].as_f64().unwrap(),
+                kc[key]["chi2_critical"].as_f64().unwrap()
+            ]
+        );
+        let row_text: String = row.text().collect();
+        assert!(row_text.contains(&kc[key]["dof"].to_string()), "{row_text}");
+    }
+    // the search's one step, with the subset that passed
+    let search = rows(&html, "kc-search");
+    assert_eq!(
+        search.len(),
+        kc["search"]["steps"].as_array().unwrap().len()
+    );
+    assert_eq!(
+        data_values(search[0]),
+        vec![
+            kc["search"]["steps"][0]["chi2"].as_f64().unwrap(),
+            kc["search"]["steps"][0]["chi2_critical"].as_f64().unwrap()
+        ]
+    );
+
+    // the exclusion of F with its reason, in the introduction too
+    let excluded = kc["excluded"].as_array().unwrap();
+    assert_eq!(excluded.len(), 1);
+    assert_eq!(excluded[0]["lab"], "F");
+    let exclusions = rows(&html, "kc-exclusions");
+    assert_eq!(exclusions.len(), 1);
+    assert_eq!(exclusions[0].value().attr("data-lab"), Some("F"));
+    let reason = excluded[0]["reason"].as_str().unwrap();
+    let row_text: String = exclusions[0].text().collect();
+    assert!(row_text.contains(reason), "{row_text}");
+    let section: String = html
+        .select(&sel("#key-comparison > p"))
+        .next()
+        .unwrap()
+        .text()
+        .collect();
+    assert!(section.contains("left out of the reference"), "{section}");
+    assert!(section.contains(reason), "{section}");
+
+    // F's degrees of equivalence alone
+    let f = kc["degrees_of_equivalence"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|d| d["lab"] == "F")
+        .unwrap();
+    assert_eq!(f["in_reference"], false);
+    let headers: Vec<&str> = html
+        .select(&sel("#kc-doe th[data-column='d']"))
+        .map(|th| th.value().attr("data-lab").unwrap())
+        .collect();
+    assert_eq!(headers, ["F"]);
+    let doe_rows = rows(&html, "kc-doe");
+    assert_eq!(doe_rows.len(), faces);
+    for (k, row) in doe_rows.iter().enumerate() {
+        assert_eq!(
+            data_values(*row),
+            vec![numbers(&f["d"])[k], numbers(&f["U"])[k]]
+        );
+    }
+
+    // the pilot's stability
+    let pilot = &kc["pilot"];
+    let pilot_rows = rows(&html, "kc-pilot");
+    assert_eq!(pilot_rows.len(), faces);
+    for (k, row) in pilot_rows.iter().enumerate() {
+        assert_eq!(
+            data_values(*row),
+            vec![
+                numbers(&pilot["mean"])[k],
+                numbers(&pilot["spread"])[k],
+                numbers(&pilot["chi2"])[k],
+                numbers(&pilot["stability_u"])[k],
+            ]
+        );
+    }
+    assert_eq!(
+        html.select(&sel("#kc-notes li")).count(),
+        kc["notes"].as_array().unwrap().len()
+    );
+    assert!(text(&html, "kc-verdict").starts_with(
+        if kc["comparison_consistent"].as_bool().unwrap() {
+            "Consistent"
+        } else {
+            "NOT consistent"
+        }
+    ));
+
+    // the DCC: the reference with U = 2·u_ref at k = 2, χ², F's d and U(d)
+    let doc = Document::parse(&dcc).unwrap();
+    let result = kc_result(&doc);
+    let refs = si_lists(result, "polycal_kcReferenceValue");
+    assert_eq!(refs.len(), 1);
+    let twice_u: Vec<f64> = numbers(&kc["reference_u"])
+        .iter()
+        .map(|u| 2.0 * u)
+        .collect();
+    assert_stated(
+        &si_texts(result, "polycal_kcReferenceValue")[0],
+        &numbers(&kc["reference"]),
+        &twice_u,
+        "reference",
+    );
+    assert_eq!(refs[0].3, vec![2.0; faces]);
+    assert_eq!(
+        si_lists(result, "polycal_kcChi2")[0].1,
+        numbers(&kc["chi2"])
+    );
+    assert_eq!(
+        si_lists(result, "polycal_kcChi2Critical")[0].1,
+        numbers(&kc["chi2_critical"])
+    );
+    let doe = si_lists(result, "polycal_kcDegreeOfEquivalence");
+    assert_eq!(doe.len(), 1);
+    assert!(doe[0].0.contains("laboratory F (left out"), "{}", doe[0].0);
+    assert_stated(
+        &si_texts(result, "polycal_kcDegreeOfEquivalence")[0],
+        &numbers(&f["d"]),
+        &numbers(&f["U"]),
+        "d of F",
+    );
+    let statements: Vec<&str> = result
+        .descendants()
+        .filter(|n| n.tag_name().name() == "content")
+        .filter_map(|n| n.text())
+        .collect();
+    assert!(
+        statements
+            .iter()
+            .any(|s| s.contains("laboratory F left out") && s.contains(reason)),
+        "{statements:?}"
+    );
+    // the closed vectors' χ² as the report states numbers without U: two decimals; every
+    // laboratory's first (the decision), then those in the reference
+    for (key, start) in [
+        ("vector_all", "Every laboratory: Closed vector (GLS"),
+        ("vector", "In the reference: Closed vector (GLS"),
+    ] {
+        let vector = &kc[key];
+        let chi2 = format!("χ² = {:.2},", vector["chi2"].as_f64().unwrap());
+        let dof = format!("= {},", vector["dof"].as_u64().unwrap());
+        assert!(
+            statements
+                .iter()
+                .any(|s| s.starts_with(start) && s.contains(&chi2) && s.contains(&dof)),
+            "{chi2} {dof} in {statements:?}"
+        );
+    }
+    // the verdict in the table's words
+    let verdict = format!("Verdict: {}.", polycal_verdict(&kc));
+    assert!(statements.contains(&verdict.as_str()), "{verdict}");
+}
+
+#[test]
+fn without_a_laboratory_every_degree_of_equivalence_is_shown() {
+    let dir = temp_dir("all");
+    let (kc_path, kc) = kc_json(&dir, "kc-encoder.json", &["--quantity", "encoder_error"]);
+    let (html, dcc) = report(&dir, &kc_path, &[]);
+    let does = kc["degrees_of_equivalence"].as_array().unwrap();
+    let labs: Vec<&str> = html
+        .select(&sel("#kc-doe th[data-column='d']"))
+        .map(|th| th.value().attr("data-lab").unwrap())
+        .collect();
+    let expected: Vec<&str> = does.iter().map(|d| d["lab"].as_str().unwrap()).collect();
+    assert_eq!(labs, expected);
+    let angles = numbers(&kc["angle_deg"]);
+    let rows = rows(&html, "kc-doe");
+    assert_eq!(rows.len(), angles.len());
+    for (k, row) in rows.iter().enumerate() {
+        let mut want = vec![angles[k]];
+        for d in does {
+            want.push(numbers(&d["d"])[k]);
+            want.push(numbers(&d["U"])[k]);
+        }
+        assert_eq!(data_values(*row), want, "angle {}", angles[k]);
+    }
+    assert_eq!(html.select(&sel("#figure-kc-reference svg")).count(), 1);
+    assert_eq!(html.select(&sel("#figure-kc-pilot-stability")).count(), 0);
+    // encoder errors: a closed vector too, each result less its mean
+    assert!(html.html().contains("defined up to a constant"));
+    let vector_rows = super_rows(&html, "kc-vector");
+    assert_eq!(
+        data_values(vector_rows[0])[0],
+        kc["vector_all"]["chi2"].as_f64().unwrap()
+    );
+    let doc = Document::parse(&dcc).unwrap();
+    let result = kc_result(&doc);
+    assert_eq!(si_lists(result, "polycal_kcTableAngle")[0].1, angles);
+    let lists = si_lists(result, "polycal_kcDegreeOfEquivalence");
+    assert_eq!(lists.len(), does.len());
+    for (list, d) in lists.iter().zip(does) {
+        assert!(
+            list.0
+                .contains(&format!("laboratory {}", d["lab"].as_str().unwrap()))
+        );
+    }
+    for (texts, d) in si_texts(result, "polycal_kcDegreeOfEquivalence")
+        .iter()
+        .zip(does)
+    {
+        assert_stated(texts, &numbers(&d["d"]), &numbers(&d["U"]), "d");
+    }
+}
+
+/// The refusals: status 2, one `error:` line naming the file (with serde's line and
+/// column where it has them), nothing written.
+#[test]
+fn malformed_foreign_or_inconsistent_files_and_unknown_labs_are_refused() {
+    let dir = temp_dir("refused");
+    let (kc_path, kc) = kc_json(&dir, "kc.json", &[]);
+    let text = std::fs::read_to_string(&kc_path).unwrap();
+    let truncated = dir.join("truncated.json");
+    std::fs::write(&truncated, &text[..text.len() / 2]).unwrap();
+    let solve = dir.join("solve.json");
+    let solve_json = document_support::json(&["solve", DATA, "--format", "json"]);
+    std::fs::write(&solve, solve_json.to_string()).unwrap();
+    let mut short = kc.clone();
+    short["reference"].as_array_mut().unwrap().pop();
+    let inconsistent = dir.join("inconsistent.json");
+    std::fs::write(&inconsistent, serde_json::to_string(&short).unwrap()).unwrap();
+    let html = dir.join("r.html");
+    let cases: [(&Path, &[&str], String); 4] = [
+        (&truncated, &[], format!("{}:1:", truncated.display())),
+        (&solve, &[], format!("{}:1:", solve.display())),
+        (
+            &inconsistent,
+            &[],
+            format!(
+                "{}: reference has 11 entries, but the comparison has 12",
+                inconsistent.display()
+            ),
+        ),
+        (
+            &kc_path,
+            &["--kc-lab", "Z"],
+            "laboratory \"Z\" is not in this key comparison; its laboratories: A, B, C, D, E, F"
+                .to_string(),
+        ),
+    ];
+    for (file, extra, expected) in cases {
+        let mut args = vec!["report", DATA, "--kc", file.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--out", html.to_str().unwrap()]);
+        let out = polycal(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        let lines: Vec<&str> = stderr.lines().collect();
+        assert_eq!(lines.len(), 1, "{stderr}");
+        assert!(lines[0].starts_with("error: "), "{stderr}");
+        assert!(lines[0].contains(&expected), "{expected:?} not in {stderr}");
+        assert!(!html.exists(), "{args:?} wrote the report");
+    }
+    // the solve JSON: refused as not the kc JSON, serde's reason given
+    let out = polycal(&[
+        "report",
+        DATA,
+        "--kc",
+        solve.to_str().unwrap(),
+        "--out",
+        html.to_str().unwrap(),
+    ]);
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("not the JSON of `polycal kc --format json`")
+    );
+}
+
+/// The documents name the key comparison's file by its file name only: given by its
+/// absolute path, neither the HTML nor the DCC holds its directory.
+#[test]
+fn the_documents_hold_no_absolute_path_of_the_kc_file() {
+    let dir = temp_dir("absolute");
+    let (kc_path, _) = kc_json(&dir, "kc.json", &[]);
+    assert!(kc_path.is_absolute());
+    let inputs = ReportInputs::new(DATA)
+        .with_budget(BUDGET)
+        .with_meta(META)
+        .with_key_comparison(&kc_path, Some("A".to_string()))
+        .with_generated_utc("2026-11-27T12:00:00.000Z");
+    let report = CalibrationReport::build(&inputs).unwrap();
+    let directory = dir.to_str().unwrap();
+    let html = report.to_html();
+    let dcc = report.to_dcc().unwrap();
+    assert!(html.contains("kc.json"));
+    assert!(dcc.contains("kc.json"));
+    assert!(!html.contains(directory), "the HTML names {directory}");
+    assert!(!dcc.contains(directory), "the DCC names {directory}");
+}
+
+/// The report reads the kc JSON through the library's own `KeyComparison`: read back and
+/// written again, the JSON is the command's to the byte, with and without a pilot and
+/// angles, so no member is dropped or changed on the way into the documents.
+#[test]
+fn the_kc_json_reads_back_to_the_same_bytes() {
+    let dir = temp_dir("round-trip");
+    let cases: [(&str, &[&str]); 3] = [
+        ("pilot.json", &with_pilot()),
+        ("encoder.json", &["--quantity", "encoder_error"]),
+        ("dl.json", &["--method", "dersimonian-laird"]),
+    ];
+    for (name, extra) in cases {
+        let (path, _) = kc_json(&dir, name, extra);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let kc: polycal::kc::KeyComparison = serde_json::from_str(&text).unwrap();
+        assert_eq!(
+            polycal::output::to_json(&kc).unwrap(),
+            text.trim_end(),
+            "{name}"
+        );
+    }
+}

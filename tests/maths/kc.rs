@@ -1,0 +1,583 @@
+//! Key comparisons (`polycal::kc`, docs/FORMAT.md §12): against an independent
+//! implementation of the textbook formulas and of the closed GLS (dense, by SVD, in
+//! `kc_support`), the decision against a brute-force search, and by simulated comparisons
+//! (the coverage of U(d_i), the closed vector's degrees of freedom). The verdicts' rates
+//! are in `tests/sweeps/kc_rates.rs`.
+
+// The independent implementation is written with indices, as the textbooks write it.
+#![allow(clippy::needless_range_loop)]
+
+use crate::kc_support;
+
+use crate::kc_support::{closed_cov, gls, lab, largest_subset, one_at_a_time};
+use nalgebra::DMatrix;
+use polycal::kc::{KcOptions, LabResult, ReferenceMethod, evaluate};
+use polycal::results::{Quantity, ResultRow};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+const FACES: usize = 12;
+
+// ------------------------------------------------------- the independent implementation
+
+/// Weighted mean, its u and χ², from the textbook (Cox 2002, procedure A), written out.
+fn textbook_weighted_mean(x: &[f64], u: &[f64]) -> (f64, f64, f64) {
+    let mut sum_w = 0.0;
+    let mut sum_wx = 0.0;
+    for i in 0..x.len() {
+        sum_w += 1.0 / (u[i] * u[i]);
+        sum_wx += x[i] / (u[i] * u[i]);
+    }
+    let mean = sum_wx / sum_w;
+    let mut chi2 = 0.0;
+    for i in 0..x.len() {
+        chi2 += (x[i] - mean) * (x[i] - mean) / (u[i] * u[i]);
+    }
+    (mean, 1.0 / sum_w.sqrt(), chi2)
+}
+
+/// DerSimonian–Laird (1986): τ², the random-effects mean and its u.
+fn textbook_dersimonian_laird(x: &[f64], u: &[f64]) -> (f64, f64, f64) {
+    let (_, _, q) = textbook_weighted_mean(x, u);
+    let w: Vec<f64> = u.iter().map(|u| 1.0 / (u * u)).collect();
+    let s1: f64 = w.iter().sum();
+    let s2: f64 = w.iter().map(|w| w * w).sum();
+    let mut tau2 = (q - (x.len() as f64 - 1.0)) / (s1 - s2 / s1);
+    if tau2 < 0.0 {
+        tau2 = 0.0;
+    }
+    let mut sum_w = 0.0;
+    let mut sum_wx = 0.0;
+    for i in 0..x.len() {
+        let wi = 1.0 / (u[i] * u[i] + tau2);
+        sum_w += wi;
+        sum_wx += wi * x[i];
+    }
+    (tau2.sqrt(), sum_wx / sum_w, 1.0 / sum_w.sqrt())
+}
+
+/// Five laboratories of a 12-face polygon, hand-chosen, closed and consistent; with
+/// `varying` their u varies by face, else each laboratory has one u on every face.
+fn fixed_data(varying: bool) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let truth = [
+        0.82, -0.35, -0.12, -0.21, 0.58, 0.03, -0.64, 0.27, -0.09, -0.33, 0.41, -0.37,
+    ];
+    let offsets = [
+        [
+            0.01, -0.02, 0.03, 0.0, -0.01, 0.02, -0.03, 0.01, 0.0, 0.02, -0.02, -0.01,
+        ],
+        [
+            -0.04, 0.05, -0.01, 0.02, 0.03, -0.05, 0.04, -0.02, 0.01, -0.03, 0.0, 0.0,
+        ],
+        [
+            0.06, -0.03, 0.02, -0.07, 0.05, 0.01, -0.02, 0.03, -0.06, 0.04, -0.01, -0.02,
+        ],
+        [
+            -0.02, 0.08, -0.09, 0.05, -0.04, 0.07, 0.02, -0.08, 0.03, -0.01, 0.06, -0.07,
+        ],
+        [
+            0.1, -0.12, 0.05, 0.09, -0.11, 0.0, 0.13, -0.04, -0.06, 0.08, -0.1, -0.02,
+        ],
+    ];
+    let base_u = [0.03, 0.05, 0.07, 0.09, 0.12];
+    let values = offsets
+        .iter()
+        .map(|o| closed(&(0..FACES).map(|f| truth[f] + o[f]).collect::<Vec<_>>()))
+        .collect();
+    let u = base_u
+        .iter()
+        .map(|u| {
+            (0..FACES)
+                .map(|f| {
+                    if varying {
+                        u * (1.0 + 0.05 * f as f64)
+                            + 0.01 * ((f * 3 + (u * 100.0) as usize) % 4) as f64
+                    } else {
+                        *u
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    (values, u)
+}
+
+/// `x` less its mean.
+fn closed(x: &[f64]) -> Vec<f64> {
+    let mean = x.iter().sum::<f64>() / x.len() as f64;
+    x.iter().map(|x| x - mean).collect()
+}
+
+/// With one u per laboratory the closed GLS reference is the textbook weighted mean of
+/// each face, and every degree of equivalence and pair the textbook's.
+#[test]
+fn kc_weighted_mean_and_degrees_of_equivalence_match_the_textbook() {
+    let (values, u) = fixed_data(false);
+    let names = ["A", "B", "C", "D", "E"];
+    let labs: Vec<LabResult> = (0..5).map(|i| lab(names[i], &values[i], &u[i])).collect();
+    let kc = evaluate(&labs, &[], &KcOptions::new()).unwrap();
+    assert!(kc.excluded.is_empty(), "{:?}", kc.excluded);
+    for f in 0..FACES {
+        let x: Vec<f64> = values.iter().map(|v| v[f]).collect();
+        let s: Vec<f64> = u.iter().map(|v| v[f]).collect();
+        let (mean, mean_u, chi2) = textbook_weighted_mean(&x, &s);
+        assert!((kc.reference[f] - mean).abs() < 1e-12);
+        assert!((kc.reference_u[f] - mean_u).abs() < 1e-12);
+        assert!((kc.chi2[f] - chi2).abs() < 1e-12);
+        assert_eq!(kc.chi2_dof[f], 4);
+        assert_eq!(kc.tau[f], 0.0);
+        for (i, doe) in kc.degrees_of_equivalence.iter().enumerate() {
+            assert!(doe.in_reference);
+            assert!((doe.d[f] - (x[i] - mean)).abs() < 1e-12);
+            let expected_u = 2.0 * (s[i] * s[i] - mean_u * mean_u).sqrt();
+            assert!((doe.expanded_u[f] - expected_u).abs() < 1e-12);
+        }
+        for pair in &kc.pairs {
+            let a = names.iter().position(|n| *n == pair.a).unwrap();
+            let b = names.iter().position(|n| *n == pair.b).unwrap();
+            assert!((pair.d[f] - (x[a] - x[b])).abs() < 1e-12);
+            let expected_u = 2.0 * (s[a] * s[a] + s[b] * s[b]).sqrt();
+            assert!((pair.expanded_u[f] - expected_u).abs() < 1e-12);
+        }
+    }
+    assert_eq!(kc.pairs.len(), 10);
+    assert!(kc.comparison_consistent);
+    let all = kc.vector_all.as_ref().unwrap();
+    assert_eq!(all, kc.vector.as_ref().unwrap());
+    assert!(kc.search.is_none());
+}
+
+/// With u varying over the faces the reference is the closed GLS one (the independent
+/// dense implementation): Σ_k d_ik = 0 for every laboratory, U(d_i)² from the diagonals
+/// of V_i and of the reference's covariance.
+#[test]
+fn kc_with_u_varying_by_face_the_degrees_of_equivalence_are_against_the_closed_reference() {
+    let (values, u) = fixed_data(true);
+    let labs: Vec<LabResult> = (0..5)
+        .map(|i| lab(&format!("L{i}"), &values[i], &u[i]))
+        .collect();
+    let kc = evaluate(&labs, &[], &KcOptions::new()).unwrap();
+    let v: Vec<DMatrix<f64>> = u.iter().map(|u| closed_cov(u)).collect();
+    let g = gls(&values, &v);
+    let all = kc.vector_all.as_ref().unwrap();
+    assert!((all.chi2 - g.chi2).abs() < 1e-9 * g.chi2);
+    assert_eq!(all.dof, g.dof);
+    for f in 0..FACES {
+        assert!((kc.reference[f] - g.reference[f]).abs() < 1e-12);
+        assert!((kc.reference_u[f] - g.covariance[(f, f)].sqrt()).abs() < 1e-12);
+    }
+    // The per-face weighted means do not close here: the reference is not theirs.
+    let per_face: f64 = (0..FACES)
+        .map(|f| {
+            let x: Vec<f64> = values.iter().map(|v| v[f]).collect();
+            let s: Vec<f64> = u.iter().map(|v| v[f]).collect();
+            textbook_weighted_mean(&x, &s).0
+        })
+        .sum();
+    assert!(per_face.abs() > 1e-4, "{per_face}");
+    for (i, doe) in kc.degrees_of_equivalence.iter().enumerate() {
+        assert!(doe.d.iter().sum::<f64>().abs() < 1e-12, "Σ d of L{i}");
+        for f in 0..FACES {
+            assert!((doe.d[f] - (values[i][f] - g.reference[f])).abs() < 1e-12);
+            let variance = v[i][(f, f)] - g.covariance[(f, f)];
+            assert!((doe.expanded_u[f] - 2.0 * variance.sqrt()).abs() < 1e-12);
+        }
+    }
+}
+
+#[test]
+fn kc_dersimonian_laird_matches_the_textbook() {
+    let (mut values, u) = fixed_data(false);
+    // Spread the laboratories beyond their uncertainties, so that τ > 0 on most faces.
+    for (i, v) in values.iter_mut().enumerate() {
+        for (f, x) in v.iter_mut().enumerate() {
+            *x += 0.15 * ((i * 7 + f * 3) % 5) as f64 - 0.3;
+        }
+        *v = closed(v);
+    }
+    let labs: Vec<LabResult> = (0..5)
+        .map(|i| lab(&format!("L{i}"), &values[i], &u[i]))
+        .collect();
+    let options = KcOptions::new().with_method(ReferenceMethod::DersimonianLaird);
+    let kc = evaluate(&labs, &[], &options).unwrap();
+    assert!(kc.excluded.is_empty());
+    // τ per face from the textbook; then the closed GLS with every variance widened by τ².
+    let tau: Vec<f64> = (0..FACES)
+        .map(|f| {
+            let x: Vec<f64> = values.iter().map(|v| v[f]).collect();
+            let s: Vec<f64> = u.iter().map(|v| v[f]).collect();
+            textbook_dersimonian_laird(&x, &s).0
+        })
+        .collect();
+    let widened: Vec<Vec<f64>> = u
+        .iter()
+        .map(|u| u.iter().zip(&tau).map(|(u, t)| u.hypot(*t)).collect())
+        .collect();
+    let v: Vec<DMatrix<f64>> = widened.iter().map(|u| closed_cov(u)).collect();
+    let g = gls(&values, &v);
+    let positive = tau.iter().filter(|t| **t > 0.0).count();
+    for f in 0..FACES {
+        assert!(
+            (kc.tau[f] - tau[f]).abs() < 1e-12,
+            "{} vs {}",
+            kc.tau[f],
+            tau[f]
+        );
+        assert!((kc.reference[f] - g.reference[f]).abs() < 1e-12);
+        assert!((kc.reference_u[f] - g.covariance[(f, f)].sqrt()).abs() < 1e-12);
+        for (i, doe) in kc.degrees_of_equivalence.iter().enumerate() {
+            assert!((doe.d[f] - (values[i][f] - g.reference[f])).abs() < 1e-12);
+            let variance = v[i][(f, f)] - g.covariance[(f, f)];
+            assert!((doe.expanded_u[f] - 2.0 * variance.sqrt()).abs() < 1e-12);
+        }
+    }
+    assert!(positive >= 6, "τ > 0 on {positive} faces only");
+    // Its verdict is the test of τ = 0: the closed vector of every laboratory, untouched.
+    let plain: Vec<DMatrix<f64>> = u.iter().map(|u| closed_cov(u)).collect();
+    let all = gls(&values, &plain);
+    let vector_all = kc.vector_all.as_ref().unwrap();
+    assert!((vector_all.chi2 - all.chi2).abs() < 1e-9 * all.chi2);
+    assert!(!vector_all.consistent);
+    assert!(!kc.comparison_consistent);
+    assert!(kc.verdict_statement().contains("τ = 0 rejected"));
+}
+
+#[test]
+fn kc_exclusion_leaves_out_the_largest_consistent_subset_for_the_whole_comparison() {
+    let (mut values, u) = fixed_data(true);
+    values[3][6] += 2.0; // laboratory D, face 7: far out
+    values[3] = closed(&values[3]);
+    let names = ["A", "B", "C", "D", "E"];
+    let labs: Vec<LabResult> = (0..5).map(|i| lab(names[i], &values[i], &u[i])).collect();
+    let kc = evaluate(&labs, &[], &KcOptions::new()).unwrap();
+    assert_eq!(kc.excluded.len(), 1, "{:?}", kc.excluded);
+    assert_eq!(kc.excluded[0].lab, "D");
+    assert_eq!(largest_subset(&values, &u, &[]), [0, 1, 2, 4]);
+    let all = kc.vector_all.as_ref().unwrap();
+    assert!(!all.consistent);
+    let v: Vec<DMatrix<f64>> = u.iter().map(|u| closed_cov(u)).collect();
+    assert!((all.chi2 - gls(&values, &v).chi2).abs() < 1e-9 * all.chi2);
+    let search = kc.search.as_ref().unwrap();
+    assert_eq!(search.steps.len(), 1);
+    assert_eq!(search.steps[0].subsets, 5);
+    assert_eq!(search.steps[0].best, ["A", "B", "C", "E"]);
+    assert!(kc.excluded[0].reason.contains("A, B, C, E"));
+    // Out of the reference on every face; its U(d) with the plus, against the four.
+    let four = [0, 1, 2, 4];
+    let xs: Vec<Vec<f64>> = four.iter().map(|&i| values[i].clone()).collect();
+    let vs: Vec<DMatrix<f64>> = four.iter().map(|&i| v[i].clone()).collect();
+    let g = gls(&xs, &vs);
+    let d = &kc.degrees_of_equivalence[3];
+    assert!(!d.in_reference);
+    for f in 0..FACES {
+        assert!((kc.reference[f] - g.reference[f]).abs() < 1e-12);
+        let expected_u = 2.0 * (v[3][(f, f)] + g.covariance[(f, f)]).sqrt();
+        assert!((d.expanded_u[f] - expected_u).abs() < 1e-12);
+    }
+    assert!(kc.comparison_consistent);
+    assert_eq!(kc.vector.as_ref().unwrap().dof, 11 * 3);
+    assert!(
+        kc.verdict_statement()
+            .starts_with("Consistent after leaving out D")
+    );
+    // Kept in by the pilot: D stays, another laboratory goes or the comparison fails.
+    let kept = evaluate(&labs, &[], &KcOptions::new().with_keep(["D"])).unwrap();
+    assert!(kept.degrees_of_equivalence[3].in_reference);
+    assert_eq!(kept.kept, ["D"]);
+    assert_eq!(
+        largest_subset(&values, &u, &[3]),
+        (0..5)
+            .filter(|&r| kept.degrees_of_equivalence[r].in_reference)
+            .collect::<Vec<_>>()
+    );
+    assert!(evaluate(&labs, &[], &KcOptions::new().with_keep(["Z"])).is_err());
+}
+
+/// The decision against the brute-force search of the independent implementation, on
+/// fixed simulated comparisons with one or two biased laboratories — among them one where
+/// leaving laboratories out one at a time keeps fewer than the largest consistent subset.
+#[test]
+fn kc_the_search_finds_the_largest_consistent_subset_where_one_at_a_time_does_not() {
+    let mut rng = ChaCha8Rng::seed_from_u64(46);
+    let (mut compared, mut greedy_smaller) = (0, 0);
+    for trial in 0..400 {
+        let labs = 5 + trial % 3;
+        let faces = 6;
+        let shifts: Vec<(usize, f64)> = vec![(1, 4.0), (3, -3.5), (4, 3.0)];
+        let (mut values, u) =
+            kc_support::comparison(&mut rng, faces, labs, Some((trial % labs, &shifts)));
+        // a second laboratory off in another pattern on some trials
+        if trial % 2 == 0 {
+            let other = (trial / 2) % labs;
+            let lab_u = u[other][0];
+            values[other][0] += 3.0 * lab_u;
+            values[other][5] -= 3.0 * lab_u;
+        }
+        let (x, us) = (values.clone(), u.clone());
+        let expected = largest_subset(&x, &us, &[]);
+        let greedy = one_at_a_time(&x, &us);
+        let kc = evaluate(&kc_support::results(&x, &us), &[], &KcOptions::new()).unwrap();
+        let inside: Vec<usize> = (0..labs)
+            .filter(|&r| kc.degrees_of_equivalence[r].in_reference)
+            .collect();
+        assert_eq!(inside, expected, "trial {trial}");
+        compared += 1;
+        if greedy.len() < expected.len() {
+            greedy_smaller += 1;
+        }
+    }
+    // Two laboratories of small u that share a bias pull the reference to themselves: left
+    // out one at a time, the three others go first and two remain; the largest subset that
+    // passes is the three.
+    let bias = [0.3, -0.3, 0.3, -0.3, 0.0, 0.0];
+    let small = [0.004, -0.003, 0.002, 0.0, -0.002, -0.001];
+    let x: Vec<Vec<f64>> = (0..5)
+        .map(|i| {
+            closed(
+                &(0..6)
+                    .map(|f| {
+                        let wobble = small[(f + i) % 6] * (i as f64 + 1.0);
+                        if i < 2 { bias[f] + wobble } else { wobble }
+                    })
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .collect();
+    let us: Vec<Vec<f64>> = (0..5)
+        .map(|i| vec![if i < 2 { 0.02 } else { 0.1 }; 6])
+        .collect();
+    assert_eq!(largest_subset(&x, &us, &[]), [2, 3, 4]);
+    assert_eq!(one_at_a_time(&x, &us), [0, 1]);
+    let kc = evaluate(&kc_support::results(&x, &us), &[], &KcOptions::new()).unwrap();
+    let inside: Vec<usize> = (0..5)
+        .filter(|&r| kc.degrees_of_equivalence[r].in_reference)
+        .collect();
+    assert_eq!(inside, [2, 3, 4]);
+    greedy_smaller += 1;
+    eprintln!("{compared} comparisons; one at a time kept fewer in {greedy_smaller}");
+    assert!(
+        greedy_smaller >= 1,
+        "no comparison where one at a time keeps fewer"
+    );
+}
+
+// ------------------------------------------------------------ simulated comparisons
+
+/// Over 1 000 consistent comparisons: U(d_i) covers d_i in 95 %, the closed vector's χ²
+/// has mean (N − 1)(n − 1) (not N(n − 1)), with u the same or varying over the faces.
+#[test]
+fn kc_closed_vector_chi2_has_its_degrees_of_freedom_and_u_d_covers() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for varying in [false, true] {
+        let labs_u: Vec<Vec<f64>> = (0..6)
+            .map(|i| {
+                (0..FACES)
+                    .map(|f| {
+                        0.05 + 0.02 * i as f64 + if varying { 0.01 * (f % 4) as f64 } else { 0.0 }
+                    })
+                    .collect()
+            })
+            .collect();
+        let trials = 1000;
+        let (mut sum, mut covered, mut does) = (0.0, 0usize, 0usize);
+        let truth = kc_support::truth(FACES);
+        for _ in 0..trials {
+            let labs: Vec<LabResult> = labs_u
+                .iter()
+                .enumerate()
+                .map(|(i, u)| {
+                    let noise = kc_support::closed_noise(&mut rng, u);
+                    let values: Vec<f64> = truth.iter().zip(&noise).map(|(t, e)| t + e).collect();
+                    lab(&format!("L{i}"), &values, u)
+                })
+                .collect();
+            let kc = evaluate(
+                &labs,
+                &[],
+                &KcOptions::new().with_largest_consistent_subset(false),
+            )
+            .unwrap();
+            sum += kc.vector_all.unwrap().chi2;
+            for doe in &kc.degrees_of_equivalence {
+                for (d, expanded_u) in doe.d.iter().zip(&doe.expanded_u) {
+                    does += 1;
+                    covered += usize::from(d.abs() <= *expanded_u);
+                }
+            }
+        }
+        let dof = ((FACES - 1) * 5) as f64;
+        let mean = sum / trials as f64;
+        let coverage = covered as f64 / does as f64;
+        eprintln!(
+            "varying u {varying}: mean vector χ² {mean:.2} (ν = {dof}), coverage {coverage:.4}"
+        );
+        let standard_error = (2.0 * dof / trials as f64).sqrt();
+        assert!((mean - dof).abs() < 4.0 * standard_error, "{mean}");
+        assert!((mean - (FACES * 5) as f64).abs() > 10.0 * standard_error);
+        assert!((coverage - 0.9545).abs() <= 0.01, "coverage {coverage}");
+    }
+}
+
+#[test]
+fn kc_pilot_repeats_are_one_test_of_their_closed_vectors() {
+    let (values, u) = fixed_data(false);
+    let labs: Vec<LabResult> = (0..3)
+        .map(|i| lab(&format!("L{i}"), &values[i], &u[i]))
+        .collect();
+    // Face 1 and 2 moved by far more than u = 0.03 between the repeats (still closed).
+    let mut moved = values[0].clone();
+    moved[0] += 0.5;
+    moved[1] -= 0.5;
+    let pilot = [lab("start", &values[0], &u[0]), lab("end", &moved, &u[0])];
+    let kc = evaluate(&labs, &pilot, &KcOptions::new()).unwrap();
+    let report = kc.pilot.as_ref().unwrap();
+    assert_eq!(report.repeats, ["start", "end"]);
+    let vector = report.vector.as_ref().unwrap();
+    // Two repeats with one u: χ² = Σ (y1 − y2)²/(2·c·u²)·… by the dense GLS.
+    let v = vec![closed_cov(&u[0]), closed_cov(&u[0])];
+    let g = gls(&[values[0].clone(), moved.clone()], &v);
+    assert!((vector.chi2 - g.chi2).abs() < 1e-9 * g.chi2);
+    assert_eq!(vector.dof, FACES - 1);
+    assert!(!vector.consistent);
+    // u_stab is the repeats' sample standard deviation on every face.
+    for f in 0..FACES {
+        let s = (values[0][f] - moved[f]).abs() / 2f64.sqrt();
+        assert!((report.stability_u[f] - s).abs() < 1e-12);
+        let x: Vec<f64> = (0..3).map(|i| values[i][f]).collect();
+        let s3: Vec<f64> = (0..3).map(|i| u[i][f]).collect();
+        let (_, mean_u, _) = textbook_weighted_mean(&x, &s3);
+        assert!((kc.reference_u[f] - (mean_u * mean_u + s * s).sqrt()).abs() < 1e-12);
+    }
+    assert!(kc.pilot_statement().unwrap().contains("unstable"));
+    assert_eq!(report.degrees_of_equivalence.len(), 2);
+    assert!(!report.degrees_of_equivalence[1].in_reference);
+    // Repeats that agree: u_stab = 0 everywhere.
+    let same = [
+        lab("start", &values[0], &u[0]),
+        lab("end", &values[0], &u[0]),
+    ];
+    let kc = evaluate(&labs, &same, &KcOptions::new()).unwrap();
+    assert!(
+        kc.pilot
+            .as_ref()
+            .unwrap()
+            .stability_u
+            .iter()
+            .all(|s| *s == 0.0)
+    );
+    // One repeat is no stability test.
+    assert!(evaluate(&labs, &pilot[..1], &KcOptions::new()).is_err());
+}
+
+#[test]
+fn kc_encoder_errors_are_matched_by_angle_compared_less_their_mean() {
+    let at = |values: &[(f64, f64)]| -> Vec<ResultRow> {
+        values
+            .iter()
+            .enumerate()
+            .map(|(p, &(angle, x))| {
+                ResultRow::new(Quantity::EncoderError, p as u32, x)
+                    .with_u(0.1)
+                    .with_angle_deg(angle)
+            })
+            .collect()
+    };
+    let a = LabResult::from_rows(
+        "A",
+        at(&[(0.0, 0.1), (90.0, 0.2), (180.0, 0.3), (270.0, 0.4)]),
+    );
+    let b = LabResult::from_rows(
+        "B",
+        at(&[
+            (0.0, 0.12),
+            (45.0, 9.0),
+            (90.0, 0.18),
+            (180.0, 0.33),
+            (270.0, 0.41),
+        ]),
+    );
+    // C's zero is 5″ elsewhere: the same encoder errors up to a constant.
+    let c = LabResult::from_rows(
+        "C",
+        at(&[
+            (359.99999999, 5.11),
+            (90.0, 5.2),
+            (180.0, 5.29),
+            (270.0, 5.38),
+        ]),
+    );
+    let options = KcOptions::new().with_quantity(Quantity::EncoderError);
+    let kc = evaluate(&[a, b, c], &[], &options).unwrap();
+    assert_eq!(kc.index, [0, 1, 2, 3]);
+    assert_eq!(
+        kc.angle_deg.as_deref(),
+        Some(&[0.0, 90.0, 180.0, 270.0][..])
+    );
+    // Each less its mean (0.25, 0.26, 5.245), then the weighted mean of equal u.
+    let expected = ((0.1 - 0.25) + (0.12 - 0.26) + (5.11 - 5.245)) / 3.0;
+    assert!(
+        (kc.reference[0] - expected).abs() < 1e-12,
+        "{}",
+        kc.reference[0]
+    );
+    assert!(kc.excluded.is_empty(), "{:?}", kc.excluded);
+    assert!(kc.comparison_consistent);
+    assert_eq!(kc.vector_all.as_ref().unwrap().dof, 3 * 2);
+    assert!(kc.notes.iter().any(|n| n.contains("45°")), "{:?}", kc.notes);
+    assert!(kc.notes.iter().any(|n| n.contains("up to a constant")));
+}
+
+/// χ² is scale-free: the same comparison in units 10⁸ times smaller (u = 10⁻⁹″ … 10⁻⁸″)
+/// gives the same χ² to 1e-9; a u below 10⁻⁹″ is refused, named by its row.
+#[test]
+fn kc_tiny_uncertainties_are_computed_in_scaled_form_or_refused() {
+    let (values, u) = fixed_data(true);
+    let labs: Vec<LabResult> = (0..5)
+        .map(|i| lab(&format!("L{i}"), &values[i], &u[i]))
+        .collect();
+    let scale = 1e-7;
+    let small: Vec<LabResult> = (0..5)
+        .map(|i| {
+            let x: Vec<f64> = values[i].iter().map(|x| x * scale).collect();
+            let s: Vec<f64> = u[i].iter().map(|u| u * scale).collect();
+            lab(&format!("L{i}"), &x, &s)
+        })
+        .collect();
+    let a = evaluate(&labs, &[], &KcOptions::new()).unwrap();
+    let b = evaluate(&small, &[], &KcOptions::new()).unwrap();
+    let (ca, cb) = (a.vector_all.unwrap().chi2, b.vector_all.unwrap().chi2);
+    assert!((ca - cb).abs() < 1e-9 * ca, "{ca} vs {cb}");
+    for f in 0..FACES {
+        assert!((a.reference[f] * scale - b.reference[f]).abs() < 1e-9 * scale);
+        assert!((a.chi2[f] - b.chi2[f]).abs() < 1e-9 * a.chi2[f].max(1.0));
+    }
+    let tiny: Vec<LabResult> = (0..5)
+        .map(|i| {
+            let s: Vec<f64> = u[i].iter().map(|u| u * 1e-10).collect();
+            lab(&format!("L{i}"), &values[i], &s)
+        })
+        .collect();
+    let error = evaluate(&tiny, &[], &KcOptions::new())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("L0 (row 1)") && error.contains("below 1e-9″"),
+        "{error}"
+    );
+}
+
+/// 3 000 faces, 8 laboratories: the closed vector without an N × N matrix (a dense GLS
+/// would need 8 matrices of 72 MB each); its χ² has mean ν within reason for one draw.
+#[test]
+fn kc_three_thousand_faces_are_compared_in_linear_memory() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3000);
+    let (values, u) = kc_support::comparison(&mut rng, 3000, 8, None);
+    let kc = evaluate(&kc_support::results(&values, &u), &[], &KcOptions::new()).unwrap();
+    let all = kc.vector_all.as_ref().unwrap();
+    assert_eq!(all.dof, 2999 * 7);
+    let z = (all.chi2 - all.dof as f64) / (2.0 * all.dof as f64).sqrt();
+    assert!(z.abs() < 4.0, "χ² = {} for ν = {}", all.chi2, all.dof);
+    for doe in &kc.degrees_of_equivalence {
+        assert!(doe.d.iter().sum::<f64>().abs() < 1e-9);
+    }
+}

@@ -1,0 +1,51 @@
+//! The maths tier: the library's calibration maths — solve, uncertainty, Monte Carlo,
+//! diagnose, self-calibration, compare, key comparisons, simulate, the readers of every
+//! file — through its public API, without the `polycal` binary and without the instrument
+//! layer (it builds and runs with `--no-default-features`; `simulate` and
+//! `simulate_selfcal` run their command-line checks only with `cli`).
+//!
+//! Quick: part of the inner loop, `cargo test --lib --test maths --test commands`, run
+//! while working on the library. Its slow statistical sweeps are in `tests/sweeps/`.
+//! One module per test file (`tests/maths/NAME.rs`); run one with
+//! `cargo test --test maths NAME::`.
+
+// The helpers the tests share with other tiers (tests/NAME/mod.rs), each gated as its
+// users are.
+#[path = "../common/mod.rs"]
+mod common;
+#[path = "../kc_support/mod.rs"]
+mod kc_support;
+#[path = "../selfcal_support/mod.rs"]
+mod selfcal_support;
+#[path = "../undeclared/mod.rs"]
+mod undeclared;
+
+// The tests: tests/maths/NAME.rs, each gated on the features it needs.
+mod compare;
+mod compare_verdict;
+mod diagnose;
+mod diagnose_effects;
+mod diagnose_geometry;
+mod diagnose_identify;
+mod diagnose_monte_carlo;
+mod diagnose_selfcal;
+mod diagnose_selfcal_off_grid;
+mod diagnose_selfcal_within_cells;
+mod diagnose_shifted;
+mod engine;
+mod kc;
+mod kc_covariance;
+mod measurement_file;
+mod selfcal;
+mod selfcal_file;
+mod selfcal_monte_carlo;
+mod simulate;
+mod simulate_habits;
+mod simulate_selfcal;
+mod solve_properties;
+mod solve_uncertainty;
+mod sub_pitch;
+mod sub_pitch_structured;
+mod table_rules;
+mod uncertainty;
+mod verification;
