@@ -1172,14 +1172,20 @@ fn valid_set() -> impl Strategy<Value = SelfcalSet> {
 }
 
 /// A read either gives a set that passes `from_readings` unchanged, or an error with a
-/// line and a column; it never panics.
+/// line and a column — a file that breaks the rules, or one of another kind (`[` or `{`
+/// first: a budget, a JSON document; docs/FORMAT.md §8); it never panics.
 fn check_outcome(result: Result<SelfcalSet, SelfcalError>) {
     match result {
         Ok(set) => {
             let again = SelfcalSet::from_readings(set.readings.clone(), Some(set.positions));
             assert_eq!(again.ok().as_ref(), Some(&set));
         }
-        Err(SelfcalError::Invalid { location, message }) => {
+        Err(
+            SelfcalError::Invalid { location, message }
+            | SelfcalError::WrongKind {
+                location, message, ..
+            },
+        ) => {
             assert!(
                 location.line() >= 1 && location.column() >= 1,
                 "{location}: {message}"
