@@ -613,15 +613,7 @@ fn note(found: &CycleFinding) -> String {
         "against the readings as logged, β changes by up to {:.4}″ and α by up to {:.4}″",
         found.pitch_change_max, found.encoder_change_max
     );
-    let aside = if found.set_aside.is_empty() {
-        String::new()
-    } else {
-        format!(
-            " {} reading{} left the fit with it.",
-            found.set_aside.len(),
-            if found.set_aside.len() == 1 { "" } else { "s" }
-        )
-    };
+    let aside = left_the_fit(found.set_aside.len());
     match found.action {
         CycleAction::Repaired => format!(
             "{head}: {} explains it exactly (undone, the cycle agrees: F = {:.2}); the cycle is evaluated with it undone, and {changed}.{aside}",
@@ -638,5 +630,14 @@ fn note(found: &CycleFinding) -> String {
         CycleAction::SetAside => format!(
             "{head}: no usual logging error (autocollimators exchanged, one stop late or early, faces shifted, reversed) explains it, nor any effect found; the cycle is set aside and the calibration is not certified as adequate; {changed}. Check that cycle's log.{aside}"
         ),
+    }
+}
+
+/// " N readings left the fit with it." (nothing for none), the end of a finding's note.
+pub(super) fn left_the_fit(readings: usize) -> String {
+    match readings {
+        0 => String::new(),
+        1 => " 1 reading left the fit with it.".to_string(),
+        n => format!(" {n} readings left the fit with it."),
     }
 }

@@ -77,6 +77,25 @@ impl CycleCause {
     }
 }
 
+/// The usual logging errors of readings by the autocollimators `acs` (ascending, each
+/// once): every pair exchanged, one stop late or early, faces shifted by ±1, reversed.
+pub(super) fn of_autocollimators(acs: &[u32]) -> Vec<CycleCause> {
+    let mut causes = Vec::new();
+    for (i, &a) in acs.iter().enumerate() {
+        for &b in &acs[i + 1..] {
+            causes.push(CycleCause::SwappedAcs { a, b });
+        }
+    }
+    causes.extend([
+        CycleCause::OneStopLate,
+        CycleCause::OneStopEarly,
+        CycleCause::FacesShifted { by: 1 },
+        CycleCause::FacesShifted { by: -1 },
+        CycleCause::Reversed,
+    ]);
+    causes
+}
+
 /// The stops (steps) of a cycle in time order: by the readings' times when every reading
 /// of the cycle has one, else by the cycle's direction.
 fn stops_in_time_order(readings: &[&Reading]) -> Vec<usize> {
@@ -151,20 +170,7 @@ impl<'s> Cycle<'s> {
         let mut acs: Vec<u32> = self.readings().map(|r| r.ac).collect();
         acs.sort_unstable();
         acs.dedup();
-        let mut causes = Vec::new();
-        for (i, &a) in acs.iter().enumerate() {
-            for &b in &acs[i + 1..] {
-                causes.push(CycleCause::SwappedAcs { a, b });
-            }
-        }
-        causes.extend([
-            CycleCause::OneStopLate,
-            CycleCause::OneStopEarly,
-            CycleCause::FacesShifted { by: 1 },
-            CycleCause::FacesShifted { by: -1 },
-            CycleCause::Reversed,
-        ]);
-        causes
+        of_autocollimators(&acs)
     }
 
     /// The polygon's number of faces.

@@ -23,7 +23,8 @@
 use std::collections::BTreeSet;
 
 use super::causes::{self, CycleCause};
-use super::{CycleAction, GROSS_F, MIN_REST_DOF, SetAsideReading, aside_readings};
+use super::test::f_test;
+use super::{CycleAction, GROSS_F, MIN_REST_DOF, SetAsideReading, aside_readings, left_the_fit};
 use crate::diagnose::Diagnosis;
 use crate::diagnose::base::Base;
 use crate::measurement::MeasurementSet;
@@ -121,18 +122,12 @@ fn chow(
         return None;
     }
     let rss_apart = rss_m + rss_rest;
-    let numerator = (all.0 - rss_apart).max(0.0) / dof_numerator as f64;
-    let denominator = rss_apart / dof_denominator as f64;
-    let f_statistic = if denominator > 0.0 {
-        numerator / denominator
-    } else if numerator > 0.0 {
-        f64::INFINITY
-    } else {
-        0.0
-    };
-    use statrs::distribution::{ContinuousCDF, FisherSnedecor};
-    let p_value = FisherSnedecor::new(dof_numerator as f64, dof_denominator as f64)
-        .map_or(1.0, |d| d.sf(f_statistic));
+    let (f_statistic, p_value) = f_test(
+        (all.0 - rss_apart).max(0.0),
+        dof_numerator,
+        rss_apart,
+        dof_denominator,
+    );
     Some(Chow {
         f_statistic,
         dof_numerator,
@@ -187,20 +182,7 @@ fn candidates(set: &MeasurementSet, setup: u32) -> Vec<CycleCause> {
         .collect();
     acs.sort_unstable();
     acs.dedup();
-    let mut found = Vec::new();
-    for (i, &a) in acs.iter().enumerate() {
-        for &b in &acs[i + 1..] {
-            found.push(CycleCause::SwappedAcs { a, b });
-        }
-    }
-    found.extend([
-        CycleCause::OneStopLate,
-        CycleCause::OneStopEarly,
-        CycleCause::FacesShifted { by: 1 },
-        CycleCause::FacesShifted { by: -1 },
-        CycleCause::Reversed,
-    ]);
-    found
+    causes::of_autocollimators(&acs)
 }
 
 /// `set` with `cause` undone in every cycle of mounting `setup`, and the readings the
@@ -408,15 +390,7 @@ pub(super) fn note(found: &MountingFinding) -> String {
         found.p_value,
         found.level
     );
-    let aside = if found.set_aside.is_empty() {
-        String::new()
-    } else {
-        format!(
-            " {} reading{} left the fit with it.",
-            found.set_aside.len(),
-            if found.set_aside.len() == 1 { "" } else { "s" }
-        )
-    };
+    let aside = left_the_fit(found.set_aside.len());
     match found.action {
         CycleAction::Repaired => format!(
             "{head}: {} in every one of its cycles explains it exactly (undone, the mounting agrees: F = {:.2}); it is evaluated with it undone.{aside}",

@@ -68,6 +68,29 @@ pub(super) fn additive_rss(entries: &[Entry]) -> (f64, usize) {
     (rss, entries.len().saturating_sub(rows + columns - 1))
 }
 
+/// The F statistic (numerator sum of squares over its degrees of freedom against the
+/// denominator's) and its upper-tail p: ∞ for a numerator against a zero denominator, 0
+/// for neither.
+pub(super) fn f_test(
+    numerator: f64,
+    dof_numerator: usize,
+    denominator: f64,
+    dof_denominator: usize,
+) -> (f64, f64) {
+    let top = numerator / dof_numerator as f64;
+    let bottom = denominator / dof_denominator as f64;
+    let f_statistic = if bottom > 0.0 {
+        top / bottom
+    } else if top > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    };
+    let p_value = FisherSnedecor::new(dof_numerator as f64, dof_denominator as f64)
+        .map_or(1.0, |d| d.sf(f_statistic));
+    (f_statistic, p_value)
+}
+
 /// A Chow F test of one cycle against the others.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Chow {
@@ -112,17 +135,12 @@ pub(super) fn chow_of(all: (f64, usize), rest: (f64, usize), min_rest_dof: usize
     if dof_numerator == 0 || dof_rest < min_rest_dof {
         return None;
     }
-    let denominator = rss_rest / dof_rest as f64;
-    let numerator = (rss_all - rss_rest).max(0.0) / dof_numerator as f64;
-    let f_statistic = if denominator > 0.0 {
-        numerator / denominator
-    } else if numerator > 0.0 {
-        f64::INFINITY
-    } else {
-        0.0
-    };
-    let p_value = FisherSnedecor::new(dof_numerator as f64, dof_rest as f64)
-        .map_or(1.0, |d| d.sf(f_statistic));
+    let (f_statistic, p_value) = f_test(
+        (rss_all - rss_rest).max(0.0),
+        dof_numerator,
+        rss_rest,
+        dof_rest,
+    );
     Some(Chow {
         f_statistic,
         dof_numerator,
