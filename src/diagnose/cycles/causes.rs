@@ -256,7 +256,13 @@ impl<'s> Cycle<'s> {
                 }
             }
             CycleCause::FacesShifted { by } => {
-                let shifted = set.readings.iter().map(|r| r.setup).max().unwrap_or(1) + 1;
+                let shifted = set
+                    .readings
+                    .iter()
+                    .map(|r| r.setup)
+                    .max()
+                    .unwrap_or(1)
+                    .checked_add(1)?;
                 for r in &mut readings {
                     r.setup = shifted;
                     r.face = ((r.face as i64 - 1 + by).rem_euclid(n as i64) + 1) as usize;
