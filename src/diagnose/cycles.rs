@@ -524,9 +524,12 @@ pub(crate) fn diagnose_checked(
         }
         changed = !still.is_empty();
     }
-    // (a cycle set aside changes the readings: the mountings are then not tested again)
-    changed = changed || mounted.set_aside_still_disagreeing(&diagnosis);
     if changed {
+        diagnosis = plain(&mounted.set)?;
+    }
+    // the mountings left to the search, one set aside at a time (each pending mounting
+    // at most once)
+    while mounted.set_aside_worst(&diagnosis) {
         diagnosis = plain(&mounted.set)?;
     }
     let used = mounted.set;
@@ -550,44 +553,40 @@ pub(crate) fn diagnose_checked(
         found.encoder_change_max = encoder_change_max;
         diagnosis.notes.push(note(found));
         if found.action == CycleAction::SetAside {
-            diagnosis.adequacy.checks.push(Check {
-                name: format!(
+            set_aside_check(
+                &mut diagnosis,
+                format!(
                     "cycle {} of setup {} agrees with the others (set aside: {})",
                     found.cycle,
                     found.setup,
-                    if found.alternatives.is_empty() {
-                        "no cause explains it".to_string()
-                    } else {
-                        "several causes explain it equally well".to_string()
-                    }
+                    why_set_aside(&found.alternatives)
                 ),
-                statistic: found.f_statistic,
-                limit: f64::NAN,
-                passed: false,
-                stream: None,
-            });
-            diagnosis.adequacy.adequate = false;
+                (
+                    found.f_statistic,
+                    found.dof_numerator,
+                    found.dof_denominator,
+                ),
+                found.level,
+            );
         }
     }
     for found in &mounted.findings {
         diagnosis.notes.push(mountings::note(found));
         if found.action == CycleAction::SetAside {
-            diagnosis.adequacy.checks.push(Check {
-                name: format!(
+            set_aside_check(
+                &mut diagnosis,
+                format!(
                     "setup {} agrees with the other mountings (set aside: {})",
                     found.setup,
-                    if found.alternatives.is_empty() {
-                        "no cause explains it"
-                    } else {
-                        "several causes explain it equally well"
-                    }
+                    why_set_aside(&found.alternatives)
                 ),
-                statistic: found.f_statistic,
-                limit: f64::NAN,
-                passed: false,
-                stream: None,
-            });
-            diagnosis.adequacy.adequate = false;
+                (
+                    found.f_statistic,
+                    found.dof_numerator,
+                    found.dof_denominator,
+                ),
+                found.level,
+            );
         }
     }
     diagnosis.before_sub_pitch = base.sub_pitch_solution(&before);
@@ -640,4 +639,34 @@ pub(super) fn left_the_fit(readings: usize) -> String {
         1 => " 1 reading left the fit with it.".to_string(),
         n => format!(" {n} readings left the fit with it."),
     }
+}
+
+/// Why a cycle or a mounting was set aside, in the words of its check.
+fn why_set_aside(alternatives: &[CycleCause]) -> &'static str {
+    if alternatives.is_empty() {
+        "no cause explains it"
+    } else {
+        "several causes explain it equally well"
+    }
+}
+
+/// The failed check of a cycle or a mounting set aside: its F (with its degrees of
+/// freedom) against the F its level allows; the diagnosis is then not adequate.
+fn set_aside_check(
+    diagnosis: &mut Diagnosis,
+    name: String,
+    (f_statistic, dof_numerator, dof_denominator): (f64, usize, usize),
+    level: f64,
+) {
+    use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+    let limit = FisherSnedecor::new(dof_numerator as f64, dof_denominator as f64)
+        .map_or(GROSS_F, |d| d.inverse_cdf(1.0 - level));
+    diagnosis.adequacy.checks.push(Check {
+        name,
+        statistic: f_statistic,
+        limit: if limit.is_finite() { limit } else { GROSS_F },
+        passed: false,
+        stream: None,
+    });
+    diagnosis.adequacy.adequate = false;
 }

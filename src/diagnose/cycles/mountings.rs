@@ -340,14 +340,23 @@ pub(super) fn examine(set: MeasurementSet) -> Examined {
 }
 
 impl Examined {
-    /// The pending mountings that still disagree grossly on the final model's residuals
-    /// of `diagnosis` (of `self.set`), set aside from `self.set` and listed; whether any
-    /// was.
-    pub(super) fn set_aside_still_disagreeing(&mut self, diagnosis: &Diagnosis) -> bool {
+    /// Of the pending mountings, the one that disagrees most on the final model's
+    /// residuals of `diagnosis` (of `self.set`), when it still disagrees grossly: set aside
+    /// from `self.set` and listed; whether one was. One at a time: a mounting that
+    /// disagrees pulls the fit of the others, which are tested again on the diagnosis
+    /// without it.
+    pub(super) fn set_aside_worst(&mut self, diagnosis: &Diagnosis) -> bool {
         let residuals = &diagnosis.after.residuals;
         // (a weighted diagnosis's RSS is of whitened residuals: not compared here)
         let weighted = diagnosis.noise.as_ref().is_some_and(|n| n.weighted);
         if self.pending.is_empty() || residuals.len() != self.set.readings.len() || weighted {
+            return false;
+        }
+        // (with fewer mountings left, which one disagrees is not decided)
+        let mut setups: Vec<u32> = self.set.readings.iter().map(|r| r.setup).collect();
+        setups.sort_unstable();
+        setups.dedup();
+        if setups.len() < MIN_MOUNTINGS {
             return false;
         }
         // the parameters the search added (an outlier's among them: its residual is 0)
@@ -355,27 +364,31 @@ impl Examined {
             return false;
         };
         let all = (diagnosis.after.rss, diagnosis.after.dof);
-        let mut any = false;
-        for &(setup, logged) in &self.pending {
-            let still = chow(&self.set, residuals, setup, all, added)
-                .is_some_and(|t| t.p_value < self.level && t.f_statistic >= GROSS_F);
-            if !still {
-                continue;
-            }
-            let (rest, aside) = without(
-                &self.set,
-                setup,
-                &format!(
-                    "setup {setup} set aside: it disagrees with the other mountings, no usual logging error explains it, and no effect the search found does"
-                ),
-            );
-            let mut found = finding(setup, logged, self.level);
-            found.set_aside = aside;
-            self.findings.push(found);
-            self.set = rest;
-            any = true;
-        }
-        any
+        let worst = self
+            .pending
+            .iter()
+            .enumerate()
+            .filter_map(|(k, &(setup, _))| {
+                let t = chow(&self.set, residuals, setup, all, added)?;
+                (t.p_value < self.level && t.f_statistic >= GROSS_F).then_some((k, t.f_statistic))
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((k, _)) = worst else {
+            return false;
+        };
+        let (setup, logged) = self.pending.remove(k);
+        let (rest, aside) = without(
+            &self.set,
+            setup,
+            &format!(
+                "setup {setup} set aside: it disagrees with the other mountings, no usual logging error explains it, and no effect the search found does"
+            ),
+        );
+        let mut found = finding(setup, logged, self.level);
+        found.set_aside = aside;
+        self.findings.push(found);
+        self.set = rest;
+        true
     }
 }
 
