@@ -17,8 +17,8 @@
 
 use std::process::ExitCode;
 
-use polycal::simulate::verification::{Agreement, VerificationConfig, verify};
 use polycal::uncertainty::calibration::InstrumentBudget;
+use polycal::verification::{Agreement, VerificationConfig, verify};
 
 fn main() -> ExitCode {
     match run() {

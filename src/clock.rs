@@ -1,5 +1,5 @@
 //! Time stamps: seconds since the Unix epoch and their RFC 3339 UTC text, the one clock
-//! of run manifests and calibration reports.
+//! of run manifests and calibration reports; and the days a report states, `YYYY-MM-DD`.
 
 use std::time::{SystemTime, UNIX_EPOCH};
 
@@ -37,4 +37,29 @@ pub fn rfc3339(unix_seconds: f64) -> String {
         rem % 3600 / 60,
         rem % 60
     )
+}
+/// Whether `text` is a day `YYYY-MM-DD` of the calendar (an `xs:date` without a time zone,
+/// as a certificate's dates are): `2024-02-29` is, `2026-02-29` and `2026-1-03` are not.
+pub fn is_date(text: &str) -> bool {
+    let b = text.as_bytes();
+    if b.len() != 10 || b[4] != b'-' || b[7] != b'-' {
+        return false;
+    }
+    let digits = |r: std::ops::Range<usize>| -> Option<u32> {
+        text.get(r.clone())
+            .filter(|s| s.bytes().all(|c| c.is_ascii_digit()))
+            .and_then(|s| s.parse().ok())
+    };
+    let (Some(year), Some(month), Some(day)) = (digits(0..4), digits(5..7), digits(8..10)) else {
+        return false;
+    };
+    let leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
+    let days = match month {
+        1 | 3 | 5 | 7 | 8 | 10 | 12 => 31,
+        4 | 6 | 9 | 11 => 30,
+        2 if leap => 29,
+        2 => 28,
+        _ => return false,
+    };
+    year > 0 && (1..=days).contains(&day)
 }

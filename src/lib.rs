@@ -33,6 +33,9 @@
 //!   ([`certificate::html`]) and the Digital Calibration Certificate
 //!   ([`certificate::dcc`]);
 //! - [`clock`]: RFC 3339 time stamps;
+//! - [`verification`]: the paper's verification (its section 3.1) reproduced from one
+//!   simulated truth measured three ways, evaluated and compared;
+//! - [`progress`]: the observer every long computation tells how far it is;
 //! - [`output_file`]: how every file polycal writes is written: only where meant (never
 //!   an input, never a device), whole or not at all;
 //! - `lab` (cargo feature `lab`): the instruments on serial lines, simulated instruments,
@@ -53,11 +56,17 @@ pub mod output;
 pub mod output_file;
 pub mod plan;
 pub mod polygon;
+pub mod progress;
 pub mod results;
 pub mod selfcal;
 pub mod simulate;
 pub mod solve;
 pub mod uncertainty;
+pub mod verification;
+
+/// The software version every output carries (the JSON's `"version"`, a simulated file's
+/// header, a report's and a certificate's generator), e.g. `0.1.0`.
+pub const SOFTWARE_VERSION: &str = env!("CARGO_PKG_VERSION");
 
 pub use measurement::{Direction, MeasurementSet, Reading};
 

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use super::ReportError;
-use super::meta::{InstrumentEntry, RunRecord, control_character, refused_character};
+use super::record::{InstrumentEntry, RunRecord, control_character, refused_character};
 use crate::input::Location;
 use crate::uncertainty::budget_file::location;
 

@@ -8,6 +8,9 @@
 use std::path::Path;
 
 use serde::Deserialize;
+
+use super::record::refused_character;
+pub use super::record::{InstrumentEntry, RunRecord, control_character};
 use toml::Spanned;
 
 use crate::input::Location;
@@ -71,23 +74,6 @@ pub fn is_country_code(code: &str) -> bool {
     code.len() == 2 && code.bytes().all(|b| b.is_ascii_uppercase())
 }
 
-/// The first character of `text` that XML 1.0 cannot carry and HTML calls a parse error
-/// (a control character other than tab, line feed and carriage return), with its byte
-/// offset.
-pub fn control_character(text: &str) -> Option<(usize, char)> {
-    text.char_indices().find(|&(_, c)| {
-        (c.is_control() && !matches!(c, '\t' | '\n' | '\r')) || matches!(c, '\u{fffe}' | '\u{ffff}')
-    })
-}
-
-/// Why a text with the control character `c` is refused.
-pub(super) fn refused_character(c: char) -> String {
-    format!(
-        "a control character (U+{:04X}) cannot be written in a report or certificate",
-        c as u32
-    )
-}
-
 /// The metadata keys whose value must be a day `YYYY-MM-DD` wherever it is given (the
 /// metadata file or a comment line), checked when read.
 pub const DATE_KEYS: [&str; 2] = ["date_of_receipt", "date_of_issue"];
@@ -111,37 +97,6 @@ pub struct MetaField {
     /// Where the value stands: file, line and column of the metadata file's value or of
     /// the comment's; the manifest's file alone. For refusals of its form (the DCC's date).
     pub location: Option<Location>,
-}
-
-/// One instrument used in the calibration.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct InstrumentEntry {
-    /// Its role, e.g. `autocollimator 1`.
-    pub role: Option<String>,
-    /// Its name.
-    pub name: Option<String>,
-    /// Its model.
-    pub model: Option<String>,
-    /// Its serial number.
-    pub serial: Option<String>,
-    /// Its calibration (traceability, certificate).
-    pub calibration: Option<String>,
-    /// Where the entry came from.
-    pub source: String,
-}
-
-/// The run recorded in a run directory's manifest.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct RunRecord {
-    /// The manifest's path.
-    pub source: String,
-    /// Label and value pairs: software, start, end, outcome, readings, settings.
-    pub facts: Vec<(String, String)>,
-    /// The date the run started (UTC, `YYYY-MM-DD`): the date of measurement when no other
-    /// source gives one.
-    pub started_date: Option<String>,
-    /// The date the run ended (UTC, `YYYY-MM-DD`), when the manifest records an end.
-    pub ended_date: Option<String>,
 }
 
 /// The metadata of a report.
@@ -347,7 +302,7 @@ fn read_meta_file(
     };
     // the dates ISO/IEC 17025 7.8.2.1 asks for, days YYYY-MM-DD (the DCC's xs:date)
     let day = |key: &str, value: Option<Spanned<String>>| match checked(value)? {
-        Some((span, v)) if !super::dcc::is_date(v.trim()) => {
+        Some((span, v)) if !crate::clock::is_date(v.trim()) => {
             Err(at(span.start, not_a_day(key, &v)))
         }
         other => Ok(other.map(|(span, v)| (v.trim().to_string(), span.start))),
@@ -530,7 +485,7 @@ pub fn gather(
                 });
             if let Some((value, _, at)) = from_comment
                 .as_ref()
-                .filter(|(v, _, _)| DATE_KEYS.contains(&key) && !super::dcc::is_date(v))
+                .filter(|(v, _, _)| DATE_KEYS.contains(&key) && !crate::clock::is_date(v))
             {
                 date_error = date_error.take().or(Some(ReportError::Meta {
                     location: at.clone(),

@@ -31,6 +31,7 @@ mod inputs;
 mod kc;
 mod manifest;
 pub mod meta;
+mod record;
 pub mod rounding;
 
 use std::path::Path;

@@ -31,12 +31,12 @@ use super::geometry::FitGeometry;
 use super::lack_of_fit::{LackOfFit, PureError};
 use super::nuisance::StopNuisance;
 use crate::measurement::{MeasurementSet, Sigma};
+use crate::progress::Progress;
 use crate::selfcal::OffGridDesign;
 use crate::solve::circulant::Prepared;
 use crate::solve::least_squares::{least_squares_prepared, least_squares_zeroing_lost_with};
 use crate::solve::sub_pitch::{self, ShiftGeometry, SubPitchSolution};
 use crate::solve::{Solution, SolveError, SolveOptions};
-use crate::uncertainty::monte_carlo::Progress;
 
 /// The progress of a diagnosis as its observer is told it ([`super::DiagnoseOptions::progress`]):
 /// the rounds of the forward selection done, with no total (the search ends when nothing

@@ -44,9 +44,9 @@ use rayon::prelude::*;
 
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::{MeasurementSet, Sigma};
+use crate::progress::Progress;
 use crate::solve::sub_pitch::SubPitchSolution;
 use crate::solve::{Solution, SolveError};
-use crate::uncertainty::monte_carlo::Progress;
 use base::Base;
 use candidates::Term;
 pub use clock::Clock;

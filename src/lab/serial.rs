@@ -45,6 +45,12 @@ impl ByteStream for SerialStream {
     fn discard_input(&mut self) -> io::Result<()> {
         Ok(self.port.clear(serialport::ClearBuffer::Input)?)
     }
+
+    fn write_stall(&self) -> String {
+        format!(
+            "the device did not take it within {WRITE_PAUSE_LIMIT_SECONDS} s (flow control held, XOFF, or the line stalled)"
+        )
+    }
 }
 
 /// A [`crate::lab::transport::Transport`] over a serial port, opened exclusively.

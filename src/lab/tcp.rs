@@ -58,6 +58,13 @@ impl ByteStream for TcpPort {
         self.stream.set_nonblocking(false)?;
         result
     }
+
+    fn write_stall(&self) -> String {
+        format!(
+            "the instrument did not take it within {} s (its receive window stayed full, or the network stalled)",
+            CONNECT_TIMEOUT.as_secs()
+        )
+    }
 }
 
 /// A [`Transport`] over a TCP connection.

@@ -113,6 +113,12 @@ pub trait ByteStream: Send {
     ///
     /// Any error of the stream other than "no data".
     fn discard_input(&mut self) -> io::Result<()>;
+
+    /// Why a write that failed as `TimedOut` stopped, in this port's own terms (how long
+    /// it waits out a pause, and for what): the message's end after "sending …: ".
+    fn write_stall(&self) -> String {
+        "the device did not take it in time".to_string()
+    }
 }
 
 impl<S: Read + Write + Send> ByteStream for S {
@@ -266,12 +272,7 @@ impl<S: ByteStream> Transport for StreamTransport<S> {
     fn send(&mut self, text: &str) -> Result<(), InstrumentError> {
         self.stream.send_bytes(text.as_bytes()).map_err(|e| {
             let context = if e.kind() == io::ErrorKind::TimedOut {
-                // The serial port waits out a flow-control pause that long.
-                format!(
-                    "sending {text:?}: the device did not take it within {} s (flow control \
-                     held, XOFF, or the line stalled)",
-                    super::serial::WRITE_PAUSE_LIMIT_SECONDS
-                )
+                format!("sending {text:?}: {}", self.stream.write_stall())
             } else {
                 format!("sending {text:?}")
             };

@@ -38,8 +38,7 @@ use serde::Serialize;
 
 use crate::measurement::cross_talk::StatedCrossTalk;
 
-/// The software version every JSON output carries (`"version"`), e.g. `0.1.0`.
-pub const SOFTWARE_VERSION: &str = env!("CARGO_PKG_VERSION");
+pub use crate::SOFTWARE_VERSION;
 
 /// A JSON object with the software version as its first member.
 #[derive(Serialize)]

@@ -30,8 +30,8 @@ use crate::diagnose::candidates::{
 use crate::diagnose::geometry::FitGeometry;
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::MeasurementSet;
+use crate::progress::Progress;
 use crate::solve::Solution;
-use crate::uncertainty::monte_carlo::Progress;
 
 /// The false-alarm probability of the ambiguity test (as `diagnose`'s).
 const AMBIGUITY_ALPHA: f64 = 0.05;

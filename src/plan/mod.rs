@@ -43,12 +43,12 @@ pub use detect::{Ambiguity, Detectable};
 use crate::diagnose::DiagnoseOptions;
 use crate::input::Location;
 use crate::measurement::{MeasurementSet, Sigma};
+use crate::progress::Progress;
 use crate::solve::sub_pitch::{ShiftGeometry, solve_shifted};
 use crate::solve::{SigmaSource, Solution, SolveError, SolveOptions};
 use crate::uncertainty::calibration::{
     self, CalibrationError, CalibrationUncertainty, InstrumentBudget,
 };
-use crate::uncertainty::monte_carlo::Progress;
 
 /// What one reading of a design costs in memory while it is planned (the reading and
 /// its share of the solver's per-reading arrays), bytes.

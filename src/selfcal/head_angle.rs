@@ -12,7 +12,8 @@
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
 
-use super::solve::{SelfcalOptions, SelfcalSolution, SelfcalSolveError, solve_closure};
+use super::solution::{SelfcalOptions, SelfcalSolution, SelfcalSolveError};
+use super::solve::solve_closure;
 use super::{HeadReading, SelfcalSet};
 
 /// Arcseconds per radian.
@@ -100,4 +101,30 @@ pub(super) fn head_angle_u(
         var_e.into_iter().map(f64::sqrt).collect(),
         var_c.into_iter().map(f64::sqrt).collect(),
     ))
+}
+/// `solution` with what the uncertainty of the heads' angles adds to u(e) and u(c), when
+/// the options state one (`head_angle.rs`), and a note saying how much.
+pub(crate) fn add_head_angle_u(
+    set: &SelfcalSet,
+    mut solution: SelfcalSolution,
+    options: &SelfcalOptions,
+) -> Result<SelfcalSolution, SelfcalSolveError> {
+    if let Some(u_angle) = options.head_angle_u_arcsec {
+        let (on_e, on_c) = head_angle_u(set, &solution, u_angle, options)?;
+        if let Some(u) = &mut solution.encoder_error_u {
+            for (u, b) in u.iter_mut().zip(&on_e) {
+                *u = u.hypot(*b);
+            }
+        }
+        for (h, b) in solution.head_error.iter_mut().zip(&on_c) {
+            h.u = h.u.map(|u| u.hypot(*b));
+            h.head_angle_u = Some(*b);
+        }
+        solution.notes.push(format!(
+            "the heads' angles, each with u = {u_angle} arcsec, add up to {:.2e} arcsec to u(e) through the slope of the disc's error",
+            on_e.iter().copied().fold(0.0, f64::max)
+        ));
+        solution.head_angle_u = Some(on_e);
+    }
+    Ok(solution)
 }

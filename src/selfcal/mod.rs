@@ -76,19 +76,21 @@ mod file;
 mod fourier;
 mod head_angle;
 mod monte_carlo;
+mod solution;
 mod solve;
 
 pub use budget::{SelfcalContribution, SelfcalUncertainty, evaluate_budget};
 pub(crate) use file::COLUMNS;
 pub use file::SelfcalError;
 pub(crate) use fourier::design::OffGridDesign;
+pub(crate) use head_angle::add_head_angle_u;
 pub use monte_carlo::{SelfcalMonteCarlo, monte_carlo};
 pub(crate) use monte_carlo::{monte_carlo_of_closure_fit, monte_carlo_of_off_grid_fit};
-pub use solve::{
+pub use solution::{
     COVERAGE_PROBABILITY, HeadError, HeadGrid, ON_GRID_TOLERANCE_POSITIONS, SelfcalOptions,
-    SelfcalSolution, SelfcalSolveError, solve,
+    SelfcalSolution, SelfcalSolveError,
 };
-pub(crate) use solve::{add_head_angle_u, closure_set, from_closure_fit, grid_offsets};
+pub(crate) use solve::{closure_set, from_closure_fit, grid_offsets};
 
 /// One reading of one read head: one row of the self-calibration file.
 #[derive(Debug, Clone, PartialEq)]
@@ -155,4 +157,51 @@ impl SelfcalSet {
         cycles.dedup();
         cycles
     }
+}
+
+/// Solves a self-calibration: e at every position with Σe = 0, every head's c relative
+/// to head 1, their uncertainties, and the harmonics the layout cannot see.
+///
+/// ```
+/// use polycal::measurement::Direction;
+/// use polycal::selfcal::{self, HeadReading, SelfcalOptions, SelfcalSet};
+///
+/// // three heads 120° apart on a 12-position grid, no noise: e is recovered except
+/// // for its harmonics 3 and 6, which three equally spaced heads cannot see
+/// let (p, angles) = (12, [0.0, 120.0, 240.0]);
+/// let e = |x: f64| 0.4 * (x.to_radians() * 2.0).cos() + 0.1 * (x.to_radians() * 3.0).sin();
+/// let mut readings = Vec::new();
+/// for step in 0..p {
+///     for (j, &psi) in angles.iter().enumerate() {
+///         let angle = step as f64 * 30.0 + psi;
+///         readings.push(HeadReading {
+///             cycle: 1, step, head: j as u32 + 1, head_angle_deg: psi,
+///             reading_arcsec: 0.7 * step as f64 + e(angle) + 0.5 * j as f64,
+///             direction: Direction::Cw, time_seconds: None, line: 0,
+///         });
+///     }
+/// }
+/// let set = SelfcalSet::from_readings(readings, None)?;
+/// let solution = selfcal::solve(&set, &SelfcalOptions::new())?;
+/// assert_eq!(solution.lost_harmonics, [3, 6]);
+/// for (x, value) in solution.encoder_error.iter().enumerate() {
+///     let harmonic_2 = 0.4 * (x as f64 * 30f64.to_radians() * 2.0).cos();
+///     assert!((value - harmonic_2).abs() < 1e-9);
+/// }
+/// assert!((solution.head_error[0].value - 0.5).abs() < 1e-9);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+///
+/// [`SelfcalSolveError::Invalid`] for a set that breaks the file's rules (a set built
+/// field by field), [`SelfcalSolveError::Solve`] when the engine refuses the design
+/// (memory).
+pub fn solve(
+    set: &SelfcalSet,
+    options: &SelfcalOptions,
+) -> Result<SelfcalSolution, SelfcalSolveError> {
+    set.check()?;
+    let solution = solve::solve_closure(set, options)?;
+    head_angle::add_head_angle_u(set, solution, options)
 }

@@ -292,7 +292,7 @@ impl SimulationConfig {
     pub fn comment(&self) -> String {
         let mut comment = format!(
             "polycal {} simulate: {} faces, ac faces {:?}, {} cycles, noise {} arcsec, seed {}",
-            crate::output::SOFTWARE_VERSION,
+            crate::SOFTWARE_VERSION,
             self.faces,
             self.ac_faces,
             self.cycles,

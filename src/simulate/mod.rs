@@ -6,7 +6,7 @@
 //! the model, the run and the random draws). The same encoder can be put into both: the
 //! self-calibration truth's `encoder_harmonics` are a continuous function of the angle, and
 //! as a polygon run's [`SimulationConfig::encoder_harmonics`] they give that encoder's
-//! errors at the polygon's N positions. [`verification`] puts one truth into three runs
+//! errors at the polygon's N positions. [`crate::verification`] puts one truth into three runs
 //! (two autocollimators, the shift-angle method, self-calibration) and compares their
 //! results as the paper's section 3.1 does.
 //!
@@ -80,7 +80,6 @@ mod habits;
 mod models;
 mod selfcal;
 mod truth;
-pub mod verification;
 
 use std::path::PathBuf;
 

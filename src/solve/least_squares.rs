@@ -21,12 +21,12 @@
 
 use super::circulant::{self, Plan};
 use super::coset;
-use super::dense::{dense_bytes_needed, dense_least_squares_observed};
+use super::dense::{check_regressors, dense_bytes_needed, dense_least_squares_observed};
 use super::observability::describe;
-use super::sub_pitch::ShiftGeometry;
+use super::shift_geometry::ShiftGeometry;
 use super::{Solution, SolveError, SolveOptions, memory};
 use crate::measurement::{MeasurementSet, Sigma};
-use crate::uncertainty::monte_carlo::Progress;
+use crate::progress::Progress;
 
 /// Fits the base model (no effect terms) by least squares.
 ///
@@ -242,32 +242,6 @@ fn circulant_fits(
 ) -> Result<(), SolveError> {
     let needed_bytes = plan.bytes_needed(set.faces, set.readings.len());
     fits(set, streams, effects, "circulant", needed_bytes, options)
-}
-
-/// Every regressor has one finite value per reading.
-pub(crate) fn check_regressors(
-    set: &MeasurementSet,
-    regressors: &[Vec<f64>],
-) -> Result<(), SolveError> {
-    for (index, regressor) in regressors.iter().enumerate() {
-        if regressor.len() != set.readings.len() {
-            return Err(SolveError::BadRegressor {
-                index,
-                reason: format!(
-                    "{} values for {} readings",
-                    regressor.len(),
-                    set.readings.len()
-                ),
-            });
-        }
-        if regressor.iter().any(|v| !v.is_finite()) {
-            return Err(SolveError::BadRegressor {
-                index,
-                reason: "a value is not finite".into(),
-            });
-        }
-    }
-    Ok(())
 }
 
 /// Least squares of a design whose face offsets lose harmonics, with those harmonics of φ

@@ -34,6 +34,7 @@ pub mod dense;
 pub mod least_squares;
 pub mod memory;
 pub mod observability;
+pub mod shift_geometry;
 pub mod sub_pitch;
 pub(crate) mod woodbury;
 
@@ -46,7 +47,7 @@ pub use least_squares::{
 pub use observability::{Unobservable, lost_harmonics};
 
 use crate::measurement::{MeasurementSet, Sigma};
-use crate::uncertainty::monte_carlo::Progress;
+use crate::progress::Progress;
 use nalgebra::{DMatrix, DVector, Dyn};
 
 /// Which solver to use.

@@ -4,8 +4,8 @@
 //! of its uncertainty).
 
 use polycal::simulate::Harmonic;
-use polycal::simulate::verification::{VerificationConfig, verify};
 use polycal::uncertainty::calibration::InstrumentBudget;
+use polycal::verification::{VerificationConfig, verify};
 
 fn rms(values: impl Iterator<Item = f64>) -> f64 {
     let (sum, count) = values.fold((0.0, 0usize), |(s, c), v| (s + v * v, c + 1));

@@ -41,8 +41,8 @@ mod xml;
 
 use super::meta::{InstrumentEntry, Metadata};
 use super::{CalibrationReport, Evaluation};
+use crate::SOFTWARE_VERSION;
 use crate::input::Location;
-use crate::output::SOFTWARE_VERSION;
 use xml::Xml;
 
 /// The DCC schema version written (`schemaVersion`).
@@ -174,30 +174,7 @@ fn label_of(key: &str) -> &'static str {
         .map_or("", |(_, label)| label)
 }
 
-/// Whether `text` is an `xs:date` without a time zone: `YYYY-MM-DD` of a real day.
-pub fn is_date(text: &str) -> bool {
-    let b = text.as_bytes();
-    if b.len() != 10 || b[4] != b'-' || b[7] != b'-' {
-        return false;
-    }
-    let digits = |r: std::ops::Range<usize>| -> Option<u32> {
-        text.get(r.clone())
-            .filter(|s| s.bytes().all(|c| c.is_ascii_digit()))
-            .and_then(|s| s.parse().ok())
-    };
-    let (Some(year), Some(month), Some(day)) = (digits(0..4), digits(5..7), digits(8..10)) else {
-        return false;
-    };
-    let leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
-    let days = match month {
-        1 | 3 | 5 | 7 | 8 | 10 | 12 => 31,
-        4 | 6 | 9 | 11 => 30,
-        2 if leap => 29,
-        2 => 28,
-        _ => return false,
-    };
-    year > 0 && (1..=days).contains(&day)
-}
+pub use crate::clock::is_date;
 
 /// The performance dates: the date of measurement, and the run's end date when the date
 /// is the run's start.

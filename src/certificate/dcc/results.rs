@@ -186,12 +186,12 @@ pub(super) fn measurement_results(x: &mut Xml, report: &CalibrationReport) -> Re
         &match &report.command_line {
             Some(line) => format!(
                 "Written by polycal {} at {} UTC: {line}",
-                crate::output::SOFTWARE_VERSION,
+                crate::SOFTWARE_VERSION,
                 report.generated_utc
             ),
             None => format!(
                 "Written by polycal {} at {} UTC.",
-                crate::output::SOFTWARE_VERSION,
+                crate::SOFTWARE_VERSION,
                 report.generated_utc
             ),
         },

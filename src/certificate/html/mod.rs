@@ -12,9 +12,9 @@ mod kc;
 mod tables;
 
 use super::{CalibrationReport, DesignSummary, Evaluation};
+use crate::SOFTWARE_VERSION;
 use crate::figure::svg::esc;
 use crate::measurement::cross_talk::StatedCrossTalk;
-use crate::output::SOFTWARE_VERSION;
 use crate::output::SolveReport;
 use crate::output::selfcal::SelfcalReport;
 use diagnosis::diagnosis_body;

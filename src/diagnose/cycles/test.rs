@@ -16,61 +16,7 @@
 
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
-use super::table::{Entry, Keys, Table};
-
-/// The residual sum of squares and degrees of freedom of the additive fit
-/// value = a[column] + b[row] of `entries`, by alternating means until the RSS stops
-/// falling (a complete table has its closed form in [`Table`]).
-pub(super) fn additive_rss(entries: &[Entry]) -> (f64, usize) {
-    if entries.is_empty() {
-        return (0.0, 0);
-    }
-    let row_keys = Keys::of(entries.iter().map(|e| e.0 as usize));
-    let column_keys = Keys::of(entries.iter().map(|e| e.1));
-    // each entry's row and column by place
-    let cells: Vec<(usize, usize, f64)> = entries
-        .iter()
-        .map(|e| (row_keys.place(e.0 as usize), column_keys.place(e.1), e.2))
-        .collect();
-    let mut in_row = vec![0usize; row_keys.len()];
-    let mut in_column = vec![0usize; column_keys.len()];
-    for e in &cells {
-        in_row[e.0] += 1;
-        in_column[e.1] += 1;
-    }
-    let mut a = vec![0.0; column_keys.len()];
-    let mut b = vec![0.0; row_keys.len()];
-    let mut previous = f64::INFINITY;
-    let mut rss = 0.0;
-    for _ in 0..500 {
-        a.iter_mut().for_each(|x| *x = 0.0);
-        for e in &cells {
-            a[e.1] += e.2 - b[e.0];
-        }
-        for (x, &n) in a.iter_mut().zip(&in_column) {
-            *x /= n.max(1) as f64;
-        }
-        b.iter_mut().for_each(|x| *x = 0.0);
-        for e in &cells {
-            b[e.0] += e.2 - a[e.1];
-        }
-        for (x, &n) in b.iter_mut().zip(&in_row) {
-            *x /= n.max(1) as f64;
-        }
-        rss = cells
-            .iter()
-            .map(|e| (e.2 - a[e.1] - b[e.0]).powi(2))
-            .sum::<f64>();
-        // (the first pass has nothing to compare with: ∞ − rss ≤ ∞ would stop it there)
-        if previous.is_finite() && previous - rss <= 1e-12 * previous.max(f64::MIN_POSITIVE) {
-            break;
-        }
-        previous = rss;
-    }
-    let rows = in_row.iter().filter(|&&n| n > 0).count();
-    let columns = in_column.iter().filter(|&&n| n > 0).count();
-    (rss, entries.len().saturating_sub(rows + columns - 1))
-}
+use super::table::Table;
 
 /// The F statistic (numerator sum of squares over its degrees of freedom against the
 /// denominator's) and its upper-tail p: ∞ for a numerator against a zero denominator, 0
@@ -155,6 +101,7 @@ pub(super) fn chow_of(all: (f64, usize), rest: (f64, usize), min_rest_dof: usize
 
 #[cfg(test)]
 mod tests {
+    use super::super::table::{Entry, additive_rss};
     use super::*;
 
     #[test]

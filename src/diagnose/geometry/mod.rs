@@ -36,6 +36,7 @@
 mod added;
 mod core;
 mod off_grid;
+mod rows;
 mod structured;
 
 use std::sync::Arc;

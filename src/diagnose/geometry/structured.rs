@@ -19,7 +19,7 @@
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
 
-use super::core::Rows;
+use super::rows::Rows;
 use crate::measurement::MeasurementSet;
 use crate::solve::Solution;
 use crate::solve::cofactor::Structured;

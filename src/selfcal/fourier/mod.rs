@@ -30,7 +30,7 @@ use rustfft::num_complex::Complex;
 
 use super::Head;
 use super::SelfcalSet;
-use super::solve::{Closure, SelfcalOptions, SelfcalSolveError, no_correction};
+use super::solution::{Closure, SelfcalOptions, SelfcalSolveError, no_correction};
 use crate::solve::cofactor::{Base, Cofactor, Structured};
 use crate::solve::{Engine, ParameterLayout, memory};
 use crate::uncertainty::calibration::CellMap;

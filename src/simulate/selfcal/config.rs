@@ -196,7 +196,7 @@ impl SelfcalSimConfig {
         format!(
             "polycal {} simulate --selfcal: {} positions, {} heads at {} degrees, {} cycles{}, \
              {encoder}, table error {} arcsec, head error ±{} arcsec, noise {} arcsec, seed {}",
-            crate::output::SOFTWARE_VERSION,
+            crate::SOFTWARE_VERSION,
             self.positions,
             self.head_count(),
             angles.join(","),

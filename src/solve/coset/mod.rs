@@ -46,7 +46,7 @@ pub(crate) mod operator;
 
 use self::base::{CosetBase, CosetStream};
 use self::operator::CosetStructured;
-use super::sub_pitch::ShiftGeometry;
+use super::shift_geometry::ShiftGeometry;
 use super::{
     Cofactor, Engine, Method, ParameterLayout, SetupError, Solution, SolveError, woodbury,
 };

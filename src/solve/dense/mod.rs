@@ -18,17 +18,18 @@
 //! inverse's blocks and the cofactor's other steps weighted by their cost, so that the
 //! total is known from the start).
 
-use super::observability::{self, Unobservable};
+use super::observability::Unobservable;
 use super::{
     Cofactor, Engine, Method, ParameterLayout, SetupError, Solution, SolveError, choose_sigma,
 };
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::polygon::face_deviation_from_pitch;
-use crate::uncertainty::monte_carlo::Progress;
+use crate::progress::Progress;
 use blocked::{cholesky_by_blocks, inverse_by_blocks};
 use nalgebra::{Cholesky, DMatrix, DVector};
 
 mod blocked;
+mod singular;
 
 /// Bytes the dense path needs for a design of N faces, K streams and E effect terms: the
 /// reduced normal matrix, its inverse and the cofactor of g and of θ (about seven
@@ -154,7 +155,7 @@ fn dense_fit(
     stated_sigma: Option<Sigma>,
     progress: Option<&dyn Progress>,
 ) -> Result<Solution, SolveError> {
-    super::least_squares::check_regressors(set, regressors)?;
+    check_regressors(set, regressors)?;
     let streams = set.streams();
     let (n, k, e) = (set.faces, streams.len(), regressors.len());
     let cells = set.readings.len() * (3 + e);
@@ -163,7 +164,7 @@ fn dense_fit(
     work.reduced();
     let m = reduced.rest_len();
     let cholesky = factorise(&reduced.schur, |j0, j1| work.factorised(j0, j1))
-        .ok_or_else(|| observability::explain_singular(&reduced, set))?;
+        .ok_or_else(|| singular::explain_singular(&reduced, set))?;
     let rest = cholesky.solve(&reduced.rhs);
     let alpha = reduced.alpha_from_rest(rest.as_slice(), true);
 
@@ -530,6 +531,32 @@ impl<'a> Work<'a> {
         self.done = self.total;
         self.report();
     }
+}
+
+/// Every regressor has one finite value per reading.
+pub(crate) fn check_regressors(
+    set: &MeasurementSet,
+    regressors: &[Vec<f64>],
+) -> Result<(), SolveError> {
+    for (index, regressor) in regressors.iter().enumerate() {
+        if regressor.len() != set.readings.len() {
+            return Err(SolveError::BadRegressor {
+                index,
+                reason: format!(
+                    "{} values for {} readings",
+                    regressor.len(),
+                    set.readings.len()
+                ),
+            });
+        }
+        if regressor.iter().any(|v| !v.is_finite()) {
+            return Err(SolveError::BadRegressor {
+                index,
+                reason: "a value is not finite".into(),
+            });
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

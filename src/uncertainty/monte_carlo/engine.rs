@@ -51,6 +51,7 @@ use super::statistics::{
 };
 use super::stream::block_rng;
 use super::{McError, McResult, OutputSummary, Trials, numerical_tolerance};
+use crate::progress::Progress;
 
 /// Bytes of trial outputs the pilot may hold: a run of many outputs brackets its interval
 /// ends from fewer trials (at least one block), with wider brackets that later
@@ -187,34 +188,6 @@ pub enum TrialFailure {
     Failed,
     /// The model gave this many outputs instead of [`Trial::outputs`].
     OutputCount(usize),
-}
-
-/// An observer of the progress of a run, told after every block of [`BLOCK_SIZE`] trials
-/// (so that a command can draw a progress bar; the library draws nothing).
-///
-/// Calls come from rayon's threads but never at the same time, and `done` grows from call
-/// to call. Any `Fn(u64, Option<u64>) + Sync` closure is a `Progress`:
-///
-/// ```
-/// use std::sync::atomic::{AtomicU64, Ordering};
-/// use polycal::uncertainty::monte_carlo::{EngineOptions, Progress, Trials};
-///
-/// let last = AtomicU64::new(0);
-/// let report = |done: u64, _total: Option<u64>| last.store(done, Ordering::Relaxed);
-/// let options = EngineOptions::new(Trials::Fixed(20_000)).with_progress(&report);
-/// # let _ = options;
-/// ```
-pub trait Progress: Sync {
-    /// `done` trials have run so far; `total` is the number the run will make if known:
-    /// `M` for a fixed number of trials (raised if trials are re-run to widen a bracket),
-    /// `None` for the adaptive procedure, which stops when the results are stable.
-    fn update(&self, done: u64, total: Option<u64>);
-}
-
-impl<F: Fn(u64, Option<u64>) + Sync> Progress for F {
-    fn update(&self, done: u64, total: Option<u64>) {
-        self(done, total);
-    }
 }
 
 /// How the engine runs: number of trials, coverage probability, seed, whether to keep

@@ -25,9 +25,8 @@ mod validation;
 
 use serde::Serialize;
 
-pub use engine::{
-    BLOCK_SIZE, EngineOptions, Progress, Trial, TrialFailure, adaptive_sequence_length, run,
-};
+pub use crate::progress::Progress;
+pub use engine::{BLOCK_SIZE, EngineOptions, Trial, TrialFailure, adaptive_sequence_length, run};
 pub(crate) use model::monte_carlo_distribution;
 pub use model::{McInput, MonteCarlo, linear_budget_inputs};
 pub use statistics::{numerical_tolerance, symmetric_interval_positions};

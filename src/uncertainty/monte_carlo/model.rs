@@ -3,8 +3,9 @@
 
 use rand::Rng;
 
-use super::engine::{self, EngineOptions, Progress, Trial, TrialFailure};
+use super::engine::{self, EngineOptions, Trial, TrialFailure};
 use super::{McError, McResult, Trials, adaptive_sequence_length};
+use crate::progress::Progress;
 use crate::uncertainty::budget::{Budget, EvaluationType, Source};
 use crate::uncertainty::distribution::{Distribution, Sampler};
 

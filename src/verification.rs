@@ -172,7 +172,7 @@ pub enum VerificationError {
 /// documentation).
 ///
 /// ```
-/// use polycal::simulate::verification::{verify, VerificationConfig};
+/// use polycal::verification::{verify, VerificationConfig};
 /// let outcome = verify(&VerificationConfig::default())?;
 /// assert_eq!(outcome.lost_harmonics, [84]);
 /// assert_eq!(outcome.encoder_error.comparison.rows.len(), 24); // the shared angles
