@@ -154,13 +154,7 @@ fn evaluate_aligned(
     let scaled = Scaled::of(labs, &aligned, covariances);
     let scale = scaled.scale;
     if options.quantity == Quantity::EncoderError {
-        notes.push(
-            "encoder errors are defined up to a constant: each result's mean over the compared \
-             positions is taken out before it is compared (so a laboratory with another zero \
-             convention is not left out), and each is taken as closed with \
-             V = N/(N − 1)·P·diag(u²)·P"
-                .to_string(),
-        );
+        notes.push(ENCODER_NOTE.to_string());
     }
     let stated: Vec<ClosedCovariance> = (0..results)
         .map(|r| scaled.covariance(r, None))
@@ -169,19 +163,8 @@ fn evaluate_aligned(
     let all_fit = scaled.fit(&everyone, &stated).ok_or_else(not_fitted)?;
     let vector_all = vector_test(&all_fit, scale);
 
-    // The one decision at 5 %, then (weighted mean) the largest subset that passes.
-    let mut search = None;
-    let mut inside = everyone.clone();
-    let mut decided_consistent = vector_all.consistent;
-    if !random_effects && options.largest_consistent_subset && !vector_all.consistent {
-        let names: Vec<String> = labs.iter().map(|l| l.name.clone()).collect();
-        let found = search::largest_consistent(&names, &kept, &|set| scaled.fit(set, &stated));
-        if found.passed {
-            inside = found.inside;
-            decided_consistent = true;
-        }
-        search = Some(found.search);
-    }
+    let (search, inside, decided_consistent) =
+        decide_reference(&scaled, &stated, &kept, &vector_all, options);
     let in_reference: Vec<bool> = (0..labs.len()).map(|r| inside.contains(&r)).collect();
     let mut excluded = Vec::new();
     if let Some(search) = &search {
@@ -218,32 +201,21 @@ fn evaluate_aligned(
     let (stability_u, mut pilot_report) = pilot_stability(&scaled, pilot, &repeats, &stated)?;
 
     // Degrees of equivalence against the closed reference: Σ_k d_ik = 0.
-    let doe = |r: usize, inside_reference: bool| {
-        scaled.degree_of_equivalence(r, inside_reference, &widened[r], &final_fit, &stability_u)
+    let reference = Reference {
+        fit: &final_fit,
+        widened: &widened,
+        stability_u: &stability_u,
     };
     let degrees_of_equivalence = (0..labs.len())
         .map(|r| {
-            let (d, expanded_u) = doe(r, in_reference[r]);
-            DegreeOfEquivalence {
-                lab: labs[r].name.clone(),
-                d,
-                expanded_u,
-                in_reference: in_reference[r],
-            }
+            let lab = labs[r].name.clone();
+            scaled.degree_of_equivalence(r, in_reference[r], lab, &reference)
         })
         .collect();
     if let Some(report) = pilot_report.as_mut() {
         report.degrees_of_equivalence = repeats
             .iter()
-            .map(|&r| {
-                let (d, expanded_u) = doe(r, false);
-                DegreeOfEquivalence {
-                    lab: all_name(labs, pilot, r),
-                    d,
-                    expanded_u,
-                    in_reference: false,
-                }
-            })
+            .map(|&r| scaled.degree_of_equivalence(r, false, all_name(labs, pilot, r), &reference))
             .collect();
     }
     let pairs = pair_differences(&scaled, &stated);
@@ -412,21 +384,21 @@ impl<'a> Scaled<'a> {
         closed::fit(&x, &c)
     }
 
-    /// Result `r`'s degree of equivalence against the closed reference of `fit`: d and
-    /// U(d) (k = 2) per quantity, in arcsec. Its variance `widened` is less the
+    /// Result `r`'s (laboratory `lab`'s) degree of equivalence against the closed
+    /// `reference`: d and U(d) (k = 2) per quantity, in arcsec. Its variance is less the
     /// reference's when it is inside the reference, more when outside, plus the pilot's
-    /// stability `stability_u` (arcsec).
+    /// stability.
     fn degree_of_equivalence(
         &self,
         r: usize,
         inside_reference: bool,
-        widened: &ClosedCovariance,
-        fit: &ClosedFit,
-        stability_u: &[f64],
-    ) -> (Vec<f64>, Vec<f64>) {
+        lab: String,
+        reference: &Reference,
+    ) -> DegreeOfEquivalence {
+        let (fit, stability_u) = (reference.fit, reference.stability_u);
         let scale = self.scale;
         let positions = self.positions;
-        let diagonal = widened.diagonal();
+        let diagonal = reference.widened[r].diagonal();
         let sign = if inside_reference { -1.0 } else { 1.0 };
         let mut d = Vec::with_capacity(positions);
         let mut expanded_u = Vec::with_capacity(positions);
@@ -437,7 +409,52 @@ impl<'a> Scaled<'a> {
             d.push((self.values[r][k] - fit.reference[k]) * scale);
             expanded_u.push(2.0 * variance.sqrt());
         }
-        (d, expanded_u)
+        DegreeOfEquivalence {
+            lab,
+            d,
+            expanded_u,
+            in_reference: inside_reference,
+        }
+    }
+}
+
+/// The closed reference the degrees of equivalence are taken against: its fit, every
+/// result's covariance (widened by τ for DerSimonian–Laird), and the pilot's stability
+/// u per quantity (arcsec).
+struct Reference<'a> {
+    fit: &'a ClosedFit,
+    widened: &'a [ClosedCovariance],
+    stability_u: &'a [f64],
+}
+
+/// The note on encoder errors, compared less their mean.
+const ENCODER_NOTE: &str = "encoder errors are defined up to a constant: each result's mean over the compared \
+     positions is taken out before it is compared (so a laboratory with another zero \
+     convention is not left out), and each is taken as closed with \
+     V = N/(N − 1)·P·diag(u²)·P";
+
+/// The one decision at 5 %, then (weighted mean, when asked) the largest subset that
+/// passes: the search made, the laboratories inside the reference, and whether the
+/// comparison is decided consistent.
+fn decide_reference(
+    scaled: &Scaled,
+    stated: &[ClosedCovariance],
+    kept: &[usize],
+    vector_all: &VectorTest,
+    options: &KcOptions,
+) -> (Option<search::SubsetSearch>, Vec<usize>, bool) {
+    let labs = scaled.labs;
+    let random_effects = options.method == ReferenceMethod::DersimonianLaird;
+    let everyone: Vec<usize> = (0..labs.len()).collect();
+    if random_effects || !options.largest_consistent_subset || vector_all.consistent {
+        return (None, everyone, vector_all.consistent);
+    }
+    let names: Vec<String> = labs.iter().map(|l| l.name.clone()).collect();
+    let found = search::largest_consistent(&names, kept, &|set| scaled.fit(set, stated));
+    if found.passed {
+        (Some(found.search), found.inside, true)
+    } else {
+        (Some(found.search), everyone, vector_all.consistent)
     }
 }
 
