@@ -109,23 +109,7 @@ fn one_ac(
         .iter()
         .filter(|e| effect_ac(e).is_none_or(|a| a == ac))
         .collect();
-    let entries = if one_model {
-        vec![(
-            LegendKey::Marker(Marker::FilledCircle, false),
-            "residual (base model = final model)".to_string(),
-        )]
-    } else {
-        vec![
-            (
-                LegendKey::Marker(Marker::FilledCircle, false),
-                "before (base model)".to_string(),
-            ),
-            (
-                LegendKey::Marker(Marker::OpenSquare, false),
-                "after (final model)".to_string(),
-            ),
-        ]
-    };
+    let entries = model_entries(one_model);
     let readings: Vec<Option<Reading>> =
         indices.iter().map(|&i| reading_at(residuals, i)).collect();
     let marks = EffectMarks::of(&mine, &xs, &readings, entries);
@@ -143,31 +127,8 @@ fn one_ac(
         .copied()
         .chain(marks.lines.iter().flat_map(|l| l.2.iter().map(|p| p.1)));
     let y = Axis::covering(y_values, &[0.0], 5, "residual / ″");
-    let upper = Panel {
-        id: "before",
-        left_px: LEFT_PX,
-        top_px: top + legend_px + 8.0,
-        width_px: WIDTH_PX - LEFT_PX - RIGHT_PX,
-        height_px: 150.0,
-        x: Axis::covering(xs.iter().copied(), &[], 8, x_label),
-        y: Axis {
-            label: if one_model {
-                "residual / ″".into()
-            } else {
-                "before: residual / ″".into()
-            },
-            ..y.clone()
-        },
-    };
-    let lower = Panel {
-        id: "after",
-        top_px: upper.bottom_px() + 26.0,
-        y: Axis {
-            label: "after: residual / ″".into(),
-            ..y
-        },
-        ..upper.clone()
-    };
+    let x = Axis::covering(xs.iter().copied(), &[], 8, x_label);
+    let (upper, lower) = residual_panels(top + legend_px + 8.0, x, y, one_model);
     // the panels drawn: the lower only when the final model differs
     let panels: Vec<&Panel> = if one_model {
         vec![&upper]
@@ -211,6 +172,58 @@ fn one_ac(
     let bottom = panels.last().map_or(upper.bottom_px(), |p| p.bottom_px());
     let svg = document(bottom + 42.0, &title, &subtitles, &body);
     Figure::new(format!("diagnose-residuals-ac{ac}"), title, svg)
+}
+
+/// The legend's entries of the models' residuals: one model, or before and after.
+fn model_entries(one_model: bool) -> Vec<(LegendKey, String)> {
+    if one_model {
+        vec![(
+            LegendKey::Marker(Marker::FilledCircle, false),
+            "residual (base model = final model)".to_string(),
+        )]
+    } else {
+        vec![
+            (
+                LegendKey::Marker(Marker::FilledCircle, false),
+                "before (base model)".to_string(),
+            ),
+            (
+                LegendKey::Marker(Marker::OpenSquare, false),
+                "after (final model)".to_string(),
+            ),
+        ]
+    }
+}
+
+/// The residual panels on the axes `x` and `y`: the upper (`before`: the base model's,
+/// or the one model's) at `top_px`, the lower (`after`: the final model's) below it.
+fn residual_panels(top_px: f64, x: Axis, y: Axis, one_model: bool) -> (Panel, Panel) {
+    let upper = Panel {
+        id: "before",
+        left_px: LEFT_PX,
+        top_px,
+        width_px: WIDTH_PX - LEFT_PX - RIGHT_PX,
+        height_px: 150.0,
+        x,
+        y: Axis {
+            label: if one_model {
+                "residual / ″".into()
+            } else {
+                "before: residual / ″".into()
+            },
+            ..y.clone()
+        },
+    };
+    let lower = Panel {
+        id: "after",
+        top_px: upper.bottom_px() + 26.0,
+        y: Axis {
+            label: "after: residual / ″".into(),
+            ..y
+        },
+        ..upper.clone()
+    };
+    (upper, lower)
 }
 
 /// The x of the readings `indices`: their time in s (in h beyond [`HOURS_FROM_S`]), or
