@@ -234,9 +234,9 @@ struct Verdicts {
 
 impl PolygonRun<'_> {
     /// `polycal diagnose` of a polygon measurement file (`file`, read): its table or
-    /// JSON written to `stdout`, its
-    /// CSV rows added to `csv_rows`, its figures written. `None`: the file failed (the
-    /// `error:` line written); an error: the whole command fails.
+    /// JSON written to `stdout`, its CSV rows added to `csv_rows`, its figures written.
+    /// `None`: the file failed (the `error:` line written); an error: the whole command
+    /// fails.
     fn file(
         &self,
         file: FileRead<'_>,
