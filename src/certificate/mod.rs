@@ -250,6 +250,318 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
         .collect()
 }
 
+/// The input files read so far, fingerprinted, with every name as given and as the
+/// documents show it.
+struct ReadFiles {
+    /// (the name as given, the name the documents show).
+    names: Vec<(String, String)>,
+    files: Vec<InputFile>,
+}
+
+impl ReadFiles {
+    /// Reads the instrument budget at `path`, parsed from the bytes fingerprinted.
+    fn budget(&mut self, path: &Path) -> Result<InstrumentBudget, ReportError> {
+        let (bytes, file, given) = read_input(path, "instrument budget")?;
+        // parsed from the bytes fingerprinted; not UTF-8: the reader's located error
+        let mut budget = match std::str::from_utf8(&bytes) {
+            Ok(text) => InstrumentBudget::from_toml_str(text, &given)?,
+            Err(_) => InstrumentBudget::read_path(path)?,
+        };
+        // the documents name the budget by its file name
+        budget.source = file.path.clone();
+        self.names.push((given, file.path.clone()));
+        self.files.push(file);
+        Ok(budget)
+    }
+
+    /// Reads the truth file at `path`: its bytes and its name as given (parsed later, by
+    /// the kind of the measurement file).
+    fn truth(&mut self, path: &Path) -> Result<(Vec<u8>, String), ReportError> {
+        let (bytes, file, source) = read_input(path, "truth")?;
+        self.names.push((source.clone(), file.path.clone()));
+        self.files.push(file);
+        Ok((bytes, source))
+    }
+
+    /// Reads the metadata file at `path`: its text (UTF-8, else a located error) and its
+    /// name as given.
+    fn meta(&mut self, path: &Path) -> Result<(String, String), ReportError> {
+        let (meta_bytes, file, given) = read_input(path, "metadata")?;
+        let text = crate::input::text::utf8(&meta_bytes)
+            .map_err(|((line, column), message)| ReportError::Meta {
+                location: Location::new(given.clone(), line, column),
+                message,
+            })?
+            .to_string();
+        self.names.push((given.clone(), file.path.clone()));
+        let source = given;
+        self.files.push(file);
+        Ok((text, source))
+    }
+
+    /// Fingerprints the manifest of the run directory `dir`.
+    fn run_manifest(&mut self, dir: &Path) -> Result<(), ReportError> {
+        let (_, file, given) = read_input(&dir.join("manifest.json"), "run manifest")?;
+        self.names.push((
+            dir.join("manifest.json").display().to_string(),
+            file.path.clone(),
+        ));
+        self.names.push((given, file.path.clone()));
+        self.files.push(file);
+        Ok(())
+    }
+}
+
+/// What a report evaluates a measurement file into: the evaluation, the diagnosis when
+/// asked, and the result rows with their expanded uncertainty (for a comparison).
+type Evaluated = (
+    Evaluation,
+    Option<DiagnosisReport>,
+    Option<Vec<crate::results::ResultRow>>,
+);
+
+/// The measurement file of a report, read, with what its evaluation needs.
+struct Measurement<'a> {
+    inputs: &'a ReportInputs,
+    bytes: &'a [u8],
+    /// Its name as given, for messages.
+    name: &'a str,
+    /// Its name as the documents show it.
+    shown: &'a str,
+    budget: Option<&'a InstrumentBudget>,
+    /// The truth file's bytes and name as given.
+    truth_bytes: Option<&'a (Vec<u8>, String)>,
+}
+
+impl Measurement<'_> {
+    /// A self-calibration file evaluated as `selfcal` (and `diagnose`) does.
+    fn evaluate_selfcal(&self) -> Result<Evaluated, ReportError> {
+        let (inputs, name, shown) = (self.inputs, self.name, self.shown);
+        if !inputs.stated_cross_talk.is_empty() {
+            return Err(ReportError::NotSupported {
+                file: name.to_string(),
+                what: "a stated cross-talk",
+                kind: "a self-calibration file",
+            });
+        }
+        let set = SelfcalSet::read_from(self.bytes, name, inputs.faces)?;
+        let solution =
+            crate::selfcal::solve(&set, &SelfcalOptions::new().with_sigma_opt(inputs.sigma))
+                .map_err(|source| ReportError::SelfcalSolve {
+                    file: name.to_string(),
+                    source,
+                })?;
+        let uncertainty = self
+            .budget
+            .map(|b| crate::selfcal::evaluate_budget(&solution, b))
+            .transpose()
+            .map_err(|source| ReportError::Uncertainty {
+                file: name.to_string(),
+                source,
+            })?;
+        let mut report = SelfcalReport::new(&solution, shown);
+        if let Some(u) = &uncertainty {
+            report = report.with_uncertainty(u);
+        }
+        let rows = crate::output::selfcal::result_rows(&solution, uncertainty.as_ref());
+        let diagnosis = if inputs.diagnose {
+            let selfcal_truth = self
+                .truth_bytes
+                .map(|(bytes, source)| SelfcalTruth::from_json_bytes(bytes, source))
+                .transpose()?;
+            let found = diagnose_selfcal(
+                &set,
+                &DiagnoseOptions::new().with_sigma_opt(inputs.sigma),
+                &SelfcalOptions::new().with_sigma_opt(inputs.sigma),
+            )
+            .map_err(|source| ReportError::SelfcalSolve {
+                file: name.to_string(),
+                source,
+            })?;
+            let mut d = SelfcalDiagnoseReport::new(&found, selfcal_truth.as_ref(), shown);
+            // the budget acts on the final model, as in `polycal diagnose --budget`
+            if let Some(b) = self.budget {
+                let after = crate::selfcal::evaluate_budget(&found.after, b).map_err(|source| {
+                    ReportError::Uncertainty {
+                        file: name.to_string(),
+                        source,
+                    }
+                })?;
+                d = d.with_uncertainty(&after);
+            }
+            Some(DiagnosisReport::Selfcal(Box::new(d)))
+        } else {
+            None
+        };
+        Ok((
+            Evaluation::Selfcal {
+                report,
+                uncertainty,
+            },
+            diagnosis,
+            Some(rows),
+        ))
+    }
+
+    /// A polygon measurement file evaluated as `solve --budget` (and `diagnose`) does.
+    fn evaluate_polygon(&self) -> Result<Evaluated, ReportError> {
+        let (inputs, name) = (self.inputs, self.name);
+        let truth = self
+            .truth_bytes
+            .map(|(bytes, source)| Truth::from_json_bytes(bytes, source))
+            .transpose()?;
+        let set = MeasurementSet::read_from(self.bytes, name, inputs.faces)?;
+        let stated = &inputs.stated_cross_talk;
+        let set = if stated.is_empty() {
+            set
+        } else {
+            crate::measurement::cross_talk::correct_cross_talk(&set, stated)?
+        };
+        let corrections = KnownCorrection::of_stated_cross_talk(&set, stated);
+        let solve_error = |source| ReportError::Solve {
+            file: name.to_string(),
+            source,
+        };
+        if set.has_shifts() && self.budget.is_some() {
+            return Err(ReportError::NotSupported {
+                file: name.to_string(),
+                what: "an instrument budget",
+                kind: "shifted mountings",
+            });
+        }
+        // sub-pitch mountings: α at every table angle of every coset, as `solve` reports
+        // them (docs/FORMAT.md §9.1); a budget was refused above
+        let sub_pitch = set.has_shifts() && ShiftGeometry::of(&set).is_sub_pitch();
+        let (solution, shifted) = if sub_pitch {
+            let solved = solve_shifted(&set, &SolveOptions::new().with_sigma_opt(inputs.sigma))
+                .map_err(solve_error)?;
+            (solved.solution.clone(), Some(solved))
+        } else {
+            let solution =
+                crate::solve::solve(&set, &SolveOptions::new().with_sigma_opt(inputs.sigma))
+                    .map_err(solve_error)?;
+            (solution, None)
+        };
+        let uncertainty = self
+            .budget
+            .map(|b| evaluate_with_corrections(&set, &solution, b, &corrections))
+            .transpose()
+            .map_err(|source| ReportError::Uncertainty {
+                file: name.to_string(),
+                source,
+            })?;
+        let mut solve = match &shifted {
+            Some(solved) => SolveReport::sub_pitch(solved, None),
+            None => SolveReport::new(&solution, None),
+        };
+        if let Some(u) = &uncertainty {
+            solve = solve.with_uncertainty(u);
+        }
+        let diagnosis = if inputs.diagnose {
+            Some(self.diagnose_polygon(&set, truth.as_ref(), &corrections)?)
+        } else {
+            None
+        };
+        let rows = uncertainty
+            .as_ref()
+            .map(|u| result_rows_with(&solution, Some(u)));
+        let design = design_summary(&set);
+        Ok((
+            Evaluation::Polygon {
+                solve,
+                design,
+                uncertainty,
+            },
+            diagnosis,
+            rows,
+        ))
+    }
+
+    /// The diagnosis of the polygon measurement `set` (read, cross-talk corrected), as
+    /// `polycal diagnose --budget` makes it.
+    fn diagnose_polygon(
+        &self,
+        set: &MeasurementSet,
+        truth: Option<&Truth>,
+        corrections: &[KnownCorrection],
+    ) -> Result<DiagnosisReport, ReportError> {
+        let (inputs, name) = (self.inputs, self.name);
+        let options = DiagnoseOptions::new()
+            .with_sigma_opt(inputs.sigma)
+            .with_stated_cross_talk(inputs.stated_cross_talk.iter().map(|s| s.ac).collect());
+        let found = diagnose(set, &options).map_err(|source| ReportError::Solve {
+            file: name.to_string(),
+            source,
+        })?;
+        let mut report = DiagnoseReport::new(&found, truth, None).with_residuals(&found, set);
+        // the budget acts on the final model, as in `polycal diagnose --budget`
+        if let Some(b) = self.budget {
+            let after =
+                evaluate_with_corrections(set, &found.after, b, corrections).map_err(|source| {
+                    ReportError::Uncertainty {
+                        file: name.to_string(),
+                        source,
+                    }
+                })?;
+            report.after = report.after.with_uncertainty(&after);
+        }
+        Ok(DiagnosisReport::Polygon(Box::new(report)))
+    }
+}
+
+/// The comparison of the result `rows` (named `shown`) with the reference result at
+/// `path`, and the reference's name as the documents show it; the reference is
+/// fingerprinted into `files`.
+fn compare_with_reference(
+    path: &Path,
+    rows: Option<Vec<crate::results::ResultRow>>,
+    shown: &str,
+    files: &mut Vec<InputFile>,
+) -> Result<(Comparison, String), ReportError> {
+    let (bytes, file, reference_given) = read_input(path, "reference result")?;
+    let reference_name = file.path.clone();
+    files.push(file);
+    let reference = read_results_from(bytes.as_slice(), &reference_given)?;
+    let Some(rows) = rows else {
+        return Err(ReportError::NoExpandedUncertainty {
+            reference: reference_given,
+        });
+    };
+    let options = CompareOptions::new().with_labels(shown.to_string(), reference_name.clone());
+    let comparison =
+        compare_with_file(&rows, &reference, &options).map_err(|source| ReportError::Compare {
+            reference: reference_given.clone(),
+            source,
+        })?;
+    Ok((comparison, reference_name))
+}
+
+/// The figures of a report, in its order: the evaluation's (with a budget, the solve
+/// figures include the budget's), the diagnosis's, the comparison's, the key
+/// comparison's.
+fn report_figures(
+    evaluation: &Evaluation,
+    diagnosis: Option<&DiagnosisReport>,
+    comparison: Option<&(Comparison, String)>,
+    key_comparison: Option<&KeyComparisonSection>,
+    shown: &str,
+) -> Vec<Figure> {
+    let mut figures = match evaluation {
+        Evaluation::Polygon { solve, .. } => figure::solve_figures(solve),
+        Evaluation::Selfcal { report, .. } => figure::selfcal_figures(report),
+    };
+    if let Some(DiagnosisReport::Polygon(d)) = diagnosis {
+        figures.extend(figure::diagnose_figures(d));
+    }
+    if let Some((c, reference)) = comparison {
+        figures.extend(figure::compare_figures_labelled(c, shown, reference));
+    }
+    if let Some(k) = key_comparison {
+        figures.extend(figure::kc_figures(&k.comparison));
+    }
+    figures
+}
+
 impl CalibrationReport {
     /// Reads the inputs and evaluates them as `solve`, `diagnose`, `compare` and
     /// `selfcal` do.
@@ -264,245 +576,50 @@ impl CalibrationReport {
         // the name the documents show: the file name alone
         let shown = measurement_file.path.clone();
         // every name as given and as the documents show it
-        let mut names = vec![(name.clone(), shown.clone())];
+        let mut read = ReadFiles {
+            names: vec![(name.clone(), shown.clone())],
+            files: vec![measurement_file],
+        };
         let text = String::from_utf8_lossy(&bytes).into_owned();
-        let mut files = vec![measurement_file];
         let budget = match &inputs.budget {
-            Some(path) => {
-                let (bytes, file, given) = read_input(path, "instrument budget")?;
-                // parsed from the bytes fingerprinted; not UTF-8: the reader's located error
-                let mut budget = match std::str::from_utf8(&bytes) {
-                    Ok(text) => InstrumentBudget::from_toml_str(text, &given)?,
-                    Err(_) => InstrumentBudget::read_path(path)?,
-                };
-                // the documents name the budget by its file name
-                budget.source = file.path.clone();
-                names.push((given, file.path.clone()));
-                files.push(file);
-                Some(budget)
-            }
+            Some(path) => Some(read.budget(path)?),
             None => None,
         };
         // the truth of a polygon run (docs/FORMAT.md §4) or of a self-calibration, read by
         // the kind of the measurement file
         let truth_bytes = match &inputs.truth {
-            Some(path) => {
-                let (bytes, file, source) = read_input(path, "truth")?;
-                names.push((source.clone(), file.path.clone()));
-                files.push(file);
-                Some((bytes, source))
-            }
+            Some(path) => Some(read.truth(path)?),
             None => None,
         };
         let meta_text = match &inputs.meta {
-            Some(path) => {
-                let (meta_bytes, file, given) = read_input(path, "metadata")?;
-                let text = crate::input::text::utf8(&meta_bytes)
-                    .map_err(|((line, column), message)| ReportError::Meta {
-                        location: Location::new(given.clone(), line, column),
-                        message,
-                    })?
-                    .to_string();
-                names.push((given.clone(), file.path.clone()));
-                let source = given;
-                files.push(file);
-                Some((text, source))
-            }
+            Some(path) => Some(read.meta(path)?),
             None => None,
         };
         if let Some(dir) = &inputs.run_dir {
-            let (_, file, given) = read_input(&dir.join("manifest.json"), "run manifest")?;
-            names.push((
-                dir.join("manifest.json").display().to_string(),
-                file.path.clone(),
-            ));
-            names.push((given, file.path.clone()));
-            files.push(file);
+            read.run_manifest(dir)?;
         }
         let mut metadata = meta::gather(
             meta_text.as_ref().map(|(t, s)| (t.as_str(), s.as_str())),
             (&text, &name),
             inputs.run_dir.as_deref(),
         )?;
-        metadata.name_files(&names);
-        let (evaluation, diagnosis, rows) = if SelfcalSet::is_selfcal_file(&bytes) {
-            if !inputs.stated_cross_talk.is_empty() {
-                return Err(ReportError::NotSupported {
-                    file: name,
-                    what: "a stated cross-talk",
-                    kind: "a self-calibration file",
-                });
-            }
-            let set = SelfcalSet::read_from(bytes.as_slice(), &name, inputs.faces)?;
-            let solution =
-                crate::selfcal::solve(&set, &SelfcalOptions::new().with_sigma_opt(inputs.sigma))
-                    .map_err(|source| ReportError::SelfcalSolve {
-                        file: name.clone(),
-                        source,
-                    })?;
-            let uncertainty = budget
-                .as_ref()
-                .map(|b| crate::selfcal::evaluate_budget(&solution, b))
-                .transpose()
-                .map_err(|source| ReportError::Uncertainty {
-                    file: name.clone(),
-                    source,
-                })?;
-            let mut report = SelfcalReport::new(&solution, &shown);
-            if let Some(u) = &uncertainty {
-                report = report.with_uncertainty(u);
-            }
-            let rows = crate::output::selfcal::result_rows(&solution, uncertainty.as_ref());
-            let diagnosis = if inputs.diagnose {
-                let selfcal_truth = truth_bytes
-                    .as_ref()
-                    .map(|(bytes, source)| SelfcalTruth::from_json_bytes(bytes, source))
-                    .transpose()?;
-                let found = diagnose_selfcal(
-                    &set,
-                    &DiagnoseOptions::new().with_sigma_opt(inputs.sigma),
-                    &SelfcalOptions::new().with_sigma_opt(inputs.sigma),
-                )
-                .map_err(|source| ReportError::SelfcalSolve {
-                    file: name.clone(),
-                    source,
-                })?;
-                let mut d = SelfcalDiagnoseReport::new(&found, selfcal_truth.as_ref(), &shown);
-                // the budget acts on the final model, as in `polycal diagnose --budget`
-                if let Some(b) = &budget {
-                    let after =
-                        crate::selfcal::evaluate_budget(&found.after, b).map_err(|source| {
-                            ReportError::Uncertainty {
-                                file: name.clone(),
-                                source,
-                            }
-                        })?;
-                    d = d.with_uncertainty(&after);
-                }
-                Some(DiagnosisReport::Selfcal(Box::new(d)))
-            } else {
-                None
-            };
-            (
-                Evaluation::Selfcal {
-                    report,
-                    uncertainty,
-                },
-                diagnosis,
-                Some(rows),
-            )
-        } else {
-            let truth = truth_bytes
-                .as_ref()
-                .map(|(bytes, source)| Truth::from_json_bytes(bytes, source))
-                .transpose()?;
-            let set = MeasurementSet::read_from(bytes.as_slice(), &name, inputs.faces)?;
-            let stated = &inputs.stated_cross_talk;
-            let set = if stated.is_empty() {
-                set
-            } else {
-                crate::measurement::cross_talk::correct_cross_talk(&set, stated)?
-            };
-            let corrections = KnownCorrection::of_stated_cross_talk(&set, stated);
-            let evaluate = |set: &MeasurementSet, solution: &crate::solve::Solution, b| {
-                evaluate_with_corrections(set, solution, b, &corrections)
-            };
-            let solve_error = |source| ReportError::Solve {
-                file: name.clone(),
-                source,
-            };
-            if set.has_shifts() && budget.is_some() {
-                return Err(ReportError::NotSupported {
-                    file: name,
-                    what: "an instrument budget",
-                    kind: "shifted mountings",
-                });
-            }
-            // sub-pitch mountings: α at every table angle of every coset, as `solve` reports
-            // them (docs/FORMAT.md §9.1); a budget was refused above
-            let sub_pitch = set.has_shifts() && ShiftGeometry::of(&set).is_sub_pitch();
-            let (solution, shifted) = if sub_pitch {
-                let solved = solve_shifted(&set, &SolveOptions::new().with_sigma_opt(inputs.sigma))
-                    .map_err(solve_error)?;
-                (solved.solution.clone(), Some(solved))
-            } else {
-                let solution =
-                    crate::solve::solve(&set, &SolveOptions::new().with_sigma_opt(inputs.sigma))
-                        .map_err(solve_error)?;
-                (solution, None)
-            };
-            let uncertainty = budget
-                .as_ref()
-                .map(|b| evaluate(&set, &solution, b))
-                .transpose()
-                .map_err(|source| ReportError::Uncertainty {
-                    file: name.clone(),
-                    source,
-                })?;
-            let mut solve = match &shifted {
-                Some(solved) => SolveReport::sub_pitch(solved, None),
-                None => SolveReport::new(&solution, None),
-            };
-            if let Some(u) = &uncertainty {
-                solve = solve.with_uncertainty(u);
-            }
-            let diagnosis = if inputs.diagnose {
-                let options = DiagnoseOptions::new()
-                    .with_sigma_opt(inputs.sigma)
-                    .with_stated_cross_talk(stated.iter().map(|s| s.ac).collect());
-                let found = diagnose(&set, &options).map_err(solve_error)?;
-                let mut report =
-                    DiagnoseReport::new(&found, truth.as_ref(), None).with_residuals(&found, &set);
-                // the budget acts on the final model, as in `polycal diagnose --budget`
-                if let Some(b) = &budget {
-                    let after = evaluate(&set, &found.after, b).map_err(|source| {
-                        ReportError::Uncertainty {
-                            file: name.clone(),
-                            source,
-                        }
-                    })?;
-                    report.after = report.after.with_uncertainty(&after);
-                }
-                Some(DiagnosisReport::Polygon(Box::new(report)))
-            } else {
-                None
-            };
-            let rows = uncertainty
-                .as_ref()
-                .map(|u| result_rows_with(&solution, Some(u)));
-            let design = design_summary(&set);
-            (
-                Evaluation::Polygon {
-                    solve,
-                    design,
-                    uncertainty,
-                },
-                diagnosis,
-                rows,
-            )
+        metadata.name_files(&read.names);
+        let measurement = Measurement {
+            inputs,
+            bytes: &bytes,
+            name: &name,
+            shown: &shown,
+            budget: budget.as_ref(),
+            truth_bytes: truth_bytes.as_ref(),
         };
+        let (evaluation, diagnosis, rows) = if SelfcalSet::is_selfcal_file(&bytes) {
+            measurement.evaluate_selfcal()?
+        } else {
+            measurement.evaluate_polygon()?
+        };
+        let mut files = read.files;
         let comparison = match &inputs.reference {
-            Some(path) => {
-                let (bytes, file, reference_given) = read_input(path, "reference result")?;
-                let reference_name = file.path.clone();
-                files.push(file);
-                let reference = read_results_from(bytes.as_slice(), &reference_given)?;
-                let Some(rows) = rows else {
-                    return Err(ReportError::NoExpandedUncertainty {
-                        reference: reference_given,
-                    });
-                };
-                let options =
-                    CompareOptions::new().with_labels(shown.clone(), reference_name.clone());
-                let comparison =
-                    compare_with_file(&rows, &reference, &options).map_err(|source| {
-                        ReportError::Compare {
-                            reference: reference_given.clone(),
-                            source,
-                        }
-                    })?;
-                Some((comparison, reference_name))
-            }
+            Some(path) => Some(compare_with_reference(path, rows, &shown, &mut files)?),
             None => None,
         };
         let key_comparison = match &inputs.key_comparison {
@@ -516,20 +633,13 @@ impl CalibrationReport {
             }
             None => None,
         };
-        let mut figures = match &evaluation {
-            // with a budget, the solve figures include the budget's
-            Evaluation::Polygon { solve, .. } => figure::solve_figures(solve),
-            Evaluation::Selfcal { report, .. } => figure::selfcal_figures(report),
-        };
-        if let Some(DiagnosisReport::Polygon(d)) = &diagnosis {
-            figures.extend(figure::diagnose_figures(d));
-        }
-        if let Some((c, reference)) = &comparison {
-            figures.extend(figure::compare_figures_labelled(c, &shown, reference));
-        }
-        if let Some(k) = &key_comparison {
-            figures.extend(figure::kc_figures(&k.comparison));
-        }
+        let figures = report_figures(
+            &evaluation,
+            diagnosis.as_ref(),
+            comparison.as_ref(),
+            key_comparison.as_ref(),
+            &shown,
+        );
         let generated_utc = inputs
             .generated_utc
             .clone()

@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use clap::ValueEnum;
-use polycal::diagnose::{self, DiagnoseOptions};
+use polycal::diagnose::{self, DiagnoseOptions, Diagnosis};
 use polycal::input::display_name;
 use polycal::measurement::cross_talk::StatedCrossTalk;
 use polycal::measurement::{MeasurementError, MeasurementSet, Sigma};
@@ -17,7 +17,8 @@ use polycal::results::ResultRow;
 use polycal::selfcal::{SelfcalOptions, SelfcalSet};
 use polycal::simulate::{SelfcalTruth, SimulateError, Truth};
 use polycal::uncertainty::calibration::{
-    self, CalibrationError, InstrumentBudget, KnownCorrection, McOptions,
+    self, CalibrationError, CalibrationMonteCarlo, CalibrationUncertainty, InstrumentBudget,
+    KnownCorrection, McOptions,
 };
 
 use super::monte_carlo::McArgs;
@@ -133,6 +134,14 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
     let mut stdout = stdout.lock();
     let (mut failures, mut inadequate, mut not_validated) = (0, 0, 0);
     let mut csv_rows = Vec::new();
+    let polygon = PolygonRun {
+        args,
+        out,
+        options: &options,
+        budget: budget.as_ref(),
+        mc_options: mc_options.as_ref(),
+        several,
+    };
     for path in &args.files {
         // The name in messages (`<stdin>` for `-`); reports keep the path as given.
         let name = display_name(path);
@@ -146,7 +155,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             }
         };
         if SelfcalSet::is_selfcal_file(&bytes) {
-            let file = SelfcalFile {
+            let file = FileRead {
                 bytes: &bytes,
                 name: &name,
                 label: &label,
@@ -172,49 +181,86 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
             }
             continue;
         }
-        let polygon_truth = match &truth {
+        let file = FileRead {
+            bytes: &bytes,
+            name: &name,
+            label: &label,
+        };
+        match polygon.file(file, truth.as_ref(), &mut stdout, &mut csv_rows)? {
+            Some(done) => {
+                inadequate += usize::from(!done.adequate);
+                not_validated += usize::from(!done.validated);
+            }
+            None => failures += 1,
+        }
+    }
+    if matches!(args.format, DiagnoseFormat::Csv) {
+        write_result_csv(&mut stdout, several, &csv_rows)?;
+    }
+    stdout.flush()?;
+    if failures > 0 {
+        return Ok(EXIT_ERROR);
+    }
+    if not_validated > 0 {
+        out.warning(
+            "Monte Carlo does not validate the GUM uncertainty of some quantities of the \
+             final model (JCGM 101 §8); see the monte_carlo results",
+        );
+    }
+    Ok(if inadequate > 0 || not_validated > 0 {
+        EXIT_VERDICT
+    } else {
+        EXIT_OK
+    })
+}
+
+/// What `polycal diagnose` of a polygon measurement file needs besides the file: the
+/// arguments, the options, the budget and the Monte Carlo's options.
+struct PolygonRun<'a> {
+    args: &'a DiagnoseArgs,
+    out: &'a Output,
+    options: &'a DiagnoseOptions,
+    budget: Option<&'a InstrumentBudget>,
+    mc_options: Option<&'a McOptions<'static>>,
+    several: bool,
+}
+
+/// The verdicts of a file diagnosed.
+struct Verdicts {
+    adequate: bool,
+    /// False when a Monte Carlo does not validate the GUM budget.
+    validated: bool,
+}
+
+impl PolygonRun<'_> {
+    /// `polycal diagnose` of a polygon measurement file (`file`, read): its table or
+    /// JSON written to `stdout`, its CSV rows added to `csv_rows`, its figures written.
+    /// `None`: the file failed (the `error:` line written); an error: the whole command
+    /// fails.
+    fn file(
+        &self,
+        file: FileRead<'_>,
+        truth: Option<&AnyTruth>,
+        stdout: &mut dyn Write,
+        csv_rows: &mut Vec<(String, Vec<ResultRow>)>,
+    ) -> Result<Option<Verdicts>> {
+        let (args, out) = (self.args, self.out);
+        let FileRead { bytes, name, label } = file;
+        let polygon_truth = match truth {
             Some(AnyTruth::Selfcal(_)) => {
                 out.error_message(format_args!(
                     "{name}: the truth is a self-calibration's (positions and heads), the file a measurement file"
                 ));
-                failures += 1;
-                continue;
+                return Ok(None);
             }
             Some(AnyTruth::Polygon(t)) => Some(t),
             None => None,
         };
-        let diagnosed = MeasurementSet::read_from(bytes.as_slice(), &name, args.faces)
-            .map_err(super::wrong_file::measurement)
-            .inspect(|set| {
-                // docs/FORMAT.md §2.1: named as `solve` names them
-                for cycle in set.incomplete_cycles() {
-                    out.warning(format_args!("{name}: {cycle}"));
-                }
-            })
-            .and_then(|set| corrected(set, &args.cross_talk))
-            .and_then(|set| {
-                if args.budget.is_some()
-                    && let Some(refusal) = shift_refusal(
-                        &set,
-                        &name,
-                        "--budget",
-                        "polycal diagnose without it evaluates them",
-                    )
-                {
-                    return Err(refusal);
-                }
-                // the forward selection's rounds, a spinner: how many it takes is the data's
-                let progress = Arc::new(out.progress_bar_of("Diagnosing", "rounds"));
-                diagnose::diagnose(&set, &options.clone().with_progress(progress))
-                    .with_context(|| format!("{name}: cannot solve"))
-                    .map(|diagnosis| (set, diagnosis))
-            });
-        let (set, diagnosis) = match diagnosed {
+        let (set, diagnosis) = match self.diagnosed(bytes, name) {
             Ok(d) => d,
             Err(error) => {
                 out.error(&error);
-                failures += 1;
-                continue;
+                return Ok(None);
             }
         };
         if let Some(t) = polygon_truth
@@ -224,72 +270,23 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                 "{name}: the truth has {} faces, the measurement {}",
                 t.faces, diagnosis.before.faces
             ));
-            failures += 1;
-            continue;
+            return Ok(None);
         }
-        // A budget is propagated through an equally weighted fit only: a final model
-        // weighted by the noise of each cycle (docs/FORMAT.md §5.2 `noise`) is refused
-        // with it rather than given another fit's U.
-        if budget.is_some()
-            && let Some(noise) = diagnosis.noise.as_ref().filter(|n| n.weighted)
-        {
-            out.error_message(format_args!(
-                "{name}: --budget: the noise differs between the cycles (equal-noise test p = {:.1e}), so the final model weights each group by its own σ, and a budget is propagated through equally weighted fits only; run `polycal diagnose` without --budget for the weighted result and its u, or `polycal solve --budget` for the equally weighted calibration",
-                noise.p_value
-            ));
-            failures += 1;
-            continue;
-        }
-        // The budget acts on the final model: its results are the ones reported.
-        let gum = match budget
-            .as_ref()
-            .map(|budget| evaluate_budget(&set, &diagnosis.after, budget, &args.cross_talk, &name))
-            .transpose()
-        {
-            Ok(gum) => gum,
-            Err(error) => {
-                out.error(&error);
-                failures += 1;
-                continue;
-            }
+        let Some((gum, mc)) = self.final_model_uncertainty(&set, &diagnosis, name) else {
+            return Ok(None);
         };
-        // The Monte Carlo of the final model, effect columns included, as `solve`'s.
-        let mc = match (&budget, &gum, &mc_options) {
-            (Some(budget), Some(gum), Some(options)) => {
-                let progress = out.progress_bar("Monte Carlo");
-                let options = (*options).with_progress(&progress);
-                let corrections = KnownCorrection::of_stated_cross_talk(&set, &args.cross_talk);
-                match calibration::monte_carlo_with_corrections(
-                    &set,
-                    &diagnosis.after,
-                    budget,
-                    &corrections,
-                    gum,
-                    &options,
-                )
-                .with_context(|| format!("{name}: Monte Carlo failed"))
-                {
-                    Ok(mc) => Some(mc),
-                    Err(error) => {
-                        out.error(&error);
-                        failures += 1;
-                        continue;
-                    }
-                }
-            }
-            _ => None,
+        let verdicts = Verdicts {
+            adequate: diagnosis.adequacy.adequate,
+            validated: mc.as_ref().is_none_or(|mc| mc.validated),
         };
-        if mc.as_ref().is_some_and(|mc| !mc.validated) {
-            not_validated += 1;
-        }
-        if !diagnosis.adequacy.adequate {
-            inadequate += 1;
-        }
         let json_report = (matches!(args.format, DiagnoseFormat::Json) || args.plot.is_some())
             .then(|| {
-                let mut report =
-                    DiagnoseReport::new(&diagnosis, polygon_truth, several.then(|| label.clone()))
-                        .with_residuals(&diagnosis, &set);
+                let mut report = DiagnoseReport::new(
+                    &diagnosis,
+                    polygon_truth,
+                    self.several.then(|| label.to_string()),
+                )
+                .with_residuals(&diagnosis, &set);
                 if let Some(gum) = &gum {
                     report.after = report.after.with_uncertainty(gum);
                 }
@@ -313,11 +310,11 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                 }
             }
             DiagnoseFormat::Table => {
-                if several {
+                if self.several {
                     writeln!(stdout)?;
                 }
                 let mut text = String::new();
-                output::diagnose::write_table(&mut text, &diagnosis, polygon_truth, &label)?;
+                output::diagnose::write_table(&mut text, &diagnosis, polygon_truth, label)?;
                 output::write_final_model_results(
                     &mut text,
                     &diagnosis.after,
@@ -336,31 +333,110 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
                 // checked before any row is written: a refusal names this file
                 if let Err(problem) = polycal::results::check_rows(&rows) {
                     out.error_message(format!("{name}: cannot write its results: {problem}"));
-                    failures += 1;
-                    continue;
+                    return Ok(None);
                 }
-                csv_rows.push((label, rows));
+                csv_rows.push((label.to_string(), rows));
             }
         }
+        Ok(Some(verdicts))
     }
-    if matches!(args.format, DiagnoseFormat::Csv) {
-        write_result_csv(&mut stdout, several, &csv_rows)?;
+
+    /// The measurement file `bytes` (named `name`) read, corrected for the stated
+    /// cross-talk, and diagnosed (with a spinner over the forward selection's rounds).
+    fn diagnosed(&self, bytes: &[u8], name: &str) -> Result<(MeasurementSet, Diagnosis)> {
+        let (args, out) = (self.args, self.out);
+        MeasurementSet::read_from(bytes, name, args.faces)
+            .map_err(super::wrong_file::measurement)
+            .inspect(|set| {
+                // docs/FORMAT.md §2.1: named as `solve` names them
+                for cycle in set.incomplete_cycles() {
+                    out.warning(format_args!("{name}: {cycle}"));
+                }
+            })
+            .and_then(|set| corrected(set, &args.cross_talk))
+            .and_then(|set| {
+                if args.budget.is_some()
+                    && let Some(refusal) = shift_refusal(
+                        &set,
+                        name,
+                        "--budget",
+                        "polycal diagnose without it evaluates them",
+                    )
+                {
+                    return Err(refusal);
+                }
+                // the forward selection's rounds, a spinner: how many it takes is the data's
+                let progress = Arc::new(out.progress_bar_of("Diagnosing", "rounds"));
+                diagnose::diagnose(&set, &self.options.clone().with_progress(progress))
+                    .with_context(|| format!("{name}: cannot solve"))
+                    .map(|diagnosis| (set, diagnosis))
+            })
     }
-    stdout.flush()?;
-    if failures > 0 {
-        return Ok(EXIT_ERROR);
+
+    /// The budget's GUM uncertainty of the final model, and its Monte Carlo (effect
+    /// columns included, as `solve`'s), when asked. `None`: refused or failed (the
+    /// `error:` line written).
+    fn final_model_uncertainty(
+        &self,
+        set: &MeasurementSet,
+        diagnosis: &Diagnosis,
+        name: &str,
+    ) -> Option<(
+        Option<CalibrationUncertainty>,
+        Option<CalibrationMonteCarlo>,
+    )> {
+        let (args, out) = (self.args, self.out);
+        // A budget is propagated through an equally weighted fit only: a final model
+        // weighted by the noise of each cycle (docs/FORMAT.md §5.2 `noise`) is refused
+        // with it rather than given another fit's U.
+        if self.budget.is_some()
+            && let Some(noise) = diagnosis.noise.as_ref().filter(|n| n.weighted)
+        {
+            out.error_message(format_args!(
+                "{name}: --budget: the noise differs between the cycles (equal-noise test p = {:.1e}), so the final model weights each group by its own σ, and a budget is propagated through equally weighted fits only; run `polycal diagnose` without --budget for the weighted result and its u, or `polycal solve --budget` for the equally weighted calibration",
+                noise.p_value
+            ));
+            return None;
+        }
+        // The budget acts on the final model: its results are the ones reported.
+        let gum = match self
+            .budget
+            .map(|budget| evaluate_budget(set, &diagnosis.after, budget, &args.cross_talk, name))
+            .transpose()
+        {
+            Ok(gum) => gum,
+            Err(error) => {
+                out.error(&error);
+                return None;
+            }
+        };
+        // The Monte Carlo of the final model, effect columns included, as `solve`'s.
+        let mc = match (self.budget, &gum, self.mc_options) {
+            (Some(budget), Some(gum), Some(options)) => {
+                let progress = out.progress_bar("Monte Carlo");
+                let options = (*options).with_progress(&progress);
+                let corrections = KnownCorrection::of_stated_cross_talk(set, &args.cross_talk);
+                match calibration::monte_carlo_with_corrections(
+                    set,
+                    &diagnosis.after,
+                    budget,
+                    &corrections,
+                    gum,
+                    &options,
+                )
+                .with_context(|| format!("{name}: Monte Carlo failed"))
+                {
+                    Ok(mc) => Some(mc),
+                    Err(error) => {
+                        out.error(&error);
+                        return None;
+                    }
+                }
+            }
+            _ => None,
+        };
+        Some((gum, mc))
     }
-    if not_validated > 0 {
-        out.warning(
-            "Monte Carlo does not validate the GUM uncertainty of some quantities of the \
-             final model (JCGM 101 §8); see the monte_carlo results",
-        );
-    }
-    Ok(if inadequate > 0 || not_validated > 0 {
-        EXIT_VERDICT
-    } else {
-        EXIT_OK
-    })
 }
 
 /// The truth of `--truth`: a polygon run's (docs/FORMAT.md §4) or a self-calibration's
@@ -385,9 +461,9 @@ fn read_truth(path: &std::path::Path) -> Result<AnyTruth, SimulateError> {
     }
 }
 
-/// A self-calibration file read.
+/// A file read: its bytes and its names.
 #[derive(Clone, Copy)]
-struct SelfcalFile<'a> {
+struct FileRead<'a> {
     bytes: &'a [u8],
     /// The name in messages.
     name: &'a str,
@@ -418,14 +494,14 @@ struct SelfcalEvaluation<'a> {
 /// `polycal diagnose` of a self-calibration file (docs/FORMAT.md §5.2).
 fn selfcal_file(
     args: &DiagnoseArgs,
-    file: SelfcalFile<'_>,
+    file: FileRead<'_>,
     truth: Option<&AnyTruth>,
     evaluation: SelfcalEvaluation<'_>,
     several: bool,
     out: &Output,
 ) -> Result<SelfcalDone> {
     let budget = evaluation.budget;
-    let SelfcalFile { bytes, name, label } = file;
+    let FileRead { bytes, name, label } = file;
     if !args.cross_talk.is_empty() {
         anyhow::bail!(
             "{name}: a self-calibration file has no reading_y: --cross-talk does not apply to it"

@@ -15,7 +15,8 @@ use polycal::results::ResultRow;
 use polycal::solve::sub_pitch::{ShiftGeometry, SubPitchSolution, solve_shifted_with_progress};
 use polycal::solve::{self, Method, Solution, SolveError, SolveOptions};
 use polycal::uncertainty::calibration::{
-    self, CalibrationUncertainty, InstrumentBudget, KnownCorrection,
+    self, CalibrationMonteCarlo, CalibrationUncertainty, InstrumentBudget, KnownCorrection,
+    McOptions,
 };
 
 use super::monte_carlo::McArgs;
@@ -147,68 +148,21 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
     let mut failures = 0;
     let mut not_validated = 0;
     let mut csv_rows = Vec::new();
+    let run = SolveRun {
+        args,
+        out,
+        options: &options,
+        budget: budget.as_ref(),
+        mc_options: mc_options.as_ref(),
+        several,
+    };
     for path in files {
         // The name in messages (`<stdin>` for `-`); results keep the path as given.
         let name = display_name(path);
         let label = polycal::input::shown_path(path);
-        let solved = MeasurementSet::read_path(path, args.faces)
-            .map_err(super::wrong_file::measurement)
-            .and_then(|set| corrected(set, &args.cross_talk))
-            .and_then(|set| {
-                if budget.is_some()
-                    && let Some(refusal) = shift_refusal(
-                        &set,
-                        &name,
-                        "--budget",
-                        "polycal solve without it evaluates them",
-                    )
-                {
-                    return Err(refusal);
-                }
-                // One bar per file (the dense reference's work: seconds to minutes for
-                // hundreds of faces), cleared when its solution is done.
-                let bar = out.progress_bar_of("Solving", "steps");
-                if set.has_shifts() && ShiftGeometry::of(&set).is_sub_pitch() {
-                    // docs/FORMAT.md §9.1: encoder errors at every angle of every coset
-                    return solve_shifted_with_progress(&set, &options, Some(&bar))
-                        .map_err(actionable)
-                        .with_context(|| format!("{name}: cannot solve"))
-                        .map(|solved| (set, Solved::SubPitch(solved)));
-                }
-                solve::solve_with_progress(&set, &options, Some(&bar))
-                    .map_err(actionable)
-                    .with_context(|| format!("{name}: cannot solve"))
-                    .map(|solution| (set, Solved::Positions(solution)))
-            });
-        let evaluated = solved.and_then(|(set, solved)| {
-            let solution = match solved {
-                Solved::SubPitch(solved) => return Ok((Solved::SubPitch(solved), None, None)),
-                Solved::Positions(solution) => solution,
-            };
-            let Some(budget) = &budget else {
-                return Ok((Solved::Positions(solution), None, None));
-            };
-            let gum = evaluate_budget(&set, &solution, budget, &args.cross_talk, &name)?;
-            let mc = mc_options
-                .as_ref()
-                .map(|options| {
-                    // One bar per file, cleared when its Monte Carlo ends.
-                    let progress = out.progress_bar("Monte Carlo");
-                    let options = (*options).with_progress(&progress);
-                    let corrections = KnownCorrection::of_stated_cross_talk(&set, &args.cross_talk);
-                    calibration::monte_carlo_with_corrections(
-                        &set,
-                        &solution,
-                        budget,
-                        &corrections,
-                        &gum,
-                        &options,
-                    )
-                })
-                .transpose()
-                .with_context(|| format!("{name}: Monte Carlo failed"))?;
-            Ok((Solved::Positions(solution), Some(gum), mc))
-        });
+        let evaluated = run
+            .solved(path, &name)
+            .and_then(|(set, solved)| run.evaluated(&set, solved, &name));
         let (solved, gum, mc) = match evaluated {
             Ok(triple) => triple,
             Err(error) => {
@@ -227,84 +181,21 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         for cycle in incomplete {
             out.warning(format_args!("{name}: {cycle}"));
         }
-        let solution = match solved {
-            Solved::Positions(solution) => solution,
+        let written = match solved {
+            Solved::Positions(solution) => run.print_solution(
+                &solution,
+                (gum.as_ref(), mc.as_ref()),
+                (&label, &name),
+                &mut stdout,
+                &mut csv_rows,
+            )?,
             Solved::SubPitch(solved) => {
-                if let Some(dir) = &args.plot {
-                    let report = SolveReport::sub_pitch(&solved, None);
-                    super::write_plot(
-                        dir,
-                        &polycal::figure::solve_figures(&report),
-                        &args.inputs(),
-                    )?;
-                }
-                match args.format {
-                    SolveFormat::Json => {
-                        let report =
-                            SolveReport::sub_pitch(&solved, several.then(|| label.clone()));
-                        let json =
-                            output::to_json_with_stated_cross_talk(&report, &args.cross_talk)?;
-                        writeln!(stdout, "{json}")?;
-                    }
-                    SolveFormat::Table => {
-                        if several {
-                            writeln!(stdout)?;
-                        }
-                        let mut text = String::new();
-                        output::write_sub_pitch_table(&mut text, &solved, &label)?;
-                        output::write_stated_cross_talk(&mut text, &args.cross_talk)?;
-                        write!(stdout, "{text}")?;
-                    }
-                    SolveFormat::Csv => {
-                        csv_rows.push((label, output::sub_pitch_result_rows(&solved)));
-                    }
-                }
-                continue;
+                run.print_sub_pitch(&solved, &label, &mut stdout, &mut csv_rows)?;
+                true
             }
         };
-        let json_report =
-            (matches!(args.format, SolveFormat::Json) || args.plot.is_some()).then(|| {
-                let mut report = SolveReport::new(&solution, several.then(|| label.clone()));
-                if let Some(gum) = &gum {
-                    report = report.with_uncertainty(gum);
-                }
-                if let Some(mc) = mc.clone() {
-                    report = report.with_monte_carlo(mc);
-                }
-                if args.covariance {
-                    report = report.with_pitch_deviation_covariance(&solution);
-                }
-                report
-            });
-        if let (Some(dir), Some(report)) = (&args.plot, &json_report) {
-            super::write_plot(dir, &polycal::figure::solve_figures(report), &args.inputs())?;
-        }
-        match args.format {
-            SolveFormat::Json => {
-                if let Some(report) = &json_report {
-                    let json = output::to_json_with_stated_cross_talk(report, &args.cross_talk)?;
-                    writeln!(stdout, "{json}")?;
-                }
-            }
-            SolveFormat::Table => {
-                if several {
-                    writeln!(stdout)?;
-                }
-                let mut text = String::new();
-                output::write_table(&mut text, &solution, &label, gum.as_ref(), mc.as_ref())?;
-                output::write_stated_cross_talk(&mut text, &args.cross_talk)?;
-                write!(stdout, "{text}")?;
-            }
-            SolveFormat::Csv => {
-                let rows = output::result_rows_with(&solution, gum.as_ref());
-                // checked before any row is written: a refusal names this file
-                if let Err(problem) = polycal::results::check_rows(&rows) {
-                    out.error_message(format!("{name}: cannot write its results: {problem}"));
-                    failures += 1;
-                    continue;
-                }
-                csv_rows.push((label, rows));
-            }
+        if !written {
+            failures += 1;
         }
     }
     if matches!(args.format, SolveFormat::Csv) {
@@ -330,6 +221,201 @@ pub fn run(args: &SolveArgs, out: &Output) -> Result<u8> {
         return Ok(EXIT_VERDICT);
     }
     Ok(EXIT_OK)
+}
+
+/// What `polycal solve` of each file needs besides the file: the arguments, the solver's
+/// options, the budget and the Monte Carlo's options.
+struct SolveRun<'a> {
+    args: &'a SolveArgs,
+    out: &'a Output,
+    options: &'a SolveOptions,
+    budget: Option<&'a InstrumentBudget>,
+    mc_options: Option<&'a McOptions<'static>>,
+    several: bool,
+}
+
+/// A file solved, with the budget's GUM uncertainty and Monte Carlo where evaluated.
+type Evaluated = (
+    Solved,
+    Option<CalibrationUncertainty>,
+    Option<CalibrationMonteCarlo>,
+);
+
+/// A file's result rows (per file label) for `--format csv`, written together at the end.
+type CsvRows = Vec<(String, Vec<ResultRow>)>;
+
+impl SolveRun<'_> {
+    /// The measurement file at `path` (named `name` in messages) read, corrected for the
+    /// stated cross-talk, and solved: in encoder positions, or at every angle of every
+    /// coset for sub-pitch mountings.
+    fn solved(&self, path: &Path, name: &str) -> Result<(MeasurementSet, Solved)> {
+        let (args, out, options) = (self.args, self.out, self.options);
+        MeasurementSet::read_path(path, args.faces)
+            .map_err(super::wrong_file::measurement)
+            .and_then(|set| corrected(set, &args.cross_talk))
+            .and_then(|set| {
+                if self.budget.is_some()
+                    && let Some(refusal) = shift_refusal(
+                        &set,
+                        name,
+                        "--budget",
+                        "polycal solve without it evaluates them",
+                    )
+                {
+                    return Err(refusal);
+                }
+                // One bar per file (the dense reference's work: seconds to minutes for
+                // hundreds of faces), cleared when its solution is done.
+                let bar = out.progress_bar_of("Solving", "steps");
+                if set.has_shifts() && ShiftGeometry::of(&set).is_sub_pitch() {
+                    // docs/FORMAT.md §9.1: encoder errors at every angle of every coset
+                    return solve_shifted_with_progress(&set, options, Some(&bar))
+                        .map_err(actionable)
+                        .with_context(|| format!("{name}: cannot solve"))
+                        .map(|solved| (set, Solved::SubPitch(solved)));
+                }
+                solve::solve_with_progress(&set, options, Some(&bar))
+                    .map_err(actionable)
+                    .with_context(|| format!("{name}: cannot solve"))
+                    .map(|solution| (set, Solved::Positions(solution)))
+            })
+    }
+
+    /// The budget's GUM uncertainty of a solution in encoder positions, and its Monte
+    /// Carlo when asked (none for sub-pitch mountings, refused with a budget).
+    fn evaluated(&self, set: &MeasurementSet, solved: Solved, name: &str) -> Result<Evaluated> {
+        let args = self.args;
+        let solution = match solved {
+            Solved::SubPitch(solved) => return Ok((Solved::SubPitch(solved), None, None)),
+            Solved::Positions(solution) => solution,
+        };
+        let Some(budget) = self.budget else {
+            return Ok((Solved::Positions(solution), None, None));
+        };
+        let gum = evaluate_budget(set, &solution, budget, &args.cross_talk, name)?;
+        let mc = self
+            .mc_options
+            .map(|options| {
+                // One bar per file, cleared when its Monte Carlo ends.
+                let progress = self.out.progress_bar("Monte Carlo");
+                let options = (*options).with_progress(&progress);
+                let corrections = KnownCorrection::of_stated_cross_talk(set, &args.cross_talk);
+                calibration::monte_carlo_with_corrections(
+                    set,
+                    &solution,
+                    budget,
+                    &corrections,
+                    &gum,
+                    &options,
+                )
+            })
+            .transpose()
+            .with_context(|| format!("{name}: Monte Carlo failed"))?;
+        Ok((Solved::Positions(solution), Some(gum), mc))
+    }
+
+    /// A sub-pitch solution's figures, and its JSON, table or CSV rows.
+    fn print_sub_pitch(
+        &self,
+        solved: &SubPitchSolution,
+        label: &str,
+        stdout: &mut dyn Write,
+        csv_rows: &mut CsvRows,
+    ) -> Result<()> {
+        let args = self.args;
+        if let Some(dir) = &args.plot {
+            let report = SolveReport::sub_pitch(solved, None);
+            super::write_plot(
+                dir,
+                &polycal::figure::solve_figures(&report),
+                &args.inputs(),
+            )?;
+        }
+        match args.format {
+            SolveFormat::Json => {
+                let report =
+                    SolveReport::sub_pitch(solved, self.several.then(|| label.to_string()));
+                let json = output::to_json_with_stated_cross_talk(&report, &args.cross_talk)?;
+                writeln!(stdout, "{json}")?;
+            }
+            SolveFormat::Table => {
+                if self.several {
+                    writeln!(stdout)?;
+                }
+                let mut text = String::new();
+                output::write_sub_pitch_table(&mut text, solved, label)?;
+                output::write_stated_cross_talk(&mut text, &args.cross_talk)?;
+                write!(stdout, "{text}")?;
+            }
+            SolveFormat::Csv => {
+                csv_rows.push((label.to_string(), output::sub_pitch_result_rows(solved)));
+            }
+        }
+        Ok(())
+    }
+
+    /// A solution's figures, and its JSON, table or CSV rows, with the budget's GUM
+    /// uncertainty and Monte Carlo (`gum`, `mc`) where evaluated. False when its rows
+    /// cannot be written (the `error:` line written, naming the file `name`).
+    fn print_solution(
+        &self,
+        solution: &Solution,
+        (gum, mc): (
+            Option<&CalibrationUncertainty>,
+            Option<&CalibrationMonteCarlo>,
+        ),
+        (label, name): (&str, &str),
+        stdout: &mut dyn Write,
+        csv_rows: &mut CsvRows,
+    ) -> Result<bool> {
+        let args = self.args;
+        let json_report =
+            (matches!(args.format, SolveFormat::Json) || args.plot.is_some()).then(|| {
+                let mut report =
+                    SolveReport::new(solution, self.several.then(|| label.to_string()));
+                if let Some(gum) = gum {
+                    report = report.with_uncertainty(gum);
+                }
+                if let Some(mc) = mc.cloned() {
+                    report = report.with_monte_carlo(mc);
+                }
+                if args.covariance {
+                    report = report.with_pitch_deviation_covariance(solution);
+                }
+                report
+            });
+        if let (Some(dir), Some(report)) = (&args.plot, &json_report) {
+            super::write_plot(dir, &polycal::figure::solve_figures(report), &args.inputs())?;
+        }
+        match args.format {
+            SolveFormat::Json => {
+                if let Some(report) = &json_report {
+                    let json = output::to_json_with_stated_cross_talk(report, &args.cross_talk)?;
+                    writeln!(stdout, "{json}")?;
+                }
+            }
+            SolveFormat::Table => {
+                if self.several {
+                    writeln!(stdout)?;
+                }
+                let mut text = String::new();
+                output::write_table(&mut text, solution, label, gum, mc)?;
+                output::write_stated_cross_talk(&mut text, &args.cross_talk)?;
+                write!(stdout, "{text}")?;
+            }
+            SolveFormat::Csv => {
+                let rows = output::result_rows_with(solution, gum);
+                // checked before any row is written: a refusal names this file
+                if let Err(problem) = polycal::results::check_rows(&rows) {
+                    self.out
+                        .error_message(format!("{name}: cannot write its results: {problem}"));
+                    return Ok(false);
+                }
+                csv_rows.push((label.to_string(), rows));
+            }
+        }
+        Ok(true)
+    }
 }
 
 /// The instrument budget of `--budget` (`solve` and `diagnose`), read once, with a

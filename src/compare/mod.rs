@@ -383,76 +383,17 @@ fn compare_located(
     if !(r.is_finite() && (-1.0..=1.0).contains(&r)) {
         return Err(CompareError::Correlation(r));
     }
-    let check = |rows: &[ResultRow], label: &str, lines: Option<&[u64]>| {
-        let place = |i: usize| match lines.and_then(|l| l.get(i)) {
-            Some(line) => format!("line {line}"),
-            None => format!("row {}", i + 1),
-        };
-        let mut seen = HashMap::new();
-        let mut angles = AngleCheck::default();
-        for (i, row) in rows.iter().enumerate() {
-            if row.expanded_u.is_none() {
-                return Err(CompareError::MissingU {
-                    location: location(label, lines, i),
-                    quantity: row.quantity,
-                    index: row.index,
-                });
-            }
-            if seen.insert((row.quantity, row.index), i).is_some() {
-                return Err(CompareError::Duplicate {
-                    location: location(label, lines, i),
-                    quantity: row.quantity,
-                    index: row.index,
-                });
-            }
-            if let Err(problem) = angles.admit(i, row) {
-                let at = match problem {
-                    crate::results::AngleProblem::Missing { without, .. } => without,
-                    _ => i,
-                };
-                return Err(CompareError::Angle {
-                    location: location(label, lines, at),
-                    reason: problem.message(row, &rows[..i], place),
-                });
-            }
-        }
-        Ok(())
-    };
-    check(a, &options.label_a, lines_a)?;
-    check(b, &options.label_b, lines_b)?;
+    check_rows(a, &options.label_a, lines_a)?;
+    check_rows(b, &options.label_b, lines_b)?;
 
-    // By angle when both results have encoder errors and every one carries its angle
-    // (the check above: in one result, all or none do).
-    let angles_in = |rows: &[ResultRow]| {
-        let mut encoder = rows
-            .iter()
-            .filter(|row| row.quantity == Quantity::EncoderError)
-            .peekable();
-        encoder.peek().is_some() && encoder.all(|row| row.angle_deg.is_some())
-    };
-    let by = if angles_in(a) && angles_in(b) {
-        EncoderMatching::Angle
-    } else {
-        EncoderMatching::Index
-    };
+    let by = encoder_matching(a, b);
     let in_b = Matcher::new(b, by);
     let in_a = Matcher::new(a, by);
-    let ambiguous = |row: &ResultRow, label: &str, other: &str, found: &[usize], of: &Matcher| {
-        let (first, second) = (of.row(found[0]).index, of.row(found[1]).index);
-        CompareError::AmbiguousAngle {
-            label: label.to_string(),
-            index: row.index,
-            angle_deg: row.angle_deg.unwrap_or(f64::NAN),
-            other: other.to_string(),
-            first: first.min(second),
-            second: first.max(second),
-        }
-    };
     // Each encoder error of B is matched by one of A at most.
     for rb in b.iter().filter(|rb| in_a.by_angle(rb)) {
         let found = in_a.matches(rb);
         if found.len() > 1 {
-            return Err(ambiguous(
+            return Err(ambiguous_angle(
                 rb,
                 &options.label_b,
                 &options.label_a,
@@ -461,84 +402,8 @@ fn compare_located(
             ));
         }
     }
-
-    let mut rows = Vec::new();
-    // The first row in the verdict without a standard uncertainty, as the error the
-    // vector's test gives for it.
-    let mut without_u: Option<CompareError> = None;
-    let mut only_in_a = Vec::new();
-    for (i, ra) in a.iter().enumerate() {
-        let by_angle = in_b.by_angle(ra);
-        let found = in_b.matches(ra);
-        let j = match found.as_slice() {
-            [] => {
-                only_in_a.push(Unmatched {
-                    quantity: ra.quantity,
-                    index: ra.index,
-                    angle_deg: if by_angle { ra.angle_deg } else { None },
-                });
-                continue;
-            }
-            [j] => *j,
-            _ => {
-                return Err(ambiguous(
-                    ra,
-                    &options.label_a,
-                    &options.label_b,
-                    &found,
-                    &in_b,
-                ));
-            }
-        };
-        let rb = in_b.row(j);
-        // Every row has U (checked above).
-        let (Some(ua), Some(ub)) = (ra.expanded_u, rb.expanded_u) else {
-            continue;
-        };
-        let denominator = ua * ua + ub * ub - 2.0 * r * ua * ub;
-        if denominator.is_nan() || denominator <= 0.0 {
-            return Err(CompareError::Undefined {
-                quantity: ra.quantity,
-                index: ra.index,
-                denominator,
-                expanded_u_a: ua,
-                expanded_u_b: ub,
-                r,
-            });
-        }
-        let in_verdict = options.include_setup || ra.quantity != Quantity::SetupError;
-        let (u_a, u_b) = (standard_u(ra), standard_u(rb));
-        if in_verdict && without_u.is_none() {
-            let missing = |label: &str, lines: Option<&[u64]>, i: usize, row: &ResultRow| {
-                CompareError::NoStandardU {
-                    location: location(label, lines, i),
-                    quantity: row.quantity,
-                    index: row.index,
-                }
-            };
-            if u_a.is_none() {
-                without_u = Some(missing(&options.label_a, lines_a, i, ra));
-            } else if u_b.is_none() {
-                without_u = Some(missing(&options.label_b, lines_b, j, rb));
-            }
-        }
-        let difference = ra.value - rb.value;
-        rows.push(ComparisonRow {
-            quantity: ra.quantity,
-            index: ra.index,
-            index_b: by_angle.then_some(rb.index),
-            angle_deg: if by_angle { ra.angle_deg } else { None },
-            a: ra.value,
-            b: rb.value,
-            difference,
-            en: difference / denominator.sqrt(),
-            expanded_u_a: ua,
-            expanded_u_b: ub,
-            u_a,
-            u_b,
-            in_verdict,
-        });
-    }
+    let matched = Matched::of(a, &in_b, options, lines_a, lines_b)?;
+    let rows = matched.rows;
     let only_in_b = b
         .iter()
         .filter(|rb| in_a.matches(rb).is_empty())
@@ -567,9 +432,216 @@ fn compare_located(
     let in_verdict = || rows.iter().filter(|row| row.in_verdict);
     let max_abs_en = in_verdict().map(|row| row.en.abs()).fold(0.0, f64::max);
     let en_exceeding = in_verdict().filter(|row| row.en.abs() > 1.0).count();
+    let (vector, en_expected, vector_not_formed) =
+        vector_verdict(&rows, matched.without_u, (a, b), options)?;
+    Ok(Comparison {
+        rows,
+        max_abs_en,
+        verdict: options.verdict,
+        vector,
+        en_exceeding,
+        en_expected,
+        vector_not_formed,
+        encoder_matched_by: by,
+        only_in_a: matched.only_in_a,
+        only_in_b,
+        correlation: r,
+    })
+}
 
-    // The vector's test and the number of |En| > 1 expected by chance, both from the
-    // standard uncertainties.
+/// Every row of one result (named `label`, at `lines`) has U, is there once, and carries
+/// its angle as the others do (all or none of its encoder errors).
+fn check_rows(rows: &[ResultRow], label: &str, lines: Option<&[u64]>) -> Result<(), CompareError> {
+    let place = |i: usize| match lines.and_then(|l| l.get(i)) {
+        Some(line) => format!("line {line}"),
+        None => format!("row {}", i + 1),
+    };
+    let mut seen = HashMap::new();
+    let mut angles = AngleCheck::default();
+    for (i, row) in rows.iter().enumerate() {
+        if row.expanded_u.is_none() {
+            return Err(CompareError::MissingU {
+                location: location(label, lines, i),
+                quantity: row.quantity,
+                index: row.index,
+            });
+        }
+        if seen.insert((row.quantity, row.index), i).is_some() {
+            return Err(CompareError::Duplicate {
+                location: location(label, lines, i),
+                quantity: row.quantity,
+                index: row.index,
+            });
+        }
+        if let Err(problem) = angles.admit(i, row) {
+            let at = match problem {
+                crate::results::AngleProblem::Missing { without, .. } => without,
+                _ => i,
+            };
+            return Err(CompareError::Angle {
+                location: location(label, lines, at),
+                reason: problem.message(row, &rows[..i], place),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// By angle when both results have encoder errors and every one carries its angle (the
+/// check of [`check_rows`]: in one result, all or none do); else by index.
+fn encoder_matching(a: &[ResultRow], b: &[ResultRow]) -> EncoderMatching {
+    let angles_in = |rows: &[ResultRow]| {
+        let mut encoder = rows
+            .iter()
+            .filter(|row| row.quantity == Quantity::EncoderError)
+            .peekable();
+        encoder.peek().is_some() && encoder.all(|row| row.angle_deg.is_some())
+    };
+    if angles_in(a) && angles_in(b) {
+        EncoderMatching::Angle
+    } else {
+        EncoderMatching::Index
+    }
+}
+
+/// The error of `row` (of the result `label`) matched by angle by two rows `found` of
+/// the result `other` (`of`).
+fn ambiguous_angle(
+    row: &ResultRow,
+    label: &str,
+    other: &str,
+    found: &[usize],
+    of: &Matcher,
+) -> CompareError {
+    let (first, second) = (of.row(found[0]).index, of.row(found[1]).index);
+    CompareError::AmbiguousAngle {
+        label: label.to_string(),
+        index: row.index,
+        angle_deg: row.angle_deg.unwrap_or(f64::NAN),
+        other: other.to_string(),
+        first: first.min(second),
+        second: first.max(second),
+    }
+}
+
+/// The rows of A matched in B, each compared.
+struct Matched {
+    rows: Vec<ComparisonRow>,
+    /// The first row in the verdict without a standard uncertainty, as the error the
+    /// vector's test gives for it.
+    without_u: Option<CompareError>,
+    only_in_a: Vec<Unmatched>,
+}
+
+impl Matched {
+    /// Each row of `a` matched in B (`in_b`) and compared: its difference, En from the
+    /// expanded uncertainties (correlated by `options.correlation`), its standard
+    /// uncertainties.
+    fn of(
+        a: &[ResultRow],
+        in_b: &Matcher,
+        options: &CompareOptions,
+        lines_a: Option<&[u64]>,
+        lines_b: Option<&[u64]>,
+    ) -> Result<Matched, CompareError> {
+        let r = options.correlation;
+        let mut matched = Matched {
+            rows: Vec::new(),
+            without_u: None,
+            only_in_a: Vec::new(),
+        };
+        for (i, ra) in a.iter().enumerate() {
+            let by_angle = in_b.by_angle(ra);
+            let found = in_b.matches(ra);
+            let j = match found.as_slice() {
+                [] => {
+                    matched.only_in_a.push(Unmatched {
+                        quantity: ra.quantity,
+                        index: ra.index,
+                        angle_deg: if by_angle { ra.angle_deg } else { None },
+                    });
+                    continue;
+                }
+                [j] => *j,
+                _ => {
+                    return Err(ambiguous_angle(
+                        ra,
+                        &options.label_a,
+                        &options.label_b,
+                        &found,
+                        in_b,
+                    ));
+                }
+            };
+            let rb = in_b.row(j);
+            // Every row has U (checked above).
+            let (Some(ua), Some(ub)) = (ra.expanded_u, rb.expanded_u) else {
+                continue;
+            };
+            let denominator = ua * ua + ub * ub - 2.0 * r * ua * ub;
+            if denominator.is_nan() || denominator <= 0.0 {
+                return Err(CompareError::Undefined {
+                    quantity: ra.quantity,
+                    index: ra.index,
+                    denominator,
+                    expanded_u_a: ua,
+                    expanded_u_b: ub,
+                    r,
+                });
+            }
+            let in_verdict = options.include_setup || ra.quantity != Quantity::SetupError;
+            let (u_a, u_b) = (standard_u(ra), standard_u(rb));
+            if in_verdict && matched.without_u.is_none() {
+                let missing = |label: &str, lines: Option<&[u64]>, i: usize, row: &ResultRow| {
+                    CompareError::NoStandardU {
+                        location: location(label, lines, i),
+                        quantity: row.quantity,
+                        index: row.index,
+                    }
+                };
+                if u_a.is_none() {
+                    matched.without_u = Some(missing(&options.label_a, lines_a, i, ra));
+                } else if u_b.is_none() {
+                    matched.without_u = Some(missing(&options.label_b, lines_b, j, rb));
+                }
+            }
+            let difference = ra.value - rb.value;
+            matched.rows.push(ComparisonRow {
+                quantity: ra.quantity,
+                index: ra.index,
+                index_b: by_angle.then_some(rb.index),
+                angle_deg: if by_angle { ra.angle_deg } else { None },
+                a: ra.value,
+                b: rb.value,
+                difference,
+                en: difference / denominator.sqrt(),
+                expanded_u_a: ua,
+                expanded_u_b: ub,
+                u_a,
+                u_b,
+                in_verdict,
+            });
+        }
+        Ok(matched)
+    }
+}
+
+/// The vector's test, the number of |En| > 1 expected by chance, and why the test was
+/// not formed (under the En rule).
+type VectorVerdict = (Option<VectorTest>, Option<f64>, Option<String>);
+
+/// The vector's test and the number of |En| > 1 expected by chance, both from the
+/// standard uncertainties of the `rows` in the verdict; when the test cannot be formed
+/// (`without_u`, or its own error), the error under the vector rule, else its reason
+/// beside the En verdict.
+fn vector_verdict(
+    rows: &[ComparisonRow],
+    without_u: Option<CompareError>,
+    (a, b): (&[ResultRow], &[ResultRow]),
+    options: &CompareOptions,
+) -> Result<VectorVerdict, CompareError> {
+    let r = options.correlation;
+    let in_verdict = || rows.iter().filter(|row| row.in_verdict);
     let formed = match without_u {
         Some(error) => Err(error),
         None => {
@@ -597,7 +669,7 @@ fn compare_located(
             .map(|test| (test, en_expected))
         }
     };
-    let (vector, en_expected, vector_not_formed) = match (formed, options.verdict) {
+    Ok(match (formed, options.verdict) {
         (Ok((test, expected)), _) => (Some(test), Some(expected), None),
         (Err(error), VerdictRule::Vector) => return Err(error),
         (Err(error), VerdictRule::En) => {
@@ -607,18 +679,5 @@ fn compare_located(
                 .sum::<Option<f64>>();
             (None, expected, Some(error.to_string()))
         }
-    };
-    Ok(Comparison {
-        rows,
-        max_abs_en,
-        verdict: options.verdict,
-        vector,
-        en_exceeding,
-        en_expected,
-        vector_not_formed,
-        encoder_matched_by: by,
-        only_in_a,
-        only_in_b,
-        correlation: r,
     })
 }

@@ -149,6 +149,119 @@ fn difference(
     let by_angle = rows.iter().all(|r| r.angle_deg.is_some());
     let (words, symbol) = family_words(quantity);
     let title = format!("{words}: difference a − b and En");
+    let subtitles = difference_subtitles(rows, correlation, label_a, label_b);
+    let mut body = String::new();
+    let entries = difference_legend(rows);
+    let top = header_px(&subtitles);
+    let legend_px = legend(&mut body, &entries, top);
+    let halves: Vec<f64> = rows
+        .iter()
+        .map(|r| band_half_width(r, correlation))
+        .collect();
+    let x_axis = |label: String| {
+        let xs = rows.iter().filter(|r| drawable(r)).map(|r| x_of(r));
+        if by_angle {
+            Axis::full_turn_deg(xs, label)
+        } else {
+            Axis::covering(xs, &[], 8, label)
+        }
+    };
+    let upper = Panel {
+        id: "difference",
+        left_px: LEFT_PX,
+        top_px: top + legend_px + 8.0,
+        width_px: WIDTH_PX - LEFT_PX - RIGHT_PX,
+        height_px: 220.0,
+        x: x_axis(String::new()),
+        y: Axis::covering(
+            rows.iter()
+                .zip(&halves)
+                .filter(|(r, _)| drawable(r))
+                .flat_map(|(r, h)| [r.difference, *h, -*h]),
+            &[0.0],
+            6,
+            format!("difference a − b in {symbol} / ″"),
+        ),
+    };
+    let lower = Panel {
+        id: "en",
+        top_px: upper.bottom_px() + 26.0,
+        height_px: 110.0,
+        x: x_axis(x_label(quantity, by_angle)),
+        y: Axis::covering(
+            rows.iter().map(|r| r.en).filter(|e| e.is_finite()),
+            &[-1.2, 1.2],
+            4,
+            "En",
+        ),
+        ..upper.clone()
+    };
+    // The band first, under everything.
+    draw_band(&mut body, rows, &halves, &upper);
+    upper.draw_axes(&mut body, false);
+    lower.draw_axes(&mut body, true);
+    for limit in [-1.0, 1.0] {
+        let y = px(lower.y_px(limit));
+        let _ = writeln!(
+            body,
+            r##"<line class="en-limit" x1="{}" y1="{y}" x2="{}" y2="{y}" stroke="#000" stroke-width="1" stroke-dasharray="5,3"/>"##,
+            px(lower.left_px),
+            px(lower.left_px + lower.width_px)
+        );
+    }
+    draw_differences(&mut body, rows, &upper);
+    let en_series = |id: &str, marker, over: bool| Series {
+        id: id.into(),
+        label: id.into(),
+        marker,
+        dx_px: 0.0,
+        points: rows
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| (r.en.abs() > 1.0) == over)
+            .map(|(i, r)| point_of(i, r, r.en))
+            .collect(),
+    };
+    draw_series(
+        &mut body,
+        &lower,
+        &[
+            en_series("en", Marker::OpenSquare, false),
+            en_series("en-exceeds", Marker::FilledCircle, true),
+        ],
+    );
+    let svg = document(lower.bottom_px() + 42.0, &title, &subtitles, &body);
+    Figure::new(
+        format!("compare-{}-difference", family_slug(quantity)),
+        title,
+        svg,
+    )
+}
+
+/// Whether a row's difference can be drawn: its x and a − b finite.
+fn drawable(r: &ComparisonRow) -> bool {
+    x_of(r).is_finite() && r.difference.is_finite()
+}
+
+/// Row `i`'s point at `y` (a − b or En) with its x.
+fn point_of(i: usize, r: &ComparisonRow, y: f64) -> Point {
+    Point {
+        index: i,
+        x: x_of(r),
+        y,
+        half: None,
+    }
+}
+
+/// The difference figure's subtitles: the results, the band, how many |En| > 1 against
+/// the number expected by chance when the results are consistent (docs/FORMAT.md §5.4),
+/// and the rows not drawn.
+fn difference_subtitles(
+    rows: &[&ComparisonRow],
+    correlation: f64,
+    label_a: &str,
+    label_b: &str,
+) -> Vec<String> {
     let exceeding = rows.iter().filter(|r| r.en.abs() > 1.0).count();
     // The number expected by chance when the results are consistent (docs/FORMAT.md §5.4).
     let expected: Option<f64> = rows
@@ -183,9 +296,13 @@ fn difference(
             "{skipped} row(s) with a non-finite value are not drawn"
         ));
     }
-    let mut body = String::new();
-    // one marker per series, and a key only for what the figure shows: the ring and the
-    // filled En only where some |En| > 1, the open En only where some |En| ≤ 1
+    subtitles
+}
+
+/// The difference figure's legend: one marker per series, and a key only for what the
+/// figure shows: the ring and the filled En only where some |En| > 1, the open En only
+/// where some |En| ≤ 1.
+fn difference_legend(rows: &[&ComparisonRow]) -> Vec<(LegendKey, String)> {
     let drawn: Vec<f64> = rows
         .iter()
         .filter(|r| x_of(r).is_finite() && r.difference.is_finite() && r.en.is_finite())
@@ -216,56 +333,16 @@ fn difference(
         ));
     }
     entries.push((LegendKey::Line(Some("5,3")), "En = ±1".to_string()));
-    let top = header_px(&subtitles);
-    let legend_px = legend(&mut body, &entries, top);
-    let finite = |r: &&&ComparisonRow| x_of(r).is_finite() && r.difference.is_finite();
-    let halves: Vec<f64> = rows
-        .iter()
-        .map(|r| band_half_width(r, correlation))
-        .collect();
-    let x_axis = |label: String| {
-        let xs = rows.iter().filter(finite).map(|r| x_of(r));
-        if by_angle {
-            Axis::full_turn_deg(xs, label)
-        } else {
-            Axis::covering(xs, &[], 8, label)
-        }
-    };
-    let upper = Panel {
-        id: "difference",
-        left_px: LEFT_PX,
-        top_px: top + legend_px + 8.0,
-        width_px: WIDTH_PX - LEFT_PX - RIGHT_PX,
-        height_px: 220.0,
-        x: x_axis(String::new()),
-        y: Axis::covering(
-            rows.iter()
-                .zip(&halves)
-                .filter(|(r, _)| finite(r))
-                .flat_map(|(r, h)| [r.difference, *h, -*h]),
-            &[0.0],
-            6,
-            format!("difference a − b in {symbol} / ″"),
-        ),
-    };
-    let lower = Panel {
-        id: "en",
-        top_px: upper.bottom_px() + 26.0,
-        height_px: 110.0,
-        x: x_axis(x_label(quantity, by_angle)),
-        y: Axis::covering(
-            rows.iter().map(|r| r.en).filter(|e| e.is_finite()),
-            &[-1.2, 1.2],
-            4,
-            "En",
-        ),
-        ..upper.clone()
-    };
-    // The band first, under everything: a step outline, one cell per point.
+    entries
+}
+
+/// The band ±half-width (`halves`, arcsec) on the `upper` panel: a step outline, one
+/// cell per point, at most 14 px either side and half-way to its neighbours.
+fn draw_band(body: &mut String, rows: &[&ComparisonRow], halves: &[f64], upper: &Panel) {
     let xs_px: Vec<f64> = rows.iter().map(|r| upper.x_px(x_of(r))).collect();
     let _ = writeln!(body, r#"<g class="band-group">"#);
-    for (i, (r, half)) in rows.iter().zip(&halves).enumerate() {
-        if !(finite(&r) && half.is_finite()) {
+    for (i, (r, half)) in rows.iter().zip(halves).enumerate() {
+        if !(drawable(r) && half.is_finite()) {
             continue;
         }
         let neighbour = |j: Option<usize>| {
@@ -290,23 +367,10 @@ fn difference(
         );
     }
     let _ = writeln!(body, "</g>");
-    upper.draw_axes(&mut body, false);
-    lower.draw_axes(&mut body, true);
-    for limit in [-1.0, 1.0] {
-        let y = px(lower.y_px(limit));
-        let _ = writeln!(
-            body,
-            r##"<line class="en-limit" x1="{}" y1="{y}" x2="{}" y2="{y}" stroke="#000" stroke-width="1" stroke-dasharray="5,3"/>"##,
-            px(lower.left_px),
-            px(lower.left_px + lower.width_px)
-        );
-    }
-    let point_of = |i: usize, r: &ComparisonRow, y: f64| Point {
-        index: i,
-        x: x_of(r),
-        y,
-        half: None,
-    };
+}
+
+/// The differences a − b on the `upper` panel, each with |En| > 1 ringed.
+fn draw_differences(body: &mut String, rows: &[&ComparisonRow], upper: &Panel) {
     let diff = Series {
         id: "difference".into(),
         label: "a − b".into(),
@@ -318,10 +382,10 @@ fn difference(
             .map(|(i, r)| point_of(i, r, r.difference))
             .collect(),
     };
-    draw_series(&mut body, &upper, &[diff]);
+    draw_series(body, upper, &[diff]);
     let (r_px, _) = marker_px(rows.len());
     for (i, r) in rows.iter().enumerate() {
-        if r.en.abs() > 1.0 && finite(&r) {
+        if r.en.abs() > 1.0 && drawable(r) {
             let _ = writeln!(
                 body,
                 r##"<circle class="en-exceeds-ring" data-index="{i}" cx="{}" cy="{}" r="{}" fill="none" stroke="#000" stroke-width="1.2"/>"##,
@@ -331,30 +395,4 @@ fn difference(
             );
         }
     }
-    let en_series = |id: &str, marker, over: bool| Series {
-        id: id.into(),
-        label: id.into(),
-        marker,
-        dx_px: 0.0,
-        points: rows
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| (r.en.abs() > 1.0) == over)
-            .map(|(i, r)| point_of(i, r, r.en))
-            .collect(),
-    };
-    draw_series(
-        &mut body,
-        &lower,
-        &[
-            en_series("en", Marker::OpenSquare, false),
-            en_series("en-exceeds", Marker::FilledCircle, true),
-        ],
-    );
-    let svg = document(lower.bottom_px() + 42.0, &title, &subtitles, &body);
-    Figure::new(
-        format!("compare-{}-difference", family_slug(quantity)),
-        title,
-        svg,
-    )
 }

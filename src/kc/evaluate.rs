@@ -133,6 +133,9 @@ fn joined(labs: &[LabResult], set: &[usize]) -> String {
         .join(", ")
 }
 
+/// Evaluates the key comparison of the results lined up in `aligned` (the laboratories
+/// `labs`, then the pilot's repeats `pilot`), each laboratory's own covariance checked in
+/// `covariances`.
 fn evaluate_aligned(
     labs: &[LabResult],
     pilot: &[LabResult],
@@ -147,161 +150,26 @@ fn evaluate_aligned(
         return Err(KcError::TooFewPositions(positions));
     }
     let mut notes = aligned.notes.clone();
-    let mut kept = Vec::new();
-    for name in &options.keep {
-        match labs.iter().position(|l| &l.name == name) {
-            Some(r) => kept.push(r),
-            None => return Err(KcError::UnknownKeep(name.clone())),
-        }
-    }
-    kept.sort_unstable();
-    kept.dedup();
-    // Every result as a closed vector: pitch deviations closed already (their mean, 0 to
-    // rounding, taken out); encoder errors, defined up to a constant, less their mean.
-    // Everything in units of the largest u, so that χ² is as accurate for any scale.
-    let scale = aligned
-        .u
-        .iter()
-        .flatten()
-        .copied()
-        .chain(
-            covariances
-                .iter()
-                .flatten()
-                .map(|v| v.diagonal().amax().sqrt()),
-        )
-        .fold(0.0, f64::max);
-    let values: Vec<Vec<f64>> = aligned
-        .values
-        .iter()
-        .map(|x| closed(x).iter().map(|x| x / scale).collect())
-        .collect();
-    let u: Vec<Vec<f64>> = aligned
-        .u
-        .iter()
-        .map(|u| u.iter().map(|u| u / scale).collect())
-        .collect();
+    let kept = kept_in_reference(labs, options)?;
+    let scaled = Scaled::of(labs, &aligned, covariances);
+    let scale = scaled.scale;
     if options.quantity == Quantity::EncoderError {
-        notes.push(
-            "encoder errors are defined up to a constant: each result's mean over the compared \
-             positions is taken out before it is compared (so a laboratory with another zero \
-             convention is not left out), and each is taken as closed with \
-             V = N/(N − 1)·P·diag(u²)·P"
-                .to_string(),
-        );
+        notes.push(ENCODER_NOTE.to_string());
     }
-    let own = |r: usize, extra: Option<&[f64]>| -> Result<ClosedCovariance, KcError> {
-        match covariances.get(r).and_then(Option::as_ref) {
-            None => Ok(ClosedCovariance::Stated(match extra {
-                None => u[r].clone(),
-                Some(tau) => u[r].iter().zip(tau).map(|(u, t)| u.hypot(*t)).collect(),
-            })),
-            Some(v) => {
-                let mut v = v / (scale * scale);
-                if let Some(tau) = extra {
-                    v += closed_covariance(tau);
-                }
-                let v_plus = closed_pseudo_inverse(&v).ok_or_else(|| KcError::Covariance {
-                    file: labs[r].source.clone(),
-                    lab: labs[r].name.clone(),
-                    reason: "it cannot be inverted on the closed subspace".to_string(),
-                })?;
-                Ok(ClosedCovariance::Own { v, v_plus })
-            }
-        }
-    };
     let stated: Vec<ClosedCovariance> = (0..results)
-        .map(|r| own(r, None))
+        .map(|r| scaled.covariance(r, None))
         .collect::<Result<_, _>>()?;
-    let fit_of = |set: &[usize], v: &[ClosedCovariance]| {
-        let x: Vec<&[f64]> = set.iter().map(|&r| values[r].as_slice()).collect();
-        let c: Vec<&ClosedCovariance> = set.iter().map(|&r| &v[r]).collect();
-        closed::fit(&x, &c)
-    };
     let everyone: Vec<usize> = (0..labs.len()).collect();
-    let not_fitted = || {
-        KcError::NotComputable(
-            "the closed vector of the laboratories cannot be fitted (a covariance singular on the \
-         closed subspace, or numbers out of range)"
-                .to_string(),
-        )
-    };
-    let all_fit = fit_of(&everyone, &stated).ok_or_else(not_fitted)?;
+    let all_fit = scaled.fit(&everyone, &stated).ok_or_else(not_fitted)?;
     let vector_all = vector_test(&all_fit, scale);
 
-    // The one decision at 5 %, then (weighted mean) the largest subset that passes.
-    let mut search = None;
-    let mut inside = everyone.clone();
-    let mut decided_consistent = vector_all.consistent;
-    if !random_effects && options.largest_consistent_subset && !vector_all.consistent {
-        let names: Vec<String> = labs.iter().map(|l| l.name.clone()).collect();
-        let found = search::largest_consistent(&names, &kept, &|set| fit_of(set, &stated));
-        if found.passed {
-            inside = found.inside;
-            decided_consistent = true;
-        }
-        search = Some(found.search);
-    }
+    let (search, inside, decided_consistent) =
+        decide_reference(&scaled, &stated, &kept, &vector_all, options);
     let in_reference: Vec<bool> = (0..labs.len()).map(|r| inside.contains(&r)).collect();
     let mut excluded = Vec::new();
     if let Some(search) = &search {
-        let last = search.steps.last();
-        for r in (0..labs.len()).filter(|r| !in_reference[*r]) {
-            let Some(chosen) = last else { break };
-            let before = search
-                .steps
-                .iter()
-                .rev()
-                .nth(1)
-                .map(|s| {
-                    format!(
-                        "; the best subset of {} laboratories ({}) fails, χ² = {:.3} > {:.3}",
-                        s.size,
-                        s.best.join(", "),
-                        s.chi2,
-                        s.chi2_critical
-                    )
-                })
-                .unwrap_or_default();
-            excluded.push(Exclusion {
-                lab: labs[r].name.clone(),
-                reason: format!(
-                    "left out of the whole comparison: the closed vector of all {} laboratories \
-                     fails (χ² = {:.3} > χ²_0.95({}) = {:.3}); the largest subset that passes \
-                     is {} ({} laboratories, χ² = {:.3} ≤ χ²_0.95({}) = {:.3}, the smallest χ² \
-                     of its size){before}",
-                    labs.len(),
-                    vector_all.chi2,
-                    vector_all.dof,
-                    vector_all.chi2_critical,
-                    chosen.best.join(", "),
-                    chosen.size,
-                    chosen.chi2,
-                    chosen.dof,
-                    chosen.chi2_critical,
-                ),
-            });
-        }
-        notes.push(match search.method {
-            SearchMethod::Exhaustive => format!(
-                "the largest consistent subset was found by trying every subset of each size \
-                 ({} in all), ties broken by the smaller χ²",
-                search.subsets_tested
-            ),
-            SearchMethod::Greedy => format!(
-                "the subsets were too many to try every one (more than {}): from the size where \
-                 they were, the laboratory whose removal lowers χ² most was left out one at a \
-                 time; a larger consistent subset may exist",
-                search::EXHAUSTIVE_SUBSETS
-            ),
-        });
-        if !decided_consistent {
-            notes.push(
-                "no subset of the laboratories passes the closed vector's test: every \
-                 laboratory is kept in the reference, and the comparison is not consistent"
-                    .to_string(),
-            );
-        }
+        excluded = exclusions(labs, search, &in_reference, &vector_all);
+        notes.extend(search_notes(search, decided_consistent));
     }
     if !kept.is_empty() {
         notes.push(format!(
@@ -311,7 +179,7 @@ fn evaluate_aligned(
     }
 
     // The reference: the closed GLS of the laboratories inside (with τ for DL).
-    let per_face_all = estimates(&values, &u, &everyone, random_effects);
+    let per_face_all = estimates(&scaled.values, &scaled.u, &everyone, random_effects);
     let tau: Vec<f64> = if random_effects {
         per_face_all.iter().map(|e| e.tau).collect()
     } else {
@@ -319,93 +187,406 @@ fn evaluate_aligned(
     };
     let widened: Vec<ClosedCovariance> = if random_effects {
         (0..results)
-            .map(|r| own(r, Some(&tau)))
+            .map(|r| scaled.covariance(r, Some(&tau)))
             .collect::<Result<_, _>>()?
     } else {
         stated.clone()
     };
-    let final_fit = fit_of(&inside, &widened).ok_or_else(not_fitted)?;
+    let final_fit = scaled.fit(&inside, &widened).ok_or_else(not_fitted)?;
     let vector = vector_test(&final_fit, scale);
-    let found = estimates(&values, &u, &inside, random_effects);
+    let found = estimates(&scaled.values, &scaled.u, &inside, random_effects);
 
     // The pilot's stability: one test of the repeats' closed vectors.
     let repeats: Vec<usize> = (labs.len()..results).collect();
-    let mut stability_u = vec![0.0; positions];
-    let mut pilot_report = None;
-    if !repeats.is_empty() {
-        let m = repeats.len();
-        let (mut mean, mut spread, mut chi2, mut significant) =
-            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        for k in 0..positions {
-            let y: Vec<f64> = repeats.iter().map(|&r| values[r][k]).collect();
-            let uk: Vec<f64> = repeats.iter().map(|&r| u[r][k]).collect();
-            let plain = y.iter().sum::<f64>() / m as f64;
-            let s = (y.iter().map(|y| (y - plain).powi(2)).sum::<f64>() / (m - 1) as f64).sqrt();
-            let (_, _, c) = reference::weighted_mean(&y, &uk);
-            mean.push(plain * scale);
-            spread.push(s * scale);
-            chi2.push(c);
-            significant.push(c > chi2_quantile_95(m - 1));
-        }
-        let pilot_fit = fit_of(&repeats, &stated).ok_or_else(not_fitted)?;
-        let pilot_vector = vector_test(&pilot_fit, scale);
-        if !pilot_vector.consistent {
-            // stated by `KeyComparison::pilot_statement`
-            stability_u.clone_from(&spread);
-        }
-        pilot_report = Some(PilotStability {
-            repeats: pilot.iter().map(|p| p.name.clone()).collect(),
-            mean,
-            spread,
-            chi2,
-            chi2_dof: m - 1,
-            significant,
-            stability_u: stability_u.clone(),
-            vector: Some(pilot_vector),
-            degrees_of_equivalence: Vec::new(),
-        });
-    }
+    let (stability_u, mut pilot_report) = pilot_stability(&scaled, pilot, &repeats, &stated)?;
 
     // Degrees of equivalence against the closed reference: Σ_k d_ik = 0.
-    let reference_variance = &final_fit.reference_variance;
-    let doe = |r: usize, inside_reference: bool| {
-        let diagonal = widened[r].diagonal();
-        let sign = if inside_reference { -1.0 } else { 1.0 };
-        let mut d = Vec::with_capacity(positions);
-        let mut expanded_u = Vec::with_capacity(positions);
-        for k in 0..positions {
-            let variance = (diagonal[k] + sign * reference_variance[k]).max(0.0) * scale * scale
-                + stability_u[k] * stability_u[k];
-            d.push((values[r][k] - final_fit.reference[k]) * scale);
-            expanded_u.push(2.0 * variance.sqrt());
-        }
-        (d, expanded_u)
+    let reference = Reference {
+        fit: &final_fit,
+        widened: &widened,
+        stability_u: &stability_u,
     };
     let degrees_of_equivalence = (0..labs.len())
         .map(|r| {
-            let (d, expanded_u) = doe(r, in_reference[r]);
-            DegreeOfEquivalence {
-                lab: labs[r].name.clone(),
-                d,
-                expanded_u,
-                in_reference: in_reference[r],
-            }
+            let lab = labs[r].name.clone();
+            scaled.degree_of_equivalence(r, in_reference[r], lab, &reference)
         })
         .collect();
     if let Some(report) = pilot_report.as_mut() {
         report.degrees_of_equivalence = repeats
             .iter()
-            .map(|&r| {
-                let (d, expanded_u) = doe(r, false);
-                DegreeOfEquivalence {
-                    lab: all_name(labs, pilot, r),
-                    d,
-                    expanded_u,
-                    in_reference: false,
-                }
-            })
+            .map(|&r| scaled.degree_of_equivalence(r, false, all_name(labs, pilot, r), &reference))
             .collect();
     }
+    let pairs = pair_differences(&scaled, &stated);
+    notes.extend(closing_notes(
+        labs,
+        covariances,
+        &inside,
+        random_effects,
+        positions,
+    ));
+
+    let chi2_critical: Vec<f64> = found.iter().map(|e| chi2_quantile_95(e.dof)).collect();
+    let consistent: Vec<bool> = found
+        .iter()
+        .zip(&chi2_critical)
+        .map(|(e, q)| e.chi2 <= *q)
+        .collect();
+    let comparison_consistent = if random_effects {
+        vector_all.consistent
+    } else {
+        decided_consistent && vector.consistent
+    };
+    Ok(KeyComparison {
+        quantity: options.quantity,
+        method: options.method,
+        index: aligned.index.clone(),
+        angle_deg: aligned.angle_deg.clone(),
+        labs: labs.iter().map(|l| l.name.clone()).collect(),
+        reference: final_fit.reference.iter().map(|r| r * scale).collect(),
+        reference_u: final_fit
+            .reference_variance
+            .iter()
+            .zip(&stability_u)
+            .map(|(v, s)| (v.sqrt() * scale).hypot(*s))
+            .collect(),
+        chi2: found.iter().map(|e| e.chi2).collect(),
+        chi2_dof: found.iter().map(|e| e.dof).collect(),
+        chi2_critical,
+        consistent,
+        vector_all: Some(vector_all),
+        vector: Some(vector),
+        search,
+        kept: kept.iter().map(|&r| labs[r].name.clone()).collect(),
+        excluded,
+        tau: tau.iter().map(|t| t * scale).collect(),
+        degrees_of_equivalence,
+        pairs,
+        pilot: pilot_report,
+        comparison_consistent,
+        notes,
+    })
+}
+
+/// The laboratories the pilot keeps in the reference whatever the tests say (indices,
+/// sorted, once each).
+fn kept_in_reference(labs: &[LabResult], options: &KcOptions) -> Result<Vec<usize>, KcError> {
+    let mut kept = Vec::new();
+    for name in &options.keep {
+        match labs.iter().position(|l| &l.name == name) {
+            Some(r) => kept.push(r),
+            None => return Err(KcError::UnknownKeep(name.clone())),
+        }
+    }
+    kept.sort_unstable();
+    kept.dedup();
+    Ok(kept)
+}
+
+/// The error of a closed vector that cannot be fitted.
+fn not_fitted() -> KcError {
+    KcError::NotComputable(
+        "the closed vector of the laboratories cannot be fitted (a covariance singular on the \
+         closed subspace, or numbers out of range)"
+            .to_string(),
+    )
+}
+
+/// Every result as a closed vector, in units of the largest u (so that χ² is as accurate
+/// for any scale), with the laboratories' own covariances.
+struct Scaled<'a> {
+    labs: &'a [LabResult],
+    covariances: &'a [Option<DMatrix<f64>>],
+    /// The unit of `values` and `u`: the largest standard uncertainty given, in the
+    /// quantity's unit (arcsec).
+    scale: f64,
+    /// Per result, its closed values, in units of `scale`.
+    values: Vec<Vec<f64>>,
+    /// Per result, its standard uncertainties, in units of `scale`.
+    u: Vec<Vec<f64>>,
+    /// The quantities compared (faces or encoder positions).
+    positions: usize,
+}
+
+impl<'a> Scaled<'a> {
+    /// Every result as a closed vector: pitch deviations closed already (their mean, 0 to
+    /// rounding, taken out); encoder errors, defined up to a constant, less their mean.
+    /// Everything in units of the largest u.
+    fn of(
+        labs: &'a [LabResult],
+        aligned: &Aligned,
+        covariances: &'a [Option<DMatrix<f64>>],
+    ) -> Scaled<'a> {
+        let scale = aligned
+            .u
+            .iter()
+            .flatten()
+            .copied()
+            .chain(
+                covariances
+                    .iter()
+                    .flatten()
+                    .map(|v| v.diagonal().amax().sqrt()),
+            )
+            .fold(0.0, f64::max);
+        let values: Vec<Vec<f64>> = aligned
+            .values
+            .iter()
+            .map(|x| closed(x).iter().map(|x| x / scale).collect())
+            .collect();
+        let u: Vec<Vec<f64>> = aligned
+            .u
+            .iter()
+            .map(|u| u.iter().map(|u| u / scale).collect())
+            .collect();
+        Scaled {
+            labs,
+            covariances,
+            scale,
+            values,
+            u,
+            positions: aligned.index.len(),
+        }
+    }
+
+    /// The closed covariance of result `r`: its own (scaled) or taken from its stated u,
+    /// widened by the dark uncertainty `extra` (τ, in units of the scale) where given.
+    fn covariance(&self, r: usize, extra: Option<&[f64]>) -> Result<ClosedCovariance, KcError> {
+        match self.covariances.get(r).and_then(Option::as_ref) {
+            None => Ok(ClosedCovariance::Stated(match extra {
+                None => self.u[r].clone(),
+                Some(tau) => self.u[r]
+                    .iter()
+                    .zip(tau)
+                    .map(|(u, t)| u.hypot(*t))
+                    .collect(),
+            })),
+            Some(v) => {
+                let mut v = v / (self.scale * self.scale);
+                if let Some(tau) = extra {
+                    v += closed_covariance(tau);
+                }
+                let v_plus = closed_pseudo_inverse(&v).ok_or_else(|| KcError::Covariance {
+                    file: self.labs[r].source.clone(),
+                    lab: self.labs[r].name.clone(),
+                    reason: "it cannot be inverted on the closed subspace".to_string(),
+                })?;
+                Ok(ClosedCovariance::Own { v, v_plus })
+            }
+        }
+    }
+
+    /// The closed fit of the results `set`, with the covariances `v` (per result).
+    fn fit(&self, set: &[usize], v: &[ClosedCovariance]) -> Option<ClosedFit> {
+        let x: Vec<&[f64]> = set.iter().map(|&r| self.values[r].as_slice()).collect();
+        let c: Vec<&ClosedCovariance> = set.iter().map(|&r| &v[r]).collect();
+        closed::fit(&x, &c)
+    }
+
+    /// Result `r`'s (laboratory `lab`'s) degree of equivalence against the closed
+    /// `reference`: d and U(d) (k = 2) per quantity, in arcsec. Its variance is less the
+    /// reference's when it is inside the reference, more when outside, plus the pilot's
+    /// stability.
+    fn degree_of_equivalence(
+        &self,
+        r: usize,
+        inside_reference: bool,
+        lab: String,
+        reference: &Reference,
+    ) -> DegreeOfEquivalence {
+        let (fit, stability_u) = (reference.fit, reference.stability_u);
+        let scale = self.scale;
+        let positions = self.positions;
+        let diagonal = reference.widened[r].diagonal();
+        let sign = if inside_reference { -1.0 } else { 1.0 };
+        let mut d = Vec::with_capacity(positions);
+        let mut expanded_u = Vec::with_capacity(positions);
+        for k in 0..positions {
+            let variance =
+                (diagonal[k] + sign * fit.reference_variance[k]).max(0.0) * scale * scale
+                    + stability_u[k] * stability_u[k];
+            d.push((self.values[r][k] - fit.reference[k]) * scale);
+            expanded_u.push(2.0 * variance.sqrt());
+        }
+        DegreeOfEquivalence {
+            lab,
+            d,
+            expanded_u,
+            in_reference: inside_reference,
+        }
+    }
+}
+
+/// The closed reference the degrees of equivalence are taken against: its fit, every
+/// result's covariance (widened by τ for DerSimonian–Laird), and the pilot's stability
+/// u per quantity (arcsec).
+struct Reference<'a> {
+    fit: &'a ClosedFit,
+    widened: &'a [ClosedCovariance],
+    stability_u: &'a [f64],
+}
+
+/// The note on encoder errors, compared less their mean.
+const ENCODER_NOTE: &str = "encoder errors are defined up to a constant: each result's mean over the compared \
+     positions is taken out before it is compared (so a laboratory with another zero \
+     convention is not left out), and each is taken as closed with \
+     V = N/(N − 1)·P·diag(u²)·P";
+
+/// The one decision at 5 %, then (weighted mean, when asked) the largest subset that
+/// passes: the search made, the laboratories inside the reference, and whether the
+/// comparison is decided consistent.
+fn decide_reference(
+    scaled: &Scaled,
+    stated: &[ClosedCovariance],
+    kept: &[usize],
+    vector_all: &VectorTest,
+    options: &KcOptions,
+) -> (Option<search::SubsetSearch>, Vec<usize>, bool) {
+    let labs = scaled.labs;
+    let random_effects = options.method == ReferenceMethod::DersimonianLaird;
+    let everyone: Vec<usize> = (0..labs.len()).collect();
+    if random_effects || !options.largest_consistent_subset || vector_all.consistent {
+        return (None, everyone, vector_all.consistent);
+    }
+    let names: Vec<String> = labs.iter().map(|l| l.name.clone()).collect();
+    let found = search::largest_consistent(&names, kept, &|set| scaled.fit(set, stated));
+    if found.passed {
+        (Some(found.search), found.inside, true)
+    } else {
+        (Some(found.search), everyone, vector_all.consistent)
+    }
+}
+
+/// Why each laboratory outside the reference was left out by the subset `search`.
+fn exclusions(
+    labs: &[LabResult],
+    search: &search::SubsetSearch,
+    in_reference: &[bool],
+    vector_all: &VectorTest,
+) -> Vec<Exclusion> {
+    let mut excluded = Vec::new();
+    let last = search.steps.last();
+    for r in (0..labs.len()).filter(|r| !in_reference[*r]) {
+        let Some(chosen) = last else { break };
+        let before = search
+            .steps
+            .iter()
+            .rev()
+            .nth(1)
+            .map(|s| {
+                format!(
+                    "; the best subset of {} laboratories ({}) fails, χ² = {:.3} > {:.3}",
+                    s.size,
+                    s.best.join(", "),
+                    s.chi2,
+                    s.chi2_critical
+                )
+            })
+            .unwrap_or_default();
+        excluded.push(Exclusion {
+            lab: labs[r].name.clone(),
+            reason: format!(
+                "left out of the whole comparison: the closed vector of all {} laboratories \
+                 fails (χ² = {:.3} > χ²_0.95({}) = {:.3}); the largest subset that passes \
+                 is {} ({} laboratories, χ² = {:.3} ≤ χ²_0.95({}) = {:.3}, the smallest χ² \
+                 of its size){before}",
+                labs.len(),
+                vector_all.chi2,
+                vector_all.dof,
+                vector_all.chi2_critical,
+                chosen.best.join(", "),
+                chosen.size,
+                chosen.chi2,
+                chosen.dof,
+                chosen.chi2_critical,
+            ),
+        });
+    }
+    excluded
+}
+
+/// The notes on how the subset `search` went, and on its failing when no subset passed.
+fn search_notes(search: &search::SubsetSearch, decided_consistent: bool) -> Vec<String> {
+    let mut notes = vec![match search.method {
+        SearchMethod::Exhaustive => format!(
+            "the largest consistent subset was found by trying every subset of each size \
+             ({} in all), ties broken by the smaller χ²",
+            search.subsets_tested
+        ),
+        SearchMethod::Greedy => format!(
+            "the subsets were too many to try every one (more than {}): from the size where \
+             they were, the laboratory whose removal lowers χ² most was left out one at a \
+             time; a larger consistent subset may exist",
+            search::EXHAUSTIVE_SUBSETS
+        ),
+    }];
+    if !decided_consistent {
+        notes.push(
+            "no subset of the laboratories passes the closed vector's test: every \
+             laboratory is kept in the reference, and the comparison is not consistent"
+                .to_string(),
+        );
+    }
+    notes
+}
+
+/// The pilot's stability: one test of the closed vectors of the `repeats` (indices of the
+/// results), with each quantity's mean, spread and χ². Returns the stability standard
+/// uncertainty per quantity in arcsec (the repeats' spread when their closed vector
+/// fails, else 0) and the report (`None` without repeats).
+fn pilot_stability(
+    scaled: &Scaled,
+    pilot: &[LabResult],
+    repeats: &[usize],
+    stated: &[ClosedCovariance],
+) -> Result<(Vec<f64>, Option<PilotStability>), KcError> {
+    let positions = scaled.positions;
+    let scale = scaled.scale;
+    let mut stability_u = vec![0.0; positions];
+    if repeats.is_empty() {
+        return Ok((stability_u, None));
+    }
+    let m = repeats.len();
+    let (mut mean, mut spread, mut chi2, mut significant) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for k in 0..positions {
+        let y: Vec<f64> = repeats.iter().map(|&r| scaled.values[r][k]).collect();
+        let uk: Vec<f64> = repeats.iter().map(|&r| scaled.u[r][k]).collect();
+        let plain = y.iter().sum::<f64>() / m as f64;
+        let s = (y.iter().map(|y| (y - plain).powi(2)).sum::<f64>() / (m - 1) as f64).sqrt();
+        let (_, _, c) = reference::weighted_mean(&y, &uk);
+        mean.push(plain * scale);
+        spread.push(s * scale);
+        chi2.push(c);
+        significant.push(c > chi2_quantile_95(m - 1));
+    }
+    let pilot_fit = scaled.fit(repeats, stated).ok_or_else(not_fitted)?;
+    let pilot_vector = vector_test(&pilot_fit, scale);
+    if !pilot_vector.consistent {
+        // stated by `KeyComparison::pilot_statement`
+        stability_u.clone_from(&spread);
+    }
+    let report = PilotStability {
+        repeats: pilot.iter().map(|p| p.name.clone()).collect(),
+        mean,
+        spread,
+        chi2,
+        chi2_dof: m - 1,
+        significant,
+        stability_u: stability_u.clone(),
+        vector: Some(pilot_vector),
+        degrees_of_equivalence: Vec::new(),
+    };
+    Ok((stability_u, Some(report)))
+}
+
+/// The difference of every pair of laboratories with its U (k = 2), in arcsec, from
+/// their stated covariances.
+fn pair_differences(scaled: &Scaled, stated: &[ClosedCovariance]) -> Vec<PairDifference> {
+    let labs = scaled.labs;
+    let scale = scaled.scale;
+    let positions = scaled.positions;
     let mut pairs = Vec::new();
     for a in 0..labs.len() {
         let diagonal_a = stated[a].diagonal();
@@ -415,7 +596,7 @@ fn evaluate_aligned(
                 a: labs[a].name.clone(),
                 b: labs[b].name.clone(),
                 d: (0..positions)
-                    .map(|k| (values[a][k] - values[b][k]) * scale)
+                    .map(|k| (scaled.values[a][k] - scaled.values[b][k]) * scale)
                     .collect(),
                 expanded_u: (0..positions)
                     .map(|k| 2.0 * (diagonal_a[k] + diagonal_b[k]).sqrt() * scale)
@@ -423,7 +604,19 @@ fn evaluate_aligned(
             });
         }
     }
+    pairs
+}
 
+/// The notes on the covariances the closed vector used, on DerSimonian–Laird, and on the
+/// one decision at 5 %.
+fn closing_notes(
+    labs: &[LabResult],
+    covariances: &[Option<DMatrix<f64>>],
+    inside: &[usize],
+    random_effects: bool,
+    positions: usize,
+) -> Vec<String> {
+    let mut notes = Vec::new();
     let with_own: Vec<&str> = inside
         .iter()
         .filter(|&&r| covariances[r].is_some())
@@ -453,45 +646,7 @@ fn evaluate_aligned(
          of the {positions} quantities is information (by chance about 1 in 20 fails in a \
          consistent comparison)"
     ));
-    let chi2_critical: Vec<f64> = found.iter().map(|e| chi2_quantile_95(e.dof)).collect();
-    let consistent: Vec<bool> = found
-        .iter()
-        .zip(&chi2_critical)
-        .map(|(e, q)| e.chi2 <= *q)
-        .collect();
-    let comparison_consistent = if random_effects {
-        vector_all.consistent
-    } else {
-        decided_consistent && vector.consistent
-    };
-    Ok(KeyComparison {
-        quantity: options.quantity,
-        method: options.method,
-        index: aligned.index.clone(),
-        angle_deg: aligned.angle_deg.clone(),
-        labs: labs.iter().map(|l| l.name.clone()).collect(),
-        reference: final_fit.reference.iter().map(|r| r * scale).collect(),
-        reference_u: reference_variance
-            .iter()
-            .zip(&stability_u)
-            .map(|(v, s)| (v.sqrt() * scale).hypot(*s))
-            .collect(),
-        chi2: found.iter().map(|e| e.chi2).collect(),
-        chi2_dof: found.iter().map(|e| e.dof).collect(),
-        chi2_critical,
-        consistent,
-        vector_all: Some(vector_all),
-        vector: Some(vector),
-        search,
-        kept: kept.iter().map(|&r| labs[r].name.clone()).collect(),
-        excluded,
-        tau: tau.iter().map(|t| t * scale).collect(),
-        degrees_of_equivalence,
-        pairs,
-        pilot: pilot_report,
-        comparison_consistent,
-        notes,
-    })
+    notes
 }
 
 /// The name of result `r` of the laboratories followed by the pilot's repeats.

@@ -87,12 +87,40 @@ pub(super) fn validate(
     loc: &Locator<'_>,
     source: &str,
 ) -> Result<usize, MeasurementError> {
-    let err = |at: (u64, u64), message: String| invalid(source, at, message);
     if readings.is_empty() {
-        return Err(err(loc.header_start(), loc.no_rows().to_string()));
+        return Err(invalid(
+            source,
+            loc.header_start(),
+            loc.no_rows().to_string(),
+        ));
     }
+    check_values(readings, loc, source)?;
+    let (n, n_from) = number_of_faces(readings, faces, loc, source)?;
 
-    // Values (already checked, with their text, when read from a file).
+    // Row by row, in order.
+    let mut rows = RowChecks {
+        readings,
+        loc,
+        source,
+        first_read: HashMap::new(),
+        cycle_direction: HashMap::new(),
+        stream_offset: HashMap::new(),
+    };
+    for (i, r) in readings.iter().enumerate() {
+        rows.check(i, r, n, n_from)?;
+    }
+    check_every_face_and_step(readings, (n, n_from), loc, source)?;
+    Ok(n)
+}
+
+/// Values (already checked, with their text, when read from a file): cycle, ac, face and
+/// setup at least 1, every number within its limit.
+fn check_values(
+    readings: &[Reading],
+    loc: &Locator<'_>,
+    source: &str,
+) -> Result<(), MeasurementError> {
+    let err = |at: (u64, u64), message: String| invalid(source, at, message);
     for (i, r) in readings.iter().enumerate() {
         let p = loc.prefix(i, readings);
         for (col, zero) in [
@@ -126,9 +154,19 @@ pub(super) fn validate(
             }
         }
     }
+    Ok(())
+}
 
-    // N.
-    let (n, n_from) = match faces {
+/// N, the number of faces: as stated, or the largest face; at least 3. Returned with
+/// where it comes from, for messages.
+fn number_of_faces(
+    readings: &[Reading],
+    faces: Option<usize>,
+    loc: &Locator<'_>,
+    source: &str,
+) -> Result<(usize, &'static str), MeasurementError> {
+    let err = |at: (u64, u64), message: String| invalid(source, at, message);
+    match faces {
         Some(n) => {
             if n < 3 {
                 return Err(err(
@@ -136,7 +174,7 @@ pub(super) fn validate(
                     format!("a polygon needs at least 3 faces, {n} were stated"),
                 ));
             }
-            (n, "the number of faces stated")
+            Ok((n, "the number of faces stated"))
         }
         None => {
             let mut largest = 0;
@@ -157,15 +195,36 @@ pub(super) fn validate(
                     ),
                 ));
             }
-            (largest, "the largest face")
+            Ok((largest, "the largest face"))
         }
-    };
+    }
+}
 
-    // Row by row, in order.
-    let mut first_read: HashMap<(u32, u32, usize, u32), usize> = HashMap::new();
-    let mut cycle_direction: HashMap<(u32, u32), usize> = HashMap::new();
-    let mut stream_offset: HashMap<(u32, u32), (usize, usize)> = HashMap::new();
-    for (i, r) in readings.iter().enumerate() {
+/// The rules checked row by row, in order, with what the rows before have set.
+struct RowChecks<'a> {
+    readings: &'a [Reading],
+    loc: &'a Locator<'a>,
+    source: &'a str,
+    /// The row that first read each (setup, cycle, step, ac).
+    first_read: HashMap<(u32, u32, usize, u32), usize>,
+    /// The row that set each (setup, cycle)'s direction.
+    cycle_direction: HashMap<(u32, u32), usize>,
+    /// Each (setup, ac) stream's face offset, and the row that set it.
+    stream_offset: HashMap<(u32, u32), (usize, usize)>,
+}
+
+impl RowChecks<'_> {
+    /// Row `i` (`r`): face and step within range (N = `n`, from `n_from`), not read
+    /// before, its cycle's one direction, its stream's one face offset.
+    fn check(
+        &mut self,
+        i: usize,
+        r: &Reading,
+        n: usize,
+        n_from: &str,
+    ) -> Result<(), MeasurementError> {
+        let (loc, readings, source) = (self.loc, self.readings, self.source);
+        let err = |at: (u64, u64), message: String| invalid(source, at, message);
         let p = loc.prefix(i, readings);
         let mut range = Vec::new();
         if r.face > n {
@@ -190,7 +249,7 @@ pub(super) fn validate(
             return Err(err(at, message));
         }
 
-        match first_read.entry((r.setup, r.cycle, r.step, r.ac)) {
+        match self.first_read.entry((r.setup, r.cycle, r.step, r.ac)) {
             Entry::Occupied(first) => {
                 return Err(err(
                     loc.row_start(i, readings),
@@ -210,7 +269,7 @@ pub(super) fn validate(
             }
         }
 
-        match cycle_direction.entry((r.setup, r.cycle)) {
+        match self.cycle_direction.entry((r.setup, r.cycle)) {
             Entry::Occupied(first) => {
                 let j = *first.get();
                 let direction = readings.get(j).map(|f| f.direction).unwrap_or_default();
@@ -235,7 +294,7 @@ pub(super) fn validate(
         }
 
         let d = face_offset(r.face, r.step, n);
-        match stream_offset.entry((r.setup, r.ac)) {
+        match self.stream_offset.entry((r.setup, r.ac)) {
             Entry::Occupied(first) => {
                 let (d0, j) = *first.get();
                 if d != d0 {
@@ -259,9 +318,18 @@ pub(super) fn validate(
                 slot.insert((d, i));
             }
         }
+        Ok(())
     }
+}
 
-    // Every face and every step.
+/// Every face 1 … N read and every step 0 … N−1 present (N = `n`, from `n_from`).
+fn check_every_face_and_step(
+    readings: &[Reading],
+    (n, n_from): (usize, &str),
+    loc: &Locator<'_>,
+    source: &str,
+) -> Result<(), MeasurementError> {
+    let err = |at: (u64, u64), message: String| invalid(source, at, message);
     let present: BTreeSet<usize> = readings.iter().map(|r| r.face).collect();
     let (missing, count) = missing_ranges(&present, 1, n);
     if count > 0 {
@@ -297,5 +365,5 @@ pub(super) fn validate(
             ),
         ));
     }
-    Ok(n)
+    Ok(())
 }

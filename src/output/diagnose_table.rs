@@ -3,7 +3,7 @@
 //! checks, what was tried and not added, and (with a truth) the errors before and after.
 
 use super::diagnose::{ErrorSummary, direction_text, explanation_on};
-use crate::diagnose::Diagnosis;
+use crate::diagnose::{Clock, Diagnosis, FoundEffect};
 use crate::effects::Effect;
 use crate::simulate::Truth;
 use crate::solve::Solution;
@@ -117,117 +117,7 @@ pub fn write_table<W: std::fmt::Write>(
     write_noise(out, diagnosis)?;
     write_cycles(out, diagnosis)?;
     write_mountings(out, diagnosis)?;
-    if diagnosis.effects.is_empty() {
-        if diagnosis.testable {
-            writeln!(
-                out,
-                "\nNo effect is significant: the base model explains the readings."
-            )?;
-        }
-    } else {
-        writeln!(
-            out,
-            "\nEffects found, in the order added (each by an F test against the model before it):"
-        )?;
-        for (i, found) in diagnosis.effects.iter().enumerate() {
-            let value = found.effect.value();
-            let unit = match found.effect {
-                Effect::Drift { .. } => diagnosis.clock.drift_unit_text(),
-                Effect::CrossTalk { .. } => "″/″",
-                _ => "″",
-            };
-            let u = found
-                .u
-                .map_or(String::new(), |u| format!(" ± {u:.4}{unit} (k = 1)"));
-            writeln!(
-                out,
-                "{:>3}. {} = {value:+.4}{unit}{u}",
-                i + 1,
-                found.effect.label()
-            )?;
-            if let Effect::Drift {
-                quadratic: Some(q), ..
-            } = found.effect
-            {
-                let u = found
-                    .quadratic_u
-                    .map_or(String::new(), |u| format!(" ± {u:.4}{unit}² (k = 1)"));
-                let evidence = found.quadratic_evidence.map_or(String::new(), |e| {
-                    format!(
-                        "; curvature added by F = {}, Bonferroni p = {}",
-                        f_text(e.f_statistic),
-                        p_text(e.p_adjusted)
-                    )
-                });
-                writeln!(
-                    out,
-                    "     curvature (quadratic) = {q:+.4}{unit}²{u}{evidence}"
-                )?;
-            }
-            writeln!(
-                out,
-                "     pattern: {}",
-                explanation_on(found, diagnosis.clock)
-            )?;
-            writeln!(
-                out,
-                "     evidence: F = {}, p = {}, Bonferroni p = {}; residual RMS {:.4}″ → {:.4}″",
-                f_text(found.f_statistic),
-                p_text(found.p_value),
-                p_text(found.p_adjusted),
-                found.residual_rms_before,
-                found.residual_rms_after
-            )?;
-            writeln!(
-                out,
-                "     effect on the calibration: pitch deviations changed by up to {:.4}″, encoder errors by up to {:.4}″",
-                found.pitch_change_max, found.encoder_change_max
-            )?;
-            for alternative in &found.alternatives {
-                let names: Vec<String> = alternative
-                    .effects
-                    .iter()
-                    .map(|e| format!("{} = {:+.5}", e.label(), e.value()))
-                    .collect();
-                if alternative.equivalent && !alternative.changes_calibration() {
-                    writeln!(
-                        out,
-                        "     equivalently: {} (the same fit and the same calibration: the data cannot tell them apart)",
-                        names.join(" with ")
-                    )?;
-                    continue;
-                }
-                writeln!(
-                    out,
-                    "     {}: {} fits as well (F = {}, p = {:.2}) and changes pitch deviations by up to {:.4}″, encoder errors by up to {:.4}″ ({:.1} expanded uncertainties)",
-                    if alternative.changes_calibration() {
-                        "CANNOT TELL"
-                    } else {
-                        "alternative"
-                    },
-                    names.join(" with "),
-                    f_text(alternative.f_statistic),
-                    alternative.p_value,
-                    alternative.pitch_change_max,
-                    alternative.encoder_change_max,
-                    alternative.change_over_expanded_u
-                )?;
-            }
-        }
-        let after = &diagnosis.after;
-        writeln!(
-            out,
-            "\nFinal model: base + {} effect{}, dof {}, residual RMS {}",
-            diagnosis.effects.len(),
-            if diagnosis.effects.len() == 1 {
-                ""
-            } else {
-                "s"
-            },
-            after.dof,
-            rms_text(after)
-        )?;
-    }
+    write_effects(out, diagnosis)?;
     if let Some(stop) = diagnosis.search_stopped {
         writeln!(
             out,
@@ -237,85 +127,234 @@ pub fn write_table<W: std::fmt::Write>(
         )?;
     }
     if diagnosis.testable {
-        if diagnosis.adequacy.adequate {
-            writeln!(
-                out,
-                "\nAdequate: the final residuals are consistent with noise."
-            )?;
-        } else {
-            let failed: Vec<&str> = diagnosis
-                .adequacy
-                .checks
-                .iter()
-                .filter(|c| !c.passed)
-                .map(|c| c.name.as_str())
-                .collect();
-            let ambiguous_only = !failed.is_empty()
-                && failed
-                    .iter()
-                    .all(|name| name.starts_with("identifiability"));
-            if ambiguous_only {
-                writeln!(
-                    out,
-                    "\nNOT adequate: an effect found cannot be told apart from another explanation that gives a different calibration (see the notes); the result is not certified."
-                )?;
-            } else {
-                writeln!(
-                    out,
-                    "\nNOT adequate: structure is left that no known effect explains."
-                )?;
-            }
-            // a lack of fit the band-limited model of heads between the positions leaves
-            // (and nothing else failed) has a cause of its own beside the effects found
-            let band_limit = diagnosis
-                .lack_of_fit
-                .as_ref()
-                .and_then(|lof| lof.band_limit_order)
-                .filter(|_| failed.iter().all(|name| name.starts_with("lack of fit")));
-            if let (Some(order), false) = (band_limit, diagnosis.effects.is_empty()) {
-                writeln!(
-                    out,
-                    "  The lack of fit is left beside the effects above, a finding of its own: the band-limited model of heads between the positions cannot fit the encoder error's orders of {order} or more (see the notes). Each effect was kept because it reduces the lack of fit, judged against one pure error with and without it; the result is not certified until that cause is settled."
-                )?;
-            } else if !diagnosis.effects.is_empty() && !ambiguous_only {
-                writeln!(
-                    out,
-                    "  Caution: the effects above are the closest terms the model has to a structure it cannot express, not a confirmed explanation; do not take the final model's result as corrected until the cause of the structure below is found."
-                )?;
-            }
-        }
-        for check in &diagnosis.adequacy.checks {
-            writeln!(
-                out,
-                "  {} {}: {} (limit {:.2})",
-                if check.passed { "pass" } else { "FAIL" },
-                check.name,
-                if check.statistic.is_finite() {
-                    format!("{:.2}", check.statistic)
-                } else {
-                    "∞".to_string()
-                },
-                check.limit
-            )?;
-        }
-        for s in &diagnosis.adequacy.structure {
-            let time = |t: Option<f64>| t.map_or(String::new(), |t| format!(", t = {t:.0} s"));
-            writeln!(
-                out,
-                "  structure left: setup {} autocollimator {}, from cycle {} step {}{} to cycle {} step {}{}: mean residual {:+.4}″ over {} readings",
-                s.setup,
-                s.ac,
-                s.from.0,
-                s.from.1,
-                time(s.from.2),
-                s.to.0,
-                s.to.1,
-                time(s.to.2),
-                s.mean_residual_arcsec,
-                s.readings
-            )?;
-        }
+        write_adequacy(out, diagnosis)?;
     }
+    write_worst_cells(out, diagnosis)?;
+    write_tried(out, diagnosis)?;
+    if let Some(truth) = truth {
+        write_truth_errors(out, diagnosis, truth)?;
+    }
+    Ok(())
+}
+
+/// The effects found, in the order added, each with its size, pattern, evidence, effect
+/// on the calibration and alternatives, then the final model (or that none is
+/// significant).
+fn write_effects<W: std::fmt::Write>(out: &mut W, diagnosis: &Diagnosis) -> std::fmt::Result {
+    if diagnosis.effects.is_empty() {
+        if diagnosis.testable {
+            writeln!(
+                out,
+                "\nNo effect is significant: the base model explains the readings."
+            )?;
+        }
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "\nEffects found, in the order added (each by an F test against the model before it):"
+    )?;
+    for (i, found) in diagnosis.effects.iter().enumerate() {
+        write_effect(out, i + 1, found, diagnosis.clock)?;
+    }
+    let after = &diagnosis.after;
+    writeln!(
+        out,
+        "\nFinal model: base + {} effect{}, dof {}, residual RMS {}",
+        diagnosis.effects.len(),
+        if diagnosis.effects.len() == 1 {
+            ""
+        } else {
+            "s"
+        },
+        after.dof,
+        rms_text(after)
+    )
+}
+
+/// Effect number `number` found: its value (and a drift's curvature) with u, the
+/// pattern that pointed to it, its evidence, what it changed, and its alternatives.
+fn write_effect<W: std::fmt::Write>(
+    out: &mut W,
+    number: usize,
+    found: &FoundEffect,
+    clock: Clock,
+) -> std::fmt::Result {
+    let value = found.effect.value();
+    let unit = match found.effect {
+        Effect::Drift { .. } => clock.drift_unit_text(),
+        Effect::CrossTalk { .. } => "″/″",
+        _ => "″",
+    };
+    let u = found
+        .u
+        .map_or(String::new(), |u| format!(" ± {u:.4}{unit} (k = 1)"));
+    writeln!(
+        out,
+        "{:>3}. {} = {value:+.4}{unit}{u}",
+        number,
+        found.effect.label()
+    )?;
+    if let Effect::Drift {
+        quadratic: Some(q), ..
+    } = found.effect
+    {
+        let u = found
+            .quadratic_u
+            .map_or(String::new(), |u| format!(" ± {u:.4}{unit}² (k = 1)"));
+        let evidence = found.quadratic_evidence.map_or(String::new(), |e| {
+            format!(
+                "; curvature added by F = {}, Bonferroni p = {}",
+                f_text(e.f_statistic),
+                p_text(e.p_adjusted)
+            )
+        });
+        writeln!(
+            out,
+            "     curvature (quadratic) = {q:+.4}{unit}²{u}{evidence}"
+        )?;
+    }
+    writeln!(out, "     pattern: {}", explanation_on(found, clock))?;
+    writeln!(
+        out,
+        "     evidence: F = {}, p = {}, Bonferroni p = {}; residual RMS {:.4}″ → {:.4}″",
+        f_text(found.f_statistic),
+        p_text(found.p_value),
+        p_text(found.p_adjusted),
+        found.residual_rms_before,
+        found.residual_rms_after
+    )?;
+    writeln!(
+        out,
+        "     effect on the calibration: pitch deviations changed by up to {:.4}″, encoder errors by up to {:.4}″",
+        found.pitch_change_max, found.encoder_change_max
+    )?;
+    for alternative in &found.alternatives {
+        let names: Vec<String> = alternative
+            .effects
+            .iter()
+            .map(|e| format!("{} = {:+.5}", e.label(), e.value()))
+            .collect();
+        if alternative.equivalent && !alternative.changes_calibration() {
+            writeln!(
+                out,
+                "     equivalently: {} (the same fit and the same calibration: the data cannot tell them apart)",
+                names.join(" with ")
+            )?;
+            continue;
+        }
+        writeln!(
+            out,
+            "     {}: {} fits as well (F = {}, p = {:.2}) and changes pitch deviations by up to {:.4}″, encoder errors by up to {:.4}″ ({:.1} expanded uncertainties)",
+            if alternative.changes_calibration() {
+                "CANNOT TELL"
+            } else {
+                "alternative"
+            },
+            names.join(" with "),
+            f_text(alternative.f_statistic),
+            alternative.p_value,
+            alternative.pitch_change_max,
+            alternative.encoder_change_max,
+            alternative.change_over_expanded_u
+        )?;
+    }
+    Ok(())
+}
+
+/// The verdict on the final model: adequate or not (and why, with a caution on the
+/// effects found), every check against its limit, and the structure left.
+fn write_adequacy<W: std::fmt::Write>(out: &mut W, diagnosis: &Diagnosis) -> std::fmt::Result {
+    if diagnosis.adequacy.adequate {
+        writeln!(
+            out,
+            "\nAdequate: the final residuals are consistent with noise."
+        )?;
+    } else {
+        write_not_adequate(out, diagnosis)?;
+    }
+    for check in &diagnosis.adequacy.checks {
+        writeln!(
+            out,
+            "  {} {}: {} (limit {:.2})",
+            if check.passed { "pass" } else { "FAIL" },
+            check.name,
+            if check.statistic.is_finite() {
+                format!("{:.2}", check.statistic)
+            } else {
+                "∞".to_string()
+            },
+            check.limit
+        )?;
+    }
+    for s in &diagnosis.adequacy.structure {
+        let time = |t: Option<f64>| t.map_or(String::new(), |t| format!(", t = {t:.0} s"));
+        writeln!(
+            out,
+            "  structure left: setup {} autocollimator {}, from cycle {} step {}{} to cycle {} step {}{}: mean residual {:+.4}″ over {} readings",
+            s.setup,
+            s.ac,
+            s.from.0,
+            s.from.1,
+            time(s.from.2),
+            s.to.0,
+            s.to.1,
+            time(s.to.2),
+            s.mean_residual_arcsec,
+            s.readings
+        )?;
+    }
+    Ok(())
+}
+
+/// Why the final model is not adequate: an ambiguity, or structure left; with the
+/// band-limit's finding or a caution on the effects found.
+fn write_not_adequate<W: std::fmt::Write>(out: &mut W, diagnosis: &Diagnosis) -> std::fmt::Result {
+    let failed: Vec<&str> = diagnosis
+        .adequacy
+        .checks
+        .iter()
+        .filter(|c| !c.passed)
+        .map(|c| c.name.as_str())
+        .collect();
+    let ambiguous_only = !failed.is_empty()
+        && failed
+            .iter()
+            .all(|name| name.starts_with("identifiability"));
+    if ambiguous_only {
+        writeln!(
+            out,
+            "\nNOT adequate: an effect found cannot be told apart from another explanation that gives a different calibration (see the notes); the result is not certified."
+        )?;
+    } else {
+        writeln!(
+            out,
+            "\nNOT adequate: structure is left that no known effect explains."
+        )?;
+    }
+    // a lack of fit the band-limited model of heads between the positions leaves
+    // (and nothing else failed) has a cause of its own beside the effects found
+    let band_limit = diagnosis
+        .lack_of_fit
+        .as_ref()
+        .and_then(|lof| lof.band_limit_order)
+        .filter(|_| failed.iter().all(|name| name.starts_with("lack of fit")));
+    if let (Some(order), false) = (band_limit, diagnosis.effects.is_empty()) {
+        writeln!(
+            out,
+            "  The lack of fit is left beside the effects above, a finding of its own: the band-limited model of heads between the positions cannot fit the encoder error's orders of {order} or more (see the notes). Each effect was kept because it reduces the lack of fit, judged against one pure error with and without it; the result is not certified until that cause is settled."
+        )?;
+    } else if !diagnosis.effects.is_empty() && !ambiguous_only {
+        writeln!(
+            out,
+            "  Caution: the effects above are the closest terms the model has to a structure it cannot express, not a confirmed explanation; do not take the final model's result as corrected until the cause of the structure below is found."
+        )?;
+    }
+    Ok(())
+}
+
+/// A failed lack-of-fit test: the five cells whose mean residual stands out most.
+fn write_worst_cells<W: std::fmt::Write>(out: &mut W, diagnosis: &Diagnosis) -> std::fmt::Result {
     if let Some(lof) = &diagnosis.lack_of_fit
         && !lof.passed()
     {
@@ -339,40 +378,55 @@ pub fn write_table<W: std::fmt::Write>(
             )?;
         }
     }
-    if !diagnosis.tried.is_empty() {
-        writeln!(out, "\nTried and not added:")?;
-        for t in &diagnosis.tried {
-            let name = if t.quadratic {
-                format!("curvature of the {}", t.effect.label())
-            } else {
-                t.effect.label()
-            };
-            writeln!(
-                out,
-                "  {name}: F = {}, Bonferroni p = {} — {}",
-                f_text(t.evidence.f_statistic),
-                p_text(t.evidence.p_adjusted),
-                t.rejection.as_str()
-            )?;
-        }
+    Ok(())
+}
+
+/// The candidates tried and not added, with their evidence and why.
+fn write_tried<W: std::fmt::Write>(out: &mut W, diagnosis: &Diagnosis) -> std::fmt::Result {
+    if diagnosis.tried.is_empty() {
+        return Ok(());
     }
-    if let Some(truth) = truth
-        && let (Some(b), Some(a)) = (
-            ErrorSummary::new(&diagnosis.before, truth),
-            ErrorSummary::new(&diagnosis.after, truth),
-        )
-    {
+    writeln!(out, "\nTried and not added:")?;
+    for t in &diagnosis.tried {
+        let name = if t.quadratic {
+            format!("curvature of the {}", t.effect.label())
+        } else {
+            t.effect.label()
+        };
         writeln!(
             out,
-            "\nError against the truth (arcsec)   pitch RMS  pitch max  encoder RMS  encoder max"
+            "  {name}: F = {}, Bonferroni p = {} — {}",
+            f_text(t.evidence.f_statistic),
+            p_text(t.evidence.p_adjusted),
+            t.rejection.as_str()
         )?;
-        for (label, e) in [("before", b), ("after", a)] {
-            writeln!(
-                out,
-                "  {label:<32} {:>9.4}  {:>9.4}  {:>11.4}  {:>11.4}",
-                e.pitch_rms, e.pitch_max, e.encoder_rms, e.encoder_max
-            )?;
-        }
+    }
+    Ok(())
+}
+
+/// The errors of the base and final models against the `truth`, in arcsec (nothing when
+/// either cannot be compared).
+fn write_truth_errors<W: std::fmt::Write>(
+    out: &mut W,
+    diagnosis: &Diagnosis,
+    truth: &Truth,
+) -> std::fmt::Result {
+    let (Some(b), Some(a)) = (
+        ErrorSummary::new(&diagnosis.before, truth),
+        ErrorSummary::new(&diagnosis.after, truth),
+    ) else {
+        return Ok(());
+    };
+    writeln!(
+        out,
+        "\nError against the truth (arcsec)   pitch RMS  pitch max  encoder RMS  encoder max"
+    )?;
+    for (label, e) in [("before", b), ("after", a)] {
+        writeln!(
+            out,
+            "  {label:<32} {:>9.4}  {:>9.4}  {:>11.4}  {:>11.4}",
+            e.pitch_rms, e.pitch_max, e.encoder_rms, e.encoder_max
+        )?;
     }
     Ok(())
 }

@@ -114,7 +114,43 @@ fn write_results_with<W: Write>(
     uncertainty: Option<&CalibrationUncertainty>,
     sub_pitch: Option<&SubPitchSolution>,
 ) -> fmt::Result {
-    let n = solution.faces;
+    write_uncertainty_basis(out, solution, uncertainty)?;
+    // the angle φ is measured against: face f at f·360°/N from face N (φ[N] = 0)
+    writeln!(
+        out,
+        "\nPolygon (arcsec; nominal/°: face f at f·360°/N from face N, where φ = 0, so face N at 360°)"
+    )?;
+    match uncertainty {
+        None => write_polygon_u(out, solution)?,
+        Some(unc) => write_polygon_expanded_u(out, solution, unc)?,
+    }
+    writeln!(out, "\nEncoder (arcsec)")?;
+    match uncertainty {
+        None if let Some(solved) = sub_pitch.filter(|s| s.is_sub_pitch()) => {
+            write_coset_encoder_u(out, solved)?;
+        }
+        None => write_encoder_u(out, solution)?,
+        Some(unc) => write_encoder_expanded_u(out, solution, unc)?,
+    }
+    write_setup_errors(out, solution, uncertainty)?;
+    if let Some(unc) = uncertainty {
+        write_budget_contributions(out, unc)?;
+    }
+    Ok(())
+}
+
+/// Element `i` of optional values (an uncertainty the fit may not have).
+fn value_at(v: &Option<Vec<f64>>, i: usize) -> Option<f64> {
+    v.as_ref().map(|v| v[i])
+}
+
+/// Where the uncertainties come from: the residual or the stated σ (or none), and with
+/// a budget, how U and k are formed.
+fn write_uncertainty_basis<W: Write>(
+    out: &mut W,
+    solution: &Solution,
+    uncertainty: Option<&CalibrationUncertainty>,
+) -> fmt::Result {
     match solution.sigma {
         Some((s, SigmaSource::Residual)) => {
             writeln!(out, "uncertainties (k = 1) from the residual σ = {s:.4}″")?;
@@ -145,135 +181,152 @@ fn write_results_with<W: Write>(
             }
         )?;
     }
+    Ok(())
+}
+
+/// The polygon's pitch deviations β and face deviations φ per face, with their nominal
+/// angle and the fit's u (k = 1), arcsec.
+fn write_polygon_u<W: Write>(out: &mut W, solution: &Solution) -> fmt::Result {
+    let n = solution.faces;
     let pitch_u = solution.pitch_deviation_u();
     let face_u = solution.face_deviation_u();
-    let encoder_u = solution.encoder_error_u();
-    let at = |v: &Option<Vec<f64>>, i: usize| v.as_ref().map(|v| v[i]);
-    let opt = |v: Option<f64>, decimals: usize| fixed(v, decimals);
-    // the angle φ is measured against: face f at f·360°/N from face N (φ[N] = 0)
     writeln!(
         out,
-        "\nPolygon (arcsec; nominal/°: face f at f·360°/N from face N, where φ = 0, so face N at 360°)"
+        "{:>5} {:>11} {:>9} {:>8} {:>9} {:>8}",
+        "face", "nominal/°", "β", "u(β)", "φ", "u(φ)"
     )?;
-    match uncertainty {
-        None => {
-            writeln!(
-                out,
-                "{:>5} {:>11} {:>9} {:>8} {:>9} {:>8}",
-                "face", "nominal/°", "β", "u(β)", "φ", "u(φ)"
-            )?;
-            for f in 0..n {
-                writeln!(
-                    out,
-                    "{:>5} {:>11.4} {:>9.4} {:>8} {:>9.4} {:>8}",
-                    f + 1,
-                    nominal_face_deg(f + 1, n),
-                    solution.pitch_deviation[f],
-                    fixed(at(&pitch_u, f), 4),
-                    solution.face_deviation[f],
-                    fixed(at(&face_u, f), 4),
-                )?;
-            }
-        }
-        Some(unc) => {
-            let (b, p) = (&unc.pitch_deviation, &unc.face_deviation);
-            writeln!(
-                out,
-                "{:>5} {:>11} {:>9} {:>8} {:>8} {:>6} {:>8} {:>9} {:>8} {:>6} {:>8}",
-                "face",
-                "nominal/°",
-                "β",
-                "u_A(β)",
-                "u_c(β)",
-                "k",
-                "U(β)",
-                "φ",
-                "u_c(φ)",
-                "k",
-                "U(φ)"
-            )?;
-            for f in 0..n {
-                writeln!(
-                    out,
-                    "{:>5} {:>11.4} {:>9.4} {:>8.4} {:>8.4} {:>6} {:>8.4} {:>9.4} {:>8.4} {:>6} {:>8.4}",
-                    f + 1,
-                    nominal_face_deg(f + 1, n),
-                    solution.pitch_deviation[f],
-                    b.u_a[f],
-                    b.u[f],
-                    opt(b.k[f], 3),
-                    b.expanded_u[f],
-                    solution.face_deviation[f],
-                    p.u[f],
-                    opt(p.k[f], 3),
-                    p.expanded_u[f],
-                )?;
-            }
-        }
+    for f in 0..n {
+        writeln!(
+            out,
+            "{:>5} {:>11.4} {:>9.4} {:>8} {:>9.4} {:>8}",
+            f + 1,
+            nominal_face_deg(f + 1, n),
+            solution.pitch_deviation[f],
+            fixed(value_at(&pitch_u, f), 4),
+            solution.face_deviation[f],
+            fixed(value_at(&face_u, f), 4),
+        )?;
     }
-    writeln!(out, "\nEncoder (arcsec)")?;
-    match uncertainty {
-        None if let Some(solved) = sub_pitch.filter(|s| s.is_sub_pitch()) => {
-            writeln!(
-                out,
-                "{:>8} {:>11} {:>9} {:>8}",
-                "index", "angle/°", "α", "u(α)"
-            )?;
-            for (i, (angle, alpha)) in solved
-                .encoder_angle_deg
-                .iter()
-                .zip(&solved.encoder_error)
-                .enumerate()
-            {
-                writeln!(
-                    out,
-                    "{:>8} {:>11.4} {:>9.4} {:>8}",
-                    i,
-                    angle,
-                    alpha,
-                    fixed(at(&solved.encoder_error_u, i), 4),
-                )?;
-            }
-        }
-        None => {
-            writeln!(
-                out,
-                "{:>8} {:>11} {:>9} {:>8}",
-                "position", "angle/°", "α", "u(α)"
-            )?;
-            for p in 0..n {
-                writeln!(
-                    out,
-                    "{:>8} {:>11.4} {:>9.4} {:>8}",
-                    p,
-                    p as f64 * 360.0 / n as f64,
-                    solution.encoder_error[p],
-                    fixed(at(&encoder_u, p), 4),
-                )?;
-            }
-        }
-        Some(unc) => {
-            let a = &unc.encoder_error;
-            writeln!(
-                out,
-                "{:>8} {:>11} {:>9} {:>8} {:>8} {:>6} {:>8}",
-                "position", "angle/°", "α", "u_A(α)", "u_c(α)", "k", "U(α)"
-            )?;
-            for p in 0..n {
-                writeln!(
-                    out,
-                    "{:>8} {:>11.4} {:>9.4} {:>8.4} {:>8.4} {:>6} {:>8.4}",
-                    p,
-                    p as f64 * 360.0 / n as f64,
-                    solution.encoder_error[p],
-                    a.u_a[p],
-                    a.u[p],
-                    opt(a.k[p], 3),
-                    a.expanded_u[p],
-                )?;
-            }
-        }
+    Ok(())
+}
+
+/// The polygon's β and φ per face with the budget's u_A, u_c, k and U, arcsec.
+fn write_polygon_expanded_u<W: Write>(
+    out: &mut W,
+    solution: &Solution,
+    unc: &CalibrationUncertainty,
+) -> fmt::Result {
+    let n = solution.faces;
+    let (b, p) = (&unc.pitch_deviation, &unc.face_deviation);
+    writeln!(
+        out,
+        "{:>5} {:>11} {:>9} {:>8} {:>8} {:>6} {:>8} {:>9} {:>8} {:>6} {:>8}",
+        "face", "nominal/°", "β", "u_A(β)", "u_c(β)", "k", "U(β)", "φ", "u_c(φ)", "k", "U(φ)"
+    )?;
+    for f in 0..n {
+        writeln!(
+            out,
+            "{:>5} {:>11.4} {:>9.4} {:>8.4} {:>8.4} {:>6} {:>8.4} {:>9.4} {:>8.4} {:>6} {:>8.4}",
+            f + 1,
+            nominal_face_deg(f + 1, n),
+            solution.pitch_deviation[f],
+            b.u_a[f],
+            b.u[f],
+            fixed(b.k[f], 3),
+            b.expanded_u[f],
+            solution.face_deviation[f],
+            p.u[f],
+            fixed(p.k[f], 3),
+            p.expanded_u[f],
+        )?;
     }
+    Ok(())
+}
+
+/// The encoder errors α at every table angle of every coset of sub-pitch mountings,
+/// with their u (k = 1), arcsec.
+fn write_coset_encoder_u<W: Write>(out: &mut W, solved: &SubPitchSolution) -> fmt::Result {
+    writeln!(
+        out,
+        "{:>8} {:>11} {:>9} {:>8}",
+        "index", "angle/°", "α", "u(α)"
+    )?;
+    for (i, (angle, alpha)) in solved
+        .encoder_angle_deg
+        .iter()
+        .zip(&solved.encoder_error)
+        .enumerate()
+    {
+        writeln!(
+            out,
+            "{:>8} {:>11.4} {:>9.4} {:>8}",
+            i,
+            angle,
+            alpha,
+            fixed(value_at(&solved.encoder_error_u, i), 4),
+        )?;
+    }
+    Ok(())
+}
+
+/// The encoder errors α per position with their u (k = 1), arcsec.
+fn write_encoder_u<W: Write>(out: &mut W, solution: &Solution) -> fmt::Result {
+    let n = solution.faces;
+    let encoder_u = solution.encoder_error_u();
+    writeln!(
+        out,
+        "{:>8} {:>11} {:>9} {:>8}",
+        "position", "angle/°", "α", "u(α)"
+    )?;
+    for p in 0..n {
+        writeln!(
+            out,
+            "{:>8} {:>11.4} {:>9.4} {:>8}",
+            p,
+            p as f64 * 360.0 / n as f64,
+            solution.encoder_error[p],
+            fixed(value_at(&encoder_u, p), 4),
+        )?;
+    }
+    Ok(())
+}
+
+/// The encoder errors α per position with the budget's u_A, u_c, k and U, arcsec.
+fn write_encoder_expanded_u<W: Write>(
+    out: &mut W,
+    solution: &Solution,
+    unc: &CalibrationUncertainty,
+) -> fmt::Result {
+    let n = solution.faces;
+    let a = &unc.encoder_error;
+    writeln!(
+        out,
+        "{:>8} {:>11} {:>9} {:>8} {:>8} {:>6} {:>8}",
+        "position", "angle/°", "α", "u_A(α)", "u_c(α)", "k", "U(α)"
+    )?;
+    for p in 0..n {
+        writeln!(
+            out,
+            "{:>8} {:>11.4} {:>9.4} {:>8.4} {:>8.4} {:>6} {:>8.4}",
+            p,
+            p as f64 * 360.0 / n as f64,
+            solution.encoder_error[p],
+            a.u_a[p],
+            a.u[p],
+            fixed(a.k[p], 3),
+            a.expanded_u[p],
+        )?;
+    }
+    Ok(())
+}
+
+/// The setup errors per mounting and autocollimator with their u (and U with a budget),
+/// arcsec.
+fn write_setup_errors<W: Write>(
+    out: &mut W,
+    solution: &Solution,
+    uncertainty: Option<&CalibrationUncertainty>,
+) -> fmt::Result {
     let setup_u = solution.setup_error_u();
     writeln!(out, "\nSetup errors (arcsec, gauge of docs/FORMAT.md §1)")?;
     writeln!(
@@ -296,65 +349,68 @@ fn write_results_with<W: Write>(
             s.setup,
             s.ac,
             s.value,
-            fixed(at(&setup_u, i), 4),
+            fixed(value_at(&setup_u, i), 4),
             uncertainty.map_or(String::new(), |unc| format!(
                 " {:>8.4}",
                 unc.setup_error.expanded_u[i]
             ))
         )?;
     }
-    if let Some(unc) = uncertainty {
-        let largest = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
-        writeln!(
-            out,
-            "\nBudget {}: contribution of each source (standard uncertainty, largest over the quantities)",
-            unc.budget
-        )?;
-        writeln!(
-            out,
-            "{:<44} {:<20} {:>8} {:>8} {:>8} {:>8}",
-            "source", "acts on", "u", "to β", "to φ", "to α"
-        )?;
-        let type_a = format!(
-            "Repeatability (fit, σ = {:.4}″, ν = {})",
-            unc.sigma,
-            unc.type_a_dof.map_or("∞".to_string(), |nu| format!("{nu}"))
-        );
+    Ok(())
+}
+
+/// The budget's contribution of each source (standard uncertainty, arcsec, largest over
+/// the quantities), the fit's repeatability first, the combined u_c last.
+fn write_budget_contributions<W: Write>(out: &mut W, unc: &CalibrationUncertainty) -> fmt::Result {
+    let largest = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    writeln!(
+        out,
+        "\nBudget {}: contribution of each source (standard uncertainty, largest over the quantities)",
+        unc.budget
+    )?;
+    writeln!(
+        out,
+        "{:<44} {:<20} {:>8} {:>8} {:>8} {:>8}",
+        "source", "acts on", "u", "to β", "to φ", "to α"
+    )?;
+    let type_a = format!(
+        "Repeatability (fit, σ = {:.4}″, ν = {})",
+        unc.sigma,
+        unc.type_a_dof.map_or("∞".to_string(), |nu| format!("{nu}"))
+    );
+    writeln!(
+        out,
+        "{:<44} {:<20} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
+        type_a,
+        "each-reading",
+        unc.sigma,
+        largest(&unc.pitch_deviation.u_a),
+        largest(&unc.face_deviation.u_a),
+        largest(&unc.encoder_error.u_a),
+    )?;
+    for c in &unc.components {
+        let name: String = c.name.chars().take(44).collect();
         writeln!(
             out,
             "{:<44} {:<20} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
-            type_a,
-            "each-reading",
-            unc.sigma,
-            largest(&unc.pitch_deviation.u_a),
-            largest(&unc.face_deviation.u_a),
-            largest(&unc.encoder_error.u_a),
-        )?;
-        for c in &unc.components {
-            let name: String = c.name.chars().take(44).collect();
-            writeln!(
-                out,
-                "{:<44} {:<20} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
-                name,
-                c.acts_on.as_str(),
-                c.u,
-                largest(&c.pitch_deviation),
-                largest(&c.face_deviation),
-                largest(&c.encoder_error),
-            )?;
-        }
-        writeln!(
-            out,
-            "{:<44} {:<20} {:>8} {:>8.4} {:>8.4} {:>8.4}",
-            "Combined u_c",
-            "",
-            "",
-            largest(&unc.pitch_deviation.u),
-            largest(&unc.face_deviation.u),
-            largest(&unc.encoder_error.u),
+            name,
+            c.acts_on.as_str(),
+            c.u,
+            largest(&c.pitch_deviation),
+            largest(&c.face_deviation),
+            largest(&c.encoder_error),
         )?;
     }
-    Ok(())
+    writeln!(
+        out,
+        "{:<44} {:<20} {:>8} {:>8.4} {:>8.4} {:>8.4}",
+        "Combined u_c",
+        "",
+        "",
+        largest(&unc.pitch_deviation.u),
+        largest(&unc.face_deviation.u),
+        largest(&unc.encoder_error.u),
+    )
 }
 
 /// Writes the results section ([`write_results`]) of the final model of

@@ -261,17 +261,124 @@ pub fn detectable(
     // the clock drift terms run on, as `diagnose` has it: `time`, or the stop order
     let (clocked, clock) = crate::diagnose::clock::clocked(set);
     let set: &MeasurementSet = &clocked;
-    let context = EffectContext::of(&set.readings);
     // the fit `diagnose` starts from: in encoder positions, with the sub-pitch cosets'
     // differences in the model (the same cofactor as `solution`'s)
     let base = Base::of(set);
     let geometry = base.geometry(solution, &[]);
-    let zero = vec![0.0; set.readings.len()];
+    let streams = jump_streams(set, &geometry);
+    let design = Design {
+        set,
+        context: EffectContext::of(&set.readings),
+        jump_family: streams.iter().map(|s| s.stops.len()).sum(),
+        streams,
+        base,
+        options,
+        sigma,
+    };
     let n = set.readings.len();
     let dof = solution.dof;
     let alpha = options.family_alpha;
 
-    // the streams a jump can belong to, and every stop it may start at
+    // round 1: the systematic blocks and a sample of every stream's jumps
+    let blocks = systematic(set, &design.context, &geometry, &[], options);
+    let systematic_family = blocks.iter().filter(|b| b.2).count();
+    let first = FirstOffer::of(&blocks, &design.streams);
+    let round_columns: usize = first.offered.iter().map(|o| o.2.len()).sum();
+    super::check_memory(
+        Round::bytes_needed(round_columns, n),
+        "the simulated rounds of a diagnosis of the design",
+        memory_limit_bytes,
+    )?;
+    let round = Round::new(
+        &geometry,
+        dof,
+        design.orders(),
+        first.offered,
+        [systematic_family, design.jump_family, n],
+        alpha,
+    );
+
+    let chi_critical = critical_f(AMBIGUITY_ALPHA, 1, f64::INFINITY);
+    let (mut ambiguous, class) = systematic_ambiguities(
+        &round,
+        &blocks,
+        &first.systematic_index,
+        lambda_alone(alpha, dof, systematic_family),
+        chi_critical,
+    );
+    let sizes = FirstRoundSizes::of(
+        &round,
+        &blocks,
+        &first.systematic_index,
+        &first.sized,
+        &class,
+        sigma,
+        progress,
+    );
+    let mut out = systematic_entries(
+        &round,
+        &blocks,
+        &first.systematic_index,
+        sizes.systematic_arcsec,
+        systematic_family,
+    );
+    let jumps = jump_entries(&design, sizes.jumps_arcsec);
+
+    // round 2 of a drift: its curvature, once the linear drift is in the model
+    for ac in candidates::autocollimators(set) {
+        let drift = Term::drift_of_order(ac, 1);
+        if !blocks
+            .iter()
+            .any(|b| b.2 && b.0.len() == 1 && b.0[0].same(&drift))
+        {
+            continue;
+        }
+        out.extend(curvature_entry(&design, ac, drift));
+    }
+
+    // a jump against the same stop's jump of another stream
+    if let Some(lambda) = lambda_alone(alpha, dof, design.jump_family) {
+        ambiguous.extend(jump_ambiguities(
+            set,
+            &geometry,
+            &jumps,
+            lambda,
+            chi_critical,
+        ));
+    }
+    out.extend(jumps.into_iter().map(|(d, _)| d));
+    if clock == crate::diagnose::Clock::StopOrder {
+        per_stop_units(&mut out);
+    }
+    Ok((out, ambiguous))
+}
+
+/// The design a diagnosis looks at, on its clock, with what every round of the emulation
+/// shares: the base fit, the jump streams and the jump family's size.
+struct Design<'s> {
+    set: &'s MeasurementSet,
+    context: EffectContext,
+    base: Base<'s>,
+    options: &'s DiagnoseOptions,
+    /// The noise standard deviation the emulated sizes are scaled by, in arcsec.
+    sigma: f64,
+    streams: Vec<Stream>,
+    /// The stops a jump may start at, over every stream (the jump family's Bonferroni
+    /// divisor).
+    jump_family: usize,
+}
+
+impl Design<'_> {
+    /// Each stream's readings in time order, as a [`Round`] takes them.
+    fn orders(&self) -> Vec<Vec<usize>> {
+        self.streams.iter().map(|s| s.order.clone()).collect()
+    }
+}
+
+/// The streams a jump can belong to, and every stop it may start at (those whose column
+/// adds a direction to the base model's span).
+fn jump_streams(set: &MeasurementSet, geometry: &FitGeometry) -> Vec<Stream> {
+    let zero = vec![0.0; set.readings.len()];
     let mut streams = Vec::new();
     for (ac, setup) in step_streams(set) {
         let order = stream_in_time_order(set, ac, setup);
@@ -290,191 +397,243 @@ pub fn detectable(
             stops,
         });
     }
-    let jump_family: usize = streams.iter().map(|s| s.stops.len()).sum();
+    streams
+}
 
-    // round 1: the systematic blocks and a sample of every stream's jumps
-    let blocks = systematic(set, &context, &geometry, &[], options);
-    let systematic_family = blocks.iter().filter(|b| b.2).count();
-    let mut groups: Vec<String> = Vec::new();
-    let mut group_of = |key: String| match groups.iter().position(|g| *g == key) {
-        Some(g) => g,
-        None => {
-            groups.push(key);
-            groups.len() - 1
-        }
-    };
-    let mut offered: Vec<(Family, usize, Vec<Column>)> = Vec::new();
-    // (index into offered, block) of the systematic candidates
-    let mut systematic_index = Vec::new();
-    for (block, columns, testable, _) in &blocks {
-        if *testable {
-            systematic_index.push(offered.len());
-            offered.push((
-                Family::Systematic,
-                group_of(group_key(block)),
-                columns.iter().cloned().map(Column::Values).collect(),
-            ));
-        } else {
-            systematic_index.push(usize::MAX);
-        }
-    }
-    // the stops sized per stream, and the offered index of each
-    let mut sized: Vec<Vec<(usize, usize)>> = Vec::new();
-    for (stream_index, stream) in streams.iter().enumerate() {
-        let group = group_of(format!("jump {} {:?}", stream.ac, stream.setup));
-        let ks: Vec<usize> = stream.stops.iter().map(|s| s.0).collect();
-        let mut picks = spread(&ks, JUMP_COLUMNS_PER_STREAM);
-        let chosen = spread(&ks, JUMP_STOPS_SIZED);
-        for k in &chosen {
-            if !picks.contains(k) {
-                picks.push(*k);
+/// A candidate a round offers: its family, its group and its columns.
+type OfferedColumns = (Family, usize, Vec<Column>);
+
+/// What the first round offers: the systematic candidates and a sample of every
+/// stream's jumps.
+struct FirstOffer {
+    offered: Vec<OfferedColumns>,
+    /// Per systematic block, its index into `offered` (`usize::MAX`: not a candidate).
+    systematic_index: Vec<usize>,
+    /// Per stream, the stops sized: (k in its time order, index into `offered`).
+    sized: Vec<Vec<(usize, usize)>>,
+}
+
+impl FirstOffer {
+    /// The first round's candidates of `blocks` and `streams`, grouped by the effect
+    /// they would name.
+    fn of(blocks: &[TestedBlock], streams: &[Stream]) -> FirstOffer {
+        let mut groups: Vec<String> = Vec::new();
+        let mut group_of = |key: String| match groups.iter().position(|g| *g == key) {
+            Some(g) => g,
+            None => {
+                groups.push(key);
+                groups.len() - 1
+            }
+        };
+        let mut offered: Vec<OfferedColumns> = Vec::new();
+        // (index into offered, block) of the systematic candidates
+        let mut systematic_index = Vec::new();
+        for (block, columns, testable, _) in blocks {
+            if *testable {
+                systematic_index.push(offered.len());
+                offered.push((
+                    Family::Systematic,
+                    group_of(group_key(block)),
+                    columns.iter().cloned().map(Column::Values).collect(),
+                ));
+            } else {
+                systematic_index.push(usize::MAX);
             }
         }
-        let mut here = Vec::new();
-        for k in picks {
-            if chosen.contains(&k) {
-                here.push((k, offered.len()));
+        // the stops sized per stream, and the offered index of each
+        let mut sized: Vec<Vec<(usize, usize)>> = Vec::new();
+        for (stream_index, stream) in streams.iter().enumerate() {
+            let group = group_of(format!("jump {} {:?}", stream.ac, stream.setup));
+            let ks: Vec<usize> = stream.stops.iter().map(|s| s.0).collect();
+            let mut picks = spread(&ks, JUMP_COLUMNS_PER_STREAM);
+            let chosen = spread(&ks, JUMP_STOPS_SIZED);
+            for k in &chosen {
+                if !picks.contains(k) {
+                    picks.push(*k);
+                }
             }
-            offered.push((
-                Family::OffsetStep,
-                group,
-                vec![Column::Suffix {
-                    stream: stream_index,
-                    from: k,
-                }],
-            ));
+            let mut here = Vec::new();
+            for k in picks {
+                if chosen.contains(&k) {
+                    here.push((k, offered.len()));
+                }
+                offered.push((
+                    Family::OffsetStep,
+                    group,
+                    vec![Column::Suffix {
+                        stream: stream_index,
+                        from: k,
+                    }],
+                ));
+            }
+            sized.push(here);
         }
-        sized.push(here);
+        FirstOffer {
+            offered,
+            systematic_index,
+            sized,
+        }
     }
-    let orders: Vec<Vec<usize>> = streams.iter().map(|s| s.order.clone()).collect();
-    let round_columns: usize = offered.iter().map(|o| o.2.len()).sum();
-    super::check_memory(
-        Round::bytes_needed(round_columns, n),
-        "the simulated rounds of a diagnosis of the design",
-        memory_limit_bytes,
-    )?;
-    let round = Round::new(
-        &geometry,
-        dof,
-        orders.clone(),
-        offered,
-        [systematic_family, jump_family, n],
-        alpha,
-    );
-    let column_start = |index: usize| -> (usize, usize) {
-        let o = &round.offered()[index];
-        (o.start(), o.len())
-    };
+}
 
-    // pairs of one-column systematic terms of the same kind that the data of a run cannot
-    // tell apart: at the size its own F test finds in 90 % of runs, the other leaves it
-    // the noncentrality λ·(1 − ρ²), below the 5 % critical value of χ²₁. Either one found
-    // counts as the effect found (the pair is reported), as `diagnose` reports it with its
-    // alternative.
-    let chi_critical = critical_f(AMBIGUITY_ALPHA, 1, f64::INFINITY);
-    let lambda_alone = |family_size: usize| {
-        noncentrality_for_power(
-            alpha / family_size.max(1) as f64,
-            DETECTION_POWER,
-            1,
-            dof.saturating_sub(1) as f64,
-        )
-    };
+/// The noncentrality a one-column term's own F test needs to be found in 90 % of runs,
+/// its level Bonferroni-divided by `family_size` (`None`: no size reaches it).
+fn lambda_alone(alpha: f64, dof: usize, family_size: usize) -> Option<f64> {
+    noncentrality_for_power(
+        alpha / family_size.max(1) as f64,
+        DETECTION_POWER,
+        1,
+        dof.saturating_sub(1) as f64,
+    )
+}
+
+/// Pairs of one-column systematic terms of the same kind that the data of a run cannot
+/// tell apart: at the size its own F test finds in 90 % of runs (noncentrality
+/// `lambda`), the other leaves it the noncentrality λ·(1 − ρ²), below the 5 % critical
+/// value of χ²₁ (`chi_critical`). Either one found counts as the effect found (the pair
+/// is reported), as `diagnose` reports it with its alternative: returned with the pairs,
+/// per offered candidate, the groups that count as finding it.
+fn systematic_ambiguities(
+    round: &Round,
+    blocks: &[TestedBlock],
+    systematic_index: &[usize],
+    lambda: Option<f64>,
+    chi_critical: f64,
+) -> (Vec<Ambiguity>, Vec<Vec<usize>>) {
     let mut ambiguous = Vec::new();
     let mut class: Vec<Vec<usize>> = (0..round.offered().len())
         .map(|i| vec![round.offered()[i].group])
         .collect();
     let singles: Vec<(usize, Looked)> = blocks
         .iter()
-        .zip(&systematic_index)
+        .zip(systematic_index)
         .filter(|(b, index)| b.2 && b.0.len() == 1 && **index != usize::MAX)
         .filter_map(|(b, &index)| looked(&b.0[0]).map(|l| (index, l)))
         .collect();
-    if let Some(lambda) = lambda_alone(systematic_family) {
-        let indices: Vec<usize> = singles.iter().map(|(index, _)| *index).collect();
-        let correlations = round.correlations(&indices);
-        for (i, (a, la)) in singles.iter().enumerate() {
-            for (j, (b, lb)) in singles.iter().enumerate().skip(i + 1) {
-                if la.kind != lb.kind {
-                    continue;
-                }
-                let Some(rho) = correlations[i][j] else {
-                    continue;
-                };
-                if lambda * (1.0 - (rho * rho).min(1.0)) < chi_critical {
-                    ambiguous.push(Ambiguity {
-                        first: Explanation {
-                            kind: la.kind,
-                            ac: la.ac,
-                            setup: la.setup,
-                        },
-                        second: Explanation {
-                            kind: lb.kind,
-                            ac: lb.ac,
-                            setup: lb.setup,
-                        },
-                        correlation: rho,
-                    });
-                    let (ga, gb) = (round.offered()[*a].group, round.offered()[*b].group);
-                    class[*a].push(gb);
-                    class[*b].push(ga);
-                }
+    let Some(lambda) = lambda else {
+        return (ambiguous, class);
+    };
+    let indices: Vec<usize> = singles.iter().map(|(index, _)| *index).collect();
+    let correlations = round.correlations(&indices);
+    for (i, (a, la)) in singles.iter().enumerate() {
+        for (j, (b, lb)) in singles.iter().enumerate().skip(i + 1) {
+            if la.kind != lb.kind {
+                continue;
+            }
+            let Some(rho) = correlations[i][j] else {
+                continue;
+            };
+            if lambda * (1.0 - (rho * rho).min(1.0)) < chi_critical {
+                ambiguous.push(Ambiguity {
+                    first: Explanation {
+                        kind: la.kind,
+                        ac: la.ac,
+                        setup: la.setup,
+                    },
+                    second: Explanation {
+                        kind: lb.kind,
+                        ac: lb.ac,
+                        setup: lb.setup,
+                    },
+                    correlation: rho,
+                });
+                let (ga, gb) = (round.offered()[*a].group, round.offered()[*b].group);
+                class[*a].push(gb);
+                class[*b].push(ga);
             }
         }
     }
+    (ambiguous, class)
+}
 
-    // the sizes, term by term in parallel (each a bisection over the same draws), each
-    // counted for the progress observer once known
-    let total_sizes = (blocks.len() + sized.iter().map(Vec::len).sum::<usize>()) as u64;
-    let sizes_known = std::sync::atomic::AtomicU64::new(0);
-    let one_more = || {
-        if let Some(progress) = progress {
-            let done = sizes_known.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress.update(done, Some(total_sizes));
+/// The 90 % sizes of the first round, in the unit of each term (σ-scaled).
+struct FirstRoundSizes {
+    /// Per systematic block, its size (`None`: not sized).
+    systematic_arcsec: Vec<Option<f64>>,
+    /// Per stream, (k in its time order, size in arcsec) of the stops sized.
+    jumps_arcsec: Vec<Vec<(usize, f64)>>,
+}
+
+impl FirstRoundSizes {
+    /// The sizes, term by term in parallel (each a bisection over the same draws), each
+    /// counted for the progress observer once known.
+    fn of(
+        round: &Round,
+        blocks: &[TestedBlock],
+        systematic_index: &[usize],
+        sized: &[Vec<(usize, usize)>],
+        class: &[Vec<usize>],
+        sigma: f64,
+        progress: Option<&(dyn Progress + Send)>,
+    ) -> FirstRoundSizes {
+        let column_start = |index: usize| -> (usize, usize) {
+            let o = &round.offered()[index];
+            (o.start(), o.len())
+        };
+        let total_sizes = (blocks.len() + sized.iter().map(Vec::len).sum::<usize>()) as u64;
+        let sizes_known = std::sync::atomic::AtomicU64::new(0);
+        let one_more = || {
+            if let Some(progress) = progress {
+                let done = sizes_known.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                progress.update(done, Some(total_sizes));
+            }
+        };
+        let systematic_arcsec: Vec<Option<f64>> = blocks
+            .par_iter()
+            .zip(systematic_index)
+            .map(|((block, _, testable, _), &index)| {
+                let size = (|| {
+                    let l = block.first().and_then(looked)?;
+                    if !*testable || (l.kind == "drift" && block.len() > 1) {
+                        return None;
+                    }
+                    round
+                        .size_for(
+                            column_start(index),
+                            l.kind == "rezero",
+                            &class[index],
+                            DETECTION_POWER,
+                        )
+                        .map(|s| s * sigma)
+                })();
+                one_more();
+                size
+            })
+            .collect();
+        let jumps_arcsec: Vec<Vec<(usize, f64)>> = sized
+            .par_iter()
+            .map(|here| {
+                here.par_iter()
+                    .filter_map(|&(k, index)| {
+                        let size = round
+                            .size_for(column_start(index), false, &class[index], DETECTION_POWER)
+                            .map(|s| (k, s * sigma));
+                        one_more();
+                        size
+                    })
+                    .collect()
+            })
+            .collect();
+        FirstRoundSizes {
+            systematic_arcsec,
+            jumps_arcsec,
         }
-    };
-    let systematic_sizes: Vec<Option<f64>> = blocks
-        .par_iter()
-        .zip(&systematic_index)
-        .map(|((block, _, testable, _), &index)| {
-            let size = (|| {
-                let l = block.first().and_then(looked)?;
-                if !*testable || (l.kind == "drift" && block.len() > 1) {
-                    return None;
-                }
-                round
-                    .size_for(
-                        column_start(index),
-                        l.kind == "rezero",
-                        &class[index],
-                        DETECTION_POWER,
-                    )
-                    .map(|s| s * sigma)
-            })();
-            one_more();
-            size
-        })
-        .collect();
-    let jump_sizes: Vec<Vec<(usize, f64)>> = sized
-        .par_iter()
-        .map(|here| {
-            here.par_iter()
-                .filter_map(|&(k, index)| {
-                    let size = round
-                        .size_for(column_start(index), false, &class[index], DETECTION_POWER)
-                        .map(|s| (k, s * sigma));
-                    one_more();
-                    size
-                })
-                .collect()
-        })
-        .collect();
+    }
+}
 
+/// One entry per systematic effect: a drift by its linear term, a zero per cycle by its
+/// block.
+fn systematic_entries(
+    round: &Round,
+    blocks: &[TestedBlock],
+    systematic_index: &[usize],
+    sizes: Vec<Option<f64>>,
+    systematic_family: usize,
+) -> Vec<Detectable> {
     let mut out = Vec::new();
     for (((block, columns, testable, fraction), &index), size) in
-        blocks.iter().zip(&systematic_index).zip(systematic_sizes)
+        blocks.iter().zip(systematic_index).zip(sizes)
     {
-        // one entry per effect: a drift by its linear term, a zero per cycle by its block
         let Some(l) = block.first().and_then(looked) else {
             continue;
         };
@@ -501,10 +660,19 @@ pub fn detectable(
             median_size: None,
         });
     }
+    out
+}
 
-    // a jump: sized at spread stops of each stream, the best reported
+/// A jump per stream: sized at spread stops of the stream, the best reported (with the
+/// median of them), each with the column of its best stop.
+fn jump_entries(
+    design: &Design,
+    jump_sizes: Vec<Vec<(usize, f64)>>,
+) -> Vec<(Detectable, Vec<f64>)> {
+    let set = design.set;
+    let n = set.readings.len();
     let mut jumps: Vec<(Detectable, Vec<f64>)> = Vec::new();
-    for (stream, mut sizes) in streams.iter().zip(jump_sizes) {
+    for (stream, mut sizes) in design.streams.iter().zip(jump_sizes) {
         sizes.sort_by(|a, b| a.1.total_cmp(&b.1));
         let best = sizes.first().copied();
         let median = (!sizes.is_empty()).then(|| {
@@ -540,7 +708,7 @@ pub fn detectable(
                 size: best.map(|b| b.1),
                 unit: "arcsec",
                 df: 1,
-                family_size: jump_family,
+                family_size: design.jump_family,
                 new_fraction: fraction,
                 cycle,
                 step,
@@ -549,139 +717,145 @@ pub fn detectable(
             column,
         ));
     }
+    jumps
+}
 
-    // round 2 of a drift: its curvature, once the linear drift is in the model
-    for ac in candidates::autocollimators(set) {
-        let drift = Term::drift_of_order(ac, 1);
-        if !blocks
-            .iter()
-            .any(|b| b.2 && b.0.len() == 1 && b.0[0].same(&drift))
-        {
-            continue;
-        }
-        let column = drift.column(set, &context);
-        let Ok(with_drift) = base.fit(std::slice::from_ref(&column), None) else {
-            continue;
+/// Round 2 of autocollimator `ac`'s drift: its curvature, offered once the linear
+/// `drift` is in the model (`None` when the fit with the drift fails).
+fn curvature_entry(design: &Design, ac: u32, drift: Term) -> Option<Detectable> {
+    let set = design.set;
+    let n = set.readings.len();
+    let column = drift.column(set, &design.context);
+    let with_drift = design.base.fit(std::slice::from_ref(&column), None).ok()?;
+    let g = design
+        .base
+        .geometry(&with_drift, std::slice::from_ref(&column));
+    let present = [drift];
+    let blocks2 = systematic(set, &design.context, &g, &present, design.options);
+    let family2 = blocks2.iter().filter(|b| b.2).count();
+    let mut offered2 = Vec::new();
+    let mut target = None;
+    let mut fraction = 0.0;
+    let mut groups2: Vec<String> = Vec::new();
+    for (block, columns, testable, f) in &blocks2 {
+        let key = group_key(block);
+        let group = match groups2.iter().position(|g| *g == key) {
+            Some(g) => g,
+            None => {
+                groups2.push(key);
+                groups2.len() - 1
+            }
         };
-        let g = base.geometry(&with_drift, std::slice::from_ref(&column));
-        let present = [drift];
-        let blocks2 = systematic(set, &context, &g, &present, options);
-        let family2 = blocks2.iter().filter(|b| b.2).count();
-        let mut offered2 = Vec::new();
-        let mut target = None;
-        let mut fraction = 0.0;
-        let mut groups2: Vec<String> = Vec::new();
-        for (block, columns, testable, f) in &blocks2 {
-            let key = group_key(block);
-            let group = match groups2.iter().position(|g| *g == key) {
-                Some(g) => g,
-                None => {
-                    groups2.push(key);
-                    groups2.len() - 1
-                }
-            };
-            if matches!(block.as_slice(), [Term::Quadratic { ac: a }] if *a == ac) {
-                fraction = *f;
-                if *testable {
-                    target = Some(offered2.len());
-                }
-            }
+        if matches!(block.as_slice(), [Term::Quadratic { ac: a }] if *a == ac) {
+            fraction = *f;
             if *testable {
-                offered2.push((
-                    Family::Systematic,
-                    group,
-                    columns.iter().cloned().map(Column::Values).collect(),
-                ));
+                target = Some(offered2.len());
             }
         }
-        for (stream_index, stream) in streams.iter().enumerate() {
-            let group = groups2.len() + 1;
-            let ks: Vec<usize> = stream.stops.iter().map(|s| s.0).collect();
-            for k in spread(&ks, JUMP_COLUMNS_PER_STREAM) {
-                offered2.push((
-                    Family::OffsetStep,
-                    group,
-                    vec![Column::Suffix {
-                        stream: stream_index,
-                        from: k,
-                    }],
-                ));
-            }
+        if *testable {
+            offered2.push((
+                Family::Systematic,
+                group,
+                columns.iter().cloned().map(Column::Values).collect(),
+            ));
         }
-        let round2 = Round::new(
-            &g,
-            with_drift.dof,
-            orders.clone(),
-            offered2,
-            [family2, jump_family, n],
-            alpha,
-        );
-        let size = target.and_then(|index| {
-            let o = &round2.offered()[index];
-            round2
-                .size_for((o.start(), o.len()), false, &[o.group], DETECTION_POWER)
-                .map(|s| s * sigma)
-        });
-        out.push(Detectable {
-            kind: "drift",
-            ac: Some(ac),
-            setup: None,
-            order: Some(2),
-            identifiable: target.is_some(),
-            size,
-            unit: "arcsec/h^2",
-            df: 1,
-            family_size: family2,
-            new_fraction: fraction,
-            cycle: None,
-            step: None,
-            median_size: None,
-        });
     }
+    for (stream_index, stream) in design.streams.iter().enumerate() {
+        let group = groups2.len() + 1;
+        let ks: Vec<usize> = stream.stops.iter().map(|s| s.0).collect();
+        for k in spread(&ks, JUMP_COLUMNS_PER_STREAM) {
+            offered2.push((
+                Family::OffsetStep,
+                group,
+                vec![Column::Suffix {
+                    stream: stream_index,
+                    from: k,
+                }],
+            ));
+        }
+    }
+    let round2 = Round::new(
+        &g,
+        with_drift.dof,
+        design.orders(),
+        offered2,
+        [family2, design.jump_family, n],
+        design.options.family_alpha,
+    );
+    let size = target.and_then(|index| {
+        let o = &round2.offered()[index];
+        round2
+            .size_for((o.start(), o.len()), false, &[o.group], DETECTION_POWER)
+            .map(|s| s * design.sigma)
+    });
+    Some(Detectable {
+        kind: "drift",
+        ac: Some(ac),
+        setup: None,
+        order: Some(2),
+        identifiable: target.is_some(),
+        size,
+        unit: "arcsec/h^2",
+        df: 1,
+        family_size: family2,
+        new_fraction: fraction,
+        cycle: None,
+        step: None,
+        median_size: None,
+    })
+}
 
-    // a jump against the same stop's jump of another stream
-    if let Some(lambda) = lambda_alone(jump_family) {
-        for (i, a) in jumps.iter().enumerate() {
-            for b in &jumps[i + 1..] {
-                let Some(other) = same_stop_column(set, b.0.ac, b.0.setup, a.0.cycle, a.0.step)
-                else {
-                    continue;
+/// Pairs of jumps the data of a run cannot tell apart: a jump against the same stop's
+/// jump of another stream, by the test of [`systematic_ambiguities`].
+fn jump_ambiguities(
+    set: &MeasurementSet,
+    geometry: &FitGeometry,
+    jumps: &[(Detectable, Vec<f64>)],
+    lambda: f64,
+    chi_critical: f64,
+) -> Vec<Ambiguity> {
+    let mut ambiguous = Vec::new();
+    for (i, a) in jumps.iter().enumerate() {
+        for b in &jumps[i + 1..] {
+            let Some(other) = same_stop_column(set, b.0.ac, b.0.setup, a.0.cycle, a.0.step) else {
+                continue;
+            };
+            if a.1.is_empty() {
+                continue;
+            }
+            let gram = geometry.projected_gram(&[a.1.clone(), other]);
+            let (aa, bb, ab) = (gram[(0, 0)], gram[(1, 1)], gram[(0, 1)]);
+            if aa <= 0.0 || bb <= 0.0 {
+                continue;
+            }
+            let rho = ab / (aa * bb).sqrt();
+            if lambda * (1.0 - (rho * rho).min(1.0)) < chi_critical {
+                let name = |d: &Detectable| Explanation {
+                    kind: d.kind,
+                    ac: d.ac,
+                    setup: d.setup,
                 };
-                if a.1.is_empty() {
-                    continue;
-                }
-                let gram = geometry.projected_gram(&[a.1.clone(), other]);
-                let (aa, bb, ab) = (gram[(0, 0)], gram[(1, 1)], gram[(0, 1)]);
-                if aa <= 0.0 || bb <= 0.0 {
-                    continue;
-                }
-                let rho = ab / (aa * bb).sqrt();
-                if lambda * (1.0 - (rho * rho).min(1.0)) < chi_critical {
-                    let name = |d: &Detectable| Explanation {
-                        kind: d.kind,
-                        ac: d.ac,
-                        setup: d.setup,
-                    };
-                    ambiguous.push(Ambiguity {
-                        first: name(&a.0),
-                        second: name(&b.0),
-                        correlation: rho,
-                    });
-                }
+                ambiguous.push(Ambiguity {
+                    first: name(&a.0),
+                    second: name(&b.0),
+                    correlation: rho,
+                });
             }
         }
     }
-    out.extend(jumps.into_iter().map(|(d, _)| d));
-    if clock == crate::diagnose::Clock::StopOrder {
-        for d in &mut out {
-            d.unit = match d.unit {
-                "arcsec/h" => "arcsec/stop",
-                "arcsec/h^2" => "arcsec/stop^2",
-                other => other,
-            };
-        }
+    ambiguous
+}
+
+/// A design on the stop-order clock: drifts per stop (and per stop²) rather than per
+/// hour.
+fn per_stop_units(out: &mut [Detectable]) {
+    for d in out {
+        d.unit = match d.unit {
+            "arcsec/h" => "arcsec/stop",
+            "arcsec/h^2" => "arcsec/stop^2",
+            other => other,
+        };
     }
-    Ok((out, ambiguous))
 }
 
 /// The jump column of stream (`ac`, `setup`) at the stop (`cycle`, `step`) in time order.

@@ -294,54 +294,8 @@ fn solve_on(
     let n = set.faces;
     let k = streams.len();
     let e = regressors.len();
-    let base_len = 2 * n + k;
-    let len = base_len + e;
-
-    // Each stream's mean is taken out of its readings first (the U′ column absorbs it
-    // exactly), so that the sums the FFT sees carry the variations, not the zeros.
-    let mut stream_sum = vec![0.0; k];
-    let mut stream_count = vec![0usize; k];
-    for (r, &s) in set.readings.iter().zip(reading_stream) {
-        stream_sum[s] += r.reading_arcsec;
-        stream_count[s] += 1;
-    }
-    let stream_mean: Vec<f64> = stream_sum
-        .iter()
-        .zip(&stream_count)
-        .map(|(sum, &count)| sum / count.max(1) as f64)
-        .collect();
-
-    // Xᵀy, F = XᵀZ and ZᵀZ in g = [α, φ′, U′, effects]
-    let mut b = vec![0.0; len];
-    let mut f = vec![0.0; base_len * e];
-    let mut ztz = DMatrix::<f64>::zeros(e, e);
-    let mut rows = Vec::with_capacity(set.readings.len());
-    for (i, r) in set.readings.iter().enumerate() {
-        let s = reading_stream[i];
-        let row = [r.position(n), n + r.face - 1, 2 * n + s];
-        rows.push(row);
-        let y = r.reading_arcsec - stream_mean[s];
-        for &a in &row {
-            b[a] += y;
-        }
-        for (j, z) in regressors.iter().enumerate() {
-            let zij = z[i];
-            if zij == 0.0 {
-                continue;
-            }
-            b[base_len + j] += zij * y;
-            for &a in &row {
-                f[j * base_len + a] += zij;
-            }
-            for (l, zl) in regressors.iter().enumerate().take(j + 1) {
-                let v = zij * zl[i];
-                ztz[(j, l)] += v;
-                if l != j {
-                    ztz[(l, j)] += v;
-                }
-            }
-        }
-    }
+    let design = Normal::of(set, k, reading_stream, regressors);
+    let (base_len, len) = (design.base_len, design.len);
 
     // Woodbury: W1 = B V, C1 = D⁻¹ + Vᵀ B V
     let m = plan.corrections.len();
@@ -355,67 +309,16 @@ fn solve_on(
     else {
         return Ok(None);
     };
-    // Q_A v = B v − W1 C1⁻¹ W1ᵀ v for v in the base coordinates
-    let q_a = |v: &[f64]| -> Vec<f64> {
-        let mut out = vec![0.0; len];
-        let mut padded = v.to_vec();
-        padded.resize(len, 0.0);
-        base.apply_add(&padded, &mut out);
-        out.truncate(base_len);
-        if m > 0 {
-            let proj: Vec<f64> = (0..m)
-                .map(|c| {
-                    w1[c * base_len..(c + 1) * base_len]
-                        .iter()
-                        .zip(v)
-                        .map(|(a, b)| a * b)
-                        .sum()
-                })
-                .collect();
-            for c in 0..m {
-                let coefficient: f64 = (0..m).map(|d| capacitance_inverse[(c, d)] * proj[d]).sum();
-                for (o, w) in out.iter_mut().zip(&w1[c * base_len..(c + 1) * base_len]) {
-                    *o -= coefficient * w;
-                }
-            }
-        }
-        out
+    let corrected = CellCorrected {
+        base: &base,
+        w1: &w1,
+        capacitance_inverse: &capacitance_inverse,
+        cells: m,
+        base_len,
+        len,
     };
-
-    // effects: Y = Q_A F, S_e = ZᵀZ − Fᵀ Y
-    let mut y_cols = vec![0.0; base_len * e];
-    for j in 0..e {
-        let column = q_a(&f[j * base_len..(j + 1) * base_len]);
-        y_cols[j * base_len..(j + 1) * base_len].copy_from_slice(&column);
-    }
-    let mut schur = ztz.clone();
-    for j in 0..e {
-        for l in 0..e {
-            let dot: f64 = f[j * base_len..(j + 1) * base_len]
-                .iter()
-                .zip(&y_cols[l * base_len..(l + 1) * base_len])
-                .map(|(a, b)| a * b)
-                .sum();
-            schur[(j, l)] -= dot;
-        }
-    }
-    let schur_inverse = if e > 0 {
-        let scale = (0..e).map(|j| ztz[(j, j)]).fold(0.0_f64, f64::max);
-        match schur.clone().cholesky() {
-            Some(cholesky) => {
-                let l = cholesky.l_dirty();
-                let smallest = (0..e)
-                    .map(|j| l[(j, j)].powi(2))
-                    .fold(f64::INFINITY, f64::min);
-                if scale <= 0.0 || smallest <= 1e-10 * scale {
-                    return Ok(None);
-                }
-                cholesky.inverse()
-            }
-            None => return Ok(None),
-        }
-    } else {
-        DMatrix::zeros(0, 0)
+    let Some((y_cols, schur_inverse)) = design.effects_schur(&corrected) else {
+        return Ok(None);
     };
 
     // W = [[B V, Y], [0, −I]], M = diag(−C1⁻¹, S_e⁻¹)
@@ -435,43 +338,8 @@ fn solve_on(
         .copy_from(&(-&capacitance_inverse));
     middle.view_mut((m, m), (e, e)).copy_from(&schur_inverse);
     let structured = Structured::new(base, w, &middle);
-    let mut g = structured.apply(&b);
-    // One step of iterative refinement: the gradient Xᵀe of the residuals e, formed from
-    // the readings without cancellation, mapped through Q_g again. At large N the
-    // harmonics near a zero of the design's transfer function are amplified (by N²/2π²
-    // at N = 65 536: 10⁸), and with them the rounding of the first product; the step
-    // takes that back to the level of the closed form.
-    let model_residual = |g: &[f64], out: &mut Vec<f64>| {
-        out.clear();
-        out.extend(
-            set.readings
-                .iter()
-                .zip(&rows)
-                .enumerate()
-                .map(|(i, (reading, row))| {
-                    let mut model: f64 = row.iter().map(|&a| g[a]).sum();
-                    for (j, z) in regressors.iter().enumerate() {
-                        model += g[base_len + j] * z[i];
-                    }
-                    (reading.reading_arcsec - stream_mean[reading_stream[i]]) - model
-                }),
-        );
-    };
-    let mut residuals = Vec::with_capacity(set.readings.len());
-    model_residual(&g, &mut residuals);
-    let mut gradient = vec![0.0; len];
-    for (i, (e, row)) in residuals.iter().zip(&rows).enumerate() {
-        for &a in row {
-            gradient[a] += e;
-        }
-        for (j, z) in regressors.iter().enumerate() {
-            gradient[base_len + j] += z[i] * e;
-        }
-    }
-    for (g, d) in g.iter_mut().zip(structured.apply(&gradient)) {
-        *g += d;
-    }
-    model_residual(&g, &mut residuals);
+    let mut g = structured.apply(&design.b);
+    let residuals = design.refine(&structured, &mut g);
 
     // θ in the reported gauge (docs/FORMAT.md §1): φ = φ′ − φ′_N, U = U′ + φ′_N
     let phi_last = g[2 * n - 1];
@@ -479,7 +347,7 @@ fn solve_on(
     let face_deviation = face_deviation_from_pitch(&pitch_deviation);
     let encoder_error = g[..n].to_vec();
     let effect_values = g[base_len..].to_vec();
-    for (u, mean) in g[2 * n..base_len].iter_mut().zip(&stream_mean) {
+    for (u, mean) in g[2 * n..base_len].iter_mut().zip(&design.stream_mean) {
         *u += mean;
     }
     let setup_values: Vec<f64> = (0..k).map(|s| g[2 * n + s] + phi_last).collect();
@@ -514,4 +382,224 @@ fn solve_on(
         layout,
         incomplete_cycles: Vec::new(),
     }))
+}
+
+/// The normal equations of one solve in g = [α, φ′, U′, effects]: Xᵀy, F = XᵀZ and ZᵀZ,
+/// with what forms them (the readings less their stream's mean, each reading's
+/// coordinates).
+struct Normal<'a> {
+    set: &'a MeasurementSet,
+    reading_stream: &'a [usize],
+    regressors: &'a [Vec<f64>],
+    /// Each stream's mean reading, arcsec, taken out of its readings.
+    stream_mean: Vec<f64>,
+    /// Per reading, its coordinates of α, φ′ and U′ in g.
+    rows: Vec<[usize; 3]>,
+    /// Xᵀy.
+    b: Vec<f64>,
+    /// F = XᵀZ, column by column (each `base_len` long).
+    f: Vec<f64>,
+    /// ZᵀZ.
+    ztz: DMatrix<f64>,
+    /// The length of [α, φ′, U′]: 2N + K.
+    base_len: usize,
+    /// The length of g.
+    len: usize,
+}
+
+impl<'a> Normal<'a> {
+    /// The normal equations of `set` with `streams` streams. Each stream's mean is taken
+    /// out of its readings first (the U′ column absorbs it exactly), so that the sums the
+    /// FFT sees carry the variations, not the zeros.
+    fn of(
+        set: &'a MeasurementSet,
+        streams: usize,
+        reading_stream: &'a [usize],
+        regressors: &'a [Vec<f64>],
+    ) -> Normal<'a> {
+        let n = set.faces;
+        let k = streams;
+        let e = regressors.len();
+        let base_len = 2 * n + k;
+        let len = base_len + e;
+        let mut stream_sum = vec![0.0; k];
+        let mut stream_count = vec![0usize; k];
+        for (r, &s) in set.readings.iter().zip(reading_stream) {
+            stream_sum[s] += r.reading_arcsec;
+            stream_count[s] += 1;
+        }
+        let stream_mean: Vec<f64> = stream_sum
+            .iter()
+            .zip(&stream_count)
+            .map(|(sum, &count)| sum / count.max(1) as f64)
+            .collect();
+
+        // Xᵀy, F = XᵀZ and ZᵀZ in g = [α, φ′, U′, effects]
+        let mut b = vec![0.0; len];
+        let mut f = vec![0.0; base_len * e];
+        let mut ztz = DMatrix::<f64>::zeros(e, e);
+        let mut rows = Vec::with_capacity(set.readings.len());
+        for (i, r) in set.readings.iter().enumerate() {
+            let s = reading_stream[i];
+            let row = [r.position(n), n + r.face - 1, 2 * n + s];
+            rows.push(row);
+            let y = r.reading_arcsec - stream_mean[s];
+            for &a in &row {
+                b[a] += y;
+            }
+            for (j, z) in regressors.iter().enumerate() {
+                let zij = z[i];
+                if zij == 0.0 {
+                    continue;
+                }
+                b[base_len + j] += zij * y;
+                for &a in &row {
+                    f[j * base_len + a] += zij;
+                }
+                for (l, zl) in regressors.iter().enumerate().take(j + 1) {
+                    let v = zij * zl[i];
+                    ztz[(j, l)] += v;
+                    if l != j {
+                        ztz[(l, j)] += v;
+                    }
+                }
+            }
+        }
+        Normal {
+            set,
+            reading_stream,
+            regressors,
+            stream_mean,
+            rows,
+            b,
+            f,
+            ztz,
+            base_len,
+            len,
+        }
+    }
+
+    /// The effects: Y = Q_A F and the inverse of their Schur complement
+    /// S_e = ZᵀZ − Fᵀ Y. `None` when S_e is singular (an effect the data cannot
+    /// separate).
+    fn effects_schur(&self, corrected: &CellCorrected) -> Option<(Vec<f64>, DMatrix<f64>)> {
+        let (base_len, e) = (self.base_len, self.regressors.len());
+        let (f, ztz) = (&self.f, &self.ztz);
+        let mut y_cols = vec![0.0; base_len * e];
+        for j in 0..e {
+            let column = corrected.q_a(&f[j * base_len..(j + 1) * base_len]);
+            y_cols[j * base_len..(j + 1) * base_len].copy_from_slice(&column);
+        }
+        let mut schur = ztz.clone();
+        for j in 0..e {
+            for l in 0..e {
+                let dot: f64 = f[j * base_len..(j + 1) * base_len]
+                    .iter()
+                    .zip(&y_cols[l * base_len..(l + 1) * base_len])
+                    .map(|(a, b)| a * b)
+                    .sum();
+                schur[(j, l)] -= dot;
+            }
+        }
+        let schur_inverse = if e > 0 {
+            let scale = (0..e).map(|j| ztz[(j, j)]).fold(0.0_f64, f64::max);
+            let cholesky = schur.clone().cholesky()?;
+            let l = cholesky.l_dirty();
+            let smallest = (0..e)
+                .map(|j| l[(j, j)].powi(2))
+                .fold(f64::INFINITY, f64::min);
+            if scale <= 0.0 || smallest <= 1e-10 * scale {
+                return None;
+            }
+            cholesky.inverse()
+        } else {
+            DMatrix::zeros(0, 0)
+        };
+        Some((y_cols, schur_inverse))
+    }
+
+    /// The residuals, arcsec, of the estimates `g` (in the stream-mean-free readings).
+    fn model_residual(&self, g: &[f64], out: &mut Vec<f64>) {
+        let base_len = self.base_len;
+        out.clear();
+        out.extend(self.set.readings.iter().zip(&self.rows).enumerate().map(
+            |(i, (reading, row))| {
+                let mut model: f64 = row.iter().map(|&a| g[a]).sum();
+                for (j, z) in self.regressors.iter().enumerate() {
+                    model += g[base_len + j] * z[i];
+                }
+                (reading.reading_arcsec - self.stream_mean[self.reading_stream[i]]) - model
+            },
+        ));
+    }
+
+    /// One step of iterative refinement of the estimates `g`: the gradient Xᵀe of the
+    /// residuals e, formed from the readings without cancellation, mapped through Q_g
+    /// (`structured`) again. At large N the harmonics near a zero of the design's
+    /// transfer function are amplified (by N²/2π² at N = 65 536: 10⁸), and with them the
+    /// rounding of the first product; the step takes that back to the level of the
+    /// closed form. Returns the residuals of the refined estimates, arcsec.
+    fn refine(&self, structured: &Structured, g: &mut [f64]) -> Vec<f64> {
+        let base_len = self.base_len;
+        let mut residuals = Vec::with_capacity(self.set.readings.len());
+        self.model_residual(g, &mut residuals);
+        let mut gradient = vec![0.0; self.len];
+        for (i, (e, row)) in residuals.iter().zip(&self.rows).enumerate() {
+            for &a in row {
+                gradient[a] += e;
+            }
+            for (j, z) in self.regressors.iter().enumerate() {
+                gradient[base_len + j] += z[i] * e;
+            }
+        }
+        for (g, d) in g.iter_mut().zip(structured.apply(&gradient)) {
+            *g += d;
+        }
+        self.model_residual(g, &mut residuals);
+        residuals
+    }
+}
+
+/// The regular part's cofactor B corrected for the cells read other than the regular
+/// part has them (Woodbury: W1 = B V, C1⁻¹).
+struct CellCorrected<'a> {
+    base: &'a Base,
+    w1: &'a [f64],
+    capacitance_inverse: &'a DMatrix<f64>,
+    /// The number of cells corrected (m).
+    cells: usize,
+    base_len: usize,
+    len: usize,
+}
+
+impl CellCorrected<'_> {
+    /// Q_A v = B v − W1 C1⁻¹ W1ᵀ v for v in the base coordinates.
+    fn q_a(&self, v: &[f64]) -> Vec<f64> {
+        let (base_len, len) = (self.base_len, self.len);
+        let (w1, capacitance_inverse) = (self.w1, self.capacitance_inverse);
+        let m = self.cells;
+        let mut out = vec![0.0; len];
+        let mut padded = v.to_vec();
+        padded.resize(len, 0.0);
+        self.base.apply_add(&padded, &mut out);
+        out.truncate(base_len);
+        if m > 0 {
+            let proj: Vec<f64> = (0..m)
+                .map(|c| {
+                    w1[c * base_len..(c + 1) * base_len]
+                        .iter()
+                        .zip(v)
+                        .map(|(a, b)| a * b)
+                        .sum()
+                })
+                .collect();
+            for c in 0..m {
+                let coefficient: f64 = (0..m).map(|d| capacitance_inverse[(c, d)] * proj[d]).sum();
+                for (o, w) in out.iter_mut().zip(&w1[c * base_len..(c + 1) * base_len]) {
+                    *o -= coefficient * w;
+                }
+            }
+        }
+        out
+    }
 }

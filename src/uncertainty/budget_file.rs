@@ -358,52 +358,91 @@ fn build_component(raw: &Spanned<RawComponent>, at: &At<'_>) -> Result<Component
     // errors about the whole component point.
     let span = raw.span();
     let c = raw.get_ref();
-    let name = match &c.name {
-        None => {
-            return Err(at(
-                span,
-                "this component has no name (name = \"...\")".to_string(),
-            ));
-        }
-        Some(n) if n.get_ref().trim().is_empty() => {
-            return Err(at(n.span(), "the name is empty".to_string()));
-        }
-        Some(n) => n.get_ref().clone(),
-    };
-    let sensitivity = match &c.sensitivity {
-        None => 1.0,
-        Some(s) => {
-            let v = *s.get_ref();
-            if !v.is_finite() {
-                return Err(at(
-                    s.span(),
-                    format!("sensitivity must be a finite number, got {v}"),
-                ));
-            }
-            limits::BUDGET_VALUE
-                .check(v, "a sensitivity")
-                .map_err(|rule| at(s.span(), format!("sensitivity: {rule}")))?
-        }
-    };
-    let numbers: [(&str, &Option<Spanned<f64>>); 7] = [
-        ("full_width", &c.full_width),
-        ("half_width", &c.half_width),
-        ("u", &c.u),
-        ("expanded", &c.expanded),
-        ("k", &c.k),
-        ("scale", &c.scale),
-        ("dof", &c.dof),
-    ];
-
+    let name = c.checked_name(&span, at)?;
+    let sensitivity = c.checked_sensitivity(at)?;
     if !c.component.is_empty() {
         // A nested budget: everything but the name and sensitivity comes from inside.
+        let budget = c.nested_budget(&name, at)?;
+        return Ok(Component::nested(name, budget).with_sensitivity(sensitivity));
+    }
+    if let Some(corr) = c.correlation.first() {
+        return Err(at(
+            corr.span(),
+            format!(
+                "component {name:?} has no nested components: correlations belong to the \
+                 budget that holds both components ([[correlation]])"
+            ),
+        ));
+    }
+    let evaluation = c.evaluation_type(&span, &name, at)?;
+    let distribution_name = c.distribution_name(&span, at)?;
+    c.check_numbers(at)?;
+    let dof = c.degrees_of_freedom(at)?;
+    let given = c.uncertainty_given(distribution_name, &name, &span, at)?;
+    let distribution = c.distribution(distribution_name, given, dof, &name, &span, at)?;
+    Ok(Component::input(name, evaluation, distribution, dof).with_sensitivity(sensitivity))
+}
+
+impl RawComponent {
+    /// Its numbers by key: widths, uncertainties, k, the t distribution's scale, dof.
+    fn numbers(&self) -> [(&'static str, &Option<Spanned<f64>>); 7] {
+        [
+            ("full_width", &self.full_width),
+            ("half_width", &self.half_width),
+            ("u", &self.u),
+            ("expanded", &self.expanded),
+            ("k", &self.k),
+            ("scale", &self.scale),
+            ("dof", &self.dof),
+        ]
+    }
+
+    /// Its name, which must be given and not empty (`span`: the component's header).
+    fn checked_name(&self, span: &Range<usize>, at: &At<'_>) -> Result<String, BudgetError> {
+        match &self.name {
+            None => Err(at(
+                span.clone(),
+                "this component has no name (name = \"...\")".to_string(),
+            )),
+            Some(n) if n.get_ref().trim().is_empty() => {
+                Err(at(n.span(), "the name is empty".to_string()))
+            }
+            Some(n) => Ok(n.get_ref().clone()),
+        }
+    }
+
+    /// Its sensitivity coefficient: 1 unless given, finite and within the budget's limits.
+    fn checked_sensitivity(&self, at: &At<'_>) -> Result<f64, BudgetError> {
+        match &self.sensitivity {
+            None => Ok(1.0),
+            Some(s) => {
+                let v = *s.get_ref();
+                if !v.is_finite() {
+                    return Err(at(
+                        s.span(),
+                        format!("sensitivity must be a finite number, got {v}"),
+                    ));
+                }
+                limits::BUDGET_VALUE
+                    .check(v, "a sensitivity")
+                    .map_err(|rule| at(s.span(), format!("sensitivity: {rule}")))
+            }
+        }
+    }
+
+    /// The budget of its nested components, which give its standard uncertainty, type and
+    /// degrees of freedom (refused beside a type, distribution or number of its own).
+    fn nested_budget(&self, name: &str, at: &At<'_>) -> Result<Budget, BudgetError> {
         let own = [
-            ("type", c.kind.as_ref().map(Spanned::span)),
-            ("distribution", c.distribution.as_ref().map(Spanned::span)),
+            ("type", self.kind.as_ref().map(Spanned::span)),
+            (
+                "distribution",
+                self.distribution.as_ref().map(Spanned::span),
+            ),
         ]
         .into_iter()
         .chain(
-            numbers
+            self.numbers()
                 .iter()
                 .map(|(key, v)| (*key, v.as_ref().map(Spanned::span))),
         )
@@ -417,219 +456,256 @@ fn build_component(raw: &Spanned<RawComponent>, at: &At<'_>) -> Result<Component
                 ),
             ));
         }
-        let budget = build_budget(&c.component, &c.correlation, at)?;
-        return Ok(Component::nested(name, budget).with_sensitivity(sensitivity));
-    }
-    if let Some(corr) = c.correlation.first() {
-        return Err(at(
-            corr.span(),
-            format!(
-                "component {name:?} has no nested components: correlations belong to the \
-                 budget that holds both components ([[correlation]])"
-            ),
-        ));
+        build_budget(&self.component, &self.correlation, at)
     }
 
-    let evaluation = match &c.kind {
-        None => {
-            return Err(at(
-                span,
+    /// Its type of evaluation, A or B, which must be given.
+    fn evaluation_type(
+        &self,
+        span: &Range<usize>,
+        name: &str,
+        at: &At<'_>,
+    ) -> Result<EvaluationType, BudgetError> {
+        match &self.kind {
+            None => Err(at(
+                span.clone(),
                 format!("component {name:?} has no type: write type = \"A\" or type = \"B\""),
-            ));
-        }
-        Some(t) => match t.get_ref().as_str() {
-            "A" => EvaluationType::A,
-            "B" => EvaluationType::B,
-            other => {
-                return Err(at(
+            )),
+            Some(t) => match t.get_ref().as_str() {
+                "A" => Ok(EvaluationType::A),
+                "B" => Ok(EvaluationType::B),
+                other => Err(at(
                     t.span(),
                     format!("type must be \"A\" or \"B\", got {other:?}"),
-                ));
-            }
-        },
-    };
-    let distribution_name = c
-        .distribution
-        .as_ref()
-        .map_or("normal", |d| d.get_ref().as_str());
-    let distribution_span = c.distribution.as_ref().map_or(span.clone(), Spanned::span);
-    if !matches!(
-        distribution_name,
-        "normal" | "rectangular" | "triangular" | "arcsine" | "t"
-    ) {
-        return Err(at(
-            distribution_span,
-            format!(
-                "unknown distribution {distribution_name:?}: expected \"normal\", \
-                 \"rectangular\", \"triangular\", \"arcsine\" or \"t\""
-            ),
-        ));
+                )),
+            },
+        }
     }
 
-    // Every number finite; widths and uncertainties not negative; k and dof checked below.
-    for (key, value) in &numbers {
-        if let Some(v) = value {
-            let x = *v.get_ref();
-            if x.is_nan() || (x.is_infinite() && *key != "dof") {
-                return Err(at(
-                    v.span(),
-                    format!("{key} must be a finite number, got {x}"),
-                ));
+    /// The name of its distribution: normal unless given, one of those known.
+    fn distribution_name(&self, span: &Range<usize>, at: &At<'_>) -> Result<&str, BudgetError> {
+        let distribution_name = self
+            .distribution
+            .as_ref()
+            .map_or("normal", |d| d.get_ref().as_str());
+        let distribution_span = self
+            .distribution
+            .as_ref()
+            .map_or(span.clone(), Spanned::span);
+        if !matches!(
+            distribution_name,
+            "normal" | "rectangular" | "triangular" | "arcsine" | "t"
+        ) {
+            return Err(at(
+                distribution_span,
+                format!(
+                    "unknown distribution {distribution_name:?}: expected \"normal\", \
+                     \"rectangular\", \"triangular\", \"arcsine\" or \"t\""
+                ),
+            ));
+        }
+        Ok(distribution_name)
+    }
+
+    /// Every number finite and within its limit; widths and uncertainties not negative;
+    /// k only with expanded (and expanded only with k), greater than 0.
+    fn check_numbers(&self, at: &At<'_>) -> Result<(), BudgetError> {
+        for (key, value) in &self.numbers() {
+            if let Some(v) = value {
+                let x = *v.get_ref();
+                if x.is_nan() || (x.is_infinite() && *key != "dof") {
+                    return Err(at(
+                        v.span(),
+                        format!("{key} must be a finite number, got {x}"),
+                    ));
+                }
+                if x < 0.0 && *key != "dof" && *key != "k" {
+                    return Err(at(v.span(), format!("{key} must not be negative, got {x}")));
+                }
+                let limit = match *key {
+                    "dof" => None,
+                    "k" => Some(limits::COVERAGE_FACTOR),
+                    _ => Some(limits::BUDGET_VALUE),
+                };
+                if let Some(limit) = limit
+                    && x > 0.0
+                    && let Err(rule) = limit.check(x, &format!("a budget's {key}"))
+                {
+                    return Err(at(v.span(), format!("{key}: {rule}")));
+                }
             }
-            if x < 0.0 && *key != "dof" && *key != "k" {
-                return Err(at(v.span(), format!("{key} must not be negative, got {x}")));
-            }
-            let limit = match *key {
-                "dof" => None,
-                "k" => Some(limits::COVERAGE_FACTOR),
-                _ => Some(limits::BUDGET_VALUE),
-            };
-            if let Some(limit) = limit
-                && x > 0.0
-                && let Err(rule) = limit.check(x, &format!("a budget's {key}"))
-            {
-                return Err(at(v.span(), format!("{key}: {rule}")));
+        }
+        if let (Some(k), None) = (&self.k, &self.expanded) {
+            return Err(at(
+                k.span(),
+                "k is given without expanded: k is the coverage factor of an expanded uncertainty"
+                    .to_string(),
+            ));
+        }
+        if let (Some(e), None) = (&self.expanded, &self.k) {
+            return Err(at(e.span(), EXPANDED_NEEDS_K.to_string()));
+        }
+        if let Some(k) = &self.k
+            && *k.get_ref() <= 0.0
+        {
+            return Err(at(
+                k.span(),
+                format!("k must be greater than 0, got {}", k.get_ref()),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Its degrees of freedom: at least 1, `None` for infinitely many (omitted or `inf`).
+    fn degrees_of_freedom(&self, at: &At<'_>) -> Result<Option<f64>, BudgetError> {
+        match &self.dof {
+            None => Ok(None),
+            Some(d) => {
+                let nu = *d.get_ref();
+                if nu == f64::INFINITY {
+                    Ok(None)
+                } else if nu >= 1.0 {
+                    Ok(Some(nu))
+                } else {
+                    Err(at(
+                        d.span(),
+                        format!(
+                            "dof must be at least 1 (omit it, or write inf, for infinitely \
+                             many), got {nu}"
+                        ),
+                    ))
+                }
             }
         }
     }
-    if let (Some(k), None) = (&c.k, &c.expanded) {
-        return Err(at(
-            k.span(),
-            "k is given without expanded: k is the coverage factor of an expanded uncertainty"
-                .to_string(),
-        ));
-    }
-    if let (Some(e), None) = (&c.expanded, &c.k) {
-        return Err(at(e.span(), EXPANDED_NEEDS_K.to_string()));
-    }
-    if let Some(k) = &c.k
-        && *k.get_ref() <= 0.0
-    {
-        return Err(at(
-            k.span(),
-            format!("k must be greater than 0, got {}", k.get_ref()),
-        ));
-    }
-    let dof = match &c.dof {
-        None => None,
-        Some(d) => {
-            let nu = *d.get_ref();
-            if nu == f64::INFINITY {
-                None
-            } else if nu >= 1.0 {
-                Some(nu)
-            } else {
+
+    /// Its one specification of the width or uncertainty (key and value), one that the
+    /// distribution `distribution_name` takes.
+    fn uncertainty_given(
+        &self,
+        distribution_name: &str,
+        name: &str,
+        span: &Range<usize>,
+        at: &At<'_>,
+    ) -> Result<(&'static str, &Spanned<f64>), BudgetError> {
+        let numbers = self.numbers();
+        let specs: Vec<(&'static str, &Spanned<f64>)> = numbers
+            .iter()
+            .filter(|(key, _)| {
+                matches!(
+                    *key,
+                    "full_width" | "half_width" | "u" | "expanded" | "scale"
+                )
+            })
+            .filter_map(|(key, v)| v.as_ref().map(|v| (*key, v)))
+            .collect();
+        let allowed: &[&str] = match distribution_name {
+            "normal" => &["u", "expanded"],
+            "t" => &["scale", "u"],
+            _ => &["full_width", "half_width", "u"],
+        };
+        let allowed_text = match distribution_name {
+            "normal" => "u, or expanded and k",
+            "t" => "scale (or u) and dof",
+            _ => "full_width, half_width or u",
+        };
+        let (key, value) = match specs.as_slice() {
+            [] => {
                 return Err(at(
-                    d.span(),
+                    span.clone(),
                     format!(
-                        "dof must be at least 1 (omit it, or write inf, for infinitely \
-                         many), got {nu}"
+                        "component {name:?} gives no uncertainty: a {distribution_name} \
+                         distribution takes {allowed_text}"
                     ),
                 ));
             }
+            [one] => *one,
+            [first, second, ..] => {
+                return Err(at(
+                    second.1.span(),
+                    format!(
+                        "component {name:?} gives both {} and {}: give exactly one",
+                        first.0, second.0
+                    ),
+                ));
+            }
+        };
+        if !allowed.contains(&key) {
+            return Err(at(
+                value.span(),
+                format!("a {distribution_name} distribution takes {allowed_text}, not {key}"),
+            ));
         }
-    };
+        Ok((key, value))
+    }
 
-    // Exactly one specification of the width or uncertainty.
-    let specs: Vec<(&str, &Spanned<f64>)> = numbers
-        .iter()
-        .filter(|(key, _)| {
-            matches!(
-                *key,
-                "full_width" | "half_width" | "u" | "expanded" | "scale"
-            )
+    /// Its distribution, from the specification `given` (key, value) and the degrees of
+    /// freedom `dof`.
+    fn distribution(
+        &self,
+        distribution_name: &str,
+        (key, value): (&str, &Spanned<f64>),
+        dof: Option<f64>,
+        name: &str,
+        span: &Range<usize>,
+        at: &At<'_>,
+    ) -> Result<Distribution, BudgetError> {
+        let x = *value.get_ref();
+        Ok(match (distribution_name, key) {
+            ("normal", "u") => Distribution::Normal { u: x },
+            ("normal", "expanded") => match &self.k {
+                Some(k) => Distribution::normal_expanded(x, *k.get_ref()),
+                None => return Err(at(value.span(), EXPANDED_NEEDS_K.to_string())),
+            },
+            ("t", _) => match dof {
+                Some(nu) => Distribution::StudentT { scale: x, dof: nu },
+                None => {
+                    return Err(at(
+                        self.dof.as_ref().map_or(span.clone(), Spanned::span),
+                        format!(
+                            "component {name:?}: a t distribution needs finite degrees of \
+                             freedom (dof = ...)"
+                        ),
+                    ));
+                }
+            },
+            (shape, key) => bounded_distribution(shape, key, x),
         })
-        .filter_map(|(key, v)| v.as_ref().map(|v| (*key, v)))
-        .collect();
-    let allowed: &[&str] = match distribution_name {
-        "normal" => &["u", "expanded"],
-        "t" => &["scale", "u"],
-        _ => &["full_width", "half_width", "u"],
-    };
-    let allowed_text = match distribution_name {
-        "normal" => "u, or expanded and k",
-        "t" => "scale (or u) and dof",
-        _ => "full_width, half_width or u",
-    };
-    let (key, value) = match specs.as_slice() {
-        [] => {
-            return Err(at(
-                span,
-                format!(
-                    "component {name:?} gives no uncertainty: a {distribution_name} \
-                     distribution takes {allowed_text}"
-                ),
-            ));
-        }
-        [one] => *one,
-        [first, second, ..] => {
-            return Err(at(
-                second.1.span(),
-                format!(
-                    "component {name:?} gives both {} and {}: give exactly one",
-                    first.0, second.0
-                ),
-            ));
-        }
-    };
-    if !allowed.contains(&key) {
-        return Err(at(
-            value.span(),
-            format!("a {distribution_name} distribution takes {allowed_text}, not {key}"),
-        ));
     }
-    let x = *value.get_ref();
-    let distribution = match (distribution_name, key) {
-        ("normal", "u") => Distribution::Normal { u: x },
-        ("normal", "expanded") => match &c.k {
-            Some(k) => Distribution::normal_expanded(x, *k.get_ref()),
-            None => return Err(at(value.span(), EXPANDED_NEEDS_K.to_string())),
-        },
-        ("t", _) => match dof {
-            Some(nu) => Distribution::StudentT { scale: x, dof: nu },
-            None => {
-                return Err(at(
-                    c.dof.as_ref().map_or(span.clone(), Spanned::span),
-                    format!(
-                        "component {name:?}: a t distribution needs finite degrees of \
-                         freedom (dof = ...)"
-                    ),
-                ));
+}
+
+/// A rectangular, triangular or arcsine distribution (`shape`) from its full width, half
+/// width or standard uncertainty (`key`) `x`; a u given is kept exact.
+fn bounded_distribution(shape: &str, key: &str, x: f64) -> Distribution {
+    let half_width = match key {
+        "full_width" => 0.5 * x,
+        "half_width" => x,
+        _ => {
+            // u given: the half width that yields it.
+            x * match shape {
+                "rectangular" => 3f64.sqrt(),
+                "triangular" => 6f64.sqrt(),
+                _ => 2f64.sqrt(),
             }
-        },
-        (shape, key) => {
-            let half_width = match key {
-                "full_width" => 0.5 * x,
-                "half_width" => x,
-                _ => {
-                    // u given: the half width that yields it.
-                    x * match shape {
-                        "rectangular" => 3f64.sqrt(),
-                        "triangular" => 6f64.sqrt(),
-                        _ => 2f64.sqrt(),
-                    }
-                }
-            };
-            let make = |half_width| match shape {
-                "rectangular" => Distribution::Rectangular { half_width },
-                "triangular" => Distribution::Triangular { half_width },
-                _ => Distribution::Arcsine { half_width },
-            };
-            let mut d = make(half_width);
-            if key == "u" {
-                // Keep the given u exact: nudge the half width by an ulp or two.
-                let mut a = half_width;
-                for _ in 0..4 {
-                    let got = d.standard_uncertainty();
-                    if got == x {
-                        break;
-                    }
-                    a = if got < x { a.next_up() } else { a.next_down() };
-                    d = make(a);
-                }
-            }
-            d
         }
     };
-    Ok(Component::input(name, evaluation, distribution, dof).with_sensitivity(sensitivity))
+    let make = |half_width| match shape {
+        "rectangular" => Distribution::Rectangular { half_width },
+        "triangular" => Distribution::Triangular { half_width },
+        _ => Distribution::Arcsine { half_width },
+    };
+    let mut d = make(half_width);
+    if key == "u" {
+        // Keep the given u exact: nudge the half width by an ulp or two.
+        let mut a = half_width;
+        for _ in 0..4 {
+            let got = d.standard_uncertainty();
+            if got == x {
+                break;
+            }
+            a = if got < x { a.next_up() } else { a.next_down() };
+            d = make(a);
+        }
+    }
+    d
 }

@@ -162,269 +162,19 @@ pub(super) fn parse(text: &str, source: &str) -> Result<Profile, ProfileError> {
         let offset = e.span().map_or(0, |s| s.start);
         at.error(offset, e.message().trim().to_string())
     })?;
-    let axis = raw.axis.as_ref().map(|a| a.get_ref().clone());
-    let expand = |s: &Spanned<String>, allow_deg: bool| -> Result<String, ProfileError> {
-        let value = s.get_ref();
-        if let Some(i) = value.find(['\r', '\n']) {
-            return Err(at.error(
-                at.inside(s.span().start, value[..i].chars().count()),
-                "a command or reply holds no line end: the line's command_end and reply_end add them",
-            ));
-        }
-        let mut out = value.clone();
-        if out.contains("{axis}") {
-            let Some(axis) = &axis else {
-                return Err(at.error(
-                    s.span().start,
-                    "`{axis}` is used but the profile gives no `axis = \"…\"`",
-                ));
-            };
-            out = out.replace("{axis}", axis);
-        }
-        if !allow_deg && out.contains("{deg}") {
-            return Err(at.error(s.span().start, "`{deg}` belongs in the move command only"));
-        }
-        if out.trim().is_empty() {
-            return Err(at.error(s.span().start, "the command is empty"));
-        }
-        Ok(out)
+    let values = Values {
+        at: &at,
+        axis: raw.axis.as_ref().map(|a| a.get_ref().clone()),
     };
-    let template = |s: &Spanned<String>| -> Result<Template, ProfileError> {
-        let text = expand(s, false)?;
-        Template::parse(&text).map_err(|e| {
-            // Offsets after an expanded `{axis}` are approximate; the value's start is not.
-            let offset = if s.get_ref() == &text {
-                at.inside(s.span().start, e.offset)
-            } else {
-                s.span().start
-            };
-            at.error(
-                offset,
-                format!("the template {:?}: {}", s.get_ref(), e.message),
-            )
-        })
-    };
-    let query = |q: &RawQuery| -> Result<Query, ProfileError> {
-        Ok(Query {
-            send: expand(&q.send, false)?,
-            reply: template(&q.reply)?,
-        })
-    };
-    let command = |c: &RawCommand, allow_deg: bool| -> Result<Command, ProfileError> {
-        Ok(Command {
-            send: expand(&c.send, allow_deg)?,
-            ack: c.reply.as_ref().map(template).transpose()?,
-        })
-    };
-    let condition = |c: &Spanned<Condition>, on: &Template| -> Result<Condition, ProfileError> {
-        c.get_ref()
-            .check(on)
-            .map_err(|m| at.error(c.span().start, m))?;
-        Ok(c.get_ref().clone())
-    };
-    let line = line_settings(&raw.line, &at, &template)?;
-    let identify = query(&raw.identify)?;
+    let line = line_settings(&raw.line, &at, &|s| values.template(s))?;
+    let identify = values.query(&raw.identify)?;
     let name = raw.profile.get_ref().trim().to_string();
     if name.is_empty() {
         return Err(at.error(raw.profile.span().start, "the profile needs a name"));
     }
-    let present = |key: &str, ok: bool, kind: &str| -> Result<(), ProfileError> {
-        if ok {
-            Ok(())
-        } else {
-            Err(at.error(
-                raw.instrument.span().start,
-                format!("{kind} has no `[{key}]`: describe it, or give instrument = \"…\" for the other kind"),
-            ))
-        }
-    };
-    let not_here = |key: &str, given: bool, kind: &str| -> Result<(), ProfileError> {
-        if given {
-            Err(at.error(
-                raw.instrument.span().start,
-                format!("`[{key}]` is not something {kind} has"),
-            ))
-        } else {
-            Ok(())
-        }
-    };
     let kind = match raw.instrument.get_ref().as_str() {
-        "autocollimator" => {
-            let who = "an autocollimator";
-            for (key, given) in [
-                ("enable", !raw.enable.is_empty()),
-                ("home", raw.home.is_some()),
-                ("referenced", raw.referenced.is_some()),
-                ("state", raw.state.is_some()),
-                ("move", raw.motion.is_some()),
-                ("position", raw.position.is_some()),
-                ("error", raw.error.is_some()),
-                ("stop", raw.stop.is_some()),
-            ] {
-                not_here(key, given, who)?;
-            }
-            present("measure", raw.measure.is_some(), who)?;
-            let Some(m) = &raw.measure else {
-                return Err(at.error(0, "no [measure]"));
-            };
-            let reply = template(&m.reply)?;
-            number_field(&reply, "x", &m.reply, &at, true)?;
-            number_field(&reply, "y", &m.reply, &at, false)?;
-            let x_valid = condition(&m.x_valid, &reply)?;
-            let y_valid = m
-                .y_valid
-                .as_ref()
-                .map(|c| condition(c, &reply))
-                .transpose()?;
-            let measure = Query {
-                send: expand(&m.send, false)?,
-                reply,
-            };
-            let start = raw
-                .start
-                .as_ref()
-                .map(|s| s.send.iter().map(|c| expand(c, false)).collect())
-                .transpose()?
-                .unwrap_or_default();
-            let ac = AcProfile {
-                start,
-                identify,
-                measure,
-                x_valid,
-                y_valid,
-            };
-            let x = ac
-                .measure
-                .reply
-                .render(&|f| sample(f, &ac.measure.reply, &[&ac.x_valid]));
-            distinct(&ac.identify, &raw.identify, &[("measurement", x)], &at)?;
-            ProfileKind::Autocollimator(Box::new(ac))
-        }
-        "table" => {
-            let who = "a rotary table";
-            for (key, given) in [
-                ("start", raw.start.is_some()),
-                ("measure", raw.measure.is_some()),
-            ] {
-                not_here(key, given, who)?;
-            }
-            for (key, given) in [
-                ("home", raw.home.is_some()),
-                ("state", raw.state.is_some()),
-                ("move", raw.motion.is_some()),
-                ("position", raw.position.is_some()),
-                ("stop", raw.stop.is_some()),
-            ] {
-                present(key, given, who)?;
-            }
-            let (Some(home), Some(state), Some(motion), Some(position), Some(stop)) =
-                (&raw.home, &raw.state, &raw.motion, &raw.position, &raw.stop)
-            else {
-                return Err(at.error(0, "a table's sections are missing"));
-            };
-            let motion_command = command(motion, true)?;
-            if !motion_command.send.contains("{deg}") {
-                return Err(at.error(
-                    motion.send.span().start,
-                    "the move command needs `{deg}`, where the position goes",
-                ));
-            }
-            let state_reply = template(&state.reply)?;
-            let state_query = StateQuery {
-                query: Query {
-                    send: expand(&state.send, false)?,
-                    reply: state_reply.clone(),
-                },
-                ready: condition(&state.ready, &state_reply)?,
-                moving: condition(&state.moving, &state_reply)?,
-                not_referenced: state
-                    .not_referenced
-                    .as_ref()
-                    .map(|c| condition(c, &state_reply))
-                    .transpose()?,
-                fault: state
-                    .fault
-                    .as_ref()
-                    .map(|c| condition(c, &state_reply))
-                    .transpose()?,
-                names: state.names.clone(),
-                bits: state.bits.clone(),
-            };
-            let position_query = query(position)?;
-            number_field(&position_query.reply, "deg", &position.reply, &at, true)?;
-            let referenced = raw
-                .referenced
-                .as_ref()
-                .map(|r| -> Result<(Query, Condition), ProfileError> {
-                    let reply = template(&r.reply)?;
-                    let when = condition(&r.when, &reply)?;
-                    Ok((
-                        Query {
-                            send: expand(&r.send, false)?,
-                            reply,
-                        },
-                        when,
-                    ))
-                })
-                .transpose()?;
-            let error = raw
-                .error
-                .as_ref()
-                .map(|e| -> Result<ErrorQuery, ProfileError> {
-                    let reply = template(&e.reply)?;
-                    let none = condition(&e.none, &reply)?;
-                    Ok(ErrorQuery {
-                        query: Query {
-                            send: expand(&e.send, false)?,
-                            reply,
-                        },
-                        none,
-                        names: e.names.clone(),
-                    })
-                })
-                .transpose()?;
-            let table = TableProfile {
-                identify,
-                enable: raw
-                    .enable
-                    .iter()
-                    .map(|c| command(c, false))
-                    .collect::<Result<_, _>>()?,
-                home: command(home, false)?,
-                referenced,
-                state: state_query,
-                motion: motion_command,
-                position: position_query,
-                error,
-                stop: command(stop, false)?,
-            };
-            let mut others =
-                vec![
-                    (
-                        "state",
-                        table.state.query.reply.render(&|f| {
-                            sample(f, &table.state.query.reply, &[&table.state.ready])
-                        }),
-                    ),
-                    (
-                        "position",
-                        table
-                            .position
-                            .reply
-                            .render(&|f| sample(f, &table.position.reply, &[])),
-                    ),
-                ];
-            if let Some(e) = &table.error {
-                others.push((
-                    "error",
-                    e.query
-                        .reply
-                        .render(&|f| sample(f, &e.query.reply, &[&e.none])),
-                ));
-            }
-            distinct(&table.identify, &raw.identify, &others, &at)?;
-            ProfileKind::Table(Box::new(table))
-        }
+        "autocollimator" => values.autocollimator(&raw, identify)?,
+        "table" => values.table(&raw, identify)?,
         other => {
             return Err(at.error(
                 raw.instrument.span().start,
@@ -439,6 +189,318 @@ pub(super) fn parse(text: &str, source: &str) -> Result<Profile, ProfileError> {
         line,
         kind,
     })
+}
+
+/// The profile's values read into commands, replies and conditions: `{axis}` expanded,
+/// every refusal at its line and column.
+struct Values<'a> {
+    at: &'a At<'a>,
+    /// The profile's `axis`, for `{axis}`.
+    axis: Option<String>,
+}
+
+impl Values<'_> {
+    /// A command or query string with `{axis}` expanded; `{deg}` only where
+    /// `allow_deg` (the move command).
+    fn expand(&self, s: &Spanned<String>, allow_deg: bool) -> Result<String, ProfileError> {
+        let at = self.at;
+        let value = s.get_ref();
+        if let Some(i) = value.find(['\r', '\n']) {
+            return Err(at.error(
+                at.inside(s.span().start, value[..i].chars().count()),
+                "a command or reply holds no line end: the line's command_end and reply_end add them",
+            ));
+        }
+        let mut out = value.clone();
+        if out.contains("{axis}") {
+            let Some(axis) = &self.axis else {
+                return Err(at.error(
+                    s.span().start,
+                    "`{axis}` is used but the profile gives no `axis = \"…\"`",
+                ));
+            };
+            out = out.replace("{axis}", axis);
+        }
+        if !allow_deg && out.contains("{deg}") {
+            return Err(at.error(s.span().start, "`{deg}` belongs in the move command only"));
+        }
+        if out.trim().is_empty() {
+            return Err(at.error(s.span().start, "the command is empty"));
+        }
+        Ok(out)
+    }
+
+    /// A reply template, expanded and parsed.
+    fn template(&self, s: &Spanned<String>) -> Result<Template, ProfileError> {
+        let at = self.at;
+        let text = self.expand(s, false)?;
+        Template::parse(&text).map_err(|e| {
+            // Offsets after an expanded `{axis}` are approximate; the value's start is not.
+            let offset = if s.get_ref() == &text {
+                at.inside(s.span().start, e.offset)
+            } else {
+                s.span().start
+            };
+            at.error(
+                offset,
+                format!("the template {:?}: {}", s.get_ref(), e.message),
+            )
+        })
+    }
+
+    /// A query: what is sent and the template of its reply.
+    fn query(&self, q: &RawQuery) -> Result<Query, ProfileError> {
+        Ok(Query {
+            send: self.expand(&q.send, false)?,
+            reply: self.template(&q.reply)?,
+        })
+    }
+
+    /// A command, with the template of its acknowledgement where it has one.
+    fn command(&self, c: &RawCommand, allow_deg: bool) -> Result<Command, ProfileError> {
+        Ok(Command {
+            send: self.expand(&c.send, allow_deg)?,
+            ack: c.reply.as_ref().map(|r| self.template(r)).transpose()?,
+        })
+    }
+
+    /// A condition on the fields of the reply template `on`.
+    fn condition(&self, c: &Spanned<Condition>, on: &Template) -> Result<Condition, ProfileError> {
+        c.get_ref()
+            .check(on)
+            .map_err(|m| self.at.error(c.span().start, m))?;
+        Ok(c.get_ref().clone())
+    }
+
+    /// Refuses a profile of instrument `kind` without the section `key` (`ok`: it has it).
+    fn present(
+        &self,
+        raw: &RawProfile,
+        key: &str,
+        ok: bool,
+        kind: &str,
+    ) -> Result<(), ProfileError> {
+        if ok {
+            Ok(())
+        } else {
+            Err(self.at.error(
+                raw.instrument.span().start,
+                format!("{kind} has no `[{key}]`: describe it, or give instrument = \"…\" for the other kind"),
+            ))
+        }
+    }
+
+    /// Refuses a profile of instrument `kind` with the section `key` it has not (`given`).
+    fn not_here(
+        &self,
+        raw: &RawProfile,
+        key: &str,
+        given: bool,
+        kind: &str,
+    ) -> Result<(), ProfileError> {
+        if given {
+            Err(self.at.error(
+                raw.instrument.span().start,
+                format!("`[{key}]` is not something {kind} has"),
+            ))
+        } else {
+            Ok(())
+        }
+    }
+
+    /// An autocollimator's profile: its start commands and its measurement query, whose
+    /// reply must differ from the identification's.
+    fn autocollimator(
+        &self,
+        raw: &RawProfile,
+        identify: Query,
+    ) -> Result<ProfileKind, ProfileError> {
+        let at = self.at;
+        let who = "an autocollimator";
+        for (key, given) in [
+            ("enable", !raw.enable.is_empty()),
+            ("home", raw.home.is_some()),
+            ("referenced", raw.referenced.is_some()),
+            ("state", raw.state.is_some()),
+            ("move", raw.motion.is_some()),
+            ("position", raw.position.is_some()),
+            ("error", raw.error.is_some()),
+            ("stop", raw.stop.is_some()),
+        ] {
+            self.not_here(raw, key, given, who)?;
+        }
+        self.present(raw, "measure", raw.measure.is_some(), who)?;
+        let Some(m) = &raw.measure else {
+            return Err(at.error(0, "no [measure]"));
+        };
+        let reply = self.template(&m.reply)?;
+        number_field(&reply, "x", &m.reply, at, true)?;
+        number_field(&reply, "y", &m.reply, at, false)?;
+        let x_valid = self.condition(&m.x_valid, &reply)?;
+        let y_valid = m
+            .y_valid
+            .as_ref()
+            .map(|c| self.condition(c, &reply))
+            .transpose()?;
+        let measure = Query {
+            send: self.expand(&m.send, false)?,
+            reply,
+        };
+        let start = raw
+            .start
+            .as_ref()
+            .map(|s| s.send.iter().map(|c| self.expand(c, false)).collect())
+            .transpose()?
+            .unwrap_or_default();
+        let ac = AcProfile {
+            start,
+            identify,
+            measure,
+            x_valid,
+            y_valid,
+        };
+        let x = ac
+            .measure
+            .reply
+            .render(&|f| sample(f, &ac.measure.reply, &[&ac.x_valid]));
+        distinct(&ac.identify, &raw.identify, &[("measurement", x)], at)?;
+        Ok(ProfileKind::Autocollimator(Box::new(ac)))
+    }
+
+    /// A rotary table's profile: its commands and queries, whose replies must differ from
+    /// the identification's.
+    fn table(&self, raw: &RawProfile, identify: Query) -> Result<ProfileKind, ProfileError> {
+        let at = self.at;
+        let who = "a rotary table";
+        for (key, given) in [
+            ("start", raw.start.is_some()),
+            ("measure", raw.measure.is_some()),
+        ] {
+            self.not_here(raw, key, given, who)?;
+        }
+        for (key, given) in [
+            ("home", raw.home.is_some()),
+            ("state", raw.state.is_some()),
+            ("move", raw.motion.is_some()),
+            ("position", raw.position.is_some()),
+            ("stop", raw.stop.is_some()),
+        ] {
+            self.present(raw, key, given, who)?;
+        }
+        let (Some(home), Some(state), Some(motion), Some(position), Some(stop)) =
+            (&raw.home, &raw.state, &raw.motion, &raw.position, &raw.stop)
+        else {
+            return Err(at.error(0, "a table's sections are missing"));
+        };
+        let motion_command = self.command(motion, true)?;
+        if !motion_command.send.contains("{deg}") {
+            return Err(at.error(
+                motion.send.span().start,
+                "the move command needs `{deg}`, where the position goes",
+            ));
+        }
+        let state_query = self.state_query(state)?;
+        let position_query = self.query(position)?;
+        number_field(&position_query.reply, "deg", &position.reply, at, true)?;
+        let referenced = raw
+            .referenced
+            .as_ref()
+            .map(|r| -> Result<(Query, Condition), ProfileError> {
+                let reply = self.template(&r.reply)?;
+                let when = self.condition(&r.when, &reply)?;
+                Ok((
+                    Query {
+                        send: self.expand(&r.send, false)?,
+                        reply,
+                    },
+                    when,
+                ))
+            })
+            .transpose()?;
+        let error = raw
+            .error
+            .as_ref()
+            .map(|e| -> Result<ErrorQuery, ProfileError> {
+                let reply = self.template(&e.reply)?;
+                let none = self.condition(&e.none, &reply)?;
+                Ok(ErrorQuery {
+                    query: Query {
+                        send: self.expand(&e.send, false)?,
+                        reply,
+                    },
+                    none,
+                    names: e.names.clone(),
+                })
+            })
+            .transpose()?;
+        let table = TableProfile {
+            identify,
+            enable: raw
+                .enable
+                .iter()
+                .map(|c| self.command(c, false))
+                .collect::<Result<_, _>>()?,
+            home: self.command(home, false)?,
+            referenced,
+            state: state_query,
+            motion: motion_command,
+            position: position_query,
+            error,
+            stop: self.command(stop, false)?,
+        };
+        let mut others = vec![
+            (
+                "state",
+                table
+                    .state
+                    .query
+                    .reply
+                    .render(&|f| sample(f, &table.state.query.reply, &[&table.state.ready])),
+            ),
+            (
+                "position",
+                table
+                    .position
+                    .reply
+                    .render(&|f| sample(f, &table.position.reply, &[])),
+            ),
+        ];
+        if let Some(e) = &table.error {
+            others.push((
+                "error",
+                e.query
+                    .reply
+                    .render(&|f| sample(f, &e.query.reply, &[&e.none])),
+            ));
+        }
+        distinct(&table.identify, &raw.identify, &others, at)?;
+        Ok(ProfileKind::Table(Box::new(table)))
+    }
+
+    /// A table's state query, with the conditions read from its reply.
+    fn state_query(&self, state: &RawState) -> Result<StateQuery, ProfileError> {
+        let state_reply = self.template(&state.reply)?;
+        Ok(StateQuery {
+            query: Query {
+                send: self.expand(&state.send, false)?,
+                reply: state_reply.clone(),
+            },
+            ready: self.condition(&state.ready, &state_reply)?,
+            moving: self.condition(&state.moving, &state_reply)?,
+            not_referenced: state
+                .not_referenced
+                .as_ref()
+                .map(|c| self.condition(c, &state_reply))
+                .transpose()?,
+            fault: state
+                .fault
+                .as_ref()
+                .map(|c| self.condition(c, &state_reply))
+                .transpose()?,
+            names: state.names.clone(),
+            bits: state.bits.clone(),
+        })
+    }
 }
 
 fn line_settings(

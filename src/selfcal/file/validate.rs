@@ -52,12 +52,45 @@ pub(super) fn validate(
     loc: &Locator<'_>,
     source: &str,
 ) -> Result<usize, SelfcalError> {
-    let err = |at: (u64, u64), message: String| invalid(source, at, message);
     if readings.is_empty() {
-        return Err(err(loc.header_start(), loc.no_rows().to_string()));
+        return Err(invalid(
+            source,
+            loc.header_start(),
+            loc.no_rows().to_string(),
+        ));
+    }
+    check_values(readings, loc, source)?;
+    let (n, n_from) = number_of_positions(readings, positions, loc, source)?;
+
+    // Row by row, in order.
+    let mut rows = RowChecks {
+        readings,
+        loc,
+        source,
+        first_read: HashMap::new(),
+        cycle_direction: HashMap::new(),
+        head_first: HashMap::new(),
+        by_angle: BTreeMap::new(),
+    };
+    for (i, r) in readings.iter().enumerate() {
+        rows.check(i, r, n, n_from)?;
     }
 
-    // Values (already checked, with their text, when read from a file).
+    // The heads.
+    let heads: BTreeSet<u32> = rows.head_first.keys().copied().collect();
+    check_heads(&heads, loc, source)?;
+    check_every_step_read(readings, &heads, (n, n_from), loc, source)?;
+    Ok(n)
+}
+
+/// Values (already checked, with their text, when read from a file): cycle and head at
+/// least 1, every number finite and within its limit, the head angle in [0, 360) degrees.
+fn check_values(
+    readings: &[HeadReading],
+    loc: &Locator<'_>,
+    source: &str,
+) -> Result<(), SelfcalError> {
+    let err = |at: (u64, u64), message: String| invalid(source, at, message);
     for (i, r) in readings.iter().enumerate() {
         let p = loc.prefix(i, readings);
         for (col, zero) in [(Col::Cycle, r.cycle == 0), (Col::Head, r.head == 0)] {
@@ -93,9 +126,19 @@ pub(super) fn validate(
             ));
         }
     }
+    Ok(())
+}
 
-    // P.
-    let (n, n_from) = match positions {
+/// P, the number of positions: as stated, or the largest step + 1; at least 3. Returned
+/// with where it comes from, for messages.
+fn number_of_positions(
+    readings: &[HeadReading],
+    positions: Option<usize>,
+    loc: &Locator<'_>,
+    source: &str,
+) -> Result<(usize, &'static str), SelfcalError> {
+    let err = |at: (u64, u64), message: String| invalid(source, at, message);
+    match positions {
         Some(n) => {
             if n < 3 {
                 return Err(err(
@@ -106,7 +149,7 @@ pub(super) fn validate(
                     ),
                 ));
             }
-            (n, "the number of positions stated")
+            Ok((n, "the number of positions stated"))
         }
         None => {
             let mut largest = 0;
@@ -134,21 +177,45 @@ pub(super) fn validate(
                     ),
                 ));
             }
-            (n, "the largest step + 1")
+            Ok((n, "the largest step + 1"))
         }
-    };
+    }
+}
 
-    // Row by row, in order.
-    let mut first_read: HashMap<(u32, usize, u32), usize> = HashMap::new();
-    let mut cycle_direction: HashMap<u32, usize> = HashMap::new();
-    let mut head_first: HashMap<u32, usize> = HashMap::new();
-    // The heads by angle: key the angle's bits (angles in [0, 360), so the order of the
-    // bits is the order of the angles), value the reading that set the head.
-    let mut by_angle: BTreeMap<u64, usize> = BTreeMap::new();
-    for (i, r) in readings.iter().enumerate() {
+/// The rules checked row by row, in order, with what the rows before have set.
+struct RowChecks<'a> {
+    readings: &'a [HeadReading],
+    loc: &'a Locator<'a>,
+    source: &'a str,
+    /// The row that first read each (cycle, step, head).
+    first_read: HashMap<(u32, usize, u32), usize>,
+    /// The row that set each cycle's direction.
+    cycle_direction: HashMap<u32, usize>,
+    /// The row that set each head's angle.
+    head_first: HashMap<u32, usize>,
+    /// The heads by angle: key the angle's bits (angles in [0, 360), so the order of the
+    /// bits is the order of the angles), value the reading that set the head.
+    by_angle: BTreeMap<u64, usize>,
+}
+
+impl RowChecks<'_> {
+    fn err(&self, at: (u64, u64), message: String) -> SelfcalError {
+        invalid(self.source, at, message)
+    }
+
+    /// Row `i` (`r`): its step within 0 … P−1 (P = `n`, from `n_from`), not read before,
+    /// its cycle's one direction, its head's one angle.
+    fn check(
+        &mut self,
+        i: usize,
+        r: &HeadReading,
+        n: usize,
+        n_from: &str,
+    ) -> Result<(), SelfcalError> {
+        let (loc, readings) = (self.loc, self.readings);
         let p = loc.prefix(i, readings);
         if r.step >= n {
-            return Err(err(
+            return Err(self.err(
                 loc.row(i, readings, Col::Step.at()),
                 format!(
                     "{p}column \"step\": {} is outside 0 to {} (P = {n}, {n_from})",
@@ -158,9 +225,10 @@ pub(super) fn validate(
             ));
         }
 
-        match first_read.entry((r.cycle, r.step, r.head)) {
+        match self.first_read.entry((r.cycle, r.step, r.head)) {
             Entry::Occupied(first) => {
-                return Err(err(
+                return Err(invalid(
+                    self.source,
                     loc.row_start(i, readings),
                     format!(
                         "{p}duplicate reading: cycle {}, step {}, head {} was already read at {}",
@@ -176,12 +244,13 @@ pub(super) fn validate(
             }
         }
 
-        match cycle_direction.entry(r.cycle) {
+        match self.cycle_direction.entry(r.cycle) {
             Entry::Occupied(first) => {
                 let j = *first.get();
                 let direction = readings.get(j).map(|f| f.direction).unwrap_or_default();
                 if direction != r.direction {
-                    return Err(err(
+                    return Err(invalid(
+                        self.source,
                         loc.row(i, readings, Col::Direction.at()),
                         format!(
                             "{p}column \"direction\": {} disagrees with {} set for cycle {} at \
@@ -198,11 +267,17 @@ pub(super) fn validate(
                 slot.insert(i);
             }
         }
+        self.head_angle(i, r, &p)
+    }
 
+    /// Row `i`'s head angle (`p`: the row's prefix for messages): 0 for head 1, the one
+    /// angle of its head, and for a head new, not the angle of another head.
+    fn head_angle(&mut self, i: usize, r: &HeadReading, p: &str) -> Result<(), SelfcalError> {
+        let (loc, readings) = (self.loc, self.readings);
         let angle_at = loc.row(i, readings, Col::HeadAngle.at());
         let angle = r.head_angle_deg;
         if r.head == 1 && angle != 0.0 {
-            return Err(err(
+            return Err(self.err(
                 angle_at,
                 format!(
                     "{p}column \"head_angle\": {} for head 1; head 1 is the reference and its \
@@ -211,11 +286,12 @@ pub(super) fn validate(
                 ),
             ));
         }
-        match head_first.entry(r.head) {
+        match self.head_first.entry(r.head) {
             Entry::Occupied(first) => {
                 let j = *first.get();
                 if readings.get(j).is_some_and(|f| f.head_angle_deg != angle) {
-                    return Err(err(
+                    return Err(invalid(
+                        self.source,
                         angle_at,
                         format!(
                             "{p}column \"head_angle\": {} disagrees with {} set for head {} at \
@@ -232,6 +308,7 @@ pub(super) fn validate(
                 slot.insert(i);
                 // -0 and 0 are the same angle: adding 0 turns -0 into 0.
                 let key = (angle + 0.0).to_bits();
+                let by_angle = &self.by_angle;
                 let neighbours = [
                     by_angle.range(..=key).next_back(),
                     by_angle.range(key..).next(),
@@ -243,7 +320,8 @@ pub(super) fn validate(
                 });
                 if let Some((_, &j)) = same {
                     let other = readings.get(j).map_or(0, |f| f.head);
-                    return Err(err(
+                    return Err(invalid(
+                        self.source,
                         angle_at,
                         format!(
                             "{p}column \"head_angle\": head {} at {} is at the angle of head \
@@ -256,34 +334,47 @@ pub(super) fn validate(
                         ),
                     ));
                 }
-                by_angle.insert(key, i);
+                self.by_angle.insert(key, i);
             }
         }
+        Ok(())
     }
+}
 
-    // The heads.
-    let heads: BTreeSet<u32> = head_first.keys().copied().collect();
+/// The heads read: at least 2, head 1 (the reference) among them.
+fn check_heads(heads: &BTreeSet<u32>, loc: &Locator<'_>, source: &str) -> Result<(), SelfcalError> {
     if heads.len() < 2 {
-        return Err(err(
+        return Err(invalid(
+            source,
             loc.header(Col::Head.at()),
             format!(
                 "column \"head\": only head {} is read; self-calibration needs at least 2 heads",
-                list(&heads)
+                list(heads)
             ),
         ));
     }
     if !heads.contains(&1) {
-        return Err(err(
+        return Err(invalid(
+            source,
             loc.header(Col::Head.at()),
             format!(
                 "column \"head\": head 1, the reference, is never read (the heads read are {})",
-                list(&heads)
+                list(heads)
             ),
         ));
     }
+    Ok(())
+}
 
-    // Every step 0 … P−1 read by every head in every cycle: for each (cycle, head) the
-    // steps read, sorted; the first missing one is the first gap.
+/// Every step 0 … P−1 (P = `n`, from `n_from`) read by every head in every cycle: for
+/// each (cycle, head) the steps read, sorted; the first missing one is the first gap.
+fn check_every_step_read(
+    readings: &[HeadReading],
+    heads: &BTreeSet<u32>,
+    (n, n_from): (usize, &str),
+    loc: &Locator<'_>,
+    source: &str,
+) -> Result<(), SelfcalError> {
     let mut steps: BTreeMap<u32, BTreeMap<u32, Vec<usize>>> = BTreeMap::new();
     for r in readings {
         steps
@@ -295,7 +386,7 @@ pub(super) fn validate(
     }
     for (cycle, read) in &mut steps {
         let mut first_missing: Option<(usize, u32)> = None;
-        for &head in &heads {
+        for &head in heads {
             let missing = match read.get_mut(&head) {
                 None => 0,
                 Some(s) => {
@@ -311,7 +402,8 @@ pub(super) fn validate(
             }
         }
         if let Some((step, head)) = first_missing {
-            return Err(err(
+            return Err(invalid(
+                source,
                 loc.header(Col::Step.at()),
                 format!(
                     "column \"step\": cycle {cycle}, step {step} is never read by head {head}; \
@@ -321,5 +413,5 @@ pub(super) fn validate(
             ));
         }
     }
-    Ok(n)
+    Ok(())
 }
