@@ -4,9 +4,9 @@
 //! with semicolons or tabs between its fields, or with decimal commas.
 //!
 //! The kinds are told apart by the first line that is not a comment or blank: a CSV
-//! header naming every required column of one kind (the measurement and self-calibration
-//! files' own descriptions, the result file's three columns), a TOML key or table (a
-//! budget), or a `{` (a JSON document).
+//! header naming every required column of one kind (the measurement, self-calibration
+//! and result files' own descriptions), a TOML key or table (a budget), or a `{` (a JSON
+//! document).
 
 use crate::input::table::Column;
 
@@ -71,11 +71,12 @@ fn csv_kind(names: &[&str]) -> Option<FileKind> {
     let has_all = |wanted: &[&str]| wanted.iter().all(|n| names.contains(n));
     let measurement: Vec<&str> = required(&crate::measurement::COLUMNS).collect();
     let selfcal: Vec<&str> = required(&crate::selfcal::COLUMNS).collect();
+    let result: Vec<&str> = required(&crate::results::COLUMNS).collect();
     if has_all(&measurement) {
         Some(FileKind::Measurement)
     } else if has_all(&selfcal) {
         Some(FileKind::SelfCalibration)
-    } else if has_all(&crate::results::REQUIRED_COLUMNS) {
+    } else if has_all(&result) {
         Some(FileKind::Result)
     } else {
         None

@@ -217,7 +217,7 @@ fn absurd_numbers_in_other_files_are_refused_at_their_place() {
             "compare", &reference, &absurd, "--format", "json"
         ])),
         format!(
-            "{absurd}:2:19: value: −1e308 is beyond the limits of a result's value, −1e12 … 1e12″ \
+            "{absurd}:2:19: column \"value\": \"-1e308\" is beyond the limits of a result's value, −1e12 … 1e12″ \
              (docs/FORMAT.md §2.2)"
         )
     );

@@ -240,6 +240,39 @@ fn results_accept_any_column_order_comments_and_extra_columns() {
     assert_eq!(f.lines, vec![4, 5]);
 }
 
+/// The result file's dialect (docs/FORMAT.md §3.2): what other programs write is read as
+/// it always was — spaces around fields and names trimmed, a comment line indented,
+/// columns polycal does not know passed over whatever their names (near misses of known
+/// names, empty names, names twice), a header without rows a result of nothing.
+#[test]
+fn results_keep_their_dialect() {
+    let text = "  # exported\n quantity , index,value ,Value,K,,,note,note\n\
+                pitch_deviation , +2 ,0.5 ,x,y,,,a,b\n\n\
+                encoder_error,0, -0.25,,,,,,\n";
+    let f = read_results_from(text.as_bytes(), "x.csv").unwrap();
+    assert_eq!(
+        f.rows,
+        vec![
+            row("pitch_deviation", 2, 0.5, None),
+            row("encoder_error", 0, -0.25, None)
+        ]
+    );
+    assert_eq!(f.lines, vec![3, 5]);
+    // columns where the trimmed text starts
+    assert_eq!(
+        (
+            f.columns[0].quantity,
+            f.columns[0].index,
+            f.columns[0].value
+        ),
+        (1, 19, 23)
+    );
+    assert_eq!(f.columns[1].value, 18);
+    assert_eq!(f.columns[0].expanded_u, None);
+    let empty = read_results_from(&b"# nothing yet\nquantity,index,value\n"[..], "x.csv");
+    assert_eq!(empty.unwrap().rows, vec![]);
+}
+
 #[test]
 fn results_accept_crlf_and_a_byte_order_mark() {
     let text = "\u{feff}quantity,index,value,U\r\nsetup_error,2,0.09,0.05\r\n";
@@ -248,7 +281,8 @@ fn results_accept_crlf_and_a_byte_order_mark() {
     let bad = "\u{feff}quantity,index,value,U\r\nsetup_error,2,x,0.05\r\n";
     let e = read_results_from(bad.as_bytes(), "win.csv").unwrap_err();
     assert!(
-        e.to_string().starts_with("win.csv:2:15: value must be"),
+        e.to_string()
+            .starts_with("win.csv:2:15: column \"value\": \"x\" is not a number"),
         "{e}"
     );
 }
@@ -259,51 +293,51 @@ fn results_are_refused_with_file_line_and_column() {
     for (body, want) in [
         (
             "pitch_deviaton,1,0.5,,,\n",
-            "r.csv:3:1: unknown quantity \"pitch_deviaton\"",
+            "r.csv:3:1: column \"quantity\": \"pitch_deviaton\" is not a quantity; use \"pitch_deviation\" or",
         ),
         (
             "pitch_deviation,x,0.5,,,\n",
-            "r.csv:3:17: index must be a whole number ≥ 0, got \"x\"",
+            "r.csv:3:17: column \"index\": \"x\" is not an integer",
         ),
         (
             "pitch_deviation,-1,0.5,,,\n",
-            "r.csv:3:17: index must be a whole number",
+            "r.csv:3:17: column \"index\": \"-1\" is not allowed; index must be at least 0",
         ),
         (
             "pitch_deviation,0,0.5,,,\n",
-            "r.csv:3:17: index 0 for pitch_deviation: faces are numbered 1 … N",
+            "r.csv:3:17: column \"index\": 0 is not allowed for pitch_deviation: faces are numbered 1 … N",
         ),
         (
             "setup_error,0,0.5,,,\n",
-            "r.csv:3:13: index 0 for setup_error: autocollimator numbers start at 1",
+            "r.csv:3:13: column \"index\": 0 is not allowed for setup_error: autocollimator numbers start at 1",
         ),
         (
             "encoder_error,0,abc,,,\n",
-            "r.csv:3:17: value must be a finite number, got \"abc\"",
+            "r.csv:3:17: column \"value\": \"abc\" is not a number",
         ),
         (
             "encoder_error,0,NaN,,,\n",
-            "r.csv:3:17: value must be a finite number, got \"NaN\"",
+            "r.csv:3:17: column \"value\": \"NaN\" is not a finite number",
         ),
         (
             "encoder_error,0,inf,,,\n",
-            "r.csv:3:17: value must be a finite number, got \"inf\"",
+            "r.csv:3:17: column \"value\": \"inf\" is not a finite number",
         ),
         (
             "encoder_error,0,0.1,-0.46,,\n",
-            "r.csv:3:21: U must not be negative, got -0.46",
+            "r.csv:3:21: column \"U\": \"-0.46\" is negative; an uncertainty is at least 0",
         ),
         (
             "encoder_error,0,0.1,0.46,0.23,0\n",
-            "r.csv:3:31: k: 0 is beyond the limits of a result's k, 0.1 … 1e6 (docs/FORMAT.md §2.2)",
+            "r.csv:3:31: column \"k\": \"0\" is beyond the limits of a result's k, 0.1 … 1e6 (docs/FORMAT.md §2.2)",
         ),
         (
             "encoder_error,0,0.1,0.46\n",
-            "r.csv:3:25: this row has 4 fields, the header 6",
+            "r.csv:3:25: row has 4 fields but the header has 6: no value for column \"u\"",
         ),
         (
             "encoder_error,0,0.1,0.46,,,7\n",
-            "r.csv:3:28: this row has 7 fields, the header 6",
+            "r.csv:3:28: row has 7 fields but the header has 6: extra field \"7\"",
         ),
         (
             "face_deviation,3,0.1,,,\nface_deviation,4,0.1,,,\nface_deviation,3,0.2,,,\n",
@@ -311,24 +345,24 @@ fn results_are_refused_with_file_line_and_column() {
         ),
         (
             "\"pitch, deviation\",1,0.5,,,\n",
-            "r.csv:3:1: unknown quantity \"pitch, deviation\"",
+            "r.csv:3:1: column \"quantity\": \"pitch, deviation\" is not a quantity",
         ),
         (
             "\"pitch_deviation\",1,\"x,y\",,,\n",
-            "r.csv:3:21: value must be a finite number, got \"x,y\"",
+            "r.csv:3:21: column \"value\": \"x,y\" is not a number",
         ),
         (
             "pitch_deviation,  1,  zz,,,\n",
-            "r.csv:3:23: value must be a finite number, got \"zz\"",
+            "r.csv:3:23: column \"value\": \"zz\" is not a number",
         ),
         // finite but absurd: beyond the documented limits (docs/FORMAT.md §2.2)
         (
             "pitch_deviation,1,-1e308,0.1,,\n",
-            "r.csv:3:19: value: −1e308 is beyond the limits of a result's value, −1e12 … 1e12″",
+            "r.csv:3:19: column \"value\": \"-1e308\" is beyond the limits of a result's value, −1e12 … 1e12″",
         ),
         (
             "face_deviation,2,0.5,1e13,,\n",
-            "r.csv:3:22: U: 1e13 is beyond the limits of a result's U, −1e12 … 1e12″",
+            "r.csv:3:22: column \"U\": \"1e13\" is beyond the limits of a result's U, −1e12 … 1e12″",
         ),
     ] {
         let text = format!("{header}{body}");
@@ -341,15 +375,21 @@ fn results_are_refused_with_file_line_and_column() {
         );
     }
     for (text, want) in [
-        ("", "r.csv:1:1: no header"),
-        ("# only a comment\n", "r.csv:2:1: no header"),
+        (
+            "",
+            "r.csv:1:1: empty file: expected a header row naming the columns quantity, index, value",
+        ),
+        (
+            "# only a comment\n",
+            "r.csv:2:1: no header row: the file has only comment lines",
+        ),
         (
             "quantity,value,U\npitch_deviation,1,0.1\n",
-            "r.csv:1:1: the header has no \"index\" column",
+            "r.csv:1:1: missing required column \"index\"; the header has \"quantity\", \"value\", \"U\"",
         ),
         (
             "quantity,index,value,U,U\n",
-            "r.csv:1:24: the column \"U\" appears twice",
+            "r.csv:1:24: column \"U\" appears twice in the header (first at column 22)",
         ),
         ("quantity,index,value\n", "ok"),
     ] {
@@ -856,15 +896,15 @@ fn angle_rules_are_refused_with_file_line_and_column() {
     for (file, want) in [
         (
             "bad_angle_not_a_number.csv",
-            ":4:25: angle_deg must be a finite number of degrees, 0 ≤ angle_deg < 360, got \"fifteen\"",
+            ":4:25: column \"angle_deg\": \"fifteen\" is not a number",
         ),
         (
             "bad_angle_360.csv",
-            ":3:17: angle_deg must be a finite number of degrees, 0 ≤ angle_deg < 360, got \"360\"",
+            ":3:17: column \"angle_deg\": \"360\" is outside 0 ≤ angle_deg < 360 degrees; write 0, not 360",
         ),
         (
             "bad_angle_negative.csv",
-            ":4:26: angle_deg must be a finite number of degrees, 0 ≤ angle_deg < 360, got \"-15\"",
+            ":4:26: column \"angle_deg\": \"-15\" is outside 0 ≤ angle_deg < 360 degrees",
         ),
         (
             "bad_angle_not_encoder.csv",
@@ -887,7 +927,7 @@ fn angle_rules_are_refused_with_file_line_and_column() {
         ),
         (
             "bad_angle_column_twice.csv",
-            ":2:34: the column \"angle_deg\" appears twice",
+            ":2:34: column \"angle_deg\" appears twice in the header (first at column 24)",
         ),
     ] {
         let path = data(file);

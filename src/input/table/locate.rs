@@ -13,6 +13,9 @@ use crate::input::text::{LineIndex, Span};
 pub(crate) struct Positions<'t> {
     pub(super) index: LineIndex<'t>,
     pub(super) bytes: &'t [u8],
+    /// Whether fields are trimmed ([`Dialect::trimmed`](super::Dialect)): a field's place
+    /// is then where its text starts, after the spaces.
+    pub(super) trimmed: bool,
     /// Byte offset where the header's first field starts.
     pub(super) header_start: usize,
     /// Byte offset of each described column's name in the header.
@@ -31,6 +34,23 @@ impl Positions<'_> {
         self.index.location(offset)
     }
 
+    /// Where field `j` of a record starts: as the CSV rules place it, or, in a trimmed
+    /// dialect, after the spaces that precede its text (never past the record's line).
+    pub(super) fn field_start(&self, span: &Span, j: usize) -> usize {
+        let start = span.field(j);
+        if !self.trimmed {
+            return start;
+        }
+        // the text of `bytes` (a field starts after a comma or a line break: a character
+        // boundary)
+        let spaces: usize = (self.index.text.get(start..).unwrap_or(""))
+            .chars()
+            .take_while(|&c| c.is_whitespace() && c != '\r' && c != '\n')
+            .map(char::len_utf8)
+            .sum();
+        start + spaces
+    }
+
     /// The (line, column) of the header's name of column `c`, or of the header's start.
     pub(crate) fn header(&self, c: Option<usize>) -> (u64, u64) {
         let offset = c
@@ -45,7 +65,7 @@ impl Positions<'_> {
         let &position = self.rows.get(i)?;
         let span = Span::scan(self.bytes, position, self.fields);
         let offset = match c.and_then(|c| self.field_of.get(c).copied().flatten()) {
-            Some(j) => span.field(j),
+            Some(j) => self.field_start(&span, j),
             None => span.start,
         };
         Some(self.location(offset))
@@ -59,6 +79,11 @@ impl Positions<'_> {
         let mut csv = csv::ReaderBuilder::new()
             .has_headers(false)
             .flexible(true)
+            .trim(if self.trimmed {
+                csv::Trim::All
+            } else {
+                csv::Trim::None
+            })
             .from_reader(self.bytes.get(position..)?);
         let mut record = csv::StringRecord::new();
         match csv.read_record(&mut record) {

@@ -1,7 +1,8 @@
-//! The one reader of the crate's CSV tables (docs/FORMAT.md §2.2): the measurement file
-//! and the self-calibration file are *descriptions* ([`Column`]s: names, required or
-//! optional, what a field holds, which limit applies, the default of an empty field),
-//! read by the same [`Reader`] with the same rules and the same messages.
+//! The one reader of the crate's CSV tables (docs/FORMAT.md §2.2): the measurement file,
+//! the self-calibration file and the result file are *descriptions* ([`Column`]s: names,
+//! required or optional, what a field holds, which limit applies, the default of an empty
+//! field; and a [`Dialect`]), read by the same [`Reader`] with the same rules and the same
+//! messages.
 //!
 //! The rules: UTF-8 text (a leading byte-order mark allowed), at most
 //! [`MAX_FIELDS_PER_LINE`](crate::input::text::MAX_FIELDS_PER_LINE) fields a line, `#`
@@ -11,6 +12,11 @@
 //! skipped, every row with as many fields as the header, every field read by its column's
 //! [`Kind`]. The first problem is one [`TableError`] naming the file, line and character
 //! column where the offending field starts.
+//!
+//! A [`Dialect`] relaxes two of these rules for a file kind that other programs write (the
+//! result file, docs/FORMAT.md §3.2): the spaces around every field trimmed (the column
+//! of a field is then where its text starts), and names the description does not know
+//! passed over whatever they are (no near misses, repeated freely).
 //!
 //! The reader gives back typed rows ([`Row`]) one at a time, so that a file kind's rules
 //! across rows are checked in file order, and when it is done the [`Positions`] of the
@@ -62,9 +68,32 @@ impl TableError {
     }
 }
 
+/// How a file kind's text is written, beyond its columns: the rules a [`Reader`] may
+/// relax for it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Dialect {
+    /// Whether the spaces around every field (the header's names included) are trimmed,
+    /// and a comment line before the header may begin with spaces.
+    pub(crate) trimmed: bool,
+    /// Whether the header's names the description does not know are checked: a near
+    /// miss of a known name (`Face`, `head-angle`) refused, and no name twice. Otherwise
+    /// only the described names must be once, the others being passed over.
+    pub(crate) unknown_names_checked: bool,
+}
+
+impl Dialect {
+    /// The measurement and self-calibration files' (docs/FORMAT.md §2.1): fields as
+    /// written, every name checked.
+    pub(crate) const STRICT: Dialect = Dialect {
+        trimmed: false,
+        unknown_names_checked: true,
+    };
+}
+
 /// Reads a table of a described kind, one row at a time.
 pub(crate) struct Reader<'t> {
     columns: &'t [Column],
+    dialect: Dialect,
     source: &'t str,
     csv: csv::Reader<&'t [u8]>,
     /// Byte offset of the header's line, where the CSV reader starts.
@@ -100,6 +129,20 @@ impl<'t> Reader<'t> {
         source: &'t str,
         columns: &'t [Column],
     ) -> Result<Self, TableError> {
+        Self::open_with(bytes, source, columns, Dialect::STRICT)
+    }
+
+    /// [`Reader::open`] of a table written in a [`Dialect`] of its own.
+    ///
+    /// # Errors
+    ///
+    /// As [`Reader::open`].
+    pub(crate) fn open_with(
+        bytes: &'t [u8],
+        source: &'t str,
+        columns: &'t [Column],
+        dialect: Dialect,
+    ) -> Result<Self, TableError> {
         let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes);
         let text = text::utf8(bytes).map_err(|((line, column), message)| TableError {
             location: Location::new(source, line, column),
@@ -118,6 +161,11 @@ impl<'t> Reader<'t> {
         let mut last_comment = None;
         for line in 0..index.starts.len() {
             let content = index.line_text(line);
+            let content = if dialect.trimmed {
+                content.trim_start()
+            } else {
+                content
+            };
             if content.starts_with('#') {
                 last_comment = Some(line);
             } else if !content.trim().is_empty() {
@@ -154,10 +202,16 @@ impl<'t> Reader<'t> {
         let csv = csv::ReaderBuilder::new()
             .has_headers(false)
             .flexible(true)
+            .trim(if dialect.trimmed {
+                csv::Trim::All
+            } else {
+                csv::Trim::None
+            })
             .from_reader(bytes.get(base..).unwrap_or(b""));
         let positions = Positions {
             index,
             bytes,
+            trimmed: dialect.trimmed,
             header_start: base,
             header_fields: vec![None; columns.len()],
             field_of: vec![None; columns.len()],
@@ -166,6 +220,7 @@ impl<'t> Reader<'t> {
         };
         let mut reader = Reader {
             columns,
+            dialect,
             source,
             csv,
             base,
@@ -215,14 +270,22 @@ impl<'t> Reader<'t> {
             return Err(self.at(self.base, "no header row".to_string()));
         }
         let names: Vec<String> = self.record.iter().map(str::to_string).collect();
-        let bytes = self.positions.bytes;
-        let span = Span::scan(bytes, self.record_position(), names.len());
-        let column_at = |j: usize| self.positions.index.location(span.field(j)).1;
+        let span = Span::scan(self.positions.bytes, self.record_position(), names.len());
+        let starts: Vec<usize> = (0..names.len())
+            .map(|j| self.positions.field_start(&span, j))
+            .collect();
+        let field = |j: usize| starts.get(j).copied().unwrap_or(span.start);
+        let column_at = |j: usize| self.positions.index.location(field(j)).1;
+        let checked = self.dialect.unknown_names_checked;
         let mut seen: HashMap<&str, usize> = HashMap::new();
         for (j, name) in names.iter().enumerate() {
+            let known = self.columns.iter().position(|c| c.name == name);
+            if !checked && known.is_none() {
+                continue;
+            }
             if let Some(&first) = seen.get(name.as_str()) {
                 return Err(self.at(
-                    span.field(j),
+                    field(j),
                     format!(
                         "column {} appears twice in the header (first at column {})",
                         show(name),
@@ -231,20 +294,21 @@ impl<'t> Reader<'t> {
                 ));
             }
             seen.insert(name, j);
-            match self.columns.iter().position(|c| c.name == name) {
+            match known {
                 Some(c) => {
                     self.order.push((j, c));
+                    let start = field(j);
                     if let Some(slot) = self.positions.field_of.get_mut(c) {
                         *slot = Some(j);
                     }
                     if let Some(slot) = self.positions.header_fields.get_mut(c) {
-                        *slot = Some(span.field(j));
+                        *slot = Some(start);
                     }
                 }
                 None => {
                     if let Some(c) = self.near_miss(name) {
                         return Err(self.at(
-                            span.field(j),
+                            field(j),
                             format!(
                                 "column {} is not a known column name but looks like {:?}; \
                                  names are exact (lower case, no spaces)",
@@ -423,8 +487,8 @@ impl<'t> Reader<'t> {
                     }
                 }
                 Err(message) => {
-                    let offset = Span::scan(bytes, position, found).field(j);
-                    return Err(self.at(offset, message));
+                    let span = Span::scan(bytes, position, found);
+                    return Err(self.at(self.positions.field_start(&span, j), message));
                 }
             }
         }
@@ -471,17 +535,55 @@ impl Row<'_> {
     /// A refusal at the field of column `c` (at the row's start when the header does
     /// not name it).
     pub(crate) fn error(&self, c: usize, message: String) -> TableError {
+        self.reader.at(self.offset(c), message)
+    }
+
+    /// Where the field of column `c` starts (the row's start when the header does not
+    /// name it).
+    fn offset(&self, c: usize) -> usize {
         let positions = &self.reader.positions;
-        let offset = match positions.field_of.get(c).copied().flatten() {
-            Some(j) => Span::scan(
-                positions.bytes,
-                self.reader.record_position(),
-                positions.fields,
-            )
-            .field(j),
+        match positions.field_of.get(c).copied().flatten() {
+            Some(j) => {
+                let span = Span::scan(
+                    positions.bytes,
+                    self.reader.record_position(),
+                    positions.fields,
+                );
+                positions.field_start(&span, j)
+            }
             None => self.reader.row_start,
-        };
-        self.reader.at(offset, message)
+        }
+    }
+
+    /// The 1-based character column where the field of each described column starts
+    /// (in the description's order); `None` for a column the header does not name.
+    pub(crate) fn columns(&self) -> Vec<Option<u64>> {
+        let positions = &self.reader.positions;
+        let span = Span::scan(
+            positions.bytes,
+            self.reader.record_position(),
+            positions.fields,
+        );
+        positions
+            .field_of
+            .iter()
+            .map(|j| {
+                j.map(|j| {
+                    let (_, column) = positions.index.location(positions.field_start(&span, j));
+                    column
+                })
+            })
+            .collect()
+    }
+
+    /// A refusal at the field of column `c` of the earlier row `i` (0-based among the rows
+    /// read; this row is the last of them), for a rule across rows that names the earlier
+    /// one; at this row's field when no row `i` was read.
+    pub(crate) fn error_on_row(&self, i: usize, c: usize, message: String) -> TableError {
+        match self.reader.positions.row(i, Some(c)) {
+            Some(at) => refusal(self.reader.source, at, message),
+            None => self.error(c, message),
+        }
     }
 
     /// The integer of column `c`, as `T`.

@@ -1,0 +1,217 @@
+//! Reading the result CSV (docs/FORMAT.md §3.2): its columns as a description for the
+//! crate's one table reader ([`crate::input::table`]), in the dialect other programs
+//! write it (fields trimmed, unknown columns passed over), each typed row made a
+//! [`ResultRow`] and the rules across rows (one row per quantity and index, the angle
+//! rules) checked row by row in file order, in one pass.
+
+use std::collections::HashMap;
+use std::collections::hash_map::Entry;
+
+use super::angle::{AngleCheck, AngleProblem};
+use super::{Quantity, ResultFile, ResultRow, ResultsError, RowColumns, angle_in_range};
+use crate::input::limits;
+use crate::input::table::{Column, Dialect, Range, Reader, Row, TableError};
+
+/// The columns of the result file, in the order of docs/FORMAT.md §3 (and of
+/// [`COLUMNS`], which describes them).
+#[derive(Debug, Clone, Copy)]
+enum Col {
+    Quantity,
+    Index,
+    Value,
+    ExpandedU,
+    U,
+    K,
+    AngleDeg,
+}
+
+impl Col {
+    /// The column's index in [`COLUMNS`].
+    fn at(self) -> usize {
+        self as usize
+    }
+
+    fn name(self) -> &'static str {
+        COLUMNS.get(self.at()).map_or("", |c| c.name)
+    }
+}
+
+/// The words of the `quantity` column: the families in the order of [`Quantity::ALL`].
+const QUANTITY_WORDS: &[&str] = &[
+    "pitch_deviation",
+    "face_deviation",
+    "encoder_error",
+    "setup_error",
+];
+
+/// What an `angle_deg` outside [0, 360) breaks, after the value in a message.
+const ANGLE_RANGE: &str = "is outside 0 ≤ angle_deg < 360 degrees; write 0, not 360, for \
+                           the position that closes the circle";
+
+/// The result file's columns (docs/FORMAT.md §3), indexed by [`Col`].
+pub(crate) const COLUMNS: [Column; 7] = [
+    Column::word("quantity", QUANTITY_WORDS, "a quantity"),
+    Column::integer("index", 0, u32::MAX as u128),
+    Column::number(
+        "value",
+        Range::Limit(limits::RESULT_ARCSEC, "a result's value"),
+    ),
+    Column::number("U", Range::Limit(limits::RESULT_ARCSEC, "a result's U")).optional(),
+    Column::number("u", Range::Limit(limits::RESULT_ARCSEC, "a result's u")).optional(),
+    Column::number("k", Range::Limit(limits::COVERAGE_FACTOR, "a result's k")).optional(),
+    Column::number(
+        "angle_deg",
+        Range::Within {
+            contains: angle_in_range,
+            broken: ANGLE_RANGE,
+        },
+    )
+    .optional(),
+];
+
+/// How result files are written: by polycal and by other programs and people, so the
+/// spaces around fields are trimmed and columns not named in docs/FORMAT.md §3 (such as
+/// `file`) are passed over whatever their names (docs/FORMAT.md §3.2).
+const DIALECT: Dialect = Dialect {
+    trimmed: true,
+    unknown_names_checked: false,
+};
+
+impl From<TableError> for ResultsError {
+    fn from(e: TableError) -> Self {
+        if let Some(found) = e.found() {
+            return ResultsError::WrongKind {
+                location: e.location,
+                message: e.message,
+                found,
+            };
+        }
+        ResultsError::At {
+            location: e.location,
+            message: e.message,
+        }
+    }
+}
+
+/// Reads the bytes of a result file and checks every rule; `source` names it in messages.
+pub(super) fn parse_bytes(bytes: &[u8], source: &str) -> Result<ResultFile, ResultsError> {
+    let mut table = Reader::open_with(bytes, source, &COLUMNS, DIALECT)?;
+    let mut file = ResultFile {
+        source: source.to_string(),
+        rows: Vec::new(),
+        lines: Vec::new(),
+        columns: Vec::new(),
+    };
+    // The line of the first row of each (quantity, index).
+    let mut first: HashMap<(Quantity, u32), u64> = HashMap::new();
+    let mut angles = AngleCheck::default();
+    loop {
+        let row = match table.next_row() {
+            Ok(Some(row)) => row,
+            Ok(None) => break,
+            // a header and no rows: a result of nothing
+            Err(e) if e.is_empty_table() => break,
+            Err(e) => return Err(e.into()),
+        };
+        let result = result_row(&row)?;
+        match first.entry((result.quantity, result.index)) {
+            Entry::Occupied(line) => {
+                return Err(row
+                    .error(
+                        Col::Quantity.at(),
+                        format!(
+                            "{} {} appears twice (first on line {})",
+                            result.quantity,
+                            result.index,
+                            line.get()
+                        ),
+                    )
+                    .into());
+            }
+            Entry::Vacant(slot) => {
+                slot.insert(row.line());
+            }
+        }
+        if let Err(problem) = angles.admit(file.rows.len(), &result) {
+            let lines = &file.lines;
+            let place = |i: usize| format!("line {}", lines.get(i).copied().unwrap_or(row.line()));
+            let message = problem.message(&result, &file.rows, place);
+            // At the angle_deg field of the row the problem is reported at (the first row
+            // without an angle for a missing one; the column exists whenever an angle does).
+            let angle = Col::AngleDeg.at();
+            return Err(match problem {
+                AngleProblem::Missing { without, .. } if without < file.rows.len() => {
+                    row.error_on_row(without, angle, message)
+                }
+                _ => row.error(angle, message),
+            }
+            .into());
+        }
+        let columns = row.columns();
+        let column = |col: Col| columns.get(col.at()).copied().flatten();
+        file.columns.push(RowColumns {
+            quantity: column(Col::Quantity).unwrap_or(1),
+            index: column(Col::Index).unwrap_or(1),
+            value: column(Col::Value).unwrap_or(1),
+            expanded_u: column(Col::ExpandedU),
+            u: column(Col::U),
+            k: column(Col::K),
+        });
+        file.lines.push(row.line());
+        file.rows.push(result);
+    }
+    Ok(file)
+}
+
+/// The result of a row whose fields the reader read: the rules of one row beyond its
+/// fields (an index of 0 only for an encoder error, no negative uncertainty).
+fn result_row(row: &Row<'_>) -> Result<ResultRow, TableError> {
+    let word = row.word(Col::Quantity.at())?;
+    let Some(&quantity) = Quantity::ALL.get(word) else {
+        let message = "internal error: a quantity word has no family".to_string();
+        return Err(row.error(Col::Quantity.at(), message));
+    };
+    let index: u32 = row.integer(Col::Index.at())?;
+    if index == 0 && quantity != Quantity::EncoderError {
+        let what = if quantity == Quantity::SetupError {
+            "autocollimator numbers start at 1"
+        } else {
+            "faces are numbered 1 … N"
+        };
+        return Err(row.error(
+            Col::Index.at(),
+            format!("column \"index\": 0 is not allowed for {quantity}: {what}"),
+        ));
+    }
+    let uncertainty = |col: Col| match row.optional_number(col.at()) {
+        Some(x) if x < 0.0 => Err(row.error(
+            col.at(),
+            format!(
+                "column {:?}: {} is negative; an uncertainty is at least 0",
+                col.name(),
+                crate::input::table::show(row.text(col.at()))
+            ),
+        )),
+        x => Ok(x),
+    };
+    Ok(ResultRow {
+        quantity,
+        index,
+        value: row.number(Col::Value.at())?,
+        expanded_u: uncertainty(Col::ExpandedU)?,
+        u: uncertainty(Col::U)?,
+        k: row.optional_number(Col::K.at()),
+        angle_deg: row.optional_number(Col::AngleDeg.at()).map(|a| a + 0.0), // −0 is 0
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_quantity_words_are_the_families_in_order() {
+        let names: Vec<&str> = Quantity::ALL.iter().map(|q| q.name()).collect();
+        assert_eq!(QUANTITY_WORDS, names.as_slice());
+    }
+}
