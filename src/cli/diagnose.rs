@@ -314,7 +314,7 @@ impl PolygonRun<'_> {
                     writeln!(stdout)?;
                 }
                 let mut text = String::new();
-                output::diagnose::write_table(&mut text, &diagnosis, polygon_truth, label)?;
+                output::diagnose_table::write_table(&mut text, &diagnosis, polygon_truth, label)?;
                 output::write_final_model_results(
                     &mut text,
                     &diagnosis.after,

@@ -4,11 +4,9 @@
 //! with semicolons or tabs between its fields, or with decimal commas.
 //!
 //! The kinds are told apart by the first line that is not a comment or blank: a CSV
-//! header naming every required column of one kind (the measurement, self-calibration
-//! and result files' own descriptions), a TOML key or table (a budget), or a `{` (a JSON
+//! header naming every required column of one kind ([`FileKind::required_columns`]; the
+//! measurement, self-calibration and result files' descriptions require exactly those), a TOML key or table (a budget), or a `{` (a JSON
 //! document).
-
-use crate::input::table::Column;
 
 /// A kind of file polycal reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,6 +25,18 @@ pub enum FileKind {
 }
 
 impl FileKind {
+    /// The columns a table of this kind must name, by which its header is recognised
+    /// (none for a kind that is not a table). Each file kind's own description of its
+    /// columns requires exactly these (its unit test checks it).
+    pub fn required_columns(self) -> &'static [&'static str] {
+        match self {
+            FileKind::Measurement => &["cycle", "step", "ac", "face", "reading"],
+            FileKind::SelfCalibration => &["cycle", "step", "head", "head_angle", "reading"],
+            FileKind::Result => &["quantity", "index", "value"],
+            FileKind::Budget | FileKind::Json => &[],
+        }
+    }
+
     /// The kind's short name: `a measurement file`, `a budget`, ….
     pub fn name(self) -> &'static str {
         match self {
@@ -60,33 +70,17 @@ impl FileKind {
     }
 }
 
-/// The names of the required columns of a table's description.
-fn required(columns: &[Column]) -> impl Iterator<Item = &'static str> + '_ {
-    columns.iter().filter(|c| c.required).map(|c| c.name)
-}
-
 /// The kind of a CSV whose header names `names`, when they include every required column
 /// of one kind.
-fn csv_kind(names: &[&str]) -> Option<FileKind> {
-    let has_all = |wanted: &[&str]| wanted.iter().all(|n| names.contains(n));
-    let measurement: Vec<&str> = required(&crate::measurement::COLUMNS).collect();
-    let selfcal: Vec<&str> = required(&crate::selfcal::COLUMNS).collect();
-    let result: Vec<&str> = required(&crate::results::COLUMNS).collect();
-    if has_all(&measurement) {
-        Some(FileKind::Measurement)
-    } else if has_all(&selfcal) {
-        Some(FileKind::SelfCalibration)
-    } else if has_all(&result) {
-        Some(FileKind::Result)
-    } else {
-        None
-    }
-}
-
-/// The kind whose required columns `columns` describe (the kind a table reader expects).
-pub(crate) fn kind_of_description(columns: &[Column]) -> Option<FileKind> {
-    let names: Vec<&str> = required(columns).collect();
-    csv_kind(&names)
+pub(crate) fn csv_kind(names: &[&str]) -> Option<FileKind> {
+    let has_all = |kind: FileKind| kind.required_columns().iter().all(|n| names.contains(n));
+    [
+        FileKind::Measurement,
+        FileKind::SelfCalibration,
+        FileKind::Result,
+    ]
+    .into_iter()
+    .find(|&kind| has_all(kind))
 }
 
 /// The first line of `text` that is not blank nor a `#` comment, with its 0-based index.

@@ -62,7 +62,7 @@ pub use write::{Column, Columns, ReadingWriter};
 pub use cycles::IncompleteCycle;
 pub use sigma::{Sigma, SigmaError};
 
-pub(crate) use parse::{COLUMNS, DIRECTION_WORDS, direction_text};
+pub(crate) use parse::{DIRECTION_WORDS, direction_text};
 
 use crate::input::table::Locator;
 use parse::*;

@@ -11,7 +11,6 @@ use crate::output::SolveReport;
 use crate::simulate::Truth;
 use crate::solve::Solution;
 
-pub use super::diagnose_table::write_table;
 use crate::solve::sub_pitch::SubPitchSolution;
 use serde::Serialize;
 use serde_json::{Map, Value};

@@ -37,7 +37,6 @@ mod angle;
 mod read;
 
 pub(crate) use angle::{AngleCheck, AngleProblem};
-pub(crate) use read::COLUMNS;
 
 /// The four families of calibrated quantities (docs/FORMAT.md §3), the crate's one list
 /// of them: result files, reports, uncertainties and truths name them through this type.

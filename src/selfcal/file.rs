@@ -17,7 +17,7 @@ use super::{HeadReading, SelfcalSet};
 use crate::input::Location;
 
 mod parse;
-pub(crate) use parse::COLUMNS;
+
 mod validate;
 mod write;
 

@@ -80,7 +80,6 @@ mod solution;
 mod solve;
 
 pub use budget::{SelfcalContribution, SelfcalUncertainty, evaluate_budget};
-pub(crate) use file::COLUMNS;
 pub use file::SelfcalError;
 pub(crate) use fourier::design::OffGridDesign;
 pub(crate) use head_angle::add_head_angle_u;

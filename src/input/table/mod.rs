@@ -365,7 +365,7 @@ impl<'t> Reader<'t> {
             return self.at(start, message);
         }
         let text = std::str::from_utf8(self.positions.bytes).unwrap_or("");
-        let expected = kind::kind_of_description(self.columns);
+        let expected = kind_of_description(self.columns);
         if let Some(found) = kind::recognize(text).filter(|&k| Some(k) != expected) {
             let expected = expected.map_or_else(
                 || format!("a table with the columns {}", required.join(", ")),
@@ -649,4 +649,14 @@ fn refusal(source: &str, (line, column): (u64, u64), message: String) -> TableEr
         empty: false,
         found: None,
     }
+}
+
+/// The kind whose required columns `columns` describe (the kind a table reader expects).
+pub(crate) fn kind_of_description(columns: &[Column]) -> Option<FileKind> {
+    let names: Vec<&str> = columns
+        .iter()
+        .filter(|c| c.required)
+        .map(|c| c.name)
+        .collect();
+    kind::csv_kind(&names)
 }

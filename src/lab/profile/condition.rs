@@ -40,21 +40,60 @@ pub struct Condition {
     pub bits_clear: Vec<u32>,
 }
 
+/// Why a condition cannot stand on its reply's template (a profile's refusal, located
+/// by its reader).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub(crate) enum ConditionError {
+    /// The template has no field of the condition's name.
+    #[error("the reply `{reply}` has no field `{field}` (its fields: {fields})")]
+    NoSuchField {
+        /// The reply's template, as written.
+        reply: String,
+        /// The field the condition names.
+        field: String,
+        /// The template's fields, or `none`.
+        fields: String,
+    },
+    /// The condition gives no test.
+    #[error(
+        "the condition on `{field}` tests nothing: give equals, not_equals, ends_with, bits_set or bits_clear"
+    )]
+    TestsNothing {
+        /// The field the condition names.
+        field: String,
+    },
+    /// A bit test on a field that is not digits.
+    #[error("bits of `{field}` cannot be tested: it is not a digit field (d or x)")]
+    BitsOfText {
+        /// The field the condition names.
+        field: String,
+    },
+    /// A bit beyond 63.
+    #[error("bit {bit} of `{field}`: bits are 0 … 63")]
+    BitOutOfRange {
+        /// The bit.
+        bit: u32,
+        /// The field the condition names.
+        field: String,
+    },
+}
+
 impl Condition {
     /// Checks the condition against its reply's template: the field exists, at least one
     /// test is given, bit tests only on digit fields. The message says what is wrong.
-    pub(crate) fn check(&self, template: &Template) -> Result<(), String> {
+    pub(crate) fn check(&self, template: &Template) -> Result<(), ConditionError> {
         let Some(field) = template.field(&self.field) else {
             let names: Vec<&str> = template.fields().map(|f| f.name.as_str()).collect();
-            return Err(format!(
-                "the reply `{template}` has no field `{}` (its fields: {})",
-                self.field,
-                if names.is_empty() {
+            return Err(ConditionError::NoSuchField {
+                reply: template.to_string(),
+                field: self.field.clone(),
+                fields: if names.is_empty() {
                     "none".to_string()
                 } else {
                     names.join(", ")
-                }
-            ));
+                },
+            });
         };
         if self.equals.is_empty()
             && self.not_equals.is_empty()
@@ -62,18 +101,16 @@ impl Condition {
             && self.bits_set.is_empty()
             && self.bits_clear.is_empty()
         {
-            return Err(format!(
-                "the condition on `{}` tests nothing: give equals, not_equals, ends_with, bits_set or bits_clear",
-                self.field
-            ));
+            return Err(ConditionError::TestsNothing {
+                field: self.field.clone(),
+            });
         }
         if (!self.bits_set.is_empty() || !self.bits_clear.is_empty())
             && field.kind.radix().is_none()
         {
-            return Err(format!(
-                "bits of `{}` cannot be tested: it is not a digit field (d or x)",
-                self.field
-            ));
+            return Err(ConditionError::BitsOfText {
+                field: self.field.clone(),
+            });
         }
         if let Some(&bit) = self
             .bits_set
@@ -81,7 +118,10 @@ impl Condition {
             .chain(&self.bits_clear)
             .find(|&&b| b > 63)
         {
-            return Err(format!("bit {bit} of `{}`: bits are 0 … 63", self.field));
+            return Err(ConditionError::BitOutOfRange {
+                bit,
+                field: self.field.clone(),
+            });
         }
         Ok(())
     }
@@ -282,18 +322,21 @@ mod tests {
             cond("field = \"w\"\nequals = [\"1\"]")
                 .check(&t)
                 .unwrap_err()
+                .to_string()
                 .contains("no field `w`")
         );
         assert!(
             cond("field = \"v\"\nbits_set = [1]")
                 .check(&t)
                 .unwrap_err()
+                .to_string()
                 .contains("not a digit field")
         );
         assert!(
             cond("field = \"v\"")
                 .check(&t)
                 .unwrap_err()
+                .to_string()
                 .contains("tests nothing")
         );
     }

@@ -268,7 +268,7 @@ impl Values<'_> {
     fn condition(&self, c: &Spanned<Condition>, on: &Template) -> Result<Condition, ProfileError> {
         c.get_ref()
             .check(on)
-            .map_err(|m| self.at.error(c.span().start, m))?;
+            .map_err(|e| self.at.error(c.span().start, e.to_string()))?;
         Ok(c.get_ref().clone())
     }
 
