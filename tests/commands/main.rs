@@ -29,6 +29,7 @@ mod skip_support;
 mod undeclared;
 
 // The tests: tests/commands/NAME.rs, each gated on the features it needs.
+mod architecture;
 #[cfg(feature = "cli")]
 mod calibration_uncertainty;
 #[cfg(feature = "cli")]
