@@ -218,19 +218,9 @@ mod tests {
 
 #[cfg(test)]
 mod required_columns {
-    use super::COLUMNS;
-    use crate::input::kind::FileKind;
-
     #[test]
     fn the_description_requires_the_columns_its_kind_is_recognised_by() {
-        let mut required: Vec<&str> = COLUMNS
-            .iter()
-            .filter(|c| c.required)
-            .map(|c| c.name)
-            .collect();
-        let mut kind = FileKind::Result.required_columns().to_vec();
-        required.sort_unstable();
-        kind.sort_unstable();
-        assert_eq!(required, kind);
+        let kind = crate::input::kind::FileKind::Result;
+        crate::input::table::assert_requires(&super::COLUMNS, kind);
     }
 }

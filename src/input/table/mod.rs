@@ -660,3 +660,18 @@ pub(crate) fn kind_of_description(columns: &[Column]) -> Option<FileKind> {
         .collect();
     kind::csv_kind(&names)
 }
+
+/// Asserts that `columns` require exactly the columns `kind` is recognised by (each file
+/// kind's unit test: its description and [`FileKind::required_columns`] agree).
+#[cfg(test)]
+pub(crate) fn assert_requires(columns: &[Column], kind: FileKind) {
+    let mut required: Vec<&str> = columns
+        .iter()
+        .filter(|c| c.required)
+        .map(|c| c.name)
+        .collect();
+    let mut recognised = kind.required_columns().to_vec();
+    required.sort_unstable();
+    recognised.sort_unstable();
+    assert_eq!(required, recognised, "{kind:?}");
+}
