@@ -505,25 +505,8 @@ pub(crate) fn diagnose_checked(
     // then every mounting against the others, on the cycles as repaired
     let mut mounted = mountings::examine(cycles_repaired);
     let mut diagnosis = plain(&mounted.set)?;
-    let mut changed = false;
-    if !pending.is_empty() {
-        let used = &mut mounted.set;
-        let still = still_disagreeing(used, &diagnosis, &pending, level);
-        for &(setup, cycle, logged_test) in &still {
-            let (rest, aside) = causes::without_cycle(used, setup, cycle);
-            let mut found = finding(setup, cycle, logged_test, level);
-            found.set_aside = aside_readings(
-                used,
-                &aside,
-                &format!(
-                    "cycle {cycle} set aside: it disagrees with the others, no usual logging error explains it, and no effect the search found does"
-                ),
-            );
-            findings.push(found);
-            *used = rest;
-        }
-        changed = !still.is_empty();
-    }
+    let changed =
+        set_aside_pending_cycles(&mut mounted.set, &diagnosis, &pending, level, &mut findings);
     if changed {
         diagnosis = plain(&mounted.set)?;
     }
@@ -639,6 +622,36 @@ pub(super) fn left_the_fit(readings: usize) -> String {
         1 => " 1 reading left the fit with it.".to_string(),
         n => format!(" {n} readings left the fit with it."),
     }
+}
+
+/// The pending cycles (left to the search) that still disagree grossly on the final
+/// residuals of `diagnosis` (of `used`), set aside from `used` and listed in `findings`;
+/// whether any was. Which ones is decided on `diagnosis` before any leaves.
+fn set_aside_pending_cycles(
+    used: &mut MeasurementSet,
+    diagnosis: &Diagnosis,
+    pending: &[(u32, u32, Chow)],
+    level: f64,
+    findings: &mut Vec<CycleFinding>,
+) -> bool {
+    if pending.is_empty() {
+        return false;
+    }
+    let still = still_disagreeing(used, diagnosis, pending, level);
+    for &(setup, cycle, logged_test) in &still {
+        let (rest, aside) = causes::without_cycle(used, setup, cycle);
+        let mut found = finding(setup, cycle, logged_test, level);
+        found.set_aside = aside_readings(
+            used,
+            &aside,
+            &format!(
+                "cycle {cycle} set aside: it disagrees with the others, no usual logging error explains it, and no effect the search found does"
+            ),
+        );
+        findings.push(found);
+        *used = rest;
+    }
+    !still.is_empty()
 }
 
 /// Why a cycle or a mounting was set aside, in the words of its check.
