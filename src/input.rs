@@ -6,14 +6,20 @@
 //! input [`STDIN_NAME`]. The path `-` means standard input wherever a path is read
 //! (docs/FORMAT.md §8).
 //!
-//! The crate's CSV tables (the measurement file, the self-calibration file) are read by one
-//! table reader (the crate's `input::table`): each file kind describes its columns, and
-//! the rules of the text, the header and the rows, with their messages, are the reader's.
+//! The crate's CSV tables (the measurement file, the self-calibration file, the result
+//! file) are read by one table reader (the crate's `input::table`): each file kind
+//! describes its columns, and the rules of the text, the header and the rows, with their
+//! messages, are the reader's. A table file is refused, or fails to be read or written,
+//! with one error, [`FileError`], whatever its kind.
 
+mod error;
 pub mod kind;
 pub mod limits;
 pub(crate) mod table;
 pub(crate) mod text;
+
+pub use error::FileError;
+
 use std::fmt;
 use std::io::{self, Read};
 use std::path::Path;

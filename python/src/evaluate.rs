@@ -24,7 +24,7 @@ use pyo3::prelude::*;
 
 use crate::sets::{PyBudget, PyMeasurementSet, PySelfcalSet};
 use crate::state::{RowsState, SolveState, columns_state, restorer, rows_state};
-use crate::{PolycalError, input_error, refusal, results_error, solve_error, to_json};
+use crate::{PolycalError, file_error, input_error, refusal, solve_error, to_json};
 
 /// The rows of a result (docs/FORMAT.md §3): a solve's, or a result file's.
 #[pyclass(name = "ResultRows", module = "polycal._polycal", frozen)]
@@ -69,7 +69,7 @@ pub(crate) fn read_results(py: Python<'_>, path: &str) -> PyResult<PyRows> {
         input_error(py, format!("{path}: {e}"), Some(&Location::file_only(path)))
     })?;
     let file = polycal::results::read_results_from(bytes.as_slice(), path)
-        .map_err(|e| results_error(py, e))?;
+        .map_err(|e| file_error(py, e))?;
     Ok(PyRows {
         rows: file.rows.clone(),
         label: path.to_string(),

@@ -23,10 +23,9 @@ mod state;
 
 use std::path::Path;
 
+use polycal::input::FileError;
 use polycal::input::Location;
-use polycal::measurement::{Direction, MeasurementError, Sigma};
-use polycal::results::ResultsError;
-use polycal::selfcal::SelfcalError;
+use polycal::measurement::{Direction, Sigma};
 use polycal::solve::SolveError;
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyUserWarning, PyValueError};
@@ -128,23 +127,11 @@ pub(crate) fn input_error(py: Python<'_>, message: String, at: Option<&Location>
     error
 }
 
-pub(crate) fn measurement_error(py: Python<'_>, e: MeasurementError) -> PyErr {
-    if let MeasurementError::Io { file, source } = &e
-        && is_not_found(source)
-    {
-        return file_not_found(py, file, source);
-    }
-    let at = e.location().cloned();
-    input_error(py, e.to_string(), at.as_ref())
-}
-
-pub(crate) fn results_error(py: Python<'_>, e: ResultsError) -> PyErr {
-    let at = e.location().cloned();
-    input_error(py, e.to_string(), at.as_ref())
-}
-
-pub(crate) fn selfcal_error(py: Python<'_>, e: SelfcalError) -> PyErr {
-    if let SelfcalError::Io { file, source } = &e
+/// A table file's refusal (a measurement, self-calibration or result file): Python's
+/// `FileNotFoundError` for a file that is not there, an `InputError` at the refusal's
+/// location otherwise.
+pub(crate) fn file_error(py: Python<'_>, e: FileError) -> PyErr {
+    if let FileError::Io { file, source } = &e
         && is_not_found(source)
     {
         return file_not_found(py, file, source);

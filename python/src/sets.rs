@@ -15,8 +15,7 @@ use pyo3::types::PyDict;
 use crate::state::{self, restorer};
 
 use crate::{
-    direction_at, file_not_found, input_error, is_not_found, measurement_error, read_source,
-    refusal, selfcal_error,
+    direction_at, file_error, file_not_found, input_error, is_not_found, read_source, refusal,
 };
 
 /// A measurement set (docs/FORMAT.md §2).
@@ -83,7 +82,7 @@ impl PyMeasurementSet {
     fn write(&self, py: Python<'_>, path: &str) -> PyResult<()> {
         let comments = &self.comments;
         py.detach(|| self.inner.write_path(Path::new(path), comments))
-            .map_err(|e| measurement_error(py, e))
+            .map_err(|e| file_error(py, e))
     }
 
     /// The comment lines a written file starts with.
@@ -154,7 +153,7 @@ pub(crate) fn read_measurements(
         |bytes, name| MeasurementSet::read_from(bytes, name, faces),
     )?;
     read.map(PyMeasurementSet::new)
-        .map_err(|e| measurement_error(py, e))
+        .map_err(|e| file_error(py, e))
 }
 
 /// What building a set of one row from columns takes, bytes: the package's Python lists
@@ -285,7 +284,7 @@ pub(crate) fn measurement_set_from_columns(
             MeasurementSet::from_readings(readings, faces, name)
                 .and_then(|set| set.with_setup_shifts(shifts))
         })
-        .map_err(|e| measurement_error(py, e))?;
+        .map_err(|e| file_error(py, e))?;
     Ok(PyMeasurementSet::new(inner))
 }
 
@@ -434,7 +433,7 @@ impl PySelfcalSet {
     fn write(&self, py: Python<'_>, path: &str) -> PyResult<()> {
         let comments = &self.comments;
         py.detach(|| self.inner.write_path(Path::new(path), comments))
-            .map_err(|e| selfcal_error(py, e))
+            .map_err(|e| file_error(py, e))
     }
 
     /// The readings as columns named as the file's (docs/FORMAT.md §9.2): lists, `None`
@@ -485,7 +484,7 @@ pub(crate) fn read_selfcal(
         name,
         comments: Vec::new(),
     })
-    .map_err(|e| selfcal_error(py, e))
+    .map_err(|e| file_error(py, e))
 }
 
 /// Builds a self-calibration set from columns, checked as the file reader checks them.
@@ -534,7 +533,7 @@ pub(crate) fn selfcal_set_from_columns(
     }
     let inner = py
         .detach(|| SelfcalSet::from_readings(readings, positions))
-        .map_err(|e| selfcal_error(py, e))?;
+        .map_err(|e| file_error(py, e))?;
     Ok(PySelfcalSet {
         inner,
         name: name.to_string(),

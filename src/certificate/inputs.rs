@@ -4,10 +4,10 @@
 use std::path::PathBuf;
 
 use crate::compare::CompareError;
+use crate::input::FileError;
 use crate::input::Location;
-use crate::measurement::{MeasurementError, Sigma};
-use crate::results::ResultsError;
-use crate::selfcal::{SelfcalError, SelfcalSolveError};
+use crate::measurement::Sigma;
+use crate::selfcal::SelfcalSolveError;
 use crate::simulate::SimulateError;
 use crate::solve::SolveError;
 use crate::uncertainty::BudgetError;
@@ -155,21 +155,16 @@ pub enum ReportError {
         /// What is wrong.
         message: String,
     },
-    /// The measurement file.
+    /// A table file: the measurement file, the self-calibration file or the reference
+    /// result file.
     #[error(transparent)]
-    Measurement(#[from] MeasurementError),
+    File(#[from] FileError),
     /// A stated cross-talk cannot be corrected for.
     #[error(transparent)]
     CrossTalk(#[from] crate::measurement::cross_talk::CrossTalkError),
-    /// The self-calibration file.
-    #[error(transparent)]
-    Selfcal(#[from] SelfcalError),
     /// The budget file.
     #[error(transparent)]
     Budget(#[from] BudgetError),
-    /// The reference result file.
-    #[error(transparent)]
-    Reference(#[from] ResultsError),
     /// The truth file.
     #[error(transparent)]
     Truth(#[from] SimulateError),

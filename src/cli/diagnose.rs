@@ -8,9 +8,10 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 use clap::ValueEnum;
 use polycal::diagnose::{self, DiagnoseOptions, Diagnosis};
+use polycal::input::FileError;
 use polycal::input::display_name;
 use polycal::measurement::cross_talk::StatedCrossTalk;
-use polycal::measurement::{MeasurementError, MeasurementSet, Sigma};
+use polycal::measurement::{MeasurementSet, Sigma};
 use polycal::output::diagnose_selfcal::{self, SelfcalDiagnoseReport};
 use polycal::output::{self, diagnose::DiagnoseReport};
 use polycal::results::ResultRow;
@@ -149,7 +150,7 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         let bytes = match polycal::input::read_bytes(path) {
             Ok((bytes, _)) => bytes,
             Err((file, source)) => {
-                out.error(&anyhow::Error::from(MeasurementError::Io { file, source }));
+                out.error(&anyhow::Error::from(FileError::Io { file, source }));
                 failures += 1;
                 continue;
             }

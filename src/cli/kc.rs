@@ -102,7 +102,7 @@ enum KcFormat {
 /// character other than white space `{`), else a result file (§3).
 fn read_lab(name: &str, path: &std::path::Path) -> Result<LabResult> {
     let (bytes, source) = polycal::input::read_bytes(path)
-        .map_err(|(file, source)| polycal::results::ResultsError::Io { file, source })?;
+        .map_err(|(file, source)| polycal::input::FileError::Io { file, source })?;
     if bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
         return Ok(lab_from_solve_json(name, &bytes, &source)?);
     }

@@ -3,10 +3,8 @@
 //! file is (`polycal::input::kind`); this adds what to do on the command line
 //! (docs/FORMAT.md §8).
 
+use polycal::input::FileError;
 use polycal::input::kind::FileKind;
-use polycal::measurement::MeasurementError;
-use polycal::results::ResultsError;
-use polycal::selfcal::SelfcalError;
 use polycal::uncertainty::BudgetError;
 
 use super::with_hint;
@@ -60,28 +58,28 @@ fn hinted(
     }
 }
 
-/// A measurement file's refusal, with what to do when the file is of another kind.
-pub fn measurement(error: MeasurementError) -> anyhow::Error {
+/// A table file's refusal, with what to do when the file is of another kind than
+/// `expected`.
+fn table_file(error: FileError, expected: FileKind) -> anyhow::Error {
     match error.found_kind() {
-        found @ Some(_) => hinted(error, found, FileKind::Measurement),
+        found @ Some(_) => hinted(error, found, expected),
         None => error.into(),
     }
+}
+
+/// A measurement file's refusal, with what to do when the file is of another kind.
+pub fn measurement(error: FileError) -> anyhow::Error {
+    table_file(error, FileKind::Measurement)
 }
 
 /// A self-calibration file's refusal, with what to do when the file is of another kind.
-pub fn selfcal(error: SelfcalError) -> anyhow::Error {
-    match error.found_kind() {
-        found @ Some(_) => hinted(error, found, FileKind::SelfCalibration),
-        None => error.into(),
-    }
+pub fn selfcal(error: FileError) -> anyhow::Error {
+    table_file(error, FileKind::SelfCalibration)
 }
 
 /// A result file's refusal, with what to do when the file is of another kind.
-pub fn results(error: ResultsError) -> anyhow::Error {
-    match error.found_kind() {
-        found @ Some(_) => hinted(error, found, FileKind::Result),
-        None => error.into(),
-    }
+pub fn results(error: FileError) -> anyhow::Error {
+    table_file(error, FileKind::Result)
 }
 
 /// The refusal of the file given with `--budget`, saying so when it is of another kind.

@@ -93,7 +93,7 @@ pub fn diagnose_selfcal(
     options: &DiagnoseOptions,
     selfcal_options: &SelfcalOptions,
 ) -> Result<SelfcalDiagnosis, SelfcalSolveError> {
-    set.check()?;
+    set.check().map_err(SelfcalSolveError::Invalid)?;
     let p = set.positions;
     if let Some(gauge) = selfcal_options.gauge_positions
         && (gauge == 0 || !p.is_multiple_of(gauge))
@@ -242,7 +242,8 @@ fn diagnosed_closure(
     let p = set.positions;
     let heads = set.heads();
     if let Some(offsets) = grid_offsets(set, &heads) {
-        return Ok((closure_set(set, &heads, &offsets)?, None));
+        let closure = closure_set(set, &heads, &offsets).map_err(SelfcalSolveError::Design)?;
+        return Ok((closure, None));
     }
     let fractional: Vec<f64> = heads
         .iter()
@@ -252,7 +253,8 @@ fn diagnosed_closure(
         .iter()
         .map(|d| (d.round() as usize) % p)
         .collect();
-    Ok((closure_set(set, &heads, &nearest)?, Some(fractional)))
+    let closure = closure_set(set, &heads, &nearest).map_err(SelfcalSolveError::Design)?;
+    Ok((closure, Some(fractional)))
 }
 
 /// Refuses up front a diagnosis of heads between the positions that would not fit in

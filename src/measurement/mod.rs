@@ -22,7 +22,7 @@
 //! value is silently dropped.
 //!
 //! Nothing is guessed. The first problem found is reported as one
-//! [`MeasurementError::Invalid`] naming the file, the 1-based line and the 1-based
+//! [`FileError::Invalid`] naming the file, the 1-based line and the 1-based
 //! character column where the offending field starts, the column name and the offending
 //! text. Row-level problems are reported in file order, before the whole-file checks for
 //! faces and steps never read.
@@ -44,12 +44,13 @@
 //! whole positions, or table angles between them — is [`crate::solve::sub_pitch`]'s
 //! concern.
 
-use crate::input::Location;
+use crate::input::FileError;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::io::Read;
 use std::path::Path;
 
+mod columns;
 pub mod cross_talk;
 mod cycles;
 mod parse;
@@ -62,11 +63,12 @@ pub use write::{Column, Columns, ReadingWriter};
 pub use cycles::IncompleteCycle;
 pub use sigma::{Sigma, SigmaError};
 
-pub(crate) use parse::{DIRECTION_WORDS, direction_text};
+pub(crate) use columns::{DIRECTION_WORDS, direction_text};
 
 use crate::input::table::Locator;
-use parse::*;
-use validate::*;
+use columns::{SHIFT_RANGE, valid_shift};
+use parse::{Rules, parse_bytes};
+use validate::{face_offset, validate};
 
 /// Rotation direction of a cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
@@ -196,20 +198,20 @@ pub fn run_stops(faces: usize, cycles: u32, closing: bool, bidirectional: bool) 
 /// assert_eq!((readings.len(), readings[0].line), (1, 3));
 /// assert!(read_rows(&b"# only a comment\n"[..], "run.csv")?.is_empty());
 /// assert!(read_rows(&b"cycle,step,ac,face,reading\n1,0,1,x,0.5\n"[..], "run.csv").is_err());
-/// # Ok::<(), polycal::measurement::MeasurementError>(())
+/// # Ok::<(), polycal::input::FileError>(())
 /// ```
 ///
 /// # Errors
 ///
-/// [`MeasurementError::Io`] if reading fails, [`MeasurementError::Invalid`] for the first
+/// [`FileError::Io`] if reading fails, [`FileError::Invalid`] for the first
 /// header or row that breaks a rule.
-pub fn read_rows<R: Read>(reader: R, source: &str) -> Result<Vec<Reading>, MeasurementError> {
+pub fn read_rows<R: Read>(reader: R, source: &str) -> Result<Vec<Reading>, FileError> {
     parse_bytes(&read_all(reader, source)?, source, Rules::Rows).map(|set| set.readings)
 }
 
 /// The whole input of `reader`; an error names `source`.
-fn read_all<R: Read>(reader: R, source: &str) -> Result<Vec<u8>, MeasurementError> {
-    crate::input::read_limited(reader).map_err(|e| MeasurementError::Io {
+fn read_all<R: Read>(reader: R, source: &str) -> Result<Vec<u8>, FileError> {
+    crate::input::read_limited(reader).map_err(|e| FileError::Io {
         file: source.to_string(),
         source: e,
     })
@@ -231,69 +233,6 @@ pub struct MeasurementSet {
     pub setup_shift_deg: BTreeMap<u32, f64>,
 }
 
-/// Why a measurement file or a set of readings was refused, or could not be read or
-/// written.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum MeasurementError {
-    /// A file that breaks the rules: names the file, 1-based line and 1-based character
-    /// column.
-    ///
-    /// Displayed as `file:line:column: message`, e.g.
-    /// `run.csv:7:9: column "face": "x" is not an integer`. For readings built in memory
-    /// the line is the reading's [`Reading::line`] (0 when not from a file) and the column
-    /// 0; a 0 is left out of the display.
-    #[error("{location}: {message}")]
-    Invalid {
-        /// Where: the file (the `source` name given; `<stdin>` for standard input), line
-        /// and column.
-        location: Location,
-        /// What is wrong, naming the column and quoting the offending text.
-        message: String,
-    },
-    /// A file of another kind given as a measurement file: a budget, a result file, … (docs/FORMAT.md
-    /// §8). Displayed as `file:line:column: this is a budget (TOML, …), not a measurement file …`.
-    #[error("{location}: {message}")]
-    WrongKind {
-        /// Where: the file and the line that tells its kind.
-        location: Location,
-        /// What the file is, and what was expected.
-        message: String,
-        /// What the file is.
-        found: crate::input::kind::FileKind,
-    },
-    /// The file could not be opened, read or written.
-    #[error("{file}: {source}")]
-    Io {
-        /// The file (the `source` name given; `<stdin>` for standard input).
-        file: String,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
-    },
-}
-
-impl MeasurementError {
-    /// Where the problem is, for a refused file ([`MeasurementError::Invalid`]); `None`
-    /// for an I/O error.
-    pub fn location(&self) -> Option<&Location> {
-        match self {
-            MeasurementError::Invalid { location, .. }
-            | MeasurementError::WrongKind { location, .. } => Some(location),
-            MeasurementError::Io { .. } => None,
-        }
-    }
-
-    /// What the file is, when it is of another kind than a measurement file
-    /// ([`MeasurementError::WrongKind`]).
-    pub fn found_kind(&self) -> Option<crate::input::kind::FileKind> {
-        match self {
-            MeasurementError::WrongKind { found, .. } => Some(*found),
-            _ => None,
-        }
-    }
-}
-
 impl MeasurementSet {
     /// Reads a measurement CSV from a path; the path `-` reads standard input (named
     /// `<stdin>` in messages).
@@ -304,11 +243,11 @@ impl MeasurementSet {
     ///
     /// # Errors
     ///
-    /// [`MeasurementError::Io`] if the file cannot be opened or read,
-    /// [`MeasurementError::Invalid`] if it breaks a rule of docs/FORMAT.md §2.
-    pub fn read_path(path: &Path, faces: Option<usize>) -> Result<Self, MeasurementError> {
+    /// [`FileError::Io`] if the file cannot be opened or read,
+    /// [`FileError::Invalid`] if it breaks a rule of docs/FORMAT.md §2.
+    pub fn read_path(path: &Path, faces: Option<usize>) -> Result<Self, FileError> {
         let (bytes, name) = crate::input::read_bytes(path)
-            .map_err(|(file, source)| MeasurementError::Io { file, source })?;
+            .map_err(|(file, source)| FileError::Io { file, source })?;
         parse_bytes(&bytes, &name, Rules::Set(faces))
     }
 
@@ -316,18 +255,19 @@ impl MeasurementSet {
     ///
     /// The whole input is read, then checked against docs/FORMAT.md §2 (see the
     /// [module documentation](self)); the first problem found is returned as one
-    /// [`MeasurementError::Invalid`]. `faces` is the `--faces N` option: N is the
+    /// [`FileError::Invalid`]. `faces` is the `--faces N` option: N is the
     /// largest `face` unless given. Each [`Reading::line`] is the line its row starts on.
     ///
     /// # Errors
     ///
-    /// [`MeasurementError::Io`] if reading fails, [`MeasurementError::Invalid`] if the
+    /// [`FileError::Io`] if reading fails, [`FileError::Invalid`] if the
     /// input breaks a rule.
     ///
     /// # Example
     ///
     /// ```
-    /// use polycal::measurement::{MeasurementError, MeasurementSet};
+    /// use polycal::input::FileError;
+    /// use polycal::measurement::MeasurementSet;
     ///
     /// let csv = b"# a 3-faced polygon, one autocollimator\n\
     ///             cycle,step,ac,face,reading\n\
@@ -344,13 +284,13 @@ impl MeasurementSet {
     /// let bad = b"cycle,step,ac,face,reading\n1,0,1,one,0.5\n";
     /// let err = MeasurementSet::read_from(&bad[..], "bad.csv", None).unwrap_err();
     /// assert_eq!(err.to_string(), r#"bad.csv:2:7: column "face": "one" is not an integer"#);
-    /// # Ok::<(), MeasurementError>(())
+    /// # Ok::<(), FileError>(())
     /// ```
     pub fn read_from<R: Read>(
         reader: R,
         source: &str,
         faces: Option<usize>,
-    ) -> Result<Self, MeasurementError> {
+    ) -> Result<Self, FileError> {
         parse_bytes(&read_all(reader, source)?, source, Rules::Set(faces))
     }
 
@@ -365,12 +305,12 @@ impl MeasurementSet {
     ///
     /// # Errors
     ///
-    /// [`MeasurementError::Invalid`] for the first rule broken.
+    /// [`FileError::Invalid`] for the first rule broken.
     pub fn from_readings(
         readings: Vec<Reading>,
         faces: Option<usize>,
         source: &str,
-    ) -> Result<Self, MeasurementError> {
+    ) -> Result<Self, FileError> {
         let n = validate(&readings, faces, &Locator::Memory, source)?;
         Ok(MeasurementSet {
             faces: n,
@@ -400,14 +340,14 @@ impl MeasurementSet {
     ///
     /// # Errors
     ///
-    /// [`MeasurementError::Invalid`] (line and column 0) naming the setup and the shift.
+    /// [`FileError::Invalid`] (line and column 0) naming the setup and the shift.
     pub fn with_setup_shifts(
         mut self,
         shifts: impl IntoIterator<Item = (u32, f64)>,
-    ) -> Result<Self, MeasurementError> {
+    ) -> Result<Self, FileError> {
         for (setup, shift) in shifts {
             let refuse = |message: String| {
-                Err(invalid(
+                Err(FileError::invalid(
                     &self.source,
                     (0, 0),
                     format!("column \"shift\": setup {setup}: {message}"),
@@ -532,6 +472,3 @@ pub fn face_at(step: usize, face_offset: usize, faces: usize) -> usize {
 pub fn step_angle_deg(step: u32, steps: usize) -> f64 {
     f64::from(step) * 360.0 / steps as f64
 }
-
-// ---------------------------------------------------------------------------------------
-// Columns

@@ -1,148 +1,16 @@
-//! Reading the measurement CSV: its columns as a description for the crate's one table
-//! reader ([`crate::input::table`]), each typed row made a [`Reading`], and the one rule
-//! across rows checked while reading (a mounting has one shift).
+//! Reading the measurement CSV: the file's columns ([`super::columns`]) read by the
+//! crate's one table reader ([`crate::input::table`]), each typed row made a [`Reading`],
+//! and the one rule across rows checked while reading (a mounting has one shift); the
+//! rules across rows are then [`super::validate`]'s.
 
-use super::*;
-
-use super::validate::*;
-use crate::input::limits::{self, Limit};
-use crate::input::table::{Column, Locator, Numbered, Range, Reader, TableError, Value};
+use std::collections::BTreeMap;
 use std::collections::btree_map::Entry;
 
-/// The columns this module knows, in the order of docs/FORMAT.md §2 (and of
-/// [`COLUMNS`], which describes them).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Col {
-    Cycle,
-    Step,
-    Ac,
-    Face,
-    Reading,
-    Direction,
-    Time,
-    Setup,
-    ReadingY,
-    Temperature,
-    Encoder,
-    /// The mounting's table angle at step 0, degrees (docs/FORMAT.md §2, §9.1): one per
-    /// setup, kept by the set ([`MeasurementSet::setup_shift_deg`]), not by the reading.
-    Shift,
-}
-
-pub(super) const NCOLS: usize = 12;
-
-const U32_MAX: u128 = u32::MAX as u128;
-const USIZE_MAX: u128 = usize::MAX as u128;
-
-/// The words of the `direction` column, in the order of [`Direction::from_word`].
-pub(crate) const DIRECTION_WORDS: &[&str] = &["cw", "ccw"];
-
-/// The measurement file's columns (docs/FORMAT.md §2), indexed by [`Col`].
-pub(crate) const COLUMNS: [Column; NCOLS] = [
-    Column::integer("cycle", 1, U32_MAX),
-    Column::integer("step", 0, USIZE_MAX),
-    Column::integer("ac", 1, U32_MAX),
-    Column::integer("face", 1, USIZE_MAX),
-    Column::number("reading", Range::Limit(limits::READING_ARCSEC, "a reading")),
-    Column::word("direction", DIRECTION_WORDS, "a direction").or(Value::Word(0)),
-    Column::number("time", Range::Limit(limits::TIME_SECONDS, "a time")).optional(),
-    Column::integer("setup", 1, U32_MAX).or(Value::Integer(1)),
-    Column::number(
-        "reading_y",
-        Range::Limit(limits::READING_ARCSEC, "a reading"),
-    )
-    .optional(),
-    Column::number(
-        "temperature",
-        Range::Limit(limits::TEMPERATURE_CELSIUS, "a temperature"),
-    )
-    .optional(),
-    Column::number(
-        "encoder",
-        Range::Limit(limits::ENCODER_DEGREES, "an encoder position"),
-    )
-    .optional(),
-    Column::number(
-        "shift",
-        Range::Within {
-            contains: valid_shift,
-            broken: SHIFT_RANGE,
-        },
-    )
-    .or(Value::Number(0.0)),
-];
-
-impl Col {
-    /// The column's index in [`COLUMNS`].
-    pub(super) fn at(self) -> usize {
-        self as usize
-    }
-
-    /// The range of a numeric column and what its values are (docs/FORMAT.md §2.2);
-    /// `None` for the integer columns, `direction`, and `shift` (which has its own rule).
-    pub(super) fn limit(self) -> Option<(Limit, &'static str)> {
-        COLUMNS.get(self.at()).and_then(Column::limit)
-    }
-
-    pub(super) fn name(self) -> &'static str {
-        COLUMNS.get(self.at()).map_or("", |c| c.name)
-    }
-}
-
-impl Direction {
-    /// The direction of a word of [`DIRECTION_WORDS`] by its index.
-    pub(crate) fn from_word(i: usize) -> Direction {
-        if i == 1 {
-            Direction::Ccw
-        } else {
-            Direction::Cw
-        }
-    }
-}
-
-impl Numbered for Reading {
-    fn line(&self) -> u64 {
-        self.line
-    }
-}
-
-/// A direction of record `i` as it was written: `"" (empty, meaning cw)` for an empty
-/// field read from a file, the quoted word otherwise. Shared by the measurement and the
-/// self-calibration file (column `c` is `direction` in either description).
-pub(crate) fn direction_text(
-    loc: &Locator<'_>,
-    i: usize,
-    c: usize,
-    direction: Direction,
-) -> String {
-    match loc.field_text(i, c) {
-        Some(text) if text.is_empty() => format!("\"\" (empty, meaning {direction})"),
-        _ => format!("{:?}", direction.as_str()),
-    }
-}
-
-pub(super) fn invalid(file: &str, (line, column): (u64, u64), message: String) -> MeasurementError {
-    MeasurementError::Invalid {
-        location: Location::new(file, line, column),
-        message,
-    }
-}
-
-impl From<TableError> for MeasurementError {
-    fn from(e: TableError) -> Self {
-        if let Some(found) = e.found() {
-            return MeasurementError::WrongKind {
-                location: e.location,
-                message: e.message,
-                found,
-            };
-        }
-        MeasurementError::Invalid {
-            location: e.location,
-            message: e.message,
-        }
-    }
-}
+use super::columns::{COLUMNS, Col};
+use super::validate::validate;
+use super::{Direction, MeasurementSet, Reading};
+use crate::input::FileError;
+use crate::input::table::{Locator, Reader, show};
 
 /// Which rules a reading of the file applies.
 #[derive(Debug, Clone, Copy)]
@@ -155,11 +23,12 @@ pub(super) enum Rules {
     Rows,
 }
 
+/// Reads the bytes of a measurement file by `rules`; `source` names it in messages.
 pub(super) fn parse_bytes(
     bytes: &[u8],
     source: &str,
     rules: Rules,
-) -> Result<MeasurementSet, MeasurementError> {
+) -> Result<MeasurementSet, FileError> {
     let no_readings = || MeasurementSet {
         faces: 0,
         readings: Vec::new(),
@@ -248,15 +117,4 @@ pub(super) fn parse_bytes(
             .map(|(setup, (shift, _, _))| (setup, shift))
             .collect(),
     })
-}
-
-pub(super) use crate::input::table::show;
-
-#[cfg(test)]
-mod required_columns {
-    #[test]
-    fn the_description_requires_the_columns_its_kind_is_recognised_by() {
-        let kind = crate::input::kind::FileKind::Measurement;
-        crate::input::table::assert_requires(&super::COLUMNS, kind);
-    }
 }

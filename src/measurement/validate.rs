@@ -1,20 +1,13 @@
 //! The structural rules of a measurement set (docs/FORMAT.md §2): ranges, missing faces and
 //! steps, duplicates, face offsets per autocollimator, one direction per cycle.
 
-use super::parse::*;
-use super::*;
-use crate::input::table::Locator;
 use std::collections::hash_map::Entry;
 use std::collections::{BTreeSet, HashMap};
 
-/// What a shift out of range breaks, after the value in a message.
-pub(super) const SHIFT_RANGE: &str = "is outside 0 to 360 degrees; a shift is the table's angle at step 0 of its mounting, \
-     0 <= shift < 360";
-
-/// Whether a (finite) shift is in range, 0 ≤ shift < 360 degrees (-0 counts as 0).
-pub(super) fn valid_shift(shift: f64) -> bool {
-    (0.0..360.0).contains(&shift)
-}
+use super::Reading;
+use super::columns::{Col, direction_text};
+use crate::input::FileError;
+use crate::input::table::Locator;
 
 /// (face − 1 − step) mod N, without overflow for any N ≥ 1.
 pub(super) fn face_offset(face: usize, step: usize, n: usize) -> usize {
@@ -86,9 +79,9 @@ pub(super) fn validate(
     faces: Option<usize>,
     loc: &Locator<'_>,
     source: &str,
-) -> Result<usize, MeasurementError> {
+) -> Result<usize, FileError> {
     if readings.is_empty() {
-        return Err(invalid(
+        return Err(FileError::invalid(
             source,
             loc.header_start(),
             loc.no_rows().to_string(),
@@ -115,12 +108,8 @@ pub(super) fn validate(
 
 /// Values (already checked, with their text, when read from a file): cycle, ac, face and
 /// setup at least 1, every number within its limit.
-fn check_values(
-    readings: &[Reading],
-    loc: &Locator<'_>,
-    source: &str,
-) -> Result<(), MeasurementError> {
-    let err = |at: (u64, u64), message: String| invalid(source, at, message);
+fn check_values(readings: &[Reading], loc: &Locator<'_>, source: &str) -> Result<(), FileError> {
+    let err = |at: (u64, u64), message: String| FileError::invalid(source, at, message);
     for (i, r) in readings.iter().enumerate() {
         let p = loc.prefix(i, readings);
         for (col, zero) in [
@@ -164,8 +153,8 @@ fn number_of_faces(
     faces: Option<usize>,
     loc: &Locator<'_>,
     source: &str,
-) -> Result<(usize, &'static str), MeasurementError> {
-    let err = |at: (u64, u64), message: String| invalid(source, at, message);
+) -> Result<(usize, &'static str), FileError> {
+    let err = |at: (u64, u64), message: String| FileError::invalid(source, at, message);
     match faces {
         Some(n) => {
             if n < 3 {
@@ -216,15 +205,9 @@ struct RowChecks<'a> {
 impl RowChecks<'_> {
     /// Row `i` (`r`): face and step within range (N = `n`, from `n_from`), not read
     /// before, its cycle's one direction, its stream's one face offset.
-    fn check(
-        &mut self,
-        i: usize,
-        r: &Reading,
-        n: usize,
-        n_from: &str,
-    ) -> Result<(), MeasurementError> {
+    fn check(&mut self, i: usize, r: &Reading, n: usize, n_from: &str) -> Result<(), FileError> {
         let (loc, readings, source) = (self.loc, self.readings, self.source);
-        let err = |at: (u64, u64), message: String| invalid(source, at, message);
+        let err = |at: (u64, u64), message: String| FileError::invalid(source, at, message);
         let p = loc.prefix(i, readings);
         let mut range = Vec::new();
         if r.face > n {
@@ -328,8 +311,8 @@ fn check_every_face_and_step(
     (n, n_from): (usize, &str),
     loc: &Locator<'_>,
     source: &str,
-) -> Result<(), MeasurementError> {
-    let err = |at: (u64, u64), message: String| invalid(source, at, message);
+) -> Result<(), FileError> {
+    let err = |at: (u64, u64), message: String| FileError::invalid(source, at, message);
     let present: BTreeSet<usize> = readings.iter().map(|r| r.face).collect();
     let (missing, count) = missing_ranges(&present, 1, n);
     if count > 0 {

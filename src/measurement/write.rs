@@ -10,8 +10,9 @@ use std::fmt::Write as _;
 use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
-use super::parse::Col;
-use super::{MeasurementError, MeasurementSet, Reading};
+use super::columns::Col;
+use super::{MeasurementSet, Reading};
+use crate::input::FileError;
 
 /// A column of the measurement file (docs/FORMAT.md §2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -298,9 +299,9 @@ impl MeasurementSet {
     ///
     /// # Errors
     ///
-    /// [`MeasurementError::Io`] naming the path if the file cannot be created or written.
-    pub fn write_path(&self, path: &Path, comments: &[String]) -> Result<(), MeasurementError> {
-        let io_error = |source| MeasurementError::Io {
+    /// [`FileError::Io`] naming the path if the file cannot be created or written.
+    pub fn write_path(&self, path: &Path, comments: &[String]) -> Result<(), FileError> {
+        let io_error = |source| FileError::Io {
             file: path.display().to_string(),
             source,
         };

@@ -29,7 +29,7 @@
 use std::io::{Read, Write};
 use std::path::Path;
 
-use crate::input::Location;
+use crate::input::FileError;
 use crate::input::limits;
 use serde::{Deserialize, Serialize};
 
@@ -83,27 +83,6 @@ impl Quantity {
     /// The family of a name as spelled in files, or `None`.
     pub fn from_name(name: &str) -> Option<Quantity> {
         Quantity::ALL.into_iter().find(|q| q.name() == name)
-    }
-}
-
-impl ResultsError {
-    /// Where the problem is ([`ResultsError::At`]); `None` for an I/O error.
-    pub fn location(&self) -> Option<&Location> {
-        match self {
-            ResultsError::At { location, .. } | ResultsError::WrongKind { location, .. } => {
-                Some(location)
-            }
-            ResultsError::Io { .. } => None,
-        }
-    }
-
-    /// What the file is, when it is of another kind than a result file
-    /// ([`ResultsError::WrongKind`]).
-    pub fn found_kind(&self) -> Option<crate::input::kind::FileKind> {
-        match self {
-            ResultsError::WrongKind { found, .. } => Some(*found),
-            _ => None,
-        }
     }
 }
 
@@ -245,49 +224,14 @@ pub struct RowColumns {
     pub k: Option<u64>,
 }
 
-/// Why a result file cannot be read.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum ResultsError {
-    /// A problem at a place in the file.
-    #[error("{location}: {message}")]
-    At {
-        /// Where: the file (`<stdin>` for standard input), 1-based line and 1-based
-        /// character column.
-        location: Location,
-        /// What is wrong.
-        message: String,
-    },
-    /// A file of another kind given as a result file: a measurement file, a budget, …
-    /// (docs/FORMAT.md §8). Displayed as `file:line:column: … this is a measurement file
-    /// (…), not a result file`.
-    #[error("{location}: {message}")]
-    WrongKind {
-        /// Where: the file and the line that tells its kind.
-        location: Location,
-        /// What the file is, and what was expected.
-        message: String,
-        /// What the file is.
-        found: crate::input::kind::FileKind,
-    },
-    /// The file could not be read.
-    #[error("{file}: {source}")]
-    Io {
-        /// The file name.
-        file: String,
-        /// The I/O error.
-        source: std::io::Error,
-    },
-}
-
 /// Reads a result file strictly; `-` reads standard input. See [`read_result_file`] for
 /// the rows' line numbers.
 ///
 /// # Errors
 ///
-/// [`ResultsError::At`] with file, line and column for anything invalid;
-/// [`ResultsError::Io`] if the file cannot be read.
-pub fn read_results_path(path: impl AsRef<Path>) -> Result<Vec<ResultRow>, ResultsError> {
+/// [`FileError::Invalid`] with file, line and column for anything invalid;
+/// [`FileError::Io`] if the file cannot be read.
+pub fn read_results_path(path: impl AsRef<Path>) -> Result<Vec<ResultRow>, FileError> {
     read_result_file(path).map(|f| f.rows)
 }
 
@@ -297,10 +241,10 @@ pub fn read_results_path(path: impl AsRef<Path>) -> Result<Vec<ResultRow>, Resul
 /// # Errors
 ///
 /// As [`read_results_path`].
-pub fn read_result_file(path: impl AsRef<Path>) -> Result<ResultFile, ResultsError> {
+pub fn read_result_file(path: impl AsRef<Path>) -> Result<ResultFile, FileError> {
     let path = path.as_ref();
-    let (bytes, name) = crate::input::read_bytes(path)
-        .map_err(|(file, source)| ResultsError::Io { file, source })?;
+    let (bytes, name) =
+        crate::input::read_bytes(path).map_err(|(file, source)| FileError::Io { file, source })?;
     read_results_from(&bytes[..], &name)
 }
 
@@ -308,13 +252,13 @@ pub fn read_result_file(path: impl AsRef<Path>) -> Result<ResultFile, ResultsErr
 ///
 /// The whole input is read, then read through the crate's one table reader in one pass
 /// (docs/FORMAT.md §3.2); the first problem found is returned as one
-/// [`ResultsError::At`].
+/// [`FileError::Invalid`].
 ///
 /// # Errors
 ///
 /// As [`read_results_path`].
-pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile, ResultsError> {
-    let bytes = crate::input::read_limited(reader).map_err(|e| ResultsError::Io {
+pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile, FileError> {
+    let bytes = crate::input::read_limited(reader).map_err(|e| FileError::Io {
         file: source.to_string(),
         source: e,
     })?;

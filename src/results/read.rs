@@ -8,7 +8,8 @@ use std::collections::HashMap;
 use std::collections::hash_map::Entry;
 
 use super::angle::{AngleCheck, AngleProblem};
-use super::{Quantity, ResultFile, ResultRow, ResultsError, RowColumns, angle_in_range};
+use super::{Quantity, ResultFile, ResultRow, RowColumns, angle_in_range};
+use crate::input::FileError;
 use crate::input::limits;
 use crate::input::table::{Column, Dialect, Range, Reader, Row, TableError};
 
@@ -77,24 +78,8 @@ const DIALECT: Dialect = Dialect {
     unknown_names_checked: false,
 };
 
-impl From<TableError> for ResultsError {
-    fn from(e: TableError) -> Self {
-        if let Some(found) = e.found() {
-            return ResultsError::WrongKind {
-                location: e.location,
-                message: e.message,
-                found,
-            };
-        }
-        ResultsError::At {
-            location: e.location,
-            message: e.message,
-        }
-    }
-}
-
 /// Reads the bytes of a result file and checks every rule; `source` names it in messages.
-pub(super) fn parse_bytes(bytes: &[u8], source: &str) -> Result<ResultFile, ResultsError> {
+pub(super) fn parse_bytes(bytes: &[u8], source: &str) -> Result<ResultFile, FileError> {
     let mut table = Reader::open_with(bytes, source, &COLUMNS, DIALECT)?;
     let mut file = ResultFile {
         source: source.to_string(),

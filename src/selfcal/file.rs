@@ -7,17 +7,18 @@
 //! [`SelfcalSet::write_path`]).
 //!
 //! The rules are stated in the [`selfcal` module's documentation](crate::selfcal); this
-//! module holds the error type and the public functions, `parse` the reader, `validate`
-//! the rules beyond one field and `write` the writer.
+//! module holds the public functions (a refusal is a [`FileError`]), `columns` the file's
+//! columns, `parse` the reader, `validate` the rules beyond one field and `write` the
+//! writer.
 
 use std::io::Read;
 use std::path::Path;
 
 use super::{HeadReading, SelfcalSet};
-use crate::input::Location;
+use crate::input::FileError;
 
+mod columns;
 mod parse;
-
 mod validate;
 mod write;
 
@@ -26,70 +27,6 @@ const MEMORY_NAME: &str = "<readings>";
 
 /// The name [`SelfcalSet::write_to`] gives its writer in an I/O error.
 const OUTPUT_NAME: &str = "<output>";
-
-/// Why a self-calibration file or a set of head readings was refused, or could not be
-/// read or written.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum SelfcalError {
-    /// A file that breaks the rules: names the file, 1-based line and 1-based character
-    /// column.
-    ///
-    /// Displayed as `file:line:column: message`, e.g.
-    /// `run.csv:4:5: column "head": "0" is not allowed; head must be at least 1`. For
-    /// readings built in memory the line is the reading's [`HeadReading::line`] (0 when
-    /// not from a file) and the column 0; a 0 is left out of the display.
-    #[error("{location}: {message}")]
-    Invalid {
-        /// Where: the file (the `source` name given; `<stdin>` for standard input), line
-        /// and column.
-        location: Location,
-        /// What is wrong, naming the column and quoting the offending text.
-        message: String,
-    },
-    /// A file of another kind given as a self-calibration file: a budget, a result file, … (docs/FORMAT.md
-    /// §8). Displayed as `file:line:column: this is a budget (TOML, …), not a self-calibration file …`.
-    #[error("{location}: {message}")]
-    WrongKind {
-        /// Where: the file and the line that tells its kind.
-        location: Location,
-        /// What the file is, and what was expected.
-        message: String,
-        /// What the file is.
-        found: crate::input::kind::FileKind,
-    },
-    /// The file could not be opened, read or written.
-    #[error("{file}: {source}")]
-    Io {
-        /// The file (the `source` name given; `<stdin>` for standard input).
-        file: String,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
-    },
-}
-
-impl SelfcalError {
-    /// Where the problem is, for a refused file ([`SelfcalError::Invalid`]); `None` for
-    /// an I/O error.
-    pub fn location(&self) -> Option<&Location> {
-        match self {
-            SelfcalError::Invalid { location, .. } | SelfcalError::WrongKind { location, .. } => {
-                Some(location)
-            }
-            SelfcalError::Io { .. } => None,
-        }
-    }
-
-    /// What the file is, when it is of another kind than a self-calibration file
-    /// ([`SelfcalError::WrongKind`]).
-    pub fn found_kind(&self) -> Option<crate::input::kind::FileKind> {
-        match self {
-            SelfcalError::WrongKind { found, .. } => Some(*found),
-            _ => None,
-        }
-    }
-}
 
 impl SelfcalSet {
     /// Whether a file's text is that of a self-calibration file: its header (its first
@@ -121,15 +58,12 @@ impl SelfcalSet {
     ///
     /// # Errors
     ///
-    /// [`SelfcalError::Io`] if the file cannot be opened or read,
-    /// [`SelfcalError::Invalid`] if it breaks a rule of docs/FORMAT.md §9.2.
-    pub fn read_path(
-        path: impl AsRef<Path>,
-        positions: Option<usize>,
-    ) -> Result<Self, SelfcalError> {
+    /// [`FileError::Io`] if the file cannot be opened or read,
+    /// [`FileError::Invalid`] if it breaks a rule of docs/FORMAT.md §9.2.
+    pub fn read_path(path: impl AsRef<Path>, positions: Option<usize>) -> Result<Self, FileError> {
         let path = path.as_ref();
         let (bytes, name) = crate::input::read_bytes(path)
-            .map_err(|(file, source)| SelfcalError::Io { file, source })?;
+            .map_err(|(file, source)| FileError::Io { file, source })?;
         parse::parse_bytes(&bytes, &name, positions)
     }
 
@@ -137,19 +71,20 @@ impl SelfcalSet {
     ///
     /// The whole input is read, then checked against docs/FORMAT.md §9.2 (see the
     /// [module documentation](crate::selfcal)); the first problem found is returned as one
-    /// [`SelfcalError::Invalid`]. `positions` is the `--positions P` option: P is the
+    /// [`FileError::Invalid`]. `positions` is the `--positions P` option: P is the
     /// largest `step` + 1 unless given. Each [`HeadReading::line`] is the line its row
     /// starts on.
     ///
     /// # Errors
     ///
-    /// [`SelfcalError::Io`] if reading fails, [`SelfcalError::Invalid`] if the input
+    /// [`FileError::Io`] if reading fails, [`FileError::Invalid`] if the input
     /// breaks a rule.
     ///
     /// # Example
     ///
     /// ```
-    /// use polycal::selfcal::{SelfcalError, SelfcalSet};
+    /// use polycal::input::FileError;
+    /// use polycal::selfcal::SelfcalSet;
     ///
     /// let csv = b"# two heads half a turn apart, three positions\n\
     ///             cycle,step,head,head_angle,reading\n\
@@ -171,14 +106,14 @@ impl SelfcalSet {
     /// let bad = b"cycle,step,head,head_angle,reading\n1,0,1,0,0.5\n1,0,2,x,0.5\n";
     /// let err = SelfcalSet::read_from(&bad[..], "bad.csv", None).unwrap_err();
     /// assert_eq!(err.to_string(), r#"bad.csv:3:7: column "head_angle": "x" is not a number"#);
-    /// # Ok::<(), SelfcalError>(())
+    /// # Ok::<(), FileError>(())
     /// ```
     pub fn read_from<R: Read>(
         reader: R,
         source: &str,
         positions: Option<usize>,
-    ) -> Result<Self, SelfcalError> {
-        let bytes = crate::input::read_limited(reader).map_err(|e| SelfcalError::Io {
+    ) -> Result<Self, FileError> {
+        let bytes = crate::input::read_limited(reader).map_err(|e| FileError::Io {
             file: source.to_string(),
             source: e,
         })?;
@@ -199,11 +134,11 @@ impl SelfcalSet {
     ///
     /// # Errors
     ///
-    /// [`SelfcalError::Invalid`] for the first rule broken.
+    /// [`FileError::Invalid`] for the first rule broken.
     pub fn from_readings(
         readings: Vec<HeadReading>,
         positions: Option<usize>,
-    ) -> Result<Self, SelfcalError> {
+    ) -> Result<Self, FileError> {
         let positions = validate::validate(
             &readings,
             positions,
@@ -222,8 +157,8 @@ impl SelfcalSet {
     ///
     /// # Errors
     ///
-    /// [`SelfcalError::Invalid`] for the first rule broken.
-    pub fn check(&self) -> Result<(), SelfcalError> {
+    /// [`FileError::Invalid`] for the first rule broken.
+    pub fn check(&self) -> Result<(), FileError> {
         validate::validate(
             &self.readings,
             Some(self.positions),
@@ -245,8 +180,8 @@ impl SelfcalSet {
     ///
     /// # Errors
     ///
-    /// [`SelfcalError::Io`] (naming the file `<output>`) for any error of `w`.
-    pub fn write_to<W: std::io::Write>(&self, w: W) -> Result<(), SelfcalError> {
+    /// [`FileError::Io`] (naming the file `<output>`) for any error of `w`.
+    pub fn write_to<W: std::io::Write>(&self, w: W) -> Result<(), FileError> {
         self.write_with_comments(w, &[])
     }
 
@@ -256,13 +191,13 @@ impl SelfcalSet {
     ///
     /// # Errors
     ///
-    /// [`SelfcalError::Io`] (naming the file `<output>`) for any error of `w`.
+    /// [`FileError::Io`] (naming the file `<output>`) for any error of `w`.
     pub fn write_with_comments<W: std::io::Write>(
         &self,
         w: W,
         comments: &[String],
-    ) -> Result<(), SelfcalError> {
-        write::write(self, w, comments).map_err(|source| SelfcalError::Io {
+    ) -> Result<(), FileError> {
+        write::write(self, w, comments).map_err(|source| FileError::Io {
             file: OUTPUT_NAME.to_string(),
             source,
         })
@@ -274,14 +209,10 @@ impl SelfcalSet {
     ///
     /// # Errors
     ///
-    /// [`SelfcalError::Io`] naming the path if the file cannot be created or written.
-    pub fn write_path(
-        &self,
-        path: impl AsRef<Path>,
-        comments: &[String],
-    ) -> Result<(), SelfcalError> {
+    /// [`FileError::Io`] naming the path if the file cannot be created or written.
+    pub fn write_path(&self, path: impl AsRef<Path>, comments: &[String]) -> Result<(), FileError> {
         let path = path.as_ref();
-        let io_error = |source| SelfcalError::Io {
+        let io_error = |source| FileError::Io {
             file: path.display().to_string(),
             source,
         };

@@ -18,9 +18,9 @@
 //! The self-calibration file (docs/FORMAT.md §9.2) is read with [`SelfcalSet::read_path`]
 //! or [`SelfcalSet::read_from`] and written with [`SelfcalSet::write_to`]; readings built
 //! in memory are checked by the same rules with [`SelfcalSet::from_readings`]. A refused
-//! file gives one [`SelfcalError::Invalid`] naming the file, line and column (the reader,
-//! its validation and its writer live in `file.rs`, `file/parse.rs`, `file/validate.rs`
-//! and `file/write.rs`).
+//! file gives one [`FileError::Invalid`](crate::input::FileError::Invalid) naming the
+//! file, line and column (the reader, its columns, its validation and its writer live in
+//! `file.rs`, `file/parse.rs`, `file/columns.rs`, `file/validate.rs` and `file/write.rs`).
 //!
 //! # The rules
 //!
@@ -51,9 +51,9 @@
 //! it must be at least 3.
 //!
 //! Nothing is guessed. The first problem found is reported as one
-//! [`SelfcalError::Invalid`] naming the file, the 1-based line and the 1-based character
-//! column where the offending field starts, the column name and the offending text (cut
-//! after 40 characters), e.g.
+//! [`FileError::Invalid`](crate::input::FileError::Invalid) naming the file, the 1-based
+//! line and the 1-based character column where the offending field starts, the column
+//! name and the offending text (cut after 40 characters), e.g.
 //! `run.csv:4:5: column "head": "0" is not allowed; head must be at least 1`. A rule
 //! about the file or the set as a whole points at the header: a missing column at the
 //! header's start; a stated P below 3, and a step never read, at the header's `step`;
@@ -80,7 +80,6 @@ mod solution;
 mod solve;
 
 pub use budget::{SelfcalContribution, SelfcalUncertainty, evaluate_budget};
-pub use file::SelfcalError;
 pub(crate) use fourier::design::OffGridDesign;
 pub(crate) use head_angle::add_head_angle_u;
 pub use monte_carlo::{SelfcalMonteCarlo, monte_carlo};
@@ -200,7 +199,7 @@ pub fn solve(
     set: &SelfcalSet,
     options: &SelfcalOptions,
 ) -> Result<SelfcalSolution, SelfcalSolveError> {
-    set.check()?;
+    set.check().map_err(SelfcalSolveError::Invalid)?;
     let solution = solve::solve_closure(set, options)?;
     head_angle::add_head_angle_u(set, solution, options)
 }

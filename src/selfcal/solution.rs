@@ -5,9 +5,10 @@
 
 use nalgebra::DMatrix;
 
-use super::{Head, SelfcalError};
+use super::Head;
+use crate::input::FileError;
 use crate::input::limits::READING_ARCSEC;
-use crate::measurement::{MeasurementError, Sigma};
+use crate::measurement::Sigma;
 use crate::solve::cofactor::Cofactor;
 use crate::solve::{Engine, SigmaSource, SolveError};
 use crate::uncertainty::student::t_quantile;
@@ -112,10 +113,10 @@ pub enum SelfcalSolveError {
     /// The readings do not form a closure design (a set not validated by the file's
     /// rules).
     #[error("the self-calibration readings do not form a closure design: {0}")]
-    Design(#[from] MeasurementError),
+    Design(FileError),
     /// A set that breaks the self-calibration file's rules (built field by field).
     #[error("the self-calibration set is not valid: {0}")]
-    Invalid(#[from] SelfcalError),
+    Invalid(FileError),
     /// The bound on the lost harmonics is negative, not finite, or beyond a reading's range.
     #[error(
         "the bound on the lost harmonics must be a number from 0 to 1e6 arcsec (the range of a reading), not {}",

@@ -25,7 +25,8 @@ use super::solution::{
     SelfcalSolveError,
 };
 use super::{Head, SelfcalSet, fourier};
-use crate::measurement::{MeasurementError, MeasurementSet, Reading, step_angle_deg};
+use crate::input::FileError;
+use crate::measurement::{MeasurementSet, Reading, step_angle_deg};
 use crate::solve::cofactor::Cofactor;
 use crate::solve::least_squares::least_squares_zeroing_lost;
 use crate::solve::{ParameterLayout, Solution, SolveOptions};
@@ -74,7 +75,7 @@ fn closure_on_grid(
     offsets: &[usize],
     options: &SelfcalOptions,
 ) -> Result<Closure, SelfcalSolveError> {
-    let closure_set = closure_set(set, heads, offsets)?;
+    let closure_set = closure_set(set, heads, offsets).map_err(SelfcalSolveError::Design)?;
     let mut solve_options = SolveOptions::new().with_sigma_opt(options.sigma);
     if let Some(bytes) = options.memory_limit_bytes {
         solve_options = solve_options.with_memory_limit(bytes);
@@ -105,7 +106,7 @@ pub(crate) fn closure_set(
     set: &SelfcalSet,
     heads: &[Head],
     offsets: &[usize],
-) -> Result<MeasurementSet, MeasurementError> {
+) -> Result<MeasurementSet, FileError> {
     let p = set.positions;
     let offset_of = |head: u32| {
         heads

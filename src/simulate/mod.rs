@@ -152,11 +152,11 @@ pub enum SimulateError {
     /// The simulated readings break a rule of the measurement file (docs/FORMAT.md §2),
     /// such as a reading beyond its limits for a noise or a truth that large.
     #[error("the simulated readings: {0}")]
-    Readings(#[from] crate::measurement::MeasurementError),
+    Readings(crate::input::FileError),
     /// The simulated self-calibration readings break a rule of the self-calibration file
     /// (docs/FORMAT.md §9); not expected of a valid configuration.
     #[error("the simulated self-calibration readings: {0}")]
-    Selfcal(#[from] crate::selfcal::SelfcalError),
+    Selfcal(crate::input::FileError),
 }
 
 /// Simulates a run: draws the truth for `config`, then the readings.
@@ -347,7 +347,8 @@ pub fn simulate_with_truth(
     }
     // Every simulated reading obeys the rules of the file it will be written to (its
     // limits above all: a noise of 1e300″ is a valid setting with no valid reading).
-    let mut set = MeasurementSet::from_readings(readings, Some(n), "simulated")?;
+    let mut set = MeasurementSet::from_readings(readings, Some(n), "simulated")
+        .map_err(SimulateError::Readings)?;
     set.setup_shift_deg = (1..=config.setups)
         .map(|s| (s, config.table_shift_of(s)))
         .filter(|&(_, shift)| shift != 0.0)

@@ -196,6 +196,6 @@ pub fn simulate_selfcal(
             stop += 1;
         }
     }
-    let set = SelfcalSet::from_readings(readings, Some(p_count))?;
+    let set = SelfcalSet::from_readings(readings, Some(p_count)).map_err(SimulateError::Selfcal)?;
     Ok((set, truth))
 }

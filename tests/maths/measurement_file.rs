@@ -4,7 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use polycal::measurement::{Direction, MeasurementError, MeasurementSet, Reading};
+use polycal::input::FileError;
+use polycal::measurement::{Direction, MeasurementSet, Reading};
 use proptest::prelude::*;
 
 fn data(name: &str) -> PathBuf {
@@ -22,7 +23,7 @@ fn read_good(name: &str, faces: Option<usize>) -> MeasurementSet {
 }
 
 /// The error `MeasurementSet::read_path` gives for a bad file.
-fn refusal(name: &str, faces: Option<usize>) -> MeasurementError {
+fn refusal(name: &str, faces: Option<usize>) -> FileError {
     match MeasurementSet::read_path(&data(name), faces) {
         Ok(set) => panic!(
             "{name} should be refused, read {} readings",
@@ -33,9 +34,9 @@ fn refusal(name: &str, faces: Option<usize>) -> MeasurementError {
 }
 
 /// Asserts that `err` is `Invalid` at `file:line:column` and its message holds `words`.
-fn assert_invalid(err: &MeasurementError, file: &str, line: u64, column: u64, words: &[&str]) {
+fn assert_invalid(err: &FileError, file: &str, line: u64, column: u64, words: &[&str]) {
     let text = err.to_string();
-    let MeasurementError::Invalid { location, message } = err else {
+    let FileError::Invalid { location, message } = err else {
         panic!("expected Invalid, got {text}");
     };
     assert_eq!(
@@ -61,11 +62,11 @@ fn assert_refused(name: &str, faces: Option<usize>, line: u64, column: u64, word
     assert_invalid(&err, &file, line, column, words);
 }
 
-fn read_bytes(bytes: &[u8], faces: Option<usize>) -> Result<MeasurementSet, MeasurementError> {
+fn read_bytes(bytes: &[u8], faces: Option<usize>) -> Result<MeasurementSet, FileError> {
     MeasurementSet::read_from(bytes, "mem.csv", faces)
 }
 
-fn refused_bytes(bytes: &[u8], faces: Option<usize>) -> MeasurementError {
+fn refused_bytes(bytes: &[u8], faces: Option<usize>) -> FileError {
     match read_bytes(bytes, faces) {
         Ok(set) => panic!("should be refused, read {} readings", set.readings.len()),
         Err(e) => e,
@@ -654,7 +655,7 @@ fn a_comment_after_the_header_is_not_a_comment() {
 fn io_errors_name_the_file() {
     let path = data("no_such_file.csv");
     let err = MeasurementSet::read_path(&path, None).unwrap_err();
-    assert!(matches!(err, MeasurementError::Io { .. }), "{err}");
+    assert!(matches!(err, FileError::Io { .. }), "{err}");
     assert!(
         err.to_string()
             .starts_with(&format!("{}: ", path.display()))
@@ -912,7 +913,7 @@ fn write_path_and_read_path_round_trip() {
     let err = set
         .write_path(&dir.join("no/such/dir.csv"), &[])
         .unwrap_err();
-    assert!(matches!(err, MeasurementError::Io { .. }), "{err}");
+    assert!(matches!(err, FileError::Io { .. }), "{err}");
 }
 
 #[test]

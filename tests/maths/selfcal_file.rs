@@ -7,8 +7,9 @@
 
 use std::path::{Path, PathBuf};
 
+use polycal::input::FileError;
 use polycal::measurement::Direction;
-use polycal::selfcal::{Head, HeadReading, SelfcalError, SelfcalSet};
+use polycal::selfcal::{Head, HeadReading, SelfcalSet};
 use proptest::prelude::*;
 
 /// The file the bad files are made from: heads 1 and 2 at 0° and 180°, P = 3, one cycle.
@@ -34,9 +35,9 @@ fn read_good(name: &str, positions: Option<usize>) -> SelfcalSet {
 }
 
 /// Asserts that `err` is `Invalid` at `file:line:column` and its message holds `words`.
-fn assert_invalid(err: &SelfcalError, file: &str, line: u64, column: u64, words: &[&str]) {
+fn assert_invalid(err: &FileError, file: &str, line: u64, column: u64, words: &[&str]) {
     let text = err.to_string();
-    let SelfcalError::Invalid { location, message } = err else {
+    let FileError::Invalid { location, message } = err else {
         panic!("expected Invalid, got {text}");
     };
     assert_eq!(
@@ -80,11 +81,11 @@ fn assert_refused(
     );
 }
 
-fn read_bytes(bytes: &[u8], positions: Option<usize>) -> Result<SelfcalSet, SelfcalError> {
+fn read_bytes(bytes: &[u8], positions: Option<usize>) -> Result<SelfcalSet, FileError> {
     SelfcalSet::read_from(bytes, "mem.csv", positions)
 }
 
-fn refused_bytes(bytes: &[u8], positions: Option<usize>) -> SelfcalError {
+fn refused_bytes(bytes: &[u8], positions: Option<usize>) -> FileError {
     match read_bytes(bytes, positions) {
         Ok(set) => panic!("should be refused, read {} readings", set.readings.len()),
         Err(e) => e,
@@ -287,7 +288,7 @@ fn read_from_names_its_source_and_io_errors_name_the_file() {
 
     let path = data("no_such_file.csv");
     let err = SelfcalSet::read_path(&path, None).unwrap_err();
-    assert!(matches!(err, SelfcalError::Io { .. }), "{err}");
+    assert!(matches!(err, FileError::Io { .. }), "{err}");
     assert_eq!(err.location(), None);
     assert!(
         err.to_string()
@@ -1073,7 +1074,7 @@ fn write_path_and_read_path_round_trip() {
     let err = set
         .write_path(dir.join("no/such/dir.csv"), &[])
         .unwrap_err();
-    assert!(matches!(err, SelfcalError::Io { .. }), "{err}");
+    assert!(matches!(err, FileError::Io { .. }), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 
     struct Full;
@@ -1174,15 +1175,15 @@ fn valid_set() -> impl Strategy<Value = SelfcalSet> {
 /// A read either gives a set that passes `from_readings` unchanged, or an error with a
 /// line and a column — a file that breaks the rules, or one of another kind (`[` or `{`
 /// first: a budget, a JSON document; docs/FORMAT.md §8); it never panics.
-fn check_outcome(result: Result<SelfcalSet, SelfcalError>) {
+fn check_outcome(result: Result<SelfcalSet, FileError>) {
     match result {
         Ok(set) => {
             let again = SelfcalSet::from_readings(set.readings.clone(), Some(set.positions));
             assert_eq!(again.ok().as_ref(), Some(&set));
         }
         Err(
-            SelfcalError::Invalid { location, message }
-            | SelfcalError::WrongKind {
+            FileError::Invalid { location, message }
+            | FileError::WrongKind {
                 location, message, ..
             },
         ) => {

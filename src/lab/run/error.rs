@@ -4,8 +4,9 @@ use std::io;
 use std::path::PathBuf;
 
 use super::{MANIFEST, RunSettings, SettingsError};
+use crate::input::FileError;
 use crate::input::Location;
-use crate::measurement::{Direction, MeasurementError};
+use crate::measurement::Direction;
 
 /// Why a run directory was refused or could not be used. Every variant names the file or
 /// directory; those about a line of the measurement file give its [`Location`].
@@ -92,7 +93,7 @@ pub enum RunError {
     #[error("{error}; refusing to resume")]
     Unreadable {
         /// What is wrong, and where.
-        error: MeasurementError,
+        error: FileError,
     },
     /// A reading that is not the run's next one in order.
     #[error(

@@ -5,8 +5,8 @@
 use std::collections::hash_map::Entry;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
-use super::SelfcalError;
-use super::parse::{Col, angle_outside, invalid};
+use super::columns::{Col, angle_outside};
+use crate::input::FileError;
 use crate::input::table::Locator;
 use crate::measurement::direction_text;
 use crate::selfcal::HeadReading;
@@ -51,9 +51,9 @@ pub(super) fn validate(
     positions: Option<usize>,
     loc: &Locator<'_>,
     source: &str,
-) -> Result<usize, SelfcalError> {
+) -> Result<usize, FileError> {
     if readings.is_empty() {
-        return Err(invalid(
+        return Err(FileError::invalid(
             source,
             loc.header_start(),
             loc.no_rows().to_string(),
@@ -89,8 +89,8 @@ fn check_values(
     readings: &[HeadReading],
     loc: &Locator<'_>,
     source: &str,
-) -> Result<(), SelfcalError> {
-    let err = |at: (u64, u64), message: String| invalid(source, at, message);
+) -> Result<(), FileError> {
+    let err = |at: (u64, u64), message: String| FileError::invalid(source, at, message);
     for (i, r) in readings.iter().enumerate() {
         let p = loc.prefix(i, readings);
         for (col, zero) in [(Col::Cycle, r.cycle == 0), (Col::Head, r.head == 0)] {
@@ -136,8 +136,8 @@ fn number_of_positions(
     positions: Option<usize>,
     loc: &Locator<'_>,
     source: &str,
-) -> Result<(usize, &'static str), SelfcalError> {
-    let err = |at: (u64, u64), message: String| invalid(source, at, message);
+) -> Result<(usize, &'static str), FileError> {
+    let err = |at: (u64, u64), message: String| FileError::invalid(source, at, message);
     match positions {
         Some(n) => {
             if n < 3 {
@@ -199,8 +199,8 @@ struct RowChecks<'a> {
 }
 
 impl RowChecks<'_> {
-    fn err(&self, at: (u64, u64), message: String) -> SelfcalError {
-        invalid(self.source, at, message)
+    fn err(&self, at: (u64, u64), message: String) -> FileError {
+        FileError::invalid(self.source, at, message)
     }
 
     /// Row `i` (`r`): its step within 0 … P−1 (P = `n`, from `n_from`), not read before,
@@ -211,7 +211,7 @@ impl RowChecks<'_> {
         r: &HeadReading,
         n: usize,
         n_from: &str,
-    ) -> Result<(), SelfcalError> {
+    ) -> Result<(), FileError> {
         let (loc, readings) = (self.loc, self.readings);
         let p = loc.prefix(i, readings);
         if r.step >= n {
@@ -227,7 +227,7 @@ impl RowChecks<'_> {
 
         match self.first_read.entry((r.cycle, r.step, r.head)) {
             Entry::Occupied(first) => {
-                return Err(invalid(
+                return Err(FileError::invalid(
                     self.source,
                     loc.row_start(i, readings),
                     format!(
@@ -249,7 +249,7 @@ impl RowChecks<'_> {
                 let j = *first.get();
                 let direction = readings.get(j).map(|f| f.direction).unwrap_or_default();
                 if direction != r.direction {
-                    return Err(invalid(
+                    return Err(FileError::invalid(
                         self.source,
                         loc.row(i, readings, Col::Direction.at()),
                         format!(
@@ -272,7 +272,7 @@ impl RowChecks<'_> {
 
     /// Row `i`'s head angle (`p`: the row's prefix for messages): 0 for head 1, the one
     /// angle of its head, and for a head new, not the angle of another head.
-    fn head_angle(&mut self, i: usize, r: &HeadReading, p: &str) -> Result<(), SelfcalError> {
+    fn head_angle(&mut self, i: usize, r: &HeadReading, p: &str) -> Result<(), FileError> {
         let (loc, readings) = (self.loc, self.readings);
         let angle_at = loc.row(i, readings, Col::HeadAngle.at());
         let angle = r.head_angle_deg;
@@ -290,7 +290,7 @@ impl RowChecks<'_> {
             Entry::Occupied(first) => {
                 let j = *first.get();
                 if readings.get(j).is_some_and(|f| f.head_angle_deg != angle) {
-                    return Err(invalid(
+                    return Err(FileError::invalid(
                         self.source,
                         angle_at,
                         format!(
@@ -320,7 +320,7 @@ impl RowChecks<'_> {
                 });
                 if let Some((_, &j)) = same {
                     let other = readings.get(j).map_or(0, |f| f.head);
-                    return Err(invalid(
+                    return Err(FileError::invalid(
                         self.source,
                         angle_at,
                         format!(
@@ -342,9 +342,9 @@ impl RowChecks<'_> {
 }
 
 /// The heads read: at least 2, head 1 (the reference) among them.
-fn check_heads(heads: &BTreeSet<u32>, loc: &Locator<'_>, source: &str) -> Result<(), SelfcalError> {
+fn check_heads(heads: &BTreeSet<u32>, loc: &Locator<'_>, source: &str) -> Result<(), FileError> {
     if heads.len() < 2 {
-        return Err(invalid(
+        return Err(FileError::invalid(
             source,
             loc.header(Col::Head.at()),
             format!(
@@ -354,7 +354,7 @@ fn check_heads(heads: &BTreeSet<u32>, loc: &Locator<'_>, source: &str) -> Result
         ));
     }
     if !heads.contains(&1) {
-        return Err(invalid(
+        return Err(FileError::invalid(
             source,
             loc.header(Col::Head.at()),
             format!(
@@ -374,7 +374,7 @@ fn check_every_step_read(
     (n, n_from): (usize, &str),
     loc: &Locator<'_>,
     source: &str,
-) -> Result<(), SelfcalError> {
+) -> Result<(), FileError> {
     let mut steps: BTreeMap<u32, BTreeMap<u32, Vec<usize>>> = BTreeMap::new();
     for r in readings {
         steps
@@ -402,7 +402,7 @@ fn check_every_step_read(
             }
         }
         if let Some((step, head)) = first_missing {
-            return Err(invalid(
+            return Err(FileError::invalid(
                 source,
                 loc.header(Col::Step.at()),
                 format!(
