@@ -97,8 +97,13 @@ pub fn table() -> Result<String, Box<dyn std::error::Error>> {
         .with_ac_profile(ac_profile.clone())
         .with_table_profile(table_profile.clone());
         let Devices {
-            ac1, ac2, table, ..
+            autocollimators,
+            table,
+            ..
         } = Devices::new(lab)?;
+        let Ok([ac1, ac2]) = <[_; 2]>::try_from(autocollimators) else {
+            return Err("the simulated lab has two autocollimators".into());
+        };
         let query = QueryOptions::new(Duration::from_millis(200), 3);
         let ac_count = Arc::new(Mutex::new(Count::default()));
         let table_count = Arc::new(Mutex::new(Count::default()));
@@ -126,17 +131,12 @@ pub fn table() -> Result<String, Box<dyn std::error::Error>> {
         let mut run_dir = RunDir::open(
             &dir,
             &settings,
-            &Ports::new("mem:ac1", "mem:ac2", "mem:table"),
+            &Ports::new(["mem:ac1", "mem:ac2"], "mem:table"),
             false,
         )?;
         let outcome = run::measure(
             &mut run_dir,
-            Instruments {
-                ac1: &mut a1,
-                ac2: &mut a2,
-                table: &mut t,
-                more: Vec::new(),
-            },
+            Instruments::new(vec![&mut a1, &mut a2], &mut t),
             &StopFlag::new(),
             None,
             &mut |_| {},

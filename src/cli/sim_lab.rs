@@ -156,7 +156,7 @@ fn serve(devices: Devices, args: &SimLabArgs, out: &Output) -> Result<u8> {
         Lab::start(devices)?
     };
     let paths = lab.paths().clone();
-    let acs = paths.acs();
+    let acs = &paths.autocollimators;
     {
         let stdout = super::stdout::stdout();
         let mut stdout = stdout.lock();
@@ -172,7 +172,7 @@ fn serve(devices: Devices, args: &SimLabArgs, out: &Output) -> Result<u8> {
         stdout.flush()?;
     }
     let ports = if acs.len() == 2 {
-        format!("--ac1 {} --ac2 {}", paths.ac1, paths.ac2)
+        format!("--ac1 {} --ac2 {}", acs[0], acs[1])
     } else {
         acs.iter()
             .map(|p| format!("--ac {p}"))

@@ -27,8 +27,6 @@ pub struct SimLab {
     child: Child,
     stdin: ChildStdin,
     stdout: Lines<BufReader<ChildStdout>>,
-    pub ac1: String,
-    pub ac2: String,
     /// Every autocollimator's path, 1 … K.
     pub acs: Vec<String>,
     pub table: String,
@@ -75,8 +73,6 @@ impl SimLab {
             child,
             stdin,
             stdout: lines,
-            ac1: acs[0].clone(),
-            ac2: acs[1].clone(),
             acs,
             table,
             truth,
@@ -101,9 +97,9 @@ impl SimLab {
         if self.acs.len() == 2 {
             args.extend([
                 "--ac1".into(),
-                self.ac1.clone(),
+                self.acs[0].clone(),
                 "--ac2".into(),
-                self.ac2.clone(),
+                self.acs[1].clone(),
             ]);
         } else {
             for path in &self.acs {

@@ -54,8 +54,13 @@ fn logged_drivers(
     ProfileTable<Logged>,
 ) {
     let Devices {
-        ac1, ac2, table, ..
+        autocollimators,
+        table,
+        ..
     } = noiseless();
+    let Ok([ac1, ac2]) = <[_; 2]>::try_from(autocollimators) else {
+        panic!("two autocollimators")
+    };
     let port = |name: &str, device: &str, stream| {
         LoggedTransport::new(StreamTransport::new(name, stream), device, log.clone())
     };
@@ -99,12 +104,7 @@ fn session(dir: &Path, resume: bool, budget: &WriteBudget) -> Result<Session, Ru
         let (mut ac1, mut ac2, mut table) = logged_drivers(&log);
         run::measure(
             &mut run,
-            Instruments {
-                ac1: &mut ac1,
-                ac2: &mut ac2,
-                table: &mut table,
-                more: Vec::new(),
-            },
+            Instruments::new(vec![&mut ac1, &mut ac2], &mut table),
             &StopFlag::new(),
             Some(&log),
             &mut |p| reported = p.done,
@@ -253,12 +253,7 @@ fn measure_sizes() -> Sizes {
     let mut at_first_reading = None;
     let outcome = run::measure(
         &mut run,
-        Instruments {
-            ac1: &mut ac1,
-            ac2: &mut ac2,
-            table: &mut table,
-            more: Vec::new(),
-        },
+        Instruments::new(vec![&mut ac1, &mut ac2], &mut table),
         &StopFlag::new(),
         None,
         &mut |_| {

@@ -294,11 +294,11 @@ fn serial_transport_against_the_library_lab() {
         Profile::load("smc100").unwrap(),
     );
     let open = |path: &str, p: &Profile| SerialTransport::open(path, &p.line).unwrap();
-    let mut ac1 = ProfileAutocollimator::elcomat3000(open(&paths.ac1, &elcomat), q);
-    let mut ac2 = ProfileAutocollimator::elcomat3000(open(&paths.ac2, &elcomat), q);
+    let mut ac1 = ProfileAutocollimator::elcomat3000(open(&paths.autocollimators[0], &elcomat), q);
+    let mut ac2 = ProfileAutocollimator::elcomat3000(open(&paths.autocollimators[1], &elcomat), q);
     let mut table = ProfileTable::smc100(open(&paths.table, &smc100), TableOptions::default());
     assert!(matches!(
-        SerialTransport::open(&paths.ac1, &elcomat.line),
+        SerialTransport::open(&paths.autocollimators[0], &elcomat.line),
         Err(polycal::lab::InstrumentError::Open { .. })
     ));
     ac1.start().unwrap();

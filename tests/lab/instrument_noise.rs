@@ -242,8 +242,13 @@ fn late_reply_run(
     let devices = Devices::new(one_cycle(faces, seed, vec![late])).unwrap();
     let truth = devices.truth();
     let Devices {
-        ac1, ac2, table, ..
+        autocollimators,
+        table,
+        ..
     } = devices;
+    let Ok([ac1, ac2]) = <[_; 2]>::try_from(autocollimators) else {
+        panic!("two autocollimators")
+    };
     // A deadline for a whole line on the wire (the identification's 54 bytes take
     // 28 ms at 19200 baud).
     let options = QueryOptions::new(Duration::from_millis(200), 3).with_alone_wait(alone_wait);
@@ -263,12 +268,7 @@ fn late_reply_run(
     let mut run = RunDir::open(&dir, &settings, &ports(), false).unwrap();
     let outcome = run::measure(
         &mut run,
-        run::Instruments {
-            ac1: &mut ac1,
-            ac2: &mut ac2,
-            table: &mut table,
-            more: Vec::new(),
-        },
+        run::Instruments::new(vec![&mut ac1, &mut ac2], &mut table),
         &stop,
         None,
         &mut |_| {},

@@ -74,12 +74,7 @@ fn session(
     let mut taken = 0;
     let outcome = run::measure(
         &mut run,
-        Instruments {
-            ac1,
-            ac2,
-            table,
-            more: Vec::new(),
-        },
+        Instruments::new(vec![ac1, ac2], table),
         stop,
         Some(&log),
         &mut |p| {

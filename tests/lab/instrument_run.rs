@@ -49,14 +49,14 @@ fn the_sign_of_a_position_offset_and_readings_off_the_stops() {
     assert_eq!(reply(&mut devices.table, "1TS\r\n"), "1TS000032\r\n");
     // 45.001°: 3.6″ past stop 1; the reading grows by 3.6″ (α is true − indicated).
     assert_eq!(reply(&mut devices.table, "1PA45.001\r\n"), "");
-    let line = reply(&mut devices.ac1, "a\n");
+    let line = reply(&mut devices.autocollimators[0], "a\n");
     let parts: Vec<&str> = line.split_whitespace().collect();
     assert_eq!(parts[..2], ["4", "003"]);
     let x: f64 = parts[2].parse().unwrap();
     assert!((x - (expected(&truth, 1, 1) + 3.6)).abs() < 1e-5, "{line}");
     // Half-way between two stops no face is in front of the autocollimator.
     reply(&mut devices.table, "1PA22.5\r\n");
-    assert!(reply(&mut devices.ac2, "a\n").starts_with("4 000 "));
+    assert!(reply(&mut devices.autocollimators[1], "a\n").starts_with("4 000 "));
 }
 
 #[test]
@@ -69,7 +69,7 @@ fn a_reading_while_the_table_moves_is_not_valid() {
     reply(&mut devices.table, "1OR\r\n");
     reply(&mut devices.table, "1PA90\r\n"); // 0.9 s of motion
     assert_eq!(reply(&mut devices.table, "1TS\r\n"), "1TS000028\r\n");
-    let during = reply(&mut devices.ac1, "a\n");
+    let during = reply(&mut devices.autocollimators[0], "a\n");
     assert!(during.starts_with("4 000 "), "{during}");
     let tp = reply(&mut devices.table, "1TP\r\n");
     let pos: f64 = tp.trim().trim_start_matches("1TP").parse().unwrap();
@@ -118,17 +118,17 @@ fn the_simulated_controller_states() {
 #[test]
 fn the_simulated_autocollimator_streams_until_stopped() {
     let mut d = Devices::new(lab(8, 0.0, vec![])).unwrap();
-    assert!(reply(&mut d.ac1, "d\n").starts_with("8 ELCOMAT 3000"));
-    assert_eq!(reply(&mut d.ac1, "A\n"), "");
+    assert!(reply(&mut d.autocollimators[0], "d\n").starts_with("8 ELCOMAT 3000"));
+    assert_eq!(reply(&mut d.autocollimators[0], "A\n"), "");
     std::thread::sleep(Duration::from_millis(60));
-    let streamed = String::from_utf8(d.ac1.tick(Instant::now())).unwrap();
+    let streamed = String::from_utf8(d.autocollimators[0].tick(Instant::now())).unwrap();
     assert!(streamed.starts_with("3 "), "{streamed:?}");
-    reply(&mut d.ac1, "s\n");
+    reply(&mut d.autocollimators[0], "s\n");
     std::thread::sleep(Duration::from_millis(60));
-    assert!(d.ac1.tick(Instant::now()).is_empty());
-    assert!(reply(&mut d.ac1, "r\n").starts_with("2 "));
+    assert!(d.autocollimators[0].tick(Instant::now()).is_empty());
+    assert!(reply(&mut d.autocollimators[0], "r\n").starts_with("2 "));
     assert_eq!(
-        reply(&mut d.ac1, "z\n"),
+        reply(&mut d.autocollimators[0], "z\n"),
         "",
         "unknown commands get no reply"
     );

@@ -55,12 +55,7 @@ fn session(dir: &std::path::Path, devices: Devices, resume: bool) -> Outcome {
     let (mut ac1, mut ac2, mut table, _) = drivers(devices, &stop);
     let outcome = run::measure(
         &mut run,
-        Instruments {
-            ac1: &mut ac1,
-            ac2: &mut ac2,
-            table: &mut table,
-            more: Vec::new(),
-        },
+        Instruments::new(vec![&mut ac1, &mut ac2], &mut table),
         &stop,
         None,
         &mut |_| {},

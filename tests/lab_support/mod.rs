@@ -42,8 +42,13 @@ pub fn query() -> QueryOptions {
 pub fn drivers(devices: Devices, stop: &StopFlag) -> (Ac, Ac, Table, Truth) {
     let truth = devices.truth();
     let Devices {
-        ac1, ac2, table, ..
+        autocollimators,
+        table,
+        ..
     } = devices;
+    let Ok([ac1, ac2]) = <[_; 2]>::try_from(autocollimators) else {
+        panic!("two autocollimators")
+    };
     let ac = |name: &str, e: Endpoint| {
         ProfileAutocollimator::elcomat3000(StreamTransport::new(name, SimStream::new(e)), query())
             .with_drain(Duration::ZERO)
@@ -58,12 +63,7 @@ pub fn drivers(devices: Devices, stop: &StopFlag) -> (Ac, Ac, Table, Truth) {
 
 /// The run's instruments: the two autocollimators and the table of `d`.
 pub fn instruments(d: &mut (Ac, Ac, Table, Truth)) -> polycal::lab::run::Instruments<'_> {
-    polycal::lab::run::Instruments {
-        ac1: &mut d.0,
-        ac2: &mut d.1,
-        table: &mut d.2,
-        more: Vec::new(),
-    }
+    polycal::lab::run::Instruments::new(vec![&mut d.0, &mut d.1], &mut d.2)
 }
 
 /// What autocollimator `ac` reads at `step` without noise: α + φ of its face + its
@@ -92,5 +92,5 @@ pub fn temp_dir(name: &str) -> PathBuf {
 
 /// The in-memory ports.
 pub fn ports() -> Ports {
-    Ports::new("mem:ac1", "mem:ac2", "mem:table")
+    Ports::new(["mem:ac1", "mem:ac2"], "mem:table")
 }

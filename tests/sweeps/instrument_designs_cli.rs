@@ -136,9 +136,9 @@ fn ports_that_do_not_match_the_autocollimators_are_refused() {
     let mut args = vec![
         "run".to_string(),
         "--ac1".into(),
-        lab.ac1.clone(),
+        lab.acs[0].clone(),
         "--ac2".into(),
-        lab.ac2.clone(),
+        lab.acs[1].clone(),
         "--table".into(),
         lab.table.clone(),
         "--out".into(),

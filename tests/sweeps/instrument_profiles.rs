@@ -78,20 +78,14 @@ fn session(
         Lab::start(devices).unwrap()
     };
     let paths = lab.paths().clone();
-    let mut run = RunDir::open(
-        dir,
-        &settings(),
-        &Ports::new(&paths.ac1, &paths.ac2, &paths.table),
-        resume,
-    )
-    .unwrap();
+    let mut run = RunDir::open(dir, &settings(), &paths, resume).unwrap();
     let stop = StopFlag::new();
     let ac = |path: &str| {
         ProfileAutocollimator::new(open(path, ac_profile), ac_profile, query())
             .unwrap()
             .with_drain(Duration::from_millis(5))
     };
-    let (mut ac1, mut ac2) = (ac(&paths.ac1), ac(&paths.ac2));
+    let mut acs: Vec<_> = paths.autocollimators.iter().map(|p| ac(p)).collect();
     let mut table = ProfileTable::new(
         open(&paths.table, table_profile),
         table_profile,
@@ -101,19 +95,14 @@ fn session(
     .with_stop_flag(stop.clone());
     let outcome = run::measure(
         &mut run,
-        Instruments {
-            ac1: &mut ac1,
-            ac2: &mut ac2,
-            table: &mut table,
-            more: Vec::new(),
-        },
+        Instruments::of(&mut acs, &mut table),
         &stop,
         None,
         &mut |_| {},
     )
     .unwrap();
     run.finish(&outcome).unwrap();
-    drop((ac1, ac2, table));
+    drop((acs, table));
     lab.shutdown();
     outcome
 }
@@ -463,8 +452,13 @@ fn a_wrong_value_in_the_right_form_is_refused_at_its_stop() {
             let devices = Devices::new(config(vec![fault], &ac, &table)).unwrap();
             let truth = devices.truth();
             let Devices {
-                ac1, ac2, table: t, ..
+                autocollimators,
+                table: t,
+                ..
             } = devices;
+            let Ok([ac1, ac2]) = <[_; 2]>::try_from(autocollimators) else {
+                panic!("two autocollimators")
+            };
             let q = QueryOptions::new(Duration::from_millis(30), 3);
             let driver = |name: &str, e| {
                 ProfileAutocollimator::elcomat3000(StreamTransport::new(name, SimStream::new(e)), q)
@@ -484,15 +478,11 @@ fn a_wrong_value_in_the_right_form_is_refused_at_its_stop() {
             let settings = RunSettings::new(FACES, 1)
                 .with_closing(true)
                 .with_reading_noise_arcsec(stated);
-            let mut run = RunDir::open(&dir, &settings, &Ports::new("a", "b", "c"), false).unwrap();
+            let mut run =
+                RunDir::open(&dir, &settings, &Ports::new(["a", "b"], "c"), false).unwrap();
             let outcome = run::measure(
                 &mut run,
-                Instruments {
-                    ac1: &mut a1,
-                    ac2: &mut a2,
-                    table: &mut tb,
-                    more: Vec::new(),
-                },
+                Instruments::new(vec![&mut a1, &mut a2], &mut tb),
                 &StopFlag::new(),
                 None,
                 &mut |_| {},

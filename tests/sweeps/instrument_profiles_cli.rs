@@ -78,9 +78,9 @@ fn check_instruments_talks_to_each_once_and_moves_nothing() {
         let out = polycal(&[
             "run",
             "--ac1",
-            &lab.ac1,
+            &lab.acs[0],
             "--ac2",
-            &lab.ac2,
+            &lab.acs[1],
             "--table",
             &lab.table,
             "--table-profile",
@@ -92,8 +92,10 @@ fn check_instruments_talks_to_each_once_and_moves_nothing() {
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 3, "{text}");
         assert!(
-            lines[0].starts_with(&format!("autocollimator 1 at {} (elcomat3000): ", lab.ac1))
-                && lines[0].contains("SIM-1")
+            lines[0].starts_with(&format!(
+                "autocollimator 1 at {} (elcomat3000): ",
+                lab.acs[0]
+            )) && lines[0].contains("SIM-1")
                 && lines[0].contains("; reading X ")
                 && lines[0].ends_with("; ok"),
             "{text}"
@@ -120,9 +122,9 @@ fn check_instruments_names_an_instrument_that_speaks_another_protocol() {
     let out = polycal(&[
         "run",
         "--ac1",
-        &lab.ac1,
+        &lab.acs[0],
         "--ac2",
-        &lab.ac2,
+        &lab.acs[1],
         "--table",
         &lab.table,
         "--table-profile",

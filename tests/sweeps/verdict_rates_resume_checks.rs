@@ -88,12 +88,7 @@ fn resumed(seed: u64, swapped: bool) -> (bool, bool) {
         let mut taken = 0;
         let outcome = run::measure(
             &mut run,
-            Instruments {
-                ac1: &mut Alike(first),
-                ac2: &mut Alike(second),
-                table: &mut table,
-                more: Vec::new(),
-            },
+            Instruments::new(vec![&mut Alike(first), &mut Alike(second)], &mut table),
             &stop,
             None,
             &mut |p| {

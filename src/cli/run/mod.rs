@@ -457,7 +457,7 @@ impl Session<'_> {
                 settings.ac_faces_text()
             );
         }
-        let ports = Ports::of(&ac_ports, args.table.clone());
+        let ports = Ports::new(ac_ports.iter().cloned(), args.table.clone());
         let stop = interrupts.stop_flag();
         let mut dir = RunDir::open_mounting(
             args.out(),
@@ -582,8 +582,7 @@ impl Session<'_> {
         let before = dir.readings_done();
         let outcome = run::measure_attended(
             &mut dir,
-            instruments(&mut acs, &mut table)
-                .ok_or_else(|| anyhow!("a run needs two autocollimators at least"))?,
+            Instruments::of(&mut acs, &mut table),
             stop,
             Some(&log),
             &mut operator,
@@ -622,25 +621,6 @@ impl Session<'_> {
         "  next mounting: remount the polygon when the run asks, with the same command and {options}"
     ));
     }
-}
-
-/// The instruments of a run: the autocollimators in order and the table; `None` with
-/// fewer than two autocollimators (the settings refuse that before).
-fn instruments<'a, A: polycal::lab::Autocollimator, T: polycal::lab::RotaryTable>(
-    acs: &'a mut [A],
-    table: &'a mut T,
-) -> Option<Instruments<'a>> {
-    let mut acs = acs
-        .iter_mut()
-        .map(|a| a as &mut dyn polycal::lab::Autocollimator);
-    let (ac1, ac2) = (acs.next(), acs.next());
-    let more = acs.collect();
-    Some(Instruments {
-        ac1: ac1?,
-        ac2: ac2?,
-        table,
-        more,
-    })
 }
 
 impl RunArgs {

@@ -454,7 +454,10 @@ impl RunDir {
         if let Some(before) = &self.manifest.instruments {
             let mut differences = Vec::new();
             for ac in self.manifest.settings.acs() {
-                let (a, b) = (before.ac(ac), identification.ac(ac));
+                let (a, b) = (
+                    before.ac(ac).map(String::as_str),
+                    identification.ac(ac).map(String::as_str),
+                );
                 if a != b {
                     differences.push(format!(
                         "ac{ac} was {:?}, is now {:?}",

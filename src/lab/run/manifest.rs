@@ -3,7 +3,6 @@
 
 pub use crate::clock::{rfc3339, unix_now};
 
-use std::collections::BTreeMap;
 use std::fs::{self, File};
 use std::io::{self, Write};
 use std::path::Path;
@@ -12,127 +11,18 @@ use serde::{Deserialize, Serialize};
 
 use super::error::io_error;
 use super::{MANIFEST, RunError, RunSettings};
-use crate::lab::WriteBudget;
+use crate::lab::{PerInstrument, WriteBudget};
 
 /// The manifest format tag.
 pub const MANIFEST_FORMAT: &str = "polycal-run/1";
 
-/// The ports of the instruments.
-#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[non_exhaustive]
-pub struct Ports {
-    /// Autocollimator 1.
-    pub ac1: String,
-    /// Autocollimator 2.
-    pub ac2: String,
-    /// The rotary table.
-    pub table: String,
-    /// Autocollimators 3 … K, as `ac3`, `ac4`, … (fields of the object).
-    #[serde(flatten)]
-    pub more: BTreeMap<String, String>,
-}
+/// The ports of the instruments: autocollimators 1 … K and the rotary table (the
+/// manifest's `ports`).
+pub type Ports = PerInstrument<String>;
 
-impl Ports {
-    /// The ports of autocollimator 1, autocollimator 2 and the rotary table.
-    pub fn new(ac1: impl Into<String>, ac2: impl Into<String>, table: impl Into<String>) -> Ports {
-        Ports {
-            ac1: ac1.into(),
-            ac2: ac2.into(),
-            table: table.into(),
-            more: BTreeMap::new(),
-        }
-    }
-
-    /// The ports of autocollimators 1 … K (at least two) and the rotary table.
-    pub fn of(acs: &[String], table: impl Into<String>) -> Ports {
-        let (ac1, ac2, more) = split(acs);
-        Ports {
-            ac1,
-            ac2,
-            table: table.into(),
-            more,
-        }
-    }
-
-    /// The port of autocollimator `ac` (1 … K).
-    pub fn ac(&self, ac: u32) -> Option<&str> {
-        pick(ac, &self.ac1, &self.ac2, &self.more)
-    }
-}
-
-/// Autocollimators 1 and 2 of a list, and 3 … K keyed `ac3`, `ac4`, ….
-fn split(acs: &[String]) -> (String, String, BTreeMap<String, String>) {
-    let at = |i: usize| acs.get(i).cloned().unwrap_or_default();
-    let more = acs
-        .iter()
-        .enumerate()
-        .skip(2)
-        .map(|(i, v)| (format!("ac{}", i + 1), v.clone()))
-        .collect();
-    (at(0), at(1), more)
-}
-
-/// Autocollimator `ac`'s entry: `ac1`, `ac2` or one of `more`.
-fn pick<'a>(
-    ac: u32,
-    ac1: &'a str,
-    ac2: &'a str,
-    more: &'a BTreeMap<String, String>,
-) -> Option<&'a str> {
-    match ac {
-        1 => Some(ac1),
-        2 => Some(ac2),
-        _ => more.get(&format!("ac{ac}")).map(String::as_str),
-    }
-}
-
-/// The instruments' identification: ELCOMAT `d` replies and the SMC100 `1VE` reply.
-#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[non_exhaustive]
-pub struct Identification {
-    /// Autocollimator 1.
-    pub ac1: String,
-    /// Autocollimator 2.
-    pub ac2: String,
-    /// The rotary table's controller.
-    pub table: String,
-    /// Autocollimators 3 … K, as `ac3`, `ac4`, … (fields of the object).
-    #[serde(flatten)]
-    pub more: BTreeMap<String, String>,
-}
-
-impl Identification {
-    /// The identification of autocollimators 1 … K (at least two) and the table's
-    /// controller.
-    pub fn of(acs: &[String], table: impl Into<String>) -> Identification {
-        let (ac1, ac2, more) = split(acs);
-        Identification {
-            ac1,
-            ac2,
-            table: table.into(),
-            more,
-        }
-    }
-
-    /// Autocollimator `ac`'s identification (1 … K).
-    pub fn ac(&self, ac: u32) -> Option<&str> {
-        pick(ac, &self.ac1, &self.ac2, &self.more)
-    }
-
-    /// The identification of autocollimator 1, autocollimator 2 and the table's controller.
-    pub fn new(
-        ac1: impl Into<String>,
-        ac2: impl Into<String>,
-        table: impl Into<String>,
-    ) -> Identification {
-        Identification {
-            ac1: ac1.into(),
-            ac2: ac2.into(),
-            table: table.into(),
-            more: BTreeMap::new(),
-        }
-    }
-}
+/// The instruments' identification (the manifest's `instruments`): each
+/// autocollimator's reply to its identification query, and the table controller's.
+pub type Identification = PerInstrument<String>;
 
 /// One session of a run: the first start, or one resumption.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

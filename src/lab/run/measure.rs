@@ -122,24 +122,45 @@ pub(super) fn role(ac: u32) -> String {
 /// The instruments of a run: the autocollimators 1 … K (as many as the run's
 /// `ac_faces`) and the rotary table.
 pub struct Instruments<'a> {
-    /// Autocollimator 1.
-    pub ac1: &'a mut dyn Autocollimator,
-    /// Autocollimator 2.
-    pub ac2: &'a mut dyn Autocollimator,
+    /// Autocollimators 1 … K, in order (two for the paper's design).
+    pub autocollimators: Vec<&'a mut dyn Autocollimator>,
     /// The rotary table.
     pub table: &'a mut dyn RotaryTable,
-    /// Autocollimators 3 … K, in order (empty for the paper's two).
-    pub more: Vec<&'a mut dyn Autocollimator>,
+}
+
+impl<'a> Instruments<'a> {
+    /// The autocollimators 1 … K, in order, and the table.
+    pub fn new(
+        autocollimators: Vec<&'a mut dyn Autocollimator>,
+        table: &'a mut dyn RotaryTable,
+    ) -> Instruments<'a> {
+        Instruments {
+            autocollimators,
+            table,
+        }
+    }
+
+    /// Autocollimators of one kind, 1 … K in order, and the table.
+    pub fn of<A: Autocollimator>(
+        autocollimators: &'a mut [A],
+        table: &'a mut dyn RotaryTable,
+    ) -> Instruments<'a> {
+        Instruments {
+            autocollimators: autocollimators
+                .iter_mut()
+                .map(|a| a as &mut dyn Autocollimator)
+                .collect(),
+            table,
+        }
+    }
 }
 
 impl fmt::Debug for Instruments<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let more: Vec<&str> = self.more.iter().map(|a| a.port()).collect();
+        let acs: Vec<&str> = self.autocollimators.iter().map(|a| a.port()).collect();
         f.debug_struct("Instruments")
-            .field("ac1", &self.ac1.port())
-            .field("ac2", &self.ac2.port())
+            .field("autocollimators", &acs)
             .field("table", &self.table.port())
-            .field("more", &more)
             .finish()
     }
 }
@@ -255,13 +276,9 @@ pub fn measure_attended(
     attendant: &mut dyn Attendant,
 ) -> Result<Outcome, RunError> {
     let Instruments {
-        ac1,
-        ac2,
+        autocollimators: mut acs,
         table,
-        more,
     } = instruments;
-    let mut acs: Vec<&mut dyn Autocollimator> = vec![ac1, ac2];
-    acs.extend(more);
     let k = run.manifest.settings.autocollimators();
     if acs.len() != k {
         let _ = table.stop();
@@ -433,7 +450,7 @@ fn identify(
     let named = |e| (TABLE.to_string(), e);
     table.start().map_err(named)?;
     let id_table = table.identify().map_err(named)?;
-    Ok(Identification::of(&ids, id_table))
+    Ok(Identification::new(ids, id_table))
 }
 
 fn measure_stops(

@@ -63,10 +63,12 @@
 //!
 //! let simulation = SimulationConfig { faces: 6, ..SimulationConfig::default() };
 //! let lab = LabConfig::new(simulation).with_time_scale(0.0); // instantaneous motion
-//! let Devices { ac1, ac2, table, .. } = Devices::new(lab)?;
+//! let Devices { autocollimators, table, .. } = Devices::new(lab)?;
 //! let q = QueryOptions::default();
-//! let mut ac1 = ProfileAutocollimator::elcomat3000(StreamTransport::new("sim:ac1", SimStream::new(ac1)), q);
-//! let mut ac2 = ProfileAutocollimator::elcomat3000(StreamTransport::new("sim:ac2", SimStream::new(ac2)), q);
+//! let mut acs: Vec<_> = autocollimators
+//!     .into_iter()
+//!     .map(|device| ProfileAutocollimator::elcomat3000(StreamTransport::new("sim:ac", SimStream::new(device)), q))
+//!     .collect();
 //! let mut table = ProfileTable::smc100(
 //!     StreamTransport::new("sim:table", SimStream::new(table)),
 //!     TableOptions::default(),
@@ -76,8 +78,7 @@
 //! let dir = std::env::temp_dir().join(format!("polycal-doc-run-{}", std::process::id()));
 //! # let _ = std::fs::remove_dir_all(&dir);
 //! let mut run = RunDir::open(&dir, &settings, &Ports::default(), false)?;
-//! let instruments =
-//!     Instruments { ac1: &mut ac1, ac2: &mut ac2, table: &mut table, more: Vec::new() };
+//! let instruments = Instruments::of(&mut acs, &mut table);
 //! let outcome = run::measure(&mut run, instruments, &StopFlag::new(), None, &mut |_| {})?;
 //! run.finish(&outcome)?;
 //! assert_eq!(outcome, Outcome::Completed);

@@ -10,35 +10,27 @@ use std::time::{Duration, Instant};
 use serialport::{SerialPort, TTYPort};
 
 use super::{Devices, Endpoint, RemountError, World, lock};
-use crate::lab::InstrumentError;
+use crate::lab::{InstrumentError, PerInstrument};
 use crate::simulate::Truth;
 
-/// The device paths a client opens, one per simulated instrument.
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
-pub struct LabPaths {
-    /// Autocollimator 1.
-    pub ac1: String,
-    /// Autocollimator 2.
-    pub ac2: String,
-    /// The rotary table.
-    pub table: String,
-    /// Autocollimators 3 … K, as `ac3`, `ac4`, … (fields of the object).
-    #[serde(flatten)]
-    pub more: std::collections::BTreeMap<String, String>,
+/// The device paths a client opens, one per simulated instrument: autocollimators
+/// 1 … K and the table (in JSON `ac1`, `ac2`, `table`, `ac3`, …).
+pub type LabPaths = PerInstrument<String>;
+
+/// Each device with its label (`ac1`, `ac2`, …, `table`), the table last.
+fn labelled(autocollimators: Vec<Endpoint>, table: Endpoint) -> Vec<(String, Endpoint)> {
+    let mut endpoints: Vec<(String, Endpoint)> = (1..)
+        .zip(autocollimators)
+        .map(|(number, e)| (format!("ac{number}"), e))
+        .collect();
+    endpoints.push(("table".to_string(), table));
+    endpoints
 }
 
-impl LabPaths {
-    /// The autocollimators' paths, 1 … K.
-    pub fn acs(&self) -> Vec<String> {
-        let mut acs = vec![self.ac1.clone(), self.ac2.clone()];
-        for n in 3.. {
-            match self.more.get(&format!("ac{n}")) {
-                Some(path) => acs.push(path.clone()),
-                None => break,
-            }
-        }
-        acs
-    }
+/// The paths of [`labelled`]'s devices, in its order.
+fn paths_of(mut names: Vec<String>) -> LabPaths {
+    let table = names.pop().unwrap_or_default();
+    PerInstrument::new(names, table)
 }
 
 /// Three simulated instruments served on pseudo-terminals, each by its own thread.
@@ -73,20 +65,12 @@ impl Lab {
         let stop = Arc::new(AtomicBool::new(false));
         let Devices {
             world,
-            ac1,
-            ac2,
+            autocollimators,
             table,
-            more,
         } = devices;
         let mut threads = Vec::new();
         let mut names = Vec::new();
-        let mut endpoints = vec![("ac1".to_string(), ac1), ("ac2".to_string(), ac2)];
-        endpoints.extend(
-            more.into_iter()
-                .enumerate()
-                .map(|(i, e)| (format!("ac{}", i + 3), e)),
-        );
-        endpoints.push(("table".to_string(), table));
+        let endpoints = labelled(autocollimators, table);
         for (label, endpoint) in endpoints {
             let (master, slave) = TTYPort::pair().map_err(|e| InstrumentError::Open {
                 port: format!("pseudo-terminal for {label}"),
@@ -107,23 +91,8 @@ impl Lab {
                 })?;
             threads.push(handle);
         }
-        let table = names.pop().unwrap_or_default();
-        let mut acs = names.into_iter();
-        let (ac1, ac2) = (
-            acs.next().unwrap_or_default(),
-            acs.next().unwrap_or_default(),
-        );
-        let more = acs
-            .enumerate()
-            .map(|(i, path)| (format!("ac{}", i + 3), path))
-            .collect();
         Ok(Lab {
-            paths: LabPaths {
-                ac1,
-                ac2,
-                table,
-                more,
-            },
+            paths: paths_of(names),
             world,
             stop,
             threads,
@@ -142,20 +111,12 @@ impl Lab {
         let stop = Arc::new(AtomicBool::new(false));
         let Devices {
             world,
-            ac1,
-            ac2,
+            autocollimators,
             table,
-            more,
         } = devices;
         let mut threads = Vec::new();
         let mut names = Vec::new();
-        let mut endpoints = vec![("ac1".to_string(), ac1), ("ac2".to_string(), ac2)];
-        endpoints.extend(
-            more.into_iter()
-                .enumerate()
-                .map(|(i, e)| (format!("ac{}", i + 3), e)),
-        );
-        endpoints.push(("table".to_string(), table));
+        let endpoints = labelled(autocollimators, table);
         for (label, endpoint) in endpoints {
             let open_error = |message: String| InstrumentError::Open {
                 port: format!("TCP port for {label}"),
@@ -177,23 +138,8 @@ impl Lab {
                 .map_err(|e| open_error(format!("cannot start its thread: {e}")))?;
             threads.push(handle);
         }
-        let table = names.pop().unwrap_or_default();
-        let mut acs = names.into_iter();
-        let (ac1, ac2) = (
-            acs.next().unwrap_or_default(),
-            acs.next().unwrap_or_default(),
-        );
-        let more = acs
-            .enumerate()
-            .map(|(i, path)| (format!("ac{}", i + 3), path))
-            .collect();
         Ok(Lab {
-            paths: LabPaths {
-                ac1,
-                ac2,
-                table,
-                more,
-            },
+            paths: paths_of(names),
             world,
             stop,
             threads,

@@ -118,14 +118,10 @@ pub const STREAM_PERIOD: Duration = Duration::from_millis(50);
 pub struct Devices {
     /// The shared world.
     pub world: Arc<Mutex<World>>,
-    /// Autocollimator 1.
-    pub ac1: Endpoint,
-    /// Autocollimator 2.
-    pub ac2: Endpoint,
+    /// Autocollimators 1 … K, in order.
+    pub autocollimators: Vec<Endpoint>,
     /// The table.
     pub table: Endpoint,
-    /// Autocollimators 3 … K, in order.
-    pub more: Vec<Endpoint>,
 }
 
 impl fmt::Debug for Devices {
@@ -190,9 +186,7 @@ impl Devices {
             None => Box::new(Smc100Sim::new(Arc::clone(&world), &table_faults)),
         };
         Devices {
-            ac1: ac(1),
-            ac2: ac(2),
-            more: (3..=k).map(ac).collect(),
+            autocollimators: (1..=k).map(ac).collect(),
             table: Endpoint::new(table, &table_faults),
             world,
         }
