@@ -23,7 +23,9 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::sets::{PyBudget, PyMeasurementSet, PySelfcalSet};
-use crate::state::{RowsState, SolveState, columns_state, restorer, rows_state};
+use crate::state::{
+    RowState, RowsState, columns_state, restorer, rows_file_from_state, rows_from_state, rows_state,
+};
 use crate::{PolycalError, file_error, input_error, refusal, solve_error, to_json};
 
 /// The rows of a result (docs/FORMAT.md §3): a solve's, or a result file's.
@@ -496,4 +498,40 @@ pub(crate) fn selfcal(
         report.to_json().map_err(|e| e.to_string())
     })
     .map_err(PolycalError::new_err)
+}
+
+/// The rows a pickled state (`ResultRows.__reduce__`) describes.
+#[pyfunction]
+pub(crate) fn _restore_rows(state: RowsState) -> PyResult<PyRows> {
+    let (rows, label, file) = rows_file_from_state(state)?;
+    Ok(PyRows { rows, label, file })
+}
+
+/// The pickled state of a solve result: the JSON, the rows, the label, the set, the
+/// method and σ as given, and α's length.
+pub(crate) type SolveState = (
+    String,
+    Vec<RowState>,
+    String,
+    Py<PyMeasurementSet>,
+    String,
+    Option<f64>,
+    usize,
+);
+
+/// The result a pickled state (`SolveResult.__reduce__`) describes.
+#[pyfunction]
+pub(crate) fn _restore_solve_result(state: SolveState) -> PyResult<PySolveResult> {
+    let (json, rows, label, set, method, sigma, positions) = state;
+    solve_options(&method, sigma)?;
+    Ok(PySolveResult {
+        json,
+        solution: OnceLock::new(),
+        rows: rows_from_state(rows)?,
+        label,
+        set: Arc::clone(&set.get().inner),
+        method,
+        sigma,
+        positions,
+    })
 }

@@ -229,10 +229,10 @@ fn _polycal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sets::selfcal_set_from_columns, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::selfcal, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
-    m.add_function(wrap_pyfunction!(state::_restore_measurement_set, m)?)?;
-    m.add_function(wrap_pyfunction!(state::_restore_selfcal_set, m)?)?;
-    m.add_function(wrap_pyfunction!(state::_restore_rows, m)?)?;
-    m.add_function(wrap_pyfunction!(state::_restore_budget, m)?)?;
-    m.add_function(wrap_pyfunction!(state::_restore_solve_result, m)?)?;
+    m.add_function(wrap_pyfunction!(sets::_restore_measurement_set, m)?)?;
+    m.add_function(wrap_pyfunction!(sets::_restore_selfcal_set, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate::_restore_rows, m)?)?;
+    m.add_function(wrap_pyfunction!(sets::_restore_budget, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate::_restore_solve_result, m)?)?;
     Ok(())
 }

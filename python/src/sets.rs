@@ -63,7 +63,7 @@ impl PyMeasurementSet {
     ) -> PyResult<(Bound<'py, PyAny>, (state::MeasurementState,))> {
         Ok((
             restorer(py, "_restore_measurement_set")?,
-            (state::measurement_state(self),),
+            (state::measurement_state(&self.inner, &self.comments),),
         ))
     }
 
@@ -409,7 +409,11 @@ impl PySelfcalSet {
     ) -> PyResult<(Bound<'py, PyAny>, (state::SelfcalState,))> {
         Ok((
             restorer(py, "_restore_selfcal_set")?,
-            (state::selfcal_state(self),),
+            (state::selfcal_state(
+                &self.inner,
+                &self.name,
+                &self.comments,
+            ),),
         ))
     }
 
@@ -538,5 +542,36 @@ pub(crate) fn selfcal_set_from_columns(
         inner,
         name: name.to_string(),
         comments: Vec::new(),
+    })
+}
+
+/// The set a pickled state (`MeasurementSet.__reduce__`) describes, field by field.
+#[pyfunction]
+pub(crate) fn _restore_measurement_set(
+    state: state::MeasurementState,
+) -> PyResult<PyMeasurementSet> {
+    let (set, comments) = state::measurement_from_state(state)?;
+    Ok(PyMeasurementSet {
+        inner: Arc::new(set),
+        comments,
+    })
+}
+
+/// The set a pickled state (`SelfcalSet.__reduce__`) describes, field by field.
+#[pyfunction]
+pub(crate) fn _restore_selfcal_set(state: state::SelfcalState) -> PyResult<PySelfcalSet> {
+    let (inner, name, comments) = state::selfcal_from_state(state)?;
+    Ok(PySelfcalSet {
+        inner,
+        name,
+        comments,
+    })
+}
+
+/// The budget a pickled state (`Budget.__reduce__`) describes, field by field.
+#[pyfunction]
+pub(crate) fn _restore_budget(state: state::BudgetState) -> PyResult<PyBudget> {
+    Ok(PyBudget {
+        inner: state::budget_from_state(state)?,
     })
 }

@@ -1,13 +1,11 @@
-//! The pickled states of the native objects: each `__reduce__` gives its object's fields
-//! as Python values — every float as its own 8 bytes, pickled exactly — and the
-//! `_restore_…` function of the module builds the object again from them, equal to the
-//! bit. A budget travels as its components (not its file, which may name others). A
-//! solve result carries its JSON, rows and set, and re-solves the set when its
-//! solution is first needed (`PySolveResult::solution`): the solution's cofactor is an
-//! operator, not data.
+//! The pickled states of the library's values: each native object's `__reduce__` (in
+//! `sets.rs` and `evaluate.rs`) gives its fields as Python values made here — every float
+//! as its own 8 bytes, pickled exactly — and its `_restore_…` function builds the value
+//! again from them here, equal to the bit. A budget travels as its components (not its
+//! file, which may name others). This file knows the library's types only, not the
+//! Python classes that hold them: the classes call it, never the other way round.
 
 use std::collections::BTreeMap;
-use std::sync::{Arc, OnceLock};
 
 use polycal::measurement::{MeasurementSet, Reading};
 use polycal::results::{Quantity, ResultFile, ResultRow, RowColumns};
@@ -18,8 +16,6 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::direction_at;
-use crate::evaluate::{PyRows, PySolveResult, solve_options};
-use crate::sets::{PyBudget, PyMeasurementSet, PySelfcalSet};
 
 /// The function of this module named `name`, for a `__reduce__` to return.
 pub(crate) fn restorer<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
@@ -58,10 +54,9 @@ pub(crate) type ReadingColumns = (
 /// comment lines and the readings' columns.
 pub(crate) type MeasurementState = (usize, String, Vec<(u32, f64)>, Vec<String>, ReadingColumns);
 
-/// The pickled state of a measurement set (`MeasurementSet.__reduce__`).
-pub(crate) fn measurement_state(set: &PyMeasurementSet) -> MeasurementState {
-    let comments = &set.comments;
-    let set = &set.inner;
+/// The pickled state of a measurement set with its comment lines
+/// (`MeasurementSet.__reduce__`).
+pub(crate) fn measurement_state(set: &MeasurementSet, comments: &[String]) -> MeasurementState {
     let r = &set.readings;
     let columns = (
         r.iter().map(|x| x.setup).collect(),
@@ -81,14 +76,16 @@ pub(crate) fn measurement_state(set: &PyMeasurementSet) -> MeasurementState {
         set.faces,
         set.source.clone(),
         set.setup_shift_deg.iter().map(|(&s, &d)| (s, d)).collect(),
-        comments.clone(),
+        comments.to_vec(),
         columns,
     )
 }
 
-/// The set a pickled state (`MeasurementSet.__reduce__`) describes, field by field.
-#[pyfunction]
-pub(crate) fn _restore_measurement_set(state: MeasurementState) -> PyResult<PyMeasurementSet> {
+/// The set and comment lines a pickled state (`MeasurementSet.__reduce__`) describes,
+/// field by field.
+pub(crate) fn measurement_from_state(
+    state: MeasurementState,
+) -> PyResult<(MeasurementSet, Vec<String>)> {
     let (faces, source, shifts, comments, columns) = state;
     let (
         setup,
@@ -145,10 +142,7 @@ pub(crate) fn _restore_measurement_set(state: MeasurementState) -> PyResult<PyMe
         source,
         setup_shift_deg: shifts.into_iter().collect::<BTreeMap<_, _>>(),
     };
-    Ok(PyMeasurementSet {
-        inner: Arc::new(inner),
-        comments,
-    })
+    Ok((inner, comments))
 }
 
 /// A self-calibration set's readings as the columns of its pickled state: cycle, step,
@@ -168,9 +162,10 @@ type HeadColumns = (
 /// the readings' columns.
 pub(crate) type SelfcalState = (usize, String, Vec<String>, HeadColumns);
 
-/// The pickled state of a self-calibration set (`SelfcalSet.__reduce__`).
-pub(crate) fn selfcal_state(set: &PySelfcalSet) -> SelfcalState {
-    let r = &set.inner.readings;
+/// The pickled state of a self-calibration set with its name and comment lines
+/// (`SelfcalSet.__reduce__`).
+pub(crate) fn selfcal_state(set: &SelfcalSet, name: &str, comments: &[String]) -> SelfcalState {
+    let r = &set.readings;
     let columns = (
         r.iter().map(|x| x.cycle).collect(),
         r.iter().map(|x| x.step).collect(),
@@ -181,17 +176,14 @@ pub(crate) fn selfcal_state(set: &PySelfcalSet) -> SelfcalState {
         r.iter().map(|x| x.time_seconds).collect(),
         r.iter().map(|x| x.line).collect(),
     );
-    (
-        set.inner.positions,
-        set.name.clone(),
-        set.comments.clone(),
-        columns,
-    )
+    (set.positions, name.to_string(), comments.to_vec(), columns)
 }
 
-/// The set a pickled state (`SelfcalSet.__reduce__`) describes, field by field.
-#[pyfunction]
-pub(crate) fn _restore_selfcal_set(state: SelfcalState) -> PyResult<PySelfcalSet> {
+/// The set, name and comment lines a pickled state (`SelfcalSet.__reduce__`) describes,
+/// field by field.
+pub(crate) fn selfcal_from_state(
+    state: SelfcalState,
+) -> PyResult<(SelfcalSet, String, Vec<String>)> {
     let (positions, name, comments, columns) = state;
     let (cycle, step, head, head_angle, reading, direction, time, line) = columns;
     same_lengths(
@@ -221,18 +213,18 @@ pub(crate) fn _restore_selfcal_set(state: SelfcalState) -> PyResult<PySelfcalSet
             })
         })
         .collect::<PyResult<Vec<_>>>()?;
-    Ok(PySelfcalSet {
-        inner: SelfcalSet {
+    Ok((
+        SelfcalSet {
             positions,
             readings,
         },
         name,
         comments,
-    })
+    ))
 }
 
 /// A result row in a pickled state: quantity, index, value, u, U, k, angle_deg.
-type RowState = (
+pub(crate) type RowState = (
     String,
     u32,
     f64,
@@ -294,9 +286,10 @@ pub(crate) fn rows_from_state(state: Vec<RowState>) -> PyResult<Vec<ResultRow>> 
         .collect()
 }
 
-/// The rows a pickled state (`ResultRows.__reduce__`) describes.
-#[pyfunction]
-pub(crate) fn _restore_rows(state: RowsState) -> PyResult<PyRows> {
+/// The rows, label and file a pickled state (`ResultRows.__reduce__`) describes.
+pub(crate) fn rows_file_from_state(
+    state: RowsState,
+) -> PyResult<(Vec<ResultRow>, String, Option<ResultFile>)> {
     let (rows, label, file) = state;
     let rows = rows_from_state(rows)?;
     let file = match file {
@@ -322,36 +315,7 @@ pub(crate) fn _restore_rows(state: RowsState) -> PyResult<PyRows> {
         }
         None => None,
     };
-    Ok(PyRows { rows, label, file })
-}
-
-/// The pickled state of a solve result: the JSON, the rows, the label, the set, the
-/// method and σ as given, and α's length.
-pub(crate) type SolveState = (
-    String,
-    Vec<RowState>,
-    String,
-    Py<PyMeasurementSet>,
-    String,
-    Option<f64>,
-    usize,
-);
-
-/// The result a pickled state (`SolveResult.__reduce__`) describes.
-#[pyfunction]
-pub(crate) fn _restore_solve_result(state: SolveState) -> PyResult<PySolveResult> {
-    let (json, rows, label, set, method, sigma, positions) = state;
-    solve_options(&method, sigma)?;
-    Ok(PySolveResult {
-        json,
-        solution: OnceLock::new(),
-        rows: rows_from_state(rows)?,
-        label,
-        set: Arc::clone(&set.get().inner),
-        method,
-        sigma,
-        positions,
-    })
+    Ok((rows, label, file))
 }
 
 /// A budget component in a pickled state: name, type (`A`/`B`), the distribution (its
@@ -394,8 +358,7 @@ pub(crate) fn budget_state(budget: &InstrumentBudget) -> BudgetState {
 }
 
 /// The budget a pickled state (`Budget.__reduce__`) describes, field by field.
-#[pyfunction]
-pub(crate) fn _restore_budget(state: BudgetState) -> PyResult<PyBudget> {
+pub(crate) fn budget_from_state(state: BudgetState) -> PyResult<InstrumentBudget> {
     let (source, p, dof_policy, components) = state;
     let bad = |what: &str, value: &str| {
         PyValueError::new_err(format!("Budget: a pickled state with {what} {value:?}"))
@@ -433,12 +396,10 @@ pub(crate) fn _restore_budget(state: BudgetState) -> PyResult<PyBudget> {
     let dof_policy = dof_policy
         .parse::<DofPolicy>()
         .map_err(|_| bad("the dof policy", &dof_policy))?;
-    Ok(PyBudget {
-        inner: InstrumentBudget {
-            source,
-            p,
-            dof_policy,
-            components,
-        },
+    Ok(InstrumentBudget {
+        source,
+        p,
+        dof_policy,
+        components,
     })
 }
