@@ -397,7 +397,8 @@ fn refusals_and_faults_of_each_make_are_named() {
 }
 
 /// Starting: PI switches the servo on and references the axis only when `FRF?` says it
-/// is not; the ESP301, which cannot tell, is homed on every start.
+/// is not; an Aerotech axis at rest but not homed is homed; the ESP301, which cannot
+/// tell, is homed on every start.
 #[test]
 fn starting_references_the_axis_as_each_make_allows() {
     let pi = ScriptedStream::new()
@@ -416,6 +417,31 @@ fn starting_references_the_axis_as_each_make_allows() {
     assert_eq!(
         written.text(),
         "SVO 1 1\nERR?\nONT? 1\nFRF? 1\n*IDN?\nFRF? 1\n"
+    );
+    // Aerotech: AXISSTATUS 2097157 (0x200005: Enabled, InPosition, bit 21; Homed clear)
+    // is at rest but not homed, and is homed before anything moves; 0x80000007 after the
+    // home search has Homed set.
+    let aerotech = ScriptedStream::new()
+        .expect("WAIT MODE NOWAIT\n", "%\n")
+        .expect("AXISFAULT(@0)\n", "%0\n")
+        .expect("ENABLE @0\n", "%\n")
+        .expect("AXISFAULT(@0)\n", "%0\n")
+        .expect("AXISSTATUS(@0)\n", "%2097157\n")
+        .expect("HOME @0\n", "%\n")
+        .expect("AXISFAULT(@0)\n", "%0\n")
+        .expect("AXISSTATUS(@0)\n", "%-2147483641\n");
+    let written = aerotech.written();
+    table_over("aerotech-ascii", aerotech).start().unwrap();
+    assert_eq!(
+        written.text().matches("HOME @0\n").count(),
+        1,
+        "{}",
+        written.text()
+    );
+    let aerotech = ScriptedStream::new().expect("AXISSTATUS(@0)\n", "%2097157\n");
+    assert_eq!(
+        table_over("aerotech-ascii", aerotech).state().unwrap(),
+        TableState::NotReferenced
     );
     let esp = ScriptedStream::new()
         .expect("1MO\r", "")

@@ -282,15 +282,20 @@ impl<T: Transport> ProfileTable<T> {
                 ),
             ));
         }
-        if state.ready.holds(template, &captures) {
+        // A state that is "ready" and "not referenced" at once is not referenced: an axis
+        // at rest that has lost (or never had) its reference must be homed before it is
+        // moved (an Aerotech AXISSTATUS with Enabled and InPosition set, Homed clear).
+        let not_referenced = state
+            .not_referenced
+            .as_ref()
+            .is_some_and(|c| c.holds(template, &captures));
+        if state.ready.holds(template, &captures) && !not_referenced {
             return Ok(TableState::Ready);
         }
         if state.moving.holds(template, &captures) {
             return Ok(TableState::Moving);
         }
-        if let Some(not_referenced) = &state.not_referenced
-            && not_referenced.holds(template, &captures)
-        {
+        if not_referenced {
             return Ok(TableState::NotReferenced);
         }
         let what = self.describe(&state.ready, &captures);
