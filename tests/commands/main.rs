@@ -11,6 +11,10 @@
 // The helpers the tests share: those of this tier in tests/commands/NAME/, those of
 // several tiers in tests/NAME/mod.rs, each gated as its users are.
 #[cfg(feature = "cli")]
+mod calibration_uncertainty_support;
+#[cfg(feature = "cli")]
+mod cli_support;
+#[cfg(feature = "cli")]
 #[path = "../common/mod.rs"]
 mod common;
 #[cfg(feature = "cli")]
@@ -23,6 +27,10 @@ mod fault_runs;
 #[cfg(feature = "cli")]
 mod files_support;
 #[cfg(feature = "cli")]
+mod hardening_support;
+#[cfg(feature = "cli")]
+mod report_support;
+#[cfg(feature = "cli")]
 mod skip_support;
 #[cfg(feature = "cli")]
 #[path = "../undeclared/mod.rs"]
@@ -31,13 +39,31 @@ mod undeclared;
 // The tests: tests/commands/NAME.rs, each gated on the features it needs.
 mod architecture;
 #[cfg(feature = "cli")]
-mod calibration_uncertainty;
+mod calibration_uncertainty_cli;
+#[cfg(feature = "cli")]
+mod calibration_uncertainty_effects;
+#[cfg(feature = "cli")]
+mod calibration_uncertainty_monte_carlo;
+#[cfg(feature = "cli")]
+mod calibration_uncertainty_propagation;
 #[cfg(feature = "cli")]
 mod certificate_dcc;
 #[cfg(feature = "cli")]
-mod cli;
+mod cli_budget;
+#[cfg(feature = "cli")]
+mod cli_compare;
+#[cfg(feature = "cli")]
+mod cli_diagnose;
+#[cfg(feature = "cli")]
+mod cli_help;
+#[cfg(feature = "cli")]
+mod cli_messages;
 #[cfg(all(feature = "cli", feature = "lab"))]
 mod cli_newcomer;
+#[cfg(feature = "cli")]
+mod cli_simulate;
+#[cfg(feature = "cli")]
+mod cli_solve;
 #[cfg(feature = "cli")]
 mod cross_talk_stated;
 #[cfg(feature = "cli")]
@@ -55,7 +81,13 @@ mod fixtures;
 #[cfg(all(feature = "cli", feature = "lab"))]
 mod format_doc;
 #[cfg(feature = "cli")]
-mod hardening;
+mod hardening_errors;
+#[cfg(feature = "cli")]
+mod hardening_limits;
+#[cfg(feature = "cli")]
+mod hardening_not_utf8;
+#[cfg(feature = "cli")]
+mod hardening_numbers;
 #[cfg(feature = "cli")]
 mod kc_cli;
 #[cfg(feature = "cli")]
@@ -67,8 +99,16 @@ mod output_files_plot;
 #[cfg(feature = "cli")]
 mod progress_cli;
 #[cfg(feature = "cli")]
-mod report;
-#[cfg(feature = "cli")]
 mod report_17025;
 #[cfg(feature = "cli")]
 mod report_kc;
+#[cfg(feature = "cli")]
+mod report_metadata;
+#[cfg(feature = "cli")]
+mod report_numbers;
+#[cfg(feature = "cli")]
+mod report_printed;
+#[cfg(feature = "cli")]
+mod report_reproducible;
+#[cfg(feature = "cli")]
+mod report_status;

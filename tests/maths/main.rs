@@ -9,19 +9,23 @@
 //! One module per test file (`tests/maths/NAME.rs`); run one with
 //! `cargo test --test maths NAME::`.
 
-// The helpers the tests share with other tiers (tests/NAME/mod.rs), each gated as its
-// users are.
+// The helpers the tests share: those of this tier in tests/maths/NAME/, those of several
+// tiers in tests/NAME/mod.rs, each gated as its users are.
 #[path = "../common/mod.rs"]
 mod common;
+mod compare_support;
 #[path = "../kc_support/mod.rs"]
 mod kc_support;
+mod measurement_file_support;
+mod selfcal_file_support;
 #[path = "../selfcal_support/mod.rs"]
 mod selfcal_support;
 #[path = "../undeclared/mod.rs"]
 mod undeclared;
 
 // The tests: tests/maths/NAME.rs, each gated on the features it needs.
-mod compare;
+mod compare_angles;
+mod compare_en;
 mod compare_verdict;
 mod diagnose;
 mod diagnose_effects;
@@ -35,9 +39,17 @@ mod diagnose_shifted;
 mod engine;
 mod kc;
 mod kc_covariance;
-mod measurement_file;
+mod measurement_file_good;
+mod measurement_file_in_memory;
+mod measurement_file_refusals;
+mod measurement_file_round_trips;
+mod measurement_file_shifts;
+mod result_file;
 mod selfcal;
-mod selfcal_file;
+mod selfcal_file_good;
+mod selfcal_file_in_memory;
+mod selfcal_file_refusals;
+mod selfcal_file_round_trips;
 mod selfcal_monte_carlo;
 mod simulate;
 mod simulate_habits;

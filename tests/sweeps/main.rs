@@ -9,8 +9,8 @@
 //! commit that touches what it measures, or one module with
 //! `cargo test --test sweeps NAME::` (`tests/sweeps/NAME.rs`).
 
-// The helpers the tests share with other tiers (tests/NAME/mod.rs), each gated as its
-// users are.
+// The helpers the tests share: those of this tier in tests/sweeps/NAME/, those of several
+// tiers in tests/NAME/mod.rs, each gated as its users are.
 #[path = "../fault_runs/mod.rs"]
 mod fault_runs;
 #[cfg(all(unix, feature = "cli", feature = "lab"))]
@@ -21,6 +21,8 @@ mod kc_support;
 #[cfg(feature = "lab")]
 #[path = "../lab_support/mod.rs"]
 mod lab_support;
+#[cfg(feature = "cli")]
+mod plan_cli_support;
 #[path = "../selfcal_support/mod.rs"]
 mod selfcal_support;
 
@@ -52,7 +54,13 @@ mod kc_rates;
 mod monte_carlo;
 mod plan;
 #[cfg(feature = "cli")]
-mod plan_cli;
+mod plan_cli_comparison;
+#[cfg(feature = "cli")]
+mod plan_cli_design;
+#[cfg(feature = "cli")]
+mod plan_cli_plot;
+#[cfg(feature = "cli")]
+mod plan_cli_usage;
 #[cfg(all(feature = "cli", feature = "lab"))]
 mod readme;
 mod verdict_rates_diagnose;

@@ -1,4 +1,4 @@
-//! What the tests of the documents (`tests/commands/report.rs`,
+//! What the tests of the documents (`tests/commands/report_*.rs`,
 //! `tests/commands/certificate_dcc.rs`) share: the binary run from the repository root, a
 //! fresh temporary directory, and a command's JSON.
 
