@@ -51,8 +51,11 @@ fn config(faults: Vec<Fault>, ac: &Profile, table: &Profile) -> LabConfig {
     .with_table_profile(table.clone())
 }
 
+/// The reply deadline: short, for a sweep of many sessions, yet long enough that a
+/// machine busy with other tests (several sessions of this file run at once) does not
+/// starve a device for four deadlines in a row.
 fn query() -> QueryOptions {
-    QueryOptions::new(Duration::from_millis(60), 3)
+    QueryOptions::new(Duration::from_millis(150), 3)
 }
 
 fn open(path: &str, profile: &Profile) -> Box<dyn Transport> {
@@ -154,7 +157,8 @@ fn sweep(
         for after in positions(device) {
             let mut fault = Fault::new(kind, device).with_after(after);
             if kind == FaultKind::Late {
-                fault = fault.with_late(Duration::from_millis(150));
+                // Past the deadline of query(): the reply is stale when it comes.
+                fault = fault.with_late(Duration::from_millis(400));
             }
             let what = format!(
                 "{} / {} over {}: {fault}",
@@ -163,8 +167,9 @@ fn sweep(
                 if tcp { "TCP" } else { "a pseudo-terminal" }
             );
             let dir = std::env::temp_dir().join(format!(
-                "polycal-profiles-{}-{}-{}-{}",
+                "polycal-profiles-{}-{}-{}-{}-{}",
                 std::process::id(),
+                ac_profile.name,
                 table_profile.name,
                 tcp,
                 fault.to_string().replace([':', '='], "-")
@@ -199,11 +204,25 @@ fn stops_by_design(what: &str) -> bool {
     what.contains(": close:") || what.contains(": disable:")
 }
 
+/// The sweeps over a pseudo-terminal and over TCP, at once: each waits on its instruments
+/// far more than it computes, so the two share the time.
 fn table_sweep(name: &str) {
     let ac = Profile::load("elcomat3000").unwrap();
     let table = Profile::load(name).unwrap();
-    for tcp in [false, true] {
-        let stopped = sweep(&ac, &table, tcp, DeviceId::Table);
+    let stopped_by_transport = std::thread::scope(|scope| {
+        let sweeps: Vec<_> = [false, true]
+            .map(|tcp| {
+                let (ac, table) = (&ac, &table);
+                scope.spawn(move || sweep(ac, table, tcp, DeviceId::Table))
+            })
+            .into_iter()
+            .collect();
+        sweeps
+            .into_iter()
+            .map(|s| s.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect::<Vec<_>>()
+    });
+    for stopped in stopped_by_transport {
         let unexpected: Vec<&String> = stopped.iter().filter(|s| !stops_by_design(s)).collect();
         assert!(unexpected.is_empty(), "{unexpected:#?}");
         // close and disable at three places each: every one stopped, and was resumed.
@@ -242,16 +261,29 @@ fn every_fault_on_the_autocollimator_profiles_over_serial_and_tcp() {
         .find(|(n, _, _)| *n == "elcomat3000")
         .map(|(_, _, t)| t.replace("profile = \"elcomat3000\"", "profile = \"my-elcomat\""))
         .unwrap();
-    for ac in [
+    let profiles = [
         Profile::load("elcomat3000").unwrap(),
         Profile::parse(&text, "my-elcomat.toml").unwrap(),
-    ] {
-        for tcp in [false, true] {
-            let stopped = sweep(&ac, &table, tcp, DeviceId::Ac(1));
-            let unexpected: Vec<&String> = stopped.iter().filter(|s| !stops_by_design(s)).collect();
-            assert!(unexpected.is_empty(), "{unexpected:#?}");
-            assert_eq!(stopped.len(), 3, "close at three places: {stopped:#?}");
-        }
+    ];
+    // The four sweeps at once (see table_sweep).
+    let stopped_by_sweep = std::thread::scope(|scope| {
+        let sweeps: Vec<_> = profiles
+            .iter()
+            .flat_map(|ac| [false, true].map(|tcp| (ac, tcp)))
+            .map(|(ac, tcp)| {
+                let table = &table;
+                scope.spawn(move || sweep(ac, table, tcp, DeviceId::Ac(1)))
+            })
+            .collect();
+        sweeps
+            .into_iter()
+            .map(|s| s.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect::<Vec<_>>()
+    });
+    for stopped in stopped_by_sweep {
+        let unexpected: Vec<&String> = stopped.iter().filter(|s| !stops_by_design(s)).collect();
+        assert!(unexpected.is_empty(), "{unexpected:#?}");
+        assert_eq!(stopped.len(), 3, "close at three places: {stopped:#?}");
     }
 }
 
