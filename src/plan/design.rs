@@ -452,7 +452,7 @@ fn toml_type_mismatch(key: &str, value: &toml::Value) -> Option<&'static str> {
 /// A design the simulation settings refuse: their reason, without their prefix.
 fn design_error(e: crate::simulate::SimulateError) -> PlanError {
     PlanError::Design(match e {
-        crate::simulate::SimulateError::Config(reason) => reason,
+        crate::simulate::SimulateError::Config(reason) => reason.to_string(),
         other => other.to_string(),
     })
 }

@@ -90,7 +90,7 @@ use std::fmt;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-pub use config::LabConfig;
+pub use config::{LabConfig, LabConfigError};
 pub use elcomat::ElcomatSim;
 pub use endpoint::{Endpoint, SimDevice, SimStream};
 pub use fault::{
@@ -103,7 +103,7 @@ pub use profiled::ProfileSim;
 pub use smc100::Smc100Sim;
 pub use world::{RemountError, TableView, World};
 
-use crate::simulate::{SimulateError, Truth};
+use crate::simulate::{SimulateError, Truth, TruthError};
 use world::lock;
 
 /// Measuring range of the simulated autocollimators, arcsec (beyond it X is not valid).
@@ -152,10 +152,11 @@ impl Devices {
         if truth.faces != config.simulation.faces {
             return Err(SimulateError::Truth {
                 origin: "truth".into(),
-                message: format!(
-                    "it has {} faces, the lab {}",
-                    truth.faces, config.simulation.faces
-                ),
+                problem: TruthError::FacesDiffer {
+                    truth_faces: truth.faces,
+                    run: "the lab",
+                    run_faces: config.simulation.faces,
+                },
             });
         }
         Ok(Devices::from_world(World::with_truth(config, truth)))
