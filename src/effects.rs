@@ -439,9 +439,8 @@ impl Effect {
         let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
         let n = parts.len();
         let what = || format!("{kind} effect");
-        let bad = |problem: SpecProblem, form: &'static str| {
-            SpecError::part(what(), spec, problem, form)
-        };
+        let bad =
+            |problem: SpecProblem, form: &'static str| SpecError::part(what(), spec, problem, form);
         match kind {
             "drift" => {
                 let form = "AC:RATE or AC:RATE:QUADRATIC, e.g. 1:0.3 or 1:0.3:-0.05";
@@ -464,7 +463,10 @@ impl Effect {
                 let at = |problem| bad(problem, form);
                 let (setup, rest) = match n {
                     3 | 4 => (None, &parts[..]),
-                    5 => (Some(number_from_1("SETUP", parts[0]).map_err(at)?), &parts[1..]),
+                    5 => (
+                        Some(number_from_1("SETUP", parts[0]).map_err(at)?),
+                        &parts[1..],
+                    ),
                     _ => return Err(at(SpecProblem::part_count(n, "3, 4 or 5"))),
                 };
                 let step = if rest.len() == 4 {
@@ -521,7 +523,10 @@ impl Effect {
                 let at = |problem| bad(problem, form);
                 let (setup, rest) = match n {
                     4 => (None, &parts[..]),
-                    5 => (Some(number_from_1("SETUP", parts[0]).map_err(at)?), &parts[1..]),
+                    5 => (
+                        Some(number_from_1("SETUP", parts[0]).map_err(at)?),
+                        &parts[1..],
+                    ),
                     _ => {
                         return Err(at(SpecProblem::PartsCount {
                             found: n,

@@ -596,17 +596,13 @@ pub enum RunEffectError {
         setups: u32,
     },
     /// A temperature effect in a run without a temperature model.
-    #[error(
-        "a temperature effect needs a temperature model (the run has no temperature column)"
-    )]
+    #[error("a temperature effect needs a temperature model (the run has no temperature column)")]
     NoTemperatureModel,
     /// A cross-talk effect in a run without an elevation model.
     #[error("a cross-talk effect needs an elevation model (the run has no reading_y column)")]
     NoElevationModel,
     /// A direction effect in a run without a counter-clockwise cycle.
-    #[error(
-        "no counter-clockwise cycle in this run (needs bidirectional and at least 2 cycles)"
-    )]
+    #[error("no counter-clockwise cycle in this run (needs bidirectional and at least 2 cycles)")]
     NoCounterClockwiseCycle,
     /// An outlier without a setup in a run of several setups.
     #[error("the run has {setups} setups; say which one the outlier is in")]
@@ -667,9 +663,7 @@ pub enum SimulationConfigError {
         setups: u32,
     },
     /// A table shift that is not a finite angle in [0°, 360°).
-    #[error(
-        "table shift {shift_deg}° of setup {setup}; must be a finite angle, 0 ≤ shift < 360"
-    )]
+    #[error("table shift {shift_deg}° of setup {setup}; must be a finite angle, 0 ≤ shift < 360")]
     TableShift {
         /// The shift, degrees.
         shift_deg: f64,

@@ -77,7 +77,10 @@ pub(super) fn read_bytes(path: &Path) -> Result<(Vec<u8>, String), SimulateError
 
 /// A truth file's bytes parsed, checked ([`TruthJson::check`]) and completed
 /// ([`TruthJson::fill_left_out`]); `source` names them in messages.
-pub(super) fn from_json_bytes<T: TruthJson>(bytes: &[u8], source: &str) -> Result<T, SimulateError> {
+pub(super) fn from_json_bytes<T: TruthJson>(
+    bytes: &[u8],
+    source: &str,
+) -> Result<T, SimulateError> {
     let mut truth: T = parse_json(bytes, source)?;
     truth.check().map_err(|problem| SimulateError::Truth {
         origin: source.to_string(),
@@ -109,8 +112,7 @@ fn parse_json<T: DeserializeOwned>(bytes: &[u8], name: &str) -> Result<T, Simula
 /// and no `faces` key (whatever their values). Anything else, bad JSON included, is not:
 /// it is read, and refused, as a polygon run's truth.
 fn is_selfcal(bytes: &[u8]) -> bool {
-    serde_json::from_slice::<TopKeys>(bytes)
-        .is_ok_and(|keys| keys.positions && !keys.faces)
+    serde_json::from_slice::<TopKeys>(bytes).is_ok_and(|keys| keys.positions && !keys.faces)
 }
 
 /// Which of the keys that tell the kinds apart a JSON object has.
@@ -178,9 +180,7 @@ pub enum TruthError {
         index: usize,
     },
     /// Encoder angles that do not ascend.
-    #[error(
-        "encoder_angle_deg[{index}] is not above the angle before it; the angles ascend"
-    )]
+    #[error("encoder_angle_deg[{index}] is not above the angle before it; the angles ascend")]
     EncoderAnglesNotAscending {
         /// The index of the first angle not above the one before it.
         index: usize,

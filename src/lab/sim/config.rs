@@ -181,9 +181,7 @@ pub enum LabConfigError {
         ac: u32,
     },
     /// A temperature model: the lab's instruments report no temperature.
-    #[error(
-        "the simulated lab has no temperature model (its instruments report no temperature)"
-    )]
+    #[error("the simulated lab has no temperature model (its instruments report no temperature)")]
     TemperatureModel,
     /// An elevation model: the lab's Y axis has its own.
     #[error(
