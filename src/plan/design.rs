@@ -227,7 +227,7 @@ impl Design {
         Ok(design)
     }
 
-    fn set<'a>(&mut self, key: &str, value: Option<&'a str>, spec: &str) -> Result<(), PlanError> {
+    fn set(&mut self, key: &str, value: Option<&str>, spec: &str) -> Result<(), PlanError> {
         self.set_key(key, value).map_err(|problem| PlanError::Spec {
             spec: spec.to_string(),
             problem,
@@ -289,7 +289,7 @@ impl Design {
                             E::Temperature {
                                 key: key.to_string(),
                                 text: text.to_string(),
-                                error,
+                                error: Box::new(error),
                             }
                         })?),
                     }
@@ -519,7 +519,7 @@ pub enum DesignSpecError {
         /// The profile given.
         text: String,
         /// Why it cannot be read.
-        error: crate::effects::SpecError,
+        error: Box<crate::effects::SpecError>,
     },
     /// A key that is not one of [`DESIGN_KEYS`].
     #[error("unknown key `{key}` (keys: {})", DESIGN_KEYS.join(", "))]

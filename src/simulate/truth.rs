@@ -328,7 +328,11 @@ impl Truth {
                 return Err(TruthError::SetupErrorNumbering { setup, ac });
             }
             if let Err(rule) = READING_ARCSEC.check(value, TRUTH_VALUE) {
-                return Err(TruthError::SetupErrorBeyondLimits { setup, ac, rule });
+                return Err(TruthError::SetupErrorBeyondLimits {
+                    setup,
+                    ac,
+                    rule: Box::new(rule),
+                });
             }
             if !seen.insert((setup, ac)) {
                 return Err(TruthError::SetupErrorTwice { setup, ac });
@@ -516,7 +520,11 @@ const TRUTH_VALUE: &str = "a truth value";
 pub(super) fn check_values(list: &'static str, values: &[f64]) -> Result<(), TruthError> {
     for (index, &value) in values.iter().enumerate() {
         if let Err(rule) = READING_ARCSEC.check(value, TRUTH_VALUE) {
-            return Err(TruthError::ValueBeyondLimits { list, index, rule });
+            return Err(TruthError::ValueBeyondLimits {
+                list,
+                index,
+                rule: Box::new(rule),
+            });
         }
     }
     Ok(())

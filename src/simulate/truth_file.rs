@@ -223,7 +223,7 @@ pub enum TruthError {
         /// The value's index.
         index: usize,
         /// The limit it breaks.
-        rule: LimitError,
+        rule: Box<LimitError>,
     },
     /// A setup error numbered from 0.
     #[error("setup_error for setup {setup} ac {ac}: numbers start at 1")]
@@ -241,7 +241,7 @@ pub enum TruthError {
         /// Its autocollimator.
         ac: u32,
         /// The limit it breaks.
-        rule: LimitError,
+        rule: Box<LimitError>,
     },
     /// Two setup errors of one setup and autocollimator.
     #[error("setup_error for setup {setup} ac {ac} is given twice")]

@@ -260,7 +260,7 @@ pub enum ComponentError {
     },
     /// A sensitivity coefficient beyond the limits of a budget value (docs/FORMAT.md §2.2).
     #[error("sensitivity: {0}")]
-    SensitivityBeyondLimits(LimitError),
+    SensitivityBeyondLimits(Box<LimitError>),
     /// An invalid distribution.
     #[error(transparent)]
     Distribution(#[from] DistributionError),
@@ -283,14 +283,14 @@ pub enum ComponentError {
     },
     /// A standard uncertainty beyond the limits of a budget value.
     #[error("the standard uncertainty: {0}")]
-    StandardUncertaintyBeyondLimits(LimitError),
+    StandardUncertaintyBeyondLimits(Box<LimitError>),
     /// A contribution |cᵢ|·uᵢ beyond the limits of a budget value.
     #[error("the contribution |cᵢ|·uᵢ: {0}")]
-    ContributionBeyondLimits(LimitError),
+    ContributionBeyondLimits(Box<LimitError>),
     /// An instrument's contribution |c|·u beyond the largest reading (docs/FORMAT.md §2.2),
     /// so that a result it adds to could leave the limits of a result file.
     #[error("its contribution |c|·u: {0}")]
-    ContributionBeyondReadings(LimitError),
+    ContributionBeyondReadings(Box<LimitError>),
     /// A known correction whose column is not one finite value per reading, or whose u is
     /// not a finite number ≥ 0.
     #[error("needs one finite value per reading ({readings}) and a finite u ≥ 0")]
@@ -632,7 +632,7 @@ impl Budget {
             }
             BUDGET_VALUE
                 .check(c.sensitivity, "a sensitivity")
-                .map_err(|rule| bad(ComponentError::SensitivityBeyondLimits(rule)))?;
+                .map_err(|rule| bad(ComponentError::SensitivityBeyondLimits(Box::new(rule))))?;
             let line = match &c.source {
                 Source::Input {
                     evaluation,
@@ -650,7 +650,9 @@ impl Budget {
                     BUDGET_VALUE
                         .check(u, "a standard uncertainty")
                         .map_err(|rule| {
-                            bad(ComponentError::StandardUncertaintyBeyondLimits(rule))
+                            bad(ComponentError::StandardUncertaintyBeyondLimits(Box::new(
+                                rule,
+                            )))
                         })?;
                     ComponentResult {
                         name: c.name.clone(),
@@ -681,7 +683,7 @@ impl Budget {
             };
             BUDGET_VALUE
                 .check(line.contribution, "a contribution |cᵢ|·uᵢ")
-                .map_err(|rule| bad(ComponentError::ContributionBeyondLimits(rule)))?;
+                .map_err(|rule| bad(ComponentError::ContributionBeyondLimits(Box::new(rule))))?;
             evaluation = Some(match evaluation {
                 None => line.evaluation,
                 Some(e) => e.join(line.evaluation),

@@ -449,5 +449,5 @@ fn contribution_within_limits(c: &ScopedComponent) -> Result<(), ComponentError>
             "an instrument's contribution |c|·u (arcseconds)",
         )
         .map(|_| ())
-        .map_err(ComponentError::ContributionBeyondReadings)
+        .map_err(|rule| ComponentError::ContributionBeyondReadings(Box::new(rule)))
 }
