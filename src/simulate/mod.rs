@@ -122,11 +122,6 @@ pub enum SimulateError {
     /// The simulation settings are invalid ([`SimulationConfig::validate`]).
     #[error("invalid simulation settings: {0}")]
     Config(SimulationConfigError),
-    /// The settings of a simulated lab are invalid beyond its simulation's
-    /// ([`crate::lab::sim::LabConfig::validate`]).
-    #[cfg(feature = "lab")]
-    #[error("invalid simulation settings: {0}")]
-    LabConfig(crate::lab::sim::LabConfigError),
     /// A file could not be read.
     #[error("{}: {source}", path.display())]
     Io {

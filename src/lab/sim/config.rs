@@ -94,12 +94,11 @@ impl LabConfig {
     ///
     /// # Errors
     ///
-    /// [`SimulateError::Config`] for the simulation's settings,
-    /// [`SimulateError::LabConfig`] with the [`LabConfigError`] of the first problem of the
-    /// lab's.
-    pub fn validate(&self) -> Result<(), SimulateError> {
+    /// [`LabSimError::Simulation`] for the simulation's settings, [`LabSimError::Config`]
+    /// with the [`LabConfigError`] of the first problem of the lab's.
+    pub fn validate(&self) -> Result<(), LabSimError> {
         self.simulation.validate()?;
-        self.check().map_err(SimulateError::LabConfig)
+        Ok(self.check()?)
     }
 
     fn check(&self) -> Result<(), LabConfigError> {
@@ -157,6 +156,19 @@ impl LabConfig {
             .filter(|f| f.device == device)
             .collect()
     }
+}
+
+/// Why a simulated lab cannot be set up: its simulation's settings or truth, or its own
+/// settings.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LabSimError {
+    /// The simulation's settings ([`SimulationConfig::validate`]) or truth are refused.
+    #[error(transparent)]
+    Simulation(#[from] SimulateError),
+    /// The lab's own settings are refused.
+    #[error("invalid simulation settings: {0}")]
+    Config(#[from] LabConfigError),
 }
 
 /// Why the settings of a simulated lab ([`LabConfig`]) are refused, beyond those of its

@@ -90,7 +90,7 @@ use std::fmt;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-pub use config::{LabConfig, LabConfigError};
+pub use config::{LabConfig, LabConfigError, LabSimError};
 pub use elcomat::ElcomatSim;
 pub use endpoint::{Endpoint, SimDevice, SimStream};
 pub use fault::{
@@ -136,7 +136,7 @@ impl Devices {
     /// # Errors
     ///
     /// Invalid settings ([`LabConfig::validate`]).
-    pub fn new(config: LabConfig) -> Result<Devices, SimulateError> {
+    pub fn new(config: LabConfig) -> Result<Devices, LabSimError> {
         let world = World::new(config)?;
         Ok(Devices::from_world(world))
     }
@@ -146,7 +146,7 @@ impl Devices {
     /// # Errors
     ///
     /// Invalid settings, or a truth whose number of faces differs from the settings'.
-    pub fn with_truth(config: LabConfig, truth: Truth) -> Result<Devices, SimulateError> {
+    pub fn with_truth(config: LabConfig, truth: Truth) -> Result<Devices, LabSimError> {
         config.validate()?;
         truth.validate()?;
         if truth.faces != config.simulation.faces {
@@ -157,7 +157,8 @@ impl Devices {
                     run: "the lab",
                     run_faces: config.simulation.faces,
                 },
-            });
+            }
+            .into());
         }
         Ok(Devices::from_world(World::with_truth(config, truth)))
     }
