@@ -731,9 +731,6 @@ pub enum SpecProblem {
         /// Its text.
         text: String,
     },
-    /// Numbers that do not make a valid model.
-    #[error(transparent)]
-    Model(#[from] crate::simulate::ModelError),
 }
 
 impl SpecProblem {

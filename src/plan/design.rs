@@ -519,7 +519,7 @@ pub enum DesignSpecError {
         /// The profile given.
         text: String,
         /// Why it cannot be read.
-        error: Box<crate::effects::SpecError>,
+        error: Box<crate::simulate::ModelSpecError>,
     },
     /// A key that is not one of [`DESIGN_KEYS`].
     #[error("unknown key `{key}` (keys: {})", DESIGN_KEYS.join(", "))]

@@ -90,7 +90,9 @@ use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
 pub use config::{Harmonic, MAX_READINGS, RunEffectError, SimulationConfig, SimulationConfigError};
 pub use habits::{HabitError, RandomWalkSpec, RandomWalkTruth, RezeroSpec};
-pub use models::{ElevationModel, ElevationTruth, ModelError, MountingTilt, TemperatureModel};
+pub use models::{
+    ElevationModel, ElevationTruth, ModelError, ModelSpecError, MountingTilt, TemperatureModel,
+};
 pub use selfcal::{
     HeadErrorTruth, MAX_DRAWN_ORDER, MAX_HARMONIC_TERMS, MIN_POSITIONS, SelfcalConfigError,
     SelfcalSimConfig, SelfcalTruth, equally_spaced_head_angles_deg, selfa_head_angles_deg,

@@ -55,6 +55,28 @@ pub enum ModelError {
     },
 }
 
+/// The written form of a [`TemperatureModel`] or an [`ElevationModel`] that cannot be
+/// read: not its numbers, or numbers that make no valid model.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModelSpecError {
+    /// Not the model's numbers separated by `:`.
+    #[error(transparent)]
+    Spec(#[from] SpecError),
+    /// Numbers that make no valid model.
+    #[error("{what} \"{spec}\": {problem} (expected {form})")]
+    Invalid {
+        /// The model: `temperature model`, `elevation model`.
+        what: &'static str,
+        /// The written form given.
+        spec: String,
+        /// Which parameter is wrong.
+        problem: ModelError,
+        /// The form expected, with an example.
+        form: &'static str,
+    },
+}
+
 /// The lab's air temperature during a simulated run, °C, at time t (seconds since the
 /// start of the run):
 ///
@@ -158,12 +180,12 @@ impl TemperatureModel {
 }
 
 impl FromStr for TemperatureModel {
-    type Err = SpecError;
+    type Err = ModelSpecError;
 
     /// Parses `START:WARMUP:WARMUP_SECONDS:AMPLITUDE:PERIOD_SECONDS[:PHASE[:NOISE]]`
     /// (°C, °C, s, °C, s, radians, °C), e.g. `20:0.5:3600:0.1:1200`; the phase and the
     /// noise default to 0. The numbers are checked as in [`SimulationConfig::validate`].
-    fn from_str(s: &str) -> Result<TemperatureModel, SpecError> {
+    fn from_str(s: &str) -> Result<TemperatureModel, ModelSpecError> {
         let form = "START:WARMUP:WARMUP_SECONDS:AMPLITUDE:PERIOD_SECONDS[:PHASE[:NOISE]], \
                     e.g. 20:0.5:3600:0.1:1200";
         let v = numbers("temperature model", s, 5..=7, form)?;
@@ -176,9 +198,12 @@ impl FromStr for TemperatureModel {
             cycle_phase_rad: v.get(5).copied().unwrap_or(0.0),
             noise_celsius: v.get(6).copied().unwrap_or(0.0),
         };
-        model
-            .check()
-            .map_err(|e| SpecError::part("temperature model", s, e.into(), form))?;
+        model.check().map_err(|problem| ModelSpecError::Invalid {
+            what: "temperature model",
+            spec: s.to_string(),
+            problem,
+            form,
+        })?;
         Ok(model)
     }
 }
@@ -273,12 +298,12 @@ impl ElevationModel {
 }
 
 impl FromStr for ElevationModel {
-    type Err = SpecError;
+    type Err = ModelSpecError;
 
     /// Parses `PYRAMIDAL:TILT:WOBBLE:OFFSET:NOISE[:WOBBLE_PHASE]` (arcsec, the phase in
     /// radians, 0 when left out), e.g. `10:20:1:5:0.05`. The numbers are checked as in
     /// [`SimulationConfig::validate`].
-    fn from_str(s: &str) -> Result<ElevationModel, SpecError> {
+    fn from_str(s: &str) -> Result<ElevationModel, ModelSpecError> {
         let form = "PYRAMIDAL:TILT:WOBBLE:OFFSET:NOISE[:WOBBLE_PHASE], e.g. 10:20:1:5:0.05";
         let v = numbers("elevation model", s, 5..=6, form)?;
         let model = ElevationModel {
@@ -289,9 +314,12 @@ impl FromStr for ElevationModel {
             noise_arcsec: v[4],
             wobble_phase_rad: v.get(5).copied().unwrap_or(0.0),
         };
-        model
-            .check()
-            .map_err(|e| SpecError::part("elevation model", s, e.into(), form))?;
+        model.check().map_err(|problem| ModelSpecError::Invalid {
+            what: "elevation model",
+            spec: s.to_string(),
+            problem,
+            form,
+        })?;
         Ok(model)
     }
 }
