@@ -468,3 +468,60 @@ pub enum TruthError {
         acs: u32,
     },
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulate::{SelfcalSimConfig, SimulationConfig, simulate_selfcal};
+
+    #[test]
+    fn the_kind_is_told_by_the_keys_and_both_kinds_read_back() {
+        let polygon = Truth::draw(&SimulationConfig {
+            faces: 6,
+            ..SimulationConfig::default()
+        })
+        .expect("valid settings");
+        let read = TruthFile::from_json_bytes(polygon.to_json_pretty().as_bytes(), "p.json");
+        assert_eq!(read.ok(), Some(TruthFile::Polygon(polygon)));
+
+        let (_, selfcal) = simulate_selfcal(&SelfcalSimConfig::default()).expect("valid");
+        let read = TruthFile::from_json_bytes(selfcal.to_json_pretty().as_bytes(), "s.json");
+        assert_eq!(read.ok(), Some(TruthFile::Selfcal(selfcal)));
+    }
+
+    #[test]
+    fn a_file_with_faces_or_without_positions_is_a_polygon_runs() {
+        for text in [
+            r#"{"positions": 3, "faces": null, "encoder_error": [0, 0, 0]}"#,
+            r#"{"encoder_error": [0, 0, 0]}"#,
+            r#"[1, 2]"#,
+            "{\"positions\": 3,\n \"encoder_error\": [1, -1, x]}",
+        ] {
+            assert!(!is_selfcal(text.as_bytes()), "{text}");
+        }
+        assert!(is_selfcal(br#"{"faces_seen": 1, "positions": 3}"#));
+    }
+
+    #[test]
+    fn refusals_name_the_file_and_the_problem() {
+        let err =
+            TruthFile::from_json_bytes(br#"{"positions": 2, "encoder_error": [1, -1]}"#, "s.json")
+                .expect_err("too few positions");
+        assert!(matches!(
+            &err,
+            SimulateError::Truth {
+                problem: TruthError::TooFewPositions { positions: 2 },
+                ..
+            }
+        ));
+        assert_eq!(
+            err.to_string(),
+            "s.json: invalid truth: positions is 2; a self-calibration has at least 3"
+        );
+        let err =
+            TruthFile::from_json_bytes(b"{\"faces\": 3,\n \"pitch_deviation\": [1,,]}", "p.json")
+                .expect_err("bad JSON");
+        assert!(matches!(err, SimulateError::Json { .. }), "{err}");
+        assert!(err.to_string().starts_with("p.json:2:"), "{err}");
+    }
+}
