@@ -436,29 +436,23 @@ impl Effect {
     ///
     /// A [`SpecError`] naming the kind, the spec and the faulty part.
     pub fn parse_spec(kind: &str, spec: &str) -> Result<Effect, SpecError> {
-        Self::parse_spec_text(kind, spec).map_err(SpecError)
-    }
-
-    fn parse_spec_text(kind: &str, spec: &str) -> Result<Effect, String> {
         let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
         let n = parts.len();
-        let ctx = |msg: String, form: &str| -> String {
-            format!("{kind} effect \"{spec}\": {msg} (expected {form})")
-        };
+        let what = || format!("{kind} effect");
+        let bad =
+            |problem: SpecProblem, form: &'static str| SpecError::part(what(), spec, problem, form);
         match kind {
             "drift" => {
                 let form = "AC:RATE or AC:RATE:QUADRATIC, e.g. 1:0.3 or 1:0.3:-0.05";
+                let at = |problem| bad(problem, form);
                 if !(2..=3).contains(&n) {
-                    return Err(ctx(
-                        format!("{n} part(s) separated by ':', want 2 or 3"),
-                        form,
-                    ));
+                    return Err(at(SpecProblem::part_count(n, "2 or 3")));
                 }
                 Ok(Effect::Drift {
-                    ac: number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?,
-                    value: finite("RATE", parts[1]).map_err(|m| ctx(m, form))?,
+                    ac: number_from_1("AC", parts[0]).map_err(at)?,
+                    value: finite("RATE", parts[1]).map_err(at)?,
                     quadratic: match parts.get(2) {
-                        Some(text) => Some(finite("QUADRATIC", text).map_err(|m| ctx(m, form))?),
+                        Some(text) => Some(finite("QUADRATIC", text).map_err(at)?),
                         None => None,
                     },
                 })
@@ -466,30 +460,26 @@ impl Effect {
             "offset-step" => {
                 let form = "AC:CYCLE:VALUE, AC:CYCLE:STEP:VALUE or SETUP:AC:CYCLE:STEP:VALUE, \
                             e.g. 2:4:0.5, 2:4:7:0.5 or 1:2:4:7:0.5";
+                let at = |problem| bad(problem, form);
                 let (setup, rest) = match n {
                     3 | 4 => (None, &parts[..]),
                     5 => (
-                        Some(number_from_1("SETUP", parts[0]).map_err(|m| ctx(m, form))?),
+                        Some(number_from_1("SETUP", parts[0]).map_err(at)?),
                         &parts[1..],
                     ),
-                    _ => {
-                        return Err(ctx(
-                            format!("{n} part(s) separated by ':', want 3, 4 or 5"),
-                            form,
-                        ));
-                    }
+                    _ => return Err(at(SpecProblem::part_count(n, "3, 4 or 5"))),
                 };
                 let step = if rest.len() == 4 {
-                    Some(whole("STEP", rest[2]).map_err(|m| ctx(m, form))?)
+                    Some(whole("STEP", rest[2]).map_err(at)?)
                 } else {
                     None
                 };
                 Ok(Effect::OffsetStep {
-                    ac: number_from_1("AC", rest[0]).map_err(|m| ctx(m, form))?,
-                    cycle: number_from_1("CYCLE", rest[1]).map_err(|m| ctx(m, form))?,
+                    ac: number_from_1("AC", rest[0]).map_err(at)?,
+                    cycle: number_from_1("CYCLE", rest[1]).map_err(at)?,
                     step,
                     setup,
-                    value: finite("VALUE", rest[rest.len() - 1]).map_err(|m| ctx(m, form))?,
+                    value: finite("VALUE", rest[rest.len() - 1]).map_err(at)?,
                 })
             }
             "temperature" | "cross-talk" => {
@@ -498,11 +488,12 @@ impl Effect {
                 } else {
                     "AC:COEFF (arcsec of reading per arcsec of reading_y), e.g. 1:0.01"
                 };
+                let at = |problem| bad(problem, form);
                 if n != 2 {
-                    return Err(ctx(count_msg(n, 2), form));
+                    return Err(at(SpecProblem::part_count(n, "2")));
                 }
-                let ac = number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?;
-                let value = finite("COEFF", parts[1]).map_err(|m| ctx(m, form))?;
+                let ac = number_from_1("AC", parts[0]).map_err(at)?;
+                let value = finite("COEFF", parts[1]).map_err(at)?;
                 Ok(if kind == "temperature" {
                     Effect::Temperature { ac, value }
                 } else {
@@ -511,52 +502,52 @@ impl Effect {
             }
             "direction" => {
                 let form = "VALUE or AC:VALUE, e.g. 0.2 or 1:0.2";
+                let at = |problem| bad(problem, form);
                 match n {
                     1 => Ok(Effect::Direction {
                         ac: None,
-                        value: finite("VALUE", parts[0]).map_err(|m| ctx(m, form))?,
+                        value: finite("VALUE", parts[0]).map_err(at)?,
                     }),
                     2 => Ok(Effect::Direction {
-                        ac: Some(number_from_1("AC", parts[0]).map_err(|m| ctx(m, form))?),
-                        value: finite("VALUE", parts[1]).map_err(|m| ctx(m, form))?,
+                        ac: Some(number_from_1("AC", parts[0]).map_err(at)?),
+                        value: finite("VALUE", parts[1]).map_err(at)?,
                     }),
-                    _ => Err(ctx(
-                        format!("{n} parts separated by ':', want 1 or 2"),
-                        form,
-                    )),
+                    _ => Err(at(SpecProblem::PartsCount {
+                        found: n,
+                        wanted: "1 or 2",
+                    })),
                 }
             }
             "outlier" => {
                 let form = "CYCLE:STEP:AC:VALUE or SETUP:CYCLE:STEP:AC:VALUE, e.g. 3:7:1:2.0";
+                let at = |problem| bad(problem, form);
                 let (setup, rest) = match n {
                     4 => (None, &parts[..]),
                     5 => (
-                        Some(number_from_1("SETUP", parts[0]).map_err(|m| ctx(m, form))?),
+                        Some(number_from_1("SETUP", parts[0]).map_err(at)?),
                         &parts[1..],
                     ),
                     _ => {
-                        return Err(ctx(
-                            format!("{n} parts separated by ':', want 4 or 5"),
-                            form,
-                        ));
+                        return Err(at(SpecProblem::PartsCount {
+                            found: n,
+                            wanted: "4 or 5",
+                        }));
                     }
                 };
                 Ok(Effect::Outlier {
-                    cycle: number_from_1("CYCLE", rest[0]).map_err(|m| ctx(m, form))?,
-                    step: whole("STEP", rest[1]).map_err(|m| ctx(m, form))?,
-                    ac: number_from_1("AC", rest[2]).map_err(|m| ctx(m, form))?,
+                    cycle: number_from_1("CYCLE", rest[0]).map_err(at)?,
+                    step: whole("STEP", rest[1]).map_err(at)?,
+                    ac: number_from_1("AC", rest[2]).map_err(at)?,
                     setup,
-                    value: finite("VALUE", rest[3]).map_err(|m| ctx(m, form))?,
+                    value: finite("VALUE", rest[3]).map_err(at)?,
                 })
             }
-            "rezero" => Err(format!(
-                "rezero effect \"{spec}\": the offsets of a zero set anew every cycle are drawn by \
-                 the simulation (simulate --rezero AC:SIGMA), not given one by one"
-            )),
-            _ => Err(format!(
-                "unknown effect kind \"{kind}\" (known kinds: {})",
-                KINDS.join(", ")
-            )),
+            "rezero" => Err(SpecError::RezeroGiven {
+                spec: spec.to_string(),
+            }),
+            _ => Err(SpecError::UnknownKind {
+                kind: kind.to_string(),
+            }),
         }
     }
 }
@@ -631,38 +622,157 @@ impl fmt::Display for Effect {
     }
 }
 
-/// A command-line form of an effect or a harmonic (e.g. `AC:RATE`) that cannot be read;
-/// the text names the kind, the spec, the faulty part and the expected form.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct SpecError(pub(crate) String);
+/// A command-line form of an effect, a harmonic, a model or a habit (e.g. `AC:RATE`) that
+/// cannot be read; the message names the kind, the spec, the faulty part and the expected
+/// form.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SpecError {
+    /// A spec of a known form with a faulty part.
+    #[error("{what} \"{spec}\": {problem} (expected {form})")]
+    Part {
+        /// What the spec describes: `drift effect`, `harmonic`, `temperature model`,
+        /// `rezero`, …
+        what: String,
+        /// The spec as given.
+        spec: String,
+        /// What is wrong with it.
+        problem: SpecProblem,
+        /// The form expected, with an example.
+        form: &'static str,
+    },
+    /// A `rezero` effect given by hand: its offsets are drawn by the simulation.
+    #[error(
+        "rezero effect \"{spec}\": the offsets of a zero set anew every cycle are drawn by \
+         the simulation (simulate --rezero AC:SIGMA), not given one by one"
+    )]
+    RezeroGiven {
+        /// The spec as given.
+        spec: String,
+    },
+    /// An effect kind that is not one of [`KINDS`].
+    #[error("unknown effect kind \"{kind}\" (known kinds: {})", KINDS.join(", "))]
+    UnknownKind {
+        /// The kind as given.
+        kind: String,
+    },
+}
 
 impl SpecError {
-    /// What is wrong, as one line.
-    pub fn message(&self) -> &str {
-        &self.0
+    /// A spec of `what` whose faulty part is `problem`; `form` is the form expected.
+    pub(crate) fn part(
+        what: impl Into<String>,
+        spec: &str,
+        problem: SpecProblem,
+        form: &'static str,
+    ) -> SpecError {
+        SpecError::Part {
+            what: what.into(),
+            spec: spec.to_string(),
+            problem,
+            form,
+        }
+    }
+
+    /// What is wrong, as one line (the error's message).
+    pub fn message(&self) -> String {
+        self.to_string()
     }
 }
 
-fn count_msg(got: usize, want: usize) -> String {
-    format!("{got} part(s) separated by ':', want {want}")
+/// The faulty part of a command-line spec ([`SpecError::Part`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SpecProblem {
+    /// Not as many `:`-separated parts as the form has.
+    #[error("{found} part(s) separated by ':', want {wanted}")]
+    PartCount {
+        /// The number of parts given.
+        found: usize,
+        /// The numbers the form allows, e.g. `2 or 3`.
+        wanted: String,
+    },
+    /// The same as [`SpecProblem::PartCount`], worded `parts` (the direction and outlier
+    /// effects' wording).
+    #[error("{found} parts separated by ':', want {wanted}")]
+    PartsCount {
+        /// The number of parts given.
+        found: usize,
+        /// The numbers the form allows, e.g. `1 or 2`.
+        wanted: &'static str,
+    },
+    /// A part that is not a whole number ≥ 1.
+    #[error("{part} \"{text}\" is not a whole number ≥ 1")]
+    NotFromOne {
+        /// The part's name in the form: `AC`, `CYCLE`, `ORDER`, …
+        part: &'static str,
+        /// Its text.
+        text: String,
+    },
+    /// A part that is not a whole number ≥ 0.
+    #[error("{part} \"{text}\" is not a whole number ≥ 0")]
+    NotWhole {
+        /// The part's name in the form: `STEP`.
+        part: &'static str,
+        /// Its text.
+        text: String,
+    },
+    /// A part that is not a finite number.
+    #[error("{}\"{text}\" is not a finite number", named(*part))]
+    NotFinite {
+        /// The part's name in the form (`RATE`, `VALUE`, …), if the message names it.
+        part: Option<&'static str>,
+        /// Its text.
+        text: String,
+    },
+    /// A part that is not a finite number ≥ 0.
+    #[error("\"{text}\" is not a finite number ≥ 0")]
+    NotNonNegative {
+        /// Its text.
+        text: String,
+    },
 }
 
-fn number_from_1(name: &str, text: &str) -> Result<u32, String> {
+impl SpecProblem {
+    /// [`SpecProblem::PartCount`].
+    pub(crate) fn part_count(found: usize, wanted: impl Into<String>) -> SpecProblem {
+        SpecProblem::PartCount {
+            found,
+            wanted: wanted.into(),
+        }
+    }
+}
+
+/// `NAME ` before a quoted part, or nothing.
+fn named(part: Option<&str>) -> String {
+    part.map_or(String::new(), |p| format!("{p} "))
+}
+
+/// A part that must be a whole number ≥ 1.
+pub(crate) fn number_from_1(part: &'static str, text: &str) -> Result<u32, SpecProblem> {
     match text.parse::<u32>() {
         Ok(v) if v >= 1 => Ok(v),
-        _ => Err(format!("{name} \"{text}\" is not a whole number ≥ 1")),
+        _ => Err(SpecProblem::NotFromOne {
+            part,
+            text: text.to_string(),
+        }),
     }
 }
 
-fn whole(name: &str, text: &str) -> Result<usize, String> {
-    text.parse::<usize>()
-        .map_err(|_| format!("{name} \"{text}\" is not a whole number ≥ 0"))
+fn whole(part: &'static str, text: &str) -> Result<usize, SpecProblem> {
+    text.parse::<usize>().map_err(|_| SpecProblem::NotWhole {
+        part,
+        text: text.to_string(),
+    })
 }
 
-fn finite(name: &str, text: &str) -> Result<f64, String> {
+/// A part that must be a finite number.
+pub(crate) fn finite(part: &'static str, text: &str) -> Result<f64, SpecProblem> {
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(format!("{name} \"{text}\" is not a finite number")),
+        _ => Err(SpecProblem::NotFinite {
+            part: Some(part),
+            text: text.to_string(),
+        }),
     }
 }

@@ -219,14 +219,21 @@ pub enum ReportError {
         /// What the file is.
         kind: &'static str,
     },
-    /// The key comparison file is not the JSON of `polycal kc --format json`, or its lists
-    /// do not hold one entry per compared quantity.
+    /// The key comparison file is not the JSON of `polycal kc --format json`.
     #[error("{location}: {message}")]
     KeyComparison {
         /// The file, with serde's line and column where it has them.
         location: Location,
         /// What is wrong.
         message: String,
+    },
+    /// The key comparison's lists do not have the shape the documents rely on.
+    #[error("{file}: {problem}")]
+    KeyComparisonShape {
+        /// The key comparison file.
+        file: String,
+        /// What is wrong.
+        problem: super::kc::KeyComparisonShapeError,
     },
     /// The laboratory named for the key comparison is not one of its laboratories.
     #[error("{file}: laboratory {lab:?} is not in this key comparison; its laboratories: {labs}")]

@@ -70,7 +70,10 @@ pub(super) fn parse(
             ),
         )
     })?;
-    check_shape(&comparison).map_err(|message| refuse(0, 0, message))?;
+    check_shape(&comparison).map_err(|problem| ReportError::KeyComparisonShape {
+        file: name.to_string(),
+        problem,
+    })?;
     if let Some(lab) = lab
         && !comparison.labs.iter().any(|l| l == lab)
     {
@@ -88,13 +91,43 @@ pub(super) fn parse(
     })
 }
 
+/// Why a key comparison's JSON does not have the shape the documents rely on.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum KeyComparisonShapeError {
+    /// No compared quantity.
+    #[error("no compared quantity (index is empty)")]
+    NoQuantity,
+    /// A list that does not hold one entry per compared quantity.
+    #[error("{list} has {len} entries, but the comparison has {quantities} quantities (index)")]
+    ListLength {
+        /// The list: `reference`, `chi2`, `d of LAB`, `pilot.mean`, …
+        list: String,
+        /// Its number of entries.
+        len: usize,
+        /// The number of compared quantities.
+        quantities: usize,
+    },
+    /// A degree of equivalence of a laboratory that is not in the comparison.
+    #[error(
+        "a degree of equivalence of {lab:?}, which is not among the laboratories ({})",
+        labs.join(", ")
+    )]
+    UnknownLab {
+        /// The laboratory of the degree of equivalence.
+        lab: String,
+        /// The comparison's laboratories.
+        labs: Vec<String>,
+    },
+}
+
 /// Every list of a key comparison holds one entry per compared quantity, there is at
 /// least one, and every degree of equivalence is of a laboratory of the comparison: what
 /// the documents index by.
-fn check_shape(kc: &KeyComparison) -> Result<(), String> {
+fn check_shape(kc: &KeyComparison) -> Result<(), KeyComparisonShapeError> {
     let n = kc.index.len();
     if n == 0 {
-        return Err("no compared quantity (index is empty)".to_string());
+        return Err(KeyComparisonShapeError::NoQuantity);
     }
     let mut lists: Vec<(String, usize)> = vec![
         ("reference".into(), kc.reference.len()),
@@ -124,21 +157,22 @@ fn check_shape(kc: &KeyComparison) -> Result<(), String> {
             lists.push((format!("pilot.{what}"), len));
         }
     }
-    if let Some((what, len)) = lists.into_iter().find(|(_, len)| *len != n) {
-        return Err(format!(
-            "{what} has {len} entries, but the comparison has {n} quantities (index)"
-        ));
+    if let Some((list, len)) = lists.into_iter().find(|(_, len)| *len != n) {
+        return Err(KeyComparisonShapeError::ListLength {
+            list,
+            len,
+            quantities: n,
+        });
     }
     if let Some(d) = kc
         .degrees_of_equivalence
         .iter()
         .find(|d| !kc.labs.contains(&d.lab))
     {
-        return Err(format!(
-            "a degree of equivalence of {:?}, which is not among the laboratories ({})",
-            d.lab,
-            kc.labs.join(", ")
-        ));
+        return Err(KeyComparisonShapeError::UnknownLab {
+            lab: d.lab.clone(),
+            labs: kc.labs.clone(),
+        });
     }
     Ok(())
 }

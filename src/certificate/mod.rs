@@ -58,7 +58,7 @@ use crate::uncertainty::calibration::{
 };
 
 pub use inputs::{ReportError, ReportInputs};
-pub use kc::KeyComparisonSection;
+pub use kc::{KeyComparisonSection, KeyComparisonShapeError};
 pub use meta::Metadata;
 
 /// One input file of a report, with its fingerprint.

@@ -16,7 +16,7 @@ use polycal::output::diagnose_selfcal::{self, SelfcalDiagnoseReport};
 use polycal::output::{self, diagnose::DiagnoseReport};
 use polycal::results::ResultRow;
 use polycal::selfcal::{SelfcalOptions, SelfcalSet};
-use polycal::simulate::{SelfcalTruth, SimulateError, Truth};
+use polycal::simulate::TruthFile;
 use polycal::uncertainty::calibration::{
     self, CalibrationError, CalibrationMonteCarlo, CalibrationUncertainty, InstrumentBudget,
     KnownCorrection, McOptions,
@@ -123,7 +123,11 @@ pub fn run(args: &DiagnoseArgs, out: &Output) -> Result<u8> {
         },
         &args.inputs(),
     )?;
-    let truth = args.truth.as_deref().map(read_truth).transpose()?;
+    let truth = args
+        .truth
+        .as_deref()
+        .map(TruthFile::read_path)
+        .transpose()?;
     let mc_options = args.monte_carlo.options(args.budget.is_some())?;
     let budget = read_budget(args.budget.as_deref(), out)?;
     check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
@@ -241,20 +245,20 @@ impl PolygonRun<'_> {
     fn file(
         &self,
         file: FileRead<'_>,
-        truth: Option<&AnyTruth>,
+        truth: Option<&TruthFile>,
         stdout: &mut dyn Write,
         csv_rows: &mut Vec<(String, Vec<ResultRow>)>,
     ) -> Result<Option<Verdicts>> {
         let (args, out) = (self.args, self.out);
         let FileRead { bytes, name, label } = file;
         let polygon_truth = match truth {
-            Some(AnyTruth::Selfcal(_)) => {
+            Some(TruthFile::Selfcal(_)) => {
                 out.error_message(format_args!(
                     "{name}: the truth is a self-calibration's (positions and heads), the file a measurement file"
                 ));
                 return Ok(None);
             }
-            Some(AnyTruth::Polygon(t)) => Some(t),
+            Some(TruthFile::Polygon(t)) => Some(t),
             None => None,
         };
         let (set, diagnosis) = match self.diagnosed(bytes, name) {
@@ -440,28 +444,6 @@ impl PolygonRun<'_> {
     }
 }
 
-/// The truth of `--truth`: a polygon run's (docs/FORMAT.md §4) or a self-calibration's
-/// (it has `positions` and no `faces`).
-enum AnyTruth {
-    Polygon(Truth),
-    Selfcal(SelfcalTruth),
-}
-
-fn read_truth(path: &std::path::Path) -> Result<AnyTruth, SimulateError> {
-    let (bytes, name) =
-        polycal::input::read_bytes(path).map_err(|(name, source)| SimulateError::Io {
-            path: name.into(),
-            source,
-        })?;
-    let selfcal = serde_json::from_slice::<serde_json::Value>(&bytes)
-        .is_ok_and(|v| v.get("positions").is_some() && v.get("faces").is_none());
-    if selfcal {
-        SelfcalTruth::from_json_bytes(&bytes, &name).map(AnyTruth::Selfcal)
-    } else {
-        Truth::from_json_bytes(&bytes, &name).map(AnyTruth::Polygon)
-    }
-}
-
 /// A file read: its bytes and its names.
 #[derive(Clone, Copy)]
 struct FileRead<'a> {
@@ -496,7 +478,7 @@ struct SelfcalEvaluation<'a> {
 fn selfcal_file(
     args: &DiagnoseArgs,
     file: FileRead<'_>,
-    truth: Option<&AnyTruth>,
+    truth: Option<&TruthFile>,
     evaluation: SelfcalEvaluation<'_>,
     several: bool,
     out: &Output,
@@ -510,15 +492,15 @@ fn selfcal_file(
     }
     let set = SelfcalSet::read_from(bytes, name, args.faces).map_err(super::wrong_file::selfcal)?;
     let truth = match truth {
-        Some(AnyTruth::Polygon(_)) => anyhow::bail!(
+        Some(TruthFile::Polygon(_)) => anyhow::bail!(
             "{name}: the truth is a polygon run's (faces), the file a self-calibration file"
         ),
-        Some(AnyTruth::Selfcal(t)) if t.positions != set.positions => anyhow::bail!(
+        Some(TruthFile::Selfcal(t)) if t.positions != set.positions => anyhow::bail!(
             "{name}: the truth has {} positions, the self-calibration file {}",
             t.positions,
             set.positions
         ),
-        Some(AnyTruth::Selfcal(t)) => Some(t),
+        Some(TruthFile::Selfcal(t)) => Some(t),
         None => None,
     };
     let options = DiagnoseOptions::new()

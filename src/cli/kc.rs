@@ -6,7 +6,9 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::ValueEnum;
-use polycal::kc::{KcOptions, LabResult, ReferenceMethod, evaluate, lab_from_solve_json};
+use polycal::kc::{
+    KcNameError, KcOptions, LabResult, ReferenceMethod, evaluate, lab_from_solve_json,
+};
 use polycal::results::{Quantity, read_results_from};
 
 use super::{EXIT_OK, EXIT_VERDICT};
@@ -32,16 +34,24 @@ pub struct Named {
 }
 
 /// Parses `NAME=PATH` (a name not empty; the path may contain `=`).
-fn named(text: &str) -> std::result::Result<Named, String> {
+fn named(text: &str) -> std::result::Result<Named, NotNamed> {
     match text.split_once('=') {
         Some((name, path)) if !name.is_empty() && !path.is_empty() => Ok(Named {
             name: name.to_string(),
             path: PathBuf::from(path),
         }),
-        _ => Err(format!(
-            "expected NAME=RESULT.csv (a laboratory's name, `=`, its result file), got {text:?}"
-        )),
+        _ => Err(NotNamed {
+            text: text.to_string(),
+        }),
     }
+}
+
+/// An argument that is not `NAME=RESULT.csv`.
+#[derive(Debug, thiserror::Error)]
+#[error("expected NAME=RESULT.csv (a laboratory's name, `=`, its result file), got {text:?}")]
+struct NotNamed {
+    /// The argument given.
+    text: String,
 }
 
 /// Arguments of `polycal kc`.
@@ -81,13 +91,13 @@ pub struct KcArgs {
 }
 
 /// `kc --quantity`: the library's parsing, so that Python accepts the same words.
-fn parse_quantity(name: &str) -> std::result::Result<Quantity, String> {
-    polycal::kc::compared_quantity(name).map_err(|e| e.to_string())
+fn parse_quantity(name: &str) -> std::result::Result<Quantity, KcNameError> {
+    polycal::kc::compared_quantity(name)
 }
 
 /// `kc --method`: the library's `FromStr`.
-fn parse_method(name: &str) -> std::result::Result<ReferenceMethod, String> {
-    name.parse::<ReferenceMethod>().map_err(|e| e.to_string())
+fn parse_method(name: &str) -> std::result::Result<ReferenceMethod, KcNameError> {
+    name.parse::<ReferenceMethod>()
 }
 
 /// `kc --format`.

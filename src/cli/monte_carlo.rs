@@ -39,7 +39,7 @@ enum McTrials {
     Adaptive,
 }
 
-fn parse_trials(text: &str) -> Result<McTrials, String> {
+fn parse_trials(text: &str) -> Result<McTrials, TrialsError> {
     if text == "adaptive" {
         return Ok(McTrials::Adaptive);
     }
@@ -47,7 +47,7 @@ fn parse_trials(text: &str) -> Result<McTrials, String> {
 }
 
 /// `--mc-max-trials`.
-fn parse_count(text: &str) -> Result<usize, String> {
+fn parse_count(text: &str) -> Result<usize, TrialsError> {
     count(text, "")
 }
 
@@ -55,7 +55,7 @@ fn parse_count(text: &str) -> Result<usize, String> {
 /// (`1e6`), up to the largest count this machine holds (18446744073709551615 on 64 bits):
 /// what is too many for the memory is refused by the Monte Carlo itself, with the memory
 /// it would need. `or` names what else the option takes.
-fn count(text: &str, or: &str) -> Result<usize, String> {
+fn count(text: &str, or: &'static str) -> Result<usize, TrialsError> {
     if let Ok(n) = text.parse::<usize>() {
         return Ok(n);
     }
@@ -63,14 +63,45 @@ fn count(text: &str, or: &str) -> Result<usize, String> {
     let why = match value {
         // below 2^64 exactly (usize::MAX as f64 rounds up to 2^64)
         Some(v) if v >= 0.0 && v.fract() == 0.0 && v < usize::MAX as f64 => return Ok(v as usize),
-        Some(v) if v < 0.0 => ": a number of trials is not negative".to_string(),
-        Some(v) if v.fract() != 0.0 => ": not a whole number".to_string(),
-        Some(_) => format!(": more than {} trials", usize::MAX),
-        None => String::new(),
+        Some(v) if v < 0.0 => Some(NotTrials::Negative),
+        Some(v) if v.fract() != 0.0 => Some(NotTrials::NotWhole),
+        Some(_) => Some(NotTrials::TooMany),
+        None => None,
     };
-    Err(format!(
-        "expected a number of trials (e.g. 1000000 or 1e6){or}, got {text:?}{why}"
-    ))
+    Err(TrialsError {
+        text: text.to_string(),
+        or,
+        why,
+    })
+}
+
+/// A number of trials that cannot be read (`--monte-carlo`, `--mc-max-trials`).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "expected a number of trials (e.g. 1000000 or 1e6){or}, got {text:?}{}",
+    why.map_or(String::new(), |why| format!(": {why}"))
+)]
+struct TrialsError {
+    /// The text given.
+    text: String,
+    /// What else the option takes (` or `adaptive``), or nothing.
+    or: &'static str,
+    /// Why a number is not a number of trials; `None`: not a number.
+    why: Option<NotTrials>,
+}
+
+/// Why a number is not a number of trials.
+#[derive(Debug, Clone, Copy, thiserror::Error)]
+enum NotTrials {
+    /// Below 0.
+    #[error("a number of trials is not negative")]
+    Negative,
+    /// With a fraction.
+    #[error("not a whole number")]
+    NotWhole,
+    /// More than this machine counts.
+    #[error("more than {} trials", usize::MAX)]
+    TooMany,
 }
 
 impl McArgs {
@@ -124,10 +155,9 @@ mod tests {
         for bad in ["1.5", "-3", "-1", "many", "1e20", "2e19", "inf", "nan"] {
             assert!(parse_trials(bad).is_err(), "{bad}");
         }
-        assert!(
-            parse_trials("-1")
-                .err()
-                .is_some_and(|e| e.ends_with("got \"-1\": a number of trials is not negative")),
-        );
+        assert!(parse_trials("-1").err().is_some_and(|e| {
+            e.to_string()
+                .ends_with("got \"-1\": a number of trials is not negative")
+        }),);
     }
 }

@@ -227,52 +227,72 @@ impl Design {
         Ok(design)
     }
 
-    fn set<'a>(&mut self, key: &str, value: Option<&'a str>, spec: &str) -> Result<(), PlanError> {
-        let bad = |what: String| PlanError::Spec {
+    fn set(&mut self, key: &str, value: Option<&str>, spec: &str) -> Result<(), PlanError> {
+        self.set_key(key, value).map_err(|problem| PlanError::Spec {
             spec: spec.to_string(),
-            message: what,
+            problem,
+        })
+    }
+
+    fn set_key<'a>(&mut self, key: &str, value: Option<&'a str>) -> Result<(), DesignSpecError> {
+        use DesignSpecError as E;
+        let need = |v: Option<&'a str>| {
+            v.ok_or_else(|| E::NeedsValue {
+                key: key.to_string(),
+            })
         };
-        let need = |v: Option<&'a str>| v.ok_or_else(|| bad(format!("`{key}` needs a value")));
-        fn number<T: FromStr>(key: &str, text: &str) -> Result<T, String> {
-            text.parse::<T>()
-                .map_err(|_| format!("`{key}={text}`: not a valid number"))
+        fn number<T: FromStr>(key: &str, text: &str) -> Result<T, DesignSpecError> {
+            text.parse::<T>().map_err(|_| DesignSpecError::NotANumber {
+                key: key.to_string(),
+                text: text.to_string(),
+            })
         }
         let flag = |v: Option<&str>| match v {
             None | Some("true") | Some("yes") => Ok(true),
             Some("false") | Some("no") => Ok(false),
-            Some(other) => Err(bad(format!("`{key}={other}`: want true or false"))),
+            Some(other) => Err(E::NotAFlag {
+                key: key.to_string(),
+                text: other.to_string(),
+            }),
         };
         match key.replace('_', "-").as_str() {
             "name" => {
                 let name = need(value)?;
                 if name.contains(char::is_control) {
-                    return Err(bad(format!(
-                        "`{key}`: {:?} holds a control character; a name is printed in tables and messages",
-                        name
-                    )));
+                    return Err(E::ControlCharacter {
+                        key: key.to_string(),
+                        name: name.to_string(),
+                    });
                 }
                 self.name = Some(name.to_string())
             }
-            "faces" => self.faces = number(key, need(value)?).map_err(bad)?,
-            "cycles" => self.cycles = number(key, need(value)?).map_err(bad)?,
-            "setups" => self.setups = number(key, need(value)?).map_err(bad)?,
-            "setup-shift" => self.setup_shift_faces = number(key, need(value)?).map_err(bad)?,
+            "faces" => self.faces = number(key, need(value)?)?,
+            "cycles" => self.cycles = number(key, need(value)?)?,
+            "setups" => self.setups = number(key, need(value)?)?,
+            "setup-shift" => self.setup_shift_faces = number(key, need(value)?)?,
             "step-seconds" => {
-                let v: f64 = number(key, need(value)?).map_err(bad)?;
-                if !(v.is_finite() && v > 0.0) {
-                    return Err(bad(format!("`{key}`: {v} is not a time > 0")));
+                let seconds: f64 = number(key, need(value)?)?;
+                if !(seconds.is_finite() && seconds > 0.0) {
+                    return Err(E::StepNotPositive {
+                        key: key.to_string(),
+                        seconds,
+                    });
                 }
-                self.step_seconds = v;
+                self.step_seconds = seconds;
             }
             "temperature" => {
-                self.temperature = match value {
-                    None | Some("default") => Some(TemperatureModel::default()),
-                    Some("none") => None,
-                    Some(text) => Some(
-                        text.parse::<TemperatureModel>()
-                            .map_err(|e| bad(format!("`{key}={text}`: {e}")))?,
-                    ),
-                }
+                self.temperature =
+                    match value {
+                        None | Some("default") => Some(TemperatureModel::default()),
+                        Some("none") => None,
+                        Some(text) => Some(text.parse::<TemperatureModel>().map_err(|error| {
+                            E::Temperature {
+                                key: key.to_string(),
+                                text: text.to_string(),
+                                error: Box::new(error),
+                            }
+                        })?),
+                    }
             }
             "closing" => self.closing = flag(value)?,
             "bidirectional" => self.bidirectional = flag(value)?,
@@ -280,21 +300,18 @@ impl Design {
                 self.ac_faces = need(value)?
                     .split(',')
                     .map(|t| number(key, t.trim()))
-                    .collect::<Result<_, _>>()
-                    .map_err(bad)?
+                    .collect::<Result<_, _>>()?
             }
             "shift-deg" => {
                 self.table_shift_deg = need(value)?
                     .split(',')
                     .map(|t| number::<f64>(key, t.trim()))
-                    .collect::<Result<_, _>>()
-                    .map_err(bad)?
+                    .collect::<Result<_, _>>()?
             }
             other => {
-                return Err(bad(format!(
-                    "unknown key `{other}` (keys: {})",
-                    DESIGN_KEYS.join(", ")
-                )));
+                return Err(E::UnknownKey {
+                    key: other.to_string(),
+                });
             }
         }
         Ok(())
@@ -382,8 +399,8 @@ impl Design {
                         located(
                             key_span(text, index, key),
                             match e {
-                                PlanError::Spec { message, .. } => {
-                                    format!("design {}: {message}", index + 1)
+                                PlanError::Spec { problem, .. } => {
+                                    format!("design {}: {problem}", index + 1)
                                 }
                                 other => other.to_string(),
                             },
@@ -449,10 +466,73 @@ fn toml_type_mismatch(key: &str, value: &toml::Value) -> Option<&'static str> {
     (!fits).then_some(wanted)
 }
 
+/// Why one `KEY=VALUE` of a design's written form ([`Design::with_spec`], a designs
+/// file's `[[design]]` table) is refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum DesignSpecError {
+    /// A key that needs a value without one.
+    #[error("`{key}` needs a value")]
+    NeedsValue {
+        /// The key.
+        key: String,
+    },
+    /// A value that is not a number of the key's kind.
+    #[error("`{key}={text}`: not a valid number")]
+    NotANumber {
+        /// The key.
+        key: String,
+        /// The value (one item of a list).
+        text: String,
+    },
+    /// A flag's value other than true, yes, false or no.
+    #[error("`{key}={text}`: want true or false")]
+    NotAFlag {
+        /// The key.
+        key: String,
+        /// The value.
+        text: String,
+    },
+    /// A name with a control character.
+    #[error(
+        "`{key}`: {name:?} holds a control character; a name is printed in tables and messages"
+    )]
+    ControlCharacter {
+        /// The key.
+        key: String,
+        /// The name given.
+        name: String,
+    },
+    /// A step time that is not a finite number > 0.
+    #[error("`{key}`: {seconds} is not a time > 0")]
+    StepNotPositive {
+        /// The key.
+        key: String,
+        /// The step time, seconds.
+        seconds: f64,
+    },
+    /// A temperature profile that cannot be read.
+    #[error("`{key}={text}`: {error}")]
+    Temperature {
+        /// The key.
+        key: String,
+        /// The profile given.
+        text: String,
+        /// Why it cannot be read.
+        error: Box<crate::simulate::ModelSpecError>,
+    },
+    /// A key that is not one of [`DESIGN_KEYS`].
+    #[error("unknown key `{key}` (keys: {})", DESIGN_KEYS.join(", "))]
+    UnknownKey {
+        /// The key, `_` written `-`.
+        key: String,
+    },
+}
+
 /// A design the simulation settings refuse: their reason, without their prefix.
 fn design_error(e: crate::simulate::SimulateError) -> PlanError {
     PlanError::Design(match e {
-        crate::simulate::SimulateError::Config(reason) => reason,
+        crate::simulate::SimulateError::Config(reason) => reason.to_string(),
         other => other.to_string(),
     })
 }

@@ -37,7 +37,7 @@ pub mod detect;
 pub mod power;
 pub mod selection;
 
-pub use design::{DESIGN_KEYS, Design};
+pub use design::{DESIGN_KEYS, Design, DesignSpecError};
 pub use detect::{Ambiguity, Detectable};
 
 use crate::diagnose::DiagnoseOptions;
@@ -68,12 +68,12 @@ pub enum PlanError {
     #[error("invalid design: {0}")]
     Design(String),
     /// A design's written form is not valid.
-    #[error("design \"{spec}\": {message}")]
+    #[error("design \"{spec}\": {problem}")]
     Spec {
         /// The written form.
         spec: String,
         /// What is wrong.
-        message: String,
+        problem: DesignSpecError,
     },
     /// A designs file could not be read.
     #[error("{file}: {source}")]

@@ -7,8 +7,9 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use super::SimulateError;
-use super::models::{ElevationModel, TemperatureModel};
-use crate::effects::{Effect, SpecError};
+use super::habits::HabitError;
+use super::models::{ElevationModel, ModelError, TemperatureModel};
+use crate::effects::{Effect, SpecError, SpecProblem, finite};
 
 /// Largest number of readings a simulated run may have (a guard against absurd settings).
 pub const MAX_READINGS: usize = 50_000_000;
@@ -57,38 +58,24 @@ impl FromStr for Harmonic {
     /// Parses `ORDER:AMPLITUDE:PHASE` (order ≥ 1, amplitude in arcsec, phase in radians;
     /// `:PHASE` may be left out for phase 0), e.g. `2:0.35:1.3` or `1:0.6`.
     fn from_str(s: &str) -> Result<Harmonic, SpecError> {
-        Harmonic::parse_text(s).map_err(SpecError)
-    }
-}
-
-impl Harmonic {
-    fn parse_text(s: &str) -> Result<Harmonic, String> {
         let form = "ORDER:AMPLITUDE[:PHASE], e.g. 2:0.35:1.3";
+        let at = |problem| SpecError::part("harmonic", s, problem, form);
         let parts: Vec<&str> = s.split(':').map(str::trim).collect();
         if !(2..=3).contains(&parts.len()) {
-            return Err(format!(
-                "harmonic \"{s}\": {} part(s) separated by ':', want 2 or 3 (expected {form})",
-                parts.len()
-            ));
+            return Err(at(SpecProblem::part_count(parts.len(), "2 or 3")));
         }
         let order = match parts[0].parse::<usize>() {
             Ok(k) if k >= 1 => k,
             _ => {
-                return Err(format!(
-                    "harmonic \"{s}\": ORDER \"{}\" is not a whole number ≥ 1 (expected {form})",
-                    parts[0]
-                ));
+                return Err(at(SpecProblem::NotFromOne {
+                    part: "ORDER",
+                    text: parts[0].to_string(),
+                }));
             }
         };
-        let number = |name: &str, text: &str| match text.parse::<f64>() {
-            Ok(v) if v.is_finite() => Ok(v),
-            _ => Err(format!(
-                "harmonic \"{s}\": {name} \"{text}\" is not a finite number (expected {form})"
-            )),
-        };
-        let amplitude_arcsec = number("AMPLITUDE", parts[1])?;
+        let amplitude_arcsec = finite("AMPLITUDE", parts[1]).map_err(at)?;
         let phase_rad = match parts.get(2) {
-            Some(text) => number("PHASE", text)?,
+            Some(text) => finite("PHASE", text).map_err(at)?,
             None => 0.0,
         };
         Ok(Harmonic {
@@ -328,134 +315,133 @@ impl SimulationConfig {
     /// not have, a direction effect without `bidirectional`, an outlier without a setup
     /// when there are several setups, a temperature effect without a temperature model
     /// and a cross-talk effect without an elevation model.
+    ///
+    /// # Errors
+    ///
+    /// [`SimulateError::Config`] with the [`SimulationConfigError`] of the first problem.
     pub fn validate(&self) -> Result<(), SimulateError> {
-        let bad = |m: String| Err(SimulateError::Config(m));
+        self.check().map_err(SimulateError::Config)
+    }
+
+    fn check(&self) -> Result<(), SimulationConfigError> {
+        use SimulationConfigError as E;
         let n = self.faces;
         if n < 3 {
-            return bad(format!("faces is {n}; a polygon needs at least 3 faces"));
+            return Err(E::TooFewFaces { faces: n });
         }
         if self.ac_faces.is_empty() {
-            return bad("no autocollimator (ac_faces is empty)".into());
+            return Err(E::NoAutocollimator);
         }
         let mut seen = HashSet::new();
-        for (j, &f) in self.ac_faces.iter().enumerate() {
-            if !(1..=n).contains(&f) {
-                return bad(format!(
-                    "autocollimator {} reads face {f} at step 0, outside 1 … {n}",
-                    j + 1
-                ));
+        for (j, &face) in self.ac_faces.iter().enumerate() {
+            let ac = j + 1;
+            if !(1..=n).contains(&face) {
+                return Err(E::AcFaceOutOfRange { ac, face, faces: n });
             }
-            if !seen.insert(f) {
-                return bad(format!(
-                    "autocollimator {} reads face {f} at step 0, like an earlier one",
-                    j + 1
-                ));
+            if !seen.insert(face) {
+                return Err(E::AcFaceTwice { ac, face });
             }
         }
         if self.setups == 0 {
-            return bad("setups is 0; need at least 1".into());
+            return Err(E::NoSetups);
         }
         if self.setup_shift_faces >= n {
-            return bad(format!(
-                "setup shift of {} faces; must be 0 … {}",
-                self.setup_shift_faces,
-                n - 1
-            ));
+            return Err(E::SetupShift {
+                shift_faces: self.setup_shift_faces,
+                faces: n,
+            });
         }
         if !self.table_shift_deg.is_empty() {
             if self.table_shift_deg.len() != self.setups as usize {
-                return bad(format!(
-                    "{} table shift(s) for {} setup(s); give one per setup",
-                    self.table_shift_deg.len(),
-                    self.setups
-                ));
+                return Err(E::TableShiftCount {
+                    shifts: self.table_shift_deg.len(),
+                    setups: self.setups,
+                });
             }
-            for (i, &shift) in self.table_shift_deg.iter().enumerate() {
-                if !(shift.is_finite() && (0.0..360.0).contains(&shift)) {
-                    return bad(format!(
-                        "table shift {shift}° of setup {}; must be a finite angle, 0 ≤ shift < 360",
-                        i + 1
-                    ));
+            for (i, &shift_deg) in self.table_shift_deg.iter().enumerate() {
+                if !(shift_deg.is_finite() && (0.0..360.0).contains(&shift_deg)) {
+                    return Err(E::TableShift {
+                        shift_deg,
+                        setup: i + 1,
+                    });
                 }
             }
         }
         if self.cycles == 0 {
-            return bad("cycles is 0; need at least 1".into());
+            return Err(E::NoCycles);
         }
-        for (name, v) in [
+        for (what, value) in [
             ("noise", self.noise_arcsec),
             ("pitch spread", self.pitch_spread_arcsec),
             ("setup error spread", self.setup_error_spread_arcsec),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(format!("{name} is {v}; must be a finite number ≥ 0"));
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(E::NotNonNegative { what, value });
             }
         }
         if !(self.step_seconds.is_finite() && self.step_seconds > 0.0) {
-            return bad(format!(
-                "step time is {} s; must be a finite number > 0",
-                self.step_seconds
-            ));
+            return Err(E::StepSeconds {
+                seconds: self.step_seconds,
+            });
         }
         for h in &self.encoder_harmonics {
             if h.order == 0 {
-                return bad(format!(
-                    "encoder harmonic {h} has order 0; orders start at 1"
-                ));
+                return Err(E::HarmonicOrderZero {
+                    harmonic: h.clone(),
+                });
             }
             if !(h.amplitude_arcsec.is_finite() && h.phase_rad.is_finite()) {
-                return bad(format!("encoder harmonic {h} is not finite"));
+                return Err(E::HarmonicNotFinite {
+                    harmonic: h.clone(),
+                });
             }
         }
-        if let Some(nu) = self.noise_student_dof
-            && !(nu.is_finite() && nu > 2.0)
+        if let Some(dof) = self.noise_student_dof
+            && !(dof.is_finite() && dof > 2.0)
         {
-            return bad(format!(
-                "Student-t noise with {nu} degrees of freedom; must be a finite number > 2 \
-                 (the variance is infinite below)"
-            ));
+            return Err(E::StudentDof { dof });
         }
         if let Some(model) = &self.temperature {
-            model
-                .check()
-                .map_err(|m| SimulateError::Config(format!("temperature model: {m}")))?;
+            model.check().map_err(E::Temperature)?;
         }
         if let Some(model) = &self.elevation {
-            model
-                .check()
-                .map_err(|m| SimulateError::Config(format!("elevation model: {m}")))?;
+            model.check().map_err(E::Elevation)?;
         }
-        super::habits::check(self).map_err(SimulateError::Config)?;
-        let count = self.reading_count();
-        if count > MAX_READINGS {
-            return bad(format!(
-                "the run would have {count} readings, more than {MAX_READINGS}"
-            ));
+        super::habits::check(self)?;
+        let readings = self.reading_count();
+        if readings > MAX_READINGS {
+            return Err(E::TooManyReadings { readings });
         }
         for e in &self.effects {
-            self.check_effect(e)
-                .map_err(|m| SimulateError::Config(format!("effect {}: {m}", effect_json(e))))?;
+            self.check_effect(e).map_err(|problem| E::Effect {
+                effect: e.clone(),
+                problem,
+            })?;
         }
         Ok(())
     }
 
     /// Checks that an effect is finite, names only things this run has, and has the model
     /// it acts through (temperature, elevation).
-    pub(super) fn check_effect(&self, e: &Effect) -> Result<(), String> {
+    pub(super) fn check_effect(&self, e: &Effect) -> Result<(), RunEffectError> {
+        use RunEffectError as E;
         if !e.value().is_finite() {
-            return Err("value is not finite".into());
+            return Err(E::ValueNotFinite);
         }
-        let n_ac = self.ac_count();
+        let acs = self.ac_count();
         let check_ac = |ac: u32| {
-            if ac == 0 || ac as usize > n_ac {
-                Err(format!("no autocollimator {ac}; the run has 1 … {n_ac}"))
+            if ac == 0 || ac as usize > acs {
+                Err(E::NoAutocollimator { ac, acs })
             } else {
                 Ok(())
             }
         };
-        let check_cycle = |c: u32| {
-            if c == 0 || c > self.cycles {
-                Err(format!("no cycle {c}; the run has 1 … {}", self.cycles))
+        let check_cycle = |cycle: u32| {
+            if cycle == 0 || cycle > self.cycles {
+                Err(E::NoCycle {
+                    cycle,
+                    cycles: self.cycles,
+                })
             } else {
                 Ok(())
             }
@@ -463,14 +449,17 @@ impl SimulationConfig {
         let check_step = |step: usize| {
             let last = self.stops_per_cycle() - 1;
             if step > last {
-                Err(format!("no step {step}; the run has 0 … {last}"))
+                Err(E::NoStep { step, last })
             } else {
                 Ok(())
             }
         };
-        let check_setup = |s: u32| {
-            if s == 0 || s > self.setups {
-                Err(format!("no setup {s}; the run has 1 … {}", self.setups))
+        let check_setup = |setup: u32| {
+            if setup == 0 || setup > self.setups {
+                Err(E::NoSetup {
+                    setup,
+                    setups: self.setups,
+                })
             } else {
                 Ok(())
             }
@@ -487,32 +476,28 @@ impl SimulationConfig {
                     check_setup(s)?;
                 }
                 if offsets.iter().any(|o| !o.is_finite()) {
-                    return Err("an offset is not finite".into());
+                    return Err(E::OffsetNotFinite);
                 }
                 Ok(())
             }
             Effect::Drift { ac, quadratic, .. } => {
                 check_ac(ac)?;
                 match quadratic {
-                    Some(q) if !q.is_finite() => Err("quadratic is not finite".into()),
+                    Some(q) if !q.is_finite() => Err(E::QuadraticNotFinite),
                     _ => Ok(()),
                 }
             }
             Effect::Temperature { ac, .. } => {
                 check_ac(ac)?;
                 if self.temperature.is_none() {
-                    return Err("a temperature effect needs a temperature model (the run \
-                                has no temperature column)"
-                        .into());
+                    return Err(E::NoTemperatureModel);
                 }
                 Ok(())
             }
             Effect::CrossTalk { ac, .. } => {
                 check_ac(ac)?;
                 if self.elevation.is_none() {
-                    return Err("a cross-talk effect needs an elevation model (the run \
-                                has no reading_y column)"
-                        .into());
+                    return Err(E::NoElevationModel);
                 }
                 Ok(())
             }
@@ -538,7 +523,7 @@ impl SimulationConfig {
                     check_ac(ac)?;
                 }
                 if !self.bidirectional || self.cycles < 2 {
-                    return Err("no counter-clockwise cycle in this run (needs bidirectional and at least 2 cycles)".into());
+                    return Err(E::NoCounterClockwiseCycle);
                 }
                 Ok(())
             }
@@ -554,15 +539,206 @@ impl SimulationConfig {
                 check_step(step)?;
                 match setup {
                     Some(s) => check_setup(s),
-                    None if self.setups > 1 => Err(format!(
-                        "the run has {} setups; say which one the outlier is in",
-                        self.setups
-                    )),
+                    None if self.setups > 1 => Err(E::OutlierSetupUnnamed {
+                        setups: self.setups,
+                    }),
                     _ => Ok(()),
                 }
             }
         }
     }
+}
+
+/// Why an effect does not fit a simulated run: not finite, naming something the run does
+/// not have, or lacking the model it acts through.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum RunEffectError {
+    /// The effect's value is not finite.
+    #[error("value is not finite")]
+    ValueNotFinite,
+    /// A re-zeroing offset that is not finite.
+    #[error("an offset is not finite")]
+    OffsetNotFinite,
+    /// A drift's `quadratic` that is not finite.
+    #[error("quadratic is not finite")]
+    QuadraticNotFinite,
+    /// An autocollimator the run does not have.
+    #[error("no autocollimator {ac}; the run has 1 … {acs}")]
+    NoAutocollimator {
+        /// The autocollimator named.
+        ac: u32,
+        /// The run's number of autocollimators.
+        acs: usize,
+    },
+    /// A cycle the run does not have.
+    #[error("no cycle {cycle}; the run has 1 … {cycles}")]
+    NoCycle {
+        /// The cycle named.
+        cycle: u32,
+        /// The run's number of cycles.
+        cycles: u32,
+    },
+    /// A step the run's cycles do not have.
+    #[error("no step {step}; the run has 0 … {last}")]
+    NoStep {
+        /// The step named.
+        step: usize,
+        /// The last step of a cycle.
+        last: usize,
+    },
+    /// A setup the run does not have.
+    #[error("no setup {setup}; the run has 1 … {setups}")]
+    NoSetup {
+        /// The setup named.
+        setup: u32,
+        /// The run's number of setups.
+        setups: u32,
+    },
+    /// A temperature effect in a run without a temperature model.
+    #[error("a temperature effect needs a temperature model (the run has no temperature column)")]
+    NoTemperatureModel,
+    /// A cross-talk effect in a run without an elevation model.
+    #[error("a cross-talk effect needs an elevation model (the run has no reading_y column)")]
+    NoElevationModel,
+    /// A direction effect in a run without a counter-clockwise cycle.
+    #[error("no counter-clockwise cycle in this run (needs bidirectional and at least 2 cycles)")]
+    NoCounterClockwiseCycle,
+    /// An outlier without a setup in a run of several setups.
+    #[error("the run has {setups} setups; say which one the outlier is in")]
+    OutlierSetupUnnamed {
+        /// The run's number of setups.
+        setups: u32,
+    },
+}
+
+/// Why the settings of a simulated polygon run ([`SimulationConfig`]) are refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimulationConfigError {
+    /// Fewer than 3 faces.
+    #[error("faces is {faces}; a polygon needs at least 3 faces")]
+    TooFewFaces {
+        /// The number of faces.
+        faces: usize,
+    },
+    /// No autocollimator.
+    #[error("no autocollimator (ac_faces is empty)")]
+    NoAutocollimator,
+    /// An autocollimator reading a face the polygon does not have.
+    #[error("autocollimator {ac} reads face {face} at step 0, outside 1 … {faces}")]
+    AcFaceOutOfRange {
+        /// The autocollimator.
+        ac: usize,
+        /// The face it reads at step 0.
+        face: usize,
+        /// The number of faces.
+        faces: usize,
+    },
+    /// Two autocollimators reading the same face.
+    #[error("autocollimator {ac} reads face {face} at step 0, like an earlier one")]
+    AcFaceTwice {
+        /// The later autocollimator.
+        ac: usize,
+        /// The face.
+        face: usize,
+    },
+    /// No setup.
+    #[error("setups is 0; need at least 1")]
+    NoSetups,
+    /// A shift between setups of N faces or more.
+    #[error("setup shift of {shift_faces} faces; must be 0 … {}", faces - 1)]
+    SetupShift {
+        /// The shift, faces.
+        shift_faces: usize,
+        /// The number of faces.
+        faces: usize,
+    },
+    /// Table shifts that are not one per setup.
+    #[error("{shifts} table shift(s) for {setups} setup(s); give one per setup")]
+    TableShiftCount {
+        /// The number of table shifts.
+        shifts: usize,
+        /// The number of setups.
+        setups: u32,
+    },
+    /// A table shift that is not a finite angle in [0°, 360°).
+    #[error("table shift {shift_deg}° of setup {setup}; must be a finite angle, 0 ≤ shift < 360")]
+    TableShift {
+        /// The shift, degrees.
+        shift_deg: f64,
+        /// Its setup.
+        setup: usize,
+    },
+    /// No cycle.
+    #[error("cycles is 0; need at least 1")]
+    NoCycles,
+    /// A noise or spread that is not a finite number ≥ 0.
+    #[error("{what} is {value}; must be a finite number ≥ 0")]
+    NotNonNegative {
+        /// Which: `noise`, `pitch spread`, `setup error spread`.
+        what: &'static str,
+        /// Its value, arcsec.
+        value: f64,
+    },
+    /// A step time that is not a finite number > 0.
+    #[error("step time is {seconds} s; must be a finite number > 0")]
+    StepSeconds {
+        /// The step time, seconds.
+        seconds: f64,
+    },
+    /// An encoder harmonic of order 0.
+    #[error("encoder harmonic {harmonic} has order 0; orders start at 1")]
+    HarmonicOrderZero {
+        /// The harmonic.
+        harmonic: Harmonic,
+    },
+    /// An encoder harmonic whose amplitude or phase is not finite.
+    #[error("encoder harmonic {harmonic} is not finite")]
+    HarmonicNotFinite {
+        /// The harmonic.
+        harmonic: Harmonic,
+    },
+    /// Student-t degrees of freedom that are not a finite number > 2.
+    #[error(
+        "Student-t noise with {dof} degrees of freedom; must be a finite number > 2 \
+         (the variance is infinite below)"
+    )]
+    StudentDof {
+        /// The degrees of freedom.
+        dof: f64,
+    },
+    /// Student-t degrees of freedom the chi-squared distribution refuses.
+    #[error("Student-t noise with {dof} degrees of freedom: {error}")]
+    StudentNoise {
+        /// The degrees of freedom.
+        dof: f64,
+        /// The distribution's refusal.
+        error: rand_distr::ChiSquaredError,
+    },
+    /// An invalid temperature model.
+    #[error("temperature model: {0}")]
+    Temperature(ModelError),
+    /// An invalid elevation model.
+    #[error("elevation model: {0}")]
+    Elevation(ModelError),
+    /// An invalid habit (`rezero`, `random walk`).
+    #[error(transparent)]
+    Habit(#[from] HabitError),
+    /// A run of more than [`MAX_READINGS`] readings.
+    #[error("the run would have {readings} readings, more than {MAX_READINGS}")]
+    TooManyReadings {
+        /// The number of readings.
+        readings: usize,
+    },
+    /// An effect that does not fit the run.
+    #[error("effect {}: {problem}", effect_json(effect))]
+    Effect {
+        /// The effect.
+        effect: Effect,
+        /// Why it does not fit.
+        problem: RunEffectError,
+    },
 }
 
 /// An effect as compact JSON, for messages.

@@ -12,7 +12,7 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
 use super::SimulationConfig;
-use crate::effects::{Effect, SpecError};
+use crate::effects::{Effect, SpecError, SpecProblem, number_from_1};
 
 /// ChaCha stream of the `rezero` offsets (one standard normal per cycle of every setup,
 /// for each `--rezero` in the order given).
@@ -56,30 +56,19 @@ pub struct RandomWalkTruth {
 
 /// Parses `AC:VALUE` with AC ≥ 1 and a finite VALUE ≥ 0.
 fn ac_and_value(what: &str, s: &str) -> Result<(u32, f64), SpecError> {
+    let at = |problem| SpecError::part(what, s, problem, "AC:VALUE, e.g. 1:0.25");
     let parts: Vec<&str> = s.split(':').map(str::trim).collect();
-    let bad = |m: String| {
-        SpecError(format!(
-            "{what} \"{s}\": {m} (expected AC:VALUE, e.g. 1:0.25)"
-        ))
-    };
     if parts.len() != 2 {
-        return Err(bad(format!(
-            "{} part(s) separated by ':', want 2",
-            parts.len()
-        )));
+        return Err(at(SpecProblem::part_count(parts.len(), "2")));
     }
-    let ac = match parts[0].parse::<u32>() {
-        Ok(ac) if ac >= 1 => ac,
-        _ => {
-            return Err(bad(format!(
-                "AC \"{}\" is not a whole number ≥ 1",
-                parts[0]
-            )));
-        }
-    };
+    let ac = number_from_1("AC", parts[0]).map_err(at)?;
     let value = match parts[1].parse::<f64>() {
         Ok(v) if v.is_finite() && v >= 0.0 => v,
-        _ => return Err(bad(format!("\"{}\" is not a finite number ≥ 0", parts[1]))),
+        _ => {
+            return Err(at(SpecProblem::NotNonNegative {
+                text: parts[1].to_string(),
+            }));
+        }
     };
     Ok((ac, value))
 }
@@ -119,10 +108,38 @@ impl fmt::Display for RandomWalkSpec {
     }
 }
 
+/// Why a habit of a simulated run (`rezero`, `random walk`) is refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum HabitError {
+    /// A habit of an autocollimator the run does not have.
+    #[error("{habit} {ac}:{value}: no autocollimator {ac}; the run has 1 … {acs}")]
+    NoAutocollimator {
+        /// The habit: `rezero` or `random walk`.
+        habit: &'static str,
+        /// Its autocollimator.
+        ac: u32,
+        /// Its value (σ, or rate).
+        value: f64,
+        /// The run's number of autocollimators.
+        acs: usize,
+    },
+    /// A σ or rate that is not a finite number ≥ 0.
+    #[error("{habit} {ac}:{value}: {value} is not a finite number ≥ 0")]
+    NotNonNegative {
+        /// The habit: `rezero` or `random walk`.
+        habit: &'static str,
+        /// Its autocollimator.
+        ac: u32,
+        /// Its value (σ, or rate).
+        value: f64,
+    },
+}
+
 /// Checks the habits of a configuration: autocollimators that exist, finite values ≥ 0.
-pub(super) fn check(config: &SimulationConfig) -> Result<(), String> {
-    let n_ac = config.ac_count();
-    let acs = config
+pub(super) fn check(config: &SimulationConfig) -> Result<(), HabitError> {
+    let acs = config.ac_count();
+    let habits = config
         .rezero
         .iter()
         .map(|r| ("rezero", r.ac, r.sigma_arcsec))
@@ -132,16 +149,17 @@ pub(super) fn check(config: &SimulationConfig) -> Result<(), String> {
                 .iter()
                 .map(|w| ("random walk", w.ac, w.rate_arcsec_per_sqrt_h)),
         );
-    for (what, ac, value) in acs {
-        if ac == 0 || ac as usize > n_ac {
-            return Err(format!(
-                "{what} {ac}:{value}: no autocollimator {ac}; the run has 1 … {n_ac}"
-            ));
+    for (habit, ac, value) in habits {
+        if ac == 0 || ac as usize > acs {
+            return Err(HabitError::NoAutocollimator {
+                habit,
+                ac,
+                value,
+                acs,
+            });
         }
         if !(value.is_finite() && value >= 0.0) {
-            return Err(format!(
-                "{what} {ac}:{value}: {value} is not a finite number ≥ 0"
-            ));
+            return Err(HabitError::NotNonNegative { habit, ac, value });
         }
     }
     Ok(())

@@ -80,6 +80,7 @@ mod habits;
 mod models;
 mod selfcal;
 mod truth;
+mod truth_file;
 
 use std::path::PathBuf;
 
@@ -87,15 +88,18 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
-pub use config::{Harmonic, MAX_READINGS, SimulationConfig};
-pub use habits::{RandomWalkSpec, RandomWalkTruth, RezeroSpec};
-pub use models::{ElevationModel, ElevationTruth, MountingTilt, TemperatureModel};
+pub use config::{Harmonic, MAX_READINGS, RunEffectError, SimulationConfig, SimulationConfigError};
+pub use habits::{HabitError, RandomWalkSpec, RandomWalkTruth, RezeroSpec};
+pub use models::{
+    ElevationModel, ElevationTruth, ModelError, ModelSpecError, MountingTilt, TemperatureModel,
+};
 pub use selfcal::{
     HeadErrorTruth, MAX_DRAWN_ORDER, MAX_HARMONIC_TERMS, MIN_POSITIONS, SelfcalConfigError,
     SelfcalSimConfig, SelfcalTruth, equally_spaced_head_angles_deg, selfa_head_angles_deg,
     simulate_selfcal,
 };
 pub use truth::{SetupErrorTruth, Truth};
+pub use truth_file::{TruthError, TruthFile};
 
 use crate::effects::Effect;
 use crate::measurement::{MeasurementSet, Reading, Stop, run_stops};
@@ -117,9 +121,9 @@ const STUDENT_STREAM: u64 = 5;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SimulateError {
-    /// The simulation settings are invalid (the text says which and why).
+    /// The simulation settings are invalid ([`SimulationConfig::validate`]).
     #[error("invalid simulation settings: {0}")]
-    Config(String),
+    Config(SimulationConfigError),
     /// A file could not be read.
     #[error("{}: {source}", path.display())]
     Io {
@@ -138,12 +142,12 @@ pub enum SimulateError {
         message: String,
     },
     /// A truth is inconsistent, or does not fit the simulation settings.
-    #[error("{origin}: invalid truth: {message}")]
+    #[error("{origin}: invalid truth: {problem}")]
     Truth {
         /// Where the truth came from: a file name, or `truth` for one given in memory.
         origin: String,
         /// What is wrong.
-        message: String,
+        problem: TruthError,
     },
     /// The settings of a simulated self-calibration are invalid
     /// ([`SelfcalSimConfig::validate`]).
@@ -208,21 +212,25 @@ pub fn simulate_with_truth(
     truth: &Truth,
 ) -> Result<MeasurementSet, SimulateError> {
     config.validate()?;
-    let mismatch = |message: String| SimulateError::Truth {
+    let mismatch = |problem: TruthError| SimulateError::Truth {
         origin: "truth".into(),
-        message,
+        problem,
     };
     truth.validate()?;
     if truth.faces != config.faces {
-        return Err(mismatch(format!(
-            "it has {} faces, the simulation settings {}",
-            truth.faces, config.faces
-        )));
+        return Err(mismatch(TruthError::FacesDiffer {
+            truth_faces: truth.faces,
+            run: "the simulation settings",
+            run_faces: config.faces,
+        }));
     }
     for e in &truth.effects {
-        config
-            .check_effect(e)
-            .map_err(|m| mismatch(format!("effect {}: {m}", config::effect_json(e))))?;
+        config.check_effect(e).map_err(|problem| {
+            mismatch(TruthError::EffectNotInRun {
+                effect: e.clone(),
+                problem,
+            })
+        })?;
     }
 
     if truth.reference_temperature_celsius.is_none()
@@ -231,28 +239,24 @@ pub fn simulate_with_truth(
             .iter()
             .any(|e| matches!(e, Effect::Temperature { .. }))
     {
-        return Err(mismatch(
-            "it has a temperature effect but no reference_temperature_celsius".into(),
-        ));
+        return Err(mismatch(TruthError::NoReferenceTemperature));
     }
     for setup in 1..=config.setups {
         let shift = config.table_shift_of(setup);
-        for p in 0..config.faces {
-            let angle = shift + p as f64 * 360.0 / config.faces as f64;
-            if truth.encoder_error_at_deg(angle).is_none() {
-                return Err(mismatch(format!(
-                    "it has no encoder error at the table angle {angle}° (setup {setup}, step {p})"
-                )));
+        for step in 0..config.faces {
+            let angle_deg = shift + step as f64 * 360.0 / config.faces as f64;
+            if truth.encoder_error_at_deg(angle_deg).is_none() {
+                return Err(mismatch(TruthError::NoEncoderErrorAt {
+                    angle_deg,
+                    setup,
+                    step,
+                }));
             }
         }
     }
     let elevation = match (&config.elevation, &truth.elevation) {
         (Some(model), Some(geometry)) => Some((model, geometry)),
-        (Some(_), None) => {
-            return Err(mismatch(
-                "the simulation settings have an elevation model, the truth no elevation".into(),
-            ));
-        }
+        (Some(_), None) => return Err(mismatch(TruthError::NoElevation)),
         (None, _) => None,
     };
     let temperatures = config
@@ -261,8 +265,8 @@ pub fn simulate_with_truth(
         .map(|model| model.stop_temperatures(config));
     let mut student = match config.noise_student_dof {
         Some(nu) => {
-            let chi_squared = ChiSquared::new(nu).map_err(|e| {
-                SimulateError::Config(format!("Student-t noise with {nu} degrees of freedom: {e}"))
+            let chi_squared = ChiSquared::new(nu).map_err(|error| {
+                SimulateError::Config(SimulationConfigError::StudentNoise { dof: nu, error })
             })?;
             let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
             rng.set_stream(STUDENT_STREAM);
@@ -281,17 +285,17 @@ pub fn simulate_with_truth(
     let stops_total = config.reading_count() / config.ac_count().max(1);
     for walk in &truth.random_walk {
         if walk.values_arcsec.len() != stops_total {
-            return Err(mismatch(format!(
-                "its random walk of autocollimator {} has {} values, the run {stops_total} stops",
-                walk.ac,
-                walk.values_arcsec.len()
-            )));
+            return Err(mismatch(TruthError::RandomWalkLength {
+                ac: walk.ac,
+                len: walk.values_arcsec.len(),
+                stops: stops_total,
+            }));
         }
         if walk.ac == 0 || walk.ac > n_ac {
-            return Err(mismatch(format!(
-                "its random walk names autocollimator {}; the run has 1 … {n_ac}",
-                walk.ac
-            )));
+            return Err(mismatch(TruthError::RandomWalkAc {
+                ac: walk.ac,
+                acs: n_ac,
+            }));
         }
     }
     let mut stop: usize = 0;

@@ -11,8 +11,71 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
+use super::truth_file::TruthError;
 use super::{SetupErrorTruth, SimulationConfig, TEMPERATURE_STREAM};
-use crate::effects::SpecError;
+use crate::effects::{SpecError, SpecProblem};
+
+/// Why the parameters of a [`TemperatureModel`] or an [`ElevationModel`] are refused (the
+/// message leaves out the model's name).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModelError {
+    /// A parameter that must be finite is not.
+    #[error("{parameter} is {value}; must be finite")]
+    NotFinite {
+        /// The parameter: `start`, `warm-up`, `cycle phase`, `wobble phase`.
+        parameter: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A temperature that must be a finite number ≥ 0 (°C) is not.
+    #[error("{parameter} is {value} °C; must be a finite number ≥ 0")]
+    NotNonNegativeCelsius {
+        /// The parameter: `cycle amplitude`, `noise`.
+        parameter: &'static str,
+        /// Its value, °C.
+        value: f64,
+    },
+    /// A time that must be a finite number > 0 (seconds) is not.
+    #[error("{parameter} is {value} s; must be a finite number > 0")]
+    NotPositiveSeconds {
+        /// The parameter: `warm-up time`, `cycle period`.
+        parameter: &'static str,
+        /// Its value, seconds.
+        value: f64,
+    },
+    /// An angle that must be a finite number ≥ 0 (arcsec) is not.
+    #[error("{parameter} is {value}″; must be a finite number ≥ 0")]
+    NotNonNegativeArcsec {
+        /// The parameter: `pyramidal spread`, `mounting tilt`, `wobble`, `offset spread`,
+        /// `noise`.
+        parameter: &'static str,
+        /// Its value, arcsec.
+        value: f64,
+    },
+}
+
+/// The written form of a [`TemperatureModel`] or an [`ElevationModel`] that cannot be
+/// read: not its numbers, or numbers that make no valid model.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModelSpecError {
+    /// Not the model's numbers separated by `:`.
+    #[error(transparent)]
+    Spec(#[from] SpecError),
+    /// Numbers that make no valid model.
+    #[error("{what} \"{spec}\": {problem} (expected {form})")]
+    Invalid {
+        /// The model: `temperature model`, `elevation model`.
+        what: &'static str,
+        /// The written form given.
+        spec: String,
+        /// Which parameter is wrong.
+        problem: ModelError,
+        /// The form expected, with an example.
+        form: &'static str,
+    },
+}
 
 /// The lab's air temperature during a simulated run, °C, at time t (seconds since the
 /// start of the run):
@@ -68,31 +131,31 @@ impl TemperatureModel {
                 * (TAU * time_seconds / self.cycle_period_seconds + self.cycle_phase_rad).sin()
     }
 
-    /// Checks the parameters; the text names the first bad one (without the model's name).
-    pub(super) fn check(&self) -> Result<(), String> {
-        for (name, v) in [
+    /// Checks the parameters; the error names the first bad one (without the model's name).
+    pub(super) fn check(&self) -> Result<(), ModelError> {
+        for (parameter, value) in [
             ("start", self.start_celsius),
             ("warm-up", self.warmup_celsius),
             ("cycle phase", self.cycle_phase_rad),
         ] {
-            if !v.is_finite() {
-                return Err(format!("{name} is {v}; must be finite"));
+            if !value.is_finite() {
+                return Err(ModelError::NotFinite { parameter, value });
             }
         }
-        for (name, v) in [
+        for (parameter, value) in [
             ("cycle amplitude", self.cycle_amplitude_celsius),
             ("noise", self.noise_celsius),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("{name} is {v} °C; must be a finite number ≥ 0"));
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(ModelError::NotNonNegativeCelsius { parameter, value });
             }
         }
-        for (name, v) in [
+        for (parameter, value) in [
             ("warm-up time", self.warmup_seconds),
             ("cycle period", self.cycle_period_seconds),
         ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{name} is {v} s; must be a finite number > 0"));
+            if !(value.is_finite() && value > 0.0) {
+                return Err(ModelError::NotPositiveSeconds { parameter, value });
             }
         }
         Ok(())
@@ -117,12 +180,12 @@ impl TemperatureModel {
 }
 
 impl FromStr for TemperatureModel {
-    type Err = SpecError;
+    type Err = ModelSpecError;
 
     /// Parses `START:WARMUP:WARMUP_SECONDS:AMPLITUDE:PERIOD_SECONDS[:PHASE[:NOISE]]`
     /// (°C, °C, s, °C, s, radians, °C), e.g. `20:0.5:3600:0.1:1200`; the phase and the
     /// noise default to 0. The numbers are checked as in [`SimulationConfig::validate`].
-    fn from_str(s: &str) -> Result<TemperatureModel, SpecError> {
+    fn from_str(s: &str) -> Result<TemperatureModel, ModelSpecError> {
         let form = "START:WARMUP:WARMUP_SECONDS:AMPLITUDE:PERIOD_SECONDS[:PHASE[:NOISE]], \
                     e.g. 20:0.5:3600:0.1:1200";
         let v = numbers("temperature model", s, 5..=7, form)?;
@@ -135,9 +198,12 @@ impl FromStr for TemperatureModel {
             cycle_phase_rad: v.get(5).copied().unwrap_or(0.0),
             noise_celsius: v.get(6).copied().unwrap_or(0.0),
         };
-        model
-            .check()
-            .map_err(|m| SpecError(format!("temperature model \"{s}\": {m} (expected {form})")))?;
+        model.check().map_err(|problem| ModelSpecError::Invalid {
+            what: "temperature model",
+            spec: s.to_string(),
+            problem,
+            form,
+        })?;
         Ok(model)
     }
 }
@@ -208,36 +274,36 @@ impl Default for ElevationModel {
 }
 
 impl ElevationModel {
-    /// Checks the parameters; the text names the first bad one (without the model's name).
-    pub(super) fn check(&self) -> Result<(), String> {
-        for (name, v) in [
+    /// Checks the parameters; the error names the first bad one (without the model's name).
+    pub(super) fn check(&self) -> Result<(), ModelError> {
+        for (parameter, value) in [
             ("pyramidal spread", self.pyramidal_spread_arcsec),
             ("mounting tilt", self.mounting_tilt_arcsec),
             ("wobble", self.wobble_arcsec),
             ("offset spread", self.offset_spread_arcsec),
             ("noise", self.noise_arcsec),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("{name} is {v}″; must be a finite number ≥ 0"));
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(ModelError::NotNonNegativeArcsec { parameter, value });
             }
         }
         if !self.wobble_phase_rad.is_finite() {
-            return Err(format!(
-                "wobble phase is {}; must be finite",
-                self.wobble_phase_rad
-            ));
+            return Err(ModelError::NotFinite {
+                parameter: "wobble phase",
+                value: self.wobble_phase_rad,
+            });
         }
         Ok(())
     }
 }
 
 impl FromStr for ElevationModel {
-    type Err = SpecError;
+    type Err = ModelSpecError;
 
     /// Parses `PYRAMIDAL:TILT:WOBBLE:OFFSET:NOISE[:WOBBLE_PHASE]` (arcsec, the phase in
     /// radians, 0 when left out), e.g. `10:20:1:5:0.05`. The numbers are checked as in
     /// [`SimulationConfig::validate`].
-    fn from_str(s: &str) -> Result<ElevationModel, SpecError> {
+    fn from_str(s: &str) -> Result<ElevationModel, ModelSpecError> {
         let form = "PYRAMIDAL:TILT:WOBBLE:OFFSET:NOISE[:WOBBLE_PHASE], e.g. 10:20:1:5:0.05";
         let v = numbers("elevation model", s, 5..=6, form)?;
         let model = ElevationModel {
@@ -248,9 +314,12 @@ impl FromStr for ElevationModel {
             noise_arcsec: v[4],
             wobble_phase_rad: v.get(5).copied().unwrap_or(0.0),
         };
-        model
-            .check()
-            .map_err(|m| SpecError(format!("elevation model \"{s}\": {m} (expected {form})")))?;
+        model.check().map_err(|problem| ModelSpecError::Invalid {
+            what: "elevation model",
+            spec: s.to_string(),
+            problem,
+            form,
+        })?;
         Ok(model)
     }
 }
@@ -278,24 +347,24 @@ fn numbers(
     what: &str,
     s: &str,
     count: std::ops::RangeInclusive<usize>,
-    form: &str,
+    form: &'static str,
 ) -> Result<Vec<f64>, SpecError> {
+    let at = |problem| SpecError::part(what, s, problem, form);
     let parts: Vec<&str> = s.split(':').map(str::trim).collect();
     if !count.contains(&parts.len()) {
-        return Err(SpecError(format!(
-            "{what} \"{s}\": {} part(s) separated by ':', want {} to {} (expected {form})",
+        return Err(at(SpecProblem::part_count(
             parts.len(),
-            count.start(),
-            count.end()
+            format!("{} to {}", count.start(), count.end()),
         )));
     }
     parts
         .iter()
         .map(|text| match text.parse::<f64>() {
             Ok(v) if v.is_finite() => Ok(v),
-            _ => Err(SpecError(format!(
-                "{what} \"{s}\": \"{text}\" is not a finite number (expected {form})"
-            ))),
+            _ => Err(at(SpecProblem::NotFinite {
+                part: None,
+                text: text.to_string(),
+            })),
         })
         .collect()
 }
@@ -412,70 +481,53 @@ impl ElevationTruth {
         pyramidal + tilt + wobble + offset
     }
 
-    /// Checks the geometry for a polygon of `faces` faces; the text names the first problem.
-    pub(super) fn check(&self, faces: usize) -> Result<(), String> {
+    /// Checks the geometry for a polygon of `faces` faces; the error names the first problem.
+    pub(super) fn check(&self, faces: usize) -> Result<(), TruthError> {
         if self.pyramidal_error_arcsec.len() != faces {
-            return Err(format!(
-                "elevation.pyramidal_error_arcsec has {} values, but faces is {faces}",
-                self.pyramidal_error_arcsec.len()
-            ));
+            return Err(TruthError::PyramidalLength {
+                len: self.pyramidal_error_arcsec.len(),
+                faces,
+            });
         }
-        if let Some(i) = self
+        if let Some(index) = self
             .pyramidal_error_arcsec
             .iter()
             .position(|v| !v.is_finite())
         {
-            return Err(format!(
-                "elevation.pyramidal_error_arcsec[{i}] is not a finite number"
-            ));
+            return Err(TruthError::PyramidalNotFinite { index });
         }
         let mut seen = std::collections::HashSet::new();
         for t in &self.mounting_tilt {
-            if t.setup == 0 {
-                return Err("elevation.mounting_tilt: setup numbers start at 1".into());
+            let setup = t.setup;
+            if setup == 0 {
+                return Err(TruthError::TiltNumbering);
             }
             if !(t.tilt_arcsec.is_finite() && t.azimuth_rad.is_finite()) {
-                return Err(format!(
-                    "elevation.mounting_tilt of setup {} is not finite",
-                    t.setup
-                ));
+                return Err(TruthError::TiltNotFinite { setup });
             }
-            if !seen.insert(t.setup) {
-                return Err(format!(
-                    "elevation.mounting_tilt of setup {} is given twice",
-                    t.setup
-                ));
+            if !seen.insert(setup) {
+                return Err(TruthError::TiltTwice { setup });
             }
         }
         let mut seen = std::collections::HashSet::new();
-        for o in &self.offset {
-            if o.setup == 0 || o.ac == 0 {
-                return Err(format!(
-                    "elevation.offset for setup {} ac {}: numbers start at 1",
-                    o.setup, o.ac
-                ));
+        for &SetupErrorTruth { setup, ac, value } in &self.offset {
+            if setup == 0 || ac == 0 {
+                return Err(TruthError::OffsetNumbering { setup, ac });
             }
-            if !o.value.is_finite() {
-                return Err(format!(
-                    "elevation.offset for setup {} ac {} is not a finite number",
-                    o.setup, o.ac
-                ));
+            if !value.is_finite() {
+                return Err(TruthError::OffsetNotFinite { setup, ac });
             }
-            if !seen.insert((o.setup, o.ac)) {
-                return Err(format!(
-                    "elevation.offset for setup {} ac {} is given twice",
-                    o.setup, o.ac
-                ));
+            if !seen.insert((setup, ac)) {
+                return Err(TruthError::OffsetTwice { setup, ac });
             }
         }
         if !(self.wobble_arcsec.is_finite() && self.wobble_phase_rad.is_finite()) {
-            return Err("elevation wobble is not finite".into());
+            return Err(TruthError::WobbleNotFinite);
         }
         if !(self.noise_arcsec.is_finite() && self.noise_arcsec >= 0.0) {
-            return Err(format!(
-                "elevation.noise_arcsec is {}; must be a finite number ≥ 0",
-                self.noise_arcsec
-            ));
+            return Err(TruthError::ElevationNoise {
+                noise: self.noise_arcsec,
+            });
         }
         Ok(())
     }

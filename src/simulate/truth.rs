@@ -12,6 +12,7 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
 use super::models::ElevationTruth;
+use super::truth_file::{self, TruthError, TruthJson};
 use super::{ELEVATION_TRUTH_STREAM, SimulateError, SimulationConfig, TRUTH_STREAM};
 use crate::effects::{Effect, EffectContext};
 use crate::measurement::Reading;
@@ -77,27 +78,6 @@ pub struct Truth {
     /// value at every stop of the run, in the run's order; empty without.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub random_walk: Vec<super::RandomWalkTruth>,
-}
-
-/// Parses JSON bytes into `T`; `name` names them in [`SimulateError::Json`].
-pub(super) fn parse_json<T: serde::de::DeserializeOwned>(
-    bytes: &[u8],
-    name: &str,
-) -> Result<T, SimulateError> {
-    let text = crate::input::text::utf8(bytes).map_err(|((line, column), message)| {
-        SimulateError::Json {
-            location: crate::input::Location::new(name, line, column),
-            message,
-        }
-    })?;
-    serde_json::from_str(text).map_err(|e| {
-        let position = format!(" at line {} column {}", e.line(), e.column());
-        let text = e.to_string();
-        SimulateError::Json {
-            location: crate::input::Location::new(name, e.line() as u64, e.column() as u64),
-            message: text.strip_suffix(&position).unwrap_or(&text).to_string(),
-        }
-    })
 }
 
 /// Removes the mean, then sets the last element to minus the (left-to-right) sum of the
@@ -247,12 +227,14 @@ impl Truth {
     /// Reads a truth file (JSON, docs/FORMAT.md §4) and checks it ([`Truth::validate`]).
     /// An empty or missing `face_deviation` is filled from `pitch_deviation`. Errors name
     /// the file, and for bad JSON also the line and column.
+    /// [`TruthFile::read_path`](super::TruthFile::read_path) reads a truth file of either
+    /// kind.
+    ///
+    /// # Errors
+    ///
+    /// [`SimulateError::Io`], [`SimulateError::Json`] or [`SimulateError::Truth`].
     pub fn read_path(path: &Path) -> Result<Truth, SimulateError> {
-        let (bytes, name) =
-            crate::input::read_bytes(path).map_err(|(name, source)| SimulateError::Io {
-                path: name.into(),
-                source,
-            })?;
+        let (bytes, name) = truth_file::read_bytes(path)?;
         Truth::from_json_bytes(&bytes, &name)
     }
 
@@ -264,15 +246,7 @@ impl Truth {
     /// [`SimulateError::Json`] (source, line, column) for bad JSON,
     /// [`SimulateError::Truth`] for a truth that breaks a rule.
     pub fn from_json_bytes(bytes: &[u8], source: &str) -> Result<Truth, SimulateError> {
-        let mut truth: Truth = parse_json(bytes, source)?;
-        truth.check().map_err(|message| SimulateError::Truth {
-            origin: source.to_string(),
-            message,
-        })?;
-        if truth.face_deviation.is_empty() {
-            truth.face_deviation = face_deviation_from_pitch(&truth.pitch_deviation);
-        }
-        Ok(truth)
+        truth_file::from_json_bytes(bytes, source)
     }
 
     /// Checks the truth: faces ≥ 3; `pitch_deviation` and `encoder_error` (and
@@ -282,46 +256,41 @@ impl Truth {
     /// ≥ 0, Student-t degrees of freedom > 2, the reference temperature finite; the
     /// `elevation` geometry has `faces` pyramidal errors, finite numbers, setups and
     /// autocollimators ≥ 1, each once, and a noise ≥ 0. The closures Σβ = 0 and Σα = 0 are not
-    /// enforced (a file written by hand may be rounded). The error text names the first
+    /// enforced (a file written by hand may be rounded). The error names the first
     /// problem.
     ///
     /// # Errors
     ///
-    /// [`SimulateError::Truth`] (origin `truth`) naming the first problem.
+    /// [`SimulateError::Truth`] (origin `truth`) with the [`TruthError`] of the first
+    /// problem.
     pub fn validate(&self) -> Result<(), SimulateError> {
-        self.check().map_err(|message| SimulateError::Truth {
+        self.check().map_err(|problem| SimulateError::Truth {
             origin: "truth".into(),
-            message,
+            problem,
         })
     }
 
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), TruthError> {
         let n = self.faces;
         if n < 3 {
-            return Err(format!("faces is {n}; a polygon needs at least 3 faces"));
+            return Err(TruthError::TooFewFaces { faces: n });
         }
         let angles = self.encoder_angle_deg.as_deref();
         if let Some(angles) = angles {
             if angles.len() < n {
-                return Err(format!(
-                    "encoder_angle_deg has {} angles, fewer than faces ({n})",
-                    angles.len()
-                ));
+                return Err(TruthError::TooFewEncoderAngles {
+                    angles: angles.len(),
+                    faces: n,
+                });
             }
-            if let Some(i) = angles
+            if let Some(index) = angles
                 .iter()
                 .position(|a| !(a.is_finite() && (0.0..360.0).contains(a)))
             {
-                return Err(format!(
-                    "encoder_angle_deg[{i}] is not a finite angle, 0 <= angle < 360"
-                ));
+                return Err(TruthError::EncoderAngleOutOfRange { index });
             }
             if let Some(i) = angles.windows(2).position(|w| w[1] <= w[0]) {
-                return Err(format!(
-                    "encoder_angle_deg[{}] is not above the angle before it; the angles \
-                     ascend",
-                    i + 1
-                ));
+                return Err(TruthError::EncoderAnglesNotAscending { index: i + 1 });
             }
         }
         let lists = [
@@ -334,59 +303,51 @@ impl Truth {
             ),
             (Quantity::FaceDeviation, &self.face_deviation, n, true),
         ];
-        for (name, list, len, may_be_empty) in lists {
+        for (quantity, list, len, may_be_empty) in lists {
+            let name = quantity.name();
             if list.len() != len && !(may_be_empty && list.is_empty()) {
                 return Err(if len == n {
-                    format!("{name} has {} values, but faces is {n}", list.len())
+                    TruthError::LengthNotFaces {
+                        list: name,
+                        len: list.len(),
+                        faces: n,
+                    }
                 } else {
-                    format!(
-                        "{name} has {} values, but encoder_angle_deg {len} angles",
-                        list.len()
-                    )
+                    TruthError::LengthNotAngles {
+                        list: name,
+                        len: list.len(),
+                        angles: len,
+                    }
                 });
             }
-            if let Some(i) = list.iter().position(|v| !READING_ARCSEC.contains(*v)) {
-                return Err(format!(
-                    "{name}[{i}]: {}",
-                    READING_ARCSEC
-                        .check(list[i], "a truth value")
-                        .err()
-                        .map(|e| e.to_string())
-                        .unwrap_or_default()
-                ));
-            }
+            check_values(name, list)?;
         }
         let mut seen = HashSet::new();
-        for u in &self.setup_error {
-            if u.setup == 0 || u.ac == 0 {
-                return Err(format!(
-                    "setup_error for setup {} ac {}: numbers start at 1",
-                    u.setup, u.ac
-                ));
+        for &SetupErrorTruth { setup, ac, value } in &self.setup_error {
+            if setup == 0 || ac == 0 {
+                return Err(TruthError::SetupErrorNumbering { setup, ac });
             }
-            if let Err(rule) = READING_ARCSEC.check(u.value, "a truth value") {
-                return Err(format!(
-                    "setup_error for setup {} ac {}: {rule}",
-                    u.setup, u.ac
-                ));
+            if let Err(rule) = READING_ARCSEC.check(value, TRUTH_VALUE) {
+                return Err(TruthError::SetupErrorBeyondLimits {
+                    setup,
+                    ac,
+                    rule: Box::new(rule),
+                });
             }
-            if !seen.insert((u.setup, u.ac)) {
-                return Err(format!(
-                    "setup_error for setup {} ac {} is given twice",
-                    u.setup, u.ac
-                ));
+            if !seen.insert((setup, ac)) {
+                return Err(TruthError::SetupErrorTwice { setup, ac });
             }
         }
         for e in &self.effects {
             if !e.value().is_finite() {
-                return Err(format!("effect {e}: value is not finite"));
+                return Err(TruthError::EffectNotFinite { effect: e.clone() });
             }
             if let Effect::Drift {
                 quadratic: Some(q), ..
             } = *e
                 && !q.is_finite()
             {
-                return Err(format!("effect {e}: quadratic is not finite"));
+                return Err(TruthError::EffectQuadraticNotFinite { effect: e.clone() });
             }
             let zero = match *e {
                 Effect::Drift { ac, .. }
@@ -402,41 +363,28 @@ impl Truth {
                 } => cycle == 0 || ac == 0 || setup == Some(0),
             };
             if zero {
-                return Err(format!(
-                    "effect {e}: autocollimator, setup and cycle numbers start at 1"
-                ));
+                return Err(TruthError::EffectNumbering { effect: e.clone() });
             }
         }
-        if let Some(s) = self.noise_arcsec
-            && !(s.is_finite() && s >= 0.0)
+        check_noise(self.noise_arcsec)?;
+        if let Some(dof) = self.noise_student_dof
+            && !(dof.is_finite() && dof > 2.0)
         {
-            return Err(format!("noise_arcsec is {s}; must be a finite number ≥ 0"));
+            return Err(TruthError::StudentDof { dof });
         }
-        if let Some(nu) = self.noise_student_dof
-            && !(nu.is_finite() && nu > 2.0)
+        if let Some(celsius) = self.reference_temperature_celsius
+            && !celsius.is_finite()
         {
-            return Err(format!(
-                "noise_student_dof is {nu}; must be a finite number > 2"
-            ));
-        }
-        if let Some(t) = self.reference_temperature_celsius
-            && !t.is_finite()
-        {
-            return Err(format!(
-                "reference_temperature_celsius is {t}; must be a finite number"
-            ));
+            return Err(TruthError::ReferenceTemperature { celsius });
         }
         for walk in &self.random_walk {
             if walk.ac == 0 {
-                return Err("random_walk: autocollimator numbers start at 1".into());
+                return Err(TruthError::RandomWalkNumbering);
             }
             if !walk.rate_arcsec_per_sqrt_h.is_finite()
                 || walk.values_arcsec.iter().any(|v| !v.is_finite())
             {
-                return Err(format!(
-                    "random_walk of autocollimator {}: a number is not finite",
-                    walk.ac
-                ));
+                return Err(TruthError::RandomWalkNotFinite { ac: walk.ac });
             }
         }
         if let Some(elevation) = &self.elevation {
@@ -549,5 +497,43 @@ impl Truth {
             value += e.contribution(reading, &context);
         }
         value
+    }
+}
+
+impl TruthJson for Truth {
+    fn check(&self) -> Result<(), TruthError> {
+        Truth::check(self)
+    }
+
+    fn fill_left_out(&mut self) {
+        if self.face_deviation.is_empty() {
+            self.face_deviation = face_deviation_from_pitch(&self.pitch_deviation);
+        }
+    }
+}
+
+/// What a truth value is, in the message of one beyond its limits.
+const TRUTH_VALUE: &str = "a truth value";
+
+/// Every value of the list `list` within the limits of a truth value
+/// ([`READING_ARCSEC`]).
+pub(super) fn check_values(list: &'static str, values: &[f64]) -> Result<(), TruthError> {
+    for (index, &value) in values.iter().enumerate() {
+        if let Err(rule) = READING_ARCSEC.check(value, TRUTH_VALUE) {
+            return Err(TruthError::ValueBeyondLimits {
+                list,
+                index,
+                rule: Box::new(rule),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// A truth's reading noise, when it has one, a finite number ≥ 0.
+pub(super) fn check_noise(noise: Option<f64>) -> Result<(), TruthError> {
+    match noise {
+        Some(noise) if !(noise.is_finite() && noise >= 0.0) => Err(TruthError::Noise { noise }),
+        _ => Ok(()),
     }
 }

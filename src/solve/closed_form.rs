@@ -147,8 +147,26 @@ pub struct PaperDesign {
 /// faces, one mounting, the same number of readings at every step, no closing readings),
 /// so that the closed form of eqs. (6)–(10) does not apply.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct NotPaperDesign(String);
+#[non_exhaustive]
+pub enum NotPaperDesign {
+    /// Not two (setup, autocollimator) streams of one mounting.
+    #[error(
+        "it needs exactly two autocollimators in one mounting, the file has {streams} (setup, ac) streams"
+    )]
+    NotTwoStreams {
+        /// The number of (setup, ac) streams.
+        streams: usize,
+    },
+    /// The two autocollimators do not read adjacent faces.
+    #[error("the two autocollimators do not read adjacent faces")]
+    NotAdjacent,
+    /// Closing readings (step N).
+    #[error("closing readings (step N) make the steps unequally weighted")]
+    ClosingReadings,
+    /// Steps with different numbers of readings.
+    #[error("the steps do not all have the same number of readings")]
+    UnequalSteps,
+}
 
 impl PaperDesign {
     /// Recognises the design, or says why the closed form does not apply.
@@ -157,17 +175,12 @@ impl PaperDesign {
     ///
     /// [`NotPaperDesign`] saying which condition of the paper's design the set breaks.
     pub fn detect(set: &MeasurementSet) -> Result<Self, NotPaperDesign> {
-        Self::detect_text(set).map_err(NotPaperDesign)
-    }
-
-    fn detect_text(set: &MeasurementSet) -> Result<Self, String> {
         let n = set.faces;
         let streams = set.streams();
         if streams.len() != 2 || streams[0].0 != streams[1].0 {
-            return Err(format!(
-                "it needs exactly two autocollimators in one mounting, the file has {} (setup, ac) streams",
-                streams.len()
-            ));
+            return Err(NotPaperDesign::NotTwoStreams {
+                streams: streams.len(),
+            });
         }
         let offsets = set.face_offsets();
         let (d_a, d_b) = (offsets[0].1, offsets[1].1);
@@ -176,10 +189,10 @@ impl PaperDesign {
         } else if (d_a + n - d_b) % n == 1 {
             (streams[1], streams[0], d_b)
         } else {
-            return Err("the two autocollimators do not read adjacent faces".into());
+            return Err(NotPaperDesign::NotAdjacent);
         };
         if set.readings.iter().any(|r| r.step == n) {
-            return Err("closing readings (step N) make the steps unequally weighted".into());
+            return Err(NotPaperDesign::ClosingReadings);
         }
         let mut counts = vec![0usize; 2 * n];
         for r in &set.readings {
@@ -188,7 +201,7 @@ impl PaperDesign {
         }
         let repeats = counts[0];
         if repeats == 0 || counts.iter().any(|&c| c != repeats) {
-            return Err("the steps do not all have the same number of readings".into());
+            return Err(NotPaperDesign::UnequalSteps);
         }
         Ok(Self {
             first,

@@ -27,10 +27,10 @@ use std::str::FromStr;
 
 use serde::Serialize;
 
-use super::distribution::Distribution;
+use super::distribution::{Distribution, DistributionError};
 use super::student::t_quantile;
 use crate::input::Location;
-use crate::input::limits::BUDGET_VALUE;
+use crate::input::limits::{BUDGET_VALUE, LimitError};
 
 /// The most correlation coefficients a budget may give (docs/FORMAT.md §5.3): their
 /// consistency is checked on the matrix of the components they name (at most twice as
@@ -244,6 +244,62 @@ pub struct Budget {
     pub correlations: Vec<Correlation>,
 }
 
+/// Why one component of a budget is refused (the message after the component's name,
+/// [`BudgetError::Component`], [`crate::uncertainty::calibration::CalibrationError::Component`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ComponentError {
+    /// A name that is empty or white space.
+    #[error("the name is empty")]
+    EmptyName,
+    /// A sensitivity coefficient that is not finite.
+    #[error("sensitivity must be a finite number, got {sensitivity}")]
+    SensitivityNotFinite {
+        /// The sensitivity coefficient.
+        sensitivity: f64,
+    },
+    /// A sensitivity coefficient beyond the limits of a budget value (docs/FORMAT.md §2.2).
+    #[error("sensitivity: {0}")]
+    SensitivityBeyondLimits(Box<LimitError>),
+    /// An invalid distribution.
+    #[error(transparent)]
+    Distribution(#[from] DistributionError),
+    /// Degrees of freedom below 1 (or not a number).
+    #[error("degrees of freedom must be at least 1 ({infinite} for infinitely many), got {dof}")]
+    DofBelowOne {
+        /// The degrees of freedom.
+        dof: f64,
+        /// How infinitely many are written where the component came from: `omit them`
+        /// (a budget file), `None` (a budget in memory).
+        infinite: &'static str,
+    },
+    /// Degrees of freedom that differ from those of the component's t distribution.
+    #[error("the t distribution has {own} degrees of freedom but dof = {given}")]
+    DofDisagrees {
+        /// The t distribution's degrees of freedom.
+        own: f64,
+        /// The component's `dof`.
+        given: f64,
+    },
+    /// A standard uncertainty beyond the limits of a budget value.
+    #[error("the standard uncertainty: {0}")]
+    StandardUncertaintyBeyondLimits(Box<LimitError>),
+    /// A contribution |cᵢ|·uᵢ beyond the limits of a budget value.
+    #[error("the contribution |cᵢ|·uᵢ: {0}")]
+    ContributionBeyondLimits(Box<LimitError>),
+    /// An instrument's contribution |c|·u beyond the largest reading (docs/FORMAT.md §2.2),
+    /// so that a result it adds to could leave the limits of a result file.
+    #[error("its contribution |c|·u: {0}")]
+    ContributionBeyondReadings(Box<LimitError>),
+    /// A known correction whose column is not one finite value per reading, or whose u is
+    /// not a finite number ≥ 0.
+    #[error("needs one finite value per reading ({readings}) and a finite u ≥ 0")]
+    CorrectionColumn {
+        /// The number of readings.
+        readings: usize,
+    },
+}
+
 /// Why a budget cannot be read or evaluated. Budgets read from a file are reported with
 /// the file, line and column where possible ([`BudgetError::File`]).
 #[derive(Debug, thiserror::Error)]
@@ -302,12 +358,12 @@ pub enum BudgetError {
     #[error("budget {0}has no components")]
     Empty(String),
     /// A component's specification is invalid.
-    #[error("component {component:?}: {message}")]
+    #[error("component {component:?}: {problem}")]
     Component {
         /// The component's name (nested names joined by ` / `).
         component: String,
         /// What is wrong.
-        message: String,
+        problem: ComponentError,
     },
     /// Two components of one budget share a name.
     #[error("two components are named {0:?}: names must be unique within a budget")]
@@ -559,44 +615,45 @@ impl Budget {
         let mut evaluation: Option<ResultType> = None;
         for (i, c) in self.components.iter().enumerate() {
             let path = format!("{prefix}{}", c.name);
-            let bad = |message: String| BudgetError::Component {
+            let bad = |problem: ComponentError| BudgetError::Component {
                 component: path.clone(),
-                message,
+                problem,
             };
             if c.name.trim().is_empty() {
-                return Err(bad("the name is empty".into()));
+                return Err(bad(ComponentError::EmptyName));
             }
             if by_name.insert(c.name.as_str(), i).is_some() {
                 return Err(BudgetError::DuplicateName(path));
             }
             if !c.sensitivity.is_finite() {
-                return Err(bad(format!(
-                    "sensitivity must be a finite number, got {}",
-                    c.sensitivity
-                )));
+                return Err(bad(ComponentError::SensitivityNotFinite {
+                    sensitivity: c.sensitivity,
+                }));
             }
             BUDGET_VALUE
                 .check(c.sensitivity, "a sensitivity")
-                .map_err(|rule| bad(format!("sensitivity: {rule}")))?;
+                .map_err(|rule| bad(ComponentError::SensitivityBeyondLimits(Box::new(rule))))?;
             let line = match &c.source {
                 Source::Input {
                     evaluation,
                     distribution,
                     dof,
                 } => {
-                    distribution.check().map_err(|e| bad(e.to_string()))?;
+                    distribution.check().map_err(|e| bad(e.into()))?;
                     let dof = check_dof(*dof).map_err(bad)?;
                     if let (Some(own), Some(given)) = (distribution.own_dof(), dof)
                         && own != given
                     {
-                        return Err(bad(format!(
-                            "the t distribution has {own} degrees of freedom but dof = {given}"
-                        )));
+                        return Err(bad(ComponentError::DofDisagrees { own, given }));
                     }
                     let u = distribution.standard_uncertainty();
                     BUDGET_VALUE
                         .check(u, "a standard uncertainty")
-                        .map_err(|rule| bad(format!("the standard uncertainty: {rule}")))?;
+                        .map_err(|rule| {
+                            bad(ComponentError::StandardUncertaintyBeyondLimits(Box::new(
+                                rule,
+                            )))
+                        })?;
                     ComponentResult {
                         name: c.name.clone(),
                         evaluation: (*evaluation).into(),
@@ -626,7 +683,7 @@ impl Budget {
             };
             BUDGET_VALUE
                 .check(line.contribution, "a contribution |cᵢ|·uᵢ")
-                .map_err(|rule| bad(format!("the contribution |cᵢ|·uᵢ: {rule}")))?;
+                .map_err(|rule| bad(ComponentError::ContributionBeyondLimits(Box::new(rule))))?;
             evaluation = Some(match evaluation {
                 None => line.evaluation,
                 Some(e) => e.join(line.evaluation),
@@ -721,14 +778,15 @@ impl Budget {
 }
 
 /// Degrees of freedom: `None`/`+∞` = infinite; otherwise finite and ≥ 1.
-fn check_dof(dof: Option<f64>) -> Result<Option<f64>, String> {
+fn check_dof(dof: Option<f64>) -> Result<Option<f64>, ComponentError> {
     match dof {
         None => Ok(None),
         Some(nu) if nu == f64::INFINITY => Ok(None),
         Some(nu) if nu.is_finite() && nu >= 1.0 => Ok(Some(nu)),
-        Some(nu) => Err(format!(
-            "degrees of freedom must be at least 1 (omit them for infinitely many), got {nu}"
-        )),
+        Some(dof) => Err(ComponentError::DofBelowOne {
+            dof,
+            infinite: "omit them",
+        }),
     }
 }
 

@@ -21,7 +21,8 @@ pub mod monte_carlo;
 pub mod student;
 
 pub use budget::{
-    Budget, BudgetError, BudgetResult, Component, ComponentResult, DofPolicy, EvaluationType,
+    Budget, BudgetError, BudgetResult, Component, ComponentError, ComponentResult, DofPolicy,
+    EvaluationType,
 };
 pub use budget_file::{BudgetFile, read_budget_path};
 pub use distribution::{Distribution, DistributionError};

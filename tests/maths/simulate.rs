@@ -2020,7 +2020,7 @@ fn model_specs() {
         "20:nan:3600:0.1:1200",
     ] {
         let err = bad.parse::<TemperatureModel>().unwrap_err();
-        assert!(err.message().contains("temperature model"), "{err}");
+        assert!(err.to_string().contains("temperature model"), "{err}");
     }
     let e: ElevationModel = "10:20:1:5:0.05".parse().unwrap();
     assert_eq!(e, ElevationModel::default());
@@ -2045,7 +2045,7 @@ fn model_specs() {
         "10:20:1:5:inf",
     ] {
         let err = bad.parse::<ElevationModel>().unwrap_err();
-        assert!(err.message().contains("elevation model"), "{err}");
+        assert!(err.to_string().contains("elevation model"), "{err}");
     }
 }
 

@@ -343,8 +343,9 @@ fn the_truth_reads_back_from_its_json() {
     ] {
         std::fs::write(&path, text).unwrap();
         match SelfcalTruth::read_path(&path) {
-            Err(SimulateError::Truth { origin, message }) => {
+            Err(SimulateError::Truth { origin, problem }) => {
                 assert!(origin.ends_with("truth.json"), "{origin}");
+                let message = problem.to_string();
                 assert!(message.contains(what), "{text}: {message}");
             }
             other => panic!("{text}: {other:?}"),

@@ -191,14 +191,28 @@ fn open_port(
     role: &str,
     profile: &Profile,
     log: &TrafficLog,
-) -> Result<LoggedTransport<Port>, String> {
+) -> Result<LoggedTransport<Port>, PortNotOpened> {
     match open_raw(path, profile) {
         Ok(transport) => Ok(LoggedTransport::new(transport, device, log.clone())),
-        Err(e) => {
-            log.record(device, path, "error", &e.to_string());
-            Err(format!("{role} at {e}"))
+        Err(error) => {
+            log.record(device, path, "error", &error.to_string());
+            Err(PortNotOpened {
+                role: role.to_string(),
+                error,
+            })
         }
     }
+}
+
+/// An instrument's port that could not be opened, named by the instrument's role
+/// (`autocollimator 2`, `rotary table`).
+#[derive(Debug, thiserror::Error)]
+#[error("{role} at {error}")]
+struct PortNotOpened {
+    /// The instrument's role.
+    role: String,
+    /// Why the port could not be opened (it names the port).
+    error: polycal::lab::InstrumentError,
 }
 
 /// The profiles named by --ac-profile and --table-profile, each checked for its kind of
@@ -532,12 +546,12 @@ impl Session<'_> {
                 self.table_profile,
                 &log,
             )?;
-            Ok::<_, String>((acs, table))
+            Ok::<_, PortNotOpened>((acs, table))
         })();
         let (acs, table) = match opened {
             Ok(ports) => ports,
             Err(e) => {
-                let outcome = Outcome::InstrumentError(e.clone());
+                let outcome = Outcome::InstrumentError(e.to_string());
                 let note = match dir.finish(&outcome) {
                     Ok(()) => String::new(),
                     Err(e) => format!("; the manifest could not record it ({e})"),

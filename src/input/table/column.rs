@@ -2,7 +2,7 @@
 //! number rules every CSV reader of the crate applies (integers within bounds, finite
 //! numbers within a [`Limit`], words from a list) with their messages.
 
-use crate::input::limits::Limit;
+use crate::input::limits::{Limit, LimitError};
 
 /// One column of a table as a file kind describes it: its name in the header, whether
 /// the header must have it, what its fields hold, and what an empty field (or the
@@ -130,8 +130,15 @@ impl Column {
     }
 
     /// Reads one field of the column: its value (`None` for an empty field not
-    /// recorded), or the message refusing it, naming the column and quoting the text.
+    /// recorded), or the message refusing it, naming the column and quoting the text
+    /// ([`Column::value`]'s refusal as text, which the table reader takes).
     pub(crate) fn read(&self, text: &str) -> Result<Option<Value>, String> {
+        self.value(text).map_err(|refusal| refusal.to_string())
+    }
+
+    /// Reads one field of the column: its value (`None` for an empty field not
+    /// recorded), or why it is refused.
+    pub(crate) fn value(&self, text: &str) -> Result<Option<Value>, FieldError> {
         if text.is_empty() && !self.required {
             return Ok(self.default);
         }
@@ -140,19 +147,126 @@ impl Column {
             Kind::Number(range) => parse_float(text, self.name, range).map(Value::Number),
             Kind::Word { words, what } => match words.iter().position(|w| *w == text) {
                 Some(i) => Ok(Value::Word(i)),
-                None => {
-                    let choices: Vec<String> = words.iter().map(|w| format!("{w:?}")).collect();
-                    Err(format!(
-                        "column {:?}: {} is not {what}; use {}",
-                        self.name,
-                        show(text),
-                        choices.join(" or ")
-                    ))
-                }
+                None => Err(FieldError::NotAWord {
+                    column: self.name,
+                    text: text.to_string(),
+                    what,
+                    words,
+                }),
             },
         };
         value.map(Some)
     }
+}
+
+/// Why a field of a column is refused; the message names the column and quotes the text
+/// ([`show`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub(crate) enum FieldError {
+    /// An empty field of a required integer column.
+    #[error("column {column:?}: empty; an integer of at least {min} is required")]
+    EmptyInteger {
+        /// The column.
+        column: &'static str,
+        /// The smallest value allowed.
+        min: u128,
+    },
+    /// Text that is not a decimal integer.
+    #[error("column {column:?}: {} is not an integer", show(text))]
+    NotAnInteger {
+        /// The column.
+        column: &'static str,
+        /// The field's text.
+        text: String,
+    },
+    /// An integer below the column's smallest value (a negative one included).
+    #[error(
+        "column {column:?}: {} is not allowed; {column} must be at least {min}",
+        show(text)
+    )]
+    BelowMin {
+        /// The column.
+        column: &'static str,
+        /// The field's text.
+        text: String,
+        /// The smallest value allowed.
+        min: u128,
+    },
+    /// An integer above the column's largest value.
+    #[error(
+        "column {column:?}: {} is too large; {column} must be at most {max}",
+        show(text)
+    )]
+    AboveMax {
+        /// The column.
+        column: &'static str,
+        /// The field's text.
+        text: String,
+        /// The largest value allowed.
+        max: u128,
+    },
+    /// An empty field of a required number column.
+    #[error("column {column:?}: empty; a number is required")]
+    EmptyNumber {
+        /// The column.
+        column: &'static str,
+    },
+    /// Text that is not a number.
+    #[error("column {column:?}: {} is not a number", show(text))]
+    NotANumber {
+        /// The column.
+        column: &'static str,
+        /// The field's text.
+        text: String,
+    },
+    /// A number that is not finite.
+    #[error("column {column:?}: {} is not a finite number", show(text))]
+    NotFinite {
+        /// The column.
+        column: &'static str,
+        /// The field's text.
+        text: String,
+    },
+    /// A number beyond the column's limit (docs/FORMAT.md §2.2).
+    #[error("column {column:?}: {rule}")]
+    BeyondLimit {
+        /// The column.
+        column: &'static str,
+        /// The limit it breaks.
+        rule: LimitError,
+    },
+    /// A number that breaks the column's rule.
+    #[error("column {column:?}: {} {broken}", show(text))]
+    OutsideRange {
+        /// The column.
+        column: &'static str,
+        /// The field's text.
+        text: String,
+        /// What it breaks ([`Range::Within`]).
+        broken: &'static str,
+    },
+    /// Text that is not one of the column's words.
+    #[error(
+        "column {column:?}: {} is not {what}; use {}",
+        show(text),
+        choices(words)
+    )]
+    NotAWord {
+        /// The column.
+        column: &'static str,
+        /// The field's text.
+        text: String,
+        /// What a word is: `a direction`.
+        what: &'static str,
+        /// The words allowed.
+        words: &'static [&'static str],
+    },
+}
+
+/// The words of a word column, quoted, joined by `or`.
+fn choices(words: &[&str]) -> String {
+    let quoted: Vec<String> = words.iter().map(|w| format!("{w:?}")).collect();
+    quoted.join(" or ")
 }
 
 /// The offending text for a message: quoted and escaped, cut after 40 characters.
@@ -175,21 +289,21 @@ pub(crate) fn count(n: usize, what: &str) -> String {
 
 /// Parses an integer field `min ..= max`: decimal digits with an optional sign (`-0` is
 /// 0), nothing else.
-fn parse_int(text: &str, name: &str, min: u128, max: u128) -> Result<u128, String> {
+fn parse_int(text: &str, column: &'static str, min: u128, max: u128) -> Result<u128, FieldError> {
     if text.is_empty() {
-        return Err(format!(
-            "column {name:?}: empty; an integer of at least {min} is required"
-        ));
+        return Err(FieldError::EmptyInteger { column, min });
     }
     let digits = text.strip_prefix(['+', '-']).unwrap_or(text);
     if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
-        return Err(format!("column {name:?}: {} is not an integer", show(text)));
+        return Err(FieldError::NotAnInteger {
+            column,
+            text: text.to_string(),
+        });
     }
-    let below = || {
-        format!(
-            "column {name:?}: {} is not allowed; {name} must be at least {min}",
-            show(text)
-        )
+    let below = || FieldError::BelowMin {
+        column,
+        text: text.to_string(),
+        min,
     };
     let negative = text.starts_with('-');
     match digits.parse::<u128>() {
@@ -197,17 +311,18 @@ fn parse_int(text: &str, name: &str, min: u128, max: u128) -> Result<u128, Strin
         Ok(_) if negative => Err(below()),
         Ok(x) if x < min => Err(below()),
         Ok(x) if x <= max => Ok(x),
-        _ => Err(format!(
-            "column {name:?}: {} is too large; {name} must be at most {max}",
-            show(text)
-        )),
+        _ => Err(FieldError::AboveMax {
+            column,
+            text: text.to_string(),
+            max,
+        }),
     }
 }
 
 /// Parses a finite number field within its range.
-fn parse_float(text: &str, name: &str, range: Range) -> Result<f64, String> {
+fn parse_float(text: &str, column: &'static str, range: Range) -> Result<f64, FieldError> {
     if text.is_empty() {
-        return Err(format!("column {name:?}: empty; a number is required"));
+        return Err(FieldError::EmptyNumber { column });
     }
     match text.parse::<f64>() {
         Ok(x) if x.is_finite() => match range {
@@ -215,19 +330,26 @@ fn parse_float(text: &str, name: &str, range: Range) -> Result<f64, String> {
             Range::Limit(limit, _) if limit.contains(x) => Ok(x),
             Range::Limit(limit, what) => limit
                 .check_shown(x, &show(text), what)
-                .map_err(|rule| format!("column {name:?}: {rule}")),
+                .map_err(|rule| FieldError::BeyondLimit { column, rule }),
             Range::Within { contains, broken } => {
                 if contains(x) {
                     Ok(x)
                 } else {
-                    Err(format!("column {name:?}: {} {broken}", show(text)))
+                    Err(FieldError::OutsideRange {
+                        column,
+                        text: text.to_string(),
+                        broken,
+                    })
                 }
             }
         },
-        Ok(_) => Err(format!(
-            "column {name:?}: {} is not a finite number",
-            show(text)
-        )),
-        Err(_) => Err(format!("column {name:?}: {} is not a number", show(text))),
+        Ok(_) => Err(FieldError::NotFinite {
+            column,
+            text: text.to_string(),
+        }),
+        Err(_) => Err(FieldError::NotANumber {
+            column,
+            text: text.to_string(),
+        }),
     }
 }

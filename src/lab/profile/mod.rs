@@ -33,7 +33,7 @@ mod template;
 use std::collections::BTreeMap;
 
 pub use condition::Condition;
-pub use template::{Captures, Field, FieldKind, Template, TemplateError};
+pub use template::{Captures, Field, FieldKind, Template, TemplateError, TemplateProblem};
 
 use crate::input::Location;
 

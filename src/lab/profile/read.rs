@@ -243,7 +243,7 @@ impl Values<'_> {
             };
             at.error(
                 offset,
-                format!("the template {:?}: {}", s.get_ref(), e.message),
+                format!("the template {:?}: {}", s.get_ref(), e.problem),
             )
         })
     }

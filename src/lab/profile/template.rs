@@ -92,18 +92,72 @@ enum Token {
 
 /// A template that could not be read: what is wrong, and where in the template (a
 /// character offset).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{problem}")]
 pub struct TemplateError {
     /// 0-based character offset in the template.
     pub offset: usize,
     /// What is wrong.
-    pub message: String,
+    pub problem: TemplateProblem,
 }
 
-impl fmt::Display for TemplateError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.message)
-    }
+/// What is wrong with a template ([`TemplateError`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum TemplateProblem {
+    /// A `}` that closes no field.
+    #[error("a `}}` without its `{{` (write `}}}}` for a brace)")]
+    UnmatchedClose,
+    /// A `{` that is never closed.
+    #[error("a `{{` without its `}}`")]
+    Unclosed,
+    /// A field without `:kind`.
+    #[error(
+        "the field `{{{inside}}}` has no kind: write `{{name:kind}}` with kind f, d, x, c, w or s"
+    )]
+    NoKind {
+        /// What the braces hold.
+        inside: String,
+    },
+    /// A field name that is empty or not letters, digits and `_`.
+    #[error("the field `{{{inside}}}`: a name is letters, digits and `_`")]
+    BadName {
+        /// What the braces hold.
+        inside: String,
+    },
+    /// A kind that is not one of the letters of [`FieldKind`].
+    #[error(
+        "the field `{{{inside}}}`: the kind is f (number), d (decimal digits), x (hex digits), c (one character), w (a word) or s (text)"
+    )]
+    BadKind {
+        /// What the braces hold.
+        inside: String,
+    },
+    /// A width that is not a whole number ≥ 1.
+    #[error("the field `{{{inside}}}`: a width is a whole number from 1")]
+    BadWidth {
+        /// What the braces hold.
+        inside: String,
+    },
+    /// Two fields of one name.
+    #[error("the field `{name}` is named twice")]
+    NamedTwice {
+        /// The name.
+        name: String,
+    },
+    /// Two fields of variable width next to each other.
+    #[error(
+        "the fields `{before}` and `{field}` touch: put a literal or a space between them, or give one a width"
+    )]
+    FieldsTouch {
+        /// The first field's name.
+        before: String,
+        /// The second field's name.
+        field: String,
+    },
+    /// Nothing but spaces.
+    #[error("the template is empty")]
+    Empty,
 }
 
 /// A line template (module docs).
@@ -160,7 +214,7 @@ impl Template {
         let mut tokens = Vec::new();
         let mut literal = String::new();
         let mut i = 0;
-        let error = |offset: usize, message: String| TemplateError { offset, message };
+        let error = |offset: usize, problem: TemplateProblem| TemplateError { offset, problem };
         let flush = |literal: &mut String, tokens: &mut Vec<Token>| {
             if !literal.is_empty() {
                 tokens.push(Token::Literal(std::mem::take(literal)));
@@ -178,14 +232,11 @@ impl Template {
                     i += 2;
                 }
                 '}' => {
-                    return Err(error(
-                        i,
-                        "a `}` without its `{` (write `}}` for a brace)".into(),
-                    ));
+                    return Err(error(i, TemplateProblem::UnmatchedClose));
                 }
                 '{' => {
                     let Some(close) = chars[i..].iter().position(|&c| c == '}') else {
-                        return Err(error(i, "a `{` without its `}`".into()));
+                        return Err(error(i, TemplateProblem::Unclosed));
                     };
                     let inside: String = chars[i + 1..i + close].iter().collect();
                     let field = parse_field(&inside).map_err(|m| error(i, m))?;
@@ -195,7 +246,9 @@ impl Template {
                     {
                         return Err(error(
                             i,
-                            format!("the field `{}` is named twice", field.name),
+                            TemplateProblem::NamedTwice {
+                                name: field.name.clone(),
+                            },
                         ));
                     }
                     flush(&mut literal, &mut tokens);
@@ -207,10 +260,10 @@ impl Template {
                     {
                         return Err(error(
                             i,
-                            format!(
-                                "the fields `{}` and `{}` touch: put a literal or a space between them, or give one a width",
-                                before.name, field.name
-                            ),
+                            TemplateProblem::FieldsTouch {
+                                before: before.name.clone(),
+                                field: field.name.clone(),
+                            },
                         ));
                     }
                     tokens.push(Token::Field(field));
@@ -238,7 +291,7 @@ impl Template {
             tokens.pop();
         }
         if tokens.is_empty() {
-            return Err(error(0, "the template is empty".into()));
+            return Err(error(0, TemplateProblem::Empty));
         }
         Ok(Template {
             text: text.to_string(),
@@ -293,23 +346,23 @@ impl fmt::Display for Template {
 }
 
 /// `name:kindW` → a field.
-fn parse_field(inside: &str) -> Result<Field, String> {
+fn parse_field(inside: &str) -> Result<Field, TemplateProblem> {
     let Some((name, spec)) = inside.split_once(':') else {
-        return Err(format!(
-            "the field `{{{inside}}}` has no kind: write `{{name:kind}}` with kind f, d, x, c, w or s"
-        ));
+        return Err(TemplateProblem::NoKind {
+            inside: inside.to_string(),
+        });
     };
     let name = name.trim();
     if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
-        return Err(format!(
-            "the field `{{{inside}}}`: a name is letters, digits and `_`"
-        ));
+        return Err(TemplateProblem::BadName {
+            inside: inside.to_string(),
+        });
     }
     let mut spec_chars = spec.trim().chars();
     let Some(kind) = spec_chars.next().and_then(FieldKind::from_letter) else {
-        return Err(format!(
-            "the field `{{{inside}}}`: the kind is f (number), d (decimal digits), x (hex digits), c (one character), w (a word) or s (text)"
-        ));
+        return Err(TemplateProblem::BadKind {
+            inside: inside.to_string(),
+        });
     };
     let width_text: String = spec_chars.collect();
     let width = if width_text.is_empty() {
@@ -317,9 +370,9 @@ fn parse_field(inside: &str) -> Result<Field, String> {
     } else {
         match width_text.parse::<usize>() {
             Ok(0) | Err(_) => {
-                return Err(format!(
-                    "the field `{{{inside}}}`: a width is a whole number from 1"
-                ));
+                return Err(TemplateProblem::BadWidth {
+                    inside: inside.to_string(),
+                });
             }
             Ok(w) => Some(w),
         }
@@ -490,7 +543,22 @@ mod tests {
     fn refused_templates_say_where() {
         let e = Template::parse("1TS{a:x}{b:x}").unwrap_err();
         assert_eq!(e.offset, 8);
-        assert!(e.message.contains("touch"), "{}", e.message);
+        assert!(
+            matches!(e.problem, TemplateProblem::FieldsTouch { .. }),
+            "{e}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "the fields `a` and `b` touch: put a literal or a space between them, or give one a width"
+        );
+        assert_eq!(
+            Template::parse("ab}").unwrap_err().to_string(),
+            "a `}` without its `{` (write `}}` for a brace)"
+        );
+        assert_eq!(
+            Template::parse("{x}").unwrap_err().to_string(),
+            "the field `{x}` has no kind: write `{name:kind}` with kind f, d, x, c, w or s"
+        );
         assert_eq!(Template::parse("a{x:q}").unwrap_err().offset, 1);
         assert_eq!(Template::parse("a{x:f").unwrap_err().offset, 1);
         assert_eq!(Template::parse("ab}").unwrap_err().offset, 2);

@@ -1,6 +1,6 @@
 //! The settings of a simulated lab.
 
-use super::{DeviceId, Fault};
+use super::{DeviceId, Fault, PYRAMIDAL_SPREAD_ARCSEC};
 use crate::lab::profile::Profile;
 use crate::simulate::{SimulateError, SimulationConfig};
 
@@ -94,67 +94,56 @@ impl LabConfig {
     ///
     /// # Errors
     ///
-    /// [`SimulateError::Config`] naming the first bad setting.
-    pub fn validate(&self) -> Result<(), SimulateError> {
+    /// [`LabSimError::Simulation`] for the simulation's settings, [`LabSimError::Config`]
+    /// with the [`LabConfigError`] of the first problem of the lab's.
+    pub fn validate(&self) -> Result<(), LabSimError> {
         self.simulation.validate()?;
-        let bad = |m: String| Err(SimulateError::Config(m));
-        let k = self.simulation.ac_faces.len();
-        if !(2..=16).contains(&k) {
-            return bad(format!(
-                "the lab has 2 to 16 autocollimators; ac faces {:?} name {k}",
-                self.simulation.ac_faces
-            ));
+        Ok(self.check()?)
+    }
+
+    fn check(&self) -> Result<(), LabConfigError> {
+        let acs = self.simulation.ac_faces.len();
+        if !(2..=16).contains(&acs) {
+            return Err(LabConfigError::AutocollimatorCount {
+                ac_faces: self.simulation.ac_faces.clone(),
+            });
         }
-        for fault in &self.faults {
-            if let DeviceId::Ac(n) = fault.device
-                && n as usize > k
+        for &fault in &self.faults {
+            if let DeviceId::Ac(ac) = fault.device
+                && ac as usize > acs
             {
-                return bad(format!(
-                    "fault {fault}: the lab has {k} autocollimators, not an ac{n}"
-                ));
+                return Err(LabConfigError::FaultOfMissingAc { fault, acs, ac });
             }
         }
         // The lab's instruments have no thermometer, their Y axis has its own model, and
         // their noise is normal: refuse what the run simulator has beyond that rather
         // than ignore it.
         if self.simulation.temperature.is_some() {
-            return bad(
-                "the simulated lab has no temperature model (its instruments report no temperature)"
-                    .into(),
-            );
+            return Err(LabConfigError::TemperatureModel);
         }
         if self.simulation.elevation.is_some() {
-            return bad(format!(
-                "the simulated lab has no elevation model (its Y axis is a pyramidal error of spread {}″ plus noise)",
-                super::PYRAMIDAL_SPREAD_ARCSEC
-            ));
+            return Err(LabConfigError::ElevationModel);
         }
         if self.simulation.noise_student_dof.is_some() {
-            return bad("the simulated lab's noise is normal (no Student-t noise)".into());
+            return Err(LabConfigError::StudentNoise);
         }
         if !self.simulation.rezero.is_empty() || !self.simulation.random_walk.is_empty() {
-            return bad(
-                "the simulated lab's zeros neither re-zero every cycle nor wander (simulate a run with them instead)"
-                    .into(),
-            );
+            return Err(LabConfigError::Habits);
         }
         if self.simulation.no_time {
-            return bad(
-                "a run in the simulated lab always records the time of every reading".into(),
-            );
+            return Err(LabConfigError::NoTime);
         }
         if !(self.speed_deg_per_s.is_finite() && self.speed_deg_per_s > 0.0) {
-            return bad(format!(
-                "speed {} °/s must be a finite number > 0",
-                self.speed_deg_per_s
-            ));
+            return Err(LabConfigError::Speed {
+                deg_per_s: self.speed_deg_per_s,
+            });
         }
-        for (name, v) in [
+        for (what, value) in [
             ("home time", self.home_seconds),
             ("time scale", self.time_scale),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(format!("{name} {v} must be a finite number ≥ 0"));
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(LabConfigError::NotNonNegative { what, value });
             }
         }
         Ok(())
@@ -167,4 +156,75 @@ impl LabConfig {
             .filter(|f| f.device == device)
             .collect()
     }
+}
+
+/// Why a simulated lab cannot be set up: its simulation's settings or truth, or its own
+/// settings.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LabSimError {
+    /// The simulation's settings ([`SimulationConfig::validate`]) or truth are refused.
+    #[error(transparent)]
+    Simulation(#[from] SimulateError),
+    /// The lab's own settings are refused.
+    #[error("invalid simulation settings: {0}")]
+    Config(#[from] LabConfigError),
+}
+
+/// Why the settings of a simulated lab ([`LabConfig`]) are refused, beyond those of its
+/// simulation ([`SimulationConfig::validate`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum LabConfigError {
+    /// Not 2 to 16 autocollimators.
+    #[error("the lab has 2 to 16 autocollimators; ac faces {ac_faces:?} name {}", ac_faces.len())]
+    AutocollimatorCount {
+        /// The faces the autocollimators read at step 0, one per autocollimator.
+        ac_faces: Vec<usize>,
+    },
+    /// A fault of an autocollimator the lab does not have.
+    #[error("fault {fault}: the lab has {acs} autocollimators, not an ac{ac}")]
+    FaultOfMissingAc {
+        /// The fault.
+        fault: Fault,
+        /// The lab's number of autocollimators.
+        acs: usize,
+        /// The autocollimator the fault names.
+        ac: u32,
+    },
+    /// A temperature model: the lab's instruments report no temperature.
+    #[error("the simulated lab has no temperature model (its instruments report no temperature)")]
+    TemperatureModel,
+    /// An elevation model: the lab's Y axis has its own.
+    #[error(
+        "the simulated lab has no elevation model (its Y axis is a pyramidal error of spread \
+         {PYRAMIDAL_SPREAD_ARCSEC}″ plus noise)"
+    )]
+    ElevationModel,
+    /// Student-t noise: the lab's noise is normal.
+    #[error("the simulated lab's noise is normal (no Student-t noise)")]
+    StudentNoise,
+    /// Re-zeroing or wandering zeros.
+    #[error(
+        "the simulated lab's zeros neither re-zero every cycle nor wander (simulate a run \
+         with them instead)"
+    )]
+    Habits,
+    /// A run without the time of its readings.
+    #[error("a run in the simulated lab always records the time of every reading")]
+    NoTime,
+    /// A table speed that is not a finite number > 0.
+    #[error("speed {deg_per_s} °/s must be a finite number > 0")]
+    Speed {
+        /// The speed, degrees per second.
+        deg_per_s: f64,
+    },
+    /// A home time or time scale that is not a finite number ≥ 0.
+    #[error("{what} {value} must be a finite number ≥ 0")]
+    NotNonNegative {
+        /// Which: `home time`, `time scale`.
+        what: &'static str,
+        /// Its value.
+        value: f64,
+    },
 }

@@ -90,7 +90,7 @@ use std::fmt;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-pub use config::LabConfig;
+pub use config::{LabConfig, LabConfigError, LabSimError};
 pub use elcomat::ElcomatSim;
 pub use endpoint::{Endpoint, SimDevice, SimStream};
 pub use fault::{
@@ -103,7 +103,7 @@ pub use profiled::ProfileSim;
 pub use smc100::Smc100Sim;
 pub use world::{RemountError, TableView, World};
 
-use crate::simulate::{SimulateError, Truth};
+use crate::simulate::{SimulateError, Truth, TruthError};
 use world::lock;
 
 /// Measuring range of the simulated autocollimators, arcsec (beyond it X is not valid).
@@ -136,7 +136,7 @@ impl Devices {
     /// # Errors
     ///
     /// Invalid settings ([`LabConfig::validate`]).
-    pub fn new(config: LabConfig) -> Result<Devices, SimulateError> {
+    pub fn new(config: LabConfig) -> Result<Devices, LabSimError> {
         let world = World::new(config)?;
         Ok(Devices::from_world(world))
     }
@@ -146,17 +146,19 @@ impl Devices {
     /// # Errors
     ///
     /// Invalid settings, or a truth whose number of faces differs from the settings'.
-    pub fn with_truth(config: LabConfig, truth: Truth) -> Result<Devices, SimulateError> {
+    pub fn with_truth(config: LabConfig, truth: Truth) -> Result<Devices, LabSimError> {
         config.validate()?;
         truth.validate()?;
         if truth.faces != config.simulation.faces {
             return Err(SimulateError::Truth {
                 origin: "truth".into(),
-                message: format!(
-                    "it has {} faces, the lab {}",
-                    truth.faces, config.simulation.faces
-                ),
-            });
+                problem: TruthError::FacesDiffer {
+                    truth_faces: truth.faces,
+                    run: "the lab",
+                    run_faces: config.simulation.faces,
+                },
+            }
+            .into());
         }
         Ok(Devices::from_world(World::with_truth(config, truth)))
     }

@@ -8,9 +8,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use super::{AC_RANGE_ARCSEC, LabConfig, PYRAMIDAL_SPREAD_ARCSEC};
+use super::{AC_RANGE_ARCSEC, LabConfig, LabSimError, PYRAMIDAL_SPREAD_ARCSEC};
 use crate::measurement::{Direction, Reading, run_stops};
-use crate::simulate::{SimulateError, SimulationConfig, Truth};
+use crate::simulate::{SimulationConfig, Truth};
 
 /// Why the simulated lab could not remount the polygon.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -177,7 +177,7 @@ impl World {
     /// # Errors
     ///
     /// Invalid settings ([`LabConfig::validate`]).
-    pub fn new(config: LabConfig) -> Result<World, SimulateError> {
+    pub fn new(config: LabConfig) -> Result<World, LabSimError> {
         config.validate()?;
         let truth = Truth::draw(&config.simulation)?;
         Ok(World::with_truth(config, truth))

@@ -2,8 +2,6 @@
 
 use std::path::Path;
 
-use crate::input::limits::READING_ARCSEC;
-
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -11,7 +9,8 @@ use serde::{Deserialize, Serialize};
 
 use super::super::SimulateError;
 use super::super::config::Harmonic;
-use super::super::truth::{close, parse_json};
+use super::super::truth::{check_noise, check_values, close};
+use super::super::truth_file::{self, TruthError, TruthJson};
 use super::config::{MIN_POSITIONS, SelfcalSimConfig};
 use super::{ENCODER_STREAM, HEAD_STREAM, TABLE_STREAM, harmonics_at_deg, position_deg};
 
@@ -185,16 +184,14 @@ impl SelfcalTruth {
     /// Reads a self-calibration truth file (JSON) and checks it
     /// ([`SelfcalTruth::validate`]). An empty or missing `encoder_angle_deg` is filled
     /// with k·360/P. Errors name the file, and for bad JSON also the line and column.
+    /// [`TruthFile::read_path`](crate::simulate::TruthFile::read_path) reads a truth file
+    /// of either kind.
     ///
     /// # Errors
     ///
     /// [`SimulateError::Io`], [`SimulateError::Json`] or [`SimulateError::Truth`].
     pub fn read_path(path: &Path) -> Result<SelfcalTruth, SimulateError> {
-        let (bytes, name) =
-            crate::input::read_bytes(path).map_err(|(name, source)| SimulateError::Io {
-                path: name.into(),
-                source,
-            })?;
+        let (bytes, name) = truth_file::read_bytes(path)?;
         SelfcalTruth::from_json_bytes(&bytes, &name)
     }
 
@@ -205,17 +202,7 @@ impl SelfcalTruth {
     ///
     /// [`SimulateError::Json`] or [`SimulateError::Truth`].
     pub fn from_json_bytes(bytes: &[u8], source: &str) -> Result<SelfcalTruth, SimulateError> {
-        let mut truth: SelfcalTruth = parse_json(bytes, source)?;
-        truth.check().map_err(|message| SimulateError::Truth {
-            origin: source.to_string(),
-            message,
-        })?;
-        if truth.encoder_angle_deg.is_empty() {
-            truth.encoder_angle_deg = (0..truth.positions)
-                .map(|k| position_deg(k, truth.positions))
-                .collect();
-        }
-        Ok(truth)
+        truth_file::from_json_bytes(bytes, source)
     }
 
     /// Checks the truth: P ≥ [`MIN_POSITIONS`]; `encoder_error` has P values, and
@@ -226,95 +213,90 @@ impl SelfcalTruth {
     ///
     /// # Errors
     ///
-    /// [`SimulateError::Truth`] (origin `truth`) naming the first problem.
+    /// [`SimulateError::Truth`] (origin `truth`) with the [`TruthError`] of the first
+    /// problem.
     pub fn validate(&self) -> Result<(), SimulateError> {
-        self.check().map_err(|message| SimulateError::Truth {
+        self.check().map_err(|problem| SimulateError::Truth {
             origin: "truth".into(),
-            message,
+            problem,
         })
     }
 
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), TruthError> {
         let p = self.positions;
         if p < MIN_POSITIONS {
-            return Err(format!(
-                "positions is {p}; a self-calibration has at least {MIN_POSITIONS}"
-            ));
+            return Err(TruthError::TooFewPositions { positions: p });
         }
-        for (name, list, may_be_empty) in [
+        for (list, values, may_be_empty) in [
             ("encoder_error", &self.encoder_error, false),
             ("encoder_angle_deg", &self.encoder_angle_deg, true),
         ] {
-            if list.len() != p && !(may_be_empty && list.is_empty()) {
-                return Err(format!(
-                    "{name} has {} values, but positions is {p}",
-                    list.len()
-                ));
+            if values.len() != p && !(may_be_empty && values.is_empty()) {
+                return Err(TruthError::LengthNotPositions {
+                    list,
+                    len: values.len(),
+                    positions: p,
+                });
             }
-            if let Some(i) = list.iter().position(|v| !READING_ARCSEC.contains(*v)) {
-                return Err(format!(
-                    "{name}[{i}]: {}",
-                    READING_ARCSEC
-                        .check(list[i], "a truth value")
-                        .err()
-                        .map(|e| e.to_string())
-                        .unwrap_or_default()
-                ));
-            }
+            check_values(list, values)?;
         }
         for (c, row) in self.table_error.iter().enumerate() {
             if row.len() != p {
-                return Err(format!(
-                    "table_error of cycle {} has {} values, but positions is {p}",
-                    c + 1,
-                    row.len()
-                ));
+                return Err(TruthError::TableErrorLength {
+                    cycle: c + 1,
+                    len: row.len(),
+                    positions: p,
+                });
             }
-            if let Some(i) = row.iter().position(|v| !v.is_finite()) {
-                return Err(format!(
-                    "table_error of cycle {} step {i} is not a finite number",
-                    c + 1
-                ));
+            if let Some(step) = row.iter().position(|v| !v.is_finite()) {
+                return Err(TruthError::TableErrorNotFinite { cycle: c + 1, step });
             }
         }
         let mut seen = std::collections::HashSet::new();
         for h in &self.head_error {
-            if h.head < 2 {
-                return Err(format!(
-                    "head_error for head {}: head 1 is the reference (c[1] = 0); the list \
-                     starts at head 2",
-                    h.head
-                ));
+            let head = h.head;
+            if head < 2 {
+                return Err(TruthError::HeadErrorOfReference { head });
             }
             if !(h.value.is_finite() && h.angle_deg.is_finite()) {
-                return Err(format!(
-                    "head_error for head {} is not a finite number",
-                    h.head
-                ));
+                return Err(TruthError::HeadErrorNotFinite { head });
             }
-            if !seen.insert(h.head) {
-                return Err(format!("head_error for head {} is given twice", h.head));
+            if !seen.insert(head) {
+                return Err(TruthError::HeadErrorTwice { head });
             }
         }
         for h in &self.encoder_harmonics {
             if h.order == 0 {
-                return Err(format!("encoder harmonic {h} has order 0"));
+                return Err(TruthError::HarmonicOrderZero {
+                    harmonic: h.clone(),
+                });
             }
             if !(h.amplitude_arcsec.is_finite() && h.phase_rad.is_finite()) {
-                return Err(format!("encoder harmonic {h} is not finite"));
+                return Err(TruthError::HarmonicNotFinite {
+                    harmonic: h.clone(),
+                });
             }
         }
-        if let Some(s) = self.noise_arcsec
-            && !(s.is_finite() && s >= 0.0)
-        {
-            return Err(format!("noise_arcsec is {s}; must be a finite number ≥ 0"));
-        }
-        Ok(())
+        check_noise(self.noise_arcsec)
     }
 
     /// The truth as pretty-printed JSON (numbers at full precision: they read back to the
     /// same doubles).
     pub fn to_json_pretty(&self) -> String {
         serde_json::to_string_pretty(self).expect("a SelfcalTruth always serializes to JSON")
+    }
+}
+
+impl TruthJson for SelfcalTruth {
+    fn check(&self) -> Result<(), TruthError> {
+        SelfcalTruth::check(self)
+    }
+
+    fn fill_left_out(&mut self) {
+        if self.encoder_angle_deg.is_empty() {
+            self.encoder_angle_deg = (0..self.positions)
+                .map(|k| position_deg(k, self.positions))
+                .collect();
+        }
     }
 }

@@ -11,7 +11,9 @@ use toml::Spanned;
 
 use super::CalibrationError;
 use crate::input::Location;
-use crate::uncertainty::budget::{Budget, BudgetError, DofPolicy, EvaluationType, Source};
+use crate::uncertainty::budget::{
+    Budget, BudgetError, ComponentError, DofPolicy, EvaluationType, Source,
+};
 use crate::uncertainty::budget_file::{BudgetFile, location, read_budget_text};
 use crate::uncertainty::distribution::Distribution;
 use crate::uncertainty::monte_carlo::monte_carlo_distribution;
@@ -253,10 +255,10 @@ impl InstrumentBudget {
         let mut components = Vec::new();
         flatten(&file.budget, &tree, Scope::Result, 1.0, "", &mut components).map_err(in_file)?;
         for c in &components {
-            if let Err(message) = contribution_within_limits(c) {
+            if let Err(problem) = contribution_within_limits(c) {
                 return Err(in_file(BudgetError::Component {
                     component: c.name.clone(),
-                    message,
+                    problem,
                 }));
             }
         }
@@ -278,23 +280,23 @@ impl InstrumentBudget {
             return Err(CalibrationError::Coverage(self.p));
         }
         for c in &self.components {
-            let bad = |message: String| CalibrationError::Component {
+            let bad = |problem: ComponentError| CalibrationError::Component {
                 name: c.name.clone(),
-                message,
+                problem,
             };
-            c.distribution.check().map_err(|e| bad(e.to_string()))?;
+            c.distribution.check().map_err(|e| bad(e.into()))?;
             if !c.sensitivity.is_finite() {
-                return Err(bad(format!(
-                    "sensitivity must be a finite number, got {}",
-                    c.sensitivity
-                )));
+                return Err(bad(ComponentError::SensitivityNotFinite {
+                    sensitivity: c.sensitivity,
+                }));
             }
-            if let Some(nu) = c.dof
-                && !(nu.is_finite() && nu >= 1.0)
+            if let Some(dof) = c.dof
+                && !(dof.is_finite() && dof >= 1.0)
             {
-                return Err(bad(format!(
-                    "degrees of freedom must be at least 1 (None for infinitely many), got {nu}"
-                )));
+                return Err(bad(ComponentError::DofBelowOne {
+                    dof,
+                    infinite: "None",
+                }));
             }
             contribution_within_limits(c).map_err(bad)?;
         }
@@ -439,7 +441,7 @@ fn flatten(
 /// An instrument's error reaches the readings in arcseconds: its contribution |c|·u may
 /// be at most the largest reading (docs/FORMAT.md §2.2), so that every result it adds to
 /// stays within the limits of a result file.
-fn contribution_within_limits(c: &ScopedComponent) -> Result<(), String> {
+fn contribution_within_limits(c: &ScopedComponent) -> Result<(), ComponentError> {
     let contribution = c.sensitivity.abs() * c.distribution.standard_uncertainty();
     crate::input::limits::READING_ARCSEC
         .check(
@@ -447,5 +449,5 @@ fn contribution_within_limits(c: &ScopedComponent) -> Result<(), String> {
             "an instrument's contribution |c|·u (arcseconds)",
         )
         .map(|_| ())
-        .map_err(|rule| format!("its contribution |c|·u: {rule}"))
+        .map_err(|rule| ComponentError::ContributionBeyondReadings(Box::new(rule)))
 }

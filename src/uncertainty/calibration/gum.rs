@@ -171,9 +171,7 @@ impl KnownCorrection {
         {
             return Err(CalibrationError::Component {
                 name: self.name.clone(),
-                message: format!(
-                    "needs one finite value per reading ({readings}) and a finite u ≥ 0"
-                ),
+                problem: crate::uncertainty::ComponentError::CorrectionColumn { readings },
             });
         }
         Ok(())

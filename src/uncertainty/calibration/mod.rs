@@ -132,12 +132,12 @@ pub enum CalibrationError {
     #[error("coverage probability p must be within 0.5 … 0.9999 (docs/FORMAT.md §2.2), got {0}")]
     Coverage(f64),
     /// A component is invalid.
-    #[error("component {name:?}: {message}")]
+    #[error("component {name:?}: {problem}")]
     Component {
         /// Its name.
         name: String,
         /// What is wrong.
-        message: String,
+        problem: crate::uncertainty::ComponentError,
     },
     /// ⌊ν_eff⌋ < 1 under the floor policy.
     #[error(

@@ -326,7 +326,7 @@ impl McModel {
                 .sampler()
                 .map_err(|e| CalibrationError::Component {
                     name: c.name.clone(),
-                    message: e.to_string(),
+                    problem: e.into(),
                 })?;
             if c.scope == Scope::Result {
                 result_draws.push((sampler, c.sensitivity));
@@ -385,7 +385,7 @@ impl McModel {
                 sampler: Distribution::Normal { u: c.u }.sampler().map_err(|e| {
                     CalibrationError::Component {
                         name: c.name.clone(),
-                        message: e.to_string(),
+                        problem: e.into(),
                     }
                 })?,
                 spread: Spread::Groups { groups: 1, entries }.densified(targets),
