@@ -130,13 +130,6 @@ impl Column {
     }
 
     /// Reads one field of the column: its value (`None` for an empty field not
-    /// recorded), or the message refusing it, naming the column and quoting the text
-    /// ([`Column::value`]'s refusal as text, which the table reader takes).
-    pub(crate) fn read(&self, text: &str) -> Result<Option<Value>, String> {
-        self.value(text).map_err(|refusal| refusal.to_string())
-    }
-
-    /// Reads one field of the column: its value (`None` for an empty field not
     /// recorded), or why it is refused.
     pub(crate) fn value(&self, text: &str) -> Result<Option<Value>, FieldError> {
         if text.is_empty() && !self.required {

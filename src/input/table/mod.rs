@@ -477,7 +477,7 @@ impl<'t> Reader<'t> {
         for &(j, c) in &self.order {
             let text = self.record.get(j).unwrap_or("");
             let read = match self.columns.get(c) {
-                Some(column) => column.read(text),
+                Some(column) => column.value(text),
                 None => Ok(None),
             };
             match read {
@@ -486,9 +486,9 @@ impl<'t> Reader<'t> {
                         *slot = value;
                     }
                 }
-                Err(message) => {
+                Err(refusal) => {
                     let span = Span::scan(bytes, position, found);
-                    return Err(self.at(self.positions.field_start(&span, j), message));
+                    return Err(self.at(self.positions.field_start(&span, j), refusal.to_string()));
                 }
             }
         }
