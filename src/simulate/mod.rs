@@ -78,6 +78,7 @@
 mod config;
 mod habits;
 mod models;
+mod run_effect;
 mod selfcal;
 mod truth;
 mod truth_file;
@@ -88,11 +89,12 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
-pub use config::{Harmonic, MAX_READINGS, RunEffectError, SimulationConfig, SimulationConfigError};
+pub use config::{Harmonic, MAX_READINGS, SimulationConfig, SimulationConfigError};
 pub use habits::{HabitError, RandomWalkSpec, RandomWalkTruth, RezeroSpec};
 pub use models::{
     ElevationModel, ElevationTruth, ModelError, ModelSpecError, MountingTilt, TemperatureModel,
 };
+pub use run_effect::RunEffectError;
 pub use selfcal::{
     HeadErrorTruth, MAX_DRAWN_ORDER, MAX_HARMONIC_TERMS, MIN_POSITIONS, SelfcalConfigError,
     SelfcalSimConfig, SelfcalTruth, equally_spaced_head_angles_deg, selfa_head_angles_deg,

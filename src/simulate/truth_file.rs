@@ -7,7 +7,7 @@ use std::path::Path;
 
 use serde::de::{self, DeserializeOwned, IgnoredAny, MapAccess, Visitor};
 
-use super::config::{RunEffectError, effect_json};
+use super::run_effect::{RunEffectError, effect_json};
 use super::{Harmonic, MIN_POSITIONS, SelfcalTruth, SimulateError, Truth};
 use crate::effects::Effect;
 use crate::input::limits::LimitError;
