@@ -1,8 +1,8 @@
 //! The maths tier: the library's calibration maths — solve, uncertainty, Monte Carlo,
 //! diagnose, self-calibration, compare, key comparisons, simulate, the readers of every
 //! file — through its public API, without the `polycal` binary and without the instrument
-//! layer (it builds and runs with `--no-default-features`; `simulate` and
-//! `simulate_selfcal` run their command-line checks only with `cli`).
+//! layer (it builds and runs with `--no-default-features`; `simulate_command_line`
+//! and `simulate_selfcal` run their command-line checks only with `cli`).
 //!
 //! Quick: part of the inner loop, `cargo test --lib --test maths --test commands`, run
 //! while working on the library. Its slow statistical sweeps are in `tests/sweeps/`.
@@ -20,6 +20,7 @@ mod measurement_file_support;
 mod selfcal_file_support;
 #[path = "../selfcal_support/mod.rs"]
 mod selfcal_support;
+mod simulate_support;
 #[path = "../undeclared/mod.rs"]
 mod undeclared;
 
@@ -51,9 +52,17 @@ mod selfcal_file_in_memory;
 mod selfcal_file_refusals;
 mod selfcal_file_round_trips;
 mod selfcal_monte_carlo;
-mod simulate;
+mod simulate_command_line;
+mod simulate_effects;
+mod simulate_elevation;
+mod simulate_equations;
 mod simulate_habits;
+mod simulate_noise;
+mod simulate_refusals;
 mod simulate_selfcal;
+mod simulate_specs;
+mod simulate_temperature;
+mod simulate_truth_file;
 mod solve_properties;
 mod solve_uncertainty;
 mod sub_pitch;
