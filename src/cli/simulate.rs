@@ -291,9 +291,7 @@ fn selfcal_hint(error: SimulateError) -> anyhow::Error {
             _ => return error.into(),
         },
         E::StepSeconds { .. } => ("--step-seconds", "give --step-seconds above 0"),
-        E::HarmonicOrderZero { .. } | E::HarmonicNotFinite { .. } => {
-            ("--harmonic", "see --harmonic")
-        }
+        E::Harmonic(_) => ("--harmonic", "see --harmonic"),
         E::MaxOrder { .. } => ("--max-order", "give --max-order 1 or more"),
         E::TooManyReadings { .. } | E::TooManyHarmonicTerms { .. } => (
             "--positions",

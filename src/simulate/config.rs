@@ -27,7 +27,35 @@ pub struct Harmonic {
     pub phase_rad: f64,
 }
 
+/// Why an encoder harmonic is refused: the one rule of every run's settings and truth
+/// file that gives harmonics.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum HarmonicError {
+    /// A harmonic of order 0.
+    #[error("encoder harmonic {0} has order 0; orders start at 1")]
+    OrderZero(Harmonic),
+    /// A harmonic whose amplitude or phase is not finite.
+    #[error("encoder harmonic {0} is not finite")]
+    NotFinite(Harmonic),
+}
+
 impl Harmonic {
+    /// Checks the harmonic: order ≥ 1, amplitude and phase finite.
+    ///
+    /// # Errors
+    ///
+    /// [`HarmonicError`] naming the harmonic.
+    pub fn check(&self) -> Result<(), HarmonicError> {
+        if self.order == 0 {
+            return Err(HarmonicError::OrderZero(self.clone()));
+        }
+        if !(self.amplitude_arcsec.is_finite() && self.phase_rad.is_finite()) {
+            return Err(HarmonicError::NotFinite(self.clone()));
+        }
+        Ok(())
+    }
+
     /// The harmonic's value at position `p` of `faces` positions.
     pub fn value_at(&self, p: usize, faces: usize) -> f64 {
         let x = std::f64::consts::TAU * (self.order as f64) * (p as f64) / (faces as f64);
@@ -386,16 +414,7 @@ impl SimulationConfig {
             });
         }
         for h in &self.encoder_harmonics {
-            if h.order == 0 {
-                return Err(E::HarmonicOrderZero {
-                    harmonic: h.clone(),
-                });
-            }
-            if !(h.amplitude_arcsec.is_finite() && h.phase_rad.is_finite()) {
-                return Err(E::HarmonicNotFinite {
-                    harmonic: h.clone(),
-                });
-            }
+            h.check()?;
         }
         if let Some(dof) = self.noise_student_dof
             && !(dof.is_finite() && dof > 2.0)
@@ -625,18 +644,9 @@ pub enum SimulationConfigError {
         /// The step time, seconds.
         seconds: f64,
     },
-    /// An encoder harmonic of order 0.
-    #[error("encoder harmonic {harmonic} has order 0; orders start at 1")]
-    HarmonicOrderZero {
-        /// The harmonic.
-        harmonic: Harmonic,
-    },
-    /// An encoder harmonic whose amplitude or phase is not finite.
-    #[error("encoder harmonic {harmonic} is not finite")]
-    HarmonicNotFinite {
-        /// The harmonic.
-        harmonic: Harmonic,
-    },
+    /// An encoder harmonic of order 0, or not finite.
+    #[error(transparent)]
+    Harmonic(#[from] HarmonicError),
     /// Student-t degrees of freedom that are not a finite number > 2.
     #[error(
         "Student-t noise with {dof} degrees of freedom; must be a finite number > 2 \

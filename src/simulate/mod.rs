@@ -89,7 +89,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{ChiSquared, Distribution, StandardNormal};
 
-pub use config::{Harmonic, MAX_READINGS, SimulationConfig, SimulationConfigError};
+pub use config::{Harmonic, HarmonicError, MAX_READINGS, SimulationConfig, SimulationConfigError};
 pub use habits::{HabitError, RandomWalkSpec, RandomWalkTruth, RezeroSpec};
 pub use models::{
     ElevationModel, ElevationTruth, ModelError, ModelSpecError, MountingTilt, TemperatureModel,

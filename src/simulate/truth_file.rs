@@ -7,8 +7,9 @@ use std::path::Path;
 
 use serde::de::{self, DeserializeOwned, IgnoredAny, MapAccess, Visitor};
 
+use super::config::HarmonicError;
 use super::run_effect::{RunEffectError, effect_json};
-use super::{Harmonic, MIN_POSITIONS, SelfcalTruth, SimulateError, Truth};
+use super::{MIN_POSITIONS, SelfcalTruth, SimulateError, Truth};
 use crate::effects::Effect;
 use crate::input::limits::LimitError;
 
@@ -403,18 +404,9 @@ pub enum TruthError {
         /// The head.
         head: u32,
     },
-    /// An encoder harmonic of order 0.
-    #[error("encoder harmonic {harmonic} has order 0")]
-    HarmonicOrderZero {
-        /// The harmonic.
-        harmonic: Harmonic,
-    },
-    /// An encoder harmonic whose amplitude or phase is not finite.
-    #[error("encoder harmonic {harmonic} is not finite")]
-    HarmonicNotFinite {
-        /// The harmonic.
-        harmonic: Harmonic,
-    },
+    /// An encoder harmonic of order 0, or not finite.
+    #[error(transparent)]
+    Harmonic(#[from] HarmonicError),
     /// A truth of another number of faces than the run's.
     #[error("it has {truth_faces} faces, {run} {run_faces}")]
     FacesDiffer {

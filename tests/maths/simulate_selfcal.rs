@@ -7,8 +7,9 @@ use std::f64::consts::TAU;
 use polycal::Direction;
 use polycal::selfcal::SelfcalSet;
 use polycal::simulate::{
-    Harmonic, SelfcalConfigError, SelfcalSimConfig, SelfcalTruth, SimulateError, SimulationConfig,
-    Truth, equally_spaced_head_angles_deg, selfa_head_angles_deg, simulate_selfcal,
+    Harmonic, HarmonicError, SelfcalConfigError, SelfcalSimConfig, SelfcalTruth, SimulateError,
+    SimulationConfig, Truth, equally_spaced_head_angles_deg, selfa_head_angles_deg,
+    simulate_selfcal,
 };
 
 fn h(order: usize, amplitude_arcsec: f64, phase_rad: f64) -> Harmonic {
@@ -475,13 +476,11 @@ fn invalid_settings_are_refused_with_typed_errors() {
     );
     assert_eq!(
         refused(&|c| c.encoder_harmonics = vec![h(0, 1.0, 0.0)]),
-        E::HarmonicOrderZero {
-            harmonic: h(0, 1.0, 0.0)
-        }
+        E::Harmonic(HarmonicError::OrderZero(h(0, 1.0, 0.0)))
     );
     assert!(matches!(
         refused(&|c| c.encoder_harmonics = vec![h(2, f64::NAN, 0.0)]),
-        E::HarmonicNotFinite { .. }
+        E::Harmonic(HarmonicError::NotFinite(_))
     ));
     assert_eq!(refused(&|c| c.max_order = 0), E::MaxOrder { max_order: 0 });
     assert!(matches!(

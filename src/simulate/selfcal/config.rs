@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::super::SimulateError;
-use super::super::config::{Harmonic, MAX_READINGS};
+use super::super::config::{Harmonic, HarmonicError, MAX_READINGS};
 use super::selfa_head_angles_deg;
 
 /// Fewest table positions P of a simulated self-calibration.
@@ -144,18 +144,9 @@ pub enum SelfcalConfigError {
         /// The step time, seconds.
         seconds: f64,
     },
-    /// A given harmonic of order 0.
-    #[error("encoder harmonic {harmonic} has order 0; orders start at 1")]
-    HarmonicOrderZero {
-        /// The harmonic.
-        harmonic: Harmonic,
-    },
-    /// A given harmonic with a non-finite amplitude or phase.
-    #[error("encoder harmonic {harmonic} is not finite")]
-    HarmonicNotFinite {
-        /// The harmonic.
-        harmonic: Harmonic,
-    },
+    /// An encoder harmonic of order 0, or not finite.
+    #[error(transparent)]
+    Harmonic(#[from] HarmonicError),
     /// A highest order of the drawn encoder error outside 1 … [`MAX_DRAWN_ORDER`].
     #[error(
         "the drawn encoder error's highest order is {max_order}; must be 1 … {MAX_DRAWN_ORDER}"
@@ -322,16 +313,7 @@ impl SelfcalSimConfig {
             return Err(E::StepSeconds { seconds });
         }
         for h in &self.encoder_harmonics {
-            if h.order == 0 {
-                return Err(E::HarmonicOrderZero {
-                    harmonic: h.clone(),
-                });
-            }
-            if !(h.amplitude_arcsec.is_finite() && h.phase_rad.is_finite()) {
-                return Err(E::HarmonicNotFinite {
-                    harmonic: h.clone(),
-                });
-            }
+            h.check()?;
         }
         let harmonics = if self.encoder_harmonics.is_empty() {
             if !(1..=MAX_DRAWN_ORDER).contains(&self.max_order) {

@@ -266,16 +266,7 @@ impl SelfcalTruth {
             }
         }
         for h in &self.encoder_harmonics {
-            if h.order == 0 {
-                return Err(TruthError::HarmonicOrderZero {
-                    harmonic: h.clone(),
-                });
-            }
-            if !(h.amplitude_arcsec.is_finite() && h.phase_rad.is_finite()) {
-                return Err(TruthError::HarmonicNotFinite {
-                    harmonic: h.clone(),
-                });
-            }
+            h.check()?;
         }
         check_noise(self.noise_arcsec)
     }
