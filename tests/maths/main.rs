@@ -14,6 +14,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 mod compare_support;
+mod file_error_support;
 #[path = "../kc_support/mod.rs"]
 mod kc_support;
 mod measurement_file_support;

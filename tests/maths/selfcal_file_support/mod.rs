@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
+pub use crate::file_error_support::assert_invalid;
 use polycal::input::FileError;
 use polycal::measurement::Direction;
 use polycal::selfcal::{HeadReading, SelfcalSet};
@@ -28,28 +29,6 @@ pub fn read_good(name: &str, positions: Option<usize>) -> SelfcalSet {
     match SelfcalSet::read_path(data(name), positions) {
         Ok(set) => set,
         Err(e) => panic!("{name} should read: {e}"),
-    }
-}
-
-/// Asserts that `err` is `Invalid` at `file:line:column` and its message holds `words`.
-pub fn assert_invalid(err: &FileError, file: &str, line: u64, column: u64, words: &[&str]) {
-    let text = err.to_string();
-    let FileError::Invalid { location, message } = err else {
-        panic!("expected Invalid, got {text}");
-    };
-    assert_eq!(
-        (location.file(), location.line(), location.column()),
-        (file, line, column),
-        "wrong location in: {text}"
-    );
-    assert_eq!(err.location(), Some(location));
-    assert!(
-        text.starts_with(&format!("{location}: ")),
-        "bad prefix: {text}"
-    );
-    assert!(!message.contains('\n'), "message is not one line: {text}");
-    for word in words {
-        assert!(text.contains(word), "{word:?} not in: {text}");
     }
 }
 
