@@ -100,4 +100,5 @@ pub use error::{InstrumentError, ReplyError};
 pub use instruments::{AcReading, Autocollimator, RotaryTable};
 pub use per_instrument::PerInstrument;
 pub use query::QueryOptions;
+pub use run::{Action, Event, LogRecord, Outcome, Session, SessionError};
 pub use stop::StopFlag;

@@ -347,18 +347,12 @@ impl RunDir {
     /// The latest cycle of this session's mounting whose readings are all on disk, when
     /// its check after the cycle was not done (the session before ended first).
     pub fn unchecked_cycle(&self) -> Option<u32> {
-        let checked = self.manifest.checked_cycles.as_ref()?;
-        let setup = self.mounting.setup;
-        let settings = &self.manifest.settings;
-        let plan = settings.plan();
-        let complete = (1..=settings.cycles).rev().find(|&c| {
-            plan.iter().filter(|s| s.cycle == c).all(|s| {
-                settings
-                    .acs()
-                    .all(|ac| self.done.contains(&(setup, c, s.step, ac)))
-            })
-        })?;
-        (!checked.contains(&(setup, complete))).then_some(complete)
+        super::store::unchecked_cycle(
+            &self.manifest.settings,
+            self.mounting.setup,
+            &self.done,
+            self.manifest.checked_cycles.as_deref(),
+        )
     }
 
     /// Whether this session's mounting is complete: every reading on disk and the check
@@ -394,21 +388,7 @@ impl RunDir {
     /// The stops of this session's mounting still to visit, each with the
     /// autocollimators still to read there, in order.
     pub fn remaining(&self) -> Vec<(Stop, Vec<u32>)> {
-        let setup = self.mounting.setup;
-        self.manifest
-            .settings
-            .plan()
-            .into_iter()
-            .filter_map(|stop| {
-                let acs: Vec<u32> = self
-                    .manifest
-                    .settings
-                    .acs()
-                    .filter(|&ac| !self.done.contains(&(setup, stop.cycle, stop.step, ac)))
-                    .collect();
-                (!acs.is_empty()).then_some((stop, acs))
-            })
-            .collect()
+        super::store::remaining(&self.manifest.settings, self.mounting.setup, &self.done)
     }
 
     /// The shift of mounting `setup`, degrees (0 for one the run does not have).

@@ -27,7 +27,7 @@ pub type Identification = PerInstrument<String>;
 /// One session of a run: the first start, or one resumption.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
-pub struct Session {
+pub struct SessionRecord {
     /// The software, e.g. `polycal 0.1.0`.
     pub software: String,
     /// Start, RFC 3339 UTC.
@@ -72,7 +72,7 @@ pub struct Manifest {
     /// Readings of the complete run.
     pub expected_readings: usize,
     /// Every session, oldest first.
-    pub sessions: Vec<Session>,
+    pub sessions: Vec<SessionRecord>,
     /// Readings measured again at the end of their cycle because they lay far beyond
     /// the run's noise; their first values are in `remeasured.csv` (docs/FORMAT.md §7.3).
     #[serde(default)]
@@ -118,7 +118,7 @@ impl Manifest {
         self.software = software();
         self.outcome = "running".into();
         self.ended = None;
-        self.sessions.push(Session {
+        self.sessions.push(SessionRecord {
             software: software(),
             started: rfc3339(unix_now()),
             ended: None,

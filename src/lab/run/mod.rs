@@ -90,6 +90,7 @@
 //! ```
 
 mod abort;
+mod dir_store;
 mod directory;
 mod error;
 mod live;
@@ -100,7 +101,9 @@ mod noise;
 mod plan_file;
 mod repeat;
 mod resume;
+mod session;
 mod settings;
+mod store;
 mod verify;
 
 pub use abort::AbortHandle;
@@ -110,10 +113,12 @@ pub use live::{
     Cell, CycleCheck, MAX_REMEASURED_PER_CYCLE, MIN_DOF, OFFSET_SIGMAS, OUTLIER_SIGMAS, Remeasured,
     Suspect, ToMeasureAgain, to_measure_again, to_measure_again_judged,
 };
-pub use manifest::{Identification, MANIFEST_FORMAT, Manifest, Ports, Session, rfc3339, unix_now};
+pub use manifest::{
+    Identification, MANIFEST_FORMAT, Manifest, Ports, SessionRecord, rfc3339, unix_now,
+};
 pub use measure::{
-    APPROACH_OVERSHOOT_DEG, Attendant, Instruments, Outcome, Progress, approach_overshoot_deg,
-    measure, measure_attended,
+    APPROACH_OVERSHOOT_DEG, Attendant, Instruments, approach_overshoot_deg, measure,
+    measure_attended,
 };
 pub use mounting::{
     MAX_MOUNTINGS, Mounting, MountingRecord, REMOUNT_TOLERANCE_DEG, Remount, lost_harmonics,
@@ -121,8 +126,10 @@ pub use mounting::{
 };
 pub use noise::{NOISE_FLOOR_ARCSEC, NoiseRecord, RepeatNoise};
 pub use plan_file::{PlanFileError, PlannedRun, run_from_plan};
-pub use repeat::EXTRA_READS;
+pub use repeat::{EXTRA_READS, LastValue};
+pub use session::{Action, Event, LogRecord, Outcome, Progress, Session, SessionError};
 pub use settings::{
     AGREEMENT_SIGMAS, DEFAULT_READING_NOISE_ARCSEC, DEFAULT_READS_PER_STOP, MAX_AUTOCOLLIMATORS,
     MAX_READS_PER_STOP, RunSettings, SettingsError,
 };
+pub use store::{MemoryStore, Record, RunSoFar, Store, StoreError};

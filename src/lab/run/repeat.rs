@@ -14,12 +14,15 @@
 //! steady instrument reads it again.) A resumed session carries the values each device
 //! gave before it over ([`DeviceMemory::carried_over`]): until the device gave a reading
 //! in the session, they are refused as stale at any other table angle. Every refused
-//! reading is recorded in the traffic log as `refused`, with why.
+//! reading is named, with why, for the traffic log (`refused`).
+//!
+//! The rule does no input or output: [`StopReads`] is offered one reply at a time and
+//! says whether it wants another, has a reading, or gives up (the session asks for the
+//! replies, `session.rs`).
 
 use super::RunSettings;
 use super::noise::RepeatNoise;
-use crate::lab::traffic::TrafficLog;
-use crate::lab::{AcReading, Autocollimator, InstrumentError};
+use crate::lab::AcReading;
 
 /// Readings beyond [`RunSettings::reads_per_stop`] an autocollimator may be asked for at
 /// one stop before the run gives up on it.
@@ -34,15 +37,6 @@ pub(super) struct StopReading {
     pub(super) y_arcsec: Option<f64>,
     /// Readings taken and not used (refused or not among the agreeing ones).
     pub(super) refused: usize,
-}
-
-/// Why an autocollimator gave no reading that can be tied to its stop.
-#[derive(Debug)]
-pub(super) enum RepeatError {
-    /// The instrument failed.
-    Instrument(InstrumentError),
-    /// Every reading was taken, and no `reads_per_stop` consecutive ones agreed.
-    NoAgreement(String),
 }
 
 /// What the run remembers of one autocollimator between stops.
@@ -61,13 +55,13 @@ pub(super) struct DeviceMemory {
 /// A value an autocollimator gave before this session, which it must not give again as
 /// a new stop's reading (docs/FORMAT.md §7.3, *A stale reply is refused*).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct LastValue {
+pub struct LastValue {
     /// X, arcsec.
-    pub(super) x_arcsec: f64,
+    pub x_arcsec: f64,
     /// Y, arcsec, when valid.
-    pub(super) y_arcsec: Option<f64>,
+    pub y_arcsec: Option<f64>,
     /// The status, when known (a reply's; not a stored reading's).
-    pub(super) status: Option<u16>,
+    pub status: Option<u16>,
 }
 
 impl LastValue {
@@ -99,126 +93,176 @@ fn turn(angle_deg: f64) -> f64 {
     angle_deg.rem_euclid(360.0)
 }
 
-/// Reads `device` at the current stop until `settings.reads_per_stop` consecutive
-/// readings agree (at most that many plus [`EXTRA_READS`]). `label` names the device in
-/// the traffic log (`ac1`), `role` in messages (`autocollimator 1`), `at` the stop;
-/// `angle_deg` is the stop's table angle.
-pub(super) fn read_at_stop(
-    device: &mut dyn Autocollimator,
-    memory: &mut DeviceMemory,
-    settings: &RunSettings,
-    traffic: Option<&TrafficLog>,
-    (label, role, at): (&str, &str, &str),
-    angle_deg: f64,
-) -> Result<StopReading, RepeatError> {
-    let here = turn(angle_deg);
-    let stale_value = memory
-        .last_at_earlier_stop
-        .filter(|&(_, angle)| (angle - here).abs() > 1e-9)
-        .map(|(reading, _)| reading);
-    let needed = settings.reads_per_stop.max(2) as usize;
-    let most = needed + EXTRA_READS as usize;
-    let tolerance = memory.noise.agreement_arcsec(settings.reading_noise_arcsec);
-    let port = device.port().to_string();
-    let refuse = |reading: &AcReading, why: &str| {
-        if let Some(log) = traffic {
-            log.record(
-                label,
-                &port,
-                "refused",
-                &format!("{} ({why})", text(reading)),
-            );
+/// What [`StopReads::offer`] makes of a reply.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum Offered {
+    /// Ask the autocollimator again.
+    Again,
+    /// The readings agree: this is the stop's reading.
+    Accepted(StopReading),
+    /// Every reading was taken, and no `reads_per_stop` consecutive ones agreed: the
+    /// message says what was seen.
+    NoAgreement(String),
+}
+
+/// One autocollimator read at one stop until `settings.reads_per_stop` consecutive
+/// readings agree (at most that many plus [`EXTRA_READS`]). Each reply refused on the
+/// way is kept, with why, for the traffic log ([`StopReads::take_refused`]).
+#[derive(Debug, Clone)]
+pub(super) struct StopReads {
+    here: f64,
+    stale_value: Option<AcReading>,
+    carried: Vec<LastValue>,
+    needed: usize,
+    most: usize,
+    tolerance: f64,
+    taken: Vec<AcReading>,
+    asked: usize,
+    stale: usize,
+    last_here: Option<AcReading>,
+    refused_now: Vec<String>,
+}
+
+impl StopReads {
+    /// The reads of a device whose memory is `memory` at a stop of table angle
+    /// `angle_deg`.
+    pub(super) fn new(memory: &DeviceMemory, settings: &RunSettings, angle_deg: f64) -> StopReads {
+        let here = turn(angle_deg);
+        let needed = settings.reads_per_stop.max(2) as usize;
+        StopReads {
+            here,
+            stale_value: memory
+                .last_at_earlier_stop
+                .filter(|&(_, angle)| (angle - here).abs() > 1e-9)
+                .map(|(reading, _)| reading),
+            carried: memory
+                .before_session
+                .iter()
+                .filter(|&&(_, angle)| (angle - here).abs() > 1e-9)
+                .map(|&(value, _)| value)
+                .collect(),
+            needed,
+            most: needed + EXTRA_READS as usize,
+            tolerance: memory.noise.agreement_arcsec(settings.reading_noise_arcsec),
+            taken: Vec::new(),
+            asked: 0,
+            stale: 0,
+            last_here: None,
+            refused_now: Vec::new(),
         }
-    };
-    let carried: Vec<LastValue> = memory
-        .before_session
-        .iter()
-        .filter(|&&(_, angle)| (angle - here).abs() > 1e-9)
-        .map(|&(value, _)| value)
-        .collect();
-    let mut taken: Vec<AcReading> = Vec::new();
-    let mut asked = 0;
-    let mut stale = 0;
-    let mut last_here: Option<AcReading> = None;
-    while asked < most {
-        asked += 1;
-        let reading = device.measure().map_err(RepeatError::Instrument)?;
-        last_here = Some(reading);
-        if stale_value == Some(reading) {
-            stale += 1;
-            refuse(
+    }
+
+    /// The replies refused since the last call, each as the traffic log's `refused`
+    /// record gives it: the reply, then why in brackets.
+    pub(super) fn take_refused(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.refused_now)
+    }
+
+    fn refuse(&mut self, reading: &AcReading, why: &str) {
+        self.refused_now.push(format!("{} ({why})", text(reading)));
+    }
+
+    /// Takes one reply of the device; `memory` learns from the stop once it is decided.
+    /// `(role, port, at)` name the device and the stop in a message.
+    pub(super) fn offer(
+        &mut self,
+        reading: AcReading,
+        memory: &mut DeviceMemory,
+        settings: &RunSettings,
+        (role, port, at): (&str, &str, &str),
+    ) -> Offered {
+        self.asked += 1;
+        self.last_here = Some(reading);
+        if self.stale_value == Some(reading) {
+            self.stale += 1;
+            self.refuse(
                 &reading,
                 "stale: the same X, Y and status as the last reply at an earlier stop",
             );
-            continue;
+            return self.again_or_give_up(memory, settings, (role, port, at));
         }
-        if carried.iter().any(|v| v.repeated_by(&reading)) {
-            stale += 1;
-            refuse(
+        if self.carried.iter().any(|v| v.repeated_by(&reading)) {
+            self.stale += 1;
+            self.refuse(
                 &reading,
                 "stale: the same value as its last one before this session, at another stop",
             );
-            continue;
+            return self.again_or_give_up(memory, settings, (role, port, at));
         }
-        taken.push(reading);
-        if taken.len() < needed {
-            continue;
-        }
-        let window = &taken[taken.len() - needed..];
-        let spread = spread(window);
-        if spread <= tolerance {
-            memory.last_at_earlier_stop = last_here.map(|r| (r, here));
-            let xs: Vec<f64> = window.iter().map(|r| r.x_arcsec).collect();
-            memory.noise.add_stop(&xs);
-            memory.before_session.clear();
-            for early in &taken[..taken.len() - needed] {
-                refuse(early, "does not agree with the readings after it");
+        self.taken.push(reading);
+        if self.taken.len() >= self.needed {
+            let window = &self.taken[self.taken.len() - self.needed..];
+            if spread(window) <= self.tolerance {
+                let xs: Vec<f64> = window.iter().map(|r| r.x_arcsec).collect();
+                let accepted = StopReading {
+                    x_arcsec: mean(xs.iter().copied()),
+                    y_arcsec: window
+                        .iter()
+                        .map(|r| r.y_arcsec)
+                        .collect::<Option<Vec<f64>>>()
+                        .map(|y| mean(y.into_iter())),
+                    refused: self.asked - self.needed,
+                };
+                memory.last_at_earlier_stop = self.last_here.map(|r| (r, self.here));
+                memory.noise.add_stop(&xs);
+                memory.before_session.clear();
+                let early: Vec<AcReading> = self.taken[..self.taken.len() - self.needed].to_vec();
+                for r in &early {
+                    self.refuse(r, "does not agree with the readings after it");
+                }
+                return Offered::Accepted(accepted);
             }
-            return Ok(StopReading {
-                x_arcsec: mean(window.iter().map(|r| r.x_arcsec)),
-                y_arcsec: window
-                    .iter()
-                    .map(|r| r.y_arcsec)
-                    .collect::<Option<Vec<f64>>>()
-                    .map(|y| mean(y.into_iter())),
-                refused: asked - needed,
-            });
         }
+        self.again_or_give_up(memory, settings, (role, port, at))
     }
-    memory.last_at_earlier_stop = last_here.map(|r| (r, here));
-    memory.before_session.clear();
-    for reading in &taken {
-        refuse(reading, "no agreement at this stop");
-    }
-    let values: Vec<String> = taken.iter().map(|r| format!("{}", r.x_arcsec)).collect();
-    let judged = match memory.noise.measured_arcsec() {
-        Some(s) if tolerance < settings.agreement_arcsec() => format!(
-            "the noise measured at the stops before, {s:.4}″ on {} degrees of freedom \
-             (the stated reading noise {}″ bounds it)",
-            memory.noise.dof(),
-            settings.reading_noise_arcsec
-        ),
-        _ => format!(
-            "5·√2 times the stated reading noise {}″",
-            settings.reading_noise_arcsec
-        ),
-    };
-    Err(RepeatError::NoAgreement(format!(
-        "{role} ({port}) at {at}: no {needed} consecutive readings of {asked} agreed within \
-         {tolerance:.3}″ ({judged}): X {}{}; the reading is \
-         not stored — check the autocollimator, the polygon's mounting and the air, or state \
-         the autocollimator's real noise",
-        if values.is_empty() {
-            "none".to_string()
-        } else {
-            values.join(", ")
-        },
-        if stale > 0 {
-            format!(" ({stale} stale repeated from an earlier stop)")
-        } else {
-            String::new()
+
+    /// [`Offered::Again`] while replies may still be asked for; the refusal once not.
+    fn again_or_give_up(
+        &mut self,
+        memory: &mut DeviceMemory,
+        settings: &RunSettings,
+        (role, port, at): (&str, &str, &str),
+    ) -> Offered {
+        if self.asked < self.most {
+            return Offered::Again;
         }
-    )))
+        memory.last_at_earlier_stop = self.last_here.map(|r| (r, self.here));
+        memory.before_session.clear();
+        let taken = std::mem::take(&mut self.taken);
+        for reading in &taken {
+            self.refuse(reading, "no agreement at this stop");
+        }
+        let (needed, asked, tolerance) = (self.needed, self.asked, self.tolerance);
+        let values: Vec<String> = taken.iter().map(|r| format!("{}", r.x_arcsec)).collect();
+        let judged = match memory.noise.measured_arcsec() {
+            Some(s) if tolerance < settings.agreement_arcsec() => format!(
+                "the noise measured at the stops before, {s:.4}″ on {} degrees of freedom \
+                 (the stated reading noise {}″ bounds it)",
+                memory.noise.dof(),
+                settings.reading_noise_arcsec
+            ),
+            _ => format!(
+                "5·√2 times the stated reading noise {}″",
+                settings.reading_noise_arcsec
+            ),
+        };
+        Offered::NoAgreement(format!(
+            "{role} ({port}) at {at}: no {needed} consecutive readings of {asked} agreed within \
+             {tolerance:.3}″ ({judged}): X {}{}; the reading is \
+             not stored — check the autocollimator, the polygon's mounting and the air, or state \
+             the autocollimator's real noise",
+            if values.is_empty() {
+                "none".to_string()
+            } else {
+                values.join(", ")
+            },
+            if self.stale > 0 {
+                format!(" ({} stale repeated from an earlier stop)", self.stale)
+            } else {
+                String::new()
+            }
+        ))
+    }
 }
 
 /// The largest minus the smallest X, arcsec.
@@ -251,50 +295,28 @@ fn text(reading: &AcReading) -> String {
 mod tests {
     use super::*;
 
-    /// An autocollimator that gives a list of X values, Y 0.
-    struct Replay(Vec<f64>);
-
-    impl Autocollimator for Replay {
-        fn port(&self) -> &str {
-            "mem"
-        }
-        fn start(&mut self) -> Result<(), InstrumentError> {
-            Ok(())
-        }
-        fn identify(&mut self) -> Result<String, InstrumentError> {
-            Ok("replay".into())
-        }
-        fn measure(&mut self) -> Result<AcReading, InstrumentError> {
-            if self.0.is_empty() {
-                return Err(InstrumentError::Closed {
-                    port: "mem".into(),
-                    context: "end".into(),
-                });
-            }
-            Ok(AcReading::new(3, self.0.remove(0), Some(0.0)))
-        }
-    }
-
-    fn read(values: &[f64], memory: &mut DeviceMemory) -> Result<StopReading, RepeatError> {
-        read_at(values, memory, 0.0)
-    }
-
+    /// The outcome of reading a device that gives `values` (X; Y 0, status 003) in turn.
     fn read_at(
         values: &[f64],
         memory: &mut DeviceMemory,
         angle_deg: f64,
-    ) -> Result<StopReading, RepeatError> {
+    ) -> Result<StopReading, String> {
         let settings = RunSettings::new(8, 1).with_reading_noise_arcsec(0.05); // 0.354″
-        read_at_stop(
-            &mut Replay(values.to_vec()),
-            memory,
-            &settings,
-            None,
-            ("ac1", "autocollimator 1", "cycle 1, step 0"),
-            angle_deg,
-        )
+        let mut reads = StopReads::new(memory, &settings, angle_deg);
+        for &x in values {
+            let names = ("autocollimator 1", "mem", "cycle 1, step 0");
+            match reads.offer(AcReading::new(3, x, Some(0.0)), memory, &settings, names) {
+                Offered::Again => {}
+                Offered::Accepted(r) => return Ok(r),
+                Offered::NoAgreement(m) => return Err(m),
+            }
+        }
+        Err("the device gave no more readings".to_string())
     }
 
+    fn read(values: &[f64], memory: &mut DeviceMemory) -> Result<StopReading, String> {
+        read_at(values, memory, 0.0)
+    }
     #[test]
     fn two_agreeing_readings_give_their_mean() {
         let r = read(&[1.0, 1.2], &mut DeviceMemory::default()).unwrap();
@@ -353,9 +375,7 @@ mod tests {
             read(&[5.0, 5.02], &mut memory).unwrap();
         }
         let e = read(&[0.0, 0.3, 0.6, 0.9, 1.2, 1.5], &mut memory).unwrap_err();
-        let RepeatError::NoAgreement(message) = e else {
-            panic!("{e:?}")
-        };
+        let message = e;
         assert!(
             message.contains("the noise measured at the stops before, 0.0141″ on 40 degrees"),
             "{message}"
@@ -394,9 +414,7 @@ mod tests {
             &mut DeviceMemory::default(),
         )
         .unwrap_err();
-        let RepeatError::NoAgreement(message) = e else {
-            panic!("{e:?}")
-        };
+        let message = e;
         assert!(
             message.contains("no 2 consecutive readings of 6 agreed within 0.354″"),
             "{message}"
