@@ -165,10 +165,64 @@ fn a_profile_file_is_served_and_run() {
     assert_eq!(result.status.code(), Some(0), "{}", stderr(&result));
     assert_solves_to_truth(&out, &lab.truth);
     let traffic = std::fs::read_to_string(out.join("traffic.jsonl")).unwrap();
-    assert!(traffic.contains("--table-profile our-c884"));
+    // The session line gives the command's options: the file as given.
+    assert!(traffic.contains(&format!("--table-profile {file}")));
     assert!(
         traffic.contains("MOV 1 45\\n"),
         "the PI command set on the wire"
+    );
+
+    // The manifest records each profile as given, with the SHA-256 of its text.
+    let sha256 = |text: &[u8]| -> String {
+        use sha2::Digest;
+        sha2::Sha256::digest(text)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect()
+    };
+    let profiles = &manifest(&out)["profiles"];
+    assert_eq!(profiles["table"]["name"], file.as_str());
+    assert_eq!(
+        profiles["table"]["sha256"],
+        sha256(&std::fs::read(&file).unwrap()).as_str()
+    );
+    assert_eq!(profiles["ac"]["name"], "elcomat3000");
+    let elcomat = polycal::lab::profile::BUNDLED
+        .iter()
+        .find(|(n, _, _)| *n == "elcomat3000")
+        .map(|(_, _, t)| *t)
+        .unwrap();
+    assert_eq!(
+        profiles["ac"]["sha256"],
+        sha256(elcomat.as_bytes()).as_str()
+    );
+
+    // --resume takes the profiles from there: without --table-profile, the file.
+    let resume = |extra: &[&str]| {
+        let mut args = lab.run_args(&out, &DESIGN);
+        args.push("--resume".into());
+        args.extend(extra.iter().map(|s| s.to_string()));
+        polycal(&args)
+    };
+    let again = resume(&[]);
+    assert_eq!(again.status.code(), Some(0), "{}", stderr(&again));
+    // Another profile is refused, naming both.
+    let other = resume(&["--table-profile", "pi-gcs2"]);
+    let message = assert_error(&other, "through the profile");
+    assert!(
+        message.contains(&format!("{file:?}, not \"pi-gcs2\"")),
+        "{message}"
+    );
+    // The file's text changed since the run started: refused, naming both hashes.
+    let before = sha256(&std::fs::read(&file).unwrap());
+    let mut edited = std::fs::read_to_string(&file).unwrap();
+    edited.push_str("# edited after the run started\n");
+    std::fs::write(&file, &edited).unwrap();
+    let changed = resume(&[]);
+    let message = assert_error(&changed, "changed since the run started");
+    assert!(
+        message.contains(&before) && message.contains(&sha256(edited.as_bytes())),
+        "{message}"
     );
 }
 

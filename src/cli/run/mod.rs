@@ -78,14 +78,15 @@ pub struct RunArgs {
     /// --table-profile).
     #[arg(long)]
     table: String,
-    /// The autocollimators' protocol: a bundled profile (elcomat3000) or a profile file
-    /// FILE.toml (docs/instruments.md).
-    #[arg(long, value_name = "NAME|FILE.toml", default_value = "elcomat3000")]
-    ac_profile: String,
-    /// The rotary table's protocol: a bundled profile (smc100, pi-gcs2, aerotech-ascii,
-    /// esp301) or a profile file FILE.toml (docs/instruments.md).
-    #[arg(long, value_name = "NAME|FILE.toml", default_value = "smc100")]
-    table_profile: String,
+    /// The autocollimators' protocol: a bundled profile (default elcomat3000) or a profile
+    /// file FILE.toml (docs/instruments.md). With --resume, the one the run recorded.
+    #[arg(long, value_name = "NAME|FILE.toml")]
+    ac_profile: Option<String>,
+    /// The rotary table's protocol: a bundled profile (default smc100; pi-gcs2,
+    /// aerotech-ascii, esp301) or a profile file FILE.toml (docs/instruments.md). With
+    /// --resume, the one the run recorded.
+    #[arg(long, value_name = "NAME|FILE.toml")]
+    table_profile: Option<String>,
     /// Talk to each instrument once — identify it, ask the table's position and one
     /// reading of every autocollimator — say what was found, and stop: nothing moves and
     /// nothing is written.
@@ -215,9 +216,31 @@ struct PortNotOpened {
     error: polycal::lab::InstrumentError,
 }
 
-/// The profiles named by --ac-profile and --table-profile, each checked for its kind of
+/// The names of the profiles to speak: --ac-profile and --table-profile; where one is
+/// not given, the one a resumed run recorded (docs/FORMAT.md §7.5), else the defaults
+/// `elcomat3000` and `smc100`.
+fn profile_names(args: &RunArgs) -> (String, String) {
+    let recorded = if args.resume && !args.check_instruments {
+        run::recorded_profiles(args.out())
+    } else {
+        None
+    };
+    let ac = args
+        .ac_profile
+        .clone()
+        .or_else(|| recorded.as_ref().map(|r| r.ac.name.clone()))
+        .unwrap_or_else(|| "elcomat3000".to_string());
+    let table = args
+        .table_profile
+        .clone()
+        .or_else(|| recorded.as_ref().map(|r| r.table.name.clone()))
+        .unwrap_or_else(|| "smc100".to_string());
+    (ac, table)
+}
+
+/// The profiles named `names` (autocollimators', table's), each checked for its kind of
 /// instrument.
-fn profiles(args: &RunArgs) -> Result<(Profile, Profile)> {
+fn profiles(names: &(String, String)) -> Result<(Profile, Profile)> {
     let load = |option: &str, name: &str, table: bool| -> Result<Profile> {
         let profile = Profile::load(name).map_err(|e| anyhow!("--{option} {name}: {e}"))?;
         let kind = if table {
@@ -229,8 +252,8 @@ fn profiles(args: &RunArgs) -> Result<(Profile, Profile)> {
         Ok(profile)
     };
     Ok((
-        load("ac-profile", &args.ac_profile, false)?,
-        load("table-profile", &args.table_profile, true)?,
+        load("ac-profile", &names.0, false)?,
+        load("table-profile", &names.1, true)?,
     ))
 }
 
@@ -299,7 +322,8 @@ const RESTATE_ADVICE: &str = "state the mounting as it is (";
 
 /// `polycal run`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
-    let (ac_profile, table_profile) = profiles(args)?;
+    let names = profile_names(args);
+    let (ac_profile, table_profile) = profiles(&names)?;
     if args.check_instruments {
         return check_instruments(args, out, &ac_profile, &table_profile);
     }
@@ -339,6 +363,7 @@ pub fn run(args: &RunArgs, out: &Output) -> Result<u8> {
     let interrupts = Interrupts::install(out, args.out().join(run::MEASUREMENTS))?;
     let session = Session {
         args,
+        profile_names: &names,
         ac_profile: &ac_profile,
         table_profile: &table_profile,
         out,
@@ -439,6 +464,8 @@ fn mounting(args: &RunArgs, planned: Option<&run::PlannedRun>) -> Result<Option<
 /// One `polycal run` session: what its options say.
 struct Session<'a> {
     args: &'a RunArgs,
+    /// The profiles as given (a bundled name or a file's path): autocollimators', table's.
+    profile_names: &'a (String, String),
     ac_profile: &'a Profile,
     table_profile: &'a Profile,
     out: &'a Output,
@@ -482,6 +509,13 @@ impl Session<'_> {
             &polycal::lab::WriteBudget::unlimited(),
         )
         .map_err(open_hint)?;
+        // A resumed run speaks the protocols it started with (nothing is measured else).
+        let record =
+            |name: &str, profile: &Profile| run::ProfileRecord::new(name, profile.sha256.clone());
+        dir.record_profiles(run::RunProfiles::new(
+            record(&self.profile_names.0, self.ac_profile),
+            record(&self.profile_names.1, self.table_profile),
+        ))?;
         interrupts.run_dir_opened(dir.abort_handle(), dir.manifest().expected_readings);
         for warning in dir.warnings() {
             out.warning(warning);
@@ -524,8 +558,8 @@ impl Session<'_> {
                 if args.resume { " --resume" } else { "" },
                 settings.as_options(),
                 dir.mounting().as_options(),
-                self.ac_profile.name,
-                self.table_profile.name
+                self.profile_names.0,
+                self.profile_names.1
             ),
         );
         let opened = (|| {

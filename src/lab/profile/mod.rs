@@ -345,6 +345,10 @@ pub struct Profile {
     pub line: LineSettings,
     /// The commands.
     pub kind: ProfileKind,
+    /// The SHA-256 of the profile's text (its TOML file, or the bundled text), lower-case
+    /// hex: a run records it (`manifest.json` `profiles`) so that a resumed run speaks
+    /// the same protocol.
+    pub sha256: String,
 }
 
 impl Profile {

@@ -188,7 +188,17 @@ pub(super) fn parse(text: &str, source: &str) -> Result<Profile, ProfileError> {
         source: raw.source,
         line,
         kind,
+        sha256: text_sha256(text),
     })
+}
+
+/// The SHA-256 of a profile's text, lower-case hex.
+fn text_sha256(text: &str) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(text.as_bytes())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 /// The profile's values read into commands, replies and conditions: `{axis}` expanded,

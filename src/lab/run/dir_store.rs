@@ -18,32 +18,32 @@ fn stored(run: &RunDir) -> Vec<Reading> {
         .unwrap_or_default()
 }
 
-/// The profiles a session's `session` line in the traffic log names (`--ac-profile NAME
-/// --table-profile NAME`, as `polycal run` writes it); the bundled `elcomat3000` and
-/// `smc100` when it names none (a run driven through the library). `None` when a named
-/// profile cannot be loaded any more (a file moved away).
-fn session_profiles(text: &str) -> Option<(Profile, Profile)> {
-    let named = |option: &str, default: &str| -> Option<Profile> {
-        let name = match text.split(option).nth(1) {
-            Some(rest) => rest.split_whitespace().next()?,
-            None => default,
-        };
-        Profile::load(name).ok()
+/// The profiles the run speaks (the manifest's `profiles`, each loaded by the name it was
+/// given and only if its text is still the one recorded); the bundled `elcomat3000` and
+/// `smc100` for a run that recorded none (an older run, or one driven through the
+/// library). `None` when a recorded profile cannot be loaded as it was.
+fn run_profiles(run: &RunDir) -> Option<(Profile, Profile)> {
+    let Some(recorded) = run.profiles() else {
+        return Some((
+            Profile::load("elcomat3000").ok()?,
+            Profile::load("smc100").ok()?,
+        ));
     };
-    Some((
-        named("--ac-profile ", "elcomat3000")?,
-        named("--table-profile ", "smc100")?,
-    ))
+    let load =
+        |r: &super::ProfileRecord| Profile::load(&r.name).ok().filter(|p| p.sha256 == r.sha256);
+    Some((load(&recorded.ac)?, load(&recorded.table)?))
 }
 
 /// The last measurement reply of each autocollimator (index 0 … K−1) the traffic log
-/// holds, with the table position commanded last before it, degrees; each session's
-/// lines read with the profiles it names.
+/// holds, with the table position commanded last before it, degrees; its lines read with
+/// the run's profiles (nothing is read back from the log's free text).
 fn last_replies(run: &RunDir, k: usize) -> Vec<Option<(LastValue, f64)>> {
     let Ok(text) = std::fs::read_to_string(run.dir.join(TRAFFIC)) else {
         return vec![None; k];
     };
-    let mut profiles = session_profiles("");
+    let Some((ac_profile, table_profile)) = run_profiles(run) else {
+        return vec![None; k];
+    };
     let mut angle: Option<f64> = None;
     let mut last: Vec<Option<(LastValue, f64)>> = vec![None; k];
     for line in text.lines() {
@@ -52,13 +52,6 @@ fn last_replies(run: &RunDir, k: usize) -> Vec<Option<(LastValue, f64)>> {
         };
         let field = |name: &str| record.get(name).and_then(|v| v.as_str()).unwrap_or("");
         let (device, event, text) = (field("device"), field("event"), field("text"));
-        if event == "session" {
-            profiles = session_profiles(text);
-            continue;
-        }
-        let Some((ac_profile, table_profile)) = &profiles else {
-            continue;
-        };
         if device == "table" && event == "sent" {
             if let Ok(table) = table_profile.table()
                 && let Some(deg) = table.commanded_deg(text)

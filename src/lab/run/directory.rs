@@ -240,6 +240,7 @@ impl RunDir {
             mountings: vec![MountingRecord::new(mounting)],
             checked_cycles: Some(Vec::new()),
             repeat_noise: Vec::new(),
+            profiles: None,
         };
         let path = dir.join(MEASUREMENTS);
         let file = LineFile::open(&path, true, budget)
@@ -419,6 +420,57 @@ impl RunDir {
             dir: self.dir.clone(),
             budget: self.budget.clone(),
             shared: Arc::clone(&self.shared),
+        }
+    }
+
+    /// The profiles the run speaks with its instruments, as the manifest records them
+    /// (`None` until a session recorded them, and for older runs).
+    pub fn profiles(&self) -> Option<&super::RunProfiles> {
+        self.manifest.profiles.as_ref()
+    }
+
+    /// Records the profiles this session speaks with its instruments; a run that
+    /// recorded others refuses them (docs/FORMAT.md §7.5): a resumed run speaks the
+    /// protocols it started with.
+    ///
+    /// # Errors
+    ///
+    /// [`RunError::OtherProfile`] for a profile of another name,
+    /// [`RunError::ProfileChanged`] for one whose text changed since it was recorded,
+    /// [`RunError::Io`] when the manifest cannot be written.
+    pub fn record_profiles(&mut self, profiles: super::RunProfiles) -> Result<(), RunError> {
+        let path = self.dir.join(MANIFEST);
+        match &self.manifest.profiles {
+            None => {
+                self.manifest.profiles = Some(profiles);
+                self.write_manifest(false)
+            }
+            Some(recorded) => {
+                let pairs = [
+                    ("autocollimators", &recorded.ac, &profiles.ac),
+                    ("table", &recorded.table, &profiles.table),
+                ];
+                for (role, was, now) in pairs {
+                    if was.name != now.name {
+                        return Err(RunError::OtherProfile {
+                            path,
+                            role,
+                            recorded: was.name.clone(),
+                            given: now.name.clone(),
+                        });
+                    }
+                    if was.sha256 != now.sha256 {
+                        return Err(RunError::ProfileChanged {
+                            path,
+                            role,
+                            name: was.name.clone(),
+                            recorded: was.sha256.clone(),
+                            now: now.sha256.clone(),
+                        });
+                    }
+                }
+                Ok(())
+            }
         }
     }
 

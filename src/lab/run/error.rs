@@ -73,6 +73,41 @@ pub enum RunError {
         /// Each instrument that differs, e.g. `ac1 was "…", is now "…"`.
         differences: Vec<String>,
     },
+    /// A resumed run given another profile than it recorded.
+    #[error(
+        "{}: the run speaks with its {role} through the profile {recorded:?}, not {given:?}: \
+         resume it with the profile it started with",
+        path.display()
+    )]
+    OtherProfile {
+        /// The manifest.
+        path: PathBuf,
+        /// `autocollimators` or `table`.
+        role: &'static str,
+        /// The profile the run recorded.
+        recorded: String,
+        /// The profile given now.
+        given: String,
+    },
+    /// A resumed run whose profile's text changed since the run recorded it.
+    #[error(
+        "{}: the {role} profile {name:?} changed since the run started (its text had \
+         SHA-256 {recorded}, it has {now} now): resume with the profile's text as it was, \
+         or start a new run",
+        path.display()
+    )]
+    ProfileChanged {
+        /// The manifest.
+        path: PathBuf,
+        /// `autocollimators` or `table`.
+        role: &'static str,
+        /// The profile's name as given.
+        name: String,
+        /// The SHA-256 the run recorded.
+        recorded: String,
+        /// The SHA-256 of its text now.
+        now: String,
+    },
     /// Another run holds the directory's lock.
     #[error("{}: another polycal run is using this directory", path.display())]
     Locked {

@@ -44,6 +44,57 @@ pub struct SessionRecord {
     pub readings_after: usize,
 }
 
+/// A profile a run speaks with its instruments (the manifest's `profiles`): its name as
+/// it was given (a bundled name or a profile file's path) and the SHA-256 of its text.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[non_exhaustive]
+pub struct ProfileRecord {
+    /// The name given (`pi-gcs2`, `lab/table.toml`).
+    pub name: String,
+    /// The SHA-256 of its text, lower-case hex.
+    pub sha256: String,
+}
+
+impl ProfileRecord {
+    /// The record of a profile given as `name`.
+    pub fn new(name: impl Into<String>, sha256: impl Into<String>) -> ProfileRecord {
+        ProfileRecord {
+            name: name.into(),
+            sha256: sha256.into(),
+        }
+    }
+}
+
+/// The profiles of a run (the manifest's `profiles`): the autocollimators' and the
+/// table's.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[non_exhaustive]
+pub struct RunProfiles {
+    /// The autocollimators' profile.
+    pub ac: ProfileRecord,
+    /// The table's profile.
+    pub table: ProfileRecord,
+}
+
+impl RunProfiles {
+    /// The autocollimators' profile and the table's.
+    pub fn new(ac: ProfileRecord, table: ProfileRecord) -> RunProfiles {
+        RunProfiles { ac, table }
+    }
+}
+
+/// The profiles the run in `dir` recorded (its manifest's `profiles`), when its manifest
+/// can be read and records them: what `--resume` speaks when no profile is given.
+/// Opening the run ([`RunDir::open`](super::RunDir::open)) reports a manifest that
+/// cannot be read.
+pub fn recorded_profiles(dir: &Path) -> Option<RunProfiles> {
+    let text = std::fs::read_to_string(dir.join(MANIFEST)).ok()?;
+    let manifest: serde_json::Value = serde_json::from_str(&text).ok()?;
+    serde_json::from_value(manifest.get("profiles")?.clone()).ok()
+}
+
 /// `manifest.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
@@ -96,6 +147,11 @@ pub struct Manifest {
     /// (docs/FORMAT.md §7.3, *The noise the run measures*). Absent from older manifests.
     #[serde(default)]
     pub repeat_noise: Vec<super::NoiseRecord>,
+    /// The profiles the run speaks with its instruments, recorded when its first session
+    /// begins (docs/FORMAT.md §7.5); `--resume` takes them from here. Absent from older
+    /// manifests and from runs driven by software of the lab's own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub profiles: Option<RunProfiles>,
 }
 
 /// The software of this build, e.g. `polycal 0.1.0`.

@@ -114,7 +114,8 @@ pub use live::{
     Suspect, ToMeasureAgain, to_measure_again, to_measure_again_judged,
 };
 pub use manifest::{
-    Identification, MANIFEST_FORMAT, Manifest, Ports, SessionRecord, rfc3339, unix_now,
+    Identification, MANIFEST_FORMAT, Manifest, Ports, ProfileRecord, RunProfiles, SessionRecord,
+    recorded_profiles, rfc3339, unix_now,
 };
 pub use measure::{
     APPROACH_OVERSHOOT_DEG, Attendant, Instruments, approach_overshoot_deg, measure,
