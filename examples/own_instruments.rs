@@ -91,7 +91,22 @@ impl Bench {
     }
 }
 
-fn main() -> ExitCode {
+/// What the run gave.
+pub struct Ran {
+    /// Readings kept.
+    pub readings: usize,
+    /// Replies refused by the rules, each as the log gives it.
+    pub refused: Vec<String>,
+    /// Moves of the table.
+    pub moves: usize,
+    /// The solved pitch deviations and the truth, arcsec, face 1 first.
+    pub pitch_deviation: Vec<f64>,
+    /// The truth the instruments were built from.
+    pub truth: Vec<f64>,
+}
+
+/// Drives the run through the session and solves it.
+pub fn run() -> Result<Ran, String> {
     let settings = RunSettings::new(FACES, 2)
         .with_closing(true)
         .with_reading_noise_arcsec(0.05);
@@ -99,7 +114,8 @@ fn main() -> ExitCode {
     let mut bench = Bench::new();
     let mut session = Session::new(RunSoFar::new(settings), 0.0);
     let mut clock_seconds = 0.0;
-    let (mut moves, mut logged) = (0, 0);
+    let mut moves = 0;
+    let mut refused = Vec::new();
     let outcome = loop {
         let event = match session.poll() {
             Action::Move { to_deg } => {
@@ -119,55 +135,63 @@ fn main() -> ExitCode {
                 clock_seconds = until_seconds;
                 Event::Waited
             }
+            // One mounting: no remount is asked for.
             Action::Remount(_) => Event::Remounted { confirmed: false },
             Action::Keep(record) => match store.keep(&record) {
                 Ok(()) => Event::Kept,
                 Err(e) => Event::NotKept(e.to_string()),
             },
             Action::Log(line) => {
-                logged += 1;
                 if line.event == "refused" {
-                    println!("refused on {}: {}", line.device, line.text);
+                    refused.push(format!("{}: {}", line.device, line.text));
                 }
                 continue;
             }
-            Action::Progress(_) | Action::Halt => continue,
             Action::Finished(outcome) => break outcome,
+            // Progress, and a halt (none in a run that completes).
             _ => continue,
         };
-        if let Err(e) = session.tell(clock_seconds, event) {
-            eprintln!("error: {e}");
-            return ExitCode::from(2);
-        }
+        session
+            .tell(clock_seconds, event)
+            .map_err(|e| e.to_string())?;
     };
     if outcome != Outcome::Completed {
-        eprintln!("error: the run ended {outcome}");
-        return ExitCode::from(2);
+        return Err(format!("the run ended {outcome}"));
     }
     let readings = store.run.readings.clone();
-    println!(
-        "{} readings kept, {} replies refused, {moves} moves, {logged} log lines",
-        readings.len(),
-        session.refused()
-    );
-    let solved = MeasurementSet::from_readings(readings, Some(FACES), "own instruments")
-        .map_err(|e| e.to_string())
-        .and_then(|set| solve(&set, &SolveOptions::default()).map_err(|e| e.to_string()));
-    let solution = match solved {
-        Ok(solution) => solution,
+    let count = readings.len();
+    let set = MeasurementSet::from_readings(readings, Some(FACES), "own instruments")
+        .map_err(|e| e.to_string())?;
+    let solution = solve(&set, &SolveOptions::default()).map_err(|e| e.to_string())?;
+    Ok(Ran {
+        readings: count,
+        refused,
+        moves,
+        pitch_deviation: solution.pitch_deviation.clone(),
+        truth: bench.pitch_deviation,
+    })
+}
+
+fn main() -> ExitCode {
+    let ran = match run() {
+        Ok(ran) => ran,
         Err(e) => {
             eprintln!("error: {e}");
             return ExitCode::from(2);
         }
     };
+    for line in &ran.refused {
+        println!("refused on {line}");
+    }
+    println!(
+        "{} readings kept, {} replies refused, {} moves",
+        ran.readings,
+        ran.refused.len(),
+        ran.moves
+    );
     println!("face  pitch deviation/arcsec  truth/arcsec");
     let mut worst: f64 = 0.0;
-    for (k, (beta, truth)) in solution
-        .pitch_deviation
-        .iter()
-        .zip(&bench.pitch_deviation)
-        .enumerate()
-    {
+    for (k, (beta, truth)) in ran.pitch_deviation.iter().zip(&ran.truth).enumerate() {
         worst = worst.max((beta - truth).abs());
         println!("{:>4}  {beta:>22.4}  {truth:>12.4}", k + 1);
     }

@@ -35,6 +35,8 @@ mod instrument_run;
 #[cfg(feature = "lab")]
 mod instrument_wrong_stop;
 #[cfg(feature = "lab")]
+mod own_instruments_example;
+#[cfg(feature = "lab")]
 mod session_rules;
 #[cfg(feature = "lab")]
 mod stop_cost_readme;
