@@ -152,6 +152,24 @@ fn whole_run(cycles: u32) -> MemoryStore {
     store
 }
 
+/// One cycle of a fresh run, its replies through `tamper`: how it went, what was kept and
+/// the session.
+fn one_cycle(
+    tamper: &mut dyn FnMut(u32, f64, AcReading) -> AcReading,
+) -> (Ran, MemoryStore, Session) {
+    let mut store = MemoryStore::new(settings(1));
+    let mut session = Session::new(store.so_far().unwrap(), 0.0);
+    let ran = drive(
+        &mut session,
+        &mut store,
+        &mut Physics::new(),
+        tamper,
+        &mut |_| true,
+        None,
+    );
+    (ran, store, session)
+}
+
 #[test]
 fn a_clean_run_keeps_every_reading_in_the_runs_order() {
     let store = whole_run(2);
@@ -209,8 +227,6 @@ fn every_stop_is_approached_from_the_cycles_direction() {
 
 #[test]
 fn a_stale_reply_is_refused_and_the_reading_taken_from_the_replies_after_it() {
-    let mut store = MemoryStore::new(settings(1));
-    let mut session = Session::new(store.so_far().unwrap(), 0.0);
     // Autocollimator 1's first reply at step 3 is its last reply at step 2, again.
     let mut last_at_2: Option<AcReading> = None;
     let mut at_3 = 0;
@@ -229,14 +245,7 @@ fn a_stale_reply_is_refused_and_the_reading_taken_from_the_replies_after_it() {
         }
         reply
     };
-    let ran = drive(
-        &mut session,
-        &mut store,
-        &mut Physics::new(),
-        &mut tamper,
-        &mut |_| true,
-        None,
-    );
+    let (ran, store, session) = one_cycle(&mut tamper);
     assert_eq!(ran.outcome, Outcome::Completed);
     let refused: Vec<&LogRecord> = ran.logged.iter().filter(|l| l.event == "refused").collect();
     assert_eq!(refused.len(), 1, "{refused:?}");
@@ -256,8 +265,6 @@ fn a_stale_reply_is_refused_and_the_reading_taken_from_the_replies_after_it() {
 
 #[test]
 fn a_late_reply_from_another_query_is_outvoted_and_logged() {
-    let mut store = MemoryStore::new(settings(1));
-    let mut session = Session::new(store.so_far().unwrap(), 0.0);
     // Autocollimator 2's first reply at step 5 is autocollimator 1's (a reply late on a
     // shared line): the right form, the wrong value.
     let mut first = true;
@@ -270,14 +277,7 @@ fn a_late_reply_from_another_query_is_outvoted_and_logged() {
         }
         reply
     };
-    let ran = drive(
-        &mut session,
-        &mut store,
-        &mut Physics::new(),
-        &mut tamper,
-        &mut |_| true,
-        None,
-    );
+    let (ran, store, _) = one_cycle(&mut tamper);
     assert_eq!(ran.outcome, Outcome::Completed);
     let refused: Vec<&LogRecord> = ran.logged.iter().filter(|l| l.event == "refused").collect();
     assert_eq!(refused.len(), 1, "{refused:?}");
@@ -300,8 +300,6 @@ fn a_late_reply_from_another_query_is_outvoted_and_logged() {
 
 #[test]
 fn readings_that_never_agree_end_the_session_and_keep_nothing_of_that_stop() {
-    let mut store = MemoryStore::new(settings(1));
-    let mut session = Session::new(store.so_far().unwrap(), 0.0);
     let mut n = 0.0;
     let mut tamper = |ac: u32, deg: f64, reply: AcReading| {
         if ac == 1 && deg == 180.0 {
@@ -310,14 +308,7 @@ fn readings_that_never_agree_end_the_session_and_keep_nothing_of_that_stop() {
         }
         reply
     };
-    let ran = drive(
-        &mut session,
-        &mut store,
-        &mut Physics::new(),
-        &mut tamper,
-        &mut |_| true,
-        None,
-    );
+    let (ran, store, _) = one_cycle(&mut tamper);
     let Outcome::InstrumentError(message) = ran.outcome else {
         panic!("{:?}", ran.outcome)
     };
