@@ -399,18 +399,20 @@ fn smc100_status_replies() {
 #[test]
 fn smc100_start_when_ready_only_asks_the_state() {
     let stream = ScriptedStream::new()
+        .expect("1TE\r\n", "1TE@\r\n")
         .expect("1TS\r\n", "1TS000033\r\n")
         .expect("1VE\r\n", "1VE SMC_CC - Version 3.1.0\r\n");
     let written = stream.written();
     let mut table = smc(stream);
     table.start().unwrap();
     assert_eq!(table.identify().unwrap(), "SMC_CC - Version 3.1.0");
-    assert_eq!(written.text(), "1TS\r\n1VE\r\n");
+    assert_eq!(written.text(), "1TE\r\n1TS\r\n1VE\r\n");
 }
 
 #[test]
 fn smc100_start_homes_a_table_that_is_not_referenced() {
     let stream = ScriptedStream::new()
+        .expect("1TE\r\n", "1TE@\r\n")
         .expect("1TS\r\n", "1TS00000A\r\n")
         .expect("1OR\r\n", "")
         .expect("1TE\r\n", "1TE@\r\n")
@@ -421,8 +423,8 @@ fn smc100_start_homes_a_table_that_is_not_referenced() {
     table.start().unwrap();
     assert_eq!(
         written.text(),
-        "1TS\r\n1OR\r\n1TE\r\n1TS\r\n1TS\r\n",
-        "home sent once, then polled until READY from HOMING"
+        "1TE\r\n1TS\r\n1OR\r\n1TE\r\n1TS\r\n1TS\r\n",
+        "the error latched before read away; home sent once, then polled until READY from HOMING"
     );
 }
 
@@ -435,7 +437,9 @@ fn smc100_start_refuses_disable_configuration_and_error_bits() {
         ("1TS002033\r\n", "following error"),
         ("1TS000146\r\n", "fault (errors 0001: negative end of run)"),
     ] {
-        let stream = ScriptedStream::new().expect("1TS\r\n", reply);
+        let stream = ScriptedStream::new()
+            .expect("1TE\r\n", "1TE@\r\n")
+            .expect("1TS\r\n", reply);
         let written = stream.written();
         let mut table = smc(stream);
         match table.start() {
@@ -446,7 +450,7 @@ fn smc100_start_refuses_disable_configuration_and_error_bits() {
             }
             other => panic!("{reply:?}: expected a device error, got {other:?}"),
         }
-        assert_eq!(written.text(), "1TS\r\n", "no motion sent");
+        assert_eq!(written.text(), "1TE\r\n1TS\r\n", "no motion sent");
     }
 }
 

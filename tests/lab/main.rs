@@ -1,7 +1,9 @@
 //! The lab tier: the instrument layer (feature `lab`) — transports and drivers over the
 //! simulated lab's in-memory streams, the run directory on a disk that fills up, the run
-//! procedure's mountings, repeats and resume checks, and one end-to-end run of
-//! `polycal run` against `polycal sim-lab` (with `cli`, on Unix).
+//! procedure's mountings, repeats and resume checks, the bundled table profiles against
+//! controllers written by hand from the makers' manuals (over pseudo-terminals and TCP,
+//! about two seconds), and one end-to-end run of `polycal run` against `polycal sim-lab`
+//! (with `cli`, on Unix).
 //!
 //! Quick: run while working on `src/lab` (`cargo test --test lab`). The slow end-to-end
 //! runs over pseudo-terminals (faults, designs, profiles, Ctrl-C) and the run's
@@ -16,6 +18,9 @@ mod instrument_support;
 #[cfg(feature = "lab")]
 #[path = "../lab_support/mod.rs"]
 mod lab_support;
+// The hand-written table controllers of `table_emulators`, served like the simulated lab.
+#[cfg(all(unix, feature = "lab"))]
+mod emulator_support;
 
 // The tests: tests/lab/NAME.rs, each gated on the features it needs.
 #[cfg(feature = "lab")]
@@ -40,3 +45,5 @@ mod own_instruments_example;
 mod session_rules;
 #[cfg(feature = "lab")]
 mod stop_cost_readme;
+#[cfg(feature = "lab")]
+mod table_emulators;

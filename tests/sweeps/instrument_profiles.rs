@@ -428,12 +428,14 @@ fn refusals_and_faults_of_each_make_are_named() {
     );
 }
 
-/// Starting: PI switches the servo on and references the axis only when `FRF?` says it
-/// is not; an Aerotech axis at rest but not homed is homed; the ESP301, which cannot
-/// tell, is homed on every start.
+/// Starting: the error latched before the session is read away first; PI switches the
+/// servo on and references the axis only when `FRF?` says it is not; an Aerotech axis's
+/// latched fault is acknowledged, and an axis at rest but not homed is homed; the ESP301,
+/// which cannot tell, is homed on every start.
 #[test]
 fn starting_references_the_axis_as_each_make_allows() {
     let pi = ScriptedStream::new()
+        .expect("ERR?\n", "0\n")
         .expect("SVO 1 1\n", "")
         .expect("ERR?\n", "0\n")
         .expect("ONT? 1\n", "1=1\n")
@@ -448,12 +450,15 @@ fn starting_references_the_axis_as_each_make_allows() {
     // FRF?'s `1=1` after ONT?'s `1=1`: asked again once the controller is in step.
     assert_eq!(
         written.text(),
-        "SVO 1 1\nERR?\nONT? 1\nFRF? 1\n*IDN?\nFRF? 1\n"
+        "ERR?\nSVO 1 1\nERR?\nONT? 1\nFRF? 1\n*IDN?\nFRF? 1\n"
     );
     // Aerotech: AXISSTATUS 2097157 (0x200005: Enabled, InPosition, bit 21; Homed clear)
     // is at rest but not homed, and is homed before anything moves; 0x80000007 after the
     // home search has Homed set.
     let aerotech = ScriptedStream::new()
+        .expect("AXISFAULT(@0)\n", "%0\n")
+        .expect("FAULTACK @0\n", "%\n")
+        .expect("AXISFAULT(@0)\n", "%0\n")
         .expect("WAIT MODE NOWAIT\n", "%\n")
         .expect("AXISFAULT(@0)\n", "%0\n")
         .expect("ENABLE @0\n", "%\n")
@@ -476,6 +481,7 @@ fn starting_references_the_axis_as_each_make_allows() {
         TableState::NotReferenced
     );
     let esp = ScriptedStream::new()
+        .expect("TE?\r", "0\r\n")
         .expect("1MO\r", "")
         .expect("TE?\r", "0\r\n")
         .expect("1MD?\r", "1\r\n")
@@ -489,7 +495,7 @@ fn starting_references_the_axis_as_each_make_allows() {
     table_over("esp301", esp).start().unwrap();
     assert_eq!(
         written.text(),
-        "1MO\rTE?\r1MD?\r1OR\rTE?\r1MD?\rVE?\r1MD?\r1MD?\r"
+        "TE?\r1MO\rTE?\r1MD?\r1OR\rTE?\r1MD?\rVE?\r1MD?\r1MD?\r"
     );
 }
 

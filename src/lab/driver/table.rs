@@ -1,6 +1,9 @@
 //! A rotary table as its profile describes it.
 
+use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
+
+mod start;
 
 use super::read_reply;
 use crate::lab::profile::{
@@ -14,6 +17,10 @@ use crate::lab::{InstrumentError, QueryOptions, RotaryTable, StopFlag};
 /// The largest difference between the reported and the commanded position a move
 /// accepts unless set otherwise, degrees.
 pub const POSITION_TOLERANCE_DEG: f64 = 0.001;
+
+/// How many errors latched before a session its start reads away at most: the longest
+/// error queue of a bundled make (the ESP301 keeps ten).
+const LATCHED_ERRORS_READ: usize = 10;
 
 /// How the runner waits for and checks a table: the same for every profile.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -93,6 +100,12 @@ pub enum TableState {
 /// acknowledgement read when the profile has one, never a reason to send it again), the
 /// error (must be none), the state every poll interval until ready, the position (must
 /// be within tolerance of the target).
+///
+/// Starting is: pending input thrown away, the errors the controller latched before the
+/// session read away (each noted `latched`), the `[[enable]]` commands each sent once and
+/// checked, the state, and a home search when the axis is not referenced (or the profile
+/// cannot tell), its acknowledgement, when the profile has one, awaited as long as a
+/// motion may take.
 ///
 /// ```
 /// use polycal::lab::driver::{ProfileTable, TableOptions};
@@ -320,7 +333,9 @@ impl<T: Transport> ProfileTable<T> {
             .names
             .iter()
             .find(|(k, _)| k.eq_ignore_ascii_case(&code))
-            .map_or("no meaning in the profile", |(_, v)| v.as_str());
+            .map(|(_, v)| v.clone())
+            .or_else(|| bit_meaning(&error.names, &code))
+            .unwrap_or_else(|| "no meaning in the profile".to_string());
         Err(self.device_error(
             &error.query.send,
             &line,
@@ -368,16 +383,6 @@ impl<T: Transport> ProfileTable<T> {
         }
     }
 
-    /// Whether the axis is referenced, by the profile's `referenced` query; `None` when
-    /// the profile has none.
-    fn referenced(&mut self) -> Result<Option<bool>, InstrumentError> {
-        let Some((q, when)) = self.table.referenced.clone() else {
-            return Ok(None);
-        };
-        let (captures, _) = self.ask(&q)?;
-        Ok(Some(when.holds(&q.reply, &captures)))
-    }
-
     /// Polls the state until the controller is ready again after `motion`.
     fn wait_ready(&mut self, motion: &str) -> Result<(), InstrumentError> {
         let deadline = Instant::now() + self.options.motion_timeout;
@@ -417,26 +422,21 @@ impl<T: Transport> ProfileTable<T> {
             self.stop.sleep(self.options.poll_interval);
         }
     }
+}
 
-    fn home(&mut self) -> Result<(), InstrumentError> {
-        let home = self.table.home.clone();
-        self.send_once(&home, &home.send)?;
-        self.check_accepted(&home.send)?;
-        self.wait_ready(&home.send)?;
-        if self.referenced()? == Some(false) {
-            let q = self
-                .table
-                .referenced
-                .as_ref()
-                .map_or(String::new(), |(q, _)| q.send.clone());
-            return Err(self.device_error(
-                &q,
-                "",
-                "the home search ended but the axis does not report itself referenced".into(),
-            ));
-        }
-        Ok(())
+/// The meaning of an error code that is a bit mask (Aerotech's AXISFAULT), from the
+/// names the profile gives its single bits: `None` unless the code is a number of two
+/// bits or more, every one of them named.
+fn bit_meaning(names: &BTreeMap<String, String>, code: &str) -> Option<String> {
+    let bits: u64 = code.trim().parse().ok()?;
+    if bits.count_ones() < 2 {
+        return None;
     }
+    (0..64)
+        .filter(|i| bits & (1 << i) != 0)
+        .map(|i| names.get(&(1u64 << i).to_string()).cloned())
+        .collect::<Option<Vec<String>>>()
+        .map(|named| named.join(", "))
 }
 
 /// The names of the bits set in a digit field's value.
@@ -465,27 +465,7 @@ impl<T: Transport> RotaryTable for ProfileTable<T> {
     }
 
     fn start(&mut self) -> Result<(), InstrumentError> {
-        self.transport.clear_input()?;
-        for enable in self.table.enable.clone() {
-            self.send_once(&enable, &enable.send)?;
-            self.check_accepted(&enable.send)?;
-        }
-        let state = self.state()?;
-        let can_tell = self.table.referenced.is_some() || self.table.state.not_referenced.is_some();
-        let referenced = match self.referenced()? {
-            Some(r) => r,
-            None => state != TableState::NotReferenced,
-        };
-        match state {
-            TableState::Moving => self.wait_ready("(motion in progress at start)")?,
-            TableState::Ready | TableState::NotReferenced => {}
-        }
-        if !referenced || !can_tell {
-            // A profile that cannot tell whether the axis is referenced homes it on every
-            // start: the encoder's zero must be the same in every session of a run.
-            self.home()?;
-        }
-        Ok(())
+        self.start_axis()
     }
 
     fn identify(&mut self) -> Result<String, InstrumentError> {
