@@ -35,4 +35,6 @@ mod instrument_run;
 #[cfg(feature = "lab")]
 mod instrument_wrong_stop;
 #[cfg(feature = "lab")]
+mod live_first_stops;
+#[cfg(feature = "lab")]
 mod stop_cost_readme;
