@@ -40,6 +40,8 @@ mod instrument_run;
 #[cfg(feature = "lab")]
 mod instrument_wrong_stop;
 #[cfg(feature = "lab")]
+mod live_first_stops;
+#[cfg(feature = "lab")]
 mod own_instruments_example;
 #[cfg(feature = "lab")]
 mod session_rules;
