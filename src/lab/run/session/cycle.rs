@@ -140,8 +140,8 @@ impl Session {
 
     /// A flagged reading's stop measured again (`again`): the reading of the cell
     /// furthest from the new one is replaced if it disagrees beyond the tolerance of the
-    /// autocollimator's measured noise (two means of `reads` readings each differ by less
-    /// than two readings do), each compared with the table's offset from the stop taken
+    /// autocollimator's measured noise for two means of `reads` readings (the tolerance
+    /// of two single readings ÷ √reads), each compared with the table's offset from the stop taken
     /// out (a table that stopped within its tolerance but off the stop is no fault of the
     /// reading); the flagged reading is named suspect when none disagrees.
     pub(super) fn judge_again(&mut self, a: Again, again: Reading) -> Step {
@@ -152,12 +152,14 @@ impl Session {
             residual,
         } = a;
         let settings = &self.settings;
+        // Two means of `reads` readings each differ by √reads less than two readings do.
         let tolerance = self
             .memory
             .get(flagged.ac as usize - 1)
             .map_or(settings.agreement_arcsec(), |m| {
                 m.noise.agreement_arcsec(settings.reading_noise_arcsec)
-            });
+            })
+            / f64::from(settings.reads_per_stop.max(2)).sqrt();
         let shift_deg = self.mounting.shift_deg;
         let at_stop =
             |r: &Reading| r.reading_arcsec - live::stop_offset_arcsec(r, settings.faces, shift_deg);
