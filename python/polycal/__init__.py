@@ -7,6 +7,9 @@ thin skin over the Rust library (the same code the ``polycal`` command runs): it
 arguments, calls the library with the GIL released, and gives back numpy arrays. Every
 number is the command's JSON number, to the last bit.
 
+:class:`Session` drives the rules of ``polycal run`` with instruments of your own
+(docs/FORMAT.md §7.6), the run directory kept as the command keeps it.
+
 All angles are arcseconds unless a name says otherwise. Contract: docs/FORMAT.md of the
 repository.
 """
@@ -29,7 +32,15 @@ from ._data import (
     read_selfcal,
 )
 from ._data import budget as _read_budget
-from ._polycal import DesignError, FileNotFound, InputError, PolycalError, PolycalWarning
+from ._polycal import (
+    Action,
+    DesignError,
+    FileNotFound,
+    InputError,
+    PolycalError,
+    PolycalWarning,
+    Session,
+)
 from ._results import (
     Comparison,
     DiagnoseResult,
@@ -70,6 +81,8 @@ __all__ = [
     "kc",
     "simulate",
     "simulate_selfcal",
+    "Session",
+    "Action",
     "__version__",
 ]
 

@@ -3,6 +3,8 @@ polycal/__init__.py, typed inline. The exceptions are `polycal.`'s (`__module__ 
 "polycal"`); sets, budgets, result rows and solve results pickle through `__reduce__` and the
 `_restore_…` functions (python/src/state.rs)."""
 
+import os
+from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 class PolycalError(Exception): ...
@@ -66,6 +68,66 @@ class SolveResult:
     def encoder_angle_deg(self) -> List[float]: ...
     def face_angle_deg(self) -> List[float]: ...
     def covariance(self, family: str) -> Optional[Tuple[int, List[float]]]: ...
+
+class Action:
+    """What a `Session` asks its driver to do next; the fields of its `kind` are set."""
+
+    kind: str  # move, position, read, wait, remount, progress, halt, finished
+    to_deg: Optional[float]
+    ac: Optional[int]
+    until_seconds: Optional[float]
+    mounting: Optional[str]
+    setup: Optional[int]
+    table_deg: Optional[float]
+    faces: Optional[List[Tuple[int, int]]]
+    done: Optional[int]
+    total: Optional[int]
+    cycle: Optional[Tuple[int, int]]
+    stop: Optional[Tuple[int, int]]
+    step: Optional[int]
+    seconds_left: Optional[float]
+    refused: Optional[int]
+    cycle_check: Optional[Dict[str, Any]]
+    outcome: Optional[str]
+
+class Session:
+    """The run's rules as a session driven from Python, the run directory its store."""
+
+    def __init__(
+        self,
+        dir: Union[str, "os.PathLike[str]"],
+        *,
+        faces: int,
+        cycles: int,
+        closing: bool = False,
+        bidirectional: bool = False,
+        ac_faces: Optional[Sequence[int]] = None,
+        reads_per_stop: Optional[int] = None,
+        reading_noise_arcsec: Optional[float] = None,
+        settle_seconds: float = 0.0,
+        resume: bool = False,
+        ports: Optional[Dict[str, str]] = None,
+    ) -> None: ...
+    @property
+    def dir(self) -> Optional[Path]: ...
+    @property
+    def warnings(self) -> List[str]: ...
+    @property
+    def readings_done(self) -> int: ...
+    @property
+    def refused(self) -> int: ...
+    def now(self) -> float: ...
+    def begin(self, ac_identifications: Sequence[str], table_identification: str) -> None: ...
+    def poll(self) -> Action: ...
+    def moved(self, at_deg: float) -> None: ...
+    def position(self, deg: float) -> None: ...
+    def read(self, status: int, x_arcsec: float, y_arcsec: Optional[float] = None) -> None: ...
+    def waited(self) -> None: ...
+    def remounted(self, confirmed: bool) -> None: ...
+    def failed(self, message: str) -> None: ...
+    def traffic(self, device: str, port: str, event: str, text: str) -> None: ...
+    def interrupt(self) -> None: ...
+    def finish(self) -> str: ...
 
 def version() -> str: ...
 def read_measurements(

@@ -15,8 +15,12 @@
 //!
 //! Sets, budgets, result rows and solve results pickle (`state.rs`) through their own fields as
 //! Python values and come back equal to the bit.
+//!
+//! `Session` (`lab.rs`) is the run's session (docs/FORMAT.md §7.6) with the run directory
+//! as its store, for lab software in Python that drives its own instruments.
 
 mod evaluate;
+mod lab;
 mod sets;
 mod simulate;
 mod state;
@@ -214,6 +218,8 @@ fn _polycal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRows>()?;
     m.add_class::<PySolveResult>()?;
     m.add_class::<PySelfcalSet>()?;
+    m.add_class::<lab::PySession>()?;
+    m.add_class::<lab::PyAction>()?;
     m.add_function(wrap_pyfunction!(sets::read_measurements, m)?)?;
     m.add_function(wrap_pyfunction!(sets::measurement_set_from_columns, m)?)?;
     m.add_function(wrap_pyfunction!(sets::check_columns_fit, m)?)?;

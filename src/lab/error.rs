@@ -74,6 +74,16 @@ pub enum InstrumentError {
         #[source]
         source: std::io::Error,
     },
+    /// A failure that lab software reported for an instrument it drives itself (a driver
+    /// of the run's session other than `polycal run`'s own: docs/FORMAT.md §7.6), in its
+    /// own words.
+    #[error("{port}: {message} (reported by its driver)")]
+    Reported {
+        /// The port (or the name the driver gives the instrument).
+        port: String,
+        /// What failed, as the driver said.
+        message: String,
+    },
     /// The operation was abandoned because a stop was requested (Ctrl-C).
     #[error("{port}: stopped on request")]
     Interrupted {

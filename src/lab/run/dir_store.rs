@@ -6,6 +6,7 @@ use super::repeat::LastValue;
 use super::store::{Record, RunSoFar, Store, StoreError};
 use super::{MEASUREMENTS, RunDir, TRAFFIC};
 use crate::lab::profile::Profile;
+use crate::lab::traffic::TrafficLog;
 use crate::measurement::{Reading, read_rows};
 
 /// The readings on disk, all mountings, in the file's order (none when the file cannot
@@ -84,6 +85,55 @@ fn last_replies(run: &RunDir, k: usize) -> Vec<Option<(LastValue, f64)>> {
         }
     }
     last
+}
+
+impl RunDir {
+    /// Keeps `record` as a driver of the session keeps it in the run directory
+    /// ([`Action::Keep`](super::Action::Keep)), with its traffic log: a reading only when
+    /// the log holds every line before it, so that every reading on disk has its traffic
+    /// logged (a reading after the log failed is not appended, and the error gives it as
+    /// its row would read). `polycal run`'s driver and the Python package's keep every
+    /// record so.
+    ///
+    /// # Errors
+    ///
+    /// The log failed before a reading, or the record could not be written
+    /// ([`Store::keep`]); the session then ends with
+    /// [`Outcome::FileError`](super::Outcome::FileError) and this message.
+    pub fn keep_logged(
+        &mut self,
+        record: &Record,
+        traffic: Option<&TrafficLog>,
+    ) -> Result<(), StoreError> {
+        if let Record::Reading(reading) = record
+            && let Some(log) = traffic
+            && let Err(e) = log.check()
+        {
+            return Err(StoreError::NotWritten {
+                source: Box::new(StoreError::Log {
+                    path: self.dir.join(TRAFFIC),
+                    source: e,
+                }),
+                what: "the reading",
+                row: self.row(reading),
+            });
+        }
+        Store::keep(self, record)
+    }
+
+    /// The message that ends a session when the run's traffic log `traffic` failed to
+    /// write (`PATH: why`, for [`Outcome::FileError`](super::Outcome::FileError)), if it
+    /// did; with `sync`, the log is put on disk first (as before every move of the table)
+    /// and a failed sync is such a failure too.
+    pub fn traffic_failure(&self, traffic: &TrafficLog, sync: bool) -> Option<String> {
+        let result = if sync {
+            traffic.sync()
+        } else {
+            traffic.check()
+        };
+        let e = result.err()?;
+        Some(format!("{}: {e}", self.dir.join(TRAFFIC).display()))
+    }
 }
 
 impl Store for RunDir {

@@ -106,8 +106,8 @@ pub struct Suspect {
     pub found_after_cycle: u32,
 }
 
-/// What the check after a cycle found.
-#[derive(Debug, Clone, PartialEq)]
+/// What the check after a cycle found (as JSON: its fields by name, pairs as arrays).
+#[derive(Debug, Clone, PartialEq, Serialize)]
 #[non_exhaustive]
 pub struct CycleCheck {
     /// The mounting of the cycle.

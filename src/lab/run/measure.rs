@@ -7,8 +7,8 @@ use std::fmt;
 use std::time::Duration;
 
 use super::session::{Action, Event, Outcome, Session};
-use super::store::{Record, Store, StoreError};
-use super::{Identification, Remount, RunDir, RunError, TRAFFIC};
+use super::store::Store;
+use super::{Identification, Remount, RunDir, RunError};
 use crate::lab::traffic::TrafficLog;
 use crate::lab::{Autocollimator, InstrumentError, RotaryTable, StopFlag};
 
@@ -210,24 +210,17 @@ pub fn measure_attended(
         let _ = table.stop();
     }
     if let Some(log) = traffic
-        && let Err(e) = log.sync()
+        && let Some(failed) = run.traffic_failure(log, true)
         && outcome == Outcome::Completed
     {
-        return Ok(Outcome::FileError(format!(
-            "{}: {e}",
-            run.dir.join(TRAFFIC).display()
-        )));
+        return Ok(Outcome::FileError(failed));
     }
     Ok(outcome)
 }
 
 /// The outcome of a traffic log that failed to write, if it did.
 fn log_failure(run: &RunDir, traffic: Option<&TrafficLog>) -> Option<Outcome> {
-    let e = traffic?.check().err()?;
-    Some(Outcome::FileError(format!(
-        "{}: {e}",
-        run.dir.join(TRAFFIC).display()
-    )))
+    run.traffic_failure(traffic?, false).map(Outcome::FileError)
 }
 
 fn identify(
@@ -265,7 +258,6 @@ fn drive(
     attendant: &mut dyn Attendant,
 ) -> Outcome {
     let clock = run.clock;
-    let traffic_path = run.dir.join(TRAFFIC).display().to_string();
     loop {
         let action = session.poll();
         let instrument = matches!(
@@ -284,9 +276,9 @@ fn drive(
             Action::Move { to_deg } => {
                 // Everything on disk before the table moves.
                 if let Some(log) = bench.traffic
-                    && let Err(e) = log.sync()
+                    && let Some(failed) = run.traffic_failure(log, true)
                 {
-                    session.file_failed(format!("{traffic_path}: {e}"));
+                    session.file_failed(failed);
                     continue;
                 }
                 let moved = bench.table.move_to(to_deg);
@@ -325,7 +317,10 @@ fn drive(
             Action::Remount(remount) => Event::Remounted {
                 confirmed: attendant.remount(&remount) && !bench.stop_flag.is_set(),
             },
-            Action::Keep(record) => keep(run, bench.traffic, &record),
+            Action::Keep(record) => match run.keep_logged(&record, bench.traffic) {
+                Ok(()) => Event::Kept,
+                Err(e) => Event::NotKept(e.to_string()),
+            },
             Action::Log(line) => {
                 if let Some(log) = bench.traffic {
                     log.record(&line.device, &line.port, &line.event, &line.text);
@@ -346,28 +341,5 @@ fn drive(
             // The driver answers what is asked; this would be its own fault.
             return Outcome::InstrumentError(e.to_string());
         }
-    }
-}
-
-/// Keeps `record` in the run directory; a reading only when the traffic log holds every
-/// line before it (every reading on disk has its traffic logged).
-fn keep(run: &mut RunDir, traffic: Option<&TrafficLog>, record: &Record) -> Event {
-    if let Record::Reading(reading) = record
-        && let Some(log) = traffic
-        && let Err(e) = log.check()
-    {
-        let error = StoreError::NotWritten {
-            source: Box::new(StoreError::Log {
-                path: run.dir.join(TRAFFIC),
-                source: e,
-            }),
-            what: "the reading",
-            row: run.row(reading),
-        };
-        return Event::NotKept(error.to_string());
-    }
-    match Store::keep(run, record) {
-        Ok(()) => Event::Kept,
-        Err(e) => Event::NotKept(e.to_string()),
     }
 }
