@@ -19,6 +19,8 @@ struct Physics {
     turned: usize,
     /// The two autocollimators' cables swapped at the driver.
     swapped: bool,
+    /// Added to autocollimator 1's X, arcsec.
+    offset_ac1: f64,
     state: u64,
 }
 
@@ -28,6 +30,7 @@ impl Physics {
             table_deg: 0.0,
             turned: 0,
             swapped: false,
+            offset_ac1: 0.0,
             state: 0x2545_f491_4f6c_dd1d,
         }
     }
@@ -49,7 +52,8 @@ impl Physics {
         let encoder = 0.6 * (2.0 * std::f64::consts::PI * step as f64 / FACES as f64).sin();
         let face_deviation = [0.0, 0.4, -0.3, 0.9, 0.2, -0.5, 0.7, 0.0][face - 1];
         let setup = [0.8, -1.1][ac as usize - 1];
-        let x = encoder + face_deviation + setup + self.noise();
+        let offset = if ac == 1 { self.offset_ac1 } else { 0.0 };
+        let x = encoder + face_deviation + setup + offset + self.noise();
         let y = [3.0, -2.0, 5.0, 1.0, -4.0, 2.5, -1.5, 0.5][face - 1] + self.noise();
         AcReading::new(3, x, Some(y))
     }
@@ -296,6 +300,49 @@ fn a_late_reply_from_another_query_is_outvoted_and_logged() {
         .unwrap();
     let truth = 0.6 * (225f64).to_radians().sin() + 0.7 - 1.1;
     assert!((kept.reading_arcsec - truth).abs() < 0.01, "{kept:?}");
+}
+
+#[test]
+fn a_sign_flip_at_the_first_query_is_measured_again_once_the_noise_is_known() {
+    // Autocollimator 1 reads about 0.03″ at step 0; its very first reply comes with X's
+    // sign flipped: within the stated tolerance (5·√2·0.02″) of the next reply, so the
+    // stop's mean, about 0″, is stored — some 15σ of the true noise (±0.005″ uniform)
+    // off. The check after a later cycle, once the repeats measured the noise, finds it
+    // and measures the stop again.
+    let mut store = MemoryStore::new(settings(3));
+    let mut session = Session::new(store.so_far().unwrap(), 0.0);
+    let mut physics = Physics::new();
+    physics.offset_ac1 = -0.77;
+    let mut first = true;
+    let mut tamper = |ac: u32, _: f64, reply: AcReading| {
+        if ac == 1 && std::mem::take(&mut first) {
+            return AcReading::new(reply.status, -reply.x_arcsec, reply.y_arcsec);
+        }
+        reply
+    };
+    let ran = drive(
+        &mut session,
+        &mut store,
+        &mut physics,
+        &mut tamper,
+        &mut |_| true,
+        None,
+    );
+    assert_eq!(ran.outcome, Outcome::Completed);
+    let again: Vec<_> = store
+        .remeasured
+        .iter()
+        .map(|r| (r.cycle, r.step, r.ac))
+        .collect();
+    assert_eq!(again, [(1, 0, 1)], "{:?}", store.remeasured);
+    let kept = store
+        .run
+        .readings
+        .iter()
+        .find(|r| (r.cycle, r.step, r.ac) == (1, 0, 1))
+        .unwrap();
+    assert!((kept.reading_arcsec - 0.03).abs() < 0.006, "{kept:?}");
+    assert!(store.suspect.is_empty());
 }
 
 #[test]
