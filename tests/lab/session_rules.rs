@@ -335,6 +335,12 @@ fn a_sign_flip_at_the_first_query_is_measured_again_once_the_noise_is_known() {
         .map(|r| (r.cycle, r.step, r.ac))
         .collect();
     assert_eq!(again, [(1, 0, 1)], "{:?}", store.remeasured);
+    // What was stored first: the mean of the flipped reply and the next, about 0″.
+    assert!(
+        store.remeasured[0].first_arcsec.abs() < 0.01,
+        "{:?}",
+        store.remeasured
+    );
     let kept = store
         .run
         .readings
