@@ -10,6 +10,7 @@ use std::sync::{Arc, Mutex};
 use super::abort::{self, AbortHandle, OnDisk, Shared};
 use super::error::io_error;
 use super::manifest::software;
+pub(super) use super::store::{Key, key};
 use super::{
     Identification, MANIFEST_FORMAT, Manifest, Mounting, MountingRecord, Outcome, Ports, RunError,
     RunSettings, rfc3339, unix_now,
@@ -49,14 +50,6 @@ pub const COLUMNS: [Column; 11] = [
 /// ones.
 pub(super) fn columns_without_shift() -> Columns {
     Columns::new(&COLUMNS[..COLUMNS.len() - 1])
-}
-
-/// A reading's place in the run: (setup, cycle, step, autocollimator).
-pub(super) type Key = (u32, u32, usize, u32);
-
-/// The place of `reading` in the run.
-pub(super) fn key(reading: &Reading) -> Key {
-    (reading.setup, reading.cycle, reading.step, reading.ac)
 }
 
 /// A run directory opened for measuring: its manifest, the readings on disk and the

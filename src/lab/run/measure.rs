@@ -300,10 +300,10 @@ fn drive(
                     Ok(reading) => Event::Read(reading),
                     Err(e) => Event::Failed(e),
                 },
-                None => {
-                    session.file_failed(format!("autocollimator {ac} is not connected"));
-                    continue;
-                }
+                None => Event::Failed(InstrumentError::Reported {
+                    port: format!("ac{ac}"),
+                    message: "not connected".to_string(),
+                }),
             },
             Action::Wait { until_seconds } => {
                 let wait = Duration::try_from_secs_f64(until_seconds - clock.now())

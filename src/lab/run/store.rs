@@ -5,13 +5,20 @@
 
 use std::collections::BTreeSet;
 
-use super::directory::{Key, key};
 use super::live::{Remeasured, Suspect};
 use super::mounting::{Mounting, MountingRecord};
 use super::noise::{NoiseRecord, RepeatNoise};
 use super::repeat::LastValue;
 use super::{RunError, RunSettings};
 use crate::measurement::{Reading, Stop};
+
+/// A reading's place in the run: (setup, cycle, step, autocollimator).
+pub(super) type Key = (u32, u32, usize, u32);
+
+/// The place of `reading` in the run.
+pub(super) fn key(reading: &Reading) -> Key {
+    (reading.setup, reading.cycle, reading.step, reading.ac)
+}
 
 /// What a store holds of a run when a session starts: the settings, the mountings, every
 /// reading kept so far and what the checks recorded — everything the session's rules

@@ -5,10 +5,10 @@
 //! cycles, its twin) is replaced, or the flagged reading named suspect when none does.
 //! Then the noise the run judged by, a mounting's misfit and the check itself are kept.
 
-use super::super::directory::key;
 use super::super::live::{self, MAX_REMEASURED_PER_CYCLE, Remeasured, Suspect};
 use super::super::repeat::DeviceMemory;
 use super::super::store::Record;
+use super::super::store::key;
 use super::super::verify::stop_of;
 use super::super::{RepeatNoise, RunSettings};
 use super::visit::{Again, Purpose, Visit};
