@@ -533,6 +533,87 @@ fn an_event_that_does_not_answer_the_action_is_refused_and_changes_nothing() {
 }
 
 #[test]
+fn a_number_that_is_not_finite_is_refused_and_changes_nothing() {
+    // A driver of the lab's own that reports a NaN position (an encoder read as garbage),
+    // an infinite reading or a NaN time is refused at that event: the action is asked
+    // again, and what is kept in the end holds only the finite values told after it.
+    let mut session = Session::new(RunSoFar::new(settings(1)), 0.0);
+    let mut store = MemoryStore::new(settings(1));
+    let mut physics = Physics::new();
+    let mut refused = Vec::new();
+    let mut t = 0.0;
+    loop {
+        t += 0.1;
+        let action = session.poll();
+        let (bad, good) = match &action {
+            Action::Move { to_deg } => {
+                physics.table_deg = *to_deg;
+                (
+                    Some(Event::Moved { at_deg: f64::NAN }),
+                    Event::Moved { at_deg: *to_deg },
+                )
+            }
+            Action::Position => (
+                Some(Event::Position { deg: f64::INFINITY }),
+                Event::Position {
+                    deg: physics.table_deg,
+                },
+            ),
+            Action::Read { ac } => {
+                let reply = physics.reply(*ac);
+                let bad = if refused.len() % 2 == 0 {
+                    AcReading::new(reply.status, f64::NAN, reply.y_arcsec)
+                } else {
+                    AcReading::new(reply.status, reply.x_arcsec, Some(f64::NEG_INFINITY))
+                };
+                (Some(Event::Read(bad)), Event::Read(reply))
+            }
+            Action::Wait { .. } => (None, Event::Waited),
+            Action::Keep(record) => {
+                store.keep(record).unwrap();
+                (None, Event::Kept)
+            }
+            Action::Finished(outcome) => {
+                assert_eq!(*outcome, Outcome::Completed);
+                break;
+            }
+            _ => continue,
+        };
+        if let Some(bad) = bad {
+            let e = session.tell(t, bad).unwrap_err();
+            assert!(e.to_string().contains("is not a finite number"), "{e}");
+            assert_eq!(session.poll(), action, "the same action again");
+            // and a finite event at a time that is not one
+            let e = session.tell(f64::NAN, Event::Waited).unwrap_err();
+            assert!(e.to_string().starts_with("the session asked for"), "{e}");
+            refused.push(e);
+        }
+        session.tell(t, good).unwrap();
+    }
+    assert!(refused.len() >= 2 * FACES as usize, "{}", refused.len());
+    let readings = &store.run.readings;
+    assert!(!readings.is_empty());
+    for r in readings {
+        assert!(r.encoder_degrees.is_some_and(f64::is_finite), "{r:?}");
+        assert!(r.reading_arcsec.is_finite(), "{r:?}");
+        assert!(r.reading_y_arcsec.is_none_or(f64::is_finite), "{r:?}");
+    }
+    // The time refused on its own, with an event that answers the action.
+    let mut session = Session::new(RunSoFar::new(settings(1)), 0.0);
+    let Action::Move { to_deg } = session.poll() else {
+        panic!()
+    };
+    let e = session
+        .tell(f64::INFINITY, Event::Moved { at_deg: to_deg })
+        .unwrap_err();
+    assert!(
+        e.to_string().contains("whose time is not a finite number"),
+        "{e}"
+    );
+    assert_eq!(session.poll(), Action::Move { to_deg });
+}
+
+#[test]
 fn a_failed_instrument_or_store_ends_the_session_naming_it() {
     let mut session = Session::new(RunSoFar::new(settings(1)), 0.0);
     assert!(matches!(session.poll(), Action::Move { .. }));

@@ -411,8 +411,9 @@ impl Session {
     ///
     /// # Errors
     ///
-    /// [`SessionError`] when the event does not answer the action asked (the session is
-    /// unchanged).
+    /// [`SessionError`] when the event does not answer the action asked, or when it or
+    /// `now_seconds` carries a number that is not finite (a NaN position, an infinite
+    /// reading): the session is unchanged.
     pub fn tell(&mut self, now_seconds: f64, event: Event) -> Result<(), SessionError> {
         let Some(asked) = self.asked.take() else {
             return Err(unexpected("nothing", &event));
@@ -431,9 +432,17 @@ impl Session {
             self.asked = Some(asked);
             return Err(unexpected(&asked_text, &event));
         }
-        if now_seconds.is_finite() {
-            self.now_seconds = now_seconds;
+        // A number that is not one is never taken: a NaN position would be stored as the
+        // stop's encoder angle, a NaN time would stop every wait from ending.
+        if let Some(what) = not_finite(now_seconds, &event) {
+            let asked_text = action_name(&asked.action);
+            self.asked = Some(asked);
+            return Err(SessionError {
+                asked: asked_text,
+                told: format!("{event:?} at {now_seconds} s, whose {what} is not a finite number"),
+            });
         }
+        self.now_seconds = now_seconds;
         if let Action::Keep(record) = &asked.action {
             match event {
                 Event::NotKept(why) => self.step = self.end(Outcome::FileError(why)),
@@ -626,6 +635,20 @@ fn action_name(action: &Action) -> String {
         Action::Remount(r) => format!("the remount of {}", r.mounting),
         Action::Keep(_) => "a record kept".to_string(),
         other => format!("{other:?}"),
+    }
+}
+
+/// What of an event (or its time) is not a finite number, if anything is.
+fn not_finite(now_seconds: f64, event: &Event) -> Option<&'static str> {
+    if !now_seconds.is_finite() {
+        return Some("time");
+    }
+    match event {
+        Event::Moved { at_deg } if !at_deg.is_finite() => Some("position"),
+        Event::Position { deg } if !deg.is_finite() => Some("position"),
+        Event::Read(r) if !r.x_arcsec.is_finite() => Some("X reading"),
+        Event::Read(r) if r.y_arcsec.is_some_and(|y| !y.is_finite()) => Some("Y reading"),
+        _ => None,
     }
 }
 
