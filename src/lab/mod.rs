@@ -32,8 +32,12 @@
 //!   sent and received, with time and port, as JSON Lines (`traffic.jsonl`);
 //! - [`profile`]: how an instrument talks — its line, commands and reply templates — read
 //!   from TOML; five bundled from the makers' command sets;
+//! - [`wire`]: the wire rules (a query's drain, its reply taken alone, resynchronisation,
+//!   retries, a motion sent once and watched to its end) as machines that do no input or
+//!   output — [`Exchange`], [`driver::AcWire`], [`driver::TableWire`] — for a lab that
+//!   hands polycal a port of its own;
 //! - [`driver`]: the drivers that speak any profile, behind the [`Autocollimator`] and
-//!   [`RotaryTable`] traits; their replies are read by the [`QueryOptions`] rules below;
+//!   [`RotaryTable`] traits: the [`wire`] machines carried out over a transport;
 //!   [`check`]: each instrument once, before a run;
 //! - [`sim`]: state machines speaking every profile, fed by the simulator's truth model,
 //!   served on pseudo-terminals or TCP ports by `polycal sim-lab`;
@@ -94,11 +98,12 @@ mod stop;
 pub mod tcp;
 pub mod traffic;
 pub mod transport;
+pub mod wire;
 
 pub use disk::WriteBudget;
 pub use error::{InstrumentError, ReplyError};
 pub use instruments::{AcReading, Autocollimator, RotaryTable};
 pub use per_instrument::PerInstrument;
-pub use query::QueryOptions;
+pub use query::{Exchange, QueryOptions, ReplyReader, Resync};
 pub use run::{Action, Event, LogRecord, Outcome, Session, SessionError};
 pub use stop::StopFlag;

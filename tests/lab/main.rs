@@ -49,3 +49,5 @@ mod session_rules;
 mod stop_cost_readme;
 #[cfg(feature = "lab")]
 mod table_emulators;
+#[cfg(feature = "lab")]
+mod wire_rules;

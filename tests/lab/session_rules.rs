@@ -590,7 +590,7 @@ fn a_number_that_is_not_finite_is_refused_and_changes_nothing() {
         }
         session.tell(t, good).unwrap();
     }
-    assert!(refused.len() >= 2 * FACES as usize, "{}", refused.len());
+    assert!(refused.len() >= 2 * FACES, "{}", refused.len());
     let readings = &store.run.readings;
     assert!(!readings.is_empty());
     for r in readings {

@@ -23,11 +23,11 @@ use polycal::lab::transport::{StreamTransport, Transport};
 use polycal::lab::{QueryOptions, RotaryTable};
 
 /// Where the first move goes, degrees.
-const TARGET: f64 = 22.5;
+pub(crate) const TARGET: f64 = 22.5;
 
 /// What a session from one power-on state must end with.
 #[derive(Debug, Clone, Copy)]
-enum Expect {
+pub(crate) enum Expect {
     /// Started and moved to [`TARGET`]; with `home`, a home search first.
     Lands { home: bool },
     /// The start refused with an error containing every one of these; nothing moved.
@@ -36,7 +36,7 @@ enum Expect {
 
 /// Short deadlines: the emulators answer at once, but a machine busy with other tests
 /// must not starve one for three deadlines in a row.
-fn options() -> TableOptions {
+pub(crate) fn options() -> TableOptions {
     TableOptions::new(QueryOptions::new(Duration::from_millis(100), 2))
         .with_poll_interval(Duration::from_millis(5))
         .with_motion_timeout(Duration::from_secs(5))
@@ -70,7 +70,7 @@ fn session(
 }
 
 /// Checks one session's outcome against what its state expects.
-fn check(what: &str, expect: Expect, outcome: &Result<f64, String>, record: &Record) {
+pub(crate) fn check(what: &str, expect: Expect, outcome: &Result<f64, String>, record: &Record) {
     assert!(
         record.unknown.is_empty(),
         "{what}: commands the controller does not know: {:?}\n{:#?}",

@@ -12,8 +12,11 @@
 mod autocollimator;
 mod table;
 
-pub use autocollimator::ProfileAutocollimator;
-pub use table::{POSITION_TOLERANCE_DEG, ProfileTable, TableOptions, TableState};
+pub use autocollimator::{AcOp, AcOutcome, AcWire, ProfileAutocollimator};
+pub use table::{
+    POSITION_TOLERANCE_DEG, ProfileTable, TableOp, TableOptions, TableOutcome, TableState,
+    TableWire,
+};
 
 use super::ReplyError;
 use super::profile::{Captures, LineSettings, Template};
