@@ -77,6 +77,7 @@
 
 mod config;
 mod habits;
+mod harmonic;
 mod models;
 mod run_effect;
 mod selfcal;

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use serde::de::{self, DeserializeOwned, IgnoredAny, MapAccess, Visitor};
 
-use super::config::HarmonicError;
+use super::harmonic::HarmonicError;
 use super::run_effect::{RunEffectError, effect_json};
 use super::{MIN_POSITIONS, SelfcalTruth, SimulateError, Truth};
 use crate::effects::Effect;
