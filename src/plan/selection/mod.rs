@@ -41,7 +41,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
-use winner::Target;
+use winner::{Target, TrialScratch};
 
 use super::power::noncentrality_for_power;
 use crate::diagnose::candidates::Family;
@@ -388,20 +388,21 @@ impl<'g> Round<'g> {
         let mut rng = ChaCha8Rng::seed_from_u64(SEED ^ 0x5eed);
         let mut found = 0usize;
         let mut missed = 0usize;
+        let mut w: Vec<f64> = Vec::with_capacity(target.len);
+        let mut scratch = TrialScratch::default();
         for trial in 0..TRIALS {
             // the coefficients on the unit-length columns: the effect's on its own
             // columns times their lengths
-            let w: Vec<f64> = (target.start..target.start + target.len)
-                .map(|k| {
-                    let draw = if random {
-                        rng.sample::<f64, _>(StandardNormal)
-                    } else {
-                        1.0
-                    };
-                    draw * self.columns.norm(k)
-                })
-                .collect();
-            if self.found_in_trial(target, trial, size, &w) {
+            w.clear();
+            w.extend((target.start..target.start + target.len).map(|k| {
+                let draw = if random {
+                    rng.sample::<f64, _>(StandardNormal)
+                } else {
+                    1.0
+                };
+                draw * self.columns.norm(k)
+            }));
+            if self.found_in_trial(target, trial, size, &w, &mut scratch) {
                 found += 1;
                 if found >= needed {
                     return true;

@@ -41,6 +41,16 @@ pub(super) struct Target {
     far_bound: Vec<Vec<Vec<f64>>>,
 }
 
+/// The buffers of a trial, allocated once per bisection step rather than per trial.
+#[derive(Default)]
+pub(super) struct TrialScratch {
+    /// The largest reduction of the target's groups and of the others, per class.
+    largest_in: Vec<f64>,
+    largest_out: Vec<f64>,
+    /// The scores of a candidate of several columns.
+    scores: Vec<f64>,
+}
+
 impl Round<'_> {
     /// The F statistic of a candidate of class `k` whose reduction of the residual sum of
     /// squares `rss` is `reduction`; `None` when it does not pass its family's threshold
@@ -235,7 +245,13 @@ impl Round<'_> {
         trial: usize,
         size: f64,
         w: &[f64],
+        scratch: &mut TrialScratch,
     ) -> bool {
+        let TrialScratch {
+            largest_in,
+            largest_out,
+            scores,
+        } = scratch;
         let c = self.columns.len();
         let noise = &self.noise[trial * c..(trial + 1) * c];
         let tlen = target.len;
@@ -246,23 +262,27 @@ impl Round<'_> {
                 .map(|(wj, g)| wj * g[k])
                 .sum::<f64>()
         };
-        let reduction = |o: usize| -> f64 {
+        let mut reduction = |o: usize| -> f64 {
             let offered = &self.offered[o];
             if offered.len == 1 {
                 let s = noise[offered.start] + size * shift(offered.start);
                 s * s * offered.pinv[(0, 0)]
             } else {
-                let s: Vec<f64> = (offered.start..offered.start + offered.len)
-                    .map(|k| noise[k] + size * shift(k))
-                    .collect();
-                offered.reduction(&s)
+                scores.clear();
+                scores.extend(
+                    (offered.start..offered.start + offered.len)
+                        .map(|k| noise[k] + size * shift(k)),
+                );
+                offered.reduction(scores)
             }
         };
         // within a class the larger reduction has the smaller p: the largest of the
         // target's groups and of the others in every class, then one verdict per class
         let classes = self.classes.len();
-        let mut largest_in = vec![-1.0_f64; classes];
-        let mut largest_out = vec![-1.0_f64; classes];
+        largest_in.clear();
+        largest_in.resize(classes, -1.0);
+        largest_out.clear();
+        largest_out.resize(classes, -1.0);
         let gram = target.near_single_gram.chunks_exact(tlen.max(1));
         let singles = target.near_singles.len();
         let near_noise = &target.near_single_noise[trial * singles..(trial + 1) * singles];
@@ -488,6 +508,7 @@ mod tests {
                 .size_for((o.start, o.len), random, &[o.group], 0.9)
                 .expect("a size");
             let mut rng = ChaCha8Rng::seed_from_u64(7);
+            let mut scratch = TrialScratch::default();
             for scale in [0.3, 0.7, 1.0, 1.5, 4.0] {
                 for trial in 0..TRIALS {
                     let w: Vec<f64> = (o.start..o.start + o.len)
@@ -500,7 +521,8 @@ mod tests {
                             draw * round.columns.norm(k)
                         })
                         .collect();
-                    let bounded = round.found_in_trial(&target, trial, size * scale, &w);
+                    let bounded =
+                        round.found_in_trial(&target, trial, size * scale, &w, &mut scratch);
                     let exhaustive =
                         round.found_in_trial_exhaustive(&target, trial, size * scale, &w);
                     assert_eq!(bounded, exhaustive, "trial {trial} at {scale} of the size");
