@@ -8,7 +8,8 @@ traffic.jsonl) as `polycal run` does (docs/FORMAT.md §7.6).
 
 The instruments are `polycal sim-lab`'s (the `polycal` on PATH): two simulated ELCOMAT
 3000 autocollimators and an SMC100 rotary table on pseudo-terminals, spoken to with their
-own commands (docs/FORMAT.md §7.1, §7.2). A 12-face polygon, two cycles with the closing
+own commands (docs/FORMAT.md §7.1, §7.2): pyserial does the input and output, polycal's
+wire rules decide what to send and which reply to take (§7.7). A 12-face polygon, two cycles with the closing
 step; the run goes to a new directory under out/ of the current directory, and the
 solved pitch deviations β are printed. Run from the repository's root after
 `pip install ./python pyserial`:
@@ -29,92 +30,142 @@ import polycal
 FACES, CYCLES = 12, 2
 
 
-class Failure(Exception):
-    """An instrument that did not answer as its protocol says."""
-
-
 class Port:
-    """One instrument's serial line: every line sent and received goes to the run's
-    traffic log. A query drains pending input first, then takes exactly one reply line."""
+    """One instrument's serial line, owned by this program: pyserial reads and writes, and
+    polycal's wire rules (`polycal.AcWire`, `polycal.TableWire`, docs/FORMAT.md §7.7)
+    decide what is sent, which reply is taken and what is retried — input drained before
+    every query, a reply taken only alone, the device brought back in step after a late
+    one, a move sent once and watched until the table is ready. Every line sent and
+    received goes to the run's traffic log."""
 
-    def __init__(self, session, device, path, baud, command_end, reply_end, xonxoff=False):
+    def __init__(self, session, device, path, baud, xonxoff=False):
         self.session, self.device, self.path = session, device, path
-        self.command_end, self.reply_end = command_end, reply_end
-        self.line = serial.Serial(path, baud, timeout=1.0, xonxoff=xonxoff)
+        self.line = serial.Serial(path, baud, timeout=0, xonxoff=xonxoff)
+        self.buffer = b""
 
-    def send(self, command):
-        text = command + self.command_end
-        self.session.traffic(self.device, self.path, "sent", text)
-        self.line.write(text.encode("ascii"))
+    def log(self, event, text):
+        self.session.traffic(self.device, self.path, event, text)
 
-    def query(self, command):
-        self.line.reset_input_buffer()  # a late reply to an earlier query is not this one's
-        self.send(command)
-        raw = self.line.read_until(self.reply_end.encode("ascii"))
-        if not raw.endswith(self.reply_end.encode("ascii")):
-            self.session.traffic(self.device, self.path, "timeout", "no complete reply within 1000 ms")
-            raise Failure(f"no reply to {command!r}")
-        reply = raw.decode("ascii", "replace").rstrip("\r\n")
-        self.session.traffic(self.device, self.path, "received", reply)
-        return reply
+    def fill(self, seconds):
+        """Reads what arrives within `seconds` (at least what is already there)."""
+        self.line.timeout = seconds
+        first = self.line.read(1)
+        if first:
+            self.line.timeout = 0
+            self.buffer += first + self.line.read(self.line.in_waiting or 1)
+
+    def take_line(self):
+        while True:
+            ends = [i for i in (self.buffer.find(b"\r"), self.buffer.find(b"\n")) if i >= 0]
+            if not ends:
+                return None
+            end = min(ends)
+            line, self.buffer = self.buffer[:end], self.buffer[end + 1:]
+            if line:
+                return line.decode("ascii", "replace")
+
+    def read_line(self, seconds):
+        deadline = time.monotonic() + seconds
+        while (line := self.take_line()) is None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            self.fill(left)
+        return line
+
+    def drain(self):
+        """Everything that arrived and was not read, a line not yet ended included."""
+        self.fill(0)
+        lines = []
+        while (line := self.take_line()) is not None:
+            lines.append(line)
+        if self.buffer:
+            lines.append(self.buffer.decode("ascii", "replace"))
+            self.buffer = b""
+        return lines
+
+    def carry_out(self, wire):
+        """Carries out the wire rules' actions until the operation is done; its outcome
+        (a `polycal.PolycalError` naming the port when the instrument failed)."""
+        while True:
+            now, action = self.session.now, wire.poll()
+            if action.kind == "done":
+                return wire.outcome()
+            if action.kind in ("drain", "await_input"):
+                if action.kind == "await_input":
+                    self.fill(action.seconds)
+                lines = self.drain()
+                for line in lines:
+                    self.log("discarded", line)
+                wire.tell(now(), "drained" if action.kind == "drain" else "input", lines=lines)
+            elif action.kind == "clear":
+                self.line.reset_input_buffer()
+                self.buffer = b""
+                self.log("clear", "")
+                wire.tell(now(), "cleared")
+            elif action.kind == "send":
+                self.log("sent", action.text)
+                self.line.write(action.text.encode("ascii"))
+                wire.tell(now(), "sent")
+            elif action.kind == "read_line":
+                line = self.read_line(action.seconds)
+                if line is None:
+                    self.log("timeout", f"no complete reply within {action.seconds * 1000:.0f} ms")
+                else:
+                    self.log("received", line)
+                wire.tell(now(), "line", line=line)
+            elif action.kind == "wait":
+                time.sleep(action.seconds)
+                wire.tell(now(), "waited")
+            elif action.kind == "note":
+                self.log(action.event, action.text)
 
 
 class Elcomat(Port):
-    """Möller-Wedel ELCOMAT 3000: `d` identifies, `a` measures (`4 <sss> <x> <y>`)."""
+    """A Möller-Wedel ELCOMAT 3000, as the bundled profile `elcomat3000` describes it."""
 
     def __init__(self, session, device, path):
-        super().__init__(session, device, path, 19200, "\n", "\r")
-        self.send("s")  # stop any stream
+        super().__init__(session, device, path, 19200)
+        # a reply is watched for a line behind it for two replies' time on the line
+        self.wire = polycal.AcWire(path, "elcomat3000", alone_wait=0.047)
+        self.do("start")
+
+    def do(self, op):
+        self.wire.begin(op)
+        return self.carry_out(self.wire)
 
     def identify(self):
-        return self.query("d").removeprefix("8 ")
+        return self.do("identify")
 
     def measure(self):
-        kind, status, x, y = self.query("a").split()
-        if kind != "4" or status[-1] not in "13":
-            raise Failure(f"measurement {kind} {status}: X not valid")
-        return int(status), float(x), float(y) if status[-1] in "23" else None
+        return self.do("measure")
 
 
 class Smc100(Port):
-    """Newport SMC100, address 1: `1TS` state, `1OR` home, `1PA` move, `1TP` position."""
+    """A Newport SMC100, address 1, as the bundled profile `smc100` describes it."""
 
     def __init__(self, session, path):
-        super().__init__(session, "table", path, 57600, "\r\n", "\r\n", xonxoff=True)
+        super().__init__(session, "table", path, 57600, xonxoff=True)
+        self.wire = polycal.TableWire(path, "smc100", alone_wait=0.026, motion_timeout=60.0)
 
-    def state(self):
-        reply = self.query("1TS")  # 1TS<error bits><state>
-        errors, state = reply[3:7], reply[7:9]
-        if errors != "0000" or state in ("3C", "3D", "3E", "14"):
-            raise Failure(f"controller state {reply}")
-        return state
-
-    def wait_ready(self, seconds=60.0):
-        deadline = time.monotonic() + seconds
-        while self.state() not in ("32", "33", "34"):  # ready
-            if time.monotonic() > deadline:
-                raise Failure("not ready in time")
-            time.sleep(0.02)
+    def do(self, op, deg=None):
+        self.wire.begin(op, deg)
+        return self.carry_out(self.wire)
 
     def start(self):
-        if self.state() in ("0A", "0B", "0C", "0D", "0E", "0F", "10", "11"):
-            self.send("1OR")  # not referenced: home it before the first move
-        self.wait_ready()
+        self.do("start")  # homed with `1OR` when `1TS` says it is not referenced
 
     def identify(self):
-        return self.query("1VE").removeprefix("1VE").strip()
+        return self.do("identify")
 
     def move(self, deg):
-        self.wait_ready()
-        self.send(f"1PA{deg:.6f}".rstrip("0").rstrip("."))  # sent once, never again
-        self.wait_ready()
-        return self.position()
+        return self.do("move", deg)
 
     def position(self):
-        return float(self.query("1TP").removeprefix("1TP"))
+        return self.do("position")
 
     def stop(self):
-        self.send("1ST")
+        self.do("stop")
 
 
 def new_run_dir():
@@ -126,7 +177,7 @@ def new_run_dir():
     return run_dir
 
 
-FAILURES = (Failure, ValueError, serial.SerialException)
+FAILURES = (polycal.PolycalError, serial.SerialException)
 
 
 def drive(session, acs, table):

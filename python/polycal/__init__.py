@@ -8,7 +8,8 @@ arguments, calls the library with the GIL released, and gives back numpy arrays.
 number is the command's JSON number, to the last bit.
 
 :class:`Session` drives the rules of ``polycal run`` with instruments of your own
-(docs/FORMAT.md §7.6), the run directory kept as the command keeps it.
+(docs/FORMAT.md §7.6), the run directory kept as the command keeps it; :class:`AcWire`
+and :class:`TableWire` are the wire rules for a port of your own (§7.7).
 
 All angles are arcseconds unless a name says otherwise. Contract: docs/FORMAT.md of the
 repository.
@@ -33,6 +34,7 @@ from ._data import (
 )
 from ._data import budget as _read_budget
 from ._polycal import (
+    AcWire,
     Action,
     DesignError,
     FileNotFound,
@@ -40,6 +42,8 @@ from ._polycal import (
     PolycalError,
     PolycalWarning,
     Session,
+    TableWire,
+    WireAction,
 )
 from ._results import (
     Comparison,
@@ -83,6 +87,9 @@ __all__ = [
     "simulate_selfcal",
     "Session",
     "Action",
+    "AcWire",
+    "TableWire",
+    "WireAction",
     "__version__",
 ]
 

@@ -129,6 +129,69 @@ class Session:
     def interrupt(self) -> None: ...
     def finish(self) -> str: ...
 
+class WireAction:
+    """What the wire rules ask of your port next; the fields of its `kind` are set."""
+
+    kind: str  # drain, clear, send, read_line, await_input, wait, note, done
+    text: Optional[str]
+    seconds: Optional[float]
+    event: Optional[str]
+
+class AcWire:
+    """An autocollimator's wire rules for a port of your own (docs/FORMAT.md §7.7)."""
+
+    def __init__(
+        self,
+        port: str,
+        profile: str = "elcomat3000",
+        *,
+        reply_timeout: float = 1.0,
+        retries: int = 3,
+        alone_wait: float = 0.0,
+        start_wait: float = 0.05,
+    ) -> None: ...
+    def begin(self, op: str) -> None: ...
+    def poll(self) -> WireAction: ...
+    def tell(
+        self,
+        now: float,
+        event: str,
+        *,
+        lines: Optional[Sequence[str]] = None,
+        line: Optional[str] = None,
+        message: Optional[str] = None,
+    ) -> None: ...
+    def outcome(self) -> Union[None, str, Tuple[int, float, Optional[float]]]: ...
+
+class TableWire:
+    """A rotary table's wire rules for a port of your own (docs/FORMAT.md §7.7)."""
+
+    def __init__(
+        self,
+        port: str,
+        profile: str = "smc100",
+        *,
+        reply_timeout: float = 1.0,
+        retries: int = 3,
+        alone_wait: float = 0.0,
+        poll_interval: float = 0.02,
+        motion_timeout: float = 120.0,
+        position_tolerance_deg: float = 0.001,
+    ) -> None: ...
+    def begin(self, op: str, deg: Optional[float] = None) -> None: ...
+    def poll(self) -> WireAction: ...
+    def tell(
+        self,
+        now: float,
+        event: str,
+        *,
+        lines: Optional[Sequence[str]] = None,
+        line: Optional[str] = None,
+        message: Optional[str] = None,
+    ) -> None: ...
+    def interrupt(self) -> None: ...
+    def outcome(self) -> Union[None, str, float]: ...
+
 def version() -> str: ...
 def read_measurements(
     path: Optional[str] = None,

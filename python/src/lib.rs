@@ -24,6 +24,7 @@ mod lab;
 mod sets;
 mod simulate;
 mod state;
+mod wire;
 
 use std::path::Path;
 
@@ -220,6 +221,9 @@ fn _polycal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySelfcalSet>()?;
     m.add_class::<lab::PySession>()?;
     m.add_class::<lab::PyAction>()?;
+    m.add_class::<wire::PyTableWire>()?;
+    m.add_class::<wire::PyAcWire>()?;
+    m.add_class::<wire::PyWireAction>()?;
     m.add_function(wrap_pyfunction!(sets::read_measurements, m)?)?;
     m.add_function(wrap_pyfunction!(sets::measurement_set_from_columns, m)?)?;
     m.add_function(wrap_pyfunction!(sets::check_columns_fit, m)?)?;
