@@ -44,6 +44,8 @@ mod live_first_stops;
 #[cfg(feature = "lab")]
 mod own_instruments_example;
 #[cfg(feature = "lab")]
+mod replace_or_suspect;
+#[cfg(feature = "lab")]
 mod session_rules;
 #[cfg(feature = "lab")]
 mod stop_cost_readme;

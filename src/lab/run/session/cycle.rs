@@ -143,7 +143,8 @@ impl Session {
     /// autocollimator's measured noise for two means of `reads` readings (the tolerance
     /// of two single readings ÷ √reads), each compared with the table's offset from the stop taken
     /// out (a table that stopped within its tolerance but off the stop is no fault of the
-    /// reading); the flagged reading is named suspect when none disagrees.
+    /// reading); when none disagrees, the cell's reading furthest from the new one is
+    /// named suspect.
     pub(super) fn judge_again(&mut self, a: Again, again: Reading) -> Step {
         let Again {
             mut check,
@@ -164,20 +165,22 @@ impl Session {
         let at_stop =
             |r: &Reading| r.reading_arcsec - live::stop_offset_arcsec(r, settings.faces, shift_deg);
         let apart = |r: &Reading| (at_stop(r) - at_stop(&again)).abs();
-        let off = fit
+        let furthest = fit
             .readings
             .iter()
             .filter(|r| live::cell(r) == live::cell(&flagged))
             .max_by(|a, b| apart(a).total_cmp(&apart(b)))
-            .filter(|r| apart(r) > tolerance)
             .cloned();
+        let off = furthest.clone().filter(|r| apart(r) > tolerance);
+        let residual_of = |r: &Reading| {
+            fit.readings
+                .iter()
+                .position(|f| key(f) == key(r))
+                .map_or(residual, |j| fit.residuals[j])
+        };
         let record = match off {
             Some(first) => {
-                let residual_of_first = fit
-                    .readings
-                    .iter()
-                    .position(|r| key(r) == key(&first))
-                    .map_or(residual, |j| fit.residuals[j]);
+                let residual_of_first = residual_of(&first);
                 let replacement = Reading {
                     cycle: first.cycle,
                     ..again
@@ -214,14 +217,19 @@ impl Session {
                 }
             }
             None => {
+                // The reading of the cell furthest from the stop measured again is named:
+                // where the check cannot tell which of a cell's readings is off (two
+                // readings after cycle 2 have residuals equal and opposite), the reading
+                // measured again can.
+                let named = furthest.unwrap_or(flagged);
                 let suspect = Suspect {
-                    setup: flagged.setup,
-                    cycle: flagged.cycle,
-                    step: flagged.step,
-                    ac: flagged.ac,
-                    reading_arcsec: flagged.reading_arcsec,
+                    setup: named.setup,
+                    cycle: named.cycle,
+                    step: named.step,
+                    ac: named.ac,
+                    reading_arcsec: named.reading_arcsec,
                     measured_again_arcsec: again.reading_arcsec,
-                    residual_arcsec: residual,
+                    residual_arcsec: residual_of(&named),
                     sigma_arcsec: fit.sigma,
                     found_after_cycle: check.cycle,
                 };
