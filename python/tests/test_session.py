@@ -207,6 +207,10 @@ def test_refusals_are_the_librarys(tmp_path):
         session.read(3, 0.1, 0.2)
     with pytest.raises(ValueError, match="finite"):
         session.read(3, float("nan"))
+    # A position that is not a number (an encoder read as garbage) is the library's refusal.
+    with pytest.raises(polycal.PolycalError, match="whose position is not a finite number"):
+        session.moved(float("nan"))
+    assert session.poll().kind == "move"  # still asked
     with pytest.raises(polycal.PolycalError, match="has begun already"):
         session.begin(["a", "b"], "t")
     session.interrupt()
