@@ -398,6 +398,7 @@ impl PySession {
             Ok(mut so_far) => {
                 // Messages and the log name the ports given now.
                 so_far.ac_names = names;
+                so_far.table_name = self.names.table.clone();
                 let now = run.clock().now();
                 self.session = Some(Session::new(so_far, now));
             }

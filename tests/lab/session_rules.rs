@@ -614,6 +614,50 @@ fn a_number_that_is_not_finite_is_refused_and_changes_nothing() {
 }
 
 #[test]
+fn a_table_that_reports_itself_off_the_stop_ends_the_session_with_nothing_stored_there() {
+    // A driver of the lab's own whose table reports 0.002° off the commanded 90° (beyond
+    // the 0.001° a stop allows, which polycal's own drivers hold a move to): the session
+    // ends naming the table and both positions; the stops before are kept, nothing at 90°.
+    let mut session = Session::new(RunSoFar::new(settings(1)), 0.0);
+    let mut store = MemoryStore::new(settings(1));
+    let mut physics = Physics::new();
+    let mut t = 0.0;
+    let outcome = loop {
+        t += 0.1;
+        let event = match session.poll() {
+            Action::Move { to_deg } => {
+                physics.table_deg = to_deg;
+                let off = if to_deg == 90.0 { 0.002 } else { 0.000_9 };
+                Event::Moved {
+                    at_deg: to_deg + off,
+                }
+            }
+            Action::Read { ac } => Event::Read(physics.reply(ac)),
+            Action::Keep(record) => {
+                store.keep(&record).unwrap();
+                Event::Kept
+            }
+            Action::Finished(outcome) => break outcome,
+            _ => continue,
+        };
+        session.tell(t, event).unwrap();
+    };
+    let Outcome::InstrumentError(message) = outcome else {
+        panic!("{outcome:?}")
+    };
+    assert_eq!(
+        message,
+        "rotary table at table: the table stopped at 90.002°, not at the commanded 90° (beyond 0.001°) (reported by its driver)"
+    );
+    let steps: Vec<usize> = store.run.readings.iter().map(|r| r.step).collect();
+    assert_eq!(
+        steps,
+        [0, 0, 1, 1],
+        "the stops at 0° and 45° kept, within 0.001°"
+    );
+}
+
+#[test]
 fn a_failed_instrument_or_store_ends_the_session_naming_it() {
     let mut session = Session::new(RunSoFar::new(settings(1)), 0.0);
     assert!(matches!(session.poll(), Action::Move { .. }));

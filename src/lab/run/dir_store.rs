@@ -149,6 +149,10 @@ impl Store for RunDir {
             ac_names: (1..=k as u32)
                 .map(|ac| manifest.ports.ac(ac).cloned().unwrap_or_default())
                 .collect(),
+            table_name: match manifest.ports.table.as_str() {
+                "" => "table".to_string(),
+                port => port.to_string(),
+            },
             last_replies: last_replies(self, k),
             readings: stored(self),
             checked_cycles: manifest.checked_cycles.clone(),

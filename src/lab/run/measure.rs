@@ -188,6 +188,7 @@ pub fn measure_attended(
                 Ok(mut so_far) => {
                     // Messages and the log name the ports connected now.
                     so_far.ac_names = acs.iter().map(|a| a.port().to_string()).collect();
+                    so_far.table_name = table.port().to_string();
                     let mut session = Session::new(so_far, run.clock.now());
                     let mut bench = Bench {
                         acs: &mut acs,

@@ -20,6 +20,7 @@ use super::mounting::{Mounting, Remount};
 use super::repeat::DeviceMemory;
 use super::store::{MemoryStore, Record, RunSoFar, Store};
 use super::{RunSettings, verify};
+use crate::lab::driver::POSITION_TOLERANCE_DEG;
 use crate::lab::{AcReading, InstrumentError};
 use crate::measurement::{Direction, Stop};
 
@@ -443,6 +444,22 @@ impl Session {
             });
         }
         self.now_seconds = now_seconds;
+        // A table that reports itself off the commanded angle has not stopped where the
+        // readings would be stored: polycal's own drivers refuse such a move, and so does
+        // the session for a driver of the lab's own.
+        let event = match (&asked.action, event) {
+            (Action::Move { to_deg }, Event::Moved { at_deg })
+                if (at_deg - to_deg).abs() > POSITION_TOLERANCE_DEG =>
+            {
+                Event::Failed(InstrumentError::Reported {
+                    port: self.kept.run.table_name.clone(),
+                    message: format!(
+                        "the table stopped at {at_deg}°, not at the commanded {to_deg}° (beyond {POSITION_TOLERANCE_DEG}°)"
+                    ),
+                })
+            }
+            (_, event) => event,
+        };
         if let Action::Keep(record) = &asked.action {
             match event {
                 Event::NotKept(why) => self.step = self.end(Outcome::FileError(why)),

@@ -45,6 +45,8 @@ pub struct RunSoFar {
     pub last_replies: Vec<Option<(LastValue, f64)>>,
     /// Each autocollimator's port or name, autocollimator 1 first, for messages.
     pub ac_names: Vec<String>,
+    /// The table's port or name, for messages.
+    pub table_name: String,
 }
 
 impl RunSoFar {
@@ -59,6 +61,7 @@ impl RunSoFar {
             repeat_noise: Vec::new(),
             last_replies: vec![None; k],
             ac_names: (1..=k).map(|ac| format!("ac{ac}")).collect(),
+            table_name: "table".to_string(),
         }
     }
 
