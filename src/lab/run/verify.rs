@@ -110,50 +110,9 @@ pub(super) fn last_stop(run: &RunSoFar) -> Option<Stop> {
 /// not where they were (their ports swapped: autocollimators that identify alike pass
 /// the identification) or the polygon moved, and the session ends saying which.
 pub(super) fn last_stop_verdict(run: &RunSoFar, stop: Stop, read: &[StopReading]) -> Verdict {
-    let mounting = run.mounting();
-    let settings = &run.settings;
-    let rows = &run.readings;
-    let at_stop = |ac: u32| {
-        rows.iter().find(|r| {
-            (r.setup, r.cycle, r.step, r.ac) == (mounting.setup, stop.cycle, stop.step, ac)
-        })
-    };
-    let tolerance = settings.agreement_arcsec();
-    let at = place(mounting, &stop);
-    // Two axes agree when X does, and Y too where both have one.
-    let apart = |x: f64, y: Option<f64>, s: &Reading| -> (bool, bool) {
-        let y_apart = match (y, s.reading_y_arcsec) {
-            (Some(a), Some(b)) => (a - b).abs() > tolerance,
-            _ => false,
-        };
-        ((x - s.reading_arcsec).abs() > tolerance, y_apart)
-    };
-    let y_text = |y: Option<f64>| y.map_or_else(|| "none".to_string(), |y| format!("{y:.4}″"));
-    let mut seen = Vec::new();
-    let mut off = Vec::new();
-    for (i, r) in read.iter().enumerate() {
-        let ac = i as u32 + 1;
-        match at_stop(ac) {
-            Some(s) => {
-                seen.push(format!(
-                    "ac{ac} X {:.4}″, Y {} (stored {:.4}″, {})",
-                    r.x_arcsec,
-                    y_text(r.y_arcsec),
-                    s.reading_arcsec,
-                    y_text(s.reading_y_arcsec)
-                ));
-                let (x_apart, y_apart) = apart(r.x_arcsec, r.y_arcsec, s);
-                if x_apart || y_apart {
-                    off.push((ac, r, s, x_apart));
-                }
-            }
-            None => seen.push(format!(
-                "ac{ac} X {:.4}″, Y {} (none stored)",
-                r.x_arcsec,
-                y_text(r.y_arcsec)
-            )),
-        }
-    }
+    let tolerance = run.settings.agreement_arcsec();
+    let at = place(run.mounting(), &stop);
+    let (seen, off) = read_again_against_stored(run, &stop, read, tolerance);
     let agree = if off.is_empty() {
         "agree"
     } else {
@@ -166,15 +125,114 @@ pub(super) fn last_stop_verdict(run: &RunSoFar, stop: Stop, read: &[StopReading]
             refused: None,
         };
     }
+    let found = disagreements_text(run, &off, &at);
+    let why = why_apart(run, &stop, &off, tolerance);
+    Verdict {
+        compared,
+        refused: Some(Outcome::InstrumentError(format!(
+            "{} (more than the agreement tolerance {tolerance:.3}″ apart): {why}; nothing new \
+             was stored, resume once the readings there agree again",
+            found.join("; ")
+        ))),
+    }
+}
+
+/// The reading autocollimator `ac` gave at `stop` of the run's current mounting, as the
+/// run stored it.
+fn stored_at<'a>(run: &'a RunSoFar, stop: &Stop, ac: u32) -> Option<&'a Reading> {
+    let setup = run.mounting().setup;
+    run.readings
+        .iter()
+        .find(|r| (r.setup, r.cycle, r.step, r.ac) == (setup, stop.cycle, stop.step, ac))
+}
+
+/// Whether a reading read again (X `x` and Y `y`, arcsec) is more than `tolerance`
+/// arcsec from the stored reading `stored`: in X, and in Y where both have one (two
+/// readings agree when neither is).
+fn apart(x: f64, y: Option<f64>, stored: &Reading, tolerance: f64) -> (bool, bool) {
+    let y_apart = match (y, stored.reading_y_arcsec) {
+        (Some(a), Some(b)) => (a - b).abs() > tolerance,
+        _ => false,
+    };
+    ((x - stored.reading_arcsec).abs() > tolerance, y_apart)
+}
+
+/// A Y reading as a message gives it, arcsec: `0.1234″`, or `none` without one.
+fn y_text(y: Option<f64>) -> String {
+    y.map_or_else(|| "none".to_string(), |y| format!("{y:.4}″"))
+}
+
+/// An autocollimator whose reading read again at a resumed mounting's last stop is more
+/// than the agreement tolerance from the one the run stored there.
+struct ReadApart<'a> {
+    /// The autocollimator, 1 … K.
+    ac: u32,
+    /// Its reading now.
+    read: &'a StopReading,
+    /// Its reading the run stored there.
+    stored: &'a Reading,
+    /// Whether X is apart (else only Y is).
+    x_apart: bool,
+}
+
+/// The stop read again against its stored readings: each autocollimator's X and Y now
+/// and stored (arcsec) as the `compared` record lists them, and the autocollimators
+/// whose readings are more than `tolerance` arcsec apart.
+fn read_again_against_stored<'a>(
+    run: &'a RunSoFar,
+    stop: &Stop,
+    read: &'a [StopReading],
+    tolerance: f64,
+) -> (Vec<String>, Vec<ReadApart<'a>>) {
+    let mut seen = Vec::new();
+    let mut off = Vec::new();
+    for (i, r) in read.iter().enumerate() {
+        let ac = i as u32 + 1;
+        match stored_at(run, stop, ac) {
+            Some(s) => {
+                seen.push(format!(
+                    "ac{ac} X {:.4}″, Y {} (stored {:.4}″, {})",
+                    r.x_arcsec,
+                    y_text(r.y_arcsec),
+                    s.reading_arcsec,
+                    y_text(s.reading_y_arcsec)
+                ));
+                let (x_apart, y_apart) = apart(r.x_arcsec, r.y_arcsec, s, tolerance);
+                if x_apart || y_apart {
+                    off.push(ReadApart {
+                        ac,
+                        read: r,
+                        stored: s,
+                        x_apart,
+                    });
+                }
+            }
+            None => seen.push(format!(
+                "ac{ac} X {:.4}″, Y {} (none stored)",
+                r.x_arcsec,
+                y_text(r.y_arcsec)
+            )),
+        }
+    }
+    (seen, off)
+}
+
+/// What each autocollimator apart (`off`) reads now at `at` and what the run stored
+/// there before the interruption, with its port: X (arcsec) where X is apart, else Y.
+fn disagreements_text(run: &RunSoFar, off: &[ReadApart], at: &str) -> Vec<String> {
     let port = |ac: u32| {
         run.ac_names
             .get(ac as usize - 1)
             .map_or("", String::as_str)
             .to_string()
     };
-    let found: Vec<String> = off
-        .iter()
-        .map(|&(ac, r, s, x_apart)| {
+    off.iter()
+        .map(|&ReadApart {
+            ac,
+            read: r,
+            stored: s,
+            x_apart,
+        }| {
             let (now, before) = if x_apart {
                 (
                     format!("{:.3}″", r.x_arcsec),
@@ -191,22 +249,30 @@ pub(super) fn last_stop_verdict(run: &RunSoFar, stop: Stop, read: &[StopReading]
                 port(ac)
             )
         })
-        .collect();
+        .collect()
+}
+
+/// Why the readings at `stop` are apart: the autocollimators' ports swapped when each
+/// one apart (`off`) reads what another stored there (within `tolerance` arcsec, X and
+/// Y); otherwise a question: the ports swapped, or the polygon or an autocollimator
+/// moved, each to be put back as it was.
+fn why_apart(run: &RunSoFar, stop: &Stop, off: &[ReadApart], tolerance: f64) -> String {
     // Each one off reads what another autocollimator stored there: swapped ports.
     let like: Vec<String> = off
         .iter()
-        .filter_map(|&(ac, r, _, _)| {
-            settings
+        .filter_map(|&ReadApart { ac, read: r, .. }| {
+            run.settings
                 .acs()
                 .filter(|&other| other != ac)
                 .find(|&other| {
-                    at_stop(other)
-                        .is_some_and(|s| apart(r.x_arcsec, r.y_arcsec, s) == (false, false))
+                    stored_at(run, stop, other).is_some_and(|s| {
+                        apart(r.x_arcsec, r.y_arcsec, s, tolerance) == (false, false)
+                    })
                 })
                 .map(|other| format!("ac{ac} reads what ac{other} stored"))
         })
         .collect();
-    let why = if like.len() == off.len() {
+    if like.len() == off.len() {
         format!(
             "{}: the autocollimators' ports look swapped — connect each to the port it had \
              before the interruption",
@@ -216,14 +282,6 @@ pub(super) fn last_stop_verdict(run: &RunSoFar, stop: Stop, read: &[StopReading]
         "are the ports swapped, or was the polygon or an autocollimator moved? Put them back \
          as they were"
             .to_string()
-    };
-    Verdict {
-        compared,
-        refused: Some(Outcome::InstrumentError(format!(
-            "{} (more than the agreement tolerance {tolerance:.3}″ apart): {why}; nothing new \
-             was stored, resume once the readings there agree again",
-            found.join("; ")
-        ))),
     }
 }
 
@@ -251,95 +309,181 @@ fn values_text(values: &[f64]) -> String {
 /// or when no face shift matches, nothing is decided here (the check after the first
 /// cycle tests the mounting as a whole).
 pub(super) fn new_mounting_verdict(run: &RunSoFar, stop: Stop, read: &[StopReading]) -> Verdict {
-    let mounting = run.mounting();
-    let settings = &run.settings;
-    let n = settings.faces;
-    let rows: Vec<&Reading> = run
-        .readings
-        .iter()
-        .filter(|r| r.setup < mounting.setup)
-        .collect();
-    let at = format!("cycle {}, step {}", stop.cycle, stop.step);
-    let x: Vec<f64> = read.iter().map(|r| r.x_arcsec).collect();
-    // Each autocollimator's Y of each face in the mountings before.
-    let mut y_of: BTreeMap<(u32, usize), (f64, usize)> = BTreeMap::new();
-    for r in &rows {
-        if let Some(y) = r.reading_y_arcsec {
-            let e = y_of.entry((r.ac, r.face)).or_insert((0.0, 0));
-            *e = (e.0 + y, e.1 + 1);
+    let first = FirstStop::new(run, stop, read);
+    let Some(stated_apart) = first.y_apart(first.mounting.face_shift) else {
+        let (mounting, at) = (first.mounting, &first.at);
+        return Verdict {
+            compared: format!(
+                "{mounting}, {at}, its first stop: X {}; no Y to compare",
+                values_text(&first.x)
+            ),
+            refused: None,
+        };
+    };
+    let shift_seen = first.shift_seen(stated_apart);
+    let compared = first.compared(shift_seen.is_some());
+    let Some(k) = shift_seen else {
+        return Verdict {
+            compared,
+            refused: None,
+        };
+    };
+    Verdict {
+        compared,
+        refused: Some(Outcome::InstrumentError(first.refusal(k))),
+    }
+}
+
+/// A new mounting's first stop against the mountings before it: the readings there, and
+/// each autocollimator's Y readings of each face before, from which a face shift
+/// predicts the Y each autocollimator reads at the stop.
+struct FirstStop<'a> {
+    /// The run so far.
+    run: &'a RunSoFar,
+    /// The new mounting, as stated.
+    mounting: Mounting,
+    /// Its first stop.
+    stop: Stop,
+    /// The stop as messages give it: `cycle 1, step 0`.
+    at: String,
+    /// The readings the mountings before it stored.
+    before: Vec<&'a Reading>,
+    /// Each autocollimator's X reading at the stop, arcsec.
+    x: Vec<f64>,
+    /// Each autocollimator's Y reading at the stop, arcsec (`None` when one has none).
+    y: Option<Vec<f64>>,
+    /// Each autocollimator's Y readings of each face in the mountings before: their sum,
+    /// arcsec, and their count.
+    y_of: BTreeMap<(u32, usize), (f64, usize)>,
+}
+
+impl<'a> FirstStop<'a> {
+    /// The readings `read` at `stop` (autocollimator 1 first) of the run's mounting, and
+    /// what the mountings before it stored.
+    fn new(run: &'a RunSoFar, stop: Stop, read: &[StopReading]) -> FirstStop<'a> {
+        let mounting = run.mounting();
+        let before: Vec<&Reading> = run
+            .readings
+            .iter()
+            .filter(|r| r.setup < mounting.setup)
+            .collect();
+        // Each autocollimator's Y of each face in the mountings before.
+        let mut y_of: BTreeMap<(u32, usize), (f64, usize)> = BTreeMap::new();
+        for r in &before {
+            if let Some(y) = r.reading_y_arcsec {
+                let e = y_of.entry((r.ac, r.face)).or_insert((0.0, 0));
+                *e = (e.0 + y, e.1 + 1);
+            }
+        }
+        FirstStop {
+            run,
+            mounting,
+            stop,
+            at: format!("cycle {}, step {}", stop.cycle, stop.step),
+            before,
+            x: read.iter().map(|r| r.x_arcsec).collect(),
+            y: read.iter().map(|r| r.y_arcsec).collect(),
+            y_of,
         }
     }
-    let faces = |k: usize| -> Vec<usize> {
-        let turned = Mounting::new(mounting.setup).with_face_shift(k);
+
+    /// The faces the autocollimators (1 first) see at the stop with the polygon turned
+    /// `k` faces.
+    fn faces(&self, k: usize) -> Vec<usize> {
+        let settings = &self.run.settings;
+        let turned = Mounting::new(self.mounting.setup).with_face_shift(k);
         settings
             .acs()
-            .map(|ac| turned.face(settings, ac, stop.step))
+            .map(|ac| turned.face(settings, ac, self.stop.step))
             .collect()
-    };
-    let predicted = |k: usize| -> Option<Vec<f64>> {
-        faces(k)
+    }
+
+    /// The Y each autocollimator reads at the stop with the polygon turned `k` faces, as
+    /// the mountings before predict it: the mean of its Y readings of that face there,
+    /// arcsec; `None` when an autocollimator has no Y reading of its face before.
+    fn predicted_y(&self, k: usize) -> Option<Vec<f64>> {
+        self.faces(k)
             .iter()
-            .zip(settings.acs())
-            .map(|(&f, ac)| y_of.get(&(ac, f)).map(|&(sum, count)| sum / count as f64))
+            .zip(self.run.settings.acs())
+            .map(|(&f, ac)| {
+                self.y_of
+                    .get(&(ac, f))
+                    .map(|&(sum, count)| sum / count as f64)
+            })
             .collect()
-    };
-    let y: Option<Vec<f64>> = read.iter().map(|r| r.y_arcsec).collect();
-    let score = |k: usize| -> Option<f64> {
-        let (y, p) = (y.as_ref()?, predicted(k)?);
+    }
+
+    /// How far the Y readings at the stop are from those the polygon turned `k` faces
+    /// predicts: the largest difference, arcsec; `None` without a Y read and predicted
+    /// for every autocollimator.
+    fn y_apart(&self, k: usize) -> Option<f64> {
+        let (y, p) = (self.y.as_ref()?, self.predicted_y(k)?);
         Some(
             y.iter()
                 .zip(&p)
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max),
         )
-    };
-    let tolerance = settings.agreement_arcsec();
-    let stated = mounting.face_shift;
-    let Some(stated_score) = score(stated) else {
-        return Verdict {
-            compared: format!(
-                "{mounting}, {at}, its first stop: X {}; no Y to compare",
-                values_text(&x)
-            ),
-            refused: None,
-        };
-    };
-    let best = (0..n)
-        .filter_map(|k| score(k).map(|s| (k, s)))
-        .min_by(|a, b| a.1.total_cmp(&b.1));
-    let y = y.unwrap_or_default();
-    let verdict = match best {
-        Some((k, s)) if stated_score > tolerance && s <= tolerance && k != stated => Some(k),
-        _ => None,
-    };
-    let compared = format!(
-        "{mounting}, {at}, its first stop: X {}, Y {} ({} as stated: Y {}): {}",
-        values_text(&x),
-        values_text(&y),
-        faces_text(&faces(stated)),
-        values_text(&predicted(stated).unwrap_or_default()),
-        if verdict.is_some() {
-            "do not agree"
-        } else {
-            "agree"
+    }
+
+    /// The face shift the Y readings show instead of the stated one, which is
+    /// `stated_apart` arcsec from them: the face shift they match best, when it is
+    /// within the agreement tolerance and the stated one is not; `None` otherwise.
+    fn shift_seen(&self, stated_apart: f64) -> Option<usize> {
+        let tolerance = self.run.settings.agreement_arcsec();
+        let stated = self.mounting.face_shift;
+        let best = (0..self.run.settings.faces)
+            .filter_map(|k| self.y_apart(k).map(|s| (k, s)))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match best {
+            Some((k, s)) if stated_apart > tolerance && s <= tolerance && k != stated => Some(k),
+            _ => None,
         }
-    );
-    let Some(k) = verdict else {
-        return Verdict {
-            compared,
-            refused: None,
-        };
-    };
-    let seen = faces(k);
-    // The mounting before: the faces it had at this table angle, and its X there.
-    let angle = mounting.table_deg(&stop, n);
-    let before = run
-        .mountings
-        .iter()
-        .rev()
-        .map(|m| m.mounting)
-        .find(|m| m.setup < mounting.setup);
-    let not_remounted = before.and_then(|b| {
+    }
+
+    /// The `compared` record: the X and Y readings at the stop against the faces as
+    /// stated and the Y they predict (arcsec), and whether they agree (`apart` when the
+    /// Y readings show another face shift).
+    fn compared(&self, apart: bool) -> String {
+        let (mounting, at) = (self.mounting, &self.at);
+        let stated = mounting.face_shift;
+        format!(
+            "{mounting}, {at}, its first stop: X {}, Y {} ({} as stated: Y {}): {}",
+            values_text(&self.x),
+            values_text(self.y.as_deref().unwrap_or_default()),
+            faces_text(&self.faces(stated)),
+            values_text(&self.predicted_y(stated).unwrap_or_default()),
+            if apart { "do not agree" } else { "agree" }
+        )
+    }
+
+    /// Why the session ends when the autocollimators see the faces of face shift `k`,
+    /// not those stated: the polygon not remounted, or turned otherwise than stated.
+    fn refusal(&self, k: usize) -> String {
+        let seen = self.faces(k);
+        // The mounting before: the faces it had at this table angle, and its X there.
+        let angle = self.mounting.table_deg(&self.stop, self.run.settings.faces);
+        match self.not_remounted(&seen, angle) {
+            Some((b, x_before)) => self.not_remounted_text(b, &x_before, &seen, angle),
+            None => self.turned_text(k, &seen),
+        }
+    }
+
+    /// The mounting before this one, when the polygon was not remounted: at the stop's
+    /// table angle `angle` (degrees) it had the faces `seen` before the autocollimators,
+    /// and the X readings at the stop are within the agreement tolerance of its mean X
+    /// readings there (arcsec, returned with it); `None` otherwise.
+    fn not_remounted(&self, seen: &[usize], angle: f64) -> Option<(Mounting, Vec<f64>)> {
+        let settings = &self.run.settings;
+        let n = settings.faces;
+        let tolerance = settings.agreement_arcsec();
+        let b = self
+            .run
+            .mountings
+            .iter()
+            .rev()
+            .map(|m| m.mounting)
+            .find(|m| m.setup < self.mounting.setup)?;
         let q = (angle - b.shift_deg) * n as f64 / 360.0;
         if (q - q.round()).abs() > 1e-6 {
             return None;
@@ -355,7 +499,8 @@ pub(super) fn new_mounting_verdict(run: &RunSoFar, stop: Stop, read: &[StopReadi
         let x_before: Option<Vec<f64>> = settings
             .acs()
             .map(|ac| {
-                let (sum, count) = rows
+                let (sum, count) = self
+                    .before
                     .iter()
                     .filter(|r| r.setup == b.setup && r.ac == ac && r.step % n == step)
                     .fold((0.0, 0usize), |(s, c), r| (s + r.reading_arcsec, c + 1));
@@ -363,49 +508,66 @@ pub(super) fn new_mounting_verdict(run: &RunSoFar, stop: Stop, read: &[StopReadi
             })
             .collect();
         let x_before = x_before?;
-        x.iter()
+        self.x
+            .iter()
             .zip(&x_before)
             .all(|(a, b)| (a - b).abs() <= tolerance)
             .then_some((b, x_before))
-    });
-    let stated_faces = faces(stated);
-    let first_face = stated_faces.first().copied().unwrap_or(0);
-    let message = match not_remounted {
-        Some((b, x_before)) => format!(
+    }
+
+    /// The refusal when the polygon was not remounted: the autocollimators read at the
+    /// table angle `angle` (degrees) what they read there in mounting `b` (X `x_before`,
+    /// arcsec, and the faces `seen`).
+    fn not_remounted_text(
+        &self,
+        b: Mounting,
+        x_before: &[f64],
+        seen: &[usize],
+        angle: f64,
+    ) -> String {
+        let mounting = self.mounting;
+        let at = &self.at;
+        let stated_faces = self.faces(mounting.face_shift);
+        let first_face = stated_faces.first().copied().unwrap_or(0);
+        format!(
             "at the first stop of {mounting}, {at}, the table at {angle}°, the autocollimators \
              read what they read at this table angle in mounting {}: X {} against {} then, \
              and Y as {} (not {} as stated): the polygon was not remounted; mount it with face \
              {first_face} facing autocollimator 1, the table at {angle}°, and run the same \
              command again; nothing of mounting {} was stored",
             b.setup,
-            values_text(&x),
-            values_text(&x_before),
-            faces_text(&seen),
+            values_text(&self.x),
+            values_text(x_before),
+            faces_text(seen),
             faces_text(&stated_faces),
             mounting.setup
-        ),
-        None => {
-            let mut told = mounting;
-            told.face_shift = k;
-            format!(
-                "at the first stop of {mounting}, {at}, the autocollimators see {} (the polygon \
-                 turned {k} face(s)), not {} as stated: their Y readings {} are those of {} in \
-                 the mountings before ({}), not those of {} ({}); state the mounting as it is \
-                 ({}) or mount it as stated, and run again; nothing of mounting {} was stored",
-                faces_text(&seen),
-                faces_text(&stated_faces),
-                values_text(&y),
-                faces_text(&seen),
-                values_text(&predicted(k).unwrap_or_default()),
-                faces_text(&stated_faces),
-                values_text(&predicted(stated).unwrap_or_default()),
-                told.as_options(),
-                mounting.setup
-            )
-        }
-    };
-    Verdict {
-        compared,
-        refused: Some(Outcome::InstrumentError(message)),
+        )
+    }
+
+    /// The refusal when the polygon was turned `k` faces, not as stated: the Y readings
+    /// are those the mountings before had of the faces `seen`, and the mounting as it is
+    /// is stated in `polycal run` options.
+    fn turned_text(&self, k: usize, seen: &[usize]) -> String {
+        let mounting = self.mounting;
+        let at = &self.at;
+        let stated = mounting.face_shift;
+        let stated_faces = self.faces(stated);
+        let mut told = mounting;
+        told.face_shift = k;
+        format!(
+            "at the first stop of {mounting}, {at}, the autocollimators see {} (the polygon \
+             turned {k} face(s)), not {} as stated: their Y readings {} are those of {} in \
+             the mountings before ({}), not those of {} ({}); state the mounting as it is \
+             ({}) or mount it as stated, and run again; nothing of mounting {} was stored",
+            faces_text(seen),
+            faces_text(&stated_faces),
+            values_text(self.y.as_deref().unwrap_or_default()),
+            faces_text(seen),
+            values_text(&self.predicted_y(k).unwrap_or_default()),
+            faces_text(&stated_faces),
+            values_text(&self.predicted_y(stated).unwrap_or_default()),
+            told.as_options(),
+            mounting.setup
+        )
     }
 }

@@ -8,6 +8,7 @@ use super::super::REMOUNT_TOLERANCE_DEG;
 use super::super::mounting::Remount;
 use super::visit::{Purpose, Visit};
 use super::{Action, Event, Outcome, Session, Step, TABLE, role};
+use crate::lab::InstrumentError;
 use crate::measurement::Stop;
 
 /// Where a remount is; each state that asks names what it waits for.
@@ -89,7 +90,6 @@ impl Session {
 
     /// What the remount makes of the event answering its action.
     pub(super) fn remount_told(&mut self, r: RemountStep, event: Event) -> Step {
-        let mounting = self.mounting;
         match (r, event) {
             (RemountStep::Moving { .. } | RemountStep::Positioning { .. }, Event::Failed(e)) => {
                 self.end(Outcome::from_instrument(TABLE, &e))
@@ -100,24 +100,7 @@ impl Session {
                     commanded_deg,
                 },
                 Event::Moved { at_deg },
-            ) => {
-                let settings = &self.settings;
-                let remount = Remount {
-                    mounting,
-                    table_deg: at_deg,
-                    faces: settings
-                        .acs()
-                        .map(|ac| (ac, mounting.face(settings, ac, stop.step)))
-                        .collect(),
-                };
-                self.ask(
-                    Action::Remount(remount),
-                    Step::Remount(RemountStep::Asking {
-                        stop,
-                        commanded_deg,
-                    }),
-                )
-            }
+            ) => self.ask_remount(stop, commanded_deg, at_deg),
             (RemountStep::Asking { .. }, Event::Remounted { confirmed: false }) => {
                 self.end(Outcome::Interrupted)
             }
@@ -140,23 +123,7 @@ impl Session {
                     commanded_deg,
                 },
                 Event::Position { deg },
-            ) => {
-                let off_deg = (deg - commanded_deg).abs();
-                if off_deg.is_nan() || off_deg > REMOUNT_TOLERANCE_DEG {
-                    return self.end(Outcome::InstrumentError(format!(
-                        "{TABLE}: after the remount of {mounting} it reports {deg}°, not \
-                         {commanded_deg}° where the polygon was to be mounted: the table was \
-                         moved while the polygon was remounted; mount it again with the table \
-                         at {commanded_deg}°"
-                    )));
-                }
-                Step::Remount(RemountStep::Probe {
-                    stop,
-                    commanded_deg,
-                    reported_deg: deg,
-                    ac: 1,
-                })
-            }
+            ) => self.table_after_remount(stop, commanded_deg, deg),
             (
                 RemountStep::Probing {
                     stop,
@@ -171,9 +138,6 @@ impl Session {
                 reported_deg,
                 ac: ac + 1,
             }),
-            // Every autocollimator must see a face: a polygon mounted off the faces'
-            // directions leaves them without light (whole faces off: the first stop's
-            // check).
             (
                 RemountStep::Probing {
                     stop,
@@ -182,18 +146,78 @@ impl Session {
                     ..
                 },
                 Event::Failed(e),
-            ) => {
-                if e.is_interrupted() {
-                    return self.end(Outcome::Interrupted);
-                }
-                let face = mounting.face(&self.settings, ac, stop.step);
-                self.end(Outcome::InstrumentError(format!(
-                    "{} sees no face after the remount of {mounting} ({e}): mount the polygon \
-                     with face {face} facing it, the table at {commanded_deg}°",
-                    role(ac)
-                )))
-            }
+            ) => self.no_face_seen(stop, commanded_deg, ac, &e),
             (other, _) => Step::Remount(other),
         }
+    }
+
+    /// The table at the mounting's first stop, reporting `at_deg` degrees: the operator
+    /// is asked to remount the polygon there, each autocollimator facing the face the
+    /// mounting puts before it at `stop`.
+    fn ask_remount(&mut self, stop: Stop, commanded_deg: f64, at_deg: f64) -> Step {
+        let mounting = self.mounting;
+        let settings = &self.settings;
+        let remount = Remount {
+            mounting,
+            table_deg: at_deg,
+            faces: settings
+                .acs()
+                .map(|ac| (ac, mounting.face(settings, ac, stop.step)))
+                .collect(),
+        };
+        self.ask(
+            Action::Remount(remount),
+            Step::Remount(RemountStep::Asking {
+                stop,
+                commanded_deg,
+            }),
+        )
+    }
+
+    /// The table's position `deg` after the remount against `commanded_deg`, where the
+    /// polygon was to be mounted: more than [`REMOUNT_TOLERANCE_DEG`] apart (or no
+    /// number), the table was moved while the polygon was remounted and the session
+    /// ends; otherwise autocollimator 1 is read first to see a face.
+    fn table_after_remount(&mut self, stop: Stop, commanded_deg: f64, deg: f64) -> Step {
+        let mounting = self.mounting;
+        let off_deg = (deg - commanded_deg).abs();
+        if off_deg.is_nan() || off_deg > REMOUNT_TOLERANCE_DEG {
+            return self.end(Outcome::InstrumentError(format!(
+                "{TABLE}: after the remount of {mounting} it reports {deg}°, not \
+                 {commanded_deg}° where the polygon was to be mounted: the table was \
+                 moved while the polygon was remounted; mount it again with the table \
+                 at {commanded_deg}°"
+            )));
+        }
+        Step::Remount(RemountStep::Probe {
+            stop,
+            commanded_deg,
+            reported_deg: deg,
+            ac: 1,
+        })
+    }
+
+    /// Autocollimator `ac` failed to read after the remount (`e`): every autocollimator
+    /// must see a face, and a polygon mounted off the faces' directions leaves them
+    /// without light (whole faces off: the first stop's check). The session ends,
+    /// interrupted or naming the face to mount before `ac`, the table at
+    /// `commanded_deg` degrees.
+    fn no_face_seen(
+        &mut self,
+        stop: Stop,
+        commanded_deg: f64,
+        ac: u32,
+        e: &InstrumentError,
+    ) -> Step {
+        if e.is_interrupted() {
+            return self.end(Outcome::Interrupted);
+        }
+        let mounting = self.mounting;
+        let face = mounting.face(&self.settings, ac, stop.step);
+        self.end(Outcome::InstrumentError(format!(
+            "{} sees no face after the remount of {mounting} ({e}): mount the polygon \
+             with face {face} facing it, the table at {commanded_deg}°",
+            role(ac)
+        )))
     }
 }
