@@ -373,6 +373,7 @@ impl PySession {
             return Err(refusal(format!("the session has ended: {outcome}")));
         }
         let names: Vec<String> = self.names.autocollimators.clone();
+        let table_name = self.names.table.clone();
         let log = self.log.clone();
         let run = self.run()?;
         let k = run.manifest().settings.autocollimators();
@@ -398,7 +399,7 @@ impl PySession {
             Ok(mut so_far) => {
                 // Messages and the log name the ports given now.
                 so_far.ac_names = names;
-                so_far.table_name = self.names.table.clone();
+                so_far.table_name = table_name;
                 let now = run.clock().now();
                 self.session = Some(Session::new(so_far, now));
             }
