@@ -3,18 +3,19 @@
 //! command beside it prints (issue 36: "every table in the README comes from a command
 //! shown beside it, run in CI").
 //!
-//! - Every ```sh block of `README.md` and of each guide in `docs/` is run, in order, one
-//!   document at a time, in a copy of the repository's tracked files (`git ls-files`,
-//!   as they are in the working tree) made a git repository of its own, from its root as
-//!   the README says, with `cargo run --release --` and `target/release/polycal` standing
-//!   for the built binary. After each document `git status --porcelain` must be empty
-//!   (issue 48: following the README left about 25 untracked files in the repository's
-//!   root): what the commands write goes under `out/`, which git ignores. The copy is
-//!   then cleaned, so that each guide's commands run as a reader who starts there runs
-//!   them. `cargo build`/`cargo test` lines are left out (this test is run by
-//!   them), and so are blocks preceded by a `<!-- tests/sweeps/readme.rs skips … -->`
-//!   line (the two-terminal instructions, whose device paths differ on every machine; the
-//!   same run is shown as one script, which is run).
+//! - Every ```sh block of `README.md` and of each guide in `docs/` is run, in order, each
+//!   document in a copy of the repository's tracked files (`git ls-files`, as they are in
+//!   the working tree) made a git repository of its own, from its root as the README
+//!   says, with `cargo run --release --` and `target/release/polycal` standing for the
+//!   built binary. After each document `git status --porcelain` must be empty (issue 48:
+//!   following the README left about 25 untracked files in the repository's root): what
+//!   the commands write goes under `out/`, which git ignores. The copy is then cleaned,
+//!   so that each guide's commands run as a reader who starts there runs them. The
+//!   documents run at once in a few copies, each copy's one after another.
+//!   `cargo build`/`cargo test` lines are left out (this test is run by them), and so
+//!   are blocks preceded by a `<!-- tests/sweeps/readme.rs skips … -->` line (the
+//!   two-terminal instructions, whose device paths differ on every machine; the same run
+//!   is shown as one script, which is run).
 //! - A ```sh block followed by a `<!-- output of the block above -->` line and then a
 //!   ```text block shows its output: the block's standard output must be that text (line
 //!   by line, trailing spaces aside), so that a figure that drifts fails here.
@@ -263,20 +264,58 @@ fn run_blocks(document: &Path, blocks: &[Block], dir: &Path) {
     }
 }
 
+/// How many copies of the repository the documents' blocks run in at once.
+const WORKERS: usize = 3;
+
 #[test]
 fn the_shell_blocks_run_as_written_and_print_what_is_shown() {
-    let mut total = 0;
     let mut shown = 0;
-    let copy = repository_copy("readme");
-    for document in documents() {
+    // those with a block to run, the ones that start a simulated lab first: their blocks
+    // wait on it (docs/instruments.md most of this test's time) rather than compute
+    let mut documents = Vec::new();
+    for document in self::documents() {
         let text = std::fs::read_to_string(Path::new(ROOT).join(&document)).expect("readable");
-        shown += runnable_blocks(&text)
+        let blocks = runnable_blocks(&text);
+        shown += blocks.iter().filter(|b| b.output.is_some()).count();
+        let lab = blocks
             .iter()
-            .filter(|b| b.output.is_some())
-            .count();
-        total += run_document(&document, &copy);
+            .any(|b| b.body.iter().any(|l| l.contains("sim-lab")));
+        if !blocks.is_empty() {
+            documents.push((!lab, document));
+        }
     }
-    let _ = std::fs::remove_dir_all(&copy);
+    documents.sort_by_key(|(computes, _)| *computes); // stable: otherwise in order
+    // The documents at once, on a few workers, each with a repository copy of its own in
+    // which it runs one document after another (their blocks in order), the copy cleaned
+    // between them (run_document): each as a reader who starts there runs them. A
+    // failure's message names its document; the first worker's in order is the test's.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let workers: Vec<std::thread::Result<usize>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..WORKERS.min(documents.len()))
+            .map(|worker| {
+                let (documents, next) = (&documents, &next);
+                scope.spawn(move || {
+                    let copy = repository_copy(&format!("readme-{worker}"));
+                    let mut count = 0;
+                    while let Some((_, document)) =
+                        documents.get(next.fetch_add(1, std::sync::atomic::Ordering::Relaxed))
+                    {
+                        count += run_document(document, &copy);
+                    }
+                    let _ = std::fs::remove_dir_all(&copy);
+                    count
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join()).collect()
+    });
+    let mut total = 0;
+    for worker in workers {
+        match worker {
+            Ok(count) => total += count,
+            Err(failure) => std::panic::resume_unwind(failure),
+        }
+    }
     assert!(
         total >= 5,
         "expected the set-up, diagnose, uncertainty, command and lab blocks, found {total}"
