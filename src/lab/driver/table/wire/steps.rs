@@ -258,13 +258,21 @@ impl Wire for TableWire {
                 Asking::Doubtful(r, _) => r.tell(now_seconds, event),
             };
             if told.is_ok() {
-                self.now_seconds = now_seconds;
+                self.now_seconds = self.now_seconds.max(now_seconds);
             }
             return told;
         }
         check(self.asked.as_ref(), now_seconds, &event)?;
-        self.asked = None;
-        self.now_seconds = now_seconds;
+        // The clock told never goes back, and a wait or a read that timed out took at
+        // least its time: a driver whose clock stands still (or a Python driver that
+        // passes the same `now`) still reaches the motion's and the home search's
+        // time-outs instead of polling for ever.
+        let took = match (self.asked.take(), &event) {
+            (Some(WireAction::Wait(d)), _) => d.as_secs_f64(),
+            (Some(WireAction::ReadLine(t)), WireEvent::Line(None)) => t.as_secs_f64(),
+            _ => 0.0,
+        };
+        self.now_seconds = now_seconds.max(self.now_seconds + took);
         self.step_told(event);
         Ok(())
     }
