@@ -61,10 +61,11 @@ impl PyRows {
     }
 }
 
-/// Reads a result file (docs/FORMAT.md §3).
+/// Reads a result file (docs/FORMAT.md §3), or a DCC certificate by its content (§13.3);
+/// a file larger than polycal reads from one input is refused before it is read.
 #[pyfunction]
 pub(crate) fn read_results(py: Python<'_>, path: &str) -> PyResult<PyRows> {
-    let bytes = std::fs::read(path).map_err(|e| {
+    let (bytes, _) = polycal::input::read_bytes(std::path::Path::new(path)).map_err(|(_, e)| {
         if crate::is_not_found(&e) {
             return crate::file_not_found(py, path, &e);
         }

@@ -25,9 +25,10 @@ Examples:
 /// Arguments of `polycal compare`.
 #[derive(clap::Args)]
 pub struct CompareArgs {
-    /// First result file (docs/FORMAT.md §3); `-` reads standard input.
+    /// First result file (docs/FORMAT.md §3), or a DCC written by `report --dcc` (read by
+    /// its content, §13.3); `-` reads standard input.
     a: PathBuf,
-    /// Second result file.
+    /// Second result file or DCC.
     b: PathBuf,
     /// Correlation coefficient r between the two results (shared inputs), −1 … 1.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]

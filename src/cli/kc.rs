@@ -58,8 +58,9 @@ struct NotNamed {
 #[derive(clap::Args)]
 pub struct KcArgs {
     /// The laboratories' results, NAME=RESULT.csv each (docs/FORMAT.md §3: U and k, or u,
-    /// on every row of the quantity), or NAME=SOLVE.json (`solve --format json
-    /// [--covariance]`, whose covariance the closed vector then uses); at least 2.
+    /// on every row of the quantity), NAME=CERT.xml (a DCC, read by its content, §13.3),
+    /// or NAME=SOLVE.json (`solve --format json [--covariance]`, whose covariance the
+    /// closed vector then uses); at least 2.
     #[arg(value_name = "NAME=RESULT.csv", required = true, value_parser = named)]
     labs: Vec<Named>,
     /// The pilot's repeated result of the artefact (start, middle, end of the

@@ -63,8 +63,8 @@ pub struct ReportArgs {
     /// Truth file of simulated data: the diagnosis's error before and after.
     #[arg(long, value_name = "TRUTH.json", requires = "diagnose")]
     truth: Option<PathBuf>,
-    /// Reference result (docs/FORMAT.md §3) to compare with by En; status 1 when some
-    /// |En| > 1.
+    /// Reference result (docs/FORMAT.md §3), or a DCC (§13.3), to compare with by En;
+    /// status 1 when some |En| > 1.
     #[arg(long, value_name = "REF.csv")]
     reference: Option<PathBuf>,
     /// Key comparison to report: the JSON of `polycal kc --format json` (docs/FORMAT.md

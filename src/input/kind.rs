@@ -22,6 +22,9 @@ pub enum FileKind {
     Budget,
     /// A JSON document (a solve result, a truth file).
     Json,
+    /// XML: a Digital Calibration Certificate (docs/FORMAT.md §10.3), read wherever a
+    /// result file is (§13.3).
+    Certificate,
 }
 
 impl FileKind {
@@ -33,7 +36,7 @@ impl FileKind {
             FileKind::Measurement => &["cycle", "step", "ac", "face", "reading"],
             FileKind::SelfCalibration => &["cycle", "step", "head", "head_angle", "reading"],
             FileKind::Result => &["quantity", "index", "value"],
-            FileKind::Budget | FileKind::Json => &[],
+            FileKind::Budget | FileKind::Json | FileKind::Certificate => &[],
         }
     }
 
@@ -45,6 +48,7 @@ impl FileKind {
             FileKind::Result => "a result file",
             FileKind::Budget => "a budget",
             FileKind::Json => "a JSON document",
+            FileKind::Certificate => "a Digital Calibration Certificate",
         }
     }
 
@@ -66,6 +70,10 @@ impl FileKind {
             }
             FileKind::Budget => "a budget (TOML, docs/FORMAT.md §5.3)",
             FileKind::Json => "a JSON document",
+            FileKind::Certificate => {
+                "a Digital Calibration Certificate (XML, docs/FORMAT.md §10.3; read where a \
+                 result file is, §13.3)"
+            }
         }
     }
 }
@@ -99,6 +107,7 @@ fn first_line(text: &str) -> Option<(usize, &str)> {
 /// assert_eq!(recognize("# run 7\ncycle,step,ac,face,reading\n1,0,1,1,0.5\n"), Some(FileKind::Measurement));
 /// assert_eq!(recognize("p = 0.95\n[[component]]\n"), Some(FileKind::Budget));
 /// assert_eq!(recognize("quantity,index,value,U\n"), Some(FileKind::Result));
+/// assert_eq!(recognize("<?xml version=\"1.0\"?>\n<dcc:digitalCalibrationCertificate/>"), Some(FileKind::Certificate));
 /// assert_eq!(recognize("a,b\n1,2\n"), None);
 /// ```
 pub fn recognize(text: &str) -> Option<FileKind> {
@@ -106,6 +115,9 @@ pub fn recognize(text: &str) -> Option<FileKind> {
     let line = line.trim();
     if line.starts_with('{') {
         return Some(FileKind::Json);
+    }
+    if line.starts_with('<') {
+        return Some(FileKind::Certificate);
     }
     if line.starts_with('[') || is_toml_key(line) {
         return Some(FileKind::Budget);

@@ -34,6 +34,7 @@ use crate::input::limits;
 use serde::{Deserialize, Serialize};
 
 mod angle;
+pub mod certificate;
 mod read;
 
 pub(crate) use angle::{AngleCheck, AngleProblem};
@@ -252,7 +253,9 @@ pub fn read_result_file(path: impl AsRef<Path>) -> Result<ResultFile, FileError>
 ///
 /// The whole input is read, then read through the crate's one table reader in one pass
 /// (docs/FORMAT.md §3.2); the first problem found is returned as one
-/// [`FileError::Invalid`].
+/// [`FileError::Invalid`]. A Digital Calibration Certificate (XML, told by its content)
+/// is read too: its results as rows ([`certificate::read_certificate`], docs/FORMAT.md
+/// §13.3).
 ///
 /// # Errors
 ///
@@ -262,6 +265,9 @@ pub fn read_results_from<R: Read>(reader: R, source: &str) -> Result<ResultFile,
         file: source.to_string(),
         source: e,
     })?;
+    if certificate::looks_like_xml(&bytes) {
+        return certificate::read_certificate(&bytes, source).map(|c| c.results);
+    }
     read::parse_bytes(&bytes, source)
 }
 

@@ -49,6 +49,8 @@ mod calibration_uncertainty_propagation;
 #[cfg(feature = "cli")]
 mod certificate_dcc;
 #[cfg(feature = "cli")]
+mod certificate_read_back;
+#[cfg(feature = "cli")]
 mod cli_budget;
 #[cfg(feature = "cli")]
 mod cli_compare;

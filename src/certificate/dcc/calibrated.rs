@@ -7,6 +7,8 @@ use super::xml::{self, Xml};
 use crate::certificate::rounding::{round_coverage_factor, round_result};
 use crate::output::SolveReport;
 use crate::output::selfcal::SelfcalReport;
+use crate::results::Quantity;
+use crate::results::certificate::{FACE_NUMBER_REF_TYPE, TABLE_ANGLE_REF_TYPE, quantity_ref_type};
 
 /// Whose results: the evaluation's (the HTML report's results section) or the
 /// diagnosis's final model (its section's final tables).
@@ -204,6 +206,17 @@ pub(super) fn real_quantity(
     Ok(())
 }
 
+/// The `refType` of a quantity's values: `basic_measurementError` and polycal's name of
+/// the quantity, the one a certificate is read back by (`results::certificate`).
+fn measured(quantity: Quantity) -> String {
+    format!("basic_measurementError {}", quantity_ref_type(quantity))
+}
+
+/// The `refType` of the table angles beside encoder errors.
+fn table_angle() -> String {
+    format!("basic_nominalValue {TABLE_ANGLE_REF_TYPE}")
+}
+
 /// Index labels `prefix1 prefix2 …` from the numbers given.
 fn labels(prefix: &str, numbers: impl Iterator<Item = usize>) -> Vec<String> {
     numbers.map(|n| format!("{prefix}{n}")).collect()
@@ -255,7 +268,7 @@ pub(super) fn polygon_results(
         "β[k] is the deviation of the angle between faces k−1 and k (face 0 is face N) from 360°/N, arcseconds; Σβ = 0 (the reference's eq. (1)). One value per face, with its expanded uncertainty U, coverage factor k and coverage probability.",
         &[
             Column {
-                refs: "polycal_faceNumber",
+                refs: FACE_NUMBER_REF_TYPE,
                 name: "Face",
                 unit: "\\one",
                 labels: None,
@@ -264,7 +277,7 @@ pub(super) fn polygon_results(
                 form: Form::Whole,
             },
             Column {
-                refs: "basic_measurementError polycal_pitchDeviation",
+                refs: &measured(Quantity::PitchDeviation),
                 name: "Pitch deviation β",
                 unit: "\\arcsecond",
                 labels: Some(labels("beta", 1..=n)),
@@ -284,7 +297,7 @@ pub(super) fn polygon_results(
         "φ[f] = β[1] + … + β[f] is the deviation of face f's angle from f·360°/N, arcseconds, with face N the reference (φ[N] = 0 by definition, not listed).",
         &[
             Column {
-                refs: "polycal_faceNumber",
+                refs: FACE_NUMBER_REF_TYPE,
                 name: "Face",
                 unit: "\\one",
                 labels: None,
@@ -293,7 +306,7 @@ pub(super) fn polygon_results(
                 form: Form::Whole,
             },
             Column {
-                refs: "basic_measurementError polycal_faceDeviation",
+                refs: &measured(Quantity::FaceDeviation),
                 name: "Face deviation φ",
                 unit: "\\arcsecond",
                 labels: Some(labels("phi", 1..=m)),
@@ -321,7 +334,7 @@ pub(super) fn polygon_results(
         "α[p] is the error of the encoder at step p, the table at p·360°/N, arcseconds; Σα = 0 (the reference's eq. (3)).",
         &[
             Column {
-                refs: "basic_nominalValue polycal_tableAngle",
+                refs: &table_angle(),
                 name: "Table angle",
                 unit: "\\degree",
                 labels: None,
@@ -330,7 +343,7 @@ pub(super) fn polygon_results(
                 form: Form::Real,
             },
             Column {
-                refs: "basic_measurementError polycal_encoderError",
+                refs: &measured(Quantity::EncoderError),
                 name: "Encoder error α",
                 unit: "\\arcsecond",
                 labels: Some(labels("alpha", 0..solve.encoder_error.len())),
@@ -389,7 +402,7 @@ pub(super) fn selfcal_results(
         &description,
         &[
             Column {
-                refs: "basic_nominalValue polycal_tableAngle",
+                refs: &table_angle(),
                 name: "Table angle",
                 unit: "\\degree",
                 labels: None,
@@ -398,7 +411,7 @@ pub(super) fn selfcal_results(
                 form: Form::Real,
             },
             Column {
-                refs: "basic_measurementError polycal_encoderError",
+                refs: &measured(Quantity::EncoderError),
                 name: "Encoder error e",
                 unit: "\\arcsecond",
                 labels: Some(labels("e", 0..r.encoder_error.len())),

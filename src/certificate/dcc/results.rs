@@ -312,7 +312,7 @@ fn setup_errors(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError>
     x.open("dcc:data", &[]);
     x.open("dcc:list", &[]);
     Column {
-        refs: "polycal_setupError",
+        refs: crate::results::certificate::quantity_ref_type(crate::results::Quantity::SetupError),
         name: "Setup error",
         unit: "\\arcsecond",
         labels: Some(
