@@ -207,12 +207,33 @@ impl<'a, 'input> Reader<'a, 'input> {
         let start = text_node.map_or(node.range().start, |t| t.range().start);
         let mut values = Vec::new();
         let mut places = Vec::new();
-        let mut offset = 0;
-        for word in raw.split_ascii_whitespace() {
-            let at = raw[offset..].find(word).map_or(offset, |p| offset + p);
-            offset = at + word.len();
-            let pos = self.doc.text_pos_at(start + at);
-            let place = (u64::from(pos.row), u64::from(pos.col));
+        // line and column counted along the text once (the parser's own lookup counts
+        // from the document's start: a long list would take quadratic time)
+        let first = self.doc.text_pos_at(start);
+        let (mut line, mut column) = (u64::from(first.row), u64::from(first.col));
+        let mut chars = raw.char_indices().peekable();
+        while let Some(&(at, c)) = chars.peek() {
+            if c.is_ascii_whitespace() {
+                if c == '\n' {
+                    line += 1;
+                    column = 1;
+                } else {
+                    column += 1;
+                }
+                chars.next();
+                continue;
+            }
+            let place = (line, column);
+            let mut end = at;
+            while let Some(&(i, c)) = chars.peek() {
+                if c.is_ascii_whitespace() {
+                    break;
+                }
+                end = i + c.len_utf8();
+                column += 1;
+                chars.next();
+            }
+            let word = &raw[at..end];
             let refuse = |message: String| {
                 FileError::invalid(self.source, place, format!("{}: {message}", path(node)))
             };
