@@ -218,7 +218,9 @@ def measurement_set_from_columns(
 def read_budget(
     path: Optional[str] = None, text: Optional[str] = None, name: str = "<budget>"
 ) -> Budget: ...
-def read_results(path: str) -> ResultRows: ...
+def read_results(path: str) -> ResultRows:
+    """A result file (docs/FORMAT.md §3) or a DCC certificate (§13.3), by its content."""
+    ...
 def solve(
     ms: MeasurementSet,
     method: str = "auto",
