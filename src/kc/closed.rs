@@ -280,7 +280,7 @@ pub(crate) fn closed_pseudo_inverse_blocks(
     blocks: usize,
 ) -> Option<DMatrix<f64>> {
     let size = a.nrows();
-    if blocks == 0 || size % blocks != 0 || a.ncols() != size {
+    if blocks == 0 || !size.is_multiple_of(blocks) || a.ncols() != size {
         return None;
     }
     let faces = size / blocks;

@@ -171,7 +171,7 @@ fn history_table_and_plot() {
     assert_eq!(
         table
             .lines()
-            .filter(|l| l.trim_start().split_whitespace().count() == 6
+            .filter(|l| l.split_whitespace().count() == 6
                 && l.trim_start().starts_with(char::is_numeric))
             .count(),
         24,

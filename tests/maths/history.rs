@@ -5,6 +5,9 @@
 //! test's rates, and the prediction one year ahead within 2u of the truth
 //! (docs/verdicts.md).
 
+// Hand derivations index faces and calibrations as the formulas do.
+#![allow(clippy::needless_range_loop)]
+
 use polycal::history::{Calibration, DriftModel, History, HistoryOptions, evaluate};
 use polycal::results::{Quantity, ResultFile, ResultRow};
 use rand::SeedableRng;
