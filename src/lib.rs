@@ -47,6 +47,7 @@ pub mod compare;
 pub mod diagnose;
 pub mod effects;
 pub mod figure;
+pub mod history;
 pub mod input;
 pub mod kc;
 #[cfg(feature = "lab")]

@@ -48,6 +48,7 @@ from ._polycal import (
 from ._results import (
     Comparison,
     DiagnoseResult,
+    History,
     KeyComparison,
     Result,
     Section,
@@ -74,6 +75,7 @@ __all__ = [
     "SelfcalResult",
     "Comparison",
     "KeyComparison",
+    "History",
     "read_measurements",
     "read_selfcal",
     "read_results",
@@ -83,6 +85,7 @@ __all__ = [
     "selfcal",
     "compare",
     "kc",
+    "history",
     "simulate",
     "simulate_selfcal",
     "Session",
@@ -310,6 +313,29 @@ def kc(
             quantity=str(quantity),
             method=str(method),
             keep=[str(name) for name in keep],
+        )
+    )
+
+
+def history(
+    calibrations: Sequence[Tuple[Union[SolveResult, _Rows, PathOrText], str]],
+    at: Optional[str] = None,
+    quantity: str = "pitch_deviation",
+    max_u: Optional[float] = None,
+) -> History:
+    """Evaluates a standard's history as ``polycal history`` does (docs/FORMAT.md §14):
+    ``calibrations`` are (result, date) pairs, each result a :class:`SolveResult` with a
+    budget, rows or a result file, each date a day ``YYYY-MM-DD``. Returns per position
+    the ``drift`` per year with ``drift_u``, the one decision in ``model`` (``constant``
+    or ``linear``, by the test of the whole drift vector in ``vector``), the chosen
+    model's ``fit``, and the value ``predicted`` at ``at`` (default today, UTC) with
+    ``predicted_u`` (U = 2u); with ``max_u`` (U, arcsec) the date it is reached."""
+    return History(
+        _polycal.history(
+            [(_rows_of(result), str(date)) for result, date in calibrations],
+            at=None if at is None else str(at),
+            quantity=str(quantity),
+            max_u=None if max_u is None else float(max_u),
         )
     )
 

@@ -242,6 +242,12 @@ def kc(
     quantity: str = "pitch_deviation",
     method: str = "weighted-mean",
 ) -> str: ...
+def history(
+    calibrations: Sequence[Tuple[ResultRows, str]],
+    at: Optional[str] = None,
+    quantity: str = "pitch_deviation",
+    max_u: Optional[float] = None,
+) -> str: ...
 def simulate(
     faces: int = 24,
     ac_faces: Sequence[int] = ...,

@@ -666,6 +666,29 @@ class KeyComparison(Result):
     notes: List[str]
 
 
+class History(Result):
+    """The result of :func:`history`, the JSON object of ``polycal history --format
+    json`` (docs/FORMAT.md §14)."""
+
+    _main = ("quantity", "model", "drift", "predicted", "at")
+
+    version: str
+    quantity: str
+    index: _np.ndarray
+    files: List[str]
+    dates: List[str]
+    model: str
+    drift: _np.ndarray
+    drift_u: _np.ndarray
+    at: str
+    predicted: _np.ndarray
+    predicted_u: _np.ndarray
+    k: float
+    vector: Section
+    fit: Optional[Section]
+    notes: List[str]
+
+
 class _Rows:
     def __init__(self, inner: Any) -> None:
         self._inner = inner

@@ -536,3 +536,51 @@ pub(crate) fn _restore_solve_result(state: SolveState) -> PyResult<PySolveResult
         positions,
     })
 }
+
+/// Evaluates a standard's history as `polycal history` does (docs/FORMAT.md §14);
+/// returns its JSON object. `calibrations` are (rows, date) pairs, each date a day
+/// `YYYY-MM-DD`; `at` defaults to today (UTC).
+#[pyfunction]
+#[pyo3(signature = (calibrations, at=None, quantity="pitch_deviation", max_u=None))]
+pub(crate) fn history(
+    py: Python<'_>,
+    calibrations: Vec<(PyRef<'_, PyRows>, String)>,
+    at: Option<&str>,
+    quantity: &str,
+    max_u: Option<f64>,
+) -> PyResult<String> {
+    use polycal::history::{Calibration, HistoryOptions};
+    let quantity = polycal::results::Quantity::from_name(quantity)
+        .ok_or_else(|| PyValueError::new_err(format!("unknown quantity {quantity:?}")))?;
+    let at = at.map_or_else(polycal::clock::today, str::to_string);
+    let mut options = HistoryOptions::new(&at)
+        .map_err(|e| PyValueError::new_err(e.to_string()))?
+        .with_quantity(quantity);
+    if let Some(max_u) = max_u {
+        if !(max_u > 0.0 && max_u.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "max_u = {max_u}: a positive number of arcseconds"
+            )));
+        }
+        options = options.with_max_expanded_u(max_u);
+    }
+    let calibrations = calibrations
+        .iter()
+        .map(|(rows, date)| {
+            let file = rows
+                .file
+                .clone()
+                .unwrap_or_else(|| polycal::results::ResultFile {
+                    source: rows.label.clone(),
+                    rows: rows.rows.clone(),
+                    lines: Vec::new(),
+                    columns: Vec::new(),
+                });
+            Calibration::new(date, file).map_err(|e| PyValueError::new_err(e.to_string()))
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let history = py
+        .detach(|| polycal::history::evaluate(&calibrations, &options))
+        .map_err(refusal)?;
+    to_json(&history)
+}

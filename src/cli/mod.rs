@@ -7,6 +7,7 @@ mod compare;
 mod diagnose;
 mod docs;
 mod files;
+mod history;
 #[cfg(feature = "lab")]
 mod interrupt;
 mod kc;
@@ -114,6 +115,11 @@ pub enum Command {
     /// (docs/FORMAT.md §12); status 1 when not consistent after the stated exclusions.
     #[command(after_help = kc::EXAMPLES)]
     Kc(kc::KcArgs),
+    /// Follow one standard's calibrations over time: per face or position the drift per
+    /// year with its u, one test of the whole drift vector at 5 % (constant or linear),
+    /// the value predicted at a date with its u, control charts (docs/FORMAT.md §14).
+    #[command(after_help = history::EXAMPLES)]
+    History(history::HistoryArgs),
     /// Self-calibrate a rotary encoder with several read heads (SelfA): the disc's
     /// graduation error and the heads' errors (docs/FORMAT.md §9).
     #[command(after_help = selfcal::EXAMPLES)]
@@ -312,6 +318,7 @@ pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
         Command::Budget(args) => budget::run(&args),
         Command::Compare(args) => compare::run(&args),
         Command::Kc(args) => kc::run(&args),
+        Command::History(args) => history::run(&args),
         Command::Selfcal(args) => selfcal::run(&args, out),
         Command::Plan(args) => plan::run(&args, out),
         Command::Report(args) => report::run(&args, out),

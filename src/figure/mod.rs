@@ -12,6 +12,7 @@ mod budget;
 mod chart;
 mod compare;
 mod diagnose;
+mod history;
 mod kc;
 mod plan;
 mod selfcal;
@@ -136,6 +137,14 @@ pub fn kc_figures(kc: &crate::kc::KeyComparison) -> Vec<Figure> {
     kc::figures(kc)
 }
 
+/// The figures of `polycal history`: one document of control charts, one small chart
+/// per position (three to a row): every calibration's value with its U bar against its
+/// date, the chosen model's line with its band ±U up to the prediction's date, and the
+/// prediction with its U (docs/FORMAT.md §14).
+pub fn history_figures(history: &crate::history::History) -> Vec<Figure> {
+    history::figures(history)
+}
+
 /// The figures of `polycal plan`: the predicted u(α) against the table angle and u(β)
 /// against the face's angle, one series per design (designs that cannot calibrate are
 /// left out, and the figure says how many).
@@ -177,6 +186,8 @@ pub enum FigureSet {
         /// `--pilot` is given.
         pilot: bool,
     },
+    /// `polycal history` ([`history_figures`]).
+    History,
 }
 
 /// The stem of the residual figures of a diagnosis, before the autocollimator's number.
@@ -233,6 +244,7 @@ impl FigureSet {
                 .chain(pilot.then_some(&kc::PILOT))
                 .map(|n| format!("{n}.svg"))
                 .collect(),
+            FigureSet::History => vec![format!("{}.svg", history::NAME)],
         }
     }
 

@@ -57,7 +57,7 @@ impl ClosedCovariance {
     }
 
     /// V⁺ as a dense matrix (the dense path).
-    fn dense_plus(&self) -> DMatrix<f64> {
+    pub(crate) fn dense_plus(&self) -> DMatrix<f64> {
         match self {
             ClosedCovariance::Stated(u) => {
                 let (w, s) = weights(u);
@@ -265,15 +265,43 @@ pub(crate) fn closing_projector(faces: usize) -> DMatrix<f64> {
 /// direction given an eigenvalue of A's own scale, inverted, and taken out again). `None`
 /// when A + β·J/N is not positive definite.
 pub(crate) fn closed_pseudo_inverse(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
-    let faces = a.nrows();
-    let n = faces as f64;
-    let beta = a.diagonal().iter().sum::<f64>() / n;
-    if !(beta > 0.0 && beta.is_finite()) {
+    closed_pseudo_inverse_blocks(a, 1)
+}
+
+/// [`closed_pseudo_inverse`] of a symmetric matrix of `blocks` × `blocks` blocks of
+/// N × N whose null space is exactly the vectors constant within one block and zero in
+/// the others (the normal matrix of several closed vectors fitted together, such as a
+/// standard's value and drift in `polycal history`): each such direction is given an
+/// eigenvalue β_b, the mean of its block's diagonal, the sum inverted, and the
+/// directions taken out again, A⁺ = (A + Σ_b β_b·E_b)⁻¹ − Σ_b E_b/β_b with E_b = J/N on
+/// block b. `None` when the sum is not positive definite or `a` is not square in blocks.
+pub(crate) fn closed_pseudo_inverse_blocks(
+    a: &DMatrix<f64>,
+    blocks: usize,
+) -> Option<DMatrix<f64>> {
+    let size = a.nrows();
+    if blocks == 0 || !size.is_multiple_of(blocks) || a.ncols() != size {
         return None;
     }
-    let j_over_n = DMatrix::from_element(faces, faces, 1.0 / n);
-    let inverse = (a + &j_over_n * beta).cholesky()?.inverse();
-    Some(inverse - j_over_n / beta)
+    let faces = size / blocks;
+    let n = faces as f64;
+    let mut added = a.clone();
+    let mut taken_out = DMatrix::zeros(size, size);
+    for b in 0..blocks {
+        let range = b * faces..(b + 1) * faces;
+        let beta = range.clone().map(|i| a[(i, i)]).sum::<f64>() / n;
+        if !(beta > 0.0 && beta.is_finite()) {
+            return None;
+        }
+        for i in range.clone() {
+            for j in range.clone() {
+                added[(i, j)] += beta / n;
+                taken_out[(i, j)] = 1.0 / (beta * n);
+            }
+        }
+    }
+    let inverse = added.cholesky()?.inverse();
+    Some(inverse - taken_out)
 }
 
 /// `x` closed: its mean taken out.

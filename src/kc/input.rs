@@ -138,15 +138,21 @@ fn rows_of(result: &LabResult, quantity: Quantity) -> Vec<(usize, &ResultRow)> {
 
 /// Lines up the pitch deviations: every result must have faces 1 … N, the same N.
 pub(crate) fn pitch(results: &[&LabResult]) -> Result<Aligned, KcError> {
+    faces(results, Quantity::PitchDeviation)
+}
+
+/// Lines up a quantity indexed by face (pitch or face deviations): every result must
+/// have faces 1 … N of it, the same N (`polycal history` lines up face deviations too).
+pub(crate) fn faces(results: &[&LabResult], quantity: Quantity) -> Result<Aligned, KcError> {
     let mut faces_first: Option<(u32, &str)> = None;
     let (mut values, mut u) = (Vec::new(), Vec::new());
     for result in results {
-        let rows = rows_of(result, Quantity::PitchDeviation);
+        let rows = rows_of(result, quantity);
         let Some(&(last_at, _)) = rows.iter().max_by_key(|(_, row)| row.index) else {
             return Err(KcError::NoRows {
                 lab: result.name.clone(),
                 file: result.source.clone(),
-                quantity: Quantity::PitchDeviation,
+                quantity,
             });
         };
         let faces = result.rows[last_at].index;

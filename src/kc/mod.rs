@@ -54,7 +54,7 @@
 pub(crate) mod closed;
 mod covariance;
 mod evaluate;
-mod input;
+pub(crate) mod input;
 mod reference;
 mod search;
 

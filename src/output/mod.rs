@@ -7,6 +7,7 @@
 //! - [`diagnose`]: the JSON object of `polycal diagnose`; [`diagnose_table`]: its table;
 //! - [`compare`]: the table of `polycal compare` (its JSON is [`crate::compare::Comparison`]);
 //! - [`kc`]: the table and the CSV of `polycal kc` (its JSON is [`crate::kc::KeyComparison`]);
+//! - [`history`]: the table of `polycal history` (its JSON is [`crate::history::History`]);
 //! - [`selfcal`]: the JSON object, the table and the result rows of `polycal selfcal`;
 //! - [`plan`]: the JSON object of one design of `polycal plan`, its table, and the table
 //!   comparing designs.
@@ -20,6 +21,7 @@ pub mod compare;
 pub mod diagnose;
 pub mod diagnose_selfcal;
 pub mod diagnose_table;
+pub mod history;
 pub mod kc;
 pub mod plan;
 pub mod selfcal;

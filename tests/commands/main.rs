@@ -91,6 +91,8 @@ mod hardening_not_utf8;
 #[cfg(feature = "cli")]
 mod hardening_numbers;
 #[cfg(feature = "cli")]
+mod history_cli;
+#[cfg(feature = "cli")]
 mod kc_cli;
 #[cfg(feature = "cli")]
 mod kc_labs_apart;

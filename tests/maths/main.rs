@@ -39,6 +39,7 @@ mod diagnose_selfcal_off_grid;
 mod diagnose_selfcal_within_cells;
 mod diagnose_shifted;
 mod engine;
+mod history;
 mod kc;
 mod kc_covariance;
 mod measurement_file_good;
