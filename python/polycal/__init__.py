@@ -323,7 +323,7 @@ def history(
     quantity: str = "pitch_deviation",
     max_u: Optional[float] = None,
 ) -> History:
-    """Evaluates a standard's history as ``polycal history`` does (docs/FORMAT.md §14):
+    """Evaluates a standard's history as ``polycal history`` does (docs/FORMAT.md §13.2):
     ``calibrations`` are (result, date) pairs, each result a :class:`SolveResult` with a
     budget, rows or a result file, each date a day ``YYYY-MM-DD``. Returns per position
     the ``drift`` per year with ``drift_u``, the one decision in ``model`` (``constant``

@@ -668,7 +668,7 @@ class KeyComparison(Result):
 
 class History(Result):
     """The result of :func:`history`, the JSON object of ``polycal history --format
-    json`` (docs/FORMAT.md §14)."""
+    json`` (docs/FORMAT.md §13.2)."""
 
     _main = ("quantity", "model", "drift", "predicted", "at")
 

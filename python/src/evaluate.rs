@@ -537,7 +537,7 @@ pub(crate) fn _restore_solve_result(state: SolveState) -> PyResult<PySolveResult
     })
 }
 
-/// Evaluates a standard's history as `polycal history` does (docs/FORMAT.md §14);
+/// Evaluates a standard's history as `polycal history` does (docs/FORMAT.md §13.2);
 /// returns its JSON object. `calibrations` are (rows, date) pairs, each date a day
 /// `YYYY-MM-DD`; `at` defaults to today (UTC).
 #[pyfunction]

@@ -1,4 +1,4 @@
-//! `polycal history`: the calibrations of one standard over time (docs/FORMAT.md §14).
+//! `polycal history`: the calibrations of one standard over time (docs/FORMAT.md §13.2).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -6,14 +6,14 @@ use std::path::{Path, PathBuf};
 use anyhow::{Result, bail};
 use clap::ValueEnum;
 use polycal::history::{Calibration, HistoryOptions, evaluate};
-use polycal::results::{Quantity, read_results_from};
+use polycal::results::{Quantity, certificate, read_results_from};
 
 use super::EXIT_OK;
 
 /// After `polycal history --help`.
 pub const EXAMPLES: &str = "\
 The contract (JSON names, the one test of the drift vector at 5 %, the prediction and its
-u): docs/FORMAT.md §14. Status 0 when the history is evaluated (the decision is in the
+u): docs/FORMAT.md §13.2. Status 0 when the history is evaluated (the decision is in the
 output, not the status), 2 an input refused. --at defaults to today (UTC), or to the day
 of SOURCE_DATE_EPOCH (seconds since 1970) when it is set.
 
@@ -24,22 +24,30 @@ Examples:
   polycal history examples/data/history/2019.csv@2019-03-12 examples/data/history/2024.csv@2024-03-05 \\
       --at 2025-03-01 --max-u 0.5 --format json";
 
-/// One `FILE@DATE` argument.
+/// One `FILE@DATE` argument (or a certificate's `FILE`, dated by itself).
 #[derive(Clone, Debug)]
 pub struct Dated {
     path: PathBuf,
-    date: String,
+    date: Option<String>,
     text: String,
 }
 
-/// Parses `FILE@DATE`, split at the last `@`, the date a day `YYYY-MM-DD`.
+/// Parses `FILE@DATE`, split at the last `@`, the date a day `YYYY-MM-DD`; a `FILE`
+/// without `@` is taken as a certificate that states its own date (checked when read).
 fn dated(text: &str) -> std::result::Result<Dated, NotDated> {
     let not = |why: &str| NotDated {
         text: text.to_string(),
         why: why.to_string(),
     };
     let Some((path, date)) = text.rsplit_once('@') else {
-        return Err(not("no @DATE"));
+        if text.is_empty() {
+            return Err(not("no file"));
+        }
+        return Ok(Dated {
+            path: PathBuf::from(text),
+            date: None,
+            text: text.to_string(),
+        });
     };
     if path.is_empty() {
         return Err(not("no file before @"));
@@ -51,7 +59,7 @@ fn dated(text: &str) -> std::result::Result<Dated, NotDated> {
     }
     Ok(Dated {
         path: PathBuf::from(path),
-        date: date.to_string(),
+        date: Some(date.to_string()),
         text: text.to_string(),
     })
 }
@@ -106,8 +114,9 @@ enum HistoryFormat {
 #[derive(clap::Args)]
 pub struct HistoryArgs {
     /// The standard's calibrations, FILE@DATE each: a result file (docs/FORMAT.md §3; u,
-    /// or U and k, on every row of the quantity) and the day it was calibrated,
-    /// YYYY-MM-DD; at least 2.
+    /// or U and k, on every row of the quantity) or a DCC (§13.3), and the day it was
+    /// calibrated, YYYY-MM-DD; a DCC without @DATE is dated by its endPerformanceDate;
+    /// at least 2.
     #[arg(value_name = "FILE@DATE", required = true, value_parser = dated)]
     calibrations: Vec<Dated>,
     /// The day of the prediction, YYYY-MM-DD (default: today, UTC; SOURCE_DATE_EPOCH's
@@ -138,12 +147,42 @@ pub fn today() -> Result<String> {
     })
 }
 
-/// One calibration read: its result file (a refusal names the file, line and column).
+/// One calibration read: its result file or certificate (a refusal names the file, line
+/// and column), dated by its `@DATE`, else by the certificate's `dcc:endPerformanceDate`.
 fn read(dated: &Dated) -> Result<Calibration> {
     let (bytes, source) = polycal::input::read_bytes(&dated.path)
         .map_err(|(file, source)| polycal::input::FileError::Io { file, source })?;
-    let file = read_results_from(&bytes[..], &source).map_err(super::wrong_file::results)?;
-    Calibration::new(&dated.date, file).map_err(|e| anyhow::anyhow!("{}: {e}", dated.text))
+    let (file, date) = match &dated.date {
+        Some(date) => (
+            read_results_from(&bytes[..], &source).map_err(super::wrong_file::results)?,
+            date.clone(),
+        ),
+        None if certificate::looks_like_xml(&bytes) => {
+            let read = certificate::read_certificate(&bytes, &source)?;
+            let stated = read
+                .end_performance_date
+                .clone()
+                .or_else(|| read.begin_performance_date.clone());
+            match stated {
+                Some(day) if polycal::clock::days_from_date(&day).is_some() => (read.results, day),
+                Some(day) => bail!(
+                    "{source}: the certificate's performance date {day:?} is not a day \
+                     YYYY-MM-DD; give the calibration as FILE@DATE"
+                ),
+                None => bail!(
+                    "{source}: the certificate states no performance date \
+                     (dcc:endPerformanceDate); give the calibration as FILE@DATE"
+                ),
+            }
+        }
+        None => bail!(
+            "{}: a result file carries no date: give the calibration as FILE@DATE, e.g. \
+             {}@2024-05-17 (a certificate is dated by its dcc:endPerformanceDate)",
+            dated.text,
+            dated.text
+        ),
+    };
+    Calibration::new(&date, file).map_err(|e| anyhow::anyhow!("{}: {e}", dated.text))
 }
 
 /// `polycal history`: returns the exit status, or an error for the `error:` line.

@@ -117,7 +117,7 @@ pub enum Command {
     Kc(kc::KcArgs),
     /// Follow one standard's calibrations over time: per face or position the drift per
     /// year with its u, one test of the whole drift vector at 5 % (constant or linear),
-    /// the value predicted at a date with its u, control charts (docs/FORMAT.md §14).
+    /// the value predicted at a date with its u, control charts (docs/FORMAT.md §13.2).
     #[command(after_help = history::EXAMPLES)]
     History(history::HistoryArgs),
     /// Self-calibrate a rotary encoder with several read heads (SelfA): the disc's

@@ -1,4 +1,4 @@
-//! The figure of `polycal history` (docs/FORMAT.md §14): a control chart per position in
+//! The figure of `polycal history` (docs/FORMAT.md §13.2): a control chart per position in
 //! one document, small charts three to a row, so that 24 faces read at a glance. Each
 //! chart: every calibration's value with its U bar (k = 2) against its date, the chosen
 //! model's line with its band ±U, from the oldest calibration to the prediction's date,

@@ -140,7 +140,7 @@ pub fn kc_figures(kc: &crate::kc::KeyComparison) -> Vec<Figure> {
 /// The figures of `polycal history`: one document of control charts, one small chart
 /// per position (three to a row): every calibration's value with its U bar against its
 /// date, the chosen model's line with its band ±U up to the prediction's date, and the
-/// prediction with its U (docs/FORMAT.md §14).
+/// prediction with its U (docs/FORMAT.md §13.2).
 pub fn history_figures(history: &crate::history::History) -> Vec<Figure> {
     history::figures(history)
 }

@@ -1,4 +1,4 @@
-//! A standard's history (docs/FORMAT.md §14, `polycal history`): the calibrations of one
+//! A standard's history (docs/FORMAT.md §13.2, `polycal history`): the calibrations of one
 //! polygon or encoder over the years, the drift model they support, the drift per year,
 //! and the value predicted at a date with its uncertainty, the extrapolation included.
 //!
@@ -207,7 +207,7 @@ pub struct FitTest {
     pub test: ChiSquareTest,
 }
 
-/// A standard's history evaluated. Serializes to the JSON of docs/FORMAT.md §14.
+/// A standard's history evaluated. Serializes to the JSON of docs/FORMAT.md §13.2.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct History {

@@ -490,3 +490,38 @@ fn broken_certificates_are_refused_at_the_element() {
     let e = refused(&dir, "none.xml", none.as_bytes());
     assert!(e.contains("states none of polycal's quantities"), "{e}");
 }
+
+#[test]
+fn history_dates_a_certificate_by_its_performance_date() {
+    let dir = temp_dir("history");
+    let (csv, xml) = result_and_certificate(&dir, "solve", DATA, BUDGET);
+    // the same evaluation a year before (examples/report/meta.toml: measured 2026-11-03)
+    let history = json(&[
+        "history",
+        &format!("{}@2025-11-03", text(&csv)),
+        text(&xml),
+        "--at",
+        "2027-01-01",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(
+        history["dates"],
+        serde_json::json!(["2025-11-03", "2026-11-03"]),
+        "{history}"
+    );
+    assert_eq!(history["model"], "constant", "{history}");
+    // the same values a year apart: no drift beyond the certificate's rounding per year
+    let halves = rounding_halves(&xml, "polycal_pitchDeviation");
+    for (drift, half) in history["drift"].as_array().unwrap().iter().zip(&halves) {
+        assert!(
+            drift.as_f64().unwrap().abs() <= half * 1.01,
+            "{drift} > {half}"
+        );
+    }
+    // a result file has no date of its own
+    let out = polycal(&["history", text(&csv), text(&xml)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("a result file carries no date"), "{stderr}");
+}

@@ -1,4 +1,4 @@
-//! `polycal history` on the command line (docs/FORMAT.md §14, §8): the bundled example's
+//! `polycal history` on the command line (docs/FORMAT.md §13.2, §8): the bundled example's
 //! JSON fields against numbers derived here, the table, `--plot`, `--max-u`, and each
 //! refusal as one `error:` line naming the argument or file:line:column with status 2.
 

@@ -1,4 +1,4 @@
-//! A standard's history (`polycal::history`, docs/FORMAT.md §14) against independent
+//! A standard's history (`polycal::history`, docs/FORMAT.md §13.2) against independent
 //! truth: a hand-derived case (the weighted straight line per face, written out here),
 //! and series drawn here with a seeded generator and a known drift — the drift test's
 //! false-alarm rate at its stated 5 %, its power against the noncentral χ² law, the fit
