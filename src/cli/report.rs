@@ -247,7 +247,7 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
 /// The report's date from `SOURCE_DATE_EPOCH` (seconds since the epoch, the
 /// reproducible-builds convention), so that the same inputs give the same bytes; `None`
 /// when it is not set.
-fn source_date() -> Result<Option<String>> {
+pub(super) fn source_date() -> Result<Option<String>> {
     match std::env::var("SOURCE_DATE_EPOCH") {
         Err(std::env::VarError::NotPresent) => Ok(None),
         Ok(text) => match text.trim().parse::<u64>() {
