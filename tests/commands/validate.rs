@@ -38,12 +38,27 @@ fn every_bundled_case_passes_and_the_record_names_its_files() {
     let record = json(&out);
     assert_eq!(record["version"], env!("CARGO_PKG_VERSION"));
     for key in ["commit", "compiler", "target", "profile"] {
-        assert!(record["build"][key].as_str().is_some_and(|s| !s.is_empty()), "{key}");
+        assert!(
+            record["build"][key].as_str().is_some_and(|s| !s.is_empty()),
+            "{key}"
+        );
     }
-    assert!(record["build"]["compiler"].as_str().unwrap().starts_with("rustc "));
-    assert!(record["build"]["features"].as_array().unwrap().contains(&"cli".into()));
+    assert!(
+        record["build"]["compiler"]
+            .as_str()
+            .unwrap()
+            .starts_with("rustc ")
+    );
+    assert!(
+        record["build"]["features"]
+            .as_array()
+            .unwrap()
+            .contains(&"cli".into())
+    );
     assert_eq!(record["platform"]["os"], std::env::consts::OS);
-    assert!(polycal::clock::is_date(&record["date"].as_str().unwrap()[..10]));
+    assert!(polycal::clock::is_date(
+        &record["date"].as_str().unwrap()[..10]
+    ));
     let cases = record["cases"].as_array().unwrap();
     let dirs = case_dirs();
     assert_eq!(cases.len(), dirs.len());
@@ -55,11 +70,17 @@ fn every_bundled_case_passes_and_the_record_names_its_files() {
         assert_eq!(case["name"], name);
         assert_eq!(case["pass"], true, "{case}");
         assert!(case["command"].as_str().unwrap().starts_with("polycal "));
-        let (d, t) = (case["deviation"].as_f64().unwrap(), case["tolerance"].as_f64().unwrap());
+        let (d, t) = (
+            case["deviation"].as_f64().unwrap(),
+            case["tolerance"].as_f64().unwrap(),
+        );
         assert!(d <= t && t > 0.0, "{name}: {d} > {t}");
         assert!(case["compared"].as_u64().unwrap() > 0, "{name}");
         evaluations.insert(case["evaluation"].as_str().unwrap().to_string());
-        let mut files: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+        let mut files: Vec<_> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
         files.sort();
         let listed = case["files"].as_array().unwrap();
         assert_eq!(listed.len(), files.len(), "{name}");
@@ -73,7 +94,10 @@ fn every_bundled_case_passes_and_the_record_names_its_files() {
         }
     }
     let expected = ["budget", "compare", "kc", "monte-carlo", "selfcal", "solve"];
-    assert_eq!(evaluations, expected.iter().map(|s| s.to_string()).collect());
+    assert_eq!(
+        evaluations,
+        expected.iter().map(|s| s.to_string()).collect()
+    );
 }
 
 /// Copies the bundled cases to `dir`.
@@ -131,7 +155,10 @@ fn a_corrupted_reference_fails_its_case_by_name() {
         .find(|c| c["name"] == "solve-3ac")
         .cloned()
         .unwrap();
-    assert_eq!(case["problem"], "no_such_field: missing from polycal's output");
+    assert_eq!(
+        case["problem"],
+        "no_such_field: missing from polycal's output"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -143,7 +170,13 @@ fn the_html_record_states_every_case() {
     let dir = temp_dir("validate-html");
     let html_path = dir.join("validation.html");
     let out = Command::new(env!("CARGO_BIN_EXE_polycal"))
-        .args(["validate", "--format", "json", "--out", html_path.to_str().unwrap()])
+        .args([
+            "validate",
+            "--format",
+            "json",
+            "--out",
+            html_path.to_str().unwrap(),
+        ])
         .env("SOURCE_DATE_EPOCH", "1700000000")
         .output()
         .unwrap();
@@ -174,15 +207,26 @@ fn cases_that_cannot_be_read_are_refused() {
     let out = polycal(&["validate", "--cases", dir.to_str().unwrap()]);
     assert_status(&out, 2);
     let stderr = String::from_utf8(out.stderr).unwrap();
-    assert!(stderr.starts_with("error: --cases: ") && stderr.contains("no case"), "{stderr}");
+    assert!(
+        stderr.starts_with("error: --cases: ") && stderr.contains("no case"),
+        "{stderr}"
+    );
     copy_cases(&dir);
     let toml = dir.join("solve-3ac").join("case.toml");
     let text = std::fs::read_to_string(&toml).unwrap();
-    std::fs::write(&toml, text.replace("tolerance = 1e-12", "tolerance = \"small\"")).unwrap();
+    std::fs::write(
+        &toml,
+        text.replace("tolerance = 1e-12", "tolerance = \"small\""),
+    )
+    .unwrap();
     let out = polycal(&["validate", "--cases", dir.to_str().unwrap()]);
     assert_status(&out, 2);
     let stderr = String::from_utf8(out.stderr).unwrap();
-    let line = text.lines().position(|l| l.starts_with("tolerance =")).unwrap() + 1;
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("tolerance ="))
+        .unwrap()
+        + 1;
     let at = format!("solve-3ac/case.toml:{line}:13: ");
     assert!(stderr.contains(&at), "{stderr}");
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
