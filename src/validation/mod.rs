@@ -34,8 +34,11 @@ pub use table::write_table;
 
 use crate::input::Location;
 
+/// A bundled file: its name and bytes.
+type BundledFile = (&'static str, &'static [u8]);
+
 /// The bundled cases, `(case, [(file, bytes)])`, written by the build script.
-const BUNDLED: &[(&str, &[(&str, &[u8])])] =
+const BUNDLED: &[(&str, &[BundledFile])] =
     include!(concat!(env!("OUT_DIR"), "/validation_cases.rs"));
 
 /// The command that rewrites the bundled references, stated in the record.
