@@ -50,6 +50,9 @@ pub enum Tolerance {
     RelativeEach,
     /// |x − r| in the number's own unit.
     Absolute,
+    /// |x − r| / u, u the `u` polycal states beside the number (an effect's estimate
+    /// against the size the data were given).
+    StandardUncertainties,
 }
 
 /// The evaluation a case runs.
@@ -60,6 +63,7 @@ pub(super) enum Evaluation {
     Budget,
     MonteCarlo,
     Selfcal,
+    Diagnose,
     Compare,
     Kc,
 }
@@ -71,6 +75,7 @@ impl Evaluation {
             Evaluation::Budget => "budget",
             Evaluation::MonteCarlo => "monte-carlo",
             Evaluation::Selfcal => "selfcal",
+            Evaluation::Diagnose => "diagnose",
             Evaluation::Compare => "compare",
             Evaluation::Kc => "kc",
         }

@@ -24,6 +24,8 @@ struct Pair {
     family: String,
     reference: f64,
     actual: f64,
+    /// The `u` polycal states beside the number, if any.
+    u: Option<f64>,
 }
 
 /// Compares every value of `reference` with the value at the same place in `actual`:
@@ -34,6 +36,7 @@ pub(super) fn compare(reference: &Value, actual: &Value, kind: Tolerance) -> Res
     walk(
         reference,
         Some(actual),
+        None,
         String::new(),
         String::new(),
         &mut pairs,
@@ -50,6 +53,9 @@ pub(super) fn compare(reference: &Value, actual: &Value, kind: Tolerance) -> Res
             Tolerance::Absolute => 1.0,
             Tolerance::Relative => scale.get(pair.family.as_str()).copied().unwrap_or(0.0),
             Tolerance::RelativeEach => pair.reference.abs(),
+            Tolerance::StandardUncertainties => pair
+                .u
+                .ok_or_else(|| format!("{}: polycal states no u beside it", pair.path))?,
         };
         let deviation = if divisor > 0.0 {
             difference / divisor
@@ -77,6 +83,7 @@ pub(super) fn compare(reference: &Value, actual: &Value, kind: Tolerance) -> Res
 fn walk(
     reference: &Value,
     actual: Option<&Value>,
+    u: Option<f64>,
     path: String,
     family: String,
     pairs: &mut Vec<Pair>,
@@ -93,6 +100,7 @@ fn walk(
     };
     match (reference, actual) {
         (Value::Object(r), Value::Object(a)) => {
+            let u = a.get("u").and_then(Value::as_f64);
             for (key, value) in r {
                 let join = |p: &str| {
                     if p.is_empty() {
@@ -101,7 +109,7 @@ fn walk(
                         format!("{p}.{key}")
                     }
                 };
-                walk(value, a.get(key), join(&path), join(&family), pairs)?;
+                walk(value, a.get(key), u, join(&path), join(&family), pairs)?;
             }
             Ok(())
         }
@@ -118,6 +126,7 @@ fn walk(
                 walk(
                     rv,
                     Some(av),
+                    None,
                     format!("{path}[{i}]"),
                     format!("{family}[*]"),
                     pairs,
@@ -134,6 +143,7 @@ fn walk(
                 family,
                 reference,
                 actual,
+                u,
             });
             Ok(())
         }

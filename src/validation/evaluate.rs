@@ -6,9 +6,11 @@ use serde_json::Value;
 
 use super::case::{Case, Evaluation};
 use crate::compare::{CompareOptions, compare_files};
+use crate::diagnose::DiagnoseOptions;
 use crate::kc::{KcOptions, LabResult};
 use crate::measurement::{MeasurementSet, Sigma};
 use crate::output::SolveReport;
+use crate::output::diagnose::DiagnoseReport;
 use crate::output::selfcal::SelfcalReport;
 use crate::results::read_results_from;
 use crate::selfcal::{SelfcalOptions, SelfcalSet};
@@ -77,6 +79,13 @@ pub(super) fn evaluate(case: &Case) -> Result<Value, String> {
             let options = SelfcalOptions::new().with_sigma_opt(sigma);
             let solution = crate::selfcal::solve(&set, &options).map_err(text)?;
             json(&SelfcalReport::new(&solution, &name))
+        }
+        Evaluation::Diagnose => {
+            let (bytes, name) = input(0);
+            let set = MeasurementSet::read_from(bytes, &name, None).map_err(text)?;
+            let options = DiagnoseOptions::new().with_sigma_opt(sigma);
+            let diagnosis = crate::diagnose::diagnose(&set, &options).map_err(text)?;
+            json(&DiagnoseReport::new(&diagnosis, None, None))
         }
         Evaluation::Compare => {
             let (a, name_a) = input(0);

@@ -93,7 +93,15 @@ fn every_bundled_case_passes_and_the_record_names_its_files() {
             assert_eq!(entry["sha256"], digest.as_str(), "{}", file.display());
         }
     }
-    let expected = ["budget", "compare", "kc", "monte-carlo", "selfcal", "solve"];
+    let expected = [
+        "budget",
+        "compare",
+        "diagnose",
+        "kc",
+        "monte-carlo",
+        "selfcal",
+        "solve",
+    ];
     assert_eq!(
         evaluations,
         expected.iter().map(|s| s.to_string()).collect()
