@@ -41,7 +41,7 @@ pub fn write_html(out: &mut impl Write, record: &ValidationRecord) -> fmt::Resul
          reproduces, within stated tolerances, reference results computed independently of \
          polycal (ISO/IEC 17025:2017 7.11.2). Each case runs one evaluation of the software \
          (solve for each kind of design, the uncertainty budget, Monte Carlo, \
-         self-calibration, comparison, key comparison) on bundled input files through the \
+         self-calibration, diagnosis, comparison, key comparison) on bundled input files through the \
          same library function its command calls, and compares every number the reference \
          holds with the number the command prints. The references were computed by \
          <code>scripts/validation/reference.py</code>, which implements the model in exact \

@@ -148,7 +148,8 @@ pub struct CaseResult {
     pub origin: String,
     /// What the case checks.
     pub description: String,
-    /// The evaluation run (`solve`, `budget`, `monte-carlo`, `selfcal`, `compare`, `kc`).
+    /// The evaluation run (`solve`, `budget`, `monte-carlo`, `selfcal`, `diagnose`,
+    /// `compare`, `kc`).
     pub evaluation: String,
     /// The command a user types to run the same evaluation in the case's directory.
     pub command: String,
