@@ -220,8 +220,8 @@ pub enum ValidationError {
 ///
 /// # Errors
 ///
-/// [`ValidationError`] for a case that cannot be read (its `case.toml` or `reference.json`
-/// malformed, a file it names missing). A case whose evaluation fails or differs is not an
+/// [`ValidationError`] for no case at all, or a case that cannot be read (its `case.toml`
+/// or `reference.json` malformed, a file it names missing). A case whose evaluation fails or differs is not an
 /// error: it fails, with its `problem` or deviation.
 pub fn validate(cases: &[CaseSource]) -> Result<ValidationRecord, ValidationError> {
     validate_dated(cases, crate::clock::rfc3339(crate::clock::unix_now()))
@@ -236,6 +236,12 @@ pub fn validate_dated(
     cases: &[CaseSource],
     date: String,
 ) -> Result<ValidationRecord, ValidationError> {
+    // no case is no validation, never a pass (a build without examples/validation/)
+    if cases.is_empty() {
+        return Err(ValidationError::NoCases {
+            location: Location::file_only("the cases given"),
+        });
+    }
     let parsed = cases
         .iter()
         .map(case::Case::parse)
