@@ -63,6 +63,7 @@ pub mod selfcal;
 pub mod simulate;
 pub mod solve;
 pub mod uncertainty;
+pub mod validation;
 pub mod verification;
 
 /// The software version every output carries (the JSON's `"version"`, a simulated file's

@@ -23,6 +23,7 @@ mod sim_lab;
 mod simulate;
 mod solve;
 pub mod stdout;
+mod validate;
 mod wrong_file;
 
 use anyhow::Result;
@@ -138,6 +139,11 @@ pub enum Command {
     /// truth.
     #[command(after_help = simulate::EXAMPLES)]
     Simulate(simulate::SimulateArgs),
+    /// Validate this build against reference results computed without polycal
+    /// (ISO/IEC 17025 7.11.2): every bundled case, its deviation against its tolerance, the
+    /// build and platform; status 1 when a case fails (docs/FORMAT.md §13.1).
+    #[command(after_help = validate::EXAMPLES)]
+    Validate(validate::ValidateArgs),
     /// Drive the instruments through a calibration run (docs/FORMAT.md §7).
     #[cfg(feature = "lab")]
     #[command(after_help = run::RUN_EXAMPLES)]
@@ -323,6 +329,7 @@ pub fn dispatch(command: Command, out: &Output) -> Result<u8> {
         Command::Plan(args) => plan::run(&args, out),
         Command::Report(args) => report::run(&args, out),
         Command::Simulate(args) => simulate::run(&args, out),
+        Command::Validate(args) => validate::run(&args),
         #[cfg(feature = "lab")]
         Command::Run(args) => run::run(&args, out),
         #[cfg(feature = "lab")]

@@ -56,7 +56,9 @@ fn help_examples_run() {
         bin_dir.display(),
         std::env::var("PATH").unwrap_or_default()
     );
-    for command in ["solve", "diagnose", "budget", "compare", "simulate"] {
+    for command in [
+        "solve", "diagnose", "budget", "compare", "simulate", "validate",
+    ] {
         let help = String::from_utf8(polycal(&[command, "--help"]).stdout).unwrap();
         let examples = help
             .split("Examples:\n")

@@ -335,6 +335,10 @@ fn command_fields(scratch: &Scratch, fields: &mut Fields) {
         fields.add("budget --format json", &v);
     }
 
+    for v in json_lines(&["validate", "--format", "json"]) {
+        fields.add("validate --format json", &v);
+    }
+
     // Two results whose rows differ (two mountings against one), compared with a
     // correlation: every optional field of the comparison is present (the encoder errors
     // matched by angle, so with `index_b` and `angle_deg`).

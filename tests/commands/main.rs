@@ -116,3 +116,6 @@ mod report_printed;
 mod report_reproducible;
 #[cfg(feature = "cli")]
 mod report_status;
+
+#[cfg(feature = "cli")]
+mod validate;
