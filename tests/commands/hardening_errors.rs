@@ -46,7 +46,7 @@ fn usage_errors_are_one_line() {
     assert_eq!(
         one_error_line(&polycal(&[])),
         "no command given; the commands are solve, diagnose, budget, compare, kc, history, selfcal, plan, report, \
-         simulate, run, sim-lab, completions, man (see --help)"
+         simulate, validate, run, sim-lab, completions, man (see --help)"
     );
 }
 
