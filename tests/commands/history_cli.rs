@@ -197,7 +197,10 @@ fn history_refusals() {
     let b = format!("{DATA}/2024.csv@2024-03-05");
     assert!(refused(&["history", &a]).contains("at least 2 calibrations"));
     let e = refused(&["history", &a, &format!("{DATA}/2024.csv")]);
-    assert!(e.contains("a result file carries no date") && e.contains("FILE@DATE"), "{e}");
+    assert!(
+        e.contains("a result file carries no date") && e.contains("FILE@DATE"),
+        "{e}"
+    );
     let e = refused(&["history", &a, &format!("{DATA}/2024.csv@2023-02-29")]);
     assert!(e.contains("2023-02-29") && e.contains("not a day"), "{e}");
     let e = refused(&["history", &a, &b, "--at", "2025-3-1"]);
