@@ -37,10 +37,17 @@ fn main() {
 }
 
 /// The commit the build was made from: `POLYCAL_BUILD_COMMIT` when set, else git's HEAD
-/// when the build was made, else `unknown`. Changes not committed are not detected.
+/// when a release build was made, else `unknown`. Changes not committed are not detected.
+///
+/// Only a release build (the binary a laboratory validates and uses) asks git: a commit
+/// recorded in the library makes every commit rebuild it, which the debug and test builds
+/// of development and CI need not pay.
 fn commit(manifest: &Path) -> String {
     if let Ok(commit) = std::env::var("POLYCAL_BUILD_COMMIT") {
         return commit;
+    }
+    if std::env::var("PROFILE").as_deref() != Ok("release") {
+        return "not recorded (a debug build: release builds record the commit)".into();
     }
     let git = |args: &[&str]| {
         Command::new("git")
@@ -54,8 +61,8 @@ fn commit(manifest: &Path) -> String {
     let Some(head) = git(&["rev-parse", "HEAD"]).filter(|h| !h.is_empty()) else {
         return "unknown".into();
     };
-    // rebuild when HEAD moves (a commit, a checkout) or the index changes
-    for file in ["HEAD", "index"] {
+    // rebuild when HEAD moves (a commit, a checkout)
+    for file in ["HEAD"] {
         if let Some(path) = git(&["rev-parse", "--git-path", file]) {
             println!("cargo:rerun-if-changed={}", manifest.join(path).display());
         }
