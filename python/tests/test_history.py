@@ -1,7 +1,6 @@
 """polycal.history against the command line (the same library: the same JSON to the
 byte), and its refusals as the command's."""
 
-import os
 import subprocess
 from pathlib import Path
 
@@ -9,29 +8,11 @@ import numpy as np
 import pytest
 
 import polycal
+from test_polycal import _binary, cli
 
 ROOT = Path(__file__).resolve().parents[2]
 HISTORY = ROOT / "examples/data/history"
 DATES = ["2019-03-12", "2020-03-10", "2021-03-02", "2022-03-15", "2023-03-07", "2024-03-05"]
-
-
-def _binary() -> str:
-    for candidate in (
-        os.environ.get("POLYCAL_BIN"),
-        ROOT / "target/release/polycal",
-        ROOT / "target/debug/polycal",
-    ):
-        if candidate and Path(candidate).is_file():
-            return str(candidate)
-    pytest.fail("the polycal binary is not built: run `cargo build` (or set POLYCAL_BIN)")
-
-
-def cli(*args: str) -> str:
-    out = subprocess.run(
-        [_binary(), *map(str, args)], capture_output=True, text=True, cwd=ROOT
-    )
-    assert out.returncode == 0, out.stderr
-    return out.stdout.strip()
 
 
 def calibrations():
