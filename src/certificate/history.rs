@@ -17,9 +17,7 @@ use std::collections::HashMap;
 
 use super::{InputFile, ReportError, read_input};
 use crate::compare::{CompareOptions, Comparison, compare_with_file};
-use crate::history::{
-    COVERAGE_FACTOR, Calibration, DatedPath, History, HistoryOptions, evaluate,
-};
+use crate::history::{COVERAGE_FACTOR, Calibration, DatedPath, History, HistoryOptions, evaluate};
 use crate::results::{Quantity, ResultFile, ResultRow};
 
 /// One calibration of the standard as the report lists it.

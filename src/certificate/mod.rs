@@ -26,8 +26,8 @@
 //! ```
 
 pub mod dcc;
-pub mod html;
 mod history;
+pub mod html;
 mod inputs;
 mod kc;
 mod manifest;

@@ -101,12 +101,10 @@ pub fn today() -> Result<String> {
 pub fn read(dated: &DatedPath) -> Result<Calibration> {
     let (bytes, source) = polycal::input::read_bytes(&dated.path)
         .map_err(|(file, source)| polycal::input::FileError::Io { file, source })?;
-    dated
-        .calibration(&bytes, &source)
-        .map_err(|e| match e {
-            DatedReadError::File(e) => super::wrong_file::results(e),
-            e => e.into(),
-        })
+    dated.calibration(&bytes, &source).map_err(|e| match e {
+        DatedReadError::File(e) => super::wrong_file::results(e),
+        e => e.into(),
+    })
 }
 
 /// `polycal history`: returns the exit status, or an error for the `error:` line.

@@ -216,9 +216,9 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
         ReportError::HistoryNoExpandedUncertainty { .. } => {
             super::with_hint(e, "--budget", "give the instrument budget with --budget")
         }
-        ReportError::HistoryNoDate { .. } => anyhow::anyhow!(
-            "{e}; give it as date_of_measurement in the metadata file (--meta)"
-        ),
+        ReportError::HistoryNoDate { .. } => {
+            anyhow::anyhow!("{e}; give it as date_of_measurement in the metadata file (--meta)")
+        }
         ReportError::HistoryFile {
             source: polycal::history::DatedReadError::File(e),
         } => super::wrong_file::results(e),

@@ -70,7 +70,8 @@ pub(super) fn section(s: &mut Sections, report: &CalibrationReport) {
         .filter(|n| !stated.contains(n))
         .collect();
     if !notes.is_empty() {
-        s.html.push_str("<ul class=\"notes\" id=\"history-notes\">\n");
+        s.html
+            .push_str("<ul class=\"notes\" id=\"history-notes\">\n");
         for note in notes {
             let _ = writeln!(s.html, "<li>{}</li>", esc(note));
         }
