@@ -90,7 +90,8 @@ pub enum DatedReadError {
     File(#[from] FileError),
     /// A result file given without `@DATE`.
     #[error(
-        "{text}: a result file carries no date: give the calibration as FILE@DATE, e.g. \
+        "{text}: no @DATE, and a result file carries no date: give the calibration as \
+         FILE@DATE, e.g. \
          {text}@2024-05-17 (a certificate is dated by its dcc:endPerformanceDate)"
     )]
     Undated {
