@@ -48,6 +48,10 @@ pub struct ReportInputs {
     /// The JSON of `polycal kc --format json` to report (docs/FORMAT.md §12), and the
     /// laboratory the report is for, when one is named.
     pub key_comparison: Option<(PathBuf, Option<String>)>,
+    /// The standard's earlier calibrations (docs/FORMAT.md §13.2): with them the report
+    /// has the section "History of the standard", this calibration the newest, dated by
+    /// the metadata's `date_of_measurement`.
+    pub history: Vec<crate::history::DatedPath>,
 }
 
 impl ReportInputs {
@@ -67,6 +71,7 @@ impl ReportInputs {
             command_line: None,
             stated_cross_talk: Vec::new(),
             key_comparison: None,
+            history: Vec::new(),
         }
     }
     /// With the number of faces (or positions).
@@ -121,6 +126,13 @@ impl ReportInputs {
     /// report is for (`None`: every laboratory's degrees of equivalence).
     pub fn with_key_comparison(mut self, kc_json: impl Into<PathBuf>, lab: Option<String>) -> Self {
         self.key_comparison = Some((kc_json.into(), lab));
+        self
+    }
+    /// With the standard's earlier calibrations, each a result file or DCC with its day
+    /// (at least 2, each before the metadata's `date_of_measurement`): the section
+    /// "History of the standard" (docs/FORMAT.md §10.2, §13.2).
+    pub fn with_history(mut self, earlier: Vec<crate::history::DatedPath>) -> Self {
+        self.history = earlier;
         self
     }
     /// With the report's date and time (RFC 3339 UTC), instead of now.
@@ -234,6 +246,52 @@ pub enum ReportError {
         file: String,
         /// What is wrong.
         problem: super::kc::KeyComparisonShapeError,
+    },
+    /// A calibration of the standard's history cannot be read.
+    #[error(transparent)]
+    HistoryFile {
+        /// Why.
+        source: crate::history::DatedReadError,
+    },
+    /// The standard's history cannot be evaluated.
+    #[error("the standard's history: {source}")]
+    History {
+        /// Why.
+        #[from]
+        source: crate::history::HistoryError,
+    },
+    /// A history without the day of this calibration.
+    #[error(
+        "{file}: a standard's history needs the day of this calibration, the metadata's \
+         date_of_measurement (the metadata file, a `# date_of_measurement:` comment of the \
+         measurement file, or the run manifest): the report's own date is not the day it was \
+         measured"
+    )]
+    HistoryNoDate {
+        /// The measurement file.
+        file: String,
+    },
+    /// A history needs this calibration's U.
+    #[error(
+        "{file}: a standard's history needs the u and U of this calibration's pitch \
+         deviations, and a polygon calibration has U only with an instrument budget"
+    )]
+    HistoryNoExpandedUncertainty {
+        /// The measurement file.
+        file: String,
+    },
+    /// A calibration of the history that is not earlier than this one.
+    #[error(
+        "{file}: dated {date}, not before this calibration's {today} (the metadata's \
+         date_of_measurement): the history takes earlier calibrations, this one is the newest"
+    )]
+    HistoryNotEarlier {
+        /// The file, as given.
+        file: String,
+        /// Its day.
+        date: String,
+        /// This calibration's day.
+        today: String,
     },
     /// The laboratory named for the key comparison is not one of its laboratories.
     #[error("{file}: laboratory {lab:?} is not in this key comparison; its laboratories: {labs}")]

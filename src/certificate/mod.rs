@@ -26,6 +26,7 @@
 //! ```
 
 pub mod dcc;
+mod history;
 pub mod html;
 mod inputs;
 mod kc;
@@ -57,6 +58,7 @@ use crate::uncertainty::calibration::{
     CalibrationUncertainty, InstrumentBudget, KnownCorrection, evaluate_with_corrections,
 };
 
+pub use history::{HistoryCalibration, HistorySection};
 pub use inputs::{ReportError, ReportInputs};
 pub use kc::{KeyComparisonSection, KeyComparisonShapeError};
 pub use meta::Metadata;
@@ -181,12 +183,15 @@ pub struct Verdict {
     pub comparison_failed: bool,
     /// The diagnosis found the final model not adequate.
     pub not_adequate: bool,
+    /// This calibration does not agree with the value the standard's earlier calibrations
+    /// predict (the vector test at 5 %, docs/FORMAT.md §13.2).
+    pub history_disagrees: bool,
 }
 
 impl Verdict {
     /// Whether every check passed.
     pub fn passed(&self) -> bool {
-        !self.comparison_failed && !self.not_adequate
+        !self.comparison_failed && !self.not_adequate && !self.history_disagrees
     }
 }
 
@@ -215,6 +220,9 @@ pub struct CalibrationReport {
     pub stated_cross_talk: Vec<crate::measurement::cross_talk::StatedCrossTalk>,
     /// The key comparison, when one is reported (docs/FORMAT.md §10.2).
     pub key_comparison: Option<KeyComparisonSection>,
+    /// The history of the standard, when earlier calibrations are given (docs/FORMAT.md
+    /// §10.2, §13.2).
+    pub history: Option<HistorySection>,
 }
 
 /// Reads a whole input file (at most [`crate::input::MAX_INPUT_BYTES`]) and fingerprints
@@ -618,6 +626,27 @@ impl CalibrationReport {
             measurement.evaluate_polygon()?
         };
         let mut files = read.files;
+        let history = if inputs.history.is_empty() {
+            None
+        } else {
+            if matches!(evaluation, Evaluation::Selfcal { .. }) {
+                return Err(ReportError::NotSupported {
+                    file: name.clone(),
+                    what: "a standard's history",
+                    kind: "a self-calibration file (the history follows a polygon's pitch deviations)",
+                });
+            }
+            let measurement = files[0].clone();
+            Some(history::build(
+                &history::HistoryInputs {
+                    dated: &inputs.history,
+                    rows: rows.as_deref(),
+                    measurement: &measurement,
+                    date: metadata.value("date_of_measurement"),
+                },
+                &mut files,
+            )?)
+        };
         let comparison = match &inputs.reference {
             Some(path) => Some(compare_with_reference(path, rows, &shown, &mut files)?),
             None => None,
@@ -656,6 +685,7 @@ impl CalibrationReport {
             command_line: inputs.command_line.clone(),
             stated_cross_talk: inputs.stated_cross_talk.clone(),
             key_comparison,
+            history,
         })
     }
 
@@ -706,6 +736,7 @@ impl CalibrationReport {
                 .as_ref()
                 .is_some_and(|(c, _)| !c.verdict_ok()),
             not_adequate: self.diagnosis.as_ref().is_some_and(|d| !d.adequate()),
+            history_disagrees: self.history.as_ref().is_some_and(|h| !h.agrees()),
         }
     }
 

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 use clap::ValueEnum;
-use polycal::history::{Calibration, HistoryOptions, evaluate};
-use polycal::results::{Quantity, certificate, read_results_from};
+use polycal::history::{Calibration, DatedPath, DatedReadError, HistoryOptions, evaluate};
+use polycal::results::Quantity;
 
 use super::EXIT_OK;
 
@@ -23,57 +23,6 @@ Examples:
       examples/data/history/2023.csv@2023-03-07 examples/data/history/2024.csv@2024-03-05 --at 2025-03-01
   polycal history examples/data/history/2019.csv@2019-03-12 examples/data/history/2024.csv@2024-03-05 \\
       --at 2025-03-01 --max-u 0.5 --format json";
-
-/// One `FILE@DATE` argument (or a certificate's `FILE`, dated by itself).
-#[derive(Clone, Debug)]
-pub struct Dated {
-    path: PathBuf,
-    date: Option<String>,
-    text: String,
-}
-
-/// Parses `FILE@DATE`, split at the last `@`, the date a day `YYYY-MM-DD`; a `FILE`
-/// without `@` is taken as a certificate that states its own date (checked when read).
-fn dated(text: &str) -> std::result::Result<Dated, NotDated> {
-    let not = |why: &str| NotDated {
-        text: text.to_string(),
-        why: why.to_string(),
-    };
-    let Some((path, date)) = text.rsplit_once('@') else {
-        if text.is_empty() {
-            return Err(not("no file"));
-        }
-        return Ok(Dated {
-            path: PathBuf::from(text),
-            date: None,
-            text: text.to_string(),
-        });
-    };
-    if path.is_empty() {
-        return Err(not("no file before @"));
-    }
-    if polycal::clock::days_from_date(date).is_none() {
-        return Err(not(&format!(
-            "{date:?} is not a day YYYY-MM-DD of the calendar"
-        )));
-    }
-    Ok(Dated {
-        path: PathBuf::from(path),
-        date: Some(date.to_string()),
-        text: text.to_string(),
-    })
-}
-
-/// An argument that is not `FILE@DATE`.
-#[derive(Debug, thiserror::Error)]
-#[error(
-    "expected FILE@DATE (a result file, `@`, the day it was calibrated, e.g. \
-     cal.csv@2024-05-17), got {text:?}: {why}"
-)]
-struct NotDated {
-    text: String,
-    why: String,
-}
 
 /// `--at`: a day `YYYY-MM-DD`.
 fn day(text: &str) -> std::result::Result<String, String> {
@@ -117,8 +66,8 @@ pub struct HistoryArgs {
     /// or U and k, on every row of the quantity) or a DCC (§13.3), and the day it was
     /// calibrated, YYYY-MM-DD; a DCC without @DATE is dated by its endPerformanceDate;
     /// at least 2.
-    #[arg(value_name = "FILE@DATE", required = true, value_parser = dated)]
-    calibrations: Vec<Dated>,
+    #[arg(value_name = "FILE@DATE", required = true, value_parser = clap::value_parser!(DatedPath))]
+    calibrations: Vec<DatedPath>,
     /// The day of the prediction, YYYY-MM-DD (default: today, UTC; SOURCE_DATE_EPOCH's
     /// day when it is set).
     #[arg(long, value_name = "DATE", value_parser = day)]
@@ -148,41 +97,14 @@ pub fn today() -> Result<String> {
 }
 
 /// One calibration read: its result file or certificate (a refusal names the file, line
-/// and column), dated by its `@DATE`, else by the certificate's `dcc:endPerformanceDate`.
-fn read(dated: &Dated) -> Result<Calibration> {
+/// and column, with what to do when the file is of another kind).
+pub fn read(dated: &DatedPath) -> Result<Calibration> {
     let (bytes, source) = polycal::input::read_bytes(&dated.path)
         .map_err(|(file, source)| polycal::input::FileError::Io { file, source })?;
-    let (file, date) = match &dated.date {
-        Some(date) => (
-            read_results_from(&bytes[..], &source).map_err(super::wrong_file::results)?,
-            date.clone(),
-        ),
-        None if certificate::looks_like_xml(&bytes) => {
-            let read = certificate::read_certificate(&bytes, &source)?;
-            let stated = read
-                .end_performance_date
-                .clone()
-                .or_else(|| read.begin_performance_date.clone());
-            match stated {
-                Some(day) if polycal::clock::days_from_date(&day).is_some() => (read.results, day),
-                Some(day) => bail!(
-                    "{source}: the certificate's performance date {day:?} is not a day \
-                     YYYY-MM-DD; give the calibration as FILE@DATE"
-                ),
-                None => bail!(
-                    "{source}: the certificate states no performance date \
-                     (dcc:endPerformanceDate); give the calibration as FILE@DATE"
-                ),
-            }
-        }
-        None => bail!(
-            "{}: a result file carries no date: give the calibration as FILE@DATE, e.g. \
-             {}@2024-05-17 (a certificate is dated by its dcc:endPerformanceDate)",
-            dated.text,
-            dated.text
-        ),
-    };
-    Calibration::new(&date, file).map_err(|e| anyhow::anyhow!("{}: {e}", dated.text))
+    dated.calibration(&bytes, &source).map_err(|e| match e {
+        DatedReadError::File(e) => super::wrong_file::results(e),
+        e => e.into(),
+    })
 }
 
 /// `polycal history`: returns the exit status, or an error for the `error:` line.

@@ -26,6 +26,9 @@ Examples:
       --format json > kc.json
   polycal report examples/data/polygon24-2ac-6cycles.csv --budget examples/budgets/instrument.toml \\
       --kc kc.json --kc-lab A --out report.html
+  polycal report examples/data/history/run-2026-11-03.csv --budget examples/budgets/instrument.toml \\
+      --meta examples/report/meta.toml --history examples/data/history/2023.csv@2023-03-07 \\
+      --history examples/data/history/2024.csv@2024-03-05 --out report.html
 
 The report's date is now (UTC), or SOURCE_DATE_EPOCH (seconds since 1970) when it is set:
 the same inputs then give the same bytes.";
@@ -75,6 +78,14 @@ pub struct ReportArgs {
     /// alone; without it, every laboratory's.
     #[arg(long, value_name = "NAME", requires = "kc")]
     kc_lab: Option<String>,
+    /// An earlier calibration of the standard, FILE@DATE (a result file or a DCC, and the
+    /// day it was calibrated; a DCC without @DATE is dated by its endPerformanceDate), as
+    /// for `polycal history`; repeatable, at least 2. Adds the section "History of the
+    /// standard" (docs/FORMAT.md §10.2, §13.2), this run the newest calibration, dated by
+    /// the metadata's date_of_measurement; needs --budget; status 1 when this calibration
+    /// does not agree with the earlier calibrations' prediction.
+    #[arg(long, value_name = "FILE@DATE", value_parser = clap::value_parser!(polycal::history::DatedPath))]
+    history: Vec<polycal::history::DatedPath>,
     /// Metadata (TOML, docs/FORMAT.md §10): customer, artefact, operator, instruments,
     /// environment.
     #[arg(long, value_name = "META.toml")]
@@ -96,14 +107,22 @@ pub struct ReportArgs {
 
 /// `polycal report`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
-    super::stdin_once([
-        ("the measurement file", Some(args.file.as_path())),
-        ("--budget", args.budget.as_deref()),
-        ("--truth", args.truth.as_deref()),
-        ("--reference", args.reference.as_deref()),
-        ("--meta", args.meta.as_deref()),
-        ("--kc", args.kc.as_deref()),
-    ])?;
+    super::stdin_once(
+        [
+            ("the measurement file", Some(args.file.as_path())),
+            ("--budget", args.budget.as_deref()),
+            ("--truth", args.truth.as_deref()),
+            ("--reference", args.reference.as_deref()),
+            ("--meta", args.meta.as_deref()),
+            ("--kc", args.kc.as_deref()),
+        ]
+        .into_iter()
+        .chain(
+            args.history
+                .iter()
+                .map(|d| ("--history", Some(d.path.as_path()))),
+        ),
+    )?;
     super::solve::check_stated_cross_talk(&args.cross_talk, args.budget.is_some(), out)?;
     // refused before any work: an output that is an input, two outputs of one file, an
     // output that is not a regular file (docs/FORMAT.md §8.1)
@@ -119,7 +138,8 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
             manifest.as_deref(),
         ]
         .into_iter()
-        .flatten(),
+        .flatten()
+        .chain(args.history.iter().map(|d| d.path.as_path())),
     )?;
     files.check(
         [
@@ -180,6 +200,9 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
     if let Some(p) = &args.kc {
         inputs = inputs.with_key_comparison(p, args.kc_lab.clone());
     }
+    if !args.history.is_empty() {
+        inputs = inputs.with_history(args.history.clone());
+    }
     let report = CalibrationReport::build(&inputs).map_err(|e| match e {
         // Library messages name no flags: the CLI adds the one that helps.
         ReportError::NoExpandedUncertainty { .. } => {
@@ -190,6 +213,15 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
             ..
         } => anyhow::anyhow!("{e} (--sigma)"),
         ReportError::KeyComparisonLab { .. } => anyhow::anyhow!("{e} (--kc-lab)"),
+        ReportError::HistoryNoExpandedUncertainty { .. } => {
+            super::with_hint(e, "--budget", "give the instrument budget with --budget")
+        }
+        ReportError::HistoryNoDate { .. } => {
+            anyhow::anyhow!("{e}; give it as date_of_measurement in the metadata file (--meta)")
+        }
+        ReportError::HistoryFile {
+            source: polycal::history::DatedReadError::File(e),
+        } => super::wrong_file::results(e),
         e => e.into(),
     })?;
     // both documents made before either is written: a refusal writes nothing
@@ -223,7 +255,7 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
     files.commit()?;
     let verdict = report.verdict();
     out.info(format!(
-        "wrote {}{}{}",
+        "wrote {}{}{}{}",
         written.join(" and "),
         match &report.comparison {
             Some((comparison, _)) if verdict.comparison_failed => {
@@ -235,6 +267,12 @@ pub fn run(args: &ReportArgs, out: &Output) -> Result<u8> {
             "; the diagnosis: the final model is not adequate"
         } else {
             ""
+        },
+        match &report.history {
+            Some(history) if verdict.history_disagrees => {
+                format!("; the history: {}", history.agreement_statement())
+            }
+            _ => String::new(),
         }
     ));
     Ok(if verdict.passed() {

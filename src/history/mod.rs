@@ -50,11 +50,13 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod dated;
 mod error;
 mod fit;
 
 use serde::{Deserialize, Serialize};
 
+pub use dated::{DatedPath, DatedReadError, NotDated};
 pub use error::HistoryError;
 
 use crate::kc::LabResult;

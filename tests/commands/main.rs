@@ -105,6 +105,8 @@ mod progress_cli;
 #[cfg(feature = "cli")]
 mod report_17025;
 #[cfg(feature = "cli")]
+mod report_history;
+#[cfg(feature = "cli")]
 mod report_kc;
 #[cfg(feature = "cli")]
 mod report_metadata;

@@ -1,5 +1,5 @@
 //! The HTML document of a [`CalibrationReport`]: numbered sections (details, method,
-//! results, budget, figures, diagnosis, comparison, key comparison, provenance,
+//! results, budget, figures, diagnosis, comparison, key comparison, history, provenance,
 //! signatures), every number rounded for reading with its full-precision value in
 //! `data-value` (the JSON's number), every text from a file escaped, the style inline and
 //! made for A4.
@@ -8,6 +8,7 @@ use std::fmt::Write;
 
 mod comparison;
 mod diagnosis;
+mod history;
 mod kc;
 mod tables;
 
@@ -72,6 +73,7 @@ pub fn document(report: &CalibrationReport) -> String {
     diagnosis(&mut s, report);
     comparison::section(&mut s, report);
     kc::section(&mut s, report);
+    history::section(&mut s, report);
     provenance(&mut s, report);
     signatures(&mut s, report);
     format!(
@@ -154,6 +156,9 @@ fn title_block(out: &mut String, report: &CalibrationReport, title: &str) {
     }
     if let Some((c, _)) = &report.comparison {
         checks.push(format!("comparison: {}", c.verdict_sentence()));
+    }
+    if let Some(h) = &report.history {
+        checks.push(format!("history: {}", h.agreement_statement()));
     }
     if !checks.is_empty() {
         let _ = writeln!(
