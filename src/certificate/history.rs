@@ -75,6 +75,50 @@ impl HistorySection {
     }
 }
 
+/// This calibration's pitch deviations (`today`, with U or u) against the value the
+/// `earlier` calibrations predict for `date` (`polycal history` of them at that day): the
+/// earlier history, and `compare`'s comparison of today (a) with the prediction (b),
+/// whose vector test at 5 % is the report's one decision (docs/FORMAT.md §10.2 item 10;
+/// its false-alarm rate and power are measured in `tests/maths/history.rs`).
+///
+/// # Errors
+///
+/// [`ReportError::History`] when the earlier calibrations cannot be evaluated (fewer
+/// than two, positions that differ, a bad date), [`ReportError::Compare`] when today's
+/// rows cannot be compared with the prediction (another set of faces, no U).
+pub fn agreement_with_prediction(
+    earlier: &[Calibration],
+    today: &ResultFile,
+    date: &str,
+) -> Result<(History, Comparison), ReportError> {
+    let prior = evaluate(earlier, &HistoryOptions::new(date)?)?;
+    let prediction = ResultFile {
+        source: "the prediction".to_string(),
+        rows: prior
+            .index
+            .iter()
+            .zip(prior.predicted.iter().zip(&prior.predicted_u))
+            .map(|(index, (value, u))| {
+                ResultRow::new(Quantity::PitchDeviation, *index, *value)
+                    .with_u(*u)
+                    .with_expanded_u(COVERAGE_FACTOR * u)
+                    .with_k(COVERAGE_FACTOR)
+            })
+            .collect(),
+        lines: Vec::new(),
+        columns: Vec::new(),
+    };
+    let options =
+        CompareOptions::new().with_labels(today.source.clone(), "the prediction".to_string());
+    let agreement = compare_with_file(&today.rows, &prediction, &options).map_err(|source| {
+        ReportError::Compare {
+            reference: "the earlier calibrations' prediction".to_string(),
+            source,
+        }
+    })?;
+    Ok((prior, agreement))
+}
+
 /// What the section is built from: the earlier calibrations as given, this calibration's
 /// result rows (`None`: no U, no budget), its name and fingerprint, and its day.
 pub(super) struct HistoryInputs<'a> {
@@ -128,7 +172,7 @@ pub(super) fn build(
         .collect();
     let today = ResultFile {
         source: shown.clone(),
-        rows: pitch.clone(),
+        rows: pitch,
         lines: Vec::new(),
         columns: Vec::new(),
     };
@@ -136,35 +180,10 @@ pub(super) fn build(
         shown.clone(),
         (shown.clone(), inputs.measurement.sha256.clone()),
     );
-    let options = HistoryOptions::new(date)?;
-    let prior = evaluate(&earlier, &options)?;
+    let (prior, agreement) = agreement_with_prediction(&earlier, &today, date)?;
     let mut all = earlier;
     all.push(Calibration::new(date, today)?);
-    let history = evaluate(&all, &options)?;
-    let prediction = ResultFile {
-        source: "the prediction".to_string(),
-        rows: prior
-            .index
-            .iter()
-            .zip(prior.predicted.iter().zip(&prior.predicted_u))
-            .map(|(index, (value, u))| {
-                ResultRow::new(Quantity::PitchDeviation, *index, *value)
-                    .with_u(*u)
-                    .with_expanded_u(COVERAGE_FACTOR * u)
-                    .with_k(COVERAGE_FACTOR)
-            })
-            .collect(),
-        lines: Vec::new(),
-        columns: Vec::new(),
-    };
-    let compare_options =
-        CompareOptions::new().with_labels(shown.clone(), "the prediction".to_string());
-    let agreement = compare_with_file(&pitch, &prediction, &compare_options).map_err(|source| {
-        ReportError::Compare {
-            reference: "the earlier calibrations' prediction".to_string(),
-            source,
-        }
-    })?;
+    let history = evaluate(&all, &HistoryOptions::new(date)?)?;
     let calibrations = history
         .files
         .iter()

@@ -58,7 +58,7 @@ use crate::uncertainty::calibration::{
     CalibrationUncertainty, InstrumentBudget, KnownCorrection, evaluate_with_corrections,
 };
 
-pub use history::{HistoryCalibration, HistorySection};
+pub use history::{HistoryCalibration, HistorySection, agreement_with_prediction};
 pub use inputs::{ReportError, ReportInputs};
 pub use kc::{KeyComparisonSection, KeyComparisonShapeError};
 pub use meta::Metadata;

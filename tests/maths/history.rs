@@ -443,3 +443,99 @@ fn history_refusals() {
             .contains("setup errors")
     );
 }
+
+/// Today's run of the standard, drawn as a closure calibration gives it: closed noise of u
+/// per face, with U = 2u and k = 2 (as `report` has them from its budget).
+fn run_today(rng: &mut ChaCha8Rng, truth: &[f64], u: f64, date: &str) -> ResultFile {
+    let n = truth.len();
+    let c = (n as f64 / (n as f64 - 1.0)).sqrt();
+    let e: Vec<f64> = (0..n)
+        .map(|_| {
+            let z: f64 = StandardNormal.sample(rng);
+            u * z
+        })
+        .collect();
+    let mean = e.iter().sum::<f64>() / n as f64;
+    let rows = (0..n)
+        .map(|k| {
+            ResultRow::new(
+                Quantity::PitchDeviation,
+                k as u32 + 1,
+                truth[k] + c * (e[k] - mean),
+            )
+            .with_u(u)
+            .with_expanded_u(2.0 * u)
+            .with_k(2.0)
+        })
+        .collect();
+    ResultFile {
+        source: format!("run {date}"),
+        rows,
+        lines: vec![],
+        columns: vec![],
+    }
+}
+
+/// `report --history`'s one decision (`certificate::agreement_with_prediction`): today's
+/// run against what five earlier yearly calibrations predict for its day, compare's vector
+/// test at 5 %. A stable standard: disagreement called in 5 % ± 1.5 % of 2 000 runs. A
+/// standard knocked since its last calibration (±0.8 u on alternate faces): found as
+/// often as the noncentral χ² law of the closed difference says (± 4 points). A standard
+/// drifting 0.03″ a year (u = 0.05″): the rate measured and stated (docs/verdicts.md).
+#[test]
+fn report_history_agreement_rates() {
+    let mut rng = ChaCha8Rng::seed_from_u64(1056);
+    let n = 24;
+    let dates = yearly(6);
+    let (earlier_dates, today) = (&dates[..5], dates[5].as_str());
+    let beta0 = closed_truth(n);
+    let u = 0.05;
+    let u_face = vec![u; n];
+    let u_scale = [1.0; 5];
+    let draws = 2000;
+    let mut rate = |drift: &[f64], knock: &[f64], draws: usize| {
+        let mut alarms = 0;
+        for _ in 0..draws {
+            let (earlier, truth) = draw(
+                &mut rng,
+                earlier_dates,
+                &beta0,
+                drift,
+                &u_face,
+                &u_scale,
+                today,
+            );
+            let truth: Vec<f64> = truth.iter().zip(knock).map(|(t, k)| t + k).collect();
+            let run = run_today(&mut rng, &truth, u, today);
+            let (_, agreement) =
+                polycal::certificate::agreement_with_prediction(&earlier, &run, today).unwrap();
+            alarms += usize::from(!agreement.verdict_ok());
+        }
+        alarms as f64 / draws as f64
+    };
+    let none = vec![0.0; n];
+    let stable = rate(&none, &none, draws);
+    // a knock of ±0.8u on alternate faces (closed): the difference's covariance is
+    // c·(u² + u_pred²)·P with u_pred² = u²/5 (five equal calibrations, the constant
+    // model), so λ = Σ knock² / (c·u²·(1 + 1/5)), c = N/(N − 1)
+    let knock: Vec<f64> = (0..n)
+        .map(|k| if k % 2 == 0 { 0.8 * u } else { -0.8 * u })
+        .collect();
+    let knocked = rate(&none, &knock, 1000);
+    let c = n as f64 / (n as f64 - 1.0);
+    let lambda = knock.iter().map(|d| d * d).sum::<f64>() / (c * u * u * 1.2);
+    let expected = power(n - 1, lambda);
+    let drift: Vec<f64> = (0..n)
+        .map(|k| 0.03 * (2.0 * std::f64::consts::PI * k as f64 / n as f64).cos())
+        .collect();
+    let drifting = rate(&drift, &none, 1000);
+    eprintln!(
+        "report --history: stable {stable:.4}; knocked ±0.8u {knocked:.4} (law {expected:.4}, \
+         λ = {lambda:.1}); drifting 0.03″/year {drifting:.4}"
+    );
+    assert!((stable - 0.05).abs() <= 0.015, "false-alarm rate {stable}");
+    assert!(
+        (knocked - expected).abs() <= 0.04,
+        "power {knocked} against {expected}"
+    );
+}
