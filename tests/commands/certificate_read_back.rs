@@ -405,6 +405,17 @@ fn hostile_xml_is_refused_without_harm() {
             "nothing of the entity's file shown"
         );
     }
+    // elements nested 50 000 deep (the parser recurses: a stack overflow would abort)
+    let deep = format!(
+        "<?xml version=\"1.0\"?>\n{}{}\n",
+        "<a>".repeat(50_000),
+        "</a>".repeat(50_000)
+    );
+    let e = refused(&dir, "deep.xml", deep.as_bytes());
+    assert!(
+        e.contains("deep.xml:2:769: elements nested more than 256 deep"),
+        "{e}"
+    );
     // a 1 GiB file (sparse): refused by its size before it is read
     let big = dir.join("big.xml");
     let file = std::fs::File::create(&big).unwrap();

@@ -148,6 +148,16 @@ pub fn read_certificate(bytes: &[u8], source: &str) -> Result<Certificate, FileE
             "the certificate is not UTF-8 text".to_string(),
         )
     })?;
+    if let Some(at) = nesting_beyond(text, MAX_XML_DEPTH) {
+        return Err(FileError::invalid(
+            source,
+            byte_position(bytes, at),
+            format!(
+                "elements nested more than {MAX_XML_DEPTH} deep: polycal reads no deeper \
+                 certificate (a DCC nests about 15)"
+            ),
+        ));
+    }
     let options = ParsingOptions {
         allow_dtd: false,
         nodes_limit: MAX_XML_NODES,
@@ -155,6 +165,73 @@ pub fn read_certificate(bytes: &[u8], source: &str) -> Result<Certificate, FileE
     let doc =
         Document::parse_with_options(text, options).map_err(|e| xml_error(source, text, &e))?;
     Reader { doc: &doc, source }.certificate()
+}
+
+/// The deepest nesting of elements a certificate may have: the parser descends
+/// recursively, so a file of tens of thousands of nested elements would exhaust the stack
+/// (an abort, not an error) before any rule is checked.
+pub const MAX_XML_DEPTH: usize = 256;
+
+/// The byte offset of the first start tag nested deeper than `limit`, found in one pass
+/// before parsing (comments, CDATA, processing instructions and declarations skipped,
+/// quoted attribute values passed over); `None` when the nesting stays within it.
+fn nesting_beyond(text: &str, limit: usize) -> Option<usize> {
+    let bytes = text.as_bytes();
+    let find = |from: usize, pattern: &str| {
+        text.get(from..)
+            .and_then(|rest| rest.find(pattern))
+            .map(|p| from + p + pattern.len())
+    };
+    let mut depth = 0usize;
+    let mut i = 0;
+    while let Some(p) = text.get(i..).and_then(|rest| rest.find('<')) {
+        let at = i + p;
+        let rest = &text[at..];
+        let skipped = if rest.starts_with("<!--") {
+            find(at, "-->")
+        } else if rest.starts_with("<![CDATA[") {
+            find(at, "]]>")
+        } else if rest.starts_with("<?") {
+            find(at, "?>")
+        } else if rest.starts_with("<!") {
+            find(at, ">")
+        } else {
+            None
+        };
+        if let Some(next) = skipped {
+            i = next;
+            continue;
+        }
+        if rest.starts_with("<!") || rest.starts_with("<?") {
+            return None; // unterminated: the parser says so
+        }
+        // the end of this tag, quoted values passed over
+        let mut quote = None;
+        let mut end = None;
+        for (k, &b) in bytes.iter().enumerate().skip(at + 1) {
+            match (quote, b) {
+                (Some(q), _) if b == q => quote = None,
+                (Some(_), _) => {}
+                (None, b'"' | b'\'') => quote = Some(b),
+                (None, b'>') => {
+                    end = Some(k);
+                    break;
+                }
+                _ => {}
+            }
+        }
+        let end = end?;
+        if rest.starts_with("</") {
+            depth = depth.saturating_sub(1);
+        } else if bytes.get(end.wrapping_sub(1)) != Some(&b'/') {
+            depth += 1;
+            if depth > limit {
+                return Some(at);
+            }
+        }
+        i = end + 1;
+    }
+    None
 }
 
 /// The 1-based line and character column of byte `at` of `bytes` (valid UTF-8 before it).
