@@ -292,6 +292,7 @@ def kc(
     quantity: str = "pitch_deviation",
     method: str = "weighted-mean",
     keep: Sequence[str] = (),
+    not_in_reference: Sequence[str] = (),
 ) -> KeyComparison:
     """Evaluates a key comparison as ``polycal kc`` does (docs/FORMAT.md §12): the one
     decision at 5 % in ``vector_all`` (the closed vector of every laboratory) and, when it
@@ -301,7 +302,9 @@ def kc(
     ``degrees_of_equivalence`` and ``pairs``. ``labs`` maps each laboratory's name to its
     result (a :class:`SolveResult` with a budget, rows, or a result file), in order;
     ``pilot`` lists the pilot's repeated results as (name, result) pairs; ``keep`` names
-    laboratories held in the reference (``--keep``)."""
+    laboratories held in the reference (``--keep``); ``not_in_reference`` names
+    laboratories kept out of it but given degrees of equivalence
+    (``--not-in-reference``)."""
 
     def named(items: Any) -> Any:
         return [(str(name), _rows_of(result)) for name, result in items]
@@ -313,6 +316,7 @@ def kc(
             quantity=str(quantity),
             method=str(method),
             keep=[str(name) for name in keep],
+            not_in_reference=[str(name) for name in not_in_reference],
         )
     )
 

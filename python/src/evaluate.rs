@@ -367,7 +367,7 @@ pub(crate) fn compare_rows(
 /// Evaluates a key comparison as `polycal kc` does (docs/FORMAT.md §12); returns its JSON
 /// object. `labs` and `pilot` are (name, rows) pairs in order.
 #[pyfunction]
-#[pyo3(signature = (labs, pilot=Vec::new(), quantity="pitch_deviation", method="weighted-mean", keep=Vec::new()))]
+#[pyo3(signature = (labs, pilot=Vec::new(), quantity="pitch_deviation", method="weighted-mean", keep=Vec::new(), not_in_reference=Vec::new()))]
 pub(crate) fn kc(
     py: Python<'_>,
     labs: Vec<(String, PyRef<'_, PyRows>)>,
@@ -375,6 +375,7 @@ pub(crate) fn kc(
     quantity: &str,
     method: &str,
     keep: Vec<String>,
+    not_in_reference: Vec<String>,
 ) -> PyResult<String> {
     let quantity = polycal::kc::compared_quantity(quantity)
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
@@ -393,7 +394,8 @@ pub(crate) fn kc(
     let options = KcOptions::new()
         .with_quantity(quantity)
         .with_method(method)
-        .with_keep(keep);
+        .with_keep(keep)
+        .with_not_in_reference(not_in_reference);
     let comparison = py
         .detach(|| polycal::kc::evaluate(&labs, &pilot, &options))
         .map_err(refusal)?;

@@ -518,6 +518,11 @@ def test_kc_is_the_clis_json_to_the_byte():
     kept = polycal.kc(labs, keep=["F"])
     assert kept.to_json() == cli("kc", *args, "--keep", "F", "--format", "json")
     assert list(kept["kept"]) == ["F"]
+    # a laboratory kept out of the reference, with its degrees of equivalence
+    out = polycal.kc(labs, not_in_reference=["F"])
+    assert out.to_json() == cli("kc", *args, "--not-in-reference", "F", "--format", "json")
+    assert list(out["not_in_reference"]) == ["F"]
+    assert list(out["excluded"]) == []
 
 
 def test_kc_refuses_as_the_cli_does():

@@ -80,6 +80,11 @@ pub struct KcArgs {
     /// stated in the notes); may be given more than once.
     #[arg(long, value_name = "NAME")]
     keep: Vec<String>,
+    /// Keep laboratory NAME out of the reference but give it degrees of equivalence against
+    /// it (`in_reference` false; e.g. a laboratory traceable to another in the comparison);
+    /// it is not in the one test at 5 % nor in the search. May be given more than once.
+    #[arg(long, value_name = "NAME")]
+    not_in_reference: Vec<String>,
     /// Output format (csv: the degrees of equivalence, columns
     /// lab,index,angle_deg,d,U,in_reference; docs/FORMAT.md §12).
     #[arg(long, value_enum, default_value = "table")]
@@ -152,7 +157,8 @@ pub fn run(args: &KcArgs) -> Result<u8> {
     let options = KcOptions::new()
         .with_quantity(args.quantity)
         .with_method(args.method)
-        .with_keep(args.keep.iter().cloned());
+        .with_keep(args.keep.iter().cloned())
+        .with_not_in_reference(args.not_in_reference.iter().cloned());
     let kc = evaluate(&labs, &pilot, &options).map_err(|e| match e {
         // Library messages name no flags: the CLI adds the one that helps.
         polycal::kc::KcError::TooFewRepeats(_) => {
@@ -162,6 +168,11 @@ pub fn run(args: &KcArgs) -> Result<u8> {
             e,
             "--keep",
             "--keep takes a laboratory given as NAME=RESULT.csv",
+        ),
+        polycal::kc::KcError::UnknownNotInReference(_) => super::with_hint(
+            e,
+            "--not-in-reference",
+            "--not-in-reference takes a laboratory given as NAME=RESULT.csv",
         ),
         e => e.into(),
     })?;

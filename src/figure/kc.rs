@@ -142,7 +142,7 @@ fn degrees_of_equivalence(kc: &KeyComparison) -> Figure {
             "reference: {}; bars: U(d_i), k = 2; a bar not crossing 0 is |d_i| > U(d_i)",
             method_words(kc)
         ),
-        "U(d_i) = 2·√(u_i² + τ² − u_ref² + u_stab²) in the reference, + u_ref² when left out"
+        "U(d_i) = 2·√(u_i² + u_stab² + τ² − u_ref²) in the reference, + u_ref² when left out"
             .to_string(),
     ];
     if !left_out.is_empty() {
@@ -222,7 +222,7 @@ fn pilot(kc: &KeyComparison) -> Figure {
     let (family, symbol, x_label) = words(kc);
     let title = format!("The pilot's repeats of the {family} against the reference");
     let mut subtitles = vec![
-        "each repeat's d_r = y_r − x_ref with U(d_r) = 2·√(u_r² + τ² + u_ref² + u_stab²), k = 2"
+        "each repeat's d_r = y_r − x_ref with U(d_r) = 2·√(u_r² + u_stab² + τ² + u_ref²), k = 2"
             .to_string(),
     ];
     let mut series = Vec::new();
@@ -255,14 +255,16 @@ fn pilot(kc: &KeyComparison) -> Figure {
 }
 
 /// The pairwise degrees of equivalence as a Draft A report shows them: a matrix, one cell
-/// per pair of laboratories, with the largest |d_ij|/U(d_ij) over the positions (and
-/// where), and how many positions have |d_ij| > U(d_ij); d_ij = x_i − x_j,
-/// U(d_ij) = 2·√(u_i² + u_j²) from [`crate::kc::PairDifference`]. A cell over 1 is shaded.
-/// Every pair's d_ij and U(d_ij) at every position are in the JSON's `pairs`.
+/// per pair of laboratories, shaded when the pair's one closed-vector test at 5 % fails
+/// ([`crate::kc::PairDifference::vector`]), with its χ²/ν, and as information the largest
+/// |d_ij|/U(d_ij) over the positions (and where) and how many positions have
+/// |d_ij| > U(d_ij) (by chance some do in a consistent pair: that is not the decision);
+/// d_ij = x_i − x_j, U(d_ij) = 2·√(u_i² + u_j² + 2u_stab² + 2τ²). Every pair's d_ij and
+/// U(d_ij) at every position are in the JSON's `pairs`.
 ///
 /// Classes: `cell` with `data-a`, `data-b` (laboratories' positions in `labs`),
-/// `data-ratio` (the largest |d|/U), `data-at` (its position in `index`) and
-/// `data-exceeding`.
+/// `data-chi2`, `data-dof`, `data-consistent` (the pair's test), `data-ratio` (the largest
+/// |d|/U), `data-at` (its position in `index`) and `data-exceeding`.
 fn pairwise(kc: &KeyComparison) -> Figure {
     let (family, _, _) = words(kc);
     let title = format!("Pairwise degrees of equivalence d_ij = x_i − x_j, {family}");
@@ -273,11 +275,11 @@ fn pairwise(kc: &KeyComparison) -> Figure {
         None => format!("index {}", kc.index[k]),
     };
     let subtitles = vec![
-        "each cell: the largest |d_ij|/U(d_ij) over the positions (where), and the number of \
-         positions with |d_ij| > U(d_ij); shaded when over 1"
+        "each cell: the pair's closed-vector χ²/ν, shaded when it fails its one test at 5 %; \
+         as information the largest |d_ij|/U(d_ij) (where) and the positions with |d_ij| > U"
             .to_string(),
         format!(
-            "U(d_ij) = 2·√(u_i² + u_j²), k = 2; {} positions; every d_ij with its U in the JSON's pairs",
+            "U(d_ij) = 2·√(u_i² + u_j² + 2u_stab² + 2τ²), k = 2; {} positions; every d_ij with its U in the JSON's pairs",
             kc.index.len()
         ),
     ];
@@ -313,13 +315,28 @@ fn pairwise(kc: &KeyComparison) -> Figure {
             continue;
         };
         let exceeding = pair.exceeding();
+        // A pair without its test (JSON written before it) is not shaded.
+        let (chi2, dof, consistent) = pair
+            .vector
+            .as_ref()
+            .map_or((f64::NAN, 0, true), |v| (v.chi2, v.dof, v.consistent));
+        let test = if chi2.is_finite() {
+            format!("χ² {}/{dof}", readable(chi2))
+        } else {
+            "not tested".to_string()
+        };
         // Both cells of the pair (d_ji = −d_ij): the matrix reads from either side.
         for (row, column) in [(a, b), (b, a)] {
             let (x, y) = (left + column as f64 * cell_px, top + row as f64 * cell_px);
-            let fill = if ratio > 1.0 { "#f4b6a8" } else { "#ffffff" };
+            let fill = if consistent { "#ffffff" } else { "#f4b6a8" };
+            let chi2_attribute = if chi2.is_finite() {
+                format!(r#" data-chi2="{chi2}" data-dof="{dof}""#)
+            } else {
+                String::new()
+            };
             let _ = writeln!(
                 body,
-                r##"<rect class="cell" data-a="{row}" data-b="{column}" data-ratio="{ratio}" data-at="{at}" data-exceeding="{exceeding}" x="{}" y="{}" width="{}" height="{}" fill="{fill}" stroke="#000" stroke-width="0.6"/>"##,
+                r##"<rect class="cell" data-a="{row}" data-b="{column}"{chi2_attribute} data-consistent="{consistent}" data-ratio="{ratio}" data-at="{at}" data-exceeding="{exceeding}" x="{}" y="{}" width="{}" height="{}" fill="{fill}" stroke="#000" stroke-width="0.6"/>"##,
                 px(x),
                 px(y),
                 px(cell_px),
@@ -327,8 +344,8 @@ fn pairwise(kc: &KeyComparison) -> Figure {
             );
             if cell_px >= 30.0 {
                 for (line, text) in [
-                    format!("{ratio:.2}"),
-                    position(at),
+                    test.clone(),
+                    format!("{ratio:.2} at {}", position(at)),
                     format!("{exceeding}/{} > U", kc.index.len()),
                 ]
                 .iter()
@@ -362,4 +379,13 @@ fn pairwise(kc: &KeyComparison) -> Figure {
         title.clone(),
         document(height, &title, &subtitles, &body),
     )
+}
+
+/// χ² for a cell: one decimal up to 10⁵, else in the form 1.2e7 (a huge χ² stays short).
+fn readable(chi2: f64) -> String {
+    if chi2.abs() < 1e5 {
+        format!("{chi2:.1}")
+    } else {
+        format!("{chi2:.1e}")
+    }
 }

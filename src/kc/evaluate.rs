@@ -151,25 +151,41 @@ fn evaluate_aligned(
     }
     let mut notes = aligned.notes.clone();
     let kept = kept_in_reference(labs, options)?;
-    let scaled = Scaled::of(labs, &aligned, covariances);
+    // The laboratories that may be in the reference (all but those the pilot keeps out).
+    let candidates = reference_candidates(labs, options, &kept)?;
+    let mut scaled = Scaled::of(labs, &aligned, covariances);
     let scale = scaled.scale;
     if options.quantity == Quantity::EncoderError {
         notes.push(ENCODER_NOTE.to_string());
     }
-    let stated: Vec<ClosedCovariance> = (0..results)
+    let mut stated: Vec<ClosedCovariance> = (0..results)
         .map(|r| scaled.covariance(r, None))
         .collect::<Result<_, _>>()?;
-    let everyone: Vec<usize> = (0..labs.len()).collect();
-    let all_fit = scaled.fit(&everyone, &stated).ok_or_else(not_fitted)?;
+
+    // The pilot's stability first: one test of the repeats' closed vectors. When it fails,
+    // every laboratory's u includes u_stab from here on (the reference, every test, the
+    // search), so that nobody is left out for the artefact's motion.
+    let repeats: Vec<usize> = (labs.len()..results).collect();
+    let (stability_u, mut pilot_report) = pilot_stability(&scaled, pilot, &repeats, &stated)?;
+    if stability_u.iter().any(|s| *s > 0.0) {
+        scaled.stability = stability_u.iter().map(|s| s / scale).collect();
+        stated = (0..results)
+            .map(|r| scaled.covariance(r, None))
+            .collect::<Result<_, _>>()?;
+    }
+    let judged_u = scaled.judged_u();
+
+    let all_fit = scaled.fit(&candidates, &stated).ok_or_else(not_fitted)?;
     let vector_all = vector_test(&all_fit, scale);
 
+    let decision = decide_reference(&scaled, &stated, &candidates, &kept, &vector_all, options);
     let (search, inside, decided_consistent) =
-        decide_reference(&scaled, &stated, &kept, &vector_all, options);
+        (decision.search, decision.inside, decision.consistent);
     let in_reference: Vec<bool> = (0..labs.len()).map(|r| inside.contains(&r)).collect();
     let mut excluded = Vec::new();
     if let Some(search) = &search {
-        excluded = exclusions(labs, search, &in_reference, &vector_all);
-        notes.extend(search_notes(search, decided_consistent));
+        excluded = exclusions(labs, &candidates, search, &in_reference, &vector_all);
+        notes.extend(search_notes(search, decided_consistent, &decision.withheld));
     }
     if !kept.is_empty() {
         notes.push(format!(
@@ -177,9 +193,20 @@ fn evaluate_aligned(
             joined(labs, &kept)
         ));
     }
+    let kept_out: Vec<usize> = (0..labs.len())
+        .filter(|r| !candidates.contains(r))
+        .collect();
+    if !kept_out.is_empty() {
+        notes.push(format!(
+            "kept out of the reference, as the pilot decided, and given degrees of equivalence \
+             against it (in_reference false): {}; the one test at 5 % and the search are of \
+             the other laboratories",
+            joined(labs, &kept_out)
+        ));
+    }
 
     // The reference: the closed GLS of the laboratories inside (with τ for DL).
-    let per_face_all = estimates(&scaled.values, &scaled.u, &everyone, random_effects);
+    let per_face_all = estimates(&scaled.values, &judged_u, &candidates, random_effects);
     let tau: Vec<f64> = if random_effects {
         per_face_all.iter().map(|e| e.tau).collect()
     } else {
@@ -194,17 +221,12 @@ fn evaluate_aligned(
     };
     let final_fit = scaled.fit(&inside, &widened).ok_or_else(not_fitted)?;
     let vector = vector_test(&final_fit, scale);
-    let found = estimates(&scaled.values, &scaled.u, &inside, random_effects);
-
-    // The pilot's stability: one test of the repeats' closed vectors.
-    let repeats: Vec<usize> = (labs.len()..results).collect();
-    let (stability_u, mut pilot_report) = pilot_stability(&scaled, pilot, &repeats, &stated)?;
+    let found = estimates(&scaled.values, &judged_u, &inside, random_effects);
 
     // Degrees of equivalence against the closed reference: Σ_k d_ik = 0.
     let reference = Reference {
         fit: &final_fit,
         widened: &widened,
-        stability_u: &stability_u,
     };
     let degrees_of_equivalence = (0..labs.len())
         .map(|r| {
@@ -218,7 +240,7 @@ fn evaluate_aligned(
             .map(|&r| scaled.degree_of_equivalence(r, false, all_name(labs, pilot, r), &reference))
             .collect();
     }
-    let pairs = pair_differences(&scaled, &stated);
+    let pairs = pair_differences(&scaled, &widened);
     notes.extend(closing_notes(
         labs,
         covariances,
@@ -248,8 +270,7 @@ fn evaluate_aligned(
         reference_u: final_fit
             .reference_variance
             .iter()
-            .zip(&stability_u)
-            .map(|(v, s)| (v.sqrt() * scale).hypot(*s))
+            .map(|v| v.sqrt() * scale)
             .collect(),
         chi2: found.iter().map(|e| e.chi2).collect(),
         chi2_dof: found.iter().map(|e| e.dof).collect(),
@@ -259,12 +280,18 @@ fn evaluate_aligned(
         vector: Some(vector),
         search,
         kept: kept.iter().map(|&r| labs[r].name.clone()).collect(),
+        not_in_reference: kept_out.iter().map(|&r| labs[r].name.clone()).collect(),
         excluded,
         tau: tau.iter().map(|t| t * scale).collect(),
         degrees_of_equivalence,
         pairs,
         pilot: pilot_report,
         comparison_consistent,
+        withheld: decision
+            .withheld
+            .iter()
+            .map(|&r| labs[r].name.clone())
+            .collect(),
         notes,
     })
 }
@@ -282,6 +309,30 @@ fn kept_in_reference(labs: &[LabResult], options: &KcOptions) -> Result<Vec<usiz
     kept.sort_unstable();
     kept.dedup();
     Ok(kept)
+}
+
+/// The laboratories that may be in the reference: all but those the pilot keeps out
+/// ([`KcOptions::with_not_in_reference`]), at least 2, none of them also held in.
+fn reference_candidates(
+    labs: &[LabResult],
+    options: &KcOptions,
+    kept: &[usize],
+) -> Result<Vec<usize>, KcError> {
+    let mut out = Vec::new();
+    for name in &options.not_in_reference {
+        match labs.iter().position(|l| &l.name == name) {
+            Some(r) if kept.contains(&r) => {
+                return Err(KcError::KeptAndKeptOut(name.clone()));
+            }
+            Some(r) => out.push(r),
+            None => return Err(KcError::UnknownNotInReference(name.clone())),
+        }
+    }
+    let candidates: Vec<usize> = (0..labs.len()).filter(|r| !out.contains(r)).collect();
+    if candidates.len() < 2 {
+        return Err(KcError::TooFewInReference(candidates.len()));
+    }
+    Ok(candidates)
 }
 
 /// The error of a closed vector that cannot be fitted.
@@ -307,6 +358,9 @@ struct Scaled<'a> {
     u: Vec<Vec<f64>>,
     /// The quantities compared (faces or encoder positions).
     positions: usize,
+    /// The pilot's stability u_stab per quantity, in units of `scale` (0 unless the
+    /// repeats' test failed): in every result's covariance.
+    stability: Vec<f64>,
 }
 
 impl<'a> Scaled<'a> {
@@ -347,25 +401,45 @@ impl<'a> Scaled<'a> {
             values,
             u,
             positions: aligned.index.len(),
+            stability: vec![0.0; aligned.index.len()],
         }
     }
 
+    /// Every result's standard uncertainties with the pilot's stability u_stab in them,
+    /// √(u² + u_stab²), in units of the scale: what the per-quantity estimates use.
+    fn judged_u(&self) -> Vec<Vec<f64>> {
+        self.u
+            .iter()
+            .map(|u| u.iter().zip(&self.stability).map(|(u, s)| u.hypot(*s)).collect())
+            .collect()
+    }
+
     /// The closed covariance of result `r`: its own (scaled) or taken from its stated u,
-    /// widened by the dark uncertainty `extra` (τ, in units of the scale) where given.
-    fn covariance(&self, r: usize, extra: Option<&[f64]>) -> Result<ClosedCovariance, KcError> {
+    /// widened by the pilot's stability u_stab and by the dark uncertainty `tau` (in units
+    /// of the scale) where given.
+    fn covariance(&self, r: usize, tau: Option<&[f64]>) -> Result<ClosedCovariance, KcError> {
+        let extra: Vec<f64> = match tau {
+            None => self.stability.clone(),
+            Some(tau) => self
+                .stability
+                .iter()
+                .zip(tau)
+                .map(|(s, t)| s.hypot(*t))
+                .collect(),
+        };
+        let widened = extra.iter().any(|e| *e > 0.0);
         match self.covariances.get(r).and_then(Option::as_ref) {
-            None => Ok(ClosedCovariance::Stated(match extra {
-                None => self.u[r].clone(),
-                Some(tau) => self.u[r]
+            None => Ok(ClosedCovariance::Stated(
+                self.u[r]
                     .iter()
-                    .zip(tau)
-                    .map(|(u, t)| u.hypot(*t))
+                    .zip(&extra)
+                    .map(|(u, e)| u.hypot(*e))
                     .collect(),
-            })),
+            )),
             Some(v) => {
                 let mut v = v / (self.scale * self.scale);
-                if let Some(tau) = extra {
-                    v += closed_covariance(tau);
+                if widened {
+                    v += closed_covariance(&extra);
                 }
                 let v_plus = closed_pseudo_inverse(&v).ok_or_else(|| KcError::Covariance {
                     file: self.labs[r].source.clone(),
@@ -385,9 +459,9 @@ impl<'a> Scaled<'a> {
     }
 
     /// Result `r`'s (laboratory `lab`'s) degree of equivalence against the closed
-    /// `reference`: d and U(d) (k = 2) per quantity, in arcsec. Its variance is less the
-    /// reference's when it is inside the reference, more when outside, plus the pilot's
-    /// stability.
+    /// `reference`: d and U(d) (k = 2) per quantity, in arcsec. Its variance (the pilot's
+    /// stability and τ in it) is less the reference's when it is inside the reference, more
+    /// when outside.
     fn degree_of_equivalence(
         &self,
         r: usize,
@@ -395,7 +469,7 @@ impl<'a> Scaled<'a> {
         lab: String,
         reference: &Reference,
     ) -> DegreeOfEquivalence {
-        let (fit, stability_u) = (reference.fit, reference.stability_u);
+        let fit = reference.fit;
         let scale = self.scale;
         let positions = self.positions;
         let diagonal = reference.widened[r].diagonal();
@@ -404,8 +478,7 @@ impl<'a> Scaled<'a> {
         let mut expanded_u = Vec::with_capacity(positions);
         for k in 0..positions {
             let variance =
-                (diagonal[k] + sign * fit.reference_variance[k]).max(0.0) * scale * scale
-                    + stability_u[k] * stability_u[k];
+                (diagonal[k] + sign * fit.reference_variance[k]).max(0.0) * scale * scale;
             d.push((self.values[r][k] - fit.reference[k]) * scale);
             expanded_u.push(2.0 * variance.sqrt());
         }
@@ -418,13 +491,11 @@ impl<'a> Scaled<'a> {
     }
 }
 
-/// The closed reference the degrees of equivalence are taken against: its fit, every
-/// result's covariance (widened by τ for DerSimonian–Laird), and the pilot's stability
-/// u per quantity (arcsec).
+/// The closed reference the degrees of equivalence are taken against: its fit and every
+/// result's covariance (with the pilot's stability, and τ for DerSimonian–Laird).
 struct Reference<'a> {
     fit: &'a ClosedFit,
     widened: &'a [ClosedCovariance],
-    stability_u: &'a [f64],
 }
 
 /// The note on encoder errors, compared less their mean.
@@ -433,41 +504,79 @@ const ENCODER_NOTE: &str = "encoder errors are defined up to a constant: each re
      convention is not left out), and each is taken as closed with \
      V = N/(N − 1)·P·diag(u²)·P";
 
+/// What the one decision at 5 % and the search after it decided.
+struct Decision {
+    /// The search made (weighted mean, when the closed vector of every laboratory failed).
+    search: Option<search::SubsetSearch>,
+    /// The laboratories in the reference (indices, ascending).
+    inside: Vec<usize>,
+    /// Whether the comparison is decided consistent.
+    consistent: bool,
+    /// The laboratories the subset that passed would have left out, when they were more
+    /// than half: none is left out.
+    withheld: Vec<usize>,
+}
+
 /// The one decision at 5 %, then (weighted mean, when asked) the largest subset that
-/// passes: the search made, the laboratories inside the reference, and whether the
-/// comparison is decided consistent.
+/// passes — unless it leaves out more than half of the laboratories, when nobody is left
+/// out and the comparison is not consistent.
 fn decide_reference(
     scaled: &Scaled,
     stated: &[ClosedCovariance],
+    candidates: &[usize],
     kept: &[usize],
     vector_all: &VectorTest,
     options: &KcOptions,
-) -> (Option<search::SubsetSearch>, Vec<usize>, bool) {
+) -> Decision {
     let labs = scaled.labs;
     let random_effects = options.method == ReferenceMethod::DersimonianLaird;
-    let everyone: Vec<usize> = (0..labs.len()).collect();
+    let mut decision = Decision {
+        search: None,
+        inside: candidates.to_vec(),
+        consistent: vector_all.consistent,
+        withheld: Vec::new(),
+    };
     if random_effects || !options.largest_consistent_subset || vector_all.consistent {
-        return (None, everyone, vector_all.consistent);
+        return decision;
     }
-    let names: Vec<String> = labs.iter().map(|l| l.name.clone()).collect();
-    let found = search::largest_consistent(&names, kept, &|set| scaled.fit(set, stated));
+    // The search is over the candidates, numbered 0 … m − 1 among themselves.
+    let names: Vec<String> = candidates.iter().map(|&r| labs[r].name.clone()).collect();
+    let kept_among: Vec<usize> = (0..candidates.len())
+        .filter(|&i| kept.contains(&candidates[i]))
+        .collect();
+    let found = search::largest_consistent(&names, &kept_among, &|set| {
+        let set: Vec<usize> = set.iter().map(|&i| candidates[i]).collect();
+        scaled.fit(&set, stated)
+    });
+    decision.search = Some(found.search);
     if found.passed {
-        (Some(found.search), found.inside, true)
-    } else {
-        (Some(found.search), everyone, vector_all.consistent)
+        let inside: Vec<usize> = found.inside.iter().map(|&i| candidates[i]).collect();
+        let outside: Vec<usize> = candidates
+            .iter()
+            .copied()
+            .filter(|r| !inside.contains(r))
+            .collect();
+        if 2 * outside.len() > candidates.len() {
+            decision.withheld = outside;
+        } else {
+            decision.inside = inside;
+            decision.consistent = true;
+        }
     }
+    decision
 }
 
-/// Why each laboratory outside the reference was left out by the subset `search`.
+/// Why each of the `candidates` outside the reference was left out by the subset `search`.
 fn exclusions(
     labs: &[LabResult],
+    candidates: &[usize],
     search: &search::SubsetSearch,
     in_reference: &[bool],
     vector_all: &VectorTest,
 ) -> Vec<Exclusion> {
     let mut excluded = Vec::new();
     let last = search.steps.last();
-    for r in (0..labs.len()).filter(|r| !in_reference[*r]) {
+    for &r in candidates.iter().filter(|r| !in_reference[**r]) {
         let Some(chosen) = last else { break };
         let before = search
             .steps
@@ -491,7 +600,7 @@ fn exclusions(
                  fails (χ² = {:.3} > χ²_0.95({}) = {:.3}); the largest subset that passes \
                  is {} ({} laboratories, χ² = {:.3} ≤ χ²_0.95({}) = {:.3}, the smallest χ² \
                  of its size){before}",
-                labs.len(),
+                candidates.len(),
                 vector_all.chi2,
                 vector_all.dof,
                 vector_all.chi2_critical,
@@ -506,8 +615,13 @@ fn exclusions(
     excluded
 }
 
-/// The notes on how the subset `search` went, and on its failing when no subset passed.
-fn search_notes(search: &search::SubsetSearch, decided_consistent: bool) -> Vec<String> {
+/// The notes on how the subset `search` went, on its failing when no subset passed, and
+/// on the laboratories `withheld` (more than half) that were not left out.
+fn search_notes(
+    search: &search::SubsetSearch,
+    decided_consistent: bool,
+    withheld: &[usize],
+) -> Vec<String> {
     let mut notes = vec![match search.method {
         SearchMethod::Exhaustive => format!(
             "the largest consistent subset was found by trying every subset of each size \
@@ -521,7 +635,17 @@ fn search_notes(search: &search::SubsetSearch, decided_consistent: bool) -> Vec<
             search::EXHAUSTIVE_SUBSETS
         ),
     }];
-    if !decided_consistent {
+    if !withheld.is_empty() {
+        notes.push(format!(
+            "the largest subset that passes would leave out {} laboratories, more than half: \
+             nobody is left out, and the comparison is not consistent. When most laboratories \
+             disagree with the others beyond their stated uncertainties, the stated \
+             uncertainties look too small for the spread of the results (or the artefact \
+             changed): a random-effects reference (dersimonian-laird) takes that spread into \
+             its dark uncertainty τ instead of leaving laboratories out",
+            withheld.len()
+        ));
+    } else if !decided_consistent {
         notes.push(
             "no subset of the laboratories passes the closed vector's test: every \
              laboratory is kept in the reference, and the comparison is not consistent"
@@ -581,17 +705,26 @@ fn pilot_stability(
     Ok((stability_u, Some(report)))
 }
 
-/// The difference of every pair of laboratories with its U (k = 2), in arcsec, from
-/// their stated covariances.
-fn pair_differences(scaled: &Scaled, stated: &[ClosedCovariance]) -> Vec<PairDifference> {
+/// The difference of every pair of laboratories with its U (k = 2), in arcsec, and the
+/// pair's closed-vector test at 5 %, from their covariances `widened` (the pilot's
+/// stability and τ in them).
+fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Vec<PairDifference> {
     let labs = scaled.labs;
     let scale = scaled.scale;
     let positions = scaled.positions;
     let mut pairs = Vec::new();
+    let diagonals: Vec<Vec<f64>> = widened[..labs.len()]
+        .iter()
+        .map(ClosedCovariance::diagonal)
+        .collect();
     for a in 0..labs.len() {
-        let diagonal_a = stated[a].diagonal();
+        let diagonal_a = &diagonals[a];
         for b in a + 1..labs.len() {
-            let diagonal_b = stated[b].diagonal();
+            let diagonal_b = &diagonals[b];
+            let vector = scaled.fit(&[a, b], widened).map(|fit| VectorTest {
+                reference: Vec::new(),
+                ..vector_test(&fit, scale)
+            });
             pairs.push(PairDifference {
                 a: labs[a].name.clone(),
                 b: labs[b].name.clone(),
@@ -601,6 +734,7 @@ fn pair_differences(scaled: &Scaled, stated: &[ClosedCovariance]) -> Vec<PairDif
                 expanded_u: (0..positions)
                     .map(|k| 2.0 * (diagonal_a[k] + diagonal_b[k]).sqrt() * scale)
                     .collect(),
+                vector,
             });
         }
     }

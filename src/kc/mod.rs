@@ -13,15 +13,20 @@
 //!   τ² = max(0, (χ² − ν) / (S1 − S2/S1)),  S1 = Σ 1/u_i²,  S2 = Σ 1/u_i⁴
 //!   x_ref = Σ x_i/(u_i² + τ²) / Σ 1/(u_i² + τ²),  u_ref² = 1 / Σ 1/(u_i² + τ²)
 //! degrees of equivalence: d_i = x_i − x_ref,
-//!   U(d_i) = 2·√(u_i² + τ² − u_ref² + u_stab²)   laboratory i in the reference
-//!   U(d_i) = 2·√(u_i² + τ² + u_ref² + u_stab²)   not in it (excluded, a pilot's repeat)
-//! pairs: d_ij = x_i − x_j,  U(d_ij) = 2·√(u_i² + u_j²)
+//!   U(d_i) = 2·√(u_i² + u_stab² + τ² − u_ref²)   laboratory i in the reference
+//!   U(d_i) = 2·√(u_i² + u_stab² + τ² + u_ref²)   not in it (excluded, a pilot's repeat)
+//! pairs: d_ij = x_i − x_j,  U(d_ij) = 2·√(u_i² + u_j² + 2u_stab² + 2τ²),
+//!   each pair's closed vector tested at 5 %: χ² = d_ijᵀ (V_i + V_j)⁺ d_ij, ν = N − 1
 //! ```
 //!
-//! The in-reference formula is exact for both methods: with v_i = u_i² + τ² and the
-//! normalised weights w'_i = (1/v_i)/Σ 1/v_j, u²(d_i) = (1 − w'_i)² v_i + Σ_{j≠i} w'_j² v_j
-//! = v_i − u_ref², since w'_i v_i = u_ref². `u_stab` is the pilot's instability term (0
-//! without pilot repeats or when they agree; see [`PilotStability`]).
+//! The in-reference formula is exact for both methods: with v_i = u_i² + u_stab² + τ² and
+//! the normalised weights w'_i = (1/v_i)/Σ 1/v_j, u²(d_i) = (1 − w'_i)² v_i + Σ_{j≠i} w'_j²
+//! v_j = v_i − u_ref², since w'_i v_i = u_ref². `u_stab` is the pilot's instability term (0
+//! without pilot repeats or when they agree; see [`PilotStability`]): when the repeats show
+//! that the artefact moved, every laboratory's u is taken as √(u_i² + u_stab²) — in the
+//! reference, in every test and in the search for the largest consistent subset — so that a
+//! laboratory is not left out for the artefact's motion. (The weighted mean's and
+//! DerSimonian–Laird's u_i below are then these.)
 //!
 //! **Decisions at their stated rate** (docs/FORMAT.md §12). The comparison's consistency is
 //! one test at 5 %: the closed vector's χ² over every laboratory ([`KeyComparison::vector_all`],
@@ -30,7 +35,11 @@
 //! trying every subset of each size from n − 1 down while that is cheap (else greedily,
 //! said in a note), ties broken by the smaller χ² ([`SubsetSearch`], each size with the
 //! statistic that decided it); laboratories the pilot keeps ([`KcOptions::with_keep`]) are
-//! in every subset. The per-quantity χ² tests are information. The DerSimonian–Laird
+//! in every subset. When that subset would leave out more than half of the laboratories,
+//! nobody is left out ([`KeyComparison::withheld`]): the comparison is not consistent, and
+//! the stated uncertainties look too small for the spread of the results — a random-effects
+//! method takes that spread into the reference. Each pair of laboratories has its own
+//! closed-vector test at 5 % ([`PairDifference::vector`]), what the pairwise figure shades. The per-quantity χ² tests are information. The DerSimonian–Laird
 //! method leaves nobody out: its dark uncertainty τ takes the spread into the reference's
 //! uncertainty, and its verdict is the test of τ = 0 (the same closed vector of every
 //! laboratory). The pilot's repeats are one test of their closed vectors at 5 % too.
@@ -158,6 +167,9 @@ pub struct KcOptions {
     pub largest_consistent_subset: bool,
     /// Laboratories held in the reference whatever the tests say (the pilot's decision).
     pub keep: Vec<String>,
+    /// Laboratories kept out of the reference but given degrees of equivalence against it
+    /// (the pilot's decision): not in the one test nor in the search.
+    pub not_in_reference: Vec<String>,
 }
 
 impl Default for KcOptions {
@@ -167,6 +179,7 @@ impl Default for KcOptions {
             method: ReferenceMethod::WeightedMean,
             largest_consistent_subset: true,
             keep: Vec::new(),
+            not_in_reference: Vec::new(),
         }
     }
 }
@@ -200,6 +213,18 @@ impl KcOptions {
     /// contains them ([`evaluate`] refuses a name that is not a laboratory's).
     pub fn with_keep(mut self, names: impl IntoIterator<Item = impl Into<String>>) -> Self {
         self.keep = names.into_iter().map(Into::into).collect();
+        self
+    }
+
+    /// With laboratories kept out of the reference, by name: they are not in the one test
+    /// at 5 % nor in the search, and have degrees of equivalence against the reference
+    /// (`in_reference` false). [`evaluate`] refuses a name that is not a laboratory's, one
+    /// also held in ([`KcOptions::with_keep`]), and fewer than 2 laboratories left.
+    pub fn with_not_in_reference(
+        mut self,
+        names: impl IntoIterator<Item = impl Into<String>>,
+    ) -> Self {
+        self.not_in_reference = names.into_iter().map(Into::into).collect();
         self
     }
 }
@@ -282,7 +307,9 @@ pub struct VectorTest {
     pub consistent: bool,
     /// χ²_{0.95}(ν).
     pub chi2_critical: f64,
-    /// The GLS reference vector x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i, arcseconds.
+    /// The GLS reference vector x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i, arcseconds (empty for a
+    /// pair's test, whose reference is of no use).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub reference: Vec<f64>,
 }
 
@@ -321,7 +348,8 @@ pub struct DegreeOfEquivalence {
     pub in_reference: bool,
 }
 
-/// A pair of laboratories: d_ij = x_i − x_j, U(d_ij) = 2·√(u_i² + u_j²).
+/// A pair of laboratories: d_ij = x_i − x_j, U(d_ij) = 2·√(u_i² + u_j² + 2u_stab² + 2τ²)
+/// (the diagonal of V_i + V_j), and the one test of the pair at 5 %.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[non_exhaustive]
 pub struct PairDifference {
@@ -331,9 +359,15 @@ pub struct PairDifference {
     pub b: String,
     /// d_ab per quantity, arcseconds.
     pub d: Vec<f64>,
-    /// U(d_ab) at k = 2 per quantity, arcseconds.
+    /// U(d_ab) at k = 2 per quantity, arcseconds: both laboratories' u, the pilot's
+    /// stability u_stab and the dark uncertainty τ, each laboratory's.
     #[serde(rename = "U")]
     pub expanded_u: Vec<f64>,
+    /// The pair's closed-vector test at 5 %: χ² = d_abᵀ (V_a + V_b)⁺ d_ab with
+    /// ν = N − 1, the covariances as in U(d_ab). Whether the two laboratories agree is
+    /// this one decision, not a test per position (`None` in JSON written before it).
+    #[serde(default)]
+    pub vector: Option<VectorTest>,
 }
 
 impl PairDifference {
@@ -438,6 +472,10 @@ pub struct KeyComparison {
     /// The laboratories held in the reference whatever the tests say.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub kept: Vec<String>,
+    /// The laboratories kept out of the reference by the pilot's decision (with degrees of
+    /// equivalence, `in_reference` false; not in `excluded`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub not_in_reference: Vec<String>,
     /// The laboratories left out, in the order given.
     pub excluded: Vec<Exclusion>,
     /// The dark uncertainty τ per quantity (0 for the weighted mean), arcseconds.
@@ -453,6 +491,11 @@ pub struct KeyComparison {
     /// or (weighted mean) a subset passes after the stated exclusions; for
     /// DerSimonian–Laird, whether τ = 0 passes (the vector of every laboratory).
     pub comparison_consistent: bool,
+    /// The laboratories the largest consistent subset would have left out when they were
+    /// more than half of them: nobody is left out, and the comparison is not consistent
+    /// (the stated uncertainties look too small for the spread of the results).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub withheld: Vec<String>,
     /// What was left out or added, in words.
     pub notes: Vec<String>,
 }
@@ -485,7 +528,9 @@ impl KeyComparison {
                 "The pilot's repeats ({names}) differ beyond their uncertainties: their closed \
                  vector χ² = {:.2} > χ²_0.95({}) = {:.2}; the artefact is taken as unstable, \
                  and the repeats' sample standard deviation on each quantity (u_stab) is added \
-                 to u_ref and to every u(d_i)",
+                 in quadrature to every laboratory's u: in the reference, in every test and in \
+                 the search for laboratories to leave out, so that none is left out for the \
+                 artefact's motion",
                 v.chi2, v.dof, v.chi2_critical
             ),
             None => format!("The pilot's repeats ({names}): not tested"),
@@ -496,7 +541,8 @@ impl KeyComparison {
     /// state it: the one test of every laboratory at 5 %, the subset that passes when it
     /// failed (weighted mean), or for DerSimonian–Laird the test of τ = 0; no final stop.
     pub fn verdict_statement(&self) -> String {
-        let n = self.labs.len();
+        // the laboratories the one test is of: all but those kept out of the reference
+        let n = self.labs.len().saturating_sub(self.not_in_reference.len());
         let all = match &self.vector_all {
             Some(v) => format!(
                 "the closed vector of all {n} laboratories {} (χ² = {:.2} {} χ²_0.95({}) = {:.2})",
@@ -543,6 +589,16 @@ impl KeyComparison {
             return format!(
                 "Consistent after leaving out {}: {all}{subset}",
                 left_out.join(", ")
+            );
+        }
+        if !self.withheld.is_empty() {
+            return format!(
+                "NOT consistent: {all}; the largest subset that passes would leave out {} of the \
+                 {n} laboratories ({}), more than half, so nobody is left out: the stated \
+                 uncertainties look too small for the spread of the results (a random-effects \
+                 reference, dersimonian-laird, takes that spread into its dark uncertainty τ)",
+                self.withheld.len(),
+                self.withheld.join(", ")
             );
         }
         let why = if self.search.is_some() {
@@ -684,6 +740,18 @@ pub enum KcError {
     /// A laboratory to keep that is not among the laboratories.
     #[error("the laboratory {0:?} to keep is not among the laboratories")]
     UnknownKeep(String),
+    /// A laboratory to keep out of the reference that is not among the laboratories.
+    #[error("the laboratory {0:?} to keep out of the reference is not among the laboratories")]
+    UnknownNotInReference(String),
+    /// A laboratory both held in the reference and kept out of it.
+    #[error("the laboratory {0:?} is both held in the reference and kept out of it")]
+    KeptAndKeptOut(String),
+    /// Fewer than two laboratories left for the reference.
+    #[error(
+        "{0} laboratory(ies) left for the reference once those kept out are set aside: a \
+         reference needs at least 2"
+    )]
+    TooFewInReference(usize),
     /// A standard uncertainty below what the comparison computes with.
     #[error(
         "{location}: {quantity} {index} has u = {value:e}″, below {minimum:e}″: an angle's \

@@ -155,7 +155,12 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     writeln!(out, "{}", table(&header, &rows, &right))?;
 
     if let Some(v) = &kc.vector_all {
-        writeln!(out, "Every laboratory: {}", v.statement())?;
+        let who = if kc.not_in_reference.is_empty() {
+            "Every laboratory"
+        } else {
+            "Every laboratory but those kept out of the reference"
+        };
+        writeln!(out, "{who}: {}", v.statement())?;
     }
     if let Some(search) = &kc.search {
         writeln!(
@@ -192,7 +197,7 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
 
     writeln!(
         out,
-        "\nDegrees of equivalence d_i = x_i − x_ref, U(d_i) = 2·√(u_i² + τ² ∓ u_ref² + u_stab²) \
+        "\nDegrees of equivalence d_i = x_i − x_ref, U(d_i) = 2·√(u_i² + u_stab² + τ² ∓ u_ref²) \
          (− in the reference, + out of it), arcsec; * where |d| > U(d)"
     )?;
     let mut labs: Vec<&DegreeOfEquivalence> = kc.degrees_of_equivalence.iter().collect();
@@ -221,6 +226,7 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
         })
         .collect();
     writeln!(out, "{}", dynamic_table(&header, &rows))?;
+    write_pairs(out, kc)?;
 
     if let Some(pilot) = &kc.pilot {
         if let Some(statement) = kc.pilot_statement() {
@@ -254,6 +260,51 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
         writeln!(out, "Note: {note}")?;
     }
     writeln!(out, "{}", kc.verdict_statement())
+}
+
+/// The pairs whose one closed-vector test at 5 % fails, each with its χ² (every pair's d,
+/// U and test are in the JSON's `pairs`).
+fn write_pairs(out: &mut impl std::fmt::Write, kc: &KeyComparison) -> std::fmt::Result {
+    let tested: Vec<_> = kc
+        .pairs
+        .iter()
+        .filter_map(|p| p.vector.as_ref().map(|v| (p, v)))
+        .collect();
+    if tested.is_empty() {
+        return Ok(());
+    }
+    let failing: Vec<String> = tested
+        .iter()
+        .filter(|(_, v)| !v.consistent)
+        .map(|(p, v)| {
+            format!(
+                "{}–{} (χ² = {} > {:.2})",
+                p.a,
+                p.b,
+                readable_chi2(v.chi2),
+                v.chi2_critical
+            )
+        })
+        .collect();
+    writeln!(
+        out,
+        "Pairs: each pair's closed vector d_ij tested at 5 % (ν = {}; its own decision, about \
+         1 pair in 20 fails by chance): {} of {} fail{}{}",
+        tested[0].1.dof,
+        failing.len(),
+        tested.len(),
+        if failing.is_empty() { "" } else { ": " },
+        failing.join(", ")
+    )
+}
+
+/// A χ² as the table prints it: two decimals up to 10⁶, else like 1.23e12.
+fn readable_chi2(chi2: f64) -> String {
+    if chi2.abs() < 1e6 {
+        format!("{chi2:.2}")
+    } else {
+        format!("{chi2:.2e}")
+    }
 }
 
 /// A table with any number of columns, the first left-aligned.

@@ -761,10 +761,11 @@ fn kc_degrees_of_equivalence_reference_and_pilot_against_the_json() {
         .collect();
     let mut args: Vec<&str> = vec!["kc"];
     args.extend(labs.iter().map(String::as_str));
+    // the first two repeats agree (the artefact stable): F is left out
     let start = format!("start={k}/pilot-start.csv");
-    let end = format!("end={k}/pilot-end.csv");
+    let middle = format!("middle={k}/pilot-middle.csv");
     args.extend([
-        "--pilot", &start, "--pilot", &end, "--format", "json", "--plot", d,
+        "--pilot", &start, "--pilot", &middle, "--format", "json", "--plot", d,
     ]);
     let json = json_of(&polycal(&args));
     let faces = floats(&json["index"]);

@@ -158,6 +158,10 @@ fn cells(svg: &str) -> Vec<(usize, usize, f64, usize, usize)> {
 /// | A − B | 0.3, −0.35, 0.15, −0.1 | 2·√0.05 = 0.447214 | 0.35/0.447214 = 0.782624 (2) | 0 |
 /// | A − C | 0.4, −0.2, −0.2, 0 | 2·√0.0125 = 0.223607 | 0.4/0.223607 = 1.788854 (1) | 1 |
 /// | B − C | 0.1, 0.15, −0.35, 0.1 | 2·√0.0425 = 0.412311 | 0.35/0.412311 = 0.848875 (3) | 0 |
+///
+/// Each pair's one test: V_a + V_b = N/(N−1)·(u_a² + u_b²)·P, so χ² = (N−1)/N·Σd²/(u_a² + u_b²)
+/// with ν = 3, χ²_0.95(3) = 7.814728: A − B 0.75·0.245/0.05 = 3.675, A − C 0.75·0.24/0.0125
+/// = 14.4 (fails: the shaded pair), B − C 0.75·0.165/0.0425 = 2.911765.
 #[test]
 fn the_pairwise_figure_against_a_hand_worked_three_laboratory_case() {
     let dir = scratch_dir("pairwise");
@@ -236,7 +240,21 @@ fn the_pairwise_figure_against_a_hand_worked_three_laboratory_case() {
             assert_eq!((cell.3, cell.4), (at, over), "{cell:?}");
         }
     }
-    // the shaded cells are the pair over 1, A − C
+    // each pair's test, by hand; the shaded cells are the pair that fails it, A − C
+    for (pair, (chi2, consistent)) in pairs
+        .iter()
+        .zip([(3.675, true), (14.4, false), (0.75 * 0.165 / 0.0425, true)])
+    {
+        let vector = &pair["vector"];
+        assert!((vector["chi2"].as_f64().unwrap() - chi2).abs() < 1e-9, "{pair}");
+        assert_eq!(vector["dof"], 3);
+        assert_eq!(vector["consistent"], consistent);
+        assert!((vector["chi2_critical"].as_f64().unwrap() - 7.814_727_903).abs() < 1e-6);
+    }
+    for line in svg.lines().filter(|l| l.contains("class=\"cell\"")) {
+        let shaded = line.contains("fill=\"#f4b6a8\"");
+        assert_eq!(shaded, line.contains("data-consistent=\"false\""), "{line}");
+    }
     assert_eq!(svg.matches("fill=\"#f4b6a8\"").count(), 2);
 }
 

@@ -95,7 +95,8 @@ pub fn gls(x: &[Vec<f64>], v: &[DMatrix<f64>]) -> Gls {
 
 /// The decision of docs/FORMAT.md §12 by brute force: the laboratories in the reference
 /// (indices) — all when every laboratory passes; else the largest subset (holding `kept`)
-/// that passes, ties by the smaller χ²; all when none does.
+/// that passes, ties by the smaller χ²; all when none does, and all when that subset
+/// leaves out more than half of the laboratories.
 pub fn largest_subset(x: &[Vec<f64>], u: &[Vec<f64>], kept: &[usize]) -> Vec<usize> {
     let labs = x.len();
     let test = |set: &[usize]| {
@@ -121,7 +122,7 @@ pub fn largest_subset(x: &[Vec<f64>], u: &[Vec<f64>], kept: &[usize]) -> Vec<usi
             }
         }
         if let Some((_, set)) = best {
-            return set;
+            return if 2 * (labs - set.len()) > labs { all } else { set };
         }
     }
     all

@@ -439,15 +439,25 @@ fn kc_pilot_repeats_are_one_test_of_their_closed_vectors() {
     assert!((vector.chi2 - g.chi2).abs() < 1e-9 * g.chi2);
     assert_eq!(vector.dof, FACES - 1);
     assert!(!vector.consistent);
-    // u_stab is the repeats' sample standard deviation on every face.
+    // u_stab is the repeats' sample standard deviation on every face, and it is in every
+    // laboratory's u: the reference is the dense closed GLS with u_i² + u_stab².
+    let s: Vec<f64> = (0..FACES)
+        .map(|f| (values[0][f] - moved[f]).abs() / 2f64.sqrt())
+        .collect();
+    let widened: Vec<DMatrix<f64>> = (0..3)
+        .map(|i| closed_cov(&(0..FACES).map(|f| u[i][f].hypot(s[f])).collect::<Vec<_>>()))
+        .collect();
+    let g = gls(&values[..3], &widened);
     for f in 0..FACES {
-        let s = (values[0][f] - moved[f]).abs() / 2f64.sqrt();
-        assert!((report.stability_u[f] - s).abs() < 1e-12);
-        let x: Vec<f64> = (0..3).map(|i| values[i][f]).collect();
-        let s3: Vec<f64> = (0..3).map(|i| u[i][f]).collect();
-        let (_, mean_u, _) = textbook_weighted_mean(&x, &s3);
-        assert!((kc.reference_u[f] - (mean_u * mean_u + s * s).sqrt()).abs() < 1e-12);
+        assert!((report.stability_u[f] - s[f]).abs() < 1e-12);
+        assert!((kc.reference[f] - g.reference[f]).abs() < 1e-12);
+        assert!((kc.reference_u[f] - g.covariance[(f, f)].sqrt()).abs() < 1e-12);
+        // U(d_i) of a laboratory in the reference: 2·√(diag V_i − diag of the reference's)
+        let expected = 2.0 * (widened[1][(f, f)] - g.covariance[(f, f)]).sqrt();
+        assert!((kc.degrees_of_equivalence[1].expanded_u[f] - expected).abs() < 1e-12);
     }
+    // every test is judged with u_stab: the closed vector of every laboratory too
+    assert!((kc.vector_all.as_ref().unwrap().chi2 - g.chi2).abs() < 1e-9 * g.chi2.max(1.0));
     assert!(kc.pilot_statement().unwrap().contains("unstable"));
     assert_eq!(report.degrees_of_equivalence.len(), 2);
     assert!(!report.degrees_of_equivalence[1].in_reference);
@@ -579,5 +589,40 @@ fn kc_three_thousand_faces_are_compared_in_linear_memory() {
     assert!(z.abs() < 4.0, "χ² = {} for ν = {}", all.chi2, all.dof);
     for doe in &kc.degrees_of_equivalence {
         assert!(doe.d.iter().sum::<f64>().abs() < 1e-9);
+    }
+}
+
+/// Each pair's test is the dense closed GLS of the two laboratories alone (χ², ν = N − 1),
+/// and U(d_ij) is 2·√ of the diagonals of V_i + V_j, with τ in them for DerSimonian–Laird.
+#[test]
+fn kc_each_pair_is_the_two_laboratories_closed_vector_test() {
+    let (values, u) = fixed_data(true);
+    let labs: Vec<LabResult> = (0..values.len())
+        .map(|i| lab(&format!("L{i}"), &values[i], &u[i]))
+        .collect();
+    for method in [ReferenceMethod::WeightedMean, ReferenceMethod::DersimonianLaird] {
+        let kc = evaluate(&labs, &[], &KcOptions::new().with_method(method)).unwrap();
+        assert_eq!(kc.pairs.len(), labs.len() * (labs.len() - 1) / 2);
+        let widened = |i: usize| -> Vec<f64> {
+            (0..FACES).map(|f| u[i][f].hypot(kc.tau[f])).collect()
+        };
+        let mut failing = 0;
+        for pair in &kc.pairs {
+            let a: usize = pair.a[1..].parse().unwrap();
+            let b: usize = pair.b[1..].parse().unwrap();
+            let (va, vb) = (closed_cov(&widened(a)), closed_cov(&widened(b)));
+            let g = gls(&[values[a].clone(), values[b].clone()], &[va.clone(), vb.clone()]);
+            let vector = pair.vector.as_ref().unwrap();
+            assert!((vector.chi2 - g.chi2).abs() < 1e-9 * g.chi2.max(1.0), "{method:?}");
+            assert_eq!(vector.dof, FACES - 1);
+            assert_eq!(vector.consistent, g.chi2 <= kc_support::critical(FACES - 1));
+            failing += usize::from(!vector.consistent);
+            for f in 0..FACES {
+                let expected = 2.0 * (va[(f, f)] + vb[(f, f)]).sqrt();
+                assert!((pair.expanded_u[f] - expected).abs() < 1e-12);
+                assert!((pair.d[f] - (closed(&values[a])[f] - closed(&values[b])[f])).abs() < 1e-12);
+            }
+        }
+        eprintln!("{method:?}: {failing} of {} pairs fail", kc.pairs.len());
     }
 }

@@ -132,7 +132,7 @@ fn description(section: &KeyComparisonSection) -> String {
         }
     };
     format!(
-        "Interlaboratory comparison of {} laboratories ({}) evaluated by polycal kc (file {}, SHA-256 {}). Reference per quantity: {method}; its U = 2·u_ref. Per quantity, as information: χ² = Σ (x_i − x̄_w)²/u_i² with ν = n − 1 against χ²_0.95(ν). Degrees of equivalence d_i = x_i − x_ref with U(d_i) = 2·√(u_i² + τ² − u_ref² + u_stab²) in the reference and 2·√(u_i² + τ² + u_ref² + u_stab²) out of it. {} Values in arcseconds, labelled by {}; k = 2 with the coverage probability stated as 0.95 (normal distribution).",
+        "Interlaboratory comparison of {} laboratories ({}) evaluated by polycal kc (file {}, SHA-256 {}). Reference per quantity: {method}; its U = 2·u_ref. Per quantity, as information: χ² = Σ (x_i − x̄_w)²/u_i² with ν = n − 1 against χ²_0.95(ν). Degrees of equivalence d_i = x_i − x_ref with U(d_i) = 2·√(u_i² + u_stab² + τ² − u_ref²) in the reference and 2·√(u_i² + u_stab² + τ² + u_ref²) out of it. {} Values in arcseconds, labelled by {}; k = 2 with the coverage probability stated as 0.95 (normal distribution).",
         kc.labs.len(),
         kc.labs.join(", "),
         section.file_name,

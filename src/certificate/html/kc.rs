@@ -155,12 +155,13 @@ fn formulas(out: &mut String, kc: &KeyComparison) {
          quantity, as information: χ² = Σ (x<sub>i</sub> − x̄<sub>w</sub>)²/u<sub>i</sub>² with \
          ν = n − 1 against χ²<sub>0.95</sub>(ν) (about one quantity in twenty fails by chance). \
          Degrees of equivalence: d<sub>i</sub> = x<sub>i</sub> − x<sub>ref</sub> (Σ d<sub>i</sub> \
-         = 0), U(d<sub>i</sub>) = 2·√(u<sub>i</sub>² + τ² − u<sub>ref</sub>² + \
-         u<sub>stab</sub>²) for a laboratory in the reference, 2·√(u<sub>i</sub>² + τ² + \
-         u<sub>ref</sub>² + u<sub>stab</sub>²) for one out of it (k = 2; u<sub>i</sub>² the \
-         diagonal of the laboratory's closed covariance, u<sub>ref</sub>² that of the \
+         = 0), U(d<sub>i</sub>) = 2·√(u<sub>i</sub>² + u<sub>stab</sub>² + τ² − \
+         u<sub>ref</sub>²) for a laboratory in the reference, 2·√(u<sub>i</sub>² + \
+         u<sub>stab</sub>² + τ² + u<sub>ref</sub>²) for one out of it (k = 2; u<sub>i</sub>² \
+         the diagonal of the laboratory's closed covariance, u<sub>ref</sub>² that of the \
          reference's); u<sub>stab</sub> is the pilot's instability (0 without repeats or when \
-         they agree). All values in arcseconds.</p>",
+         they agree; otherwise in every laboratory's u, in the reference and in every test). \
+         All values in arcseconds.</p>",
         kc.method.name(),
         kc.method.name()
     );
@@ -345,8 +346,9 @@ fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection) {
     if section.lab.is_none() && !kc.pairs.is_empty() {
         out.push_str(
             "<p class=\"note\">The pairs d<sub>ij</sub> = x<sub>i</sub> − x<sub>j</sub> with \
-             U(d<sub>ij</sub>) = 2·√(u<sub>i</sub>² + u<sub>j</sub>²) are in the key comparison's \
-             JSON (<code>pairs</code>).</p>\n",
+             U(d<sub>ij</sub>) = 2·√(u<sub>i</sub>² + u<sub>j</sub>² + 2u<sub>stab</sub>² + \
+             2τ²), and each pair's closed-vector test at 5 % (χ², ν = N − 1), are in the key \
+             comparison's JSON (<code>pairs</code>) and its pairwise figure.</p>\n",
         );
     }
 }
