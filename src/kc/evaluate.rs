@@ -410,7 +410,12 @@ impl<'a> Scaled<'a> {
     fn judged_u(&self) -> Vec<Vec<f64>> {
         self.u
             .iter()
-            .map(|u| u.iter().zip(&self.stability).map(|(u, s)| u.hypot(*s)).collect())
+            .map(|u| {
+                u.iter()
+                    .zip(&self.stability)
+                    .map(|(u, s)| u.hypot(*s))
+                    .collect()
+            })
             .collect()
     }
 
@@ -471,17 +476,18 @@ impl<'a> Scaled<'a> {
     ) -> DegreeOfEquivalence {
         let fit = reference.fit;
         let scale = self.scale;
-        let positions = self.positions;
         let diagonal = reference.widened[r].diagonal();
         let sign = if inside_reference { -1.0 } else { 1.0 };
-        let mut d = Vec::with_capacity(positions);
-        let mut expanded_u = Vec::with_capacity(positions);
-        for k in 0..positions {
-            let variance =
-                (diagonal[k] + sign * fit.reference_variance[k]).max(0.0) * scale * scale;
-            d.push((self.values[r][k] - fit.reference[k]) * scale);
-            expanded_u.push(2.0 * variance.sqrt());
-        }
+        let d = self.values[r]
+            .iter()
+            .zip(&fit.reference)
+            .map(|(x, x_ref)| (x - x_ref) * scale)
+            .collect();
+        let expanded_u = diagonal
+            .iter()
+            .zip(&fit.reference_variance)
+            .map(|(v, v_ref)| 2.0 * ((v + sign * v_ref).max(0.0) * scale * scale).sqrt())
+            .collect();
         DegreeOfEquivalence {
             lab,
             d,

@@ -241,12 +241,16 @@ fn the_pairwise_figure_against_a_hand_worked_three_laboratory_case() {
         }
     }
     // each pair's test, by hand; the shaded cells are the pair that fails it, A − C
-    for (pair, (chi2, consistent)) in pairs
-        .iter()
-        .zip([(3.675, true), (14.4, false), (0.75 * 0.165 / 0.0425, true)])
+    for (pair, (chi2, consistent)) in
+        pairs
+            .iter()
+            .zip([(3.675, true), (14.4, false), (0.75 * 0.165 / 0.0425, true)])
     {
         let vector = &pair["vector"];
-        assert!((vector["chi2"].as_f64().unwrap() - chi2).abs() < 1e-9, "{pair}");
+        assert!(
+            (vector["chi2"].as_f64().unwrap() - chi2).abs() < 1e-9,
+            "{pair}"
+        );
         assert_eq!(vector["dof"], 3);
         assert_eq!(vector["consistent"], consistent);
         assert!((vector["chi2_critical"].as_f64().unwrap() - 7.814_727_903).abs() < 1e-6);

@@ -122,7 +122,11 @@ pub fn largest_subset(x: &[Vec<f64>], u: &[Vec<f64>], kept: &[usize]) -> Vec<usi
             }
         }
         if let Some((_, set)) = best {
-            return if 2 * (labs - set.len()) > labs { all } else { set };
+            return if 2 * (labs - set.len()) > labs {
+                all
+            } else {
+                set
+            };
         }
     }
     all

@@ -600,29 +600,95 @@ fn kc_each_pair_is_the_two_laboratories_closed_vector_test() {
     let labs: Vec<LabResult> = (0..values.len())
         .map(|i| lab(&format!("L{i}"), &values[i], &u[i]))
         .collect();
-    for method in [ReferenceMethod::WeightedMean, ReferenceMethod::DersimonianLaird] {
+    for method in [
+        ReferenceMethod::WeightedMean,
+        ReferenceMethod::DersimonianLaird,
+    ] {
         let kc = evaluate(&labs, &[], &KcOptions::new().with_method(method)).unwrap();
         assert_eq!(kc.pairs.len(), labs.len() * (labs.len() - 1) / 2);
-        let widened = |i: usize| -> Vec<f64> {
-            (0..FACES).map(|f| u[i][f].hypot(kc.tau[f])).collect()
-        };
+        let widened =
+            |i: usize| -> Vec<f64> { (0..FACES).map(|f| u[i][f].hypot(kc.tau[f])).collect() };
         let mut failing = 0;
         for pair in &kc.pairs {
             let a: usize = pair.a[1..].parse().unwrap();
             let b: usize = pair.b[1..].parse().unwrap();
             let (va, vb) = (closed_cov(&widened(a)), closed_cov(&widened(b)));
-            let g = gls(&[values[a].clone(), values[b].clone()], &[va.clone(), vb.clone()]);
+            let g = gls(
+                &[values[a].clone(), values[b].clone()],
+                &[va.clone(), vb.clone()],
+            );
             let vector = pair.vector.as_ref().unwrap();
-            assert!((vector.chi2 - g.chi2).abs() < 1e-9 * g.chi2.max(1.0), "{method:?}");
+            assert!(
+                (vector.chi2 - g.chi2).abs() < 1e-9 * g.chi2.max(1.0),
+                "{method:?}"
+            );
             assert_eq!(vector.dof, FACES - 1);
             assert_eq!(vector.consistent, g.chi2 <= kc_support::critical(FACES - 1));
             failing += usize::from(!vector.consistent);
             for f in 0..FACES {
                 let expected = 2.0 * (va[(f, f)] + vb[(f, f)]).sqrt();
                 assert!((pair.expanded_u[f] - expected).abs() < 1e-12);
-                assert!((pair.d[f] - (closed(&values[a])[f] - closed(&values[b])[f])).abs() < 1e-12);
+                assert!(
+                    (pair.d[f] - (closed(&values[a])[f] - closed(&values[b])[f])).abs() < 1e-12
+                );
             }
         }
         eprintln!("{method:?}: {failing} of {} pairs fail", kc.pairs.len());
     }
+}
+
+/// A laboratory kept out of the reference: the reference, the one test and the search are
+/// those of the others alone, and its degree of equivalence is against that reference with
+/// U = 2·√(diag V_i + diag of the reference's covariance) (dense GLS here).
+#[test]
+fn kc_a_laboratory_kept_out_of_the_reference_has_degrees_of_equivalence_against_it() {
+    let (values, u) = fixed_data(true);
+    let n = values.len();
+    let labs: Vec<LabResult> = (0..n)
+        .map(|i| lab(&format!("L{i}"), &values[i], &u[i]))
+        .collect();
+    let out = "L0".to_string();
+    let kc = evaluate(
+        &labs,
+        &[],
+        &KcOptions::new().with_not_in_reference([out.clone()]),
+    )
+    .unwrap();
+    let others = evaluate(&labs[1..], &[], &KcOptions::new()).unwrap();
+    assert_eq!(kc.not_in_reference, ["L0"]);
+    assert!(kc.excluded.iter().all(|e| e.lab != out));
+    assert!(!kc.degrees_of_equivalence[0].in_reference);
+    assert_eq!(
+        kc.vector_all.as_ref().unwrap().dof,
+        (FACES - 1) * (n - 2),
+        "the one test is of the others"
+    );
+    let inside: Vec<usize> = (1..n)
+        .filter(|&r| kc.degrees_of_equivalence[r].in_reference)
+        .collect();
+    let v: Vec<DMatrix<f64>> = inside.iter().map(|&r| closed_cov(&u[r])).collect();
+    let x: Vec<Vec<f64>> = inside.iter().map(|&r| values[r].clone()).collect();
+    let g = gls(&x, &v);
+    let v0 = closed_cov(&u[0]);
+    for f in 0..FACES {
+        assert!((kc.reference[f] - others.reference[f]).abs() < 1e-12);
+        assert!((kc.reference[f] - g.reference[f]).abs() < 1e-12);
+        let d = closed(&values[0])[f] - g.reference[f];
+        assert!((kc.degrees_of_equivalence[0].d[f] - d).abs() < 1e-12);
+        let expected = 2.0 * (v0[(f, f)] + g.covariance[(f, f)]).sqrt();
+        assert!((kc.degrees_of_equivalence[0].expanded_u[f] - expected).abs() < 1e-12);
+    }
+    // refused: a name that is no laboratory's, one also held in, too few left
+    let refuse = |options: KcOptions| evaluate(&labs, &[], &options).unwrap_err().to_string();
+    assert!(refuse(KcOptions::new().with_not_in_reference(["X"])).contains("\"X\""));
+    assert!(
+        refuse(
+            KcOptions::new()
+                .with_keep(["L1"])
+                .with_not_in_reference(["L1"])
+        )
+        .contains("both held in")
+    );
+    let all_but_one: Vec<String> = (1..n).map(|i| format!("L{i}")).collect();
+    assert!(refuse(KcOptions::new().with_not_in_reference(all_but_one)).contains("at least 2"));
 }

@@ -5,6 +5,8 @@
 //! `cargo test --test sweeps kc_pairs_motion:: -- --nocapture` prints the figures
 //! docs/verdicts.md quotes.
 
+#![allow(clippy::needless_range_loop)]
+
 use crate::kc_support::{self, closed_noise, comparison, lab, results};
 use polycal::kc::{KcOptions, LabResult, evaluate};
 use rand::{Rng, SeedableRng};
@@ -108,7 +110,14 @@ fn kc_a_moving_artefact_does_not_leave_honest_laboratories_out() {
             .map(|(r, name)| lab(name, &moved(r > 0, &u_pilot, &mut rng), &u_pilot))
             .collect();
         let kc = evaluate(&results, &pilot, &KcOptions::new()).unwrap();
-        let unstable = !kc.pilot.as_ref().unwrap().vector.as_ref().unwrap().consistent;
+        let unstable = !kc
+            .pilot
+            .as_ref()
+            .unwrap()
+            .vector
+            .as_ref()
+            .unwrap()
+            .consistent;
         let out = usize::from(!kc.excluded.is_empty());
         if unstable {
             seen += 1;
@@ -170,7 +179,7 @@ fn kc_understated_uncertainties_leave_nobody_out_and_say_so() {
                 let true_u = vec![u_lab * understated; FACES];
                 let noise = closed_noise(rng, &true_u);
                 let x: Vec<f64> = (0..FACES).map(|f| truth[f] + noise[f]).collect();
-                lab(&format!("L{i}"), &x, &vec![u_lab; FACES])
+                lab(&format!("L{i}"), &x, &[u_lab; FACES])
             })
             .collect()
     };
@@ -210,5 +219,9 @@ fn kc_understated_uncertainties_leave_nobody_out_and_say_so() {
     assert_eq!(said, withheld);
     assert!(rate(withheld) >= 0.5, "{}", rate(withheld));
     assert!(rate(half_or_more) <= 0.25, "{}", rate(half_or_more));
-    assert!(rate(withheld_consistent) <= 0.01, "{}", rate(withheld_consistent));
+    assert!(
+        rate(withheld_consistent) <= 0.01,
+        "{}",
+        rate(withheld_consistent)
+    );
 }
