@@ -297,7 +297,7 @@ def kc(
     """Evaluates a key comparison as ``polycal kc`` does (docs/FORMAT.md §12): the one
     decision at 5 % in ``vector_all`` (the closed vector of every laboratory) and, when it
     fails, the largest consistent subset in ``search`` and ``excluded``; the closed
-    reference (``method="dersimonian-laird"``: with the dark uncertainty τ, nobody left
+    reference (``method="dersimonian-laird"`` or ``"mandel-paule"``: with the dark uncertainty τ, nobody left
     out) with ``reference_u``; per face ``chi2`` and ``consistent`` as information;
     ``degrees_of_equivalence`` and ``pairs``. ``labs`` maps each laboratory's name to its
     result (a :class:`SolveResult` with a budget, rows, or a result file), in order;

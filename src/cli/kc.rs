@@ -71,9 +71,10 @@ pub struct KcArgs {
     #[arg(long, default_value = "pitch_deviation", value_parser = parse_quantity)]
     quantity: Quantity,
     /// The reference: weighted-mean (when the closed vector of every laboratory fails its
-    /// test at 5 %, the largest subset that passes), or dersimonian-laird (the
-    /// random-effects reference with its dark uncertainty τ, nobody left out; its verdict
-    /// is the test of τ = 0).
+    /// test at 5 %, the largest subset that passes), or a random-effects reference with its
+    /// dark uncertainty τ, nobody left out, its verdict the test of τ = 0:
+    /// dersimonian-laird (τ by the method of moments) or mandel-paule (τ such that the χ²
+    /// with the widened u equals n − 1).
     #[arg(long, default_value = "weighted-mean", value_parser = parse_method)]
     method: ReferenceMethod,
     /// Hold laboratory NAME in the reference whatever the tests say (the pilot's decision,

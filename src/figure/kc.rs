@@ -105,9 +105,10 @@ fn method_words(kc: &KeyComparison) -> &'static str {
         crate::kc::ReferenceMethod::WeightedMean => {
             "closed GLS reference (the weighted mean with one u per laboratory)"
         }
-        crate::kc::ReferenceMethod::DersimonianLaird => {
-            "DerSimonian–Laird, u widened by τ, closed GLS reference"
+        crate::kc::ReferenceMethod::MandelPaule => {
+            "Mandel–Paule, u widened by τ, closed GLS reference"
         }
+        _ => "DerSimonian–Laird, u widened by τ, closed GLS reference",
     }
 }
 

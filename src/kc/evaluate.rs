@@ -102,13 +102,13 @@ fn estimates(
     values: &[Vec<f64>],
     u: &[Vec<f64>],
     inside: &[usize],
-    random_effects: bool,
+    method: ReferenceMethod,
 ) -> Vec<Estimate> {
     (0..values.first().map_or(0, Vec::len))
         .map(|k| {
             let x: Vec<f64> = inside.iter().map(|&r| values[r][k]).collect();
             let u: Vec<f64> = inside.iter().map(|&r| u[r][k]).collect();
-            reference::estimate(&x, &u, random_effects)
+            reference::estimate(&x, &u, method)
         })
         .collect()
 }
@@ -143,7 +143,7 @@ fn evaluate_aligned(
     aligned: Aligned,
     covariances: &[Option<DMatrix<f64>>],
 ) -> Result<KeyComparison, KcError> {
-    let random_effects = options.method == ReferenceMethod::DersimonianLaird;
+    let random_effects = options.method.is_random_effects();
     let positions = aligned.index.len();
     let results = labs.len() + pilot.len();
     if positions < 2 {
@@ -206,7 +206,7 @@ fn evaluate_aligned(
     }
 
     // The reference: the closed GLS of the laboratories inside (with τ for DL).
-    let per_face_all = estimates(&scaled.values, &judged_u, &candidates, random_effects);
+    let per_face_all = estimates(&scaled.values, &judged_u, &candidates, options.method);
     let tau: Vec<f64> = if random_effects {
         per_face_all.iter().map(|e| e.tau).collect()
     } else {
@@ -221,7 +221,7 @@ fn evaluate_aligned(
     };
     let final_fit = scaled.fit(&inside, &widened).ok_or_else(not_fitted)?;
     let vector = vector_test(&final_fit, scale);
-    let found = estimates(&scaled.values, &judged_u, &inside, random_effects);
+    let found = estimates(&scaled.values, &judged_u, &inside, options.method);
 
     // Degrees of equivalence against the closed reference: Σ_k d_ik = 0.
     let reference = Reference {
@@ -245,7 +245,7 @@ fn evaluate_aligned(
         labs,
         covariances,
         &inside,
-        random_effects,
+        options.method,
         positions,
     ));
 
@@ -535,7 +535,7 @@ fn decide_reference(
     options: &KcOptions,
 ) -> Decision {
     let labs = scaled.labs;
-    let random_effects = options.method == ReferenceMethod::DersimonianLaird;
+    let random_effects = options.method.is_random_effects();
     let mut decision = Decision {
         search: None,
         inside: candidates.to_vec(),
@@ -747,13 +747,13 @@ fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Vec<PairDi
     pairs
 }
 
-/// The notes on the covariances the closed vector used, on DerSimonian–Laird, and on the
-/// one decision at 5 %.
+/// The notes on the covariances the closed vector used, on the random-effects `method`,
+/// and on the one decision at 5 %.
 fn closing_notes(
     labs: &[LabResult],
     covariances: &[Option<DMatrix<f64>>],
     inside: &[usize],
-    random_effects: bool,
+    method: ReferenceMethod,
     positions: usize,
 ) -> Vec<String> {
     let mut notes = Vec::new();
@@ -769,17 +769,22 @@ fn closing_notes(
             with_own.join(", ")
         ));
     }
-    if random_effects {
-        notes.push(
-            "DerSimonian–Laird: nobody is left out. τ is the dark uncertainty: the spread of the \
-             laboratories' results on each quantity beyond their stated uncertainties (the \
-             method of moments from χ² about the weighted mean), added to every laboratory's \
-             variance there, so that it enters u_ref and every U(d_i). The verdict is the test \
-             of τ = 0 for the whole comparison (the closed vector of every laboratory, \
-             vector_all): not consistent means the laboratories differ beyond their stated \
-             uncertainties, and τ carries that into the reference"
-                .to_string(),
-        );
+    if method.is_random_effects() {
+        let estimator = if method == ReferenceMethod::MandelPaule {
+            "τ² such that the χ² about the mean with the widened uncertainties equals n − 1"
+        } else {
+            "the method of moments from χ² about the weighted mean"
+        };
+        notes.push(format!(
+            "{}: nobody is left out. τ is the dark uncertainty: the spread of the \
+             laboratories' results on each quantity beyond their stated uncertainties \
+             ({estimator}), added to every laboratory's variance there, so that it enters u_ref \
+             and every U(d_i). The verdict is the test of τ = 0 for the whole comparison (the \
+             closed vector of every laboratory, vector_all): not consistent means the \
+             laboratories differ beyond their stated uncertainties, and τ carries that into \
+             the reference",
+            method.title()
+        ));
     }
     notes.push(format!(
         "the comparison is decided by one test at 5 %, the closed vector's χ²; the χ² of each \

@@ -84,15 +84,20 @@ pub use search::{SearchMethod, SearchStep, SubsetSearch};
 pub enum ReferenceMethod {
     /// The weighted mean (Cox 2002, procedure A), with the largest consistent subset.
     WeightedMean,
-    /// The DerSimonian–Laird random-effects mean, with its dark uncertainty τ.
+    /// The DerSimonian–Laird random-effects mean, with its dark uncertainty τ (method of
+    /// moments).
     DersimonianLaird,
+    /// The Mandel–Paule random-effects mean: τ² such that the χ² about the mean with the
+    /// widened uncertainties equals its degrees of freedom, n − 1 (Paule & Mandel 1982).
+    MandelPaule,
 }
 
 impl ReferenceMethod {
     /// Every method, in the order of their names in messages.
-    pub const ALL: [ReferenceMethod; 2] = [
+    pub const ALL: [ReferenceMethod; 3] = [
         ReferenceMethod::WeightedMean,
         ReferenceMethod::DersimonianLaird,
+        ReferenceMethod::MandelPaule,
     ];
 
     /// The name as spelled in the JSON and on the command line, e.g. `weighted-mean`.
@@ -100,7 +105,23 @@ impl ReferenceMethod {
         match self {
             ReferenceMethod::WeightedMean => "weighted-mean",
             ReferenceMethod::DersimonianLaird => "dersimonian-laird",
+            ReferenceMethod::MandelPaule => "mandel-paule",
         }
+    }
+
+    /// The name in prose, e.g. `DerSimonian–Laird`.
+    pub fn title(self) -> &'static str {
+        match self {
+            ReferenceMethod::WeightedMean => "weighted mean",
+            ReferenceMethod::DersimonianLaird => "DerSimonian–Laird",
+            ReferenceMethod::MandelPaule => "Mandel–Paule",
+        }
+    }
+
+    /// Whether the method is a random-effects one (a dark uncertainty τ, nobody left out,
+    /// the verdict the test of τ = 0).
+    pub fn is_random_effects(self) -> bool {
+        self != ReferenceMethod::WeightedMean
     }
 }
 
@@ -110,7 +131,7 @@ impl ReferenceMethod {
 #[non_exhaustive]
 pub enum KcNameError {
     /// Not a reference method's name.
-    #[error("method {0:?}: expected weighted-mean or dersimonian-laird")]
+    #[error("method {0:?}: expected weighted-mean, dersimonian-laird or mandel-paule")]
     Method(String),
     /// Not the name of a compared quantity.
     #[error("quantity {0:?}: expected pitch_deviation or encoder_error")]
@@ -558,14 +579,13 @@ impl KeyComparison {
             ),
             None => "the closed vector of every laboratory was not tested".to_string(),
         };
-        if self.method == ReferenceMethod::DersimonianLaird {
+        if self.method.is_random_effects() {
+            let title = self.method.title();
             return if self.comparison_consistent {
-                format!(
-                    "Consistent (DerSimonian–Laird, τ = 0 not rejected): {all}; nobody is left out"
-                )
+                format!("Consistent ({title}, τ = 0 not rejected): {all}; nobody is left out")
             } else {
                 format!(
-                    "NOT consistent (DerSimonian–Laird, τ = 0 rejected): {all}; the laboratories \
+                    "NOT consistent ({title}, τ = 0 rejected): {all}; the laboratories \
                      differ beyond their stated uncertainties, nobody is left out, and τ carries \
                      the spread into u_ref and every U(d_i)"
                 )
@@ -596,7 +616,8 @@ impl KeyComparison {
                 "NOT consistent: {all}; the largest subset that passes would leave out {} of the \
                  {n} laboratories ({}), more than half, so nobody is left out: the stated \
                  uncertainties look too small for the spread of the results (a random-effects \
-                 reference, dersimonian-laird, takes that spread into its dark uncertainty τ)",
+                 reference, dersimonian-laird or mandel-paule, takes that spread into its dark \
+                 uncertainty τ)",
                 self.withheld.len(),
                 self.withheld.join(", ")
             );

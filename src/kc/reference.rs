@@ -5,6 +5,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::ReferenceMethod;
 use super::closed::closing_projector;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
@@ -50,14 +51,15 @@ pub(crate) fn weighted_mean(x: &[f64], u: &[f64]) -> (f64, f64, f64) {
     (mean, scale / s1.sqrt(), chi2)
 }
 
-/// The estimate of one quantity: the weighted mean, or with `random_effects` the
-/// DerSimonian–Laird mean: τ² = max(0, (Q − (n − 1)) / (S1 − S2/S1)), S1 = Σ w_i,
-/// S2 = Σ w_i², w_i = 1/u_i²; x_ref = Σ x_i/(u_i² + τ²) / Σ 1/(u_i² + τ²),
+/// The estimate of one quantity by `method`: the weighted mean; the DerSimonian–Laird
+/// mean, τ² = max(0, (Q − (n − 1)) / (S1 − S2/S1)), S1 = Σ w_i, S2 = Σ w_i², w_i = 1/u_i²;
+/// or the Mandel–Paule mean, τ² ≥ 0 with Σ (x_i − x_ref)²/(u_i² + τ²) = n − 1 (τ = 0 when
+/// Q ≤ n − 1). For both x_ref = Σ x_i/(u_i² + τ²) / Σ 1/(u_i² + τ²),
 /// u_ref² = 1 / Σ 1/(u_i² + τ²).
-pub(crate) fn estimate(x: &[f64], u: &[f64], random_effects: bool) -> Estimate {
+pub(crate) fn estimate(x: &[f64], u: &[f64], method: ReferenceMethod) -> Estimate {
     let (mean, mean_u, chi2) = weighted_mean(x, u);
     let dof = x.len().saturating_sub(1);
-    if !random_effects {
+    if !method.is_random_effects() {
         return Estimate {
             reference: mean,
             reference_u: mean_u,
@@ -66,9 +68,13 @@ pub(crate) fn estimate(x: &[f64], u: &[f64], random_effects: bool) -> Estimate {
             tau: 0.0,
         };
     }
-    let s1: f64 = u.iter().map(|u| u.powi(-2)).sum();
-    let s2: f64 = u.iter().map(|u| u.powi(-4)).sum();
-    let tau2 = ((chi2 - dof as f64) / (s1 - s2 / s1)).max(0.0);
+    let tau2 = if method == ReferenceMethod::MandelPaule {
+        mandel_paule_tau2(x, u, chi2, dof)
+    } else {
+        let s1: f64 = u.iter().map(|u| u.powi(-2)).sum();
+        let s2: f64 = u.iter().map(|u| u.powi(-4)).sum();
+        ((chi2 - dof as f64) / (s1 - s2 / s1)).max(0.0)
+    };
     let widened: Vec<f64> = u.iter().map(|u| (u * u + tau2).sqrt()).collect();
     let (reference, reference_u, _) = weighted_mean(x, &widened);
     Estimate {
@@ -78,6 +84,40 @@ pub(crate) fn estimate(x: &[f64], u: &[f64], random_effects: bool) -> Estimate {
         dof,
         tau: tau2.sqrt(),
     }
+}
+
+/// The Mandel–Paule τ²: the root of F(τ²) = Σ (x_i − x̄(τ²))²/(u_i² + τ²) − (n − 1), which
+/// falls as τ² grows; 0 when F(0) = Q − (n − 1) ≤ 0. The root lies below the plain sample
+/// variance s² (F(s²) ≤ Σ (x_i − x̄)²/s² − (n − 1) = 0), found there by bisection to the
+/// last bits.
+fn mandel_paule_tau2(x: &[f64], u: &[f64], chi2: f64, dof: usize) -> f64 {
+    let n = x.len() as f64;
+    if dof == 0 || chi2 <= dof as f64 {
+        return 0.0;
+    }
+    let f = |tau2: f64| {
+        let widened: Vec<f64> = u.iter().map(|u| (u * u + tau2).sqrt()).collect();
+        weighted_mean(x, &widened).2 - dof as f64
+    };
+    let plain = x.iter().sum::<f64>() / n;
+    let mut high = x.iter().map(|x| (x - plain).powi(2)).sum::<f64>() / (n - 1.0);
+    let mut low = 0.0;
+    // F(high) ≤ 0 by the bound above; rounding aside, make sure of it.
+    while f(high) > 0.0 && high.is_finite() {
+        high *= 2.0;
+    }
+    for _ in 0..200 {
+        let middle = 0.5 * (low + high);
+        if middle <= low || middle >= high {
+            break;
+        }
+        if f(middle) > 0.0 {
+            low = middle;
+        } else {
+            high = middle;
+        }
+    }
+    0.5 * (low + high)
 }
 
 /// The covariance a laboratory's closed result is taken to have when it gives none:
@@ -124,11 +164,26 @@ mod tests {
     fn kc_dersimonian_laird_is_the_weighted_mean_without_excess() {
         let x = [1.0, 1.01, 0.99];
         let u = [0.1, 0.1, 0.1];
-        let e = estimate(&x, &u, true);
+        let e = estimate(&x, &u, ReferenceMethod::DersimonianLaird);
         assert_eq!(e.tau, 0.0);
         assert!((e.reference - 1.0).abs() < 1e-15);
-        let e = estimate(&[0.0, 1.0, 2.0], &u, true);
+        let e = estimate(&[0.0, 1.0, 2.0], &u, ReferenceMethod::DersimonianLaird);
         // Q = 200, S1 = 300, S2 = 30000: τ² = 198/200.
         assert!((e.tau * e.tau - 0.99).abs() < 1e-12);
+    }
+
+    #[test]
+    fn kc_mandel_paule_by_hand() {
+        // Equal u: the mean stays 1, Σ (x − 1)²/(0.01 + τ²) = 2/(0.01 + τ²) = n − 1 = 2.
+        let e = estimate(&[0.0, 1.0, 2.0], &[0.1; 3], ReferenceMethod::MandelPaule);
+        assert!((e.tau * e.tau - 0.99).abs() < 1e-12);
+        assert!((e.reference - 1.0).abs() < 1e-12);
+        // Two laboratories: Σ w_i (x_i − x̄)² = (x₁ − x₂)²/(v₁ + v₂) = 1 with v = u² + τ², so
+        // τ² = ((x₁ − x₂)² − u₁² − u₂²)/2 = (4 − 0.05)/2 = 1.975.
+        let e = estimate(&[0.0, 2.0], &[0.1, 0.2], ReferenceMethod::MandelPaule);
+        assert!((e.tau * e.tau - 1.975).abs() < 1e-12);
+        // Consistent: τ = 0 and the weighted mean.
+        let e = estimate(&[1.0, 1.01, 0.99], &[0.1; 3], ReferenceMethod::MandelPaule);
+        assert_eq!(e.tau, 0.0);
     }
 }

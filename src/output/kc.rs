@@ -110,7 +110,15 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
              Decision: one test at 5 %, the closed vector of every laboratory; when it fails, the \
              largest subset that passes (docs/FORMAT.md §12)"
         )?,
-        ReferenceMethod::DersimonianLaird => writeln!(
+        ReferenceMethod::MandelPaule => writeln!(
+            out,
+            "Reference: Mandel–Paule, every u_i² widened by τ² such that Σ (x_i − x_ref)²/(u_i²+τ²) \
+             = n − 1 (the dark uncertainty of each quantity; τ = 0 when χ² ≤ n − 1), then the \
+             closed GLS reference\n\
+             Decision: the test of τ = 0 at 5 %, the closed vector of every laboratory; nobody is \
+             left out (docs/FORMAT.md §12)"
+        )?,
+        _ => writeln!(
             out,
             "Reference: DerSimonian–Laird, every u_i² widened by τ² = max(0, (χ² − ν)/(S1 − S2/S1)) \
              (the dark uncertainty of each quantity), then the closed GLS reference; with one u \

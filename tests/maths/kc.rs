@@ -56,6 +56,46 @@ fn textbook_dersimonian_laird(x: &[f64], u: &[f64]) -> (f64, f64, f64) {
     (tau2.sqrt(), sum_wx / sum_w, 1.0 / sum_w.sqrt())
 }
 
+/// Mandel–Paule (Paule & Mandel 1982), by their own iteration: from τ² = 0, Newton steps on
+/// F(τ²) = Σ w_i (x_i − x̄)² − (n − 1), w_i = 1/(u_i² + τ²), with F'(τ²) ≈ −Σ w_i² (x_i − x̄)²
+/// (the step the paper gives), until it changes by less than 1e-15 of τ². Returns τ, the mean
+/// and its u.
+fn textbook_mandel_paule(x: &[f64], u: &[f64]) -> (f64, f64, f64) {
+    let n = x.len() as f64;
+    let mean_of = |tau2: f64| {
+        let w: Vec<f64> = u.iter().map(|u| 1.0 / (u * u + tau2)).collect();
+        let sw: f64 = w.iter().sum();
+        let mean = x.iter().zip(&w).map(|(x, w)| x * w).sum::<f64>() / sw;
+        (w, sw, mean)
+    };
+    let mut tau2 = 0.0f64;
+    for _ in 0..1000 {
+        let (w, _, mean) = mean_of(tau2);
+        let f: f64 = x
+            .iter()
+            .zip(&w)
+            .map(|(x, w)| w * (x - mean).powi(2))
+            .sum::<f64>()
+            - (n - 1.0);
+        if f <= 0.0 && tau2 == 0.0 {
+            break;
+        }
+        let slope: f64 = x
+            .iter()
+            .zip(&w)
+            .map(|(x, w)| w * w * (x - mean).powi(2))
+            .sum();
+        let next = (tau2 + f / slope).max(0.0);
+        let done = (next - tau2).abs() <= 1e-15 * next.max(1e-300);
+        tau2 = next;
+        if done {
+            break;
+        }
+    }
+    let (_, sw, mean) = mean_of(tau2);
+    (tau2.sqrt(), mean, 1.0 / sw.sqrt())
+}
+
 /// Five laboratories of a 12-face polygon, hand-chosen, closed and consistent; with
 /// `varying` their u varies by face, else each laboratory has one u on every face.
 fn fixed_data(varying: bool) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
@@ -691,4 +731,74 @@ fn kc_a_laboratory_kept_out_of_the_reference_has_degrees_of_equivalence_against_
     );
     let all_but_one: Vec<String> = (1..n).map(|i| format!("L{i}")).collect();
     assert!(refuse(KcOptions::new().with_not_in_reference(all_but_one)).contains("at least 2"));
+}
+
+/// Mandel–Paule: τ per face equals the paper's own iteration (an independent algorithm:
+/// Newton steps, where the library bisects), the χ² with the widened u equals n − 1 where
+/// τ > 0, and the reference is the closed GLS with every variance widened by τ².
+#[test]
+fn kc_mandel_paule_matches_its_iteration_and_its_defining_equation() {
+    let (mut values, u) = fixed_data(false);
+    for (i, v) in values.iter_mut().enumerate() {
+        for (f, x) in v.iter_mut().enumerate() {
+            *x += 0.15 * ((i * 7 + f * 3) % 5) as f64 - 0.3;
+        }
+        *v = closed(v);
+    }
+    let labs: Vec<LabResult> = (0..5)
+        .map(|i| lab(&format!("L{i}"), &values[i], &u[i]))
+        .collect();
+    let options = KcOptions::new().with_method(ReferenceMethod::MandelPaule);
+    let kc = evaluate(&labs, &[], &options).unwrap();
+    assert!(kc.excluded.is_empty());
+    let dl = evaluate(
+        &labs,
+        &[],
+        &KcOptions::new().with_method(ReferenceMethod::DersimonianLaird),
+    )
+    .unwrap();
+    let mut positive = 0;
+    for f in 0..FACES {
+        let x: Vec<f64> = values.iter().map(|v| v[f]).collect();
+        let s: Vec<f64> = u.iter().map(|v| v[f]).collect();
+        let (tau, _, _) = textbook_mandel_paule(&x, &s);
+        assert!(
+            (kc.tau[f] - tau).abs() < 1e-9 * tau.max(1e-3),
+            "{} vs {tau}",
+            kc.tau[f]
+        );
+        if tau > 0.0 {
+            // the library's τ solves Σ (x_i − x̄)²/(u_i² + τ²) = n − 1 about the weighted mean
+            positive += 1;
+            let t2 = kc.tau[f] * kc.tau[f];
+            let w: Vec<f64> = s.iter().map(|u| 1.0 / (u * u + t2)).collect();
+            let mean = x.iter().zip(&w).map(|(x, w)| x * w).sum::<f64>() / w.iter().sum::<f64>();
+            let chi2: f64 = x.iter().zip(&w).map(|(x, w)| w * (x - mean).powi(2)).sum();
+            assert!((chi2 - 4.0).abs() < 1e-9, "face {}: {chi2}", f + 1);
+        }
+        // τ is 0 for both estimators on the same faces (both when Q ≤ n − 1)
+        assert_eq!(kc.tau[f] == 0.0, dl.tau[f] == 0.0);
+    }
+    assert!(positive >= 6, "τ > 0 on {positive} faces only");
+    // the reference: the dense closed GLS with every variance widened by τ²
+    let v: Vec<DMatrix<f64>> = u
+        .iter()
+        .map(|u| {
+            closed_cov(
+                &u.iter()
+                    .zip(&kc.tau)
+                    .map(|(u, t)| u.hypot(*t))
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .collect();
+    let g = gls(&values, &v);
+    for f in 0..FACES {
+        assert!((kc.reference[f] - g.reference[f]).abs() < 1e-12);
+        assert!((kc.reference_u[f] - g.covariance[(f, f)].sqrt()).abs() < 1e-12);
+    }
+    assert_eq!(kc.vector_all, dl.vector_all);
+    assert_eq!(kc.comparison_consistent, dl.comparison_consistent);
+    assert!(kc.verdict_statement().contains("Mandel–Paule"));
+    assert_eq!("mandel-paule".parse(), Ok(ReferenceMethod::MandelPaule));
 }

@@ -127,7 +127,10 @@ fn description(section: &KeyComparisonSection) -> String {
         ReferenceMethod::WeightedMean => {
             "the closed GLS reference of the laboratories in it (with one u per laboratory the weighted mean, Cox 2002, procedure A, x_ref = Σ x_i/u_i² / Σ 1/u_i², u_ref = (Σ 1/u_i²)^(−1/2)); the comparison decided by one test at 5 %, the closed vector of every laboratory, and when it fails the largest subset that passes"
         }
-        ReferenceMethod::DersimonianLaird => {
+        ReferenceMethod::MandelPaule => {
+            "the Mandel–Paule random-effects reference, every u_i² widened by the dark uncertainty τ² of each quantity such that Σ (x_i − x_ref)²/(u_i² + τ²) = n − 1 (τ = 0 when χ² ≤ n − 1), then the closed GLS reference; nobody left out, the verdict the test of τ = 0 (the closed vector of every laboratory at 5 %)"
+        }
+        _ => {
             "the DerSimonian–Laird random-effects reference, every u_i² widened by the dark uncertainty τ² = max(0, (χ² − ν)/(S1 − S2/S1)) of each quantity, then the closed GLS reference (with one u per laboratory x_ref = Σ x_i/(u_i² + τ²) / Σ 1/(u_i² + τ²), u_ref² = 1/Σ 1/(u_i² + τ²)); nobody left out, the verdict the test of τ = 0 (the closed vector of every laboratory at 5 %)"
         }
     };

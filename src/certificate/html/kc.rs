@@ -139,7 +139,14 @@ fn formulas(out: &mut String, kc: &KeyComparison) {
              from every quantity: the largest subset whose closed vector passes, every subset \
              tried while that is cheap, ties broken by the smaller χ²"
         }
-        ReferenceMethod::DersimonianLaird => {
+        ReferenceMethod::MandelPaule => {
+            "the Mandel–Paule random-effects reference: every laboratory's variance widened by \
+             the dark uncertainty τ² of each quantity such that Σ (x<sub>i</sub> − \
+             x<sub>ref</sub>)²/(u<sub>i</sub>² + τ²) = n − 1 (τ = 0 when the χ² is below it), \
+             then the closed GLS reference; nobody is left out, and the verdict is the test of \
+             τ = 0, the closed vector of every laboratory at 5 %"
+        }
+        _ => {
             "the DerSimonian–Laird random-effects reference: every laboratory's variance widened \
              by the dark uncertainty τ² = max(0, (χ² − ν)/(S<sub>1</sub> − S<sub>2</sub>/S<sub>1</sub>)) \
              of each quantity, S<sub>1</sub> = Σ 1/u<sub>i</sub>², S<sub>2</sub> = Σ \
