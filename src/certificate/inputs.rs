@@ -245,7 +245,7 @@ pub enum ReportError {
         /// The key comparison file.
         file: String,
         /// What is wrong.
-        problem: super::kc::KeyComparisonShapeError,
+        problem: crate::kc::KeyComparisonShapeError,
     },
     /// A calibration of the standard's history cannot be read.
     #[error(transparent)]

@@ -58,9 +58,10 @@ use crate::uncertainty::calibration::{
     CalibrationUncertainty, InstrumentBudget, KnownCorrection, evaluate_with_corrections,
 };
 
+pub use crate::kc::KeyComparisonShapeError;
 pub use history::{HistoryCalibration, HistorySection, agreement_with_prediction};
 pub use inputs::{ReportError, ReportInputs};
-pub use kc::{KeyComparisonSection, KeyComparisonShapeError};
+pub use kc::KeyComparisonSection;
 pub use meta::Metadata;
 
 /// One input file of a report, with its fingerprint.

@@ -86,6 +86,12 @@ pub struct KcArgs {
     /// it is not in the one test at 5 % nor in the search. May be given more than once.
     #[arg(long, value_name = "NAME")]
     not_in_reference: Vec<String>,
+    /// Link this comparison to another (e.g. an RMO comparison to the CIPM one): its
+    /// `polycal kc --format json` output; the laboratories in both give the offset between
+    /// the references, and every degree of equivalence is also given against the linked
+    /// reference (docs/FORMAT.md §12, "Linking").
+    #[arg(long, value_name = "KC.json")]
+    link: Option<PathBuf>,
     /// Output format (csv: the degrees of equivalence, columns
     /// lab,index,angle_deg,d,U,in_reference; docs/FORMAT.md §12).
     #[arg(long, value_enum, default_value = "table")]
@@ -131,12 +137,15 @@ fn read_lab(name: &str, path: &std::path::Path) -> Result<LabResult> {
 
 /// `polycal kc`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &KcArgs) -> Result<u8> {
-    let roles: Vec<(String, &std::path::Path)> = args
+    let mut roles: Vec<(String, &std::path::Path)> = args
         .labs
         .iter()
         .chain(&args.pilot)
         .map(|n| (n.name.clone(), n.path.as_path()))
         .collect();
+    if let Some(path) = &args.link {
+        roles.push(("--link".to_string(), path.as_path()));
+    }
     super::stdin_once(
         roles
             .iter()
@@ -160,7 +169,15 @@ pub fn run(args: &KcArgs) -> Result<u8> {
         .with_method(args.method)
         .with_keep(args.keep.iter().cloned())
         .with_not_in_reference(args.not_in_reference.iter().cloned());
-    let kc = evaluate(&labs, &pilot, &options).map_err(|e| match e {
+    let linked = match &args.link {
+        Some(path) => {
+            let (bytes, source) = polycal::input::read_bytes(path)
+                .map_err(|(file, source)| polycal::input::FileError::Io { file, source })?;
+            Some(polycal::kc::read_json(&bytes, &source)?)
+        }
+        None => None,
+    };
+    let mut kc = evaluate(&labs, &pilot, &options).map_err(|e| match e {
         // Library messages name no flags: the CLI adds the one that helps.
         polycal::kc::KcError::TooFewRepeats(_) => {
             super::with_hint(e, "--pilot", "give --pilot twice or more, or not at all")
@@ -177,6 +194,9 @@ pub fn run(args: &KcArgs) -> Result<u8> {
         ),
         e => e.into(),
     })?;
+    if let Some(linked) = &linked {
+        polycal::kc::link(&mut kc, linked)?;
+    }
     if let Some(dir) = &args.plot {
         super::write_plot(dir, &polycal::figure::kc_figures(&kc), &inputs)?;
     }

@@ -286,6 +286,7 @@ fn evaluate_aligned(
         degrees_of_equivalence,
         pairs,
         pilot: pilot_report,
+        link: None,
         comparison_consistent,
         withheld: decision
             .withheld
@@ -493,6 +494,8 @@ impl<'a> Scaled<'a> {
             d,
             expanded_u,
             in_reference: inside_reference,
+            d_linked: None,
+            expanded_u_linked: None,
         }
     }
 }

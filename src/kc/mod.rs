@@ -64,6 +64,8 @@ pub(crate) mod closed;
 mod covariance;
 mod evaluate;
 pub(crate) mod input;
+mod json;
+mod link;
 mod reference;
 mod search;
 
@@ -74,6 +76,8 @@ use crate::results::{Quantity, ResultFile, ResultRow, RowColumns};
 pub use covariance::lab_from_solve_json;
 pub use evaluate::evaluate;
 pub use input::MIN_STANDARD_U_ARCSEC;
+pub use json::{KcJsonError, KeyComparisonShapeError, read_json};
+pub use link::{Link, link};
 pub use reference::{chi2_quantile_95, closed_covariance};
 pub use search::{SearchMethod, SearchStep, SubsetSearch};
 
@@ -367,6 +371,13 @@ pub struct DegreeOfEquivalence {
     pub expanded_u: Vec<f64>,
     /// Whether the laboratory is in the reference.
     pub in_reference: bool,
+    /// d_i against the linked reference (d_i + Δ per quantity, arcseconds), when the
+    /// comparison is linked to another ([`link`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub d_linked: Option<Vec<f64>>,
+    /// U of `d_linked` at k = 2 per quantity, arcseconds.
+    #[serde(rename = "U_linked", default, skip_serializing_if = "Option::is_none")]
+    pub expanded_u_linked: Option<Vec<f64>>,
 }
 
 /// A pair of laboratories: d_ij = x_i − x_j, U(d_ij) = 2·√(u_i² + u_j² + 2u_stab² + 2τ²)
@@ -508,6 +519,9 @@ pub struct KeyComparison {
     /// The pilot's repeats, when given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pilot: Option<PilotStability>,
+    /// The link to another comparison through the laboratories in both ([`link`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub link: Option<Link>,
     /// Whether the comparison is consistent: the closed vector of every laboratory passes,
     /// or (weighted mean) a subset passes after the stated exclusions; for
     /// DerSimonian–Laird, whether τ = 0 passes (the vector of every laboratory).
@@ -793,6 +807,9 @@ pub enum KcError {
     /// The closed vector could not be computed.
     #[error("{0}")]
     NotComputable(String),
+    /// A comparison that cannot be linked to the other, and why.
+    #[error("the comparisons cannot be linked: {0}")]
+    Link(String),
     /// A quantity other than pitch deviations and encoder errors.
     #[error(
         "a key comparison is of pitch_deviation or encoder_error, not {0} (face deviations \

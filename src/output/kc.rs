@@ -235,6 +235,7 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
         .collect();
     writeln!(out, "{}", dynamic_table(&header, &rows))?;
     write_pairs(out, kc)?;
+    write_link(out, kc, position, &at, &labs)?;
 
     if let Some(pilot) = &kc.pilot {
         if let Some(statement) = kc.pilot_statement() {
@@ -268,6 +269,62 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
         writeln!(out, "Note: {note}")?;
     }
     writeln!(out, "{}", kc.verdict_statement())
+}
+
+/// The link to another comparison, when there is one: the correction Δ with u(Δ) per
+/// quantity and every degree of equivalence against the linked reference.
+fn write_link(
+    out: &mut impl std::fmt::Write,
+    kc: &KeyComparison,
+    position: &str,
+    at: &dyn Fn(usize) -> String,
+    labs: &[&DegreeOfEquivalence],
+) -> std::fmt::Result {
+    let Some(link) = &kc.link else {
+        return Ok(());
+    };
+    let test = match &link.vector {
+        Some(v) => format!(
+            "the link's one test at 5 %: χ² = {} {} χ²_0.95({}) = {:.2}, {}",
+            readable_chi2(v.chi2),
+            if v.consistent { "≤" } else { ">" },
+            v.dof,
+            v.chi2_critical,
+            if v.consistent {
+                "the linking laboratories agree"
+            } else {
+                "the linking laboratories DISAGREE on the offset"
+            }
+        ),
+        None => "one linking laboratory: the link is not tested".to_string(),
+    };
+    writeln!(
+        out,
+        "\nLinked through {} — Δ = the GLS mean of d(linked) − d(this), their correlations \
+         counted; {test}. Against the linked reference: d + Δ, U with u(Δ) (k = 2), arcsec",
+        link.labs.join(", ")
+    )?;
+    let mut header = vec![position.to_string(), "Δ".to_string(), "u(Δ)".to_string()];
+    for doe in labs {
+        header.push(format!("d {} linked", doe.lab));
+        header.push(format!("U {}", doe.lab));
+    }
+    let rows: Vec<Vec<String>> = (0..kc.index.len())
+        .map(|k| {
+            let mut row = vec![
+                at(k),
+                format!("{:.3}", link.correction[k]),
+                format!("{:.3}", link.correction_u[k]),
+            ];
+            for doe in labs {
+                let (d, u) = (doe.d_linked.as_ref(), doe.expanded_u_linked.as_ref());
+                row.push(d.map_or_else(String::new, |d| format!("{:.3}", d[k])));
+                row.push(u.map_or_else(String::new, |u| format!("{:.3}", u[k])));
+            }
+            row
+        })
+        .collect();
+    writeln!(out, "{}", dynamic_table(&header, &rows))
 }
 
 /// The pairs whose one closed-vector test at 5 % fails, each with its χ² (every pair's d,

@@ -440,3 +440,57 @@ fn kc_solve_json_with_a_budget_uses_u_from_its_expanded_uncertainty() {
     }
     assert!(kc["vector"]["chi2"].as_f64().unwrap().abs() < 1e-20);
 }
+
+/// `--link`: a comparison linked to one whose laboratories B, C, D measured the same files:
+/// each linking laboratory's degree of equivalence against the linked reference is its own
+/// there (d_linked = d(linked) exactly, as Δ_j is the same for all three); refusals of a
+/// file that is not a comparison's JSON (its line and column) and of comparisons that
+/// share no laboratory.
+#[test]
+fn kc_link_gives_degrees_of_equivalence_against_the_linked_reference() {
+    let cipm_args: Vec<String> = ["A", "B", "C", "D"].iter().map(|n| example(n)).collect();
+    let mut args: Vec<&str> = vec!["kc"];
+    args.extend(cipm_args.iter().map(String::as_str));
+    args.extend(["--format", "json"]);
+    let cipm_text = stdout_of(&args);
+    let cipm: Value = serde_json::from_str(&cipm_text).unwrap();
+    let cipm_path = scratch("cipm.json", &cipm_text);
+    let rmo_args: Vec<String> = ["B", "C", "D", "E"].iter().map(|n| example(n)).collect();
+    let mut args: Vec<&str> = vec!["kc"];
+    args.extend(rmo_args.iter().map(String::as_str));
+    args.extend(["--link", &cipm_path, "--format", "json"]);
+    let rmo: Value = serde_json::from_str(&stdout_of(&args)).unwrap();
+    assert_eq!(rmo["link"]["labs"], serde_json::json!(["B", "C", "D"]));
+    assert_eq!(rmo["link"]["vector"]["dof"], 11 * 2);
+    assert!(rmo["link"]["vector"]["chi2"].as_f64().unwrap() < 1e-9);
+    for (i, name) in ["B", "C", "D"].iter().enumerate() {
+        let there = &cipm["degrees_of_equivalence"][i + 1];
+        assert_eq!(there["lab"], *name);
+        let here = &rmo["degrees_of_equivalence"][i];
+        for k in 0..12 {
+            let (a, b) = (
+                here["d_linked"][k].as_f64().unwrap(),
+                there["d"][k].as_f64().unwrap(),
+            );
+            assert!((a - b).abs() < 1e-12, "{name} face {}: {a} vs {b}", k + 1);
+        }
+    }
+    // the table says it too
+    args.retain(|a| *a != "--format" && *a != "json");
+    assert!(stdout_of(&args).contains("Linked through B, C, D"));
+    // refusals
+    let garbage = scratch(
+        "garbage.json",
+        "{\"quantity\": \"pitch_deviation\",\n  \"index\": oops}\n",
+    );
+    let mut args: Vec<&str> = vec!["kc"];
+    args.extend(rmo_args.iter().map(String::as_str));
+    args.extend(["--link", &garbage]);
+    let line = refused(&args);
+    assert!(line.contains(&format!("{garbage}:2:")), "{line}");
+    let lonely_args: Vec<String> = ["E", "F"].iter().map(|n| example(n)).collect();
+    let mut args: Vec<&str> = vec!["kc"];
+    args.extend(lonely_args.iter().map(String::as_str));
+    args.extend(["--link", &cipm_path]);
+    assert!(refused(&args).contains("no laboratory is in both"));
+}

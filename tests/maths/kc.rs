@@ -802,3 +802,95 @@ fn kc_mandel_paule_matches_its_iteration_and_its_defining_equation() {
     assert!(kc.verdict_statement().contains("Mandel–Paule"));
     assert_eq!("mandel-paule".parse(), Ok(ReferenceMethod::MandelPaule));
 }
+
+/// A comparison's JSON with two faces, written by hand: `labs` as (name, d, u(d), in the
+/// reference), the same on both faces but for the sign of d (closed), and u_ref.
+fn two_face_comparison(
+    labs: &[(&str, f64, f64, bool)],
+    reference_u: f64,
+) -> polycal::kc::KeyComparison {
+    let doe: Vec<String> = labs
+        .iter()
+        .map(|(name, d, u, inside)| {
+            format!(
+                r#"{{"lab": "{name}", "d": [{d}, {}], "U": [{}, {}], "in_reference": {inside}}}"#,
+                -d,
+                2.0 * u,
+                2.0 * u
+            )
+        })
+        .collect();
+    let names: Vec<String> = labs.iter().map(|l| format!("\"{}\"", l.0)).collect();
+    let text = format!(
+        r#"{{"quantity": "pitch_deviation", "method": "weighted-mean", "index": [1, 2],
+        "labs": [{}], "reference": [0.0, 0.0], "reference_u": [{reference_u}, {reference_u}],
+        "chi2": [0.0, 0.0], "chi2_dof": [1, 1], "chi2_critical": [3.84, 3.84],
+        "consistent": [true, true], "vector": null, "excluded": [], "tau": [0.0, 0.0],
+        "degrees_of_equivalence": [{}], "pairs": [], "comparison_consistent": true,
+        "notes": []}}"#,
+        names.join(", "),
+        doe.join(", ")
+    );
+    polycal::kc::read_json(text.as_bytes(), "hand.json").unwrap()
+}
+
+/// Linking worked by hand (two faces, two linking laboratories A and B, in both
+/// references): on face 1 the offsets are Δ_A = 0.1 − 0 = 0.1, Δ_B = −0.05 − 0.05 = −0.1;
+/// C = Cov_CIPM + Cov_RMO = [[0.01 + 0.0064, −0.0025 − 0.0016], [·, 0.0225 + 0.0144]]
+/// = [[0.0164, −0.0041], [−0.0041, 0.0369]], det = 5.8835e-4, C⁻¹1 ∝ [0.041, 0.0205], so
+/// a = [2/3, 1/3], Δ = 0.1/3, u²(Δ) = det/0.0615; χ² per face 0.2·0.00191333/det, the link's
+/// χ² = (N − 1)/N·(both faces) = the one face's, ν = 1. Y (out of the RMO reference):
+/// d + Δ, u² = 0.0625 + u²(Δ) (no covariance with A and B in it); A: u² = 0.0064 + u²(Δ)
+/// − 2(⅔·0.0064 − ⅓·0.0016) = 0.0085.
+#[test]
+fn kc_linking_matches_a_hand_worked_two_comparison_case() {
+    let cipm = two_face_comparison(
+        &[
+            ("A", 0.1, 0.1, true),
+            ("B", -0.05, 0.15, true),
+            ("X", 0.0, 0.2, true),
+        ],
+        0.05,
+    );
+    let mut rmo = two_face_comparison(
+        &[
+            ("A", 0.0, 0.08, true),
+            ("B", 0.05, 0.12, true),
+            ("Y", 0.2, 0.25, false),
+        ],
+        0.04,
+    );
+    polycal::kc::link(&mut rmo, &cipm).unwrap();
+    let link = rmo.link.as_ref().unwrap();
+    assert_eq!(link.labs, ["A", "B"]);
+    let det = 0.0164 * 0.0369 - 0.0041 * 0.0041;
+    let u_delta = (det / 0.0615f64).sqrt();
+    assert!((link.correction[0] - 0.1 / 3.0).abs() < 1e-12);
+    assert!((link.correction[1] + 0.1 / 3.0).abs() < 1e-12);
+    assert!((link.correction_u[0] - u_delta).abs() < 1e-12);
+    let chi2_face = 0.2 * (0.0369 * (0.2 / 3.0) - 0.0041 * (0.4 / 3.0)) / det;
+    let vector = link.vector.as_ref().unwrap();
+    assert!(
+        (vector.chi2 - chi2_face).abs() < 1e-9,
+        "{} vs {chi2_face}",
+        vector.chi2
+    );
+    assert_eq!(vector.dof, 1);
+    assert!(vector.consistent);
+    let y = &rmo.degrees_of_equivalence[2];
+    let d = y.d_linked.as_ref().unwrap();
+    let u = y.expanded_u_linked.as_ref().unwrap();
+    assert!((d[0] - (0.2 + 0.1 / 3.0)).abs() < 1e-12);
+    assert!((u[0] - 2.0 * (0.0625 + u_delta * u_delta).sqrt()).abs() < 1e-12);
+    let a = &rmo.degrees_of_equivalence[0];
+    assert!((a.expanded_u_linked.as_ref().unwrap()[0] - 2.0 * 0.0085f64.sqrt()).abs() < 1e-12);
+    // refused: another quantity, no laboratory in both
+    let lonely = two_face_comparison(&[("P", 0.0, 0.1, true), ("Q", 0.0, 0.1, true)], 0.05);
+    let mut again = two_face_comparison(&[("A", 0.0, 0.08, true), ("Y", 0.2, 0.25, true)], 0.04);
+    assert!(
+        polycal::kc::link(&mut again, &lonely)
+            .unwrap_err()
+            .to_string()
+            .contains("no laboratory")
+    );
+}

@@ -1,0 +1,245 @@
+//! Linking a comparison to another (docs/FORMAT.md §12, "Linking"): an RMO comparison to
+//! the CIPM one through the laboratories that took part in both. Per quantity k, each
+//! linking laboratory j gives the offset between the two references as the difference of
+//! its degrees of equivalence, Δ_jk = d_jk(linked) − d_jk(this); the correction Δ_k is
+//! their GLS mean with the covariance of the Δ_jk,
+//!
+//! ```text
+//! C = Cov_linked(d) + Cov_this(d),   Cov(d_j, d_l) = u²(d_j)   (j = l)
+//!                                                  = −u_ref²   (both in the reference)
+//!                                                  = +u_ref²   (both out of it)
+//!                                                  = 0         (one in, one out)
+//! Δ_k = aᵀΔ,  a = C⁻¹1 / 1ᵀC⁻¹1,   u²(Δ_k) = 1 / 1ᵀC⁻¹1,
+//! χ²_k = (Δ − Δ_k 1)ᵀ C⁻¹ (Δ − Δ_k 1)
+//! ```
+//!
+//! (the covariances of degrees of equivalence against one weighted-mean reference: with
+//! v_j the variance of x_j, Cov(x_j − x_ref, x_l − x_ref) = −w'_j v_j − w'_l v_l + u_ref² and
+//! w'_j v_j = u_ref² for a laboratory in it; u²(d) and u_ref from each JSON). The link's
+//! one test at 5 % is χ² = (N − 1)/N · Σ_k χ²_k with ν = (N − 1)(L − 1) for L linking
+//! laboratories — the degrees of equivalence are closed vectors (Σ_k d_jk = 0), and with
+//! one u per laboratory that scaling makes the sum over the N quantities exactly the
+//! closed vector's χ². Every laboratory i of this comparison is then also given against
+//! the linked reference: d_i,linked = d_i + Δ_k, with
+//! u² = u²(d_i) + u²(Δ_k) − 2 Σ_j a_j Cov_this(d_i, d_j) (its correlation with the
+//! linking laboratories' degrees of equivalence counted), U at k = 2.
+
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+use super::reference::chi2_quantile_95;
+use super::{DegreeOfEquivalence, KcError, KeyComparison, VectorTest};
+
+/// The link of a comparison to another: the laboratories in both, the correction per
+/// quantity (the linked reference less this one) with its u, and the link's one test.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[non_exhaustive]
+pub struct Link {
+    /// The linking laboratories (in both comparisons), in this comparison's order.
+    pub labs: Vec<String>,
+    /// Δ per quantity: what is added to a degree of equivalence of this comparison to
+    /// give it against the linked reference, arcseconds.
+    pub correction: Vec<f64>,
+    /// u(Δ) per quantity, arcseconds.
+    pub correction_u: Vec<f64>,
+    /// The link's one test at 5 %: whether the linking laboratories agree on the offset
+    /// (`None` with one linking laboratory: nothing to test).
+    pub vector: Option<VectorTest>,
+}
+
+/// One comparison's covariance of the degrees of equivalence of laboratories `a` and `b`
+/// at quantity `k` (see the module's documentation).
+fn doe_covariance(
+    kc: &KeyComparison,
+    a: &DegreeOfEquivalence,
+    b: &DegreeOfEquivalence,
+    k: usize,
+) -> f64 {
+    let u_ref2 = kc.reference_u[k] * kc.reference_u[k];
+    if a.lab == b.lab {
+        let u = a.expanded_u[k] / 2.0;
+        return u * u;
+    }
+    match (a.in_reference, b.in_reference) {
+        (true, true) => -u_ref2,
+        (false, false) => u_ref2,
+        _ => 0.0,
+    }
+}
+
+/// The degree of equivalence of `lab` in `kc`.
+fn doe<'a>(kc: &'a KeyComparison, lab: &str) -> Option<&'a DegreeOfEquivalence> {
+    kc.degrees_of_equivalence.iter().find(|d| d.lab == lab)
+}
+
+/// Links `this` comparison to `linked` (e.g. the CIPM comparison, read back from its JSON
+/// by [`super::read_json`]) through the laboratories in both: sets `this.link` and every
+/// degree of equivalence's `d_linked` and `U_linked`, and adds a note.
+///
+/// # Errors
+///
+/// [`KcError::Link`]: another quantity, other positions (faces or angles), no laboratory
+/// in both, or a covariance of the offsets that cannot be inverted.
+///
+/// # Examples
+///
+/// ```
+/// use polycal::kc::{evaluate, link, KcOptions, LabResult};
+/// use polycal::results::{Quantity, ResultRow};
+///
+/// let lab = |name: &str, beta: [f64; 3]| {
+///     let rows = (1..=3)
+///         .map(|f| ResultRow::new(Quantity::PitchDeviation, f, beta[f as usize - 1]).with_u(0.1))
+///         .collect();
+///     LabResult::from_rows(name, rows)
+/// };
+/// let cipm = evaluate(
+///     &[lab("A", [0.2, -0.1, -0.1]), lab("B", [0.1, 0.0, -0.1]), lab("X", [0.15, -0.05, -0.1])],
+///     &[],
+///     &KcOptions::new(),
+/// )?;
+/// let mut rmo = evaluate(
+///     &[lab("A", [0.25, -0.15, -0.1]), lab("Y", [0.2, -0.1, -0.1])],
+///     &[],
+///     &KcOptions::new(),
+/// )?;
+/// link(&mut rmo, &cipm)?;
+/// let linked = rmo.link.as_ref().expect("linked through A");
+/// assert_eq!(linked.labs, ["A"]);
+/// // A's degree of equivalence against the linked reference is its CIPM one
+/// let a = &rmo.degrees_of_equivalence[0];
+/// let d = a.d_linked.as_ref().expect("given");
+/// assert!((d[0] - cipm.degrees_of_equivalence[0].d[0]).abs() < 1e-12);
+/// # Ok::<(), polycal::kc::KcError>(())
+/// ```
+pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcError> {
+    if this.quantity != linked.quantity {
+        return Err(KcError::Link(format!(
+            "the linked comparison is of {}, this one of {}",
+            linked.quantity, this.quantity
+        )));
+    }
+    let same_positions = match (&this.angle_deg, &linked.angle_deg) {
+        (Some(a), Some(b)) => {
+            a.len() == b.len()
+                && a.iter().zip(b).all(|(a, b)| {
+                    let apart = (a - b).rem_euclid(360.0);
+                    apart.min(360.0 - apart) <= crate::results::ANGLE_TOLERANCE_DEG
+                })
+        }
+        (None, None) => this.index == linked.index,
+        _ => false,
+    };
+    if !same_positions {
+        return Err(KcError::Link(
+            "the two comparisons are not of the same positions (faces, or table angles)".into(),
+        ));
+    }
+    let labs: Vec<String> = this
+        .labs
+        .iter()
+        .filter(|name| doe(linked, name).is_some() && doe(this, name).is_some())
+        .cloned()
+        .collect();
+    if labs.is_empty() {
+        return Err(KcError::Link(
+            "no laboratory is in both comparisons: nothing links them".into(),
+        ));
+    }
+    let positions = this.index.len();
+    let l = labs.len();
+    let (mut correction, mut correction_u, mut weights) = (Vec::new(), Vec::new(), Vec::new());
+    let mut chi2 = 0.0;
+    for k in 0..positions {
+        let here: Vec<&DegreeOfEquivalence> = labs.iter().filter_map(|n| doe(this, n)).collect();
+        let there: Vec<&DegreeOfEquivalence> = labs.iter().filter_map(|n| doe(linked, n)).collect();
+        let c = DMatrix::from_fn(l, l, |i, j| {
+            doe_covariance(linked, there[i], there[j], k)
+                + doe_covariance(this, here[i], here[j], k)
+        });
+        let offsets = DVector::from_fn(l, |j, _| there[j].d[k] - here[j].d[k]);
+        let inverse = c.clone().cholesky().map(|ch| ch.inverse()).ok_or_else(|| {
+            KcError::Link(format!(
+                "the covariance of the linking laboratories' offsets at position {} cannot be \
+                 inverted",
+                this.index[k]
+            ))
+        })?;
+        let ones = DVector::from_element(l, 1.0);
+        let c_ones = &inverse * &ones;
+        let total = ones.dot(&c_ones);
+        let a = &c_ones / total;
+        let delta = a.dot(&offsets);
+        let residual = &offsets - &ones * delta;
+        chi2 += residual.dot(&(&inverse * &residual));
+        correction.push(delta);
+        correction_u.push((1.0 / total).sqrt());
+        weights.push(a);
+    }
+    let faces = positions as f64;
+    let vector = (l > 1).then(|| {
+        let chi2 = chi2 * (faces - 1.0) / faces;
+        let dof = (positions - 1) * (l - 1);
+        let critical = chi2_quantile_95(dof);
+        VectorTest {
+            chi2,
+            dof,
+            consistent: chi2 <= critical,
+            chi2_critical: critical,
+            reference: Vec::new(),
+        }
+    });
+    // every degree of equivalence (the pilot's repeats' too) against the linked reference
+    let linking: Vec<DegreeOfEquivalence> =
+        labs.iter().filter_map(|n| doe(this, n)).cloned().collect();
+    let snapshot = this.clone();
+    let all = this.degrees_of_equivalence.iter_mut().chain(
+        this.pilot
+            .iter_mut()
+            .flat_map(|p| p.degrees_of_equivalence.iter_mut()),
+    );
+    for d in all {
+        let mut d_linked = Vec::with_capacity(positions);
+        let mut u_linked = Vec::with_capacity(positions);
+        for k in 0..positions {
+            let u_d = d.expanded_u[k] / 2.0;
+            let covariance: f64 = linking
+                .iter()
+                .zip(weights[k].iter())
+                .map(|(j, a)| a * doe_covariance(&snapshot, d, j, k))
+                .sum();
+            let variance = u_d * u_d + correction_u[k] * correction_u[k] - 2.0 * covariance;
+            d_linked.push(d.d[k] + correction[k]);
+            u_linked.push(2.0 * variance.max(0.0).sqrt());
+        }
+        d.d_linked = Some(d_linked);
+        d.expanded_u_linked = Some(u_linked);
+    }
+    this.notes.push(format!(
+        "linked to another comparison through {} ({} laboratory(ies) in both): every degree \
+         of equivalence is also given against the linked reference (d_linked, U_linked), \
+         d + Δ with Δ the GLS mean of the linking laboratories' offsets d(linked) − d(this), \
+         their correlations counted{}",
+        labs.join(", "),
+        l,
+        match &vector {
+            Some(v) => format!(
+                "; the link's test: χ² = {:.2} {} χ²_0.95({}) = {:.2}: the linking laboratories \
+                 {} on the offset",
+                v.chi2,
+                if v.consistent { "≤" } else { ">" },
+                v.dof,
+                v.chi2_critical,
+                if v.consistent { "agree" } else { "DISAGREE" }
+            ),
+            None => "; one linking laboratory: the link is not tested".to_string(),
+        }
+    ));
+    this.link = Some(Link {
+        labs,
+        correction,
+        correction_u,
+        vector,
+    });
+    Ok(())
+}
