@@ -92,6 +92,11 @@ pub struct KcArgs {
     /// reference (docs/FORMAT.md §12, "Linking").
     #[arg(long, value_name = "KC.json")]
     link: Option<PathBuf>,
+    /// Every U(d_i) and u_ref by M Monte Carlo draws from the fitted model (at least 1000):
+    /// the reference evaluated again in each draw, τ too for the random-effects methods, so
+    /// that τ's own uncertainty is in U (docs/FORMAT.md §12).
+    #[arg(long, value_name = "M")]
+    monte_carlo: Option<usize>,
     /// Output format (csv: the degrees of equivalence, columns
     /// lab,index,angle_deg,d,U,in_reference; docs/FORMAT.md §12).
     #[arg(long, value_enum, default_value = "table")]
@@ -169,6 +174,10 @@ pub fn run(args: &KcArgs) -> Result<u8> {
         .with_method(args.method)
         .with_keep(args.keep.iter().cloned())
         .with_not_in_reference(args.not_in_reference.iter().cloned());
+    let options = match args.monte_carlo {
+        Some(draws) => options.with_monte_carlo(draws),
+        None => options,
+    };
     let linked = match &args.link {
         Some(path) => {
             let (bytes, source) = polycal::input::read_bytes(path)

@@ -7,6 +7,7 @@ use nalgebra::DMatrix;
 use super::closed::{self, ClosedCovariance, ClosedFit, closed, closed_pseudo_inverse};
 use super::covariance;
 use super::input::{self, Aligned};
+use super::monte_carlo;
 use super::reference::{self, Estimate, chi2_quantile_95, closed_covariance};
 use super::search::{self, SearchMethod};
 use super::{
@@ -260,7 +261,7 @@ fn evaluate_aligned(
     } else {
         decided_consistent && vector.consistent
     };
-    Ok(KeyComparison {
+    let mut comparison = KeyComparison {
         quantity: options.quantity,
         method: options.method,
         index: aligned.index.clone(),
@@ -294,7 +295,86 @@ fn evaluate_aligned(
             .map(|&r| labs[r].name.clone())
             .collect(),
         notes,
-    })
+    };
+    if let Some(draws) = options.monte_carlo {
+        let model = monte_carlo::Model {
+            reference: &final_fit.reference,
+            u: &judged_u,
+            tau: &tau,
+            inside: &inside,
+            method: options.method,
+        };
+        monte_carlo_u(&mut comparison, &model, draws, covariances, scale)?;
+    }
+    Ok(comparison)
+}
+
+/// Every U of the degrees of equivalence (the pilot's repeats' too) and u_ref by `draws`
+/// Monte Carlo draws from `model` ([`monte_carlo`]), in place, with a note; refused with
+/// a laboratory's own covariance, too few draws, or more than the machine should hold.
+fn monte_carlo_u(
+    comparison: &mut KeyComparison,
+    model: &monte_carlo::Model,
+    draws: usize,
+    covariances: &[Option<DMatrix<f64>>],
+    scale: f64,
+) -> Result<(), KcError> {
+    let refuse = |reason: String| Err(KcError::MonteCarlo(reason));
+    if covariances.iter().any(Option::is_some) {
+        return refuse(
+            "the draws take every result as closed with its stated u; a laboratory's own \
+             covariance is not drawn from"
+                .to_string(),
+        );
+    }
+    if draws < monte_carlo::MIN_DRAWS {
+        return refuse(format!(
+            "{draws} draws: at least {} for a 95.45 % quantile",
+            monte_carlo::MIN_DRAWS
+        ));
+    }
+    let numbers = (draws as u64)
+        .saturating_mul(model.u.len() as u64)
+        .saturating_mul(model.reference.len() as u64);
+    if numbers > monte_carlo::MAX_NUMBERS {
+        return refuse(format!(
+            "{draws} draws × {} results × {} positions = {numbers} numbers to keep, more than \
+             {} (200 MB): fewer draws",
+            model.u.len(),
+            model.reference.len(),
+            monte_carlo::MAX_NUMBERS
+        ));
+    }
+    let found = monte_carlo::run(model, draws).ok_or_else(not_fitted)?;
+    let degrees = comparison.degrees_of_equivalence.iter_mut().chain(
+        comparison
+            .pilot
+            .iter_mut()
+            .flat_map(|p| p.degrees_of_equivalence.iter_mut()),
+    );
+    for (doe, expanded_u) in degrees.zip(&found.expanded_u) {
+        doe.expanded_u = expanded_u.iter().map(|u| u * scale).collect();
+    }
+    comparison.reference_u = found.reference_u.iter().map(|u| u * scale).collect();
+    comparison.notes.push(format!(
+        "every U(d_i) and u_ref by Monte Carlo: {draws} draws from the fitted model (the \
+         reference{}, each result's closed noise with its u), the reference evaluated again \
+         in every draw{}; U is the 95.45 % quantile of |d_i| (k = 2 for a normal law), u_ref \
+         the standard deviation of the drawn references; seed {} (the same inputs give the same \
+         U); the pairs' U stay 2·√(u_i² + u_j² + …)",
+        if model.method.is_random_effects() {
+            ", a closed laboratory effect with the dark uncertainty τ"
+        } else {
+            ""
+        },
+        if model.method.is_random_effects() {
+            " with τ estimated again, so that τ's own uncertainty is in U"
+        } else {
+            ""
+        },
+        monte_carlo::SEED
+    ));
+    Ok(())
 }
 
 /// The laboratories the pilot keeps in the reference whatever the tests say (indices,

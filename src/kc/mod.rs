@@ -66,6 +66,7 @@ mod evaluate;
 pub(crate) mod input;
 mod json;
 mod link;
+mod monte_carlo;
 mod reference;
 mod search;
 
@@ -195,6 +196,9 @@ pub struct KcOptions {
     /// Laboratories kept out of the reference but given degrees of equivalence against it
     /// (the pilot's decision): not in the one test nor in the search.
     pub not_in_reference: Vec<String>,
+    /// Monte Carlo draws for every U (`None`: the formulas): a parametric bootstrap of the
+    /// fitted model, τ estimated again in every draw for the random-effects methods.
+    pub monte_carlo: Option<usize>,
 }
 
 impl Default for KcOptions {
@@ -205,6 +209,7 @@ impl Default for KcOptions {
             largest_consistent_subset: true,
             keep: Vec::new(),
             not_in_reference: Vec::new(),
+            monte_carlo: None,
         }
     }
 }
@@ -238,6 +243,14 @@ impl KcOptions {
     /// contains them ([`evaluate`] refuses a name that is not a laboratory's).
     pub fn with_keep(mut self, names: impl IntoIterator<Item = impl Into<String>>) -> Self {
         self.keep = names.into_iter().map(Into::into).collect();
+        self
+    }
+
+    /// With every U(d_i) and u_ref by `draws` Monte Carlo draws from the fitted model (at
+    /// least 1 000; refused with a laboratory's own covariance, or beyond 2.5·10⁷ numbers
+    /// kept): τ's own uncertainty is then in U for the random-effects methods.
+    pub fn with_monte_carlo(mut self, draws: usize) -> Self {
+        self.monte_carlo = Some(draws);
         self
     }
 
@@ -807,6 +820,9 @@ pub enum KcError {
     /// The closed vector could not be computed.
     #[error("{0}")]
     NotComputable(String),
+    /// Monte Carlo draws that cannot be made, and why.
+    #[error("Monte Carlo U refused: {0}")]
+    MonteCarlo(String),
     /// A comparison that cannot be linked to the other, and why.
     #[error("the comparisons cannot be linked: {0}")]
     Link(String),

@@ -1,0 +1,164 @@
+//! Every U of a key comparison by Monte Carlo (docs/FORMAT.md §12, "Other estimates"): a
+//! parametric bootstrap, as the consensus builders do. Each of M draws simulates every
+//! result from the fitted model — the reference, for the random-effects methods a closed
+//! laboratory effect with a dark uncertainty τ* of each quantity, and the result's own
+//! closed noise with its u (the pilot's u_stab in it) — and evaluates the reference again
+//! from the draw. For the random-effects methods τ* is itself drawn, as τ's estimate from a
+//! first simulated comparison with the fitted τ (two stages), and τ is estimated again from
+//! the draw: so τ's own uncertainty is in every U. The degree of equivalence of a draw is y_i − x_ref⁽ᵐ⁾; U is the 95.45 %
+//! quantile of its magnitude (k = 2 for a normal law), and u_ref the standard deviation of
+//! x_ref⁽ᵐ⁾. The generator is seeded: the same inputs give the same U.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+use super::ReferenceMethod;
+use super::closed::{self, ClosedCovariance};
+use super::reference;
+
+/// The generator's seed: a run is reproducible.
+pub(crate) const SEED: u64 = 20_551;
+
+/// The most numbers the draws may keep (M × results × positions): 200 MB.
+pub(crate) const MAX_NUMBERS: u64 = 25_000_000;
+
+/// The fewest draws: a 95.45 % quantile needs a few hundred at least.
+pub(crate) const MIN_DRAWS: usize = 1_000;
+
+/// What the draws start from, in the comparison's scaled units.
+pub(crate) struct Model<'a> {
+    /// The reference per quantity.
+    pub reference: &'a [f64],
+    /// Every result's u per quantity (the pilot's u_stab in it), laboratories then repeats.
+    pub u: &'a [Vec<f64>],
+    /// τ per quantity (0 for the weighted mean).
+    pub tau: &'a [f64],
+    /// The laboratories in the reference.
+    pub inside: &'a [usize],
+    /// The method, whose estimate is made again in every draw.
+    pub method: ReferenceMethod,
+}
+
+/// The Monte Carlo U of every result's degree of equivalence (per result, per quantity)
+/// and u_ref per quantity, in scaled units; `None` when a draw cannot be fitted.
+pub(crate) struct Draws {
+    /// U(d_i) per result and quantity.
+    pub expanded_u: Vec<Vec<f64>>,
+    /// u_ref per quantity.
+    pub reference_u: Vec<f64>,
+}
+
+/// Closed normal noise with marginal standard deviations `u` (covariance
+/// N/(N − 1)·P·diag(u²)·P, as a closed result is taken to have).
+fn closed_noise(rng: &mut ChaCha8Rng, u: &[f64]) -> Vec<f64> {
+    let n = u.len() as f64;
+    let raw: Vec<f64> = u
+        .iter()
+        .map(|u| {
+            let z: f64 = StandardNormal.sample(rng);
+            u * z
+        })
+        .collect();
+    let mean = raw.iter().sum::<f64>() / n;
+    let factor = (n / (n - 1.0)).sqrt();
+    raw.iter().map(|e| factor * (e - mean)).collect()
+}
+
+/// τ per quantity estimated from the draw `y` as the comparison estimated it (0 for the
+/// weighted mean).
+fn tau_of(model: &Model, y: &[Vec<f64>]) -> Vec<f64> {
+    let positions = model.reference.len();
+    if !model.method.is_random_effects() {
+        return vec![0.0; positions];
+    }
+    (0..positions)
+        .map(|k| {
+            let x: Vec<f64> = model.inside.iter().map(|&r| y[r][k]).collect();
+            let u: Vec<f64> = model.inside.iter().map(|&r| model.u[r][k]).collect();
+            reference::estimate(&x, &u, model.method).tau
+        })
+        .collect()
+}
+
+/// Every result drawn from the model with the dark uncertainty `tau`.
+fn draw(rng: &mut ChaCha8Rng, model: &Model, tau: &[f64]) -> Vec<Vec<f64>> {
+    (0..model.u.len())
+        .map(|r| {
+            let effect = closed_noise(rng, tau);
+            let noise = closed_noise(rng, &model.u[r]);
+            (0..model.reference.len())
+                .map(|k| model.reference[k] + effect[k] + noise[k])
+                .collect()
+        })
+        .collect()
+}
+
+/// The reference of one draw `y`, estimated as the comparison was.
+fn reference_of(model: &Model, y: &[Vec<f64>]) -> Option<Vec<f64>> {
+    let tau = tau_of(model, y);
+    let covariances: Vec<ClosedCovariance> = model
+        .inside
+        .iter()
+        .map(|&r| {
+            ClosedCovariance::Stated(
+                model.u[r]
+                    .iter()
+                    .zip(&tau)
+                    .map(|(u, t)| u.hypot(*t))
+                    .collect(),
+            )
+        })
+        .collect();
+    let x: Vec<&[f64]> = model.inside.iter().map(|&r| y[r].as_slice()).collect();
+    let v: Vec<&ClosedCovariance> = covariances.iter().collect();
+    closed::fit(&x, &v).map(|fit| fit.reference)
+}
+
+/// The 95.45 % quantile of `magnitudes` (reordered).
+fn quantile_9545(magnitudes: &mut [f64]) -> f64 {
+    let at = ((magnitudes.len() as f64 * 0.9545).ceil() as usize).clamp(1, magnitudes.len()) - 1;
+    let (_, value, _) = magnitudes.select_nth_unstable_by(at, f64::total_cmp);
+    *value
+}
+
+/// `draws` draws from `model`; see the module's documentation.
+pub(crate) fn run(model: &Model, draws: usize) -> Option<Draws> {
+    let results = model.u.len();
+    let positions = model.reference.len();
+    let mut rng = ChaCha8Rng::seed_from_u64(SEED);
+    let mut magnitudes = vec![vec![Vec::with_capacity(draws); positions]; results];
+    let (mut sum, mut sum_squares) = (vec![0.0; positions], vec![0.0; positions]);
+    for _ in 0..draws {
+        let y = if model.method.is_random_effects() {
+            // τ* as its estimate varies: from a first comparison drawn with the fitted τ
+            let first = draw(&mut rng, model, model.tau);
+            draw(&mut rng, model, &tau_of(model, &first))
+        } else {
+            draw(&mut rng, model, model.tau)
+        };
+        let reference = reference_of(model, &y)?;
+        for k in 0..positions {
+            sum[k] += reference[k];
+            sum_squares[k] += reference[k] * reference[k];
+            for r in 0..results {
+                magnitudes[r][k].push((y[r][k] - reference[k]).abs());
+            }
+        }
+    }
+    let m = draws as f64;
+    let reference_u = (0..positions)
+        .map(|k| {
+            let mean = sum[k] / m;
+            ((sum_squares[k] / m - mean * mean).max(0.0) * m / (m - 1.0)).sqrt()
+        })
+        .collect();
+    let expanded_u = magnitudes
+        .iter_mut()
+        .map(|per_result| per_result.iter_mut().map(|d| quantile_9545(d)).collect())
+        .collect();
+    Some(Draws {
+        expanded_u,
+        reference_u,
+    })
+}
