@@ -93,9 +93,6 @@ fn kc_anonymise_leaves_no_name_nor_path_in_any_output() {
     let (k, p) = (key.to_str().unwrap(), plot.to_str().unwrap());
     let mut base: Vec<&str> = vec!["kc"];
     base.extend(labs.iter().map(String::as_str));
-    let start = format!("start={KC}/pilot-start.csv");
-    let end = format!("end={KC}/pilot-end.csv");
-    base.extend(["--pilot", &start, "--pilot", &end]);
 
     // the truth: the comparison under the real names
     let mut plain_args = base.clone();
@@ -136,11 +133,23 @@ fn kc_anonymise_leaves_no_name_nor_path_in_any_output() {
     }
     let sirius = codes.iter().find(|(_, l)| *l == "Sirius, Inc.").unwrap().0;
     assert_eq!(json["excluded"][0]["lab"].as_str(), Some(sirius.as_str()));
+    assert!(json["notes"].to_string().contains("code letters"));
+    // the pilot's repeats keep their names (and the artefact's motion keeps F in)
+    let (start, end) = (
+        format!("start={KC}/pilot-start.csv"),
+        format!("end={KC}/pilot-end.csv"),
+    );
+    let pilot_plot = dir.join("pilot-plot");
+    let mut pilot_args = base.clone();
+    pilot_args.extend(["--pilot", &start, "--pilot", &end, "--anonymise", k]);
+    pilot_args.extend(["--plot", pilot_plot.to_str().unwrap(), "--format", "json"]);
+    let pilot_text = stdout_of(&polycal(&pilot_args));
+    let pilot: Value = serde_json::from_str(&pilot_text).unwrap();
     assert_eq!(
-        json["pilot"]["repeats"],
+        pilot["pilot"]["repeats"],
         serde_json::json!(["start", "end"])
     );
-    assert!(json["notes"].to_string().contains("code letters"));
+    assert_eq!(pilot["labs"], json["labs"]);
 
     // Draft B: the key is read back, not written again, and gives the same letters
     let mut table_args = base.clone();
@@ -159,18 +168,15 @@ fn kc_anonymise_leaves_no_name_nor_path_in_any_output() {
         csv.lines()
             .any(|l| l.starts_with(&format!("{sirius},4,")) && l.ends_with(",false"))
     );
-    // --keep takes the real name
+    // --keep and --not-in-reference take the real names
+    let deneb = codes.iter().find(|(_, l)| *l == "Deneb-NMI").unwrap().0;
     let mut keep_args = base.clone();
-    keep_args.extend([
-        "--anonymise",
-        k,
-        "--keep",
-        "Sirius, Inc.",
-        "--format",
-        "json",
-    ]);
-    let kept: Value = serde_json::from_str(&stdout_of(&polycal(&keep_args))).unwrap();
+    keep_args.extend(["--anonymise", k, "--keep", "Sirius, Inc."]);
+    keep_args.extend(["--not-in-reference", "Deneb-NMI", "--format", "json"]);
+    let kept_text = stdout_of(&polycal(&keep_args));
+    let kept: Value = serde_json::from_str(&kept_text).unwrap();
     assert_eq!(kept["kept"], serde_json::json!([sirius]));
+    assert_eq!(kept["not_in_reference"], serde_json::json!([deneb]));
 
     // the report and the DCC made from the anonymised JSON
     let kc_json = dir.join("kc.json");
@@ -204,21 +210,25 @@ fn kc_anonymise_leaves_no_name_nor_path_in_any_output() {
 
     let mut outputs: Vec<(String, String)> = vec![
         ("JSON".into(), json_text.clone()),
+        ("JSON with the pilot".into(), pilot_text),
+        ("JSON with --keep".into(), kept_text),
         ("table".into(), table),
         ("CSV".into(), csv),
         ("report".into(), report),
         ("DCC".into(), std::fs::read_to_string(&dcc).unwrap()),
     ];
-    let mut figures = 0;
-    for entry in std::fs::read_dir(&plot).unwrap() {
-        let path = entry.unwrap().path();
-        outputs.push((
-            path.display().to_string(),
-            std::fs::read_to_string(&path).unwrap(),
-        ));
-        figures += 1;
+    for (dir, count) in [(&plot, 4), (&pilot_plot, 5)] {
+        let mut figures = 0;
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            outputs.push((
+                path.display().to_string(),
+                std::fs::read_to_string(&path).unwrap(),
+            ));
+            figures += 1;
+        }
+        assert_eq!(figures, count, "the kc figures (and the pilot's)");
     }
-    assert_eq!(figures, 5, "the four kc figures and the pilot's");
     for ((_, name, file), path) in NAMES.iter().zip(&paths) {
         let full = path.display().to_string();
         for (what, text) in &outputs {
