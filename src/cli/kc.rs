@@ -25,7 +25,8 @@ Examples:
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv D=examples/data/kc/D.csv E=examples/data/kc/E.csv F=examples/data/kc/F.csv --format json
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv --pilot start=examples/data/kc/pilot-start.csv --pilot end=examples/data/kc/pilot-end.csv
-  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv F=examples/data/kc/F.csv --method dersimonian-laird --format csv";
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv F=examples/data/kc/F.csv --method dersimonian-laird --format csv
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv D=examples/data/kc/D.csv --anonymise draft-a-key.csv --plot draft-a";
 
 /// One `NAME=RESULT.csv` argument.
 #[derive(Clone, Debug)]

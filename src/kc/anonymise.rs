@@ -168,10 +168,20 @@ impl CodeKey {
             if !more {
                 break;
             }
-            let from = record
+            let mut from = record
                 .position()
                 .and_then(|p| usize::try_from(p.byte()).ok())
                 .unwrap_or(0);
+            // the reader's position may lie before the comment and blank lines it skipped
+            loop {
+                let line = index.line_of(from);
+                let content = index.line_text(line);
+                let skipped = content.starts_with('#') || content.trim().is_empty();
+                match index.starts.get(line + 1) {
+                    Some(&next) if skipped && index.starts[line] >= from => from = next,
+                    _ => break,
+                }
+            }
             let span = Span::scan(text.as_bytes(), from, record.len());
             let at = |j: usize| index.location(span.field(j));
             let Some((fields, code_j, lab_j)) = header else {
@@ -470,6 +480,8 @@ mod tests {
         assert!(err("code,lab\nA,PTB,x\n").starts_with("k.csv:2:1: 3 field(s)"));
         assert!(err("quantity,index,value\n").starts_with("k.csv:1:1: not a key"));
         assert!(err("# only a comment\n").starts_with("k.csv:1:1: empty file"));
+        assert!(err("# a comment\n\nquantity,index\n").starts_with("k.csv:3:1: not a key"));
+        assert!(err("code,lab\n# note\n\nA,PTB\nA,NPL\n").starts_with("k.csv:5:1: code"));
         assert!(err("code,lab\n").starts_with("k.csv:2:1: the key has a header but no row"));
         let key = CodeKey::read(b"# Draft A\n\nlab,code\n'-x,B\nNPL,A\n", "k.csv").unwrap();
         assert_eq!(key.code_of("-x"), Some("B"));
