@@ -116,11 +116,11 @@ fn kcdb(kc: &KeyComparison) -> Figure {
         .collect();
     let mut subtitles = vec![format!(
         "each graph: every laboratory's d_i = x_i − x_ref with its U(d_i) bar (k = 2) against \
-         the reference (the line at 0); ● in the reference, □ not in it{}",
+         the reference (the line at 0); {}",
         if out.is_empty() {
-            String::new()
+            "every laboratory is in the reference".to_string()
         } else {
-            format!(" ({})", out.join(", "))
+            format!("● in the reference, □ not in it ({})", out.join(", "))
         }
     )];
     if positions.len() < kc.index.len() {
