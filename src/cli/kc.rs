@@ -2,12 +2,13 @@
 //! (docs/FORMAT.md §12).
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::ValueEnum;
 use polycal::kc::{
-    KcNameError, KcOptions, LabResult, ReferenceMethod, evaluate, lab_from_solve_json,
+    CodeKey, KcNameError, KcOptions, LabResult, ReferenceMethod, anonymise, evaluate,
+    lab_from_solve_json,
 };
 use polycal::results::{Quantity, read_results_from};
 
@@ -24,7 +25,8 @@ Examples:
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv D=examples/data/kc/D.csv E=examples/data/kc/E.csv F=examples/data/kc/F.csv --format json
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv --pilot start=examples/data/kc/pilot-start.csv --pilot end=examples/data/kc/pilot-end.csv
-  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv F=examples/data/kc/F.csv --method dersimonian-laird --format csv";
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv F=examples/data/kc/F.csv --method dersimonian-laird --format csv
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv D=examples/data/kc/D.csv --anonymise draft-a-key.csv --plot draft-a";
 
 /// One `NAME=RESULT.csv` argument.
 #[derive(Clone, Debug)]
@@ -102,10 +104,19 @@ pub struct KcArgs {
     #[arg(long, value_enum, default_value = "table")]
     format: KcFormat,
     /// Write the figures as SVG files into DIR (created if missing; docs/FORMAT.md §10):
-    /// kc-degrees-of-equivalence.svg, kc-reference.svg and with --pilot
-    /// kc-pilot-stability.svg, whatever --format is.
+    /// kc-degrees-of-equivalence.svg, kc-reference.svg, kc-pairwise.svg, kc-kcdb.svg (the
+    /// KCDB graphs: d_i with U(d_i) per laboratory, one graph per face or position, at
+    /// most 24) and with --pilot kc-pilot-stability.svg, whatever --format is.
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
+    /// Draft A: every laboratory named by a code letter (A, B, …, in an order drawn at
+    /// random) in every output — table, JSON, CSV, figures, and so the report and the DCC
+    /// made from the JSON — and which code is which laboratory written to KEY.csv alone
+    /// (columns code,lab). When KEY.csv exists it is read and its codes kept (Draft B
+    /// keeps Draft A's letters). The pilot's repeats keep their names; --keep and
+    /// --not-in-reference take the real names.
+    #[arg(long, value_name = "KEY.csv")]
+    anonymise: Option<PathBuf>,
 }
 
 /// `kc --quantity`: the library's parsing, so that Python accepts the same words.
@@ -140,6 +151,66 @@ fn read_lab(name: &str, path: &std::path::Path) -> Result<LabResult> {
     ))
 }
 
+/// The key of `--anonymise`: one read, or the file a new one goes to.
+enum KeyFile {
+    /// KEY.csv exists: its codes are kept, and it is not written.
+    Read(CodeKey),
+    /// KEY.csv does not exist: the key drawn is written there.
+    New(PathBuf),
+}
+
+/// `--anonymise KEY.csv`, before any work: an existing key read (refused with its line
+/// and column), or a new one's place checked (not `-`, a directory that can be written,
+/// not one of the figures of `--plot`).
+fn key_file(path: &Path, inputs: &[&Path], plot: Option<&Path>, pilot: bool) -> Result<KeyFile> {
+    if polycal::input::is_stdin(path) {
+        anyhow::bail!(
+            "--anonymise takes the key's file (KEY.csv), not `-`: the key is written to a file \
+             of its own, apart from the output"
+        );
+    }
+    match std::fs::symlink_metadata(path) {
+        Ok(_) => {
+            let (bytes, source) = polycal::input::read_bytes(path)
+                .map_err(|(file, source)| polycal::input::FileError::Io { file, source })?;
+            Ok(KeyFile::Read(CodeKey::read(&bytes, &source)?))
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let outputs = polycal::output_file::Outputs::new(inputs.iter().copied())?;
+            outputs
+                .check([path])
+                .map_err(|e| anyhow::anyhow!("--anonymise: cannot write the key: {e}"))?;
+            if let Some(dir) = plot {
+                let figures = polycal::figure::FigureSet::Kc { pilot }.file_names();
+                let same_dir = match (path.parent(), std::fs::canonicalize(dir)) {
+                    (Some(parent), Ok(dir)) => {
+                        let parent = if parent.as_os_str().is_empty() {
+                            Path::new(".")
+                        } else {
+                            parent
+                        };
+                        std::fs::canonicalize(parent).is_ok_and(|p| p == dir)
+                    }
+                    _ => false,
+                };
+                let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+                if same_dir && figures.iter().any(|f| f == name) {
+                    anyhow::bail!(
+                        "--anonymise {}: is one of the figures --plot writes; give the key a \
+                         file of its own",
+                        polycal::input::display_name(path)
+                    );
+                }
+            }
+            Ok(KeyFile::New(path.to_path_buf()))
+        }
+        Err(e) => Err(anyhow::anyhow!(
+            "--anonymise {}: {e}",
+            polycal::input::display_name(path)
+        )),
+    }
+}
+
 /// `polycal kc`: returns the exit status, or an error for the `error:` line.
 pub fn run(args: &KcArgs) -> Result<u8> {
     let mut roles: Vec<(String, &std::path::Path)> = args
@@ -156,7 +227,7 @@ pub fn run(args: &KcArgs) -> Result<u8> {
             .iter()
             .map(|(role, path)| (role.as_str(), Some(*path))),
     )?;
-    let inputs: Vec<&std::path::Path> = roles.iter().map(|(_, path)| *path).collect();
+    let mut inputs: Vec<&std::path::Path> = roles.iter().map(|(_, path)| *path).collect();
     super::check_plot(
         args.plot.as_deref(),
         polycal::figure::FigureSet::Kc {
@@ -164,16 +235,45 @@ pub fn run(args: &KcArgs) -> Result<u8> {
         },
         &inputs,
     )?;
+    let key_file = match &args.anonymise {
+        Some(path) => Some(key_file(
+            path,
+            &inputs,
+            args.plot.as_deref(),
+            !args.pilot.is_empty(),
+        )?),
+        None => None,
+    };
+    if let (Some(KeyFile::Read(_)), Some(path)) = (&key_file, &args.anonymise) {
+        // a key read is an input: no figure replaces it
+        inputs.push(path.as_path());
+    }
     let read = |list: &[Named]| -> Result<Vec<LabResult>> {
         list.iter().map(|n| read_lab(&n.name, &n.path)).collect()
     };
-    let labs = read(&args.labs)?;
+    let mut labs = read(&args.labs)?;
     let pilot = read(&args.pilot)?;
+    let mut keep = args.keep.clone();
+    let mut not_in_reference = args.not_in_reference.clone();
+    let key = match &key_file {
+        Some(file) => {
+            let read = match file {
+                KeyFile::Read(key) => Some(key),
+                KeyFile::New(_) => None,
+            };
+            let (coded, key) = anonymise(&labs, &pilot, read, rand::random())?;
+            labs = coded;
+            keep = key.coded_names(keep.iter().map(String::as_str));
+            not_in_reference = key.coded_names(not_in_reference.iter().map(String::as_str));
+            Some(key)
+        }
+        None => None,
+    };
     let options = KcOptions::new()
         .with_quantity(args.quantity)
         .with_method(args.method)
-        .with_keep(args.keep.iter().cloned())
-        .with_not_in_reference(args.not_in_reference.iter().cloned());
+        .with_keep(keep)
+        .with_not_in_reference(not_in_reference);
     let options = match args.monte_carlo {
         Some(draws) => options.with_monte_carlo(draws),
         None => options,
@@ -182,7 +282,12 @@ pub fn run(args: &KcArgs) -> Result<u8> {
         Some(path) => {
             let (bytes, source) = polycal::input::read_bytes(path)
                 .map_err(|(file, source)| polycal::input::FileError::Io { file, source })?;
-            Some(polycal::kc::read_json(&bytes, &source)?)
+            let linked = polycal::kc::read_json(&bytes, &source)?;
+            // Draft A: the linked comparison's laboratories by this comparison's codes
+            Some(match &key {
+                Some(key) => key.coded_comparison(&linked),
+                None => linked,
+            })
         }
         None => None,
     };
@@ -205,6 +310,21 @@ pub fn run(args: &KcArgs) -> Result<u8> {
     })?;
     if let Some(linked) = &linked {
         polycal::kc::link(&mut kc, linked)?;
+    }
+    if let (Some(KeyFile::New(path)), Some(key)) = (&key_file, &key) {
+        // the key before any output that uses its codes, and never over an input
+        let mut outputs = polycal::output_file::Outputs::new(inputs.iter().copied())?;
+        outputs
+            .write_with(path, |w| {
+                polycal::output::kc::write_key_csv(w, key).map_err(std::io::Error::other)
+            })
+            .and_then(|()| outputs.commit().map(|_| ()))
+            .map_err(|e| anyhow::anyhow!("--anonymise: cannot write the key: {e}"))?;
+        // the figures may not replace it
+        inputs.push(path.as_path());
+    }
+    if key.is_some() {
+        kc.notes.push(polycal::kc::DRAFT_A_NOTE.to_string());
     }
     if let Some(dir) = &args.plot {
         super::write_plot(dir, &polycal::figure::kc_figures(&kc), &inputs)?;

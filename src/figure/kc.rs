@@ -322,7 +322,7 @@ fn pairwise(kc: &KeyComparison) -> Figure {
             .as_ref()
             .map_or((f64::NAN, 0, true), |v| (v.chi2, v.dof, v.consistent));
         let test = if chi2.is_finite() {
-            format!("χ² {}/{dof}", readable(chi2))
+            format!("χ² {}/{dof}", crate::kc::chi2_text(chi2, 1))
         } else {
             "not tested".to_string()
         };
@@ -380,13 +380,4 @@ fn pairwise(kc: &KeyComparison) -> Figure {
         title.clone(),
         document(height, &title, &subtitles, &body),
     )
-}
-
-/// χ² for a cell: one decimal up to 10⁵, else in the form 1.2e7 (a huge χ² stays short).
-fn readable(chi2: f64) -> String {
-    if chi2.abs() < 1e5 {
-        format!("{chi2:.1}")
-    } else {
-        format!("{chi2:.1e}")
-    }
 }

@@ -14,6 +14,7 @@ mod compare;
 mod diagnose;
 mod history;
 mod kc;
+mod kc_doe;
 mod plan;
 mod selfcal;
 mod solve;
@@ -132,9 +133,13 @@ pub fn budget_figures(uncertainty: &CalibrationUncertainty) -> Vec<Figure> {
 /// The figures of `polycal kc`: every laboratory's degree of equivalence d_i with its
 /// U(d_i) bar per face (those left out of the reference drawn with open squares and
 /// labelled so), the reference value per face with U = 2·u_ref beside every laboratory's
-/// value, and with the pilot's repeats each repeat's d_r with U(d_r).
+/// value, the pairwise matrix, the KCDB graphs (one small graph per face or position, the
+/// laboratories along the x axis; at most 24, and with more those of the largest
+/// |d_i|/U(d_i)), and with the pilot's repeats each repeat's d_r with U(d_r).
 pub fn kc_figures(kc: &crate::kc::KeyComparison) -> Vec<Figure> {
-    kc::figures(kc)
+    let mut figures = kc::figures(kc);
+    figures.extend(kc_doe::figures(kc));
+    figures
 }
 
 /// The figures of `polycal history`: one document of control charts, one small chart
@@ -241,6 +246,7 @@ impl FigureSet {
                 .to_vec(),
             FigureSet::Kc { pilot } => kc::NAMES
                 .iter()
+                .chain([&kc_doe::NAME])
                 .chain(pilot.then_some(&kc::PILOT))
                 .map(|n| format!("{n}.svg"))
                 .collect(),

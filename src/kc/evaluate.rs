@@ -674,10 +674,10 @@ fn exclusions(
             .nth(1)
             .map(|s| {
                 format!(
-                    "; the best subset of {} laboratories ({}) fails, χ² = {:.3} > {:.3}",
+                    "; the best subset of {} laboratories ({}) fails, χ² = {} > {:.3}",
                     s.size,
                     s.best.join(", "),
-                    s.chi2,
+                    super::chi2_text(s.chi2, 3),
                     s.chi2_critical
                 )
             })
@@ -686,16 +686,16 @@ fn exclusions(
             lab: labs[r].name.clone(),
             reason: format!(
                 "left out of the whole comparison: the closed vector of all {} laboratories \
-                 fails (χ² = {:.3} > χ²_0.95({}) = {:.3}); the largest subset that passes \
-                 is {} ({} laboratories, χ² = {:.3} ≤ χ²_0.95({}) = {:.3}, the smallest χ² \
+                 fails (χ² = {} > χ²_0.95({}) = {:.3}); the largest subset that passes \
+                 is {} ({} laboratories, χ² = {} ≤ χ²_0.95({}) = {:.3}, the smallest χ² \
                  of its size){before}",
                 candidates.len(),
-                vector_all.chi2,
+                super::chi2_text(vector_all.chi2, 3),
                 vector_all.dof,
                 vector_all.chi2_critical,
                 chosen.best.join(", "),
                 chosen.size,
-                chosen.chi2,
+                super::chi2_text(chosen.chi2, 3),
                 chosen.dof,
                 chosen.chi2_critical,
             ),

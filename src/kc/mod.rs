@@ -60,6 +60,7 @@
 //! when no laboratory gives its own covariance (the closed covariance is diagonal plus rank
 //! one). With a laboratory's covariance, u(d_i)² is the diagonal of V_i ∓ (Σ V_j⁺)⁺.
 
+mod anonymise;
 pub(crate) mod closed;
 mod covariance;
 mod evaluate;
@@ -74,11 +75,15 @@ use serde::{Deserialize, Serialize};
 
 use crate::results::{Quantity, ResultFile, ResultRow, RowColumns};
 
+pub use anonymise::{
+    CodeEntry, CodeKey, CodeKeyError, DRAFT_A_NOTE, anonymise, code_letter, code_order,
+};
 pub use covariance::lab_from_solve_json;
 pub use evaluate::evaluate;
 pub use input::MIN_STANDARD_U_ARCSEC;
 pub use json::{KcJsonError, KeyComparisonShapeError, read_json};
 pub use link::{Link, link};
+pub use reference::chi2_text;
 pub use reference::{chi2_quantile_95, closed_covariance};
 pub use search::{SearchMethod, SearchStep, SubsetSearch};
 
@@ -358,8 +363,8 @@ impl VectorTest {
     pub fn statement(&self) -> String {
         format!(
             "Closed vector (GLS, V_i = N/(N−1)·P·diag(u²)·P unless the laboratory sent its \
-             covariance, P = I − J/N): χ² = {:.2}, ν = (N − 1)(n − 1) = {}, χ²_0.95(ν) = {:.2}: {}",
-            self.chi2,
+             covariance, P = I − J/N): χ² = {}, ν = (N − 1)(n − 1) = {}, χ²_0.95(ν) = {:.2}: {}",
+            chi2_text(self.chi2, 2),
             self.dof,
             self.chi2_critical,
             if self.consistent {
@@ -568,18 +573,22 @@ impl KeyComparison {
         let names = p.repeats.join(", ");
         Some(match &p.vector {
             Some(v) if v.consistent => format!(
-                "The pilot's repeats ({names}) agree: their closed vector χ² = {:.2} ≤ \
+                "The pilot's repeats ({names}) agree: their closed vector χ² = {} ≤ \
                  χ²_0.95({}) = {:.2}; the artefact is taken as stable (u_stab = 0)",
-                v.chi2, v.dof, v.chi2_critical
+                chi2_text(v.chi2, 2),
+                v.dof,
+                v.chi2_critical
             ),
             Some(v) => format!(
                 "The pilot's repeats ({names}) differ beyond their uncertainties: their closed \
-                 vector χ² = {:.2} > χ²_0.95({}) = {:.2}; the artefact is taken as unstable, \
+                 vector χ² = {} > χ²_0.95({}) = {:.2}; the artefact is taken as unstable, \
                  and the repeats' sample standard deviation on each quantity (u_stab) is added \
                  in quadrature to every laboratory's u: in the reference, in every test and in \
                  the search for laboratories to leave out, so that none is left out for the \
                  artefact's motion",
-                v.chi2, v.dof, v.chi2_critical
+                chi2_text(v.chi2, 2),
+                v.dof,
+                v.chi2_critical
             ),
             None => format!("The pilot's repeats ({names}): not tested"),
         })
@@ -593,13 +602,13 @@ impl KeyComparison {
         let n = self.labs.len().saturating_sub(self.not_in_reference.len());
         let all = match &self.vector_all {
             Some(v) => format!(
-                "the closed vector of all {n} laboratories {} (χ² = {:.2} {} χ²_0.95({}) = {:.2})",
+                "the closed vector of all {n} laboratories {} (χ² = {} {} χ²_0.95({}) = {:.2})",
                 if v.consistent {
                     "passes its test at 5 %"
                 } else {
                     "fails its test at 5 %"
                 },
-                v.chi2,
+                chi2_text(v.chi2, 2),
                 if v.consistent { "≤" } else { ">" },
                 v.dof,
                 v.chi2_critical
@@ -625,9 +634,9 @@ impl KeyComparison {
         if self.comparison_consistent {
             let subset = match self.search.as_ref().and_then(|s| s.steps.last()) {
                 Some(step) => format!(
-                    "; the largest subset that passes is {} (χ² = {:.2} ≤ χ²_0.95({}) = {:.2})",
+                    "; the largest subset that passes is {} (χ² = {} ≤ χ²_0.95({}) = {:.2})",
                     step.best.join(", "),
-                    step.chi2,
+                    chi2_text(step.chi2, 2),
                     step.dof,
                     step.chi2_critical
                 ),

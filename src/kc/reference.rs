@@ -9,6 +9,28 @@ use super::ReferenceMethod;
 use super::closed::closing_projector;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
+/// A χ² for people: `decimals` decimals below 10⁶, three significant digits in exponent
+/// form at and above (`1.23e12`), so that a comparison far off reads at a glance, not as
+/// a thirteen-digit number (the table, the report and the DCC write χ² so; the JSON keeps
+/// every digit); a value that is not finite as Rust prints it.
+///
+/// ```
+/// use polycal::kc::chi2_text;
+/// assert_eq!(chi2_text(85.677_069, 2), "85.68");
+/// assert_eq!(chi2_text(85.677_069, 3), "85.677");
+/// assert_eq!(chi2_text(999_999.994, 2), "999999.99");
+/// assert_eq!(chi2_text(1.234_567e12, 2), "1.23e12");
+/// assert_eq!(chi2_text(1.0e6, 3), "1.00e6");
+/// assert_eq!(chi2_text(f64::INFINITY, 2), "inf");
+/// ```
+pub fn chi2_text(chi2: f64, decimals: usize) -> String {
+    if chi2.is_finite() && chi2.abs() >= 1e6 {
+        format!("{chi2:.2e}")
+    } else {
+        format!("{chi2:.decimals$}")
+    }
+}
+
 /// The 95 % quantile of χ² with `dof` degrees of freedom, χ²_{0.95}(ν) (`+∞` for ν = 0).
 ///
 /// ```

@@ -5,6 +5,7 @@ use std::borrow::Cow;
 use std::fmt::{self, Write};
 
 use crate::input::escaped;
+use crate::kc::chi2_text;
 use crate::kc::{DegreeOfEquivalence, KeyComparison, ReferenceMethod};
 use crate::uncertainty::format::table;
 
@@ -12,8 +13,8 @@ use crate::uncertainty::format::table;
 /// per quantity (x_ref, u_ref, τ, χ², ν, χ²_0.95, consistent), the exclusions with their
 /// reasons, the closed vector's test, the degrees of equivalence (d and U(d) per
 /// laboratory and quantity, `*` where |d| > U(d)), the pilot's repeats, the notes and the
-/// verdict. Numbers are rounded for reading (0.001″, χ² to 0.01); JSON and CSV carry them
-/// at full precision.
+/// verdict. Numbers are rounded for reading (0.001″, χ² to 0.01, and from 10⁶ on to three
+/// significant digits, `1.23e12`); JSON and CSV carry them at full precision.
 ///
 /// A laboratory's name (or any text) with a control character — an escape sequence, a
 /// line feed — is shown escaped as [`crate::input::escaped`] shows it, so a name cannot
@@ -150,7 +151,7 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
                 format!("{:.3}", kc.reference[k]),
                 format!("{:.3}", kc.reference_u[k]),
                 format!("{:.3}", kc.tau[k]),
-                format!("{:.2}", kc.chi2[k]),
+                chi2_text(kc.chi2[k], 2),
                 kc.chi2_dof[k].to_string(),
                 format!("{:.2}", kc.chi2_critical[k]),
                 if kc.consistent[k] { "yes" } else { "no" }.to_string(),
@@ -183,10 +184,10 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
         for step in &search.steps {
             writeln!(
                 out,
-                "  {} laboratories: {} — χ² = {:.2}, ν = {}, χ²_0.95(ν) = {:.2}: {}",
+                "  {} laboratories: {} — χ² = {}, ν = {}, χ²_0.95(ν) = {:.2}: {}",
                 step.size,
                 step.best.join(", "),
-                step.chi2,
+                chi2_text(step.chi2, 2),
                 step.dof,
                 step.chi2_critical,
                 if step.consistent { "passes" } else { "fails" }
@@ -253,7 +254,7 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
                     at(k),
                     format!("{:.3}", pilot.mean[k]),
                     format!("{:.3}", pilot.spread[k]),
-                    format!("{:.2}", pilot.chi2[k]),
+                    chi2_text(pilot.chi2[k], 2),
                     if pilot.significant[k] { "yes" } else { "no" }.to_string(),
                     format!("{:.3}", pilot.stability_u[k]),
                 ]
@@ -286,7 +287,7 @@ fn write_link(
     let test = match &link.vector {
         Some(v) => format!(
             "the link's one test at 5 %: χ² = {} {} χ²_0.95({}) = {:.2}, {}",
-            readable_chi2(v.chi2),
+            chi2_text(v.chi2, 2),
             if v.consistent { "≤" } else { ">" },
             v.dof,
             v.chi2_critical,
@@ -346,7 +347,7 @@ fn write_pairs(out: &mut impl std::fmt::Write, kc: &KeyComparison) -> std::fmt::
                 "{}–{} (χ² = {} > {:.2})",
                 p.a,
                 p.b,
-                readable_chi2(v.chi2),
+                chi2_text(v.chi2, 2),
                 v.chi2_critical
             )
         })
@@ -361,15 +362,6 @@ fn write_pairs(out: &mut impl std::fmt::Write, kc: &KeyComparison) -> std::fmt::
         if failing.is_empty() { "" } else { ": " },
         failing.join(", ")
     )
-}
-
-/// A χ² as the table prints it: two decimals up to 10⁶, else like 1.23e12.
-fn readable_chi2(chi2: f64) -> String {
-    if chi2.abs() < 1e6 {
-        format!("{chi2:.2}")
-    } else {
-        format!("{chi2:.2e}")
-    }
 }
 
 /// A table with any number of columns, the first left-aligned.
@@ -436,6 +428,37 @@ pub fn write_csv<W: std::io::Write>(writer: W, kc: &KeyComparison) -> Result<(),
                 doe.in_reference.to_string(),
             ])?;
         }
+    }
+    csv.flush()?;
+    Ok(())
+}
+
+/// Writes the key of a Draft A ([`crate::kc::anonymise`]) as CSV: the header `code,lab`,
+/// then one row per code in the key's order; a cell quoted when it needs to be, and given
+/// a leading `'` when it begins with a formula character (docs/FORMAT.md §3.1), which
+/// [`crate::kc::CodeKey::read`] takes off again.
+///
+/// ```
+/// use polycal::kc::CodeKey;
+/// let key = CodeKey::read(b"code,lab\nA,\"Lab, Inc\"\nB,=SUM\n", "key.csv")?;
+/// let mut csv = Vec::new();
+/// polycal::output::kc::write_key_csv(&mut csv, &key)?;
+/// assert_eq!(csv, b"code,lab\nA,\"Lab, Inc\"\nB,'=SUM\n");
+/// assert_eq!(CodeKey::read(&csv, "again.csv")?.code_of("=SUM"), Some("B"));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+///
+/// The I/O error of the writer, as a [`csv::Error`].
+pub fn write_key_csv<W: std::io::Write>(
+    writer: W,
+    key: &crate::kc::CodeKey,
+) -> Result<(), csv::Error> {
+    let mut csv = csv::Writer::from_writer(writer);
+    csv.write_record(["code", "lab"])?;
+    for entry in &key.entries {
+        csv.write_record([text_cell(&entry.code), text_cell(&entry.lab)])?;
     }
     csv.flush()?;
     Ok(())

@@ -57,7 +57,7 @@ fn help_examples_run() {
         std::env::var("PATH").unwrap_or_default()
     );
     for command in [
-        "solve", "diagnose", "budget", "compare", "simulate", "validate",
+        "solve", "diagnose", "budget", "compare", "simulate", "validate", "kc",
     ] {
         let help = String::from_utf8(polycal(&[command, "--help"]).stdout).unwrap();
         let examples = help

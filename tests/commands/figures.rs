@@ -87,15 +87,20 @@ impl Map {
 
 /// Fits the map of one axis (`x` or `y`) of one panel from its ticks and labels.
 fn axis_map(doc: &roxmltree::Document, panel: &str, axis: &str) -> Map {
+    axis_map_in(doc.root(), panel, axis)
+}
+
+/// [`axis_map`] of the ticks under `root` alone (one graph of several).
+fn axis_map_in(root: roxmltree::Node, panel: &str, axis: &str) -> Map {
     let in_panel = |n: &roxmltree::Node, class: &str| {
         class_is(n, class) && n.attribute("data-panel") == Some(panel)
     };
-    let positions: Vec<f64> = doc
+    let positions: Vec<f64> = root
         .descendants()
         .filter(|n| in_panel(n, &format!("tick-{axis}")))
         .map(|n| attr(n, if axis == "x" { "x1" } else { "y1" }))
         .collect();
-    let values: Vec<f64> = doc
+    let values: Vec<f64> = root
         .descendants()
         .filter(|n| in_panel(n, &format!("tick-label-{axis}")))
         .map(|n| n.text().unwrap().replace('−', "-").parse::<f64>().unwrap())
@@ -821,4 +826,163 @@ fn kc_degrees_of_equivalence_reference_and_pilot_against_the_json() {
         );
     }
     assert!(text.contains("k = 2") && text.contains("″"));
+}
+
+/// The point of a `<g class="point">` (its translation), px.
+fn translation(node: roxmltree::Node) -> (f64, f64) {
+    let t = node.attribute("transform").unwrap();
+    let inner = t.trim_start_matches("translate(").trim_end_matches(')');
+    let (x, y) = inner.split_once(',').unwrap();
+    (x.parse().unwrap(), y.parse().unwrap())
+}
+
+/// Checks `kc-kcdb.svg` against the comparison's JSON: one graph per position drawn
+/// (`drawn`, positions in `index`), in each every laboratory's d_i and U(d_i) read back
+/// through the graph's own y ticks within half a pixel, its name under its bar, the
+/// laboratories not in the reference drawn as open squares with their names in italics.
+fn check_kcdb(text: &str, json: &Value, drawn: &[usize]) {
+    let doc = roxmltree::Document::parse(text).unwrap();
+    let graphs: Vec<roxmltree::Node> = doc
+        .descendants()
+        .filter(|n| class_is(n, "position"))
+        .collect();
+    let indices: Vec<usize> = graphs
+        .iter()
+        .map(|g| g.attribute("data-index").unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(indices, drawn);
+    let labs = json["degrees_of_equivalence"].as_array().unwrap();
+    for (g, &k) in graphs.iter().zip(drawn) {
+        let my = axis_map_in(*g, "main", "y");
+        // no x ticks: the laboratories are the x axis, by name
+        assert_eq!(g.descendants().filter(|n| class_is(n, "tick-x")).count(), 0);
+        let zero = g.descendants().find(|n| class_is(n, "zero"));
+        if let Some(zero) = zero {
+            assert!(my.value(attr(zero, "y1")).abs() < 1e-9 + HALF_PX / my.slope.abs());
+        }
+        let mut last_x = f64::NEG_INFINITY;
+        for (i, lab) in labs.iter().enumerate() {
+            let series = format!("lab{i}");
+            let (d, u) = (floats(&lab["d"])[k], floats(&lab["U"])[k]);
+            let point = g
+                .descendants()
+                .find(|n| class_is(n, "point") && n.attribute("data-series") == Some(&series))
+                .unwrap_or_else(|| panic!("position {k}: {series} drawn"));
+            assert_eq!(point.attribute("data-index"), Some(k.to_string().as_str()));
+            let (x, y) = translation(point);
+            assert!(
+                x > last_x,
+                "the laboratories left to right in the JSON's order"
+            );
+            last_x = x;
+            assert!(
+                (my.px(d) - y).abs() <= HALF_PX,
+                "position {k} {series}: y maps back to {}, JSON {d}",
+                my.value(y)
+            );
+            let bar = g
+                .descendants()
+                .find(|n| class_is(n, "error-bar") && n.attribute("data-series") == Some(&series))
+                .unwrap();
+            let (y1, y2) = (attr(bar, "y1"), attr(bar, "y2"));
+            assert!(((y1 - y2).abs() / 2.0 - u * my.slope.abs()).abs() <= HALF_PX);
+            assert!((my.px(d) - (y1 + y2) / 2.0).abs() <= HALF_PX);
+            assert!((attr(bar, "x1") - x).abs() < 1e-9);
+            let label = g
+                .descendants()
+                .find(|n| {
+                    class_is(n, "lab-label") && n.attribute("data-lab") == Some(&i.to_string())
+                })
+                .unwrap();
+            assert_eq!(label.text(), lab["lab"].as_str());
+            assert!(
+                (attr(label, "x") - x).abs() <= 4.0,
+                "{series}: its name under it"
+            );
+            let in_reference = lab["in_reference"].as_bool().unwrap();
+            assert_eq!(
+                label.attribute("data-in-reference"),
+                Some(in_reference.to_string().as_str())
+            );
+            assert_eq!(
+                label.attribute("font-style") == Some("italic"),
+                !in_reference
+            );
+            let square = point.descendants().any(|n| n.has_tag_name("rect"));
+            assert_eq!(
+                square, !in_reference,
+                "{series}: □ when not in the reference"
+            );
+        }
+    }
+}
+
+/// `kc --plot`: the KCDB graphs of the bundled comparison, one per face, against the JSON;
+/// F, left out, drawn apart and named under the title.
+#[test]
+fn kc_kcdb_graphs_one_per_face_against_the_json() {
+    let dir = temp_dir("kcdb");
+    let k = "examples/data/kc";
+    let labs: Vec<String> = ["A", "B", "C", "D", "E", "F"]
+        .iter()
+        .map(|n| format!("{n}={k}/{n}.csv"))
+        .collect();
+    let mut args: Vec<&str> = vec!["kc"];
+    args.extend(labs.iter().map(String::as_str));
+    args.extend(["--format", "json", "--plot", dir.to_str().unwrap()]);
+    let json = json_of(&polycal(&args));
+    assert_eq!(json["excluded"][0]["lab"], "F");
+    let text = svg_text(&dir.join("kc-kcdb.svg"));
+    let all: Vec<usize> = (0..12).collect();
+    check_kcdb(&text, &json, &all);
+    assert!(text.contains("not in it (F)"), "the laboratory out named");
+    assert!(!text.contains(" drawn: "), "every face drawn");
+}
+
+/// With more than 24 positions the KCDB graphs are those of the 24 positions where some
+/// laboratory's |d_i|/U(d_i) is largest — found here from the JSON — and the figure says
+/// so. A comparison of 30 faces, one laboratory far off on faces 7 and 23.
+#[test]
+fn kc_kcdb_graphs_of_many_positions_are_the_24_largest_and_say_so() {
+    let dir = temp_dir("kcdb-many");
+    let mut args = vec!["kc".to_string()];
+    for (l, name) in ["P", "Q", "R", "S"].iter().enumerate() {
+        let mut text = String::from("quantity,index,value,U,k\n");
+        for face in 1..=30u32 {
+            // small, different values; S off by 1.5″ on faces 7 and 23 (they close)
+            let mut value = 0.013 * f64::from((face * (l as u32 + 3)) % 7) - 0.039;
+            if *name == "S" && face == 7 {
+                value += 1.5;
+            }
+            if *name == "S" && face == 23 {
+                value -= 1.5;
+            }
+            text.push_str(&format!("pitch_deviation,{face},{value},0.2,2\n"));
+        }
+        let path = dir.join(format!("{name}.csv"));
+        std::fs::write(&path, text).unwrap();
+        args.push(format!("{name}={}", path.display()));
+    }
+    let plot = dir.join("plot");
+    args.extend(["--format", "json", "--plot"].map(String::from));
+    args.push(plot.display().to_string());
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let json = json_of(&polycal(&args));
+    let labs = json["degrees_of_equivalence"].as_array().unwrap();
+    let ratio = |k: usize| {
+        labs.iter()
+            .map(|l| (floats(&l["d"])[k] / floats(&l["U"])[k]).abs())
+            .fold(0.0, f64::max)
+    };
+    let mut order: Vec<usize> = (0..30).collect();
+    order.sort_by(|a, b| ratio(*b).total_cmp(&ratio(*a)));
+    let mut drawn: Vec<usize> = order[..24].to_vec();
+    drawn.sort_unstable();
+    assert!(drawn.contains(&6) && drawn.contains(&22), "{drawn:?}");
+    let text = svg_text(&plot.join("kc-kcdb.svg"));
+    check_kcdb(&text, &json, &drawn);
+    assert!(
+        text.contains("24 of 30 faces drawn"),
+        "the figure says what it draws"
+    );
 }

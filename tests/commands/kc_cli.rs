@@ -478,6 +478,43 @@ fn kc_link_gives_degrees_of_equivalence_against_the_linked_reference() {
     // the table says it too
     args.retain(|a| *a != "--format" && *a != "json");
     assert!(stdout_of(&args).contains("Linked through B, C, D"));
+    // Draft A of a linked comparison: linked by the real names, shown by the codes
+    let key = std::path::Path::new(&scratch("unused", "")).with_file_name("link-key.csv");
+    let _ = std::fs::remove_file(&key);
+    let key = key.to_string_lossy().into_owned();
+    let mut args: Vec<&str> = vec!["kc"];
+    args.extend(rmo_args.iter().map(String::as_str));
+    args.extend([
+        "--link",
+        &cipm_path,
+        "--anonymise",
+        &key,
+        "--format",
+        "json",
+    ]);
+    let coded: Value = serde_json::from_str(&stdout_of(&args)).unwrap();
+    let key_text = std::fs::read_to_string(&key).unwrap();
+    let code_of = |name: &str| -> String {
+        key_text
+            .lines()
+            .find_map(|l| {
+                l.split_once(',')
+                    .filter(|(_, lab)| *lab == name)
+                    .map(|(c, _)| c.to_string())
+            })
+            .unwrap()
+    };
+    let mut expected: Vec<String> = ["B", "C", "D"].iter().map(|n| code_of(n)).collect();
+    let mut got: Vec<String> = coded["link"]["labs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect();
+    expected.sort();
+    got.sort();
+    assert_eq!(got, expected);
+    assert!(coded["link"]["vector"]["chi2"].as_f64().unwrap() < 1e-9);
     // refusals
     let garbage = scratch(
         "garbage.json",

@@ -163,12 +163,12 @@ fn statements(section: &KeyComparisonSection) -> Vec<String> {
     if let Some(search) = &kc.search {
         for step in &search.steps {
             lines.push(format!(
-                "Subset search, {} laboratories: the smallest χ² of {} subsets is {} ({}): χ² = {:.2}, ν = {}, χ²_0.95(ν) = {:.2}: {}.",
+                "Subset search, {} laboratories: the smallest χ² of {} subsets is {} ({}): χ² = {}, ν = {}, χ²_0.95(ν) = {:.2}: {}.",
                 step.size,
                 step.subsets,
                 step.best.join(", "),
                 if step.consistent { "passes" } else { "fails" },
-                step.chi2,
+                crate::kc::chi2_text(step.chi2, 2),
                 step.dof,
                 step.chi2_critical,
                 if step.consistent { "consistent" } else { "not consistent" }

@@ -17,6 +17,18 @@ use crate::results::Quantity;
 /// Decimals of χ² values.
 const CHI2_DECIMALS: usize = 2;
 
+/// A χ² cell: two decimals, and from 10⁶ on three significant digits (`1.23e12`), with
+/// the JSON's value in `data-value`.
+fn chi2_cell(chi2: f64) -> String {
+    if !chi2.is_finite() {
+        return num(None, CHI2_DECIMALS);
+    }
+    format!(
+        "<td class=\"num\" data-value=\"{chi2}\">{}</td>",
+        crate::kc::chi2_text(chi2, CHI2_DECIMALS)
+    )
+}
+
 /// Decimals of table angles, degrees (as the comparison table's).
 const ANGLE_DECIMALS: usize = 3;
 
@@ -192,7 +204,7 @@ fn reference_table(out: &mut String, kc: &KeyComparison) {
             position_cells(kc, k),
             rounded_pair_cells(kc.reference[k], kc.reference_u[k]),
             num(Some(kc.tau[k]), ARCSEC_DECIMALS),
-            num(Some(kc.chi2[k]), CHI2_DECIMALS),
+            chi2_cell(kc.chi2[k]),
             kc.chi2_dof[k],
             num(Some(kc.chi2_critical[k]), CHI2_DECIMALS),
             if consistent { "yes" } else { "NO" }
@@ -240,7 +252,7 @@ fn vector(out: &mut String, kc: &KeyComparison) {
             out,
             "<tr{}><td>{name}</td>{}<td class=\"num\">{}</td>{}<td>{}</td></tr>",
             if v.consistent { "" } else { " class=\"fail\"" },
-            num(Some(v.chi2), CHI2_DECIMALS),
+            chi2_cell(v.chi2),
             v.dof,
             num(Some(v.chi2_critical), CHI2_DECIMALS),
             if v.consistent { "yes" } else { "NO" }
@@ -274,7 +286,7 @@ fn exclusions(out: &mut String, kc: &KeyComparison) {
                 },
                 step.size,
                 esc(&step.best.join(", ")),
-                num(Some(step.chi2), CHI2_DECIMALS),
+                chi2_cell(step.chi2),
                 step.dof,
                 num(Some(step.chi2_critical), CHI2_DECIMALS),
                 if step.consistent { "yes" } else { "NO" }
@@ -379,7 +391,7 @@ fn pilot(out: &mut String, kc: &KeyComparison) {
             position_cells(kc, k),
             num(Some(p.mean[k]), ARCSEC_DECIMALS),
             num(Some(p.spread[k]), ARCSEC_DECIMALS),
-            num(Some(p.chi2[k]), CHI2_DECIMALS),
+            chi2_cell(p.chi2[k]),
             if p.significant[k] { "yes" } else { "no" },
             num(Some(p.stability_u[k]), ARCSEC_DECIMALS)
         );
