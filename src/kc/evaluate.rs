@@ -10,7 +10,7 @@ use super::input::{self, Aligned};
 use super::reference::{self, Estimate, chi2_quantile_95, closed_covariance};
 use super::search::{self, SearchMethod};
 use super::{
-    DegreeOfEquivalence, Exclusion, KcError, KcOptions, KeyComparison, LabResult, PairDifference,
+    DegreeOfEquivalence, Exclusion, KcError, KcOptions, KeyComparison, LabResult, Pairs,
     PilotStability, ReferenceMethod, VectorTest,
 };
 use crate::results::Quantity;
@@ -582,29 +582,18 @@ fn pilot_stability(
 }
 
 /// The difference of every pair of laboratories with its U (k = 2), in arcsec, from
-/// their stated covariances.
-fn pair_differences(scaled: &Scaled, stated: &[ClosedCovariance]) -> Vec<PairDifference> {
+/// their stated covariances (formed when read: [`Pairs`]).
+fn pair_differences(scaled: &Scaled, stated: &[ClosedCovariance]) -> Pairs {
     let labs = scaled.labs;
-    let scale = scaled.scale;
-    let positions = scaled.positions;
-    let mut pairs = Vec::new();
-    for a in 0..labs.len() {
-        let diagonal_a = stated[a].diagonal();
-        for b in a + 1..labs.len() {
-            let diagonal_b = stated[b].diagonal();
-            pairs.push(PairDifference {
-                a: labs[a].name.clone(),
-                b: labs[b].name.clone(),
-                d: (0..positions)
-                    .map(|k| (scaled.values[a][k] - scaled.values[b][k]) * scale)
-                    .collect(),
-                expanded_u: (0..positions)
-                    .map(|k| 2.0 * (diagonal_a[k] + diagonal_b[k]).sqrt() * scale)
-                    .collect(),
-            });
-        }
-    }
-    pairs
+    Pairs::formed(
+        labs.iter().map(|l| l.name.clone()).collect(),
+        scaled.values[..labs.len()].to_vec(),
+        stated[..labs.len()]
+            .iter()
+            .map(ClosedCovariance::diagonal)
+            .collect(),
+        scaled.scale,
+    )
 }
 
 /// The notes on the covariances the closed vector used, on DerSimonian–Laird, and on the

@@ -55,6 +55,7 @@ pub(crate) mod closed;
 mod covariance;
 mod evaluate;
 pub(crate) mod input;
+mod pairs;
 mod reference;
 mod search;
 
@@ -65,6 +66,7 @@ use crate::results::{Quantity, ResultFile, ResultRow, RowColumns};
 pub use covariance::lab_from_solve_json;
 pub use evaluate::evaluate;
 pub use input::MIN_STANDARD_U_ARCSEC;
+pub use pairs::{Pairs, PairsIter};
 pub use reference::{chi2_quantile_95, closed_covariance};
 pub use search::{SearchMethod, SearchStep, SubsetSearch};
 
@@ -444,8 +446,8 @@ pub struct KeyComparison {
     pub tau: Vec<f64>,
     /// Every laboratory against the reference, in the order given.
     pub degrees_of_equivalence: Vec<DegreeOfEquivalence>,
-    /// Every pair of laboratories.
-    pub pairs: Vec<PairDifference>,
+    /// Every pair of laboratories (formed when read).
+    pub pairs: Pairs,
     /// The pilot's repeats, when given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pilot: Option<PilotStability>,

@@ -69,10 +69,7 @@ fn names_escaped(kc: &KeyComparison) -> Cow<'_, KeyComparison> {
     for doe in &mut kc.degrees_of_equivalence {
         fix(&mut doe.lab);
     }
-    for pair in &mut kc.pairs {
-        fix(&mut pair.a);
-        fix(&mut pair.b);
-    }
+    kc.pairs.for_each_name(fix);
     if let Some(pilot) = &mut kc.pilot {
         pilot.repeats.iter_mut().for_each(fix);
         for doe in &mut pilot.degrees_of_equivalence {
