@@ -83,6 +83,7 @@ pub fn evaluate(
         Quantity::EncoderError => input::encoder(&all)?,
         other => return Err(KcError::Quantity(other)),
     };
+    let aligned = super::names::with_look_alike_notes(&all, aligned);
     // Every laboratory's own covariance is checked, whether or not it ends in the
     // reference (pitch deviations only: encoder errors have no closed vector).
     let mut covariances = Vec::with_capacity(labs.len());

@@ -4,7 +4,7 @@
 use std::borrow::Cow;
 use std::fmt::{self, Write};
 
-use crate::input::escaped;
+use crate::input::{escaped, is_shown_escaped};
 use crate::kc::{DegreeOfEquivalence, KeyComparison, ReferenceMethod};
 use crate::uncertainty::format::table;
 
@@ -16,8 +16,9 @@ use crate::uncertainty::format::table;
 /// at full precision.
 ///
 /// A laboratory's name (or any text) with a control character — an escape sequence, a
-/// line feed — is shown escaped as [`crate::input::escaped`] shows it, so a name cannot
-/// recolour the terminal or forge a line of the table.
+/// line feed — or a bidirectional formatting character is shown escaped as
+/// [`crate::input::escaped`] shows it, so a name cannot recolour the terminal, forge a
+/// line of the table, or display as another name.
 ///
 /// # Errors
 ///
@@ -43,12 +44,12 @@ fn names_escaped(kc: &KeyComparison) -> Cow<'_, KeyComparison> {
         .labs
         .iter()
         .chain(kc.pilot.iter().flat_map(|p| &p.repeats));
-    if !names.clone().any(|name| name.contains(char::is_control))
-        && !kc.notes.iter().any(|n| n.contains(char::is_control))
+    if !names.clone().any(|name| name.contains(is_shown_escaped))
+        && !kc.notes.iter().any(|n| n.contains(is_shown_escaped))
         && !kc
             .excluded
             .iter()
-            .any(|e| e.reason.contains(char::is_control))
+            .any(|e| e.reason.contains(is_shown_escaped))
     {
         return Cow::Borrowed(kc);
     }

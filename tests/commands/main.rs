@@ -95,6 +95,8 @@ mod history_cli;
 #[cfg(feature = "cli")]
 mod kc_cli;
 #[cfg(feature = "cli")]
+mod kc_input;
+#[cfg(feature = "cli")]
 mod kc_labs_apart;
 #[cfg(feature = "cli")]
 mod output_files;

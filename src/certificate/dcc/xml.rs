@@ -10,7 +10,8 @@ pub const DCC_NAMESPACE: &str = "https://ptb.de/dcc";
 /// The D-SI namespace.
 pub const SI_NAMESPACE: &str = "https://ptb.de/si";
 
-// Text escaped for XML element content and attribute values (`&`, `<`, `>`, `"`, `'`):
+// Text escaped for XML element content and attribute values (`&`, `<`, `>`, `"`, `'`; a
+// bidirectional formatting character shown as `\u{202e}`, as every name is shown):
 // the figures' escaping, one for every XML polycal writes. Control characters never reach
 // it here: the metadata refuses them where it is read (`meta::control_character`) and
 // `Xml::text` checks again.
