@@ -13,7 +13,7 @@
 
 use super::input::{Aligned, MIN_STANDARD_U_ARCSEC};
 use super::{KcError, LabResult};
-use crate::uncertainty::format::sig;
+use crate::input::limits::sig;
 
 /// The notes on the results (in the order of `results`, lined up in `aligned`) whose
 /// pitch deviations do not close beyond their rounding.

@@ -63,8 +63,8 @@ mod search;
 
 use serde::{Deserialize, Serialize};
 
+use crate::input::limits::sig;
 use crate::results::{Quantity, ResultFile, ResultRow, RowColumns};
-use crate::uncertainty::format::sig;
 
 pub use covariance::lab_from_solve_json;
 pub use evaluate::evaluate;

@@ -214,7 +214,7 @@ fn names_with_bidirectional_controls_are_shown_escaped_wherever_they_are_printed
     let table = evaluated(&["kc", &a, &b]);
     assert!(!table.contains('\u{202e}'), "{table}");
     assert!(table.contains("PTB\\u{202e}LPN"), "{table}");
-    // The figures, whose texts the HTML report and the DCC escape alike.
+    // The figures, whose texts the HTML report escapes alike.
     let plots = scratch_dir().join("bidi-plots");
     let plot_arg = plots.to_string_lossy().into_owned();
     evaluated(&["kc", &a, &b, "--plot", &plot_arg]);
