@@ -149,29 +149,48 @@ pub fn document_name(path: &str) -> String {
     }
 }
 
-/// A text with its control characters shown escaped (`\n`, `\u{1b}`, …): a file name
-/// with an escape sequence or a line feed cannot recolour a terminal or forge a line of
-/// its own (docs/FORMAT.md §8). The one place names and messages are escaped.
+/// A text with its control characters and bidirectional formatting characters shown
+/// escaped (`\n`, `\u{1b}`, `\u{202e}`, …): a file or laboratory name with an escape
+/// sequence or a line feed cannot recolour a terminal or forge a line of its own, nor one
+/// with a right-to-left override display as another name (docs/FORMAT.md §8, §12). The
+/// one place names and messages are escaped ([`is_shown_escaped`] tells which characters).
 ///
 /// ```
 /// use polycal::input::escaped;
 /// assert_eq!(escaped("plain ünïcode"), "plain ünïcode");
 /// assert_eq!(escaped("a\u{1b}[31m\n"), "a\\u{1b}[31m\\n");
+/// assert_eq!(escaped("PTB\u{202e}LPN"), "PTB\\u{202e}LPN");
 /// ```
 pub fn escaped(text: &str) -> std::borrow::Cow<'_, str> {
-    if !text.contains(char::is_control) {
+    if !text.contains(is_shown_escaped) {
         return std::borrow::Cow::Borrowed(text);
     }
     std::borrow::Cow::Owned(
         text.chars()
             .map(|c| {
-                if c.is_control() {
+                if is_shown_escaped(c) {
                     c.escape_default().to_string()
                 } else {
                     c.to_string()
                 }
             })
             .collect(),
+    )
+}
+
+/// Whether [`escaped`] shows `c` escaped: a control character, or a bidirectional
+/// formatting character ([`is_bidi_control`]).
+pub fn is_shown_escaped(c: char) -> bool {
+    c.is_control() || is_bidi_control(c)
+}
+
+/// Whether `c` is a bidirectional formatting character — the marks U+200E, U+200F,
+/// U+061C, the embeddings and overrides U+202A–U+202E, the isolates U+2066–U+2069 — which
+/// reorders the text around it on screen, so that a name can display as another.
+pub fn is_bidi_control(c: char) -> bool {
+    matches!(
+        c,
+        '\u{061C}' | '\u{200E}' | '\u{200F}' | '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}'
     )
 }
 

@@ -332,7 +332,12 @@ pub fn run(args: &KcArgs) -> Result<u8> {
     let stdout = super::stdout::stdout();
     let mut stdout = stdout.lock();
     match args.format {
-        KcFormat::Json => writeln!(stdout, "{}", polycal::output::to_json(&kc)?)?,
+        // Written as it is formed: the pairs of many laboratories are hundreds of MB.
+        KcFormat::Json => {
+            let mut buffered = std::io::BufWriter::with_capacity(1 << 16, &mut stdout);
+            polycal::output::write_json(&mut buffered, &kc)?;
+            buffered.flush()?;
+        }
         KcFormat::Table => {
             let mut text = String::new();
             polycal::output::kc::write_table(&mut text, &kc)?;

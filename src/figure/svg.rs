@@ -19,8 +19,23 @@ pub(crate) const LEFT_PX: f64 = 78.0;
 /// Right margin of a panel, px.
 pub(crate) const RIGHT_PX: f64 = 18.0;
 
-/// Escapes text for SVG/XML content and attribute values.
+/// Escapes text for SVG/XML content and attribute values as people read it (the figures
+/// and the HTML report): [`esc_data`], and a bidirectional formatting character, which
+/// would reorder the text around it on screen (a name displayed as another), shown as its
+/// escape, `\u{202e}`, as [`crate::input::escaped`] shows it.
 pub(crate) fn esc(text: &str) -> String {
+    escape_xml(text, true)
+}
+
+/// Escapes text for XML content and attribute values as data (the DCC, which carries a
+/// text as written): `&`, `<`, `>`, `"`, `'`, and a control character XML 1.0 cannot
+/// carry as a space.
+pub(crate) fn esc_data(text: &str) -> String {
+    escape_xml(text, false)
+}
+
+/// [`esc`] (`bidi_shown`) or [`esc_data`].
+fn escape_xml(text: &str, bidi_shown: bool) -> String {
     let mut out = String::with_capacity(text.len());
     for c in text.chars() {
         match c {
@@ -31,6 +46,7 @@ pub(crate) fn esc(text: &str) -> String {
             '\'' => out.push_str("&apos;"),
             // Control characters are not allowed in XML 1.0.
             c if (c as u32) < 0x20 && c != '\t' && c != '\n' && c != '\r' => out.push(' '),
+            c if bidi_shown && crate::input::is_bidi_control(c) => out.extend(c.escape_default()),
             c => out.push(c),
         }
     }
@@ -666,6 +682,16 @@ mod tests {
     #[test]
     fn text_is_escaped() {
         assert_eq!(esc(r#"a<b>&"c'"#), "a&lt;b&gt;&amp;&quot;c&apos;");
+        // bidirectional formatting characters shown, every one of them
+        assert_eq!(esc("PTB\u{202e}LPN"), "PTB\\u{202e}LPN");
+        for c in [
+            '\u{61c}', '\u{200e}', '\u{200f}', '\u{202a}', '\u{202e}', '\u{2066}', '\u{2069}',
+        ] {
+            assert_eq!(esc(&c.to_string()), format!("\\u{{{:x}}}", c as u32));
+        }
+        assert_eq!(esc("\u{2065}\u{2029}é"), "\u{2065}\u{2029}é");
+        // as data (the DCC): as written
+        assert_eq!(esc_data("a<\u{202e}"), "a&lt;\u{202e}");
     }
 
     #[test]

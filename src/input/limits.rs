@@ -181,6 +181,22 @@ pub(crate) fn show(x: f64) -> String {
     }
 }
 
+/// `x` with `digits` significant digits, in fixed notation between 10⁻⁴ and 10⁶.
+pub(crate) fn sig(x: f64, digits: usize) -> String {
+    if !x.is_finite() {
+        return format!("{x}");
+    }
+    if x == 0.0 {
+        return "0".to_string();
+    }
+    let magnitude = x.abs().log10().floor() as i32;
+    if !(-4..6).contains(&magnitude) {
+        return format!("{:.*e}", digits.saturating_sub(1), x);
+    }
+    let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
+    format!("{x:.decimals$}")
+}
+
 /// An autocollimator reading (`reading`, `reading_y`), arcseconds: |x| ≤ 10⁶″ (about
 /// 278°; an autocollimator reads within a few thousand arcseconds). Also a self-calibration
 /// head's reading and the angles of a truth file.

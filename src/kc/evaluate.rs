@@ -11,7 +11,7 @@ use super::monte_carlo;
 use super::reference::{self, Estimate, chi2_quantile_95, closed_covariance};
 use super::search::{self, SearchMethod};
 use super::{
-    DegreeOfEquivalence, Exclusion, KcError, KcOptions, KeyComparison, LabResult, PairDifference,
+    DegreeOfEquivalence, Exclusion, KcError, KcOptions, KeyComparison, LabResult, Pairs,
     PilotStability, ReferenceMethod, VectorTest,
 };
 use crate::results::Quantity;
@@ -84,6 +84,7 @@ pub fn evaluate(
         Quantity::EncoderError => input::encoder(&all)?,
         other => return Err(KcError::Quantity(other)),
     };
+    let aligned = super::names::with_look_alike_notes(&all, aligned);
     // Every laboratory's own covariance is checked, whether or not it ends in the
     // reference (pitch deviations only: encoder errors have no closed vector).
     let mut covariances = Vec::with_capacity(labs.len());
@@ -794,40 +795,31 @@ fn pilot_stability(
     Ok((stability_u, Some(report)))
 }
 
-/// The difference of every pair of laboratories with its U (k = 2), in arcsec, and the
-/// pair's closed-vector test at 5 %, from their covariances `widened` (the pilot's
-/// stability and τ in them).
-fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Vec<PairDifference> {
+/// Every pair of laboratories: d_ij and U(d_ij) (k = 2) formed when read ([`Pairs`]) from
+/// the covariances `widened` (the pilot's stability and τ in them), and each pair's
+/// closed-vector test at 5 %, made here.
+fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Pairs {
     let labs = scaled.labs;
-    let scale = scaled.scale;
-    let positions = scaled.positions;
-    let mut pairs = Vec::new();
-    let diagonals: Vec<Vec<f64>> = widened[..labs.len()]
-        .iter()
-        .map(ClosedCovariance::diagonal)
-        .collect();
-    for a in 0..labs.len() {
-        let diagonal_a = &diagonals[a];
-        for b in a + 1..labs.len() {
-            let diagonal_b = &diagonals[b];
-            let vector = scaled.fit(&[a, b], widened).map(|fit| VectorTest {
+    let n = labs.len();
+    let mut vectors = Vec::with_capacity(n * n.saturating_sub(1) / 2);
+    for a in 0..n {
+        for b in a + 1..n {
+            vectors.push(scaled.fit(&[a, b], widened).map(|fit| VectorTest {
                 reference: Vec::new(),
-                ..vector_test(&fit, scale)
-            });
-            pairs.push(PairDifference {
-                a: labs[a].name.clone(),
-                b: labs[b].name.clone(),
-                d: (0..positions)
-                    .map(|k| (scaled.values[a][k] - scaled.values[b][k]) * scale)
-                    .collect(),
-                expanded_u: (0..positions)
-                    .map(|k| 2.0 * (diagonal_a[k] + diagonal_b[k]).sqrt() * scale)
-                    .collect(),
-                vector,
-            });
+                ..vector_test(&fit, scaled.scale)
+            }));
         }
     }
-    pairs
+    Pairs::formed(
+        labs.iter().map(|l| l.name.clone()).collect(),
+        scaled.values[..n].to_vec(),
+        widened[..n]
+            .iter()
+            .map(ClosedCovariance::diagonal)
+            .collect(),
+        vectors,
+        scaled.scale,
+    )
 }
 
 /// The notes on the covariances the closed vector used, on the random-effects `method`,

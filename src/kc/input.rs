@@ -136,14 +136,40 @@ fn rows_of(result: &LabResult, quantity: Quantity) -> Vec<(usize, &ResultRow)> {
         .collect()
 }
 
-/// Lines up the pitch deviations: every result must have faces 1 … N, the same N.
+/// Lines up the pitch deviations: every result must have faces 1 … N, the same N. A
+/// result whose pitch deviations do not close beyond the rounding of its digits is noted
+/// (its mean is taken out), or refused when the misclosure is gross ([`super::closure`]).
 pub(crate) fn pitch(results: &[&LabResult]) -> Result<Aligned, KcError> {
-    faces(results, Quantity::PitchDeviation)
+    let mut aligned = faces(results, Quantity::PitchDeviation)?;
+    let notes = super::closure::misclosures(results, &aligned)?;
+    aligned.notes.extend(notes);
+    Ok(aligned)
+}
+
+/// The last face of each result's rows of `quantity` that has the most faces, with its
+/// source: the N a result one face short of is missing its last face against.
+fn most_faces<'a>(results: &[&'a LabResult], quantity: Quantity) -> Option<(u32, &'a str)> {
+    results
+        .iter()
+        .filter_map(|result| {
+            let last = result
+                .rows
+                .iter()
+                .filter(|row| row.quantity == quantity)
+                .map(|row| row.index)
+                .max()?;
+            Some((last, result.source.as_str()))
+        })
+        .fold(None, |most, (last, source)| match most {
+            Some((n, _)) if n >= last => most,
+            _ => Some((last, source)),
+        })
 }
 
 /// Lines up a quantity indexed by face (pitch or face deviations): every result must
 /// have faces 1 … N of it, the same N (`polycal history` lines up face deviations too).
 pub(crate) fn faces(results: &[&LabResult], quantity: Quantity) -> Result<Aligned, KcError> {
+    let most = most_faces(results, quantity);
     let mut faces_first: Option<(u32, &str)> = None;
     let (mut values, mut u) = (Vec::new(), Vec::new());
     for result in results {
@@ -165,6 +191,16 @@ pub(crate) fn faces(results: &[&LabResult], quantity: Quantity) -> Result<Aligne
                     index: row.index,
                 });
             }
+        }
+        if let Some((n, with_n)) = most
+            && faces.checked_add(1) == Some(n)
+        {
+            return Err(KcError::LastFaceMissing {
+                location: location(result, last_at, Field::Index),
+                quantity,
+                face: n,
+                other_source: with_n.to_string(),
+            });
         }
         match faces_first {
             None => faces_first = Some((faces, &result.source)),
@@ -204,6 +240,35 @@ pub(crate) fn faces(results: &[&LabResult], quantity: Quantity) -> Result<Aligne
     })
 }
 
+/// Whether the encoder errors are matched by angle: every one of every result carries
+/// `angle_deg`. Refused when some carry it and others do not (matched by index they would
+/// be paired silently by step number): at the first row without an angle, naming a
+/// result with angles.
+fn matched_by_angle(results: &[&LabResult]) -> Result<bool, KcError> {
+    let rows = |result: &LabResult| {
+        rows_of(result, Quantity::EncoderError)
+            .into_iter()
+            .map(|(i, row)| (i, row.index, row.angle_deg.is_some()))
+            .collect::<Vec<_>>()
+    };
+    let Some(with_angles) = results
+        .iter()
+        .find(|result| rows(result).iter().any(|&(_, _, angle)| angle))
+    else {
+        return Ok(false);
+    };
+    for result in results {
+        if let Some(&(i, index, _)) = rows(result).iter().find(|&&(_, _, angle)| !angle) {
+            return Err(KcError::AngleMissing {
+                location: location(result, i, Field::Index),
+                index,
+                with_angles: with_angles.source.clone(),
+            });
+        }
+    }
+    Ok(true)
+}
+
 /// One position of an encoder error across the results: the row of each result there.
 struct Group {
     key: f64,
@@ -214,10 +279,7 @@ struct Group {
 /// circle) when every encoder error of every result carries `angle_deg`, else by index.
 /// Positions not in every result are left out and named in a note.
 pub(crate) fn encoder(results: &[&LabResult]) -> Result<Aligned, KcError> {
-    let by_angle = results.iter().all(|result| {
-        let rows = rows_of(result, Quantity::EncoderError);
-        !rows.is_empty() && rows.iter().all(|(_, row)| row.angle_deg.is_some())
-    });
+    let by_angle = matched_by_angle(results)?;
     // Every (key, result, row), sorted by key.
     let mut all: Vec<(f64, usize, usize)> = Vec::new();
     for (r, result) in results.iter().enumerate() {

@@ -62,17 +62,21 @@
 
 mod anonymise;
 pub(crate) mod closed;
+mod closure;
 mod covariance;
 mod evaluate;
 pub(crate) mod input;
 mod json;
 mod link;
 mod monte_carlo;
+mod names;
+mod pairs;
 mod reference;
 mod search;
 
 use serde::{Deserialize, Serialize};
 
+use crate::input::limits::sig;
 use crate::results::{Quantity, ResultFile, ResultRow, RowColumns};
 
 pub use anonymise::{
@@ -83,6 +87,7 @@ pub use evaluate::evaluate;
 pub use input::MIN_STANDARD_U_ARCSEC;
 pub use json::{KcJsonError, KeyComparisonShapeError, read_json};
 pub use link::{Link, link};
+pub use pairs::{Pairs, PairsIter};
 pub use reference::chi2_text;
 pub use reference::{chi2_quantile_95, closed_covariance};
 pub use search::{SearchMethod, SearchStep, SubsetSearch};
@@ -532,8 +537,8 @@ pub struct KeyComparison {
     pub tau: Vec<f64>,
     /// Every laboratory against the reference, in the order given.
     pub degrees_of_equivalence: Vec<DegreeOfEquivalence>,
-    /// Every pair of laboratories.
-    pub pairs: Vec<PairDifference>,
+    /// Every pair of laboratories (formed when read).
+    pub pairs: Pairs,
     /// The pilot's repeats, when given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pilot: Option<PilotStability>,
@@ -841,4 +846,60 @@ pub enum KcError {
          follow from the pitch deviations; setup errors depend on the mounting)"
     )]
     Quantity(Quantity),
+    /// A result one face short of another: its last face is missing.
+    #[error(
+        "{location}: {quantity} of face {face} is missing: this result ends at face {}, and \
+         {other_source} has faces 1 … {face}",
+        face - 1
+    )]
+    LastFaceMissing {
+        /// `file:line:column` of the result's last face's index.
+        location: String,
+        /// The quantity.
+        quantity: Quantity,
+        /// The missing face (the other result's last).
+        face: u32,
+        /// A result that has it.
+        other_source: String,
+    },
+    /// An encoder error without a table angle beside results with angles.
+    #[error(
+        "{location}: encoder_error {index} has no angle_deg, but {with_angles} gives the table \
+         angle of its encoder errors: results are matched by angle when they carry angles, so \
+         every encoder error of every result needs angle_deg (or none, to be matched by index)"
+    )]
+    AngleMissing {
+        /// `file:line:column` of the row's index (the first row without an angle).
+        location: String,
+        /// Its index.
+        index: u32,
+        /// A result whose encoder errors carry angles.
+        with_angles: String,
+    },
+    /// Pitch deviations whose sum is far from 0 (docs/FORMAT.md §12): taking out their
+    /// mean would move every face by more than the result's own expanded uncertainty.
+    #[error(
+        "{file} (laboratory {lab}): its pitch deviations sum to {}″ over {faces} faces, but a \
+         polygon's pitch deviations sum to 0: taking out their mean would move every face by \
+         {}″, more than the result's expanded uncertainty 2u = {}″ of face {face} (face \
+         deviations given as pitch deviations, a face left out, a sign or a nominal angle \
+         wrong?)",
+        sig(*.sum_arcsec, 4),
+        sig(.sum_arcsec.abs() / *.faces as f64, 3),
+        sig(2.0 * *.u_arcsec, 3)
+    )]
+    NotClosed {
+        /// The result's file.
+        file: String,
+        /// The laboratory (or the pilot's repeat).
+        lab: String,
+        /// Σβ, arcsec.
+        sum_arcsec: f64,
+        /// The number of faces N.
+        faces: usize,
+        /// The smallest standard uncertainty of the result's faces, arcsec.
+        u_arcsec: f64,
+        /// Its face.
+        face: u32,
+    },
 }

@@ -4,7 +4,7 @@
 use std::borrow::Cow;
 use std::fmt::{self, Write};
 
-use crate::input::escaped;
+use crate::input::{escaped, is_shown_escaped};
 use crate::kc::chi2_text;
 use crate::kc::{DegreeOfEquivalence, KeyComparison, ReferenceMethod};
 use crate::uncertainty::format::table;
@@ -17,8 +17,9 @@ use crate::uncertainty::format::table;
 /// significant digits, `1.23e12`); JSON and CSV carry them at full precision.
 ///
 /// A laboratory's name (or any text) with a control character — an escape sequence, a
-/// line feed — is shown escaped as [`crate::input::escaped`] shows it, so a name cannot
-/// recolour the terminal or forge a line of the table.
+/// line feed — or a bidirectional formatting character is shown escaped as
+/// [`crate::input::escaped`] shows it, so a name cannot recolour the terminal, forge a
+/// line of the table, or display as another name.
 ///
 /// # Errors
 ///
@@ -44,12 +45,12 @@ fn names_escaped(kc: &KeyComparison) -> Cow<'_, KeyComparison> {
         .labs
         .iter()
         .chain(kc.pilot.iter().flat_map(|p| &p.repeats));
-    if !names.clone().any(|name| name.contains(char::is_control))
-        && !kc.notes.iter().any(|n| n.contains(char::is_control))
+    if !names.clone().any(|name| name.contains(is_shown_escaped))
+        && !kc.notes.iter().any(|n| n.contains(is_shown_escaped))
         && !kc
             .excluded
             .iter()
-            .any(|e| e.reason.contains(char::is_control))
+            .any(|e| e.reason.contains(is_shown_escaped))
     {
         return Cow::Borrowed(kc);
     }
@@ -70,10 +71,7 @@ fn names_escaped(kc: &KeyComparison) -> Cow<'_, KeyComparison> {
     for doe in &mut kc.degrees_of_equivalence {
         fix(&mut doe.lab);
     }
-    for pair in &mut kc.pairs {
-        fix(&mut pair.a);
-        fix(&mut pair.b);
-    }
+    kc.pairs.for_each_name(fix);
     if let Some(pilot) = &mut kc.pilot {
         pilot.repeats.iter_mut().for_each(fix);
         for doe in &mut pilot.degrees_of_equivalence {
@@ -334,19 +332,17 @@ fn write_pairs(out: &mut impl std::fmt::Write, kc: &KeyComparison) -> std::fmt::
     let tested: Vec<_> = kc
         .pairs
         .iter()
-        .filter_map(|p| p.vector.as_ref().map(|v| (p, v)))
+        .filter_map(|p| p.vector.map(|v| (p.a, p.b, v)))
         .collect();
     if tested.is_empty() {
         return Ok(());
     }
     let failing: Vec<String> = tested
         .iter()
-        .filter(|(_, v)| !v.consistent)
-        .map(|(p, v)| {
+        .filter(|(_, _, v)| !v.consistent)
+        .map(|(a, b, v)| {
             format!(
-                "{}–{} (χ² = {} > {:.2})",
-                p.a,
-                p.b,
+                "{a}–{b} (χ² = {} > {:.2})",
                 chi2_text(v.chi2, 2),
                 v.chi2_critical
             )
@@ -356,7 +352,7 @@ fn write_pairs(out: &mut impl std::fmt::Write, kc: &KeyComparison) -> std::fmt::
         out,
         "Pairs: each pair's closed vector d_ij tested at 5 % (ν = {}; its own decision, about \
          1 pair in 20 fails by chance): {} of {} fail{}{}",
-        tested[0].1.dof,
+        tested[0].2.dof,
         failing.len(),
         tested.len(),
         if failing.is_empty() { "" } else { ": " },

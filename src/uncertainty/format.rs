@@ -4,22 +4,7 @@
 use std::fmt;
 
 use super::budget::{BudgetResult, ComponentResult, DofPolicy};
-
-/// `x` with `digits` significant digits, in fixed notation between 10⁻⁴ and 10⁶.
-pub(crate) fn sig(x: f64, digits: usize) -> String {
-    if !x.is_finite() {
-        return format!("{x}");
-    }
-    if x == 0.0 {
-        return "0".to_string();
-    }
-    let magnitude = x.abs().log10().floor() as i32;
-    if !(-4..6).contains(&magnitude) {
-        return format!("{:.*e}", digits.saturating_sub(1), x);
-    }
-    let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
-    format!("{x:.decimals$}")
-}
+use crate::input::limits::sig;
 
 /// Degrees of freedom: `∞` for `None`, an integer as is, otherwise one decimal.
 pub(crate) fn dof(nu: Option<f64>) -> String {

@@ -96,6 +96,7 @@ mod history_cli;
 mod kc_cli;
 #[cfg(feature = "cli")]
 mod kc_draft;
+mod kc_input;
 #[cfg(feature = "cli")]
 mod kc_labs_apart;
 #[cfg(feature = "cli")]

@@ -11,10 +11,11 @@ pub const DCC_NAMESPACE: &str = "https://ptb.de/dcc";
 pub const SI_NAMESPACE: &str = "https://ptb.de/si";
 
 // Text escaped for XML element content and attribute values (`&`, `<`, `>`, `"`, `'`):
-// the figures' escaping, one for every XML polycal writes. Control characters never reach
-// it here: the metadata refuses them where it is read (`meta::control_character`) and
-// `Xml::text` checks again.
-use crate::figure::svg::esc as escape;
+// the figures' escaping as data, one for every XML polycal writes (a bidirectional
+// formatting character is carried as written, as in the JSON). Control characters never
+// reach it here: the metadata refuses them where it is read (`meta::control_character`)
+// and `Xml::text` checks again.
+use crate::figure::svg::esc_data as escape;
 
 /// Element text escaped so that it reads back as written: a carriage return as `&#13;`,
 /// which a parser's line-end normalisation would otherwise turn into a line feed.
