@@ -802,12 +802,39 @@ fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Pairs {
     let labs = scaled.labs;
     let n = labs.len();
     let mut vectors = Vec::with_capacity(n * n.saturating_sub(1) / 2);
+    let dof = scaled.positions.saturating_sub(1);
+    let critical = chi2_quantile_95(dof);
+    let closing = scaled.positions as f64 / dof.max(1) as f64;
     for a in 0..n {
         for b in a + 1..n {
-            vectors.push(scaled.fit(&[a, b], widened).map(|fit| VectorTest {
-                reference: Vec::new(),
-                ..vector_test(&fit, scaled.scale)
-            }));
+            let test = match (&widened[a], &widened[b]) {
+                // V_a + V_b = c·P·diag(u_a² + u_b²)·P: its χ² in O(N), no fit
+                (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b)) => {
+                    let d: Vec<f64> = scaled.values[a]
+                        .iter()
+                        .zip(&scaled.values[b])
+                        .map(|(x_a, x_b)| x_a - x_b)
+                        .collect();
+                    let variance: Vec<f64> = u_a
+                        .iter()
+                        .zip(u_b)
+                        .map(|(u_a, u_b)| closing * (u_a * u_a + u_b * u_b))
+                        .collect();
+                    let (chi2, _) = closed::difference_chi2(&d, &variance);
+                    chi2.is_finite().then(|| VectorTest {
+                        chi2,
+                        dof,
+                        consistent: chi2 <= critical,
+                        chi2_critical: critical,
+                        reference: Vec::new(),
+                    })
+                }
+                _ => scaled.fit(&[a, b], widened).map(|fit| VectorTest {
+                    reference: Vec::new(),
+                    ..vector_test(&fit, scaled.scale)
+                }),
+            };
+            vectors.push(test);
         }
     }
     Pairs::formed(
