@@ -297,6 +297,11 @@ fn evaluate_aligned(
             .collect(),
         notes,
     };
+    if let Some(statement) = comparison.pilot_statement()
+        && let Some(pilot) = comparison.pilot.as_mut()
+    {
+        pilot.statement = statement;
+    }
     if let Some(draws) = options.monte_carlo {
         let model = monte_carlo::Model {
             reference: &final_fit.reference,
@@ -791,6 +796,7 @@ fn pilot_stability(
         stability_u: stability_u.clone(),
         vector: Some(pilot_vector),
         degrees_of_equivalence: Vec::new(),
+        statement: String::new(),
     };
     Ok((stability_u, Some(report)))
 }

@@ -482,6 +482,10 @@ pub struct PilotStability {
     pub vector: Option<VectorTest>,
     /// Each repeat against the reference (never in it).
     pub degrees_of_equivalence: Vec<DegreeOfEquivalence>,
+    /// The pilot's test and what follows from it, in words
+    /// ([`KeyComparison::pilot_statement`]), for readers of the JSON.
+    #[serde(default)]
+    pub statement: String,
 }
 
 /// A key comparison evaluated. Serializes to the JSON of docs/FORMAT.md §12, and reads it
