@@ -6,6 +6,7 @@ use nalgebra::DMatrix;
 
 use super::closed::{self, ClosedCovariance, ClosedFit, closed, closed_pseudo_inverse};
 use super::covariance;
+use super::dof;
 use super::input::{self, Aligned};
 use super::monte_carlo;
 use super::reference::{self, Estimate, chi2_quantile_95, closed_covariance};
@@ -302,6 +303,17 @@ fn evaluate_aligned(
     {
         pilot.statement = statement;
     }
+    if options.monte_carlo.is_none() && aligned.dof.iter().flatten().any(|d| d.is_finite()) {
+        let sources = dof::Sources {
+            u: &scaled.u,
+            dof: &aligned.dof,
+            stability: &scaled.stability,
+            stability_dof: pilot.len().saturating_sub(1) as f64,
+            tau: &tau,
+            inside: &inside,
+        };
+        with_effective_dof(&mut comparison, &sources);
+    }
     if let Some(draws) = options.monte_carlo {
         let model = monte_carlo::Model {
             reference: &final_fit.reference,
@@ -313,6 +325,36 @@ fn evaluate_aligned(
         monte_carlo_u(&mut comparison, &model, draws, covariances, scale)?;
     }
     Ok(comparison)
+}
+
+/// Every degree of equivalence's U (the pilot's repeats' too) with k = t_95.45(ν_eff), the
+/// Welch–Satterthwaite ν from `sources` ([`dof`]), each ν_eff and k stated, and a note.
+fn with_effective_dof(comparison: &mut KeyComparison, sources: &dof::Sources) {
+    let degrees = comparison.degrees_of_equivalence.iter_mut().chain(
+        comparison
+            .pilot
+            .iter_mut()
+            .flat_map(|p| p.degrees_of_equivalence.iter_mut()),
+    );
+    for (r, doe) in degrees.enumerate() {
+        let (mut nu, mut k) = (Vec::new(), Vec::new());
+        for (position, expanded_u) in doe.expanded_u.iter_mut().enumerate() {
+            let effective = dof::effective(sources, r, position);
+            let factor = dof::coverage_factor(effective);
+            *expanded_u *= factor / 2.0;
+            nu.push(effective.is_finite().then_some(effective));
+            k.push(factor);
+        }
+        doe.dof_effective = Some(nu);
+        doe.k = Some(k);
+    }
+    comparison.notes.push(
+        "every U(d_i) is k·u(d_i) with k = t_95.45(ν_eff), ν_eff by Welch–Satterthwaite from \
+         the degrees of freedom the laboratories state for their u (column dof; none stated: \
+         infinitely many), the pilot's u_stab with m − 1 and τ with infinitely many \
+         (dof_effective and k in the JSON)"
+            .to_string(),
+    );
 }
 
 /// Every U of the degrees of equivalence (the pilot's repeats' too) and u_ref by `draws`
@@ -582,6 +624,8 @@ impl<'a> Scaled<'a> {
             in_reference: inside_reference,
             d_linked: None,
             expanded_u_linked: None,
+            dof_effective: None,
+            k: None,
         }
     }
 }

@@ -20,6 +20,8 @@ pub(crate) struct Aligned {
     pub values: Vec<Vec<f64>>,
     /// Standard uncertainties, arcseconds, per result and position.
     pub u: Vec<Vec<f64>>,
+    /// The degrees of freedom of each u (∞ where none is stated), per result and position.
+    pub dof: Vec<Vec<f64>>,
     /// What was left out, in words.
     pub notes: Vec<String>,
 }
@@ -171,7 +173,7 @@ fn most_faces<'a>(results: &[&'a LabResult], quantity: Quantity) -> Option<(u32,
 pub(crate) fn faces(results: &[&LabResult], quantity: Quantity) -> Result<Aligned, KcError> {
     let most = most_faces(results, quantity);
     let mut faces_first: Option<(u32, &str)> = None;
-    let (mut values, mut u) = (Vec::new(), Vec::new());
+    let (mut values, mut u, mut dof) = (Vec::new(), Vec::new(), Vec::new());
     for result in results {
         let rows = rows_of(result, quantity);
         let Some(&(last_at, _)) = rows.iter().max_by_key(|(_, row)| row.index) else {
@@ -214,7 +216,7 @@ pub(crate) fn faces(results: &[&LabResult], quantity: Quantity) -> Result<Aligne
             }
             Some(_) => {}
         }
-        let (mut x, mut s) = (Vec::new(), Vec::new());
+        let (mut x, mut s, mut nu) = (Vec::new(), Vec::new(), Vec::new());
         for face in 1..=faces {
             let Some(&i) = by_face.get(&face) else {
                 return Err(KcError::FaceMissing {
@@ -226,9 +228,11 @@ pub(crate) fn faces(results: &[&LabResult], quantity: Quantity) -> Result<Aligne
             let row = &result.rows[i];
             x.push(row.value);
             s.push(standard_u(result, i, row)?);
+            nu.push(row.dof.unwrap_or(f64::INFINITY));
         }
         values.push(x);
         u.push(s);
+        dof.push(nu);
     }
     let faces = faces_first.map_or(0, |(n, _)| n);
     Ok(Aligned {
@@ -236,6 +240,7 @@ pub(crate) fn faces(results: &[&LabResult], quantity: Quantity) -> Result<Aligne
         angle_deg: None,
         values,
         u,
+        dof,
         notes: Vec::new(),
     })
 }
@@ -330,6 +335,7 @@ pub(crate) fn encoder(results: &[&LabResult]) -> Result<Aligned, KcError> {
         angle_deg: by_angle.then(Vec::new),
         values: vec![Vec::new(); results.len()],
         u: vec![Vec::new(); results.len()],
+        dof: vec![Vec::new(); results.len()],
         notes: Vec::new(),
     };
     let mut left_out = Vec::new();
@@ -362,6 +368,7 @@ pub(crate) fn encoder(results: &[&LabResult]) -> Result<Aligned, KcError> {
             }
             aligned.values[r].push(found.value);
             aligned.u[r].push(standard_u(result, i, found)?);
+            aligned.dof[r].push(found.dof.unwrap_or(f64::INFINITY));
         }
     }
     if aligned.index.is_empty() {

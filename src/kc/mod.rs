@@ -64,6 +64,7 @@ mod anonymise;
 pub(crate) mod closed;
 mod closure;
 mod covariance;
+mod dof;
 mod evaluate;
 pub(crate) mod input;
 mod json;
@@ -401,6 +402,14 @@ pub struct DegreeOfEquivalence {
     /// U of `d_linked` at k = 2 per quantity, arcseconds.
     #[serde(rename = "U_linked", default, skip_serializing_if = "Option::is_none")]
     pub expanded_u_linked: Option<Vec<f64>>,
+    /// The Welch–Satterthwaite degrees of freedom of d_i per quantity (`None` in a list
+    /// entry: infinitely many), when some laboratory states the degrees of freedom of its
+    /// u (column `dof`); U is then k·u(d_i) with k below.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dof_effective: Option<Vec<Option<f64>>>,
+    /// The coverage factor k = t_95.45(ν_eff) of U per quantity, with `dof_effective`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<Vec<f64>>,
 }
 
 /// A pair of laboratories: d_ij = x_i − x_j, U(d_ij) = 2·√(u_i² + u_j² + 2u_stab² + 2τ²)

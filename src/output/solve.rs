@@ -321,6 +321,7 @@ pub fn result_rows_with(
                     expanded_u: None,
                     k: None,
                     angle_deg,
+                    dof: None,
                 },
                 Some(unc) => {
                     let family = unc.families()[f].1;
@@ -335,6 +336,7 @@ pub fn result_rows_with(
                         expanded_u: Some(family.expanded_u[i]),
                         k: Some(k),
                         angle_deg,
+                        dof: None,
                     }
                 }
             };

@@ -118,6 +118,10 @@ pub struct ResultRow {
     /// For `encoder_error` rows: the table angle of that position, degrees, 0 ≤ angle < 360
     /// (column `angle_deg`); `None` on every other row.
     pub angle_deg: Option<f64>,
+    /// The degrees of freedom ν of `u` (column `dof`), when the laboratory states them;
+    /// `None` for infinitely many (a key comparison's Welch–Satterthwaite ν uses them).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dof: Option<f64>,
 }
 
 impl ResultRow {
@@ -140,6 +144,7 @@ impl ResultRow {
             expanded_u: None,
             k: None,
             angle_deg: None,
+            dof: None,
         }
     }
 
@@ -158,6 +163,12 @@ impl ResultRow {
     /// With a coverage factor `k`.
     pub fn with_k(mut self, k: f64) -> ResultRow {
         self.k = Some(k);
+        self
+    }
+
+    /// With the degrees of freedom ν of its standard uncertainty (ν > 0).
+    pub fn with_dof(mut self, dof: f64) -> ResultRow {
+        self.dof = Some(dof);
         self
     }
 
@@ -320,7 +331,7 @@ pub fn check_rows(rows: &[ResultRow]) -> Result<(), RowsError> {
 ///
 /// let row = ResultRow {
 ///     quantity: Quantity::PitchDeviation, index: 3, value: 1e300,
-///     u: None, expanded_u: None, k: None, angle_deg: None,
+///     u: None, expanded_u: None, k: None, angle_deg: None, dof: None,
 /// };
 /// let refused = check_rows(&[row]).unwrap_err();
 /// assert!(matches!(refused, RowsError::Number { index: 3, column: "value", .. }));

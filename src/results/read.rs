@@ -24,6 +24,7 @@ enum Col {
     U,
     K,
     AngleDeg,
+    Dof,
 }
 
 impl Col {
@@ -49,8 +50,17 @@ const QUANTITY_WORDS: &[&str] = &[
 const ANGLE_RANGE: &str = "is outside 0 ≤ angle_deg < 360 degrees; write 0, not 360, for \
                            the position that closes the circle";
 
+/// What a `dof` that is not positive breaks, after the value in a message.
+const DOF_RANGE: &str = "is not positive: the degrees of freedom of u are more than 0 (leave \
+                         the field empty for infinitely many)";
+
+/// Whether a number is a stated number of degrees of freedom: positive.
+fn dof_in_range(dof: f64) -> bool {
+    dof > 0.0
+}
+
 /// The result file's columns (docs/FORMAT.md §3), indexed by [`Col`].
-pub(crate) const COLUMNS: [Column; 7] = [
+pub(crate) const COLUMNS: [Column; 8] = [
     Column::word("quantity", QUANTITY_WORDS, "a quantity"),
     Column::integer("index", 0, u32::MAX as u128),
     Column::number(
@@ -65,6 +75,14 @@ pub(crate) const COLUMNS: [Column; 7] = [
         Range::Within {
             contains: angle_in_range,
             broken: ANGLE_RANGE,
+        },
+    )
+    .optional(),
+    Column::number(
+        "dof",
+        Range::Within {
+            contains: dof_in_range,
+            broken: DOF_RANGE,
         },
     )
     .optional(),
@@ -187,6 +205,7 @@ fn result_row(row: &Row<'_>) -> Result<ResultRow, TableError> {
         u: uncertainty(Col::U)?,
         k: row.optional_number(Col::K.at()),
         angle_deg: row.optional_number(Col::AngleDeg.at()).map(|a| a + 0.0), // −0 is 0
+        dof: row.optional_number(Col::Dof.at()),
     })
 }
 

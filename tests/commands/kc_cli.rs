@@ -531,3 +531,27 @@ fn kc_link_gives_degrees_of_equivalence_against_the_linked_reference() {
     args.extend(["--link", &cipm_path]);
     assert!(refused(&args).contains("no laboratory is in both"));
 }
+
+/// A `dof` column is read and gives the degrees of equivalence their ν_eff and k; a `dof`
+/// that is not positive is refused at its field.
+#[test]
+fn kc_reads_a_dof_column() {
+    let file = |name: &str, dof: &str| {
+        let mut text = String::from("quantity,index,value,u,dof\n");
+        for (face, value) in [0.1, -0.05, 0.0, -0.05].iter().enumerate() {
+            text.push_str(&format!("pitch_deviation,{},{value},0.1,{dof}\n", face + 1));
+        }
+        format!("{name}={}", scratch(&format!("dof-{name}.csv"), &text))
+    };
+    let (a, b) = (file("A", "5"), file("B", ""));
+    let json: Value =
+        serde_json::from_str(&stdout_of(&["kc", &a, &b, "--format", "json"])).unwrap();
+    let doe = &json["degrees_of_equivalence"][0];
+    let nu = doe["dof_effective"][0].as_f64().unwrap();
+    // two laboratories of one u: d_A = (x_A − x_B)/2, u_c⁴/((u²/4)²/5) = (u²/2)²·80/u⁴ = 20
+    assert!((nu - 20.0).abs() < 1e-9, "{nu}");
+    assert!(doe["k"][0].as_f64().unwrap() > 2.0);
+    let bad = file("C", "-1");
+    let line = refused(&["kc", &a, &bad]);
+    assert!(line.contains(":2:27: column \"dof\""), "{line}");
+}

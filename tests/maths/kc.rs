@@ -962,3 +962,65 @@ fn kc_monte_carlo_u_is_the_formulas_for_the_weighted_mean_and_wider_with_tau() {
     assert!(refused(KcOptions::new().with_monte_carlo(10)).contains("at least 1000"));
     assert!(refused(KcOptions::new().with_monte_carlo(1_000_000)).contains("fewer draws"));
 }
+
+/// Welch–Satterthwaite by hand: three laboratories of one u each (A 0.1″ with ν = 4, B
+/// 0.2″ with none stated, C 0.1″ with ν = 9), four faces. Weights 100 : 25 : 100, so
+/// w' = 4/9, 1/9, 4/9; A's d = 5/9 x_A − 1/9 x_B − 4/9 x_C, u_c² = (25·0.01 + 0.04 +
+/// 16·0.01)/81 = u_A² − u_ref², ν_eff = u_c⁴ / ((25/81·0.01)²/4 + (16/81·0.01)²/9) = 10.96,
+/// k = t_95.45(ν_eff) between the GUM's 2.28 (ν = 10) and 2.13 (ν = 20).
+#[test]
+fn kc_stated_degrees_of_freedom_give_each_u_its_welch_satterthwaite_k() {
+    let values = [
+        [0.1, -0.05, 0.0, -0.05],
+        [0.2, -0.1, -0.1, 0.0],
+        [0.05, 0.0, -0.02, -0.03],
+    ];
+    let stated = [(0.1, Some(4.0)), (0.2, None), (0.1, Some(9.0))];
+    let labs: Vec<LabResult> = ["A", "B", "C"]
+        .iter()
+        .zip(values.iter().zip(stated))
+        .map(|(name, (x, (u, dof)))| {
+            let rows = (0..4)
+                .map(|f| {
+                    let row =
+                        ResultRow::new(Quantity::PitchDeviation, f as u32 + 1, x[f]).with_u(u);
+                    match dof {
+                        Some(dof) => row.with_dof(dof),
+                        None => row,
+                    }
+                })
+                .collect();
+            LabResult::from_rows(*name, rows)
+        })
+        .collect();
+    let kc = evaluate(&labs, &[], &KcOptions::new()).unwrap();
+    let plain = {
+        let no_dof: Vec<LabResult> = values
+            .iter()
+            .zip(stated)
+            .zip(["A", "B", "C"])
+            .map(|((x, (u, _)), name)| lab(name, x, &[u; 4]))
+            .collect();
+        evaluate(&no_dof, &[], &KcOptions::new()).unwrap()
+    };
+    let u_c2: f64 = (25.0 * 0.01 + 0.04 + 16.0 * 0.01) / 81.0;
+    let nu = u_c2 * u_c2
+        / ((25.0 / 81.0 * 0.01f64).powi(2) / 4.0 + (16.0 / 81.0 * 0.01f64).powi(2) / 9.0);
+    let a = &kc.degrees_of_equivalence[0];
+    let k_expected = statrs::distribution::StudentsT::new(0.0, 1.0, nu)
+        .map(|t| statrs::distribution::ContinuousCDF::inverse_cdf(&t, 0.5 + 0.9545 / 2.0))
+        .unwrap();
+    assert!(k_expected > 2.24 && k_expected < 2.28, "{k_expected}");
+    for f in 0..4 {
+        let got = a.dof_effective.as_ref().unwrap()[f].unwrap();
+        assert!((got - nu).abs() < 1e-9 * nu, "{got} vs {nu}");
+        assert!((a.k.as_ref().unwrap()[f] - k_expected).abs() < 1e-9);
+        // U = k·u(d), u(d) the formula's: U/2 of the run without dof
+        let expected = k_expected * plain.degrees_of_equivalence[0].expanded_u[f] / 2.0;
+        assert!((a.expanded_u[f] - expected).abs() < 1e-12);
+        assert!((plain.degrees_of_equivalence[0].expanded_u[f] - 2.0 * u_c2.sqrt()).abs() < 1e-12);
+    }
+    // B states none, but its d has A's and C's parts: ν_eff finite, k above 2
+    assert!(kc.degrees_of_equivalence[1].k.as_ref().unwrap()[0] > 2.0);
+    assert!(plain.degrees_of_equivalence[0].k.is_none());
+}

@@ -59,6 +59,7 @@ impl<'a, 'input> Reader<'a, 'input> {
                 expanded_u: expanded.as_ref().and_then(|u| u.get(i).copied()),
                 k: coverage.as_ref().and_then(|k| k.get(i).copied()),
                 angle_deg,
+                dof: None,
             };
             rows.push((row, line));
         }

@@ -1,0 +1,88 @@
+//! The Welch–Satterthwaite degrees of freedom of each degree of equivalence, when the
+//! laboratories state the degrees of freedom of their u (a result file's `dof` column;
+//! docs/FORMAT.md §12, "Degrees of freedom"). Per quantity, with v_j = u_j² + u_stab² + τ²
+//! and the weights w'_j = (1/v_j)/Σ_{l in the reference} 1/v_l of the laboratories in the
+//! reference, d_i = Σ_j c_j x_j with c_j = δ_ij − w'_j (c_i = 1 for a result out of the
+//! reference). Its variance has three kinds of component: each result's u_j² (ν_j, as
+//! stated), the pilot's u_stab² in every result (one estimate with ν = m − 1, so its
+//! parts add before they are squared) and τ² (ν = ∞):
+//!
+//! ```text
+//! ν_eff = u_c⁴ / ( Σ_j (c_j² u_j²)²/ν_j + (Σ_j c_j² · u_stab²)²/(m − 1) ),
+//! u_c² = Σ_j c_j² (u_j² + u_stab² + τ²),   k = t_95.45(ν_eff),   U = k · u(d_i)
+//! ```
+//!
+//! (JCGM 100:2008, G.4.1). The coefficients are the per-quantity weighted mean's, which
+//! the closed reference is when each laboratory has one u on every quantity; u(d_i) is the
+//! closed reference's own.
+
+use statrs::distribution::{ContinuousCDF, StudentsT};
+
+/// k = t_95.45(ν): the two-sided 95.45 % quantile of Student's t with ν degrees of freedom
+/// (statrs), 2 for ν = ∞ (the formulas' k).
+pub(crate) fn coverage_factor(dof: f64) -> f64 {
+    if !dof.is_finite() {
+        return 2.0;
+    }
+    StudentsT::new(0.0, 1.0, dof).map_or(f64::NAN, |t| t.inverse_cdf(0.5 + 0.9545 / 2.0))
+}
+
+/// What ν_eff is worked out from, in the comparison's scaled units.
+pub(crate) struct Sources<'a> {
+    /// Every result's stated u per quantity (laboratories, then the pilot's repeats).
+    pub u: &'a [Vec<f64>],
+    /// Their degrees of freedom (∞ where none is stated).
+    pub dof: &'a [Vec<f64>],
+    /// u_stab per quantity (0 when the pilot's repeats agree).
+    pub stability: &'a [f64],
+    /// The degrees of freedom of u_stab: m − 1 for m repeats.
+    pub stability_dof: f64,
+    /// τ per quantity (0 for the weighted mean).
+    pub tau: &'a [f64],
+    /// The laboratories in the reference.
+    pub inside: &'a [usize],
+}
+
+/// ν_eff of result `r`'s degree of equivalence at quantity `k` (∞ when every component
+/// has infinitely many degrees of freedom).
+pub(crate) fn effective(sources: &Sources, r: usize, k: usize) -> f64 {
+    let (s2, t2) = (
+        sources.stability[k] * sources.stability[k],
+        sources.tau[k] * sources.tau[k],
+    );
+    let v = |j: usize| sources.u[j][k] * sources.u[j][k] + s2 + t2;
+    let total: f64 = sources.inside.iter().map(|&j| 1.0 / v(j)).sum();
+    let coefficient = |j: usize| {
+        let weight = if sources.inside.contains(&j) {
+            (1.0 / v(j)) / total
+        } else {
+            0.0
+        };
+        f64::from(u8::from(j == r)) - weight
+    };
+    let (mut combined, mut own, mut c2_sum) = (0.0, 0.0, 0.0);
+    for j in 0..sources.u.len() {
+        let c2 = coefficient(j).powi(2);
+        if c2 == 0.0 {
+            continue;
+        }
+        let uj2 = sources.u[j][k] * sources.u[j][k];
+        combined += c2 * (uj2 + s2 + t2);
+        c2_sum += c2;
+        let dof = sources.dof[j][k];
+        if dof.is_finite() {
+            own += (c2 * uj2).powi(2) / dof;
+        }
+    }
+    let stability = if s2 > 0.0 && sources.stability_dof.is_finite() {
+        (c2_sum * s2).powi(2) / sources.stability_dof
+    } else {
+        0.0
+    };
+    let denominator = own + stability;
+    if denominator > 0.0 {
+        combined * combined / denominator
+    } else {
+        f64::INFINITY
+    }
+}
