@@ -96,6 +96,17 @@ fn textbook_mandel_paule(x: &[f64], u: &[f64]) -> (f64, f64, f64) {
     (tau2.sqrt(), mean, 1.0 / sw.sqrt())
 }
 
+/// Spreads the laboratories of [`fixed_data`] beyond their uncertainties (each closed
+/// again), so that τ > 0 on most faces.
+fn spread_beyond_u(values: &mut [Vec<f64>]) {
+    for (i, v) in values.iter_mut().enumerate() {
+        for (f, x) in v.iter_mut().enumerate() {
+            *x += 0.15 * ((i * 7 + f * 3) % 5) as f64 - 0.3;
+        }
+        *v = closed(v);
+    }
+}
+
 /// Five laboratories of a 12-face polygon, hand-chosen, closed and consistent; with
 /// `varying` their u varies by face, else each laboratory has one u on every face.
 fn fixed_data(varying: bool) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
@@ -228,13 +239,7 @@ fn kc_with_u_varying_by_face_the_degrees_of_equivalence_are_against_the_closed_r
 #[test]
 fn kc_dersimonian_laird_matches_the_textbook() {
     let (mut values, u) = fixed_data(false);
-    // Spread the laboratories beyond their uncertainties, so that τ > 0 on most faces.
-    for (i, v) in values.iter_mut().enumerate() {
-        for (f, x) in v.iter_mut().enumerate() {
-            *x += 0.15 * ((i * 7 + f * 3) % 5) as f64 - 0.3;
-        }
-        *v = closed(v);
-    }
+    spread_beyond_u(&mut values);
     let labs: Vec<LabResult> = (0..5)
         .map(|i| lab(&format!("L{i}"), &values[i], &u[i]))
         .collect();
@@ -739,12 +744,7 @@ fn kc_a_laboratory_kept_out_of_the_reference_has_degrees_of_equivalence_against_
 #[test]
 fn kc_mandel_paule_matches_its_iteration_and_its_defining_equation() {
     let (mut values, u) = fixed_data(false);
-    for (i, v) in values.iter_mut().enumerate() {
-        for (f, x) in v.iter_mut().enumerate() {
-            *x += 0.15 * ((i * 7 + f * 3) % 5) as f64 - 0.3;
-        }
-        *v = closed(v);
-    }
+    spread_beyond_u(&mut values);
     let labs: Vec<LabResult> = (0..5)
         .map(|i| lab(&format!("L{i}"), &values[i], &u[i]))
         .collect();
@@ -935,12 +935,7 @@ fn kc_monte_carlo_u_is_the_formulas_for_the_weighted_mean_and_wider_with_tau() {
         "seeded"
     );
     // DerSimonian–Laird with spread laboratories: τ's own uncertainty widens U
-    for (i, v) in values.iter_mut().enumerate() {
-        for (f, x) in v.iter_mut().enumerate() {
-            *x += 0.15 * ((i * 7 + f * 3) % 5) as f64 - 0.3;
-        }
-        *v = closed(v);
-    }
+    spread_beyond_u(&mut values);
     let dl = KcOptions::new().with_method(ReferenceMethod::DersimonianLaird);
     let formula = evaluate(&labs(&values), &[], &dl).unwrap();
     let drawn = evaluate(&labs(&values), &[], &dl.clone().with_monte_carlo(20_000)).unwrap();

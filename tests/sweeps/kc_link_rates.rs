@@ -26,6 +26,16 @@ fn draw(rng: &mut ChaCha8Rng, names: &[String], u: &[f64], truth: &[f64]) -> Vec
         .collect()
 }
 
+/// The comparison of every laboratory, nobody left out.
+fn everyone(results: &[LabResult]) -> polycal::kc::KeyComparison {
+    evaluate(
+        results,
+        &[],
+        &KcOptions::new().with_largest_consistent_subset(false),
+    )
+    .unwrap()
+}
+
 /// A CIPM comparison of 8 laboratories and an RMO one of 6, three of them in both, each
 /// of its own artefact: the link's test fails in 5 % ± 1.5 % of pairs of comparisons;
 /// U_linked covers the RMO laboratories' true degree of equivalence (0: nobody biased) on
@@ -45,18 +55,8 @@ fn kc_the_link_test_keeps_its_rate_and_linked_u_covers() {
     for _ in 0..trials {
         let u_cipm: Vec<f64> = (0..8).map(|_| rng.random_range(0.04..0.2)).collect();
         let u_rmo: Vec<f64> = (0..6).map(|_| rng.random_range(0.04..0.2)).collect();
-        let cipm = evaluate(
-            &draw(&mut rng, &cipm_names, &u_cipm, &truth_cipm),
-            &[],
-            &KcOptions::new().with_largest_consistent_subset(false),
-        )
-        .unwrap();
-        let mut rmo = evaluate(
-            &draw(&mut rng, &rmo_names, &u_rmo, &truth_rmo),
-            &[],
-            &KcOptions::new().with_largest_consistent_subset(false),
-        )
-        .unwrap();
+        let cipm = everyone(&draw(&mut rng, &cipm_names, &u_cipm, &truth_cipm));
+        let mut rmo = everyone(&draw(&mut rng, &rmo_names, &u_rmo, &truth_rmo));
         link(&mut rmo, &cipm).unwrap();
         let vector = rmo.link.as_ref().unwrap().vector.as_ref().unwrap();
         assert_eq!(vector.dof, (FACES - 1) * 2);
@@ -77,12 +77,7 @@ fn kc_the_link_test_keeps_its_rate_and_linked_u_covers() {
     for _ in 0..trials / 2 {
         let u_cipm: Vec<f64> = (0..8).map(|_| rng.random_range(0.04..0.2)).collect();
         let u_rmo: Vec<f64> = (0..6).map(|_| rng.random_range(0.04..0.2)).collect();
-        let cipm = evaluate(
-            &draw(&mut rng, &cipm_names, &u_cipm, &truth_cipm),
-            &[],
-            &KcOptions::new().with_largest_consistent_subset(false),
-        )
-        .unwrap();
+        let cipm = everyone(&draw(&mut rng, &cipm_names, &u_cipm, &truth_cipm));
         let mut results = draw(&mut rng, &rmo_names, &u_rmo, &truth_rmo);
         let shift = 4.0 * u_rmo[1];
         let mut x: Vec<f64> = results[1].rows.iter().map(|r| r.value).collect();
@@ -92,12 +87,7 @@ fn kc_the_link_test_keeps_its_rate_and_linked_u_covers() {
         let mean = x.iter().sum::<f64>() / FACES as f64;
         let x: Vec<f64> = x.iter().map(|v| v - mean).collect();
         results[1] = lab("L4", &x, &[u_rmo[1]; FACES]);
-        let mut rmo = evaluate(
-            &results,
-            &[],
-            &KcOptions::new().with_largest_consistent_subset(false),
-        )
-        .unwrap();
+        let mut rmo = everyone(&results);
         link(&mut rmo, &cipm).unwrap();
         found += usize::from(
             !rmo.link
