@@ -57,7 +57,7 @@ fn doe_covariance(
 ) -> f64 {
     let u_ref2 = kc.reference_u[k] * kc.reference_u[k];
     if a.lab == b.lab {
-        let u = a.expanded_u[k] / 2.0;
+        let u = standard_u(a, k);
         return u * u;
     }
     match (a.in_reference, b.in_reference) {
@@ -65,6 +65,17 @@ fn doe_covariance(
         (false, false) => u_ref2,
         _ => 0.0,
     }
+}
+
+/// u(d) of a degree of equivalence at quantity `k`: U/k, k its Welch–Satterthwaite
+/// coverage factor where it has one, else 2.
+fn standard_u(d: &DegreeOfEquivalence, k: usize) -> f64 {
+    let factor =
+        d.k.as_ref()
+            .and_then(|k_of| k_of.get(k))
+            .copied()
+            .unwrap_or(2.0);
+    d.expanded_u[k] / factor
 }
 
 /// The degree of equivalence of `lab` in `kc`.
@@ -202,7 +213,7 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
         let mut d_linked = Vec::with_capacity(positions);
         let mut u_linked = Vec::with_capacity(positions);
         for k in 0..positions {
-            let u_d = d.expanded_u[k] / 2.0;
+            let u_d = standard_u(d, k);
             let covariance: f64 = linking
                 .iter()
                 .zip(weights[k].iter())

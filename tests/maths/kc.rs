@@ -884,6 +884,23 @@ fn kc_linking_matches_a_hand_worked_two_comparison_case() {
     assert!((u[0] - 2.0 * (0.0625 + u_delta * u_delta).sqrt()).abs() < 1e-12);
     let a = &rmo.degrees_of_equivalence[0];
     assert!((a.expanded_u_linked.as_ref().unwrap()[0] - 2.0 * 0.0085f64.sqrt()).abs() < 1e-12);
+    // Y's U with a Welch–Satterthwaite k = 2.5: u(d) = U/k is the same 0.25, so is U_linked
+    let mut with_k = two_face_comparison(
+        &[
+            ("A", 0.0, 0.08, true),
+            ("B", 0.05, 0.12, true),
+            ("Y", 0.2, 0.25, false),
+        ],
+        0.04,
+    );
+    with_k.degrees_of_equivalence[2].k = Some(vec![2.5, 2.5]);
+    with_k.degrees_of_equivalence[2].expanded_u = vec![2.5 * 0.25; 2];
+    polycal::kc::link(&mut with_k, &cipm).unwrap();
+    let y_k = with_k.degrees_of_equivalence[2]
+        .expanded_u_linked
+        .as_ref()
+        .unwrap();
+    assert!((y_k[0] - u[0]).abs() < 1e-12, "{} vs {}", y_k[0], u[0]);
     // refused: another quantity, no laboratory in both
     let lonely = two_face_comparison(&[("P", 0.0, 0.1, true), ("Q", 0.0, 0.1, true)], 0.05);
     let mut again = two_face_comparison(&[("A", 0.0, 0.08, true), ("Y", 0.2, 0.25, true)], 0.04);
