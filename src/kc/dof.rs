@@ -18,6 +18,8 @@
 
 use statrs::distribution::{ContinuousCDF, StudentsT};
 
+use super::KeyComparison;
+
 /// k = t_95.45(ν): the two-sided 95.45 % quantile of Student's t with ν degrees of freedom
 /// (statrs), 2 for ν = ∞ (the formulas' k).
 pub(crate) fn coverage_factor(dof: f64) -> f64 {
@@ -85,4 +87,34 @@ pub(crate) fn effective(sources: &Sources, r: usize, k: usize) -> f64 {
     } else {
         f64::INFINITY
     }
+}
+
+/// Every degree of equivalence's U (the pilot's repeats' too) with k = t_95.45(ν_eff), the
+/// Welch–Satterthwaite ν from `sources` ([`effective`]), each ν_eff and k stated, and a note.
+pub(crate) fn apply(comparison: &mut KeyComparison, sources: &Sources) {
+    let degrees = comparison.degrees_of_equivalence.iter_mut().chain(
+        comparison
+            .pilot
+            .iter_mut()
+            .flat_map(|p| p.degrees_of_equivalence.iter_mut()),
+    );
+    for (r, doe) in degrees.enumerate() {
+        let (mut nu, mut k) = (Vec::new(), Vec::new());
+        for (position, expanded_u) in doe.expanded_u.iter_mut().enumerate() {
+            let effective = effective(sources, r, position);
+            let factor = coverage_factor(effective);
+            *expanded_u *= factor / 2.0;
+            nu.push(effective.is_finite().then_some(effective));
+            k.push(factor);
+        }
+        doe.dof_effective = Some(nu);
+        doe.k = Some(k);
+    }
+    comparison.notes.push(
+        "every U(d_i) is k·u(d_i) with k = t_95.45(ν_eff), ν_eff by Welch–Satterthwaite from \
+         the degrees of freedom the laboratories state for their u (column dof; none stated: \
+         infinitely many), the pilot's u_stab with m − 1 and τ with infinitely many \
+         (dof_effective and k in the JSON)"
+            .to_string(),
+    );
 }

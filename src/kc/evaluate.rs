@@ -4,12 +4,13 @@
 
 use nalgebra::DMatrix;
 
-use super::closed::{self, ClosedCovariance, ClosedFit, closed, closed_pseudo_inverse};
+use super::closed::{self, ClosedCovariance, ClosedFit};
 use super::covariance;
 use super::dof;
 use super::input::{self, Aligned};
 use super::monte_carlo;
-use super::reference::{self, Estimate, chi2_quantile_95, closed_covariance};
+use super::reference::{self, Estimate, chi2_quantile_95};
+use super::scaled::{Reference, Scaled};
 use super::search::{self, SearchMethod};
 use super::{
     DegreeOfEquivalence, Exclusion, KcError, KcOptions, KeyComparison, LabResult, Pairs,
@@ -190,38 +191,13 @@ fn evaluate_aligned(
         excluded = exclusions(labs, &candidates, search, &in_reference, &vector_all);
         notes.extend(search_notes(search, decided_consistent, &decision.withheld));
     }
-    if !kept.is_empty() {
-        notes.push(format!(
-            "kept in the reference whatever the tests say, as the pilot decided: {}",
-            joined(labs, &kept)
-        ));
-    }
     let kept_out: Vec<usize> = (0..labs.len())
         .filter(|r| !candidates.contains(r))
         .collect();
-    if !kept_out.is_empty() {
-        notes.push(format!(
-            "kept out of the reference, as the pilot decided, and given degrees of equivalence \
-             against it (in_reference false): {}; the one test at 5 % and the search are of \
-             the other laboratories",
-            joined(labs, &kept_out)
-        ));
-    }
+    notes.extend(pilot_decision_notes(labs, &kept, &kept_out));
 
     // The reference: the closed GLS of the laboratories inside (with τ for DL).
-    let per_face_all = estimates(&scaled.values, &judged_u, &candidates, options.method);
-    let tau: Vec<f64> = if random_effects {
-        per_face_all.iter().map(|e| e.tau).collect()
-    } else {
-        vec![0.0; positions]
-    };
-    let widened: Vec<ClosedCovariance> = if random_effects {
-        (0..results)
-            .map(|r| scaled.covariance(r, Some(&tau)))
-            .collect::<Result<_, _>>()?
-    } else {
-        stated.clone()
-    };
+    let (tau, widened) = dark_uncertainty(&scaled, &judged_u, &candidates, &stated, options)?;
     let final_fit = scaled.fit(&inside, &widened).ok_or_else(not_fitted)?;
     let vector = vector_test(&final_fit, scale);
     let found = estimates(&scaled.values, &judged_u, &inside, options.method);
@@ -231,18 +207,8 @@ fn evaluate_aligned(
         fit: &final_fit,
         widened: &widened,
     };
-    let degrees_of_equivalence = (0..labs.len())
-        .map(|r| {
-            let lab = labs[r].name.clone();
-            scaled.degree_of_equivalence(r, in_reference[r], lab, &reference)
-        })
-        .collect();
-    if let Some(report) = pilot_report.as_mut() {
-        report.degrees_of_equivalence = repeats
-            .iter()
-            .map(|&r| scaled.degree_of_equivalence(r, false, all_name(labs, pilot, r), &reference))
-            .collect();
-    }
+    let degrees_of_equivalence =
+        degrees_of_equivalence(&scaled, pilot, &in_reference, &reference, &mut pilot_report);
     let pairs = pair_differences(&scaled, &widened);
     notes.extend(closing_notes(
         labs,
@@ -303,126 +269,97 @@ fn evaluate_aligned(
     {
         pilot.statement = statement;
     }
-    if options.monte_carlo.is_none() && aligned.dof.iter().flatten().any(|d| d.is_finite()) {
-        let sources = dof::Sources {
-            u: &scaled.u,
-            dof: &aligned.dof,
-            stability: &scaled.stability,
-            stability_dof: pilot.len().saturating_sub(1) as f64,
-            tau: &tau,
-            inside: &inside,
-        };
-        with_effective_dof(&mut comparison, &sources);
-    }
-    if let Some(draws) = options.monte_carlo {
-        let model = monte_carlo::Model {
-            reference: &final_fit.reference,
-            u: &judged_u,
-            tau: &tau,
-            inside: &inside,
-            method: options.method,
-        };
-        monte_carlo_u(&mut comparison, &model, draws, covariances, scale)?;
+    match options.monte_carlo {
+        Some(draws) => {
+            let model = monte_carlo::Model {
+                reference: &final_fit.reference,
+                u: &judged_u,
+                tau: &tau,
+                inside: &inside,
+                method: options.method,
+            };
+            monte_carlo::apply(&mut comparison, &model, draws, covariances, scale)?;
+        }
+        None if aligned.dof.iter().flatten().any(|d| d.is_finite()) => {
+            let sources = dof::Sources {
+                u: &scaled.u,
+                dof: &aligned.dof,
+                stability: &scaled.stability,
+                stability_dof: pilot.len().saturating_sub(1) as f64,
+                tau: &tau,
+                inside: &inside,
+            };
+            dof::apply(&mut comparison, &sources);
+        }
+        None => {}
     }
     Ok(comparison)
 }
 
-/// Every degree of equivalence's U (the pilot's repeats' too) with k = t_95.45(ν_eff), the
-/// Welch–Satterthwaite ν from `sources` ([`dof`]), each ν_eff and k stated, and a note.
-fn with_effective_dof(comparison: &mut KeyComparison, sources: &dof::Sources) {
-    let degrees = comparison.degrees_of_equivalence.iter_mut().chain(
-        comparison
-            .pilot
-            .iter_mut()
-            .flat_map(|p| p.degrees_of_equivalence.iter_mut()),
-    );
-    for (r, doe) in degrees.enumerate() {
-        let (mut nu, mut k) = (Vec::new(), Vec::new());
-        for (position, expanded_u) in doe.expanded_u.iter_mut().enumerate() {
-            let effective = dof::effective(sources, r, position);
-            let factor = dof::coverage_factor(effective);
-            *expanded_u *= factor / 2.0;
-            nu.push(effective.is_finite().then_some(effective));
-            k.push(factor);
-        }
-        doe.dof_effective = Some(nu);
-        doe.k = Some(k);
+/// τ per quantity from the `candidates` (0 for the weighted mean) and every result's
+/// covariance widened by it (`stated` as it is for the weighted mean).
+fn dark_uncertainty(
+    scaled: &Scaled,
+    judged_u: &[Vec<f64>],
+    candidates: &[usize],
+    stated: &[ClosedCovariance],
+    options: &KcOptions,
+) -> Result<(Vec<f64>, Vec<ClosedCovariance>), KcError> {
+    if !options.method.is_random_effects() {
+        return Ok((vec![0.0; scaled.positions], stated.to_vec()));
     }
-    comparison.notes.push(
-        "every U(d_i) is k·u(d_i) with k = t_95.45(ν_eff), ν_eff by Welch–Satterthwaite from \
-         the degrees of freedom the laboratories state for their u (column dof; none stated: \
-         infinitely many), the pilot's u_stab with m − 1 and τ with infinitely many \
-         (dof_effective and k in the JSON)"
-            .to_string(),
-    );
+    let tau: Vec<f64> = estimates(&scaled.values, judged_u, candidates, options.method)
+        .iter()
+        .map(|e| e.tau)
+        .collect();
+    let widened = (0..stated.len())
+        .map(|r| scaled.covariance(r, Some(&tau)))
+        .collect::<Result<_, _>>()?;
+    Ok((tau, widened))
 }
 
-/// Every U of the degrees of equivalence (the pilot's repeats' too) and u_ref by `draws`
-/// Monte Carlo draws from `model` ([`monte_carlo`]), in place, with a note; refused with
-/// a laboratory's own covariance, too few draws, or more than the machine should hold.
-fn monte_carlo_u(
-    comparison: &mut KeyComparison,
-    model: &monte_carlo::Model,
-    draws: usize,
-    covariances: &[Option<DMatrix<f64>>],
-    scale: f64,
-) -> Result<(), KcError> {
-    let refuse = |reason: String| Err(KcError::MonteCarlo(reason));
-    if covariances.iter().any(Option::is_some) {
-        return refuse(
-            "the draws take every result as closed with its stated u; a laboratory's own \
-             covariance is not drawn from"
-                .to_string(),
-        );
+/// Every laboratory's degree of equivalence against `reference` (returned) and every
+/// pilot's repeat's (into `pilot_report`), the repeats never in the reference.
+fn degrees_of_equivalence(
+    scaled: &Scaled,
+    pilot: &[LabResult],
+    in_reference: &[bool],
+    reference: &Reference,
+    pilot_report: &mut Option<PilotStability>,
+) -> Vec<DegreeOfEquivalence> {
+    let labs = scaled.labs;
+    if let Some(report) = pilot_report.as_mut() {
+        report.degrees_of_equivalence = (labs.len()..labs.len() + pilot.len())
+            .map(|r| scaled.degree_of_equivalence(r, false, all_name(labs, pilot, r), reference))
+            .collect();
     }
-    if draws < monte_carlo::MIN_DRAWS {
-        return refuse(format!(
-            "{draws} draws: at least {} for a 95.45 % quantile",
-            monte_carlo::MIN_DRAWS
+    (0..labs.len())
+        .map(|r| {
+            let lab = labs[r].name.clone();
+            scaled.degree_of_equivalence(r, in_reference[r], lab, reference)
+        })
+        .collect()
+}
+
+/// The notes on the pilot's decisions: the laboratories held in the reference (`kept`)
+/// and those kept out of it (`kept_out`), by name.
+fn pilot_decision_notes(labs: &[LabResult], kept: &[usize], kept_out: &[usize]) -> Vec<String> {
+    let mut notes = Vec::new();
+    if !kept.is_empty() {
+        notes.push(format!(
+            "kept in the reference whatever the tests say, as the pilot decided: {}",
+            joined(labs, kept)
         ));
     }
-    let numbers = (draws as u64)
-        .saturating_mul(model.u.len() as u64)
-        .saturating_mul(model.reference.len() as u64);
-    if numbers > monte_carlo::MAX_NUMBERS {
-        return refuse(format!(
-            "{draws} draws × {} results × {} positions = {numbers} numbers to keep, more than \
-             {} (200 MB): fewer draws",
-            model.u.len(),
-            model.reference.len(),
-            monte_carlo::MAX_NUMBERS
+    if !kept_out.is_empty() {
+        notes.push(format!(
+            "kept out of the reference, as the pilot decided, and given degrees of equivalence \
+             against it (in_reference false): {}; the one test at 5 % and the search are of \
+             the other laboratories",
+            joined(labs, kept_out)
         ));
     }
-    let found = monte_carlo::run(model, draws).ok_or_else(not_fitted)?;
-    let degrees = comparison.degrees_of_equivalence.iter_mut().chain(
-        comparison
-            .pilot
-            .iter_mut()
-            .flat_map(|p| p.degrees_of_equivalence.iter_mut()),
-    );
-    for (doe, expanded_u) in degrees.zip(&found.expanded_u) {
-        doe.expanded_u = expanded_u.iter().map(|u| u * scale).collect();
-    }
-    comparison.reference_u = found.reference_u.iter().map(|u| u * scale).collect();
-    comparison.notes.push(format!(
-        "every U(d_i) and u_ref by Monte Carlo: {draws} draws from the fitted model (the \
-         reference{}, each result's closed noise with its u), the reference evaluated again \
-         in every draw{}; U is the 95.45 % quantile of |d_i| (k = 2 for a normal law), u_ref \
-         the standard deviation of the drawn references; seed {} (the same inputs give the same \
-         U); the pairs' U stay 2·√(u_i² + u_j² + …)",
-        if model.method.is_random_effects() {
-            ", a closed laboratory effect with the dark uncertainty τ"
-        } else {
-            ""
-        },
-        if model.method.is_random_effects() {
-            " with τ estimated again, so that τ's own uncertainty is in U"
-        } else {
-            ""
-        },
-        monte_carlo::SEED
-    ));
-    Ok(())
+    notes
 }
 
 /// The laboratories the pilot keeps in the reference whatever the tests say (indices,
@@ -471,170 +408,6 @@ fn not_fitted() -> KcError {
          closed subspace, or numbers out of range)"
             .to_string(),
     )
-}
-
-/// Every result as a closed vector, in units of the largest u (so that χ² is as accurate
-/// for any scale), with the laboratories' own covariances.
-struct Scaled<'a> {
-    labs: &'a [LabResult],
-    covariances: &'a [Option<DMatrix<f64>>],
-    /// The unit of `values` and `u`: the largest standard uncertainty given, in the
-    /// quantity's unit (arcsec).
-    scale: f64,
-    /// Per result, its closed values, in units of `scale`.
-    values: Vec<Vec<f64>>,
-    /// Per result, its standard uncertainties, in units of `scale`.
-    u: Vec<Vec<f64>>,
-    /// The quantities compared (faces or encoder positions).
-    positions: usize,
-    /// The pilot's stability u_stab per quantity, in units of `scale` (0 unless the
-    /// repeats' test failed): in every result's covariance.
-    stability: Vec<f64>,
-}
-
-impl<'a> Scaled<'a> {
-    /// Every result as a closed vector: pitch deviations closed already (their mean, 0 to
-    /// rounding, taken out); encoder errors, defined up to a constant, less their mean.
-    /// Everything in units of the largest u.
-    fn of(
-        labs: &'a [LabResult],
-        aligned: &Aligned,
-        covariances: &'a [Option<DMatrix<f64>>],
-    ) -> Scaled<'a> {
-        let scale = aligned
-            .u
-            .iter()
-            .flatten()
-            .copied()
-            .chain(
-                covariances
-                    .iter()
-                    .flatten()
-                    .map(|v| v.diagonal().amax().sqrt()),
-            )
-            .fold(0.0, f64::max);
-        let values: Vec<Vec<f64>> = aligned
-            .values
-            .iter()
-            .map(|x| closed(x).iter().map(|x| x / scale).collect())
-            .collect();
-        let u: Vec<Vec<f64>> = aligned
-            .u
-            .iter()
-            .map(|u| u.iter().map(|u| u / scale).collect())
-            .collect();
-        Scaled {
-            labs,
-            covariances,
-            scale,
-            values,
-            u,
-            positions: aligned.index.len(),
-            stability: vec![0.0; aligned.index.len()],
-        }
-    }
-
-    /// Every result's standard uncertainties with the pilot's stability u_stab in them,
-    /// √(u² + u_stab²), in units of the scale: what the per-quantity estimates use.
-    fn judged_u(&self) -> Vec<Vec<f64>> {
-        self.u
-            .iter()
-            .map(|u| {
-                u.iter()
-                    .zip(&self.stability)
-                    .map(|(u, s)| u.hypot(*s))
-                    .collect()
-            })
-            .collect()
-    }
-
-    /// The closed covariance of result `r`: its own (scaled) or taken from its stated u,
-    /// widened by the pilot's stability u_stab and by the dark uncertainty `tau` (in units
-    /// of the scale) where given.
-    fn covariance(&self, r: usize, tau: Option<&[f64]>) -> Result<ClosedCovariance, KcError> {
-        let extra: Vec<f64> = match tau {
-            None => self.stability.clone(),
-            Some(tau) => self
-                .stability
-                .iter()
-                .zip(tau)
-                .map(|(s, t)| s.hypot(*t))
-                .collect(),
-        };
-        let widened = extra.iter().any(|e| *e > 0.0);
-        match self.covariances.get(r).and_then(Option::as_ref) {
-            None => Ok(ClosedCovariance::Stated(
-                self.u[r]
-                    .iter()
-                    .zip(&extra)
-                    .map(|(u, e)| u.hypot(*e))
-                    .collect(),
-            )),
-            Some(v) => {
-                let mut v = v / (self.scale * self.scale);
-                if widened {
-                    v += closed_covariance(&extra);
-                }
-                let v_plus = closed_pseudo_inverse(&v).ok_or_else(|| KcError::Covariance {
-                    file: self.labs[r].source.clone(),
-                    lab: self.labs[r].name.clone(),
-                    reason: "it cannot be inverted on the closed subspace".to_string(),
-                })?;
-                Ok(ClosedCovariance::Own { v, v_plus })
-            }
-        }
-    }
-
-    /// The closed fit of the results `set`, with the covariances `v` (per result).
-    fn fit(&self, set: &[usize], v: &[ClosedCovariance]) -> Option<ClosedFit> {
-        let x: Vec<&[f64]> = set.iter().map(|&r| self.values[r].as_slice()).collect();
-        let c: Vec<&ClosedCovariance> = set.iter().map(|&r| &v[r]).collect();
-        closed::fit(&x, &c)
-    }
-
-    /// Result `r`'s (laboratory `lab`'s) degree of equivalence against the closed
-    /// `reference`: d and U(d) (k = 2) per quantity, in arcsec. Its variance (the pilot's
-    /// stability and τ in it) is less the reference's when it is inside the reference, more
-    /// when outside.
-    fn degree_of_equivalence(
-        &self,
-        r: usize,
-        inside_reference: bool,
-        lab: String,
-        reference: &Reference,
-    ) -> DegreeOfEquivalence {
-        let fit = reference.fit;
-        let scale = self.scale;
-        let diagonal = reference.widened[r].diagonal();
-        let sign = if inside_reference { -1.0 } else { 1.0 };
-        let d = self.values[r]
-            .iter()
-            .zip(&fit.reference)
-            .map(|(x, x_ref)| (x - x_ref) * scale)
-            .collect();
-        let expanded_u = diagonal
-            .iter()
-            .zip(&fit.reference_variance)
-            .map(|(v, v_ref)| 2.0 * ((v + sign * v_ref).max(0.0) * scale * scale).sqrt())
-            .collect();
-        DegreeOfEquivalence {
-            lab,
-            d,
-            expanded_u,
-            in_reference: inside_reference,
-            d_linked: None,
-            expanded_u_linked: None,
-            dof_effective: None,
-            k: None,
-        }
-    }
-}
-
-/// The closed reference the degrees of equivalence are taken against: its fit and every
-/// result's covariance (with the pilot's stability, and τ for DerSimonian–Laird).
-struct Reference<'a> {
-    fit: &'a ClosedFit,
-    widened: &'a [ClosedCovariance],
 }
 
 /// The note on encoder errors, compared less their mean.

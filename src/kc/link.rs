@@ -83,6 +83,54 @@ fn doe<'a>(kc: &'a KeyComparison, lab: &str) -> Option<&'a DegreeOfEquivalence> 
     kc.degrees_of_equivalence.iter().find(|d| d.lab == lab)
 }
 
+/// The link at one quantity: the GLS mean of the offsets and what goes with it.
+struct Offset {
+    /// Δ_k.
+    correction: f64,
+    /// u(Δ_k).
+    correction_u: f64,
+    /// χ²_k of the offsets about Δ_k.
+    chi2: f64,
+    /// The GLS weights a of the linking laboratories.
+    weights: DVector<f64>,
+}
+
+/// The offsets d_j(linked) − d_j(this) of the linking laboratories `labs` at quantity `k`,
+/// and their GLS mean with the covariance C of the module's documentation.
+fn offset_at(
+    this: &KeyComparison,
+    linked: &KeyComparison,
+    labs: &[String],
+    k: usize,
+) -> Result<Offset, KcError> {
+    let l = labs.len();
+    let here: Vec<&DegreeOfEquivalence> = labs.iter().filter_map(|n| doe(this, n)).collect();
+    let there: Vec<&DegreeOfEquivalence> = labs.iter().filter_map(|n| doe(linked, n)).collect();
+    let c = DMatrix::from_fn(l, l, |i, j| {
+        doe_covariance(linked, there[i], there[j], k) + doe_covariance(this, here[i], here[j], k)
+    });
+    let offsets = DVector::from_fn(l, |j, _| there[j].d[k] - here[j].d[k]);
+    let inverse = c.cholesky().map(|ch| ch.inverse()).ok_or_else(|| {
+        KcError::Link(format!(
+            "the covariance of the linking laboratories' offsets at position {} cannot be \
+             inverted",
+            this.index[k]
+        ))
+    })?;
+    let ones = DVector::from_element(l, 1.0);
+    let c_ones = &inverse * &ones;
+    let total = ones.dot(&c_ones);
+    let weights = &c_ones / total;
+    let correction = weights.dot(&offsets);
+    let residual = &offsets - &ones * correction;
+    Ok(Offset {
+        correction,
+        correction_u: (1.0 / total).sqrt(),
+        chi2: residual.dot(&(&inverse * &residual)),
+        weights,
+    })
+}
+
 /// Links `this` comparison to `linked` (e.g. the CIPM comparison, read back from its JSON
 /// by [`super::read_json`]) through the laboratories in both: sets `this.link` and every
 /// degree of equivalence's `d_linked` and `U_linked`, and adds a note.
@@ -162,30 +210,11 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
     let (mut correction, mut correction_u, mut weights) = (Vec::new(), Vec::new(), Vec::new());
     let mut chi2 = 0.0;
     for k in 0..positions {
-        let here: Vec<&DegreeOfEquivalence> = labs.iter().filter_map(|n| doe(this, n)).collect();
-        let there: Vec<&DegreeOfEquivalence> = labs.iter().filter_map(|n| doe(linked, n)).collect();
-        let c = DMatrix::from_fn(l, l, |i, j| {
-            doe_covariance(linked, there[i], there[j], k)
-                + doe_covariance(this, here[i], here[j], k)
-        });
-        let offsets = DVector::from_fn(l, |j, _| there[j].d[k] - here[j].d[k]);
-        let inverse = c.clone().cholesky().map(|ch| ch.inverse()).ok_or_else(|| {
-            KcError::Link(format!(
-                "the covariance of the linking laboratories' offsets at position {} cannot be \
-                 inverted",
-                this.index[k]
-            ))
-        })?;
-        let ones = DVector::from_element(l, 1.0);
-        let c_ones = &inverse * &ones;
-        let total = ones.dot(&c_ones);
-        let a = &c_ones / total;
-        let delta = a.dot(&offsets);
-        let residual = &offsets - &ones * delta;
-        chi2 += residual.dot(&(&inverse * &residual));
-        correction.push(delta);
-        correction_u.push((1.0 / total).sqrt());
-        weights.push(a);
+        let at = offset_at(this, linked, &labs, k)?;
+        chi2 += at.chi2;
+        correction.push(at.correction);
+        correction_u.push(at.correction_u);
+        weights.push(at.weights);
     }
     let faces = positions as f64;
     let vector = (l > 1).then(|| {
@@ -226,14 +255,27 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
         d.d_linked = Some(d_linked);
         d.expanded_u_linked = Some(u_linked);
     }
-    this.notes.push(format!(
+    this.notes.push(link_note(&labs, vector.as_ref()));
+    this.link = Some(Link {
+        labs,
+        correction,
+        correction_u,
+        vector,
+    });
+    Ok(())
+}
+
+/// The note on the link through `labs`, with its test (`None`: one linking laboratory).
+fn link_note(labs: &[String], vector: Option<&VectorTest>) -> String {
+    let l = labs.len();
+    format!(
         "linked to another comparison through {} ({} laboratory(ies) in both): every degree \
          of equivalence is also given against the linked reference (d_linked, U_linked), \
          d + Δ with Δ the GLS mean of the linking laboratories' offsets d(linked) − d(this), \
          their correlations counted{}",
         labs.join(", "),
         l,
-        match &vector {
+        match vector {
             Some(v) => format!(
                 "; the link's test: χ² = {:.2} {} χ²_0.95({}) = {:.2}: the linking laboratories \
                  {} on the offset",
@@ -245,12 +287,5 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
             ),
             None => "; one linking laboratory: the link is not tested".to_string(),
         }
-    ));
-    this.link = Some(Link {
-        labs,
-        correction,
-        correction_u,
-        vector,
-    });
-    Ok(())
+    )
 }

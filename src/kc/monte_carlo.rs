@@ -13,9 +13,11 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use super::ReferenceMethod;
+use nalgebra::DMatrix;
+
 use super::closed::{self, ClosedCovariance};
 use super::reference;
+use super::{KcError, KeyComparison, ReferenceMethod};
 
 /// The generator's seed: a run is reproducible.
 pub(crate) const SEED: u64 = 20_551;
@@ -161,4 +163,73 @@ pub(crate) fn run(model: &Model, draws: usize) -> Option<Draws> {
         expanded_u,
         reference_u,
     })
+}
+
+/// Every U of the degrees of equivalence (the pilot's repeats' too) and u_ref by `draws`
+/// Monte Carlo draws from `model` ([`run`]), in place, with a note; refused with
+/// a laboratory's own covariance, too few draws, or more than the machine should hold.
+pub(crate) fn apply(
+    comparison: &mut KeyComparison,
+    model: &Model,
+    draws: usize,
+    covariances: &[Option<DMatrix<f64>>],
+    scale: f64,
+) -> Result<(), KcError> {
+    let refuse = |reason: String| Err(KcError::MonteCarlo(reason));
+    if covariances.iter().any(Option::is_some) {
+        return refuse(
+            "the draws take every result as closed with its stated u; a laboratory's own \
+             covariance is not drawn from"
+                .to_string(),
+        );
+    }
+    if draws < MIN_DRAWS {
+        return refuse(format!(
+            "{draws} draws: at least {} for a 95.45 % quantile",
+            MIN_DRAWS
+        ));
+    }
+    let numbers = (draws as u64)
+        .saturating_mul(model.u.len() as u64)
+        .saturating_mul(model.reference.len() as u64);
+    if numbers > MAX_NUMBERS {
+        return refuse(format!(
+            "{draws} draws × {} results × {} positions = {numbers} numbers to keep, more than \
+             {} (200 MB): fewer draws",
+            model.u.len(),
+            model.reference.len(),
+            MAX_NUMBERS
+        ));
+    }
+    let found = run(model, draws)
+        .ok_or_else(|| KcError::MonteCarlo("a drawn comparison cannot be fitted".to_string()))?;
+    let degrees = comparison.degrees_of_equivalence.iter_mut().chain(
+        comparison
+            .pilot
+            .iter_mut()
+            .flat_map(|p| p.degrees_of_equivalence.iter_mut()),
+    );
+    for (doe, expanded_u) in degrees.zip(&found.expanded_u) {
+        doe.expanded_u = expanded_u.iter().map(|u| u * scale).collect();
+    }
+    comparison.reference_u = found.reference_u.iter().map(|u| u * scale).collect();
+    comparison.notes.push(format!(
+        "every U(d_i) and u_ref by Monte Carlo: {draws} draws from the fitted model (the \
+         reference{}, each result's closed noise with its u), the reference evaluated again \
+         in every draw{}; U is the 95.45 % quantile of |d_i| (k = 2 for a normal law), u_ref \
+         the standard deviation of the drawn references; seed {} (the same inputs give the same \
+         U); the pairs' U stay 2·√(u_i² + u_j² + …)",
+        if model.method.is_random_effects() {
+            ", a closed laboratory effect with the dark uncertainty τ"
+        } else {
+            ""
+        },
+        if model.method.is_random_effects() {
+            " with τ estimated again, so that τ's own uncertainty is in U"
+        } else {
+            ""
+        },
+        SEED
+    ));
+    Ok(())
 }

@@ -1,0 +1,181 @@
+//! Every result of a key comparison as a closed vector in the comparison's scaled units,
+//! with its covariance (the laboratory's own, or taken from its u; the pilot's u_stab and
+//! τ in it where they apply), its fits and its degree of equivalence against the closed
+//! reference (the formulas are in the module's documentation, [`super`]).
+
+use nalgebra::DMatrix;
+
+use super::closed::{self, ClosedCovariance, ClosedFit, closed, closed_pseudo_inverse};
+use super::input::Aligned;
+use super::reference::closed_covariance;
+use super::{DegreeOfEquivalence, KcError, LabResult};
+
+/// Every result as a closed vector, in units of the largest u (so that χ² is as accurate
+/// for any scale), with the laboratories' own covariances.
+pub(crate) struct Scaled<'a> {
+    pub(crate) labs: &'a [LabResult],
+    pub(crate) covariances: &'a [Option<DMatrix<f64>>],
+    /// The unit of `values` and `u`: the largest standard uncertainty given, in the
+    /// quantity's unit (arcsec).
+    pub(crate) scale: f64,
+    /// Per result, its closed values, in units of `scale`.
+    pub(crate) values: Vec<Vec<f64>>,
+    /// Per result, its standard uncertainties, in units of `scale`.
+    pub(crate) u: Vec<Vec<f64>>,
+    /// The quantities compared (faces or encoder positions).
+    pub(crate) positions: usize,
+    /// The pilot's stability u_stab per quantity, in units of `scale` (0 unless the
+    /// repeats' test failed): in every result's covariance.
+    pub(crate) stability: Vec<f64>,
+}
+
+impl<'a> Scaled<'a> {
+    /// Every result as a closed vector: pitch deviations closed already (their mean, 0 to
+    /// rounding, taken out); encoder errors, defined up to a constant, less their mean.
+    /// Everything in units of the largest u.
+    pub(crate) fn of(
+        labs: &'a [LabResult],
+        aligned: &Aligned,
+        covariances: &'a [Option<DMatrix<f64>>],
+    ) -> Scaled<'a> {
+        let scale = aligned
+            .u
+            .iter()
+            .flatten()
+            .copied()
+            .chain(
+                covariances
+                    .iter()
+                    .flatten()
+                    .map(|v| v.diagonal().amax().sqrt()),
+            )
+            .fold(0.0, f64::max);
+        let values: Vec<Vec<f64>> = aligned
+            .values
+            .iter()
+            .map(|x| closed(x).iter().map(|x| x / scale).collect())
+            .collect();
+        let u: Vec<Vec<f64>> = aligned
+            .u
+            .iter()
+            .map(|u| u.iter().map(|u| u / scale).collect())
+            .collect();
+        Scaled {
+            labs,
+            covariances,
+            scale,
+            values,
+            u,
+            positions: aligned.index.len(),
+            stability: vec![0.0; aligned.index.len()],
+        }
+    }
+
+    /// Every result's standard uncertainties with the pilot's stability u_stab in them,
+    /// √(u² + u_stab²), in units of the scale: what the per-quantity estimates use.
+    pub(crate) fn judged_u(&self) -> Vec<Vec<f64>> {
+        self.u
+            .iter()
+            .map(|u| {
+                u.iter()
+                    .zip(&self.stability)
+                    .map(|(u, s)| u.hypot(*s))
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The closed covariance of result `r`: its own (scaled) or taken from its stated u,
+    /// widened by the pilot's stability u_stab and by the dark uncertainty `tau` (in units
+    /// of the scale) where given.
+    pub(crate) fn covariance(
+        &self,
+        r: usize,
+        tau: Option<&[f64]>,
+    ) -> Result<ClosedCovariance, KcError> {
+        let extra: Vec<f64> = match tau {
+            None => self.stability.clone(),
+            Some(tau) => self
+                .stability
+                .iter()
+                .zip(tau)
+                .map(|(s, t)| s.hypot(*t))
+                .collect(),
+        };
+        let widened = extra.iter().any(|e| *e > 0.0);
+        match self.covariances.get(r).and_then(Option::as_ref) {
+            None => Ok(ClosedCovariance::Stated(
+                self.u[r]
+                    .iter()
+                    .zip(&extra)
+                    .map(|(u, e)| u.hypot(*e))
+                    .collect(),
+            )),
+            Some(v) => {
+                let mut v = v / (self.scale * self.scale);
+                if widened {
+                    v += closed_covariance(&extra);
+                }
+                let v_plus = closed_pseudo_inverse(&v).ok_or_else(|| KcError::Covariance {
+                    file: self.labs[r].source.clone(),
+                    lab: self.labs[r].name.clone(),
+                    reason: "it cannot be inverted on the closed subspace".to_string(),
+                })?;
+                Ok(ClosedCovariance::Own { v, v_plus })
+            }
+        }
+    }
+
+    /// The closed fit of the results `set`, with the covariances `v` (per result).
+    pub(crate) fn fit(&self, set: &[usize], v: &[ClosedCovariance]) -> Option<ClosedFit> {
+        let x: Vec<&[f64]> = set.iter().map(|&r| self.values[r].as_slice()).collect();
+        let c: Vec<&ClosedCovariance> = set.iter().map(|&r| &v[r]).collect();
+        closed::fit(&x, &c)
+    }
+
+    /// Result `r`'s (laboratory `lab`'s) degree of equivalence against the closed
+    /// `reference`: d and U(d) (k = 2) per quantity, in arcsec. Its variance (the pilot's
+    /// stability and τ in it) is less the reference's when it is inside the reference, more
+    /// when outside.
+    pub(crate) fn degree_of_equivalence(
+        &self,
+        r: usize,
+        inside_reference: bool,
+        lab: String,
+        reference: &Reference,
+    ) -> DegreeOfEquivalence {
+        let fit = reference.fit;
+        let scale = self.scale;
+        let diagonal = reference.widened[r].diagonal();
+        let sign = if inside_reference { -1.0 } else { 1.0 };
+        let d = self.values[r]
+            .iter()
+            .zip(&fit.reference)
+            .map(|(x, x_ref)| (x - x_ref) * scale)
+            .collect();
+        let expanded_u = diagonal
+            .iter()
+            .zip(&fit.reference_variance)
+            .map(|(v, v_ref)| 2.0 * ((v + sign * v_ref).max(0.0) * scale * scale).sqrt())
+            .collect();
+        DegreeOfEquivalence {
+            lab,
+            d,
+            expanded_u,
+            in_reference: inside_reference,
+            d_linked: None,
+            expanded_u_linked: None,
+            dof_effective: None,
+            k: None,
+        }
+    }
+}
+
+/// The closed reference the degrees of equivalence are taken against: its fit and every
+/// result's covariance (with the pilot's stability, and τ for DerSimonian–Laird).
+pub(crate) struct Reference<'a> {
+    /// The closed fit of the laboratories in the reference.
+    pub fit: &'a ClosedFit,
+    /// Every result's covariance as the reference used it.
+    pub widened: &'a [ClosedCovariance],
+}
