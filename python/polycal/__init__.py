@@ -293,6 +293,8 @@ def kc(
     method: str = "weighted-mean",
     keep: Sequence[str] = (),
     not_in_reference: Sequence[str] = (),
+    link: Optional[KeyComparison] = None,
+    monte_carlo: Optional[int] = None,
 ) -> KeyComparison:
     """Evaluates a key comparison as ``polycal kc`` does (docs/FORMAT.md §12): the one
     decision at 5 % in ``vector_all`` (the closed vector of every laboratory) and, when it
@@ -304,7 +306,8 @@ def kc(
     ``pilot`` lists the pilot's repeated results as (name, result) pairs; ``keep`` names
     laboratories held in the reference (``--keep``); ``not_in_reference`` names
     laboratories kept out of it but given degrees of equivalence
-    (``--not-in-reference``)."""
+    (``--not-in-reference``); ``link`` is the comparison this one is linked to
+    (``--link``), ``monte_carlo`` the number of draws for every U (``--monte-carlo``)."""
 
     def named(items: Any) -> Any:
         return [(str(name), _rows_of(result)) for name, result in items]
@@ -317,6 +320,8 @@ def kc(
             method=str(method),
             keep=[str(name) for name in keep],
             not_in_reference=[str(name) for name in not_in_reference],
+            link=None if link is None else link.to_json(),
+            monte_carlo=None if monte_carlo is None else int(monte_carlo),
         )
     )
 

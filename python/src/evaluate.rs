@@ -367,7 +367,8 @@ pub(crate) fn compare_rows(
 /// Evaluates a key comparison as `polycal kc` does (docs/FORMAT.md §12); returns its JSON
 /// object. `labs` and `pilot` are (name, rows) pairs in order.
 #[pyfunction]
-#[pyo3(signature = (labs, pilot=Vec::new(), quantity="pitch_deviation", method="weighted-mean", keep=Vec::new(), not_in_reference=Vec::new()))]
+#[pyo3(signature = (labs, pilot=Vec::new(), quantity="pitch_deviation", method="weighted-mean", keep=Vec::new(), not_in_reference=Vec::new(), link=None, monte_carlo=None))]
+#[allow(clippy::too_many_arguments)] // the keyword arguments of `polycal kc`'s flags
 pub(crate) fn kc(
     py: Python<'_>,
     labs: Vec<(String, PyRef<'_, PyRows>)>,
@@ -376,6 +377,8 @@ pub(crate) fn kc(
     method: &str,
     keep: Vec<String>,
     not_in_reference: Vec<String>,
+    link: Option<String>,
+    monte_carlo: Option<usize>,
 ) -> PyResult<String> {
     let quantity = polycal::kc::compared_quantity(quantity)
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
@@ -396,9 +399,20 @@ pub(crate) fn kc(
         .with_method(method)
         .with_keep(keep)
         .with_not_in_reference(not_in_reference);
-    let comparison = py
+    let options = match monte_carlo {
+        Some(draws) => options.with_monte_carlo(draws),
+        None => options,
+    };
+    let linked = match &link {
+        Some(text) => Some(polycal::kc::read_json(text.as_bytes(), "link").map_err(refusal)?),
+        None => None,
+    };
+    let mut comparison = py
         .detach(|| polycal::kc::evaluate(&labs, &pilot, &options))
         .map_err(refusal)?;
+    if let Some(linked) = &linked {
+        polycal::kc::link(&mut comparison, linked).map_err(refusal)?;
+    }
     to_json(&comparison)
 }
 

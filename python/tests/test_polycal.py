@@ -496,7 +496,7 @@ def test_a_budget_warns_as_the_cli_does_and_a_bad_dict_names_its_entry():
 KC = ROOT / "examples/data/kc"
 
 
-def test_kc_is_the_clis_json_to_the_byte():
+def test_kc_is_the_clis_json_to_the_byte(tmp_path):
     labs = {name: KC / f"{name}.csv" for name in "ABCDEF"}
     args = [f"{name}={path}" for name, path in labs.items()]
     result = polycal.kc(labs)
@@ -523,6 +523,17 @@ def test_kc_is_the_clis_json_to_the_byte():
     assert out.to_json() == cli("kc", *args, "--not-in-reference", "F", "--format", "json")
     assert list(out["not_in_reference"]) == ["F"]
     assert list(out["excluded"]) == []
+    # linked to another comparison, and U by Monte Carlo: the CLI's bytes
+    cipm = polycal.kc({name: KC / f"{name}.csv" for name in "ABCD"})
+    cipm_path = tmp_path / "cipm.json"
+    cipm_path.write_text(cipm.to_json())
+    rmo_labs = {name: KC / f"{name}.csv" for name in "BCEF"}
+    rmo_args = [f"{name}={path}" for name, path in rmo_labs.items()]
+    linked = polycal.kc(rmo_labs, link=cipm, monte_carlo=2000)
+    assert linked.to_json() == cli(
+        "kc", *rmo_args, "--link", str(cipm_path), "--monte-carlo", "2000", "--format", "json"
+    )
+    assert list(linked["link"]["labs"]) == ["B", "C"]
 
 
 def test_kc_refuses_as_the_cli_does():
