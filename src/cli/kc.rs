@@ -278,36 +278,8 @@ pub fn run(args: &KcArgs) -> Result<u8> {
         Some(draws) => options.with_monte_carlo(draws),
         None => options,
     };
-    let linked = match &args.link {
-        Some(path) => {
-            let (bytes, source) = polycal::input::read_bytes(path)
-                .map_err(|(file, source)| polycal::input::FileError::Io { file, source })?;
-            let linked = polycal::kc::read_json(&bytes, &source)?;
-            // Draft A: the linked comparison's laboratories by this comparison's codes
-            Some(match &key {
-                Some(key) => key.coded_comparison(&linked),
-                None => linked,
-            })
-        }
-        None => None,
-    };
-    let mut kc = evaluate(&labs, &pilot, &options).map_err(|e| match e {
-        // Library messages name no flags: the CLI adds the one that helps.
-        polycal::kc::KcError::TooFewRepeats(_) => {
-            super::with_hint(e, "--pilot", "give --pilot twice or more, or not at all")
-        }
-        polycal::kc::KcError::UnknownKeep(_) => super::with_hint(
-            e,
-            "--keep",
-            "--keep takes a laboratory given as NAME=RESULT.csv",
-        ),
-        polycal::kc::KcError::UnknownNotInReference(_) => super::with_hint(
-            e,
-            "--not-in-reference",
-            "--not-in-reference takes a laboratory given as NAME=RESULT.csv",
-        ),
-        e => e.into(),
-    })?;
+    let linked = read_linked(args, key.as_ref())?;
+    let mut kc = evaluate(&labs, &pilot, &options).map_err(with_flag)?;
     if let Some(linked) = &linked {
         polycal::kc::link(&mut kc, linked)?;
     }
@@ -329,26 +301,74 @@ pub fn run(args: &KcArgs) -> Result<u8> {
     if let Some(dir) = &args.plot {
         super::write_plot(dir, &polycal::figure::kc_figures(&kc), &inputs)?;
     }
-    let stdout = super::stdout::stdout();
-    let mut stdout = stdout.lock();
-    match args.format {
-        // Written as it is formed: the pairs of many laboratories are hundreds of MB.
-        KcFormat::Json => {
-            let mut buffered = std::io::BufWriter::with_capacity(1 << 16, &mut stdout);
-            polycal::output::write_json(&mut buffered, &kc)?;
-            buffered.flush()?;
-        }
-        KcFormat::Table => {
-            let mut text = String::new();
-            polycal::output::kc::write_table(&mut text, &kc)?;
-            write!(stdout, "{text}")?;
-        }
-        KcFormat::Csv => polycal::output::kc::write_csv(&mut stdout, &kc)?,
-    }
-    stdout.flush()?;
+    write_comparison(args.format, &kc)?;
     Ok(if kc.comparison_consistent {
         EXIT_OK
     } else {
         EXIT_VERDICT
     })
+}
+
+/// A library refusal with the flag that helps (library messages name no flags).
+fn with_flag(e: polycal::kc::KcError) -> anyhow::Error {
+    match e {
+        // Library messages name no flags: the CLI adds the one that helps.
+        polycal::kc::KcError::TooFewRepeats(_) => {
+            super::with_hint(e, "--pilot", "give --pilot twice or more, or not at all")
+        }
+        polycal::kc::KcError::UnknownKeep(_) => super::with_hint(
+            e,
+            "--keep",
+            "--keep takes a laboratory given as NAME=RESULT.csv",
+        ),
+        polycal::kc::KcError::UnknownNotInReference(_) => super::with_hint(
+            e,
+            "--not-in-reference",
+            "--not-in-reference takes a laboratory given as NAME=RESULT.csv",
+        ),
+        e => e.into(),
+    }
+}
+
+/// The comparison `--link` names, read back from its JSON; with `--anonymise`, its
+/// laboratories named by this comparison's codes.
+fn read_linked(
+    args: &KcArgs,
+    key: Option<&polycal::kc::CodeKey>,
+) -> Result<Option<polycal::kc::KeyComparison>> {
+    Ok(match &args.link {
+        Some(path) => {
+            let (bytes, source) = polycal::input::read_bytes(path)
+                .map_err(|(file, source)| polycal::input::FileError::Io { file, source })?;
+            let linked = polycal::kc::read_json(&bytes, &source)?;
+            // Draft A: the linked comparison's laboratories by this comparison's codes
+            Some(match key {
+                Some(key) => key.coded_comparison(&linked),
+                None => linked,
+            })
+        }
+        None => None,
+    })
+}
+
+/// The comparison on standard output in `format`.
+fn write_comparison(format: KcFormat, kc: &polycal::kc::KeyComparison) -> Result<()> {
+    let stdout = super::stdout::stdout();
+    let mut stdout = stdout.lock();
+    match format {
+        // Written as it is formed: the pairs of many laboratories are hundreds of MB.
+        KcFormat::Json => {
+            let mut buffered = std::io::BufWriter::with_capacity(1 << 16, &mut stdout);
+            polycal::output::write_json(&mut buffered, kc)?;
+            buffered.flush()?;
+        }
+        KcFormat::Table => {
+            let mut text = String::new();
+            polycal::output::kc::write_table(&mut text, kc)?;
+            write!(stdout, "{text}")?;
+        }
+        KcFormat::Csv => polycal::output::kc::write_csv(&mut stdout, kc)?,
+    }
+    stdout.flush()?;
+    Ok(())
 }

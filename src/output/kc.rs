@@ -100,107 +100,9 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
         kc.labs.len(),
         kc.labs.join(", ")
     )?;
-    match kc.method {
-        ReferenceMethod::WeightedMean => writeln!(
-            out,
-            "Reference: the closed GLS reference of the laboratories in it; with one u per \
-             laboratory the weighted mean x_ref = Σ x_i/u_i² / Σ 1/u_i², u_ref = (Σ 1/u_i²)^(-1/2) \
-             (Cox 2002, procedure A)\n\
-             Decision: one test at 5 %, the closed vector of every laboratory; when it fails, the \
-             largest subset that passes (docs/FORMAT.md §12)"
-        )?,
-        ReferenceMethod::MandelPaule => writeln!(
-            out,
-            "Reference: Mandel–Paule, every u_i² widened by τ² such that Σ (x_i − x_ref)²/(u_i²+τ²) \
-             = n − 1 (the dark uncertainty of each quantity; τ = 0 when χ² ≤ n − 1), then the \
-             closed GLS reference\n\
-             Decision: the test of τ = 0 at 5 %, the closed vector of every laboratory; nobody is \
-             left out (docs/FORMAT.md §12)"
-        )?,
-        _ => writeln!(
-            out,
-            "Reference: DerSimonian–Laird, every u_i² widened by τ² = max(0, (χ² − ν)/(S1 − S2/S1)) \
-             (the dark uncertainty of each quantity), then the closed GLS reference; with one u \
-             per laboratory x_ref = Σ x_i/(u_i²+τ²) / Σ 1/(u_i²+τ²), u_ref² = 1/Σ 1/(u_i²+τ²)\n\
-             Decision: the test of τ = 0 at 5 %, the closed vector of every laboratory; nobody is \
-             left out (docs/FORMAT.md §12)"
-        )?,
-    }
-    writeln!(
-        out,
-        "Per quantity, information only: χ² = Σ (x_i − x̄_w)²/u_i², ν = n − 1, against \
-         χ²_0.95(ν)\n"
-    )?;
-    let header = [
-        position,
-        "x_ref",
-        "u_ref",
-        "τ",
-        "χ²",
-        "ν",
-        "χ²_0.95",
-        "Passes",
-    ]
-    .map(String::from);
-    let rows: Vec<[String; 8]> = (0..kc.index.len())
-        .map(|k| {
-            [
-                at(k),
-                format!("{:.3}", kc.reference[k]),
-                format!("{:.3}", kc.reference_u[k]),
-                format!("{:.3}", kc.tau[k]),
-                chi2_text(kc.chi2[k], 2),
-                kc.chi2_dof[k].to_string(),
-                format!("{:.2}", kc.chi2_critical[k]),
-                if kc.consistent[k] { "yes" } else { "no" }.to_string(),
-            ]
-        })
-        .collect();
-    let mut right = [true; 8];
-    right[0] = false;
-    right[7] = false;
-    writeln!(out, "{}", table(&header, &rows, &right))?;
-
-    if let Some(v) = &kc.vector_all {
-        let who = if kc.not_in_reference.is_empty() {
-            "Every laboratory"
-        } else {
-            "Every laboratory but those kept out of the reference"
-        };
-        writeln!(out, "{who}: {}", v.statement())?;
-    }
-    if let Some(search) = &kc.search {
-        writeln!(
-            out,
-            "Largest consistent subset ({}, {} subsets fitted), the best of each size:",
-            match search.method {
-                crate::kc::SearchMethod::Exhaustive => "every subset tried",
-                _ => "greedy",
-            },
-            search.subsets_tested
-        )?;
-        for step in &search.steps {
-            writeln!(
-                out,
-                "  {} laboratories: {} — χ² = {}, ν = {}, χ²_0.95(ν) = {:.2}: {}",
-                step.size,
-                step.best.join(", "),
-                chi2_text(step.chi2, 2),
-                step.dof,
-                step.chi2_critical,
-                if step.consistent { "passes" } else { "fails" }
-            )?;
-        }
-    }
-    if kc.excluded.is_empty() {
-        writeln!(out, "Excluded: none")?;
-    } else {
-        writeln!(out, "Excluded (left out of every quantity):")?;
-        for e in &kc.excluded {
-            writeln!(out, "  {}: {}", e.lab, e.reason)?;
-        }
-    }
-    writeln!(out, "In the reference: {}", kc.closed_vector_statement())?;
+    write_method(out, kc)?;
+    write_reference_table(out, kc, position, &at)?;
+    write_decision(out, kc)?;
 
     writeln!(
         out,
@@ -268,6 +170,127 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
         writeln!(out, "Note: {note}")?;
     }
     writeln!(out, "{}", kc.verdict_statement())
+}
+
+/// The reference method and the decision, in words.
+fn write_method<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
+    match kc.method {
+        ReferenceMethod::WeightedMean => writeln!(
+            out,
+            "Reference: the closed GLS reference of the laboratories in it; with one u per \
+             laboratory the weighted mean x_ref = Σ x_i/u_i² / Σ 1/u_i², u_ref = (Σ 1/u_i²)^(-1/2) \
+             (Cox 2002, procedure A)\n\
+             Decision: one test at 5 %, the closed vector of every laboratory; when it fails, the \
+             largest subset that passes (docs/FORMAT.md §12)"
+        )?,
+        ReferenceMethod::MandelPaule => writeln!(
+            out,
+            "Reference: Mandel–Paule, every u_i² widened by τ² such that Σ (x_i − x_ref)²/(u_i²+τ²) \
+             = n − 1 (the dark uncertainty of each quantity; τ = 0 when χ² ≤ n − 1), then the \
+             closed GLS reference\n\
+             Decision: the test of τ = 0 at 5 %, the closed vector of every laboratory; nobody is \
+             left out (docs/FORMAT.md §12)"
+        )?,
+        _ => writeln!(
+            out,
+            "Reference: DerSimonian–Laird, every u_i² widened by τ² = max(0, (χ² − ν)/(S1 − S2/S1)) \
+             (the dark uncertainty of each quantity), then the closed GLS reference; with one u \
+             per laboratory x_ref = Σ x_i/(u_i²+τ²) / Σ 1/(u_i²+τ²), u_ref² = 1/Σ 1/(u_i²+τ²)\n\
+             Decision: the test of τ = 0 at 5 %, the closed vector of every laboratory; nobody is \
+             left out (docs/FORMAT.md §12)"
+        )?,
+    }
+    Ok(())
+}
+
+/// Per quantity: the reference with u_ref and τ, and the χ² as information.
+fn write_reference_table<W: Write>(
+    out: &mut W,
+    kc: &KeyComparison,
+    position: &str,
+    at: &dyn Fn(usize) -> String,
+) -> fmt::Result {
+    writeln!(
+        out,
+        "Per quantity, information only: χ² = Σ (x_i − x̄_w)²/u_i², ν = n − 1, against \
+         χ²_0.95(ν)\n"
+    )?;
+    let header = [
+        position,
+        "x_ref",
+        "u_ref",
+        "τ",
+        "χ²",
+        "ν",
+        "χ²_0.95",
+        "Passes",
+    ]
+    .map(String::from);
+    let rows: Vec<[String; 8]> = (0..kc.index.len())
+        .map(|k| {
+            [
+                at(k),
+                format!("{:.3}", kc.reference[k]),
+                format!("{:.3}", kc.reference_u[k]),
+                format!("{:.3}", kc.tau[k]),
+                chi2_text(kc.chi2[k], 2),
+                kc.chi2_dof[k].to_string(),
+                format!("{:.2}", kc.chi2_critical[k]),
+                if kc.consistent[k] { "yes" } else { "no" }.to_string(),
+            ]
+        })
+        .collect();
+    let mut right = [true; 8];
+    right[0] = false;
+    right[7] = false;
+    writeln!(out, "{}", table(&header, &rows, &right))?;
+    Ok(())
+}
+
+/// The one decision: the test of every laboratory, the search and the exclusions, and the
+/// test of those in the reference.
+fn write_decision<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
+    if let Some(v) = &kc.vector_all {
+        let who = if kc.not_in_reference.is_empty() {
+            "Every laboratory"
+        } else {
+            "Every laboratory but those kept out of the reference"
+        };
+        writeln!(out, "{who}: {}", v.statement())?;
+    }
+    if let Some(search) = &kc.search {
+        writeln!(
+            out,
+            "Largest consistent subset ({}, {} subsets fitted), the best of each size:",
+            match search.method {
+                crate::kc::SearchMethod::Exhaustive => "every subset tried",
+                _ => "greedy",
+            },
+            search.subsets_tested
+        )?;
+        for step in &search.steps {
+            writeln!(
+                out,
+                "  {} laboratories: {} — χ² = {}, ν = {}, χ²_0.95(ν) = {:.2}: {}",
+                step.size,
+                step.best.join(", "),
+                chi2_text(step.chi2, 2),
+                step.dof,
+                step.chi2_critical,
+                if step.consistent { "passes" } else { "fails" }
+            )?;
+        }
+    }
+    if kc.excluded.is_empty() {
+        writeln!(out, "Excluded: none")?;
+    } else {
+        writeln!(out, "Excluded (left out of every quantity):")?;
+        for e in &kc.excluded {
+            writeln!(out, "  {}: {}", e.lab, e.reason)?;
+        }
+    }
+    writeln!(out, "In the reference: {}", kc.closed_vector_statement())?;
+    Ok(())
 }
 
 /// The link to another comparison, when there is one: the correction Δ with u(Δ) per
