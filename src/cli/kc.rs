@@ -181,18 +181,33 @@ fn key_file(path: &Path, inputs: &[&Path], plot: Option<&Path>, pilot: bool) -> 
                 .check([path])
                 .map_err(|e| anyhow::anyhow!("--anonymise: cannot write the key: {e}"))?;
             if let Some(dir) = plot {
+                // compared as written (absolute), as the directory may not exist yet
+                let key_at = std::path::absolute(path).ok();
+                let dir_at = std::path::absolute(dir).ok();
+                if key_at.is_some() && key_at == dir_at {
+                    anyhow::bail!(
+                        "--anonymise {}: is the directory --plot writes the figures into; give \
+                         the key a file of its own",
+                        polycal::input::display_name(path)
+                    );
+                }
                 let figures = polycal::figure::FigureSet::Kc { pilot }.file_names();
-                let same_dir = match (path.parent(), std::fs::canonicalize(dir)) {
-                    (Some(parent), Ok(dir)) => {
-                        let parent = if parent.as_os_str().is_empty() {
-                            Path::new(".")
-                        } else {
-                            parent
-                        };
-                        std::fs::canonicalize(parent).is_ok_and(|p| p == dir)
-                    }
-                    _ => false,
-                };
+                let lexically_in_dir = key_at
+                    .as_deref()
+                    .and_then(Path::parent)
+                    .is_some_and(|parent| Some(parent) == dir_at.as_deref());
+                let same_dir = lexically_in_dir
+                    || match (path.parent(), std::fs::canonicalize(dir)) {
+                        (Some(parent), Ok(dir)) => {
+                            let parent = if parent.as_os_str().is_empty() {
+                                Path::new(".")
+                            } else {
+                                parent
+                            };
+                            std::fs::canonicalize(parent).is_ok_and(|p| p == dir)
+                        }
+                        _ => false,
+                    };
                 let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
                 if same_dir && figures.iter().any(|f| f == name) {
                     anyhow::bail!(

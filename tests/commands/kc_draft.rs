@@ -323,6 +323,17 @@ fn kc_anonymise_refusals_name_the_key_and_write_nothing() {
     ]);
     assert!(line.contains("one of the figures"), "{line}");
     assert!(!over.exists());
+    // the key given as --plot's directory (found in review: the key was written, then the
+    // figures refused): refused before anything is written
+    let both = dir.join("both");
+    let line = run(&[
+        "--anonymise",
+        both.to_str().unwrap(),
+        "--plot",
+        both.to_str().unwrap(),
+    ]);
+    assert!(line.contains("is the directory --plot writes"), "{line}");
+    assert!(!both.exists());
     // a directory that does not exist: refused before any work
     let nowhere = dir.join("no-such-dir/key.csv");
     let line = run(&["--anonymise", nowhere.to_str().unwrap()]);
