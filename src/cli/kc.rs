@@ -69,7 +69,7 @@ pub struct KcArgs {
     /// circulation), NAME=RESULT.csv; give it at least twice.
     #[arg(long, value_name = "NAME=RESULT.csv", value_parser = named)]
     pilot: Vec<Named>,
-    /// The compared quantity: pitch_deviation or encoder_error.
+    /// The compared quantity: pitch_deviation, encoder_error or angle_block (docs/FORMAT.md §12).
     #[arg(long, default_value = "pitch_deviation", value_parser = parse_quantity)]
     quantity: Quantity,
     /// The reference: weighted-mean (when the closed vector of every laboratory fails its

@@ -34,6 +34,7 @@ fn family_words(quantity: Quantity) -> (&'static str, &'static str) {
         Quantity::FaceDeviation => ("Face deviations φ", "φ"),
         Quantity::EncoderError => ("Encoder errors α", "α"),
         Quantity::SetupError => ("Setup errors", "setup error"),
+        Quantity::AngleBlock => ("Angle blocks", "angle block"),
     }
 }
 
@@ -48,6 +49,7 @@ fn x_label(quantity: Quantity, by_angle: bool) -> String {
         Quantity::PitchDeviation | Quantity::FaceDeviation => "face k".into(),
         Quantity::EncoderError => "position p".into(),
         Quantity::SetupError => "autocollimator (setup·1000 + ac with several setups)".into(),
+        Quantity::AngleBlock => "angle block b".into(),
     }
 }
 

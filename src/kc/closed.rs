@@ -31,6 +31,9 @@ use nalgebra::{DMatrix, DVector};
 pub(crate) enum ClosedCovariance {
     /// Taken as closed from the row's standard uncertainties: V = c·P·diag(u²)·P.
     Stated(Vec<f64>),
+    /// Not a closed vector: each position on its own, V = diag(u²), u = +∞ where the
+    /// result does not report the position (angle blocks, [`super::blocks`]).
+    Independent(Vec<f64>),
     /// Its own covariance V (N × N) with its pseudo-inverse V⁺, scaled.
     Own {
         /// V.
@@ -52,6 +55,7 @@ impl ClosedCovariance {
                     .map(|u| c * (u * u * (1.0 - 2.0 / faces) + mean_square))
                     .collect()
             }
+            ClosedCovariance::Independent(u) => u.iter().map(|u| u * u).collect(),
             ClosedCovariance::Own { v, .. } => v.diagonal().iter().copied().collect(),
         }
     }
@@ -66,6 +70,9 @@ impl ClosedCovariance {
                     diagonal - w[i] * w[j] / s
                 })
             }
+            ClosedCovariance::Independent(u) => DMatrix::from_fn(u.len(), u.len(), |i, j| {
+                if i == j { 1.0 / (u[i] * u[i]) } else { 0.0 }
+            }),
             ClosedCovariance::Own { v_plus, .. } => v_plus.clone(),
         }
     }
@@ -97,6 +104,16 @@ pub(crate) struct ClosedFit {
 /// for fewer than 2 vectors or 2 positions, or a system that cannot be solved (a
 /// covariance singular on the closed subspace).
 pub(crate) fn fit(x: &[&[f64]], v: &[&ClosedCovariance]) -> Option<ClosedFit> {
+    let independent: Option<Vec<&[f64]>> = v
+        .iter()
+        .map(|c| match c {
+            ClosedCovariance::Independent(u) => Some(u.as_slice()),
+            _ => None,
+        })
+        .collect();
+    if let Some(u) = independent {
+        return super::blocks::fit(x, &u);
+    }
     let faces = x.first()?.len();
     if x.len() < 2 || faces < 2 || v.len() != x.len() {
         return None;
@@ -105,7 +122,7 @@ pub(crate) fn fit(x: &[&[f64]], v: &[&ClosedCovariance]) -> Option<ClosedFit> {
         .iter()
         .map(|c| match c {
             ClosedCovariance::Stated(u) => Some(u.as_slice()),
-            ClosedCovariance::Own { .. } => None,
+            ClosedCovariance::Own { .. } | ClosedCovariance::Independent(_) => None,
         })
         .collect();
     let fit = match all_stated {

@@ -43,19 +43,40 @@ pub(crate) struct Sources<'a> {
     pub tau: &'a [f64],
     /// The laboratories in the reference.
     pub inside: &'a [usize],
+    /// Whether each result reports each quantity (`None`: all of them; angle blocks may
+    /// not be).
+    pub measured: Option<&'a [Vec<bool>]>,
+}
+
+impl Sources<'_> {
+    /// Whether result `r` reports quantity `k`.
+    fn reports(&self, r: usize, k: usize) -> bool {
+        self.measured
+            .is_none_or(|m| m.get(r).and_then(|m| m.get(k)).copied().unwrap_or(false))
+    }
 }
 
 /// ν_eff of result `r`'s degree of equivalence at quantity `k` (∞ when every component
-/// has infinitely many degrees of freedom).
+/// has infinitely many degrees of freedom; NaN where `r` does not report `k`). The
+/// reference of `k` is that of the laboratories in it that report `k`.
 pub(crate) fn effective(sources: &Sources, r: usize, k: usize) -> f64 {
+    if !sources.reports(r, k) {
+        return f64::NAN;
+    }
+    let inside: Vec<usize> = sources
+        .inside
+        .iter()
+        .copied()
+        .filter(|&j| sources.reports(j, k))
+        .collect();
     let (s2, t2) = (
         sources.stability[k] * sources.stability[k],
         sources.tau[k] * sources.tau[k],
     );
     let v = |j: usize| sources.u[j][k] * sources.u[j][k] + s2 + t2;
-    let total: f64 = sources.inside.iter().map(|&j| 1.0 / v(j)).sum();
+    let total: f64 = inside.iter().map(|&j| 1.0 / v(j)).sum();
     let coefficient = |j: usize| {
-        let weight = if sources.inside.contains(&j) {
+        let weight = if inside.contains(&j) {
             (1.0 / v(j)) / total
         } else {
             0.0
@@ -102,6 +123,12 @@ pub(crate) fn apply(comparison: &mut KeyComparison, sources: &Sources) {
         let (mut nu, mut k) = (Vec::new(), Vec::new());
         for (position, expanded_u) in doe.expanded_u.iter_mut().enumerate() {
             let effective = effective(sources, r, position);
+            if effective.is_nan() {
+                // not reported: no U, no ν, no k
+                nu.push(None);
+                k.push(f64::NAN);
+                continue;
+            }
             let factor = coverage_factor(effective);
             *expanded_u *= factor / 2.0;
             nu.push(effective.is_finite().then_some(effective));

@@ -235,4 +235,34 @@ pub enum KcError {
         /// Its face.
         face: u32,
     },
+    /// One of the pilot's repeats does not report an angle block the laboratories compare.
+    #[error(
+        "{file} (the pilot's repeat {repeat}) has no angle_block {block}: the pilot's repeats \
+         report every block compared (their spread is the artefact's stability on each)"
+    )]
+    RepeatMissesBlock {
+        /// The repeat's name.
+        repeat: String,
+        /// Its file.
+        file: String,
+        /// The block it lacks.
+        block: u32,
+    },
+    /// Two results state different nominal angles for one angle block.
+    #[error(
+        "{location}: angle_block {block} has nominal_deg {nominal_deg}, but \
+         {first_nominal_deg} at {first_location}: the same block has one nominal angle"
+    )]
+    NominalsDiffer {
+        /// Where the second nominal angle is (file:line:column).
+        location: String,
+        /// The block.
+        block: u32,
+        /// Its nominal angle there, degrees.
+        nominal_deg: f64,
+        /// The first nominal angle stated, degrees.
+        first_nominal_deg: f64,
+        /// Where that is.
+        first_location: String,
+    },
 }

@@ -14,7 +14,7 @@ use super::scaled::{Reference, Scaled};
 use super::search::{self, SearchMethod};
 use super::{
     DegreeOfEquivalence, Exclusion, KcError, KcOptions, KeyComparison, LabResult, Pairs,
-    PilotStability, ReferenceMethod, VectorTest,
+    PilotStability, ReferenceMethod, VectorTest, Wording,
 };
 use crate::results::Quantity;
 
@@ -84,6 +84,7 @@ pub fn evaluate(
     let aligned = match options.quantity {
         Quantity::PitchDeviation => input::pitch(&all)?,
         Quantity::EncoderError => input::encoder(&all)?,
+        Quantity::AngleBlock => input::blocks(&all, labs.len())?,
         other => return Err(KcError::Quantity(other)),
     };
     let aligned = super::names::with_look_alike_notes(&all, aligned);
@@ -101,17 +102,33 @@ pub fn evaluate(
     evaluate_aligned(labs, pilot, options, aligned, &covariances)
 }
 
-/// The estimates of every quantity from the results `inside` (values and u as given).
+/// The estimates of every quantity from the results `inside` that report it (values as
+/// `scaled` holds them, u as given in `u`); a quantity none of them reports has a
+/// reference of NaN, χ² 0 and ν 0.
 fn estimates(
-    values: &[Vec<f64>],
+    scaled: &Scaled,
     u: &[Vec<f64>],
     inside: &[usize],
     method: ReferenceMethod,
 ) -> Vec<Estimate> {
-    (0..values.first().map_or(0, Vec::len))
+    (0..scaled.positions)
         .map(|k| {
-            let x: Vec<f64> = inside.iter().map(|&r| values[r][k]).collect();
-            let u: Vec<f64> = inside.iter().map(|&r| u[r][k]).collect();
+            let reporting: Vec<usize> = inside
+                .iter()
+                .copied()
+                .filter(|&r| scaled.is_measured(r, k))
+                .collect();
+            if reporting.is_empty() {
+                return Estimate {
+                    reference: f64::NAN,
+                    reference_u: f64::NAN,
+                    chi2: 0.0,
+                    dof: 0,
+                    tau: 0.0,
+                };
+            }
+            let x: Vec<f64> = reporting.iter().map(|&r| scaled.values[r][k]).collect();
+            let u: Vec<f64> = reporting.iter().map(|&r| u[r][k]).collect();
             reference::estimate(&x, &u, method)
         })
         .collect()
@@ -148,9 +165,10 @@ fn evaluate_aligned(
     covariances: &[Option<DMatrix<f64>>],
 ) -> Result<KeyComparison, KcError> {
     let random_effects = options.method.is_random_effects();
+    let wording = Wording::of(options.quantity);
     let positions = aligned.index.len();
     let results = labs.len() + pilot.len();
-    if positions < 2 {
+    if aligned.closed && positions < 2 {
         return Err(KcError::TooFewPositions(positions));
     }
     let mut notes = aligned.notes.clone();
@@ -159,8 +177,10 @@ fn evaluate_aligned(
     let candidates = reference_candidates(labs, options, &kept)?;
     let mut scaled = Scaled::of(labs, &aligned, covariances);
     let scale = scaled.scale;
-    if options.quantity == Quantity::EncoderError {
-        notes.push(ENCODER_NOTE.to_string());
+    match options.quantity {
+        Quantity::EncoderError => notes.push(ENCODER_NOTE.to_string()),
+        Quantity::AngleBlock => notes.push(BLOCKS_NOTE.to_string()),
+        _ => {}
     }
     let mut stated: Vec<ClosedCovariance> = (0..results)
         .map(|r| scaled.covariance(r, None))
@@ -188,8 +208,20 @@ fn evaluate_aligned(
     let in_reference: Vec<bool> = (0..labs.len()).map(|r| inside.contains(&r)).collect();
     let mut excluded = Vec::new();
     if let Some(search) = &search {
-        excluded = exclusions(labs, &candidates, search, &in_reference, &vector_all);
-        notes.extend(search_notes(search, decided_consistent, &decision.withheld));
+        excluded = exclusions(
+            labs,
+            &candidates,
+            search,
+            &in_reference,
+            &vector_all,
+            wording,
+        );
+        notes.extend(search_notes(
+            search,
+            decided_consistent,
+            &decision.withheld,
+            wording,
+        ));
     }
     let kept_out: Vec<usize> = (0..labs.len())
         .filter(|r| !candidates.contains(r))
@@ -200,7 +232,7 @@ fn evaluate_aligned(
     let (tau, widened) = dark_uncertainty(&scaled, &judged_u, &candidates, &stated, options)?;
     let final_fit = scaled.fit(&inside, &widened).ok_or_else(not_fitted)?;
     let vector = vector_test(&final_fit, scale);
-    let found = estimates(&scaled.values, &judged_u, &inside, options.method);
+    let found = estimates(&scaled, &judged_u, &inside, options.method);
 
     // Degrees of equivalence against the closed reference: Σ_k d_ik = 0.
     let reference = Reference {
@@ -216,6 +248,7 @@ fn evaluate_aligned(
         &inside,
         options.method,
         positions,
+        wording,
     ));
 
     let chi2_critical: Vec<f64> = found.iter().map(|e| chi2_quantile_95(e.dof)).collect();
@@ -234,6 +267,7 @@ fn evaluate_aligned(
         method: options.method,
         index: aligned.index.clone(),
         angle_deg: aligned.angle_deg.clone(),
+        nominal_deg: aligned.nominal_deg.clone(),
         labs: labs.iter().map(|l| l.name.clone()).collect(),
         reference: final_fit.reference.iter().map(|r| r * scale).collect(),
         reference_u: final_fit
@@ -277,6 +311,8 @@ fn evaluate_aligned(
                 tau: &tau,
                 inside: &inside,
                 method: options.method,
+                closed: scaled.closed,
+                measured: scaled.measured.as_deref(),
             };
             monte_carlo::apply(&mut comparison, &model, draws, covariances, scale)?;
         }
@@ -288,6 +324,7 @@ fn evaluate_aligned(
                 stability_dof: pilot.len().saturating_sub(1) as f64,
                 tau: &tau,
                 inside: &inside,
+                measured: scaled.measured.as_deref(),
             };
             dof::apply(&mut comparison, &sources);
         }
@@ -308,7 +345,7 @@ fn dark_uncertainty(
     if !options.method.is_random_effects() {
         return Ok((vec![0.0; scaled.positions], stated.to_vec()));
     }
-    let tau: Vec<f64> = estimates(&scaled.values, judged_u, candidates, options.method)
+    let tau: Vec<f64> = estimates(scaled, judged_u, candidates, options.method)
         .iter()
         .map(|e| e.tau)
         .collect();
@@ -416,6 +453,14 @@ const ENCODER_NOTE: &str = "encoder errors are defined up to a constant: each re
      convention is not left out), and each is taken as closed with \
      V = N/(N − 1)·P·diag(u²)·P";
 
+/// The note on angle blocks, compared each on its own.
+const BLOCKS_NOTE: &str = "angle blocks are single angles, not a closed vector: each block's reference is \
+     the weighted mean of the laboratories in the reference that report it, and the blocks' \
+     consistency is one test at 5 %, χ² = Σ_b Σ_i (x_ib − x_ref,b)²/u_ib² with \
+     ν = Σ_b (n_b − 1), n_b the laboratories reporting block b; a laboratory that did not \
+     measure a block is compared on the blocks it did (no degree of equivalence there, null \
+     in the JSON)";
+
 /// What the one decision at 5 % and the search after it decided.
 struct Decision {
     /// The search made (weighted mean, when the closed vector of every laboratory failed).
@@ -485,7 +530,9 @@ fn exclusions(
     search: &search::SubsetSearch,
     in_reference: &[bool],
     vector_all: &VectorTest,
+    wording: Wording,
 ) -> Vec<Exclusion> {
+    let whole = wording.whole();
     let mut excluded = Vec::new();
     let last = search.steps.last();
     for &r in candidates.iter().filter(|r| !in_reference[**r]) {
@@ -508,7 +555,7 @@ fn exclusions(
         excluded.push(Exclusion {
             lab: labs[r].name.clone(),
             reason: format!(
-                "left out of the whole comparison: the closed vector of all {} laboratories \
+                "left out of the whole comparison: the {whole} of all {} laboratories \
                  fails (χ² = {} > χ²_0.95({}) = {:.3}); the largest subset that passes \
                  is {} ({} laboratories, χ² = {} ≤ χ²_0.95({}) = {:.3}, the smallest χ² \
                  of its size){before}",
@@ -533,6 +580,7 @@ fn search_notes(
     search: &search::SubsetSearch,
     decided_consistent: bool,
     withheld: &[usize],
+    wording: Wording,
 ) -> Vec<String> {
     let mut notes = vec![match search.method {
         SearchMethod::Exhaustive => format!(
@@ -558,11 +606,11 @@ fn search_notes(
             withheld.len()
         ));
     } else if !decided_consistent {
-        notes.push(
-            "no subset of the laboratories passes the closed vector's test: every \
-             laboratory is kept in the reference, and the comparison is not consistent"
-                .to_string(),
-        );
+        notes.push(format!(
+            "no subset of the laboratories passes the {}'s test: every laboratory is kept in \
+             the reference, and the comparison is not consistent",
+            wording.whole()
+        ));
     }
     notes
 }
@@ -625,12 +673,36 @@ fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Pairs {
     let labs = scaled.labs;
     let n = labs.len();
     let mut vectors = Vec::with_capacity(n * n.saturating_sub(1) / 2);
+    let reported: Vec<Vec<f64>> = (0..n).map(|r| scaled.reported_values(r)).collect();
     let dof = scaled.positions.saturating_sub(1);
     let critical = chi2_quantile_95(dof);
     let closing = scaled.positions as f64 / dof.max(1) as f64;
     for a in 0..n {
         for b in a + 1..n {
             let test = match (&widened[a], &widened[b]) {
+                // blocks: each on its own, over the blocks both report (ν = their number)
+                (ClosedCovariance::Independent(u_a), ClosedCovariance::Independent(u_b)) => {
+                    let d: Vec<f64> = reported[a]
+                        .iter()
+                        .zip(&reported[b])
+                        .map(|(x_a, x_b)| x_a - x_b)
+                        .collect();
+                    let variance: Vec<f64> = u_a
+                        .iter()
+                        .zip(u_b)
+                        .map(|(u_a, u_b)| u_a * u_a + u_b * u_b)
+                        .collect();
+                    super::blocks::pair_chi2(&d, &variance).map(|(chi2, dof)| {
+                        let critical = chi2_quantile_95(dof);
+                        VectorTest {
+                            chi2,
+                            dof,
+                            consistent: chi2 <= critical,
+                            chi2_critical: critical,
+                            reference: Vec::new(),
+                        }
+                    })
+                }
                 // V_a + V_b = c·P·diag(u_a² + u_b²)·P: its χ² in O(N), no fit
                 (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b)) => {
                     let d: Vec<f64> = scaled.values[a]
@@ -662,7 +734,7 @@ fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Pairs {
     }
     Pairs::formed(
         labs.iter().map(|l| l.name.clone()).collect(),
-        scaled.values[..n].to_vec(),
+        reported,
         widened[..n]
             .iter()
             .map(ClosedCovariance::diagonal)
@@ -680,7 +752,9 @@ fn closing_notes(
     inside: &[usize],
     method: ReferenceMethod,
     positions: usize,
+    wording: Wording,
 ) -> Vec<String> {
+    let whole = wording.whole();
     let mut notes = Vec::new();
     let with_own: Vec<&str> = inside
         .iter()
@@ -705,16 +779,17 @@ fn closing_notes(
              laboratories' results on each quantity beyond their stated uncertainties \
              ({estimator}), added to every laboratory's variance there, so that it enters u_ref \
              and every U(d_i). The verdict is the test of τ = 0 for the whole comparison (the \
-             closed vector of every laboratory, vector_all): not consistent means the \
+             {whole} of every laboratory, vector_all): not consistent means the \
              laboratories differ beyond their stated uncertainties, and τ carries that into \
              the reference",
             method.title()
         ));
     }
     notes.push(format!(
-        "the comparison is decided by one test at 5 %, the closed vector's χ²; the χ² of each \
+        "the comparison is decided by one test at 5 %, the {}; the χ² of each \
          of the {positions} quantities is information (by chance about 1 in 20 fails in a \
-         consistent comparison)"
+         consistent comparison)",
+        wording.whole_chi2()
     ));
     notes
 }

@@ -23,6 +23,10 @@
 //! the linked reference: d_i,linked = d_i + Δ_k, with
 //! u² = u²(d_i) + u²(Δ_k) − 2 Σ_j a_j Cov_this(d_i, d_j) (its correlation with the
 //! linking laboratories' degrees of equivalence counted), U at k = 2.
+//!
+//! Angle blocks are not closed: at each block the linking laboratories are those that
+//! report it in both comparisons (L_k of them), the link's test is χ² = Σ_k χ²_k with
+//! ν = Σ_k (L_k − 1), and a block no laboratory links has no correction (NaN, `null`).
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -106,6 +110,14 @@ fn offset_at(
     let l = labs.len();
     let here: Vec<&DegreeOfEquivalence> = labs.iter().filter_map(|n| doe(this, n)).collect();
     let there: Vec<&DegreeOfEquivalence> = labs.iter().filter_map(|n| doe(linked, n)).collect();
+    if l == 0 || here.len() != l || there.len() != l {
+        return Ok(Offset {
+            correction: f64::NAN,
+            correction_u: f64::NAN,
+            chi2: 0.0,
+            weights: DVector::zeros(0),
+        });
+    }
     let c = DMatrix::from_fn(l, l, |i, j| {
         doe_covariance(linked, there[i], there[j], k) + doe_covariance(this, here[i], here[j], k)
     });
@@ -207,19 +219,39 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
     }
     let positions = this.index.len();
     let l = labs.len();
+    let closed = this.wording().is_closed();
     let (mut correction, mut correction_u, mut weights) = (Vec::new(), Vec::new(), Vec::new());
-    let mut chi2 = 0.0;
+    // per quantity, the linking laboratories that report it in both (every one of them
+    // for closed vectors)
+    let mut linking_at: Vec<Vec<String>> = Vec::with_capacity(positions);
+    let (mut chi2, mut block_dof) = (0.0, 0usize);
     for k in 0..positions {
-        let at = offset_at(this, linked, &labs, k)?;
+        let reporting: Vec<String> = labs
+            .iter()
+            .filter(|name| {
+                closed
+                    || [doe(this, name), doe(linked, name)]
+                        .iter()
+                        .all(|d| d.is_some_and(|d| d.d[k].is_finite()))
+            })
+            .cloned()
+            .collect();
+        let at = offset_at(this, linked, &reporting, k)?;
         chi2 += at.chi2;
+        block_dof += reporting.len().saturating_sub(1);
         correction.push(at.correction);
         correction_u.push(at.correction_u);
         weights.push(at.weights);
+        linking_at.push(reporting);
     }
     let faces = positions as f64;
-    let vector = (l > 1).then(|| {
-        let chi2 = chi2 * (faces - 1.0) / faces;
-        let dof = (positions - 1) * (l - 1);
+    let tested = if closed { l > 1 } else { block_dof > 0 };
+    let vector = tested.then(|| {
+        let (chi2, dof) = if closed {
+            (chi2 * (faces - 1.0) / faces, (positions - 1) * (l - 1))
+        } else {
+            (chi2, block_dof)
+        };
         let critical = chi2_quantile_95(dof);
         VectorTest {
             chi2,
@@ -230,8 +262,10 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
         }
     });
     // every degree of equivalence (the pilot's repeats' too) against the linked reference
-    let linking: Vec<DegreeOfEquivalence> =
-        labs.iter().filter_map(|n| doe(this, n)).cloned().collect();
+    let linking: Vec<Vec<DegreeOfEquivalence>> = linking_at
+        .iter()
+        .map(|names| names.iter().filter_map(|n| doe(this, n)).cloned().collect())
+        .collect();
     let snapshot = this.clone();
     let all = this.degrees_of_equivalence.iter_mut().chain(
         this.pilot
@@ -243,14 +277,20 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
         let mut u_linked = Vec::with_capacity(positions);
         for k in 0..positions {
             let u_d = standard_u(d, k);
-            let covariance: f64 = linking
+            let covariance: f64 = linking[k]
                 .iter()
                 .zip(weights[k].iter())
                 .map(|(j, a)| a * doe_covariance(&snapshot, d, j, k))
                 .sum();
             let variance = u_d * u_d + correction_u[k] * correction_u[k] - 2.0 * covariance;
-            d_linked.push(d.d[k] + correction[k]);
-            u_linked.push(2.0 * variance.max(0.0).sqrt());
+            let value = d.d[k] + correction[k];
+            d_linked.push(value);
+            // (a block not reported, or not linked: neither d nor U)
+            u_linked.push(if value.is_finite() && variance.is_finite() {
+                2.0 * variance.max(0.0).sqrt()
+            } else {
+                f64::NAN
+            });
         }
         d.d_linked = Some(d_linked);
         d.expanded_u_linked = Some(u_linked);

@@ -61,6 +61,7 @@
 //! one). With a laboratory's covariance, u(d_i)² is the diagonal of V_i ∓ (Σ V_j⁺)⁺.
 
 mod anonymise;
+mod blocks;
 pub(crate) mod closed;
 mod closure;
 mod covariance;
@@ -72,10 +73,12 @@ mod json;
 mod link;
 mod monte_carlo;
 mod names;
+mod nullable;
 mod pairs;
 mod reference;
 mod scaled;
 mod search;
+mod wording;
 
 use serde::{Deserialize, Serialize};
 
@@ -90,10 +93,12 @@ pub use evaluate::evaluate;
 pub use input::MIN_STANDARD_U_ARCSEC;
 pub use json::{KcJsonError, KeyComparisonShapeError, read_json};
 pub use link::{Link, link};
+pub use nullable::is_given;
 pub use pairs::{Pairs, PairsIter};
 pub use reference::chi2_text;
 pub use reference::{chi2_quantile_95, closed_covariance};
 pub use search::{SearchMethod, SearchStep, SubsetSearch};
+pub use wording::Wording;
 
 /// How the reference value of each quantity is formed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -152,7 +157,7 @@ pub enum KcNameError {
     #[error("method {0:?}: expected weighted-mean, dersimonian-laird or mandel-paule")]
     Method(String),
     /// Not the name of a compared quantity.
-    #[error("quantity {0:?}: expected pitch_deviation or encoder_error")]
+    #[error("quantity {0:?}: expected pitch_deviation, encoder_error or angle_block")]
     Quantity(String),
 }
 
@@ -174,8 +179,9 @@ impl std::str::FromStr for ReferenceMethod {
     }
 }
 
-/// The quantity a key comparison compares, by its name: `pitch_deviation` or
-/// `encoder_error` (exactly; face deviations and setup errors are not compared).
+/// The quantity a key comparison compares, by its name: `pitch_deviation`,
+/// `encoder_error` or `angle_block` (exactly; face deviations and setup errors are not
+/// compared).
 ///
 /// # Errors
 ///
@@ -187,10 +193,14 @@ impl std::str::FromStr for ReferenceMethod {
 /// assert!(polycal::kc::compared_quantity("face_deviation").is_err());
 /// ```
 pub fn compared_quantity(name: &str) -> Result<Quantity, KcNameError> {
-    [Quantity::PitchDeviation, Quantity::EncoderError]
-        .into_iter()
-        .find(|q| q.name() == name)
-        .ok_or_else(|| KcNameError::Quantity(name.to_string()))
+    [
+        Quantity::PitchDeviation,
+        Quantity::EncoderError,
+        Quantity::AngleBlock,
+    ]
+    .into_iter()
+    .find(|q| q.name() == name)
+    .ok_or_else(|| KcNameError::Quantity(name.to_string()))
 }
 
 /// Options of a key comparison: [`KcOptions::new`] and the `with_…` methods.
@@ -357,30 +367,24 @@ pub struct VectorTest {
     /// Whether χ² ≤ χ²_{0.95}(ν).
     pub consistent: bool,
     /// χ²_{0.95}(ν).
+    #[serde(deserialize_with = "nullable::quantile")]
     pub chi2_critical: f64,
     /// The GLS reference vector x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i, arcseconds (empty for a
-    /// pair's test, whose reference is of no use).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    /// pair's test, whose reference is of no use; NaN, `null` in the JSON, for an angle
+    /// block no laboratory in the reference reports).
+    #[serde(
+        default,
+        skip_serializing_if = "Vec::is_empty",
+        deserialize_with = "nullable::numbers"
+    )]
     pub reference: Vec<f64>,
 }
 
 impl VectorTest {
-    /// The test in words, as the text table and the DCC state it: the covariance used,
-    /// χ², ν and χ²_0.95(ν) (two decimals, as the report states numbers without U) and
-    /// the verdict, `consistent` or `not consistent`, without a final stop.
+    /// The test of a closed vector in words ([`Wording::statement`]; a comparison's
+    /// own words are [`KeyComparison::vector_statement`]).
     pub fn statement(&self) -> String {
-        format!(
-            "Closed vector (GLS, V_i = N/(N−1)·P·diag(u²)·P unless the laboratory sent its \
-             covariance, P = I − J/N): χ² = {}, ν = (N − 1)(n − 1) = {}, χ²_0.95(ν) = {:.2}: {}",
-            chi2_text(self.chi2, 2),
-            self.dof,
-            self.chi2_critical,
-            if self.consistent {
-                "consistent"
-            } else {
-                "not consistent"
-            }
-        )
+        Wording::of(Quantity::PitchDeviation).statement(self)
     }
 }
 
@@ -390,27 +394,43 @@ impl VectorTest {
 pub struct DegreeOfEquivalence {
     /// The laboratory.
     pub lab: String,
-    /// d_i = x_i − x_ref per quantity, arcseconds.
+    /// d_i = x_i − x_ref per quantity, arcseconds (NaN, `null` in the JSON, where the
+    /// laboratory does not report an angle block).
+    #[serde(deserialize_with = "nullable::numbers")]
     pub d: Vec<f64>,
-    /// U(d_i) at k = 2 per quantity, arcseconds.
-    #[serde(rename = "U")]
+    /// U(d_i) at k = 2 per quantity, arcseconds (NaN where `d` is).
+    #[serde(rename = "U", deserialize_with = "nullable::numbers")]
     pub expanded_u: Vec<f64>,
     /// Whether the laboratory is in the reference.
     pub in_reference: bool,
     /// d_i against the linked reference (d_i + Δ per quantity, arcseconds), when the
     /// comparison is linked to another ([`link`]).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "nullable::optional_numbers"
+    )]
     pub d_linked: Option<Vec<f64>>,
     /// U of `d_linked` at k = 2 per quantity, arcseconds.
-    #[serde(rename = "U_linked", default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        rename = "U_linked",
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "nullable::optional_numbers"
+    )]
     pub expanded_u_linked: Option<Vec<f64>>,
     /// The Welch–Satterthwaite degrees of freedom of d_i per quantity (`None` in a list
     /// entry: infinitely many), when some laboratory states the degrees of freedom of its
     /// u (column `dof`); U is then k·u(d_i) with k below.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dof_effective: Option<Vec<Option<f64>>>,
-    /// The coverage factor k = t_95.45(ν_eff) of U per quantity, with `dof_effective`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// The coverage factor k = t_95.45(ν_eff) of U per quantity, with `dof_effective`
+    /// (NaN, `null` in the JSON, where the laboratory does not report an angle block).
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "nullable::optional_numbers"
+    )]
     pub k: Option<Vec<f64>>,
 }
 
@@ -423,11 +443,13 @@ pub struct PairDifference {
     pub a: String,
     /// The second.
     pub b: String,
-    /// d_ab per quantity, arcseconds.
+    /// d_ab per quantity, arcseconds (NaN, `null` in the JSON, where either does not
+    /// report an angle block).
+    #[serde(deserialize_with = "nullable::numbers")]
     pub d: Vec<f64>,
     /// U(d_ab) at k = 2 per quantity, arcseconds: both laboratories' u, the pilot's
-    /// stability u_stab and the dark uncertainty τ, each laboratory's.
-    #[serde(rename = "U")]
+    /// stability u_stab and the dark uncertainty τ, each laboratory's (NaN where `d` is).
+    #[serde(rename = "U", deserialize_with = "nullable::numbers")]
     pub expanded_u: Vec<f64>,
     /// The pair's closed-vector test at 5 %: χ² = d_abᵀ (V_a + V_b)⁺ d_ab with
     /// ν = N − 1, the covariances as in U(d_ab). Whether the two laboratories agree is
@@ -513,18 +535,26 @@ pub struct KeyComparison {
     /// The table angle of each common encoder error, degrees (when matched by angle).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub angle_deg: Option<Vec<f64>>,
+    /// The nominal angle of each angle block, degrees, where the results state it (`None`
+    /// in a list entry: not stated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nominal_deg: Option<Vec<Option<f64>>>,
     /// The laboratories, in the order given.
     pub labs: Vec<String>,
-    /// The reference value per quantity, arcseconds.
+    /// The reference value per quantity, arcseconds (NaN, `null` in the JSON, for an angle
+    /// block no laboratory in the reference reports).
+    #[serde(deserialize_with = "nullable::numbers")]
     pub reference: Vec<f64>,
     /// Its standard uncertainty per quantity (with u_stab where the pilot's repeats call
     /// for it), arcseconds.
+    #[serde(deserialize_with = "nullable::numbers")]
     pub reference_u: Vec<f64>,
     /// χ² per quantity, about the weighted mean of the laboratories in the reference.
     pub chi2: Vec<f64>,
     /// n − 1 per quantity.
     pub chi2_dof: Vec<usize>,
-    /// χ²_{0.95}(n − 1) per quantity.
+    /// χ²_{0.95}(n − 1) per quantity (+∞, `null` in the JSON, where n = 1).
+    #[serde(deserialize_with = "nullable::quantiles")]
     pub chi2_critical: Vec<f64>,
     /// Whether χ² ≤ χ²_{0.95}(n − 1) per quantity.
     pub consistent: Vec<bool>,
@@ -574,11 +604,21 @@ pub struct KeyComparison {
 }
 
 impl KeyComparison {
-    /// The closed vector's test in words ([`VectorTest::statement`]) of the laboratories
-    /// in the reference, or why it was not tested.
+    /// The words of this comparison's quantity ([`Wording`]).
+    pub fn wording(&self) -> Wording {
+        Wording::of(self.quantity)
+    }
+
+    /// A test of this comparison in words ([`Wording::statement`]).
+    pub fn vector_statement(&self, v: &VectorTest) -> String {
+        self.wording().statement(v)
+    }
+
+    /// The closed vector's (or the blocks' joint) test in words of the laboratories in
+    /// the reference, or why it was not tested.
     pub fn closed_vector_statement(&self) -> String {
         match &self.vector {
-            Some(v) => v.statement(),
+            Some(v) => self.vector_statement(v),
             None => format!(
                 "Closed vector: not tested ({} is not a closed vector)",
                 self.quantity.name()
@@ -591,17 +631,18 @@ impl KeyComparison {
     pub fn pilot_statement(&self) -> Option<String> {
         let p = self.pilot.as_ref()?;
         let names = p.repeats.join(", ");
+        let whole = self.wording().whole();
         Some(match &p.vector {
             Some(v) if v.consistent => format!(
-                "The pilot's repeats ({names}) agree: their closed vector χ² = {} ≤ \
+                "The pilot's repeats ({names}) agree: their {whole} χ² = {} ≤ \
                  χ²_0.95({}) = {:.2}; the artefact is taken as stable (u_stab = 0)",
                 chi2_text(v.chi2, 2),
                 v.dof,
                 v.chi2_critical
             ),
             Some(v) => format!(
-                "The pilot's repeats ({names}) differ beyond their uncertainties: their closed \
-                 vector χ² = {} > χ²_0.95({}) = {:.2}; the artefact is taken as unstable, \
+                "The pilot's repeats ({names}) differ beyond their uncertainties: their {whole} \
+                 χ² = {} > χ²_0.95({}) = {:.2}; the artefact is taken as unstable, \
                  and the repeats' sample standard deviation on each quantity (u_stab) is added \
                  in quadrature to every laboratory's u: in the reference, in every test and in \
                  the search for laboratories to leave out, so that none is left out for the \
@@ -620,9 +661,10 @@ impl KeyComparison {
     pub fn verdict_statement(&self) -> String {
         // the laboratories the one test is of: all but those kept out of the reference
         let n = self.labs.len().saturating_sub(self.not_in_reference.len());
+        let whole = self.wording().whole();
         let all = match &self.vector_all {
             Some(v) => format!(
-                "the closed vector of all {n} laboratories {} (χ² = {} {} χ²_0.95({}) = {:.2})",
+                "the {whole} of all {n} laboratories {} (χ² = {} {} χ²_0.95({}) = {:.2})",
                 if v.consistent {
                     "passes its test at 5 %"
                 } else {
@@ -633,7 +675,7 @@ impl KeyComparison {
                 v.dof,
                 v.chi2_critical
             ),
-            None => "the closed vector of every laboratory was not tested".to_string(),
+            None => format!("the {whole} of every laboratory was not tested"),
         };
         if self.method.is_random_effects() {
             let title = self.method.title();

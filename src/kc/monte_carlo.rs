@@ -40,6 +40,31 @@ pub(crate) struct Model<'a> {
     pub inside: &'a [usize],
     /// The method, whose estimate is made again in every draw.
     pub method: ReferenceMethod,
+    /// Whether the results are closed vectors (else angle blocks, each on its own).
+    pub closed: bool,
+    /// Whether each result reports each quantity (`None`: all of them).
+    pub measured: Option<&'a [Vec<bool>]>,
+}
+
+impl Model<'_> {
+    /// Whether result `r` reports quantity `k`.
+    fn reports(&self, r: usize, k: usize) -> bool {
+        self.measured
+            .is_none_or(|m| m.get(r).and_then(|m| m.get(k)).copied().unwrap_or(false))
+    }
+
+    /// Normal noise with standard deviations `u`: closed for closed vectors.
+    fn noise(&self, rng: &mut ChaCha8Rng, u: &[f64]) -> Vec<f64> {
+        if self.closed {
+            return closed_noise(rng, u);
+        }
+        u.iter()
+            .map(|u| {
+                let z: f64 = StandardNormal.sample(rng);
+                u * z
+            })
+            .collect()
+    }
 }
 
 /// The Monte Carlo U of every result's degree of equivalence (per result, per quantity)
@@ -76,8 +101,17 @@ fn tau_of(model: &Model, y: &[Vec<f64>]) -> Vec<f64> {
     }
     (0..positions)
         .map(|k| {
-            let x: Vec<f64> = model.inside.iter().map(|&r| y[r][k]).collect();
-            let u: Vec<f64> = model.inside.iter().map(|&r| model.u[r][k]).collect();
+            let inside: Vec<usize> = model
+                .inside
+                .iter()
+                .copied()
+                .filter(|&r| model.reports(r, k))
+                .collect();
+            if inside.is_empty() {
+                return 0.0;
+            }
+            let x: Vec<f64> = inside.iter().map(|&r| y[r][k]).collect();
+            let u: Vec<f64> = inside.iter().map(|&r| model.u[r][k]).collect();
             reference::estimate(&x, &u, model.method).tau
         })
         .collect()
@@ -87,8 +121,8 @@ fn tau_of(model: &Model, y: &[Vec<f64>]) -> Vec<f64> {
 fn draw(rng: &mut ChaCha8Rng, model: &Model, tau: &[f64]) -> Vec<Vec<f64>> {
     (0..model.u.len())
         .map(|r| {
-            let effect = closed_noise(rng, tau);
-            let noise = closed_noise(rng, &model.u[r]);
+            let effect = model.noise(rng, tau);
+            let noise = model.noise(rng, &model.u[r]);
             (0..model.reference.len())
                 .map(|k| model.reference[k] + effect[k] + noise[k])
                 .collect()
@@ -103,13 +137,17 @@ fn reference_of(model: &Model, y: &[Vec<f64>]) -> Option<Vec<f64>> {
         .inside
         .iter()
         .map(|&r| {
-            ClosedCovariance::Stated(
-                model.u[r]
-                    .iter()
-                    .zip(&tau)
-                    .map(|(u, t)| u.hypot(*t))
-                    .collect(),
-            )
+            let u = model.u[r].iter().zip(&tau).enumerate().map(|(k, (u, t))| {
+                match (model.closed, model.reports(r, k)) {
+                    (true, _) | (false, true) => u.hypot(*t),
+                    (false, false) => f64::INFINITY,
+                }
+            });
+            if model.closed {
+                ClosedCovariance::Stated(u.collect())
+            } else {
+                ClosedCovariance::Independent(u.collect())
+            }
         })
         .collect();
     let x: Vec<&[f64]> = model.inside.iter().map(|&r| y[r].as_slice()).collect();
@@ -117,8 +155,12 @@ fn reference_of(model: &Model, y: &[Vec<f64>]) -> Option<Vec<f64>> {
     closed::fit(&x, &v).map(|fit| fit.reference)
 }
 
-/// The 95.45 % quantile of `magnitudes` (reordered).
+/// The 95.45 % quantile of `magnitudes` (reordered); NaN for none (a block the result
+/// does not report).
 fn quantile_9545(magnitudes: &mut [f64]) -> f64 {
+    if magnitudes.is_empty() {
+        return f64::NAN;
+    }
     let at = ((magnitudes.len() as f64 * 0.9545).ceil() as usize).clamp(1, magnitudes.len()) - 1;
     let (_, value, _) = magnitudes.select_nth_unstable_by(at, f64::total_cmp);
     *value
@@ -144,7 +186,9 @@ pub(crate) fn run(model: &Model, draws: usize) -> Option<Draws> {
             sum[k] += reference[k];
             sum_squares[k] += reference[k] * reference[k];
             for r in 0..results {
-                magnitudes[r][k].push((y[r][k] - reference[k]).abs());
+                if model.reports(r, k) {
+                    magnitudes[r][k].push((y[r][k] - reference[k]).abs());
+                }
             }
         }
     }
@@ -152,6 +196,9 @@ pub(crate) fn run(model: &Model, draws: usize) -> Option<Draws> {
     let reference_u = (0..positions)
         .map(|k| {
             let mean = sum[k] / m;
+            if !mean.is_finite() {
+                return f64::NAN; // a block nobody in the reference reports
+            }
             ((sum_squares[k] / m - mean * mean).max(0.0) * m / (m - 1.0)).sqrt()
         })
         .collect();
@@ -215,15 +262,16 @@ pub(crate) fn apply(
     comparison.reference_u = found.reference_u.iter().map(|u| u * scale).collect();
     comparison.notes.push(format!(
         "every U(d_i) and u_ref by Monte Carlo: {draws} draws from the fitted model (the \
-         reference{}, each result's closed noise with its u), the reference evaluated again \
+         reference{}, each result's {}noise with its u), the reference evaluated again \
          in every draw{}; U is the 95.45 % quantile of |d_i| (k = 2 for a normal law), u_ref \
          the standard deviation of the drawn references; seed {} (the same inputs give the same \
          U); the pairs' U stay 2·√(u_i² + u_j² + …)",
-        if model.method.is_random_effects() {
-            ", a closed laboratory effect with the dark uncertainty τ"
-        } else {
-            ""
+        match (model.method.is_random_effects(), model.closed) {
+            (true, true) => ", a closed laboratory effect with the dark uncertainty τ",
+            (true, false) => ", a laboratory effect with the dark uncertainty τ",
+            (false, _) => "",
         },
+        if model.closed { "closed " } else { "" },
         if model.method.is_random_effects() {
             " with τ estimated again, so that τ's own uncertainty is in U"
         } else {

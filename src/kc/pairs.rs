@@ -59,7 +59,15 @@ impl Formed {
             expanded_u: self.variances[a]
                 .iter()
                 .zip(&self.variances[b])
-                .map(|(v_a, v_b)| 2.0 * (v_a + v_b).sqrt() * scale)
+                .map(|(v_a, v_b)| {
+                    let v = v_a + v_b;
+                    // not reported by either (an angle block): no U, as no d
+                    if v.is_finite() {
+                        2.0 * v.sqrt() * scale
+                    } else {
+                        f64::NAN
+                    }
+                })
                 .collect(),
             vector: self.vectors.get(at).cloned().flatten(),
         }

@@ -27,6 +27,11 @@ pub(crate) struct Scaled<'a> {
     /// The pilot's stability u_stab per quantity, in units of `scale` (0 unless the
     /// repeats' test failed): in every result's covariance.
     pub(crate) stability: Vec<f64>,
+    /// Whether the positions make a closed vector; else scalars each on its own (angle
+    /// blocks).
+    pub(crate) closed: bool,
+    /// Whether each result reports each position (`None`: all of them).
+    pub(crate) measured: Option<Vec<Vec<bool>>>,
 }
 
 impl<'a> Scaled<'a> {
@@ -53,7 +58,10 @@ impl<'a> Scaled<'a> {
         let values: Vec<Vec<f64>> = aligned
             .values
             .iter()
-            .map(|x| closed(x).iter().map(|x| x / scale).collect())
+            .map(|x| {
+                let x = if aligned.closed { closed(x) } else { x.clone() };
+                x.iter().map(|x| x / scale).collect()
+            })
             .collect();
         let u: Vec<Vec<f64>> = aligned
             .u
@@ -68,7 +76,26 @@ impl<'a> Scaled<'a> {
             u,
             positions: aligned.index.len(),
             stability: vec![0.0; aligned.index.len()],
+            closed: aligned.closed,
+            measured: aligned.measured.clone(),
         }
+    }
+
+    /// Whether result `r` reports position `k`.
+    pub(crate) fn is_measured(&self, r: usize, k: usize) -> bool {
+        self.measured
+            .as_ref()
+            .is_none_or(|m| m.get(r).and_then(|m| m.get(k)).copied().unwrap_or(false))
+    }
+
+    /// Result `r`'s values, NaN where it does not report a position (what the pairs are
+    /// formed from).
+    pub(crate) fn reported_values(&self, r: usize) -> Vec<f64> {
+        self.values[r]
+            .iter()
+            .enumerate()
+            .map(|(k, x)| if self.is_measured(r, k) { *x } else { f64::NAN })
+            .collect()
     }
 
     /// Every result's standard uncertainties with the pilot's stability u_stab in them,
@@ -103,6 +130,22 @@ impl<'a> Scaled<'a> {
                 .collect(),
         };
         let widened = extra.iter().any(|e| *e > 0.0);
+        if !self.closed {
+            return Ok(ClosedCovariance::Independent(
+                self.u[r]
+                    .iter()
+                    .zip(&extra)
+                    .enumerate()
+                    .map(|(k, (u, e))| {
+                        if self.is_measured(r, k) {
+                            u.hypot(*e)
+                        } else {
+                            f64::INFINITY
+                        }
+                    })
+                    .collect(),
+            ));
+        }
         match self.covariances.get(r).and_then(Option::as_ref) {
             None => Ok(ClosedCovariance::Stated(
                 self.u[r]
@@ -148,7 +191,10 @@ impl<'a> Scaled<'a> {
         let scale = self.scale;
         let diagonal = reference.widened[r].diagonal();
         let sign = if inside_reference { -1.0 } else { 1.0 };
-        let d = self.values[r]
+        // NaN where the result does not report the position (or nobody in the reference
+        // does): no degree of equivalence there (null in the JSON)
+        let d = self
+            .reported_values(r)
             .iter()
             .zip(&fit.reference)
             .map(|(x, x_ref)| (x - x_ref) * scale)
@@ -156,7 +202,14 @@ impl<'a> Scaled<'a> {
         let expanded_u = diagonal
             .iter()
             .zip(&fit.reference_variance)
-            .map(|(v, v_ref)| 2.0 * ((v + sign * v_ref).max(0.0) * scale * scale).sqrt())
+            .enumerate()
+            .map(|(k, (v, v_ref))| {
+                if self.is_measured(r, k) && v.is_finite() && v_ref.is_finite() {
+                    2.0 * ((v + sign * v_ref).max(0.0) * scale * scale).sqrt()
+                } else {
+                    f64::NAN
+                }
+            })
             .collect();
         DegreeOfEquivalence {
             lab,

@@ -87,12 +87,18 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
         "Angle °"
     } else if kc.quantity == crate::results::Quantity::PitchDeviation {
         "Face"
+    } else if kc.quantity == crate::results::Quantity::AngleBlock {
+        "Block"
     } else {
         "Index"
     };
-    let at = |k: usize| match &kc.angle_deg {
-        Some(angles) => format!("{:.4}", angles[k]),
-        None => kc.index[k].to_string(),
+    let at = |k: usize| match (&kc.angle_deg, &kc.nominal_deg) {
+        (Some(angles), _) => format!("{:.4}", angles[k]),
+        (None, Some(nominal)) => match nominal.get(k).copied().flatten() {
+            Some(degrees) => format!("{} ({degrees}°)", kc.index[k]),
+            None => kc.index[k].to_string(),
+        },
+        (None, None) => kc.index[k].to_string(),
     };
     writeln!(
         out,
@@ -128,8 +134,8 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
                 } else {
                     ""
                 };
-                row.push(format!("{:.3}{star}", doe.d[k]));
-                row.push(format!("{:.3}", doe.expanded_u[k]));
+                row.push(format!("{}{star}", number(doe.d[k], 3)));
+                row.push(number(doe.expanded_u[k], 3));
             }
             row
         })
@@ -172,31 +178,42 @@ fn write_table_text<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
     writeln!(out, "{}", kc.verdict_statement())
 }
 
+/// A number with `decimals` decimals, or "—" where none is given (a degree of
+/// equivalence where a laboratory does not report an angle block; χ²_0.95(0)).
+fn number(x: f64, decimals: usize) -> String {
+    if crate::kc::is_given(x) {
+        format!("{x:.decimals$}")
+    } else {
+        "—".to_string()
+    }
+}
+
 /// The reference method and the decision, in words.
 fn write_method<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
+    let (reference, whole) = (kc.wording().reference(), kc.wording().whole());
     match kc.method {
         ReferenceMethod::WeightedMean => writeln!(
             out,
-            "Reference: the closed GLS reference of the laboratories in it; with one u per \
+            "Reference: the {reference} of the laboratories in it; with one u per \
              laboratory the weighted mean x_ref = Σ x_i/u_i² / Σ 1/u_i², u_ref = (Σ 1/u_i²)^(-1/2) \
              (Cox 2002, procedure A)\n\
-             Decision: one test at 5 %, the closed vector of every laboratory; when it fails, the \
+             Decision: one test at 5 %, the {whole} of every laboratory; when it fails, the \
              largest subset that passes (docs/FORMAT.md §12)"
         )?,
         ReferenceMethod::MandelPaule => writeln!(
             out,
             "Reference: Mandel–Paule, every u_i² widened by τ² such that Σ (x_i − x_ref)²/(u_i²+τ²) \
              = n − 1 (the dark uncertainty of each quantity; τ = 0 when χ² ≤ n − 1), then the \
-             closed GLS reference\n\
-             Decision: the test of τ = 0 at 5 %, the closed vector of every laboratory; nobody is \
+             {reference}\n\
+             Decision: the test of τ = 0 at 5 %, the {whole} of every laboratory; nobody is \
              left out (docs/FORMAT.md §12)"
         )?,
         _ => writeln!(
             out,
             "Reference: DerSimonian–Laird, every u_i² widened by τ² = max(0, (χ² − ν)/(S1 − S2/S1)) \
-             (the dark uncertainty of each quantity), then the closed GLS reference; with one u \
+             (the dark uncertainty of each quantity), then the {reference}; with one u \
              per laboratory x_ref = Σ x_i/(u_i²+τ²) / Σ 1/(u_i²+τ²), u_ref² = 1/Σ 1/(u_i²+τ²)\n\
-             Decision: the test of τ = 0 at 5 %, the closed vector of every laboratory; nobody is \
+             Decision: the test of τ = 0 at 5 %, the {whole} of every laboratory; nobody is \
              left out (docs/FORMAT.md §12)"
         )?,
     }
@@ -230,12 +247,12 @@ fn write_reference_table<W: Write>(
         .map(|k| {
             [
                 at(k),
-                format!("{:.3}", kc.reference[k]),
-                format!("{:.3}", kc.reference_u[k]),
+                number(kc.reference[k], 3),
+                number(kc.reference_u[k], 3),
                 format!("{:.3}", kc.tau[k]),
                 chi2_text(kc.chi2[k], 2),
                 kc.chi2_dof[k].to_string(),
-                format!("{:.2}", kc.chi2_critical[k]),
+                number(kc.chi2_critical[k], 2),
                 if kc.consistent[k] { "yes" } else { "no" }.to_string(),
             ]
         })
@@ -256,7 +273,7 @@ fn write_decision<W: Write>(out: &mut W, kc: &KeyComparison) -> fmt::Result {
         } else {
             "Every laboratory but those kept out of the reference"
         };
-        writeln!(out, "{who}: {}", v.statement())?;
+        writeln!(out, "{who}: {}", kc.vector_statement(v))?;
     }
     if let Some(search) = &kc.search {
         writeln!(
@@ -335,13 +352,13 @@ fn write_link(
         .map(|k| {
             let mut row = vec![
                 at(k),
-                format!("{:.3}", link.correction[k]),
-                format!("{:.3}", link.correction_u[k]),
+                number(link.correction[k], 3),
+                number(link.correction_u[k], 3),
             ];
             for doe in labs {
                 let (d, u) = (doe.d_linked.as_ref(), doe.expanded_u_linked.as_ref());
-                row.push(d.map_or_else(String::new, |d| format!("{:.3}", d[k])));
-                row.push(u.map_or_else(String::new, |u| format!("{:.3}", u[k])));
+                row.push(d.map_or_else(String::new, |d| number(d[k], 3)));
+                row.push(u.map_or_else(String::new, |u| number(u[k], 3)));
             }
             row
         })
@@ -371,11 +388,15 @@ fn write_pairs(out: &mut impl std::fmt::Write, kc: &KeyComparison) -> std::fmt::
             )
         })
         .collect();
+    let what = if kc.wording().is_closed() {
+        format!("closed vector d_ij tested at 5 % (ν = {}", tested[0].2.dof)
+    } else {
+        "blocks tested at 5 % over the blocks both report (ν their number".to_string()
+    };
     writeln!(
         out,
-        "Pairs: each pair's closed vector d_ij tested at 5 % (ν = {}; its own decision, about \
-         1 pair in 20 fails by chance): {} of {} fail{}{}",
-        tested[0].2.dof,
+        "Pairs: each pair's {what}; its own decision, about 1 pair in 20 fails by chance): {} \
+         of {} fail{}{}",
         failing.len(),
         tested.len(),
         if failing.is_empty() { "" } else { ": " },
@@ -436,6 +457,9 @@ pub fn write_csv<W: std::io::Write>(writer: W, kc: &KeyComparison) -> Result<(),
     let pilot = kc.pilot.iter().flat_map(|p| &p.degrees_of_equivalence);
     for doe in kc.degrees_of_equivalence.iter().chain(pilot) {
         for k in 0..kc.index.len() {
+            if !crate::kc::is_given(doe.d[k]) {
+                continue; // an angle block the laboratory does not report
+            }
             csv.write_record([
                 text_cell(&doe.lab),
                 kc.index[k].to_string(),

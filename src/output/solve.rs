@@ -322,6 +322,7 @@ pub fn result_rows_with(
                     k: None,
                     angle_deg,
                     dof: None,
+                    nominal_deg: None,
                 },
                 Some(unc) => {
                     let family = unc.families()[f].1;
@@ -337,6 +338,7 @@ pub fn result_rows_with(
                         k: Some(k),
                         angle_deg,
                         dof: None,
+                        nominal_deg: None,
                     }
                 }
             };

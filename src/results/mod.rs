@@ -39,14 +39,14 @@ mod read;
 
 pub(crate) use angle::{AngleCheck, AngleProblem};
 
-/// The four families of calibrated quantities (docs/FORMAT.md §3), the crate's one list
+/// The families of calibrated quantities (docs/FORMAT.md §3), the crate's one list
 /// of them: result files, reports, uncertainties and truths name them through this type.
 ///
 /// ```
 /// use polycal::results::Quantity;
 /// assert_eq!(Quantity::EncoderError.name(), "encoder_error");
 /// assert_eq!(Quantity::from_name("pitch_deviation"), Some(Quantity::PitchDeviation));
-/// assert_eq!(Quantity::ALL.len(), 4);
+/// assert_eq!(Quantity::ALL.len(), 5);
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -60,15 +60,19 @@ pub enum Quantity {
     /// U\[setup, ac\], setup error of an autocollimator (index: ac, or setup·1000 + ac
     /// with several mountings).
     SetupError,
+    /// The deviation of angle block b = 1, 2, … from its nominal angle: a single angle, not
+    /// part of a closed vector (a key comparison's blocks, docs/FORMAT.md §3 and §12).
+    AngleBlock,
 }
 
 impl Quantity {
-    /// The four families in the order results are written.
-    pub const ALL: [Quantity; 4] = [
+    /// The five families in the order results are written.
+    pub const ALL: [Quantity; 5] = [
         Quantity::PitchDeviation,
         Quantity::FaceDeviation,
         Quantity::EncoderError,
         Quantity::SetupError,
+        Quantity::AngleBlock,
     ];
 
     /// The name as spelled in files and JSON, e.g. `pitch_deviation`.
@@ -78,6 +82,7 @@ impl Quantity {
             Quantity::FaceDeviation => "face_deviation",
             Quantity::EncoderError => "encoder_error",
             Quantity::SetupError => "setup_error",
+            Quantity::AngleBlock => "angle_block",
         }
     }
 
@@ -122,6 +127,10 @@ pub struct ResultRow {
     /// `None` for infinitely many (a key comparison's Welch–Satterthwaite ν uses them).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dof: Option<f64>,
+    /// For `angle_block` rows: the block's nominal angle, degrees, 0 < angle < 360 (column
+    /// `nominal_deg`); `None` on every other row.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nominal_deg: Option<f64>,
 }
 
 impl ResultRow {
@@ -145,6 +154,7 @@ impl ResultRow {
             k: None,
             angle_deg: None,
             dof: None,
+            nominal_deg: None,
         }
     }
 
@@ -169,6 +179,13 @@ impl ResultRow {
     /// With the degrees of freedom ν of its standard uncertainty (ν > 0).
     pub fn with_dof(mut self, dof: f64) -> ResultRow {
         self.dof = Some(dof);
+        self
+    }
+
+    /// With the nominal angle of an angle block, degrees (checked when the row is written or
+    /// read: 0 < angle < 360, `angle_block` rows only).
+    pub fn with_nominal_deg(mut self, nominal_deg: f64) -> ResultRow {
+        self.nominal_deg = Some(nominal_deg);
         self
     }
 
@@ -312,6 +329,24 @@ pub fn check_rows(rows: &[ResultRow]) -> Result<(), RowsError> {
                 });
             }
         }
+        if let Some(nominal_deg) = row.nominal_deg
+            && (row.quantity != Quantity::AngleBlock || !(nominal_deg > 0.0 && nominal_deg < 360.0))
+        {
+            return Err(RowsError::Nominal {
+                quantity: row.quantity,
+                index: row.index,
+                nominal_deg,
+            });
+        }
+        if let Some(dof) = row.dof
+            && !(dof > 0.0 && dof.is_finite())
+        {
+            return Err(RowsError::Dof {
+                quantity: row.quantity,
+                index: row.index,
+                dof,
+            });
+        }
         if let Err(problem) = angles.admit(i, row) {
             let place = |i: usize| format!("row {}", i + 1);
             return Err(RowsError::Angle {
@@ -331,7 +366,7 @@ pub fn check_rows(rows: &[ResultRow]) -> Result<(), RowsError> {
 ///
 /// let row = ResultRow {
 ///     quantity: Quantity::PitchDeviation, index: 3, value: 1e300,
-///     u: None, expanded_u: None, k: None, angle_deg: None, dof: None,
+///     u: None, expanded_u: None, k: None, angle_deg: None, dof: None, nominal_deg: None,
 /// };
 /// let refused = check_rows(&[row]).unwrap_err();
 /// assert!(matches!(refused, RowsError::Number { index: 3, column: "value", .. }));
@@ -352,6 +387,30 @@ pub enum RowsError {
         /// The rule the number breaks.
         rule: limits::LimitError,
     },
+    /// A nominal angle that is not an angle block's (0 < angle < 360 degrees, on an
+    /// `angle_block` row).
+    #[error(
+        "{quantity} {index}: nominal_deg: {nominal_deg} is not an angle block's nominal angle \
+         (0 < nominal_deg < 360 degrees, on angle_block rows only)"
+    )]
+    Nominal {
+        /// The quantity of the row.
+        quantity: Quantity,
+        /// Its index.
+        index: u32,
+        /// The nominal angle given, degrees.
+        nominal_deg: f64,
+    },
+    /// Degrees of freedom that are not a positive, finite number.
+    #[error("{quantity} {index}: dof: {dof} is not a positive number of degrees of freedom")]
+    Dof {
+        /// The quantity of the row.
+        quantity: Quantity,
+        /// Its index.
+        index: u32,
+        /// The degrees of freedom given.
+        dof: f64,
+    },
     /// A row that breaks the rules of `angle_deg` (those of [`read_results_from`]).
     #[error("row {row}: {message}")]
     Angle {
@@ -362,9 +421,11 @@ pub enum RowsError {
     },
 }
 
-/// Writes rows as a result file: header `quantity,index,value,U,u,k,angle_deg`, numbers in
-/// Rust's shortest round-trip representation (`{}`), `None` as an empty field (so
-/// `angle_deg` is empty on every row but the encoder errors that carry their angle).
+/// Writes rows as a result file: header `quantity,index,value,U,u,k,angle_deg` (then `dof`
+/// when a row states its degrees of freedom, `nominal_deg` when an angle block states its
+/// nominal angle), numbers in Rust's shortest round-trip representation (`{}`), `None` as an
+/// empty field (so `angle_deg` is empty on every row but the encoder errors that carry
+/// their angle).
 ///
 /// # Errors
 ///
@@ -382,22 +443,26 @@ pub fn write_results<W: Write>(w: W, rows: &[ResultRow]) -> std::io::Result<()> 
         csv::ErrorKind::Io(e) => e,
         other => std::io::Error::other(format!("{other:?}")),
     };
-    writer
-        .write_record(["quantity", "index", "value", "U", "u", "k", "angle_deg"])
-        .map_err(to_io)?;
+    let with_dof = rows.iter().any(|r| r.dof.is_some());
+    let with_nominal = rows.iter().any(|r| r.nominal_deg.is_some());
+    let mut header = vec!["quantity", "index", "value", "U", "u", "k", "angle_deg"];
+    header.extend(with_dof.then_some("dof"));
+    header.extend(with_nominal.then_some("nominal_deg"));
+    writer.write_record(&header).map_err(to_io)?;
     let text = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x}"));
     for row in rows {
-        writer
-            .write_record([
-                row.quantity.name().to_string(),
-                row.index.to_string(),
-                text(Some(row.value)),
-                text(row.expanded_u),
-                text(row.u),
-                text(row.k),
-                text(row.angle_deg),
-            ])
-            .map_err(to_io)?;
+        let mut record = vec![
+            row.quantity.name().to_string(),
+            row.index.to_string(),
+            text(Some(row.value)),
+            text(row.expanded_u),
+            text(row.u),
+            text(row.k),
+            text(row.angle_deg),
+        ];
+        record.extend(with_dof.then(|| text(row.dof)));
+        record.extend(with_nominal.then(|| text(row.nominal_deg)));
+        writer.write_record(&record).map_err(to_io)?;
     }
     writer.flush()
 }

@@ -25,6 +25,7 @@ enum Col {
     K,
     AngleDeg,
     Dof,
+    NominalDeg,
 }
 
 impl Col {
@@ -44,6 +45,7 @@ const QUANTITY_WORDS: &[&str] = &[
     "face_deviation",
     "encoder_error",
     "setup_error",
+    "angle_block",
 ];
 
 /// What an `angle_deg` outside [0, 360) breaks, after the value in a message.
@@ -54,13 +56,22 @@ const ANGLE_RANGE: &str = "is outside 0 ≤ angle_deg < 360 degrees; write 0, no
 const DOF_RANGE: &str = "is not positive: the degrees of freedom of u are more than 0 (leave \
                          the field empty for infinitely many)";
 
+/// What a `nominal_deg` outside (0, 360) breaks, after the value in a message.
+const NOMINAL_RANGE: &str = "is outside 0 < nominal_deg < 360 degrees: an angle block's \
+                             nominal angle";
+
+/// Whether a number is an angle block's nominal angle, degrees: 0 < angle < 360.
+fn nominal_in_range(nominal_deg: f64) -> bool {
+    nominal_deg > 0.0 && nominal_deg < 360.0
+}
+
 /// Whether a number is a stated number of degrees of freedom: positive.
 fn dof_in_range(dof: f64) -> bool {
     dof > 0.0
 }
 
 /// The result file's columns (docs/FORMAT.md §3), indexed by [`Col`].
-pub(crate) const COLUMNS: [Column; 8] = [
+pub(crate) const COLUMNS: [Column; 9] = [
     Column::word("quantity", QUANTITY_WORDS, "a quantity"),
     Column::integer("index", 0, u32::MAX as u128),
     Column::number(
@@ -83,6 +94,14 @@ pub(crate) const COLUMNS: [Column; 8] = [
         Range::Within {
             contains: dof_in_range,
             broken: DOF_RANGE,
+        },
+    )
+    .optional(),
+    Column::number(
+        "nominal_deg",
+        Range::Within {
+            contains: nominal_in_range,
+            broken: NOMINAL_RANGE,
         },
     )
     .optional(),
@@ -176,10 +195,10 @@ fn result_row(row: &Row<'_>) -> Result<ResultRow, TableError> {
     };
     let index: u32 = row.integer(Col::Index.at())?;
     if index == 0 && quantity != Quantity::EncoderError {
-        let what = if quantity == Quantity::SetupError {
-            "autocollimator numbers start at 1"
-        } else {
-            "faces are numbered 1 … N"
+        let what = match quantity {
+            Quantity::SetupError => "autocollimator numbers start at 1",
+            Quantity::AngleBlock => "angle blocks are numbered 1, 2, …",
+            _ => "faces are numbered 1 … N",
         };
         return Err(row.error(
             Col::Index.at(),
@@ -197,6 +216,16 @@ fn result_row(row: &Row<'_>) -> Result<ResultRow, TableError> {
         )),
         x => Ok(x),
     };
+    let nominal_deg = row.optional_number(Col::NominalDeg.at());
+    if nominal_deg.is_some() && quantity != Quantity::AngleBlock {
+        return Err(row.error(
+            Col::NominalDeg.at(),
+            format!(
+                "column \"nominal_deg\": an angle block's nominal angle on a {quantity} row \
+                 (only angle_block rows have one)"
+            ),
+        ));
+    }
     Ok(ResultRow {
         quantity,
         index,
@@ -206,6 +235,7 @@ fn result_row(row: &Row<'_>) -> Result<ResultRow, TableError> {
         k: row.optional_number(Col::K.at()),
         angle_deg: row.optional_number(Col::AngleDeg.at()).map(|a| a + 0.0), // −0 is 0
         dof: row.optional_number(Col::Dof.at()),
+        nominal_deg,
     })
 }
 

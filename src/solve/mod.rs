@@ -441,6 +441,8 @@ impl Solution {
         let layout = &self.layout;
         let n = self.faces;
         Some(match family {
+            // not estimated by a polygon's calibration
+            Quantity::AngleBlock => return None,
             Quantity::PitchDeviation => {
                 let indices: Vec<usize> = (1..=n).map(|f| layout.pitch(f)).collect();
                 (n, block(&indices))

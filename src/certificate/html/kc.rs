@@ -73,6 +73,7 @@ fn quantity_plural(quantity: Quantity) -> &'static str {
         Quantity::EncoderError => "encoder errors α",
         Quantity::FaceDeviation => "face deviations φ",
         Quantity::SetupError => "setup errors",
+        Quantity::AngleBlock => "angle blocks' deviations from nominal",
     }
 }
 

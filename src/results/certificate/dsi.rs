@@ -60,6 +60,7 @@ impl<'a, 'input> Reader<'a, 'input> {
                 k: coverage.as_ref().and_then(|k| k.get(i).copied()),
                 angle_deg,
                 dof: None,
+                nominal_deg: None,
             };
             rows.push((row, line));
         }
@@ -323,6 +324,8 @@ impl<'a, 'input> Reader<'a, 'input> {
                 None => Ok(order(0)),
             },
             Quantity::SetupError => self.setup_indices(quantity, n),
+            // blocks 1 … n in the order of their values
+            Quantity::AngleBlock => Ok(order(1)),
         }
     }
 

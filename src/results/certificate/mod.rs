@@ -59,6 +59,7 @@ pub fn quantity_ref_type(quantity: Quantity) -> &'static str {
         Quantity::FaceDeviation => "polycal_faceDeviation",
         Quantity::EncoderError => "polycal_encoderError",
         Quantity::SetupError => "polycal_setupError",
+        Quantity::AngleBlock => "polycal_angleBlock",
     }
 }
 
