@@ -40,6 +40,11 @@ fn x_of(kc: &KeyComparison, k: usize) -> f64 {
 fn words(kc: &KeyComparison) -> (&'static str, &'static str, String) {
     match kc.quantity {
         Quantity::PitchDeviation => ("pitch deviations β", "β", "face".to_string()),
+        Quantity::AngleBlock => (
+            "angle blocks' deviations from nominal",
+            "the block",
+            "angle block".to_string(),
+        ),
         _ if kc.angle_deg.is_some() => ("encoder errors α", "α", "table angle / °".to_string()),
         _ => (
             "encoder errors α",
@@ -80,7 +85,9 @@ fn doe_series(
         label,
         marker,
         dx_px,
+        // (a block the laboratory does not report has no point, as it has no d)
         points: (0..kc.index.len())
+            .filter(|&k| crate::kc::is_given(doe.d[k]))
             .map(|k| Point {
                 index: k,
                 x: x_of(kc, k),
@@ -100,15 +107,17 @@ pub(crate) fn figures(kc: &KeyComparison) -> Vec<Figure> {
     out
 }
 
-fn method_words(kc: &KeyComparison) -> &'static str {
+fn method_words(kc: &KeyComparison) -> String {
+    let reference = kc.wording().reference();
     match kc.method {
-        crate::kc::ReferenceMethod::WeightedMean => {
-            "closed GLS reference (the weighted mean with one u per laboratory)"
+        crate::kc::ReferenceMethod::WeightedMean if kc.wording().is_closed() => {
+            format!("{reference} (the weighted mean with one u per laboratory)")
         }
+        crate::kc::ReferenceMethod::WeightedMean => reference.to_string(),
         crate::kc::ReferenceMethod::MandelPaule => {
-            "Mandel–Paule, u widened by τ, closed GLS reference"
+            format!("Mandel–Paule, u widened by τ, {reference}")
         }
-        _ => "DerSimonian–Laird, u widened by τ, closed GLS reference",
+        _ => format!("DerSimonian–Laird, u widened by τ, {reference}"),
     }
 }
 
@@ -192,6 +201,7 @@ fn reference(kc: &KeyComparison) -> Figure {
             marker: lab_marker(i),
             dx_px: offset_px(i + 1, n, kc.index.len()),
             points: (0..kc.index.len())
+                .filter(|&k| crate::kc::is_given(doe.d[k]))
                 .map(|k| Point {
                     index: k,
                     x: x_of(kc, k),

@@ -1,6 +1,6 @@
 //! The degrees of equivalence of a key comparison as the BIPM KCDB draws them
 //! (`kc-kcdb`, docs/FORMAT.md §10.1): one small graph per compared position (face,
-//! encoder position), the laboratories along the x axis by name (or code letter), each
+//! encoder position, angle block), the laboratories along the x axis by name (or code letter), each
 //! laboratory's d_i with its U(d_i) bar (k = 2), the line at 0 (the reference), and the
 //! laboratories not in the reference drawn apart (open squares, their names in italics).
 //! One document of small graphs, so that a Draft A report takes them as one figure.
@@ -86,6 +86,12 @@ pub(crate) fn drawn(kc: &KeyComparison) -> Vec<usize> {
 fn position_title(kc: &KeyComparison, k: usize) -> String {
     match (&kc.angle_deg, kc.quantity) {
         (_, Quantity::PitchDeviation) => format!("face {}", kc.index[k]),
+        (_, Quantity::AngleBlock) => {
+            match kc.nominal_deg.as_ref().and_then(|n| n.get(k).copied().flatten()) {
+                Some(nominal) => format!("block {} ({nominal}°)", kc.index[k]),
+                None => format!("block {}", kc.index[k]),
+            }
+        }
         (Some(angles), _) => format!("index {} ({:.3}°)", kc.index[k], angles[k]),
         (None, _) => format!("index {}", kc.index[k]),
     }
@@ -104,6 +110,7 @@ fn label(name: &str) -> String {
 fn kcdb(kc: &KeyComparison) -> Figure {
     let (family, position_word) = match kc.quantity {
         Quantity::PitchDeviation => ("pitch deviations β", "face"),
+        Quantity::AngleBlock => ("angle blocks' deviations from nominal", "block"),
         _ => ("encoder errors α", "position"),
     };
     let title = format!("Degrees of equivalence per {position_word} (KCDB graphs), {family}");

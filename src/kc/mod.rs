@@ -460,7 +460,7 @@ pub struct PairDifference {
 
 impl PairDifference {
     /// The position where |d_ab|/U(d_ab) is largest (the first of equals), and that ratio
-    /// (`None` with no position): what the pairwise figure shows of a pair.
+    /// (`None` with no position both report): what the pairwise figure shows of a pair.
     pub fn largest_ratio(&self) -> Option<(usize, f64)> {
         let ratios = self
             .d
@@ -469,6 +469,8 @@ impl PairDifference {
             .map(|(d, u)| d.abs() / u);
         ratios
             .enumerate()
+            // (a block one of them does not report has no ratio)
+            .filter(|(_, ratio)| ratio.is_finite())
             .fold(None, |best: Option<(usize, f64)>, (k, ratio)| match best {
                 Some((_, largest)) if ratio <= largest => best,
                 _ => Some((k, ratio)),
