@@ -87,7 +87,11 @@ fn position_title(kc: &KeyComparison, k: usize) -> String {
     match (&kc.angle_deg, kc.quantity) {
         (_, Quantity::PitchDeviation) => format!("face {}", kc.index[k]),
         (_, Quantity::AngleBlock) => {
-            match kc.nominal_deg.as_ref().and_then(|n| n.get(k).copied().flatten()) {
+            match kc
+                .nominal_deg
+                .as_ref()
+                .and_then(|n| n.get(k).copied().flatten())
+            {
                 Some(nominal) => format!("block {} ({nominal}°)", kc.index[k]),
                 None => format!("block {}", kc.index[k]),
             }

@@ -56,6 +56,7 @@ pub(crate) fn fit(x: &[&[f64]], u: &[&[f64]]) -> Option<ClosedFit> {
         reference_variance,
         chi2,
         dof,
+        pieces: None,
     })
 }
 

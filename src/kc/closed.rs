@@ -48,11 +48,23 @@ impl ClosedCovariance {
     pub(crate) fn diagonal(&self) -> Vec<f64> {
         match self {
             ClosedCovariance::Stated(u) => {
-                let faces = u.len() as f64;
+                // closed over the positions the result reports (u finite); NaN elsewhere
+                let faces = u.iter().filter(|u| u.is_finite()).count() as f64;
                 let c = faces / (faces - 1.0);
-                let mean_square = u.iter().map(|u| u * u).sum::<f64>() / (faces * faces);
+                let mean_square = u
+                    .iter()
+                    .filter(|u| u.is_finite())
+                    .map(|u| u * u)
+                    .sum::<f64>()
+                    / (faces * faces);
                 u.iter()
-                    .map(|u| c * (u * u * (1.0 - 2.0 / faces) + mean_square))
+                    .map(|u| {
+                        if u.is_finite() {
+                            c * (u * u * (1.0 - 2.0 / faces) + mean_square)
+                        } else {
+                            f64::NAN
+                        }
+                    })
                     .collect()
             }
             ClosedCovariance::Independent(u) => u.iter().map(|u| u * u).collect(),
@@ -78,11 +90,21 @@ impl ClosedCovariance {
     }
 }
 
-/// w_k = 1/(c·u_k²) and s = Σ w_k.
+/// w_k = 1/(c·u_k²) and s = Σ w_k, c = N/(N − 1) with N the positions the result reports
+/// (u finite; w_k = 0 where u_k = +∞, a position it does not report).
 fn weights(u: &[f64]) -> (Vec<f64>, f64) {
-    let faces = u.len() as f64;
+    let faces = u.iter().filter(|u| u.is_finite()).count() as f64;
     let c = faces / (faces - 1.0);
-    let w: Vec<f64> = u.iter().map(|u| 1.0 / (c * u * u)).collect();
+    let w: Vec<f64> = u
+        .iter()
+        .map(|u| {
+            if u.is_finite() {
+                1.0 / (c * u * u)
+            } else {
+                0.0
+            }
+        })
+        .collect();
     let s = w.iter().sum();
     (w, s)
 }
@@ -96,8 +118,10 @@ pub(crate) struct ClosedFit {
     pub reference_variance: Vec<f64>,
     /// χ² = Σ_i (x_i − r)ᵀ V_i⁺ (x_i − r).
     pub chi2: f64,
-    /// (N − 1)(n − 1).
+    /// (N − 1)(n − 1) (Σ_i N_i − n − (K − 1) when results report different positions).
     pub dof: usize,
+    /// What [`projected_variance`] needs, when the results report different positions.
+    pub pieces: Option<Box<Pieces>>,
 }
 
 /// The GLS fit of the closed vectors `x` (each already closed) with covariances `v`; `None`
@@ -129,15 +153,64 @@ pub(crate) fn fit(x: &[&[f64]], v: &[&ClosedCovariance]) -> Option<ClosedFit> {
         Some(u) => additive(x, &u)?,
         None => dense(x, v)?,
     };
+    // a position no result in the set reports has neither (NaN): [`additive`]
     let finite = fit.chi2.is_finite()
-        && fit.reference.iter().all(|r| r.is_finite())
-        && fit.reference_variance.iter().all(|r| r.is_finite());
+        && fit
+            .reference
+            .iter()
+            .zip(&fit.reference_variance)
+            .all(|(r, v)| (r.is_finite() && v.is_finite()) || (r.is_nan() && v.is_nan()));
     finite.then_some(fit)
 }
 
 /// The two-way additive fit (module documentation): every laboratory's covariance stated.
+/// A result that does not report a position has u = +∞ there (no weight): the fit is then
+/// of what is there, ν = Σ_i N_i − n − (K − 1) with N_i the positions result i reports and
+/// K those some result reports; a position no result reports has a reference of NaN, and
+/// the fit keeps what [`projected_variance`] needs.
 fn additive(x: &[&[f64]], u: &[&[f64]]) -> Option<ClosedFit> {
+    additive_keeping(x, u, false)
+}
+
+/// [`additive`], keeping the pieces of [`projected_variance`] when `keep` (or when some
+/// result does not report some position).
+fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit> {
     let (labs, faces) = (x.len(), x[0].len());
+    let reported: Vec<usize> = (0..faces)
+        .filter(|&k| u.iter().any(|u| u[k].is_finite()))
+        .collect();
+    let complete = u.iter().all(|u| u.iter().all(|u| u.is_finite()));
+    if !complete {
+        if reported.len() < 2 {
+            return None;
+        }
+        if reported.len() < faces {
+            // the positions no result reports taken out, and put back as NaN
+            let pick = |row: &[f64]| -> Vec<f64> { reported.iter().map(|&k| row[k]).collect() };
+            let xs: Vec<Vec<f64>> = x.iter().map(|x| pick(x)).collect();
+            let us: Vec<Vec<f64>> = u.iter().map(|u| pick(u)).collect();
+            let xr: Vec<&[f64]> = xs.iter().map(Vec::as_slice).collect();
+            let ur: Vec<&[f64]> = us.iter().map(Vec::as_slice).collect();
+            let inner = additive_keeping(&xr, &ur, true)?;
+            let mut fit = ClosedFit {
+                reference: vec![f64::NAN; faces],
+                reference_variance: vec![f64::NAN; faces],
+                chi2: inner.chi2,
+                dof: inner.dof,
+                pieces: None,
+            };
+            for (j, &k) in reported.iter().enumerate() {
+                fit.reference[k] = inner.reference[j];
+                fit.reference_variance[k] = inner.reference_variance[j];
+            }
+            fit.pieces = inner.pieces.map(|mut p| {
+                p.positions = reported;
+                p.faces = faces;
+                p
+            });
+            return Some(fit);
+        }
+    }
     let mut w = Vec::with_capacity(labs);
     let mut s = Vec::with_capacity(labs);
     for u in u {
@@ -179,7 +252,9 @@ fn additive(x: &[&[f64]], u: &[&[f64]]) -> Option<ClosedFit> {
     let mut chi2 = 0.0;
     for i in 0..labs {
         for k in 0..faces {
-            chi2 += w[i][k] * (x[i][k] - raw[k] - a[i]).powi(2);
+            if w[i][k] > 0.0 {
+                chi2 += w[i][k] * (x[i][k] - raw[k] - a[i]).powi(2);
+            }
         }
     }
     // The reference's covariance: P·A′⁻¹·P, A′⁻¹ = W⁻¹ + Z M′⁻¹ Zᵀ with Z_kp = w_{p+1,k}/W_k.
@@ -212,12 +287,110 @@ fn additive(x: &[&[f64]], u: &[&[f64]]) -> Option<ClosedFit> {
     let reference_variance = (0..faces)
         .map(|k| (diagonal[k] - 2.0 * row_sum[k] / n + grand / (n * n)).max(0.0))
         .collect();
+    if complete && !keep {
+        return Some(ClosedFit {
+            reference,
+            reference_variance,
+            chi2,
+            dof: (faces - 1) * (labs - 1),
+            pieces: None,
+        });
+    }
+    let observations = w.iter().flatten().filter(|w| **w > 0.0).count();
+    let dof = observations.checked_sub(labs + faces - 1)?;
     Some(ClosedFit {
         reference,
         reference_variance,
         chi2,
-        dof: (faces - 1) * (labs - 1),
+        dof,
+        pieces: Some(Box::new(Pieces {
+            w,
+            total,
+            m_inverse,
+            positions: (0..faces).collect(),
+            faces,
+        })),
     })
+}
+
+/// What a fit of results that report different positions keeps for [`projected_variance`]:
+/// the weights, their sums per position and M′⁻¹ (module documentation), over the positions
+/// some result reports (`positions`, of the comparison's `faces`).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Pieces {
+    /// w_ik per result of the fit and reported position.
+    w: Vec<Vec<f64>>,
+    /// W_k = Σ_i w_ik.
+    total: Vec<f64>,
+    /// M′⁻¹.
+    m_inverse: DMatrix<f64>,
+    /// The comparison's positions the fit is of (some result reports them), ascending.
+    positions: Vec<usize>,
+    /// The comparison's number of positions.
+    faces: usize,
+}
+
+/// diag(P_S·C_SS·P_S) for a result that reports the positions `reported` (of the
+/// comparison's), C the covariance of the fit's reference, P_S the projector closing a
+/// vector over S: the variance the reference takes out of (or adds to) that result's closed
+/// degree of equivalence, d_i = P_S(x_i − x_ref,S). With Cov(x_i, x_ref) = P_S·C for a result
+/// in the reference, Var(d_i) = V_i − P_S·C_SS·P_S (+ out of it). Per position of the
+/// comparison, NaN where the result does not report it. `None` without pieces (every result
+/// reports every position: then it is C_kk, the reference's own variance).
+///
+/// By Woodbury, B = A′⁻¹ = W⁻¹ + Z·M′⁻¹·Zᵀ, C = P·B·P (P closing over the K positions
+/// fitted), so the row sums of C over S and its sum over S × S come from g_S = M′⁻¹·Zᵀ·1_S in
+/// O(K·n) time, no K × K matrix.
+pub(crate) fn projected_variance(fit: &ClosedFit, reported: &[bool]) -> Option<Vec<f64>> {
+    let p = fit.pieces.as_ref()?;
+    let k_count = p.positions.len();
+    let rest = p.w.len().saturating_sub(1);
+    let z = |j: usize, q: usize| p.w[q + 1][j] / p.total[j];
+    // over the fitted positions j (compact), whether the result reports each
+    let in_s: Vec<bool> = p
+        .positions
+        .iter()
+        .map(|&k| reported.get(k).copied().unwrap_or(false))
+        .collect();
+    let n_s = in_s.iter().filter(|b| **b).count() as f64;
+    let n_k = k_count as f64;
+    let g = |mask: &dyn Fn(usize) -> bool| -> Vec<f64> {
+        let mut zt = vec![0.0; rest];
+        for (j, _) in p.positions.iter().enumerate().filter(|(j, _)| mask(*j)) {
+            for (q, sum) in zt.iter_mut().enumerate() {
+                *sum += z(j, q);
+            }
+        }
+        (&p.m_inverse * DVector::from_column_slice(&zt))
+            .iter()
+            .copied()
+            .collect()
+    };
+    let g_s = g(&|j| in_s[j]);
+    let g_all = g(&|_| true);
+    let zg = |j: usize, g: &[f64]| (0..rest).map(|q| z(j, q) * g[q]).sum::<f64>();
+    // (B·1_S)_j and (B·1)_j
+    let b_s: Vec<f64> = (0..k_count)
+        .map(|j| f64::from(u8::from(in_s[j])) / p.total[j] + zg(j, &g_s))
+        .collect();
+    let b_all: Vec<f64> = (0..k_count)
+        .map(|j| 1.0 / p.total[j] + zg(j, &g_all))
+        .collect();
+    let t_s: f64 = b_s.iter().sum();
+    let grand: f64 = b_all.iter().sum();
+    // (C·1_S)_j
+    let c_s: Vec<f64> = (0..k_count)
+        .map(|j| b_s[j] - n_s * b_all[j] / n_k - t_s / n_k + n_s * grand / (n_k * n_k))
+        .collect();
+    let total_s: f64 = (0..k_count).filter(|&j| in_s[j]).map(|j| c_s[j]).sum();
+    let mut out = vec![f64::NAN; p.faces];
+    for (j, &k) in p.positions.iter().enumerate() {
+        if in_s[j] {
+            let c_kk = fit.reference_variance[k];
+            out[k] = (c_kk - 2.0 * c_s[j] / n_s + total_s / (n_s * n_s)).max(0.0);
+        }
+    }
+    Some(out)
 }
 
 /// The dense GLS: x_ref = (Σ V_i⁺)⁺ Σ V_i⁺ x_i, its covariance (Σ V_i⁺)⁺.
@@ -244,6 +417,7 @@ fn dense(x: &[&[f64]], v: &[&ClosedCovariance]) -> Option<ClosedFit> {
         reference_variance: covariance.diagonal().iter().map(|v| v.max(0.0)).collect(),
         chi2,
         dof: (faces - 1) * (x.len() - 1),
+        pieces: None,
     })
 }
 

@@ -265,4 +265,19 @@ pub enum KcError {
         /// Where that is.
         first_location: String,
     },
+    /// One of the pilot's repeats does not report an encoder position the laboratories
+    /// compare.
+    #[error(
+        "{file} (the pilot's repeat {repeat}) has no encoder_error at {position}: the pilot's \
+         repeats report every position compared (their spread is the artefact's stability \
+         on each)"
+    )]
+    RepeatMissesPosition {
+        /// The repeat's name.
+        repeat: String,
+        /// Its file.
+        file: String,
+        /// The position it lacks (a table angle, or an index).
+        position: String,
+    },
 }

@@ -293,8 +293,25 @@ struct Group {
 
 /// Lines up the encoder errors: by table angle (within [`ANGLE_TOLERANCE_DEG`] around the
 /// circle) when every encoder error of every result carries `angle_deg`, else by index.
-/// Positions not in every result are left out and named in a note.
+/// Positions not in every result are left out and named in a note (what a standard's
+/// history compares, `polycal history`).
 pub(crate) fn encoder(results: &[&LabResult]) -> Result<Aligned, KcError> {
+    encoder_lined_up(results, None)
+}
+
+/// Lines up the encoder errors of the laboratories `results[..labs]` and the pilot's
+/// repeats after them as [`encoder`] does, but each laboratory compared on the positions it
+/// reports (docs/FORMAT.md §12, "What each laboratory measured"): a position reported by at
+/// least two laboratories is kept, and `measured` says who reports it; one reported by
+/// fewer is left out and named in a note. The pilot's repeats must report every position
+/// kept (their spread is the artefact's stability there).
+pub(crate) fn encoder_reported(results: &[&LabResult], labs: usize) -> Result<Aligned, KcError> {
+    encoder_lined_up(results, Some(labs))
+}
+
+/// [`encoder`] (`labs` `None`: every result reports every position kept) or
+/// [`encoder_reported`] (`Some(labs)`).
+fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Aligned, KcError> {
     let by_angle = matched_by_angle(results)?;
     // Every (key, result, row), sorted by key.
     let mut all: Vec<(f64, usize, usize)> = Vec::new();
@@ -348,13 +365,33 @@ pub(crate) fn encoder(results: &[&LabResult]) -> Result<Aligned, KcError> {
         u: vec![Vec::new(); results.len()],
         dof: vec![Vec::new(); results.len()],
         closed: true,
-        measured: None,
+        measured: labs.map(|_| vec![Vec::new(); results.len()]),
         nominal_deg: None,
         notes: Vec::new(),
     };
+    let at = |group: &Group| {
+        if by_angle {
+            format!("{}°", group.key.max(0.0))
+        } else {
+            format!("index {}", group.key)
+        }
+    };
     let mut left_out = Vec::new();
     for group in &groups {
-        if group.rows.iter().any(Option::is_none) {
+        let kept = match labs {
+            None => group.rows.iter().all(Option::is_some),
+            Some(labs) => group.rows[..labs].iter().filter(|r| r.is_some()).count() >= 2,
+        };
+        if let (true, Some(labs)) = (kept, labs)
+            && let Some(r) = (labs..results.len()).find(|&r| group.rows[r].is_none())
+        {
+            return Err(KcError::RepeatMissesPosition {
+                repeat: results[r].name.clone(),
+                file: results[r].source.clone(),
+                position: at(group),
+            });
+        }
+        if !kept {
             let missing: Vec<&str> = group
                 .rows
                 .iter()
@@ -362,19 +399,25 @@ pub(crate) fn encoder(results: &[&LabResult]) -> Result<Aligned, KcError> {
                 .filter(|(row, _)| row.is_none())
                 .map(|(_, result)| result.name.as_str())
                 .collect();
-            let at = if by_angle {
-                format!("{}°", group.key.max(0.0))
-            } else {
-                format!("index {}", group.key)
-            };
-            left_out.push(format!("{at} (not in {})", missing.join(", ")));
+            left_out.push(format!("{} (not in {})", at(group), missing.join(", ")));
             continue;
         }
+        let mut first = true;
         for (r, row) in group.rows.iter().enumerate() {
-            let Some(i) = *row else { continue };
+            if let Some(measured) = aligned.measured.as_mut() {
+                measured[r].push(row.is_some());
+            }
+            let Some(i) = *row else {
+                // not reported: a placeholder never used (`measured` says so)
+                aligned.values[r].push(0.0);
+                aligned.u[r].push(1.0);
+                aligned.dof[r].push(f64::INFINITY);
+                continue;
+            };
             let result = results[r];
             let found = &result.rows[i];
-            if r == 0 {
+            if first {
+                first = false;
                 aligned.index.push(found.index);
                 if let Some(angles) = aligned.angle_deg.as_mut() {
                     angles.push(found.angle_deg.unwrap_or(group.key));
@@ -385,14 +428,26 @@ pub(crate) fn encoder(results: &[&LabResult]) -> Result<Aligned, KcError> {
             aligned.dof[r].push(found.dof.unwrap_or(f64::INFINITY));
         }
     }
+    if aligned
+        .measured
+        .as_ref()
+        .is_some_and(|m| m.iter().flatten().all(|&m| m))
+    {
+        aligned.measured = None;
+    }
     if aligned.index.is_empty() {
         return Err(KcError::NothingInCommon);
     }
     if !left_out.is_empty() {
         aligned.notes.push(format!(
-            "encoder errors matched by {}: {} position(s) not in every result left out: {}",
+            "encoder errors matched by {}: {} position(s) {} left out: {}",
             if by_angle { "angle" } else { "index" },
             left_out.len(),
+            if labs.is_some() {
+                "reported by fewer than two laboratories"
+            } else {
+                "not in every result"
+            },
             left_out.join("; ")
         ));
     }
