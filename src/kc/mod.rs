@@ -76,6 +76,7 @@ mod pairs;
 mod reference;
 mod scaled;
 mod search;
+mod shared;
 
 use serde::{Deserialize, Serialize};
 
@@ -88,12 +89,13 @@ pub use covariance::lab_from_solve_json;
 pub use error::KcError;
 pub use evaluate::evaluate;
 pub use input::MIN_STANDARD_U_ARCSEC;
-pub use json::{KcJsonError, KeyComparisonShapeError, read_json};
+pub use json::{KcJsonError, KeyComparisonShapeError, read_json, read_json_lines};
 pub use link::{Link, link};
 pub use pairs::{Pairs, PairsIter};
 pub use reference::chi2_text;
 pub use reference::{chi2_quantile_95, closed_covariance};
 pub use search::{SearchMethod, SearchStep, SubsetSearch};
+pub use shared::{COMPARED_QUANTITIES, shared_quantities};
 
 /// How the reference value of each quantity is formed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -152,7 +154,7 @@ pub enum KcNameError {
     #[error("method {0:?}: expected weighted-mean, dersimonian-laird or mandel-paule")]
     Method(String),
     /// Not the name of a compared quantity.
-    #[error("quantity {0:?}: expected pitch_deviation or encoder_error")]
+    #[error("quantity {0:?}: expected {expected}", expected = shared::compared_names())]
     Quantity(String),
 }
 
@@ -187,7 +189,7 @@ impl std::str::FromStr for ReferenceMethod {
 /// assert!(polycal::kc::compared_quantity("face_deviation").is_err());
 /// ```
 pub fn compared_quantity(name: &str) -> Result<Quantity, KcNameError> {
-    [Quantity::PitchDeviation, Quantity::EncoderError]
+    COMPARED_QUANTITIES
         .into_iter()
         .find(|q| q.name() == name)
         .ok_or_else(|| KcNameError::Quantity(name.to_string()))
