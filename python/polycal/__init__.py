@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json as _json
 import os as _os
-from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 
 from . import _polycal
@@ -85,6 +85,7 @@ __all__ = [
     "selfcal",
     "compare",
     "kc",
+    "shared_quantities",
     "history",
     "simulate",
     "simulate_selfcal",
@@ -322,6 +323,24 @@ def kc(
             not_in_reference=[str(name) for name in not_in_reference],
             link=None if link is None else link.to_json(),
             monte_carlo=None if monte_carlo is None else int(monte_carlo),
+        )
+    )
+
+
+def shared_quantities(
+    labs: Mapping[str, Union[SolveResult, _Rows, PathOrText]],
+    pilot: Optional[Sequence[Tuple[str, Union[SolveResult, _Rows, PathOrText]]]] = None,
+) -> List[str]:
+    """The quantities a key comparison compares (``pitch_deviation``, ``encoder_error``)
+    that every laboratory's result in ``labs`` and every repeat in ``pilot`` has rows of,
+    in the order ``polycal kc`` without ``--quantity`` compares them, as names for
+    :func:`kc`'s ``quantity``: ``[kc(labs, quantity=q) for q in shared_quantities(labs)]``.
+    ``labs`` and ``pilot`` are as :func:`kc` takes them. Raises :class:`PolycalError`,
+    naming the results that lack each quantity, when none is in every result."""
+    return list(
+        _polycal.shared_quantities(
+            [(str(name), _rows_of(result)) for name, result in labs.items()],
+            [(str(name), _rows_of(result)) for name, result in (pilot or ())],
         )
     )
 

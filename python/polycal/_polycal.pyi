@@ -242,6 +242,10 @@ def kc(
     quantity: str = "pitch_deviation",
     method: str = "weighted-mean",
 ) -> str: ...
+def shared_quantities(
+    labs: Sequence[Tuple[str, ResultRows]],
+    pilot: Sequence[Tuple[str, ResultRows]] = ...,
+) -> List[str]: ...
 def history(
     calibrations: Sequence[Tuple[ResultRows, str]],
     at: Optional[str] = None,

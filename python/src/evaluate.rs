@@ -385,15 +385,7 @@ pub(crate) fn kc(
     let method = method
         .parse::<ReferenceMethod>()
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
-    let results = |list: &[(String, PyRef<'_, PyRows>)]| -> Vec<LabResult> {
-        list.iter()
-            .map(|(name, rows)| match &rows.file {
-                Some(file) => LabResult::from_file(name.clone(), file.clone()),
-                None => LabResult::from_rows(name.clone(), rows.rows.clone()),
-            })
-            .collect()
-    };
-    let (labs, pilot) = (results(&labs), results(&pilot));
+    let (labs, pilot) = (lab_results(&labs), lab_results(&pilot));
     let options = KcOptions::new()
         .with_quantity(quantity)
         .with_method(method)
@@ -414,6 +406,31 @@ pub(crate) fn kc(
         polycal::kc::link(&mut comparison, linked).map_err(refusal)?;
     }
     to_json(&comparison)
+}
+
+/// The (name, rows) pairs of `kc`'s `labs` and `pilot` as the library's results, in order.
+fn lab_results(list: &[(String, PyRef<'_, PyRows>)]) -> Vec<LabResult> {
+    list.iter()
+        .map(|(name, rows)| match &rows.file {
+            Some(file) => LabResult::from_file(name.clone(), file.clone()),
+            None => LabResult::from_rows(name.clone(), rows.rows.clone()),
+        })
+        .collect()
+}
+
+/// The names of the quantities a key comparison compares that every laboratory's and
+/// every pilot repeat's result has rows of, in the order `polycal kc` without `--quantity`
+/// compares them (`polycal::kc::shared_quantities`); refused naming the results that lack
+/// each when there is none.
+#[pyfunction]
+#[pyo3(signature = (labs, pilot=Vec::new()))]
+pub(crate) fn shared_quantities(
+    labs: Vec<(String, PyRef<'_, PyRows>)>,
+    pilot: Vec<(String, PyRef<'_, PyRows>)>,
+) -> PyResult<Vec<String>> {
+    let shared = polycal::kc::shared_quantities(&lab_results(&labs), &lab_results(&pilot))
+        .map_err(refusal)?;
+    Ok(shared.iter().map(|q| q.name().to_string()).collect())
 }
 
 /// Diagnoses a measurement set as `polycal diagnose` does; returns its JSON object (the

@@ -232,6 +232,7 @@ fn _polycal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate::solve, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::compare_rows, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::kc, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate::shared_quantities, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::history, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate_selfcal, m)?)?;

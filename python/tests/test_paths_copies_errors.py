@@ -103,7 +103,7 @@ def test_compare_and_kc_take_path_strings_and_pathlib_paths():
     pilot = [(name, KC / f"pilot-{name}.csv") for name in ("start", "middle", "end")]
     args = [f"{name}={path}" for name, path in labs.items()]
     args += [f"--pilot={name}={path}" for name, path in pilot]
-    expected = cli("kc", *args, "--format", "json")
+    expected = cli("kc", *args, "--quantity", "pitch_deviation", "--format", "json")
     as_strings = polycal.kc(
         {k: str(v) for k, v in labs.items()}, pilot=[(k, str(v)) for k, v in pilot]
     )

@@ -500,13 +500,15 @@ def test_kc_is_the_clis_json_to_the_byte(tmp_path):
     labs = {name: KC / f"{name}.csv" for name in "ABCDEF"}
     args = [f"{name}={path}" for name, path in labs.items()]
     result = polycal.kc(labs)
-    assert result.to_json() == cli("kc", *args, "--format", "json")
+    assert result.to_json() == cli("kc", *args, "--quantity", "pitch_deviation", "--format", "json")
     # the reference and the laboratories' degrees of equivalence as numpy arrays
     assert isinstance(result["reference"], np.ndarray)
     assert result["reference"].shape == (12,)
     assert [e["lab"] for e in result["excluded"]] == ["F"]
     random = polycal.kc(labs, method="dersimonian-laird")
-    expected = cli("kc", *args, "--method", "dersimonian-laird", "--format", "json")
+    expected = cli(
+        "kc", *args, "--method", "dersimonian-laird", "--quantity", "pitch_deviation", "--format", "json"
+    )
     assert random.to_json() == expected
     encoder = polycal.kc(labs, quantity="encoder_error")
     assert encoder.to_json() == cli(
@@ -516,11 +518,13 @@ def test_kc_is_the_clis_json_to_the_byte(tmp_path):
     assert not result["vector_all"]["consistent"]
     assert list(result["search"]["steps"][0]["best"]) == list("ABCDE")
     kept = polycal.kc(labs, keep=["F"])
-    assert kept.to_json() == cli("kc", *args, "--keep", "F", "--format", "json")
+    assert kept.to_json() == cli("kc", *args, "--keep", "F", "--quantity", "pitch_deviation", "--format", "json")
     assert list(kept["kept"]) == ["F"]
     # a laboratory kept out of the reference, with its degrees of equivalence
     out = polycal.kc(labs, not_in_reference=["F"])
-    assert out.to_json() == cli("kc", *args, "--not-in-reference", "F", "--format", "json")
+    assert out.to_json() == cli(
+        "kc", *args, "--not-in-reference", "F", "--quantity", "pitch_deviation", "--format", "json"
+    )
     assert list(out["not_in_reference"]) == ["F"]
     assert list(out["excluded"]) == []
     # linked to another comparison, and U by Monte Carlo: the CLI's bytes
@@ -531,9 +535,55 @@ def test_kc_is_the_clis_json_to_the_byte(tmp_path):
     rmo_args = [f"{name}={path}" for name, path in rmo_labs.items()]
     linked = polycal.kc(rmo_labs, link=cipm, monte_carlo=2000)
     assert linked.to_json() == cli(
-        "kc", *rmo_args, "--link", str(cipm_path), "--monte-carlo", "2000", "--format", "json"
+        "kc", *rmo_args, "--link", str(cipm_path), "--monte-carlo", "2000",
+        "--quantity", "pitch_deviation", "--format", "json",
     )
     assert list(linked["link"]["labs"]) == ["B", "C"]
+
+
+def test_shared_quantities_loop_is_the_clis_json_lines(tmp_path):
+    # without --quantity the CLI compares every quantity the files share, one JSON
+    # object per line; a Python user loops over shared_quantities for the same objects
+    labs = {name: KC / f"{name}.csv" for name in "ABC"}
+    pilot = [(name, KC / f"pilot-{name}.csv") for name in ("start", "end")]
+    args = [f"{name}={path}" for name, path in labs.items()]
+    args += [f"--pilot={name}={path}" for name, path in pilot]
+    shared = polycal.shared_quantities(labs, pilot=pilot)
+    assert shared == ["pitch_deviation", "encoder_error"]
+    lines = cli("kc", *args, "--format", "json").splitlines()
+    looped = [polycal.kc(labs, pilot=pilot, quantity=q).to_json() for q in shared]
+    assert [json.loads(line) for line in lines] == [json.loads(j) for j in looped]
+    # a result without encoder errors: the pitch deviations alone
+    pitch_only = tmp_path / "pitch.csv"
+    pitch_only.write_text(
+        "quantity,index,value,U,k\n"
+        + "".join(f"pitch_deviation,{f},0.0,0.2,2\n" for f in range(1, 13))
+    )
+    assert polycal.shared_quantities({"A": KC / "A.csv", "P": pitch_only}) == [
+        "pitch_deviation"
+    ]
+
+
+def test_shared_quantities_refuses_as_the_cli_does(tmp_path):
+    pitch = tmp_path / "pitch.csv"
+    pitch.write_text(
+        "quantity,index,value,U,k\n"
+        + "".join(f"pitch_deviation,{f},0.0,0.2,2\n" for f in range(1, 13))
+    )
+    encoder = tmp_path / "encoder.csv"
+    encoder.write_text(
+        "quantity,index,value,U,k\n"
+        + "".join(f"encoder_error,{p},0.0,0.2,2\n" for p in range(12))
+    )
+    with pytest.raises(polycal.PolycalError) as caught:
+        polycal.shared_quantities({"P": pitch, "E": encoder})
+    out = subprocess.run(
+        [_binary(), "kc", f"P={pitch}", f"E={encoder}"], capture_output=True, text=True, cwd=ROOT
+    )
+    assert out.returncode == 2
+    assert str(caught.value) in out.stderr
+    assert "no pitch_deviation rows in" in str(caught.value)
+    assert "no encoder_error rows in" in str(caught.value)
 
 
 def test_kc_refuses_as_the_cli_does():

@@ -1,5 +1,6 @@
 //! A key comparison in a report (`polycal report --kc`, docs/FORMAT.md §10.2, §12): the
-//! JSON `polycal kc --format json` printed, read back through the library's own
+//! JSON `polycal kc --format json` printed — one object, or one per line for a comparison
+//! of each quantity the files share — read back through the library's own
 //! [`KeyComparison`], checked for the shape the documents rely on (one entry per compared
 //! quantity in every list), and the laboratory the report is for, when one is named.
 
@@ -42,17 +43,18 @@ impl KeyComparisonSection {
     }
 }
 
-/// Reads a key comparison from the bytes of `polycal kc --format json` (`name` names the
-/// file in errors): refused with serde's line and column when it is not that JSON, or
-/// when a list does not hold one entry per compared quantity; a `lab` that is not one of
-/// its laboratories is refused naming them.
+/// Reads every key comparison of the bytes of `polycal kc --format json` (`name` names
+/// the file in errors), one section each in the file's order: refused with serde's line
+/// and column when it is not that JSON, or when a list does not hold one entry per
+/// compared quantity ([`crate::kc::read_json_lines`]); a `lab` that is not one of a
+/// comparison's laboratories is refused naming them.
 pub(super) fn parse(
     bytes: &[u8],
     name: &str,
-    sha256: String,
+    sha256: &str,
     lab: Option<&str>,
-) -> Result<KeyComparisonSection, ReportError> {
-    let comparison = crate::kc::read_json(bytes, name).map_err(|e| match e {
+) -> Result<Vec<KeyComparisonSection>, ReportError> {
+    let comparisons = crate::kc::read_json_lines(bytes, name).map_err(|e| match e {
         crate::kc::KcJsonError::NotJson { location, message } => {
             ReportError::KeyComparison { location, message }
         }
@@ -60,19 +62,24 @@ pub(super) fn parse(
             ReportError::KeyComparisonShape { file, problem }
         }
     })?;
-    if let Some(lab) = lab
-        && !comparison.labs.iter().any(|l| l == lab)
-    {
-        return Err(ReportError::KeyComparisonLab {
-            file: name.to_string(),
-            lab: lab.to_string(),
-            labs: comparison.labs.join(", "),
-        });
-    }
-    Ok(KeyComparisonSection {
-        comparison,
-        lab: lab.map(str::to_string),
-        file_name: crate::input::document_name(name),
-        sha256,
-    })
+    comparisons
+        .into_iter()
+        .map(|comparison| {
+            if let Some(lab) = lab
+                && !comparison.labs.iter().any(|l| l == lab)
+            {
+                return Err(ReportError::KeyComparisonLab {
+                    file: name.to_string(),
+                    lab: lab.to_string(),
+                    labs: comparison.labs.join(", "),
+                });
+            }
+            Ok(KeyComparisonSection {
+                comparison,
+                lab: lab.map(str::to_string),
+                file_name: crate::input::document_name(name),
+                sha256: sha256.to_string(),
+            })
+        })
+        .collect()
 }

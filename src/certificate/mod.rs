@@ -219,8 +219,9 @@ pub struct CalibrationReport {
     /// Cross-talk stated from the autocollimators' calibrations, the readings corrected
     /// for it (docs/FORMAT.md §6); shown in the method section.
     pub stated_cross_talk: Vec<crate::measurement::cross_talk::StatedCrossTalk>,
-    /// The key comparison, when one is reported (docs/FORMAT.md §10.2).
-    pub key_comparison: Option<KeyComparisonSection>,
+    /// The key comparisons reported (docs/FORMAT.md §10.2): none, or those of the file of
+    /// `--kc`, one per compared quantity in the file's order.
+    pub key_comparisons: Vec<KeyComparisonSection>,
     /// The history of the standard, when earlier calibrations are given (docs/FORMAT.md
     /// §10.2, §13.2).
     pub history: Option<HistorySection>,
@@ -552,7 +553,7 @@ fn report_figures(
     evaluation: &Evaluation,
     diagnosis: Option<&DiagnosisReport>,
     comparison: Option<&(Comparison, String)>,
-    key_comparison: Option<&KeyComparisonSection>,
+    key_comparisons: &[KeyComparisonSection],
     shown: &str,
 ) -> Vec<Figure> {
     let mut figures = match evaluation {
@@ -565,8 +566,15 @@ fn report_figures(
     if let Some((c, reference)) = comparison {
         figures.extend(figure::compare_figures_labelled(c, shown, reference));
     }
-    if let Some(k) = key_comparison {
-        figures.extend(figure::kc_figures(&k.comparison));
+    for k in key_comparisons {
+        let mut these = figure::kc_figures(&k.comparison);
+        if key_comparisons.len() > 1 {
+            // one name (and HTML id) per figure: each comparison's end in its quantity
+            for f in &mut these {
+                f.name = format!("{}-{}", f.name, k.comparison.quantity.name());
+            }
+        }
+        figures.extend(these);
     }
     figures
 }
@@ -652,22 +660,22 @@ impl CalibrationReport {
             Some(path) => Some(compare_with_reference(path, rows, &shown, &mut files)?),
             None => None,
         };
-        let key_comparison = match &inputs.key_comparison {
+        let key_comparisons = match &inputs.key_comparison {
             Some((path, lab)) => {
                 // refusals name the file as given; the documents by its file name and
                 // SHA-256 (read_input's `path`), never by its directories
                 let (bytes, file, given) = read_input(path, "key comparison")?;
-                let section = kc::parse(&bytes, &given, file.sha256.clone(), lab.as_deref())?;
+                let sections = kc::parse(&bytes, &given, &file.sha256, lab.as_deref())?;
                 files.push(file);
-                Some(section)
+                sections
             }
-            None => None,
+            None => Vec::new(),
         };
         let figures = report_figures(
             &evaluation,
             diagnosis.as_ref(),
             comparison.as_ref(),
-            key_comparison.as_ref(),
+            &key_comparisons,
             &shown,
         );
         let generated_utc = inputs
@@ -685,7 +693,7 @@ impl CalibrationReport {
             generated_utc,
             command_line: inputs.command_line.clone(),
             stated_cross_talk: inputs.stated_cross_talk.clone(),
-            key_comparison,
+            key_comparisons,
             history,
         })
     }

@@ -356,7 +356,9 @@ fn nearest_existing(path: &Path) -> PathBuf {
 
 /// Writes every figure into `dir` (created if missing) as `{name}.svg`, all or none
 /// ([`crate::output_file::Outputs`]: none of them one of `inputs`, each written whole and
-/// renamed into place once every figure is written); returns the paths written.
+/// renamed into place once every figure is written); returns the paths written. A name
+/// with a directory, `encoder_error/kc-reference`, goes into that subdirectory of `dir`,
+/// created if missing.
 ///
 /// # Errors
 ///
@@ -380,7 +382,14 @@ pub fn write_figures(
     })?;
     let mut outputs = crate::output_file::Outputs::new(inputs.iter().copied())?;
     for figure in figures {
-        outputs.write(&dir.join(figure.file_name()), figure.svg.as_bytes())?;
+        let path = dir.join(figure.file_name());
+        if let Some(parent) = path.parent().filter(|p| *p != dir) {
+            std::fs::create_dir_all(parent).map_err(|source| FigureError::Write {
+                path: parent.to_path_buf(),
+                source,
+            })?;
+        }
+        outputs.write(&path, figure.svg.as_bytes())?;
     }
     Ok(outputs.commit()?)
 }

@@ -173,12 +173,25 @@ pub enum KcError {
     /// A comparison that cannot be linked to the other, and why.
     #[error("the comparisons cannot be linked: {0}")]
     Link(String),
-    /// A quantity other than pitch deviations and encoder errors.
+    /// A quantity that is not compared ([`super::COMPARED_QUANTITIES`]).
     #[error(
-        "a key comparison is of pitch_deviation or encoder_error, not {0} (face deviations \
-         follow from the pitch deviations; setup errors depend on the mounting)"
+        "a key comparison is of {compared}, not {0} (face deviations follow from the pitch \
+         deviations; setup errors depend on the mounting)",
+        compared = super::shared::compared_names()
     )]
     Quantity(Quantity),
+    /// No compared quantity has rows in every result ([`super::shared_quantities`]).
+    #[error(
+        "no quantity a key comparison compares ({quantities}) has rows in every result: {}",
+        lacking.join("; ")
+    )]
+    NoSharedQuantity {
+        /// The compared quantities' names, in words.
+        quantities: String,
+        /// Per compared quantity, the results that lack it: `no encoder_error rows in
+        /// B.csv (laboratory B)`.
+        lacking: Vec<String>,
+    },
     /// A result one face short of another: its last face is missing.
     #[error(
         "{location}: {quantity} of face {face} is missing: this result ends at face {}, and \

@@ -37,23 +37,99 @@ pub enum KcJsonError {
 /// list does not hold one entry per compared quantity or a degree of equivalence is of
 /// no laboratory of the comparison.
 pub fn read_json(bytes: &[u8], name: &str) -> Result<KeyComparison, KcJsonError> {
-    let comparison: KeyComparison = serde_json::from_slice(bytes).map_err(|e| {
-        // serde's message without its position, which the location states
-        let text = e.to_string();
-        let position = format!(" at line {} column {}", e.line(), e.column());
-        KcJsonError::NotJson {
-            location: Location::new(name, e.line() as u64, e.column() as u64),
-            message: format!(
-                "not the JSON of `polycal kc --format json` (docs/FORMAT.md §12): {}",
-                text.strip_suffix(&position).unwrap_or(&text)
-            ),
-        }
-    })?;
+    let comparison: KeyComparison =
+        serde_json::from_slice(bytes).map_err(|e| not_json(name, &e))?;
     check_shape(&comparison).map_err(|problem| KcJsonError::Shape {
         file: name.to_string(),
         problem,
     })?;
     Ok(comparison)
+}
+
+/// serde's error as [`KcJsonError::NotJson`]: its line and column in the whole file.
+fn not_json(name: &str, e: &serde_json::Error) -> KcJsonError {
+    // serde's message without its position, which the location states
+    let text = e.to_string();
+    let position = format!(" at line {} column {}", e.line(), e.column());
+    KcJsonError::NotJson {
+        location: Location::new(name, e.line() as u64, e.column() as u64),
+        message: format!(
+            "not the JSON of `polycal kc --format json` (docs/FORMAT.md §12): {}",
+            text.strip_suffix(&position).unwrap_or(&text)
+        ),
+    }
+}
+
+/// Reads every key comparison of the bytes of `polycal kc --format json`: one object, or
+/// one per line (JSON Lines, a comparison of each quantity the files share), in the
+/// file's order (`name` names the file in errors). A file of one object reads as
+/// [`read_json`] reads it.
+///
+/// ```
+/// use polycal::kc::read_json_lines;
+/// assert!(read_json_lines(b"", "kc.json").is_err());
+/// assert!(read_json_lines(b"{}\n", "kc.json").is_err());
+/// ```
+///
+/// # Errors
+///
+/// As [`read_json`], each at the file's line and column of the object concerned (a
+/// list's shape at the `file:line:column` where its object begins when the file holds
+/// several); [`KcJsonError::NotJson`] for a file without an object, and for a second
+/// comparison of one quantity, at the line of the second.
+pub fn read_json_lines(bytes: &[u8], name: &str) -> Result<Vec<KeyComparison>, KcJsonError> {
+    let mut comparisons: Vec<(KeyComparison, Location)> = Vec::new();
+    let mut stream = serde_json::Deserializer::from_slice(bytes).into_iter::<KeyComparison>();
+    let mut end = 0;
+    while let Some(next) = stream.next() {
+        let comparison = next.map_err(|e| not_json(name, &e))?;
+        let start = end
+            + bytes[end..]
+                .iter()
+                .take_while(|b| b.is_ascii_whitespace())
+                .count();
+        end = stream.byte_offset();
+        let line_start = bytes[..start]
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |i| i + 1);
+        let line = 1 + bytes[..start].iter().filter(|&&b| b == b'\n').count();
+        let at = Location::new(name, line as u64, (start - line_start + 1) as u64);
+        if let Some((_, first)) = comparisons
+            .iter()
+            .find(|(c, _)| c.quantity == comparison.quantity)
+        {
+            return Err(KcJsonError::NotJson {
+                location: at,
+                message: format!(
+                    "a second comparison of {} (the first at line {}): `polycal kc --format \
+                     json` writes one comparison per quantity",
+                    comparison.quantity,
+                    first.line()
+                ),
+            });
+        }
+        comparisons.push((comparison, at));
+    }
+    if comparisons.is_empty() {
+        // no object: read_json's refusal (serde's end of file)
+        return read_json(bytes, name).map(|c| vec![c]);
+    }
+    let several = comparisons.len() > 1;
+    comparisons
+        .into_iter()
+        .map(|(comparison, at)| {
+            check_shape(&comparison).map_err(|problem| KcJsonError::Shape {
+                file: if several {
+                    at.to_string()
+                } else {
+                    name.to_string()
+                },
+                problem,
+            })?;
+            Ok(comparison)
+        })
+        .collect()
 }
 
 /// Why a key comparison's JSON does not have the shape the documents rely on.
@@ -140,4 +216,93 @@ pub(crate) fn check_shape(kc: &KeyComparison) -> Result<(), KeyComparisonShapeEr
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kc::{KcOptions, LabResult, evaluate};
+    use crate::results::{Quantity, ResultRow};
+
+    /// Two laboratories' comparisons of their pitch deviations and their encoder errors,
+    /// and the JSON Lines `polycal kc` writes of them.
+    fn two_lines() -> (Vec<KeyComparison>, String) {
+        let lab = |name: &str, shift: f64| {
+            let mut rows = Vec::new();
+            for (i, v) in [0.1, -0.05, -0.05].iter().enumerate() {
+                let i = i as u32;
+                rows.push(ResultRow::new(Quantity::PitchDeviation, i + 1, v + shift).with_u(0.1));
+                rows.push(ResultRow::new(Quantity::EncoderError, i, v - shift).with_u(0.1));
+            }
+            LabResult::from_rows(name, rows)
+        };
+        let labs = [lab("A", 0.0), lab("B", 0.01)];
+        let comparisons: Vec<KeyComparison> = [Quantity::PitchDeviation, Quantity::EncoderError]
+            .into_iter()
+            .map(|q| evaluate(&labs, &[], &KcOptions::new().with_quantity(q)).unwrap())
+            .collect();
+        let mut text = Vec::new();
+        for kc in &comparisons {
+            crate::output::write_json(&mut text, kc).unwrap();
+        }
+        (comparisons, String::from_utf8(text).unwrap())
+    }
+
+    #[test]
+    fn every_line_read_back_in_order() {
+        let (comparisons, text) = two_lines();
+        assert_eq!(
+            read_json_lines(text.as_bytes(), "kc.json").unwrap(),
+            comparisons
+        );
+        // blank lines and a pretty-printed object read too
+        let (first, second) = text.split_once('\n').unwrap();
+        let value: serde_json::Value = serde_json::from_str(first).unwrap();
+        let pretty = serde_json::to_string_pretty(&value).unwrap();
+        let spaced = format!("\n{pretty}\n\n{second}");
+        assert_eq!(
+            read_json_lines(spaced.as_bytes(), "kc.json").unwrap(),
+            comparisons
+        );
+        // one object: as read_json reads it
+        assert_eq!(
+            read_json_lines(first.as_bytes(), "kc.json").unwrap(),
+            [read_json(first.as_bytes(), "kc.json").unwrap()]
+        );
+    }
+
+    #[test]
+    fn refusals_at_the_line_concerned() {
+        let (_, text) = two_lines();
+        let first = text.lines().next().unwrap();
+        let broken = format!("{first}\n{{\"quantity\": oops}}\n");
+        let e = read_json_lines(broken.as_bytes(), "kc.json").unwrap_err();
+        let KcJsonError::NotJson { location, .. } = &e else {
+            panic!("{e}")
+        };
+        assert_eq!((location.line(), location.column()), (2, 14), "{e}");
+        let twice = format!("{first}\n  {first}\n");
+        let e = read_json_lines(twice.as_bytes(), "kc.json").unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "kc.json:2:3: a second comparison of pitch_deviation (the first at line 1)"
+            ),
+            "{e}"
+        );
+        // a list one short in the second object: its line named
+        let second = text.lines().nth(1).unwrap();
+        let mut value: serde_json::Value = serde_json::from_str(second).unwrap();
+        value["tau"].as_array_mut().unwrap().pop();
+        let short = format!("{first}\n{value}\n");
+        let e = read_json_lines(short.as_bytes(), "kc.json").unwrap_err();
+        assert!(
+            e.to_string().starts_with("kc.json:2:1: tau has 2 entries"),
+            "{e}"
+        );
+        // nothing: serde's end of file, as read_json says it
+        assert_eq!(
+            read_json_lines(b" \n", "kc.json").unwrap_err(),
+            read_json(b" \n", "kc.json").unwrap_err()
+        );
+    }
 }

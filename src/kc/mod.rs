@@ -78,6 +78,7 @@ mod pairs;
 mod reference;
 mod scaled;
 mod search;
+mod shared;
 mod wording;
 
 use serde::{Deserialize, Serialize};
@@ -91,13 +92,14 @@ pub use covariance::lab_from_solve_json;
 pub use error::KcError;
 pub use evaluate::evaluate;
 pub use input::MIN_STANDARD_U_ARCSEC;
-pub use json::{KcJsonError, KeyComparisonShapeError, read_json};
+pub use json::{KcJsonError, KeyComparisonShapeError, read_json, read_json_lines};
 pub use link::{Link, link};
 pub use nullable::is_given;
 pub use pairs::{Pairs, PairsIter};
 pub use reference::chi2_text;
 pub use reference::{chi2_quantile_95, closed_covariance};
 pub use search::{SearchMethod, SearchStep, SubsetSearch};
+pub use shared::{COMPARED_QUANTITIES, shared_quantities};
 pub use wording::Wording;
 
 /// How the reference value of each quantity is formed.
@@ -157,7 +159,7 @@ pub enum KcNameError {
     #[error("method {0:?}: expected weighted-mean, dersimonian-laird or mandel-paule")]
     Method(String),
     /// Not the name of a compared quantity.
-    #[error("quantity {0:?}: expected pitch_deviation, encoder_error or angle_block")]
+    #[error("quantity {0:?}: expected {expected}", expected = shared::compared_names())]
     Quantity(String),
 }
 
@@ -193,14 +195,10 @@ impl std::str::FromStr for ReferenceMethod {
 /// assert!(polycal::kc::compared_quantity("face_deviation").is_err());
 /// ```
 pub fn compared_quantity(name: &str) -> Result<Quantity, KcNameError> {
-    [
-        Quantity::PitchDeviation,
-        Quantity::EncoderError,
-        Quantity::AngleBlock,
-    ]
-    .into_iter()
-    .find(|q| q.name() == name)
-    .ok_or_else(|| KcNameError::Quantity(name.to_string()))
+    COMPARED_QUANTITIES
+        .into_iter()
+        .find(|q| q.name() == name)
+        .ok_or_else(|| KcNameError::Quantity(name.to_string()))
 }
 
 /// Options of a key comparison: [`KcOptions::new`] and the `with_…` methods.

@@ -441,35 +441,79 @@ fn dynamic_table(header: &[String], rows: &[Vec<String>]) -> String {
     text
 }
 
-/// Writes the degrees of equivalence as CSV, one row per laboratory per quantity (the
-/// laboratories in the order given, then the pilot's repeats), under the header
-/// `lab,index,angle_deg,d,U,in_reference`: `index` is the face (or the first
-/// laboratory's index of the encoder error), `angle_deg` the table angle of an encoder
-/// error matched by angle (else empty), `d` = x_i − x_ref and `U` = U(d_i) at k = 2 in
-/// arcseconds at full precision, `in_reference` `true` or `false`.
+/// Writes key comparisons as tables ([`write_table`]), one after another in the order
+/// given: one comparison exactly as [`write_table`] writes it; several each under a
+/// heading line naming its quantity (`=== Key comparison 1 of 2: pitch_deviation ===`),
+/// a blank line between them.
+///
+/// # Errors
+///
+/// The writer's error.
+pub fn write_tables<W: Write>(out: &mut W, comparisons: &[KeyComparison]) -> fmt::Result {
+    if let [kc] = comparisons {
+        return write_table(out, kc);
+    }
+    for (i, kc) in comparisons.iter().enumerate() {
+        if i > 0 {
+            out.write_char('\n')?;
+        }
+        writeln!(
+            out,
+            "=== Key comparison {} of {}: {} ===",
+            i + 1,
+            comparisons.len(),
+            kc.quantity
+        )?;
+        write_table(out, kc)?;
+    }
+    Ok(())
+}
+
+/// Writes the degrees of equivalence of key comparisons as CSV, under one header
+/// `lab,index,angle_deg,d,U,in_reference,quantity`: per comparison in the order given,
+/// one row per laboratory per position (the laboratories in the order given, then the
+/// pilot's repeats). `index` is the face (or the first laboratory's index of the encoder
+/// error), `angle_deg` the table angle of an encoder error matched by angle (else
+/// empty), `d` = x_i − x_ref and `U` = U(d_i) at k = 2 in arcseconds at full precision,
+/// `in_reference` `true` or `false`, `quantity` the comparison's quantity
+/// (`pitch_deviation`, …) on every row, one comparison or several.
 ///
 /// # Errors
 ///
 /// The I/O error of the writer, as a [`csv::Error`].
-pub fn write_csv<W: std::io::Write>(writer: W, kc: &KeyComparison) -> Result<(), csv::Error> {
+pub fn write_csv<W: std::io::Write>(
+    writer: W,
+    comparisons: &[KeyComparison],
+) -> Result<(), csv::Error> {
     let mut csv = csv::Writer::from_writer(writer);
-    csv.write_record(["lab", "index", "angle_deg", "d", "U", "in_reference"])?;
-    let pilot = kc.pilot.iter().flat_map(|p| &p.degrees_of_equivalence);
-    for doe in kc.degrees_of_equivalence.iter().chain(pilot) {
-        for k in 0..kc.index.len() {
-            if !crate::kc::is_given(doe.d[k]) {
-                continue; // an angle block the laboratory does not report
+    csv.write_record([
+        "lab",
+        "index",
+        "angle_deg",
+        "d",
+        "U",
+        "in_reference",
+        "quantity",
+    ])?;
+    for kc in comparisons {
+        let pilot = kc.pilot.iter().flat_map(|p| &p.degrees_of_equivalence);
+        for doe in kc.degrees_of_equivalence.iter().chain(pilot) {
+            for k in 0..kc.index.len() {
+                if !crate::kc::is_given(doe.d[k]) {
+                    continue; // an angle block the laboratory does not report
+                }
+                csv.write_record([
+                    text_cell(&doe.lab),
+                    kc.index[k].to_string(),
+                    kc.angle_deg
+                        .as_ref()
+                        .map_or(String::new(), |a| a[k].to_string()),
+                    doe.d[k].to_string(),
+                    doe.expanded_u[k].to_string(),
+                    doe.in_reference.to_string(),
+                    kc.quantity.name().to_string(),
+                ])?;
             }
-            csv.write_record([
-                text_cell(&doe.lab),
-                kc.index[k].to_string(),
-                kc.angle_deg
-                    .as_ref()
-                    .map_or(String::new(), |a| a[k].to_string()),
-                doe.d[k].to_string(),
-                doe.expanded_u[k].to_string(),
-                doe.in_reference.to_string(),
-            ])?;
         }
     }
     csv.flush()?;

@@ -180,6 +180,8 @@ fn kc_and_report_reference_take_a_certificate() {
         "kc",
         &format!("A={}", text(&xml)),
         &format!("B={}", text(&csv)),
+        "--quantity",
+        "pitch_deviation",
         "--format",
         "json",
     ]);
@@ -293,6 +295,8 @@ fn another_writers_certificate_is_converted_to_arcseconds() {
         "kc",
         &format!("NMI={}", text(&xml)),
         &format!("HAND={}", text(&csv)),
+        "--quantity",
+        "pitch_deviation",
         "--format",
         "json",
     ]);

@@ -770,7 +770,16 @@ fn kc_degrees_of_equivalence_reference_and_pilot_against_the_json() {
     let start = format!("start={k}/pilot-start.csv");
     let middle = format!("middle={k}/pilot-middle.csv");
     args.extend([
-        "--pilot", &start, "--pilot", &middle, "--format", "json", "--plot", d,
+        "--pilot",
+        &start,
+        "--pilot",
+        &middle,
+        "--quantity",
+        "pitch_deviation",
+        "--format",
+        "json",
+        "--plot",
+        d,
     ]);
     let json = json_of(&polycal(&args));
     let faces = floats(&json["index"]);
@@ -929,7 +938,14 @@ fn kc_kcdb_graphs_one_per_face_against_the_json() {
         .collect();
     let mut args: Vec<&str> = vec!["kc"];
     args.extend(labs.iter().map(String::as_str));
-    args.extend(["--format", "json", "--plot", dir.to_str().unwrap()]);
+    args.extend([
+        "--quantity",
+        "pitch_deviation",
+        "--format",
+        "json",
+        "--plot",
+        dir.to_str().unwrap(),
+    ]);
     let json = json_of(&polycal(&args));
     assert_eq!(json["excluded"][0]["lab"], "F");
     let text = svg_text(&dir.join("kc-kcdb.svg"));

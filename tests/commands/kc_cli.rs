@@ -65,6 +65,8 @@ fn kc_the_bundled_example_in_json_table_and_csv() {
         .collect();
     let mut args: Vec<&str> = vec!["kc"];
     args.extend(labs.iter().map(String::as_str));
+    // the pitch deviations (the files carry encoder errors too: tests/commands/kc_shared.rs)
+    args.extend(["--quantity", "pitch_deviation"]);
     let mut json_args = args.clone();
     json_args.extend(["--format", "json"]);
     let out = polycal(&json_args);
@@ -112,11 +114,11 @@ fn kc_the_bundled_example_in_json_table_and_csv() {
     csv_args.extend(["--format", "csv"]);
     let out = polycal(&csv_args);
     let csv = String::from_utf8(out.stdout).unwrap();
-    assert!(csv.starts_with("lab,index,angle_deg,d,U,in_reference\nA,1,,"));
+    assert!(csv.starts_with("lab,index,angle_deg,d,U,in_reference,quantity\nA,1,,"));
     assert_eq!(csv.lines().count(), 1 + 6 * 12);
     assert!(
         csv.lines()
-            .any(|l| l.starts_with("F,4,") && l.ends_with(",false"))
+            .any(|l| l.starts_with("F,4,") && l.ends_with(",false,pitch_deviation"))
     );
 }
 
@@ -261,7 +263,7 @@ fn kc_reads_solve_json_with_its_covariance() {
         args.push(format!("{name}={path}"));
         solved.push(text);
     }
-    args.extend(["--format".to_string(), "json".to_string()]);
+    args.extend(["--quantity", "pitch_deviation", "--format", "json"].map(String::from));
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let out = polycal(&args);
     assert!(out.status.code() == Some(0) || out.status.code() == Some(1));
@@ -364,7 +366,17 @@ fn kc_method_and_quantity_words_are_the_librarys() {
     use polycal::kc::{ReferenceMethod, compared_quantity};
     let (a, b) = (example("A"), example("B"));
     for word in ["weighted-mean", "dersimonian-laird"] {
-        let out = polycal(&["kc", &a, &b, "--method", word, "--format", "json"]);
+        let out = polycal(&[
+            "kc",
+            &a,
+            &b,
+            "--method",
+            word,
+            "--quantity",
+            "pitch_deviation",
+            "--format",
+            "json",
+        ]);
         let json: Value = serde_json::from_slice(&out.stdout).unwrap();
         assert_eq!(json["method"], word);
         assert!(word.parse::<ReferenceMethod>().is_ok());
@@ -401,6 +413,8 @@ fn kc_solve_json_with_a_budget_uses_u_from_its_expanded_uncertainty() {
         "kc",
         &format!("A={path}"),
         &format!("B={path}"),
+        "--quantity",
+        "pitch_deviation",
         "--format",
         "json",
     ]);
@@ -451,14 +465,21 @@ fn kc_link_gives_degrees_of_equivalence_against_the_linked_reference() {
     let cipm_args: Vec<String> = ["A", "B", "C", "D"].iter().map(|n| example(n)).collect();
     let mut args: Vec<&str> = vec!["kc"];
     args.extend(cipm_args.iter().map(String::as_str));
-    args.extend(["--format", "json"]);
+    args.extend(["--quantity", "pitch_deviation", "--format", "json"]);
     let cipm_text = stdout_of(&args);
     let cipm: Value = serde_json::from_str(&cipm_text).unwrap();
     let cipm_path = scratch("cipm.json", &cipm_text);
     let rmo_args: Vec<String> = ["B", "C", "D", "E"].iter().map(|n| example(n)).collect();
     let mut args: Vec<&str> = vec!["kc"];
     args.extend(rmo_args.iter().map(String::as_str));
-    args.extend(["--link", &cipm_path, "--format", "json"]);
+    args.extend([
+        "--quantity",
+        "pitch_deviation",
+        "--link",
+        &cipm_path,
+        "--format",
+        "json",
+    ]);
     let rmo: Value = serde_json::from_str(&stdout_of(&args)).unwrap();
     assert_eq!(rmo["link"]["labs"], serde_json::json!(["B", "C", "D"]));
     assert_eq!(rmo["link"]["vector"]["dof"], 11 * 2);
@@ -485,6 +506,8 @@ fn kc_link_gives_degrees_of_equivalence_against_the_linked_reference() {
     let mut args: Vec<&str> = vec!["kc"];
     args.extend(rmo_args.iter().map(String::as_str));
     args.extend([
+        "--quantity",
+        "pitch_deviation",
         "--link",
         &cipm_path,
         "--anonymise",

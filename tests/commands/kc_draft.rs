@@ -93,6 +93,8 @@ fn kc_anonymise_leaves_no_name_nor_path_in_any_output() {
     let (k, p) = (key.to_str().unwrap(), plot.to_str().unwrap());
     let mut base: Vec<&str> = vec!["kc"];
     base.extend(labs.iter().map(String::as_str));
+    // the pitch deviations (several quantities: tests/commands/kc_shared.rs)
+    base.extend(["--quantity", "pitch_deviation"]);
 
     // the truth: the comparison under the real names
     let mut plain_args = base.clone();
@@ -165,8 +167,9 @@ fn kc_anonymise_leaves_no_name_nor_path_in_any_output() {
     );
     assert!(table.contains(&format!("{sirius}: left out of the whole comparison")));
     assert!(
-        csv.lines()
-            .any(|l| l.starts_with(&format!("{sirius},4,")) && l.ends_with(",false"))
+        csv.lines().any(
+            |l| l.starts_with(&format!("{sirius},4,")) && l.ends_with(",false,pitch_deviation")
+        )
     );
     // --keep and --not-in-reference take the real names
     let deneb = codes.iter().find(|(_, l)| *l == "Deneb-NMI").unwrap().0;

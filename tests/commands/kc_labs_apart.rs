@@ -66,7 +66,17 @@ fn control_characters_in_a_laboratory_name_are_shown_escaped_in_the_table() {
     assert!(text.contains("B\\u{9b}2J"), "{text}");
     assert!(text.contains("C\\nforged line"), "{text}");
     // The JSON keeps the names as given.
-    let out = polycal(&["kc", &a, &b, &c, &d, "--format", "json"]);
+    let out = polycal(&[
+        "kc",
+        &a,
+        &b,
+        &c,
+        &d,
+        "--quantity",
+        "pitch_deviation",
+        "--format",
+        "json",
+    ]);
     let json: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["labs"][2], "C\nforged line");
 }

@@ -100,6 +100,8 @@ mod kc_input;
 #[cfg(feature = "cli")]
 mod kc_labs_apart;
 #[cfg(feature = "cli")]
+mod kc_shared;
+#[cfg(feature = "cli")]
 mod output_files;
 #[cfg(feature = "cli")]
 mod output_files_plot;

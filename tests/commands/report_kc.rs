@@ -30,13 +30,17 @@ const KC: &str = "examples/data/kc";
 const LABS: [&str; 6] = ["A", "B", "C", "D", "E", "F"];
 const SI: &str = "https://ptb.de/si";
 
-/// `polycal kc` of the bundled comparison (with `extra` options) written to `dir/name`;
-/// returns its path and its JSON parsed by serde_json alone.
+/// `polycal kc` of the bundled comparison (with `extra` options; of the pitch deviations
+/// unless they name `--quantity`) written to `dir/name`; returns its path and its JSON
+/// parsed by serde_json alone.
 fn kc_json(dir: &Path, name: &str, extra: &[&str]) -> (PathBuf, Value) {
     let labs: Vec<String> = LABS.iter().map(|l| format!("{l}={KC}/{l}.csv")).collect();
     let mut args: Vec<&str> = vec!["kc"];
     args.extend(labs.iter().map(String::as_str));
     args.extend_from_slice(extra);
+    if !extra.contains(&"--quantity") {
+        args.extend(["--quantity", "pitch_deviation"]);
+    }
     args.extend_from_slice(&["--format", "json"]);
     let out = polycal(&args);
     assert!(

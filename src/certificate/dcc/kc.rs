@@ -1,5 +1,6 @@
-//! The key comparison in a DCC's results (`report --kc`, docs/FORMAT.md §10.3): one
-//! `dcc:result` of refType `polycal_keyComparison` whose list holds, per compared quantity,
+//! The key comparisons in a DCC's results (`report --kc`, docs/FORMAT.md §10.3): per
+//! comparison in the file (one per compared quantity, pitch deviations, encoder errors),
+//! one `dcc:result` of refType `polycal_keyComparison` whose list holds, per position,
 //! the reference value with U = 2·u_ref, the χ² of its test and χ²_0.95(ν), and the
 //! degrees of equivalence d_i with U(d_i) (the named laboratory's, or every laboratory's)
 //! as D-SI lists; the formulas, the closed vector's test, the exclusions with their reasons
@@ -18,11 +19,17 @@ const K: f64 = 2.0;
 /// The coverage probability stated with k = 2: about 95 % for a normal distribution.
 const P: f64 = 0.95;
 
-/// The key comparison's `dcc:result`; nothing without one.
+/// The key comparisons' `dcc:result`s, one per comparison (per compared quantity) in the
+/// order of the file; nothing without one.
 pub(super) fn key_comparison(x: &mut Xml, report: &CalibrationReport) -> Result<(), DccError> {
-    let Some(section) = &report.key_comparison else {
-        return Ok(());
-    };
+    for section in &report.key_comparisons {
+        one_comparison(x, section)?;
+    }
+    Ok(())
+}
+
+/// One key comparison's `dcc:result`.
+fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), DccError> {
     let kc = &section.comparison;
     let n = kc.index.len();
     x.open("dcc:result", &[("refType", "polycal_keyComparison")]);

@@ -32,22 +32,38 @@ fn chi2_cell(chi2: f64) -> String {
 /// Decimals of table angles, degrees (as the comparison table's).
 const ANGLE_DECIMALS: usize = 3;
 
-/// The section, when the report has a key comparison.
+/// The sections of the report's key comparisons, one per comparison in the file's order
+/// (one per compared quantity); none without. One comparison is the section
+/// `key-comparison` with its elements' ids `kc-…`; of several, each section's ids end in
+/// `-` and its quantity (`key-comparison-encoder_error`, `kc-doe-encoder_error`).
 pub(super) fn section(s: &mut Sections, report: &CalibrationReport) {
-    let Some(section) = &report.key_comparison else {
-        return;
-    };
+    let several = report.key_comparisons.len() > 1;
+    for section in &report.key_comparisons {
+        let kc = &section.comparison;
+        if several {
+            let sfx = format!("-{}", kc.quantity.name());
+            let title = format!("Key comparison: {}", quantity_plural(kc.quantity));
+            s.open(&format!("key-comparison{sfx}"), &title);
+            one_comparison(s, section, &sfx);
+        } else {
+            s.open("key-comparison", "Key comparison");
+            one_comparison(s, section, "");
+        }
+    }
+}
+
+/// One key comparison's section, opened; `sfx` ends each of its ids.
+fn one_comparison(s: &mut Sections, section: &KeyComparisonSection, sfx: &str) {
     let kc = &section.comparison;
-    s.open("key-comparison", "Key comparison");
-    introduction(&mut s.html, section);
-    formulas(&mut s.html, kc);
-    reference_table(&mut s.html, kc);
-    vector(&mut s.html, kc);
-    exclusions(&mut s.html, kc);
-    degrees_of_equivalence(&mut s.html, section);
-    pilot(&mut s.html, kc);
+    introduction(&mut s.html, section, sfx);
+    formulas(&mut s.html, kc, sfx);
+    reference_table(&mut s.html, kc, sfx);
+    vector(&mut s.html, kc, sfx);
+    exclusions(&mut s.html, kc, sfx);
+    degrees_of_equivalence(&mut s.html, section, sfx);
+    pilot(&mut s.html, kc, sfx);
     if !kc.notes.is_empty() {
-        s.html.push_str("<ul class=\"notes\" id=\"kc-notes\">\n");
+        let _ = writeln!(s.html, "<ul class=\"notes\" id=\"kc-notes{sfx}\">");
         for note in &kc.notes {
             let _ = writeln!(s.html, "<li>{}</li>", esc(note));
         }
@@ -55,7 +71,7 @@ pub(super) fn section(s: &mut Sections, report: &CalibrationReport) {
     }
     let _ = writeln!(
         s.html,
-        "<p class=\"verdict {}\" id=\"kc-verdict\">{}.</p>",
+        "<p class=\"verdict {}\" id=\"kc-verdict{sfx}\">{}.</p>",
         if kc.comparison_consistent {
             "pass"
         } else {
@@ -109,13 +125,13 @@ fn position_headers(kc: &KeyComparison) -> String {
     )
 }
 
-fn introduction(out: &mut String, section: &KeyComparisonSection) {
+fn introduction(out: &mut String, section: &KeyComparisonSection, sfx: &str) {
     let kc = &section.comparison;
     let _ = write!(
         out,
         "<p>Interlaboratory (key) comparison of the {} of {} laboratories ({}), evaluated by \
          <code>polycal kc</code> (docs/FORMAT.md §12); the numbers below are those of its JSON, \
-         file <span id=\"kc-file\">{}</span>, SHA-256 <span class=\"hash\" id=\"kc-sha256\">{}</span>.",
+         file <span id=\"kc-file{sfx}\">{}</span>, SHA-256 <span class=\"hash\" id=\"kc-sha256{sfx}\">{}</span>.",
         quantity_plural(kc.quantity),
         kc.labs.len(),
         esc(&kc.labs.join(", ")),
@@ -126,7 +142,7 @@ fn introduction(out: &mut String, section: &KeyComparisonSection) {
         Some(lab) => {
             let _ = write!(
                 out,
-                " This report is for laboratory <span id=\"kc-lab\">{}</span>, {}.",
+                " This report is for laboratory <span id=\"kc-lab{sfx}\">{}</span>, {}.",
                 esc(lab),
                 match section.lab_exclusion() {
                     Some(e) => format!("which was left out of the reference: {}", esc(&e.reason)),
@@ -141,7 +157,7 @@ fn introduction(out: &mut String, section: &KeyComparisonSection) {
     out.push_str("</p>\n");
 }
 
-fn formulas(out: &mut String, kc: &KeyComparison) {
+fn formulas(out: &mut String, kc: &KeyComparison, sfx: &str) {
     let reference = match kc.method {
         ReferenceMethod::WeightedMean => {
             "the closed GLS reference of the laboratories in it (the weighted mean x<sub>ref</sub> \
@@ -171,7 +187,7 @@ fn formulas(out: &mut String, kc: &KeyComparison) {
     };
     let _ = writeln!(
         out,
-        "<p id=\"kc-method\" data-method=\"{}\">Reference value ({}): {reference}. Per \
+        "<p id=\"kc-method{sfx}\" data-method=\"{}\">Reference value ({}): {reference}. Per \
          quantity, as information: χ² = Σ (x<sub>i</sub> − x̄<sub>w</sub>)²/u<sub>i</sub>² with \
          ν = n − 1 against χ²<sub>0.95</sub>(ν) (about one quantity in twenty fails by chance). \
          Degrees of equivalence: d<sub>i</sub> = x<sub>i</sub> − x<sub>ref</sub> (Σ d<sub>i</sub> \
@@ -187,10 +203,10 @@ fn formulas(out: &mut String, kc: &KeyComparison) {
     );
 }
 
-fn reference_table(out: &mut String, kc: &KeyComparison) {
+fn reference_table(out: &mut String, kc: &KeyComparison, sfx: &str) {
     let _ = writeln!(
         out,
-        "<table class=\"results\" id=\"kc-reference\"><caption>Reference value per {}</caption>\
+        "<table class=\"results\" id=\"kc-reference{sfx}\"><caption>Reference value per {}</caption>\
          <thead><tr>{}<th>x<sub>ref</sub> / ″</th><th>u<sub>ref</sub> / ″</th><th>τ / ″</th>\
          <th>χ²</th><th>ν</th><th>χ²<sub>0.95</sub>(ν)</th><th>Consistent</th></tr></thead><tbody>",
         position_header(kc).to_lowercase(),
@@ -214,7 +230,7 @@ fn reference_table(out: &mut String, kc: &KeyComparison) {
     out.push_str("</tbody></table>\n");
 }
 
-fn vector(out: &mut String, kc: &KeyComparison) {
+fn vector(out: &mut String, kc: &KeyComparison, sfx: &str) {
     let rows: Vec<(&str, &crate::kc::VectorTest)> = [
         ("Every laboratory (the decision)", kc.vector_all.as_ref()),
         ("The laboratories in the reference", kc.vector.as_ref()),
@@ -225,7 +241,7 @@ fn vector(out: &mut String, kc: &KeyComparison) {
     if rows.is_empty() {
         let _ = writeln!(
             out,
-            "<p id=\"kc-vector\">The closed vector is not tested: {} are not closed.</p>",
+            "<p id=\"kc-vector{sfx}\">The closed vector is not tested: {} are not closed.</p>",
             quantity_plural(kc.quantity)
         );
         return;
@@ -238,7 +254,7 @@ fn vector(out: &mut String, kc: &KeyComparison) {
          P = I − J/N): x<sub>ref</sub> = (Σ V<sub>i</sub>⁺)⁺ Σ V<sub>i</sub>⁺ x<sub>i</sub>, \
          χ² = Σ (x<sub>i</sub> − x<sub>ref</sub>)ᵀ V<sub>i</sub>⁺ (x<sub>i</sub> − \
          x<sub>ref</sub>), ν = (N − 1)(n − 1).</p>\n\
-         <table id=\"kc-vector\"><thead><tr><th>Laboratories</th><th>χ²</th><th>ν</th>\
+         <table id=\"kc-vector{sfx}\"><thead><tr><th>Laboratories</th><th>χ²</th><th>ν</th>\
          <th>χ²<sub>0.95</sub>(ν)</th><th>Consistent</th></tr></thead><tbody>",
         quantity_plural(kc.quantity),
         if kc.quantity == Quantity::EncoderError {
@@ -262,11 +278,11 @@ fn vector(out: &mut String, kc: &KeyComparison) {
     out.push_str("</tbody></table>\n");
 }
 
-fn exclusions(out: &mut String, kc: &KeyComparison) {
+fn exclusions(out: &mut String, kc: &KeyComparison, sfx: &str) {
     if let Some(search) = &kc.search {
         let _ = writeln!(
             out,
-            "<table id=\"kc-search\"><caption>The largest consistent subset ({}, {} subsets \
+            "<table id=\"kc-search{sfx}\"><caption>The largest consistent subset ({}, {} subsets \
              fitted): the subset of each size with the smallest χ²</caption><thead><tr>\
              <th>Laboratories</th><th>Subset</th><th>χ²</th><th>ν</th><th>χ²<sub>0.95</sub>(ν)</th>\
              <th>Passes</th></tr></thead><tbody>",
@@ -296,14 +312,16 @@ fn exclusions(out: &mut String, kc: &KeyComparison) {
         out.push_str("</tbody></table>\n");
     }
     if kc.excluded.is_empty() {
-        out.push_str(
-            "<p id=\"kc-exclusions\">Exclusions: none; every laboratory is in the reference.</p>\n",
+        let _ = writeln!(
+            out,
+            "<p id=\"kc-exclusions{sfx}\">Exclusions: none; every laboratory is in the reference.</p>",
         );
         return;
     }
-    out.push_str(
-        "<table id=\"kc-exclusions\"><caption>Laboratories left out of the reference (of \
-         every quantity)</caption><thead><tr><th>Laboratory</th><th>Reason</th></tr></thead><tbody>\n",
+    let _ = writeln!(
+        out,
+        "<table id=\"kc-exclusions{sfx}\"><caption>Laboratories left out of the reference (of \
+         every quantity)</caption><thead><tr><th>Laboratory</th><th>Reason</th></tr></thead><tbody>",
     );
     for e in &kc.excluded {
         let _ = writeln!(
@@ -317,7 +335,7 @@ fn exclusions(out: &mut String, kc: &KeyComparison) {
     out.push_str("</tbody></table>\n");
 }
 
-fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection) {
+fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection, sfx: &str) {
     let kc = &section.comparison;
     let mut shown = section.shown_degrees_of_equivalence();
     if section.lab.is_none()
@@ -327,7 +345,7 @@ fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection) {
     }
     let _ = write!(
         out,
-        "<table class=\"results\" id=\"kc-doe\"><caption>Degrees of equivalence d<sub>i</sub> and \
+        "<table class=\"results\" id=\"kc-doe{sfx}\"><caption>Degrees of equivalence d<sub>i</sub> and \
          U(d<sub>i</sub>) (k = 2){}; * where |d<sub>i</sub>| &gt; U(d<sub>i</sub>)</caption>\
          <thead><tr>{}",
         if section.lab.is_none() && kc.pilot.is_some() {
@@ -373,11 +391,11 @@ fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection) {
     }
 }
 
-fn pilot(out: &mut String, kc: &KeyComparison) {
+fn pilot(out: &mut String, kc: &KeyComparison, sfx: &str) {
     let Some(p) = &kc.pilot else { return };
     let _ = writeln!(
         out,
-        "<p id=\"kc-pilot-verdict\">{}.</p>\n<table class=\"results\" id=\"kc-pilot\"><caption>The pilot's repeats {} per quantity \
+        "<p id=\"kc-pilot-verdict{sfx}\">{}.</p>\n<table class=\"results\" id=\"kc-pilot{sfx}\"><caption>The pilot's repeats {} per quantity \
          (information): χ² about their weighted mean with ν = {}, and u<sub>stab</sub></caption><thead><tr>{}<th>mean / ″</th><th>s / ″</th>\
          <th>χ²</th><th>Significant</th><th>u<sub>stab</sub> / ″</th></tr></thead><tbody>",
         esc(&kc.pilot_statement().unwrap_or_default()),
