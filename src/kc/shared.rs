@@ -128,16 +128,20 @@ mod tests {
         let message = shared_quantities(&labs, &[]).unwrap_err().to_string();
         assert_eq!(
             message,
-            "no quantity a key comparison compares (pitch_deviation or encoder_error) has rows \
-             in every result: no pitch_deviation rows in B (laboratory B), F0 (laboratory F0), \
-             F1 (laboratory F1) and 2 more; no encoder_error rows in A (laboratory A), F0 \
-             (laboratory F0), F1 (laboratory F1) and 2 more"
+            "no quantity a key comparison compares (pitch_deviation, encoder_error or \
+             angle_block) has rows in every result: no pitch_deviation rows in B (laboratory B), \
+             F0 (laboratory F0), F1 (laboratory F1) and 2 more; no encoder_error rows in A \
+             (laboratory A), F0 (laboratory F0), F1 (laboratory F1) and 2 more; no angle_block \
+             rows in A (laboratory A), B (laboratory B), F0 (laboratory F0) and 3 more"
         );
     }
 
     #[test]
     fn the_names_in_words_follow_the_list() {
-        assert_eq!(compared_names(), "pitch_deviation or encoder_error");
+        assert_eq!(
+            compared_names(),
+            "pitch_deviation, encoder_error or angle_block"
+        );
         for q in COMPARED_QUANTITIES {
             assert_eq!(super::super::compared_quantity(q.name()), Ok(q));
         }

@@ -92,8 +92,11 @@ fn json_lines_are_the_objects_of_each_quantitys_run() {
     let whole = kc(&labs, &extra);
     assert_eq!(whole.status.code(), Some(0));
     let lines = json_lines(&whole);
-    assert_eq!(lines.len(), 2, "one object per shared quantity");
-    for (line, quantity) in lines.iter().zip(["pitch_deviation", "encoder_error"]) {
+    assert_eq!(lines.len(), 3, "one object per shared quantity");
+    for (line, quantity) in lines
+        .iter()
+        .zip(["pitch_deviation", "encoder_error", "angle_block"])
+    {
         let mut single = extra.clone();
         single.extend(["--quantity", quantity]);
         let alone = json_lines(&kc(&labs, &single));
@@ -107,11 +110,17 @@ fn json_lines_are_the_objects_of_each_quantitys_run() {
 fn the_tables_follow_each_other_under_a_heading_and_the_csv_names_the_quantity() {
     let labs = labs(&["A", "B", "C", "D", "E", "F"]);
     let table = stdout(&kc(&labs, &[]));
-    let first = "=== Key comparison 1 of 2: pitch_deviation ===\n";
-    let second = "=== Key comparison 2 of 2: encoder_error ===\n";
+    let first = "=== Key comparison 1 of 3: pitch_deviation ===\n";
+    let second = "=== Key comparison 2 of 3: encoder_error ===\n";
+    let third = "=== Key comparison 3 of 3: angle_block ===\n";
     assert!(table.starts_with(first), "{table}");
-    let (pitch, encoder) = table[first.len()..].split_once(second).unwrap();
-    for (part, quantity) in [(pitch, "pitch_deviation"), (encoder, "encoder_error")] {
+    let (pitch, rest) = table[first.len()..].split_once(second).unwrap();
+    let (encoder, blocks) = rest.split_once(third).unwrap();
+    for (part, quantity) in [
+        (pitch, "pitch_deviation"),
+        (encoder, "encoder_error"),
+        (blocks, "angle_block"),
+    ] {
         let alone = stdout(&kc(&labs, &["--quantity", quantity]));
         assert_eq!(part.trim_end(), alone.trim_end(), "{quantity}");
     }
@@ -123,9 +132,10 @@ fn the_tables_follow_each_other_under_a_heading_and_the_csv_names_the_quantity()
         Some("lab,index,angle_deg,d,U,in_reference,quantity")
     );
     let rows: Vec<&str> = csv_lines.collect();
-    // six laboratories, 12 faces and 12 common encoder angles
-    assert_eq!(rows.len(), 6 * 12 + 6 * 12);
-    for quantity in ["pitch_deviation", "encoder_error"] {
+    // six laboratories, 12 faces and 12 common encoder angles; four angle blocks, but D's
+    // 90° block (not measured: no row)
+    assert_eq!(rows.len(), 6 * 12 + 6 * 12 + (6 * 4 - 1));
+    for quantity in ["pitch_deviation", "encoder_error", "angle_block"] {
         let alone = stdout(&kc(&labs, &["--quantity", quantity, "--format", "csv"]));
         let mine: Vec<&str> = rows
             .iter()
@@ -292,8 +302,11 @@ fn link_links_each_comparison_to_the_linked_one_of_its_quantity() {
     );
     let rmo = labs(&["B", "C", "E", "F"]);
     let lines = json_lines(&kc(&rmo, &["--link", &cipm, "--format", "json"]));
-    assert_eq!(lines.len(), 2);
-    for (line, quantity) in lines.iter().zip(["pitch_deviation", "encoder_error"]) {
+    assert_eq!(lines.len(), 3);
+    for (line, quantity) in lines
+        .iter()
+        .zip(["pitch_deviation", "encoder_error", "angle_block"])
+    {
         assert_eq!(
             line["link"]["labs"],
             serde_json::json!(["B", "C"]),
@@ -317,6 +330,7 @@ fn link_links_each_comparison_to_the_linked_one_of_its_quantity() {
     let lines = json_lines(&kc(&rmo, &["--link", &pitch_only, "--format", "json"]));
     assert!(lines[0].get("link").is_some());
     assert!(lines[1].get("link").is_none());
+    assert!(lines[2].get("link").is_none());
     // linked to encoder errors alone, results of pitch deviations alone: refused
     let encoder_only = write(
         &dir,
@@ -353,8 +367,9 @@ fn anonymise_gives_every_comparison_the_same_codes_and_writes_one_key() {
         &["--anonymise", key.to_str().unwrap(), "--format", "json"],
     );
     let lines = json_lines(&out);
-    assert_eq!(lines.len(), 2);
+    assert_eq!(lines.len(), 3);
     assert_eq!(lines[0]["labs"], lines[1]["labs"]);
+    assert_eq!(lines[0]["labs"], lines[2]["labs"]);
     for line in &lines {
         assert!(line["notes"].to_string().contains("code letters"));
     }
@@ -370,7 +385,7 @@ fn anonymise_gives_every_comparison_the_same_codes_and_writes_one_key() {
 /// a DCC result per comparison (the DCC valid), the figures of each under their own ids;
 /// a broken second line refused at its line.
 #[test]
-fn report_of_a_two_line_file_has_both_sections() {
+fn report_of_a_json_lines_file_has_every_section() {
     let dir = temp_dir("kc-shared", "report");
     let text = stdout(&kc(
         &labs(&["A", "B", "C", "D", "E", "F"]),
@@ -429,9 +444,13 @@ fn report_of_a_two_line_file_has_both_sections() {
         }
     }
     let dcc = std::fs::read_to_string(&dcc_path).unwrap();
-    assert_eq!(dcc.matches("refType=\"polycal_keyComparison\"").count(), 2);
+    assert_eq!(dcc.matches("refType=\"polycal_keyComparison\"").count(), 3);
     assert!(dcc.contains("Key comparison of the pitch_deviation"));
     assert!(dcc.contains("Key comparison of the encoder_error"));
+    assert!(dcc.contains("Key comparison of the angle_block"));
+    // D did not measure the 90° block: its degrees of equivalence in the DCC are of
+    // blocks 1 … 3 only (no number where none is due)
+    assert!(dcc.contains("<si:labelXMLList>block1 block2 block3</si:labelXMLList>"));
     // the second line broken: refused at line 2
     let first = text.lines().next().unwrap();
     let broken = write(

@@ -31,7 +31,6 @@ pub(super) fn key_comparison(x: &mut Xml, report: &CalibrationReport) -> Result<
 /// One key comparison's `dcc:result`.
 fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), DccError> {
     let kc = &section.comparison;
-    let n = kc.index.len();
     x.open("dcc:result", &[("refType", "polycal_keyComparison")]);
     x.content(
         "dcc:name",
@@ -48,6 +47,7 @@ fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), Dcc
         .iter()
         .map(|i| match kc.quantity {
             Quantity::PitchDeviation => format!("face{i}"),
+            Quantity::AngleBlock => format!("block{i}"),
             _ => format!("index{i}"),
         })
         .collect();
@@ -63,17 +63,34 @@ fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), Dcc
         }
         .write(x)?;
     }
+    if let Some(nominal) = &kc.nominal_deg {
+        let (labels, values) = given(&labels, |k| nominal.get(k).copied().flatten());
+        Column {
+            refs: "polycal_kcNominalAngle",
+            name: "Nominal angle of the angle block",
+            unit: "\\degree",
+            labels: Some(labels),
+            values,
+            expanded: None,
+            form: Form::Real,
+        }
+        .write(x)?;
+    }
+    let (reference_labels, reference) = given(&labels, |k| Some(kc.reference[k]));
+    let reference_u: Vec<f64> = kc
+        .reference
+        .iter()
+        .zip(&kc.reference_u)
+        .filter(|(r, _)| crate::kc::is_given(**r))
+        .map(|(_, u)| K * u)
+        .collect();
     Column {
         refs: "polycal_kcReferenceValue",
         name: "Reference value x_ref",
         unit: "\\arcsecond",
-        labels: Some(labels.clone()),
-        values: kc.reference.clone(),
-        expanded: Some((
-            kc.reference_u.iter().map(|u| K * u).collect(),
-            vec![K; n],
-            P,
-        )),
+        values: reference,
+        expanded: Some((reference_u.clone(), vec![K; reference_u.len()], P)),
+        labels: Some(reference_labels),
         form: Form::Real,
     }
     .write(x)?;
@@ -87,12 +104,13 @@ fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), Dcc
         form: Form::Real,
     }
     .write(x)?;
+    let (critical_labels, critical) = given(&labels, |k| Some(kc.chi2_critical[k]));
     Column {
         refs: "polycal_kcChi2Critical",
         name: "χ²_0.95(ν) of the consistency test",
         unit: "\\one",
-        labels: Some(labels.clone()),
-        values: kc.chi2_critical.clone(),
+        labels: Some(critical_labels),
+        values: critical,
         expanded: None,
         form: Form::Real,
     }
@@ -107,13 +125,22 @@ fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), Dcc
                 " (left out of the reference)"
             }
         );
+        // the positions the laboratory reports (an angle block it did not measure has no d)
+        let (doe_labels, d) = given(&labels, |k| Some(doe.d[k]));
+        let expanded_u: Vec<f64> = doe
+            .d
+            .iter()
+            .zip(&doe.expanded_u)
+            .filter(|(d, _)| crate::kc::is_given(**d))
+            .map(|(_, u)| *u)
+            .collect();
         Column {
             refs: "polycal_kcDegreeOfEquivalence",
             name: &name,
             unit: "\\arcsecond",
-            labels: Some(labels.clone()),
-            values: doe.d.clone(),
-            expanded: Some((doe.expanded_u.clone(), vec![K; n], P)),
+            labels: Some(doe_labels),
+            values: d,
+            expanded: Some((expanded_u.clone(), vec![K; expanded_u.len()], P)),
             form: Form::Real,
         }
         .write(x)?;
@@ -125,6 +152,21 @@ fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), Dcc
     x.close();
     x.close();
     Ok(())
+}
+
+/// The labels and values of the positions where `value` gives a finite number (a
+/// degree of equivalence where a laboratory does not report an angle block, a reference
+/// no laboratory in it reports, χ²_0.95(0): not given, so not written).
+fn given(labels: &[String], value: impl Fn(usize) -> Option<f64>) -> (Vec<String>, Vec<f64>) {
+    labels
+        .iter()
+        .enumerate()
+        .filter_map(|(k, label)| {
+            value(k)
+                .filter(|v| crate::kc::is_given(*v))
+                .map(|v| (label.clone(), v))
+        })
+        .unzip()
 }
 
 /// The formulas and the file, in words.
@@ -141,6 +183,11 @@ fn description(section: &KeyComparisonSection) -> String {
             "the DerSimonian–Laird random-effects reference, every u_i² widened by the dark uncertainty τ² = max(0, (χ² − ν)/(S1 − S2/S1)) of each quantity, then the closed GLS reference (with one u per laboratory x_ref = Σ x_i/(u_i² + τ²) / Σ 1/(u_i² + τ²), u_ref² = 1/Σ 1/(u_i² + τ²)); nobody left out, the verdict the test of τ = 0 (the closed vector of every laboratory at 5 %)"
         }
     };
+    // angle blocks: the same words of their own reference and test
+    let wording = kc.wording();
+    let method = method
+        .replace("the closed GLS reference", wording.reference())
+        .replace("the closed vector", &format!("the {}", wording.whole()));
     format!(
         "Interlaboratory comparison of {} laboratories ({}) evaluated by polycal kc (file {}, SHA-256 {}). Reference per quantity: {method}; its U = 2·u_ref. Per quantity, as information: χ² = Σ (x_i − x̄_w)²/u_i² with ν = n − 1 against χ²_0.95(ν). Degrees of equivalence d_i = x_i − x_ref with U(d_i) = 2·√(u_i² + u_stab² + τ² − u_ref²) in the reference and 2·√(u_i² + u_stab² + τ² + u_ref²) out of it. {} Values in arcseconds, labelled by {}; k = 2 with the coverage probability stated as 0.95 (normal distribution).",
         kc.labs.len(),
@@ -151,10 +198,11 @@ fn description(section: &KeyComparisonSection) -> String {
             Some(lab) => format!("The degrees of equivalence are those of laboratory {lab}."),
             None => "The degrees of equivalence of every laboratory follow.".to_string(),
         },
-        if kc.quantity == Quantity::PitchDeviation {
-            "face"
-        } else {
-            "the first laboratory's encoder index"
+        match kc.quantity {
+            Quantity::PitchDeviation => "face",
+            Quantity::AngleBlock =>
+                "angle block (a laboratory's degrees of equivalence only at the blocks it reports)",
+            _ => "the first laboratory's encoder index",
         }
     )
 }
@@ -165,7 +213,7 @@ fn statements(section: &KeyComparisonSection) -> Vec<String> {
     let kc = &section.comparison;
     let mut lines = Vec::new();
     if let Some(v) = &kc.vector_all {
-        lines.push(format!("Every laboratory: {}.", v.statement()));
+        lines.push(format!("Every laboratory: {}.", kc.vector_statement(v)));
     }
     if let Some(search) = &kc.search {
         for step in &search.steps {

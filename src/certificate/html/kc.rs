@@ -95,10 +95,10 @@ fn quantity_plural(quantity: Quantity) -> &'static str {
 
 /// The header of the position column.
 fn position_header(kc: &KeyComparison) -> &'static str {
-    if kc.quantity == Quantity::PitchDeviation {
-        "Face"
-    } else {
-        "Index"
+    match kc.quantity {
+        Quantity::PitchDeviation => "Face",
+        Quantity::AngleBlock => "Block",
+        _ => "Index",
     }
 }
 
@@ -109,6 +109,9 @@ fn position_cells(kc: &KeyComparison, k: usize) -> String {
     if let Some(angles) = &kc.angle_deg {
         cells.push_str(&num(angles.get(k).copied(), ANGLE_DECIMALS));
     }
+    if let Some(nominal) = &kc.nominal_deg {
+        cells.push_str(&num(nominal.get(k).copied().flatten(), ANGLE_DECIMALS));
+    }
     cells
 }
 
@@ -117,10 +120,10 @@ fn position_headers(kc: &KeyComparison) -> String {
     format!(
         "<th>{}</th>{}",
         position_header(kc),
-        if kc.angle_deg.is_some() {
-            "<th>angle / °</th>"
-        } else {
-            ""
+        match (&kc.angle_deg, &kc.nominal_deg) {
+            (Some(_), _) => "<th>angle / °</th>",
+            (None, Some(_)) => "<th>nominal / °</th>",
+            (None, None) => "",
         }
     )
 }
@@ -185,17 +188,51 @@ fn formulas(out: &mut String, kc: &KeyComparison, sfx: &str) {
              and the verdict is the test of τ = 0, the closed vector of every laboratory at 5 %"
         }
     };
+    // angle blocks: their own reference and test, no closure
+    let wording = kc.wording();
+    let reference = reference
+        .replace(
+            " (the weighted mean x<sub>ref</sub> = Σ x<sub>i</sub>/u<sub>i</sub>² / Σ \
+             1/u<sub>i</sub>², u<sub>ref</sub> = (Σ 1/u<sub>i</sub>²)<sup>−1/2</sup> of each \
+             quantity when every laboratory's u is the same on every quantity)",
+            if wording.is_closed() {
+                " (the weighted mean x<sub>ref</sub> = Σ x<sub>i</sub>/u<sub>i</sub>² / Σ \
+                 1/u<sub>i</sub>², u<sub>ref</sub> = (Σ 1/u<sub>i</sub>²)<sup>−1/2</sup> of each \
+                 quantity when every laboratory's u is the same on every quantity)"
+            } else {
+                " that report it: x<sub>ref</sub> = Σ x<sub>i</sub>/u<sub>i</sub>² / Σ \
+                 1/u<sub>i</sub>², u<sub>ref</sub> = (Σ 1/u<sub>i</sub>²)<sup>−1/2</sup>"
+            },
+        )
+        .replace("the closed GLS reference", wording.reference())
+        .replace(
+            "whose closed vector passes",
+            &format!("whose {} passes", wording.whole()),
+        )
+        .replace("the closed vector", &format!("the {}", wording.whole()));
+    let (sum_zero, diagonal) = if wording.is_closed() {
+        (
+            " (Σ d<sub>i</sub> = 0)",
+            "u<sub>i</sub>² the diagonal of the laboratory's closed covariance, u<sub>ref</sub>² \
+             that of the reference's",
+        )
+    } else {
+        (
+            "",
+            "at the blocks the laboratory reports, each block on its own; none where it did not \
+             measure a block",
+        )
+    };
     let _ = writeln!(
         out,
         "<p id=\"kc-method{sfx}\" data-method=\"{}\">Reference value ({}): {reference}. Per \
          quantity, as information: χ² = Σ (x<sub>i</sub> − x̄<sub>w</sub>)²/u<sub>i</sub>² with \
          ν = n − 1 against χ²<sub>0.95</sub>(ν) (about one quantity in twenty fails by chance). \
-         Degrees of equivalence: d<sub>i</sub> = x<sub>i</sub> − x<sub>ref</sub> (Σ d<sub>i</sub> \
-         = 0), U(d<sub>i</sub>) = 2·√(u<sub>i</sub>² + u<sub>stab</sub>² + τ² − \
+         Degrees of equivalence: d<sub>i</sub> = x<sub>i</sub> − x<sub>ref</sub>{sum_zero}, \
+         U(d<sub>i</sub>) = 2·√(u<sub>i</sub>² + u<sub>stab</sub>² + τ² − \
          u<sub>ref</sub>²) for a laboratory in the reference, 2·√(u<sub>i</sub>² + \
-         u<sub>stab</sub>² + τ² + u<sub>ref</sub>²) for one out of it (k = 2; u<sub>i</sub>² \
-         the diagonal of the laboratory's closed covariance, u<sub>ref</sub>² that of the \
-         reference's); u<sub>stab</sub> is the pilot's instability (0 without repeats or when \
+         u<sub>stab</sub>² + τ² + u<sub>ref</sub>²) for one out of it (k = 2; {diagonal}); \
+         u<sub>stab</sub> is the pilot's instability (0 without repeats or when \
          they agree; otherwise in every laboratory's u, in the reference and in every test). \
          All values in arcseconds.</p>",
         kc.method.name(),
@@ -246,23 +283,22 @@ fn vector(out: &mut String, kc: &KeyComparison, sfx: &str) {
         );
         return;
     }
+    if !kc.wording().is_closed() {
+        let _ = write!(
+            out,
+            "<p>The blocks' joint test: each angle block a single angle of its own (no \
+             closure), its reference the weighted mean of the laboratories in the reference that \
+             report it; χ² = Σ<sub>b</sub> Σ<sub>i</sub> (x<sub>ib</sub> − \
+             x<sub>ref,b</sub>)²/u<sub>ib</sub>², ν = Σ<sub>b</sub> (n<sub>b</sub> − 1), \
+             n<sub>b</sub> the laboratories reporting block b.</p>\n"
+        );
+    } else {
+        closed_words(out, kc);
+    }
     let _ = write!(
         out,
-        "<p>The closed vector: each laboratory's {} sum to 0 ({}), so its quantities are \
-         correlated. Generalised least squares with each laboratory's covariance V<sub>i</sub> \
-         (its own when it sent one, else V<sub>i</sub> = N/(N − 1)·P·diag(u<sub>i</sub>²)·P, \
-         P = I − J/N): x<sub>ref</sub> = (Σ V<sub>i</sub>⁺)⁺ Σ V<sub>i</sub>⁺ x<sub>i</sub>, \
-         χ² = Σ (x<sub>i</sub> − x<sub>ref</sub>)ᵀ V<sub>i</sub>⁺ (x<sub>i</sub> − \
-         x<sub>ref</sub>), ν = (N − 1)(n − 1).</p>\n\
-         <table id=\"kc-vector{sfx}\"><thead><tr><th>Laboratories</th><th>χ²</th><th>ν</th>\
-         <th>χ²<sub>0.95</sub>(ν)</th><th>Consistent</th></tr></thead><tbody>",
-        quantity_plural(kc.quantity),
-        if kc.quantity == Quantity::EncoderError {
-            "each result's mean over the compared positions taken out: encoder errors are \
-             defined up to a constant"
-        } else {
-            "a polygon closes"
-        }
+        "<table id=\"kc-vector{sfx}\"><thead><tr><th>Laboratories</th><th>χ²</th><th>ν</th>\
+         <th>χ²<sub>0.95</sub>(ν)</th><th>Consistent</th></tr></thead><tbody>"
     );
     for (name, v) in rows {
         let _ = write!(
@@ -276,6 +312,26 @@ fn vector(out: &mut String, kc: &KeyComparison, sfx: &str) {
         );
     }
     out.push_str("</tbody></table>\n");
+}
+
+/// The closed vector's test in words (pitch deviations, encoder errors).
+fn closed_words(out: &mut String, kc: &KeyComparison) {
+    let _ = write!(
+        out,
+        "<p>The closed vector: each laboratory's {} sum to 0 ({}), so its quantities are \
+         correlated. Generalised least squares with each laboratory's covariance V<sub>i</sub> \
+         (its own when it sent one, else V<sub>i</sub> = N/(N − 1)·P·diag(u<sub>i</sub>²)·P, \
+         P = I − J/N): x<sub>ref</sub> = (Σ V<sub>i</sub>⁺)⁺ Σ V<sub>i</sub>⁺ x<sub>i</sub>, \
+         χ² = Σ (x<sub>i</sub> − x<sub>ref</sub>)ᵀ V<sub>i</sub>⁺ (x<sub>i</sub> − \
+         x<sub>ref</sub>), ν = (N − 1)(n − 1).</p>\n",
+        quantity_plural(kc.quantity),
+        if kc.quantity == Quantity::EncoderError {
+            "each result's mean over the compared positions taken out: encoder errors are \
+             defined up to a constant"
+        } else {
+            "a polygon closes"
+        }
+    );
 }
 
 fn exclusions(out: &mut String, kc: &KeyComparison, sfx: &str) {
@@ -375,7 +431,12 @@ fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection, sfx:
                 "{}<td>{}</td>",
                 // the digits it takes to see whether |d| > U, as the mark says
                 decision_pair_cells(d.d[k], d.expanded_u[k]),
-                if within { "yes" } else { "no *" }
+                match (crate::kc::is_given(d.d[k]), within) {
+                    // an angle block the laboratory did not measure
+                    (false, _) => "—",
+                    (true, true) => "yes",
+                    (true, false) => "no *",
+                }
             );
         }
         out.push_str("</tr>\n");
@@ -385,7 +446,8 @@ fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection, sfx:
         out.push_str(
             "<p class=\"note\">The pairs d<sub>ij</sub> = x<sub>i</sub> − x<sub>j</sub> with \
              U(d<sub>ij</sub>) = 2·√(u<sub>i</sub>² + u<sub>j</sub>² + 2u<sub>stab</sub>² + \
-             2τ²), and each pair's closed-vector test at 5 % (χ², ν = N − 1), are in the key \
+             2τ²), and each pair's test at 5 % (χ², ν = N − 1; for angle blocks the blocks both \
+             report, ν their number), are in the key \
              comparison's JSON (<code>pairs</code>) and its pairwise figure.</p>\n",
         );
     }
