@@ -128,6 +128,17 @@ pub(crate) struct ClosedFit {
 /// for fewer than 2 vectors or 2 positions, or a system that cannot be solved (a
 /// covariance singular on the closed subspace).
 pub(crate) fn fit(x: &[&[f64]], v: &[&ClosedCovariance]) -> Option<ClosedFit> {
+    fit_keeping(x, v, false)
+}
+
+/// [`fit`], keeping what [`projected_variance`] needs when `keep` (a comparison whose
+/// results report different positions: a result outside the fit may report other
+/// positions than those inside).
+pub(crate) fn fit_keeping(
+    x: &[&[f64]],
+    v: &[&ClosedCovariance],
+    keep: bool,
+) -> Option<ClosedFit> {
     let independent: Option<Vec<&[f64]>> = v
         .iter()
         .map(|c| match c {
@@ -150,7 +161,7 @@ pub(crate) fn fit(x: &[&[f64]], v: &[&ClosedCovariance]) -> Option<ClosedFit> {
         })
         .collect();
     let fit = match all_stated {
-        Some(u) => additive(x, &u)?,
+        Some(u) => additive_keeping(x, &u, keep)?,
         None => dense(x, v)?,
     };
     // a position no result in the set reports has neither (NaN): [`additive`]
@@ -168,11 +179,7 @@ pub(crate) fn fit(x: &[&[f64]], v: &[&ClosedCovariance]) -> Option<ClosedFit> {
 /// of what is there, ν = Σ_i N_i − n − (K − 1) with N_i the positions result i reports and
 /// K those some result reports; a position no result reports has a reference of NaN, and
 /// the fit keeps what [`projected_variance`] needs.
-fn additive(x: &[&[f64]], u: &[&[f64]]) -> Option<ClosedFit> {
-    additive_keeping(x, u, false)
-}
-
-/// [`additive`], keeping the pieces of [`projected_variance`] when `keep` (or when some
+/// Keeping the pieces of [`projected_variance`] when `keep` (or when some
 /// result does not report some position).
 fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit> {
     let (labs, faces) = (x.len(), x[0].len());

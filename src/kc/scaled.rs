@@ -173,7 +173,7 @@ impl<'a> Scaled<'a> {
     pub(crate) fn fit(&self, set: &[usize], v: &[ClosedCovariance]) -> Option<ClosedFit> {
         let x: Vec<&[f64]> = set.iter().map(|&r| self.values[r].as_slice()).collect();
         let c: Vec<&ClosedCovariance> = set.iter().map(|&r| &v[r]).collect();
-        closed::fit(&x, &c)
+        closed::fit_keeping(&x, &c, self.closed && self.measured.is_some())
     }
 
     /// Result `r`'s (laboratory `lab`'s) degree of equivalence against the closed
@@ -193,15 +193,20 @@ impl<'a> Scaled<'a> {
         let sign = if inside_reference { -1.0 } else { 1.0 };
         // NaN where the result does not report the position (or nobody in the reference
         // does): no degree of equivalence there (null in the JSON)
-        let d = self
+        let mut d: Vec<f64> = self
             .reported_values(r)
             .iter()
             .zip(&fit.reference)
             .map(|(x, x_ref)| (x - x_ref) * scale)
             .collect();
+        let mut reference_variance = std::borrow::Cow::Borrowed(&fit.reference_variance);
+        if let Some((closed_d, projected)) = self.closed_over_own(&d, fit) {
+            d = closed_d;
+            reference_variance = std::borrow::Cow::Owned(projected);
+        }
         let expanded_u = diagonal
             .iter()
-            .zip(&fit.reference_variance)
+            .zip(reference_variance.iter())
             .enumerate()
             .map(|(k, (v, v_ref))| {
                 if self.is_measured(r, k) && v.is_finite() && v_ref.is_finite() {
@@ -221,6 +226,31 @@ impl<'a> Scaled<'a> {
             dof_effective: None,
             k: None,
         }
+    }
+}
+
+impl Scaled<'_> {
+    /// A closed result that does not report every position the reference has: its degree
+    /// of equivalence closed over the positions S it reports, d = P_S(x − x_ref,S), and the
+    /// variance the reference takes out of it (adds to it), diag(P_S·C_SS·P_S)
+    /// ([`closed::projected_variance`]). `None` for a result that reports every position of
+    /// the reference (d and C_kk as they are) and for angle blocks (not closed).
+    fn closed_over_own(&self, d: &[f64], fit: &ClosedFit) -> Option<(Vec<f64>, Vec<f64>)> {
+        if !self.closed || self.measured.is_none() {
+            return None;
+        }
+        let given: Vec<bool> = d.iter().map(|d| d.is_finite()).collect();
+        let fitted = fit.reference.iter().filter(|r| r.is_finite()).count();
+        if given.iter().filter(|g| **g).count() == fitted {
+            return None;
+        }
+        let (sum, count) = d
+            .iter()
+            .filter(|d| d.is_finite())
+            .fold((0.0, 0.0), |(s, n), d| (s + d, n + 1.0));
+        let mean = sum / count;
+        let closed_d = d.iter().map(|d| d - mean).collect();
+        Some((closed_d, closed::projected_variance(fit, &given)?))
     }
 }
 
