@@ -41,6 +41,7 @@ mod diagnose_shifted;
 mod engine;
 mod history;
 mod kc;
+mod kc_blocks;
 mod kc_covariance;
 mod measurement_file_good;
 mod measurement_file_in_memory;
