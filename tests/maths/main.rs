@@ -42,6 +42,7 @@ mod engine;
 mod history;
 mod kc;
 mod kc_blocks;
+mod kc_blocks_uncertainty;
 mod kc_covariance;
 mod measurement_file_good;
 mod measurement_file_in_memory;
