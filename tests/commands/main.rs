@@ -93,6 +93,8 @@ mod hardening_numbers;
 #[cfg(feature = "cli")]
 mod history_cli;
 #[cfg(feature = "cli")]
+mod kc_blocks;
+#[cfg(feature = "cli")]
 mod kc_cli;
 #[cfg(feature = "cli")]
 mod kc_draft;

@@ -4,6 +4,8 @@
 //! and a generator of closed comparisons.
 #![allow(dead_code, clippy::needless_range_loop)]
 
+pub mod blocks;
+
 use nalgebra::{DMatrix, DVector};
 use polycal::kc::LabResult;
 use polycal::results::{Quantity, ResultRow};

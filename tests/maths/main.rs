@@ -41,6 +41,8 @@ mod diagnose_shifted;
 mod engine;
 mod history;
 mod kc;
+mod kc_blocks;
+mod kc_blocks_uncertainty;
 mod kc_covariance;
 mod measurement_file_good;
 mod measurement_file_in_memory;

@@ -50,6 +50,7 @@ mod instrument_profiles_cli;
 mod instrument_resume;
 #[cfg(all(feature = "cli", feature = "lab"))]
 mod instrument_wrong_stop_cli;
+mod kc_blocks_rates;
 mod kc_link_rates;
 mod kc_pairs_motion;
 mod kc_rates;
