@@ -250,14 +250,15 @@ pub enum KcError {
     },
     /// One of the pilot's repeats does not report an angle block the laboratories compare.
     #[error(
-        "{file} (the pilot's repeat {repeat}) has no angle_block {block}: the pilot's repeats \
-         report every block compared (their spread is the artefact's stability on each)"
+        "{location}: the pilot's repeat {repeat} has no angle_block {block} (here is its last \
+         angle_block row): the pilot's repeats report every block compared (their spread is \
+         the artefact's stability on each)"
     )]
     RepeatMissesBlock {
+        /// Where the repeat's last row of angle blocks is (file:line:column of its index).
+        location: String,
         /// The repeat's name.
         repeat: String,
-        /// Its file.
-        file: String,
         /// The block it lacks.
         block: u32,
     },
@@ -281,16 +282,35 @@ pub enum KcError {
     /// One of the pilot's repeats does not report an encoder position the laboratories
     /// compare.
     #[error(
-        "{file} (the pilot's repeat {repeat}) has no encoder_error at {position}: the pilot's \
-         repeats report every position compared (their spread is the artefact's stability \
-         on each)"
+        "{location}: the pilot's repeat {repeat} has no encoder_error at {position} (here is \
+         its last encoder_error row): the pilot's repeats report every position compared \
+         (their spread is the artefact's stability on each)"
     )]
     RepeatMissesPosition {
+        /// Where the repeat's last row of encoder errors is (file:line:column of its index).
+        location: String,
         /// The repeat's name.
         repeat: String,
-        /// Its file.
-        file: String,
         /// The position it lacks (a table angle, or an index).
         position: String,
+    },
+    /// A laboratory none (or, for a closed vector, fewer than two) of whose positions is
+    /// compared: each one it reports is reported by no other laboratory.
+    #[error(
+        "{file} (laboratory {lab}): {compared} of its {quantity} positions compared, fewer \
+         than {needed}: each one it reports is reported by no other laboratory, so it cannot \
+         be compared; leave it out of the comparison of {quantity}"
+    )]
+    LabNotCompared {
+        /// The laboratory.
+        lab: String,
+        /// Its file.
+        file: String,
+        /// The compared quantity.
+        quantity: Quantity,
+        /// How many of its positions are compared.
+        compared: usize,
+        /// How many are needed: 1 for angle blocks, 2 for a closed vector.
+        needed: usize,
     },
 }

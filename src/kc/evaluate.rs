@@ -83,11 +83,12 @@ pub fn evaluate(
     }
     let aligned = match options.quantity {
         Quantity::PitchDeviation => input::pitch(&all)?,
-        Quantity::EncoderError => input::encoder(&all)?,
+        Quantity::EncoderError => input::encoder_reported(&all, labs.len())?,
         Quantity::AngleBlock => input::blocks(&all, labs.len())?,
         other => return Err(KcError::Quantity(other)),
     };
     let aligned = super::names::with_look_alike_notes(&all, aligned);
+    compared_enough(labs, &aligned, options.quantity)?;
     // Every laboratory's own covariance is checked, whether or not it ends in the
     // reference (pitch deviations only: encoder errors have no closed vector).
     let mut covariances = Vec::with_capacity(labs.len());
@@ -100,6 +101,33 @@ pub fn evaluate(
         });
     }
     evaluate_aligned(labs, pilot, options, aligned, &covariances)
+}
+
+/// Refuses a laboratory whose positions are compared too few times to be compared at all:
+/// none of its angle blocks, or fewer than two of its encoder positions (each reported by
+/// no other laboratory).
+fn compared_enough(
+    labs: &[LabResult],
+    aligned: &Aligned,
+    quantity: Quantity,
+) -> Result<(), KcError> {
+    let Some(measured) = &aligned.measured else {
+        return Ok(());
+    };
+    let needed = if aligned.closed { 2 } else { 1 };
+    for (lab, reported) in labs.iter().zip(measured) {
+        let compared = reported.iter().filter(|m| **m).count();
+        if compared < needed {
+            return Err(KcError::LabNotCompared {
+                lab: lab.name.clone(),
+                file: lab.source.clone(),
+                quantity,
+                compared,
+                needed,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The estimates of every quantity from the results `inside` that report it (values as
@@ -208,6 +236,7 @@ fn evaluate_aligned(
     let in_reference: Vec<bool> = (0..labs.len()).map(|r| inside.contains(&r)).collect();
     let mut excluded = Vec::new();
     if let Some(search) = &search {
+        let uneven = scaled.measured.is_some();
         excluded = exclusions(
             labs,
             &candidates,
@@ -215,12 +244,14 @@ fn evaluate_aligned(
             &in_reference,
             &vector_all,
             wording,
+            uneven,
         );
         notes.extend(search_notes(
             search,
             decided_consistent,
             &decision.withheld,
             wording,
+            uneven,
         ));
     }
     let kept_out: Vec<usize> = (0..labs.len())
@@ -531,6 +562,7 @@ fn exclusions(
     in_reference: &[bool],
     vector_all: &VectorTest,
     wording: Wording,
+    uneven: bool,
 ) -> Vec<Exclusion> {
     let whole = wording.whole();
     let mut excluded = Vec::new();
@@ -557,8 +589,7 @@ fn exclusions(
             reason: format!(
                 "left out of the whole comparison: the {whole} of all {} laboratories \
                  fails (χ² = {} > χ²_0.95({}) = {:.3}); the largest subset that passes \
-                 is {} ({} laboratories, χ² = {} ≤ χ²_0.95({}) = {:.3}, the smallest χ² \
-                 of its size){before}",
+                 is {} ({} laboratories, χ² = {} ≤ χ²_0.95({}) = {:.3}, {}){before}",
                 candidates.len(),
                 super::chi2_text(vector_all.chi2, 3),
                 vector_all.dof,
@@ -568,6 +599,12 @@ fn exclusions(
                 super::chi2_text(chosen.chi2, 3),
                 chosen.dof,
                 chosen.chi2_critical,
+                if uneven {
+                    "the most consistent of its size: the largest p-value, the laboratories \
+                     reporting different positions"
+                } else {
+                    "the smallest χ² of its size"
+                },
             ),
         });
     }
@@ -581,12 +618,19 @@ fn search_notes(
     decided_consistent: bool,
     withheld: &[usize],
     wording: Wording,
+    uneven: bool,
 ) -> Vec<String> {
     let mut notes = vec![match search.method {
         SearchMethod::Exhaustive => format!(
             "the largest consistent subset was found by trying every subset of each size \
-             ({} in all), ties broken by the smaller χ²",
-            search.subsets_tested
+             ({} in all), ties broken by the smaller χ²{}",
+            search.subsets_tested,
+            if uneven {
+                " — or, the laboratories reporting different positions, subsets of one size \
+                 having different ν, by the larger p-value P(χ²_ν > χ²)"
+            } else {
+                ""
+            }
         ),
         SearchMethod::Greedy => format!(
             "the subsets were too many to try every one (more than {}): from the size where \
@@ -703,6 +747,12 @@ fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Pairs {
                         }
                     })
                 }
+                // results that report different positions: over those both report
+                (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b))
+                    if scaled.measured.is_some() =>
+                {
+                    common_positions_test(&reported[a], &reported[b], u_a, u_b)
+                }
                 // V_a + V_b = c·P·diag(u_a² + u_b²)·P: its χ² in O(N), no fit
                 (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b)) => {
                     let d: Vec<f64> = scaled.values[a]
@@ -734,6 +784,7 @@ fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Pairs {
     }
     Pairs::formed(
         labs.iter().map(|l| l.name.clone()).collect(),
+        scaled.closed && scaled.measured.is_some(),
         reported,
         widened[..n]
             .iter()
@@ -742,6 +793,34 @@ fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Pairs {
         vectors,
         scaled.scale,
     )
+}
+
+/// The closed-vector test of a pair of results that report different positions, over the
+/// M positions both report (`x_a`, `x_b` NaN elsewhere): the difference closed there, with
+/// V = M/(M − 1)·P·diag(u_a² + u_b²)·P, ν = M − 1 (`None` below 2 common positions).
+fn common_positions_test(x_a: &[f64], x_b: &[f64], u_a: &[f64], u_b: &[f64]) -> Option<VectorTest> {
+    let common: Vec<usize> = (0..x_a.len())
+        .filter(|&k| x_a[k].is_finite() && x_b[k].is_finite())
+        .collect();
+    let m = common.len();
+    if m < 2 {
+        return None;
+    }
+    let closing = m as f64 / (m - 1) as f64;
+    let d: Vec<f64> = common.iter().map(|&k| x_a[k] - x_b[k]).collect();
+    let variance: Vec<f64> = common
+        .iter()
+        .map(|&k| closing * (u_a[k] * u_a[k] + u_b[k] * u_b[k]))
+        .collect();
+    let (chi2, _) = closed::difference_chi2(&d, &variance);
+    let critical = chi2_quantile_95(m - 1);
+    chi2.is_finite().then(|| VectorTest {
+        chi2,
+        dof: m - 1,
+        consistent: chi2 <= critical,
+        chi2_critical: critical,
+        reference: Vec::new(),
+    })
 }
 
 /// The notes on the covariances the closed vector used, on the random-effects `method`,

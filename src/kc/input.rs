@@ -136,6 +136,15 @@ fn standard_u(result: &LabResult, i: usize, row: &ResultRow) -> Result<f64, KcEr
 /// far below any angle measurement): smaller ones are refused, not computed with.
 pub const MIN_STANDARD_U_ARCSEC: f64 = 1e-9;
 
+/// `file:line:column` of the index of a result's last row of `quantity` (in file order), or
+/// the result's file when it has none.
+fn last_row(result: &LabResult, quantity: Quantity) -> String {
+    match rows_of(result, quantity).last() {
+        Some(&(i, _)) => location(result, i, Field::Index),
+        None => result.source.clone(),
+    }
+}
+
 /// The rows of `quantity` of one result, with their position in the result.
 fn rows_of(result: &LabResult, quantity: Quantity) -> Vec<(usize, &ResultRow)> {
     result
@@ -386,8 +395,8 @@ fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Align
             && let Some(r) = (labs..results.len()).find(|&r| group.rows[r].is_none())
         {
             return Err(KcError::RepeatMissesPosition {
+                location: last_row(results[r], Quantity::EncoderError),
                 repeat: results[r].name.clone(),
-                file: results[r].source.clone(),
                 position: at(group),
             });
         }
@@ -399,7 +408,17 @@ fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Align
                 .filter(|(row, _)| row.is_none())
                 .map(|(_, result)| result.name.as_str())
                 .collect();
-            left_out.push(format!("{} (not in {})", at(group), missing.join(", ")));
+            let reporting: Vec<&str> = group.rows[..labs.unwrap_or(results.len())]
+                .iter()
+                .zip(results)
+                .filter(|(row, _)| row.is_some())
+                .map(|(_, result)| result.name.as_str())
+                .collect();
+            left_out.push(match (labs, reporting.as_slice()) {
+                (None, _) => format!("{} (not in {})", at(group), missing.join(", ")),
+                (Some(_), []) => format!("{} (by the pilot's repeats only)", at(group)),
+                (Some(_), by) => format!("{} (by {} only)", at(group), by.join(", ")),
+            });
             continue;
         }
         let mut first = true;
@@ -516,8 +535,8 @@ pub(crate) fn blocks(results: &[&LabResult], labs: usize) -> Result<Aligned, KcE
         }
         if let Some(r) = (labs..results.len()).find(|&r| rows[r].is_none()) {
             return Err(KcError::RepeatMissesBlock {
+                location: last_row(results[r], Quantity::AngleBlock),
                 repeat: results[r].name.clone(),
-                file: results[r].source.clone(),
                 block,
             });
         }

@@ -220,6 +220,18 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
     let positions = this.index.len();
     let l = labs.len();
     let closed = this.wording().is_closed();
+    if closed
+        && let Some(name) = labs.iter().find(|name| {
+            [doe(this, name), doe(linked, name)]
+                .iter()
+                .any(|d| d.is_some_and(|d| d.d.iter().any(|x| !x.is_finite())))
+        })
+    {
+        return Err(KcError::Link(format!(
+            "the linking laboratory {name} does not report every position in both \
+             comparisons: a link through closed vectors over different positions is not built"
+        )));
+    }
     let (mut correction, mut correction_u, mut weights) = (Vec::new(), Vec::new(), Vec::new());
     // per quantity, the linking laboratories that report it in both (every one of them
     // for closed vectors)

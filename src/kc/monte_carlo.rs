@@ -230,6 +230,13 @@ pub(crate) fn apply(
                 .to_string(),
         );
     }
+    if model.closed && model.measured.is_some() {
+        return refuse(
+            "the laboratories report different encoder positions: drawing closed results over \
+             different positions is not built (the formulas' U stand without --monte-carlo)"
+                .to_string(),
+        );
+    }
     if draws < MIN_DRAWS {
         return refuse(format!(
             "{draws} draws: at least {} for a 95.45 % quantile",

@@ -36,6 +36,9 @@ struct Formed {
     variances: Vec<Vec<f64>>,
     /// Each pair's closed-vector test, in the order of [`Pairs::iter`].
     vectors: Vec<Option<VectorTest>>,
+    /// Whether each pair's d is closed over the positions both report (closed results
+    /// that report different positions: each is closed over its own).
+    closed_over_common: bool,
     /// The unit of `values`, arcseconds.
     scale: f64,
 }
@@ -48,14 +51,23 @@ impl Formed {
         let n = self.labs.len();
         // pairs (0, 1) … (0, n−1), (1, 2) …: those before row a, then b's place in it
         let at = a * n - a * (a + 1) / 2 + (b - a - 1);
+        let mut d: Vec<f64> = self.values[a]
+            .iter()
+            .zip(&self.values[b])
+            .map(|(x_a, x_b)| (x_a - x_b) * scale)
+            .collect();
+        if self.closed_over_common {
+            let (sum, count) = d
+                .iter()
+                .filter(|d| d.is_finite())
+                .fold((0.0, 0.0), |(s, m), d| (s + d, m + 1.0));
+            let mean = if count > 0.0 { sum / count } else { 0.0 };
+            d.iter_mut().for_each(|d| *d -= mean);
+        }
         PairDifference {
             a: self.labs[a].clone(),
             b: self.labs[b].clone(),
-            d: self.values[a]
-                .iter()
-                .zip(&self.values[b])
-                .map(|(x_a, x_b)| (x_a - x_b) * scale)
-                .collect(),
+            d,
             expanded_u: self.variances[a]
                 .iter()
                 .zip(&self.variances[b])
@@ -81,6 +93,7 @@ impl Pairs {
     /// [`Pairs::iter`].
     pub(crate) fn formed(
         labs: Vec<String>,
+        closed_over_common: bool,
         values: Vec<Vec<f64>>,
         variances: Vec<Vec<f64>>,
         vectors: Vec<Option<VectorTest>>,
@@ -91,6 +104,7 @@ impl Pairs {
             values,
             variances,
             vectors,
+            closed_over_common,
             scale,
         }))
     }
@@ -236,6 +250,7 @@ mod tests {
     fn three() -> Pairs {
         Pairs::formed(
             vec!["A".into(), "B".into(), "C".into()],
+            false,
             vec![vec![0.5, -0.5], vec![0.25, -0.25], vec![-1.0, 1.0]],
             vec![vec![0.04, 0.09], vec![0.12, 0.07], vec![0.0, 0.16]],
             (0..3)
@@ -287,6 +302,7 @@ mod tests {
         assert!(
             Pairs::formed(
                 vec!["A".into()],
+                false,
                 vec![vec![]],
                 vec![vec![]],
                 Vec::new(),

@@ -43,11 +43,24 @@ impl<'a> Scaled<'a> {
         aligned: &Aligned,
         covariances: &'a [Option<DMatrix<f64>>],
     ) -> Scaled<'a> {
+        // the largest u given (not the placeholders where a result does not report a
+        // position)
+        let given = |r: usize, k: usize| {
+            aligned
+                .measured
+                .as_ref()
+                .is_none_or(|m| m.get(r).and_then(|m| m.get(k)).copied().unwrap_or(false))
+        };
         let scale = aligned
             .u
             .iter()
-            .flatten()
-            .copied()
+            .enumerate()
+            .flat_map(|(r, u)| {
+                u.iter()
+                    .enumerate()
+                    .filter(move |(k, _)| given(r, *k))
+                    .map(|(_, u)| *u)
+            })
             .chain(
                 covariances
                     .iter()
@@ -58,8 +71,21 @@ impl<'a> Scaled<'a> {
         let values: Vec<Vec<f64>> = aligned
             .values
             .iter()
-            .map(|x| {
-                let x = if aligned.closed { closed(x) } else { x.clone() };
+            .enumerate()
+            .map(|(r, x)| {
+                let x = match (aligned.closed, &aligned.measured) {
+                    (false, _) => x.clone(),
+                    (true, None) => closed(x),
+                    // closed over the positions the result reports
+                    (true, Some(_)) => {
+                        let reported: Vec<usize> = (0..x.len()).filter(|&k| given(r, k)).collect();
+                        let mean = reported.iter().map(|&k| x[k]).sum::<f64>()
+                            / reported.len().max(1) as f64;
+                        (0..x.len())
+                            .map(|k| if given(r, k) { x[k] - mean } else { 0.0 })
+                            .collect()
+                    }
+                };
                 x.iter().map(|x| x / scale).collect()
             })
             .collect();
@@ -130,21 +156,26 @@ impl<'a> Scaled<'a> {
                 .collect(),
         };
         let widened = extra.iter().any(|e| *e > 0.0);
-        if !self.closed {
-            return Ok(ClosedCovariance::Independent(
-                self.u[r]
-                    .iter()
-                    .zip(&extra)
-                    .enumerate()
-                    .map(|(k, (u, e))| {
-                        if self.is_measured(r, k) {
-                            u.hypot(*e)
-                        } else {
-                            f64::INFINITY
-                        }
-                    })
-                    .collect(),
-            ));
+        if !self.closed || self.measured.is_some() {
+            // each position on its own (angle blocks), or closed over the positions the
+            // result reports: +∞ (no weight) where it does not report one
+            let u: Vec<f64> = self.u[r]
+                .iter()
+                .zip(&extra)
+                .enumerate()
+                .map(|(k, (u, e))| {
+                    if self.is_measured(r, k) {
+                        u.hypot(*e)
+                    } else {
+                        f64::INFINITY
+                    }
+                })
+                .collect();
+            return Ok(if self.closed {
+                ClosedCovariance::Stated(u)
+            } else {
+                ClosedCovariance::Independent(u)
+            });
         }
         match self.covariances.get(r).and_then(Option::as_ref) {
             None => Ok(ClosedCovariance::Stated(

@@ -79,6 +79,31 @@ fn binomial(n: usize, k: usize) -> u64 {
     c
 }
 
+/// Whether fit `f` is more consistent than `b`: the smaller χ² at the same ν (as every
+/// subset of one size of closed vectors has); at different ν (laboratories that report
+/// different angle blocks or encoder positions), the larger p-value P(χ²_ν > χ²), so that
+/// leaving out a laboratory that reports more is not favoured for its larger χ² alone,
+/// then the smaller χ².
+fn more_consistent(f: &ClosedFit, b: &ClosedFit) -> bool {
+    if f.dof == b.dof {
+        return f.chi2 < b.chi2;
+    }
+    let (p_f, p_b) = (p_value(f), p_value(b));
+    if p_f != p_b {
+        return p_f > p_b;
+    }
+    f.chi2 < b.chi2
+}
+
+/// P(χ²_ν > χ²) of a fit (1 with ν = 0).
+fn p_value(f: &ClosedFit) -> f64 {
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+    if f.dof == 0 {
+        return 1.0;
+    }
+    ChiSquared::new(f.dof as f64).map_or(0.0, |law| law.sf(f.chi2))
+}
+
 /// Every k-subset of `free`, in lexicographic order of positions.
 fn for_each_subset(free: &[usize], k: usize, mut visit: impl FnMut(&[usize])) {
     let n = free.len();
@@ -141,14 +166,19 @@ pub(crate) fn largest_consistent(
                 subsets += 1;
                 let Some(f) = fit(&subset) else { return };
                 let passes = f.chi2 <= chi2_quantile_95(f.dof);
-                if best.as_ref().is_none_or(|(_, b)| f.chi2 < b.chi2) {
+                if best.as_ref().is_none_or(|(_, b)| more_consistent(&f, b)) {
                     best = Some((subset.clone(), f.clone()));
                 }
-                if passes && best_passing.as_ref().is_none_or(|(_, b)| f.chi2 < b.chi2) {
+                if passes
+                    && best_passing
+                        .as_ref()
+                        .is_none_or(|(_, b)| more_consistent(&f, b))
+                {
                     best_passing = Some((subset, f));
                 }
             });
-            // every subset of a size has the same ν: the best passes when any does
+            // at one ν the best passes when any does; at several (laboratories reporting
+            // different positions) the step states the passing subset chosen
         } else {
             method = SearchMethod::Greedy;
             // leave out the laboratory (not kept) whose removal lowers χ² most
@@ -156,7 +186,7 @@ pub(crate) fn largest_consistent(
                 let subset: Vec<usize> = current.iter().copied().filter(|&q| q != r).collect();
                 subsets += 1;
                 let Some(f) = fit(&subset) else { continue };
-                if best.as_ref().is_none_or(|(_, b)| f.chi2 < b.chi2) {
+                if best.as_ref().is_none_or(|(_, b)| more_consistent(&f, b)) {
                     best = Some((subset, f));
                 }
             }
@@ -169,7 +199,12 @@ pub(crate) fn largest_consistent(
         tested += subsets;
         let Some(best) = best else { break };
         current = best.0.clone();
-        steps.push(step_of(size, subsets, &best));
+        // the step states the subset the search chose: the passing one when one passes
+        steps.push(step_of(
+            size,
+            subsets,
+            best_passing.as_ref().unwrap_or(&best),
+        ));
         if let Some((subset, _)) = best_passing {
             return Found {
                 inside: subset,

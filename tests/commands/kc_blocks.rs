@@ -116,14 +116,14 @@ fn kc_blocks_table_json_and_csv_with_a_block_not_measured() {
     status(&out, 0);
     let csv = String::from_utf8(out.stdout).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
-    assert_eq!(rows[0], "lab,index,angle_deg,d,U,in_reference");
+    assert_eq!(rows[0], "lab,index,angle_deg,d,U,in_reference,quantity");
     assert_eq!(rows.len(), 1 + 3 + 2 + 3, "{csv}");
     assert!(!rows.iter().any(|r| r.starts_with("B,2,")), "{csv}");
     assert!(rows.iter().any(|r| r.starts_with("B,3,")), "{csv}");
     assert!(
         rows[1..]
             .iter()
-            .all(|r| !r.contains("NaN") && r.ends_with(",true"))
+            .all(|r| !r.contains("NaN") && r.ends_with(",true,angle_block"))
     );
 }
 
@@ -267,7 +267,6 @@ fn kc_blocks_a_pilot_repeat_missing_a_block_is_refused() {
 /// As every refusal of a row, the repeat missing a block should name a line and column of
 /// its file (as a pitch deviation's missing face names the last face's row).
 #[test]
-#[ignore = "bug: a pilot's repeat missing an angle block is refused naming its file only (KcError::RepeatMissesBlock has no location), not file:line:column"]
 fn kc_blocks_a_pilot_repeat_missing_a_block_names_a_line_and_column() {
     let dir = temp_dir("kc-blocks-pilot-line");
     let labs = three_labs(&dir);

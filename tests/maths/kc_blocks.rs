@@ -560,7 +560,6 @@ fn kc_blocks_pilot_repeats_that_disagree_widen_every_u() {
 /// have 22.5 with ν = 5. D is left out, and the search's step, the exclusion's reason and
 /// the verdict state the subset that passed, A, B, C, with its χ².
 #[test]
-#[ignore = "bug: the search's step (and from it the exclusion reason and the verdict) names the subset of the smallest χ² (A, B, D, which fails) instead of the passing subset chosen (A, B, C), and says its χ² = 12.000 ≤ χ²_0.95(5) = 11.070"]
 fn kc_blocks_the_search_states_the_subset_it_chose_when_the_sizes_nu_differ() {
     let u = 0.1;
     let c = 7f64.sqrt() * u;
@@ -615,7 +614,6 @@ fn kc_blocks_the_search_states_the_subset_it_chose_when_the_sizes_nu_differ() {
 /// angle_block rows is) or said to be compared on nothing, not counted among "all 4
 /// laboratories" whose joint χ² passes, with no degree of equivalence and no note.
 #[test]
-#[ignore = "bug: a laboratory all of whose blocks are left out (reported by it alone) stays in the comparison silently: counted in 'the blocks' joint χ² of all 4 laboratories', in the reference, every d and U NaN, its pairs untested, and no note or refusal names it"]
 fn kc_blocks_a_laboratory_with_no_block_compared_is_not_counted_silently() {
     let mut data = four_labs();
     data.x[3] = vec![None, None, None];
