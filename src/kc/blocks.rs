@@ -14,8 +14,16 @@
 //! χ² = Σ_b (x_ab)²/(v_ab) over the blocks both report, ν = their number (no closure takes
 //! a degree of freedom). A result that does not report a block has u = +∞ there: no weight,
 //! no term, no degree of freedom.
+//!
+//! Here too the blocks are lined up from the results ([`blocks`]): who reports which block,
+//! their nominal angles checked.
+
+use std::collections::BTreeMap;
 
 use super::closed::ClosedFit;
+use super::input::{Aligned, Field, last_row, location, rows_of, standard_u};
+use super::{KcError, LabResult};
+use crate::results::Quantity;
 
 /// The fit of the independent scalars `x` with standard uncertainties `u` (per result, per
 /// block; u = +∞ where a result does not report the block), in the comparison's scaled
@@ -71,6 +79,147 @@ pub(crate) fn pair_chi2(d: &[f64], variance: &[f64]) -> Option<(f64, usize)> {
         .map(|(d, v)| d * d / v)
         .collect();
     (!terms.is_empty()).then(|| (terms.iter().sum(), terms.len()))
+}
+
+/// Lines up the angle blocks of the laboratories `results[..labs]` and the pilot's repeats
+/// after them: each block a scalar of its own, compared among the laboratories that report
+/// it (docs/FORMAT.md §12, "What each laboratory measured"). A block reported by fewer
+/// than two laboratories is left out and named in a note; the pilot's repeats must report
+/// every block compared (their spread is the artefact's stability on each). Blocks'
+/// nominal angles, where stated, must agree between results.
+pub(crate) fn blocks(results: &[&LabResult], labs: usize) -> Result<Aligned, KcError> {
+    // block → (result, row) of every result reporting it
+    let mut by_block: BTreeMap<u32, Vec<Option<usize>>> = BTreeMap::new();
+    for (r, result) in results.iter().enumerate() {
+        let rows = rows_of(result, Quantity::AngleBlock);
+        if rows.is_empty() {
+            return Err(KcError::NoRows {
+                lab: result.name.clone(),
+                file: result.source.clone(),
+                quantity: Quantity::AngleBlock,
+            });
+        }
+        for (i, row) in rows {
+            let slot = by_block
+                .entry(row.index)
+                .or_insert_with(|| vec![None; results.len()]);
+            if slot[r].is_some() {
+                return Err(KcError::Duplicate {
+                    location: location(result, i, Field::Index),
+                    quantity: Quantity::AngleBlock,
+                    index: row.index,
+                });
+            }
+            slot[r] = Some(i);
+        }
+    }
+    let mut aligned = Aligned {
+        index: Vec::new(),
+        angle_deg: None,
+        values: vec![Vec::new(); results.len()],
+        u: vec![Vec::new(); results.len()],
+        dof: vec![Vec::new(); results.len()],
+        closed: false,
+        measured: Some(vec![Vec::new(); results.len()]),
+        nominal_deg: None,
+        notes: Vec::new(),
+    };
+    let mut nominal: Vec<Option<f64>> = Vec::new();
+    let mut left_out = Vec::new();
+    for (&block, rows) in &by_block {
+        let reporting = rows[..labs].iter().filter(|row| row.is_some()).count();
+        if reporting < 2 {
+            let by: Vec<&str> = rows[..labs]
+                .iter()
+                .zip(results)
+                .filter(|(row, _)| row.is_some())
+                .map(|(_, result)| result.name.as_str())
+                .collect();
+            left_out.push(match by.as_slice() {
+                [] => format!("block {block} (by the pilot's repeats only)"),
+                by => format!("block {block} (by {} only)", by.join(", ")),
+            });
+            continue;
+        }
+        if let Some(r) = (labs..results.len()).find(|&r| rows[r].is_none()) {
+            return Err(KcError::RepeatMissesBlock {
+                location: last_row(results[r], Quantity::AngleBlock),
+                repeat: results[r].name.clone(),
+                block,
+            });
+        }
+        aligned.index.push(block);
+        nominal.push(block_nominal(results, rows, block)?);
+        for (r, row) in rows.iter().enumerate() {
+            let measured = row.is_some();
+            let (value, u, dof) = match *row {
+                Some(i) => {
+                    let found = &results[r].rows[i];
+                    let u = standard_u(results[r], i, found)?;
+                    (found.value, u, found.dof.unwrap_or(f64::INFINITY))
+                }
+                None => (0.0, 1.0, f64::INFINITY),
+            };
+            aligned.values[r].push(value);
+            aligned.u[r].push(u);
+            aligned.dof[r].push(dof);
+            if let Some(m) = aligned.measured.as_mut() {
+                m[r].push(measured);
+            }
+        }
+    }
+    if aligned.index.is_empty() {
+        return Err(KcError::NothingInCommon);
+    }
+    if aligned
+        .measured
+        .as_ref()
+        .is_some_and(|m| m.iter().flatten().all(|&m| m))
+    {
+        aligned.measured = None;
+    }
+    if nominal.iter().any(Option::is_some) {
+        aligned.nominal_deg = Some(nominal);
+    }
+    if !left_out.is_empty() {
+        aligned.notes.push(format!(
+            "{} angle block(s) reported by fewer than two laboratories left out (nothing to \
+             compare them with): {}",
+            left_out.len(),
+            left_out.join("; ")
+        ));
+    }
+    Ok(aligned)
+}
+
+/// The nominal angle of `block` as the results reporting it (`rows`) state it: `None` when
+/// none does; refused at the second when two differ by more than 10⁻⁹ degrees.
+fn block_nominal(
+    results: &[&LabResult],
+    rows: &[Option<usize>],
+    block: u32,
+) -> Result<Option<f64>, KcError> {
+    let mut first: Option<(f64, String)> = None;
+    for (r, row) in rows.iter().enumerate() {
+        let Some(i) = *row else { continue };
+        let Some(nominal) = results[r].rows[i].nominal_deg else {
+            continue;
+        };
+        match &first {
+            None => first = Some((nominal, location(results[r], i, Field::Index))),
+            Some((seen, at)) if (seen - nominal).abs() > 1e-9 => {
+                return Err(KcError::NominalsDiffer {
+                    location: location(results[r], i, Field::Index),
+                    block,
+                    nominal_deg: nominal,
+                    first_nominal_deg: *seen,
+                    first_location: at.clone(),
+                });
+            }
+            Some(_) => {}
+        }
+    }
+    Ok(first.map(|(nominal, _)| nominal))
 }
 
 #[cfg(test)]

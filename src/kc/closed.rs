@@ -183,36 +183,11 @@ fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit>
         .filter(|&k| u.iter().any(|u| u[k].is_finite()))
         .collect();
     let complete = u.iter().all(|u| u.iter().all(|u| u.is_finite()));
-    if !complete {
-        if reported.len() < 2 {
-            return None;
-        }
-        if reported.len() < faces {
-            // the positions no result reports taken out, and put back as NaN
-            let pick = |row: &[f64]| -> Vec<f64> { reported.iter().map(|&k| row[k]).collect() };
-            let xs: Vec<Vec<f64>> = x.iter().map(|x| pick(x)).collect();
-            let us: Vec<Vec<f64>> = u.iter().map(|u| pick(u)).collect();
-            let xr: Vec<&[f64]> = xs.iter().map(Vec::as_slice).collect();
-            let ur: Vec<&[f64]> = us.iter().map(Vec::as_slice).collect();
-            let inner = additive_keeping(&xr, &ur, true)?;
-            let mut fit = ClosedFit {
-                reference: vec![f64::NAN; faces],
-                reference_variance: vec![f64::NAN; faces],
-                chi2: inner.chi2,
-                dof: inner.dof,
-                pieces: None,
-            };
-            for (j, &k) in reported.iter().enumerate() {
-                fit.reference[k] = inner.reference[j];
-                fit.reference_variance[k] = inner.reference_variance[j];
-            }
-            fit.pieces = inner.pieces.map(|mut p| {
-                p.positions = reported;
-                p.faces = faces;
-                p
-            });
-            return Some(fit);
-        }
+    if !complete && reported.len() < faces {
+        return compacted(x, u, &reported);
+    }
+    if reported.len() < 2 {
+        return None;
     }
     let mut w = Vec::with_capacity(labs);
     let mut s = Vec::with_capacity(labs);
@@ -314,6 +289,38 @@ fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit>
             faces,
         })),
     })
+}
+
+/// The fit of the positions some result reports (`reported`, at least 2), those no result
+/// reports put back with a reference of NaN.
+fn compacted(x: &[&[f64]], u: &[&[f64]], reported: &[usize]) -> Option<ClosedFit> {
+    let faces = x.first()?.len();
+    if reported.len() < 2 {
+        return None;
+    }
+    let pick = |row: &[f64]| -> Vec<f64> { reported.iter().map(|&k| row[k]).collect() };
+    let xs: Vec<Vec<f64>> = x.iter().map(|x| pick(x)).collect();
+    let us: Vec<Vec<f64>> = u.iter().map(|u| pick(u)).collect();
+    let xr: Vec<&[f64]> = xs.iter().map(Vec::as_slice).collect();
+    let ur: Vec<&[f64]> = us.iter().map(Vec::as_slice).collect();
+    let inner = additive_keeping(&xr, &ur, true)?;
+    let mut fit = ClosedFit {
+        reference: vec![f64::NAN; faces],
+        reference_variance: vec![f64::NAN; faces],
+        chi2: inner.chi2,
+        dof: inner.dof,
+        pieces: None,
+    };
+    for (j, &k) in reported.iter().enumerate() {
+        fit.reference[k] = inner.reference[j];
+        fit.reference_variance[k] = inner.reference_variance[j];
+    }
+    fit.pieces = inner.pieces.map(|mut p| {
+        p.positions = reported.to_vec();
+        p.faces = faces;
+        p
+    });
+    Some(fit)
 }
 
 /// What a fit of results that report different positions keeps for [`projected_variance`]:

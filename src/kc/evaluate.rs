@@ -4,17 +4,19 @@
 
 use nalgebra::DMatrix;
 
-use super::closed::{self, ClosedCovariance, ClosedFit};
+use super::closed::{ClosedCovariance, ClosedFit};
 use super::covariance;
 use super::dof;
 use super::input::{self, Aligned};
 use super::monte_carlo;
+use super::notes::{closing_notes, exclusions, pilot_decision_notes, quantity_notes, search_notes};
+use super::pairs::pair_differences;
 use super::reference::{self, Estimate, chi2_quantile_95};
 use super::scaled::{Reference, Scaled};
-use super::search::{self, SearchMethod};
+use super::search;
 use super::{
-    DegreeOfEquivalence, Exclusion, KcError, KcOptions, KeyComparison, LabResult, Pairs,
-    PilotStability, ReferenceMethod, VectorTest, Wording,
+    DegreeOfEquivalence, KcError, KcOptions, KeyComparison, LabResult, PilotStability,
+    ReferenceMethod, VectorTest, Wording,
 };
 use crate::results::Quantity;
 
@@ -84,7 +86,7 @@ pub fn evaluate(
     let aligned = match options.quantity {
         Quantity::PitchDeviation => input::pitch(&all)?,
         Quantity::EncoderError => input::encoder_reported(&all, labs.len())?,
-        Quantity::AngleBlock => input::blocks(&all, labs.len())?,
+        Quantity::AngleBlock => super::blocks::blocks(&all, labs.len())?,
         other => return Err(KcError::Quantity(other)),
     };
     let aligned = super::names::with_look_alike_notes(&all, aligned);
@@ -163,7 +165,7 @@ fn estimates(
 }
 
 /// A closed fit's test at 5 %, in arcseconds (`scale` undone).
-fn vector_test(fit: &ClosedFit, scale: f64) -> VectorTest {
+pub(super) fn vector_test(fit: &ClosedFit, scale: f64) -> VectorTest {
     let critical = chi2_quantile_95(fit.dof);
     VectorTest {
         chi2: fit.chi2,
@@ -172,14 +174,6 @@ fn vector_test(fit: &ClosedFit, scale: f64) -> VectorTest {
         chi2_critical: critical,
         reference: fit.reference.iter().map(|r| r * scale).collect(),
     }
-}
-
-/// The names of `set` joined with commas.
-fn joined(labs: &[LabResult], set: &[usize]) -> String {
-    set.iter()
-        .map(|&r| labs[r].name.as_str())
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// Evaluates the key comparison of the results lined up in `aligned` (the laboratories
@@ -193,7 +187,7 @@ fn evaluate_aligned(
     covariances: &[Option<DMatrix<f64>>],
 ) -> Result<KeyComparison, KcError> {
     let random_effects = options.method.is_random_effects();
-    let wording = Wording::of(options.quantity);
+    let wording = Wording::of(options.quantity).with_uneven(aligned.measured.is_some());
     let positions = aligned.index.len();
     let results = labs.len() + pilot.len();
     if aligned.closed && positions < 2 {
@@ -205,11 +199,7 @@ fn evaluate_aligned(
     let candidates = reference_candidates(labs, options, &kept)?;
     let mut scaled = Scaled::of(labs, &aligned, covariances);
     let scale = scaled.scale;
-    match options.quantity {
-        Quantity::EncoderError => notes.push(ENCODER_NOTE.to_string()),
-        Quantity::AngleBlock => notes.push(BLOCKS_NOTE.to_string()),
-        _ => {}
-    }
+    notes.extend(quantity_notes(options.quantity, wording));
     let mut stated: Vec<ClosedCovariance> = (0..results)
         .map(|r| scaled.covariance(r, None))
         .collect::<Result<_, _>>()?;
@@ -236,7 +226,6 @@ fn evaluate_aligned(
     let in_reference: Vec<bool> = (0..labs.len()).map(|r| inside.contains(&r)).collect();
     let mut excluded = Vec::new();
     if let Some(search) = &search {
-        let uneven = scaled.measured.is_some();
         excluded = exclusions(
             labs,
             &candidates,
@@ -244,14 +233,12 @@ fn evaluate_aligned(
             &in_reference,
             &vector_all,
             wording,
-            uneven,
         );
         notes.extend(search_notes(
             search,
             decided_consistent,
             &decision.withheld,
             wording,
-            uneven,
         ));
     }
     let kept_out: Vec<usize> = (0..labs.len())
@@ -334,34 +321,74 @@ fn evaluate_aligned(
     {
         pilot.statement = statement;
     }
+    let fitted = Fitted {
+        reference: &final_fit.reference,
+        judged_u: &judged_u,
+        tau: &tau,
+        inside: &inside,
+    };
+    beyond_the_formulas(
+        &mut comparison,
+        options,
+        &scaled,
+        &fitted,
+        &aligned,
+        pilot.len(),
+    )?;
+    Ok(comparison)
+}
+
+/// The reference as fitted, in the comparison's scaled units: what the Monte Carlo draws
+/// start from and what ν_eff is worked out from.
+struct Fitted<'a> {
+    /// The reference per quantity.
+    reference: &'a [f64],
+    /// Every result's u with the pilot's u_stab in it.
+    judged_u: &'a [Vec<f64>],
+    /// τ per quantity (0 for the weighted mean).
+    tau: &'a [f64],
+    /// The laboratories in the reference.
+    inside: &'a [usize],
+}
+
+/// Every U by Monte Carlo when asked, else with the Welch–Satterthwaite ν_eff when some
+/// laboratory states the degrees of freedom of its u; as the formulas gave them otherwise.
+fn beyond_the_formulas(
+    comparison: &mut KeyComparison,
+    options: &KcOptions,
+    scaled: &Scaled,
+    fitted: &Fitted,
+    aligned: &Aligned,
+    repeats: usize,
+) -> Result<(), KcError> {
     match options.monte_carlo {
         Some(draws) => {
             let model = monte_carlo::Model {
-                reference: &final_fit.reference,
-                u: &judged_u,
-                tau: &tau,
-                inside: &inside,
+                reference: fitted.reference,
+                u: fitted.judged_u,
+                tau: fitted.tau,
+                inside: fitted.inside,
                 method: options.method,
                 closed: scaled.closed,
                 measured: scaled.measured.as_deref(),
             };
-            monte_carlo::apply(&mut comparison, &model, draws, covariances, scale)?;
+            monte_carlo::apply(comparison, &model, draws, scaled.covariances, scaled.scale)?;
         }
         None if aligned.dof.iter().flatten().any(|d| d.is_finite()) => {
             let sources = dof::Sources {
                 u: &scaled.u,
                 dof: &aligned.dof,
                 stability: &scaled.stability,
-                stability_dof: pilot.len().saturating_sub(1) as f64,
-                tau: &tau,
-                inside: &inside,
+                stability_dof: repeats.saturating_sub(1) as f64,
+                tau: fitted.tau,
+                inside: fitted.inside,
                 measured: scaled.measured.as_deref(),
             };
-            dof::apply(&mut comparison, &sources);
+            dof::apply(comparison, &sources);
         }
         None => {}
     }
-    Ok(comparison)
+    Ok(())
 }
 
 /// τ per quantity from the `candidates` (0 for the weighted mean) and every result's
@@ -407,27 +434,6 @@ fn degrees_of_equivalence(
             scaled.degree_of_equivalence(r, in_reference[r], lab, reference)
         })
         .collect()
-}
-
-/// The notes on the pilot's decisions: the laboratories held in the reference (`kept`)
-/// and those kept out of it (`kept_out`), by name.
-fn pilot_decision_notes(labs: &[LabResult], kept: &[usize], kept_out: &[usize]) -> Vec<String> {
-    let mut notes = Vec::new();
-    if !kept.is_empty() {
-        notes.push(format!(
-            "kept in the reference whatever the tests say, as the pilot decided: {}",
-            joined(labs, kept)
-        ));
-    }
-    if !kept_out.is_empty() {
-        notes.push(format!(
-            "kept out of the reference, as the pilot decided, and given degrees of equivalence \
-             against it (in_reference false): {}; the one test at 5 % and the search are of \
-             the other laboratories",
-            joined(labs, kept_out)
-        ));
-    }
-    notes
 }
 
 /// The laboratories the pilot keeps in the reference whatever the tests say (indices,
@@ -477,20 +483,6 @@ fn not_fitted() -> KcError {
             .to_string(),
     )
 }
-
-/// The note on encoder errors, compared less their mean.
-const ENCODER_NOTE: &str = "encoder errors are defined up to a constant: each result's mean over the compared \
-     positions is taken out before it is compared (so a laboratory with another zero \
-     convention is not left out), and each is taken as closed with \
-     V = N/(N − 1)·P·diag(u²)·P";
-
-/// The note on angle blocks, compared each on its own.
-const BLOCKS_NOTE: &str = "angle blocks are single angles, not a closed vector: each block's reference is \
-     the weighted mean of the laboratories in the reference that report it, and the blocks' \
-     consistency is one test at 5 %, χ² = Σ_b Σ_i (x_ib − x_ref,b)²/u_ib² with \
-     ν = Σ_b (n_b − 1), n_b the laboratories reporting block b; a laboratory that did not \
-     measure a block is compared on the blocks it did (no degree of equivalence there, null \
-     in the JSON)";
 
 /// What the one decision at 5 % and the search after it decided.
 struct Decision {
@@ -554,111 +546,6 @@ fn decide_reference(
     decision
 }
 
-/// Why each of the `candidates` outside the reference was left out by the subset `search`.
-fn exclusions(
-    labs: &[LabResult],
-    candidates: &[usize],
-    search: &search::SubsetSearch,
-    in_reference: &[bool],
-    vector_all: &VectorTest,
-    wording: Wording,
-    uneven: bool,
-) -> Vec<Exclusion> {
-    let whole = wording.whole();
-    let mut excluded = Vec::new();
-    let last = search.steps.last();
-    for &r in candidates.iter().filter(|r| !in_reference[**r]) {
-        let Some(chosen) = last else { break };
-        let before = search
-            .steps
-            .iter()
-            .rev()
-            .nth(1)
-            .map(|s| {
-                format!(
-                    "; the best subset of {} laboratories ({}) fails, χ² = {} > {:.3}",
-                    s.size,
-                    s.best.join(", "),
-                    super::chi2_text(s.chi2, 3),
-                    s.chi2_critical
-                )
-            })
-            .unwrap_or_default();
-        excluded.push(Exclusion {
-            lab: labs[r].name.clone(),
-            reason: format!(
-                "left out of the whole comparison: the {whole} of all {} laboratories \
-                 fails (χ² = {} > χ²_0.95({}) = {:.3}); the largest subset that passes \
-                 is {} ({} laboratories, χ² = {} ≤ χ²_0.95({}) = {:.3}, {}){before}",
-                candidates.len(),
-                super::chi2_text(vector_all.chi2, 3),
-                vector_all.dof,
-                vector_all.chi2_critical,
-                chosen.best.join(", "),
-                chosen.size,
-                super::chi2_text(chosen.chi2, 3),
-                chosen.dof,
-                chosen.chi2_critical,
-                if uneven {
-                    "the most consistent of its size: the largest p-value, the laboratories \
-                     reporting different positions"
-                } else {
-                    "the smallest χ² of its size"
-                },
-            ),
-        });
-    }
-    excluded
-}
-
-/// The notes on how the subset `search` went, on its failing when no subset passed, and
-/// on the laboratories `withheld` (more than half) that were not left out.
-fn search_notes(
-    search: &search::SubsetSearch,
-    decided_consistent: bool,
-    withheld: &[usize],
-    wording: Wording,
-    uneven: bool,
-) -> Vec<String> {
-    let mut notes = vec![match search.method {
-        SearchMethod::Exhaustive => format!(
-            "the largest consistent subset was found by trying every subset of each size \
-             ({} in all), ties broken by the smaller χ²{}",
-            search.subsets_tested,
-            if uneven {
-                " — or, the laboratories reporting different positions, subsets of one size \
-                 having different ν, by the larger p-value P(χ²_ν > χ²)"
-            } else {
-                ""
-            }
-        ),
-        SearchMethod::Greedy => format!(
-            "the subsets were too many to try every one (more than {}): from the size where \
-             they were, the laboratory whose removal lowers χ² most was left out one at a \
-             time; a larger consistent subset may exist",
-            search::EXHAUSTIVE_SUBSETS
-        ),
-    }];
-    if !withheld.is_empty() {
-        notes.push(format!(
-            "the largest subset that passes would leave out {} laboratories, more than half: \
-             nobody is left out, and the comparison is not consistent. When most laboratories \
-             disagree with the others beyond their stated uncertainties, the stated \
-             uncertainties look too small for the spread of the results (or the artefact \
-             changed): a random-effects reference (dersimonian-laird) takes that spread into \
-             its dark uncertainty τ instead of leaving laboratories out",
-            withheld.len()
-        ));
-    } else if !decided_consistent {
-        notes.push(format!(
-            "no subset of the laboratories passes the {}'s test: every laboratory is kept in \
-             the reference, and the comparison is not consistent",
-            wording.whole()
-        ));
-    }
-    notes
-}
-
 /// The pilot's stability: one test of the closed vectors of the `repeats` (indices of the
 /// results), with each quantity's mean, spread and χ². Returns the stability standard
 /// uncertainty per quantity in arcsec (the repeats' spread when their closed vector
@@ -708,169 +595,6 @@ fn pilot_stability(
         statement: String::new(),
     };
     Ok((stability_u, Some(report)))
-}
-
-/// Every pair of laboratories: d_ij and U(d_ij) (k = 2) formed when read ([`Pairs`]) from
-/// the covariances `widened` (the pilot's stability and τ in them), and each pair's
-/// closed-vector test at 5 %, made here.
-fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Pairs {
-    let labs = scaled.labs;
-    let n = labs.len();
-    let mut vectors = Vec::with_capacity(n * n.saturating_sub(1) / 2);
-    let reported: Vec<Vec<f64>> = (0..n).map(|r| scaled.reported_values(r)).collect();
-    let dof = scaled.positions.saturating_sub(1);
-    let critical = chi2_quantile_95(dof);
-    let closing = scaled.positions as f64 / dof.max(1) as f64;
-    for a in 0..n {
-        for b in a + 1..n {
-            let test = match (&widened[a], &widened[b]) {
-                // blocks: each on its own, over the blocks both report (ν = their number)
-                (ClosedCovariance::Independent(u_a), ClosedCovariance::Independent(u_b)) => {
-                    let d: Vec<f64> = reported[a]
-                        .iter()
-                        .zip(&reported[b])
-                        .map(|(x_a, x_b)| x_a - x_b)
-                        .collect();
-                    let variance: Vec<f64> = u_a
-                        .iter()
-                        .zip(u_b)
-                        .map(|(u_a, u_b)| u_a * u_a + u_b * u_b)
-                        .collect();
-                    super::blocks::pair_chi2(&d, &variance).map(|(chi2, dof)| {
-                        let critical = chi2_quantile_95(dof);
-                        VectorTest {
-                            chi2,
-                            dof,
-                            consistent: chi2 <= critical,
-                            chi2_critical: critical,
-                            reference: Vec::new(),
-                        }
-                    })
-                }
-                // results that report different positions: over those both report
-                (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b))
-                    if scaled.measured.is_some() =>
-                {
-                    common_positions_test(&reported[a], &reported[b], u_a, u_b)
-                }
-                // V_a + V_b = c·P·diag(u_a² + u_b²)·P: its χ² in O(N), no fit
-                (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b)) => {
-                    let d: Vec<f64> = scaled.values[a]
-                        .iter()
-                        .zip(&scaled.values[b])
-                        .map(|(x_a, x_b)| x_a - x_b)
-                        .collect();
-                    let variance: Vec<f64> = u_a
-                        .iter()
-                        .zip(u_b)
-                        .map(|(u_a, u_b)| closing * (u_a * u_a + u_b * u_b))
-                        .collect();
-                    let (chi2, _) = closed::difference_chi2(&d, &variance);
-                    chi2.is_finite().then(|| VectorTest {
-                        chi2,
-                        dof,
-                        consistent: chi2 <= critical,
-                        chi2_critical: critical,
-                        reference: Vec::new(),
-                    })
-                }
-                _ => scaled.fit(&[a, b], widened).map(|fit| VectorTest {
-                    reference: Vec::new(),
-                    ..vector_test(&fit, scaled.scale)
-                }),
-            };
-            vectors.push(test);
-        }
-    }
-    Pairs::formed(
-        labs.iter().map(|l| l.name.clone()).collect(),
-        scaled.closed && scaled.measured.is_some(),
-        reported,
-        widened[..n]
-            .iter()
-            .map(ClosedCovariance::diagonal)
-            .collect(),
-        vectors,
-        scaled.scale,
-    )
-}
-
-/// The closed-vector test of a pair of results that report different positions, over the
-/// M positions both report (`x_a`, `x_b` NaN elsewhere): the difference closed there, with
-/// V = M/(M − 1)·P·diag(u_a² + u_b²)·P, ν = M − 1 (`None` below 2 common positions).
-fn common_positions_test(x_a: &[f64], x_b: &[f64], u_a: &[f64], u_b: &[f64]) -> Option<VectorTest> {
-    let common: Vec<usize> = (0..x_a.len())
-        .filter(|&k| x_a[k].is_finite() && x_b[k].is_finite())
-        .collect();
-    let m = common.len();
-    if m < 2 {
-        return None;
-    }
-    let closing = m as f64 / (m - 1) as f64;
-    let d: Vec<f64> = common.iter().map(|&k| x_a[k] - x_b[k]).collect();
-    let variance: Vec<f64> = common
-        .iter()
-        .map(|&k| closing * (u_a[k] * u_a[k] + u_b[k] * u_b[k]))
-        .collect();
-    let (chi2, _) = closed::difference_chi2(&d, &variance);
-    let critical = chi2_quantile_95(m - 1);
-    chi2.is_finite().then(|| VectorTest {
-        chi2,
-        dof: m - 1,
-        consistent: chi2 <= critical,
-        chi2_critical: critical,
-        reference: Vec::new(),
-    })
-}
-
-/// The notes on the covariances the closed vector used, on the random-effects `method`,
-/// and on the one decision at 5 %.
-fn closing_notes(
-    labs: &[LabResult],
-    covariances: &[Option<DMatrix<f64>>],
-    inside: &[usize],
-    method: ReferenceMethod,
-    positions: usize,
-    wording: Wording,
-) -> Vec<String> {
-    let whole = wording.whole();
-    let mut notes = Vec::new();
-    let with_own: Vec<&str> = inside
-        .iter()
-        .filter(|&&r| covariances[r].is_some())
-        .map(|&r| labs[r].name.as_str())
-        .collect();
-    if !with_own.is_empty() {
-        notes.push(format!(
-            "the closed vector uses the laboratories' own covariances of their pitch deviations \
-             for {}; the others are taken as closed with V = N/(N − 1)·P·diag(u²)·P",
-            with_own.join(", ")
-        ));
-    }
-    if method.is_random_effects() {
-        let estimator = if method == ReferenceMethod::MandelPaule {
-            "τ² such that the χ² about the mean with the widened uncertainties equals n − 1"
-        } else {
-            "the method of moments from χ² about the weighted mean"
-        };
-        notes.push(format!(
-            "{}: nobody is left out. τ is the dark uncertainty: the spread of the \
-             laboratories' results on each quantity beyond their stated uncertainties \
-             ({estimator}), added to every laboratory's variance there, so that it enters u_ref \
-             and every U(d_i). The verdict is the test of τ = 0 for the whole comparison (the \
-             {whole} of every laboratory, vector_all): not consistent means the \
-             laboratories differ beyond their stated uncertainties, and τ carries that into \
-             the reference",
-            method.title()
-        ));
-    }
-    notes.push(format!(
-        "the comparison is decided by one test at 5 %, the {}; the χ² of each \
-         of the {positions} quantities is information (by chance about 1 in 20 fails in a \
-         consistent comparison)",
-        wording.whole_chi2()
-    ));
-    notes
 }
 
 /// The name of result `r` of the laboratories followed by the pilot's repeats.

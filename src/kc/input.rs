@@ -36,7 +36,7 @@ pub(crate) struct Aligned {
 
 /// `file:line:column` of a field of row `i` of a result (`file:line` when its columns are
 /// not known), or `name (row i+1)` for rows given in memory.
-fn location(result: &LabResult, i: usize, field: Field) -> String {
+pub(super) fn location(result: &LabResult, i: usize, field: Field) -> String {
     match result.lines.get(i) {
         Some(line) => match result.columns.get(i).and_then(|c| field.column(c)) {
             Some(column) => format!("{}:{line}:{column}", result.source),
@@ -48,8 +48,10 @@ fn location(result: &LabResult, i: usize, field: Field) -> String {
 
 /// The field of a row a refusal points at.
 #[derive(Debug, Clone, Copy)]
-enum Field {
+pub(super) enum Field {
+    /// The row's `index`.
     Index,
+    /// Its `U`.
     ExpandedU,
     U,
     /// Where a missing standard uncertainty would be: `u`, else `k` (U without its k),
@@ -74,7 +76,7 @@ impl Field {
 
 /// The standard uncertainty of a row: its `u` when given, else `U/k`; `U` and `u`, where
 /// given, must be positive.
-fn standard_u(result: &LabResult, i: usize, row: &ResultRow) -> Result<f64, KcError> {
+pub(super) fn standard_u(result: &LabResult, i: usize, row: &ResultRow) -> Result<f64, KcError> {
     let non_positive = |column: &'static str, value: f64| KcError::NonPositiveUncertainty {
         location: location(
             result,
@@ -138,7 +140,7 @@ pub const MIN_STANDARD_U_ARCSEC: f64 = 1e-9;
 
 /// `file:line:column` of the index of a result's last row of `quantity` (in file order), or
 /// the result's file when it has none.
-fn last_row(result: &LabResult, quantity: Quantity) -> String {
+pub(super) fn last_row(result: &LabResult, quantity: Quantity) -> String {
     match rows_of(result, quantity).last() {
         Some(&(i, _)) => location(result, i, Field::Index),
         None => result.source.clone(),
@@ -146,7 +148,7 @@ fn last_row(result: &LabResult, quantity: Quantity) -> String {
 }
 
 /// The rows of `quantity` of one result, with their position in the result.
-fn rows_of(result: &LabResult, quantity: Quantity) -> Vec<(usize, &ResultRow)> {
+pub(super) fn rows_of(result: &LabResult, quantity: Quantity) -> Vec<(usize, &ResultRow)> {
     result
         .rows
         .iter()
@@ -320,8 +322,10 @@ pub(crate) fn encoder_reported(results: &[&LabResult], labs: usize) -> Result<Al
 
 /// [`encoder`] (`labs` `None`: every result reports every position kept) or
 /// [`encoder_reported`] (`Some(labs)`).
-fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Aligned, KcError> {
-    let by_angle = matched_by_angle(results)?;
+/// Every position of the encoder errors of `results` (by angle within
+/// [`ANGLE_TOLERANCE_DEG`] when `by_angle`, else by index), ascending, with the row of each
+/// result there; a result without encoder errors, or with two at one position, refused.
+fn position_groups(results: &[&LabResult], by_angle: bool) -> Result<Vec<Group>, KcError> {
     // Every (key, result, row), sorted by key.
     let mut all: Vec<(f64, usize, usize)> = Vec::new();
     for (r, result) in results.iter().enumerate() {
@@ -367,6 +371,12 @@ fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Align
         }
         group.rows[r] = Some(i);
     }
+    Ok(groups)
+}
+
+fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Aligned, KcError> {
+    let by_angle = matched_by_angle(results)?;
+    let groups = position_groups(results, by_angle)?;
     let mut aligned = Aligned {
         index: Vec::new(),
         angle_deg: by_angle.then(Vec::new),
@@ -471,145 +481,4 @@ fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Align
         ));
     }
     Ok(aligned)
-}
-
-/// Lines up the angle blocks of the laboratories `results[..labs]` and the pilot's repeats
-/// after them: each block a scalar of its own, compared among the laboratories that report
-/// it (docs/FORMAT.md §12, "What each laboratory measured"). A block reported by fewer
-/// than two laboratories is left out and named in a note; the pilot's repeats must report
-/// every block compared (their spread is the artefact's stability on each). Blocks'
-/// nominal angles, where stated, must agree between results.
-pub(crate) fn blocks(results: &[&LabResult], labs: usize) -> Result<Aligned, KcError> {
-    // block → (result, row) of every result reporting it
-    let mut by_block: BTreeMap<u32, Vec<Option<usize>>> = BTreeMap::new();
-    for (r, result) in results.iter().enumerate() {
-        let rows = rows_of(result, Quantity::AngleBlock);
-        if rows.is_empty() {
-            return Err(KcError::NoRows {
-                lab: result.name.clone(),
-                file: result.source.clone(),
-                quantity: Quantity::AngleBlock,
-            });
-        }
-        for (i, row) in rows {
-            let slot = by_block
-                .entry(row.index)
-                .or_insert_with(|| vec![None; results.len()]);
-            if slot[r].is_some() {
-                return Err(KcError::Duplicate {
-                    location: location(result, i, Field::Index),
-                    quantity: Quantity::AngleBlock,
-                    index: row.index,
-                });
-            }
-            slot[r] = Some(i);
-        }
-    }
-    let mut aligned = Aligned {
-        index: Vec::new(),
-        angle_deg: None,
-        values: vec![Vec::new(); results.len()],
-        u: vec![Vec::new(); results.len()],
-        dof: vec![Vec::new(); results.len()],
-        closed: false,
-        measured: Some(vec![Vec::new(); results.len()]),
-        nominal_deg: None,
-        notes: Vec::new(),
-    };
-    let mut nominal: Vec<Option<f64>> = Vec::new();
-    let mut left_out = Vec::new();
-    for (&block, rows) in &by_block {
-        let reporting = rows[..labs].iter().filter(|row| row.is_some()).count();
-        if reporting < 2 {
-            let by: Vec<&str> = rows[..labs]
-                .iter()
-                .zip(results)
-                .filter(|(row, _)| row.is_some())
-                .map(|(_, result)| result.name.as_str())
-                .collect();
-            left_out.push(match by.as_slice() {
-                [] => format!("block {block} (by the pilot's repeats only)"),
-                by => format!("block {block} (by {} only)", by.join(", ")),
-            });
-            continue;
-        }
-        if let Some(r) = (labs..results.len()).find(|&r| rows[r].is_none()) {
-            return Err(KcError::RepeatMissesBlock {
-                location: last_row(results[r], Quantity::AngleBlock),
-                repeat: results[r].name.clone(),
-                block,
-            });
-        }
-        aligned.index.push(block);
-        nominal.push(block_nominal(results, rows, block)?);
-        for (r, row) in rows.iter().enumerate() {
-            let measured = row.is_some();
-            let (value, u, dof) = match *row {
-                Some(i) => {
-                    let found = &results[r].rows[i];
-                    let u = standard_u(results[r], i, found)?;
-                    (found.value, u, found.dof.unwrap_or(f64::INFINITY))
-                }
-                None => (0.0, 1.0, f64::INFINITY),
-            };
-            aligned.values[r].push(value);
-            aligned.u[r].push(u);
-            aligned.dof[r].push(dof);
-            if let Some(m) = aligned.measured.as_mut() {
-                m[r].push(measured);
-            }
-        }
-    }
-    if aligned.index.is_empty() {
-        return Err(KcError::NothingInCommon);
-    }
-    if aligned
-        .measured
-        .as_ref()
-        .is_some_and(|m| m.iter().flatten().all(|&m| m))
-    {
-        aligned.measured = None;
-    }
-    if nominal.iter().any(Option::is_some) {
-        aligned.nominal_deg = Some(nominal);
-    }
-    if !left_out.is_empty() {
-        aligned.notes.push(format!(
-            "{} angle block(s) reported by fewer than two laboratories left out (nothing to \
-             compare them with): {}",
-            left_out.len(),
-            left_out.join("; ")
-        ));
-    }
-    Ok(aligned)
-}
-
-/// The nominal angle of `block` as the results reporting it (`rows`) state it: `None` when
-/// none does; refused at the second when two differ by more than 10⁻⁹ degrees.
-fn block_nominal(
-    results: &[&LabResult],
-    rows: &[Option<usize>],
-    block: u32,
-) -> Result<Option<f64>, KcError> {
-    let mut first: Option<(f64, String)> = None;
-    for (r, row) in rows.iter().enumerate() {
-        let Some(i) = *row else { continue };
-        let Some(nominal) = results[r].rows[i].nominal_deg else {
-            continue;
-        };
-        match &first {
-            None => first = Some((nominal, location(results[r], i, Field::Index))),
-            Some((seen, at)) if (seen - nominal).abs() > 1e-9 => {
-                return Err(KcError::NominalsDiffer {
-                    location: location(results[r], i, Field::Index),
-                    block,
-                    nominal_deg: nominal,
-                    first_nominal_deg: *seen,
-                    first_location: at.clone(),
-                });
-            }
-            Some(_) => {}
-        }
-    }
-    Ok(first.map(|(nominal, _)| nominal))
 }

@@ -6,6 +6,10 @@
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+use super::closed::{self, ClosedCovariance};
+use super::evaluate::vector_test;
+use super::reference::chi2_quantile_95;
+use super::scaled::Scaled;
 use super::{PairDifference, VectorTest};
 
 /// Every pair of laboratories (a before b, in the order given), each a
@@ -240,6 +244,119 @@ impl<'de> Deserialize<'de> for Pairs {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Pairs, D::Error> {
         Vec::<PairDifference>::deserialize(deserializer).map(Pairs::from)
     }
+}
+
+/// Every pair of laboratories: d_ij and U(d_ij) (k = 2) formed when read ([`Pairs`]) from
+/// the covariances `widened` (the pilot's stability and τ in them), and each pair's
+/// closed-vector test at 5 %, made here.
+pub(super) fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) -> Pairs {
+    let labs = scaled.labs;
+    let n = labs.len();
+    let mut vectors = Vec::with_capacity(n * n.saturating_sub(1) / 2);
+    let reported: Vec<Vec<f64>> = (0..n).map(|r| scaled.reported_values(r)).collect();
+    let dof = scaled.positions.saturating_sub(1);
+    let critical = chi2_quantile_95(dof);
+    let closing = scaled.positions as f64 / dof.max(1) as f64;
+    for a in 0..n {
+        for b in a + 1..n {
+            let test = match (&widened[a], &widened[b]) {
+                // blocks: each on its own, over the blocks both report (ν = their number)
+                (ClosedCovariance::Independent(u_a), ClosedCovariance::Independent(u_b)) => {
+                    let d: Vec<f64> = reported[a]
+                        .iter()
+                        .zip(&reported[b])
+                        .map(|(x_a, x_b)| x_a - x_b)
+                        .collect();
+                    let variance: Vec<f64> = u_a
+                        .iter()
+                        .zip(u_b)
+                        .map(|(u_a, u_b)| u_a * u_a + u_b * u_b)
+                        .collect();
+                    super::blocks::pair_chi2(&d, &variance).map(|(chi2, dof)| {
+                        let critical = chi2_quantile_95(dof);
+                        VectorTest {
+                            chi2,
+                            dof,
+                            consistent: chi2 <= critical,
+                            chi2_critical: critical,
+                            reference: Vec::new(),
+                        }
+                    })
+                }
+                // results that report different positions: over those both report
+                (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b))
+                    if scaled.measured.is_some() =>
+                {
+                    common_positions_test(&reported[a], &reported[b], u_a, u_b)
+                }
+                // V_a + V_b = c·P·diag(u_a² + u_b²)·P: its χ² in O(N), no fit
+                (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b)) => {
+                    let d: Vec<f64> = scaled.values[a]
+                        .iter()
+                        .zip(&scaled.values[b])
+                        .map(|(x_a, x_b)| x_a - x_b)
+                        .collect();
+                    let variance: Vec<f64> = u_a
+                        .iter()
+                        .zip(u_b)
+                        .map(|(u_a, u_b)| closing * (u_a * u_a + u_b * u_b))
+                        .collect();
+                    let (chi2, _) = closed::difference_chi2(&d, &variance);
+                    chi2.is_finite().then(|| VectorTest {
+                        chi2,
+                        dof,
+                        consistent: chi2 <= critical,
+                        chi2_critical: critical,
+                        reference: Vec::new(),
+                    })
+                }
+                _ => scaled.fit(&[a, b], widened).map(|fit| VectorTest {
+                    reference: Vec::new(),
+                    ..vector_test(&fit, scaled.scale)
+                }),
+            };
+            vectors.push(test);
+        }
+    }
+    Pairs::formed(
+        labs.iter().map(|l| l.name.clone()).collect(),
+        scaled.closed && scaled.measured.is_some(),
+        reported,
+        widened[..n]
+            .iter()
+            .map(ClosedCovariance::diagonal)
+            .collect(),
+        vectors,
+        scaled.scale,
+    )
+}
+
+/// The closed-vector test of a pair of results that report different positions, over the
+/// M positions both report (`x_a`, `x_b` NaN elsewhere): the difference closed there, with
+/// V = M/(M − 1)·P·diag(u_a² + u_b²)·P, ν = M − 1 (`None` below 2 common positions).
+fn common_positions_test(x_a: &[f64], x_b: &[f64], u_a: &[f64], u_b: &[f64]) -> Option<VectorTest> {
+    let common: Vec<usize> = (0..x_a.len())
+        .filter(|&k| x_a[k].is_finite() && x_b[k].is_finite())
+        .collect();
+    let m = common.len();
+    if m < 2 {
+        return None;
+    }
+    let closing = m as f64 / (m - 1) as f64;
+    let d: Vec<f64> = common.iter().map(|&k| x_a[k] - x_b[k]).collect();
+    let variance: Vec<f64> = common
+        .iter()
+        .map(|&k| closing * (u_a[k] * u_a[k] + u_b[k] * u_b[k]))
+        .collect();
+    let (chi2, _) = closed::difference_chi2(&d, &variance);
+    let critical = chi2_quantile_95(m - 1);
+    chi2.is_finite().then(|| VectorTest {
+        chi2,
+        dof: m - 1,
+        consistent: chi2 <= critical,
+        chi2_critical: critical,
+        reference: Vec::new(),
+    })
 }
 
 #[cfg(test)]

@@ -388,10 +388,14 @@ fn write_pairs(out: &mut impl std::fmt::Write, kc: &KeyComparison) -> std::fmt::
             )
         })
         .collect();
-    let what = if kc.wording().is_closed() {
-        format!("closed vector d_ij tested at 5 % (ν = {}", tested[0].2.dof)
-    } else {
-        "blocks tested at 5 % over the blocks both report (ν their number".to_string()
+    let what = match (kc.wording().is_closed(), kc.wording().is_uneven()) {
+        (true, false) => format!("closed vector d_ij tested at 5 % (ν = {}", tested[0].2.dof),
+        (true, true) => "closed vector d_ij tested at 5 % over the M positions both report \
+                         (ν = M − 1"
+            .to_string(),
+        (false, _) => {
+            "blocks tested at 5 % over the blocks both report (ν their number".to_string()
+        }
     };
     writeln!(
         out,

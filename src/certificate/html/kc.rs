@@ -284,13 +284,13 @@ fn vector(out: &mut String, kc: &KeyComparison, sfx: &str) {
         return;
     }
     if !kc.wording().is_closed() {
-        let _ = write!(
+        let _ = writeln!(
             out,
             "<p>The blocks' joint test: each angle block a single angle of its own (no \
              closure), its reference the weighted mean of the laboratories in the reference that \
              report it; χ² = Σ<sub>b</sub> Σ<sub>i</sub> (x<sub>ib</sub> − \
              x<sub>ref,b</sub>)²/u<sub>ib</sub>², ν = Σ<sub>b</sub> (n<sub>b</sub> − 1), \
-             n<sub>b</sub> the laboratories reporting block b.</p>\n"
+             n<sub>b</sub> the laboratories reporting block b.</p>"
         );
     } else {
         closed_words(out, kc);
@@ -316,14 +316,31 @@ fn vector(out: &mut String, kc: &KeyComparison, sfx: &str) {
 
 /// The closed vector's test in words (pitch deviations, encoder errors).
 fn closed_words(out: &mut String, kc: &KeyComparison) {
-    let _ = write!(
+    if kc.wording().is_uneven() {
+        let _ = writeln!(
+            out,
+            "<p>The closed vector: encoder errors are defined up to a constant, and the \
+             laboratories report different positions: each laboratory's result is closed over \
+             the N<sub>i</sub> positions it reports (its mean there taken out), with \
+             V<sub>i</sub> = N<sub>i</sub>/(N<sub>i</sub> − 1)·P·diag(u<sub>i</sub>²)·P. \
+             Generalised least squares over every position: x<sub>ref</sub> = A⁺ Σ \
+             M<sub>i</sub>ᵀV<sub>i</sub>⁺x<sub>i</sub>, A = Σ M<sub>i</sub>ᵀV<sub>i</sub>⁺M<sub>i</sub> \
+             (M<sub>i</sub> selecting laboratory i's positions), χ² = Σ (x<sub>i</sub> − \
+             M<sub>i</sub>x<sub>ref</sub>)ᵀ V<sub>i</sub>⁺ (x<sub>i</sub> − \
+             M<sub>i</sub>x<sub>ref</sub>), ν = Σ N<sub>i</sub> − n − (N − 1); each degree of \
+             equivalence is closed over the laboratory's positions, U(d<sub>i</sub>) = \
+             2·√diag(V<sub>i</sub> ∓ P·M<sub>i</sub>A⁺M<sub>i</sub>ᵀ·P).</p>"
+        );
+        return;
+    }
+    let _ = writeln!(
         out,
         "<p>The closed vector: each laboratory's {} sum to 0 ({}), so its quantities are \
          correlated. Generalised least squares with each laboratory's covariance V<sub>i</sub> \
          (its own when it sent one, else V<sub>i</sub> = N/(N − 1)·P·diag(u<sub>i</sub>²)·P, \
          P = I − J/N): x<sub>ref</sub> = (Σ V<sub>i</sub>⁺)⁺ Σ V<sub>i</sub>⁺ x<sub>i</sub>, \
          χ² = Σ (x<sub>i</sub> − x<sub>ref</sub>)ᵀ V<sub>i</sub>⁺ (x<sub>i</sub> − \
-         x<sub>ref</sub>), ν = (N − 1)(n − 1).</p>\n",
+         x<sub>ref</sub>), ν = (N − 1)(n − 1).</p>",
         quantity_plural(kc.quantity),
         if kc.quantity == Quantity::EncoderError {
             "each result's mean over the compared positions taken out: encoder errors are \
