@@ -308,7 +308,10 @@ def kc(
     laboratories held in the reference (``--keep``); ``not_in_reference`` names
     laboratories kept out of it but given degrees of equivalence
     (``--not-in-reference``); ``link`` is the comparison this one is linked to
-    (``--link``), ``monte_carlo`` the number of draws for every U (``--monte-carlo``)."""
+    (``--link``), ``monte_carlo`` the number of draws for every U (``--monte-carlo``).
+    ``quantity`` is ``pitch_deviation``, ``encoder_error`` or ``angle_block``; a number a
+    laboratory did not measure (an angle block, an encoder position) is NaN in the arrays,
+    ``null`` in :meth:`KeyComparison.to_json`."""
 
     def named(items: Any) -> Any:
         return [(str(name), _rows_of(result)) for name, result in items]
@@ -331,7 +334,7 @@ def shared_quantities(
     labs: Mapping[str, Union[SolveResult, _Rows, PathOrText]],
     pilot: Optional[Sequence[Tuple[str, Union[SolveResult, _Rows, PathOrText]]]] = None,
 ) -> List[str]:
-    """The quantities a key comparison compares (``pitch_deviation``, ``encoder_error``)
+    """The quantities a key comparison compares (``pitch_deviation``, ``encoder_error``, ``angle_block``)
     that every laboratory's result in ``labs`` and every repeat in ``pilot`` has rows of,
     in the order ``polycal kc`` without ``--quantity`` compares them, as names for
     :func:`kc`'s ``quantity``: ``[kc(labs, quantity=q) for q in shared_quantities(labs)]``.

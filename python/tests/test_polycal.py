@@ -549,7 +549,7 @@ def test_shared_quantities_loop_is_the_clis_json_lines(tmp_path):
     args = [f"{name}={path}" for name, path in labs.items()]
     args += [f"--pilot={name}={path}" for name, path in pilot]
     shared = polycal.shared_quantities(labs, pilot=pilot)
-    assert shared == ["pitch_deviation", "encoder_error"]
+    assert shared == ["pitch_deviation", "encoder_error", "angle_block"]
     lines = cli("kc", *args, "--format", "json").splitlines()
     looped = [polycal.kc(labs, pilot=pilot, quantity=q).to_json() for q in shared]
     assert [json.loads(line) for line in lines] == [json.loads(j) for j in looped]
@@ -562,6 +562,21 @@ def test_shared_quantities_loop_is_the_clis_json_lines(tmp_path):
     assert polycal.shared_quantities({"A": KC / "A.csv", "P": pitch_only}) == [
         "pitch_deviation"
     ]
+
+
+def test_kc_of_angle_blocks_is_the_clis_json_and_a_block_not_measured_is_nan():
+    labs = {name: KC / f"{name}.csv" for name in "ABCDEF"}
+    args = [f"{name}={path}" for name, path in labs.items()]
+    blocks = polycal.kc(labs, quantity="angle_block")
+    assert blocks.to_json() == cli("kc", *args, "--quantity", "angle_block", "--format", "json")
+    assert list(blocks["index"]) == [1, 2, 3, 4]
+    assert [e["lab"] for e in blocks["excluded"]] == ["E"]
+    # D did not measure the 90° block: NaN there (null in the JSON), numbers elsewhere
+    d = blocks["degrees_of_equivalence"][3]
+    assert d["lab"] == "D"
+    assert np.isnan(d["d"][3]) and np.isnan(d["U"][3])
+    assert np.all(np.isfinite(d["d"][:3]))
+    assert json.loads(blocks.to_json())["degrees_of_equivalence"][3]["d"][3] is None
 
 
 def test_shared_quantities_refuses_as_the_cli_does(tmp_path):
