@@ -223,7 +223,8 @@ pub(crate) fn selfcal_from_state(
     ))
 }
 
-/// A result row in a pickled state: quantity, index, value, u, U, k, angle_deg.
+/// A result row in a pickled state: quantity, index, value, u, U, k, angle_deg, dof,
+/// nominal_deg.
 pub(crate) type RowState = (
     String,
     u32,
@@ -232,10 +233,20 @@ pub(crate) type RowState = (
     Option<f64>,
     Option<f64>,
     Option<f64>,
+    Option<f64>,
+    Option<f64>,
 );
 
-/// The columns of a row's fields as pickled: quantity, index, value, U, u, k.
-pub(crate) type ColumnsState = (u64, u64, u64, Option<u64>, Option<u64>, Option<u64>);
+/// The columns of a row's fields as pickled: quantity, index, value, U, u, k, nominal_deg.
+pub(crate) type ColumnsState = (
+    u64,
+    u64,
+    u64,
+    Option<u64>,
+    Option<u64>,
+    Option<u64>,
+    Option<u64>,
+);
 
 /// The pickled state of result rows: the rows, the label and, for a file's, its name,
 /// the rows' lines and their fields' columns.
@@ -249,7 +260,17 @@ pub(crate) type RowsState = (
 pub(crate) fn columns_state(columns: &[RowColumns]) -> Vec<ColumnsState> {
     columns
         .iter()
-        .map(|c| (c.quantity, c.index, c.value, c.expanded_u, c.u, c.k))
+        .map(|c| {
+            (
+                c.quantity,
+                c.index,
+                c.value,
+                c.expanded_u,
+                c.u,
+                c.k,
+                c.nominal_deg,
+            )
+        })
         .collect()
 }
 
@@ -264,6 +285,8 @@ pub(crate) fn rows_state(rows: &[ResultRow]) -> Vec<RowState> {
                 r.expanded_u,
                 r.k,
                 r.angle_deg,
+                r.dof,
+                r.nominal_deg,
             )
         })
         .collect()
@@ -272,7 +295,7 @@ pub(crate) fn rows_state(rows: &[ResultRow]) -> Vec<RowState> {
 pub(crate) fn rows_from_state(state: Vec<RowState>) -> PyResult<Vec<ResultRow>> {
     state
         .into_iter()
-        .map(|(quantity, index, value, u, expanded_u, k, angle_deg)| {
+        .map(|(quantity, index, value, u, expanded_u, k, angle_deg, dof, nominal_deg)| {
             let quantity = Quantity::from_name(&quantity).ok_or_else(|| {
                 PyValueError::new_err(format!("a pickled row of quantity {quantity:?}"))
             })?;
@@ -281,6 +304,8 @@ pub(crate) fn rows_from_state(state: Vec<RowState>) -> PyResult<Vec<ResultRow>> 
             row.expanded_u = expanded_u;
             row.k = k;
             row.angle_deg = angle_deg;
+            row.dof = dof;
+            row.nominal_deg = nominal_deg;
             Ok(row)
         })
         .collect()
@@ -297,13 +322,14 @@ pub(crate) fn rows_file_from_state(
             same_lengths("ResultRows", &[rows.len(), lines.len(), columns.len()])?;
             let columns = columns
                 .into_iter()
-                .map(|(quantity, index, value, expanded_u, u, k)| RowColumns {
+                .map(|(quantity, index, value, expanded_u, u, k, nominal_deg)| RowColumns {
                     quantity,
                     index,
                     value,
                     expanded_u,
                     u,
                     k,
+                    nominal_deg,
                 })
                 .collect();
             Some(ResultFile {

@@ -206,10 +206,10 @@ fn block_nominal(
             continue;
         };
         match &first {
-            None => first = Some((nominal, location(results[r], i, Field::Index))),
+            None => first = Some((nominal, location(results[r], i, Field::Nominal))),
             Some((seen, at)) if (seen - nominal).abs() > 1e-9 => {
                 return Err(KcError::NominalsDiffer {
-                    location: location(results[r], i, Field::Index),
+                    location: location(results[r], i, Field::Nominal),
                     block,
                     nominal_deg: nominal,
                     first_nominal_deg: *seen,

@@ -53,7 +53,10 @@ pub(super) enum Field {
     Index,
     /// Its `U`.
     ExpandedU,
+    /// Its `u`.
     U,
+    /// Its `nominal_deg` (else its index).
+    Nominal,
     /// Where a missing standard uncertainty would be: `u`, else `k` (U without its k),
     /// else `U`, else the row's index.
     MissingU,
@@ -65,6 +68,7 @@ impl Field {
             Field::Index => Some(columns.index),
             Field::ExpandedU => columns.expanded_u,
             Field::U => columns.u,
+            Field::Nominal => columns.nominal_deg.or(Some(columns.index)),
             Field::MissingU => columns
                 .u
                 .or(columns.k)

@@ -8,7 +8,9 @@
 //!
 //! Columns may come in any order; `quantity`, `index` and `value` are required; `U`
 //! (expanded uncertainty), `u` (standard uncertainty), `k` (coverage factor) and
-//! `angle_deg` (the table angle of an encoder error, degrees) are optional, an empty field
+//! `angle_deg` (the table angle of an encoder error, degrees), `dof` (the degrees of
+//! freedom of u) and `nominal_deg` (an angle block's nominal angle, degrees, on
+//! `angle_block` rows) are optional, an empty field
 //! meaning "not given" (`compare` needs `U`). Column names are case-sensitive (`U` and `u`
 //! differ). Columns this version does not know are ignored (docs/FORMAT.md allows adding
 //! columns). Lines starting with `#` before the header are comments.
@@ -18,7 +20,8 @@
 //! `file:line:column` and nothing is guessed. So is an `angle_deg` outside 0 ≤ angle < 360,
 //! one on a row that is not an encoder error, two encoder errors at the same angle (within
 //! [`ANGLE_TOLERANCE_DEG`], around the circle), and a file where some encoder errors carry
-//! an angle and others do not.
+//! an angle and others do not, and a `nominal_deg` outside 0 < angle < 360 or on a row
+//! that is not an angle block.
 //!
 //! The file is read by the crate's one table reader (`input::table`) like the
 //! measurement and self-calibration files, with the same rules and messages, in one pass
@@ -107,7 +110,8 @@ impl PartialEq<&str> for Quantity {
 /// One row of a result file.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ResultRow {
-    /// The family: `pitch_deviation`, `face_deviation`, `encoder_error` or `setup_error`.
+    /// The family: `pitch_deviation`, `face_deviation`, `encoder_error`, `setup_error` or
+    /// `angle_block`.
     pub quantity: Quantity,
     /// Face 1 … N, step 0 … N−1, or autocollimator number.
     pub index: u32,
@@ -251,6 +255,8 @@ pub struct RowColumns {
     pub u: Option<u64>,
     /// The `k` field.
     pub k: Option<u64>,
+    /// The `nominal_deg` field.
+    pub nominal_deg: Option<u64>,
 }
 
 /// Reads a result file strictly; `-` reads standard input. See [`read_result_file`] for

@@ -178,6 +178,7 @@ pub(super) fn parse_bytes(bytes: &[u8], source: &str) -> Result<ResultFile, File
             expanded_u: column(Col::ExpandedU),
             u: column(Col::U),
             k: column(Col::K),
+            nominal_deg: column(Col::NominalDeg),
         });
         file.lines.push(row.line());
         file.rows.push(result);

@@ -202,7 +202,7 @@ fn kc_blocks_refusals_name_file_line_and_column() {
     let error = refused(&[labs[0].clone(), other], &[]);
     let a_path = labs[0].trim_start_matches("A=");
     let expected =
-        format!("{path}:3:13: angle_block 2 has nominal_deg 30.5, but 30 at {a_path}:3:13");
+        format!("{path}:3:26: angle_block 2 has nominal_deg 30.5, but 30 at {a_path}:3:28");
     assert!(error.starts_with(&expected), "{error}");
 
     // a file without angle_block rows

@@ -478,10 +478,10 @@ fn kc_blocks_left_out_and_refused() {
     match evaluate(&[file("a.csv", a), file("b.csv", b_other)], &[], &blocks()) {
         Err(e @ KcError::NominalsDiffer { .. }) => {
             let message = e.to_string();
-            // line 3, the index field (after "angle_block,": column 13)
+            // line 3, the nominal_deg field of each (column 26)
             assert!(
                 message.starts_with(
-                    "b.csv:3:13: angle_block 2 has nominal_deg 30.5, but 30 at a.csv:3:13"
+                    "b.csv:3:26: angle_block 2 has nominal_deg 30.5, but 30 at a.csv:3:26"
                 ),
                 "{message}"
             );
