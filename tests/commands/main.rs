@@ -98,6 +98,8 @@ mod kc_blocks;
 mod kc_cli;
 #[cfg(feature = "cli")]
 mod kc_draft;
+#[cfg(feature = "cli")]
+mod kc_encoder_subsets;
 mod kc_input;
 #[cfg(feature = "cli")]
 mod kc_labs_apart;

@@ -5,6 +5,7 @@
 #![allow(dead_code, clippy::needless_range_loop)]
 
 pub mod blocks;
+pub mod encoder;
 
 use nalgebra::{DMatrix, DVector};
 use polycal::kc::LabResult;

@@ -44,6 +44,7 @@ mod kc;
 mod kc_blocks;
 mod kc_blocks_uncertainty;
 mod kc_covariance;
+mod kc_encoder_subsets;
 mod measurement_file_good;
 mod measurement_file_in_memory;
 mod measurement_file_refusals;

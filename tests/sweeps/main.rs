@@ -51,6 +51,7 @@ mod instrument_resume;
 #[cfg(all(feature = "cli", feature = "lab"))]
 mod instrument_wrong_stop_cli;
 mod kc_blocks_rates;
+mod kc_encoder_subsets_rates;
 mod kc_link_rates;
 mod kc_pairs_motion;
 mod kc_rates;
