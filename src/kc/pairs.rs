@@ -55,18 +55,13 @@ impl Formed {
         let n = self.labs.len();
         // pairs (0, 1) … (0, n−1), (1, 2) …: those before row a, then b's place in it
         let at = a * n - a * (a + 1) / 2 + (b - a - 1);
-        let mut d: Vec<f64> = self.values[a]
+        let d: Vec<f64> = self.values[a]
             .iter()
             .zip(&self.values[b])
             .map(|(x_a, x_b)| (x_a - x_b) * scale)
             .collect();
         if self.closed_over_common {
-            let (sum, count) = d
-                .iter()
-                .filter(|d| d.is_finite())
-                .fold((0.0, 0.0), |(s, m), d| (s + d, m + 1.0));
-            let mean = if count > 0.0 { sum / count } else { 0.0 };
-            d.iter_mut().for_each(|d| *d -= mean);
+            return self.closed_over_common(a, b, d, at);
         }
         PairDifference {
             a: self.labs[a].clone(),
@@ -85,6 +80,45 @@ impl Formed {
                     }
                 })
                 .collect(),
+            vector: self.vectors.get(at).cloned().flatten(),
+        }
+    }
+}
+
+impl Formed {
+    /// The pair `a`, `b` of closed results that report different positions: d closed over
+    /// the M positions both report, its covariance P·D·P with D = diag(c_a·u_a² + c_b·u_b²)
+    /// (`variances` hold each laboratory's c·u², c = N/(N − 1) of its own N positions),
+    /// so U(d_ab) = 2·√(D_k(1 − 2/M) + Σ D/M²): the covariance its test uses.
+    fn closed_over_common(&self, a: usize, b: usize, mut d: Vec<f64>, at: usize) -> PairDifference {
+        let scale = self.scale;
+        let sum_d: Vec<f64> = self.variances[a]
+            .iter()
+            .zip(&self.variances[b])
+            .map(|(v_a, v_b)| v_a + v_b)
+            .collect();
+        let common: Vec<usize> = (0..d.len())
+            .filter(|&k| d[k].is_finite() && sum_d[k].is_finite())
+            .collect();
+        let m = common.len() as f64;
+        let mean = common.iter().map(|&k| d[k]).sum::<f64>() / m.max(1.0);
+        let total: f64 = common.iter().map(|&k| sum_d[k]).sum();
+        let mut expanded_u = vec![f64::NAN; d.len()];
+        for &k in &common {
+            d[k] -= mean;
+            let v = sum_d[k] * (1.0 - 2.0 / m) + total / (m * m);
+            expanded_u[k] = 2.0 * v.max(0.0).sqrt() * scale;
+        }
+        for (k, d) in d.iter_mut().enumerate() {
+            if !common.contains(&k) {
+                *d = f64::NAN;
+            }
+        }
+        PairDifference {
+            a: self.labs[a].clone(),
+            b: self.labs[b].clone(),
+            d,
+            expanded_u,
             vector: self.vectors.get(at).cloned().flatten(),
         }
     }
@@ -287,7 +321,12 @@ pub(super) fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) ->
                 (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b))
                     if scaled.measured.is_some() =>
                 {
-                    common_positions_test(&reported[a], &reported[b], u_a, u_b)
+                    common_positions_test(
+                        &reported[a],
+                        &reported[b],
+                        &own_variances(u_a),
+                        &own_variances(u_b),
+                    )
                 }
                 // V_a + V_b = c·P·diag(u_a² + u_b²)·P: its χ² in O(N), no fit
                 (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b)) => {
@@ -318,23 +357,40 @@ pub(super) fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) ->
             vectors.push(test);
         }
     }
+    let over_common = scaled.closed && scaled.measured.is_some();
+    let variances = widened[..n]
+        .iter()
+        .map(|v| match v {
+            ClosedCovariance::Stated(u) if over_common => own_variances(u),
+            v => v.diagonal(),
+        })
+        .collect();
     Pairs::formed(
         labs.iter().map(|l| l.name.clone()).collect(),
-        scaled.closed && scaled.measured.is_some(),
+        over_common,
         reported,
-        widened[..n]
-            .iter()
-            .map(ClosedCovariance::diagonal)
-            .collect(),
+        variances,
         vectors,
         scaled.scale,
     )
 }
 
+/// c·u² of a closed result reporting N of the positions (u finite there), c = N/(N − 1):
+/// its covariance is c·P·diag(u²)·P over them; NaN where it does not report a position.
+fn own_variances(u: &[f64]) -> Vec<f64> {
+    let n = u.iter().filter(|u| u.is_finite()).count() as f64;
+    let c = n / (n - 1.0);
+    u.iter()
+        .map(|u| if u.is_finite() { c * u * u } else { f64::NAN })
+        .collect()
+}
+
 /// The closed-vector test of a pair of results that report different positions, over the
 /// M positions both report (`x_a`, `x_b` NaN elsewhere): the difference closed there, with
-/// V = M/(M − 1)·P·diag(u_a² + u_b²)·P, ν = M − 1 (`None` below 2 common positions).
-fn common_positions_test(x_a: &[f64], x_b: &[f64], u_a: &[f64], u_b: &[f64]) -> Option<VectorTest> {
+/// V = P·diag(c_a·u_a² + c_b·u_b²)·P (`w_a`, `w_b`: each result's c·u², [`own_variances`]) —
+/// the covariance of the closed difference when each result is closed over its own
+/// positions — and ν = M − 1 (`None` below 2 common positions).
+fn common_positions_test(x_a: &[f64], x_b: &[f64], w_a: &[f64], w_b: &[f64]) -> Option<VectorTest> {
     let common: Vec<usize> = (0..x_a.len())
         .filter(|&k| x_a[k].is_finite() && x_b[k].is_finite())
         .collect();
@@ -342,12 +398,8 @@ fn common_positions_test(x_a: &[f64], x_b: &[f64], u_a: &[f64], u_b: &[f64]) -> 
     if m < 2 {
         return None;
     }
-    let closing = m as f64 / (m - 1) as f64;
     let d: Vec<f64> = common.iter().map(|&k| x_a[k] - x_b[k]).collect();
-    let variance: Vec<f64> = common
-        .iter()
-        .map(|&k| closing * (u_a[k] * u_a[k] + u_b[k] * u_b[k]))
-        .collect();
+    let variance: Vec<f64> = common.iter().map(|&k| w_a[k] + w_b[k]).collect();
     let (chi2, _) = closed::difference_chi2(&d, &variance);
     let critical = chi2_quantile_95(m - 1);
     chi2.is_finite().then(|| VectorTest {

@@ -230,10 +230,12 @@ impl<'a> Scaled<'a> {
             .zip(&fit.reference)
             .map(|(x, x_ref)| (x - x_ref) * scale)
             .collect();
+        let mut diagonal = diagonal;
         let mut reference_variance = std::borrow::Cow::Borrowed(&fit.reference_variance);
-        if let Some((closed_d, projected)) = self.closed_over_own(&d, fit) {
-            d = closed_d;
-            reference_variance = std::borrow::Cow::Owned(projected);
+        if let Some(own) = self.closed_over_own(r, &d, fit, &reference.widened[r]) {
+            d = own.d;
+            diagonal = own.variance;
+            reference_variance = std::borrow::Cow::Owned(own.reference_variance);
         }
         let expanded_u = diagonal
             .iter()
@@ -261,28 +263,64 @@ impl<'a> Scaled<'a> {
 }
 
 impl Scaled<'_> {
-    /// A closed result that does not report every position the reference has: its degree
-    /// of equivalence closed over the positions S it reports, d = P_S(x − x_ref,S), and the
-    /// variance the reference takes out of it (adds to it), diag(P_S·C_SS·P_S)
-    /// ([`closed::projected_variance`]). `None` for a result that reports every position of
-    /// the reference (d and C_kk as they are) and for angle blocks (not closed).
-    fn closed_over_own(&self, d: &[f64], fit: &ClosedFit) -> Option<(Vec<f64>, Vec<f64>)> {
+    /// A closed result that does not report every position the reference has (or reports
+    /// one the reference does not): its degree of equivalence closed over the positions S
+    /// both have, d = P_S(x − x_ref,S); its own variance there, diag(P_S·V_S·P_S) =
+    /// c·(u_k²(1 − 2/M) + Σ_S u²/M²) with its c = N/(N − 1) (V closed over its N
+    /// positions, M = |S|); and the variance the reference takes out of it (adds to it),
+    /// diag(P_S·C_SS·P_S) ([`closed::projected_variance`]). `None` for a result that reports
+    /// exactly the reference's positions (d, V and C_kk as they are) and for angle blocks.
+    fn closed_over_own(
+        &self,
+        r: usize,
+        d: &[f64],
+        fit: &ClosedFit,
+        widened: &ClosedCovariance,
+    ) -> Option<OwnPositions> {
         if !self.closed || self.measured.is_none() {
             return None;
         }
-        let given: Vec<bool> = d.iter().map(|d| d.is_finite()).collect();
-        let fitted = fit.reference.iter().filter(|r| r.is_finite()).count();
-        if given.iter().filter(|g| **g).count() == fitted {
+        let ClosedCovariance::Stated(u) = widened else {
+            return None;
+        };
+        let both: Vec<bool> = d.iter().map(|d| d.is_finite()).collect();
+        let fitted = fit.reference.iter().filter(|x| x.is_finite()).count();
+        let reported = (0..d.len()).filter(|&k| self.is_measured(r, k)).count();
+        let m = both.iter().filter(|b| **b).count();
+        if m == fitted && m == reported {
             return None;
         }
-        let (sum, count) = d
-            .iter()
-            .filter(|d| d.is_finite())
-            .fold((0.0, 0.0), |(s, n), d| (s + d, n + 1.0));
-        let mean = sum / count;
-        let closed_d = d.iter().map(|d| d - mean).collect();
-        Some((closed_d, closed::projected_variance(fit, &given)?))
+        let mean = (0..d.len()).filter(|&k| both[k]).map(|k| d[k]).sum::<f64>() / m as f64;
+        let n = reported as f64;
+        let c = n / (n - 1.0);
+        let mf = m as f64;
+        let total: f64 = (0..d.len()).filter(|&k| both[k]).map(|k| u[k] * u[k]).sum();
+        let variance = (0..d.len())
+            .map(|k| {
+                if both[k] {
+                    c * (u[k] * u[k] * (1.0 - 2.0 / mf) + total / (mf * mf))
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect();
+        Some(OwnPositions {
+            d: d.iter().map(|d| d - mean).collect(),
+            variance,
+            reference_variance: closed::projected_variance(fit, &both)?,
+        })
     }
+}
+
+/// A degree of equivalence over the positions a result and the reference both have
+/// ([`Scaled::closed_over_own`]), arcsec and the scale's units².
+struct OwnPositions {
+    /// d closed over those positions (NaN elsewhere).
+    d: Vec<f64>,
+    /// The result's own variance of it there.
+    variance: Vec<f64>,
+    /// The reference's variance taken out (in it) or added (out of it) there.
+    reference_variance: Vec<f64>,
 }
 
 /// The closed reference the degrees of equivalence are taken against: its fit and every

@@ -273,8 +273,6 @@ fn kc_encoder_subsets_refusals_are_one_error_line() {
 /// The table states ν = (N − 1)(n − 1) = 8 where the laboratories report different
 /// positions and ν = Σ N_i − n − (K − 1) = 8, while (N − 1)(n − 1) = (6 − 1)(3 − 1) = 10.
 #[test]
-#[ignore = "bug: the closed vector's statement (src/kc/wording.rs) names ν = (N − 1)(n − 1) \
-            when the laboratories report different positions (ν = Σ N_i − n − (K − 1))"]
 fn kc_encoder_subsets_the_table_states_the_dof_it_used() {
     let dir = temp_dir("kc-encoder-subsets-dof-words");
     let out = run(&three_labs(&dir), &[]);
@@ -287,8 +285,6 @@ fn kc_encoder_subsets_the_table_states_the_dof_it_used() {
 /// The table's line of the pairs states one ν, the first pair's (3), while A–C is tested
 /// with ν = 5 (its six common positions).
 #[test]
-#[ignore = "bug: the pairs' line of the table (src/output/kc.rs, write_pairs) states the \
-            first pair's ν as every pair's when pairs share different numbers of positions"]
 fn kc_encoder_subsets_the_pairs_line_states_each_pairs_dof() {
     let dir = temp_dir("kc-encoder-subsets-pair-words");
     let out = run(&three_labs(&dir), &[]);

@@ -179,15 +179,28 @@ pub fn block_largest_subset(x: &[Vec<Option<f64>>], u: &[Vec<f64>]) -> Vec<usize
         return all;
     }
     for size in (2..labs).rev() {
-        let mut best: Option<(f64, Vec<usize>)> = None;
+        // the most consistent passing subset: the smaller χ² at one ν, the larger p-value
+        // P(χ²_ν > χ²) at different ν (the library's rule, docs/FORMAT.md §12)
+        let mut best: Option<(BlockFit, Vec<usize>)> = None;
         for mask in 0u32..(1 << labs) {
             if mask.count_ones() as usize != size {
                 continue;
             }
             let set: Vec<usize> = (0..labs).filter(|&r| mask & (1 << r) != 0).collect();
             let fit = block_fit(x, u, &set);
-            if passes(&fit) && best.as_ref().is_none_or(|(b, _)| fit.chi2 < *b) {
-                best = Some((fit.chi2, set));
+            let better = |b: &BlockFit| {
+                if fit.dof == b.dof {
+                    fit.chi2 < b.chi2
+                } else {
+                    let (p, q) = (
+                        super::encoder::p_value(fit.chi2, fit.dof),
+                        super::encoder::p_value(b.chi2, b.dof),
+                    );
+                    p > q || (p == q && fit.chi2 < b.chi2)
+                }
+            };
+            if passes(&fit) && best.as_ref().is_none_or(|(b, _)| better(b)) {
+                best = Some((fit, set));
             }
         }
         if let Some((_, set)) = best {

@@ -164,8 +164,10 @@ pub fn subset_gls(data: &Encoder, set: &[usize]) -> Option<SubsetFit> {
 
 /// Laboratory i's degree of equivalence against `fit`, per position of the comparison:
 /// d = P_S(x_i − M_i x_ref) and U = 2√diag(V_i ∓ P_S M_i C M_iᵀ P_S), − when it is in the
-/// reference (`inside`); NaN where it does not report a position. (Every position it
-/// reports must be in the fit.)
+/// reference (`inside`); NaN where it does not report a position. A position it reports
+/// that the fit lacks (NaN there) is left out: S′ = S_i ∩ the fit's positions, d closed
+/// over S′ and its own variance P_S′·V_i·P_S′ = c_i·P_S′·diag(u²)·P_S′ with c_i its own
+/// N_i/(N_i − 1) (the covariance it states, propagated).
 pub fn degree_of_equivalence(
     data: &Encoder,
     fit: &SubsetFit,
@@ -173,12 +175,26 @@ pub fn degree_of_equivalence(
     inside: bool,
 ) -> (Vec<f64>, Vec<f64>) {
     let positions = data.positions();
-    let s = data.reported(i);
+    let own = data.reported(i);
+    let c_i = own.len() as f64 / (own.len() as f64 - 1.0);
+    let closed_own = data.closed(i);
+    let s: Vec<usize> = own
+        .iter()
+        .copied()
+        .filter(|&k| fit.reference[k].is_finite())
+        .collect();
     let n = s.len();
-    let u: Vec<f64> = s.iter().map(|&k| data.u[i][k]).collect();
-    let v = closed_covariance(&u);
     let p = projector(n);
-    let x = DVector::from_vec(data.closed(i));
+    let v =
+        &p * DMatrix::from_diagonal(&DVector::from_iterator(
+            n,
+            s.iter().map(|&k| c_i * data.u[i][k].powi(2)),
+        )) * &p;
+    let x = DVector::from_iterator(
+        n,
+        s.iter()
+            .map(|&k| closed_own[own.iter().position(|&q| q == k).unwrap()]),
+    );
     let x_ref = DVector::from_iterator(n, s.iter().map(|&k| fit.reference[k]));
     let c = DMatrix::from_fn(n, n, |a, b| fit.covariance[(s[a], s[b])]);
     let d = &p * (x - x_ref);
@@ -192,10 +208,35 @@ pub fn degree_of_equivalence(
     (d_all, u_all)
 }
 
+/// The covariance of the pair (a, b)'s difference closed over the M positions both report,
+/// each result closed over its own N positions with V = N/(N − 1)·P·diag(u²)·P:
+/// P_M·diag(c_a·u_a² + c_b·u_b²)·P_M, c = N/(N − 1) of each (the constants of each
+/// closure taken out by P_M), and those positions.
+pub fn pair_covariance(data: &Encoder, a: usize, b: usize) -> (DMatrix<f64>, Vec<usize>) {
+    let positions = data.positions();
+    let common: Vec<usize> = (0..positions)
+        .filter(|&k| data.x[a][k].is_some() && data.x[b][k].is_some())
+        .collect();
+    let c = |i: usize| {
+        let n = data.reported(i).len() as f64;
+        n / (n - 1.0)
+    };
+    let (c_a, c_b) = (c(a), c(b));
+    let m = common.len();
+    let diagonal = DMatrix::from_diagonal(&DVector::from_iterator(
+        m,
+        common
+            .iter()
+            .map(|&k| c_a * data.u[a][k].powi(2) + c_b * data.u[b][k].powi(2)),
+    ));
+    let p = projector(m);
+    (&p * diagonal * &p, common)
+}
+
 /// The pair (a, b) over the M positions both report: d = x_a − x_b there (each closed over
-/// its own; the projector takes any constant out), χ² = dᵀ(c·P·diag(u_a² + u_b²)·P)⁺d with
-/// c = M/(M − 1), ν = M − 1; and d closed over those positions (NaN elsewhere). `None`
-/// below 2 common positions.
+/// its own; the projector takes any constant out), χ² = dᵀ V⁺ d with V its closed
+/// covariance ([`pair_covariance`]), ν = M − 1; and d closed over those positions (NaN
+/// elsewhere). `None` below 2 common positions.
 pub fn pair_test(data: &Encoder, a: usize, b: usize) -> Option<(f64, usize, Vec<f64>)> {
     let positions = data.positions();
     let common: Vec<usize> = (0..positions)
@@ -209,11 +250,8 @@ pub fn pair_test(data: &Encoder, a: usize, b: usize) -> Option<(f64, usize, Vec<
     let (sa, sb) = (data.reported(a), data.reported(b));
     let at = |s: &[usize], x: &[f64], k: usize| x[s.iter().position(|&q| q == k).unwrap()];
     let d = DVector::from_iterator(m, common.iter().map(|&k| at(&sa, &xa, k) - at(&sb, &xb, k)));
-    let sum: Vec<f64> = common
-        .iter()
-        .map(|&k| (data.u[a][k].powi(2) + data.u[b][k].powi(2)).sqrt())
-        .collect();
-    let v_plus = pinv(&closed_covariance(&sum));
+    let (v, _) = pair_covariance(data, a, b);
+    let v_plus = pinv(&v);
     let chi2 = (d.transpose() * v_plus * &d)[(0, 0)];
     let closed = projector(m) * d;
     let mut d_all = vec![f64::NAN; positions];

@@ -536,15 +536,14 @@ fn kc_encoder_subsets_pilot_repeats_are_out_of_the_reference() {
 }
 
 /// A pair's U is that of its d: d_ab is closed over the M positions both report, and its
-/// test takes the covariance c·P·diag(u_a² + u_b²)·P there (c = M/(M − 1)); U(d_ab) should
-/// be 2√ of that covariance's diagonal, as it is with full data. It is 2√(v_a + v_b) with
-/// v each laboratory's diagonal over its own positions (closed over N_a and N_b, not M): up
-/// to 24 % off on these designs.
+/// covariance there is P_M·diag(c_a·u_a² + c_b·u_b²)·P_M (each result's stated closed
+/// covariance, c = N/(N − 1) of its own positions, propagated; `pair_covariance`), which is
+/// what its test takes too; U(d_ab) is 2√ of that covariance's diagonal, as with full data
+/// (before the fix it was 2√(v_a + v_b), each diagonal over its own positions: up to 24 %
+/// off on these designs).
 #[test]
-#[ignore = "bug: pairs[].U with missing positions is 2√(diag V_a + diag V_b) over each \
-            laboratory's own positions, not the U of d_ab closed over the positions both report"]
 fn kc_encoder_subsets_a_pairs_u_is_that_of_its_closed_difference() {
-    use crate::kc_support::encoder::closed_covariance;
+    use crate::kc_support::encoder::pair_covariance;
     let mut rng = ChaCha8Rng::seed_from_u64(9101);
     for trial in 0..40 {
         let data = random_design(&mut rng, trial);
@@ -552,14 +551,7 @@ fn kc_encoder_subsets_a_pairs_u_is_that_of_its_closed_difference() {
         for pair in &kc.pairs {
             let a = data.names.iter().position(|n| *n == pair.a).unwrap();
             let b = data.names.iter().position(|n| *n == pair.b).unwrap();
-            let common: Vec<usize> = (0..data.positions())
-                .filter(|&k| data.x[a][k].is_some() && data.x[b][k].is_some())
-                .collect();
-            let sum: Vec<f64> = common
-                .iter()
-                .map(|&k| data.u[a][k].hypot(data.u[b][k]))
-                .collect();
-            let v = closed_covariance(&sum);
+            let (v, common) = pair_covariance(&data, a, b);
             for (j, &k) in common.iter().enumerate() {
                 let what = format!("U of {}–{} at {k}", pair.a, pair.b);
                 close(pair.expanded_u[k], 2.0 * v[(j, j)].sqrt(), &what);
@@ -569,14 +561,12 @@ fn kc_encoder_subsets_a_pairs_u_is_that_of_its_closed_difference() {
 }
 
 /// A laboratory outside the reference that reports a position no laboratory inside
-/// reports (there the reference is NaN): its d should be closed over the positions it
-/// shares with the reference, d = P_S′(x_i − M x_ref) with S′ = S_i ∩ (the reference's
-/// positions) and U from V_i over S′ — the dense numbers of the same laboratory without
-/// that position. It is x_i closed over all of S_i less x_ref (Σ d ≠ 0 over the positions
-/// given), with U from V_i over S_i.
+/// reports (there the reference is NaN): its d is closed over the positions it shares with
+/// the reference, d = P_S′(x_i − M x_ref) with S′ = S_i ∩ (the reference's positions), and
+/// its own variance is its stated closed covariance propagated there,
+/// c_i·P_S′·diag(u²)·P_S′ with its own c_i = N_i/(N_i − 1) (`degree_of_equivalence` of the
+/// dense support); before the fix d was x_i closed over all of S_i less x_ref (Σ d ≠ 0).
 #[test]
-#[ignore = "bug: a laboratory outside the reference reporting a position no laboratory in \
-            it reports gets a d that is not closed (Σ d ≠ 0) and U from V over all its positions"]
 fn kc_encoder_subsets_outside_on_a_position_the_reference_lacks() {
     let mut rng = ChaCha8Rng::seed_from_u64(9106);
     let design = Design {
@@ -596,15 +586,13 @@ fn kc_encoder_subsets_outside_on_a_position_the_reference_lacks() {
     let options = everyone().with_not_in_reference(["L4", "L5"]);
     let kc = evaluate(&data.results(), &[], &options).unwrap();
     assert!(kc.reference[3].is_nan());
-    let mut shared = data.clone();
-    shared.x[4][3] = None;
-    shared.x[5][3] = None;
     let inside: Vec<usize> = (0..4).collect();
-    let fit = subset_gls(&shared, &inside).unwrap();
+    let fit = subset_gls(&data, &inside).unwrap();
     for i in 4..6 {
         let doe = &kc.degrees_of_equivalence[i];
         let sum: f64 = doe.d.iter().filter(|d| d.is_finite()).sum();
-        let (d, u) = degree_of_equivalence(&shared, &fit, i, false);
+        assert!(sum.abs() < 1e-12, "Σ d = {sum}");
+        let (d, u) = degree_of_equivalence(&data, &fit, i, false);
         for k in 0..8 {
             close(
                 doe.d[k],
