@@ -295,19 +295,21 @@ pub(crate) fn rows_state(rows: &[ResultRow]) -> Vec<RowState> {
 pub(crate) fn rows_from_state(state: Vec<RowState>) -> PyResult<Vec<ResultRow>> {
     state
         .into_iter()
-        .map(|(quantity, index, value, u, expanded_u, k, angle_deg, dof, nominal_deg)| {
-            let quantity = Quantity::from_name(&quantity).ok_or_else(|| {
-                PyValueError::new_err(format!("a pickled row of quantity {quantity:?}"))
-            })?;
-            let mut row = ResultRow::new(quantity, index, value);
-            row.u = u;
-            row.expanded_u = expanded_u;
-            row.k = k;
-            row.angle_deg = angle_deg;
-            row.dof = dof;
-            row.nominal_deg = nominal_deg;
-            Ok(row)
-        })
+        .map(
+            |(quantity, index, value, u, expanded_u, k, angle_deg, dof, nominal_deg)| {
+                let quantity = Quantity::from_name(&quantity).ok_or_else(|| {
+                    PyValueError::new_err(format!("a pickled row of quantity {quantity:?}"))
+                })?;
+                let mut row = ResultRow::new(quantity, index, value);
+                row.u = u;
+                row.expanded_u = expanded_u;
+                row.k = k;
+                row.angle_deg = angle_deg;
+                row.dof = dof;
+                row.nominal_deg = nominal_deg;
+                Ok(row)
+            },
+        )
         .collect()
 }
 
@@ -322,15 +324,17 @@ pub(crate) fn rows_file_from_state(
             same_lengths("ResultRows", &[rows.len(), lines.len(), columns.len()])?;
             let columns = columns
                 .into_iter()
-                .map(|(quantity, index, value, expanded_u, u, k, nominal_deg)| RowColumns {
-                    quantity,
-                    index,
-                    value,
-                    expanded_u,
-                    u,
-                    k,
-                    nominal_deg,
-                })
+                .map(
+                    |(quantity, index, value, expanded_u, u, k, nominal_deg)| RowColumns {
+                        quantity,
+                        index,
+                        value,
+                        expanded_u,
+                        u,
+                        k,
+                        nominal_deg,
+                    },
+                )
                 .collect();
             Some(ResultFile {
                 source,
