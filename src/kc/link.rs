@@ -31,7 +31,6 @@
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-use super::reference::chi2_quantile_95;
 use super::{DegreeOfEquivalence, KcError, KeyComparison, VectorTest};
 
 /// The link of a comparison to another: the laboratories in both, the correction per
@@ -264,14 +263,7 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
         } else {
             (chi2, block_dof)
         };
-        let critical = chi2_quantile_95(dof);
-        VectorTest {
-            chi2,
-            dof,
-            consistent: chi2 <= critical,
-            chi2_critical: critical,
-            reference: Vec::new(),
-        }
+        VectorTest::at_five_percent(chi2, dof)
     });
     // every degree of equivalence (the pilot's repeats' too) against the linked reference
     let linking: Vec<Vec<DegreeOfEquivalence>> = linking_at

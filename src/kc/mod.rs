@@ -380,6 +380,19 @@ pub struct VectorTest {
 }
 
 impl VectorTest {
+    /// The test of χ² with ν degrees of freedom at 5 %: consistent when χ² ≤ χ²_0.95(ν);
+    /// no reference vector (a pair's or a link's test).
+    pub(crate) fn at_five_percent(chi2: f64, dof: usize) -> VectorTest {
+        let critical = chi2_quantile_95(dof);
+        VectorTest {
+            chi2,
+            dof,
+            consistent: chi2 <= critical,
+            chi2_critical: critical,
+            reference: Vec::new(),
+        }
+    }
+
     /// The test of a closed vector in words ([`Wording::statement`]; a comparison's
     /// own words are [`KeyComparison::vector_statement`]).
     pub fn statement(&self) -> String {

@@ -306,16 +306,8 @@ pub(super) fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) ->
                         .zip(u_b)
                         .map(|(u_a, u_b)| u_a * u_a + u_b * u_b)
                         .collect();
-                    super::blocks::pair_chi2(&d, &variance).map(|(chi2, dof)| {
-                        let critical = chi2_quantile_95(dof);
-                        VectorTest {
-                            chi2,
-                            dof,
-                            consistent: chi2 <= critical,
-                            chi2_critical: critical,
-                            reference: Vec::new(),
-                        }
-                    })
+                    super::blocks::pair_chi2(&d, &variance)
+                        .map(|(chi2, dof)| VectorTest::at_five_percent(chi2, dof))
                 }
                 // results that report different positions: over those both report
                 (ClosedCovariance::Stated(u_a), ClosedCovariance::Stated(u_b))
@@ -341,6 +333,7 @@ pub(super) fn pair_differences(scaled: &Scaled, widened: &[ClosedCovariance]) ->
                         .map(|(u_a, u_b)| closing * (u_a * u_a + u_b * u_b))
                         .collect();
                     let (chi2, _) = closed::difference_chi2(&d, &variance);
+                    // χ²_0.95(ν) worked out once for every pair (thousands of them)
                     chi2.is_finite().then(|| VectorTest {
                         chi2,
                         dof,
@@ -401,14 +394,8 @@ fn common_positions_test(x_a: &[f64], x_b: &[f64], w_a: &[f64], w_b: &[f64]) -> 
     let d: Vec<f64> = common.iter().map(|&k| x_a[k] - x_b[k]).collect();
     let variance: Vec<f64> = common.iter().map(|&k| w_a[k] + w_b[k]).collect();
     let (chi2, _) = closed::difference_chi2(&d, &variance);
-    let critical = chi2_quantile_95(m - 1);
-    chi2.is_finite().then(|| VectorTest {
-        chi2,
-        dof: m - 1,
-        consistent: chi2 <= critical,
-        chi2_critical: critical,
-        reference: Vec::new(),
-    })
+    chi2.is_finite()
+        .then(|| VectorTest::at_five_percent(chi2, m - 1))
 }
 
 #[cfg(test)]
