@@ -28,7 +28,8 @@ Examples:
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv D=examples/data/kc/D.csv E=examples/data/kc/E.csv F=examples/data/kc/F.csv --format json
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv --pilot start=examples/data/kc/pilot-start.csv --pilot end=examples/data/kc/pilot-end.csv
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv F=examples/data/kc/F.csv --method dersimonian-laird --format csv
-  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv D=examples/data/kc/D.csv --anonymise draft-a-key.csv --plot draft-a";
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv D=examples/data/kc/D.csv --anonymise draft-a-key.csv --plot draft-a
+  polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv D=examples/data/kc/D.csv E=examples/data/kc/E.csv F=examples/data/kc/F.csv --quantity angle_block";
 
 /// One `NAME=RESULT.csv` argument.
 #[derive(Clone, Debug)]
@@ -114,7 +115,7 @@ pub struct KcArgs {
     format: KcFormat,
     /// Write the figures as SVG files into DIR (created if missing; docs/FORMAT.md §10):
     /// kc-degrees-of-equivalence.svg, kc-reference.svg, kc-pairwise.svg, kc-kcdb.svg (the
-    /// KCDB graphs: d_i with U(d_i) per laboratory, one graph per face or position, at
+    /// KCDB graphs: d_i with U(d_i) per laboratory, one graph per face, position or angle block, at
     /// most 24) and with --pilot kc-pilot-stability.svg, whatever --format is. Several
     /// quantities compared (no --quantity): the pitch deviations' figures in DIR, each other
     /// quantity's in DIR/QUANTITY/ (e.g. DIR/encoder_error/), so that none replaces another.
