@@ -53,6 +53,30 @@ impl Model<'_> {
             .is_none_or(|m| m.get(r).and_then(|m| m.get(k)).copied().unwrap_or(false))
     }
 
+    /// Whether the results are closed vectors that report different positions (each closed
+    /// over its own).
+    fn uneven(&self) -> bool {
+        self.closed && self.measured.is_some()
+    }
+
+    /// Result `r`'s own noise: closed over the positions it reports, with its u there (0
+    /// elsewhere, never used).
+    fn own_noise(&self, rng: &mut ChaCha8Rng, r: usize) -> Vec<f64> {
+        if !self.uneven() {
+            return self.noise(rng, &self.u[r]);
+        }
+        let positions: Vec<usize> = (0..self.u[r].len())
+            .filter(|&k| self.reports(r, k))
+            .collect();
+        let u: Vec<f64> = positions.iter().map(|&k| self.u[r][k]).collect();
+        let drawn = closed_noise(rng, &u);
+        let mut noise = vec![0.0; self.u[r].len()];
+        for (&k, e) in positions.iter().zip(drawn) {
+            noise[k] = e;
+        }
+        noise
+    }
+
     /// Normal noise with standard deviations `u`: closed for closed vectors.
     fn noise(&self, rng: &mut ChaCha8Rng, u: &[f64]) -> Vec<f64> {
         if self.closed {
@@ -122,7 +146,7 @@ fn draw(rng: &mut ChaCha8Rng, model: &Model, tau: &[f64]) -> Vec<Vec<f64>> {
     (0..model.u.len())
         .map(|r| {
             let effect = model.noise(rng, tau);
-            let noise = model.noise(rng, &model.u[r]);
+            let noise = model.own_noise(rng, r);
             (0..model.reference.len())
                 .map(|k| model.reference[k] + effect[k] + noise[k])
                 .collect()
@@ -138,9 +162,10 @@ fn reference_of(model: &Model, y: &[Vec<f64>]) -> Option<Vec<f64>> {
         .iter()
         .map(|&r| {
             let u = model.u[r].iter().zip(&tau).enumerate().map(|(k, (u, t))| {
-                match (model.closed, model.reports(r, k)) {
-                    (true, _) | (false, true) => u.hypot(*t),
-                    (false, false) => f64::INFINITY,
+                if model.reports(r, k) {
+                    u.hypot(*t)
+                } else {
+                    f64::INFINITY // no weight where the result does not report k
                 }
             });
             if model.closed {
@@ -153,6 +178,23 @@ fn reference_of(model: &Model, y: &[Vec<f64>]) -> Option<Vec<f64>> {
     let x: Vec<&[f64]> = model.inside.iter().map(|&r| y[r].as_slice()).collect();
     let v: Vec<&ClosedCovariance> = covariances.iter().collect();
     closed::fit(&x, &v).map(|fit| fit.reference)
+}
+
+impl Model<'_> {
+    /// Result `r`'s drawn degree of equivalence `y − reference` at the positions it reports
+    /// (and the reference has), closed over them when the results report different
+    /// positions (as [`super::scaled`] closes it).
+    fn degree_of_equivalence(&self, r: usize, y: &[f64], reference: &[f64]) -> Vec<(usize, f64)> {
+        let mut d: Vec<(usize, f64)> = (0..reference.len())
+            .filter(|&k| self.reports(r, k) && reference[k].is_finite())
+            .map(|k| (k, y[k] - reference[k]))
+            .collect();
+        if self.uneven() && !d.is_empty() {
+            let mean = d.iter().map(|(_, d)| d).sum::<f64>() / d.len() as f64;
+            d.iter_mut().for_each(|(_, d)| *d -= mean);
+        }
+        d
+    }
 }
 
 /// The 95.45 % quantile of `magnitudes` (reordered); NaN for none (a block the result
@@ -185,10 +227,10 @@ pub(crate) fn run(model: &Model, draws: usize) -> Option<Draws> {
         for k in 0..positions {
             sum[k] += reference[k];
             sum_squares[k] += reference[k] * reference[k];
-            for r in 0..results {
-                if model.reports(r, k) {
-                    magnitudes[r][k].push((y[r][k] - reference[k]).abs());
-                }
+        }
+        for (r, drawn) in magnitudes.iter_mut().enumerate() {
+            for (k, d) in model.degree_of_equivalence(r, &y[r], &reference) {
+                drawn[k].push(d.abs());
             }
         }
     }
@@ -227,13 +269,6 @@ pub(crate) fn apply(
         return refuse(
             "the draws take every result as closed with its stated u; a laboratory's own \
              covariance is not drawn from"
-                .to_string(),
-        );
-    }
-    if model.closed && model.measured.is_some() {
-        return refuse(
-            "the laboratories report different encoder positions: drawing closed results over \
-             different positions is not built (the formulas' U stand without --monte-carlo)"
                 .to_string(),
         );
     }
