@@ -133,13 +133,19 @@ pub fn budget_figures(uncertainty: &CalibrationUncertainty) -> Vec<Figure> {
 /// The figures of `polycal kc`: every laboratory's degree of equivalence d_i with its
 /// U(d_i) bar per face (those left out of the reference drawn with open squares and
 /// labelled so), the reference value per face with U = 2·u_ref beside every laboratory's
-/// value, the pairwise matrix, the KCDB graphs (one small graph per face or position, the
+/// value, the pairwise matrix, the KCDB graphs (one small graph per face, position or angle block, the
 /// laboratories along the x axis; at most 24, and with more those of the largest
 /// |d_i|/U(d_i)), and with the pilot's repeats each repeat's d_r with U(d_r).
 pub fn kc_figures(kc: &crate::kc::KeyComparison) -> Vec<Figure> {
     let mut figures = kc::figures(kc);
     figures.extend(kc_doe::figures(kc));
     figures
+}
+
+/// The KCDB graphs of a key comparison alone (`kc-kcdb`, the last of [`kc_figures`]): what
+/// its Digital Calibration Certificate carries as an SVG file.
+pub fn kcdb_figure(kc: &crate::kc::KeyComparison) -> Option<Figure> {
+    kc_doe::figures(kc).into_iter().next()
 }
 
 /// The figures of `polycal history`: one document of control charts, one small chart

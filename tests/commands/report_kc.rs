@@ -476,6 +476,55 @@ fn the_named_laboratorys_section_carries_the_kc_json_numbers() {
     // the verdict in the table's words
     let verdict = format!("Verdict: {}.", polycal_verdict(&kc));
     assert!(statements.contains(&verdict.as_str()), "{verdict}");
+    // the KCDB graphs as an SVG file in the certificate: one graph per face, every
+    // laboratory labelled (decoded here by a decoder of the test's own)
+    let byte_data = result
+        .descendants()
+        .find(|n| n.tag_name().name() == "byteData")
+        .expect("a dcc:byteData");
+    let child = |name: &str| {
+        byte_data
+            .children()
+            .find(|n| n.tag_name().name() == name)
+            .and_then(|n| n.text())
+            .unwrap_or_default()
+            .to_string()
+    };
+    assert_eq!(child("fileName"), "kc-kcdb.svg");
+    assert_eq!(child("mimeType"), "image/svg+xml");
+    let svg = String::from_utf8(decode_base64(&child("dataBase64"))).unwrap();
+    assert!(svg.starts_with("<svg"), "{}", &svg[..40.min(svg.len())]);
+    assert_eq!(svg.matches("class=\"position\"").count(), faces);
+    for lab in kc["labs"].as_array().unwrap() {
+        let lab = lab.as_str().unwrap();
+        assert!(svg.contains(&format!(">{lab}</text>")), "{lab}");
+    }
+}
+
+/// Base64 (RFC 4648) decoded: the test's own reading of `dcc:dataBase64`.
+fn decode_base64(text: &str) -> Vec<u8> {
+    let value = |c: u8| -> u32 {
+        match c {
+            b'A'..=b'Z' => u32::from(c - b'A'),
+            b'a'..=b'z' => u32::from(c - b'a') + 26,
+            b'0'..=b'9' => u32::from(c - b'0') + 52,
+            b'+' => 62,
+            b'/' => 63,
+            other => panic!("not base64: {other}"),
+        }
+    };
+    let bytes: Vec<u8> = text.bytes().filter(|b| !b.is_ascii_whitespace()).collect();
+    let mut out = Vec::new();
+    for chunk in bytes.chunks(4) {
+        let pad = chunk.iter().filter(|&&c| c == b'=').count();
+        let n = chunk
+            .iter()
+            .map(|&c| if c == b'=' { 0 } else { value(c) })
+            .fold(0u32, |n, v| (n << 6) | v);
+        let three = [(n >> 16) as u8, (n >> 8) as u8, n as u8];
+        out.extend_from_slice(&three[..3 - pad]);
+    }
+    out
 }
 
 #[test]

@@ -149,6 +149,19 @@ fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), Dcc
     for line in statements(section) {
         x.content("dcc:text", &line)?;
     }
+    if let Some(figure) = crate::figure::kcdb_figure(kc) {
+        // the KCDB graphs, as the report draws them
+        x.open("dcc:byteData", &[]);
+        x.content("dcc:name", &figure.title)?;
+        x.text("dcc:fileName", &[], &figure.file_name())?;
+        x.text("dcc:mimeType", &[], "image/svg+xml")?;
+        x.text(
+            "dcc:dataBase64",
+            &[],
+            &super::xml::base64(figure.svg.as_bytes()),
+        )?;
+        x.close();
+    }
     x.close();
     x.close();
     Ok(())

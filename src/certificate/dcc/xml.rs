@@ -191,6 +191,30 @@ pub fn coverage_probability(p: f64) -> Result<String, DccError> {
     Ok(text)
 }
 
+/// `bytes` in base64 (RFC 4648, with padding): a file a certificate carries
+/// (`dcc:dataBase64`).
+pub fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for (i, shift) in [18, 12, 6, 0].into_iter().enumerate() {
+            if i <= chunk.len() {
+                out.push(char::from(ALPHABET[((n >> shift) & 63) as usize]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -235,6 +259,22 @@ mod tests {
                 proptest::prop_assert_eq!(content.text().unwrap_or(""), text.as_str());
                 proptest::prop_assert_eq!(content.attribute("refType"), Some(text.as_str()));
             }
+        }
+    }
+
+    #[test]
+    fn base64_is_the_rfc_4648_test_vectors() {
+        // RFC 4648 §10
+        for (text, encoded) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64(text.as_bytes()), encoded, "{text:?}");
         }
     }
 
