@@ -685,3 +685,75 @@ fn the_kc_json_reads_back_to_the_same_bytes() {
         );
     }
 }
+
+/// A linked comparison in the report and the DCC: the link's laboratories and test, Δ with
+/// u(Δ) and the named laboratory's d and U against the linked reference, every number the
+/// JSON's (`data-value`), and in the DCC the correction (U = 2·u(Δ)) and the laboratory's
+/// linked degree of equivalence.
+#[test]
+fn a_linked_comparison_states_its_link() {
+    let dir = temp_dir("linked");
+    let run = |labs: &[&str], extra: &[&str]| -> Vec<u8> {
+        let named: Vec<String> = labs.iter().map(|l| format!("{l}={KC}/{l}.csv")).collect();
+        let mut args: Vec<&str> = vec!["kc"];
+        args.extend(named.iter().map(String::as_str));
+        args.extend_from_slice(extra);
+        args.extend(["--quantity", "pitch_deviation", "--format", "json"]);
+        let out = polycal(&args);
+        assert!(out.status.code().is_some_and(|c| c <= 1));
+        out.stdout
+    };
+    let cipm = dir.join("cipm.json");
+    std::fs::write(&cipm, run(&["A", "B", "C", "D"], &[])).unwrap();
+    let rmo_bytes = run(&["B", "C", "E", "F"], &["--link", cipm.to_str().unwrap()]);
+    let rmo = dir.join("rmo.json");
+    std::fs::write(&rmo, &rmo_bytes).unwrap();
+    let kc: Value = serde_json::from_slice(&rmo_bytes).unwrap();
+    let (html, dcc) = report(&dir, &rmo, &["--kc-lab", "E"]);
+    let link_text = text(&html, "kc-link");
+    assert!(link_text.contains("through B, C"), "{link_text}");
+    let e = kc["degrees_of_equivalence"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|d| d["lab"] == "E")
+        .unwrap();
+    let rows = rows(&html, "kc-linked");
+    let faces = kc["index"].as_array().unwrap().len();
+    assert_eq!(rows.len(), faces);
+    let (correction, correction_u) = (
+        numbers(&kc["link"]["correction"]),
+        numbers(&kc["link"]["correction_u"]),
+    );
+    let (d_linked, u_linked) = (numbers(&e["d_linked"]), numbers(&e["U_linked"]));
+    for (k, row) in rows.iter().enumerate() {
+        let values = data_values(*row);
+        // (the face's cell has no number) Δ, u(Δ), E's d and U against the linked reference
+        assert_eq!(
+            values,
+            [correction[k], correction_u[k], d_linked[k], u_linked[k]],
+            "face {}",
+            k + 1
+        );
+    }
+    let doc = Document::parse(&dcc).unwrap();
+    let result = kc_result(&doc);
+    let delta = si_lists(result, "polycal_kcLinkCorrection");
+    assert_eq!(delta.len(), 1);
+    assert!(delta[0].0.contains("through B, C"), "{}", delta[0].0);
+    let twice_u: Vec<f64> = correction_u.iter().map(|u| 2.0 * u).collect();
+    assert_stated(
+        &si_texts(result, "polycal_kcLinkCorrection")[0],
+        &correction,
+        &twice_u,
+        "Δ",
+    );
+    let linked = si_lists(result, "polycal_kcDegreeOfEquivalenceLinked");
+    assert_eq!(linked.len(), 1, "the named laboratory's only");
+    assert_stated(
+        &si_texts(result, "polycal_kcDegreeOfEquivalenceLinked")[0],
+        &d_linked,
+        &u_linked,
+        "E linked",
+    );
+}

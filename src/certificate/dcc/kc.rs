@@ -145,6 +145,7 @@ fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), Dcc
         }
         .write(x)?;
     }
+    linked_columns(x, section, &labels)?;
     x.close();
     for line in statements(section) {
         x.content("dcc:text", &line)?;
@@ -164,6 +165,63 @@ fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), Dcc
     }
     x.close();
     x.close();
+    Ok(())
+}
+
+/// With a link to another comparison: the correction Δ with U = 2·u(Δ), and each shown
+/// laboratory's degree of equivalence against the linked reference with its U.
+fn linked_columns(
+    x: &mut Xml,
+    section: &KeyComparisonSection,
+    labels: &[String],
+) -> Result<(), DccError> {
+    let kc = &section.comparison;
+    let Some(link) = &kc.link else {
+        return Ok(());
+    };
+    let pair = |values: &[f64], u: &[f64], factor: f64| {
+        let (shown, value) = given(labels, |k| {
+            Some(values[k]).filter(|_| u.get(k).is_some_and(|u| u.is_finite()))
+        });
+        let expanded: Vec<f64> = (0..labels.len())
+            .filter(|&k| crate::kc::is_given(values[k]) && u.get(k).is_some_and(|u| u.is_finite()))
+            .map(|k| factor * u[k])
+            .collect();
+        (shown, value, expanded)
+    };
+    let (shown, value, expanded) = pair(&link.correction, &link.correction_u, K);
+    Column {
+        refs: "polycal_kcLinkCorrection",
+        name: &format!(
+            "Correction Δ to the linked reference, through {}",
+            link.labs.join(", ")
+        ),
+        unit: "\\arcsecond",
+        labels: Some(shown),
+        values: value,
+        expanded: Some((expanded.clone(), vec![K; expanded.len()], P)),
+        form: Form::Real,
+    }
+    .write(x)?;
+    for doe in section.shown_degrees_of_equivalence() {
+        let (Some(d), Some(u)) = (&doe.d_linked, &doe.expanded_u_linked) else {
+            continue;
+        };
+        let (shown, value, expanded) = pair(d, u, 1.0);
+        Column {
+            refs: "polycal_kcDegreeOfEquivalenceLinked",
+            name: &format!(
+                "Degree of equivalence of laboratory {} against the linked reference",
+                doe.lab
+            ),
+            unit: "\\arcsecond",
+            labels: Some(shown),
+            values: value,
+            expanded: Some((expanded.clone(), vec![K; expanded.len()], P)),
+            form: Form::Real,
+        }
+        .write(x)?;
+    }
     Ok(())
 }
 

@@ -61,6 +61,7 @@ fn one_comparison(s: &mut Sections, section: &KeyComparisonSection, sfx: &str) {
     vector(&mut s.html, kc, sfx);
     exclusions(&mut s.html, kc, sfx);
     degrees_of_equivalence(&mut s.html, section, sfx);
+    linked(&mut s.html, section, sfx);
     pilot(&mut s.html, kc, sfx);
     if !kc.notes.is_empty() {
         let _ = writeln!(s.html, "<ul class=\"notes\" id=\"kc-notes{sfx}\">");
@@ -468,6 +469,73 @@ fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection, sfx:
              comparison's JSON (<code>pairs</code>) and its pairwise figure.</p>\n",
         );
     }
+}
+
+/// The link to another comparison, when there is one: the laboratories in both, the
+/// link's test, and per position Δ with u(Δ) and each shown laboratory's degree of
+/// equivalence against the linked reference (d_linked, U_linked).
+fn linked(out: &mut String, section: &KeyComparisonSection, sfx: &str) {
+    let kc = &section.comparison;
+    let Some(link) = &kc.link else { return };
+    let test = match &link.vector {
+        Some(v) => format!(
+            "the linking laboratories {} on the offset: χ² = {} {} χ²<sub>0.95</sub>({}) = {:.2}",
+            if v.consistent { "agree" } else { "DISAGREE" },
+            crate::kc::chi2_text(v.chi2, CHI2_DECIMALS),
+            if v.consistent { "≤" } else { ">" },
+            v.dof,
+            v.chi2_critical
+        ),
+        None => "one linking laboratory: the link is not tested".to_string(),
+    };
+    let shown: Vec<_> = section
+        .shown_degrees_of_equivalence()
+        .into_iter()
+        .filter(|d| d.d_linked.is_some())
+        .collect();
+    let _ = write!(
+        out,
+        "<p id=\"kc-link{sfx}\">Linked to another comparison through {} (the laboratories \
+         in both): Δ is the GLS mean of their offsets d(linked) − d(this), their correlations \
+         counted; {test}. Against the linked reference d = d<sub>i</sub> + Δ with its U \
+         (k = 2).</p>\n<table class=\"results\" id=\"kc-linked{sfx}\"><thead><tr>{}\
+         <th>Δ / ″</th><th>u(Δ) / ″</th>",
+        esc(&link.labs.join(", ")),
+        position_headers(kc)
+    );
+    for d in &shown {
+        let lab = esc(&d.lab);
+        let _ = write!(
+            out,
+            "<th data-lab=\"{lab}\" data-column=\"d_linked\">d {lab} linked / ″</th>\
+             <th data-lab=\"{lab}\" data-column=\"U_linked\">U {lab} / ″</th>"
+        );
+    }
+    out.push_str("</tr></thead><tbody>\n");
+    for k in 0..kc.index.len() {
+        let _ = write!(
+            out,
+            "<tr>{}{}{}",
+            position_cells(kc, k),
+            num(link.correction.get(k).copied(), ARCSEC_DECIMALS),
+            num(link.correction_u.get(k).copied(), ARCSEC_DECIMALS)
+        );
+        for d in &shown {
+            let value = |list: &Option<Vec<f64>>| list.as_ref().and_then(|l| l.get(k).copied());
+            let (dl, ul) = (value(&d.d_linked), value(&d.expanded_u_linked));
+            match (dl, ul) {
+                (Some(dl), Some(ul)) if dl.is_finite() && ul.is_finite() => {
+                    out.push_str(&decision_pair_cells(dl, ul));
+                }
+                _ => {
+                    out.push_str(&num(None, ARCSEC_DECIMALS));
+                    out.push_str(&num(None, ARCSEC_DECIMALS));
+                }
+            }
+        }
+        out.push_str("</tr>\n");
+    }
+    out.push_str("</tbody></table>\n");
 }
 
 fn pilot(out: &mut String, kc: &KeyComparison, sfx: &str) {
