@@ -371,6 +371,7 @@ fn beyond_the_formulas(
                 method: options.method,
                 closed: scaled.closed,
                 measured: scaled.measured.as_deref(),
+                labs: scaled.labs.len(),
             };
             monte_carlo::apply(comparison, &model, draws, scaled.covariances, scaled.scale)?;
         }

@@ -7,7 +7,9 @@
 //! first simulated comparison with the fitted τ (two stages), and τ is estimated again from
 //! the draw: so τ's own uncertainty is in every U. The degree of equivalence of a draw is y_i − x_ref⁽ᵐ⁾; U is the 95.45 %
 //! quantile of its magnitude (k = 2 for a normal law), and u_ref the standard deviation of
-//! x_ref⁽ᵐ⁾. The generator is seeded: the same inputs give the same U.
+//! x_ref⁽ᵐ⁾. Each pair's U is the 95.45 % quantile of the drawn |y_i − y_j| when those draws
+//! fit beside the others ([`MAX_NUMBERS`]). The generator is seeded: the same inputs give
+//! the same U.
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -44,6 +46,9 @@ pub(crate) struct Model<'a> {
     pub closed: bool,
     /// Whether each result reports each quantity (`None`: all of them).
     pub measured: Option<&'a [Vec<bool>]>,
+    /// How many of the results are laboratories (the pilot's repeats after them): the
+    /// pairs are theirs.
+    pub labs: usize,
 }
 
 impl Model<'_> {
@@ -98,6 +103,9 @@ pub(crate) struct Draws {
     pub expanded_u: Vec<Vec<f64>>,
     /// u_ref per quantity.
     pub reference_u: Vec<f64>,
+    /// U(d_ab) per pair of laboratories (in the order of [`super::Pairs`]) and quantity,
+    /// when the draws kept them.
+    pub pairs_u: Option<Vec<Vec<f64>>>,
 }
 
 /// Closed normal noise with marginal standard deviations `u` (covariance
@@ -181,6 +189,21 @@ fn reference_of(model: &Model, y: &[Vec<f64>]) -> Option<Vec<f64>> {
 }
 
 impl Model<'_> {
+    /// The drawn difference of laboratories `a` and `b`, y_a − y_b, at the positions both
+    /// report, closed over them when the results report different positions (as the
+    /// pairs' d is).
+    fn pair_difference(&self, a: usize, b: usize, y: &[Vec<f64>]) -> Vec<(usize, f64)> {
+        let mut d: Vec<(usize, f64)> = (0..self.reference.len())
+            .filter(|&k| self.reports(a, k) && self.reports(b, k))
+            .map(|k| (k, y[a][k] - y[b][k]))
+            .collect();
+        if self.uneven() && !d.is_empty() {
+            let mean = d.iter().map(|(_, d)| d).sum::<f64>() / d.len() as f64;
+            d.iter_mut().for_each(|(_, d)| *d -= mean);
+        }
+        d
+    }
+
     /// Result `r`'s drawn degree of equivalence `y − reference` at the positions it reports
     /// (and the reference has), closed over them when the results report different
     /// positions (as [`super::scaled`] closes it).
@@ -209,11 +232,19 @@ fn quantile_9545(magnitudes: &mut [f64]) -> f64 {
 }
 
 /// `draws` draws from `model`; see the module's documentation.
-pub(crate) fn run(model: &Model, draws: usize) -> Option<Draws> {
+pub(crate) fn run(model: &Model, draws: usize, with_pairs: bool) -> Option<Draws> {
     let results = model.u.len();
     let positions = model.reference.len();
     let mut rng = ChaCha8Rng::seed_from_u64(SEED);
     let mut magnitudes = vec![vec![Vec::with_capacity(draws); positions]; results];
+    let pairs: Vec<(usize, usize)> = if with_pairs {
+        (0..model.labs)
+            .flat_map(|a| (a + 1..model.labs).map(move |b| (a, b)))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut pair_magnitudes = vec![vec![Vec::with_capacity(draws); positions]; pairs.len()];
     let (mut sum, mut sum_squares) = (vec![0.0; positions], vec![0.0; positions]);
     for _ in 0..draws {
         let y = if model.method.is_random_effects() {
@@ -233,6 +264,11 @@ pub(crate) fn run(model: &Model, draws: usize) -> Option<Draws> {
                 drawn[k].push(d.abs());
             }
         }
+        for (&(a, b), drawn) in pairs.iter().zip(pair_magnitudes.iter_mut()) {
+            for (k, d) in model.pair_difference(a, b, &y) {
+                drawn[k].push(d.abs());
+            }
+        }
     }
     let m = draws as f64;
     let reference_u = (0..positions)
@@ -248,9 +284,16 @@ pub(crate) fn run(model: &Model, draws: usize) -> Option<Draws> {
         .iter_mut()
         .map(|per_result| per_result.iter_mut().map(|d| quantile_9545(d)).collect())
         .collect();
+    let pairs_u = with_pairs.then(|| {
+        pair_magnitudes
+            .iter_mut()
+            .map(|per_pair| per_pair.iter_mut().map(|d| quantile_9545(d)).collect())
+            .collect()
+    });
     Some(Draws {
         expanded_u,
         reference_u,
+        pairs_u,
     })
 }
 
@@ -290,8 +333,27 @@ pub(crate) fn apply(
             MAX_NUMBERS
         ));
     }
-    let found = run(model, draws)
+    // the pairs' U too when their draws fit in the same room
+    let pairs = (model.labs * model.labs.saturating_sub(1) / 2) as u64;
+    let with_pairs = numbers.saturating_add(
+        (draws as u64)
+            .saturating_mul(pairs)
+            .saturating_mul(model.reference.len() as u64),
+    ) <= MAX_NUMBERS;
+    let found = run(model, draws, with_pairs)
         .ok_or_else(|| KcError::MonteCarlo("a drawn comparison cannot be fitted".to_string()))?;
+    if let Some(pairs_u) = &found.pairs_u {
+        let listed: Vec<super::PairDifference> = comparison
+            .pairs
+            .iter()
+            .zip(pairs_u)
+            .map(|(mut pair, u)| {
+                pair.expanded_u = u.iter().map(|u| u * scale).collect();
+                pair
+            })
+            .collect();
+        comparison.pairs = super::Pairs::from(listed);
+    }
     let degrees = comparison.degrees_of_equivalence.iter_mut().chain(
         comparison
             .pilot
@@ -307,7 +369,7 @@ pub(crate) fn apply(
          reference{}, each result's {}noise with its u), the reference evaluated again \
          in every draw{}; U is the 95.45 % quantile of |d_i| (k = 2 for a normal law), u_ref \
          the standard deviation of the drawn references; seed {} (the same inputs give the same \
-         U); the pairs' U stay 2·√(u_i² + u_j² + …)",
+         U); {}",
         match (model.method.is_random_effects(), model.closed) {
             (true, true) => ", a closed laboratory effect with the dark uncertainty τ",
             (true, false) => ", a laboratory effect with the dark uncertainty τ",
@@ -319,7 +381,16 @@ pub(crate) fn apply(
         } else {
             ""
         },
-        SEED
+        SEED,
+        if found.pairs_u.is_some() {
+            "the pairs' U too: the 95.45 % quantile of the drawn |d_ij|".to_string()
+        } else {
+            format!(
+                "the pairs' U stay 2·√(u_i² + u_j² + …): their draws would keep more than {} \
+                 numbers",
+                MAX_NUMBERS
+            )
+        }
     ));
     Ok(())
 }

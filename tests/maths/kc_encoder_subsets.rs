@@ -629,5 +629,22 @@ fn kc_encoder_subsets_monte_carlo_u_is_the_formulas() {
         for (u_f, u_m) in formula.reference_u.iter().zip(&drawn.reference_u) {
             assert!((u_m / u_f - 1.0).abs() < 0.05, "u_ref {u_m} vs {u_f}");
         }
+        // the pairs' U drawn too (d_ab closed over the positions both report): the
+        // formula's, which the weighted mean's draws reproduce
+        assert!(drawn.notes.iter().any(|n| n.contains("the pairs' U too")));
+        for (f, m) in formula.pairs.iter().zip(&drawn.pairs) {
+            for (k, (u_f, u_m)) in f.expanded_u.iter().zip(&m.expanded_u).enumerate() {
+                assert_eq!(u_f.is_nan(), u_m.is_nan(), "{}–{} at {k}", f.a, f.b);
+                if u_f.is_finite() {
+                    let ratio = u_m / u_f;
+                    assert!(
+                        (ratio - 1.0).abs() < 0.05,
+                        "{}–{} at {k}: {ratio}",
+                        f.a,
+                        f.b
+                    );
+                }
+            }
+        }
     }
 }
