@@ -186,7 +186,9 @@ fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit>
     if !complete && reported.len() < faces {
         return compacted(x, u, &reported);
     }
-    if reported.len() < 2 {
+    // results whose positions fall into groups sharing none: no one reference (the
+    // system is singular, whatever rounding makes of it)
+    if reported.len() < 2 || (!complete && groups(u).len() > 1) {
         return None;
     }
     let mut w = Vec::with_capacity(labs);
@@ -289,6 +291,50 @@ fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit>
             faces,
         })),
     })
+}
+
+/// The results (by their standard uncertainties `u`, +∞ where one does not report a
+/// position) in groups connected by the positions they share: one group when a closed fit
+/// of them all can put them on one reference, each group's results ascending.
+pub(crate) fn groups(u: &[&[f64]]) -> Vec<Vec<usize>> {
+    let n = u.len();
+    let mut group: Vec<usize> = (0..n).collect();
+    fn root(group: &mut [usize], mut i: usize) -> usize {
+        while group[i] != i {
+            group[i] = group[group[i]];
+            i = group[i];
+        }
+        i
+    }
+    let faces = u.first().map_or(0, |u| u.len());
+    for k in 0..faces {
+        let mut first: Option<usize> = None;
+        for (i, u) in u.iter().enumerate() {
+            if !u[k].is_finite() {
+                continue;
+            }
+            match first {
+                None => first = Some(i),
+                Some(f) => {
+                    let (a, b) = (root(&mut group, f), root(&mut group, i));
+                    group[a.max(b)] = a.min(b);
+                }
+            }
+        }
+    }
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    let mut at: Vec<Option<usize>> = vec![None; n];
+    for i in 0..n {
+        let r = root(&mut group, i);
+        match at[r] {
+            Some(g) => out[g].push(i),
+            None => {
+                at[r] = Some(out.len());
+                out.push(vec![i]);
+            }
+        }
+    }
+    out
 }
 
 /// The fit of the positions some result reports (`reported`, at least 2), those no result
@@ -513,6 +559,24 @@ pub(crate) fn closed(x: &[f64]) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
+    /// Results that share no position fall into groups, and are not fitted together.
+    #[test]
+    fn kc_results_sharing_no_position_are_not_fitted() {
+        let inf = f64::INFINITY;
+        let u: [&[f64]; 4] = [
+            &[0.1, 0.1, inf, inf],
+            &[0.1, 0.1, inf, inf],
+            &[inf, inf, 0.1, 0.1],
+            &[inf, 0.1, 0.1, 0.1],
+        ];
+        assert_eq!(super::groups(&u), vec![vec![0, 1, 2, 3]]);
+        let apart: [&[f64]; 4] = [u[0], u[1], u[2], &[inf, inf, 0.1, 0.1]];
+        assert_eq!(super::groups(&apart), vec![vec![0, 1], vec![2, 3]]);
+        let x: [&[f64]; 4] = [&[0.0; 4], &[0.0; 4], &[0.0; 4], &[0.0; 4]];
+        assert!(super::additive_keeping(&x, &apart, false).is_none());
+        assert!(super::additive_keeping(&x, &u, false).is_some());
+    }
+
     /// The O(N) χ² of a closed difference is the dense one through the pseudo-inverse of
     /// the sum of two closed covariances.
     #[test]

@@ -313,4 +313,15 @@ pub enum KcError {
         /// How many are needed: 1 for angle blocks, 2 for a closed vector.
         needed: usize,
     },
+    /// Laboratories whose positions fall into groups that share none: no one reference.
+    #[error(
+        "the laboratories fall into groups that share no {quantity} position: {groups}; \
+         results defined up to a constant cannot be put on one reference across such groups"
+    )]
+    PositionsApart {
+        /// The compared quantity.
+        quantity: Quantity,
+        /// The groups, named.
+        groups: String,
+    },
 }

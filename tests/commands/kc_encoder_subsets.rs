@@ -295,3 +295,24 @@ fn kc_encoder_subsets_the_pairs_line_states_each_pairs_dof() {
         .unwrap_or_else(|| panic!("{table}"));
     assert!(!line.contains("(ν = 3;"), "{line}");
 }
+
+/// Laboratories whose positions fall into two groups sharing none (A, B at 0°–120°; C, D at
+/// 180°–300°): refused, naming the groups, not a reference of u_ref ≈ 10⁶″ printed as if
+/// it meant anything (found in review: the singular system was solved by rounding).
+#[test]
+fn kc_encoder_subsets_groups_sharing_no_position_are_refused() {
+    let dir = temp_dir("kc-encoder-subsets-apart");
+    let first = sixty([Some(0.1), Some(0.0), Some(-0.1), None, None, None], 0.2);
+    let second = sixty([None, None, None, Some(0.2), Some(0.0), Some(-0.2)], 0.2);
+    let labs: Vec<String> = [("A", &first), ("B", &first), ("C", &second), ("D", &second)]
+        .iter()
+        .map(|(name, text)| format!("{name}={}", write(&dir, &format!("{name}.csv"), text)))
+        .collect();
+    let error = one_error_line(&run(&labs, &[]));
+    assert_eq!(
+        error,
+        "the laboratories fall into groups that share no encoder_error position: \
+         {A, B} and {C, D}; results defined up to a constant cannot be put on one reference \
+         across such groups"
+    );
+}
