@@ -142,47 +142,10 @@ fn offset_at(
     })
 }
 
-/// Links `this` comparison to `linked` (e.g. the CIPM comparison, read back from its JSON
-/// by [`super::read_json`]) through the laboratories in both: sets `this.link` and every
-/// degree of equivalence's `d_linked` and `U_linked`, and adds a note.
-///
-/// # Errors
-///
-/// [`KcError::Link`]: another quantity, other positions (faces or angles), no laboratory
-/// in both, or a covariance of the offsets that cannot be inverted.
-///
-/// # Examples
-///
-/// ```
-/// use polycal::kc::{evaluate, link, KcOptions, LabResult};
-/// use polycal::results::{Quantity, ResultRow};
-///
-/// let lab = |name: &str, beta: [f64; 3]| {
-///     let rows = (1..=3)
-///         .map(|f| ResultRow::new(Quantity::PitchDeviation, f, beta[f as usize - 1]).with_u(0.1))
-///         .collect();
-///     LabResult::from_rows(name, rows)
-/// };
-/// let cipm = evaluate(
-///     &[lab("A", [0.2, -0.1, -0.1]), lab("B", [0.1, 0.0, -0.1]), lab("X", [0.15, -0.05, -0.1])],
-///     &[],
-///     &KcOptions::new(),
-/// )?;
-/// let mut rmo = evaluate(
-///     &[lab("A", [0.25, -0.15, -0.1]), lab("Y", [0.2, -0.1, -0.1])],
-///     &[],
-///     &KcOptions::new(),
-/// )?;
-/// link(&mut rmo, &cipm)?;
-/// let linked = rmo.link.as_ref().expect("linked through A");
-/// assert_eq!(linked.labs, ["A"]);
-/// // A's degree of equivalence against the linked reference is its CIPM one
-/// let a = &rmo.degrees_of_equivalence[0];
-/// let d = a.d_linked.as_ref().expect("given");
-/// assert!((d[0] - cipm.degrees_of_equivalence[0].d[0]).abs() < 1e-12);
-/// # Ok::<(), polycal::kc::KcError>(())
-/// ```
-pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcError> {
+/// The laboratories in both comparisons `this` and `linked`, in this one's order: refused
+/// for another quantity, other positions, none in both, or (closed vectors) one that does
+/// not report every position in both.
+fn linking_labs(this: &KeyComparison, linked: &KeyComparison) -> Result<Vec<String>, KcError> {
     if this.quantity != linked.quantity {
         return Err(KcError::Link(format!(
             "the linked comparison is of {}, this one of {}",
@@ -216,8 +179,6 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
             "no laboratory is in both comparisons: nothing links them".into(),
         ));
     }
-    let positions = this.index.len();
-    let l = labs.len();
     let closed = this.wording().is_closed();
     if closed
         && let Some(name) = labs.iter().find(|name| {
@@ -231,6 +192,55 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
              comparisons: a link through closed vectors over different positions is not built"
         )));
     }
+    Ok(labs)
+}
+
+/// Links `this` comparison to `linked` (e.g. the CIPM comparison, read back from its JSON
+/// by [`super::read_json`]) through the laboratories in both: sets `this.link` and every
+/// degree of equivalence's `d_linked` and `U_linked`, and adds a note.
+///
+/// # Errors
+///
+/// [`KcError::Link`]: another quantity, other positions (faces or angles), no laboratory
+/// in both, a linking laboratory without every encoder position, or a covariance of the
+/// offsets that cannot be inverted.
+///
+/// # Examples
+///
+/// ```
+/// use polycal::kc::{evaluate, link, KcOptions, LabResult};
+/// use polycal::results::{Quantity, ResultRow};
+///
+/// let lab = |name: &str, beta: [f64; 3]| {
+///     let rows = (1..=3)
+///         .map(|f| ResultRow::new(Quantity::PitchDeviation, f, beta[f as usize - 1]).with_u(0.1))
+///         .collect();
+///     LabResult::from_rows(name, rows)
+/// };
+/// let cipm = evaluate(
+///     &[lab("A", [0.2, -0.1, -0.1]), lab("B", [0.1, 0.0, -0.1]), lab("X", [0.15, -0.05, -0.1])],
+///     &[],
+///     &KcOptions::new(),
+/// )?;
+/// let mut rmo = evaluate(
+///     &[lab("A", [0.25, -0.15, -0.1]), lab("Y", [0.2, -0.1, -0.1])],
+///     &[],
+///     &KcOptions::new(),
+/// )?;
+/// link(&mut rmo, &cipm)?;
+/// let linked = rmo.link.as_ref().expect("linked through A");
+/// assert_eq!(linked.labs, ["A"]);
+/// // A's degree of equivalence against the linked reference is its CIPM one
+/// let a = &rmo.degrees_of_equivalence[0];
+/// let d = a.d_linked.as_ref().expect("given");
+/// assert!((d[0] - cipm.degrees_of_equivalence[0].d[0]).abs() < 1e-12);
+/// # Ok::<(), polycal::kc::KcError>(())
+/// ```
+pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcError> {
+    let labs = linking_labs(this, linked)?;
+    let positions = this.index.len();
+    let l = labs.len();
+    let closed = this.wording().is_closed();
     let (mut correction, mut correction_u, mut weights) = (Vec::new(), Vec::new(), Vec::new());
     // per quantity, the linking laboratories that report it in both (every one of them
     // for closed vectors)
