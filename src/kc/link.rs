@@ -27,6 +27,11 @@
 //! Angle blocks are not closed: at each block the linking laboratories are those that
 //! report it in both comparisons (L_k of them), the link's test is χ² = Σ_k χ²_k with
 //! ν = Σ_k (L_k − 1), and a block no laboratory links has no correction (NaN, `null`).
+//!
+//! Encoder errors that some laboratory reports at only some positions (in this comparison,
+//! or a linking laboratory in the other) are linked by `link_positions`: each linking
+//! laboratory's offsets with a constant of its own, every d_linked closed over its
+//! laboratory's own positions.
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -50,9 +55,42 @@ pub struct Link {
     pub vector: Option<VectorTest>,
 }
 
+impl Link {
+    /// Why the link has no test (`vector` is `None`): one linking laboratory, or linking
+    /// laboratories that share too few encoder positions to leave a degree of freedom.
+    pub fn untested_reason(&self) -> &'static str {
+        untested_reason(self.labs.len())
+    }
+}
+
+/// Why a link through `linking` laboratories has no test.
+fn untested_reason(linking: usize) -> &'static str {
+    if linking == 1 {
+        "one linking laboratory: the link is not tested"
+    } else {
+        "the linking laboratories share too few positions to test the link (no degree of \
+         freedom left)"
+    }
+}
+
+impl KeyComparison {
+    /// Whether the degrees of equivalence against the linked reference are closed over
+    /// each laboratory's own positions, d + Δ less Δ's mean there: linked encoder errors
+    /// that some laboratory (or a pilot's repeat) does not report at every position.
+    pub fn linked_over_own_positions(&self) -> bool {
+        self.link.is_some()
+            && self.wording().is_closed()
+            && self
+                .degrees_of_equivalence
+                .iter()
+                .chain(self.pilot.iter().flat_map(|p| &p.degrees_of_equivalence))
+                .any(|d| d.d.iter().any(|x| !x.is_finite()))
+    }
+}
+
 /// One comparison's covariance of the degrees of equivalence of laboratories `a` and `b`
 /// at quantity `k` (see the module's documentation).
-fn doe_covariance(
+pub(super) fn doe_covariance(
     kc: &KeyComparison,
     a: &DegreeOfEquivalence,
     b: &DegreeOfEquivalence,
@@ -72,7 +110,7 @@ fn doe_covariance(
 
 /// u(d) of a degree of equivalence at quantity `k`: U/k, k its Welch–Satterthwaite
 /// coverage factor where it has one, else 2.
-fn standard_u(d: &DegreeOfEquivalence, k: usize) -> f64 {
+pub(super) fn standard_u(d: &DegreeOfEquivalence, k: usize) -> f64 {
     let factor =
         d.k.as_ref()
             .and_then(|k_of| k_of.get(k))
@@ -82,7 +120,7 @@ fn standard_u(d: &DegreeOfEquivalence, k: usize) -> f64 {
 }
 
 /// The degree of equivalence of `lab` in `kc`.
-fn doe<'a>(kc: &'a KeyComparison, lab: &str) -> Option<&'a DegreeOfEquivalence> {
+pub(super) fn doe<'a>(kc: &'a KeyComparison, lab: &str) -> Option<&'a DegreeOfEquivalence> {
     kc.degrees_of_equivalence.iter().find(|d| d.lab == lab)
 }
 
@@ -143,8 +181,7 @@ fn offset_at(
 }
 
 /// The laboratories in both comparisons `this` and `linked`, in this one's order: refused
-/// for another quantity, other positions, none in both, or (closed vectors) one that does
-/// not report every position in both.
+/// for another quantity, other positions, or none in both.
 fn linking_labs(this: &KeyComparison, linked: &KeyComparison) -> Result<Vec<String>, KcError> {
     if this.quantity != linked.quantity {
         return Err(KcError::Link(format!(
@@ -179,19 +216,6 @@ fn linking_labs(this: &KeyComparison, linked: &KeyComparison) -> Result<Vec<Stri
             "no laboratory is in both comparisons: nothing links them".into(),
         ));
     }
-    let closed = this.wording().is_closed();
-    if closed
-        && let Some(name) = labs.iter().find(|name| {
-            [doe(this, name), doe(linked, name)]
-                .iter()
-                .any(|d| d.is_some_and(|d| d.d.iter().any(|x| !x.is_finite())))
-        })
-    {
-        return Err(KcError::Link(format!(
-            "the linking laboratory {name} does not report every position in both \
-             comparisons: a link through closed vectors over different positions is not built"
-        )));
-    }
     Ok(labs)
 }
 
@@ -202,8 +226,9 @@ fn linking_labs(this: &KeyComparison, linked: &KeyComparison) -> Result<Vec<Stri
 /// # Errors
 ///
 /// [`KcError::Link`]: another quantity, other positions (faces or angles), no laboratory
-/// in both, a linking laboratory without every encoder position, or a covariance of the
-/// offsets that cannot be inverted.
+/// in both, an encoder position no linking laboratory reports in both, linking
+/// laboratories in groups that share no position, or a covariance of the offsets that
+/// cannot be inverted.
 ///
 /// # Examples
 ///
@@ -238,6 +263,9 @@ fn linking_labs(this: &KeyComparison, linked: &KeyComparison) -> Result<Vec<Stri
 /// ```
 pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcError> {
     let labs = linking_labs(this, linked)?;
+    if this.wording().is_closed() && reports_different_positions(this, linked, &labs) {
+        return link_over_positions(this, linked, labs);
+    }
     let positions = this.index.len();
     let l = labs.len();
     let closed = this.wording().is_closed();
@@ -319,6 +347,61 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
     Ok(())
 }
 
+/// Whether some laboratory of `this` (a pilot's repeat included), or a linking one in
+/// `linked`, does not report every position: closed vectors over different positions.
+fn reports_different_positions(
+    this: &KeyComparison,
+    linked: &KeyComparison,
+    labs: &[String],
+) -> bool {
+    let gapped = |d: &DegreeOfEquivalence| d.d.iter().any(|x| !x.is_finite());
+    this.degrees_of_equivalence
+        .iter()
+        .chain(this.pilot.iter().flat_map(|p| &p.degrees_of_equivalence))
+        .any(gapped)
+        || labs
+            .iter()
+            .any(|name| doe(linked, name).is_some_and(gapped))
+}
+
+/// [`link`] when laboratories report different encoder positions
+/// ([`super::link_positions`]): each linking laboratory's offsets with a constant of its
+/// own, every degree of equivalence closed over its own positions against the linked
+/// reference.
+fn link_over_positions(
+    this: &mut KeyComparison,
+    linked: &KeyComparison,
+    labs: Vec<String>,
+) -> Result<(), KcError> {
+    let solved = super::link_positions::solve(this, linked, &labs)?;
+    let snapshot = this.clone();
+    let all = this.degrees_of_equivalence.iter_mut().chain(
+        this.pilot
+            .iter_mut()
+            .flat_map(|p| p.degrees_of_equivalence.iter_mut()),
+    );
+    for d in all {
+        let (value, expanded) = solved.linked(&snapshot, d);
+        d.d_linked = Some(value);
+        d.expanded_u_linked = Some(expanded);
+    }
+    let mut note = link_note(&labs, solved.vector.as_ref());
+    note.push_str(
+        "; the laboratories report different positions: each linking laboratory's offsets \
+         are taken over the positions it reports in both, with a constant of its own, and \
+         every degree of equivalence against the linked reference is closed over the \
+         laboratory's own positions, as in this comparison",
+    );
+    this.notes.push(note);
+    this.link = Some(Link {
+        labs,
+        correction: solved.correction,
+        correction_u: solved.correction_u,
+        vector: solved.vector,
+    });
+    Ok(())
+}
+
 /// The note on the link through `labs`, with its test (`None`: one linking laboratory).
 fn link_note(labs: &[String], vector: Option<&VectorTest>) -> String {
     let l = labs.len();
@@ -339,7 +422,7 @@ fn link_note(labs: &[String], vector: Option<&VectorTest>) -> String {
                 v.chi2_critical,
                 if v.consistent { "agree" } else { "DISAGREE" }
             ),
-            None => "; one linking laboratory: the link is not tested".to_string(),
+            None => format!("; {}", untested_reason(l)),
         }
     )
 }

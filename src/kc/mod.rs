@@ -71,6 +71,7 @@ mod evaluate;
 pub(crate) mod input;
 mod json;
 mod link;
+mod link_positions;
 mod monte_carlo;
 mod names;
 mod notes;
@@ -415,8 +416,9 @@ pub struct DegreeOfEquivalence {
     pub expanded_u: Vec<f64>,
     /// Whether the laboratory is in the reference.
     pub in_reference: bool,
-    /// d_i against the linked reference (d_i + Δ per quantity, arcseconds), when the
-    /// comparison is linked to another ([`link`]).
+    /// d_i against the linked reference (d_i + Δ per quantity, arcseconds; closed over the
+    /// laboratory's own positions when laboratories report different encoder positions),
+    /// when the comparison is linked to another ([`link`]).
     #[serde(
         default,
         skip_serializing_if = "Option::is_none",

@@ -335,13 +335,18 @@ fn write_link(
                 "the linking laboratories DISAGREE on the offset"
             }
         ),
-        None => "one linking laboratory: the link is not tested".to_string(),
+        None => link.untested_reason().to_string(),
     };
     writeln!(
         out,
         "\nLinked through {} — Δ = the GLS mean of d(linked) − d(this), their correlations \
-         counted; {test}. Against the linked reference: d + Δ, U with u(Δ) (k = 2), arcsec",
-        link.labs.join(", ")
+         counted; {test}. Against the linked reference: d + Δ{}, U with u(Δ) (k = 2), arcsec",
+        link.labs.join(", "),
+        if kc.linked_over_own_positions() {
+            " less Δ's mean over the laboratory's own positions"
+        } else {
+            ""
+        }
     )?;
     let mut header = vec![position.to_string(), "Δ".to_string(), "u(Δ)".to_string()];
     for doe in labs {

@@ -2,8 +2,9 @@
 //! encoder positions (docs/FORMAT.md §12, "What each laboratory measured"), end to end on
 //! result files written here: the table's "—" and the JSON's null where it did not
 //! measure, the CSV without those rows, status 0; and the refusals (a laboratory compared
-//! on fewer than 2 positions, a pilot's repeat missing a position, Monte Carlo U, a link
-//! through a laboratory with missing positions), each one `error:` line with status 2. The
+//! on fewer than 2 positions, a pilot's repeat missing a position, a link that leaves a
+//! position without a linking laboratory), each one `error:` line with status 2, and a
+//! link through a laboratory with missing positions made. The
 //! numbers are checked against a dense GLS in tests/maths/kc_encoder_subsets.rs.
 
 use std::path::Path;
@@ -259,14 +260,76 @@ fn kc_encoder_subsets_refusals_are_one_error_line() {
     ]);
     status(&out, 0);
     let linked = write(&dir, "linked.json", &String::from_utf8(out.stdout).unwrap());
+    // B alone links the comparisons, and it does not report 60° or 240° here: Δ there
+    // cannot be found
     let error = one_error_line(&run(&labs, &["--link", &linked]));
     assert!(
         error.starts_with(
-            "the comparisons cannot be linked: the linking laboratory B does not report every \
-             position"
+            "the comparisons cannot be linked: no linking laboratory reports 60° in both \
+             comparisons"
         ),
         "{error}"
     );
+    // with A in the linked comparison too, the link is made: B's offsets over its four
+    // positions with a constant of its own, its d_linked closed over them and null where
+    // it does not report
+    let a_there = write(
+        &dir,
+        "A-there.csv",
+        &sixty(
+            [
+                Some(-1.0),
+                Some(-0.9),
+                Some(-1.1),
+                Some(-1.2),
+                Some(-0.9),
+                Some(-1.0),
+            ],
+            0.2,
+        ),
+    );
+    let out = polycal(&[
+        "kc",
+        &format!("A={a_there}"),
+        &format!("B={b_full}"),
+        &format!("X={x}"),
+        "--quantity",
+        "encoder_error",
+        "--format",
+        "json",
+    ]);
+    status(&out, 0);
+    let linked = write(
+        &dir,
+        "linked-a.json",
+        &String::from_utf8(out.stdout).unwrap(),
+    );
+    let out = run(&labs, &["--link", &linked, "--format", "json"]);
+    status(&out, 0);
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["link"]["labs"], serde_json::json!(["A", "B"]));
+    let b = &json["degrees_of_equivalence"][1];
+    assert_eq!(b["lab"], "B");
+    let d_linked = b["d_linked"].as_array().unwrap();
+    let u_linked = b["U_linked"].as_array().unwrap();
+    for p in [1, 4] {
+        assert!(d_linked[p].is_null() && u_linked[p].is_null(), "{b}");
+    }
+    let sum: f64 = d_linked.iter().filter_map(Value::as_f64).sum();
+    assert!(
+        sum.abs() < 1e-9,
+        "B's d_linked closed over its own positions: {sum}"
+    );
+    assert!(
+        json["notes"]
+            .to_string()
+            .contains("the laboratories report different positions"),
+        "{}",
+        json["notes"]
+    );
+    // the table too
+    let out = run(&labs, &["--link", &linked]);
+    status(&out, 0);
 }
 
 /// The table states ν = (N − 1)(n − 1) = 8 where the laboratories report different

@@ -328,8 +328,9 @@ fn at(name: &str, angles: &[f64], values: &[f64]) -> LabResult {
 }
 
 /// A position one laboratory reports alone is left out and named "(by B only)"; a
-/// laboratory with fewer than 2 positions compared, Monte Carlo U and a link through a
-/// laboratory with missing positions are refused, each with its error; a pilot's repeat
+/// laboratory with fewer than 2 positions compared is refused; Monte Carlo U is drawn; a
+/// link through a laboratory with missing positions is made, and refused only where a
+/// position has no linking laboratory or the linking ones share no position; a pilot's repeat
 /// missing a position kept is refused at its last encoder_error row's file:line:column.
 #[test]
 fn kc_encoder_subsets_left_out_and_refused() {
@@ -398,16 +399,52 @@ fn kc_encoder_subsets_left_out_and_refused() {
         .is_ok()
     );
 
-    // a link through C, which misses 90° here, is refused; through A alone it is made
+    // a link through C alone, which misses 90° here, is refused: no linking laboratory
+    // reports 90° in both, so Δ there is not determined
     let x = at("X", &quarter, &[-0.1, 0.0, 0.05, 0.05]);
-    let linked = evaluate(&[a.clone(), c_full.clone(), x], &[], &encoder()).unwrap();
+    let linked = evaluate(&[a.clone(), c_full.clone(), x.clone()], &[], &encoder()).unwrap();
     let z = at("Z", &quarter, &[0.2, 0.1, 0.0, 0.1]);
     let mut this = evaluate(&[b.clone(), c.clone(), z.clone()], &[], &encoder()).unwrap();
     assert_eq!(this.angle_deg.as_deref(), Some(&quarter[..]));
     match link(&mut this, &linked) {
         Err(KcError::Link(reason)) => {
             assert!(
-                reason.contains("the linking laboratory C does not report every position"),
+                reason.starts_with("no linking laboratory reports 90° in both comparisons"),
+                "{reason}"
+            );
+        }
+        other => panic!("expected Link, got {other:?}"),
+    }
+    // through A and C it is made, C's d_linked closed over its three positions
+    let mut through_a_c = evaluate(&[a.clone(), c.clone(), z.clone()], &[], &encoder()).unwrap();
+    link(&mut through_a_c, &linked).unwrap();
+    assert_eq!(through_a_c.link.as_ref().unwrap().labs, ["A", "C"]);
+    let c_linked = through_a_c.degrees_of_equivalence[1]
+        .d_linked
+        .clone()
+        .unwrap();
+    assert!(c_linked[1].is_nan());
+    assert!((c_linked[0] + c_linked[2] + c_linked[3]).abs() < 1e-12);
+    // A on 0° and 90° only and C on 180° and 270° only in the linked comparison: every
+    // position is linked, but the two laboratories share none — refused, naming them
+    let linked_apart = evaluate(
+        &[
+            at("A", &[0.0, 90.0], &[0.1, 0.2]),
+            at("C", &[180.0, 270.0], &[5.29, 5.38]),
+            x,
+            at("W", &quarter, &[0.0, 0.1, 0.0, -0.1]),
+        ],
+        &[],
+        &encoder(),
+    )
+    .unwrap();
+    let mut full = evaluate(&[a.clone(), c_full.clone(), z.clone()], &[], &encoder()).unwrap();
+    match link(&mut full, &linked_apart) {
+        Err(KcError::Link(reason)) => {
+            assert!(
+                reason.starts_with(
+                    "the linking laboratories fall into groups that share no position (A | C)"
+                ),
                 "{reason}"
             );
         }

@@ -45,6 +45,7 @@ mod kc_blocks;
 mod kc_blocks_uncertainty;
 mod kc_covariance;
 mod kc_encoder_subsets;
+mod kc_link_positions;
 mod measurement_file_good;
 mod measurement_file_in_memory;
 mod measurement_file_refusals;

@@ -486,7 +486,7 @@ fn linked(out: &mut String, section: &KeyComparisonSection, sfx: &str) {
             v.dof,
             v.chi2_critical
         ),
-        None => "one linking laboratory: the link is not tested".to_string(),
+        None => link.untested_reason().to_string(),
     };
     let shown: Vec<_> = section
         .shown_degrees_of_equivalence()
@@ -497,10 +497,15 @@ fn linked(out: &mut String, section: &KeyComparisonSection, sfx: &str) {
         out,
         "<p id=\"kc-link{sfx}\">Linked to another comparison through {} (the laboratories \
          in both): Δ is the GLS mean of their offsets d(linked) − d(this), their correlations \
-         counted; {test}. Against the linked reference d = d<sub>i</sub> + Δ with its U \
+         counted; {test}. Against the linked reference d = d<sub>i</sub> + Δ{} with its U \
          (k = 2).</p>\n<table class=\"results\" id=\"kc-linked{sfx}\"><thead><tr>{}\
          <th>Δ / ″</th><th>u(Δ) / ″</th>",
         esc(&link.labs.join(", ")),
+        if kc.linked_over_own_positions() {
+            " less Δ's mean over the laboratory's own positions"
+        } else {
+            ""
+        },
         position_headers(kc)
     );
     for d in &shown {
