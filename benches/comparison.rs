@@ -12,11 +12,15 @@
 //!   written into a sink, which is what the JSON of many laboratories costs beyond the
 //!   evaluation (it grows with the pairs, n(n − 1)/2);
 //! - `compare/12000`: two encoder results of 12 000 positions with `angle_deg` read and
-//!   compared (matched by angle, the vector verdict).
+//!   compared (matched by angle, the vector verdict);
+//! - `kc_link/{every,some}_3000`: an encoder comparison of 10 laboratories at 3 000
+//!   positions linked to another of 10 through the 5 in both, every laboratory reporting
+//!   every position (the closed link, position by position) or each missing 1 % of them
+//!   (the link over positions, a constant per linking laboratory).
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, criterion_group, criterion_main};
 use polycal::compare::{CompareOptions, compare_files};
-use polycal::kc::{KcOptions, LabResult, evaluate};
+use polycal::kc::{KcOptions, KeyComparison, LabResult, evaluate, link};
 use polycal::results::{Quantity, ResultRow, read_results_from, write_results};
 use std::hint::black_box;
 
@@ -133,5 +137,60 @@ fn bench_compare(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_kc, bench_compare);
+/// An encoder comparison of `names` at `positions` angles (their own zeros, u from 0.04″
+/// to 0.18″), each missing `missing` of the positions (drawn), every laboratory in the
+/// reference.
+fn encoder_comparison(names: &[String], positions: u32, missing: f64, seed: u64) -> KeyComparison {
+    let mut draw = Draw(seed);
+    let labs: Vec<LabResult> = names
+        .iter()
+        .enumerate()
+        .map(|(l, name)| {
+            let u = 0.04 + 0.14 * l as f64 / (names.len() - 1) as f64;
+            let zero = draw.normal();
+            let mut rows = Vec::new();
+            for p in 0..positions {
+                if draw.uniform() < missing {
+                    continue;
+                }
+                let angle = f64::from(p) * 360.0 / f64::from(positions);
+                let truth = 0.8 * angle.to_radians().sin();
+                rows.push(
+                    ResultRow::new(Quantity::EncoderError, p, truth + zero + u * draw.normal())
+                        .with_u(u)
+                        .with_angle_deg(angle),
+                );
+            }
+            LabResult::from_rows(name.clone(), rows)
+        })
+        .collect();
+    let options = KcOptions::new()
+        .with_quantity(Quantity::EncoderError)
+        .with_largest_consistent_subset(false);
+    evaluate(&labs, &[], &options).expect("a comparison")
+}
+
+fn bench_link(c: &mut Criterion) {
+    let mut group = c.benchmark_group("kc_link");
+    group.sample_size(10);
+    let cipm: Vec<String> = (0..10).map(|l| format!("L{l}")).collect();
+    let rmo: Vec<String> = (0..5)
+        .map(|l| format!("L{l}"))
+        .chain((0..5).map(|l| format!("R{l}")))
+        .collect();
+    for (case, missing) in [("every_3000", 0.0), ("some_3000", 0.01)] {
+        let linked = encoder_comparison(&cipm, 3_000, missing, 11);
+        let this = encoder_comparison(&rmo, 3_000, missing, 12);
+        group.bench_function(case, |b| {
+            b.iter(|| {
+                let mut this = this.clone();
+                link(&mut this, black_box(&linked)).expect("a link");
+                this.link.map_or(0, |l| l.labs.len())
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_kc, bench_compare, bench_link);
 criterion_main!(benches);

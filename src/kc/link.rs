@@ -304,11 +304,11 @@ pub fn link(this: &mut KeyComparison, linked: &KeyComparison) -> Result<(), KcEr
         VectorTest::at_five_percent(chi2, dof)
     });
     // every degree of equivalence (the pilot's repeats' too) against the linked reference
-    let linking: Vec<Vec<DegreeOfEquivalence>> = linking_at
-        .iter()
-        .map(|names| names.iter().filter_map(|n| doe(this, n)).cloned().collect())
-        .collect();
     let snapshot = this.clone();
+    let linking: Vec<Vec<&DegreeOfEquivalence>> = linking_at
+        .iter()
+        .map(|names| names.iter().filter_map(|n| doe(&snapshot, n)).collect())
+        .collect();
     let all = this.degrees_of_equivalence.iter_mut().chain(
         this.pilot
             .iter_mut()

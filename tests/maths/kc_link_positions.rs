@@ -163,9 +163,7 @@ fn dense(this: &KeyComparison, linked: &KeyComparison, labs: &[&str]) -> Dense {
         + &a_linked * z_cov(linked, &z_linked) * a_linked.transpose();
     let cov_delta = &g * &cov_y * g.transpose();
     let delta: Vec<f64> = (0..n).map(|k| theta[k]).collect();
-    let linked_does = this
-        .degrees_of_equivalence
-        .iter()
+    let linked_does = every_degree(this)
         .map(|d| {
             let s = own(d);
             let ni = s.len() as f64;
@@ -203,6 +201,13 @@ fn dense(this: &KeyComparison, linked: &KeyComparison, labs: &[&str]) -> Dense {
     }
 }
 
+/// Every degree of equivalence of `kc`, the pilot's repeats' after the laboratories'.
+fn every_degree(kc: &KeyComparison) -> impl Iterator<Item = &DegreeOfEquivalence> {
+    kc.degrees_of_equivalence
+        .iter()
+        .chain(kc.pilot.iter().flat_map(|p| &p.degrees_of_equivalence))
+}
+
 fn encoder() -> KcOptions {
     KcOptions::new()
         .with_quantity(Quantity::EncoderError)
@@ -211,7 +216,8 @@ fn encoder() -> KcOptions {
 
 /// A CIPM comparison of 8 laboratories and an RMO one of 6 (L1, L4, L6 in both), 12
 /// positions: drawn with up to `missing` positions missed per laboratory and u per
-/// position (`equal_u`: per laboratory).
+/// position (`equal_u`: per laboratory); with `missing` > 0 the RMO comparison has the
+/// pilot's two repeats too.
 fn pair(rng: &mut ChaCha8Rng, missing: usize, equal_u: bool) -> (KeyComparison, KeyComparison) {
     let design = |labs| Design {
         positions: 12,
@@ -228,8 +234,24 @@ fn pair(rng: &mut ChaCha8Rng, missing: usize, equal_u: bool) -> (KeyComparison, 
         .iter()
         .map(|s| s.to_string())
         .collect();
+    // the pilot's repeats, at every position
+    let mut repeats = draw(
+        rng,
+        Design {
+            missing_count: Some(0),
+            ..design(2)
+        },
+        None,
+    );
+    repeats.names = vec!["start".into(), "end".into()];
+    // (with gaps only: their stability term varies u from position to position)
+    let repeats = if missing > 0 {
+        repeats.results()
+    } else {
+        Vec::new()
+    };
     (
-        evaluate(&rmo.results(), &[], &encoder()).unwrap(),
+        evaluate(&rmo.results(), &repeats, &encoder()).unwrap(),
         evaluate(&cipm.results(), &[], &encoder()).unwrap(),
     )
 }
@@ -254,7 +276,8 @@ fn agree(this: &KeyComparison, dense: &Dense) {
         }
         None => assert_eq!(dense.dof, 0),
     }
-    for (d, (value, expanded)) in this.degrees_of_equivalence.iter().zip(&dense.linked) {
+    assert_eq!(every_degree(this).count(), dense.linked.len());
+    for (d, (value, expanded)) in every_degree(this).zip(&dense.linked) {
         let (d_linked, u_linked) = (
             d.d_linked.as_ref().unwrap(),
             d.expanded_u_linked.as_ref().unwrap(),
@@ -271,7 +294,8 @@ fn agree(this: &KeyComparison, dense: &Dense) {
 }
 
 /// Laboratories missing up to 3 of 12 positions in either comparison, linking ones among
-/// them: Δ, u(Δ), the link's χ² and ν, and every d_linked and U_linked equal the dense
+/// them: Δ, u(Δ), the link's χ² and ν, and every d_linked and U_linked (the pilot's two
+/// repeats' too) equal the dense
 /// implementation's to 1e-9 on the drawn pairs of comparisons that can be linked (27 of 30;
 /// the others have a position no linking laboratory reports in both, and are refused);
 /// every d_linked is closed over its laboratory's own positions.
@@ -298,8 +322,9 @@ fn kc_link_over_different_positions_equals_a_dense_implementation() {
             doe(&rmo, name).d.iter().any(|x| x.is_nan())
                 || doe(&cipm, name).d.iter().any(|x| x.is_nan())
         }));
+        assert_eq!(rmo.pilot.as_ref().unwrap().degrees_of_equivalence.len(), 2);
         agree(&rmo, &dense(&rmo, &cipm, &labs));
-        for d in &rmo.degrees_of_equivalence {
+        for d in every_degree(&rmo) {
             let sum: f64 = d
                 .d_linked
                 .as_ref()
