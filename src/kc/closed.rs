@@ -293,6 +293,32 @@ fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit>
     })
 }
 
+/// The results that report positions `reports[r][k]`, named `names[r]`, in the groups
+/// connected by the positions they share, each as `{A, B}`, joined by " and "; `None` when
+/// they are one group.
+pub(crate) fn groups_apart(reports: &[Vec<bool>], names: &[&str]) -> Option<String> {
+    let u: Vec<Vec<f64>> = reports
+        .iter()
+        .map(|r| {
+            r.iter()
+                .map(|&m| if m { 1.0 } else { f64::INFINITY })
+                .collect()
+        })
+        .collect();
+    let rows: Vec<&[f64]> = u.iter().map(Vec::as_slice).collect();
+    let found = groups(&rows);
+    (found.len() > 1).then(|| {
+        found
+            .iter()
+            .map(|g| {
+                let named: Vec<&str> = g.iter().map(|&r| names[r]).collect();
+                format!("{{{}}}", named.join(", "))
+            })
+            .collect::<Vec<_>>()
+            .join(" and ")
+    })
+}
+
 /// The results (by their standard uncertainties `u`, +∞ where one does not report a
 /// position) in groups connected by the positions they share: one group when a closed fit
 /// of them all can put them on one reference, each group's results ascending.

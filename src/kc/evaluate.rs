@@ -118,28 +118,9 @@ fn compared_enough(
     };
     let needed = if aligned.closed { 2 } else { 1 };
     if aligned.closed {
-        let u: Vec<Vec<f64>> = measured[..labs.len()]
-            .iter()
-            .map(|m| {
-                m.iter()
-                    .map(|&m| if m { 1.0 } else { f64::INFINITY })
-                    .collect()
-            })
-            .collect();
-        let rows: Vec<&[f64]> = u.iter().map(Vec::as_slice).collect();
-        let groups = super::closed::groups(&rows);
-        if groups.len() > 1 {
-            let named: Vec<String> = groups
-                .iter()
-                .map(|g| {
-                    let names: Vec<&str> = g.iter().map(|&r| labs[r].name.as_str()).collect();
-                    format!("{{{}}}", names.join(", "))
-                })
-                .collect();
-            return Err(KcError::PositionsApart {
-                quantity,
-                groups: named.join(" and "),
-            });
+        let names: Vec<&str> = labs.iter().map(|l| l.name.as_str()).collect();
+        if let Some(groups) = super::closed::groups_apart(&measured[..labs.len()], &names) {
+            return Err(KcError::PositionsApart { quantity, groups });
         }
     }
     for (lab, reported) in labs.iter().zip(measured) {

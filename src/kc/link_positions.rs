@@ -122,29 +122,14 @@ fn reporting(
             position(this, k)
         )));
     }
-    let u: Vec<Vec<f64>> = (0..labs.len())
-        .map(|j| {
-            (0..positions)
-                .map(|k| if reports(j, k) { 1.0 } else { f64::INFINITY })
-                .collect()
-        })
+    let reports: Vec<Vec<bool>> = (0..labs.len())
+        .map(|j| (0..positions).map(|k| reports(j, k)).collect())
         .collect();
-    let slices: Vec<&[f64]> = u.iter().map(Vec::as_slice).collect();
-    let groups = super::closed::groups(&slices);
-    if groups.len() > 1 {
-        let named: Vec<String> = groups
-            .iter()
-            .map(|g| {
-                g.iter()
-                    .map(|&j| labs[j].as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            })
-            .collect();
+    let names: Vec<&str> = labs.iter().map(String::as_str).collect();
+    if let Some(groups) = super::closed::groups_apart(&reports, &names) {
         return Err(KcError::Link(format!(
-            "the linking laboratories fall into groups that share no position ({}): their \
-             offsets cannot be put on one correction",
-            named.join(" | ")
+            "the linking laboratories fall into groups that share no position ({groups}): \
+             their offsets cannot be put on one correction"
         )));
     }
     Ok(at)

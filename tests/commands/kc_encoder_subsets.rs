@@ -249,15 +249,10 @@ fn kc_encoder_subsets_refusals_are_one_error_line() {
             0.2,
         ),
     );
-    let out = polycal(&[
-        "kc",
-        &format!("B={b_full}"),
-        &format!("X={x}"),
-        "--quantity",
-        "encoder_error",
-        "--format",
-        "json",
-    ]);
+    let out = run(
+        &[format!("B={b_full}"), format!("X={x}")],
+        &["--format", "json"],
+    );
     status(&out, 0);
     let linked = write(&dir, "linked.json", &String::from_utf8(out.stdout).unwrap());
     // B alone links the comparisons, and it does not report 60° or 240° here: Δ there
@@ -288,16 +283,14 @@ fn kc_encoder_subsets_refusals_are_one_error_line() {
             0.2,
         ),
     );
-    let out = polycal(&[
-        "kc",
-        &format!("A={a_there}"),
-        &format!("B={b_full}"),
-        &format!("X={x}"),
-        "--quantity",
-        "encoder_error",
-        "--format",
-        "json",
-    ]);
+    let out = run(
+        &[
+            format!("A={a_there}"),
+            format!("B={b_full}"),
+            format!("X={x}"),
+        ],
+        &["--format", "json"],
+    );
     status(&out, 0);
     let linked = write(
         &dir,

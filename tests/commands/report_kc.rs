@@ -757,3 +757,72 @@ fn a_linked_comparison_states_its_link() {
         "E linked",
     );
 }
+
+/// Laboratories that state the degrees of freedom of their u (`dof`): each U(d_i) in the
+/// DCC carries its own k = t_95.45(ν_eff), the kc JSON's `k` (not k = 2), and the DCC's
+/// description and the report's formulas say so.
+#[test]
+fn stated_degrees_of_freedom_give_each_u_its_own_coverage_factor_in_the_dcc() {
+    let dir = temp_dir("dof");
+    let write = |name: &str, values: [f64; 6], u: f64, dof: Option<u32>| -> String {
+        let mut text = String::from("quantity,index,value,u,dof\n");
+        for (face, value) in values.iter().enumerate() {
+            let dof = dof.map_or(String::new(), |d| d.to_string());
+            text.push_str(&format!("pitch_deviation,{},{value},{u},{dof}\n", face + 1));
+        }
+        let path = dir.join(format!("{name}.csv"));
+        std::fs::write(&path, text).unwrap();
+        format!("{name}={}", path.display())
+    };
+    let labs = [
+        write("A", [0.10, -0.20, 0.05, 0.00, 0.10, -0.05], 0.05, Some(4)),
+        write("B", [0.12, -0.18, 0.02, 0.01, 0.08, -0.05], 0.06, Some(6)),
+        write("C", [0.08, -0.22, 0.06, -0.02, 0.12, -0.02], 0.05, None),
+        write("D", [0.11, -0.19, 0.04, 0.02, 0.09, -0.07], 0.07, Some(9)),
+    ];
+    let mut args: Vec<&str> = vec!["kc"];
+    args.extend(labs.iter().map(String::as_str));
+    args.extend(["--format", "json"]);
+    let out = polycal(&args);
+    assert!(
+        out.status.code().is_some_and(|c| c <= 1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let kc_path = dir.join("kc.json");
+    std::fs::write(&kc_path, &out.stdout).unwrap();
+    let kc: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (html, dcc) = report(&dir, &kc_path, &[]);
+    // the report says so where it gives the formulas
+    let method = text(&html, "kc-method");
+    assert!(
+        method.contains("k = t95.45(νeff) of each value"),
+        "{method}"
+    );
+    assert!(!method.contains("k = 2;"), "{method}");
+    let doc = Document::parse(&dcc).unwrap();
+    let result = kc_result(&doc);
+    let texts = si_texts(result, "polycal_kcDegreeOfEquivalence");
+    let does = kc["degrees_of_equivalence"].as_array().unwrap();
+    assert_eq!(texts.len(), does.len());
+    let mut above_two = 0;
+    for (doe, (_, _, k_texts)) in does.iter().zip(&texts) {
+        let k = numbers(&doe["k"]);
+        assert_eq!(k_texts.len(), k.len(), "{}", doe["lab"]);
+        for (text, &k) in k_texts.iter().zip(&k) {
+            document_support::assert_k_rounded(text, k, &format!("k of {}", doe["lab"]));
+            above_two += usize::from(k > 2.05);
+        }
+    }
+    assert!(above_two >= 12, "{above_two} coverage factors above 2");
+    let description = result
+        .descendants()
+        .find(|n| n.tag_name().name() == "description")
+        .and_then(|n| n.descendants().find(|c| c.tag_name().name() == "content"))
+        .and_then(|n| n.text())
+        .unwrap_or_default();
+    assert!(
+        description.contains("k = t_95.45(ν_eff) of each value"),
+        "{description}"
+    );
+}

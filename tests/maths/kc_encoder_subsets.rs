@@ -443,7 +443,7 @@ fn kc_encoder_subsets_left_out_and_refused() {
         Err(KcError::Link(reason)) => {
             assert!(
                 reason.starts_with(
-                    "the linking laboratories fall into groups that share no position (A | C)"
+                    "the linking laboratories fall into groups that share no position ({A} and {C})"
                 ),
                 "{reason}"
             );

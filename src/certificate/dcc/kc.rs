@@ -127,12 +127,14 @@ fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), Dcc
         );
         // the positions the laboratory reports (an angle block it did not measure has no d)
         let (doe_labels, d) = given(&labels, |k| Some(doe.d[k]));
-        let expanded_u: Vec<f64> = doe
-            .d
+        let reported: Vec<usize> = (0..doe.d.len())
+            .filter(|&k| crate::kc::is_given(doe.d[k]))
+            .collect();
+        let expanded_u: Vec<f64> = reported.iter().map(|&k| doe.expanded_u[k]).collect();
+        // k = 2, or t_95.45(ν_eff) where the laboratories state degrees of freedom
+        let coverage: Vec<f64> = reported
             .iter()
-            .zip(&doe.expanded_u)
-            .filter(|(d, _)| crate::kc::is_given(**d))
-            .map(|(_, u)| *u)
+            .map(|&k| doe.k.as_ref().and_then(|f| f.get(k)).copied().unwrap_or(K))
             .collect();
         Column {
             refs: "polycal_kcDegreeOfEquivalence",
@@ -140,7 +142,7 @@ fn one_comparison(x: &mut Xml, section: &KeyComparisonSection) -> Result<(), Dcc
             unit: "\\arcsecond",
             labels: Some(doe_labels),
             values: d,
-            expanded: Some((expanded_u.clone(), vec![K; expanded_u.len()], P)),
+            expanded: Some((expanded_u, coverage, P)),
             form: Form::Real,
         }
         .write(x)?;
@@ -260,7 +262,7 @@ fn description(section: &KeyComparisonSection) -> String {
         .replace("the closed GLS reference", wording.reference())
         .replace("the closed vector", &format!("the {}", wording.whole()));
     format!(
-        "Interlaboratory comparison of {} laboratories ({}) evaluated by polycal kc (file {}, SHA-256 {}). Reference per quantity: {method}; its U = 2·u_ref. Per quantity, as information: χ² = Σ (x_i − x̄_w)²/u_i² with ν = n − 1 against χ²_0.95(ν). Degrees of equivalence d_i = x_i − x_ref with U(d_i) = 2·√(u_i² + u_stab² + τ² − u_ref²) in the reference and 2·√(u_i² + u_stab² + τ² + u_ref²) out of it. {} Values in arcseconds, labelled by {}; k = 2 with the coverage probability stated as 0.95 (normal distribution).",
+        "Interlaboratory comparison of {} laboratories ({}) evaluated by polycal kc (file {}, SHA-256 {}). Reference per quantity: {method}; its U = 2·u_ref. Per quantity, as information: χ² = Σ (x_i − x̄_w)²/u_i² with ν = n − 1 against χ²_0.95(ν). Degrees of equivalence d_i = x_i − x_ref with U(d_i) = 2·√(u_i² + u_stab² + τ² − u_ref²) in the reference and 2·√(u_i² + u_stab² + τ² + u_ref²) out of it. {} Values in arcseconds, labelled by {}; k = 2{} with the coverage probability stated as 0.95 (normal distribution).",
         kc.labs.len(),
         kc.labs.join(", "),
         section.file_name,
@@ -274,6 +276,11 @@ fn description(section: &KeyComparisonSection) -> String {
             Quantity::AngleBlock =>
                 "angle block (a laboratory's degrees of equivalence only at the blocks it reports)",
             _ => "the first laboratory's encoder index",
+        },
+        if kc.degrees_of_equivalence.iter().any(|d| d.k.is_some()) {
+            " (U(d_i): k = t_95.45(ν_eff) of each value, the Welch–Satterthwaite degrees of freedom from those the laboratories state, written with the value)"
+        } else {
+            ""
         }
     )
 }

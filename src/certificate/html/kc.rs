@@ -232,13 +232,25 @@ fn formulas(out: &mut String, kc: &KeyComparison, sfx: &str) {
          Degrees of equivalence: d<sub>i</sub> = x<sub>i</sub> − x<sub>ref</sub>{sum_zero}, \
          U(d<sub>i</sub>) = 2·√(u<sub>i</sub>² + u<sub>stab</sub>² + τ² − \
          u<sub>ref</sub>²) for a laboratory in the reference, 2·√(u<sub>i</sub>² + \
-         u<sub>stab</sub>² + τ² + u<sub>ref</sub>²) for one out of it (k = 2; {diagonal}); \
+         u<sub>stab</sub>² + τ² + u<sub>ref</sub>²) for one out of it ({}; {diagonal}); \
          u<sub>stab</sub> is the pilot's instability (0 without repeats or when \
          they agree; otherwise in every laboratory's u, in the reference and in every test). \
          All values in arcseconds.</p>",
         kc.method.name(),
-        kc.method.name()
+        kc.method.name(),
+        coverage_words(kc)
     );
+}
+
+/// The coverage factor of U(d_i) in words: 2, or each value's t_95.45(ν_eff) where the
+/// laboratories state degrees of freedom (`k` in the kc JSON).
+fn coverage_words(kc: &KeyComparison) -> &'static str {
+    if kc.degrees_of_equivalence.iter().any(|d| d.k.is_some()) {
+        "k = t<sub>95.45</sub>(ν<sub>eff</sub>) of each value, ν<sub>eff</sub> by \
+         Welch–Satterthwaite from the degrees of freedom the laboratories state"
+    } else {
+        "k = 2"
+    }
 }
 
 fn reference_table(out: &mut String, kc: &KeyComparison, sfx: &str) {
@@ -420,8 +432,9 @@ fn degrees_of_equivalence(out: &mut String, section: &KeyComparisonSection, sfx:
     let _ = write!(
         out,
         "<table class=\"results\" id=\"kc-doe{sfx}\"><caption>Degrees of equivalence d<sub>i</sub> and \
-         U(d<sub>i</sub>) (k = 2){}; * where |d<sub>i</sub>| &gt; U(d<sub>i</sub>)</caption>\
+         U(d<sub>i</sub>) ({}){}; * where |d<sub>i</sub>| &gt; U(d<sub>i</sub>)</caption>\
          <thead><tr>{}",
+        coverage_words(kc),
         if section.lab.is_none() && kc.pilot.is_some() {
             ", the pilot's repeats last (never in the reference)"
         } else {
