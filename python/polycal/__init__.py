@@ -85,6 +85,7 @@ __all__ = [
     "selfcal",
     "compare",
     "kc",
+    "kc_draft_a",
     "shared_quantities",
     "history",
     "simulate",
@@ -313,21 +314,84 @@ def kc(
     laboratory did not measure (an angle block, an encoder position) is NaN in the arrays,
     ``null`` in :meth:`KeyComparison.to_json`."""
 
+    text, _ = _kc(labs, pilot, quantity, method, keep, not_in_reference, link, monte_carlo)
+    return KeyComparison(text)
+
+
+def _kc(
+    labs: Mapping[str, Union[SolveResult, _Rows, PathOrText]],
+    pilot: Optional[Sequence[Tuple[str, Union[SolveResult, _Rows, PathOrText]]]],
+    quantity: str,
+    method: str,
+    keep: Sequence[str],
+    not_in_reference: Sequence[str],
+    link: Optional[KeyComparison],
+    monte_carlo: Optional[int],
+    anonymise: bool = False,
+    key: Optional[str] = None,
+    seed: int = 0,
+) -> Tuple[str, Optional[str]]:
+    """``_polycal.kc`` with :func:`kc`'s arguments: the JSON text and the key's CSV text
+    (Draft A only)."""
+
     def named(items: Any) -> Any:
         return [(str(name), _rows_of(result)) for name, result in items]
 
-    return KeyComparison(
-        _polycal.kc(
-            named(labs.items()),
-            named(pilot or ()),
-            quantity=str(quantity),
-            method=str(method),
-            keep=[str(name) for name in keep],
-            not_in_reference=[str(name) for name in not_in_reference],
-            link=None if link is None else link.to_json(),
-            monte_carlo=None if monte_carlo is None else int(monte_carlo),
-        )
+    return _polycal.kc(
+        named(labs.items()),
+        named(pilot or ()),
+        quantity=str(quantity),
+        method=str(method),
+        keep=[str(name) for name in keep],
+        not_in_reference=[str(name) for name in not_in_reference],
+        link=None if link is None else link.to_json(),
+        monte_carlo=None if monte_carlo is None else int(monte_carlo),
+        anonymise=anonymise,
+        key=None if key is None else str(key),
+        seed=int(seed),
     )
+
+
+def kc_draft_a(
+    labs: Mapping[str, Union[SolveResult, _Rows, PathOrText]],
+    pilot: Optional[Sequence[Tuple[str, Union[SolveResult, _Rows, PathOrText]]]] = None,
+    quantity: str = "pitch_deviation",
+    method: str = "weighted-mean",
+    keep: Sequence[str] = (),
+    not_in_reference: Sequence[str] = (),
+    link: Optional[KeyComparison] = None,
+    monte_carlo: Optional[int] = None,
+    key: Optional[str] = None,
+    seed: Optional[int] = None,
+) -> Tuple[KeyComparison, str]:
+    """Draft A of a key comparison as ``polycal kc --anonymise KEY.csv`` makes it
+    (docs/FORMAT.md §12, "Draft A"): :func:`kc` with every laboratory named by a code
+    letter (the pilot's repeats keep their names), and the key. Returns the comparison and
+    the key's CSV text (``code,lab``), which the pilot keeps alone: nothing else names the
+    laboratories. ``key`` is a key's CSV text read back (Draft B: its codes, every
+    laboratory in it); without it the codes ``A``, ``B``, … go to the laboratories in an
+    order drawn at random (from ``seed`` when given, for a repeatable draw). ``keep`` and
+    ``not_in_reference`` name laboratories by their real names, and a ``link``ed
+    comparison's laboratories are matched by them too, as the command does. Raises
+    :class:`PolycalError` with the command's message for a key that lacks a laboratory or
+    cannot be read."""
+    import secrets
+
+    drawn = secrets.randbits(63) if seed is None else int(seed)
+    text, key_text = _kc(
+        labs,
+        pilot,
+        quantity,
+        method,
+        keep,
+        not_in_reference,
+        link,
+        monte_carlo,
+        anonymise=True,
+        key=key,
+        seed=drawn,
+    )
+    return KeyComparison(text), str(key_text)
 
 
 def shared_quantities(

@@ -241,7 +241,14 @@ def kc(
     pilot: Sequence[Tuple[str, ResultRows]] = ...,
     quantity: str = "pitch_deviation",
     method: str = "weighted-mean",
-) -> str: ...
+    keep: Sequence[str] = ...,
+    not_in_reference: Sequence[str] = ...,
+    link: Optional[str] = None,
+    monte_carlo: Optional[int] = None,
+    anonymise: bool = False,
+    key: Optional[str] = None,
+    seed: int = 0,
+) -> Tuple[str, Optional[str]]: ...
 def shared_quantities(
     labs: Sequence[Tuple[str, ResultRows]],
     pilot: Sequence[Tuple[str, ResultRows]] = ...,

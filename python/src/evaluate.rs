@@ -365,9 +365,11 @@ pub(crate) fn compare_rows(
 }
 
 /// Evaluates a key comparison as `polycal kc` does (docs/FORMAT.md §12); returns its JSON
-/// object. `labs` and `pilot` are (name, rows) pairs in order.
+/// object and, with `anonymise` (`--anonymise`: Draft A), the key's CSV text. `labs` and
+/// `pilot` are (name, rows) pairs in order; `key` is a key's CSV text read (Draft B: its
+/// codes), else the codes are drawn in an order from `seed`.
 #[pyfunction]
-#[pyo3(signature = (labs, pilot=Vec::new(), quantity="pitch_deviation", method="weighted-mean", keep=Vec::new(), not_in_reference=Vec::new(), link=None, monte_carlo=None))]
+#[pyo3(signature = (labs, pilot=Vec::new(), quantity="pitch_deviation", method="weighted-mean", keep=Vec::new(), not_in_reference=Vec::new(), link=None, monte_carlo=None, anonymise=false, key=None, seed=0))]
 #[allow(clippy::too_many_arguments)] // the keyword arguments of `polycal kc`'s flags
 pub(crate) fn kc(
     py: Python<'_>,
@@ -379,13 +381,40 @@ pub(crate) fn kc(
     not_in_reference: Vec<String>,
     link: Option<String>,
     monte_carlo: Option<usize>,
-) -> PyResult<String> {
+    anonymise: bool,
+    key: Option<String>,
+    seed: u64,
+) -> PyResult<(String, Option<String>)> {
     let quantity = polycal::kc::compared_quantity(quantity)
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
     let method = method
         .parse::<ReferenceMethod>()
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
-    let (labs, pilot) = (lab_results(&labs), lab_results(&pilot));
+    let (mut labs, pilot) = (lab_results(&labs), lab_results(&pilot));
+    let mut linked = match &link {
+        Some(text) => Some(polycal::kc::read_json(text.as_bytes(), "link").map_err(refusal)?),
+        None => None,
+    };
+    let (mut keep, mut not_in_reference) = (keep, not_in_reference);
+    // Draft A as `--anonymise` makes it: the laboratories, the names the options give and
+    // the linked comparison's laboratories by their codes
+    let code_key = if anonymise {
+        let read = match &key {
+            Some(text) => {
+                Some(polycal::kc::CodeKey::read(text.as_bytes(), "key").map_err(refusal)?)
+            }
+            None => None,
+        };
+        let (coded, code_key) =
+            polycal::kc::anonymise(&labs, &pilot, read.as_ref(), seed).map_err(refusal)?;
+        labs = coded;
+        keep = code_key.coded_names(keep.iter().map(String::as_str));
+        not_in_reference = code_key.coded_names(not_in_reference.iter().map(String::as_str));
+        linked = linked.map(|l| code_key.coded_comparison(&l));
+        Some(code_key)
+    } else {
+        None
+    };
     let options = KcOptions::new()
         .with_quantity(quantity)
         .with_method(method)
@@ -395,17 +424,23 @@ pub(crate) fn kc(
         Some(draws) => options.with_monte_carlo(draws),
         None => options,
     };
-    let linked = match &link {
-        Some(text) => Some(polycal::kc::read_json(text.as_bytes(), "link").map_err(refusal)?),
-        None => None,
-    };
     let mut comparison = py
         .detach(|| polycal::kc::evaluate(&labs, &pilot, &options))
         .map_err(refusal)?;
     if let Some(linked) = &linked {
         polycal::kc::link(&mut comparison, linked).map_err(refusal)?;
     }
-    to_json(&comparison)
+    let key_text = match &code_key {
+        Some(code_key) => {
+            comparison.notes.push(polycal::kc::DRAFT_A_NOTE.to_string());
+            let mut bytes = Vec::new();
+            polycal::output::kc::write_key_csv(&mut bytes, code_key)
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            Some(String::from_utf8(bytes).map_err(|e| PyValueError::new_err(e.to_string()))?)
+        }
+        None => None,
+    };
+    Ok((to_json(&comparison)?, key_text))
 }
 
 /// The (name, rows) pairs of `kc`'s `labs` and `pilot` as the library's results, in order.

@@ -541,6 +541,41 @@ def test_kc_is_the_clis_json_to_the_byte(tmp_path):
     assert list(linked["link"]["labs"]) == ["B", "C"]
 
 
+def test_kc_draft_a_is_the_clis_with_the_same_key(tmp_path):
+    # Draft A: the laboratories by code letters, the key apart; the CLI reading the
+    # same key writes the same bytes, and nothing but the key names a laboratory
+    real = {"PTB": "A", "NPL": "B", "NIST": "C", "NMIJ": "D", "METAS": "E", "INRIM": "F"}
+    labs = {name: KC / f"{file}.csv" for name, file in real.items()}
+    args = [f"{name}={path}" for name, path in labs.items()]
+    draft, key = polycal.kc_draft_a(labs, seed=7)
+    rows = [line.split(",") for line in key.strip().splitlines()]
+    assert rows[0] == ["code", "lab"]
+    assert sorted(lab for _, lab in rows[1:]) == sorted(real)
+    assert sorted(code for code, _ in rows[1:]) == list("ABCDEF")
+    text = draft.to_json()
+    assert not any(name in text for name in real), text
+    assert sorted(draft["labs"]) == list("ABCDEF")
+    assert any("Draft A" in note for note in draft["notes"])
+    key_path = tmp_path / "key.csv"
+    key_path.write_text(key)
+    assert text == cli(
+        "kc", *args, "--anonymise", str(key_path), "--quantity", "pitch_deviation",
+        "--format", "json",
+    )
+    # Draft B: the key read back gives the same codes; the seed repeats the draw
+    again, same_key = polycal.kc_draft_a(labs, key=key)
+    assert again.to_json() == text and same_key == key
+    assert polycal.kc_draft_a(labs, seed=7)[1] == key
+    # kept in by its real name, as --keep takes it
+    kept, _ = polycal.kc_draft_a(labs, key=key, keep=["INRIM"])
+    code = {lab: code for code, lab in rows[1:]}["INRIM"]
+    assert list(kept["kept"]) == [code]
+    # a key without a laboratory: the command's refusal
+    short = "".join(line + "\n" for line in key.strip().splitlines() if not line.endswith(",PTB"))
+    with pytest.raises(polycal.PolycalError, match="PTB"):
+        polycal.kc_draft_a(labs, key=short)
+
+
 def test_shared_quantities_loop_is_the_clis_json_lines(tmp_path):
     # without --quantity the CLI compares every quantity the files share, one JSON
     # object per line; a Python user loops over shared_quantities for the same objects
