@@ -21,7 +21,7 @@
 use std::collections::BTreeMap;
 
 use super::closed::ClosedFit;
-use super::input::{Aligned, Field, last_row, location, rows_of, standard_u};
+use super::input::{Aligned, Field, last_row, location, rows_of};
 use super::{KcError, LabResult};
 use crate::results::Quantity;
 
@@ -81,14 +81,9 @@ pub(crate) fn pair_chi2(d: &[f64], variance: &[f64]) -> Option<(f64, usize)> {
     (!terms.is_empty()).then(|| (terms.iter().sum(), terms.len()))
 }
 
-/// Lines up the angle blocks of the laboratories `results[..labs]` and the pilot's repeats
-/// after them: each block a scalar of its own, compared among the laboratories that report
-/// it (docs/FORMAT.md §12, "What each laboratory measured"). A block reported by fewer
-/// than two laboratories is left out and named in a note; the pilot's repeats must report
-/// every block compared (their spread is the artefact's stability on each). Blocks'
-/// nominal angles, where stated, must agree between results.
-pub(crate) fn blocks(results: &[&LabResult], labs: usize) -> Result<Aligned, KcError> {
-    // block → (result, row) of every result reporting it
+/// Block → the row of each result reporting it (`None`: not reported), ascending by
+/// block: refused for a result without angle blocks and a block stated twice in one result.
+fn rows_by_block(results: &[&LabResult]) -> Result<BTreeMap<u32, Vec<Option<usize>>>, KcError> {
     let mut by_block: BTreeMap<u32, Vec<Option<usize>>> = BTreeMap::new();
     for (r, result) in results.iter().enumerate() {
         let rows = rows_of(result, Quantity::AngleBlock);
@@ -113,17 +108,18 @@ pub(crate) fn blocks(results: &[&LabResult], labs: usize) -> Result<Aligned, KcE
             slot[r] = Some(i);
         }
     }
-    let mut aligned = Aligned {
-        index: Vec::new(),
-        angle_deg: None,
-        values: vec![Vec::new(); results.len()],
-        u: vec![Vec::new(); results.len()],
-        dof: vec![Vec::new(); results.len()],
-        closed: false,
-        measured: Some(vec![Vec::new(); results.len()]),
-        nominal_deg: None,
-        notes: Vec::new(),
-    };
+    Ok(by_block)
+}
+
+/// Lines up the angle blocks of the laboratories `results[..labs]` and the pilot's repeats
+/// after them: each block a scalar of its own, compared among the laboratories that report
+/// it (docs/FORMAT.md §12, "What each laboratory measured"). A block reported by fewer
+/// than two laboratories is left out and named in a note; the pilot's repeats must report
+/// every block compared (their spread is the artefact's stability on each). Blocks'
+/// nominal angles, where stated, must agree between results.
+pub(crate) fn blocks(results: &[&LabResult], labs: usize) -> Result<Aligned, KcError> {
+    let by_block = rows_by_block(results)?;
+    let mut aligned = Aligned::empty(results.len(), false, true);
     let mut nominal: Vec<Option<f64>> = Vec::new();
     let mut left_out = Vec::new();
     for (&block, rows) in &by_block {
@@ -150,34 +146,9 @@ pub(crate) fn blocks(results: &[&LabResult], labs: usize) -> Result<Aligned, KcE
         }
         aligned.index.push(block);
         nominal.push(block_nominal(results, rows, block)?);
-        for (r, row) in rows.iter().enumerate() {
-            let measured = row.is_some();
-            let (value, u, dof) = match *row {
-                Some(i) => {
-                    let found = &results[r].rows[i];
-                    let u = standard_u(results[r], i, found)?;
-                    (found.value, u, found.dof.unwrap_or(f64::INFINITY))
-                }
-                None => (0.0, 1.0, f64::INFINITY),
-            };
-            aligned.values[r].push(value);
-            aligned.u[r].push(u);
-            aligned.dof[r].push(dof);
-            if let Some(m) = aligned.measured.as_mut() {
-                m[r].push(measured);
-            }
-        }
+        aligned.push_position(results, rows)?;
     }
-    if aligned.index.is_empty() {
-        return Err(KcError::NothingInCommon);
-    }
-    if aligned
-        .measured
-        .as_ref()
-        .is_some_and(|m| m.iter().flatten().all(|&m| m))
-    {
-        aligned.measured = None;
-    }
+    let mut aligned = aligned.finished()?;
     if nominal.iter().any(Option::is_some) {
         aligned.nominal_deg = Some(nominal);
     }

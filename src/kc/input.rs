@@ -34,6 +34,67 @@ pub(crate) struct Aligned {
     pub notes: Vec<String>,
 }
 
+impl Aligned {
+    /// Nothing lined up yet for `results` results: `closed` vectors or scalars, `measured`
+    /// kept (some result may not report a position) or not.
+    pub(super) fn empty(results: usize, closed: bool, measured: bool) -> Aligned {
+        Aligned {
+            index: Vec::new(),
+            angle_deg: None,
+            values: vec![Vec::new(); results],
+            u: vec![Vec::new(); results],
+            dof: vec![Vec::new(); results],
+            closed,
+            measured: measured.then(|| vec![Vec::new(); results]),
+            nominal_deg: None,
+            notes: Vec::new(),
+        }
+    }
+
+    /// Adds one position (or block) in every result: the value, u and degrees of freedom
+    /// of row `rows[r]` of result r, or, where it does not report it (`None`), a
+    /// placeholder never used that `measured` marks.
+    pub(super) fn push_position(
+        &mut self,
+        results: &[&LabResult],
+        rows: &[Option<usize>],
+    ) -> Result<(), KcError> {
+        for (r, row) in rows.iter().enumerate() {
+            if let Some(measured) = self.measured.as_mut() {
+                measured[r].push(row.is_some());
+            }
+            let (value, u, dof) = match *row {
+                Some(i) => {
+                    let found = &results[r].rows[i];
+                    let u = standard_u(results[r], i, found)?;
+                    (found.value, u, found.dof.unwrap_or(f64::INFINITY))
+                }
+                None => (0.0, 1.0, f64::INFINITY),
+            };
+            self.values[r].push(value);
+            self.u[r].push(u);
+            self.dof[r].push(dof);
+        }
+        Ok(())
+    }
+
+    /// Done: refused when no position is compared; `measured` dropped when every result
+    /// reports every position.
+    pub(super) fn finished(mut self) -> Result<Aligned, KcError> {
+        if self.index.is_empty() {
+            return Err(KcError::NothingInCommon);
+        }
+        if self
+            .measured
+            .as_ref()
+            .is_some_and(|m| m.iter().flatten().all(|&m| m))
+        {
+            self.measured = None;
+        }
+        Ok(self)
+    }
+}
+
 /// `file:line:column` of a field of row `i` of a result (`file:line` when its columns are
 /// not known), or `name (row i+1)` for rows given in memory.
 pub(super) fn location(result: &LabResult, i: usize, field: Field) -> String {
@@ -378,20 +439,16 @@ fn position_groups(results: &[&LabResult], by_angle: bool) -> Result<Vec<Group>,
     Ok(groups)
 }
 
+/// Lines up the encoder errors of `results` by angle (every row with one) or by index (none
+/// with one): with `labs` (a comparison; the pilot's repeats after them) a position is kept
+/// when at least two laboratories report it, and the repeats must report every position
+/// kept; without (a plain comparison of results) only positions in every result are kept.
+/// What is left out is named in a note.
 fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Aligned, KcError> {
     let by_angle = matched_by_angle(results)?;
     let groups = position_groups(results, by_angle)?;
-    let mut aligned = Aligned {
-        index: Vec::new(),
-        angle_deg: by_angle.then(Vec::new),
-        values: vec![Vec::new(); results.len()],
-        u: vec![Vec::new(); results.len()],
-        dof: vec![Vec::new(); results.len()],
-        closed: true,
-        measured: labs.map(|_| vec![Vec::new(); results.len()]),
-        nominal_deg: None,
-        notes: Vec::new(),
-    };
+    let mut aligned = Aligned::empty(results.len(), true, labs.is_some());
+    aligned.angle_deg = by_angle.then(Vec::new);
     let at = |group: &Group| {
         if by_angle {
             format!("{}°", group.key.max(0.0))
@@ -415,62 +472,25 @@ fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Align
             });
         }
         if !kept {
-            let missing: Vec<&str> = group
-                .rows
-                .iter()
-                .zip(results)
-                .filter(|(row, _)| row.is_none())
-                .map(|(_, result)| result.name.as_str())
-                .collect();
-            let reporting: Vec<&str> = group.rows[..labs.unwrap_or(results.len())]
-                .iter()
-                .zip(results)
-                .filter(|(row, _)| row.is_some())
-                .map(|(_, result)| result.name.as_str())
-                .collect();
-            left_out.push(match (labs, reporting.as_slice()) {
-                (None, _) => format!("{} (not in {})", at(group), missing.join(", ")),
-                (Some(_), []) => format!("{} (by the pilot's repeats only)", at(group)),
-                (Some(_), by) => format!("{} (by {} only)", at(group), by.join(", ")),
-            });
+            left_out.push(left_out_words(group, results, labs, &at(group)));
             continue;
         }
-        let mut first = true;
-        for (r, row) in group.rows.iter().enumerate() {
-            if let Some(measured) = aligned.measured.as_mut() {
-                measured[r].push(row.is_some());
+        // the index and the angle of the first result that reports it
+        if let Some((r, i)) = group
+            .rows
+            .iter()
+            .enumerate()
+            .find_map(|(r, row)| row.map(|i| (r, i)))
+        {
+            let found = &results[r].rows[i];
+            aligned.index.push(found.index);
+            if let Some(angles) = aligned.angle_deg.as_mut() {
+                angles.push(found.angle_deg.unwrap_or(group.key));
             }
-            let Some(i) = *row else {
-                // not reported: a placeholder never used (`measured` says so)
-                aligned.values[r].push(0.0);
-                aligned.u[r].push(1.0);
-                aligned.dof[r].push(f64::INFINITY);
-                continue;
-            };
-            let result = results[r];
-            let found = &result.rows[i];
-            if first {
-                first = false;
-                aligned.index.push(found.index);
-                if let Some(angles) = aligned.angle_deg.as_mut() {
-                    angles.push(found.angle_deg.unwrap_or(group.key));
-                }
-            }
-            aligned.values[r].push(found.value);
-            aligned.u[r].push(standard_u(result, i, found)?);
-            aligned.dof[r].push(found.dof.unwrap_or(f64::INFINITY));
         }
+        aligned.push_position(results, &group.rows)?;
     }
-    if aligned
-        .measured
-        .as_ref()
-        .is_some_and(|m| m.iter().flatten().all(|&m| m))
-    {
-        aligned.measured = None;
-    }
-    if aligned.index.is_empty() {
-        return Err(KcError::NothingInCommon);
-    }
+    let mut aligned = aligned.finished()?;
     if !left_out.is_empty() {
         aligned.notes.push(format!(
             "encoder errors matched by {}: {} position(s) {} left out: {}",
@@ -485,4 +505,27 @@ fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Align
         ));
     }
     Ok(aligned)
+}
+
+/// A position left out (`at`, in words) with whom: the results it is not in (a plain
+/// comparison), or the one laboratory that reports it (`labs`: a comparison).
+fn left_out_words(group: &Group, results: &[&LabResult], labs: Option<usize>, at: &str) -> String {
+    let missing: Vec<&str> = group
+        .rows
+        .iter()
+        .zip(results)
+        .filter(|(row, _)| row.is_none())
+        .map(|(_, result)| result.name.as_str())
+        .collect();
+    let reporting: Vec<&str> = group.rows[..labs.unwrap_or(results.len())]
+        .iter()
+        .zip(results)
+        .filter(|(row, _)| row.is_some())
+        .map(|(_, result)| result.name.as_str())
+        .collect();
+    match (labs, reporting.as_slice()) {
+        (None, _) => format!("{at} (not in {})", missing.join(", ")),
+        (Some(_), []) => format!("{at} (by the pilot's repeats only)"),
+        (Some(_), by) => format!("{at} (by {} only)", by.join(", ")),
+    }
 }
