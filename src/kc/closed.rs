@@ -237,36 +237,8 @@ fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit>
             }
         }
     }
-    // The reference's covariance: P·A′⁻¹·P, A′⁻¹ = W⁻¹ + Z M′⁻¹ Zᵀ with Z_kp = w_{p+1,k}/W_k.
     let m_inverse = cholesky.inverse();
-    let z = |k: usize, p: usize| w[p + 1][k] / total[k];
-    let mut diagonal = vec![0.0; faces];
-    let mut row_sum = vec![0.0; faces]; // (A′⁻¹ 1)_k
-    let mut zt_one = vec![0.0; rest]; // Zᵀ 1
-    for k in 0..faces {
-        for (p, sum) in zt_one.iter_mut().enumerate() {
-            *sum += z(k, p);
-        }
-    }
-    let m_zt_one = &m_inverse * DVector::from_column_slice(&zt_one);
-    for k in 0..faces {
-        let zk: Vec<f64> = (0..rest).map(|p| z(k, p)).collect();
-        let mut quadratic = 0.0;
-        for p in 0..rest {
-            let mut inner = 0.0;
-            for q in 0..rest {
-                inner += m_inverse[(p, q)] * zk[q];
-            }
-            quadratic += zk[p] * inner;
-        }
-        diagonal[k] = 1.0 / total[k] + quadratic;
-        row_sum[k] = 1.0 / total[k] + (0..rest).map(|p| zk[p] * m_zt_one[p]).sum::<f64>();
-    }
-    let n = faces as f64;
-    let grand = row_sum.iter().sum::<f64>();
-    let reference_variance = (0..faces)
-        .map(|k| (diagonal[k] - 2.0 * row_sum[k] / n + grand / (n * n)).max(0.0))
-        .collect();
+    let reference_variance = closed_reference_variance(&w, &total, &m_inverse);
     if complete && !keep {
         return Some(ClosedFit {
             reference,
@@ -291,6 +263,41 @@ fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit>
             faces,
         })),
     })
+}
+
+/// The variance of the closed reference at each position, the diagonal of P·A′⁻¹·P with
+/// A′⁻¹ = W⁻¹ + Z M′⁻¹ Zᵀ, Z_kp = w_{p+1,k}/W_k (module documentation), from the weights
+/// `w`, their totals W_k and M′⁻¹, without forming a K × K matrix.
+fn closed_reference_variance(w: &[Vec<f64>], total: &[f64], m_inverse: &DMatrix<f64>) -> Vec<f64> {
+    let (faces, rest) = (total.len(), m_inverse.nrows());
+    let z = |k: usize, p: usize| w[p + 1][k] / total[k];
+    let mut diagonal = vec![0.0; faces];
+    let mut row_sum = vec![0.0; faces]; // (A′⁻¹ 1)_k
+    let mut zt_one = vec![0.0; rest]; // Zᵀ 1
+    for k in 0..faces {
+        for (p, sum) in zt_one.iter_mut().enumerate() {
+            *sum += z(k, p);
+        }
+    }
+    let m_zt_one = m_inverse * DVector::from_column_slice(&zt_one);
+    for k in 0..faces {
+        let zk: Vec<f64> = (0..rest).map(|p| z(k, p)).collect();
+        let mut quadratic = 0.0;
+        for p in 0..rest {
+            let mut inner = 0.0;
+            for q in 0..rest {
+                inner += m_inverse[(p, q)] * zk[q];
+            }
+            quadratic += zk[p] * inner;
+        }
+        diagonal[k] = 1.0 / total[k] + quadratic;
+        row_sum[k] = 1.0 / total[k] + (0..rest).map(|p| zk[p] * m_zt_one[p]).sum::<f64>();
+    }
+    let n = faces as f64;
+    let grand = row_sum.iter().sum::<f64>();
+    (0..faces)
+        .map(|k| (diagonal[k] - 2.0 * row_sum[k] / n + grand / (n * n)).max(0.0))
+        .collect()
 }
 
 /// The results that report positions `reports[r][k]`, named `names[r]`, in the groups
