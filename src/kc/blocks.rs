@@ -21,7 +21,7 @@
 use std::collections::BTreeMap;
 
 use super::closed::ClosedFit;
-use super::input::{Aligned, Field, last_row, location, rows_of};
+use super::input::{Aligned, Field, last_row, location, rows_required};
 use super::{KcError, LabResult};
 use crate::results::Quantity;
 
@@ -86,14 +86,7 @@ pub(crate) fn pair_chi2(d: &[f64], variance: &[f64]) -> Option<(f64, usize)> {
 fn rows_by_block(results: &[&LabResult]) -> Result<BTreeMap<u32, Vec<Option<usize>>>, KcError> {
     let mut by_block: BTreeMap<u32, Vec<Option<usize>>> = BTreeMap::new();
     for (r, result) in results.iter().enumerate() {
-        let rows = rows_of(result, Quantity::AngleBlock);
-        if rows.is_empty() {
-            return Err(KcError::NoRows {
-                lab: result.name.clone(),
-                file: result.source.clone(),
-                quantity: Quantity::AngleBlock,
-            });
-        }
+        let rows = rows_required(result, Quantity::AngleBlock)?;
         for (i, row) in rows {
             let slot = by_block
                 .entry(row.index)

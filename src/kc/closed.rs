@@ -300,6 +300,33 @@ fn closed_reference_variance(w: &[Vec<f64>], total: &[f64], m_inverse: &DMatrix<
         .collect()
 }
 
+/// Results closed each over its own positions, put on one level for per-position
+/// estimates: each less its mean difference from `reference` over the positions it reports
+/// (`reports(r, k)`) where the reference is given — the constant its closure over other
+/// positions put in. Without it the spread at a position would count the laboratories'
+/// different closures (the truth's mean over different positions) as disagreement.
+pub(crate) fn levelled(
+    values: &[Vec<f64>],
+    reports: impl Fn(usize, usize) -> bool,
+    reference: &[f64],
+) -> Vec<Vec<f64>> {
+    values
+        .iter()
+        .enumerate()
+        .map(|(r, x)| {
+            let at: Vec<usize> = (0..x.len())
+                .filter(|&k| reports(r, k) && reference[k].is_finite())
+                .collect();
+            let offset = if at.is_empty() {
+                0.0
+            } else {
+                at.iter().map(|&k| x[k] - reference[k]).sum::<f64>() / at.len() as f64
+            };
+            x.iter().map(|x| x - offset).collect()
+        })
+        .collect()
+}
+
 /// The results that report positions `reports[r][k]`, named `names[r]`, in the groups
 /// connected by the positions they share, each as `{A, B}`, joined by " and "; `None` when
 /// they are one group.

@@ -105,6 +105,26 @@ pub fn evaluate(
     evaluate_aligned(labs, pilot, options, aligned, &covariances)
 }
 
+/// Refuses laboratories `among` (closed results at different positions) whose positions
+/// fall into groups that share none: results defined up to a constant cannot be put on one
+/// reference across them.
+fn connected(
+    labs: &[LabResult],
+    aligned: &Aligned,
+    among: &[usize],
+    quantity: Quantity,
+) -> Result<(), KcError> {
+    let (true, Some(measured)) = (aligned.closed, &aligned.measured) else {
+        return Ok(());
+    };
+    let names: Vec<&str> = among.iter().map(|&r| labs[r].name.as_str()).collect();
+    let rows: Vec<Vec<bool>> = among.iter().map(|&r| measured[r].clone()).collect();
+    match super::closed::groups_apart(&rows, &names) {
+        Some(groups) => Err(KcError::PositionsApart { quantity, groups }),
+        None => Ok(()),
+    }
+}
+
 /// Refuses a laboratory whose positions are compared too few times to be compared at all:
 /// none of its angle blocks, or fewer than two of its encoder positions (each reported by
 /// no other laboratory).
@@ -117,12 +137,8 @@ fn compared_enough(
         return Ok(());
     };
     let needed = if aligned.closed { 2 } else { 1 };
-    if aligned.closed {
-        let names: Vec<&str> = labs.iter().map(|l| l.name.as_str()).collect();
-        if let Some(groups) = super::closed::groups_apart(&measured[..labs.len()], &names) {
-            return Err(KcError::PositionsApart { quantity, groups });
-        }
-    }
+    let everyone: Vec<usize> = (0..labs.len()).collect();
+    connected(labs, aligned, &everyone, quantity)?;
     for (lab, reported) in labs.iter().zip(measured) {
         let compared = reported.iter().filter(|m| **m).count();
         if compared < needed {
@@ -146,7 +162,12 @@ fn estimates(
     u: &[Vec<f64>],
     inside: &[usize],
     method: ReferenceMethod,
+    fitted: &[f64],
 ) -> Vec<Estimate> {
+    // closed over different positions: on one level first (`closed::levelled`)
+    let levelled = (scaled.closed && scaled.measured.is_some())
+        .then(|| super::closed::levelled(&scaled.values, |r, k| scaled.is_measured(r, k), fitted));
+    let values = levelled.as_ref().unwrap_or(&scaled.values);
     (0..scaled.positions)
         .map(|k| {
             let reporting: Vec<usize> = inside
@@ -163,7 +184,7 @@ fn estimates(
                     tau: 0.0,
                 };
             }
-            let x: Vec<f64> = reporting.iter().map(|&r| scaled.values[r][k]).collect();
+            let x: Vec<f64> = reporting.iter().map(|&r| values[r][k]).collect();
             let u: Vec<f64> = reporting.iter().map(|&r| u[r][k]).collect();
             reference::estimate(&x, &u, method)
         })
@@ -203,6 +224,8 @@ fn evaluate_aligned(
     let kept = kept_in_reference(labs, options)?;
     // The laboratories that may be in the reference (all but those the pilot keeps out).
     let candidates = reference_candidates(labs, options, &kept)?;
+    // (a laboratory kept out of the reference may have been what linked the others)
+    connected(labs, &aligned, &candidates, options.quantity)?;
     let mut scaled = Scaled::of(labs, &aligned, covariances);
     let scale = scaled.scale;
     notes.extend(quantity_notes(options.quantity, wording));
@@ -253,10 +276,17 @@ fn evaluate_aligned(
     notes.extend(pilot_decision_notes(labs, &kept, &kept_out));
 
     // The reference: the closed GLS of the laboratories inside (with τ for DL).
-    let (tau, widened) = dark_uncertainty(&scaled, &judged_u, &candidates, &stated, options)?;
+    let (tau, widened) =
+        dark_uncertainty(&scaled, &judged_u, &candidates, &stated, options, &all_fit)?;
     let final_fit = scaled.fit(&inside, &widened).ok_or_else(not_fitted)?;
     let vector = vector_test(&final_fit, scale);
-    let found = estimates(&scaled, &judged_u, &inside, options.method);
+    let found = estimates(
+        &scaled,
+        &judged_u,
+        &inside,
+        options.method,
+        &final_fit.reference,
+    );
 
     // Degrees of equivalence against the closed reference: Σ_k d_ik = 0.
     let reference = Reference {
@@ -406,11 +436,12 @@ fn dark_uncertainty(
     candidates: &[usize],
     stated: &[ClosedCovariance],
     options: &KcOptions,
+    fit: &ClosedFit,
 ) -> Result<(Vec<f64>, Vec<ClosedCovariance>), KcError> {
     if !options.method.is_random_effects() {
         return Ok((vec![0.0; scaled.positions], stated.to_vec()));
     }
-    let tau: Vec<f64> = estimates(scaled, judged_u, candidates, options.method)
+    let tau: Vec<f64> = estimates(scaled, judged_u, candidates, options.method, &fit.reference)
         .iter()
         .map(|e| e.tau)
         .collect();

@@ -222,6 +222,22 @@ pub(super) fn rows_of(result: &LabResult, quantity: Quantity) -> Vec<(usize, &Re
         .collect()
 }
 
+/// The rows of `quantity` in `result` ([`rows_of`]), refused when it has none.
+pub(super) fn rows_required(
+    result: &LabResult,
+    quantity: Quantity,
+) -> Result<Vec<(usize, &ResultRow)>, KcError> {
+    let rows = rows_of(result, quantity);
+    if rows.is_empty() {
+        return Err(KcError::NoRows {
+            lab: result.name.clone(),
+            file: result.source.clone(),
+            quantity,
+        });
+    }
+    Ok(rows)
+}
+
 /// Lines up the pitch deviations: every result must have faces 1 … N, the same N. A
 /// result whose pitch deviations do not close beyond the rounding of its digits is noted
 /// (its mean is taken out), or refused when the misclosure is gross ([`super::closure`]).
@@ -259,13 +275,9 @@ pub(crate) fn faces(results: &[&LabResult], quantity: Quantity) -> Result<Aligne
     let mut faces_first: Option<(u32, &str)> = None;
     let (mut values, mut u, mut dof) = (Vec::new(), Vec::new(), Vec::new());
     for result in results {
-        let rows = rows_of(result, quantity);
+        let rows = rows_required(result, quantity)?;
         let Some(&(last_at, _)) = rows.iter().max_by_key(|(_, row)| row.index) else {
-            return Err(KcError::NoRows {
-                lab: result.name.clone(),
-                file: result.source.clone(),
-                quantity,
-            });
+            continue;
         };
         let faces = result.rows[last_at].index;
         let mut by_face: BTreeMap<u32, usize> = BTreeMap::new();
@@ -394,14 +406,7 @@ fn position_groups(results: &[&LabResult], by_angle: bool) -> Result<Vec<Group>,
     // Every (key, result, row), sorted by key.
     let mut all: Vec<(f64, usize, usize)> = Vec::new();
     for (r, result) in results.iter().enumerate() {
-        let rows = rows_of(result, Quantity::EncoderError);
-        if rows.is_empty() {
-            return Err(KcError::NoRows {
-                lab: result.name.clone(),
-                file: result.source.clone(),
-                quantity: Quantity::EncoderError,
-            });
-        }
+        let rows = rows_required(result, Quantity::EncoderError)?;
         for (i, row) in rows {
             let key = match (by_angle, row.angle_deg) {
                 (true, Some(angle)) if angle >= 360.0 - ANGLE_TOLERANCE_DEG => angle - 360.0,

@@ -37,10 +37,27 @@ use super::link::{doe, doe_covariance, standard_u};
 use super::{DegreeOfEquivalence, KcError, KeyComparison, VectorTest};
 
 /// s = √(N/(N − 1)) of a degree of equivalence closed over the N positions it reports: its
-/// closed covariance opened back to independent positions.
-fn opening(d: &DegreeOfEquivalence) -> f64 {
-    let n = d.d.iter().filter(|x| x.is_finite()).count().max(2) as f64;
-    (n / (n - 1.0)).sqrt()
+/// closed covariance opened back to independent positions (`None` for fewer than two: no
+/// closed vector).
+fn opening(d: &DegreeOfEquivalence) -> Option<f64> {
+    let n = d.d.iter().filter(|x| x.is_finite()).count();
+    (n >= 2).then(|| (n as f64 / (n as f64 - 1.0)).sqrt())
+}
+
+/// The openings of the linking laboratories' degrees of equivalence `of` in one
+/// comparison, refused for one that gives fewer than two positions.
+fn openings(of: &[&DegreeOfEquivalence]) -> Result<Vec<f64>, KcError> {
+    of.iter()
+        .map(|d| {
+            opening(d).ok_or_else(|| {
+                KcError::Link(format!(
+                    "the linking laboratory {} gives fewer than two positions in a \
+                     comparison: no closed vector to link through",
+                    d.lab
+                ))
+            })
+        })
+        .collect()
 }
 
 /// Position `k` of `kc` in words: its table angle, or its index.
@@ -145,8 +162,8 @@ pub(super) fn solve(
     let l = labs.len();
     let here = degrees(this, labs)?;
     let there = degrees(linked, labs)?;
-    let open_here: Vec<f64> = here.iter().map(|d| opening(d)).collect();
-    let open_there: Vec<f64> = there.iter().map(|d| opening(d)).collect();
+    let open_here = openings(&here)?;
+    let open_there = openings(&there)?;
     let reporting_at = reporting(this, &here, &there, labs)?;
     let size = l + 1;
     let mut m = DMatrix::<f64>::zeros(size, size);
@@ -235,7 +252,10 @@ impl Solved {
         let positions = self.at.len();
         let own: Vec<usize> = (0..positions).filter(|&k| d.d[k].is_finite()).collect();
         let n_own = own.len() as f64;
-        let open = opening(d);
+        let Some(open) = opening(d) else {
+            // no closed vector: nothing to give against the linked reference
+            return (vec![f64::NAN; positions], vec![f64::NAN; positions]);
+        };
         let size = self.m_inverse.nrows();
         // ρ_p = 1ᵀW_p c_p and κ_p = E_pᵀW_p c_p, c_p = D_p(this)[i, ·] the opened covariance
         // of d with the linking laboratories at p

@@ -97,22 +97,27 @@ impl Formed {
             .zip(&self.variances[b])
             .map(|(v_a, v_b)| v_a + v_b)
             .collect();
-        let common: Vec<usize> = (0..d.len())
-            .filter(|&k| d[k].is_finite() && sum_d[k].is_finite())
+        let common: Vec<bool> = (0..d.len())
+            .map(|k| d[k].is_finite() && sum_d[k].is_finite())
             .collect();
-        let m = common.len() as f64;
-        let mean = common.iter().map(|&k| d[k]).sum::<f64>() / m.max(1.0);
-        let total: f64 = common.iter().map(|&k| sum_d[k]).sum();
+        let count = common.iter().filter(|c| **c).count();
+        let m = count as f64;
+        let mean = (0..d.len())
+            .filter(|&k| common[k])
+            .map(|k| d[k])
+            .sum::<f64>()
+            / m.max(1.0);
+        let total: f64 = (0..d.len()).filter(|&k| common[k]).map(|k| sum_d[k]).sum();
         let mut expanded_u = vec![f64::NAN; d.len()];
-        for &k in &common {
-            d[k] -= mean;
+        for (k, d) in d.iter_mut().enumerate() {
+            // closed over one common position a difference is 0 by construction: not given
+            if !common[k] || count < 2 {
+                *d = f64::NAN;
+                continue;
+            }
+            *d -= mean;
             let v = sum_d[k] * (1.0 - 2.0 / m) + total / (m * m);
             expanded_u[k] = 2.0 * v.max(0.0).sqrt() * scale;
-        }
-        for (k, d) in d.iter_mut().enumerate() {
-            if !common.contains(&k) {
-                *d = f64::NAN;
-            }
         }
         PairDifference {
             a: self.labs[a].clone(),

@@ -290,6 +290,15 @@ impl Scaled<'_> {
         if m == fitted && m == reported {
             return None;
         }
+        if m < 2 {
+            // closed over one position d is 0 by construction: not given
+            let none = vec![f64::NAN; d.len()];
+            return Some(OwnPositions {
+                d: none.clone(),
+                variance: none.clone(),
+                reference_variance: none,
+            });
+        }
         let mean = (0..d.len()).filter(|&k| both[k]).map(|k| d[k]).sum::<f64>() / m as f64;
         let n = reported as f64;
         let c = n / (n - 1.0);

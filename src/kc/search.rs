@@ -38,7 +38,8 @@ pub struct SearchStep {
     pub chi2: f64,
     /// ν = (N − 1)(size − 1).
     pub dof: usize,
-    /// χ²_0.95(ν).
+    /// χ²_0.95(ν) (`null` in a JSON read as +∞, as the tests' quantiles are).
+    #[serde(deserialize_with = "super::nullable::quantile")]
     pub chi2_critical: f64,
     /// Whether it passes (χ² ≤ χ²_0.95(ν)): the first step that passes ends the search.
     pub consistent: bool,
@@ -126,12 +127,15 @@ fn for_each_subset(free: &[usize], k: usize, mut visit: impl FnMut(&[usize])) {
 
 /// The largest subset of `labs` laboratories (every one in `kept` included) whose closed
 /// vector `fit` passes at 5 %, searched from n − 1 down; `names` name them in the steps.
-/// `fit` returns `None` for a subset that cannot be fitted (it is passed over).
+/// `fit` returns `None` for a subset that cannot be fitted (it is passed over); a subset
+/// with no degree of freedom (laboratories that share too few positions) is no test and is
+/// passed over too, never taken as passing.
 pub(crate) fn largest_consistent(
     names: &[String],
     kept: &[usize],
     fit: &dyn Fn(&[usize]) -> Option<ClosedFit>,
 ) -> Found {
+    let fit = |subset: &[usize]| fit(subset).filter(|f| f.dof > 0);
     let labs = names.len();
     let free: Vec<usize> = (0..labs).filter(|r| !kept.contains(r)).collect();
     let mut steps = Vec::new();

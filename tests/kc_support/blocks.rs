@@ -199,7 +199,8 @@ pub fn block_largest_subset(x: &[Vec<Option<f64>>], u: &[Vec<f64>]) -> Vec<usize
                     p > q || (p == q && fit.chi2 < b.chi2)
                 }
             };
-            if passes(&fit) && best.as_ref().is_none_or(|(b, _)| better(b)) {
+            // (no degree of freedom: no test, passed over)
+            if fit.dof > 0 && passes(&fit) && best.as_ref().is_none_or(|(b, _)| better(b)) {
                 best = Some((fit, set));
             }
         }

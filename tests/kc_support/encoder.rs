@@ -298,7 +298,8 @@ pub fn largest_subset(data: &Encoder) -> Vec<usize> {
                 continue;
             }
             let set: Vec<usize> = (0..labs).filter(|&r| mask & (1 << r) != 0).collect();
-            let Some(f) = subset_gls(data, &set) else {
+            // (no degree of freedom: no test, passed over)
+            let Some(f) = subset_gls(data, &set).filter(|f| f.dof > 0) else {
                 continue;
             };
             if passes(&f) && best.as_ref().is_none_or(|(_, b)| better(&f, b)) {

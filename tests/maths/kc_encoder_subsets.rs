@@ -87,14 +87,22 @@ fn check_against_dense(kc: &KeyComparison, data: &Encoder, candidates: &[usize],
             fit.covariance[(k, k)].sqrt(),
             &format!("u_ref at {k}"),
         );
-        // the per-position χ² (information): the weighted mean of the closed values of
-        // the laboratories inside that report k
+        // the per-position χ² (information): the weighted mean of the values of the
+        // laboratories inside that report k, each closed over its own positions and put
+        // on the reference's level (less its mean difference from x_ref there)
         let (mut sw, mut swx) = (0.0, 0.0);
         let mut reporting = Vec::new();
         for &i in inside {
             if data.x[i][k].is_some() {
                 let s = data.reported(i);
-                let x = data.closed(i)[s.iter().position(|&q| q == k).unwrap()];
+                let closed = data.closed(i);
+                let level = s
+                    .iter()
+                    .zip(&closed)
+                    .map(|(&q, x)| x - fit.reference[q])
+                    .sum::<f64>()
+                    / s.len() as f64;
+                let x = closed[s.iter().position(|&q| q == k).unwrap()] - level;
                 let w = 1.0 / data.u[i][k].powi(2);
                 sw += w;
                 swx += w * x;
@@ -682,6 +690,45 @@ fn kc_encoder_subsets_monte_carlo_u_is_the_formulas() {
                     );
                 }
             }
+        }
+    }
+}
+
+/// Laboratories that agree exactly, each with its own zero, reporting different positions
+/// of a large encoder error: on one level (each less its mean difference from the
+/// reference over its own positions) they coincide, so every per-position χ² is 0 and
+/// DerSimonian–Laird's and Mandel–Paule's τ are 0 — not the spread of the truth's means
+/// over the laboratories' different positions (about 1″ here), which closing each over
+/// its own positions would put between them.
+#[test]
+fn kc_encoder_subsets_per_position_estimates_are_levelled() {
+    let angles = [0.0, 60.0, 120.0, 180.0, 240.0, 300.0];
+    let lab = |name: &str, zero: f64, missing: &[f64]| {
+        let kept: Vec<f64> = angles
+            .iter()
+            .copied()
+            .filter(|a| !missing.contains(a))
+            .collect();
+        let values: Vec<f64> = kept
+            .iter()
+            .map(|a| 2.0 * a.to_radians().sin() + zero)
+            .collect();
+        at(name, &kept, &values)
+    };
+    let labs = [
+        lab("A", 1.0, &[]),
+        lab("B", -3.0, &[60.0]),
+        lab("C", 5.0, &[180.0, 240.0]),
+        lab("D", 0.5, &[0.0]),
+    ];
+    for method in [ReferenceMethod::DersimonianLaird, ReferenceMethod::MandelPaule] {
+        let kc = evaluate(&labs, &[], &everyone().with_method(method)).unwrap();
+        assert!(kc.chi2.iter().all(|c| c.abs() < 1e-18), "{:?}", kc.chi2);
+        assert!(kc.tau.iter().all(|t| *t == 0.0), "{method:?}: {:?}", kc.tau);
+        // the reference is the truth less its mean (2 sin over the six angles sums to 0)
+        for (k, a) in angles.iter().enumerate() {
+            let truth = 2.0 * a.to_radians().sin();
+            assert!((kc.reference[k] - truth).abs() < 1e-12, "{k}");
         }
     }
 }

@@ -181,48 +181,53 @@ fn linked_columns(
     let Some(link) = &kc.link else {
         return Ok(());
     };
-    let pair = |values: &[f64], u: &[f64], factor: f64| {
-        let (shown, value) = given(labels, |k| {
-            Some(values[k]).filter(|_| u.get(k).is_some_and(|u| u.is_finite()))
-        });
-        let expanded: Vec<f64> = (0..labels.len())
+    // a value and its U where both are given (a position a laboratory does not report,
+    // or a block no laboratory links, has neither)
+    let column = |x: &mut Xml, refs: &str, name: &str, values: &[f64], u: &[f64], factor: f64| {
+        let shown: Vec<usize> = (0..labels.len())
             .filter(|&k| crate::kc::is_given(values[k]) && u.get(k).is_some_and(|u| u.is_finite()))
-            .map(|k| factor * u[k])
             .collect();
-        (shown, value, expanded)
+        Column {
+            refs,
+            name,
+            unit: "\\arcsecond",
+            labels: Some(shown.iter().map(|&k| labels[k].clone()).collect()),
+            values: shown.iter().map(|&k| values[k]).collect(),
+            expanded: Some((
+                shown.iter().map(|&k| factor * u[k]).collect(),
+                vec![K; shown.len()],
+                P,
+            )),
+            form: Form::Real,
+        }
+        .write(x)
     };
-    let (shown, value, expanded) = pair(&link.correction, &link.correction_u, K);
-    Column {
-        refs: "polycal_kcLinkCorrection",
-        name: &format!(
+    column(
+        x,
+        "polycal_kcLinkCorrection",
+        &format!(
             "Correction Δ to the linked reference, through {}",
             link.labs.join(", ")
         ),
-        unit: "\\arcsecond",
-        labels: Some(shown),
-        values: value,
-        expanded: Some((expanded.clone(), vec![K; expanded.len()], P)),
-        form: Form::Real,
-    }
-    .write(x)?;
+        &link.correction,
+        &link.correction_u,
+        K,
+    )?;
     for doe in section.shown_degrees_of_equivalence() {
         let (Some(d), Some(u)) = (&doe.d_linked, &doe.expanded_u_linked) else {
             continue;
         };
-        let (shown, value, expanded) = pair(d, u, 1.0);
-        Column {
-            refs: "polycal_kcDegreeOfEquivalenceLinked",
-            name: &format!(
+        column(
+            x,
+            "polycal_kcDegreeOfEquivalenceLinked",
+            &format!(
                 "Degree of equivalence of laboratory {} against the linked reference",
                 doe.lab
             ),
-            unit: "\\arcsecond",
-            labels: Some(shown),
-            values: value,
-            expanded: Some((expanded.clone(), vec![K; expanded.len()], P)),
-            form: Form::Real,
-        }
-        .write(x)?;
+            d,
+            u,
+            1.0,
+        )?;
     }
     Ok(())
 }
