@@ -20,8 +20,8 @@ The contract (JSON names, the one decision at 5 %, the largest consistent subset
 closed vector, the pilot's repeats): docs/FORMAT.md §12 (Key comparisons). Status 0
 consistent (the closed vector of every laboratory passes, or a subset passes after the
 stated exclusions), 1 not consistent, 2 an input refused. Without --quantity every quantity
-the files share is compared (pitch_deviation, encoder_error), status 1 when any is not
-consistent.
+the files share is compared (pitch_deviation, encoder_error, angle_block), status 1 when
+any is not consistent.
 
 Examples:
   polycal kc A=examples/data/kc/A.csv B=examples/data/kc/B.csv C=examples/data/kc/C.csv
@@ -390,8 +390,11 @@ fn evaluate_each(
                 0 => e,
                 _ => e.context(format!("the comparison of {quantity}")),
             })?;
-        if let Some(linked) = linked {
-            polycal::kc::link(&mut kc, linked)?;
+        match linked {
+            Some(linked) => polycal::kc::link(&mut kc, linked)?,
+            // --link names comparisons, none of this quantity
+            None if links.iter().any(Option::is_some) => polycal::kc::note_not_linked(&mut kc),
+            None => {}
         }
         comparisons.push(kc);
     }

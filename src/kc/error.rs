@@ -103,8 +103,12 @@ pub enum KcError {
         /// Its index.
         index: u32,
     },
-    /// No encoder error position is in every result.
-    #[error("no encoder error position is in every result: nothing to compare")]
+    /// No position (encoder angle or angle block) is compared: none is reported by two
+    /// laboratories (comparing results: by every result).
+    #[error(
+        "no position is compared: none is reported by two laboratories (comparing results: by \
+         every result); nothing to compare"
+    )]
     NothingInCommon,
     /// A file that is not a solve result in JSON.
     #[error("{file}: not a solve result in JSON (docs/FORMAT.md §5.1): {message}")]
@@ -295,11 +299,13 @@ pub enum KcError {
         position: String,
     },
     /// A laboratory none (or, for a closed vector, fewer than two) of whose positions is
-    /// compared: each one it reports is reported by no other laboratory.
+    /// compared: a position counts where another laboratory reports it too, and a result
+    /// closed over one position holds no difference.
     #[error(
         "{file} (laboratory {lab}): {compared} of its {quantity} positions compared, fewer \
-         than {needed}: each one it reports is reported by no other laboratory, so it cannot \
-         be compared; leave it out of the comparison of {quantity}"
+         than {needed} (a position counts where another laboratory reports it too; a result \
+         closed over one position holds no difference), so it cannot be compared; leave it \
+         out of the comparison of {quantity}"
     )]
     LabNotCompared {
         /// The laboratory.

@@ -149,6 +149,20 @@ pub enum KeyComparisonShapeError {
         /// The number of compared quantities.
         quantities: usize,
     },
+    /// A number `null` (not given) where the number it goes with is given: a U beside a
+    /// d, a u_ref beside a reference value.
+    #[error(
+        "{list} is null at position {position} where {beside} is given: a value without its \
+         uncertainty (or one without its value)"
+    )]
+    NotGivenBeside {
+        /// The list with the null.
+        list: String,
+        /// The position, from 1.
+        position: usize,
+        /// The list whose number is given there.
+        beside: String,
+    },
     /// A degree of equivalence of a laboratory that is not in the comparison.
     #[error(
         "a degree of equivalence of {lab:?}, which is not among the laboratories ({})",
@@ -182,10 +196,22 @@ pub(crate) fn check_shape(kc: &KeyComparison) -> Result<(), KeyComparisonShapeEr
     if let Some(angles) = &kc.angle_deg {
         lists.push(("angle_deg".into(), angles.len()));
     }
+    if let Some(nominal) = &kc.nominal_deg {
+        lists.push(("nominal_deg".into(), nominal.len()));
+    }
     let pilot_doe = kc.pilot.iter().flat_map(|p| &p.degrees_of_equivalence);
-    for d in kc.degrees_of_equivalence.iter().chain(pilot_doe) {
+    for d in kc.degrees_of_equivalence.iter().chain(pilot_doe.clone()) {
         lists.push((format!("d of {}", d.lab), d.d.len()));
         lists.push((format!("U of {}", d.lab), d.expanded_u.len()));
+        for (what, list) in [
+            ("k", &d.k),
+            ("d_linked", &d.d_linked),
+            ("U_linked", &d.expanded_u_linked),
+        ] {
+            if let Some(list) = list {
+                lists.push((format!("{what} of {}", d.lab), list.len()));
+            }
+        }
     }
     if let Some(p) = &kc.pilot {
         for (what, len) in [
@@ -204,6 +230,43 @@ pub(crate) fn check_shape(kc: &KeyComparison) -> Result<(), KeyComparisonShapeEr
             len,
             quantities: n,
         });
+    }
+    // a value and its uncertainty are given together or not at all
+    let mut pairs: Vec<(String, &[f64], String, &[f64])> = vec![(
+        "reference".into(),
+        &kc.reference,
+        "reference_u".into(),
+        &kc.reference_u,
+    )];
+    for d in kc.degrees_of_equivalence.iter().chain(pilot_doe) {
+        pairs.push((
+            format!("d of {}", d.lab),
+            &d.d,
+            format!("U of {}", d.lab),
+            &d.expanded_u,
+        ));
+        if let (Some(v), Some(u)) = (&d.d_linked, &d.expanded_u_linked) {
+            pairs.push((
+                format!("d_linked of {}", d.lab),
+                v,
+                format!("U_linked of {}", d.lab),
+                u,
+            ));
+        }
+    }
+    for (value_list, values, u_list, us) in pairs {
+        if let Some(k) = (0..n).find(|&k| values[k].is_finite() != us[k].is_finite()) {
+            let (list, beside) = if values[k].is_finite() {
+                (u_list, value_list)
+            } else {
+                (value_list, u_list)
+            };
+            return Err(KeyComparisonShapeError::NotGivenBeside {
+                list,
+                position: k + 1,
+                beside,
+            });
+        }
     }
     if let Some(d) = kc
         .degrees_of_equivalence
@@ -297,6 +360,24 @@ mod tests {
         let e = read_json_lines(short.as_bytes(), "kc.json").unwrap_err();
         assert!(
             e.to_string().starts_with("kc.json:2:1: tau has 2 entries"),
+            "{e}"
+        );
+        // a U null beside a given d, a reference given without its u: refused, named
+        let mut value: serde_json::Value = serde_json::from_str(second).unwrap();
+        value["degrees_of_equivalence"][1]["U"][2] = serde_json::Value::Null;
+        let e = read_json_lines(format!("{first}\n{value}\n").as_bytes(), "kc.json").unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("kc.json:2:1: U of B is null at position 3 where d of B is given"),
+            "{e}"
+        );
+        let mut value: serde_json::Value = serde_json::from_str(second).unwrap();
+        value["reference_u"][0] = serde_json::Value::Null;
+        let e = read_json_lines(format!("{first}\n{value}\n").as_bytes(), "kc.json").unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "kc.json:2:1: reference_u is null at position 1 where reference is given"
+            ),
             "{e}"
         );
         // nothing: serde's end of file, as read_json says it

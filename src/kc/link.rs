@@ -63,6 +63,16 @@ impl Link {
     }
 }
 
+/// Says in `kc`'s notes that it is not linked: the comparisons it was to be linked to hold
+/// none of its quantity (its degrees of equivalence are against its own reference only).
+pub fn note_not_linked(kc: &mut KeyComparison) {
+    kc.notes.push(format!(
+        "not linked: the linked comparisons hold none of {}; the degrees of equivalence are \
+         against this comparison's own reference only",
+        kc.quantity
+    ));
+}
+
 /// Why a link through `linking` laboratories has no test.
 fn untested_reason(linking: usize) -> &'static str {
     if linking == 1 {

@@ -95,7 +95,7 @@ pub use error::KcError;
 pub use evaluate::evaluate;
 pub use input::MIN_STANDARD_U_ARCSEC;
 pub use json::{KcJsonError, KeyComparisonShapeError, read_json, read_json_lines};
-pub use link::{Link, link};
+pub use link::{Link, link, note_not_linked};
 pub use nullable::is_given;
 pub use pairs::{Pairs, PairsIter};
 pub use reference::chi2_text;

@@ -485,3 +485,47 @@ fn report_of_a_json_lines_file_has_every_section() {
         "{line}"
     );
 }
+
+/// Without `--quantity`, a `--link` file that holds only the encoder errors' comparison
+/// links those, and the pitch deviations' and the angle blocks' comparisons say in a note
+/// that they are not linked (not silently left unlinked).
+#[test]
+fn kc_shared_a_quantity_the_link_file_lacks_is_said_not_linked() {
+    let dir = temp_dir("kc-shared", "link-one-quantity");
+    let out = kc(
+        &labs(&["A", "B", "C", "D"]),
+        &["--quantity", "encoder_error", "--format", "json"],
+    );
+    let cipm = dir.join("cipm.json");
+    std::fs::write(&cipm, &out.stdout).unwrap();
+    let out = kc(
+        &labs(&["B", "C", "E", "F"]),
+        &["--link", cipm.to_str().unwrap(), "--format", "json"],
+    );
+    assert!(
+        out.status.code().is_some_and(|c| c <= 1),
+        "{}",
+        stdout(&out)
+    );
+    let lines: Vec<Value> = stdout(&out)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 3);
+    for kc in &lines {
+        let quantity = kc["quantity"].as_str().unwrap();
+        let notes = kc["notes"].to_string();
+        if quantity == "encoder_error" {
+            assert_eq!(kc["link"]["labs"], serde_json::json!(["B", "C"]));
+            assert!(!notes.contains("not linked"), "{notes}");
+        } else {
+            assert!(kc.get("link").is_none(), "{quantity}");
+            assert!(
+                notes.contains(&format!(
+                    "not linked: the linked comparisons hold none of {quantity}"
+                )),
+                "{notes}"
+            );
+        }
+    }
+}

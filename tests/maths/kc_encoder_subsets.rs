@@ -721,7 +721,10 @@ fn kc_encoder_subsets_per_position_estimates_are_levelled() {
         lab("C", 5.0, &[180.0, 240.0]),
         lab("D", 0.5, &[0.0]),
     ];
-    for method in [ReferenceMethod::DersimonianLaird, ReferenceMethod::MandelPaule] {
+    for method in [
+        ReferenceMethod::DersimonianLaird,
+        ReferenceMethod::MandelPaule,
+    ] {
         let kc = evaluate(&labs, &[], &everyone().with_method(method)).unwrap();
         assert!(kc.chi2.iter().all(|c| c.abs() < 1e-18), "{:?}", kc.chi2);
         assert!(kc.tau.iter().all(|t| *t == 0.0), "{method:?}: {:?}", kc.tau);
