@@ -51,8 +51,9 @@ fn not_json(name: &str, e: &serde_json::Error) -> KcJsonError {
     // serde's message without its position, which the location states
     let text = e.to_string();
     let position = format!(" at line {} column {}", e.line(), e.column());
+    // (serde's end of file is column 0 of the line after: its first column)
     KcJsonError::NotJson {
-        location: Location::new(name, e.line() as u64, e.column() as u64),
+        location: Location::new(name, e.line().max(1) as u64, e.column().max(1) as u64),
         message: format!(
             "not the JSON of `polycal kc --format json` (docs/FORMAT.md §12): {}",
             text.strip_suffix(&position).unwrap_or(&text)
@@ -82,19 +83,28 @@ pub fn read_json_lines(bytes: &[u8], name: &str) -> Result<Vec<KeyComparison>, K
     let mut stream = serde_json::Deserializer::from_slice(bytes).into_iter::<KeyComparison>();
     let mut end = 0;
     while let Some(next) = stream.next() {
-        let comparison = next.map_err(|e| not_json(name, &e))?;
         let start = end
             + bytes[end..]
                 .iter()
                 .take_while(|b| b.is_ascii_whitespace())
                 .count();
-        end = stream.byte_offset();
         let line_start = bytes[..start]
             .iter()
             .rposition(|&b| b == b'\n')
             .map_or(0, |i| i + 1);
         let line = 1 + bytes[..start].iter().filter(|&&b| b == b'\n').count();
         let at = Location::new(name, line as u64, (start - line_start + 1) as u64);
+        let comparison = next.map_err(|e| match e.is_eof() {
+            // cut short: at the object that is not ended
+            true => KcJsonError::NotJson {
+                location: at.clone(),
+                message: "not the JSON of `polycal kc --format json` (docs/FORMAT.md §12): the \
+                          object that begins here ends with the file, unfinished"
+                    .to_string(),
+            },
+            false => not_json(name, &e),
+        })?;
+        end = stream.byte_offset();
         if let Some((_, first)) = comparisons
             .iter()
             .find(|(c, _)| c.quantity == comparison.quantity)
@@ -378,6 +388,14 @@ mod tests {
             e.to_string().starts_with(
                 "kc.json:2:1: reference_u is null at position 1 where reference is given"
             ),
+            "{e}"
+        );
+        // the second object cut short: at the line and column where it begins
+        let cut = format!("{first}\n  {}\n", &second[..second.len() / 2]);
+        let e = read_json_lines(cut.as_bytes(), "kc.json").unwrap_err();
+        assert!(
+            e.to_string().starts_with("kc.json:2:3: not the JSON")
+                && e.to_string().contains("ends with the file, unfinished"),
             "{e}"
         );
         // nothing: serde's end of file, as read_json says it

@@ -207,12 +207,24 @@ fn linking_labs(this: &KeyComparison, linked: &KeyComparison) -> Result<Vec<Stri
                     apart.min(360.0 - apart) <= crate::results::ANGLE_TOLERANCE_DEG
                 })
         }
-        (None, None) => this.index == linked.index,
+        // blocks (or faces) by number, and a block's nominal angle where both state it
+        (None, None) => {
+            this.index == linked.index
+                && match (&this.nominal_deg, &linked.nominal_deg) {
+                    (Some(a), Some(b)) => a.iter().zip(b).all(|(a, b)| match (a, b) {
+                        (Some(a), Some(b)) => (a - b).abs() <= 1e-9,
+                        _ => true,
+                    }),
+                    _ => true,
+                }
+        }
         _ => false,
     };
     if !same_positions {
         return Err(KcError::Link(
-            "the two comparisons are not of the same positions (faces, or table angles)".into(),
+            "the two comparisons are not of the same positions (faces, table angles, or angle \
+             blocks and their nominal angles)"
+                .into(),
         ));
     }
     let labs: Vec<String> = this

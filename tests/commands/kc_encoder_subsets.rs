@@ -183,6 +183,12 @@ fn kc_encoder_subsets_refusals_are_one_error_line() {
     assert_eq!(out.status.code(), Some(0));
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(json["notes"].to_string().contains("Monte Carlo"));
+    // B's U drawn where it reports, null where it does not (60°, 240°)
+    let b_u = json["degrees_of_equivalence"][1]["U"].as_array().unwrap();
+    for (p, u) in b_u.iter().enumerate() {
+        assert_eq!(u.is_null(), p == 1 || p == 4, "{p}: {u}");
+        assert!(u.is_null() || u.as_f64().unwrap() > 0.0, "{p}: {u}");
+    }
 
     // a pilot's repeat without 180°: at its last encoder_error row (line 6), its index
     let start = write(
@@ -333,7 +339,8 @@ fn kc_encoder_subsets_the_table_states_the_dof_it_used() {
     let out = run(&three_labs(&dir), &[]);
     status(&out, 0);
     let table = String::from_utf8(out.stdout).unwrap();
-    assert!(table.contains("χ²_0.95(8)"), "{table}");
+    assert!(table.contains("ν = Σ N_i − n − (N − 1) = 8"), "{table}");
+    assert!(table.contains("χ²_0.95(ν) = "), "{table}");
     assert!(!table.contains("ν = (N − 1)(n − 1) = 8"), "{table}");
 }
 
@@ -349,6 +356,10 @@ fn kc_encoder_subsets_the_pairs_line_states_each_pairs_dof() {
         .lines()
         .find(|l| l.starts_with("Pairs:"))
         .unwrap_or_else(|| panic!("{table}"));
+    assert!(
+        line.contains("over the M positions both report (ν = M − 1;"),
+        "{line}"
+    );
     assert!(!line.contains("(ν = 3;"), "{line}");
 }
 

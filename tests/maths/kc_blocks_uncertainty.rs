@@ -281,3 +281,30 @@ fn kc_blocks_monte_carlo_u_is_the_formulas_for_the_weighted_mean() {
         }
     }
 }
+
+/// Two comparisons whose block 2 has different nominal angles (15° here, 30° there) are
+/// not of the same artefact's blocks: refused; with the same nominal angles, linked.
+#[test]
+fn kc_blocks_a_link_between_different_nominal_angles_is_refused() {
+    let lab = |name: &str, shift: f64, nominal_2: f64| {
+        let rows = [(1, 0.1, 10.0), (2, -0.2, nominal_2), (3, 0.05, 45.0)]
+            .iter()
+            .map(|&(b, x, nominal)| {
+                ResultRow::new(Quantity::AngleBlock, b, x + shift)
+                    .with_u(0.05)
+                    .with_nominal_deg(nominal)
+            })
+            .collect();
+        LabResult::from_rows(name, rows)
+    };
+    let options = polycal::kc::KcOptions::new().with_quantity(Quantity::AngleBlock);
+    let cipm = evaluate(&[lab("A", 0.0, 15.0), lab("B", 0.02, 15.0)], &[], &options).unwrap();
+    let other = evaluate(&[lab("A", 0.0, 30.0), lab("C", 0.01, 30.0)], &[], &options).unwrap();
+    let mut rmo = other.clone();
+    let e = link(&mut rmo, &cipm).unwrap_err();
+    assert!(e.to_string().contains("not of the same positions"), "{e}");
+    let same = evaluate(&[lab("A", 0.0, 15.0), lab("C", 0.01, 15.0)], &[], &options).unwrap();
+    let mut rmo = same;
+    link(&mut rmo, &cipm).unwrap();
+    assert_eq!(rmo.link.unwrap().labs, ["A"]);
+}

@@ -11,7 +11,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::kc_support::encoder::{
-    Design, Encoder, angle_of, degree_of_equivalence, draw, largest_subset, pair_test, subset_gls,
+    Design, Encoder, angle_of, degree_of_equivalence, draw, largest_subset, pair_covariance,
+    pair_test, subset_gls,
 };
 use polycal::kc::{KcError, KcOptions, KeyComparison, LabResult, ReferenceMethod, evaluate, link};
 use polycal::results::{Quantity, ResultRow, read_results_from};
@@ -517,6 +518,15 @@ fn kc_encoder_subsets_dersimonian_laird_verdict_is_vector_all() {
         .unwrap();
         let all = wm.vector_all.as_ref().unwrap();
         assert_eq!(dl.vector_all.as_ref(), Some(all));
+        // the test of τ = 0 is the dense GLS's of every laboratory
+        let everyone: Vec<usize> = (0..data.names.len()).collect();
+        let dense = subset_gls(&data, &everyone).unwrap();
+        close(all.chi2, dense.chi2, "vector_all χ²");
+        assert_eq!(all.dof, dense.dof);
+        assert_eq!(
+            all.consistent,
+            dense.chi2 <= crate::kc_support::critical(dense.dof)
+        );
         assert_eq!(dl.comparison_consistent, all.consistent);
         assert!(dl.excluded.is_empty());
         assert!(dl.reference.iter().all(|r| r.is_finite()));
@@ -656,39 +666,39 @@ fn kc_encoder_subsets_monte_carlo_u_is_the_formulas() {
     let mut rng = ChaCha8Rng::seed_from_u64(9107);
     for trial in 0..3 {
         let data = random_design(&mut rng, trial);
-        let formula = evaluate(&data.results(), &[], &everyone()).unwrap();
         let drawn = evaluate(&data.results(), &[], &everyone().with_monte_carlo(20_000)).unwrap();
-        for (f, m) in formula
-            .degrees_of_equivalence
-            .iter()
-            .zip(&drawn.degrees_of_equivalence)
-        {
-            for (k, (u_f, u_m)) in f.expanded_u.iter().zip(&m.expanded_u).enumerate() {
-                assert_eq!(u_f.is_nan(), u_m.is_nan(), "{} at {k}", f.lab);
-                if u_f.is_finite() {
-                    let ratio = u_m / u_f;
-                    assert!((ratio - 1.0).abs() < 0.05, "{} at {k}: {ratio}", f.lab);
-                }
+        // the formulas, from the dense GLS of every laboratory written in kc_support
+        let everyone_in: Vec<usize> = (0..data.names.len()).collect();
+        let fit = subset_gls(&data, &everyone_in).unwrap();
+        let ratio_ok = |u_m: f64, u_f: f64, what: &str| {
+            assert_eq!(u_f.is_nan(), u_m.is_nan(), "{what}");
+            if u_f.is_finite() {
+                let ratio = u_m / u_f;
+                assert!((ratio - 1.0).abs() < 0.05, "{what}: {ratio}");
+            }
+        };
+        for (i, m) in drawn.degrees_of_equivalence.iter().enumerate() {
+            let (_, u_dense) = degree_of_equivalence(&data, &fit, i, true);
+            for (k, (&u_f, &u_m)) in u_dense.iter().zip(&m.expanded_u).enumerate() {
+                ratio_ok(u_m, u_f, &format!("{} at {k}", m.lab));
             }
         }
-        for (u_f, u_m) in formula.reference_u.iter().zip(&drawn.reference_u) {
-            assert!((u_m / u_f - 1.0).abs() < 0.05, "u_ref {u_m} vs {u_f}");
+        for (k, &u_m) in drawn.reference_u.iter().enumerate() {
+            ratio_ok(u_m, fit.covariance[(k, k)].sqrt(), &format!("u_ref at {k}"));
         }
-        // the pairs' U drawn too (d_ab closed over the positions both report): the
-        // formula's, which the weighted mean's draws reproduce
+        // the pairs' U drawn too (d_ab closed over the positions both report): 2√diag of
+        // the pair's closed covariance
         assert!(drawn.notes.iter().any(|n| n.contains("the pairs' U too")));
-        for (f, m) in formula.pairs.iter().zip(&drawn.pairs) {
-            for (k, (u_f, u_m)) in f.expanded_u.iter().zip(&m.expanded_u).enumerate() {
-                assert_eq!(u_f.is_nan(), u_m.is_nan(), "{}–{} at {k}", f.a, f.b);
-                if u_f.is_finite() {
-                    let ratio = u_m / u_f;
-                    assert!(
-                        (ratio - 1.0).abs() < 0.05,
-                        "{}–{} at {k}: {ratio}",
-                        f.a,
-                        f.b
-                    );
-                }
+        for m in &drawn.pairs {
+            let a = data.names.iter().position(|n| *n == m.a).unwrap();
+            let b = data.names.iter().position(|n| *n == m.b).unwrap();
+            let (cov, common) = pair_covariance(&data, a, b);
+            for (k, &u_m) in m.expanded_u.iter().enumerate() {
+                let u_f = match common.iter().position(|&q| q == k) {
+                    Some(j) if common.len() >= 2 => 2.0 * cov[(j, j)].sqrt(),
+                    _ => f64::NAN,
+                };
+                ratio_ok(u_m, u_f, &format!("{}–{} at {k}", m.a, m.b));
             }
         }
     }
