@@ -55,6 +55,7 @@ mod kc_encoder_subsets_rates;
 mod kc_link_rates;
 mod kc_pairs_motion;
 mod kc_rates;
+mod kc_understated_rates;
 mod monte_carlo;
 mod plan;
 #[cfg(feature = "cli")]
