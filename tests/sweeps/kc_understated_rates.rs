@@ -5,6 +5,8 @@
 //! (blocks: 4, each missed with probability 0.2; encoder: 12 positions, likewise), and the
 //! same comparisons with the u stated right, where it should (nearly) never be said.
 //!
+//! And the pilot's test of the artefact's stability for those quantities.
+//!
 //! `cargo test --test sweeps kc_understated_rates:: -- --nocapture` prints the figures.
 
 use crate::kc_support::blocks::block_comparison;
@@ -103,4 +105,87 @@ fn kc_understated_uncertainties_of_encoder_errors_at_different_positions() {
     assert!(half <= 0.3, "{half}");
     assert!(withheld >= 0.2, "{withheld}");
     assert!(right <= 0.01, "{right}");
+}
+
+/// The pilot's repeats of angle blocks and of encoder errors (3 repeats reporting every
+/// block or position, the pilot's u 0.05–0.2″) beside 6–10 laboratories: the artefact is
+/// called unstable (`pilot.vector` fails) in 5 % ± 1.5 % of comparisons of a stable
+/// artefact, and found when the last repeat is 4u off on one block or three positions.
+#[test]
+fn kc_pilot_repeats_of_blocks_and_encoder_errors_keep_their_rate() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5512);
+    let named = |mut results: Vec<LabResult>| {
+        for (r, name) in results.iter_mut().zip(["start", "middle", "end"]) {
+            r.name = name.to_string();
+        }
+        results
+    };
+    let blocks = KcOptions::new().with_quantity(Quantity::AngleBlock);
+    let encoder = KcOptions::new().with_quantity(Quantity::EncoderError);
+    let design = |labs: usize, missing: f64| Design {
+        positions: 12,
+        labs,
+        missing,
+        missing_count: None,
+        u_range: (0.05, 0.2),
+        equal_u: false,
+        closed_noise: true,
+    };
+    let trials = 4000;
+    let unstable = |kc: &polycal::kc::KeyComparison| {
+        !kc.pilot
+            .as_ref()
+            .and_then(|p| p.vector.as_ref())
+            .is_some_and(|v| v.consistent)
+    };
+    let (mut blocks_fa, mut blocks_found, mut encoder_fa, mut encoder_found) = (0, 0, 0, 0);
+    for trial in 0..trials {
+        let moved = trial % 2 == 1;
+        let labs = rng.random_range(6..=10);
+        // angle blocks: the last repeat 4u off on block 2 when the artefact moved
+        let lab_results = block_comparison(&mut rng, 4, labs, 0.2, None).results();
+        let mut repeats = block_comparison(&mut rng, 4, 3, 0.0, None);
+        if moved {
+            let u = repeats.u[2][1];
+            if let Some(x) = repeats.x[2][1].as_mut() {
+                *x += 4.0 * u;
+            }
+        }
+        let kc = evaluate(&lab_results, &named(repeats.results()), &blocks).unwrap();
+        match moved {
+            false => blocks_fa += usize::from(unstable(&kc)),
+            true => blocks_found += usize::from(unstable(&kc)),
+        }
+        // encoder errors at different positions: the last repeat 4u off on 3 positions
+        let lab_results = draw(&mut rng, design(labs, 0.2), None).results();
+        let mut repeats = draw(&mut rng, design(3, 0.0), None);
+        if moved {
+            for k in [1, 5, 9] {
+                let u = repeats.u[2][k];
+                if let Some(x) = repeats.x[2][k].as_mut() {
+                    *x += 4.0 * u;
+                }
+            }
+        }
+        let kc = evaluate(&lab_results, &named(repeats.results()), &encoder).unwrap();
+        match moved {
+            false => encoder_fa += usize::from(unstable(&kc)),
+            true => encoder_found += usize::from(unstable(&kc)),
+        }
+    }
+    let half = (trials / 2) as f64;
+    let rates = [blocks_fa, blocks_found, encoder_fa, encoder_found].map(|c| c as f64 / half);
+    println!(
+        "verdict kc pilot unstable: angle blocks false alarm {:.4}, power {:.3} (last repeat 4u \
+         off on one of 4 blocks); encoder errors at different positions false alarm {:.4}, \
+         power {:.3} (4u off on 3 of 12 positions); n = {} each",
+        rates[0],
+        rates[1],
+        rates[2],
+        rates[3],
+        trials / 2
+    );
+    assert!((rates[0] - 0.05).abs() <= 0.015, "{}", rates[0]);
+    assert!((rates[2] - 0.05).abs() <= 0.015, "{}", rates[2]);
+    assert!(rates[1] >= 0.5 && rates[3] >= 0.5, "{rates:?}");
 }
