@@ -174,9 +174,8 @@ pub(crate) fn fit_keeping(x: &[&[f64]], v: &[&ClosedCovariance], keep: bool) -> 
 /// A result that does not report a position has u = +∞ there (no weight): the fit is then
 /// of what is there, ν = Σ_i N_i − n − (K − 1) with N_i the positions result i reports and
 /// K those some result reports; a position no result reports has a reference of NaN, and
-/// the fit keeps what [`projected_variance`] needs.
-/// Keeping the pieces of [`projected_variance`] when `keep` (or when some
-/// result does not report some position).
+/// the fit keeps what [`projected_variance`] needs. The pieces of [`projected_variance`]
+/// are kept when `keep` too.
 fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit> {
     let (labs, faces) = (x.len(), x[0].len());
     let reported: Vec<usize> = (0..faces)
@@ -188,7 +187,7 @@ fn additive_keeping(x: &[&[f64]], u: &[&[f64]], keep: bool) -> Option<ClosedFit>
     }
     // results whose positions fall into groups sharing none: no one reference (the
     // system is singular, whatever rounding makes of it)
-    if reported.len() < 2 || (!complete && groups(u).len() > 1) {
+    if reported.len() < 2 || (!complete && super::positions::groups(u).len() > 1) {
         return None;
     }
     let mut w = Vec::with_capacity(labs);
@@ -298,103 +297,6 @@ fn closed_reference_variance(w: &[Vec<f64>], total: &[f64], m_inverse: &DMatrix<
     (0..faces)
         .map(|k| (diagonal[k] - 2.0 * row_sum[k] / n + grand / (n * n)).max(0.0))
         .collect()
-}
-
-/// Results closed each over its own positions, put on one level for per-position
-/// estimates: each less its mean difference from `reference` over the positions it reports
-/// (`reports(r, k)`) where the reference is given — the constant its closure over other
-/// positions put in. Without it the spread at a position would count the laboratories'
-/// different closures (the truth's mean over different positions) as disagreement.
-pub(crate) fn levelled(
-    values: &[Vec<f64>],
-    reports: impl Fn(usize, usize) -> bool,
-    reference: &[f64],
-) -> Vec<Vec<f64>> {
-    values
-        .iter()
-        .enumerate()
-        .map(|(r, x)| {
-            let at: Vec<usize> = (0..x.len())
-                .filter(|&k| reports(r, k) && reference[k].is_finite())
-                .collect();
-            let offset = if at.is_empty() {
-                0.0
-            } else {
-                at.iter().map(|&k| x[k] - reference[k]).sum::<f64>() / at.len() as f64
-            };
-            x.iter().map(|x| x - offset).collect()
-        })
-        .collect()
-}
-
-/// The results that report positions `reports[r][k]`, named `names[r]`, in the groups
-/// connected by the positions they share, each as `{A, B}`, joined by " and "; `None` when
-/// they are one group.
-pub(crate) fn groups_apart(reports: &[Vec<bool>], names: &[&str]) -> Option<String> {
-    let u: Vec<Vec<f64>> = reports
-        .iter()
-        .map(|r| {
-            r.iter()
-                .map(|&m| if m { 1.0 } else { f64::INFINITY })
-                .collect()
-        })
-        .collect();
-    let rows: Vec<&[f64]> = u.iter().map(Vec::as_slice).collect();
-    let found = groups(&rows);
-    (found.len() > 1).then(|| {
-        found
-            .iter()
-            .map(|g| {
-                let named: Vec<&str> = g.iter().map(|&r| names[r]).collect();
-                format!("{{{}}}", named.join(", "))
-            })
-            .collect::<Vec<_>>()
-            .join(" and ")
-    })
-}
-
-/// The results (by their standard uncertainties `u`, +∞ where one does not report a
-/// position) in groups connected by the positions they share: one group when a closed fit
-/// of them all can put them on one reference, each group's results ascending.
-pub(crate) fn groups(u: &[&[f64]]) -> Vec<Vec<usize>> {
-    let n = u.len();
-    let mut group: Vec<usize> = (0..n).collect();
-    fn root(group: &mut [usize], mut i: usize) -> usize {
-        while group[i] != i {
-            group[i] = group[group[i]];
-            i = group[i];
-        }
-        i
-    }
-    let faces = u.first().map_or(0, |u| u.len());
-    for k in 0..faces {
-        let mut first: Option<usize> = None;
-        for (i, u) in u.iter().enumerate() {
-            if !u[k].is_finite() {
-                continue;
-            }
-            match first {
-                None => first = Some(i),
-                Some(f) => {
-                    let (a, b) = (root(&mut group, f), root(&mut group, i));
-                    group[a.max(b)] = a.min(b);
-                }
-            }
-        }
-    }
-    let mut out: Vec<Vec<usize>> = Vec::new();
-    let mut at: Vec<Option<usize>> = vec![None; n];
-    for i in 0..n {
-        let r = root(&mut group, i);
-        match at[r] {
-            Some(g) => out[g].push(i),
-            None => {
-                at[r] = Some(out.len());
-                out.push(vec![i]);
-            }
-        }
-    }
-    out
 }
 
 /// The fit of the positions some result reports (`reported`, at least 2), those no result
@@ -629,9 +531,12 @@ mod tests {
             &[inf, inf, 0.1, 0.1],
             &[inf, 0.1, 0.1, 0.1],
         ];
-        assert_eq!(super::groups(&u), vec![vec![0, 1, 2, 3]]);
+        assert_eq!(super::super::positions::groups(&u), vec![vec![0, 1, 2, 3]]);
         let apart: [&[f64]; 4] = [u[0], u[1], u[2], &[inf, inf, 0.1, 0.1]];
-        assert_eq!(super::groups(&apart), vec![vec![0, 1], vec![2, 3]]);
+        assert_eq!(
+            super::super::positions::groups(&apart),
+            vec![vec![0, 1], vec![2, 3]]
+        );
         let x: [&[f64]; 4] = [&[0.0; 4], &[0.0; 4], &[0.0; 4], &[0.0; 4]];
         assert!(super::additive_keeping(&x, &apart, false).is_none());
         assert!(super::additive_keeping(&x, &u, false).is_some());

@@ -119,7 +119,7 @@ fn connected(
     };
     let names: Vec<&str> = among.iter().map(|&r| labs[r].name.as_str()).collect();
     let rows: Vec<Vec<bool>> = among.iter().map(|&r| measured[r].clone()).collect();
-    match super::closed::groups_apart(&rows, &names) {
+    match super::positions::groups_apart(&rows, &names) {
         Some(groups) => Err(KcError::PositionsApart { quantity, groups }),
         None => Ok(()),
     }
@@ -165,8 +165,9 @@ fn estimates(
     fitted: &[f64],
 ) -> Vec<Estimate> {
     // closed over different positions: on one level first (`closed::levelled`)
-    let levelled = (scaled.closed && scaled.measured.is_some())
-        .then(|| super::closed::levelled(&scaled.values, |r, k| scaled.is_measured(r, k), fitted));
+    let levelled = (scaled.closed && scaled.measured.is_some()).then(|| {
+        super::positions::levelled(&scaled.values, |r, k| scaled.is_measured(r, k), fitted)
+    });
     let values = levelled.as_ref().unwrap_or(&scaled.values);
     (0..scaled.positions)
         .map(|k| {

@@ -397,8 +397,6 @@ pub(crate) fn encoder_reported(results: &[&LabResult], labs: usize) -> Result<Al
     encoder_lined_up(results, Some(labs))
 }
 
-/// [`encoder`] (`labs` `None`: every result reports every position kept) or
-/// [`encoder_reported`] (`Some(labs)`).
 /// Every position of the encoder errors of `results` (by angle within
 /// [`ANGLE_TOLERANCE_DEG`] when `by_angle`, else by index), ascending, with the row of each
 /// result there; a result without encoder errors, or with two at one position, refused.
@@ -448,7 +446,8 @@ fn position_groups(results: &[&LabResult], by_angle: bool) -> Result<Vec<Group>,
 /// with one): with `labs` (a comparison; the pilot's repeats after them) a position is kept
 /// when at least two laboratories report it, and the repeats must report every position
 /// kept; without (a plain comparison of results) only positions in every result are kept.
-/// What is left out is named in a note.
+/// What is left out is named in a note. [`encoder`] is it with `labs` `None`,
+/// [`encoder_reported`] with `Some(labs)`.
 fn encoder_lined_up(results: &[&LabResult], labs: Option<usize>) -> Result<Aligned, KcError> {
     let by_angle = matched_by_angle(results)?;
     let groups = position_groups(results, by_angle)?;

@@ -143,7 +143,7 @@ fn reporting(
         .map(|j| (0..positions).map(|k| reports(j, k)).collect())
         .collect();
     let names: Vec<&str> = labs.iter().map(String::as_str).collect();
-    if let Some(groups) = super::closed::groups_apart(&reports, &names) {
+    if let Some(groups) = super::positions::groups_apart(&reports, &names) {
         return Err(KcError::Link(format!(
             "the linking laboratories fall into groups that share no position ({groups}): \
              their offsets cannot be put on one correction"

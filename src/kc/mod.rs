@@ -77,6 +77,7 @@ mod names;
 mod notes;
 mod nullable;
 mod pairs;
+mod positions;
 mod reference;
 mod scaled;
 mod search;

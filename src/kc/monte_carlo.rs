@@ -134,7 +134,7 @@ fn tau_of(model: &Model, y: &[Vec<f64>]) -> Vec<f64> {
     // closed over different positions: on one level first, as the comparison's estimates
     let levelled = model
         .uneven()
-        .then(|| super::closed::levelled(y, |r, k| model.reports(r, k), model.reference));
+        .then(|| super::positions::levelled(y, |r, k| model.reports(r, k), model.reference));
     let y = levelled.as_deref().unwrap_or(y);
     (0..positions)
         .map(|k| {

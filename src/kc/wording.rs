@@ -75,17 +75,6 @@ impl Wording {
         }
     }
 
-    /// A pair's test, as a noun.
-    pub fn pair_test(self) -> &'static str {
-        if self.blocks {
-            "blocks d_ij (over the blocks both report, ν their number)"
-        } else if self.uneven {
-            "closed vector d_ij over the M positions both report (ν = M − 1)"
-        } else {
-            "closed vector d_ij"
-        }
-    }
-
     /// The test `v` in words, as the text table and the DCC state it: the covariance used,
     /// χ², ν and χ²_0.95(ν) (two decimals, as the report states numbers without U) and the
     /// verdict, `consistent` or `not consistent`, without a final stop.
