@@ -11,10 +11,9 @@
 use std::path::Path;
 use std::process::Output;
 
-use scraper::{Html, Selector};
+use scraper::Selector;
 use serde_json::Value;
 
-use crate::dcc_schema::assert_valid;
 use crate::document_support::{polycal, temp_dir};
 
 const KC: &str = "examples/data/kc";
@@ -396,29 +395,8 @@ fn report_of_a_json_lines_file_has_every_section() {
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
-    let (html_path, dcc_path) = (dir.join("r.html"), dir.join("c.xml"));
-    let out = polycal(&[
-        "report",
-        "examples/data/polygon24-2ac-6cycles.csv",
-        "--budget",
-        "examples/budgets/instrument.toml",
-        "--meta",
-        "examples/report/meta.toml",
-        "--kc",
-        &kc_path,
-        "--out",
-        html_path.to_str().unwrap(),
-        "--dcc",
-        dcc_path.to_str().unwrap(),
-    ]);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert_valid(&dcc_path);
-    let html = Html::parse_document(&std::fs::read_to_string(&html_path).unwrap());
+    let (html, dcc) =
+        crate::document_support::report_with_kc(&dir, std::path::Path::new(&kc_path), &[]);
     let count = |css: &str| html.select(&Selector::parse(css).unwrap()).count();
     assert_eq!(count("section#key-comparison"), 0);
     for line in &lines {
@@ -443,7 +421,6 @@ fn report_of_a_json_lines_file_has_every_section() {
             );
         }
     }
-    let dcc = std::fs::read_to_string(&dcc_path).unwrap();
     assert_eq!(dcc.matches("refType=\"polycal_keyComparison\"").count(), 3);
     assert!(dcc.contains("Key comparison of the pitch_deviation"));
     assert!(dcc.contains("Key comparison of the encoder_error"));

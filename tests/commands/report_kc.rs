@@ -20,7 +20,6 @@ use sha2::{Digest, Sha256};
 
 use crate::document_support;
 
-use crate::dcc_schema::assert_valid;
 use crate::document_support::polycal;
 
 const DATA: &str = "examples/data/polygon24-2ac-6cycles.csv";
@@ -128,40 +127,9 @@ fn sha256_hex(bytes: &[u8]) -> String {
         .collect()
 }
 
-/// Runs `polycal report DATA --budget --meta --kc KC [extra] --out DIR/r.html --dcc
-/// DIR/c.xml`; returns the HTML and the DCC after asserting status 0 and validity.
+/// The report of the bundled run with `--kc kc` ([`document_support::report_with_kc`]).
 fn report(dir: &Path, kc: &Path, extra: &[&str]) -> (Html, String) {
-    let html_path = dir.join("r.html");
-    let dcc_path = dir.join("c.xml");
-    let mut args = vec![
-        "report",
-        DATA,
-        "--budget",
-        BUDGET,
-        "--meta",
-        META,
-        "--kc",
-        kc.to_str().unwrap(),
-    ];
-    args.extend_from_slice(extra);
-    args.extend_from_slice(&[
-        "--out",
-        html_path.to_str().unwrap(),
-        "--dcc",
-        dcc_path.to_str().unwrap(),
-    ]);
-    let out = polycal(&args);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert_valid(&dcc_path);
-    (
-        Html::parse_document(&std::fs::read_to_string(&html_path).unwrap()),
-        std::fs::read_to_string(&dcc_path).unwrap(),
-    )
+    document_support::report_with_kc(dir, kc, extra)
 }
 
 /// The key comparison's `dcc:result`.

@@ -168,8 +168,9 @@ pub fn block_comparison(
 
 /// The decision of docs/FORMAT.md §12 on angle blocks by brute force: the laboratories in
 /// the reference — all when the joint χ² of every one passes; else, from n − 1 down, the
-/// subset of the first size with one that passes, the passing one of the smallest χ²
-/// (ν differs between subsets of a size when laboratories miss blocks); all when none
+/// subset of the first size with one that passes, the most consistent passing one (the
+/// smaller χ² at one ν, the larger p-value where ν differs between subsets of a size, as
+/// when laboratories miss blocks; a subset with ν = 0 is no test); all when none
 /// passes, or when that subset leaves out more than half.
 pub fn block_largest_subset(x: &[Vec<Option<f64>>], u: &[Vec<f64>]) -> Vec<usize> {
     let labs = x.len();

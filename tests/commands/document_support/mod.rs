@@ -2,7 +2,7 @@
 //! `tests/commands/certificate_dcc.rs`) share: the binary run from the repository root, a
 //! fresh temporary directory, and a command's JSON.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use serde_json::Value;
@@ -88,4 +88,41 @@ pub fn assert_k_rounded(k_text: &str, k: f64, what: &str) {
         (shown_number(k_text) - k).abs() <= unit / 2.0 * (1.0 + 1e-9),
         "{what}: k {k_text} is not {k} rounded"
     );
+}
+
+/// `polycal report` of the bundled run (budget, metadata) with `--kc KC` and `extra`,
+/// its HTML into `dir/r.html` and its DCC into `dir/c.xml`: status 0 and the DCC valid
+/// against the schema asserted; the HTML parsed and the DCC's text returned.
+pub fn report_with_kc(dir: &Path, kc: &Path, extra: &[&str]) -> (scraper::Html, String) {
+    let html_path = dir.join("r.html");
+    let dcc_path = dir.join("c.xml");
+    let mut args = vec![
+        "report",
+        "examples/data/polygon24-2ac-6cycles.csv",
+        "--budget",
+        "examples/budgets/instrument.toml",
+        "--meta",
+        "examples/report/meta.toml",
+        "--kc",
+        kc.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&[
+        "--out",
+        html_path.to_str().unwrap(),
+        "--dcc",
+        dcc_path.to_str().unwrap(),
+    ]);
+    let out = polycal(&args);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    crate::dcc_schema::assert_valid(&dcc_path);
+    (
+        scraper::Html::parse_document(&std::fs::read_to_string(&html_path).unwrap()),
+        std::fs::read_to_string(&dcc_path).unwrap(),
+    )
 }
